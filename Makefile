@@ -1,0 +1,80 @@
+# surfd - one plain Makefile (STYLE.md §12).
+#   make            build/surfd (release)
+#   make run        install missing Debian packages, build, serve on 127.0.0.1:8080 (render CLI until the service lands)
+#   make test       sanitized unit and tracer tests; last line "N passed, N failed"
+#   make bench      benchmarks against POV-Ray and surfd's own mesh method -> tests/bench/RESULTS.md
+# Warnings are errors when CI=true (or WERROR=1).
+
+CC      ?= cc
+CXX     ?= c++
+B       := build
+VERSION := $(shell git describe --always --dirty 2>/dev/null || echo dev)
+
+WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes
+ifneq ($(filter true 1,$(CI) $(WERROR)),)
+WARN    += -Werror
+endif
+CSTD    := -std=c11 -D_DEFAULT_SOURCE
+OPT     ?= -O2 -g
+CFLAGS  := $(CSTD) $(OPT) $(WARN) -MMD -MP -DSURFD_VERSION='"$(VERSION)"'
+CXXFLAGS:= -std=c++17 $(OPT) -Wall -Wextra -MMD -MP
+SAN     := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
+
+CORE_LIBS := -lembree3 -lm
+API_LIBS  := -ljansson
+IMG_LIBS  := -lOpenImageIO -lOpenImageIO_Util -lstdc++
+
+CORE_SRC   := $(wildcard core/*.c)
+API_SRC    := api/scene_json.c api/scene_text.c
+DAEMON_SRC := $(wildcard daemon/*.c)
+TEST_SRC   := $(wildcard tests/core/test_*.c) $(wildcard tests/api/test_*.c)
+
+obj = $(patsubst %.c,$(B)/$(1)/%.o,$(2))
+
+REL_CORE := $(call obj,rel,$(CORE_SRC))
+REL_API  := $(call obj,rel,$(API_SRC))
+REL_DMN  := $(call obj,rel,$(DAEMON_SRC))
+SAN_CORE := $(call obj,san,$(CORE_SRC))
+SAN_API  := $(call obj,san,$(API_SRC))
+TESTS    := $(patsubst tests/%.c,$(B)/tests/%,$(TEST_SRC))
+
+.PHONY: all run test bench clean deps
+all: $(B)/surfd
+
+deps:
+	@deploy/install-deps.sh
+
+$(B)/rel/%.o: %.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) -c $< -o $@
+$(B)/san/%.o: %.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(SAN) -c $< -o $@
+$(B)/rel/api/image_oiio.o: api/image_oiio.cpp
+	@mkdir -p $(@D)
+	$(CXX) $(CXXFLAGS) -c $< -o $@
+
+$(B)/surfd: $(REL_DMN) $(REL_API) $(B)/rel/api/image_oiio.o $(REL_CORE)
+	$(CC) $(OPT) -o $@ $^ $(IMG_LIBS) $(API_LIBS) $(CORE_LIBS) -lpthread
+
+# unit tests link core/ (and the scene readers), never OpenImageIO
+$(B)/tests/%: tests/%.c tests/unit.h $(SAN_CORE) $(SAN_API)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(SAN) -o $@ $< $(SAN_CORE) $(SAN_API) $(API_LIBS) $(CORE_LIBS)
+
+run: deps $(B)/surfd
+	@mkdir -p var
+	@echo "surfd: the HTTP service arrives with issue 4; rendering the teapot to var/teapot.png"
+	$(B)/surfd render ../shared/data/scenes/teapot.json -o var/teapot.png --stats
+
+test: deps $(B)/surfd $(TESTS)
+	@tests/run.sh $(TESTS)
+
+bench: $(B)/surfd
+	@deploy/install-deps.sh --bench
+	@tests/bench/run.sh
+
+clean:
+	rm -rf $(B)
+
+-include $(shell find $(B) -name '*.d' 2>/dev/null)

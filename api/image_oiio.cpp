@@ -1,0 +1,106 @@
+// image_oiio.cpp - the only C++ in surfd's image path: frame buffers to PNG/EXR/TIFF bytes with
+// OpenImageIO writing into memory (Filesystem::IOVecOutput). PNG uses zlib level 1 with the
+// sub filter: on rendered images it is within a few per cent of the default size at several
+// times the speed, so encoding stays a small part of a frame (tests/bench/RESULTS.md).
+#include "image.h"
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <vector>
+
+using namespace OIIO;
+
+static unsigned char to_srgb8(float c)
+{
+    if (!(c > 0.0f))
+        return 0;
+    if (c >= 1.0f)
+        return 255;
+    float s = c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
+    return (unsigned char)std::lround(s * 255.0f);
+}
+
+static int write(const char *ext, ImageSpec &spec, const void *pixels, unsigned char **out, size_t *out_len,
+                 struct sf_err *err)
+{
+    std::vector<unsigned char> bytes;
+    Filesystem::IOVecOutput proxy(bytes);
+    auto o = ImageOutput::create(std::string("mem") + ext, &proxy);
+    if (!o)
+        return sf_fail(err, SF_EBACKEND, "", "OpenImageIO has no %s writer", ext);
+    if (!o->open(std::string("mem") + ext, spec) || !o->write_image(spec.format, pixels) || !o->close())
+        return sf_fail(err, SF_EBACKEND, "", "OpenImageIO: %s", o->geterror().c_str());
+    *out = (unsigned char *)std::malloc(bytes.size() ? bytes.size() : 1);
+    if (!*out)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory for the image");
+    std::memcpy(*out, bytes.data(), bytes.size());
+    *out_len = bytes.size();
+    return 0;
+}
+
+extern "C" int image_encode(const struct frame_image *img, enum image_format fmt, unsigned char **out,
+                            size_t *out_len, struct sf_err *err)
+{
+    *out = nullptr;
+    *out_len = 0;
+    const size_t n = (size_t)img->width * img->height;
+    try {
+        if (fmt == IMG_PNG) {
+            std::vector<unsigned char> px(n * 4);
+            for (size_t k = 0; k < n; k++) {
+                for (int c = 0; c < 3; c++)
+                    px[4 * k + c] = to_srgb8(img->rgba[4 * k + c]);
+                px[4 * k + 3] = 255; // the background is part of the picture
+            }
+            ImageSpec spec(img->width, img->height, 4, TypeDesc::UINT8);
+            spec.attribute("png:compressionLevel", 1);
+            spec.attribute("compression", "zip:1");
+            spec.attribute("png:filter", 8 /* PNG_FILTER_SUB */);
+            spec.attribute("oiio:ColorSpace", "sRGB");
+            return write(".png", spec, px.data(), out, out_len, err);
+        }
+        if (fmt == IMG_TIFF) {
+            std::vector<unsigned short> px(n * 4);
+            for (size_t k = 0; k < 4 * n; k++)
+                px[k] = (unsigned short)std::lround(std::fmin(std::fmax(img->rgba[k], 0.0f), 1.0f) * 65535.0f);
+            ImageSpec spec(img->width, img->height, 4, TypeDesc::UINT16);
+            spec.attribute("oiio:ColorSpace", "linear");
+            spec.attribute("compression", "zip");
+            return write(".tif", spec, px.data(), out, out_len, err);
+        }
+        // EXR: R G B A Z, then the AOVs asked for, interleaved float32
+        std::vector<std::string> names = {"R", "G", "B", "A", "Z"};
+        if (img->normal)
+            names.insert(names.end(), {"N.x", "N.y", "N.z"});
+        if (img->uv)
+            names.insert(names.end(), {"u", "v"});
+        if (img->id)
+            names.push_back("id");
+        const size_t nc = names.size();
+        std::vector<float> px(n * nc);
+        for (size_t k = 0; k < n; k++) {
+            float *p = &px[k * nc];
+            std::memcpy(p, &img->rgba[4 * k], 4 * sizeof(float));
+            p[4] = img->depth[k];
+            size_t c = 5;
+            if (img->normal)
+                std::memcpy(p + c, &img->normal[3 * k], 3 * sizeof(float)), c += 3;
+            if (img->uv)
+                std::memcpy(p + c, &img->uv[2 * k], 2 * sizeof(float)), c += 2;
+            if (img->id)
+                p[c] = img->id[k];
+        }
+        ImageSpec spec(img->width, img->height, (int)nc, TypeDesc::FLOAT);
+        spec.channelnames = names;
+        spec.alpha_channel = 3;
+        spec.z_channel = 4;
+        spec.attribute("compression", "zip");
+        return write(".exr", spec, px.data(), out, out_len, err);
+    } catch (const std::exception &e) {
+        return sf_fail(err, SF_EBACKEND, "", "OpenImageIO: %s", e.what());
+    }
+}

@@ -1,0 +1,36 @@
+/* scene_io.h - request bodies to struct scene: the JSON scene of API.md (with JSON pointers in
+ * every error), Newell's .bpt patch files and VRML97 NurbsSurface fragments, as users have them.
+ * Unparsable input fails with SF_EFORMAT (HTTP 400), parsable but invalid with SF_EINVAL or
+ * SF_ELIMIT (422). On success the caller owns the scene (scene_free()); on failure nothing is
+ * left to free. */
+#ifndef SURFD_SCENE_IO_H
+#define SURFD_SCENE_IO_H
+
+#include <stddef.h>
+
+#include "../core/err.h"
+#include "../core/scene.h"
+
+#define SCENE_MAX_BODY (256u << 20) /* bytes of scene text read at most */
+
+enum image_format { IMG_PNG, IMG_EXR, IMG_TIFF };
+
+enum scene_format { SCENE_JSON, SCENE_BPT, SCENE_VRML, SCENE_UNKNOWN };
+
+/* "json", "bpt", "nurbs"/"vrml" -> enum; NULL or "" -> SCENE_UNKNOWN (sniff the body). */
+enum scene_format scene_format_parse(const char *name);
+/* Guesses the format from the first bytes. */
+enum scene_format scene_format_sniff(const char *buf, size_t len);
+
+/* Parses buf as fmt (SCENE_UNKNOWN: sniffed). *img receives image.format (PNG by default). */
+int scene_parse(const char *buf, size_t len, enum scene_format fmt, struct scene *sc, enum image_format *img,
+                struct sf_err *err);
+
+int scene_parse_json(const char *buf, size_t len, struct scene *sc, enum image_format *img, struct sf_err *err);
+int scene_parse_bpt(const char *buf, size_t len, struct scene *sc, struct sf_err *err);
+int scene_parse_vrml(const char *buf, size_t len, struct scene *sc, struct sf_err *err);
+
+int image_format_parse(const char *name, enum image_format *f);
+const char *image_format_mime(enum image_format f);
+
+#endif

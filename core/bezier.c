@@ -1,0 +1,167 @@
+/* bezier.c - evaluation, subdivision and bounds of homogeneous Bézier patches.
+ * Evaluation uses the Bernstein basis computed by the de Casteljau triangle, which is
+ * stable for every degree up to PATCH_MAX_DEGREE; derivatives come from the degree-(n-1)
+ * basis (B'_i = n (B^{n-1}_{i-1} - B^{n-1}_i)). */
+#include "bezier.h"
+
+#include <string.h>
+
+/* Bernstein basis of degree n at t into B[0..n] (triangular recurrence). */
+static void basis_only(int n, double t, double *B)
+{
+    double s = 1.0 - t;
+    B[0] = 1.0;
+    for (int k = 1; k <= n; k++) {
+        double saved = 0.0;
+        for (int i = 0; i < k; i++) {
+            double tmp = B[i];
+            B[i] = saved + s * tmp;
+            saved = t * tmp;
+        }
+        B[k] = saved;
+    }
+}
+
+void bezier_basis(int n, double t, double *B, double *dB)
+{
+    if (!dB) {
+        basis_only(n, t, B);
+        return;
+    }
+    if (n == 0) {
+        B[0] = 1.0;
+        dB[0] = 0.0;
+        return;
+    }
+    double Bm[PATCH_MAX_DEGREE + 1];
+    basis_only(n - 1, t, Bm);
+    /* degree n from degree n-1 by one more recurrence step */
+    double s = 1.0 - t, saved = 0.0;
+    for (int i = 0; i < n; i++) {
+        B[i] = saved + s * Bm[i];
+        saved = t * Bm[i];
+    }
+    B[n] = saved;
+    dB[0] = -n * Bm[0];
+    for (int i = 1; i < n; i++)
+        dB[i] = n * (Bm[i - 1] - Bm[i]);
+    dB[n] = n * Bm[n - 1];
+}
+
+void bezier_eval_h(const struct patch *pt, double u, double v, double S[4], double Su[4], double Sv[4])
+{
+    const int p = pt->p, q = pt->q;
+    double Bu[PATCH_MAX_DEGREE + 1], dBu[PATCH_MAX_DEGREE + 1];
+    double Bv[PATCH_MAX_DEGREE + 1], dBv[PATCH_MAX_DEGREE + 1];
+    bool deriv = Su || Sv;
+    bezier_basis(p, u, Bu, deriv ? dBu : NULL);
+    bezier_basis(q, v, Bv, deriv ? dBv : NULL);
+
+    double s[4] = {0}, su[4] = {0}, sv[4] = {0};
+    double(*cw)[4] = pt->cw;
+    for (int i = 0; i <= p; i++) {
+        /* row i contracted with the v basis: C = sum_j Bv_j P_ij, Cv = sum_j dBv_j P_ij */
+        double c[4] = {0}, cv[4] = {0};
+        for (int j = 0; j <= q; j++) {
+            const double *P = cw[i * (q + 1) + j];
+            for (int k = 0; k < 4; k++) {
+                c[k] += Bv[j] * P[k];
+                if (deriv)
+                    cv[k] += dBv[j] * P[k];
+            }
+        }
+        for (int k = 0; k < 4; k++) {
+            s[k] += Bu[i] * c[k];
+            if (deriv) {
+                su[k] += dBu[i] * c[k];
+                sv[k] += Bu[i] * cv[k];
+            }
+        }
+    }
+    memcpy(S, s, sizeof s);
+    if (Su)
+        memcpy(Su, su, sizeof su);
+    if (Sv)
+        memcpy(Sv, sv, sizeof sv);
+}
+
+void bezier_eval(const struct patch *pt, double u, double v, vec3 *P, vec3 *Pu, vec3 *Pv)
+{
+    double S[4], Su[4], Sv[4];
+    bezier_eval_h(pt, u, v, S, (Pu || Pv) ? Su : NULL, (Pu || Pv) ? Sv : NULL);
+    double iw = 1.0 / S[3];
+    vec3 p = v3(S[0] * iw, S[1] * iw, S[2] * iw);
+    if (P)
+        *P = p;
+    /* quotient rule: d(S/w) = (dS - p dw) / w */
+    if (Pu)
+        *Pu = v3((Su[0] - p.x * Su[3]) * iw, (Su[1] - p.y * Su[3]) * iw, (Su[2] - p.z * Su[3]) * iw);
+    if (Pv)
+        *Pv = v3((Sv[0] - p.x * Sv[3]) * iw, (Sv[1] - p.y * Sv[3]) * iw, (Sv[2] - p.z * Sv[3]) * iw);
+}
+
+bool bezier_normal(const struct patch *pt, double u, double v, vec3 *n)
+{
+    /* Steps toward the patch centre, growing until the cross product is no longer
+     * degenerate; 1e-9 is far below any visible shading change. */
+    static const double NORMAL_EPS = 1e-24; /* |Pu × Pv|² below this counts as collapsed */
+    double du = u < 0.5 ? 1.0 : -1.0, dv = v < 0.5 ? 1.0 : -1.0;
+    for (double h = 0.0; h < 0.5; h = h == 0.0 ? 1e-9 : h * 8.0) {
+        vec3 Pu, Pv;
+        bezier_eval(pt, u + du * h, v + dv * h, NULL, &Pu, &Pv);
+        vec3 c = v3_cross(Pu, Pv);
+        if (v3_dot(c, c) > NORMAL_EPS) {
+            *n = v3_norm(c);
+            return true;
+        }
+    }
+    return false;
+}
+
+/* de Casteljau split of n+1 points spaced by stride; writes lo and hi with the same stride. */
+static void split_line(double (*src)[4], int n, int stride, double t, double (*lo)[4], double (*hi)[4])
+{
+    double tmp[PATCH_MAX_DEGREE + 1][4];
+    for (int i = 0; i <= n; i++)
+        memcpy(tmp[i], src[i * stride], sizeof tmp[i]);
+    for (int r = 0; r <= n; r++) {
+        memcpy(lo[r * stride], tmp[0], sizeof tmp[0]);
+        memcpy(hi[(n - r) * stride], tmp[n - r], sizeof tmp[0]);
+        for (int i = 0; i < n - r; i++)
+            for (int k = 0; k < 4; k++)
+                tmp[i][k] = (1.0 - t) * tmp[i][k] + t * tmp[i + 1][k];
+    }
+}
+
+void bezier_split_u(const struct patch *pt, double t, double (*lo)[4], double (*hi)[4])
+{
+    for (int j = 0; j <= pt->q; j++)
+        split_line(pt->cw + j, pt->p, pt->q + 1, t, lo + j, hi + j);
+}
+
+void bezier_split_v(const struct patch *pt, double t, double (*lo)[4], double (*hi)[4])
+{
+    for (int i = 0; i <= pt->p; i++) {
+        int o = i * (pt->q + 1);
+        split_line(pt->cw + o, pt->q, 1, t, lo + o, hi + o);
+    }
+}
+
+vec3 bezier_point(const struct patch *pt, int i, int j)
+{
+    const double *c = pt->cw[i * (pt->q + 1) + j];
+    return v3(c[0] / c[3], c[1] / c[3], c[2] / c[3]);
+}
+
+void bezier_bounds(const struct patch *pt, vec3 *lo, vec3 *hi)
+{
+    vec3 a = bezier_point(pt, 0, 0), b = a;
+    for (int i = 0; i <= pt->p; i++)
+        for (int j = 0; j <= pt->q; j++) {
+            vec3 c = bezier_point(pt, i, j);
+            a = v3_min(a, c);
+            b = v3_max(b, c);
+        }
+    *lo = a;
+    *hi = b;
+}

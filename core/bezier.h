@@ -1,0 +1,50 @@
+/* bezier.h - tensor-product (rational) Bézier patches in homogeneous form: the one shape the
+ * tracer, the tessellator and the volume integrator work on. B-splines and NURBS reach it by
+ * Bézier extraction (nurbs.h); polynomial patches carry w = 1 and are flagged so the hot
+ * paths can skip the division.
+ *
+ * Control point (i, j), i along u, j along v, lives at cw[i*(q+1)+j] = (x·w, y·w, z·w, w). */
+#ifndef SURFD_BEZIER_H
+#define SURFD_BEZIER_H
+
+#include <stdbool.h>
+
+#include "vec.h"
+
+#define PATCH_MAX_DEGREE 24 /* bounds every stack array below; higher degrees are refused */
+
+struct patch {
+    int p, q;            /* degrees along u and v */
+    bool rational;       /* false: every w is 1 */
+    double (*cw)[4];     /* (p+1)(q+1) homogeneous control points; owned by the patch set */
+    int surface;         /* index of the scene object this patch came from */
+    double u0, u1;       /* the patch's span in the object's own parameters (for uv output) */
+    double v0, v1;
+};
+
+/* Bernstein basis of degree n at t and its derivative: B[0..n], dB[0..n] (dB may be NULL). */
+void bezier_basis(int n, double t, double *B, double *dB);
+
+/* Point and first derivatives in homogeneous space (any argument after S may be NULL). */
+void bezier_eval_h(const struct patch *pt, double u, double v, double S[4], double Su[4], double Sv[4]);
+
+/* Euclidean point and first derivatives (rational quotient rule applied). */
+void bezier_eval(const struct patch *pt, double u, double v, vec3 *P, vec3 *Pu, vec3 *Pv);
+
+/* Unit normal Pu × Pv; where that vanishes (a collapsed edge, as at the teapot's lid) the
+ * normal is taken a little way inside the patch. Returns false if none can be found. */
+bool bezier_normal(const struct patch *pt, double u, double v, vec3 *n);
+
+/* Splits the control net at u = t into lo (u in [0,t]) and hi (u in [t,1]), by de Casteljau.
+ * lo and hi must hold (p+1)(q+1) points each; src may alias neither. */
+void bezier_split_u(const struct patch *pt, double t, double (*lo)[4], double (*hi)[4]);
+void bezier_split_v(const struct patch *pt, double t, double (*lo)[4], double (*hi)[4]);
+
+/* Axis-aligned box of the Euclidean control points: contains the patch (convex hull
+ * property, weights positive). */
+void bezier_bounds(const struct patch *pt, vec3 *lo, vec3 *hi);
+
+/* Euclidean control point (i, j). */
+vec3 bezier_point(const struct patch *pt, int i, int j);
+
+#endif

@@ -1,0 +1,424 @@
+/* bvh.c - Embree 3 scenes for the exact tracer and the mesh reference.
+ *
+ * Exact: every patch is split (de Casteljau) until its control net is flat; each leaf is an
+ * Embree user primitive with the control hull's box as bounds. The intersect callback seeds
+ * Newton–Cramer (seed 000 eq. 10–13) from the ray's hit on the two triangles through the leaf's
+ * corners and accepts a root only inside the leaf's parameter box (with SOLVE_BOX_EPS slack),
+ * so each root is found by the leaf that owns it and none slips between leaves. Embree traces
+ * in float; the double ray and the double hit ride along in the intersect context. */
+#include "bvh.h"
+
+#include <embree3/rtcore.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "tess.h"
+
+#define LEAF_FLAT_REL 0.05  /* leaf is flat when its net deviates < 5 % of its size ...       */
+#define LEAF_MAX_DEPTH 14   /* ... or after this many splits; trades leaves for Newton starts */
+
+struct bvh_device {
+    RTCDevice dev;
+};
+
+struct leaf {
+    int patch;
+    double u0, u1, v0, v1;  /* parameter box in the patch */
+    vec3 lo, hi;            /* control hull box */
+    vec3 c00, c10, c01, c11; /* corner points: the Newton seed comes from them */
+};
+
+struct bvh {
+    RTCScene scene;
+    const struct patch *patches;
+    double tol2;
+    /* exact */
+    struct leaf *leaves;
+    size_t n_leaves, cap_leaves;
+    /* mesh */
+    struct tess mesh;
+};
+
+/* Rides along with every Embree query. ctx must stay first. */
+struct query {
+    struct RTCIntersectContext ctx;
+    const struct bvh *b;
+    const struct dray *r;
+    double tnear;
+    struct bvh_hit *hit;   /* NULL for occlusion queries */
+    double best_t;
+    long iters;
+    bool found;
+};
+
+struct bvh_device *bvh_device_new(int n_threads, struct sf_err *err)
+{
+    struct bvh_device *d = calloc(1, sizeof *d);
+    if (!d) {
+        sf_fail(err, SF_ENOMEM, "", "out of memory");
+        return NULL;
+    }
+    char cfg[64];
+    snprintf(cfg, sizeof cfg, "threads=%d,set_affinity=0", n_threads > 0 ? n_threads : 0);
+    d->dev = rtcNewDevice(cfg);
+    if (!d->dev) {
+        free(d);
+        sf_fail(err, SF_EBACKEND, "", "Embree device: error %d", (int)rtcGetDeviceError(NULL));
+        return NULL;
+    }
+    return d;
+}
+
+void bvh_device_free(struct bvh_device *d)
+{
+    if (!d)
+        return;
+    rtcReleaseDevice(d->dev);
+    free(d);
+}
+
+size_t bvh_n_leaves(const struct bvh *b) { return b->n_leaves; }
+
+void bvh_free(struct bvh *b)
+{
+    if (!b)
+        return;
+    if (b->scene)
+        rtcReleaseScene(b->scene);
+    free(b->leaves);
+    tess_free(&b->mesh);
+    free(b);
+}
+
+/* ---- exact: leaves -------------------------------------------------------------------- */
+
+/* Largest distance of a control point from the bilinear through the corners, and the net's
+ * second differences along u and v (to choose the split direction). */
+static double net_deviation(const struct patch *pt, double *curv_u, double *curv_v)
+{
+    int p = pt->p, q = pt->q;
+    vec3 c00 = bezier_point(pt, 0, 0), c10 = bezier_point(pt, p, 0);
+    vec3 c01 = bezier_point(pt, 0, q), c11 = bezier_point(pt, p, q);
+    double dev = 0.0, cu = 0.0, cv = 0.0;
+    for (int i = 0; i <= p; i++)
+        for (int j = 0; j <= q; j++) {
+            double s = (double)i / p, t = (double)j / q;
+            vec3 bl = v3_add(v3_add(v3_scale(c00, (1 - s) * (1 - t)), v3_scale(c10, s * (1 - t))),
+                             v3_add(v3_scale(c01, (1 - s) * t), v3_scale(c11, s * t)));
+            vec3 c = bezier_point(pt, i, j);
+            dev = fmax(dev, v3_len(v3_sub(c, bl)));
+            if (i + 2 <= p)
+                cu = fmax(cu, v3_len(v3_add(v3_sub(c, v3_scale(bezier_point(pt, i + 1, j), 2)), bezier_point(pt, i + 2, j))));
+            if (j + 2 <= q)
+                cv = fmax(cv, v3_len(v3_add(v3_sub(c, v3_scale(bezier_point(pt, i, j + 1), 2)), bezier_point(pt, i, j + 2))));
+        }
+    *curv_u = cu;
+    *curv_v = cv;
+    return dev;
+}
+
+static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1)
+{
+    if (b->n_leaves == b->cap_leaves) {
+        size_t nc = b->cap_leaves ? 2 * b->cap_leaves : 256;
+        struct leaf *nl = realloc(b->leaves, sizeof *nl * nc);
+        if (!nl)
+            return SF_ENOMEM;
+        b->leaves = nl;
+        b->cap_leaves = nc;
+    }
+    struct leaf *l = &b->leaves[b->n_leaves++];
+    l->patch = patch;
+    l->u0 = u0, l->u1 = u1, l->v0 = v0, l->v1 = v1;
+    bezier_bounds(sub, &l->lo, &l->hi);
+    l->c00 = bezier_point(sub, 0, 0);
+    l->c10 = bezier_point(sub, sub->p, 0);
+    l->c01 = bezier_point(sub, 0, sub->q);
+    l->c11 = bezier_point(sub, sub->p, sub->q);
+    return 0;
+}
+
+static int subdivide(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
+                     int depth)
+{
+    double cu, cv;
+    vec3 lo, hi;
+    bezier_bounds(sub, &lo, &hi);
+    double size = v3_len(v3_sub(hi, lo));
+    double dev = net_deviation(sub, &cu, &cv);
+    if (dev <= LEAF_FLAT_REL * size || depth >= LEAF_MAX_DEPTH)
+        return add_leaf(b, sub, patch, u0, u1, v0, v1);
+
+    size_t n_pts = (size_t)(sub->p + 1) * (sub->q + 1);
+    double(*net)[4] = malloc(sizeof *net * 2 * n_pts);
+    if (!net)
+        return SF_ENOMEM;
+    struct patch lo_p = *sub, hi_p = *sub;
+    lo_p.cw = net;
+    hi_p.cw = net + n_pts;
+    int rc;
+    if (cu >= cv) {
+        bezier_split_u(sub, 0.5, lo_p.cw, hi_p.cw);
+        double um = 0.5 * (u0 + u1);
+        rc = subdivide(b, &lo_p, patch, u0, um, v0, v1, depth + 1);
+        if (!rc)
+            rc = subdivide(b, &hi_p, patch, um, u1, v0, v1, depth + 1);
+    } else {
+        bezier_split_v(sub, 0.5, lo_p.cw, hi_p.cw);
+        double vm = 0.5 * (v0 + v1);
+        rc = subdivide(b, &lo_p, patch, u0, u1, v0, vm, depth + 1);
+        if (!rc)
+            rc = subdivide(b, &hi_p, patch, u0, u1, vm, v1, depth + 1);
+    }
+    free(net);
+    return rc;
+}
+
+/* ---- exact: callbacks ----------------------------------------------------------------- */
+
+static void leaf_bounds(const struct RTCBoundsFunctionArguments *args)
+{
+    const struct bvh *b = args->geometryUserPtr;
+    const struct leaf *l = &b->leaves[args->primID];
+    /* widen by a relative epsilon so float rounding never cuts the hull */
+    double pad = 1e-6 * v3_len(v3_sub(l->hi, l->lo)) + 1e-9;
+    args->bounds_o->lower_x = nextafterf((float)(l->lo.x - pad), -INFINITY);
+    args->bounds_o->lower_y = nextafterf((float)(l->lo.y - pad), -INFINITY);
+    args->bounds_o->lower_z = nextafterf((float)(l->lo.z - pad), -INFINITY);
+    args->bounds_o->upper_x = nextafterf((float)(l->hi.x + pad), INFINITY);
+    args->bounds_o->upper_y = nextafterf((float)(l->hi.y + pad), INFINITY);
+    args->bounds_o->upper_z = nextafterf((float)(l->hi.z + pad), INFINITY);
+}
+
+/* Ray against triangle (a, b, c): barycentrics (b1, b2) of the ray's plane hit, unclamped.
+ * Returns false when the ray is parallel to the triangle. */
+static bool tri_bary(const struct dray *r, vec3 a, vec3 b, vec3 c, double *b1, double *b2)
+{
+    vec3 e1 = v3_sub(b, a), e2 = v3_sub(c, a);
+    vec3 pv = v3_cross(r->d, e2);
+    double det = v3_dot(e1, pv);
+    if (fabs(det) < 1e-300)
+        return false;
+    vec3 tv = v3_sub(r->o, a);
+    vec3 qv = v3_cross(tv, e1);
+    *b1 = v3_dot(tv, pv) / det;
+    *b2 = v3_dot(r->d, qv) / det;
+    return isfinite(*b1) && isfinite(*b2);
+}
+
+static double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
+
+/* Newton seed in the leaf's local [0,1]²: the nearer-to-inside of the two corner triangles. */
+static void leaf_seed(const struct leaf *l, const struct dray *r, double *s, double *t)
+{
+    double a1, a2, b1, b2;
+    bool ok1 = tri_bary(r, l->c00, l->c10, l->c11, &a1, &a2); /* (s, t) = (a1 + a2, a2) */
+    bool ok2 = tri_bary(r, l->c00, l->c11, l->c01, &b1, &b2); /* (s, t) = (b1, b1 + b2) */
+    double out1 = ok1 ? fmax(fmax(-a1, -a2), a1 + a2 - 1) : INFINITY;
+    double out2 = ok2 ? fmax(fmax(-b1, -b2), b1 + b2 - 1) : INFINITY;
+    if (out1 <= out2 && ok1)
+        *s = a1 + a2, *t = a2;
+    else if (ok2)
+        *s = b1, *t = b1 + b2;
+    else
+        *s = 0.5, *t = 0.5;
+    *s = clamp01(*s);
+    *t = clamp01(*t);
+}
+
+/* The root of the ray in leaf l with t in (tnear, tmax), or false. */
+static bool leaf_hit(const struct bvh *b, const struct leaf *l, const struct dray *r, double tnear, double tmax,
+                     struct solve_hit *h, long *iters)
+{
+    const struct patch *pt = &b->patches[l->patch];
+    const struct solve_box box = {l->u0, l->u1, l->v0, l->v1};
+    double s, t;
+    leaf_seed(l, r, &s, &t);
+    double u = l->u0 + s * (l->u1 - l->u0), v = l->v0 + t * (l->v1 - l->v0);
+    bool ok = solve_newton_cramer(pt, r, u, v, &box, b->tol2, h);
+    *iters += h->iters;
+    if (!ok && (s != 0.5 || t != 0.5)) { /* one more start, from the leaf's centre */
+        ok = solve_newton_cramer(pt, r, 0.5 * (l->u0 + l->u1), 0.5 * (l->v0 + l->v1), &box, b->tol2, h);
+        *iters += h->iters;
+    }
+    return ok && h->t > tnear && h->t < tmax;
+}
+
+static void leaf_intersect(const struct RTCIntersectFunctionNArguments *args)
+{
+    if (!args->valid[0])
+        return;
+    struct query *qy = (struct query *)args->context;
+    const struct bvh *b = args->geometryUserPtr;
+    const struct leaf *l = &b->leaves[args->primID];
+    struct solve_hit h;
+    if (!leaf_hit(b, l, qy->r, qy->tnear, qy->best_t, &h, &qy->iters))
+        return;
+    struct RTCRayHit *rh = (struct RTCRayHit *)args->rayhit;
+    qy->best_t = h.t;
+    qy->found = true;
+    qy->hit->patch = l->patch;
+    qy->hit->u = h.u;
+    qy->hit->v = h.v;
+    qy->hit->t = h.t;
+    qy->hit->has_normal = false;
+    /* float tfar must not cut off a double root that lies a rounding step beyond */
+    rh->ray.tfar = nextafterf((float)h.t, INFINITY);
+    rh->hit.geomID = args->geomID;
+    rh->hit.primID = args->primID;
+}
+
+static void leaf_occluded(const struct RTCOccludedFunctionNArguments *args)
+{
+    if (!args->valid[0])
+        return;
+    struct query *qy = (struct query *)args->context;
+    const struct bvh *b = args->geometryUserPtr;
+    struct solve_hit h;
+    if (leaf_hit(b, &b->leaves[args->primID], qy->r, qy->tnear, qy->best_t, &h, &qy->iters)) {
+        qy->found = true;
+        ((struct RTCRay *)args->ray)->tfar = -INFINITY;
+    }
+}
+
+static int commit_or_fail(struct bvh *b, RTCDevice dev, struct sf_err *err)
+{
+    rtcCommitScene(b->scene);
+    enum RTCError e = rtcGetDeviceError(dev);
+    if (e != RTC_ERROR_NONE)
+        return sf_fail(err, e == RTC_ERROR_OUT_OF_MEMORY ? SF_ENOMEM : SF_EBACKEND, "", "Embree build failed (%d)",
+                       (int)e);
+    return 0;
+}
+
+int bvh_build_patches(struct bvh_device *dev, const struct patch *patches, size_t n, double tol2,
+                      struct bvh **out, struct sf_err *err)
+{
+    *out = NULL;
+    struct bvh *b = calloc(1, sizeof *b);
+    if (!b)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    b->patches = patches;
+    b->tol2 = tol2;
+    int rc = 0;
+    for (size_t k = 0; k < n && !rc; k++)
+        rc = subdivide(b, &patches[k], (int)k, 0.0, 1.0, 0.0, 1.0, 0);
+    if (rc) {
+        bvh_free(b);
+        return sf_fail(err, rc, "", "out of memory building the hierarchy");
+    }
+    b->scene = rtcNewScene(dev->dev);
+    rtcSetSceneBuildQuality(b->scene, RTC_BUILD_QUALITY_HIGH);
+    RTCGeometry g = rtcNewGeometry(dev->dev, RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(g, (unsigned)b->n_leaves);
+    rtcSetGeometryUserData(g, b);
+    rtcSetGeometryBoundsFunction(g, leaf_bounds, NULL);
+    rtcSetGeometryIntersectFunction(g, leaf_intersect);
+    rtcSetGeometryOccludedFunction(g, leaf_occluded);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(b->scene, g);
+    rtcReleaseGeometry(g);
+    if ((rc = commit_or_fail(b, dev->dev, err))) {
+        bvh_free(b);
+        return rc;
+    }
+    *out = b;
+    return 0;
+}
+
+int bvh_build_mesh(struct bvh_device *dev, const struct patch *patches, size_t n, double chord_tol,
+                   struct bvh **out, struct sf_err *err)
+{
+    *out = NULL;
+    struct bvh *b = calloc(1, sizeof *b);
+    if (!b)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    b->patches = patches;
+    int rc = tess_build(patches, n, chord_tol, TESS_MAX_SIDE, &b->mesh);
+    if (rc) {
+        bvh_free(b);
+        return sf_fail(err, rc, "", "out of memory tessellating");
+    }
+    b->scene = rtcNewScene(dev->dev);
+    rtcSetSceneBuildQuality(b->scene, RTC_BUILD_QUALITY_HIGH);
+    RTCGeometry g = rtcNewGeometry(dev->dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                        b->mesh.n_verts);
+    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+                                           b->mesh.n_tris);
+    if (!vb || !ib) {
+        rtcReleaseGeometry(g);
+        bvh_free(b);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory for the triangle buffers");
+    }
+    for (size_t k = 0; k < b->mesh.n_verts; k++)
+        for (int c = 0; c < 3; c++)
+            vb[3 * k + c] = (float)b->mesh.pos[k][c];
+    memcpy(ib, b->mesh.tri, sizeof(unsigned) * 3 * b->mesh.n_tris);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(b->scene, g);
+    rtcReleaseGeometry(g);
+    if ((rc = commit_or_fail(b, dev->dev, err))) {
+        bvh_free(b);
+        return rc;
+    }
+    *out = b;
+    return 0;
+}
+
+static void set_ray(struct RTCRay *ray, const struct dray *r, double tnear, double tfar)
+{
+    ray->org_x = (float)r->o.x, ray->org_y = (float)r->o.y, ray->org_z = (float)r->o.z;
+    ray->dir_x = (float)r->d.x, ray->dir_y = (float)r->d.y, ray->dir_z = (float)r->d.z;
+    /* float bounds widened outward: the exact test happens in double in the callbacks */
+    ray->tnear = (float)fmax(0.0, tnear * 0.999999);
+    ray->tfar = isinf(tfar) ? INFINITY : nextafterf((float)tfar, INFINITY);
+    ray->time = 0.0f;
+    ray->mask = 0xFFFFFFFFu;
+    ray->id = 0;
+    ray->flags = 0;
+}
+
+bool bvh_intersect(const struct bvh *b, const struct dray *r, double tnear, double tfar, struct bvh_hit *hit,
+                   long *iters)
+{
+    struct query qy = {.b = b, .r = r, .tnear = tnear, .hit = hit, .best_t = tfar};
+    rtcInitIntersectContext(&qy.ctx);
+    struct RTCRayHit rh;
+    set_ray(&rh.ray, r, tnear, tfar);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(b->scene, &qy.ctx, &rh);
+    if (iters)
+        *iters += qy.iters;
+    if (!b->mesh.tri)
+        return qy.found;
+    /* triangles: interpolate the patch parameters and the normal of the hit */
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID || !(rh.ray.tfar > tnear))
+        return false;
+    const unsigned *tri = b->mesh.tri[rh.hit.primID];
+    float w1 = rh.hit.u, w2 = rh.hit.v, w0 = 1.0f - w1 - w2;
+    const float *n0 = b->mesh.nrm[tri[0]], *n1 = b->mesh.nrm[tri[1]], *n2 = b->mesh.nrm[tri[2]];
+    hit->patch = b->mesh.patch[tri[0]];
+    hit->u = w0 * b->mesh.uv[tri[0]][0] + w1 * b->mesh.uv[tri[1]][0] + w2 * b->mesh.uv[tri[2]][0];
+    hit->v = w0 * b->mesh.uv[tri[0]][1] + w1 * b->mesh.uv[tri[1]][1] + w2 * b->mesh.uv[tri[2]][1];
+    hit->t = rh.ray.tfar;
+    hit->has_normal = true;
+    hit->normal = v3_norm(v3(w0 * n0[0] + w1 * n1[0] + w2 * n2[0], w0 * n0[1] + w1 * n1[1] + w2 * n2[1],
+                             w0 * n0[2] + w1 * n1[2] + w2 * n2[2]));
+    return true;
+}
+
+bool bvh_occluded(const struct bvh *b, const struct dray *r, double tnear, double tfar, long *iters)
+{
+    struct query qy = {.b = b, .r = r, .tnear = tnear, .best_t = tfar};
+    rtcInitIntersectContext(&qy.ctx);
+    struct RTCRay ray;
+    set_ray(&ray, r, tnear, tfar);
+    rtcOccluded1(b->scene, &qy.ctx, &ray);
+    if (iters)
+        *iters += qy.iters;
+    return b->mesh.tri ? ray.tfar < 0.0f : qy.found;
+}

@@ -1,0 +1,45 @@
+/* bvh.h - ray queries through Embree 3: an exact hierarchy over flat sub-patches (Embree user
+ * geometry, Newton–Cramer in each leaf, as Martin et al. 2000) and a triangle hierarchy over a
+ * tessellation (the `mesh` reference). Queries are thread-safe on a committed bvh.
+ * Embree's own build threads are the library's; core starts none. */
+#ifndef SURFD_BVH_H
+#define SURFD_BVH_H
+
+#include <stdbool.h>
+#include <stddef.h>
+
+#include "bezier.h"
+#include "err.h"
+#include "solve.h"
+
+struct bvh_device; /* one Embree device; caller frees with bvh_device_free() */
+struct bvh;        /* caller frees with bvh_free(); borrows its patches until then */
+
+struct bvh_device *bvh_device_new(int n_threads, struct sf_err *err);
+void bvh_device_free(struct bvh_device *dev);
+
+struct bvh_hit {
+    int patch;       /* index into the patch array */
+    double u, v, t;  /* patch parameters and distance */
+    bool has_normal; /* mesh hits carry an interpolated normal */
+    vec3 normal;
+};
+
+/* Exact hierarchy over the patches, split until flat (LEAF_FLAT_REL in bvh.c). tol2: the
+ * squared root residual accepted, in world units. */
+int bvh_build_patches(struct bvh_device *dev, const struct patch *patches, size_t n, double tol2,
+                      struct bvh **out, struct sf_err *err);
+/* Triangle hierarchy over a tessellation at chord tolerance chord_tol. */
+int bvh_build_mesh(struct bvh_device *dev, const struct patch *patches, size_t n, double chord_tol,
+                   struct bvh **out, struct sf_err *err);
+void bvh_free(struct bvh *b);
+
+size_t bvh_n_leaves(const struct bvh *b);
+
+/* Nearest hit with t in (tnear, tfar). *iters accumulates solver iterations. */
+bool bvh_intersect(const struct bvh *b, const struct dray *r, double tnear, double tfar, struct bvh_hit *hit,
+                   long *iters);
+/* Any hit with t in (tnear, tfar). */
+bool bvh_occluded(const struct bvh *b, const struct dray *r, double tnear, double tfar, long *iters);
+
+#endif

@@ -1,0 +1,30 @@
+/* err.c - the error table and the one place errors are recorded. */
+#include "err.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+int sf_fail(struct sf_err *err, int code, const char *pointer, const char *fmt, ...)
+{
+    if (!err || err->code)
+        return code;
+    err->code = code;
+    snprintf(err->pointer, sizeof err->pointer, "%s", pointer ? pointer : "");
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(err->message, sizeof err->message, fmt, ap);
+    va_end(ap);
+    return code;
+}
+
+const char *sf_strerror(int code)
+{
+    switch (code) {
+    case SF_OK: return "ok";
+#define SF_CASE(name, val, msg) case name: return msg;
+    SF_ERRORS(SF_CASE)
+#undef SF_CASE
+    }
+    return "unknown error";
+}

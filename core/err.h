@@ -1,0 +1,36 @@
+/* err.h - the one error convention of surfd (STYLE.md §4).
+ *
+ * Functions return int: 0 on success, a negative SF_E* code on failure. Details go into a
+ * caller-owned struct sf_err (code, JSON pointer into the request, message) that api/ turns
+ * into problem+json in one place. No global error state; a NULL err is allowed everywhere. */
+#ifndef SURFD_ERR_H
+#define SURFD_ERR_H
+
+#define SF_ERRORS(X)                                                   \
+    X(SF_EINVAL,   -1, "invalid input")                                \
+    X(SF_ENOMEM,   -2, "out of memory")                                \
+    X(SF_ELIMIT,   -3, "input exceeds a limit")                        \
+    X(SF_EFORMAT,  -4, "unreadable input")                             \
+    X(SF_ECANCEL,  -5, "cancelled")                                    \
+    X(SF_EIO,      -6, "input/output error")                           \
+    X(SF_EBACKEND, -7, "library failure")
+
+enum {
+    SF_OK = 0,
+#define SF_ENUM(name, val, msg) name = val,
+    SF_ERRORS(SF_ENUM)
+#undef SF_ENUM
+};
+
+struct sf_err {
+    int code;           /* SF_E*, 0 when unset */
+    char pointer[160];  /* JSON pointer into the request ("/objects/3/knots_u"), "" if none */
+    char message[320];  /* what is wrong, for a human */
+};
+
+/* Fills err (if not NULL) and returns code. The first failure recorded wins. */
+int sf_fail(struct sf_err *err, int code, const char *pointer, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+const char *sf_strerror(int code);
+
+#endif

@@ -1,0 +1,381 @@
+/* render.c - frames: camera and lights from the scene, the methods of render.method, and
+ * Blinn–Phong shading with shadow rays. What each method does for a primary ray:
+ *   map        preliminary-value map seed, refined by the seed's method for the object's kind
+ *              (gradient descent for Bézier eq. 4, steepest descent for B-spline eq. 9,
+ *              Newton–Cramer for NURBS eq. 10–13); where it fails, the exact hierarchy
+ *   auto       the map seed refined by Newton–Cramer for every kind (the fastest exact way)
+ *   bvh        the exact hierarchy alone
+ *   mesh       triangles (the speed reference; not exact)
+ *   montecarlo eq. 3 random seeds in every patch whose box the ray meets, then eq. 4
+ * Shadow rays always go through the exact hierarchy (the mesh for the mesh method). */
+#include "render.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "camera.h"
+#include "map.h"
+#include "solve.h"
+
+#define AMBIENT 0.12          /* ambient fraction of the albedo */
+#define MC_SAMPLES 64         /* eq. 3 sample count N */
+#define SHADOW_EPS 1e-7       /* shadow ray start offset, relative to the scene's size */
+
+struct frame {
+    const struct scene *sc;
+    struct camera cam;
+    struct patch_set ps;
+    vec3 lo, hi;
+    double diag;              /* scene size: the unit of every relative tolerance */
+    double tol2;              /* squared root residual, world units */
+    struct light *lights;     /* resolved (defaults filled in) */
+    int n_lights;
+    struct bvh *exact, *mesh;
+    struct map *map;
+    double prepare_ms;
+    float *rgba, *depth, *normal, *uv, *id;
+};
+
+static double now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
+}
+
+void render_stats_add(struct render_stats *into, const struct render_stats *s)
+{
+    into->rays += s->rays;
+    into->primary += s->primary;
+    into->hits += s->hits;
+    into->refinements += s->refinements;
+    into->iterations += s->iterations;
+    into->misses += s->misses;
+    into->fallback_hits += s->fallback_hits;
+}
+
+void frame_free(struct frame *fr)
+{
+    if (!fr)
+        return;
+    map_free(fr->map);
+    bvh_free(fr->exact);
+    bvh_free(fr->mesh);
+    nurbs_patch_set_free(&fr->ps);
+    free(fr->lights);
+    free(fr->rgba);
+    free(fr->depth);
+    free(fr->normal);
+    free(fr->uv);
+    free(fr->id);
+    free(fr);
+}
+
+static void place_camera(struct frame *fr)
+{
+    const struct scene *sc = fr->sc;
+    if (sc->has_camera) {
+        camera_init(&fr->cam, sc->eye, sc->target, sc->up, sc->fov_deg, sc->width, sc->height);
+        return;
+    }
+    /* frame the bounding sphere from azimuth/elevation (azimuth from -y towards +x, z up) */
+    vec3 c = v3_scale(v3_add(fr->lo, fr->hi), 0.5);
+    double R = 0.5 * fr->diag, az = sc->azimuth_deg * M_PI / 180, el = sc->elevation_deg * M_PI / 180;
+    double half = atan(tan(sc->fov_deg * M_PI / 360) * fmin(1.0, (double)sc->width / sc->height));
+    double dist = 1.05 * R / sin(half);
+    vec3 dir = v3(sin(az) * cos(el), -cos(az) * cos(el), sin(el));
+    camera_init(&fr->cam, v3_mad(c, dir, dist), c, v3(0, 0, 1), sc->fov_deg, sc->width, sc->height);
+}
+
+static int resolve_lights(struct frame *fr)
+{
+    const struct scene *sc = fr->sc;
+    int n = sc->n_lights ? sc->n_lights : 2;
+    fr->lights = malloc(sizeof *fr->lights * (size_t)n);
+    if (!fr->lights)
+        return SF_ENOMEM;
+    fr->n_lights = n;
+    if (sc->n_lights) {
+        memcpy(fr->lights, sc->lights, sizeof *fr->lights * (size_t)n);
+        for (int k = 0; k < n; k++)
+            if (!fr->lights[k].point)
+                fr->lights[k].v = v3_norm(fr->lights[k].v);
+        return 0;
+    }
+    /* key light from the upper left behind the viewer, and a weak head light */
+    const struct camera *c = &fr->cam;
+    vec3 from = v3_norm(v3_add(v3_add(v3_scale(c->r, -0.6), v3_scale(c->u, 0.9)), v3_scale(c->f, -0.7)));
+    fr->lights[0] = (struct light){false, v3_scale(from, -1.0), v3(0.85, 0.85, 0.85)};
+    fr->lights[1] = (struct light){false, c->f, v3(0.25, 0.25, 0.25)};
+    return 0;
+}
+
+int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame **out, struct sf_err *err)
+{
+    double t0 = now_ms();
+    *out = NULL;
+    int rc = scene_validate(sc, err);
+    if (rc)
+        return rc;
+    char where[32];
+    for (int k = 0; k < sc->n_objects; k++) {
+        snprintf(where, sizeof where, "/objects/%d", k);
+        if ((rc = nurbs_validate(&sc->objects[k].surf, where, err)))
+            return rc;
+    }
+    struct frame *fr = calloc(1, sizeof *fr);
+    if (!fr)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    fr->sc = sc;
+    for (int k = 0; k < sc->n_objects && !rc; k++)
+        rc = nurbs_extract(&sc->objects[k].surf, k, &fr->ps);
+    if (rc)
+        goto out_fail_mem;
+    nurbs_patches_fix(&fr->ps);
+
+    fr->lo = v3(INFINITY, INFINITY, INFINITY);
+    fr->hi = v3(-INFINITY, -INFINITY, -INFINITY);
+    for (size_t k = 0; k < fr->ps.n; k++) {
+        vec3 a, b;
+        bezier_bounds(&fr->ps.patches[k], &a, &b);
+        fr->lo = v3_min(fr->lo, a);
+        fr->hi = v3_max(fr->hi, b);
+    }
+    fr->diag = v3_len(v3_sub(fr->hi, fr->lo));
+    if (!(fr->diag > 0.0) || !isfinite(fr->diag)) {
+        frame_free(fr);
+        return sf_fail(err, SF_EINVAL, "/objects", "the objects have no extent (every control point is the same)");
+    }
+    fr->tol2 = (sc->tolerance * fr->diag) * (sc->tolerance * fr->diag);
+    place_camera(fr);
+    if (resolve_lights(fr))
+        goto out_fail_mem;
+
+    size_t np = (size_t)sc->width * sc->height;
+    fr->rgba = malloc(sizeof(float) * 4 * np);
+    fr->depth = malloc(sizeof(float) * np);
+    if ((sc->aovs & AOV_NORMAL) && !(fr->normal = malloc(sizeof(float) * 3 * np)))
+        goto out_fail_mem;
+    if ((sc->aovs & AOV_UV) && !(fr->uv = malloc(sizeof(float) * 2 * np)))
+        goto out_fail_mem;
+    if ((sc->aovs & AOV_ID) && !(fr->id = malloc(sizeof(float) * np)))
+        goto out_fail_mem;
+    if (!fr->rgba || !fr->depth)
+        goto out_fail_mem;
+
+    if (sc->method == METHOD_MESH)
+        rc = bvh_build_mesh(dev, fr->ps.patches, fr->ps.n, sc->mesh_tolerance * fr->diag, &fr->mesh, err);
+    else
+        rc = bvh_build_patches(dev, fr->ps.patches, fr->ps.n, fr->tol2, &fr->exact, err);
+    if (!rc && (sc->method == METHOD_MAP || sc->method == METHOD_AUTO))
+        rc = map_build(fr->ps.patches, fr->ps.n, &fr->cam, &fr->map, err);
+    if (rc) {
+        frame_free(fr);
+        return rc;
+    }
+    fr->prepare_ms = now_ms() - t0;
+    *out = fr;
+    return 0;
+
+out_fail_mem:
+    frame_free(fr);
+    return sf_fail(err, SF_ENOMEM, "", "out of memory preparing the frame");
+}
+
+/* ---- primary rays ----------------------------------------------------------------------- */
+
+/* Refines one map candidate with the method the frame asks for. */
+static bool refine(const struct frame *fr, const struct map_cand *c, const struct dray *r, struct solve_hit *h)
+{
+    const struct patch *pt = &fr->ps.patches[c->patch];
+    const struct solve_box all = {0, 1, 0, 1};
+    bool ok;
+    if (fr->sc->method == METHOD_AUTO) {
+        ok = solve_newton_cramer(pt, r, c->u, c->v, &all, fr->tol2, h);
+    } else {
+        switch (fr->sc->objects[pt->surface].surf.kind) {
+        case SURF_BEZIER: ok = solve_gradient(pt, r, c->u, c->v, &all, fr->tol2, h); break;
+        case SURF_BSPLINE: ok = solve_steepest(pt, r, c->u, c->v, &all, fr->tol2, h); break;
+        default: ok = solve_newton_cramer(pt, r, c->u, c->v, &all, fr->tol2, h); break;
+        }
+    }
+    return ok && h->t > 0.0;
+}
+
+static bool primary_map(const struct frame *fr, size_t idx, const struct dray *r, struct bvh_hit *hit,
+                        struct render_stats *st)
+{
+    const struct map_cand *a = &fr->map->near[idx], *b = &fr->map->other[idx];
+    if (a->patch < 0)
+        return false; /* no candidate within the conservative footprint: background */
+    struct solve_hit h;
+    bool found = false;
+    st->refinements++;
+    if (refine(fr, a, r, &h)) {
+        *hit = (struct bvh_hit){a->patch, h.u, h.v, h.t, false, v3(0, 0, 0)};
+        found = true;
+    }
+    st->iterations += h.iters;
+    /* a second patch within the tessellation's depth error may be the true nearest */
+    if (b->patch >= 0 && b->z - a->z <= fr->map->slack[idx]) {
+        st->refinements++;
+        if (refine(fr, b, r, &h) && (!found || h.t < hit->t)) {
+            *hit = (struct bvh_hit){b->patch, h.u, h.v, h.t, false, v3(0, 0, 0)};
+            found = true;
+        }
+        st->iterations += h.iters;
+    }
+    if (found)
+        return true;
+    st->misses++;
+    found = bvh_intersect(fr->exact, r, 0.0, INFINITY, hit, &st->iterations);
+    st->fallback_hits += found;
+    return found;
+}
+
+static bool ray_box(const struct dray *r, vec3 lo, vec3 hi)
+{
+    double t0 = 0.0, t1 = INFINITY;
+    const double o[3] = {r->o.x, r->o.y, r->o.z}, d[3] = {r->d.x, r->d.y, r->d.z};
+    const double l[3] = {lo.x, lo.y, lo.z}, h[3] = {hi.x, hi.y, hi.z};
+    for (int k = 0; k < 3; k++) {
+        double inv = 1.0 / d[k], a = (l[k] - o[k]) * inv, b = (h[k] - o[k]) * inv;
+        if (a > b) {
+            double t = a;
+            a = b;
+            b = t;
+        }
+        t0 = fmax(t0, a);
+        t1 = fmin(t1, b);
+    }
+    return t0 <= t1;
+}
+
+static bool primary_montecarlo(const struct frame *fr, const struct dray *r, uint64_t *rng, struct bvh_hit *hit,
+                               struct render_stats *st)
+{
+    bool found = false;
+    for (size_t k = 0; k < fr->ps.n; k++) {
+        vec3 lo, hi;
+        bezier_bounds(&fr->ps.patches[k], &lo, &hi);
+        if (!ray_box(r, lo, hi))
+            continue;
+        struct solve_hit h;
+        st->refinements++;
+        bool ok = solve_montecarlo(&fr->ps.patches[k], r, MC_SAMPLES, rng, fr->tol2, &h);
+        st->iterations += h.iters;
+        if (ok && (!found || h.t < hit->t)) {
+            *hit = (struct bvh_hit){(int)k, h.u, h.v, h.t, false, v3(0, 0, 0)};
+            found = true;
+        }
+    }
+    return found;
+}
+
+/* ---- shading ---------------------------------------------------------------------------- */
+
+static vec3 shade(const struct frame *fr, const struct dray *r, const struct bvh_hit *hit, vec3 *n_out,
+                  struct render_stats *st)
+{
+    const struct patch *pt = &fr->ps.patches[hit->patch];
+    const struct material *m = &fr->sc->objects[pt->surface].mat;
+    vec3 P = v3_mad(r->o, r->d, hit->t), n = v3(0, 0, 1);
+    if (hit->has_normal)
+        n = hit->normal;
+    else
+        bezier_normal(pt, hit->u, hit->v, &n);
+    if (v3_dot(n, r->d) > 0) /* two-sided: face the viewer */
+        n = v3_scale(n, -1.0);
+    *n_out = n;
+    const struct bvh *occ = fr->mesh ? fr->mesh : fr->exact;
+    vec3 c = v3_scale(m->color, AMBIENT);
+    vec3 origin = v3_mad(P, n, SHADOW_EPS * fr->diag);
+    for (int k = 0; k < fr->n_lights; k++) {
+        const struct light *l = &fr->lights[k];
+        vec3 L = l->point ? v3_sub(l->v, P) : v3_scale(l->v, -1.0);
+        double dist = l->point ? v3_len(L) : INFINITY;
+        L = v3_norm(L);
+        double ndl = v3_dot(n, L);
+        if (ndl <= 0)
+            continue;
+        if (fr->sc->shadows) {
+            struct dray sr;
+            solve_ray_init(&sr, origin, L);
+            st->rays++;
+            if (bvh_occluded(occ, &sr, 0.0, dist, &st->iterations))
+                continue;
+        }
+        vec3 H = v3_norm(v3_sub(L, r->d));
+        double spec = m->specular * pow(fmax(0.0, v3_dot(n, H)), m->shininess);
+        c = v3_add(c, v3_mul(l->color, v3_add(v3_scale(m->color, ndl), v3(spec, spec, spec))));
+    }
+    return c;
+}
+
+void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
+{
+    const struct scene *sc = fr->sc;
+    const int W = sc->width;
+    enum render_method method = sc->method;
+    if ((method == METHOD_MAP || method == METHOD_AUTO) && !fr->map->complete)
+        method = METHOD_BVH; /* the eye is inside the scene's hull: the map cannot seed */
+    uint64_t rng = 0x9E3779B97F4A7C15ull ^ (uint64_t)(y0 + 1) * 0xBF58476D1CE4E5B9ull;
+    for (int y = y0; y < y1; y++)
+        for (int x = 0; x < W; x++) {
+            size_t idx = (size_t)y * W + x;
+            struct dray r;
+            solve_ray_init(&r, fr->cam.eye, camera_dir(&fr->cam, x, y));
+            st->rays++;
+            st->primary++;
+            struct bvh_hit hit;
+            bool ok;
+            switch (method) {
+            case METHOD_MAP:
+            case METHOD_AUTO: ok = primary_map(fr, idx, &r, &hit, st); break;
+            case METHOD_MONTECARLO: ok = primary_montecarlo(fr, &r, &rng, &hit, st); break;
+            case METHOD_MESH: ok = bvh_intersect(fr->mesh, &r, 0.0, INFINITY, &hit, &st->iterations); break;
+            default: ok = bvh_intersect(fr->exact, &r, 0.0, INFINITY, &hit, &st->iterations); break;
+            }
+            float *px = &fr->rgba[4 * idx];
+            vec3 n = v3(0, 0, 0);
+            if (ok) {
+                st->hits++;
+                vec3 c = shade(fr, &r, &hit, &n, st);
+                px[0] = (float)c.x, px[1] = (float)c.y, px[2] = (float)c.z, px[3] = 1.0f;
+                fr->depth[idx] = (float)hit.t;
+            } else {
+                px[0] = (float)sc->background.x, px[1] = (float)sc->background.y, px[2] = (float)sc->background.z;
+                px[3] = 0.0f;
+                fr->depth[idx] = INFINITY;
+            }
+            if (fr->normal)
+                fr->normal[3 * idx] = (float)n.x, fr->normal[3 * idx + 1] = (float)n.y,
+                fr->normal[3 * idx + 2] = (float)n.z;
+            if (fr->uv || fr->id) {
+                const struct patch *pt = ok ? &fr->ps.patches[hit.patch] : NULL;
+                if (fr->uv) {
+                    fr->uv[2 * idx] = ok ? (float)(pt->u0 + hit.u * (pt->u1 - pt->u0)) : 0.0f;
+                    fr->uv[2 * idx + 1] = ok ? (float)(pt->v0 + hit.v * (pt->v1 - pt->v0)) : 0.0f;
+                }
+                if (fr->id)
+                    fr->id[idx] = ok ? (float)pt->surface : -1.0f;
+            }
+        }
+}
+
+void frame_image(const struct frame *fr, struct frame_image *img)
+{
+    img->width = fr->sc->width;
+    img->height = fr->sc->height;
+    img->rgba = fr->rgba;
+    img->depth = fr->depth;
+    img->normal = fr->normal;
+    img->uv = fr->uv;
+    img->id = fr->id;
+}
+
+double frame_prepare_ms(const struct frame *fr) { return fr->prepare_ms; }
+size_t frame_n_patches(const struct frame *fr) { return fr->ps.n; }

@@ -1,0 +1,56 @@
+/* render.h - a prepared frame and the rendering of its scanline bands.
+ *
+ *   frame_prepare()  extract patches, place the camera, build what the method needs (hierarchy,
+ *                    mesh, preliminary-value map); shared, read-only, by every band
+ *   frame_band()     trace and shade rows [y0, y1); bands never overlap, so any number of
+ *                    threads may render different bands of one frame at once
+ *   frame_free()
+ *
+ * The frame borrows the scene until frame_free(). core/ starts no threads: the caller decides
+ * who renders which band (the CLI's threads, the daemon's pool). */
+#ifndef SURFD_RENDER_H
+#define SURFD_RENDER_H
+
+#include <stddef.h>
+
+#include "bvh.h"
+#include "err.h"
+#include "scene.h"
+
+struct frame;
+
+struct render_stats {
+    long rays;          /* primary + shadow rays */
+    long primary;       /* primary rays */
+    long hits;          /* primary rays that hit */
+    long refinements;   /* root searches started from the map */
+    long iterations;    /* solver iterations, all searches */
+    long misses;        /* pixels where map refinement failed and the fallback ran */
+    long fallback_hits; /* ... of which the fallback found a surface */
+};
+
+/* What a finished frame holds, borrowed until frame_free(). rgba is linear, premultiplied
+ * by nothing (A = 1 on hits, 0 elsewhere); depth is the distance along the ray (INFINITY on
+ * a miss); normal/uv/id are NULL unless asked for by scene.aovs. */
+struct frame_image {
+    int width, height;
+    const float *rgba;    /* 4 per pixel */
+    const float *depth;   /* 1 per pixel */
+    const float *normal;  /* 3 per pixel */
+    const float *uv;      /* 2 per pixel: the object's own parameters */
+    const float *id;      /* 1 per pixel: object index, -1 on a miss */
+};
+
+/* Returns 0 or an SF_E* code with err filled. dev is borrowed until frame_free(). */
+int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame **out, struct sf_err *err);
+/* Renders rows [y0, y1), adding to *stats. */
+void frame_band(struct frame *fr, int y0, int y1, struct render_stats *stats);
+void frame_image(const struct frame *fr, struct frame_image *img);
+/* Milliseconds the preparation took, and what it built (for --stats). */
+double frame_prepare_ms(const struct frame *fr);
+size_t frame_n_patches(const struct frame *fr);
+void frame_free(struct frame *fr);
+
+void render_stats_add(struct render_stats *into, const struct render_stats *s);
+
+#endif

@@ -1,0 +1,104 @@
+/* scene.c - defaults, ownership and whole-scene validation of struct scene. */
+#include "scene.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const char *const METHOD_NAMES[] = {"auto", "map", "bvh", "mesh", "montecarlo"};
+
+void scene_init(struct scene *sc)
+{
+    memset(sc, 0, sizeof *sc);
+    sc->width = 800;
+    sc->height = 600;
+    sc->background = v3(1, 1, 1);
+    sc->up = v3(0, 0, 1);
+    sc->fov_deg = 35.0;
+    sc->azimuth_deg = 30.0;
+    sc->elevation_deg = 25.0;
+    sc->method = METHOD_AUTO;
+    sc->tolerance = 1e-7;
+    sc->mesh_tolerance = 1e-4;
+    sc->shadows = true;
+}
+
+void scene_free(struct scene *sc)
+{
+    if (!sc)
+        return;
+    for (int k = 0; k < sc->n_objects; k++)
+        nurbs_surface_free(&sc->objects[k].surf);
+    free(sc->objects);
+    free(sc->lights);
+    sc->objects = NULL;
+    sc->lights = NULL;
+    sc->n_objects = sc->n_lights = 0;
+}
+
+struct object *scene_add_object(struct scene *sc)
+{
+    if (sc->n_objects >= SCENE_MAX_OBJECTS)
+        return NULL;
+    struct object *o = realloc(sc->objects, sizeof *o * (size_t)(sc->n_objects + 1));
+    if (!o)
+        return NULL;
+    sc->objects = o;
+    o = &sc->objects[sc->n_objects++];
+    memset(o, 0, sizeof *o);
+    o->mat = (struct material){v3(0.8, 0.8, 0.8), 0.3, 40.0};
+    return o;
+}
+
+static bool finite3(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
+
+int scene_validate(const struct scene *sc, struct sf_err *err)
+{
+    if (sc->width < 1 || sc->height < 1 || sc->width > SCENE_MAX_SIDE || sc->height > SCENE_MAX_SIDE)
+        return sf_fail(err, SF_EINVAL, sc->width < 1 || sc->width > SCENE_MAX_SIDE ? "/image/width" : "/image/height",
+                       "image sides must be 1..%d pixels, not %d x %d", SCENE_MAX_SIDE, sc->width, sc->height);
+    if ((unsigned long long)sc->width * (unsigned long long)sc->height > SCENE_MAX_PIXELS)
+        return sf_fail(err, SF_ELIMIT, "/image", "image of %d x %d pixels is larger than the limit of %u pixels",
+                       sc->width, sc->height, SCENE_MAX_PIXELS);
+    if (sc->has_camera) {
+        if (!finite3(sc->eye) || !finite3(sc->target) || !finite3(sc->up))
+            return sf_fail(err, SF_EINVAL, "/camera", "camera vectors must be finite");
+        vec3 f = v3_sub(sc->target, sc->eye);
+        if (v3_len(f) == 0.0)
+            return sf_fail(err, SF_EINVAL, "/camera/target", "camera target equals the eye");
+        if (v3_len(v3_cross(f, sc->up)) <= 1e-12 * v3_len(f) * v3_len(sc->up))
+            return sf_fail(err, SF_EINVAL, "/camera/up", "camera up is parallel to the view direction or zero");
+    }
+    if (!(sc->fov_deg > 0.0 && sc->fov_deg < 179.0))
+        return sf_fail(err, SF_EINVAL, "/camera/fov_deg", "fov_deg must be in (0, 179), not %g", sc->fov_deg);
+    if (!isfinite(sc->azimuth_deg) || !(sc->elevation_deg >= -89.9 && sc->elevation_deg <= 89.9))
+        return sf_fail(err, SF_EINVAL, "/camera", "azimuth must be finite and elevation within ±89.9 degrees");
+    for (int k = 0; k < sc->n_lights; k++) {
+        const struct light *l = &sc->lights[k];
+        if (!finite3(l->v) || !finite3(l->color) || (!l->point && v3_len(l->v) == 0.0))
+            return sf_fail(err, SF_EINVAL, "/lights", "light %d needs a finite, non-zero direction and colour", k);
+    }
+    if (!(sc->tolerance >= 1e-15 && sc->tolerance <= 1e-2))
+        return sf_fail(err, SF_EINVAL, "/render/tolerance", "tolerance must be within [1e-15, 1e-2], not %g",
+                       sc->tolerance);
+    if (!(sc->mesh_tolerance >= 1e-7 && sc->mesh_tolerance <= 1e-1))
+        return sf_fail(err, SF_EINVAL, "/render/mesh_tolerance", "mesh_tolerance must be within [1e-7, 0.1], not %g",
+                       sc->mesh_tolerance);
+    if (!finite3(sc->background))
+        return sf_fail(err, SF_EINVAL, "/image/background", "background must be three finite numbers");
+    if (sc->n_objects < 1)
+        return sf_fail(err, SF_EINVAL, "/objects", "a scene needs at least one object");
+    return 0;
+}
+
+const char *scene_method_name(enum render_method m) { return METHOD_NAMES[m]; }
+
+int scene_method_parse(const char *name, enum render_method *m)
+{
+    for (size_t k = 0; k < sizeof METHOD_NAMES / sizeof *METHOD_NAMES; k++)
+        if (!strcmp(name, METHOD_NAMES[k])) {
+            *m = (enum render_method)k;
+            return 0;
+        }
+    return SF_EINVAL;
+}

@@ -1,0 +1,69 @@
+/* scene.h - what a render request describes, as plain data: image, camera, lights, render
+ * options and the free-form objects. api/ fills it from JSON, .bpt or VRML; core/ reads it.
+ * The scene owns its objects and lights; scene_free() releases them. */
+#ifndef SURFD_SCENE_H
+#define SURFD_SCENE_H
+
+#include <stdbool.h>
+
+#include "err.h"
+#include "nurbs.h"
+#include "vec.h"
+
+#define SCENE_MAX_SIDE 16384          /* image width or height */
+#define SCENE_MAX_PIXELS (64u << 20)  /* width * height */
+#define SCENE_MAX_OBJECTS 100000
+#define SCENE_MAX_LIGHTS 64
+
+enum render_method { METHOD_AUTO, METHOD_MAP, METHOD_BVH, METHOD_MESH, METHOD_MONTECARLO };
+
+enum aov { AOV_NORMAL = 1, AOV_UV = 2, AOV_ID = 4 };
+
+struct material {
+    vec3 color;        /* diffuse albedo, linear RGB in [0, 1] */
+    double specular;   /* Blinn–Phong specular weight */
+    double shininess;  /* Blinn–Phong exponent */
+};
+
+struct light {
+    bool point;        /* false: directional */
+    vec3 v;            /* direction the light travels (directional) or position (point) */
+    vec3 color;
+};
+
+struct object {
+    struct surface surf;
+    struct material mat;
+};
+
+struct scene {
+    int width, height;
+    vec3 background;
+    unsigned aovs;            /* AOV_* bits wanted besides colour and depth */
+    bool has_camera;          /* false: frame the bounds from azimuth/elevation */
+    vec3 eye, target, up;
+    double fov_deg;           /* vertical field of view */
+    double azimuth_deg, elevation_deg;
+    struct light *lights;     /* none: a key light and a head light */
+    int n_lights;
+    enum render_method method;
+    double tolerance;         /* root residual, relative to the scene's size */
+    double mesh_tolerance;    /* chord error of the mesh method, relative to the scene's size */
+    bool shadows;
+    struct object *objects;
+    int n_objects;
+};
+
+/* Defaults of API.md: 800x600, white background, auto method, shadows on. */
+void scene_init(struct scene *sc);
+void scene_free(struct scene *sc);
+/* Appends an object and returns it (zeroed, default material), or NULL when out of memory
+ * or over SCENE_MAX_OBJECTS. The scene owns what the caller then puts in it. */
+struct object *scene_add_object(struct scene *sc);
+/* Checks everything but the surfaces' own validity (nurbs_validate does that per object):
+ * image size, camera, lights, options, at least one object. */
+int scene_validate(const struct scene *sc, struct sf_err *err);
+const char *scene_method_name(enum render_method m);
+int scene_method_parse(const char *name, enum render_method *m);
+
+#endif

@@ -1,0 +1,246 @@
+/* cmd_render.c - `surfd render SCENE... -o OUT`: the offline renderer. Reads the scene (JSON,
+ * .bpt or VRML NurbsSurface; several text files are one scene), prepares one frame and lets
+ * --threads threads claim its scanline bands, then writes PNG/EXR/TIFF by the output's
+ * extension. --stats prints one JSON line on stderr. */
+#include <errno.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "../api/image.h"
+#include "../api/scene_io.h"
+#include "../core/render.h"
+#include "cli.h"
+
+#define BAND_ROWS 8 /* rows per band: small enough to balance two cores on a 256-row image */
+
+struct band_work {
+    struct frame *fr;
+    int height;
+    atomic_int next;
+    pthread_mutex_t lock;
+    struct render_stats total;
+};
+
+static void *band_worker(void *arg)
+{
+    struct band_work *w = arg;
+    struct render_stats st = {0};
+    for (;;) {
+        int y0 = atomic_fetch_add(&w->next, BAND_ROWS);
+        if (y0 >= w->height)
+            break;
+        frame_band(w->fr, y0, y0 + BAND_ROWS < w->height ? y0 + BAND_ROWS : w->height, &st);
+    }
+    pthread_mutex_lock(&w->lock);
+    render_stats_add(&w->total, &st);
+    pthread_mutex_unlock(&w->lock);
+    return NULL;
+}
+
+static double now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
+}
+
+static int usage(void)
+{
+    fprintf(stderr, "usage: surfd render SCENE... -o OUT.png|OUT.exr|OUT.tif [--method auto|map|bvh|mesh|montecarlo]\n"
+                    "                    [--width W --height H] [--threads N] [--format json|bpt|nurbs] [--stats]\n"
+                    "                    [--azimuth DEG --elevation DEG] [--no-shadows] [--aovs normal,uv,id]\n");
+    return 2;
+}
+
+/* Reads and concatenates the input files (capped at SCENE_MAX_BODY). */
+static char *read_inputs(char **paths, int n, size_t *len)
+{
+    size_t cap = 0, used = 0;
+    char *buf = NULL;
+    for (int k = 0; k < n; k++) {
+        FILE *f = fopen(paths[k], "rb");
+        if (!f) {
+            fprintf(stderr, "surfd: %s: %s\n", paths[k], strerror(errno));
+            free(buf);
+            return NULL;
+        }
+        char chunk[65536];
+        size_t got;
+        while ((got = fread(chunk, 1, sizeof chunk, f)) > 0) {
+            if (used + got + 2 > SCENE_MAX_BODY) {
+                fprintf(stderr, "surfd: input over %u bytes\n", SCENE_MAX_BODY);
+                fclose(f);
+                free(buf);
+                return NULL;
+            }
+            if (used + got + 2 > cap) {
+                cap = (used + got + 2) * 2;
+                char *nb = realloc(buf, cap);
+                if (!nb) {
+                    fclose(f);
+                    free(buf);
+                    return NULL;
+                }
+                buf = nb;
+            }
+            memcpy(buf + used, chunk, got);
+            used += got;
+        }
+        fclose(f);
+        if (buf)
+            buf[used++] = '\n';
+    }
+    if (buf)
+        buf[used] = 0;
+    *len = used;
+    return buf;
+}
+
+static enum scene_format format_of(const char *path)
+{
+    const char *dot = strrchr(path, '.');
+    return dot ? scene_format_parse(dot + 1) : SCENE_UNKNOWN;
+}
+
+int cmd_render(int argc, char **argv)
+{
+    const char *out = NULL, *method = NULL, *fmt_name = NULL, *aovs = NULL;
+    int width = 0, height = 0, threads = (int)sysconf(_SC_NPROCESSORS_ONLN), stats = 0, no_shadows = 0;
+    double az = NAN, el = NAN;
+    char *inputs[64];
+    int n_inputs = 0;
+    for (int k = 1; k < argc; k++) {
+        const char *a = argv[k];
+        const char *val = k + 1 < argc ? argv[k + 1] : NULL;
+        if (!strcmp(a, "-o") && val)
+            out = val, k++;
+        else if (!strcmp(a, "--method") && val)
+            method = val, k++;
+        else if (!strcmp(a, "--format") && val)
+            fmt_name = val, k++;
+        else if (!strcmp(a, "--aovs") && val)
+            aovs = val, k++;
+        else if (!strcmp(a, "--width") && val)
+            width = atoi(val), k++;
+        else if (!strcmp(a, "--height") && val)
+            height = atoi(val), k++;
+        else if (!strcmp(a, "--threads") && val)
+            threads = atoi(val), k++;
+        else if (!strcmp(a, "--azimuth") && val)
+            az = atof(val), k++;
+        else if (!strcmp(a, "--elevation") && val)
+            el = atof(val), k++;
+        else if (!strcmp(a, "--stats"))
+            stats = 1;
+        else if (!strcmp(a, "--no-shadows"))
+            no_shadows = 1;
+        else if (a[0] == '-' && a[1])
+            return usage();
+        else if (n_inputs < 64)
+            inputs[n_inputs++] = argv[k];
+    }
+    if (!out || n_inputs == 0 || threads < 1)
+        return usage();
+    enum image_format img_fmt = IMG_PNG;
+    const char *odot = strrchr(out, '.');
+    if (!odot || image_format_parse(odot + 1, &img_fmt)) {
+        fprintf(stderr, "surfd: the output's extension must be .png, .exr or .tif\n");
+        return 2;
+    }
+    enum scene_format sfmt = fmt_name ? scene_format_parse(fmt_name) : format_of(inputs[0]);
+    size_t len = 0;
+    char *buf = read_inputs(inputs, n_inputs, &len);
+    if (!buf)
+        return 1;
+
+    struct scene sc;
+    struct sf_err err = {0};
+    enum image_format ignored;
+    int rc = scene_parse(buf, len, sfmt, &sc, &ignored, &err);
+    free(buf);
+    if (rc) {
+        fprintf(stderr, "surfd: %s: %s%s%s\n", inputs[0], err.message, err.pointer[0] ? " at " : "", err.pointer);
+        return 1;
+    }
+    if (method && scene_method_parse(method, &sc.method)) {
+        fprintf(stderr, "surfd: unknown method \"%s\"\n", method);
+        scene_free(&sc);
+        return 2;
+    }
+    if (width > 0)
+        sc.width = width;
+    if (height > 0)
+        sc.height = height;
+    if (az == az)
+        sc.azimuth_deg = az;
+    if (el == el)
+        sc.elevation_deg = el;
+    if (no_shadows)
+        sc.shadows = false;
+    if (aovs) {
+        sc.aovs |= strstr(aovs, "normal") ? AOV_NORMAL : 0;
+        sc.aovs |= strstr(aovs, "uv") ? AOV_UV : 0;
+        sc.aovs |= strstr(aovs, "id") ? AOV_ID : 0;
+    }
+
+    struct bvh_device *dev = bvh_device_new(threads, &err);
+    struct frame *fr = NULL;
+    if (!dev || (rc = frame_prepare(&sc, dev, &fr, &err))) {
+        fprintf(stderr, "surfd: %s%s%s\n", err.message, err.pointer[0] ? " at " : "", err.pointer);
+        bvh_device_free(dev);
+        scene_free(&sc);
+        return 1;
+    }
+    struct band_work w = {.fr = fr, .height = sc.height, .lock = PTHREAD_MUTEX_INITIALIZER};
+    atomic_init(&w.next, 0);
+    double t0 = now_ms();
+    pthread_t tid[256];
+    int n_threads = threads > 256 ? 256 : threads;
+    for (int k = 1; k < n_threads; k++)
+        pthread_create(&tid[k], NULL, band_worker, &w);
+    band_worker(&w);
+    for (int k = 1; k < n_threads; k++)
+        pthread_join(tid[k], NULL);
+    double render_ms = now_ms() - t0;
+
+    struct frame_image img;
+    frame_image(fr, &img);
+    unsigned char *bytes = NULL;
+    size_t n_bytes = 0;
+    double e0 = now_ms();
+    rc = image_encode(&img, img_fmt, &bytes, &n_bytes, &err);
+    double encode_ms = now_ms() - e0;
+    if (!rc) {
+        FILE *f = fopen(out, "wb");
+        if (!f || fwrite(bytes, 1, n_bytes, f) != n_bytes) {
+            fprintf(stderr, "surfd: %s: %s\n", out, strerror(errno));
+            rc = 1;
+        }
+        if (f && fclose(f))
+            rc = 1;
+    } else {
+        fprintf(stderr, "surfd: %s\n", err.message);
+    }
+    if (stats && !rc) {
+        const struct render_stats *s = &w.total;
+        fprintf(stderr,
+                "{\"method\":\"%s\",\"width\":%d,\"height\":%d,\"threads\":%d,\"patches\":%zu,"
+                "\"prepare_ms\":%.3f,\"render_ms\":%.3f,\"encode_ms\":%.3f,\"bytes\":%zu,\"rays\":%ld,"
+                "\"primary\":%ld,\"hits\":%ld,\"misses\":%ld,\"fallback_hits\":%ld,\"refinements\":%ld,"
+                "\"iterations\":%ld,\"iterations_mean\":%.3f}\n",
+                scene_method_name(sc.method), sc.width, sc.height, n_threads, frame_n_patches(fr),
+                frame_prepare_ms(fr), render_ms, encode_ms, n_bytes, s->rays, s->primary, s->hits, s->misses,
+                s->fallback_hits, s->refinements, s->iterations,
+                s->iterations / (double)(s->refinements ? s->refinements : (s->primary ? s->primary : 1)));
+    }
+    free(bytes);
+    frame_free(fr);
+    bvh_device_free(dev);
+    scene_free(&sc);
+    return rc ? 1 : 0;
+}

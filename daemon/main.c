@@ -1,0 +1,22 @@
+/* main.c - build/surfd: dispatches to its subcommands (render today; serve, model and volume
+ * come with the service and contour issues). */
+#include <stdio.h>
+#include <string.h>
+
+#include "cli.h"
+
+#ifndef SURFD_VERSION
+#define SURFD_VERSION "dev"
+#endif
+
+int main(int argc, char **argv)
+{
+    if (argc >= 2 && !strcmp(argv[1], "render"))
+        return cmd_render(argc - 1, argv + 1);
+    if (argc >= 2 && (!strcmp(argv[1], "--version") || !strcmp(argv[1], "version"))) {
+        printf("surfd %s\n", SURFD_VERSION);
+        return 0;
+    }
+    fprintf(stderr, "usage: surfd render SCENE... -o OUT [options]   (surfd render --help)\n");
+    return 2;
+}

@@ -1,0 +1,26 @@
+#!/bin/sh
+# Installs the Debian packages surfd builds, tests and benchmarks with. Idempotent: asks apt only
+# for what is missing, so `make run` and CI on a fresh machine call it unconditionally.
+# Usage: deploy/install-deps.sh [--bench]   (--bench adds the reference tools: povray, wrk, plastimatch)
+set -eu
+
+BUILD="build-essential pkg-config libembree-dev libopenimageio-dev libmicrohttpd-dev libjansson-dev \
+libsqlite3-dev libcurl4-openssl-dev libdcmtk-dev libgnutls28-dev curl"
+BENCH="povray wrk plastimatch"
+
+want="$BUILD"
+[ "${1:-}" = "--bench" ] && want="$want $BENCH"
+
+missing=""
+for p in $want; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
+done
+[ -z "$missing" ] && exit 0
+
+SUDO=""
+[ "$(id -u)" -ne 0 ] && SUDO="sudo"
+echo "install-deps: installing$missing" >&2
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -q >/dev/null
+# shellcheck disable=SC2086
+$SUDO apt-get install -y -q --no-install-recommends $missing >/dev/null
