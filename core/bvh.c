@@ -28,6 +28,8 @@ struct leaf {
     double u0, u1, v0, v1;  /* parameter box in the patch */
     vec3 lo, hi;            /* control hull box */
     vec3 c00, c10, c01, c11; /* corner points: the Newton seed comes from them */
+    vec3 n;                  /* unit normal of the corner quad */
+    double slack;            /* net deviation / quad size: how far off the quad a root may lie */
 };
 
 struct bvh {
@@ -119,7 +121,8 @@ static double net_deviation(const struct patch *pt, double *curv_u, double *curv
     return dev;
 }
 
-static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1)
+static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
+                    double dev)
 {
     if (b->n_leaves == b->cap_leaves) {
         size_t nc = b->cap_leaves ? 2 * b->cap_leaves : 256;
@@ -137,6 +140,10 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
     l->c10 = bezier_point(sub, sub->p, 0);
     l->c01 = bezier_point(sub, 0, sub->q);
     l->c11 = bezier_point(sub, sub->p, sub->q);
+    vec3 d1 = v3_sub(l->c11, l->c00), d2 = v3_sub(l->c01, l->c10);
+    l->n = v3_norm(v3_cross(d1, d2));
+    double size = fmax(v3_len(d1), v3_len(d2));
+    l->slack = size > 0 && v3_len(l->n) > 0.5 ? dev / size : INFINITY;
     return 0;
 }
 
@@ -149,7 +156,7 @@ static int subdivide(struct bvh *b, const struct patch *sub, int patch, double u
     double size = v3_len(v3_sub(hi, lo));
     double dev = net_deviation(sub, &cu, &cv);
     if (dev <= LEAF_FLAT_REL * size || depth >= LEAF_MAX_DEPTH)
-        return add_leaf(b, sub, patch, u0, u1, v0, v1);
+        return add_leaf(b, sub, patch, u0, u1, v0, v1, dev);
 
     size_t n_pts = (size_t)(sub->p + 1) * (sub->q + 1);
     double(*net)[4] = malloc(sizeof *net * 2 * n_pts);
@@ -210,8 +217,9 @@ static bool tri_bary(const struct dray *r, vec3 a, vec3 b, vec3 c, double *b1, d
 
 static double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
 
-/* Newton seed in the leaf's local [0,1]²: the nearer-to-inside of the two corner triangles. */
-static void leaf_seed(const struct leaf *l, const struct dray *r, double *s, double *t)
+/* Newton seed in the leaf's local [0,1]²: the nearer-to-inside of the two corner triangles.
+ * Returns how far outside the quad the ray passes, in units of the quad's size. */
+static double leaf_seed(const struct leaf *l, const struct dray *r, double *s, double *t)
 {
     double a1, a2, b1, b2;
     bool ok1 = tri_bary(r, l->c00, l->c10, l->c11, &a1, &a2); /* (s, t) = (a1 + a2, a2) */
@@ -226,6 +234,7 @@ static void leaf_seed(const struct leaf *l, const struct dray *r, double *s, dou
         *s = 0.5, *t = 0.5;
     *s = clamp01(*s);
     *t = clamp01(*t);
+    return fmin(out1, out2);
 }
 
 /* The root of the ray in leaf l with t in (tnear, tmax), or false. */
@@ -235,11 +244,17 @@ static bool leaf_hit(const struct bvh *b, const struct leaf *l, const struct dra
     const struct patch *pt = &b->patches[l->patch];
     const struct solve_box box = {l->u0, l->u1, l->v0, l->v1};
     double s, t;
-    leaf_seed(l, r, &s, &t);
+    double out = leaf_seed(l, r, &s, &t);
+    /* A root lies within the net's deviation of the corner quad, which a ray at angle θ to the
+     * quad's plane meets within deviation/|cos θ| of it: farther out (with a factor 4 for the
+     * quad's twist), no Newton start can succeed here. */
+    double cosang = fabs(v3_dot(r->d, l->n));
+    if (out > 0.25 + 4.0 * l->slack / fmax(cosang, 1e-6))
+        return false;
     double u = l->u0 + s * (l->u1 - l->u0), v = l->v0 + t * (l->v1 - l->v0);
     bool ok = solve_newton_cramer(pt, r, u, v, &box, b->tol2, h);
     *iters += h->iters;
-    if (!ok && (s != 0.5 || t != 0.5)) { /* one more start, from the leaf's centre */
+    if (!ok && (s != 0.5 || t != 0.5)) { /* no root from the seed: retry from the centre */
         ok = solve_newton_cramer(pt, r, 0.5 * (l->u0 + l->u1), 0.5 * (l->v0 + l->v1), &box, b->tol2, h);
         *iters += h->iters;
     }

@@ -55,6 +55,8 @@ void render_stats_add(struct render_stats *into, const struct render_stats *s)
     into->iterations += s->iterations;
     into->misses += s->misses;
     into->fallback_hits += s->fallback_hits;
+    into->shadow += s->shadow;
+    into->shadow_iterations += s->shadow_iterations;
 }
 
 void frame_free(struct frame *fr)
@@ -108,8 +110,8 @@ static int resolve_lights(struct frame *fr)
     /* key light from the upper left behind the viewer, and a weak head light */
     const struct camera *c = &fr->cam;
     vec3 from = v3_norm(v3_add(v3_add(v3_scale(c->r, -0.6), v3_scale(c->u, 0.9)), v3_scale(c->f, -0.7)));
-    fr->lights[0] = (struct light){false, v3_scale(from, -1.0), v3(0.85, 0.85, 0.85)};
-    fr->lights[1] = (struct light){false, c->f, v3(0.25, 0.25, 0.25)};
+    fr->lights[0] = (struct light){false, v3_scale(from, -1.0), v3(0.85, 0.85, 0.85), false};
+    fr->lights[1] = (struct light){false, c->f, v3(0.25, 0.25, 0.25), true};
     return 0;
 }
 
@@ -301,11 +303,12 @@ static vec3 shade(const struct frame *fr, const struct dray *r, const struct bvh
         double ndl = v3_dot(n, L);
         if (ndl <= 0)
             continue;
-        if (fr->sc->shadows) {
+        if (fr->sc->shadows && !l->no_shadow) {
             struct dray sr;
             solve_ray_init(&sr, origin, L);
             st->rays++;
-            if (bvh_occluded(occ, &sr, 0.0, dist, &st->iterations))
+            st->shadow++;
+            if (bvh_occluded(occ, &sr, 0.0, dist, &st->shadow_iterations))
                 continue;
         }
         vec3 H = v3_norm(v3_sub(L, r->d));

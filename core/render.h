@@ -23,8 +23,10 @@ struct render_stats {
     long rays;          /* primary + shadow rays */
     long primary;       /* primary rays */
     long hits;          /* primary rays that hit */
-    long refinements;   /* root searches started from the map */
-    long iterations;    /* solver iterations, all searches */
+    long refinements;   /* root searches for primary rays (map seeds, Monte-Carlo patches) */
+    long iterations;    /* solver iterations for primary rays */
+    long shadow;        /* shadow rays */
+    long shadow_iterations; /* solver iterations for shadow rays */
     long misses;        /* pixels where map refinement failed and the fallback ran */
     long fallback_hits; /* ... of which the fallback found a surface */
 };

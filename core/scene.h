@@ -29,6 +29,7 @@ struct light {
     bool point;        /* false: directional */
     vec3 v;            /* direction the light travels (directional) or position (point) */
     vec3 color;
+    bool no_shadow;    /* casts no shadow rays (the default head light: its shadows hide behind the objects) */
 };
 
 struct object {

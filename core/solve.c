@@ -53,13 +53,12 @@ static double det3(double a, double b, double c, double d, double e, double f, d
 
 static double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
 
-static bool accept(const struct patch *pt, const struct dray *r, const struct solve_box *box, double u, double v,
-                   const double S[4], struct solve_hit *hit)
+static bool accept(const struct dray *r, const struct solve_box *box, double u, double v, const double S[4],
+                   struct solve_hit *hit)
 {
     if (u < box->u0 - SOLVE_BOX_EPS || u > box->u1 + SOLVE_BOX_EPS || v < box->v0 - SOLVE_BOX_EPS ||
         v > box->v1 + SOLVE_BOX_EPS)
         return false;
-    (void)pt;
     vec3 P = v3(S[0] / S[3], S[1] / S[3], S[2] / S[3]);
     hit->u = u;
     hit->v = v;
@@ -71,34 +70,34 @@ bool solve_newton_cramer(const struct patch *pt, const struct dray *r, double u,
                          const struct solve_box *box, double tol2, struct solve_hit *hit)
 {
     struct proj p;
+    /* converged: the residual is a millionth of the tolerance, i.e. two Newton steps past it */
+    const double done2 = tol2 * 1e-6;
+    const double mu = 0.5 * (box->u1 - box->u0) + 1e-3, mv = 0.5 * (box->v1 - box->v0) + 1e-3;
     hit->iters = 0;
     for (int it = 0; it < SOLVE_MAX_NEWTON; it++) {
         project(pt, r, u, v, &p);
         hit->iters++;
         double res2 = (p.x * p.x + p.y * p.y) / (p.w * p.w);
+        if (res2 <= done2)
+            return accept(r, box, u, v, p.S, hit);
         /* eq. 12–13 with the ray's projection at the origin of the plane: (x_R, y_R) = (0, 0) */
         double M = det3(p.x, p.xu, p.xv, p.y, p.yu, p.yv, p.w, p.wu, p.wv);
         double Mu = det3(p.x, 0.0, p.xv, p.y, 0.0, p.yv, p.w, 1.0, p.wv);
         double Mv = det3(p.x, p.xu, 0.0, p.y, p.yu, 0.0, p.w, p.wu, 1.0);
         if (M == 0.0 || !isfinite(M))
-            return res2 <= tol2 && accept(pt, r, box, u, v, p.S, hit);
-        double du = p.w / M * Mu, dv = p.w / M * Mv; /* eq. 11 */
-        double nu = clamp01(u + du), nv = clamp01(v + dv);
+            return res2 <= tol2 && accept(r, box, u, v, p.S, hit);
+        double nu = clamp01(u + p.w / M * Mu), nv = clamp01(v + p.w / M * Mv); /* eq. 11 */
         double step = fabs(nu - u) + fabs(nv - v);
+        if (step < SOLVE_STEP_EPS) /* stalled (at the domain's edge, or at a singular point) */
+            return res2 <= tol2 && accept(r, box, u, v, p.S, hit);
         u = nu;
         v = nv;
-        if (step < SOLVE_STEP_EPS || (res2 <= tol2 * 1e-6 && step < 1e-9)) {
-            project(pt, r, u, v, &p);
-            res2 = (p.x * p.x + p.y * p.y) / (p.w * p.w);
-            return res2 <= tol2 && accept(pt, r, box, u, v, p.S, hit);
-        }
-        /* far outside the box after the first steps: this root belongs to another leaf */
-        if (it >= 3 && (u < box->u0 - 0.5 * (box->u1 - box->u0) - 1e-3 || u > box->u1 + 0.5 * (box->u1 - box->u0) + 1e-3 ||
-                        v < box->v0 - 0.5 * (box->v1 - box->v0) - 1e-3 || v > box->v1 + 0.5 * (box->v1 - box->v0) + 1e-3))
+        /* well outside the box after the first steps: this root belongs to another leaf */
+        if (it >= 2 && (u < box->u0 - mu || u > box->u1 + mu || v < box->v0 - mv || v > box->v1 + mv))
             return false;
     }
     project(pt, r, u, v, &p);
-    return (p.x * p.x + p.y * p.y) / (p.w * p.w) <= tol2 && accept(pt, r, box, u, v, p.S, hit);
+    return (p.x * p.x + p.y * p.y) / (p.w * p.w) <= tol2 && accept(r, box, u, v, p.S, hit);
 }
 
 /* g = x² + y² in Euclidean units (seed 000 eq. 2); with gu, also its gradient and in *h the
@@ -146,7 +145,7 @@ bool solve_gradient(const struct patch *pt, const struct dray *r, double u, doub
             break;
         u = nu, v = nv, g = ng, gu = ngu, gv = ngv, h0 = nh, p = q;
     }
-    return g <= tol2 && accept(pt, r, box, u, v, p.S, hit);
+    return g <= tol2 && accept(r, box, u, v, p.S, hit);
 }
 
 bool solve_steepest(const struct patch *pt, const struct dray *r, double u, double v,
@@ -176,7 +175,7 @@ bool solve_steepest(const struct patch *pt, const struct dray *r, double u, doub
         if (h * (fabs(du) + fabs(dv)) < SOLVE_STEP_EPS)
             break;
     }
-    return g <= tol2 && accept(pt, r, box, u, v, p.S, hit);
+    return g <= tol2 && accept(r, box, u, v, p.S, hit);
 }
 
 static double rand01(uint64_t *s)

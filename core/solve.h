@@ -31,7 +31,7 @@ struct solve_hit {
 };
 
 /* Stop rules, ours (the seed names "four"/"three" conditions without listing them). */
-#define SOLVE_MAX_NEWTON 24     /* Newton–Cramer iteration cap */
+#define SOLVE_MAX_NEWTON 16     /* Newton–Cramer iteration cap (it converges in 3–5 from a seed) */
 #define SOLVE_MAX_DESCENT 400   /* gradient / steepest descent cap (they converge linearly) */
 #define SOLVE_STEP_EPS 1e-15    /* a parameter step below this has converged */
 #define SOLVE_BOX_EPS 1e-9      /* slack of the accepted box, so no root slips between leaves */

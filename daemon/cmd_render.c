@@ -232,11 +232,11 @@ int cmd_render(int argc, char **argv)
                 "{\"method\":\"%s\",\"width\":%d,\"height\":%d,\"threads\":%d,\"patches\":%zu,"
                 "\"prepare_ms\":%.3f,\"render_ms\":%.3f,\"encode_ms\":%.3f,\"bytes\":%zu,\"rays\":%ld,"
                 "\"primary\":%ld,\"hits\":%ld,\"misses\":%ld,\"fallback_hits\":%ld,\"refinements\":%ld,"
-                "\"iterations\":%ld,\"iterations_mean\":%.3f}\n",
+                "\"iterations\":%ld,\"iterations_mean\":%.3f,\"shadow_rays\":%ld,\"shadow_iterations\":%ld}\n",
                 scene_method_name(sc.method), sc.width, sc.height, n_threads, frame_n_patches(fr),
                 frame_prepare_ms(fr), render_ms, encode_ms, n_bytes, s->rays, s->primary, s->hits, s->misses,
                 s->fallback_hits, s->refinements, s->iterations,
-                s->iterations / (double)(s->refinements ? s->refinements : (s->primary ? s->primary : 1)));
+                s->iterations / (double)(s->primary ? s->primary : 1), s->shadow, s->shadow_iterations);
     }
     free(bytes);
     frame_free(fr);
