@@ -21,9 +21,8 @@ void map_free(struct map *m)
 {
     if (!m)
         return;
-    free(m->near);
-    free(m->other);
-    free(m->slack);
+    free(m->cand);
+    free(m->dropped);
     free(m);
 }
 
@@ -32,25 +31,43 @@ struct sv { /* screen vertex */
     double uz, vz;        /* u/depth, v/depth */
 };
 
-static void put(struct map *m, size_t idx, int patch, float u, float v, float z, float slack)
+/* Offers a fragment of `patch` with depth bound zlo to a pixel's candidate list. */
+static void put(struct map *m, size_t idx, int patch, float u, float v, float zlo)
 {
-    struct map_cand *a = &m->near[idx], *b = &m->other[idx];
-    if (patch == a->patch) {
-        if (z < a->z)
-            a->u = u, a->v = v, a->z = z;
-    } else if (z < a->z) {
-        *b = *a;
-        *a = (struct map_cand){patch, u, v, z};
-    } else if (z < b->z) {
-        *b = (struct map_cand){patch, u, v, z};
+    struct map_cand *c = &m->cand[idx * MAP_CANDS];
+    int at = 0;
+    while (at < MAP_CANDS && c[at].patch >= 0 && c[at].patch != patch)
+        at++;
+    if (at < MAP_CANDS && c[at].patch == patch) { /* already listed: keep the better bound */
+        if (!(zlo < c[at].zlo))
+            return;
+        for (; at > 0 && c[at - 1].zlo > zlo; at--)
+            c[at] = c[at - 1];
+        c[at] = (struct map_cand){patch, u, v, zlo};
+        return;
     }
-    if (slack > m->slack[idx])
-        m->slack[idx] = slack;
+    /* a new patch: insert in order, pushing the last one out if the list is full */
+    int pos = 0;
+    while (pos < MAP_CANDS && c[pos].patch >= 0 && c[pos].zlo <= zlo)
+        pos++;
+    if (pos == MAP_CANDS) {
+        m->dropped[idx] = fminf(m->dropped[idx], zlo);
+        return;
+    }
+    int last = at < MAP_CANDS ? at : MAP_CANDS - 1; /* first free slot, or the evicted one */
+    if (at == MAP_CANDS)
+        m->dropped[idx] = fminf(m->dropped[idx], c[last].zlo);
+    for (int k = last; k > pos; k--)
+        c[k] = c[k - 1];
+    c[pos] = (struct map_cand){patch, u, v, zlo};
 }
 
+/* Marks every pixel whose centre is within pad pixels of triangle abc. zlo bounds the depth
+ * of the patch's surface near the triangle: its nearest vertex less the chord error. */
 static void raster_tri(struct map *m, const struct sv *a, const struct sv *b, const struct sv *c, int patch,
-                       double pad, float slack)
+                       double pad, double chord)
 {
+    float zlo = (float)(1.0 / fmax(a->iz, fmax(b->iz, c->iz)) - chord);
     double area = (b->x - a->x) * (c->y - a->y) - (b->y - a->y) * (c->x - a->x);
     if (fabs(area) < 1e-12) { /* degenerate on screen: still mark its pixels via a widened box */
         area = area < 0 ? -1e-12 : 1e-12;
@@ -95,7 +112,7 @@ static void raster_tri(struct map *m, const struct sv *a, const struct sv *b, co
                 uz += w[k] * v[k]->uz;
                 vz += w[k] * v[k]->vz;
             }
-            put(m, (size_t)y * m->W + x, patch, (float)(uz / iz), (float)(vz / iz), (float)(s / iz), slack);
+            put(m, (size_t)y * m->W + x, patch, (float)(uz / iz), (float)(vz / iz), zlo);
         }
 }
 
@@ -104,16 +121,18 @@ int map_build(const struct patch *patches, size_t n, const struct camera *cam, s
     *out = NULL;
     struct map *m = calloc(1, sizeof *m);
     size_t np = (size_t)cam->W * cam->H;
-    if (!m || !(m->near = malloc(sizeof *m->near * np)) || !(m->other = malloc(sizeof *m->other * np)) ||
-        !(m->slack = calloc(np, sizeof *m->slack))) {
+    if (!m || np > MAP_MAX_PIXELS || !(m->cand = malloc(sizeof *m->cand * np * MAP_CANDS)) ||
+        !(m->dropped = malloc(sizeof *m->dropped * np))) {
         map_free(m);
         return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
     }
     m->W = cam->W;
     m->H = cam->H;
     m->complete = true;
+    for (size_t k = 0; k < np * MAP_CANDS; k++)
+        m->cand[k] = (struct map_cand){-1, 0, 0, INFINITY};
     for (size_t k = 0; k < np; k++)
-        m->near[k] = m->other[k] = (struct map_cand){-1, 0, 0, INFINITY};
+        m->dropped[k] = INFINITY;
     double px_per_unit = cam->H / (2.0 * cam->th); /* pixels per world unit at depth 1 */
 
     for (size_t k = 0; k < n; k++) {
@@ -137,8 +156,7 @@ int map_build(const struct patch *patches, size_t n, const struct camera *cam, s
         tess_grid_size(pt, MAP_ERR_PX * pix, MAP_MAX_SIDE, &gu, &gv);
         double err_px = tess_grid_error(pt, gu, gv) / pix;
         double pad = MAP_PAD_PX + fmax(0.0, err_px - MAP_ERR_PX);
-        /* depth slack: the tessellation error along the ray, generously */
-        float slack = (float)(4.0 * tess_grid_error(pt, gu, gv) + 1e-4 * zmin);
+        double chord = 2.0 * tess_grid_error(pt, gu, gv); /* twice the bound: rational patches */
         struct sv *row = malloc(sizeof *row * (size_t)(gu + 1) * (gv + 1));
         if (!row) {
             map_free(m);
@@ -163,8 +181,8 @@ int map_build(const struct patch *patches, size_t n, const struct camera *cam, s
         for (int i = 0; i < gu; i++)
             for (int j = 0; j < gv; j++) {
                 const struct sv *a = &row[i * (gv + 1) + j], *b = a + (gv + 1);
-                raster_tri(m, a, b, b + 1, (int)k, pad, slack);
-                raster_tri(m, a, b + 1, a + 1, (int)k, pad, slack);
+                raster_tri(m, a, b, b + 1, (int)k, pad, chord);
+                raster_tri(m, a, b + 1, a + 1, (int)k, pad, chord);
                 m->n_tris += 2;
             }
         free(row);

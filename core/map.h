@@ -1,8 +1,10 @@
-/* map.h - the preliminary-value map of seed 000 (eq. 5–6, Table 1), made exact-safe: per pixel
- * the nearest patch id with float (u, v) and depth, plus the nearest fragment of a *different*
- * patch, rasterised conservatively from a tessellation whose chord error is under half a pixel.
- * So every pixel the true surface covers has a candidate, and pixels where two patches lie
- * within the tessellation error of each other get both tried. Caller frees with map_free(). */
+/* map.h - the preliminary-value map of seed 000 (eq. 5–6, Table 1), made exact-safe: integer
+ * patch ids and float (u, v) seeds instead of 8-bit channels, rasterised conservatively from a
+ * tessellation whose chord error is under half a pixel, so every pixel the true surface covers
+ * has a candidate. Each candidate carries a lower bound on its patch's depth at the pixel, so the
+ * tracer can visit candidates nearest-first and stop as soon as the next cannot be in front
+ * (branch and bound); what did not fit is remembered, and such pixels fall back to the exact
+ * hierarchy. Caller frees with map_free(). */
 #ifndef SURFD_MAP_H
 #define SURFD_MAP_H
 
@@ -13,20 +15,24 @@
 #include "camera.h"
 #include "err.h"
 
+#define MAP_CANDS 3 /* patches kept per pixel, nearest lower bound first */
+
 struct map_cand {
     int patch;    /* -1: none */
     float u, v;   /* seed in patch parameters */
-    float z;      /* camera depth of the seed */
+    float zlo;    /* camera depth no root of this patch at this pixel can be in front of */
 };
 
 struct map {
     int W, H;
-    struct map_cand *near;   /* W*H: nearest fragment */
-    struct map_cand *other;  /* W*H: nearest fragment of another patch */
-    float *slack;            /* W*H: depth within which `other` is a contender */
+    struct map_cand *cand;   /* W*H*MAP_CANDS, sorted by zlo, distinct patches */
+    float *dropped;          /* W*H: least zlo of a candidate that did not fit (INFINITY: none) */
     bool complete;           /* false: some patch crosses the eye plane; trust no pixel */
     size_t n_tris;
 };
+
+/* The map covers at most this many pixels; larger frames trace primaries by the hierarchy. */
+#define MAP_MAX_PIXELS (24u << 20)
 
 int map_build(const struct patch *patches, size_t n, const struct camera *cam, struct map **out, struct sf_err *err);
 void map_free(struct map *m);

@@ -172,7 +172,7 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
         rc = bvh_build_mesh(dev, fr->ps.patches, fr->ps.n, sc->mesh_tolerance * fr->diag, &fr->mesh, err);
     else
         rc = bvh_build_patches(dev, fr->ps.patches, fr->ps.n, fr->tol2, &fr->exact, err);
-    if (!rc && (sc->method == METHOD_MAP || sc->method == METHOD_AUTO))
+    if (!rc && (sc->method == METHOD_MAP || sc->method == METHOD_AUTO) && np <= MAP_MAX_PIXELS)
         rc = map_build(fr->ps.patches, fr->ps.n, &fr->cam, &fr->map, err);
     if (rc) {
         frame_free(fr);
@@ -207,30 +207,33 @@ static bool refine(const struct frame *fr, const struct map_cand *c, const struc
     return ok && h->t > 0.0;
 }
 
+/* Branch and bound over the pixel's candidates (nearest depth bound first): a candidate whose
+ * bound lies behind the best root so far cannot hold a nearer one. Where the list overflowed
+ * ahead of the root, or nothing converged, the exact hierarchy decides. */
 static bool primary_map(const struct frame *fr, size_t idx, const struct dray *r, struct bvh_hit *hit,
                         struct render_stats *st)
 {
-    const struct map_cand *a = &fr->map->near[idx], *b = &fr->map->other[idx];
-    if (a->patch < 0)
+    const struct map_cand *c = &fr->map->cand[idx * MAP_CANDS];
+    if (c[0].patch < 0)
         return false; /* no candidate within the conservative footprint: background */
-    struct solve_hit h;
+    const double zscale = v3_dot(r->d, fr->cam.f); /* camera depth per unit of t */
     bool found = false;
-    st->refinements++;
-    if (refine(fr, a, r, &h)) {
-        *hit = (struct bvh_hit){a->patch, h.u, h.v, h.t, false, v3(0, 0, 0)};
-        found = true;
-    }
-    st->iterations += h.iters;
-    /* a second patch within the tessellation's depth error may be the true nearest */
-    if (b->patch >= 0 && b->z - a->z <= fr->map->slack[idx]) {
+    float undecided = fr->map->dropped[idx]; /* least bound of a candidate not resolved */
+    for (int k = 0; k < MAP_CANDS && c[k].patch >= 0; k++) {
+        if (found && c[k].zlo > hit->t * zscale)
+            break;
+        struct solve_hit h;
         st->refinements++;
-        if (refine(fr, b, r, &h) && (!found || h.t < hit->t)) {
-            *hit = (struct bvh_hit){b->patch, h.u, h.v, h.t, false, v3(0, 0, 0)};
+        if (refine(fr, &c[k], r, &h)) {
+            if (!found || h.t < hit->t)
+                *hit = (struct bvh_hit){c[k].patch, h.u, h.v, h.t, false, v3(0, 0, 0)};
             found = true;
+        } else {
+            undecided = fminf(undecided, c[k].zlo); /* no root, or none found: not proof of none */
         }
         st->iterations += h.iters;
     }
-    if (found)
+    if (found && !(undecided <= hit->t * zscale))
         return true;
     st->misses++;
     found = bvh_intersect(fr->exact, r, 0.0, INFINITY, hit, &st->iterations);
@@ -323,8 +326,8 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
     const struct scene *sc = fr->sc;
     const int W = sc->width;
     enum render_method method = sc->method;
-    if ((method == METHOD_MAP || method == METHOD_AUTO) && !fr->map->complete)
-        method = METHOD_BVH; /* the eye is inside the scene's hull: the map cannot seed */
+    if ((method == METHOD_MAP || method == METHOD_AUTO) && (!fr->map || !fr->map->complete))
+        method = METHOD_BVH; /* too large for a map, or the eye inside the scene's hull */
     uint64_t rng = 0x9E3779B97F4A7C15ull ^ (uint64_t)(y0 + 1) * 0xBF58476D1CE4E5B9ull;
     for (int y = y0; y < y1; y++)
         for (int x = 0; x < W; x++) {

@@ -165,13 +165,12 @@ bool solve_steepest(const struct patch *pt, const struct dray *r, double u, doub
             u = nu, v = nv, g = ng, p = q;
             continue;
         }
-        /* step 4: cut h by the inverse golden ratio, new direction at the current point */
-        h *= INV_GOLDEN;
-        double hh;
-        g = g_and_grad(pt, r, u, v, &du, &dv, &hh, &p);
+        /* step 4: new direction at the current point (step 1), step cut by the inverse golden
+         * ratio. The cut applies to the new direction's own step: cutting the old h again and
+         * again lets it collapse until the iteration cap (the seed leaves this open). */
+        g = g_and_grad(pt, r, u, v, &du, &dv, &h, &p);
         hit->iters++;
-        if (hh < h)
-            h = hh;
+        h *= INV_GOLDEN;
         if (h * (fabs(du) + fabs(dv)) < SOLVE_STEP_EPS)
             break;
     }

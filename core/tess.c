@@ -1,6 +1,5 @@
-/* tess.c - uniform per-patch grids sized by the second-difference chord bound. Patches are
- * tessellated independently, so neighbouring grids may not share vertices: good enough for
- * rendering and seeding, not for watertight meshes. */
+/* tess.c - uniform grids sized by the second-difference chord bound, the same size for every
+ * patch so that shared edges match (no cracks where patches meet edge to edge). */
 #include "tess.h"
 
 #include <math.h>
@@ -47,11 +46,20 @@ int tess_build(const struct patch *patches, size_t n, double tol, int max_side, 
     int(*sizes)[2] = malloc(sizeof *sizes * (n ? n : 1));
     if (!sizes)
         return SF_ENOMEM;
+    /* One grid size for every patch and both directions: patches that share an edge curve then
+     * share its vertices exactly, so the mesh has no cracks between them. */
+    int side = 1;
+    for (size_t k = 0; k < n; k++) {
+        int gu, gv;
+        tess_grid_size(&patches[k], tol, max_side, &gu, &gv);
+        side = gu > side ? gu : side;
+        side = gv > side ? gv : side;
+    }
     size_t nv = 0, nt = 0;
     for (size_t k = 0; k < n; k++) {
-        tess_grid_size(&patches[k], tol, max_side, &sizes[k][0], &sizes[k][1]);
-        nv += (size_t)(sizes[k][0] + 1) * (sizes[k][1] + 1);
-        nt += 2 * (size_t)sizes[k][0] * sizes[k][1];
+        sizes[k][0] = sizes[k][1] = side;
+        nv += (size_t)(side + 1) * (side + 1);
+        nt += 2 * (size_t)side * side;
     }
     out->pos = malloc(sizeof *out->pos * nv);
     out->nrm = malloc(sizeof *out->nrm * nv);
