@@ -48,41 +48,44 @@ void bezier_basis(int n, double t, double *B, double *dB)
     dB[n] = n * Bm[n - 1];
 }
 
-/* The bicubic case, which nearly every real scene is, with the loops fixed at 4 so the compiler
- * unrolls them: about twice the speed of the general path. */
-static void eval_bicubic(double (*cw)[4], double u, double v, double S[4], double Su[4], double Sv[4])
-{
-    double su = 1.0 - u, sv = 1.0 - v;
-    double Bu[4] = {su * su * su, 3 * u * su * su, 3 * u * u * su, u * u * u};
-    double Bv[4] = {sv * sv * sv, 3 * v * sv * sv, 3 * v * v * sv, v * v * v};
-    double dBu[4] = {-3 * su * su, 3 * su * (su - 2 * u), 3 * u * (2 * su - u), 3 * u * u};
-    double dBv[4] = {-3 * sv * sv, 3 * sv * (sv - 2 * v), 3 * v * (2 * sv - v), 3 * v * v};
-    double s[4] = {0}, a[4] = {0}, b[4] = {0};
-    for (int i = 0; i < 4; i++) {
-        double c[4] = {0}, cv[4] = {0};
-        for (int j = 0; j < 4; j++)
-            for (int k = 0; k < 4; k++) {
-                c[k] += Bv[j] * cw[4 * i + j][k];
-                cv[k] += dBv[j] * cw[4 * i + j][k];
-            }
-        for (int k = 0; k < 4; k++) {
-            s[k] += Bu[i] * c[k];
-            a[k] += dBu[i] * c[k];
-            b[k] += Bu[i] * cv[k];
-        }
+/* The bicubic case, which nearly every real scene is, with the loops fixed so the compiler
+ * unrolls them; C is 3 for polynomial patches (w = 1 is not summed) and 4 for rational ones. */
+#define EVAL_BICUBIC(NAME, C)                                                                       \
+    static void NAME(double (*cw)[4], double u, double v, double S[4], double Su[4], double Sv[4])   \
+    {                                                                                               \
+        double su = 1.0 - u, sv = 1.0 - v;                                                          \
+        double Bu[4] = {su * su * su, 3 * u * su * su, 3 * u * u * su, u * u * u};                  \
+        double Bv[4] = {sv * sv * sv, 3 * v * sv * sv, 3 * v * v * sv, v * v * v};                  \
+        double dBu[4] = {-3 * su * su, 3 * su * (su - 2 * u), 3 * u * (2 * su - u), 3 * u * u};     \
+        double dBv[4] = {-3 * sv * sv, 3 * sv * (sv - 2 * v), 3 * v * (2 * sv - v), 3 * v * v};     \
+        double s[4] = {0, 0, 0, C == 4 ? 0.0 : 1.0}, a[4] = {0}, b[4] = {0};                        \
+        for (int i = 0; i < 4; i++) {                                                               \
+            double c[4] = {0}, cv[4] = {0};                                                         \
+            for (int j = 0; j < 4; j++)                                                             \
+                for (int k = 0; k < C; k++) {                                                       \
+                    c[k] += Bv[j] * cw[4 * i + j][k];                                               \
+                    cv[k] += dBv[j] * cw[4 * i + j][k];                                             \
+                }                                                                                   \
+            for (int k = 0; k < C; k++) {                                                           \
+                s[k] += Bu[i] * c[k];                                                               \
+                a[k] += dBu[i] * c[k];                                                              \
+                b[k] += Bu[i] * cv[k];                                                              \
+            }                                                                                       \
+        }                                                                                           \
+        memcpy(S, s, sizeof s);                                                                     \
+        if (Su)                                                                                     \
+            memcpy(Su, a, sizeof a);                                                                \
+        if (Sv)                                                                                     \
+            memcpy(Sv, b, sizeof b);                                                                \
     }
-    memcpy(S, s, sizeof s);
-    if (Su)
-        memcpy(Su, a, sizeof a);
-    if (Sv)
-        memcpy(Sv, b, sizeof b);
-}
+EVAL_BICUBIC(eval_bicubic_poly, 3)
+EVAL_BICUBIC(eval_bicubic_rational, 4)
 
 void bezier_eval_h(const struct patch *pt, double u, double v, double S[4], double Su[4], double Sv[4])
 {
     const int p = pt->p, q = pt->q;
     if (p == 3 && q == 3) {
-        eval_bicubic(pt->cw, u, v, S, Su, Sv);
+        (pt->rational ? eval_bicubic_rational : eval_bicubic_poly)(pt->cw, u, v, S, Su, Sv);
         return;
     }
     double Bu[PATCH_MAX_DEGREE + 1], dBu[PATCH_MAX_DEGREE + 1];

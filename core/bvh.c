@@ -30,6 +30,7 @@ struct leaf {
     vec3 c00, c10, c01, c11; /* corner points: the Newton seed comes from them */
     vec3 n;                  /* unit normal of the corner quad */
     double slack;            /* net deviation / quad size: how far off the quad a root may lie */
+    double d0, d1;           /* the control points' extent along n: the leaf lies in this slab */
 };
 
 struct bvh {
@@ -144,6 +145,15 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
     l->n = v3_norm(v3_cross(d1, d2));
     double size = fmax(v3_len(d1), v3_len(d2));
     l->slack = size > 0 && v3_len(l->n) > 0.5 ? dev / size : INFINITY;
+    l->d0 = INFINITY, l->d1 = -INFINITY;
+    for (int i = 0; i <= sub->p; i++)
+        for (int j = 0; j <= sub->q; j++) {
+            double d = v3_dot(l->n, bezier_point(sub, i, j));
+            l->d0 = fmin(l->d0, d);
+            l->d1 = fmax(l->d1, d);
+        }
+    double pad = 1e-9 * (size + fabs(l->d0) + fabs(l->d1)); /* rounding of the dot products */
+    l->d0 -= pad, l->d1 += pad;
     return 0;
 }
 
@@ -237,10 +247,40 @@ static double leaf_seed(const struct leaf *l, const struct dray *r, double *s, d
     return fmin(out1, out2);
 }
 
+/* Narrows [*t0, *t1] to where the ray is between the planes n·x = a and n·x = b. */
+static void clip_slab(vec3 n, double a, double b, const struct dray *r, double *t0, double *t1)
+{
+    double den = v3_dot(n, r->d), no = v3_dot(n, r->o);
+    if (fabs(den) < 1e-300) {
+        if (no < a || no > b)
+            *t1 = -INFINITY;
+        return;
+    }
+    double ta = (a - no) / den, tb = (b - no) / den;
+    *t0 = fmax(*t0, fmin(ta, tb));
+    *t1 = fmin(*t1, fmax(ta, tb));
+}
+
+/* True when the ray's part in (tnear, tmax) meets the leaf's box and its normal slab: a
+ * rigorous test (convex hull property), in double where Embree tested the box in float. */
+static bool leaf_reachable(const struct leaf *l, const struct dray *r, double tnear, double tmax)
+{
+    double t0 = tnear, t1 = tmax;
+    if (v3_len(l->n) > 0.5)
+        clip_slab(l->n, l->d0, l->d1, r, &t0, &t1);
+    clip_slab(v3(1, 0, 0), l->lo.x, l->hi.x, r, &t0, &t1);
+    clip_slab(v3(0, 1, 0), l->lo.y, l->hi.y, r, &t0, &t1);
+    clip_slab(v3(0, 0, 1), l->lo.z, l->hi.z, r, &t0, &t1);
+    double eps = 1e-9 * (fabs(t0) + fabs(t1) + 1.0);
+    return t0 <= t1 + eps;
+}
+
 /* The root of the ray in leaf l with t in (tnear, tmax), or false. */
 static bool leaf_hit(const struct bvh *b, const struct leaf *l, const struct dray *r, double tnear, double tmax,
                      struct solve_hit *h, long *iters)
 {
+    if (!leaf_reachable(l, r, tnear, tmax))
+        return false;
     const struct patch *pt = &b->patches[l->patch];
     const struct solve_box box = {l->u0, l->u1, l->v0, l->v1};
     double s, t;
