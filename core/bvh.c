@@ -31,6 +31,8 @@ struct leaf {
     vec3 n;                  /* unit normal of the corner quad */
     double slack;            /* net deviation / quad size: how far off the quad a root may lie */
     double d0, d1;           /* the control points' extent along n: the leaf lies in this slab */
+    vec3 cone_axis;          /* every normal Pu × Pv of the leaf is within the cone of this axis ... */
+    double cone_sin;         /* ... and half-angle asin(cone_sin); > 1: no cone (rational, or too wide) */
 };
 
 struct bvh {
@@ -49,6 +51,7 @@ struct query {
     struct RTCIntersectContext ctx;
     const struct bvh *b;
     const struct dray *r;
+    const struct bvh_origin *from; /* shadow rays: the surface point they leave, or NULL */
     double tnear;
     struct bvh_hit *hit;   /* NULL for occlusion queries */
     double best_t;
@@ -96,6 +99,54 @@ void bvh_free(struct bvh *b)
 }
 
 /* ---- exact: leaves -------------------------------------------------------------------- */
+
+/* Normal cone of a polynomial patch. Pu × Pv is a polynomial of degree (2p-1, 2q-1) whose
+ * Bernstein coefficients are sums of cross products of the derivative nets, weighted by
+ * binomial ratios; a cone holding every coefficient holds every normal (Bernstein weights are
+ * non-negative). Rational patches get no cone. */
+static void normal_cone(const struct patch *pt, vec3 *axis, double *sin_half)
+{
+    *sin_half = 2.0;
+    int p = pt->p, q = pt->q, M = 2 * p - 1, N = 2 * q - 1;
+    if (pt->rational || M > PATCH_MAX_DEGREE || N > PATCH_MAX_DEGREE)
+        return;
+    double bin[2 * PATCH_MAX_DEGREE + 1][2 * PATCH_MAX_DEGREE + 1];
+    for (int n = 0; n <= M || n <= N; n++)
+        for (int k = 0; k <= n; k++)
+            bin[n][k] = k == 0 || k == n ? 1.0 : bin[n - 1][k - 1] + bin[n - 1][k];
+    vec3 C[2 * PATCH_MAX_DEGREE][2 * PATCH_MAX_DEGREE];
+    for (int m = 0; m <= M; m++)
+        for (int n = 0; n <= N; n++)
+            C[m][n] = v3(0, 0, 0);
+    for (int i = 0; i < p; i++)           /* Pu net: p (P[i+1][j] - P[i][j]), degree (p-1, q) */
+        for (int j = 0; j <= q; j++) {
+            vec3 a = v3_scale(v3_sub(bezier_point(pt, i + 1, j), bezier_point(pt, i, j)), p);
+            for (int k = 0; k <= p; k++)  /* Pv net: q (P[k][l+1] - P[k][l]), degree (p, q-1) */
+                for (int l = 0; l < q; l++) {
+                    vec3 b = v3_scale(v3_sub(bezier_point(pt, k, l + 1), bezier_point(pt, k, l)), q);
+                    double w = bin[p - 1][i] * bin[p][k] / bin[M][i + k] * bin[q][j] * bin[q - 1][l] / bin[N][j + l];
+                    C[i + k][j + l] = v3_add(C[i + k][j + l], v3_scale(v3_cross(a, b), w));
+                }
+        }
+    vec3 sum = v3(0, 0, 0);
+    for (int m = 0; m <= M; m++)
+        for (int n = 0; n <= N; n++)
+            sum = v3_add(sum, v3_norm(C[m][n]));
+    if (v3_len(sum) == 0.0)
+        return;
+    vec3 ax = v3_norm(sum);
+    double cos_min = 1.0;
+    for (int m = 0; m <= M; m++)
+        for (int n = 0; n <= N; n++) {
+            double l = v3_len(C[m][n]);
+            if (l > 0)
+                cos_min = fmin(cos_min, v3_dot(ax, C[m][n]) / l);
+        }
+    if (cos_min <= 0.0)
+        return; /* wider than a hemisphere: no use */
+    *axis = ax;
+    *sin_half = sqrt(fmax(0.0, 1.0 - cos_min * cos_min)) + 1e-9;
+}
 
 /* Largest distance of a control point from the bilinear through the corners, and the net's
  * second differences along u and v (to choose the split direction). */
@@ -154,6 +205,7 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
         }
     double pad = 1e-9 * (size + fabs(l->d0) + fabs(l->d1)); /* rounding of the dot products */
     l->d0 -= pad, l->d1 += pad;
+    normal_cone(sub, &l->cone_axis, &l->cone_sin);
     return 0;
 }
 
@@ -318,11 +370,24 @@ static void leaf_intersect(const struct RTCIntersectFunctionNArguments *args)
     qy->hit->u = h.u;
     qy->hit->v = h.v;
     qy->hit->t = h.t;
-    qy->hit->has_normal = false;
+    qy->hit->has_normal = v3_dot(h.n, h.n) > 0;
+    qy->hit->normal = h.n;
     /* float tfar must not cut off a double root that lies a rounding step beyond */
     rh->ray.tfar = nextafterf((float)h.t, INFINITY);
     rh->hit.geomID = args->geomID;
     rh->hit.primID = args->primID;
+}
+
+/* A shadow ray leaving a point of leaf l meets l nowhere else when every normal of l has the
+ * same sign along the ray (then l is a height field along it): its normal cone decides. */
+static bool leaves_only_its_origin(const struct leaf *l, const struct bvh_origin *o, const struct dray *r)
+{
+    if (!o || o->patch != l->patch || l->cone_sin > 1.0)
+        return false;
+    if (o->u < l->u0 - SOLVE_BOX_EPS || o->u > l->u1 + SOLVE_BOX_EPS || o->v < l->v0 - SOLVE_BOX_EPS ||
+        o->v > l->v1 + SOLVE_BOX_EPS)
+        return false;
+    return fabs(v3_dot(r->d, l->cone_axis)) > l->cone_sin;
 }
 
 static void leaf_occluded(const struct RTCOccludedFunctionNArguments *args)
@@ -331,8 +396,11 @@ static void leaf_occluded(const struct RTCOccludedFunctionNArguments *args)
         return;
     struct query *qy = (struct query *)args->context;
     const struct bvh *b = args->geometryUserPtr;
+    const struct leaf *l = &b->leaves[args->primID];
     struct solve_hit h;
-    if (leaf_hit(b, &b->leaves[args->primID], qy->r, qy->tnear, qy->best_t, &h, &qy->iters)) {
+    if (leaves_only_its_origin(l, qy->from, qy->r))
+        return;
+    if (leaf_hit(b, l, qy->r, qy->tnear, qy->best_t, &h, &qy->iters)) {
         qy->found = true;
         ((struct RTCRay *)args->ray)->tfar = -INFINITY;
     }
@@ -466,9 +534,10 @@ bool bvh_intersect(const struct bvh *b, const struct dray *r, double tnear, doub
     return true;
 }
 
-bool bvh_occluded(const struct bvh *b, const struct dray *r, double tnear, double tfar, long *iters)
+bool bvh_occluded(const struct bvh *b, const struct dray *r, const struct bvh_origin *from, double tnear, double tfar,
+                  long *iters)
 {
-    struct query qy = {.b = b, .r = r, .tnear = tnear, .best_t = tfar};
+    struct query qy = {.b = b, .r = r, .from = from, .tnear = tnear, .best_t = tfar};
     rtcInitIntersectContext(&qy.ctx);
     struct RTCRay ray;
     set_ray(&ray, r, tnear, tfar);

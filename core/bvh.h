@@ -21,7 +21,7 @@ void bvh_device_free(struct bvh_device *dev);
 struct bvh_hit {
     int patch;       /* index into the patch array */
     double u, v, t;  /* patch parameters and distance */
-    bool has_normal; /* mesh hits carry an interpolated normal */
+    bool has_normal; /* the root finder's (or, for the mesh, the interpolated) normal is set */
     vec3 normal;
 };
 
@@ -39,7 +39,14 @@ size_t bvh_n_leaves(const struct bvh *b);
 /* Nearest hit with t in (tnear, tfar). *iters accumulates solver iterations. */
 bool bvh_intersect(const struct bvh *b, const struct dray *r, double tnear, double tfar, struct bvh_hit *hit,
                    long *iters);
-/* Any hit with t in (tnear, tfar). */
-bool bvh_occluded(const struct bvh *b, const struct dray *r, double tnear, double tfar, long *iters);
+/* Where a shadow ray leaves the surface: its own point needs no root search. */
+struct bvh_origin {
+    int patch;
+    double u, v;   /* patch parameters */
+};
+
+/* Any hit with t in (tnear, tfar). from (may be NULL) names the surface point the ray leaves. */
+bool bvh_occluded(const struct bvh *b, const struct dray *r, const struct bvh_origin *from, double tnear, double tfar,
+                  long *iters);
 
 #endif

@@ -226,7 +226,7 @@ static bool primary_map(const struct frame *fr, size_t idx, const struct dray *r
         st->refinements++;
         if (refine(fr, &c[k], r, &h)) {
             if (!found || h.t < hit->t)
-                *hit = (struct bvh_hit){c[k].patch, h.u, h.v, h.t, false, v3(0, 0, 0)};
+                *hit = (struct bvh_hit){c[k].patch, h.u, h.v, h.t, v3_dot(h.n, h.n) > 0, h.n};
             found = true;
         } else {
             undecided = fminf(undecided, c[k].zlo); /* no root, or none found: not proof of none */
@@ -273,7 +273,7 @@ static bool primary_montecarlo(const struct frame *fr, const struct dray *r, uin
         bool ok = solve_montecarlo(&fr->ps.patches[k], r, MC_SAMPLES, rng, fr->tol2, &h);
         st->iterations += h.iters;
         if (ok && (!found || h.t < hit->t)) {
-            *hit = (struct bvh_hit){(int)k, h.u, h.v, h.t, false, v3(0, 0, 0)};
+            *hit = (struct bvh_hit){(int)k, h.u, h.v, h.t, v3_dot(h.n, h.n) > 0, h.n};
             found = true;
         }
     }
@@ -311,7 +311,8 @@ static vec3 shade(const struct frame *fr, const struct dray *r, const struct bvh
             solve_ray_init(&sr, origin, L);
             st->rays++;
             st->shadow++;
-            if (bvh_occluded(occ, &sr, 0.0, dist, &st->shadow_iterations))
+            const struct bvh_origin from = {hit->patch, hit->u, hit->v};
+            if (bvh_occluded(occ, &sr, &from, 0.0, dist, &st->shadow_iterations))
                 continue;
         }
         vec3 H = v3_norm(v3_sub(L, r->d));

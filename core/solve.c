@@ -27,14 +27,14 @@ struct proj {
     double x, y, w;    /* x*, y*, w */
     double xu, yu, wu;
     double xv, yv, wv;
-    double S[4];       /* homogeneous point, for t */
+    double S[4];       /* homogeneous point and derivatives, for t and the normal */
+    double Su[4], Sv[4];
 };
 
 static void project(const struct patch *pt, const struct dray *r, double u, double v, struct proj *p)
 {
-    double Su[4], Sv[4];
-    bezier_eval_h(pt, u, v, p->S, Su, Sv);
-    const double *S = p->S;
+    bezier_eval_h(pt, u, v, p->S, p->Su, p->Sv);
+    const double *S = p->S, *Su = p->Su, *Sv = p->Sv;
     p->x = r->e1.x * S[0] + r->e1.y * S[1] + r->e1.z * S[2] - r->e1o * S[3];
     p->y = r->e2.x * S[0] + r->e2.y * S[1] + r->e2.z * S[2] - r->e2o * S[3];
     p->w = S[3];
@@ -53,16 +53,23 @@ static double det3(double a, double b, double c, double d, double e, double f, d
 
 static double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
 
-static bool accept(const struct dray *r, const struct solve_box *box, double u, double v, const double S[4],
+static bool accept(const struct dray *r, const struct solve_box *box, double u, double v, const struct proj *p,
                    struct solve_hit *hit)
 {
     if (u < box->u0 - SOLVE_BOX_EPS || u > box->u1 + SOLVE_BOX_EPS || v < box->v0 - SOLVE_BOX_EPS ||
         v > box->v1 + SOLVE_BOX_EPS)
         return false;
-    vec3 P = v3(S[0] / S[3], S[1] / S[3], S[2] / S[3]);
+    const double *S = p->S, *Su = p->Su, *Sv = p->Sv, iw = 1.0 / S[3];
+    vec3 P = v3(S[0] * iw, S[1] * iw, S[2] * iw);
     hit->u = u;
     hit->v = v;
     hit->t = v3_dot(r->d, v3_sub(P, r->o));
+    /* quotient rule, as bezier_eval: dP = (dS - P dw) / w */
+    vec3 Pu = v3((Su[0] - P.x * Su[3]) * iw, (Su[1] - P.y * Su[3]) * iw, (Su[2] - P.z * Su[3]) * iw);
+    vec3 Pv = v3((Sv[0] - P.x * Sv[3]) * iw, (Sv[1] - P.y * Sv[3]) * iw, (Sv[2] - P.z * Sv[3]) * iw);
+    vec3 n = v3_cross(Pu, Pv);
+    double l = v3_len(n);
+    hit->n = l > 1e-12 * v3_dot(Pu, Pu) + 1e-300 ? v3_scale(n, 1.0 / l) : v3(0, 0, 0);
     return true;
 }
 
@@ -79,17 +86,17 @@ bool solve_newton_cramer(const struct patch *pt, const struct dray *r, double u,
         hit->iters++;
         double res2 = (p.x * p.x + p.y * p.y) / (p.w * p.w);
         if (res2 <= done2)
-            return accept(r, box, u, v, p.S, hit);
+            return accept(r, box, u, v, &p, hit);
         /* eq. 12–13 with the ray's projection at the origin of the plane: (x_R, y_R) = (0, 0) */
         double M = det3(p.x, p.xu, p.xv, p.y, p.yu, p.yv, p.w, p.wu, p.wv);
         double Mu = det3(p.x, 0.0, p.xv, p.y, 0.0, p.yv, p.w, 1.0, p.wv);
         double Mv = det3(p.x, p.xu, 0.0, p.y, p.yu, 0.0, p.w, p.wu, 1.0);
         if (M == 0.0 || !isfinite(M))
-            return res2 <= tol2 && accept(r, box, u, v, p.S, hit);
+            return res2 <= tol2 && accept(r, box, u, v, &p, hit);
         double nu = clamp01(u + p.w / M * Mu), nv = clamp01(v + p.w / M * Mv); /* eq. 11 */
         double step = fabs(nu - u) + fabs(nv - v);
         if (step < SOLVE_STEP_EPS) /* stalled (at the domain's edge, or at a singular point) */
-            return res2 <= tol2 && accept(r, box, u, v, p.S, hit);
+            return res2 <= tol2 && accept(r, box, u, v, &p, hit);
         u = nu;
         v = nv;
         /* well outside the box after the first steps: this root belongs to another leaf */
@@ -97,7 +104,7 @@ bool solve_newton_cramer(const struct patch *pt, const struct dray *r, double u,
             return false;
     }
     project(pt, r, u, v, &p);
-    return (p.x * p.x + p.y * p.y) / (p.w * p.w) <= tol2 && accept(r, box, u, v, p.S, hit);
+    return (p.x * p.x + p.y * p.y) / (p.w * p.w) <= tol2 && accept(r, box, u, v, &p, hit);
 }
 
 /* g = x² + y² in Euclidean units (seed 000 eq. 2); with gu, also its gradient and in *h the
@@ -145,7 +152,7 @@ bool solve_gradient(const struct patch *pt, const struct dray *r, double u, doub
             break;
         u = nu, v = nv, g = ng, gu = ngu, gv = ngv, h0 = nh, p = q;
     }
-    return g <= tol2 && accept(r, box, u, v, p.S, hit);
+    return g <= tol2 && accept(r, box, u, v, &p, hit);
 }
 
 bool solve_steepest(const struct patch *pt, const struct dray *r, double u, double v,
@@ -174,7 +181,7 @@ bool solve_steepest(const struct patch *pt, const struct dray *r, double u, doub
         if (h * (fabs(du) + fabs(dv)) < SOLVE_STEP_EPS)
             break;
     }
-    return g <= tol2 && accept(r, box, u, v, p.S, hit);
+    return g <= tol2 && accept(r, box, u, v, &p, hit);
 }
 
 static double rand01(uint64_t *s)

@@ -28,6 +28,8 @@ struct solve_hit {
     double u, v;  /* patch parameters of the root */
     double t;     /* distance along the ray */
     int iters;    /* iterations spent, converged or not */
+    vec3 n;       /* unit normal Pu × Pv at the root, from the last evaluation; zero where
+                   * that vanishes (a collapsed edge: bezier_normal() then looks nearby) */
 };
 
 /* Stop rules, ours (the seed names "four"/"three" conditions without listing them). */

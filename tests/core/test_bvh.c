@@ -1,0 +1,131 @@
+/* test_bvh.c - the exact hierarchy: rays aimed at surface points find them (nearest first), and
+ * skipping a shadow ray's origin leaf by its normal cone never changes an occlusion answer. */
+#include "../../api/scene_io.h"
+#include "../../core/bvh.h"
+#include "../unit.h"
+
+#include <stdlib.h>
+
+static struct bvh_device *dev;
+
+static int load(const char *name, struct scene *sc, struct patch_set *ps)
+{
+    const char *dir = getenv("SURFD_DATA");
+    char path[512];
+    snprintf(path, sizeof path, "%s/scenes/%s", dir ? dir : "../shared/data", name);
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return -1;
+    char *buf = malloc(1 << 20);
+    size_t len = fread(buf, 1, (1 << 20) - 1, f);
+    fclose(f);
+    enum image_format img;
+    int rc = scene_parse(buf, len, SCENE_UNKNOWN, sc, &img, NULL);
+    free(buf);
+    memset(ps, 0, sizeof *ps);
+    for (int k = 0; !rc && k < sc->n_objects; k++)
+        rc = nurbs_extract(&sc->objects[k].surf, k, ps);
+    nurbs_patches_fix(ps);
+    return rc;
+}
+
+static double rnd(uint64_t *s)
+{
+    *s ^= *s << 13, *s ^= *s >> 7, *s ^= *s << 17;
+    return (double)(*s >> 11) / 9007199254740992.0;
+}
+
+/* From points all over the teapot, toward random directions on the outer side: the answer with
+ * the origin's leaf skipped equals the full search, and a good share of rays is blocked. */
+TEST(origin_skip_never_changes_occlusion)
+{
+    const char *names[] = {"teapot.json", "teacup.json", "duck1.nurbs"};
+    for (int f = 0; f < 3; f++) {
+        struct scene sc;
+        struct patch_set ps;
+        CHECK(load(names[f], &sc, &ps) == 0);
+        struct bvh *b;
+        CHECK(bvh_build_patches(dev, ps.patches, ps.n, 1e-20, &b, NULL) == 0);
+        uint64_t s = 88172645463325252ull;
+        long blocked = 0, differ = 0, n = 0;
+        for (size_t k = 0; k < ps.n; k++)
+            for (int j = 0; j < 400; j++, n++) {
+                double u = rnd(&s), v = rnd(&s);
+                vec3 P, N, d;
+                bezier_eval(&ps.patches[k], u, v, &P, NULL, NULL);
+                if (!bezier_normal(&ps.patches[k], u, v, &N))
+                    continue;
+                do
+                    d = v3(rnd(&s) * 2 - 1, rnd(&s) * 2 - 1, rnd(&s) * 2 - 1);
+                while (v3_len(d) > 1 || v3_len(d) < 0.1);
+                if (v3_dot(d, N) < 0) /* leave on the side the normal (or its flip) faces */
+                    N = v3_scale(N, -1);
+                d = v3_norm(d);
+                if (v3_dot(d, N) < 0)
+                    d = v3_scale(d, -1);
+                struct dray r;
+                solve_ray_init(&r, v3_mad(P, N, 1e-7 * 7.0), d);
+                const struct bvh_origin from = {(int)k, u, v};
+                bool a = bvh_occluded(b, &r, &from, 0.0, INFINITY, NULL);
+                bool c = bvh_occluded(b, &r, NULL, 0.0, INFINITY, NULL);
+                blocked += c;
+                differ += a != c;
+            }
+        fprintf(stderr, "  %s: %ld rays, %ld blocked, %ld answers differ\n", names[f], n, blocked, differ);
+        CHECK(differ == 0);
+        CHECK(blocked > n / 20);
+        bvh_free(b);
+        nurbs_patch_set_free(&ps);
+        scene_free(&sc);
+    }
+}
+
+/* Rays from outside aimed at sampled points find them, or something nearer. */
+TEST(intersect_finds_sampled_points)
+{
+    struct scene sc;
+    struct patch_set ps;
+    CHECK(load("teapot.json", &sc, &ps) == 0);
+    struct bvh *b;
+    CHECK(bvh_build_patches(dev, ps.patches, ps.n, 1e-20, &b, NULL) == 0);
+    CHECK(bvh_n_leaves(b) >= ps.n);
+    uint64_t s = 12345;
+    long exact = 0, nearer = 0, missed = 0;
+    for (size_t k = 0; k < ps.n; k++)
+        for (int j = 0; j < 200; j++) {
+            double u = rnd(&s), v = rnd(&s);
+            vec3 P, N;
+            bezier_eval(&ps.patches[k], u, v, &P, NULL, NULL);
+            if (!bezier_normal(&ps.patches[k], u, v, &N))
+                continue;
+            vec3 d = v3_norm(v3_add(v3_scale(N, -1), v3(0.3 * (rnd(&s) - 0.5), 0.3 * (rnd(&s) - 0.5), 0)));
+            struct dray r;
+            solve_ray_init(&r, v3_mad(P, d, -0.05), d);
+            struct bvh_hit h;
+            if (!bvh_intersect(b, &r, 0.0, INFINITY, &h, NULL)) {
+                missed++;
+                continue;
+            }
+            if (fabs(h.t - 0.05) < 1e-11)
+                exact++;
+            else if (h.t < 0.05)
+                nearer++; /* another part of the teapot is in front */
+            else
+                missed++;
+        }
+    fprintf(stderr, "  exact %ld, something nearer %ld, missed %ld\n", exact, nearer, missed);
+    CHECK(missed == 0);
+    CHECK(exact > 3000);
+    bvh_free(b);
+    nurbs_patch_set_free(&ps);
+    scene_free(&sc);
+}
+
+int main(void)
+{
+    dev = bvh_device_new(1, NULL);
+    RUN(origin_skip_never_changes_occlusion);
+    RUN(intersect_finds_sampled_points);
+    bvh_device_free(dev);
+    UNIT_END();
+}
