@@ -17,6 +17,9 @@ extern "C" { /* the C headers below declare C functions */
 
 int image_encode(const struct frame_image *img, enum image_format fmt, unsigned char **out, size_t *out_len,
                  struct sf_err *err);
+/* Loads OpenImageIO's writers now (a one-time cost of tens of milliseconds that the first
+ * image_encode() would otherwise pay). Safe to call more than once. */
+void image_init(void);
 
 #ifdef __cplusplus
 }

@@ -17,19 +17,30 @@
 #define MAP_MAX_SIDE 96  /* grid cap per patch side; the pad grows where the cap binds */
 #define NEAR_EPS 1e-9    /* relative depth below which a vertex counts as behind the eye */
 
+struct map_vert { /* a tessellation vertex on screen */
+    double x, y, iz;      /* pixel-centre coordinates, 1/depth */
+    double uz, vz;        /* u/depth, v/depth */
+};
+
+struct map_tri {
+    unsigned v[3];
+    int patch;
+    float pad;            /* conservative dilation, pixels */
+    float zlo;            /* depth bound of the patch's surface near this triangle */
+};
+
 void map_free(struct map *m)
 {
     if (!m)
         return;
     free(m->cand);
     free(m->dropped);
+    free(m->verts);
+    free(m->tris);
+    free(m->tile_first);
+    free(m->tile_tris);
     free(m);
 }
-
-struct sv { /* screen vertex */
-    double x, y, iz;      /* pixel-centre coordinates, 1/depth */
-    double uz, vz;        /* u/depth, v/depth */
-};
 
 /* Offers a fragment of `patch` with depth bound zlo to a pixel's candidate list. */
 static void put(struct map *m, size_t idx, int patch, float u, float v, float zlo)
@@ -62,131 +73,193 @@ static void put(struct map *m, size_t idx, int patch, float u, float v, float zl
     c[pos] = (struct map_cand){patch, u, v, zlo};
 }
 
-/* Marks every pixel whose centre is within pad pixels of triangle abc. zlo bounds the depth
- * of the patch's surface near the triangle: its nearest vertex less the chord error. */
-static void raster_tri(struct map *m, const struct sv *a, const struct sv *b, const struct sv *c, int patch,
-                       double pad, double chord)
+static void tri_bbox(const struct map *m, const struct map_tri *t, int *x0, int *x1, int *y0, int *y1)
 {
-    float zlo = (float)(1.0 / fmax(a->iz, fmax(b->iz, c->iz)) - chord);
-    double area = (b->x - a->x) * (c->y - a->y) - (b->y - a->y) * (c->x - a->x);
-    if (fabs(area) < 1e-12) { /* degenerate on screen: still mark its pixels via a widened box */
-        area = area < 0 ? -1e-12 : 1e-12;
-    }
-    int x0 = (int)floor(fmin(a->x, fmin(b->x, c->x)) - pad), x1 = (int)ceil(fmax(a->x, fmax(b->x, c->x)) + pad);
-    int y0 = (int)floor(fmin(a->y, fmin(b->y, c->y)) - pad), y1 = (int)ceil(fmax(a->y, fmax(b->y, c->y)) + pad);
-    if (x0 < 0) x0 = 0;
-    if (y0 < 0) y0 = 0;
-    if (x1 > m->W - 1) x1 = m->W - 1;
-    if (y1 > m->H - 1) y1 = m->H - 1;
-    const struct sv *v[3] = {a, b, c};
+    const struct map_vert *a = &m->verts[t->v[0]], *b = &m->verts[t->v[1]], *c = &m->verts[t->v[2]];
+    *x0 = (int)floor(fmin(a->x, fmin(b->x, c->x)) - t->pad);
+    *x1 = (int)ceil(fmax(a->x, fmax(b->x, c->x)) + t->pad);
+    *y0 = (int)floor(fmin(a->y, fmin(b->y, c->y)) - t->pad);
+    *y1 = (int)ceil(fmax(a->y, fmax(b->y, c->y)) + t->pad);
+    *x0 = *x0 < 0 ? 0 : *x0;
+    *y0 = *y0 < 0 ? 0 : *y0;
+    *x1 = *x1 > m->W - 1 ? m->W - 1 : *x1;
+    *y1 = *y1 > m->H - 1 ? m->H - 1 : *y1;
+}
+
+/* Marks every pixel of rows [ylo, yhi) whose centre is within pad pixels of triangle t. */
+static void raster_tri(struct map *m, const struct map_tri *t, int ylo, int yhi)
+{
+    const struct map_vert *v[3] = {&m->verts[t->v[0]], &m->verts[t->v[1]], &m->verts[t->v[2]]};
+    double area = (v[1]->x - v[0]->x) * (v[2]->y - v[0]->y) - (v[1]->y - v[0]->y) * (v[2]->x - v[0]->x);
+    int x0, x1, y0, y1;
+    tri_bbox(m, t, &x0, &x1, &y0, &y1);
+    y0 = y0 < ylo ? ylo : y0;
+    y1 = y1 > yhi - 1 ? yhi - 1 : y1;
     double len[3];
     for (int k = 0; k < 3; k++) {
-        const struct sv *p = v[(k + 1) % 3], *q = v[(k + 2) % 3];
+        const struct map_vert *p = v[(k + 1) % 3], *q = v[(k + 2) % 3];
         len[k] = hypot(q->x - p->x, q->y - p->y);
     }
-    double sgn = area > 0 ? 1.0 : -1.0;
+    double sgn = area >= 0 ? 1.0 : -1.0, pad = t->pad;
     for (int y = y0; y <= y1; y++)
         for (int x = x0; x <= x1; x++) {
             /* edge functions: w_k is the signed area opposite vertex k */
-            double w[3];
+            double w[3], s = 0.0;
             bool inside = true;
             for (int k = 0; k < 3; k++) {
-                const struct sv *p = v[(k + 1) % 3], *q = v[(k + 2) % 3];
+                const struct map_vert *p = v[(k + 1) % 3], *q = v[(k + 2) % 3];
                 w[k] = sgn * ((q->x - p->x) * (y - p->y) - (q->y - p->y) * (x - p->x));
-                if (w[k] < -pad * len[k])
-                    inside = false;
+                inside &= w[k] >= -pad * len[k];
+                w[k] = w[k] < 0 ? 0 : w[k]; /* outside: the nearest point's attributes */
+                s += w[k];
             }
             if (!inside)
                 continue;
-            double s = 0.0;
-            for (int k = 0; k < 3; k++) {
-                if (w[k] < 0)
-                    w[k] = 0;
-                s += w[k];
-            }
-            if (s <= 0)
-                w[0] = w[1] = w[2] = 1.0, s = 3.0;
+            if (s <= 0) /* degenerate on screen */
+                w[0] = w[1] = w[2] = 1.0;
             double iz = 0, uz = 0, vz = 0;
             for (int k = 0; k < 3; k++) {
                 iz += w[k] * v[k]->iz;
                 uz += w[k] * v[k]->uz;
                 vz += w[k] * v[k]->vz;
             }
-            put(m, (size_t)y * m->W + x, patch, (float)(uz / iz), (float)(vz / iz), zlo);
+            put(m, (size_t)y * m->W + x, t->patch, (float)(uz / iz), (float)(vz / iz), t->zlo);
         }
+}
+
+void map_raster_rows(struct map *m, int y0, int y1)
+{
+    for (size_t k = (size_t)y0 * m->W * MAP_CANDS; k < (size_t)y1 * m->W * MAP_CANDS; k++)
+        m->cand[k] = (struct map_cand){-1, 0, 0, INFINITY};
+    for (size_t k = (size_t)y0 * m->W; k < (size_t)y1 * m->W; k++)
+        m->dropped[k] = INFINITY;
+    for (int tile = y0 / MAP_TILE_ROWS; tile * MAP_TILE_ROWS < y1; tile++) {
+        int lo = tile * MAP_TILE_ROWS > y0 ? tile * MAP_TILE_ROWS : y0;
+        int hi = (tile + 1) * MAP_TILE_ROWS < y1 ? (tile + 1) * MAP_TILE_ROWS : y1;
+        for (unsigned k = m->tile_first[tile]; k < m->tile_first[tile + 1]; k++)
+            raster_tri(m, &m->tris[m->tile_tris[k]], lo, hi);
+    }
+}
+
+/* Grows an array to hold `need` elements. */
+static int reserve(void **p, size_t *cap, size_t need, size_t elem)
+{
+    if (need <= *cap)
+        return 0;
+    size_t nc = *cap ? *cap : 1024;
+    while (nc < need)
+        nc *= 2;
+    void *q = realloc(*p, nc * elem);
+    if (!q)
+        return SF_ENOMEM;
+    *p = q;
+    *cap = nc;
+    return 0;
+}
+
+/* Tessellates patch pt for the camera and appends its screen vertices and triangles. */
+static int add_patch(struct map *m, const struct patch *pt, int index, const struct camera *cam, size_t *cap_v,
+                     size_t *cap_t)
+{
+    double px_per_unit = cam->H / (2.0 * cam->th); /* pixels per world unit at depth 1 */
+    /* nearest depth of the patch: control points bound it (convex hull) */
+    double zmin = INFINITY, zmax = -INFINITY;
+    for (int i = 0; i <= pt->p; i++)
+        for (int j = 0; j <= pt->q; j++) {
+            double z = v3_dot(v3_sub(bezier_point(pt, i, j), cam->eye), cam->f);
+            zmin = fmin(zmin, z);
+            zmax = fmax(zmax, z);
+        }
+    if (zmax <= 0)
+        return 0; /* wholly behind the eye */
+    if (zmin <= NEAR_EPS * fmax(zmax, 1.0)) {
+        m->complete = false;
+        return 0;
+    }
+    double pix = zmin / px_per_unit; /* world size of a pixel at the nearest depth */
+    int gu, gv;
+    tess_grid_size(pt, MAP_ERR_PX * pix, MAP_MAX_SIDE, &gu, &gv);
+    double err_px = tess_grid_error(pt, gu, gv) / pix;
+    float pad = (float)(MAP_PAD_PX + fmax(0.0, err_px - MAP_ERR_PX));
+    double chord = 2.0 * tess_grid_error(pt, gu, gv); /* twice the bound: rational patches */
+    size_t base = m->n_verts, nv = (size_t)(gu + 1) * (gv + 1), nt = 2 * (size_t)gu * gv;
+    if (reserve((void **)&m->verts, cap_v, base + nv, sizeof *m->verts) ||
+        reserve((void **)&m->tris, cap_t, m->n_tris + nt, sizeof *m->tris))
+        return SF_ENOMEM;
+    for (int i = 0; i <= gu; i++)
+        for (int j = 0; j <= gv; j++) {
+            double u = (double)i / gu, v = (double)j / gv;
+            vec3 P;
+            bezier_eval(pt, u, v, &P, NULL, NULL);
+            vec3 d = v3_sub(P, cam->eye);
+            double z = fmax(v3_dot(d, cam->f), NEAR_EPS);
+            struct map_vert *s = &m->verts[base + (size_t)i * (gv + 1) + j];
+            s->x = (v3_dot(d, cam->r) / (z * cam->th * cam->aspect) + 1.0) * 0.5 * cam->W - 0.5;
+            s->y = (1.0 - v3_dot(d, cam->u) / (z * cam->th)) * 0.5 * cam->H - 0.5;
+            s->iz = 1.0 / z;
+            s->uz = u / z;
+            s->vz = v / z;
+        }
+    m->n_verts += nv;
+    for (int i = 0; i < gu; i++)
+        for (int j = 0; j < gv; j++) {
+            unsigned a = (unsigned)(base + (size_t)i * (gv + 1) + j), b = a + (unsigned)(gv + 1);
+            const unsigned tri[2][3] = {{a, b, b + 1}, {a, b + 1, a + 1}};
+            for (int k = 0; k < 2; k++) {
+                struct map_tri *t = &m->tris[m->n_tris++];
+                memcpy(t->v, tri[k], sizeof t->v);
+                t->patch = index;
+                t->pad = pad;
+                /* its nearest vertex, less the chord error */
+                double iz = fmax(m->verts[t->v[0]].iz, fmax(m->verts[t->v[1]].iz, m->verts[t->v[2]].iz));
+                t->zlo = (float)(1.0 / iz - chord);
+            }
+        }
+    return 0;
 }
 
 int map_build(const struct patch *patches, size_t n, const struct camera *cam, struct map **out, struct sf_err *err)
 {
     *out = NULL;
     struct map *m = calloc(1, sizeof *m);
-    size_t np = (size_t)cam->W * cam->H;
+    size_t np = (size_t)cam->W * cam->H, cap_v = 0, cap_t = 0;
+    int n_tiles = (cam->H + MAP_TILE_ROWS - 1) / MAP_TILE_ROWS;
     if (!m || np > MAP_MAX_PIXELS || !(m->cand = malloc(sizeof *m->cand * np * MAP_CANDS)) ||
-        !(m->dropped = malloc(sizeof *m->dropped * np))) {
-        map_free(m);
-        return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
-    }
+        !(m->dropped = malloc(sizeof *m->dropped * np)) || !(m->tile_first = calloc((size_t)n_tiles + 2, sizeof(unsigned))))
+        goto out_nomem;
     m->W = cam->W;
     m->H = cam->H;
     m->complete = true;
-    for (size_t k = 0; k < np * MAP_CANDS; k++)
-        m->cand[k] = (struct map_cand){-1, 0, 0, INFINITY};
-    for (size_t k = 0; k < np; k++)
-        m->dropped[k] = INFINITY;
-    double px_per_unit = cam->H / (2.0 * cam->th); /* pixels per world unit at depth 1 */
-
-    for (size_t k = 0; k < n; k++) {
-        const struct patch *pt = &patches[k];
-        /* nearest depth of the patch: control points bound it (convex hull) */
-        double zmin = INFINITY, zmax = -INFINITY;
-        for (int i = 0; i <= pt->p; i++)
-            for (int j = 0; j <= pt->q; j++) {
-                double z = v3_dot(v3_sub(bezier_point(pt, i, j), cam->eye), cam->f);
-                zmin = fmin(zmin, z);
-                zmax = fmax(zmax, z);
+    for (size_t k = 0; k < n; k++)
+        if (add_patch(m, &patches[k], (int)k, cam, &cap_v, &cap_t))
+            goto out_nomem;
+    /* bucket the triangles by the row tiles their padded boxes touch (counting sort) */
+    size_t n_refs = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        for (size_t k = 0; k < m->n_tris; k++) {
+            int x0, x1, y0, y1;
+            tri_bbox(m, &m->tris[k], &x0, &x1, &y0, &y1);
+            if (x0 > x1 || y0 > y1)
+                continue;
+            for (int t = y0 / MAP_TILE_ROWS; t <= y1 / MAP_TILE_ROWS; t++) {
+                if (pass == 0)
+                    m->tile_first[t + 2]++;
+                else
+                    m->tile_tris[m->tile_first[t + 1]++] = (unsigned)k;
             }
-        if (zmax <= 0)
-            continue; /* wholly behind the eye */
-        if (zmin <= NEAR_EPS * fmax(zmax, 1.0)) {
-            m->complete = false;
-            continue;
         }
-        double pix = zmin / px_per_unit; /* world size of a pixel at the nearest depth */
-        int gu, gv;
-        tess_grid_size(pt, MAP_ERR_PX * pix, MAP_MAX_SIDE, &gu, &gv);
-        double err_px = tess_grid_error(pt, gu, gv) / pix;
-        double pad = MAP_PAD_PX + fmax(0.0, err_px - MAP_ERR_PX);
-        double chord = 2.0 * tess_grid_error(pt, gu, gv); /* twice the bound: rational patches */
-        struct sv *row = malloc(sizeof *row * (size_t)(gu + 1) * (gv + 1));
-        if (!row) {
-            map_free(m);
-            return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
+        if (pass == 0) {
+            for (int t = 0; t < n_tiles; t++)
+                m->tile_first[t + 2] += m->tile_first[t + 1];
+            n_refs = m->tile_first[n_tiles + 1];
+            if (!(m->tile_tris = malloc(sizeof *m->tile_tris * (n_refs ? n_refs : 1))))
+                goto out_nomem;
         }
-        for (int i = 0; i <= gu; i++)
-            for (int j = 0; j <= gv; j++) {
-                double u = (double)i / gu, v = (double)j / gv;
-                vec3 P;
-                bezier_eval(pt, u, v, &P, NULL, NULL);
-                vec3 d = v3_sub(P, cam->eye);
-                double z = fmax(v3_dot(d, cam->f), NEAR_EPS);
-                double sx = v3_dot(d, cam->r) / (z * cam->th * cam->aspect);
-                double sy = v3_dot(d, cam->u) / (z * cam->th);
-                struct sv *s = &row[i * (gv + 1) + j];
-                s->x = (sx + 1.0) * 0.5 * cam->W - 0.5;
-                s->y = (1.0 - sy) * 0.5 * cam->H - 0.5;
-                s->iz = 1.0 / z;
-                s->uz = u / z;
-                s->vz = v / z;
-            }
-        for (int i = 0; i < gu; i++)
-            for (int j = 0; j < gv; j++) {
-                const struct sv *a = &row[i * (gv + 1) + j], *b = a + (gv + 1);
-                raster_tri(m, a, b, b + 1, (int)k, pad, chord);
-                raster_tri(m, a, b + 1, a + 1, (int)k, pad, chord);
-                m->n_tris += 2;
-            }
-        free(row);
     }
     *out = m;
     return 0;
+
+out_nomem:
+    map_free(m);
+    return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
 }

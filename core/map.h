@@ -23,18 +23,33 @@ struct map_cand {
     float zlo;    /* camera depth no root of this patch at this pixel can be in front of */
 };
 
+struct map_vert;
+struct map_tri;
+
 struct map {
     int W, H;
     struct map_cand *cand;   /* W*H*MAP_CANDS, sorted by zlo, distinct patches */
     float *dropped;          /* W*H: least zlo of a candidate that did not fit (INFINITY: none) */
     bool complete;           /* false: some patch crosses the eye plane; trust no pixel */
-    size_t n_tris;
+    /* the projected tessellation, bucketed by tiles of MAP_TILE_ROWS rows */
+    struct map_vert *verts;
+    struct map_tri *tris;
+    size_t n_verts, n_tris;
+    unsigned *tile_first;    /* n_tiles + 1 offsets into tile_tris */
+    unsigned *tile_tris;
 };
+
+#define MAP_TILE_ROWS 16
 
 /* The map covers at most this many pixels; larger frames trace primaries by the hierarchy. */
 #define MAP_MAX_PIXELS (24u << 20)
 
+/* Tessellates and projects the patches and buckets the triangles by row tiles; no pixel is
+ * written yet. */
 int map_build(const struct patch *patches, size_t n, const struct camera *cam, struct map **out, struct sf_err *err);
+/* Fills the candidates of rows [y0, y1). Writes those rows only, so threads may fill disjoint
+ * row ranges of one map at once. */
+void map_raster_rows(struct map *m, int y0, int y1);
 void map_free(struct map *m);
 
 #endif

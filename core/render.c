@@ -214,8 +214,6 @@ static bool primary_map(const struct frame *fr, size_t idx, const struct dray *r
                         struct render_stats *st)
 {
     const struct map_cand *c = &fr->map->cand[idx * MAP_CANDS];
-    if (c[0].patch < 0)
-        return false; /* no candidate within the conservative footprint: background */
     const double zscale = v3_dot(r->d, fr->cam.f); /* camera depth per unit of t */
     bool found = false;
     float undecided = fr->map->dropped[idx]; /* least bound of a candidate not resolved */
@@ -329,22 +327,29 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
     enum render_method method = sc->method;
     if ((method == METHOD_MAP || method == METHOD_AUTO) && (!fr->map || !fr->map->complete))
         method = METHOD_BVH; /* too large for a map, or the eye inside the scene's hull */
+    const bool use_map = method == METHOD_MAP || method == METHOD_AUTO;
+    if (use_map)
+        map_raster_rows(fr->map, y0, y1);
     uint64_t rng = 0x9E3779B97F4A7C15ull ^ (uint64_t)(y0 + 1) * 0xBF58476D1CE4E5B9ull;
     for (int y = y0; y < y1; y++)
         for (int x = 0; x < W; x++) {
             size_t idx = (size_t)y * W + x;
-            struct dray r;
-            solve_ray_init(&r, fr->cam.eye, camera_dir(&fr->cam, x, y));
             st->rays++;
             st->primary++;
             struct bvh_hit hit;
-            bool ok;
-            switch (method) {
-            case METHOD_MAP:
-            case METHOD_AUTO: ok = primary_map(fr, idx, &r, &hit, st); break;
-            case METHOD_MONTECARLO: ok = primary_montecarlo(fr, &r, &rng, &hit, st); break;
-            case METHOD_MESH: ok = bvh_intersect(fr->mesh, &r, 0.0, INFINITY, &hit, &st->iterations); break;
-            default: ok = bvh_intersect(fr->exact, &r, 0.0, INFINITY, &hit, &st->iterations); break;
+            struct dray r;
+            bool ok = false;
+            if (use_map && fr->map->cand[idx * MAP_CANDS].patch < 0) {
+                /* background by the map: no ray to set up */
+            } else {
+                solve_ray_init(&r, fr->cam.eye, camera_dir(&fr->cam, x, y));
+                switch (method) {
+                case METHOD_MAP:
+                case METHOD_AUTO: ok = primary_map(fr, idx, &r, &hit, st); break;
+                case METHOD_MONTECARLO: ok = primary_montecarlo(fr, &r, &rng, &hit, st); break;
+                case METHOD_MESH: ok = bvh_intersect(fr->mesh, &r, 0.0, INFINITY, &hit, &st->iterations); break;
+                default: ok = bvh_intersect(fr->exact, &r, 0.0, INFINITY, &hit, &st->iterations); break;
+                }
             }
             float *px = &fr->rgba[4 * idx];
             vec3 n = v3(0, 0, 0);
