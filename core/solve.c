@@ -77,23 +77,28 @@ bool solve_newton_cramer(const struct patch *pt, const struct dray *r, double u,
                          const struct solve_box *box, double tol2, struct solve_hit *hit)
 {
     struct proj p;
-    /* converged: the residual is a millionth of the tolerance, i.e. two Newton steps past it */
-    const double done2 = tol2 * 1e-6;
     const double mu = 0.5 * (box->u1 - box->u0) + 1e-3, mv = 0.5 * (box->v1 - box->v0) + 1e-3;
     hit->iters = 0;
     for (int it = 0; it < SOLVE_MAX_NEWTON; it++) {
         project(pt, r, u, v, &p);
         hit->iters++;
         double res2 = (p.x * p.x + p.y * p.y) / (p.w * p.w);
-        if (res2 <= done2)
-            return accept(r, box, u, v, &p, hit);
         /* eq. 12–13 with the ray's projection at the origin of the plane: (x_R, y_R) = (0, 0) */
         double M = det3(p.x, p.xu, p.xv, p.y, p.yu, p.yv, p.w, p.wu, p.wv);
         double Mu = det3(p.x, 0.0, p.xv, p.y, 0.0, p.yv, p.w, 1.0, p.wv);
         double Mv = det3(p.x, p.xu, 0.0, p.y, p.yu, 0.0, p.w, p.wu, 1.0);
         if (M == 0.0 || !isfinite(M))
             return res2 <= tol2 && accept(r, box, u, v, &p, hit);
-        double nu = clamp01(u + p.w / M * Mu), nv = clamp01(v + p.w / M * Mv); /* eq. 11 */
+        double du = p.w / M * Mu, dv = p.w / M * Mv; /* eq. 11 */
+        double nu = clamp01(u + du), nv = clamp01(v + dv);
+        if (res2 <= tol2 && nu == u + du && nv == v + dv) {
+            /* Within tolerance: take this last step without evaluating again. The point there
+             * is the first-order expansion S + Su du + Sv dv, off by O(|step|²), about the
+             * square of the tolerance. */
+            for (int c = 0; c < 4; c++)
+                p.S[c] += p.Su[c] * du + p.Sv[c] * dv;
+            return accept(r, box, nu, nv, &p, hit);
+        }
         double step = fabs(nu - u) + fabs(nv - v);
         if (step < SOLVE_STEP_EPS) /* stalled (at the domain's edge, or at a singular point) */
             return res2 <= tol2 && accept(r, box, u, v, &p, hit);
