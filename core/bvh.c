@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mem.h"
 #include "tess.h"
 
 #define LEAF_FLAT_REL 0.05  /* leaf is flat when its net deviates < 5 % of its size ...       */
@@ -176,14 +177,8 @@ static double net_deviation(const struct patch *pt, double *curv_u, double *curv
 static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
                     double dev)
 {
-    if (b->n_leaves == b->cap_leaves) {
-        size_t nc = b->cap_leaves ? 2 * b->cap_leaves : 256;
-        struct leaf *nl = realloc(b->leaves, sizeof *nl * nc);
-        if (!nl)
-            return SF_ENOMEM;
-        b->leaves = nl;
-        b->cap_leaves = nc;
-    }
+    if (mem_reserve((void **)&b->leaves, &b->cap_leaves, b->n_leaves + 1, sizeof *b->leaves))
+        return SF_ENOMEM;
     struct leaf *l = &b->leaves[b->n_leaves++];
     l->patch = patch;
     l->u0 = u0, l->u1 = u1, l->v0 = v0, l->v1 = v1;
@@ -406,13 +401,32 @@ static void leaf_occluded(const struct RTCOccludedFunctionNArguments *args)
     }
 }
 
-static int commit_or_fail(struct bvh *b, RTCDevice dev, struct sf_err *err)
+static struct bvh *bvh_alloc(const struct patch *patches, double tol2)
 {
+    struct bvh *b = calloc(1, sizeof *b);
+    if (b) {
+        b->patches = patches;
+        b->tol2 = tol2;
+    }
+    return b;
+}
+
+/* Attaches g (taking it over) to a new scene of b and builds it; on failure frees b. */
+static int bvh_commit(struct bvh *b, struct bvh_device *dev, RTCGeometry g, struct bvh **out, struct sf_err *err)
+{
+    b->scene = rtcNewScene(dev->dev);
+    rtcSetSceneBuildQuality(b->scene, RTC_BUILD_QUALITY_HIGH);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(b->scene, g);
+    rtcReleaseGeometry(g);
     rtcCommitScene(b->scene);
-    enum RTCError e = rtcGetDeviceError(dev);
-    if (e != RTC_ERROR_NONE)
+    enum RTCError e = rtcGetDeviceError(dev->dev);
+    if (e != RTC_ERROR_NONE) {
+        bvh_free(b);
         return sf_fail(err, e == RTC_ERROR_OUT_OF_MEMORY ? SF_ENOMEM : SF_EBACKEND, "", "Embree build failed (%d)",
                        (int)e);
+    }
+    *out = b;
     return 0;
 }
 
@@ -420,11 +434,9 @@ int bvh_build_patches(struct bvh_device *dev, const struct patch *patches, size_
                       struct bvh **out, struct sf_err *err)
 {
     *out = NULL;
-    struct bvh *b = calloc(1, sizeof *b);
+    struct bvh *b = bvh_alloc(patches, tol2);
     if (!b)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
-    b->patches = patches;
-    b->tol2 = tol2;
     int rc = 0;
     for (size_t k = 0; k < n && !rc; k++)
         rc = subdivide(b, &patches[k], (int)k, 0.0, 1.0, 0.0, 1.0, 0);
@@ -432,40 +444,26 @@ int bvh_build_patches(struct bvh_device *dev, const struct patch *patches, size_
         bvh_free(b);
         return sf_fail(err, rc, "", "out of memory building the hierarchy");
     }
-    b->scene = rtcNewScene(dev->dev);
-    rtcSetSceneBuildQuality(b->scene, RTC_BUILD_QUALITY_HIGH);
     RTCGeometry g = rtcNewGeometry(dev->dev, RTC_GEOMETRY_TYPE_USER);
     rtcSetGeometryUserPrimitiveCount(g, (unsigned)b->n_leaves);
     rtcSetGeometryUserData(g, b);
     rtcSetGeometryBoundsFunction(g, leaf_bounds, NULL);
     rtcSetGeometryIntersectFunction(g, leaf_intersect);
     rtcSetGeometryOccludedFunction(g, leaf_occluded);
-    rtcCommitGeometry(g);
-    rtcAttachGeometry(b->scene, g);
-    rtcReleaseGeometry(g);
-    if ((rc = commit_or_fail(b, dev->dev, err))) {
-        bvh_free(b);
-        return rc;
-    }
-    *out = b;
-    return 0;
+    return bvh_commit(b, dev, g, out, err);
 }
 
 int bvh_build_mesh(struct bvh_device *dev, const struct patch *patches, size_t n, double chord_tol,
                    struct bvh **out, struct sf_err *err)
 {
     *out = NULL;
-    struct bvh *b = calloc(1, sizeof *b);
+    struct bvh *b = bvh_alloc(patches, 0.0);
     if (!b)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
-    b->patches = patches;
-    int rc = tess_build(patches, n, chord_tol, TESS_MAX_SIDE, &b->mesh);
-    if (rc) {
+    if (tess_build(patches, n, chord_tol, TESS_MAX_SIDE, &b->mesh)) {
         bvh_free(b);
-        return sf_fail(err, rc, "", "out of memory tessellating");
+        return sf_fail(err, SF_ENOMEM, "", "out of memory tessellating");
     }
-    b->scene = rtcNewScene(dev->dev);
-    rtcSetSceneBuildQuality(b->scene, RTC_BUILD_QUALITY_HIGH);
     RTCGeometry g = rtcNewGeometry(dev->dev, RTC_GEOMETRY_TYPE_TRIANGLE);
     float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
                                         b->mesh.n_verts);
@@ -480,15 +478,7 @@ int bvh_build_mesh(struct bvh_device *dev, const struct patch *patches, size_t n
         for (int c = 0; c < 3; c++)
             vb[3 * k + c] = (float)b->mesh.pos[k][c];
     memcpy(ib, b->mesh.tri, sizeof(unsigned) * 3 * b->mesh.n_tris);
-    rtcCommitGeometry(g);
-    rtcAttachGeometry(b->scene, g);
-    rtcReleaseGeometry(g);
-    if ((rc = commit_or_fail(b, dev->dev, err))) {
-        bvh_free(b);
-        return rc;
-    }
-    *out = b;
-    return 0;
+    return bvh_commit(b, dev, g, out, err);
 }
 
 static void set_ray(struct RTCRay *ray, const struct dray *r, double tnear, double tfar)

@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mem.h"
 #include "tess.h"
 
 #define MAP_ERR_PX 0.5   /* chord error allowed, in pixels at the patch's nearest depth */
@@ -141,22 +142,6 @@ void map_raster_rows(struct map *m, int y0, int y1)
     }
 }
 
-/* Grows an array to hold `need` elements. */
-static int reserve(void **p, size_t *cap, size_t need, size_t elem)
-{
-    if (need <= *cap)
-        return 0;
-    size_t nc = *cap ? *cap : 1024;
-    while (nc < need)
-        nc *= 2;
-    void *q = realloc(*p, nc * elem);
-    if (!q)
-        return SF_ENOMEM;
-    *p = q;
-    *cap = nc;
-    return 0;
-}
-
 /* Tessellates patch pt for the camera and appends its screen vertices and triangles. */
 static int add_patch(struct map *m, const struct patch *pt, int index, const struct camera *cam, size_t *cap_v,
                      size_t *cap_t)
@@ -183,8 +168,8 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
     float pad = (float)(MAP_PAD_PX + fmax(0.0, err_px - MAP_ERR_PX));
     double chord = 2.0 * tess_grid_error(pt, gu, gv); /* twice the bound: rational patches */
     size_t base = m->n_verts, nv = (size_t)(gu + 1) * (gv + 1), nt = 2 * (size_t)gu * gv;
-    if (reserve((void **)&m->verts, cap_v, base + nv, sizeof *m->verts) ||
-        reserve((void **)&m->tris, cap_t, m->n_tris + nt, sizeof *m->tris))
+    if (mem_reserve((void **)&m->verts, cap_v, base + nv, sizeof *m->verts) ||
+        mem_reserve((void **)&m->tris, cap_t, m->n_tris + nt, sizeof *m->tris))
         return SF_ENOMEM;
     for (int i = 0; i <= gu; i++)
         for (int j = 0; j <= gv; j++) {

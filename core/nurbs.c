@@ -10,6 +10,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mem.h"
+
 #define KNOT_EPS 1e-12 /* knot values closer than this (relative to the domain) are one knot */
 
 int nurbs_surface_alloc(struct surface *s, enum surf_kind kind, int deg_u, int deg_v, int n_u, int n_v,
@@ -364,21 +366,6 @@ static double (*refine_to_bezier(double (*h)[4], double **U, int *n_u, int n_v, 
     return h;
 }
 
-static int grow(void **ptr, size_t *cap, size_t need, size_t elem)
-{
-    if (need <= *cap)
-        return 0;
-    size_t nc = *cap ? *cap : 16;
-    while (nc < need)
-        nc *= 2;
-    void *np = realloc(*ptr, nc * elem);
-    if (!np)
-        return SF_ENOMEM;
-    *ptr = np;
-    *cap = nc;
-    return 0;
-}
-
 int nurbs_extract(const struct surface *s, int surface_index, struct patch_set *set)
 {
     int rc = SF_ENOMEM;
@@ -409,8 +396,8 @@ int nurbs_extract(const struct surface *s, int surface_index, struct patch_set *
         for (int rv = q; rv < n_v; rv++) {
             if (!(V[rv + 1] > V[rv]))
                 continue;
-            if (grow((void **)&set->patches, &set->cap, set->n + 1, sizeof *set->patches) ||
-                grow((void **)&set->pool, &set->cap_pool, set->n_pool + (size_t)(p + 1) * (q + 1), sizeof *set->pool))
+            if (mem_reserve((void **)&set->patches, &set->cap, set->n + 1, sizeof *set->patches) ||
+                mem_reserve((void **)&set->pool, &set->cap_pool, set->n_pool + (size_t)(p + 1) * (q + 1), sizeof *set->pool))
                 goto out_free;
             struct patch *pt = &set->patches[set->n++];
             pt->p = p;
