@@ -22,10 +22,11 @@ SAN     := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-re
 
 CORE_LIBS := -lembree3 -lm
 API_LIBS  := -ljansson
+DAEMON_LIBS := -lmicrohttpd -lsqlite3 -lpthread
 IMG_LIBS  := -lOpenImageIO -lOpenImageIO_Util -lstdc++
 
 CORE_SRC   := $(wildcard core/*.c)
-API_SRC    := api/scene_json.c api/scene_text.c
+API_SRC    := api/scene_json.c api/scene_text.c api/problem.c api/render_request.c api/job_json.c
 DAEMON_SRC := $(wildcard daemon/*.c)
 TEST_SRC   := $(wildcard tests/core/test_*.c) $(wildcard tests/api/test_*.c)
 
@@ -54,8 +55,15 @@ $(B)/rel/api/image_oiio.o: api/image_oiio.cpp
 	@mkdir -p $(@D)
 	$(CXX) $(CXXFLAGS) -c $< -o $@
 
-$(B)/surfd: $(REL_DMN) $(REL_API) $(B)/rel/api/image_oiio.o $(REL_CORE)
-	$(CC) $(OPT) -o $@ $^ $(IMG_LIBS) $(API_LIBS) $(CORE_LIBS) -lpthread
+# api/openapi.yaml, served at /openapi.yaml, compiled in as a C string
+$(B)/gen/openapi.c: api/openapi.yaml
+	@mkdir -p $(@D)
+	@{ echo 'const char surfd_openapi_yaml[] = {'; od -An -v -tx1 $< | sed 's/ *\([0-9a-f][0-9a-f]\)/0x\1,/g'; echo '0};'; } >$@
+$(B)/gen/openapi.o: $(B)/gen/openapi.c
+	$(CC) -c $< -o $@
+
+$(B)/surfd: $(REL_DMN) $(REL_API) $(B)/rel/api/image_oiio.o $(B)/gen/openapi.o $(REL_CORE)
+	$(CC) $(OPT) -o $@ $^ $(IMG_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
 # unit tests link core/ (and the scene readers), never OpenImageIO
 $(B)/tests/%: tests/%.c tests/unit.h $(SAN_CORE) $(SAN_API)

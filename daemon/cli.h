@@ -4,5 +4,6 @@
 #define SURFD_CLI_H
 
 int cmd_render(int argc, char **argv);
+int cmd_serve(int argc, char **argv);
 
 #endif

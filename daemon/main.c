@@ -1,5 +1,5 @@
-/* main.c - build/surfd: dispatches to its subcommands (render today; serve, model and volume
- * come with the service and contour issues). */
+/* main.c - build/surfd: dispatches to its subcommands (serve, render; model and volume come
+ * with the contours issue). */
 #include <stdio.h>
 #include <string.h>
 
@@ -13,10 +13,13 @@ int main(int argc, char **argv)
 {
     if (argc >= 2 && !strcmp(argv[1], "render"))
         return cmd_render(argc - 1, argv + 1);
+    if (argc >= 2 && !strcmp(argv[1], "serve"))
+        return cmd_serve(argc - 1, argv + 1);
     if (argc >= 2 && (!strcmp(argv[1], "--version") || !strcmp(argv[1], "version"))) {
         printf("surfd %s\n", SURFD_VERSION);
         return 0;
     }
-    fprintf(stderr, "usage: surfd render SCENE... -o OUT [options]   (surfd render --help)\n");
+    fprintf(stderr, "usage: surfd serve [--config FILE] [--SETTING VALUE]...   (surfd serve --help)\n"
+                    "       surfd render SCENE... -o OUT [options]\n");
     return 2;
 }

@@ -1,0 +1,18 @@
+/* job_json.h - the job resource of API.md: {id, kind, state, progress, created, started,
+ * finished, error, links}. Times are Unix seconds in, RFC 3339 UTC out (null when 0). */
+#ifndef SURFD_JOB_JSON_H
+#define SURFD_JOB_JSON_H
+
+struct job_view {
+    const char *id, *kind, *state;
+    double progress;
+    double created, started, finished;
+    const char *error;   /* problem JSON text, or NULL */
+};
+
+/* Caller frees. */
+char *job_json(const struct job_view *v);
+/* {"jobs": [...]} from n views. Caller frees. */
+char *job_list_json(const struct job_view *v, int n);
+
+#endif

@@ -1,0 +1,109 @@
+/* render_request.c - query options and media types of POST /render. */
+#include "render_request.h"
+
+#include <ctype.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+const char *render_format_from_type(const char *ct)
+{
+    if (!ct || !*ct)
+        return "";
+    size_t n = strcspn(ct, ";");
+    while (n > 0 && isspace((unsigned char)ct[n - 1]))
+        n--;
+    static const struct {
+        const char *type, *format;
+    } TYPES[] = {{"application/json", "json"}, {"application/scene+json", "json"}, {"model/x-bpt", "bpt"},
+                 {"application/x-bpt", "bpt"},  {"model/vrml", "nurbs"},           {"x-world/x-vrml", "nurbs"},
+                 {"text/plain", ""},            {"application/octet-stream", ""},
+                 {"application/x-www-form-urlencoded", ""} /* curl -d's default: sniffed like text */};
+    for (size_t k = 0; k < sizeof TYPES / sizeof *TYPES; k++)
+        if (strlen(TYPES[k].type) == n && !strncasecmp(ct, TYPES[k].type, n))
+            return TYPES[k].format;
+    return NULL;
+}
+
+static int num_opt(const char *name, const char *v, double lo, double hi, double *out, struct sf_err *err)
+{
+    char *end, ptr[48];
+    double d = strtod(v, &end);
+    snprintf(ptr, sizeof ptr, "?%s", name);
+    if (end == v || *end || !isfinite(d) || d < lo || d > hi)
+        return sf_fail(err, SF_EINVAL, ptr, "%s must be a number in [%g, %g], not \"%s\"", name, lo, hi, v);
+    *out = d;
+    return 0;
+}
+
+/* Applies one option. */
+static int apply(const char *name, const char *v, struct scene *sc, enum image_format *img, struct sf_err *err)
+{
+    double d;
+    int rc = 0;
+    if (!strcmp(name, "format"))
+        return 0; /* the body's format, handled by the caller */
+    if (!strcmp(name, "output")) {
+        if (image_format_parse(v, img))
+            return sf_fail(err, SF_EINVAL, "?output", "output is png, exr or tiff, not \"%s\"", v);
+    } else if (!strcmp(name, "method")) {
+        if (scene_method_parse(v, &sc->method))
+            return sf_fail(err, SF_EINVAL, "?method", "method is auto, map, bvh, mesh or montecarlo");
+    } else if (!strcmp(name, "width") || !strcmp(name, "height")) {
+        if (!(rc = num_opt(name, v, 1, SCENE_MAX_SIDE, &d, err)))
+            *(name[0] == 'w' ? &sc->width : &sc->height) = (int)d;
+    } else if (!strcmp(name, "azimuth")) {
+        rc = num_opt(name, v, -3600, 3600, &sc->azimuth_deg, err);
+    } else if (!strcmp(name, "elevation")) {
+        rc = num_opt(name, v, -89.9, 89.9, &sc->elevation_deg, err);
+    } else if (!strcmp(name, "shadows")) {
+        if (!(rc = num_opt(name, v, 0, 1, &d, err)))
+            sc->shadows = d != 0;
+    } else {
+        char ptr[64];
+        snprintf(ptr, sizeof ptr, "?%.40s", name);
+        return sf_fail(err, SF_EINVAL, ptr, "unknown option \"%.40s\"", name);
+    }
+    return rc;
+}
+
+int render_request_parse(const char *body, size_t len, const char *format, const char *options, struct scene *sc,
+                         enum image_format *img, struct sf_err *err)
+{
+    enum scene_format fmt = scene_format_parse(format);
+    if ((int)fmt < 0)
+        return sf_fail(err, SF_EFORMAT, "?format", "format is json, bpt or nurbs, not \"%s\"", format);
+    int rc = scene_parse(body, len, fmt, sc, img, err);
+    if (rc)
+        return rc;
+    /* options: name=value&...; values are plain (the daemon decodes %-escapes before storing) */
+    const char *p = options ? options : "";
+    while (*p && !rc) {
+        char name[48] = "", value[128] = "";
+        size_t n = strcspn(p, "=&");
+        snprintf(name, sizeof name, "%.*s", (int)(n < sizeof name ? n : sizeof name - 1), p);
+        p += n;
+        if (*p == '=') {
+            p++;
+            size_t m = strcspn(p, "&");
+            snprintf(value, sizeof value, "%.*s", (int)(m < sizeof value ? m : sizeof value - 1), p);
+            p += m;
+        }
+        if (*p == '&')
+            p++;
+        if (name[0])
+            rc = apply(name, value, sc, img, err);
+    }
+    if (!rc)
+        rc = scene_validate(sc, err);
+    char where[32];
+    for (int k = 0; !rc && k < sc->n_objects; k++) {
+        snprintf(where, sizeof where, "/objects/%d", k);
+        rc = nurbs_validate(&sc->objects[k].surf, where, err);
+    }
+    if (rc)
+        scene_free(sc);
+    return rc;
+}

@@ -1,0 +1,152 @@
+/* cmd_serve.c - `surfd serve`: settings, start-up checks (no unauthenticated non-loopback
+ * listener), the store, recovery of jobs an earlier process left queued or running, the worker
+ * pool and the HTTP server; then signals: SIGTERM/SIGINT drain and exit 0. */
+#include <arpa/inet.h>
+#include <errno.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "../api/image.h"
+#include "cli.h"
+#include "log.h"
+#include "server.h"
+#include "service.h"
+
+static bool loopback(const char *listen)
+{
+    return !strncmp(listen, "127.", 4) || !strncmp(listen, "[::1]:", 6) || !strncmp(listen, "localhost:", 10);
+}
+
+/* One token a line; blank lines and # comments skipped. */
+static int read_tokens(struct service *svc, const char *path, char *msg, size_t msg_len)
+{
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        snprintf(msg, msg_len, "token file %s: %s", path, strerror(errno));
+        return -1;
+    }
+    char line[512];
+    while (fgets(line, sizeof line, f)) {
+        line[strcspn(line, "\r\n")] = 0;
+        char *t = line;
+        while (*t == ' ' || *t == '\t')
+            t++;
+        if (!*t || *t == '#')
+            continue;
+        char **more = realloc(svc->tokens, sizeof *more * (svc->n_tokens + 1));
+        if (!more || !(more[svc->n_tokens] = strdup(t))) {
+            fclose(f);
+            snprintf(msg, msg_len, "out of memory");
+            return -1;
+        }
+        svc->tokens = more;
+        svc->n_tokens++;
+    }
+    fclose(f);
+    if (svc->n_tokens == 0) {
+        snprintf(msg, msg_len, "token file %s holds no token", path);
+        return -1;
+    }
+    return 0;
+}
+
+static void recover(const char *id, void *arg)
+{
+    struct service *svc = arg;
+    struct job_rec rec;
+    if (store_get(svc->store, id, false, false, &rec) == 1 && !strcmp(rec.kind, "render")) {
+        store_set_state(svc->store, id, "queued", 0.0, 0, 0, NULL);
+        if (render_job_submit(svc, id, true) == 0)
+            LOG(LOG_INFO, "recovered job %s", id);
+    }
+    store_rec_free(&rec);
+}
+
+int cmd_serve(int argc, char **argv)
+{
+    struct service svc = {0};
+    char msg[600];
+    config_defaults(&svc.cfg);
+    for (int k = 1; k < argc; k++)
+        if (!strcmp(argv[k], "--help") || !strcmp(argv[k], "-h")) {
+            config_usage();
+            return 0;
+        }
+    if (config_load(&svc.cfg, argc, argv, msg, sizeof msg) || log_set_level(svc.cfg.log_level)) {
+        fprintf(stderr, "surfd serve: %s\n", msg[0] ? msg : "log-level is error, warn, info or debug");
+        return 2;
+    }
+    if (svc.cfg.token_file[0] && read_tokens(&svc, svc.cfg.token_file, msg, sizeof msg)) {
+        fprintf(stderr, "surfd serve: %s\n", msg);
+        return 2;
+    }
+    if (!loopback(svc.cfg.listen) && svc.n_tokens == 0 && !svc.cfg.insecure_no_auth) {
+        fprintf(stderr,
+                "surfd serve: refusing to listen on %s without authentication: give --token-file FILE, listen on "
+                "127.0.0.1, or say --insecure-no-auth if a proxy in front authenticates\n",
+                svc.cfg.listen);
+        return 2;
+    }
+    /* signals are taken by sigwait below; block them before any thread starts */
+    sigset_t sigs;
+    sigemptyset(&sigs);
+    sigaddset(&sigs, SIGTERM);
+    sigaddset(&sigs, SIGINT);
+    pthread_sigmask(SIG_BLOCK, &sigs, NULL);
+    signal(SIGPIPE, SIG_IGN);
+
+    int rc = 1;
+    long threads = svc.cfg.threads ? svc.cfg.threads : sysconf(_SC_NPROCESSORS_ONLN);
+    svc.started_wall = wall_s();
+    svc.started_mono = monotonic_s();
+    struct sf_err err = {0};
+    struct server *server = NULL;
+    if (store_open(svc.cfg.data_dir, &svc.store, msg, sizeof msg)) {
+        fprintf(stderr, "surfd serve: store: %s\n", msg);
+        goto out_free_tokens;
+    }
+    if (!(svc.dev = bvh_device_new((int)threads, &err))) {
+        fprintf(stderr, "surfd serve: %s\n", err.message);
+        goto out_close_store;
+    }
+    image_init();
+    if (!(svc.q = jobq_new((int)threads, svc.cfg.queue_max))) {
+        fprintf(stderr, "surfd serve: cannot start the worker pool\n");
+        goto out_free_device;
+    }
+    store_unfinished(svc.store, recover, &svc);
+    if (!(server = server_start(&svc, msg, sizeof msg))) {
+        fprintf(stderr, "surfd serve: %s\n", msg);
+        jobq_shutdown(svc.q, 0);
+        goto out_free_device;
+    }
+    LOG(LOG_INFO, "surfd listening on %s%s, %ld workers, data in %s%s", svc.cfg.tls_cert[0] ? "https://" : "http://",
+        svc.cfg.listen, threads, svc.cfg.data_dir, svc.n_tokens ? ", bearer tokens required" : "");
+
+    for (;;) {
+        struct timespec every = {60, 0};
+        int sig = sigtimedwait(&sigs, NULL, &every);
+        if (sig == SIGTERM || sig == SIGINT)
+            break;
+        store_prune(svc.store, wall_s(), svc.cfg.result_ttl, svc.cfg.result_max);
+    }
+    LOG(LOG_INFO, "draining: no new jobs; running ones get %lds", svc.cfg.drain_timeout);
+    atomic_store(&svc.draining, true);
+    server_quiesce(server);
+    jobq_shutdown(svc.q, (double)svc.cfg.drain_timeout);
+    server_stop(server);
+    LOG(LOG_INFO, "stopped");
+    rc = 0;
+out_free_device:
+    bvh_device_free(svc.dev);
+out_close_store:
+    store_close(svc.store);
+out_free_tokens:
+    for (size_t k = 0; k < svc.n_tokens; k++)
+        free(svc.tokens[k]);
+    free(svc.tokens);
+    return rc;
+}

@@ -1,0 +1,175 @@
+/* config.c - the settings table (as Redis's config.c: name, bounds, default, field) and the two
+ * readers, file and flags, that both go through config_set(). */
+#include "config.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum ctype { C_STR, C_LONG, C_BOOL };
+
+struct setting {
+    const char *name;
+    enum ctype type;
+    size_t offset;
+    size_t size;       /* C_STR: buffer size */
+    long lo, hi;       /* C_LONG bounds */
+    const char *dflt;
+    const char *help;
+};
+
+#define S(name, field, dflt, help) {name, C_STR, offsetof(struct config, field), sizeof(((struct config *)0)->field), 0, 0, dflt, help}
+#define L(name, field, lo, hi, dflt, help) {name, C_LONG, offsetof(struct config, field), 0, lo, hi, dflt, help}
+#define B(name, field, dflt, help) {name, C_BOOL, offsetof(struct config, field), 0, 0, 0, dflt, help}
+
+static const struct setting SETTINGS[] = {
+    S("listen", listen, "127.0.0.1:8080", "HOST:PORT to listen on"),
+    S("data-dir", data_dir, "./var", "directory of the embedded store"),
+    L("threads", threads, 0, 1024, "0", "worker threads (0: all cores)"),
+    L("queue-max", queue_max, 1, 1000000, "64", "jobs waiting before requests get 429"),
+    L("max-body", max_body, 1024, 1L << 30, "67108864", "largest request body in bytes (413 above)"),
+    L("sync-wait", sync_wait, 0, 3600, "60", "seconds a request waits for its job before 202"),
+    S("token-file", token_file, "", "file of bearer tokens, one per line"),
+    S("tls-cert", tls_cert, "", "PEM certificate for native TLS"),
+    S("tls-key", tls_key, "", "PEM private key for native TLS"),
+    S("log-level", log_level, "info", "error, warn, info or debug"),
+    B("insecure-no-auth", insecure_no_auth, "false", "allow a non-loopback listener without tokens"),
+    L("result-ttl", result_ttl, 1, 365L * 86400, "86400", "seconds finished jobs and results are kept"),
+    L("result-max", result_max, 1, 10000000, "10000", "finished jobs kept at most"),
+    L("drain-timeout", drain_timeout, 0, 3600, "30", "seconds SIGTERM waits for running jobs"),
+    L("max-connections", max_connections, 4, 100000, "256", "simultaneous connections"),
+    L("per-ip-connections", per_ip_connections, 1, 100000, "64", "simultaneous connections per client address"),
+    L("connection-timeout", connection_timeout, 1, 3600, "30", "seconds an idle connection is kept"),
+};
+#define N_SETTINGS (sizeof SETTINGS / sizeof *SETTINGS)
+
+static int config_set(struct config *c, const char *name, const char *value, char *msg, size_t msg_len)
+{
+    for (size_t k = 0; k < N_SETTINGS; k++) {
+        const struct setting *s = &SETTINGS[k];
+        if (strcmp(s->name, name))
+            continue;
+        void *field = (char *)c + s->offset;
+        if (s->type == C_STR) {
+            if (strlen(value) >= s->size) {
+                snprintf(msg, msg_len, "%s: value longer than %zu characters", name, s->size - 1);
+                return -1;
+            }
+            strcpy(field, value);
+        } else if (s->type == C_LONG) {
+            char *end;
+            errno = 0;
+            long v = strtol(value, &end, 10);
+            if (errno || end == value || *end || v < s->lo || v > s->hi) {
+                snprintf(msg, msg_len, "%s: expected an integer in %ld..%ld, got \"%s\"", name, s->lo, s->hi, value);
+                return -1;
+            }
+            *(long *)field = v;
+        } else {
+            if (!strcmp(value, "true") || !strcmp(value, "1") || !strcmp(value, "yes"))
+                *(bool *)field = true;
+            else if (!strcmp(value, "false") || !strcmp(value, "0") || !strcmp(value, "no"))
+                *(bool *)field = false;
+            else {
+                snprintf(msg, msg_len, "%s: expected true or false, got \"%s\"", name, value);
+                return -1;
+            }
+        }
+        return 0;
+    }
+    snprintf(msg, msg_len, "unknown setting \"%s\"", name);
+    return -1;
+}
+
+void config_defaults(struct config *c)
+{
+    memset(c, 0, sizeof *c);
+    char msg[64];
+    for (size_t k = 0; k < N_SETTINGS; k++)
+        config_set(c, SETTINGS[k].name, SETTINGS[k].dflt, msg, sizeof msg);
+}
+
+static char *trim(char *s)
+{
+    while (isspace((unsigned char)*s))
+        s++;
+    char *e = s + strlen(s);
+    while (e > s && isspace((unsigned char)e[-1]))
+        *--e = 0;
+    return s;
+}
+
+static int load_file(struct config *c, const char *path, char *msg, size_t msg_len)
+{
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        snprintf(msg, msg_len, "%s: %s", path, strerror(errno));
+        return -1;
+    }
+    char line[1024];
+    int n = 0, rc = 0;
+    while (!rc && fgets(line, sizeof line, f)) {
+        n++;
+        char *hash = strchr(line, '#');
+        if (hash)
+            *hash = 0;
+        char *s = trim(line);
+        if (!*s)
+            continue;
+        char *eq = strchr(s, '=');
+        if (!eq) {
+            snprintf(msg, msg_len, "%s:%d: expected \"key = value\"", path, n);
+            rc = -1;
+            break;
+        }
+        *eq = 0;
+        char inner[256];
+        if ((rc = config_set(c, trim(s), trim(eq + 1), inner, sizeof inner)))
+            snprintf(msg, msg_len, "%s:%d: %s", path, n, inner);
+    }
+    fclose(f);
+    return rc;
+}
+
+int config_load(struct config *c, int argc, char **argv, char *msg, size_t msg_len)
+{
+    for (int k = 1; k + 1 < argc; k++)
+        if (!strcmp(argv[k], "--config") && load_file(c, argv[k + 1], msg, msg_len))
+            return -1;
+    for (int k = 1; k < argc; k++) {
+        const char *a = argv[k];
+        if (strncmp(a, "--", 2)) {
+            snprintf(msg, msg_len, "unexpected argument \"%s\"", a);
+            return -1;
+        }
+        if (!strcmp(a, "--config")) {
+            k++;
+            continue;
+        }
+        /* booleans may stand alone: --insecure-no-auth */
+        bool is_bool = false;
+        for (size_t s = 0; s < N_SETTINGS; s++)
+            is_bool |= !strcmp(SETTINGS[s].name, a + 2) && SETTINGS[s].type == C_BOOL;
+        const char *value = is_bool && (k + 1 >= argc || !strncmp(argv[k + 1], "--", 2)) ? "true" : NULL;
+        if (!value) {
+            if (k + 1 >= argc) {
+                snprintf(msg, msg_len, "%s needs a value", a);
+                return -1;
+            }
+            value = argv[++k];
+        }
+        if (config_set(c, a + 2, value, msg, msg_len))
+            return -1;
+    }
+    return 0;
+}
+
+void config_usage(void)
+{
+    fprintf(stderr, "usage: surfd serve [--config FILE] [--SETTING VALUE]...\n\nsettings (also as \"key = value\" in FILE):\n");
+    for (size_t k = 0; k < N_SETTINGS; k++)
+        fprintf(stderr, "  --%-20s %s (default: %s)\n", SETTINGS[k].name, SETTINGS[k].help,
+                SETTINGS[k].dflt[0] ? SETTINGS[k].dflt : "none");
+}

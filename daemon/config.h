@@ -1,0 +1,37 @@
+/* config.h - surfd serve's settings: one declarative table (name, type, bounds, default, field)
+ * read from a config file ("key = value" lines, # comments) and then from --key value flags, so
+ * flags win. deploy/surfd.conf documents every key. */
+#ifndef SURFD_CONFIG_H
+#define SURFD_CONFIG_H
+
+#include <stdbool.h>
+#include <stddef.h>
+
+struct config {
+    char listen[128];       /* HOST:PORT */
+    char data_dir[512];
+    long threads;           /* workers; 0: all cores */
+    long queue_max;         /* jobs waiting before 429 */
+    long max_body;          /* bytes of request body */
+    long sync_wait;         /* seconds a request waits for its job before 202 */
+    char token_file[512];
+    char tls_cert[512];
+    char tls_key[512];
+    char log_level[16];     /* error, warn, info, debug */
+    bool insecure_no_auth;  /* allow a non-loopback listener without tokens */
+    long result_ttl;        /* seconds finished jobs are kept */
+    long result_max;        /* finished jobs kept at most */
+    long drain_timeout;     /* seconds SIGTERM waits for running jobs */
+    long max_connections;
+    long per_ip_connections;
+    long connection_timeout; /* seconds */
+};
+
+void config_defaults(struct config *c);
+/* Applies argv (after "serve"); --config F is read first wherever it stands. Writes a message
+ * to msg on failure and returns -1. */
+int config_load(struct config *c, int argc, char **argv, char *msg, size_t msg_len);
+/* The usage text, generated from the table. */
+void config_usage(void);
+
+#endif

@@ -1,0 +1,130 @@
+/* job_render.c - the render job kind: rebuilds the scene from the stored request (so a job
+ * recovered after a crash runs exactly as submitted), prepares one frame, renders it in
+ * MAP_TILE_ROWS-row bands on whichever workers are idle, encodes the image and stores it. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../api/image.h"
+#include "../api/problem.h"
+#include "../api/render_request.h"
+#include "../core/map.h"
+#include "../core/render.h"
+#include "log.h"
+#include "metrics.h"
+#include "service.h"
+
+#define JOB_BAND_ROWS MAP_TILE_ROWS /* a band is one map tile: no tile is rasterised twice */
+
+struct render_work {
+    struct service *svc;
+    char id[40];
+    struct scene sc;
+    bool have_scene;
+    enum image_format fmt;
+    struct frame *fr;
+    int n_bands;
+    struct render_stats *band_stats; /* one per band: bands never share a counter */
+    double t0;
+    struct sf_err err;
+};
+
+static int prepare(struct job *j, void *arg, int *n_bands)
+{
+    (void)j;
+    struct render_work *w = arg;
+    struct job_rec rec;
+    int found = store_get(w->svc->store, w->id, true, false, &rec);
+    if (found != 1)
+        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
+    double now = wall_s();
+    store_set_state(w->svc->store, w->id, "running", 0.0, now, 0, NULL);
+    int rc = render_request_parse((const char *)rec.request, rec.request_len, rec.format, rec.options, &w->sc, &w->fmt,
+                                  &w->err);
+    store_rec_free(&rec);
+    if (rc)
+        return -1;
+    w->have_scene = true;
+    if (frame_prepare(&w->sc, w->svc->dev, &w->fr, &w->err))
+        return -1;
+    w->n_bands = (w->sc.height + JOB_BAND_ROWS - 1) / JOB_BAND_ROWS;
+    w->band_stats = calloc((size_t)w->n_bands, sizeof *w->band_stats);
+    if (!w->band_stats)
+        return sf_fail(&w->err, SF_ENOMEM, "", "out of memory"), -1;
+    w->t0 = monotonic_s();
+    *n_bands = w->n_bands;
+    return 0;
+}
+
+static void band(struct job *j, void *arg, int k)
+{
+    (void)j;
+    struct render_work *w = arg;
+    int y0 = k * JOB_BAND_ROWS, y1 = y0 + JOB_BAND_ROWS < w->sc.height ? y0 + JOB_BAND_ROWS : w->sc.height;
+    frame_band(w->fr, y0, y1, &w->band_stats[k]);
+}
+
+static void fail(struct render_work *w)
+{
+    char *p = problem_from_err(&w->err);
+    store_set_state(w->svc->store, w->id, "failed", 0.0, 0, wall_s(), p);
+    LOG(LOG_WARN, "job %s failed: %s", w->id, w->err.message);
+    free(p);
+}
+
+static void finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
+{
+    (void)j;
+    struct render_work *w = arg;
+    if (outcome == JOB_SUCCEEDED) {
+        double render_s = monotonic_s() - w->t0;
+        struct render_stats total = {0};
+        for (int k = 0; k < w->n_bands; k++)
+            render_stats_add(&total, &w->band_stats[k]);
+        struct frame_image img;
+        frame_image(w->fr, &img);
+        unsigned char *bytes = NULL;
+        size_t n = 0;
+        if (image_encode(&img, w->fmt, &bytes, &n, &w->err) == 0) {
+            char meta[160];
+            snprintf(meta, sizeof meta, "{\"render_ms\":%.1f,\"prepare_ms\":%.1f,\"rays\":%ld}", render_s * 1e3,
+                     frame_prepare_ms(w->fr), total.rays);
+            if (store_set_result(w->svc->store, w->id, bytes, n, image_format_mime(w->fmt), meta, wall_s()))
+                LOG(LOG_ERROR, "job %s: could not store its result", w->id);
+            metrics_render(render_s, total.rays);
+        } else {
+            outcome = JOB_FAILED;
+            fail(w);
+        }
+        free(bytes);
+    } else if (outcome == JOB_FAILED) {
+        fail(w);
+    } else if (requeue) { /* shutdown: leave it to the next start */
+        store_set_state(w->svc->store, w->id, "queued", 0.0, 0, 0, NULL);
+    } else {
+        store_set_state(w->svc->store, w->id, "cancelled", 0.0, 0, wall_s(), NULL);
+    }
+    if (!requeue)
+        metrics_job_end(outcome);
+    frame_free(w->fr);
+    if (w->have_scene)
+        scene_free(&w->sc);
+    free(w->band_stats);
+    free(w);
+}
+
+static const struct job_ops RENDER_OPS = {prepare, band, finish};
+
+int render_job_submit(struct service *svc, const char *id, bool force)
+{
+    struct render_work *w = calloc(1, sizeof *w);
+    if (!w)
+        return -1;
+    w->svc = svc;
+    snprintf(w->id, sizeof w->id, "%s", id);
+    if (jobq_submit(svc->q, id, &RENDER_OPS, w, force)) {
+        free(w);
+        return -1;
+    }
+    return 0;
+}

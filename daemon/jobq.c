@@ -1,0 +1,366 @@
+/* jobq.c - queue, workers and waiters.
+ *
+ * Threading contract
+ *   Lock: one mutex, q->lock, guards every field of struct jobq and the fields of struct job marked
+ *   [q]. Nothing else is taken while it is held: ops, the store and waiter callbacks all run with it
+ *   released. There is no lock order to get wrong because there is one lock.
+ *   Ownership of a job by state:
+ *     QUEUED     the queue (linked in q->queue and q->live); only lock holders touch it.
+ *     preparing  the worker that dequeued it, alone, for ops->prepare (j->work is its own).
+ *     banded     shared: any worker may claim the next band under the lock and run ops->band
+ *                unlocked; bands write disjoint data, prepared data is read-only.
+ *     finishing  the worker that saw the last band end (or the preparer, for a job without bands)
+ *                runs ops->finish unlocked, then unlinks the job and wakes its waiters.
+ *   What a worker may call: its job's ops (which call core/ and the store), never the HTTP layer;
+ *   waiter callbacks are the only path back to connections, and they only resume them.
+ *   Memory bound: at most n_workers jobs are prepared at once; others wait queued. */
+#include "jobq.h"
+
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+struct waiter {
+    void (*fn)(void *, bool);
+    void *arg;
+    double deadline;
+    struct waiter *next;
+};
+
+struct job {
+    char id[40];
+    const struct job_ops *ops;
+    void *work;
+    enum job_state state;        /* [q] */
+    bool preparing;              /* [q] */
+    bool cancel;                 /* [q] set by jobq_cancel or shutdown */
+    bool requeue;                /* [q] cancelled by shutdown: run again after restart */
+    int n_bands, next_band;      /* [q] */
+    int bands_done, bands_out;   /* [q] finished / being rendered */
+    struct waiter *waiters;      /* [q] */
+    struct job *next_queued;     /* [q] FIFO link */
+    struct job *next_live;       /* [q] all queued and running jobs */
+};
+
+struct jobq {
+    pthread_mutex_t lock;
+    pthread_cond_t work;         /* a queued job or a band is available, or stop */
+    pthread_cond_t timer_cond;   /* a waiter with a deadline was added, or stop */
+    struct job *queue_head, *queue_tail;
+    struct job *live;
+    long n_queued, queue_max;
+    int n_workers, n_active;     /* n_active: jobs taken off the queue and not finished */
+    bool stop_taking, stop;
+    pthread_t *threads, timer;
+};
+
+double monotonic_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + ts.tv_nsec / 1e9;
+}
+
+const char *job_id(const struct job *j) { return j->id; }
+
+static struct job *find_live(struct jobq *q, const char *id)
+{
+    for (struct job *j = q->live; j; j = j->next_live)
+        if (!strcmp(j->id, id))
+            return j;
+    return NULL;
+}
+
+static void unlink_live(struct jobq *q, struct job *j)
+{
+    for (struct job **p = &q->live; *p; p = &(*p)->next_live)
+        if (*p == j) {
+            *p = j->next_live;
+            return;
+        }
+}
+
+/* A banded job with a band left to hand out. */
+static struct job *band_job(struct jobq *q)
+{
+    for (struct job *j = q->live; j; j = j->next_live)
+        if (j->state == JOB_RUNNING && !j->preparing && !j->cancel && j->next_band < j->n_bands)
+            return j;
+    return NULL;
+}
+
+/* A banded job cancelled between bands: nobody holds a band of it, so nobody else will end it. */
+static struct job *stranded_job(struct jobq *q)
+{
+    for (struct job *j = q->live; j; j = j->next_live)
+        if (j->state == JOB_RUNNING && !j->preparing && j->cancel && j->bands_out == 0 && j->n_bands > 0)
+            return j;
+    return NULL;
+}
+
+/* Called with the lock held; returns with it held. Runs finish unlocked and wakes the waiters. */
+static void finish_job(struct jobq *q, struct job *j, enum job_state outcome)
+{
+    j->state = outcome;
+    bool requeue = j->requeue;
+    pthread_mutex_unlock(&q->lock);
+    j->ops->finish(j, j->work, outcome, requeue);
+    pthread_mutex_lock(&q->lock);
+    unlink_live(q, j);
+    q->n_active--;
+    struct waiter *w = j->waiters;
+    j->waiters = NULL;
+    pthread_cond_broadcast(&q->work); /* room for another prepared job */
+    pthread_mutex_unlock(&q->lock);
+    while (w) {
+        struct waiter *next = w->next;
+        w->fn(w->arg, true);
+        free(w);
+        w = next;
+    }
+    free(j);
+    pthread_mutex_lock(&q->lock);
+}
+
+static void *worker(void *arg)
+{
+    struct jobq *q = arg;
+    pthread_mutex_lock(&q->lock);
+    for (;;) {
+        struct job *j;
+        if (!q->stop_taking && q->queue_head && q->n_active < q->n_workers) {
+            j = q->queue_head;
+            q->queue_head = j->next_queued;
+            if (!q->queue_head)
+                q->queue_tail = NULL;
+            q->n_queued--;
+            q->n_active++;
+            if (j->cancel) { /* cancelled while queued */
+                finish_job(q, j, JOB_CANCELLED);
+                continue;
+            }
+            j->state = JOB_RUNNING;
+            j->preparing = true;
+            pthread_mutex_unlock(&q->lock);
+            int n_bands = 0;
+            int rc = j->ops->prepare(j, j->work, &n_bands);
+            pthread_mutex_lock(&q->lock);
+            j->preparing = false;
+            j->n_bands = rc ? 0 : n_bands;
+            if (rc || n_bands == 0)
+                finish_job(q, j, rc ? JOB_FAILED : JOB_SUCCEEDED);
+            else
+                pthread_cond_broadcast(&q->work); /* bands for the others */
+        } else if ((j = stranded_job(q))) {
+            finish_job(q, j, JOB_CANCELLED);
+        } else if ((j = band_job(q))) {
+            int band = j->next_band++;
+            j->bands_out++;
+            pthread_mutex_unlock(&q->lock);
+            j->ops->band(j, j->work, band);
+            pthread_mutex_lock(&q->lock);
+            j->bands_out--;
+            j->bands_done++;
+            bool all = j->bands_done == j->n_bands || (j->cancel && j->bands_out == 0);
+            if (all)
+                finish_job(q, j, j->cancel ? JOB_CANCELLED : JOB_SUCCEEDED);
+        } else if (q->stop) {
+            break;
+        } else {
+            pthread_cond_wait(&q->work, &q->lock);
+        }
+    }
+    pthread_mutex_unlock(&q->lock);
+    return NULL;
+}
+
+/* Fires waiters whose deadline passed. */
+static void *timer(void *arg)
+{
+    struct jobq *q = arg;
+    pthread_mutex_lock(&q->lock);
+    while (!q->stop) {
+        double now = monotonic_s(), next = now + 0.25;
+        struct waiter *due = NULL;
+        for (struct job *j = q->live; j; j = j->next_live)
+            for (struct waiter **p = &j->waiters; *p;) {
+                struct waiter *w = *p;
+                if (w->deadline <= now) {
+                    *p = w->next;
+                    w->next = due;
+                    due = w;
+                } else {
+                    next = w->deadline < next ? w->deadline : next;
+                    p = &w->next;
+                }
+            }
+        if (due) {
+            pthread_mutex_unlock(&q->lock);
+            while (due) {
+                struct waiter *n = due->next;
+                due->fn(due->arg, false);
+                free(due);
+                due = n;
+            }
+            pthread_mutex_lock(&q->lock);
+            continue;
+        }
+        struct timespec ts;
+        clock_gettime(CLOCK_MONOTONIC, &ts);
+        double wait = next - now;
+        ts.tv_sec += (time_t)wait;
+        ts.tv_nsec += (long)((wait - (double)(time_t)wait) * 1e9);
+        if (ts.tv_nsec >= 1000000000L)
+            ts.tv_sec++, ts.tv_nsec -= 1000000000L;
+        pthread_cond_timedwait(&q->timer_cond, &q->lock, &ts);
+    }
+    pthread_mutex_unlock(&q->lock);
+    return NULL;
+}
+
+struct jobq *jobq_new(int n_workers, long queue_max)
+{
+    struct jobq *q = calloc(1, sizeof *q);
+    if (!q)
+        return NULL;
+    pthread_mutex_init(&q->lock, NULL);
+    pthread_condattr_t ca;
+    pthread_condattr_init(&ca);
+    pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
+    pthread_cond_init(&q->timer_cond, &ca);
+    pthread_condattr_destroy(&ca);
+    pthread_cond_init(&q->work, NULL);
+    q->n_workers = n_workers < 1 ? 1 : n_workers;
+    q->queue_max = queue_max;
+    q->threads = calloc((size_t)q->n_workers, sizeof *q->threads);
+    if (!q->threads) {
+        free(q);
+        return NULL;
+    }
+    for (int k = 0; k < q->n_workers; k++)
+        pthread_create(&q->threads[k], NULL, worker, q);
+    pthread_create(&q->timer, NULL, timer, q);
+    return q;
+}
+
+void jobq_shutdown(struct jobq *q, double timeout_s)
+{
+    double deadline = monotonic_s() + timeout_s;
+    pthread_mutex_lock(&q->lock);
+    q->stop_taking = true;
+    while (q->n_active > 0 && monotonic_s() < deadline) {
+        pthread_mutex_unlock(&q->lock);
+        struct timespec ts = {0, 50 * 1000000L};
+        nanosleep(&ts, NULL);
+        pthread_mutex_lock(&q->lock);
+    }
+    for (struct job *j = q->live; j; j = j->next_live)
+        if (j->state == JOB_RUNNING) {
+            j->cancel = true;
+            j->requeue = true;
+        }
+    q->stop = true;
+    pthread_cond_broadcast(&q->work);
+    pthread_cond_broadcast(&q->timer_cond);
+    pthread_mutex_unlock(&q->lock);
+    for (int k = 0; k < q->n_workers; k++)
+        pthread_join(q->threads[k], NULL);
+    pthread_join(q->timer, NULL);
+    /* queued jobs stay queued in the store; their in-memory records and waiters go */
+    for (struct job *j = q->live, *n; j; j = n) {
+        n = j->next_live;
+        for (struct waiter *w = j->waiters, *wn; w; w = wn) {
+            wn = w->next;
+            w->fn(w->arg, false);
+            free(w);
+        }
+        j->ops->finish(j, j->work, JOB_CANCELLED, true);
+        free(j);
+    }
+    free(q->threads);
+    pthread_mutex_destroy(&q->lock);
+    pthread_cond_destroy(&q->work);
+    pthread_cond_destroy(&q->timer_cond);
+    free(q);
+}
+
+int jobq_submit(struct jobq *q, const char *id, const struct job_ops *ops, void *work, bool force)
+{
+    struct job *j = calloc(1, sizeof *j);
+    if (!j)
+        return -1;
+    snprintf(j->id, sizeof j->id, "%s", id);
+    j->ops = ops;
+    j->work = work;
+    j->state = JOB_QUEUED;
+    pthread_mutex_lock(&q->lock);
+    if ((q->n_queued >= q->queue_max && !force) || q->stop_taking) {
+        pthread_mutex_unlock(&q->lock);
+        free(j);
+        return -1;
+    }
+    if (q->queue_tail)
+        q->queue_tail->next_queued = j;
+    else
+        q->queue_head = j;
+    q->queue_tail = j;
+    q->n_queued++;
+    j->next_live = q->live;
+    q->live = j;
+    pthread_cond_signal(&q->work);
+    pthread_mutex_unlock(&q->lock);
+    return 0;
+}
+
+bool jobq_peek(struct jobq *q, const char *id, enum job_state *state, double *progress)
+{
+    pthread_mutex_lock(&q->lock);
+    struct job *j = find_live(q, id);
+    if (j) {
+        *state = j->state;
+        *progress = j->n_bands ? (double)j->bands_done / j->n_bands : 0.0;
+    }
+    pthread_mutex_unlock(&q->lock);
+    return j != NULL;
+}
+
+bool jobq_cancel(struct jobq *q, const char *id)
+{
+    pthread_mutex_lock(&q->lock);
+    struct job *j = find_live(q, id);
+    if (j && (j->state == JOB_QUEUED || j->state == JOB_RUNNING)) {
+        j->cancel = true;
+        pthread_cond_broadcast(&q->work); /* someone must end it if no band is out */
+    }
+    pthread_mutex_unlock(&q->lock);
+    return j != NULL;
+}
+
+void jobq_wait(struct jobq *q, const char *id, double deadline, void (*fn)(void *arg, bool finished), void *arg)
+{
+    struct waiter *w = malloc(sizeof *w);
+    pthread_mutex_lock(&q->lock);
+    struct job *j = find_live(q, id);
+    if (j && w) {
+        *w = (struct waiter){fn, arg, deadline, j->waiters};
+        j->waiters = w;
+        pthread_cond_signal(&q->timer_cond);
+        pthread_mutex_unlock(&q->lock);
+        return;
+    }
+    pthread_mutex_unlock(&q->lock);
+    free(w);
+    fn(arg, j == NULL); /* unknown: finished (or, out of memory, not: the caller answers 202) */
+}
+
+void jobq_stats(struct jobq *q, struct jobq_stats *out)
+{
+    pthread_mutex_lock(&q->lock);
+    out->queued = q->n_queued;
+    out->running = q->n_active;
+    out->workers = q->n_workers;
+    out->queue_max = q->queue_max;
+    pthread_mutex_unlock(&q->lock);
+}

@@ -1,0 +1,57 @@
+/* jobq.h - the bounded job queue and its worker pool.
+ *
+ * A job runs in up to three steps, given by its kind's ops: prepare() on the worker that takes it,
+ * then band(k) for k in [0, n_bands) on any idle workers (a render's scanline bands), then
+ * finish() on the worker that completes the last band. A job with no bands is finished right after
+ * prepare. Cancel takes effect between bands. See jobq.c for the threading contract. */
+#ifndef SURFD_JOBQ_H
+#define SURFD_JOBQ_H
+
+#include <stdbool.h>
+#include <stddef.h>
+
+struct jobq;
+struct job;
+
+enum job_state { JOB_QUEUED, JOB_RUNNING, JOB_SUCCEEDED, JOB_FAILED, JOB_CANCELLED };
+
+struct job_ops {
+    /* Sets *n_bands (0: all work done here). Returns 0, or -1 when the job failed (finish is then
+     * called with failed = true). Runs without the queue lock. */
+    int (*prepare)(struct job *j, void *work, int *n_bands);
+    void (*band)(struct job *j, void *work, int band);
+    /* outcome: JOB_SUCCEEDED, JOB_FAILED (prepare failed) or JOB_CANCELLED (by the user; or, with
+     * requeue, by shutdown: the job is to run again after restart). Frees work. */
+    void (*finish)(struct job *j, void *work, enum job_state outcome, bool requeue);
+};
+
+/* Creates the pool with n_workers threads and room for queue_max waiting jobs. */
+struct jobq *jobq_new(int n_workers, long queue_max);
+/* Stops taking queued jobs, waits up to timeout_s for running ones, cancels (requeue) the rest,
+ * joins the workers and frees the queue. Queued jobs stay in the store. */
+void jobq_shutdown(struct jobq *q, double timeout_s);
+
+/* Queues a job. work is handed over (ops->finish frees it). Returns 0, or -1 when the queue is
+ * full or shutting down (work not taken). force: ignore queue_max (jobs recovered at start). */
+int jobq_submit(struct jobq *q, const char *id, const struct job_ops *ops, void *work, bool force);
+
+/* Live state of a queued or running job; false when the queue no longer knows it (finished, or
+ * never seen: ask the store). */
+bool jobq_peek(struct jobq *q, const char *id, enum job_state *state, double *progress);
+/* Asks a queued or running job to stop. Returns false when the queue does not know it. */
+bool jobq_cancel(struct jobq *q, const char *id);
+
+/* Calls fn(arg, finished) once: when the job ends (finished = true) or at deadline (monotonic
+ * seconds; finished = false), or at once (finished = true) if the queue does not know the job.
+ * fn runs on a worker or the timer thread, without any lock held. */
+void jobq_wait(struct jobq *q, const char *id, double deadline, void (*fn)(void *arg, bool finished), void *arg);
+
+const char *job_id(const struct job *j);
+/* Counters for /metrics. */
+struct jobq_stats {
+    long queued, running, workers, queue_max;
+};
+void jobq_stats(struct jobq *q, struct jobq_stats *out);
+double monotonic_s(void);
+
+#endif

@@ -1,0 +1,79 @@
+/* metrics.c - process-wide counters and their Prometheus exposition. */
+#include "metrics.h"
+
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const int STATUSES[] = {200, 201, 202, 304, 400, 401, 404, 405, 409, 413, 415, 422, 429, 500, 501, 503};
+#define N_STATUS (sizeof STATUSES / sizeof *STATUSES)
+static atomic_long http_count[N_STATUS + 1]; /* the last: any other status */
+
+static const double BUCKETS[] = {0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60};
+#define N_BUCKETS (sizeof BUCKETS / sizeof *BUCKETS)
+static atomic_long render_bucket[N_BUCKETS], render_count, rays_total;
+static atomic_long render_us_total; /* microseconds, so that it stays an integer atomic */
+static atomic_long jobs_ended[5];
+
+void metrics_http(int status)
+{
+    size_t k = 0;
+    while (k < N_STATUS && STATUSES[k] != status)
+        k++;
+    atomic_fetch_add(&http_count[k], 1);
+}
+
+void metrics_render(double seconds, long rays)
+{
+    for (size_t k = 0; k < N_BUCKETS; k++)
+        if (seconds <= BUCKETS[k])
+            atomic_fetch_add(&render_bucket[k], 1);
+    atomic_fetch_add(&render_count, 1);
+    atomic_fetch_add(&render_us_total, (long)(seconds * 1e6));
+    atomic_fetch_add(&rays_total, rays);
+}
+
+void metrics_job_end(enum job_state outcome) { atomic_fetch_add(&jobs_ended[outcome], 1); }
+
+char *metrics_text(struct service *svc)
+{
+    size_t cap = 8192, n = 0;
+    char *buf = malloc(cap);
+    if (!buf)
+        return NULL;
+#define OUT(...) n += (size_t)snprintf(buf + n, n < cap ? cap - n : 0, __VA_ARGS__)
+    struct jobq_stats qs;
+    jobq_stats(svc->q, &qs);
+    OUT("# HELP surfd_uptime_seconds Seconds since the daemon started.\n# TYPE surfd_uptime_seconds gauge\n");
+    OUT("surfd_uptime_seconds %.3f\n", monotonic_s() - svc->started_mono);
+    OUT("# HELP surfd_jobs Jobs the queue holds now, by state.\n# TYPE surfd_jobs gauge\n");
+    OUT("surfd_jobs{state=\"queued\"} %ld\nsurfd_jobs{state=\"running\"} %ld\n", qs.queued, qs.running);
+    OUT("# HELP surfd_jobs_ended_total Jobs ended since start, by outcome.\n# TYPE surfd_jobs_ended_total counter\n");
+    OUT("surfd_jobs_ended_total{state=\"succeeded\"} %ld\n", atomic_load(&jobs_ended[JOB_SUCCEEDED]));
+    OUT("surfd_jobs_ended_total{state=\"failed\"} %ld\n", atomic_load(&jobs_ended[JOB_FAILED]));
+    OUT("surfd_jobs_ended_total{state=\"cancelled\"} %ld\n", atomic_load(&jobs_ended[JOB_CANCELLED]));
+    OUT("# HELP surfd_queue_depth Jobs waiting for a worker.\n# TYPE surfd_queue_depth gauge\n");
+    OUT("surfd_queue_depth %ld\nsurfd_queue_capacity %ld\nsurfd_workers %ld\n", qs.queued, qs.queue_max, qs.workers);
+    OUT("# HELP surfd_render_seconds Tracing and shading time of render jobs.\n# TYPE surfd_render_seconds histogram\n");
+    for (size_t k = 0; k < N_BUCKETS; k++)
+        OUT("surfd_render_seconds_bucket{le=\"%g\"} %ld\n", BUCKETS[k], atomic_load(&render_bucket[k]));
+    OUT("surfd_render_seconds_bucket{le=\"+Inf\"} %ld\n", atomic_load(&render_count));
+    OUT("surfd_render_seconds_sum %.6f\nsurfd_render_seconds_count %ld\n", atomic_load(&render_us_total) / 1e6,
+        atomic_load(&render_count));
+    OUT("# HELP surfd_rays_total Rays traced (primary and shadow).\n# TYPE surfd_rays_total counter\n");
+    OUT("surfd_rays_total %ld\n", atomic_load(&rays_total));
+    double secs = atomic_load(&render_us_total) / 1e6;
+    OUT("# HELP surfd_rays_per_second Rays per second of render time, since start.\n# TYPE surfd_rays_per_second gauge\n");
+    OUT("surfd_rays_per_second %.1f\n", secs > 0 ? atomic_load(&rays_total) / secs : 0.0);
+    OUT("# HELP surfd_http_requests_total HTTP responses by status.\n# TYPE surfd_http_requests_total counter\n");
+    for (size_t k = 0; k < N_STATUS; k++)
+        OUT("surfd_http_requests_total{status=\"%d\"} %ld\n", STATUSES[k], atomic_load(&http_count[k]));
+    OUT("surfd_http_requests_total{status=\"other\"} %ld\n", atomic_load(&http_count[N_STATUS]));
+#undef OUT
+    if (n >= cap) { /* grew past the buffer: the table is fixed, so this is a programming error */
+        free(buf);
+        return NULL;
+    }
+    return buf;
+}

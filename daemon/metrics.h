@@ -1,0 +1,15 @@
+/* metrics.h - counters for GET /metrics (Prometheus text format 0.0.4). Lock-free: atomics only,
+ * safe from the HTTP threads and the workers. */
+#ifndef SURFD_METRICS_H
+#define SURFD_METRICS_H
+
+#include "service.h"
+
+void metrics_http(int status);
+/* A render finished: its tracing time and rays. */
+void metrics_render(double seconds, long rays);
+void metrics_job_end(enum job_state outcome);
+/* The exposition text; caller frees. */
+char *metrics_text(struct service *svc);
+
+#endif

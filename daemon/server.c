@@ -1,0 +1,635 @@
+/* server.c - HTTP on libmicrohttpd: its own thread pool polls with epoll; handlers never block.
+ * A request's body is read into a buffer capped at --max-body (413 is decided from
+ * Content-Length before any of it is read), validated, stored and queued, and answered. A
+ * synchronous request suspends its connection; the job's end (or --sync-wait / Prefer: wait=N
+ * running out) resumes it, and the handler then answers with the result or 202 + Location.
+ * Access log: one line per request, without tokens, query strings or bodies. */
+#define _GNU_SOURCE /* strcasestr */
+#include "server.h"
+
+#include <arpa/inet.h>
+#include <ctype.h>
+#include <microhttpd.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "../api/job_json.h"
+#include "../api/problem.h"
+#include "../api/render_request.h"
+#include "log.h"
+#include "metrics.h"
+
+#ifndef SURFD_VERSION
+#define SURFD_VERSION "dev"
+#endif
+
+extern const char surfd_openapi_yaml[]; /* generated from api/openapi.yaml */
+
+struct server {
+    struct MHD_Daemon *mhd;
+    struct service *svc;
+};
+
+enum phase { PHASE_NEW, PHASE_BODY, PHASE_WAITING, PHASE_WOKEN };
+
+struct req {
+    struct service *svc;
+    struct MHD_Connection *conn;
+    double t0;
+    char method[8];
+    char path[256];
+    char client[64];
+    char *body;
+    size_t len, cap;
+    bool too_large;
+    enum phase phase;
+    atomic_bool finished;     /* set by the waiter callback before it resumes */
+    char job[40];
+    int status;
+    size_t bytes;
+};
+
+struct reply {
+    int status;
+    const char *type;
+    char *body;                /* malloc'd, handed to MHD */
+    size_t len;
+    const char *hdr[6][2];
+};
+
+/* ---- replies -------------------------------------------------------------------------- */
+
+static enum MHD_Result send_reply(struct req *r, struct reply *rp)
+{
+    struct MHD_Response *resp =
+        MHD_create_response_from_buffer(rp->len, rp->body ? rp->body : (char *)"", rp->body ? MHD_RESPMEM_MUST_FREE
+                                                                                              : MHD_RESPMEM_PERSISTENT);
+    if (!resp) {
+        free(rp->body);
+        return MHD_NO;
+    }
+    if (rp->type)
+        MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE, rp->type);
+    for (int k = 0; k < 6 && rp->hdr[k][0]; k++)
+        MHD_add_response_header(resp, rp->hdr[k][0], rp->hdr[k][1]);
+    if (r->job[0])
+        MHD_add_response_header(resp, "X-Job-Id", r->job);
+    r->status = rp->status;
+    r->bytes = rp->len;
+    enum MHD_Result ok = MHD_queue_response(r->conn, (unsigned)rp->status, resp);
+    MHD_destroy_response(resp);
+    return ok;
+}
+
+static enum MHD_Result problem(struct req *r, int status, const char *detail, const char *pointer)
+{
+    struct reply rp = {status, "application/problem+json", problem_json(status, detail, pointer), 0, {{0}}};
+    rp.len = rp.body ? strlen(rp.body) : 0;
+    if (status == 401)
+        rp.hdr[0][0] = "WWW-Authenticate", rp.hdr[0][1] = "Bearer realm=\"surfd\"";
+    if (status == 429 || status == 503)
+        rp.hdr[0][0] = "Retry-After", rp.hdr[0][1] = status == 429 ? "2" : "5";
+    return send_reply(r, &rp);
+}
+
+static enum MHD_Result problem_err(struct req *r, const struct sf_err *e)
+{
+    return problem(r, problem_status(e->code), e->message, e->pointer);
+}
+
+static enum MHD_Result text(struct req *r, int status, const char *type, const char *s)
+{
+    struct reply rp = {status, type, strdup(s), strlen(s), {{0}}};
+    return send_reply(r, &rp);
+}
+
+static enum MHD_Result json_reply(struct req *r, int status, char *json, const char *location)
+{
+    if (!json)
+        return problem(r, 500, "out of memory", NULL);
+    struct reply rp = {status, "application/json", json, strlen(json), {{0}}};
+    if (location)
+        rp.hdr[0][0] = "Location", rp.hdr[0][1] = location;
+    return send_reply(r, &rp);
+}
+
+/* ---- jobs ------------------------------------------------------------------------------ */
+
+static const char *const STATE_NAMES[] = {"queued", "running", "succeeded", "failed", "cancelled"};
+
+static struct job_view view_of(struct service *svc, const struct job_rec *rec)
+{
+    struct job_view v = {rec->id, rec->kind, rec->state, rec->progress, rec->created, rec->started, rec->finished,
+                         rec->error};
+    enum job_state st;
+    double progress;
+    if (jobq_peek(svc->q, rec->id, &st, &progress) && (st == JOB_QUEUED || st == JOB_RUNNING)) {
+        v.state = STATE_NAMES[st];
+        v.progress = progress;
+    }
+    return v;
+}
+
+static enum MHD_Result job_resource(struct req *r, int status, const char *id)
+{
+    struct job_rec rec;
+    int found = store_get(r->svc->store, id, false, false, &rec);
+    if (found != 1)
+        return found == 0 ? problem(r, 404, "no such job", NULL) : problem(r, 500, "the store failed", NULL);
+    struct job_view v = view_of(r->svc, &rec);
+    char location[80];
+    snprintf(location, sizeof location, "/jobs/%s", id);
+    if (id != r->job)
+        snprintf(r->job, sizeof r->job, "%s", id);
+    enum MHD_Result ok = json_reply(r, status, job_json(&v), status == 202 ? location : NULL);
+    store_rec_free(&rec);
+    return ok;
+}
+
+/* The job's result as its route would have sent it: the image (200), or the job's problem. */
+static enum MHD_Result job_result(struct req *r, const char *id, bool sync)
+{
+    struct job_rec rec;
+    int found = store_get(r->svc->store, id, false, true, &rec);
+    if (found != 1)
+        return found == 0 ? problem(r, 404, "no such job", NULL) : problem(r, 500, "the store failed", NULL);
+    if (id != r->job)
+        snprintf(r->job, sizeof r->job, "%s", id);
+    enum MHD_Result ok;
+    if (!strcmp(rec.state, "succeeded") && rec.result) {
+        char etag[48];
+        snprintf(etag, sizeof etag, "\"%s\"", id); /* a job's result never changes: its id is a strong tag */
+        const char *inm = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_IF_NONE_MATCH);
+        if (inm && (strstr(inm, etag) || !strcmp(inm, "*"))) {
+            struct reply rp = {304, NULL, NULL, 0, {{"ETag", etag}}};
+            ok = send_reply(r, &rp);
+        } else {
+            struct reply rp = {200, rec.result_type, (char *)rec.result, rec.result_len, {{"ETag", etag}}};
+            rec.result = NULL; /* handed to MHD */
+            char ms[32] = "", rays[32] = "";
+            const char *m = rec.meta ? strstr(rec.meta, "\"render_ms\":") : NULL;
+            if (m)
+                snprintf(ms, sizeof ms, "%.*s", (int)strcspn(m + 12, ",}"), m + 12);
+            const char *y = rec.meta ? strstr(rec.meta, "\"rays\":") : NULL;
+            if (y)
+                snprintf(rays, sizeof rays, "%.*s", (int)strcspn(y + 7, ",}"), y + 7);
+            int h = 1;
+            if (ms[0])
+                rp.hdr[h][0] = "X-Render-Ms", rp.hdr[h++][1] = ms;
+            if (rays[0])
+                rp.hdr[h][0] = "X-Rays", rp.hdr[h++][1] = rays;
+            ok = send_reply(r, &rp);
+        }
+    } else if (!strcmp(rec.state, "failed") && rec.error) {
+        int status = 500;
+        const char *s = strstr(rec.error, "\"status\":");
+        if (s)
+            status = atoi(s + 9);
+        struct reply rp = {status, "application/problem+json", strdup(rec.error), strlen(rec.error), {{0}}};
+        ok = send_reply(r, &rp);
+    } else if (!strcmp(rec.state, "cancelled")) {
+        ok = problem(r, 409, "the job was cancelled", NULL);
+    } else {
+        store_rec_free(&rec);
+        return sync ? job_resource(r, 202, id) : problem(r, 409, "the job has not finished; see its state", NULL);
+    }
+    store_rec_free(&rec);
+    return ok;
+}
+
+struct list_ctx {
+    struct service *svc;
+    struct job_view *v;
+    struct job_rec *recs;
+    int n, cap;
+};
+
+static void collect(const struct job_rec *rec, void *arg)
+{
+    struct list_ctx *c = arg;
+    if (c->n == c->cap)
+        return;
+    c->recs[c->n] = *rec;
+    /* the store frees rec's strings after the call: keep copies */
+    c->recs[c->n].error = rec->error ? strdup(rec->error) : NULL;
+    c->recs[c->n].meta = NULL;
+    c->n++;
+}
+
+static enum MHD_Result job_list(struct req *r)
+{
+    const char *state = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "state");
+    if (state && strcmp(state, "queued") && strcmp(state, "running") && strcmp(state, "succeeded") &&
+        strcmp(state, "failed") && strcmp(state, "cancelled"))
+        return problem(r, 422, "state is queued, running, succeeded, failed or cancelled", "?state");
+    enum { LIST_MAX = 1000 };
+    struct list_ctx c = {r->svc, calloc(LIST_MAX, sizeof(struct job_view)), calloc(LIST_MAX, sizeof(struct job_rec)),
+                         0, LIST_MAX};
+    if (!c.v || !c.recs) {
+        free(c.v);
+        free(c.recs);
+        return problem(r, 500, "out of memory", NULL);
+    }
+    store_list(r->svc->store, state, LIST_MAX, collect, &c);
+    for (int k = 0; k < c.n; k++)
+        c.v[k] = view_of(r->svc, &c.recs[k]);
+    enum MHD_Result ok = json_reply(r, 200, job_list_json(c.v, c.n), NULL);
+    for (int k = 0; k < c.n; k++)
+        free(c.recs[k].error);
+    free(c.v);
+    free(c.recs);
+    return ok;
+}
+
+/* ---- POST /render --------------------------------------------------------------------------- */
+
+struct opts {
+    char buf[512];
+    size_t n;
+    bool bad;
+};
+
+static enum MHD_Result add_opt(void *cls, enum MHD_ValueKind kind, const char *key, const char *value)
+{
+    (void)kind;
+    struct opts *o = cls;
+    if (!value)
+        value = "";
+    if (strpbrk(key, "&=") || strpbrk(value, "&=") ||
+        o->n + strlen(key) + strlen(value) + 2 >= sizeof o->buf) {
+        o->bad = true;
+        return MHD_NO;
+    }
+    o->n += (size_t)snprintf(o->buf + o->n, sizeof o->buf - o->n, "%s%s=%s", o->n ? "&" : "", key, value);
+    return MHD_YES;
+}
+
+/* Prefer: respond-async, wait=N (RFC 7240). */
+static void prefer(struct req *r, bool *async, double *wait)
+{
+    *async = false;
+    *wait = (double)r->svc->cfg.sync_wait;
+    const char *p = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "Prefer");
+    if (!p)
+        return;
+    if (strcasestr(p, "respond-async"))
+        *async = true;
+    const char *w = strcasestr(p, "wait=");
+    if (w) {
+        double v = atof(w + 5);
+        if (v >= 0 && v < *wait)
+            *wait = v;
+    }
+}
+
+static void woken(void *arg, bool finished)
+{
+    struct req *r = arg;
+    atomic_store(&r->finished, finished);
+    r->phase = PHASE_WOKEN;
+    MHD_resume_connection(r->conn);
+}
+
+static enum MHD_Result post_render(struct req *r)
+{
+    struct service *svc = r->svc;
+    if (atomic_load(&svc->draining))
+        return problem(r, 503, "the service is shutting down", NULL);
+    const char *ct = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
+    const char *format = render_format_from_type(ct);
+    if (!format) {
+        char d[160];
+        snprintf(d, sizeof d, "surfd reads scenes as application/json, model/x-bpt or model/vrml, not %.80s", ct);
+        return problem(r, 415, d, NULL);
+    }
+    struct opts o = {.n = 0};
+    MHD_get_connection_values(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
+    if (o.bad)
+        return problem(r, 422, "query options must be short name=value pairs without '&' or '='", NULL);
+    const char *qf = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "format");
+    if (qf)
+        format = qf;
+    struct scene sc;
+    enum image_format img;
+    struct sf_err err = {0};
+    if (render_request_parse(r->body ? r->body : "", r->len, format, o.buf, &sc, &img, &err))
+        return problem_err(r, &err);
+    scene_free(&sc);
+
+    struct job_rec rec = {0};
+    service_new_id(rec.id);
+    snprintf(rec.kind, sizeof rec.kind, "render");
+    snprintf(rec.state, sizeof rec.state, "queued");
+    snprintf(rec.format, sizeof rec.format, "%s", format);
+    snprintf(rec.options, sizeof rec.options, "%s", o.buf);
+    rec.created = wall_s();
+    rec.request = (unsigned char *)(r->body ? r->body : "");
+    rec.request_len = r->len;
+    if (store_insert(svc->store, &rec))
+        return problem(r, 503, "the store cannot take the job now", NULL);
+    if (render_job_submit(svc, rec.id, false)) {
+        store_delete(svc->store, rec.id);
+        return problem(r, 429, "the job queue is full; try again shortly", NULL);
+    }
+    snprintf(r->job, sizeof r->job, "%s", rec.id);
+    bool async;
+    double wait;
+    prefer(r, &async, &wait);
+    if (async || wait <= 0)
+        return job_resource(r, 202, rec.id);
+    r->phase = PHASE_WAITING;
+    MHD_suspend_connection(r->conn);
+    jobq_wait(svc->q, rec.id, monotonic_s() + wait, woken, r);
+    return MHD_YES;
+}
+
+/* ---- routing ---------------------------------------------------------------------------- */
+
+static bool authorised(struct req *r)
+{
+    struct service *svc = r->svc;
+    if (svc->n_tokens == 0)
+        return true;
+    const char *h = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_AUTHORIZATION);
+    if (!h || strncasecmp(h, "Bearer ", 7))
+        return false;
+    const char *tok = h + 7;
+    size_t n = strlen(tok);
+    unsigned ok = 0;
+    for (size_t k = 0; k < svc->n_tokens; k++) { /* constant time in the token's content */
+        const char *t = svc->tokens[k];
+        size_t m = strlen(t);
+        unsigned diff = (unsigned)(m ^ n);
+        for (size_t i = 0; i < m; i++)
+            diff |= (unsigned char)t[i] ^ (unsigned char)(i < n ? tok[i] : 0);
+        ok |= diff == 0;
+    }
+    return ok;
+}
+
+static bool valid_id(const char *s, size_t n)
+{
+    if (n == 0 || n >= 40)
+        return false;
+    for (size_t k = 0; k < n; k++)
+        if (!isxdigit((unsigned char)s[k]))
+            return false;
+    return true;
+}
+
+static enum MHD_Result route(struct req *r)
+{
+    const char *m = r->method, *p = r->path;
+    bool get = !strcmp(m, "GET") || !strcmp(m, "HEAD"), post = !strcmp(m, "POST");
+    if (!strcmp(p, "/livez"))
+        return get ? text(r, 200, "text/plain", "ok\n") : problem(r, 405, "GET only", NULL);
+    if (!strcmp(p, "/readyz")) {
+        if (atomic_load(&r->svc->draining))
+            return problem(r, 503, "draining", NULL);
+        return store_writable(r->svc->store) ? text(r, 200, "text/plain", "ready\n")
+                                              : problem(r, 503, "the store is not writable", NULL);
+    }
+    if (!authorised(r))
+        return problem(r, 401, "a valid bearer token is required", NULL);
+    if (!strcmp(p, "/version"))
+        return text(r, 200, "application/json", "{\"name\":\"surfd\",\"version\":\"" SURFD_VERSION "\"}");
+    if (!strcmp(p, "/metrics")) {
+        char *t = metrics_text(r->svc);
+        if (!t)
+            return problem(r, 500, "metrics failed", NULL);
+        struct reply rp = {200, "text/plain; version=0.0.4", t, strlen(t), {{0}}};
+        return send_reply(r, &rp);
+    }
+    if (!strcmp(p, "/openapi.yaml"))
+        return text(r, 200, "application/yaml", surfd_openapi_yaml);
+    if (!strcmp(p, "/render"))
+        return post ? post_render(r) : problem(r, 405, "POST a scene to /render", NULL);
+    if (!strcmp(p, "/model") || !strcmp(p, "/volume") || !strcmp(p, "/isosurface") || !strncmp(p, "/models", 7))
+        return problem(r, 501, "this route is part of the contract but not built yet", NULL);
+    if (!strcmp(p, "/jobs"))
+        return get ? job_list(r) : problem(r, 405, "GET only", NULL);
+    if (!strncmp(p, "/jobs/", 6)) {
+        const char *id = p + 6, *rest = strchr(id, '/');
+        size_t n = rest ? (size_t)(rest - id) : strlen(id);
+        char jid[40];
+        if (!valid_id(id, n))
+            return problem(r, 404, "no such job", NULL);
+        snprintf(jid, sizeof jid, "%.*s", (int)n, id);
+        if (!rest)
+            return get ? job_resource(r, 200, jid) : problem(r, 405, "GET only", NULL);
+        if (!strcmp(rest, "/result"))
+            return get ? job_result(r, jid, false) : problem(r, 405, "GET only", NULL);
+        if (!strcmp(rest, "/cancel")) {
+            if (!post)
+                return problem(r, 405, "POST only", NULL);
+            if (jobq_cancel(r->svc->q, jid))
+                return job_resource(r, 202, jid);
+            struct job_rec rec;
+            int found = store_get(r->svc->store, jid, false, false, &rec);
+            store_rec_free(&rec);
+            return found == 1 ? problem(r, 409, "the job has already ended", NULL) : problem(r, 404, "no such job", NULL);
+        }
+    }
+    return problem(r, 404, "no such route", NULL);
+}
+
+static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const char *url, const char *method,
+                               const char *version, const char *upload, size_t *upload_size, void **con_cls)
+{
+    (void)version;
+    struct req *r = *con_cls;
+    if (!r) {
+        r = calloc(1, sizeof *r);
+        if (!r)
+            return MHD_NO;
+        *con_cls = r;
+        r->svc = cls;
+        r->conn = conn;
+        r->t0 = monotonic_s();
+        snprintf(r->method, sizeof r->method, "%s", method);
+        snprintf(r->path, sizeof r->path, "%s", url);
+        const union MHD_ConnectionInfo *ci = MHD_get_connection_info(conn, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
+        if (ci && ci->client_addr) {
+            const struct sockaddr *sa = ci->client_addr;
+            if (sa->sa_family == AF_INET)
+                inet_ntop(AF_INET, &((const struct sockaddr_in *)(const void *)sa)->sin_addr, r->client, sizeof r->client);
+            else if (sa->sa_family == AF_INET6)
+                inet_ntop(AF_INET6, &((const struct sockaddr_in6 *)(const void *)sa)->sin6_addr, r->client,
+                          sizeof r->client);
+        }
+        const char *cl = MHD_lookup_connection_value(conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_LENGTH);
+        if (cl && strtoull(cl, NULL, 10) > (unsigned long long)r->svc->cfg.max_body) {
+            char d[96];
+            snprintf(d, sizeof d, "the body is over the limit of %ld bytes", r->svc->cfg.max_body);
+            return problem(r, 413, d, NULL); /* before a byte of it is read */
+        }
+        r->phase = PHASE_BODY;
+        return MHD_YES;
+    }
+    if (r->phase == PHASE_WOKEN) /* back from a synchronous wait */
+        return atomic_load(&r->finished) ? job_result(r, r->job, true) : job_resource(r, 202, r->job);
+    if (*upload_size) {
+        size_t n = *upload_size;
+        *upload_size = 0;
+        if (r->too_large || r->len + n > (size_t)r->svc->cfg.max_body) {
+            r->too_large = true; /* chunked body without a length: drain it, answer 413 */
+            return MHD_YES;
+        }
+        if (r->len + n + 1 > r->cap) {
+            size_t cap = r->cap ? r->cap : 65536;
+            while (cap < r->len + n + 1)
+                cap *= 2;
+            char *b = realloc(r->body, cap);
+            if (!b)
+                return MHD_NO;
+            r->body = b;
+            r->cap = cap;
+        }
+        memcpy(r->body + r->len, upload, n);
+        r->len += n;
+        r->body[r->len] = 0;
+        return MHD_YES;
+    }
+    if (r->too_large)
+        return problem(r, 413, "the body is over the limit", NULL);
+    return route(r);
+}
+
+static void completed(void *cls, struct MHD_Connection *conn, void **con_cls, enum MHD_RequestTerminationCode toe)
+{
+    (void)cls;
+    (void)conn;
+    struct req *r = *con_cls;
+    if (!r)
+        return;
+    metrics_http(r->status);
+    LOG(LOG_INFO, "access %s %s %s %d %zu %.1fms%s%s%s", r->client[0] ? r->client : "-", r->method, r->path, r->status,
+        r->bytes, (monotonic_s() - r->t0) * 1e3, r->job[0] ? " job=" : "", r->job,
+        toe == MHD_REQUEST_TERMINATED_COMPLETED_OK ? "" : " (aborted)");
+    free(r->body);
+    free(r);
+    *con_cls = NULL;
+}
+
+static char *read_file(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    char *buf = malloc(1 << 20);
+    size_t n = buf ? fread(buf, 1, (1 << 20) - 1, f) : 0;
+    fclose(f);
+    if (buf)
+        buf[n] = 0;
+    return buf;
+}
+
+/* HOST:PORT, [V6]:PORT */
+static int parse_listen(const char *s, struct sockaddr_storage *ss, unsigned short *port, bool *v6)
+{
+    char host[128];
+    const char *colon;
+    if (s[0] == '[') {
+        const char *end = strchr(s, ']');
+        if (!end || end[1] != ':')
+            return -1;
+        snprintf(host, sizeof host, "%.*s", (int)(end - s - 1), s + 1);
+        colon = end + 1;
+    } else {
+        colon = strrchr(s, ':');
+        if (!colon)
+            return -1;
+        snprintf(host, sizeof host, "%.*s", (int)(colon - s), s);
+    }
+    long p = strtol(colon + 1, NULL, 10);
+    if (p < 0 || p > 65535)
+        return -1;
+    *port = (unsigned short)p;
+    memset(ss, 0, sizeof *ss);
+    struct sockaddr_in *a4 = (struct sockaddr_in *)ss;
+    struct sockaddr_in6 *a6 = (struct sockaddr_in6 *)ss;
+    if (inet_pton(AF_INET, host, &a4->sin_addr) == 1) {
+        a4->sin_family = AF_INET;
+        a4->sin_port = htons(*port);
+        *v6 = false;
+        return 0;
+    }
+    if (inet_pton(AF_INET6, host, &a6->sin6_addr) == 1) {
+        a6->sin6_family = AF_INET6;
+        a6->sin6_port = htons(*port);
+        *v6 = true;
+        return 0;
+    }
+    return -1;
+}
+
+struct server *server_start(struct service *svc, char *msg, size_t msg_len)
+{
+    struct sockaddr_storage ss;
+    unsigned short port;
+    bool v6;
+    if (parse_listen(svc->cfg.listen, &ss, &port, &v6)) {
+        snprintf(msg, msg_len, "listen: expected HOST:PORT with a numeric address, got \"%s\"", svc->cfg.listen);
+        return NULL;
+    }
+    struct server *s = calloc(1, sizeof *s);
+    if (!s)
+        return NULL;
+    s->svc = svc;
+    unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_EPOLL | MHD_ALLOW_SUSPEND_RESUME | MHD_USE_ERROR_LOG |
+                     MHD_USE_ITC; /* ITC: quiesce and resume wake the polling threads */
+    if (v6)
+        flags |= MHD_USE_IPv6;
+    char *cert = NULL, *key = NULL;
+    if (svc->cfg.tls_cert[0] || svc->cfg.tls_key[0]) {
+        cert = read_file(svc->cfg.tls_cert);
+        key = read_file(svc->cfg.tls_key);
+        if (!cert || !key || !MHD_is_feature_supported(MHD_FEATURE_TLS)) {
+            snprintf(msg, msg_len, "TLS: cannot read %s or %s, or libmicrohttpd has no TLS", svc->cfg.tls_cert,
+                     svc->cfg.tls_key);
+            free(cert);
+            free(key);
+            free(s);
+            return NULL;
+        }
+        flags |= MHD_USE_TLS;
+    }
+    struct MHD_OptionItem tls_opts[] = {
+        {MHD_OPTION_HTTPS_MEM_CERT, 0, cert},
+        {MHD_OPTION_HTTPS_MEM_KEY, 0, key},
+        {MHD_OPTION_HTTPS_PRIORITIES, 0, (void *)"NORMAL:-VERS-ALL:+VERS-TLS1.3:+VERS-TLS1.2"},
+        {MHD_OPTION_END, 0, NULL},
+    };
+    s->mhd = MHD_start_daemon(
+        flags, port, NULL, NULL, handler, svc, MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss, MHD_OPTION_THREAD_POOL_SIZE,
+        (unsigned)2, MHD_OPTION_CONNECTION_LIMIT, (unsigned)svc->cfg.max_connections,
+        MHD_OPTION_PER_IP_CONNECTION_LIMIT, (unsigned)svc->cfg.per_ip_connections, MHD_OPTION_CONNECTION_TIMEOUT,
+        (unsigned)svc->cfg.connection_timeout, MHD_OPTION_CONNECTION_MEMORY_LIMIT, (size_t)(256 * 1024),
+        MHD_OPTION_NOTIFY_COMPLETED, completed, NULL, MHD_OPTION_ARRAY, cert ? tls_opts : tls_opts + 3,
+        MHD_OPTION_END);
+    free(cert);
+    free(key);
+    if (!s->mhd) {
+        snprintf(msg, msg_len, "cannot listen on %s (in use, or not an address of this host)", svc->cfg.listen);
+        free(s);
+        return NULL;
+    }
+    return s;
+}
+
+void server_quiesce(struct server *s)
+{
+    MHD_socket fd = MHD_quiesce_daemon(s->mhd);
+    (void)fd; /* the listening socket stays open until server_stop: new connections wait, then fail */
+}
+
+void server_stop(struct server *s)
+{
+    if (!s)
+        return;
+    MHD_stop_daemon(s->mhd);
+    free(s);
+}

@@ -1,0 +1,17 @@
+/* server.h - the HTTP front end on libmicrohttpd: routes of API.md over the service. */
+#ifndef SURFD_SERVER_H
+#define SURFD_SERVER_H
+
+#include <stddef.h>
+
+#include "service.h"
+
+struct server;
+
+/* Starts listening per svc->cfg (address, TLS, limits). On failure writes msg, returns NULL. */
+struct server *server_start(struct service *svc, char *msg, size_t msg_len);
+/* Stops accepting new connections (draining); requests in flight go on. */
+void server_quiesce(struct server *s);
+void server_stop(struct server *s);
+
+#endif

@@ -1,0 +1,33 @@
+/* service.h - what the running daemon shares between its HTTP front end and its jobs: settings,
+ * store, queue, Embree device, tokens, the draining flag. Created by cmd_serve.c. */
+#ifndef SURFD_SERVICE_H
+#define SURFD_SERVICE_H
+
+#include <stdatomic.h>
+#include <stdbool.h>
+
+#include "../core/bvh.h"
+#include "config.h"
+#include "jobq.h"
+#include "store.h"
+
+struct service {
+    struct config cfg;
+    struct store *store;
+    struct jobq *q;
+    struct bvh_device *dev;
+    char **tokens;           /* bearer tokens; none: open (loopback, or --insecure-no-auth) */
+    size_t n_tokens;
+    atomic_bool draining;
+    double started_wall;     /* Unix seconds */
+    double started_mono;
+};
+
+double wall_s(void);
+/* A new random job id (32 hex digits). */
+void service_new_id(char out[40]);
+
+/* The render job kind: queues job `id` (already in the store). force as in jobq_submit. */
+int render_job_submit(struct service *svc, const char *id, bool force);
+
+#endif

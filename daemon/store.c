@@ -1,0 +1,320 @@
+/* store.c - SQLite behind store.h. WAL journal and synchronous=NORMAL: a committed job survives a
+ * process crash (kill -9); a power cut may lose the last transactions, which is what WAL NORMAL
+ * trades for speed. Statements are prepared per call: the store is not on any hot path. */
+#include "store.h"
+
+#include <pthread.h>
+#include <sqlite3.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+struct store {
+    sqlite3 *db;
+    pthread_mutex_t lock;
+};
+
+static const char SCHEMA[] =
+    "PRAGMA journal_mode=WAL;"
+    "PRAGMA synchronous=NORMAL;"
+    "CREATE TABLE IF NOT EXISTS jobs ("
+    " id TEXT PRIMARY KEY, kind TEXT NOT NULL, state TEXT NOT NULL, progress REAL NOT NULL DEFAULT 0,"
+    " created REAL NOT NULL, started REAL NOT NULL DEFAULT 0, finished REAL NOT NULL DEFAULT 0,"
+    " format TEXT NOT NULL, options TEXT NOT NULL, request BLOB NOT NULL,"
+    " result BLOB, result_type TEXT, meta TEXT, error TEXT);"
+    "CREATE INDEX IF NOT EXISTS jobs_state ON jobs(state, created);"
+    "CREATE TABLE IF NOT EXISTS probe (x INTEGER);";
+
+int store_open(const char *dir, struct store **out, char *msg, size_t msg_len)
+{
+    *out = NULL;
+    mkdir(dir, 0750);
+    char path[1024];
+    snprintf(path, sizeof path, "%s/surfd.db", dir);
+    struct store *s = calloc(1, sizeof *s);
+    if (!s) {
+        snprintf(msg, msg_len, "out of memory");
+        return -1;
+    }
+    pthread_mutex_init(&s->lock, NULL);
+    char *err = NULL;
+    if (sqlite3_open_v2(path, &s->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX, NULL) !=
+            SQLITE_OK ||
+        sqlite3_busy_timeout(s->db, 5000) != SQLITE_OK || sqlite3_exec(s->db, SCHEMA, NULL, NULL, &err) != SQLITE_OK) {
+        snprintf(msg, msg_len, "%s: %s", path, err ? err : sqlite3_errmsg(s->db));
+        sqlite3_free(err);
+        store_close(s);
+        return -1;
+    }
+    *out = s;
+    return 0;
+}
+
+void store_close(struct store *s)
+{
+    if (!s)
+        return;
+    sqlite3_close(s->db);
+    pthread_mutex_destroy(&s->lock);
+    free(s);
+}
+
+/* Runs one prepared statement to completion; binds are done by the caller through bind(). */
+static int run(struct store *s, const char *sql, void (*bind)(sqlite3_stmt *, const void *), const void *arg)
+{
+    sqlite3_stmt *st;
+    pthread_mutex_lock(&s->lock);
+    int rc = sqlite3_prepare_v2(s->db, sql, -1, &st, NULL);
+    if (rc == SQLITE_OK) {
+        if (bind)
+            bind(st, arg);
+        rc = sqlite3_step(st);
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(&s->lock);
+    return rc == SQLITE_DONE || rc == SQLITE_ROW ? 0 : -1;
+}
+
+static void bind_insert(sqlite3_stmt *st, const void *arg)
+{
+    const struct job_rec *r = arg;
+    sqlite3_bind_text(st, 1, r->id, -1, SQLITE_STATIC);
+    sqlite3_bind_text(st, 2, r->kind, -1, SQLITE_STATIC);
+    sqlite3_bind_text(st, 3, r->state, -1, SQLITE_STATIC);
+    sqlite3_bind_double(st, 4, r->created);
+    sqlite3_bind_text(st, 5, r->format, -1, SQLITE_STATIC);
+    sqlite3_bind_text(st, 6, r->options, -1, SQLITE_STATIC);
+    sqlite3_bind_blob64(st, 7, r->request_len ? (const void *)r->request : "", r->request_len, SQLITE_STATIC);
+}
+
+int store_insert(struct store *s, const struct job_rec *r)
+{
+    return run(s, "INSERT INTO jobs(id,kind,state,created,format,options,request) VALUES(?,?,?,?,?,?,?)", bind_insert, r);
+}
+
+struct state_args {
+    const char *id, *state, *error;
+    double progress, started, finished;
+};
+
+static void bind_state(sqlite3_stmt *st, const void *arg)
+{
+    const struct state_args *a = arg;
+    sqlite3_bind_text(st, 1, a->state, -1, SQLITE_STATIC);
+    sqlite3_bind_double(st, 2, a->progress);
+    sqlite3_bind_double(st, 3, a->started);
+    sqlite3_bind_double(st, 4, a->finished);
+    if (a->error)
+        sqlite3_bind_text(st, 5, a->error, -1, SQLITE_STATIC);
+    else
+        sqlite3_bind_null(st, 5);
+    sqlite3_bind_text(st, 6, a->id, -1, SQLITE_STATIC);
+}
+
+int store_set_state(struct store *s, const char *id, const char *state, double progress, double started,
+                    double finished, const char *error)
+{
+    struct state_args a = {id, state, error, progress, started, finished};
+    return run(s,
+               "UPDATE jobs SET state=?1, progress=?2, started=CASE WHEN ?3>0 THEN ?3 ELSE started END,"
+               " finished=CASE WHEN ?4>0 THEN ?4 ELSE finished END, error=COALESCE(?5,error) WHERE id=?6",
+               bind_state, &a);
+}
+
+struct result_args {
+    const char *id, *type, *meta;
+    const unsigned char *data;
+    size_t len;
+    double finished;
+};
+
+static void bind_result(sqlite3_stmt *st, const void *arg)
+{
+    const struct result_args *a = arg;
+    sqlite3_bind_blob64(st, 1, a->len ? (const void *)a->data : "", a->len, SQLITE_STATIC);
+    sqlite3_bind_text(st, 2, a->type, -1, SQLITE_STATIC);
+    if (a->meta)
+        sqlite3_bind_text(st, 3, a->meta, -1, SQLITE_STATIC);
+    else
+        sqlite3_bind_null(st, 3);
+    sqlite3_bind_double(st, 4, a->finished);
+    sqlite3_bind_text(st, 5, a->id, -1, SQLITE_STATIC);
+}
+
+int store_set_result(struct store *s, const char *id, const unsigned char *data, size_t len, const char *type,
+                     const char *meta, double finished)
+{
+    struct result_args a = {id, type, meta, data, len, finished};
+    return run(s,
+               "UPDATE jobs SET result=?1, result_type=?2, meta=?3, state='succeeded', progress=1, finished=?4"
+               " WHERE id=?5",
+               bind_result, &a);
+}
+
+static char *dup_text(sqlite3_stmt *st, int col)
+{
+    const unsigned char *t = sqlite3_column_text(st, col);
+    return t ? strdup((const char *)t) : NULL;
+}
+
+static void copy_text(char *dst, size_t cap, sqlite3_stmt *st, int col)
+{
+    const unsigned char *t = sqlite3_column_text(st, col);
+    snprintf(dst, cap, "%s", t ? (const char *)t : "");
+}
+
+static unsigned char *dup_blob(sqlite3_stmt *st, int col, size_t *len)
+{
+    *len = (size_t)sqlite3_column_bytes(st, col);
+    const void *b = sqlite3_column_blob(st, col);
+    if (!b)
+        return NULL;
+    unsigned char *p = malloc(*len ? *len : 1);
+    if (p)
+        memcpy(p, b, *len);
+    return p;
+}
+
+#define REC_COLUMNS "id,kind,state,progress,created,started,finished,format,options,result_type,meta,error"
+
+static void read_rec(sqlite3_stmt *st, struct job_rec *r)
+{
+    memset(r, 0, sizeof *r);
+    copy_text(r->id, sizeof r->id, st, 0);
+    copy_text(r->kind, sizeof r->kind, st, 1);
+    copy_text(r->state, sizeof r->state, st, 2);
+    r->progress = sqlite3_column_double(st, 3);
+    r->created = sqlite3_column_double(st, 4);
+    r->started = sqlite3_column_double(st, 5);
+    r->finished = sqlite3_column_double(st, 6);
+    copy_text(r->format, sizeof r->format, st, 7);
+    copy_text(r->options, sizeof r->options, st, 8);
+    copy_text(r->result_type, sizeof r->result_type, st, 9);
+    r->meta = dup_text(st, 10);
+    r->error = dup_text(st, 11);
+}
+
+int store_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out)
+{
+    sqlite3_stmt *st;
+    int found = -1;
+    pthread_mutex_lock(&s->lock);
+    if (sqlite3_prepare_v2(s->db, "SELECT " REC_COLUMNS ",request,result FROM jobs WHERE id=?", -1, &st, NULL) ==
+        SQLITE_OK) {
+        sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
+        int rc = sqlite3_step(st);
+        found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
+        if (found == 1) {
+            read_rec(st, out);
+            if (with_request)
+                out->request = dup_blob(st, 12, &out->request_len);
+            if (with_result)
+                out->result = dup_blob(st, 13, &out->result_len);
+        }
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(&s->lock);
+    return found;
+}
+
+void store_rec_free(struct job_rec *r)
+{
+    if (!r)
+        return;
+    free(r->request);
+    free(r->result);
+    free(r->meta);
+    free(r->error);
+    r->request = r->result = NULL;
+    r->meta = r->error = NULL;
+}
+
+int store_list(struct store *s, const char *state, long limit, void (*fn)(const struct job_rec *, void *), void *arg)
+{
+    sqlite3_stmt *st;
+    int rc = -1;
+    pthread_mutex_lock(&s->lock);
+    if (sqlite3_prepare_v2(s->db,
+                           "SELECT " REC_COLUMNS " FROM jobs WHERE ?1 IS NULL OR state=?1 ORDER BY created DESC LIMIT ?2",
+                           -1, &st, NULL) == SQLITE_OK) {
+        if (state)
+            sqlite3_bind_text(st, 1, state, -1, SQLITE_STATIC);
+        else
+            sqlite3_bind_null(st, 1);
+        sqlite3_bind_int64(st, 2, limit > 0 ? limit : -1);
+        while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
+            struct job_rec r;
+            read_rec(st, &r);
+            fn(&r, arg);
+            store_rec_free(&r);
+        }
+        rc = rc == SQLITE_DONE ? 0 : -1;
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(&s->lock);
+    return rc;
+}
+
+int store_unfinished(struct store *s, void (*fn)(const char *id, void *), void *arg)
+{
+    sqlite3_stmt *st;
+    int rc = -1;
+    pthread_mutex_lock(&s->lock);
+    if (sqlite3_prepare_v2(s->db, "SELECT id FROM jobs WHERE state IN ('queued','running') ORDER BY created", -1, &st,
+                           NULL) == SQLITE_OK) {
+        /* collect first: fn may call back into the store */
+        size_t n = 0, cap = 16;
+        char(*ids)[40] = malloc(sizeof *ids * cap);
+        while (ids && (rc = sqlite3_step(st)) == SQLITE_ROW) {
+            if (n == cap) {
+                char(*more)[40] = realloc(ids, sizeof *ids * (cap *= 2));
+                if (!more)
+                    break;
+                ids = more;
+            }
+            copy_text(ids[n++], sizeof *ids, st, 0);
+        }
+        sqlite3_finalize(st);
+        pthread_mutex_unlock(&s->lock);
+        for (size_t k = 0; k < n; k++)
+            fn(ids[k], arg);
+        free(ids);
+        return rc == SQLITE_DONE ? 0 : -1;
+    }
+    pthread_mutex_unlock(&s->lock);
+    return rc;
+}
+
+struct prune_args {
+    double before;
+    long max_count;
+};
+
+static void bind_prune(sqlite3_stmt *st, const void *arg)
+{
+    const struct prune_args *a = arg;
+    sqlite3_bind_double(st, 1, a->before);
+    sqlite3_bind_int64(st, 2, a->max_count);
+}
+
+int store_prune(struct store *s, double now, long ttl, long max_count)
+{
+    struct prune_args a = {now - (double)ttl, max_count};
+    return run(s,
+               "DELETE FROM jobs WHERE state IN ('succeeded','failed','cancelled') AND (finished < ?1 OR id NOT IN"
+               " (SELECT id FROM jobs WHERE state IN ('succeeded','failed','cancelled') ORDER BY finished DESC LIMIT ?2))",
+               bind_prune, &a);
+}
+
+static void bind_id(sqlite3_stmt *st, const void *arg) { sqlite3_bind_text(st, 1, arg, -1, SQLITE_STATIC); }
+
+int store_delete(struct store *s, const char *id)
+{
+    return run(s, "DELETE FROM jobs WHERE id=?", bind_id, id);
+}
+
+bool store_writable(struct store *s)
+{
+    return run(s, "INSERT INTO probe(x) VALUES(1)", NULL, NULL) == 0 && run(s, "DELETE FROM probe", NULL, NULL) == 0;
+}

@@ -1,0 +1,54 @@
+/* store.h - the embedded store: job records and their results in SQLite (WAL) under the data
+ * directory. Every accepted request is written here before it is answered, so a crash loses no
+ * job: on start, jobs still queued or running are read back and run again.
+ * Thread-safe: one connection behind one mutex; every call is one short transaction. */
+#ifndef SURFD_STORE_H
+#define SURFD_STORE_H
+
+#include <stdbool.h>
+#include <stddef.h>
+
+struct store;
+
+struct job_rec {
+    char id[40];
+    char kind[16];           /* render, model, volume, isosurface */
+    char state[16];          /* queued, running, succeeded, failed, cancelled */
+    double progress;         /* 0..1 */
+    double created, started, finished; /* Unix seconds; 0: not yet */
+    char format[16];         /* request body format: json, bpt, nurbs */
+    char options[512];       /* request options as a query string (output=exr&...) */
+    unsigned char *request;  /* the body as received */
+    size_t request_len;
+    unsigned char *result;   /* NULL unless asked for and present */
+    size_t result_len;
+    char result_type[48];    /* Content-Type of the result */
+    char *meta;              /* JSON object of result headers (render_ms, rays), or NULL */
+    char *error;             /* problem JSON, or NULL */
+};
+
+/* Opens (creating) DIR/surfd.db. On failure writes msg and returns -1. */
+int store_open(const char *dir, struct store **out, char *msg, size_t msg_len);
+void store_close(struct store *s);
+
+int store_insert(struct store *s, const struct job_rec *r);
+/* Sets state and progress; started/finished are set when non-zero. error may be NULL. */
+int store_set_state(struct store *s, const char *id, const char *state, double progress, double started,
+                    double finished, const char *error);
+int store_set_result(struct store *s, const char *id, const unsigned char *data, size_t len, const char *type,
+                     const char *meta, double finished);
+/* Reads one record (with the request and, if with_result, the result). Returns 1 found, 0 not
+ * found, -1 error. Caller frees with store_rec_free(). */
+int store_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out);
+void store_rec_free(struct job_rec *r);
+/* Calls fn for each record (no blobs) in creation order; state NULL for all, limit <= 0 for no limit. */
+int store_list(struct store *s, const char *state, long limit, void (*fn)(const struct job_rec *, void *), void *arg);
+/* Jobs left queued or running by an earlier process, oldest first (ids into fn). */
+int store_unfinished(struct store *s, void (*fn)(const char *id, void *), void *arg);
+/* Removes finished jobs older than ttl seconds and all but the newest max_count finished ones. */
+int store_prune(struct store *s, double now, long ttl, long max_count);
+int store_delete(struct store *s, const char *id);
+/* A write succeeds (for /readyz). */
+bool store_writable(struct store *s);
+
+#endif
