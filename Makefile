@@ -19,6 +19,7 @@ OPT     ?= -O2 -g
 CFLAGS  := $(CSTD) $(OPT) $(WARN) -MMD -MP -DSURFD_VERSION='"$(VERSION)"'
 CXXFLAGS:= -std=c++17 $(OPT) -Wall -Wextra -MMD -MP
 SAN     := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
+TSAN    := -fsanitize=thread
 
 CORE_LIBS := -lembree3 -lm
 API_LIBS  := -ljansson
@@ -29,6 +30,7 @@ CORE_SRC   := $(wildcard core/*.c)
 API_SRC    := api/scene_json.c api/scene_text.c api/problem.c api/render_request.c api/job_json.c
 DAEMON_SRC := $(wildcard daemon/*.c)
 TEST_SRC   := $(wildcard tests/core/test_*.c) $(wildcard tests/api/test_*.c)
+TSAN_TESTS := $(B)/tests/daemon/test_jobq
 
 obj = $(patsubst %.c,$(B)/$(1)/%.o,$(2))
 
@@ -70,13 +72,22 @@ $(B)/tests/%: tests/%.c tests/unit.h $(SAN_CORE) $(SAN_API)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(SAN) -o $@ $< $(SAN_CORE) $(SAN_API) $(API_LIBS) $(CORE_LIBS)
 
+# the pool and queue under the thread sanitizer
+$(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c daemon/jobq.h
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/daemon/test_jobq.c daemon/jobq.c -lpthread
+
+# the daemon with the address and UB sanitizers, for the black-box API tests
+$(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(B)/rel/api/image_oiio.o $(B)/gen/openapi.o $(SAN_CORE)
+	$(CC) $(OPT) $(SAN) -o $@ $^ $(IMG_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
+
 run: deps $(B)/surfd
 	@mkdir -p var
 	@echo "surfd: the HTTP service arrives with issue 4; rendering the teapot to var/teapot.png"
 	$(B)/surfd render ../shared/data/scenes/teapot.json -o var/teapot.png --stats
 
-test: deps $(B)/surfd $(TESTS)
-	@tests/run.sh $(TESTS)
+test: deps $(B)/surfd $(B)/san/surfd $(TESTS) $(TSAN_TESTS)
+	@SURFD_BIN=$(B)/san/surfd tests/run.sh $(TESTS) $(TSAN_TESTS)
 
 bench: $(B)/surfd
 	@deploy/install-deps.sh --bench

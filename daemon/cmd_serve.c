@@ -10,6 +10,10 @@
 #include <unistd.h>
 
 #include "../api/image.h"
+
+#ifndef SURFD_VERSION
+#define SURFD_VERSION "dev"
+#endif
 #include "cli.h"
 #include "log.h"
 #include "server.h"
@@ -123,8 +127,11 @@ int cmd_serve(int argc, char **argv)
         jobq_shutdown(svc.q, 0);
         goto out_free_device;
     }
-    LOG(LOG_INFO, "surfd listening on %s%s, %ld workers, data in %s%s", svc.cfg.tls_cert[0] ? "https://" : "http://",
-        svc.cfg.listen, threads, svc.cfg.data_dir, svc.n_tokens ? ", bearer tokens required" : "");
+    char host[128];
+    snprintf(host, sizeof host, "%.*s", (int)(strrchr(svc.cfg.listen, ':') - svc.cfg.listen), svc.cfg.listen);
+    LOG(LOG_INFO, "surfd %s listening on %s%s:%u, %ld workers, data in %s%s", SURFD_VERSION,
+        svc.cfg.tls_cert[0] ? "https://" : "http://", host, server_port(server), threads, svc.cfg.data_dir,
+        svc.n_tokens ? ", bearer tokens required" : "");
 
     for (;;) {
         struct timespec every = {60, 0};

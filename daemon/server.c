@@ -620,6 +620,12 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
     return s;
 }
 
+unsigned short server_port(struct server *s)
+{
+    const union MHD_DaemonInfo *di = MHD_get_daemon_info(s->mhd, MHD_DAEMON_INFO_BIND_PORT);
+    return di ? di->port : 0;
+}
+
 void server_quiesce(struct server *s)
 {
     MHD_socket fd = MHD_quiesce_daemon(s->mhd);

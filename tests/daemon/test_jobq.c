@@ -1,0 +1,154 @@
+/* test_jobq.c - the queue and pool under the thread sanitizer: many banded jobs on 4 workers,
+ * cancellations while queued and between bands, waiters that time out and waiters that see the
+ * end, a full queue, and a shutdown that requeues what runs. Every band runs exactly once. */
+#include "../../daemon/jobq.h"
+#include "../unit.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <time.h>
+
+struct work {
+    int n_bands;
+    atomic_int *ran;        /* per band */
+    atomic_int finished;    /* times finish ran */
+    enum job_state outcome;
+    bool requeue;
+    int spin_us;
+};
+
+static atomic_int total_finished;
+
+static int prepare(struct job *j, void *arg, int *n)
+{
+    (void)j;
+    struct work *w = arg;
+    *n = w->n_bands;
+    return w->n_bands < 0 ? -1 : 0;
+}
+
+static void band(struct job *j, void *arg, int k)
+{
+    (void)j;
+    struct work *w = arg;
+    atomic_fetch_add(&w->ran[k], 1);
+    struct timespec ts = {0, w->spin_us * 1000L};
+    nanosleep(&ts, NULL);
+}
+
+static void finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
+{
+    (void)j;
+    struct work *w = arg;
+    w->outcome = outcome;
+    w->requeue = requeue;
+    atomic_fetch_add(&w->finished, 1);
+    atomic_fetch_add(&total_finished, 1);
+}
+
+static const struct job_ops OPS = {prepare, band, finish};
+
+struct waited {
+    atomic_int calls;
+    atomic_bool finished;
+};
+
+static void on_wait(void *arg, bool finished)
+{
+    struct waited *w = arg;
+    atomic_store(&w->finished, finished);
+    atomic_fetch_add(&w->calls, 1);
+}
+
+static struct work *make_work(int n_bands, int spin_us)
+{
+    struct work *w = calloc(1, sizeof *w);
+    w->n_bands = n_bands;
+    w->ran = calloc(n_bands > 0 ? (size_t)n_bands : 1, sizeof *w->ran);
+    w->spin_us = spin_us;
+    return w;
+}
+
+static void sleep_ms(int ms)
+{
+    struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
+    nanosleep(&ts, NULL);
+}
+
+TEST(bands_run_once_and_jobs_end)
+{
+    enum { N = 40 };
+    struct jobq *q = jobq_new(4, N);
+    struct work *w[N];
+    struct waited wt[N] = {0};
+    char id[N][40];
+    for (int k = 0; k < N; k++) {
+        w[k] = make_work(k % 5 == 0 ? 0 : (k % 7 == 0 ? -1 : 3 + k % 13), 50);
+        snprintf(id[k], sizeof id[k], "job%02d", k);
+        CHECK(jobq_submit(q, id[k], &OPS, w[k], false) == 0);
+        jobq_wait(q, id[k], monotonic_s() + 30, on_wait, &wt[k]);
+    }
+    for (int k = 3; k < N; k += 9)
+        jobq_cancel(q, id[k]);
+    for (int t = 0; t < 3000 && atomic_load(&total_finished) < N; t++)
+        sleep_ms(2);
+    CHECK(atomic_load(&total_finished) == N);
+    for (int k = 0; k < N; k++) {
+        CHECK(atomic_load(&w[k]->finished) == 1);
+        CHECK(atomic_load(&wt[k].calls) == 1 && atomic_load(&wt[k].finished));
+        bool cancelled = (k - 3) % 9 == 0;
+        if (w[k]->n_bands < 0) /* fails in prepare, unless cancelled while still queued */
+            CHECK(w[k]->outcome == JOB_FAILED || (cancelled && w[k]->outcome == JOB_CANCELLED));
+        else if (w[k]->outcome == JOB_SUCCEEDED)
+            for (int b = 0; b < w[k]->n_bands; b++)
+                CHECK(atomic_load(&w[k]->ran[b]) == 1);
+        else
+            CHECK(w[k]->outcome == JOB_CANCELLED && cancelled);
+        for (int b = 0; b < w[k]->n_bands; b++)
+            CHECK(atomic_load(&w[k]->ran[b]) <= 1);
+    }
+    jobq_shutdown(q, 1.0);
+    for (int k = 0; k < N; k++) {
+        free(w[k]->ran);
+        free(w[k]);
+    }
+}
+
+TEST(full_queue_timeouts_and_shutdown)
+{
+    atomic_store(&total_finished, 0);
+    struct jobq *q = jobq_new(1, 2);
+    struct work *slow = make_work(200, 2000), *a = make_work(2, 10), *b = make_work(2, 10), *c = make_work(2, 10);
+    CHECK(jobq_submit(q, "slow", &OPS, slow, false) == 0);
+    sleep_ms(20); /* slow is running now */
+    CHECK(jobq_submit(q, "a", &OPS, a, false) == 0);
+    CHECK(jobq_submit(q, "b", &OPS, b, false) == 0);
+    CHECK(jobq_submit(q, "c", &OPS, c, false) == -1); /* full: two queued */
+    CHECK(jobq_submit(q, "c", &OPS, c, true) == 0);   /* recovery may overfill */
+    struct waited early = {0}, unknown = {0};
+    jobq_wait(q, "a", monotonic_s() + 0.05, on_wait, &early);
+    jobq_wait(q, "nosuch", monotonic_s() + 10, on_wait, &unknown);
+    CHECK(atomic_load(&unknown.calls) == 1 && atomic_load(&unknown.finished));
+    sleep_ms(300);
+    CHECK(atomic_load(&early.calls) == 1 && !atomic_load(&early.finished)); /* timed out */
+    enum job_state st;
+    double progress;
+    CHECK(jobq_peek(q, "slow", &st, &progress) && st == JOB_RUNNING && progress > 0 && progress < 1);
+    jobq_shutdown(q, 0.05); /* slow cannot finish: cancelled for requeue; a, b, c stay queued */
+    CHECK(slow->outcome == JOB_CANCELLED && slow->requeue);
+    CHECK(a->requeue && b->requeue && c->requeue);
+    CHECK(atomic_load(&slow->finished) == 1 && atomic_load(&a->finished) == 1);
+    struct work *all[] = {slow, a, b, c};
+    for (int k = 0; k < 4; k++) {
+        free(all[k]->ran);
+        free(all[k]);
+    }
+}
+
+int main(void)
+{
+    RUN(bands_run_once_and_jobs_end);
+    RUN(full_queue_timeouts_and_shutdown);
+    UNIT_END();
+}
