@@ -1,6 +1,7 @@
 # surfd - one plain Makefile (STYLE.md §12).
 #   make            build/surfd (release)
-#   make run        install missing Debian packages, build, serve on 127.0.0.1:8080 (render CLI until the service lands)
+#   make run        install missing Debian packages, build, serve on 127.0.0.1:8080 with the store in ./var
+#   make install    binary, systemd unit and config (DESTDIR and PREFIX respected)
 #   make test       sanitized unit and tracer tests; last line "N passed, N failed"
 #   make bench      benchmarks against POV-Ray and surfd's own mesh method -> tests/bench/RESULTS.md
 # Warnings are errors when CI=true (or WERROR=1).
@@ -41,8 +42,11 @@ SAN_CORE := $(call obj,san,$(CORE_SRC))
 SAN_API  := $(call obj,san,$(API_SRC))
 TESTS    := $(patsubst tests/%.c,$(B)/tests/%,$(TEST_SRC))
 
-.PHONY: all run test bench clean deps
-all: $(B)/surfd
+.PHONY: all run test bench clean deps install
+all: $(B)/surfd $(B)/surfctl
+
+$(B)/surfctl: $(B)/rel/client/surfctl.o
+	$(CC) $(OPT) -o $@ $^ -lcurl -ljansson
 
 deps:
 	@deploy/install-deps.sh
@@ -82,11 +86,21 @@ $(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(B)/rel/api/image_oiio
 	$(CC) $(OPT) $(SAN) -o $@ $^ $(IMG_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
 run: deps $(B)/surfd
-	@mkdir -p var
-	@echo "surfd: the HTTP service arrives with issue 4; rendering the teapot to var/teapot.png"
-	$(B)/surfd render ../shared/data/scenes/teapot.json -o var/teapot.png --stats
+	$(B)/surfd serve --listen 127.0.0.1:8080 --data-dir var
 
-test: deps $(B)/surfd $(B)/san/surfd $(TESTS) $(TSAN_TESTS)
+PREFIX  ?= /usr/local
+install: $(B)/surfd $(B)/surfctl
+	install -D -m 0755 $(B)/surfd $(DESTDIR)$(PREFIX)/bin/surfd
+	install -D -m 0755 $(B)/surfctl $(DESTDIR)$(PREFIX)/bin/surfctl
+	install -D -m 0644 deploy/surfd.service $(DESTDIR)/etc/systemd/system/surfd.service
+	[ -e $(DESTDIR)/etc/surfd/surfd.conf ] || install -D -m 0640 deploy/surfd.conf $(DESTDIR)/etc/surfd/surfd.conf
+	install -D -m 0644 README.md $(DESTDIR)$(PREFIX)/share/doc/surfd/README.md
+	install -D -m 0644 api/openapi.yaml $(DESTDIR)$(PREFIX)/share/doc/surfd/openapi.yaml
+	@if [ -z "$(DESTDIR)" ] && ! id surfd >/dev/null 2>&1; then \
+		useradd --system --home-dir /var/lib/surfd --shell /usr/sbin/nologin surfd; fi
+	@echo "installed; start with: systemctl daemon-reload && systemctl enable --now surfd"
+
+test: deps $(B)/surfd $(B)/surfctl $(B)/san/surfd $(TESTS) $(TSAN_TESTS)
 	@SURFD_BIN=$(B)/san/surfd tests/run.sh $(TESTS) $(TSAN_TESTS)
 
 bench: $(B)/surfd

@@ -1,0 +1,46 @@
+#!/bin/sh
+# The README's curl examples (client/examples) and surfctl against a real daemon with tokens:
+# outputs, exit codes, SURFD_URL and SURFD_TOKEN.
+. "$(dirname "$0")/lib.inc"
+C=./build/surfctl
+printf 'tok-for-tests\n' >"$T/tokens"
+start_daemon "$T/d" --token-file "$T/tokens" --sync-wait 5 || exit 1
+export SURFD_URL="$URL" SURFD_TOKEN=tok-for-tests
+
+client/examples/render_sync.sh "$D/teapot.json" "$T/a.png"
+check "example render_sync" '[ $? -eq 0 ] && [ "$(head -c 4 "$T/a.png" | od -An -tx1 | tr -d " \n")" = 89504e47 ]'
+client/examples/render_async.sh "$D/duck2.nurbs" "$T/b.png"
+check "example render_async" '[ $? -eq 0 ] && [ -s "$T/b.png" ]'
+client/examples/render_exr_depth.sh "$D/teapot.bpt" "$T/c.exr"
+check "example render_exr_depth" '[ $? -eq 0 ] && head -c 2000 "$T/c.exr" | grep -aq "Z"'
+check "example bad_scene" 'client/examples/bad_scene.sh | grep -q "\"pointer\":\"/objects/0/knots_u/2\"" && client/examples/bad_scene.sh | tail -n 1 | grep -q 422'
+check "example health" 'client/examples/health.sh | grep -q surfd_queue_depth'
+
+$C render "$D/teacup.json" -o "$T/d.png" --width 120 --height 90
+check "surfctl render" '[ $? -eq 0 ] && [ -s "$T/d.png" ]'
+id=$($C render "$D/duck1.nurbs" --async --width 200 --height 150)
+check "surfctl render --async prints the id" '[ $? -eq 0 ] && echo "$id" | grep -qE "^[0-9a-f]{32}$"'
+$C wait "$id" -o "$T/e.png" 2>"$T/progress"
+check "surfctl wait -o" '[ $? -eq 0 ] && [ -s "$T/e.png" ]'
+check "surfctl job" '$C job "$id" | grep -q "\"state\":\"succeeded\""'
+check "surfctl jobs --state" '$C jobs --state succeeded | grep -q "$id"'
+$C result "$id" -o "$T/f.png"
+check "surfctl result" '[ $? -eq 0 ] && cmp -s "$T/e.png" "$T/f.png"'
+$C render "$D/teapot.json" -o "$T/g.png" --width 0 2>"$T/err"; rc=$?
+check "surfctl 4xx exits 4 with the pointer" '[ $rc -eq 4 ] && grep -q "?width" "$T/err"'
+$C cancel "$id" 2>/dev/null; rc=$?
+check "surfctl cancel of an ended job exits 4" '[ $rc -eq 4 ]'
+$C job 0123456789abcdef0123456789abcdef 2>/dev/null; rc=$?
+check "surfctl unknown job exits 4" '[ $rc -eq 4 ]'
+SURFD_TOKEN=wrong $C jobs 2>/dev/null; rc=$?
+check "surfctl wrong token exits 4" '[ $rc -eq 4 ]'
+$C bogus 2>/dev/null; rc=$?
+check "surfctl usage exits 2" '[ $rc -eq 2 ]'
+stop_daemon
+$C jobs 2>/dev/null; rc=$?
+check "surfctl daemon down exits 3" '[ $rc -eq 3 ]'
+
+# the shipped config file is valid as it is
+start_daemon "$T/d2" --config deploy/surfd.conf --listen 127.0.0.1:0 || exit 1
+check "deploy/surfd.conf loads" 'alive'
+finish
