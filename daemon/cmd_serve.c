@@ -129,7 +129,8 @@ int cmd_serve(int argc, char **argv)
     }
     char host[128];
     snprintf(host, sizeof host, "%.*s", (int)(strrchr(svc.cfg.listen, ':') - svc.cfg.listen), svc.cfg.listen);
-    LOG(LOG_INFO, "surfd %s listening on %s%s:%u, %ld workers, data in %s%s", SURFD_VERSION,
+    /* the one line an operator always needs, whatever the level */
+    log_write(LOG_INFO, "surfd %s listening on %s%s:%u, %ld workers, data in %s%s", SURFD_VERSION,
         svc.cfg.tls_cert[0] ? "https://" : "http://", host, server_port(server), threads, svc.cfg.data_dir,
         svc.n_tokens ? ", bearer tokens required" : "");
 

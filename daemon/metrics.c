@@ -15,9 +15,14 @@ static const double BUCKETS[] = {0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 1
 static atomic_long render_bucket[N_BUCKETS], render_count, rays_total;
 static atomic_long render_us_total; /* microseconds, so that it stays an integer atomic */
 static atomic_long jobs_ended[5];
+static atomic_long http_aborted;
 
 void metrics_http(int status)
 {
+    if (status == 0) { /* the client left before an answer (e.g. during a synchronous wait) */
+        atomic_fetch_add(&http_aborted, 1);
+        return;
+    }
     size_t k = 0;
     while (k < N_STATUS && STATUSES[k] != status)
         k++;
@@ -70,6 +75,8 @@ char *metrics_text(struct service *svc)
     for (size_t k = 0; k < N_STATUS; k++)
         OUT("surfd_http_requests_total{status=\"%d\"} %ld\n", STATUSES[k], atomic_load(&http_count[k]));
     OUT("surfd_http_requests_total{status=\"other\"} %ld\n", atomic_load(&http_count[N_STATUS]));
+    OUT("# HELP surfd_http_aborted_total Requests whose client left before the answer.\n"
+        "# TYPE surfd_http_aborted_total counter\nsurfd_http_aborted_total %ld\n", atomic_load(&http_aborted));
 #undef OUT
     if (n >= cap) { /* grew past the buffer: the table is fixed, so this is a programming error */
         free(buf);

@@ -5,6 +5,7 @@
 
 #include "service.h"
 
+/* An answered request (status 0: the client left before the answer). */
 void metrics_http(int status);
 /* A render finished: its tracing time and rays. */
 void metrics_render(double seconds, long rays);

@@ -33,6 +33,11 @@ struct server {
     struct service *svc;
 };
 
+/* Bytes of request bodies held by all connections together; capped at BODY_BUDGET_BODIES bodies
+ * of max-body, so that many large uploads at once get 503 instead of exhausting memory. */
+#define BODY_BUDGET_BODIES 4
+static atomic_long body_bytes;
+
 enum phase { PHASE_NEW, PHASE_BODY, PHASE_WAITING, PHASE_WOKEN };
 
 struct req {
@@ -44,7 +49,9 @@ struct req {
     char client[64];
     char *body;
     size_t len, cap;
-    bool too_large;
+    long reserved;            /* bytes of body_bytes this request holds */
+    bool too_large;           /* over max-body: 413 */
+    bool over_budget;         /* over the shared body budget: 503 */
     enum phase phase;
     atomic_bool finished;     /* set by the waiter callback before it resumes */
     char job[40];
@@ -474,14 +481,23 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
     if (*upload_size) {
         size_t n = *upload_size;
         *upload_size = 0;
-        if (r->too_large || r->len + n > (size_t)r->svc->cfg.max_body) {
-            r->too_large = true; /* chunked body without a length: drain it, answer 413 */
+        if (r->too_large || r->over_budget)
+            return MHD_YES; /* draining a refused body */
+        if (r->len + n > (size_t)r->svc->cfg.max_body) {
+            r->too_large = true; /* chunked, without a length to decide by up front */
             return MHD_YES;
         }
         if (r->len + n + 1 > r->cap) {
             size_t cap = r->cap ? r->cap : 65536;
             while (cap < r->len + n + 1)
                 cap *= 2;
+            long more = (long)cap - r->reserved;
+            if (atomic_fetch_add(&body_bytes, more) + more > BODY_BUDGET_BODIES * r->svc->cfg.max_body) {
+                atomic_fetch_sub(&body_bytes, more);
+                r->over_budget = true;
+                return MHD_YES;
+            }
+            r->reserved += more;
             char *b = realloc(r->body, cap);
             if (!b)
                 return MHD_NO;
@@ -493,6 +509,8 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
         r->body[r->len] = 0;
         return MHD_YES;
     }
+    if (r->over_budget)
+        return problem(r, 503, "too many large uploads at once; try again shortly", NULL);
     if (r->too_large)
         return problem(r, 413, "the body is over the limit", NULL);
     return route(r);
@@ -509,6 +527,7 @@ static void completed(void *cls, struct MHD_Connection *conn, void **con_cls, en
     LOG(LOG_INFO, "access %s %s %s %d %zu %.1fms%s%s%s", r->client[0] ? r->client : "-", r->method, r->path, r->status,
         r->bytes, (monotonic_s() - r->t0) * 1e3, r->job[0] ? " job=" : "", r->job,
         toe == MHD_REQUEST_TERMINATED_COMPLETED_OK ? "" : " (aborted)");
+    atomic_fetch_sub(&body_bytes, r->reserved);
     free(r->body);
     free(r);
     *con_cls = NULL;

@@ -133,6 +133,20 @@ printf 'threads = 2\nqueue-max = 0\n' >"$T/bad.conf"
 $S serve --config "$T/bad.conf" >"$T/refuse.log" 2>&1; rc=$?
 check "config file checked" '[ "$rc" = 2 ] && grep -q "bad.conf:2: queue-max" "$T/refuse.log"'
 
+# ---- a shared budget for request bodies: slow large uploads at once get 503, never exhaust memory
+start_daemon "$T/d7" --max-body 1048576 || exit 1
+head -c 1000000 /dev/zero | tr '\0' ' ' >"$T/m1"
+pids=""
+for k in 1 2 3 4 5 6; do
+    curl -s -o /dev/null -w '%{http_code}\n' --limit-rate 400k -H 'Content-Type: application/json' \
+        --data-binary @"$T/m1" "$URL/render" >"$T/u$k" &
+    pids="$pids $!"
+done
+wait $pids
+check "body budget: 503 beyond four bodies in flight" 'cat "$T"/u* | grep -q 503 && ! cat "$T"/u* | grep -vqE "^(400|503)$"'
+check "daemon up after the uploads" 'alive'
+stop_daemon
+
 # ---- TLS 1.2+ ---------------------------------------------------------------------------------
 openssl req -x509 -newkey rsa:2048 -nodes -keyout "$T/key.pem" -out "$T/cert.pem" -days 1 -subj /CN=127.0.0.1 >/dev/null 2>&1
 start_daemon "$T/d6" --tls-cert "$T/cert.pem" --tls-key "$T/key.pem" || exit 1

@@ -6,7 +6,7 @@ one shadow-casting light, at 1 and 2 threads, every method; teacup, teaspoon and
 (auto-framed). In the same run: POV-Ray 3.7 on the same Bézier patches and camera
 (bicubic_patch type 1, flatness 0, u_steps 5, v_steps 5; its own "Trace Time"), and surfd's mesh
 method. Each figure is the median of REPEAT runs."""
-import json, os, platform, re, statistics, subprocess, sys, tempfile
+import json, os, platform, re, signal, statistics, subprocess, sys, tempfile, time, urllib.request
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DATA = os.environ.get("SURFD_DATA", os.path.join(ROOT, "..", "shared", "data"))
@@ -69,8 +69,111 @@ def povray(patches, threads):
     return statistics.median(times)
 
 
+def http_get(url):
+    with urllib.request.urlopen(url, timeout=30) as r:
+        return r.read().decode()
+
+
+def metric(text, name):
+    m = re.search(r"^" + re.escape(name) + r" (\S+)$", text, re.M)
+    return float(m.group(1)) if m else 0.0
+
+
+def rss_kb(pid):
+    with open("/proc/%d/status" % pid) as f:
+        return int(re.search(r"VmRSS:\s+(\d+)", f.read()).group(1))
+
+
+def wrk(url, body_path, conns, secs):
+    lua = os.path.join(TMP, "post.lua")
+    with open(lua, "w") as f:
+        f.write('wrk.method = "POST"\nwrk.headers["Content-Type"] = "application/json"\n'
+                'local f = io.open("%s", "rb")\nwrk.body = f:read("*a")\nf:close()\n' % body_path)
+    p = subprocess.run(["wrk", "-t2", "-c%d" % conns, "-d%ds" % secs, "--timeout", "30s", "--latency", "-s", lua, url],
+                       capture_output=True, text=True)
+    out = p.stdout
+    rps = float(re.search(r"Requests/sec:\s+([\d.]+)", out).group(1))
+    def pct(q):
+        m = re.search(r"^\s+%s%%\s+([\d.]+)(us|ms|s)" % q, out, re.M)
+        return float(m.group(1)) * {"us": 1e-3, "ms": 1.0, "s": 1e3}[m.group(2)] if m else float("nan")
+    total = int(re.search(r"(\d+) requests in", out).group(1))
+    return rps, pct(50), pct(99), total
+
+
+def http_bench(lines):
+    """Issue 4: wrk against the daemon, RSS over 10 000 requests, 1024² over HTTP vs in-process."""
+    data = os.path.join(TMP, "srv")
+    log_path = os.path.join(TMP, "srv.log")
+    log = open(log_path, "w")  # a file, never a pipe nobody reads: a full pipe would block the daemon's log
+    d = subprocess.Popen([SURFD, "serve", "--listen", "127.0.0.1:0", "--data-dir", data, "--log-level", "warn",
+                          "--queue-max", "64"], stdout=log, stderr=log)
+    port = None
+    for _ in range(200):
+        time.sleep(0.05)
+        with open(log_path) as f:
+            m = re.search(r"listening on http://127\.0\.0\.1:(\d+)", f.read())
+        if m:
+            port = int(m.group(1))
+            break
+    base = "http://127.0.0.1:%d" % port
+    small = os.path.join(TMP, "teapot256.json")
+    with open(os.path.join(DATA, "scenes", "teapot.json")) as f:
+        sc = {"image": {"width": 256, "height": 256}, "camera": CAM, "lights": [LIGHT], "objects": json.load(f)["patches"]}
+    with open(small, "w") as f:
+        json.dump(sc, f)
+    lines.append("## HTTP (issue 4): wrk POSTing a 256x256 teapot render, 20 s each\n")
+    lines.append("| connections | requests/s | p50 ms | p99 ms | requests | non-2xx other than 429 | left by wrk at its end |")
+    lines.append("|---|---|---|---|---|---|")
+    for conns in (16, 64):
+        before = http_get(base + "/metrics")
+        rps, p50, p99, total = wrk(base + "/render", small, conns, 20)
+        after = http_get(base + "/metrics")
+        bad = 0
+        for code in ("400", "404", "413", "415", "422", "500", "503", "other"):
+            name = 'surfd_http_requests_total{status="%s"}' % code
+            bad += metric(after, name) - metric(before, name)
+        n429 = metric(after, 'surfd_http_requests_total{status="429"}') - metric(before, 'surfd_http_requests_total{status="429"}')
+        left = metric(after, "surfd_http_aborted_total") - metric(before, "surfd_http_aborted_total")
+        lines.append("| %d | %.1f | %.1f | %.1f | %d (429: %d) | %d | %d |" % (conns, rps, p50, p99, total, n429, bad, left))
+    # RSS over 10 000 requests of a small render (the request path, the store and the pool)
+    tiny = os.path.join(TMP, "teapot64.json")
+    sc["image"] = {"width": 64, "height": 64}
+    with open(tiny, "w") as f:
+        json.dump(sc, f)
+    wrk(base + "/render", tiny, 8, 3)  # warm up
+    r0 = rss_kb(d.pid)
+    done0 = metric(http_get(base + "/metrics"), 'surfd_http_requests_total{status="200"}')
+    while metric(http_get(base + "/metrics"), 'surfd_http_requests_total{status="200"}') - done0 < 10000:
+        wrk(base + "/render", tiny, 8, 5)
+    n = metric(http_get(base + "/metrics"), 'surfd_http_requests_total{status="200"}') - done0
+    r1 = rss_kb(d.pid)
+    lines.append("")
+    lines.append("RSS over %d requests (64x64 renders, 8 connections, after a warm-up): %.1f MiB -> %.1f MiB "
+                 "(%+.1f %%, target < 10 %%).\n" % (n, r0 / 1024, r1 / 1024, 100.0 * (r1 - r0) / r0))
+    # 1024² end to end over HTTP against the same render in-process
+    big, _ = scene_file("teapot.json", True)
+    walls = []
+    for _ in range(REPEAT):
+        t0 = time.monotonic()
+        subprocess.run(["curl", "-sf", "-o", os.path.join(TMP, "h.png"), "-H", "Content-Type: application/json",
+                        "--data-binary", "@" + big, base + "/render"], check=True)
+        walls.append((time.monotonic() - t0) * 1000)
+    http_ms = statistics.median(walls)
+    r = surfd([big], "auto", os.cpu_count())
+    inproc = r["prepare_ms"] + r["render_ms"] + r["encode_ms"]
+    lines.append("1024x1024 teapot: over HTTP (curl, wall) %.1f ms; in-process (prepare + render + encode) %.1f ms; "
+                 "ratio %.2f (target <= 1.3).\n" % (http_ms, inproc, http_ms / inproc))
+    d.send_signal(signal.SIGTERM)
+    d.wait(timeout=60)
+
+
 def main():
     rows, notes = [], []
+    if os.environ.get("BENCH_ONLY") == "http":
+        lines = []
+        http_bench(lines)
+        print("\n".join(lines))
+        return
     teapot, patches = scene_file("teapot.json", True)
     pov = {t: povray(patches, t) for t in (1, 2)}
     for method in ("auto", "map", "bvh", "mesh"):
@@ -124,7 +227,8 @@ def main():
             lines.append("| %s | %s | %.1f | %.1f | %d | %d | %.2f |" % (
                 name, method, r["prepare_ms"], r["render_ms"], r["hits"], r["misses"], r["iterations_mean"]))
     lines.append("")
-    lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`).")
+    http_bench(lines)
+    lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=http` for the HTTP part).")
     out = os.path.join(ROOT, "tests", "bench", "RESULTS.md")
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")
