@@ -123,7 +123,7 @@ def http_bench(lines):
         json.dump(sc, f)
     lines.append("## HTTP (issue 4): wrk POSTing a 256x256 teapot render, 20 s each\n")
     lines.append("| connections | requests/s | p50 ms | p99 ms | requests | non-2xx other than 429 | left by wrk at its end |")
-    lines.append("|---|---|---|---|---|---|")
+    lines.append("|---|---|---|---|---|---|---|")
     for conns in (16, 64):
         before = http_get(base + "/metrics")
         rps, p50, p99, total = wrk(base + "/render", small, conns, 20)
