@@ -5,5 +5,6 @@
 
 int cmd_render(int argc, char **argv);
 int cmd_serve(int argc, char **argv);
+int cmd_volume(int argc, char **argv);
 
 #endif

@@ -15,6 +15,8 @@ int main(int argc, char **argv)
         return cmd_render(argc - 1, argv + 1);
     if (argc >= 2 && !strcmp(argv[1], "serve"))
         return cmd_serve(argc - 1, argv + 1);
+    if (argc >= 2 && (!strcmp(argv[1], "volume") || !strcmp(argv[1], "model")))
+        return cmd_volume(argc - 1, argv + 1);
     if (argc >= 2 && (!strcmp(argv[1], "--version") || !strcmp(argv[1], "version"))) {
         printf("surfd %s\n", SURFD_VERSION);
         return 0;

@@ -1,0 +1,120 @@
+/* contour_json.c - contour requests with jansson. Only what is built is accepted: method
+ * parabolic, caps flat, one contour per slice; the rest answers 422 naming the field. */
+#include "contour_json.h"
+
+#include <jansson.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int points(json_t *a, const char *ptr, struct contour_slice *s, struct sf_err *err)
+{
+    if (!json_is_array(a))
+        return sf_fail(err, SF_EINVAL, ptr, "expected an array of [x, y] points");
+    size_t n = json_array_size(a);
+    if (n > CONTOUR_MAX_POINTS)
+        return sf_fail(err, SF_ELIMIT, ptr, "more than %d points", CONTOUR_MAX_POINTS);
+    s->p = malloc(sizeof *s->p * (n ? n : 1));
+    if (!s->p)
+        return sf_fail(err, SF_ENOMEM, ptr, "out of memory");
+    s->n = (int)n;
+    for (size_t i = 0; i < n; i++) {
+        json_t *q = json_array_get(a, i);
+        char p[96];
+        snprintf(p, sizeof p, "%s/%zu", ptr, i);
+        if (!json_is_array(q) || json_array_size(q) < 2 || json_array_size(q) > 3 || !json_is_number(json_array_get(q, 0)) ||
+            !json_is_number(json_array_get(q, 1)))
+            return sf_fail(err, SF_EINVAL, p, "expected [x, y]");
+        s->p[i][0] = json_number_value(json_array_get(q, 0));
+        s->p[i][1] = json_number_value(json_array_get(q, 1));
+    }
+    return 0;
+}
+
+static int option(json_t *root, const char *key, const char *dflt, const char *const *allowed, char *out, size_t cap,
+                  struct sf_err *err)
+{
+    json_t *v = json_object_get(root, key);
+    char ptr[32];
+    snprintf(ptr, sizeof ptr, "/%s", key);
+    const char *s = v ? json_string_value(v) : dflt;
+    if (!s)
+        return sf_fail(err, SF_EINVAL, ptr, "expected a string");
+    for (int k = 0; allowed[k]; k++)
+        if (!strcmp(s, allowed[k])) {
+            snprintf(out, cap, "%s", s);
+            return 0;
+        }
+    return sf_fail(err, SF_EINVAL, ptr, "\"%.40s\" is not available in this build (%s)", s, allowed[0]);
+}
+
+int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, struct contour_request *req,
+                       struct sf_err *err)
+{
+    memset(cs, 0, sizeof *cs);
+    memset(req, 0, sizeof *req);
+    json_error_t je;
+    json_t *root = json_loadb(buf, len, JSON_REJECT_DUPLICATES, &je);
+    if (!root) {
+        char where[64];
+        snprintf(where, sizeof where, "line %d, column %d", je.line, je.column);
+        return sf_fail(err, SF_EFORMAT, where, "not JSON: %s", je.text);
+    }
+    static const char *const METHODS[] = {"parabolic", NULL}, *const CAPS[] = {"flat", NULL};
+    int rc = 0;
+    json_t *slices = json_object_get(root, "slices");
+    if (!json_is_object(root)) {
+        rc = sf_fail(err, SF_EINVAL, "", "contours are a JSON object with \"slices\"");
+        goto out;
+    }
+    const char *name = json_string_value(json_object_get(root, "name"));
+    snprintf(req->name, sizeof req->name, "%s", name ? name : "");
+    if ((rc = option(root, "method", "parabolic", METHODS, req->method, sizeof req->method, err)) ||
+        (rc = option(root, "caps", "flat", CAPS, req->caps, sizeof req->caps, err)))
+        goto out;
+    if (!json_is_array(slices) || json_array_size(slices) < 2) {
+        rc = sf_fail(err, SF_EINVAL, "/slices", "expected an array of at least 2 slices");
+        goto out;
+    }
+    size_t n = json_array_size(slices);
+    if (n > CONTOUR_MAX_SLICES) {
+        rc = sf_fail(err, SF_ELIMIT, "/slices", "more than %d slices", CONTOUR_MAX_SLICES);
+        goto out;
+    }
+    cs->s = calloc(n, sizeof *cs->s);
+    if (!cs->s) {
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+        goto out;
+    }
+    for (size_t k = 0; k < n && !rc; k++) {
+        json_t *s = json_array_get(slices, k), *z = json_object_get(s, "z");
+        char ptr[64];
+        struct contour_slice *cs_k = &cs->s[cs->n_slices++];
+        cs_k->src = (int)k;
+        snprintf(ptr, sizeof ptr, "/slices/%zu/z", k);
+        if (!json_is_number(z)) {
+            rc = sf_fail(err, SF_EINVAL, ptr, "expected a number");
+            break;
+        }
+        cs_k->z = json_number_value(z);
+        json_t *pts = json_object_get(s, "points"), *list = json_object_get(s, "contours");
+        if (!pts && json_is_array(list) && json_array_size(list) == 1) {
+            pts = json_object_get(json_array_get(list, 0), "points");
+            snprintf(ptr, sizeof ptr, "/slices/%zu/contours/0/points", k);
+        } else if (!pts && list) {
+            snprintf(ptr, sizeof ptr, "/slices/%zu/contours", k);
+            rc = sf_fail(err, SF_EINVAL, ptr, "several contours per slice are not supported yet");
+            break;
+        } else {
+            snprintf(ptr, sizeof ptr, "/slices/%zu/points", k);
+        }
+        rc = points(pts, ptr, cs_k, err);
+    }
+    if (!rc)
+        rc = contour_clean(cs, err);
+out:
+    json_decref(root);
+    if (rc)
+        contour_set_free(cs);
+    return rc;
+}

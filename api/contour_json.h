@@ -1,0 +1,20 @@
+/* contour_json.h - the contour JSON of API.md §Contours ({"slices": [{"z", "points"}]} or
+ * {"z", "contours": [{"points"}]}, with "method", "caps", "name") into a contour set, with a JSON
+ * pointer in every error. The caller frees the set with contour_set_free(). */
+#ifndef SURFD_CONTOUR_JSON_H
+#define SURFD_CONTOUR_JSON_H
+
+#include <stddef.h>
+
+#include "../core/contour.h"
+
+struct contour_request {
+    char name[128];
+    char method[24];   /* parabolic (default) */
+    char caps[16];     /* flat (default) */
+};
+
+int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, struct contour_request *req,
+                       struct sf_err *err);
+
+#endif

@@ -1,0 +1,25 @@
+/* model.h - smooth surfaces through slice contours as bicubic Bézier patches, and their exact
+ * volume (METHODS.md §2, §3). The patches are polynomial, oriented outward (Su × Sv), and close
+ * with flat caps at the end slices, which add nothing to the volume integral. */
+#ifndef SURFD_MODEL_H
+#define SURFD_MODEL_H
+
+#include "contour.h"
+#include "err.h"
+#include "nurbs.h"
+
+/* Parabolic interpolation (seed 004 eq. 6–19; METHODS.md §2 eq. 32 and 36–38): through every
+ * point of every contour; between slices the blend of the parabolas through slices k-1..k+1
+ * and k..k+2 at their real z (uneven spacing is modelled as it is; the end pairs use the one
+ * parabola they have). Appends to set as nurbs_extract() does: call nurbs_patches_fix() after
+ * the last append; the caller frees the set. */
+int model_parabolic(const struct contour_set *cs, struct patch_set *set, struct sf_err *err);
+
+struct model_measures {
+    double volume;       /* divergence theorem, Gauss–Legendre exact for bicubics (seed 000 eq. 21–22) */
+    double area;         /* lateral area, 8x8 Gauss–Legendre per patch */
+    double lo[3], hi[3]; /* bounds of the control points */
+};
+void model_measure(const struct patch_set *set, struct model_measures *m);
+
+#endif

@@ -1,0 +1,209 @@
+/* test_model.c - contours to parabolic surface to volume: the synthetic shapes' exact volumes
+ * between their end slices (caps flat), exactness of the quadrature, outward orientation,
+ * interpolation of every contour point, baselines, and every rejection with its pointer. */
+#include "../../api/contour_json.h"
+#include "../../core/model.h"
+#include "../unit.h"
+
+#include <stdlib.h>
+
+static char *slurp(const char *name, size_t *len)
+{
+    const char *dir = getenv("SURFD_DATA");
+    char path[512];
+    snprintf(path, sizeof path, "%s/contours/%s", dir ? dir : "../shared/data", name);
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *buf = malloc((size_t)n + 1);
+    *len = fread(buf, 1, (size_t)n, f);
+    fclose(f);
+    return buf;
+}
+
+static int model_of(const char *text, size_t len, struct contour_set *cs, struct patch_set *ps, struct sf_err *err)
+{
+    struct contour_request req;
+    memset(ps, 0, sizeof *ps);
+    int rc = contour_parse_json(text, len, cs, &req, err);
+    if (!rc && !(rc = model_parabolic(cs, ps, err)))
+        nurbs_patches_fix(ps);
+    return rc;
+}
+
+/* caps flat: within 0.2 % of the exact solid between the end slices (issue 5's target) */
+TEST(synthetic_volumes_within_0_2_percent)
+{
+    const struct {
+        const char *file;
+        double exact;
+    } cases[] = {{"synthetic_ellipsoid.json", 123841.58240450964}, {"synthetic_bean.json", 66556.32338083329}};
+    for (size_t k = 0; k < 2; k++) {
+        size_t len;
+        char *buf = slurp(cases[k].file, &len);
+        CHECK(buf != NULL);
+        if (!buf)
+            continue;
+        struct contour_set cs;
+        struct patch_set ps;
+        struct sf_err err = {0};
+        CHECK(model_of(buf, len, &cs, &ps, &err) == 0);
+        struct model_measures m;
+        model_measure(&ps, &m);
+        double rel = (m.volume - cases[k].exact) / cases[k].exact;
+        fprintf(stderr, "  %s: %.3f mm3, %+.4f %% (%zu patches)\n", cases[k].file, m.volume, 100 * rel, ps.n);
+        CHECK(fabs(rel) < 0.002);
+        struct contour_baselines b;
+        contour_baselines(&cs, &b);
+        CHECK(fabs(m.volume - cases[k].exact) < fabs(b.trapezoid - cases[k].exact)); /* better than the baseline */
+        nurbs_patch_set_free(&ps);
+        contour_set_free(&cs);
+        free(buf);
+    }
+}
+
+/* The surface passes through every contour point, and faces outward. */
+TEST(interpolates_points_and_faces_outward)
+{
+    size_t len;
+    char *buf = slurp("synthetic_bean.json", &len);
+    struct contour_set cs;
+    struct patch_set ps;
+    CHECK(buf && model_of(buf, len, &cs, &ps, NULL) == 0);
+    long found = 0, total = 0;
+    for (int k = 0; k < cs.n_slices; k++)
+        for (int i = 0; i < cs.s[k].n; i++, total++) {
+            double best = INFINITY;
+            for (size_t p = 0; p < ps.n; p++) { /* the v = 0 or v = 1 edge of some patch holds it */
+                const struct patch *pt = &ps.patches[p];
+                double v = fabs(pt->v0 - cs.s[k].z) < 1e-9 ? 0.0 : (fabs(pt->v1 - cs.s[k].z) < 1e-9 ? 1.0 : -1.0);
+                if (v < 0)
+                    continue;
+                for (int e = 0; e <= 1; e++) {
+                    vec3 P;
+                    bezier_eval(pt, e, v, &P, NULL, NULL);
+                    best = fmin(best, hypot(P.x - cs.s[k].p[i][0], P.y - cs.s[k].p[i][1]));
+                }
+            }
+            found += best < 1e-9;
+        }
+    CHECK(found == total);
+    /* outward: at a patch centre the normal points away from the slice's centroid */
+    long outward = 0;
+    for (size_t p = 0; p < ps.n; p++) {
+        vec3 P, Pu, Pv;
+        bezier_eval(&ps.patches[p], 0.5, 0.5, &P, &Pu, &Pv);
+        vec3 n = v3_cross(Pu, Pv);
+        outward += n.x * P.x + n.y * P.y > 0; /* the bean is star-shaped about its axis near x=y=0 */
+    }
+    CHECK(outward > (long)ps.n * 95 / 100);
+    nurbs_patch_set_free(&ps);
+    contour_set_free(&cs);
+    free(buf);
+}
+
+/* Gauss–Legendre of 5 and of 8 points are both exact for bicubic patches: they must agree. */
+TEST(volume_quadrature_is_exact)
+{
+    size_t len;
+    char *buf = slurp("synthetic_ellipsoid.json", &len);
+    struct contour_set cs;
+    struct patch_set ps;
+    CHECK(buf && model_of(buf, len, &cs, &ps, NULL) == 0);
+    static const double X[8] = {0.019855071751232, 0.101666761293187, 0.237233795041836, 0.408282678752175,
+                                0.591717321247825, 0.762766204958164, 0.898333238706813, 0.980144928248768};
+    static const double W[8] = {0.050614268145188, 0.111190517226687, 0.156853322938944, 0.181341891689181,
+                                0.181341891689181, 0.156853322938944, 0.111190517226687, 0.050614268145188};
+    double v8 = 0;
+    for (size_t p = 0; p < ps.n; p++)
+        for (int a = 0; a < 8; a++)
+            for (int b = 0; b < 8; b++) {
+                vec3 P, Pu, Pv;
+                bezier_eval(&ps.patches[p], X[a], X[b], &P, &Pu, &Pv);
+                v8 += 0.5 * W[a] * W[b] * ((Pu.y * Pv.z - Pu.z * Pv.y) * P.x + (Pu.z * Pv.x - Pu.x * Pv.z) * P.y);
+            }
+    struct model_measures m;
+    model_measure(&ps, &m);
+    CHECK_NEAR(m.volume / v8, 1.0, 1e-12);
+    nurbs_patch_set_free(&ps);
+    contour_set_free(&cs);
+    free(buf);
+}
+
+/* A circle of radius 10 on four slices: the cylinder's volume, up to the polygon's inscription. */
+TEST(cylinder_and_baselines)
+{
+    enum { CAP = 32768 }; /* 4 slices x 64 points x at most 45 characters, and the frame */
+    char *text = malloc(CAP);
+    size_t n = (size_t)snprintf(text, CAP, "{\"slices\":[");
+    for (int k = 0; k < 4; k++) {
+        n += (size_t)snprintf(text + n, CAP - n, "%s{\"z\":%d,\"points\":[", k ? "," : "", 5 * k);
+        for (int i = 0; i < 64; i++) { /* start point and direction vary: clockwise on odd slices */
+            double a = 2 * M_PI * (k % 2 ? -i : i) / 64.0 + k;
+            n += (size_t)snprintf(text + n, CAP - n, "%s[%.15g,%.15g]", i ? "," : "", 10 * cos(a), 10 * sin(a));
+        }
+        n += (size_t)snprintf(text + n, CAP - n, "]}");
+    }
+    n += (size_t)snprintf(text + n, CAP - n, "]}");
+    struct contour_set cs;
+    struct patch_set ps;
+    CHECK(model_of(text, n, &cs, &ps, NULL) == 0);
+    struct model_measures m;
+    model_measure(&ps, &m);
+    double exact = M_PI * 100 * 15;
+    CHECK(fabs(m.volume - exact) / exact < 2e-4); /* the curve through 64 points is nearly the circle */
+    struct contour_baselines b;
+    contour_baselines(&cs, &b);
+    double poly = 0.5 * 64 * 100 * sin(2 * M_PI / 64); /* the polygon's area */
+    CHECK_NEAR(b.trapezoid, poly * 15, 1e-6);
+    CHECK_NEAR(b.frustum, poly * 15, 1e-6);
+    CHECK_NEAR(b.cavalieri, poly * 20, 1e-6);
+    CHECK(n < CAP);
+    nurbs_patch_set_free(&ps);
+    contour_set_free(&cs);
+    free(text);
+}
+
+TEST(rejections)
+{
+    const struct {
+        const char *json;
+        int code;
+        const char *pointer;
+    } cases[] = {
+        {"{\"slices\": [", SF_EFORMAT, NULL},
+        {"{\"slices\":[{\"z\":0,\"points\":[[0,0],[1,0],[0,1]]}]}", SF_EINVAL, "/slices"},
+        {"{\"slices\":[{\"z\":0,\"points\":[[0,0],[1,0],[1,0],[0,0]]},{\"z\":1,\"points\":[[0,0],[1,0],[0,1]]}]}", SF_EINVAL, "/slices/0/points"},
+        {"{\"slices\":[{\"z\":0,\"points\":[[0,0],[1,1],[1,0],[0,1]]},{\"z\":1,\"points\":[[0,0],[1,0],[0,1]]}]}", SF_EINVAL, "/slices/0/points"},
+        {"{\"slices\":[{\"z\":0,\"points\":[[0,0],[1,0],[0,1]]},{\"z\":0,\"points\":[[0,0],[1,0],[0,1]]}]}", SF_EINVAL, "/slices/1/z"},
+        {"{\"slices\":[{\"z\":\"a\",\"points\":[[0,0],[1,0],[0,1]]},{\"z\":1,\"points\":[[0,0],[1,0],[0,1]]}]}", SF_EINVAL, "/slices/0/z"},
+        {"{\"slices\":[{\"z\":0,\"points\":[[0,0],[1,\"x\"],[0,1]]},{\"z\":1,\"points\":[[0,0],[1,0],[0,1]]}]}", SF_EINVAL, "/slices/0/points/1"},
+        {"{\"method\":\"coons\",\"slices\":[]}", SF_EINVAL, "/method"},
+        {"{\"caps\":\"dome\",\"slices\":[]}", SF_EINVAL, "/caps"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof *cases; k++) {
+        struct contour_set cs;
+        struct contour_request req;
+        struct sf_err err = {0};
+        int rc = contour_parse_json(cases[k].json, strlen(cases[k].json), &cs, &req, &err);
+        bool ok = rc == cases[k].code && (!cases[k].pointer || !strcmp(err.pointer, cases[k].pointer)) && err.message[0];
+        if (!ok)
+            fprintf(stderr, "  case %zu: rc %d pointer %s (%s)\n", k, rc, err.pointer, err.message);
+        CHECK(ok);
+        if (!rc)
+            contour_set_free(&cs);
+    }
+}
+
+int main(void)
+{
+    RUN(synthetic_volumes_within_0_2_percent);
+    RUN(interpolates_points_and_faces_outward);
+    RUN(volume_quadrature_is_exact);
+    RUN(cylinder_and_baselines);
+    RUN(rejections);
+    UNIT_END();
+}
