@@ -275,9 +275,15 @@ static const double GL8_X[8] = {0.019855071751232, 0.101666761293187, 0.23723379
 static const double GL8_W[8] = {0.050614268145188, 0.111190517226687, 0.156853322938944, 0.181341891689181,
                                 0.181341891689181, 0.156853322938944, 0.111190517226687, 0.050614268145188};
 
-void model_measure(const struct patch_set *set, struct model_measures *m)
+void model_measure(const struct patch_set *set, enum model_caps caps, const double end_gap[2],
+                   struct model_measures *m)
 {
     memset(m, 0, sizeof *m);
+    double zmin = INFINITY, zmax = -INFINITY;
+    for (size_t k = 0; k < set->n; k++) {
+        zmin = fmin(zmin, set->patches[k].v0);
+        zmax = fmax(zmax, set->patches[k].v1);
+    }
     for (int d = 0; d < 3; d++)
         m->lo[d] = INFINITY, m->hi[d] = -INFINITY;
     for (size_t k = 0; k < set->n; k++) {
@@ -293,13 +299,35 @@ void model_measure(const struct patch_set *set, struct model_measures *m)
                 vec3 P, Pu, Pv;
                 bezier_eval(pt, GL5_X[a], GL5_X[b], &P, &Pu, &Pv);
                 double A = Pu.y * Pv.z - Pu.z * Pv.y, B = Pu.z * Pv.x - Pu.x * Pv.z;
-                m->volume += 0.5 * GL5_W[a] * GL5_W[b] * (A * P.x + B * P.y);
+                m->volume_flat += 0.5 * GL5_W[a] * GL5_W[b] * (A * P.x + B * P.y);
             }
+        /* end curves: area = ∮ x dy along the v = 0 edge at the first slice and v = 1 at the last
+         * (counter-clockwise in u); the integrand is of degree 5, exact with 5 points */
+        for (int e = 0; e < 2; e++) {
+            if ((e == 0 && pt->v0 != zmin) || (e == 1 && pt->v1 != zmax))
+                continue;
+            for (int a = 0; a < 5; a++) {
+                vec3 P, Pu;
+                bezier_eval(pt, GL5_X[a], e, &P, &Pu, NULL);
+                m->end_area[e] += GL5_W[a] * P.x * Pu.y;
+            }
+            for (int a = 0; a < 8; a++) {
+                vec3 Pu;
+                bezier_eval(pt, GL8_X[a], e, NULL, &Pu, NULL);
+                m->end_perimeter[e] += GL8_W[a] * v3_len(Pu);
+            }
+        }
         for (int a = 0; a < 8; a++)
             for (int b = 0; b < 8; b++) {
                 vec3 Pu, Pv;
                 bezier_eval(pt, GL8_X[a], GL8_X[b], NULL, &Pu, &Pv);
                 m->area += GL8_W[a] * GL8_W[b] * v3_len(v3_cross(Pu, Pv));
             }
+    }
+    m->volume = m->volume_flat;
+    m->area += m->end_area[0] + m->end_area[1]; /* the caps */
+    if (caps == CAPS_SLAB) {
+        m->volume += 0.5 * (m->end_area[0] * end_gap[0] + m->end_area[1] * end_gap[1]);
+        m->area += 0.5 * (m->end_perimeter[0] * end_gap[0] + m->end_perimeter[1] * end_gap[1]);
     }
 }

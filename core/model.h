@@ -15,11 +15,20 @@
  * the last append; the caller frees the set. */
 int model_parabolic(const struct contour_set *cs, struct patch_set *set, struct sf_err *err);
 
+enum model_caps { CAPS_FLAT, CAPS_SLAB };
+
 struct model_measures {
-    double volume;       /* divergence theorem, Gauss–Legendre exact for bicubics (seed 000 eq. 21–22) */
-    double area;         /* lateral area, 8x8 Gauss–Legendre per patch */
+    double volume;       /* with the caps asked for */
+    double volume_flat;  /* divergence theorem, Gauss–Legendre exact for bicubics (seed 000 eq. 21–22) */
+    double end_area[2];  /* areas enclosed by the first and last slice's curves (Green, exact) */
+    double end_perimeter[2];
+    double area;         /* of the closed solid: lateral (8x8 Gauss–Legendre per patch) and caps */
     double lo[3], hi[3]; /* bounds of the control points */
 };
-void model_measure(const struct patch_set *set, struct model_measures *m);
+/* caps: CAPS_FLAT closes the solid at the end slices; CAPS_SLAB adds a prism of the end curve half
+ * a slice spacing out at each end (end_gap[0], end_gap[1]: the first and last spacing), as most
+ * planning systems count. */
+void model_measure(const struct patch_set *set, enum model_caps caps, const double end_gap[2],
+                   struct model_measures *m);
 
 #endif

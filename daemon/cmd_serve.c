@@ -61,9 +61,12 @@ static void recover(const char *id, void *arg)
 {
     struct service *svc = arg;
     struct job_rec rec;
-    if (store_get(svc->store, id, false, false, &rec) == 1 && !strcmp(rec.kind, "render")) {
+    if (store_get(svc->store, id, false, false, &rec) == 1) {
+        int (*submit)(struct service *, const char *, bool) = !strcmp(rec.kind, "render") ? render_job_submit
+                                                            : !strcmp(rec.kind, "volume") ? volume_job_submit
+                                                                                          : NULL;
         store_set_state(svc->store, id, "queued", 0.0, 0, 0, NULL);
-        if (render_job_submit(svc, id, true) == 0)
+        if (submit && submit(svc, id, true) == 0)
             LOG(LOG_INFO, "recovered job %s", id);
     }
     store_rec_free(&rec);

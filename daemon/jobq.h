@@ -19,7 +19,7 @@ struct job_ops {
     /* Sets *n_bands (0: all work done here). Returns 0, or -1 when the job failed (finish is then
      * called with failed = true). Runs without the queue lock. */
     int (*prepare)(struct job *j, void *work, int *n_bands);
-    void (*band)(struct job *j, void *work, int band);
+    void (*band)(struct job *j, void *work, int band); /* NULL for kinds without bands */
     /* outcome: JOB_SUCCEEDED, JOB_FAILED (prepare failed) or JOB_CANCELLED (by the user; or, with
      * requeue, by shutdown: the job is to run again after restart). Frees work. */
     void (*finish)(struct job *j, void *work, enum job_state outcome, bool requeue);

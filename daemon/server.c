@@ -16,6 +16,7 @@
 #include <string.h>
 #include <strings.h>
 
+#include "../api/contour_json.h"
 #include "../api/job_json.h"
 #include "../api/problem.h"
 #include "../api/render_request.h"
@@ -300,11 +301,43 @@ static void woken(void *arg, bool finished)
     MHD_resume_connection(r->conn);
 }
 
-static enum MHD_Result post_render(struct req *r)
+/* Stores, queues and answers a validated request: at once (async, 202), or after the job ends
+ * or the wait runs out. */
+static enum MHD_Result submit(struct req *r, const char *kind, const char *format, const char *options,
+                              int (*submit_fn)(struct service *, const char *, bool))
 {
     struct service *svc = r->svc;
     if (atomic_load(&svc->draining))
         return problem(r, 503, "the service is shutting down", NULL);
+    struct job_rec rec = {0};
+    service_new_id(rec.id);
+    snprintf(rec.kind, sizeof rec.kind, "%s", kind);
+    snprintf(rec.state, sizeof rec.state, "queued");
+    snprintf(rec.format, sizeof rec.format, "%s", format);
+    snprintf(rec.options, sizeof rec.options, "%s", options);
+    rec.created = wall_s();
+    rec.request = (unsigned char *)(r->body ? r->body : "");
+    rec.request_len = r->len;
+    if (store_insert(svc->store, &rec))
+        return problem(r, 503, "the store cannot take the job now", NULL);
+    if (submit_fn(svc, rec.id, false)) {
+        store_delete(svc->store, rec.id);
+        return problem(r, 429, "the job queue is full; try again shortly", NULL);
+    }
+    snprintf(r->job, sizeof r->job, "%s", rec.id);
+    bool async;
+    double wait;
+    prefer(r, &async, &wait);
+    if (async || wait <= 0)
+        return job_resource(r, 202, rec.id);
+    r->phase = PHASE_WAITING;
+    MHD_suspend_connection(r->conn);
+    jobq_wait(svc->q, rec.id, monotonic_s() + wait, woken, r);
+    return MHD_YES;
+}
+
+static enum MHD_Result post_render(struct req *r)
+{
     const char *ct = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
     const char *format = render_format_from_type(ct);
     if (!format) {
@@ -325,32 +358,25 @@ static enum MHD_Result post_render(struct req *r)
     if (render_request_parse(r->body ? r->body : "", r->len, format, o.buf, &sc, &img, &err))
         return problem_err(r, &err);
     scene_free(&sc);
+    return submit(r, "render", format, o.buf, render_job_submit);
+}
 
-    struct job_rec rec = {0};
-    service_new_id(rec.id);
-    snprintf(rec.kind, sizeof rec.kind, "render");
-    snprintf(rec.state, sizeof rec.state, "queued");
-    snprintf(rec.format, sizeof rec.format, "%s", format);
-    snprintf(rec.options, sizeof rec.options, "%s", o.buf);
-    rec.created = wall_s();
-    rec.request = (unsigned char *)(r->body ? r->body : "");
-    rec.request_len = r->len;
-    if (store_insert(svc->store, &rec))
-        return problem(r, 503, "the store cannot take the job now", NULL);
-    if (render_job_submit(svc, rec.id, false)) {
-        store_delete(svc->store, rec.id);
-        return problem(r, 429, "the job queue is full; try again shortly", NULL);
+static enum MHD_Result post_volume(struct req *r)
+{
+    const char *ct = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
+    const char *format = render_format_from_type(ct);
+    if (!format || (*format && strcmp(format, "json"))) {
+        char d[160];
+        snprintf(d, sizeof d, "surfd reads contours as application/json (RTSTRUCT comes next), not %.80s", ct);
+        return problem(r, 415, d, NULL);
     }
-    snprintf(r->job, sizeof r->job, "%s", rec.id);
-    bool async;
-    double wait;
-    prefer(r, &async, &wait);
-    if (async || wait <= 0)
-        return job_resource(r, 202, rec.id);
-    r->phase = PHASE_WAITING;
-    MHD_suspend_connection(r->conn);
-    jobq_wait(svc->q, rec.id, monotonic_s() + wait, woken, r);
-    return MHD_YES;
+    struct contour_set cs;
+    struct contour_request req;
+    struct sf_err err = {0};
+    if (contour_parse_json(r->body ? r->body : "", r->len, &cs, &req, &err))
+        return problem_err(r, &err);
+    contour_set_free(&cs);
+    return submit(r, "volume", "json", "", volume_job_submit);
 }
 
 /* ---- routing ---------------------------------------------------------------------------- */
@@ -414,7 +440,9 @@ static enum MHD_Result route(struct req *r)
         return text(r, 200, "application/yaml", surfd_openapi_yaml);
     if (!strcmp(p, "/render"))
         return post ? post_render(r) : problem(r, 405, "POST a scene to /render", NULL);
-    if (!strcmp(p, "/model") || !strcmp(p, "/volume") || !strcmp(p, "/isosurface") || !strncmp(p, "/models", 7))
+    if (!strcmp(p, "/volume"))
+        return post ? post_volume(r) : problem(r, 405, "POST contours to /volume", NULL);
+    if (!strcmp(p, "/model") || !strcmp(p, "/isosurface") || !strncmp(p, "/models", 7))
         return problem(r, 501, "this route is part of the contract but not built yet", NULL);
     if (!strcmp(p, "/jobs"))
         return get ? job_list(r) : problem(r, 405, "GET only", NULL);

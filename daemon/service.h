@@ -27,7 +27,8 @@ double wall_s(void);
 /* A new random job id (32 hex digits). */
 void service_new_id(char out[40]);
 
-/* The render job kind: queues job `id` (already in the store). force as in jobq_submit. */
+/* The job kinds: each queues job `id` (already in the store). force as in jobq_submit. */
 int render_job_submit(struct service *svc, const char *id, bool force);
+int volume_job_submit(struct service *svc, const char *id, bool force);
 
 #endif

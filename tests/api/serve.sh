@@ -58,6 +58,18 @@ check "404 bad id" '[ "$(status GET /jobs/..%2f..%2fetc)" = 404 ]'
 check "404 route" '[ "$(status GET /nowhere)" = 404 ] && is_problem 404'
 check "405" '[ "$(status GET /render)" = 405 ] && is_problem 405'
 check "501 not built yet" '[ "$(status POST /model -d "{}")" = 501 ]'
+
+# ---- POST /volume (contours) --------------------------------------------------------------
+C="${SURFD_DATA:-../shared/data}/contours"
+code=$(status POST /volume -H 'Content-Type: application/json' --data-binary @"$C/synthetic_ellipsoid.json")
+check "volume 200 with figures" '[ "$code" = 200 ] && [ "$(header Content-Type)" = application/json ] && grep -q "\"volume_mm3\":123" "$T/body" && [ -n "$(header X-Job-Id)" ]'
+code=$(status POST /volume -H 'Prefer: respond-async' -H 'Content-Type: application/json' --data-binary @"$C/eclipse_ptv.json")
+vid=$(header X-Job-Id)
+check "volume async" '[ "$code" = 202 ] && wait_state "$vid" succeeded && [ "$(status GET /jobs/$vid)" = 200 ] && grep -q "\"kind\":\"volume\"" "$T/body"'
+code=$(status POST /volume -H 'Content-Type: application/json' --data-binary '{"slices":[{"z":0,"points":[[0,0],[1,1],[1,0],[0,1]]},{"z":1,"points":[[0,0],[1,0],[0,1]]}]}')
+check "volume 422 crossing contour" '[ "$code" = 422 ] && grep -q "\"pointer\":\"/slices/0/points\"" "$T/body"'
+check "volume 415 dicom (not yet)" '[ "$(status POST /volume -H "Content-Type: application/dicom" --data-binary x)" = 415 ]'
+check "volume 400" '[ "$(status POST /volume -H "Content-Type: application/json" --data-binary "{")" = 400 ]'
 check "daemon up after errors" 'alive'
 
 # ---- cancel ---------------------------------------------------------------------------------

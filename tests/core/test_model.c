@@ -52,7 +52,7 @@ TEST(synthetic_volumes_within_0_2_percent)
         struct sf_err err = {0};
         CHECK(model_of(buf, len, &cs, &ps, &err) == 0);
         struct model_measures m;
-        model_measure(&ps, &m);
+        model_measure(&ps, CAPS_FLAT, (const double[2]){0, 0}, &m);
         double rel = (m.volume - cases[k].exact) / cases[k].exact;
         fprintf(stderr, "  %s: %.3f mm3, %+.4f %% (%zu patches)\n", cases[k].file, m.volume, 100 * rel, ps.n);
         CHECK(fabs(rel) < 0.002);
@@ -126,7 +126,7 @@ TEST(volume_quadrature_is_exact)
                 v8 += 0.5 * W[a] * W[b] * ((Pu.y * Pv.z - Pu.z * Pv.y) * P.x + (Pu.z * Pv.x - Pu.x * Pv.z) * P.y);
             }
     struct model_measures m;
-    model_measure(&ps, &m);
+    model_measure(&ps, CAPS_FLAT, (const double[2]){0, 0}, &m);
     CHECK_NEAR(m.volume / v8, 1.0, 1e-12);
     nurbs_patch_set_free(&ps);
     contour_set_free(&cs);
@@ -152,9 +152,16 @@ TEST(cylinder_and_baselines)
     struct patch_set ps;
     CHECK(model_of(text, n, &cs, &ps, NULL) == 0);
     struct model_measures m;
-    model_measure(&ps, &m);
+    model_measure(&ps, CAPS_FLAT, (const double[2]){0, 0}, &m);
     double exact = M_PI * 100 * 15;
     CHECK(fabs(m.volume - exact) / exact < 2e-4); /* the curve through 64 points is nearly the circle */
+    CHECK(fabs(m.end_area[0] - M_PI * 100) / (M_PI * 100) < 2e-4 && fabs(m.end_area[1] - M_PI * 100) / (M_PI * 100) < 2e-4);
+    CHECK(fabs(m.area - (2 * M_PI * 10 * 15 + 2 * M_PI * 100)) / m.area < 2e-4); /* side and two caps */
+    struct model_measures slab;
+    model_measure(&ps, CAPS_SLAB, (const double[2]){5, 5}, &slab);
+    CHECK(fabs(slab.volume - M_PI * 100 * 20) / (M_PI * 100 * 20) < 2e-4); /* half a spacing out at each end */
+    CHECK(fabs(slab.area - (2 * M_PI * 10 * 20 + 2 * M_PI * 100)) / slab.area < 2e-4);
+    CHECK_NEAR(slab.volume_flat, m.volume, 1e-9 * m.volume);
     struct contour_baselines b;
     contour_baselines(&cs, &b);
     double poly = 0.5 * 64 * 100 * sin(2 * M_PI / 64); /* the polygon's area */
