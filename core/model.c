@@ -178,27 +178,25 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-/* x, y of the surface between slices k and k+1 at (u, z): the blend over the slices at hand. */
-static void surface_xy(const struct curve *cv, const struct contour_set *cs, int k, double u, double z, double *x,
-                       double *y)
+/* Weights of the slices at hand at height z, for the pair (k, k+1): the surface point is the sum
+ * of weight_j C_j(u), since every blend is linear in the values. m receives the slice count. */
+static void slice_weights(const struct contour_set *cs, int k, double z, double w[4], int *j0, int *m)
 {
-    int n = cs->n_slices, j0 = k > 0 ? k - 1 : k, j1 = k + 2 < n ? k + 2 : k + 1;
-    double zs[4], xs[4], ys[4];
-    int m = 0;
-    for (int j = j0; j <= j1; j++, m++) {
-        zs[m] = cs->s[j].z;
-        curve_eval(&cv[j], u, &xs[m], &ys[m]);
-    }
-    if (m == 4) {
-        *x = blend(z, zs, xs);
-        *y = blend(z, zs, ys);
-    } else if (m == 3) { /* an end pair: the one parabola there is */
-        *x = parabola(z, zs[0], zs[1], zs[2], xs[0], xs[1], xs[2]);
-        *y = parabola(z, zs[0], zs[1], zs[2], ys[0], ys[1], ys[2]);
-    } else { /* two slices in all */
-        double f = (z - zs[0]) / (zs[1] - zs[0]);
-        *x = xs[0] + f * (xs[1] - xs[0]);
-        *y = ys[0] + f * (ys[1] - ys[0]);
+    int n = cs->n_slices, first = k > 0 ? k - 1 : k, last = k + 2 < n ? k + 2 : k + 1;
+    double zs[4];
+    *j0 = first;
+    *m = last - first + 1;
+    for (int j = 0; j < *m; j++)
+        zs[j] = cs->s[first + j].z;
+    for (int j = 0; j < *m; j++) { /* the blend of unit data at slice j */
+        double v[4] = {0, 0, 0, 0};
+        v[j] = 1.0;
+        if (*m == 4)
+            w[j] = blend(z, zs, v);
+        else if (*m == 3) /* an end pair: the one parabola there is */
+            w[j] = parabola(z, zs[0], zs[1], zs[2], v[0], v[1], v[2]);
+        else /* two slices in all */
+            w[j] = j == 0 ? (zs[1] - z) / (zs[1] - zs[0]) : (z - zs[0]) / (zs[1] - zs[0]);
     }
 }
 
@@ -229,30 +227,41 @@ int model_parabolic(const struct contour_set *cs, struct patch_set *set, struct 
             for (int i = 0; i < cv[j].n; i++)
                 brk[nb++] = cv[j].u[i];
         qsort(brk, nb, sizeof *brk, cmp_double);
-        double z0 = cs->s[k].z, z1 = cs->s[k + 1].z;
+        double z0 = cs->s[k].z, z1 = cs->s[k + 1].z, wz[4][4];
+        int m = 0;
+        for (int c = 0; c < 4; c++) /* the slice weights at the four z samples, once per pair */
+            slice_weights(cs, k, z0 + (z1 - z0) * c / 3.0, wz[c], &j0, &m);
         for (size_t b = 0; b + 1 < nb && !rc; b++) {
             double ua = brk[b], ub = brk[b + 1];
             if (ub - ua <= BREAK_EPS)
                 continue;
-            double S[4][4][2]; /* samples at (u_a, z_c) */
-            for (int a = 0; a < 4; a++)
+            double S[4][4][2] = {{{0}}}; /* samples at (u_a, z_c) */
+            for (int a = 0; a < 4; a++) {
+                double u = ua + (ub - ua) * a / 3.0, cx[4], cy[4];
+                for (int j = 0; j < m; j++) /* each curve once per u sample, for all four z */
+                    curve_eval(&cv[j0 + j], u, &cx[j], &cy[j]);
                 for (int c = 0; c < 4; c++)
-                    surface_xy(cv, cs, k, ua + (ub - ua) * a / 3.0, z0 + (z1 - z0) * c / 3.0, &S[a][c][0], &S[a][c][1]);
+                    for (int j = 0; j < m; j++) {
+                        S[a][c][0] += wz[c][j] * cx[j];
+                        S[a][c][1] += wz[c][j] * cy[j];
+                    }
+            }
             if ((rc = mem_reserve((void **)&set->patches, &set->cap, set->n + 1, sizeof *set->patches)) ||
                 (rc = mem_reserve((void **)&set->pool, &set->cap_pool, set->n_pool + 16, sizeof *set->pool)))
                 break;
             struct patch *pt = &set->patches[set->n++];
             *pt = (struct patch){3, 3, false, (double(*)[4])(uintptr_t)set->n_pool, 0, ua, ub, z0, z1};
+            double T[4][4][2] = {{{0}}}; /* P = M^-1 S M^-T, as two 4x4 products */
+            for (int a = 0; a < 4; a++)
+                for (int j = 0; j < 4; j++)
+                    for (int c = 0; c < 4; c++)
+                        T[a][j][0] += S[a][c][0] * inv[j][c], T[a][j][1] += S[a][c][1] * inv[j][c];
             for (int i = 0; i < 4; i++)
                 for (int j = 0; j < 4; j++) {
                     double *P = set->pool[set->n_pool + (size_t)(i * 4 + j)];
-                    for (int d = 0; d < 2; d++) { /* P = M^-1 S M^-T */
-                        double sum = 0;
-                        for (int a = 0; a < 4; a++)
-                            for (int c = 0; c < 4; c++)
-                                sum += inv[i][a] * S[a][c][d] * inv[j][c];
-                        P[d] = sum;
-                    }
+                    P[0] = P[1] = 0.0;
+                    for (int a = 0; a < 4; a++)
+                        P[0] += inv[i][a] * T[a][j][0], P[1] += inv[i][a] * T[a][j][1];
                     P[2] = z0 + (z1 - z0) * j / 3.0; /* z is linear in v */
                     P[3] = 1.0;
                 }
@@ -266,6 +275,157 @@ int model_parabolic(const struct contour_set *cs, struct patch_set *set, struct 
     return rc ? sf_fail(err, SF_ENOMEM, "", "out of memory building the model") : 0;
 }
 
+/* ---- closed-form volume from the curves ------------------------------------------------------
+ * At height z the surface's section is the curve sum_j w_j(z) C_j(u), so its area is
+ * A(z) = sum_jl w_j w_l M_jl with the mixed areas M_jl = ½ ∮ (x_j y_l' - y_j x_l') du, and
+ * V = ∫ A dz. Each M_jl is a sum of polynomial integrals over the merged breakpoints of two
+ * curves (degree 5: 3 Gauss points exact), shared by every slice pair that uses both curves;
+ * ∫ w_j w_l dz is of degree 6 (4 points exact). No patches needed: this is the fast, exact path,
+ * and it must agree with the divergence theorem over the patches to rounding. */
+
+/* Power-basis cubic per segment i of a curve, in t = (u - u_i) / (u_{i+1} - u_i). */
+struct curve_poly {
+    int n;
+    const double *u;     /* borrowed from the curve; u_n = u_0 + 1 */
+    double (*cx)[4], (*cy)[4];
+};
+
+static int curve_poly_build(const struct curve *c, struct curve_poly *cp)
+{
+    /* the inverse Vandermonde of t = 0, 1/3, 2/3, 1 maps samples to coefficients */
+    static const double VINV[4][4] = {{1, 0, 0, 0}, {-5.5, 9, -4.5, 1}, {9, -22.5, 18, -4.5}, {-4.5, 13.5, -13.5, 4.5}};
+    cp->n = c->n;
+    cp->u = c->u;
+    cp->cx = malloc(sizeof *cp->cx * (size_t)c->n);
+    cp->cy = malloc(sizeof *cp->cy * (size_t)c->n);
+    if (!cp->cx || !cp->cy)
+        return SF_ENOMEM;
+    for (int i = 0; i < c->n; i++) {
+        double u0 = c->u[i], u1 = i + 1 < c->n ? c->u[i + 1] : c->u[0] + 1.0, sx[4], sy[4];
+        for (int a = 0; a < 4; a++) /* the wrap segment's u runs past 1: curve_eval takes it as it is */
+            curve_eval(c, u0 + (u1 - u0) * a / 3.0, &sx[a], &sy[a]);
+        for (int k = 0; k < 4; k++) {
+            cp->cx[i][k] = cp->cy[i][k] = 0;
+            for (int a = 0; a < 4; a++)
+                cp->cx[i][k] += VINV[k][a] * sx[a], cp->cy[i][k] += VINV[k][a] * sy[a];
+        }
+    }
+    return 0;
+}
+
+static void curve_poly_free(struct curve_poly *cp)
+{
+    free(cp->cx);
+    free(cp->cy);
+}
+
+/* Value and u-derivative of the curve at u in [0, 1], given its segment i (u in [u_i, u_{i+1}],
+ * with the wrap segment n-1 also covering [0, u_0] one turn back). */
+static void curve_poly_at(const struct curve_poly *cp, int i, double u, double *x, double *y, double *xu, double *yu)
+{
+    double u0 = cp->u[i], u1 = i + 1 < cp->n ? cp->u[i + 1] : cp->u[0] + 1.0;
+    if (u < u0)
+        u += 1.0;
+    double h = u1 - u0, t = (u - u0) / h;
+    const double *a = cp->cx[i], *b = cp->cy[i];
+    *x = a[0] + t * (a[1] + t * (a[2] + t * a[3]));
+    *y = b[0] + t * (b[1] + t * (b[2] + t * b[3]));
+    *xu = (a[1] + t * (2 * a[2] + t * 3 * a[3])) / h;
+    *yu = (b[1] + t * (2 * b[2] + t * 3 * b[3])) / h;
+}
+
+/* The segment holding u (just after a breakpoint, so pieces never straddle one). */
+static int curve_poly_segment(const struct curve_poly *cp, double u)
+{
+    if (u < cp->u[0])
+        return cp->n - 1;
+    int lo = 0, hi = cp->n - 1;
+    while (lo < hi) {
+        int mid = (lo + hi + 1) / 2;
+        if (cp->u[mid] <= u)
+            lo = mid;
+        else
+            hi = mid - 1;
+    }
+    return lo;
+}
+
+static const double GL3_X[3] = {0.112701665379258, 0.5, 0.887298334620742};
+static const double GL3_W[3] = {0.277777777777778, 0.444444444444444, 0.277777777777778};
+
+/* M_jl = ½ ∮ (x_j y_l' - y_j x_l') du over u in [0, 1], piece by piece between both curves' breakpoints. */
+static double mixed_area(const struct curve_poly *a, const struct curve_poly *b)
+{
+    double sum = 0.0, lo = 0.0;
+    int ia = 0, ib = 0; /* next breakpoint index in each */
+    while (lo < 1.0) {
+        double na = ia < a->n ? a->u[ia] : 1.0, nb = ib < b->n ? b->u[ib] : 1.0, hi = fmin(fmin(na, nb), 1.0);
+        if (hi > lo) {
+            double mid = 0.5 * (lo + hi);
+            int sa = curve_poly_segment(a, mid), sb = curve_poly_segment(b, mid);
+            for (int g = 0; g < 3; g++) {
+                double u = lo + (hi - lo) * GL3_X[g], xa, ya, xua, yua, xb, yb, xub, yub;
+                curve_poly_at(a, sa, u, &xa, &ya, &xua, &yua);
+                curve_poly_at(b, sb, u, &xb, &yb, &xub, &yub);
+                sum += GL3_W[g] * (hi - lo) * (xa * yub - ya * xub);
+            }
+        }
+        if (hi == na)
+            ia++;
+        if (hi == nb)
+            ib++;
+        if (hi == 1.0 && ia >= a->n && ib >= b->n)
+            break;
+        lo = hi;
+    }
+    return 0.5 * sum;
+}
+
+int model_volume_closed(const struct contour_set *cs, double *volume, double end_area[2], struct sf_err *err)
+{
+    int n = cs->n_slices, rc = 0;
+    struct curve *cv = calloc((size_t)n, sizeof *cv);
+    struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
+    double *M = calloc((size_t)n * 7, sizeof *M); /* M[j*7 + (l - j + 3)] for |l - j| <= 3 */
+    if (!cv || !cp || !M)
+        rc = SF_ENOMEM;
+    for (int j = 0; j < n && !rc; j++)
+        if (!(rc = curve_build(&cs->s[j], &cv[j])))
+            rc = curve_poly_build(&cv[j], &cp[j]);
+    for (int j = 0; j < n && !rc; j++)
+        for (int l = j - 3 > 0 ? j - 3 : 0; l <= j + 3 && l < n; l++)
+            M[(size_t)j * 7 + (size_t)(l - j + 3)] = mixed_area(&cp[j], &cp[l]);
+    static const double GL4_X[4] = {0.069431844202974, 0.330009478207572, 0.669990521792428, 0.930568155797026};
+    static const double GL4_W[4] = {0.173927422568727, 0.326072577431273, 0.326072577431273, 0.173927422568727};
+    double v = 0.0;
+    for (int k = 0; k + 1 < n && !rc; k++) {
+        double z0 = cs->s[k].z, z1 = cs->s[k + 1].z;
+        for (int g = 0; g < 4; g++) {
+            double w[4];
+            int j0, m;
+            slice_weights(cs, k, z0 + (z1 - z0) * GL4_X[g], w, &j0, &m);
+            double area = 0.0;
+            for (int a = 0; a < m; a++)
+                for (int b = 0; b < m; b++)
+                    area += w[a] * w[b] * M[(size_t)(j0 + a) * 7 + (size_t)(b - a + 3)];
+            v += GL4_W[g] * (z1 - z0) * area;
+        }
+    }
+    if (!rc) {
+        *volume = v;
+        end_area[0] = M[3];
+        end_area[1] = M[(size_t)(n - 1) * 7 + 3];
+    }
+    for (int j = 0; j < n; j++) {
+        curve_free(&cv[j]);
+        curve_poly_free(&cp[j]);
+    }
+    free(cv);
+    free(cp);
+    free(M);
+    return rc ? sf_fail(err, SF_ENOMEM, "", "out of memory") : 0;
+}
+
 /* Gauss–Legendre nodes and weights on [0, 1]. */
 static const double GL5_X[5] = {0.046910077030668, 0.230765344947158, 0.5, 0.769234655052842, 0.953089922969332};
 static const double GL5_W[5] = {0.118463442528095, 0.239314335249683, 0.284444444444444, 0.239314335249683,
@@ -274,6 +434,55 @@ static const double GL8_X[8] = {0.019855071751232, 0.101666761293187, 0.23723379
                                 0.591717321247825, 0.762766204958164, 0.898333238706813, 0.980144928248768};
 static const double GL8_W[8] = {0.050614268145188, 0.111190517226687, 0.156853322938944, 0.181341891689181,
                                 0.181341891689181, 0.156853322938944, 0.111190517226687, 0.050614268145188};
+
+/* seed 000 eq. 21–22: V = ½ ∬ (A Sx + B Sy) du dv. For a bicubic with z linear in v (every model
+ * patch), A = y_u Δz and B = -x_u Δz, so the integrand ½ Δz (x y_u - y x_u) is of degree 5 in u and 6
+ * in v: 5x5 Gauss–Legendre is exact, and the same 25 evaluations give the area. The Bernstein values
+ * at the nodes are tabulated once per call. */
+struct gl5_table {
+    double B[5][4], dB[5][4]; /* cubic Bernstein values and derivatives at the 5 nodes */
+};
+
+static void measure_bicubic(const struct patch *pt, const struct gl5_table *t, struct model_measures *m)
+{
+    const double(*B)[4] = t->B, (*dB)[4] = t->dB;
+    double dz = pt->cw[3][2] - pt->cw[0][2]; /* z of control point (0,3) less (0,0) */
+    for (int a = 0; a < 5; a++) {
+        /* contract the u direction first: rows c[j] = sum_i B_i(u) P_ij, cu[j] = sum_i B'_i(u) P_ij */
+        double cx[4] = {0}, cy[4] = {0}, cux[4] = {0}, cuy[4] = {0};
+        for (int i = 0; i < 4; i++)
+            for (int j = 0; j < 4; j++) {
+                const double *P = pt->cw[i * 4 + j];
+                cx[j] += B[a][i] * P[0], cy[j] += B[a][i] * P[1];
+                cux[j] += dB[a][i] * P[0], cuy[j] += dB[a][i] * P[1];
+            }
+        for (int b = 0; b < 5; b++) {
+            double x = 0, y = 0, xu = 0, yu = 0, xv = 0, yv = 0;
+            for (int j = 0; j < 4; j++) {
+                x += B[b][j] * cx[j], y += B[b][j] * cy[j];
+                xu += B[b][j] * cux[j], yu += B[b][j] * cuy[j];
+                xv += dB[b][j] * cx[j], yv += dB[b][j] * cy[j];
+            }
+            double w = GL5_W[a] * GL5_W[b];
+            m->volume_flat += 0.5 * w * dz * (x * yu - y * xu);
+            double nx = yu * dz, ny = -xu * dz, nz = xu * yv - yu * xv; /* Su × Sv */
+            m->area += w * sqrt(nx * nx + ny * ny + nz * nz);
+        }
+    }
+}
+
+/* Any patch: the general integrand of eq. 21–22 (exact for degree up to 9 per direction) and the area. */
+static void measure_general(const struct patch *pt, struct model_measures *m)
+{
+    for (int a = 0; a < 5; a++)
+        for (int b = 0; b < 5; b++) {
+            vec3 P, Pu, Pv;
+            bezier_eval(pt, GL5_X[a], GL5_X[b], &P, &Pu, &Pv);
+            double A = Pu.y * Pv.z - Pu.z * Pv.y, B = Pu.z * Pv.x - Pu.x * Pv.z, w = GL5_W[a] * GL5_W[b];
+            m->volume_flat += 0.5 * w * (A * P.x + B * P.y);
+            m->area += w * v3_len(v3_cross(Pu, Pv));
+        }
+}
 
 void model_measure(const struct patch_set *set, enum model_caps caps, const double end_gap[2],
                    struct model_measures *m)
@@ -286,21 +495,19 @@ void model_measure(const struct patch_set *set, enum model_caps caps, const doub
     }
     for (int d = 0; d < 3; d++)
         m->lo[d] = INFINITY, m->hi[d] = -INFINITY;
+    struct gl5_table t;
+    for (int a = 0; a < 5; a++)
+        bezier_basis(3, GL5_X[a], t.B[a], t.dB[a]);
     for (size_t k = 0; k < set->n; k++) {
         const struct patch *pt = &set->patches[k];
         vec3 lo, hi;
         bezier_bounds(pt, &lo, &hi);
         m->lo[0] = fmin(m->lo[0], lo.x), m->lo[1] = fmin(m->lo[1], lo.y), m->lo[2] = fmin(m->lo[2], lo.z);
         m->hi[0] = fmax(m->hi[0], hi.x), m->hi[1] = fmax(m->hi[1], hi.y), m->hi[2] = fmax(m->hi[2], hi.z);
-        /* seed 000 eq. 21–22: V = ½ ∬ (A Sx + B Sy) du dv; the integrand of a bicubic is of degree
-         * 8 in each parameter, which 5-point Gauss–Legendre integrates exactly */
-        for (int a = 0; a < 5; a++)
-            for (int b = 0; b < 5; b++) {
-                vec3 P, Pu, Pv;
-                bezier_eval(pt, GL5_X[a], GL5_X[b], &P, &Pu, &Pv);
-                double A = Pu.y * Pv.z - Pu.z * Pv.y, B = Pu.z * Pv.x - Pu.x * Pv.z;
-                m->volume_flat += 0.5 * GL5_W[a] * GL5_W[b] * (A * P.x + B * P.y);
-            }
+        if (pt->p == 3 && pt->q == 3 && !pt->rational)
+            measure_bicubic(pt, &t, m);
+        else
+            measure_general(pt, m);
         /* end curves: area = ∮ x dy along the v = 0 edge at the first slice and v = 1 at the last
          * (counter-clockwise in u); the integrand is of degree 5, exact with 5 points */
         for (int e = 0; e < 2; e++) {
@@ -317,12 +524,6 @@ void model_measure(const struct patch_set *set, enum model_caps caps, const doub
                 m->end_perimeter[e] += GL8_W[a] * v3_len(Pu);
             }
         }
-        for (int a = 0; a < 8; a++)
-            for (int b = 0; b < 8; b++) {
-                vec3 Pu, Pv;
-                bezier_eval(pt, GL8_X[a], GL8_X[b], NULL, &Pu, &Pv);
-                m->area += GL8_W[a] * GL8_W[b] * v3_len(v3_cross(Pu, Pv));
-            }
     }
     m->volume = m->volume_flat;
     m->area += m->end_area[0] + m->end_area[1]; /* the caps */

@@ -17,12 +17,16 @@ int model_parabolic(const struct contour_set *cs, struct patch_set *set, struct 
 
 enum model_caps { CAPS_FLAT, CAPS_SLAB };
 
+/* The volume with flat caps straight from the curves (closed form: mixed areas of curve pairs,
+ * integrated over z exactly), without building patches; and the end curves' areas. */
+int model_volume_closed(const struct contour_set *cs, double *volume, double end_area[2], struct sf_err *err);
+
 struct model_measures {
     double volume;       /* with the caps asked for */
     double volume_flat;  /* divergence theorem, Gauss–Legendre exact for bicubics (seed 000 eq. 21–22) */
     double end_area[2];  /* areas enclosed by the first and last slice's curves (Green, exact) */
     double end_perimeter[2];
-    double area;         /* of the closed solid: lateral (8x8 Gauss–Legendre per patch) and caps */
+    double area;         /* of the closed solid: lateral (5x5 Gauss–Legendre per patch) and caps */
     double lo[3], hi[3]; /* bounds of the control points */
 };
 /* caps: CAPS_FLAT closes the solid at the end slices; CAPS_SLAB adds a prism of the end curve half

@@ -2,14 +2,19 @@
  * as JSON, offline; the same figures POST /volume answers. */
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "../api/model_json.h"
 #include "cli.h"
 
 int cmd_volume(int argc, char **argv)
 {
-    if (argc != 2) {
-        fprintf(stderr, "usage: surfd volume CONTOURS.json   (also: surfd model CONTOURS.json)\n");
+    int repeat = 1;
+    if (argc == 4 && !strcmp(argv[2], "--repeat"))
+        repeat = atoi(argv[3]);
+    if ((argc != 2 && argc != 4) || repeat < 1) {
+        fprintf(stderr, "usage: surfd volume CONTOURS.json [--repeat N]   (also: surfd model ...)\n"
+                        "       --repeat runs it N times in one process and reports the last (warm) timings\n");
         return 2;
     }
     FILE *f = fopen(argv[1], "rb");
@@ -30,7 +35,12 @@ int cmd_volume(int argc, char **argv)
     }
     char *json = NULL;
     struct sf_err err = {0};
-    int rc = model_figures(buf, (size_t)len, &json, &err);
+    int rc = 0;
+    for (int k = 0; k < repeat && !rc; k++) {
+        free(json);
+        json = NULL;
+        rc = model_figures(buf, (size_t)len, &json, &err);
+    }
     free(buf);
     if (rc) {
         fprintf(stderr, "surfd: %s: %s%s%s\n", argv[1], err.message, err.pointer[0] ? " at " : "", err.pointer);

@@ -105,6 +105,29 @@ TEST(interpolates_points_and_faces_outward)
     free(buf);
 }
 
+/* The closed form from the curves equals the divergence theorem over the patches to 1e-12. */
+TEST(closed_form_equals_quadrature)
+{
+    const char *files[] = {"synthetic_ellipsoid.json", "synthetic_bean.json", "dicompyler_heart.json", "eclipse_ptv.json"};
+    for (int f = 0; f < 4; f++) {
+        size_t len;
+        char *buf = slurp(files[f], &len);
+        struct contour_set cs;
+        struct patch_set ps;
+        CHECK(buf && model_of(buf, len, &cs, &ps, NULL) == 0);
+        double v, ends[2];
+        CHECK(model_volume_closed(&cs, &v, ends, NULL) == 0);
+        struct model_measures m;
+        model_measure(&ps, CAPS_FLAT, (const double[2]){0, 0}, &m);
+        CHECK_NEAR(v / m.volume, 1.0, 1e-12);
+        CHECK_NEAR(ends[0] / m.end_area[0], 1.0, 1e-12);
+        CHECK_NEAR(ends[1] / m.end_area[1], 1.0, 1e-12);
+        nurbs_patch_set_free(&ps);
+        contour_set_free(&cs);
+        free(buf);
+    }
+}
+
 /* Gauss–Legendre of 5 and of 8 points are both exact for bicubic patches: they must agree. */
 TEST(volume_quadrature_is_exact)
 {
@@ -210,6 +233,7 @@ int main(void)
     RUN(synthetic_volumes_within_0_2_percent);
     RUN(interpolates_points_and_faces_outward);
     RUN(volume_quadrature_is_exact);
+    RUN(closed_form_equals_quadrature);
     RUN(cylinder_and_baselines);
     RUN(rejections);
     UNIT_END();
