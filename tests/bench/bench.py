@@ -167,8 +167,57 @@ def http_bench(lines):
     d.wait(timeout=60)
 
 
+def contour_bench(lines):
+    """Issue 5: surfd's volumes beside the reference figures in the shared files, and timings."""
+    cdir = os.path.join(DATA, "contours")
+    with open(os.path.join(cdir, "reference_volumes.json")) as f:
+        refs = json.load(f)["files"]
+    lines.append("## Contours (issue 5): volumes in cm3, parabolic method\n")
+    lines.append("| file | flat caps | slab caps | trapezoid | Cavalieri | references (file's own) | exact (synthetic) |")
+    lines.append("|---|---|---|---|---|---|---|")
+    for name in sorted(os.listdir(cdir)):
+        if not name.endswith(".json") or name == "reference_volumes.json":
+            continue
+        with open(os.path.join(cdir, name)) as f:
+            data = json.load(f)
+        figs = {}
+        for caps in ("flat", "slab"):
+            data["caps"] = caps
+            path = os.path.join(TMP, "c.json")
+            with open(path, "w") as f:
+                json.dump(data, f)
+            p = subprocess.run([SURFD, "volume", path], capture_output=True, text=True)
+            figs[caps] = json.loads(p.stdout) if p.returncode == 0 else None
+        if not figs["flat"]:
+            lines.append("| %s | not yet (several contours per slice) | | | | | |" % name)
+            continue
+        cc = lambda v: "%.2f" % (v / 1000.0)
+        exact = data.get("exact_volume_between_end_slices_mm3")
+        ex = ""
+        if exact:
+            ex = "between end slices %s: flat %+.3f %%; solid %s: slab %+.3f %%" % (
+                cc(exact), 100 * (figs["flat"]["volume_mm3"] - exact) / exact, cc(data["exact_volume_mm3"]),
+                100 * (figs["slab"]["volume_mm3"] - data["exact_volume_mm3"]) / data["exact_volume_mm3"])
+        r = data.get("reference_volumes_cc") or {}
+        rs = "; ".join("%s %.2f" % (k.split(" ")[0], v) for k, v in r.items())
+        lines.append("| %s | %s | %s | %s | %s | %s | %s |" % (name, cc(figs["flat"]["volume_mm3"]), cc(figs["slab"]["volume_mm3"]),
+                     cc(figs["flat"]["volume"]["trapezoid"]), cc(figs["flat"]["volume"]["cavalieri"]), rs, ex))
+    p = subprocess.run([SURFD, "volume", os.path.join(cdir, "dicompyler_heart.json"), "--repeat", "20"],
+                       capture_output=True, text=True)
+    t = json.loads(p.stdout)["timings_ms"]
+    lines.append("")
+    lines.append("Heart (33 slices, up to 178 points), warm (`surfd volume FILE --repeat 20`, last run): read %.1f ms, "
+                 "model curves + exact volume %.1f ms (target < 10 ms), exact bicubic patches %.1f ms, area and "
+                 "quadrature cross-check %.1f ms.\n" % (t["read"], t["volume"], t["fit"], t["measure"]))
+
+
 def main():
     rows, notes = [], []
+    if os.environ.get("BENCH_ONLY") == "contours":
+        lines = []
+        contour_bench(lines)
+        print("\n".join(lines))
+        return
     if os.environ.get("BENCH_ONLY") == "http":
         lines = []
         http_bench(lines)
@@ -227,8 +276,9 @@ def main():
             lines.append("| %s | %s | %.1f | %.1f | %d | %d | %.2f |" % (
                 name, method, r["prepare_ms"], r["render_ms"], r["hits"], r["misses"], r["iterations_mean"]))
     lines.append("")
+    contour_bench(lines)
     http_bench(lines)
-    lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=http` for the HTTP part).")
+    lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=http` or `BENCH_ONLY=contours` for one part).")
     out = os.path.join(ROOT, "tests", "bench", "RESULTS.md")
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")
