@@ -1,5 +1,5 @@
-/* contour_json.c - contour requests with jansson. Only what is built is accepted: method
- * parabolic, caps flat, one contour per slice; the rest answers 422 naming the field. */
+/* contour_json.c - contour requests with jansson. Only what is built is accepted (method parabolic,
+ * caps flat or slab); the rest answers 422 naming the field. */
 #include "contour_json.h"
 
 #include <jansson.h>
@@ -81,34 +81,51 @@ int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, stru
         rc = sf_fail(err, SF_ELIMIT, "/slices", "more than %d slices", CONTOUR_MAX_SLICES);
         goto out;
     }
-    cs->s = calloc(n, sizeof *cs->s);
+    size_t total = 0; /* contours in all */
+    for (size_t k = 0; k < n; k++) {
+        json_t *list = json_object_get(json_array_get(slices, k), "contours");
+        total += json_is_array(list) ? json_array_size(list) : 1;
+    }
+    if (total > CONTOUR_MAX_SLICES) {
+        rc = sf_fail(err, SF_ELIMIT, "/slices", "more than %d contours", CONTOUR_MAX_SLICES);
+        goto out;
+    }
+    cs->s = calloc(total ? total : 1, sizeof *cs->s);
     if (!cs->s) {
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
         goto out;
     }
     for (size_t k = 0; k < n && !rc; k++) {
         json_t *s = json_array_get(slices, k), *z = json_object_get(s, "z");
-        char ptr[64];
-        struct contour_slice *cs_k = &cs->s[cs->n_slices++];
-        cs_k->src = (int)k;
+        char ptr[80];
         snprintf(ptr, sizeof ptr, "/slices/%zu/z", k);
-        if (!json_is_number(z)) {
+        if (!json_is_object(s) || !json_is_number(z)) {
             rc = sf_fail(err, SF_EINVAL, ptr, "expected a number");
             break;
         }
-        cs_k->z = json_number_value(z);
         json_t *pts = json_object_get(s, "points"), *list = json_object_get(s, "contours");
-        if (!pts && json_is_array(list) && json_array_size(list) == 1) {
-            pts = json_object_get(json_array_get(list, 0), "points");
-            snprintf(ptr, sizeof ptr, "/slices/%zu/contours/0/points", k);
-        } else if (!pts && list) {
-            snprintf(ptr, sizeof ptr, "/slices/%zu/contours", k);
-            rc = sf_fail(err, SF_EINVAL, ptr, "several contours per slice are not supported yet");
-            break;
-        } else {
+        if (pts || !list) { /* the single-contour form */
+            struct contour_slice *c = &cs->s[cs->n_slices++];
+            c->src = (int)k;
+            c->src_contour = -1;
+            c->z = json_number_value(z);
             snprintf(ptr, sizeof ptr, "/slices/%zu/points", k);
+            rc = points(pts, ptr, c, err);
+            continue;
         }
-        rc = points(pts, ptr, cs_k, err);
+        snprintf(ptr, sizeof ptr, "/slices/%zu/contours", k);
+        if (!json_is_array(list) || json_array_size(list) == 0) {
+            rc = sf_fail(err, SF_EINVAL, ptr, "expected a non-empty array of {\"points\": [...]}");
+            break;
+        }
+        for (size_t i = 0; i < json_array_size(list) && !rc; i++) {
+            struct contour_slice *c = &cs->s[cs->n_slices++];
+            c->src = (int)k;
+            c->src_contour = (int)i;
+            c->z = json_number_value(z);
+            snprintf(ptr, sizeof ptr, "/slices/%zu/contours/%zu/points", k, i);
+            rc = points(json_object_get(json_array_get(list, i), "points"), ptr, c, err);
+        }
     }
     if (!rc)
         rc = contour_clean(cs, err);

@@ -32,8 +32,21 @@ double contour_area(const struct contour_slice *s)
 
 static int by_z(const void *a, const void *b)
 {
-    double za = ((const struct contour_slice *)a)->z, zb = ((const struct contour_slice *)b)->z;
-    return za < zb ? -1 : za > zb;
+    const struct contour_slice *p = a, *q = b;
+    if (p->z != q->z)
+        return p->z < q->z ? -1 : 1;
+    return p->src != q->src ? p->src - q->src : p->src_contour - q->src_contour; /* stable */
+}
+
+bool contour_inside(const struct contour_slice *s, double x, double y)
+{
+    bool in = false;
+    for (int i = 0, j = s->n - 1; i < s->n; j = i++) {
+        const double *a = s->p[i], *b = s->p[j];
+        if ((a[1] > y) != (b[1] > y) && x < (b[0] - a[0]) * (y - a[1]) / (b[1] - a[1]) + a[0])
+            in = !in;
+    }
+    return in;
 }
 
 /* Orientation of (a, b, c): >0 counter-clockwise. */
@@ -51,12 +64,40 @@ static int segments_meet(const double *a, const double *b, const double *c, cons
     return 0; /* collinear touching is left to the duplicate-point rule */
 }
 
+static bool edges_cross(const struct contour_slice *a, const struct contour_slice *b)
+{
+    for (int i = 0; i < a->n; i++)
+        for (int j = 0; j < b->n; j++)
+            if (segments_meet(a->p[i], a->p[(i + 1) % a->n], b->p[j], b->p[(j + 1) % b->n]))
+                return true;
+    return false;
+}
+
+bool contour_overlap(const struct contour_slice *a, const struct contour_slice *b)
+{
+    for (int i = 0; i < a->n; i++)
+        if (contour_inside(b, a->p[i][0], a->p[i][1]))
+            return true;
+    for (int i = 0; i < b->n; i++)
+        if (contour_inside(a, b->p[i][0], b->p[i][1]))
+            return true;
+    return edges_cross(a, b);
+}
+
+static void pointer_of(const struct contour_slice *s, char *ptr, size_t cap)
+{
+    if (s->src_contour < 0)
+        snprintf(ptr, cap, "/slices/%d/points", s->src);
+    else
+        snprintf(ptr, cap, "/slices/%d/contours/%d/points", s->src, s->src_contour);
+}
+
 int contour_clean(struct contour_set *cs, struct sf_err *err)
 {
     char ptr[64];
     for (int k = 0; k < cs->n_slices; k++) {
         struct contour_slice *s = &cs->s[k];
-        snprintf(ptr, sizeof ptr, "/slices/%d/points", s->src);
+        pointer_of(s, ptr, sizeof ptr);
         if (!isfinite(s->z)) {
             snprintf(ptr, sizeof ptr, "/slices/%d/z", s->src);
             return sf_fail(err, SF_EINVAL, ptr, "z must be a finite number");
@@ -94,32 +135,63 @@ int contour_clean(struct contour_set *cs, struct sf_err *err)
             }
     }
     qsort(cs->s, (size_t)cs->n_slices, sizeof *cs->s, by_z);
-    for (int k = 1; k < cs->n_slices; k++)
-        if (cs->s[k].z == cs->s[k - 1].z) {
-            snprintf(ptr, sizeof ptr, "/slices/%d/z", cs->s[k].src);
-            return sf_fail(err, SF_EINVAL, ptr,
-                           "two contours at z = %g: several contours per slice are not supported yet", cs->s[k].z);
+    int levels = 0;
+    for (int a = 0; a < cs->n_slices;) {
+        int b = a;
+        while (b < cs->n_slices && cs->s[b].z == cs->s[a].z)
+            b++;
+        levels++;
+        for (int i = a; i < b; i++) { /* contours of one slice: nesting, and no crossing edges */
+            int depth = 0;
+            for (int j = a; j < b; j++) {
+                if (j == i)
+                    continue;
+                if (j > i && edges_cross(&cs->s[i], &cs->s[j])) {
+                    pointer_of(&cs->s[j], ptr, sizeof ptr);
+                    return sf_fail(err, SF_EINVAL, ptr, "this contour crosses another contour at z = %g", cs->s[i].z);
+                }
+                depth += contour_inside(&cs->s[j], cs->s[i].p[0][0], cs->s[i].p[0][1]);
+            }
+            cs->s[i].hole = depth % 2 == 1;
         }
-    if (cs->n_slices < 2)
-        return sf_fail(err, SF_EINVAL, "/slices", "a model needs at least 2 slices, got %d", cs->n_slices);
+        a = b;
+    }
+    if (levels < 2)
+        return sf_fail(err, SF_EINVAL, "/slices", "a model needs contours on at least 2 distinct z, got %d", levels);
     return 0;
 }
 
 void contour_baselines(const struct contour_set *cs, struct contour_baselines *b)
 {
     memset(b, 0, sizeof *b);
-    int n = cs->n_slices;
-    for (int k = 0; k < n; k++) {
+    /* per level: outer areas less holes (even-odd) */
+    int n = 0;
+    double *z = malloc(sizeof *z * (size_t)cs->n_slices), *A = malloc(sizeof *A * (size_t)cs->n_slices);
+    if (!z || !A) {
+        free(z);
+        free(A);
+        return;
+    }
+    for (int k = 0; k < cs->n_slices; k++) {
+        if (k == 0 || cs->s[k].z != cs->s[k - 1].z) {
+            z[n] = cs->s[k].z;
+            A[n++] = 0.0;
+        }
         double a = fabs(contour_area(&cs->s[k]));
+        A[n - 1] += cs->s[k].hole ? -a : a;
+    }
+    for (int k = 0; k < n; k++) {
         /* Cavalieri: the slab around each slice reaches half way to its neighbours (a full
          * spacing at the ends), which for even spacing is the usual A_k h */
-        double lo = k > 0 ? 0.5 * (cs->s[k].z - cs->s[k - 1].z) : 0.5 * (cs->s[1].z - cs->s[0].z);
-        double hi = k < n - 1 ? 0.5 * (cs->s[k + 1].z - cs->s[k].z) : 0.5 * (cs->s[n - 1].z - cs->s[n - 2].z);
-        b->cavalieri += a * (lo + hi);
+        double lo = k > 0 ? 0.5 * (z[k] - z[k - 1]) : 0.5 * (z[1] - z[0]);
+        double hi = k < n - 1 ? 0.5 * (z[k + 1] - z[k]) : 0.5 * (z[n - 1] - z[n - 2]);
+        b->cavalieri += A[k] * (lo + hi);
         if (k + 1 < n) {
-            double a2 = fabs(contour_area(&cs->s[k + 1])), h = cs->s[k + 1].z - cs->s[k].z;
-            b->trapezoid += h * 0.5 * (a + a2);
-            b->frustum += h / 3.0 * (a + a2 + sqrt(a * a2));
+            double h = z[k + 1] - z[k];
+            b->trapezoid += h * 0.5 * (A[k] + A[k + 1]);
+            b->frustum += h / 3.0 * (A[k] + A[k + 1] + sqrt(fmax(0.0, A[k] * A[k + 1])));
         }
     }
+    free(z);
+    free(A);
 }

@@ -1,9 +1,11 @@
-/* contour.h - planar slice contours (mm), cleaned for modelling: slices sorted by z, repeated and
- * closing points dropped, every contour counter-clockwise. One contour per slice for now (holes,
- * islands and branching come next). The set owns its arrays; contour_set_free() releases them. */
+/* contour.h - planar slice contours (mm), cleaned for modelling: sorted by z, repeated and closing
+ * points dropped, every contour counter-clockwise, several contours per slice allowed (a contour
+ * inside an odd number of others at its z is a hole). The set owns its arrays;
+ * contour_set_free() releases them. */
 #ifndef SURFD_CONTOUR_H
 #define SURFD_CONTOUR_H
 
+#include <stdbool.h>
 #include <stddef.h>
 
 #include "err.h"
@@ -11,26 +13,33 @@
 #define CONTOUR_MAX_POINTS 100000 /* per contour */
 #define CONTOUR_MAX_SLICES 10000
 
-struct contour_slice {
+struct contour_slice {   /* one contour (a slice may hold several, at the same z) */
     double z;
     int n;              /* points */
-    double (*p)[2];     /* x, y */
+    double (*p)[2];     /* x, y, counter-clockwise */
     int src;            /* index of the slice in the request, for error pointers */
+    int src_contour;    /* index in the slice's "contours", or -1 for the "points" form */
+    bool hole;          /* inside an odd number of the other contours at its z */
 };
 
 struct contour_set {
     struct contour_slice *s;
-    int n_slices;
+    int n_slices;       /* contours, sorted by z */
 };
 
 /* Cleans in place: sorts by z; drops the repeated closing point and repeated points; turns
- * clockwise contours; rejects (SF_EINVAL with a pointer "/slices/K/points") fewer than 3
- * distinct points, non-finite values, a contour that crosses itself, two slices at one z. */
+ * clockwise contours; marks holes; rejects (SF_EINVAL with a pointer to the contour's points)
+ * fewer than 3 distinct points, non-finite values, a contour that crosses itself, two contours at
+ * one z whose edges cross, fewer than two distinct z. */
 int contour_clean(struct contour_set *cs, struct sf_err *err);
 void contour_set_free(struct contour_set *cs);
 
-/* Signed area (shoelace; positive counter-clockwise) and centroid of slice k's polygon. */
+/* Signed area (shoelace; positive counter-clockwise) of a contour's polygon. */
 double contour_area(const struct contour_slice *s);
+/* Whether point (x, y) is inside the contour's polygon (even-odd). */
+bool contour_inside(const struct contour_slice *s, double x, double y);
+/* Whether two contours' regions overlap: a vertex of one inside the other, or crossing edges. */
+bool contour_overlap(const struct contour_slice *a, const struct contour_slice *b);
 
 /* Volumes from the raw polygons, the baselines users compare with. */
 struct contour_baselines {

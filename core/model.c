@@ -426,6 +426,103 @@ int model_volume_closed(const struct contour_set *cs, double *volume, double end
     return rc ? sf_fail(err, SF_ENOMEM, "", "out of memory") : 0;
 }
 
+double model_curve_area(const struct contour_slice *s)
+{
+    struct curve c = {0};
+    struct curve_poly cp = {0};
+    double a = 0.0;
+    if (!curve_build(s, &c) && !curve_poly_build(&c, &cp))
+        a = mixed_area(&cp, &cp);
+    curve_poly_free(&cp);
+    curve_free(&c);
+    return a;
+}
+
+void model_chains_free(struct model_chain *c, int n)
+{
+    for (int k = 0; k < n && c; k++)
+        free(c[k].idx);
+    free(c);
+}
+
+struct contour_set model_chain_view(const struct contour_set *cs, const struct model_chain *c,
+                                    struct contour_slice *storage)
+{
+    for (int k = 0; k < c->n; k++)
+        storage[k] = cs->s[c->idx[k]];
+    return (struct contour_set){storage, c->n};
+}
+
+int model_chains(const struct contour_set *cs, enum model_caps caps, struct model_chain **out, int *n_out,
+                 struct sf_err *err)
+{
+    int n = cs->n_slices, rc = 0, n_chains = 0;
+    int *level = malloc(sizeof *level * (size_t)n), *succ = calloc((size_t)n, sizeof *succ),
+        *pred = calloc((size_t)n, sizeof *pred), *next = malloc(sizeof *next * (size_t)n),
+        *start = malloc(sizeof *start * (size_t)(n + 1));
+    bool *used = calloc((size_t)n, sizeof *used);
+    struct model_chain *chains = calloc((size_t)n, sizeof *chains);
+    *out = NULL;
+    *n_out = 0;
+    if (!level || !succ || !pred || !next || !start || !used || !chains) {
+        rc = SF_ENOMEM;
+        goto out_free;
+    }
+    int n_levels = 0; /* start[L]: first contour of level L */
+    for (int k = 0; k < n; k++) {
+        if (k == 0 || cs->s[k].z != cs->s[k - 1].z)
+            start[n_levels++] = k;
+        level[k] = n_levels - 1;
+        next[k] = -1;
+    }
+    start[n_levels] = n;
+    for (int L = 0; L + 1 < n_levels; L++)
+        for (int a = start[L]; a < start[L + 1]; a++)
+            for (int b = start[L + 1]; b < start[L + 2]; b++)
+                if (cs->s[a].hole == cs->s[b].hole && contour_overlap(&cs->s[a], &cs->s[b])) {
+                    succ[a]++;
+                    pred[b]++;
+                    next[a] = b;
+                }
+    for (int k = 0; k < n; k++) {
+        if (used[k])
+            continue;
+        struct model_chain *c = &chains[n_chains++];
+        c->idx = malloc(sizeof *c->idx * (size_t)n_levels);
+        if (!c->idx) {
+            rc = SF_ENOMEM;
+            goto out_free;
+        }
+        c->hole = cs->s[k].hole;
+        for (int j = k;;) {
+            c->idx[c->n++] = j;
+            used[j] = true;
+            if (succ[j] != 1 || pred[next[j]] != 1 || used[next[j]])
+                break;
+            j = next[j];
+        }
+        int L0 = level[c->idx[0]], L1 = level[c->idx[c->n - 1]];
+        double below = L0 > 0 ? cs->s[start[L0]].z - cs->s[start[L0 - 1]].z
+                              : (caps == CAPS_SLAB ? cs->s[start[1]].z - cs->s[start[0]].z : 0.0);
+        double above = L1 + 1 < n_levels ? cs->s[start[L1 + 1]].z - cs->s[start[L1]].z
+                                         : (caps == CAPS_SLAB ? cs->s[start[L1]].z - cs->s[start[L1 - 1]].z : 0.0);
+        c->ext[0] = 0.5 * below;
+        c->ext[1] = 0.5 * above;
+    }
+    *out = chains;
+    *n_out = n_chains;
+    chains = NULL;
+out_free:
+    model_chains_free(chains, n_chains);
+    free(level);
+    free(succ);
+    free(pred);
+    free(next);
+    free(start);
+    free(used);
+    return rc ? sf_fail(err, SF_ENOMEM, "", "out of memory") : 0;
+}
+
 /* Gauss–Legendre nodes and weights on [0, 1]. */
 static const double GL5_X[5] = {0.046910077030668, 0.230765344947158, 0.5, 0.769234655052842, 0.953089922969332};
 static const double GL5_W[5] = {0.118463442528095, 0.239314335249683, 0.284444444444444, 0.239314335249683,

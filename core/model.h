@@ -8,6 +8,8 @@
 #include "err.h"
 #include "nurbs.h"
 
+enum model_caps { CAPS_FLAT, CAPS_SLAB };
+
 /* Parabolic interpolation (seed 004 eq. 6–19; METHODS.md §2 eq. 32 and 36–38): through every
  * point of every contour; between slices the blend of the parabolas through slices k-1..k+1
  * and k..k+2 at their real z (uneven spacing is modelled as it is; the end pairs use the one
@@ -15,11 +17,30 @@
  * the last append; the caller frees the set. */
 int model_parabolic(const struct contour_set *cs, struct patch_set *set, struct sf_err *err);
 
-enum model_caps { CAPS_FLAT, CAPS_SLAB };
-
 /* The volume with flat caps straight from the curves (closed form: mixed areas of curve pairs,
  * integrated over z exactly), without building patches; and the end curves' areas. */
 int model_volume_closed(const struct contour_set *cs, double *volume, double end_area[2], struct sf_err *err);
+
+/* Chains: the tubes the surfaces run through. Contours on neighbouring levels (distinct z) link
+ * when they are of one kind (hole or not) and overlap; a chain runs while links are one-to-one, so
+ * a branching (one contour splitting into two, or two merging) ends chains and starts new ones.
+ * Each chain end extends flat by ext[0] (below) and ext[1] (above): half the spacing to the next
+ * level at a branching or an island's end; at the stack's ends, by the caps (flat: 0, slab: half a
+ * spacing). The seeds are silent on all of this: it is ours. */
+struct model_chain {
+    int *idx;            /* contour indices, one per level, bottom up */
+    int n;
+    bool hole;           /* its volume counts negative */
+    double ext[2];
+};
+int model_chains(const struct contour_set *cs, enum model_caps caps, struct model_chain **out, int *n_out,
+                 struct sf_err *err);
+void model_chains_free(struct model_chain *c, int n);
+/* The chain's contours as a set of one contour per level (borrowing their points). */
+struct contour_set model_chain_view(const struct contour_set *cs, const struct model_chain *c,
+                                    struct contour_slice *storage);
+/* Area enclosed by the curve through one contour (exact, as the volume's end areas). */
+double model_curve_area(const struct contour_slice *s);
 
 struct model_measures {
     double volume;       /* with the caps asked for */
