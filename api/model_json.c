@@ -48,7 +48,7 @@ int model_figures(const char *buf, size_t len, char **json, struct sf_err *err)
         closed += chains[c].hole ? -vol : vol;
     }
     /* the patches: area, bounds, and the divergence theorem over them as a cross-check */
-    double t2 = now_ms(), t3 = t2, quad = 0.0, area = 0.0;
+    double t2 = now_ms(), fit_ms = 0.0, quad = 0.0, area = 0.0;
     struct model_measures all = {.lo = {INFINITY, INFINITY, INFINITY}, .hi = {-INFINITY, -INFINITY, -INFINITY}};
     size_t n_patches = 0;
     for (int c = 0; c < n_chains && !rc; c++) {
@@ -64,7 +64,7 @@ int model_figures(const char *buf, size_t len, char **json, struct sf_err *err)
         if ((rc = model_parabolic(&v, &ps, err)))
             break;
         nurbs_patches_fix(&ps);
-        t3 += now_ms() - tp;
+        fit_ms += now_ms() - tp;
         struct model_measures m;
         model_measure(&ps, CAPS_SLAB, (const double[2]){2 * chains[c].ext[0], 2 * chains[c].ext[1]}, &m);
         quad += chains[c].hole ? -m.volume : m.volume;
@@ -105,7 +105,7 @@ int model_figures(const char *buf, size_t len, char **json, struct sf_err *err)
                           "volume_mm3", closed, "area_mm2", area, "volume", "exact", closed, "quadrature", quad,
                           "trapezoid", b.trapezoid, "cavalieri", b.cavalieri, "frustum", b.frustum, "bounds",
                           all.lo[0], all.lo[1], all.lo[2], all.hi[0], all.hi[1], all.hi[2], "timings_ms", "read",
-                          t1 - t0, "volume", t2 - t1, "fit", t3 - t2, "measure", t4 - t3 - (t3 - t2));
+                          t1 - t0, "volume", t2 - t1, "fit", fit_ms, "measure", t4 - t2 - fit_ms);
     *json = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(12)) : NULL;
     json_decref(o);
     contour_set_free(&cs);
