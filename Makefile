@@ -26,6 +26,7 @@ CORE_LIBS := -lembree3 -lm
 API_LIBS  := -ljansson
 DAEMON_LIBS := -lmicrohttpd -lsqlite3 -lpthread
 IMG_LIBS  := -lOpenImageIO -lOpenImageIO_Util -lstdc++
+DCM_LIBS  := -ldcmdata -loflog -lofstd -lstdc++
 
 CORE_SRC   := $(wildcard core/*.c)
 API_SRC    := api/scene_json.c api/scene_text.c api/problem.c api/render_request.c api/job_json.c api/contour_json.c api/model_json.c
@@ -57,9 +58,10 @@ $(B)/rel/%.o: %.c
 $(B)/san/%.o: %.c
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(SAN) -c $< -o $@
-$(B)/rel/api/image_oiio.o: api/image_oiio.cpp
+$(B)/rel/api/%.o: api/%.cpp
 	@mkdir -p $(@D)
 	$(CXX) $(CXXFLAGS) -c $< -o $@
+DCM_OBJ := $(B)/rel/api/rtstruct_dcmtk.o
 
 # api/openapi.yaml, served at /openapi.yaml, compiled in as a C string
 $(B)/gen/openapi.c: api/openapi.yaml
@@ -68,13 +70,13 @@ $(B)/gen/openapi.c: api/openapi.yaml
 $(B)/gen/openapi.o: $(B)/gen/openapi.c
 	$(CC) -c $< -o $@
 
-$(B)/surfd: $(REL_DMN) $(REL_API) $(B)/rel/api/image_oiio.o $(B)/gen/openapi.o $(REL_CORE)
-	$(CC) $(OPT) -o $@ $^ $(IMG_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
+$(B)/surfd: $(REL_DMN) $(REL_API) $(B)/rel/api/image_oiio.o $(DCM_OBJ) $(B)/gen/openapi.o $(REL_CORE)
+	$(CC) $(OPT) -o $@ $^ $(IMG_LIBS) $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
-# unit tests link core/ (and the scene readers), never OpenImageIO
-$(B)/tests/%: tests/%.c tests/unit.h $(SAN_CORE) $(SAN_API)
+# unit tests link core/ and api/ (with the DCMTK shim), never OpenImageIO
+$(B)/tests/%: tests/%.c tests/unit.h $(SAN_CORE) $(SAN_API) $(DCM_OBJ)
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS) $(SAN) -o $@ $< $(SAN_CORE) $(SAN_API) $(API_LIBS) $(CORE_LIBS)
+	$(CC) $(CFLAGS) $(SAN) -o $@ $< $(SAN_CORE) $(SAN_API) $(DCM_OBJ) $(API_LIBS) $(DCM_LIBS) $(CORE_LIBS)
 
 # the pool and queue under the thread sanitizer
 $(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c daemon/jobq.h
@@ -82,8 +84,8 @@ $(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c
 	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/daemon/test_jobq.c daemon/jobq.c -lpthread
 
 # the daemon with the address and UB sanitizers, for the black-box API tests
-$(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(B)/rel/api/image_oiio.o $(B)/gen/openapi.o $(SAN_CORE)
-	$(CC) $(OPT) $(SAN) -o $@ $^ $(IMG_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
+$(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(B)/rel/api/image_oiio.o $(DCM_OBJ) $(B)/gen/openapi.o $(SAN_CORE)
+	$(CC) $(OPT) $(SAN) -o $@ $^ $(IMG_LIBS) $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
 run: deps $(B)/surfd
 	$(B)/surfd serve --listen 127.0.0.1:8080 --data-dir var

@@ -9,8 +9,13 @@
 #include "../core/err.h"
 #include "contour_json.h"
 
-/* Reads contour JSON, builds the model and measures it; *json receives the figures (caller
- * frees). Errors as contour_parse_json. */
-int model_figures(const char *buf, size_t len, char **json, struct sf_err *err);
+/* Reads contours (format "json", or "dicom" for an RT Structure Set), builds the model and measures
+ * it; *json receives the figures (caller frees): one object for JSON or for a DICOM ?roi=NAME, else
+ * {"models": [...]} with one object per ROI. options: "roi=NAME&caps=flat|slab" (DICOM; JSON carries
+ * its own). Errors as contour_parse_json and rtstruct_read. */
+int model_figures(const char *buf, size_t len, const char *format, const char *options, char **json,
+                  struct sf_err *err);
+/* What model_figures would refuse, without modelling anything (for request handlers). */
+int model_validate(const char *buf, size_t len, const char *format, const char *options, struct sf_err *err);
 
 #endif

@@ -10,11 +10,20 @@
 int cmd_volume(int argc, char **argv)
 {
     int repeat = 1;
-    if (argc == 4 && !strcmp(argv[2], "--repeat"))
-        repeat = atoi(argv[3]);
-    if ((argc != 2 && argc != 4) || repeat < 1) {
-        fprintf(stderr, "usage: surfd volume CONTOURS.json [--repeat N]   (also: surfd model ...)\n"
-                        "       --repeat runs it N times in one process and reports the last (warm) timings\n");
+    char options[256] = "";
+    for (int k = 2; k + 1 < argc; k += 2) {
+        size_t n = strlen(options);
+        if (!strcmp(argv[k], "--repeat"))
+            repeat = atoi(argv[k + 1]);
+        else if (!strcmp(argv[k], "--roi") || !strcmp(argv[k], "--caps"))
+            snprintf(options + n, sizeof options - n, "%s%s=%s", n ? "&" : "", argv[k] + 2, argv[k + 1]);
+        else
+            repeat = 0;
+    }
+    if (argc < 2 || argc % 2 || repeat < 1) {
+        fprintf(stderr, "usage: surfd volume CONTOURS.json|RTSTRUCT.dcm [--roi NAME] [--caps flat|slab] [--repeat N]\n"
+                        "       (also: surfd model ...); --repeat runs it N times in one process and reports the\n"
+                        "       last (warm) timings\n");
         return 2;
     }
     FILE *f = fopen(argv[1], "rb");
@@ -39,7 +48,9 @@ int cmd_volume(int argc, char **argv)
     for (int k = 0; k < repeat && !rc; k++) {
         free(json);
         json = NULL;
-        rc = model_figures(buf, (size_t)len, &json, &err);
+        /* DICOM Part 10 files carry "DICM" after a 128-byte preamble */
+        const char *format = len > 132 && !memcmp(buf + 128, "DICM", 4) ? "dicom" : "json";
+        rc = model_figures(buf, (size_t)len, format, options, &json, &err);
     }
     free(buf);
     if (rc) {

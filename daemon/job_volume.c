@@ -26,7 +26,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     if (store_get(w->svc->store, w->id, true, false, &rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
     store_set_state(w->svc->store, w->id, "running", 0.0, wall_s(), 0, NULL);
-    int rc = model_figures((const char *)rec.request, rec.request_len, &w->json, &w->err);
+    int rc = model_figures((const char *)rec.request, rec.request_len, rec.format, rec.options, &w->json, &w->err);
     store_rec_free(&rec);
     return rc ? -1 : 0;
 }

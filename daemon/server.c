@@ -16,7 +16,7 @@
 #include <string.h>
 #include <strings.h>
 
-#include "../api/contour_json.h"
+#include "../api/model_json.h"
 #include "../api/job_json.h"
 #include "../api/problem.h"
 #include "../api/render_request.h"
@@ -364,19 +364,22 @@ static enum MHD_Result post_render(struct req *r)
 static enum MHD_Result post_volume(struct req *r)
 {
     const char *ct = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
-    const char *format = render_format_from_type(ct);
-    if (!format || (*format && strcmp(format, "json"))) {
+    const char *format = ct && !strncasecmp(ct, "application/dicom", 17) ? "dicom" : render_format_from_type(ct);
+    if (!format || (*format && strcmp(format, "json") && strcmp(format, "dicom"))) {
         char d[160];
-        snprintf(d, sizeof d, "surfd reads contours as application/json (RTSTRUCT comes next), not %.80s", ct);
+        snprintf(d, sizeof d, "surfd reads contours as application/json or application/dicom, not %.80s", ct);
         return problem(r, 415, d, NULL);
     }
-    struct contour_set cs;
-    struct contour_request req;
+    if (!*format)
+        format = "json";
+    struct opts o = {.n = 0};
+    MHD_get_connection_values(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
+    if (o.bad)
+        return problem(r, 422, "query options must be short name=value pairs without '&' or '='", NULL);
     struct sf_err err = {0};
-    if (contour_parse_json(r->body ? r->body : "", r->len, &cs, &req, &err))
+    if (model_validate(r->body ? r->body : "", r->len, format, o.buf, &err))
         return problem_err(r, &err);
-    contour_set_free(&cs);
-    return submit(r, "volume", "json", "", volume_job_submit);
+    return submit(r, "volume", format, o.buf, volume_job_submit);
 }
 
 /* ---- routing ---------------------------------------------------------------------------- */

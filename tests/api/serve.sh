@@ -5,7 +5,7 @@
 . "$(dirname "$0")/lib.inc"
 
 # ---- basics ---------------------------------------------------------------------------------
-start_daemon "$T/d1" --threads 2 --max-body 1048576 || exit 1
+start_daemon "$T/d1" --threads 2 --max-body 4194304 || exit 1
 check "livez" '[ "$(status GET /livez)" = 200 ]'
 check "readyz" '[ "$(status GET /readyz)" = 200 ]'
 check "version" '[ "$(status GET /version)" = 200 ] && grep -q "\"name\":\"surfd\"" "$T/body"'
@@ -39,7 +39,7 @@ check "Prefer: wait=0 gives 202" '[ "$code" = 202 ]'
 # ---- every error kind, and the daemon stays up ------------------------------------------------
 code=$(status POST /render -H 'Content-Type: application/json' --data-binary '{"objects": [')
 check "400 malformed" '[ "$code" = 400 ] && is_problem 400'
-head -c 2000000 /dev/zero | tr '\0' ' ' >"$T/big"
+head -c 5000000 /dev/zero | tr '\0' ' ' >"$T/big"
 code=$(status POST /render -H 'Content-Type: application/json' --data-binary @"$T/big")
 check "413 from Content-Length" '[ "$code" = 413 ] && is_problem 413'
 code=$(status POST /render -H 'Content-Type: application/json' -H 'Transfer-Encoding: chunked' --data-binary @"$T/big")
@@ -68,7 +68,13 @@ vid=$(header X-Job-Id)
 check "volume async" '[ "$code" = 202 ] && wait_state "$vid" succeeded && [ "$(status GET /jobs/$vid)" = 200 ] && grep -q "\"kind\":\"volume\"" "$T/body"'
 code=$(status POST /volume -H 'Content-Type: application/json' --data-binary '{"slices":[{"z":0,"points":[[0,0],[1,1],[1,0],[0,1]]},{"z":1,"points":[[0,0],[1,0],[0,1]]}]}')
 check "volume 422 crossing contour" '[ "$code" = 422 ] && grep -q "\"pointer\":\"/slices/0/points\"" "$T/body"'
-check "volume 415 dicom (not yet)" '[ "$(status POST /volume -H "Content-Type: application/dicom" --data-binary x)" = 415 ]'
+code=$(status POST "/volume?roi=Heart" -H 'Content-Type: application/dicom' --data-binary @"$C/dicompyler-core_example_rtss.dcm")
+check "volume from RTSTRUCT ?roi" '[ "$code" = 200 ] && grep -q "\"volume_mm3\":434480.14" "$T/body" && grep -q "\"name\":\"Heart\"" "$T/body"'
+code=$(status POST /volume -H 'Content-Type: application/dicom' --data-binary @"$C/slicerrt_EclipseProstatePhantom_RS.dcm")
+check "volume from RTSTRUCT, every ROI" '[ "$code" = 200 ] && grep -q "\"models\":\[" "$T/body" && grep -q "\"name\":\"Rectum\"" "$T/body"'
+check "volume 400 not DICOM" '[ "$(status POST /volume -H "Content-Type: application/dicom" --data-binary x)" = 400 ] && is_problem 400'
+check "volume 422 unknown ROI" '[ "$(status POST "/volume?roi=Nope" -H "Content-Type: application/dicom" --data-binary @"$C/dicompyler-core_example_rtss.dcm")" = 422 ] && grep -q "\"pointer\":\"?roi\"" "$T/body"'
+check "volume 415" '[ "$(status POST /volume -H "Content-Type: image/png" --data-binary x)" = 415 ]'
 check "volume 400" '[ "$(status POST /volume -H "Content-Type: application/json" --data-binary "{")" = 400 ]'
 check "daemon up after errors" 'alive'
 

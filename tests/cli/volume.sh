@@ -19,6 +19,18 @@ check "overlapping contours on one slice" '[ $rc -eq 1 ] && grep -q "/slices/0/c
 printf '{"slices":[{"z":0,"points":[[0,0],[1,1],[1,0],[0,1]]},{"z":1,"points":[[0,0],[1,0],[0,1]]}]}' >"$T/x.json"
 $S volume "$T/x.json" >/dev/null 2>"$T/err"; rc=$?
 check "self-crossing contour" '[ $rc -eq 1 ] && grep -q "crosses itself" "$T/err" && grep -q "at /slices/0/points" "$T/err"'
+# DICOM RT Structure Sets
+$S volume "$C/dicompyler-core_example_rtss.dcm" >"$T/out" 2>"$T/err"
+check "rtstruct: every ROI with contours" '[ $? -eq 0 ] && [ "$(grep -o "\"roi_number\"" "$T/out" | wc -l)" -eq 9 ] && grep -q "\"name\":\"Lt Lung\"" "$T/out"'
+$S volume "$C/dicompyler-core_example_rtss.dcm" --roi Heart >"$T/out"
+check "rtstruct --roi Heart equals the JSON file" '[ $? -eq 0 ] && grep -q "\"volume_mm3\":434480.14" "$T/out" && ! grep -q "\"models\"" "$T/out"'
+$S volume "$C/slicerrt_EclipseProstatePhantom_RS.dcm" --roi Bladder --caps slab >"$T/out"
+check "rtstruct --caps slab" '[ $? -eq 0 ] && grep -q "\"caps\":\"slab\"" "$T/out" && grep -q "\"volume_mm3\":11775" "$T/out"'
+$S volume "$C/dicompyler-core_example_rtss.dcm" --roi Nope >/dev/null 2>"$T/err"; rc=$?
+check "rtstruct unknown roi" '[ $rc -eq 1 ] && grep -q "?roi" "$T/err"'
+ct=$(ls "${SURFD_DATA:-../shared/data}"/volumes/dicom_pydicom_ct5n_16x16x5/* | head -n 1)
+$S volume "$ct" >/dev/null 2>"$T/err"; rc=$?
+check "a CT image is not a structure set" '[ $rc -eq 1 ] && grep -q "not an RT Structure Set" "$T/err"'
 $S volume "$T/none.json" 2>/dev/null; rc=$?
 check "missing file" '[ $rc -eq 1 ]'
 $S volume 2>/dev/null; rc=$?

@@ -79,7 +79,7 @@ TEST(several_contours_per_slice)
         size_t len;
         char *buf = slurp(cases[k].file, &len), *json = NULL;
         struct sf_err err = {0};
-        CHECK(buf && model_figures(buf, len, &json, &err) == 0);
+        CHECK(buf && model_figures(buf, len, "json", "", &json, &err) == 0);
         if (!json) {
             fprintf(stderr, "  %s: %s at %s\n", cases[k].file, err.message, err.pointer);
             free(buf);

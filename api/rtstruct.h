@@ -1,0 +1,34 @@
+/* rtstruct.h - DICOM RT Structure Sets to contour sets, through DCMTK behind rtstruct_dcmtk.cpp.
+ * Only ROI names and numbers and CLOSED_PLANAR contour data are read: patient data is never read,
+ * logged or echoed. The caller frees with rtstruct_free(). */
+#ifndef SURFD_RTSTRUCT_H
+#define SURFD_RTSTRUCT_H
+
+#include <stddef.h>
+
+#ifdef __cplusplus
+extern "C" { /* the C headers below declare C functions */
+#endif
+
+#include "../core/contour.h"
+#include "../core/err.h"
+
+#define RTSTRUCT_MAX_ROIS 1000
+
+struct rt_roi {
+    char name[128];
+    int number;              /* ROI Number */
+    struct contour_set cs;   /* uncleaned: contour_clean() is the caller's */
+};
+
+/* Reads every ROI that has contours. SF_EFORMAT for what is not DICOM, SF_EINVAL for a DICOM
+ * object that is not an RT Structure Set or holds malformed contours (pointer: the DICOM path,
+ * e.g. "/ROIContourSequence/2/ContourSequence/7/ContourData"). */
+int rtstruct_read(const void *buf, size_t len, struct rt_roi **rois, int *n_rois, struct sf_err *err);
+void rtstruct_free(struct rt_roi *rois, int n_rois);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

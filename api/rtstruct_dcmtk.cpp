@@ -1,0 +1,162 @@
+// rtstruct_dcmtk.cpp - the only DCMTK user: an RT Structure Set in memory to contour sets.
+// ROI names come from StructureSetROISequence, contours from ROIContourSequence (CLOSED_PLANAR
+// only; POINT and OPEN_* contours are skipped, as they bound nothing). Slice z is the contour's
+// own z (ContourData is x, y, z triples in patient coordinates); a contour whose z varies is not
+// planar and is refused. No other element of the object is read.
+#include "rtstruct.h"
+
+#include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dctk.h>
+#include <dcmtk/dcmdata/dcistrmb.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <string>
+#include <vector>
+
+static const char RT_STRUCT_SOP_CLASS[] = "1.2.840.10008.5.1.4.1.1.481.3";
+#define PLANAR_EPS 1e-3 /* mm: z spread allowed within one CLOSED_PLANAR contour */
+
+extern "C" void rtstruct_free(struct rt_roi *rois, int n_rois)
+{
+    for (int k = 0; k < n_rois && rois; k++)
+        contour_set_free(&rois[k].cs);
+    free(rois);
+}
+
+extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, int *n_out, struct sf_err *err)
+{
+    *out = NULL;
+    *n_out = 0;
+    DcmInputBufferStream in;
+    in.setBuffer(buf, (offile_off_t)len);
+    in.setEos();
+    DcmFileFormat ff;
+    ff.transferInit();
+    OFCondition c = ff.read(in, EXS_Unknown, EGL_noChange, DCM_MaxReadLength);
+    ff.transferEnd();
+    if (c.bad())
+        return sf_fail(err, SF_EFORMAT, "", "not a readable DICOM object: %s", c.text());
+    DcmDataset *ds = ff.getDataset();
+    OFString sop;
+    if (ds->findAndGetOFString(DCM_SOPClassUID, sop).bad() || sop != RT_STRUCT_SOP_CLASS)
+        return sf_fail(err, SF_EINVAL, "/SOPClassUID", "the DICOM object is not an RT Structure Set");
+
+    std::map<long, std::string> names; // ROI Number -> ROI Name
+    DcmSequenceOfItems *seq = NULL;
+    if (ds->findAndGetSequence(DCM_StructureSetROISequence, seq).good() && seq)
+        for (unsigned long i = 0; i < seq->card(); i++) {
+            DcmItem *it = seq->getItem(i);
+            Sint32 num = 0;
+            OFString name;
+            if (it->findAndGetSint32(DCM_ROINumber, num).good()) {
+                it->findAndGetOFString(DCM_ROIName, name);
+                names[num] = name.c_str();
+            }
+        }
+    DcmSequenceOfItems *rcs = NULL;
+    if (ds->findAndGetSequence(DCM_ROIContourSequence, rcs).bad() || !rcs)
+        return sf_fail(err, SF_EINVAL, "/ROIContourSequence", "the structure set has no ROIContourSequence");
+    if (rcs->card() > RTSTRUCT_MAX_ROIS)
+        return sf_fail(err, SF_ELIMIT, "/ROIContourSequence", "more than %d ROIs", RTSTRUCT_MAX_ROIS);
+
+    struct rt_roi *rois = (struct rt_roi *)calloc(rcs->card() ? rcs->card() : 1, sizeof *rois);
+    if (!rois)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    int n = 0, rc = 0;
+    for (unsigned long r = 0; r < rcs->card() && !rc; r++) {
+        DcmItem *roi = rcs->getItem(r);
+        Sint32 num = 0;
+        roi->findAndGetSint32(DCM_ReferencedROINumber, num);
+        DcmSequenceOfItems *cseq = NULL;
+        if (roi->findAndGetSequence(DCM_ContourSequence, cseq).bad() || !cseq || cseq->card() == 0)
+            continue; // an ROI without contours: nothing to model
+        struct rt_roi *out_roi = &rois[n];
+        out_roi->number = num;
+        snprintf(out_roi->name, sizeof out_roi->name, "%s", names.count(num) ? names[num].c_str() : "");
+        if (cseq->card() > CONTOUR_MAX_SLICES) {
+            rc = sf_fail(err, SF_ELIMIT, "/ROIContourSequence", "ROI %d has more than %d contours", (int)num,
+                         CONTOUR_MAX_SLICES);
+            break;
+        }
+        out_roi->cs.s = (struct contour_slice *)calloc(cseq->card(), sizeof *out_roi->cs.s);
+        if (!out_roi->cs.s) {
+            rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+            break;
+        }
+        n++;
+        for (unsigned long k = 0; k < cseq->card() && !rc; k++) {
+            DcmItem *ci = cseq->getItem(k);
+            char ptr[128];
+            snprintf(ptr, sizeof ptr, "/ROIContourSequence/%lu/ContourSequence/%lu/ContourData", r, k);
+            OFString type;
+            ci->findAndGetOFString(DCM_ContourGeometricType, type);
+            if (type != "CLOSED_PLANAR")
+                continue;
+            DcmElement *el = NULL;
+            if (ci->findAndGetElement(DCM_ContourData, el).bad() || !el || el->getVM() < 9 || el->getVM() % 3) {
+                rc = sf_fail(err, SF_EINVAL, ptr, "ContourData must hold at least 3 (x, y, z) points");
+                break;
+            }
+            unsigned long np = el->getVM() / 3;
+            if (np > CONTOUR_MAX_POINTS) {
+                rc = sf_fail(err, SF_ELIMIT, ptr, "more than %d points", CONTOUR_MAX_POINTS);
+                break;
+            }
+            struct contour_slice *s = &out_roi->cs.s[out_roi->cs.n_slices++];
+            s->src = (int)k;
+            s->src_contour = -1;
+            s->p = (double(*)[2])malloc(sizeof *s->p * np);
+            if (!s->p) {
+                rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+                break;
+            }
+            s->n = (int)np;
+            /* the raw value, parsed once: getFloat64(pos) re-scans the string for every position */
+            char *raw = NULL;
+            if (el->getString(raw).bad() || !raw) {
+                rc = sf_fail(err, SF_EINVAL, ptr, "ContourData could not be read");
+                break;
+            }
+            const char *p = raw;
+            double z0 = 0;
+            for (unsigned long i = 0; i < np && !rc; i++) {
+                double v[3];
+                for (int d = 0; d < 3 && !rc; d++) {
+                    char *end;
+                    v[d] = strtod(p, &end);
+                    if (end == p || !std::isfinite(v[d]))
+                        rc = sf_fail(err, SF_EINVAL, ptr, "point %lu is not three finite numbers", i);
+                    p = end;
+                    while (*p == ' ')
+                        p++;
+                    if (*p == '\\')
+                        p++;
+                }
+                if (rc)
+                    break;
+                if (i == 0)
+                    z0 = v[2];
+                else if (std::fabs(v[2] - z0) > PLANAR_EPS) {
+                    rc = sf_fail(err, SF_EINVAL, ptr, "a CLOSED_PLANAR contour must lie in one z plane");
+                    break;
+                }
+                s->p[i][0] = v[0];
+                s->p[i][1] = v[1];
+            }
+            s->z = z0;
+        }
+        if (!rc && out_roi->cs.n_slices == 0)
+            contour_set_free(&rois[--n].cs); // only non-planar kinds: nothing to model
+    }
+    if (rc) {
+        rtstruct_free(rois, n);
+        return rc;
+    }
+    *out = rois;
+    *n_out = n;
+    return 0;
+}
