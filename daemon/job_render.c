@@ -6,7 +6,6 @@
 #include <string.h>
 
 #include "../api/image.h"
-#include "../api/problem.h"
 #include "../api/render_request.h"
 #include "../core/map.h"
 #include "../core/render.h"
@@ -64,18 +63,13 @@ static void band(struct job *j, void *arg, int k)
     frame_band(w->fr, y0, y1, &w->band_stats[k]);
 }
 
-static void fail(struct render_work *w)
-{
-    char *p = problem_from_err(&w->err);
-    store_set_state(w->svc->store, w->id, "failed", 0.0, 0, wall_s(), p);
-    LOG(LOG_WARN, "job %s failed: %s", w->id, w->err.message);
-    free(p);
-}
-
 static void finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
 {
     (void)j;
     struct render_work *w = arg;
+    unsigned char *bytes = NULL;
+    size_t n = 0;
+    char meta[160] = "";
     if (outcome == JOB_SUCCEEDED) {
         double render_s = monotonic_s() - w->t0;
         struct render_stats total = {0};
@@ -83,29 +77,16 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
             render_stats_add(&total, &w->band_stats[k]);
         struct frame_image img;
         frame_image(w->fr, &img);
-        unsigned char *bytes = NULL;
-        size_t n = 0;
         if (image_encode(&img, w->fmt, &bytes, &n, &w->err) == 0) {
-            char meta[160];
             snprintf(meta, sizeof meta, "{\"render_ms\":%.1f,\"prepare_ms\":%.1f,\"rays\":%ld}", render_s * 1e3,
                      frame_prepare_ms(w->fr), total.rays);
-            if (store_set_result(w->svc->store, w->id, bytes, n, image_format_mime(w->fmt), meta, wall_s()))
-                LOG(LOG_ERROR, "job %s: could not store its result", w->id);
             metrics_render(render_s, total.rays);
         } else {
             outcome = JOB_FAILED;
-            fail(w);
         }
-        free(bytes);
-    } else if (outcome == JOB_FAILED) {
-        fail(w);
-    } else if (requeue) { /* shutdown: leave it to the next start */
-        store_set_state(w->svc->store, w->id, "queued", 0.0, 0, 0, NULL);
-    } else {
-        store_set_state(w->svc->store, w->id, "cancelled", 0.0, 0, wall_s(), NULL);
     }
-    if (!requeue)
-        metrics_job_end(outcome);
+    service_job_end(w->svc, w->id, outcome, requeue, bytes, n, image_format_mime(w->fmt), meta, &w->err);
+    free(bytes);
     frame_free(w->fr);
     if (w->have_scene)
         scene_free(&w->sc);

@@ -5,9 +5,6 @@
 #include <string.h>
 
 #include "../api/model_json.h"
-#include "../api/problem.h"
-#include "log.h"
-#include "metrics.h"
 #include "service.h"
 
 struct volume_work {
@@ -35,19 +32,8 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 {
     (void)j;
     struct volume_work *w = arg;
-    if (outcome == JOB_SUCCEEDED) {
-        if (store_set_result(w->svc->store, w->id, (const unsigned char *)w->json, strlen(w->json), "application/json",
-                             NULL, wall_s()))
-            LOG(LOG_ERROR, "job %s: could not store its result", w->id);
-    } else if (outcome == JOB_FAILED) {
-        char *p = problem_from_err(&w->err);
-        store_set_state(w->svc->store, w->id, "failed", 0.0, 0, wall_s(), p);
-        free(p);
-    } else {
-        store_set_state(w->svc->store, w->id, requeue ? "queued" : "cancelled", 0.0, 0, requeue ? 0 : wall_s(), NULL);
-    }
-    if (!requeue)
-        metrics_job_end(outcome);
+    service_job_end(w->svc, w->id, outcome, requeue, (const unsigned char *)w->json, w->json ? strlen(w->json) : 0,
+                    "application/json", NULL, &w->err);
     free(w->json);
     free(w);
 }

@@ -1,6 +1,12 @@
 /* service.c - small helpers every part of the daemon uses. */
 #include "service.h"
 
+#include <stdlib.h>
+
+#include "../api/problem.h"
+#include "log.h"
+#include "metrics.h"
+
 #include <fcntl.h>
 #include <stdio.h>
 #include <sys/random.h>
@@ -24,4 +30,25 @@ void service_new_id(char out[40])
     }
     for (size_t k = 0; k < sizeof b; k++)
         snprintf(out + 2 * k, 3, "%02x", b[k]);
+}
+
+void service_job_end(struct service *svc, const char *id, enum job_state outcome, bool requeue,
+                     const unsigned char *result, size_t len, const char *type, const char *meta,
+                     const struct sf_err *err)
+{
+    if (outcome == JOB_SUCCEEDED) {
+        if (store_set_result(svc->store, id, result, len, type, meta, wall_s()))
+            LOG(LOG_ERROR, "job %s: could not store its result", id);
+    } else if (outcome == JOB_FAILED) {
+        char *p = problem_from_err(err);
+        store_set_state(svc->store, id, "failed", 0.0, 0, wall_s(), p);
+        LOG(LOG_WARN, "job %s failed: %s", id, err->message);
+        free(p);
+    } else if (requeue) { /* shutdown: leave it to the next start */
+        store_set_state(svc->store, id, "queued", 0.0, 0, 0, NULL);
+    } else {
+        store_set_state(svc->store, id, "cancelled", 0.0, 0, wall_s(), NULL);
+    }
+    if (!requeue)
+        metrics_job_end(outcome);
 }

@@ -27,6 +27,13 @@ double wall_s(void);
 /* A new random job id (32 hex digits). */
 void service_new_id(char out[40]);
 
+/* Records a job's end in the store and the metrics: succeeded (result) or failed (problem from
+ * err) or cancelled, or, with requeue, back to queued for the next start. result may be NULL for
+ * outcomes other than JOB_SUCCEEDED. */
+void service_job_end(struct service *svc, const char *id, enum job_state outcome, bool requeue,
+                     const unsigned char *result, size_t len, const char *type, const char *meta,
+                     const struct sf_err *err);
+
 /* The job kinds: each queues job `id` (already in the store). force as in jobq_submit. */
 int render_job_submit(struct service *svc, const char *id, bool force);
 int volume_job_submit(struct service *svc, const char *id, bool force);

@@ -5,6 +5,7 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 static int unit_failed_checks, unit_passed, unit_failed;
@@ -28,6 +29,28 @@ static int unit_failed_checks, unit_passed, unit_failed;
     } while (0)
 
 #define CHECK_STR(a, b) CHECK(strcmp((a), (b)) == 0)
+
+/* Reads $SURFD_DATA/sub/name (default ../shared/data) whole; NULL when missing. Caller frees. */
+__attribute__((unused)) static char *unit_data(const char *sub, const char *name, size_t *len)
+{
+    const char *dir = getenv("SURFD_DATA");
+    char path[512];
+    snprintf(path, sizeof path, "%s/%s/%s", dir ? dir : "../shared/data", sub, name);
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        fprintf(stderr, "  cannot open %s\n", path);
+        return NULL;
+    }
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *buf = n >= 0 ? malloc((size_t)n + 1) : NULL;
+    *len = buf ? fread(buf, 1, (size_t)n, f) : 0;
+    if (buf)
+        buf[*len] = 0;
+    fclose(f);
+    return buf;
+}
 
 #define TEST(name) static void test_##name(void)
 

@@ -5,20 +5,6 @@
 
 #include <stdlib.h>
 
-static char *slurp(const char *name, size_t *len)
-{
-    const char *dir = getenv("SURFD_DATA");
-    char path[512];
-    snprintf(path, sizeof path, "%s/scenes/%s", dir ? dir : "../shared/data", name);
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    char *buf = malloc(1 << 20);
-    *len = fread(buf, 1, (1 << 20) - 1, f);
-    fclose(f);
-    return buf;
-}
-
 static int parse(const char *text, enum scene_format fmt, struct sf_err *err, struct scene *out)
 {
     struct scene sc;
@@ -43,7 +29,7 @@ TEST(shared_scenes_parse)
                  {"duck1.nurbs", 1, SURF_NURBS},   {"duck2.nurbs", 1, SURF_BSPLINE},   {"duck3.nurbs", 1, SURF_BSPLINE}};
     for (size_t k = 0; k < sizeof files / sizeof *files; k++) {
         size_t len;
-        char *buf = slurp(files[k].name, &len);
+        char *buf = unit_data("scenes", files[k].name, &len);
         CHECK(buf != NULL);
         if (!buf)
             continue;
@@ -69,7 +55,7 @@ TEST(shared_scenes_parse)
 TEST(bpt_equals_json)
 {
     size_t la, lb;
-    char *a = slurp("teapot.json", &la), *b = slurp("teapot.bpt", &lb);
+    char *a = unit_data("scenes", "teapot.json", &la), *b = unit_data("scenes", "teapot.bpt", &lb);
     struct scene sa, sb;
     enum image_format img;
     CHECK(a && b && scene_parse(a, la, SCENE_JSON, &sa, &img, NULL) == 0 && scene_parse(b, lb, SCENE_BPT, &sb, &img, NULL) == 0);
@@ -86,7 +72,7 @@ TEST(bpt_equals_json)
 TEST(vrml_order_and_concatenation)
 {
     size_t l1, l2, l3;
-    char *d1 = slurp("duck1.nurbs", &l1), *d2 = slurp("duck2.nurbs", &l2), *d3 = slurp("duck3.nurbs", &l3);
+    char *d1 = unit_data("scenes", "duck1.nurbs", &l1), *d2 = unit_data("scenes", "duck2.nurbs", &l2), *d3 = unit_data("scenes", "duck3.nurbs", &l3);
     CHECK(d1 && d2 && d3);
     struct scene sc;
     enum image_format img;

@@ -10,15 +10,10 @@ static struct bvh_device *dev;
 
 static int load(const char *name, struct scene *sc, struct patch_set *ps)
 {
-    const char *dir = getenv("SURFD_DATA");
-    char path[512];
-    snprintf(path, sizeof path, "%s/scenes/%s", dir ? dir : "../shared/data", name);
-    FILE *f = fopen(path, "rb");
-    if (!f)
+    size_t len;
+    char *buf = unit_data("scenes", name, &len);
+    if (!buf)
         return -1;
-    char *buf = malloc(1 << 20);
-    size_t len = fread(buf, 1, (1 << 20) - 1, f);
-    fclose(f);
     enum image_format img;
     int rc = scene_parse(buf, len, SCENE_UNKNOWN, sc, &img, NULL);
     free(buf);

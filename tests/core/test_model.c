@@ -8,23 +8,6 @@
 
 #include <stdlib.h>
 
-static char *slurp(const char *name, size_t *len)
-{
-    const char *dir = getenv("SURFD_DATA");
-    char path[512];
-    snprintf(path, sizeof path, "%s/contours/%s", dir ? dir : "../shared/data", name);
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *buf = malloc((size_t)n + 1);
-    *len = fread(buf, 1, (size_t)n, f);
-    fclose(f);
-    return buf;
-}
-
 static int model_of(const char *text, size_t len, struct contour_set *cs, struct patch_set *ps, struct sf_err *err)
 {
     struct contour_request req;
@@ -44,7 +27,7 @@ TEST(synthetic_volumes_within_0_2_percent)
     } cases[] = {{"synthetic_ellipsoid.json", 123841.58240450964}, {"synthetic_bean.json", 66556.32338083329}};
     for (size_t k = 0; k < 2; k++) { /* one contour per slice: the patches' own volume */
         size_t len;
-        char *buf = slurp(cases[k].file, &len);
+        char *buf = unit_data("contours", cases[k].file, &len);
         CHECK(buf != NULL);
         if (!buf)
             continue;
@@ -77,7 +60,7 @@ TEST(several_contours_per_slice)
     } cases[] = {{"synthetic_torus_branching.json", 84963.33313378324}, {"dicompyler_lt_lung_multicontour.json", 0}};
     for (int k = 0; k < 2; k++) {
         size_t len;
-        char *buf = slurp(cases[k].file, &len), *json = NULL;
+        char *buf = unit_data("contours", cases[k].file, &len), *json = NULL;
         struct sf_err err = {0};
         CHECK(buf && model_figures(buf, len, "json", "", &json, &err) == 0);
         if (!json) {
@@ -102,7 +85,7 @@ TEST(several_contours_per_slice)
 TEST(interpolates_points_and_faces_outward)
 {
     size_t len;
-    char *buf = slurp("synthetic_bean.json", &len);
+    char *buf = unit_data("contours", "synthetic_bean.json", &len);
     struct contour_set cs;
     struct patch_set ps;
     CHECK(buf && model_of(buf, len, &cs, &ps, NULL) == 0);
@@ -144,7 +127,7 @@ TEST(closed_form_equals_quadrature)
     const char *files[] = {"synthetic_ellipsoid.json", "synthetic_bean.json", "dicompyler_heart.json", "eclipse_ptv.json"};
     for (int f = 0; f < 4; f++) {
         size_t len;
-        char *buf = slurp(files[f], &len);
+        char *buf = unit_data("contours", files[f], &len);
         struct contour_set cs;
         struct patch_set ps;
         CHECK(buf && model_of(buf, len, &cs, &ps, NULL) == 0);
@@ -165,7 +148,7 @@ TEST(closed_form_equals_quadrature)
 TEST(volume_quadrature_is_exact)
 {
     size_t len;
-    char *buf = slurp("synthetic_ellipsoid.json", &len);
+    char *buf = unit_data("contours", "synthetic_ellipsoid.json", &len);
     struct contour_set cs;
     struct patch_set ps;
     CHECK(buf && model_of(buf, len, &cs, &ps, NULL) == 0);

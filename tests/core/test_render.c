@@ -8,25 +8,6 @@
 
 #include <stdlib.h>
 
-static char *slurp(const char *name, size_t *len)
-{
-    const char *dir = getenv("SURFD_DATA");
-    char path[512];
-    snprintf(path, sizeof path, "%s/scenes/%s", dir ? dir : "../shared/data", name);
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        fprintf(stderr, "  cannot open %s\n", path);
-        return NULL;
-    }
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *buf = malloc((size_t)n + 1);
-    *len = fread(buf, 1, (size_t)n, f);
-    fclose(f);
-    return buf;
-}
-
 static struct bvh_device *dev;
 
 /* Renders scene file `name` with the given method and size; returns a malloc'd depth buffer. */
@@ -34,7 +15,7 @@ static float *render_depth(const char *name, enum render_method m, int W, int H,
                            struct render_stats *st)
 {
     size_t len = 0;
-    char *buf = slurp(name, &len);
+    char *buf = unit_data("scenes", name, &len);
     if (!buf)
         return NULL;
     struct scene sc;
