@@ -11,7 +11,7 @@
 struct contour_request {
     char name[128];
     char method[24];   /* parabolic (default) */
-    char caps[16];     /* flat (default) or slab */
+    char caps[16];     /* flat (default), slab or dome */
 };
 
 int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, struct contour_request *req,

@@ -43,7 +43,8 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
 {
     struct contour_set cs = *cs_in;
     int rc = 0;
-    enum model_caps caps = strcmp(req->caps, "slab") ? CAPS_FLAT : CAPS_SLAB;
+    enum model_caps caps = !strcmp(req->caps, "slab") ? CAPS_SLAB : !strcmp(req->caps, "dome") ? CAPS_DOME : CAPS_FLAT;
+    int dome_fallbacks = 0; /* stack ends where the dome did not close: half a spacing flat there */
     struct model_chain *chains = NULL;
     int n_chains = 0;
     struct contour_slice *view_storage = malloc(sizeof *view_storage * (size_t)cs.n_slices);
@@ -54,21 +55,29 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
         return NULL;
     }
     /* the exact volume straight from the curves, chain by chain: the fast path */
-    double t1 = now_ms(), closed = 0.0;
+    double t1 = now_ms(), closed = 0.0, domes = 0.0;
     for (int c = 0; c < n_chains && !rc; c++) {
         struct contour_set v = model_chain_view(&cs, &chains[c], view_storage);
-        double vol, ends[2];
+        double vol, ends[2], dome[2] = {NAN, NAN};
         if (v.n_slices >= 2) {
-            rc = model_volume_closed(&v, &vol, ends, err);
+            rc = model_volume_closed(&v, &vol, ends, caps == CAPS_DOME ? dome : NULL, err);
         } else { /* an island on one slice: its extensions only */
             ends[0] = ends[1] = model_curve_area(&v.s[0]);
             vol = 0.0;
         }
         vol += ends[0] * chains[c].ext[0] + ends[1] * chains[c].ext[1];
+        for (int e = 0; e < 2 && caps == CAPS_DOME; e++) {
+            if (!chains[c].at_end[e])
+                continue;
+            double add = isfinite(dome[e]) ? dome[e] : 0.5 * ends[e] * chains[c].spacing[e];
+            dome_fallbacks += !isfinite(dome[e]);
+            vol += add;
+            domes += chains[c].hole ? -add : add; /* the dome has no patches: the quadrature takes it from here */
+        }
         closed += chains[c].hole ? -vol : vol;
     }
     /* the patches: area, bounds, and the divergence theorem over them as a cross-check */
-    double t2 = now_ms(), fit_ms = 0.0, quad = 0.0, area = 0.0;
+    double t2 = now_ms(), fit_ms = 0.0, quad = domes, area = 0.0;
     struct model_measures all = {.lo = {INFINITY, INFINITY, INFINITY}, .hi = {-INFINITY, -INFINITY, -INFINITY}};
     size_t n_patches = 0;
     for (int c = 0; c < n_chains && !rc; c++) {
@@ -116,9 +125,10 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
         uneven |= fabs(g - first_gap) > 1e-6 * first_gap;
     }
     (void)gap0;
-    json_t *o = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:b, s:I, s:f, s:f, s:{s:f, s:f, s:f, s:f, s:f},"
+    json_t *o = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:b, s:I, s:f, s:f, s:{s:f, s:f, s:f, s:f, s:f},"
                           " s:[[f,f,f],[f,f,f]], s:{s:f, s:f, s:f, s:f}}",
-                          "name", req->name, "method", req->method, "caps", req->caps, "slices", n, "contours",
+                          "name", req->name, "method", req->method, "caps", req->caps, "dome_ends_flat",
+                          dome_fallbacks, "slices", n, "contours",
                           cs.n_slices, "chains", n_chains, "uneven_spacing", uneven, "patches", (json_int_t)n_patches,
                           "volume_mm3", closed, "area_mm2", area, "volume", "exact", closed, "quadrature", quad,
                           "trapezoid", b.trapezoid, "cavalieri", b.cavalieri, "frustum", b.frustum, "bounds",
@@ -142,8 +152,8 @@ int model_validate(const char *buf, size_t len, const char *format, const char *
     char roi[128], caps[16];
     option(options, "roi", roi, sizeof roi);
     option(options, "caps", caps, sizeof caps);
-    if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab"))
-        return sf_fail(err, SF_EINVAL, "?caps", "caps is flat or slab");
+    if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab") && strcmp(caps, "dome"))
+        return sf_fail(err, SF_EINVAL, "?caps", "caps is flat, slab or dome");
     struct rt_roi *rois = NULL;
     int n = 0, rc = rtstruct_read(buf, len, &rois, &n, err), found = 0;
     for (int k = 0; k < n && !rc; k++)
@@ -177,8 +187,8 @@ int model_figures(const char *buf, size_t len, const char *format, const char *o
     char roi[128], caps[16];
     option(options, "roi", roi, sizeof roi);
     option(options, "caps", caps, sizeof caps);
-    if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab"))
-        return sf_fail(err, SF_EINVAL, "?caps", "caps is flat or slab");
+    if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab") && strcmp(caps, "dome"))
+        return sf_fail(err, SF_EINVAL, "?caps", "caps is flat, slab or dome");
     if (caps[0])
         snprintf(req.caps, sizeof req.caps, "%s", caps);
     struct rt_roi *rois = NULL;

@@ -381,7 +381,57 @@ static double mixed_area(const struct curve_poly *a, const struct curve_poly *b)
     return 0.5 * sum;
 }
 
-int model_volume_closed(const struct contour_set *cs, double *volume, double end_area[2], struct sf_err *err)
+/* Section area of pair k's blend at any z (inside or beyond the pair). */
+static double section_area(const struct contour_set *cs, const double *M, int k, double z)
+{
+    double w[4], area = 0.0;
+    int j0, m;
+    slice_weights(cs, k, z, w, &j0, &m);
+    for (int a = 0; a < m; a++)
+        for (int b = 0; b < m; b++)
+            area += w[a] * w[b] * M[(size_t)(j0 + a) * 7 + (size_t)(b - a + 3)];
+    return area;
+}
+
+#define DOME_REACH 3.0  /* spacings the extrapolated section may take to close */
+
+/* The dome beyond an end: the quadratic through the last three section areas (the curves' own,
+ * exact; two give a line), extrapolated outward to its first zero and integrated. Exact where the
+ * end is a quadric (ellipsoid, sphere: their section areas are quadratic in z). NAN when it does
+ * not close within DOME_REACH spacings. z[0] is the end slice, z[1], z[2] the next inward. */
+static double dome_volume(const double z[3], const double A[3], int n)
+{
+    double dir = z[0] > z[1] ? 1.0 : -1.0, h = fabs(z[0] - z[1]);
+    /* q(s) = A0 + b s + c s² in s = dir (z - z0) >= 0, through the slices at s1, s2 < 0 */
+    double s1 = dir * (z[1] - z[0]), s2 = n > 2 ? dir * (z[2] - z[0]) : 0.0, b, cq;
+    if (n > 2) {
+        double d1 = (A[1] - A[0]) / s1, d2 = (A[2] - A[0]) / s2;
+        cq = (d1 - d2) / (s1 - s2);
+        b = d1 - cq * s1;
+    } else {
+        cq = 0.0;
+        b = (A[1] - A[0]) / s1;
+    }
+    /* first positive root of A0 + b s + c s² */
+    double root = NAN;
+    if (fabs(cq) < 1e-300 * (fabs(b) + 1.0)) {
+        if (b < 0)
+            root = -A[0] / b;
+    } else {
+        double disc = b * b - 4 * cq * A[0];
+        if (disc >= 0) {
+            double r1 = (-b - sqrt(disc)) / (2 * cq), r2 = (-b + sqrt(disc)) / (2 * cq);
+            double lo = fmin(r1, r2), hi = fmax(r1, r2);
+            root = lo > 0 ? lo : (hi > 0 ? hi : NAN);
+        }
+    }
+    if (!(root > 0) || root > DOME_REACH * h)
+        return NAN;
+    return A[0] * root + b * root * root / 2 + cq * root * root * root / 3;
+}
+
+int model_volume_closed(const struct contour_set *cs, double *volume, double end_area[2], double dome[2],
+                        struct sf_err *err)
 {
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
@@ -400,21 +450,23 @@ int model_volume_closed(const struct contour_set *cs, double *volume, double end
     double v = 0.0;
     for (int k = 0; k + 1 < n && !rc; k++) {
         double z0 = cs->s[k].z, z1 = cs->s[k + 1].z;
-        for (int g = 0; g < 4; g++) {
-            double w[4];
-            int j0, m;
-            slice_weights(cs, k, z0 + (z1 - z0) * GL4_X[g], w, &j0, &m);
-            double area = 0.0;
-            for (int a = 0; a < m; a++)
-                for (int b = 0; b < m; b++)
-                    area += w[a] * w[b] * M[(size_t)(j0 + a) * 7 + (size_t)(b - a + 3)];
-            v += GL4_W[g] * (z1 - z0) * area;
-        }
+        for (int g = 0; g < 4; g++)
+            v += GL4_W[g] * (z1 - z0) * section_area(cs, M, k, z0 + (z1 - z0) * GL4_X[g]);
     }
     if (!rc) {
         *volume = v;
         end_area[0] = M[3];
         end_area[1] = M[(size_t)(n - 1) * 7 + 3];
+        if (dome) {
+            int m = n > 2 ? 3 : 2;
+            double zb[3], Ab[3], zt[3], At[3];
+            for (int i = 0; i < m; i++) {
+                zb[i] = cs->s[i].z, Ab[i] = M[(size_t)i * 7 + 3];
+                zt[i] = cs->s[n - 1 - i].z, At[i] = M[(size_t)(n - 1 - i) * 7 + 3];
+            }
+            dome[0] = dome_volume(zb, Ab, m);
+            dome[1] = dome_volume(zt, At, m);
+        }
     }
     for (int j = 0; j < n; j++) {
         curve_free(&cv[j]);
@@ -508,6 +560,11 @@ int model_chains(const struct contour_set *cs, enum model_caps caps, struct mode
                                          : (caps == CAPS_SLAB ? cs->s[start[L1]].z - cs->s[start[L1 - 1]].z : 0.0);
         c->ext[0] = 0.5 * below;
         c->ext[1] = 0.5 * above;
+        c->at_end[0] = L0 == 0;
+        c->at_end[1] = L1 + 1 == n_levels;
+        c->spacing[0] = cs->s[start[L0 > 0 ? L0 : 1]].z - cs->s[start[L0 > 0 ? L0 - 1 : 0]].z;
+        c->spacing[1] = L1 + 1 < n_levels ? cs->s[start[L1 + 1]].z - cs->s[start[L1]].z
+                                          : cs->s[start[L1]].z - cs->s[start[L1 - 1]].z;
     }
     *out = chains;
     *n_out = n_chains;

@@ -8,7 +8,7 @@
 #include "err.h"
 #include "nurbs.h"
 
-enum model_caps { CAPS_FLAT, CAPS_SLAB };
+enum model_caps { CAPS_FLAT, CAPS_SLAB, CAPS_DOME };
 
 /* Parabolic interpolation (seed 004 eq. 6–19; METHODS.md §2 eq. 32 and 36–38): through every
  * point of every contour; between slices the blend of the parabolas through slices k-1..k+1
@@ -18,20 +18,27 @@ enum model_caps { CAPS_FLAT, CAPS_SLAB };
 int model_parabolic(const struct contour_set *cs, struct patch_set *set, struct sf_err *err);
 
 /* The volume with flat caps straight from the curves (closed form: mixed areas of curve pairs,
- * integrated over z exactly), without building patches; and the end curves' areas. */
-int model_volume_closed(const struct contour_set *cs, double *volume, double end_area[2], struct sf_err *err);
+ * integrated over z exactly), without building patches; and the end curves' areas. dome (may be
+ * NULL) receives the dome beyond each end: the quadratic through the last three section areas,
+ * extrapolated until it closes (its first zero), integrated exactly; NAN where it does not close
+ * within three spacings (a shape still growing at its end), for the caller to fall back on. */
+int model_volume_closed(const struct contour_set *cs, double *volume, double end_area[2], double dome[2],
+                        struct sf_err *err);
 
 /* Chains: the tubes the surfaces run through. Contours on neighbouring levels (distinct z) link
  * when they are of one kind (hole or not) and overlap; a chain runs while links are one-to-one, so
  * a branching (one contour splitting into two, or two merging) ends chains and starts new ones.
  * Each chain end extends flat by ext[0] (below) and ext[1] (above): half the spacing to the next
- * level at a branching or an island's end; at the stack's ends, by the caps (flat: 0, slab: half a
- * spacing). The seeds are silent on all of this: it is ours. */
+ * level at a branching or an island's end; at the stack's ends, by the caps (flat and dome: 0, the
+ * dome being added by the caller; slab: half a spacing). The seeds are silent on all of this: it is
+ * ours. */
 struct model_chain {
     int *idx;            /* contour indices, one per level, bottom up */
     int n;
     bool hole;           /* its volume counts negative */
     double ext[2];
+    bool at_end[2];      /* this end is the stack's first (0) or last (1) level: the caps apply */
+    double spacing[2];   /* the level spacing at each end */
 };
 int model_chains(const struct contour_set *cs, enum model_caps caps, struct model_chain **out, int *n_out,
                  struct sf_err *err);

@@ -173,15 +173,15 @@ def contour_bench(lines):
     with open(os.path.join(cdir, "reference_volumes.json")) as f:
         refs = json.load(f)["files"]
     lines.append("## Contours (issue 5): volumes in cm3, parabolic method\n")
-    lines.append("| file | flat caps | slab caps | trapezoid | Cavalieri | references (file's own) | exact (synthetic) |")
-    lines.append("|---|---|---|---|---|---|---|")
+    lines.append("| file | flat caps | slab caps | dome caps | trapezoid | Cavalieri | references (file's own) | exact (synthetic) |")
+    lines.append("|---|---|---|---|---|---|---|---|")
     for name in sorted(os.listdir(cdir)):
         if not name.endswith(".json") or name == "reference_volumes.json":
             continue
         with open(os.path.join(cdir, name)) as f:
             data = json.load(f)
         figs = {}
-        for caps in ("flat", "slab"):
+        for caps in ("flat", "slab", "dome"):
             data["caps"] = caps
             path = os.path.join(TMP, "c.json")
             with open(path, "w") as f:
@@ -189,19 +189,21 @@ def contour_bench(lines):
             p = subprocess.run([SURFD, "volume", path], capture_output=True, text=True)
             figs[caps] = json.loads(p.stdout) if p.returncode == 0 else None
         if not figs["flat"]:
-            lines.append("| %s | not yet (several contours per slice) | | | | | |" % name)
+            lines.append("| %s | failed | | | | | | |" % name)
             continue
         cc = lambda v: "%.2f" % (v / 1000.0)
         exact = data.get("exact_volume_between_end_slices_mm3")
         ex = ""
         if exact:
-            ex = "between end slices %s: flat %+.3f %%; solid %s: slab %+.3f %%" % (
-                cc(exact), 100 * (figs["flat"]["volume_mm3"] - exact) / exact, cc(data["exact_volume_mm3"]),
-                100 * (figs["slab"]["volume_mm3"] - data["exact_volume_mm3"]) / data["exact_volume_mm3"])
+            solid = data["exact_volume_mm3"]
+            ex = "between end slices %s: flat %+.3f %%; solid %s: slab %+.3f %%, dome %+.3f %%" % (
+                cc(exact), 100 * (figs["flat"]["volume_mm3"] - exact) / exact, cc(solid),
+                100 * (figs["slab"]["volume_mm3"] - solid) / solid, 100 * (figs["dome"]["volume_mm3"] - solid) / solid)
         r = data.get("reference_volumes_cc") or {}
         rs = "; ".join("%s %.2f" % (k.split(" ")[0], v) for k, v in r.items())
-        lines.append("| %s | %s | %s | %s | %s | %s | %s |" % (name, cc(figs["flat"]["volume_mm3"]), cc(figs["slab"]["volume_mm3"]),
-                     cc(figs["flat"]["volume"]["trapezoid"]), cc(figs["flat"]["volume"]["cavalieri"]), rs, ex))
+        lines.append("| %s | %s | %s | %s | %s | %s | %s | %s |" % (name, cc(figs["flat"]["volume_mm3"]),
+                     cc(figs["slab"]["volume_mm3"]), cc(figs["dome"]["volume_mm3"]), cc(figs["flat"]["volume"]["trapezoid"]),
+                     cc(figs["flat"]["volume"]["cavalieri"]), rs, ex))
     p = subprocess.run([SURFD, "volume", os.path.join(cdir, "dicompyler_heart.json"), "--repeat", "20"],
                        capture_output=True, text=True)
     t = json.loads(p.stdout)["timings_ms"]
