@@ -64,8 +64,66 @@ static int segments_meet(const double *a, const double *b, const double *c, cons
     return 0; /* collinear touching is left to the duplicate-point rule */
 }
 
+struct edge_span {
+    double x0, x1;
+    int i;
+};
+
+static int by_x0(const void *a, const void *b)
+{
+    double x = ((const struct edge_span *)a)->x0, y = ((const struct edge_span *)b)->x0;
+    return x < y ? -1 : x > y;
+}
+
+/* An edge that crosses another of the same contour (-1: none). A sweep in x: edges are compared only
+ * with those whose x-extent overlaps theirs, which for contours is a handful, not all n. Edges that
+ * share a point (neighbours) are not compared. */
+static int self_crossing(const struct contour_slice *s)
+{
+    int n = s->n, found = -1;
+    struct edge_span *e = malloc(sizeof *e * (size_t)n);
+    if (!e)
+        return -1; /* out of memory: leave the check to the modelling, which copes */
+    for (int i = 0; i < n; i++) {
+        const double *p = s->p[i], *q = s->p[(i + 1) % n];
+        e[i] = (struct edge_span){fmin(p[0], q[0]), fmax(p[0], q[0]), i};
+    }
+    qsort(e, (size_t)n, sizeof *e, by_x0);
+    for (int a = 0; a < n && found < 0; a++)
+        for (int b = a + 1; b < n && e[b].x0 <= e[a].x1 && found < 0; b++) {
+            int i = e[a].i, j = e[b].i, d = abs(i - j);
+            if (d == 1 || d == n - 1)
+                continue; /* neighbours share a point */
+            if (segments_meet(s->p[i], s->p[(i + 1) % n], s->p[j], s->p[(j + 1) % n]))
+                found = i < j ? i : j;
+        }
+    free(e);
+    return found;
+}
+
+static void bbox(const struct contour_slice *s, double b[4])
+{
+    b[0] = b[2] = s->p[0][0];
+    b[1] = b[3] = s->p[0][1];
+    for (int i = 1; i < s->n; i++) {
+        b[0] = fmin(b[0], s->p[i][0]), b[2] = fmax(b[2], s->p[i][0]);
+        b[1] = fmin(b[1], s->p[i][1]), b[3] = fmax(b[3], s->p[i][1]);
+    }
+}
+
+/* The boxes of a and b are disjoint: nothing of one can touch the other. */
+static bool apart(const struct contour_slice *a, const struct contour_slice *b)
+{
+    double p[4], q[4];
+    bbox(a, p);
+    bbox(b, q);
+    return p[2] < q[0] || q[2] < p[0] || p[3] < q[1] || q[3] < p[1];
+}
+
 static bool edges_cross(const struct contour_slice *a, const struct contour_slice *b)
 {
+    if (apart(a, b))
+        return false;
     for (int i = 0; i < a->n; i++)
         for (int j = 0; j < b->n; j++)
             if (segments_meet(a->p[i], a->p[(i + 1) % a->n], b->p[j], b->p[(j + 1) % b->n]))
@@ -75,6 +133,8 @@ static bool edges_cross(const struct contour_slice *a, const struct contour_slic
 
 bool contour_overlap(const struct contour_slice *a, const struct contour_slice *b)
 {
+    if (apart(a, b))
+        return false;
     for (int i = 0; i < a->n; i++)
         if (contour_inside(b, a->p[i][0], a->p[i][1]))
             return true;
@@ -117,13 +177,9 @@ int contour_clean(struct contour_set *cs, struct sf_err *err)
         s->n = m;
         if (m < 3)
             return sf_fail(err, SF_EINVAL, ptr, "a contour needs at least 3 distinct points, this one has %d", m);
-        for (int i = 0; i < m; i++) /* a contour that crosses itself cannot bound a solid */
-            for (int j = i + 2; j < m; j++) {
-                if (i == 0 && j == m - 1)
-                    continue; /* neighbours through the closing edge */
-                if (segments_meet(s->p[i], s->p[(i + 1) % m], s->p[j], s->p[(j + 1) % m]))
-                    return sf_fail(err, SF_EINVAL, ptr, "the contour crosses itself (edges %d and %d)", i, j);
-            }
+        int at = self_crossing(s);
+        if (at >= 0) /* a contour that crosses itself cannot bound a solid */
+            return sf_fail(err, SF_EINVAL, ptr, "the contour crosses itself (at edge %d)", at);
         double a = contour_area(s);
         if (!(fabs(a) > 0))
             return sf_fail(err, SF_EINVAL, ptr, "the contour encloses no area");

@@ -353,8 +353,9 @@ static int curve_poly_segment(const struct curve_poly *cp, double u)
 static const double GL3_X[3] = {0.112701665379258, 0.5, 0.887298334620742};
 static const double GL3_W[3] = {0.277777777777778, 0.444444444444444, 0.277777777777778};
 
-/* M_jl = ½ ∮ (x_j y_l' - y_j x_l') du over u in [0, 1], piece by piece between both curves' breakpoints. */
-static double mixed_area(const struct curve_poly *a, const struct curve_poly *b)
+/* M_jl = ½ ∮ (x_j y_l' - y_j x_l') du over u in [0, 1], piece by piece between both curves'
+ * breakpoints; with sym, M_jl + M_lj in the same pass (all the quadratic form of the area needs). */
+static double mixed_area(const struct curve_poly *a, const struct curve_poly *b, bool sym)
 {
     double sum = 0.0, lo = 0.0;
     int ia = 0, ib = 0; /* next breakpoint index in each */
@@ -367,7 +368,10 @@ static double mixed_area(const struct curve_poly *a, const struct curve_poly *b)
                 double u = lo + (hi - lo) * GL3_X[g], xa, ya, xua, yua, xb, yb, xub, yub;
                 curve_poly_at(a, sa, u, &xa, &ya, &xua, &yua);
                 curve_poly_at(b, sb, u, &xb, &yb, &xub, &yub);
-                sum += GL3_W[g] * (hi - lo) * (xa * yub - ya * xub);
+                double f = xa * yub - ya * xub;
+                if (sym)
+                    f += xb * yua - yb * xua;
+                sum += GL3_W[g] * (hi - lo) * f;
             }
         }
         if (hi == na)
@@ -388,7 +392,7 @@ static double section_area(const struct contour_set *cs, const double *M, int k,
     int j0, m;
     slice_weights(cs, k, z, w, &j0, &m);
     for (int a = 0; a < m; a++)
-        for (int b = 0; b < m; b++)
+        for (int b = a; b < m; b++) /* b > a: the symmetric sum stands for both orders */
             area += w[a] * w[b] * M[(size_t)(j0 + a) * 7 + (size_t)(b - a + 3)];
     return area;
 }
@@ -436,15 +440,16 @@ int model_volume_closed(const struct contour_set *cs, double *volume, double end
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
     struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
-    double *M = calloc((size_t)n * 7, sizeof *M); /* M[j*7 + (l - j + 3)] for |l - j| <= 3 */
+    /* M[j*7 + 3] = M_jj (the curve's area); M[j*7 + (l - j + 3)] for l > j: M_jl + M_lj */
+    double *M = calloc((size_t)n * 7, sizeof *M);
     if (!cv || !cp || !M)
         rc = SF_ENOMEM;
     for (int j = 0; j < n && !rc; j++)
         if (!(rc = curve_build(&cs->s[j], &cv[j])))
             rc = curve_poly_build(&cv[j], &cp[j]);
     for (int j = 0; j < n && !rc; j++)
-        for (int l = j - 3 > 0 ? j - 3 : 0; l <= j + 3 && l < n; l++)
-            M[(size_t)j * 7 + (size_t)(l - j + 3)] = mixed_area(&cp[j], &cp[l]);
+        for (int l = j; l <= j + 3 && l < n; l++)
+            M[(size_t)j * 7 + (size_t)(l - j + 3)] = mixed_area(&cp[j], &cp[l], l > j);
     static const double GL4_X[4] = {0.069431844202974, 0.330009478207572, 0.669990521792428, 0.930568155797026};
     static const double GL4_W[4] = {0.173927422568727, 0.326072577431273, 0.326072577431273, 0.173927422568727};
     double v = 0.0;
@@ -484,7 +489,7 @@ double model_curve_area(const struct contour_slice *s)
     struct curve_poly cp = {0};
     double a = 0.0;
     if (!curve_build(s, &c) && !curve_poly_build(&c, &cp))
-        a = mixed_area(&cp, &cp);
+        a = mixed_area(&cp, &cp, false);
     curve_poly_free(&cp);
     curve_free(&c);
     return a;
