@@ -83,12 +83,22 @@ static void place_camera(struct frame *fr)
         camera_init(&fr->cam, sc->eye, sc->target, sc->up, sc->fov_deg, sc->width, sc->height);
         return;
     }
-    /* frame the bounding sphere from azimuth/elevation (azimuth from -y towards +x, z up) */
+    /* look from azimuth/elevation (azimuth from -y towards +x, z up) at the bounds' centre, from the
+     * nearest distance at which all eight corners of the bounds fit the view with a 5 % margin */
     vec3 c = v3_scale(v3_add(fr->lo, fr->hi), 0.5);
-    double R = 0.5 * fr->diag, az = sc->azimuth_deg * M_PI / 180, el = sc->elevation_deg * M_PI / 180;
-    double half = atan(tan(sc->fov_deg * M_PI / 360) * fmin(1.0, (double)sc->width / sc->height));
-    double dist = 1.05 * R / sin(half);
+    double az = sc->azimuth_deg * M_PI / 180, el = sc->elevation_deg * M_PI / 180;
     vec3 dir = v3(sin(az) * cos(el), -cos(az) * cos(el), sin(el));
+    struct camera probe;
+    camera_init(&probe, v3_add(c, dir), c, v3(0, 0, 1), sc->fov_deg, sc->width, sc->height);
+    double tv = 0.95 * probe.th, th = tv * probe.aspect, dist = 0.0;
+    for (int k = 0; k < 8; k++) {
+        vec3 p = v3(k & 1 ? fr->hi.x : fr->lo.x, k & 2 ? fr->hi.y : fr->lo.y, k & 4 ? fr->hi.z : fr->lo.z);
+        vec3 d = v3_sub(p, c);
+        double x = v3_dot(d, probe.r), y = v3_dot(d, probe.u), z = v3_dot(d, probe.f);
+        /* the corner is at depth dist + z from the eye: it needs |x| <= th (dist + z), |y| likewise */
+        dist = fmax(dist, fmax(fabs(x) / th - z, fabs(y) / tv - z));
+    }
+    dist = fmax(dist, 1e-6 * fr->diag);
     camera_init(&fr->cam, v3_mad(c, dir, dist), c, v3(0, 0, 1), sc->fov_deg, sc->width, sc->height);
 }
 
