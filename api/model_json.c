@@ -113,7 +113,6 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
     int n = 0; /* levels */
     for (int k = 0; k < cs.n_slices; k++)
         n += k == 0 || cs.s[k].z != cs.s[k - 1].z;
-    const double gap0 = cs.s[cs.n_slices - 1].z > cs.s[0].z ? cs.s[1].z - cs.s[0].z : 0;
     bool uneven = false; /* any spacing between levels unlike the first one */
     double first_gap = 0.0;
     for (int k = 1; k < cs.n_slices; k++) {
@@ -124,7 +123,6 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
             first_gap = g;
         uneven |= fabs(g - first_gap) > 1e-6 * first_gap;
     }
-    (void)gap0;
     json_t *o = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:b, s:I, s:f, s:f, s:{s:f, s:f, s:f, s:f, s:f},"
                           " s:[[f,f,f],[f,f,f]], s:{s:f, s:f, s:f, s:f}}",
                           "name", req->name, "method", req->method, "caps", req->caps, "dome_ends_flat",

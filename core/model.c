@@ -112,22 +112,27 @@ static double blend(double t, const double ts[4], const double v[4])
 }
 
 /* The curve at u in [0, 1]. */
+/* The last i with u[i] <= x among n increasing parameters, or -1 when x < u[0]. */
+static int segment_at(const double *u, int n, double x)
+{
+    if (x < u[0])
+        return -1;
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        int mid = (lo + hi + 1) / 2;
+        if (u[mid] <= x)
+            lo = mid;
+        else
+            hi = mid - 1;
+    }
+    return lo;
+}
+
 static void curve_eval(const struct curve *c, double u, double *x, double *y)
 {
     /* segment i: u_i <= u < u_{i+1} (periodic; u below u_0 belongs to the segment from the last
-     * point, i = -1); binary search over the increasing u */
-    int i = -1;
-    if (u >= c->u[0]) {
-        int lo = 0, hi = c->n - 1;
-        while (lo < hi) {
-            int mid = (lo + hi + 1) / 2;
-            if (c->u[mid] <= u)
-                lo = mid;
-            else
-                hi = mid - 1;
-        }
-        i = lo;
-    }
+     * point, i = -1) */
+    int i = segment_at(c->u, c->n, u);
     double ts[4], xs[4], ys[4];
     for (int k = 0; k < 4; k++)
         ts[k] = cu(c, i - 1 + k, &xs[k], &ys[k]);
@@ -337,17 +342,8 @@ static void curve_poly_at(const struct curve_poly *cp, int i, double u, double *
 /* The segment holding u (just after a breakpoint, so pieces never straddle one). */
 static int curve_poly_segment(const struct curve_poly *cp, double u)
 {
-    if (u < cp->u[0])
-        return cp->n - 1;
-    int lo = 0, hi = cp->n - 1;
-    while (lo < hi) {
-        int mid = (lo + hi + 1) / 2;
-        if (cp->u[mid] <= u)
-            lo = mid;
-        else
-            hi = mid - 1;
-    }
-    return lo;
+    int i = segment_at(cp->u, cp->n, u);
+    return i < 0 ? cp->n - 1 : i; /* below u_0: the wrap segment */
 }
 
 static const double GL3_X[3] = {0.112701665379258, 0.5, 0.887298334620742};

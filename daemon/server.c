@@ -39,8 +39,6 @@ struct server {
 #define BODY_BUDGET_BODIES 4
 static atomic_long body_bytes;
 
-enum phase { PHASE_NEW, PHASE_BODY, PHASE_WAITING, PHASE_WOKEN };
-
 struct req {
     struct service *svc;
     struct MHD_Connection *conn;
@@ -53,7 +51,7 @@ struct req {
     long reserved;            /* bytes of body_bytes this request holds */
     bool too_large;           /* over max-body: 413 */
     bool over_budget;         /* over the shared body budget: 503 */
-    enum phase phase;
+    bool woken;               /* resumed after a synchronous wait: answer with the job */
     atomic_bool finished;     /* set by the waiter callback before it resumes */
     char job[40];
     int status;
@@ -297,7 +295,7 @@ static void woken(void *arg, bool finished)
 {
     struct req *r = arg;
     atomic_store(&r->finished, finished);
-    r->phase = PHASE_WOKEN;
+    r->woken = true;
     MHD_resume_connection(r->conn);
 }
 
@@ -330,7 +328,6 @@ static enum MHD_Result submit(struct req *r, const char *kind, const char *forma
     prefer(r, &async, &wait);
     if (async || wait <= 0)
         return job_resource(r, 202, rec.id);
-    r->phase = PHASE_WAITING;
     MHD_suspend_connection(r->conn);
     jobq_wait(svc->q, rec.id, monotonic_s() + wait, woken, r);
     return MHD_YES;
@@ -504,10 +501,9 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
             snprintf(d, sizeof d, "the body is over the limit of %ld bytes", r->svc->cfg.max_body);
             return problem(r, 413, d, NULL); /* before a byte of it is read */
         }
-        r->phase = PHASE_BODY;
         return MHD_YES;
     }
-    if (r->phase == PHASE_WOKEN) /* back from a synchronous wait */
+    if (r->woken) /* back from a synchronous wait */
         return atomic_load(&r->finished) ? job_result(r, r->job, true) : job_resource(r, 202, r->job);
     if (*upload_size) {
         size_t n = *upload_size;

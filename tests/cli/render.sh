@@ -6,10 +6,7 @@ cd "$(dirname "$0")/../.." || exit 1
 S=./build/surfd
 D="${SURFD_DATA:-../shared/data}/scenes"
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
-pass=0; fail=0
-ok()  { pass=$((pass + 1)); }
-bad() { fail=$((fail + 1)); echo "FAIL: $*"; }
-check() { if eval "$2"; then ok; else bad "$1"; fi; }
+. tests/check.inc
 
 # every shared scene renders to a PNG with content (not just background)
 for f in teapot.json teapot.bpt teacup.json teacup.bpt teaspoon.json teaspoon.bpt duck1.nurbs duck2.nurbs duck3.nurbs; do
@@ -50,5 +47,4 @@ check "missing -o" '[ $rc -eq 2 ]'
 $S render "$D/teapot.json" -o "$T/x.png" --width 20000 2>"$T/err"; rc=$?
 check "image too large" '[ $rc -eq 1 ] && grep -q "/image" "$T/err"'
 
-echo "$pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+checks_done

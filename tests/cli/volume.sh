@@ -5,8 +5,7 @@ cd "$(dirname "$0")/../.." || exit 1
 S=./build/surfd
 C="${SURFD_DATA:-../shared/data}/contours"
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
-pass=0; fail=0
-check() { if eval "$2"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: $1"; fi; }
+. tests/check.inc
 
 for f in synthetic_ellipsoid synthetic_bean synthetic_torus_branching dicompyler_heart dicompyler_tumor_bed \
          dicompyler_lt_lung_multicontour eclipse_bladder eclipse_ptv eclipse_rectum eclipse_femoral_head_lt eclipse_body; do
@@ -35,5 +34,4 @@ $S volume "$T/none.json" 2>/dev/null; rc=$?
 check "missing file" '[ $rc -eq 1 ]'
 $S volume 2>/dev/null; rc=$?
 check "usage" '[ $rc -eq 2 ]'
-echo "$pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+checks_done
