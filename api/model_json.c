@@ -6,7 +6,7 @@
 #include <string.h>
 #include <time.h>
 
-#include "../core/model.h"
+#include "../core/solid.h"
 #include "rtstruct.h"
 
 static double now_ms(void)
@@ -38,78 +38,43 @@ static char *dump(json_t *o, struct sf_err *err)
     return s;
 }
 
+static enum model_caps caps_of(const char *name)
+{
+    return !strcmp(name, "slab") ? CAPS_SLAB : !strcmp(name, "dome") ? CAPS_DOME : CAPS_FLAT;
+}
+
 /* The figures of one cleaned contour set as a JSON object (NULL with err set on failure). */
 static json_t *figures(struct contour_set *cs_in, const struct contour_request *req, double t0, struct sf_err *err)
 {
     struct contour_set cs = *cs_in;
-    int rc = 0;
-    enum model_caps caps = !strcmp(req->caps, "slab") ? CAPS_SLAB : !strcmp(req->caps, "dome") ? CAPS_DOME : CAPS_FLAT;
-    int dome_fallbacks = 0; /* stack ends where the dome did not close: half a spacing flat there */
-    struct model_chain *chains = NULL;
-    int n_chains = 0;
-    struct contour_slice *view_storage = malloc(sizeof *view_storage * (size_t)cs.n_slices);
-    if (!view_storage || (rc = model_chains(&cs, caps, &chains, &n_chains, err))) {
-        free(view_storage);
-        if (!rc)
-            sf_fail(err, SF_ENOMEM, "", "out of memory");
+    struct solid sd;
+    double t1 = now_ms();
+    if (solid_build(&cs, caps_of(req->caps), &sd, err))
         return NULL;
+    /* the exact volume straight from the curves, tube by tube (the closed form), and the ends as built */
+    double t2 = now_ms(), closed = 0.0;
+    struct contour_slice *storage = malloc(sizeof *storage * (size_t)cs.n_slices);
+    int rc = storage ? 0 : sf_fail(err, SF_ENOMEM, "", "out of memory");
+    for (int c = 0; c < sd.n_tubes && !rc; c++) {
+        struct contour_set v = model_chain_view(&cs, &sd.chains[c], storage);
+        double vol = 0.0, ends[2];
+        if (v.n_slices >= 2)
+            rc = model_volume_closed(&v, &vol, ends, NULL, err);
+        closed += (sd.tubes[c].hole ? -vol : vol) + sd.tubes[c].volume_ends;
     }
-    /* the exact volume straight from the curves, chain by chain: the fast path */
-    double t1 = now_ms(), closed = 0.0, domes = 0.0;
-    for (int c = 0; c < n_chains && !rc; c++) {
-        struct contour_set v = model_chain_view(&cs, &chains[c], view_storage);
-        double vol, ends[2], dome[2] = {NAN, NAN};
-        if (v.n_slices >= 2) {
-            rc = model_volume_closed(&v, &vol, ends, caps == CAPS_DOME ? dome : NULL, err);
-        } else { /* an island on one slice: its extensions only */
-            ends[0] = ends[1] = model_curve_area(&v.s[0]);
-            vol = 0.0;
-        }
-        vol += ends[0] * chains[c].ext[0] + ends[1] * chains[c].ext[1];
-        for (int e = 0; e < 2 && caps == CAPS_DOME; e++) {
-            if (!chains[c].at_end[e])
-                continue;
-            double add = isfinite(dome[e]) ? dome[e] : 0.5 * ends[e] * chains[c].spacing[e];
-            dome_fallbacks += !isfinite(dome[e]);
-            vol += add;
-            domes += chains[c].hole ? -add : add; /* the dome has no patches: the quadrature takes it from here */
-        }
-        closed += chains[c].hole ? -vol : vol;
-    }
-    /* the patches: area, bounds, and the divergence theorem over them as a cross-check */
-    double t2 = now_ms(), fit_ms = 0.0, quad = domes, area = 0.0;
-    struct model_measures all = {.lo = {INFINITY, INFINITY, INFINITY}, .hi = {-INFINITY, -INFINITY, -INFINITY}};
-    size_t n_patches = 0;
-    for (int c = 0; c < n_chains && !rc; c++) {
-        struct contour_set v = model_chain_view(&cs, &chains[c], view_storage);
-        if (v.n_slices < 2) {
-            double a = model_curve_area(&v.s[0]);
-            quad += (chains[c].hole ? -a : a) * (chains[c].ext[0] + chains[c].ext[1]);
-            area += 2 * a; /* the island's two faces; its rim is left out */
-            continue;
-        }
-        struct patch_set ps = {0};
-        double tp = now_ms();
-        if ((rc = model_parabolic(&v, &ps, err)))
-            break;
-        nurbs_patches_fix(&ps);
-        fit_ms += now_ms() - tp;
-        struct model_measures m;
-        model_measure(&ps, CAPS_SLAB, (const double[2]){2 * chains[c].ext[0], 2 * chains[c].ext[1]}, &m);
-        quad += chains[c].hole ? -m.volume : m.volume;
-        area += m.area;
-        n_patches += ps.n;
-        for (int d = 0; d < 3; d++)
-            all.lo[d] = fmin(all.lo[d], m.lo[d]), all.hi[d] = fmax(all.hi[d], m.hi[d]);
-        nurbs_patch_set_free(&ps);
-    }
-    free(view_storage);
-    model_chains_free(chains, n_chains);
+    free(storage);
+    /* the divergence theorem over every patch as a cross-check, the area and the bounds */
+    double t3 = now_ms();
+    struct solid_measures all;
+    solid_measure(&sd, &all);
+    double t4 = now_ms();
+    size_t n_patches = sd.set.n;
+    int n_chains = sd.n_tubes, dome_fallbacks = sd.dome_fallbacks;
+    solid_free(&sd);
     if (rc)
         return NULL;
     struct contour_baselines b;
     contour_baselines(&cs, &b);
-    double t4 = now_ms();
     int n = 0; /* levels */
     for (int k = 0; k < cs.n_slices; k++)
         n += k == 0 || cs.s[k].z != cs.s[k - 1].z;
@@ -128,10 +93,10 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
                           "name", req->name, "method", req->method, "caps", req->caps, "dome_ends_flat",
                           dome_fallbacks, "slices", n, "contours",
                           cs.n_slices, "chains", n_chains, "uneven_spacing", uneven, "patches", (json_int_t)n_patches,
-                          "volume_mm3", closed, "area_mm2", area, "volume", "exact", closed, "quadrature", quad,
+                          "volume_mm3", closed, "area_mm2", all.area, "volume", "exact", closed, "quadrature", all.volume,
                           "trapezoid", b.trapezoid, "cavalieri", b.cavalieri, "frustum", b.frustum, "bounds",
                           all.lo[0], all.lo[1], all.lo[2], all.hi[0], all.hi[1], all.hi[2], "timings_ms", "read",
-                          t1 - t0, "volume", t2 - t1, "fit", fit_ms, "measure", t4 - t2 - fit_ms);
+                          t1 - t0, "fit", t2 - t1, "volume", t3 - t2, "measure", t4 - t3);
     if (!o)
         sf_fail(err, SF_ENOMEM, "", "out of memory");
     return o;

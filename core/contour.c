@@ -30,6 +30,20 @@ double contour_area(const struct contour_slice *s)
     return 0.5 * a;
 }
 
+void contour_centroid(const struct contour_slice *s, double *x, double *y)
+{
+    double cx = 0, cy = 0, a2 = 0;
+    for (int i = 0; i < s->n; i++) {
+        const double *p = s->p[i], *q = s->p[(i + 1) % s->n];
+        double w = p[0] * q[1] - q[0] * p[1];
+        a2 += w;
+        cx += (p[0] + q[0]) * w;
+        cy += (p[1] + q[1]) * w;
+    }
+    *x = cx / (3 * a2);
+    *y = cy / (3 * a2);
+}
+
 static int by_z(const void *a, const void *b)
 {
     const struct contour_slice *p = a, *q = b;

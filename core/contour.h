@@ -36,6 +36,8 @@ void contour_set_free(struct contour_set *cs);
 
 /* Signed area (shoelace; positive counter-clockwise) of a contour's polygon. */
 double contour_area(const struct contour_slice *s);
+/* Centroid of a contour's polygon (area-weighted). */
+void contour_centroid(const struct contour_slice *s, double *x, double *y);
 /* Whether point (x, y) is inside the contour's polygon (even-odd). */
 bool contour_inside(const struct contour_slice *s, double x, double y);
 /* Whether two contours' regions overlap: a vertex of one inside the other, or crossing edges. */

@@ -43,17 +43,8 @@ static int curve_build(const struct contour_slice *s, struct curve *c)
         free(len);
         return SF_ENOMEM;
     }
-    /* centroid of the polygon */
-    double cx = 0, cy = 0, a2 = 0;
-    for (int i = 0; i < n; i++) {
-        const double *p = s->p[i], *q = s->p[(i + 1) % n];
-        double w = p[0] * q[1] - q[0] * p[1];
-        a2 += w;
-        cx += (p[0] + q[0]) * w;
-        cy += (p[1] + q[1]) * w;
-    }
-    cx /= 3 * a2;
-    cy /= 3 * a2;
+    double cx, cy;
+    contour_centroid(s, &cx, &cy);
     len[0] = 0;
     for (int i = 0; i < n; i++)
         len[i + 1] = len[i] + hypot(s->p[(i + 1) % n][0] - s->p[i][0], s->p[(i + 1) % n][1] - s->p[i][1]);
@@ -395,11 +386,7 @@ static double section_area(const struct contour_set *cs, const double *M, int k,
 
 #define DOME_REACH 3.0  /* spacings the extrapolated section may take to close */
 
-/* The dome beyond an end: the quadratic through the last three section areas (the curves' own,
- * exact; two give a line), extrapolated outward to its first zero and integrated. Exact where the
- * end is a quadric (ellipsoid, sphere: their section areas are quadratic in z). NAN when it does
- * not close within DOME_REACH spacings. z[0] is the end slice, z[1], z[2] the next inward. */
-static double dome_volume(const double z[3], const double A[3], int n)
+double model_dome(const double z[3], const double A[3], int n, struct model_dome *d)
 {
     double dir = z[0] > z[1] ? 1.0 : -1.0, h = fabs(z[0] - z[1]);
     /* q(s) = A0 + b s + c s² in s = dir (z - z0) >= 0, through the slices at s1, s2 < 0 */
@@ -425,9 +412,11 @@ static double dome_volume(const double z[3], const double A[3], int n)
             root = lo > 0 ? lo : (hi > 0 ? hi : NAN);
         }
     }
-    if (!(root > 0) || root > DOME_REACH * h)
-        return NAN;
-    return A[0] * root + b * root * root / 2 + cq * root * root * root / 3;
+    if (!(root > 0) || root > DOME_REACH * h || !(A[0] > 0))
+        root = NAN;
+    if (d)
+        *d = (struct model_dome){A[0], b, cq, root};
+    return isnan(root) ? NAN : A[0] * root + b * root * root / 2 + cq * root * root * root / 3;
 }
 
 int model_volume_closed(const struct contour_set *cs, double *volume, double end_area[2], double dome[2],
@@ -465,8 +454,8 @@ int model_volume_closed(const struct contour_set *cs, double *volume, double end
                 zb[i] = cs->s[i].z, Ab[i] = M[(size_t)i * 7 + 3];
                 zt[i] = cs->s[n - 1 - i].z, At[i] = M[(size_t)(n - 1 - i) * 7 + 3];
             }
-            dome[0] = dome_volume(zb, Ab, m);
-            dome[1] = dome_volume(zt, At, m);
+            dome[0] = model_dome(zb, Ab, m, NULL);
+            dome[1] = model_dome(zt, At, m, NULL);
         }
     }
     for (int j = 0; j < n; j++) {
@@ -579,111 +568,4 @@ out_free:
     free(start);
     free(used);
     return rc ? sf_fail(err, SF_ENOMEM, "", "out of memory") : 0;
-}
-
-/* Gauss–Legendre nodes and weights on [0, 1]. */
-static const double GL5_X[5] = {0.046910077030668, 0.230765344947158, 0.5, 0.769234655052842, 0.953089922969332};
-static const double GL5_W[5] = {0.118463442528095, 0.239314335249683, 0.284444444444444, 0.239314335249683,
-                                0.118463442528095};
-static const double GL8_X[8] = {0.019855071751232, 0.101666761293187, 0.237233795041836, 0.408282678752175,
-                                0.591717321247825, 0.762766204958164, 0.898333238706813, 0.980144928248768};
-static const double GL8_W[8] = {0.050614268145188, 0.111190517226687, 0.156853322938944, 0.181341891689181,
-                                0.181341891689181, 0.156853322938944, 0.111190517226687, 0.050614268145188};
-
-/* seed 000 eq. 21–22: V = ½ ∬ (A Sx + B Sy) du dv. For a bicubic with z linear in v (every model
- * patch), A = y_u Δz and B = -x_u Δz, so the integrand ½ Δz (x y_u - y x_u) is of degree 5 in u and 6
- * in v: 5x5 Gauss–Legendre is exact, and the same 25 evaluations give the area. The Bernstein values
- * at the nodes are tabulated once per call. */
-struct gl5_table {
-    double B[5][4], dB[5][4]; /* cubic Bernstein values and derivatives at the 5 nodes */
-};
-
-static void measure_bicubic(const struct patch *pt, const struct gl5_table *t, struct model_measures *m)
-{
-    const double(*B)[4] = t->B, (*dB)[4] = t->dB;
-    double dz = pt->cw[3][2] - pt->cw[0][2]; /* z of control point (0,3) less (0,0) */
-    for (int a = 0; a < 5; a++) {
-        /* contract the u direction first: rows c[j] = sum_i B_i(u) P_ij, cu[j] = sum_i B'_i(u) P_ij */
-        double cx[4] = {0}, cy[4] = {0}, cux[4] = {0}, cuy[4] = {0};
-        for (int i = 0; i < 4; i++)
-            for (int j = 0; j < 4; j++) {
-                const double *P = pt->cw[i * 4 + j];
-                cx[j] += B[a][i] * P[0], cy[j] += B[a][i] * P[1];
-                cux[j] += dB[a][i] * P[0], cuy[j] += dB[a][i] * P[1];
-            }
-        for (int b = 0; b < 5; b++) {
-            double x = 0, y = 0, xu = 0, yu = 0, xv = 0, yv = 0;
-            for (int j = 0; j < 4; j++) {
-                x += B[b][j] * cx[j], y += B[b][j] * cy[j];
-                xu += B[b][j] * cux[j], yu += B[b][j] * cuy[j];
-                xv += dB[b][j] * cx[j], yv += dB[b][j] * cy[j];
-            }
-            double w = GL5_W[a] * GL5_W[b];
-            m->volume_flat += 0.5 * w * dz * (x * yu - y * xu);
-            double nx = yu * dz, ny = -xu * dz, nz = xu * yv - yu * xv; /* Su × Sv */
-            m->area += w * sqrt(nx * nx + ny * ny + nz * nz);
-        }
-    }
-}
-
-/* Any patch: the general integrand of eq. 21–22 (exact for degree up to 9 per direction) and the area. */
-static void measure_general(const struct patch *pt, struct model_measures *m)
-{
-    for (int a = 0; a < 5; a++)
-        for (int b = 0; b < 5; b++) {
-            vec3 P, Pu, Pv;
-            bezier_eval(pt, GL5_X[a], GL5_X[b], &P, &Pu, &Pv);
-            double A = Pu.y * Pv.z - Pu.z * Pv.y, B = Pu.z * Pv.x - Pu.x * Pv.z, w = GL5_W[a] * GL5_W[b];
-            m->volume_flat += 0.5 * w * (A * P.x + B * P.y);
-            m->area += w * v3_len(v3_cross(Pu, Pv));
-        }
-}
-
-void model_measure(const struct patch_set *set, enum model_caps caps, const double end_gap[2],
-                   struct model_measures *m)
-{
-    memset(m, 0, sizeof *m);
-    double zmin = INFINITY, zmax = -INFINITY;
-    for (size_t k = 0; k < set->n; k++) {
-        zmin = fmin(zmin, set->patches[k].v0);
-        zmax = fmax(zmax, set->patches[k].v1);
-    }
-    for (int d = 0; d < 3; d++)
-        m->lo[d] = INFINITY, m->hi[d] = -INFINITY;
-    struct gl5_table t;
-    for (int a = 0; a < 5; a++)
-        bezier_basis(3, GL5_X[a], t.B[a], t.dB[a]);
-    for (size_t k = 0; k < set->n; k++) {
-        const struct patch *pt = &set->patches[k];
-        vec3 lo, hi;
-        bezier_bounds(pt, &lo, &hi);
-        m->lo[0] = fmin(m->lo[0], lo.x), m->lo[1] = fmin(m->lo[1], lo.y), m->lo[2] = fmin(m->lo[2], lo.z);
-        m->hi[0] = fmax(m->hi[0], hi.x), m->hi[1] = fmax(m->hi[1], hi.y), m->hi[2] = fmax(m->hi[2], hi.z);
-        if (pt->p == 3 && pt->q == 3 && !pt->rational)
-            measure_bicubic(pt, &t, m);
-        else
-            measure_general(pt, m);
-        /* end curves: area = ∮ x dy along the v = 0 edge at the first slice and v = 1 at the last
-         * (counter-clockwise in u); the integrand is of degree 5, exact with 5 points */
-        for (int e = 0; e < 2; e++) {
-            if ((e == 0 && pt->v0 != zmin) || (e == 1 && pt->v1 != zmax))
-                continue;
-            for (int a = 0; a < 5; a++) {
-                vec3 P, Pu;
-                bezier_eval(pt, GL5_X[a], e, &P, &Pu, NULL);
-                m->end_area[e] += GL5_W[a] * P.x * Pu.y;
-            }
-            for (int a = 0; a < 8; a++) {
-                vec3 Pu;
-                bezier_eval(pt, GL8_X[a], e, NULL, &Pu, NULL);
-                m->end_perimeter[e] += GL8_W[a] * v3_len(Pu);
-            }
-        }
-    }
-    m->volume = m->volume_flat;
-    m->area += m->end_area[0] + m->end_area[1]; /* the caps */
-    if (caps == CAPS_SLAB) {
-        m->volume += 0.5 * (m->end_area[0] * end_gap[0] + m->end_area[1] * end_gap[1]);
-        m->area += 0.5 * (m->end_perimeter[0] * end_gap[0] + m->end_perimeter[1] * end_gap[1]);
-    }
 }

@@ -46,21 +46,16 @@ void model_chains_free(struct model_chain *c, int n);
 /* The chain's contours as a set of one contour per level (borrowing their points). */
 struct contour_set model_chain_view(const struct contour_set *cs, const struct model_chain *c,
                                     struct contour_slice *storage);
+/* The dome beyond an end: the quadratic q(s) = a0 + b s + c s² through the last three section
+ * areas (two give a line; z[0] the end level, z[1], z[2] the next inward, s the distance outward),
+ * extrapolated to its first zero, root. Returns its volume (the integral of q up to root), exact
+ * where the end is a quadric (its section areas are quadratic in z); NAN, with root NAN, when it
+ * does not close within three spacings (a shape still growing at its end). d may be NULL. */
+struct model_dome {
+    double a0, b, c, root;
+};
+double model_dome(const double z[3], const double A[3], int n, struct model_dome *d);
 /* Area enclosed by the curve through one contour (exact, as the volume's end areas). */
 double model_curve_area(const struct contour_slice *s);
-
-struct model_measures {
-    double volume;       /* with the caps asked for */
-    double volume_flat;  /* divergence theorem, Gauss–Legendre exact for bicubics (seed 000 eq. 21–22) */
-    double end_area[2];  /* areas enclosed by the first and last slice's curves (Green, exact) */
-    double end_perimeter[2];
-    double area;         /* of the closed solid: lateral (5x5 Gauss–Legendre per patch) and caps */
-    double lo[3], hi[3]; /* bounds of the control points */
-};
-/* caps: CAPS_FLAT closes the solid at the end slices; CAPS_SLAB adds a prism of the end curve half
- * a slice spacing out at each end (end_gap[0], end_gap[1]: the first and last spacing), as most
- * planning systems count. */
-void model_measure(const struct patch_set *set, enum model_caps caps, const double end_gap[2],
-                   struct model_measures *m);
 
 #endif

@@ -3,7 +3,7 @@
  * interpolation of every contour point, baselines, and every rejection with its pointer. */
 #include "../../api/contour_json.h"
 #include "../../api/model_json.h"
-#include "../../core/model.h"
+#include "../../core/solid.h"
 #include "../unit.h"
 
 #include <stdlib.h>
@@ -16,6 +16,15 @@ static int model_of(const char *text, size_t len, struct contour_set *cs, struct
     if (!rc && !(rc = model_parabolic(cs, ps, err)))
         nurbs_patches_fix(ps);
     return rc;
+}
+
+static void measure(const struct contour_set *cs, enum model_caps caps, struct solid_measures *m)
+{
+    struct solid sd;
+    memset(m, 0, sizeof *m);
+    CHECK(solid_build(cs, caps, &sd, NULL) == 0);
+    solid_measure(&sd, m);
+    solid_free(&sd);
 }
 
 /* caps flat: within 0.2 % of the exact solid between the end slices (issue 5's target) */
@@ -35,8 +44,8 @@ TEST(synthetic_volumes_within_0_2_percent)
         struct patch_set ps;
         struct sf_err err = {0};
         CHECK(model_of(buf, len, &cs, &ps, &err) == 0);
-        struct model_measures m;
-        model_measure(&ps, CAPS_FLAT, (const double[2]){0, 0}, &m);
+        struct solid_measures m;
+        measure(&cs, CAPS_FLAT, &m);
         double rel = (m.volume - cases[k].exact) / cases[k].exact;
         fprintf(stderr, "  %s: %.3f mm3, %+.4f %% (%zu patches)\n", cases[k].file, m.volume, 100 * rel, ps.n);
         CHECK(fabs(rel) < 0.002);
@@ -167,11 +176,11 @@ TEST(closed_form_equals_quadrature)
         CHECK(buf && model_of(buf, len, &cs, &ps, NULL) == 0);
         double v, ends[2];
         CHECK(model_volume_closed(&cs, &v, ends, NULL, NULL) == 0);
-        struct model_measures m;
-        model_measure(&ps, CAPS_FLAT, (const double[2]){0, 0}, &m);
+        struct solid_measures m;
+        measure(&cs, CAPS_FLAT, &m);
         CHECK_NEAR(v / m.volume, 1.0, 1e-12);
-        CHECK_NEAR(ends[0] / m.end_area[0], 1.0, 1e-12);
-        CHECK_NEAR(ends[1] / m.end_area[1], 1.0, 1e-12);
+        CHECK_NEAR(ends[0] / model_curve_area(&cs.s[0]), 1.0, 1e-12);
+        CHECK_NEAR(ends[1] / model_curve_area(&cs.s[cs.n_slices - 1]), 1.0, 1e-12);
         nurbs_patch_set_free(&ps);
         contour_set_free(&cs);
         free(buf);
@@ -198,8 +207,8 @@ TEST(volume_quadrature_is_exact)
                 bezier_eval(&ps.patches[p], X[a], X[b], &P, &Pu, &Pv);
                 v8 += 0.5 * W[a] * W[b] * ((Pu.y * Pv.z - Pu.z * Pv.y) * P.x + (Pu.z * Pv.x - Pu.x * Pv.z) * P.y);
             }
-    struct model_measures m;
-    model_measure(&ps, CAPS_FLAT, (const double[2]){0, 0}, &m);
+    struct solid_measures m;
+    measure(&cs, CAPS_FLAT, &m); /* flat caps add nothing to the integral */
     CHECK_NEAR(m.volume / v8, 1.0, 1e-12);
     nurbs_patch_set_free(&ps);
     contour_set_free(&cs);
@@ -224,17 +233,18 @@ TEST(cylinder_and_baselines)
     struct contour_set cs;
     struct patch_set ps;
     CHECK(model_of(text, n, &cs, &ps, NULL) == 0);
-    struct model_measures m;
-    model_measure(&ps, CAPS_FLAT, (const double[2]){0, 0}, &m);
+    struct solid_measures m;
+    measure(&cs, CAPS_FLAT, &m);
     double exact = M_PI * 100 * 15;
     CHECK(fabs(m.volume - exact) / exact < 2e-4); /* the curve through 64 points is nearly the circle */
-    CHECK(fabs(m.end_area[0] - M_PI * 100) / (M_PI * 100) < 2e-4 && fabs(m.end_area[1] - M_PI * 100) / (M_PI * 100) < 2e-4);
+    CHECK(fabs(model_curve_area(&cs.s[0]) - M_PI * 100) / (M_PI * 100) < 2e-4);
     CHECK(fabs(m.area - (2 * M_PI * 10 * 15 + 2 * M_PI * 100)) / m.area < 2e-4); /* side and two caps */
-    struct model_measures slab;
-    model_measure(&ps, CAPS_SLAB, (const double[2]){5, 5}, &slab);
+    CHECK(fabs(m.lo[2]) < 1e-12 && fabs(m.hi[2] - 15) < 1e-12 && fabs(m.hi[0] - 10) < 0.1);
+    struct solid_measures slab;
+    measure(&cs, CAPS_SLAB, &slab);
     CHECK(fabs(slab.volume - M_PI * 100 * 20) / (M_PI * 100 * 20) < 2e-4); /* half a spacing out at each end */
     CHECK(fabs(slab.area - (2 * M_PI * 10 * 20 + 2 * M_PI * 100)) / slab.area < 2e-4);
-    CHECK_NEAR(slab.volume_flat, m.volume, 1e-9 * m.volume);
+    CHECK(fabs(slab.lo[2] + 2.5) < 1e-12 && fabs(slab.hi[2] - 17.5) < 1e-12);
     struct contour_baselines b;
     contour_baselines(&cs, &b);
     double poly = 0.5 * 64 * 100 * sin(2 * M_PI / 64); /* the polygon's area */
@@ -245,6 +255,62 @@ TEST(cylinder_and_baselines)
     nurbs_patch_set_free(&ps);
     contour_set_free(&cs);
     free(text);
+}
+
+static int cmp_edge(const void *a, const void *b)
+{
+    const unsigned *x = a, *y = b;
+    return x[0] != y[0] ? (x[0] > y[0]) - (x[0] < y[0]) : (x[1] > y[1]) - (x[1] < y[1]);
+}
+
+/* Every directed edge once, and its reverse once: closed and consistently oriented. */
+static bool watertight(const struct mesh *m)
+{
+    size_t n = 3 * m->n_t;
+    unsigned(*e)[2] = malloc(sizeof *e * n);
+    for (size_t k = 0; k < m->n_t; k++)
+        for (int i = 0; i < 3; i++)
+            e[3 * k + i][0] = m->t[k][i], e[3 * k + i][1] = m->t[k][(i + 1) % 3];
+    qsort(e, n, sizeof *e, cmp_edge);
+    bool ok = true;
+    for (size_t k = 0; k < n && ok; k++) {
+        unsigned key[2] = {e[k][1], e[k][0]};
+        ok = (k == 0 || cmp_edge(e[k - 1], e[k])) && bsearch(key, e, n, sizeof *e, cmp_edge);
+    }
+    free(e);
+    return ok;
+}
+
+/* Meshes: closed, oriented, and within 0.1 % of the model's volume at the default tolerance, for every kind of end (flat, slab walls, domes), branchings and holes. */
+TEST(meshes_are_closed_and_hold_the_volume)
+{
+    const struct {
+        const char *file;
+        enum model_caps caps;
+    } cases[] = {{"synthetic_ellipsoid.json", CAPS_DOME}, {"synthetic_bean.json", CAPS_FLAT},
+                 {"synthetic_torus_branching.json", CAPS_SLAB}, {"dicompyler_lt_lung_multicontour.json", CAPS_DOME},
+                 {"dicompyler_heart.json", CAPS_DOME}};
+    for (size_t k = 0; k < sizeof cases / sizeof *cases; k++) {
+        size_t len;
+        char *buf = unit_data("contours", cases[k].file, &len);
+        struct contour_set cs;
+        struct contour_request req;
+        struct solid sd;
+        struct solid_measures sm;
+        struct mesh m;
+        CHECK(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
+        CHECK(solid_build(&cs, cases[k].caps, &sd, NULL) == 0);
+        solid_measure(&sd, &sm);
+        CHECK(solid_mesh(&sd, solid_default_tolerance(&sm), &m) == 0);
+        double vm = mesh_volume(&m), rel = (vm - sm.volume) / sm.volume;
+        fprintf(stderr, "  %s: %zu triangles, volume %+.4f %% of the model's\n", cases[k].file, m.n_t, 100 * rel);
+        CHECK(watertight(&m));
+        CHECK(fabs(rel) < 1e-3);
+        mesh_free(&m);
+        solid_free(&sd);
+        contour_set_free(&cs);
+        free(buf);
+    }
 }
 
 TEST(rejections)
@@ -289,6 +355,7 @@ int main(void)
     RUN(volume_quadrature_is_exact);
     RUN(closed_form_equals_quadrature);
     RUN(cylinder_and_baselines);
+    RUN(meshes_are_closed_and_hold_the_volume);
     RUN(rejections);
     UNIT_END();
 }

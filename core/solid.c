@@ -1,0 +1,595 @@
+/* solid.c - contour models closed into solids: tubes of bands (solid.h), their measures and
+ * their triangle meshes. Ear clipping for the flat ends is written here because it is the only
+ * polygon triangulation surfd needs and the polygons are simple (a cleaned contour's curve). */
+#include "solid.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mem.h"
+
+/* ---- building ------------------------------------------------------------------------------ */
+
+/* Appends a patch of degree (p, q) and returns its control points, valid until the next append
+ * (the pool may move); NULL when out of memory. cw is kept as a pool offset until the end. */
+static double (*new_patch(struct patch_set *set, int p, int q, bool rational, double u0, double u1))[4]
+{
+    size_t np = (size_t)(p + 1) * (size_t)(q + 1);
+    if (mem_reserve((void **)&set->patches, &set->cap, set->n + 1, sizeof *set->patches) ||
+        mem_reserve((void **)&set->pool, &set->cap_pool, set->n_pool + np, sizeof *set->pool))
+        return NULL;
+    set->patches[set->n++] = (struct patch){p, q, rational, (double(*)[4])(uintptr_t)set->n_pool, 0, u0, u1, 0, 1};
+    set->n_pool += np;
+    return set->pool + set->n_pool - np;
+}
+
+/* Patch k with its control points resolved (while they are still pool offsets). */
+static struct patch resolved(const struct patch_set *set, size_t k)
+{
+    struct patch pt = set->patches[k];
+    pt.cw = set->pool + (uintptr_t)pt.cw;
+    return pt;
+}
+
+static const double GL5_X[5] = {0.046910077030668, 0.230765344947158, 0.5, 0.769234655052842, 0.953089922969332};
+static const double GL5_W[5] = {0.118463442528095, 0.239314335249683, 0.284444444444444, 0.239314335249683,
+                                0.118463442528095};
+
+/* Area enclosed by a band's row t (0 or 1): ∮ x dy, exact for the cubic rows of side bands. */
+static double row_area(const struct patch_set *set, const struct band *b, double t)
+{
+    double a = 0.0;
+    for (size_t k = b->first; k < b->first + b->n; k++) {
+        struct patch pt = resolved(set, k);
+        for (int g = 0; g < 5; g++) {
+            vec3 P, Pu;
+            bezier_eval(&pt, GL5_X[g], t, &P, &Pu, NULL);
+            a += GL5_W[g] * P.x * Pu.y;
+        }
+    }
+    return a;
+}
+
+/* The dome's profile (s, ρ), ρ² = q(s)/q(0), as a rational quadratic: from (0, 1) along the slope
+ * q'(0)/(2 q(0)) to the apex (root, 0), where it arrives vertically; the middle weight puts the
+ * curve through the profile's point at s = root/2 (a conic is fixed by two tangents and a point). */
+static void dome_profile(const struct model_dome *d, double s[3], double rho[3], double w[3])
+{
+    double R = d->root, b = d->b / d->a0, c = d->c / d->a0;
+    s[0] = 0, rho[0] = 1, w[0] = 1;
+    s[1] = R, rho[1] = 1 + 0.5 * b * R, w[1] = 1;
+    s[2] = R, rho[2] = 0, w[2] = 1;
+    double sm = 0.5 * R, rm = sqrt(fmax(0.0, 1 + b * sm + c * sm * sm));
+    /* M = α P0 + β P1 + γ P2: α = 1/2 from x; then w1 = β / (2 sqrt(α γ)) */
+    double alpha = 0.5, beta = rho[1] > 1e-9 ? (rm - alpha) / rho[1] : 0.0, gamma = 1 - alpha - beta;
+    if (beta > 0 && gamma > 0)
+        w[1] = beta / (2 * sqrt(alpha * gamma));
+    else /* a double root: the profile is a straight line to the apex (a cone) */
+        s[1] = 0.5 * R, rho[1] = 0.5;
+}
+
+/* The end bands of one end (e = 0 bottom, 1 top) of a tube whose end side band is `side`:
+ * a dome (when d is given), or a wall of ext (when ext > 0) and a cap. Appends them to out in the
+ * tube's upward order for that end. */
+static int end_bands(struct solid *s, const struct band *side, int e, double z, const double c[2],
+                     const struct model_dome *d, double ext, struct band *out, int *n_out)
+{
+    struct patch_set *set = &s->set;
+    int jrow = e ? 3 : 0, n = 0;
+    double sd[3], rho[3], w[3];
+    if (d)
+        dome_profile(d, sd, rho, w);
+    enum band_kind kinds[2];
+    if (d)
+        kinds[n++] = BAND_DOME;
+    else {
+        if (ext > 0)
+            kinds[n++] = BAND_WALL;
+        kinds[n++] = BAND_CAP;
+    }
+    if (!e) /* bottom: outermost first */
+        for (int a = 0, b = n - 1; a < b; a++, b--) {
+            enum band_kind t = kinds[a];
+            kinds[a] = kinds[b], kinds[b] = t;
+        }
+    double dir = e ? 1.0 : -1.0, zc = z + dir * ext; /* the cap's plane */
+    for (int k = 0; k < n; k++) {
+        struct band *b = &out[(*n_out)++];
+        *b = (struct band){kinds[k], set->n, side->n};
+        for (size_t i = side->first; i < side->first + side->n; i++) {
+            struct patch sp = resolved(set, i);
+            double E[4][2];
+            for (int a = 0; a < 4; a++)
+                E[a][0] = sp.cw[a * 4 + jrow][0], E[a][1] = sp.cw[a * 4 + jrow][1];
+            bool dome = kinds[k] == BAND_DOME;
+            double(*cw)[4] = new_patch(set, 3, dome ? 2 : 1, dome, sp.u0, sp.u1);
+            if (!cw)
+                return SF_ENOMEM;
+            for (int a = 0; a < 4; a++) {
+                double *row = cw[a * (dome ? 3 : 2)];
+                if (dome)
+                    for (int j = 0; j < 3; j++) { /* top: rim at t = 0; bottom: apex at t = 0 */
+                        double *P = row + 4 * (e ? j : 2 - j);
+                        P[0] = w[j] * (c[0] + rho[j] * (E[a][0] - c[0]));
+                        P[1] = w[j] * (c[1] + rho[j] * (E[a][1] - c[1]));
+                        P[2] = w[j] * (z + dir * sd[j]);
+                        P[3] = w[j];
+                    }
+                else { /* rows t = 0 and 1, so that Su × Sv faces out */
+                    double *lo = row, *hi = row + 4, ex = E[a][0], ey = E[a][1];
+                    bool wall = kinds[k] == BAND_WALL;
+                    double l[3] = {ex, ey, e ? z : zc}, h[3] = {ex, ey, e ? zc : z}; /* wall: up the side */
+                    if (!wall && e) /* top cap: rim to centre */
+                        l[2] = zc, h[0] = c[0], h[1] = c[1];
+                    else if (!wall) /* bottom cap: centre to rim */
+                        l[0] = c[0], l[1] = c[1], h[2] = zc;
+                    memcpy(lo, l, sizeof l);
+                    memcpy(hi, h, sizeof h);
+                    lo[3] = hi[3] = 1.0;
+                }
+            }
+        }
+    }
+    return 0;
+}
+
+/* Reverses u in every patch of bands [b0, b1): the surface then faces the other way. */
+static void flip_u(struct solid *s, int b0, int b1)
+{
+    for (int b = b0; b < b1; b++)
+        for (size_t k = s->bands[b].first; k < s->bands[b].first + s->bands[b].n; k++) {
+            struct patch pt = resolved(&s->set, k);
+            int m = pt.q + 1;
+            for (int i = 0; 2 * i < pt.p; i++)
+                for (int j = 0; j < m; j++)
+                    for (int c = 0; c < 4; c++) {
+                        double t = pt.cw[i * m + j][c];
+                        pt.cw[i * m + j][c] = pt.cw[(pt.p - i) * m + j][c];
+                        pt.cw[(pt.p - i) * m + j][c] = t;
+                    }
+        }
+}
+
+static int tube_build(struct solid *s, const struct contour_set *cs, const struct model_chain *ch, enum model_caps caps,
+                      struct contour_slice *storage, struct tube *tb, struct sf_err *err)
+{
+    struct contour_set v = model_chain_view(cs, ch, storage);
+    double ext[2] = {ch->ext[0], ch->ext[1]}, island_h = 0.0;
+    bool dome[2] = {caps == CAPS_DOME && ch->at_end[0], caps == CAPS_DOME && ch->at_end[1]};
+    if (v.n_slices == 1) { /* an island on one level: a prism of its extensions */
+        for (int e = 0; e < 2; e++)
+            if (dome[e]) {
+                ext[e] += 0.5 * ch->spacing[e];
+                s->dome_fallbacks++;
+                dome[e] = false;
+            }
+        storage[1] = storage[0];
+        storage[0].z -= ext[0];
+        storage[1].z += ext[1];
+        v.n_slices = 2;
+        island_h = ext[0] + ext[1];
+        ext[0] = ext[1] = 0.0;
+    }
+    size_t p0 = s->set.n;
+    int rc = model_parabolic(&v, &s->set, err);
+    if (rc)
+        return rc;
+    int n_side = v.n_slices - 1, nb = 0;
+    struct band *bl = malloc(sizeof *bl * (size_t)(n_side + 4)), *side = bl + 2; /* room for 2 bands below */
+    if (!bl)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    for (size_t k = p0; k < s->set.n; k++) { /* one side band per level pair: runs of equal v0 */
+        if (k == p0 || s->set.patches[k].v0 != s->set.patches[k - 1].v0)
+            side[nb++] = (struct band){BAND_SIDE, k, 0};
+        side[nb - 1].n++;
+    }
+    struct band ends[2][2];
+    int n_end[2] = {0, 0};
+    tb->hole = ch->hole;
+    tb->volume_ends = island_h > 0 ? fabs(row_area(&s->set, &side[0], 0.0)) * island_h : 0.0;
+    for (int e = 0; e < 2 && !rc; e++) {
+        const struct band *sb = &side[e ? nb - 1 : 0];
+        const struct contour_slice *cend = &v.s[e ? v.n_slices - 1 : 0];
+        struct model_dome d;
+        double area = fabs(row_area(&s->set, sb, e));
+        if (dome[e]) { /* the section areas of the last three levels, from the side rows */
+            double z[3], A[3];
+            int m = v.n_slices > 2 ? 3 : 2;
+            for (int i = 0; i < m; i++) {
+                const struct band *bi = &side[e ? nb - 1 - (i > 0 ? i - 1 : 0) : (i > 0 ? i - 1 : 0)];
+                double t = e ? (i == 0 ? 1 : 0) : (i == 0 ? 0 : 1);
+                z[i] = v.s[e ? v.n_slices - 1 - i : i].z;
+                A[i] = fabs(row_area(&s->set, bi, t));
+            }
+            double vol = model_dome(z, A, m, &d);
+            if (isnan(vol)) {
+                ext[e] += 0.5 * ch->spacing[e];
+                s->dome_fallbacks++;
+                dome[e] = false;
+            } else
+                tb->volume_ends += vol;
+        }
+        if (!dome[e])
+            tb->volume_ends += area * ext[e];
+        double c[2];
+        contour_centroid(cend, &c[0], &c[1]);
+        rc = end_bands(s, sb, e, cend->z, c, dome[e] ? &d : NULL, ext[e], ends[e], &n_end[e]);
+    }
+    if (ch->hole)
+        tb->volume_ends = -tb->volume_ends;
+    int total = n_end[0] + nb + n_end[1];
+    if (!rc && mem_reserve((void **)&s->bands, &s->cap_bands, (size_t)(s->n_bands + total), sizeof *s->bands))
+        rc = SF_ENOMEM;
+    if (!rc) {
+        tb->first = s->n_bands;
+        tb->n = total;
+        struct band *out = s->bands + s->n_bands;
+        memcpy(out, ends[0], sizeof *out * (size_t)n_end[0]);
+        memcpy(out + n_end[0], side, sizeof *out * (size_t)nb);
+        memcpy(out + n_end[0] + nb, ends[1], sizeof *out * (size_t)n_end[1]);
+        s->n_bands += total;
+        if (ch->hole)
+            flip_u(s, tb->first, s->n_bands);
+    }
+    free(bl);
+    return rc == SF_ENOMEM ? sf_fail(err, rc, "", "out of memory building the solid") : rc;
+}
+
+int solid_build(const struct contour_set *cs, enum model_caps caps, struct solid *s, struct sf_err *err)
+{
+    memset(s, 0, sizeof *s);
+    int n_chains = 0, rc = model_chains(cs, caps, &s->chains, &n_chains, err);
+    if (rc)
+        return rc;
+    s->tubes = calloc((size_t)n_chains, sizeof *s->tubes);
+    struct contour_slice *storage = malloc(sizeof *storage * (size_t)(cs->n_slices + 1));
+    if (!s->tubes || !storage)
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+    s->n_tubes = n_chains;
+    for (int c = 0; c < n_chains && !rc; c++)
+        rc = tube_build(s, cs, &s->chains[c], caps, storage, &s->tubes[c], err);
+    free(storage);
+    nurbs_patches_fix(&s->set);
+    if (rc)
+        solid_free(s);
+    return rc;
+}
+
+void solid_free(struct solid *s)
+{
+    nurbs_patch_set_free(&s->set);
+    free(s->bands);
+    model_chains_free(s->chains, s->n_tubes);
+    free(s->tubes);
+    memset(s, 0, sizeof *s);
+}
+
+/* ---- measures --------------------------------------------------------------------------------
+ * seed 000 eq. 21–22: V = ½ ∬ (A Sx + B Sy) du dv over every patch. For a bicubic with z linear in v
+ * (every side patch), A = y_u Δz and B = -x_u Δz, so the integrand ½ Δz (x y_u - y x_u) is of degree 5
+ * in u and 6 in v: 5x5 Gauss–Legendre is exact, and the same 25 evaluations give the area. */
+struct gl5_table {
+    double B[5][4], dB[5][4]; /* cubic Bernstein values and derivatives at the 5 nodes */
+};
+
+static void measure_bicubic(const struct patch *pt, const struct gl5_table *t, double *volume, double *area)
+{
+    const double(*B)[4] = t->B, (*dB)[4] = t->dB;
+    double dz = pt->cw[3][2] - pt->cw[0][2]; /* z of control point (0,3) less (0,0) */
+    for (int a = 0; a < 5; a++) {
+        /* contract the u direction first: rows c[j] = sum_i B_i(u) P_ij, cu[j] = sum_i B'_i(u) P_ij */
+        double cx[4] = {0}, cy[4] = {0}, cux[4] = {0}, cuy[4] = {0};
+        for (int i = 0; i < 4; i++)
+            for (int j = 0; j < 4; j++) {
+                const double *P = pt->cw[i * 4 + j];
+                cx[j] += B[a][i] * P[0], cy[j] += B[a][i] * P[1];
+                cux[j] += dB[a][i] * P[0], cuy[j] += dB[a][i] * P[1];
+            }
+        for (int b = 0; b < 5; b++) {
+            double x = 0, y = 0, xu = 0, yu = 0, xv = 0, yv = 0;
+            for (int j = 0; j < 4; j++) {
+                x += B[b][j] * cx[j], y += B[b][j] * cy[j];
+                xu += B[b][j] * cux[j], yu += B[b][j] * cuy[j];
+                xv += dB[b][j] * cx[j], yv += dB[b][j] * cy[j];
+            }
+            double w = GL5_W[a] * GL5_W[b];
+            *volume += 0.5 * w * dz * (x * yu - y * xu);
+            double nx = yu * dz, ny = -xu * dz, nz = xu * yv - yu * xv; /* Su × Sv */
+            *area += w * sqrt(nx * nx + ny * ny + nz * nz);
+        }
+    }
+}
+
+/* Any patch, n x n Gauss–Legendre nodes (exact for polynomial integrands up to degree 2n-1 per
+ * direction; the domes' rational integrand is smooth, and 8 nodes leave it below 1e-9). With
+ * signed_z, the area is that of the projection on z, signed (a cap's fan folds, its signed area
+ * does not). */
+static void measure_general(const struct patch *pt, int n, const double *X, const double *W, bool signed_z,
+                            double *volume, double *area)
+{
+    for (int a = 0; a < n; a++)
+        for (int b = 0; b < n; b++) {
+            vec3 P, Pu, Pv;
+            bezier_eval(pt, X[a], X[b], &P, &Pu, &Pv);
+            double A = Pu.y * Pv.z - Pu.z * Pv.y, B = Pu.z * Pv.x - Pu.x * Pv.z, w = W[a] * W[b];
+            *volume += 0.5 * w * (A * P.x + B * P.y);
+            *area += w * (signed_z ? Pu.x * Pv.y - Pu.y * Pv.x : v3_len(v3_cross(Pu, Pv)));
+        }
+}
+
+static const double GL8_X[8] = {0.019855071751232, 0.101666761293187, 0.237233795041836, 0.408282678752175,
+                                0.591717321247825, 0.762766204958164, 0.898333238706813, 0.980144928248768};
+static const double GL8_W[8] = {0.050614268145188, 0.111190517226687, 0.156853322938944, 0.181341891689181,
+                                0.181341891689181, 0.156853322938944, 0.111190517226687, 0.050614268145188};
+
+void solid_measure(const struct solid *s, struct solid_measures *m)
+{
+    memset(m, 0, sizeof *m);
+    for (int d = 0; d < 3; d++)
+        m->lo[d] = INFINITY, m->hi[d] = -INFINITY;
+    struct gl5_table t;
+    for (int a = 0; a < 5; a++)
+        bezier_basis(3, GL5_X[a], t.B[a], t.dB[a]);
+    for (int b = 0; b < s->n_bands; b++) {
+        const struct band *bd = &s->bands[b];
+        double cap = 0.0;
+        for (size_t k = bd->first; k < bd->first + bd->n; k++) {
+            const struct patch *pt = &s->set.patches[k];
+            vec3 lo, hi;
+            bezier_bounds(pt, &lo, &hi);
+            m->lo[0] = fmin(m->lo[0], lo.x), m->lo[1] = fmin(m->lo[1], lo.y), m->lo[2] = fmin(m->lo[2], lo.z);
+            m->hi[0] = fmax(m->hi[0], hi.x), m->hi[1] = fmax(m->hi[1], hi.y), m->hi[2] = fmax(m->hi[2], hi.z);
+            if (bd->kind == BAND_SIDE)
+                measure_bicubic(pt, &t, &m->volume, &m->area);
+            else if (bd->kind == BAND_DOME)
+                measure_general(pt, 8, GL8_X, GL8_W, false, &m->volume, &m->area);
+            else
+                measure_general(pt, 5, GL5_X, GL5_W, bd->kind == BAND_CAP, &m->volume,
+                                bd->kind == BAND_CAP ? &cap : &m->area);
+        }
+        m->area += fabs(cap);
+    }
+}
+
+/* ---- meshes ----------------------------------------------------------------------------------
+ * Per tube, rings of nu points at u = k/nu (one u grid for the whole tube, so neighbouring bands
+ * share their boundary rings' vertices) and, per band, as many rows in t as its bending needs;
+ * a dome's apex is one vertex; caps are the end ring's polygon, ear-clipped. */
+
+#define MESH_MAX_NU 16384
+#define MESH_MAX_NT 1024
+
+struct mesher {
+    const struct solid *s;
+    const struct tube *tb;
+    struct mesh *m;
+    double tol;
+    int nu;
+};
+
+/* The point of band b at global u in [0, 1) and t in [0, 1]. */
+static vec3 band_point(const struct solid *s, const struct band *b, bool hole, double u, double t)
+{
+    const struct patch *ps = s->set.patches + b->first;
+    size_t lo = 0, hi = b->n - 1;
+    while (lo < hi) { /* the last patch with u0 <= u */
+        size_t mid = (lo + hi + 1) / 2;
+        if (ps[mid].u0 <= u)
+            lo = mid;
+        else
+            hi = mid - 1;
+    }
+    const struct patch *pt = &ps[lo];
+    double w = pt->u1 - pt->u0, local = w > 0 ? (u - pt->u0) / w : 0.0;
+    local = fmin(fmax(local, 0.0), 1.0);
+    vec3 P;
+    bezier_eval(pt, hole ? 1.0 - local : local, t, &P, NULL, NULL);
+    return P;
+}
+
+static double dist_to_mid(vec3 a, vec3 b, vec3 p)
+{
+    return v3_len(v3_sub(p, v3_scale(v3_add(a, b), 0.5)));
+}
+
+/* The ring positions along u: from 16 even steps, every step whose chord strays more than tol from
+ * the side bands' boundary or middle rows is halved, until none does. One grid for the whole tube
+ * keeps the bands' shared rings shared; it is dense only where some row bends. *nu receives the
+ * count; NULL when out of memory. */
+static double *choose_u(const struct solid *s, const struct tube *tb, double tol, int *nu)
+{
+    int n = 16;
+    double *u = malloc(sizeof *u * (size_t)n);
+    for (int k = 0; u && k < n; k++)
+        u[k] = (double)k / n;
+    for (bool split = true; u && split && n < MESH_MAX_NU;) {
+        bool *mark = calloc((size_t)n, sizeof *mark);
+        split = false;
+        for (int b = tb->first; mark && b < tb->first + tb->n; b++) {
+            const struct band *bd = &s->bands[b];
+            for (int r = 0; r < 3 && bd->kind == BAND_SIDE; r++)
+                for (int k = 0; k < n; k++) {
+                    double t = r * 0.5, u1 = k + 1 < n ? u[k + 1] : 1.0;
+                    if (mark[k])
+                        continue;
+                    vec3 a = band_point(s, bd, tb->hole, u[k], t), c = band_point(s, bd, tb->hole, u1, t);
+                    mark[k] = dist_to_mid(a, c, band_point(s, bd, tb->hole, 0.5 * (u[k] + u1), t)) > tol;
+                    split |= mark[k];
+                }
+        }
+        int m = n;
+        for (int k = 0; k < n; k++)
+            m += mark && mark[k];
+        double *v = mark && m <= MESH_MAX_NU ? malloc(sizeof *v * (size_t)m) : NULL;
+        for (int k = 0, o = 0; v && k < n; k++) {
+            v[o++] = u[k];
+            if (mark[k])
+                v[o++] = 0.5 * (u[k] + (k + 1 < n ? u[k + 1] : 1.0));
+        }
+        free(mark);
+        if (!v) /* out of memory, or the limit: keep what there is */
+            break;
+        free(u);
+        u = v;
+        n = m;
+    }
+    *nu = n;
+    return u;
+}
+
+/* Row count of a band: chords along t at every fourth ring position within tol. */
+static int choose_nt(const struct solid *s, const struct band *bd, bool hole, const double *us, int nu, double tol)
+{
+    int nt = 1;
+    for (bool ok = false; !ok && nt < MESH_MAX_NT; nt *= ok ? 1 : 2) {
+        ok = true;
+        for (int k = 0; k < nu && ok; k += 4) {
+            vec3 a = band_point(s, bd, hole, us[k], 0.0);
+            for (int r = 0; r < nt && ok; r++) {
+                vec3 c = band_point(s, bd, hole, us[k], (r + 1.0) / nt);
+                ok = dist_to_mid(a, c, band_point(s, bd, hole, us[k], (r + 0.5) / nt)) <= tol;
+                a = c;
+            }
+        }
+    }
+    return nt;
+}
+
+static int add_vertex(struct mesh *m, vec3 p, unsigned *idx)
+{
+    if (m->n_v >= UINT32_MAX || mem_reserve((void **)&m->v, &m->cap_v, m->n_v + 1, sizeof *m->v))
+        return SF_ENOMEM;
+    m->v[m->n_v][0] = p.x, m->v[m->n_v][1] = p.y, m->v[m->n_v][2] = p.z;
+    *idx = (unsigned)m->n_v++;
+    return 0;
+}
+
+static int add_tri(struct mesh *m, unsigned a, unsigned b, unsigned c, bool flip)
+{
+    if (a == b || b == c || a == c) /* a collapsed ring's triangles have no area */
+        return 0;
+    if (mem_reserve((void **)&m->t, &m->cap_t, m->n_t + 1, sizeof *m->t))
+        return SF_ENOMEM;
+    m->t[m->n_t][0] = a, m->t[m->n_t][1] = flip ? c : b, m->t[m->n_t][2] = flip ? b : c;
+    m->n_t++;
+    return 0;
+}
+
+/* Ear clipping of the ring's polygon (counter-clockwise in x, y); up: the triangles face +z. */
+static int ear_clip(struct mesh *m, const unsigned *ring, int n, bool up)
+{
+    int *prev = malloc(sizeof *prev * (size_t)n), *next = malloc(sizeof *next * (size_t)n), rc = 0;
+    if (!prev || !next) {
+        free(prev);
+        free(next);
+        return SF_ENOMEM;
+    }
+    for (int i = 0; i < n; i++)
+        prev[i] = (i + n - 1) % n, next[i] = (i + 1) % n;
+#define XY(i) m->v[ring[i]]
+#define CROSS(a, b, c) ((XY(b)[0] - XY(a)[0]) * (XY(c)[1] - XY(a)[1]) - (XY(b)[1] - XY(a)[1]) * (XY(c)[0] - XY(a)[0]))
+    int left = n, i = 0, since_ear = 0;
+    while (left > 3 && !rc) {
+        int a = prev[i], c = next[i];
+        bool ear = CROSS(a, i, c) > 0;
+        for (int k = next[c]; ear && k != a; k = next[k]) /* no other vertex inside or on (a, i, c) */
+            ear = !(CROSS(a, i, k) >= 0 && CROSS(i, c, k) >= 0 && CROSS(c, a, k) >= 0);
+        if (ear || since_ear > left) { /* stuck (a curve that grazes itself): clip anyway */
+            rc = add_tri(m, ring[a], ring[i], ring[c], !up);
+            next[a] = c, prev[c] = a;
+            left--;
+            since_ear = 0;
+            i = c;
+        } else {
+            i = c;
+            since_ear++;
+        }
+    }
+    if (!rc)
+        rc = add_tri(m, ring[prev[i]], ring[i], ring[next[i]], !up);
+#undef CROSS
+#undef XY
+    free(prev);
+    free(next);
+    return rc;
+}
+
+static int mesh_tube(const struct solid *s, const struct tube *tb, double tol, struct mesh *m)
+{
+    int nu, rc = 0;
+    double *us = choose_u(s, tb, tol, &nu);
+    unsigned *ring = malloc(sizeof *ring * (size_t)nu), *next = malloc(sizeof *next * (size_t)nu);
+    bool have_ring = false;
+    if (!us || !ring || !next)
+        rc = SF_ENOMEM;
+    for (int b = tb->first; b < tb->first + tb->n && !rc; b++) {
+        const struct band *bd = &s->bands[b];
+        bool first = b == tb->first, last = b == tb->first + tb->n - 1;
+        if (bd->kind == BAND_CAP) { /* the bottom cap comes before its ring exists: it is clipped below */
+            if (last)
+                rc = ear_clip(m, ring, nu, !tb->hole);
+            continue;
+        }
+        int nt = choose_nt(s, bd, tb->hole, us, nu, tol);
+        for (int r = have_ring ? 1 : 0; r <= nt && !rc; r++) {
+            double t = (double)r / nt;
+            bool apex = bd->kind == BAND_DOME && ((first && r == 0) || (last && r == nt));
+            for (int k = 0; k < nu && !rc; k++) {
+                if (apex && k > 0)
+                    next[k] = next[0];
+                else
+                    rc = add_vertex(m, band_point(s, bd, tb->hole, apex ? 0.0 : us[k], t), &next[k]);
+            }
+            for (int k = 0; k < nu && have_ring && !rc; k++) {
+                int k1 = (k + 1) % nu;
+                if (!(rc = add_tri(m, ring[k], ring[k1], next[k1], tb->hole)))
+                    rc = add_tri(m, ring[k], next[k1], next[k], tb->hole);
+            }
+            if (!have_ring && b > tb->first && s->bands[tb->first].kind == BAND_CAP && !rc)
+                rc = ear_clip(m, next, nu, tb->hole);
+            unsigned *sw = ring;
+            ring = next, next = sw;
+            have_ring = true;
+        }
+    }
+    free(us);
+    free(ring);
+    free(next);
+    return rc;
+}
+
+double solid_default_tolerance(const struct solid_measures *m)
+{
+    double dx = m->hi[0] - m->lo[0], dy = m->hi[1] - m->lo[1], dz = m->hi[2] - m->lo[2];
+    return 1e-4 * sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+int solid_mesh(const struct solid *s, double tol, struct mesh *m)
+{
+    memset(m, 0, sizeof *m);
+    int rc = 0;
+    for (int k = 0; k < s->n_tubes && !rc; k++)
+        rc = mesh_tube(s, &s->tubes[k], tol, m);
+    if (rc)
+        mesh_free(m);
+    return rc;
+}
+
+void mesh_free(struct mesh *m)
+{
+    free(m->v);
+    free(m->t);
+    memset(m, 0, sizeof *m);
+}
+
+double mesh_volume(const struct mesh *m)
+{
+    double v = 0.0;
+    for (size_t k = 0; k < m->n_t; k++) {
+        const double *a = m->v[m->t[k][0]], *b = m->v[m->t[k][1]], *c = m->v[m->t[k][2]];
+        v += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
+    }
+    return v / 6.0;
+}

@@ -1,0 +1,73 @@
+/* solid.h - a contour model as a closed solid: one tube per chain of contours (model.h), each a
+ * stack of bands of Bézier patches that closes on itself, every patch oriented outward (holes'
+ * tubes face into the hole). The same patches are rendered, meshed, exported and integrated.
+ *
+ * A tube from bottom to top: [cap] [wall | dome] side bands... [wall | dome] [cap].
+ * - side: the method's surface, one band per pair of neighbouring levels;
+ * - wall: the end curve extruded flat by the chain's extension (slab caps, branchings, islands,
+ *   and a dome that did not close), degree (3, 1);
+ * - dome (ours; the seeds are silent): the end curve scaled about its centroid by ρ(s), with
+ *   ρ² = q(s)/q(0) the quadratic through the last three section areas (exact for quadric ends),
+ *   so every section's area is q(s) and the solid's volume that of model_volume_closed. The
+ *   profile (s, ρ) is a conic, an exact rational quadratic, so the dome patches are rational of
+ *   degree (3, 2) and end in the apex;
+ * - cap: a flat end, as patches that fan from the end curve to its centroid (the area they
+ *   enclose is exact; on a shape that is not star-shaped about its centroid they fold, which
+ *   meshes avoid by triangulating the end polygon instead).
+ * Within a band, patches run in increasing u over [0, 1] (domain u0..u1), t = local v runs up. */
+#ifndef SURFD_SOLID_H
+#define SURFD_SOLID_H
+
+#include "model.h"
+
+enum band_kind { BAND_SIDE, BAND_WALL, BAND_DOME, BAND_CAP };
+
+struct band {
+    enum band_kind kind;
+    size_t first, n;     /* patches set.patches[first .. first+n) */
+};
+
+struct tube {
+    bool hole;
+    int first, n;        /* bands */
+    double volume_ends;  /* the dome and wall volumes beyond the side surface (signed as the tube) */
+};
+
+struct solid {
+    struct patch_set set;    /* cw resolved (nurbs_patches_fix done) */
+    struct band *bands;
+    int n_bands;
+    size_t cap_bands;
+    struct tube *tubes;
+    int n_tubes;
+    int dome_fallbacks;      /* stack ends where the dome did not close: a wall of half a spacing */
+    struct model_chain *chains; /* the tubes' chains, in the same order */
+};
+
+/* Builds the solid of cleaned contours with the given caps. Returns 0 or an SF_* code with err. */
+int solid_build(const struct contour_set *cs, enum model_caps caps, struct solid *s, struct sf_err *err);
+void solid_free(struct solid *s);
+
+struct solid_measures {
+    double volume;      /* divergence theorem over every patch (seed 000 eq. 21–22), signed by orientation */
+    double area;
+    double lo[3], hi[3];
+};
+void solid_measure(const struct solid *s, struct solid_measures *m);
+
+/* A triangle mesh of the solid, within tol (length units) of the surface: closed (every edge in
+ * exactly two triangles, opposite ways) per tube, triangles counter-clockwise seen from outside. */
+struct mesh {
+    double (*v)[3];
+    size_t n_v, cap_v;
+    unsigned (*t)[3];
+    size_t n_t, cap_t;
+};
+int solid_mesh(const struct solid *s, double tol, struct mesh *m);
+/* 1e-4 of the bounds' diagonal: meshes within 0.1 % of the model's volume (tests/core/test_model.c). */
+double solid_default_tolerance(const struct solid_measures *m);
+void mesh_free(struct mesh *m);
+/* Signed volume enclosed (sum of signed tetrahedra from the origin). */
+double mesh_volume(const struct mesh *m);
+
+#endif
