@@ -135,3 +135,24 @@ out:
         contour_set_free(cs);
     return rc;
 }
+
+char *contour_json_write(const struct contour_set *cs, const struct contour_request *req)
+{
+    json_t *slices = json_array(), *root = json_pack("{s:s, s:s, s:s, s:o}", "name", req->name, "method", req->method,
+                                                     "caps", req->caps, "slices", slices);
+    json_t *level = NULL;
+    for (int k = 0; root && k < cs->n_slices; k++) {
+        const struct contour_slice *c = &cs->s[k];
+        if (k == 0 || c->z != cs->s[k - 1].z) {
+            level = json_pack("{s:f, s:[]}", "z", c->z, "contours");
+            json_array_append_new(slices, level);
+        }
+        json_t *pts = json_array();
+        for (int i = 0; i < c->n; i++)
+            json_array_append_new(pts, json_pack("[f,f]", c->p[i][0], c->p[i][1]));
+        json_array_append_new(json_object_get(level, "contours"), json_pack("{s:o}", "points", pts));
+    }
+    char *out = root ? json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(17)) : NULL;
+    json_decref(root);
+    return out;
+}

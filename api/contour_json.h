@@ -17,4 +17,9 @@ struct contour_request {
 int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, struct contour_request *req,
                        struct sf_err *err);
 
+/* The cleaned set and its options back as contour JSON (every slice in the "contours" form, full
+ * double precision, so that parsing it again gives the same model): how a stored model keeps its
+ * source. NULL when out of memory; the caller frees. */
+char *contour_json_write(const struct contour_set *cs, const struct contour_request *req);
+
 #endif

@@ -3,6 +3,9 @@
 
 #include <jansson.h>
 #include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
@@ -131,34 +134,48 @@ int model_validate(const char *buf, size_t len, const char *format, const char *
     return rc;
 }
 
-int model_figures(const char *buf, size_t len, const char *format, const char *options, char **json, struct sf_err *err)
+/* One model of a request: its figures (fn may add to them), its cleaned contours and options. */
+typedef int (*model_fn)(void *ctx, int k, json_t *fig, const struct contour_set *cs, const struct contour_request *req,
+                        struct sf_err *err);
+
+/* Every model the request describes, in order, into *list (one for JSON and for a DICOM ?roi=NAME:
+ * *single); fn (may be NULL) sees each. */
+static int each_model(const char *buf, size_t len, const char *format, const char *options, model_fn fn, void *ctx,
+                      json_t **list, bool *single, struct sf_err *err)
 {
-    *json = NULL;
     double t0 = now_ms();
+    *list = json_array();
+    if (!*list)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    int rc = 0;
     if (!format || strcmp(format, "dicom")) {
         struct contour_set cs;
         struct contour_request req;
-        int rc = contour_parse_json(buf, len, &cs, &req, err);
-        if (rc)
+        *single = true;
+        if ((rc = contour_parse_json(buf, len, &cs, &req, err)))
             return rc;
-        *json = dump(figures(&cs, &req, t0, err), err);
+        json_t *o = figures(&cs, &req, t0, err);
+        if (!o)
+            rc = err->code ? err->code : SF_ENOMEM;
+        else if (json_array_append_new(*list, o) || (fn && (rc = fn(ctx, 0, o, &cs, &req, err))))
+            rc = rc ? rc : sf_fail(err, SF_ENOMEM, "", "out of memory");
         contour_set_free(&cs);
-        return *json ? 0 : err->code;
+        return rc;
     }
     /* an RT Structure Set: every ROI with contours, or the one ?roi names */
     struct contour_request req = {"", "parabolic", "flat"};
     char roi[128], caps[16];
     option(options, "roi", roi, sizeof roi);
     option(options, "caps", caps, sizeof caps);
+    *single = roi[0] != 0;
     if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab") && strcmp(caps, "dome"))
         return sf_fail(err, SF_EINVAL, "?caps", "caps is flat, slab or dome");
     if (caps[0])
         snprintf(req.caps, sizeof req.caps, "%s", caps);
     struct rt_roi *rois = NULL;
-    int n = 0, rc = rtstruct_read(buf, len, &rois, &n, err);
-    if (rc)
+    int n = 0;
+    if ((rc = rtstruct_read(buf, len, &rois, &n, err)))
         return rc;
-    json_t *list = json_array(), *one = NULL;
     for (int k = 0; k < n && !rc; k++) {
         if (roi[0] && strcmp(roi, rois[k].name))
             continue;
@@ -175,17 +192,279 @@ int model_figures(const char *buf, size_t len, const char *format, const char *o
             break;
         }
         json_object_set_new(o, "roi_number", json_integer(rois[k].number));
-        json_array_append_new(list, o);
+        json_array_append_new(*list, o);
+        if (fn)
+            rc = fn(ctx, (int)json_array_size(*list) - 1, o, &rois[k].cs, &req, err);
         t0 = now_ms();
     }
     rtstruct_free(rois, n);
-    if (!rc && json_array_size(list) == 0)
+    if (!rc && json_array_size(*list) == 0)
         rc = sf_fail(err, SF_EINVAL, roi[0] ? "?roi" : "/ROIContourSequence",
                      roi[0] ? "no ROI with contours has that name" : "no ROI has closed planar contours");
-    if (!rc && roi[0])
-        one = json_incref(json_array_get(list, 0));
-    if (!rc)
-        *json = dump(one ? one : json_pack("{s:O}", "models", list), err);
+    return rc;
+}
+
+/* The answer: the one object, or {"models": [...]}. */
+static char *answer(json_t *list, bool single, struct sf_err *err)
+{
+    return dump(single ? json_incref(json_array_get(list, 0)) : json_pack("{s:O}", "models", list), err);
+}
+
+int model_figures(const char *buf, size_t len, const char *format, const char *options, char **json, struct sf_err *err)
+{
+    json_t *list;
+    bool single;
+    int rc = each_model(buf, len, format, options, NULL, NULL, &list, &single, err);
+    *json = rc ? NULL : answer(list, single, err);
     json_decref(list);
     return rc ? rc : (*json ? 0 : err->code);
+}
+
+struct create_ctx {
+    const struct model_sink *sink;
+    char first[40];
+};
+
+static int store_one(void *arg, int k, json_t *fig, const struct contour_set *cs, const struct contour_request *req,
+                     struct sf_err *err)
+{
+    struct create_ctx *c = arg;
+    char id[40], self[64], mesh[96], patches[80], render[80];
+    c->sink->id(c->sink->ctx, k, id);
+    if (k == 0)
+        snprintf(c->first, sizeof c->first, "%s", id);
+    snprintf(self, sizeof self, "/models/%s", id);
+    snprintf(mesh, sizeof mesh, "%s/mesh?format=stl", self);
+    snprintf(patches, sizeof patches, "%s/patches", self);
+    snprintf(render, sizeof render, "%s/render", self);
+    json_object_set_new(fig, "id", json_string(id));
+    json_object_set_new(fig, "links", json_pack("{s:s, s:s, s:s, s:s}", "self", self, "mesh", mesh, "patches", patches,
+                                                "render", render));
+    char *source = contour_json_write(cs, req), *resource = json_dumps(fig, JSON_COMPACT | JSON_REAL_PRECISION(12));
+    int rc = !source || !resource ? sf_fail(err, SF_ENOMEM, "", "out of memory")
+             : c->sink->put(c->sink->ctx, id, req->name, source, resource)
+                 ? sf_fail(err, SF_EIO, "", "the store could not keep the model")
+                 : 0;
+    free(source);
+    free(resource);
+    return rc;
+}
+
+int model_create(const char *buf, size_t len, const char *format, const char *options, const struct model_sink *sink,
+                 char **json, char location[64], struct sf_err *err)
+{
+    struct create_ctx c = {sink, ""};
+    json_t *list;
+    bool single;
+    int rc = each_model(buf, len, format, options, store_one, &c, &list, &single, err);
+    *json = rc ? NULL : answer(list, single, err);
+    json_decref(list);
+    snprintf(location, 64, "/models/%s", c.first);
+    return rc ? rc : (*json ? 0 : err->code);
+}
+
+/* ---- what is made from a stored model ---------------------------------------------------------- */
+
+static int solid_of(const char *src, size_t len, struct solid *sd, struct sf_err *err)
+{
+    struct contour_set cs;
+    struct contour_request req;
+    int rc = contour_parse_json(src, len, &cs, &req, err);
+    if (rc)
+        return rc;
+    rc = solid_build(&cs, caps_of(req.caps), sd, err);
+    contour_set_free(&cs);
+    return rc;
+}
+
+/* Growable output buffer. */
+struct out {
+    char *p;
+    size_t n, cap;
+    bool failed;
+};
+
+static void put(struct out *o, const void *data, size_t n)
+{
+    if (o->failed)
+        return;
+    if (o->n + n > o->cap) {
+        size_t cap = o->cap ? o->cap : 1 << 16;
+        while (cap < o->n + n)
+            cap *= 2;
+        char *p = realloc(o->p, cap);
+        if (!p) {
+            o->failed = true;
+            return;
+        }
+        o->p = p, o->cap = cap;
+    }
+    memcpy(o->p + o->n, data, n);
+    o->n += n;
+}
+
+static void putf(struct out *o, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void putf(struct out *o, const char *fmt, ...)
+{
+    char line[256];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    put(o, line, n > 0 ? (size_t)n : 0);
+}
+
+static void put_f32(struct out *o, double v)
+{
+    float f = (float)v; /* the formats' own precision; x86 and arm64 are little-endian, as STL and our PLY */
+    put(o, &f, 4);
+}
+
+static void encode(const struct mesh *m, const char *format, struct out *o)
+{
+    if (!strcmp(format, "stl")) {
+        char head[80] = "surfd model mesh (binary STL, mm)";
+        uint32_t n = (uint32_t)m->n_t;
+        put(o, head, 80);
+        put(o, &n, 4);
+        for (size_t k = 0; k < m->n_t; k++) {
+            const double *a = m->v[m->t[k][0]], *b = m->v[m->t[k][1]], *c = m->v[m->t[k][2]];
+            vec3 nrm = v3_cross(v3(b[0] - a[0], b[1] - a[1], b[2] - a[2]), v3(c[0] - a[0], c[1] - a[1], c[2] - a[2]));
+            double l = v3_len(nrm);
+            nrm = l > 0 ? v3_scale(nrm, 1 / l) : nrm;
+            put_f32(o, nrm.x), put_f32(o, nrm.y), put_f32(o, nrm.z);
+            for (int i = 0; i < 3; i++)
+                for (int d = 0; d < 3; d++)
+                    put_f32(o, m->v[m->t[k][i]][d]);
+            put(o, "\0\0", 2);
+        }
+    } else if (!strcmp(format, "ply")) {
+        putf(o, "ply\nformat binary_little_endian 1.0\ncomment surfd model mesh, mm\nelement vertex %zu\n"
+                "property float x\nproperty float y\nproperty float z\nelement face %zu\n"
+                "property list uchar int vertex_indices\nend_header\n", m->n_v, m->n_t);
+        for (size_t k = 0; k < m->n_v; k++)
+            put_f32(o, m->v[k][0]), put_f32(o, m->v[k][1]), put_f32(o, m->v[k][2]);
+        for (size_t k = 0; k < m->n_t; k++) {
+            int32_t t[3] = {(int32_t)m->t[k][0], (int32_t)m->t[k][1], (int32_t)m->t[k][2]};
+            put(o, "\3", 1);
+            put(o, t, sizeof t);
+        }
+    } else {
+        putf(o, "# surfd model mesh, mm\n");
+        for (size_t k = 0; k < m->n_v; k++)
+            putf(o, "v %.9g %.9g %.9g\n", m->v[k][0], m->v[k][1], m->v[k][2]);
+        for (size_t k = 0; k < m->n_t; k++)
+            putf(o, "f %u %u %u\n", m->t[k][0] + 1, m->t[k][1] + 1, m->t[k][2] + 1);
+    }
+}
+
+int model_mesh(const char *src, size_t len, const char *format, double tol, char **out, size_t *out_len,
+               const char **mime, struct sf_err *err)
+{
+    static const char *const FORMATS[][2] = {{"stl", "model/stl"}, {"ply", "application/ply"}, {"obj", "model/obj"}};
+    *out = NULL;
+    *mime = NULL;
+    for (int k = 0; k < 3; k++)
+        if (!strcmp(format, FORMATS[k][0]))
+            *mime = FORMATS[k][1];
+    if (!*mime)
+        return sf_fail(err, SF_EINVAL, "?format", "format is stl, ply or obj");
+    if (!(tol >= 0) || tol > 1e6)
+        return sf_fail(err, SF_EINVAL, "?tolerance", "tolerance is a distance in mm, > 0 (or 0 for the default)");
+    struct solid sd;
+    int rc = solid_of(src, len, &sd, err);
+    if (rc)
+        return rc;
+    struct solid_measures sm;
+    solid_measure(&sd, &sm);
+    double dflt = solid_default_tolerance(&sm);
+    struct mesh m;
+    /* a tolerance far below the default makes meshes of billions of triangles: hold it to 1/20 */
+    rc = solid_mesh(&sd, tol > 0 ? fmax(tol, dflt / 20) : dflt, &m);
+    solid_free(&sd);
+    if (rc)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory meshing the model");
+    struct out o = {0};
+    encode(&m, format, &o);
+    mesh_free(&m);
+    if (o.failed) {
+        free(o.p);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory writing the mesh");
+    }
+    *out = o.p;
+    *out_len = o.n;
+    return 0;
+}
+
+int model_patches_json(const char *src, size_t len, char **json, struct sf_err *err)
+{
+    struct solid sd;
+    *json = NULL;
+    int rc = solid_of(src, len, &sd, err);
+    if (rc)
+        return rc;
+    json_t *objs = json_array();
+    for (size_t k = 0; objs && k < sd.set.n; k++) {
+        const struct patch *pt = &sd.set.patches[k];
+        json_t *pts = json_array(), *w = pt->rational ? json_array() : NULL;
+        for (int i = 0; i <= pt->p; i++)
+            for (int j = 0; j <= pt->q; j++) {
+                vec3 P = bezier_point(pt, i, j);
+                json_array_append_new(pts, json_pack("[f,f,f]", P.x, P.y, P.z));
+                if (w)
+                    json_array_append_new(w, json_real(pt->cw[i * (pt->q + 1) + j][3]));
+            }
+        json_t *o = json_pack("{s:s, s:[i,i], s:o}", "type", w ? "nurbs" : "bezier", "degree", pt->p, pt->q, "points", pts);
+        if (w) { /* one span: clamped knots of the Bézier degree */
+            json_t *ku = json_array(), *kv = json_array();
+            for (int i = 0; i < 2 * (pt->p + 1); i++)
+                json_array_append_new(ku, json_real(i > pt->p));
+            for (int j = 0; j < 2 * (pt->q + 1); j++)
+                json_array_append_new(kv, json_real(j > pt->q));
+            json_object_set_new(o, "size", json_pack("[i,i]", pt->p + 1, pt->q + 1));
+            json_object_set_new(o, "knots_u", ku);
+            json_object_set_new(o, "knots_v", kv);
+            json_object_set_new(o, "weights", w);
+        }
+        json_array_append_new(objs, o);
+    }
+    solid_free(&sd);
+    *json = dump(objs ? json_pack("{s:o}", "objects", objs) : NULL, err);
+    return *json ? 0 : err->code;
+}
+
+int model_scene_objects(const char *src, size_t len, struct scene *sc, const struct material *mat, const char *where,
+                        struct sf_err *err)
+{
+    struct solid sd = {0};
+    int rc = solid_of(src, len, &sd, err);
+    for (size_t k = 0; !rc && k < sd.set.n; k++) {
+        const struct patch *pt = &sd.set.patches[k];
+        struct object *o = scene_add_object(sc);
+        if (!o) {
+            rc = sf_fail(err, sc->n_objects >= SCENE_MAX_OBJECTS ? SF_ELIMIT : SF_ENOMEM, where,
+                         "the scene's objects and the model's %zu patches are over %d", sd.set.n, SCENE_MAX_OBJECTS);
+            break;
+        }
+        o->mat = *mat;
+        if ((rc = nurbs_surface_alloc(&o->surf, pt->rational ? SURF_NURBS : SURF_BEZIER, pt->p, pt->q, pt->p + 1,
+                                      pt->q + 1, err)))
+            break;
+        for (int i = 0; i <= pt->p; i++)
+            for (int j = 0; j <= pt->q; j++) {
+                int c = i * (pt->q + 1) + j;
+                vec3 P = bezier_point(pt, i, j);
+                o->surf.points[3 * c] = P.x, o->surf.points[3 * c + 1] = P.y, o->surf.points[3 * c + 2] = P.z;
+                if (pt->rational)
+                    o->surf.weights[c] = pt->cw[c][3];
+            }
+        if (pt->rational) {
+            for (int i = 0; i < 2 * (pt->p + 1); i++)
+                o->surf.knots_u[i] = i > pt->p;
+            for (int j = 0; j < 2 * (pt->q + 1); j++)
+                o->surf.knots_v[j] = j > pt->q;
+        }
+    }
+    solid_free(&sd);
+    return rc;
 }

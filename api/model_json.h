@@ -1,21 +1,48 @@
-/* model_json.h - a model's figures as the JSON of API.md's model resource (the fields that exist
- * so far: name, method, caps, slices, patches, volume_mm3, area_mm2, volume {exact, trapezoid,
- * cavalieri, frustum}, bounds, timings_ms). */
+/* model_json.h - contours in, models out: the figures of API.md's model resource (name, method,
+ * caps, slices, patches, volume_mm3, area_mm2, volume {exact, quadrature, trapezoid, cavalieri,
+ * frustum}, bounds, timings_ms, ...), stored models' sources, and what is made from a stored model:
+ * meshes, patch lists, scene objects. The CLI, the volume and model jobs and the model routes share
+ * these. Requests are "json" (contour JSON) or "dicom" (an RT Structure Set; options
+ * "roi=NAME&caps=flat|slab|dome"). */
 #ifndef SURFD_MODEL_JSON_H
 #define SURFD_MODEL_JSON_H
 
 #include <stddef.h>
 
 #include "../core/err.h"
+#include "../core/scene.h"
 #include "contour_json.h"
 
-/* Reads contours (format "json", or "dicom" for an RT Structure Set), builds the model and measures
- * it; *json receives the figures (caller frees): one object for JSON or for a DICOM ?roi=NAME, else
- * {"models": [...]} with one object per ROI. options: "roi=NAME&caps=flat|slab" (DICOM; JSON carries
- * its own). Errors as contour_parse_json and rtstruct_read. */
+/* Reads contours, builds the model and measures it; *json receives the figures (caller frees): one
+ * object for JSON or for a DICOM ?roi=NAME, else {"models": [...]} with one object per ROI. Errors
+ * as contour_parse_json and rtstruct_read. */
 int model_figures(const char *buf, size_t len, const char *format, const char *options, char **json,
                   struct sf_err *err);
 /* What model_figures would refuse, without modelling anything (for request handlers). */
 int model_validate(const char *buf, size_t len, const char *format, const char *options, struct sf_err *err);
+
+/* Where model_create keeps the models it makes. id(k) names the k-th model of the request (the same
+ * request must get the same ids, so that a job run again after a crash replaces what it stored);
+ * put stores one: its source (contour JSON, model_source) and its resource JSON. -1: the store failed. */
+struct model_sink {
+    void (*id)(void *ctx, int k, char id[40]);
+    int (*put)(void *ctx, const char *id, const char *name, const char *source, const char *resource);
+    void *ctx;
+};
+/* As model_figures, and each model gets an id and links and is put in the sink; location receives
+ * /models/{id} of the first. */
+int model_create(const char *buf, size_t len, const char *format, const char *options, const struct model_sink *sink,
+                 char **json, char location[64], struct sf_err *err);
+
+/* A stored model's mesh: format stl (binary), ply (binary little-endian) or obj, within tol (<= 0:
+ * the default, 1e-4 of the size). *out (caller frees), *out_len and *mime receive the file. */
+int model_mesh(const char *src, size_t len, const char *format, double tol, char **out, size_t *out_len,
+               const char **mime, struct sf_err *err);
+/* A stored model's patches as a scene: {"objects": [...]}: bicubic "bezier" objects, and the domes'
+ * rational patches as single-span "nurbs" objects. */
+int model_patches_json(const char *src, size_t len, char **json, struct sf_err *err);
+/* Appends a stored model's patches to a scene as objects of material mat. */
+int model_scene_objects(const char *src, size_t len, struct scene *sc, const struct material *mat, const char *where,
+                        struct sf_err *err);
 
 #endif

@@ -69,13 +69,14 @@ static int apply(const char *name, const char *v, struct scene *sc, enum image_f
     return rc;
 }
 
-int render_request_parse(const char *body, size_t len, const char *format, const char *options, struct scene *sc,
-                         enum image_format *img, struct sf_err *err)
+int render_request_parse(const char *body, size_t len, const char *format, const char *options,
+                         const struct model_resolver *models, struct scene *sc, enum image_format *img,
+                         struct sf_err *err)
 {
     enum scene_format fmt = scene_format_parse(format);
     if ((int)fmt < 0)
         return sf_fail(err, SF_EFORMAT, "?format", "format is json, bpt or nurbs, not \"%s\"", format);
-    int rc = scene_parse(body, len, fmt, sc, img, err);
+    int rc = scene_parse_models(body, len, fmt, models, sc, img, err);
     if (rc)
         return rc;
     /* options: name=value&...; values are plain (the daemon decodes %-escapes before storing) */

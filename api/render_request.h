@@ -12,9 +12,10 @@
 
 /* format: "json", "bpt", "nurbs" or "" (sniffed). options: a query string of overrides
  * (output=png|exr|tiff, method=, width=, height=, azimuth=, elevation=, shadows=0|1); errors in
- * them point at "?name". */
-int render_request_parse(const char *body, size_t len, const char *format, const char *options, struct scene *sc,
-                         enum image_format *img, struct sf_err *err);
+ * them point at "?name". models resolves stored-model objects (NULL: refused). */
+int render_request_parse(const char *body, size_t len, const char *format, const char *options,
+                         const struct model_resolver *models, struct scene *sc, enum image_format *img,
+                         struct sf_err *err);
 
 /* Media type to scene format: application/json, model/x-bpt, model/vrml; text/plain,
  * application/octet-stream and application/x-www-form-urlencoded (curl -d) are sniffed.

@@ -22,11 +22,23 @@ enum scene_format scene_format_parse(const char *name);
 /* Guesses the format from the first bytes. */
 enum scene_format scene_format_sniff(const char *buf, size_t len);
 
+/* Where the objects {"type": "model", "id": ...} of a JSON scene come from: source() gives a stored
+ * model's source (contour JSON; the caller frees it) and returns 1, or 0 for no such model, -1 when
+ * the store failed. Without one, model objects are refused. */
+struct model_resolver {
+    int (*source)(void *ctx, const char *id, char **src, size_t *len);
+    void *ctx;
+};
+
 /* Parses buf as fmt (SCENE_UNKNOWN: sniffed). *img receives image.format (PNG by default). */
 int scene_parse(const char *buf, size_t len, enum scene_format fmt, struct scene *sc, enum image_format *img,
                 struct sf_err *err);
+/* The same, with stored models (models may be NULL). */
+int scene_parse_models(const char *buf, size_t len, enum scene_format fmt, const struct model_resolver *models,
+                       struct scene *sc, enum image_format *img, struct sf_err *err);
 
-int scene_parse_json(const char *buf, size_t len, struct scene *sc, enum image_format *img, struct sf_err *err);
+int scene_parse_json(const char *buf, size_t len, const struct model_resolver *models, struct scene *sc,
+                     enum image_format *img, struct sf_err *err);
 int scene_parse_bpt(const char *buf, size_t len, struct scene *sc, struct sf_err *err);
 int scene_parse_vrml(const char *buf, size_t len, struct scene *sc, struct sf_err *err);
 

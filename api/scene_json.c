@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "model_json.h"
 #include "scene_io.h"
 
 /* Reads a finite number (integers too). */
@@ -96,7 +97,34 @@ static int material(json_t *j, const char *where, struct material *m, struct sf_
 }
 
 /* One object of "objects" (or of a bare "patches" list, where type defaults to bezier). */
-static int object(json_t *j, const char *where, struct scene *sc, struct sf_err *err)
+/* {"type": "model", "id": ..., "material": ...}: the stored model's patches. */
+static int model_object(json_t *j, const char *where, const struct model_resolver *models, struct scene *sc,
+                        struct sf_err *err)
+{
+    char p[400];
+    snprintf(p, sizeof p, "%s/id", where);
+    json_t *id = json_object_get(j, "id");
+    if (!json_is_string(id))
+        return sf_fail(err, SF_EINVAL, p, "expected the id of a stored model");
+    if (!models)
+        return sf_fail(err, SF_EINVAL, p, "stored models are only available through the service");
+    struct material mat = scene_default_material();
+    json_t *m = json_object_get(j, "material");
+    int rc = m ? material(m, where, &mat, err) : 0;
+    char *src = NULL;
+    size_t len = 0;
+    int found = rc ? 0 : models->source(models->ctx, json_string_value(id), &src, &len);
+    if (!rc && found != 1)
+        rc = found == 0 ? sf_fail(err, SF_EINVAL, p, "no stored model has this id")
+                        : sf_fail(err, SF_EIO, p, "the store could not be read");
+    if (!rc)
+        rc = model_scene_objects(src, len, sc, &mat, where, err);
+    free(src);
+    return rc;
+}
+
+static int object(json_t *j, const char *where, const struct model_resolver *models, struct scene *sc,
+                  struct sf_err *err)
 {
     char p[400];
     if (!json_is_object(j))
@@ -119,8 +147,8 @@ static int object(json_t *j, const char *where, struct scene *sc, struct sf_err 
     else {
         snprintf(p, sizeof p, "%s/type", where);
         if (!strcmp(type, "model"))
-            return sf_fail(err, SF_EINVAL, p, "stored models are not available in this build yet");
-        return sf_fail(err, SF_EINVAL, p, "unknown object type \"%s\" (bezier, bspline, nurbs)", type);
+            return model_object(j, where, models, sc, err);
+        return sf_fail(err, SF_EINVAL, p, "unknown object type \"%s\" (bezier, bspline, nurbs, model)", type);
     }
     json_t *deg = json_object_get(j, "degree");
     int d[2], n[2], rc;
@@ -306,7 +334,8 @@ static int render_opts(json_t *j, struct scene *sc, struct sf_err *err)
     return 0;
 }
 
-int scene_parse_json(const char *buf, size_t len, struct scene *sc, enum image_format *img, struct sf_err *err)
+int scene_parse_json(const char *buf, size_t len, const struct model_resolver *models, struct scene *sc,
+                     enum image_format *img, struct sf_err *err)
 {
     json_error_t je;
     scene_init(sc);
@@ -344,7 +373,7 @@ int scene_parse_json(const char *buf, size_t len, struct scene *sc, enum image_f
     for (size_t k = 0; k < json_array_size(objs) && !rc; k++) {
         char where[64];
         snprintf(where, sizeof where, "/%s/%zu", key, k);
-        rc = object(json_array_get(objs, k), where, sc, err);
+        rc = object(json_array_get(objs, k), where, models, sc, err);
     }
 out:
     json_decref(root);

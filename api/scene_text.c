@@ -301,13 +301,19 @@ enum scene_format scene_format_sniff(const char *buf, size_t len)
 int scene_parse(const char *buf, size_t len, enum scene_format fmt, struct scene *sc, enum image_format *img,
                 struct sf_err *err)
 {
+    return scene_parse_models(buf, len, fmt, NULL, sc, img, err);
+}
+
+int scene_parse_models(const char *buf, size_t len, enum scene_format fmt, const struct model_resolver *models,
+                       struct scene *sc, enum image_format *img, struct sf_err *err)
+{
     *img = IMG_PNG;
     if (len > SCENE_MAX_BODY)
         return sf_fail(err, SF_ELIMIT, "", "scene of %zu bytes is over the limit of %u", len, SCENE_MAX_BODY);
     if (fmt == SCENE_UNKNOWN)
         fmt = scene_format_sniff(buf, len);
     switch (fmt) {
-    case SCENE_JSON: return scene_parse_json(buf, len, sc, img, err);
+    case SCENE_JSON: return scene_parse_json(buf, len, models, sc, img, err);
     case SCENE_BPT: return scene_parse_bpt(buf, len, sc, err);
     case SCENE_VRML: return scene_parse_vrml(buf, len, sc, err);
     default: return sf_fail(err, SF_EFORMAT, "", "unknown scene format");

@@ -30,7 +30,8 @@ struct leaf {
     vec3 lo, hi;            /* control hull box */
     vec3 c00, c10, c01, c11; /* corner points: the Newton seed comes from them */
     vec3 n;                  /* unit normal of the corner quad */
-    double slack;            /* net deviation / quad size: how far off the quad a root may lie */
+    double slack;            /* net deviation / shortest quad edge: how far off the quad a root may
+                              * lie, in the seed's barycentric units (a sliver's are its width) */
     double d0, d1;           /* the control points' extent along n: the leaf lies in this slab */
     vec3 cone_axis;          /* every normal Pu × Pv of the leaf is within the cone of this axis ... */
     double cone_sin;         /* ... and half-angle asin(cone_sin); > 1: no cone (rational, or too wide) */
@@ -190,7 +191,9 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
     vec3 d1 = v3_sub(l->c11, l->c00), d2 = v3_sub(l->c01, l->c10);
     l->n = v3_norm(v3_cross(d1, d2));
     double size = fmax(v3_len(d1), v3_len(d2));
-    l->slack = size > 0 && v3_len(l->n) > 0.5 ? dev / size : INFINITY;
+    double edge = fmin(fmin(v3_len(v3_sub(l->c10, l->c00)), v3_len(v3_sub(l->c11, l->c01))),
+                       fmin(v3_len(v3_sub(l->c01, l->c00)), v3_len(v3_sub(l->c11, l->c10))));
+    l->slack = edge > 0 && v3_len(l->n) > 0.5 ? dev / edge : INFINITY;
     l->d0 = INFINITY, l->d1 = -INFINITY;
     for (int i = 0; i <= sub->p; i++)
         for (int j = 0; j <= sub->q; j++) {

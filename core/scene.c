@@ -46,8 +46,13 @@ struct object *scene_add_object(struct scene *sc)
     sc->objects = o;
     o = &sc->objects[sc->n_objects++];
     memset(o, 0, sizeof *o);
-    o->mat = (struct material){v3(0.8, 0.8, 0.8), 0.3, 40.0};
+    o->mat = scene_default_material();
     return o;
+}
+
+struct material scene_default_material(void)
+{
+    return (struct material){v3(0.8, 0.8, 0.8), 0.3, 40.0};
 }
 
 static bool finite3(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }

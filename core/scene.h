@@ -61,6 +61,8 @@ void scene_free(struct scene *sc);
 /* Appends an object and returns it (zeroed, default material), or NULL when out of memory
  * or over SCENE_MAX_OBJECTS. The scene owns what the caller then puts in it. */
 struct object *scene_add_object(struct scene *sc);
+/* Light grey, a little specular. */
+struct material scene_default_material(void);
 /* Checks everything but the surfaces' own validity (nurbs_validate does that per object):
  * image size, camera, lights, options, at least one object. */
 int scene_validate(const struct scene *sc, struct sf_err *err);

@@ -64,6 +64,7 @@ static void recover(const char *id, void *arg)
     if (store_get(svc->store, id, false, false, &rec) == 1) {
         int (*submit)(struct service *, const char *, bool) = !strcmp(rec.kind, "render") ? render_job_submit
                                                             : !strcmp(rec.kind, "volume") ? volume_job_submit
+                                                            : !strcmp(rec.kind, "model")  ? model_job_submit
                                                                                           : NULL;
         store_set_state(svc->store, id, "queued", 0.0, 0, 0, NULL);
         if (submit && submit(svc, id, true) == 0)

@@ -38,8 +38,9 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
     double now = wall_s();
     store_set_state(w->svc->store, w->id, "running", 0.0, now, 0, NULL);
-    int rc = render_request_parse((const char *)rec.request, rec.request_len, rec.format, rec.options, &w->sc, &w->fmt,
-                                  &w->err);
+    struct model_resolver models = service_models(w->svc);
+    int rc = render_request_parse((const char *)rec.request, rec.request_len, rec.format, rec.options, &models, &w->sc,
+                                  &w->fmt, &w->err);
     store_rec_free(&rec);
     if (rc)
         return -1;

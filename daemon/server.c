@@ -183,6 +183,14 @@ static enum MHD_Result job_result(struct req *r, const char *id, bool sync)
             if (y)
                 snprintf(rays, sizeof rays, "%.*s", (int)strcspn(y + 7, ",}"), y + 7);
             int h = 1;
+            char location[80] = "";
+            const char *st = rec.meta ? strstr(rec.meta, "\"status\":") : NULL, *lo = rec.meta ? strstr(rec.meta, "\"location\":\"") : NULL;
+            if (st)
+                rp.status = atoi(st + 9);
+            if (lo)
+                snprintf(location, sizeof location, "%.*s", (int)strcspn(lo + 12, "\""), lo + 12);
+            if (location[0])
+                rp.hdr[h][0] = "Location", rp.hdr[h++][1] = location;
             if (ms[0])
                 rp.hdr[h][0] = "X-Render-Ms", rp.hdr[h++][1] = ms;
             if (rays[0])
@@ -352,13 +360,15 @@ static enum MHD_Result post_render(struct req *r)
     struct scene sc;
     enum image_format img;
     struct sf_err err = {0};
-    if (render_request_parse(r->body ? r->body : "", r->len, format, o.buf, &sc, &img, &err))
+    struct model_resolver models = service_models(r->svc);
+    if (render_request_parse(r->body ? r->body : "", r->len, format, o.buf, &models, &sc, &img, &err))
         return problem_err(r, &err);
     scene_free(&sc);
     return submit(r, "render", format, o.buf, render_job_submit);
 }
 
-static enum MHD_Result post_volume(struct req *r)
+/* POST /volume and /model: contour JSON or an RT Structure Set. */
+static enum MHD_Result post_contours(struct req *r, const char *kind, int (*submit_fn)(struct service *, const char *, bool))
 {
     const char *ct = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
     const char *format = ct && !strncasecmp(ct, "application/dicom", 17) ? "dicom" : render_format_from_type(ct);
@@ -376,7 +386,129 @@ static enum MHD_Result post_volume(struct req *r)
     struct sf_err err = {0};
     if (model_validate(r->body ? r->body : "", r->len, format, o.buf, &err))
         return problem_err(r, &err);
-    return submit(r, "volume", format, o.buf, volume_job_submit);
+    return submit(r, kind, format, o.buf, submit_fn);
+}
+
+/* ---- models ------------------------------------------------------------------------------- */
+
+struct model_list {
+    char *buf;
+    size_t n, cap;
+    int count;
+    bool failed;
+};
+
+/* Appends s to the list's buffer (keeping room for the closing "]}"). */
+static void list_put(struct model_list *l, const char *s)
+{
+    size_t m = strlen(s);
+    if (!l->failed && l->n + m + 3 > l->cap) {
+        size_t cap = l->cap ? 2 * l->cap : 4096;
+        while (cap < l->n + m + 3)
+            cap *= 2;
+        char *b = realloc(l->buf, cap);
+        l->failed = !b;
+        if (b)
+            l->buf = b, l->cap = cap;
+    }
+    if (!l->failed) {
+        memcpy(l->buf + l->n, s, m + 1);
+        l->n += m;
+    }
+}
+
+static void add_resource(const char *resource, void *arg)
+{
+    struct model_list *l = arg;
+    if (l->count++)
+        list_put(l, ",");
+    list_put(l, resource);
+}
+
+static enum MHD_Result model_list(struct req *r)
+{
+    struct model_list l = {0};
+    list_put(&l, "{\"models\":[");
+    if (store_model_list(r->svc->store, 1000, add_resource, &l) || l.failed) {
+        free(l.buf);
+        return problem(r, 500, l.failed ? "out of memory" : "the store failed", NULL);
+    }
+    list_put(&l, "]}");
+    return json_reply(r, 200, l.buf, NULL);
+}
+
+/* GET /models/{id}/render: a render job of the scene {"objects": [{"type": "model", "id": ...}]},
+ * with the query's render options. */
+static enum MHD_Result model_render(struct req *r, const char *id)
+{
+    struct opts o = {.n = 0};
+    MHD_get_connection_values(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
+    if (o.bad)
+        return problem(r, 422, "query options must be short name=value pairs without '&' or '='", NULL);
+    char *scene = malloc(128);
+    if (!scene)
+        return problem(r, 500, "out of memory", NULL);
+    snprintf(scene, 128, "{\"objects\":[{\"type\":\"model\",\"id\":\"%s\"}]}", id);
+    free(r->body);
+    r->body = scene;
+    r->len = strlen(scene);
+    struct scene sc;
+    enum image_format img;
+    struct sf_err err = {0};
+    struct model_resolver models = service_models(r->svc);
+    if (render_request_parse(scene, r->len, "json", o.buf, &models, &sc, &img, &err))
+        return problem_err(r, &err);
+    scene_free(&sc);
+    return submit(r, "render", "json", o.buf, render_job_submit);
+}
+
+static enum MHD_Result model_route(struct req *r, const char *id, const char *rest, bool get)
+{
+    char *resource = NULL, *src = NULL;
+    size_t len = 0;
+    int found = store_model_get(r->svc->store, id, &resource, &src, &len);
+    if (found != 1)
+        return found == 0 ? problem(r, 404, "no such model", NULL) : problem(r, 500, "the store failed", NULL);
+    enum MHD_Result ok;
+    struct sf_err err = {0};
+    if (!rest) {
+        if (!strcmp(r->method, "DELETE")) {
+            int gone = store_model_delete(r->svc->store, id);
+            ok = gone < 0 ? problem(r, 500, "the store failed", NULL) : text(r, 204, NULL, "");
+        } else if (get) {
+            ok = json_reply(r, 200, resource, NULL); /* hands resource to MHD */
+            resource = NULL;
+        } else
+            ok = problem(r, 405, "GET or DELETE", NULL);
+    } else if (!get) {
+        ok = problem(r, 405, "GET only", NULL);
+    } else if (!strcmp(rest, "/mesh")) {
+        const char *f = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "format");
+        const char *t = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "tolerance");
+        char *end = NULL, *out = NULL;
+        double tol = t ? strtod(t, &end) : 0.0;
+        size_t n = 0;
+        const char *mime;
+        if (t && (end == t || *end))
+            ok = problem(r, 422, "tolerance is a number (mm)", "?tolerance");
+        else if (model_mesh(src, len, f ? f : "stl", tol, &out, &n, &mime, &err))
+            ok = problem_err(r, &err);
+        else {
+            char disp[96];
+            snprintf(disp, sizeof disp, "attachment; filename=\"%.40s.%s\"", id, f ? f : "stl");
+            struct reply rp = {200, mime, out, n, {{"Content-Disposition", disp}}};
+            ok = send_reply(r, &rp);
+        }
+    } else if (!strcmp(rest, "/patches")) {
+        char *json = NULL;
+        ok = model_patches_json(src, len, &json, &err) ? problem_err(r, &err) : json_reply(r, 200, json, NULL);
+    } else if (!strcmp(rest, "/render")) {
+        ok = model_render(r, id);
+    } else
+        ok = problem(r, 404, "no such route", NULL);
+    free(resource);
+    free(src);
+    return ok;
 }
 
 /* ---- routing ---------------------------------------------------------------------------- */
@@ -441,8 +573,21 @@ static enum MHD_Result route(struct req *r)
     if (!strcmp(p, "/render"))
         return post ? post_render(r) : problem(r, 405, "POST a scene to /render", NULL);
     if (!strcmp(p, "/volume"))
-        return post ? post_volume(r) : problem(r, 405, "POST contours to /volume", NULL);
-    if (!strcmp(p, "/model") || !strcmp(p, "/isosurface") || !strncmp(p, "/models", 7))
+        return post ? post_contours(r, "volume", volume_job_submit) : problem(r, 405, "POST contours to /volume", NULL);
+    if (!strcmp(p, "/model"))
+        return post ? post_contours(r, "model", model_job_submit) : problem(r, 405, "POST contours to /model", NULL);
+    if (!strcmp(p, "/models"))
+        return get ? model_list(r) : problem(r, 405, "GET only", NULL);
+    if (!strncmp(p, "/models/", 8)) {
+        const char *id = p + 8, *rest = strchr(id, '/');
+        size_t n = rest ? (size_t)(rest - id) : strlen(id);
+        char mid[40];
+        if (!valid_id(id, n))
+            return problem(r, 404, "no such model", NULL);
+        snprintf(mid, sizeof mid, "%.*s", (int)n, id);
+        return model_route(r, mid, rest, get);
+    }
+    if (!strcmp(p, "/isosurface"))
         return problem(r, 501, "this route is part of the contract but not built yet", NULL);
     if (!strcmp(p, "/jobs"))
         return get ? job_list(r) : problem(r, 405, "GET only", NULL);

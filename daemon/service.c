@@ -52,3 +52,14 @@ void service_job_end(struct service *svc, const char *id, enum job_state outcome
     if (!requeue)
         metrics_job_end(outcome);
 }
+
+static int model_source(void *ctx, const char *id, char **src, size_t *len)
+{
+    struct service *svc = ctx;
+    return store_model_get(svc->store, id, NULL, src, len);
+}
+
+struct model_resolver service_models(struct service *svc)
+{
+    return (struct model_resolver){model_source, svc};
+}

@@ -6,6 +6,7 @@
 #include <stdatomic.h>
 #include <stdbool.h>
 
+#include "../api/scene_io.h"
 #include "../core/bvh.h"
 #include "config.h"
 #include "jobq.h"
@@ -34,8 +35,12 @@ void service_job_end(struct service *svc, const char *id, enum job_state outcome
                      const unsigned char *result, size_t len, const char *type, const char *meta,
                      const struct sf_err *err);
 
+/* Stored models for scenes' model objects. */
+struct model_resolver service_models(struct service *svc);
+
 /* The job kinds: each queues job `id` (already in the store). force as in jobq_submit. */
 int render_job_submit(struct service *svc, const char *id, bool force);
 int volume_job_submit(struct service *svc, const char *id, bool force);
+int model_job_submit(struct service *svc, const char *id, bool force);
 
 #endif

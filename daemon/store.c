@@ -24,6 +24,10 @@ static const char SCHEMA[] =
     " format TEXT NOT NULL, options TEXT NOT NULL, request BLOB NOT NULL,"
     " result BLOB, result_type TEXT, meta TEXT, error TEXT);"
     "CREATE INDEX IF NOT EXISTS jobs_state ON jobs(state, created);"
+    "CREATE TABLE IF NOT EXISTS models ("
+    " id TEXT PRIMARY KEY, job TEXT NOT NULL, name TEXT NOT NULL, created REAL NOT NULL,"
+    " source BLOB NOT NULL, resource TEXT NOT NULL);"
+    "CREATE INDEX IF NOT EXISTS models_created ON models(created);"
     "CREATE TABLE IF NOT EXISTS probe (x INTEGER);";
 
 int store_open(const char *dir, struct store **out, char *msg, size_t msg_len)
@@ -312,6 +316,78 @@ static void bind_id(sqlite3_stmt *st, const void *arg) { sqlite3_bind_text(st, 1
 int store_delete(struct store *s, const char *id)
 {
     return run(s, "DELETE FROM jobs WHERE id=?", bind_id, id);
+}
+
+/* ---- models ---- */
+
+static void bind_model(sqlite3_stmt *st, const void *arg)
+{
+    const struct model_rec *m = arg;
+    sqlite3_bind_text(st, 1, m->id, -1, SQLITE_STATIC);
+    sqlite3_bind_text(st, 2, m->job, -1, SQLITE_STATIC);
+    sqlite3_bind_text(st, 3, m->name ? m->name : "", -1, SQLITE_STATIC);
+    sqlite3_bind_double(st, 4, m->created);
+    sqlite3_bind_blob64(st, 5, m->source, m->source_len, SQLITE_STATIC);
+    sqlite3_bind_text(st, 6, m->resource, -1, SQLITE_STATIC);
+}
+
+int store_model_put(struct store *s, const struct model_rec *m)
+{
+    return run(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource) VALUES(?,?,?,?,?,?)", bind_model,
+               m);
+}
+
+int store_model_get(struct store *s, const char *id, char **resource, char **source, size_t *source_len)
+{
+    sqlite3_stmt *st;
+    int found = -1;
+    pthread_mutex_lock(&s->lock);
+    if (sqlite3_prepare_v2(s->db, "SELECT resource, source FROM models WHERE id=?", -1, &st, NULL) == SQLITE_OK) {
+        sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
+        int rc = sqlite3_step(st);
+        found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
+        if (found == 1) {
+            size_t n;
+            if (resource)
+                *resource = dup_text(st, 0);
+            if (source)
+                *source = (char *)dup_blob(st, 1, source_len ? source_len : &n);
+        }
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(&s->lock);
+    return found;
+}
+
+int store_model_list(struct store *s, long limit, void (*fn)(const char *resource, void *), void *arg)
+{
+    sqlite3_stmt *st;
+    int rc = -1;
+    pthread_mutex_lock(&s->lock);
+    if (sqlite3_prepare_v2(s->db, "SELECT resource FROM models ORDER BY created DESC, id LIMIT ?", -1, &st, NULL) ==
+        SQLITE_OK) {
+        sqlite3_bind_int64(st, 1, limit > 0 ? limit : -1);
+        while ((rc = sqlite3_step(st)) == SQLITE_ROW)
+            fn((const char *)sqlite3_column_text(st, 0), arg);
+        rc = rc == SQLITE_DONE ? 0 : -1;
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(&s->lock);
+    return rc;
+}
+
+int store_model_delete(struct store *s, const char *id)
+{
+    pthread_mutex_lock(&s->lock);
+    sqlite3_stmt *st;
+    int rc = -1;
+    if (sqlite3_prepare_v2(s->db, "DELETE FROM models WHERE id=?", -1, &st, NULL) == SQLITE_OK) {
+        sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
+        rc = sqlite3_step(st) == SQLITE_DONE ? sqlite3_changes(s->db) > 0 : -1;
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(&s->lock);
+    return rc;
 }
 
 bool store_writable(struct store *s)

@@ -48,6 +48,23 @@ int store_unfinished(struct store *s, void (*fn)(const char *id, void *), void *
 /* Removes finished jobs older than ttl seconds and all but the newest max_count finished ones. */
 int store_prune(struct store *s, double now, long ttl, long max_count);
 int store_delete(struct store *s, const char *id);
+/* Models: made by model jobs, kept until deleted (job pruning leaves them). source is the contour
+ * JSON they are rebuilt from, resource the JSON of GET /models/{id}. */
+struct model_rec {
+    const char *id, *job, *name;
+    double created;
+    const char *source;
+    size_t source_len;
+    const char *resource;
+};
+/* Inserts, or replaces a model of the same id (a job run again after a crash). 0 or -1. */
+int store_model_put(struct store *s, const struct model_rec *m);
+/* 1 found (*resource, *source: caller frees; either pointer may be NULL), 0 not found, -1 error. */
+int store_model_get(struct store *s, const char *id, char **resource, char **source, size_t *source_len);
+/* Resources, newest first (limit <= 0: all). 0 or -1. */
+int store_model_list(struct store *s, long limit, void (*fn)(const char *resource, void *), void *arg);
+/* 1 deleted, 0 not found, -1 error. */
+int store_model_delete(struct store *s, const char *id);
 /* A write succeeds (for /readyz). */
 bool store_writable(struct store *s);
 
