@@ -107,6 +107,11 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
 
 int model_validate(const char *buf, size_t len, const char *format, const char *options, struct sf_err *err)
 {
+    char roi[128], caps[16];
+    option(options, "roi", roi, sizeof roi);
+    option(options, "caps", caps, sizeof caps);
+    if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab") && strcmp(caps, "dome"))
+        return sf_fail(err, SF_EINVAL, "?caps", "caps is flat, slab or dome");
     if (!format || strcmp(format, "dicom")) {
         struct contour_set cs;
         struct contour_request req;
@@ -115,11 +120,6 @@ int model_validate(const char *buf, size_t len, const char *format, const char *
             contour_set_free(&cs);
         return rc;
     }
-    char roi[128], caps[16];
-    option(options, "roi", roi, sizeof roi);
-    option(options, "caps", caps, sizeof caps);
-    if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab") && strcmp(caps, "dome"))
-        return sf_fail(err, SF_EINVAL, "?caps", "caps is flat, slab or dome");
     struct rt_roi *rois = NULL;
     int n = 0, rc = rtstruct_read(buf, len, &rois, &n, err), found = 0;
     for (int k = 0; k < n && !rc; k++)
@@ -148,12 +148,19 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
     if (!*list)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     int rc = 0;
+    char roi[128], caps[16];
+    option(options, "roi", roi, sizeof roi);
+    option(options, "caps", caps, sizeof caps); /* ?caps= overrides the body's own "caps" */
+    if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab") && strcmp(caps, "dome"))
+        return sf_fail(err, SF_EINVAL, "?caps", "caps is flat, slab or dome");
     if (!format || strcmp(format, "dicom")) {
         struct contour_set cs;
         struct contour_request req;
         *single = true;
         if ((rc = contour_parse_json(buf, len, &cs, &req, err)))
             return rc;
+        if (caps[0])
+            snprintf(req.caps, sizeof req.caps, "%s", caps);
         json_t *o = figures(&cs, &req, t0, err);
         if (!o)
             rc = err->code ? err->code : SF_ENOMEM;
@@ -164,12 +171,7 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
     }
     /* an RT Structure Set: every ROI with contours, or the one ?roi names */
     struct contour_request req = {"", "parabolic", "flat"};
-    char roi[128], caps[16];
-    option(options, "roi", roi, sizeof roi);
-    option(options, "caps", caps, sizeof caps);
     *single = roi[0] != 0;
-    if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab") && strcmp(caps, "dome"))
-        return sf_fail(err, SF_EINVAL, "?caps", "caps is flat, slab or dome");
     if (caps[0])
         snprintf(req.caps, sizeof req.caps, "%s", caps);
     struct rt_roi *rois = NULL;
@@ -229,17 +231,19 @@ static int store_one(void *arg, int k, json_t *fig, const struct contour_set *cs
                      struct sf_err *err)
 {
     struct create_ctx *c = arg;
-    char id[40], self[64], mesh[96], patches[80], render[80];
-    c->sink->id(c->sink->ctx, k, id);
+    char id[40] = "", self[64], mesh[96], patches[80], render[80];
+    if (c->sink->id) {
+        c->sink->id(c->sink->ctx, k, id);
+        snprintf(self, sizeof self, "/models/%s", id);
+        snprintf(mesh, sizeof mesh, "%s/mesh?format=stl", self);
+        snprintf(patches, sizeof patches, "%s/patches", self);
+        snprintf(render, sizeof render, "%s/render", self);
+        json_object_set_new(fig, "id", json_string(id));
+        json_object_set_new(fig, "links", json_pack("{s:s, s:s, s:s, s:s}", "self", self, "mesh", mesh, "patches",
+                                                    patches, "render", render));
+    }
     if (k == 0)
         snprintf(c->first, sizeof c->first, "%s", id);
-    snprintf(self, sizeof self, "/models/%s", id);
-    snprintf(mesh, sizeof mesh, "%s/mesh?format=stl", self);
-    snprintf(patches, sizeof patches, "%s/patches", self);
-    snprintf(render, sizeof render, "%s/render", self);
-    json_object_set_new(fig, "id", json_string(id));
-    json_object_set_new(fig, "links", json_pack("{s:s, s:s, s:s, s:s}", "self", self, "mesh", mesh, "patches", patches,
-                                                "render", render));
     char *source = contour_json_write(cs, req), *resource = json_dumps(fig, JSON_COMPACT | JSON_REAL_PRECISION(12));
     int rc = !source || !resource ? sf_fail(err, SF_ENOMEM, "", "out of memory")
              : c->sink->put(c->sink->ctx, id, req->name, source, resource)

@@ -23,7 +23,8 @@ int model_validate(const char *buf, size_t len, const char *format, const char *
 
 /* Where model_create keeps the models it makes. id(k) names the k-th model of the request (the same
  * request must get the same ids, so that a job run again after a crash replaces what it stored);
- * put stores one: its source (contour JSON, model_source) and its resource JSON. -1: the store failed. */
+ * put stores one: its source (contour JSON, model_source) and its resource JSON. -1: the store failed.
+ * Without id (NULL), models get no id or links and put sees id "" (offline, the CLI). */
 struct model_sink {
     void (*id)(void *ctx, int k, char id[40]);
     int (*put)(void *ctx, const char *id, const char *name, const char *source, const char *resource);

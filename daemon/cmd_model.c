@@ -1,5 +1,7 @@
 /* cmd_model.c - `surfd volume FILE` and `surfd model FILE`: contours in, the model's figures out
- * as JSON, offline; the same figures POST /volume answers. */
+ * as JSON, offline; the same figures POST /volume and POST /model answer. `model` also writes the
+ * model's mesh (--mesh OUT.stl|.ply|.obj) and patches (--patches OUT.json) as GET
+ * /models/{id}/mesh and /patches would. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -7,54 +9,120 @@
 #include "../api/model_json.h"
 #include "cli.h"
 
+static char *read_all(const char *path, size_t *len)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        perror(path);
+        return NULL;
+    }
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *buf = n >= 0 && n < (1L << 30) ? malloc((size_t)n + 1) : NULL;
+    size_t got = buf ? fread(buf, 1, (size_t)n, f) : 0;
+    fclose(f);
+    if (!buf || got != (size_t)n) {
+        free(buf);
+        fprintf(stderr, "surfd: %s: cannot read\n", path);
+        return NULL;
+    }
+    buf[n] = 0;
+    *len = (size_t)n;
+    return buf;
+}
+
+static int write_all(const char *path, const char *data, size_t len)
+{
+    FILE *f = fopen(path, "wb");
+    if (!f || fwrite(data, 1, len, f) != len || fclose(f)) {
+        perror(path);
+        return -1;
+    }
+    return 0;
+}
+
+/* The sink of offline models: keeps the sources, counts them. */
+struct keep {
+    char *source;
+    int n;
+};
+
+static int keep_put(void *ctx, const char *id, const char *name, const char *source, const char *resource)
+{
+    (void)id, (void)name, (void)resource;
+    struct keep *k = ctx;
+    if (k->n++ == 0)
+        k->source = strdup(source);
+    return k->source ? 0 : -1;
+}
+
 int cmd_volume(int argc, char **argv)
 {
+    bool model = !strcmp(argv[0], "model");
     int repeat = 1;
     char options[256] = "";
+    const char *mesh = NULL, *patches = NULL;
+    double tol = 0.0;
     for (int k = 2; k + 1 < argc; k += 2) {
         size_t n = strlen(options);
         if (!strcmp(argv[k], "--repeat"))
             repeat = atoi(argv[k + 1]);
         else if (!strcmp(argv[k], "--roi") || !strcmp(argv[k], "--caps"))
             snprintf(options + n, sizeof options - n, "%s%s=%s", n ? "&" : "", argv[k] + 2, argv[k + 1]);
+        else if (model && !strcmp(argv[k], "--mesh"))
+            mesh = argv[k + 1];
+        else if (model && !strcmp(argv[k], "--patches"))
+            patches = argv[k + 1];
+        else if (model && !strcmp(argv[k], "--tolerance"))
+            tol = atof(argv[k + 1]);
         else
             repeat = 0;
     }
     if (argc < 2 || argc % 2 || repeat < 1) {
-        fprintf(stderr, "usage: surfd volume CONTOURS.json|RTSTRUCT.dcm [--roi NAME] [--caps flat|slab] [--repeat N]\n"
-                        "       (also: surfd model ...); --repeat runs it N times in one process and reports the\n"
-                        "       last (warm) timings\n");
+        fprintf(stderr, "usage: surfd volume CONTOURS.json|RTSTRUCT.dcm [--roi NAME] [--caps flat|slab|dome] [--repeat N]\n"
+                        "       surfd model  CONTOURS.json|RTSTRUCT.dcm [--roi NAME] [--caps flat|slab|dome]\n"
+                        "                    [--mesh OUT.stl|OUT.ply|OUT.obj [--tolerance MM]] [--patches OUT.json]\n"
+                        "       --repeat runs it N times in one process and reports the last (warm) timings\n");
         return 2;
     }
-    FILE *f = fopen(argv[1], "rb");
-    if (!f) {
-        perror(argv[1]);
+    size_t len;
+    char *buf = read_all(argv[1], &len);
+    if (!buf)
         return 1;
-    }
-    fseek(f, 0, SEEK_END);
-    long len = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *buf = len >= 0 && len < (1L << 30) ? malloc((size_t)len + 1) : NULL;
-    size_t got = buf ? fread(buf, 1, (size_t)len, f) : 0;
-    fclose(f);
-    if (!buf || got != (size_t)len) {
-        free(buf);
-        fprintf(stderr, "surfd: %s: cannot read\n", argv[1]);
-        return 1;
-    }
     char *json = NULL;
     struct sf_err err = {0};
+    struct keep kept = {0};
+    struct model_sink sink = {NULL, keep_put, &kept};
     int rc = 0;
     for (int k = 0; k < repeat && !rc; k++) {
         free(json);
         json = NULL;
         /* DICOM Part 10 files carry "DICM" after a 128-byte preamble */
         const char *format = len > 132 && !memcmp(buf + 128, "DICM", 4) ? "dicom" : "json";
-        rc = model_figures(buf, (size_t)len, format, options, &json, &err);
+        char location[64];
+        rc = model ? model_create(buf, len, format, options, &sink, &json, location, &err)
+                   : model_figures(buf, len, format, options, &json, &err);
     }
     free(buf);
+    if (!rc && (mesh || patches) && kept.n != 1)
+        rc = sf_fail(&err, SF_EINVAL, "--roi", "%d models: choose one with --roi for --mesh or --patches", kept.n);
+    char *out = NULL;
+    size_t out_len = 0;
+    const char *ext = mesh ? strrchr(mesh, '.') : NULL, *mime;
+    if (!rc && mesh && !(rc = model_mesh(kept.source, strlen(kept.source), ext ? ext + 1 : "", tol, &out, &out_len,
+                                         &mime, &err)))
+        rc = write_all(mesh, out, out_len) ? SF_EIO : 0;
+    free(out);
+    out = NULL;
+    if (!rc && patches && !(rc = model_patches_json(kept.source, strlen(kept.source), &out, &err)))
+        rc = write_all(patches, out, strlen(out)) ? SF_EIO : 0;
+    free(out);
+    free(kept.source);
     if (rc) {
-        fprintf(stderr, "surfd: %s: %s%s%s\n", argv[1], err.message, err.pointer[0] ? " at " : "", err.pointer);
+        if (rc != SF_EIO)
+            fprintf(stderr, "surfd: %s: %s%s%s\n", argv[1], err.message, err.pointer[0] ? " at " : "", err.pointer);
+        free(json);
         return 1;
     }
     printf("%s\n", json);

@@ -1,5 +1,4 @@
-/* main.c - build/surfd: dispatches to its subcommands (serve, render; model and volume come
- * with the contours issue). */
+/* main.c - build/surfd: dispatches to its subcommands (serve, render, model, volume). */
 #include <stdio.h>
 #include <string.h>
 
@@ -22,6 +21,7 @@ int main(int argc, char **argv)
         return 0;
     }
     fprintf(stderr, "usage: surfd serve [--config FILE] [--SETTING VALUE]...   (surfd serve --help)\n"
-                    "       surfd render SCENE... -o OUT [options]\n");
+                    "       surfd render SCENE... -o OUT [options]\n"
+                    "       surfd model|volume CONTOURS.json|RTSTRUCT.dcm [options]\n");
     return 2;
 }

@@ -30,6 +30,21 @@ check "rtstruct unknown roi" '[ $rc -eq 1 ] && grep -q "?roi" "$T/err"'
 ct=$(ls "${SURFD_DATA:-../shared/data}"/volumes/dicom_pydicom_ct5n_16x16x5/* | head -n 1)
 $S volume "$ct" >/dev/null 2>"$T/err"; rc=$?
 check "a CT image is not a structure set" '[ $rc -eq 1 ] && grep -q "not an RT Structure Set" "$T/err"'
+# `surfd model`: the figures, and the mesh and patches the service would serve
+$S model "$C/synthetic_bean.json" --caps dome --mesh "$T/b.stl" --patches "$T/b.json" >"$T/out" 2>"$T/err"
+check "model --caps dome overrides the file's caps" '[ $? -eq 0 ] && grep -q "\"caps\":\"dome\"" "$T/out"'
+vol=$(sed 's/.*"volume_mm3":\([0-9.]*\).*/\1/' "$T/out")
+check "model --mesh: a closed STL holding the volume" 'python3 tests/tools/stl_check.py "$T/b.stl" "$vol" >"$T/err"'
+$S render "$T/b.json" -o "$T/b.png" --width 64 --height 48 2>"$T/err"
+check "model --patches: a scene surfd renders" '[ $? -eq 0 ] && [ -s "$T/b.png" ]'
+for f in ply obj; do
+    $S model "$C/dicompyler-core_example_rtss.dcm" --roi Heart --mesh "$T/h.$f" --tolerance 0.5 >/dev/null 2>"$T/err"
+    check "model --mesh $f" '[ $? -eq 0 ] && { head -c 3 "$T/h.$f" | grep -q ply || grep -q "^f 1 " "$T/h.$f" || grep -q "^f " "$T/h.$f"; }'
+done
+$S model "$C/dicompyler-core_example_rtss.dcm" --mesh "$T/h.stl" >/dev/null 2>"$T/err"; rc=$?
+check "model --mesh of several ROIs asks for one" '[ $rc -eq 1 ] && grep -q "choose one with --roi" "$T/err"'
+$S model "$C/synthetic_bean.json" --mesh "$T/b.vrml" >/dev/null 2>"$T/err"; rc=$?
+check "model --mesh of an unknown format" '[ $rc -eq 1 ] && grep -q "stl, ply or obj" "$T/err"'
 $S volume "$T/none.json" 2>/dev/null; rc=$?
 check "missing file" '[ $rc -eq 1 ]'
 $S volume 2>/dev/null; rc=$?

@@ -1,0 +1,75 @@
+#!/bin/sh
+# Black-box tests of the model routes as curl users drive them: POST /model (contour JSON and RT
+# Structure Sets, sync and async), GET /models and /models/{id}, meshes (a closed STL holding the
+# model's volume, PLY, OBJ), patches that /render takes back, /models/{id}/render, stored models as
+# scene objects, DELETE, every error as problem+json, models surviving a restart and a kill -9.
+. "$(dirname "$0")/lib.inc"
+C="${SURFD_DATA:-../shared/data}/contours"
+J='Content-Type: application/json'
+field() { sed -n "s/.*\"$1\":\"\\([^\"]*\\)\".*/\\1/p" "$T/body" | head -n 1; }
+
+start_daemon "$T/m1" --threads 2 || exit 1
+
+# ---- POST /model, GET /models/{id}, GET /models ------------------------------------------------
+code=$(status POST /model -H "$J" --data-binary @"$C/synthetic_bean.json")
+id=$(field id); loc=$(header Location)
+check "model 201 with Location" '[ "$code" = 201 ] && [ "$loc" = "/models/$id" ] && grep -q "\"volume_mm3\":66501" "$T/body" && grep -q "\"mesh\":\"/models/$id/mesh?format=stl\"" "$T/body"'
+vol=$(sed 's/.*"volume_mm3":\([0-9.]*\).*/\1/' "$T/body")
+check "GET the model" '[ "$(status GET "$loc")" = 200 ] && grep -q "\"id\":\"$id\"" "$T/body" && grep -q "\"caps\":\"flat\"" "$T/body"'
+check "GET /models lists it" '[ "$(status GET /models)" = 200 ] && grep -q "\"models\":\[{" "$T/body" && grep -q "\"id\":\"$id\"" "$T/body"'
+code=$(status POST "/model?caps=dome" -H "$J" --data-binary @"$C/synthetic_ellipsoid.json")
+dome=$(field id)
+check "model ?caps=dome" '[ "$code" = 201 ] && grep -q "\"caps\":\"dome\"" "$T/body" && grep -q "\"dome_ends_flat\":0" "$T/body"'
+code=$(status POST /model -H 'Content-Type: application/dicom' --data-binary @"$C/slicerrt_EclipseProstatePhantom_RS.dcm")
+ids=$(grep -o '"id":"[0-9a-f]*"' "$T/body" | cut -d'"' -f4 | sort -u)
+check "model from an RT Structure Set: one model per ROI" '[ "$code" = 201 ] && grep -q "\"models\":\[" "$T/body" && [ "$(echo "$ids" | wc -l)" -ge 5 ]'
+n=0; for m in $ids; do [ "$(status GET /models/$m)" = 200 ] && n=$((n + 1)); done
+check "every ROI's model is stored" '[ "$n" -eq "$(echo "$ids" | wc -l)" ]'
+code=$(status POST /model -H 'Prefer: respond-async' -H "$J" --data-binary @"$C/eclipse_ptv.json")
+job=$(header X-Job-Id)
+check "model async: 202, then the result as POST would have sent it" '[ "$code" = 202 ] && wait_state "$job" succeeded && [ "$(status GET /jobs/$job/result)" = 201 ] && [ "$(header Location)" = "/models/$job" ] && [ "$(status GET /models/$job)" = 200 ]'
+
+# ---- meshes and patches ---------------------------------------------------------------------
+code=$(status GET "/models/$id/mesh?format=stl")
+cp "$T/body" "$T/m.stl"
+check "mesh STL: closed, holding the model's volume" '[ "$code" = 200 ] && [ "$(header Content-Type)" = model/stl ] && python3 tests/tools/stl_check.py "$T/m.stl" "$vol" >/dev/null'
+check "mesh STL is the default" '[ "$(status GET "/models/$id/mesh")" = 200 ] && cmp -s "$T/body" "$T/m.stl"'
+check "mesh PLY" '[ "$(status GET "/models/$id/mesh?format=ply&tolerance=0.2")" = 200 ] && head -c 40 "$T/body" | grep -q "binary_little_endian"'
+check "mesh OBJ" '[ "$(status GET "/models/$id/mesh?format=obj&tolerance=0.2")" = 200 ] && grep -q "^v " "$T/body" && grep -q "^f " "$T/body"'
+check "mesh 422 format" '[ "$(status GET "/models/$id/mesh?format=vrml")" = 422 ] && grep -q "\"pointer\":\"?format\"" "$T/body"'
+check "mesh 422 tolerance" '[ "$(status GET "/models/$id/mesh?tolerance=abc")" = 422 ] && grep -q "\"pointer\":\"?tolerance\"" "$T/body" && [ "$(status GET "/models/$id/mesh?tolerance=-1")" = 422 ]'
+code=$(status GET "/models/$dome/patches")
+cp "$T/body" "$T/p.json"
+check "patches: bicubic and rational dome patches" '[ "$code" = 200 ] && grep -q "\"type\":\"bezier\"" "$T/p.json" && grep -q "\"type\":\"nurbs\"" "$T/p.json"'
+check "patches render as a scene" '[ "$(status POST "/render?width=64&height=48" -H "$J" --data-binary @"$T/p.json")" = 200 ] && [ "$(header Content-Type)" = image/png ]'
+
+# ---- rendering stored models --------------------------------------------------------------------
+check "GET /models/{id}/render" '[ "$(status GET "/models/$id/render?width=80&height=60&azimuth=60")" = 200 ] && [ "$(header Content-Type)" = image/png ] && [ -n "$(header X-Job-Id)" ]'
+check "a model object in a scene" '[ "$(status POST "/render?width=64&height=48" -H "$J" --data-binary "{\"objects\":[{\"type\":\"model\",\"id\":\"$id\",\"material\":{\"color\":[0.9,0.4,0.3]}}]}")" = 200 ]'
+check "422 unknown model in a scene" '[ "$(status POST /render -H "$J" --data-binary "{\"objects\":[{\"type\":\"model\",\"id\":\"0123456789abcdef\"}]}")" = 422 ] && grep -q "\"pointer\":\"/objects/0/id\"" "$T/body"'
+check "422 model object without id" '[ "$(status POST /render -H "$J" --data-binary "{\"objects\":[{\"type\":\"model\"}]}")" = 422 ] && grep -q "\"pointer\":\"/objects/0/id\"" "$T/body"'
+check "422 model material" '[ "$(status POST /render -H "$J" --data-binary "{\"objects\":[{\"type\":\"model\",\"id\":\"$id\",\"material\":{\"color\":[1,1]}}]}")" = 422 ] && grep -q "/objects/0/material" "$T/body"'
+
+# ---- errors ----------------------------------------------------------------------------------
+check "model 422 crossing contour" '[ "$(status POST /model -H "$J" --data-binary "{\"slices\":[{\"z\":0,\"points\":[[0,0],[1,1],[1,0],[0,1]]},{\"z\":1,\"points\":[[0,0],[1,0],[0,1]]}]}")" = 422 ] && grep -q "\"pointer\":\"/slices/0/points\"" "$T/body"'
+check "model 422 ?caps" '[ "$(status POST "/model?caps=round" -H "$J" --data-binary @"$C/synthetic_bean.json")" = 422 ] && grep -q "\"pointer\":\"?caps\"" "$T/body"'
+check "model 415" '[ "$(status POST /model -H "Content-Type: image/png" --data-binary x)" = 415 ] && is_problem 415'
+check "model 400" '[ "$(status POST /model -H "$J" --data-binary "{")" = 400 ] && is_problem 400'
+check "404 unknown model" '[ "$(status GET /models/0123456789abcdef)" = 404 ] && is_problem 404 && [ "$(status GET /models/0123456789abcdef/mesh)" = 404 ]'
+check "404 bad model id" '[ "$(status GET /models/..%2f..%2fetc)" = 404 ] && [ "$(status GET /models/$id/nothing)" = 404 ]'
+check "405 on models" '[ "$(status POST /models/$id)" = 405 ] && [ "$(status PUT /models)" = 405 ] && [ "$(status DELETE /models/$id/mesh)" = 405 ] && [ "$(status GET /model)" = 405 ]'
+check "DELETE a model" '[ "$(status DELETE /models/$dome)" = 204 ] && [ "$(status GET /models/$dome)" = 404 ] && [ "$(status DELETE /models/$dome)" = 404 ]'
+check "daemon up after errors" 'alive'
+stop_daemon
+
+# ---- models survive a restart; a model job survives kill -9 ---------------------------------------
+start_daemon "$T/m1" --threads 1 || exit 1
+check "models survive a restart" '[ "$(status GET /models/$id)" = 200 ] && [ "$(status GET "/models/$id/mesh?tolerance=0.5")" = 200 ]'
+status POST "/render?width=1024&height=1024&method=bvh" -H 'Prefer: respond-async' -H "$J" --data-binary @"${SURFD_DATA:-../shared/data}/scenes/teapot.json" >/dev/null
+status POST /model -H 'Prefer: respond-async' -H "$J" --data-binary @"$C/eclipse_rectum.json" >/dev/null
+queued=$(header X-Job-Id)
+kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""
+start_daemon "$T/m1" --threads 2 || exit 1
+check "a model job accepted before kill -9 is run after the restart" 'wait_state "$queued" succeeded 60 && [ "$(status GET /models/$queued)" = 200 ] && grep -q "\"name\":\"Rectum\"" "$T/body"'
+
+finish
