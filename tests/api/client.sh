@@ -15,6 +15,11 @@ client/examples/render_exr_depth.sh "$D/teapot.bpt" "$T/c.exr"
 check "example render_exr_depth" '[ $? -eq 0 ] && head -c 2000 "$T/c.exr" | grep -aq "Z"'
 check "example bad_scene" 'client/examples/bad_scene.sh | grep -q "\"pointer\":\"/objects/0/knots_u/2\"" && client/examples/bad_scene.sh | tail -n 1 | grep -q 422'
 check "example health" 'client/examples/health.sh | grep -q surfd_queue_depth'
+client/examples/model_mesh.sh "${SURFD_DATA:-../shared/data}/contours/synthetic_ellipsoid.json" "$T/m.stl" >"$T/out"
+vol=$(sed 's/.*"volume_mm3":\([0-9.]*\).*/\1/' "$T/out")
+check "example model_mesh" '[ $? -eq 0 ] && grep -q "\"caps\":\"dome\"" "$T/out" && python3 tests/tools/stl_check.py "$T/m.stl" "$vol" >/dev/null'
+client/examples/model_mesh.sh "${SURFD_DATA:-../shared/data}/contours/dicompyler-core_example_rtss.dcm" "$T/h.obj" Heart >"$T/out"
+check "example model_mesh of an RTSTRUCT ROI" '[ $? -eq 0 ] && grep -q "\"name\":\"Heart\"" "$T/out" && grep -q "^f " "$T/h.obj"'
 
 $C render "$D/teacup.json" -o "$T/d.png" --width 120 --height 90
 check "surfctl render" '[ $? -eq 0 ] && [ -s "$T/d.png" ]'
