@@ -132,7 +132,7 @@ TEST(bad_json_scenes)
         {"{\"objects\":[]}", SF_EINVAL, "/objects"},
         {"{\"objects\":[7]}", SF_EINVAL, "/objects/0"},
         {"{\"objects\":[{\"type\":\"sphere\"}]}", SF_EINVAL, "/objects/0/type"},
-        {"{\"objects\":[{\"type\":\"model\",\"id\":\"x\"}]}", SF_EINVAL, "/objects/0/type"},
+        {"{\"objects\":[{\"type\":\"model\",\"id\":\"x\"}]}", SF_EINVAL, "/objects/0/id"}, /* models need the service's store */
         {"{\"objects\":[{\"degree\":[0,1],\"points\":[]}]}", SF_EINVAL, "/objects/0/degree/0"},
         {"{\"objects\":[{\"degree\":[1,1],\"points\":[[0,0,0]]}]}", SF_EINVAL, "/objects/0/points"},
         {"{\"objects\":[{\"degree\":[1,1],\"points\":[[0,0,0],[1,0,0],[0,1],[1,1,1]]}]}", SF_EINVAL, "/objects/0/points/2"},
