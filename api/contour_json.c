@@ -60,7 +60,7 @@ int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, stru
         snprintf(where, sizeof where, "line %d, column %d", je.line, je.column);
         return sf_fail(err, SF_EFORMAT, where, "not JSON: %s", je.text);
     }
-    static const char *const METHODS[] = {"parabolic", NULL}, *const CAPS[] = {"flat", "slab", "dome", NULL};
+    static const char *const METHODS[] = {"parabolic", "linear-parabolic", "coons", "bspline", NULL}, *const CAPS[] = {"flat", "slab", "dome", NULL};
     int rc = 0;
     json_t *slices = json_object_get(root, "slices");
     if (!json_is_object(root)) {

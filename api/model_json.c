@@ -51,18 +51,22 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
 {
     struct contour_set cs = *cs_in;
     struct solid sd;
+    enum model_method method = MODEL_PARABOLIC;
+    model_method_parse(req->method, &method);
+    bool curves = method == MODEL_PARABOLIC || method == MODEL_LINEAR_PARABOLIC;
     double t1 = now_ms();
-    if (solid_build(&cs, caps_of(req->caps), &sd, err))
+    if (solid_build(&cs, method, caps_of(req->caps), &sd, err))
         return NULL;
-    /* the exact volume straight from the curves, tube by tube (the closed form), and the ends as built */
+    /* the curve methods' exact volume straight from the curves, tube by tube (the closed form), and
+     * the ends as built; the grid methods' is the quadrature below (exact for polynomial patches) */
     double t2 = now_ms(), closed = 0.0;
     struct contour_slice *storage = malloc(sizeof *storage * (size_t)cs.n_slices);
     int rc = storage ? 0 : sf_fail(err, SF_ENOMEM, "", "out of memory");
-    for (int c = 0; c < sd.n_tubes && !rc; c++) {
+    for (int c = 0; c < sd.n_tubes && !rc && curves; c++) {
         struct contour_set v = model_chain_view(&cs, &sd.chains[c], storage);
         double vol = 0.0, ends[2];
         if (v.n_slices >= 2)
-            rc = model_volume_closed(&v, &vol, ends, NULL, err);
+            rc = model_volume_closed(&v, method, &vol, ends, NULL, err);
         closed += (sd.tubes[c].hole ? -vol : vol) + sd.tubes[c].volume_ends;
     }
     free(storage);
@@ -71,6 +75,8 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
     struct solid_measures all;
     solid_measure(&sd, &all);
     double t4 = now_ms();
+    if (!curves)
+        closed = all.volume;
     size_t n_patches = sd.set.n;
     int n_chains = sd.n_tubes, dome_fallbacks = sd.dome_fallbacks;
     solid_free(&sd);
@@ -276,7 +282,9 @@ static int solid_of(const char *src, size_t len, struct solid *sd, struct sf_err
     int rc = contour_parse_json(src, len, &cs, &req, err);
     if (rc)
         return rc;
-    rc = solid_build(&cs, caps_of(req.caps), sd, err);
+    enum model_method method = MODEL_PARABOLIC;
+    model_method_parse(req.method, &method);
+    rc = solid_build(&cs, method, caps_of(req.caps), sd, err);
     contour_set_free(&cs);
     return rc;
 }

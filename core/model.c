@@ -20,6 +20,7 @@
 #define BREAK_EPS 1e-12 /* breakpoints closer than this in u are one */
 
 struct curve {
+    bool lsq;        /* linear-parabolic: least-squares lines instead of parabolas */
     int n;
     double (*p)[2];  /* points, rotated so that u increases from index 0 */
     double *u;       /* parameters in [0, 1), increasing */
@@ -32,9 +33,10 @@ static void curve_free(struct curve *c)
 }
 
 /* Builds the curve of slice s: chord-length parameters from the +x crossing of the centroid's ray. */
-static int curve_build(const struct contour_slice *s, struct curve *c)
+static int curve_build(const struct contour_slice *s, bool lsq, struct curve *c)
 {
     int n = s->n;
+    c->lsq = lsq;
     c->n = n;
     c->p = malloc(sizeof *c->p * (size_t)n);
     c->u = malloc(sizeof *c->u * (size_t)n);
@@ -94,11 +96,26 @@ static double parabola(double t, double t0, double t1, double t2, double v0, dou
            v2 * (t - t0) * (t - t1) / ((t2 - t0) * (t2 - t1));
 }
 
-/* eq. 32: between t1 and t2, the blend of the parabolas through 0..2 and 1..3. */
-static double blend(double t, const double ts[4], const double v[4])
+/* Least-squares line through (t0,v0), (t1,v1), (t2,v2) at t (seed 000 eq. 33–35). */
+static double lsq_line(double t, double t0, double t1, double t2, double v0, double v1, double v2)
 {
-    double L1 = parabola(t, ts[0], ts[1], ts[2], v[0], v[1], v[2]);
-    double L2 = parabola(t, ts[1], ts[2], ts[3], v[1], v[2], v[3]);
+    double tm = (t0 + t1 + t2) / 3, vm = (v0 + v1 + v2) / 3;
+    double sxx = (t0 - tm) * (t0 - tm) + (t1 - tm) * (t1 - tm) + (t2 - tm) * (t2 - tm);
+    double sxy = (t0 - tm) * (v0 - vm) + (t1 - tm) * (v1 - vm) + (t2 - tm) * (v2 - vm);
+    return vm + sxy / sxx * (t - tm);
+}
+
+/* The local fit through three points: a parabola (parabolic, seed 004 eq. 6–12) or a
+ * least-squares line (linear-parabolic, seed 000 eq. 33–35). */
+static double local_fit(bool lsq, double t, const double ts[3], const double v[3])
+{
+    return lsq ? lsq_line(t, ts[0], ts[1], ts[2], v[0], v[1], v[2]) : parabola(t, ts[0], ts[1], ts[2], v[0], v[1], v[2]);
+}
+
+/* eq. 32: between t1 and t2, the blend of the local fits through 0..2 and 1..3. */
+static double blend(bool lsq, double t, const double ts[4], const double v[4])
+{
+    double L1 = local_fit(lsq, t, ts, v), L2 = local_fit(lsq, t, ts + 1, v + 1);
     return (t - ts[2]) / (ts[1] - ts[2]) * L1 + (t - ts[1]) / (ts[2] - ts[1]) * L2;
 }
 
@@ -127,8 +144,8 @@ static void curve_eval(const struct curve *c, double u, double *x, double *y)
     double ts[4], xs[4], ys[4];
     for (int k = 0; k < 4; k++)
         ts[k] = cu(c, i - 1 + k, &xs[k], &ys[k]);
-    *x = blend(u, ts, xs);
-    *y = blend(u, ts, ys);
+    *x = blend(c->lsq, u, ts, xs);
+    *y = blend(c->lsq, u, ts, ys);
 }
 
 /* Inverse of the cubic Bernstein matrix at t = 0, 1/3, 2/3, 1 (rows: samples, columns: basis). */
@@ -176,7 +193,7 @@ static int cmp_double(const void *a, const void *b)
 
 /* Weights of the slices at hand at height z, for the pair (k, k+1): the surface point is the sum
  * of weight_j C_j(u), since every blend is linear in the values. m receives the slice count. */
-static void slice_weights(const struct contour_set *cs, int k, double z, double w[4], int *j0, int *m)
+static void slice_weights(const struct contour_set *cs, bool lsq, int k, double z, double w[4], int *j0, int *m)
 {
     int n = cs->n_slices, first = k > 0 ? k - 1 : k, last = k + 2 < n ? k + 2 : k + 1;
     double zs[4];
@@ -188,22 +205,23 @@ static void slice_weights(const struct contour_set *cs, int k, double z, double 
         double v[4] = {0, 0, 0, 0};
         v[j] = 1.0;
         if (*m == 4)
-            w[j] = blend(z, zs, v);
-        else if (*m == 3) /* an end pair: the one parabola there is */
-            w[j] = parabola(z, zs[0], zs[1], zs[2], v[0], v[1], v[2]);
+            w[j] = blend(lsq, z, zs, v);
+        else if (*m == 3) /* an end pair: the one local fit there is */
+            w[j] = local_fit(lsq, z, zs, v);
         else /* two slices in all */
             w[j] = j == 0 ? (zs[1] - z) / (zs[1] - zs[0]) : (z - zs[0]) / (zs[1] - zs[0]);
     }
 }
 
-int model_parabolic(const struct contour_set *cs, struct patch_set *set, struct sf_err *err)
+/* Parabolic or linear-parabolic (eq. 32 in both directions), exactly as bicubic patches. */
+static int curve_surface(const struct contour_set *cs, bool lsq, struct patch_set *set, struct sf_err *err)
 {
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
     if (!cv)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     for (int j = 0; j < n && !rc; j++)
-        rc = curve_build(&cs->s[j], &cv[j]);
+        rc = curve_build(&cs->s[j], lsq, &cv[j]);
     double inv[4][4];
     bernstein_inverse(inv);
     double *brk = NULL;
@@ -226,7 +244,7 @@ int model_parabolic(const struct contour_set *cs, struct patch_set *set, struct 
         double z0 = cs->s[k].z, z1 = cs->s[k + 1].z, wz[4][4];
         int m = 0;
         for (int c = 0; c < 4; c++) /* the slice weights at the four z samples, once per pair */
-            slice_weights(cs, k, z0 + (z1 - z0) * c / 3.0, wz[c], &j0, &m);
+            slice_weights(cs, lsq, k, z0 + (z1 - z0) * c / 3.0, wz[c], &j0, &m);
         for (size_t b = 0; b + 1 < nb && !rc; b++) {
             double ua = brk[b], ub = brk[b + 1];
             if (ub - ua <= BREAK_EPS)
@@ -269,6 +287,269 @@ int model_parabolic(const struct contour_set *cs, struct patch_set *set, struct 
         curve_free(&cv[j]);
     free(cv);
     return rc ? sf_fail(err, SF_ENOMEM, "", "out of memory building the model") : 0;
+}
+
+/* ---- grid methods: Coons and B-spline ------------------------------------------------------------
+ * Both need the same point count on every slice (METHODS.md §2): each contour's curve is sampled at
+ * N even steps of u, N the most points any contour has (at least 8). The curves' parameter starts
+ * where the +x ray out of the centroid crosses them, so column k lines up from slice to slice. */
+
+#define GRID_MIN 8
+
+static int grid_count(const struct contour_set *cs)
+{
+    int N = GRID_MIN;
+    for (int j = 0; j < cs->n_slices; j++)
+        N = cs->s[j].n > N ? cs->s[j].n : N;
+    return N;
+}
+
+/* Q[j*N + k] = (x, y, z) of slice j at u = k/N. NULL when out of memory. */
+static double (*grid_sample(const struct contour_set *cs, int N))[3]
+{
+    int n = cs->n_slices;
+    double(*Q)[3] = malloc(sizeof *Q * (size_t)n * (size_t)N);
+    for (int j = 0; Q && j < n; j++) {
+        struct curve c = {0};
+        if (curve_build(&cs->s[j], false, &c)) {
+            curve_free(&c);
+            free(Q);
+            return NULL;
+        }
+        for (int k = 0; k < N; k++) {
+            double *q = Q[(size_t)j * N + k];
+            curve_eval(&c, (double)k / N, &q[0], &q[1]);
+            q[2] = cs->s[j].z;
+        }
+        curve_free(&c);
+    }
+    return Q;
+}
+
+/* Appends a bicubic with cw still a pool offset (as nurbs_extract does); NULL when out of memory. */
+static double (*append_bicubic(struct patch_set *set, double u0, double u1, double v0, double v1))[4]
+{
+    if (mem_reserve((void **)&set->patches, &set->cap, set->n + 1, sizeof *set->patches) ||
+        mem_reserve((void **)&set->pool, &set->cap_pool, set->n_pool + 16, sizeof *set->pool))
+        return NULL;
+    set->patches[set->n++] = (struct patch){3, 3, false, (double(*)[4])(uintptr_t)set->n_pool, 0, u0, u1, v0, v1};
+    set->n_pool += 16;
+    return set->pool + set->n_pool - 16;
+}
+
+/* Local interpolation by bicubic Coons patches (seeds 000/001 eq. 14–17, as METHODS.md corrects
+ * them): per grid cell, corners, central-difference tangents (one-sided at the first and last slice:
+ * ours, the seeds are silent), each in its own slot (the difference along the slices where the
+ * matrix wants the derivative across them), and zero twist; P_B = H G Hᵀ puts the edge points at the
+ * corners ± tangent/3 and the inner points at the corners ± both tangents/3. */
+static int coons_surface(const struct contour_set *cs, struct patch_set *set)
+{
+    int n = cs->n_slices, N = grid_count(cs);
+    double(*Q)[3] = grid_sample(cs, N);
+    if (!Q)
+        return SF_ENOMEM;
+#define AT(j, k) Q[(size_t)(j) * N + (size_t)(((k) % N + N) % N)]
+    for (int j = 0; j + 1 < n; j++)
+        for (int k = 0; k < N; k++) {
+            double(*cw)[4] = append_bicubic(set, (double)k / N, (double)(k + 1) / N, cs->s[j].z, cs->s[j + 1].z);
+            if (!cw) {
+                free(Q);
+                return SF_ENOMEM;
+            }
+            for (int a = 0; a < 2; a++)     /* corner along u: k + a */
+                for (int b = 0; b < 2; b++) { /* ... across slices: j + b */
+                    int jj = j + b, kk = k + a, jm = jj > 0 ? jj - 1 : jj, jp = jj + 1 < n ? jj + 1 : jj;
+                    double su = a ? -1.0 / 3 : 1.0 / 3, sv = b ? -1.0 / 3 : 1.0 / 3;
+                    for (int c = 0; c < 3; c++) {
+                        double P = AT(jj, kk)[c];
+                        double Tu = 0.5 * (AT(jj, kk + 1)[c] - AT(jj, kk - 1)[c]);
+                        double Tv = (AT(jp, kk)[c] - AT(jm, kk)[c]) / (jp - jm);
+                        int i0 = a ? 3 : 0, j0 = b ? 3 : 0, i1 = a ? 2 : 1, j1 = b ? 2 : 1;
+                        cw[i0 * 4 + j0][c] = P;
+                        cw[i1 * 4 + j0][c] = P + su * Tu;
+                        cw[i0 * 4 + j1][c] = P + sv * Tv;
+                        cw[i1 * 4 + j1][c] = P + su * Tu + sv * Tv; /* zero twist */
+                    }
+                }
+            for (int q = 0; q < 16; q++)
+                cw[q][3] = 1.0;
+        }
+#undef AT
+    free(Q);
+    return 0;
+}
+
+/* Solves the periodic system (x[k-1] + 4 x[k] + x[k+1]) / 6 = d[k], k = 0..N-1 (N >= 3), in place
+ * on d (three columns): the cyclic tridiagonal system of uniform periodic cubic interpolation, by
+ * the Thomas algorithm with a Sherman–Morrison correction for the two corner entries. */
+static int solve_periodic(double (*d)[3], int N)
+{
+    double *c = malloc(sizeof *c * (size_t)N), (*y)[3] = malloc(sizeof *y * (size_t)N),
+           *z = malloc(sizeof *z * (size_t)N);
+    if (!c || !y || !z) {
+        free(c), free(y), free(z);
+        return SF_ENOMEM;
+    }
+    /* A = T + u vᵀ with u = (γ, 0, .., 0, 1/6), v = (1, 0, .., 0, (1/6)/γ), T tridiagonal */
+    const double a = 1.0 / 6, b = 4.0 / 6, gamma = -b;
+    double rhs_u[2] = {gamma, a};
+    for (int pass = 0; pass < 2; pass++) { /* pass 0: T y = d (three columns); pass 1: T z = u */
+        double prev_c = 0.0;
+        for (int k = 0; k < N; k++) {
+            double diag = b - (k == 0 ? gamma : 0.0) - (k == N - 1 ? a * a / gamma : 0.0);
+            double m = k == 0 ? diag : diag - a * prev_c;
+            c[k] = a / m;
+            prev_c = c[k];
+            if (pass == 0)
+                for (int q = 0; q < 3; q++)
+                    y[k][q] = ((k ? -a * y[k - 1][q] : 0.0) + d[k][q]) / m;
+            else
+                z[k] = ((k ? -a * z[k - 1] : 0.0) + (k == 0 ? rhs_u[0] : k == N - 1 ? rhs_u[1] : 0.0)) / m;
+        }
+        for (int k = N - 2; k >= 0; k--) {
+            if (pass == 0)
+                for (int q = 0; q < 3; q++)
+                    y[k][q] -= c[k] * y[k + 1][q];
+            else
+                z[k] -= c[k] * z[k + 1];
+        }
+    }
+    double vz = z[0] + a / gamma * z[N - 1];
+    for (int q = 0; q < 3; q++) {
+        double vy = y[0][q] + a / gamma * y[N - 1][q], f = vy / (1.0 + vz);
+        for (int k = 0; k < N; k++)
+            d[k][q] = y[k][q] - f * z[k];
+    }
+    free(c), free(y), free(z);
+    return 0;
+}
+
+/* Solves A X = B in place on B (m right-hand sides of 3), A n x n dense, Gaussian elimination with
+ * partial pivoting. A is destroyed. */
+static void solve_dense(double *A, int n, double (*B)[3], int m)
+{
+    for (int c = 0; c < n; c++) {
+        int piv = c;
+        for (int r = c + 1; r < n; r++)
+            if (fabs(A[(size_t)r * n + c]) > fabs(A[(size_t)piv * n + c]))
+                piv = r;
+        if (piv != c) {
+            for (int k = 0; k < n; k++) {
+                double t = A[(size_t)c * n + k];
+                A[(size_t)c * n + k] = A[(size_t)piv * n + k], A[(size_t)piv * n + k] = t;
+            }
+            for (int k = 0; k < m; k++)
+                for (int q = 0; q < 3; q++) {
+                    double t = B[(size_t)c * m + k][q];
+                    B[(size_t)c * m + k][q] = B[(size_t)piv * m + k][q], B[(size_t)piv * m + k][q] = t;
+                }
+        }
+        for (int r = c + 1; r < n; r++) {
+            double f = A[(size_t)r * n + c] / A[(size_t)c * n + c];
+            if (f == 0.0)
+                continue;
+            for (int k = c; k < n; k++)
+                A[(size_t)r * n + k] -= f * A[(size_t)c * n + k];
+            for (int k = 0; k < m; k++)
+                for (int q = 0; q < 3; q++)
+                    B[(size_t)r * m + k][q] -= f * B[(size_t)c * m + k][q];
+        }
+    }
+    for (int c = n - 1; c >= 0; c--)
+        for (int k = 0; k < m; k++)
+            for (int q = 0; q < 3; q++) {
+                double sum = B[(size_t)c * m + k][q];
+                for (int r = c + 1; r < n; r++)
+                    sum -= A[(size_t)c * n + r] * B[(size_t)r * m + k][q];
+                B[(size_t)c * m + k][q] = sum / A[(size_t)c * n + c];
+            }
+}
+
+static int cmp_span(const void *a, const void *b)
+{
+    const struct patch *x = a, *y = b;
+    return x->v0 != y->v0 ? (x->v0 > y->v0) - (x->v0 < y->v0) : (x->u0 > y->u0) - (x->u0 < y->u0);
+}
+
+/* Global interpolation by one B-spline surface (seed 000 eq. 28–31): cubic and periodic along the
+ * contours (uniform knots, the first three control columns wrapped, eq. 29), cubic (or of degree
+ * slices - 1) across them, clamped, at uniform parameters with averaged knots (Piegl & Tiller 9.8).
+ * The two directions are solved one after the other, each with a proper solver: the cyclic
+ * tridiagonal system along u, Gaussian elimination with pivoting across (the thesis used
+ * Gauss–Jordan on the whole). Bézier extraction gives the patches. */
+static int bspline_surface(const struct contour_set *cs, struct patch_set *set)
+{
+    int n = cs->n_slices, N = grid_count(cs), q = n > 3 ? 3 : n - 1, rc = SF_ENOMEM;
+    double(*Q)[3] = grid_sample(cs, N), *A = malloc(sizeof *A * (size_t)n * n);
+    struct surface s = {0};
+    if (!Q || !A || nurbs_surface_alloc(&s, SURF_BSPLINE, 3, q, N + 3, n, NULL))
+        goto out;
+    for (int j = 0; j < n; j++) /* along u, slice by slice */
+        if (solve_periodic(Q + (size_t)j * N, N))
+            goto out;
+    for (int k = 0; k < n + q + 1; k++) { /* across: clamped, averaged knots */
+        if (k <= q)
+            s.knots_v[k] = 0.0;
+        else if (k >= n)
+            s.knots_v[k] = 1.0;
+        else {
+            double sum = 0.0;
+            for (int i = k - q; i < k; i++)
+                sum += (double)i / (n - 1);
+            s.knots_v[k] = sum / q;
+        }
+    }
+    memset(A, 0, sizeof *A * (size_t)n * n);
+    for (int i = 0; i < n; i++) {
+        double Nb[PATCH_MAX_DEGREE + 1];
+        int r = nurbs_basis(s.knots_v, n, q, (double)i / (n - 1), Nb);
+        for (int b = 0; b <= q; b++)
+            A[(size_t)i * n + (size_t)(r - q + b)] = Nb[b];
+    }
+    solve_dense(A, n, Q, N); /* rows: slices; right-hand sides: the N columns */
+    for (int k = 0; k < N + 3 + 4; k++)
+        s.knots_u[k] = (double)(k - 3) / N;
+    /* control column i along u, j across; the curve at u = k/N is (x[k-1] + 4 x[k] + x[k+1]) / 6 of
+     * columns k..k+2, so column i holds x[i-1] and the first three are wrapped round (eq. 29) */
+    for (int i = 0; i < N + 3; i++)
+        for (int j = 0; j < n; j++)
+            memcpy(&s.points[3 * ((size_t)i * n + j)], Q[(size_t)j * N + (size_t)((i + N - 1) % N)], sizeof(double) * 3);
+    size_t first = set->n;
+    if (!(rc = nurbs_extract(&s, 0, set))) /* span by span across, each in increasing u */
+        qsort(set->patches + first, set->n - first, sizeof *set->patches, cmp_span);
+out:
+    nurbs_surface_free(&s);
+    free(Q);
+    free(A);
+    return rc;
+}
+
+int model_side(const struct contour_set *cs, enum model_method method, struct patch_set *set, struct sf_err *err)
+{
+    int rc;
+    switch (method) {
+    case MODEL_COONS: rc = coons_surface(cs, set); break;
+    case MODEL_BSPLINE: rc = bspline_surface(cs, set); break;
+    default: return curve_surface(cs, method == MODEL_LINEAR_PARABOLIC, set, err);
+    }
+    return rc ? sf_fail(err, rc, "", "out of memory building the model") : 0;
+}
+
+static const char *const METHOD_NAMES[] = {"parabolic", "linear-parabolic", "coons", "bspline"};
+
+const char *model_method_name(enum model_method m)
+{
+    return METHOD_NAMES[m];
+}
+
+int model_method_parse(const char *name, enum model_method *m)
+{
+    for (int k = 0; k < 4; k++)
+        if (!strcmp(name, METHOD_NAMES[k])) {
+            *m = (enum model_method)k;
+            return 0;
+        }
+    return SF_EINVAL;
 }
 
 /* ---- closed-form volume from the curves ------------------------------------------------------
@@ -373,11 +654,11 @@ static double mixed_area(const struct curve_poly *a, const struct curve_poly *b,
 }
 
 /* Section area of pair k's blend at any z (inside or beyond the pair). */
-static double section_area(const struct contour_set *cs, const double *M, int k, double z)
+static double section_area(const struct contour_set *cs, bool lsq, const double *M, int k, double z)
 {
     double w[4], area = 0.0;
     int j0, m;
-    slice_weights(cs, k, z, w, &j0, &m);
+    slice_weights(cs, lsq, k, z, w, &j0, &m);
     for (int a = 0; a < m; a++)
         for (int b = a; b < m; b++) /* b > a: the symmetric sum stands for both orders */
             area += w[a] * w[b] * M[(size_t)(j0 + a) * 7 + (size_t)(b - a + 3)];
@@ -419,9 +700,12 @@ double model_dome(const double z[3], const double A[3], int n, struct model_dome
     return isnan(root) ? NAN : A[0] * root + b * root * root / 2 + cq * root * root * root / 3;
 }
 
-int model_volume_closed(const struct contour_set *cs, double *volume, double end_area[2], double dome[2],
-                        struct sf_err *err)
+int model_volume_closed(const struct contour_set *cs, enum model_method method, double *volume, double end_area[2],
+                        double dome[2], struct sf_err *err)
 {
+    if (method != MODEL_PARABOLIC && method != MODEL_LINEAR_PARABOLIC)
+        return sf_fail(err, SF_EINVAL, "/method", "the closed form is for the curve-based methods");
+    bool lsq = method == MODEL_LINEAR_PARABOLIC;
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
     struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
@@ -430,7 +714,7 @@ int model_volume_closed(const struct contour_set *cs, double *volume, double end
     if (!cv || !cp || !M)
         rc = SF_ENOMEM;
     for (int j = 0; j < n && !rc; j++)
-        if (!(rc = curve_build(&cs->s[j], &cv[j])))
+        if (!(rc = curve_build(&cs->s[j], lsq, &cv[j])))
             rc = curve_poly_build(&cv[j], &cp[j]);
     for (int j = 0; j < n && !rc; j++)
         for (int l = j; l <= j + 3 && l < n; l++)
@@ -441,7 +725,7 @@ int model_volume_closed(const struct contour_set *cs, double *volume, double end
     for (int k = 0; k + 1 < n && !rc; k++) {
         double z0 = cs->s[k].z, z1 = cs->s[k + 1].z;
         for (int g = 0; g < 4; g++)
-            v += GL4_W[g] * (z1 - z0) * section_area(cs, M, k, z0 + (z1 - z0) * GL4_X[g]);
+            v += GL4_W[g] * (z1 - z0) * section_area(cs, lsq, M, k, z0 + (z1 - z0) * GL4_X[g]);
     }
     if (!rc) {
         *volume = v;
@@ -473,7 +757,7 @@ double model_curve_area(const struct contour_slice *s)
     struct curve c = {0};
     struct curve_poly cp = {0};
     double a = 0.0;
-    if (!curve_build(s, &c) && !curve_poly_build(&c, &cp))
+    if (!curve_build(s, false, &c) && !curve_poly_build(&c, &cp))
         a = mixed_area(&cp, &cp, false);
     curve_poly_free(&cp);
     curve_free(&c);

@@ -10,20 +10,31 @@
 
 enum model_caps { CAPS_FLAT, CAPS_SLAB, CAPS_DOME };
 
-/* Parabolic interpolation (seed 004 eq. 6–19; METHODS.md §2 eq. 32 and 36–38): through every
- * point of every contour; between slices the blend of the parabolas through slices k-1..k+1
- * and k..k+2 at their real z (uneven spacing is modelled as it is; the end pairs use the one
- * parabola they have). Appends to set as nurbs_extract() does: call nurbs_patches_fix() after
- * the last append; the caller frees the set. */
-int model_parabolic(const struct contour_set *cs, struct patch_set *set, struct sf_err *err);
+/* The four methods of METHODS.md §2:
+ * - parabolic (seed 004 eq. 6–19, eq. 32 and 36–38): through every point of every contour; between
+ *   slices the blend of the parabolas through slices k-1..k+1 and k..k+2 at their real z (uneven
+ *   spacing is modelled as it is; the end pairs use the one parabola they have);
+ * - linear-parabolic (seed 000 eq. 32–38): the same blend of least-squares lines: smooths, does not
+ *   pass through the points;
+ * - coons (seeds 000/001 eq. 14–17): bicubic Coons patches on a grid resampled to one point count;
+ * - bspline (seed 000 eq. 28–31): one interpolating B-spline surface, periodic along the contours.
+ * Side patches run pair by pair of levels (grid methods: span by span), each in increasing u over
+ * [0, 1]; the closed form (model_volume_closed) is for the first two. */
+enum model_method { MODEL_PARABOLIC, MODEL_LINEAR_PARABOLIC, MODEL_COONS, MODEL_BSPLINE };
+const char *model_method_name(enum model_method m);
+int model_method_parse(const char *name, enum model_method *m);
+
+/* The side surface of one chain of contours (one per level). Appends to set as nurbs_extract()
+ * does: call nurbs_patches_fix() after the last append; the caller frees the set. */
+int model_side(const struct contour_set *cs, enum model_method method, struct patch_set *set, struct sf_err *err);
 
 /* The volume with flat caps straight from the curves (closed form: mixed areas of curve pairs,
  * integrated over z exactly), without building patches; and the end curves' areas. dome (may be
  * NULL) receives the dome beyond each end: the quadratic through the last three section areas,
  * extrapolated until it closes (its first zero), integrated exactly; NAN where it does not close
  * within three spacings (a shape still growing at its end), for the caller to fall back on. */
-int model_volume_closed(const struct contour_set *cs, double *volume, double end_area[2], double dome[2],
-                        struct sf_err *err);
+int model_volume_closed(const struct contour_set *cs, enum model_method method, double *volume, double end_area[2],
+                        double dome[2], struct sf_err *err);
 
 /* Chains: the tubes the surfaces run through. Contours on neighbouring levels (distinct z) link
  * when they are of one kind (hole or not) and overlap; a chain runs while links are one-to-one, so

@@ -180,6 +180,14 @@ static void basis_funs(const double *U, int r, int p, double t, double *N, doubl
     }
 }
 
+int nurbs_basis(const double *U, int n, int p, double t, double *N)
+{
+    double dN[PATCH_MAX_DEGREE + 1];
+    int r = find_span(U, n, p, t);
+    basis_funs(U, r, p, t, N, dN);
+    return r;
+}
+
 void nurbs_eval(const struct surface *s, double u, double v, vec3 *P, vec3 *Pu, vec3 *Pv)
 {
     int p = s->deg_u, q = s->deg_v;

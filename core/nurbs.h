@@ -41,6 +41,10 @@ int nurbs_validate(const struct surface *s, const char *where, struct sf_err *er
 /* Parameter domain: [knots_u[deg_u], knots_u[n_u]] and likewise in v. */
 void nurbs_domain(const struct surface *s, double *u0, double *u1, double *v0, double *v1);
 
+/* The p+1 non-zero B-spline basis functions N[0..p] at t, knots U of n control points (the
+ * functions of points r-p..r); returns the span r. */
+int nurbs_basis(const double *U, int n, int p, double t, double *N);
+
 /* Point and first derivatives at (u, v) by Cox–de Boor, rational where weighted. */
 void nurbs_eval(const struct surface *s, double u, double v, vec3 *P, vec3 *Pu, vec3 *Pv);
 

@@ -77,7 +77,7 @@ static int end_bands(struct solid *s, const struct band *side, int e, double z, 
                      const struct model_dome *d, double ext, struct band *out, int *n_out)
 {
     struct patch_set *set = &s->set;
-    int jrow = e ? 3 : 0, n = 0;
+    int n = 0;
     double sd[3], rho[3], w[3];
     if (d)
         dome_profile(d, sd, rho, w);
@@ -100,9 +100,11 @@ static int end_bands(struct solid *s, const struct band *side, int e, double z, 
         *b = (struct band){kinds[k], set->n, side->n};
         for (size_t i = side->first; i < side->first + side->n; i++) {
             struct patch sp = resolved(set, i);
-            double E[4][2];
-            for (int a = 0; a < 4; a++)
-                E[a][0] = sp.cw[a * 4 + jrow][0], E[a][1] = sp.cw[a * 4 + jrow][1];
+            double E[4][2]; /* the end row: bicubic side patches (v = 0 or 1) */
+            for (int a = 0; a < 4; a++) {
+                const double *P = sp.cw[a * (sp.q + 1) + (e ? sp.q : 0)];
+                E[a][0] = P[0] / P[3], E[a][1] = P[1] / P[3];
+            }
             bool dome = kinds[k] == BAND_DOME;
             double(*cw)[4] = new_patch(set, 3, dome ? 2 : 1, dome, sp.u0, sp.u1);
             if (!cw)
@@ -152,8 +154,8 @@ static void flip_u(struct solid *s, int b0, int b1)
         }
 }
 
-static int tube_build(struct solid *s, const struct contour_set *cs, const struct model_chain *ch, enum model_caps caps,
-                      struct contour_slice *storage, struct tube *tb, struct sf_err *err)
+static int tube_build(struct solid *s, const struct contour_set *cs, const struct model_chain *ch, enum model_method method,
+                      enum model_caps caps, struct contour_slice *storage, struct tube *tb, struct sf_err *err)
 {
     struct contour_set v = model_chain_view(cs, ch, storage);
     double ext[2] = {ch->ext[0], ch->ext[1]}, island_h = 0.0;
@@ -173,14 +175,16 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
         ext[0] = ext[1] = 0.0;
     }
     size_t p0 = s->set.n;
-    int rc = model_parabolic(&v, &s->set, err);
+    int rc = model_side(&v, method, &s->set, err);
     if (rc)
         return rc;
-    int n_side = v.n_slices - 1, nb = 0;
+    int n_side = 0, nb = 0; /* one side band per run of equal v0: a level pair, or a span */
+    for (size_t k = p0; k < s->set.n; k++)
+        n_side += k == p0 || s->set.patches[k].v0 != s->set.patches[k - 1].v0;
     struct band *bl = malloc(sizeof *bl * (size_t)(n_side + 4)), *side = bl + 2; /* room for 2 bands below */
     if (!bl)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
-    for (size_t k = p0; k < s->set.n; k++) { /* one side band per level pair: runs of equal v0 */
+    for (size_t k = p0; k < s->set.n; k++) {
         if (k == p0 || s->set.patches[k].v0 != s->set.patches[k - 1].v0)
             side[nb++] = (struct band){BAND_SIDE, k, 0};
         side[nb - 1].n++;
@@ -194,14 +198,13 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
         const struct contour_slice *cend = &v.s[e ? v.n_slices - 1 : 0];
         struct model_dome d;
         double area = fabs(row_area(&s->set, sb, e));
-        if (dome[e]) { /* the section areas of the last three levels, from the side rows */
+        if (dome[e]) { /* the section areas of the last three levels: the side's end row, then the curves */
             double z[3], A[3];
             int m = v.n_slices > 2 ? 3 : 2;
             for (int i = 0; i < m; i++) {
-                const struct band *bi = &side[e ? nb - 1 - (i > 0 ? i - 1 : 0) : (i > 0 ? i - 1 : 0)];
-                double t = e ? (i == 0 ? 1 : 0) : (i == 0 ? 0 : 1);
-                z[i] = v.s[e ? v.n_slices - 1 - i : i].z;
-                A[i] = fabs(row_area(&s->set, bi, t));
+                const struct contour_slice *ci = &v.s[e ? v.n_slices - 1 - i : i];
+                z[i] = ci->z;
+                A[i] = i ? model_curve_area(ci) : area;
             }
             double vol = model_dome(z, A, m, &d);
             if (isnan(vol)) {
@@ -237,7 +240,8 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
     return rc == SF_ENOMEM ? sf_fail(err, rc, "", "out of memory building the solid") : rc;
 }
 
-int solid_build(const struct contour_set *cs, enum model_caps caps, struct solid *s, struct sf_err *err)
+int solid_build(const struct contour_set *cs, enum model_method method, enum model_caps caps, struct solid *s,
+                struct sf_err *err)
 {
     memset(s, 0, sizeof *s);
     int n_chains = 0, rc = model_chains(cs, caps, &s->chains, &n_chains, err);
@@ -249,7 +253,7 @@ int solid_build(const struct contour_set *cs, enum model_caps caps, struct solid
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
     s->n_tubes = n_chains;
     for (int c = 0; c < n_chains && !rc; c++)
-        rc = tube_build(s, cs, &s->chains[c], caps, storage, &s->tubes[c], err);
+        rc = tube_build(s, cs, &s->chains[c], method, caps, storage, &s->tubes[c], err);
     free(storage);
     nurbs_patches_fix(&s->set);
     if (rc)
@@ -319,6 +323,19 @@ static void measure_general(const struct patch *pt, int n, const double *X, cons
         }
 }
 
+/* A polynomial bicubic whose z is the same linear function of v in every column. */
+static bool z_linear_in_v(const struct patch *pt)
+{
+    if (pt->p != 3 || pt->q != 3 || pt->rational)
+        return false;
+    double z0 = pt->cw[0][2], dz = pt->cw[3][2] - z0, eps = 1e-12 * (fabs(z0) + fabs(dz) + 1.0);
+    for (int i = 0; i < 4; i++)
+        for (int j = 0; j < 4; j++)
+            if (fabs(pt->cw[i * 4 + j][2] - (z0 + dz * j / 3.0)) > eps)
+                return false;
+    return true;
+}
+
 static const double GL8_X[8] = {0.019855071751232, 0.101666761293187, 0.237233795041836, 0.408282678752175,
                                 0.591717321247825, 0.762766204958164, 0.898333238706813, 0.980144928248768};
 static const double GL8_W[8] = {0.050614268145188, 0.111190517226687, 0.156853322938944, 0.181341891689181,
@@ -341,7 +358,7 @@ void solid_measure(const struct solid *s, struct solid_measures *m)
             bezier_bounds(pt, &lo, &hi);
             m->lo[0] = fmin(m->lo[0], lo.x), m->lo[1] = fmin(m->lo[1], lo.y), m->lo[2] = fmin(m->lo[2], lo.z);
             m->hi[0] = fmax(m->hi[0], hi.x), m->hi[1] = fmax(m->hi[1], hi.y), m->hi[2] = fmax(m->hi[2], hi.z);
-            if (bd->kind == BAND_SIDE)
+            if (bd->kind == BAND_SIDE && z_linear_in_v(pt))
                 measure_bicubic(pt, &t, &m->volume, &m->area);
             else if (bd->kind == BAND_DOME)
                 measure_general(pt, 8, GL8_X, GL8_W, false, &m->volume, &m->area);
@@ -387,6 +404,14 @@ static vec3 band_point(const struct solid *s, const struct band *b, bool hole, d
     vec3 P;
     bezier_eval(pt, hole ? 1.0 - local : local, t, &P, NULL, NULL);
     return P;
+}
+
+vec3 solid_point(const struct solid *s, int band, double u, double t)
+{
+    for (int k = 0; k < s->n_tubes; k++)
+        if (band >= s->tubes[k].first && band < s->tubes[k].first + s->tubes[k].n)
+            return band_point(s, &s->bands[band], s->tubes[k].hole, u, t);
+    return v3(NAN, NAN, NAN);
 }
 
 static double dist_to_mid(vec3 a, vec3 b, vec3 p)

@@ -44,9 +44,14 @@ struct solid {
     struct model_chain *chains; /* the tubes' chains, in the same order */
 };
 
-/* Builds the solid of cleaned contours with the given caps. Returns 0 or an SF_* code with err. */
-int solid_build(const struct contour_set *cs, enum model_caps caps, struct solid *s, struct sf_err *err);
+/* Builds the solid of cleaned contours by the method, with the caps. Returns 0 or an SF_* code with
+ * err. */
+int solid_build(const struct contour_set *cs, enum model_method method, enum model_caps caps, struct solid *s,
+                struct sf_err *err);
 void solid_free(struct solid *s);
+
+/* The point of band `band` at u in [0, 1) along the tube and t in [0, 1] up the band. */
+vec3 solid_point(const struct solid *s, int band, double u, double t);
 
 struct solid_measures {
     double volume;      /* divergence theorem over every patch (seed 000 eq. 21–22), signed by orientation */
