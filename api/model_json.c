@@ -41,6 +41,19 @@ static char *dump(json_t *o, struct sf_err *err)
     return s;
 }
 
+/* ?caps= and ?method= (override the body's own); "" when absent. */
+static int overrides(const char *options, char caps[16], char method[24], struct sf_err *err)
+{
+    enum model_method m;
+    option(options, "caps", caps, 16);
+    option(options, "method", method, 24);
+    if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab") && strcmp(caps, "dome"))
+        return sf_fail(err, SF_EINVAL, "?caps", "caps is flat, slab or dome");
+    if (method[0] && model_method_parse(method, &m))
+        return sf_fail(err, SF_EINVAL, "?method", "method is parabolic, linear-parabolic, coons or bspline");
+    return 0;
+}
+
 static enum model_caps caps_of(const char *name)
 {
     return !strcmp(name, "slab") ? CAPS_SLAB : !strcmp(name, "dome") ? CAPS_DOME : CAPS_FLAT;
@@ -113,21 +126,22 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
 
 int model_validate(const char *buf, size_t len, const char *format, const char *options, struct sf_err *err)
 {
-    char roi[128], caps[16];
+    char roi[128], caps[16], method[24];
     option(options, "roi", roi, sizeof roi);
-    option(options, "caps", caps, sizeof caps);
-    if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab") && strcmp(caps, "dome"))
-        return sf_fail(err, SF_EINVAL, "?caps", "caps is flat, slab or dome");
+    int rc = overrides(options, caps, method, err);
+    if (rc)
+        return rc;
     if (!format || strcmp(format, "dicom")) {
         struct contour_set cs;
         struct contour_request req;
-        int rc = contour_parse_json(buf, len, &cs, &req, err);
+        rc = contour_parse_json(buf, len, &cs, &req, err);
         if (!rc)
             contour_set_free(&cs);
         return rc;
     }
     struct rt_roi *rois = NULL;
-    int n = 0, rc = rtstruct_read(buf, len, &rois, &n, err), found = 0;
+    int n = 0, found = 0;
+    rc = rtstruct_read(buf, len, &rois, &n, err);
     for (int k = 0; k < n && !rc; k++)
         if (!roi[0] || !strcmp(roi, rois[k].name)) {
             found++;
@@ -154,11 +168,10 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
     if (!*list)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     int rc = 0;
-    char roi[128], caps[16];
+    char roi[128], caps[16], method[24];
     option(options, "roi", roi, sizeof roi);
-    option(options, "caps", caps, sizeof caps); /* ?caps= overrides the body's own "caps" */
-    if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab") && strcmp(caps, "dome"))
-        return sf_fail(err, SF_EINVAL, "?caps", "caps is flat, slab or dome");
+    if ((rc = overrides(options, caps, method, err)))
+        return rc;
     if (!format || strcmp(format, "dicom")) {
         struct contour_set cs;
         struct contour_request req;
@@ -167,6 +180,8 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
             return rc;
         if (caps[0])
             snprintf(req.caps, sizeof req.caps, "%s", caps);
+        if (method[0])
+            snprintf(req.method, sizeof req.method, "%s", method);
         json_t *o = figures(&cs, &req, t0, err);
         if (!o)
             rc = err->code ? err->code : SF_ENOMEM;
@@ -180,6 +195,8 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
     *single = roi[0] != 0;
     if (caps[0])
         snprintf(req.caps, sizeof req.caps, "%s", caps);
+    if (method[0])
+        snprintf(req.method, sizeof req.method, "%s", method);
     struct rt_roi *rois = NULL;
     int n = 0;
     if ((rc = rtstruct_read(buf, len, &rois, &n, err)))

@@ -29,6 +29,11 @@ code=$(status POST /model -H 'Prefer: respond-async' -H "$J" --data-binary @"$C/
 job=$(header X-Job-Id)
 check "model async: 202, then the result as POST would have sent it" '[ "$code" = 202 ] && wait_state "$job" succeeded && [ "$(status GET /jobs/$job/result)" = 201 ] && [ "$(header Location)" = "/models/$job" ] && [ "$(status GET /models/$job)" = 200 ]'
 
+code=$(status POST "/model?method=bspline&caps=slab" -H "$J" --data-binary @"$C/synthetic_torus_branching.json")
+bs=$(field id); bsvol=$(sed 's/.*"volume_mm3":\([0-9.]*\).*/\1/' "$T/body")
+check "model ?method=bspline" '[ "$code" = 201 ] && grep -q "\"method\":\"bspline\"" "$T/body" && [ "$(status GET "/models/$bs/mesh")" = 200 ] && python3 tests/tools/stl_check.py "$T/body" "$bsvol" >/dev/null'
+check "model 422 ?method" '[ "$(status POST "/model?method=nurbs" -H "$J" --data-binary @"$C/synthetic_bean.json")" = 422 ] && grep -q "\"pointer\":\"?method\"" "$T/body"'
+
 # ---- meshes and patches ---------------------------------------------------------------------
 code=$(status GET "/models/$id/mesh?format=stl")
 cp "$T/body" "$T/m.stl"

@@ -316,7 +316,7 @@ TEST(meshes_are_closed_and_hold_the_volume)
 /* The four methods of METHODS.md §2 on the synthetic shapes with flat caps (the exact volume between
  * the end slices is in the files): the interpolating ones within 0.2 %, linear-parabolic (which
  * smooths) within 5 %; every method's solid closes into a watertight mesh; the grid methods' end rows
- * lie on the contours' curves at the grid's columns. */
+ * lie on the contours' curves at the grid's columns (one-tube shapes). */
 TEST(the_four_methods)
 {
     const struct {
