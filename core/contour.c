@@ -158,6 +158,102 @@ bool contour_overlap(const struct contour_slice *a, const struct contour_slice *
     return edges_cross(a, b);
 }
 
+static bool same_point(const double *a, const double *b)
+{
+    return a[0] == b[0] && a[1] == b[1];
+}
+
+static void remove_at(double (*p)[2], int *n, int k)
+{
+    memmove(p + k, p + k + 1, sizeof *p * (size_t)(*n - k - 1));
+    (*n)--;
+}
+
+/* Drops repeated neighbours and spikes (a -> k -> a collapses to a) until none is left. */
+static int unspike(double (*p)[2], int n)
+{
+    for (bool changed = true; changed && n >= 3;) {
+        changed = false;
+        for (int k = 0; k < n && !changed; k++) {
+            int a = (k + n - 1) % n, b = (k + 1) % n;
+            if (same_point(p[k], p[b])) {
+                remove_at(p, &n, k);
+                changed = true;
+            } else if (same_point(p[a], p[b])) { /* drop k and b, the higher index first */
+                remove_at(p, &n, k > b ? k : b);
+                remove_at(p, &n, k > b ? b : k);
+                changed = true;
+            }
+        }
+    }
+    return n;
+}
+
+struct indexed_point {
+    double x, y;
+    int i;
+};
+
+static int by_xy(const void *a, const void *b)
+{
+    const struct indexed_point *p = a, *q = b;
+    return p->x != q->x ? (p->x > q->x) - (p->x < q->x) : (p->y > q->y) - (p->y < q->y);
+}
+
+/* Keyholes: a contour that passes through one point twice (planning systems reach an inner hole
+ * along a cut, in and back out the same way) is split there into two loops, each freed of the cut's
+ * spikes; the loop with the hole becomes a contour of its own at the same z (appended to the set),
+ * and nesting makes it a hole. Returns 1 when contour k was split, 0 when it has no such point,
+ * SF_ENOMEM. Loops left without area (a bare cut) are dropped. */
+static int split_keyhole(struct contour_set *cs, int k)
+{
+    struct contour_slice *s = &cs->s[k];
+    int n = s->n, i = -1, j = -1;
+    struct indexed_point *order = malloc(sizeof *order * (size_t)n);
+    if (!order)
+        return SF_ENOMEM;
+    for (int q = 0; q < n; q++)
+        order[q] = (struct indexed_point){s->p[q][0], s->p[q][1], q};
+    qsort(order, (size_t)n, sizeof *order, by_xy);
+    for (int q = 0; q + 1 < n && i < 0; q++)
+        if (order[q].x == order[q + 1].x && order[q].y == order[q + 1].y) {
+            i = order[q].i < order[q + 1].i ? order[q].i : order[q + 1].i;
+            j = order[q].i < order[q + 1].i ? order[q + 1].i : order[q].i;
+        }
+    free(order);
+    if (i < 0)
+        return 0;
+    /* loop 1: i..j-1; loop 2: 0..i-1 and j..n-1 (in place) */
+    int n1 = j - i;
+    double(*p1)[2] = malloc(sizeof *p1 * (size_t)n1);
+    if (!p1)
+        return SF_ENOMEM;
+    memcpy(p1, s->p + i, sizeof *p1 * (size_t)n1);
+    memmove(s->p + i, s->p + j, sizeof *s->p * (size_t)(n - j));
+    s->n = unspike(s->p, n - n1);
+    n1 = unspike(p1, n1);
+    struct contour_slice loop = *s;
+    loop.p = p1;
+    loop.n = n1;
+    if (n1 < 3 || !(fabs(contour_area(&loop)) > 0)) { /* a bare cut */
+        free(p1);
+        return 1;
+    }
+    if (s->n < 3 || !(fabs(contour_area(s)) > 0)) { /* the other side was the cut: keep this one */
+        free(s->p);
+        *s = loop;
+        return 1;
+    }
+    struct contour_slice *grown = realloc(cs->s, sizeof *grown * (size_t)(cs->n_slices + 1));
+    if (!grown) {
+        free(p1);
+        return SF_ENOMEM;
+    }
+    cs->s = grown;
+    cs->s[cs->n_slices++] = loop;
+    return 1;
+}
+
 static void pointer_of(const struct contour_slice *s, char *ptr, size_t cap)
 {
     if (s->src_contour < 0)
@@ -189,6 +285,13 @@ int contour_clean(struct contour_set *cs, struct sf_err *err)
         while (m > 1 && fabs(s->p[m - 1][0] - s->p[0][0]) <= POINT_EPS && fabs(s->p[m - 1][1] - s->p[0][1]) <= POINT_EPS)
             m--; /* repeated closing point */
         s->n = m;
+        int split;
+        while (m >= 3 && (split = split_keyhole(cs, k)) == 1) {
+            s = &cs->s[k]; /* the set may have moved */
+            m = s->n;
+        }
+        if (m >= 3 && split)
+            return sf_fail(err, SF_ENOMEM, ptr, "out of memory");
         if (m < 3)
             return sf_fail(err, SF_EINVAL, ptr, "a contour needs at least 3 distinct points, this one has %d", m);
         int at = self_crossing(s);

@@ -366,6 +366,37 @@ TEST(the_four_methods)
     }
 }
 
+/* A keyhole (the outline runs in along a cut to an inner hole, round it and back out, as planning
+ * systems export) is two loops: an outer contour and a hole, as if the slice had been given so. */
+TEST(keyholes_split_into_outer_and_hole)
+{
+    const char *keyhole = "[[0,0],[10,0],[10,10],[0,10],[0,5],[4,5],[4,6],[6,6],[6,4],[4,4],[4,5],[0,5]]";
+    char text[1024];
+    snprintf(text, sizeof text,
+             "{\"slices\":[{\"z\":0,\"points\":%s},{\"z\":1,\"points\":%s},{\"z\":2,\"contours\":"
+             "[{\"points\":[[0,0],[10,0],[10,10],[0,10]]},{\"points\":[[4,4],[6,4],[6,6],[4,6]]}]}]}",
+             keyhole, keyhole);
+    struct contour_set cs;
+    struct contour_request req;
+    CHECK(contour_parse_json(text, strlen(text), &cs, &req, NULL) == 0);
+    CHECK(cs.n_slices == 6);
+    int holes = 0;
+    for (int k = 0; k < cs.n_slices; k++) {
+        holes += cs.s[k].hole;
+        CHECK(cs.s[k].n == 4 || cs.s[k].n == 5); /* the cut is gone; its ends stay, on the edges */
+        CHECK_NEAR(fabs(contour_area(&cs.s[k])), cs.s[k].hole ? 4.0 : 100.0, 1e-12);
+    }
+    CHECK(holes == 3);
+    struct contour_baselines b;
+    contour_baselines(&cs, &b);
+    CHECK_NEAR(b.trapezoid, 2 * 96.0, 1e-9);
+    struct solid sd;
+    CHECK(solid_build(&cs, MODEL_PARABOLIC, CAPS_FLAT, &sd, NULL) == 0);
+    CHECK(sd.n_tubes == 2 && (sd.tubes[0].hole != sd.tubes[1].hole));
+    solid_free(&sd);
+    contour_set_free(&cs);
+}
+
 TEST(rejections)
 {
     const struct {
@@ -410,6 +441,7 @@ int main(void)
     RUN(cylinder_and_baselines);
     RUN(meshes_are_closed_and_hold_the_volume);
     RUN(the_four_methods);
+    RUN(keyholes_split_into_outer_and_hole);
     RUN(rejections);
     UNIT_END();
 }
