@@ -110,12 +110,12 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
             first_gap = g;
         uneven |= fabs(g - first_gap) > 1e-6 * first_gap;
     }
-    json_t *o = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:b, s:I, s:f, s:f, s:{s:f, s:f, s:f, s:f, s:f},"
+    json_t *o = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:b, s:I, s:f, s:f, s:{s:f, s:f, s:f, s:f, s:f, s:f},"
                           " s:[[f,f,f],[f,f,f]], s:{s:f, s:f, s:f, s:f}}",
                           "name", req->name, "method", req->method, "caps", req->caps, "dome_ends_flat",
                           dome_fallbacks, "slices", n, "contours",
                           cs.n_slices, "chains", n_chains, "uneven_spacing", uneven, "patches", (json_int_t)n_patches,
-                          "volume_mm3", closed, "area_mm2", all.area, "volume", "exact", closed, "quadrature", all.volume,
+                          "volume_mm3", closed, "area_mm2", all.area, "volume", "exact", closed, "quadrature", all.volume, "grid_10x10", all.volume_grid,
                           "trapezoid", b.trapezoid, "cavalieri", b.cavalieri, "frustum", b.frustum, "bounds",
                           all.lo[0], all.lo[1], all.lo[2], all.hi[0], all.hi[1], all.hi[2], "timings_ms", "read",
                           t1 - t0, "fit", t2 - t1, "volume", t3 - t2, "measure", t4 - t3);

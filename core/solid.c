@@ -323,6 +323,48 @@ static void measure_general(const struct patch *pt, int n, const double *X, cons
         }
 }
 
+/* seed 000 eq. 23: the n x n grid rule over every patch, nodes (i/n, j/n), i, j < n, each of weight
+ * 1/n² (METHODS.md: as printed, eq. 24's nodes i/(n-1) are first order; Table 6's figures fit i/n,
+ * which over a closed surface sums to the trapezoid rule across patch seams: second order). */
+#define GRID_N 10
+
+struct grid_table {
+    double B[GRID_N][4], dB[GRID_N][4];
+};
+
+static double grid_bicubic(const struct patch *pt, const struct grid_table *t)
+{
+    double v = 0.0, dz = pt->cw[3][2] - pt->cw[0][2];
+    for (int a = 0; a < GRID_N; a++) {
+        double cx[4] = {0}, cy[4] = {0}, cux[4] = {0}, cuy[4] = {0};
+        for (int i = 0; i < 4; i++)
+            for (int j = 0; j < 4; j++) {
+                const double *P = pt->cw[i * 4 + j];
+                cx[j] += t->B[a][i] * P[0], cy[j] += t->B[a][i] * P[1];
+                cux[j] += t->dB[a][i] * P[0], cuy[j] += t->dB[a][i] * P[1];
+            }
+        for (int b = 0; b < GRID_N; b++) {
+            double x = 0, y = 0, xu = 0, yu = 0;
+            for (int j = 0; j < 4; j++)
+                x += t->B[b][j] * cx[j], y += t->B[b][j] * cy[j], xu += t->B[b][j] * cux[j], yu += t->B[b][j] * cuy[j];
+            v += x * yu - y * xu;
+        }
+    }
+    return 0.5 * dz * v / (GRID_N * GRID_N);
+}
+
+static double grid_general(const struct patch *pt)
+{
+    double v = 0.0;
+    for (int a = 0; a < GRID_N; a++)
+        for (int b = 0; b < GRID_N; b++) {
+            vec3 P, Pu, Pv;
+            bezier_eval(pt, (double)a / GRID_N, (double)b / GRID_N, &P, &Pu, &Pv);
+            v += (Pu.y * Pv.z - Pu.z * Pv.y) * P.x + (Pu.z * Pv.x - Pu.x * Pv.z) * P.y;
+        }
+    return 0.5 * v / (GRID_N * GRID_N);
+}
+
 /* A polynomial bicubic whose z is the same linear function of v in every column. */
 static bool z_linear_in_v(const struct patch *pt)
 {
@@ -349,6 +391,9 @@ void solid_measure(const struct solid *s, struct solid_measures *m)
     struct gl5_table t;
     for (int a = 0; a < 5; a++)
         bezier_basis(3, GL5_X[a], t.B[a], t.dB[a]);
+    struct grid_table g;
+    for (int a = 0; a < GRID_N; a++)
+        bezier_basis(3, (double)a / GRID_N, g.B[a], g.dB[a]);
     for (int b = 0; b < s->n_bands; b++) {
         const struct band *bd = &s->bands[b];
         double cap = 0.0;
@@ -358,7 +403,10 @@ void solid_measure(const struct solid *s, struct solid_measures *m)
             bezier_bounds(pt, &lo, &hi);
             m->lo[0] = fmin(m->lo[0], lo.x), m->lo[1] = fmin(m->lo[1], lo.y), m->lo[2] = fmin(m->lo[2], lo.z);
             m->hi[0] = fmax(m->hi[0], hi.x), m->hi[1] = fmax(m->hi[1], hi.y), m->hi[2] = fmax(m->hi[2], hi.z);
-            if (bd->kind == BAND_SIDE && z_linear_in_v(pt))
+            bool fast = bd->kind == BAND_SIDE && z_linear_in_v(pt);
+            if (bd->kind != BAND_CAP) /* planar caps add nothing to eq. 21 */
+                m->volume_grid += fast ? grid_bicubic(pt, &g) : grid_general(pt);
+            if (fast)
                 measure_bicubic(pt, &t, &m->volume, &m->area);
             else if (bd->kind == BAND_DOME)
                 measure_general(pt, 8, GL8_X, GL8_W, false, &m->volume, &m->area);

@@ -55,6 +55,7 @@ vec3 solid_point(const struct solid *s, int band, double u, double t);
 
 struct solid_measures {
     double volume;      /* divergence theorem over every patch (seed 000 eq. 21–22), signed by orientation */
+    double volume_grid; /* the same by the 10 x 10 grid rule per patch (eq. 23, nodes i/10) */
     double area;
     double lo[3], hi[3];
 };
