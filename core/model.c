@@ -148,6 +148,64 @@ static void curve_eval(const struct curve *c, double u, double *x, double *y)
     *y = blend(c->lsq, u, ts, ys);
 }
 
+/* Power-basis cubic per segment i of a curve, in t = (u - u_i) / (u_{i+1} - u_i). */
+struct curve_poly {
+    int n;
+    const double *u;     /* borrowed from the curve; u_n = u_0 + 1 */
+    double (*cx)[4], (*cy)[4];
+};
+
+static int curve_poly_build(const struct curve *c, struct curve_poly *cp)
+{
+    /* the inverse Vandermonde of t = 0, 1/3, 2/3, 1 maps samples to coefficients */
+    static const double VINV[4][4] = {{1, 0, 0, 0}, {-5.5, 9, -4.5, 1}, {9, -22.5, 18, -4.5}, {-4.5, 13.5, -13.5, 4.5}};
+    cp->n = c->n;
+    cp->u = c->u;
+    cp->cx = malloc(sizeof *cp->cx * (size_t)c->n);
+    cp->cy = malloc(sizeof *cp->cy * (size_t)c->n);
+    if (!cp->cx || !cp->cy)
+        return SF_ENOMEM;
+    for (int i = 0; i < c->n; i++) {
+        double u0 = c->u[i], u1 = i + 1 < c->n ? c->u[i + 1] : c->u[0] + 1.0, sx[4], sy[4];
+        for (int a = 0; a < 4; a++) /* the wrap segment's u runs past 1: curve_eval takes it as it is */
+            curve_eval(c, u0 + (u1 - u0) * a / 3.0, &sx[a], &sy[a]);
+        for (int k = 0; k < 4; k++) {
+            cp->cx[i][k] = cp->cy[i][k] = 0;
+            for (int a = 0; a < 4; a++)
+                cp->cx[i][k] += VINV[k][a] * sx[a], cp->cy[i][k] += VINV[k][a] * sy[a];
+        }
+    }
+    return 0;
+}
+
+static void curve_poly_free(struct curve_poly *cp)
+{
+    free(cp->cx);
+    free(cp->cy);
+}
+
+/* Value and u-derivative of the curve at u in [0, 1], given its segment i (u in [u_i, u_{i+1}],
+ * with the wrap segment n-1 also covering [0, u_0] one turn back). */
+static void curve_poly_at(const struct curve_poly *cp, int i, double u, double *x, double *y, double *xu, double *yu)
+{
+    double u0 = cp->u[i], u1 = i + 1 < cp->n ? cp->u[i + 1] : cp->u[0] + 1.0;
+    if (u < u0)
+        u += 1.0;
+    double h = u1 - u0, t = (u - u0) / h;
+    const double *a = cp->cx[i], *b = cp->cy[i];
+    *x = a[0] + t * (a[1] + t * (a[2] + t * a[3]));
+    *y = b[0] + t * (b[1] + t * (b[2] + t * b[3]));
+    *xu = (a[1] + t * (2 * a[2] + t * 3 * a[3])) / h;
+    *yu = (b[1] + t * (2 * b[2] + t * 3 * b[3])) / h;
+}
+
+/* The segment holding u (just after a breakpoint, so pieces never straddle one). */
+static int curve_poly_segment(const struct curve_poly *cp, double u)
+{
+    int i = segment_at(cp->u, cp->n, u);
+    return i < 0 ? cp->n - 1 : i; /* below u_0: the wrap segment */
+}
+
 /* Inverse of the cubic Bernstein matrix at t = 0, 1/3, 2/3, 1 (rows: samples, columns: basis). */
 static void bernstein_inverse(double inv[4][4])
 {
@@ -213,15 +271,21 @@ static void slice_weights(const struct contour_set *cs, bool lsq, int k, double 
     }
 }
 
-/* Parabolic or linear-parabolic (eq. 32 in both directions), exactly as bicubic patches. */
+/* Parabolic or linear-parabolic (eq. 32 in both directions), exactly as bicubic patches: on a piece
+ * [ua, ub] between the merged breakpoints of the (up to) four curves pair k depends on, the surface is
+ * sum_j w_j(z) C_j(u) with each C_j a cubic in u and each w_j a cubic in z, so its Bézier points are
+ * sum_j C_j[a] W_j[b]: the curves' Bézier points on the piece (from their values and derivatives at
+ * the ends) times the weights' Bernstein coefficients over the pair (once per pair). */
 static int curve_surface(const struct contour_set *cs, bool lsq, struct patch_set *set, struct sf_err *err)
 {
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
-    if (!cv)
-        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
+    if (!cv || !cp)
+        rc = SF_ENOMEM;
     for (int j = 0; j < n && !rc; j++)
-        rc = curve_build(&cs->s[j], lsq, &cv[j]);
+        if (!(rc = curve_build(&cs->s[j], lsq, &cv[j])))
+            rc = curve_poly_build(&cv[j], &cp[j]);
     double inv[4][4];
     bernstein_inverse(inv);
     double *brk = NULL;
@@ -241,51 +305,53 @@ static int curve_surface(const struct contour_set *cs, bool lsq, struct patch_se
             for (int i = 0; i < cv[j].n; i++)
                 brk[nb++] = cv[j].u[i];
         qsort(brk, nb, sizeof *brk, cmp_double);
-        double z0 = cs->s[k].z, z1 = cs->s[k + 1].z, wz[4][4];
+        double z0 = cs->s[k].z, z1 = cs->s[k + 1].z, wz[4][4], W[4][4] = {{0}};
         int m = 0;
         for (int c = 0; c < 4; c++) /* the slice weights at the four z samples, once per pair */
             slice_weights(cs, lsq, k, z0 + (z1 - z0) * c / 3.0, wz[c], &j0, &m);
-        for (size_t b = 0; b + 1 < nb && !rc; b++) {
-            double ua = brk[b], ub = brk[b + 1];
-            if (ub - ua <= BREAK_EPS)
-                continue;
-            double S[4][4][2] = {{{0}}}; /* samples at (u_a, z_c) */
-            for (int a = 0; a < 4; a++) {
-                double u = ua + (ub - ua) * a / 3.0, cx[4], cy[4];
-                for (int j = 0; j < m; j++) /* each curve once per u sample, for all four z */
-                    curve_eval(&cv[j0 + j], u, &cx[j], &cy[j]);
+        for (int j = 0; j < m; j++) /* ... as Bernstein coefficients W[j][b] */
+            for (int b = 0; b < 4; b++)
                 for (int c = 0; c < 4; c++)
-                    for (int j = 0; j < m; j++) {
-                        S[a][c][0] += wz[c][j] * cx[j];
-                        S[a][c][1] += wz[c][j] * cy[j];
-                    }
+                    W[j][b] += inv[b][c] * wz[c][j];
+        for (size_t q = 0; q + 1 < nb && !rc; q++) {
+            double ua = brk[q], ub = brk[q + 1], h = ub - ua;
+            if (h <= BREAK_EPS)
+                continue;
+            double C[4][4][2]; /* curve j's Bézier points on the piece */
+            for (int j = 0; j < m; j++) {
+                const struct curve_poly *c = &cp[j0 + j];
+                int seg = curve_poly_segment(c, 0.5 * (ua + ub));
+                double xa, ya, xua, yua, xb, yb, xub, yub;
+                curve_poly_at(c, seg, ua, &xa, &ya, &xua, &yua);
+                curve_poly_at(c, seg, ub, &xb, &yb, &xub, &yub);
+                C[j][0][0] = xa, C[j][0][1] = ya;
+                C[j][1][0] = xa + h * xua / 3, C[j][1][1] = ya + h * yua / 3;
+                C[j][2][0] = xb - h * xub / 3, C[j][2][1] = yb - h * yub / 3;
+                C[j][3][0] = xb, C[j][3][1] = yb;
             }
             if ((rc = mem_reserve((void **)&set->patches, &set->cap, set->n + 1, sizeof *set->patches)) ||
                 (rc = mem_reserve((void **)&set->pool, &set->cap_pool, set->n_pool + 16, sizeof *set->pool)))
                 break;
-            struct patch *pt = &set->patches[set->n++];
-            *pt = (struct patch){3, 3, false, (double(*)[4])(uintptr_t)set->n_pool, 0, ua, ub, z0, z1};
-            double T[4][4][2] = {{{0}}}; /* P = M^-1 S M^-T, as two 4x4 products */
+            set->patches[set->n++] = (struct patch){3, 3, false, (double(*)[4])(uintptr_t)set->n_pool, 0, ua, ub, z0, z1};
             for (int a = 0; a < 4; a++)
-                for (int j = 0; j < 4; j++)
-                    for (int c = 0; c < 4; c++)
-                        T[a][j][0] += S[a][c][0] * inv[j][c], T[a][j][1] += S[a][c][1] * inv[j][c];
-            for (int i = 0; i < 4; i++)
-                for (int j = 0; j < 4; j++) {
-                    double *P = set->pool[set->n_pool + (size_t)(i * 4 + j)];
+                for (int b = 0; b < 4; b++) {
+                    double *P = set->pool[set->n_pool + (size_t)(a * 4 + b)];
                     P[0] = P[1] = 0.0;
-                    for (int a = 0; a < 4; a++)
-                        P[0] += inv[i][a] * T[a][j][0], P[1] += inv[i][a] * T[a][j][1];
-                    P[2] = z0 + (z1 - z0) * j / 3.0; /* z is linear in v */
+                    for (int j = 0; j < m; j++)
+                        P[0] += C[j][a][0] * W[j][b], P[1] += C[j][a][1] * W[j][b];
+                    P[2] = z0 + (z1 - z0) * b / 3.0; /* z is linear in v */
                     P[3] = 1.0;
                 }
             set->n_pool += 16;
         }
     }
     free(brk);
-    for (int j = 0; j < n; j++)
+    for (int j = 0; j < n && cv && cp; j++) {
         curve_free(&cv[j]);
+        curve_poly_free(&cp[j]);
+    }
     free(cv);
+    free(cp);
     return rc ? sf_fail(err, SF_ENOMEM, "", "out of memory building the model") : 0;
 }
 
@@ -559,64 +625,6 @@ int model_method_parse(const char *name, enum model_method *m)
  * curves (degree 5: 3 Gauss points exact), shared by every slice pair that uses both curves;
  * ∫ w_j w_l dz is of degree 6 (4 points exact). No patches needed: this is the fast, exact path,
  * and it must agree with the divergence theorem over the patches to rounding. */
-
-/* Power-basis cubic per segment i of a curve, in t = (u - u_i) / (u_{i+1} - u_i). */
-struct curve_poly {
-    int n;
-    const double *u;     /* borrowed from the curve; u_n = u_0 + 1 */
-    double (*cx)[4], (*cy)[4];
-};
-
-static int curve_poly_build(const struct curve *c, struct curve_poly *cp)
-{
-    /* the inverse Vandermonde of t = 0, 1/3, 2/3, 1 maps samples to coefficients */
-    static const double VINV[4][4] = {{1, 0, 0, 0}, {-5.5, 9, -4.5, 1}, {9, -22.5, 18, -4.5}, {-4.5, 13.5, -13.5, 4.5}};
-    cp->n = c->n;
-    cp->u = c->u;
-    cp->cx = malloc(sizeof *cp->cx * (size_t)c->n);
-    cp->cy = malloc(sizeof *cp->cy * (size_t)c->n);
-    if (!cp->cx || !cp->cy)
-        return SF_ENOMEM;
-    for (int i = 0; i < c->n; i++) {
-        double u0 = c->u[i], u1 = i + 1 < c->n ? c->u[i + 1] : c->u[0] + 1.0, sx[4], sy[4];
-        for (int a = 0; a < 4; a++) /* the wrap segment's u runs past 1: curve_eval takes it as it is */
-            curve_eval(c, u0 + (u1 - u0) * a / 3.0, &sx[a], &sy[a]);
-        for (int k = 0; k < 4; k++) {
-            cp->cx[i][k] = cp->cy[i][k] = 0;
-            for (int a = 0; a < 4; a++)
-                cp->cx[i][k] += VINV[k][a] * sx[a], cp->cy[i][k] += VINV[k][a] * sy[a];
-        }
-    }
-    return 0;
-}
-
-static void curve_poly_free(struct curve_poly *cp)
-{
-    free(cp->cx);
-    free(cp->cy);
-}
-
-/* Value and u-derivative of the curve at u in [0, 1], given its segment i (u in [u_i, u_{i+1}],
- * with the wrap segment n-1 also covering [0, u_0] one turn back). */
-static void curve_poly_at(const struct curve_poly *cp, int i, double u, double *x, double *y, double *xu, double *yu)
-{
-    double u0 = cp->u[i], u1 = i + 1 < cp->n ? cp->u[i + 1] : cp->u[0] + 1.0;
-    if (u < u0)
-        u += 1.0;
-    double h = u1 - u0, t = (u - u0) / h;
-    const double *a = cp->cx[i], *b = cp->cy[i];
-    *x = a[0] + t * (a[1] + t * (a[2] + t * a[3]));
-    *y = b[0] + t * (b[1] + t * (b[2] + t * b[3]));
-    *xu = (a[1] + t * (2 * a[2] + t * 3 * a[3])) / h;
-    *yu = (b[1] + t * (2 * b[2] + t * 3 * b[3])) / h;
-}
-
-/* The segment holding u (just after a breakpoint, so pieces never straddle one). */
-static int curve_poly_segment(const struct curve_poly *cp, double u)
-{
-    int i = segment_at(cp->u, cp->n, u);
-    return i < 0 ? cp->n - 1 : i; /* below u_0: the wrap segment */
-}
 
 static const double GL3_X[3] = {0.112701665379258, 0.5, 0.887298334620742};
 static const double GL3_W[3] = {0.277777777777778, 0.444444444444444, 0.277777777777778};

@@ -73,14 +73,14 @@ static void dome_profile(const struct model_dome *d, double s[3], double rho[3],
 /* The end bands of one end (e = 0 bottom, 1 top) of a tube whose end side band is `side`:
  * a dome (when d is given), or a wall of ext (when ext > 0) and a cap. Appends them to out in the
  * tube's upward order for that end. */
-static int end_bands(struct solid *s, const struct band *side, int e, double z, const double c[2],
+static int end_bands(struct solid *s, const struct band *side, int e, double z, const double c[2], double area,
                      const struct model_dome *d, double ext, struct band *out, int *n_out)
 {
     struct patch_set *set = &s->set;
     int n = 0;
-    double sd[3], rho[3], w[3];
+    double sd[3], rho_d[3], w[3];
     if (d)
-        dome_profile(d, sd, rho, w);
+        dome_profile(d, sd, rho_d, w);
     enum band_kind kinds[2];
     if (d)
         kinds[n++] = BAND_DOME;
@@ -97,7 +97,7 @@ static int end_bands(struct solid *s, const struct band *side, int e, double z, 
     double dir = e ? 1.0 : -1.0, zc = z + dir * ext; /* the cap's plane */
     for (int k = 0; k < n; k++) {
         struct band *b = &out[(*n_out)++];
-        *b = (struct band){kinds[k], set->n, side->n};
+        *b = (struct band){kinds[k], set->n, side->n, kinds[k] == BAND_CAP ? area : 0.0};
         for (size_t i = side->first; i < side->first + side->n; i++) {
             struct patch sp = resolved(set, i);
             double E[4][2]; /* the end row: bicubic side patches (v = 0 or 1) */
@@ -105,33 +105,34 @@ static int end_bands(struct solid *s, const struct band *side, int e, double z, 
                 const double *P = sp.cw[a * (sp.q + 1) + (e ? sp.q : 0)];
                 E[a][0] = P[0] / P[3], E[a][1] = P[1] / P[3];
             }
-            bool dome = kinds[k] == BAND_DOME;
-            double(*cw)[4] = new_patch(set, 3, dome ? 2 : 1, dome, sp.u0, sp.u1);
+            /* row j of every band is c + ρ_j (E - c) at height h_j with weight w_j */
+            double rho[4], h[4], wt[4] = {1, 1, 1, 1};
+            int q;
+            if (kinds[k] == BAND_DOME) { /* top: rim at t = 0; bottom: apex at t = 0 */
+                q = 2;
+                for (int j = 0; j < 3; j++) {
+                    int r = e ? j : 2 - j;
+                    rho[r] = rho_d[j], h[r] = z + dir * sd[j], wt[r] = w[j];
+                }
+            } else if (kinds[k] == BAND_WALL) { /* bicubic, z linear: the side's fast measures apply */
+                q = 3;
+                for (int j = 0; j < 4; j++)
+                    rho[j] = 1.0, h[j] = e ? z + (zc - z) * j / 3.0 : zc + (z - zc) * j / 3.0;
+            } else { /* cap: top from the rim to the centre, bottom back, so that Su × Sv faces out */
+                q = 1;
+                rho[0] = e ? 1.0 : 0.0, rho[1] = 1.0 - rho[0], h[0] = h[1] = zc;
+            }
+            double(*cw)[4] = new_patch(set, 3, q, kinds[k] == BAND_DOME, sp.u0, sp.u1);
             if (!cw)
                 return SF_ENOMEM;
-            for (int a = 0; a < 4; a++) {
-                double *row = cw[a * (dome ? 3 : 2)];
-                if (dome)
-                    for (int j = 0; j < 3; j++) { /* top: rim at t = 0; bottom: apex at t = 0 */
-                        double *P = row + 4 * (e ? j : 2 - j);
-                        P[0] = w[j] * (c[0] + rho[j] * (E[a][0] - c[0]));
-                        P[1] = w[j] * (c[1] + rho[j] * (E[a][1] - c[1]));
-                        P[2] = w[j] * (z + dir * sd[j]);
-                        P[3] = w[j];
-                    }
-                else { /* rows t = 0 and 1, so that Su × Sv faces out */
-                    double *lo = row, *hi = row + 4, ex = E[a][0], ey = E[a][1];
-                    bool wall = kinds[k] == BAND_WALL;
-                    double l[3] = {ex, ey, e ? z : zc}, h[3] = {ex, ey, e ? zc : z}; /* wall: up the side */
-                    if (!wall && e) /* top cap: rim to centre */
-                        l[2] = zc, h[0] = c[0], h[1] = c[1];
-                    else if (!wall) /* bottom cap: centre to rim */
-                        l[0] = c[0], l[1] = c[1], h[2] = zc;
-                    memcpy(lo, l, sizeof l);
-                    memcpy(hi, h, sizeof h);
-                    lo[3] = hi[3] = 1.0;
+            for (int a = 0; a < 4; a++)
+                for (int j = 0; j <= q; j++) {
+                    double *P = cw[a * (q + 1) + j];
+                    P[0] = wt[j] * (c[0] + rho[j] * (E[a][0] - c[0]));
+                    P[1] = wt[j] * (c[1] + rho[j] * (E[a][1] - c[1]));
+                    P[2] = wt[j] * h[j];
+                    P[3] = wt[j];
                 }
-            }
         }
     }
     return 0;
@@ -186,7 +187,7 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     for (size_t k = p0; k < s->set.n; k++) {
         if (k == p0 || s->set.patches[k].v0 != s->set.patches[k - 1].v0)
-            side[nb++] = (struct band){BAND_SIDE, k, 0};
+            side[nb++] = (struct band){BAND_SIDE, k, 0, 0.0};
         side[nb - 1].n++;
     }
     struct band ends[2][2];
@@ -218,7 +219,7 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
             tb->volume_ends += area * ext[e];
         double c[2];
         contour_centroid(cend, &c[0], &c[1]);
-        rc = end_bands(s, sb, e, cend->z, c, dome[e] ? &d : NULL, ext[e], ends[e], &n_end[e]);
+        rc = end_bands(s, sb, e, cend->z, c, area, dome[e] ? &d : NULL, ext[e], ends[e], &n_end[e]);
     }
     if (ch->hole)
         tb->volume_ends = -tb->volume_ends;
@@ -272,33 +273,47 @@ void solid_free(struct solid *s)
 
 /* ---- measures --------------------------------------------------------------------------------
  * seed 000 eq. 21–22: V = ½ ∬ (A Sx + B Sy) du dv over every patch. For a bicubic with z linear in v
- * (every side patch), A = y_u Δz and B = -x_u Δz, so the integrand ½ Δz (x y_u - y x_u) is of degree 5
- * in u and 6 in v: 5x5 Gauss–Legendre is exact, and the same 25 evaluations give the area. */
-struct gl5_table {
-    double B[5][4], dB[5][4]; /* cubic Bernstein values and derivatives at the 5 nodes */
+ * (the curve methods' side patches), A = y_u Δz and B = -x_u Δz, so the integrand ½ Δz (x y_u - y x_u)
+ * is of degree 5 in u and 6 in v: Gauss–Legendre of 3 x 4 nodes is exact, and the same 12 evaluations
+ * give the area (smooth, and the patches are small). */
+static const double GL3_X[3] = {0.112701665379258, 0.5, 0.887298334620742};
+static const double GL3_W[3] = {0.277777777777778, 0.444444444444444, 0.277777777777778};
+static const double GL4_X[4] = {0.069431844202974, 0.330009478207572, 0.669990521792428, 0.930568155797026};
+static const double GL4_W[4] = {0.173927422568727, 0.326072577431273, 0.326072577431273, 0.173927422568727};
+
+struct gl_table {
+    double Bu[3][4], dBu[3][4]; /* cubic Bernstein values and derivatives at the 3 nodes in u */
+    double Bv[4][4], dBv[4][4]; /* ... and the 4 in v */
 };
 
-static void measure_bicubic(const struct patch *pt, const struct gl5_table *t, double *volume, double *area)
+static void gl_table_init(struct gl_table *t)
 {
-    const double(*B)[4] = t->B, (*dB)[4] = t->dB;
+    for (int a = 0; a < 3; a++)
+        bezier_basis(3, GL3_X[a], t->Bu[a], t->dBu[a]);
+    for (int b = 0; b < 4; b++)
+        bezier_basis(3, GL4_X[b], t->Bv[b], t->dBv[b]);
+}
+
+static void measure_bicubic(const struct patch *pt, const struct gl_table *t, double *volume, double *area)
+{
     double dz = pt->cw[3][2] - pt->cw[0][2]; /* z of control point (0,3) less (0,0) */
-    for (int a = 0; a < 5; a++) {
+    for (int a = 0; a < 3; a++) {
         /* contract the u direction first: rows c[j] = sum_i B_i(u) P_ij, cu[j] = sum_i B'_i(u) P_ij */
         double cx[4] = {0}, cy[4] = {0}, cux[4] = {0}, cuy[4] = {0};
         for (int i = 0; i < 4; i++)
             for (int j = 0; j < 4; j++) {
                 const double *P = pt->cw[i * 4 + j];
-                cx[j] += B[a][i] * P[0], cy[j] += B[a][i] * P[1];
-                cux[j] += dB[a][i] * P[0], cuy[j] += dB[a][i] * P[1];
+                cx[j] += t->Bu[a][i] * P[0], cy[j] += t->Bu[a][i] * P[1];
+                cux[j] += t->dBu[a][i] * P[0], cuy[j] += t->dBu[a][i] * P[1];
             }
-        for (int b = 0; b < 5; b++) {
+        for (int b = 0; b < 4; b++) {
             double x = 0, y = 0, xu = 0, yu = 0, xv = 0, yv = 0;
             for (int j = 0; j < 4; j++) {
-                x += B[b][j] * cx[j], y += B[b][j] * cy[j];
-                xu += B[b][j] * cux[j], yu += B[b][j] * cuy[j];
-                xv += dB[b][j] * cx[j], yv += dB[b][j] * cy[j];
+                x += t->Bv[b][j] * cx[j], y += t->Bv[b][j] * cy[j];
+                xu += t->Bv[b][j] * cux[j], yu += t->Bv[b][j] * cuy[j];
+                xv += t->dBv[b][j] * cx[j], yv += t->dBv[b][j] * cy[j];
             }
-            double w = GL5_W[a] * GL5_W[b];
+            double w = GL3_W[a] * GL4_W[b];
             *volume += 0.5 * w * dz * (x * yu - y * xu);
             double nx = yu * dz, ny = -xu * dz, nz = xu * yv - yu * xv; /* Su × Sv */
             *area += w * sqrt(nx * nx + ny * ny + nz * nz);
@@ -307,11 +322,9 @@ static void measure_bicubic(const struct patch *pt, const struct gl5_table *t, d
 }
 
 /* Any patch, n x n Gauss–Legendre nodes (exact for polynomial integrands up to degree 2n-1 per
- * direction; the domes' rational integrand is smooth, and 8 nodes leave it below 1e-9). With
- * signed_z, the area is that of the projection on z, signed (a cap's fan folds, its signed area
- * does not). */
-static void measure_general(const struct patch *pt, int n, const double *X, const double *W, bool signed_z,
-                            double *volume, double *area)
+ * direction; the domes' rational integrand is smooth, and 8 nodes leave it below 1e-9). */
+static void measure_general(const struct patch *pt, int n, const double *X, const double *W, double *volume,
+                            double *area)
 {
     for (int a = 0; a < n; a++)
         for (int b = 0; b < n; b++) {
@@ -319,7 +332,7 @@ static void measure_general(const struct patch *pt, int n, const double *X, cons
             bezier_eval(pt, X[a], X[b], &P, &Pu, &Pv);
             double A = Pu.y * Pv.z - Pu.z * Pv.y, B = Pu.z * Pv.x - Pu.x * Pv.z, w = W[a] * W[b];
             *volume += 0.5 * w * (A * P.x + B * P.y);
-            *area += w * (signed_z ? Pu.x * Pv.y - Pu.y * Pv.x : v3_len(v3_cross(Pu, Pv)));
+            *area += w * v3_len(v3_cross(Pu, Pv));
         }
 }
 
@@ -329,28 +342,43 @@ static void measure_general(const struct patch *pt, int n, const double *X, cons
 #define GRID_N 10
 
 struct grid_table {
-    double B[GRID_N][4], dB[GRID_N][4];
+    /* the grid sums of Bernstein products: Gu[i][k] = Σ_a B_i B'_k (a/n) / n, Gv[j][l] = Σ_b B_j B_l (b/n) / n */
+    double Gu[4][4], Gv[4][4];
 };
 
-static double grid_bicubic(const struct patch *pt, const struct grid_table *t)
+static void grid_table_init(struct grid_table *g)
 {
-    double v = 0.0, dz = pt->cw[3][2] - pt->cw[0][2];
+    memset(g, 0, sizeof *g);
     for (int a = 0; a < GRID_N; a++) {
-        double cx[4] = {0}, cy[4] = {0}, cux[4] = {0}, cuy[4] = {0};
+        double B[4], dB[4];
+        bezier_basis(3, (double)a / GRID_N, B, dB);
         for (int i = 0; i < 4; i++)
-            for (int j = 0; j < 4; j++) {
-                const double *P = pt->cw[i * 4 + j];
-                cx[j] += t->B[a][i] * P[0], cy[j] += t->B[a][i] * P[1];
-                cux[j] += t->dB[a][i] * P[0], cuy[j] += t->dB[a][i] * P[1];
+            for (int k = 0; k < 4; k++) {
+                g->Gu[i][k] += B[i] * dB[k] / GRID_N;
+                g->Gv[i][k] += B[i] * B[k] / GRID_N;
             }
-        for (int b = 0; b < GRID_N; b++) {
-            double x = 0, y = 0, xu = 0, yu = 0;
-            for (int j = 0; j < 4; j++)
-                x += t->B[b][j] * cx[j], y += t->B[b][j] * cy[j], xu += t->B[b][j] * cux[j], yu += t->B[b][j] * cuy[j];
-            v += x * yu - y * xu;
-        }
     }
-    return 0.5 * dz * v / (GRID_N * GRID_N);
+}
+
+/* For a bicubic with z linear in v the integrand is ½ Δz (x y_u - y x_u), a bilinear form in the
+ * control points: its grid sum is Σ X_ij Y_kl Gu_ik Gv_jl less the same with X and Y swapped. */
+static double grid_bicubic(const struct patch *pt, const struct grid_table *g)
+{
+    double XG[4][4] = {{0}}, YG[4][4] = {{0}}, s = 0.0, dz = pt->cw[3][2] - pt->cw[0][2];
+    for (int k = 0; k < 4; k++)
+        for (int j = 0; j < 4; j++)
+            for (int l = 0; l < 4; l++) {
+                XG[k][j] += pt->cw[k * 4 + l][0] * g->Gv[j][l];
+                YG[k][j] += pt->cw[k * 4 + l][1] * g->Gv[j][l];
+            }
+    for (int i = 0; i < 4; i++)
+        for (int j = 0; j < 4; j++) {
+            double gy = 0.0, gx = 0.0;
+            for (int k = 0; k < 4; k++)
+                gy += g->Gu[i][k] * YG[k][j], gx += g->Gu[i][k] * XG[k][j];
+            s += pt->cw[i * 4 + j][0] * gy - pt->cw[i * 4 + j][1] * gx;
+        }
+    return 0.5 * dz * s;
 }
 
 static double grid_general(const struct patch *pt)
@@ -388,33 +416,32 @@ void solid_measure(const struct solid *s, struct solid_measures *m)
     memset(m, 0, sizeof *m);
     for (int d = 0; d < 3; d++)
         m->lo[d] = INFINITY, m->hi[d] = -INFINITY;
-    struct gl5_table t;
-    for (int a = 0; a < 5; a++)
-        bezier_basis(3, GL5_X[a], t.B[a], t.dB[a]);
+    struct gl_table t;
+    gl_table_init(&t);
     struct grid_table g;
-    for (int a = 0; a < GRID_N; a++)
-        bezier_basis(3, (double)a / GRID_N, g.B[a], g.dB[a]);
+    grid_table_init(&g);
     for (int b = 0; b < s->n_bands; b++) {
         const struct band *bd = &s->bands[b];
-        double cap = 0.0;
+        m->area += bd->area; /* a cap: flat, nothing to eq. 21, its area known from its rim */
         for (size_t k = bd->first; k < bd->first + bd->n; k++) {
             const struct patch *pt = &s->set.patches[k];
             vec3 lo, hi;
             bezier_bounds(pt, &lo, &hi);
             m->lo[0] = fmin(m->lo[0], lo.x), m->lo[1] = fmin(m->lo[1], lo.y), m->lo[2] = fmin(m->lo[2], lo.z);
             m->hi[0] = fmax(m->hi[0], hi.x), m->hi[1] = fmax(m->hi[1], hi.y), m->hi[2] = fmax(m->hi[2], hi.z);
-            bool fast = bd->kind == BAND_SIDE && z_linear_in_v(pt);
-            if (bd->kind != BAND_CAP) /* planar caps add nothing to eq. 21 */
-                m->volume_grid += fast ? grid_bicubic(pt, &g) : grid_general(pt);
-            if (fast)
+            if (bd->kind == BAND_CAP)
+                continue;
+            if (z_linear_in_v(pt)) {
+                m->volume_grid += grid_bicubic(pt, &g);
                 measure_bicubic(pt, &t, &m->volume, &m->area);
-            else if (bd->kind == BAND_DOME)
-                measure_general(pt, 8, GL8_X, GL8_W, false, &m->volume, &m->area);
-            else
-                measure_general(pt, 5, GL5_X, GL5_W, bd->kind == BAND_CAP, &m->volume,
-                                bd->kind == BAND_CAP ? &cap : &m->area);
+            } else {
+                m->volume_grid += grid_general(pt);
+                if (bd->kind == BAND_DOME)
+                    measure_general(pt, 8, GL8_X, GL8_W, &m->volume, &m->area);
+                else
+                    measure_general(pt, 5, GL5_X, GL5_W, &m->volume, &m->area);
+            }
         }
-        m->area += fabs(cap);
     }
 }
 

@@ -5,7 +5,7 @@
  * A tube from bottom to top: [cap] [wall | dome] side bands... [wall | dome] [cap].
  * - side: the method's surface, one band per pair of neighbouring levels;
  * - wall: the end curve extruded flat by the chain's extension (slab caps, branchings, islands,
- *   and a dome that did not close), degree (3, 1);
+ *   and a dome that did not close), bicubic with z linear in v;
  * - dome (ours; the seeds are silent): the end curve scaled about its centroid by ρ(s), with
  *   ρ² = q(s)/q(0) the quadratic through the last three section areas (exact for quadric ends),
  *   so every section's area is q(s) and the solid's volume that of model_volume_closed. The
@@ -25,6 +25,7 @@ enum band_kind { BAND_SIDE, BAND_WALL, BAND_DOME, BAND_CAP };
 struct band {
     enum band_kind kind;
     size_t first, n;     /* patches set.patches[first .. first+n) */
+    double area;         /* a cap's area (its fan may fold; the area its rim encloses does not) */
 };
 
 struct tube {

@@ -22,8 +22,9 @@ static inline vec3 v3_norm(vec3 a)
     double l = v3_len(a);
     return l > 0 ? v3_scale(a, 1.0 / l) : a;
 }
-static inline vec3 v3_min(vec3 a, vec3 b) { return v3(fmin(a.x, b.x), fmin(a.y, b.y), fmin(a.z, b.z)); }
-static inline vec3 v3_max(vec3 a, vec3 b) { return v3(fmax(a.x, b.x), fmax(a.y, b.y), fmax(a.z, b.z)); }
+/* Comparisons, not fmin/fmax (library calls without -ffinite-math-only); inputs are finite. */
+static inline vec3 v3_min(vec3 a, vec3 b) { return v3(a.x < b.x ? a.x : b.x, a.y < b.y ? a.y : b.y, a.z < b.z ? a.z : b.z); }
+static inline vec3 v3_max(vec3 a, vec3 b) { return v3(a.x > b.x ? a.x : b.x, a.y > b.y ? a.y : b.y, a.z > b.z ? a.z : b.z); }
 static inline vec3 v3_mul(vec3 a, vec3 b) { return v3(a.x * b.x, a.y * b.y, a.z * b.z); }
 
 #endif

@@ -6,7 +6,9 @@ one shadow-casting light, at 1 and 2 threads, every method; teacup, teaspoon and
 (auto-framed). In the same run: POV-Ray 3.7 on the same Bézier patches and camera
 (bicubic_patch type 1, flatness 0, u_steps 5, v_steps 5; its own "Trace Time"), and surfd's mesh
 method. Each figure is the median of REPEAT runs."""
-import json, os, platform, re, signal, statistics, subprocess, sys, tempfile, time, urllib.request
+import json
+import shutil
+import os, platform, re, signal, statistics, subprocess, sys, tempfile, time, urllib.request
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DATA = os.environ.get("SURFD_DATA", os.path.join(ROOT, "..", "shared", "data"))
@@ -210,23 +212,95 @@ def contour_bench(lines):
         lines.append("| %s | %s | %s | %s | %s | %s | %s | %s |" % (name, cc(figs["flat"]["volume_mm3"]),
                      cc(figs["slab"]["volume_mm3"]), cc(figs["dome"]["volume_mm3"]), cc(figs["flat"]["volume"]["trapezoid"]),
                      cc(figs["flat"]["volume"]["cavalieri"]), rs, ex))
+    methods_table(lines, cdir, refs)
     p = subprocess.run([SURFD, "volume", os.path.join(cdir, "dicompyler_heart.json"), "--repeat", "20"],
                        capture_output=True, text=True)
     t = json.loads(p.stdout)["timings_ms"]
     lines.append("")
-    lines.append("Heart (33 slices, up to 178 points), warm (`surfd volume FILE --repeat 20`, last run): read %.1f ms, "
-                 "model curves + exact volume %.1f ms (target < 10 ms), exact bicubic patches %.1f ms, area and "
-                 "quadrature cross-check %.1f ms.\n" % (t["read"], t["volume"], t["fit"], t["measure"]))
-    runs = []
+    lines.append("Heart (33 slices, up to 178 points), warm (`surfd volume FILE --repeat 20`, last run): read %.1f ms; "
+                 "the model's curves and the exact volume (closed form) %.1f ms (target < 10 ms); the closed solid as "
+                 "exact Bezier patches %.1f ms; area, quadrature and 10x10 grid cross-checks %.1f ms.\n"
+                 % (t["read"], t["volume"], t["fit"], t["measure"]))
+    for rs in ("dicompyler-core_example_rtss.dcm", "slicerrt_EclipseProstatePhantom_RS.dcm"):
+        rtstruct_bench(lines, os.path.join(cdir, rs))
+
+
+def methods_table(lines, cdir, refs):
+    """The four methods of METHODS.md side by side (caps flat; dome against the exact solid)."""
+    methods = ("parabolic", "linear-parabolic", "coons", "bspline")
+    lines.append("")
+    lines.append("### The four methods (cm3; synthetic shapes: error against the exact volume between the end slices "
+                 "with flat caps, against the exact solid with dome caps)\n")
+    lines.append("| file | " + " | ".join(methods) + " |")
+    lines.append("|---|" + "---|" * len(methods))
+    for name in ("synthetic_ellipsoid.json", "synthetic_bean.json", "synthetic_torus_branching.json",
+                 "eclipse_bladder.json", "eclipse_ptv.json", "dicompyler_heart.json"):
+        with open(os.path.join(cdir, name)) as f:
+            data = json.load(f)
+        cells = []
+        for m in methods:
+            out = {}
+            for caps in ("flat", "dome"):
+                data["method"], data["caps"] = m, caps
+                path = os.path.join(TMP, "m.json")
+                with open(path, "w") as f:
+                    json.dump(data, f)
+                p = subprocess.run([SURFD, "volume", path], capture_output=True, text=True)
+                out[caps] = json.loads(p.stdout) if p.returncode == 0 else None
+            if not out["flat"]:
+                cells.append("failed")
+                continue
+            v = out["flat"]["volume_mm3"]
+            exact = data.get("exact_volume_between_end_slices_mm3")
+            if exact:
+                solid = data["exact_volume_mm3"]
+                cells.append("%.2f (%+.3f %%; dome %+.3f %%)" % (v / 1000, 100 * (v - exact) / exact,
+                                                               100 * (out["dome"]["volume_mm3"] - solid) / solid))
+            else:
+                cells.append("%.2f (dome %.2f)" % (v / 1000, out["dome"]["volume_mm3"] / 1000))
+        lines.append("| %s | %s |" % (name, " | ".join(cells)))
+
+
+def rtstruct_bench(lines, path):
+    """surfd on a whole RT Structure Set beside plastimatch (voxelised masks) on the same file."""
+    runs, full = [], []
     for _ in range(5):
-        p = subprocess.run([SURFD, "volume", os.path.join(cdir, "dicompyler-core_example_rtss.dcm"), "--repeat", "3"],
-                           capture_output=True, text=True)
+        p = subprocess.run([SURFD, "volume", path, "--repeat", "3"], capture_output=True, text=True)
         ms = json.loads(p.stdout)["models"]
         runs.append(sum(m["timings_ms"]["read"] + m["timings_ms"]["volume"] for m in ms))
-    lines.append("Whole example RTSTRUCT (dicompyler-core, %d ROIs with contours), warm, median of 5: DICOM read, "
-                 "cleaning, chains and exact volumes of every ROI %.1f ms (target < 100 ms); the exact patches, areas "
-                 "and quadrature cross-checks come on top. plastimatch is not run beside it yet.\n"
-                 % (len(ms), statistics.median(runs)))
+        full.append(sum(sum(m["timings_ms"].values()) for m in ms))
+    slab = {m["name"]: m["volume_mm3"] for m in json.loads(subprocess.run(
+        [SURFD, "volume", path, "--caps", "slab"], capture_output=True, text=True).stdout)["models"]}
+    pm, pm_ms = {}, None
+    if shutil.which("plastimatch"):
+        out = os.path.join(TMP, "pm")
+        shutil.rmtree(out, ignore_errors=True)
+        walls = []
+        for _ in range(3):
+            t0 = time.monotonic()
+            subprocess.run(["plastimatch", "convert", "--input", path, "--output-prefix", out],
+                           capture_output=True, check=True)
+            walls.append((time.monotonic() - t0) * 1000)
+        pm_ms = statistics.median(walls)
+        for f in sorted(os.listdir(out)):
+            hdr = subprocess.run(["plastimatch", "header", os.path.join(out, f)], capture_output=True, text=True).stdout
+            st = subprocess.run(["plastimatch", "stats", os.path.join(out, f)], capture_output=True, text=True).stdout
+            sp = [float(x) for x in re.search(r"Spacing = ([-0-9. ]+)", hdr).group(1).split()]
+            nz = int(re.search(r"NONZERO (\d+)", st).group(1))
+            pm[f[:-4]] = nz * sp[0] * sp[1] * sp[2]
+    lines.append("")
+    lines.append("%s (%d ROIs with contours), warm, median of 5: surfd reads, cleans, chains and gives the exact "
+                 "volume of every ROI in %.1f ms (target < 100 ms); with every ROI's closed solid as patches and the "
+                 "cross-checks, %.1f ms. plastimatch 1.9.4 `convert --output-prefix` (voxel masks at its default "
+                 "grid) on the same file: %s ms (wall, median of 3).\n"
+                 % (os.path.basename(path), len(ms), statistics.median(runs), statistics.median(full),
+                    "%.0f" % pm_ms if pm_ms else "not installed"))
+    lines.append("| ROI | surfd flat | surfd slab | plastimatch voxels |")
+    lines.append("|---|---|---|---|")
+    for m in ms:
+        v = pm.get(m["name"])
+        lines.append("| %s | %.2f | %.2f | %s |" % (m["name"], m["volume_mm3"] / 1000, slab[m["name"]] / 1000,
+                                                    "%.2f" % (v / 1000) if v is not None else "-"))
 
 
 def main():
