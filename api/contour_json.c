@@ -45,7 +45,10 @@ static int option(json_t *root, const char *key, const char *dflt, const char *c
             snprintf(out, cap, "%s", s);
             return 0;
         }
-    return sf_fail(err, SF_EINVAL, ptr, "\"%.40s\" is not available in this build (%s)", s, allowed[0]);
+    char list[128] = "";
+    for (int k = 0; allowed[k]; k++)
+        snprintf(list + strlen(list), sizeof list - strlen(list), "%s%s", k ? ", " : "", allowed[k]);
+    return sf_fail(err, SF_EINVAL, ptr, "\"%.40s\" is not one of %s", s, list);
 }
 
 int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, struct contour_request *req,
@@ -60,7 +63,8 @@ int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, stru
         snprintf(where, sizeof where, "line %d, column %d", je.line, je.column);
         return sf_fail(err, SF_EFORMAT, where, "not JSON: %s", je.text);
     }
-    static const char *const METHODS[] = {"parabolic", "linear-parabolic", "coons", "bspline", NULL}, *const CAPS[] = {"flat", "slab", "dome", NULL};
+    static const char *const METHODS[] = {"parabolic", "linear-parabolic", "coons", "bspline", NULL},
+                             *const CAPS[] = {"flat", "slab", "dome", NULL}, *const PARAMS[] = {"arc-length", "polar", NULL};
     int rc = 0;
     json_t *slices = json_object_get(root, "slices");
     if (!json_is_object(root)) {
@@ -70,7 +74,8 @@ int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, stru
     const char *name = json_string_value(json_object_get(root, "name"));
     snprintf(req->name, sizeof req->name, "%s", name ? name : "");
     if ((rc = option(root, "method", "parabolic", METHODS, req->method, sizeof req->method, err)) ||
-        (rc = option(root, "caps", "flat", CAPS, req->caps, sizeof req->caps, err)))
+        (rc = option(root, "caps", "flat", CAPS, req->caps, sizeof req->caps, err)) ||
+        (rc = option(root, "parameterisation", "arc-length", PARAMS, req->param, sizeof req->param, err)))
         goto out;
     if (!json_is_array(slices) || json_array_size(slices) < 2) {
         rc = sf_fail(err, SF_EINVAL, "/slices", "expected an array of at least 2 slices");
@@ -138,8 +143,9 @@ out:
 
 char *contour_json_write(const struct contour_set *cs, const struct contour_request *req)
 {
-    json_t *slices = json_array(), *root = json_pack("{s:s, s:s, s:s, s:o}", "name", req->name, "method", req->method,
-                                                     "caps", req->caps, "slices", slices);
+    json_t *slices = json_array(), *root = json_pack("{s:s, s:s, s:s, s:s, s:o}", "name", req->name, "method",
+                                                     req->method, "caps", req->caps, "parameterisation", req->param,
+                                                     "slices", slices);
     json_t *level = NULL;
     for (int k = 0; root && k < cs->n_slices; k++) {
         const struct contour_slice *c = &cs->s[k];

@@ -1,5 +1,5 @@
 /* contour_json.h - the contour JSON of API.md §Contours ({"slices": [{"z", "points"}]} or
- * {"z", "contours": [{"points"}]}, with "method", "caps", "name") into a contour set, with a JSON
+ * {"z", "contours": [{"points"}]}, with "method", "caps", "parameterisation", "name") into a contour set, with a JSON
  * pointer in every error. The caller frees the set with contour_set_free(). */
 #ifndef SURFD_CONTOUR_JSON_H
 #define SURFD_CONTOUR_JSON_H
@@ -12,6 +12,7 @@ struct contour_request {
     char name[128];
     char method[24];   /* parabolic (default) */
     char caps[16];     /* flat (default), slab or dome */
+    char param[16];    /* arc-length (default) or polar */
 };
 
 int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, struct contour_request *req,

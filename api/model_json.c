@@ -41,12 +41,15 @@ static char *dump(json_t *o, struct sf_err *err)
     return s;
 }
 
-/* ?caps= and ?method= (override the body's own); "" when absent. */
-static int overrides(const char *options, char caps[16], char method[24], struct sf_err *err)
+/* ?caps=, ?method= and ?parameterisation= (override the body's own); "" when absent. */
+static int overrides(const char *options, char caps[16], char method[24], char param[16], struct sf_err *err)
 {
     enum model_method m;
     option(options, "caps", caps, 16);
     option(options, "method", method, 24);
+    option(options, "parameterisation", param, 16);
+    if (param[0] && strcmp(param, "arc-length") && strcmp(param, "polar"))
+        return sf_fail(err, SF_EINVAL, "?parameterisation", "parameterisation is arc-length or polar");
     if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab") && strcmp(caps, "dome"))
         return sf_fail(err, SF_EINVAL, "?caps", "caps is flat, slab or dome");
     if (method[0] && model_method_parse(method, &m))
@@ -59,16 +62,33 @@ static enum model_caps caps_of(const char *name)
     return !strcmp(name, "slab") ? CAPS_SLAB : !strcmp(name, "dome") ? CAPS_DOME : CAPS_FLAT;
 }
 
+static struct model_opts opts_of(const struct contour_request *req)
+{
+    struct model_opts o = {MODEL_PARABOLIC, !strcmp(req->param, "polar")};
+    model_method_parse(req->method, &o.method);
+    return o;
+}
+
+/* Applies the query's overrides to a request's options. */
+static void override(struct contour_request *req, const char *caps, const char *method, const char *param)
+{
+    if (caps[0])
+        snprintf(req->caps, sizeof req->caps, "%s", caps);
+    if (method[0])
+        snprintf(req->method, sizeof req->method, "%s", method);
+    if (param[0])
+        snprintf(req->param, sizeof req->param, "%s", param);
+}
+
 /* The figures of one cleaned contour set as a JSON object (NULL with err set on failure). */
 static json_t *figures(struct contour_set *cs_in, const struct contour_request *req, double t0, struct sf_err *err)
 {
     struct contour_set cs = *cs_in;
     struct solid sd;
-    enum model_method method = MODEL_PARABOLIC;
-    model_method_parse(req->method, &method);
-    bool curves = method == MODEL_PARABOLIC || method == MODEL_LINEAR_PARABOLIC;
+    struct model_opts mo = opts_of(req);
+    bool curves = mo.method == MODEL_PARABOLIC || mo.method == MODEL_LINEAR_PARABOLIC;
     double t1 = now_ms();
-    if (solid_build(&cs, method, caps_of(req->caps), &sd, err))
+    if (solid_build(&cs, mo, caps_of(req->caps), &sd, err))
         return NULL;
     /* the curve methods' exact volume straight from the curves, tube by tube (the closed form), and
      * the ends as built; the grid methods' is the quadrature below (exact for polynomial patches) */
@@ -79,7 +99,7 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
         struct contour_set v = model_chain_view(&cs, &sd.chains[c], storage);
         double vol = 0.0, ends[2];
         if (v.n_slices >= 2)
-            rc = model_volume_closed(&v, method, &vol, ends, NULL, err);
+            rc = model_volume_closed(&v, mo, &vol, ends, NULL, err);
         closed += (sd.tubes[c].hole ? -vol : vol) + sd.tubes[c].volume_ends;
     }
     free(storage);
@@ -110,9 +130,10 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
             first_gap = g;
         uneven |= fabs(g - first_gap) > 1e-6 * first_gap;
     }
-    json_t *o = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:b, s:I, s:f, s:f, s:{s:f, s:f, s:f, s:f, s:f, s:f},"
+    json_t *o = json_pack("{s:s, s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:b, s:I, s:f, s:f, s:{s:f, s:f, s:f, s:f, s:f, s:f},"
                           " s:[[f,f,f],[f,f,f]], s:{s:f, s:f, s:f, s:f}}",
-                          "name", req->name, "method", req->method, "caps", req->caps, "dome_ends_flat",
+                          "name", req->name, "method", req->method, "caps", req->caps, "parameterisation", req->param,
+                          "dome_ends_flat",
                           dome_fallbacks, "slices", n, "contours",
                           cs.n_slices, "chains", n_chains, "uneven_spacing", uneven, "patches", (json_int_t)n_patches,
                           "volume_mm3", closed, "area_mm2", all.area, "volume", "exact", closed, "quadrature", all.volume, "grid_10x10", all.volume_grid,
@@ -126,9 +147,9 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
 
 int model_validate(const char *buf, size_t len, const char *format, const char *options, struct sf_err *err)
 {
-    char roi[128], caps[16], method[24];
+    char roi[128], caps[16], method[24], param[16];
     option(options, "roi", roi, sizeof roi);
-    int rc = overrides(options, caps, method, err);
+    int rc = overrides(options, caps, method, param, err);
     if (rc)
         return rc;
     if (!format || strcmp(format, "dicom")) {
@@ -168,9 +189,9 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
     if (!*list)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     int rc = 0;
-    char roi[128], caps[16], method[24];
+    char roi[128], caps[16], method[24], param[16];
     option(options, "roi", roi, sizeof roi);
-    if ((rc = overrides(options, caps, method, err)))
+    if ((rc = overrides(options, caps, method, param, err)))
         return rc;
     if (!format || strcmp(format, "dicom")) {
         struct contour_set cs;
@@ -178,10 +199,7 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
         *single = true;
         if ((rc = contour_parse_json(buf, len, &cs, &req, err)))
             return rc;
-        if (caps[0])
-            snprintf(req.caps, sizeof req.caps, "%s", caps);
-        if (method[0])
-            snprintf(req.method, sizeof req.method, "%s", method);
+        override(&req, caps, method, param);
         json_t *o = figures(&cs, &req, t0, err);
         if (!o)
             rc = err->code ? err->code : SF_ENOMEM;
@@ -191,12 +209,9 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
         return rc;
     }
     /* an RT Structure Set: every ROI with contours, or the one ?roi names */
-    struct contour_request req = {"", "parabolic", "flat"};
+    struct contour_request req = {"", "parabolic", "flat", "arc-length"};
     *single = roi[0] != 0;
-    if (caps[0])
-        snprintf(req.caps, sizeof req.caps, "%s", caps);
-    if (method[0])
-        snprintf(req.method, sizeof req.method, "%s", method);
+    override(&req, caps, method, param);
     struct rt_roi *rois = NULL;
     int n = 0;
     if ((rc = rtstruct_read(buf, len, &rois, &n, err)))
@@ -299,9 +314,7 @@ static int solid_of(const char *src, size_t len, struct solid *sd, struct sf_err
     int rc = contour_parse_json(src, len, &cs, &req, err);
     if (rc)
         return rc;
-    enum model_method method = MODEL_PARABOLIC;
-    model_method_parse(req.method, &method);
-    rc = solid_build(&cs, method, caps_of(req.caps), sd, err);
+    rc = solid_build(&cs, opts_of(&req), caps_of(req.caps), sd, err);
     contour_set_free(&cs);
     return rc;
 }

@@ -32,8 +32,38 @@ static void curve_free(struct curve *c)
     free(c->u);
 }
 
-/* Builds the curve of slice s: chord-length parameters from the +x crossing of the centroid's ray. */
-static int curve_build(const struct contour_slice *s, bool lsq, struct curve *c)
+/* Seed 004 eq. 1–5: rays from the centroid give u = φ / 2π where the contour turns steadily about it
+ * (eq. 1); where a stretch turns back (turning points, a sign change of Δφ: eq. 2–3) the polar angle's
+ * running maximum stands still, and the arc length spreads u over the stretch (eq. 4–5). Here that is
+ * one formula: u = (Φ + λ 2π a) / (2π (1 + λ)), Φ the running maximum of the unwrapped angle from the
+ * start ray and a the arc-length fraction (the chord parameters c->u on entry), so u always
+ * increases; λ (ours) weighs arc length in. A contour that does not wind once round its centroid
+ * (a C shape whose centroid lies outside) keeps the arc-length parameters. */
+#define POLAR_ARC_WEIGHT 0.25
+
+static void polar_parameters(struct curve *c, double cx, double cy)
+{
+    double phi = 0.0, prev = 0.0, run = 0.0, *u = malloc(sizeof *u * (size_t)c->n);
+    if (!u)
+        return; /* arc length it is */
+    for (int k = 0; k <= c->n; k++) {
+        const double *p = c->p[k % c->n];
+        double a = atan2(p[1] - cy, p[0] - cx), d = a - prev;
+        d -= 2 * M_PI * floor((d + M_PI) / (2 * M_PI)); /* into [-π, π) */
+        phi += d, prev = a;
+        if (k == c->n) /* back at the start: once round, counter-clockwise? */
+            break;
+        run = fmax(run, fmin(phi, 2 * M_PI));
+        u[k] = (run + POLAR_ARC_WEIGHT * 2 * M_PI * c->u[k]) / (2 * M_PI * (1 + POLAR_ARC_WEIGHT));
+    }
+    if (fabs(phi - 2 * M_PI) < 0.5)
+        memcpy(c->u, u, sizeof *u * (size_t)c->n);
+    free(u);
+}
+
+/* Builds the curve of slice s: parameters from the +x crossing of the centroid's ray, by arc length
+ * (the default), or polar (seed 004) where the contour winds round its centroid. */
+static int curve_build(const struct contour_slice *s, bool lsq, bool polar, struct curve *c)
 {
     int n = s->n;
     c->lsq = lsq;
@@ -77,6 +107,8 @@ static int curve_build(const struct contour_slice *s, bool lsq, struct curve *c)
         c->u[k] = d / total;
     }
     free(len);
+    if (polar && isfinite(best_x))
+        polar_parameters(c, cx, cy);
     return 0;
 }
 
@@ -276,7 +308,7 @@ static void slice_weights(const struct contour_set *cs, bool lsq, int k, double 
  * sum_j w_j(z) C_j(u) with each C_j a cubic in u and each w_j a cubic in z, so its Bézier points are
  * sum_j C_j[a] W_j[b]: the curves' Bézier points on the piece (from their values and derivatives at
  * the ends) times the weights' Bernstein coefficients over the pair (once per pair). */
-static int curve_surface(const struct contour_set *cs, bool lsq, struct patch_set *set, struct sf_err *err)
+static int curve_surface(const struct contour_set *cs, bool lsq, bool polar, struct patch_set *set, struct sf_err *err)
 {
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
@@ -284,7 +316,7 @@ static int curve_surface(const struct contour_set *cs, bool lsq, struct patch_se
     if (!cv || !cp)
         rc = SF_ENOMEM;
     for (int j = 0; j < n && !rc; j++)
-        if (!(rc = curve_build(&cs->s[j], lsq, &cv[j])))
+        if (!(rc = curve_build(&cs->s[j], lsq, polar, &cv[j])))
             rc = curve_poly_build(&cv[j], &cp[j]);
     double inv[4][4];
     bernstein_inverse(inv);
@@ -371,13 +403,13 @@ static int grid_count(const struct contour_set *cs)
 }
 
 /* Q[j*N + k] = (x, y, z) of slice j at u = k/N. NULL when out of memory. */
-static double (*grid_sample(const struct contour_set *cs, int N))[3]
+static double (*grid_sample(const struct contour_set *cs, int N, bool polar))[3]
 {
     int n = cs->n_slices;
     double(*Q)[3] = malloc(sizeof *Q * (size_t)n * (size_t)N);
     for (int j = 0; Q && j < n; j++) {
         struct curve c = {0};
-        if (curve_build(&cs->s[j], false, &c)) {
+        if (curve_build(&cs->s[j], false, polar, &c)) {
             curve_free(&c);
             free(Q);
             return NULL;
@@ -408,10 +440,10 @@ static double (*append_bicubic(struct patch_set *set, double u0, double u1, doub
  * ours, the seeds are silent), each in its own slot (the difference along the slices where the
  * matrix wants the derivative across them), and zero twist; P_B = H G Hᵀ puts the edge points at the
  * corners ± tangent/3 and the inner points at the corners ± both tangents/3. */
-static int coons_surface(const struct contour_set *cs, struct patch_set *set)
+static int coons_surface(const struct contour_set *cs, bool polar, struct patch_set *set)
 {
     int n = cs->n_slices, N = grid_count(cs);
-    double(*Q)[3] = grid_sample(cs, N);
+    double(*Q)[3] = grid_sample(cs, N, polar);
     if (!Q)
         return SF_ENOMEM;
 #define AT(j, k) Q[(size_t)(j) * N + (size_t)(((k) % N + N) % N)]
@@ -543,10 +575,10 @@ static int cmp_span(const void *a, const void *b)
  * The two directions are solved one after the other, each with a proper solver: the cyclic
  * tridiagonal system along u, Gaussian elimination with pivoting across (the thesis used
  * Gauss–Jordan on the whole). Bézier extraction gives the patches. */
-static int bspline_surface(const struct contour_set *cs, struct patch_set *set)
+static int bspline_surface(const struct contour_set *cs, bool polar, struct patch_set *set)
 {
     int n = cs->n_slices, N = grid_count(cs), q = n > 3 ? 3 : n - 1, rc = SF_ENOMEM;
-    double(*Q)[3] = grid_sample(cs, N), *A = malloc(sizeof *A * (size_t)n * n);
+    double(*Q)[3] = grid_sample(cs, N, polar), *A = malloc(sizeof *A * (size_t)n * n);
     struct surface s = {0};
     if (!Q || !A || nurbs_surface_alloc(&s, SURF_BSPLINE, 3, q, N + 3, n, NULL))
         goto out;
@@ -590,13 +622,13 @@ out:
     return rc;
 }
 
-int model_side(const struct contour_set *cs, enum model_method method, struct patch_set *set, struct sf_err *err)
+int model_side(const struct contour_set *cs, struct model_opts o, struct patch_set *set, struct sf_err *err)
 {
     int rc;
-    switch (method) {
-    case MODEL_COONS: rc = coons_surface(cs, set); break;
-    case MODEL_BSPLINE: rc = bspline_surface(cs, set); break;
-    default: return curve_surface(cs, method == MODEL_LINEAR_PARABOLIC, set, err);
+    switch (o.method) {
+    case MODEL_COONS: rc = coons_surface(cs, o.polar, set); break;
+    case MODEL_BSPLINE: rc = bspline_surface(cs, o.polar, set); break;
+    default: return curve_surface(cs, o.method == MODEL_LINEAR_PARABOLIC, o.polar, set, err);
     }
     return rc ? sf_fail(err, rc, "", "out of memory building the model") : 0;
 }
@@ -708,12 +740,12 @@ double model_dome(const double z[3], const double A[3], int n, struct model_dome
     return isnan(root) ? NAN : A[0] * root + b * root * root / 2 + cq * root * root * root / 3;
 }
 
-int model_volume_closed(const struct contour_set *cs, enum model_method method, double *volume, double end_area[2],
+int model_volume_closed(const struct contour_set *cs, struct model_opts o, double *volume, double end_area[2],
                         double dome[2], struct sf_err *err)
 {
-    if (method != MODEL_PARABOLIC && method != MODEL_LINEAR_PARABOLIC)
+    if (o.method != MODEL_PARABOLIC && o.method != MODEL_LINEAR_PARABOLIC)
         return sf_fail(err, SF_EINVAL, "/method", "the closed form is for the curve-based methods");
-    bool lsq = method == MODEL_LINEAR_PARABOLIC;
+    bool lsq = o.method == MODEL_LINEAR_PARABOLIC;
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
     struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
@@ -722,7 +754,7 @@ int model_volume_closed(const struct contour_set *cs, enum model_method method, 
     if (!cv || !cp || !M)
         rc = SF_ENOMEM;
     for (int j = 0; j < n && !rc; j++)
-        if (!(rc = curve_build(&cs->s[j], lsq, &cv[j])))
+        if (!(rc = curve_build(&cs->s[j], lsq, o.polar, &cv[j])))
             rc = curve_poly_build(&cv[j], &cp[j]);
     for (int j = 0; j < n && !rc; j++)
         for (int l = j; l <= j + 3 && l < n; l++)
@@ -765,7 +797,7 @@ double model_curve_area(const struct contour_slice *s)
     struct curve c = {0};
     struct curve_poly cp = {0};
     double a = 0.0;
-    if (!curve_build(s, false, &c) && !curve_poly_build(&c, &cp))
+    if (!curve_build(s, false, false, &c) && !curve_poly_build(&c, &cp))
         a = mixed_area(&cp, &cp, false);
     curve_poly_free(&cp);
     curve_free(&c);

@@ -21,19 +21,28 @@ enum model_caps { CAPS_FLAT, CAPS_SLAB, CAPS_DOME };
  * Side patches run pair by pair of levels (grid methods: span by span), each in increasing u over
  * [0, 1]; the closed form (model_volume_closed) is for the first two. */
 enum model_method { MODEL_PARABOLIC, MODEL_LINEAR_PARABOLIC, MODEL_COONS, MODEL_BSPLINE };
+
+/* How each contour's curve is parameterised from its start (where the +x ray out of its centroid
+ * crosses it, so that u = 0 lines up from slice to slice): by arc length (the default: measured the
+ * better on non-convex and branching sections), or polar (seed 004 eq. 1–5: u follows the angle round
+ * the centroid, arc length where the contour turns back; better on star-shaped sections). */
+struct model_opts {
+    enum model_method method;
+    bool polar;
+};
 const char *model_method_name(enum model_method m);
 int model_method_parse(const char *name, enum model_method *m);
 
 /* The side surface of one chain of contours (one per level). Appends to set as nurbs_extract()
  * does: call nurbs_patches_fix() after the last append; the caller frees the set. */
-int model_side(const struct contour_set *cs, enum model_method method, struct patch_set *set, struct sf_err *err);
+int model_side(const struct contour_set *cs, struct model_opts o, struct patch_set *set, struct sf_err *err);
 
 /* The volume with flat caps straight from the curves (closed form: mixed areas of curve pairs,
  * integrated over z exactly), without building patches; and the end curves' areas. dome (may be
  * NULL) receives the dome beyond each end: the quadratic through the last three section areas,
  * extrapolated until it closes (its first zero), integrated exactly; NAN where it does not close
  * within three spacings (a shape still growing at its end), for the caller to fall back on. */
-int model_volume_closed(const struct contour_set *cs, enum model_method method, double *volume, double end_area[2],
+int model_volume_closed(const struct contour_set *cs, struct model_opts o, double *volume, double end_area[2],
                         double dome[2], struct sf_err *err);
 
 /* Chains: the tubes the surfaces run through. Contours on neighbouring levels (distinct z) link

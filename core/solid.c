@@ -155,7 +155,7 @@ static void flip_u(struct solid *s, int b0, int b1)
         }
 }
 
-static int tube_build(struct solid *s, const struct contour_set *cs, const struct model_chain *ch, enum model_method method,
+static int tube_build(struct solid *s, const struct contour_set *cs, const struct model_chain *ch, struct model_opts o,
                       enum model_caps caps, struct contour_slice *storage, struct tube *tb, struct sf_err *err)
 {
     struct contour_set v = model_chain_view(cs, ch, storage);
@@ -176,7 +176,7 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
         ext[0] = ext[1] = 0.0;
     }
     size_t p0 = s->set.n;
-    int rc = model_side(&v, method, &s->set, err);
+    int rc = model_side(&v, o, &s->set, err);
     if (rc)
         return rc;
     int n_side = 0, nb = 0; /* one side band per run of equal v0: a level pair, or a span */
@@ -241,7 +241,7 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
     return rc == SF_ENOMEM ? sf_fail(err, rc, "", "out of memory building the solid") : rc;
 }
 
-int solid_build(const struct contour_set *cs, enum model_method method, enum model_caps caps, struct solid *s,
+int solid_build(const struct contour_set *cs, struct model_opts o, enum model_caps caps, struct solid *s,
                 struct sf_err *err)
 {
     memset(s, 0, sizeof *s);
@@ -254,7 +254,7 @@ int solid_build(const struct contour_set *cs, enum model_method method, enum mod
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
     s->n_tubes = n_chains;
     for (int c = 0; c < n_chains && !rc; c++)
-        rc = tube_build(s, cs, &s->chains[c], method, caps, storage, &s->tubes[c], err);
+        rc = tube_build(s, cs, &s->chains[c], o, caps, storage, &s->tubes[c], err);
     free(storage);
     nurbs_patches_fix(&s->set);
     if (rc)

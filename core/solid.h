@@ -45,9 +45,9 @@ struct solid {
     struct model_chain *chains; /* the tubes' chains, in the same order */
 };
 
-/* Builds the solid of cleaned contours by the method, with the caps. Returns 0 or an SF_* code with
+/* Builds the solid of cleaned contours by the method and parameterisation, with the caps. Returns 0 or an SF_* code with
  * err. */
-int solid_build(const struct contour_set *cs, enum model_method method, enum model_caps caps, struct solid *s,
+int solid_build(const struct contour_set *cs, struct model_opts o, enum model_caps caps, struct solid *s,
                 struct sf_err *err);
 void solid_free(struct solid *s);
 

@@ -68,7 +68,8 @@ int cmd_volume(int argc, char **argv)
         size_t n = strlen(options);
         if (!strcmp(argv[k], "--repeat"))
             repeat = atoi(argv[k + 1]);
-        else if (!strcmp(argv[k], "--roi") || !strcmp(argv[k], "--caps") || !strcmp(argv[k], "--method"))
+        else if (!strcmp(argv[k], "--roi") || !strcmp(argv[k], "--caps") || !strcmp(argv[k], "--method") ||
+                 !strcmp(argv[k], "--parameterisation"))
             snprintf(options + n, sizeof options - n, "%s%s=%s", n ? "&" : "", argv[k] + 2, argv[k + 1]);
         else if (model && !strcmp(argv[k], "--mesh"))
             mesh = argv[k + 1];
@@ -81,7 +82,8 @@ int cmd_volume(int argc, char **argv)
     }
     if (argc < 2 || argc % 2 || repeat < 1) {
         fprintf(stderr, "usage: surfd volume CONTOURS.json|RTSTRUCT.dcm [--roi NAME] [--caps flat|slab|dome]\n"
-                        "                    [--method parabolic|linear-parabolic|coons|bspline] [--repeat N]\n"
+                        "                    [--method parabolic|linear-parabolic|coons|bspline]\n"
+                        "                    [--parameterisation arc-length|polar] [--repeat N]\n"
                         "       surfd model  CONTOURS.json|RTSTRUCT.dcm [--roi NAME] [--caps ...] [--method ...]\n"
                         "                    [--mesh OUT.stl|OUT.ply|OUT.obj [--tolerance MM]] [--patches OUT.json]\n"
                         "       --repeat runs it N times in one process and reports the last (warm) timings\n");

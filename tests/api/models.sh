@@ -32,6 +32,8 @@ check "model async: 202, then the result as POST would have sent it" '[ "$code" 
 code=$(status POST "/model?method=bspline&caps=slab" -H "$J" --data-binary @"$C/synthetic_torus_branching.json")
 bs=$(field id); bsvol=$(sed 's/.*"volume_mm3":\([0-9.]*\).*/\1/' "$T/body")
 check "model ?method=bspline" '[ "$code" = 201 ] && grep -q "\"method\":\"bspline\"" "$T/body" && [ "$(status GET "/models/$bs/mesh")" = 200 ] && python3 tests/tools/stl_check.py "$T/body" "$bsvol" >/dev/null'
+check "model ?parameterisation=polar, kept with the model" '[ "$(status POST "/model?parameterisation=polar" -H "$J" --data-binary @"$C/synthetic_ellipsoid.json")" = 201 ] && grep -q "\"parameterisation\":\"polar\"" "$T/body" && pid=$(field id) && [ "$(status GET "/models/$pid/patches")" = 200 ]'
+check "model 422 ?parameterisation" '[ "$(status POST "/model?parameterisation=spiral" -H "$J" --data-binary @"$C/synthetic_bean.json")" = 422 ] && grep -q "\"pointer\":\"?parameterisation\"" "$T/body"'
 check "model 422 ?method" '[ "$(status POST "/model?method=nurbs" -H "$J" --data-binary @"$C/synthetic_bean.json")" = 422 ] && grep -q "\"pointer\":\"?method\"" "$T/body"'
 
 # ---- meshes and patches ---------------------------------------------------------------------

@@ -227,7 +227,7 @@ def contour_bench(lines):
 
 def methods_table(lines, cdir, refs):
     """The four methods of METHODS.md side by side (caps flat; dome against the exact solid)."""
-    methods = ("parabolic", "linear-parabolic", "coons", "bspline")
+    methods = ("parabolic", "parabolic/polar", "linear-parabolic", "coons", "bspline")
     lines.append("")
     lines.append("### The four methods (cm3; synthetic shapes: error against the exact volume between the end slices "
                  "with flat caps, against the exact solid with dome caps)\n")
@@ -241,7 +241,8 @@ def methods_table(lines, cdir, refs):
         for m in methods:
             out = {}
             for caps in ("flat", "dome"):
-                data["method"], data["caps"] = m, caps
+                data["method"], data["caps"] = m.split("/")[0], caps
+                data["parameterisation"] = "polar" if m.endswith("/polar") else "arc-length"
                 path = os.path.join(TMP, "m.json")
                 with open(path, "w") as f:
                     json.dump(data, f)

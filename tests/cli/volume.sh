@@ -49,6 +49,8 @@ for m in linear-parabolic coons bspline; do
     $S volume "$C/dicompyler-core_example_rtss.dcm" --roi Heart --method $m >"$T/out" 2>"$T/err"
     check "volume --method $m" '[ $? -eq 0 ] && grep -q "\"method\":\"$m\"" "$T/out" && grep -q "\"volume_mm3\":4[0-9][0-9][0-9][0-9][0-9]" "$T/out"'
 done
+$S volume "$C/synthetic_ellipsoid.json" --parameterisation polar >"$T/out" 2>"$T/err"
+check "volume --parameterisation polar" '[ $? -eq 0 ] && grep -q "\"parameterisation\":\"polar\"" "$T/out" && grep -q "\"volume_mm3\":1238" "$T/out"'
 $S volume "$C/synthetic_bean.json" --method nurbs >/dev/null 2>"$T/err"; rc=$?
 check "volume --method unknown" '[ $rc -eq 1 ] && grep -q "at ?method" "$T/err"'
 $S volume "$T/none.json" 2>/dev/null; rc=$?
