@@ -1,4 +1,5 @@
 /* model_json.c - contours in, model figures out: the one path the CLI and the volume job share. */
+#define _GNU_SOURCE /* memmem */
 #include "model_json.h"
 
 #include <jansson.h>
@@ -9,8 +10,10 @@
 #include <string.h>
 #include <time.h>
 
+#include "../core/enclosed.h"
 #include "../core/solid.h"
 #include "rtstruct.h"
+#include "scene_io.h"
 
 static double now_ms(void)
 {
@@ -145,8 +148,69 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
     return o;
 }
 
+/* What a request body holds: a scene (bpt, nurbs, or JSON with "objects" or "patches" and no
+ * "slices") or contours (JSON, DICOM). */
+static bool is_scene(const char *buf, size_t len, const char *format)
+{
+    if (format && (!strcmp(format, "bpt") || !strcmp(format, "nurbs") || !strcmp(format, "vrml")))
+        return true;
+    if (format && *format && strcmp(format, "json"))
+        return false;
+    return !memmem(buf, len, "\"slices\"", 8) && (memmem(buf, len, "\"objects\"", 9) || memmem(buf, len, "\"patches\"", 9));
+}
+
+/* A scene's patches as a solid (POST /volume): the volume they enclose, when they close. */
+static int scene_figures(const char *buf, size_t len, const char *format, char **json, struct sf_err *err)
+{
+    double t0 = now_ms();
+    struct scene sc;
+    enum image_format img;
+    int rc = scene_parse(buf, len, scene_format_parse(format), &sc, &img, err);
+    if (rc)
+        return rc;
+    struct patch_set ps;
+    struct enclosed e;
+    double t1 = now_ms();
+    if ((rc = scene_patches(&sc, &ps, err))) {
+        scene_free(&sc);
+        return rc;
+    }
+    char where[32];
+    snprintf(where, sizeof where, "/objects/%d", 0);
+    if (enclosed_measure(&ps, &e))
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+    else if (e.open_edges || e.flipped_edges) {
+        snprintf(where, sizeof where, "/objects/%d", e.open_object);
+        rc = e.open_edges ? sf_fail(err, SF_EINVAL, where,
+                                    "the patches do not bound a closed solid: %zu patch edges meet no other patch edge "
+                                    "to edge (this object has one)", e.open_edges)
+                          : sf_fail(err, SF_EINVAL, where,
+                                    "neighbouring patches face opposite ways across %zu edges (this object has one)",
+                                    e.flipped_edges / 2);
+    }
+    double t2 = now_ms(), v = fabs(e.volume);
+    if (!rc)
+        *json = dump(json_pack("{s:s, s:I, s:b, s:s, s:f, s:f, s:{s:f}, s:[[f,f,f],[f,f,f]], s:{s:f, s:f}}", "kind",
+                               "patches", "patches", (json_int_t)ps.n, "closed", 1, "orientation",
+                               e.volume >= 0 ? "outward" : "inward", "volume_mm3", v, "area_mm2", e.area, "volume",
+                               "exact", v, "bounds", e.lo[0], e.lo[1], e.lo[2], e.hi[0], e.hi[1], e.hi[2],
+                               "timings_ms", "read", t1 - t0, "volume", t2 - t1),
+                     err);
+    nurbs_patch_set_free(&ps);
+    scene_free(&sc);
+    return rc ? rc : (*json ? 0 : err->code);
+}
+
 int model_validate(const char *buf, size_t len, const char *format, const char *options, struct sf_err *err)
 {
+    if (is_scene(buf, len, format)) {
+        struct scene sc;
+        enum image_format img;
+        int rc = scene_parse(buf, len, scene_format_parse(format), &sc, &img, err);
+        if (!rc)
+            scene_free(&sc);
+        return rc;
+    }
     char roi[128], caps[16], method[24], param[16];
     option(options, "roi", roi, sizeof roi);
     int rc = overrides(options, caps, method, param, err);
@@ -252,6 +316,10 @@ static char *answer(json_t *list, bool single, struct sf_err *err)
 
 int model_figures(const char *buf, size_t len, const char *format, const char *options, char **json, struct sf_err *err)
 {
+    if (is_scene(buf, len, format)) {
+        *json = NULL;
+        return scene_figures(buf, len, format, json, err);
+    }
     json_t *list;
     bool single;
     int rc = each_model(buf, len, format, options, NULL, NULL, &list, &single, err);

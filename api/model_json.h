@@ -15,7 +15,9 @@
 
 /* Reads contours, builds the model and measures it; *json receives the figures (caller frees): one
  * object for JSON or for a DICOM ?roi=NAME, else {"models": [...]} with one object per ROI. Errors
- * as contour_parse_json and rtstruct_read. */
+ * as contour_parse_json and rtstruct_read. A scene (format bpt or nurbs, or JSON with "objects" or
+ * "patches" and no "slices") is measured as it is: the volume its patches enclose, refused (with the
+ * object's pointer) when they do not close edge to edge or face both ways. */
 int model_figures(const char *buf, size_t len, const char *format, const char *options, char **json,
                   struct sf_err *err);
 /* What model_figures would refuse, without modelling anything (for request handlers). */

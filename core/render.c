@@ -132,21 +132,14 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
     int rc = scene_validate(sc, err);
     if (rc)
         return rc;
-    char where[32];
-    for (int k = 0; k < sc->n_objects; k++) {
-        snprintf(where, sizeof where, "/objects/%d", k);
-        if ((rc = nurbs_validate(&sc->objects[k].surf, where, err)))
-            return rc;
-    }
     struct frame *fr = calloc(1, sizeof *fr);
     if (!fr)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     fr->sc = sc;
-    for (int k = 0; k < sc->n_objects && !rc; k++)
-        rc = nurbs_extract(&sc->objects[k].surf, k, &fr->ps);
-    if (rc)
-        goto out_fail_mem;
-    nurbs_patches_fix(&fr->ps);
+    if ((rc = scene_patches(sc, &fr->ps, err))) {
+        free(fr);
+        return rc;
+    }
 
     fr->lo = v3(INFINITY, INFINITY, INFINITY);
     fr->hi = v3(-INFINITY, -INFINITY, -INFINITY);

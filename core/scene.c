@@ -2,6 +2,7 @@
 #include "scene.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -106,4 +107,23 @@ int scene_method_parse(const char *name, enum render_method *m)
             return 0;
         }
     return SF_EINVAL;
+}
+
+int scene_patches(const struct scene *sc, struct patch_set *ps, struct sf_err *err)
+{
+    char where[32];
+    int rc = 0;
+    memset(ps, 0, sizeof *ps);
+    for (int k = 0; k < sc->n_objects && !rc; k++) {
+        snprintf(where, sizeof where, "/objects/%d", k);
+        rc = nurbs_validate(&sc->objects[k].surf, where, err);
+    }
+    for (int k = 0; k < sc->n_objects && !rc; k++)
+        if ((rc = nurbs_extract(&sc->objects[k].surf, k, ps)))
+            rc = sf_fail(err, rc, "", "out of memory");
+    if (rc)
+        nurbs_patch_set_free(ps);
+    else
+        nurbs_patches_fix(ps);
+    return rc;
 }

@@ -66,6 +66,8 @@ struct material scene_default_material(void);
 /* Checks everything but the surfaces' own validity (nurbs_validate does that per object):
  * image size, camera, lights, options, at least one object. */
 int scene_validate(const struct scene *sc, struct sf_err *err);
+/* Every object as Bézier patches (validated first: errors point at /objects/k); the caller frees ps. */
+int scene_patches(const struct scene *sc, struct patch_set *ps, struct sf_err *err);
 const char *scene_method_name(enum render_method m);
 int scene_method_parse(const char *name, enum render_method *m);
 

@@ -367,12 +367,14 @@ static enum MHD_Result post_render(struct req *r)
     return submit(r, "render", format, o.buf, render_job_submit);
 }
 
-/* POST /volume and /model: contour JSON or an RT Structure Set. */
+/* POST /volume and /model: contour JSON or an RT Structure Set; /volume also a scene (JSON, .bpt,
+ * VRML) whose patches bound a closed solid. */
 static enum MHD_Result post_contours(struct req *r, const char *kind, int (*submit_fn)(struct service *, const char *, bool))
 {
     const char *ct = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
     const char *format = ct && !strncasecmp(ct, "application/dicom", 17) ? "dicom" : render_format_from_type(ct);
-    if (!format || (*format && strcmp(format, "json") && strcmp(format, "dicom"))) {
+    bool scenes = !strcmp(kind, "volume"); /* /volume also measures a scene whose patches close */
+    if (!format || (*format && strcmp(format, "json") && strcmp(format, "dicom") && !scenes)) {
         char d[160];
         snprintf(d, sizeof d, "surfd reads contours as application/json or application/dicom, not %.80s", ct);
         return problem(r, 415, d, NULL);

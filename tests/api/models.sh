@@ -57,6 +57,21 @@ check "422 unknown model in a scene" '[ "$(status POST /render -H "$J" --data-bi
 check "422 model object without id" '[ "$(status POST /render -H "$J" --data-binary "{\"objects\":[{\"type\":\"model\"}]}")" = 422 ] && grep -q "\"pointer\":\"/objects/0/id\"" "$T/body"'
 check "422 model material" '[ "$(status POST /render -H "$J" --data-binary "{\"objects\":[{\"type\":\"model\",\"id\":\"$id\",\"material\":{\"color\":[1,1]}}]}")" = 422 ] && grep -q "/objects/0/material" "$T/body"'
 
+# ---- POST /volume of a scene whose patches close ---------------------------------------------------
+printf '{"objects":[' >"$T/cube.json"
+sep=""
+for f in "0,0,0 0,1,0 1,0,0" "0,0,1 1,0,0 0,1,0" "0,0,0 1,0,0 0,0,1" "0,1,0 0,0,1 1,0,0" "0,0,0 0,0,1 0,1,0" "1,0,0 0,1,0 0,0,1"; do
+    set -- $f
+    o=$1; a=$2; b=$3
+    pts=$(python3 -c "o,a,b=[[float(x) for x in s.split(',')] for s in '$o $a $b'.split()]
+print(','.join('[%g,%g,%g]' % tuple(o[c]+i*a[c]+j*b[c] for c in range(3)) for i in (0,1) for j in (0,1)))")
+    printf '%s{"degree":[1,1],"points":[%s]}' "$sep" "$pts" >>"$T/cube.json"; sep=","
+done
+printf ']}' >>"$T/cube.json"
+check "volume of a closed scene (a unit cube of six patches)" '[ "$(status POST /volume -H "$J" --data-binary @"$T/cube.json")" = 200 ] && grep -q "\"volume_mm3\":1[,.]" "$T/body" && grep -q "\"closed\":true" "$T/body"'
+check "volume of the open teapot: 422 at an object" '[ "$(status POST /volume -H "Content-Type: model/x-bpt" --data-binary @"${SURFD_DATA:-../shared/data}/scenes/teapot.bpt")" = 422 ] && grep -q "\"pointer\":\"/objects/[0-9]*\"" "$T/body" && grep -q "closed solid" "$T/body"'
+check "model of a scene: 415" '[ "$(status POST /model -H "Content-Type: model/x-bpt" --data-binary @"${SURFD_DATA:-../shared/data}/scenes/teapot.bpt")" = 415 ]'
+
 # ---- errors ----------------------------------------------------------------------------------
 check "model 422 crossing contour" '[ "$(status POST /model -H "$J" --data-binary "{\"slices\":[{\"z\":0,\"points\":[[0,0],[1,1],[1,0],[0,1]]},{\"z\":1,\"points\":[[0,0],[1,0],[0,1]]}]}")" = 422 ] && grep -q "\"pointer\":\"/slices/0/points\"" "$T/body"'
 check "model 422 ?caps" '[ "$(status POST "/model?caps=round" -H "$J" --data-binary @"$C/synthetic_bean.json")" = 422 ] && grep -q "\"pointer\":\"?caps\"" "$T/body"'

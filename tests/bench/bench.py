@@ -7,6 +7,7 @@ one shadow-casting light, at 1 and 2 threads, every method; teacup, teaspoon and
 (bicubic_patch type 1, flatness 0, u_steps 5, v_steps 5; its own "Trace Time"), and surfd's mesh
 method. Each figure is the median of REPEAT runs."""
 import json
+import urllib.error
 import shutil
 import os, platform, re, signal, statistics, subprocess, sys, tempfile, time, urllib.request
 
@@ -72,8 +73,16 @@ def povray(patches, threads):
 
 
 def http_get(url):
-    with urllib.request.urlopen(url, timeout=30) as r:
-        return r.read().decode()
+    # right after wrk stops, the connections it left waiting for their renders still count against the
+    # daemon's per-address limit until those jobs end: a refused connection is retried for a while
+    for attempt in range(120):
+        try:
+            with urllib.request.urlopen(url, timeout=30) as r:
+                return r.read().decode()
+        except (ConnectionError, urllib.error.URLError):
+            if attempt == 119:
+                raise
+            time.sleep(0.5)
 
 
 def metric(text, name):

@@ -10,6 +10,13 @@
 
 static const struct model_opts PARABOLIC = {MODEL_PARABOLIC, false};
 
+/* The synthetic shapes and their exact volumes between the end slices (from the files). */
+static const struct synthetic {
+    const char *file;
+    double exact;
+} SYNTHETIC[] = {{"synthetic_ellipsoid.json", 123841.58240450964}, {"synthetic_bean.json", 66556.32338083329},
+                 {"synthetic_torus_branching.json", 84963.33313378324}};
+
 static int model_of(const char *text, size_t len, struct contour_set *cs, struct patch_set *ps, struct sf_err *err)
 {
     struct contour_request req;
@@ -32,10 +39,7 @@ static void measure(const struct contour_set *cs, enum model_caps caps, struct s
 /* caps flat: within 0.2 % of the exact solid between the end slices (issue 5's target) */
 TEST(synthetic_volumes_within_0_2_percent)
 {
-    const struct {
-        const char *file;
-        double exact;
-    } cases[] = {{"synthetic_ellipsoid.json", 123841.58240450964}, {"synthetic_bean.json", 66556.32338083329}};
+    const struct synthetic *cases = SYNTHETIC;
     for (size_t k = 0; k < 2; k++) { /* one contour per slice: the patches' own volume */
         size_t len;
         char *buf = unit_data("contours", cases[k].file, &len);
@@ -324,11 +328,7 @@ TEST(meshes_are_closed_and_hold_the_volume)
  * lie on the contours' curves at the grid's columns (one-tube shapes). */
 TEST(the_four_methods)
 {
-    const struct {
-        const char *file;
-        double exact;
-    } cases[] = {{"synthetic_ellipsoid.json", 123841.58240450964}, {"synthetic_bean.json", 66556.32338083329},
-                 {"synthetic_torus_branching.json", 84963.33313378324}};
+    const struct synthetic *cases = SYNTHETIC;
     const enum model_method methods[] = {MODEL_PARABOLIC, MODEL_LINEAR_PARABOLIC, MODEL_COONS, MODEL_BSPLINE};
     for (size_t k = 0; k < 3; k++) {
         size_t len;
@@ -406,11 +406,7 @@ TEST(keyholes_split_into_outer_and_hole)
  * surface from the arc-length one; a C shape (centroid outside) keeps arc length and still models. */
 TEST(polar_parameterisation)
 {
-    const struct {
-        const char *file;
-        double exact;
-    } cases[] = {{"synthetic_ellipsoid.json", 123841.58240450964}, {"synthetic_bean.json", 66556.32338083329},
-                 {"synthetic_torus_branching.json", 84963.33313378324}};
+    const struct synthetic *cases = SYNTHETIC;
     for (size_t k = 0; k < 3; k++) {
         size_t len;
         char *buf = unit_data("contours", cases[k].file, &len);
