@@ -496,7 +496,7 @@ int model_mesh(const char *src, size_t len, const char *format, double tol, char
         return sf_fail(err, SF_ENOMEM, "", "out of memory meshing the model");
     struct out o = {0};
     encode(&m, format, &o);
-    mesh_free(&m);
+    solid_mesh_free(&m);
     if (o.failed) {
         free(o.p);
         return sf_fail(err, SF_ENOMEM, "", "out of memory writing the mesh");

@@ -673,18 +673,18 @@ int solid_mesh(const struct solid *s, double tol, struct mesh *m)
     for (int k = 0; k < s->n_tubes && !rc; k++)
         rc = mesh_tube(s, &s->tubes[k], tol, m);
     if (rc)
-        mesh_free(m);
+        solid_mesh_free(m);
     return rc;
 }
 
-void mesh_free(struct mesh *m)
+void solid_mesh_free(struct mesh *m)
 {
     free(m->v);
     free(m->t);
     memset(m, 0, sizeof *m);
 }
 
-double mesh_volume(const struct mesh *m)
+double solid_mesh_volume(const struct mesh *m)
 {
     double v = 0.0;
     for (size_t k = 0; k < m->n_t; k++) {

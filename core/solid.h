@@ -73,8 +73,8 @@ struct mesh {
 int solid_mesh(const struct solid *s, double tol, struct mesh *m);
 /* 1e-4 of the bounds' diagonal: meshes within 0.1 % of the model's volume (tests/core/test_model.c). */
 double solid_default_tolerance(const struct solid_measures *m);
-void mesh_free(struct mesh *m);
+void solid_mesh_free(struct mesh *m);
 /* Signed volume enclosed (sum of signed tetrahedra from the origin). */
-double mesh_volume(const struct mesh *m);
+double solid_mesh_volume(const struct mesh *m);
 
 #endif

@@ -184,7 +184,8 @@ static enum MHD_Result job_result(struct req *r, const char *id, bool sync)
                 snprintf(rays, sizeof rays, "%.*s", (int)strcspn(y + 7, ",}"), y + 7);
             int h = 1;
             char location[80] = "";
-            const char *st = rec.meta ? strstr(rec.meta, "\"status\":") : NULL, *lo = rec.meta ? strstr(rec.meta, "\"location\":\"") : NULL;
+            const char *st = rec.meta ? strstr(rec.meta, "\"status\":") : NULL; /* a model job's 201 */
+            const char *lo = rec.meta ? strstr(rec.meta, "\"location\":\"") : NULL;
             if (st)
                 rp.status = atoi(st + 9);
             if (lo)

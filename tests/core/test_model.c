@@ -311,11 +311,11 @@ TEST(meshes_are_closed_and_hold_the_volume)
         CHECK(solid_build(&cs, PARABOLIC, cases[k].caps, &sd, NULL) == 0);
         solid_measure(&sd, &sm);
         CHECK(solid_mesh(&sd, solid_default_tolerance(&sm), &m) == 0);
-        double vm = mesh_volume(&m), rel = (vm - sm.volume) / sm.volume;
+        double vm = solid_mesh_volume(&m), rel = (vm - sm.volume) / sm.volume;
         fprintf(stderr, "  %s: %zu triangles, volume %+.4f %% of the model's\n", cases[k].file, m.n_t, 100 * rel);
         CHECK(watertight(&m));
         CHECK(fabs(rel) < 1e-3);
-        mesh_free(&m);
+        solid_mesh_free(&m);
         solid_free(&sd);
         contour_set_free(&cs);
         free(buf);
@@ -350,7 +350,7 @@ TEST(the_four_methods)
             CHECK(fabs(rel) < (methods[m] == MODEL_LINEAR_PARABOLIC ? 0.05 : 0.002));
             CHECK(solid_mesh(&sd, solid_default_tolerance(&sm), &mesh) == 0);
             CHECK(watertight(&mesh));
-            mesh_free(&mesh);
+            solid_mesh_free(&mesh);
             if ((methods[m] == MODEL_COONS || methods[m] == MODEL_BSPLINE) && sd.n_tubes == 1) {
                 /* the side's first band, row 0, at the columns k/N, N = most points */
                 int N = 8, side = sd.tubes[0].first + 1, ref_side = ref.tubes[0].first + 1; /* after the cap */
