@@ -489,9 +489,11 @@ int model_mesh(const char *src, size_t len, const char *format, double tol, char
     solid_measure(&sd, &sm);
     double dflt = solid_default_tolerance(&sm);
     struct mesh m;
-    /* a tolerance far below the default makes meshes of billions of triangles: hold it to 1/20 */
-    rc = solid_mesh(&sd, tol > 0 ? fmax(tol, dflt / 20) : dflt, &m);
+    rc = solid_mesh(&sd, tol > 0 ? tol : dflt, &m);
     solid_free(&sd);
+    if (rc == SF_ELIMIT)
+        return sf_fail(err, rc, "?tolerance", "at %g mm the mesh would have over %u triangles; the default is %.3g mm",
+                       tol > 0 ? tol : dflt, MESH_MAX_TRIANGLES, dflt);
     if (rc)
         return sf_fail(err, SF_ENOMEM, "", "out of memory meshing the model");
     struct out o = {0};

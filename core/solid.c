@@ -570,6 +570,8 @@ static int add_tri(struct mesh *m, unsigned a, unsigned b, unsigned c, bool flip
 {
     if (a == b || b == c || a == c) /* a collapsed ring's triangles have no area */
         return 0;
+    if (m->n_t >= MESH_MAX_TRIANGLES)
+        return SF_ELIMIT;
     if (mem_reserve((void **)&m->t, &m->cap_t, m->n_t + 1, sizeof *m->t))
         return SF_ENOMEM;
     m->t[m->n_t][0] = a, m->t[m->n_t][1] = flip ? c : b, m->t[m->n_t][2] = flip ? b : c;

@@ -63,7 +63,9 @@ struct solid_measures {
 void solid_measure(const struct solid *s, struct solid_measures *m);
 
 /* A triangle mesh of the solid, within tol (length units) of the surface: closed (every edge in
- * exactly two triangles, opposite ways) per tube, triangles counter-clockwise seen from outside. */
+ * exactly two triangles, opposite ways) per tube, triangles counter-clockwise seen from outside.
+ * Returns 0, SF_ENOMEM, or SF_ELIMIT past MESH_MAX_TRIANGLES (a tolerance too fine for the model). */
+#define MESH_MAX_TRIANGLES (4u << 20) /* 200 MB of binary STL */
 struct mesh {
     double (*v)[3];
     size_t n_v, cap_v;

@@ -44,6 +44,7 @@ check "mesh STL is the default" '[ "$(status GET "/models/$id/mesh")" = 200 ] &&
 check "mesh PLY" '[ "$(status GET "/models/$id/mesh?format=ply&tolerance=0.2")" = 200 ] && head -c 40 "$T/body" | grep -q "binary_little_endian"'
 check "mesh OBJ" '[ "$(status GET "/models/$id/mesh?format=obj&tolerance=0.2")" = 200 ] && grep -q "^v " "$T/body" && grep -q "^f " "$T/body"'
 check "mesh 422 format" '[ "$(status GET "/models/$id/mesh?format=vrml")" = 422 ] && grep -q "\"pointer\":\"?format\"" "$T/body"'
+check "mesh 422 for a tolerance that would make too many triangles" '[ "$(status GET "/models/$id/mesh?tolerance=0.00001")" = 422 ] && grep -q "\"pointer\":\"?tolerance\"" "$T/body" && grep -q "triangles" "$T/body"'
 check "mesh 422 tolerance" '[ "$(status GET "/models/$id/mesh?tolerance=abc")" = 422 ] && grep -q "\"pointer\":\"?tolerance\"" "$T/body" && [ "$(status GET "/models/$id/mesh?tolerance=-1")" = 422 ]'
 code=$(status GET "/models/$dome/patches")
 cp "$T/body" "$T/p.json"
