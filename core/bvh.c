@@ -30,8 +30,9 @@ struct leaf {
     vec3 lo, hi;            /* control hull box */
     vec3 c00, c10, c01, c11; /* corner points: the Newton seed comes from them */
     vec3 n;                  /* unit normal of the corner quad */
-    double slack;            /* net deviation / shortest quad edge: how far off the quad a root may
-                              * lie, in the seed's barycentric units (a sliver's are its width) */
+    double slack;            /* how far off the corner quad a root may lie (world units): the net's
+                              * deviation from the bilinear plus the bilinear's twist */
+    double alt[2][3];        /* altitudes of the corner triangles (c00 c10 c11) and (c00 c11 c01) */
     double d0, d1;           /* the control points' extent along n: the leaf lies in this slab */
     vec3 cone_axis;          /* every normal Pu × Pv of the leaf is within the cone of this axis ... */
     double cone_sin;         /* ... and half-angle asin(cone_sin); > 1: no cone (rational, or too wide) */
@@ -191,9 +192,16 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
     vec3 d1 = v3_sub(l->c11, l->c00), d2 = v3_sub(l->c01, l->c10);
     l->n = v3_norm(v3_cross(d1, d2));
     double size = fmax(v3_len(d1), v3_len(d2));
-    double edge = fmin(fmin(v3_len(v3_sub(l->c10, l->c00)), v3_len(v3_sub(l->c11, l->c01))),
-                       fmin(v3_len(v3_sub(l->c01, l->c00)), v3_len(v3_sub(l->c11, l->c10))));
-    l->slack = edge > 0 && v3_len(l->n) > 0.5 ? dev / edge : INFINITY;
+    vec3 twist = v3_sub(v3_add(l->c00, l->c11), v3_add(l->c10, l->c01));
+    l->slack = v3_len(l->n) > 0.5 ? dev + 0.25 * v3_len(twist) : INFINITY;
+    const vec3 tri[2][3] = {{l->c00, l->c10, l->c11}, {l->c00, l->c11, l->c01}};
+    for (int k = 0; k < 2; k++) { /* altitude of vertex i: twice the area over the opposite edge */
+        double area2 = v3_len(v3_cross(v3_sub(tri[k][1], tri[k][0]), v3_sub(tri[k][2], tri[k][0])));
+        for (int i = 0; i < 3; i++) {
+            double opp = v3_len(v3_sub(tri[k][(i + 2) % 3], tri[k][(i + 1) % 3]));
+            l->alt[k][i] = opp > 0 ? area2 / opp : 0.0;
+        }
+    }
     l->d0 = INFINITY, l->d1 = -INFINITY;
     for (int i = 0; i <= sub->p; i++)
         for (int j = 0; j <= sub->q; j++) {
@@ -277,15 +285,26 @@ static bool tri_bary(const struct dray *r, vec3 a, vec3 b, vec3 c, double *b1, d
 
 static double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
 
+/* How far outside triangle k of the leaf a plane hit with barycentrics (1 - b1 - b2, b1, b2) lies,
+ * in world units (a lower bound: the largest distance past one of its edges). */
+static double tri_out(const struct leaf *l, int k, double b1, double b2)
+{
+    double lam[3] = {1.0 - b1 - b2, b1, b2}, out = 0.0;
+    for (int i = 0; i < 3; i++)
+        out = fmax(out, -lam[i] * l->alt[k][i]);
+    return out;
+}
+
 /* Newton seed in the leaf's local [0,1]²: the nearer-to-inside of the two corner triangles.
- * Returns how far outside the quad the ray passes, in units of the quad's size. */
+ * Returns how far outside the quad the ray passes, in world units (so that a sliver of a leaf,
+ * a few hundredths of a millimetre wide and millimetres long, is measured as fairly as a square). */
 static double leaf_seed(const struct leaf *l, const struct dray *r, double *s, double *t)
 {
     double a1, a2, b1, b2;
     bool ok1 = tri_bary(r, l->c00, l->c10, l->c11, &a1, &a2); /* (s, t) = (a1 + a2, a2) */
     bool ok2 = tri_bary(r, l->c00, l->c11, l->c01, &b1, &b2); /* (s, t) = (b1, b1 + b2) */
-    double out1 = ok1 ? fmax(fmax(-a1, -a2), a1 + a2 - 1) : INFINITY;
-    double out2 = ok2 ? fmax(fmax(-b1, -b2), b1 + b2 - 1) : INFINITY;
+    double out1 = ok1 ? tri_out(l, 0, a1, a2) : INFINITY;
+    double out2 = ok2 ? tri_out(l, 1, b1, b2) : INFINITY;
     if (out1 <= out2 && ok1)
         *s = a1 + a2, *t = a2;
     else if (ok2)
@@ -335,11 +354,12 @@ static bool leaf_hit(const struct bvh *b, const struct leaf *l, const struct dra
     const struct solve_box box = {l->u0, l->u1, l->v0, l->v1};
     double s, t;
     double out = leaf_seed(l, r, &s, &t);
-    /* A root lies within the net's deviation of the corner quad, which a ray at angle θ to the
-     * quad's plane meets within deviation/|cos θ| of it: farther out (with a factor 4 for the
-     * quad's twist), no Newton start can succeed here. */
+    /* A root lies within the net's deviation (and the bilinear's twist) of the corner quad, which a
+     * ray at angle θ to the quad's plane meets within that over |cos θ| of it: farther out (with a
+     * factor 4 to spare, and a quarter of the narrowest altitude), no Newton start can succeed. */
     double cosang = fabs(v3_dot(r->d, l->n));
-    if (out > 0.25 + 4.0 * l->slack / fmax(cosang, 1e-6))
+    double margin = 0.25 * fmin(fmin(l->alt[0][0], l->alt[0][1]), fmin(l->alt[1][1], l->alt[1][2]));
+    if (out > margin + 4.0 * l->slack / fmax(cosang, 1e-6))
         return false;
     double u = l->u0 + s * (l->u1 - l->u0), v = l->v0 + t * (l->v1 - l->v0);
     bool ok = solve_newton_cramer(pt, r, u, v, &box, b->tol2, h);

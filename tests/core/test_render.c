@@ -2,6 +2,8 @@
  * fov 30°) by the exact methods against a dense tessellation of the same patches: zero missed
  * interior pixels, depth within 1e-3 relative; map, bvh and mesh agree. Every shared scene renders
  * through every exact method with the same coverage. Bad scenes fail with a pointer. */
+#include "../../api/contour_json.h"
+#include "../../api/model_json.h"
 #include "../../api/scene_io.h"
 #include "../../core/render.h"
 #include "../unit.h"
@@ -9,6 +11,36 @@
 #include <stdlib.h>
 
 static struct bvh_device *dev;
+
+/* Renders a parsed scene with the given method and size (the scene keeps its objects); returns a
+ * malloc'd depth buffer. */
+static float *scene_depth(struct scene *sc, enum render_method m, int W, int H, bool teapot_camera,
+                          struct render_stats *st)
+{
+    sc->width = W, sc->height = H, sc->method = m, sc->shadows = false;
+    sc->mesh_tolerance = 2e-6; /* the dense reference */
+    if (teapot_camera) {
+        sc->has_camera = true;
+        sc->eye = v3(7, -10, 6), sc->target = v3(0.2, 0, 1.3), sc->up = v3(0, 0, 1), sc->fov_deg = 30;
+    }
+    struct frame *fr;
+    struct sf_err err = {0};
+    float *depth = NULL;
+    if (frame_prepare(sc, dev, &fr, &err) == 0) {
+        struct render_stats s = {0};
+        frame_band(fr, 0, H, &s);
+        if (st)
+            *st = s;
+        struct frame_image im;
+        frame_image(fr, &im);
+        depth = malloc(sizeof *depth * (size_t)W * H);
+        memcpy(depth, im.depth, sizeof *depth * (size_t)W * H);
+        frame_free(fr);
+    } else {
+        fprintf(stderr, "  prepare: %s\n", err.message);
+    }
+    return depth;
+}
 
 /* Renders scene file `name` with the given method and size; returns a malloc'd depth buffer. */
 static float *render_depth(const char *name, enum render_method m, int W, int H, bool teapot_camera,
@@ -27,27 +59,7 @@ static float *render_depth(const char *name, enum render_method m, int W, int H,
         fprintf(stderr, "  %s: %s at %s\n", name, err.message, err.pointer);
         return NULL;
     }
-    sc.width = W, sc.height = H, sc.method = m, sc.shadows = false;
-    sc.mesh_tolerance = 2e-6; /* the dense reference */
-    if (teapot_camera) {
-        sc.has_camera = true;
-        sc.eye = v3(7, -10, 6), sc.target = v3(0.2, 0, 1.3), sc.up = v3(0, 0, 1), sc.fov_deg = 30;
-    }
-    struct frame *fr;
-    float *depth = NULL;
-    if (frame_prepare(&sc, dev, &fr, &err) == 0) {
-        struct render_stats s = {0};
-        frame_band(fr, 0, H, &s);
-        if (st)
-            *st = s;
-        struct frame_image im;
-        frame_image(fr, &im);
-        depth = malloc(sizeof *depth * (size_t)W * H);
-        memcpy(depth, im.depth, sizeof *depth * (size_t)W * H);
-        frame_free(fr);
-    } else {
-        fprintf(stderr, "  prepare: %s\n", err.message);
-    }
+    float *depth = scene_depth(&sc, m, W, H, teapot_camera, st);
     scene_free(&sc);
     return depth;
 }
@@ -154,6 +166,38 @@ TEST(shared_scenes_agree_across_methods)
     }
 }
 
+/* A contour model (thousands of small patches, some of them slivers a hundredth of a millimetre wide
+ * where neighbouring curves' breakpoints nearly meet): auto and bvh against a dense tessellation. */
+TEST(contour_model_exact)
+{
+    size_t len;
+    char *buf = unit_data("contours", "synthetic_ellipsoid.json", &len), *src = NULL;
+    struct contour_set cs;
+    struct contour_request req;
+    struct scene sc;
+    scene_init(&sc);
+    struct material mat = scene_default_material();
+    CHECK(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
+    CHECK((src = contour_json_write(&cs, &req)) != NULL);
+    CHECK(src && model_scene_objects(src, strlen(src), &sc, &mat, "/objects/0", NULL) == 0);
+    const int W = 400, H = 300;
+    float *ref = scene_depth(&sc, METHOD_MESH, W, H, false, NULL);
+    const enum render_method methods[] = {METHOD_AUTO, METHOD_BVH};
+    for (int k = 0; k < 2 && ref; k++) {
+        float *got = scene_depth(&sc, methods[k], W, H, false, NULL);
+        struct compare c = compare(ref, got, W, H);
+        fprintf(stderr, "  %-5s interior %ld missed %ld depth_off %ld extra %ld\n", scene_method_name(methods[k]),
+                c.interior, c.missed, c.depth_off, c.extra);
+        CHECK(c.interior > 20000 && c.missed == 0 && c.depth_off == 0 && c.extra == 0);
+        free(got);
+    }
+    free(ref);
+    scene_free(&sc);
+    free(src);
+    contour_set_free(&cs);
+    free(buf);
+}
+
 /* Bad scenes get an error naming the object and field, never a crash. */
 TEST(bad_scenes_fail_with_pointer)
 {
@@ -198,6 +242,7 @@ int main(void)
 {
     dev = bvh_device_new(1, NULL);
     RUN(teapot_exact_methods_against_dense_mesh);
+    RUN(contour_model_exact);
     RUN(shared_scenes_agree_across_methods);
     RUN(bad_scenes_fail_with_pointer);
     bvh_device_free(dev);
