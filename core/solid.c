@@ -182,8 +182,8 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
     int n_side = 0, nb = 0; /* one side band per run of equal v0: a level pair, or a span */
     for (size_t k = p0; k < s->set.n; k++)
         n_side += k == p0 || s->set.patches[k].v0 != s->set.patches[k - 1].v0;
-    struct band *bl = malloc(sizeof *bl * (size_t)(n_side + 4)), *side = bl + 2; /* room for 2 bands below */
-    if (!bl)
+    struct band *side = malloc(sizeof *side * (size_t)n_side);
+    if (!side)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     for (size_t k = p0; k < s->set.n; k++) {
         if (k == p0 || s->set.patches[k].v0 != s->set.patches[k - 1].v0)
@@ -237,7 +237,7 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
         if (ch->hole)
             flip_u(s, tb->first, s->n_bands);
     }
-    free(bl);
+    free(side);
     return rc == SF_ENOMEM ? sf_fail(err, rc, "", "out of memory building the solid") : rc;
 }
 
