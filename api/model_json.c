@@ -468,22 +468,36 @@ static void encode(const struct mesh *m, const char *format, struct out *o)
     }
 }
 
-int model_mesh(const char *src, size_t len, const char *format, double tol, char **out, size_t *out_len,
-               const char **mime, struct sf_err *err)
+int model_mesh_options(const char *options, const char **format, double *tol, struct sf_err *err)
 {
-    static const char *const FORMATS[][2] = {{"stl", "model/stl"}, {"ply", "application/ply"}, {"obj", "model/obj"}};
-    *out = NULL;
-    *mime = NULL;
+    static const char *const FORMATS[] = {"stl", "ply", "obj"};
+    char f[16], t[64], *end = NULL;
+    option(options, "format", f, sizeof f);
+    option(options, "tolerance", t, sizeof t);
+    *format = NULL;
     for (int k = 0; k < 3; k++)
-        if (!strcmp(format, FORMATS[k][0]))
-            *mime = FORMATS[k][1];
-    if (!*mime)
+        if (!strcmp(f[0] ? f : "stl", FORMATS[k]))
+            *format = FORMATS[k];
+    if (!*format)
         return sf_fail(err, SF_EINVAL, "?format", "format is stl, ply or obj");
-    if (!(tol >= 0) || tol > 1e6)
+    *tol = t[0] ? strtod(t, &end) : 0.0;
+    if ((t[0] && *end) || !(*tol >= 0) || *tol > 1e6)
         return sf_fail(err, SF_EINVAL, "?tolerance", "tolerance is a distance in mm, > 0 (or 0 for the default)");
-    struct solid sd;
-    int rc = solid_of(src, len, &sd, err);
+    return 0;
+}
+
+int model_mesh(const char *src, size_t len, const char *options, char **out, size_t *out_len, const char **mime,
+               struct sf_err *err)
+{
+    const char *format;
+    double tol;
+    *out = NULL;
+    int rc = model_mesh_options(options, &format, &tol, err);
     if (rc)
+        return rc;
+    *mime = !strcmp(format, "stl") ? "model/stl" : !strcmp(format, "ply") ? "application/ply" : "model/obj";
+    struct solid sd;
+    if ((rc = solid_of(src, len, &sd, err)))
         return rc;
     struct solid_measures sm;
     solid_measure(&sd, &sm);

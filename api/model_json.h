@@ -37,10 +37,13 @@ struct model_sink {
 int model_create(const char *buf, size_t len, const char *format, const char *options, const struct model_sink *sink,
                  char **json, char location[64], struct sf_err *err);
 
-/* A stored model's mesh: format stl (binary), ply (binary little-endian) or obj, within tol (<= 0:
- * the default, 1e-4 of the size). *out (caller frees), *out_len and *mime receive the file. */
-int model_mesh(const char *src, size_t len, const char *format, double tol, char **out, size_t *out_len,
-               const char **mime, struct sf_err *err);
+/* A stored model's mesh; options "format=stl|ply|obj&tolerance=MM": binary STL (the default),
+ * binary little-endian PLY or OBJ, within the tolerance (absent or 0: 1e-4 of the size). *out
+ * (caller frees), *out_len and *mime receive the file. */
+int model_mesh(const char *src, size_t len, const char *options, char **out, size_t *out_len, const char **mime,
+               struct sf_err *err);
+/* What model_mesh would refuse in its options (errors point at ?format, ?tolerance). */
+int model_mesh_options(const char *options, const char **format, double *tol, struct sf_err *err);
 /* A stored model's patches as a scene: {"objects": [...]}: bicubic "bezier" objects, and the domes'
  * rational patches as single-span "nurbs" objects. */
 int model_patches_json(const char *src, size_t len, char **json, struct sf_err *err);

@@ -113,8 +113,9 @@ int cmd_volume(int argc, char **argv)
     char *out = NULL;
     size_t out_len = 0;
     const char *ext = mesh ? strrchr(mesh, '.') : NULL, *mime;
-    if (!rc && mesh && !(rc = model_mesh(kept.source, strlen(kept.source), ext ? ext + 1 : "", tol, &out, &out_len,
-                                         &mime, &err)))
+    char mesh_opts[96];
+    snprintf(mesh_opts, sizeof mesh_opts, "format=%.8s&tolerance=%.17g", ext ? ext + 1 : "none", tol);
+    if (!rc && mesh && !(rc = model_mesh(kept.source, strlen(kept.source), mesh_opts, &out, &out_len, &mime, &err)))
         rc = write_all(mesh, out, out_len) ? SF_EIO : 0;
     free(out);
     out = NULL;

@@ -65,6 +65,8 @@ static void recover(const char *id, void *arg)
         int (*submit)(struct service *, const char *, bool) = !strcmp(rec.kind, "render") ? render_job_submit
                                                             : !strcmp(rec.kind, "volume") ? volume_job_submit
                                                             : !strcmp(rec.kind, "model")  ? model_job_submit
+                                                            : !strcmp(rec.kind, "mesh")   ? mesh_job_submit
+                                                            : !strcmp(rec.kind, "patches") ? patches_job_submit
                                                                                           : NULL;
         store_set_state(svc->store, id, "queued", 0.0, 0, 0, NULL);
         if (submit && submit(svc, id, true) == 0)

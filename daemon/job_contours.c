@@ -1,7 +1,9 @@
-/* job_contours.c - the job kinds made of contours: volume (figures only) and model (figures, and the
- * models kept in the store). One step each (no bands). The request is read back from the store, so
- * that a job recovered after a crash computes exactly what was submitted; a model job run again
- * gives its models the same ids, replacing what the first run may have stored. */
+/* job_contours.c - the job kinds made of contours: volume (figures only), model (figures, and the
+ * models kept in the store), and what is made from a stored model: mesh and patches (GET
+ * /models/{id}/mesh and /patches, which can take seconds and hundreds of megabytes: a job, so that
+ * the HTTP threads never build them). One step each (no bands). The request is read back from the
+ * store, so that a job recovered after a crash computes exactly what was submitted; a model job run
+ * again gives its models the same ids, replacing what the first run may have stored. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,11 +11,15 @@
 #include "../api/model_json.h"
 #include "service.h"
 
+enum contour_kind { KIND_VOLUME, KIND_MODEL, KIND_MESH, KIND_PATCHES };
+
 struct contour_work {
     struct service *svc;
     char id[40];
-    bool model;
-    char *json;
+    enum contour_kind kind;
+    char *json;              /* the result (JSON, or the mesh file) */
+    size_t len;
+    const char *type;
     char meta[128];
     struct sf_err err;
 };
@@ -47,13 +53,28 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     store_set_state(w->svc->store, w->id, "running", 0.0, wall_s(), 0, NULL);
     const char *body = (const char *)rec.request;
     int rc;
-    if (w->model) {
+    w->type = "application/json";
+    if (w->kind == KIND_MODEL) {
         struct model_sink sink = {model_id, model_put, w};
         char location[64];
         rc = model_create(body, rec.request_len, rec.format, rec.options, &sink, &w->json, location, &w->err);
         snprintf(w->meta, sizeof w->meta, "{\"status\":201,\"location\":\"%s\"}", location);
-    } else
+    } else if (w->kind == KIND_VOLUME) {
         rc = model_figures(body, rec.request_len, rec.format, rec.options, &w->json, &w->err);
+    } else { /* the request is the model's id */
+        char model[40], *src = NULL;
+        size_t n = 0;
+        snprintf(model, sizeof model, "%.*s", (int)rec.request_len, body);
+        if (store_model_get(w->svc->store, model, NULL, &src, &n) != 1)
+            rc = sf_fail(&w->err, SF_EINVAL, "", "the model is no longer stored");
+        else if (w->kind == KIND_MESH)
+            rc = model_mesh(src, n, rec.options, &w->json, &w->len, &w->type, &w->err);
+        else
+            rc = model_patches_json(src, n, &w->json, &w->err);
+        free(src);
+    }
+    if (!rc && w->kind != KIND_MESH)
+        w->len = strlen(w->json);
     store_rec_free(&rec);
     return rc ? -1 : 0;
 }
@@ -62,21 +83,21 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 {
     (void)j;
     struct contour_work *w = arg;
-    service_job_end(w->svc, w->id, outcome, requeue, (const unsigned char *)w->json, w->json ? strlen(w->json) : 0,
-                    "application/json", w->meta[0] ? w->meta : NULL, &w->err);
+    service_job_end(w->svc, w->id, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
+                    w->type ? w->type : "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     free(w->json);
     free(w);
 }
 
 static const struct job_ops CONTOUR_OPS = {prepare, NULL, finish};
 
-static int submit(struct service *svc, const char *id, bool force, bool model)
+static int submit(struct service *svc, const char *id, bool force, enum contour_kind kind)
 {
     struct contour_work *w = calloc(1, sizeof *w);
     if (!w)
         return -1;
     w->svc = svc;
-    w->model = model;
+    w->kind = kind;
     snprintf(w->id, sizeof w->id, "%s", id);
     if (jobq_submit(svc->q, id, &CONTOUR_OPS, w, force)) {
         free(w);
@@ -87,10 +108,20 @@ static int submit(struct service *svc, const char *id, bool force, bool model)
 
 int volume_job_submit(struct service *svc, const char *id, bool force)
 {
-    return submit(svc, id, force, false);
+    return submit(svc, id, force, KIND_VOLUME);
 }
 
 int model_job_submit(struct service *svc, const char *id, bool force)
 {
-    return submit(svc, id, force, true);
+    return submit(svc, id, force, KIND_MODEL);
+}
+
+int mesh_job_submit(struct service *svc, const char *id, bool force)
+{
+    return submit(svc, id, force, KIND_MESH);
+}
+
+int patches_job_submit(struct service *svc, const char *id, bool force)
+{
+    return submit(svc, id, force, KIND_PATCHES);
 }

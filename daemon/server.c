@@ -465,15 +465,36 @@ static enum MHD_Result model_render(struct req *r, const char *id)
     return submit(r, "render", "json", o.buf, render_job_submit);
 }
 
+/* GET /models/{id}/mesh and /patches: a job of that kind (they can take seconds and hundreds of
+ * megabytes, which no HTTP thread should spend), its request the model's id, answered as any job:
+ * the file when it ends within the wait, else 202 + Location. */
+static enum MHD_Result model_output(struct req *r, const char *id, const char *what)
+{
+    struct opts o = {.n = 0};
+    MHD_get_connection_values(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
+    if (o.bad)
+        return problem(r, 422, "query options must be short name=value pairs without '&' or '='", NULL);
+    struct sf_err err = {0};
+    const char *format;
+    double tol;
+    if (!strcmp(what, "mesh") && model_mesh_options(o.buf, &format, &tol, &err))
+        return problem_err(r, &err);
+    char *body = strdup(id);
+    if (!body)
+        return problem(r, 500, "out of memory", NULL);
+    free(r->body);
+    r->body = body;
+    r->len = strlen(body);
+    return submit(r, what, "", o.buf, !strcmp(what, "mesh") ? mesh_job_submit : patches_job_submit);
+}
+
 static enum MHD_Result model_route(struct req *r, const char *id, const char *rest, bool get)
 {
-    char *resource = NULL, *src = NULL;
-    size_t len = 0;
-    int found = store_model_get(r->svc->store, id, &resource, &src, &len);
+    char *resource = NULL;
+    int found = store_model_get(r->svc->store, id, &resource, NULL, NULL);
     if (found != 1)
         return found == 0 ? problem(r, 404, "no such model", NULL) : problem(r, 500, "the store failed", NULL);
     enum MHD_Result ok;
-    struct sf_err err = {0};
     if (!rest) {
         if (!strcmp(r->method, "DELETE")) {
             int gone = store_model_delete(r->svc->store, id);
@@ -485,32 +506,13 @@ static enum MHD_Result model_route(struct req *r, const char *id, const char *re
             ok = problem(r, 405, "GET or DELETE", NULL);
     } else if (!get) {
         ok = problem(r, 405, "GET only", NULL);
-    } else if (!strcmp(rest, "/mesh")) {
-        const char *f = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "format");
-        const char *t = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "tolerance");
-        char *end = NULL, *out = NULL;
-        double tol = t ? strtod(t, &end) : 0.0;
-        size_t n = 0;
-        const char *mime;
-        if (t && (end == t || *end))
-            ok = problem(r, 422, "tolerance is a number (mm)", "?tolerance");
-        else if (model_mesh(src, len, f ? f : "stl", tol, &out, &n, &mime, &err))
-            ok = problem_err(r, &err);
-        else {
-            char disp[96];
-            snprintf(disp, sizeof disp, "attachment; filename=\"%.40s.%s\"", id, f ? f : "stl");
-            struct reply rp = {200, mime, out, n, {{"Content-Disposition", disp}}};
-            ok = send_reply(r, &rp);
-        }
-    } else if (!strcmp(rest, "/patches")) {
-        char *json = NULL;
-        ok = model_patches_json(src, len, &json, &err) ? problem_err(r, &err) : json_reply(r, 200, json, NULL);
+    } else if (!strcmp(rest, "/mesh") || !strcmp(rest, "/patches")) {
+        ok = model_output(r, id, rest + 1);
     } else if (!strcmp(rest, "/render")) {
         ok = model_render(r, id);
     } else
         ok = problem(r, 404, "no such route", NULL);
     free(resource);
-    free(src);
     return ok;
 }
 

@@ -42,5 +42,7 @@ struct model_resolver service_models(struct service *svc);
 int render_job_submit(struct service *svc, const char *id, bool force);
 int volume_job_submit(struct service *svc, const char *id, bool force);
 int model_job_submit(struct service *svc, const char *id, bool force);
+int mesh_job_submit(struct service *svc, const char *id, bool force);
+int patches_job_submit(struct service *svc, const char *id, bool force);
 
 #endif

@@ -51,6 +51,18 @@ cp "$T/body" "$T/p.json"
 check "patches: bicubic and rational dome patches" '[ "$code" = 200 ] && grep -q "\"type\":\"bezier\"" "$T/p.json" && grep -q "\"type\":\"nurbs\"" "$T/p.json"'
 check "patches render as a scene" '[ "$(status POST "/render?width=64&height=48" -H "$J" --data-binary @"$T/p.json")" = 200 ] && [ "$(header Content-Type)" = image/png ]'
 
+check "a mesh is a job of its own kind" '[ "$(status GET "/models/$id/mesh?tolerance=0.5")" = 200 ] && mj=$(header X-Job-Id) && [ "$(status GET /jobs/$mj)" = 200 ] && grep -q "\"kind\":\"mesh\"" "$T/body"'
+status POST "/model?roi=Heart" -H 'Content-Type: application/dicom' --data-binary @"$C/dicompyler-core_example_rtss.dcm" >/dev/null
+heart=$(field id)
+pids=""
+for k in 1 2 3; do
+    curl -s -o /dev/null "$URL/models/$heart/mesh?tolerance=0.005" &
+    pids="$pids $!"
+done
+sleep 0.3
+check "the HTTP threads stay free while meshes are built" '[ "$(curl -s -m 1 -o /dev/null -w "%{http_code}" "$URL/livez")" = 200 ] && [ "$(curl -s -m 1 -o /dev/null -w "%{http_code}" "$URL/models/$id")" = 200 ]'
+wait $pids
+
 # ---- rendering stored models --------------------------------------------------------------------
 check "GET /models/{id}/render" '[ "$(status GET "/models/$id/render?width=80&height=60&azimuth=60")" = 200 ] && [ "$(header Content-Type)" = image/png ] && [ -n "$(header X-Job-Id)" ]'
 check "a model object in a scene" '[ "$(status POST "/render?width=64&height=48" -H "$J" --data-binary "{\"objects\":[{\"type\":\"model\",\"id\":\"$id\",\"material\":{\"color\":[0.9,0.4,0.3]}}]}")" = 200 ]'
