@@ -148,9 +148,7 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
     return o;
 }
 
-/* What a request body holds: a scene (bpt, nurbs, or JSON with "objects" or "patches" and no
- * "slices") or contours (JSON, DICOM). */
-static bool is_scene(const char *buf, size_t len, const char *format)
+bool model_body_is_scene(const char *buf, size_t len, const char *format)
 {
     if (format && (!strcmp(format, "bpt") || !strcmp(format, "nurbs") || !strcmp(format, "vrml")))
         return true;
@@ -203,7 +201,7 @@ static int scene_figures(const char *buf, size_t len, const char *format, char *
 
 int model_validate(const char *buf, size_t len, const char *format, const char *options, struct sf_err *err)
 {
-    if (is_scene(buf, len, format)) {
+    if (model_body_is_scene(buf, len, format)) {
         struct scene sc;
         enum image_format img;
         int rc = scene_parse(buf, len, scene_format_parse(format), &sc, &img, err);
@@ -316,7 +314,7 @@ static char *answer(json_t *list, bool single, struct sf_err *err)
 
 int model_figures(const char *buf, size_t len, const char *format, const char *options, char **json, struct sf_err *err)
 {
-    if (is_scene(buf, len, format)) {
+    if (model_body_is_scene(buf, len, format)) {
         *json = NULL;
         return scene_figures(buf, len, format, json, err);
     }

@@ -7,6 +7,7 @@
 #ifndef SURFD_MODEL_JSON_H
 #define SURFD_MODEL_JSON_H
 
+#include <stdbool.h>
 #include <stddef.h>
 
 #include "../core/err.h"
@@ -20,6 +21,9 @@
  * object's pointer) when they do not close edge to edge or face both ways. */
 int model_figures(const char *buf, size_t len, const char *format, const char *options, char **json,
                   struct sf_err *err);
+/* Whether a body is a scene (format bpt or nurbs, or JSON with "objects" or "patches" and no
+ * "slices") rather than contours (JSON, DICOM). */
+bool model_body_is_scene(const char *buf, size_t len, const char *format);
 /* What model_figures would refuse, without modelling anything (for request handlers). */
 int model_validate(const char *buf, size_t len, const char *format, const char *options, struct sf_err *err);
 

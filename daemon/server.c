@@ -387,6 +387,8 @@ static enum MHD_Result post_contours(struct req *r, const char *kind, int (*subm
     if (o.bad)
         return problem(r, 422, "query options must be short name=value pairs without '&' or '='", NULL);
     struct sf_err err = {0};
+    if (!scenes && model_body_is_scene(r->body ? r->body : "", r->len, format))
+        return problem(r, 422, "a model is built from slice contours; POST /volume measures a scene", "/slices");
     if (model_validate(r->body ? r->body : "", r->len, format, o.buf, &err))
         return problem_err(r, &err);
     return submit(r, kind, format, o.buf, submit_fn);
@@ -499,9 +501,16 @@ static enum MHD_Result model_route(struct req *r, const char *id, const char *re
         if (!strcmp(r->method, "DELETE")) {
             int gone = store_model_delete(r->svc->store, id);
             ok = gone < 0 ? problem(r, 500, "the store failed", NULL) : text(r, 204, NULL, "");
-        } else if (get) {
-            ok = json_reply(r, 200, resource, NULL); /* hands resource to MHD */
-            resource = NULL;
+        } else if (get) { /* a model never changes: its id is a strong tag */
+            char etag[48];
+            snprintf(etag, sizeof etag, "\"%s\"", id);
+            const char *inm = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_IF_NONE_MATCH);
+            struct reply rp = {200, "application/json", resource, strlen(resource), {{"ETag", etag}}};
+            if (inm && (strstr(inm, etag) || !strcmp(inm, "*")))
+                rp = (struct reply){304, NULL, NULL, 0, {{"ETag", etag}}};
+            else
+                resource = NULL; /* handed to MHD */
+            ok = send_reply(r, &rp);
         } else
             ok = problem(r, 405, "GET or DELETE", NULL);
     } else if (!get) {

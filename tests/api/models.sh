@@ -16,6 +16,8 @@ id=$(field id); loc=$(header Location)
 check "model 201 with Location" '[ "$code" = 201 ] && [ "$loc" = "/models/$id" ] && grep -q "\"volume_mm3\":66501" "$T/body" && grep -q "\"mesh\":\"/models/$id/mesh?format=stl\"" "$T/body"'
 vol=$(sed 's/.*"volume_mm3":\([0-9.]*\).*/\1/' "$T/body")
 check "GET the model" '[ "$(status GET "$loc")" = 200 ] && grep -q "\"id\":\"$id\"" "$T/body" && grep -q "\"caps\":\"flat\"" "$T/body"'
+etag=$(header ETag)
+check "GET the model again: 304 on its ETag" '[ -n "$etag" ] && [ "$(status GET "$loc" -H "If-None-Match: $etag")" = 304 ]'
 check "GET /models lists it" '[ "$(status GET /models)" = 200 ] && grep -q "\"models\":\[{" "$T/body" && grep -q "\"id\":\"$id\"" "$T/body"'
 code=$(status POST "/model?caps=dome" -H "$J" --data-binary @"$C/synthetic_ellipsoid.json")
 dome=$(field id)
@@ -83,6 +85,7 @@ done
 printf ']}' >>"$T/cube.json"
 check "volume of a closed scene (a unit cube of six patches)" '[ "$(status POST /volume -H "$J" --data-binary @"$T/cube.json")" = 200 ] && grep -q "\"volume_mm3\":1[,.]" "$T/body" && grep -q "\"closed\":true" "$T/body"'
 check "volume of the open teapot: 422 at an object" '[ "$(status POST /volume -H "Content-Type: model/x-bpt" --data-binary @"${SURFD_DATA:-../shared/data}/scenes/teapot.bpt")" = 422 ] && grep -q "\"pointer\":\"/objects/[0-9]*\"" "$T/body" && grep -q "closed solid" "$T/body"'
+check "model of a JSON scene: 422" '[ "$(status POST /model -H "$J" --data-binary @"$T/cube.json")" = 422 ] && grep -q "POST /volume measures a scene" "$T/body"'
 check "model of a scene: 415" '[ "$(status POST /model -H "Content-Type: model/x-bpt" --data-binary @"${SURFD_DATA:-../shared/data}/scenes/teapot.bpt")" = 415 ]'
 
 # ---- errors ----------------------------------------------------------------------------------
