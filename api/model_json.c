@@ -1,4 +1,5 @@
-/* model_json.c - contours in, model figures out: the one path the CLI and the volume job share. */
+/* model_json.c - contours in, models out: figures (the CLI, the volume and model jobs), stored models'
+ * sources, meshes, patch lists and scene objects made from them, and the volume a closed scene encloses. */
 #define _GNU_SOURCE /* memmem */
 #include "model_json.h"
 

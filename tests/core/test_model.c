@@ -196,7 +196,8 @@ TEST(closed_form_equals_quadrature)
     }
 }
 
-/* Gauss–Legendre of 5 and of 8 points are both exact for bicubic patches: they must agree. */
+/* Gauss–Legendre of 3x4 points (the measures) and of 8x8 are both exact for the bicubic side patches:
+ * they must agree. */
 TEST(volume_quadrature_is_exact)
 {
     size_t len;
