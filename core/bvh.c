@@ -34,6 +34,9 @@ struct leaf {
                               * deviation from the bilinear plus the bilinear's twist */
     double alt[2][3];        /* altitudes of the corner triangles (c00 c10 c11) and (c00 c11 c01) */
     double d0, d1;           /* the control points' extent along n: the leaf lies in this slab */
+    vec3 e[2];               /* two unit directions across n (along the quad's u edges, and n × that) */
+    double e0[2], e1[2];     /* ... and the control points' extents along them: with n, a box that
+                              * hugs a leaf lying diagonally, as a sliver does, where the axes' does not */
     vec3 cone_axis;          /* every normal Pu × Pv of the leaf is within the cone of this axis ... */
     double cone_sin;         /* ... and half-angle asin(cone_sin); > 1: no cone (rational, or too wide) */
 };
@@ -202,15 +205,29 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
             l->alt[k][i] = opp > 0 ? area2 / opp : 0.0;
         }
     }
+    l->e[0] = v3_norm(v3_sub(v3_add(l->c10, l->c11), v3_add(l->c00, l->c01)));
+    l->e[0] = v3_norm(v3_sub(l->e[0], v3_scale(l->n, v3_dot(l->e[0], l->n)))); /* across n */
+    l->e[1] = v3_cross(l->n, l->e[0]);
     l->d0 = INFINITY, l->d1 = -INFINITY;
+    l->e0[0] = l->e0[1] = INFINITY, l->e1[0] = l->e1[1] = -INFINITY;
     for (int i = 0; i <= sub->p; i++)
         for (int j = 0; j <= sub->q; j++) {
-            double d = v3_dot(l->n, bezier_point(sub, i, j));
+            vec3 c = bezier_point(sub, i, j);
+            double d = v3_dot(l->n, c);
             l->d0 = fmin(l->d0, d);
             l->d1 = fmax(l->d1, d);
+            for (int k = 0; k < 2; k++) {
+                double a = v3_dot(l->e[k], c);
+                l->e0[k] = fmin(l->e0[k], a);
+                l->e1[k] = fmax(l->e1[k], a);
+            }
         }
     double pad = 1e-9 * (size + fabs(l->d0) + fabs(l->d1)); /* rounding of the dot products */
     l->d0 -= pad, l->d1 += pad;
+    for (int k = 0; k < 2; k++) {
+        double pk = 1e-9 * (size + fabs(l->e0[k]) + fabs(l->e1[k]));
+        l->e0[k] -= pk, l->e1[k] += pk;
+    }
     normal_cone(sub, &l->cone_axis, &l->cone_sin);
     return 0;
 }
@@ -335,8 +352,11 @@ static void clip_slab(vec3 n, double a, double b, const struct dray *r, double *
 static bool leaf_reachable(const struct leaf *l, const struct dray *r, double tnear, double tmax)
 {
     double t0 = tnear, t1 = tmax;
-    if (v3_len(l->n) > 0.5)
+    if (v3_len(l->n) > 0.5) { /* the control points' box along the leaf's own axes */
         clip_slab(l->n, l->d0, l->d1, r, &t0, &t1);
+        clip_slab(l->e[0], l->e0[0], l->e1[0], r, &t0, &t1);
+        clip_slab(l->e[1], l->e0[1], l->e1[1], r, &t0, &t1);
+    }
     clip_slab(v3(1, 0, 0), l->lo.x, l->hi.x, r, &t0, &t1);
     clip_slab(v3(0, 1, 0), l->lo.y, l->hi.y, r, &t0, &t1);
     clip_slab(v3(0, 0, 1), l->lo.z, l->hi.z, r, &t0, &t1);
