@@ -103,7 +103,7 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
         struct contour_set v = model_chain_view(&cs, &sd.chains[c], storage);
         double vol = 0.0, ends[2];
         if (v.n_slices >= 2)
-            rc = model_volume_closed(&v, mo, &vol, ends, NULL, err);
+            rc = model_volume_closed(&v, mo, &vol, ends, err);
         closed += (sd.tubes[c].hole ? -vol : vol) + sd.tubes[c].volume_ends;
     }
     free(storage);

@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "gauss.h"
 #include "mem.h"
 
 #define BREAK_EPS 1e-12 /* breakpoints closer than this in u are one */
@@ -658,9 +659,6 @@ int model_method_parse(const char *name, enum model_method *m)
  * ∫ w_j w_l dz is of degree 6 (4 points exact). No patches needed: this is the fast, exact path,
  * and it must agree with the divergence theorem over the patches to rounding. */
 
-static const double GL3_X[3] = {0.112701665379258, 0.5, 0.887298334620742};
-static const double GL3_W[3] = {0.277777777777778, 0.444444444444444, 0.277777777777778};
-
 /* M_jl = ½ ∮ (x_j y_l' - y_j x_l') du over u in [0, 1], piece by piece between both curves'
  * breakpoints; with sym, M_jl + M_lj in the same pass (all the quadratic form of the area needs). */
 static double mixed_area(const struct curve_poly *a, const struct curve_poly *b, bool sym)
@@ -741,7 +739,7 @@ double model_dome(const double z[3], const double A[3], int n, struct model_dome
 }
 
 int model_volume_closed(const struct contour_set *cs, struct model_opts o, double *volume, double end_area[2],
-                        double dome[2], struct sf_err *err)
+                        struct sf_err *err)
 {
     if (o.method != MODEL_PARABOLIC && o.method != MODEL_LINEAR_PARABOLIC)
         return sf_fail(err, SF_EINVAL, "/method", "the closed form is for the curve-based methods");
@@ -759,8 +757,6 @@ int model_volume_closed(const struct contour_set *cs, struct model_opts o, doubl
     for (int j = 0; j < n && !rc; j++)
         for (int l = j; l <= j + 3 && l < n; l++)
             M[(size_t)j * 7 + (size_t)(l - j + 3)] = mixed_area(&cp[j], &cp[l], l > j);
-    static const double GL4_X[4] = {0.069431844202974, 0.330009478207572, 0.669990521792428, 0.930568155797026};
-    static const double GL4_W[4] = {0.173927422568727, 0.326072577431273, 0.326072577431273, 0.173927422568727};
     double v = 0.0;
     for (int k = 0; k + 1 < n && !rc; k++) {
         double z0 = cs->s[k].z, z1 = cs->s[k + 1].z;
@@ -771,16 +767,6 @@ int model_volume_closed(const struct contour_set *cs, struct model_opts o, doubl
         *volume = v;
         end_area[0] = M[3];
         end_area[1] = M[(size_t)(n - 1) * 7 + 3];
-        if (dome) {
-            int m = n > 2 ? 3 : 2;
-            double zb[3], Ab[3], zt[3], At[3];
-            for (int i = 0; i < m; i++) {
-                zb[i] = cs->s[i].z, Ab[i] = M[(size_t)i * 7 + 3];
-                zt[i] = cs->s[n - 1 - i].z, At[i] = M[(size_t)(n - 1 - i) * 7 + 3];
-            }
-            dome[0] = model_dome(zb, Ab, m, NULL);
-            dome[1] = model_dome(zt, At, m, NULL);
-        }
     }
     for (int j = 0; j < n; j++) {
         curve_free(&cv[j]);

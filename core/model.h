@@ -38,12 +38,10 @@ int model_method_parse(const char *name, enum model_method *m);
 int model_side(const struct contour_set *cs, struct model_opts o, struct patch_set *set, struct sf_err *err);
 
 /* The volume with flat caps straight from the curves (closed form: mixed areas of curve pairs,
- * integrated over z exactly), without building patches; and the end curves' areas. dome (may be
- * NULL) receives the dome beyond each end: the quadratic through the last three section areas,
- * extrapolated until it closes (its first zero), integrated exactly; NAN where it does not close
- * within three spacings (a shape still growing at its end), for the caller to fall back on. */
+ * integrated over z exactly), without building patches; and the end curves' areas. Parabolic and
+ * linear-parabolic only. (The domes beyond the ends are model_dome's, built by solid.h.) */
 int model_volume_closed(const struct contour_set *cs, struct model_opts o, double *volume, double end_area[2],
-                        double dome[2], struct sf_err *err);
+                        struct sf_err *err);
 
 /* Chains: the tubes the surfaces run through. Contours on neighbouring levels (distinct z) link
  * when they are of one kind (hole or not) and overlap; a chain runs while links are one-to-one, so

@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "gauss.h"
 #include "mem.h"
 
 /* ---- building ------------------------------------------------------------------------------ */
@@ -32,10 +33,6 @@ static struct patch resolved(const struct patch_set *set, size_t k)
     pt.cw = set->pool + (uintptr_t)pt.cw;
     return pt;
 }
-
-static const double GL5_X[5] = {0.046910077030668, 0.230765344947158, 0.5, 0.769234655052842, 0.953089922969332};
-static const double GL5_W[5] = {0.118463442528095, 0.239314335249683, 0.284444444444444, 0.239314335249683,
-                                0.118463442528095};
 
 /* Area enclosed by a band's row t (0 or 1): ∮ x dy, exact for the cubic rows of side bands. */
 static double row_area(const struct patch_set *set, const struct band *b, double t)
@@ -276,10 +273,6 @@ void solid_free(struct solid *s)
  * (the curve methods' side patches), A = y_u Δz and B = -x_u Δz, so the integrand ½ Δz (x y_u - y x_u)
  * is of degree 5 in u and 6 in v: Gauss–Legendre of 3 x 4 nodes is exact, and the same 12 evaluations
  * give the area (smooth, and the patches are small). */
-static const double GL3_X[3] = {0.112701665379258, 0.5, 0.887298334620742};
-static const double GL3_W[3] = {0.277777777777778, 0.444444444444444, 0.277777777777778};
-static const double GL4_X[4] = {0.069431844202974, 0.330009478207572, 0.669990521792428, 0.930568155797026};
-static const double GL4_W[4] = {0.173927422568727, 0.326072577431273, 0.326072577431273, 0.173927422568727};
 
 struct gl_table {
     double Bu[3][4], dBu[3][4]; /* cubic Bernstein values and derivatives at the 3 nodes in u */
@@ -405,11 +398,6 @@ static bool z_linear_in_v(const struct patch *pt)
                 return false;
     return true;
 }
-
-static const double GL8_X[8] = {0.019855071751232, 0.101666761293187, 0.237233795041836, 0.408282678752175,
-                                0.591717321247825, 0.762766204958164, 0.898333238706813, 0.980144928248768};
-static const double GL8_W[8] = {0.050614268145188, 0.111190517226687, 0.156853322938944, 0.181341891689181,
-                                0.181341891689181, 0.156853322938944, 0.111190517226687, 0.050614268145188};
 
 void solid_measure(const struct solid *s, struct solid_measures *m)
 {

@@ -559,6 +559,18 @@ static bool valid_id(const char *s, size_t n)
     return true;
 }
 
+/* "{id}" or "{id}/rest" after a collection's prefix: the id (hex, as issued) into id, *rest at the
+ * '/' or NULL. false for anything else. */
+static bool split_id(const char *s, char id[40], const char **rest)
+{
+    *rest = strchr(s, '/');
+    size_t n = *rest ? (size_t)(*rest - s) : strlen(s);
+    if (!valid_id(s, n))
+        return false;
+    snprintf(id, 40, "%.*s", (int)n, s);
+    return true;
+}
+
 static enum MHD_Result route(struct req *r)
 {
     const char *m = r->method, *p = r->path;
@@ -592,37 +604,28 @@ static enum MHD_Result route(struct req *r)
         return post ? post_contours(r, "model", model_job_submit) : problem(r, 405, "POST contours to /model", NULL);
     if (!strcmp(p, "/models"))
         return get ? model_list(r) : problem(r, 405, "GET only", NULL);
-    if (!strncmp(p, "/models/", 8)) {
-        const char *id = p + 8, *rest = strchr(id, '/');
-        size_t n = rest ? (size_t)(rest - id) : strlen(id);
-        char mid[40];
-        if (!valid_id(id, n))
-            return problem(r, 404, "no such model", NULL);
-        snprintf(mid, sizeof mid, "%.*s", (int)n, id);
-        return model_route(r, mid, rest, get);
-    }
+    char id[40];
+    const char *rest;
+    if (!strncmp(p, "/models/", 8))
+        return split_id(p + 8, id, &rest) ? model_route(r, id, rest, get) : problem(r, 404, "no such model", NULL);
     if (!strcmp(p, "/isosurface"))
         return problem(r, 501, "this route is part of the contract but not built yet", NULL);
     if (!strcmp(p, "/jobs"))
         return get ? job_list(r) : problem(r, 405, "GET only", NULL);
     if (!strncmp(p, "/jobs/", 6)) {
-        const char *id = p + 6, *rest = strchr(id, '/');
-        size_t n = rest ? (size_t)(rest - id) : strlen(id);
-        char jid[40];
-        if (!valid_id(id, n))
+        if (!split_id(p + 6, id, &rest))
             return problem(r, 404, "no such job", NULL);
-        snprintf(jid, sizeof jid, "%.*s", (int)n, id);
         if (!rest)
-            return get ? job_resource(r, 200, jid) : problem(r, 405, "GET only", NULL);
+            return get ? job_resource(r, 200, id) : problem(r, 405, "GET only", NULL);
         if (!strcmp(rest, "/result"))
-            return get ? job_result(r, jid, false) : problem(r, 405, "GET only", NULL);
+            return get ? job_result(r, id, false) : problem(r, 405, "GET only", NULL);
         if (!strcmp(rest, "/cancel")) {
             if (!post)
                 return problem(r, 405, "POST only", NULL);
-            if (jobq_cancel(r->svc->q, jid))
-                return job_resource(r, 202, jid);
+            if (jobq_cancel(r->svc->q, id))
+                return job_resource(r, 202, id);
             struct job_rec rec;
-            int found = store_get(r->svc->store, jid, false, false, &rec);
+            int found = store_get(r->svc->store, id, false, false, &rec);
             store_rec_free(&rec);
             return found == 1 ? problem(r, 409, "the job has already ended", NULL) : problem(r, 404, "no such job", NULL);
         }

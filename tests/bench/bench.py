@@ -184,6 +184,15 @@ def http_bench(lines):
     d.wait(timeout=60)
 
 
+def volume_of(data, **options):
+    """surfd volume on the contour JSON `data` with the given options put in it: the figures, or None."""
+    path = os.path.join(TMP, "c.json")
+    with open(path, "w") as f:
+        json.dump(dict(data, **options), f)
+    p = subprocess.run([SURFD, "volume", path], capture_output=True, text=True)
+    return json.loads(p.stdout) if p.returncode == 0 else None
+
+
 def contour_bench(lines):
     """Issue 5: surfd's volumes beside the reference figures in the shared files, and timings."""
     cdir = os.path.join(DATA, "contours")
@@ -197,14 +206,7 @@ def contour_bench(lines):
             continue
         with open(os.path.join(cdir, name)) as f:
             data = json.load(f)
-        figs = {}
-        for caps in ("flat", "slab", "dome"):
-            data["caps"] = caps
-            path = os.path.join(TMP, "c.json")
-            with open(path, "w") as f:
-                json.dump(data, f)
-            p = subprocess.run([SURFD, "volume", path], capture_output=True, text=True)
-            figs[caps] = json.loads(p.stdout) if p.returncode == 0 else None
+        figs = {caps: volume_of(data, caps=caps) for caps in ("flat", "slab", "dome")}
         if not figs["flat"]:
             lines.append("| %s | failed | | | | | | |" % name)
             continue
@@ -248,15 +250,9 @@ def methods_table(lines, cdir, refs):
             data = json.load(f)
         cells = []
         for m in methods:
-            out = {}
-            for caps in ("flat", "dome"):
-                data["method"], data["caps"] = m.split("/")[0], caps
-                data["parameterisation"] = "polar" if m.endswith("/polar") else "arc-length"
-                path = os.path.join(TMP, "m.json")
-                with open(path, "w") as f:
-                    json.dump(data, f)
-                p = subprocess.run([SURFD, "volume", path], capture_output=True, text=True)
-                out[caps] = json.loads(p.stdout) if p.returncode == 0 else None
+            param = "polar" if m.endswith("/polar") else "arc-length"
+            out = {caps: volume_of(data, method=m.split("/")[0], caps=caps, parameterisation=param)
+                   for caps in ("flat", "dome")}
             if not out["flat"]:
                 cells.append("failed")
                 continue
