@@ -1,11 +1,16 @@
 /* map.c - conservative raster of a screen-adaptive tessellation into the preliminary-value map.
  *
  * Each patch is tessellated so that its chord error, seen from its nearest point, stays under
- * half a pixel; each triangle then marks every pixel whose centre lies within PAD pixels of it
- * (so that the true silhouette, at most half a pixel away, always has a seed). Seeds outside
- * the triangle take its nearest point's attributes (clamped barycentrics, perspective-correct). */
+ * half a pixel. Its triangles mark the pixel centres they cover (no padding: the triangles of a
+ * patch tile its image, so only the outline of that image can be off the true one); the
+ * outline - the grid's border and every fold, where two neighbouring triangles face opposite
+ * ways on screen - is then widened by PAD pixels (capsules around those edges), so the true
+ * silhouette, at most half a pixel away, always has a seed. Seeds take the perspective-correct
+ * attributes of the covering triangle, or of the nearest point of the outline edge. Written by
+ * hand: no library rasterises with these guarantees, and the rows are filled by bands. */
 #include "map.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -23,12 +28,15 @@ struct map_vert { /* a tessellation vertex on screen */
     double uz, vz;        /* u/depth, v/depth */
 };
 
-struct map_tri {
+struct map_tri {           /* a triangle, or (v[2] == EDGE) a padded outline edge v[0]-v[1] */
     unsigned v[3];
     int patch;
-    float pad;            /* conservative dilation, pixels */
-    float zlo;            /* depth bound of the patch's surface near this triangle */
+    float pad;            /* dilation, pixels: 0 for triangles */
+    float zlo;            /* depth bound of the patch's surface near this primitive */
 };
+
+#define EDGE UINT_MAX
+#define COVER_EPS 1e-7 /* pixels: a centre this near a triangle's edge counts as inside it */
 
 void map_free(struct map *m)
 {
@@ -43,19 +51,25 @@ void map_free(struct map *m)
     free(m);
 }
 
-/* Offers a fragment of `patch` with depth bound zlo to a pixel's candidate list. */
-static void put(struct map *m, size_t idx, int patch, float u, float v, float zlo)
+/* Offers a fragment of `patch` to a pixel's candidate list: depth bound zlo, seed (u, v) and the
+ * fragment's own depth zs there. A patch listed already keeps the least bound and the seed of
+ * its nearest fragment (where a patch folds over a pixel, the seed on the near sheet). */
+static void put(struct map *m, size_t idx, int patch, float u, float v, float zlo, float zs)
 {
     struct map_cand *c = &m->cand[idx * MAP_CANDS];
     int at = 0;
     while (at < MAP_CANDS && c[at].patch >= 0 && c[at].patch != patch)
         at++;
-    if (at < MAP_CANDS && c[at].patch == patch) { /* already listed: keep the better bound */
+    if (at < MAP_CANDS && c[at].patch == patch) {
+        if (zs < c[at].zs)
+            c[at].u = u, c[at].v = v, c[at].zs = zs;
         if (!(zlo < c[at].zlo))
             return;
+        struct map_cand keep = c[at];
+        keep.zlo = zlo;
         for (; at > 0 && c[at - 1].zlo > zlo; at--)
             c[at] = c[at - 1];
-        c[at] = (struct map_cand){patch, u, v, zlo};
+        c[at] = keep;
         return;
     }
     /* a new patch: insert in order, pushing the last one out if the list is full */
@@ -71,12 +85,13 @@ static void put(struct map *m, size_t idx, int patch, float u, float v, float zl
         m->dropped[idx] = fminf(m->dropped[idx], c[last].zlo);
     for (int k = last; k > pos; k--)
         c[k] = c[k - 1];
-    c[pos] = (struct map_cand){patch, u, v, zlo};
+    c[pos] = (struct map_cand){patch, u, v, zlo, zs};
 }
 
 static void tri_bbox(const struct map *m, const struct map_tri *t, int *x0, int *x1, int *y0, int *y1)
 {
-    const struct map_vert *a = &m->verts[t->v[0]], *b = &m->verts[t->v[1]], *c = &m->verts[t->v[2]];
+    const struct map_vert *a = &m->verts[t->v[0]], *b = &m->verts[t->v[1]];
+    const struct map_vert *c = t->v[2] == EDGE ? b : &m->verts[t->v[2]];
     *x0 = (int)floor(fmin(a->x, fmin(b->x, c->x)) - t->pad);
     *x1 = (int)ceil(fmax(a->x, fmax(b->x, c->x)) + t->pad);
     *y0 = (int)floor(fmin(a->y, fmin(b->y, c->y)) - t->pad);
@@ -87,58 +102,101 @@ static void tri_bbox(const struct map *m, const struct map_tri *t, int *x0, int 
     *y1 = *y1 > m->H - 1 ? m->H - 1 : *y1;
 }
 
-/* Marks every pixel of rows [ylo, yhi) whose centre is within pad pixels of triangle t. */
-static void raster_tri(struct map *m, const struct map_tri *t, int ylo, int yhi)
+/* Offers the attributes of weights w (unnormalised) over vertices v to pixel (x, y). */
+static void put_weighted(struct map *m, const struct map_tri *t, const struct map_vert *const *v, const double *w,
+                         int n, int x, int y)
+{
+    double iz = 0, uz = 0, vz = 0;
+    for (int k = 0; k < n; k++) {
+        iz += w[k] * v[k]->iz;
+        uz += w[k] * v[k]->uz;
+        vz += w[k] * v[k]->vz;
+    }
+    double sum = 0;
+    for (int k = 0; k < n; k++)
+        sum += w[k];
+    put(m, (size_t)y * m->W + x, t->patch, (float)(uz / iz), (float)(vz / iz), t->zlo, (float)(sum / iz));
+}
+
+/* Marks every pixel centre of rows [y0, y1] within t->pad of the edge t->v[0]-t->v[1]. */
+static void raster_edge(struct map *m, const struct map_tri *t, int x0, int x1, int y0, int y1)
+{
+    const struct map_vert *v[2] = {&m->verts[t->v[0]], &m->verts[t->v[1]]};
+    double dx = v[1]->x - v[0]->x, dy = v[1]->y - v[0]->y, l2 = dx * dx + dy * dy;
+    double pad2 = (double)t->pad * t->pad;
+    for (int y = y0; y <= y1; y++)
+        for (int x = x0; x <= x1; x++) {
+            double s = l2 > 0 ? ((x - v[0]->x) * dx + (y - v[0]->y) * dy) / l2 : 0.0;
+            s = s < 0 ? 0 : (s > 1 ? 1 : s);
+            double ex = v[0]->x + s * dx - x, ey = v[0]->y + s * dy - y;
+            if (ex * ex + ey * ey > pad2)
+                continue;
+            const double w[2] = {1.0 - s, s};
+            put_weighted(m, t, v, w, 2, x, y);
+        }
+}
+
+/* Marks every pixel centre of rows [y0, y1] that triangle t covers, row by row over the span
+ * its three edges leave. */
+static void raster_tri(struct map *m, const struct map_tri *t, int x0, int x1, int y0, int y1)
 {
     const struct map_vert *v[3] = {&m->verts[t->v[0]], &m->verts[t->v[1]], &m->verts[t->v[2]]};
     double area = (v[1]->x - v[0]->x) * (v[2]->y - v[0]->y) - (v[1]->y - v[0]->y) * (v[2]->x - v[0]->x);
-    int x0, x1, y0, y1;
-    tri_bbox(m, t, &x0, &x1, &y0, &y1);
-    y0 = y0 < ylo ? ylo : y0;
-    y1 = y1 > yhi - 1 ? yhi - 1 : y1;
-    double len[3];
+    if (area == 0.0)
+        return; /* no interior; its edges are outline and padded */
+    /* edge function k (opposite vertex k), positive inside: w_k = A_k x + B_k y + C_k */
+    double A[3], B[3], C[3], eps[3], sgn = area > 0 ? 1.0 : -1.0;
     for (int k = 0; k < 3; k++) {
         const struct map_vert *p = v[(k + 1) % 3], *q = v[(k + 2) % 3];
-        len[k] = hypot(q->x - p->x, q->y - p->y);
+        A[k] = -sgn * (q->y - p->y);
+        B[k] = sgn * (q->x - p->x);
+        C[k] = -(A[k] * p->x + B[k] * p->y);
+        eps[k] = COVER_EPS * hypot(A[k], B[k]);
     }
-    double sgn = area >= 0 ? 1.0 : -1.0, pad = t->pad;
-    for (int y = y0; y <= y1; y++)
-        for (int x = x0; x <= x1; x++) {
-            /* edge functions: w_k is the signed area opposite vertex k */
-            double w[3], s = 0.0;
+    for (int y = y0; y <= y1; y++) {
+        double lo = x0, hi = x1;
+        for (int k = 0; k < 3; k++) {
+            double c = B[k] * y + C[k] + eps[k]; /* w_k + eps >= 0  <=>  A_k x >= -c */
+            if (A[k] > 0)
+                lo = fmax(lo, -c / A[k]);
+            else if (A[k] < 0)
+                hi = fmin(hi, -c / A[k]);
+            else if (c < 0)
+                hi = -INFINITY;
+        }
+        /* one pixel of slack either way; the exact test below decides */
+        for (int x = (int)ceil(lo) - 1 < x0 ? x0 : (int)ceil(lo) - 1, xe = hi + 1 > x1 ? x1 : (int)floor(hi) + 1;
+             x <= xe; x++) {
+            double w[3];
             bool inside = true;
             for (int k = 0; k < 3; k++) {
-                const struct map_vert *p = v[(k + 1) % 3], *q = v[(k + 2) % 3];
-                w[k] = sgn * ((q->x - p->x) * (y - p->y) - (q->y - p->y) * (x - p->x));
-                inside &= w[k] >= -pad * len[k];
-                w[k] = w[k] < 0 ? 0 : w[k]; /* outside: the nearest point's attributes */
-                s += w[k];
+                w[k] = A[k] * x + B[k] * y + C[k];
+                inside &= w[k] >= -eps[k];
+                w[k] = w[k] < 0 ? 0 : w[k];
             }
-            if (!inside)
-                continue;
-            if (s <= 0) /* degenerate on screen */
-                w[0] = w[1] = w[2] = 1.0;
-            double iz = 0, uz = 0, vz = 0;
-            for (int k = 0; k < 3; k++) {
-                iz += w[k] * v[k]->iz;
-                uz += w[k] * v[k]->uz;
-                vz += w[k] * v[k]->vz;
-            }
-            put(m, (size_t)y * m->W + x, t->patch, (float)(uz / iz), (float)(vz / iz), t->zlo);
+            if (inside)
+                put_weighted(m, t, v, w, 3, x, y);
         }
+    }
 }
 
 void map_raster_rows(struct map *m, int y0, int y1)
 {
     for (size_t k = (size_t)y0 * m->W * MAP_CANDS; k < (size_t)y1 * m->W * MAP_CANDS; k++)
-        m->cand[k] = (struct map_cand){-1, 0, 0, INFINITY};
+        m->cand[k] = (struct map_cand){-1, 0, 0, INFINITY, INFINITY};
     for (size_t k = (size_t)y0 * m->W; k < (size_t)y1 * m->W; k++)
         m->dropped[k] = INFINITY;
     for (int tile = y0 / MAP_TILE_ROWS; tile * MAP_TILE_ROWS < y1; tile++) {
         int lo = tile * MAP_TILE_ROWS > y0 ? tile * MAP_TILE_ROWS : y0;
         int hi = (tile + 1) * MAP_TILE_ROWS < y1 ? (tile + 1) * MAP_TILE_ROWS : y1;
-        for (unsigned k = m->tile_first[tile]; k < m->tile_first[tile + 1]; k++)
-            raster_tri(m, &m->tris[m->tile_tris[k]], lo, hi);
+        for (unsigned k = m->tile_first[tile]; k < m->tile_first[tile + 1]; k++) {
+            const struct map_tri *t = &m->tris[m->tile_tris[k]];
+            int x0, x1, ya, yb;
+            tri_bbox(m, t, &x0, &x1, &ya, &yb);
+            ya = ya < lo ? lo : ya;
+            yb = yb > hi - 1 ? hi - 1 : yb;
+            (t->v[2] == EDGE ? raster_edge : raster_tri)(m, t, x0, x1, ya, yb);
+        }
     }
 }
 
@@ -167,10 +225,17 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
     double err_px = tess_grid_error(pt, gu, gv) / pix;
     float pad = (float)(MAP_PAD_PX + fmax(0.0, err_px - MAP_ERR_PX));
     double chord = 2.0 * tess_grid_error(pt, gu, gv); /* twice the bound: rational patches */
-    size_t base = m->n_verts, nv = (size_t)(gu + 1) * (gv + 1), nt = 2 * (size_t)gu * gv;
-    if (mem_reserve((void **)&m->verts, cap_v, base + nv, sizeof *m->verts) ||
-        mem_reserve((void **)&m->tris, cap_t, m->n_tris + nt, sizeof *m->tris))
+    /* room for every triangle and, at worst, every edge of the grid */
+    size_t base = m->n_verts, nv = (size_t)(gu + 1) * (gv + 1), nc = (size_t)gu * gv;
+    size_t n_prims = 2 * nc + (size_t)gu * (gv + 1) + (size_t)gv * (gu + 1) + nc;
+    float *zc = malloc(2 * nc * sizeof *zc);
+    signed char *sg = malloc(2 * nc);
+    if (!zc || !sg || mem_reserve((void **)&m->verts, cap_v, base + nv, sizeof *m->verts) ||
+        mem_reserve((void **)&m->tris, cap_t, m->n_tris + n_prims, sizeof *m->tris)) {
+        free(zc);
+        free(sg);
         return SF_ENOMEM;
+    }
     for (int i = 0; i <= gu; i++)
         for (int j = 0; j <= gv; j++) {
             double u = (double)i / gu, v = (double)j / gv;
@@ -186,20 +251,66 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
             s->vz = v / z;
         }
     m->n_verts += nv;
+    /* cell (i, j) holds triangles {a, b, b+1} and {a, b+1, a+1}, a = vertex (i, j), b = (i+1, j):
+     * both wind the same way in (u, v), so on screen they turn the same way unless the surface
+     * folds there. sg: each triangle's turn (-1, 0, 1); zc: each cell's nearest vertex depth. */
+#define VTX(i, j) ((unsigned)(base + (size_t)(i) * (gv + 1) + (size_t)(j)))
+#define CELL(i, j) ((size_t)(i) * gv + (size_t)(j))
     for (int i = 0; i < gu; i++)
         for (int j = 0; j < gv; j++) {
-            unsigned a = (unsigned)(base + (size_t)i * (gv + 1) + j), b = a + (unsigned)(gv + 1);
+            unsigned a = VTX(i, j), b = VTX(i + 1, j);
             const unsigned tri[2][3] = {{a, b, b + 1}, {a, b + 1, a + 1}};
             for (int k = 0; k < 2; k++) {
-                struct map_tri *t = &m->tris[m->n_tris++];
-                memcpy(t->v, tri[k], sizeof t->v);
-                t->patch = index;
-                t->pad = pad;
-                /* its nearest vertex, less the chord error */
-                double iz = fmax(m->verts[t->v[0]].iz, fmax(m->verts[t->v[1]].iz, m->verts[t->v[2]].iz));
-                t->zlo = (float)(1.0 / iz - chord);
+                const struct map_vert *p = &m->verts[tri[k][0]], *q = &m->verts[tri[k][1]], *r = &m->verts[tri[k][2]];
+                double area = (q->x - p->x) * (r->y - p->y) - (q->y - p->y) * (r->x - p->x);
+                sg[2 * CELL(i, j) + k] = (signed char)((area > 0) - (area < 0));
             }
+            double iz = fmax(fmax(m->verts[a].iz, m->verts[a + 1].iz), fmax(m->verts[b].iz, m->verts[b + 1].iz));
+            zc[CELL(i, j)] = (float)(1.0 / iz);
         }
+    /* a root seen through one triangle may belong to a neighbouring cell's part of the patch:
+     * each cell's bound is the least over its 3x3 neighbourhood, less the chord error */
+    float *zlo = zc + nc;
+    for (int i = 0; i < gu; i++)
+        for (int j = 0; j < gv; j++) {
+            double z = INFINITY;
+            for (int a = i > 0 ? i - 1 : 0; a <= i + 1 && a < gu; a++)
+                for (int b = j > 0 ? j - 1 : 0; b <= j + 1 && b < gv; b++)
+                    z = fmin(z, zc[CELL(a, b)]);
+            zlo[CELL(i, j)] = (float)(z - chord);
+        }
+    for (int i = 0; i < gu; i++)
+        for (int j = 0; j < gv; j++) {
+            unsigned a = VTX(i, j), b = VTX(i + 1, j);
+            const unsigned tri[2][3] = {{a, b, b + 1}, {a, b + 1, a + 1}};
+            for (int k = 0; k < 2; k++)
+                m->tris[m->n_tris++] = (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)]};
+        }
+    /* the outline: the grid's border, and every edge whose two triangles turn different ways
+     * (or either none) on screen; s0, s1 are the turns on either side (0 where there is none) */
+#define OUTLINE(v0, v1, s0, s1, z)                                                                 \
+    if ((s0) == 0 || (s0) != (s1))                                                              \
+        m->tris[m->n_tris++] = (struct map_tri){{(v0), (v1), EDGE}, index, pad, (z)};
+    for (int i = 0; i < gu; i++)
+        for (int j = 0; j < gv; j++) /* the diagonal a-(b+1) between a cell's two triangles */
+            OUTLINE(VTX(i, j), VTX(i + 1, j + 1), sg[2 * CELL(i, j)], sg[2 * CELL(i, j) + 1], zlo[CELL(i, j)]);
+    for (int i = 0; i < gu; i++)
+        for (int j = 0; j <= gv; j++) { /* (i, j)-(i+1, j): first triangle of cell (i, j), second of (i, j-1) */
+            int s0 = j < gv ? sg[2 * CELL(i, j)] : 0, s1 = j > 0 ? sg[2 * CELL(i, j - 1) + 1] : 0;
+            float z = fminf(j < gv ? zlo[CELL(i, j)] : INFINITY, j > 0 ? zlo[CELL(i, j - 1)] : INFINITY);
+            OUTLINE(VTX(i, j), VTX(i + 1, j), s0, s1, z);
+        }
+    for (int i = 0; i <= gu; i++)
+        for (int j = 0; j < gv; j++) { /* (i, j)-(i, j+1): second triangle of cell (i, j), first of (i-1, j) */
+            int s0 = i < gu ? sg[2 * CELL(i, j) + 1] : 0, s1 = i > 0 ? sg[2 * CELL(i - 1, j)] : 0;
+            float z = fminf(i < gu ? zlo[CELL(i, j)] : INFINITY, i > 0 ? zlo[CELL(i - 1, j)] : INFINITY);
+            OUTLINE(VTX(i, j), VTX(i, j + 1), s0, s1, z);
+        }
+#undef OUTLINE
+#undef CELL
+#undef VTX
+    free(zc);
+    free(sg);
     return 0;
 }
 

@@ -21,6 +21,7 @@ struct map_cand {
     int patch;    /* -1: none */
     float u, v;   /* seed in patch parameters */
     float zlo;    /* camera depth no root of this patch at this pixel can be in front of */
+    float zs;     /* depth of the seed's fragment: a root much behind it is on another sheet */
 };
 
 struct map_vert;

@@ -23,6 +23,7 @@
 #define AMBIENT 0.12          /* ambient fraction of the albedo */
 #define MC_SAMPLES 64         /* eq. 3 sample count N */
 #define SHADOW_EPS 1e-7       /* shadow ray start offset, relative to the scene's size */
+#define SHEET_PX 2.0          /* pixels of depth between a seed's fragment and a root on its own sheet */
 
 struct frame {
     const struct scene *sc;
@@ -227,12 +228,16 @@ static bool primary_map(const struct frame *fr, size_t idx, const struct dray *r
     const double zscale = v3_dot(r->d, fr->cam.f); /* camera depth per unit of t */
     bool found = false;
     float undecided = fr->map->dropped[idx]; /* least bound of a candidate not resolved */
+    /* a root this far (relative) behind its seed's fragment lies on a farther sheet of the patch */
+    const double sheet = SHEET_PX * 2.0 * fr->cam.th / fr->cam.H;
     for (int k = 0; k < MAP_CANDS && c[k].patch >= 0; k++) {
         if (found && c[k].zlo > hit->t * zscale)
             break;
         struct solve_hit h;
         st->refinements++;
         if (refine(fr, &c[k], r, &h)) {
+            if (h.t * zscale > c[k].zs * (1.0 + sheet)) /* Newton went on to another sheet */
+                undecided = fminf(undecided, c[k].zlo);
             if (!found || h.t < hit->t)
                 *hit = (struct bvh_hit){c[k].patch, h.u, h.v, h.t, v3_dot(h.n, h.n) > 0, h.n};
             found = true;
