@@ -4,6 +4,7 @@
  * basis (B'_i = n (B^{n-1}_{i-1} - B^{n-1}_i)). */
 #include "bezier.h"
 
+#include <math.h>
 #include <string.h>
 
 /* Bernstein basis of degree n at t into B[0..n] (triangular recurrence). */
@@ -194,6 +195,34 @@ void bezier_split_v(const struct patch *pt, double t, double (*lo)[4], double (*
         int o = i * (pt->q + 1);
         split_line(pt->cw + o, pt->q, 1, t, lo + o, hi + o);
     }
+}
+
+void bezier_second_bounds(struct patch *pt)
+{
+    static const double DIFF[3][3] = {{1, 0, 0}, {-1, 1, 0}, {1, -2, 1}}; /* forward differences */
+    static const int ORDER[3][2] = {{2, 0}, {1, 1}, {0, 2}};               /* uu, uv, vv */
+    const int p = pt->p, q = pt->q, m = q + 1;
+    double(*cw)[4] = pt->cw, d2 = 0.0, d2w = 0.0, wmin = INFINITY;
+    for (int k = 0; k < (p + 1) * m; k++)
+        wmin = fmin(wmin, cw[k][3]);
+    for (int o = 0; o < 3; o++) {
+        const int di = ORDER[o][0], dj = ORDER[o][1];
+        /* d^(di+dj) S / du^di dv^dj = p!/(p-di)! q!/(q-dj)! sum B B (Delta_u^di Delta_v^dj cw) */
+        const double f = (di == 2 ? p * (p - 1.0) : di == 1 ? p : 1.0) * (dj == 2 ? q * (q - 1.0) : dj == 1 ? q : 1.0);
+        for (int i = 0; i + di <= p; i++)
+            for (int j = 0; j + dj <= q; j++) {
+                double d[4] = {0};
+                for (int a = 0; a <= di; a++)
+                    for (int b = 0; b <= dj; b++)
+                        for (int c = 0; c < 4; c++)
+                            d[c] += DIFF[di][a] * DIFF[dj][b] * cw[(i + a) * m + j + b][c];
+                d2 = fmax(d2, f * sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]));
+                d2w = fmax(d2w, f * fabs(d[3]));
+            }
+    }
+    pt->d2 = d2;
+    pt->d2w = d2w;
+    pt->wmin = wmin;
 }
 
 vec3 bezier_point(const struct patch *pt, int i, int j)

@@ -20,6 +20,9 @@ struct patch {
     int surface;         /* index of the scene object this patch came from */
     double u0, u1;       /* the patch's span in the object's own parameters (for uv output) */
     double v0, v1;
+    /* bounds over the patch, set by bezier_second_bounds (wmin 0: not set): |second partial| of
+     * the homogeneous x·w, y·w, z·w (d2) and of w (d2w), and the least weight */
+    double d2, d2w, wmin;
 };
 
 /* Bernstein basis of degree n at t and its derivative: B[0..n], dB[0..n] (dB may be NULL). */
@@ -43,6 +46,11 @@ void bezier_split_v(const struct patch *pt, double t, double (*lo)[4], double (*
 /* Axis-aligned box of the Euclidean control points: contains the patch (convex hull
  * property, weights positive). */
 void bezier_bounds(const struct patch *pt, vec3 *lo, vec3 *hi);
+
+/* Fills pt->d2, d2w, wmin from the control net's second differences (each partial of a
+ * Bézier patch is a convex combination of them, times the degrees). They bound the Taylor
+ * remainder of a Newton step, so a solver can accept a step without evaluating its end. */
+void bezier_second_bounds(struct patch *pt);
 
 /* Euclidean control point (i, j). */
 vec3 bezier_point(const struct patch *pt, int i, int j);

@@ -365,7 +365,7 @@ static int curve_surface(const struct contour_set *cs, bool lsq, bool polar, str
             if ((rc = mem_reserve((void **)&set->patches, &set->cap, set->n + 1, sizeof *set->patches)) ||
                 (rc = mem_reserve((void **)&set->pool, &set->cap_pool, set->n_pool + 16, sizeof *set->pool)))
                 break;
-            set->patches[set->n++] = (struct patch){3, 3, false, (double(*)[4])(uintptr_t)set->n_pool, 0, ua, ub, z0, z1};
+            set->patches[set->n++] = (struct patch){.p = 3, .q = 3, .cw = (double(*)[4])(uintptr_t)set->n_pool, .u0 = ua, .u1 = ub, .v0 = z0, .v1 = z1};
             for (int a = 0; a < 4; a++)
                 for (int b = 0; b < 4; b++) {
                     double *P = set->pool[set->n_pool + (size_t)(a * 4 + b)];
@@ -431,7 +431,7 @@ static double (*append_bicubic(struct patch_set *set, double u0, double u1, doub
     if (mem_reserve((void **)&set->patches, &set->cap, set->n + 1, sizeof *set->patches) ||
         mem_reserve((void **)&set->pool, &set->cap_pool, set->n_pool + 16, sizeof *set->pool))
         return NULL;
-    set->patches[set->n++] = (struct patch){3, 3, false, (double(*)[4])(uintptr_t)set->n_pool, 0, u0, u1, v0, v1};
+    set->patches[set->n++] = (struct patch){.p = 3, .q = 3, .cw = (double(*)[4])(uintptr_t)set->n_pool, .u0 = u0, .u1 = u1, .v0 = v0, .v1 = v1};
     set->n_pool += 16;
     return set->pool + set->n_pool - 16;
 }

@@ -21,7 +21,7 @@ static double (*new_patch(struct patch_set *set, int p, int q, bool rational, do
     if (mem_reserve((void **)&set->patches, &set->cap, set->n + 1, sizeof *set->patches) ||
         mem_reserve((void **)&set->pool, &set->cap_pool, set->n_pool + np, sizeof *set->pool))
         return NULL;
-    set->patches[set->n++] = (struct patch){p, q, rational, (double(*)[4])(uintptr_t)set->n_pool, 0, u0, u1, 0, 1};
+    set->patches[set->n++] = (struct patch){.p = p, .q = q, .rational = rational, .cw = (double(*)[4])(uintptr_t)set->n_pool, .u0 = u0, .u1 = u1, .v1 = 1};
     set->n_pool += np;
     return set->pool + set->n_pool - np;
 }

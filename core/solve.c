@@ -78,6 +78,11 @@ bool solve_newton_cramer(const struct patch *pt, const struct dray *r, double u,
 {
     struct proj p;
     const double mu = 0.5 * (box->u1 - box->u0) + 1e-3, mv = 0.5 * (box->v1 - box->v0) + 1e-3;
+    /* Taylor: after a step (du, dv) that zeroes the linear part, the ray's distance from the
+     * surface is at most rem (|du| + |dv|)^2 (bezier_second_bounds; the homogeneous point less
+     * the origin times w, over the least weight) */
+    const double rem = pt->wmin > 0 ? 0.5 * (pt->d2 + (pt->d2w > 0 ? v3_len(r->o) * pt->d2w : 0.0)) / pt->wmin
+                                    : INFINITY;
     hit->iters = 0;
     for (int it = 0; it < SOLVE_MAX_NEWTON; it++) {
         project(pt, r, u, v, &p);
@@ -90,11 +95,11 @@ bool solve_newton_cramer(const struct patch *pt, const struct dray *r, double u,
         if (M == 0.0 || !isfinite(M))
             return res2 <= tol2 && accept(r, box, u, v, &p, hit);
         double du = p.w / M * Mu, dv = p.w / M * Mv; /* eq. 11 */
-        double nu = clamp01(u + du), nv = clamp01(v + dv);
-        if (res2 <= tol2 && nu == u + du && nv == v + dv) {
-            /* Within tolerance: take this last step without evaluating again. The point there
-             * is the first-order expansion S + Su du + Sv dv, off by O(|step|²), about the
-             * square of the tolerance. */
+        double nu = clamp01(u + du), nv = clamp01(v + dv), a = fabs(du) + fabs(dv);
+        if ((res2 <= tol2 || rem * a * a * (rem * a * a) <= tol2) && nu == u + du && nv == v + dv) {
+            /* Within tolerance here, or provably so at the step's end: take the step without
+             * evaluating again. The point there is the first-order expansion S + Su du + Sv dv,
+             * on the ray and within the remainder bound of the surface. */
             for (int c = 0; c < 4; c++)
                 p.S[c] += p.Su[c] * du + p.Sv[c] * dv;
             return accept(r, box, nu, nv, &p, hit);

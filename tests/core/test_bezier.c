@@ -37,7 +37,8 @@ TEST(derivatives_match_finite_differences)
     const int degs[][2] = {{3, 3}, {5, 2}, {1, 4}};
     for (int r = 0; r < 2; r++)
         for (size_t d = 0; d < 3; d++) {
-            struct patch pt = {degs[d][0], degs[d][1], r, random_net(degs[d][0], degs[d][1], 7 + (unsigned)d, r), 0, 0, 1, 0, 1};
+            struct patch pt = {.p = degs[d][0], .q = degs[d][1], .rational = r,
+                               .cw = random_net(degs[d][0], degs[d][1], 7 + (unsigned)d, r), .u1 = 1, .v1 = 1};
             for (double u = 0.1; u < 1; u += 0.2)
                 for (double v = 0.15; v < 1; v += 0.2) {
                     vec3 P, Pu, Pv, A, B, C, D;
@@ -57,7 +58,7 @@ TEST(derivatives_match_finite_differences)
 /* The bicubic fast path against Cox–de Boor on the same net seen as a clamped B-spline. */
 TEST(bicubic_matches_cox_de_boor)
 {
-    struct patch pt = {3, 3, true, random_net(3, 3, 11, true), 0, 0, 1, 0, 1};
+    struct patch pt = {.p = 3, .q = 3, .rational = true, .cw = random_net(3, 3, 11, true), .u1 = 1, .v1 = 1};
     struct surface s;
     CHECK(nurbs_surface_alloc(&s, SURF_NURBS, 3, 3, 4, 4, NULL) == 0);
     for (int k = 0; k < 8; k++)
@@ -82,7 +83,7 @@ TEST(bicubic_matches_cox_de_boor)
 
 TEST(split_leaves_surface_unchanged)
 {
-    struct patch pt = {4, 3, true, random_net(4, 3, 3, true), 0, 0, 1, 0, 1};
+    struct patch pt = {.p = 4, .q = 3, .rational = true, .cw = random_net(4, 3, 3, true), .u1 = 1, .v1 = 1};
     double(*lo)[4] = malloc(sizeof *lo * 20), (*hi)[4] = malloc(sizeof *hi * 20);
     for (int dir = 0; dir < 2; dir++) {
         (dir ? bezier_split_v : bezier_split_u)(&pt, 0.3, lo, hi);
@@ -109,7 +110,7 @@ TEST(split_leaves_surface_unchanged)
 
 TEST(bounds_contain_surface)
 {
-    struct patch pt = {3, 3, true, random_net(3, 3, 5, true), 0, 0, 1, 0, 1};
+    struct patch pt = {.p = 3, .q = 3, .rational = true, .cw = random_net(3, 3, 5, true), .u1 = 1, .v1 = 1};
     vec3 lo, hi;
     bezier_bounds(&pt, &lo, &hi);
     for (double u = 0; u <= 1.0; u += 0.05)
@@ -133,11 +134,50 @@ TEST(normal_at_collapsed_edge)
             cw[4 * i + j][0] = r * cos(a), cw[4 * i + j][1] = r * sin(a), cw[4 * i + j][2] = i <= 1 ? 1.0 : 1 - r * r;
             cw[4 * i + j][3] = 1;
         }
-    struct patch pt = {3, 3, false, cw, 0, 0, 1, 0, 1};
+    struct patch pt = {.p = 3, .q = 3, .rational = false, .cw = cw, .u1 = 1, .v1 = 1};
     vec3 n;
     CHECK(bezier_normal(&pt, 0.0, 0.5, &n));
     CHECK_NEAR(fabs(n.z), 1.0, 1e-3);
     free(cw);
+}
+
+/* The remainder of a first-order step is within the bound the solvers trust to skip an evaluation:
+ * |H(u+du, v+dv) - H - Hu du - Hv dv| <= (d2 + |o| d2w) / 2 (|du| + |dv|)^2, H = xyz·w - o w. */
+TEST(second_bounds_hold_taylor_remainder)
+{
+    const int degs[][2] = {{3, 3}, {5, 2}, {1, 4}, {2, 2}};
+    const double o[3] = {0.3, -2.0, 0.5}, olen = sqrt(0.09 + 4.0 + 0.25);
+    srand(11);
+    for (int r = 0; r < 2; r++)
+        for (size_t d = 0; d < 4; d++) {
+            struct patch pt = {.p = degs[d][0], .q = degs[d][1], .rational = r,
+                               .cw = random_net(degs[d][0], degs[d][1], 3 + (unsigned)d, r)};
+            bezier_second_bounds(&pt);
+            CHECK(pt.wmin > 0 && pt.d2 > 0 && (r ? pt.d2w > 0 : pt.d2w == 0));
+            double worst = 0; /* largest remainder over its bound */
+            for (int k = 0; k < 2000; k++) {
+                double u = rand() / (double)RAND_MAX, v = rand() / (double)RAND_MAX;
+                double du = (rand() / (double)RAND_MAX - u) * 0.5, dv = (rand() / (double)RAND_MAX - v) * 0.5;
+                double S[4], Su[4], Sv[4], T[4], e2 = 0;
+                bezier_eval_h(&pt, u, v, S, Su, Sv);
+                bezier_eval_h(&pt, u + du, v + dv, T, NULL, NULL);
+                for (int c = 0; c < 3; c++) {
+                    double h = T[c] - o[c] * T[3], lin = S[c] - o[c] * S[3] + (Su[c] - o[c] * Su[3]) * du +
+                                                         (Sv[c] - o[c] * Sv[3]) * dv;
+                    e2 += (h - lin) * (h - lin);
+                }
+                double bound = 0.5 * (pt.d2 + olen * pt.d2w) * (fabs(du) + fabs(dv)) * (fabs(du) + fabs(dv));
+                worst = fmax(worst, sqrt(e2) / bound);
+            }
+            CHECK(worst <= 1.0 + 1e-9);
+            CHECK(worst > 0.02); /* and not so loose as to be useless */
+            free(pt.cw);
+        }
+    /* a flat parallelogram has no second derivative at all */
+    double flat[4][4] = {{0, 0, 0, 1}, {0, 1, 0, 1}, {1, 0.5, 0, 1}, {1, 1.5, 0, 1}};
+    struct patch pl = {.p = 1, .q = 1, .cw = flat};
+    bezier_second_bounds(&pl);
+    CHECK(pl.d2 == 0.0 && pl.d2w == 0.0 && pl.wmin == 1.0);
 }
 
 int main(void)
@@ -148,5 +188,6 @@ int main(void)
     RUN(split_leaves_surface_unchanged);
     RUN(bounds_contain_surface);
     RUN(normal_at_collapsed_edge);
+    RUN(second_bounds_hold_taylor_remainder);
     UNIT_END();
 }
