@@ -200,19 +200,33 @@ out_fail_mem:
 
 /* ---- primary rays ----------------------------------------------------------------------- */
 
-/* Refines one map candidate with the method the frame asks for. */
-static bool refine(const struct frame *fr, const struct map_cand *c, const struct dray *r, struct solve_hit *h)
+/* The row's last hit and its step from the pixel before (zero after a change of patch): the
+ * next pixel's seed on that patch, one pixel on, is off by about the square of that step. */
+struct row_seed {
+    int patch; /* -1: the last pixel missed */
+    double u, v, du, dv;
+};
+
+/* Refines one map candidate with the method the frame asks for; auto seeds from the row's last
+ * hit where it is on the same patch. */
+static bool refine(const struct frame *fr, const struct map_cand *c, const struct row_seed *rs, const struct dray *r,
+                   struct solve_hit *h)
 {
     const struct patch *pt = &fr->ps.patches[c->patch];
     const struct solve_box all = {0, 1, 0, 1};
     bool ok;
     if (fr->sc->method == METHOD_AUTO) {
-        ok = solve_newton_cramer(pt, r, c->u, c->v, &all, fr->tol2, h);
+        double u = c->u, v = c->v;
+        if (rs->patch == c->patch) {
+            u = fmin(1.0, fmax(0.0, rs->u + rs->du));
+            v = fmin(1.0, fmax(0.0, rs->v + rs->dv));
+        }
+        ok = solve_newton_seeded(pt, r, u, v, &all, fr->tol2, h);
     } else {
         switch (fr->sc->objects[pt->surface].surf.kind) {
         case SURF_BEZIER: ok = solve_gradient(pt, r, c->u, c->v, &all, fr->tol2, h); break;
         case SURF_BSPLINE: ok = solve_steepest(pt, r, c->u, c->v, &all, fr->tol2, h); break;
-        default: ok = solve_newton_cramer(pt, r, c->u, c->v, &all, fr->tol2, h); break;
+        default: ok = solve_newton_seeded(pt, r, c->u, c->v, &all, fr->tol2, h); break;
         }
     }
     return ok && h->t > 0.0;
@@ -221,8 +235,8 @@ static bool refine(const struct frame *fr, const struct map_cand *c, const struc
 /* Branch and bound over the pixel's candidates (nearest depth bound first): a candidate whose
  * bound lies behind the best root so far cannot hold a nearer one. Where the list overflowed
  * ahead of the root, or nothing converged, the exact hierarchy decides. */
-static bool primary_map(const struct frame *fr, size_t idx, const struct dray *r, struct bvh_hit *hit,
-                        struct render_stats *st)
+static bool primary_map(const struct frame *fr, size_t idx, const struct row_seed *rs, const struct dray *r,
+                        struct bvh_hit *hit, struct render_stats *st)
 {
     const struct map_cand *c = &fr->map->cand[idx * MAP_CANDS];
     const double zscale = v3_dot(r->d, fr->cam.f); /* camera depth per unit of t */
@@ -235,7 +249,7 @@ static bool primary_map(const struct frame *fr, size_t idx, const struct dray *r
             break;
         struct solve_hit h;
         st->refinements++;
-        if (refine(fr, &c[k], r, &h)) {
+        if (refine(fr, &c[k], rs, r, &h)) {
             if (h.t * zscale > c[k].zs * (1.0 + sheet)) /* Newton went on to another sheet */
                 undecided = fminf(undecided, c[k].zlo);
             if (!found || h.t < hit->t)
@@ -346,7 +360,8 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
     if (use_map)
         map_raster_rows(fr->map, y0, y1);
     uint64_t rng = 0x9E3779B97F4A7C15ull ^ (uint64_t)(y0 + 1) * 0xBF58476D1CE4E5B9ull;
-    for (int y = y0; y < y1; y++)
+    for (int y = y0; y < y1; y++) {
+        struct row_seed rs = {.patch = -1};
         for (int x = 0; x < W; x++) {
             size_t idx = (size_t)y * W + x;
             st->rays++;
@@ -360,7 +375,7 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
                 solve_ray_init(&r, fr->cam.eye, camera_dir(&fr->cam, x, y));
                 switch (method) {
                 case METHOD_MAP:
-                case METHOD_AUTO: ok = primary_map(fr, idx, &r, &hit, st); break;
+                case METHOD_AUTO: ok = primary_map(fr, idx, &rs, &r, &hit, st); break;
                 case METHOD_MONTECARLO: ok = primary_montecarlo(fr, &r, &rng, &hit, st); break;
                 case METHOD_MESH: ok = bvh_intersect(fr->mesh, &r, 0.0, INFINITY, &hit, &st->iterations); break;
                 default: ok = bvh_intersect(fr->exact, &r, 0.0, INFINITY, &hit, &st->iterations); break;
@@ -368,6 +383,10 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
             }
             float *px = &fr->rgba[4 * idx];
             vec3 n = v3(0, 0, 0);
+            if (ok && hit.patch == rs.patch)
+                rs = (struct row_seed){hit.patch, hit.u, hit.v, hit.u - rs.u, hit.v - rs.v};
+            else
+                rs = (struct row_seed){ok ? hit.patch : -1, hit.u, hit.v, 0.0, 0.0};
             if (ok) {
                 st->hits++;
                 vec3 c = shade(fr, &r, &hit, &n, st);
@@ -391,6 +410,7 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
                     fr->id[idx] = ok ? (float)pt->surface : -1.0f;
             }
         }
+    }
 }
 
 void frame_image(const struct frame *fr, struct frame_image *img)

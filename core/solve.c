@@ -73,8 +73,8 @@ static bool accept(const struct dray *r, const struct solve_box *box, double u, 
     return true;
 }
 
-bool solve_newton_cramer(const struct patch *pt, const struct dray *r, double u, double v,
-                         const struct solve_box *box, double tol2, struct solve_hit *hit)
+static bool newton_cramer(const struct patch *pt, const struct dray *r, double u, double v,
+                          const struct solve_box *box, double tol2, bool fail_fast, struct solve_hit *hit)
 {
     struct proj p;
     const double mu = 0.5 * (box->u1 - box->u0) + 1e-3, mv = 0.5 * (box->v1 - box->v0) + 1e-3;
@@ -84,6 +84,7 @@ bool solve_newton_cramer(const struct patch *pt, const struct dray *r, double u,
     const double rem = pt->wmin > 0 ? 0.5 * (pt->d2 + (pt->d2w > 0 ? v3_len(r->o) * pt->d2w : 0.0)) / pt->wmin
                                     : INFINITY;
     hit->iters = 0;
+    double prev2 = INFINITY;
     for (int it = 0; it < SOLVE_MAX_NEWTON; it++) {
         project(pt, r, u, v, &p);
         hit->iters++;
@@ -107,6 +108,11 @@ bool solve_newton_cramer(const struct patch *pt, const struct dray *r, double u,
         double step = fabs(nu - u) + fabs(nv - v);
         if (step < SOLVE_STEP_EPS) /* stalled (at the domain's edge, or at a singular point) */
             return res2 <= tol2 && accept(r, box, u, v, &p, hit);
+        /* Newton converges quadratically from a seed near a root; a residual that has not even
+         * halved after the first steps means none nearby (typically a ray past the silhouette) */
+        if (fail_fast && it >= 3 && res2 > 0.25 * prev2)
+            return false;
+        prev2 = res2;
         u = nu;
         v = nv;
         /* well outside the box after the first steps: this root belongs to another leaf */
@@ -115,6 +121,18 @@ bool solve_newton_cramer(const struct patch *pt, const struct dray *r, double u,
     }
     project(pt, r, u, v, &p);
     return (p.x * p.x + p.y * p.y) / (p.w * p.w) <= tol2 && accept(r, box, u, v, &p, hit);
+}
+
+bool solve_newton_cramer(const struct patch *pt, const struct dray *r, double u, double v,
+                         const struct solve_box *box, double tol2, struct solve_hit *hit)
+{
+    return newton_cramer(pt, r, u, v, box, tol2, false, hit);
+}
+
+bool solve_newton_seeded(const struct patch *pt, const struct dray *r, double u, double v,
+                         const struct solve_box *box, double tol2, struct solve_hit *hit)
+{
+    return newton_cramer(pt, r, u, v, box, tol2, true, hit);
 }
 
 /* g = x² + y² in Euclidean units (seed 000 eq. 2); with gu, also its gradient and in *h the

@@ -44,6 +44,10 @@ void solve_ray_init(struct dray *r, vec3 o, vec3 d);
  * eq. 10–13). tol2 is the squared residual accepted as a root (distance² from the ray). */
 bool solve_newton_cramer(const struct patch *pt, const struct dray *r, double u, double v,
                          const struct solve_box *box, double tol2, struct solve_hit *hit);
+/* The same from a seed that should be next to a root, for a caller with an exact fallback: gives
+ * up as soon as the residual stops falling fast instead of iterating up to SOLVE_MAX_NEWTON. */
+bool solve_newton_seeded(const struct patch *pt, const struct dray *r, double u, double v,
+                         const struct solve_box *box, double tol2, struct solve_hit *hit);
 
 /* Gradient descent on g = x² + y² (seed 000 eq. 2, 4), the seed's refinement for Bézier. */
 bool solve_gradient(const struct patch *pt, const struct dray *r, double u, double v,
