@@ -39,6 +39,11 @@ struct leaf {
                               * hugs a leaf lying diagonally, as a sliver does, where the axes' does not */
     vec3 cone_axis;          /* every normal Pu × Pv of the leaf is within the cone of this axis ... */
     double cone_sin;         /* ... and half-angle asin(cone_sin); > 1: no cone (rational, or too wide) */
+    /* the leaf's neighbourhood in its patch (its parameter box grown by its own size each way): no
+     * chord of that part of the surface is within asin(chord_sin) of the plane across chord_n */
+    double ru0, ru1, rv0, rv1;
+    vec3 chord_n;
+    double chord_sin;        /* > 1: no such bound */
 };
 
 struct bvh {
@@ -179,6 +184,66 @@ static double net_deviation(const struct patch *pt, double *curv_u, double *curv
     return dev;
 }
 
+/* Bounds the directions of the chords of a polynomial patch. A chord S(u1, v1) - S(u2, v2) is
+ * the integral of Pu along u, then of Pv along v, and each is a non-negative combination of the
+ * net's differences g (Bernstein weights are non-negative); so with the u differences taken with
+ * one sign and the v differences with another, every chord c = sum l_g g, l >= 0. For a unit n
+ * and a unit w with w·g >= k |g| for all of them (k > 0): |c·n| <= max(|g·n| / |g|) sum l|g| and
+ * |c| >= w·c >= k sum l|g|, so |c·n| / |c| <= max(|g·n| / |g|) / k. Both sign pairings (the
+ * other two are their negatives) give the bound *sin_max on |c·n| / |c| for every chord. */
+static void chord_bound(const struct patch *pt, vec3 *n, double *sin_max)
+{
+    *sin_max = 2.0;
+    const int p = pt->p, q = pt->q;
+    if (pt->rational)
+        return;
+    vec3 au = v3(0, 0, 0), av = v3(0, 0, 0);
+    for (int i = 0; i <= p; i++)
+        for (int j = 0; j <= q; j++) {
+            if (i < p && v3_len(v3_sub(bezier_point(pt, i + 1, j), bezier_point(pt, i, j))) > 0)
+                au = v3_add(au, v3_norm(v3_sub(bezier_point(pt, i + 1, j), bezier_point(pt, i, j))));
+            if (j < q && v3_len(v3_sub(bezier_point(pt, i, j + 1), bezier_point(pt, i, j))) > 0)
+                av = v3_add(av, v3_norm(v3_sub(bezier_point(pt, i, j + 1), bezier_point(pt, i, j))));
+        }
+    vec3 axis = v3_cross(au, av);
+    if (!(v3_len(axis) > 1e-9 * v3_len(au) * v3_len(av)))
+        return;
+    axis = v3_norm(axis);
+    au = v3_norm(au), av = v3_norm(av);
+    const vec3 w[2] = {v3_norm(v3_add(au, av)), v3_norm(v3_sub(au, av))}; /* v differences taken +, then - */
+    double tilt = 0.0, k[2] = {1.0, 1.0};
+    for (int i = 0; i <= p; i++)
+        for (int j = 0; j <= q; j++)
+            for (int dir = 0; dir < 2; dir++) {
+                if (dir == 0 ? i == p : j == q)
+                    continue;
+                vec3 g = v3_sub(bezier_point(pt, i + (dir == 0), j + (dir == 1)), bezier_point(pt, i, j));
+                double l = v3_len(g);
+                if (l == 0)
+                    continue; /* a collapsed edge adds nothing to any chord */
+                tilt = fmax(tilt, fabs(v3_dot(g, axis)) / l);
+                for (int s = 0; s < 2; s++)
+                    k[s] = fmin(k[s], (dir == 1 && s == 1 ? -1.0 : 1.0) * v3_dot(w[s], g) / l);
+            }
+    if (k[0] <= 0 || k[1] <= 0)
+        return;
+    *n = axis;
+    *sin_max = tilt / fmin(k[0], k[1]) + 1e-9;
+}
+
+/* The net of pt's part over [u0, u1] x [v0, v1] (de Casteljau twice each way) into out; tmp holds
+ * as many points as out. */
+static void sub_net(const struct patch *pt, double u0, double u1, double v0, double v1, double (*out)[4],
+                    double (*tmp)[4])
+{
+    struct patch a = *pt, b = *pt;
+    a.cw = tmp, b.cw = out;
+    bezier_split_u(pt, u1, tmp, out);             /* tmp: [0, u1] */
+    bezier_split_u(&a, u0 / u1, out, tmp);        /* tmp: [u0, u1] (u1 > 0: it holds a leaf) */
+    bezier_split_v(&a, v1, out, tmp);             /* out: [u0, u1] x [0, v1] */
+    bezier_split_v(&b, v0 / v1, tmp, out);        /* out: [u0, u1] x [v0, v1] */
+}
+
 static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
                     double dev)
 {
@@ -229,6 +294,19 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
         l->e0[k] -= pk, l->e1[k] += pk;
     }
     normal_cone(sub, &l->cone_axis, &l->cone_sin);
+    /* the neighbourhood's chord bound */
+    const struct patch *pt = &b->patches[patch];
+    l->ru0 = fmax(0.0, 2 * u0 - u1), l->ru1 = fmin(1.0, 2 * u1 - u0);
+    l->rv0 = fmax(0.0, 2 * v0 - v1), l->rv1 = fmin(1.0, 2 * v1 - v0);
+    size_t n_pts = (size_t)(pt->p + 1) * (pt->q + 1);
+    double(*net)[4] = malloc(sizeof *net * 2 * n_pts);
+    if (!net)
+        return SF_ENOMEM;
+    struct patch region = *pt;
+    region.cw = net;
+    sub_net(pt, l->ru0, l->ru1, l->rv0, l->rv1, net, net + n_pts);
+    chord_bound(&region, &l->chord_n, &l->chord_sin);
+    free(net);
     return 0;
 }
 
@@ -428,6 +506,15 @@ static bool leaves_only_its_origin(const struct leaf *l, const struct bvh_origin
     return fabs(v3_dot(r->d, l->cone_axis)) > l->cone_sin;
 }
 
+/* A shadow ray leaving a point of the neighbourhood of leaf l (same patch) meets l nowhere when
+ * its direction is steeper than every chord of that neighbourhood (chord_bound): the ray from
+ * the origin to any point of l would be such a chord. */
+static bool leaves_its_neighbourhood(const struct leaf *l, const struct bvh_origin *o, const struct dray *r)
+{
+    return o && o->patch == l->patch && l->chord_sin < 1.0 && o->u >= l->ru0 && o->u <= l->ru1 &&
+           o->v >= l->rv0 && o->v <= l->rv1 && fabs(v3_dot(r->d, l->chord_n)) > l->chord_sin;
+}
+
 static void leaf_occluded(const struct RTCOccludedFunctionNArguments *args)
 {
     if (!args->valid[0])
@@ -436,7 +523,7 @@ static void leaf_occluded(const struct RTCOccludedFunctionNArguments *args)
     const struct bvh *b = args->geometryUserPtr;
     const struct leaf *l = &b->leaves[args->primID];
     struct solve_hit h;
-    if (leaves_only_its_origin(l, qy->from, qy->r))
+    if (leaves_only_its_origin(l, qy->from, qy->r) || leaves_its_neighbourhood(l, qy->from, qy->r))
         return;
     if (leaf_hit(b, l, qy->r, qy->tnear, qy->best_t, &h, &qy->iters)) {
         qy->found = true;

@@ -42,8 +42,6 @@ void map_free(struct map *m)
 {
     if (!m)
         return;
-    free(m->cand);
-    free(m->dropped);
     free(m->verts);
     free(m->tris);
     free(m->tile_first);
@@ -54,9 +52,10 @@ void map_free(struct map *m)
 /* Offers a fragment of `patch` to a pixel's candidate list: depth bound zlo, seed (u, v) and the
  * fragment's own depth zs there. A patch listed already keeps the least bound and the seed of
  * its nearest fragment (where a patch folds over a pixel, the seed on the near sheet). */
-static void put(struct map *m, size_t idx, int patch, float u, float v, float zlo, float zs)
+static void put(struct map_rows *rw, int x, int y, int patch, float u, float v, float zlo, float zs)
 {
-    struct map_cand *c = &m->cand[idx * MAP_CANDS];
+    size_t idx = (size_t)(y - rw->y0) * rw->W + x;
+    struct map_cand *c = &rw->cand[idx * MAP_CANDS];
     int at = 0;
     while (at < MAP_CANDS && c[at].patch >= 0 && c[at].patch != patch)
         at++;
@@ -77,12 +76,12 @@ static void put(struct map *m, size_t idx, int patch, float u, float v, float zl
     while (pos < MAP_CANDS && c[pos].patch >= 0 && c[pos].zlo <= zlo)
         pos++;
     if (pos == MAP_CANDS) {
-        m->dropped[idx] = fminf(m->dropped[idx], zlo);
+        rw->dropped[idx] = fminf(rw->dropped[idx], zlo);
         return;
     }
     int last = at < MAP_CANDS ? at : MAP_CANDS - 1; /* first free slot, or the evicted one */
     if (at == MAP_CANDS)
-        m->dropped[idx] = fminf(m->dropped[idx], c[last].zlo);
+        rw->dropped[idx] = fminf(rw->dropped[idx], c[last].zlo);
     for (int k = last; k > pos; k--)
         c[k] = c[k - 1];
     c[pos] = (struct map_cand){patch, u, v, zlo, zs};
@@ -102,24 +101,9 @@ static void tri_bbox(const struct map *m, const struct map_tri *t, int *x0, int 
     *y1 = *y1 > m->H - 1 ? m->H - 1 : *y1;
 }
 
-/* Offers the attributes of weights w (unnormalised) over vertices v to pixel (x, y). */
-static void put_weighted(struct map *m, const struct map_tri *t, const struct map_vert *const *v, const double *w,
-                         int n, int x, int y)
-{
-    double iz = 0, uz = 0, vz = 0;
-    for (int k = 0; k < n; k++) {
-        iz += w[k] * v[k]->iz;
-        uz += w[k] * v[k]->uz;
-        vz += w[k] * v[k]->vz;
-    }
-    double sum = 0;
-    for (int k = 0; k < n; k++)
-        sum += w[k];
-    put(m, (size_t)y * m->W + x, t->patch, (float)(uz / iz), (float)(vz / iz), t->zlo, (float)(sum / iz));
-}
-
 /* Marks every pixel centre of rows [y0, y1] within t->pad of the edge t->v[0]-t->v[1]. */
-static void raster_edge(struct map *m, const struct map_tri *t, int x0, int x1, int y0, int y1)
+static void raster_edge(const struct map *m, struct map_rows *rw, const struct map_tri *t, int x0, int x1, int y0,
+                        int y1)
 {
     const struct map_vert *v[2] = {&m->verts[t->v[0]], &m->verts[t->v[1]]};
     double dx = v[1]->x - v[0]->x, dy = v[1]->y - v[0]->y, l2 = dx * dx + dy * dy;
@@ -131,27 +115,37 @@ static void raster_edge(struct map *m, const struct map_tri *t, int x0, int x1, 
             double ex = v[0]->x + s * dx - x, ey = v[0]->y + s * dy - y;
             if (ex * ex + ey * ey > pad2)
                 continue;
-            const double w[2] = {1.0 - s, s};
-            put_weighted(m, t, v, w, 2, x, y);
+            double iz = v[0]->iz + s * (v[1]->iz - v[0]->iz), z = 1.0 / iz;
+            double uz = v[0]->uz + s * (v[1]->uz - v[0]->uz), vz = v[0]->vz + s * (v[1]->vz - v[0]->vz);
+            put(rw, x, y, t->patch, (float)(uz * z), (float)(vz * z), t->zlo, (float)z);
         }
 }
 
 /* Marks every pixel centre of rows [y0, y1] that triangle t covers, row by row over the span
- * its three edges leave. */
-static void raster_tri(struct map *m, const struct map_tri *t, int x0, int x1, int y0, int y1)
+ * its three edges leave. 1/depth, u/depth and v/depth are planes over the screen. */
+static void raster_tri(const struct map *m, struct map_rows *rw, const struct map_tri *t, int x0, int x1, int y0,
+                       int y1)
 {
     const struct map_vert *v[3] = {&m->verts[t->v[0]], &m->verts[t->v[1]], &m->verts[t->v[2]]};
     double area = (v[1]->x - v[0]->x) * (v[2]->y - v[0]->y) - (v[1]->y - v[0]->y) * (v[2]->x - v[0]->x);
     if (area == 0.0)
         return; /* no interior; its edges are outline and padded */
-    /* edge function k (opposite vertex k), positive inside: w_k = A_k x + B_k y + C_k */
+    /* edge function k (opposite vertex k), positive inside: w_k = A_k x + B_k y + C_k; inside,
+     * the w_k / |area| are the barycentrics */
     double A[3], B[3], C[3], eps[3], sgn = area > 0 ? 1.0 : -1.0;
+    double plane[3][3] = {{0}}; /* iz, uz, vz: coefficients of x, y, 1 */
     for (int k = 0; k < 3; k++) {
         const struct map_vert *p = v[(k + 1) % 3], *q = v[(k + 2) % 3];
         A[k] = -sgn * (q->y - p->y);
         B[k] = sgn * (q->x - p->x);
         C[k] = -(A[k] * p->x + B[k] * p->y);
         eps[k] = COVER_EPS * hypot(A[k], B[k]);
+        const double at[3] = {v[k]->iz, v[k]->uz, v[k]->vz}, inv = 1.0 / fabs(area);
+        for (int c = 0; c < 3; c++) {
+            plane[c][0] += A[k] * at[c] * inv;
+            plane[c][1] += B[k] * at[c] * inv;
+            plane[c][2] += C[k] * at[c] * inv;
+        }
     }
     for (int y = y0; y <= y1; y++) {
         double lo = x0, hi = x1;
@@ -165,27 +159,39 @@ static void raster_tri(struct map *m, const struct map_tri *t, int x0, int x1, i
                 hi = -INFINITY;
         }
         /* one pixel of slack either way; the exact test below decides */
-        for (int x = (int)ceil(lo) - 1 < x0 ? x0 : (int)ceil(lo) - 1, xe = hi + 1 > x1 ? x1 : (int)floor(hi) + 1;
-             x <= xe; x++) {
-            double w[3];
+        int xs = (int)ceil(lo) - 1 < x0 ? x0 : (int)ceil(lo) - 1, xe = hi + 1 > x1 ? x1 : (int)floor(hi) + 1;
+        double iz_y = plane[0][1] * y + plane[0][2], uz_y = plane[1][1] * y + plane[1][2];
+        double vz_y = plane[2][1] * y + plane[2][2];
+        for (int x = xs; x <= xe; x++) {
             bool inside = true;
-            for (int k = 0; k < 3; k++) {
-                w[k] = A[k] * x + B[k] * y + C[k];
-                inside &= w[k] >= -eps[k];
-                w[k] = w[k] < 0 ? 0 : w[k];
-            }
-            if (inside)
-                put_weighted(m, t, v, w, 3, x, y);
+            for (int k = 0; k < 3; k++)
+                inside &= A[k] * x + B[k] * y + C[k] >= -eps[k];
+            if (!inside)
+                continue;
+            double z = 1.0 / (plane[0][0] * x + iz_y);
+            put(rw, x, y, t->patch, (float)((plane[1][0] * x + uz_y) * z), (float)((plane[2][0] * x + vz_y) * z),
+                t->zlo, (float)z);
         }
     }
 }
 
-void map_raster_rows(struct map *m, int y0, int y1)
+int map_raster_rows(const struct map *m, int y0, int y1, struct map_rows *rw)
 {
-    for (size_t k = (size_t)y0 * m->W * MAP_CANDS; k < (size_t)y1 * m->W * MAP_CANDS; k++)
-        m->cand[k] = (struct map_cand){-1, 0, 0, INFINITY, INFINITY};
-    for (size_t k = (size_t)y0 * m->W; k < (size_t)y1 * m->W; k++)
-        m->dropped[k] = INFINITY;
+    size_t n = (size_t)(y1 - y0) * m->W;
+    if (n > rw->cap) {
+        free(rw->cand);
+        free(rw->dropped);
+        rw->cand = malloc(sizeof *rw->cand * n * MAP_CANDS);
+        rw->dropped = malloc(sizeof *rw->dropped * n);
+        rw->cap = rw->cand && rw->dropped ? n : 0;
+        if (!rw->cap)
+            return SF_ENOMEM;
+    }
+    rw->y0 = y0, rw->y1 = y1, rw->W = m->W;
+    for (size_t k = 0; k < n * MAP_CANDS; k++)
+        rw->cand[k] = (struct map_cand){-1, 0, 0, INFINITY, INFINITY};
+    for (size_t k = 0; k < n; k++)
+        rw->dropped[k] = INFINITY;
     for (int tile = y0 / MAP_TILE_ROWS; tile * MAP_TILE_ROWS < y1; tile++) {
         int lo = tile * MAP_TILE_ROWS > y0 ? tile * MAP_TILE_ROWS : y0;
         int hi = (tile + 1) * MAP_TILE_ROWS < y1 ? (tile + 1) * MAP_TILE_ROWS : y1;
@@ -195,9 +201,17 @@ void map_raster_rows(struct map *m, int y0, int y1)
             tri_bbox(m, t, &x0, &x1, &ya, &yb);
             ya = ya < lo ? lo : ya;
             yb = yb > hi - 1 ? hi - 1 : yb;
-            (t->v[2] == EDGE ? raster_edge : raster_tri)(m, t, x0, x1, ya, yb);
+            (t->v[2] == EDGE ? raster_edge : raster_tri)(m, rw, t, x0, x1, ya, yb);
         }
     }
+    return 0;
+}
+
+void map_rows_free(struct map_rows *rw)
+{
+    free(rw->cand);
+    free(rw->dropped);
+    memset(rw, 0, sizeof *rw);
 }
 
 /* Tessellates patch pt for the camera and appends its screen vertices and triangles. */
@@ -318,10 +332,9 @@ int map_build(const struct patch *patches, size_t n, const struct camera *cam, s
 {
     *out = NULL;
     struct map *m = calloc(1, sizeof *m);
-    size_t np = (size_t)cam->W * cam->H, cap_v = 0, cap_t = 0;
+    size_t cap_v = 0, cap_t = 0;
     int n_tiles = (cam->H + MAP_TILE_ROWS - 1) / MAP_TILE_ROWS;
-    if (!m || np > MAP_MAX_PIXELS || !(m->cand = malloc(sizeof *m->cand * np * MAP_CANDS)) ||
-        !(m->dropped = malloc(sizeof *m->dropped * np)) || !(m->tile_first = calloc((size_t)n_tiles + 2, sizeof(unsigned))))
+    if (!m || !(m->tile_first = calloc((size_t)n_tiles + 2, sizeof(unsigned))))
         goto out_nomem;
     m->W = cam->W;
     m->H = cam->H;

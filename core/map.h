@@ -29,8 +29,6 @@ struct map_tri;
 
 struct map {
     int W, H;
-    struct map_cand *cand;   /* W*H*MAP_CANDS, sorted by zlo, distinct patches */
-    float *dropped;          /* W*H: least zlo of a candidate that did not fit (INFINITY: none) */
     bool complete;           /* false: some patch crosses the eye plane; trust no pixel */
     /* the projected tessellation, bucketed by tiles of MAP_TILE_ROWS rows */
     struct map_vert *verts;
@@ -42,15 +40,21 @@ struct map {
 
 #define MAP_TILE_ROWS 16
 
-/* The map covers at most this many pixels; larger frames trace primaries by the hierarchy. */
-#define MAP_MAX_PIXELS (24u << 20)
+/* The candidates of rows [y0, y1): a band's own buffer, reused from band to band. */
+struct map_rows {
+    int y0, y1, W;
+    struct map_cand *cand;   /* (y1-y0)*W*MAP_CANDS, sorted by zlo, distinct patches */
+    float *dropped;          /* (y1-y0)*W: least zlo of a candidate that did not fit (INFINITY: none) */
+    size_t cap;              /* pixels allocated */
+};
 
 /* Tessellates and projects the patches and buckets the triangles by row tiles; no pixel is
  * written yet. */
 int map_build(const struct patch *patches, size_t n, const struct camera *cam, struct map **out, struct sf_err *err);
-/* Fills the candidates of rows [y0, y1). Writes those rows only, so threads may fill disjoint
- * row ranges of one map at once. */
-void map_raster_rows(struct map *m, int y0, int y1);
+/* Fills rw (growing its buffers as needed) with the candidates of rows [y0, y1). The map is
+ * only read, so threads may fill their own rows from one map at once. 0 or SF_ENOMEM. */
+int map_raster_rows(const struct map *m, int y0, int y1, struct map_rows *rw);
+void map_rows_free(struct map_rows *rw);
 void map_free(struct map *m);
 
 #endif

@@ -183,7 +183,7 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
      * hierarchy alone is the faster (the heart's 19 014 patches at 500x400: 274 against 368 ms) */
     bool map_wanted = sc->method == METHOD_MAP ||
                       (sc->method == METHOD_AUTO && fr->ps.n * AUTO_MAP_PIXELS_PER_PATCH <= np);
-    if (!rc && map_wanted && np <= MAP_MAX_PIXELS)
+    if (!rc && map_wanted)
         rc = map_build(fr->ps.patches, fr->ps.n, &fr->cam, &fr->map, err);
     if (rc) {
         frame_free(fr);
@@ -235,13 +235,13 @@ static bool refine(const struct frame *fr, const struct map_cand *c, const struc
 /* Branch and bound over the pixel's candidates (nearest depth bound first): a candidate whose
  * bound lies behind the best root so far cannot hold a nearer one. Where the list overflowed
  * ahead of the root, or nothing converged, the exact hierarchy decides. */
-static bool primary_map(const struct frame *fr, size_t idx, const struct row_seed *rs, const struct dray *r,
-                        struct bvh_hit *hit, struct render_stats *st)
+static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_t at, const struct row_seed *rs,
+                        const struct dray *r, struct bvh_hit *hit, struct render_stats *st)
 {
-    const struct map_cand *c = &fr->map->cand[idx * MAP_CANDS];
+    const struct map_cand *c = &rw->cand[at * MAP_CANDS];
     const double zscale = v3_dot(r->d, fr->cam.f); /* camera depth per unit of t */
     bool found = false;
-    float undecided = fr->map->dropped[idx]; /* least bound of a candidate not resolved */
+    float undecided = rw->dropped[at]; /* least bound of a candidate not resolved */
     /* a root this far (relative) behind its seed's fragment lies on a farther sheet of the patch */
     const double sheet = SHEET_PX * 2.0 * fr->cam.th / fr->cam.H;
     for (int k = 0; k < MAP_CANDS && c[k].patch >= 0; k++) {
@@ -356,9 +356,10 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
     enum render_method method = sc->method;
     if ((method == METHOD_MAP || method == METHOD_AUTO) && (!fr->map || !fr->map->complete))
         method = METHOD_BVH; /* too large for a map, or the eye inside the scene's hull */
+    struct map_rows rw = {0};
+    if ((method == METHOD_MAP || method == METHOD_AUTO) && map_raster_rows(fr->map, y0, y1, &rw))
+        method = METHOD_BVH; /* no memory for the band's candidates: exact all the same */
     const bool use_map = method == METHOD_MAP || method == METHOD_AUTO;
-    if (use_map)
-        map_raster_rows(fr->map, y0, y1);
     uint64_t rng = 0x9E3779B97F4A7C15ull ^ (uint64_t)(y0 + 1) * 0xBF58476D1CE4E5B9ull;
     for (int y = y0; y < y1; y++) {
         struct row_seed rs = {.patch = -1};
@@ -369,13 +370,14 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
             struct bvh_hit hit;
             struct dray r;
             bool ok = false;
-            if (use_map && fr->map->cand[idx * MAP_CANDS].patch < 0) {
+            size_t at = idx - (size_t)y0 * W; /* in the band */
+            if (use_map && rw.cand[at * MAP_CANDS].patch < 0) {
                 /* background by the map: no ray to set up */
             } else {
                 solve_ray_init(&r, fr->cam.eye, camera_dir(&fr->cam, x, y));
                 switch (method) {
                 case METHOD_MAP:
-                case METHOD_AUTO: ok = primary_map(fr, idx, &rs, &r, &hit, st); break;
+                case METHOD_AUTO: ok = primary_map(fr, &rw, at, &rs, &r, &hit, st); break;
                 case METHOD_MONTECARLO: ok = primary_montecarlo(fr, &r, &rng, &hit, st); break;
                 case METHOD_MESH: ok = bvh_intersect(fr->mesh, &r, 0.0, INFINITY, &hit, &st->iterations); break;
                 default: ok = bvh_intersect(fr->exact, &r, 0.0, INFINITY, &hit, &st->iterations); break;
@@ -411,6 +413,7 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
             }
         }
     }
+    map_rows_free(&rw);
 }
 
 void frame_image(const struct frame *fr, struct frame_image *img)
