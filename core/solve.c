@@ -14,10 +14,12 @@ void solve_ray_init(struct dray *r, vec3 o, vec3 d)
 {
     r->o = o;
     r->d = v3_norm(d);
-    /* any unit vector perpendicular to d (Frisvad-style choice without a branch on sign) */
-    vec3 a = fabs(r->d.x) < 0.6 ? v3(1, 0, 0) : (fabs(r->d.y) < 0.6 ? v3(0, 1, 0) : v3(0, 0, 1));
-    r->e1 = v3_norm(v3_cross(r->d, a));
-    r->e2 = v3_cross(r->d, r->e1);
+    /* an orthonormal pair across d without a square root or a branch on the axis (Duff et al.,
+     * "Building an orthonormal basis, revisited", JCGT 2017) */
+    const vec3 n = r->d;
+    double sign = copysign(1.0, n.z), a = -1.0 / (sign + n.z), b = n.x * n.y * a;
+    r->e1 = v3(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    r->e2 = v3(b, sign + n.y * n.y * a, -n.y);
     r->e1o = v3_dot(r->e1, o);
     r->e2o = v3_dot(r->e2, o);
 }
