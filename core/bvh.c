@@ -421,8 +421,13 @@ static void clip_slab(vec3 n, double a, double b, const struct dray *r, double *
         return;
     }
     double ta = (a - no) / den, tb = (b - no) / den;
-    *t0 = fmax(*t0, fmin(ta, tb));
-    *t1 = fmin(*t1, fmax(ta, tb));
+    if (ta > tb) { /* comparisons, not fmin/fmax: those are calls into libm here */
+        double t = ta;
+        ta = tb;
+        tb = t;
+    }
+    *t0 = ta > *t0 ? ta : *t0;
+    *t1 = tb < *t1 ? tb : *t1;
 }
 
 /* True when the ray's part in (tnear, tmax) meets the leaf's box and its normal slab: a
