@@ -421,13 +421,8 @@ static void clip_slab(vec3 n, double a, double b, const struct dray *r, double *
         return;
     }
     double ta = (a - no) / den, tb = (b - no) / den;
-    if (ta > tb) { /* comparisons, not fmin/fmax: those are calls into libm here */
-        double t = ta;
-        ta = tb;
-        tb = t;
-    }
-    *t0 = ta > *t0 ? ta : *t0;
-    *t1 = tb < *t1 ? tb : *t1;
+    *t0 = dmax(*t0, dmin(ta, tb));
+    *t1 = dmin(*t1, dmax(ta, tb));
 }
 
 /* True when the ray's part in (tnear, tmax) meets the leaf's box and its normal slab: a

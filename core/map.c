@@ -91,10 +91,10 @@ static void tri_bbox(const struct map *m, const struct map_tri *t, int *x0, int 
 {
     const struct map_vert *a = &m->verts[t->v[0]], *b = &m->verts[t->v[1]];
     const struct map_vert *c = t->v[2] == EDGE ? b : &m->verts[t->v[2]];
-    *x0 = (int)floor(fmin(a->x, fmin(b->x, c->x)) - t->pad);
-    *x1 = (int)ceil(fmax(a->x, fmax(b->x, c->x)) + t->pad);
-    *y0 = (int)floor(fmin(a->y, fmin(b->y, c->y)) - t->pad);
-    *y1 = (int)ceil(fmax(a->y, fmax(b->y, c->y)) + t->pad);
+    *x0 = (int)floor(dmin(a->x, dmin(b->x, c->x)) - t->pad);
+    *x1 = (int)ceil(dmax(a->x, dmax(b->x, c->x)) + t->pad);
+    *y0 = (int)floor(dmin(a->y, dmin(b->y, c->y)) - t->pad);
+    *y1 = (int)ceil(dmax(a->y, dmax(b->y, c->y)) + t->pad);
     *x0 = *x0 < 0 ? 0 : *x0;
     *y0 = *y0 < 0 ? 0 : *y0;
     *x1 = *x1 > m->W - 1 ? m->W - 1 : *x1;
@@ -152,9 +152,9 @@ static void raster_tri(const struct map *m, struct map_rows *rw, const struct ma
         for (int k = 0; k < 3; k++) {
             double c = B[k] * y + C[k] + eps[k]; /* w_k + eps >= 0  <=>  A_k x >= -c */
             if (A[k] > 0)
-                lo = fmax(lo, -c / A[k]);
+                lo = dmax(lo, -c / A[k]);
             else if (A[k] < 0)
-                hi = fmin(hi, -c / A[k]);
+                hi = dmin(hi, -c / A[k]);
             else if (c < 0)
                 hi = -INFINITY;
         }

@@ -218,8 +218,8 @@ static bool refine(const struct frame *fr, const struct map_cand *c, const struc
     if (fr->sc->method == METHOD_AUTO) {
         double u = c->u, v = c->v;
         if (rs->patch == c->patch) {
-            u = fmin(1.0, fmax(0.0, rs->u + rs->du));
-            v = fmin(1.0, fmax(0.0, rs->v + rs->dv));
+            u = dmin(1.0, dmax(0.0, rs->u + rs->du));
+            v = dmin(1.0, dmax(0.0, rs->v + rs->dv));
         }
         ok = solve_newton_seeded(pt, r, u, v, &all, fr->tol2, h);
     } else {
@@ -343,7 +343,7 @@ static vec3 shade(const struct frame *fr, const struct dray *r, const struct bvh
                 continue;
         }
         vec3 H = v3_norm(v3_sub(L, r->d));
-        double spec = m->specular * pow(fmax(0.0, v3_dot(n, H)), m->shininess);
+        double spec = m->specular * pow(dmax(v3_dot(n, H), 0.0), m->shininess);
         c = v3_add(c, v3_mul(l->color, v3_add(v3_scale(m->color, ndl), v3(spec, spec, spec))));
     }
     return c;
