@@ -56,10 +56,10 @@ static void put(struct map_rows *rw, int x, int y, int patch, float u, float v, 
 {
     size_t idx = (size_t)(y - rw->y0) * rw->W + x;
     struct map_cand *c = &rw->cand[idx * MAP_CANDS];
-    int at = 0;
-    while (at < MAP_CANDS && c[at].patch >= 0 && c[at].patch != patch)
+    int n = rw->n[idx], at = 0;
+    while (at < n && c[at].patch != patch)
         at++;
-    if (at < MAP_CANDS && c[at].patch == patch) {
+    if (at < n) {
         if (zs < c[at].zs)
             c[at].u = u, c[at].v = v, c[at].zs = zs;
         if (!(zlo < c[at].zlo))
@@ -73,18 +73,18 @@ static void put(struct map_rows *rw, int x, int y, int patch, float u, float v, 
     }
     /* a new patch: insert in order, pushing the last one out if the list is full */
     int pos = 0;
-    while (pos < MAP_CANDS && c[pos].patch >= 0 && c[pos].zlo <= zlo)
+    while (pos < n && c[pos].zlo <= zlo)
         pos++;
     if (pos == MAP_CANDS) {
-        rw->dropped[idx] = fminf(rw->dropped[idx], zlo);
+        rw->dropped[idx] = dmin(rw->dropped[idx], zlo);
         return;
     }
-    int last = at < MAP_CANDS ? at : MAP_CANDS - 1; /* first free slot, or the evicted one */
-    if (at == MAP_CANDS)
-        rw->dropped[idx] = fminf(rw->dropped[idx], c[last].zlo);
-    for (int k = last; k > pos; k--)
+    if (n == MAP_CANDS) /* the last one goes */
+        rw->dropped[idx] = dmin(rw->dropped[idx], c[--n].zlo);
+    for (int k = n; k > pos; k--)
         c[k] = c[k - 1];
     c[pos] = (struct map_cand){patch, u, v, zlo, zs};
+    rw->n[idx] = (unsigned char)(n + 1);
 }
 
 static void tri_bbox(const struct map *m, const struct map_tri *t, int *x0, int *x1, int *y0, int *y1)
@@ -179,17 +179,16 @@ int map_raster_rows(const struct map *m, int y0, int y1, struct map_rows *rw)
 {
     size_t n = (size_t)(y1 - y0) * m->W;
     if (n > rw->cap) {
-        free(rw->cand);
-        free(rw->dropped);
+        map_rows_free(rw);
         rw->cand = malloc(sizeof *rw->cand * n * MAP_CANDS);
+        rw->n = malloc(n);
         rw->dropped = malloc(sizeof *rw->dropped * n);
-        rw->cap = rw->cand && rw->dropped ? n : 0;
+        rw->cap = rw->cand && rw->n && rw->dropped ? n : 0;
         if (!rw->cap)
             return SF_ENOMEM;
     }
     rw->y0 = y0, rw->y1 = y1, rw->W = m->W;
-    for (size_t k = 0; k < n * MAP_CANDS; k++)
-        rw->cand[k] = (struct map_cand){-1, 0, 0, INFINITY, INFINITY};
+    memset(rw->n, 0, n); /* the candidates themselves are read only up to each pixel's count */
     for (size_t k = 0; k < n; k++)
         rw->dropped[k] = INFINITY;
     for (int tile = y0 / MAP_TILE_ROWS; tile * MAP_TILE_ROWS < y1; tile++) {
@@ -210,6 +209,7 @@ int map_raster_rows(const struct map *m, int y0, int y1, struct map_rows *rw)
 void map_rows_free(struct map_rows *rw)
 {
     free(rw->cand);
+    free(rw->n);
     free(rw->dropped);
     memset(rw, 0, sizeof *rw);
 }

@@ -18,7 +18,7 @@
 #define MAP_CANDS 3 /* patches kept per pixel, nearest lower bound first */
 
 struct map_cand {
-    int patch;    /* -1: none */
+    int patch;
     float u, v;   /* seed in patch parameters */
     float zlo;    /* camera depth no root of this patch at this pixel can be in front of */
     float zs;     /* depth of the seed's fragment: a root much behind it is on another sheet */
@@ -43,7 +43,8 @@ struct map {
 /* The candidates of rows [y0, y1): a band's own buffer, reused from band to band. */
 struct map_rows {
     int y0, y1, W;
-    struct map_cand *cand;   /* (y1-y0)*W*MAP_CANDS, sorted by zlo, distinct patches */
+    struct map_cand *cand;   /* (y1-y0)*W*MAP_CANDS, the first n[pixel] sorted by zlo, distinct patches */
+    unsigned char *n;        /* (y1-y0)*W: candidates listed */
     float *dropped;          /* (y1-y0)*W: least zlo of a candidate that did not fit (INFINITY: none) */
     size_t cap;              /* pixels allocated */
 };

@@ -239,12 +239,13 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
                         const struct dray *r, struct bvh_hit *hit, struct render_stats *st)
 {
     const struct map_cand *c = &rw->cand[at * MAP_CANDS];
+    const int n = rw->n[at];
     const double zscale = v3_dot(r->d, fr->cam.f); /* camera depth per unit of t */
     bool found = false;
     float undecided = rw->dropped[at]; /* least bound of a candidate not resolved */
     /* a root this far (relative) behind its seed's fragment lies on a farther sheet of the patch */
     const double sheet = SHEET_PX * 2.0 * fr->cam.th / fr->cam.H;
-    for (int k = 0; k < MAP_CANDS && c[k].patch >= 0; k++) {
+    for (int k = 0; k < n; k++) {
         if (found && c[k].zlo > hit->t * zscale)
             break;
         struct solve_hit h;
@@ -371,7 +372,7 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
             struct dray r;
             bool ok = false;
             size_t at = idx - (size_t)y0 * W; /* in the band */
-            if (use_map && rw.cand[at * MAP_CANDS].patch < 0) {
+            if (use_map && !rw.n[at]) {
                 /* background by the map: no ray to set up */
             } else {
                 solve_ray_init(&r, fr->cam.eye, camera_dir(&fr->cam, x, y));
