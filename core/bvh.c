@@ -19,6 +19,10 @@
 
 #define LEAF_FLAT_REL 0.05  /* leaf is flat when its net deviates < 5 % of its size ...       */
 #define LEAF_MAX_DEPTH 14   /* ... or after this many splits; trades leaves for Newton starts */
+#define REGION_GROW 0.25    /* a leaf's neighbourhood: its box grown by this much of its size each way
+                             * (shadow rays leaving within it are tested by chords; a larger one
+                             * catches more origins but bounds its chords more loosely: 1.0 measured
+                             * 219 k shadow iterations on the teapot, 0.25 178 k) */
 
 struct bvh_device {
     RTCDevice dev;
@@ -39,7 +43,7 @@ struct leaf {
                               * hugs a leaf lying diagonally, as a sliver does, where the axes' does not */
     vec3 cone_axis;          /* every normal Pu × Pv of the leaf is within the cone of this axis ... */
     double cone_sin;         /* ... and half-angle asin(cone_sin); > 1: no cone (rational, or too wide) */
-    /* the leaf's neighbourhood in its patch (its parameter box grown by its own size each way): no
+    /* the leaf's neighbourhood in its patch (its parameter box grown by REGION_GROW each way): no
      * chord of that part of the surface is within asin(chord_sin) of the plane across chord_n */
     double ru0, ru1, rv0, rv1;
     vec3 chord_n;
@@ -296,8 +300,8 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
     normal_cone(sub, &l->cone_axis, &l->cone_sin);
     /* the neighbourhood's chord bound */
     const struct patch *pt = &b->patches[patch];
-    l->ru0 = fmax(0.0, 2 * u0 - u1), l->ru1 = fmin(1.0, 2 * u1 - u0);
-    l->rv0 = fmax(0.0, 2 * v0 - v1), l->rv1 = fmin(1.0, 2 * v1 - v0);
+    l->ru0 = fmax(0.0, u0 - REGION_GROW * (u1 - u0)), l->ru1 = fmin(1.0, u1 + REGION_GROW * (u1 - u0));
+    l->rv0 = fmax(0.0, v0 - REGION_GROW * (v1 - v0)), l->rv1 = fmin(1.0, v1 + REGION_GROW * (v1 - v0));
     size_t n_pts = (size_t)(pt->p + 1) * (pt->q + 1);
     double(*net)[4] = malloc(sizeof *net * 2 * n_pts);
     if (!net)
