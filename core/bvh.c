@@ -69,6 +69,8 @@ struct query {
     const struct bvh_origin *from; /* shadow rays: the surface point they leave, or NULL */
     double tnear;
     struct bvh_hit *hit;   /* NULL for occlusion queries */
+    const int *among;      /* intersection queries: only these patches (NULL: all) */
+    int n_among;
     double best_t;
     long iters;
     bool found;
@@ -481,7 +483,10 @@ static void leaf_intersect(const struct RTCIntersectFunctionNArguments *args)
     const struct bvh *b = args->geometryUserPtr;
     const struct leaf *l = &b->leaves[args->primID];
     struct solve_hit h;
-    if (!leaf_hit(b, l, qy->r, qy->tnear, qy->best_t, &h, &qy->iters))
+    int k = 0;
+    while (k < qy->n_among && qy->among[k] != l->patch)
+        k++;
+    if ((qy->among && k == qy->n_among) || !leaf_hit(b, l, qy->r, qy->tnear, qy->best_t, &h, &qy->iters))
         return;
     struct RTCRayHit *rh = (struct RTCRayHit *)args->rayhit;
     qy->best_t = h.t;
@@ -631,7 +636,13 @@ static void set_ray(struct RTCRay *ray, const struct dray *r, double tnear, doub
 bool bvh_intersect(const struct bvh *b, const struct dray *r, double tnear, double tfar, struct bvh_hit *hit,
                    long *iters)
 {
-    struct query qy = {.b = b, .r = r, .tnear = tnear, .hit = hit, .best_t = tfar};
+    return bvh_intersect_among(b, r, tnear, tfar, NULL, 0, hit, iters);
+}
+
+bool bvh_intersect_among(const struct bvh *b, const struct dray *r, double tnear, double tfar, const int *patches,
+                         int n, struct bvh_hit *hit, long *iters)
+{
+    struct query qy = {.b = b, .r = r, .tnear = tnear, .hit = hit, .among = patches, .n_among = n, .best_t = tfar};
     rtcInitIntersectContext(&qy.ctx);
     struct RTCRayHit rh;
     set_ray(&rh.ray, r, tnear, tfar);

@@ -39,6 +39,9 @@ size_t bvh_n_leaves(const struct bvh *b);
 /* Nearest hit with t in (tnear, tfar). *iters accumulates solver iterations. */
 bool bvh_intersect(const struct bvh *b, const struct dray *r, double tnear, double tfar, struct bvh_hit *hit,
                    long *iters);
+/* The same among the given patches only (n of them; the mesh ignores the list). */
+bool bvh_intersect_among(const struct bvh *b, const struct dray *r, double tnear, double tfar, const int *patches,
+                         int n, struct bvh_hit *hit, long *iters);
 /* Where a shadow ray leaves the surface: its own point needs no root search. */
 struct bvh_origin {
     int patch;

@@ -233,8 +233,9 @@ static bool refine(const struct frame *fr, const struct map_cand *c, const struc
 }
 
 /* Branch and bound over the pixel's candidates (nearest depth bound first): a candidate whose
- * bound lies behind the best root so far cannot hold a nearer one. Where the list overflowed
- * ahead of the root, or nothing converged, the exact hierarchy decides. */
+ * bound lies behind the best root so far cannot hold a nearer one. Where a candidate ahead of
+ * the root stays unresolved (no root found, or one on a farther sheet), the exact hierarchy
+ * searches it for a nearer root; where the list overflowed ahead of the root, it searches all. */
 static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_t at, const struct row_seed *rs,
                         const struct dray *r, struct bvh_hit *hit, struct render_stats *st)
 {
@@ -243,6 +244,7 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
     const double zscale = v3_dot(r->d, fr->cam.f); /* camera depth per unit of t */
     bool found = false;
     float undecided = rw->dropped[at]; /* least bound of a candidate not resolved */
+    int open[MAP_CANDS], n_open = 0;   /* the patches not resolved */
     /* a root this far (relative) behind its seed's fragment lies on a farther sheet of the patch */
     const double sheet = SHEET_PX * 2.0 * fr->cam.th / fr->cam.H;
     for (int k = 0; k < n; k++) {
@@ -250,23 +252,30 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
             break;
         struct solve_hit h;
         st->refinements++;
-        if (refine(fr, &c[k], rs, r, &h)) {
-            if (h.t * zscale > c[k].zs * (1.0 + sheet)) /* Newton went on to another sheet */
-                undecided = fminf(undecided, c[k].zlo);
-            if (!found || h.t < hit->t)
-                *hit = (struct bvh_hit){c[k].patch, h.u, h.v, h.t, v3_dot(h.n, h.n) > 0, h.n};
-            found = true;
-        } else {
-            undecided = fminf(undecided, c[k].zlo); /* no root, or none found: not proof of none */
-        }
+        bool ok = refine(fr, &c[k], rs, r, &h);
         st->iterations += h.iters;
+        if (ok && (!found || h.t < hit->t)) {
+            *hit = (struct bvh_hit){c[k].patch, h.u, h.v, h.t, v3_dot(h.n, h.n) > 0, h.n};
+            found = true;
+        }
+        if (!ok || h.t * zscale > c[k].zs * (1.0 + sheet)) { /* not proof of no nearer root */
+            undecided = dmin(undecided, c[k].zlo);
+            open[n_open++] = c[k].patch;
+        }
     }
     if (found && !(undecided <= hit->t * zscale))
         return true;
     st->misses++;
-    found = bvh_intersect(fr->exact, r, 0.0, INFINITY, hit, &st->iterations);
-    st->fallback_hits += found;
-    return found;
+    /* only a root in front of the one found matters */
+    struct bvh_hit h;
+    double tfar = found ? hit->t : INFINITY;
+    bool nearer = rw->dropped[at] < INFINITY && rw->dropped[at] <= tfar * zscale
+                      ? bvh_intersect(fr->exact, r, 0.0, tfar, &h, &st->iterations)
+                      : bvh_intersect_among(fr->exact, r, 0.0, tfar, open, n_open, &h, &st->iterations);
+    if (nearer)
+        *hit = h;
+    st->fallback_hits += nearer;
+    return found || nearer;
 }
 
 static bool ray_box(const struct dray *r, vec3 lo, vec3 hi)
