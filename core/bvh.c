@@ -66,7 +66,7 @@ struct query {
     struct RTCIntersectContext ctx;
     const struct bvh *b;
     const struct dray *r;
-    const struct bvh_origin *from; /* shadow rays: the surface point they leave, or NULL */
+    struct bvh_shadow *shadows;    /* occlusion queries: the rays, by Embree ray id */
     double tnear;
     struct bvh_hit *hit;   /* NULL for occlusion queries */
     const int *among;      /* intersection queries: only these patches (NULL: all) */
@@ -524,19 +524,27 @@ static bool leaves_its_neighbourhood(const struct leaf *l, const struct bvh_orig
            o->v >= l->rv0 && o->v <= l->rv1 && fabs(v3_dot(r->d, l->chord_n)) > l->chord_sin;
 }
 
+/* Any-hit callback: Embree may hand over a packet of rays (N lanes); each lane's double ray is
+ * the shadow request its id names. A packet is laid out field by field, N of each (as the
+ * RTCRayN_* accessors of rtcore_ray.h, which are C++ only): tfar is field 8, id field 10. */
+#define RAYN_TFAR(ray, N, i) (((float *)(ray))[8 * (N) + (i)])
+#define RAYN_ID(ray, N, i) (((unsigned *)(ray))[10 * (N) + (i)])
 static void leaf_occluded(const struct RTCOccludedFunctionNArguments *args)
 {
-    if (!args->valid[0])
-        return;
     struct query *qy = (struct query *)args->context;
     const struct bvh *b = args->geometryUserPtr;
     const struct leaf *l = &b->leaves[args->primID];
-    struct solve_hit h;
-    if (leaves_only_its_origin(l, qy->from, qy->r) || leaves_its_neighbourhood(l, qy->from, qy->r))
-        return;
-    if (leaf_hit(b, l, qy->r, qy->tnear, qy->best_t, &h, &qy->iters)) {
-        qy->found = true;
-        ((struct RTCRay *)args->ray)->tfar = -INFINITY;
+    for (unsigned i = 0; i < args->N; i++) {
+        if (!args->valid[i])
+            continue;
+        struct bvh_shadow *s = &qy->shadows[RAYN_ID(args->ray, args->N, i)];
+        struct solve_hit h;
+        if (s->blocked || leaves_only_its_origin(l, &s->from, &s->r) || leaves_its_neighbourhood(l, &s->from, &s->r))
+            continue;
+        if (leaf_hit(b, l, &s->r, s->tnear, s->tfar, &h, &qy->iters)) {
+            s->blocked = true;
+            RAYN_TFAR(args->ray, args->N, i) = -INFINITY;
+        }
     }
 }
 
@@ -669,15 +677,35 @@ bool bvh_intersect_among(const struct bvh *b, const struct dray *r, double tnear
     return true;
 }
 
+#define SHADOW_BATCH 64 /* rays handed to Embree at once */
+
+void bvh_occluded_many(const struct bvh *b, struct bvh_shadow *rays, size_t n, long *iters)
+{
+    struct query qy = {.b = b, .shadows = rays};
+    rtcInitIntersectContext(&qy.ctx);
+    qy.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT; /* neighbouring pixels' rays: packets pay */
+    for (size_t at = 0; at < n; at += SHADOW_BATCH) {
+        struct RTCRay batch[SHADOW_BATCH];
+        size_t m = n - at < SHADOW_BATCH ? n - at : SHADOW_BATCH;
+        for (size_t k = 0; k < m; k++) {
+            struct bvh_shadow *s = &rays[at + k];
+            s->blocked = false;
+            set_ray(&batch[k], &s->r, s->tnear, s->tfar);
+            batch[k].id = (unsigned)(at + k);
+        }
+        rtcOccluded1M(b->scene, &qy.ctx, batch, (unsigned)m, sizeof *batch);
+        if (b->mesh.tri)
+            for (size_t k = 0; k < m; k++)
+                rays[at + k].blocked = batch[k].tfar < 0.0f;
+    }
+    if (iters)
+        *iters += qy.iters;
+}
+
 bool bvh_occluded(const struct bvh *b, const struct dray *r, const struct bvh_origin *from, double tnear, double tfar,
                   long *iters)
 {
-    struct query qy = {.b = b, .r = r, .from = from, .tnear = tnear, .best_t = tfar};
-    rtcInitIntersectContext(&qy.ctx);
-    struct RTCRay ray;
-    set_ray(&ray, r, tnear, tfar);
-    rtcOccluded1(b->scene, &qy.ctx, &ray);
-    if (iters)
-        *iters += qy.iters;
-    return b->mesh.tri ? ray.tfar < 0.0f : qy.found;
+    struct bvh_shadow s = {.r = *r, .from = from ? *from : (struct bvh_origin){-1, 0, 0}, .tnear = tnear, .tfar = tfar};
+    bvh_occluded_many(b, &s, 1, iters);
+    return s.blocked;
 }

@@ -52,4 +52,15 @@ struct bvh_origin {
 bool bvh_occluded(const struct bvh *b, const struct dray *r, const struct bvh_origin *from, double tnear, double tfar,
                   long *iters);
 
+/* A shadow request: as bvh_occluded's arguments (from.patch -1: none), and its answer. */
+struct bvh_shadow {
+    struct dray r;
+    struct bvh_origin from;
+    double tnear, tfar;
+    bool blocked;
+};
+/* bvh_occluded for n rays at once: rays from neighbouring pixels go through Embree as coherent
+ * packets, which share the hierarchy's traversal. */
+void bvh_occluded_many(const struct bvh *b, struct bvh_shadow *rays, size_t n, long *iters);
+
 #endif

@@ -24,6 +24,7 @@
 #define MC_SAMPLES 64         /* eq. 3 sample count N */
 #define SHADOW_EPS 1e-7       /* shadow ray start offset, relative to the scene's size */
 #define SHEET_PX 2.0          /* pixels of depth between a seed's fragment and a root on its own sheet */
+#define SHADE_CHUNK 64        /* pixels of a row shaded together: their shadow rays go out at once */
 
 struct frame {
     const struct scene *sc;
@@ -332,44 +333,103 @@ static double spec_pow(double x, double e)
     return r;
 }
 
-static vec3 shade(const struct frame *fr, const struct dray *r, const struct bvh_hit *hit, vec3 *n_out,
-                  struct render_stats *st)
+/* A pixel of a chunk between its primary ray and its colour. */
+struct chunk_px {
+    bool ok;
+    struct bvh_hit hit;
+    struct dray r;
+    vec3 n;       /* unit normal, facing the viewer */
+    vec3 c;       /* colour so far */
+};
+
+/* Diffuse and specular light of l (arriving along unit L, n·L = ndl > 0) at a pixel. */
+static vec3 light_term(const struct material *m, const struct light *l, const struct chunk_px *p, vec3 L, double ndl)
 {
-    const struct patch *pt = &fr->ps.patches[hit->patch];
-    const struct material *m = &fr->sc->objects[pt->surface].mat;
-    vec3 P = v3_mad(r->o, r->d, hit->t), n = v3(0, 0, 1);
-    if (hit->has_normal)
-        n = hit->normal;
-    else
-        bezier_normal(pt, hit->u, hit->v, &n);
-    if (v3_dot(n, r->d) > 0) /* two-sided: face the viewer */
-        n = v3_scale(n, -1.0);
-    *n_out = n;
+    vec3 H = v3_norm(v3_sub(L, p->r.d));
+    double spec = m->specular * spec_pow(dmax(v3_dot(p->n, H), 0.0), m->shininess);
+    return v3_mul(l->color, v3_add(v3_scale(m->color, ndl), v3(spec, spec, spec)));
+}
+
+static const struct material *material_of(const struct frame *fr, const struct chunk_px *p)
+{
+    return &fr->sc->objects[fr->ps.patches[p->hit.patch].surface].mat;
+}
+
+/* Blinn–Phong with shadow rays for the m pixels of px: each light's shadow rays of the chunk go
+ * to the hierarchy together (neighbouring pixels' rays: Embree traces them as packets). */
+static void shade_chunk(const struct frame *fr, struct chunk_px *px, int m, struct render_stats *st)
+{
     const struct bvh *occ = fr->mesh ? fr->mesh : fr->exact;
-    vec3 c = v3_scale(m->color, AMBIENT);
-    vec3 origin = v3_mad(P, n, SHADOW_EPS * fr->diag);
+    struct bvh_shadow req[SHADE_CHUNK];
+    int who[SHADE_CHUNK];
+    for (int j = 0; j < m; j++) {
+        struct chunk_px *p = &px[j];
+        if (!p->ok)
+            continue;
+        const struct patch *pt = &fr->ps.patches[p->hit.patch];
+        p->n = v3(0, 0, 1);
+        if (p->hit.has_normal)
+            p->n = p->hit.normal;
+        else
+            bezier_normal(pt, p->hit.u, p->hit.v, &p->n);
+        if (v3_dot(p->n, p->r.d) > 0) /* two-sided: face the viewer */
+            p->n = v3_scale(p->n, -1.0);
+        p->c = v3_scale(material_of(fr, p)->color, AMBIENT);
+    }
     for (int k = 0; k < fr->n_lights; k++) {
         const struct light *l = &fr->lights[k];
-        vec3 L = l->point ? v3_sub(l->v, P) : v3_scale(l->v, -1.0);
-        double dist = l->point ? v3_len(L) : INFINITY;
-        L = v3_norm(L);
-        double ndl = v3_dot(n, L);
-        if (ndl <= 0)
-            continue;
-        if (fr->sc->shadows && !l->no_shadow) {
-            struct dray sr;
-            solve_ray_init(&sr, origin, L);
-            st->rays++;
-            st->shadow++;
-            const struct bvh_origin from = {hit->patch, hit->u, hit->v};
-            if (bvh_occluded(occ, &sr, &from, 0.0, dist, &st->shadow_iterations))
+        bool shadows = fr->sc->shadows && !l->no_shadow;
+        int n_req = 0;
+        for (int j = 0; j < m; j++) {
+            struct chunk_px *p = &px[j];
+            if (!p->ok)
                 continue;
+            vec3 P = v3_mad(p->r.o, p->r.d, p->hit.t);
+            vec3 L = l->point ? v3_sub(l->v, P) : v3_scale(l->v, -1.0);
+            double dist = l->point ? v3_len(L) : INFINITY, ndl = v3_dot(p->n, L = v3_norm(L));
+            if (ndl <= 0)
+                continue;
+            if (!shadows) {
+                p->c = v3_add(p->c, light_term(material_of(fr, p), l, p, L, ndl));
+                continue;
+            }
+            struct bvh_shadow *q = &req[n_req];
+            solve_ray_init(&q->r, v3_mad(P, p->n, SHADOW_EPS * fr->diag), L);
+            q->from = (struct bvh_origin){p->hit.patch, p->hit.u, p->hit.v};
+            q->tnear = 0.0, q->tfar = dist;
+            who[n_req++] = j;
         }
-        vec3 H = v3_norm(v3_sub(L, r->d));
-        double spec = m->specular * spec_pow(dmax(v3_dot(n, H), 0.0), m->shininess);
-        c = v3_add(c, v3_mul(l->color, v3_add(v3_scale(m->color, ndl), v3(spec, spec, spec))));
+        st->rays += n_req;
+        st->shadow += n_req;
+        bvh_occluded_many(occ, req, (size_t)n_req, &st->shadow_iterations);
+        for (int i = 0; i < n_req; i++)
+            if (!req[i].blocked) {
+                struct chunk_px *p = &px[who[i]];
+                p->c = v3_add(p->c, light_term(material_of(fr, p), l, p, req[i].r.d, v3_dot(p->n, req[i].r.d)));
+            }
     }
-    return c;
+}
+
+/* Writes pixel (x, y) of the frame's buffers. */
+static void put_pixel(struct frame *fr, int x, int y, const struct chunk_px *p)
+{
+    const struct scene *sc = fr->sc;
+    size_t idx = (size_t)y * sc->width + x;
+    float *px = &fr->rgba[4 * idx];
+    vec3 c = p->ok ? p->c : sc->background, n = p->ok ? p->n : v3(0, 0, 0);
+    px[0] = (float)c.x, px[1] = (float)c.y, px[2] = (float)c.z, px[3] = p->ok ? 1.0f : 0.0f;
+    fr->depth[idx] = p->ok ? (float)p->hit.t : INFINITY;
+    if (fr->normal)
+        fr->normal[3 * idx] = (float)n.x, fr->normal[3 * idx + 1] = (float)n.y, fr->normal[3 * idx + 2] = (float)n.z;
+    if (fr->uv || fr->id) {
+        const struct patch *pt = p->ok ? &fr->ps.patches[p->hit.patch] : NULL;
+        if (fr->uv) {
+            fr->uv[2 * idx] = p->ok ? (float)(pt->u0 + p->hit.u * (pt->u1 - pt->u0)) : 0.0f;
+            fr->uv[2 * idx + 1] = p->ok ? (float)(pt->v0 + p->hit.v * (pt->v1 - pt->v0)) : 0.0f;
+        }
+        if (fr->id)
+            fr->id[idx] = p->ok ? (float)pt->surface : -1.0f;
+    }
 }
 
 void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
@@ -384,56 +444,42 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
         method = METHOD_BVH; /* no memory for the band's candidates: exact all the same */
     const bool use_map = method == METHOD_MAP || method == METHOD_AUTO;
     uint64_t rng = 0x9E3779B97F4A7C15ull ^ (uint64_t)(y0 + 1) * 0xBF58476D1CE4E5B9ull;
+    struct chunk_px px[SHADE_CHUNK];
     for (int y = y0; y < y1; y++) {
         struct row_seed rs = {.patch = -1};
-        for (int x = 0; x < W; x++) {
-            size_t idx = (size_t)y * W + x;
-            st->rays++;
-            st->primary++;
-            struct bvh_hit hit;
-            struct dray r;
-            bool ok = false;
-            size_t at = idx - (size_t)y0 * W; /* in the band */
-            if (use_map && !rw.n[at]) {
-                /* background by the map: no ray to set up */
-            } else {
-                solve_ray_init(&r, fr->cam.eye, camera_dir(&fr->cam, x, y));
+        for (int x0 = 0; x0 < W; x0 += SHADE_CHUNK) {
+            int m = W - x0 < SHADE_CHUNK ? W - x0 : SHADE_CHUNK;
+            for (int j = 0; j < m; j++) {
+                struct chunk_px *p = &px[j];
+                size_t at = (size_t)(y - y0) * W + (size_t)(x0 + j); /* in the band */
+                st->rays++;
+                st->primary++;
+                p->ok = false;
+                if (use_map && !rw.n[at]) { /* background by the map: no ray to set up */
+                    rs.patch = -1;
+                    continue;
+                }
+                solve_ray_init(&p->r, fr->cam.eye, camera_dir(&fr->cam, x0 + j, y));
                 switch (method) {
                 case METHOD_MAP:
-                case METHOD_AUTO: ok = primary_map(fr, &rw, at, &rs, &r, &hit, st); break;
-                case METHOD_MONTECARLO: ok = primary_montecarlo(fr, &r, &rng, &hit, st); break;
-                case METHOD_MESH: ok = bvh_intersect(fr->mesh, &r, 0.0, INFINITY, &hit, &st->iterations); break;
-                default: ok = bvh_intersect(fr->exact, &r, 0.0, INFINITY, &hit, &st->iterations); break;
+                case METHOD_AUTO: p->ok = primary_map(fr, &rw, at, &rs, &p->r, &p->hit, st); break;
+                case METHOD_MONTECARLO: p->ok = primary_montecarlo(fr, &p->r, &rng, &p->hit, st); break;
+                case METHOD_MESH:
+                    p->ok = bvh_intersect(fr->mesh, &p->r, 0.0, INFINITY, &p->hit, &st->iterations);
+                    break;
+                default: p->ok = bvh_intersect(fr->exact, &p->r, 0.0, INFINITY, &p->hit, &st->iterations); break;
                 }
+                if (!p->ok)
+                    rs.patch = -1;
+                else if (p->hit.patch == rs.patch)
+                    rs = (struct row_seed){p->hit.patch, p->hit.u, p->hit.v, p->hit.u - rs.u, p->hit.v - rs.v};
+                else
+                    rs = (struct row_seed){p->hit.patch, p->hit.u, p->hit.v, 0.0, 0.0};
+                st->hits += p->ok;
             }
-            float *px = &fr->rgba[4 * idx];
-            vec3 n = v3(0, 0, 0);
-            if (ok && hit.patch == rs.patch)
-                rs = (struct row_seed){hit.patch, hit.u, hit.v, hit.u - rs.u, hit.v - rs.v};
-            else
-                rs = (struct row_seed){ok ? hit.patch : -1, hit.u, hit.v, 0.0, 0.0};
-            if (ok) {
-                st->hits++;
-                vec3 c = shade(fr, &r, &hit, &n, st);
-                px[0] = (float)c.x, px[1] = (float)c.y, px[2] = (float)c.z, px[3] = 1.0f;
-                fr->depth[idx] = (float)hit.t;
-            } else {
-                px[0] = (float)sc->background.x, px[1] = (float)sc->background.y, px[2] = (float)sc->background.z;
-                px[3] = 0.0f;
-                fr->depth[idx] = INFINITY;
-            }
-            if (fr->normal)
-                fr->normal[3 * idx] = (float)n.x, fr->normal[3 * idx + 1] = (float)n.y,
-                fr->normal[3 * idx + 2] = (float)n.z;
-            if (fr->uv || fr->id) {
-                const struct patch *pt = ok ? &fr->ps.patches[hit.patch] : NULL;
-                if (fr->uv) {
-                    fr->uv[2 * idx] = ok ? (float)(pt->u0 + hit.u * (pt->u1 - pt->u0)) : 0.0f;
-                    fr->uv[2 * idx + 1] = ok ? (float)(pt->v0 + hit.v * (pt->v1 - pt->v0)) : 0.0f;
-                }
-                if (fr->id)
-                    fr->id[idx] = ok ? (float)pt->surface : -1.0f;
-            }
+            shade_chunk(fr, px, m, st);
+            for (int j = 0; j < m; j++)
+                put_pixel(fr, x0 + j, y, &px[j]);
         }
     }
     map_rows_free(&rw);
