@@ -33,7 +33,8 @@ struct leaf {
     double u0, u1, v0, v1;  /* parameter box in the patch */
     vec3 lo, hi;            /* control hull box */
     vec3 c00, c10, c01, c11; /* corner points: the Newton seed comes from them */
-    vec3 n;                  /* unit normal of the corner quad */
+    vec3 n;                  /* unit normal of the corner quad (zero where the corners are degenerate) */
+    bool has_axes;           /* n is a unit vector, and e, d0, d1, e0, e1 are set */
     double slack;            /* how far off the corner quad a root may lie (world units): the net's
                               * deviation from the bilinear plus the bilinear's twist */
     double alt[2][3];        /* altitudes of the corner triangles (c00 c10 c11) and (c00 c11 c01) */
@@ -265,9 +266,10 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
     l->c11 = bezier_point(sub, sub->p, sub->q);
     vec3 d1 = v3_sub(l->c11, l->c00), d2 = v3_sub(l->c01, l->c10);
     l->n = v3_norm(v3_cross(d1, d2));
+    l->has_axes = v3_len(l->n) > 0.5;
     double size = fmax(v3_len(d1), v3_len(d2));
     vec3 twist = v3_sub(v3_add(l->c00, l->c11), v3_add(l->c10, l->c01));
-    l->slack = v3_len(l->n) > 0.5 ? dev + 0.25 * v3_len(twist) : INFINITY;
+    l->slack = l->has_axes ? dev + 0.25 * v3_len(twist) : INFINITY;
     const vec3 tri[2][3] = {{l->c00, l->c10, l->c11}, {l->c00, l->c11, l->c01}};
     for (int k = 0; k < 2; k++) { /* altitude of vertex i: twice the area over the opposite edge */
         double area2 = v3_len(v3_cross(v3_sub(tri[k][1], tri[k][0]), v3_sub(tri[k][2], tri[k][0])));
@@ -436,14 +438,19 @@ static void clip_slab(vec3 n, double a, double b, const struct dray *r, double *
 static bool leaf_reachable(const struct leaf *l, const struct dray *r, double tnear, double tmax)
 {
     double t0 = tnear, t1 = tmax;
-    if (v3_len(l->n) > 0.5) { /* the control points' box along the leaf's own axes */
+    clip_slab(v3(1, 0, 0), l->lo.x, l->hi.x, r, &t0, &t1);
+    clip_slab(v3(0, 1, 0), l->lo.y, l->hi.y, r, &t0, &t1);
+    clip_slab(v3(0, 0, 1), l->lo.z, l->hi.z, r, &t0, &t1);
+    /* the leaf's own axes can only narrow [t0, t1] further, and the slack of the last test is at
+     * most about 2e-9 of the larger end: a gap wider than that is final (most rays Embree hands
+     * over in a packet miss the box) */
+    if (t0 - t1 > 3e-9 * (dmax(fabs(t0), fabs(t1)) + 1.0))
+        return false;
+    if (l->has_axes) { /* the control points' box along the leaf's own axes */
         clip_slab(l->n, l->d0, l->d1, r, &t0, &t1);
         clip_slab(l->e[0], l->e0[0], l->e1[0], r, &t0, &t1);
         clip_slab(l->e[1], l->e0[1], l->e1[1], r, &t0, &t1);
     }
-    clip_slab(v3(1, 0, 0), l->lo.x, l->hi.x, r, &t0, &t1);
-    clip_slab(v3(0, 1, 0), l->lo.y, l->hi.y, r, &t0, &t1);
-    clip_slab(v3(0, 0, 1), l->lo.z, l->hi.z, r, &t0, &t1);
     double eps = 1e-9 * (fabs(t0) + fabs(t1) + 1.0);
     return t0 <= t1 + eps;
 }
