@@ -90,11 +90,19 @@ static bool newton_cramer(const struct patch *pt, const struct dray *r, double u
     for (int it = 0; it < SOLVE_MAX_NEWTON; it++) {
         project(pt, r, u, v, &p);
         hit->iters++;
-        double res2 = (p.x * p.x + p.y * p.y) / (p.w * p.w);
-        /* eq. 12–13 with the ray's projection at the origin of the plane: (x_R, y_R) = (0, 0) */
-        double M = det3(p.x, p.xu, p.xv, p.y, p.yu, p.yv, p.w, p.wu, p.wv);
-        double Mu = det3(p.x, 0.0, p.xv, p.y, 0.0, p.yv, p.w, 1.0, p.wv);
-        double Mv = det3(p.x, p.xu, 0.0, p.y, p.yu, 0.0, p.w, p.wu, 1.0);
+        double res2, M, Mu, Mv;
+        if (pt->rational) {
+            res2 = (p.x * p.x + p.y * p.y) / (p.w * p.w);
+            /* eq. 12–13 with the ray's projection at the origin of the plane: (x_R, y_R) = (0, 0) */
+            M = det3(p.x, p.xu, p.xv, p.y, p.yu, p.yv, p.w, p.wu, p.wv);
+            Mu = det3(p.x, 0.0, p.xv, p.y, 0.0, p.yv, p.w, 1.0, p.wv);
+            Mv = det3(p.x, p.xu, 0.0, p.y, p.yu, 0.0, p.w, p.wu, 1.0);
+        } else { /* the same with w = 1, wu = wv = 0 */
+            res2 = p.x * p.x + p.y * p.y;
+            M = p.xu * p.yv - p.xv * p.yu;
+            Mu = p.xv * p.y - p.x * p.yv;
+            Mv = p.x * p.yu - p.xu * p.y;
+        }
         if (M == 0.0 || !isfinite(M))
             return res2 <= tol2 && accept(r, box, u, v, &p, hit);
         double du = p.w / M * Mu, dv = p.w / M * Mv; /* eq. 11 */
