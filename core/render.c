@@ -380,6 +380,8 @@ static void shade_chunk(const struct frame *fr, struct chunk_px *px, int m, stru
         const struct light *l = &fr->lights[k];
         bool shadows = fr->sc->shadows && !l->no_shadow;
         int n_req = 0;
+        struct dray toward;
+        solve_ray_init(&toward, v3(0, 0, 0), v3_scale(l->v, -1.0));
         for (int j = 0; j < m; j++) {
             struct chunk_px *p = &px[j];
             if (!p->ok)
@@ -394,7 +396,11 @@ static void shade_chunk(const struct frame *fr, struct chunk_px *px, int m, stru
                 continue;
             }
             struct bvh_shadow *q = &req[n_req];
-            solve_ray_init(&q->r, v3_mad(P, p->n, SHADOW_EPS * fr->diag), L);
+            vec3 o = v3_mad(P, p->n, SHADOW_EPS * fr->diag);
+            if (l->point)
+                solve_ray_init(&q->r, o, L);
+            else /* every ray toward a directional light shares its direction and planes */
+                solve_ray_parallel(&q->r, o, &toward);
             q->from = (struct bvh_origin){p->hit.patch, p->hit.u, p->hit.v};
             q->tnear = 0.0, q->tfar = dist;
             who[n_req++] = j;

@@ -24,6 +24,14 @@ void solve_ray_init(struct dray *r, vec3 o, vec3 d)
     r->e2o = v3_dot(r->e2, o);
 }
 
+void solve_ray_parallel(struct dray *r, vec3 o, const struct dray *like)
+{
+    *r = *like;
+    r->o = o;
+    r->e1o = v3_dot(r->e1, o);
+    r->e2o = v3_dot(r->e2, o);
+}
+
 /* Projected homogeneous values: x* = e1·S - (e1·o) w and y* likewise, with derivatives. */
 struct proj {
     double x, y, w;    /* x*, y*, w */

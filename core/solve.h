@@ -39,6 +39,8 @@ struct solve_hit {
 #define SOLVE_BOX_EPS 1e-9      /* slack of the accepted box, so no root slips between leaves */
 
 void solve_ray_init(struct dray *r, vec3 o, vec3 d);
+/* The ray from o along like's direction (and like's planes): for many parallel rays. */
+void solve_ray_parallel(struct dray *r, vec3 o, const struct dray *like);
 
 /* Newton's method on the projected homogeneous system, step by Cramer's rule (seed 000
  * eq. 10–13). tol2 is the squared residual accepted as a root (distance² from the ray). */
