@@ -136,16 +136,22 @@ static void normal_cone(const struct patch *pt, vec3 *axis, double *sin_half)
     for (int m = 0; m <= M; m++)
         for (int n = 0; n <= N; n++)
             C[m][n] = v3(0, 0, 0);
-    for (int i = 0; i < p; i++)           /* Pu net: p (P[i+1][j] - P[i][j]), degree (p-1, q) */
+    /* Pu net: p (P[i+1][j] - P[i][j]), degree (p-1, q); Pv net: q (P[k][l+1] - P[k][l]), degree (p, q-1) */
+    vec3 du[PATCH_MAX_DEGREE][PATCH_MAX_DEGREE + 1], dv[PATCH_MAX_DEGREE + 1][PATCH_MAX_DEGREE];
+    for (int i = 0; i <= p; i++)
         for (int j = 0; j <= q; j++) {
-            vec3 a = v3_scale(v3_sub(bezier_point(pt, i + 1, j), bezier_point(pt, i, j)), p);
-            for (int k = 0; k <= p; k++)  /* Pv net: q (P[k][l+1] - P[k][l]), degree (p, q-1) */
-                for (int l = 0; l < q; l++) {
-                    vec3 b = v3_scale(v3_sub(bezier_point(pt, k, l + 1), bezier_point(pt, k, l)), q);
-                    double w = bin[p - 1][i] * bin[p][k] / bin[M][i + k] * bin[q][j] * bin[q - 1][l] / bin[N][j + l];
-                    C[i + k][j + l] = v3_add(C[i + k][j + l], v3_scale(v3_cross(a, b), w));
-                }
+            if (i < p)
+                du[i][j] = v3_scale(v3_sub(bezier_point(pt, i + 1, j), bezier_point(pt, i, j)), p);
+            if (j < q)
+                dv[i][j] = v3_scale(v3_sub(bezier_point(pt, i, j + 1), bezier_point(pt, i, j)), q);
         }
+    for (int i = 0; i < p; i++)
+        for (int j = 0; j <= q; j++)
+            for (int k = 0; k <= p; k++)
+                for (int l = 0; l < q; l++) {
+                    double w = bin[p - 1][i] * bin[p][k] / bin[M][i + k] * bin[q][j] * bin[q - 1][l] / bin[N][j + l];
+                    C[i + k][j + l] = v3_add(C[i + k][j + l], v3_scale(v3_cross(du[i][j], dv[k][l]), w));
+                }
     vec3 sum = v3(0, 0, 0);
     for (int m = 0; m <= M; m++)
         for (int n = 0; n <= N; n++)
