@@ -267,12 +267,13 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
     if (found && !(undecided <= hit->t * zscale))
         return true;
     st->misses++;
-    /* only a root in front of the one found matters */
+    /* only a root in front of the one found matters, and none lies in front of the least depth
+     * bound left open (less a margin for the bound's float rounding): a short stretch of ray */
     struct bvh_hit h;
-    double tfar = found ? hit->t : INFINITY;
+    double tfar = found ? hit->t : INFINITY, tnear = dmax(0.0, undecided / zscale * (1.0 - 1e-6));
     bool nearer = rw->dropped[at] < INFINITY && rw->dropped[at] <= tfar * zscale
-                      ? bvh_intersect(fr->exact, r, 0.0, tfar, &h, &st->iterations)
-                      : bvh_intersect_among(fr->exact, r, 0.0, tfar, open, n_open, &h, &st->iterations);
+                      ? bvh_intersect(fr->exact, r, tnear, tfar, &h, &st->iterations)
+                      : bvh_intersect_among(fr->exact, r, tnear, tfar, open, n_open, &h, &st->iterations);
     if (nearer)
         *hit = h;
     st->fallback_hits += nearer;
