@@ -19,6 +19,8 @@
 
 #define LEAF_FLAT_REL 0.05  /* leaf is flat when its net deviates < 5 % of its size ...       */
 #define LEAF_MAX_DEPTH 14   /* ... or after this many splits; trades leaves for Newton starts */
+#define LEAF_GRAZING 0.25   /* |cos| of a ray's angle to a leaf's normal below which it grazes the leaf */
+#define LEAF_SPLIT_DEPTH 4  /* ... and intersection queries search its quarters, this many levels deep */
 #define REGION_GROW 0.25    /* a leaf's neighbourhood: its box grown by this much of its size each way
                              * (shadow rays leaving within it are tested by chords; a larger one
                              * catches more origins but bounds its chords more loosely: 1.0 measured
@@ -257,12 +259,11 @@ static void sub_net(const struct patch *pt, double u0, double u1, double v0, dou
     bezier_split_v(&b, v0 / v1, tmp, out);        /* out: [u0, u1] x [v0, v1] */
 }
 
-static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
-                    double dev)
+/* The bounds of sub-patch sub (the part [u0, u1] x [v0, v1] of patch `patch`, its net deviating
+ * dev from the bilinear through its corners) that a ray query needs. */
+static void leaf_fill(struct leaf *l, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
+                      double dev)
 {
-    if (mem_reserve((void **)&b->leaves, &b->cap_leaves, b->n_leaves + 1, sizeof *b->leaves))
-        return SF_ENOMEM;
-    struct leaf *l = &b->leaves[b->n_leaves++];
     l->patch = patch;
     l->u0 = u0, l->u1 = u1, l->v0 = v0, l->v1 = v1;
     bezier_bounds(sub, &l->lo, &l->hi);
@@ -307,6 +308,15 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
         double pk = 1e-9 * (size + fabs(l->e0[k]) + fabs(l->e1[k]));
         l->e0[k] -= pk, l->e1[k] += pk;
     }
+}
+
+static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
+                    double dev)
+{
+    if (mem_reserve((void **)&b->leaves, &b->cap_leaves, b->n_leaves + 1, sizeof *b->leaves))
+        return SF_ENOMEM;
+    struct leaf *l = &b->leaves[b->n_leaves++];
+    leaf_fill(l, sub, patch, u0, u1, v0, v1, dev);
     normal_cone(sub, &l->cone_axis, &l->cone_sin);
     /* the neighbourhood's chord bound */
     const struct patch *pt = &b->patches[patch];
@@ -461,9 +471,11 @@ static bool leaf_reachable(const struct leaf *l, const struct dray *r, double tn
     return t0 <= t1 + eps;
 }
 
-/* The root of the ray in leaf l with t in (tnear, tmax), or false. */
-static bool leaf_hit(const struct bvh *b, const struct leaf *l, const struct dray *r, double tnear, double tmax,
-                     struct solve_hit *h, long *iters)
+/* The root of the ray in leaf l with t in (tnear, tmax), or false. depth >= 0 (intersection
+ * queries): where the ray grazes the leaf, Newton may miss a root or find the farther of two, so
+ * the leaf's quarters are searched afresh for one in front, down to LEAF_SPLIT_DEPTH levels. */
+static bool leaf_search(const struct bvh *b, const struct leaf *l, const struct dray *r, double tnear, double tmax,
+                        int depth, struct solve_hit *h, long *iters)
 {
     if (!leaf_reachable(l, r, tnear, tmax))
         return false;
@@ -485,7 +497,40 @@ static bool leaf_hit(const struct bvh *b, const struct leaf *l, const struct dra
         ok = solve_newton_cramer(pt, r, 0.5 * (l->u0 + l->u1), 0.5 * (l->v0 + l->v1), &box, b->tol2, h);
         *iters += h->iters;
     }
-    return ok && h->t > tnear && h->t < tmax;
+    bool found = ok && h->t > tnear && h->t < tmax;
+    if (depth < 0 || depth >= LEAF_SPLIT_DEPTH || !(cosang < LEAF_GRAZING))
+        return found;
+    size_t n_pts = (size_t)(pt->p + 1) * (pt->q + 1);
+    double(*net)[4] = malloc(sizeof *net * 2 * n_pts);
+    if (!net)
+        return found;
+    double um = 0.5 * (l->u0 + l->u1), vm = 0.5 * (l->v0 + l->v1);
+    for (int q = 0; q < 4; q++) {
+        double a0 = q & 1 ? um : l->u0, a1 = q & 1 ? l->u1 : um, b0 = q & 2 ? vm : l->v0, b1 = q & 2 ? l->v1 : vm;
+        struct patch sub = *pt;
+        sub.cw = net;
+        sub_net(pt, a0, a1, b0, b1, net, net + n_pts);
+        struct leaf quarter;
+        bezier_bounds(&sub, &quarter.lo, &quarter.hi);
+        quarter.has_axes = false; /* the box alone first: most quarters are missed */
+        if (!leaf_reachable(&quarter, r, tnear, found ? h->t : tmax))
+            continue;
+        double cu, cv;
+        leaf_fill(&quarter, &sub, l->patch, a0, a1, b0, b1, net_deviation(&sub, &cu, &cv));
+        struct solve_hit qh;
+        if (leaf_search(b, &quarter, r, tnear, found ? h->t : tmax, depth + 1, &qh, iters)) {
+            *h = qh;
+            found = true;
+        }
+    }
+    free(net);
+    return found;
+}
+
+static bool leaf_hit(const struct bvh *b, const struct leaf *l, const struct dray *r, double tnear, double tmax,
+                     struct solve_hit *h, long *iters)
+{
+    return leaf_search(b, l, r, tnear, tmax, -1, h, iters);
 }
 
 static void leaf_intersect(const struct RTCIntersectFunctionNArguments *args)
@@ -499,7 +544,7 @@ static void leaf_intersect(const struct RTCIntersectFunctionNArguments *args)
     int k = 0;
     while (k < qy->n_among && qy->among[k] != l->patch)
         k++;
-    if ((qy->among && k == qy->n_among) || !leaf_hit(b, l, qy->r, qy->tnear, qy->best_t, &h, &qy->iters))
+    if ((qy->among && k == qy->n_among) || !leaf_search(b, l, qy->r, qy->tnear, qy->best_t, 0, &h, &qy->iters))
         return;
     struct RTCRayHit *rh = (struct RTCRayHit *)args->rayhit;
     qy->best_t = h.t;

@@ -4,10 +4,11 @@
  * half a pixel. Its triangles mark the pixel centres they cover (no padding: the triangles of a
  * patch tile its image, so only the outline of that image can be off the true one); the
  * outline - the grid's border and every fold, where two neighbouring triangles face opposite
- * ways on screen - is then widened by PAD pixels (capsules around those edges), so the true
- * silhouette, at most half a pixel away, always has a seed. Seeds take the perspective-correct
- * attributes of the covering triangle, or of the nearest point of the outline edge. Written by
- * hand: no library rasterises with these guarantees, and the rows are filled by bands. */
+ * ways on screen - is then widened by the chord error as the projection may stretch it
+ * (capsules around those edges), so the true silhouette always has a seed. Seeds take the
+ * perspective-correct attributes of the covering triangle, or of the nearest point of the
+ * outline edge. Written by hand: no library rasterises with these guarantees, and the rows are
+ * filled by bands. */
 #include "map.h"
 
 #include <limits.h>
@@ -19,7 +20,7 @@
 #include "tess.h"
 
 #define MAP_ERR_PX 0.5   /* chord error allowed, in pixels at the patch's nearest depth */
-#define MAP_PAD_PX 1.0   /* conservative dilation of every triangle, in pixels */
+#define MAP_PAD_SLACK 0.1 /* pixels the outline is widened by beyond the projected chord error */
 #define MAP_MAX_SIDE 96  /* grid cap per patch side; the pad grows where the cap binds */
 #define NEAR_EPS 1e-9    /* relative depth below which a vertex counts as behind the eye */
 
@@ -52,8 +53,10 @@ void map_free(struct map *m)
 /* Offers a fragment of `patch` to a pixel's candidate list: depth bound zlo, seed (u, v) and the
  * fragment's own depth zs there. A patch listed already keeps the least bound and the seed of
  * its nearest fragment (where a patch folds over a pixel, the seed on the near sheet). */
-static void put(struct map_rows *rw, int x, int y, int patch, float u, float v, float zlo, float zs)
+static void put(struct map_rows *rw, int x, int y, const struct map_tri *t, float u, float v, float zs)
 {
+    const int patch = t->patch;
+    const float zlo = t->zlo;
     size_t idx = (size_t)(y - rw->y0) * rw->W + x;
     struct map_cand *c = &rw->cand[idx * MAP_CANDS];
     int n = rw->n[idx], at = 0;
@@ -117,7 +120,7 @@ static void raster_edge(const struct map *m, struct map_rows *rw, const struct m
                 continue;
             double iz = v[0]->iz + s * (v[1]->iz - v[0]->iz), z = 1.0 / iz;
             double uz = v[0]->uz + s * (v[1]->uz - v[0]->uz), vz = v[0]->vz + s * (v[1]->vz - v[0]->vz);
-            put(rw, x, y, t->patch, (float)(uz * z), (float)(vz * z), t->zlo, (float)z);
+            put(rw, x, y, t, (float)(uz * z), (float)(vz * z), (float)z);
         }
 }
 
@@ -169,8 +172,7 @@ static void raster_tri(const struct map *m, struct map_rows *rw, const struct ma
             if (!inside)
                 continue;
             double z = 1.0 / (plane[0][0] * x + iz_y);
-            put(rw, x, y, t->patch, (float)((plane[1][0] * x + uz_y) * z), (float)((plane[2][0] * x + vz_y) * z),
-                t->zlo, (float)z);
+            put(rw, x, y, t, (float)((plane[1][0] * x + uz_y) * z), (float)((plane[2][0] * x + vz_y) * z), (float)z);
         }
     }
 }
@@ -237,7 +239,12 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
     int gu, gv;
     tess_grid_size(pt, MAP_ERR_PX * pix, MAP_MAX_SIDE, &gu, &gv);
     double err_px = tess_grid_error(pt, gu, gv) / pix;
-    float pad = (float)(MAP_PAD_PX + fmax(0.0, err_px - MAP_ERR_PX));
+    /* on screen a world displacement at depth z spans at most sqrt(1 + x² + y²) / z of its size
+     * on the axis (the projection's largest singular value; x, y the tangents of the frame's
+     * corner): the outline is widened by the chord error so stretched */
+    double stretch = sqrt(1.0 + cam->th * cam->th * (cam->aspect * cam->aspect + 1.0));
+    double twice = pt->rational ? 2.0 : 1.0; /* the bound taken twice for rational patches */
+    float pad = (float)(twice * err_px * stretch + MAP_PAD_SLACK);
     double chord = 2.0 * tess_grid_error(pt, gu, gv); /* twice the bound: rational patches */
     /* room for every triangle and, at worst, every edge of the grid */
     size_t base = m->n_verts, nv = (size_t)(gu + 1) * (gv + 1), nc = (size_t)gu * gv;

@@ -209,7 +209,7 @@ struct row_seed {
 };
 
 /* Refines one map candidate with the method the frame asks for; auto seeds from the row's last
- * hit where it is on the same patch. */
+ * hit where it is on the same patch (rs may be NULL: the map's seed). */
 static bool refine(const struct frame *fr, const struct map_cand *c, const struct row_seed *rs, const struct dray *r,
                    struct solve_hit *h)
 {
@@ -218,7 +218,7 @@ static bool refine(const struct frame *fr, const struct map_cand *c, const struc
     bool ok;
     if (fr->sc->method == METHOD_AUTO) {
         double u = c->u, v = c->v;
-        if (rs->patch == c->patch) {
+        if (rs && rs->patch == c->patch) {
             u = dmin(1.0, dmax(0.0, rs->u + rs->du));
             v = dmin(1.0, dmax(0.0, rs->v + rs->dv));
         }
@@ -255,6 +255,11 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
         st->refinements++;
         bool ok = refine(fr, &c[k], rs, r, &h);
         st->iterations += h.iters;
+        if ((!ok || h.t * zscale > c[k].zs * (1.0 + sheet)) && rs->patch == c[k].patch) {
+            st->refinements++; /* the row's seed led astray: the map's own */
+            ok = refine(fr, &c[k], NULL, r, &h);
+            st->iterations += h.iters;
+        }
         if (ok && (!found || h.t < hit->t)) {
             *hit = (struct bvh_hit){c[k].patch, h.u, h.v, h.t, v3_dot(h.n, h.n) > 0, h.n};
             found = true;
