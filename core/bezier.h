@@ -20,8 +20,9 @@ struct patch {
     int surface;         /* index of the scene object this patch came from */
     double u0, u1;       /* the patch's span in the object's own parameters (for uv output) */
     double v0, v1;
-    /* bounds over the patch, set by bezier_second_bounds (wmin 0: not set): |second partial| of
-     * the homogeneous x·w, y·w, z·w (d2) and of w (d2w), and the least weight */
+    /* bounds over the patch, set by bezier_second_bounds (scene_patches does, for the tracer; wmin
+     * 0: not set): |second partial| of the homogeneous x·w, y·w, z·w (d2) and of w (d2w), and
+     * the least weight */
     double d2, d2w, wmin;
 };
 

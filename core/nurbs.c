@@ -441,10 +441,8 @@ out_free:
 
 void nurbs_patches_fix(struct patch_set *set)
 {
-    for (size_t k = 0; k < set->n; k++) {
+    for (size_t k = 0; k < set->n; k++)
         set->patches[k].cw = set->pool + (uintptr_t)set->patches[k].cw;
-        bezier_second_bounds(&set->patches[k]);
-    }
 }
 
 void nurbs_patch_set_free(struct patch_set *set)

@@ -65,8 +65,7 @@ struct patch_set {
     size_t n_pool, cap_pool;
 };
 int nurbs_extract(const struct surface *s, int surface_index, struct patch_set *set);
-/* Makes every patch's cw point into the pool and sets its bezier_second_bounds (call after the
- * last extraction). */
+/* Makes every patch's cw point into the pool (call after the last extraction). */
 void nurbs_patches_fix(struct patch_set *set);
 void nurbs_patch_set_free(struct patch_set *set);
 

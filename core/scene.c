@@ -121,9 +121,12 @@ int scene_patches(const struct scene *sc, struct patch_set *ps, struct sf_err *e
     for (int k = 0; k < sc->n_objects && !rc; k++)
         if ((rc = nurbs_extract(&sc->objects[k].surf, k, ps)))
             rc = sf_fail(err, rc, "", "out of memory");
-    if (rc)
+    if (rc) {
         nurbs_patch_set_free(ps);
-    else
-        nurbs_patches_fix(ps);
-    return rc;
+        return rc;
+    }
+    nurbs_patches_fix(ps);
+    for (size_t k = 0; k < ps->n; k++) /* the tracer's Newton steps stop on them */
+        bezier_second_bounds(&ps->patches[k]);
+    return 0;
 }
