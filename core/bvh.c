@@ -120,6 +120,21 @@ void bvh_free(struct bvh *b)
 
 /* ---- exact: leaves -------------------------------------------------------------------- */
 
+/* The differences of the net's Euclidean points along u (du[i][j] = P[i+1][j] - P[i][j]) and
+ * along v (dv[i][j] = P[i][j+1] - P[i][j]): Pu and Pv are their Bernstein combinations, times
+ * the degrees. */
+static void net_differences(const struct patch *pt, vec3 du[][PATCH_MAX_DEGREE + 1], vec3 dv[][PATCH_MAX_DEGREE])
+{
+    for (int i = 0; i <= pt->p; i++)
+        for (int j = 0; j <= pt->q; j++) {
+            vec3 c = bezier_point(pt, i, j);
+            if (i < pt->p)
+                du[i][j] = v3_sub(bezier_point(pt, i + 1, j), c);
+            if (j < pt->q)
+                dv[i][j] = v3_sub(bezier_point(pt, i, j + 1), c);
+        }
+}
+
 /* Normal cone of a polynomial patch. Pu × Pv is a polynomial of degree (2p-1, 2q-1) whose
  * Bernstein coefficients are sums of cross products of the derivative nets, weighted by
  * binomial ratios; a cone holding every coefficient holds every normal (Bernstein weights are
@@ -138,20 +153,15 @@ static void normal_cone(const struct patch *pt, vec3 *axis, double *sin_half)
     for (int m = 0; m <= M; m++)
         for (int n = 0; n <= N; n++)
             C[m][n] = v3(0, 0, 0);
-    /* Pu net: p (P[i+1][j] - P[i][j]), degree (p-1, q); Pv net: q (P[k][l+1] - P[k][l]), degree (p, q-1) */
+    /* Pu net: p du, degree (p-1, q); Pv net: q dv, degree (p, q-1) */
     vec3 du[PATCH_MAX_DEGREE][PATCH_MAX_DEGREE + 1], dv[PATCH_MAX_DEGREE + 1][PATCH_MAX_DEGREE];
-    for (int i = 0; i <= p; i++)
-        for (int j = 0; j <= q; j++) {
-            if (i < p)
-                du[i][j] = v3_scale(v3_sub(bezier_point(pt, i + 1, j), bezier_point(pt, i, j)), p);
-            if (j < q)
-                dv[i][j] = v3_scale(v3_sub(bezier_point(pt, i, j + 1), bezier_point(pt, i, j)), q);
-        }
+    net_differences(pt, du, dv);
     for (int i = 0; i < p; i++)
         for (int j = 0; j <= q; j++)
             for (int k = 0; k <= p; k++)
                 for (int l = 0; l < q; l++) {
-                    double w = bin[p - 1][i] * bin[p][k] / bin[M][i + k] * bin[q][j] * bin[q - 1][l] / bin[N][j + l];
+                    double w = (double)p * q * bin[p - 1][i] * bin[p][k] / bin[M][i + k] * bin[q][j] * bin[q - 1][l] /
+                               bin[N][j + l];
                     C[i + k][j + l] = v3_add(C[i + k][j + l], v3_scale(v3_cross(du[i][j], dv[k][l]), w));
                 }
     vec3 sum = v3(0, 0, 0);
@@ -212,14 +222,21 @@ static void chord_bound(const struct patch *pt, vec3 *n, double *sin_max)
     const int p = pt->p, q = pt->q;
     if (pt->rational)
         return;
-    vec3 au = v3(0, 0, 0), av = v3(0, 0, 0);
+    vec3 du[PATCH_MAX_DEGREE][PATCH_MAX_DEGREE + 1], dv[PATCH_MAX_DEGREE + 1][PATCH_MAX_DEGREE];
+    net_differences(pt, du, dv);
+    /* the generators, u differences then v ones; a collapsed edge's zero ones add nothing to any chord */
+    vec3 g[2 * PATCH_MAX_DEGREE * (PATCH_MAX_DEGREE + 1)];
+    int n_g = 0, n_u;
+    vec3 au = v3(0, 0, 0), av = v3(0, 0, 0); /* their mean directions */
+    for (int i = 0; i < p; i++)
+        for (int j = 0; j <= q; j++)
+            if (v3_len(du[i][j]) > 0)
+                au = v3_add(au, v3_norm(g[n_g++] = du[i][j]));
+    n_u = n_g;
     for (int i = 0; i <= p; i++)
-        for (int j = 0; j <= q; j++) {
-            if (i < p && v3_len(v3_sub(bezier_point(pt, i + 1, j), bezier_point(pt, i, j))) > 0)
-                au = v3_add(au, v3_norm(v3_sub(bezier_point(pt, i + 1, j), bezier_point(pt, i, j))));
-            if (j < q && v3_len(v3_sub(bezier_point(pt, i, j + 1), bezier_point(pt, i, j))) > 0)
-                av = v3_add(av, v3_norm(v3_sub(bezier_point(pt, i, j + 1), bezier_point(pt, i, j))));
-        }
+        for (int j = 0; j < q; j++)
+            if (v3_len(dv[i][j]) > 0)
+                av = v3_add(av, v3_norm(g[n_g++] = dv[i][j]));
     vec3 axis = v3_cross(au, av);
     if (!(v3_len(axis) > 1e-9 * v3_len(au) * v3_len(av)))
         return;
@@ -227,19 +244,12 @@ static void chord_bound(const struct patch *pt, vec3 *n, double *sin_max)
     au = v3_norm(au), av = v3_norm(av);
     const vec3 w[2] = {v3_norm(v3_add(au, av)), v3_norm(v3_sub(au, av))}; /* v differences taken +, then - */
     double tilt = 0.0, k[2] = {1.0, 1.0};
-    for (int i = 0; i <= p; i++)
-        for (int j = 0; j <= q; j++)
-            for (int dir = 0; dir < 2; dir++) {
-                if (dir == 0 ? i == p : j == q)
-                    continue;
-                vec3 g = v3_sub(bezier_point(pt, i + (dir == 0), j + (dir == 1)), bezier_point(pt, i, j));
-                double l = v3_len(g);
-                if (l == 0)
-                    continue; /* a collapsed edge adds nothing to any chord */
-                tilt = fmax(tilt, fabs(v3_dot(g, axis)) / l);
-                for (int s = 0; s < 2; s++)
-                    k[s] = fmin(k[s], (dir == 1 && s == 1 ? -1.0 : 1.0) * v3_dot(w[s], g) / l);
-            }
+    for (int m = 0; m < n_g; m++) {
+        double l = v3_len(g[m]);
+        tilt = fmax(tilt, fabs(v3_dot(g[m], axis)) / l);
+        for (int s = 0; s < 2; s++)
+            k[s] = fmin(k[s], (m >= n_u && s == 1 ? -1.0 : 1.0) * v3_dot(w[s], g[m]) / l);
+    }
     if (k[0] <= 0 || k[1] <= 0)
         return;
     *n = axis;

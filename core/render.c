@@ -251,11 +251,12 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
     for (int k = 0; k < n; k++) {
         if (found && c[k].zlo > hit->t * zscale)
             break;
+        const double far = c[k].zs * (1.0 + sheet); /* depth beyond which a root is on another sheet */
         struct solve_hit h;
         st->refinements++;
         bool ok = refine(fr, &c[k], rs, r, &h);
         st->iterations += h.iters;
-        if ((!ok || h.t * zscale > c[k].zs * (1.0 + sheet)) && rs->patch == c[k].patch) {
+        if ((!ok || h.t * zscale > far) && rs->patch == c[k].patch) {
             st->refinements++; /* the row's seed led astray: the map's own */
             ok = refine(fr, &c[k], NULL, r, &h);
             st->iterations += h.iters;
@@ -264,7 +265,7 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
             *hit = (struct bvh_hit){c[k].patch, h.u, h.v, h.t, v3_dot(h.n, h.n) > 0, h.n};
             found = true;
         }
-        if (!ok || h.t * zscale > c[k].zs * (1.0 + sheet)) { /* not proof of no nearer root */
+        if (!ok || h.t * zscale > far) { /* not proof of no nearer root */
             undecided = dmin(undecided, c[k].zlo);
             open[n_open++] = c[k].patch;
         }
@@ -386,8 +387,9 @@ static void shade_chunk(const struct frame *fr, struct chunk_px *px, int m, stru
         const struct light *l = &fr->lights[k];
         bool shadows = fr->sc->shadows && !l->no_shadow;
         int n_req = 0;
-        struct dray toward;
-        solve_ray_init(&toward, v3(0, 0, 0), v3_scale(l->v, -1.0));
+        struct dray toward = {0}; /* a directional light's shadow rays share their direction and planes */
+        if (shadows && !l->point)
+            solve_ray_init(&toward, v3(0, 0, 0), v3_scale(l->v, -1.0));
         for (int j = 0; j < m; j++) {
             struct chunk_px *p = &px[j];
             if (!p->ok)
@@ -405,7 +407,7 @@ static void shade_chunk(const struct frame *fr, struct chunk_px *px, int m, stru
             vec3 o = v3_mad(P, p->n, SHADOW_EPS * fr->diag);
             if (l->point)
                 solve_ray_init(&q->r, o, L);
-            else /* every ray toward a directional light shares its direction and planes */
+            else
                 solve_ray_parallel(&q->r, o, &toward);
             q->from = (struct bvh_origin){p->hit.patch, p->hit.u, p->hit.v};
             q->tnear = 0.0, q->tfar = dist;
