@@ -1,8 +1,12 @@
 // image_oiio.cpp - the only C++ in surfd's image path: frame buffers to PNG/EXR/TIFF bytes with
 // OpenImageIO writing into memory (Filesystem::IOVecOutput). PNG is RGB, zlib level 3, no row
 // filter: measured on the 1024² teapot, libpng's adaptive filter search took 40 ms of a 50 ms
-// encode for 15 % smaller files; without it encoding is 11 ms (tests/bench/RESULTS.md).
+// encode for 15 % smaller files; without it encoding is 11 ms, and 7.7 ms (all zlib) since the
+// render's bands convert to 8-bit sRGB on its own threads (AOV_SRGB8; tests/bench/RESULTS.md).
 #include "image.h"
+extern "C" {
+#include "../core/srgb.h"
+}
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
@@ -10,37 +14,10 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <vector>
 
 using namespace OIIO;
-
-// Linear [0, 1] to 8-bit sRGB through a table of 2^14 + 1 entries: a pow() per channel was most of
-// the encoding time; 14 bits of linear input keep every 8-bit output value reachable.
-enum { SRGB_BITS = 14, SRGB_N = (1 << SRGB_BITS) + 1 };
-
-static const unsigned char *srgb_table()
-{
-    static unsigned char table[SRGB_N];
-    static bool ready = [] {
-        for (int k = 0; k < SRGB_N; k++) {
-            double c = (double)k / (SRGB_N - 1);
-            double s = c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1.0 / 2.4) - 0.055;
-            table[k] = (unsigned char)std::lround(s * 255.0);
-        }
-        return true;
-    }();
-    (void)ready;
-    return table;
-}
-
-static unsigned char to_srgb8(const unsigned char *table, float c)
-{
-    if (!(c > 0.0f))
-        return 0;
-    if (c >= 1.0f)
-        return 255;
-    return table[(int)(c * (SRGB_N - 1) + 0.5f)];
-}
 
 static int write(const char *ext, ImageSpec &spec, const void *pixels, unsigned char **out, size_t *out_len,
                  struct sf_err *err)
@@ -64,7 +41,6 @@ extern "C" void image_init(void)
 {
     for (const char *ext : {"mem.png", "mem.exr", "mem.tif"})
         ImageOutput::create(ext); // the first create() loads the plugin catalogue
-    srgb_table();
 }
 
 extern "C" int image_encode(const struct frame_image *img, enum image_format fmt, unsigned char **out,
@@ -77,16 +53,21 @@ extern "C" int image_encode(const struct frame_image *img, enum image_format fmt
         if (fmt == IMG_PNG) {
             // RGB: the background is part of the picture, so alpha would be 255 everywhere
             // (EXR carries the real coverage in A)
-            std::vector<unsigned char> px(n * 3);
-            const unsigned char *table = srgb_table();
-            for (size_t k = 0; k < n; k++)
-                for (int c = 0; c < 3; c++)
-                    px[3 * k + c] = to_srgb8(table, img->rgba[4 * k + c]);
+            // the render fills the 8-bit picture in its bands when asked (AOV_SRGB8)
+            std::vector<unsigned char> px;
+            if (!img->srgb8) {
+                std::unique_ptr<srgb_table> table(new srgb_table);
+                srgb_table_init(table.get());
+                px.resize(n * 3);
+                for (size_t k = 0; k < n; k++)
+                    for (int c = 0; c < 3; c++)
+                        px[3 * k + c] = srgb8(table.get(), img->rgba[4 * k + c]);
+            }
             ImageSpec spec(img->width, img->height, 3, TypeDesc::UINT8);
             spec.attribute("png:compressionLevel", 3);
             spec.attribute("png:filter", 8 /* PNG_FILTER_NONE */);
             spec.attribute("oiio:ColorSpace", "sRGB");
-            return write(".png", spec, px.data(), out, out_len, err);
+            return write(".png", spec, img->srgb8 ? img->srgb8 : px.data(), out, out_len, err);
         }
         if (fmt == IMG_TIFF) {
             std::vector<unsigned short> px(n * 4);

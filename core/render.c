@@ -19,6 +19,7 @@
 #include "camera.h"
 #include "map.h"
 #include "solve.h"
+#include "srgb.h"
 
 #define AMBIENT 0.12          /* ambient fraction of the albedo */
 #define MC_SAMPLES 64         /* eq. 3 sample count N */
@@ -39,6 +40,8 @@ struct frame {
     struct map *map;
     double prepare_ms;
     float *rgba, *depth, *normal, *uv, *id;
+    unsigned char *srgb8;     /* AOV_SRGB8 */
+    struct srgb_table *srgb;
 };
 
 static double now_ms(void)
@@ -75,6 +78,8 @@ void frame_free(struct frame *fr)
     free(fr->normal);
     free(fr->uv);
     free(fr->id);
+    free(fr->srgb8);
+    free(fr->srgb);
     free(fr);
 }
 
@@ -172,6 +177,11 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
         goto out_fail_mem;
     if ((sc->aovs & AOV_ID) && !(fr->id = malloc(sizeof(float) * np)))
         goto out_fail_mem;
+    if (sc->aovs & AOV_SRGB8) {
+        if (!(fr->srgb8 = malloc(3 * np)) || !(fr->srgb = malloc(sizeof *fr->srgb)))
+            goto out_fail_mem;
+        srgb_table_init(fr->srgb);
+    }
     if (!fr->rgba || !fr->depth)
         goto out_fail_mem;
 
@@ -432,6 +442,9 @@ static void put_pixel(struct frame *fr, int x, int y, const struct chunk_px *p)
     float *px = &fr->rgba[4 * idx];
     vec3 c = p->ok ? p->c : sc->background, n = p->ok ? p->n : v3(0, 0, 0);
     px[0] = (float)c.x, px[1] = (float)c.y, px[2] = (float)c.z, px[3] = p->ok ? 1.0f : 0.0f;
+    if (fr->srgb8)
+        for (int k = 0; k < 3; k++)
+            fr->srgb8[3 * idx + k] = srgb8(fr->srgb, px[k]);
     fr->depth[idx] = p->ok ? (float)p->hit.t : INFINITY;
     if (fr->normal)
         fr->normal[3 * idx] = (float)n.x, fr->normal[3 * idx + 1] = (float)n.y, fr->normal[3 * idx + 2] = (float)n.z;
@@ -508,6 +521,7 @@ void frame_image(const struct frame *fr, struct frame_image *img)
     img->normal = fr->normal;
     img->uv = fr->uv;
     img->id = fr->id;
+    img->srgb8 = fr->srgb8;
 }
 
 double frame_prepare_ms(const struct frame *fr) { return fr->prepare_ms; }

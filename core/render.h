@@ -41,6 +41,7 @@ struct frame_image {
     const float *normal;  /* 3 per pixel */
     const float *uv;      /* 2 per pixel: the object's own parameters */
     const float *id;      /* 1 per pixel: object index, -1 on a miss */
+    const unsigned char *srgb8; /* 3 per pixel: rgb as 8-bit sRGB (AOV_SRGB8), or NULL */
 };
 
 /* Returns 0 or an SF_E* code with err filled. dev is borrowed until frame_free(). */

@@ -17,7 +17,8 @@
 
 enum render_method { METHOD_AUTO, METHOD_MAP, METHOD_BVH, METHOD_MESH, METHOD_MONTECARLO };
 
-enum aov { AOV_NORMAL = 1, AOV_UV = 2, AOV_ID = 4 };
+/* AOV_SRGB8: the colour as 8-bit sRGB too, filled band by band (what a PNG is written from) */
+enum aov { AOV_NORMAL = 1, AOV_UV = 2, AOV_ID = 4, AOV_SRGB8 = 8 };
 
 struct material {
     vec3 color;        /* diffuse albedo, linear RGB in [0, 1] */

@@ -6,6 +6,7 @@
 #include "../../api/model_json.h"
 #include "../../api/scene_io.h"
 #include "../../core/render.h"
+#include "../../core/srgb.h"
 #include "../unit.h"
 
 #include <stdlib.h>
@@ -282,6 +283,48 @@ TEST(wide_angle_close_up)
     scene_free(&sc);
 }
 
+/* The 8-bit picture a PNG is written from: the table (built from the thresholds between codes)
+ * gives round(255 · srgb(c)) at every one of its steps, and the bands fill the picture with the
+ * table's code of each pixel's linear colour. */
+TEST(srgb8_picture)
+{
+    static struct srgb_table t;
+    srgb_table_init(&t);
+    long wrong = 0;
+    for (int k = 0; k < SRGB_N; k++) {
+        double c = (double)k / (SRGB_N - 1), s = c <= 0.0031308 ? 12.92 * c : 1.055 * pow(c, 1 / 2.4) - 0.055;
+        wrong += t.code[k] != lround(s * 255);
+    }
+    CHECK(wrong == 0);
+    CHECK(srgb8(&t, -1.0f) == 0 && srgb8(&t, NAN) == 0 && srgb8(&t, 2.0f) == 255 && srgb8(&t, 0.5f) == 188);
+
+    size_t len = 0;
+    char *buf = unit_data("scenes", "teapot.json", &len);
+    struct scene sc;
+    enum image_format img;
+    struct sf_err err = {0};
+    CHECK(buf && scene_parse(buf, len, SCENE_UNKNOWN, &sc, &img, &err) == 0);
+    free(buf);
+    sc.width = 160, sc.height = 120, sc.aovs |= AOV_SRGB8;
+    struct frame *fr;
+    CHECK(frame_prepare(&sc, dev, &fr, &err) == 0);
+    struct render_stats st = {0};
+    frame_band(fr, 60, 120, &st); /* bands in any order */
+    frame_band(fr, 0, 60, &st);
+    struct frame_image im;
+    frame_image(fr, &im);
+    CHECK(im.srgb8 != NULL);
+    long differ = 0, lit = 0;
+    for (int i = 0; im.srgb8 && i < sc.width * sc.height; i++)
+        for (int c = 0; c < 3; c++) {
+            differ += im.srgb8[3 * i + c] != srgb8(&t, im.rgba[4 * i + c]);
+            lit += im.rgba[4 * i + 3] > 0 && im.srgb8[3 * i + c] > 0;
+        }
+    CHECK(differ == 0 && lit > 1000);
+    frame_free(fr);
+    scene_free(&sc);
+}
+
 int main(void)
 {
     dev = bvh_device_new(1, NULL);
@@ -289,6 +332,7 @@ int main(void)
     RUN(contour_model_exact);
     RUN(shared_scenes_agree_across_methods);
     RUN(wide_angle_close_up);
+    RUN(srgb8_picture);
     RUN(bad_scenes_fail_with_pointer);
     bvh_device_free(dev);
     UNIT_END();
