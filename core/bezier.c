@@ -225,12 +225,6 @@ void bezier_second_bounds(struct patch *pt)
     pt->wmin = wmin;
 }
 
-vec3 bezier_point(const struct patch *pt, int i, int j)
-{
-    const double *c = pt->cw[i * (pt->q + 1) + j];
-    return v3(c[0] / c[3], c[1] / c[3], c[2] / c[3]);
-}
-
 void bezier_bounds(const struct patch *pt, vec3 *lo, vec3 *hi)
 {
     vec3 a = bezier_point(pt, 0, 0), b = a;

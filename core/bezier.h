@@ -53,7 +53,11 @@ void bezier_bounds(const struct patch *pt, vec3 *lo, vec3 *hi);
  * remainder of a Newton step, so a solver can accept a step without evaluating its end. */
 void bezier_second_bounds(struct patch *pt);
 
-/* Euclidean control point (i, j). */
-vec3 bezier_point(const struct patch *pt, int i, int j);
+/* Euclidean control point (i, j) (a polynomial patch's w is 1: no division). */
+static inline vec3 bezier_point(const struct patch *pt, int i, int j)
+{
+    const double *c = pt->cw[i * (pt->q + 1) + j];
+    return pt->rational ? v3(c[0] / c[3], c[1] / c[3], c[2] / c[3]) : v3(c[0], c[1], c[2]);
+}
 
 #endif

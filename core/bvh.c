@@ -184,29 +184,31 @@ static void normal_cone(const struct patch *pt, vec3 *axis, double *sin_half)
     *sin_half = sqrt(fmax(0.0, 1.0 - cos_min * cos_min)) + 1e-9;
 }
 
-/* Largest distance of a control point from the bilinear through the corners, and the net's
- * second differences along u and v (to choose the split direction). */
+/* Largest distance of a control point from the bilinear through the corners, and (when curv_u
+ * is not NULL) the net's second differences along u and v, to choose the split direction. */
 static double net_deviation(const struct patch *pt, double *curv_u, double *curv_v)
 {
     int p = pt->p, q = pt->q;
     vec3 c00 = bezier_point(pt, 0, 0), c10 = bezier_point(pt, p, 0);
     vec3 c01 = bezier_point(pt, 0, q), c11 = bezier_point(pt, p, q);
-    double dev = 0.0, cu = 0.0, cv = 0.0;
+    double dev2 = 0.0, cu = 0.0, cv = 0.0;
     for (int i = 0; i <= p; i++)
         for (int j = 0; j <= q; j++) {
             double s = (double)i / p, t = (double)j / q;
             vec3 bl = v3_add(v3_add(v3_scale(c00, (1 - s) * (1 - t)), v3_scale(c10, s * (1 - t))),
                              v3_add(v3_scale(c01, (1 - s) * t), v3_scale(c11, s * t)));
-            vec3 c = bezier_point(pt, i, j);
-            dev = fmax(dev, v3_len(v3_sub(c, bl)));
+            vec3 c = bezier_point(pt, i, j), d = v3_sub(c, bl);
+            dev2 = dmax(dev2, v3_dot(d, d));
+            if (!curv_u)
+                continue;
             if (i + 2 <= p)
-                cu = fmax(cu, v3_len(v3_add(v3_sub(c, v3_scale(bezier_point(pt, i + 1, j), 2)), bezier_point(pt, i + 2, j))));
+                cu = dmax(cu, v3_len(v3_add(v3_sub(c, v3_scale(bezier_point(pt, i + 1, j), 2)), bezier_point(pt, i + 2, j))));
             if (j + 2 <= q)
-                cv = fmax(cv, v3_len(v3_add(v3_sub(c, v3_scale(bezier_point(pt, i, j + 1), 2)), bezier_point(pt, i, j + 2))));
+                cv = dmax(cv, v3_len(v3_add(v3_sub(c, v3_scale(bezier_point(pt, i, j + 1), 2)), bezier_point(pt, i, j + 2))));
         }
-    *curv_u = cu;
-    *curv_v = cv;
-    return dev;
+    if (curv_u)
+        *curv_u = cu, *curv_v = cv;
+    return sqrt(dev2);
 }
 
 /* Bounds the directions of the chords of a polynomial patch. A chord S(u1, v1) - S(u2, v2) is
@@ -284,7 +286,7 @@ static void leaf_fill(struct leaf *l, const struct patch *sub, int patch, double
     vec3 d1 = v3_sub(l->c11, l->c00), d2 = v3_sub(l->c01, l->c10);
     l->n = v3_norm(v3_cross(d1, d2));
     l->has_axes = v3_len(l->n) > 0.5;
-    double size = fmax(v3_len(d1), v3_len(d2));
+    double size = dmax(v3_len(d1), v3_len(d2));
     vec3 twist = v3_sub(v3_add(l->c00, l->c11), v3_add(l->c10, l->c01));
     l->slack = l->has_axes ? dev + 0.25 * v3_len(twist) : INFINITY;
     const vec3 tri[2][3] = {{l->c00, l->c10, l->c11}, {l->c00, l->c11, l->c01}};
@@ -304,12 +306,12 @@ static void leaf_fill(struct leaf *l, const struct patch *sub, int patch, double
         for (int j = 0; j <= sub->q; j++) {
             vec3 c = bezier_point(sub, i, j);
             double d = v3_dot(l->n, c);
-            l->d0 = fmin(l->d0, d);
-            l->d1 = fmax(l->d1, d);
+            l->d0 = dmin(l->d0, d);
+            l->d1 = dmax(l->d1, d);
             for (int k = 0; k < 2; k++) {
                 double a = v3_dot(l->e[k], c);
-                l->e0[k] = fmin(l->e0[k], a);
-                l->e1[k] = fmax(l->e1[k], a);
+                l->e0[k] = dmin(l->e0[k], a);
+                l->e1[k] = dmax(l->e1[k], a);
             }
         }
     double pad = 1e-9 * (size + fabs(l->d0) + fabs(l->d1)); /* rounding of the dot products */
@@ -420,7 +422,7 @@ static double tri_out(const struct leaf *l, int k, double b1, double b2)
 {
     double lam[3] = {1.0 - b1 - b2, b1, b2}, out = 0.0;
     for (int i = 0; i < 3; i++)
-        out = fmax(out, -lam[i] * l->alt[k][i]);
+        out = dmax(out, -lam[i] * l->alt[k][i]);
     return out;
 }
 
@@ -442,7 +444,7 @@ static double leaf_seed(const struct leaf *l, const struct dray *r, double *s, d
         *s = 0.5, *t = 0.5;
     *s = clamp01(*s);
     *t = clamp01(*t);
-    return fmin(out1, out2);
+    return dmin(out1, out2);
 }
 
 /* Narrows [*t0, *t1] to where the ray is between the planes n·x = a and n·x = b. */
@@ -483,9 +485,10 @@ static bool leaf_reachable(const struct leaf *l, const struct dray *r, double tn
 
 /* The root of the ray in leaf l with t in (tnear, tmax), or false. depth >= 0 (intersection
  * queries): where the ray grazes the leaf, Newton may miss a root or find the farther of two, so
- * the leaf's quarters are searched afresh for one in front, down to LEAF_SPLIT_DEPTH levels. */
-static bool leaf_search(const struct bvh *b, const struct leaf *l, const struct dray *r, double tnear, double tmax,
-                        int depth, struct solve_hit *h, long *iters)
+ * the leaf's quarters are searched afresh for one in front, down to LEAF_SPLIT_DEPTH levels.
+ * net: the leaf's own control net when the caller has it (a quarter), else NULL. */
+static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)[4], const struct dray *r,
+                        double tnear, double tmax, int depth, struct solve_hit *h, long *iters)
 {
     if (!leaf_reachable(l, r, tnear, tmax))
         return false;
@@ -497,8 +500,8 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, const struct 
      * ray at angle θ to the quad's plane meets within that over |cos θ| of it: farther out (with a
      * factor 4 to spare, and a quarter of the narrowest altitude), no Newton start can succeed. */
     double cosang = fabs(v3_dot(r->d, l->n));
-    double margin = 0.25 * fmin(fmin(l->alt[0][0], l->alt[0][1]), fmin(l->alt[1][1], l->alt[1][2]));
-    if (out > margin + 4.0 * l->slack / fmax(cosang, 1e-6))
+    double margin = 0.25 * dmin(dmin(l->alt[0][0], l->alt[0][1]), dmin(l->alt[1][1], l->alt[1][2]));
+    if (out > margin + 4.0 * l->slack / dmax(cosang, 1e-6))
         return false;
     double u = l->u0 + s * (l->u1 - l->u0), v = l->v0 + t * (l->v1 - l->v0);
     bool ok = solve_newton_cramer(pt, r, u, v, &box, b->tol2, h);
@@ -510,37 +513,49 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, const struct 
     bool found = ok && h->t > tnear && h->t < tmax;
     if (depth < 0 || depth >= LEAF_SPLIT_DEPTH || !(cosang < LEAF_GRAZING))
         return found;
-    size_t n_pts = (size_t)(pt->p + 1) * (pt->q + 1);
-    double(*net)[4] = malloc(sizeof *net * 2 * n_pts);
-    if (!net)
+    /* the quarters' nets from the leaf's by halving it in u, then each half in v */
+    const size_t n_pts = (size_t)(pt->p + 1) * (pt->q + 1);
+    double(*buf)[4] = malloc(sizeof *buf * 7 * n_pts); /* own net, two halves, four quarters */
+    if (!buf)
         return found;
-    double um = 0.5 * (l->u0 + l->u1), vm = 0.5 * (l->v0 + l->v1);
-    for (int q = 0; q < 4; q++) {
-        double a0 = q & 1 ? um : l->u0, a1 = q & 1 ? l->u1 : um, b0 = q & 2 ? vm : l->v0, b1 = q & 2 ? l->v1 : vm;
+    double(*half)[4] = buf + n_pts, (*quarters)[4] = buf + 3 * n_pts;
+    struct patch whole = *pt;
+    whole.cw = net;
+    if (!net) {
+        whole.cw = buf;
+        sub_net(pt, l->u0, l->u1, l->v0, l->v1, buf, half);
+    }
+    bezier_split_u(&whole, 0.5, half, half + n_pts);
+    for (int i = 0; i < 2; i++) {
+        struct patch hp = *pt;
+        hp.cw = half + i * n_pts;
+        bezier_split_v(&hp, 0.5, quarters + 2 * i * n_pts, quarters + (2 * i + 1) * n_pts);
+    }
+    const double um = 0.5 * (l->u0 + l->u1), vm = 0.5 * (l->v0 + l->v1);
+    for (int q = 0; q < 4; q++) { /* q = 2 (upper u half) + (upper v half) */
+        double a0 = q & 2 ? um : l->u0, a1 = q & 2 ? l->u1 : um, b0 = q & 1 ? vm : l->v0, b1 = q & 1 ? l->v1 : vm;
         struct patch sub = *pt;
-        sub.cw = net;
-        sub_net(pt, a0, a1, b0, b1, net, net + n_pts);
+        sub.cw = quarters + q * n_pts;
         struct leaf quarter;
         bezier_bounds(&sub, &quarter.lo, &quarter.hi);
         quarter.has_axes = false; /* the box alone first: most quarters are missed */
         if (!leaf_reachable(&quarter, r, tnear, found ? h->t : tmax))
             continue;
-        double cu, cv;
-        leaf_fill(&quarter, &sub, l->patch, a0, a1, b0, b1, net_deviation(&sub, &cu, &cv));
+        leaf_fill(&quarter, &sub, l->patch, a0, a1, b0, b1, net_deviation(&sub, NULL, NULL));
         struct solve_hit qh;
-        if (leaf_search(b, &quarter, r, tnear, found ? h->t : tmax, depth + 1, &qh, iters)) {
+        if (leaf_search(b, &quarter, sub.cw, r, tnear, found ? h->t : tmax, depth + 1, &qh, iters)) {
             *h = qh;
             found = true;
         }
     }
-    free(net);
+    free(buf);
     return found;
 }
 
 static bool leaf_hit(const struct bvh *b, const struct leaf *l, const struct dray *r, double tnear, double tmax,
                      struct solve_hit *h, long *iters)
 {
-    return leaf_search(b, l, r, tnear, tmax, -1, h, iters);
+    return leaf_search(b, l, NULL, r, tnear, tmax, -1, h, iters);
 }
 
 static void leaf_intersect(const struct RTCIntersectFunctionNArguments *args)
@@ -554,7 +569,7 @@ static void leaf_intersect(const struct RTCIntersectFunctionNArguments *args)
     int k = 0;
     while (k < qy->n_among && qy->among[k] != l->patch)
         k++;
-    if ((qy->among && k == qy->n_among) || !leaf_search(b, l, qy->r, qy->tnear, qy->best_t, 0, &h, &qy->iters))
+    if ((qy->among && k == qy->n_among) || !leaf_search(b, l, NULL, qy->r, qy->tnear, qy->best_t, 0, &h, &qy->iters))
         return;
     struct RTCRayHit *rh = (struct RTCRayHit *)args->rayhit;
     qy->best_t = h.t;

@@ -42,6 +42,7 @@ struct frame {
     float *rgba, *depth, *normal, *uv, *id;
     unsigned char *srgb8;     /* AOV_SRGB8 */
     struct srgb_table *srgb;
+    unsigned char srgb_background[3];
 };
 
 static double now_ms(void)
@@ -181,6 +182,9 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
         if (!(fr->srgb8 = malloc(3 * np)) || !(fr->srgb = malloc(sizeof *fr->srgb)))
             goto out_fail_mem;
         srgb_table_init(fr->srgb);
+        const float bg[3] = {(float)sc->background.x, (float)sc->background.y, (float)sc->background.z};
+        for (int k = 0; k < 3; k++)
+            fr->srgb_background[k] = srgb8(fr->srgb, bg[k]);
     }
     if (!fr->rgba || !fr->depth)
         goto out_fail_mem;
@@ -444,7 +448,7 @@ static void put_pixel(struct frame *fr, int x, int y, const struct chunk_px *p)
     px[0] = (float)c.x, px[1] = (float)c.y, px[2] = (float)c.z, px[3] = p->ok ? 1.0f : 0.0f;
     if (fr->srgb8)
         for (int k = 0; k < 3; k++)
-            fr->srgb8[3 * idx + k] = srgb8(fr->srgb, px[k]);
+            fr->srgb8[3 * idx + k] = p->ok ? srgb8(fr->srgb, px[k]) : fr->srgb_background[k];
     fr->depth[idx] = p->ok ? (float)p->hit.t : INFINITY;
     if (fr->normal)
         fr->normal[3 * idx] = (float)n.x, fr->normal[3 * idx + 1] = (float)n.y, fr->normal[3 * idx + 2] = (float)n.z;

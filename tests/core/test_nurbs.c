@@ -133,6 +133,16 @@ TEST(bezier_extraction_keeps_surface)
         b.points[k] = rand() / (double)RAND_MAX;
     CHECK(nurbs_validate(&b, "", NULL) == 0);
     check_extraction(&b, 4 * 3);
+    /* the same net as a NURBS whose weights are all 2: polynomial patches, the same surface */
+    struct surface w;
+    CHECK(nurbs_surface_alloc(&w, SURF_NURBS, 3, 3, 7, 6, NULL) == 0);
+    memcpy(w.knots_u, b.knots_u, sizeof *w.knots_u * 11);
+    memcpy(w.knots_v, b.knots_v, sizeof *w.knots_v * 10);
+    memcpy(w.points, b.points, sizeof *w.points * 3 * 42);
+    for (int k = 0; k < 42; k++)
+        w.weights[k] = 2.0;
+    check_extraction(&w, 4 * 3);
+    nurbs_surface_free(&w);
     nurbs_surface_free(&b);
 }
 
