@@ -2,7 +2,7 @@
 // OpenImageIO writing into memory (Filesystem::IOVecOutput). PNG is RGB, zlib level 3, no row
 // filter: measured on the 1024² teapot, libpng's adaptive filter search took 40 ms of a 50 ms
 // encode for 15 % smaller files; without it encoding is 11 ms, and 7.7 ms (all zlib) since the
-// render's bands convert to 8-bit sRGB on its own threads (AOV_SRGB8; tests/bench/RESULTS.md).
+// render's bands convert to 8-bit sRGB on its own threads (srgb8_only; tests/bench/RESULTS.md).
 #include "image.h"
 extern "C" {
 #include "../core/srgb.h"
@@ -53,7 +53,7 @@ extern "C" int image_encode(const struct frame_image *img, enum image_format fmt
         if (fmt == IMG_PNG) {
             // RGB: the background is part of the picture, so alpha would be 255 everywhere
             // (EXR carries the real coverage in A)
-            // the render fills the 8-bit picture in its bands when asked (AOV_SRGB8)
+            // the render fills the 8-bit picture in its bands when asked (srgb8_only)
             std::vector<unsigned char> px;
             if (!img->srgb8) {
                 std::unique_ptr<srgb_table> table(new srgb_table);
@@ -69,6 +69,8 @@ extern "C" int image_encode(const struct frame_image *img, enum image_format fmt
             spec.attribute("oiio:ColorSpace", "sRGB");
             return write(".png", spec, img->srgb8 ? img->srgb8 : px.data(), out, out_len, err);
         }
+        if (!img->rgba)
+            return sf_fail(err, SF_EINVAL, "", "the frame holds only an 8-bit picture: PNG alone can be written");
         if (fmt == IMG_TIFF) {
             std::vector<unsigned short> px(n * 4);
             for (size_t k = 0; k < 4 * n; k++)

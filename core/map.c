@@ -135,14 +135,15 @@ static void raster_tri(const struct map *m, struct map_rows *rw, const struct ma
         return; /* no interior; its edges are outline and padded */
     /* edge function k (opposite vertex k), positive inside: w_k = A_k x + B_k y + C_k; inside,
      * the w_k / |area| are the barycentrics */
-    double A[3], B[3], C[3], eps[3], sgn = area > 0 ? 1.0 : -1.0;
+    double A[3], B[3], C[3], eps[3], iA[3], sgn = area > 0 ? 1.0 : -1.0;
     double plane[3][3] = {{0}}; /* iz, uz, vz: coefficients of x, y, 1 */
     for (int k = 0; k < 3; k++) {
         const struct map_vert *p = v[(k + 1) % 3], *q = v[(k + 2) % 3];
         A[k] = -sgn * (q->y - p->y);
         B[k] = sgn * (q->x - p->x);
         C[k] = -(A[k] * p->x + B[k] * p->y);
-        eps[k] = COVER_EPS * hypot(A[k], B[k]);
+        eps[k] = COVER_EPS * sqrt(A[k] * A[k] + B[k] * B[k]); /* pixel-sized numbers: no overflow */
+        iA[k] = A[k] != 0.0 ? 1.0 / A[k] : 0.0;
         const double at[3] = {v[k]->iz, v[k]->uz, v[k]->vz}, inv = 1.0 / fabs(area);
         for (int c = 0; c < 3; c++) {
             plane[c][0] += A[k] * at[c] * inv;
@@ -155,9 +156,9 @@ static void raster_tri(const struct map *m, struct map_rows *rw, const struct ma
         for (int k = 0; k < 3; k++) {
             double c = B[k] * y + C[k] + eps[k]; /* w_k + eps >= 0  <=>  A_k x >= -c */
             if (A[k] > 0)
-                lo = dmax(lo, -c / A[k]);
+                lo = dmax(lo, -c * iA[k]);
             else if (A[k] < 0)
-                hi = dmin(hi, -c / A[k]);
+                hi = dmin(hi, -c * iA[k]);
             else if (c < 0)
                 hi = -INFINITY;
         }

@@ -40,7 +40,7 @@ struct frame {
     struct map *map;
     double prepare_ms;
     float *rgba, *depth, *normal, *uv, *id;
-    unsigned char *srgb8;     /* AOV_SRGB8 */
+    unsigned char *srgb8;     /* srgb8_only: the picture, in place of rgba and depth */
     struct srgb_table *srgb;
     unsigned char srgb_background[3];
 };
@@ -170,24 +170,25 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
         goto out_fail_mem;
 
     size_t np = (size_t)sc->width * sc->height;
-    fr->rgba = malloc(sizeof(float) * 4 * np);
-    fr->depth = malloc(sizeof(float) * np);
-    if ((sc->aovs & AOV_NORMAL) && !(fr->normal = malloc(sizeof(float) * 3 * np)))
-        goto out_fail_mem;
-    if ((sc->aovs & AOV_UV) && !(fr->uv = malloc(sizeof(float) * 2 * np)))
-        goto out_fail_mem;
-    if ((sc->aovs & AOV_ID) && !(fr->id = malloc(sizeof(float) * np)))
-        goto out_fail_mem;
-    if (sc->aovs & AOV_SRGB8) {
+    if (sc->srgb8_only) {
         if (!(fr->srgb8 = malloc(3 * np)) || !(fr->srgb = malloc(sizeof *fr->srgb)))
             goto out_fail_mem;
         srgb_table_init(fr->srgb);
         const float bg[3] = {(float)sc->background.x, (float)sc->background.y, (float)sc->background.z};
         for (int k = 0; k < 3; k++)
             fr->srgb_background[k] = srgb8(fr->srgb, bg[k]);
+    } else {
+        fr->rgba = malloc(sizeof(float) * 4 * np);
+        fr->depth = malloc(sizeof(float) * np);
+        if (!fr->rgba || !fr->depth)
+            goto out_fail_mem;
+        if ((sc->aovs & AOV_NORMAL) && !(fr->normal = malloc(sizeof(float) * 3 * np)))
+            goto out_fail_mem;
+        if ((sc->aovs & AOV_UV) && !(fr->uv = malloc(sizeof(float) * 2 * np)))
+            goto out_fail_mem;
+        if ((sc->aovs & AOV_ID) && !(fr->id = malloc(sizeof(float) * np)))
+            goto out_fail_mem;
     }
-    if (!fr->rgba || !fr->depth)
-        goto out_fail_mem;
 
     if (sc->method == METHOD_MESH)
         rc = bvh_build_mesh(dev, fr->ps.patches, fr->ps.n, sc->mesh_tolerance * fr->diag, &fr->mesh, err);
@@ -443,12 +444,18 @@ static void put_pixel(struct frame *fr, int x, int y, const struct chunk_px *p)
 {
     const struct scene *sc = fr->sc;
     size_t idx = (size_t)y * sc->width + x;
+    if (fr->srgb8) {
+        unsigned char *px = &fr->srgb8[3 * idx];
+        if (!p->ok)
+            memcpy(px, fr->srgb_background, 3);
+        else
+            px[0] = srgb8(fr->srgb, (float)p->c.x), px[1] = srgb8(fr->srgb, (float)p->c.y),
+            px[2] = srgb8(fr->srgb, (float)p->c.z);
+        return;
+    }
     float *px = &fr->rgba[4 * idx];
     vec3 c = p->ok ? p->c : sc->background, n = p->ok ? p->n : v3(0, 0, 0);
     px[0] = (float)c.x, px[1] = (float)c.y, px[2] = (float)c.z, px[3] = p->ok ? 1.0f : 0.0f;
-    if (fr->srgb8)
-        for (int k = 0; k < 3; k++)
-            fr->srgb8[3 * idx + k] = p->ok ? srgb8(fr->srgb, px[k]) : fr->srgb_background[k];
     fr->depth[idx] = p->ok ? (float)p->hit.t : INFINITY;
     if (fr->normal)
         fr->normal[3 * idx] = (float)n.x, fr->normal[3 * idx + 1] = (float)n.y, fr->normal[3 * idx + 2] = (float)n.z;

@@ -36,12 +36,12 @@ struct render_stats {
  * a miss); normal/uv/id are NULL unless asked for by scene.aovs. */
 struct frame_image {
     int width, height;
-    const float *rgba;    /* 4 per pixel */
-    const float *depth;   /* 1 per pixel */
+    const float *rgba;    /* 4 per pixel (NULL with srgb8_only) */
+    const float *depth;   /* 1 per pixel (NULL with srgb8_only) */
     const float *normal;  /* 3 per pixel */
     const float *uv;      /* 2 per pixel: the object's own parameters */
     const float *id;      /* 1 per pixel: object index, -1 on a miss */
-    const unsigned char *srgb8; /* 3 per pixel: rgb as 8-bit sRGB (AOV_SRGB8), or NULL */
+    const unsigned char *srgb8; /* 3 per pixel: rgb as 8-bit sRGB (srgb8_only), or NULL */
 };
 
 /* Returns 0 or an SF_E* code with err filled. dev is borrowed until frame_free(). */

@@ -17,8 +17,7 @@
 
 enum render_method { METHOD_AUTO, METHOD_MAP, METHOD_BVH, METHOD_MESH, METHOD_MONTECARLO };
 
-/* AOV_SRGB8: the colour as 8-bit sRGB too, filled band by band (what a PNG is written from) */
-enum aov { AOV_NORMAL = 1, AOV_UV = 2, AOV_ID = 4, AOV_SRGB8 = 8 };
+enum aov { AOV_NORMAL = 1, AOV_UV = 2, AOV_ID = 4 };
 
 struct material {
     vec3 color;        /* diffuse albedo, linear RGB in [0, 1] */
@@ -42,6 +41,8 @@ struct scene {
     int width, height;
     vec3 background;
     unsigned aovs;            /* AOV_* bits wanted besides colour and depth */
+    bool srgb8_only;          /* keep only the 8-bit sRGB picture (a PNG's pixels, converted band by
+                               * band on the render's threads): no float colour, depth or AOVs */
     bool has_camera;          /* false: frame the bounds from azimuth/elevation */
     vec3 eye, target, up;
     double fov_deg;           /* vertical field of view */

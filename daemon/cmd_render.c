@@ -183,7 +183,7 @@ int cmd_render(int argc, char **argv)
     if (no_shadows)
         sc.shadows = false;
     if (img_fmt == IMG_PNG)
-        sc.aovs |= AOV_SRGB8; /* the bands convert to 8 bits, on every thread */
+        sc.srgb8_only = true; /* the bands convert to 8 bits, on every thread */
     if (aovs) {
         sc.aovs |= strstr(aovs, "normal") ? AOV_NORMAL : 0;
         sc.aovs |= strstr(aovs, "uv") ? AOV_UV : 0;

@@ -46,7 +46,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         return -1;
     w->have_scene = true;
     if (w->fmt == IMG_PNG)
-        w->sc.aovs |= AOV_SRGB8; /* the bands convert to 8 bits, on every thread */
+        w->sc.srgb8_only = true; /* the bands convert to 8 bits, on every thread */
     if (frame_prepare(&w->sc, w->svc->dev, &w->fr, &w->err))
         return -1;
     w->n_bands = (w->sc.height + JOB_BAND_ROWS - 1) / JOB_BAND_ROWS;

@@ -284,8 +284,8 @@ TEST(wide_angle_close_up)
 }
 
 /* The 8-bit picture a PNG is written from: the table (built from the thresholds between codes)
- * gives round(255 · srgb(c)) at every one of its steps, and the bands fill the picture with the
- * table's code of each pixel's linear colour. */
+ * gives round(255 · srgb(c)) at every one of its steps, and a frame that keeps only the picture
+ * (its bands in any order) holds the table's code of each pixel of the same frame in float. */
 TEST(srgb8_picture)
 {
     static struct srgb_table t;
@@ -305,23 +305,28 @@ TEST(srgb8_picture)
     struct sf_err err = {0};
     CHECK(buf && scene_parse(buf, len, SCENE_UNKNOWN, &sc, &img, &err) == 0);
     free(buf);
-    sc.width = 160, sc.height = 120, sc.aovs |= AOV_SRGB8;
-    struct frame *fr;
-    CHECK(frame_prepare(&sc, dev, &fr, &err) == 0);
+    sc.width = 160, sc.height = 120;
+    struct frame *lin, *pic;
+    CHECK(frame_prepare(&sc, dev, &lin, &err) == 0);
+    sc.srgb8_only = true;
+    CHECK(frame_prepare(&sc, dev, &pic, &err) == 0);
     struct render_stats st = {0};
-    frame_band(fr, 60, 120, &st); /* bands in any order */
-    frame_band(fr, 0, 60, &st);
-    struct frame_image im;
-    frame_image(fr, &im);
-    CHECK(im.srgb8 != NULL);
+    frame_band(lin, 0, 120, &st);
+    frame_band(pic, 60, 120, &st);
+    frame_band(pic, 0, 60, &st);
+    struct frame_image a, b;
+    frame_image(lin, &a);
+    frame_image(pic, &b);
+    CHECK(a.rgba && !a.srgb8 && b.srgb8 && !b.rgba && !b.depth);
     long differ = 0, lit = 0;
-    for (int i = 0; im.srgb8 && i < sc.width * sc.height; i++)
+    for (int i = 0; a.rgba && b.srgb8 && i < sc.width * sc.height; i++)
         for (int c = 0; c < 3; c++) {
-            differ += im.srgb8[3 * i + c] != srgb8(&t, im.rgba[4 * i + c]);
-            lit += im.rgba[4 * i + 3] > 0 && im.srgb8[3 * i + c] > 0;
+            differ += b.srgb8[3 * i + c] != srgb8(&t, a.rgba[4 * i + c]);
+            lit += a.rgba[4 * i + 3] > 0 && b.srgb8[3 * i + c] > 0;
         }
     CHECK(differ == 0 && lit > 1000);
-    frame_free(fr);
+    frame_free(lin);
+    frame_free(pic);
     scene_free(&sc);
 }
 
