@@ -37,7 +37,8 @@ struct map_tri {           /* a triangle, or (v[2] == EDGE) a padded outline edg
 };
 
 #define EDGE UINT_MAX
-#define COVER_EPS 1e-7 /* pixels: a centre this near a triangle's edge counts as inside it */
+#define COVER_EPS 1e-7  /* pixels: a centre this near a triangle's edge counts as inside it */
+#define SPAN_SLACK 1e-6 /* pixels: a row's span ends, widened past their rounding */
 
 void map_free(struct map *m)
 {
@@ -162,16 +163,14 @@ static void raster_tri(const struct map *m, struct map_rows *rw, const struct ma
             else if (c < 0)
                 hi = -INFINITY;
         }
-        /* one pixel of slack either way; the exact test below decides */
-        int xs = (int)ceil(lo) - 1 < x0 ? x0 : (int)ceil(lo) - 1, xe = hi + 1 > x1 ? x1 : (int)floor(hi) + 1;
+        /* the span's ends, widened by far more than their rounding (1e-6 pixels: a centre that
+         * near an edge may as well count as covered) */
+        lo = ceil(lo - SPAN_SLACK), hi = floor(hi + SPAN_SLACK);
+        if (!(lo <= hi))
+            continue;
         double iz_y = plane[0][1] * y + plane[0][2], uz_y = plane[1][1] * y + plane[1][2];
         double vz_y = plane[2][1] * y + plane[2][2];
-        for (int x = xs; x <= xe; x++) {
-            bool inside = true;
-            for (int k = 0; k < 3; k++)
-                inside &= A[k] * x + B[k] * y + C[k] >= -eps[k];
-            if (!inside)
-                continue;
+        for (int x = (int)lo; x <= (int)hi; x++) {
             double z = 1.0 / (plane[0][0] * x + iz_y);
             put(rw, x, y, t, (float)((plane[1][0] * x + uz_y) * z), (float)((plane[2][0] * x + vz_y) * z), (float)z);
         }
