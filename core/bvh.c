@@ -503,16 +503,19 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)
     double margin = 0.25 * dmin(dmin(l->alt[0][0], l->alt[0][1]), dmin(l->alt[1][1], l->alt[1][2]));
     if (out > margin + 4.0 * l->slack / dmax(cosang, 1e-6))
         return false;
-    double u = l->u0 + s * (l->u1 - l->u0), v = l->v0 + t * (l->v1 - l->v0);
-    bool ok = solve_newton_cramer(pt, r, u, v, &box, b->tol2, h);
-    *iters += h->iters;
-    if (!ok && (s != 0.5 || t != 0.5)) { /* no root from the seed: retry from the centre */
-        ok = solve_newton_cramer(pt, r, 0.5 * (l->u0 + l->u1), 0.5 * (l->v0 + l->v1), &box, b->tol2, h);
+    /* a grazing ray searches the quarters instead (every root lies in one of them) */
+    const bool split = depth >= 0 && depth < LEAF_SPLIT_DEPTH && cosang < LEAF_GRAZING;
+    bool found = false;
+    if (!split) {
+        double u = l->u0 + s * (l->u1 - l->u0), v = l->v0 + t * (l->v1 - l->v0);
+        bool ok = solve_newton_cramer(pt, r, u, v, &box, b->tol2, h);
         *iters += h->iters;
+        if (!ok && (s != 0.5 || t != 0.5)) { /* no root from the seed: retry from the centre */
+            ok = solve_newton_cramer(pt, r, 0.5 * (l->u0 + l->u1), 0.5 * (l->v0 + l->v1), &box, b->tol2, h);
+            *iters += h->iters;
+        }
+        return ok && h->t > tnear && h->t < tmax;
     }
-    bool found = ok && h->t > tnear && h->t < tmax;
-    if (depth < 0 || depth >= LEAF_SPLIT_DEPTH || !(cosang < LEAF_GRAZING))
-        return found;
     /* the quarters' nets from the leaf's by halving it in u, then each half in v */
     const size_t n_pts = (size_t)(pt->p + 1) * (pt->q + 1);
     double(*buf)[4] = malloc(sizeof *buf * 7 * n_pts); /* own net, two halves, four quarters */
