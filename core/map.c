@@ -12,6 +12,7 @@
 #include "map.h"
 
 #include <limits.h>
+#include <stdint.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -54,11 +55,10 @@ void map_free(struct map *m)
 /* Offers a fragment of `patch` to a pixel's candidate list: depth bound zlo, seed (u, v) and the
  * fragment's own depth zs there. A patch listed already keeps the least bound and the seed of
  * its nearest fragment (where a patch folds over a pixel, the seed on the near sheet). */
-static void put(struct map_rows *rw, int x, int y, const struct map_tri *t, float u, float v, float zs)
+static void put(struct map_rows *rw, size_t idx, const struct map_tri *t, float u, float v, float zs)
 {
     const int patch = t->patch;
     const float zlo = t->zlo;
-    size_t idx = (size_t)(y - rw->y0) * rw->W + x;
     struct map_cand *c = &rw->cand[idx * MAP_CANDS];
     int n = rw->n[idx], at = 0;
     while (at < n && c[at].patch != patch)
@@ -91,6 +91,18 @@ static void put(struct map_rows *rw, int x, int y, const struct map_tri *t, floa
     rw->n[idx] = (unsigned char)(n + 1);
 }
 
+/* True when a fragment with depth bound zlo at pixel idx lies behind where the nearest triangle
+ * there expects its patch's root (zcut): it is dropped unlisted, as from a full list, and the
+ * tracer searches everything should that root not be found in front of it. Triangles come
+ * nearest bound first, so most hidden sheets never reach put(). */
+static bool culled(struct map_rows *rw, size_t idx, float zlo)
+{
+    if (!(zlo > rw->zcut[idx]))
+        return false;
+    rw->dropped[idx] = dmin(rw->dropped[idx], zlo);
+    return true;
+}
+
 static void tri_bbox(const struct map *m, const struct map_tri *t, int *x0, int *x1, int *y0, int *y1)
 {
     const struct map_vert *a = &m->verts[t->v[0]], *b = &m->verts[t->v[1]];
@@ -119,9 +131,12 @@ static void raster_edge(const struct map *m, struct map_rows *rw, const struct m
             double ex = v[0]->x + s * dx - x, ey = v[0]->y + s * dy - y;
             if (ex * ex + ey * ey > pad2)
                 continue;
+            size_t idx = (size_t)(y - rw->y0) * rw->W + x;
+            if (culled(rw, idx, t->zlo))
+                continue;
             double iz = v[0]->iz + s * (v[1]->iz - v[0]->iz), z = 1.0 / iz;
             double uz = v[0]->uz + s * (v[1]->uz - v[0]->uz), vz = v[0]->vz + s * (v[1]->vz - v[0]->vz);
-            put(rw, x, y, t, (float)(uz * z), (float)(vz * z), (float)z);
+            put(rw, idx, t, (float)(uz * z), (float)(vz * z), (float)z);
         }
 }
 
@@ -143,7 +158,7 @@ static void raster_tri(const struct map *m, struct map_rows *rw, const struct ma
         A[k] = -sgn * (q->y - p->y);
         B[k] = sgn * (q->x - p->x);
         C[k] = -(A[k] * p->x + B[k] * p->y);
-        eps[k] = COVER_EPS * sqrt(A[k] * A[k] + B[k] * B[k]); /* pixel-sized numbers: no overflow */
+        eps[k] = COVER_EPS * (fabs(A[k]) + fabs(B[k])); /* at least COVER_EPS of distance */
         iA[k] = A[k] != 0.0 ? 1.0 / A[k] : 0.0;
         const double at[3] = {v[k]->iz, v[k]->uz, v[k]->vz}, inv = 1.0 / fabs(area);
         for (int c = 0; c < 3; c++) {
@@ -165,14 +180,23 @@ static void raster_tri(const struct map *m, struct map_rows *rw, const struct ma
         }
         /* the span's ends, widened by far more than their rounding (1e-6 pixels: a centre that
          * near an edge may as well count as covered) */
-        lo = ceil(lo - SPAN_SLACK), hi = floor(hi + SPAN_SLACK);
+        lo -= SPAN_SLACK, hi += SPAN_SLACK;
         if (!(lo <= hi))
             continue;
+        /* ceil and floor by truncation (lo >= x0 - SPAN_SLACK > -1): libm's are calls here */
+        int xs = (int)lo, xe = (int)(hi + 1.0) - 1;
+        xs += xs < lo;
         double iz_y = plane[0][1] * y + plane[0][2], uz_y = plane[1][1] * y + plane[1][2];
         double vz_y = plane[2][1] * y + plane[2][2];
-        for (int x = (int)lo; x <= (int)hi; x++) {
+        size_t row = (size_t)(y - rw->y0) * rw->W;
+        for (int x = xs; x <= xe; x++) {
+            if (culled(rw, row + x, t->zlo))
+                continue;
             double z = 1.0 / (plane[0][0] * x + iz_y);
-            put(rw, x, y, t, (float)((plane[1][0] * x + uz_y) * z), (float)((plane[2][0] * x + vz_y) * z), (float)z);
+            put(rw, row + x, t, (float)((plane[1][0] * x + uz_y) * z), (float)((plane[2][0] * x + vz_y) * z), (float)z);
+            /* the patch's root here is expected about as far behind the fragment as its bound is
+             * in front: anything whose bound lies beyond that is most likely hidden */
+            rw->zcut[row + x] = dmin(rw->zcut[row + x], 2.0 * z - t->zlo);
         }
     }
 }
@@ -185,14 +209,15 @@ int map_raster_rows(const struct map *m, int y0, int y1, struct map_rows *rw)
         rw->cand = malloc(sizeof *rw->cand * n * MAP_CANDS);
         rw->n = malloc(n);
         rw->dropped = malloc(sizeof *rw->dropped * n);
-        rw->cap = rw->cand && rw->n && rw->dropped ? n : 0;
+        rw->zcut = malloc(sizeof *rw->zcut * n);
+        rw->cap = rw->cand && rw->n && rw->dropped && rw->zcut ? n : 0;
         if (!rw->cap)
             return SF_ENOMEM;
     }
     rw->y0 = y0, rw->y1 = y1, rw->W = m->W;
     memset(rw->n, 0, n); /* the candidates themselves are read only up to each pixel's count */
     for (size_t k = 0; k < n; k++)
-        rw->dropped[k] = INFINITY;
+        rw->dropped[k] = rw->zcut[k] = INFINITY;
     for (int tile = y0 / MAP_TILE_ROWS; tile * MAP_TILE_ROWS < y1; tile++) {
         int lo = tile * MAP_TILE_ROWS > y0 ? tile * MAP_TILE_ROWS : y0;
         int hi = (tile + 1) * MAP_TILE_ROWS < y1 ? (tile + 1) * MAP_TILE_ROWS : y1;
@@ -213,6 +238,7 @@ void map_rows_free(struct map_rows *rw)
     free(rw->cand);
     free(rw->n);
     free(rw->dropped);
+    free(rw->zcut);
     memset(rw, 0, sizeof *rw);
 }
 
@@ -335,6 +361,39 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
     return 0;
 }
 
+/* The triangles' indices by increasing depth bound: a radix sort of the bounds' bits, flipped so
+ * that unsigned order is float order. NULL when out of memory. */
+static unsigned *depth_order(const struct map *m)
+{
+    const size_t n = m->n_tris;
+    unsigned *a = malloc(sizeof *a * (n ? n : 1)), *b = malloc(sizeof *b * (n ? n : 1));
+    uint32_t *key = malloc(sizeof *key * (n ? n : 1));
+    if (!a || !b || !key) {
+        free(a), free(b), free(key);
+        return NULL;
+    }
+    for (size_t k = 0; k < n; k++) {
+        uint32_t bits;
+        memcpy(&bits, &m->tris[k].zlo, sizeof bits);
+        key[k] = bits & 0x80000000u ? ~bits : bits | 0x80000000u;
+        a[k] = (unsigned)k;
+    }
+    for (int shift = 0; shift < 32; shift += 8) {
+        size_t count[257] = {0};
+        for (size_t k = 0; k < n; k++)
+            count[((key[a[k]] >> shift) & 0xff) + 1]++;
+        for (int d = 0; d < 256; d++)
+            count[d + 1] += count[d];
+        for (size_t k = 0; k < n; k++)
+            b[count[(key[a[k]] >> shift) & 0xff]++] = a[k];
+        unsigned *t = a;
+        a = b, b = t;
+    }
+    free(b);
+    free(key);
+    return a;
+}
+
 int map_build(const struct patch *patches, size_t n, const struct camera *cam, struct map **out, struct sf_err *err)
 {
     *out = NULL;
@@ -349,10 +408,15 @@ int map_build(const struct patch *patches, size_t n, const struct camera *cam, s
     for (size_t k = 0; k < n; k++)
         if (add_patch(m, &patches[k], (int)k, cam, &cap_v, &cap_t))
             goto out_nomem;
-    /* bucket the triangles by the row tiles their padded boxes touch (counting sort) */
+    /* bucket the triangles, nearest depth bound first, by the row tiles their padded boxes touch
+     * (counting sorts) */
+    unsigned *order = depth_order(m);
+    if (!order)
+        goto out_nomem;
     size_t n_refs = 0;
     for (int pass = 0; pass < 2; pass++) {
-        for (size_t k = 0; k < m->n_tris; k++) {
+        for (size_t o = 0; o < m->n_tris; o++) {
+            size_t k = order[o];
             int x0, x1, y0, y1;
             tri_bbox(m, &m->tris[k], &x0, &x1, &y0, &y1);
             if (x0 > x1 || y0 > y1)
@@ -368,10 +432,13 @@ int map_build(const struct patch *patches, size_t n, const struct camera *cam, s
             for (int t = 0; t < n_tiles; t++)
                 m->tile_first[t + 2] += m->tile_first[t + 1];
             n_refs = m->tile_first[n_tiles + 1];
-            if (!(m->tile_tris = malloc(sizeof *m->tile_tris * (n_refs ? n_refs : 1))))
+            if (!(m->tile_tris = malloc(sizeof *m->tile_tris * (n_refs ? n_refs : 1)))) {
+                free(order);
                 goto out_nomem;
+            }
         }
     }
+    free(order);
     *out = m;
     return 0;
 
