@@ -69,14 +69,17 @@ static bool accept(const struct dray *r, const struct solve_box *box, double u, 
     if (u < box->u0 - SOLVE_BOX_EPS || u > box->u1 + SOLVE_BOX_EPS || v < box->v0 - SOLVE_BOX_EPS ||
         v > box->v1 + SOLVE_BOX_EPS)
         return false;
-    const double *S = p->S, *Su = p->Su, *Sv = p->Sv, iw = 1.0 / S[3];
-    vec3 P = v3(S[0] * iw, S[1] * iw, S[2] * iw);
+    const double *S = p->S, *Su = p->Su, *Sv = p->Sv;
+    vec3 P = v3(S[0], S[1], S[2]), Pu = v3(Su[0], Su[1], Su[2]), Pv = v3(Sv[0], Sv[1], Sv[2]);
+    if (S[3] != 1.0 || Su[3] != 0.0 || Sv[3] != 0.0) { /* rational: the quotient rule, as bezier_eval */
+        const double iw = 1.0 / S[3];
+        P = v3_scale(P, iw);
+        Pu = v3_scale(v3_sub(Pu, v3_scale(P, Su[3])), iw);
+        Pv = v3_scale(v3_sub(Pv, v3_scale(P, Sv[3])), iw);
+    }
     hit->u = u;
     hit->v = v;
     hit->t = v3_dot(r->d, v3_sub(P, r->o));
-    /* quotient rule, as bezier_eval: dP = (dS - P dw) / w */
-    vec3 Pu = v3((Su[0] - P.x * Su[3]) * iw, (Su[1] - P.y * Su[3]) * iw, (Su[2] - P.z * Su[3]) * iw);
-    vec3 Pv = v3((Sv[0] - P.x * Sv[3]) * iw, (Sv[1] - P.y * Sv[3]) * iw, (Sv[2] - P.z * Sv[3]) * iw);
     vec3 n = v3_cross(Pu, Pv);
     double l = v3_len(n);
     hit->n = l > 1e-12 * v3_dot(Pu, Pu) + 1e-300 ? v3_scale(n, 1.0 / l) : v3(0, 0, 0);
