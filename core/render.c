@@ -403,15 +403,19 @@ static void shade_chunk(const struct frame *fr, struct chunk_px *px, int m, stru
         bool shadows = fr->sc->shadows && !l->no_shadow;
         int n_req = 0;
         struct dray toward = {0}; /* a directional light's shadow rays share their direction and planes */
+        const vec3 Ldir = v3_norm(v3_scale(l->v, -1.0));
         if (shadows && !l->point)
-            solve_ray_init(&toward, v3(0, 0, 0), v3_scale(l->v, -1.0));
+            solve_ray_init(&toward, v3(0, 0, 0), Ldir);
         for (int j = 0; j < m; j++) {
             struct chunk_px *p = &px[j];
             if (!p->ok)
                 continue;
             vec3 P = v3_mad(p->r.o, p->r.d, p->hit.t);
-            vec3 L = l->point ? v3_sub(l->v, P) : v3_scale(l->v, -1.0);
-            double dist = l->point ? v3_len(L) : INFINITY, ndl = v3_dot(p->n, L = v3_norm(L));
+            vec3 L = Ldir;
+            double dist = INFINITY;
+            if (l->point)
+                L = v3_sub(l->v, P), dist = v3_len(L), L = dist > 0 ? v3_scale(L, 1.0 / dist) : L;
+            double ndl = v3_dot(p->n, L);
             if (ndl <= 0)
                 continue;
             if (!shadows) {
