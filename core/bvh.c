@@ -456,7 +456,7 @@ static void clip_slab(vec3 n, double a, double b, const struct dray *r, double *
             *t1 = -INFINITY;
         return;
     }
-    double ta = (a - no) / den, tb = (b - no) / den;
+    double inv = 1.0 / den, ta = (a - no) * inv, tb = (b - no) * inv;
     *t0 = dmax(*t0, dmin(ta, tb));
     *t1 = dmin(*t1, dmax(ta, tb));
 }
