@@ -35,6 +35,7 @@ struct map_tri {           /* a triangle, or (v[2] == EDGE) a padded outline edg
     int patch;
     float pad;            /* dilation, pixels: 0 for triangles */
     float zlo;            /* depth bound of the patch's surface near this primitive */
+    bool fold;            /* an outline edge inside the grid (where the surface turns away), not its border */
 };
 
 #define EDGE UINT_MAX
@@ -63,9 +64,11 @@ static void put(struct map_rows *rw, size_t idx, const struct map_tri *t, float 
     int n = rw->n[idx], at = 0;
     while (at < n && c[at].patch != patch)
         at++;
+    const float zfold = t->fold ? zs : INFINITY;
     if (at < n) {
         if (zs < c[at].zs)
             c[at].u = u, c[at].v = v, c[at].zs = zs;
+        c[at].zfold = dmin(c[at].zfold, zfold);
         if (!(zlo < c[at].zlo))
             return;
         struct map_cand keep = c[at];
@@ -87,7 +90,7 @@ static void put(struct map_rows *rw, size_t idx, const struct map_tri *t, float 
         rw->dropped[idx] = dmin(rw->dropped[idx], c[--n].zlo);
     for (int k = n; k > pos; k--)
         c[k] = c[k - 1];
-    c[pos] = (struct map_cand){patch, u, v, zlo, zs};
+    c[pos] = (struct map_cand){patch, u, v, zlo, zs, zfold};
     rw->n[idx] = (unsigned char)(n + 1);
 }
 
@@ -331,27 +334,27 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
             unsigned a = VTX(i, j), b = VTX(i + 1, j);
             const unsigned tri[2][3] = {{a, b, b + 1}, {a, b + 1, a + 1}};
             for (int k = 0; k < 2; k++)
-                m->tris[m->n_tris++] = (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)]};
+                m->tris[m->n_tris++] = (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)], false};
         }
     /* the outline: the grid's border, and every edge whose two triangles turn different ways
      * (or either none) on screen; s0, s1 are the turns on either side (0 where there is none) */
-#define OUTLINE(v0, v1, s0, s1, z)                                                                 \
+#define OUTLINE(v0, v1, s0, s1, z, inside)                                                         \
     if ((s0) == 0 || (s0) != (s1))                                                              \
-        m->tris[m->n_tris++] = (struct map_tri){{(v0), (v1), EDGE}, index, pad, (z)};
+        m->tris[m->n_tris++] = (struct map_tri){{(v0), (v1), EDGE}, index, pad, (z), (inside)};
     for (int i = 0; i < gu; i++)
         for (int j = 0; j < gv; j++) /* the diagonal a-(b+1) between a cell's two triangles */
-            OUTLINE(VTX(i, j), VTX(i + 1, j + 1), sg[2 * CELL(i, j)], sg[2 * CELL(i, j) + 1], zlo[CELL(i, j)]);
+            OUTLINE(VTX(i, j), VTX(i + 1, j + 1), sg[2 * CELL(i, j)], sg[2 * CELL(i, j) + 1], zlo[CELL(i, j)], true);
     for (int i = 0; i < gu; i++)
         for (int j = 0; j <= gv; j++) { /* (i, j)-(i+1, j): first triangle of cell (i, j), second of (i, j-1) */
             int s0 = j < gv ? sg[2 * CELL(i, j)] : 0, s1 = j > 0 ? sg[2 * CELL(i, j - 1) + 1] : 0;
             float z = fminf(j < gv ? zlo[CELL(i, j)] : INFINITY, j > 0 ? zlo[CELL(i, j - 1)] : INFINITY);
-            OUTLINE(VTX(i, j), VTX(i + 1, j), s0, s1, z);
+            OUTLINE(VTX(i, j), VTX(i + 1, j), s0, s1, z, j > 0 && j < gv);
         }
     for (int i = 0; i <= gu; i++)
         for (int j = 0; j < gv; j++) { /* (i, j)-(i, j+1): second triangle of cell (i, j), first of (i-1, j) */
             int s0 = i < gu ? sg[2 * CELL(i, j) + 1] : 0, s1 = i > 0 ? sg[2 * CELL(i - 1, j)] : 0;
             float z = fminf(i < gu ? zlo[CELL(i, j)] : INFINITY, i > 0 ? zlo[CELL(i - 1, j)] : INFINITY);
-            OUTLINE(VTX(i, j), VTX(i, j + 1), s0, s1, z);
+            OUTLINE(VTX(i, j), VTX(i, j + 1), s0, s1, z, i > 0 && i < gu);
         }
 #undef OUTLINE
 #undef CELL

@@ -22,6 +22,8 @@ struct map_cand {
     float u, v;   /* seed in patch parameters */
     float zlo;    /* camera depth no root of this patch at this pixel can be in front of */
     float zs;     /* depth of the seed's fragment: a root much behind it is on another sheet */
+    float zfold;  /* least depth of a fold of the patch's outline near the pixel (INFINITY: none):
+                   * a root behind it may have a nearer sheet in front */
 };
 
 struct map_vert;

@@ -240,9 +240,10 @@ TEST(bad_scenes_fail_with_pointer)
 }
 
 /* Close up at 120°: the map's outline is widened by the chord error as the projection stretches
- * it toward the frame's corners, so auto hits exactly the pixels the hierarchy hits; and rays that
- * graze a leaf (where Newton may miss a root or find the farther of two) search its quarters, so
- * the hierarchy matches a dense tessellation's depths. */
+ * it toward the frame's corners, and a root that may have a nearer sheet of its patch in front
+ * (behind a fold, or seeded by a fold's outline alone) is left to the hierarchy, so auto finds the
+ * hierarchy's roots at every pixel; and rays that graze a leaf (where Newton may miss a root or
+ * find the farther of two) search its quarters, so the hierarchy matches a dense tessellation. */
 TEST(wide_angle_close_up)
 {
     size_t len = 0;
@@ -272,10 +273,10 @@ TEST(wide_angle_close_up)
             differ += isfinite(bvh[i]) != isfinite(got[i]);
             depth_off += isfinite(bvh[i]) && isfinite(got[i]) && fabsf(got[i] - bvh[i]) > 1e-4f * bvh[i];
         }
-        /* where a patch folds over a pixel, auto's Newton may still settle on the far sheet (noticed,
-         * left: a few dozen pixels of this frame); coverage must agree everywhere */
+        /* where a patch folds away near a pixel, Newton from the map's seed may settle on the far
+         * sheet (17 pixels of this frame did, until roots behind a fold were left to the hierarchy) */
         fprintf(stderr, "  auto against bvh: %ld pixels differ, %ld depths off\n", differ, depth_off);
-        CHECK(differ == 0);
+        CHECK(differ == 0 && depth_off == 0);
     }
     free(mesh);
     free(bvh);
