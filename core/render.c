@@ -494,17 +494,23 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
         struct row_seed rs = {.patch = -1};
         for (int x0 = 0; x0 < W; x0 += SHADE_CHUNK) {
             int m = W - x0 < SHADE_CHUNK ? W - x0 : SHADE_CHUNK;
+            /* the chunk's rays first: independent of each other, their square roots and divisions
+             * overlap, where each pixel's would wait for the one before to be traced */
+            for (int j = 0; j < m; j++) {
+                size_t at = (size_t)(y - y0) * W + (size_t)(x0 + j); /* in the band */
+                px[j].ok = !use_map || rw.n[at]; /* false: background by the map, no ray needed */
+                if (px[j].ok)
+                    solve_ray_init(&px[j].r, fr->cam.eye, camera_dir(&fr->cam, x0 + j, y));
+            }
+            st->rays += m;
+            st->primary += m;
             for (int j = 0; j < m; j++) {
                 struct chunk_px *p = &px[j];
-                size_t at = (size_t)(y - y0) * W + (size_t)(x0 + j); /* in the band */
-                st->rays++;
-                st->primary++;
-                p->ok = false;
-                if (use_map && !rw.n[at]) { /* background by the map: no ray to set up */
+                size_t at = (size_t)(y - y0) * W + (size_t)(x0 + j);
+                if (!p->ok) {
                     rs.patch = -1;
                     continue;
                 }
-                solve_ray_init(&p->r, fr->cam.eye, camera_dir(&fr->cam, x0 + j, y));
                 switch (method) {
                 case METHOD_MAP:
                 case METHOD_AUTO: p->ok = primary_map(fr, &rw, at, &rs, &p->r, &p->hit, st); break;
