@@ -7,13 +7,15 @@
  * ways on screen - is then widened by the chord error as the projection may stretch it
  * (capsules around those edges), so the true silhouette always has a seed. Seeds take the
  * perspective-correct attributes of the covering triangle, or of the nearest point of the
- * outline edge. Written by hand: no library rasterises with these guarantees, and the rows are
- * filled by bands. */
+ * outline edge; a candidate near a fold remembers the fold's depth (the tracer then trusts no
+ * root behind it). Primitives are rasterised nearest depth bound first, and a fragment behind
+ * where a nearer triangle expects its patch's root is culled as from a full list. Written by
+ * hand: no library rasterises with these guarantees, and the rows are filled by bands. */
 #include "map.h"
 
 #include <limits.h>
-#include <stdint.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 

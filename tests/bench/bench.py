@@ -5,7 +5,7 @@ Teapot 1024x1024 (eye [7,-10,6], target [0.2,0,1.3], up z, fov 30°), primary ra
 one shadow-casting light, at 1 and 2 threads, every method; teacup, teaspoon and the three ducks
 (auto-framed). In the same run: POV-Ray 3.7 on the same Bézier patches and camera
 (bicubic_patch type 1, flatness 0, u_steps 5, v_steps 5; its own "Trace Time"), and surfd's mesh
-method. Each figure is the median of REPEAT runs."""
+method. Each figure is the median of REPEAT runs; POV-Ray's and auto's runs take turns."""
 import json
 import urllib.error
 import shutil
@@ -33,23 +33,27 @@ def scene_file(name, camera):
     return path, patches
 
 
-def surfd(inputs, method, threads, w=W, h=H):
-    runs = []
-    for _ in range(REPEAT):
-        out = os.path.join(TMP, "out.png")
-        p = subprocess.run([SURFD, "render", *inputs, "-o", out, "--method", method, "--threads", str(threads),
-                            "--width", str(w), "--height", str(h), "--stats"], capture_output=True, text=True)
-        if p.returncode:
-            sys.exit(f"surfd failed: {p.stderr}")
-        runs.append(json.loads(p.stderr.strip().splitlines()[-1]))
-    med = lambda k: statistics.median(r[k] for r in runs)
+def surfd_once(inputs, method, threads, w=W, h=H):
+    out = os.path.join(TMP, "out.png")
+    p = subprocess.run([SURFD, "render", *inputs, "-o", out, "--method", method, "--threads", str(threads),
+                        "--width", str(w), "--height", str(h), "--stats"], capture_output=True, text=True)
+    if p.returncode:
+        sys.exit(f"surfd failed: {p.stderr}")
+    return json.loads(p.stderr.strip().splitlines()[-1])
+
+
+def medians(runs):
     r = dict(runs[0])
     for k in ("prepare_ms", "render_ms", "encode_ms"):
-        r[k] = med(k)
+        r[k] = statistics.median(x[k] for x in runs)
     return r
 
 
-def povray(patches, threads):
+def surfd(inputs, method, threads, w=W, h=H):
+    return medians([surfd_once(inputs, method, threads, w, h) for _ in range(REPEAT)])
+
+
+def povray_scene(patches):
     pov = os.path.join(TMP, "scene.pov")
     with open(pov, "w") as f:
         f.write("#version 3.7;\nglobal_settings { assumed_gamma 1.0 }\n")
@@ -61,15 +65,16 @@ def povray(patches, threads):
             pts = ",".join("<%r,%r,%r>" % tuple(q) for q in p["points"])
             f.write("bicubic_patch { type 1 flatness 0 u_steps 5 v_steps 5 %s texture { pigment { color rgb 0.8 } "
                     "finish { specular 0.3 } } }\n" % pts)
-    times = []
-    for _ in range(REPEAT):
-        p = subprocess.run(["povray", "+I" + pov, "+O" + os.path.join(TMP, "pov.png"), "+W%d" % W, "+H%d" % H,
-                            "-D", "+WT%d" % threads, "-V"], capture_output=True, text=True)
-        m = re.search(r"Trace Time:.*\(([\d.]+) seconds\)", p.stderr)
-        if not m:
-            sys.exit("povray: no trace time\n" + p.stderr[-2000:])
-        times.append(float(m.group(1)) * 1000)
-    return statistics.median(times)
+    return pov
+
+
+def povray_once(pov, threads):
+    p = subprocess.run(["povray", "+I" + pov, "+O" + os.path.join(TMP, "pov.png"), "+W%d" % W, "+H%d" % H,
+                        "-D", "+WT%d" % threads, "-V"], capture_output=True, text=True)
+    m = re.search(r"Trace Time:.*\(([\d.]+) seconds\)", p.stderr)
+    if not m:
+        sys.exit("povray: no trace time\n" + p.stderr[-2000:])
+    return float(m.group(1)) * 1000
 
 
 def http_get(url):
@@ -323,16 +328,23 @@ def main():
         print("\n".join(lines))
         return
     teapot, patches = scene_file("teapot.json", True)
-    pov = {t: povray(patches, t) for t in (1, 2)}
+    # POV-Ray and auto take turns, run by run: on a shared machine whose load drifts, both see
+    # the same conditions
+    pov_file, pov, auto = povray_scene(patches), {}, {}
+    for t in (1, 2):
+        turns = [(povray_once(pov_file, t), surfd_once([teapot], "auto", t)) for _ in range(REPEAT)]
+        pov[t] = statistics.median(p for p, _ in turns)
+        auto[t] = medians([a for _, a in turns])
     for method in ("auto", "map", "bvh", "mesh"):
         for t in (1, 2):
-            r = surfd([teapot], method, t)
+            r = auto[t] if method == "auto" else surfd([teapot], method, t)
             rows.append(("teapot", method, t, r))
     mc = surfd([teapot], "montecarlo", 2, 256, 256)
     lines = []
     lines.append("# Benchmarks\n")
     lines.append("Written by `make bench` (`tests/bench/run.sh` -> `tests/bench/bench.py`); every figure is the median "
-                 "of %d runs on this machine, all in one run. Machine: %s, %d cores. render = tracing and shading "
+                 "of %d runs on this machine, all in one run (POV-Ray's and auto's teapot runs take turns, so that both "
+                 "see the same load). Machine: %s, %d cores. render = tracing and shading "
                  "(`render_ms`); prepare = patch extraction, hierarchy, map or mesh (`prepare_ms`); PNG = encoding "
                  "share of render + encode.\n" % (REPEAT, platform.processor() or platform.machine(), os.cpu_count()))
     lines.append("## Teapot 1024x1024, eye [7,-10,6], one shadow-casting light\n")
