@@ -43,23 +43,29 @@ static float *scene_depth(struct scene *sc, enum render_method m, int W, int H, 
     return depth;
 }
 
-/* Renders scene file `name` with the given method and size; returns a malloc'd depth buffer. */
-static float *render_depth(const char *name, enum render_method m, int W, int H, bool teapot_camera,
-                           struct render_stats *st)
+/* Parses shared scene file `name` into *sc; false (with a message) when it cannot. */
+static bool load_scene(const char *name, struct scene *sc)
 {
     size_t len = 0;
     char *buf = unit_data("scenes", name, &len);
     if (!buf)
-        return NULL;
-    struct scene sc;
+        return false;
     enum image_format img;
     struct sf_err err = {0};
-    int rc = scene_parse(buf, len, SCENE_UNKNOWN, &sc, &img, &err);
+    int rc = scene_parse(buf, len, SCENE_UNKNOWN, sc, &img, &err);
     free(buf);
-    if (rc) {
+    if (rc)
         fprintf(stderr, "  %s: %s at %s\n", name, err.message, err.pointer);
+    return rc == 0;
+}
+
+/* Renders scene file `name` with the given method and size; returns a malloc'd depth buffer. */
+static float *render_depth(const char *name, enum render_method m, int W, int H, bool teapot_camera,
+                           struct render_stats *st)
+{
+    struct scene sc;
+    if (!load_scene(name, &sc))
         return NULL;
-    }
     float *depth = scene_depth(&sc, m, W, H, teapot_camera, st);
     scene_free(&sc);
     return depth;
@@ -246,13 +252,11 @@ TEST(bad_scenes_fail_with_pointer)
  * find the farther of two) search its quarters, so the hierarchy matches a dense tessellation. */
 TEST(wide_angle_close_up)
 {
-    size_t len = 0;
-    char *buf = unit_data("scenes", "teapot.json", &len);
     struct scene sc;
-    enum image_format img;
-    struct sf_err err = {0};
-    CHECK(buf && scene_parse(buf, len, SCENE_UNKNOWN, &sc, &img, &err) == 0);
-    free(buf);
+    if (!load_scene("teapot.json", &sc)) {
+        CHECK(!"the teapot scene");
+        return;
+    }
     const int W = 400, H = 300;
     sc.has_camera = true;
     sc.eye = v3(1.6, -2.2, 2.2), sc.target = v3(0, 0, 1.0), sc.up = v3(0, 0, 1), sc.fov_deg = 120;
@@ -299,13 +303,12 @@ TEST(srgb8_picture)
     CHECK(wrong == 0);
     CHECK(srgb8(&t, -1.0f) == 0 && srgb8(&t, NAN) == 0 && srgb8(&t, 2.0f) == 255 && srgb8(&t, 0.5f) == 188);
 
-    size_t len = 0;
-    char *buf = unit_data("scenes", "teapot.json", &len);
     struct scene sc;
-    enum image_format img;
+    if (!load_scene("teapot.json", &sc)) {
+        CHECK(!"the teapot scene");
+        return;
+    }
     struct sf_err err = {0};
-    CHECK(buf && scene_parse(buf, len, SCENE_UNKNOWN, &sc, &img, &err) == 0);
-    free(buf);
     sc.width = 160, sc.height = 120;
     struct frame *lin, *pic;
     CHECK(frame_prepare(&sc, dev, &lin, &err) == 0);
