@@ -7,8 +7,9 @@
  * ways on screen - is then widened by the chord error as the projection may stretch it
  * (capsules around those edges), so the true silhouette always has a seed. Seeds take the
  * perspective-correct attributes of the covering triangle, or of the nearest point of the
- * outline edge; a candidate near a fold remembers the fold's depth (the tracer then trusts no
- * root behind it). Primitives are rasterised nearest depth bound first, and a fragment behind
+ * outline edge; a candidate near its patch's outline remembers the depth of the outline and of
+ * any fold there (the tracer then trusts no root behind a fold, nor one seeded by the outline
+ * alone). Primitives are rasterised nearest depth bound first, and a fragment behind
  * where a nearer triangle expects its patch's root is culled as from a full list. Written by
  * hand: no library rasterises with these guarantees, and the rows are filled by bands. */
 #include "map.h"
@@ -66,11 +67,12 @@ static void put(struct map_rows *rw, size_t idx, const struct map_tri *t, float 
     int n = rw->n[idx], at = 0;
     while (at < n && c[at].patch != patch)
         at++;
-    const float zfold = t->fold ? zs : INFINITY;
+    const float zfold = t->fold ? zs : INFINITY, zoutline = t->v[2] == EDGE ? zs : INFINITY;
     if (at < n) {
         if (zs < c[at].zs)
             c[at].u = u, c[at].v = v, c[at].zs = zs;
         c[at].zfold = dmin(c[at].zfold, zfold);
+        c[at].zoutline = dmin(c[at].zoutline, zoutline);
         if (!(zlo < c[at].zlo))
             return;
         struct map_cand keep = c[at];
@@ -92,7 +94,7 @@ static void put(struct map_rows *rw, size_t idx, const struct map_tri *t, float 
         rw->dropped[idx] = dmin(rw->dropped[idx], c[--n].zlo);
     for (int k = n; k > pos; k--)
         c[k] = c[k - 1];
-    c[pos] = (struct map_cand){patch, u, v, zlo, zs, zfold};
+    c[pos] = (struct map_cand){patch, u, v, zlo, zs, zfold, zoutline};
     rw->n[idx] = (unsigned char)(n + 1);
 }
 

@@ -24,6 +24,8 @@ struct map_cand {
     float zs;     /* depth of the seed's fragment: a root much behind it is on another sheet */
     float zfold;  /* least depth of a fold of the patch's outline near the pixel (INFINITY: none):
                    * a root behind it may have a nearer sheet in front */
+    float zoutline; /* least depth of any edge of the outline, border or fold, near the pixel: a seed
+                     * from there (zs == zoutline) lies off the patch's tessellated image */
 };
 
 struct map_vert;

@@ -280,10 +280,10 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
             *hit = (struct bvh_hit){c[k].patch, h.u, h.v, h.t, v3_dot(h.n, h.n) > 0, h.n};
             found = true;
         }
-        /* where the patch folds away near the pixel, a root behind the fold, or one seeded only by
-         * the fold's outline, may have a nearer sheet in front of it */
-        const bool fold = c[k].zfold < INFINITY && (h.t * zscale > c[k].zfold || !(c[k].zs < c[k].zfold));
-        if (!ok || h.t * zscale > far || fold) { /* not proof of no nearer root */
+        /* a nearer sheet of the patch may lie in front of a root behind a fold of its outline near
+         * the pixel, or of one seeded by the outline alone (the pixel off its tessellated image) */
+        const bool outline = h.t * zscale > c[k].zfold || !(c[k].zs < c[k].zoutline);
+        if (!ok || h.t * zscale > far || outline) { /* not proof of no nearer root */
             undecided = dmin(undecided, c[k].zlo);
             open[n_open++] = c[k].patch;
         }
