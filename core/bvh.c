@@ -484,9 +484,10 @@ static bool leaf_reachable(const struct leaf *l, const struct dray *r, double tn
 }
 
 /* The root of the ray in leaf l with t in (tnear, tmax), or false. depth >= 0 (intersection
- * queries): where the ray grazes the leaf, Newton may miss a root or find the farther of two, so
- * the leaf's quarters are searched afresh for one in front, down to LEAF_SPLIT_DEPTH levels.
- * net: the leaf's own control net when the caller has it (a quarter), else NULL. */
+ * queries): where the ray grazes the leaf or may cross it twice, Newton may miss a root or find
+ * the farther of two, so the leaf's quarters are searched instead, each bounded afresh, down to
+ * LEAF_SPLIT_DEPTH levels. net: the leaf's own control net when the caller has it (a quarter),
+ * else NULL. */
 static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)[4], const struct dray *r,
                         double tnear, double tmax, int depth, struct solve_hit *h, long *iters)
 {

@@ -338,7 +338,8 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
             unsigned a = VTX(i, j), b = VTX(i + 1, j);
             const unsigned tri[2][3] = {{a, b, b + 1}, {a, b + 1, a + 1}};
             for (int k = 0; k < 2; k++)
-                m->tris[m->n_tris++] = (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)], false};
+                m->tris[m->n_tris++] =
+                    (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)], false};
         }
     /* the outline: the grid's border, and every edge whose two triangles turn different ways
      * (or either none) on screen; s0, s1 are the turns on either side (0 where there is none) */
