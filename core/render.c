@@ -504,6 +504,7 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
             }
             st->rays += m;
             st->primary += m;
+            bool any = false;
             for (int j = 0; j < m; j++) {
                 struct chunk_px *p = &px[j];
                 size_t at = (size_t)(y - y0) * W + (size_t)(x0 + j);
@@ -527,8 +528,10 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
                 else
                     rs = (struct row_seed){p->hit.patch, p->hit.u, p->hit.v, 0.0, 0.0};
                 st->hits += p->ok;
+                any |= p->ok;
             }
-            shade_chunk(fr, px, m, st);
+            if (any) /* most chunks of a frame are background alone */
+                shade_chunk(fr, px, m, st);
             for (int j = 0; j < m; j++)
                 put_pixel(fr, x0 + j, y, &px[j]);
         }
