@@ -4,9 +4,6 @@
 // encode for 15 % smaller files; without it encoding is 11 ms, and 7.7 ms (all zlib) since the
 // render's bands convert to 8-bit sRGB on its own threads (srgb8_only; tests/bench/RESULTS.md).
 #include "image.h"
-extern "C" {
-#include "../core/srgb.h"
-}
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
@@ -14,7 +11,6 @@ extern "C" {
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
-#include <memory>
 #include <vector>
 
 using namespace OIIO;
@@ -53,21 +49,14 @@ extern "C" int image_encode(const struct frame_image *img, enum image_format fmt
         if (fmt == IMG_PNG) {
             // RGB: the background is part of the picture, so alpha would be 255 everywhere
             // (EXR carries the real coverage in A)
-            // the render fills the 8-bit picture in its bands when asked (srgb8_only)
-            std::vector<unsigned char> px;
-            if (!img->srgb8) {
-                std::unique_ptr<srgb_table> table(new srgb_table);
-                srgb_table_init(table.get());
-                px.resize(n * 3);
-                for (size_t k = 0; k < n; k++)
-                    for (int c = 0; c < 3; c++)
-                        px[3 * k + c] = srgb8(table.get(), img->rgba[4 * k + c]);
-            }
+            // the render fills the 8-bit picture in its bands (scene.srgb8_only)
+            if (!img->srgb8)
+                return sf_fail(err, SF_EINVAL, "", "the frame holds no 8-bit picture: render it with srgb8_only");
             ImageSpec spec(img->width, img->height, 3, TypeDesc::UINT8);
             spec.attribute("png:compressionLevel", 3);
             spec.attribute("png:filter", 8 /* PNG_FILTER_NONE */);
             spec.attribute("oiio:ColorSpace", "sRGB");
-            return write(".png", spec, img->srgb8 ? img->srgb8 : px.data(), out, out_len, err);
+            return write(".png", spec, img->srgb8, out, out_len, err);
         }
         if (!img->rgba)
             return sf_fail(err, SF_EINVAL, "", "the frame holds only an 8-bit picture: PNG alone can be written");

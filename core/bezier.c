@@ -228,13 +228,12 @@ void bezier_second_bounds(struct patch *pt)
 void bezier_bounds(const struct patch *pt, vec3 *lo, vec3 *hi)
 {
     vec3 a = bezier_point(pt, 0, 0), b = a;
-    int n = (pt->p + 1) * (pt->q + 1);
-    for (int k = 0; k < n; k++) {
-        const double *c = pt->cw[k];
-        vec3 e = pt->rational ? v3(c[0] / c[3], c[1] / c[3], c[2] / c[3]) : v3(c[0], c[1], c[2]);
-        a = v3_min(a, e);
-        b = v3_max(b, e);
-    }
+    for (int i = 0; i <= pt->p; i++)
+        for (int j = 0; j <= pt->q; j++) {
+            vec3 e = bezier_point(pt, i, j);
+            a = v3_min(a, e);
+            b = v3_max(b, e);
+        }
     *lo = a;
     *hi = b;
 }

@@ -272,13 +272,13 @@ static void sub_net(const struct patch *pt, double u0, double u1, double v0, dou
 }
 
 /* The bounds of sub-patch sub (the part [u0, u1] x [v0, v1] of patch `patch`, its net deviating
- * dev from the bilinear through its corners) that a ray query needs. */
+ * dev from the bilinear through its corners) that a ray query needs, besides its box l->lo,
+ * l->hi (bezier_bounds), which the caller has set already. */
 static void leaf_fill(struct leaf *l, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
                       double dev)
 {
     l->patch = patch;
     l->u0 = u0, l->u1 = u1, l->v0 = v0, l->v1 = v1;
-    bezier_bounds(sub, &l->lo, &l->hi);
     l->c00 = bezier_point(sub, 0, 0);
     l->c10 = bezier_point(sub, sub->p, 0);
     l->c01 = bezier_point(sub, 0, sub->q);
@@ -328,6 +328,7 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
     if (mem_reserve((void **)&b->leaves, &b->cap_leaves, b->n_leaves + 1, sizeof *b->leaves))
         return SF_ENOMEM;
     struct leaf *l = &b->leaves[b->n_leaves++];
+    bezier_bounds(sub, &l->lo, &l->hi);
     leaf_fill(l, sub, patch, u0, u1, v0, v1, dev);
     normal_cone(sub, &l->cone_axis, &l->cone_sin);
     /* the neighbourhood's chord bound */
@@ -510,7 +511,6 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)
     bool split = depth >= 0 && depth < LEAF_SPLIT_DEPTH;
     if (split && cosang >= LEAF_GRAZING)
         split = depth == 0 && !pt->rational && !(l->cone_sin <= 1.0 && fabs(v3_dot(r->d, l->cone_axis)) > l->cone_sin);
-    bool found = false;
     if (!split) {
         double u = l->u0 + s * (l->u1 - l->u0), v = l->v0 + t * (l->v1 - l->v0);
         bool ok = solve_newton_cramer(pt, r, u, v, &box, b->tol2, h);
@@ -525,7 +525,7 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)
     const size_t n_pts = (size_t)(pt->p + 1) * (pt->q + 1);
     double(*buf)[4] = malloc(sizeof *buf * 7 * n_pts); /* own net, two halves, four quarters */
     if (!buf)
-        return found;
+        return false;
     double(*half)[4] = buf + n_pts, (*quarters)[4] = buf + 3 * n_pts;
     struct patch whole = *pt;
     whole.cw = net;
@@ -539,6 +539,7 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)
         hp.cw = half + i * n_pts;
         bezier_split_v(&hp, 0.5, quarters + 2 * i * n_pts, quarters + (2 * i + 1) * n_pts);
     }
+    bool found = false;
     const double um = 0.5 * (l->u0 + l->u1), vm = 0.5 * (l->v0 + l->v1);
     for (int q = 0; q < 4; q++) { /* q = 2 (upper u half) + (upper v half) */
         double a0 = q & 2 ? um : l->u0, a1 = q & 2 ? l->u1 : um, b0 = q & 1 ? vm : l->v0, b1 = q & 1 ? l->v1 : vm;

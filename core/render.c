@@ -280,10 +280,12 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
             *hit = (struct bvh_hit){c[k].patch, h.u, h.v, h.t, v3_dot(h.n, h.n) > 0, h.n};
             found = true;
         }
-        /* a nearer sheet of the patch may lie in front of a root behind a fold of its outline near
-         * the pixel, or of one seeded by the outline alone (the pixel off its tessellated image) */
-        const bool outline = h.t * zscale > c[k].zfold || !(c[k].zs < c[k].zoutline);
-        if (!ok || h.t * zscale > far || outline) { /* not proof of no nearer root */
+        /* proof of no nearer root of this patch: a root on its seed's sheet (not far behind the
+         * fragment), in front of any fold of the patch's outline near the pixel, and not seeded by
+         * that outline alone (the pixel off the patch's tessellated image): else a nearer sheet
+         * may lie in front */
+        const bool resolved = ok && h.t * zscale <= far && h.t * zscale <= c[k].zfold && c[k].zs < c[k].zoutline;
+        if (!resolved) {
             undecided = dmin(undecided, c[k].zlo);
             open[n_open++] = c[k].patch;
         }
@@ -406,7 +408,7 @@ static void shade_chunk(const struct frame *fr, struct chunk_px *px, int m, stru
         bool shadows = fr->sc->shadows && !l->no_shadow;
         int n_req = 0;
         struct dray toward = {0}; /* a directional light's shadow rays share their direction and planes */
-        const vec3 Ldir = v3_norm(v3_scale(l->v, -1.0));
+        const vec3 Ldir = v3_scale(l->v, -1.0); /* a directional light's: resolve_lights normalised it */
         if (shadows && !l->point)
             solve_ray_init(&toward, v3(0, 0, 0), Ldir);
         for (int j = 0; j < m; j++) {

@@ -22,13 +22,12 @@ static inline vec3 v3_norm(vec3 a)
     double l = v3_len(a);
     return l > 0 ? v3_scale(a, 1.0 / l) : a;
 }
-/* Comparisons, not fmin/fmax (library calls without -ffinite-math-only); inputs are finite. */
 /* Minimum and maximum by one comparison: inlined, where fmin/fmax are libm calls (they must
  * treat NaN specially); with a NaN these return b. */
 static inline double dmin(double a, double b) { return a < b ? a : b; }
 static inline double dmax(double a, double b) { return a > b ? a : b; }
-static inline vec3 v3_min(vec3 a, vec3 b) { return v3(a.x < b.x ? a.x : b.x, a.y < b.y ? a.y : b.y, a.z < b.z ? a.z : b.z); }
-static inline vec3 v3_max(vec3 a, vec3 b) { return v3(a.x > b.x ? a.x : b.x, a.y > b.y ? a.y : b.y, a.z > b.z ? a.z : b.z); }
+static inline vec3 v3_min(vec3 a, vec3 b) { return v3(dmin(a.x, b.x), dmin(a.y, b.y), dmin(a.z, b.z)); }
+static inline vec3 v3_max(vec3 a, vec3 b) { return v3(dmax(a.x, b.x), dmax(a.y, b.y), dmax(a.z, b.z)); }
 static inline vec3 v3_mul(vec3 a, vec3 b) { return v3(a.x * b.x, a.y * b.y, a.z * b.z); }
 
 #endif

@@ -247,7 +247,7 @@ TEST(bad_scenes_fail_with_pointer)
 
 /* Close up at 120°: the map's outline is widened by the chord error as the projection stretches
  * it toward the frame's corners, and a root that may have a nearer sheet of its patch in front
- * (behind a fold, or seeded by a fold's outline alone) is left to the hierarchy, so auto finds the
+ * (behind a fold, or seeded by the patch's outline alone) is left to the hierarchy, so auto finds the
  * hierarchy's roots at every pixel; and rays that graze a leaf (where Newton may miss a root or
  * find the farther of two) search its quarters, so the hierarchy matches a dense tessellation. */
 TEST(wide_angle_close_up)
@@ -314,6 +314,12 @@ TEST(srgb8_picture)
     CHECK(frame_prepare(&sc, dev, &lin, &err) == 0);
     sc.srgb8_only = true;
     CHECK(frame_prepare(&sc, dev, &pic, &err) == 0);
+    if (!lin || !pic) { /* frame_prepare leaves NULL when it fails */
+        frame_free(lin);
+        frame_free(pic);
+        scene_free(&sc);
+        return;
+    }
     struct render_stats st = {0};
     frame_band(lin, 0, 120, &st);
     frame_band(pic, 60, 120, &st);
