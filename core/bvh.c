@@ -448,18 +448,25 @@ static double leaf_seed(const struct leaf *l, const struct dray *r, double *s, d
     return dmin(out1, out2);
 }
 
-/* Narrows [*t0, *t1] to where the ray is between the planes n·x = a and n·x = b. */
-static void clip_slab(vec3 n, double a, double b, const struct dray *r, double *t0, double *t1)
+/* Narrows [*t0, *t1] to where the ray is between the planes n·x = a and n·x = b, given n·d = den,
+ * n·o = no and 1 / den = inv. */
+static inline void clip_between(double den, double no, double inv, double a, double b, double *t0, double *t1)
 {
-    double den = v3_dot(n, r->d), no = v3_dot(n, r->o);
     if (fabs(den) < 1e-300) {
         if (no < a || no > b)
             *t1 = -INFINITY;
         return;
     }
-    double inv = 1.0 / den, ta = (a - no) * inv, tb = (b - no) * inv;
+    double ta = (a - no) * inv, tb = (b - no) * inv;
     *t0 = dmax(*t0, dmin(ta, tb));
     *t1 = dmin(*t1, dmax(ta, tb));
+}
+
+/* The same for any n. */
+static inline void clip_slab(vec3 n, double a, double b, const struct dray *r, double *t0, double *t1)
+{
+    double den = v3_dot(n, r->d);
+    clip_between(den, v3_dot(n, r->o), 1.0 / den, a, b, t0, t1);
 }
 
 /* True when the ray's part in (tnear, tmax) meets the leaf's box and its normal slab: a
@@ -477,9 +484,9 @@ static bool leaf_reachable(const struct leaf *l, const struct dray *r, double tn
         if (t0 - t1 > 3e-9 * (dmax(fabs(t0), fabs(t1)) + 1.0))
             return false;
     }
-    clip_slab(v3(1, 0, 0), l->lo.x, l->hi.x, r, &t0, &t1);
-    clip_slab(v3(0, 1, 0), l->lo.y, l->hi.y, r, &t0, &t1);
-    clip_slab(v3(0, 0, 1), l->lo.z, l->hi.z, r, &t0, &t1);
+    clip_between(r->d.x, r->o.x, r->inv_d.x, l->lo.x, l->hi.x, &t0, &t1);
+    clip_between(r->d.y, r->o.y, r->inv_d.y, l->lo.y, l->hi.y, &t0, &t1);
+    clip_between(r->d.z, r->o.z, r->inv_d.z, l->lo.z, l->hi.z, &t0, &t1);
     double eps = 1e-9 * (fabs(t0) + fabs(t1) + 1.0);
     return t0 <= t1 + eps;
 }
@@ -725,7 +732,7 @@ static void set_ray(struct RTCRay *ray, const struct dray *r, double tnear, doub
     ray->org_x = (float)r->o.x, ray->org_y = (float)r->o.y, ray->org_z = (float)r->o.z;
     ray->dir_x = (float)r->d.x, ray->dir_y = (float)r->d.y, ray->dir_z = (float)r->d.z;
     /* float bounds widened outward: the exact test happens in double in the callbacks */
-    ray->tnear = (float)fmax(0.0, tnear * 0.999999);
+    ray->tnear = (float)dmax(0.0, tnear * 0.999999);
     ray->tfar = isinf(tfar) ? INFINITY : nextafterf((float)tfar, INFINITY);
     ray->time = 0.0f;
     ray->mask = 0xFFFFFFFFu;

@@ -42,7 +42,7 @@ struct frame {
     float *rgba, *depth, *normal, *uv, *id;
     unsigned char *srgb8;     /* srgb8_only: the picture, in place of rgba and depth */
     struct srgb_table *srgb;
-    unsigned char srgb_background[3];
+    unsigned char srgb_background[3 * SHADE_CHUNK]; /* a chunk of background, as srgb8 holds it */
 };
 
 static double now_ms(void)
@@ -175,8 +175,8 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
             goto out_fail_mem;
         srgb_table_init(fr->srgb);
         const float bg[3] = {(float)sc->background.x, (float)sc->background.y, (float)sc->background.z};
-        for (int k = 0; k < 3; k++)
-            fr->srgb_background[k] = srgb8(fr->srgb, bg[k]);
+        for (int k = 0; k < 3 * SHADE_CHUNK; k++)
+            fr->srgb_background[k] = srgb8(fr->srgb, bg[k % 3]);
     } else {
         fr->rgba = malloc(sizeof(float) * 4 * np);
         fr->depth = malloc(sizeof(float) * np);
@@ -479,6 +479,14 @@ static void put_pixel(struct frame *fr, int x, int y, const struct chunk_px *p)
     }
 }
 
+static bool none_listed(const unsigned char *n, int m)
+{
+    unsigned char any = 0;
+    for (int j = 0; j < m; j++)
+        any |= n[j];
+    return !any;
+}
+
 void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
 {
     const struct scene *sc = fr->sc;
@@ -496,6 +504,14 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
         struct row_seed rs = {.patch = -1};
         for (int x0 = 0; x0 < W; x0 += SHADE_CHUNK) {
             int m = W - x0 < SHADE_CHUNK ? W - x0 : SHADE_CHUNK;
+            st->rays += m;
+            st->primary += m;
+            if (use_map && fr->srgb8 && none_listed(&rw.n[(size_t)(y - y0) * W + x0], m)) {
+                /* background alone, by the map: most chunks of a frame */
+                memcpy(&fr->srgb8[3 * ((size_t)y * W + x0)], fr->srgb_background, 3 * (size_t)m);
+                rs.patch = -1;
+                continue;
+            }
             /* the chunk's rays first: independent of each other, their square roots and divisions
              * overlap, where each pixel's would wait for the one before to be traced */
             for (int j = 0; j < m; j++) {
@@ -504,8 +520,6 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
                 if (px[j].ok)
                     solve_ray_init(&px[j].r, fr->cam.eye, camera_dir(&fr->cam, x0 + j, y));
             }
-            st->rays += m;
-            st->primary += m;
             bool any = false;
             for (int j = 0; j < m; j++) {
                 struct chunk_px *p = &px[j];
@@ -532,7 +546,7 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
                 st->hits += p->ok;
                 any |= p->ok;
             }
-            if (any) /* most chunks of a frame are background alone */
+            if (any)
                 shade_chunk(fr, px, m, st);
             for (int j = 0; j < m; j++)
                 put_pixel(fr, x0 + j, y, &px[j]);

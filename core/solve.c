@@ -22,6 +22,7 @@ void solve_ray_init(struct dray *r, vec3 o, vec3 d)
     r->e2 = v3(b, sign + n.y * n.y * a, -n.y);
     r->e1o = v3_dot(r->e1, o);
     r->e2o = v3_dot(r->e2, o);
+    r->inv_d = v3(1.0 / r->d.x, 1.0 / r->d.y, 1.0 / r->d.z);
 }
 
 void solve_ray_parallel(struct dray *r, vec3 o, const struct dray *like)
