@@ -168,18 +168,32 @@ bool bezier_normal(const struct patch *pt, double u, double v, vec3 *n)
     return false;
 }
 
-/* de Casteljau split of n+1 points spaced by stride; writes lo and hi with the same stride. */
-static void split_line(double (*src)[4], int n, int stride, double t, double (*lo)[4], double (*hi)[4])
+/* de Casteljau split of n+1 points spaced by stride; writes lo and hi with the same stride. A
+ * point's four coordinates are one vector, as in eval_bicubic (the hierarchy's grazing search
+ * splits nets by the thousand a frame). */
+SIMD_CLONES static void split_line(double (*src)[4], int n, int stride, double t, double (*lo)[4], double (*hi)[4])
 {
-    double tmp[PATCH_MAX_DEGREE + 1][4];
+    v4d tmp[PATCH_MAX_DEGREE + 1];
+    const double s = 1.0 - t;
+    if (n == 3) { /* cubic, unrolled: the same operations in the same order */
+        v4d p0, p1, p2, p3;
+        memcpy(&p0, src[0], sizeof p0), memcpy(&p1, src[stride], sizeof p1);
+        memcpy(&p2, src[2 * stride], sizeof p2), memcpy(&p3, src[3 * stride], sizeof p3);
+        v4d a = s * p0 + t * p1, b = s * p1 + t * p2, c = s * p2 + t * p3;
+        v4d ab = s * a + t * b, bc = s * b + t * c, m = s * ab + t * bc;
+        memcpy(lo[0], &p0, sizeof p0), memcpy(lo[stride], &a, sizeof a);
+        memcpy(lo[2 * stride], &ab, sizeof ab), memcpy(lo[3 * stride], &m, sizeof m);
+        memcpy(hi[0], &m, sizeof m), memcpy(hi[stride], &bc, sizeof bc);
+        memcpy(hi[2 * stride], &c, sizeof c), memcpy(hi[3 * stride], &p3, sizeof p3);
+        return;
+    }
     for (int i = 0; i <= n; i++)
-        memcpy(tmp[i], src[i * stride], sizeof tmp[i]);
+        memcpy(&tmp[i], src[i * stride], sizeof tmp[i]);
     for (int r = 0; r <= n; r++) {
-        memcpy(lo[r * stride], tmp[0], sizeof tmp[0]);
-        memcpy(hi[(n - r) * stride], tmp[n - r], sizeof tmp[0]);
+        memcpy(lo[r * stride], &tmp[0], sizeof tmp[0]);
+        memcpy(hi[(n - r) * stride], &tmp[n - r], sizeof tmp[0]);
         for (int i = 0; i < n - r; i++)
-            for (int k = 0; k < 4; k++)
-                tmp[i][k] = (1.0 - t) * tmp[i][k] + t * tmp[i + 1][k];
+            tmp[i] = s * tmp[i] + t * tmp[i + 1];
     }
 }
 
