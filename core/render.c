@@ -351,10 +351,11 @@ static bool primary_montecarlo(const struct frame *fr, const struct dray *r, uin
  * validated <= 10000: at most 14 squarings), a fifth the cost of pow. */
 static double spec_pow(double x, double e)
 {
-    if (e != floor(e))
+    unsigned n = e >= 0.0 && e <= 65535.0 ? (unsigned)e : 0; /* no libm floor: a call here */
+    if ((double)n != e)
         return pow(x, e);
     double r = 1.0;
-    for (unsigned n = (unsigned)e; n; n >>= 1, x *= x)
+    for (; n; n >>= 1, x *= x)
         if (n & 1)
             r *= x;
     return r;
