@@ -271,6 +271,32 @@ static void sub_net(const struct patch *pt, double u0, double u1, double v0, dou
     bezier_split_v(&b, v0 / v1, tmp, out);        /* out: [u0, u1] x [v0, v1] */
 }
 
+/* The extents of sub's control points along l->n, l->e[0] and l->e[1] (l->d0 .. l->e1), widened by
+ * their rounding (size: about sub's size). */
+static void axes_extents(struct leaf *l, const struct patch *sub, double size)
+{
+    l->d0 = INFINITY, l->d1 = -INFINITY;
+    l->e0[0] = l->e0[1] = INFINITY, l->e1[0] = l->e1[1] = -INFINITY;
+    for (int i = 0; i <= sub->p; i++)
+        for (int j = 0; j <= sub->q; j++) {
+            vec3 c = bezier_point(sub, i, j);
+            double d = v3_dot(l->n, c);
+            l->d0 = dmin(l->d0, d);
+            l->d1 = dmax(l->d1, d);
+            for (int k = 0; k < 2; k++) {
+                double a = v3_dot(l->e[k], c);
+                l->e0[k] = dmin(l->e0[k], a);
+                l->e1[k] = dmax(l->e1[k], a);
+            }
+        }
+    double pad = 1e-9 * (size + fabs(l->d0) + fabs(l->d1)); /* rounding of the dot products */
+    l->d0 -= pad, l->d1 += pad;
+    for (int k = 0; k < 2; k++) {
+        double pk = 1e-9 * (size + fabs(l->e0[k]) + fabs(l->e1[k]));
+        l->e0[k] -= pk, l->e1[k] += pk;
+    }
+}
+
 /* The bounds of sub-patch sub (the part [u0, u1] x [v0, v1] of patch `patch`, its net deviating
  * dev from the bilinear through its corners) that a ray query needs, besides its box l->lo,
  * l->hi (bezier_bounds), which the caller has set already. */
@@ -300,26 +326,7 @@ static void leaf_fill(struct leaf *l, const struct patch *sub, int patch, double
     l->e[0] = v3_norm(v3_sub(v3_add(l->c10, l->c11), v3_add(l->c00, l->c01)));
     l->e[0] = v3_norm(v3_sub(l->e[0], v3_scale(l->n, v3_dot(l->e[0], l->n)))); /* across n */
     l->e[1] = v3_cross(l->n, l->e[0]);
-    l->d0 = INFINITY, l->d1 = -INFINITY;
-    l->e0[0] = l->e0[1] = INFINITY, l->e1[0] = l->e1[1] = -INFINITY;
-    for (int i = 0; i <= sub->p; i++)
-        for (int j = 0; j <= sub->q; j++) {
-            vec3 c = bezier_point(sub, i, j);
-            double d = v3_dot(l->n, c);
-            l->d0 = dmin(l->d0, d);
-            l->d1 = dmax(l->d1, d);
-            for (int k = 0; k < 2; k++) {
-                double a = v3_dot(l->e[k], c);
-                l->e0[k] = dmin(l->e0[k], a);
-                l->e1[k] = dmax(l->e1[k], a);
-            }
-        }
-    double pad = 1e-9 * (size + fabs(l->d0) + fabs(l->d1)); /* rounding of the dot products */
-    l->d0 -= pad, l->d1 += pad;
-    for (int k = 0; k < 2; k++) {
-        double pk = 1e-9 * (size + fabs(l->e0[k]) + fabs(l->e1[k]));
-        l->e0[k] -= pk, l->e1[k] += pk;
-    }
+    axes_extents(l, sub, size);
 }
 
 static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
@@ -557,6 +564,12 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)
         quarter.has_axes = false; /* the box alone first: most quarters are missed */
         if (!leaf_reachable(&quarter, r, tnear, found ? h->t : tmax))
             continue;
+        if (l->has_axes) { /* then the box along the leaf's axes, which fit a quarter nearly as well */
+            quarter.has_axes = true, quarter.n = l->n, quarter.e[0] = l->e[0], quarter.e[1] = l->e[1];
+            axes_extents(&quarter, &sub, v3_len(v3_sub(quarter.hi, quarter.lo)));
+            if (!leaf_reachable(&quarter, r, tnear, found ? h->t : tmax))
+                continue;
+        }
         leaf_fill(&quarter, &sub, l->patch, a0, a1, b0, b1, net_deviation(&sub, NULL, NULL));
         struct solve_hit qh;
         if (leaf_search(b, &quarter, sub.cw, r, tnear, found ? h->t : tmax, depth + 1, &qh, iters)) {
