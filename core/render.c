@@ -42,7 +42,7 @@ struct frame {
     float *rgba, *depth, *normal, *uv, *id;
     unsigned char *srgb8;     /* srgb8_only: the picture, in place of rgba and depth */
     struct srgb_table *srgb;
-    unsigned char srgb_background[3 * SHADE_CHUNK]; /* a chunk of background, as srgb8 holds it */
+    unsigned char srgb_background[3 * SHADE_CHUNK]; /* a run of background pixels, as srgb8 holds them */
 };
 
 static double now_ms(void)
@@ -177,6 +177,10 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
         const float bg[3] = {(float)sc->background.x, (float)sc->background.y, (float)sc->background.z};
         for (int k = 0; k < 3 * SHADE_CHUNK; k++)
             fr->srgb_background[k] = srgb8(fr->srgb, bg[k % 3]);
+        /* the picture starts as background: the bands write only the pixels something covers */
+        const size_t run = sizeof fr->srgb_background;
+        for (size_t at = 0; at < 3 * np; at += run)
+            memcpy(fr->srgb8 + at, fr->srgb_background, 3 * np - at < run ? 3 * np - at : run);
     } else {
         fr->rgba = malloc(sizeof(float) * 4 * np);
         fr->depth = malloc(sizeof(float) * np);
@@ -456,9 +460,7 @@ static void put_pixel(struct frame *fr, int x, int y, const struct chunk_px *p)
     size_t idx = (size_t)y * sc->width + x;
     if (fr->srgb8) {
         unsigned char *px = &fr->srgb8[3 * idx];
-        if (!p->ok)
-            memcpy(px, fr->srgb_background, 3);
-        else
+        if (p->ok) /* else background, as frame_prepare wrote it */
             px[0] = srgb8(fr->srgb, (float)p->c.x), px[1] = srgb8(fr->srgb, (float)p->c.y),
             px[2] = srgb8(fr->srgb, (float)p->c.z);
         return;
@@ -508,9 +510,7 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
             st->rays += m;
             st->primary += m;
             if (use_map && fr->srgb8 && none_listed(&rw.n[(size_t)(y - y0) * W + x0], m)) {
-                /* background alone, by the map: most chunks of a frame */
-                memcpy(&fr->srgb8[3 * ((size_t)y * W + x0)], fr->srgb_background, 3 * (size_t)m);
-                rs.patch = -1;
+                rs.patch = -1; /* background alone, by the map (most chunks of a frame): written already */
                 continue;
             }
             /* the chunk's rays first: independent of each other, their square roots and divisions
