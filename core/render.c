@@ -42,7 +42,6 @@ struct frame {
     float *rgba, *depth, *normal, *uv, *id;
     unsigned char *srgb8;     /* srgb8_only: the picture, in place of rgba and depth */
     struct srgb_table *srgb;
-    unsigned char srgb_background[3 * SHADE_CHUNK]; /* a run of background pixels, as srgb8 holds them */
 };
 
 static double now_ms(void)
@@ -174,13 +173,13 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
         if (!(fr->srgb8 = malloc(3 * np)) || !(fr->srgb = malloc(sizeof *fr->srgb)))
             goto out_fail_mem;
         srgb_table_init(fr->srgb);
-        const float bg[3] = {(float)sc->background.x, (float)sc->background.y, (float)sc->background.z};
-        for (int k = 0; k < 3 * SHADE_CHUNK; k++)
-            fr->srgb_background[k] = srgb8(fr->srgb, bg[k % 3]);
         /* the picture starts as background: the bands write only the pixels something covers */
-        const size_t run = sizeof fr->srgb_background;
-        for (size_t at = 0; at < 3 * np; at += run)
-            memcpy(fr->srgb8 + at, fr->srgb_background, 3 * np - at < run ? 3 * np - at : run);
+        const float bg[3] = {(float)sc->background.x, (float)sc->background.y, (float)sc->background.z};
+        unsigned char run[3 * SHADE_CHUNK]; /* a run of background pixels */
+        for (int k = 0; k < 3 * SHADE_CHUNK; k++)
+            run[k] = srgb8(fr->srgb, bg[k % 3]);
+        for (size_t at = 0; at < 3 * np; at += sizeof run)
+            memcpy(fr->srgb8 + at, run, 3 * np - at < sizeof run ? 3 * np - at : sizeof run);
     } else {
         fr->rgba = malloc(sizeof(float) * 4 * np);
         fr->depth = malloc(sizeof(float) * np);

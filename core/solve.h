@@ -18,7 +18,7 @@ struct dray {
     vec3 o, d;         /* origin and unit direction */
     vec3 e1, e2;       /* the two planes' normals: d, e1, e2 orthonormal */
     double e1o, e2o;   /* e1·o, e2·o */
-    vec3 inv_d;        /* 1 / d per axis (infinite along an axis d is across): box slabs without a division */
+    vec3 inv_d;        /* 1 / d per axis (infinite where d is across the axis): box slabs without a division */
 };
 
 struct solve_box {
