@@ -65,6 +65,8 @@ static void put(struct map_rows *rw, size_t idx, const struct map_tri *t, float 
     const float zlo = t->zlo;
     struct map_cand *c = &rw->cand[idx * MAP_CANDS];
     int n = rw->n[idx], at = 0;
+    if (n == 0) /* the pixel's first fragment: its bounds start here */
+        rw->dropped[idx] = rw->zcut[idx] = INFINITY;
     while (at < n && c[at].patch != patch)
         at++;
     const float zfold = t->fold ? zs : INFINITY, zoutline = t->v[2] == EDGE ? zs : INFINITY;
@@ -104,7 +106,7 @@ static void put(struct map_rows *rw, size_t idx, const struct map_tri *t, float 
  * nearest bound first, so most hidden sheets never reach put(). */
 static bool culled(struct map_rows *rw, size_t idx, float zlo)
 {
-    if (!(zlo > rw->zcut[idx]))
+    if (!rw->n[idx] || !(zlo > rw->zcut[idx]))
         return false;
     rw->dropped[idx] = dmin(rw->dropped[idx], zlo);
     return true;
@@ -222,9 +224,7 @@ int map_raster_rows(const struct map *m, int y0, int y1, struct map_rows *rw)
             return SF_ENOMEM;
     }
     rw->y0 = y0, rw->y1 = y1, rw->W = m->W;
-    memset(rw->n, 0, n); /* the candidates themselves are read only up to each pixel's count */
-    for (size_t k = 0; k < n; k++)
-        rw->dropped[k] = rw->zcut[k] = INFINITY;
+    memset(rw->n, 0, n); /* the rest is read only where a pixel has candidates, and put() starts it */
     for (int tile = y0 / MAP_TILE_ROWS; tile * MAP_TILE_ROWS < y1; tile++) {
         int lo = tile * MAP_TILE_ROWS > y0 ? tile * MAP_TILE_ROWS : y0;
         int hi = (tile + 1) * MAP_TILE_ROWS < y1 ? (tile + 1) * MAP_TILE_ROWS : y1;

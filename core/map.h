@@ -50,8 +50,8 @@ struct map_rows {
     struct map_cand *cand;   /* (y1-y0)*W*MAP_CANDS, the first n[pixel] sorted by zlo, distinct patches */
     unsigned char *n;        /* (y1-y0)*W: candidates listed */
     float *dropped;          /* (y1-y0)*W: least zlo of a candidate that did not fit, or was culled as
-                              * most likely hidden (INFINITY: none) */
-    float *zcut;             /* (y1-y0)*W: depth beyond which a fragment is culled */
+                              * most likely hidden (INFINITY: none); where n > 0 */
+    float *zcut;             /* (y1-y0)*W: depth beyond which a fragment is culled; where n > 0 */
     size_t cap;              /* pixels allocated */
 };
 
