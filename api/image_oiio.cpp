@@ -1,8 +1,11 @@
 // image_oiio.cpp - the only C++ in surfd's image path: frame buffers to PNG/EXR/TIFF bytes with
-// OpenImageIO writing into memory (Filesystem::IOVecOutput). PNG is RGB, zlib level 3, no row
+// OpenImageIO writing into memory (Filesystem::IOVecOutput). PNG is RGB, zlib level 2, no row
 // filter: measured on the 1024² teapot, libpng's adaptive filter search took 40 ms of a 50 ms
-// encode for 15 % smaller files; without it encoding is 11 ms, and 7.7 ms (all zlib) since the
-// render's bands convert to 8-bit sRGB on its own threads (srgb8_only; tests/bench/RESULTS.md).
+// encode for 15 % smaller files; without it encoding is 11 ms, 7.3 ms at level 3 since the
+// render's bands convert to 8-bit sRGB on its own threads (srgb8_only; tests/bench/RESULTS.md),
+// and 6.7 ms at level 2 (114 KB against 106 KB). Level 1 (6.7 ms, 136 KB), zlib's run-length
+// strategy (6.5 ms, 202 KB) and no compression at all (8.4 ms, 3 MB) are no faster: some 6 ms
+// is the format's own work over the 3 MB of rows (their checksum and copies), whatever deflate does.
 #include "image.h"
 
 #include <OpenImageIO/filesystem.h>
@@ -53,7 +56,7 @@ extern "C" int image_encode(const struct frame_image *img, enum image_format fmt
             if (!img->srgb8)
                 return sf_fail(err, SF_EINVAL, "", "the frame holds no 8-bit picture: render it with srgb8_only");
             ImageSpec spec(img->width, img->height, 3, TypeDesc::UINT8);
-            spec.attribute("png:compressionLevel", 3);
+            spec.attribute("png:compressionLevel", 2);
             spec.attribute("png:filter", 8 /* PNG_FILTER_NONE */);
             spec.attribute("oiio:ColorSpace", "sRGB");
             return write(".png", spec, img->srgb8, out, out_len, err);
