@@ -537,7 +537,8 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)
     }
     /* the quarters' nets from the leaf's by halving it in u, then each half in v */
     const size_t n_pts = (size_t)(pt->p + 1) * (pt->q + 1);
-    double(*buf)[4] = malloc(sizeof *buf * 7 * n_pts); /* own net, two halves, four quarters */
+    double bicubic[7 * 16][4]; /* own net, two halves, four quarters: on the stack for the usual degrees */
+    double(*buf)[4] = n_pts <= 16 ? bicubic : malloc(sizeof *buf * 7 * n_pts);
     if (!buf)
         return false;
     double(*half)[4] = buf + n_pts, (*quarters)[4] = buf + 3 * n_pts;
@@ -577,7 +578,8 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)
             found = true;
         }
     }
-    free(buf);
+    if (buf != bicubic)
+        free(buf);
     return found;
 }
 

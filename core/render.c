@@ -35,6 +35,7 @@ struct frame {
     double diag;              /* scene size: the unit of every relative tolerance */
     double tol2;              /* squared root residual, world units */
     struct light *lights;     /* resolved (defaults filled in) */
+    struct dray *toward;      /* per light: a directional light's shadow rays' direction and planes */
     int n_lights;
     struct bvh *exact, *mesh;
     struct map *map;
@@ -73,6 +74,7 @@ void frame_free(struct frame *fr)
     bvh_free(fr->mesh);
     nurbs_patch_set_free(&fr->ps);
     free(fr->lights);
+    free(fr->toward);
     free(fr->rgba);
     free(fr->depth);
     free(fr->normal);
@@ -114,21 +116,21 @@ static int resolve_lights(struct frame *fr)
     const struct scene *sc = fr->sc;
     int n = sc->n_lights ? sc->n_lights : 2;
     fr->lights = malloc(sizeof *fr->lights * (size_t)n);
-    if (!fr->lights)
+    fr->toward = calloc((size_t)n, sizeof *fr->toward);
+    if (!fr->lights || !fr->toward)
         return SF_ENOMEM;
     fr->n_lights = n;
     if (sc->n_lights) {
         memcpy(fr->lights, sc->lights, sizeof *fr->lights * (size_t)n);
-        for (int k = 0; k < n; k++)
-            if (!fr->lights[k].point)
-                fr->lights[k].v = v3_norm(fr->lights[k].v);
-        return 0;
+    } else { /* key light from the upper left behind the viewer, and a weak head light */
+        const struct camera *c = &fr->cam;
+        vec3 from = v3_norm(v3_add(v3_add(v3_scale(c->r, -0.6), v3_scale(c->u, 0.9)), v3_scale(c->f, -0.7)));
+        fr->lights[0] = (struct light){false, v3_scale(from, -1.0), v3(0.85, 0.85, 0.85), false};
+        fr->lights[1] = (struct light){false, c->f, v3(0.25, 0.25, 0.25), true};
     }
-    /* key light from the upper left behind the viewer, and a weak head light */
-    const struct camera *c = &fr->cam;
-    vec3 from = v3_norm(v3_add(v3_add(v3_scale(c->r, -0.6), v3_scale(c->u, 0.9)), v3_scale(c->f, -0.7)));
-    fr->lights[0] = (struct light){false, v3_scale(from, -1.0), v3(0.85, 0.85, 0.85), false};
-    fr->lights[1] = (struct light){false, c->f, v3(0.25, 0.25, 0.25), true};
+    for (int k = 0; k < n; k++) /* every shadow ray toward a directional light shares these */
+        if (!fr->lights[k].point)
+            solve_ray_init(&fr->toward[k], v3(0, 0, 0), v3_scale(fr->lights[k].v, -1.0));
     return 0;
 }
 
@@ -411,16 +413,12 @@ static void shade_chunk(const struct frame *fr, struct chunk_px *px, int m, stru
         const struct light *l = &fr->lights[k];
         bool shadows = fr->sc->shadows && !l->no_shadow;
         int n_req = 0;
-        struct dray toward = {0}; /* a directional light's shadow rays share their direction and planes */
-        const vec3 Ldir = v3_scale(l->v, -1.0); /* a directional light's: resolve_lights normalised it */
-        if (shadows && !l->point)
-            solve_ray_init(&toward, v3(0, 0, 0), Ldir);
         for (int j = 0; j < m; j++) {
             struct chunk_px *p = &px[j];
             if (!p->ok)
                 continue;
             vec3 P = v3_mad(p->r.o, p->r.d, p->hit.t);
-            vec3 L = Ldir;
+            vec3 L = fr->toward[k].d; /* a directional light's (unit) */
             double dist = INFINITY;
             if (l->point)
                 L = v3_sub(l->v, P), dist = v3_len(L), L = dist > 0 ? v3_scale(L, 1.0 / dist) : L;
@@ -436,7 +434,7 @@ static void shade_chunk(const struct frame *fr, struct chunk_px *px, int m, stru
             if (l->point)
                 solve_ray_init(&q->r, o, L);
             else
-                solve_ray_parallel(&q->r, o, &toward);
+                solve_ray_parallel(&q->r, o, &fr->toward[k]);
             q->from = (struct bvh_origin){p->hit.patch, p->hit.u, p->hit.v};
             q->tnear = 0.0, q->tfar = dist;
             who[n_req++] = j;
