@@ -89,27 +89,46 @@ static int by_x0(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-/* An edge that crosses another of the same contour (-1: none). A sweep in x: edges are compared only
- * with those whose x-extent overlaps theirs, which for contours is a handful, not all n. Edges that
- * share a point (neighbours) are not compared. */
-static int self_crossing(const struct contour_slice *s)
+/* Edge pairs a sweep may compare at most: a contour of many long edges that overlap in x (a comb,
+ * a spiral) would otherwise be checked for minutes. Real outlines compare a handful per edge. */
+#define CROSS_MAX_PAIRS 50000000L
+#define CROSS_TOO_COMPLEX -2
+
+/* An edge of a that crosses another edge of a (b == a) or an edge of b: its index in a, -1 for none,
+ * or CROSS_TOO_COMPLEX past CROSS_MAX_PAIRS. A sweep in x: edges are compared only with those whose
+ * x-extent overlaps theirs. Neighbouring edges of one contour (they share a point) are not compared. */
+static int sweep_crossing(const struct contour_slice *a, const struct contour_slice *b)
 {
-    int n = s->n, found = -1;
+    int na = a->n, nb = b == a ? 0 : b->n, n = na + nb, found = -1;
     struct edge_span *e = malloc(sizeof *e * (size_t)n);
     if (!e)
         return -1; /* out of memory: leave the check to the modelling, which copes */
     for (int i = 0; i < n; i++) {
-        const double *p = s->p[i], *q = s->p[(i + 1) % n];
+        const struct contour_slice *c = i < na ? a : b;
+        int k = i < na ? i : i - na;
+        const double *p = c->p[k], *q = c->p[(k + 1) % c->n];
         e[i] = (struct edge_span){fmin(p[0], q[0]), fmax(p[0], q[0]), i};
     }
     qsort(e, (size_t)n, sizeof *e, by_x0);
-    for (int a = 0; a < n && found < 0; a++)
-        for (int b = a + 1; b < n && e[b].x0 <= e[a].x1 && found < 0; b++) {
-            int i = e[a].i, j = e[b].i, d = abs(i - j);
-            if (d == 1 || d == n - 1)
-                continue; /* neighbours share a point */
-            if (segments_meet(s->p[i], s->p[(i + 1) % n], s->p[j], s->p[(j + 1) % n]))
-                found = i < j ? i : j;
+    long pairs = 0;
+    for (int x = 0; x < n && found == -1; x++)
+        for (int y = x + 1; y < n && e[y].x0 <= e[x].x1 && found == -1; y++) {
+            if (++pairs > CROSS_MAX_PAIRS) {
+                found = CROSS_TOO_COMPLEX;
+                break;
+            }
+            int i = e[x].i, j = e[y].i;
+            if (b == a) {
+                int d = abs(i - j);
+                if (d == 1 || d == n - 1)
+                    continue; /* neighbours share a point */
+            } else if ((i < na) == (j < na)) {
+                continue;
+            }
+            const struct contour_slice *ci = i < na ? a : b, *cj = j < na ? a : b;
+            int ki = i < na ? i : i - na, kj = j < na ? j : j - na;
+            if (segments_meet(ci->p[ki], ci->p[(ki + 1) % ci->n], cj->p[kj], cj->p[(kj + 1) % cj->n]))
+                found = b == a ? (i < j ? i : j) : (i < na ? i : j);
         }
     free(e);
     return found;
@@ -134,28 +153,33 @@ static bool apart(const struct contour_slice *a, const struct contour_slice *b)
     return p[2] < q[0] || q[2] < p[0] || p[3] < q[1] || q[3] < p[1];
 }
 
-static bool edges_cross(const struct contour_slice *a, const struct contour_slice *b)
+/* Whether an edge of a crosses one of b: 1, 0, or CROSS_TOO_COMPLEX. */
+static int edges_cross(const struct contour_slice *a, const struct contour_slice *b)
 {
     if (apart(a, b))
-        return false;
-    for (int i = 0; i < a->n; i++)
-        for (int j = 0; j < b->n; j++)
-            if (segments_meet(a->p[i], a->p[(i + 1) % a->n], b->p[j], b->p[(j + 1) % b->n]))
-                return true;
-    return false;
+        return 0;
+    int at = sweep_crossing(a, b);
+    return at == CROSS_TOO_COMPLEX ? at : at >= 0;
 }
 
 bool contour_overlap(const struct contour_slice *a, const struct contour_slice *b)
 {
     if (apart(a, b))
         return false;
+    /* every vertex against the other region (contours that touch at vertices count when one lies
+     * inside) while that is affordable; past it, crossing edges or one vertex of each: without a
+     * crossing, either region holds the other whole or they are apart (too complex to sweep:
+     * taken as overlapping, which links the two) */
+    if ((long)a->n * b->n > CROSS_MAX_PAIRS)
+        return edges_cross(a, b) || contour_inside(b, a->p[0][0], a->p[0][1]) ||
+               contour_inside(a, b->p[0][0], b->p[0][1]);
     for (int i = 0; i < a->n; i++)
         if (contour_inside(b, a->p[i][0], a->p[i][1]))
             return true;
     for (int i = 0; i < b->n; i++)
         if (contour_inside(a, b->p[i][0], b->p[i][1]))
             return true;
-    return edges_cross(a, b);
+    return edges_cross(a, b) != 0;
 }
 
 static bool same_point(const double *a, const double *b)
@@ -268,14 +292,18 @@ int contour_clean(struct contour_set *cs, struct sf_err *err)
     for (int k = 0; k < cs->n_slices; k++) {
         struct contour_slice *s = &cs->s[k];
         pointer_of(s, ptr, sizeof ptr);
-        if (!isfinite(s->z)) {
+        if (!(fabs(s->z) <= CONTOUR_MAX_COORD)) {
             snprintf(ptr, sizeof ptr, "/slices/%d/z", s->src);
-            return sf_fail(err, SF_EINVAL, ptr, "z must be a finite number");
+            return sf_fail(err, SF_EINVAL, ptr, "z is %g; it must be a finite number within ±%g mm", s->z,
+                           CONTOUR_MAX_COORD);
         }
         int m = 0;
         for (int i = 0; i < s->n; i++) {
-            if (!isfinite(s->p[i][0]) || !isfinite(s->p[i][1]))
-                return sf_fail(err, SF_EINVAL, ptr, "point %d is not two finite numbers", i);
+            if (!(fabs(s->p[i][0]) <= CONTOUR_MAX_COORD && fabs(s->p[i][1]) <= CONTOUR_MAX_COORD)) {
+                snprintf(ptr + strlen(ptr), sizeof ptr - strlen(ptr), "/%d", i);
+                return sf_fail(err, SF_EINVAL, ptr, "point %d is not two finite numbers within ±%g mm", i,
+                               CONTOUR_MAX_COORD);
+            }
             if (m > 0 && fabs(s->p[i][0] - s->p[m - 1][0]) <= POINT_EPS && fabs(s->p[i][1] - s->p[m - 1][1]) <= POINT_EPS)
                 continue; /* repeated point */
             s->p[m][0] = s->p[i][0];
@@ -294,7 +322,10 @@ int contour_clean(struct contour_set *cs, struct sf_err *err)
             return sf_fail(err, SF_ENOMEM, ptr, "out of memory");
         if (m < 3)
             return sf_fail(err, SF_EINVAL, ptr, "a contour needs at least 3 distinct points, this one has %d", m);
-        int at = self_crossing(s);
+        int at = sweep_crossing(s, s);
+        if (at == CROSS_TOO_COMPLEX)
+            return sf_fail(err, SF_ELIMIT, ptr, "the contour is too complex to check for crossings (over %ld edge pairs "
+                           "overlap in x)", CROSS_MAX_PAIRS);
         if (at >= 0) /* a contour that crosses itself cannot bound a solid */
             return sf_fail(err, SF_EINVAL, ptr, "the contour crosses itself (at edge %d)", at);
         double a = contour_area(s);
@@ -314,14 +345,23 @@ int contour_clean(struct contour_set *cs, struct sf_err *err)
         while (b < cs->n_slices && cs->s[b].z == cs->s[a].z)
             b++;
         levels++;
+        if (a > 0 && !(cs->s[a].z - cs->s[a - 1].z >= CONTOUR_MIN_SPACING)) {
+            snprintf(ptr, sizeof ptr, "/slices/%d/z", cs->s[a].src);
+            return sf_fail(err, SF_EINVAL, ptr, "z = %g is within %g mm of the level below (z = %g)", cs->s[a].z,
+                           CONTOUR_MIN_SPACING, cs->s[a - 1].z);
+        }
         for (int i = a; i < b; i++) { /* contours of one slice: nesting, and no crossing edges */
             int depth = 0;
             for (int j = a; j < b; j++) {
                 if (j == i)
                     continue;
-                if (j > i && edges_cross(&cs->s[i], &cs->s[j])) {
+                int cross = j > i ? edges_cross(&cs->s[i], &cs->s[j]) : 0;
+                if (cross) {
                     pointer_of(&cs->s[j], ptr, sizeof ptr);
-                    return sf_fail(err, SF_EINVAL, ptr, "this contour crosses another contour at z = %g", cs->s[i].z);
+                    return cross == CROSS_TOO_COMPLEX
+                               ? sf_fail(err, SF_ELIMIT, ptr, "too complex to check against the other contours at z = %g",
+                                         cs->s[i].z)
+                               : sf_fail(err, SF_EINVAL, ptr, "this contour crosses another contour at z = %g", cs->s[i].z);
                 }
                 depth += contour_inside(&cs->s[j], cs->s[i].p[0][0], cs->s[i].p[0][1]);
             }

@@ -12,6 +12,8 @@
 
 #define CONTOUR_MAX_POINTS 100000 /* per contour */
 #define CONTOUR_MAX_SLICES 10000
+#define CONTOUR_MAX_COORD 1e6     /* mm (a kilometre): |x|, |y| and |z| at most; past it the sums overflow */
+#define CONTOUR_MIN_SPACING 1e-6  /* mm: two levels of contours are at least this far apart */
 
 struct contour_slice {   /* one contour (a slice may hold several, at the same z) */
     double z;
@@ -29,7 +31,8 @@ struct contour_set {
 
 /* Cleans in place: sorts by z; drops the repeated closing point and repeated points; turns
  * clockwise contours; marks holes; rejects (SF_EINVAL with a pointer to the contour's points)
- * fewer than 3 distinct points, non-finite values, a contour that crosses itself, two contours at
+ * fewer than 3 distinct points, values that are not finite or past CONTOUR_MAX_COORD, levels
+ * closer than CONTOUR_MIN_SPACING, a contour that crosses itself, two contours at
  * one z whose edges cross, fewer than two distinct z. */
 int contour_clean(struct contour_set *cs, struct sf_err *err);
 void contour_set_free(struct contour_set *cs);

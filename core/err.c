@@ -28,3 +28,10 @@ const char *sf_strerror(int code)
     }
     return "unknown error";
 }
+
+int sf_poll(const struct sf_progress *pr, double done, struct sf_err *err)
+{
+    if (!pr || !pr->poll || !pr->poll(pr->ctx, done < 0 ? 0 : done > 1 ? 1 : done))
+        return 0;
+    return sf_fail(err, SF_ECANCEL, "", "cancelled");
+}

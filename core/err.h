@@ -6,6 +6,8 @@
 #ifndef SURFD_ERR_H
 #define SURFD_ERR_H
 
+#include <stdbool.h>
+
 #define SF_ERRORS(X)                                                   \
     X(SF_EINVAL,   -1, "invalid input")                                \
     X(SF_ENOMEM,   -2, "out of memory")                                \
@@ -27,6 +29,17 @@ struct sf_err {
     char pointer[160];  /* JSON pointer into the request ("/objects/3/knots_u"), "" if none */
     char message[320];  /* what is wrong, for a human */
 };
+
+/* How a long computation in core/ (which has no threads of its own) is stopped and watched: it
+ * calls sf_poll() between steps of its work with the fraction done so far; when poll answers
+ * true, it returns SF_ECANCEL as soon as it has let go of what it holds. NULL everywhere: never
+ * stops. The daemon's job kinds answer from the job's cancel flag and record the fraction. */
+struct sf_progress {
+    bool (*poll)(void *ctx, double done); /* done in [0, 1]; true: stop */
+    void *ctx;
+};
+/* 0, or SF_ECANCEL (recorded in err) when pr asks to stop. */
+int sf_poll(const struct sf_progress *pr, double done, struct sf_err *err);
 
 /* Fills err (if not NULL) and returns code. The first failure recorded wins. */
 int sf_fail(struct sf_err *err, int code, const char *pointer, const char *fmt, ...)

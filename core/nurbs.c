@@ -106,9 +106,10 @@ int nurbs_validate(const struct surface *s, const char *where, struct sf_err *er
     size_t np = (size_t)s->n_u * s->n_v;
     for (size_t k = 0; k < np; k++) {
         for (int c = 0; c < 3; c++)
-            if (!isfinite(s->points[3 * k + c])) {
+            if (!(fabs(s->points[3 * k + c]) <= SURF_MAX_COORD)) {
                 snprintf(ptr, sizeof ptr, "%s/points/%zu/%d", where, k, c);
-                return sf_fail(err, SF_EINVAL, ptr, "coordinate %d of point %zu is not a finite number", c, k);
+                return sf_fail(err, SF_EINVAL, ptr, "coordinate %d of point %zu is %g; coordinates are finite and within ±%g", c,
+                               k, s->points[3 * k + c], SURF_MAX_COORD);
             }
         if (s->weights && !(s->weights[k] > 0.0 && isfinite(s->weights[k]))) {
             snprintf(ptr, sizeof ptr, "%s/weights/%zu", where, k);
@@ -349,29 +350,101 @@ int nurbs_transpose(struct surface *s)
     return 0;
 }
 
+/* The span s in [p, n-1] with U[s] <= t < U[s+1] (t >= U[n]: n-1), as Piegl & Tiller's FindSpan. */
+static int span_of(const double *U, int n, int p, double t)
+{
+    if (t >= U[n])
+        return n - 1;
+    int lo = p, hi = n;
+    while (hi - lo > 1) {
+        int mid = (lo + hi) / 2;
+        if (t < U[mid])
+            hi = mid;
+        else
+            lo = mid;
+    }
+    return lo;
+}
+
 /* Inserts every distinct knot of the domain [U[p], U[n]] until its multiplicity is p, so that
- * each non-empty span's p+1 points are Bézier points. Works on the homogeneous net. */
+ * each non-empty span's p+1 points are Bézier points. Knots within KNOT_EPS of their neighbour
+ * count as one. All insertions at once (Piegl & Tiller A5.4, knot refinement): O((n + r) p n_v)
+ * for r new knots, where inserting them one at a time copies the whole net r times. Works on the
+ * homogeneous net h of n_u x n_v points; takes ownership of h and returns the refined net (NULL
+ * when out of memory, h freed all the same). */
 static double (*refine_to_bezier(double (*h)[4], double **U, int *n_u, int n_v, int p))[4]
 {
-    double a = (*U)[p], b = (*U)[*n_u];
-    double eps = KNOT_EPS * (b - a);
-    for (int k = p; k <= *n_u;) {
-        double t = (*U)[k];
-        int mult = 0;
-        for (int i = 0; i < *n_u + p + 1; i++)
-            if (fabs((*U)[i] - t) <= eps)
-                mult++;
-        if (t < a - eps || t > b + eps || mult >= p) {
-            k++;
-            continue;
+    const int n = *n_u;
+    const double *K = *U;
+    const double a = K[p], b = K[n], eps = KNOT_EPS * (b - a);
+    int cnt = 0;
+    double *X = NULL;
+    for (int pass = 0; pass < 2; pass++) { /* count, then fill */
+        cnt = 0;
+        for (int i0 = 0, i1; i0 < n + p + 1; i0 = i1) {
+            for (i1 = i0 + 1; i1 < n + p + 1 && K[i1] - K[i1 - 1] <= eps; i1++)
+                ;
+            if (K[i0] < a - eps || K[i0] > b + eps)
+                continue;
+            for (int c = i1 - i0; c < p; c++, cnt++)
+                if (pass)
+                    X[cnt] = K[i0];
         }
-        double(*q)[4] = insert_u(h, U, n_u, n_v, p, t);
-        free(h);
-        if (!q)
+        if (cnt == 0)
+            return h;
+        if (!pass && !(X = malloc(sizeof *X * (size_t)cnt))) {
+            free(h);
             return NULL;
-        h = q; /* rescan the same knot: multiplicity went up by one */
+        }
     }
-    return h;
+    double(*Q)[4] = malloc(sizeof *Q * (size_t)(n + cnt) * n_v);
+    double *V = malloc(sizeof *V * (size_t)(n + cnt + p + 1));
+    if (!Q || !V) {
+        free(Q), free(V), free(X), free(h);
+        return NULL;
+    }
+    const size_t row = sizeof *Q * (size_t)n_v;
+#define ROW(net, i) ((net) + (size_t)(i) * n_v)
+    int sa = span_of(K, n, p, X[0]), sb = span_of(K, n, p, X[cnt - 1]) + 1;
+    for (int j = 0; j <= sa - p; j++)
+        memcpy(ROW(Q, j), ROW(h, j), row);
+    for (int j = sb - 1; j < n; j++)
+        memcpy(ROW(Q, j + cnt), ROW(h, j), row);
+    for (int j = 0; j <= sa; j++)
+        V[j] = K[j];
+    for (int j = sb + p; j <= n + p; j++)
+        V[j + cnt] = K[j];
+    int i = sb + p - 1, k = sb + p + cnt - 1;
+    for (int j = cnt - 1; j >= 0; j--) {
+        while (X[j] <= K[i] && i > sa) {
+            memcpy(ROW(Q, k - p - 1), ROW(h, i - p - 1), row);
+            V[k] = K[i];
+            k--, i--;
+        }
+        memcpy(ROW(Q, k - p - 1), ROW(Q, k - p), row);
+        for (int l = 1; l <= p; l++) {
+            int ind = k - p + l;
+            double alfa = V[k + l] - X[j];
+            if (alfa == 0.0) {
+                memcpy(ROW(Q, ind - 1), ROW(Q, ind), row);
+                continue;
+            }
+            alfa /= V[k + l] - K[i - p + l];
+            double(*lo)[4] = ROW(Q, ind - 1), (*hi)[4] = ROW(Q, ind);
+            for (int c = 0; c < n_v; c++)
+                for (int d = 0; d < 4; d++)
+                    lo[c][d] = alfa * lo[c][d] + (1.0 - alfa) * hi[c][d];
+        }
+        V[k] = X[j];
+        k--;
+    }
+#undef ROW
+    free(X);
+    free(h);
+    free(*U);
+    *U = V;
+    *n_u = n + cnt;
+    return Q;
 }
 
 int nurbs_extract(const struct surface *s, int surface_index, struct patch_set *set)

@@ -15,6 +15,10 @@
 enum surf_kind { SURF_BEZIER, SURF_BSPLINE, SURF_NURBS };
 
 #define SURF_MAX_POINTS 1000000 /* control points per surface: caps memory per request */
+/* Largest coordinate magnitude a control point may have. The tracer hands Embree float boxes and
+ * rays, and Embree asserts (aborting the process) on an origin or box past ~1.8e18; 1e15 keeps every
+ * point, the framed eye and the float bounds of any patch well inside that. */
+#define SURF_MAX_COORD 1e15
 
 struct surface {
     enum surf_kind kind;
@@ -34,7 +38,7 @@ int nurbs_surface_alloc(struct surface *s, enum surf_kind kind, int deg_u, int d
 void nurbs_surface_free(struct surface *s);
 
 /* Checks degrees, counts, knots (non-decreasing, non-empty domain, multiplicity <= degree+1
- * inside), weights (positive, finite) and coordinates (finite). where is the JSON pointer
+ * inside), weights (positive, finite) and coordinates (finite, within ±SURF_MAX_COORD). where is the JSON pointer
  * of the object ("/objects/3"); field names are appended to it in err->pointer. */
 int nurbs_validate(const struct surface *s, const char *where, struct sf_err *err);
 

@@ -134,6 +134,8 @@ static int resolve_lights(struct frame *fr)
     return 0;
 }
 
+/* The framed eye's coordinates at most: a ray's float origin past ~1.8e18 aborts Embree. */
+#define FRAME_MAX_EYE 1e17
 #define AUTO_MAP_PIXELS_PER_PATCH 64 /* frame pixels per patch below which auto leaves the map out */
 
 int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame **out, struct sf_err *err)
@@ -167,6 +169,13 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
     }
     fr->tol2 = (sc->tolerance * fr->diag) * (sc->tolerance * fr->diag);
     place_camera(fr);
+    if (!(fabs(fr->cam.eye.x) <= FRAME_MAX_EYE && fabs(fr->cam.eye.y) <= FRAME_MAX_EYE &&
+          fabs(fr->cam.eye.z) <= FRAME_MAX_EYE)) {
+        frame_free(fr);
+        return sf_fail(err, SF_EINVAL, "/camera/fov_deg",
+                       "framing the objects at fov_deg %g puts the eye beyond ±%g; widen the view", sc->fov_deg,
+                       FRAME_MAX_EYE);
+    }
     if (resolve_lights(fr))
         goto out_fail_mem;
 

@@ -58,6 +58,12 @@ struct material scene_default_material(void)
 
 static bool finite3(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 
+/* Finite and within the coordinate range of control points (nurbs.h). */
+static bool in_range3(vec3 a)
+{
+    return fabs(a.x) <= SURF_MAX_COORD && fabs(a.y) <= SURF_MAX_COORD && fabs(a.z) <= SURF_MAX_COORD;
+}
+
 int scene_validate(const struct scene *sc, struct sf_err *err)
 {
     if (sc->width < 1 || sc->height < 1 || sc->width > SCENE_MAX_SIDE || sc->height > SCENE_MAX_SIDE)
@@ -67,8 +73,9 @@ int scene_validate(const struct scene *sc, struct sf_err *err)
         return sf_fail(err, SF_ELIMIT, "/image", "image of %d x %d pixels is larger than the limit of %u pixels",
                        sc->width, sc->height, SCENE_MAX_PIXELS);
     if (sc->has_camera) {
-        if (!finite3(sc->eye) || !finite3(sc->target) || !finite3(sc->up))
-            return sf_fail(err, SF_EINVAL, "/camera", "camera vectors must be finite");
+        if (!in_range3(sc->eye) || !in_range3(sc->target) || !in_range3(sc->up))
+            return sf_fail(err, SF_EINVAL, !in_range3(sc->eye) ? "/camera/eye" : !in_range3(sc->target) ? "/camera/target" : "/camera/up",
+                           "camera vectors must be finite and within ±%g", SURF_MAX_COORD);
         vec3 f = v3_sub(sc->target, sc->eye);
         if (v3_len(f) == 0.0)
             return sf_fail(err, SF_EINVAL, "/camera/target", "camera target equals the eye");
@@ -81,7 +88,7 @@ int scene_validate(const struct scene *sc, struct sf_err *err)
         return sf_fail(err, SF_EINVAL, "/camera", "azimuth must be finite and elevation within ±89.9 degrees");
     for (int k = 0; k < sc->n_lights; k++) {
         const struct light *l = &sc->lights[k];
-        if (!finite3(l->v) || !finite3(l->color) || (!l->point && v3_len(l->v) == 0.0))
+        if (!in_range3(l->v) || !finite3(l->color) || (!l->point && v3_len(l->v) == 0.0))
             return sf_fail(err, SF_EINVAL, "/lights", "light %d needs a finite, non-zero direction and colour", k);
     }
     if (!(sc->tolerance >= 1e-15 && sc->tolerance <= 1e-2))

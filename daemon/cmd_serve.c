@@ -57,11 +57,21 @@ static int read_tokens(struct service *svc, const char *path, char *msg, size_t 
     return 0;
 }
 
+/* A job that was running when the process stopped this many times is not run again: it is what
+ * stopped it (with Restart=on-failure, running it again would keep the service down). */
+#define RECOVER_MAX_ATTEMPTS 2
+
 static void recover(const char *id, void *arg)
 {
     struct service *svc = arg;
     struct job_rec rec;
-    if (store_get(svc->store, id, false, false, &rec) == 1) {
+    if (store_get(svc->store, id, false, false, &rec) == 1 && rec.attempts >= RECOVER_MAX_ATTEMPTS) {
+        struct sf_err err = {0};
+        sf_fail(&err, SF_EBACKEND, "", "this job stopped the service %d times; it is not run again",
+                rec.attempts);
+        service_job_end(svc, id, JOB_FAILED, false, NULL, 0, NULL, NULL, &err);
+        LOG(LOG_ERROR, "job %s stopped the service %d times: failed, not recovered", id, rec.attempts);
+    } else if (rec.id[0]) {
         int (*submit)(struct service *, const char *, bool) = !strcmp(rec.kind, "render") ? render_job_submit
                                                             : !strcmp(rec.kind, "volume") ? volume_job_submit
                                                             : !strcmp(rec.kind, "model")  ? model_job_submit

@@ -50,7 +50,10 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     struct job_rec rec;
     if (store_get(w->svc->store, w->id, true, false, &rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
-    store_set_state(w->svc->store, w->id, "running", 0.0, wall_s(), 0, NULL);
+    if (store_claim(w->svc->store, w->id, wall_s())) {
+        store_rec_free(&rec);
+        return sf_fail(&w->err, SF_EIO, "", "the store cannot record the job's start"), -1;
+    }
     const char *body = (const char *)rec.request;
     int rc;
     w->type = "application/json";

@@ -36,8 +36,10 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     int found = store_get(w->svc->store, w->id, true, false, &rec);
     if (found != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
-    double now = wall_s();
-    store_set_state(w->svc->store, w->id, "running", 0.0, now, 0, NULL);
+    if (store_claim(w->svc->store, w->id, wall_s())) {
+        store_rec_free(&rec);
+        return sf_fail(&w->err, SF_EIO, "", "the store cannot record the job's start"), -1;
+    }
     struct model_resolver models = service_models(w->svc);
     int rc = render_request_parse((const char *)rec.request, rec.request_len, rec.format, rec.options, &models, &w->sc,
                                   &w->fmt, &w->err);

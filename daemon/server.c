@@ -626,8 +626,11 @@ static enum MHD_Result route(struct req *r)
                 return job_resource(r, 202, id);
             struct job_rec rec;
             int found = store_get(r->svc->store, id, false, false, &rec);
-            store_rec_free(&rec);
-            return found == 1 ? problem(r, 409, "the job has already ended", NULL) : problem(r, 404, "no such job", NULL);
+            if (found == 1)
+                store_rec_free(&rec); /* filled only when found */
+            return found == 1 ? problem(r, 409, "the job has already ended", NULL)
+                   : found == 0 ? problem(r, 404, "no such job", NULL)
+                                : problem(r, 500, "the store failed", NULL);
         }
     }
     return problem(r, 404, "no such route", NULL);

@@ -45,7 +45,7 @@ void service_job_end(struct service *svc, const char *id, enum job_state outcome
         LOG(LOG_WARN, "job %s failed: %s", id, err->message);
         free(p);
     } else if (requeue) { /* shutdown: leave it to the next start */
-        store_set_state(svc->store, id, "queued", 0.0, 0, 0, NULL);
+        store_requeue(svc->store, id);
     } else {
         store_set_state(svc->store, id, "cancelled", 0.0, 0, wall_s(), NULL);
     }

@@ -30,6 +30,11 @@ static const char SCHEMA[] =
     "CREATE INDEX IF NOT EXISTS models_created ON models(created);"
     "CREATE TABLE IF NOT EXISTS probe (x INTEGER);";
 
+/* Columns added after the first release, for databases made before them: added when missing. */
+static const char *const MIGRATIONS[] = {
+    "ALTER TABLE jobs ADD COLUMN attempts INTEGER NOT NULL DEFAULT 0",
+};
+
 int store_open(const char *dir, struct store **out, char *msg, size_t msg_len)
 {
     *out = NULL;
@@ -51,6 +56,17 @@ int store_open(const char *dir, struct store **out, char *msg, size_t msg_len)
         store_close(s);
         return -1;
     }
+    for (size_t k = 0; k < sizeof MIGRATIONS / sizeof *MIGRATIONS; k++)
+        if (sqlite3_exec(s->db, MIGRATIONS[k], NULL, NULL, &err) != SQLITE_OK) {
+            bool had = err && strstr(err, "duplicate column");
+            sqlite3_free(err);
+            err = NULL;
+            if (!had) {
+                snprintf(msg, msg_len, "%s: cannot upgrade the schema: %s", path, sqlite3_errmsg(s->db));
+                store_close(s);
+                return -1;
+            }
+        }
     *out = s;
     return 0;
 }
@@ -79,6 +95,8 @@ static int run(struct store *s, const char *sql, void (*bind)(sqlite3_stmt *, co
     pthread_mutex_unlock(&s->lock);
     return rc == SQLITE_DONE || rc == SQLITE_ROW ? 0 : -1;
 }
+
+static void bind_id(sqlite3_stmt *st, const void *arg) { sqlite3_bind_text(st, 1, arg, -1, SQLITE_STATIC); }
 
 static void bind_insert(sqlite3_stmt *st, const void *arg)
 {
@@ -124,6 +142,31 @@ int store_set_state(struct store *s, const char *id, const char *state, double p
                "UPDATE jobs SET state=?1, progress=?2, started=CASE WHEN ?3>0 THEN ?3 ELSE started END,"
                " finished=CASE WHEN ?4>0 THEN ?4 ELSE finished END, error=COALESCE(?5,error) WHERE id=?6",
                bind_state, &a);
+}
+
+struct claim_args {
+    const char *id;
+    double started;
+};
+
+static void bind_claim(sqlite3_stmt *st, const void *arg)
+{
+    const struct claim_args *a = arg;
+    sqlite3_bind_double(st, 1, a->started);
+    sqlite3_bind_text(st, 2, a->id, -1, SQLITE_STATIC);
+}
+
+int store_claim(struct store *s, const char *id, double started)
+{
+    struct claim_args a = {id, started};
+    return run(s, "UPDATE jobs SET state='running', progress=0, started=?1, attempts=attempts+1 WHERE id=?2",
+               bind_claim, &a);
+}
+
+int store_requeue(struct store *s, const char *id)
+{
+    return run(s, "UPDATE jobs SET state='queued', progress=0, attempts=MAX(attempts-1,0) WHERE id=?", bind_id,
+               id);
 }
 
 struct result_args {
@@ -180,7 +223,8 @@ static unsigned char *dup_blob(sqlite3_stmt *st, int col, size_t *len)
     return p;
 }
 
-#define REC_COLUMNS "id,kind,state,progress,created,started,finished,format,options,result_type,meta,error"
+#define REC_COLUMNS "id,kind,state,progress,created,started,finished,format,options,result_type,meta,error,attempts"
+#define REC_N_COLUMNS 13
 
 static void read_rec(sqlite3_stmt *st, struct job_rec *r)
 {
@@ -197,12 +241,14 @@ static void read_rec(sqlite3_stmt *st, struct job_rec *r)
     copy_text(r->result_type, sizeof r->result_type, st, 9);
     r->meta = dup_text(st, 10);
     r->error = dup_text(st, 11);
+    r->attempts = sqlite3_column_int(st, 12);
 }
 
 int store_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out)
 {
     sqlite3_stmt *st;
     int found = -1;
+    memset(out, 0, sizeof *out);
     pthread_mutex_lock(&s->lock);
     if (sqlite3_prepare_v2(s->db, "SELECT " REC_COLUMNS ",request,result FROM jobs WHERE id=?", -1, &st, NULL) ==
         SQLITE_OK) {
@@ -212,9 +258,9 @@ int store_get(struct store *s, const char *id, bool with_request, bool with_resu
         if (found == 1) {
             read_rec(st, out);
             if (with_request)
-                out->request = dup_blob(st, 12, &out->request_len);
+                out->request = dup_blob(st, REC_N_COLUMNS, &out->request_len);
             if (with_result)
-                out->result = dup_blob(st, 13, &out->result_len);
+                out->result = dup_blob(st, REC_N_COLUMNS + 1, &out->result_len);
         }
         sqlite3_finalize(st);
     }
@@ -310,8 +356,6 @@ int store_prune(struct store *s, double now, long ttl, long max_count)
                " (SELECT id FROM jobs WHERE state IN ('succeeded','failed','cancelled') ORDER BY finished DESC LIMIT ?2))",
                bind_prune, &a);
 }
-
-static void bind_id(sqlite3_stmt *st, const void *arg) { sqlite3_bind_text(st, 1, arg, -1, SQLITE_STATIC); }
 
 int store_delete(struct store *s, const char *id)
 {

@@ -25,6 +25,7 @@ struct job_rec {
     char result_type[48];    /* Content-Type of the result */
     char *meta;              /* JSON object of result headers (render_ms, rays), or NULL */
     char *error;             /* problem JSON, or NULL */
+    int attempts;            /* times a worker has started it (store_claim) and not handed it back */
 };
 
 /* Opens (creating) DIR/surfd.db. On failure writes msg and returns -1. */
@@ -35,10 +36,16 @@ int store_insert(struct store *s, const struct job_rec *r);
 /* Sets state and progress; started/finished are set when non-zero. error may be NULL. */
 int store_set_state(struct store *s, const char *id, const char *state, double progress, double started,
                     double finished, const char *error);
+/* A worker starts the job: running, and one more attempt recorded before any of its work is done,
+ * so that a job that takes the process down is known as such at the next start. */
+int store_claim(struct store *s, const char *id, double started);
+/* A running job handed back unfinished by a draining process: queued, the attempt not counted. */
+int store_requeue(struct store *s, const char *id);
 int store_set_result(struct store *s, const char *id, const unsigned char *data, size_t len, const char *type,
                      const char *meta, double finished);
 /* Reads one record (with the request and, if with_result, the result). Returns 1 found, 0 not
- * found, -1 error. Caller frees with store_rec_free(). */
+ * found, -1 error. *out is zeroed first, so store_rec_free() is safe whatever the answer; caller
+ * frees with store_rec_free(). */
 int store_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out);
 void store_rec_free(struct job_rec *r);
 /* Calls fn for each record (no blobs) in creation order; state NULL for all, limit <= 0 for no limit. */
