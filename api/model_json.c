@@ -66,9 +66,9 @@ static enum model_caps caps_of(const char *name)
     return !strcmp(name, "slab") ? CAPS_SLAB : !strcmp(name, "dome") ? CAPS_DOME : CAPS_FLAT;
 }
 
-static struct model_opts opts_of(const struct contour_request *req)
+static struct model_opts opts_of(const struct contour_request *req, const struct sf_progress *pr)
 {
-    struct model_opts o = {MODEL_PARABOLIC, !strcmp(req->param, "polar")};
+    struct model_opts o = {MODEL_PARABOLIC, !strcmp(req->param, "polar"), pr};
     model_method_parse(req->method, &o.method);
     return o;
 }
@@ -85,11 +85,12 @@ static void override(struct contour_request *req, const char *caps, const char *
 }
 
 /* The figures of one cleaned contour set as a JSON object (NULL with err set on failure). */
-static json_t *figures(struct contour_set *cs_in, const struct contour_request *req, double t0, struct sf_err *err)
+static json_t *figures(struct contour_set *cs_in, const struct contour_request *req, const struct sf_progress *pr,
+                       double t0, struct sf_err *err)
 {
     struct contour_set cs = *cs_in;
     struct solid sd;
-    struct model_opts mo = opts_of(req);
+    struct model_opts mo = opts_of(req, pr);
     bool curves = mo.method == MODEL_PARABOLIC || mo.method == MODEL_LINEAR_PARABOLIC;
     double t1 = now_ms();
     if (solid_build(&cs, mo, caps_of(req->caps), &sd, err))
@@ -245,7 +246,7 @@ typedef int (*model_fn)(void *ctx, int k, json_t *fig, const struct contour_set 
 /* Every model the request describes, in order, into *list (one for JSON and for a DICOM ?roi=NAME:
  * *single); fn (may be NULL) sees each. */
 static int each_model(const char *buf, size_t len, const char *format, const char *options, model_fn fn, void *ctx,
-                      json_t **list, bool *single, struct sf_err *err)
+                      const struct sf_progress *pr, json_t **list, bool *single, struct sf_err *err)
 {
     double t0 = now_ms();
     *list = json_array();
@@ -263,7 +264,7 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
         if ((rc = contour_parse_json(buf, len, &cs, &req, err)))
             return rc;
         override(&req, caps, method, param);
-        json_t *o = figures(&cs, &req, t0, err);
+        json_t *o = figures(&cs, &req, pr, t0, err);
         if (!o)
             rc = err->code ? err->code : SF_ENOMEM;
         else if (json_array_append_new(*list, o) || (fn && (rc = fn(ctx, 0, o, &cs, &req, err))))
@@ -289,7 +290,7 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
             snprintf(err->pointer, sizeof err->pointer, "/ROIContourSequence(%.40s)%s", rois[k].name, where);
             break;
         }
-        json_t *o = figures(&rois[k].cs, &req, t0, err);
+        json_t *o = figures(&rois[k].cs, &req, pr, t0, err);
         if (!o) {
             rc = err->code ? err->code : SF_ENOMEM;
             break;
@@ -313,7 +314,8 @@ static char *answer(json_t *list, bool single, struct sf_err *err)
     return dump(single ? json_incref(json_array_get(list, 0)) : json_pack("{s:O}", "models", list), err);
 }
 
-int model_figures(const char *buf, size_t len, const char *format, const char *options, char **json, struct sf_err *err)
+int model_figures(const char *buf, size_t len, const char *format, const char *options,
+                  const struct sf_progress *pr, char **json, struct sf_err *err)
 {
     if (model_body_is_scene(buf, len, format)) {
         *json = NULL;
@@ -321,7 +323,7 @@ int model_figures(const char *buf, size_t len, const char *format, const char *o
     }
     json_t *list;
     bool single;
-    int rc = each_model(buf, len, format, options, NULL, NULL, &list, &single, err);
+    int rc = each_model(buf, len, format, options, NULL, NULL, pr, &list, &single, err);
     *json = rc ? NULL : answer(list, single, err);
     json_decref(list);
     return rc ? rc : (*json ? 0 : err->code);
@@ -360,12 +362,12 @@ static int store_one(void *arg, int k, json_t *fig, const struct contour_set *cs
 }
 
 int model_create(const char *buf, size_t len, const char *format, const char *options, const struct model_sink *sink,
-                 char **json, char location[64], struct sf_err *err)
+                 const struct sf_progress *pr, char **json, char location[64], struct sf_err *err)
 {
     struct create_ctx c = {sink, ""};
     json_t *list;
     bool single;
-    int rc = each_model(buf, len, format, options, store_one, &c, &list, &single, err);
+    int rc = each_model(buf, len, format, options, store_one, &c, pr, &list, &single, err);
     *json = rc ? NULL : answer(list, single, err);
     json_decref(list);
     snprintf(location, 64, "/models/%s", c.first);
@@ -374,14 +376,14 @@ int model_create(const char *buf, size_t len, const char *format, const char *op
 
 /* ---- what is made from a stored model ---------------------------------------------------------- */
 
-static int solid_of(const char *src, size_t len, struct solid *sd, struct sf_err *err)
+static int solid_of(const char *src, size_t len, const struct sf_progress *pr, struct solid *sd, struct sf_err *err)
 {
     struct contour_set cs;
     struct contour_request req;
     int rc = contour_parse_json(src, len, &cs, &req, err);
     if (rc)
         return rc;
-    rc = solid_build(&cs, opts_of(&req), caps_of(req.caps), sd, err);
+    rc = solid_build(&cs, opts_of(&req, pr), caps_of(req.caps), sd, err);
     contour_set_free(&cs);
     return rc;
 }
@@ -485,8 +487,8 @@ int model_mesh_options(const char *options, const char **format, double *tol, st
     return 0;
 }
 
-int model_mesh(const char *src, size_t len, const char *options, char **out, size_t *out_len, const char **mime,
-               struct sf_err *err)
+int model_mesh(const char *src, size_t len, const char *options, const struct sf_progress *pr, char **out,
+               size_t *out_len, const char **mime, struct sf_err *err)
 {
     const char *format;
     double tol;
@@ -496,7 +498,7 @@ int model_mesh(const char *src, size_t len, const char *options, char **out, siz
         return rc;
     *mime = !strcmp(format, "stl") ? "model/stl" : !strcmp(format, "ply") ? "application/ply" : "model/obj";
     struct solid sd;
-    if ((rc = solid_of(src, len, &sd, err)))
+    if ((rc = solid_of(src, len, pr, &sd, err)))
         return rc;
     struct solid_measures sm;
     solid_measure(&sd, &sm);
@@ -504,6 +506,8 @@ int model_mesh(const char *src, size_t len, const char *options, char **out, siz
     struct mesh m;
     rc = solid_mesh(&sd, tol > 0 ? tol : dflt, &m);
     solid_free(&sd);
+    if (rc == SF_ECANCEL)
+        return sf_fail(err, rc, "", "cancelled");
     if (rc == SF_ELIMIT)
         return sf_fail(err, rc, "?tolerance", "at %g mm the mesh would have over %u triangles; the default is %.3g mm",
                        tol > 0 ? tol : dflt, MESH_MAX_TRIANGLES, dflt);
@@ -525,7 +529,7 @@ int model_patches_json(const char *src, size_t len, char **json, struct sf_err *
 {
     struct solid sd;
     *json = NULL;
-    int rc = solid_of(src, len, &sd, err);
+    int rc = solid_of(src, len, NULL, &sd, err);
     if (rc)
         return rc;
     json_t *objs = json_array();
@@ -562,7 +566,7 @@ int model_scene_objects(const char *src, size_t len, struct scene *sc, const str
                         struct sf_err *err)
 {
     struct solid sd = {0};
-    int rc = solid_of(src, len, &sd, err);
+    int rc = solid_of(src, len, NULL, &sd, err);
     for (size_t k = 0; !rc && k < sd.set.n; k++) {
         const struct patch *pt = &sd.set.patches[k];
         struct object *o = scene_add_object(sc);

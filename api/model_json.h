@@ -19,8 +19,8 @@
  * as contour_parse_json and rtstruct_read. A scene (format bpt or nurbs, or JSON with "objects" or
  * "patches" and no "slices") is measured as it is: the volume its patches enclose, refused (with the
  * object's pointer) when they do not close edge to edge or face both ways. */
-int model_figures(const char *buf, size_t len, const char *format, const char *options, char **json,
-                  struct sf_err *err);
+int model_figures(const char *buf, size_t len, const char *format, const char *options,
+                  const struct sf_progress *pr, char **json, struct sf_err *err);
 /* Whether a body is a scene (format bpt or nurbs, or JSON with "objects" or "patches" and no
  * "slices") rather than contours (JSON, DICOM). */
 bool model_body_is_scene(const char *buf, size_t len, const char *format);
@@ -37,15 +37,15 @@ struct model_sink {
     void *ctx;
 };
 /* As model_figures, and each model gets an id and links and is put in the sink; location receives
- * /models/{id} of the first. */
+ * /models/{id} of the first. pr (may be NULL) is polled while modelling (err.h). */
 int model_create(const char *buf, size_t len, const char *format, const char *options, const struct model_sink *sink,
-                 char **json, char location[64], struct sf_err *err);
+                 const struct sf_progress *pr, char **json, char location[64], struct sf_err *err);
 
 /* A stored model's mesh; options "format=stl|ply|obj&tolerance=MM": binary STL (the default),
  * binary little-endian PLY or OBJ, within the tolerance (absent or 0: 1e-4 of the size). *out
  * (caller frees), *out_len and *mime receive the file. */
-int model_mesh(const char *src, size_t len, const char *options, char **out, size_t *out_len, const char **mime,
-               struct sf_err *err);
+int model_mesh(const char *src, size_t len, const char *options, const struct sf_progress *pr, char **out,
+               size_t *out_len, const char **mime, struct sf_err *err);
 /* What model_mesh would refuse in its options (errors point at ?format, ?tolerance). */
 int model_mesh_options(const char *options, const char **format, double *tol, struct sf_err *err);
 /* A stored model's patches as a scene: {"objects": [...]}: bicubic "bezier" objects, and the domes'

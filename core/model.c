@@ -309,7 +309,8 @@ static void slice_weights(const struct contour_set *cs, bool lsq, int k, double 
  * sum_j w_j(z) C_j(u) with each C_j a cubic in u and each w_j a cubic in z, so its Bézier points are
  * sum_j C_j[a] W_j[b]: the curves' Bézier points on the piece (from their values and derivatives at
  * the ends) times the weights' Bernstein coefficients over the pair (once per pair). */
-static int curve_surface(const struct contour_set *cs, bool lsq, bool polar, struct patch_set *set, struct sf_err *err)
+static int curve_surface(const struct contour_set *cs, bool lsq, bool polar, const struct sf_progress *pr,
+                         struct patch_set *set, struct sf_err *err)
 {
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
@@ -323,7 +324,7 @@ static int curve_surface(const struct contour_set *cs, bool lsq, bool polar, str
     bernstein_inverse(inv);
     double *brk = NULL;
     size_t cap_brk = 0;
-    for (int k = 0; k + 1 < n && !rc; k++) {
+    for (int k = 0; k + 1 < n && !rc && !(rc = sf_poll(pr, (double)k / n, err)); k++) {
         /* breakpoints: every parameter of the curves this pair depends on */
         int j0 = k > 0 ? k - 1 : k, j1 = k + 2 < n ? k + 2 : k + 1;
         size_t nb = 0;
@@ -441,14 +442,18 @@ static double (*append_bicubic(struct patch_set *set, double u0, double u1, doub
  * ours, the seeds are silent), each in its own slot (the difference along the slices where the
  * matrix wants the derivative across them), and zero twist; P_B = H G Hᵀ puts the edge points at the
  * corners ± tangent/3 and the inner points at the corners ± both tangents/3. */
-static int coons_surface(const struct contour_set *cs, bool polar, struct patch_set *set)
+static int coons_surface(const struct contour_set *cs, bool polar, const struct sf_progress *pr, struct patch_set *set)
 {
     int n = cs->n_slices, N = grid_count(cs);
     double(*Q)[3] = grid_sample(cs, N, polar);
     if (!Q)
         return SF_ENOMEM;
 #define AT(j, k) Q[(size_t)(j) * N + (size_t)(((k) % N + N) % N)]
-    for (int j = 0; j + 1 < n; j++)
+    for (int j = 0; j + 1 < n; j++) {
+        if (sf_poll(pr, (double)j / n, NULL)) {
+            free(Q);
+            return SF_ECANCEL;
+        }
         for (int k = 0; k < N; k++) {
             double(*cw)[4] = append_bicubic(set, (double)k / N, (double)(k + 1) / N, cs->s[j].z, cs->s[j + 1].z);
             if (!cw) {
@@ -473,6 +478,7 @@ static int coons_surface(const struct contour_set *cs, bool polar, struct patch_
             for (int q = 0; q < 16; q++)
                 cw[q][3] = 1.0;
         }
+    }
 #undef AT
     free(Q);
     return 0;
@@ -576,7 +582,7 @@ static int cmp_span(const void *a, const void *b)
  * The two directions are solved one after the other, each with a proper solver: the cyclic
  * tridiagonal system along u, Gaussian elimination with pivoting across (the thesis used
  * Gauss–Jordan on the whole). Bézier extraction gives the patches. */
-static int bspline_surface(const struct contour_set *cs, bool polar, struct patch_set *set)
+static int bspline_surface(const struct contour_set *cs, bool polar, const struct sf_progress *pr, struct patch_set *set)
 {
     int n = cs->n_slices, N = grid_count(cs), q = n > 3 ? 3 : n - 1, rc = SF_ENOMEM;
     double(*Q)[3] = grid_sample(cs, N, polar), *A = malloc(sizeof *A * (size_t)n * n);
@@ -584,8 +590,9 @@ static int bspline_surface(const struct contour_set *cs, bool polar, struct patc
     if (!Q || !A || nurbs_surface_alloc(&s, SURF_BSPLINE, 3, q, N + 3, n, NULL))
         goto out;
     for (int j = 0; j < n; j++) /* along u, slice by slice */
-        if (solve_periodic(Q + (size_t)j * N, N))
+        if ((rc = sf_poll(pr, 0.3 * j / n, NULL)) || (rc = solve_periodic(Q + (size_t)j * N, N)))
             goto out;
+    rc = SF_ENOMEM;
     for (int k = 0; k < n + q + 1; k++) { /* across: clamped, averaged knots */
         if (k <= q)
             s.knots_v[k] = 0.0;
@@ -606,6 +613,9 @@ static int bspline_surface(const struct contour_set *cs, bool polar, struct patc
             A[(size_t)i * n + (size_t)(r - q + b)] = Nb[b];
     }
     solve_dense(A, n, Q, N); /* rows: slices; right-hand sides: the N columns */
+    if ((rc = sf_poll(pr, 0.6, NULL)))
+        goto out;
+    rc = SF_ENOMEM;
     for (int k = 0; k < N + 3 + 4; k++)
         s.knots_u[k] = (double)(k - 3) / N;
     /* control column i along u, j across; the curve at u = k/N is (x[k-1] + 4 x[k] + x[k+1]) / 6 of
@@ -627,11 +637,13 @@ int model_side(const struct contour_set *cs, struct model_opts o, struct patch_s
 {
     int rc;
     switch (o.method) {
-    case MODEL_COONS: rc = coons_surface(cs, o.polar, set); break;
-    case MODEL_BSPLINE: rc = bspline_surface(cs, o.polar, set); break;
-    default: return curve_surface(cs, o.method == MODEL_LINEAR_PARABOLIC, o.polar, set, err);
+    case MODEL_COONS: rc = coons_surface(cs, o.polar, o.progress, set); break;
+    case MODEL_BSPLINE: rc = bspline_surface(cs, o.polar, o.progress, set); break;
+    default: return curve_surface(cs, o.method == MODEL_LINEAR_PARABOLIC, o.polar, o.progress, set, err);
     }
-    return rc ? sf_fail(err, rc, "", "out of memory building the model") : 0;
+    return rc == SF_ECANCEL ? sf_fail(err, rc, "", "cancelled")
+           : rc            ? sf_fail(err, rc, "", "out of memory building the model")
+                           : 0;
 }
 
 static const char *const METHOD_NAMES[] = {"parabolic", "linear-parabolic", "coons", "bspline"};

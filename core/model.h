@@ -29,6 +29,7 @@ enum model_method { MODEL_PARABOLIC, MODEL_LINEAR_PARABOLIC, MODEL_COONS, MODEL_
 struct model_opts {
     enum model_method method;
     bool polar;
+    const struct sf_progress *progress; /* polled between steps (err.h); NULL: never stops */
 };
 const char *model_method_name(enum model_method m);
 int model_method_parse(const char *name, enum model_method *m);

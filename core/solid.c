@@ -250,7 +250,8 @@ int solid_build(const struct contour_set *cs, struct model_opts o, enum model_ca
     if (!s->tubes || !storage)
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
     s->n_tubes = n_chains;
-    for (int c = 0; c < n_chains && !rc; c++)
+    s->progress = o.progress;
+    for (int c = 0; c < n_chains && !rc && !(rc = sf_poll(o.progress, (double)c / n_chains, err)); c++)
         rc = tube_build(s, cs, &s->chains[c], o, caps, storage, &s->tubes[c], err);
     free(storage);
     nurbs_patches_fix(&s->set);
@@ -614,7 +615,7 @@ static int mesh_tube(const struct solid *s, const struct tube *tb, double tol, s
     bool have_ring = false;
     if (!us || !ring || !next)
         rc = SF_ENOMEM;
-    for (int b = tb->first; b < tb->first + tb->n && !rc; b++) {
+    for (int b = tb->first; b < tb->first + tb->n && !rc && !(rc = sf_poll(s->progress, 0.0, NULL)); b++) {
         const struct band *bd = &s->bands[b];
         bool first = b == tb->first, last = b == tb->first + tb->n - 1;
         if (bd->kind == BAND_CAP) { /* the bottom cap comes before its ring exists: it is clipped below */

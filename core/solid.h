@@ -43,6 +43,7 @@ struct solid {
     int n_tubes;
     int dome_fallbacks;      /* stack ends where the dome did not close: a wall of half a spacing */
     struct model_chain *chains; /* the tubes' chains, in the same order */
+    const struct sf_progress *progress; /* the build's (model_opts), polled by solid_mesh too; borrowed */
 };
 
 /* Builds the solid of cleaned contours by the method and parameterisation, with the caps. Returns 0 or an SF_* code with
@@ -64,7 +65,8 @@ void solid_measure(const struct solid *s, struct solid_measures *m);
 
 /* A triangle mesh of the solid, within tol (length units) of the surface: closed (every edge in
  * exactly two triangles, opposite ways) per tube, triangles counter-clockwise seen from outside.
- * Returns 0, SF_ENOMEM, or SF_ELIMIT past MESH_MAX_TRIANGLES (a tolerance too fine for the model). */
+ * Returns 0, SF_ENOMEM, SF_ELIMIT past MESH_MAX_TRIANGLES (a tolerance too fine for the model), or
+ * SF_ECANCEL when the solid's progress asks it to stop. */
 #define MESH_MAX_TRIANGLES (4u << 20) /* 200 MB of binary STL */
 struct mesh {
     double (*v)[3];

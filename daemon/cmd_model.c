@@ -104,8 +104,8 @@ int cmd_volume(int argc, char **argv)
         /* DICOM Part 10 files carry "DICM" after a 128-byte preamble */
         const char *format = len > 132 && !memcmp(buf + 128, "DICM", 4) ? "dicom" : "json";
         char location[64];
-        rc = model ? model_create(buf, len, format, options, &sink, &json, location, &err)
-                   : model_figures(buf, len, format, options, &json, &err);
+        rc = model ? model_create(buf, len, format, options, &sink, NULL, &json, location, &err)
+                   : model_figures(buf, len, format, options, NULL, &json, &err);
     }
     free(buf);
     if (!rc && (mesh || patches) && kept.n != 1)
@@ -115,7 +115,7 @@ int cmd_volume(int argc, char **argv)
     const char *ext = mesh ? strrchr(mesh, '.') : NULL, *mime;
     char mesh_opts[96];
     snprintf(mesh_opts, sizeof mesh_opts, "format=%.8s&tolerance=%.17g", ext ? ext + 1 : "none", tol);
-    if (!rc && mesh && !(rc = model_mesh(kept.source, strlen(kept.source), mesh_opts, &out, &out_len, &mime, &err)))
+    if (!rc && mesh && !(rc = model_mesh(kept.source, strlen(kept.source), mesh_opts, NULL, &out, &out_len, &mime, &err)))
         rc = write_all(mesh, out, out_len) ? SF_EIO : 0;
     free(out);
     out = NULL;

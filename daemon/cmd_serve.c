@@ -85,6 +85,17 @@ static void recover(const char *id, void *arg)
     store_rec_free(&rec);
 }
 
+/* Seconds a running job has to stop once the drain timeout has passed and it has been cancelled. */
+#define DRAIN_GRACE_S 5.0
+
+/* A job that did not stop by the drain's end: queued again, its attempt not counted (it did not
+ * stop the service; the service stopped it). */
+static void abandon(const char *id, void *arg)
+{
+    struct service *svc = arg;
+    store_requeue(svc->store, id);
+}
+
 int cmd_serve(int argc, char **argv)
 {
     struct service svc = {0};
@@ -140,7 +151,7 @@ int cmd_serve(int argc, char **argv)
     store_unfinished(svc.store, recover, &svc);
     if (!(server = server_start(&svc, msg, sizeof msg))) {
         fprintf(stderr, "surfd serve: %s\n", msg);
-        jobq_shutdown(svc.q, 0);
+        jobq_shutdown(svc.q, 0, DRAIN_GRACE_S, NULL, NULL);
         goto out_free_device;
     }
     char host[128];
@@ -160,7 +171,12 @@ int cmd_serve(int argc, char **argv)
     LOG(LOG_INFO, "draining: no new jobs; running ones get %lds", svc.cfg.drain_timeout);
     atomic_store(&svc.draining, true);
     server_quiesce(server);
-    jobq_shutdown(svc.q, (double)svc.cfg.drain_timeout);
+    int left = jobq_shutdown(svc.q, (double)svc.cfg.drain_timeout, DRAIN_GRACE_S, abandon, &svc);
+    if (left) { /* their workers are still in core code: end the process under them */
+        log_write(LOG_WARN, "%d job%s did not stop within %lds + %.0fs; exiting, %s queued for the next start", left,
+                  left == 1 ? "" : "s", svc.cfg.drain_timeout, DRAIN_GRACE_S, left == 1 ? "it stays" : "they stay");
+        _exit(0);
+    }
     server_stop(server);
     LOG(LOG_INFO, "stopped");
     rc = 0;

@@ -42,10 +42,23 @@ static int model_put(void *ctx, const char *id, const char *name, const char *so
     return store_model_put(w->svc->store, &m);
 }
 
+/* The modelling's poll (err.h): the job's progress, and its cancel flag. */
+struct poll_ctx {
+    struct jobq *q;
+    struct job *j;
+};
+
+static bool poll_job(void *ctx, double done)
+{
+    const struct poll_ctx *p = ctx;
+    return jobq_cancelled(p->q, p->j, done);
+}
+
 static int prepare(struct job *j, void *arg, int *n_bands)
 {
-    (void)j;
     struct contour_work *w = arg;
+    struct poll_ctx pc = {w->svc->q, j};
+    const struct sf_progress pr = {poll_job, &pc};
     *n_bands = 0;
     struct job_rec rec;
     if (store_get(w->svc->store, w->id, true, false, &rec) != 1)
@@ -60,10 +73,10 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     if (w->kind == KIND_MODEL) {
         struct model_sink sink = {model_id, model_put, w};
         char location[64];
-        rc = model_create(body, rec.request_len, rec.format, rec.options, &sink, &w->json, location, &w->err);
+        rc = model_create(body, rec.request_len, rec.format, rec.options, &sink, &pr, &w->json, location, &w->err);
         snprintf(w->meta, sizeof w->meta, "{\"status\":201,\"location\":\"%s\"}", location);
     } else if (w->kind == KIND_VOLUME) {
-        rc = model_figures(body, rec.request_len, rec.format, rec.options, &w->json, &w->err);
+        rc = model_figures(body, rec.request_len, rec.format, rec.options, &pr, &w->json, &w->err);
     } else { /* the request is the model's id */
         char model[40], *src = NULL;
         size_t n = 0;
@@ -71,7 +84,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         if (store_model_get(w->svc->store, model, NULL, &src, &n) != 1)
             rc = sf_fail(&w->err, SF_EINVAL, "", "the model is no longer stored");
         else if (w->kind == KIND_MESH)
-            rc = model_mesh(src, n, rec.options, &w->json, &w->len, &w->type, &w->err);
+            rc = model_mesh(src, n, rec.options, &pr, &w->json, &w->len, &w->type, &w->err);
         else
             rc = model_patches_json(src, n, &w->json, &w->err);
         free(src);

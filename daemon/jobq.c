@@ -39,6 +39,7 @@ struct job {
     bool requeue;                /* [q] cancelled by shutdown: run again after restart */
     int n_bands, next_band;      /* [q] */
     int bands_done, bands_out;   /* [q] finished / being rendered */
+    double progress;             /* [q] as the job reported it (jobq_progress), never decreasing */
     struct waiter *waiters;      /* [q] */
     struct job *next_queued;     /* [q] FIFO link */
     struct job *next_live;       /* [q] all queued and running jobs */
@@ -149,8 +150,8 @@ static void *worker(void *arg)
             pthread_mutex_lock(&q->lock);
             j->preparing = false;
             j->n_bands = rc ? 0 : n_bands;
-            if (rc || n_bands == 0)
-                finish_job(q, j, rc ? JOB_FAILED : JOB_SUCCEEDED);
+            if (rc || n_bands == 0) /* a prepare that stopped on its cancel flag was cancelled, not failed */
+                finish_job(q, j, rc && j->cancel ? JOB_CANCELLED : rc ? JOB_FAILED : JOB_SUCCEEDED);
             else
                 pthread_cond_broadcast(&q->work); /* bands for the others */
         } else if ((j = stranded_job(q))) {
@@ -245,22 +246,40 @@ struct jobq *jobq_new(int n_workers, long queue_max)
     return q;
 }
 
-void jobq_shutdown(struct jobq *q, double timeout_s)
+/* Sleeps in 50 ms steps, the lock released, until no job is active or the deadline. Lock held. */
+static void wait_idle(struct jobq *q, double deadline)
 {
-    double deadline = monotonic_s() + timeout_s;
-    pthread_mutex_lock(&q->lock);
-    q->stop_taking = true;
     while (q->n_active > 0 && monotonic_s() < deadline) {
         pthread_mutex_unlock(&q->lock);
         struct timespec ts = {0, 50 * 1000000L};
         nanosleep(&ts, NULL);
         pthread_mutex_lock(&q->lock);
     }
+}
+
+int jobq_shutdown(struct jobq *q, double timeout_s, double grace_s, void (*abandoned)(const char *id, void *arg),
+                  void *arg)
+{
+    pthread_mutex_lock(&q->lock);
+    q->stop_taking = true;
+    wait_idle(q, monotonic_s() + timeout_s);
     for (struct job *j = q->live; j; j = j->next_live)
         if (j->state == JOB_RUNNING) {
             j->cancel = true;
             j->requeue = true;
         }
+    wait_idle(q, monotonic_s() + grace_s); /* bands end, prepares poll their cancel flag */
+    if (q->n_active > 0) { /* deaf to cancel: the process ends with them, the store keeps them */
+        int n = 0;
+        for (struct job *j = q->live; j; j = j->next_live)
+            if (j->state == JOB_RUNNING) {
+                n++;
+                if (abandoned)
+                    abandoned(j->id, arg);
+            }
+        pthread_mutex_unlock(&q->lock);
+        return n;
+    }
     q->stop = true;
     pthread_cond_broadcast(&q->work);
     pthread_cond_broadcast(&q->timer_cond);
@@ -284,6 +303,7 @@ void jobq_shutdown(struct jobq *q, double timeout_s)
     pthread_cond_destroy(&q->work);
     pthread_cond_destroy(&q->timer_cond);
     free(q);
+    return 0;
 }
 
 int jobq_submit(struct jobq *q, const char *id, const struct job_ops *ops, void *work, bool force)
@@ -320,7 +340,8 @@ bool jobq_peek(struct jobq *q, const char *id, enum job_state *state, double *pr
     struct job *j = find_live(q, id);
     if (j) {
         *state = j->state;
-        *progress = j->n_bands ? (double)j->bands_done / j->n_bands : 0.0;
+        double bands = j->n_bands ? (double)j->bands_done / j->n_bands : 0.0;
+        *progress = bands > j->progress ? bands : j->progress;
     }
     pthread_mutex_unlock(&q->lock);
     return j != NULL;
@@ -353,6 +374,16 @@ void jobq_wait(struct jobq *q, const char *id, double deadline, void (*fn)(void 
     pthread_mutex_unlock(&q->lock);
     free(w);
     fn(arg, j == NULL); /* unknown: finished (or, out of memory, not: the caller answers 202) */
+}
+
+bool jobq_cancelled(struct jobq *q, struct job *j, double progress)
+{
+    pthread_mutex_lock(&q->lock);
+    if (progress > j->progress)
+        j->progress = progress;
+    bool cancel = j->cancel;
+    pthread_mutex_unlock(&q->lock);
+    return cancel;
 }
 
 void jobq_stats(struct jobq *q, struct jobq_stats *out)

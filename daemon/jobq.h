@@ -17,7 +17,8 @@ enum job_state { JOB_QUEUED, JOB_RUNNING, JOB_SUCCEEDED, JOB_FAILED, JOB_CANCELL
 
 struct job_ops {
     /* Sets *n_bands (0: all work done here). Returns 0, or -1 when the job failed (finish is then
-     * called with failed = true). Runs without the queue lock. */
+     * called with JOB_FAILED, or JOB_CANCELLED when the job had been asked to stop). Runs without
+     * the queue lock. */
     int (*prepare)(struct job *j, void *work, int *n_bands);
     void (*band)(struct job *j, void *work, int band); /* NULL for kinds without bands */
     /* outcome: JOB_SUCCEEDED, JOB_FAILED (prepare failed) or JOB_CANCELLED (by the user; or, with
@@ -27,9 +28,13 @@ struct job_ops {
 
 /* Creates the pool with n_workers threads and room for queue_max waiting jobs. */
 struct jobq *jobq_new(int n_workers, long queue_max);
-/* Stops taking queued jobs, waits up to timeout_s for running ones, cancels (requeue) the rest,
- * joins the workers and frees the queue. Queued jobs stay in the store. */
-void jobq_shutdown(struct jobq *q, double timeout_s);
+/* Stops taking queued jobs, waits up to timeout_s for running ones, cancels (requeue) the rest
+ * and gives them grace_s to stop; then joins the workers, frees the queue and returns 0. Queued
+ * jobs stay in the store. A job still running after the grace (deaf to its cancel flag) is named
+ * to abandoned(id, arg), with the queue's lock held (abandoned must not call the queue); the
+ * queue is then left as it is and the number of such jobs returned: the caller ends the process. */
+int jobq_shutdown(struct jobq *q, double timeout_s, double grace_s, void (*abandoned)(const char *id, void *arg),
+                  void *arg);
 
 /* Queues a job. work is handed over (ops->finish frees it). Returns 0, or -1 when the queue is
  * full or shutting down (work not taken). force: ignore queue_max (jobs recovered at start). */
@@ -40,6 +45,9 @@ int jobq_submit(struct jobq *q, const char *id, const struct job_ops *ops, void 
 bool jobq_peek(struct jobq *q, const char *id, enum job_state *state, double *progress);
 /* Asks a queued or running job to stop. Returns false when the queue does not know it. */
 bool jobq_cancel(struct jobq *q, const char *id);
+/* For a job's own ops, between steps of long work: records progress (0..1; the job's progress
+ * never goes back) and answers whether the job has been asked to stop. */
+bool jobq_cancelled(struct jobq *q, struct job *j, double progress);
 
 /* Calls fn(arg, finished) once: when the job ends (finished = true) or at deadline (monotonic
  * seconds; finished = false), or at once (finished = true) if the queue does not know the job.

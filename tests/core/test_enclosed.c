@@ -43,17 +43,17 @@ TEST(unit_cube_and_its_faults)
     char text[4096], *json = NULL;
     struct sf_err err = {0};
     int n = cube(text, sizeof text, -1, -1);
-    CHECK(model_figures(text, (size_t)n, "json", "", &json, &err) == 0);
+    CHECK(model_figures(text, (size_t)n, "json", "", NULL, &json, &err) == 0);
     CHECK_NEAR(volume_of(json), 1.0, 1e-14);
     CHECK(json && strstr(json, "\"closed\":true") && strstr(json, "\"orientation\":\"outward\""));
     free(json);
     json = NULL;
     n = cube(text, sizeof text, 3, -1); /* the face y = 1 left out */
-    CHECK(model_figures(text, (size_t)n, "json", "", &json, &err) == SF_EINVAL);
+    CHECK(model_figures(text, (size_t)n, "json", "", NULL, &json, &err) == SF_EINVAL);
     CHECK(strstr(err.message, "closed solid") && !strncmp(err.pointer, "/objects/", 9));
     n = cube(text, sizeof text, -1, 4); /* the face x = 0 turned inward */
     err = (struct sf_err){0}; /* the first error is kept: a fresh one for the next */
-    CHECK(model_figures(text, (size_t)n, "json", "", &json, &err) == SF_EINVAL);
+    CHECK(model_figures(text, (size_t)n, "json", "", NULL, &json, &err) == SF_EINVAL);
     CHECK(strstr(err.message, "opposite ways") && !strcmp(err.pointer, "/objects/4"));
 }
 
@@ -80,7 +80,7 @@ TEST(nurbs_sphere)
     n += snprintf(text + n, sizeof text - (size_t)n, "]}]}");
     char *json = NULL;
     struct sf_err err = {0};
-    CHECK(model_figures(text, (size_t)n, "json", "", &json, &err) == 0);
+    CHECK(model_figures(text, (size_t)n, "json", "", NULL, &json, &err) == 0);
     if (!json)
         fprintf(stderr, "  %s at %s\n", err.message, err.pointer);
     double v = volume_of(json), exact = 4.0 / 3.0 * M_PI * r * r * r;
@@ -97,7 +97,7 @@ TEST(teapot_is_open)
     size_t len;
     char *buf = unit_data("scenes", "teapot.bpt", &len), *json = NULL;
     struct sf_err err = {0};
-    CHECK(buf && model_figures(buf, len, "bpt", "", &json, &err) == SF_EINVAL);
+    CHECK(buf && model_figures(buf, len, "bpt", "", NULL, &json, &err) == SF_EINVAL);
     CHECK(strstr(err.message, "closed solid") && !strncmp(err.pointer, "/objects/", 9));
     free(buf);
 }

@@ -78,7 +78,7 @@ TEST(several_contours_per_slice)
         size_t len;
         char *buf = unit_data("contours", cases[k].file, &len), *json = NULL;
         struct sf_err err = {0};
-        CHECK(buf && model_figures(buf, len, "json", "", &json, &err) == 0);
+        CHECK(buf && model_figures(buf, len, "json", "", NULL, &json, &err) == 0);
         if (!json) {
             fprintf(stderr, "  %s: %s at %s\n", cases[k].file, err.message, err.pointer);
             free(buf);
@@ -117,7 +117,7 @@ TEST(dome_caps_within_0_5_percent_of_the_solid)
         char *req = malloc(len + 32);
         snprintf(req, len + 32, "{\"caps\":\"dome\",%s", strchr(buf, '{') + 1);
         struct sf_err err = {0};
-        CHECK(model_figures(req, strlen(req), "json", "", &json, &err) == 0);
+        CHECK(model_figures(req, strlen(req), "json", "", NULL, &json, &err) == 0);
         if (json) {
             double v = atof(strstr(json, "\"volume_mm3\":") + 13);
             fprintf(stderr, "  %s dome: %.3f mm3, %+.4f %%\n", cases[k].file, v, 100 * (v - cases[k].solid) / cases[k].solid);
@@ -428,7 +428,7 @@ TEST(polar_parameterisation)
                           "[2,8],[10,8],[10,10],[0,10]]},{\"z\":2,\"points\":[[0,0],[10,0],[10,2],[2,2],[2,8],[10,8],"
                           "[10,10],[0,10]]}]}";
     char *json = NULL;
-    CHECK(model_figures(c_shape, strlen(c_shape), "json", "", &json, NULL) == 0);
+    CHECK(model_figures(c_shape, strlen(c_shape), "json", "", NULL, &json, NULL) == 0);
     CHECK(json && strstr(json, "\"parameterisation\":\"polar\""));
     free(json);
 }

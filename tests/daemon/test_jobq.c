@@ -108,7 +108,7 @@ TEST(bands_run_once_and_jobs_end)
         for (int b = 0; b < w[k]->n_bands; b++)
             CHECK(atomic_load(&w[k]->ran[b]) <= 1);
     }
-    jobq_shutdown(q, 1.0);
+    jobq_shutdown(q, 1.0, 5.0, NULL, NULL);
     for (int k = 0; k < N; k++) {
         free(w[k]->ran);
         free(w[k]);
@@ -135,7 +135,7 @@ TEST(full_queue_timeouts_and_shutdown)
     enum job_state st;
     double progress;
     CHECK(jobq_peek(q, "slow", &st, &progress) && st == JOB_RUNNING && progress > 0 && progress < 1);
-    jobq_shutdown(q, 0.05); /* slow cannot finish: cancelled for requeue; a, b, c stay queued */
+    jobq_shutdown(q, 0.05, 5.0, NULL, NULL); /* slow cannot finish: cancelled for requeue; a, b, c stay queued */
     CHECK(slow->outcome == JOB_CANCELLED && slow->requeue);
     CHECK(a->requeue && b->requeue && c->requeue);
     CHECK(atomic_load(&slow->finished) == 1 && atomic_load(&a->finished) == 1);
