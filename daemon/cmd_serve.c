@@ -72,15 +72,11 @@ static void recover(const char *id, void *arg)
         service_job_end(svc, id, JOB_FAILED, false, NULL, 0, NULL, NULL, &err);
         LOG(LOG_ERROR, "job %s stopped the service %d times: failed, not recovered", id, rec.attempts);
     } else if (rec.id[0]) {
-        int (*submit)(struct service *, const char *, bool) = !strcmp(rec.kind, "render") ? render_job_submit
-                                                            : !strcmp(rec.kind, "volume") ? volume_job_submit
-                                                            : !strcmp(rec.kind, "model")  ? model_job_submit
-                                                            : !strcmp(rec.kind, "mesh")   ? mesh_job_submit
-                                                            : !strcmp(rec.kind, "patches") ? patches_job_submit
-                                                                                          : NULL;
         store_set_state(svc->store, id, "queued", 0.0, 0, 0, NULL);
-        if (submit && submit(svc, id, true) == 0)
+        if (service_submit_kind(svc, rec.kind, id, true) == 0)
             LOG(LOG_INFO, "recovered job %s", id);
+        else
+            LOG(LOG_ERROR, "job %s of kind \"%s\" could not be queued again", id, rec.kind);
     }
     store_rec_free(&rec);
 }
@@ -99,6 +95,7 @@ static void abandon(const char *id, void *arg)
 int cmd_serve(int argc, char **argv)
 {
     struct service svc = {0};
+    pthread_mutex_init(&svc.stranded_lock, NULL);
     char msg[600];
     config_defaults(&svc.cfg);
     for (int k = 1; k < argc; k++)
@@ -161,12 +158,16 @@ int cmd_serve(int argc, char **argv)
         svc.cfg.tls_cert[0] ? "https://" : "http://", host, server_port(server), threads, svc.cfg.data_dir,
         svc.n_tokens ? ", bearer tokens required" : "");
 
-    for (;;) {
-        struct timespec every = {60, 0};
+    for (double pruned = monotonic_s();;) { /* every 5 s stranded jobs, every minute pruning */
+        struct timespec every = {5, 0};
         int sig = sigtimedwait(&sigs, NULL, &every);
         if (sig == SIGTERM || sig == SIGINT)
             break;
-        store_prune(svc.store, wall_s(), svc.cfg.result_ttl, svc.cfg.result_max);
+        service_retry_stranded(&svc);
+        if (monotonic_s() - pruned >= 60) {
+            store_prune(svc.store, wall_s(), svc.cfg.result_ttl, svc.cfg.result_max);
+            pruned = monotonic_s();
+        }
     }
     LOG(LOG_INFO, "draining: no new jobs; running ones get %lds", svc.cfg.drain_timeout);
     atomic_store(&svc.draining, true);

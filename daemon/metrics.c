@@ -16,6 +16,9 @@ static atomic_long render_bucket[N_BUCKETS], render_count, rays_total;
 static atomic_long render_us_total; /* microseconds, so that it stays an integer atomic */
 static atomic_long jobs_ended[5];
 static atomic_long http_aborted;
+static atomic_long store_errors;
+
+void metrics_store_error(void) { atomic_fetch_add(&store_errors, 1); }
 
 void metrics_http(int status)
 {
@@ -77,6 +80,10 @@ char *metrics_text(struct service *svc)
     OUT("surfd_http_requests_total{status=\"other\"} %ld\n", atomic_load(&http_count[N_STATUS]));
     OUT("# HELP surfd_http_aborted_total Requests whose client left before the answer.\n"
         "# TYPE surfd_http_aborted_total counter\nsurfd_http_aborted_total %ld\n", atomic_load(&http_aborted));
+    OUT("# HELP surfd_store_errors_total Jobs whose end the store refused (each refusal).\n"
+        "# TYPE surfd_store_errors_total counter\nsurfd_store_errors_total %ld\n", atomic_load(&store_errors));
+    OUT("# HELP surfd_jobs_stranded Jobs whose end the store refused, kept to run again.\n"
+        "# TYPE surfd_jobs_stranded gauge\nsurfd_jobs_stranded %d\n", service_n_stranded(svc));
 #undef OUT
     if (n >= cap) { /* grew past the buffer: the table is fixed, so this is a programming error */
         free(buf);

@@ -10,6 +10,8 @@ void metrics_http(int status);
 /* A render finished: its tracing time and rays. */
 void metrics_render(double seconds, long rays);
 void metrics_job_end(enum job_state outcome);
+/* The store refused a job's end. */
+void metrics_store_error(void);
 /* The exposition text; caller frees. */
 char *metrics_text(struct service *svc);
 

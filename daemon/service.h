@@ -3,6 +3,7 @@
 #ifndef SURFD_SERVICE_H
 #define SURFD_SERVICE_H
 
+#include <pthread.h>
 #include <stdatomic.h>
 #include <stdbool.h>
 
@@ -11,6 +12,16 @@
 #include "config.h"
 #include "jobq.h"
 #include "store.h"
+
+/* A job whose end the store would not take (a full disk, a failing device): its outcome is lost,
+ * the job is not. It is run again, after a growing delay, until the store takes its end. */
+#define STRANDED_MAX 1024
+struct stranded {
+    char id[40];
+    char kind[16];
+    double retry_at;         /* monotonic seconds */
+    int tries;
+};
 
 struct service {
     struct config cfg;
@@ -22,6 +33,9 @@ struct service {
     atomic_bool draining;
     double started_wall;     /* Unix seconds */
     double started_mono;
+    pthread_mutex_t stranded_lock; /* guards the two fields below */
+    struct stranded stranded[STRANDED_MAX];
+    int n_stranded;
 };
 
 double wall_s(void);
@@ -30,10 +44,20 @@ void service_new_id(char out[40]);
 
 /* Records a job's end in the store and the metrics: succeeded (result) or failed (problem from
  * err) or cancelled, or, with requeue, back to queued for the next start. result may be NULL for
- * outcomes other than JOB_SUCCEEDED. */
+ * outcomes other than JOB_SUCCEEDED. When the store will not take the end (after a few tries),
+ * the job is stranded: counted nowhere as ended, run again by service_retry_stranded(). */
 void service_job_end(struct service *svc, const char *id, enum job_state outcome, bool requeue,
                      const unsigned char *result, size_t len, const char *type, const char *meta,
                      const struct sf_err *err);
+
+/* Runs the stranded jobs whose delay has passed (the daemon's main loop calls it). */
+void service_retry_stranded(struct service *svc);
+/* Jobs stranded now (for /metrics). */
+int service_n_stranded(struct service *svc);
+
+/* Queues stored job id of the named kind (force as in jobq_submit): 0, or -1 (the queue is full
+ * or stopping, or no kind has that name). */
+int service_submit_kind(struct service *svc, const char *kind, const char *id, bool force);
 
 /* Stored models for scenes' model objects. */
 struct model_resolver service_models(struct service *svc);
