@@ -34,18 +34,23 @@ void scene_free(struct scene *sc)
     free(sc->lights);
     sc->objects = NULL;
     sc->lights = NULL;
-    sc->n_objects = sc->n_lights = 0;
+    sc->n_objects = sc->n_lights = sc->cap_objects = 0;
 }
 
 struct object *scene_add_object(struct scene *sc)
 {
     if (sc->n_objects >= SCENE_MAX_OBJECTS)
         return NULL;
-    struct object *o = realloc(sc->objects, sizeof *o * (size_t)(sc->n_objects + 1));
-    if (!o)
-        return NULL;
-    sc->objects = o;
-    o = &sc->objects[sc->n_objects++];
+    if (sc->n_objects == sc->cap_objects) { /* doubling: a scene of 77 k patches once took 8 s to grow */
+        int cap = sc->cap_objects ? 2 * sc->cap_objects : 16;
+        cap = cap < SCENE_MAX_OBJECTS ? cap : SCENE_MAX_OBJECTS;
+        struct object *more = realloc(sc->objects, sizeof *more * (size_t)cap);
+        if (!more)
+            return NULL;
+        sc->objects = more;
+        sc->cap_objects = cap;
+    }
+    struct object *o = &sc->objects[sc->n_objects++];
     memset(o, 0, sizeof *o);
     o->mat = scene_default_material();
     return o;

@@ -54,7 +54,7 @@ struct scene {
     double mesh_tolerance;    /* chord error of the mesh method, relative to the scene's size */
     bool shadows;
     struct object *objects;
-    int n_objects;
+    int n_objects, cap_objects; /* scene_add_object() grows objects */
 };
 
 /* Defaults of API.md: 800x600, white background, auto method, shadows on. */

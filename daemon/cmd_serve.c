@@ -2,11 +2,13 @@
  * listener), the store, recovery of jobs an earlier process left queued or running, the worker
  * pool and the HTTP server; then signals: SIGTERM/SIGINT drain and exit 0. */
 #include <arpa/inet.h>
+#include <ctype.h>
 #include <errno.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "../api/image.h"
@@ -24,7 +26,9 @@ static bool loopback(const char *listen)
     return !strncmp(listen, "127.", 4) || !strncmp(listen, "[::1]:", 6) || !strncmp(listen, "localhost:", 10);
 }
 
-/* One token a line; blank lines and # comments skipped. */
+/* One token a line: "name:secret" or "name:secret:admin", or a bare "secret" (named "default");
+ * blank lines and # comments skipped. Names are letters, digits, '.', '_' and '-'. A file others
+ * may read, or anyone but its owner may write, is refused: it holds every client's credentials. */
 static int read_tokens(struct service *svc, const char *path, char *msg, size_t msg_len)
 {
     FILE *f = fopen(path, "r");
@@ -32,22 +36,60 @@ static int read_tokens(struct service *svc, const char *path, char *msg, size_t 
         snprintf(msg, msg_len, "token file %s: %s", path, strerror(errno));
         return -1;
     }
+    struct stat st;
+    if (fstat(fileno(f), &st) == 0 && (st.st_mode & 0027)) {
+        fclose(f);
+        snprintf(msg, msg_len, "token file %.200s is mode %04o: others may read it or the group may write it; "
+                 "chmod 0600 (or 0640 for a group the service is in)", path, (unsigned)(st.st_mode & 07777));
+        return -1;
+    }
     char line[512];
+    int n = 0;
     while (fgets(line, sizeof line, f)) {
+        n++;
         line[strcspn(line, "\r\n")] = 0;
         char *t = line;
         while (*t == ' ' || *t == '\t')
             t++;
         if (!*t || *t == '#')
             continue;
-        char **more = realloc(svc->tokens, sizeof *more * (svc->n_tokens + 1));
-        if (!more || !(more[svc->n_tokens] = strdup(t))) {
+        char *name = "default", *secret = t, *c1 = strchr(t, ':');
+        bool admin = false;
+        if (c1) {
+            *c1 = 0;
+            name = t;
+            secret = c1 + 1;
+            char *c2 = strchr(secret, ':');
+            if (c2) {
+                *c2 = 0;
+                admin = !strcmp(c2 + 1, "admin");
+                if (!admin) {
+                    fclose(f);
+                    snprintf(msg, msg_len, "token file %.200s:%d: expected name:token or name:token:admin", path, n);
+                    return -1;
+                }
+            }
+            bool ok = *name && strlen(name) < 64;
+            for (const char *p = name; *p; p++)
+                ok &= isalnum((unsigned char)*p) || *p == '.' || *p == '_' || *p == '-';
+            if (!ok || !*secret) {
+                fclose(f);
+                snprintf(msg, msg_len, "token file %.200s:%d: a name is 1-63 letters, digits, '.', '_' or '-', then ':' and "
+                         "the token", path, n);
+                return -1;
+            }
+        }
+        struct token *more = realloc(svc->tokens, sizeof *more * (svc->n_tokens + 1));
+        if (more)
+            svc->tokens = more;
+        if (!more || !(more[svc->n_tokens].name = strdup(name)) || !(more[svc->n_tokens].secret = strdup(secret))) {
+            if (more)
+                free(more[svc->n_tokens].name);
             fclose(f);
             snprintf(msg, msg_len, "out of memory");
             return -1;
         }
-        svc->tokens = more;
-        svc->n_tokens++;
+        more[svc->n_tokens++].admin = admin;
     }
     fclose(f);
     if (svc->n_tokens == 0) {
@@ -125,6 +167,7 @@ int cmd_serve(int argc, char **argv)
     sigaddset(&sigs, SIGINT);
     pthread_sigmask(SIG_BLOCK, &sigs, NULL);
     signal(SIGPIPE, SIG_IGN);
+    umask(077); /* the store, its journals and anything else made here hold patient data */
 
     int rc = 1;
     long threads = svc.cfg.threads ? svc.cfg.threads : sysconf(_SC_NPROCESSORS_ONLN);
@@ -186,8 +229,10 @@ out_free_device:
 out_close_store:
     store_close(svc.store);
 out_free_tokens:
-    for (size_t k = 0; k < svc.n_tokens; k++)
-        free(svc.tokens[k]);
+    for (size_t k = 0; k < svc.n_tokens; k++) {
+        free(svc.tokens[k].name);
+        free(svc.tokens[k].secret);
+    }
     free(svc.tokens);
     return rc;
 }

@@ -21,6 +21,7 @@ struct contour_work {
     size_t len;
     const char *type;
     char meta[128];
+    char owner[64];          /* the job's: its models are the same owner's */
     struct sf_err err;
 };
 
@@ -38,7 +39,7 @@ static void model_id(void *ctx, int k, char id[40])
 static int model_put(void *ctx, const char *id, const char *name, const char *source, const char *resource)
 {
     const struct contour_work *w = ctx;
-    struct model_rec m = {id, w->id, name, wall_s(), source, strlen(source), resource};
+    struct model_rec m = {id, w->id, name, w->owner, wall_s(), source, strlen(source), resource};
     return store_model_put(w->svc->store, &m);
 }
 
@@ -63,6 +64,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     struct job_rec rec;
     if (store_get(w->svc->store, w->id, true, false, &rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
+    snprintf(w->owner, sizeof w->owner, "%s", rec.owner);
     if (store_claim(w->svc->store, w->id, wall_s())) {
         store_rec_free(&rec);
         return sf_fail(&w->err, SF_EIO, "", "the store cannot record the job's start"), -1;
@@ -81,7 +83,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         char model[40], *src = NULL;
         size_t n = 0;
         snprintf(model, sizeof model, "%.*s", (int)rec.request_len, body);
-        if (store_model_get(w->svc->store, model, NULL, &src, &n) != 1)
+        if (store_model_get(w->svc->store, model, NULL, NULL, &src, &n) != 1) /* the route checked the owner */
             rc = sf_fail(&w->err, SF_EINVAL, "", "the model is no longer stored");
         else if (w->kind == KIND_MESH)
             rc = model_mesh(src, n, rec.options, &pr, &w->json, &w->len, &w->type, &w->err);

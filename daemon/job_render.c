@@ -40,7 +40,8 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         store_rec_free(&rec);
         return sf_fail(&w->err, SF_EIO, "", "the store cannot record the job's start"), -1;
     }
-    struct model_resolver models = service_models(w->svc);
+    struct model_scope scope = {w->svc, NULL}; /* the route checked the owner's models */
+    struct model_resolver models = service_models(&scope);
     int rc = render_request_parse((const char *)rec.request, rec.request_len, rec.format, rec.options, &models, &w->sc,
                                   &w->fmt, &w->err);
     store_rec_free(&rec);

@@ -54,9 +54,25 @@ struct req {
     bool woken;               /* resumed after a synchronous wait: answer with the job */
     atomic_bool finished;     /* set by the waiter callback before it resumes */
     char job[40];
+    char owner[64];           /* the token's name ("" in open mode) */
+    bool admin;               /* sees every owner's jobs and models */
     int status;
     size_t bytes;
 };
+
+/* The owner whose jobs and models a request may see: its own, or NULL for all (an admin token,
+ * or open mode). */
+static const char *scope(const struct req *r)
+{
+    return r->svc->n_tokens == 0 || r->admin ? NULL : r->owner;
+}
+
+/* Whether a stored job is the request's to see (others' are answered as unknown: 404). */
+static bool visible(const struct req *r, const struct job_rec *rec)
+{
+    const char *o = scope(r);
+    return !o || !strcmp(o, rec->owner);
+}
 
 struct reply {
     int status;
@@ -143,8 +159,12 @@ static enum MHD_Result job_resource(struct req *r, int status, const char *id)
 {
     struct job_rec rec;
     int found = store_get(r->svc->store, id, false, false, &rec);
-    if (found != 1)
+    if (found == 1 && !visible(r, &rec))
+        found = 0;
+    if (found != 1) {
+        store_rec_free(&rec);
         return found == 0 ? problem(r, 404, "no such job", NULL) : problem(r, 500, "the store failed", NULL);
+    }
     struct job_view v = view_of(r->svc, &rec);
     char location[80];
     snprintf(location, sizeof location, "/jobs/%s", id);
@@ -160,8 +180,12 @@ static enum MHD_Result job_result(struct req *r, const char *id, bool sync)
 {
     struct job_rec rec;
     int found = store_get(r->svc->store, id, false, true, &rec);
-    if (found != 1)
+    if (found == 1 && !visible(r, &rec))
+        found = 0;
+    if (found != 1) {
+        store_rec_free(&rec);
         return found == 0 ? problem(r, 404, "no such job", NULL) : problem(r, 500, "the store failed", NULL);
+    }
     if (id != r->job)
         snprintf(r->job, sizeof r->job, "%s", id);
     enum MHD_Result ok;
@@ -248,7 +272,7 @@ static enum MHD_Result job_list(struct req *r)
         free(c.recs);
         return problem(r, 500, "out of memory", NULL);
     }
-    store_list(r->svc->store, state, LIST_MAX, collect, &c);
+    store_list(r->svc->store, state, scope(r), LIST_MAX, collect, &c);
     for (int k = 0; k < c.n; k++)
         c.v[k] = view_of(r->svc, &c.recs[k]);
     enum MHD_Result ok = json_reply(r, 200, job_list_json(c.v, c.n), NULL);
@@ -267,13 +291,15 @@ struct opts {
     bool bad;
 };
 
-static enum MHD_Result add_opt(void *cls, enum MHD_ValueKind kind, const char *key, const char *value)
+/* Appends one query option; a name or value with a NUL in it (%00) or '&' or '=' is refused. */
+static enum MHD_Result add_opt(void *cls, enum MHD_ValueKind kind, const char *key, size_t key_size,
+                               const char *value, size_t value_size)
 {
     (void)kind;
     struct opts *o = cls;
     if (!value)
         value = "";
-    if (strpbrk(key, "&=") || strpbrk(value, "&=") ||
+    if (strlen(key) != key_size || strlen(value) != value_size || strpbrk(key, "&=") || strpbrk(value, "&=") ||
         o->n + strlen(key) + strlen(value) + 2 >= sizeof o->buf) {
         o->bad = true;
         return MHD_NO;
@@ -322,6 +348,7 @@ static enum MHD_Result submit(struct req *r, const char *kind, const char *forma
     snprintf(rec.state, sizeof rec.state, "queued");
     snprintf(rec.format, sizeof rec.format, "%s", format);
     snprintf(rec.options, sizeof rec.options, "%s", options);
+    snprintf(rec.owner, sizeof rec.owner, "%s", r->owner);
     rec.created = wall_s();
     rec.request = (unsigned char *)(r->body ? r->body : "");
     rec.request_len = r->len;
@@ -352,16 +379,17 @@ static enum MHD_Result post_render(struct req *r)
         return problem(r, 415, d, NULL);
     }
     struct opts o = {.n = 0};
-    MHD_get_connection_values(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
+    MHD_get_connection_values_n(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
     if (o.bad)
-        return problem(r, 422, "query options must be short name=value pairs without '&' or '='", NULL);
+        return problem(r, 422, "query options must be short name=value pairs without '&', '=' or NUL", NULL);
     const char *qf = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "format");
     if (qf)
         format = qf;
     struct scene sc;
     enum image_format img;
     struct sf_err err = {0};
-    struct model_resolver models = service_models(r->svc);
+    struct model_scope ms = {r->svc, scope(r)};
+    struct model_resolver models = service_models(&ms);
     if (render_request_parse(r->body ? r->body : "", r->len, format, o.buf, &models, &sc, &img, &err))
         return problem_err(r, &err);
     scene_free(&sc);
@@ -383,9 +411,9 @@ static enum MHD_Result post_contours(struct req *r, const char *kind, int (*subm
     if (!*format)
         format = "json";
     struct opts o = {.n = 0};
-    MHD_get_connection_values(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
+    MHD_get_connection_values_n(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
     if (o.bad)
-        return problem(r, 422, "query options must be short name=value pairs without '&' or '='", NULL);
+        return problem(r, 422, "query options must be short name=value pairs without '&', '=' or NUL", NULL);
     struct sf_err err = {0};
     if (!scenes && model_body_is_scene(r->body ? r->body : "", r->len, format))
         return problem(r, 422, "a model is built from slice contours; POST /volume measures a scene", "/slices");
@@ -434,7 +462,7 @@ static enum MHD_Result model_list(struct req *r)
 {
     struct model_list l = {0};
     list_put(&l, "{\"models\":[");
-    if (store_model_list(r->svc->store, 1000, add_resource, &l) || l.failed) {
+    if (store_model_list(r->svc->store, scope(r), 1000, add_resource, &l) || l.failed) {
         free(l.buf);
         return problem(r, 500, l.failed ? "out of memory" : "the store failed", NULL);
     }
@@ -447,9 +475,9 @@ static enum MHD_Result model_list(struct req *r)
 static enum MHD_Result model_render(struct req *r, const char *id)
 {
     struct opts o = {.n = 0};
-    MHD_get_connection_values(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
+    MHD_get_connection_values_n(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
     if (o.bad)
-        return problem(r, 422, "query options must be short name=value pairs without '&' or '='", NULL);
+        return problem(r, 422, "query options must be short name=value pairs without '&', '=' or NUL", NULL);
     char *scene = malloc(128);
     if (!scene)
         return problem(r, 500, "out of memory", NULL);
@@ -460,7 +488,8 @@ static enum MHD_Result model_render(struct req *r, const char *id)
     struct scene sc;
     enum image_format img;
     struct sf_err err = {0};
-    struct model_resolver models = service_models(r->svc);
+    struct model_scope ms = {r->svc, scope(r)};
+    struct model_resolver models = service_models(&ms);
     if (render_request_parse(scene, r->len, "json", o.buf, &models, &sc, &img, &err))
         return problem_err(r, &err);
     scene_free(&sc);
@@ -473,9 +502,9 @@ static enum MHD_Result model_render(struct req *r, const char *id)
 static enum MHD_Result model_output(struct req *r, const char *id, const char *what)
 {
     struct opts o = {.n = 0};
-    MHD_get_connection_values(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
+    MHD_get_connection_values_n(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
     if (o.bad)
-        return problem(r, 422, "query options must be short name=value pairs without '&' or '='", NULL);
+        return problem(r, 422, "query options must be short name=value pairs without '&', '=' or NUL", NULL);
     struct sf_err err = {0};
     const char *format;
     double tol;
@@ -493,13 +522,13 @@ static enum MHD_Result model_output(struct req *r, const char *id, const char *w
 static enum MHD_Result model_route(struct req *r, const char *id, const char *rest, bool get)
 {
     char *resource = NULL;
-    int found = store_model_get(r->svc->store, id, &resource, NULL, NULL);
+    int found = store_model_get(r->svc->store, id, scope(r), &resource, NULL, NULL);
     if (found != 1)
         return found == 0 ? problem(r, 404, "no such model", NULL) : problem(r, 500, "the store failed", NULL);
     enum MHD_Result ok;
     if (!rest) {
         if (!strcmp(r->method, "DELETE")) {
-            int gone = store_model_delete(r->svc->store, id);
+            int gone = store_model_delete(r->svc->store, id, scope(r));
             ok = gone < 0 ? problem(r, 500, "the store failed", NULL) : text(r, 204, NULL, "");
         } else if (get) { /* a model never changes: its id is a strong tag */
             char etag[48];
@@ -527,6 +556,7 @@ static enum MHD_Result model_route(struct req *r, const char *id, const char *re
 
 /* ---- routing ---------------------------------------------------------------------------- */
 
+/* Finds the request's bearer token; sets r->owner and r->admin from it. */
 static bool authorised(struct req *r)
 {
     struct service *svc = r->svc;
@@ -537,16 +567,21 @@ static bool authorised(struct req *r)
         return false;
     const char *tok = h + 7;
     size_t n = strlen(tok);
-    unsigned ok = 0;
+    const struct token *found = NULL;
     for (size_t k = 0; k < svc->n_tokens; k++) { /* constant time in the token's content */
-        const char *t = svc->tokens[k];
+        const char *t = svc->tokens[k].secret;
         size_t m = strlen(t);
         unsigned diff = (unsigned)(m ^ n);
         for (size_t i = 0; i < m; i++)
             diff |= (unsigned char)t[i] ^ (unsigned char)(i < n ? tok[i] : 0);
-        ok |= diff == 0;
+        if (diff == 0)
+            found = &svc->tokens[k];
     }
-    return ok;
+    if (found) {
+        snprintf(r->owner, sizeof r->owner, "%s", found->name);
+        r->admin = found->admin;
+    }
+    return found != NULL;
 }
 
 static bool valid_id(const char *s, size_t n)
@@ -622,12 +657,13 @@ static enum MHD_Result route(struct req *r)
         if (!strcmp(rest, "/cancel")) {
             if (!post)
                 return problem(r, 405, "POST only", NULL);
-            if (jobq_cancel(r->svc->q, id))
-                return job_resource(r, 202, id);
             struct job_rec rec;
             int found = store_get(r->svc->store, id, false, false, &rec);
-            if (found == 1)
-                store_rec_free(&rec); /* filled only when found */
+            if (found == 1 && !visible(r, &rec))
+                found = 0;
+            store_rec_free(&rec);
+            if (found == 1 && jobq_cancel(r->svc->q, id))
+                return job_resource(r, 202, id);
             return found == 1 ? problem(r, 409, "the job has already ended", NULL)
                    : found == 0 ? problem(r, 404, "no such job", NULL)
                                 : problem(r, 500, "the store failed", NULL);
@@ -777,6 +813,12 @@ static int parse_listen(const char *s, struct sockaddr_storage *ss, unsigned sho
     return -1;
 }
 
+/* GnuTLS priorities: TLS 1.3 as GnuTLS has it; TLS 1.2 only with ephemeral elliptic-curve key
+ * exchange (forward secrecy) and AEAD ciphers: no static RSA, no CBC, no SHA-1 MACs. */
+#define TLS_PRIORITIES                                                                                    \
+    "NORMAL:-VERS-ALL:+VERS-TLS1.3:+VERS-TLS1.2:-KX-ALL:+ECDHE-ECDSA:+ECDHE-RSA:-CIPHER-ALL:+AES-256-GCM:" \
+    "+AES-128-GCM:+CHACHA20-POLY1305:-MAC-ALL:+AEAD"
+
 struct server *server_start(struct service *svc, char *msg, size_t msg_len)
 {
     struct sockaddr_storage ss;
@@ -811,7 +853,7 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
     struct MHD_OptionItem tls_opts[] = {
         {MHD_OPTION_HTTPS_MEM_CERT, 0, cert},
         {MHD_OPTION_HTTPS_MEM_KEY, 0, key},
-        {MHD_OPTION_HTTPS_PRIORITIES, 0, (void *)"NORMAL:-VERS-ALL:+VERS-TLS1.3:+VERS-TLS1.2"},
+        {MHD_OPTION_HTTPS_PRIORITIES, 0, (void *)TLS_PRIORITIES},
         {MHD_OPTION_END, 0, NULL},
     };
     s->mhd = MHD_start_daemon(

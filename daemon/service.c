@@ -170,11 +170,11 @@ int service_n_stranded(struct service *svc)
 
 static int model_source(void *ctx, const char *id, char **src, size_t *len)
 {
-    struct service *svc = ctx;
-    return store_model_get(svc->store, id, NULL, src, len);
+    const struct model_scope *ms = ctx;
+    return store_model_get(ms->svc->store, id, ms->owner, NULL, src, len);
 }
 
-struct model_resolver service_models(struct service *svc)
+struct model_resolver service_models(struct model_scope *scope)
 {
-    return (struct model_resolver){model_source, svc};
+    return (struct model_resolver){model_source, scope};
 }

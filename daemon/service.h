@@ -23,12 +23,20 @@ struct stranded {
     int tries;
 };
 
+/* A bearer token of the token file: "name:secret[:admin]" (a bare "secret" is named "default").
+ * Jobs and models belong to the name that made them; other names get 404; admins see all. */
+struct token {
+    char *name;
+    char *secret;
+    bool admin;
+};
+
 struct service {
     struct config cfg;
     struct store *store;
     struct jobq *q;
     struct bvh_device *dev;
-    char **tokens;           /* bearer tokens; none: open (loopback, or --insecure-no-auth) */
+    struct token *tokens;    /* bearer tokens; none: open (loopback, or --insecure-no-auth) */
     size_t n_tokens;
     atomic_bool draining;
     double started_wall;     /* Unix seconds */
@@ -59,8 +67,13 @@ int service_n_stranded(struct service *svc);
  * or stopping, or no kind has that name). */
 int service_submit_kind(struct service *svc, const char *kind, const char *id, bool force);
 
-/* Stored models for scenes' model objects. */
-struct model_resolver service_models(struct service *svc);
+/* Stored models for scenes' model objects, those of owner only (NULL: every owner's). The resolver
+ * borrows *scope, which the caller fills and keeps while it is used. */
+struct model_scope {
+    struct service *svc;
+    const char *owner;
+};
+struct model_resolver service_models(struct model_scope *scope);
 
 /* The job kinds: each queues job `id` (already in the store). force as in jobq_submit. */
 int render_job_submit(struct service *svc, const char *id, bool force);

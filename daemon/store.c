@@ -33,12 +33,17 @@ static const char SCHEMA[] =
 /* Columns added after the first release, for databases made before them: added when missing. */
 static const char *const MIGRATIONS[] = {
     "ALTER TABLE jobs ADD COLUMN attempts INTEGER NOT NULL DEFAULT 0",
+    "ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT ''",
+    "ALTER TABLE models ADD COLUMN owner TEXT NOT NULL DEFAULT ''",
 };
 
 int store_open(const char *dir, struct store **out, char *msg, size_t msg_len)
 {
     *out = NULL;
-    mkdir(dir, 0750);
+    /* patient data: the directory and every file SQLite makes in it (db, -wal, -shm) are the
+     * service user's alone, whatever the umask and however an earlier version left them */
+    mkdir(dir, 0700);
+    chmod(dir, 0700);
     char path[1024];
     snprintf(path, sizeof path, "%s/surfd.db", dir);
     struct store *s = calloc(1, sizeof *s);
@@ -55,6 +60,12 @@ int store_open(const char *dir, struct store **out, char *msg, size_t msg_len)
         sqlite3_free(err);
         store_close(s);
         return -1;
+    }
+    const char *const suffixes[] = {"", "-wal", "-shm"};
+    for (size_t k = 0; k < 3; k++) {
+        char f[1100];
+        snprintf(f, sizeof f, "%s%s", path, suffixes[k]);
+        chmod(f, 0600);
     }
     for (size_t k = 0; k < sizeof MIGRATIONS / sizeof *MIGRATIONS; k++)
         if (sqlite3_exec(s->db, MIGRATIONS[k], NULL, NULL, &err) != SQLITE_OK) {
@@ -98,6 +109,15 @@ static int run(struct store *s, const char *sql, void (*bind)(sqlite3_stmt *, co
 
 static void bind_id(sqlite3_stmt *st, const void *arg) { sqlite3_bind_text(st, 1, arg, -1, SQLITE_STATIC); }
 
+/* Binds an owner scope (NULL: every owner's) to parameter k of "(?k IS NULL OR owner=?k)". */
+static void bind_owner(sqlite3_stmt *st, int k, const char *owner)
+{
+    if (owner)
+        sqlite3_bind_text(st, k, owner, -1, SQLITE_STATIC);
+    else
+        sqlite3_bind_null(st, k);
+}
+
 static void bind_insert(sqlite3_stmt *st, const void *arg)
 {
     const struct job_rec *r = arg;
@@ -108,11 +128,12 @@ static void bind_insert(sqlite3_stmt *st, const void *arg)
     sqlite3_bind_text(st, 5, r->format, -1, SQLITE_STATIC);
     sqlite3_bind_text(st, 6, r->options, -1, SQLITE_STATIC);
     sqlite3_bind_blob64(st, 7, r->request_len ? (const void *)r->request : "", r->request_len, SQLITE_STATIC);
+    sqlite3_bind_text(st, 8, r->owner, -1, SQLITE_STATIC);
 }
 
 int store_insert(struct store *s, const struct job_rec *r)
 {
-    return run(s, "INSERT INTO jobs(id,kind,state,created,format,options,request) VALUES(?,?,?,?,?,?,?)", bind_insert, r);
+    return run(s, "INSERT INTO jobs(id,kind,state,created,format,options,request,owner) VALUES(?,?,?,?,?,?,?,?)", bind_insert, r);
 }
 
 struct state_args {
@@ -223,8 +244,9 @@ static unsigned char *dup_blob(sqlite3_stmt *st, int col, size_t *len)
     return p;
 }
 
-#define REC_COLUMNS "id,kind,state,progress,created,started,finished,format,options,result_type,meta,error,attempts"
-#define REC_N_COLUMNS 13
+#define REC_COLUMNS                                                                                         \
+    "id,kind,state,progress,created,started,finished,format,options,result_type,meta,error,attempts,owner"
+#define REC_N_COLUMNS 14
 
 static void read_rec(sqlite3_stmt *st, struct job_rec *r)
 {
@@ -242,6 +264,7 @@ static void read_rec(sqlite3_stmt *st, struct job_rec *r)
     r->meta = dup_text(st, 10);
     r->error = dup_text(st, 11);
     r->attempts = sqlite3_column_int(st, 12);
+    copy_text(r->owner, sizeof r->owner, st, 13);
 }
 
 int store_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out)
@@ -280,19 +303,22 @@ void store_rec_free(struct job_rec *r)
     r->meta = r->error = NULL;
 }
 
-int store_list(struct store *s, const char *state, long limit, void (*fn)(const struct job_rec *, void *), void *arg)
+int store_list(struct store *s, const char *state, const char *owner, long limit,
+               void (*fn)(const struct job_rec *, void *), void *arg)
 {
     sqlite3_stmt *st;
     int rc = -1;
     pthread_mutex_lock(&s->lock);
     if (sqlite3_prepare_v2(s->db,
-                           "SELECT " REC_COLUMNS " FROM jobs WHERE ?1 IS NULL OR state=?1 ORDER BY created DESC LIMIT ?2",
+                           "SELECT " REC_COLUMNS " FROM jobs WHERE (?1 IS NULL OR state=?1) AND (?3 IS NULL OR owner=?3)"
+                           " ORDER BY created DESC LIMIT ?2",
                            -1, &st, NULL) == SQLITE_OK) {
         if (state)
             sqlite3_bind_text(st, 1, state, -1, SQLITE_STATIC);
         else
             sqlite3_bind_null(st, 1);
         sqlite3_bind_int64(st, 2, limit > 0 ? limit : -1);
+        bind_owner(st, 3, owner);
         while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
             struct job_rec r;
             read_rec(st, &r);
@@ -373,21 +399,25 @@ static void bind_model(sqlite3_stmt *st, const void *arg)
     sqlite3_bind_double(st, 4, m->created);
     sqlite3_bind_blob64(st, 5, m->source, m->source_len, SQLITE_STATIC);
     sqlite3_bind_text(st, 6, m->resource, -1, SQLITE_STATIC);
+    sqlite3_bind_text(st, 7, m->owner ? m->owner : "", -1, SQLITE_STATIC);
 }
 
 int store_model_put(struct store *s, const struct model_rec *m)
 {
-    return run(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource) VALUES(?,?,?,?,?,?)", bind_model,
+    return run(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource,owner) VALUES(?,?,?,?,?,?,?)", bind_model,
                m);
 }
 
-int store_model_get(struct store *s, const char *id, char **resource, char **source, size_t *source_len)
+int store_model_get(struct store *s, const char *id, const char *owner, char **resource, char **source,
+                    size_t *source_len)
 {
     sqlite3_stmt *st;
     int found = -1;
     pthread_mutex_lock(&s->lock);
-    if (sqlite3_prepare_v2(s->db, "SELECT resource, source FROM models WHERE id=?", -1, &st, NULL) == SQLITE_OK) {
+    if (sqlite3_prepare_v2(s->db, "SELECT resource, source FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)", -1,
+                           &st, NULL) == SQLITE_OK) {
         sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
+        bind_owner(st, 2, owner);
         int rc = sqlite3_step(st);
         found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
         if (found == 1) {
@@ -403,14 +433,17 @@ int store_model_get(struct store *s, const char *id, char **resource, char **sou
     return found;
 }
 
-int store_model_list(struct store *s, long limit, void (*fn)(const char *resource, void *), void *arg)
+int store_model_list(struct store *s, const char *owner, long limit, void (*fn)(const char *resource, void *),
+                     void *arg)
 {
     sqlite3_stmt *st;
     int rc = -1;
     pthread_mutex_lock(&s->lock);
-    if (sqlite3_prepare_v2(s->db, "SELECT resource FROM models ORDER BY created DESC, id LIMIT ?", -1, &st, NULL) ==
-        SQLITE_OK) {
+    if (sqlite3_prepare_v2(s->db,
+                           "SELECT resource FROM models WHERE ?2 IS NULL OR owner=?2 ORDER BY created DESC, id LIMIT ?1",
+                           -1, &st, NULL) == SQLITE_OK) {
         sqlite3_bind_int64(st, 1, limit > 0 ? limit : -1);
+        bind_owner(st, 2, owner);
         while ((rc = sqlite3_step(st)) == SQLITE_ROW)
             fn((const char *)sqlite3_column_text(st, 0), arg);
         rc = rc == SQLITE_DONE ? 0 : -1;
@@ -420,13 +453,15 @@ int store_model_list(struct store *s, long limit, void (*fn)(const char *resourc
     return rc;
 }
 
-int store_model_delete(struct store *s, const char *id)
+int store_model_delete(struct store *s, const char *id, const char *owner)
 {
     pthread_mutex_lock(&s->lock);
     sqlite3_stmt *st;
     int rc = -1;
-    if (sqlite3_prepare_v2(s->db, "DELETE FROM models WHERE id=?", -1, &st, NULL) == SQLITE_OK) {
+    if (sqlite3_prepare_v2(s->db, "DELETE FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)", -1, &st, NULL) ==
+        SQLITE_OK) {
         sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
+        bind_owner(st, 2, owner);
         rc = sqlite3_step(st) == SQLITE_DONE ? sqlite3_changes(s->db) > 0 : -1;
         sqlite3_finalize(st);
     }

@@ -26,6 +26,7 @@ struct job_rec {
     char *meta;              /* JSON object of result headers (render_ms, rays), or NULL */
     char *error;             /* problem JSON, or NULL */
     int attempts;            /* times a worker has started it (store_claim) and not handed it back */
+    char owner[64];          /* name of the token that submitted it; "" in open mode */
 };
 
 /* Opens (creating) DIR/surfd.db. On failure writes msg and returns -1. */
@@ -48,8 +49,10 @@ int store_set_result(struct store *s, const char *id, const unsigned char *data,
  * frees with store_rec_free(). */
 int store_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out);
 void store_rec_free(struct job_rec *r);
-/* Calls fn for each record (no blobs) in creation order; state NULL for all, limit <= 0 for no limit. */
-int store_list(struct store *s, const char *state, long limit, void (*fn)(const struct job_rec *, void *), void *arg);
+/* Calls fn for each record (no blobs), newest first; state NULL for all, owner NULL for every
+ * owner's, limit <= 0 for no limit. */
+int store_list(struct store *s, const char *state, const char *owner, long limit,
+               void (*fn)(const struct job_rec *, void *), void *arg);
 /* Jobs left queued or running by an earlier process, oldest first (ids into fn). */
 int store_unfinished(struct store *s, void (*fn)(const char *id, void *), void *arg);
 /* Removes finished jobs older than ttl seconds and all but the newest max_count finished ones. */
@@ -58,7 +61,7 @@ int store_delete(struct store *s, const char *id);
 /* Models: made by model jobs, kept until deleted (job pruning leaves them). source is the contour
  * JSON they are rebuilt from, resource the JSON of GET /models/{id}. */
 struct model_rec {
-    const char *id, *job, *name;
+    const char *id, *job, *name, *owner;
     double created;
     const char *source;
     size_t source_len;
@@ -66,12 +69,15 @@ struct model_rec {
 };
 /* Inserts, or replaces a model of the same id (a job run again after a crash). 0 or -1. */
 int store_model_put(struct store *s, const struct model_rec *m);
+/* Models of another owner are not found, unless owner is NULL (every owner's). */
 /* 1 found (*resource, *source: caller frees; either pointer may be NULL), 0 not found, -1 error. */
-int store_model_get(struct store *s, const char *id, char **resource, char **source, size_t *source_len);
+int store_model_get(struct store *s, const char *id, const char *owner, char **resource, char **source,
+                    size_t *source_len);
 /* Resources, newest first (limit <= 0: all). 0 or -1. */
-int store_model_list(struct store *s, long limit, void (*fn)(const char *resource, void *), void *arg);
+int store_model_list(struct store *s, const char *owner, long limit, void (*fn)(const char *resource, void *),
+                     void *arg);
 /* 1 deleted, 0 not found, -1 error. */
-int store_model_delete(struct store *s, const char *id);
+int store_model_delete(struct store *s, const char *id, const char *owner);
 /* A write succeeds (for /readyz). */
 bool store_writable(struct store *s);
 

@@ -3,7 +3,7 @@
 # outputs, exit codes, SURFD_URL and SURFD_TOKEN.
 . "$(dirname "$0")/lib.inc"
 C=./build/surfctl
-printf 'tok-for-tests\n' >"$T/tokens"
+printf 'tok-for-tests\n' >"$T/tokens"; chmod 600 "$T/tokens"
 start_daemon "$T/d" --token-file "$T/tokens" --sync-wait 5 || exit 1
 export SURFD_URL="$URL" SURFD_TOKEN=tok-for-tests
 

@@ -133,7 +133,7 @@ kill -TERM "$PID"; wait "$PID"; rc=$?; PID=""
 check "SIGTERM exits 0" '[ "$rc" = 0 ] && grep -q "draining" "$T/daemon.log"'
 
 # ---- bearer tokens ----------------------------------------------------------------------------
-printf '# tokens\ns3cret-token-one\nanother-token\n' >"$T/tokens"
+printf '# tokens\ns3cret-token-one\nanother-token\n' >"$T/tokens"; chmod 600 "$T/tokens"
 start_daemon "$T/d4" --token-file "$T/tokens" || exit 1
 check "401 without token" '[ "$(status GET /jobs)" = 401 ] && is_problem 401 && header WWW-Authenticate | grep -q Bearer'
 check "401 wrong token" '[ "$(status GET /jobs -H "Authorization: Bearer s3cret-token-onE")" = 401 ]'
@@ -170,6 +170,10 @@ openssl req -x509 -newkey rsa:2048 -nodes -keyout "$T/key.pem" -out "$T/cert.pem
 start_daemon "$T/d6" --tls-cert "$T/cert.pem" --tls-key "$T/key.pem" || exit 1
 check "TLS handshake" '[ "$(curl -s --cacert "$T/cert.pem" -o /dev/null -w "%{http_code}" "$URL/livez")" = 200 ]'
 check "TLS 1.1 refused" '! curl -sk --tlsv1.1 --tls-max 1.1 -o /dev/null "$URL/livez"'
+tls12() { echo | timeout 5 openssl s_client -connect "127.0.0.1:$PORT" -tls1_2 -cipher "$1" 2>/dev/null | grep -q "Cipher is $1"; }
+check "TLS 1.2: ECDHE with AEAD offered" 'tls12 ECDHE-RSA-AES128-GCM-SHA256 && tls12 ECDHE-RSA-CHACHA20-POLY1305'
+check "TLS 1.2: static RSA and CBC-SHA1 refused" '! tls12 AES128-SHA && ! tls12 AES256-GCM-SHA384 && ! tls12 ECDHE-RSA-AES128-SHA'
+check "TLS 1.3 offered" 'echo | timeout 5 openssl s_client -connect "127.0.0.1:$PORT" -tls1_3 2>/dev/null | grep -q "TLSv1.3"'
 stop_daemon
 
 finish
