@@ -24,7 +24,7 @@ TSAN    := -fsanitize=thread
 
 CORE_LIBS := -lembree3 -lm
 API_LIBS  := -ljansson
-DAEMON_LIBS := -lmicrohttpd -lsqlite3 -lpthread
+DAEMON_LIBS := -lmicrohttpd -lsqlite3 -lgnutls -lpthread
 IMG_LIBS  := -lOpenImageIO -lOpenImageIO_Util -lstdc++
 DCM_LIBS  := -ldcmdata -loflog -lofstd -lstdc++
 

@@ -20,6 +20,9 @@ static atomic_long store_errors;
 
 void metrics_store_error(void) { atomic_fetch_add(&store_errors, 1); }
 
+static atomic_long store_damaged;
+void metrics_store_damaged(void) { atomic_fetch_add(&store_damaged, 1); }
+
 void metrics_http(int status)
 {
     if (status == 0) { /* the client left before an answer (e.g. during a synchronous wait) */
@@ -82,6 +85,8 @@ char *metrics_text(struct service *svc)
         "# TYPE surfd_http_aborted_total counter\nsurfd_http_aborted_total %ld\n", atomic_load(&http_aborted));
     OUT("# HELP surfd_store_errors_total Jobs whose end the store refused (each refusal).\n"
         "# TYPE surfd_store_errors_total counter\nsurfd_store_errors_total %ld\n", atomic_load(&store_errors));
+    OUT("# HELP surfd_store_damaged_total Stored results or models refused: their checksum did not match.\n"
+        "# TYPE surfd_store_damaged_total counter\nsurfd_store_damaged_total %ld\n", atomic_load(&store_damaged));
     OUT("# HELP surfd_jobs_stranded Jobs whose end the store refused, kept to run again.\n"
         "# TYPE surfd_jobs_stranded gauge\nsurfd_jobs_stranded %d\n", service_n_stranded(svc));
 #undef OUT

@@ -12,6 +12,8 @@ void metrics_render(double seconds, long rays);
 void metrics_job_end(enum job_state outcome);
 /* The store refused a job's end. */
 void metrics_store_error(void);
+/* A stored result or model whose bytes did not match their checksum. */
+void metrics_store_damaged(void);
 /* The exposition text; caller frees. */
 char *metrics_text(struct service *svc);
 

@@ -117,6 +117,16 @@ static enum MHD_Result problem(struct req *r, int status, const char *detail, co
     return send_reply(r, &rp);
 }
 
+/* A store read that failed: damaged bytes (counted, never sent) or another failure. */
+static enum MHD_Result damaged_or_failed(struct req *r, int found)
+{
+    if (found != STORE_DAMAGED)
+        return problem(r, 500, "the store failed", NULL);
+    metrics_store_damaged();
+    LOG(LOG_ERROR, "%s: the stored bytes do not match their checksum; not served", r->path);
+    return problem(r, 500, "the stored data is damaged (its checksum does not match); it is not served", NULL);
+}
+
 static enum MHD_Result problem_err(struct req *r, const struct sf_err *e)
 {
     return problem(r, problem_status(e->code), e->message, e->pointer);
@@ -184,14 +194,14 @@ static enum MHD_Result job_result(struct req *r, const char *id, bool sync)
         found = 0;
     if (found != 1) {
         store_rec_free(&rec);
-        return found == 0 ? problem(r, 404, "no such job", NULL) : problem(r, 500, "the store failed", NULL);
+        return found == 0 ? problem(r, 404, "no such job", NULL) : damaged_or_failed(r, found);
     }
     if (id != r->job)
         snprintf(r->job, sizeof r->job, "%s", id);
     enum MHD_Result ok;
     if (!strcmp(rec.state, "succeeded") && rec.result) {
         char etag[48];
-        snprintf(etag, sizeof etag, "\"%s\"", id); /* a job's result never changes: its id is a strong tag */
+        snprintf(etag, sizeof etag, "\"%.32s\"", rec.result_sum[0] ? rec.result_sum : id); /* content: strong */
         const char *inm = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_IF_NONE_MATCH);
         if (inm && (strstr(inm, etag) || !strcmp(inm, "*"))) {
             struct reply rp = {304, NULL, NULL, 0, {{"ETag", etag}}};
@@ -524,7 +534,7 @@ static enum MHD_Result model_route(struct req *r, const char *id, const char *re
     char *resource = NULL;
     int found = store_model_get(r->svc->store, id, scope(r), &resource, NULL, NULL);
     if (found != 1)
-        return found == 0 ? problem(r, 404, "no such model", NULL) : problem(r, 500, "the store failed", NULL);
+        return found == 0 ? problem(r, 404, "no such model", NULL) : damaged_or_failed(r, found);
     enum MHD_Result ok;
     if (!rest) {
         if (!strcmp(r->method, "DELETE")) {

@@ -3,6 +3,7 @@
  * trades for speed. Statements are prepared per call: the store is not on any hot path. */
 #include "store.h"
 
+#include <gnutls/crypto.h>
 #include <pthread.h>
 #include <sqlite3.h>
 #include <stdio.h>
@@ -35,6 +36,8 @@ static const char *const MIGRATIONS[] = {
     "ALTER TABLE jobs ADD COLUMN attempts INTEGER NOT NULL DEFAULT 0",
     "ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT ''",
     "ALTER TABLE models ADD COLUMN owner TEXT NOT NULL DEFAULT ''",
+    "ALTER TABLE jobs ADD COLUMN result_sum TEXT",
+    "ALTER TABLE models ADD COLUMN sum TEXT",
 };
 
 int store_open(const char *dir, struct store **out, char *msg, size_t msg_len)
@@ -105,6 +108,33 @@ static int run(struct store *s, const char *sql, void (*bind)(sqlite3_stmt *, co
     }
     pthread_mutex_unlock(&s->lock);
     return rc == SQLITE_DONE || rc == SQLITE_ROW ? 0 : -1;
+}
+
+/* SHA-256 of a and then b (either may be empty) as 64 hex digits: what a stored result or model
+ * is checked against when read back (SQLite's own checks cover its page structure, not the bytes
+ * of a blob). */
+static void checksum(const void *a, size_t na, const void *b, size_t nb, char out[65])
+{
+    unsigned char d[32] = {0};
+    gnutls_hash_hd_t h;
+    if (gnutls_hash_init(&h, GNUTLS_DIG_SHA256) == 0) {
+        gnutls_hash(h, a, na);
+        gnutls_hash(h, b, nb);
+        gnutls_hash_deinit(h, d);
+    }
+    for (int k = 0; k < 32; k++)
+        snprintf(out + 2 * k, 3, "%02x", d[k]);
+}
+
+/* Whether blob bytes match their stored sum (a row written before sums were kept has none). */
+static bool sum_ok(sqlite3_stmt *st, int col_sum, const void *a, size_t na, const void *b, size_t nb)
+{
+    const unsigned char *want = sqlite3_column_text(st, col_sum);
+    if (!want)
+        return true;
+    char got[65];
+    checksum(a, na, b, nb, got);
+    return !strcmp((const char *)want, got);
 }
 
 static void bind_id(sqlite3_stmt *st, const void *arg) { sqlite3_bind_text(st, 1, arg, -1, SQLITE_STATIC); }
@@ -195,6 +225,7 @@ struct result_args {
     const unsigned char *data;
     size_t len;
     double finished;
+    char sum[65];
 };
 
 static void bind_result(sqlite3_stmt *st, const void *arg)
@@ -208,15 +239,17 @@ static void bind_result(sqlite3_stmt *st, const void *arg)
         sqlite3_bind_null(st, 3);
     sqlite3_bind_double(st, 4, a->finished);
     sqlite3_bind_text(st, 5, a->id, -1, SQLITE_STATIC);
+    sqlite3_bind_text(st, 6, a->sum, -1, SQLITE_STATIC);
 }
 
 int store_set_result(struct store *s, const char *id, const unsigned char *data, size_t len, const char *type,
                      const char *meta, double finished)
 {
-    struct result_args a = {id, type, meta, data, len, finished};
+    struct result_args a = {id, type, meta, data, len, finished, ""};
+    checksum(data, len, "", 0, a.sum);
     return run(s,
-               "UPDATE jobs SET result=?1, result_type=?2, meta=?3, state='succeeded', progress=1, finished=?4"
-               " WHERE id=?5",
+               "UPDATE jobs SET result=?1, result_type=?2, meta=?3, state='succeeded', progress=1, finished=?4,"
+               " result_sum=?6 WHERE id=?5",
                bind_result, &a);
 }
 
@@ -245,8 +278,9 @@ static unsigned char *dup_blob(sqlite3_stmt *st, int col, size_t *len)
 }
 
 #define REC_COLUMNS                                                                                         \
-    "id,kind,state,progress,created,started,finished,format,options,result_type,meta,error,attempts,owner"
-#define REC_N_COLUMNS 14
+    "id,kind,state,progress,created,started,finished,format,options,result_type,meta,error,attempts,owner,"        \
+    "result_sum"
+#define REC_N_COLUMNS 15
 
 static void read_rec(sqlite3_stmt *st, struct job_rec *r)
 {
@@ -265,6 +299,7 @@ static void read_rec(sqlite3_stmt *st, struct job_rec *r)
     r->error = dup_text(st, 11);
     r->attempts = sqlite3_column_int(st, 12);
     copy_text(r->owner, sizeof r->owner, st, 13);
+    copy_text(r->result_sum, sizeof r->result_sum, st, 14);
 }
 
 int store_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out)
@@ -282,8 +317,13 @@ int store_get(struct store *s, const char *id, bool with_request, bool with_resu
             read_rec(st, out);
             if (with_request)
                 out->request = dup_blob(st, REC_N_COLUMNS, &out->request_len);
-            if (with_result)
+            if (with_result) {
                 out->result = dup_blob(st, REC_N_COLUMNS + 1, &out->result_len);
+                if (out->result && !sum_ok(st, 14, out->result, out->result_len, "", 0)) {
+                    store_rec_free(out);
+                    found = STORE_DAMAGED;
+                }
+            }
         }
         sqlite3_finalize(st);
     }
@@ -400,11 +440,14 @@ static void bind_model(sqlite3_stmt *st, const void *arg)
     sqlite3_bind_blob64(st, 5, m->source, m->source_len, SQLITE_STATIC);
     sqlite3_bind_text(st, 6, m->resource, -1, SQLITE_STATIC);
     sqlite3_bind_text(st, 7, m->owner ? m->owner : "", -1, SQLITE_STATIC);
+    char sum[65];
+    checksum(m->source, m->source_len, m->resource, strlen(m->resource), sum);
+    sqlite3_bind_text(st, 8, sum, -1, SQLITE_TRANSIENT);
 }
 
 int store_model_put(struct store *s, const struct model_rec *m)
 {
-    return run(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource,owner) VALUES(?,?,?,?,?,?,?)", bind_model,
+    return run(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource,owner,sum) VALUES(?,?,?,?,?,?,?,?)", bind_model,
                m);
 }
 
@@ -414,12 +457,15 @@ int store_model_get(struct store *s, const char *id, const char *owner, char **r
     sqlite3_stmt *st;
     int found = -1;
     pthread_mutex_lock(&s->lock);
-    if (sqlite3_prepare_v2(s->db, "SELECT resource, source FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)", -1,
+    if (sqlite3_prepare_v2(s->db, "SELECT resource, source, sum FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)", -1,
                            &st, NULL) == SQLITE_OK) {
         sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
         bind_owner(st, 2, owner);
         int rc = sqlite3_step(st);
         found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
+        if (found == 1 && !sum_ok(st, 2, sqlite3_column_blob(st, 1), (size_t)sqlite3_column_bytes(st, 1),
+                                  sqlite3_column_text(st, 0), (size_t)sqlite3_column_bytes(st, 0)))
+            found = STORE_DAMAGED;
         if (found == 1) {
             size_t n;
             if (resource)

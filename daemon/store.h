@@ -10,6 +10,10 @@
 
 struct store;
 
+/* What a read answers when a stored result or model's bytes no longer match the checksum taken
+ * when they were written (damage below SQLite: a flipped bit on disk): never the bytes. */
+#define STORE_DAMAGED -2
+
 struct job_rec {
     char id[40];
     char kind[16];           /* render, model, volume, isosurface */
@@ -27,6 +31,7 @@ struct job_rec {
     char *error;             /* problem JSON, or NULL */
     int attempts;            /* times a worker has started it (store_claim) and not handed it back */
     char owner[64];          /* name of the token that submitted it; "" in open mode */
+    char result_sum[65];     /* SHA-256 of the result (hex), "" before it has one */
 };
 
 /* Opens (creating) DIR/surfd.db. On failure writes msg and returns -1. */
@@ -45,7 +50,7 @@ int store_requeue(struct store *s, const char *id);
 int store_set_result(struct store *s, const char *id, const unsigned char *data, size_t len, const char *type,
                      const char *meta, double finished);
 /* Reads one record (with the request and, if with_result, the result). Returns 1 found, 0 not
- * found, -1 error. *out is zeroed first, so store_rec_free() is safe whatever the answer; caller
+ * found, -1 error, STORE_DAMAGED (the result is damaged). *out is zeroed first, so store_rec_free() is safe whatever the answer; caller
  * frees with store_rec_free(). */
 int store_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out);
 void store_rec_free(struct job_rec *r);
@@ -70,7 +75,8 @@ struct model_rec {
 /* Inserts, or replaces a model of the same id (a job run again after a crash). 0 or -1. */
 int store_model_put(struct store *s, const struct model_rec *m);
 /* Models of another owner are not found, unless owner is NULL (every owner's). */
-/* 1 found (*resource, *source: caller frees; either pointer may be NULL), 0 not found, -1 error. */
+/* 1 found (*resource, *source: caller frees; either pointer may be NULL), 0 not found, -1 error,
+ * STORE_DAMAGED. */
 int store_model_get(struct store *s, const char *id, const char *owner, char **resource, char **source,
                     size_t *source_len);
 /* Resources, newest first (limit <= 0: all). 0 or -1. */
