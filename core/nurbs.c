@@ -128,6 +128,22 @@ void nurbs_domain(const struct surface *s, double *u0, double *u1, double *v0, d
     *v1 = s->knots_v[s->n_v];
 }
 
+/* The span s in [p, n-1] with U[s] <= t < U[s+1] (t >= U[n]: n-1), as Piegl & Tiller's FindSpan. */
+static int span_of(const double *U, int n, int p, double t)
+{
+    if (t >= U[n])
+        return n - 1;
+    int lo = p, hi = n;
+    while (hi - lo > 1) {
+        int mid = (lo + hi) / 2;
+        if (t < U[mid])
+            hi = mid;
+        else
+            lo = mid;
+    }
+    return lo;
+}
+
 /* Knot span index r with U[r] <= t < U[r+1], clamped into [p, n-1] (Piegl & Tiller A2.1). */
 static int find_span(const double *U, int n, int p, double t)
 {
@@ -139,15 +155,7 @@ static int find_span(const double *U, int n, int p, double t)
     }
     if (t <= U[p])
         return p;
-    int lo = p, hi = n;
-    while (hi - lo > 1) {
-        int mid = (lo + hi) / 2;
-        if (t < U[mid])
-            hi = mid;
-        else
-            lo = mid;
-    }
-    return lo;
+    return span_of(U, n, p, t);
 }
 
 /* Non-zero basis functions N[0..p] and first derivatives dN[0..p] at t in span r (A2.3). */
@@ -348,22 +356,6 @@ int nurbs_transpose(struct surface *s)
     from_homogeneous(s, t);
     free(t);
     return 0;
-}
-
-/* The span s in [p, n-1] with U[s] <= t < U[s+1] (t >= U[n]: n-1), as Piegl & Tiller's FindSpan. */
-static int span_of(const double *U, int n, int p, double t)
-{
-    if (t >= U[n])
-        return n - 1;
-    int lo = p, hi = n;
-    while (hi - lo > 1) {
-        int mid = (lo + hi) / 2;
-        if (t < U[mid])
-            hi = mid;
-        else
-            lo = mid;
-    }
-    return lo;
 }
 
 /* Inserts every distinct knot of the domain [U[p], U[n]] until its multiplicity is p, so that
