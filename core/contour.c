@@ -97,6 +97,16 @@ static int by_x0(const void *a, const void *b)
 /* An edge of a that crosses another edge of a (b == a) or an edge of b: its index in a, -1 for none,
  * or CROSS_TOO_COMPLEX past CROSS_MAX_PAIRS. A sweep in x: edges are compared only with those whose
  * x-extent overlaps theirs. Neighbouring edges of one contour (they share a point) are not compared. */
+/* Edge i of the sweep's numbering (a's edges, then b's): its two end points. */
+static void sweep_edge(const struct contour_slice *a, const struct contour_slice *b, int na, int i, const double **p,
+                       const double **q)
+{
+    const struct contour_slice *c = i < na ? a : b;
+    int k = i < na ? i : i - na;
+    *p = c->p[k];
+    *q = c->p[(k + 1) % c->n];
+}
+
 static int sweep_crossing(const struct contour_slice *a, const struct contour_slice *b)
 {
     int na = a->n, nb = b == a ? 0 : b->n, n = na + nb, found = -1;
@@ -104,9 +114,8 @@ static int sweep_crossing(const struct contour_slice *a, const struct contour_sl
     if (!e)
         return -1; /* out of memory: leave the check to the modelling, which copes */
     for (int i = 0; i < n; i++) {
-        const struct contour_slice *c = i < na ? a : b;
-        int k = i < na ? i : i - na;
-        const double *p = c->p[k], *q = c->p[(k + 1) % c->n];
+        const double *p, *q;
+        sweep_edge(a, b, na, i, &p, &q);
         e[i] = (struct edge_span){fmin(p[0], q[0]), fmax(p[0], q[0]), i};
     }
     qsort(e, (size_t)n, sizeof *e, by_x0);
@@ -125,9 +134,10 @@ static int sweep_crossing(const struct contour_slice *a, const struct contour_sl
             } else if ((i < na) == (j < na)) {
                 continue;
             }
-            const struct contour_slice *ci = i < na ? a : b, *cj = j < na ? a : b;
-            int ki = i < na ? i : i - na, kj = j < na ? j : j - na;
-            if (segments_meet(ci->p[ki], ci->p[(ki + 1) % ci->n], cj->p[kj], cj->p[(kj + 1) % cj->n]))
+            const double *pi, *qi, *pj, *qj;
+            sweep_edge(a, b, na, i, &pi, &qi);
+            sweep_edge(a, b, na, j, &pj, &qj);
+            if (segments_meet(pi, qi, pj, qj))
                 found = b == a ? (i < j ? i : j) : (i < na ? i : j);
         }
     free(e);

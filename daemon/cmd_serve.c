@@ -36,15 +36,14 @@ static int read_tokens(struct service *svc, const char *path, char *msg, size_t 
         snprintf(msg, msg_len, "token file %s: %s", path, strerror(errno));
         return -1;
     }
+    int rc = -1, n = 0;
     struct stat st;
     if (fstat(fileno(f), &st) == 0 && (st.st_mode & 0027)) {
-        fclose(f);
         snprintf(msg, msg_len, "token file %.200s is mode %04o: others may read it or the group may write it; "
                  "chmod 0600 (or 0640 for a group the service is in)", path, (unsigned)(st.st_mode & 07777));
-        return -1;
+        goto out_close;
     }
     char line[512];
-    int n = 0;
     while (fgets(line, sizeof line, f)) {
         n++;
         line[strcspn(line, "\r\n")] = 0;
@@ -62,41 +61,43 @@ static int read_tokens(struct service *svc, const char *path, char *msg, size_t 
             char *c2 = strchr(secret, ':');
             if (c2) {
                 *c2 = 0;
-                admin = !strcmp(c2 + 1, "admin");
-                if (!admin) {
-                    fclose(f);
+                if (!(admin = !strcmp(c2 + 1, "admin"))) {
                     snprintf(msg, msg_len, "token file %.200s:%d: expected name:token or name:token:admin", path, n);
-                    return -1;
+                    goto out_close;
                 }
             }
-            bool ok = *name && strlen(name) < 64;
+            bool ok = *name && strlen(name) < 64 && *secret;
             for (const char *p = name; *p; p++)
                 ok &= isalnum((unsigned char)*p) || *p == '.' || *p == '_' || *p == '-';
-            if (!ok || !*secret) {
-                fclose(f);
+            if (!ok) {
                 snprintf(msg, msg_len, "token file %.200s:%d: a name is 1-63 letters, digits, '.', '_' or '-', then ':' and "
                          "the token", path, n);
-                return -1;
+                goto out_close;
             }
         }
         struct token *more = realloc(svc->tokens, sizeof *more * (svc->n_tokens + 1));
-        if (more)
-            svc->tokens = more;
-        if (!more || !(more[svc->n_tokens].name = strdup(name)) || !(more[svc->n_tokens].secret = strdup(secret))) {
-            if (more)
-                free(more[svc->n_tokens].name);
-            fclose(f);
+        if (!more) {
             snprintf(msg, msg_len, "out of memory");
-            return -1;
+            goto out_close;
         }
-        more[svc->n_tokens++].admin = admin;
+        svc->tokens = more;
+        struct token *tk = &more[svc->n_tokens];
+        *tk = (struct token){strdup(name), strdup(secret), admin};
+        if (!tk->name || !tk->secret) {
+            free(tk->name);
+            free(tk->secret);
+            snprintf(msg, msg_len, "out of memory");
+            goto out_close;
+        }
+        svc->n_tokens++;
     }
-    fclose(f);
-    if (svc->n_tokens == 0) {
+    if (svc->n_tokens == 0)
         snprintf(msg, msg_len, "token file %s holds no token", path);
-        return -1;
-    }
-    return 0;
+    else
+        rc = 0;
+out_close:
+    fclose(f);
+    return rc;
 }
 
 /* A job that was running when the process stopped this many times is not run again: it is what
@@ -107,13 +108,15 @@ static void recover(const char *id, void *arg)
 {
     struct service *svc = arg;
     struct job_rec rec;
-    if (store_get(svc->store, id, false, false, &rec) == 1 && rec.attempts >= RECOVER_MAX_ATTEMPTS) {
+    if (store_get(svc->store, id, false, false, &rec) != 1)
+        return;
+    if (rec.attempts >= RECOVER_MAX_ATTEMPTS) {
         struct sf_err err = {0};
         sf_fail(&err, SF_EBACKEND, "", "this job stopped the service %d times; it is not run again",
                 rec.attempts);
         service_job_end(svc, id, JOB_FAILED, false, NULL, 0, NULL, NULL, &err);
         LOG(LOG_ERROR, "job %s stopped the service %d times: failed, not recovered", id, rec.attempts);
-    } else if (rec.id[0]) {
+    } else {
         store_set_state(svc->store, id, "queued", 0.0, 0, 0, NULL);
         if (service_submit_kind(svc, rec.kind, id, true) == 0)
             LOG(LOG_INFO, "recovered job %s", id);

@@ -39,7 +39,7 @@ struct job {
     bool requeue;                /* [q] cancelled by shutdown: run again after restart */
     int n_bands, next_band;      /* [q] */
     int bands_done, bands_out;   /* [q] finished / being rendered */
-    double progress;             /* [q] as the job reported it (jobq_progress), never decreasing */
+    double progress;             /* [q] as the job reported it (jobq_cancelled), never decreasing */
     struct waiter *waiters;      /* [q] */
     struct job *next_queued;     /* [q] FIFO link */
     struct job *next_live;       /* [q] all queued and running jobs */

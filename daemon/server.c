@@ -127,6 +127,24 @@ static enum MHD_Result damaged_or_failed(struct req *r, int found)
     return problem(r, 500, "the stored data is damaged (its checksum does not match); it is not served", NULL);
 }
 
+/* store_get for the request: another owner's job is not found (0), and *rec holds nothing unless
+ * the answer is 1. */
+static int get_job(struct req *r, const char *id, bool with_result, struct job_rec *rec)
+{
+    int found = store_get(r->svc->store, id, false, with_result, rec);
+    if (found == 1 && !visible(r, rec))
+        found = 0;
+    if (found != 1)
+        store_rec_free(rec);
+    return found;
+}
+
+/* The answer to a get_job that found nothing: 404, or the store's failure. */
+static enum MHD_Result no_job(struct req *r, int found)
+{
+    return found == 0 ? problem(r, 404, "no such job", NULL) : damaged_or_failed(r, found);
+}
+
 static enum MHD_Result problem_err(struct req *r, const struct sf_err *e)
 {
     return problem(r, problem_status(e->code), e->message, e->pointer);
@@ -168,13 +186,9 @@ static struct job_view view_of(struct service *svc, const struct job_rec *rec)
 static enum MHD_Result job_resource(struct req *r, int status, const char *id)
 {
     struct job_rec rec;
-    int found = store_get(r->svc->store, id, false, false, &rec);
-    if (found == 1 && !visible(r, &rec))
-        found = 0;
-    if (found != 1) {
-        store_rec_free(&rec);
-        return found == 0 ? problem(r, 404, "no such job", NULL) : problem(r, 500, "the store failed", NULL);
-    }
+    int found = get_job(r, id, false, &rec);
+    if (found != 1)
+        return no_job(r, found);
     struct job_view v = view_of(r->svc, &rec);
     char location[80];
     snprintf(location, sizeof location, "/jobs/%s", id);
@@ -189,13 +203,9 @@ static enum MHD_Result job_resource(struct req *r, int status, const char *id)
 static enum MHD_Result job_result(struct req *r, const char *id, bool sync)
 {
     struct job_rec rec;
-    int found = store_get(r->svc->store, id, false, true, &rec);
-    if (found == 1 && !visible(r, &rec))
-        found = 0;
-    if (found != 1) {
-        store_rec_free(&rec);
-        return found == 0 ? problem(r, 404, "no such job", NULL) : damaged_or_failed(r, found);
-    }
+    int found = get_job(r, id, true, &rec);
+    if (found != 1)
+        return no_job(r, found);
     if (id != r->job)
         snprintf(r->job, sizeof r->job, "%s", id);
     enum MHD_Result ok;
@@ -318,6 +328,15 @@ static enum MHD_Result add_opt(void *cls, enum MHD_ValueKind kind, const char *k
     return MHD_YES;
 }
 
+/* Reads the query's options into o; false (after answering 422) when one is malformed. */
+static bool query_options(struct req *r, struct opts *o, enum MHD_Result *answer)
+{
+    MHD_get_connection_values_n(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, o);
+    if (o->bad)
+        *answer = problem(r, 422, "query options must be short name=value pairs without '&', '=' or NUL", NULL);
+    return !o->bad;
+}
+
 /* Prefer: respond-async, wait=N (RFC 7240). */
 static void prefer(struct req *r, bool *async, double *wait)
 {
@@ -389,9 +408,9 @@ static enum MHD_Result post_render(struct req *r)
         return problem(r, 415, d, NULL);
     }
     struct opts o = {.n = 0};
-    MHD_get_connection_values_n(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
-    if (o.bad)
-        return problem(r, 422, "query options must be short name=value pairs without '&', '=' or NUL", NULL);
+    enum MHD_Result answer;
+    if (!query_options(r, &o, &answer))
+        return answer;
     const char *qf = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "format");
     if (qf)
         format = qf;
@@ -421,9 +440,9 @@ static enum MHD_Result post_contours(struct req *r, const char *kind, int (*subm
     if (!*format)
         format = "json";
     struct opts o = {.n = 0};
-    MHD_get_connection_values_n(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
-    if (o.bad)
-        return problem(r, 422, "query options must be short name=value pairs without '&', '=' or NUL", NULL);
+    enum MHD_Result answer;
+    if (!query_options(r, &o, &answer))
+        return answer;
     struct sf_err err = {0};
     if (!scenes && model_body_is_scene(r->body ? r->body : "", r->len, format))
         return problem(r, 422, "a model is built from slice contours; POST /volume measures a scene", "/slices");
@@ -485,9 +504,9 @@ static enum MHD_Result model_list(struct req *r)
 static enum MHD_Result model_render(struct req *r, const char *id)
 {
     struct opts o = {.n = 0};
-    MHD_get_connection_values_n(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
-    if (o.bad)
-        return problem(r, 422, "query options must be short name=value pairs without '&', '=' or NUL", NULL);
+    enum MHD_Result answer;
+    if (!query_options(r, &o, &answer))
+        return answer;
     char *scene = malloc(128);
     if (!scene)
         return problem(r, 500, "out of memory", NULL);
@@ -512,9 +531,9 @@ static enum MHD_Result model_render(struct req *r, const char *id)
 static enum MHD_Result model_output(struct req *r, const char *id, const char *what)
 {
     struct opts o = {.n = 0};
-    MHD_get_connection_values_n(r->conn, MHD_GET_ARGUMENT_KIND, add_opt, &o);
-    if (o.bad)
-        return problem(r, 422, "query options must be short name=value pairs without '&', '=' or NUL", NULL);
+    enum MHD_Result answer;
+    if (!query_options(r, &o, &answer))
+        return answer;
     struct sf_err err = {0};
     const char *format;
     double tol;
@@ -668,15 +687,12 @@ static enum MHD_Result route(struct req *r)
             if (!post)
                 return problem(r, 405, "POST only", NULL);
             struct job_rec rec;
-            int found = store_get(r->svc->store, id, false, false, &rec);
-            if (found == 1 && !visible(r, &rec))
-                found = 0;
+            int found = get_job(r, id, false, &rec);
+            if (found != 1)
+                return no_job(r, found);
             store_rec_free(&rec);
-            if (found == 1 && jobq_cancel(r->svc->q, id))
-                return job_resource(r, 202, id);
-            return found == 1 ? problem(r, 409, "the job has already ended", NULL)
-                   : found == 0 ? problem(r, 404, "no such job", NULL)
-                                : problem(r, 500, "the store failed", NULL);
+            return jobq_cancel(r->svc->q, id) ? job_resource(r, 202, id)
+                                              : problem(r, 409, "the job has already ended", NULL);
         }
     }
     return problem(r, 404, "no such route", NULL);
