@@ -2,6 +2,7 @@
 # Installs the Debian packages surfd builds, tests and benchmarks with. Idempotent: asks apt only
 # for what is missing, so `make run` and CI on a fresh machine call it unconditionally.
 # Usage: deploy/install-deps.sh [--bench]   (--bench adds the reference tools: povray, wrk, plastimatch)
+# npm (the machine's, or Debian's when there is none) installs the OpenAPI linter the tests use.
 set -eu
 
 BUILD="build-essential pkg-config libembree-dev libopenimageio-dev libmicrohttpd-dev libjansson-dev \
@@ -12,6 +13,7 @@ want="$BUILD"
 [ "${1:-}" = "--bench" ] && want="$want $BENCH"
 
 missing=""
+command -v npm >/dev/null 2>&1 || missing="npm" # tests/api/openapi_lint.sh installs @redocly/cli with it
 for p in $want; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
 done
