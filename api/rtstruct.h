@@ -27,6 +27,13 @@ struct rt_roi {
 int rtstruct_read(const void *buf, size_t len, struct rt_roi **rois, int *n_rois, struct sf_err *err);
 void rtstruct_free(struct rt_roi *rois, int n_rois);
 
+/* A copy of the structure set with only what rtstruct_read reads (SOP class, ROI numbers, names
+ * and frame of reference, contour types, points and data, ROI colours) and a fresh instance UID:
+ * no patient, study, series, equipment or personnel modules, no image references. For storing
+ * what a request needs to be run again. *out (caller frees) and *out_len receive a DICOM Part 10
+ * object. Errors as rtstruct_read. */
+int rtstruct_strip(const void *buf, size_t len, unsigned char **out, size_t *out_len, struct sf_err *err);
+
 #ifdef __cplusplus
 }
 #endif

@@ -8,6 +8,7 @@
 #include <dcmtk/config/osconfig.h>
 #include <dcmtk/dcmdata/dctk.h>
 #include <dcmtk/dcmdata/dcistrmb.h>
+#include <dcmtk/dcmdata/dcostrmb.h>
 
 #include <cmath>
 #include <cstdio>
@@ -27,23 +28,107 @@ extern "C" void rtstruct_free(struct rt_roi *rois, int n_rois)
     free(rois);
 }
 
-extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, int *n_out, struct sf_err *err)
+/* Parses buf into ff: SF_EFORMAT (in err) when it is not DICOM, SF_EINVAL when not an RT Structure Set. */
+static int read_object(const void *buf, size_t len, DcmFileFormat &ff, struct sf_err *err)
 {
-    *out = NULL;
-    *n_out = 0;
     DcmInputBufferStream in;
     in.setBuffer(buf, (offile_off_t)len);
     in.setEos();
-    DcmFileFormat ff;
     ff.transferInit();
     OFCondition c = ff.read(in, EXS_Unknown, EGL_noChange, DCM_MaxReadLength);
     ff.transferEnd();
     if (c.bad())
         return sf_fail(err, SF_EFORMAT, "", "not a readable DICOM object: %s", c.text());
-    DcmDataset *ds = ff.getDataset();
     OFString sop;
-    if (ds->findAndGetOFString(DCM_SOPClassUID, sop).bad() || sop != RT_STRUCT_SOP_CLASS)
+    if (ff.getDataset()->findAndGetOFString(DCM_SOPClassUID, sop).bad() || sop != RT_STRUCT_SOP_CLASS)
         return sf_fail(err, SF_EINVAL, "/SOPClassUID", "the DICOM object is not an RT Structure Set");
+    return 0;
+}
+
+/* Copies the elements tags (where present) from one item to another; false when out of memory. */
+static bool copy_elements(DcmItem *from, DcmItem *to, const DcmTagKey *tags, size_t n)
+{
+    for (size_t k = 0; k < n; k++) {
+        DcmElement *el = NULL;
+        if (from->findAndGetElement(tags[k], el).good() && el &&
+            to->insert(static_cast<DcmElement *>(el->clone())).bad())
+            return false;
+    }
+    return true;
+}
+
+extern "C" int rtstruct_strip(const void *buf, size_t len, unsigned char **out, size_t *out_len, struct sf_err *err)
+{
+    *out = NULL;
+    *out_len = 0;
+    DcmFileFormat ff;
+    int rc = read_object(buf, len, ff, err);
+    if (rc)
+        return rc;
+    DcmDataset *ds = ff.getDataset();
+    DcmFileFormat kept;
+    DcmDataset *kd = kept.getDataset();
+    char uid[100];
+    bool ok = kd->putAndInsertString(DCM_SOPClassUID, RT_STRUCT_SOP_CLASS).good() &&
+              kd->putAndInsertString(DCM_SOPInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT)).good() &&
+              kd->putAndInsertString(DCM_Modality, "RTSTRUCT").good();
+    static const DcmTagKey ROI_TAGS[] = {DCM_ROINumber, DCM_ROIName, DCM_ReferencedFrameOfReferenceUID};
+    static const DcmTagKey CONTOUR_ROI_TAGS[] = {DCM_ReferencedROINumber, DCM_ROIDisplayColor};
+    static const DcmTagKey CONTOUR_TAGS[] = {DCM_ContourGeometricType, DCM_NumberOfContourPoints, DCM_ContourData};
+    DcmSequenceOfItems *seq = NULL;
+    if (ok && ds->findAndGetSequence(DCM_StructureSetROISequence, seq).good() && seq)
+        for (unsigned long i = 0; ok && i < seq->card(); i++) {
+            DcmItem *item = NULL;
+            ok = kd->findOrCreateSequenceItem(DCM_StructureSetROISequence, item, -2).good() &&
+                 copy_elements(seq->getItem(i), item, ROI_TAGS, 3);
+        }
+    if (ok && ds->findAndGetSequence(DCM_ROIContourSequence, seq).good() && seq)
+        for (unsigned long r = 0; ok && r < seq->card(); r++) {
+            DcmItem *roi = seq->getItem(r), *item = NULL;
+            ok = kd->findOrCreateSequenceItem(DCM_ROIContourSequence, item, -2).good() &&
+                 copy_elements(roi, item, CONTOUR_ROI_TAGS, 2);
+            DcmSequenceOfItems *cseq = NULL;
+            if (ok && roi->findAndGetSequence(DCM_ContourSequence, cseq).good() && cseq)
+                for (unsigned long k = 0; ok && k < cseq->card(); k++) {
+                    DcmItem *c = NULL;
+                    ok = item->findOrCreateSequenceItem(DCM_ContourSequence, c, -2).good() &&
+                         copy_elements(cseq->getItem(k), c, CONTOUR_TAGS, 3);
+                }
+        }
+    if (!ok)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory copying the structure set");
+    const E_TransferSyntax xfer = EXS_LittleEndianExplicit;
+    if (kept.validateMetaInfo(xfer).bad())
+        return sf_fail(err, SF_EBACKEND, "", "DCMTK could not make the stripped object's meta header");
+    size_t cap = (size_t)kept.calcElementLength(xfer, EET_ExplicitLength) + 1024;
+    unsigned char *mem = (unsigned char *)malloc(cap);
+    if (!mem)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    DcmOutputBufferStream os(mem, (offile_off_t)cap);
+    kept.transferInit();
+    OFCondition c = kept.write(os, xfer, EET_ExplicitLength, NULL);
+    kept.transferEnd();
+    void *written = NULL;
+    offile_off_t n = 0;
+    os.flushBuffer(written, n);
+    if (c.bad()) {
+        free(mem);
+        return sf_fail(err, SF_EBACKEND, "", "DCMTK could not write the stripped object: %s", c.text());
+    }
+    *out = mem;
+    *out_len = (size_t)n;
+    return 0;
+}
+
+extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, int *n_out, struct sf_err *err)
+{
+    *out = NULL;
+    *n_out = 0;
+    DcmFileFormat ff;
+    int rc0 = read_object(buf, len, ff, err);
+    if (rc0)
+        return rc0;
+    DcmDataset *ds = ff.getDataset();
 
     std::map<long, std::string> names; // ROI Number -> ROI Name
     DcmSequenceOfItems *seq = NULL;

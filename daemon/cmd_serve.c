@@ -2,7 +2,6 @@
  * listener), the store, recovery of jobs an earlier process left queued or running, the worker
  * pool and the HTTP server; then signals: SIGTERM/SIGINT drain and exit 0. */
 #include <arpa/inet.h>
-#include <ctype.h>
 #include <errno.h>
 #include <signal.h>
 #include <stdio.h>
@@ -20,84 +19,11 @@
 #include "log.h"
 #include "server.h"
 #include "service.h"
+#include "tokens.h"
 
 static bool loopback(const char *listen)
 {
     return !strncmp(listen, "127.", 4) || !strncmp(listen, "[::1]:", 6) || !strncmp(listen, "localhost:", 10);
-}
-
-/* One token a line: "name:secret" or "name:secret:admin", or a bare "secret" (named "default");
- * blank lines and # comments skipped. Names are letters, digits, '.', '_' and '-'. A file others
- * may read, or anyone but its owner may write, is refused: it holds every client's credentials. */
-static int read_tokens(struct service *svc, const char *path, char *msg, size_t msg_len)
-{
-    FILE *f = fopen(path, "r");
-    if (!f) {
-        snprintf(msg, msg_len, "token file %s: %s", path, strerror(errno));
-        return -1;
-    }
-    int rc = -1, n = 0;
-    struct stat st;
-    if (fstat(fileno(f), &st) == 0 && (st.st_mode & 0027)) {
-        snprintf(msg, msg_len, "token file %.200s is mode %04o: others may read it or the group may write it; "
-                 "chmod 0600 (or 0640 for a group the service is in)", path, (unsigned)(st.st_mode & 07777));
-        goto out_close;
-    }
-    char line[512];
-    while (fgets(line, sizeof line, f)) {
-        n++;
-        line[strcspn(line, "\r\n")] = 0;
-        char *t = line;
-        while (*t == ' ' || *t == '\t')
-            t++;
-        if (!*t || *t == '#')
-            continue;
-        char *name = "default", *secret = t, *c1 = strchr(t, ':');
-        bool admin = false;
-        if (c1) {
-            *c1 = 0;
-            name = t;
-            secret = c1 + 1;
-            char *c2 = strchr(secret, ':');
-            if (c2) {
-                *c2 = 0;
-                if (!(admin = !strcmp(c2 + 1, "admin"))) {
-                    snprintf(msg, msg_len, "token file %.200s:%d: expected name:token or name:token:admin", path, n);
-                    goto out_close;
-                }
-            }
-            bool ok = *name && strlen(name) < 64 && *secret;
-            for (const char *p = name; *p; p++)
-                ok &= isalnum((unsigned char)*p) || *p == '.' || *p == '_' || *p == '-';
-            if (!ok) {
-                snprintf(msg, msg_len, "token file %.200s:%d: a name is 1-63 letters, digits, '.', '_' or '-', then ':' and "
-                         "the token", path, n);
-                goto out_close;
-            }
-        }
-        struct token *more = realloc(svc->tokens, sizeof *more * (svc->n_tokens + 1));
-        if (!more) {
-            snprintf(msg, msg_len, "out of memory");
-            goto out_close;
-        }
-        svc->tokens = more;
-        struct token *tk = &more[svc->n_tokens];
-        *tk = (struct token){strdup(name), strdup(secret), admin};
-        if (!tk->name || !tk->secret) {
-            free(tk->name);
-            free(tk->secret);
-            snprintf(msg, msg_len, "out of memory");
-            goto out_close;
-        }
-        svc->n_tokens++;
-    }
-    if (svc->n_tokens == 0)
-        snprintf(msg, msg_len, "token file %s holds no token", path);
-    else
-        rc = 0;
-out_close:
-    fclose(f);
-    return rc;
 }
 
 /* A job that was running when the process stopped this many times is not run again: it is what
@@ -152,7 +78,7 @@ int cmd_serve(int argc, char **argv)
         fprintf(stderr, "surfd serve: %s\n", msg[0] ? msg : "log-level is error, warn, info or debug");
         return 2;
     }
-    if (svc.cfg.token_file[0] && read_tokens(&svc, svc.cfg.token_file, msg, sizeof msg)) {
+    if (svc.cfg.token_file[0] && tokens_read(svc.cfg.token_file, &svc.tokens, &svc.n_tokens, msg, sizeof msg)) {
         fprintf(stderr, "surfd serve: %s\n", msg);
         return 2;
     }
@@ -232,10 +158,6 @@ out_free_device:
 out_close_store:
     store_close(svc.store);
 out_free_tokens:
-    for (size_t k = 0; k < svc.n_tokens; k++) {
-        free(svc.tokens[k].name);
-        free(svc.tokens[k].secret);
-    }
-    free(svc.tokens);
+    tokens_free(svc.tokens, svc.n_tokens);
     return rc;
 }

@@ -42,6 +42,8 @@ static const struct setting SETTINGS[] = {
     L("max-connections", max_connections, 4, 100000, "256", "simultaneous connections"),
     L("per-ip-connections", per_ip_connections, 1, 100000, "64", "simultaneous connections per client address"),
     L("connection-timeout", connection_timeout, 1, 3600, "30", "seconds an idle connection is kept"),
+    L("header-timeout", header_timeout, 1, 3600, "10", "seconds a new connection has to send its request's headers"),
+    L("body-timeout", body_timeout, 1, 86400, "300", "seconds a request has to send its body"),
 };
 #define N_SETTINGS (sizeof SETTINGS / sizeof *SETTINGS)
 

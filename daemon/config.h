@@ -24,7 +24,9 @@ struct config {
     long drain_timeout;     /* seconds SIGTERM waits for running jobs */
     long max_connections;
     long per_ip_connections;
-    long connection_timeout; /* seconds */
+    long connection_timeout; /* seconds an idle connection is kept (also between kept-alive requests) */
+    long header_timeout;    /* seconds a connection has to send its request's headers */
+    long body_timeout;      /* seconds a request has to send its body */
 };
 
 void config_defaults(struct config *c);

@@ -20,6 +20,9 @@ static atomic_long store_errors;
 
 void metrics_store_error(void) { atomic_fetch_add(&store_errors, 1); }
 
+static atomic_long connections_shut;
+void metrics_connection_shut(void) { atomic_fetch_add(&connections_shut, 1); }
+
 static atomic_long store_damaged;
 void metrics_store_damaged(void) { atomic_fetch_add(&store_damaged, 1); }
 
@@ -85,6 +88,9 @@ char *metrics_text(struct service *svc)
         "# TYPE surfd_http_aborted_total counter\nsurfd_http_aborted_total %ld\n", atomic_load(&http_aborted));
     OUT("# HELP surfd_store_errors_total Jobs whose end the store refused (each refusal).\n"
         "# TYPE surfd_store_errors_total counter\nsurfd_store_errors_total %ld\n", atomic_load(&store_errors));
+    OUT("# HELP surfd_connections_shut_total Connections shut down past their header, body or idle deadline, or "
+        "to make room for a new one.\n# TYPE surfd_connections_shut_total counter\nsurfd_connections_shut_total %ld\n",
+        atomic_load(&connections_shut));
     OUT("# HELP surfd_store_damaged_total Stored results or models refused: their checksum did not match.\n"
         "# TYPE surfd_store_damaged_total counter\nsurfd_store_damaged_total %ld\n", atomic_load(&store_damaged));
     OUT("# HELP surfd_jobs_stranded Jobs whose end the store refused, kept to run again.\n"

@@ -10,6 +10,8 @@ void metrics_http(int status);
 /* A render finished: its tracing time and rays. */
 void metrics_render(double seconds, long rays);
 void metrics_job_end(enum job_state outcome);
+/* The connection guard shut a connection down (a deadline passed, or room for a new one). */
+void metrics_connection_shut(void);
 /* The store refused a job's end. */
 void metrics_store_error(void);
 /* A stored result or model whose bytes did not match their checksum. */

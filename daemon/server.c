@@ -20,6 +20,8 @@
 #include "../api/job_json.h"
 #include "../api/problem.h"
 #include "../api/render_request.h"
+#include "../api/rtstruct.h"
+#include "guard.h"
 #include "log.h"
 #include "metrics.h"
 
@@ -32,6 +34,7 @@ extern const char surfd_openapi_yaml[]; /* generated from api/openapi.yaml */
 struct server {
     struct MHD_Daemon *mhd;
     struct service *svc;
+    struct guard *guard;      /* header, body and idle deadlines; the connection reserve */
 };
 
 /* Bytes of request bodies held by all connections together; capped at BODY_BUDGET_BODIES bodies
@@ -41,6 +44,7 @@ static atomic_long body_bytes;
 
 struct req {
     struct service *svc;
+    struct guard *guard;
     struct MHD_Connection *conn;
     double t0;
     char method[8];
@@ -448,6 +452,15 @@ static enum MHD_Result post_contours(struct req *r, const char *kind, int (*subm
         return problem(r, 422, "a model is built from slice contours; POST /volume measures a scene", "/slices");
     if (model_validate(r->body ? r->body : "", r->len, format, o.buf, &err))
         return problem_err(r, &err);
+    if (!strcmp(format, "dicom")) { /* stored without the patient: only what the job reads */
+        unsigned char *kept;
+        size_t n;
+        if (rtstruct_strip(r->body, r->len, &kept, &n, &err))
+            return problem_err(r, &err);
+        free(r->body);
+        r->body = (char *)kept;
+        r->len = n;
+    }
     return submit(r, kind, format, o.buf, submit_fn);
 }
 
@@ -702,14 +715,17 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
                                const char *version, const char *upload, size_t *upload_size, void **con_cls)
 {
     (void)version;
+    struct server *s = cls;
     struct req *r = *con_cls;
     if (!r) {
         r = calloc(1, sizeof *r);
         if (!r)
             return MHD_NO;
         *con_cls = r;
-        r->svc = cls;
+        r->svc = s->svc;
+        r->guard = s->guard;
         r->conn = conn;
+        guard_request_started(r->guard, conn);
         r->t0 = monotonic_s();
         snprintf(r->method, sizeof r->method, "%s", method);
         snprintf(r->path, sizeof r->path, "%s", url);
@@ -763,6 +779,7 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
         r->body[r->len] = 0;
         return MHD_YES;
     }
+    guard_request_handled(r->guard, conn);
     if (r->over_budget)
         return problem(r, 503, "too many large uploads at once; try again shortly", NULL);
     if (r->too_large)
@@ -772,9 +789,9 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
 
 static void completed(void *cls, struct MHD_Connection *conn, void **con_cls, enum MHD_RequestTerminationCode toe)
 {
-    (void)cls;
-    (void)conn;
+    struct server *s = cls;
     struct req *r = *con_cls;
+    guard_request_done(s->guard, conn);
     if (!r)
         return;
     metrics_http(r->status);
@@ -858,6 +875,12 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
     if (!s)
         return NULL;
     s->svc = svc;
+    if (!(s->guard = guard_new(svc->cfg.max_connections, (double)svc->cfg.header_timeout,
+                               (double)svc->cfg.body_timeout, (double)svc->cfg.connection_timeout))) {
+        snprintf(msg, msg_len, "cannot start the connection guard");
+        free(s);
+        return NULL;
+    }
     unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_EPOLL | MHD_ALLOW_SUSPEND_RESUME | MHD_USE_ERROR_LOG |
                      MHD_USE_ITC; /* ITC: quiesce and resume wake the polling threads */
     if (v6)
@@ -871,6 +894,7 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
                      svc->cfg.tls_key);
             free(cert);
             free(key);
+            guard_free(s->guard);
             free(s);
             return NULL;
         }
@@ -883,16 +907,18 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
         {MHD_OPTION_END, 0, NULL},
     };
     s->mhd = MHD_start_daemon(
-        flags, port, NULL, NULL, handler, svc, MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss, MHD_OPTION_THREAD_POOL_SIZE,
+        flags, port, NULL, NULL, handler, s, MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss, MHD_OPTION_THREAD_POOL_SIZE,
         (unsigned)2, MHD_OPTION_CONNECTION_LIMIT, (unsigned)svc->cfg.max_connections,
         MHD_OPTION_PER_IP_CONNECTION_LIMIT, (unsigned)svc->cfg.per_ip_connections, MHD_OPTION_CONNECTION_TIMEOUT,
         (unsigned)svc->cfg.connection_timeout, MHD_OPTION_CONNECTION_MEMORY_LIMIT, (size_t)(256 * 1024),
-        MHD_OPTION_NOTIFY_COMPLETED, completed, NULL, MHD_OPTION_ARRAY, cert ? tls_opts : tls_opts + 3,
+        MHD_OPTION_NOTIFY_COMPLETED, completed, s, MHD_OPTION_NOTIFY_CONNECTION, guard_notify, s->guard,
+        MHD_OPTION_ARRAY, cert ? tls_opts : tls_opts + 3,
         MHD_OPTION_END);
     free(cert);
     free(key);
     if (!s->mhd) {
         snprintf(msg, msg_len, "cannot listen on %s (in use, or not an address of this host)", svc->cfg.listen);
+        guard_free(s->guard);
         free(s);
         return NULL;
     }
@@ -916,5 +942,6 @@ void server_stop(struct server *s)
     if (!s)
         return;
     MHD_stop_daemon(s->mhd);
+    guard_free(s->guard);
     free(s);
 }

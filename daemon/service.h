@@ -12,6 +12,7 @@
 #include "config.h"
 #include "jobq.h"
 #include "store.h"
+#include "tokens.h"
 
 /* A job whose end the store would not take (a full disk, a failing device): its outcome is lost,
  * the job is not. It is run again, after a growing delay, until the store takes its end. */
@@ -21,14 +22,6 @@ struct stranded {
     char kind[16];
     double retry_at;         /* monotonic seconds */
     int tries;
-};
-
-/* A bearer token of the token file: "name:secret[:admin]" (a bare "secret" is named "default").
- * Jobs and models belong to the name that made them; other names get 404; admins see all. */
-struct token {
-    char *name;
-    char *secret;
-    bool admin;
 };
 
 struct service {

@@ -1,0 +1,23 @@
+/* tokens.h - bearer tokens from the token file: one a line, "name:secret" or "name:secret:admin",
+ * or a bare "secret" (named "default"); blank lines and # comments skipped. Jobs and models belong
+ * to the name that made them; other names get 404; admins see all. */
+#ifndef SURFD_TOKENS_H
+#define SURFD_TOKENS_H
+
+#include <stdbool.h>
+#include <stddef.h>
+
+struct token {
+    char *name;
+    char *secret;
+    bool admin;
+};
+
+/* Appends the file's tokens to *tokens (growing it; *n_tokens counts them). A file others may read,
+ * or its group write, is refused, as is a malformed line (msg names the line) or a file without a
+ * token: -1 with msg. What was read stays in *tokens either way: the caller frees it with
+ * tokens_free(). */
+int tokens_read(const char *path, struct token **tokens, size_t *n_tokens, char *msg, size_t msg_len);
+void tokens_free(struct token *tokens, size_t n_tokens);
+
+#endif
