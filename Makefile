@@ -4,6 +4,7 @@
 #   make install    binary, systemd unit and config (DESTDIR and PREFIX respected)
 #   make test       sanitized unit and tracer tests; last line "N passed, N failed"
 #   make bench      benchmarks against POV-Ray and surfd's own mesh method -> tests/bench/RESULTS.md
+#   make fuzz       every decoder's libFuzzer target for FUZZ_SECONDS (60) each (make test: 10 each)
 # Warnings are errors when CI=true (or WERROR=1).
 
 CC      ?= cc
@@ -36,6 +37,16 @@ TSAN_TESTS := $(B)/tests/daemon/test_jobq
 
 obj = $(patsubst %.c,$(B)/$(1)/%.o,$(2))
 
+# fuzz targets (tests/fuzz/fuzz_NAME.c): replayed over their seeds and crashers by make test (gcc,
+# sanitizers, tests/fuzz/replay.c), fuzzed with libFuzzer by make fuzz and, briefly, by make test
+FUZZ_TARGETS := $(patsubst tests/fuzz/fuzz_%.c,%,$(wildcard tests/fuzz/fuzz_*.c))
+FUZZ_DAEMON  := daemon/config.c daemon/tokens.c
+REPLAYS      := $(patsubst %,$(B)/tests/fuzz/replay_%,$(FUZZ_TARGETS))
+FUZZERS      := $(patsubst %,$(B)/fuzz/%,$(FUZZ_TARGETS))
+FUZZ_CC      := clang
+FUZZ_FLAGS   := -g -O1 -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer
+FUZZ_SECONDS ?= 60
+
 REL_CORE := $(call obj,rel,$(CORE_SRC))
 REL_API  := $(call obj,rel,$(API_SRC))
 REL_DMN  := $(call obj,rel,$(DAEMON_SRC))
@@ -43,7 +54,7 @@ SAN_CORE := $(call obj,san,$(CORE_SRC))
 SAN_API  := $(call obj,san,$(API_SRC))
 TESTS    := $(patsubst tests/%.c,$(B)/tests/%,$(TEST_SRC))
 
-.PHONY: all run test bench clean deps install
+.PHONY: all run test bench clean deps install fuzz
 all: $(B)/surfd $(B)/surfctl
 
 $(B)/surfctl: $(B)/rel/client/surfctl.o
@@ -78,6 +89,27 @@ $(B)/tests/%: tests/%.c tests/unit.h $(SAN_CORE) $(SAN_API) $(DCM_OBJ)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(SAN) -o $@ $< $(SAN_CORE) $(SAN_API) $(DCM_OBJ) $(API_LIBS) $(DCM_LIBS) $(CORE_LIBS)
 
+# a fuzz target with a plain main over files, for make test
+$(B)/tests/fuzz/replay_%: tests/fuzz/fuzz_%.c tests/fuzz/replay.c tests/fuzz/util.c tests/fuzz/fuzz.h $(SAN_CORE) $(SAN_API) \
+		$(call obj,san,$(FUZZ_DAEMON)) $(DCM_OBJ)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(SAN) -o $@ $(filter %.c %.o,$^) $(API_LIBS) $(DCM_LIBS) $(CORE_LIBS)
+
+# the same targets under libFuzzer (clang), the DCMTK shim instrumented too
+$(B)/fz/%.o: %.c
+	@mkdir -p $(@D)
+	$(FUZZ_CC) $(CSTD) $(FUZZ_FLAGS) $(WARN) -MMD -MP -c $< -o $@
+$(B)/fz/api/%.o: api/%.cpp
+	@mkdir -p $(@D)
+	$(FUZZ_CC)++ -std=c++17 $(FUZZ_FLAGS) -Wall -Wextra -MMD -MP -c $< -o $@
+FZ_OBJ := $(call obj,fz,$(CORE_SRC) $(API_SRC) $(FUZZ_DAEMON) tests/fuzz/util.c) $(B)/fz/api/rtstruct_dcmtk.o
+$(B)/fuzz/%: $(B)/fz/tests/fuzz/fuzz_%.o $(FZ_OBJ)
+	@mkdir -p $(@D)
+	$(FUZZ_CC)++ -fsanitize=fuzzer,address,undefined -o $@ $^ $(API_LIBS) $(DCM_LIBS) $(CORE_LIBS)
+
+fuzz: deps $(FUZZERS)
+	@FUZZ_SECONDS=$(FUZZ_SECONDS) tests/fuzz/fuzz.sh
+
 # the pool and queue under the thread sanitizer
 $(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c daemon/jobq.h
 	@mkdir -p $(@D)
@@ -102,8 +134,8 @@ install: $(B)/surfd $(B)/surfctl
 		useradd --system --home-dir /var/lib/surfd --shell /usr/sbin/nologin surfd; fi
 	@echo "installed; start with: systemctl daemon-reload && systemctl enable --now surfd"
 
-test: deps $(B)/surfd $(B)/surfctl $(B)/san/surfd $(TESTS) $(TSAN_TESTS)
-	@SURFD_BIN=$(B)/san/surfd tests/run.sh $(TESTS) $(TSAN_TESTS)
+test: deps $(B)/surfd $(B)/surfctl $(B)/san/surfd $(TESTS) $(TSAN_TESTS) $(REPLAYS) $(FUZZERS)
+	@SURFD_BIN=$(B)/san/surfd FUZZ_SECONDS=$${FUZZ_SECONDS:-10} tests/run.sh $(TESTS) $(TSAN_TESTS)
 
 bench: $(B)/surfd
 	@deploy/install-deps.sh --bench

@@ -744,6 +744,11 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
             snprintf(d, sizeof d, "the body is over the limit of %ld bytes", r->svc->cfg.max_body);
             return problem(r, 413, d, NULL); /* before a byte of it is read */
         }
+        /* libmicrohttpd decodes "chunked" alone; any other coding (gzip, chunked) would leave it
+         * waiting for a body it cannot frame */
+        const char *te = MHD_lookup_connection_value(conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_TRANSFER_ENCODING);
+        if (te && strcasecmp(te, "chunked"))
+            return problem(r, 501, "the only Transfer-Encoding surfd reads is chunked", NULL);
         return MHD_YES;
     }
     if (r->woken) /* back from a synchronous wait */

@@ -1,0 +1,27 @@
+/* fuzz.h - what every fuzz target shares: libFuzzer's entry point, and a copy of the input as a
+ * NUL-terminated string (the decoders take a length, but the text ones must not read past it
+ * even so: the copy's terminator sits one past, where ASan would see an overrun of the original). */
+#ifndef SURFD_FUZZ_H
+#define SURFD_FUZZ_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+static inline char *fuzz_text(const uint8_t *data, size_t size)
+{
+    char *t = malloc(size + 1);
+    if (t) {
+        memcpy(t, data, size);
+        t[size] = 0;
+    }
+    return t;
+}
+
+/* The input as a file of its own (for decoders that read paths): the path, or NULL. mode as chmod. */
+char *fuzz_file(const uint8_t *data, size_t size, unsigned mode);
+
+#endif
