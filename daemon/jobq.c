@@ -339,7 +339,7 @@ bool jobq_peek(struct jobq *q, const char *id, enum job_state *state, double *pr
     pthread_mutex_lock(&q->lock);
     struct job *j = find_live(q, id);
     if (j) {
-        *state = j->state;
+        *state = j->state == JOB_QUEUED ? JOB_QUEUED : JOB_RUNNING; /* finishing is running until stored */
         double bands = j->n_bands ? (double)j->bands_done / j->n_bands : 0.0;
         *progress = bands > j->progress ? bands : j->progress;
     }

@@ -40,8 +40,9 @@ int jobq_shutdown(struct jobq *q, double timeout_s, double grace_s, void (*aband
  * full or shutting down (work not taken). force: ignore queue_max (jobs recovered at start). */
 int jobq_submit(struct jobq *q, const char *id, const struct job_ops *ops, void *work, bool force);
 
-/* Live state of a queued or running job; false when the queue no longer knows it (finished, or
- * never seen: ask the store). */
+/* Live state of a queued or running job (JOB_QUEUED or JOB_RUNNING: a job whose finish is still
+ * encoding or storing its result is running) and its progress, which never goes back; false when
+ * the queue no longer knows it (finished, or never seen: ask the store). */
 bool jobq_peek(struct jobq *q, const char *id, enum job_state *state, double *progress);
 /* Asks a queued or running job to stop. Returns false when the queue does not know it. */
 bool jobq_cancel(struct jobq *q, const char *id);
