@@ -103,6 +103,7 @@ $(B)/fz/api/%.o: api/%.cpp
 	@mkdir -p $(@D)
 	$(FUZZ_CC)++ -std=c++17 $(FUZZ_FLAGS) -Wall -Wextra -MMD -MP -c $< -o $@
 FZ_OBJ := $(call obj,fz,$(CORE_SRC) $(API_SRC) $(FUZZ_DAEMON) tests/fuzz/util.c) $(B)/fz/api/rtstruct_dcmtk.o
+.SECONDARY: $(FZ_OBJ) $(patsubst %,$(B)/fz/tests/fuzz/fuzz_%.o,$(FUZZ_TARGETS)) # kept, not rebuilt each run
 $(B)/fuzz/%: $(B)/fz/tests/fuzz/fuzz_%.o $(FZ_OBJ)
 	@mkdir -p $(@D)
 	$(FUZZ_CC)++ -fsanitize=fuzzer,address,undefined -o $@ $^ $(API_LIBS) $(DCM_LIBS) $(CORE_LIBS)
