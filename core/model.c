@@ -633,8 +633,28 @@ out:
     return rc;
 }
 
+/* The patches a method makes of a chain, at most: the grid methods one per grid column and pair of
+ * levels; the curve methods one per breakpoint of the (up to) four curves a pair depends on. */
+static double patches_bound(const struct contour_set *cs, enum model_method m)
+{
+    int n = cs->n_slices;
+    if (m == MODEL_COONS || m == MODEL_BSPLINE)
+        return (double)grid_count(cs) * (n - 1);
+    double sum = 0.0;
+    for (int k = 0; k + 1 < n; k++)
+        for (int j = k > 0 ? k - 1 : k; j <= (k + 2 < n ? k + 2 : k + 1); j++)
+            sum += cs->s[j].n + 1;
+    return sum;
+}
+
 int model_side(const struct contour_set *cs, struct model_opts o, struct patch_set *set, struct sf_err *err)
 {
+    double bound = patches_bound(cs, o.method);
+    if (bound > MODEL_MAX_PATCHES)
+        return sf_fail(err, SF_ELIMIT, "/slices",
+                       "the %s method would make about %.0f patches of these contours, over the limit of %d: fewer "
+                       "points per contour (or fewer levels) would do", model_method_name(o.method), bound,
+                       MODEL_MAX_PATCHES);
     int rc;
     switch (o.method) {
     case MODEL_COONS: rc = coons_surface(cs, o.polar, o.progress, set); break;

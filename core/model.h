@@ -34,8 +34,13 @@ struct model_opts {
 const char *model_method_name(enum model_method m);
 int model_method_parse(const char *name, enum model_method *m);
 
+/* Patches one side surface may have: about 600 bytes each (a bicubic net and its record), so a
+ * few hundred thousand points of contour in one request cannot ask for tens of gigabytes. */
+#define MODEL_MAX_PATCHES 2000000
+
 /* The side surface of one chain of contours (one per level). Appends to set as nurbs_extract()
- * does: call nurbs_patches_fix() after the last append; the caller frees the set. */
+ * does: call nurbs_patches_fix() after the last append; the caller frees the set. SF_ELIMIT
+ * (pointer /slices) when the method would make more than MODEL_MAX_PATCHES patches. */
 int model_side(const struct contour_set *cs, struct model_opts o, struct patch_set *set, struct sf_err *err);
 
 /* The volume with flat caps straight from the curves (closed form: mixed areas of curve pairs,
