@@ -9,6 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../../api/scene_io.h"
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
 static inline char *fuzz_text(const uint8_t *data, size_t size)
@@ -19,6 +21,23 @@ static inline char *fuzz_text(const uint8_t *data, size_t size)
         t[size] = 0;
     }
     return t;
+}
+
+/* Runs a text scene decoder (.bpt, VRML) over the input as a string, then validates the scene
+ * and extracts its patches, as a render job does. */
+static inline void fuzz_text_scene(const uint8_t *data, size_t size,
+                                   int (*parse)(const char *, size_t, struct scene *, struct sf_err *))
+{
+    struct scene sc;
+    struct sf_err err = {0};
+    char *text = fuzz_text(data, size);
+    if (text && parse(text, size, &sc, &err) == 0) {
+        struct patch_set ps;
+        if (scene_patches(&sc, &ps, &err) == 0)
+            nurbs_patch_set_free(&ps);
+        scene_free(&sc);
+    }
+    free(text);
 }
 
 /* The input as a file of its own (for decoders that read paths): the path, or NULL. mode as chmod. */

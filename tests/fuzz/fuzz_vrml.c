@@ -1,18 +1,8 @@
 /* fuzz_vrml.c - VRML97 NurbsSurface fragments: parse, then validate and extract the patches. */
-#include "../../api/scene_io.h"
 #include "fuzz.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    struct scene sc;
-    struct sf_err err = {0};
-    char *text = fuzz_text(data, size);
-    if (text && scene_parse_vrml(text, size, &sc, &err) == 0) {
-        struct patch_set ps;
-        if (scene_patches(&sc, &ps, &err) == 0)
-            nurbs_patch_set_free(&ps);
-        scene_free(&sc);
-    }
-    free(text);
+    fuzz_text_scene(data, size, scene_parse_vrml);
     return 0;
 }
