@@ -30,7 +30,7 @@ IMG_LIBS  := -lOpenImageIO -lOpenImageIO_Util -lstdc++
 DCM_LIBS  := -ldcmdata -loflog -lofstd -lstdc++
 
 CORE_SRC   := $(wildcard core/*.c)
-API_SRC    := api/scene_json.c api/scene_text.c api/problem.c api/render_request.c api/job_json.c api/contour_json.c api/model_json.c
+API_SRC    := api/scene_json.c api/scene_text.c api/problem.c api/render_request.c api/job_json.c api/contour_json.c api/model_json.c api/json_in.c
 DAEMON_SRC := $(wildcard daemon/*.c)
 TEST_SRC   := $(wildcard tests/core/test_*.c) $(wildcard tests/api/test_*.c)
 TSAN_TESTS := $(B)/tests/daemon/test_jobq

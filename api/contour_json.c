@@ -1,6 +1,7 @@
 /* contour_json.c - contour requests with jansson. Only what is built is accepted (method parabolic,
  * caps flat or slab); the rest answers 422 naming the field. */
 #include "contour_json.h"
+#include "json_in.h"
 
 #include <jansson.h>
 #include <stdio.h>
@@ -56,16 +57,13 @@ int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, stru
 {
     memset(cs, 0, sizeof *cs);
     memset(req, 0, sizeof *req);
-    json_error_t je;
-    json_t *root = json_loadb(buf, len, JSON_REJECT_DUPLICATES, &je);
-    if (!root) {
-        char where[64];
-        snprintf(where, sizeof where, "line %d, column %d", je.line, je.column);
-        return sf_fail(err, SF_EFORMAT, where, "not JSON: %s", je.text);
-    }
+    json_t *root;
+    int rc = json_read(buf, len, &root, err);
+    if (rc)
+        return rc;
     static const char *const METHODS[] = {"parabolic", "linear-parabolic", "coons", "bspline", NULL},
                              *const CAPS[] = {"flat", "slab", "dome", NULL}, *const PARAMS[] = {"arc-length", "polar", NULL};
-    int rc = 0;
+    rc = 0;
     json_t *slices = json_object_get(root, "slices");
     if (!json_is_object(root)) {
         rc = sf_fail(err, SF_EINVAL, "", "contours are a JSON object with \"slices\"");

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "json_in.h"
 #include "model_json.h"
 #include "scene_io.h"
 
@@ -337,16 +338,13 @@ static int render_opts(json_t *j, struct scene *sc, struct sf_err *err)
 int scene_parse_json(const char *buf, size_t len, const struct model_resolver *models, struct scene *sc,
                      enum image_format *img, struct sf_err *err)
 {
-    json_error_t je;
     scene_init(sc);
     *img = IMG_PNG;
-    json_t *root = json_loadb(buf, len, JSON_REJECT_DUPLICATES, &je);
-    if (!root) {
-        char where[64];
-        snprintf(where, sizeof where, "line %d, column %d", je.line, je.column);
-        return sf_fail(err, SF_EFORMAT, where, "not JSON: %s", je.text);
-    }
-    int rc = 0;
+    json_t *root;
+    int rc = json_read(buf, len, &root, err);
+    if (rc)
+        return rc;
+    rc = 0;
     json_t *v;
     if (!json_is_object(root)) {
         rc = sf_fail(err, SF_EINVAL, "", "a scene is a JSON object");

@@ -54,6 +54,7 @@ struct req {
     size_t len, cap;
     long reserved;            /* bytes of body_bytes this request holds */
     bool too_large;           /* over max-body: 413 */
+    bool long_query;          /* over QUERY_MAX_ARGS options: 414 */
     bool over_budget;         /* over the shared body budget: 503 */
     bool woken;               /* resumed after a synchronous wait: answer with the job */
     atomic_bool finished;     /* set by the waiter callback before it resumes */
@@ -711,15 +712,40 @@ static enum MHD_Result route(struct req *r)
     return problem(r, 404, "no such route", NULL);
 }
 
+/* libmicrohttpd 0.9.75 stores each query argument in the connection's memory pool, and a query
+ * of thousands of arguments exhausts the pool: its error answer then finds no room either and the
+ * client waits until the header timeout. This callback sees the request line before the
+ * arguments are split and allocates the request; a query of more options than any route takes is
+ * cut off at its '?' (the line sits in libmicrohttpd's writable read buffer, which it modifies
+ * itself right after this call) and answered 414 by the handler. */
+#define QUERY_MAX_ARGS 64
+
+static void *uri_logged(void *cls, const char *uri, struct MHD_Connection *conn)
+{
+    (void)cls;
+    (void)conn;
+    struct req *r = calloc(1, sizeof *r);
+    char *q = strchr(uri, '?');
+    if (r && q) {
+        size_t n = 1;
+        for (const char *c = q; *c; c++)
+            n += *c == '&';
+        if (n > QUERY_MAX_ARGS) {
+            q[1] = 0;
+            r->long_query = true;
+        }
+    }
+    return r;
+}
+
 static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const char *url, const char *method,
                                const char *version, const char *upload, size_t *upload_size, void **con_cls)
 {
     (void)version;
     struct server *s = cls;
     struct req *r = *con_cls;
-    if (!r) {
-        r = calloc(1, sizeof *r);
-        if (!r)
+    if (!r || !r->conn) {
+        if (!r && !(r = calloc(1, sizeof *r)))
             return MHD_NO;
         *con_cls = r;
         r->svc = s->svc;
@@ -737,6 +763,11 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
             else if (sa->sa_family == AF_INET6)
                 inet_ntop(AF_INET6, &((const struct sockaddr_in6 *)(const void *)sa)->sin6_addr, r->client,
                           sizeof r->client);
+        }
+        if (r->long_query) {
+            char d[64];
+            snprintf(d, sizeof d, "the query has over %d options", QUERY_MAX_ARGS);
+            return problem(r, 414, d, NULL);
         }
         const char *cl = MHD_lookup_connection_value(conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_LENGTH);
         if (cl && strtoull(cl, NULL, 10) > (unsigned long long)r->svc->cfg.max_body) {
@@ -917,6 +948,7 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
         MHD_OPTION_PER_IP_CONNECTION_LIMIT, (unsigned)svc->cfg.per_ip_connections, MHD_OPTION_CONNECTION_TIMEOUT,
         (unsigned)svc->cfg.connection_timeout, MHD_OPTION_CONNECTION_MEMORY_LIMIT, (size_t)(256 * 1024),
         MHD_OPTION_NOTIFY_COMPLETED, completed, s, MHD_OPTION_NOTIFY_CONNECTION, guard_notify, s->guard,
+        MHD_OPTION_URI_LOG_CALLBACK, uri_logged, NULL,
         MHD_OPTION_ARRAY, cert ? tls_opts : tls_opts + 3,
         MHD_OPTION_END);
     free(cert);
