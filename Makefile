@@ -4,6 +4,7 @@
 #   make install    binary, systemd unit and config (DESTDIR and PREFIX respected)
 #   make test       sanitized unit and tracer tests; last line "N passed, N failed"
 #   make bench      benchmarks against POV-Ray and surfd's own mesh method -> tests/bench/RESULTS.md
+#   make layers     check the include rules between core/'s folders, api/ and daemon/
 #   make fuzz       every decoder's libFuzzer target for FUZZ_SECONDS (60) each (make test: 10 each)
 # Warnings are errors when CI=true (or WERROR=1).
 
@@ -29,10 +30,11 @@ DAEMON_LIBS := -lmicrohttpd -lsqlite3 -lgnutls -lpthread
 IMG_LIBS  := -lOpenImageIO -lOpenImageIO_Util -lstdc++
 DCM_LIBS  := -ldcmdata -loflog -lofstd -lstdc++
 
-CORE_SRC   := $(wildcard core/*.c)
-API_SRC    := api/scene_json.c api/scene_text.c api/problem.c api/render_request.c api/job_json.c api/contour_json.c api/model_json.c api/json_in.c
+# sources by wildcard: core/ by layer (tests/tools/layers.sh), api/'s C++ shims linked on their own
+CORE_SRC   := $(wildcard core/*/*.c)
+API_SRC    := $(wildcard api/*.c)
 DAEMON_SRC := $(wildcard daemon/*.c)
-TEST_SRC   := $(wildcard tests/core/test_*.c) $(wildcard tests/api/test_*.c)
+TEST_SRC   := $(wildcard tests/core/*/test_*.c) $(wildcard tests/api/test_*.c)
 TSAN_TESTS := $(B)/tests/daemon/test_jobq
 
 obj = $(patsubst %.c,$(B)/$(1)/%.o,$(2))
@@ -54,8 +56,12 @@ SAN_CORE := $(call obj,san,$(CORE_SRC))
 SAN_API  := $(call obj,san,$(API_SRC))
 TESTS    := $(patsubst tests/%.c,$(B)/tests/%,$(TEST_SRC))
 
-.PHONY: all run test bench clean deps install fuzz
-all: $(B)/surfd $(B)/surfctl
+.PHONY: all run test bench clean deps install fuzz layers
+all: layers $(B)/surfd $(B)/surfctl
+
+# the one-way include rules of core/ and api/
+layers:
+	@tests/tools/layers.sh
 
 $(B)/surfctl: $(B)/rel/client/surfctl.o
 	$(CC) $(OPT) -o $@ $^ -lcurl -ljansson
@@ -135,7 +141,7 @@ install: $(B)/surfd $(B)/surfctl
 		useradd --system --home-dir /var/lib/surfd --shell /usr/sbin/nologin surfd; fi
 	@echo "installed; start with: systemctl daemon-reload && systemctl enable --now surfd"
 
-test: deps $(B)/surfd $(B)/surfctl $(B)/san/surfd $(TESTS) $(TSAN_TESTS) $(REPLAYS) $(FUZZERS)
+test: deps layers $(B)/surfd $(B)/surfctl $(B)/san/surfd $(TESTS) $(TSAN_TESTS) $(REPLAYS) $(FUZZERS)
 	@SURFD_BIN=$(B)/san/surfd FUZZ_SECONDS=$${FUZZ_SECONDS:-10} tests/run.sh $(TESTS) $(TSAN_TESTS)
 
 bench: $(B)/surfd

@@ -6,7 +6,7 @@
 
 #include <stddef.h>
 
-#include "../core/contour.h"
+#include "../core/contour/contour.h"
 
 struct contour_request {
     char name[128];

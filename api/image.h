@@ -11,8 +11,8 @@
 extern "C" { /* the C headers below declare C functions */
 #endif
 
-#include "../core/err.h"
-#include "../core/render.h"
+#include "../core/base/err.h"
+#include "../core/trace/render.h"
 #include "scene_io.h"
 
 int image_encode(const struct frame_image *img, enum image_format fmt, unsigned char **out, size_t *out_len,

@@ -4,7 +4,7 @@
 #include <jansson.h>
 #include <stddef.h>
 
-#include "../core/err.h"
+#include "../core/base/err.h"
 
 /* jansson's tree and what is built from it take about 100 bytes of memory a value (measured: a
  * 54 MB array of small numbers took 1.4 GB, 3.9 M values 390 MB), so a body within max-body could

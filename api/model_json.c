@@ -11,8 +11,8 @@
 #include <string.h>
 #include <time.h>
 
-#include "../core/enclosed.h"
-#include "../core/solid.h"
+#include "../core/geom/enclosed.h"
+#include "../core/contour/solid.h"
 #include "rtstruct.h"
 #include "scene_io.h"
 

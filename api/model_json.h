@@ -10,8 +10,8 @@
 #include <stdbool.h>
 #include <stddef.h>
 
-#include "../core/err.h"
-#include "../core/scene.h"
+#include "../core/base/err.h"
+#include "../core/trace/scene.h"
 #include "contour_json.h"
 
 /* Reads contours, builds the model and measures it; *json receives the figures (caller frees): one

@@ -4,7 +4,7 @@
 #ifndef SURFD_PROBLEM_H
 #define SURFD_PROBLEM_H
 
-#include "../core/err.h"
+#include "../core/base/err.h"
 
 /* {"type","title","status","detail"[,"errors":[{"pointer","message"}]]}; pointer may be NULL. */
 char *problem_json(int status, const char *detail, const char *pointer);

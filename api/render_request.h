@@ -6,8 +6,8 @@
 
 #include <stddef.h>
 
-#include "../core/err.h"
-#include "../core/scene.h"
+#include "../core/base/err.h"
+#include "../core/trace/scene.h"
 #include "scene_io.h"
 
 /* format: "json", "bpt", "nurbs" or "" (sniffed). options: a query string of overrides

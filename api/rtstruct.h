@@ -10,8 +10,8 @@
 extern "C" { /* the C headers below declare C functions */
 #endif
 
-#include "../core/contour.h"
-#include "../core/err.h"
+#include "../core/contour/contour.h"
+#include "../core/base/err.h"
 
 #define RTSTRUCT_MAX_ROIS 1000
 

@@ -8,8 +8,8 @@
 
 #include <stddef.h>
 
-#include "../core/err.h"
-#include "../core/scene.h"
+#include "../core/base/err.h"
+#include "../core/trace/scene.h"
 
 #define SCENE_MAX_BODY (256u << 20) /* bytes of scene text read at most */
 

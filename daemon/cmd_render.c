@@ -13,7 +13,7 @@
 
 #include "../api/image.h"
 #include "../api/scene_io.h"
-#include "../core/render.h"
+#include "../core/trace/render.h"
 #include "cli.h"
 
 #define BAND_ROWS 16 /* rows per band: one map tile (MAP_TILE_ROWS); 64 bands balance two cores at 1024 rows */

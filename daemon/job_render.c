@@ -7,8 +7,8 @@
 
 #include "../api/image.h"
 #include "../api/render_request.h"
-#include "../core/map.h"
-#include "../core/render.h"
+#include "../core/trace/map.h"
+#include "../core/trace/render.h"
 #include "log.h"
 #include "metrics.h"
 #include "service.h"

@@ -8,7 +8,7 @@
 #include <stdbool.h>
 
 #include "../api/scene_io.h"
-#include "../core/bvh.h"
+#include "../core/trace/bvh.h"
 #include "config.h"
 #include "jobq.h"
 #include "store.h"

@@ -9,7 +9,7 @@
 
 #include <stdbool.h>
 
-#include "vec.h"
+#include "../base/vec.h"
 
 #define PATCH_MAX_DEGREE 24 /* bounds every stack array below; higher degrees are refused */
 

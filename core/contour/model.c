@@ -15,8 +15,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "gauss.h"
-#include "mem.h"
+#include "../base/gauss.h"
+#include "../base/mem.h"
 
 #define BREAK_EPS 1e-12 /* breakpoints closer than this in u are one */
 

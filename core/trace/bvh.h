@@ -8,8 +8,8 @@
 #include <stdbool.h>
 #include <stddef.h>
 
-#include "bezier.h"
-#include "err.h"
+#include "../geom/bezier.h"
+#include "../base/err.h"
 #include "solve.h"
 
 struct bvh_device; /* one Embree device; caller frees with bvh_device_free() */

@@ -8,7 +8,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 
-#include "err.h"
+#include "../base/err.h"
 
 #define CONTOUR_MAX_POINTS 100000 /* per contour */
 #define CONTOUR_MAX_SLICES 10000

@@ -1,9 +1,9 @@
 /* test_solve.c - every root finder hits points sampled on Bézier, B-spline and NURBS patches at
  * the expected distance, from map-like seeds (Newton, gradient, steepest) or from nothing
  * (Monte-Carlo); and none reports a root where the ray misses. */
-#include "../../core/nurbs.h"
-#include "../../core/solve.h"
-#include "../unit.h"
+#include "../../../core/geom/nurbs.h"
+#include "../../../core/trace/solve.h"
+#include "../../unit.h"
 
 #include <stdlib.h>
 

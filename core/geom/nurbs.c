@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "mem.h"
+#include "../base/mem.h"
 
 #define KNOT_EPS 1e-12 /* knot values closer than this (relative to the domain) are one knot */
 

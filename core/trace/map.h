@@ -11,9 +11,9 @@
 #include <stdbool.h>
 #include <stddef.h>
 
-#include "bezier.h"
+#include "../geom/bezier.h"
 #include "camera.h"
-#include "err.h"
+#include "../base/err.h"
 
 #define MAP_CANDS 3 /* patches kept per pixel, nearest lower bound first */
 

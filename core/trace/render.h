@@ -14,7 +14,7 @@
 #include <stddef.h>
 
 #include "bvh.h"
-#include "err.h"
+#include "../base/err.h"
 #include "scene.h"
 
 struct frame;

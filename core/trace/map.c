@@ -20,8 +20,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "mem.h"
-#include "tess.h"
+#include "../base/mem.h"
+#include "../geom/tess.h"
 
 #define MAP_ERR_PX 0.5   /* chord error allowed, in pixels at the patch's nearest depth */
 #define MAP_PAD_SLACK 0.1 /* pixels the outline is widened by beyond the projected chord error */

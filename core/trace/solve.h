@@ -11,8 +11,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "bezier.h"
-#include "vec.h"
+#include "../geom/bezier.h"
+#include "../base/vec.h"
 
 struct dray {
     vec3 o, d;         /* origin and unit direction */

@@ -1,11 +1,11 @@
 /* test_model.c - contours to parabolic surface to volume: the synthetic shapes' exact volumes
  * between their end slices (caps flat), exactness of the quadrature, outward orientation,
  * interpolation of every contour point, baselines, and every rejection with its pointer. */
-#include "../../api/contour_json.h"
-#include "../../api/model_json.h"
-#include "../../core/gauss.h"
-#include "../../core/solid.h"
-#include "../unit.h"
+#include "../../../api/contour_json.h"
+#include "../../../api/model_json.h"
+#include "../../../core/base/gauss.h"
+#include "../../../core/contour/solid.h"
+#include "../../unit.h"
 
 #include <stdlib.h>
 

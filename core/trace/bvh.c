@@ -14,8 +14,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "mem.h"
-#include "tess.h"
+#include "../base/mem.h"
+#include "../geom/tess.h"
 
 #define LEAF_FLAT_REL 0.05  /* leaf is flat when its net deviates < 5 % of its size ...       */
 #define LEAF_MAX_DEPTH 14   /* ... or after this many splits; trades leaves for Newton starts */

@@ -1,7 +1,7 @@
 /* test_bezier.c - Bernstein basis, patch evaluation and derivatives, subdivision, bounds. */
-#include "../../core/bezier.h"
-#include "../../core/nurbs.h"
-#include "../unit.h"
+#include "../../../core/geom/bezier.h"
+#include "../../../core/geom/nurbs.h"
+#include "../../unit.h"
 
 #include <stdlib.h>
 

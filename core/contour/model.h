@@ -5,8 +5,8 @@
 #define SURFD_MODEL_H
 
 #include "contour.h"
-#include "err.h"
-#include "nurbs.h"
+#include "../base/err.h"
+#include "../geom/nurbs.h"
 
 enum model_caps { CAPS_FLAT, CAPS_SLAB, CAPS_DOME };
 

@@ -1,7 +1,7 @@
 /* test_nurbs.c - NURBS against closed forms (the exact sphere of revolution), derivatives,
  * knot insertion and Bézier extraction invariance, and every validation error. */
-#include "../../core/nurbs.h"
-#include "../unit.h"
+#include "../../../core/geom/nurbs.h"
+#include "../../unit.h"
 
 #include <stdlib.h>
 

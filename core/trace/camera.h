@@ -2,7 +2,7 @@
 #ifndef SURFD_CAMERA_H
 #define SURFD_CAMERA_H
 
-#include "vec.h"
+#include "../base/vec.h"
 
 struct camera {
     vec3 eye;

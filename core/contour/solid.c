@@ -8,8 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "gauss.h"
-#include "mem.h"
+#include "../base/gauss.h"
+#include "../base/mem.h"
 
 /* ---- building ------------------------------------------------------------------------------ */
 

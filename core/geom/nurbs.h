@@ -9,8 +9,8 @@
 #include <stddef.h>
 
 #include "bezier.h"
-#include "err.h"
-#include "vec.h"
+#include "../base/err.h"
+#include "../base/vec.h"
 
 enum surf_kind { SURF_BEZIER, SURF_BSPLINE, SURF_NURBS };
 

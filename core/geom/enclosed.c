@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "gauss.h"
+#include "../base/gauss.h"
 
 #define GL_MAX 40
 #define CLOSE_REL 1e-7 /* edge points closer than this times the bounds' diagonal are one */

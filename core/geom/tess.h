@@ -7,7 +7,7 @@
 #include <stddef.h>
 
 #include "bezier.h"
-#include "err.h"
+#include "../base/err.h"
 
 #define TESS_MAX_SIDE 256 /* grid segments per patch side; bounds memory per patch */
 

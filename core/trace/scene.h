@@ -6,9 +6,9 @@
 
 #include <stdbool.h>
 
-#include "err.h"
-#include "nurbs.h"
-#include "vec.h"
+#include "../base/err.h"
+#include "../geom/nurbs.h"
+#include "../base/vec.h"
 
 #define SCENE_MAX_SIDE 16384          /* image width or height */
 #define SCENE_MAX_PIXELS (64u << 20)  /* width * height */
