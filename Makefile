@@ -17,7 +17,7 @@ WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-proto
 ifneq ($(filter true 1,$(CI) $(WERROR)),)
 WARN    += -Werror
 endif
-CSTD    := -std=c11 -D_DEFAULT_SOURCE
+CSTD    := -std=c11 -D_DEFAULT_SOURCE -I/usr/include/postgresql
 OPT     ?= -O2 -g
 CFLAGS  := $(CSTD) $(OPT) $(WARN) -MMD -MP -DSURFD_VERSION='"$(VERSION)"'
 CXXFLAGS:= -std=c++17 $(OPT) -Wall -Wextra -MMD -MP
@@ -26,7 +26,7 @@ TSAN    := -fsanitize=thread
 
 CORE_LIBS := -lembree3 -lm
 API_LIBS  := -ljansson
-DAEMON_LIBS := -lmicrohttpd -lsqlite3 -lgnutls -lpthread
+DAEMON_LIBS := -lmicrohttpd -lsqlite3 -lpq -lgnutls -lpthread
 IMG_LIBS  := -lOpenImageIO -lOpenImageIO_Util -lstdc++
 DCM_LIBS  := -ldcmdata -loflog -lofstd -lstdc++
 
@@ -134,6 +134,7 @@ install: $(B)/surfd $(B)/surfctl
 	install -D -m 0755 $(B)/surfd $(DESTDIR)$(PREFIX)/bin/surfd
 	install -D -m 0755 $(B)/surfctl $(DESTDIR)$(PREFIX)/bin/surfctl
 	install -D -m 0644 deploy/surfd.service $(DESTDIR)/etc/systemd/system/surfd.service
+	install -D -m 0644 deploy/surfd@.service $(DESTDIR)/etc/systemd/system/surfd@.service
 	[ -e $(DESTDIR)/etc/surfd/surfd.conf ] || install -D -m 0640 deploy/surfd.conf $(DESTDIR)/etc/surfd/surfd.conf
 	install -D -m 0644 README.md $(DESTDIR)$(PREFIX)/share/doc/surfd/README.md
 	install -D -m 0644 api/openapi.yaml $(DESTDIR)$(PREFIX)/share/doc/surfd/openapi.yaml

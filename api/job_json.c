@@ -25,10 +25,11 @@ static json_t *job_object(const struct job_view *v)
     snprintf(self, sizeof self, "/jobs/%s", v->id);
     snprintf(result, sizeof result, "/jobs/%s/result", v->id);
     json_t *err = v->error ? json_loads(v->error, 0, NULL) : NULL;
-    return json_pack("{s:s, s:s, s:s, s:f, s:o, s:o, s:o, s:o, s:{s:s, s:s}}", "id", v->id, "kind", v->kind, "state",
-                     v->state, "progress", round(v->progress * 1000) / 1000, "created", stamp(v->created), "started",
-                     stamp(v->started), "finished", stamp(v->finished), "error", err ? err : json_null(), "links",
-                     "self", self, "result", result);
+    return json_pack("{s:s, s:s, s:s, s:f, s:o, s:o, s:o, s:o, s:i, s:o, s:{s:s, s:s}}", "id", v->id, "kind", v->kind,
+                     "state", v->state, "progress", round(v->progress * 1000) / 1000, "created", stamp(v->created),
+                     "started", stamp(v->started), "finished", stamp(v->finished), "error", err ? err : json_null(),
+                     "attempts", v->attempts, "node", v->node && *v->node ? json_string(v->node) : json_null(),
+                     "links", "self", self, "result", result);
 }
 
 char *job_json(const struct job_view *v)

@@ -1,5 +1,5 @@
 /* job_json.h - the job resource of API.md: {id, kind, state, progress, created, started,
- * finished, error, links}. Times are Unix seconds in, RFC 3339 UTC out (null when 0). */
+ * finished, error, attempts, node, links}. Times are Unix seconds in, RFC 3339 UTC out (null when 0). */
 #ifndef SURFD_JOB_JSON_H
 #define SURFD_JOB_JSON_H
 
@@ -8,6 +8,8 @@ struct job_view {
     double progress;
     double created, started, finished;
     const char *error;   /* problem JSON text, or NULL */
+    int attempts;        /* times a node has started it */
+    const char *node;    /* the node that runs it or ran it last ("": none yet) */
 };
 
 /* Caller frees. */

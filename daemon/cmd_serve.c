@@ -3,6 +3,7 @@
  * pool and the HTTP server; then signals: SIGTERM/SIGINT drain and exit 0. */
 #include <arpa/inet.h>
 #include <errno.h>
+#include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -21,35 +22,33 @@
 #include "service.h"
 #include "tokens.h"
 
+/* The node's name in the store: --node-name, or host name and port. */
+static void node_name(struct service *svc, unsigned port)
+{
+    if (svc->cfg.node_name[0]) {
+        snprintf(svc->node, sizeof svc->node, "%s", svc->cfg.node_name);
+        return;
+    }
+    char host[48] = "localhost";
+    gethostname(host, sizeof host - 1);
+    snprintf(svc->node, sizeof svc->node, "%s:%u", host, port);
+}
+
 static bool loopback(const char *listen)
 {
     return !strncmp(listen, "127.", 4) || !strncmp(listen, "[::1]:", 6) || !strncmp(listen, "localhost:", 10);
 }
 
-/* A job that was running when the process stopped this many times is not run again: it is what
- * stopped it (with Restart=on-failure, running it again would keep the service down). */
-#define RECOVER_MAX_ATTEMPTS 2
-
-static void recover(const char *id, void *arg)
+/* A job this node held when it stopped: queued again for whichever node has room, or failed
+ * once it has stopped the service max-attempts times (with Restart=on-failure, running it again
+ * would keep the service down). */
+static void recovered(const char *id, enum job_state state, void *arg)
 {
-    struct service *svc = arg;
-    struct job_rec rec;
-    if (store_get(svc->store, id, false, false, &rec) != 1)
-        return;
-    if (rec.attempts >= RECOVER_MAX_ATTEMPTS) {
-        struct sf_err err = {0};
-        sf_fail(&err, SF_EBACKEND, "", "this job stopped the service %d times; it is not run again",
-                rec.attempts);
-        service_job_end(svc, id, JOB_FAILED, false, NULL, 0, NULL, NULL, &err);
-        LOG(LOG_ERROR, "job %s stopped the service %d times: failed, not recovered", id, rec.attempts);
-    } else {
-        store_set_state(svc->store, id, "queued", 0.0, 0, 0, NULL);
-        if (service_submit_kind(svc, rec.kind, id, true) == 0)
-            LOG(LOG_INFO, "recovered job %s", id);
-        else
-            LOG(LOG_ERROR, "job %s of kind \"%s\" could not be queued again", id, rec.kind);
-    }
-    store_rec_free(&rec);
+    const struct service *svc = arg;
+    if (state == JOB_FAILED)
+        LOG(LOG_ERROR, "job %s stopped the service %ld times: failed, not recovered", id, svc->cfg.max_attempts);
+    else
+        LOG(LOG_INFO, "recovered job %s", id);
 }
 
 /* Seconds a running job has to stop once the drain timeout has passed and it has been cancelled. */
@@ -59,14 +58,13 @@ static void recover(const char *id, void *arg)
  * stop the service; the service stopped it). */
 static void abandon(const char *id, void *arg)
 {
-    struct service *svc = arg;
-    store_requeue(svc->store, id);
+    service_release(arg, id);
 }
 
 int cmd_serve(int argc, char **argv)
 {
     struct service svc = {0};
-    pthread_mutex_init(&svc.stranded_lock, NULL);
+    pthread_mutex_init(&svc.lock, NULL);
     char msg[600];
     config_defaults(&svc.cfg);
     for (int k = 1; k < argc; k++)
@@ -104,7 +102,7 @@ int cmd_serve(int argc, char **argv)
     svc.started_mono = monotonic_s();
     struct sf_err err = {0};
     struct server *server = NULL;
-    if (store_open(svc.cfg.data_dir, &svc.store, msg, sizeof msg)) {
+    if (store_open(svc.cfg.store[0] ? svc.cfg.store : svc.cfg.data_dir, &svc.store, msg, sizeof msg)) {
         fprintf(stderr, "surfd serve: store: %s\n", msg);
         goto out_free_tokens;
     }
@@ -117,17 +115,32 @@ int cmd_serve(int argc, char **argv)
         fprintf(stderr, "surfd serve: cannot start the worker pool\n");
         goto out_free_device;
     }
-    store_unfinished(svc.store, recover, &svc);
     if (!(server = server_start(&svc, msg, sizeof msg))) {
         fprintf(stderr, "surfd serve: %s\n", msg);
         jobq_shutdown(svc.q, 0, DRAIN_GRACE_S, NULL, NULL);
+        jobq_free(svc.q);
+        goto out_free_device;
+    }
+    node_name(&svc, server_port(server));
+    /* what this node held when it last stopped (the embedded store: every running job, since one
+     * process uses it) is queued again, or failed after max-attempts */
+    char *give_up = service_give_up_problem(&svc);
+    bool shared = strcmp(store_backend(svc.store), "sqlite");
+    store_reap(svc.store, shared ? wall_s() : INFINITY, svc.node, (int)svc.cfg.max_attempts, give_up, recovered, &svc);
+    free(give_up);
+    if (service_start(&svc)) {
+        fprintf(stderr, "surfd serve: cannot start the keeper thread\n");
+        server_stop(server);
+        jobq_shutdown(svc.q, 0, DRAIN_GRACE_S, NULL, NULL);
+        jobq_free(svc.q);
         goto out_free_device;
     }
     char host[128];
     snprintf(host, sizeof host, "%.*s", (int)(strrchr(svc.cfg.listen, ':') - svc.cfg.listen), svc.cfg.listen);
     /* the one line an operator always needs, whatever the level */
-    log_write(LOG_INFO, "surfd %s listening on %s%s:%u, %ld workers, data in %s%s", SURFD_VERSION,
-        svc.cfg.tls_cert[0] ? "https://" : "http://", host, server_port(server), threads, svc.cfg.data_dir,
+    log_write(LOG_INFO, "surfd %s listening on %s%s:%u, %ld workers, node %s, %s store%s%s%s", SURFD_VERSION,
+        svc.cfg.tls_cert[0] ? "https://" : "http://", host, server_port(server), threads, svc.node,
+        store_backend(svc.store), shared ? "" : " in ", shared ? "" : svc.cfg.data_dir,
         svc.n_tokens ? ", bearer tokens required" : "");
 
     for (double pruned = monotonic_s();;) { /* every 5 s stranded jobs, every minute pruning */
@@ -150,7 +163,9 @@ int cmd_serve(int argc, char **argv)
                   left == 1 ? "" : "s", svc.cfg.drain_timeout, DRAIN_GRACE_S, left == 1 ? "it stays" : "they stay");
         _exit(0);
     }
+    service_stop(&svc); /* heartbeats went on while the drain ran; the draining flag stopped claims */
     server_stop(server);
+    jobq_free(svc.q);
     LOG(LOG_INFO, "stopped");
     rc = 0;
 out_free_device:

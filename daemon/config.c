@@ -26,7 +26,11 @@ struct setting {
 
 static const struct setting SETTINGS[] = {
     S("listen", listen, "127.0.0.1:8080", "HOST:PORT to listen on"),
-    S("data-dir", data_dir, "./var", "directory of the embedded store"),
+    S("data-dir", data_dir, "./var", "directory of the embedded store (and local scratch)"),
+    S("store", store, "", "where jobs live: empty for the embedded store in data-dir, or a postgresql:// URI shared by several nodes"),
+    S("node-name", node_name, "", "this node's name in the shared store (default: host name and port)"),
+    L("lease", lease, 2, 3600, "30", "seconds a node's claim on a running job lasts without a heartbeat"),
+    L("max-attempts", max_attempts, 1, 100, "2", "claims of a job (crashes, lost nodes) before it fails"),
     L("threads", threads, 0, 1024, "0", "worker threads (0: all cores)"),
     L("queue-max", queue_max, 1, 1000000, "64", "jobs waiting before requests get 429"),
     L("max-body", max_body, 1024, 1L << 30, "67108864", "largest request body in bytes (413 above)"),

@@ -10,6 +10,10 @@
 struct config {
     char listen[128];       /* HOST:PORT */
     char data_dir[512];
+    char store[512];        /* "" (SQLite in data_dir) or a postgresql:// URI */
+    char node_name[64];     /* "" : host name and port */
+    long lease;             /* seconds a claim lasts without a heartbeat */
+    long max_attempts;      /* claims of a job before it fails */
     long threads;           /* workers; 0: all cores */
     long queue_max;         /* jobs waiting before 429 */
     long max_body;          /* bytes of request body */

@@ -7,15 +7,18 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "../api/model_json.h"
-#include "service.h"
+#include "../api/render_request.h"
+#include "../api/rtstruct.h"
+#include "kinds.h"
 
 enum contour_kind { KIND_VOLUME, KIND_MODEL, KIND_MESH, KIND_PATCHES };
 
 struct contour_work {
     struct service *svc;
-    char id[40];
+    struct job_claim claim;
     enum contour_kind kind;
     char *json;              /* the result (JSON, or the mesh file) */
     size_t len;
@@ -31,44 +34,28 @@ static void model_id(void *ctx, int k, char id[40])
 {
     const struct contour_work *w = ctx;
     if (k == 0)
-        snprintf(id, 40, "%s", w->id);
+        snprintf(id, 40, "%s", w->claim.id);
     else
-        snprintf(id, 40, "%.28s%04x", w->id, (unsigned)k & 0xffff);
+        snprintf(id, 40, "%.28s%04x", w->claim.id, (unsigned)k & 0xffff);
 }
 
 static int model_put(void *ctx, const char *id, const char *name, const char *source, const char *resource)
 {
     const struct contour_work *w = ctx;
-    struct model_rec m = {id, w->id, name, w->owner, wall_s(), source, strlen(source), resource};
+    struct model_rec m = {id, w->claim.id, name, w->owner, wall_s(), source, strlen(source), resource};
     return store_model_put(w->svc->store, &m);
-}
-
-/* The modelling's poll (err.h): the job's progress, and its cancel flag. */
-struct poll_ctx {
-    struct jobq *q;
-    struct job *j;
-};
-
-static bool poll_job(void *ctx, double done)
-{
-    const struct poll_ctx *p = ctx;
-    return jobq_cancelled(p->q, p->j, done);
 }
 
 static int prepare(struct job *j, void *arg, int *n_bands)
 {
     struct contour_work *w = arg;
-    struct poll_ctx pc = {w->svc->q, j};
-    const struct sf_progress pr = {poll_job, &pc};
+    struct job_poll pc = {w->svc->q, j};
+    const struct sf_progress pr = {service_poll_job, &pc};
     *n_bands = 0;
     struct job_rec rec;
-    if (store_get(w->svc->store, w->id, true, false, &rec) != 1)
+    if (store_get(w->svc->store, w->claim.id, true, false, &rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
     snprintf(w->owner, sizeof w->owner, "%s", rec.owner);
-    if (store_claim(w->svc->store, w->id, wall_s())) {
-        store_rec_free(&rec);
-        return sf_fail(&w->err, SF_EIO, "", "the store cannot record the job's start"), -1;
-    }
     const char *body = (const char *)rec.request;
     int rc;
     w->type = "application/json";
@@ -101,7 +88,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 {
     (void)j;
     struct contour_work *w = arg;
-    service_job_end(w->svc, w->id, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
+    service_job_end(w->svc, &w->claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     w->type ? w->type : "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     free(w->json);
     free(w);
@@ -109,37 +96,87 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 
 static const struct job_ops CONTOUR_OPS = {prepare, NULL, finish};
 
-static int submit(struct service *svc, const char *id, bool force, enum contour_kind kind)
+static int start(struct service *svc, const struct job_claim *c, enum contour_kind kind)
 {
     struct contour_work *w = calloc(1, sizeof *w);
     if (!w)
         return -1;
     w->svc = svc;
     w->kind = kind;
-    snprintf(w->id, sizeof w->id, "%s", id);
-    if (jobq_submit(svc->q, id, &CONTOUR_OPS, w, force)) {
+    w->claim = *c;
+    if (jobq_submit(svc->q, c->id, &CONTOUR_OPS, w, true)) {
         free(w);
         return -1;
     }
     return 0;
 }
 
-int volume_job_submit(struct service *svc, const char *id, bool force)
+int volume_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_VOLUME); }
+int model_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_MODEL); }
+int mesh_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_MESH); }
+int patches_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_PATCHES); }
+
+/* ---- the requests: contour JSON or an RT Structure Set (both kinds); /volume also measures a
+ * scene (JSON, .bpt, VRML) whose patches bound a closed solid ---- */
+
+const char *contour_format(const char *content_type)
 {
-    return submit(svc, id, force, KIND_VOLUME);
+    const char *f = volume_format(content_type);
+    return f && (!strcmp(f, "json") || !strcmp(f, "dicom")) ? f : NULL;
 }
 
-int model_job_submit(struct service *svc, const char *id, bool force)
+const char *volume_format(const char *content_type)
 {
-    return submit(svc, id, force, KIND_MODEL);
+    if (content_type && !strncasecmp(content_type, "application/dicom", 17))
+        return "dicom";
+    const char *f = render_format_from_type(content_type);
+    return f && !*f ? "json" : f;
 }
 
-int mesh_job_submit(struct service *svc, const char *id, bool force)
+/* An RT Structure Set is stored without the patient: only what the job reads. */
+static int validate(struct job_body *b, bool scenes, struct sf_err *err)
 {
-    return submit(svc, id, force, KIND_MESH);
+    const char *body = b->body ? b->body : "";
+    if (!scenes && model_body_is_scene(body, b->len, b->format))
+        return sf_fail(err, SF_EINVAL, "/slices", "a model is built from slice contours; POST /volume measures a scene");
+    if (model_validate(body, b->len, b->format, b->options, err))
+        return err->code;
+    if (strcmp(b->format, "dicom"))
+        return 0;
+    unsigned char *kept;
+    size_t n;
+    if (rtstruct_strip(b->body, b->len, &kept, &n, err))
+        return err->code;
+    free(b->body);
+    b->body = (char *)kept;
+    b->len = n;
+    return 0;
 }
 
-int patches_job_submit(struct service *svc, const char *id, bool force)
+int volume_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
-    return submit(svc, id, force, KIND_PATCHES);
+    (void)svc;
+    return validate(b, true, err);
+}
+
+int model_validate_body(struct service *svc, struct job_body *b, struct sf_err *err)
+{
+    (void)svc;
+    return validate(b, false, err);
+}
+
+int mesh_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+{
+    (void)svc;
+    const char *format;
+    double tol;
+    return model_mesh_options(b->options, &format, &tol, err);
+}
+
+int patches_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+{
+    (void)svc;
+    (void)b;
+    (void)err;
+    return 0;
 }

@@ -9,15 +9,15 @@
 #include "../api/render_request.h"
 #include "../core/trace/map.h"
 #include "../core/trace/render.h"
+#include "kinds.h"
 #include "log.h"
 #include "metrics.h"
-#include "service.h"
 
 #define JOB_BAND_ROWS MAP_TILE_ROWS /* a band is one map tile: no tile is rasterised twice */
 
 struct render_work {
     struct service *svc;
-    char id[40];
+    struct job_claim claim;
     struct scene sc;
     bool have_scene;
     enum image_format fmt;
@@ -33,13 +33,8 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     (void)j;
     struct render_work *w = arg;
     struct job_rec rec;
-    int found = store_get(w->svc->store, w->id, true, false, &rec);
-    if (found != 1)
+    if (store_get(w->svc->store, w->claim.id, true, false, &rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
-    if (store_claim(w->svc->store, w->id, wall_s())) {
-        store_rec_free(&rec);
-        return sf_fail(&w->err, SF_EIO, "", "the store cannot record the job's start"), -1;
-    }
     struct model_scope scope = {w->svc, NULL}; /* the route checked the owner's models */
     struct model_resolver models = service_models(&scope);
     int rc = render_request_parse((const char *)rec.request, rec.request_len, rec.format, rec.options, &models, &w->sc,
@@ -91,7 +86,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
             outcome = JOB_FAILED;
         }
     }
-    service_job_end(w->svc, w->id, outcome, requeue, bytes, n, image_format_mime(w->fmt), meta, &w->err);
+    service_job_end(w->svc, &w->claim, outcome, requeue, bytes, n, image_format_mime(w->fmt), meta, &w->err);
     free(bytes);
     frame_free(w->fr);
     if (w->have_scene)
@@ -102,14 +97,28 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 
 static const struct job_ops RENDER_OPS = {prepare, band, finish};
 
-int render_job_submit(struct service *svc, const char *id, bool force)
+const char *render_format(const char *content_type) { return render_format_from_type(content_type); }
+
+int render_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+{
+    struct scene sc;
+    enum image_format img;
+    struct model_scope ms = {svc, b->owner};
+    struct model_resolver models = service_models(&ms);
+    if (render_request_parse(b->body ? b->body : "", b->len, b->format, b->options, &models, &sc, &img, err))
+        return err->code;
+    scene_free(&sc);
+    return 0;
+}
+
+int render_start(struct service *svc, const struct job_claim *c)
 {
     struct render_work *w = calloc(1, sizeof *w);
     if (!w)
         return -1;
     w->svc = svc;
-    snprintf(w->id, sizeof w->id, "%s", id);
-    if (jobq_submit(svc->q, id, &RENDER_OPS, w, force)) {
+    w->claim = *c;
+    if (jobq_submit(svc->q, c->id, &RENDER_OPS, w, true)) {
         free(w);
         return -1;
     }

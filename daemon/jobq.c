@@ -23,6 +23,7 @@
 #include <time.h>
 
 struct waiter {
+    char id[40];                 /* the job waited for: queued here, running elsewhere, or not yet claimed */
     void (*fn)(void *, bool);
     void *arg;
     double deadline;
@@ -40,7 +41,6 @@ struct job {
     int n_bands, next_band;      /* [q] */
     int bands_done, bands_out;   /* [q] finished / being rendered */
     double progress;             /* [q] as the job reported it (jobq_cancelled), never decreasing */
-    struct waiter *waiters;      /* [q] */
     struct job *next_queued;     /* [q] FIFO link */
     struct job *next_live;       /* [q] all queued and running jobs */
 };
@@ -55,6 +55,9 @@ struct jobq {
     int n_workers, n_active;     /* n_active: jobs taken off the queue and not finished */
     bool stop_taking, stop;
     pthread_t *threads, timer;
+    struct waiter *waiters;      /* every waiter, by job id */
+    void (*room)(void *);        /* told when a job ends (jobq_on_room) */
+    void *room_arg;
 };
 
 double monotonic_s(void)
@@ -101,6 +104,34 @@ static struct job *stranded_job(struct jobq *q)
     return NULL;
 }
 
+/* Unlinks the waiters of job id (all, with id NULL) into a list. Lock held. */
+static struct waiter *take_waiters(struct jobq *q, const char *id)
+{
+    struct waiter *taken = NULL;
+    for (struct waiter **p = &q->waiters; *p;) {
+        struct waiter *w = *p;
+        if (!id || !strcmp(w->id, id)) {
+            *p = w->next;
+            w->next = taken;
+            taken = w;
+        } else {
+            p = &w->next;
+        }
+    }
+    return taken;
+}
+
+/* Calls and frees a list of waiters. Lock not held. */
+static void fire(struct waiter *w, bool finished)
+{
+    while (w) {
+        struct waiter *next = w->next;
+        w->fn(w->arg, finished);
+        free(w);
+        w = next;
+    }
+}
+
 /* Called with the lock held; returns with it held. Runs finish unlocked and wakes the waiters. */
 static void finish_job(struct jobq *q, struct job *j, enum job_state outcome)
 {
@@ -111,16 +142,14 @@ static void finish_job(struct jobq *q, struct job *j, enum job_state outcome)
     pthread_mutex_lock(&q->lock);
     unlink_live(q, j);
     q->n_active--;
-    struct waiter *w = j->waiters;
-    j->waiters = NULL;
+    struct waiter *w = take_waiters(q, j->id);
     pthread_cond_broadcast(&q->work); /* room for another prepared job */
+    void (*room)(void *) = q->room;
+    void *room_arg = q->room_arg;
     pthread_mutex_unlock(&q->lock);
-    while (w) {
-        struct waiter *next = w->next;
-        w->fn(w->arg, true);
-        free(w);
-        w = next;
-    }
+    fire(w, true);
+    if (room)
+        room(room_arg);
     free(j);
     pthread_mutex_lock(&q->lock);
 }
@@ -185,26 +214,20 @@ static void *timer(void *arg)
     while (!q->stop) {
         double now = monotonic_s(), next = now + 0.25;
         struct waiter *due = NULL;
-        for (struct job *j = q->live; j; j = j->next_live)
-            for (struct waiter **p = &j->waiters; *p;) {
-                struct waiter *w = *p;
-                if (w->deadline <= now) {
-                    *p = w->next;
-                    w->next = due;
-                    due = w;
-                } else {
-                    next = w->deadline < next ? w->deadline : next;
-                    p = &w->next;
-                }
+        for (struct waiter **p = &q->waiters; *p;) {
+            struct waiter *w = *p;
+            if (w->deadline <= now) {
+                *p = w->next;
+                w->next = due;
+                due = w;
+            } else {
+                next = w->deadline < next ? w->deadline : next;
+                p = &w->next;
             }
+        }
         if (due) {
             pthread_mutex_unlock(&q->lock);
-            while (due) {
-                struct waiter *n = due->next;
-                due->fn(due->arg, false);
-                free(due);
-                due = n;
-            }
+            fire(due, false);
             pthread_mutex_lock(&q->lock);
             continue;
         }
@@ -288,22 +311,25 @@ int jobq_shutdown(struct jobq *q, double timeout_s, double grace_s, void (*aband
         pthread_join(q->threads[k], NULL);
     pthread_join(q->timer, NULL);
     /* queued jobs stay queued in the store; their in-memory records and waiters go */
+    fire(take_waiters(q, NULL), false);
     for (struct job *j = q->live, *n; j; j = n) {
         n = j->next_live;
-        for (struct waiter *w = j->waiters, *wn; w; w = wn) {
-            wn = w->next;
-            w->fn(w->arg, false);
-            free(w);
-        }
         j->ops->finish(j, j->work, JOB_CANCELLED, true);
         free(j);
     }
+    q->live = NULL;
+    return 0;
+}
+
+void jobq_free(struct jobq *q)
+{
+    if (!q)
+        return;
     free(q->threads);
     pthread_mutex_destroy(&q->lock);
     pthread_cond_destroy(&q->work);
     pthread_cond_destroy(&q->timer_cond);
     free(q);
-    return 0;
 }
 
 int jobq_submit(struct jobq *q, const char *id, const struct job_ops *ops, void *work, bool force)
@@ -362,18 +388,41 @@ bool jobq_cancel(struct jobq *q, const char *id)
 void jobq_wait(struct jobq *q, const char *id, double deadline, void (*fn)(void *arg, bool finished), void *arg)
 {
     struct waiter *w = malloc(sizeof *w);
-    pthread_mutex_lock(&q->lock);
-    struct job *j = find_live(q, id);
-    if (j && w) {
-        *w = (struct waiter){fn, arg, deadline, j->waiters};
-        j->waiters = w;
-        pthread_cond_signal(&q->timer_cond);
-        pthread_mutex_unlock(&q->lock);
+    if (!w) {
+        fn(arg, false); /* the caller answers 202 */
         return;
     }
+    *w = (struct waiter){.fn = fn, .arg = arg, .deadline = deadline};
+    snprintf(w->id, sizeof w->id, "%s", id);
+    pthread_mutex_lock(&q->lock);
+    w->next = q->waiters;
+    q->waiters = w;
+    pthread_cond_signal(&q->timer_cond);
     pthread_mutex_unlock(&q->lock);
-    free(w);
-    fn(arg, j == NULL); /* unknown: finished (or, out of memory, not: the caller answers 202) */
+}
+
+void jobq_notify(struct jobq *q, const char *id)
+{
+    pthread_mutex_lock(&q->lock);
+    struct waiter *w = take_waiters(q, id);
+    pthread_mutex_unlock(&q->lock);
+    fire(w, true);
+}
+
+void jobq_on_room(struct jobq *q, void (*fn)(void *), void *arg)
+{
+    pthread_mutex_lock(&q->lock);
+    q->room = fn;
+    q->room_arg = arg;
+    pthread_mutex_unlock(&q->lock);
+}
+
+int jobq_room(struct jobq *q)
+{
+    pthread_mutex_lock(&q->lock);
+    int n = q->stop_taking ? 0 : q->n_workers - q->n_active - (int)q->n_queued;
+    pthread_mutex_unlock(&q->lock);
+    return n > 0 ? n : 0;
 }
 
 bool jobq_cancelled(struct jobq *q, struct job *j, double progress)

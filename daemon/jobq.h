@@ -10,10 +10,10 @@
 #include <stdbool.h>
 #include <stddef.h>
 
+#include "job_state.h"
+
 struct jobq;
 struct job;
-
-enum job_state { JOB_QUEUED, JOB_RUNNING, JOB_SUCCEEDED, JOB_FAILED, JOB_CANCELLED };
 
 struct job_ops {
     /* Sets *n_bands (0: all work done here). Returns 0, or -1 when the job failed (finish is then
@@ -29,12 +29,14 @@ struct job_ops {
 /* Creates the pool with n_workers threads and room for queue_max waiting jobs. */
 struct jobq *jobq_new(int n_workers, long queue_max);
 /* Stops taking queued jobs, waits up to timeout_s for running ones, cancels (requeue) the rest
- * and gives them grace_s to stop; then joins the workers, frees the queue and returns 0. Queued
+ * and gives them grace_s to stop; then joins the workers and returns 0 (jobq_free frees it). Queued
  * jobs stay in the store. A job still running after the grace (deaf to its cancel flag) is named
  * to abandoned(id, arg), with the queue's lock held (abandoned must not call the queue); the
  * queue is then left as it is and the number of such jobs returned: the caller ends the process. */
 int jobq_shutdown(struct jobq *q, double timeout_s, double grace_s, void (*abandoned)(const char *id, void *arg),
                   void *arg);
+/* Frees a queue that jobq_shutdown stopped (0). Its waiters and jobs are gone by then. */
+void jobq_free(struct jobq *q);
 
 /* Queues a job. work is handed over (ops->finish frees it). Returns 0, or -1 when the queue is
  * full or shutting down (work not taken). force: ignore queue_max (jobs recovered at start). */
@@ -50,10 +52,18 @@ bool jobq_cancel(struct jobq *q, const char *id);
  * never goes back) and answers whether the job has been asked to stop. */
 bool jobq_cancelled(struct jobq *q, struct job *j, double progress);
 
-/* Calls fn(arg, finished) once: when the job ends (finished = true) or at deadline (monotonic
- * seconds; finished = false), or at once (finished = true) if the queue does not know the job.
- * fn runs on a worker or the timer thread, without any lock held. */
+/* Calls fn(arg, finished) once: when job id ends here or jobq_notify(id) says it ended elsewhere
+ * (finished = true), or at deadline (monotonic seconds; finished = false). The job need not be
+ * in the queue yet: a caller that may have missed the end (it was stored before the wait began)
+ * checks the store after jobq_wait and calls jobq_notify. fn runs on a worker, the timer thread
+ * or jobq_notify's caller, without any lock held. */
 void jobq_wait(struct jobq *q, const char *id, double deadline, void (*fn)(void *arg, bool finished), void *arg);
+/* Wakes the waiters of job id: it has ended (here or on another node). */
+void jobq_notify(struct jobq *q, const char *id);
+/* fn(arg) is called, without the lock, each time a job ends and frees room for another. */
+void jobq_on_room(struct jobq *q, void (*fn)(void *), void *arg);
+/* Jobs the pool could start now: workers without a job, less jobs waiting in memory. */
+int jobq_room(struct jobq *q);
 
 const char *job_id(const struct job *j);
 /* Counters for /metrics. */

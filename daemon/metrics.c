@@ -61,13 +61,15 @@ char *metrics_text(struct service *svc)
     jobq_stats(svc->q, &qs);
     OUT("# HELP surfd_uptime_seconds Seconds since the daemon started.\n# TYPE surfd_uptime_seconds gauge\n");
     OUT("surfd_uptime_seconds %.3f\n", monotonic_s() - svc->started_mono);
-    OUT("# HELP surfd_jobs Jobs the queue holds now, by state.\n# TYPE surfd_jobs gauge\n");
+    OUT("# HELP surfd_jobs Jobs this node's pool holds now, by state.\n# TYPE surfd_jobs gauge\n");
     OUT("surfd_jobs{state=\"queued\"} %ld\nsurfd_jobs{state=\"running\"} %ld\n", qs.queued, qs.running);
     OUT("# HELP surfd_jobs_ended_total Jobs ended since start, by outcome.\n# TYPE surfd_jobs_ended_total counter\n");
     OUT("surfd_jobs_ended_total{state=\"succeeded\"} %ld\n", atomic_load(&jobs_ended[JOB_SUCCEEDED]));
     OUT("surfd_jobs_ended_total{state=\"failed\"} %ld\n", atomic_load(&jobs_ended[JOB_FAILED]));
     OUT("surfd_jobs_ended_total{state=\"cancelled\"} %ld\n", atomic_load(&jobs_ended[JOB_CANCELLED]));
-    OUT("# HELP surfd_queue_depth Jobs waiting for a worker.\n# TYPE surfd_queue_depth gauge\n");
+    OUT("# HELP surfd_store_queued Jobs queued in the store, for every node that shares it.\n"
+        "# TYPE surfd_store_queued gauge\nsurfd_store_queued %ld\n", store_queued(svc->store));
+    OUT("# HELP surfd_queue_depth Jobs waiting for a worker of this node.\n# TYPE surfd_queue_depth gauge\n");
     OUT("surfd_queue_depth %ld\nsurfd_queue_capacity %ld\nsurfd_workers %ld\n", qs.queued, qs.queue_max, qs.workers);
     OUT("# HELP surfd_render_seconds Tracing and shading time of render jobs.\n# TYPE surfd_render_seconds histogram\n");
     for (size_t k = 0; k < N_BUCKETS; k++)

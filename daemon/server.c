@@ -19,9 +19,8 @@
 #include "../api/model_json.h"
 #include "../api/job_json.h"
 #include "../api/problem.h"
-#include "../api/render_request.h"
-#include "../api/rtstruct.h"
 #include "guard.h"
+#include "kinds.h"
 #include "log.h"
 #include "metrics.h"
 
@@ -173,17 +172,17 @@ static enum MHD_Result json_reply(struct req *r, int status, char *json, const c
 
 /* ---- jobs ------------------------------------------------------------------------------ */
 
-static const char *const STATE_NAMES[] = {"queued", "running", "succeeded", "failed", "cancelled"};
-
+/* A job as the store has it, with this node's live progress when the job runs here (a job
+ * whose result is still being encoded or stored reads as running). */
 static struct job_view view_of(struct service *svc, const struct job_rec *rec)
 {
-    struct job_view v = {rec->id, rec->kind, rec->state, rec->progress, rec->created, rec->started, rec->finished,
-                         rec->error};
+    struct job_view v = {rec->id,       rec->kind,  job_state_name(rec->state), rec->progress, rec->created,
+                         rec->started, rec->finished, rec->error,              rec->attempts, rec->node};
     enum job_state st;
     double progress;
-    if (jobq_peek(svc->q, rec->id, &st, &progress) && (st == JOB_QUEUED || st == JOB_RUNNING)) {
-        v.state = STATE_NAMES[st];
-        v.progress = progress;
+    if (jobq_peek(svc->q, rec->id, &st, &progress) && !job_state_ended(rec->state)) {
+        v.state = job_state_name(JOB_RUNNING);
+        v.progress = progress > rec->progress ? progress : rec->progress;
     }
     return v;
 }
@@ -214,7 +213,7 @@ static enum MHD_Result job_result(struct req *r, const char *id, bool sync)
     if (id != r->job)
         snprintf(r->job, sizeof r->job, "%s", id);
     enum MHD_Result ok;
-    if (!strcmp(rec.state, "succeeded") && rec.result) {
+    if (rec.state == JOB_SUCCEEDED && rec.result) {
         char etag[48];
         snprintf(etag, sizeof etag, "\"%.32s\"", rec.result_sum[0] ? rec.result_sum : id); /* content: strong */
         const char *inm = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_IF_NONE_MATCH);
@@ -247,14 +246,14 @@ static enum MHD_Result job_result(struct req *r, const char *id, bool sync)
                 rp.hdr[h][0] = "X-Rays", rp.hdr[h++][1] = rays;
             ok = send_reply(r, &rp);
         }
-    } else if (!strcmp(rec.state, "failed") && rec.error) {
+    } else if (rec.state == JOB_FAILED && rec.error) {
         int status = 500;
         const char *s = strstr(rec.error, "\"status\":");
         if (s)
             status = atoi(s + 9);
         struct reply rp = {status, "application/problem+json", strdup(rec.error), strlen(rec.error), {{0}}};
         ok = send_reply(r, &rp);
-    } else if (!strcmp(rec.state, "cancelled")) {
+    } else if (rec.state == JOB_CANCELLED) {
         ok = problem(r, 409, "the job was cancelled", NULL);
     } else {
         store_rec_free(&rec);
@@ -285,9 +284,9 @@ static void collect(const struct job_rec *rec, void *arg)
 
 static enum MHD_Result job_list(struct req *r)
 {
-    const char *state = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "state");
-    if (state && strcmp(state, "queued") && strcmp(state, "running") && strcmp(state, "succeeded") &&
-        strcmp(state, "failed") && strcmp(state, "cancelled"))
+    const char *name = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "state");
+    enum job_state state;
+    if (name && !job_state_parse(name, &state))
         return problem(r, 422, "state is queued, running, succeeded, failed or cancelled", "?state");
     enum { LIST_MAX = 1000 };
     struct list_ctx c = {r->svc, calloc(LIST_MAX, sizeof(struct job_view)), calloc(LIST_MAX, sizeof(struct job_rec)),
@@ -297,7 +296,7 @@ static enum MHD_Result job_list(struct req *r)
         free(c.recs);
         return problem(r, 500, "out of memory", NULL);
     }
-    store_list(r->svc->store, state, scope(r), LIST_MAX, collect, &c);
+    store_list(r->svc->store, name ? &state : NULL, scope(r), LIST_MAX, collect, &c);
     for (int k = 0; k < c.n; k++)
         c.v[k] = view_of(r->svc, &c.recs[k]);
     enum MHD_Result ok = json_reply(r, 200, job_list_json(c.v, c.n), NULL);
@@ -368,30 +367,30 @@ static void woken(void *arg, bool finished)
     MHD_resume_connection(r->conn);
 }
 
-/* Stores, queues and answers a validated request: at once (async, 202), or after the job ends
- * or the wait runs out. */
-static enum MHD_Result submit(struct req *r, const char *kind, const char *format, const char *options,
-                              int (*submit_fn)(struct service *, const char *, bool))
+/* Stores and answers a validated request: at once (async, 202), or after the job ends (on this
+ * node or another) or the wait runs out. */
+static enum MHD_Result submit(struct req *r, const struct job_kind *kind, const char *format, const char *options)
 {
     struct service *svc = r->svc;
     if (atomic_load(&svc->draining))
         return problem(r, 503, "the service is shutting down", NULL);
+    long queued = store_queued(svc->store);
+    if (queued < 0)
+        return problem(r, 503, "the store cannot take the job now", NULL);
+    if (queued >= svc->cfg.queue_max)
+        return problem(r, 429, "the job queue is full; try again shortly", NULL);
     struct job_rec rec = {0};
     service_new_id(rec.id);
-    snprintf(rec.kind, sizeof rec.kind, "%s", kind);
-    snprintf(rec.state, sizeof rec.state, "queued");
+    snprintf(rec.kind, sizeof rec.kind, "%s", kind->name);
     snprintf(rec.format, sizeof rec.format, "%s", format);
     snprintf(rec.options, sizeof rec.options, "%s", options);
     snprintf(rec.owner, sizeof rec.owner, "%s", r->owner);
     rec.created = wall_s();
     rec.request = (unsigned char *)(r->body ? r->body : "");
     rec.request_len = r->len;
-    if (store_insert(svc->store, &rec))
+    if (store_submit(svc->store, &rec))
         return problem(r, 503, "the store cannot take the job now", NULL);
-    if (submit_fn(svc, rec.id, false)) {
-        store_delete(svc->store, rec.id);
-        return problem(r, 429, "the job queue is full; try again shortly", NULL);
-    }
+    service_wake(svc);
     snprintf(r->job, sizeof r->job, "%s", rec.id);
     bool async;
     double wait;
@@ -400,69 +399,41 @@ static enum MHD_Result submit(struct req *r, const char *kind, const char *forma
         return job_resource(r, 202, rec.id);
     MHD_suspend_connection(r->conn);
     jobq_wait(svc->q, rec.id, monotonic_s() + wait, woken, r);
+    /* an end stored before the wait began would wake nobody */
+    struct job_rec now;
+    if (store_get(svc->store, rec.id, false, false, &now) != 1 || job_state_ended(now.state))
+        jobq_notify(svc->q, rec.id);
+    store_rec_free(&now);
     return MHD_YES;
 }
 
-static enum MHD_Result post_render(struct req *r)
+/* POST of a kind's request: its body format from Content-Type (or ?format=), its validation, and
+ * the job. */
+static enum MHD_Result post_job(struct req *r, const struct job_kind *kind)
 {
     const char *ct = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
-    const char *format = render_format_from_type(ct);
-    if (!format) {
-        char d[160];
-        snprintf(d, sizeof d, "surfd reads scenes as application/json, model/x-bpt or model/vrml, not %.80s", ct);
-        return problem(r, 415, d, NULL);
-    }
-    struct opts o = {.n = 0};
-    enum MHD_Result answer;
-    if (!query_options(r, &o, &answer))
-        return answer;
-    const char *qf = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "format");
+    const char *format = kind->format(ct);
+    const char *qf = kind->format_in_query ? MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "format")
+                                           : NULL;
     if (qf)
         format = qf;
-    struct scene sc;
-    enum image_format img;
-    struct sf_err err = {0};
-    struct model_scope ms = {r->svc, scope(r)};
-    struct model_resolver models = service_models(&ms);
-    if (render_request_parse(r->body ? r->body : "", r->len, format, o.buf, &models, &sc, &img, &err))
-        return problem_err(r, &err);
-    scene_free(&sc);
-    return submit(r, "render", format, o.buf, render_job_submit);
-}
-
-/* POST /volume and /model: contour JSON or an RT Structure Set; /volume also a scene (JSON, .bpt,
- * VRML) whose patches bound a closed solid. */
-static enum MHD_Result post_contours(struct req *r, const char *kind, int (*submit_fn)(struct service *, const char *, bool))
-{
-    const char *ct = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
-    const char *format = ct && !strncasecmp(ct, "application/dicom", 17) ? "dicom" : render_format_from_type(ct);
-    bool scenes = !strcmp(kind, "volume"); /* /volume also measures a scene whose patches close */
-    if (!format || (*format && strcmp(format, "json") && strcmp(format, "dicom") && !scenes)) {
-        char d[160];
-        snprintf(d, sizeof d, "surfd reads contours as application/json or application/dicom, not %.80s", ct);
+    if (!format) {
+        char d[200];
+        snprintf(d, sizeof d, "POST /%s reads %s, not %.80s", kind->name, kind->media, ct ? ct : "a body without a type");
         return problem(r, 415, d, NULL);
     }
-    if (!*format)
-        format = "json";
     struct opts o = {.n = 0};
     enum MHD_Result answer;
     if (!query_options(r, &o, &answer))
         return answer;
     struct sf_err err = {0};
-    if (!scenes && model_body_is_scene(r->body ? r->body : "", r->len, format))
-        return problem(r, 422, "a model is built from slice contours; POST /volume measures a scene", "/slices");
-    if (model_validate(r->body ? r->body : "", r->len, format, o.buf, &err))
+    struct job_body b = {r->body, r->len, format, o.buf, scope(r)};
+    int rc = kind->validate(r->svc, &b, &err);
+    r->body = b.body; /* validate may have replaced it */
+    r->len = b.len;
+    if (rc)
         return problem_err(r, &err);
-    if (!strcmp(format, "dicom")) { /* stored without the patient: only what the job reads */
-        unsigned char *kept;
-        size_t n;
-        if (rtstruct_strip(r->body, r->len, &kept, &n, &err))
-            return problem_err(r, &err);
-        free(r->body);
-        r->body = (char *)kept;
-        r->len = n;
-    }
-    return submit(r, kind, format, o.buf, submit_fn);
+    return submit(r, kind, format, o.buf);
 }
 
 /* ---- models ------------------------------------------------------------------------------- */
@@ -513,89 +484,82 @@ static enum MHD_Result model_list(struct req *r)
     return json_reply(r, 200, l.buf, NULL);
 }
 
-/* GET /models/{id}/render: a render job of the scene {"objects": [{"type": "model", "id": ...}]},
- * with the query's render options. */
-static enum MHD_Result model_render(struct req *r, const char *id)
+/* A job of a kind made by a GET on a model: its request is body (made here), its options the
+ * query's. */
+static enum MHD_Result model_job(struct req *r, const char *kind_name, char *body, const char *format)
 {
-    struct opts o = {.n = 0};
-    enum MHD_Result answer;
-    if (!query_options(r, &o, &answer))
-        return answer;
-    char *scene = malloc(128);
-    if (!scene)
-        return problem(r, 500, "out of memory", NULL);
-    snprintf(scene, 128, "{\"objects\":[{\"type\":\"model\",\"id\":\"%s\"}]}", id);
-    free(r->body);
-    r->body = scene;
-    r->len = strlen(scene);
-    struct scene sc;
-    enum image_format img;
-    struct sf_err err = {0};
-    struct model_scope ms = {r->svc, scope(r)};
-    struct model_resolver models = service_models(&ms);
-    if (render_request_parse(scene, r->len, "json", o.buf, &models, &sc, &img, &err))
-        return problem_err(r, &err);
-    scene_free(&sc);
-    return submit(r, "render", "json", o.buf, render_job_submit);
-}
-
-/* GET /models/{id}/mesh and /patches: a job of that kind (they can take seconds and hundreds of
- * megabytes, which no HTTP thread should spend), its request the model's id, answered as any job:
- * the file when it ends within the wait, else 202 + Location. */
-static enum MHD_Result model_output(struct req *r, const char *id, const char *what)
-{
-    struct opts o = {.n = 0};
-    enum MHD_Result answer;
-    if (!query_options(r, &o, &answer))
-        return answer;
-    struct sf_err err = {0};
-    const char *format;
-    double tol;
-    if (!strcmp(what, "mesh") && model_mesh_options(o.buf, &format, &tol, &err))
-        return problem_err(r, &err);
-    char *body = strdup(id);
-    if (!body)
-        return problem(r, 500, "out of memory", NULL);
+    const struct job_kind *kind = job_kind(kind_name);
     free(r->body);
     r->body = body;
+    if (!body)
+        return problem(r, 500, "out of memory", NULL);
     r->len = strlen(body);
-    return submit(r, what, "", o.buf, !strcmp(what, "mesh") ? mesh_job_submit : patches_job_submit);
+    struct opts o = {.n = 0};
+    enum MHD_Result answer;
+    if (!query_options(r, &o, &answer))
+        return answer;
+    struct sf_err err = {0};
+    struct job_body b = {r->body, r->len, format, o.buf, scope(r)};
+    if (kind->validate(r->svc, &b, &err))
+        return problem_err(r, &err);
+    return submit(r, kind, format, o.buf);
 }
 
-static enum MHD_Result model_route(struct req *r, const char *id, const char *rest, bool get)
+/* GET /models/{id}/render: a render job of the scene {"objects": [{"type": "model", "id": ...}]},
+ * with the query's render options. GET /models/{id}/mesh and /patches: a job of that kind (they
+ * can take seconds and hundreds of megabytes, which no HTTP thread should spend), its request the
+ * model's id. Each is answered as any job: the result when it ends within the wait, else 202. */
+static enum MHD_Result model_output(struct req *r, const char *id, const char *what)
+{
+    if (strcmp(what, "render"))
+        return model_job(r, what, strdup(id), "");
+    char *scene = malloc(128);
+    if (scene)
+        snprintf(scene, 128, "{\"objects\":[{\"type\":\"model\",\"id\":\"%s\"}]}", id);
+    return model_job(r, "render", scene, "json");
+}
+
+/* Whether model id is the request's to see; answers 404 (or the store's failure) when not. */
+static bool model_found(struct req *r, const char *id, char **resource, enum MHD_Result *answer)
+{
+    int found = store_model_get(r->svc->store, id, scope(r), resource, NULL, NULL);
+    if (found != 1)
+        *answer = found == 0 ? problem(r, 404, "no such model", NULL) : damaged_or_failed(r, found);
+    return found == 1;
+}
+
+static enum MHD_Result model_resource(struct req *r, const char *id)
 {
     char *resource = NULL;
-    int found = store_model_get(r->svc->store, id, scope(r), &resource, NULL, NULL);
-    if (found != 1)
-        return found == 0 ? problem(r, 404, "no such model", NULL) : damaged_or_failed(r, found);
     enum MHD_Result ok;
-    if (!rest) {
-        if (!strcmp(r->method, "DELETE")) {
-            int gone = store_model_delete(r->svc->store, id, scope(r));
-            ok = gone < 0 ? problem(r, 500, "the store failed", NULL) : text(r, 204, NULL, "");
-        } else if (get) { /* a model never changes: its id is a strong tag */
-            char etag[48];
-            snprintf(etag, sizeof etag, "\"%s\"", id);
-            const char *inm = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_IF_NONE_MATCH);
-            struct reply rp = {200, "application/json", resource, strlen(resource), {{"ETag", etag}}};
-            if (inm && (strstr(inm, etag) || !strcmp(inm, "*")))
-                rp = (struct reply){304, NULL, NULL, 0, {{"ETag", etag}}};
-            else
-                resource = NULL; /* handed to MHD */
-            ok = send_reply(r, &rp);
-        } else
-            ok = problem(r, 405, "GET or DELETE", NULL);
-    } else if (!get) {
-        ok = problem(r, 405, "GET only", NULL);
-    } else if (!strcmp(rest, "/mesh") || !strcmp(rest, "/patches")) {
-        ok = model_output(r, id, rest + 1);
-    } else if (!strcmp(rest, "/render")) {
-        ok = model_render(r, id);
-    } else
-        ok = problem(r, 404, "no such route", NULL);
+    if (!model_found(r, id, &resource, &ok))
+        return ok;
+    if (!strcmp(r->method, "DELETE")) {
+        int gone = store_model_delete(r->svc->store, id, scope(r));
+        ok = gone < 0 ? problem(r, 500, "the store failed", NULL) : text(r, 204, NULL, "");
+    } else { /* a model never changes: its id is a strong tag */
+        char etag[48];
+        snprintf(etag, sizeof etag, "\"%s\"", id);
+        const char *inm = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_IF_NONE_MATCH);
+        struct reply rp = {200, "application/json", resource, strlen(resource), {{"ETag", etag}}};
+        if (inm && (strstr(inm, etag) || !strcmp(inm, "*")))
+            rp = (struct reply){304, NULL, NULL, 0, {{"ETag", etag}}};
+        else
+            resource = NULL; /* handed to MHD */
+        ok = send_reply(r, &rp);
+    }
     free(resource);
     return ok;
 }
+
+static enum MHD_Result model_sub(struct req *r, const char *id, const char *what)
+{
+    enum MHD_Result ok;
+    return model_found(r, id, NULL, &ok) ? model_output(r, id, what) : ok;
+}
+static enum MHD_Result model_mesh_route(struct req *r, const char *id) { return model_sub(r, id, "mesh"); }
+static enum MHD_Result model_patches_route(struct req *r, const char *id) { return model_sub(r, id, "patches"); }
+static enum MHD_Result model_view_route(struct req *r, const char *id) { return model_sub(r, id, "render"); }
 
 /* ---- routing ---------------------------------------------------------------------------- */
 
@@ -649,66 +613,167 @@ static bool split_id(const char *s, char id[40], const char **rest)
     return true;
 }
 
+/* ---- the route table ---- */
+
+static enum MHD_Result livez(struct req *r, const char *id)
+{
+    (void)id;
+    return text(r, 200, "text/plain", "ok\n");
+}
+
+static enum MHD_Result readyz(struct req *r, const char *id)
+{
+    (void)id;
+    if (atomic_load(&r->svc->draining))
+        return problem(r, 503, "draining", NULL);
+    return store_writable(r->svc->store) ? text(r, 200, "text/plain", "ready\n")
+                                          : problem(r, 503, "the store is not writable", NULL);
+}
+
+static enum MHD_Result version(struct req *r, const char *id)
+{
+    (void)id;
+    return text(r, 200, "application/json", "{\"name\":\"surfd\",\"version\":\"" SURFD_VERSION "\"}");
+}
+
+static enum MHD_Result metrics(struct req *r, const char *id)
+{
+    (void)id;
+    char *t = metrics_text(r->svc);
+    if (!t)
+        return problem(r, 500, "metrics failed", NULL);
+    struct reply rp = {200, "text/plain; version=0.0.4", t, strlen(t), {{0}}};
+    return send_reply(r, &rp);
+}
+
+static enum MHD_Result openapi(struct req *r, const char *id)
+{
+    (void)id;
+    return text(r, 200, "application/yaml", surfd_openapi_yaml);
+}
+
+static enum MHD_Result not_built(struct req *r, const char *id)
+{
+    (void)id;
+    return problem(r, 501, "this route is part of the contract but not built yet", NULL);
+}
+
+static enum MHD_Result models(struct req *r, const char *id)
+{
+    (void)id;
+    return model_list(r);
+}
+
+static enum MHD_Result jobs(struct req *r, const char *id)
+{
+    (void)id;
+    return job_list(r);
+}
+
+static enum MHD_Result job(struct req *r, const char *id) { return job_resource(r, 200, id); }
+static enum MHD_Result result(struct req *r, const char *id) { return job_result(r, id, false); }
+
+/* Cancel: a queued job ends at once, a running one is asked to stop (on whichever node runs it:
+ * here at once, elsewhere at its next heartbeat). */
+static enum MHD_Result cancel(struct req *r, const char *id)
+{
+    struct job_rec rec;
+    int found = get_job(r, id, false, &rec);
+    if (found != 1)
+        return no_job(r, found);
+    store_rec_free(&rec);
+    switch (store_cancel(r->svc->store, id, scope(r), wall_s())) {
+    case CANCEL_DONE:
+        metrics_job_end(JOB_CANCELLED);
+        jobq_notify(r->svc->q, id);
+        return job_resource(r, 202, id);
+    case CANCEL_ASKED:
+        jobq_cancel(r->svc->q, id);
+        return job_resource(r, 202, id);
+    case CANCEL_ENDED:
+        return problem(r, 409, "the job has already ended", NULL);
+    case CANCEL_NOT_FOUND:
+        return problem(r, 404, "no such job", NULL);
+    default:
+        return problem(r, 500, "the store failed", NULL);
+    }
+}
+
+enum { GET = 1, POST = 2, DELETE = 4 }; /* HEAD is answered as GET */
+
+/* Every route of API.md: a path ({id}: one job or model id, hex as issued), its methods, and
+ * either a handler or the job kind a POST submits. open: answered without a token. */
+static const struct route {
+    const char *path;
+    unsigned methods;
+    bool open;
+    enum MHD_Result (*fn)(struct req *r, const char *id);
+    const char *kind;
+} ROUTES[] = {
+    {"/livez", GET, true, livez, NULL},
+    {"/readyz", GET, true, readyz, NULL},
+    {"/version", GET, false, version, NULL},
+    {"/metrics", GET, false, metrics, NULL},
+    {"/openapi.yaml", GET, false, openapi, NULL},
+    {"/render", POST, false, NULL, "render"},
+    {"/volume", POST, false, NULL, "volume"},
+    {"/model", POST, false, NULL, "model"},
+    {"/isosurface", POST, false, not_built, NULL},
+    {"/models", GET, false, models, NULL},
+    {"/models/{id}", GET | DELETE, false, model_resource, NULL},
+    {"/models/{id}/mesh", GET, false, model_mesh_route, NULL},
+    {"/models/{id}/patches", GET, false, model_patches_route, NULL},
+    {"/models/{id}/render", GET, false, model_view_route, NULL},
+    {"/jobs", GET, false, jobs, NULL},
+    {"/jobs/{id}", GET, false, job, NULL},
+    {"/jobs/{id}/result", GET, false, result, NULL},
+    {"/jobs/{id}/cancel", POST, false, cancel, NULL},
+};
+
+/* Whether path matches pattern; the {id} segment, if any, into id. */
+static bool match(const char *pattern, const char *path, char id[40])
+{
+    const char *brace = strstr(pattern, "{id}");
+    if (!brace)
+        return !strcmp(pattern, path);
+    size_t pre = (size_t)(brace - pattern);
+    if (strncmp(pattern, path, pre))
+        return false;
+    const char *rest;
+    return split_id(path + pre, id, &rest) && !strcmp(rest ? rest : "", brace + 4);
+}
+
 static enum MHD_Result route(struct req *r)
 {
-    const char *m = r->method, *p = r->path;
-    bool get = !strcmp(m, "GET") || !strcmp(m, "HEAD"), post = !strcmp(m, "POST");
-    if (!strcmp(p, "/livez"))
-        return get ? text(r, 200, "text/plain", "ok\n") : problem(r, 405, "GET only", NULL);
-    if (!strcmp(p, "/readyz")) {
-        if (atomic_load(&r->svc->draining))
-            return problem(r, 503, "draining", NULL);
-        return store_writable(r->svc->store) ? text(r, 200, "text/plain", "ready\n")
-                                              : problem(r, 503, "the store is not writable", NULL);
+    const char *m = r->method;
+    unsigned method = !strcmp(m, "GET") || !strcmp(m, "HEAD") ? GET : !strcmp(m, "POST") ? POST
+                      : !strcmp(m, "DELETE")                  ? DELETE
+                                                              : 0;
+    char id[40] = "";
+    for (size_t k = 0; k < sizeof ROUTES / sizeof *ROUTES; k++) {
+        const struct route *rt = &ROUTES[k];
+        if (!match(rt->path, r->path, id))
+            continue;
+        if (!rt->open && !authorised(r))
+            return problem(r, 401, "a valid bearer token is required", NULL);
+        if (!(rt->methods & method)) {
+            char allow[32];
+            snprintf(allow, sizeof allow, "%s%s%s", rt->methods & GET ? "GET, HEAD" : "",
+                     rt->methods & POST ? (rt->methods & GET ? ", POST" : "POST") : "",
+                     rt->methods & DELETE ? ", DELETE" : "");
+            struct reply rp = {405, "application/problem+json", problem_json(405, "method not allowed here", NULL), 0,
+                               {{"Allow", allow}}};
+            rp.len = rp.body ? strlen(rp.body) : 0;
+            return send_reply(r, &rp);
+        }
+        return rt->kind ? post_job(r, job_kind(rt->kind)) : rt->fn(r, id);
     }
     if (!authorised(r))
         return problem(r, 401, "a valid bearer token is required", NULL);
-    if (!strcmp(p, "/version"))
-        return text(r, 200, "application/json", "{\"name\":\"surfd\",\"version\":\"" SURFD_VERSION "\"}");
-    if (!strcmp(p, "/metrics")) {
-        char *t = metrics_text(r->svc);
-        if (!t)
-            return problem(r, 500, "metrics failed", NULL);
-        struct reply rp = {200, "text/plain; version=0.0.4", t, strlen(t), {{0}}};
-        return send_reply(r, &rp);
-    }
-    if (!strcmp(p, "/openapi.yaml"))
-        return text(r, 200, "application/yaml", surfd_openapi_yaml);
-    if (!strcmp(p, "/render"))
-        return post ? post_render(r) : problem(r, 405, "POST a scene to /render", NULL);
-    if (!strcmp(p, "/volume"))
-        return post ? post_contours(r, "volume", volume_job_submit) : problem(r, 405, "POST contours to /volume", NULL);
-    if (!strcmp(p, "/model"))
-        return post ? post_contours(r, "model", model_job_submit) : problem(r, 405, "POST contours to /model", NULL);
-    if (!strcmp(p, "/models"))
-        return get ? model_list(r) : problem(r, 405, "GET only", NULL);
-    char id[40];
-    const char *rest;
-    if (!strncmp(p, "/models/", 8))
-        return split_id(p + 8, id, &rest) ? model_route(r, id, rest, get) : problem(r, 404, "no such model", NULL);
-    if (!strcmp(p, "/isosurface"))
-        return problem(r, 501, "this route is part of the contract but not built yet", NULL);
-    if (!strcmp(p, "/jobs"))
-        return get ? job_list(r) : problem(r, 405, "GET only", NULL);
-    if (!strncmp(p, "/jobs/", 6)) {
-        if (!split_id(p + 6, id, &rest))
-            return problem(r, 404, "no such job", NULL);
-        if (!rest)
-            return get ? job_resource(r, 200, id) : problem(r, 405, "GET only", NULL);
-        if (!strcmp(rest, "/result"))
-            return get ? job_result(r, id, false) : problem(r, 405, "GET only", NULL);
-        if (!strcmp(rest, "/cancel")) {
-            if (!post)
-                return problem(r, 405, "POST only", NULL);
-            struct job_rec rec;
-            int found = get_job(r, id, false, &rec);
-            if (found != 1)
-                return no_job(r, found);
-            store_rec_free(&rec);
-            return jobq_cancel(r->svc->q, id) ? job_resource(r, 202, id)
-                                              : problem(r, 409, "the job has already ended", NULL);
-        }
-    }
+    if (!strncmp(r->path, "/jobs/", 6))
+        return problem(r, 404, "no such job", NULL);
+    if (!strncmp(r->path, "/models/", 8))
+        return problem(r, 404, "no such model", NULL);
     return problem(r, 404, "no such route", NULL);
 }
 

@@ -1,18 +1,18 @@
-/* service.c - small helpers every part of the daemon uses. */
+/* service.c - the node's keeper (claims, heartbeats, reaping), the end of jobs, and small helpers
+ * every part of the daemon uses. See service.h for how a job travels. */
 #include "service.h"
 
-#include <stdlib.h>
-
-#include "../api/problem.h"
-#include "log.h"
-#include "metrics.h"
-
-#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/random.h>
 #include <time.h>
+
+#include "../api/problem.h"
+#include "kinds.h"
+#include "log.h"
+#include "metrics.h"
 
 double wall_s(void)
 {
@@ -34,139 +34,298 @@ void service_new_id(char out[40])
         snprintf(out + 2 * k, 3, "%02x", b[k]);
 }
 
-/* The job kinds: what a stored job's kind name runs as. */
-static const struct {
-    const char *name;
-    int (*submit)(struct service *, const char *, bool);
-} KINDS[] = {
-    {"render", render_job_submit}, {"volume", volume_job_submit},   {"model", model_job_submit},
-    {"mesh", mesh_job_submit},     {"patches", patches_job_submit},
-};
-
-int service_submit_kind(struct service *svc, const char *kind, const char *id, bool force)
-{
-    for (size_t k = 0; k < sizeof KINDS / sizeof *KINDS; k++)
-        if (!strcmp(KINDS[k].name, kind))
-            return KINDS[k].submit(svc, id, force);
-    return -1;
-}
-
 #define STORE_TRIES 3          /* writes of a job's end before it is stranded */
 #define STRANDED_FIRST_S 5.0   /* a stranded job's first delay; doubled each time, up to: */
 #define STRANDED_LAST_S 300.0
 
-/* The stranded entry of id, or NULL. Lock held. */
-static struct stranded *stranded_find(struct service *svc, const char *id)
+/* ---- the claims this node holds ---- */
+
+/* The claim on job id under fence (any fence: fence < 0), or NULL. Lock held. */
+static struct claim *claim_find(struct service *svc, const char *id, long fence)
 {
-    for (int k = 0; k < svc->n_stranded; k++)
-        if (!strcmp(svc->stranded[k].id, id))
-            return &svc->stranded[k];
+    for (int k = 0; k < svc->n_claims; k++)
+        if (!strcmp(svc->claims[k].c.id, id) && (fence < 0 || svc->claims[k].c.fence == fence))
+            return &svc->claims[k];
     return NULL;
 }
 
-/* Keeps job id for a later run (or counts one more try of a job kept already). */
-static void strand(struct service *svc, const char *id)
+static void claim_drop(struct service *svc, const struct job_claim *c)
 {
-    struct job_rec rec;
-    int found = store_get(svc->store, id, false, false, &rec);
-    store_requeue(svc->store, id); /* may fail as the end did; the list below is what counts */
-    metrics_store_error();
-    pthread_mutex_lock(&svc->stranded_lock);
-    struct stranded *s = stranded_find(svc, id);
-    if (!s && found == 1 && svc->n_stranded < STRANDED_MAX) {
-        s = &svc->stranded[svc->n_stranded++];
-        *s = (struct stranded){.tries = 0};
-        snprintf(s->id, sizeof s->id, "%s", id);
-        snprintf(s->kind, sizeof s->kind, "%s", rec.kind);
+    pthread_mutex_lock(&svc->lock);
+    struct claim *h = claim_find(svc, c->id, c->fence);
+    if (h)
+        *h = svc->claims[--svc->n_claims];
+    pthread_mutex_unlock(&svc->lock);
+}
+
+/* Takes one queued job from the store and starts it: true when one was started. */
+static bool claim_one(struct service *svc)
+{
+    pthread_mutex_lock(&svc->lock);
+    bool full = svc->n_claims >= CLAIMS_MAX;
+    pthread_mutex_unlock(&svc->lock);
+    if (full || atomic_load(&svc->draining) || jobq_room(svc->q) == 0)
+        return false;
+    struct job_claim c;
+    if (store_claim(svc->store, svc->node, (double)svc->cfg.lease, &c) != 1)
+        return false;
+    pthread_mutex_lock(&svc->lock);
+    svc->claims[svc->n_claims++] = (struct claim){.c = c};
+    pthread_mutex_unlock(&svc->lock);
+    const struct job_kind *kind = job_kind(c.kind);
+    if (!kind || kind->start(svc, &c)) {
+        LOG(LOG_ERROR, "job %s of kind \"%s\" could not be started here; handed back", c.id, c.kind);
+        store_release(svc->store, c.id, c.fence);
+        claim_drop(svc, &c);
+        return false;
     }
-    if (s) {
-        s->tries++;
-        double delay = STRANDED_FIRST_S * (double)(1 << (s->tries < 7 ? s->tries - 1 : 6));
-        delay = delay < STRANDED_LAST_S ? delay : STRANDED_LAST_S;
-        s->retry_at = monotonic_s() + delay;
-        LOG(LOG_ERROR, "job %s: the store will not take its end (%d); run again in %.0f s", id, s->tries, delay);
+    LOG(LOG_DEBUG, "job %s (%s) claimed, fence %ld", c.id, c.kind, c.fence);
+    return true;
+}
+
+/* Renews the lease of every claim held, stores progress, and passes a cancel asked anywhere to
+ * the pool. A claim the store says is lost is cancelled here (its end would change nothing). */
+static void heartbeat(struct service *svc)
+{
+    pthread_mutex_lock(&svc->lock);
+    int n = svc->n_claims;
+    struct job_claim *held = malloc(sizeof *held * (size_t)(n ? n : 1));
+    for (int k = 0; held && k < n; k++)
+        held[k] = svc->claims[k].c;
+    pthread_mutex_unlock(&svc->lock);
+    for (int k = 0; held && k < n; k++) {
+        enum job_state st;
+        double progress = 0;
+        jobq_peek(svc->q, held[k].id, &st, &progress);
+        bool cancel = false;
+        int rc = store_heartbeat(svc->store, held[k].id, held[k].fence, (double)svc->cfg.lease, progress, &cancel);
+        if (rc == 0)
+            LOG(LOG_WARN, "job %s: this node's claim was lost (its lease ran out); stopping it here", held[k].id);
+        if (rc == 0 || (rc == 1 && cancel))
+            jobq_cancel(svc->q, held[k].id);
+    }
+    free(held);
+}
+
+static void reaped(const char *id, enum job_state state, void *arg)
+{
+    struct service *svc = arg;
+    if (state == JOB_FAILED) {
+        LOG(LOG_ERROR, "job %s stopped the service %ld times: failed, not run again", id, svc->cfg.max_attempts);
+        jobq_notify(svc->q, id); /* a waiter on any node learns it ended */
     } else {
-        LOG(LOG_ERROR, "job %s: the store will not take its end, and it cannot be kept for a retry; it runs again at "
-                       "the next start", id);
+        LOG(LOG_WARN, "job %s: its node's lease ran out; queued again", id);
     }
-    pthread_mutex_unlock(&svc->stranded_lock);
-    store_rec_free(&rec);
+}
+
+char *service_give_up_problem(const struct service *svc)
+{
+    struct sf_err err = {0};
+    sf_fail(&err, SF_EBACKEND, "", "this job stopped the service %ld times (a crash, or its node lost); it is not run again",
+            svc->cfg.max_attempts);
+    return problem_from_err(&err);
+}
+
+/* The keeper: claims while the pool has room, heartbeats a third of a lease apart, reaps expired
+ * leases as often. It sleeps until woken (a submit, a job's end) or a second has passed: a second
+ * is how long a job queued by another node can wait for this one's idle workers. */
+static void *keeper(void *arg)
+{
+    struct service *svc = arg;
+    double beat = monotonic_s(), reap = beat;
+    char *give_up = service_give_up_problem(svc);
+    pthread_mutex_lock(&svc->lock);
+    while (!svc->stop) {
+        if (!svc->wake) {
+            struct timespec ts;
+            clock_gettime(CLOCK_MONOTONIC, &ts);
+            ts.tv_sec += 1;
+            pthread_cond_timedwait(&svc->wake_cond, &svc->lock, &ts);
+        }
+        svc->wake = false;
+        if (svc->stop)
+            break;
+        pthread_mutex_unlock(&svc->lock);
+        while (claim_one(svc))
+            ;
+        double now = monotonic_s(), every = (double)svc->cfg.lease / 3;
+        if (now - beat >= every) {
+            heartbeat(svc);
+            beat = now;
+        }
+        if (now - reap >= every) {
+            store_reap(svc->store, wall_s(), NULL, (int)svc->cfg.max_attempts, give_up, reaped, svc);
+            reap = now;
+        }
+        pthread_mutex_lock(&svc->lock);
+    }
+    pthread_mutex_unlock(&svc->lock);
+    free(give_up);
+    return NULL;
+}
+
+void service_wake(struct service *svc)
+{
+    pthread_mutex_lock(&svc->lock);
+    svc->wake = true;
+    pthread_cond_signal(&svc->wake_cond);
+    pthread_mutex_unlock(&svc->lock);
+}
+
+static void wake_on_room(void *arg) { service_wake(arg); }
+
+/* What other nodes did (a shared store): claim what they queued, answer waiters of what they
+ * ended, stop what they were asked to cancel. */
+static void on_store_event(enum store_event ev, const char *id, void *arg)
+{
+    struct service *svc = arg;
+    if (ev == STORE_QUEUED)
+        service_wake(svc);
+    else if (ev == STORE_ENDED)
+        jobq_notify(svc->q, id);
+    else
+        jobq_cancel(svc->q, id);
+}
+
+int service_start(struct service *svc)
+{
+    pthread_condattr_t ca;
+    pthread_condattr_init(&ca);
+    pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
+    pthread_cond_init(&svc->wake_cond, &ca);
+    pthread_condattr_destroy(&ca);
+    jobq_on_room(svc->q, wake_on_room, svc);
+    store_on_event(svc->store, on_store_event, svc);
+    svc->wake = true;
+    if (pthread_create(&svc->keeper, NULL, keeper, svc))
+        return -1;
+    svc->keeper_started = true;
+    return 0;
+}
+
+void service_stop(struct service *svc)
+{
+    if (!svc->keeper_started)
+        return;
+    pthread_mutex_lock(&svc->lock);
+    svc->stop = true;
+    pthread_cond_signal(&svc->wake_cond);
+    pthread_mutex_unlock(&svc->lock);
+    pthread_join(svc->keeper, NULL);
+    store_on_event(svc->store, NULL, NULL); /* no more calls into the queue from the store */
+    svc->keeper_started = false;
+}
+
+/* ---- a job's end ---- */
+
+/* Keeps a claimed job for a later run (or counts one more try of a job kept already). Its claim
+ * stays held, its lease renewed by the heartbeats. */
+static void strand(struct service *svc, const struct job_claim *c)
+{
+    metrics_store_error();
+    pthread_mutex_lock(&svc->lock);
+    struct claim *h = claim_find(svc, c->id, c->fence);
+    if (h) {
+        h->stranded = true;
+        h->tries++;
+        double delay = STRANDED_FIRST_S * (double)(1 << (h->tries < 7 ? h->tries - 1 : 6));
+        delay = delay < STRANDED_LAST_S ? delay : STRANDED_LAST_S;
+        h->retry_at = monotonic_s() + delay;
+        LOG(LOG_ERROR, "job %s: the store will not take its end (%d); run again in %.0f s", c->id, h->tries, delay);
+    }
+    pthread_mutex_unlock(&svc->lock);
 }
 
 /* Writes a job's end, trying a few times a moment apart (a full disk may clear as pruning or a
- * checkpoint frees pages). 0 or -1. */
-static int store_end(struct service *svc, const char *id, enum job_state outcome, const unsigned char *result,
-                     size_t len, const char *type, const char *meta, const char *problem)
+ * checkpoint frees pages): 1 written, 0 the claim is lost, -1 the store refused. */
+static int store_end(struct service *svc, const struct job_claim *c, const struct job_end *end)
 {
     int rc = -1;
-    for (int k = 0; k < STORE_TRIES && rc; k++) {
+    for (int k = 0; k < STORE_TRIES && rc < 0; k++) {
         if (k) {
             struct timespec ts = {0, 200 * 1000000L};
             nanosleep(&ts, NULL);
         }
-        rc = outcome == JOB_SUCCEEDED ? store_set_result(svc->store, id, result, len, type, meta, wall_s())
-             : outcome == JOB_FAILED  ? store_set_state(svc->store, id, "failed", 0.0, 0, wall_s(), problem)
-                                      : store_set_state(svc->store, id, "cancelled", 0.0, 0, wall_s(), NULL);
+        rc = store_finish(svc->store, c->id, c->fence, end);
     }
     return rc;
 }
 
-void service_job_end(struct service *svc, const char *id, enum job_state outcome, bool requeue,
+void service_job_end(struct service *svc, const struct job_claim *c, enum job_state outcome, bool requeue,
                      const unsigned char *result, size_t len, const char *type, const char *meta,
                      const struct sf_err *err)
 {
-    if (requeue) { /* shutdown: leave it to the next start */
-        store_requeue(svc->store, id);
+    if (requeue) { /* a drain: leave it to a node that runs on */
+        store_release(svc->store, c->id, c->fence);
+        claim_drop(svc, c);
         return;
     }
     char *p = outcome == JOB_FAILED ? problem_from_err(err) : NULL;
     if (outcome == JOB_FAILED)
-        LOG(LOG_WARN, "job %s failed: %s", id, err->message);
-    if (store_end(svc, id, outcome, result, len, type, meta, p)) {
-        strand(svc, id);
+        LOG(LOG_WARN, "job %s failed: %s", c->id, err->message);
+    struct job_end end = {outcome, result, len, type, meta, p, wall_s()};
+    int rc = store_end(svc, c, &end);
+    if (rc < 0) {
+        strand(svc, c);
     } else {
-        metrics_job_end(outcome);
-        pthread_mutex_lock(&svc->stranded_lock);
-        struct stranded *s = stranded_find(svc, id);
-        if (s) {
-            LOG(LOG_INFO, "job %s: the store took its end after %d refusals", id, s->tries);
-            *s = svc->stranded[--svc->n_stranded];
-        }
-        pthread_mutex_unlock(&svc->stranded_lock);
+        if (rc == 1)
+            metrics_job_end(outcome);
+        else
+            LOG(LOG_WARN, "job %s: ended here after its claim was lost; its outcome is dropped", c->id);
+        pthread_mutex_lock(&svc->lock);
+        struct claim *h = claim_find(svc, c->id, c->fence);
+        if (h && h->stranded)
+            LOG(LOG_INFO, "job %s: the store took its end after %d refusals", c->id, h->tries);
+        if (h)
+            *h = svc->claims[--svc->n_claims];
+        pthread_mutex_unlock(&svc->lock);
     }
     free(p);
+}
+
+void service_release(struct service *svc, const char *id)
+{
+    pthread_mutex_lock(&svc->lock);
+    struct claim *h = claim_find(svc, id, -1);
+    struct job_claim c = h ? h->c : (struct job_claim){.fence = -1};
+    pthread_mutex_unlock(&svc->lock);
+    if (h)
+        store_release(svc->store, c.id, c.fence);
 }
 
 void service_retry_stranded(struct service *svc)
 {
     double now = monotonic_s();
-    pthread_mutex_lock(&svc->stranded_lock);
-    for (int k = 0; k < svc->n_stranded; k++) {
-        struct stranded *s = &svc->stranded[k];
-        if (s->retry_at > now)
+    pthread_mutex_lock(&svc->lock);
+    for (int k = 0; k < svc->n_claims; k++) {
+        struct claim *h = &svc->claims[k];
+        if (!h->stranded || h->retry_at > now)
             continue;
-        s->retry_at = INFINITY; /* running: its end sets the next */
-        char id[40], kind[16];
-        snprintf(id, sizeof id, "%s", s->id);
-        snprintf(kind, sizeof kind, "%s", s->kind);
-        pthread_mutex_unlock(&svc->stranded_lock);
-        bool queued = service_submit_kind(svc, kind, id, true) == 0;
-        LOG(queued ? LOG_INFO : LOG_WARN, "job %s: run again after the store refused its end%s", id,
-            queued ? "" : ": could not queue it");
-        pthread_mutex_lock(&svc->stranded_lock);
-        if (!queued && (s = stranded_find(svc, id)))
-            s->retry_at = now + STRANDED_FIRST_S;
+        h->retry_at = INFINITY; /* running: its end sets the next */
+        struct job_claim c = h->c;
+        pthread_mutex_unlock(&svc->lock);
+        const struct job_kind *kind = job_kind(c.kind);
+        bool started = kind && kind->start(svc, &c) == 0;
+        LOG(started ? LOG_INFO : LOG_WARN, "job %s: run again after the store refused its end%s", c.id,
+            started ? "" : ": could not start it");
+        pthread_mutex_lock(&svc->lock);
+        if (!started && (h = claim_find(svc, c.id, c.fence)))
+            h->retry_at = now + STRANDED_FIRST_S;
     }
-    pthread_mutex_unlock(&svc->stranded_lock);
+    pthread_mutex_unlock(&svc->lock);
 }
 
 int service_n_stranded(struct service *svc)
 {
-    pthread_mutex_lock(&svc->stranded_lock);
-    int n = svc->n_stranded;
-    pthread_mutex_unlock(&svc->stranded_lock);
+    pthread_mutex_lock(&svc->lock);
+    int n = 0;
+    for (int k = 0; k < svc->n_claims; k++)
+        n += svc->claims[k].stranded;
+    pthread_mutex_unlock(&svc->lock);
     return n;
 }
+
+/* ---- helpers of the job kinds ---- */
 
 static int model_source(void *ctx, const char *id, char **src, size_t *len)
 {
@@ -177,4 +336,10 @@ static int model_source(void *ctx, const char *id, char **src, size_t *len)
 struct model_resolver service_models(struct model_scope *scope)
 {
     return (struct model_resolver){model_source, scope};
+}
+
+bool service_poll_job(void *ctx, double done)
+{
+    const struct job_poll *p = ctx;
+    return jobq_cancelled(p->q, p->j, done);
 }

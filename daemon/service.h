@@ -1,5 +1,13 @@
 /* service.h - what the running daemon shares between its HTTP front end and its jobs: settings,
- * store, queue, Embree device, tokens, the draining flag. Created by cmd_serve.c. */
+ * store, queue, Embree device, tokens, the draining flag; and the node's keeper, the thread that
+ * moves jobs between the store and the worker pool. Created by cmd_serve.c.
+ *
+ * How a job travels: the HTTP layer validates a request and store_submit()s it (QUEUED), then
+ * wakes the keeper. The keeper claims queued jobs (store_claim: any node's, oldest first) while
+ * the pool has room, and starts each by its kind (kinds.h) on the pool. While a job runs the
+ * keeper renews its lease (store_heartbeat) and passes on a cancel asked on any node. The job's
+ * kind ends it through service_job_end(), which store_finish()es it under the claim's fence. The
+ * keeper also reaps claims whose lease ran out (a node that died) so that another node runs them. */
 #ifndef SURFD_SERVICE_H
 #define SURFD_SERVICE_H
 
@@ -14,13 +22,14 @@
 #include "store.h"
 #include "tokens.h"
 
-/* A job whose end the store would not take (a full disk, a failing device): its outcome is lost,
- * the job is not. It is run again, after a growing delay, until the store takes its end. */
-#define STRANDED_MAX 1024
-struct stranded {
-    char id[40];
-    char kind[16];
-    double retry_at;         /* monotonic seconds */
+/* The claims this node holds: jobs on its pool, and jobs whose end the store would not take (a
+ * full disk, a failing device: stranded). A stranded job's outcome is lost, the job is not: it is
+ * run again, after a growing delay, until the store takes its end; its lease is kept meanwhile. */
+#define CLAIMS_MAX 1024
+struct claim {
+    struct job_claim c;
+    bool stranded;
+    double retry_at;         /* monotonic seconds, when stranded */
     int tries;
 };
 
@@ -31,34 +40,48 @@ struct service {
     struct bvh_device *dev;
     struct token *tokens;    /* bearer tokens; none: open (loopback, or --insecure-no-auth) */
     size_t n_tokens;
+    char node[64];           /* this node's name in the store */
     atomic_bool draining;
     double started_wall;     /* Unix seconds */
     double started_mono;
-    pthread_mutex_t stranded_lock; /* guards the two fields below */
-    struct stranded stranded[STRANDED_MAX];
-    int n_stranded;
+    pthread_mutex_t lock;    /* guards the fields below */
+    pthread_cond_t wake_cond;
+    bool wake, stop;
+    struct claim claims[CLAIMS_MAX];
+    int n_claims;
+    pthread_t keeper;
+    bool keeper_started;
 };
 
 double wall_s(void);
 /* A new random job id (32 hex digits). */
 void service_new_id(char out[40]);
 
-/* Records a job's end in the store and the metrics: succeeded (result) or failed (problem from
- * err) or cancelled, or, with requeue, back to queued for the next start. result may be NULL for
- * outcomes other than JOB_SUCCEEDED. When the store will not take the end (after a few tries),
- * the job is stranded: counted nowhere as ended, run again by service_retry_stranded(). */
-void service_job_end(struct service *svc, const char *id, enum job_state outcome, bool requeue,
+/* Starts the keeper (after the pool and the store are open). 0 or -1. */
+int service_start(struct service *svc);
+/* Stops the keeper: no more claims, heartbeats or reaps. */
+void service_stop(struct service *svc);
+/* Asks the keeper to look for queued jobs now (a job was submitted, or one ended). */
+void service_wake(struct service *svc);
+
+/* Records a job's end in the store (under its claim) and the metrics: succeeded (result) or
+ * failed (problem from err) or cancelled, or, with requeue, handed back queued (a drain). result
+ * may be NULL for outcomes other than JOB_SUCCEEDED. A claim this node no longer holds changes
+ * nothing (the job was reaped and runs elsewhere). When the store will not take the end (after a
+ * few tries), the job is stranded, and run again by service_retry_stranded(). */
+void service_job_end(struct service *svc, const struct job_claim *c, enum job_state outcome, bool requeue,
                      const unsigned char *result, size_t len, const char *type, const char *meta,
                      const struct sf_err *err);
+/* A job of this node's pool that a drain could not stop: handed back queued. */
+void service_release(struct service *svc, const char *id);
 
 /* Runs the stranded jobs whose delay has passed (the daemon's main loop calls it). */
 void service_retry_stranded(struct service *svc);
 /* Jobs stranded now (for /metrics). */
 int service_n_stranded(struct service *svc);
 
-/* Queues stored job id of the named kind (force as in jobq_submit): 0, or -1 (the queue is full
- * or stopping, or no kind has that name). */
-int service_submit_kind(struct service *svc, const char *kind, const char *id, bool force);
+/* The give-up problem JSON of a job that reached max-attempts (caller frees). */
+char *service_give_up_problem(const struct service *svc);
 
 /* Stored models for scenes' model objects, those of owner only (NULL: every owner's). The resolver
  * borrows *scope, which the caller fills and keeps while it is used. */
@@ -68,11 +91,11 @@ struct model_scope {
 };
 struct model_resolver service_models(struct model_scope *scope);
 
-/* The job kinds: each queues job `id` (already in the store). force as in jobq_submit. */
-int render_job_submit(struct service *svc, const char *id, bool force);
-int volume_job_submit(struct service *svc, const char *id, bool force);
-int model_job_submit(struct service *svc, const char *id, bool force);
-int mesh_job_submit(struct service *svc, const char *id, bool force);
-int patches_job_submit(struct service *svc, const char *id, bool force);
+/* The modelling's poll (core/base/err.h) for a job on the pool: its progress, and its cancel flag. */
+struct job_poll {
+    struct jobq *q;
+    struct job *j;
+};
+bool service_poll_job(void *ctx, double done);
 
 #endif

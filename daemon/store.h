@@ -1,26 +1,56 @@
-/* store.h - the embedded store: job records and their results in SQLite (WAL) under the data
- * directory. Every accepted request is written here before it is answered, so a crash loses no
- * job: on start, jobs still queued or running are read back and run again.
- * Thread-safe: one connection behind one mutex; every call is one short transaction. */
+/* store.h - where jobs, their results and models live, and the one owner of a job's lifecycle.
+ * Every accepted request is written here before it is answered, so a crash loses no job.
+ *
+ * Backends (store_open picks one by its target): the embedded SQLite database under the data
+ * directory (store_sqlite.c, the default: one node), or PostgreSQL (store_pg.c, a libpq URI:
+ * several nodes share the jobs, each claiming them as it has room).
+ *
+ * The lifecycle of a job, and the function that makes each transition (nothing else writes a
+ * job's state):
+ *
+ *                      store_submit
+ *                           |
+ *                           v
+ *          +----------->  QUEUED  ---------- store_cancel ------------+
+ *          |                |                                         |
+ *   store_release           | store_claim: attempts + 1, a lease       |
+ *   (drain: the attempt     |   (lease_until) held by one node, and    |
+ *   not counted)            |   a new fence token                      v
+ *   store_reap (the lease   v                                     CANCELLED
+ *   ran out, or its node    RUNNING --- store_heartbeat: lease renewed, progress,
+ *   restarted: counted)  |  |             the cancel request read (cancel on a
+ *          +-------------+  |             running job only asks: the node stops it)
+ *                           |
+ *                           | store_finish (only with the claim's fence token: a node that lost
+ *                           |   its lease, or whose job was claimed again, changes nothing)
+ *                           v
+ *              SUCCEEDED | FAILED | CANCELLED  ---- store_prune (ttl, count) ----> gone
+ *
+ *   store_reap also ends a job whose attempts reached the maximum as FAILED: the job that keeps
+ *   stopping a node (a crash in its run) is not run a third time.
+ *
+ * Thread-safe: every call is one short transaction; none is held across a job's run. */
 #ifndef SURFD_STORE_H
 #define SURFD_STORE_H
 
 #include <stdbool.h>
 #include <stddef.h>
 
+#include "job_state.h"
+
 struct store;
 
 /* What a read answers when a stored result or model's bytes no longer match the checksum taken
- * when they were written (damage below SQLite: a flipped bit on disk): never the bytes. */
+ * when they were written (damage below the database: a flipped bit on disk): never the bytes. */
 #define STORE_DAMAGED -2
 
 struct job_rec {
     char id[40];
-    char kind[16];           /* render, model, volume, isosurface */
-    char state[16];          /* queued, running, succeeded, failed, cancelled */
-    double progress;         /* 0..1 */
+    char kind[16];           /* a job kind's name (kinds.h) */
+    enum job_state state;
+    double progress;         /* 0..1, as last stored (the running node's heartbeat) */
     double created, started, finished; /* Unix seconds; 0: not yet */
-    char format[16];         /* request body format: json, bpt, nurbs */
+    char format[16];         /* request body format: json, bpt, nurbs, dicom */
     char options[512];       /* request options as a query string (output=exr&...) */
     unsigned char *request;  /* the body as received */
     size_t request_len;
@@ -29,42 +59,83 @@ struct job_rec {
     char result_type[48];    /* Content-Type of the result */
     char *meta;              /* JSON object of result headers (render_ms, rays), or NULL */
     char *error;             /* problem JSON, or NULL */
-    int attempts;            /* times a worker has started it (store_claim) and not handed it back */
+    int attempts;            /* claims of it that were not handed back (store_release) */
     char owner[64];          /* name of the token that submitted it; "" in open mode */
     char result_sum[65];     /* SHA-256 of the result (hex), "" before it has one */
+    char node[64];           /* the node that holds (or last held) its claim */
+    bool cancel_requested;   /* store_cancel asked a running job to stop */
 };
 
-/* Opens (creating) DIR/surfd.db. On failure writes msg and returns -1. */
-int store_open(const char *dir, struct store **out, char *msg, size_t msg_len);
-void store_close(struct store *s);
+/* A claim: the job a node now runs, and the fence token its end must show. */
+struct job_claim {
+    char id[40];
+    char kind[16];
+    long fence;
+};
 
-int store_insert(struct store *s, const struct job_rec *r);
-/* Sets state and progress; started/finished are set when non-zero. error may be NULL. */
-int store_set_state(struct store *s, const char *id, const char *state, double progress, double started,
-                    double finished, const char *error);
-/* A worker starts the job: running, and one more attempt recorded before any of its work is done,
- * so that a job that takes the process down is known as such at the next start. */
-int store_claim(struct store *s, const char *id, double started);
-/* A running job handed back unfinished by a draining process: queued, the attempt not counted. */
-int store_requeue(struct store *s, const char *id);
-int store_set_result(struct store *s, const char *id, const unsigned char *data, size_t len, const char *type,
-                     const char *meta, double finished);
+/* A job's end for store_finish: outcome SUCCEEDED (with result, type, meta), FAILED (error: the
+ * problem JSON) or CANCELLED. */
+struct job_end {
+    enum job_state outcome;
+    const unsigned char *result;
+    size_t len;
+    const char *type, *meta, *error;
+    double finished;
+};
+
+/* Opens (creating) the store: target is a data directory (SQLite: DIR/surfd.db) or a
+ * postgresql:// or postgres:// URI. On failure writes msg and returns -1. */
+int store_open(const char *target, struct store **out, char *msg, size_t msg_len);
+void store_close(struct store *s);
+/* "sqlite" or "postgresql". */
+const char *store_backend(const struct store *s);
+
+/* ---- the lifecycle (see the diagram above) ---- */
+
+/* A new job, QUEUED (r->state is ignored). 0, or -1. */
+int store_submit(struct store *s, const struct job_rec *r);
+/* Claims the oldest queued job for node, its lease lasting lease_s: 1 (and *out), 0 when none
+ * is queued, -1 error. */
+int store_claim(struct store *s, const char *node, double lease_s, struct job_claim *out);
+/* Renews a running job's lease and stores its progress: 1 still held (*cancel: a cancel was
+ * asked), 0 the claim is lost (the lease ran out and the job was reaped, or it ended), -1 error. */
+int store_heartbeat(struct store *s, const char *id, long fence, double lease_s, double progress, bool *cancel);
+/* Records a running job's end: 1, 0 when the claim is no longer held (nothing written), -1. */
+int store_finish(struct store *s, const char *id, long fence, const struct job_end *end);
+/* Hands a running job back unfinished (a draining node): QUEUED, the attempt not counted. 1, 0, -1. */
+int store_release(struct store *s, const char *id, long fence);
+/* The answer of store_cancel. */
+enum store_cancel { CANCEL_ERROR = -1, CANCEL_NOT_FOUND, CANCEL_ENDED, CANCEL_DONE, CANCEL_ASKED };
+/* A queued job is cancelled at once (CANCEL_DONE); a running one is asked to stop
+ * (CANCEL_ASKED: its node's heartbeat sees it); an ended one stays as it is (CANCEL_ENDED). Jobs
+ * of other owners are not found unless owner is NULL. */
+enum store_cancel store_cancel(struct store *s, const char *id, const char *owner, double now);
+/* Running jobs whose lease ran out before now, or (node not NULL) claimed by node (a node that
+ * restarted holds nothing): QUEUED again, or FAILED with the problem JSON give_up once their
+ * attempts reached max_attempts. fn (may be NULL) is told each (id, the new state). The number
+ * reaped, or -1. */
+int store_reap(struct store *s, double now, const char *node, int max_attempts, const char *give_up,
+               void (*fn)(const char *id, enum job_state state, void *arg), void *arg);
+/* Removes ended jobs older than ttl seconds and all but the newest max_count ended ones. */
+int store_prune(struct store *s, double now, long ttl, long max_count);
+
+/* ---- reading ---- */
+
 /* Reads one record (with the request and, if with_result, the result). Returns 1 found, 0 not
- * found, -1 error, STORE_DAMAGED (the result is damaged). *out is zeroed first, so store_rec_free() is safe whatever the answer; caller
- * frees with store_rec_free(). */
+ * found, -1 error, STORE_DAMAGED (the result is damaged). *out is zeroed first, so
+ * store_rec_free() is safe whatever the answer. */
 int store_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out);
 void store_rec_free(struct job_rec *r);
 /* Calls fn for each record (no blobs), newest first; state NULL for all, owner NULL for every
  * owner's, limit <= 0 for no limit. */
-int store_list(struct store *s, const char *state, const char *owner, long limit,
+int store_list(struct store *s, const enum job_state *state, const char *owner, long limit,
                void (*fn)(const struct job_rec *, void *), void *arg);
-/* Jobs left queued or running by an earlier process, oldest first (ids into fn). */
-int store_unfinished(struct store *s, void (*fn)(const char *id, void *), void *arg);
-/* Removes finished jobs older than ttl seconds and all but the newest max_count finished ones. */
-int store_prune(struct store *s, double now, long ttl, long max_count);
-int store_delete(struct store *s, const char *id);
-/* Models: made by model jobs, kept until deleted (job pruning leaves them). source is the contour
- * JSON they are rebuilt from, resource the JSON of GET /models/{id}. */
+/* Jobs queued (all nodes'), or -1. */
+long store_queued(struct store *s);
+
+/* ---- models: made by model jobs, kept until deleted (job pruning leaves them) ---- */
+
+/* source is the contour JSON a model is rebuilt from, resource the JSON of GET /models/{id}. */
 struct model_rec {
     const char *id, *job, *name, *owner;
     double created;
@@ -74,8 +145,8 @@ struct model_rec {
 };
 /* Inserts, or replaces a model of the same id (a job run again after a crash). 0 or -1. */
 int store_model_put(struct store *s, const struct model_rec *m);
-/* Models of another owner are not found, unless owner is NULL (every owner's). */
-/* 1 found (*resource, *source: caller frees; either pointer may be NULL), 0 not found, -1 error,
+/* Models of another owner are not found, unless owner is NULL (every owner's).
+ * 1 found (*resource, *source: caller frees; either pointer may be NULL), 0 not found, -1 error,
  * STORE_DAMAGED. */
 int store_model_get(struct store *s, const char *id, const char *owner, char **resource, char **source,
                     size_t *source_len);
@@ -84,7 +155,19 @@ int store_model_list(struct store *s, const char *owner, long limit, void (*fn)(
                      void *arg);
 /* 1 deleted, 0 not found, -1 error. */
 int store_model_delete(struct store *s, const char *id, const char *owner);
+
+/* What other nodes did, as a shared store tells it (PostgreSQL's LISTEN/NOTIFY): a job was
+ * queued (idle workers claim it), ended (its waiters here answer), or asked to stop (the node
+ * that runs it cancels it). fn runs on the store's listener thread. The embedded store has one
+ * node and tells nothing. */
+enum store_event { STORE_QUEUED, STORE_ENDED, STORE_CANCEL };
+void store_on_event(struct store *s, void (*fn)(enum store_event ev, const char *id, void *arg), void *arg);
+
 /* A write succeeds (for /readyz). */
 bool store_writable(struct store *s);
+
+/* SHA-256 of a then b (either may be empty) as 64 hex digits: what a stored result or model is
+ * checked against when read back (the databases check their pages, not a blob's bytes). */
+void store_checksum(const void *a, size_t na, const void *b, size_t nb, char out[65]);
 
 #endif

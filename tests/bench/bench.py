@@ -315,8 +315,137 @@ def rtstruct_bench(lines, path):
     lines.append("")
 
 
+def pg_cluster(path):
+    """A throwaway PostgreSQL (tests/tools/pg.inc) in path: its URI."""
+    subprocess.run(["sh", "-c", '. tests/tools/pg.inc && pg_start "$1"', "sh", path], cwd=ROOT, check=True,
+                   stdout=subprocess.DEVNULL)
+    return "postgresql:///surfd?host=%s&user=surfd" % path
+
+
+def pg_cluster_stop(path):
+    subprocess.run(["sh", "-c", '. tests/tools/pg.inc && PG_DIR="$1" && pg_stop', "sh", path], cwd=ROOT)
+
+
+def start_node(name, store, threads=2, lease=30):
+    log_path = os.path.join(TMP, name + ".log")
+    log = open(log_path, "w")
+    args = [SURFD, "serve", "--listen", "127.0.0.1:0", "--data-dir", os.path.join(TMP, name), "--log-level", "warn",
+            "--threads", str(threads), "--queue-max", "100000", "--node-name", name, "--lease", str(lease)]
+    if store:
+        args += ["--store", store]
+    d = subprocess.Popen(args, stdout=log, stderr=log)
+    for _ in range(400):
+        time.sleep(0.05)
+        with open(log_path) as f:
+            m = re.search(r"listening on http://127\.0\.0\.1:(\d+)", f.read())
+        if m:
+            return d, "http://127.0.0.1:%s" % m.group(1)
+    raise RuntimeError("node %s did not start" % name)
+
+
+def post(url, body, headers):
+    req = urllib.request.Request(url, data=body, headers=headers, method="POST")
+    with urllib.request.urlopen(req, timeout=120) as r:
+        return json.loads(r.read().decode())
+
+
+def job(base, jid):
+    return json.loads(http_get(base + "/jobs/" + jid))
+
+
+def stamp_s(t):
+    import datetime
+    return datetime.datetime.strptime(t, "%Y-%m-%dT%H:%M:%S.%fZ").replace(tzinfo=datetime.timezone.utc).timestamp()
+
+
+def throughput(bases, n):
+    """n small contour volumes posted async round the nodes from 8 clients: jobs/s from the first post
+    to the last end, and the median wait from created to started (claim latency)."""
+    from concurrent.futures import ThreadPoolExecutor
+    with open(os.path.join(DATA, "contours", "synthetic_ellipsoid.json"), "rb") as f:
+        body = f.read()
+    hdr = {"Content-Type": "application/json", "Prefer": "respond-async"}
+    t0 = time.monotonic()
+    with ThreadPoolExecutor(8) as ex:
+        ids = list(ex.map(lambda k: post(bases[k % len(bases)] + "/volume", body, hdr)["id"], range(n)))
+    pending = set(ids)
+    jobs = {}
+    while pending:
+        for jid in list(pending):
+            j = job(bases[0], jid)
+            if j["state"] in ("succeeded", "failed", "cancelled"):
+                jobs[jid] = j
+                pending.discard(jid)
+        time.sleep(0.02)
+    wall = max(stamp_s(j["finished"]) for j in jobs.values()) - min(stamp_s(j["created"]) for j in jobs.values())
+    ok = sum(j["state"] == "succeeded" for j in jobs.values())
+    waits = sorted(stamp_s(j["started"]) - stamp_s(j["created"]) for j in jobs.values())
+    nodes = len({j["node"] for j in jobs.values()})
+    return n / wall, ok, statistics.median(waits) * 1000, waits[len(waits) * 9 // 10] * 1000, nodes, time.monotonic() - t0
+
+
+def cluster_bench(lines):
+    """Issue 13: small-job throughput on SQLite and on PostgreSQL with 1 and 3 nodes, claim latency, and
+    how long a job takes to run elsewhere after its node is killed."""
+    n = 300
+    lines.append("## Job machinery (issue 13): %d contour volumes (synthetic ellipsoid) posted async by 8 clients
+" % n)
+    lines.append("| store | nodes x workers | jobs/s | succeeded | claim latency p50 ms | p90 ms | nodes that ran jobs |")
+    lines.append("|---|---|---|---|---|---|---|")
+    d, base = start_node("sq", None)
+    r = throughput([base], n)
+    lines.append("| SQLite (embedded) | 1 x 2 | %.1f | %d | %.1f | %.1f | %d |" % (r[0], r[1], r[2], r[3], r[4]))
+    d.send_signal(signal.SIGTERM)
+    d.wait(timeout=60)
+    pgdir = os.path.join(TMP, "pg")
+    os.makedirs(pgdir)
+    os.chmod(TMP, 0o755)
+    uri = pg_cluster(pgdir)
+    try:
+        for count in (1, 3):
+            nodes = [start_node("n%d-%d" % (count, k), uri) for k in range(count)]
+            r = throughput([b for _, b in nodes], n)
+            lines.append("| PostgreSQL | %d x 2 | %.1f | %d | %.1f | %.1f | %d |" % (count, r[0], r[1], r[2], r[3], r[4]))
+            for p, _ in nodes:
+                p.send_signal(signal.SIGTERM)
+                p.wait(timeout=60)
+        # failover: a long render on one of two nodes, its node killed once it runs
+        lease = 5
+        nodes = [start_node("f%d" % k, uri, threads=1, lease=lease) for k in range(2)]
+        with open(os.path.join(DATA, "scenes", "teacup.json"), "rb") as f:
+            body = f.read()
+        jid = post(nodes[0][1] + "/render?width=2048&height=2048&method=bvh", body,
+                   {"Content-Type": "application/json", "Prefer": "respond-async"})["id"]
+        while job(nodes[1][1], jid)["state"] != "running":
+            time.sleep(0.01)
+        victim = job(nodes[1][1], jid)["node"]
+        k = 0 if victim == "f0" else 1
+        nodes[k][0].kill()
+        t_kill = time.time()
+        other = nodes[1 - k][1]
+        while True:
+            j = job(other, jid)
+            if j["attempts"] >= 2 and j["state"] in ("running", "succeeded"):
+                break
+            time.sleep(0.01)
+        moved = stamp_s(j["started"]) - t_kill
+        lines.append("")
+        lines.append("Node killed (kill -9) while rendering: its job ran again on the other node %.2f s later "
+                     "(lease %d s: the lease runs out, the next reap pass, at most a third of a lease later, queues it, "
+                     "and an idle node claims it at once).\n" % (moved, lease))
+        nodes[1 - k][0].send_signal(signal.SIGTERM)
+        nodes[1 - k][0].wait(timeout=120)
+    finally:
+        pg_cluster_stop(pgdir)
+
+
 def main():
     rows, notes = [], []
+    if os.environ.get("BENCH_ONLY") == "cluster":
+        lines = []
+        cluster_bench(lines)
+        print("\n".join(lines))
+        return
     if os.environ.get("BENCH_ONLY") == "contours":
         lines = []
         contour_bench(lines)
@@ -389,7 +518,9 @@ def main():
     lines.append("")
     contour_bench(lines)
     http_bench(lines)
-    lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=http` or `BENCH_ONLY=contours` for one part).")
+    cluster_bench(lines)
+    lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=http`, `BENCH_ONLY=contours` "
+                 "or `BENCH_ONLY=cluster` for one part).")
     out = os.path.join(ROOT, "tests", "bench", "RESULTS.md")
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")

@@ -109,6 +109,7 @@ TEST(bands_run_once_and_jobs_end)
             CHECK(atomic_load(&w[k]->ran[b]) <= 1);
     }
     jobq_shutdown(q, 1.0, 5.0, NULL, NULL);
+    jobq_free(q);
     for (int k = 0; k < N; k++) {
         free(w[k]->ran);
         free(w[k]);
@@ -126,16 +127,25 @@ TEST(full_queue_timeouts_and_shutdown)
     CHECK(jobq_submit(q, "b", &OPS, b, false) == 0);
     CHECK(jobq_submit(q, "c", &OPS, c, false) == -1); /* full: two queued */
     CHECK(jobq_submit(q, "c", &OPS, c, true) == 0);   /* recovery may overfill */
-    struct waited early = {0}, unknown = {0};
+    CHECK(jobq_room(q) == 0);
+    struct waited early = {0}, elsewhere = {0}, gone = {0};
     jobq_wait(q, "a", monotonic_s() + 0.05, on_wait, &early);
-    jobq_wait(q, "nosuch", monotonic_s() + 10, on_wait, &unknown);
-    CHECK(atomic_load(&unknown.calls) == 1 && atomic_load(&unknown.finished));
+    /* a job this queue does not run (another node's) is waited for until it is said to end */
+    jobq_wait(q, "elsewhere", monotonic_s() + 10, on_wait, &elsewhere);
+    jobq_wait(q, "gone", monotonic_s() + 0.1, on_wait, &gone);
+    CHECK(atomic_load(&elsewhere.calls) == 0);
+    jobq_notify(q, "elsewhere");
+    CHECK(atomic_load(&elsewhere.calls) == 1 && atomic_load(&elsewhere.finished));
+    jobq_notify(q, "elsewhere"); /* once only */
     sleep_ms(300);
+    CHECK(atomic_load(&elsewhere.calls) == 1);
     CHECK(atomic_load(&early.calls) == 1 && !atomic_load(&early.finished)); /* timed out */
+    CHECK(atomic_load(&gone.calls) == 1 && !atomic_load(&gone.finished));
     enum job_state st;
     double progress;
     CHECK(jobq_peek(q, "slow", &st, &progress) && st == JOB_RUNNING && progress > 0 && progress < 1);
     jobq_shutdown(q, 0.05, 5.0, NULL, NULL); /* slow cannot finish: cancelled for requeue; a, b, c stay queued */
+    jobq_free(q);
     CHECK(slow->outcome == JOB_CANCELLED && slow->requeue);
     CHECK(a->requeue && b->requeue && c->requeue);
     CHECK(atomic_load(&slow->finished) == 1 && atomic_load(&a->finished) == 1);

@@ -1,0 +1,57 @@
+/* kinds.h - the one table of job kinds. A kind is named in the store (jobs.kind), so a job
+ * claimed on any node, or recovered after a crash, runs as it was submitted: every kind runs
+ * again from its stored request (a model job gives its models the same ids, replacing what an
+ * earlier run stored). Adding a kind is one entry here (kinds.c) and its own job_*.c file.
+ * The routes that submit kinds are server.c's route table. */
+#ifndef SURFD_KINDS_H
+#define SURFD_KINDS_H
+
+#include <stdbool.h>
+#include <stddef.h>
+
+#include "service.h"
+
+/* A request body as a kind's validate sees it: it may replace body (keeping only what the job
+ * reads, e.g. an RT Structure Set without the patient), freeing the old one. */
+struct job_body {
+    char *body;
+    size_t len;
+    const char *format;      /* the body's format (json, bpt, nurbs, dicom); "" for a model id */
+    const char *options;     /* the query as name=value&... */
+    const char *owner;       /* the token's name: whose models a scene may use */
+};
+
+struct job_kind {
+    const char *name;
+    /* The body format a Content-Type names for this kind (NULL: the kind does not read it: 415),
+     * and the types it reads, as a 415 says them. NULL format: the body is a stored model's id,
+     * made by a GET route. */
+    const char *(*format)(const char *content_type);
+    const char *media;
+    bool format_in_query;    /* ?format= overrides the Content-Type */
+    /* Checks a request before it is stored: 0, or an error for a 4xx (pointer into the request). */
+    int (*validate)(struct service *svc, struct job_body *b, struct sf_err *err);
+    /* Puts a claimed job on the pool: 0, or -1 (the claim is then handed back). */
+    int (*start)(struct service *svc, const struct job_claim *c);
+    const char *result;      /* media type(s) of its result, as the contract says them */
+};
+
+/* The kind of that name, or NULL. */
+const struct job_kind *job_kind(const char *name);
+
+/* The kinds' own files (job_render.c, job_contours.c). */
+const char *render_format(const char *content_type);
+const char *contour_format(const char *content_type);
+const char *volume_format(const char *content_type);
+int render_validate(struct service *svc, struct job_body *b, struct sf_err *err);
+int volume_validate(struct service *svc, struct job_body *b, struct sf_err *err);
+int model_validate_body(struct service *svc, struct job_body *b, struct sf_err *err);
+int mesh_validate(struct service *svc, struct job_body *b, struct sf_err *err);
+int patches_validate(struct service *svc, struct job_body *b, struct sf_err *err);
+int render_start(struct service *svc, const struct job_claim *c);
+int volume_start(struct service *svc, const struct job_claim *c);
+int model_start(struct service *svc, const struct job_claim *c);
+int mesh_start(struct service *svc, const struct job_claim *c);
+int patches_start(struct service *svc, const struct job_claim *c);
+
+#endif

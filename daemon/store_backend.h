@@ -1,0 +1,46 @@
+/* store_backend.h - the seam between store.h and its backends (store_sqlite.c, store_pg.c):
+ * one table of operations, each with the meaning its store_* function has in store.h. A backend's
+ * handle starts with struct store, whose ops point at its table. */
+#ifndef SURFD_STORE_BACKEND_H
+#define SURFD_STORE_BACKEND_H
+
+#include "store.h"
+
+struct store_ops {
+    const char *name;
+    void (*close)(struct store *);
+    int (*submit)(struct store *, const struct job_rec *);
+    int (*claim)(struct store *, const char *node, double lease_s, struct job_claim *);
+    int (*heartbeat)(struct store *, const char *id, long fence, double lease_s, double progress, bool *cancel);
+    int (*finish)(struct store *, const char *id, long fence, const struct job_end *);
+    int (*release)(struct store *, const char *id, long fence);
+    enum store_cancel (*cancel)(struct store *, const char *id, const char *owner, double now);
+    int (*reap)(struct store *, double now, const char *node, int max_attempts, const char *give_up,
+                void (*fn)(const char *, enum job_state, void *), void *arg);
+    int (*prune)(struct store *, double now, long ttl, long max_count);
+    int (*get)(struct store *, const char *id, bool with_request, bool with_result, struct job_rec *);
+    int (*list)(struct store *, const enum job_state *state, const char *owner, long limit,
+                void (*fn)(const struct job_rec *, void *), void *arg);
+    long (*queued)(struct store *);
+    int (*model_put)(struct store *, const struct model_rec *);
+    int (*model_get)(struct store *, const char *id, const char *owner, char **resource, char **source,
+                     size_t *source_len);
+    int (*model_list)(struct store *, const char *owner, long limit, void (*fn)(const char *, void *), void *arg);
+    int (*model_delete)(struct store *, const char *id, const char *owner);
+    bool (*writable)(struct store *);
+    void (*on_event)(struct store *, void (*fn)(enum store_event, const char *, void *), void *arg); /* may be NULL */
+};
+
+/* Seconds a reaped job waits before it is claimed again, after its attempts so far: 1, 2, 4 ...
+ * up to a minute, so that a job that takes nodes down does not take them all at once. */
+#define STORE_BACKOFF_S(attempts) ((attempts) < 1 ? 0.0 : (attempts) > 6 ? 60.0 : (double)(1 << ((attempts) - 1)))
+
+struct store {
+    const struct store_ops *ops;
+};
+
+/* The backends' openers: 0 and *out, or -1 with msg. */
+int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg_len);
+int store_pg_open(const char *uri, struct store **out, char *msg, size_t msg_len);
+
+#endif

@@ -1,0 +1,763 @@
+/* store_pg.c - PostgreSQL behind store_backend.h: several nodes share one database, and every
+ * node sees every job.
+ *
+ * - Claims: one autocommit UPDATE whose subquery takes the oldest queued row FOR UPDATE SKIP
+ *   LOCKED, so nodes claiming at once never wait on each other nor take the same job. The claim
+ *   sets a lease (lease_until, renewed by heartbeats) and a new fence token; every later write of
+ *   the job names its fence, so a node that lost its lease (stopped, partitioned) changes nothing.
+ * - Reaping: running jobs whose lease ran out go back to the queue (with a backoff) or fail at
+ *   max-attempts; one node at a time reaps, under a transaction-level advisory lock.
+ * - Times that decide leases are the database's clock (clock_timestamp()), so nodes need not agree
+ *   on the time.
+ * - No transaction spans a job's run: each call is one statement, or one short transaction
+ *   (finish: the guarded update and the result's chunks).
+ * - Results are stored as 1 MiB chunks of a side table, written and read as binary parameters
+ *   and rows one chunk at a time (single-row mode): a 300 MB mesh is never escaped as text nor
+ *   held whole in a libpq result next to our copy.
+ * - Events: NOTIFY surfd 'queued|ended|cancel:ID' in the statements that change jobs; a listener
+ *   thread with its own connection hands them to the service (store_on_event).
+ * - Connections: a small pool; a broken connection is reset and the statement tried again once,
+ *   so a node survives a database restart (calls fail while it is away: /readyz says 503). */
+#include <errno.h>
+#include <libpq-fe.h>
+#include <math.h>
+#include <poll.h>
+#include <pthread.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "store_backend.h"
+
+#define POOL_SIZE 6          /* HTTP threads, keeper, workers' reads: few at once, each short */
+#define CHUNK (1u << 20)     /* bytes of a result per row of results */
+#define REAP_LOCK "72656170" /* the advisory lock of the reaper ("reap") */
+#define SCHEMA_LOCK "72656171"
+
+struct pg_store {
+    struct store base;
+    char *uri;
+    PGconn *pool[POOL_SIZE];
+    bool busy[POOL_SIZE];
+    pthread_mutex_t lock;
+    pthread_cond_t freed;
+    /* the listener */
+    pthread_t listener;
+    bool listening, stop;
+    void (*event)(enum store_event, const char *, void *);
+    void *event_arg;
+};
+
+static const char SCHEMA[] =
+    "CREATE TABLE IF NOT EXISTS jobs ("
+    " id text PRIMARY KEY, kind text NOT NULL, state text NOT NULL, progress double precision NOT NULL DEFAULT 0,"
+    " created double precision NOT NULL, started double precision NOT NULL DEFAULT 0,"
+    " finished double precision NOT NULL DEFAULT 0, format text NOT NULL, options text NOT NULL,"
+    " request bytea NOT NULL, result_len bigint, result_type text, meta text, error text,"
+    " attempts integer NOT NULL DEFAULT 0, owner text NOT NULL DEFAULT '', result_sum text,"
+    " node text NOT NULL DEFAULT '', fence bigint NOT NULL DEFAULT 0,"
+    " lease_until double precision NOT NULL DEFAULT 0, cancel_requested boolean NOT NULL DEFAULT false,"
+    " not_before double precision NOT NULL DEFAULT 0);"
+    "CREATE INDEX IF NOT EXISTS jobs_queued ON jobs(created, id) WHERE state='queued';"
+    "CREATE INDEX IF NOT EXISTS jobs_running ON jobs(lease_until) WHERE state='running';"
+    "CREATE INDEX IF NOT EXISTS jobs_created ON jobs(created);"
+    "CREATE TABLE IF NOT EXISTS results (job text NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,"
+    " seq integer NOT NULL, data bytea NOT NULL, PRIMARY KEY (job, seq));"
+    "CREATE TABLE IF NOT EXISTS models ("
+    " id text PRIMARY KEY, job text NOT NULL, name text NOT NULL, created double precision NOT NULL,"
+    " source bytea NOT NULL, resource text NOT NULL, owner text NOT NULL DEFAULT '', sum text);"
+    "CREATE INDEX IF NOT EXISTS models_created ON models(created);";
+
+#define NOW "extract(epoch from clock_timestamp())"
+
+static struct pg_store *pg(struct store *s) { return (struct pg_store *)s; }
+
+/* ---- connections ---- */
+
+static PGconn *connect_db(const char *uri)
+{
+    PGconn *c = PQconnectdb(uri);
+    if (PQstatus(c) != CONNECTION_OK)
+        return c; /* the caller reads the message, and a later take() resets it */
+    PQclear(PQexec(c, "SET client_min_messages = warning"));
+    return c;
+}
+
+static int take(struct pg_store *p)
+{
+    pthread_mutex_lock(&p->lock);
+    for (;;) {
+        for (int k = 0; k < POOL_SIZE; k++)
+            if (!p->busy[k]) {
+                p->busy[k] = true;
+                pthread_mutex_unlock(&p->lock);
+                if (PQstatus(p->pool[k]) != CONNECTION_OK)
+                    PQreset(p->pool[k]);
+                return k;
+            }
+        pthread_cond_wait(&p->freed, &p->lock);
+    }
+}
+
+static void give(struct pg_store *p, int k)
+{
+    pthread_mutex_lock(&p->lock);
+    p->busy[k] = false;
+    pthread_cond_signal(&p->freed);
+    pthread_mutex_unlock(&p->lock);
+}
+
+/* Parameters as execute() takes them: text, or binary (bytea) with its length. */
+struct param {
+    const char *v;
+    int len;
+    bool binary;
+};
+#define T(s) ((struct param){(s), 0, false})
+#define BIN(p, n) ((struct param){(const char *)(p), (int)(n), true})
+
+/* Runs sql with n parameters on connection c: the result, or NULL (a broken connection is reset
+ * and the statement tried again once, when retry). */
+static PGresult *execute(struct pg_store *p, int c, const char *sql, int n, const struct param *prm, bool retry)
+{
+    const char *values[16];
+    int lengths[16], formats[16];
+    for (int k = 0; k < n && k < 16; k++) {
+        values[k] = prm[k].v;
+        lengths[k] = prm[k].len;
+        formats[k] = prm[k].binary;
+    }
+    for (int attempt = 0; attempt < (retry ? 2 : 1); attempt++) {
+        PGresult *res = PQexecParams(p->pool[c], sql, n, NULL, values, lengths, formats, 1);
+        ExecStatusType st = PQresultStatus(res);
+        if (st == PGRES_COMMAND_OK || st == PGRES_TUPLES_OK)
+            return res;
+        PQclear(res);
+        if (PQstatus(p->pool[c]) == CONNECTION_OK)
+            return NULL; /* the statement failed, not the connection */
+        PQreset(p->pool[c]);
+    }
+    return NULL;
+}
+
+/* One statement on a pooled connection: the rows it changed (or returned), or -1. *out, when
+ * given, receives the result (caller PQclear()s). */
+static int exec1(struct store *s, PGresult **out, const char *sql, int n, const struct param *prm)
+{
+    struct pg_store *p = pg(s);
+    int c = take(p);
+    PGresult *res = execute(p, c, sql, n, prm, true);
+    give(p, c);
+    if (!res)
+        return -1;
+    int rows = PQresultStatus(res) == PGRES_TUPLES_OK ? PQntuples(res) : atoi(PQcmdTuples(res));
+    if (out)
+        *out = res;
+    else
+        PQclear(res);
+    return rows;
+}
+
+/* Binary result values, in network byte order. */
+static long long get_i64(const PGresult *r, int row, int col)
+{
+    const unsigned char *b = (const unsigned char *)PQgetvalue(r, row, col);
+    unsigned long long v = 0;
+    int n = PQgetlength(r, row, col);
+    for (int k = 0; k < n; k++)
+        v = v << 8 | b[k];
+    if (n == 4)
+        return (int32_t)(uint32_t)v;
+    return (long long)v;
+}
+
+static double get_f64(const PGresult *r, int row, int col)
+{
+    long long bits = get_i64(r, row, col);
+    double d;
+    memcpy(&d, &bits, sizeof d);
+    return d;
+}
+
+static void get_text(char *dst, size_t cap, const PGresult *r, int row, int col)
+{
+    snprintf(dst, cap, "%.*s", PQgetlength(r, row, col), PQgetisnull(r, row, col) ? "" : PQgetvalue(r, row, col));
+}
+
+static char *dup_text(const PGresult *r, int row, int col)
+{
+    if (PQgetisnull(r, row, col))
+        return NULL;
+    int n = PQgetlength(r, row, col);
+    char *t = malloc((size_t)n + 1);
+    if (t) {
+        memcpy(t, PQgetvalue(r, row, col), (size_t)n);
+        t[n] = 0;
+    }
+    return t;
+}
+
+static void num(char *buf, size_t cap, double v) { snprintf(buf, cap, "%.17g", v); }
+
+/* ---- the lifecycle ---- */
+
+static int pg_submit(struct store *s, const struct job_rec *r)
+{
+    char created[32];
+    num(created, sizeof created, r->created);
+    struct param prm[] = {T(r->id), T(r->kind), T(created), T(r->format), T(r->options),
+                          BIN(r->request_len ? (const void *)r->request : "", r->request_len), T(r->owner)};
+    return exec1(s, NULL,
+                 "WITH j AS (INSERT INTO jobs(id,kind,state,created,format,options,request,owner)"
+                 " VALUES($1,$2,'queued',$3,$4,$5,$6,$7) RETURNING id)"
+                 " SELECT pg_notify('surfd', 'queued:' || id) FROM j",
+                 7, prm) == 1 ? 0 : -1;
+}
+
+static int pg_claim(struct store *s, const char *node, double lease_s, struct job_claim *out)
+{
+    char lease[32];
+    num(lease, sizeof lease, lease_s);
+    struct param prm[] = {T(node), T(lease)};
+    PGresult *res;
+    int n = exec1(s, &res,
+                  "UPDATE jobs SET state='running', progress=0, started=" NOW ", attempts=attempts+1, fence=fence+1,"
+                  " node=$1, lease_until=" NOW "+$2::float8, cancel_requested=false"
+                  " WHERE id=(SELECT id FROM jobs WHERE state='queued' AND not_before<=" NOW
+                  " ORDER BY created, id LIMIT 1 FOR UPDATE SKIP LOCKED) RETURNING id, kind, fence",
+                  2, prm);
+    if (n == 1) {
+        get_text(out->id, sizeof out->id, res, 0, 0);
+        get_text(out->kind, sizeof out->kind, res, 0, 1);
+        out->fence = (long)get_i64(res, 0, 2);
+    }
+    if (n >= 0)
+        PQclear(res);
+    return n < 0 ? -1 : n == 1;
+}
+
+static int pg_heartbeat(struct store *s, const char *id, long fence, double lease_s, double progress, bool *cancel)
+{
+    char lease[32], prog[32], f[24];
+    num(lease, sizeof lease, lease_s);
+    num(prog, sizeof prog, progress);
+    snprintf(f, sizeof f, "%ld", fence);
+    struct param prm[] = {T(lease), T(prog), T(id), T(f)};
+    PGresult *res;
+    int n = exec1(s, &res,
+                  "UPDATE jobs SET lease_until=" NOW "+$1::float8, progress=GREATEST(progress,$2::float8)"
+                  " WHERE id=$3 AND fence=$4 AND state='running' RETURNING cancel_requested",
+                  4, prm);
+    if (n == 1)
+        *cancel = PQgetvalue(res, 0, 0)[0] != 0;
+    if (n >= 0)
+        PQclear(res);
+    return n < 0 ? -1 : n == 1;
+}
+
+/* Writes a result's chunks on connection c, inside the caller's transaction. 0 or -1. */
+static int put_chunks(struct pg_store *p, int c, const char *id, const unsigned char *data, size_t len)
+{
+    for (size_t off = 0, seq = 0; off < len || seq == 0; off += CHUNK, seq++) {
+        size_t n = len - off < CHUNK ? len - off : CHUNK;
+        char sq[24];
+        snprintf(sq, sizeof sq, "%zu", seq);
+        struct param prm[] = {T(id), T(sq), BIN(len ? (const void *)(data + off) : "", n)};
+        PGresult *res = execute(p, c, "INSERT INTO results(job,seq,data) VALUES($1,$2,$3)", 3, prm, false);
+        if (!res)
+            return -1;
+        PQclear(res);
+        if (len == 0)
+            break;
+    }
+    return 0;
+}
+
+static int pg_finish(struct store *s, const char *id, long fence, const struct job_end *e)
+{
+    struct pg_store *p = pg(s);
+    char f[24], fin[32], len[24], sum[65] = "";
+    snprintf(f, sizeof f, "%ld", fence);
+    num(fin, sizeof fin, e->finished);
+    snprintf(len, sizeof len, "%zu", e->len);
+    if (e->outcome == JOB_SUCCEEDED)
+        store_checksum(e->result, e->len, "", 0, sum);
+    struct param prm[] = {T(job_state_name(e->outcome)), T(fin), T(e->error), T(e->type), T(e->meta),
+                          T(e->outcome == JOB_SUCCEEDED ? sum : NULL), T(e->outcome == JOB_SUCCEEDED ? len : NULL),
+                          T(id), T(f)};
+    int c = take(p);
+    int rc = -1;
+    PGresult *res = execute(p, c, "BEGIN", 0, NULL, true);
+    if (res) {
+        PQclear(res);
+        res = execute(p, c,
+                      "UPDATE jobs SET state=$1, finished=$2, error=$3, result_type=$4, meta=$5, result_sum=$6,"
+                      " result_len=$7, progress=CASE WHEN $1::text='succeeded' THEN 1 ELSE progress END, lease_until=0"
+                      " WHERE id=$8 AND fence=$9 AND state='running'",
+                      9, prm, false);
+        int changed = res ? atoi(PQcmdTuples(res)) : -1;
+        PQclear(res);
+        if (changed == 1 && e->outcome == JOB_SUCCEEDED && put_chunks(p, c, id, e->result, e->len))
+            changed = -1;
+        if (changed == 1) {
+            struct param n1[] = {T(id)};
+            res = execute(p, c, "SELECT pg_notify('surfd', 'ended:' || $1::text)", 1, n1, false);
+            changed = res ? 1 : -1;
+            PQclear(res);
+        }
+        res = execute(p, c, changed == 1 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
+        if (res && changed >= 0)
+            rc = changed;
+        PQclear(res);
+    }
+    give(p, c);
+    return rc;
+}
+
+static int pg_release(struct store *s, const char *id, long fence)
+{
+    char f[24];
+    snprintf(f, sizeof f, "%ld", fence);
+    struct param prm[] = {T(id), T(f)};
+    return exec1(s, NULL,
+                 "WITH j AS (UPDATE jobs SET state='queued', progress=0, attempts=GREATEST(attempts-1,0), lease_until=0"
+                 " WHERE id=$1 AND fence=$2 AND state='running' RETURNING id)"
+                 " SELECT pg_notify('surfd', 'queued:' || id) FROM j",
+                 2, prm);
+}
+
+static enum store_cancel pg_cancel(struct store *s, const char *id, const char *owner, double now)
+{
+    char t[32];
+    num(t, sizeof t, now);
+    struct param prm[] = {T(id), T(owner), T(t)};
+    int n = exec1(s, NULL,
+                  "WITH j AS (UPDATE jobs SET state='cancelled', finished=$3 WHERE id=$1 AND state='queued' AND"
+                  " ($2::text IS NULL OR owner=$2) RETURNING id) SELECT pg_notify('surfd', 'ended:' || id) FROM j",
+                  3, prm);
+    if (n)
+        return n > 0 ? CANCEL_DONE : CANCEL_ERROR;
+    n = exec1(s, NULL,
+              "WITH j AS (UPDATE jobs SET cancel_requested=true WHERE id=$1 AND state='running' AND"
+              " ($2::text IS NULL OR owner=$2) RETURNING id) SELECT pg_notify('surfd', 'cancel:' || id) FROM j",
+              2, prm);
+    if (n)
+        return n > 0 ? CANCEL_ASKED : CANCEL_ERROR;
+    n = exec1(s, NULL, "SELECT 1 FROM jobs WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2, prm);
+    return n < 0 ? CANCEL_ERROR : n ? CANCEL_ENDED : CANCEL_NOT_FOUND;
+}
+
+static int pg_reap(struct store *s, double now, const char *node, int max_attempts, const char *give_up,
+                   void (*fn)(const char *, enum job_state, void *), void *arg)
+{
+    (void)now; /* the database's clock decides leases */
+    struct pg_store *p = pg(s);
+    char max[16];
+    snprintf(max, sizeof max, "%d", max_attempts);
+    struct param prm[] = {T(node), T(max), T(give_up)};
+    int c = take(p);
+    int reaped = -1;
+    PGresult *res = execute(p, c, "BEGIN", 0, NULL, true), *rows = NULL;
+    if (res) {
+        PQclear(res);
+        res = execute(p, c, "SELECT pg_try_advisory_xact_lock(" REAP_LOCK ")", 0, NULL, false);
+        bool mine = res && PQgetvalue(res, 0, 0)[0];
+        PQclear(res);
+        reaped = 0;
+        if (mine) /* one statement: fail those at the maximum, queue the others after their backoff */
+            rows = execute(p, c,
+                           "WITH r AS (SELECT id FROM jobs WHERE state='running' AND (lease_until<" NOW
+                           " OR node=$1) FOR UPDATE SKIP LOCKED),"
+                           " u AS (UPDATE jobs j SET"
+                           "  state=CASE WHEN j.attempts>=$2::int THEN 'failed' ELSE 'queued' END,"
+                           "  error=CASE WHEN j.attempts>=$2::int THEN $3::text ELSE j.error END,"
+                           "  finished=CASE WHEN j.attempts>=$2::int THEN " NOW " ELSE j.finished END,"
+                           "  progress=0, lease_until=0,"
+                           "  not_before=" NOW "+LEAST(60, power(2, GREATEST(j.attempts-1, 0)))"
+                           "  FROM r WHERE j.id=r.id RETURNING j.id, j.state)"
+                           " SELECT id, state, pg_notify('surfd', CASE WHEN state='failed' THEN 'ended:' ELSE"
+                           " 'queued:' END || id) FROM u",
+                           3, prm, false);
+        res = execute(p, c, rows ? "COMMIT" : "ROLLBACK", 0, NULL, false);
+        if (!res || (mine && !rows))
+            reaped = -1;
+        PQclear(res);
+    }
+    give(p, c);
+    if (rows && reaped == 0) {
+        reaped = PQntuples(rows);
+        for (int k = 0; fn && k < reaped; k++) {
+            char id[40], state[16];
+            get_text(id, sizeof id, rows, k, 0);
+            get_text(state, sizeof state, rows, k, 1);
+            fn(id, strcmp(state, "failed") ? JOB_QUEUED : JOB_FAILED, arg);
+        }
+    }
+    PQclear(rows);
+    return reaped;
+}
+
+static int pg_prune(struct store *s, double now, long ttl, long max_count)
+{
+    char before[32], max[24];
+    num(before, sizeof before, now - (double)ttl);
+    snprintf(max, sizeof max, "%ld", max_count);
+    struct param prm[] = {T(before), T(max)};
+    return exec1(s, NULL,
+                 "DELETE FROM jobs WHERE state IN ('succeeded','failed','cancelled') AND (finished < $1::float8 OR id NOT IN"
+                 " (SELECT id FROM jobs WHERE state IN ('succeeded','failed','cancelled') ORDER BY finished DESC"
+                 " LIMIT $2::bigint))",
+                 2, prm) < 0 ? -1 : 0;
+}
+
+/* ---- reading ---- */
+
+#define REC_COLUMNS                                                                                         \
+    "id,kind,state,progress,created,started,finished,format,options,result_type,meta,error,attempts,owner,"        \
+    "result_sum,node,cancel_requested"
+#define REC_N_COLUMNS 17
+
+static void read_rec(const PGresult *r, int row, struct job_rec *out)
+{
+    memset(out, 0, sizeof *out);
+    char state[16];
+    get_text(out->id, sizeof out->id, r, row, 0);
+    get_text(out->kind, sizeof out->kind, r, row, 1);
+    get_text(state, sizeof state, r, row, 2);
+    if (!job_state_parse(state, &out->state))
+        out->state = JOB_FAILED;
+    out->progress = get_f64(r, row, 3);
+    out->created = get_f64(r, row, 4);
+    out->started = get_f64(r, row, 5);
+    out->finished = get_f64(r, row, 6);
+    get_text(out->format, sizeof out->format, r, row, 7);
+    get_text(out->options, sizeof out->options, r, row, 8);
+    get_text(out->result_type, sizeof out->result_type, r, row, 9);
+    out->meta = dup_text(r, row, 10);
+    out->error = dup_text(r, row, 11);
+    out->attempts = (int)get_i64(r, row, 12);
+    get_text(out->owner, sizeof out->owner, r, row, 13);
+    get_text(out->result_sum, sizeof out->result_sum, r, row, 14);
+    get_text(out->node, sizeof out->node, r, row, 15);
+    out->cancel_requested = PQgetvalue(r, row, 16)[0] != 0;
+}
+
+/* Reads job id's result chunk by chunk (single-row mode) into one buffer of its stored length. */
+static int get_result(struct pg_store *p, const char *id, size_t len, unsigned char **out)
+{
+    int c = take(p);
+    PGconn *conn = p->pool[c];
+    const char *values[] = {id};
+    unsigned char *buf = malloc(len ? len : 1);
+    size_t at = 0;
+    bool ok = buf && PQsendQueryParams(conn, "SELECT data FROM results WHERE job=$1 ORDER BY seq", 1, NULL, values,
+                                       NULL, NULL, 1) &&
+              PQsetSingleRowMode(conn);
+    PGresult *res;
+    while ((res = PQgetResult(conn))) {
+        ExecStatusType st = PQresultStatus(res);
+        if (st == PGRES_SINGLE_TUPLE) {
+            size_t n = (size_t)PQgetlength(res, 0, 0);
+            if (ok && at + n <= len)
+                memcpy(buf + at, PQgetvalue(res, 0, 0), n);
+            ok = ok && at + n <= len;
+            at += n;
+        } else if (st != PGRES_TUPLES_OK) {
+            ok = false;
+        }
+        PQclear(res);
+    }
+    give(p, c);
+    if (!ok || at != len) {
+        free(buf);
+        return -1;
+    }
+    *out = buf;
+    return 0;
+}
+
+static int pg_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out)
+{
+    struct param prm[] = {T(id)};
+    PGresult *res;
+    int n = exec1(s, &res, "SELECT " REC_COLUMNS ",request,result_len FROM jobs WHERE id=$1", 1, prm);
+    if (n < 0)
+        return -1;
+    if (n == 0) {
+        PQclear(res);
+        return 0;
+    }
+    read_rec(res, 0, out);
+    int found = 1;
+    if (with_request) {
+        out->request_len = (size_t)PQgetlength(res, 0, REC_N_COLUMNS);
+        out->request = malloc(out->request_len ? out->request_len : 1);
+        if (out->request)
+            memcpy(out->request, PQgetvalue(res, 0, REC_N_COLUMNS), out->request_len);
+        else
+            found = -1;
+    }
+    bool has_result = !PQgetisnull(res, 0, REC_N_COLUMNS + 1);
+    size_t len = has_result ? (size_t)get_i64(res, 0, REC_N_COLUMNS + 1) : 0;
+    PQclear(res);
+    if (found == 1 && with_result && has_result) {
+        if (get_result(pg(s), id, len, &out->result)) {
+            found = -1;
+        } else {
+            out->result_len = len;
+            char sum[65];
+            store_checksum(out->result, len, "", 0, sum);
+            if (out->result_sum[0] && strcmp(sum, out->result_sum))
+                found = STORE_DAMAGED;
+        }
+    }
+    if (found != 1)
+        store_rec_free(out);
+    return found;
+}
+
+static int pg_list(struct store *s, const enum job_state *state, const char *owner, long limit,
+                   void (*fn)(const struct job_rec *, void *), void *arg)
+{
+    char lim[24];
+    snprintf(lim, sizeof lim, "%ld", limit > 0 ? limit : 1000000000L);
+    struct param prm[] = {T(state ? job_state_name(*state) : NULL), T(owner), T(lim)};
+    PGresult *res;
+    int n = exec1(s, &res,
+                  "SELECT " REC_COLUMNS " FROM jobs WHERE ($1::text IS NULL OR state=$1) AND ($2::text IS NULL OR"
+                  " owner=$2) ORDER BY created DESC LIMIT $3::bigint",
+                  3, prm);
+    for (int k = 0; k < n; k++) {
+        struct job_rec r;
+        read_rec(res, k, &r);
+        fn(&r, arg);
+        store_rec_free(&r);
+    }
+    if (n >= 0)
+        PQclear(res);
+    return n < 0 ? -1 : 0;
+}
+
+static long pg_queued(struct store *s)
+{
+    PGresult *res;
+    if (exec1(s, &res, "SELECT count(*) FROM jobs WHERE state='queued'", 0, NULL) != 1)
+        return -1;
+    long n = (long)get_i64(res, 0, 0);
+    PQclear(res);
+    return n;
+}
+
+/* ---- models ---- */
+
+static int pg_model_put(struct store *s, const struct model_rec *m)
+{
+    char created[32], sum[65];
+    num(created, sizeof created, m->created);
+    store_checksum(m->source, m->source_len, m->resource, strlen(m->resource), sum);
+    struct param prm[] = {T(m->id), T(m->job), T(m->name ? m->name : ""), T(created),
+                          BIN(m->source, m->source_len), T(m->resource), T(m->owner ? m->owner : ""), T(sum)};
+    return exec1(s, NULL,
+                 "INSERT INTO models(id,job,name,created,source,resource,owner,sum) VALUES($1,$2,$3,$4,$5,$6,$7,$8)"
+                 " ON CONFLICT (id) DO UPDATE SET job=EXCLUDED.job, name=EXCLUDED.name, created=EXCLUDED.created,"
+                 " source=EXCLUDED.source, resource=EXCLUDED.resource, owner=EXCLUDED.owner, sum=EXCLUDED.sum",
+                 8, prm) == 1 ? 0 : -1;
+}
+
+static int pg_model_get(struct store *s, const char *id, const char *owner, char **resource, char **source,
+                        size_t *source_len)
+{
+    struct param prm[] = {T(id), T(owner)};
+    PGresult *res;
+    int n = exec1(s, &res, "SELECT resource, source, sum FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2,
+                  prm);
+    if (n <= 0) {
+        if (n == 0)
+            PQclear(res);
+        return n;
+    }
+    const char *src = PQgetvalue(res, 0, 1), *rsc = PQgetvalue(res, 0, 0);
+    size_t ns = (size_t)PQgetlength(res, 0, 1), nr = (size_t)PQgetlength(res, 0, 0);
+    char sum[65];
+    store_checksum(src, ns, rsc, nr, sum);
+    int found = PQgetisnull(res, 0, 2) || !strcmp(sum, PQgetvalue(res, 0, 2)) ? 1 : STORE_DAMAGED;
+    if (found == 1 && resource && !(*resource = dup_text(res, 0, 0)))
+        found = -1;
+    if (found == 1 && source) {
+        if ((*source = malloc(ns + 1))) {
+            memcpy(*source, src, ns);
+            (*source)[ns] = 0;
+            if (source_len)
+                *source_len = ns;
+        } else {
+            found = -1;
+        }
+    }
+    PQclear(res);
+    return found;
+}
+
+static int pg_model_list(struct store *s, const char *owner, long limit, void (*fn)(const char *, void *), void *arg)
+{
+    char lim[24];
+    snprintf(lim, sizeof lim, "%ld", limit > 0 ? limit : 1000000000L);
+    struct param prm[] = {T(owner), T(lim)};
+    PGresult *res;
+    int n = exec1(s, &res,
+                  "SELECT resource FROM models WHERE $1::text IS NULL OR owner=$1 ORDER BY created DESC, id LIMIT $2::bigint",
+                  2, prm);
+    for (int k = 0; k < n; k++) {
+        char *r = dup_text(res, k, 0);
+        if (r)
+            fn(r, arg);
+        free(r);
+    }
+    if (n >= 0)
+        PQclear(res);
+    return n < 0 ? -1 : 0;
+}
+
+static int pg_model_delete(struct store *s, const char *id, const char *owner)
+{
+    struct param prm[] = {T(id), T(owner)};
+    int n = exec1(s, NULL, "DELETE FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2, prm);
+    return n < 0 ? -1 : n > 0;
+}
+
+static bool pg_writable(struct store *s)
+{
+    PGresult *res;
+    if (exec1(s, &res, "SELECT NOT pg_is_in_recovery()", 0, NULL) != 1)
+        return false;
+    bool ok = PQgetvalue(res, 0, 0)[0] != 0;
+    PQclear(res);
+    return ok;
+}
+
+/* ---- events: LISTEN surfd on a connection of the listener's own ---- */
+
+static void *listen_loop(void *arg)
+{
+    struct pg_store *p = arg;
+    PGconn *c = NULL;
+    for (;;) {
+        pthread_mutex_lock(&p->lock);
+        bool stop = p->stop;
+        pthread_mutex_unlock(&p->lock);
+        if (stop)
+            break;
+        if (!c || PQstatus(c) != CONNECTION_OK) { /* (re)connect: the database may be restarting */
+            if (c)
+                PQfinish(c);
+            c = connect_db(p->uri);
+            PGresult *r = PQstatus(c) == CONNECTION_OK ? PQexec(c, "LISTEN surfd") : NULL;
+            bool ok = r && PQresultStatus(r) == PGRES_COMMAND_OK;
+            PQclear(r);
+            if (!ok) {
+                struct timespec ts = {0, 500 * 1000000L};
+                nanosleep(&ts, NULL);
+                continue;
+            }
+            if (p->event) /* what happened while it was away: look again */
+                p->event(STORE_QUEUED, "", p->event_arg);
+        }
+        struct pollfd pfd = {PQsocket(c), POLLIN, 0};
+        if (poll(&pfd, 1, 250) > 0 && !PQconsumeInput(c))
+            continue; /* broken: reconnect above */
+        PGnotify *n;
+        while ((n = PQnotifies(c))) {
+            const char *colon = strchr(n->extra, ':');
+            const char *id = colon ? colon + 1 : "";
+            enum store_event ev = !strncmp(n->extra, "ended", 5)    ? STORE_ENDED
+                                  : !strncmp(n->extra, "cancel", 6) ? STORE_CANCEL
+                                                                    : STORE_QUEUED;
+            if (p->event)
+                p->event(ev, id, p->event_arg);
+            PQfreemem(n);
+        }
+    }
+    PQfinish(c);
+    return NULL;
+}
+
+static void stop_listening(struct pg_store *p)
+{
+    if (!p->listening)
+        return;
+    pthread_mutex_lock(&p->lock);
+    p->stop = true;
+    pthread_mutex_unlock(&p->lock);
+    pthread_join(p->listener, NULL);
+    p->listening = p->stop = false;
+}
+
+/* fn NULL: stops the listener (it has returned when this does). */
+static void pg_on_event(struct store *s, void (*fn)(enum store_event, const char *, void *), void *arg)
+{
+    struct pg_store *p = pg(s);
+    stop_listening(p);
+    p->event = fn;
+    p->event_arg = arg;
+    if (fn && pthread_create(&p->listener, NULL, listen_loop, p) == 0)
+        p->listening = true;
+}
+
+static void pg_close(struct store *s)
+{
+    struct pg_store *p = pg(s);
+    stop_listening(p);
+    for (int k = 0; k < POOL_SIZE; k++)
+        PQfinish(p->pool[k]);
+    pthread_mutex_destroy(&p->lock);
+    pthread_cond_destroy(&p->freed);
+    free(p->uri);
+    free(p);
+}
+
+static const struct store_ops PG_OPS = {
+    "postgresql", pg_close,     pg_submit,    pg_claim,      pg_heartbeat,    pg_finish,
+    pg_release,   pg_cancel,    pg_reap,      pg_prune,      pg_get,          pg_list,
+    pg_queued,    pg_model_put, pg_model_get, pg_model_list, pg_model_delete, pg_writable,
+    pg_on_event,
+};
+
+int store_pg_open(const char *uri, struct store **out, char *msg, size_t msg_len)
+{
+    *out = NULL;
+    struct pg_store *p = calloc(1, sizeof *p);
+    if (!p || !(p->uri = strdup(uri))) {
+        free(p);
+        snprintf(msg, msg_len, "out of memory");
+        return -1;
+    }
+    p->base.ops = &PG_OPS;
+    pthread_mutex_init(&p->lock, NULL);
+    pthread_cond_init(&p->freed, NULL);
+    for (int k = 0; k < POOL_SIZE; k++)
+        p->pool[k] = connect_db(uri);
+    if (PQstatus(p->pool[0]) != CONNECTION_OK) {
+        snprintf(msg, msg_len, "PostgreSQL: %s", PQerrorMessage(p->pool[0]));
+        char *nl = strrchr(msg, '\n');
+        if (nl && !nl[1])
+            *nl = 0;
+        pg_close(&p->base);
+        return -1;
+    }
+    /* one node at a time creates the schema (two starting at once would race on CREATE) */
+    PGresult *r = PQexec(p->pool[0], "SELECT pg_advisory_lock(" SCHEMA_LOCK ")");
+    PQclear(r);
+    r = PQexec(p->pool[0], SCHEMA);
+    bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
+    if (!ok)
+        snprintf(msg, msg_len, "PostgreSQL: cannot create the schema: %s", PQerrorMessage(p->pool[0]));
+    PQclear(r);
+    PQclear(PQexec(p->pool[0], "SELECT pg_advisory_unlock(" SCHEMA_LOCK ")"));
+    if (!ok) {
+        pg_close(&p->base);
+        return -1;
+    }
+    *out = &p->base;
+    return 0;
+}

@@ -1,0 +1,535 @@
+/* store_sqlite.c - the embedded store: SQLite (WAL) under the data directory, behind
+ * store_backend.h. WAL journal and synchronous=NORMAL: a committed job survives a process crash
+ * (kill -9); a power cut may lose the last transactions, which is what WAL NORMAL trades for
+ * speed. One connection behind one mutex: one node uses it, and the store is not on any hot path.
+ * Leases and fences are kept as PostgreSQL keeps them, so that the lifecycle is the same; with one
+ * node a lease runs out only when the process has died (store_reap at the next start). */
+#include <pthread.h>
+#include <stdarg.h>
+#include <sqlite3.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include "store_backend.h"
+
+struct sqlite_store {
+    struct store base;
+    sqlite3 *db;
+    pthread_mutex_t lock;
+};
+
+static sqlite3 *db_of(struct store *s) { return ((struct sqlite_store *)s)->db; }
+static pthread_mutex_t *lock_of(struct store *s) { return &((struct sqlite_store *)s)->lock; }
+
+static const char SCHEMA[] =
+    "PRAGMA journal_mode=WAL;"
+    "PRAGMA synchronous=NORMAL;"
+    "CREATE TABLE IF NOT EXISTS jobs ("
+    " id TEXT PRIMARY KEY, kind TEXT NOT NULL, state TEXT NOT NULL, progress REAL NOT NULL DEFAULT 0,"
+    " created REAL NOT NULL, started REAL NOT NULL DEFAULT 0, finished REAL NOT NULL DEFAULT 0,"
+    " format TEXT NOT NULL, options TEXT NOT NULL, request BLOB NOT NULL,"
+    " result BLOB, result_type TEXT, meta TEXT, error TEXT);"
+    "CREATE INDEX IF NOT EXISTS jobs_state ON jobs(state, created);"
+    "CREATE TABLE IF NOT EXISTS models ("
+    " id TEXT PRIMARY KEY, job TEXT NOT NULL, name TEXT NOT NULL, created REAL NOT NULL,"
+    " source BLOB NOT NULL, resource TEXT NOT NULL);"
+    "CREATE INDEX IF NOT EXISTS models_created ON models(created);"
+    "CREATE TABLE IF NOT EXISTS probe (x INTEGER);";
+
+/* Columns added after the first release, for databases made before them: added when missing. */
+static const char *const MIGRATIONS[] = {
+    "ALTER TABLE jobs ADD COLUMN attempts INTEGER NOT NULL DEFAULT 0",
+    "ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT ''",
+    "ALTER TABLE models ADD COLUMN owner TEXT NOT NULL DEFAULT ''",
+    "ALTER TABLE jobs ADD COLUMN result_sum TEXT",
+    "ALTER TABLE models ADD COLUMN sum TEXT",
+    "ALTER TABLE jobs ADD COLUMN node TEXT NOT NULL DEFAULT ''",
+    "ALTER TABLE jobs ADD COLUMN fence INTEGER NOT NULL DEFAULT 0",
+    "ALTER TABLE jobs ADD COLUMN lease_until REAL NOT NULL DEFAULT 0",
+    "ALTER TABLE jobs ADD COLUMN cancel_requested INTEGER NOT NULL DEFAULT 0",
+    "ALTER TABLE jobs ADD COLUMN not_before REAL NOT NULL DEFAULT 0",
+};
+
+static const struct store_ops SQLITE_OPS;
+static void sq_close(struct store *base);
+
+int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg_len)
+{
+    *out = NULL;
+    /* patient data: the directory and every file SQLite makes in it (db, -wal, -shm) are the
+     * service user's alone, whatever the umask and however an earlier version left them */
+    mkdir(dir, 0700);
+    chmod(dir, 0700);
+    char path[1024];
+    snprintf(path, sizeof path, "%s/surfd.db", dir);
+    struct sqlite_store *s = calloc(1, sizeof *s);
+    if (!s) {
+        snprintf(msg, msg_len, "out of memory");
+        return -1;
+    }
+    s->base.ops = &SQLITE_OPS;
+    pthread_mutex_init(&s->lock, NULL);
+    char *err = NULL;
+    if (sqlite3_open_v2(path, &s->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX, NULL) !=
+            SQLITE_OK ||
+        sqlite3_busy_timeout(s->db, 5000) != SQLITE_OK || sqlite3_exec(s->db, SCHEMA, NULL, NULL, &err) != SQLITE_OK) {
+        snprintf(msg, msg_len, "%s: %s", path, err ? err : sqlite3_errmsg(s->db));
+        sqlite3_free(err);
+        sq_close(&s->base);
+        return -1;
+    }
+    const char *const suffixes[] = {"", "-wal", "-shm"};
+    for (size_t k = 0; k < 3; k++) {
+        char f[1100];
+        snprintf(f, sizeof f, "%s%s", path, suffixes[k]);
+        chmod(f, 0600);
+    }
+    for (size_t k = 0; k < sizeof MIGRATIONS / sizeof *MIGRATIONS; k++)
+        if (sqlite3_exec(s->db, MIGRATIONS[k], NULL, NULL, &err) != SQLITE_OK) {
+            bool had = err && strstr(err, "duplicate column");
+            sqlite3_free(err);
+            err = NULL;
+            if (!had) {
+                snprintf(msg, msg_len, "%s: cannot upgrade the schema: %s", path, sqlite3_errmsg(s->db));
+                sq_close(&s->base);
+                return -1;
+            }
+        }
+    *out = &s->base;
+    return 0;
+}
+
+static void sq_close(struct store *base)
+{
+    struct sqlite_store *s = (struct sqlite_store *)base;
+    sqlite3_close(s->db);
+    pthread_mutex_destroy(&s->lock);
+    free(s);
+}
+
+/* Prepares sql and binds its parameters from types: 't' text (NULL binds NULL), 'd' double,
+ * 'i' long, 'b' blob (pointer, size_t). Lock held by the caller. NULL on failure. */
+static sqlite3_stmt *prepare(struct store *s, const char *sql, const char *types, va_list ap)
+{
+    sqlite3_stmt *st;
+    if (sqlite3_prepare_v2(db_of(s), sql, -1, &st, NULL) != SQLITE_OK)
+        return NULL;
+    for (int k = 1; types[k - 1]; k++)
+        switch (types[k - 1]) {
+        case 't': {
+            const char *t = va_arg(ap, const char *);
+            t ? sqlite3_bind_text(st, k, t, -1, SQLITE_TRANSIENT) : sqlite3_bind_null(st, k);
+            break;
+        }
+        case 'd': sqlite3_bind_double(st, k, va_arg(ap, double)); break;
+        case 'i': sqlite3_bind_int64(st, k, va_arg(ap, long)); break;
+        case 'b': {
+            const void *p = va_arg(ap, const void *);
+            size_t n = va_arg(ap, size_t);
+            sqlite3_bind_blob64(st, k, n ? p : "", n, SQLITE_STATIC);
+            break;
+        }
+        }
+    return st;
+}
+
+static double wall_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec / 1e9;
+}
+
+static int sq_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out);
+
+/* Runs one statement to its end: the rows it changed, or -1. */
+static int run(struct store *s, const char *sql, const char *types, ...)
+{
+    va_list ap;
+    va_start(ap, types);
+    pthread_mutex_lock(lock_of(s));
+    sqlite3_stmt *st = prepare(s, sql, types, ap);
+    int rc = st ? sqlite3_step(st) : SQLITE_ERROR;
+    while (rc == SQLITE_ROW)
+        rc = sqlite3_step(st);
+    int n = rc == SQLITE_DONE ? sqlite3_changes(db_of(s)) : -1;
+    sqlite3_finalize(st);
+    pthread_mutex_unlock(lock_of(s));
+    va_end(ap);
+    return n;
+}
+
+/* Whether blob bytes match their stored sum (a row written before sums were kept has none). */
+static bool sum_ok(sqlite3_stmt *st, int col_sum, const void *a, size_t na, const void *b, size_t nb)
+{
+    const unsigned char *want = sqlite3_column_text(st, col_sum);
+    if (!want)
+        return true;
+    char got[65];
+    store_checksum(a, na, b, nb, got);
+    return !strcmp((const char *)want, got);
+}
+
+static char *dup_text(sqlite3_stmt *st, int col)
+{
+    const unsigned char *t = sqlite3_column_text(st, col);
+    return t ? strdup((const char *)t) : NULL;
+}
+
+static void copy_text(char *dst, size_t cap, sqlite3_stmt *st, int col)
+{
+    const unsigned char *t = sqlite3_column_text(st, col);
+    snprintf(dst, cap, "%s", t ? (const char *)t : "");
+}
+
+static unsigned char *dup_blob(sqlite3_stmt *st, int col, size_t *len)
+{
+    *len = (size_t)sqlite3_column_bytes(st, col);
+    const void *b = sqlite3_column_blob(st, col);
+    if (!b)
+        return NULL;
+    unsigned char *p = malloc(*len ? *len : 1);
+    if (p)
+        memcpy(p, b, *len);
+    return p;
+}
+
+static int sq_submit(struct store *s, const struct job_rec *r)
+{
+    return run(s, "INSERT INTO jobs(id,kind,state,created,format,options,request,owner) VALUES(?,?,'queued',?,?,?,?,?)",
+               "ttdttbt", r->id, r->kind, r->created, r->format, r->options, (const void *)r->request,
+               r->request_len, r->owner) == 1 ? 0 : -1;
+}
+
+static int sq_claim(struct store *s, const char *node, double lease_s, struct job_claim *out)
+{
+    pthread_mutex_lock(lock_of(s));
+    sqlite3_stmt *st;
+    int found = -1;
+    if (sqlite3_prepare_v2(db_of(s),
+                           "UPDATE jobs SET state='running', progress=0, started=?1, attempts=attempts+1,"
+                           " fence=fence+1, node=?2, lease_until=?1+?3, cancel_requested=0"
+                           " WHERE id=(SELECT id FROM jobs WHERE state='queued' AND not_before<=?1 ORDER BY created, id LIMIT 1)"
+                           " RETURNING id, kind, fence",
+                           -1, &st, NULL) == SQLITE_OK) {
+        sqlite3_bind_double(st, 1, wall_now());
+        sqlite3_bind_text(st, 2, node, -1, SQLITE_STATIC);
+        sqlite3_bind_double(st, 3, lease_s);
+        int rc = sqlite3_step(st);
+        found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
+        if (found == 1) {
+            copy_text(out->id, sizeof out->id, st, 0);
+            copy_text(out->kind, sizeof out->kind, st, 1);
+            out->fence = (long)sqlite3_column_int64(st, 2);
+            found = sqlite3_step(st) == SQLITE_DONE ? 1 : -1;
+        }
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return found;
+}
+
+static int sq_heartbeat(struct store *s, const char *id, long fence, double lease_s, double progress, bool *cancel)
+{
+    pthread_mutex_lock(lock_of(s));
+    sqlite3_stmt *st;
+    int held = -1;
+    if (sqlite3_prepare_v2(db_of(s),
+                           "UPDATE jobs SET lease_until=?1, progress=MAX(progress,?2) WHERE id=?3 AND fence=?4 AND"
+                           " state='running' RETURNING cancel_requested",
+                           -1, &st, NULL) == SQLITE_OK) {
+        sqlite3_bind_double(st, 1, wall_now() + lease_s);
+        sqlite3_bind_double(st, 2, progress);
+        sqlite3_bind_text(st, 3, id, -1, SQLITE_STATIC);
+        sqlite3_bind_int64(st, 4, fence);
+        int rc = sqlite3_step(st);
+        held = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
+        if (held == 1) {
+            *cancel = sqlite3_column_int(st, 0) != 0;
+            held = sqlite3_step(st) == SQLITE_DONE ? 1 : -1;
+        }
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return held;
+}
+
+static int sq_finish(struct store *s, const char *id, long fence, const struct job_end *e)
+{
+    if (e->outcome == JOB_SUCCEEDED) {
+        char sum[65];
+        store_checksum(e->result, e->len, "", 0, sum);
+        return run(s,
+                   "UPDATE jobs SET state='succeeded', progress=1, finished=?1, result=?2, result_type=?3, meta=?4,"
+                   " result_sum=?5, lease_until=0 WHERE id=?6 AND fence=?7 AND state='running'",
+                   "dbtttti", e->finished, (const void *)e->result, e->len, e->type, e->meta, sum, id, fence);
+    }
+    return run(s,
+               "UPDATE jobs SET state=?1, finished=?2, error=?3, lease_until=0 WHERE id=?4 AND fence=?5 AND"
+               " state='running'",
+               "tdtti", job_state_name(e->outcome), e->finished, e->error, id, fence);
+}
+
+static int sq_release(struct store *s, const char *id, long fence)
+{
+    return run(s,
+               "UPDATE jobs SET state='queued', progress=0, attempts=MAX(attempts-1,0), lease_until=0 WHERE id=?1 AND"
+               " fence=?2 AND state='running'",
+               "ti", id, fence);
+}
+
+static enum store_cancel sq_cancel(struct store *s, const char *id, const char *owner, double now)
+{
+    int n = run(s, "UPDATE jobs SET state='cancelled', finished=?1 WHERE id=?2 AND state='queued' AND (?3 IS NULL OR"
+                   " owner=?3)", "dtt", now, id, owner);
+    if (n)
+        return n > 0 ? CANCEL_DONE : CANCEL_ERROR;
+    n = run(s, "UPDATE jobs SET cancel_requested=1 WHERE id=?1 AND state='running' AND (?2 IS NULL OR owner=?2)",
+            "tt", id, owner);
+    if (n)
+        return n > 0 ? CANCEL_ASKED : CANCEL_ERROR;
+    struct job_rec r;
+    int found = sq_get(s, id, false, false, &r);
+    bool mine = found == 1 && (!owner || !strcmp(owner, r.owner));
+    store_rec_free(&r);
+    return found < 0 ? CANCEL_ERROR : mine ? CANCEL_ENDED : CANCEL_NOT_FOUND;
+}
+
+static int sq_reap(struct store *s, double now, const char *node, int max_attempts, const char *give_up,
+                   void (*fn)(const char *, enum job_state, void *), void *arg)
+{
+    /* collect first, then end each with its own guarded update: fn may call back into the store */
+    pthread_mutex_lock(lock_of(s));
+    sqlite3_stmt *st;
+    size_t n = 0, cap = 0;
+    struct {
+        char id[40];
+        long fence;
+        int attempts;
+    } *c = NULL;
+    int rc = SQLITE_ERROR;
+    if (sqlite3_prepare_v2(db_of(s),
+                           "SELECT id, fence, attempts FROM jobs WHERE state='running' AND (lease_until<?1 OR node=?2)"
+                           " ORDER BY created", -1, &st, NULL) == SQLITE_OK) {
+        sqlite3_bind_double(st, 1, now);
+        node ? sqlite3_bind_text(st, 2, node, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 2);
+        while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
+            if (n == cap) {
+                void *more = realloc(c, sizeof *c * (cap = cap ? 2 * cap : 16));
+                if (!more) {
+                    rc = SQLITE_NOMEM;
+                    break;
+                }
+                c = more;
+            }
+            copy_text(c[n].id, sizeof c[n].id, st, 0);
+            c[n].fence = (long)sqlite3_column_int64(st, 1);
+            c[n].attempts = sqlite3_column_int(st, 2);
+            n++;
+        }
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    int reaped = rc == SQLITE_DONE ? 0 : -1;
+    for (size_t k = 0; k < n; k++) {
+        int attempts = c[k].attempts;
+        bool fail = attempts >= max_attempts;
+        double t = wall_now();
+        int done = fail ? run(s, "UPDATE jobs SET state='failed', finished=?1, error=?2, lease_until=0 WHERE id=?3 AND"
+                                 " fence=?4 AND state='running'", "dtti", t, give_up, c[k].id, c[k].fence)
+                        : run(s, "UPDATE jobs SET state='queued', progress=0, lease_until=0, not_before=?1 WHERE id=?2"
+                                 " AND fence=?3 AND state='running'", "dti", t + STORE_BACKOFF_S(attempts), c[k].id,
+                              c[k].fence);
+        if (done == 1 && reaped >= 0)
+            reaped++;
+        if (done == 1 && fn)
+            fn(c[k].id, fail ? JOB_FAILED : JOB_QUEUED, arg);
+    }
+    free(c);
+    return reaped;
+}
+
+static int sq_prune(struct store *s, double now, long ttl, long max_count)
+{
+    return run(s,
+               "DELETE FROM jobs WHERE state IN ('succeeded','failed','cancelled') AND (finished < ?1 OR id NOT IN"
+               " (SELECT id FROM jobs WHERE state IN ('succeeded','failed','cancelled') ORDER BY finished DESC LIMIT ?2))",
+               "di", now - (double)ttl, max_count) < 0 ? -1 : 0;
+}
+
+#define REC_COLUMNS                                                                                         \
+    "id,kind,state,progress,created,started,finished,format,options,result_type,meta,error,attempts,owner,"        \
+    "result_sum,node,cancel_requested"
+#define REC_N_COLUMNS 17
+
+static void read_rec(sqlite3_stmt *st, struct job_rec *r)
+{
+    memset(r, 0, sizeof *r);
+    copy_text(r->id, sizeof r->id, st, 0);
+    copy_text(r->kind, sizeof r->kind, st, 1);
+    const unsigned char *state = sqlite3_column_text(st, 2);
+    if (!state || !job_state_parse((const char *)state, &r->state))
+        r->state = JOB_FAILED;
+    r->progress = sqlite3_column_double(st, 3);
+    r->created = sqlite3_column_double(st, 4);
+    r->started = sqlite3_column_double(st, 5);
+    r->finished = sqlite3_column_double(st, 6);
+    copy_text(r->format, sizeof r->format, st, 7);
+    copy_text(r->options, sizeof r->options, st, 8);
+    copy_text(r->result_type, sizeof r->result_type, st, 9);
+    r->meta = dup_text(st, 10);
+    r->error = dup_text(st, 11);
+    r->attempts = sqlite3_column_int(st, 12);
+    copy_text(r->owner, sizeof r->owner, st, 13);
+    copy_text(r->result_sum, sizeof r->result_sum, st, 14);
+    copy_text(r->node, sizeof r->node, st, 15);
+    r->cancel_requested = sqlite3_column_int(st, 16) != 0;
+}
+
+static int sq_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out)
+{
+    sqlite3_stmt *st;
+    int found = -1;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s), "SELECT " REC_COLUMNS ",request,result FROM jobs WHERE id=?", -1, &st, NULL) ==
+        SQLITE_OK) {
+        sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
+        int rc = sqlite3_step(st);
+        found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
+        if (found == 1) {
+            read_rec(st, out);
+            if (with_request)
+                out->request = dup_blob(st, REC_N_COLUMNS, &out->request_len);
+            if (with_result) {
+                out->result = dup_blob(st, REC_N_COLUMNS + 1, &out->result_len);
+                if (out->result && !sum_ok(st, 14, out->result, out->result_len, "", 0)) {
+                    store_rec_free(out);
+                    found = STORE_DAMAGED;
+                }
+            }
+        }
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return found;
+}
+
+static int sq_list(struct store *s, const enum job_state *state, const char *owner, long limit,
+                   void (*fn)(const struct job_rec *, void *), void *arg)
+{
+    sqlite3_stmt *st;
+    int rc = -1;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s),
+                           "SELECT " REC_COLUMNS " FROM jobs WHERE (?1 IS NULL OR state=?1) AND (?3 IS NULL OR owner=?3)"
+                           " ORDER BY created DESC LIMIT ?2",
+                           -1, &st, NULL) == SQLITE_OK) {
+        state ? sqlite3_bind_text(st, 1, job_state_name(*state), -1, SQLITE_STATIC) : sqlite3_bind_null(st, 1);
+        sqlite3_bind_int64(st, 2, limit > 0 ? limit : -1);
+        owner ? sqlite3_bind_text(st, 3, owner, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 3);
+        while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
+            struct job_rec r;
+            read_rec(st, &r);
+            fn(&r, arg);
+            store_rec_free(&r);
+        }
+        rc = rc == SQLITE_DONE ? 0 : -1;
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return rc;
+}
+
+static long sq_queued(struct store *s)
+{
+    sqlite3_stmt *st;
+    long n = -1;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s), "SELECT count(*) FROM jobs WHERE state='queued'", -1, &st, NULL) == SQLITE_OK) {
+        if (sqlite3_step(st) == SQLITE_ROW)
+            n = (long)sqlite3_column_int64(st, 0);
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return n;
+}
+
+/* ---- models ---- */
+
+static int sq_model_put(struct store *s, const struct model_rec *m)
+{
+    char sum[65];
+    store_checksum(m->source, m->source_len, m->resource, strlen(m->resource), sum);
+    return run(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource,owner,sum) VALUES(?,?,?,?,?,?,?,?)",
+               "tttdbttt", m->id, m->job, m->name ? m->name : "", m->created, (const void *)m->source, m->source_len,
+               m->resource, m->owner ? m->owner : "", sum) == 1 ? 0 : -1;
+}
+
+static int sq_model_get(struct store *s, const char *id, const char *owner, char **resource, char **source,
+                        size_t *source_len)
+{
+    sqlite3_stmt *st;
+    int found = -1;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s), "SELECT resource, source, sum FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)",
+                           -1, &st, NULL) == SQLITE_OK) {
+        sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
+        owner ? sqlite3_bind_text(st, 2, owner, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 2);
+        int rc = sqlite3_step(st);
+        found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
+        if (found == 1 && !sum_ok(st, 2, sqlite3_column_blob(st, 1), (size_t)sqlite3_column_bytes(st, 1),
+                                  sqlite3_column_text(st, 0), (size_t)sqlite3_column_bytes(st, 0)))
+            found = STORE_DAMAGED;
+        if (found == 1) {
+            size_t n;
+            if (resource)
+                *resource = dup_text(st, 0);
+            if (source)
+                *source = (char *)dup_blob(st, 1, source_len ? source_len : &n);
+        }
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return found;
+}
+
+static int sq_model_list(struct store *s, const char *owner, long limit, void (*fn)(const char *resource, void *),
+                         void *arg)
+{
+    sqlite3_stmt *st;
+    int rc = -1;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s),
+                           "SELECT resource FROM models WHERE ?2 IS NULL OR owner=?2 ORDER BY created DESC, id LIMIT ?1",
+                           -1, &st, NULL) == SQLITE_OK) {
+        sqlite3_bind_int64(st, 1, limit > 0 ? limit : -1);
+        owner ? sqlite3_bind_text(st, 2, owner, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 2);
+        while ((rc = sqlite3_step(st)) == SQLITE_ROW)
+            fn((const char *)sqlite3_column_text(st, 0), arg);
+        rc = rc == SQLITE_DONE ? 0 : -1;
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return rc;
+}
+
+static int sq_model_delete(struct store *s, const char *id, const char *owner)
+{
+    int n = run(s, "DELETE FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)", "tt", id, owner);
+    return n < 0 ? -1 : n > 0;
+}
+
+static bool sq_writable(struct store *s)
+{
+    return run(s, "INSERT INTO probe(x) VALUES(1)", "") == 1 && run(s, "DELETE FROM probe", "") >= 0;
+}
+
+static const struct store_ops SQLITE_OPS = {
+    "sqlite",     sq_close,      sq_submit,    sq_claim,     sq_heartbeat,    sq_finish,
+    sq_release,   sq_cancel,     sq_reap,      sq_prune,     sq_get,          sq_list,
+    sq_queued,    sq_model_put,  sq_model_get, sq_model_list, sq_model_delete, sq_writable,
+    NULL,
+};
