@@ -49,15 +49,17 @@ until_job() {
     done
     return 1
 }
-# a render that takes several seconds on the sanitized build, in bands a cancel stops between
+# a render of about 15 s on one sanitized worker, in bands a cancel stops between
 long_render() {
-    on "$1" POST "/render?width=1600&height=1600&method=bvh" -H 'Prefer: respond-async' -H "$J" \
+    on "$1" POST "/render?width=400&height=400&method=montecarlo" -H 'Prefer: respond-async' -H "$J" \
         --data-binary @"${SURFD_DATA:-../shared/data}/scenes/teacup.json" >/dev/null
     field id
 }
 
 for n in n1 n2 n3; do start_node $n --threads 2 || { bad "node $n did not start"; checks_done; exit 1; }; done
 
+section() { echo "$(date +%T) $*"; }
+section "exactly once"
 # ---- jobs posted to any node run exactly once ----------------------------------------------------
 : >"$T/ids"
 for k in $(seq 30); do
@@ -80,6 +82,7 @@ done
 check "a job's resource and result are the same from every node" '[ $same = 1 ] && grep -q volume_mm3 "$T/r1"'
 check "every node lists every job" '[ "$(on n3 GET /jobs)" = 200 ] && [ "$(grep -o "\"kind\":\"volume\"" "$T/body" | wc -l)" = 30 ]'
 
+section sync
 # ---- a synchronous request answered when another node runs its job ----------------------------------
 node_kill n1; node_kill n2; node_kill n3
 start_node n1 --threads 1; start_node n2 --threads 1
@@ -93,11 +96,13 @@ sid=$(tr -d '\r' <"$T/hdr" | sed -n 's/^X-Job-Id: //p')
 check "a synchronous POST on the busy node answers 200 with the result" '[ "$code" = 200 ] && grep -q volume_mm3 "$T/body"'
 check "... which the other node computed" '[ "$(job_field "$holder" "$sid" node)" = "$other" ]'
 
+section cancel
 # ---- cancel across nodes ----------------------------------------------------------------------------
 code=$(on "$other" POST "/jobs/$busy/cancel")
 check "cancel of a render running on another node: 202" '[ "$code" = 202 ]'
 check "... and it stops there within seconds" 'until_job "$other" "$busy" state cancelled 20'
 
+section kill
 # ---- kill -9 of a node mid-render: its job finishes once, elsewhere ------------------------------------
 start_node n3 --threads 1
 id=$(long_render n2)
@@ -112,6 +117,7 @@ check "... the result is there, from any node" '[ "$(on "$survivor" GET "/jobs/$
 echo "takeover after kill -9: $(( $(date +%s) - t0 )) s (lease ${LEASE} s)"
 start_node "$victim" --threads 1
 
+section stop
 # ---- a node stopped past its lease cannot finish the job it lost ------------------------------------------
 id=$(long_render n1)
 until_job n1 "$id" state running 20
@@ -125,6 +131,7 @@ check "... the stopped node, woken, did not finish it (its claim was lost)" '[ "
 for _ in $(seq 100); do grep -q "claim was lost\|outcome is dropped" "$T/$frozen.log" && break; sleep 0.1; done
 check "... and said so in its log" 'grep -q "claim was lost\|outcome is dropped" "$T/$frozen.log"'
 
+section restart
 # ---- a PostgreSQL restart loses nothing --------------------------------------------------------------------
 : >"$T/ids2"
 for k in $(seq 6); do
