@@ -76,9 +76,12 @@ static struct pg_store *pg(struct store *s) { return (struct pg_store *)s; }
 
 /* ---- connections ---- */
 
+/* A connection, giving up after 5 s unless the URI says otherwise (libpq waits for ever by
+ * default, and an HTTP thread must not). */
 static PGconn *connect_db(const char *uri)
 {
-    PGconn *c = PQconnectdb(uri);
+    const char *const keys[] = {"connect_timeout", "dbname", NULL}, *const values[] = {"5", uri, NULL};
+    PGconn *c = PQconnectdbParams(keys, values, 1);
     if (PQstatus(c) != CONNECTION_OK)
         return c; /* the caller reads the message, and a later take() resets it */
     PQclear(PQexec(c, "SET client_min_messages = warning"));

@@ -170,7 +170,7 @@ def http_bench(lines):
     # (queued or running when it stopped) are done, so the request has the daemon to itself
     for _ in range(600):
         m = http_get(base + "/metrics")
-        if metric(m, 'surfd_jobs{state="queued"}') + metric(m, 'surfd_jobs{state="running"}') == 0:
+        if metric(m, "surfd_store_queued") + metric(m, 'surfd_jobs{state="running"}') == 0:
             break
         time.sleep(0.1)
     big, _ = scene_file("teapot.json", True)

@@ -1,0 +1,122 @@
+/* trimesh.c - figures of an indexed triangle mesh (trimesh.h). Edges are found by sorting the
+ * 3F directed half-edges by their undirected key: a manifold, consistently oriented edge is two
+ * half-edges running opposite ways; anything else is counted as boundary or non-manifold.
+ * Components by union-find over vertices joined by edges (isolated vertices do not count). */
+#include "trimesh.h"
+
+#include <math.h>
+#include <stdbool.h>
+#include <stdlib.h>
+#include <string.h>
+
+void trimesh_free(struct trimesh *m)
+{
+    free(m->pos);
+    free(m->nrm);
+    free(m->tri);
+    memset(m, 0, sizeof *m);
+}
+
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return (x > y) - (x < y);
+}
+
+static uint32_t find(uint32_t *parent, uint32_t v)
+{
+    while (parent[v] != v) {
+        parent[v] = parent[parent[v]];
+        v = parent[v];
+    }
+    return v;
+}
+
+int trimesh_stats(const struct trimesh *m, struct trimesh_stats *out, struct sf_err *err)
+{
+    memset(out, 0, sizeof *out);
+    for (int a = 0; a < 3; a++)
+        out->bounds[0][a] = INFINITY, out->bounds[1][a] = -INFINITY;
+    for (size_t v = 0; v < m->n_vert; v++)
+        for (int a = 0; a < 3; a++) {
+            double x = m->pos[3 * v + a];
+            out->bounds[0][a] = fmin(out->bounds[0][a], x);
+            out->bounds[1][a] = fmax(out->bounds[1][a], x);
+        }
+    /* volume and area in double, about the bounds' centre (fewer digits lost far from the origin) */
+    double c[3];
+    for (int a = 0; a < 3; a++)
+        c[a] = m->n_vert ? 0.5 * (out->bounds[0][a] + out->bounds[1][a]) : 0;
+    double vol = 0, area = 0;
+    for (size_t t = 0; t < m->n_tri; t++) {
+        double p[3][3];
+        for (int k = 0; k < 3; k++)
+            for (int a = 0; a < 3; a++)
+                p[k][a] = m->pos[3 * (size_t)m->tri[3 * t + k] + a] - c[a];
+        double u[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
+        double w[3] = {p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
+        double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+        double a2 = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        area += 0.5 * a2;
+        out->degenerate += a2 == 0;
+        vol += (p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) - p[0][1] * (p[1][0] * p[2][2] - p[1][2] * p[2][0]) +
+                p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0])) / 6;
+    }
+    out->volume = vol;
+    out->area = area;
+    if (m->n_tri == 0)
+        return 0;
+    /* half-edges as one sortable word: min vertex (31 bits), max vertex (32), which way it runs (1) */
+    size_t nh = 3 * m->n_tri;
+    uint64_t *h = malloc(nh * sizeof *h);
+    uint32_t *parent = malloc((m->n_vert ? m->n_vert : 1) * sizeof *parent);
+    if (!h || !parent) {
+        free(h);
+        free(parent);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory measuring a mesh of %zu triangles", m->n_tri);
+    }
+    for (size_t v = 0; v < m->n_vert; v++)
+        parent[v] = (uint32_t)v;
+    for (size_t t = 0; t < m->n_tri; t++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = m->tri[3 * t + k], b = m->tri[3 * t + (k + 1) % 3];
+            uint32_t lo = a < b ? a : b, hi = a < b ? b : a;
+            h[3 * t + k] = (uint64_t)lo << 33 | (uint64_t)hi << 1 | (a > b);
+            uint32_t ra = find(parent, a), rb = find(parent, b);
+            if (ra != rb)
+                parent[ra] = rb;
+        }
+    qsort(h, nh, sizeof *h, cmp_u64);
+    long edges = 0;
+    for (size_t i = 0; i < nh;) {
+        size_t j = i;
+        while (j < nh && h[j] >> 1 == h[i] >> 1)
+            j++;
+        edges++;
+        size_t n = j - i;
+        if (n == 1)
+            out->boundary_edges++;
+        else if (n > 2 || (h[i] & 1) == (h[i + 1] & 1))
+            out->nonmanifold_edges++;
+        i = j;
+    }
+    bool *used = calloc(m->n_vert ? m->n_vert : 1, sizeof *used);
+    if (!used) {
+        free(h);
+        free(parent);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory measuring a mesh");
+    }
+    for (size_t t = 0; t < 3 * m->n_tri; t++)
+        used[m->tri[t]] = true;
+    long verts = 0;
+    for (size_t v = 0; v < m->n_vert; v++)
+        if (used[v]) {
+            verts++;
+            out->components += find(parent, (uint32_t)v) == v;
+        }
+    out->euler = verts - edges + (long)m->n_tri;
+    free(used);
+    free(h);
+    free(parent);
+    return 0;
+}

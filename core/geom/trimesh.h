@@ -1,0 +1,33 @@
+/* trimesh.h - an indexed triangle mesh and the figures a user checks it by: volume (divergence
+ * theorem), area, boundary and non-manifold edges, connected components, Euler characteristic.
+ * Made by the isosurface extraction (core/iso) and, later, the matrix models. */
+#ifndef SURFD_TRIMESH_H
+#define SURFD_TRIMESH_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "../base/err.h"
+
+struct trimesh {
+    float *pos;              /* 3 per vertex */
+    float *nrm;              /* 3 per vertex (unit, outward), or NULL */
+    uint32_t *tri;           /* 3 per triangle, counter-clockwise seen from outside */
+    size_t n_vert, n_tri;    /* vertex ids stay below 2^31 */
+};
+
+struct trimesh_stats {
+    double volume, area;     /* in the mesh's units (mm^3, mm^2) */
+    long boundary_edges;     /* edges of one triangle */
+    long nonmanifold_edges;  /* edges of three or more, or two that run the same way (misoriented) */
+    long components;         /* connected by shared edges */
+    long euler;              /* V - E + F */
+    long degenerate;         /* triangles of zero area */
+    double bounds[2][3];
+};
+
+void trimesh_free(struct trimesh *m);
+/* Figures of m (O(F log F): edges are sorted). 0, or SF_ENOMEM. */
+int trimesh_stats(const struct trimesh *m, struct trimesh_stats *out, struct sf_err *err);
+
+#endif

@@ -1,0 +1,684 @@
+/* mc.c - marching cubes over an indexed mesh (mc.h), in two passes over slabs of z as VTK's Flying
+ * Edges does: pass 1 counts each row's edge crossings and triangles, a prefix sum places every
+ * row's output, pass 2 writes it. The grid seen here is "virtual": with closed=true it has one
+ * layer of pad samples (below iso) round the real ones. Rows: x-edge row (J, K) holds the
+ * crossings of the edges from (I, J, K) to (I+1, J, K), and so on for y and z; cell row (J, K)
+ * the cells (I, J, K). Vertices are numbered level by level (x rows, y rows, z rows of level K),
+ * triangles cell row by cell row, so the mesh does not depend on the slabs. */
+#include "mc.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- the cell tables ---- */
+
+/* corners c = x + 2y + 4z; edges 0-3 along x (index y + 2z), 4-7 along y (x + 2z), 8-11 along z
+ * (x + 2y) */
+static int edge_of(int a, int b)
+{
+    int d = a ^ b, lo = a < b ? a : b;
+    int x = lo & 1, y = lo >> 1 & 1, z = lo >> 2 & 1;
+    return d == 1 ? y + 2 * z : d == 2 ? 4 + x + 2 * z : 8 + x + 2 * y;
+}
+
+/* Each face's corners counter-clockwise about its outward normal: -x, +x, -y, +y, -z, +z. */
+static const int FACE_CCW[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+/* The same corners in one global order, (u, v) = 00, 10, 01, 11 over the face's two axes in
+ * x, y, z order: what the asymptotic decider reads, the same in both cells that share the face. */
+static const int FACE_CANON[6][4] = {{0, 2, 4, 6}, {1, 3, 5, 7}, {0, 1, 4, 5}, {2, 3, 6, 7}, {0, 1, 2, 3}, {4, 5, 6, 7}};
+
+#define MAX_CELL_TRIS 12
+#define MAX_CENTRES 4
+struct cell_case {
+    uint8_t n;                       /* triangles */
+    uint8_t n_centres;               /* vertices inside the cell: the centres of loops fanned from them */
+    uint8_t e[3 * MAX_CELL_TRIS];    /* the triangles' corners: cell edges 0-11, centres 12.. */
+    uint16_t centre_of[MAX_CENTRES]; /* the edges (bit mask) of each centre's loop */
+};
+
+/* Faces of corner states c with two diagonal corners in and the other two out. */
+static int ambiguous_faces(int c)
+{
+    int m = 0;
+    for (int f = 0; f < 6; f++) {
+        const int *q = FACE_CANON[f];
+        int s00 = c >> q[0] & 1, s10 = c >> q[1] & 1, s01 = c >> q[2] & 1, s11 = c >> q[3] & 1;
+        if (s00 == s11 && s10 == s01 && s00 != s10)
+            m |= 1 << f;
+    }
+    return m;
+}
+
+/* The two faces edge e lies on, as a bit mask. */
+static int edge_faces(int e)
+{
+    int p = e & 3, lo = p & 1, hi = p >> 1;
+    if (e < 4) /* along x: (y, z) = (lo, hi) */
+        return 1 << (2 + lo) | 1 << (4 + hi);
+    if (e < 8) /* along y: (x, z) */
+        return 1 << lo | 1 << (4 + hi);
+    return 1 << lo | 1 << (2 + hi); /* along z: (x, y) */
+}
+
+/* A loop position to fan from whose diagonals all cross the cell's inside: a diagonal between
+ * two crossings of one face would lie in that face, where the neighbour's fan may draw it too
+ * (four triangles on one edge). -1 when there is none. */
+static int fan_apex(const int *loop, int n)
+{
+    for (int a = 0; a < n; a++) {
+        bool ok = true;
+        for (int k = 2; k + 1 < n && ok; k++)
+            ok = !(edge_faces(loop[a]) & edge_faces(loop[(a + k) % n]));
+        if (ok)
+            return a;
+    }
+    return -1;
+}
+
+/* The triangles of corner states c, ambiguous face f's inside corners joined across it when bit
+ * f of joined is set: each face's segments run from an entry crossing (walking the face
+ * counter-clockwise, out -> in) to an exit; they chain into loops, each fanned into triangles. */
+static void build_case(int c, int joined, struct cell_case *out)
+{
+    int next[12];
+    for (int e = 0; e < 12; e++)
+        next[e] = -1;
+    for (int f = 0; f < 6; f++) {
+        int cross[4], entry[4], n = 0;
+        for (int k = 0; k < 4; k++) {
+            int a = FACE_CCW[f][k], b = FACE_CCW[f][(k + 1) % 4];
+            int sa = c >> a & 1, sb = c >> b & 1;
+            if (sa != sb) {
+                cross[n] = edge_of(a, b);
+                entry[n++] = sb; /* out -> in */
+            }
+        }
+        if (n == 2) {
+            int en = entry[0] ? 0 : 1;
+            next[cross[en]] = cross[1 - en];
+        } else if (n == 4) {
+            int r = entry[0] ? 0 : 1; /* E1 X1 E2 X2 counter-clockwise from the first entry */
+            int e1 = cross[r], x1 = cross[(r + 1) % 4], e2 = cross[(r + 2) % 4], x2 = cross[(r + 3) % 4];
+            if (joined >> f & 1) { /* the segments cut off the outside corners */
+                next[e2] = x1;
+                next[e1] = x2;
+            } else { /* they cut off the inside corners */
+                next[e1] = x1;
+                next[e2] = x2;
+            }
+        }
+    }
+    out->n = out->n_centres = 0;
+    bool seen[12] = {false};
+    for (int e = 0; e < 12; e++) {
+        if (next[e] < 0 || seen[e])
+            continue;
+        int loop[12], n = 0;
+        for (int v = e; !seen[v]; v = next[v]) {
+            seen[v] = true;
+            loop[n++] = v;
+        }
+        int apex = fan_apex(loop, n);
+        if (apex < 0) { /* fanned from a vertex at the loop's centre instead */
+            int centre = 12 + out->n_centres;
+            uint16_t edges = 0;
+            for (int k = 0; k < n; k++) {
+                uint8_t *t = out->e + 3 * out->n++;
+                t[0] = (uint8_t)centre;
+                t[1] = (uint8_t)loop[k];
+                t[2] = (uint8_t)loop[(k + 1) % n];
+                edges |= (uint16_t)(1 << loop[k]);
+            }
+            out->centre_of[out->n_centres++] = edges;
+            continue;
+        }
+        for (int k = 1; k + 1 < n; k++) {
+            uint8_t *t = out->e + 3 * out->n++;
+            t[0] = (uint8_t)loop[apex];
+            t[1] = (uint8_t)loop[(apex + k) % n];
+            t[2] = (uint8_t)loop[(apex + k + 1) % n];
+        }
+    }
+}
+
+/* ---- the job ---- */
+
+struct iso_job {
+    struct iso_grid g;
+    struct iso_opts o;
+    int NX, NY, NZ, shift;           /* the virtual grid; shift: 1 when padded */
+    float iso, pad;
+    double org[3];                   /* of the virtual grid's sample (0, 0, 0) */
+    int n_slabs, *k0;                /* slab s: cell layers k0[s] .. k0[s+1]-1 */
+    uint32_t *xc, *yc, *zc, *tc, *cc; /* per row [J + NY*K]: crossings, triangles, centres */
+    size_t *xb, *yb, *zb, *tb, *cb;  /* where each row's output starts */
+    bool *slab_failed;               /* [s]: a pass of slab s found no memory (written by s alone) */
+    struct trimesh m;
+};
+
+int iso_n_slabs(const struct iso_job *j) { return j->n_slabs; }
+
+static double sample(const struct iso_grid *g, size_t i)
+{
+    switch (g->type) {
+    case ISO_U8: return ((const uint8_t *)g->samples)[i];
+    case ISO_I16: return ((const int16_t *)g->samples)[i];
+    case ISO_U16: return ((const uint16_t *)g->samples)[i];
+    default: return ((const float *)g->samples)[i];
+    }
+}
+
+/* Real row (y, z) of the samples into out[0 .. nx-1] as floats. */
+static void real_row(const struct iso_grid *g, int y, int z, float *out)
+{
+    size_t at = (size_t)g->nx * ((size_t)y + (size_t)g->ny * (size_t)z);
+    int n = g->nx;
+    switch (g->type) {
+    case ISO_U8: {
+        const uint8_t *p = (const uint8_t *)g->samples + at;
+        for (int i = 0; i < n; i++)
+            out[i] = p[i];
+        break;
+    }
+    case ISO_I16: {
+        const int16_t *p = (const int16_t *)g->samples + at;
+        for (int i = 0; i < n; i++)
+            out[i] = p[i];
+        break;
+    }
+    case ISO_U16: {
+        const uint16_t *p = (const uint16_t *)g->samples + at;
+        for (int i = 0; i < n; i++)
+            out[i] = p[i];
+        break;
+    }
+    default:
+        memcpy(out, (const float *)g->samples + at, (size_t)n * sizeof *out);
+    }
+}
+
+/* Virtual slice K into out (NX * NY floats). */
+static void load(const struct iso_job *j, int K, float *out)
+{
+    int s = j->shift;
+    for (int J = 0; J < j->NY; J++) {
+        float *row = out + (size_t)j->NX * (size_t)J;
+        int y = J - s, z = K - s;
+        if (y < 0 || y >= j->g.ny || z < 0 || z >= j->g.nz) {
+            for (int I = 0; I < j->NX; I++)
+                row[I] = j->pad;
+            continue;
+        }
+        real_row(&j->g, y, z, row + s);
+        if (s)
+            row[0] = row[j->NX - 1] = j->pad;
+    }
+}
+
+void iso_free(struct iso_job *j)
+{
+    if (!j)
+        return;
+    free(j->k0);
+    free(j->xc);
+    free(j->yc);
+    free(j->zc);
+    free(j->tc);
+    free(j->cc);
+    free(j->cb);
+    free(j->xb);
+    free(j->yb);
+    free(j->zb);
+    free(j->tb);
+    free(j->slab_failed);
+    trimesh_free(&j->m);
+    free(j);
+}
+
+/* The cells' tables: [c * 64 + joined], and each corner state's ambiguous faces. */
+static struct cell_case CASES[256 * 64];
+static uint8_t AMBIGUOUS[256];
+static bool tables_built;
+
+void iso_init(void)
+{
+    if (tables_built)
+        return;
+    for (int c = 0; c < 256; c++) {
+        AMBIGUOUS[c] = (uint8_t)ambiguous_faces(c);
+        for (int m = 0; m < 64; m++)
+            if ((m & ~AMBIGUOUS[c]) == 0)
+                build_case(c, m, &CASES[c * 64 + m]);
+    }
+    tables_built = true;
+}
+
+int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, struct iso_job **out,
+              struct sf_err *err)
+{
+    *out = NULL;
+    if (!tables_built)
+        return sf_fail(err, SF_EBACKEND, "", "iso_init() was not called");
+    if (g->nx < 2 || g->ny < 2 || g->nz < 2)
+        return sf_fail(err, SF_EINVAL, "?dims", "a volume has at least 2 samples on every axis");
+    if (!isfinite(o->iso))
+        return sf_fail(err, SF_EINVAL, "?iso", "iso is a finite number");
+    struct iso_job *j = calloc(1, sizeof *j);
+    if (!j)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    j->g = *g;
+    j->o = *o;
+    j->shift = o->closed ? 1 : 0;
+    j->NX = g->nx + 2 * j->shift;
+    j->NY = g->ny + 2 * j->shift;
+    j->NZ = g->nz + 2 * j->shift;
+    j->iso = (float)o->iso;
+    for (int a = 0; a < 3; a++)
+        j->org[a] = g->origin[a] - j->shift * g->spacing[a];
+    if (o->closed) { /* below iso and every sample: the volume's minimum, as a CT's air */
+        size_t n = (size_t)g->nx * (size_t)g->ny * (size_t)g->nz;
+        double lo = o->iso - 1;
+        for (size_t i = 0; i < n; i++) {
+            double v = sample(g, i);
+            lo = v < lo ? v : lo;
+        }
+        j->pad = (float)lo;
+    }
+    int layers = j->NZ - 1;
+    j->n_slabs = n_slabs < 1 ? 1 : n_slabs > layers ? layers : n_slabs;
+    size_t rows = (size_t)j->NY * (size_t)j->NZ;
+    j->k0 = malloc(sizeof *j->k0 * (size_t)(j->n_slabs + 1));
+    j->xc = calloc(rows, sizeof *j->xc);
+    j->yc = calloc(rows, sizeof *j->yc);
+    j->zc = calloc(rows, sizeof *j->zc);
+    j->tc = calloc(rows, sizeof *j->tc);
+    j->cc = calloc(rows, sizeof *j->cc);
+    j->slab_failed = calloc((size_t)j->n_slabs, sizeof *j->slab_failed);
+    if (!j->k0 || !j->xc || !j->yc || !j->zc || !j->tc || !j->cc || !j->slab_failed) {
+        iso_free(j);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    }
+    for (int s = 0; s <= j->n_slabs; s++)
+        j->k0[s] = (int)((long)layers * s / j->n_slabs);
+    *out = j;
+    return 0;
+}
+
+/* Corner states of cell I of the rows a0, a1 (y, y+1 at z) and b0, b1 (at z+1), and the
+ * decisions of its ambiguous faces: the index of its case. */
+static int cell_case(const struct iso_job *j, const float *a0, const float *a1, const float *b0, const float *b1, int I)
+{
+    float iso = j->iso;
+    float v[8] = {a0[I], a0[I + 1], a1[I], a1[I + 1], b0[I], b0[I + 1], b1[I], b1[I + 1]};
+    int c = 0;
+    for (int k = 0; k < 8; k++)
+        c |= (v[k] > iso) << k;
+    int amb = AMBIGUOUS[c], joined = 0;
+    for (int f = 0; amb; f++, amb >>= 1) {
+        if (!(amb & 1))
+            continue;
+        const int *q = FACE_CANON[f];
+        double g00 = (double)v[q[0]] - iso, g10 = (double)v[q[1]] - iso, g01 = (double)v[q[2]] - iso,
+               g11 = (double)v[q[3]] - iso;
+        double det = g00 * g11 - g10 * g01; /* the bilinear saddle's side of iso, times the denominator's sign */
+        if (g00 > 0 ? det > 0 : det < 0)
+            joined |= 1 << f;
+    }
+    return c * 64 + joined;
+}
+
+static uint32_t row_crossings(const float *a, const float *b, int n, float iso)
+{
+    uint32_t k = 0;
+    for (int i = 0; i < n; i++)
+        k += (a[i] > iso) != (b[i] > iso);
+    return k;
+}
+
+static uint32_t x_crossings(const float *row, int nx, float iso)
+{
+    uint32_t k = 0;
+    for (int i = 0; i + 1 < nx; i++)
+        k += (row[i] > iso) != (row[i + 1] > iso);
+    return k;
+}
+
+/* The x and y rows of level K (slice a). */
+static void count_level(struct iso_job *j, int K, const float *a)
+{
+    int NX = j->NX, NY = j->NY;
+    for (int J = 0; J < NY; J++) {
+        const float *r = a + (size_t)NX * J;
+        j->xc[J + (size_t)NY * K] = x_crossings(r, NX, j->iso);
+        if (J + 1 < NY)
+            j->yc[J + (size_t)NY * K] = row_crossings(r, r + NX, NX, j->iso);
+    }
+}
+
+void iso_count(struct iso_job *j, int s)
+{
+    int NX = j->NX, NY = j->NY;
+    size_t plane = (size_t)NX * NY;
+    float *a = malloc(2 * plane * sizeof *a);
+    if (!a) {
+        j->slab_failed[s] = true;
+        return;
+    }
+    float *b = a + plane;
+    load(j, j->k0[s], b);
+    for (int K = j->k0[s]; K < j->k0[s + 1]; K++) {
+        float *t = a;
+        a = b;
+        b = t;
+        load(j, K + 1, b);
+        count_level(j, K, a);
+        for (int J = 0; J < NY; J++) {
+            const float *a0 = a + (size_t)NX * J, *b0 = b + (size_t)NX * J;
+            j->zc[J + (size_t)NY * K] = row_crossings(a0, b0, NX, j->iso);
+            if (J + 1 == NY)
+                continue;
+            uint32_t n = 0, centres = 0;
+            for (int I = 0; I + 1 < NX; I++) {
+                const struct cell_case *cc = &CASES[cell_case(j, a0, a0 + NX, b0, b0 + NX, I)];
+                n += cc->n;
+                centres += cc->n_centres;
+            }
+            j->tc[J + (size_t)NY * K] = n;
+            j->cc[J + (size_t)NY * K] = centres;
+        }
+    }
+    if (s == j->n_slabs - 1)
+        count_level(j, j->NZ - 1, b);
+    free(a < b ? a : b);
+}
+
+/* Whether a slab's pass ran out of memory (it wrote nothing). */
+static int slabs_ok(const struct iso_job *j, struct sf_err *err)
+{
+    for (int s = 0; s < j->n_slabs; s++)
+        if (j->slab_failed[s])
+            return sf_fail(err, SF_ENOMEM, "", "out of memory for a slab of the volume");
+    return 0;
+}
+
+int iso_layout(struct iso_job *j, struct sf_err *err)
+{
+    int rc = slabs_ok(j, err);
+    if (rc)
+        return rc;
+    size_t rows = (size_t)j->NY * (size_t)j->NZ;
+    j->xb = malloc(rows * sizeof *j->xb);
+    j->yb = malloc(rows * sizeof *j->yb);
+    j->zb = malloc(rows * sizeof *j->zb);
+    j->tb = malloc(rows * sizeof *j->tb);
+    j->cb = malloc(rows * sizeof *j->cb);
+    if (!j->xb || !j->yb || !j->zb || !j->tb || !j->cb)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    size_t v = 0, t = 0;
+    for (int K = 0; K < j->NZ; K++) {
+        size_t base = (size_t)j->NY * K;
+        for (int J = 0; J < j->NY; J++)
+            j->xb[base + J] = v, v += j->xc[base + J];
+        for (int J = 0; J < j->NY; J++)
+            j->yb[base + J] = v, v += j->yc[base + J];
+        for (int J = 0; J < j->NY; J++)
+            j->zb[base + J] = v, v += j->zc[base + J];
+        for (int J = 0; J < j->NY; J++)
+            j->cb[base + J] = v, v += j->cc[base + J];
+        for (int J = 0; J < j->NY; J++)
+            j->tb[base + J] = t, t += j->tc[base + J];
+    }
+    if (v > ISO_MAX_VERTICES)
+        return sf_fail(err, SF_ELIMIT, "", "the isosurface would have %zu vertices, over the limit of %u", v,
+                       ISO_MAX_VERTICES);
+    j->m.n_vert = v;
+    j->m.n_tri = t;
+    j->m.pos = malloc((v ? v : 1) * 3 * sizeof *j->m.pos);
+    j->m.tri = malloc((t ? t : 1) * 3 * sizeof *j->m.tri);
+    if (j->o.normals)
+        j->m.nrm = malloc((v ? v : 1) * 3 * sizeof *j->m.nrm);
+    if (!j->m.pos || !j->m.tri || (j->o.normals && !j->m.nrm))
+        return sf_fail(err, SF_ENOMEM, "", "out of memory for a mesh of %zu triangles", t);
+    return 0;
+}
+
+/* ---- pass 2 ---- */
+
+/* Slices K-1 .. K+2 of the virtual grid, kept as K advances. */
+struct window {
+    float *s[4];
+    int k;                           /* s[1] is slice k */
+};
+
+static const float *slice(const struct window *w, int K) { return w->s[K - w->k + 1]; }
+
+static void window_at(const struct iso_job *j, struct window *w, int K)
+{
+    if (K == w->k + 1) { /* slide by one */
+        float *t = w->s[0];
+        w->s[0] = w->s[1], w->s[1] = w->s[2], w->s[2] = w->s[3], w->s[3] = t;
+        w->k = K;
+        if (K + 2 < j->NZ)
+            load(j, K + 2, w->s[3]);
+        return;
+    }
+    w->k = K;
+    for (int d = -1; d <= 2; d++)
+        if (K + d >= 0 && K + d < j->NZ)
+            load(j, K + d, w->s[d + 1]);
+}
+
+/* The field's gradient at virtual sample (I, J, K), by central differences (one-sided at the
+ * border), in grid units. */
+static void gradient(const struct iso_job *j, const struct window *w, int I, int J, int K, double g[3])
+{
+    int NX = j->NX, NY = j->NY, NZ = j->NZ;
+    const float *c = slice(w, K);
+    size_t at = (size_t)I + (size_t)NX * J;
+    int i0 = I > 0 ? I - 1 : I, i1 = I + 1 < NX ? I + 1 : I;
+    int j0 = J > 0 ? J - 1 : J, j1 = J + 1 < NY ? J + 1 : J;
+    int k0 = K > 0 ? K - 1 : K, k1 = K + 1 < NZ ? K + 1 : K;
+    g[0] = ((double)c[(size_t)i1 + (size_t)NX * J] - c[(size_t)i0 + (size_t)NX * J]) / ((i1 - i0) * j->g.spacing[0]);
+    g[1] = ((double)c[(size_t)I + (size_t)NX * j1] - c[(size_t)I + (size_t)NX * j0]) / ((j1 - j0) * j->g.spacing[1]);
+    g[2] = ((double)slice(w, k1)[at] - slice(w, k0)[at]) / ((k1 - k0) * j->g.spacing[2]);
+}
+
+/* Vertex v on the edge from virtual sample p to its neighbour along axis. */
+static void put_vertex(struct iso_job *j, const struct window *w, size_t v, int I, int J, int K, int axis, float a,
+                       float b)
+{
+    double t = ((double)j->iso - a) / ((double)b - a);
+    t = t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
+    int p[3] = {I, J, K};
+    float *out = j->m.pos + 3 * v;
+    for (int d = 0; d < 3; d++)
+        out[d] = (float)(j->org[d] + j->g.spacing[d] * (p[d] + (d == axis ? t : 0)));
+    if (!j->m.nrm)
+        return;
+    double g0[3], g1[3], n[3];
+    gradient(j, w, I, J, K, g0);
+    gradient(j, w, I + (axis == 0), J + (axis == 1), K + (axis == 2), g1);
+    for (int d = 0; d < 3; d++)
+        n[d] = -((1 - t) * g0[d] + t * g1[d]); /* outward: down the gradient */
+    double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (int d = 0; d < 3; d++)
+        j->m.nrm[3 * v + d] = len > 0 ? (float)(n[d] / len) : 0.0f;
+}
+
+/* Vertex v at the centre of a loop of cell (I, J, K) (rows r[z][y]): the mean of the loop's edge
+ * crossings, its normal down the trilinear interpolant's gradient there. */
+static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const float *r[2][2], unsigned edges)
+{
+    double f[8], p[3] = {0, 0, 0};
+    for (int c = 0; c < 8; c++)
+        f[c] = r[c >> 2][c >> 1 & 1][I + (c & 1)];
+    int n = 0;
+    for (int a = 0; a < 8; a++)
+        for (int axis = 0; axis < 3; axis++) {
+            int b = a | 1 << axis;
+            if (b == a || !(edges >> edge_of(a, b) & 1))
+                continue;
+            double t = ((double)j->iso - f[a]) / (f[b] - f[a]);
+            t = t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
+            for (int d = 0; d < 3; d++)
+                p[d] += (a >> d & 1) + (d == axis ? t : 0);
+            n++;
+        }
+    for (int d = 0; d < 3; d++)
+        p[d] /= n;
+    int at[3] = {I, J, K};
+    for (int d = 0; d < 3; d++)
+        j->m.pos[3 * v + d] = (float)(j->org[d] + j->g.spacing[d] * (at[d] + p[d]));
+    if (!j->m.nrm)
+        return;
+    double g[3] = {0, 0, 0}, len = 0;
+    for (int c = 0; c < 8; c++) { /* d/dp_d of the trilinear weights */
+        double w[3] = {c & 1 ? p[0] : 1 - p[0], c >> 1 & 1 ? p[1] : 1 - p[1], c >> 2 & 1 ? p[2] : 1 - p[2]};
+        for (int d = 0; d < 3; d++)
+            g[d] += f[c] * (c >> d & 1 ? 1 : -1) * w[(d + 1) % 3] * w[(d + 2) % 3] / j->g.spacing[d];
+    }
+    for (int d = 0; d < 3; d++)
+        len += g[d] * g[d];
+    len = sqrt(len);
+    for (int d = 0; d < 3; d++)
+        j->m.nrm[3 * v + d] = len > 0 ? (float)(-g[d] / len) : 0.0f;
+}
+
+/* The x and y vertices of level K. */
+static void emit_level(struct iso_job *j, const struct window *w, int K)
+{
+    int NX = j->NX, NY = j->NY;
+    const float *a = slice(w, K);
+    float iso = j->iso;
+    for (int J = 0; J < NY; J++) {
+        const float *r = a + (size_t)NX * J;
+        size_t v = j->xb[J + (size_t)NY * K];
+        for (int I = 0; I + 1 < NX; I++)
+            if ((r[I] > iso) != (r[I + 1] > iso))
+                put_vertex(j, w, v++, I, J, K, 0, r[I], r[I + 1]);
+        if (J + 1 == NY)
+            continue;
+        v = j->yb[J + (size_t)NY * K];
+        for (int I = 0; I < NX; I++)
+            if ((r[I] > iso) != (r[I + NX] > iso))
+                put_vertex(j, w, v++, I, J, K, 1, r[I], r[I + NX]);
+    }
+}
+
+/* The z vertices between levels K and K+1, and the triangles of cell layer K. */
+static void emit_layer(struct iso_job *j, const struct window *w, int K)
+{
+    int NX = j->NX, NY = j->NY;
+    float iso = j->iso;
+    const float *a = slice(w, K), *b = slice(w, K + 1);
+    for (int J = 0; J < NY; J++) {
+        size_t v = j->zb[J + (size_t)NY * K];
+        const float *a0 = a + (size_t)NX * J, *b0 = b + (size_t)NX * J;
+        for (int I = 0; I < NX; I++)
+            if ((a0[I] > iso) != (b0[I] > iso))
+                put_vertex(j, w, v++, I, J, K, 2, a0[I], b0[I]);
+    }
+    for (int J = 0; J + 1 < NY; J++) {
+        const float *r[2][2] = {{a + (size_t)NX * J, a + (size_t)NX * (J + 1)}, {b + (size_t)NX * J, b + (size_t)NX * (J + 1)}};
+        size_t row = J + (size_t)NY * K, up = row + NY; /* level K+1's row J */
+        /* running ids: crossings before column I in each row a cell of this row touches */
+        size_t cx[4] = {j->xb[row], j->xb[row + 1], j->xb[up], j->xb[up + 1]}; /* (y, z) = 00 10 01 11 */
+        size_t cy[2] = {j->yb[row], j->yb[up]};                                 /* z = 0, 1 */
+        size_t cz[2] = {j->zb[row], j->zb[row + 1]};                            /* y = 0, 1 */
+        uint32_t *tri = j->m.tri + 3 * j->tb[row];
+        size_t centre = j->cb[row];
+        for (int I = 0; I + 1 < NX; I++) {
+            size_t id[12];
+            bool xs[4], ys[2][2], zs[2][2]; /* crossing at this column (and the next, for y and z) */
+            for (int e = 0; e < 4; e++) {
+                const float *p = r[e >> 1][e & 1];
+                xs[e] = (p[I] > iso) != (p[I + 1] > iso);
+                id[e] = cx[e];
+            }
+            for (int z = 0; z < 2; z++)
+                for (int x = 0; x < 2; x++) {
+                    ys[z][x] = (r[z][0][I + x] > iso) != (r[z][1][I + x] > iso);
+                    id[4 + x + 2 * z] = cy[z] + (x ? ys[z][0] : 0);
+                }
+            for (int y = 0; y < 2; y++)
+                for (int x = 0; x < 2; x++) {
+                    zs[y][x] = (r[0][y][I + x] > iso) != (r[1][y][I + x] > iso);
+                    id[8 + x + 2 * y] = cz[y] + (x ? zs[y][0] : 0);
+                }
+            const struct cell_case *cc = &CASES[cell_case(j, r[0][0], r[0][1], r[1][0], r[1][1], I)];
+            size_t ids[12 + MAX_CENTRES];
+            memcpy(ids, id, sizeof id);
+            for (int c = 0; c < cc->n_centres; c++) {
+                ids[12 + c] = centre;
+                put_centre(j, centre++, I, J, K, r, cc->centre_of[c]);
+            }
+            for (int k = 0; k < 3 * cc->n; k++)
+                *tri++ = (uint32_t)ids[cc->e[k]];
+            for (int e = 0; e < 4; e++)
+                cx[e] += xs[e];
+            cy[0] += ys[0][0], cy[1] += ys[1][0];
+            cz[0] += zs[0][0], cz[1] += zs[1][0];
+        }
+    }
+}
+
+void iso_emit(struct iso_job *j, int s)
+{
+    size_t plane = (size_t)j->NX * (size_t)j->NY;
+    float *buf = malloc(4 * plane * sizeof *buf);
+    if (!buf) {
+        j->slab_failed[s] = true;
+        return;
+    }
+    struct window w = {{buf, buf + plane, buf + 2 * plane, buf + 3 * plane}, -10};
+    for (int K = j->k0[s]; K < j->k0[s + 1]; K++) {
+        window_at(j, &w, K);
+        emit_level(j, &w, K);
+        emit_layer(j, &w, K);
+    }
+    if (s == j->n_slabs - 1) {
+        window_at(j, &w, j->NZ - 1);
+        emit_level(j, &w, j->NZ - 1);
+    }
+    free(buf);
+}
+
+int iso_end(struct iso_job *j, struct trimesh *out, struct sf_err *err)
+{
+    memset(out, 0, sizeof *out);
+    int rc = slabs_ok(j, err);
+    if (!rc) {
+        *out = j->m;
+        memset(&j->m, 0, sizeof j->m);
+    }
+    iso_free(j);
+    return rc;
+}
+
+int iso_extract(const struct iso_grid *g, const struct iso_opts *o, const struct sf_progress *pr, struct trimesh *out,
+                struct sf_err *err)
+{
+    memset(out, 0, sizeof *out);
+    struct iso_job *j;
+    int n = g->nz / 8 + 1, rc = iso_begin(g, o, n, &j, err);
+    if (rc)
+        return rc;
+    n = iso_n_slabs(j);
+    for (int s = 0; s < n && !rc; s++) {
+        iso_count(j, s);
+        rc = sf_poll(pr, 0.5 * (s + 1) / n, err);
+    }
+    if (!rc)
+        rc = iso_layout(j, err);
+    for (int s = 0; s < n && !rc; s++) {
+        iso_emit(j, s);
+        rc = sf_poll(pr, 0.5 + 0.5 * (s + 1) / n, err);
+    }
+    if (rc) {
+        iso_free(j);
+        return rc;
+    }
+    return iso_end(j, out, err);
+}

@@ -1,0 +1,77 @@
+/* mc.h - isosurfaces of sampled volumes (seed 002's base method, METHODS.md §4): marching cubes
+ * over an indexed mesh, each edge crossing computed once and shared by the four cells round it.
+ *
+ * Inside is value > iso (a sample equal to iso is outside: ties are decided one way everywhere).
+ * A cell's polygons come from its faces: on each face the isoline segments join the face's edge
+ * crossings, an ambiguous face (two diagonal corners in, two out) joined by the asymptotic decider
+ * of the bilinear interpolant, computed from the face's four samples in one global order so that
+ * the two cells sharing the face agree. The segments of the six faces chain into closed loops,
+ * oriented counter-clockwise seen from outside; each loop is fanned into triangles. So every
+ * triangle edge on a cell face is shared, the other way round, by the neighbour's triangle:
+ * with closed=true (the grid's border counts as outside) the mesh is a closed, consistently
+ * oriented 2-manifold on any input. A fan whose diagonal would join two crossings of one face (the
+ * neighbour's fan might draw the same edge) starts from another vertex of the loop, or, when
+ * every vertex has such a diagonal, from a vertex added at the loop's centre. The cells' tables
+ * (256 corner states x the decisions of their ambiguous faces) are built by these rules at
+ * start (iso_init), not typed in.
+ * Vertices sit where the edge's linear interpolant crosses iso, kept ISO_EDGE_MARGIN of the edge
+ * from its ends, so that a sample equal to iso never collapses triangles to zero area.
+ *
+ * Cells are addressed by integer coordinates and done in slabs of z: a caller runs iso_count and
+ * then iso_emit on any slabs in any order, on as many threads as it likes (each slab writes only
+ * its own rows); the mesh is the same whatever the order or the number of threads. */
+#ifndef SURFD_MC_H
+#define SURFD_MC_H
+
+#include <stdbool.h>
+#include <stddef.h>
+
+#include "../base/err.h"
+#include "../geom/trimesh.h"
+
+#define ISO_EDGE_MARGIN 1e-3 /* of an edge: the nearest a vertex comes to a sample */
+#define ISO_MAX_VERTICES 2000000000u
+
+enum iso_type { ISO_U8, ISO_I16, ISO_U16, ISO_F32 };
+
+/* Samples x fastest, then y, then z, in the host's byte order. */
+struct iso_grid {
+    int nx, ny, nz;
+    enum iso_type type;
+    const void *samples;
+    double spacing[3], origin[3];
+};
+
+struct iso_opts {
+    double iso;
+    bool closed;             /* the border counts as outside: pads the grid with one layer below iso */
+    bool normals;            /* vertex normals from the field's gradient (central differences) */
+};
+
+struct iso_job;
+
+/* Builds the cells' tables; call once, before any thread extracts (the daemon at start). */
+void iso_init(void);
+
+/* Prepares an extraction in n_slabs slabs (fewer when the grid is thinner). 0, or SF_EINVAL
+ * (a grid under 2 samples on an axis, NaN iso), SF_ENOMEM. */
+int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, struct iso_job **out,
+              struct sf_err *err);
+int iso_n_slabs(const struct iso_job *j);
+/* Pass 1: counts slab s's vertices and triangles. */
+void iso_count(struct iso_job *j, int s);
+/* Between the passes, on one thread: places every row's output. 0, or SF_ELIMIT (over
+ * ISO_MAX_VERTICES), SF_ENOMEM. */
+int iso_layout(struct iso_job *j, struct sf_err *err);
+/* Pass 2: writes slab s's vertices and triangles. */
+void iso_emit(struct iso_job *j, int s);
+/* Hands the mesh over (positions in the grid's units) and frees the job: 0, or SF_ENOMEM (a
+ * slab's pass found no memory; nothing is handed over). */
+int iso_end(struct iso_job *j, struct trimesh *out, struct sf_err *err);
+void iso_free(struct iso_job *j);
+
+/* All of it on the calling thread, polling pr between slabs (SF_ECANCEL when it says stop). */
+int iso_extract(const struct iso_grid *g, const struct iso_opts *o, const struct sf_progress *pr, struct trimesh *out,
+                struct sf_err *err);
+
+#endif
