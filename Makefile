@@ -25,7 +25,7 @@ SAN     := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-re
 TSAN    := -fsanitize=thread
 
 CORE_LIBS := -lembree3 -lm
-API_LIBS  := -ljansson
+API_LIBS  := -ljansson -lz
 DAEMON_LIBS := -lmicrohttpd -lsqlite3 -lpq -lgnutls -lpthread
 IMG_LIBS  := -lOpenImageIO -lOpenImageIO_Util -lstdc++
 DCM_LIBS  := -ldcmdata -loflog -lofstd -lstdc++

@@ -13,6 +13,8 @@
 
 #include "../core/geom/enclosed.h"
 #include "../core/contour/solid.h"
+#include "mesh_io.h"
+#include "query.h"
 #include "rtstruct.h"
 #include "scene_io.h"
 
@@ -21,19 +23,6 @@ static double now_ms(void)
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
-}
-
-/* name=value from an options string ("roi=PTV&caps=slab"); "" when absent. */
-static void option(const char *options, const char *name, char *out, size_t cap)
-{
-    out[0] = 0;
-    size_t n = strlen(name);
-    for (const char *p = options ? options : ""; *p;) {
-        size_t len = strcspn(p, "&");
-        if (len > n && !strncmp(p, name, n) && p[n] == '=')
-            snprintf(out, cap, "%.*s", (int)(len - n - 1), p + n + 1);
-        p += len + (p[len] == '&');
-    }
 }
 
 static char *dump(json_t *o, struct sf_err *err)
@@ -49,9 +38,9 @@ static char *dump(json_t *o, struct sf_err *err)
 static int overrides(const char *options, char caps[16], char method[24], char param[16], struct sf_err *err)
 {
     enum model_method m;
-    option(options, "caps", caps, 16);
-    option(options, "method", method, 24);
-    option(options, "parameterisation", param, 16);
+    query_option(options, "caps", caps, 16);
+    query_option(options, "method", method, 24);
+    query_option(options, "parameterisation", param, 16);
     if (param[0] && strcmp(param, "arc-length") && strcmp(param, "polar"))
         return sf_fail(err, SF_EINVAL, "?parameterisation", "parameterisation is arc-length or polar");
     if (caps[0] && strcmp(caps, "flat") && strcmp(caps, "slab") && strcmp(caps, "dome"))
@@ -212,7 +201,7 @@ int model_validate(const char *buf, size_t len, const char *format, const char *
         return rc;
     }
     char roi[128], caps[16], method[24], param[16];
-    option(options, "roi", roi, sizeof roi);
+    query_option(options, "roi", roi, sizeof roi);
     int rc = overrides(options, caps, method, param, err);
     if (rc)
         return rc;
@@ -254,7 +243,7 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     int rc = 0;
     char roi[128], caps[16], method[24], param[16];
-    option(options, "roi", roi, sizeof roi);
+    query_option(options, "roi", roi, sizeof roi);
     if ((rc = overrides(options, caps, method, param, err)))
         return rc;
     if (!format || strcmp(format, "dicom")) {
@@ -388,93 +377,12 @@ static int solid_of(const char *src, size_t len, const struct sf_progress *pr, s
     return rc;
 }
 
-/* Growable output buffer. */
-struct out {
-    char *p;
-    size_t n, cap;
-    bool failed;
-};
-
-static void put(struct out *o, const void *data, size_t n)
-{
-    if (o->failed)
-        return;
-    if (o->n + n > o->cap) {
-        size_t cap = o->cap ? o->cap : 1 << 16;
-        while (cap < o->n + n)
-            cap *= 2;
-        char *p = realloc(o->p, cap);
-        if (!p) {
-            o->failed = true;
-            return;
-        }
-        o->p = p, o->cap = cap;
-    }
-    memcpy(o->p + o->n, data, n);
-    o->n += n;
-}
-
-static void putf(struct out *o, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void putf(struct out *o, const char *fmt, ...)
-{
-    char line[256];
-    va_list ap;
-    va_start(ap, fmt);
-    int n = vsnprintf(line, sizeof line, fmt, ap);
-    va_end(ap);
-    put(o, line, n > 0 ? (size_t)n : 0);
-}
-
-static void put_f32(struct out *o, double v)
-{
-    float f = (float)v; /* the formats' own precision; x86 and arm64 are little-endian, as STL and our PLY */
-    put(o, &f, 4);
-}
-
-static void encode(const struct mesh *m, const char *format, struct out *o)
-{
-    if (!strcmp(format, "stl")) {
-        char head[80] = "surfd model mesh (binary STL, mm)";
-        uint32_t n = (uint32_t)m->n_t;
-        put(o, head, 80);
-        put(o, &n, 4);
-        for (size_t k = 0; k < m->n_t; k++) {
-            const double *a = m->v[m->t[k][0]], *b = m->v[m->t[k][1]], *c = m->v[m->t[k][2]];
-            vec3 nrm = v3_cross(v3(b[0] - a[0], b[1] - a[1], b[2] - a[2]), v3(c[0] - a[0], c[1] - a[1], c[2] - a[2]));
-            double l = v3_len(nrm);
-            nrm = l > 0 ? v3_scale(nrm, 1 / l) : nrm;
-            put_f32(o, nrm.x), put_f32(o, nrm.y), put_f32(o, nrm.z);
-            for (int i = 0; i < 3; i++)
-                for (int d = 0; d < 3; d++)
-                    put_f32(o, m->v[m->t[k][i]][d]);
-            put(o, "\0\0", 2);
-        }
-    } else if (!strcmp(format, "ply")) {
-        putf(o, "ply\nformat binary_little_endian 1.0\ncomment surfd model mesh, mm\nelement vertex %zu\n"
-                "property float x\nproperty float y\nproperty float z\nelement face %zu\n"
-                "property list uchar int vertex_indices\nend_header\n", m->n_v, m->n_t);
-        for (size_t k = 0; k < m->n_v; k++)
-            put_f32(o, m->v[k][0]), put_f32(o, m->v[k][1]), put_f32(o, m->v[k][2]);
-        for (size_t k = 0; k < m->n_t; k++) {
-            int32_t t[3] = {(int32_t)m->t[k][0], (int32_t)m->t[k][1], (int32_t)m->t[k][2]};
-            put(o, "\3", 1);
-            put(o, t, sizeof t);
-        }
-    } else {
-        putf(o, "# surfd model mesh, mm\n");
-        for (size_t k = 0; k < m->n_v; k++)
-            putf(o, "v %.9g %.9g %.9g\n", m->v[k][0], m->v[k][1], m->v[k][2]);
-        for (size_t k = 0; k < m->n_t; k++)
-            putf(o, "f %u %u %u\n", m->t[k][0] + 1, m->t[k][1] + 1, m->t[k][2] + 1);
-    }
-}
-
 int model_mesh_options(const char *options, const char **format, double *tol, struct sf_err *err)
 {
     static const char *const FORMATS[] = {"stl", "ply", "obj"};
     char f[16], t[64], *end = NULL;
-    option(options, "format", f, sizeof f);
-    option(options, "tolerance", t, sizeof t);
+    query_option(options, "format", f, sizeof f);
+    query_option(options, "tolerance", t, sizeof t);
     *format = NULL;
     for (int k = 0; k < 3; k++)
         if (!strcmp(f[0] ? f : "stl", FORMATS[k]))
@@ -496,7 +404,14 @@ int model_mesh(const char *src, size_t len, const char *options, const struct sf
     int rc = model_mesh_options(options, &format, &tol, err);
     if (rc)
         return rc;
-    *mime = !strcmp(format, "stl") ? "model/stl" : !strcmp(format, "ply") ? "application/ply" : "model/obj";
+    *mime = mesh_mime(format);
+    if (mesh_is_packed(src, len)) { /* an isosurface: the mesh itself */
+        struct trimesh tm;
+        if (!(rc = mesh_unpack(src, len, &tm, err)))
+            rc = mesh_encode(&tm, format, out, out_len, err);
+        trimesh_free(&tm);
+        return rc;
+    }
     struct solid sd;
     if ((rc = solid_of(src, len, pr, &sd, err)))
         return rc;
@@ -513,22 +428,27 @@ int model_mesh(const char *src, size_t len, const char *options, const struct sf
                        tol > 0 ? tol : dflt, MESH_MAX_TRIANGLES, dflt);
     if (rc)
         return sf_fail(err, SF_ENOMEM, "", "out of memory meshing the model");
-    struct out o = {0};
-    encode(&m, format, &o);
-    solid_mesh_free(&m);
-    if (o.failed) {
-        free(o.p);
-        return sf_fail(err, SF_ENOMEM, "", "out of memory writing the mesh");
+    struct trimesh tm = {malloc(12 * (m.n_v ? m.n_v : 1)), NULL, malloc(12 * (m.n_t ? m.n_t : 1)), m.n_v, m.n_t};
+    if (tm.pos && tm.tri) { /* the formats' own precision */
+        for (size_t k = 0; k < 3 * m.n_v; k++)
+            tm.pos[k] = (float)m.v[k / 3][k % 3];
+        for (size_t k = 0; k < 3 * m.n_t; k++)
+            tm.tri[k] = m.t[k / 3][k % 3];
+        rc = mesh_encode(&tm, format, out, out_len, err);
+    } else {
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory writing the mesh");
     }
-    *out = o.p;
-    *out_len = o.n;
-    return 0;
+    solid_mesh_free(&m);
+    trimesh_free(&tm);
+    return rc;
 }
 
 int model_patches_json(const char *src, size_t len, char **json, struct sf_err *err)
 {
     struct solid sd;
     *json = NULL;
+    if (mesh_is_packed(src, len))
+        return sf_fail(err, SF_EINVAL, "", "this model is a triangle mesh: it has no patches (GET its /mesh)");
     int rc = solid_of(src, len, NULL, &sd, err);
     if (rc)
         return rc;
@@ -565,6 +485,9 @@ int model_patches_json(const char *src, size_t len, char **json, struct sf_err *
 int model_scene_objects(const char *src, size_t len, struct scene *sc, const struct material *mat, const char *where,
                         struct sf_err *err)
 {
+    if (mesh_is_packed(src, len))
+        return sf_fail(err, SF_EINVAL, where, "rendering a triangle-mesh model (an isosurface) is not built yet; "
+                       "download its /mesh");
     struct solid sd = {0};
     int rc = solid_of(src, len, NULL, &sd, err);
     for (size_t k = 0; !rc && k < sd.set.n; k++) {

@@ -6,5 +6,13 @@
 int cmd_render(int argc, char **argv);
 int cmd_serve(int argc, char **argv);
 int cmd_volume(int argc, char **argv);
+int cmd_isosurface(int argc, char **argv);
+
+#include <stddef.h>
+/* A whole file (NUL-terminated, caller frees), or NULL after saying why on stderr. Files up to
+ * max_len bytes. */
+char *cli_read_all(const char *path, size_t *len, size_t max_len);
+/* 0, or -1 after saying why. */
+int cli_write_all(const char *path, const char *data, size_t len);
 
 #endif

@@ -9,39 +9,6 @@
 #include "../api/model_json.h"
 #include "cli.h"
 
-static char *read_all(const char *path, size_t *len)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        perror(path);
-        return NULL;
-    }
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *buf = n >= 0 && n < (1L << 30) ? malloc((size_t)n + 1) : NULL;
-    size_t got = buf ? fread(buf, 1, (size_t)n, f) : 0;
-    fclose(f);
-    if (!buf || got != (size_t)n) {
-        free(buf);
-        fprintf(stderr, "surfd: %s: cannot read\n", path);
-        return NULL;
-    }
-    buf[n] = 0;
-    *len = (size_t)n;
-    return buf;
-}
-
-static int write_all(const char *path, const char *data, size_t len)
-{
-    FILE *f = fopen(path, "wb");
-    if (!f || fwrite(data, 1, len, f) != len || fclose(f)) {
-        perror(path);
-        return -1;
-    }
-    return 0;
-}
-
 /* The sink of offline models: keeps the sources, counts them. */
 struct keep {
     char *source;
@@ -90,7 +57,7 @@ int cmd_volume(int argc, char **argv)
         return 2;
     }
     size_t len;
-    char *buf = read_all(argv[1], &len);
+    char *buf = cli_read_all(argv[1], &len, 1u << 30);
     if (!buf)
         return 1;
     char *json = NULL;
@@ -116,11 +83,11 @@ int cmd_volume(int argc, char **argv)
     char mesh_opts[96];
     snprintf(mesh_opts, sizeof mesh_opts, "format=%.8s&tolerance=%.17g", ext ? ext + 1 : "none", tol);
     if (!rc && mesh && !(rc = model_mesh(kept.source, strlen(kept.source), mesh_opts, NULL, &out, &out_len, &mime, &err)))
-        rc = write_all(mesh, out, out_len) ? SF_EIO : 0;
+        rc = cli_write_all(mesh, out, out_len) ? SF_EIO : 0;
     free(out);
     out = NULL;
     if (!rc && patches && !(rc = model_patches_json(kept.source, strlen(kept.source), &out, &err)))
-        rc = write_all(patches, out, strlen(out)) ? SF_EIO : 0;
+        rc = cli_write_all(patches, out, strlen(out)) ? SF_EIO : 0;
     free(out);
     free(kept.source);
     if (rc) {

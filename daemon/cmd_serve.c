@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "../api/image.h"
+#include "../core/iso/mc.h"
 
 #ifndef SURFD_VERSION
 #define SURFD_VERSION "dev"
@@ -111,6 +112,7 @@ int cmd_serve(int argc, char **argv)
         goto out_close_store;
     }
     image_init();
+    iso_init();
     if (!(svc.q = jobq_new((int)threads, svc.cfg.queue_max))) {
         fprintf(stderr, "surfd serve: cannot start the worker pool\n");
         goto out_free_device;

@@ -94,7 +94,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     free(w);
 }
 
-static const struct job_ops CONTOUR_OPS = {prepare, NULL, finish};
+static const struct job_ops CONTOUR_OPS = {.prepare = prepare, .finish = finish};
 
 static int start(struct service *svc, const struct job_claim *c, enum contour_kind kind)
 {

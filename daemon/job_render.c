@@ -95,7 +95,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     free(w);
 }
 
-static const struct job_ops RENDER_OPS = {prepare, band, finish};
+static const struct job_ops RENDER_OPS = {.prepare = prepare, .band = band, .finish = finish};
 
 const char *render_format(const char *content_type) { return render_format_from_type(content_type); }
 

@@ -194,8 +194,22 @@ static void *worker(void *arg)
             j->bands_out--;
             j->bands_done++;
             bool all = j->bands_done == j->n_bands || (j->cancel && j->bands_out == 0);
-            if (all)
+            if (all && !j->cancel && j->ops->next) { /* the next phase, prepared as the first was */
+                j->preparing = true;
+                pthread_mutex_unlock(&q->lock);
+                int n_bands = 0, rc = j->ops->next(j, j->work, &n_bands);
+                pthread_mutex_lock(&q->lock);
+                j->preparing = false;
+                if (rc == 0 && n_bands > 0 && !j->cancel) {
+                    j->n_bands = n_bands;
+                    j->next_band = j->bands_done = 0;
+                    pthread_cond_broadcast(&q->work);
+                } else {
+                    finish_job(q, j, j->cancel ? JOB_CANCELLED : rc ? JOB_FAILED : JOB_SUCCEEDED);
+                }
+            } else if (all) {
                 finish_job(q, j, j->cancel ? JOB_CANCELLED : JOB_SUCCEEDED);
+            }
         } else if (q->stop) {
             break;
         } else {
@@ -366,7 +380,7 @@ bool jobq_peek(struct jobq *q, const char *id, enum job_state *state, double *pr
     struct job *j = find_live(q, id);
     if (j) {
         *state = j->state == JOB_QUEUED ? JOB_QUEUED : JOB_RUNNING; /* finishing is running until stored */
-        double bands = j->n_bands ? (double)j->bands_done / j->n_bands : 0.0;
+        double bands = j->n_bands && !j->ops->next ? (double)j->bands_done / j->n_bands : 0.0;
         *progress = bands > j->progress ? bands : j->progress;
     }
     pthread_mutex_unlock(&q->lock);

@@ -1,8 +1,9 @@
 /* jobq.h - the bounded job queue and its worker pool.
  *
  * A job runs in up to three steps, given by its kind's ops: prepare() on the worker that takes it,
- * then band(k) for k in [0, n_bands) on any idle workers (a render's scanline bands), then
- * finish() on the worker that completes the last band. A job with no bands is finished right after
+ * then band(k) for k in [0, n_bands) on any idle workers (a render's scanline bands; a job may
+ * have several phases of bands, next() starting each after the last), then finish() on the
+ * worker that completes the last band. A job with no bands is finished right after
  * prepare. Cancel takes effect between bands. See jobq.c for the threading contract. */
 #ifndef SURFD_JOBQ_H
 #define SURFD_JOBQ_H
@@ -21,6 +22,10 @@ struct job_ops {
      * the queue lock. */
     int (*prepare)(struct job *j, void *work, int *n_bands);
     void (*band)(struct job *j, void *work, int band); /* NULL for kinds without bands */
+    /* NULL, or called (without the lock) when every band of a phase is done: sets *n_bands for
+     * the next phase (0: all done). Returns 0, or -1 when the job failed. A job reports its own
+     * progress (jobq_cancelled) when it has phases. */
+    int (*next)(struct job *j, void *work, int *n_bands);
     /* outcome: JOB_SUCCEEDED, JOB_FAILED (prepare failed) or JOB_CANCELLED (by the user; or, with
      * requeue, by shutdown: the job is to run again after restart). Frees work. */
     void (*finish)(struct job *j, void *work, enum job_state outcome, bool requeue);

@@ -12,6 +12,9 @@ static const struct job_kind KINDS[] = {
      "application/json"},
     {"mesh", NULL, NULL, false, mesh_validate, mesh_start, "model/stl, application/x-ply or model/obj"},
     {"patches", NULL, NULL, false, patches_validate, patches_start, "application/json"},
+    {"isosurface", iso_format,
+     "application/octet-stream (raw samples, with ?dims&type), application/x-nrrd or application/x-metaimage", true,
+     iso_validate, iso_start, "application/json"},
 };
 
 const struct job_kind *job_kind(const char *name)

@@ -1,4 +1,4 @@
-/* main.c - build/surfd: dispatches to its subcommands (serve, render, model, volume). */
+/* main.c - build/surfd: dispatches to its subcommands (serve, render, model, volume, isosurface). */
 #include <stdio.h>
 #include <string.h>
 
@@ -16,12 +16,15 @@ int main(int argc, char **argv)
         return cmd_serve(argc - 1, argv + 1);
     if (argc >= 2 && (!strcmp(argv[1], "volume") || !strcmp(argv[1], "model")))
         return cmd_volume(argc - 1, argv + 1);
+    if (argc >= 2 && !strcmp(argv[1], "isosurface"))
+        return cmd_isosurface(argc - 1, argv + 1);
     if (argc >= 2 && (!strcmp(argv[1], "--version") || !strcmp(argv[1], "version"))) {
         printf("surfd %s\n", SURFD_VERSION);
         return 0;
     }
     fprintf(stderr, "usage: surfd serve [--config FILE] [--SETTING VALUE]...   (surfd serve --help)\n"
                     "       surfd render SCENE... -o OUT [options]\n"
-                    "       surfd model|volume CONTOURS.json|RTSTRUCT.dcm [options]\n");
+                    "       surfd model|volume CONTOURS.json|RTSTRUCT.dcm [options]\n"
+                    "       surfd isosurface VOLUME --iso V [options]\n");
     return 2;
 }

@@ -652,12 +652,6 @@ static enum MHD_Result openapi(struct req *r, const char *id)
     return text(r, 200, "application/yaml", surfd_openapi_yaml);
 }
 
-static enum MHD_Result not_built(struct req *r, const char *id)
-{
-    (void)id;
-    return problem(r, 501, "this route is part of the contract but not built yet", NULL);
-}
-
 static enum MHD_Result models(struct req *r, const char *id)
 {
     (void)id;
@@ -718,7 +712,7 @@ static const struct route {
     {"/render", POST, false, NULL, "render"},
     {"/volume", POST, false, NULL, "volume"},
     {"/model", POST, false, NULL, "model"},
-    {"/isosurface", POST, false, not_built, NULL},
+    {"/isosurface", POST, false, NULL, "isosurface"},
     {"/models", GET, false, models, NULL},
     {"/models/{id}", GET | DELETE, false, model_resource, NULL},
     {"/models/{id}/mesh", GET, false, model_mesh_route, NULL},

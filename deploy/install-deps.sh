@@ -6,7 +6,7 @@
 set -eu
 
 BUILD="build-essential pkg-config libembree-dev libopenimageio-dev libmicrohttpd-dev libjansson-dev \
-libsqlite3-dev libpq-dev postgresql libcurl4-openssl-dev libdcmtk-dev libgnutls28-dev curl openssl python3 clang libclang-rt-14-dev"
+libsqlite3-dev libpq-dev postgresql zlib1g-dev libcurl4-openssl-dev libdcmtk-dev libgnutls28-dev curl openssl python3 clang libclang-rt-14-dev"
 BENCH="povray wrk plastimatch"
 
 want="$BUILD"

@@ -47,7 +47,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     atomic_fetch_add(&total_finished, 1);
 }
 
-static const struct job_ops OPS = {prepare, band, finish};
+static const struct job_ops OPS = {.prepare = prepare, .band = band, .finish = finish};
 
 struct waited {
     atomic_int calls;
@@ -156,9 +156,73 @@ TEST(full_queue_timeouts_and_shutdown)
     }
 }
 
+/* A job of phases: bands of phase p run only after every band of phase p-1 (next() between). */
+struct phased {
+    atomic_int phase, nexts, in_phase[3], early; /* early: a band that ran before its phase */
+    enum job_state outcome;
+};
+
+static int ph_prepare(struct job *j, void *arg, int *n)
+{
+    (void)j;
+    (void)arg;
+    *n = 8;
+    return 0;
+}
+
+static void ph_band(struct job *j, void *arg, int k)
+{
+    (void)j;
+    (void)k;
+    struct phased *p = arg;
+    int ph = atomic_load(&p->phase);
+    atomic_fetch_add(&p->in_phase[ph], 1);
+    struct timespec ts = {0, 200 * 1000L};
+    nanosleep(&ts, NULL);
+    if (atomic_load(&p->phase) != ph)
+        atomic_fetch_add(&p->early, 1);
+}
+
+static int ph_next(struct job *j, void *arg, int *n)
+{
+    (void)j;
+    struct phased *p = arg;
+    atomic_fetch_add(&p->nexts, 1);
+    int ph = atomic_fetch_add(&p->phase, 1) + 1;
+    *n = ph < 3 ? 8 : 0;
+    return 0;
+}
+
+static void ph_finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
+{
+    (void)j;
+    (void)requeue;
+    ((struct phased *)arg)->outcome = outcome;
+}
+
+static const struct job_ops PHASED = {.prepare = ph_prepare, .band = ph_band, .next = ph_next, .finish = ph_finish};
+
+TEST(phases_of_bands)
+{
+    struct jobq *q = jobq_new(4, 8);
+    struct phased p = {0};
+    struct waited w = {0};
+    jobq_wait(q, "p", monotonic_s() + 30, on_wait, &w);
+    CHECK(jobq_submit(q, "p", &PHASED, &p, false) == 0);
+    for (int k = 0; k < 3000 && !atomic_load(&w.calls); k++)
+        sleep_ms(1);
+    CHECK(atomic_load(&w.calls) == 1 && atomic_load(&w.finished));
+    CHECK(p.outcome == JOB_SUCCEEDED && atomic_load(&p.nexts) == 3);
+    CHECK(atomic_load(&p.in_phase[0]) == 8 && atomic_load(&p.in_phase[1]) == 8 && atomic_load(&p.in_phase[2]) == 8);
+    CHECK(atomic_load(&p.early) == 0);
+    jobq_shutdown(q, 1, 1, NULL, NULL);
+    jobq_free(q);
+}
+
 int main(void)
 {
     RUN(bands_run_once_and_jobs_end);
     RUN(full_queue_timeouts_and_shutdown);
+    RUN(phases_of_bands);
     UNIT_END();
 }

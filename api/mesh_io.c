@@ -1,0 +1,162 @@
+/* mesh_io.c - mesh writers and the packed form (mesh_io.h). x86 and arm64 are little-endian, as
+ * STL, our PLY and the packed form are, so floats and indices are written as they lie. */
+#include "mesh_io.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Growable output buffer. */
+struct out {
+    char *p;
+    size_t n, cap;
+    bool failed;
+};
+
+static void put(struct out *o, const void *data, size_t n)
+{
+    if (o->failed)
+        return;
+    if (o->n + n > o->cap) {
+        size_t cap = o->cap ? o->cap : 1 << 16;
+        while (cap < o->n + n)
+            cap *= 2;
+        char *p = realloc(o->p, cap);
+        if (!p) {
+            o->failed = true;
+            return;
+        }
+        o->p = p, o->cap = cap;
+    }
+    memcpy(o->p + o->n, data, n);
+    o->n += n;
+}
+
+static void putf(struct out *o, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void putf(struct out *o, const char *fmt, ...)
+{
+    char line[256];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    put(o, line, n > 0 ? (size_t)n : 0);
+}
+
+static int done(struct out *o, char **out, size_t *len, struct sf_err *err)
+{
+    if (o->failed) {
+        free(o->p);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory writing the mesh");
+    }
+    *out = o->p;
+    *len = o->n;
+    return 0;
+}
+
+const char *mesh_mime(const char *format)
+{
+    return !strcmp(format, "stl") ? "model/stl" : !strcmp(format, "ply") ? "application/ply"
+                                              : !strcmp(format, "obj") ? "model/obj"
+                                                                       : NULL;
+}
+
+int mesh_encode(const struct trimesh *m, const char *format, char **out, size_t *len, struct sf_err *err)
+{
+    struct out o = {0};
+    *out = NULL;
+    if (!strcmp(format, "stl")) {
+        char head[80] = "surfd model mesh (binary STL, mm)";
+        uint32_t n = (uint32_t)m->n_tri;
+        put(&o, head, 80);
+        put(&o, &n, 4);
+        for (size_t k = 0; k < m->n_tri; k++) {
+            const float *p[3];
+            for (int i = 0; i < 3; i++)
+                p[i] = m->pos + 3 * (size_t)m->tri[3 * k + i];
+            double u[3], w[3];
+            for (int d = 0; d < 3; d++)
+                u[d] = (double)p[1][d] - p[0][d], w[d] = (double)p[2][d] - p[0][d];
+            double nr[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+            double l = sqrt(nr[0] * nr[0] + nr[1] * nr[1] + nr[2] * nr[2]);
+            float f[12];
+            for (int d = 0; d < 3; d++)
+                f[d] = (float)(l > 0 ? nr[d] / l : 0);
+            for (int i = 0; i < 3; i++)
+                memcpy(f + 3 + 3 * i, p[i], 3 * sizeof *f);
+            put(&o, f, sizeof f);
+            put(&o, "\0\0", 2);
+        }
+    } else if (!strcmp(format, "ply")) {
+        putf(&o, "ply\nformat binary_little_endian 1.0\ncomment surfd model mesh, mm\nelement vertex %zu\n"
+                 "property float x\nproperty float y\nproperty float z\nelement face %zu\n"
+                 "property list uchar int vertex_indices\nend_header\n", m->n_vert, m->n_tri);
+        put(&o, m->pos, 3 * sizeof *m->pos * m->n_vert);
+        for (size_t k = 0; k < m->n_tri; k++) {
+            put(&o, "\3", 1);
+            put(&o, m->tri + 3 * k, 3 * sizeof *m->tri);
+        }
+    } else {
+        putf(&o, "# surfd model mesh, mm\n");
+        for (size_t k = 0; k < m->n_vert; k++)
+            putf(&o, "v %.9g %.9g %.9g\n", m->pos[3 * k], m->pos[3 * k + 1], m->pos[3 * k + 2]);
+        for (size_t k = 0; k < m->n_tri; k++)
+            putf(&o, "f %u %u %u\n", m->tri[3 * k] + 1, m->tri[3 * k + 1] + 1, m->tri[3 * k + 2] + 1);
+    }
+    return done(&o, out, len, err);
+}
+
+static const char MAGIC[8] = "SFMESH1\n";
+
+bool mesh_is_packed(const char *src, size_t len) { return len >= 32 && !memcmp(src, MAGIC, 8); }
+
+int mesh_pack(const struct trimesh *m, char **out, size_t *len, struct sf_err *err)
+{
+    struct out o = {0};
+    uint64_t head[3] = {m->n_vert, m->n_tri, m->nrm != NULL};
+    put(&o, MAGIC, 8);
+    put(&o, head, sizeof head);
+    put(&o, m->pos, 3 * sizeof *m->pos * m->n_vert);
+    if (m->nrm)
+        put(&o, m->nrm, 3 * sizeof *m->nrm * m->n_vert);
+    put(&o, m->tri, 3 * sizeof *m->tri * m->n_tri);
+    return done(&o, out, len, err);
+}
+
+int mesh_unpack(const char *src, size_t len, struct trimesh *m, struct sf_err *err)
+{
+    memset(m, 0, sizeof *m);
+    uint64_t head[3];
+    if (!mesh_is_packed(src, len))
+        return sf_fail(err, SF_EFORMAT, "", "not a packed mesh");
+    memcpy(head, src + 8, sizeof head);
+    uint64_t nv = head[0], nt = head[1], with_normals = head[2] != 0;
+    if (nv >= (1ull << 31) || nt >= (1ull << 32) ||
+        len != 32 + 12 * nv * (1 + with_normals) + 12 * nt)
+        return sf_fail(err, SF_EFORMAT, "", "a packed mesh whose counts do not match its length");
+    m->n_vert = nv, m->n_tri = nt;
+    m->pos = malloc(12 * (nv ? nv : 1));
+    m->nrm = with_normals ? malloc(12 * (nv ? nv : 1)) : NULL;
+    m->tri = malloc(12 * (nt ? nt : 1));
+    if (!m->pos || !m->tri || (with_normals && !m->nrm)) {
+        trimesh_free(m);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory reading a mesh");
+    }
+    const char *p = src + 32;
+    memcpy(m->pos, p, 12 * nv);
+    p += 12 * nv;
+    if (with_normals) {
+        memcpy(m->nrm, p, 12 * nv);
+        p += 12 * nv;
+    }
+    memcpy(m->tri, p, 12 * nt);
+    for (size_t k = 0; k < 3 * nt; k++)
+        if (m->tri[k] >= nv) {
+            trimesh_free(m);
+            return sf_fail(err, SF_EFORMAT, "", "a packed mesh with a vertex index out of range");
+        }
+    return 0;
+}

@@ -1,0 +1,24 @@
+/* mesh_io.h - triangle meshes out: STL (binary), PLY (binary little-endian) and OBJ, for every
+ * kind of model; and the compact form a mesh model (an isosurface) is stored in. */
+#ifndef SURFD_MESH_IO_H
+#define SURFD_MESH_IO_H
+
+#include <stdbool.h>
+#include <stddef.h>
+
+#include "../core/base/err.h"
+#include "../core/geom/trimesh.h"
+
+/* "stl", "ply" or "obj" to its media type; NULL for another. */
+const char *mesh_mime(const char *format);
+/* m in format into *out (caller frees). 0, or SF_ENOMEM. */
+int mesh_encode(const struct trimesh *m, const char *format, char **out, size_t *len, struct sf_err *err);
+
+/* The stored form: "SFMESH1\n", vertex and triangle counts (uint64), whether normals follow
+ * (uint64), then float32 positions, float32 normals, uint32 triangles, little-endian. */
+int mesh_pack(const struct trimesh *m, char **out, size_t *len, struct sf_err *err);
+bool mesh_is_packed(const char *src, size_t len);
+/* Reads a packed mesh (checking its counts against its length): 0, or SF_EFORMAT, SF_ENOMEM. */
+int mesh_unpack(const char *src, size_t len, struct trimesh *m, struct sf_err *err);
+
+#endif

@@ -1,0 +1,487 @@
+/* volume_io.c - raw, NRRD (attached header) and MetaImage (.mha) volumes (volume_io.h). The two
+ * header formats are a handful of "key: value" / "Key = Value" lines: read here by hand (teem and
+ * ITK would bring whole toolkits for it); gzip and zlib data through zlib. */
+#include "volume_io.h"
+
+#include <ctype.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <zlib.h>
+
+#include "query.h"
+
+const char *volume_format_from_type(const char *ct)
+{
+    if (!ct || !*ct)
+        return "";
+    size_t n = strcspn(ct, ";");
+    while (n > 0 && isspace((unsigned char)ct[n - 1]))
+        n--;
+    static const struct {
+        const char *type, *format;
+    } TYPES[] = {{"application/octet-stream", "raw"}, {"application/x-nrrd", "nrrd"}, {"image/x-nrrd", "nrrd"},
+                 {"application/x-metaimage", "mha"},   {"application/x-mha", "mha"},   {"image/x-mha", "mha"},
+                 {"application/x-www-form-urlencoded", ""} /* curl -d's default: sniffed */};
+    for (size_t k = 0; k < sizeof TYPES / sizeof *TYPES; k++)
+        if (strlen(TYPES[k].type) == n && !strncasecmp(ct, TYPES[k].type, n))
+            return TYPES[k].format;
+    return NULL;
+}
+
+static size_t type_size(enum iso_type t) { return t == ISO_U8 ? 1 : t == ISO_F32 ? 4 : 2; }
+
+static int parse_type(const char *s, enum iso_type *t)
+{
+    static const struct {
+        const char *name;
+        enum iso_type type;
+    } NAMES[] = {{"uint8", ISO_U8},          {"uchar", ISO_U8},          {"unsigned char", ISO_U8},
+                 {"uint8_t", ISO_U8},        {"MET_UCHAR", ISO_U8},      {"int16", ISO_I16},
+                 {"short", ISO_I16},         {"short int", ISO_I16},     {"signed short", ISO_I16},
+                 {"int16_t", ISO_I16},       {"MET_SHORT", ISO_I16},     {"uint16", ISO_U16},
+                 {"ushort", ISO_U16},        {"unsigned short", ISO_U16}, {"uint16_t", ISO_U16},
+                 {"MET_USHORT", ISO_U16},    {"float32", ISO_F32},       {"float", ISO_F32},
+                 {"MET_FLOAT", ISO_F32}};
+    for (size_t k = 0; k < sizeof NAMES / sizeof *NAMES; k++)
+        if (!strcmp(s, NAMES[k].name)) {
+            *t = NAMES[k].type;
+            return 0;
+        }
+    return -1;
+}
+
+/* n numbers separated by commas or blanks (parentheses ignored) into out: 0, or -1. */
+static int numbers(const char *s, int n, double *out)
+{
+    for (int k = 0; k < n; k++) {
+        while (*s && (isspace((unsigned char)*s) || *s == ',' || *s == '(' || *s == ')'))
+            s++;
+        char *end;
+        out[k] = strtod(s, &end);
+        if (end == s || !isfinite(out[k]))
+            return -1;
+        s = end;
+    }
+    while (*s && (isspace((unsigned char)*s) || *s == ')'))
+        s++;
+    return *s ? -1 : 0;
+}
+
+/* dims: three integers >= 2 whose product is within the limit. */
+static int check_dims(const double d[3], const char *where, int dims[3], struct sf_err *err)
+{
+    double total = 1;
+    for (int a = 0; a < 3; a++) {
+        if (d[a] != floor(d[a]) || d[a] < 2 || d[a] > 1e6)
+            return sf_fail(err, SF_EINVAL, where, "sizes are three whole numbers from 2 to 1000000");
+        dims[a] = (int)d[a];
+        total *= d[a];
+    }
+    if (total > (double)VOLUME_MAX_SAMPLES)
+        return sf_fail(err, SF_ELIMIT, where, "%.0f samples is over the limit of %llu", total,
+                       (unsigned long long)VOLUME_MAX_SAMPLES);
+    return 0;
+}
+
+static int check_spacing(const double s[3], const char *where, struct sf_err *err)
+{
+    for (int a = 0; a < 3; a++)
+        if (!(s[a] > 0) || !(s[a] < 1e6))
+            return sf_fail(err, SF_EINVAL, where, "spacings are positive and finite (mm)");
+    return 0;
+}
+
+/* ---- the samples ---- */
+
+/* Inflates a gzip (or zlib) stream of exactly want bytes into a new buffer. */
+static int inflate_all(const char *src, size_t n, size_t want, void **out, struct sf_err *err)
+{
+    unsigned char *dst = malloc(want ? want : 1);
+    if (!dst)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory for %zu bytes of samples", want);
+    z_stream z = {0};
+    if (inflateInit2(&z, 15 + 32) != Z_OK) { /* +32: gzip or zlib header, found by its magic */
+        free(dst);
+        return sf_fail(err, SF_EBACKEND, "", "zlib would not start");
+    }
+    const size_t STEP = 1u << 30; /* avail_in and avail_out are 32-bit */
+    z.next_in = (unsigned char *)(uintptr_t)src;
+    z.next_out = dst;
+    int rc = Z_OK;
+    while (rc == Z_OK) {
+        if (z.avail_in == 0) {
+            size_t left = n - (size_t)z.total_in;
+            z.avail_in = (unsigned)(left < STEP ? left : STEP);
+        }
+        if (z.avail_out == 0) {
+            size_t left = want - (size_t)z.total_out;
+            z.avail_out = (unsigned)(left < STEP ? left : STEP);
+        }
+        rc = inflate(&z, Z_NO_FLUSH); /* Z_BUF_ERROR: no progress possible (too short, or too long) */
+    }
+    size_t done = (size_t)z.total_out;
+    inflateEnd(&z);
+    if (rc != Z_STREAM_END || done != want) {
+        free(dst);
+        return sf_fail(err, SF_EINVAL, "", "the compressed samples do not inflate to %zu bytes (dims x type)", want);
+    }
+    *out = dst;
+    return 0;
+}
+
+/* Points v at the samples: in place when they are raw, in the host's order and aligned; copied
+ * (swapped) or inflated otherwise. Then refuses samples that are not finite. */
+static int place_samples(const char *data, size_t n, bool compressed, bool big_endian, const char *where,
+                         struct volume *v, struct sf_err *err)
+{
+    size_t ts = type_size(v->g.type);
+    size_t count = (size_t)v->g.nx * (size_t)v->g.ny * (size_t)v->g.nz, want = count * ts;
+    int rc;
+    if (compressed) {
+        if ((rc = inflate_all(data, n, want, &v->owned, err)))
+            return rc;
+    } else {
+        if (n != want)
+            return sf_fail(err, SF_EINVAL, where, "%zu bytes of samples, but dims x type make %zu", n, want);
+        if (big_endian || (uintptr_t)data % ts) {
+            if (!(v->owned = malloc(want ? want : 1)))
+                return sf_fail(err, SF_ENOMEM, "", "out of memory for %zu bytes of samples", want);
+            memcpy(v->owned, data, want);
+        }
+    }
+    unsigned char *b = v->owned;
+    if (big_endian && ts > 1) /* little-endian hosts: every machine surfd is built for */
+        for (size_t i = 0; i < count; i++)
+            for (size_t k = 0; k < ts / 2; k++) {
+                unsigned char t = b[i * ts + k];
+                b[i * ts + k] = b[i * ts + ts - 1 - k];
+                b[i * ts + ts - 1 - k] = t;
+            }
+    v->g.samples = v->owned ? v->owned : (const void *)data;
+    if (v->g.type == ISO_F32) {
+        const float *f = v->g.samples;
+        for (size_t i = 0; i < count; i++)
+            if (!isfinite(f[i])) {
+                size_t x = i % (size_t)v->g.nx, y = i / (size_t)v->g.nx % (size_t)v->g.ny,
+                       z = i / ((size_t)v->g.nx * (size_t)v->g.ny);
+                return sf_fail(err, SF_EINVAL, where, "sample (%zu, %zu, %zu) is not a finite number: NaN and infinite "
+                               "samples are refused, not taken as outside", x, y, z);
+            }
+    }
+    return 0;
+}
+
+/* ---- headers ---- */
+
+/* The header's lines up to its end (NRRD: a blank line; MetaImage: the ElementDataFile line):
+ * each line to fn(key, value, line number) with the key and value trimmed. *data_at: where the
+ * samples start. sep: ':' (NRRD) or '=' (MetaImage). */
+typedef int (*header_fn)(void *ctx, const char *key, const char *value, int line, struct sf_err *err);
+
+static int header_lines(const char *buf, size_t len, char sep, bool mha, header_fn fn, void *ctx, size_t *data_at,
+                        struct sf_err *err)
+{
+    size_t at = 0;
+    for (int line = 1; at < len && line <= 256; line++) {
+        const char *nl = memchr(buf + at, '\n', len - at);
+        if (!nl)
+            return sf_fail(err, SF_EFORMAT, "header", "the header does not end (no sample data after it)");
+        size_t n = (size_t)(nl - (buf + at));
+        char text[1024];
+        if (n >= sizeof text)
+            return sf_fail(err, SF_EFORMAT, "header", "header line %d is over %zu characters", line, sizeof text - 1);
+        memcpy(text, buf + at, n);
+        text[n] = 0;
+        if (n && text[n - 1] == '\r')
+            text[--n] = 0;
+        at += (size_t)(nl - (buf + at)) + 1;
+        if (!mha && n == 0) { /* NRRD: a blank line ends the header */
+            *data_at = at;
+            return 0;
+        }
+        if (line == 1 && !mha)
+            continue; /* the magic, checked by the caller */
+        if (text[0] == '#' || n == 0)
+            continue;
+        char *s = strchr(text, sep);
+        if (!s)
+            return sf_fail(err, SF_EFORMAT, "header", "header line %d is not \"key%c value\"", line, sep);
+        *s = 0;
+        char *key = text, *value = s + 1 + (!mha && s[1] == '=') /* NRRD "key:=value" */;
+        while (*value && isspace((unsigned char)*value))
+            value++;
+        for (char *e = key + strlen(key); e > key && isspace((unsigned char)e[-1]);)
+            *--e = 0;
+        for (char *e = value + strlen(value); e > value && isspace((unsigned char)e[-1]);)
+            *--e = 0;
+        int rc = fn(ctx, key, value, line, err);
+        if (rc > 0) { /* MetaImage: ElementDataFile = LOCAL ends the header */
+            *data_at = at;
+            return 0;
+        }
+        if (rc)
+            return rc;
+    }
+    return sf_fail(err, SF_EFORMAT, "header", "the header does not end within 256 lines");
+}
+
+struct header {
+    double dims[3], spacing[3], origin[3];
+    bool have_dims, have_type, have_spacing, compressed, big_endian;
+    enum iso_type type;
+};
+
+static int bad_line(struct sf_err *err, int line, const char *what)
+{
+    char where[32];
+    snprintf(where, sizeof where, "header line %d", line);
+    return sf_fail(err, SF_EINVAL, where, "%s", what);
+}
+
+static int nrrd_line(void *ctx, const char *key, const char *value, int line, struct sf_err *err)
+{
+    struct header *h = ctx;
+    if (!strcmp(key, "type")) {
+        if (parse_type(value, &h->type))
+            return bad_line(err, line, "type is uint8, int16, uint16 or float");
+        h->have_type = true;
+    } else if (!strcmp(key, "dimension")) {
+        if (strcmp(value, "3"))
+            return bad_line(err, line, "a volume has dimension 3");
+    } else if (!strcmp(key, "sizes")) {
+        if (numbers(value, 3, h->dims))
+            return bad_line(err, line, "sizes are three whole numbers");
+        h->have_dims = true;
+    } else if (!strcmp(key, "spacings")) {
+        if (numbers(value, 3, h->spacing))
+            return bad_line(err, line, "spacings are three numbers");
+        h->have_spacing = true;
+    } else if (!strcmp(key, "space directions")) {
+        double d[9];
+        if (numbers(value, 9, d))
+            return bad_line(err, line, "space directions are three vectors (a,b,c)");
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++)
+                if (a != b && d[3 * a + b] != 0)
+                    return bad_line(err, line, "an oblique volume (space directions off the axes) is not read; resample it");
+        for (int a = 0; a < 3; a++)
+            h->spacing[a] = fabs(d[4 * a]);
+        h->have_spacing = true;
+    } else if (!strcmp(key, "space origin")) {
+        if (numbers(value, 3, h->origin))
+            return bad_line(err, line, "the space origin is (x,y,z)");
+    } else if (!strcmp(key, "endian")) {
+        if (strcmp(value, "little") && strcmp(value, "big"))
+            return bad_line(err, line, "endian is little or big");
+        h->big_endian = !strcmp(value, "big");
+    } else if (!strcmp(key, "encoding")) {
+        if (!strcmp(value, "gzip") || !strcmp(value, "gz"))
+            h->compressed = true;
+        else if (strcmp(value, "raw"))
+            return bad_line(err, line, "encoding is raw or gzip");
+    } else if (!strcmp(key, "data file") || !strcmp(key, "datafile")) {
+        return bad_line(err, line, "a detached header (data file) names a file surfd cannot read: post the NRRD "
+                                   "with its data attached");
+    } else if (!strcmp(key, "line skip") || !strcmp(key, "byte skip")) {
+        if (strcmp(value, "0"))
+            return bad_line(err, line, "skips are not read");
+    }
+    return 0; /* other fields (space, kinds, content...) do not change the samples */
+}
+
+static int mha_line(void *ctx, const char *key, const char *value, int line, struct sf_err *err)
+{
+    struct header *h = ctx;
+    if (!strcmp(key, "ObjectType")) {
+        if (strcmp(value, "Image"))
+            return bad_line(err, line, "ObjectType is Image");
+    } else if (!strcmp(key, "NDims")) {
+        if (strcmp(value, "3"))
+            return bad_line(err, line, "a volume has NDims = 3");
+    } else if (!strcmp(key, "DimSize")) {
+        if (numbers(value, 3, h->dims))
+            return bad_line(err, line, "DimSize is three whole numbers");
+        h->have_dims = true;
+    } else if (!strcmp(key, "ElementType")) {
+        if (parse_type(value, &h->type))
+            return bad_line(err, line, "ElementType is MET_UCHAR, MET_SHORT, MET_USHORT or MET_FLOAT");
+        h->have_type = true;
+    } else if (!strcmp(key, "ElementSpacing") || !strcmp(key, "ElementSize")) {
+        if (numbers(value, 3, h->spacing))
+            return bad_line(err, line, "ElementSpacing is three numbers");
+        h->have_spacing = true;
+    } else if (!strcmp(key, "Offset") || !strcmp(key, "Position") || !strcmp(key, "Origin")) {
+        if (numbers(value, 3, h->origin))
+            return bad_line(err, line, "Offset is three numbers");
+    } else if (!strcmp(key, "TransformMatrix") || !strcmp(key, "Rotation") || !strcmp(key, "Orientation")) {
+        double m[9];
+        if (numbers(value, 9, m) || m[0] != 1 || m[4] != 1 || m[8] != 1 || m[1] || m[2] || m[3] || m[5] || m[6] || m[7])
+            return bad_line(err, line, "an oblique volume (TransformMatrix other than identity) is not read; resample it");
+    } else if (!strcmp(key, "BinaryDataByteOrderMSB") || !strcmp(key, "ElementByteOrderMSB")) {
+        h->big_endian = !strcasecmp(value, "True");
+    } else if (!strcmp(key, "BinaryData")) {
+        if (strcasecmp(value, "True"))
+            return bad_line(err, line, "only binary data is read (BinaryData = True)");
+    } else if (!strcmp(key, "CompressedData")) {
+        h->compressed = !strcasecmp(value, "True");
+    } else if (!strcmp(key, "ElementNumberOfChannels")) {
+        if (strcmp(value, "1"))
+            return bad_line(err, line, "one channel a sample");
+    } else if (!strcmp(key, "HeaderSize")) {
+        if (strcmp(value, "0"))
+            return bad_line(err, line, "HeaderSize is not read");
+    } else if (!strcmp(key, "ElementDataFile")) {
+        if (strcmp(value, "LOCAL"))
+            return bad_line(err, line, "the samples must follow the header (ElementDataFile = LOCAL): post the .mha, "
+                                       "not an .mhd that names another file");
+        return 1;
+    }
+    return 0;
+}
+
+/* ---- the query ---- */
+
+static int query_numbers(const char *options, const char *name, int n, double *out, bool *given, struct sf_err *err)
+{
+    char v[160], where[24];
+    query_option(options, name, v, sizeof v);
+    *given = v[0] != 0;
+    snprintf(where, sizeof where, "?%s", name);
+    if (*given && numbers(v, n, out))
+        return sf_fail(err, SF_EINVAL, where, "%s is %d numbers separated by commas", name, n);
+    return 0;
+}
+
+/* The options every format takes (iso, closed, name), and no unknown one. */
+static int common_options(const char *options, struct volume *v, struct sf_err *err)
+{
+    static const char *const KNOWN[] = {"iso", "closed", "name", "dims", "type", "spacing", "origin", "format", NULL};
+    for (const char *p = options ? options : ""; *p;) {
+        size_t len = strcspn(p, "&"), key = strcspn(p, "=&");
+        bool known = false;
+        for (int k = 0; KNOWN[k] && !known; k++)
+            known = strlen(KNOWN[k]) == key && !strncmp(p, KNOWN[k], key);
+        if (!known) {
+            char where[48];
+            snprintf(where, sizeof where, "?%.*s", (int)(key < 40 ? key : 40), p);
+            return sf_fail(err, SF_EINVAL, where, "unknown option \"%.*s\" (isosurfaces take iso, closed, name, "
+                           "and for raw samples dims, type, spacing, origin)", (int)(key < 40 ? key : 40), p);
+        }
+        p += len + (p[len] == '&');
+    }
+    char s[64];
+    query_option(options, "iso", s, sizeof s);
+    char *end;
+    v->iso = strtod(s, &end);
+    if (!s[0])
+        return sf_fail(err, SF_EINVAL, "?iso", "iso=V is required: the sample value the surface follows");
+    if (end == s || *end || !isfinite(v->iso))
+        return sf_fail(err, SF_EINVAL, "?iso", "iso is a finite number, not \"%s\"", s);
+    query_option(options, "closed", s, sizeof s);
+    if (s[0] && strcmp(s, "true") && strcmp(s, "false"))
+        return sf_fail(err, SF_EINVAL, "?closed", "closed is true or false");
+    v->closed = strcmp(s, "false") != 0;
+    query_option(options, "name", v->name, sizeof v->name);
+    return 0;
+}
+
+static int read_raw(const char *body, size_t len, const char *options, struct volume *v, struct sf_err *err)
+{
+    double d[3], sp[3] = {1, 1, 1}, org[3] = {0, 0, 0};
+    bool given;
+    int rc = query_numbers(options, "dims", 3, d, &given, err);
+    if (rc)
+        return rc;
+    if (!given)
+        return sf_fail(err, SF_EINVAL, "?dims", "raw samples need dims=X,Y,Z (and type, spacing, origin)");
+    int dims[3];
+    if ((rc = check_dims(d, "?dims", dims, err)))
+        return rc;
+    char t[32];
+    query_option(options, "type", t, sizeof t);
+    if (!t[0])
+        return sf_fail(err, SF_EINVAL, "?type", "raw samples need type=uint8|int16|uint16|float32");
+    if (parse_type(t, &v->g.type) || (strcmp(t, "uint8") && strcmp(t, "int16") && strcmp(t, "uint16") && strcmp(t, "float32")))
+        return sf_fail(err, SF_EINVAL, "?type", "type is uint8, int16, uint16 or float32, not \"%.20s\"", t);
+    if ((rc = query_numbers(options, "spacing", 3, sp, &given, err)) || (rc = check_spacing(sp, "?spacing", err)) ||
+        (rc = query_numbers(options, "origin", 3, org, &given, err)))
+        return rc;
+    for (int a = 0; a < 3; a++)
+        if (fabs(org[a]) > 1e9)
+            return sf_fail(err, SF_EINVAL, "?origin", "the origin is within 1e9 mm");
+    v->g.nx = dims[0], v->g.ny = dims[1], v->g.nz = dims[2];
+    memcpy(v->g.spacing, sp, sizeof sp);
+    memcpy(v->g.origin, org, sizeof org);
+    return place_samples(body, len, false, false, "?dims", v, err);
+}
+
+static int read_header(const char *body, size_t len, bool mha, const char *options, struct volume *v,
+                       struct sf_err *err)
+{
+    char q[16];
+    static const char *const RAW_ONLY[] = {"dims", "type", "spacing", "origin"};
+    for (int k = 0; k < 4; k++) {
+        query_option(options, RAW_ONLY[k], q, sizeof q);
+        if (q[0]) {
+            char where[16];
+            snprintf(where, sizeof where, "?%s", RAW_ONLY[k]);
+            return sf_fail(err, SF_EINVAL, where, "%s is for raw samples: this volume's header gives it", RAW_ONLY[k]);
+        }
+    }
+    struct header h = {.spacing = {1, 1, 1}};
+    size_t at = 0;
+    int rc = header_lines(body, len, mha ? '=' : ':', mha, mha ? mha_line : nrrd_line, &h, &at, err);
+    if (rc)
+        return rc;
+    if (!h.have_dims || !h.have_type)
+        return sf_fail(err, SF_EINVAL, "header", "the header gives no %s", h.have_dims ? mha ? "ElementType" : "type"
+                                                                                       : mha ? "DimSize" : "sizes");
+    int dims[3];
+    if ((rc = check_dims(h.dims, "header", dims, err)) || (rc = check_spacing(h.spacing, "header", err)))
+        return rc;
+    v->g.nx = dims[0], v->g.ny = dims[1], v->g.nz = dims[2];
+    v->g.type = h.type;
+    memcpy(v->g.spacing, h.spacing, sizeof h.spacing);
+    memcpy(v->g.origin, h.origin, sizeof h.origin);
+    return place_samples(body + at, len - at, h.compressed, h.big_endian, "data", v, err);
+}
+
+int volume_read(const char *body, size_t len, const char *format, const char *options, struct volume *v,
+                struct sf_err *err)
+{
+    memset(v, 0, sizeof *v);
+    int rc = common_options(options, v, err);
+    if (rc)
+        return rc;
+    bool nrrd = len >= 4 && !memcmp(body, "NRRD", 4);
+    bool mha = len >= 10 && (!memcmp(body, "ObjectType", 10) || !memcmp(body, "NDims", 5));
+    if (!*format)
+        format = nrrd ? "nrrd" : mha ? "mha" : "raw";
+    if (!strcmp(format, "nrrd")) {
+        if (!nrrd)
+            return sf_fail(err, SF_EFORMAT, "header", "an NRRD file starts with \"NRRD000x\"");
+        rc = read_header(body, len, false, options, v, err);
+    } else if (!strcmp(format, "mha")) {
+        if (!mha)
+            return sf_fail(err, SF_EFORMAT, "header", "a MetaImage header starts with ObjectType or NDims");
+        rc = read_header(body, len, true, options, v, err);
+    } else if (!strcmp(format, "raw")) {
+        rc = read_raw(body, len, options, v, err);
+    } else {
+        rc = sf_fail(err, SF_EFORMAT, "?format", "format is raw, nrrd or mha");
+    }
+    if (rc)
+        volume_free(v);
+    return rc;
+}
+
+void volume_free(struct volume *v)
+{
+    free(v->owned);
+    v->owned = NULL;
+    v->g.samples = NULL;
+}

@@ -1,0 +1,39 @@
+/* volume_io.h - the sampled volumes POST /isosurface reads (API.md §Volumes): raw samples with
+ * their layout in the query (?dims=X,Y,Z&type=uint8|int16|uint16|float32&spacing=sx,sy,sz
+ * &origin=ox,oy,oz), NRRD with an attached header (raw or gzip encoding), and MetaImage .mha
+ * (ElementDataFile = LOCAL). The samples are used where they lie in the body when they can be
+ * (raw encoding in the host's byte order), decoded otherwise; core/iso sees only the grid. */
+#ifndef SURFD_VOLUME_IO_H
+#define SURFD_VOLUME_IO_H
+
+#include <stddef.h>
+
+#include "../core/base/err.h"
+#include "../core/iso/mc.h"
+
+/* Samples a volume may have (query options and headers are checked against it before anything
+ * is allocated): 2^31, a 1290^3 grid, 4 GB of int16. */
+#define VOLUME_MAX_SAMPLES (1ull << 31)
+
+struct volume {
+    struct iso_grid g;
+    void *owned;             /* decoded samples, when the body's could not be used in place */
+    double iso;              /* ?iso */
+    bool closed;             /* ?closed (default true) */
+    char name[128];          /* ?name */
+};
+
+/* The body's format from its Content-Type: "raw" (application/octet-stream), "nrrd"
+ * (application/x-nrrd, image/x-nrrd), "mha" (application/x-metaimage); NULL for others. A body
+ * posted without a type is sniffed (NRRD's magic, MetaImage's "ObjectType"), else raw. */
+const char *volume_format_from_type(const char *content_type);
+
+/* Reads a volume: format "raw", "nrrd", "mha" or "" (sniffed); options the query. On success
+ * v->g.samples points into body or v->owned (free with volume_free). Errors name the query option
+ * ("?dims"), or the header line ("header line 4: ...") of what is wrong: SF_EINVAL (422),
+ * SF_EFORMAT (400: not a volume of that format), SF_ELIMIT (too many samples). */
+int volume_read(const char *body, size_t len, const char *format, const char *options, struct volume *v,
+                struct sf_err *err);
+void volume_free(struct volume *v);
+
+#endif

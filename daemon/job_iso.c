@@ -1,0 +1,153 @@
+/* job_iso.c - the isosurface job kind: a sampled volume (raw, NRRD, MetaImage) and ?iso to a
+ * closed triangle mesh, stored as a model. Read back from the store (so a job recovered after a
+ * crash, or claimed by another node, runs as submitted); then core/iso's two passes as two phases
+ * of bands, one band a slab of z, on whichever workers are idle (cancel between slabs); then the
+ * mesh is measured and stored compactly with its model resource. */
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../api/iso_json.h"
+#include "../api/mesh_io.h"
+#include "../api/volume_io.h"
+#include "kinds.h"
+
+#define SLABS_PER_WORKER 4 /* a few bands a worker: the slabs' costs differ */
+
+struct iso_work {
+    struct service *svc;
+    struct job_claim claim;
+    struct job *j;
+    struct job_rec rec;      /* holds the request: the samples may lie in it */
+    struct volume vol;
+    struct iso_job *ij;
+    int phase, n_slabs;
+    atomic_int bands_done;
+    double t0, t_read, t_count;
+    char *json;
+    size_t len;
+    char meta[128];
+    struct sf_err err;
+};
+
+static int prepare(struct job *j, void *arg, int *n_bands)
+{
+    struct iso_work *w = arg;
+    w->j = j;
+    w->t0 = monotonic_s();
+    if (store_get(w->svc->store, w->claim.id, true, false, &w->rec) != 1)
+        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
+    if (volume_read((const char *)w->rec.request, w->rec.request_len, w->rec.format, w->rec.options, &w->vol, &w->err))
+        return -1;
+    w->t_read = monotonic_s();
+    struct iso_opts o = {w->vol.iso, w->vol.closed, true};
+    struct jobq_stats qs;
+    jobq_stats(w->svc->q, &qs);
+    if (iso_begin(&w->vol.g, &o, (int)qs.workers * SLABS_PER_WORKER, &w->ij, &w->err))
+        return -1;
+    w->n_slabs = iso_n_slabs(w->ij);
+    *n_bands = w->n_slabs;
+    return 0;
+}
+
+static void band(struct job *j, void *arg, int k)
+{
+    struct iso_work *w = arg;
+    if (w->phase == 0)
+        iso_count(w->ij, k);
+    else
+        iso_emit(w->ij, k);
+    int done = atomic_fetch_add(&w->bands_done, 1) + 1;
+    jobq_cancelled(w->svc->q, j, 0.95 * done / (2.0 * w->n_slabs)); /* the rest: measuring, storing */
+}
+
+static int next(struct job *j, void *arg, int *n_bands)
+{
+    (void)j;
+    struct iso_work *w = arg;
+    *n_bands = 0;
+    if (w->phase++ == 1)
+        return 0;
+    w->t_count = monotonic_s();
+    if (iso_layout(w->ij, &w->err))
+        return -1;
+    *n_bands = w->n_slabs;
+    return 0;
+}
+
+/* The mesh measured and stored as model (the job's id), its resource the job's result. */
+static int store_model(struct iso_work *w)
+{
+    double t_extract = monotonic_s();
+    struct trimesh m;
+    int rc = iso_end(w->ij, &m, &w->err);
+    w->ij = NULL;
+    if (rc)
+        return rc;
+    struct trimesh_stats st;
+    char *packed = NULL;
+    size_t packed_len = 0;
+    if (!(rc = trimesh_stats(&m, &st, &w->err)))
+        rc = mesh_pack(&m, &packed, &packed_len, &w->err);
+    double t_measure = monotonic_s();
+    struct iso_model im = {w->claim.id, w->vol.name, &w->vol, &st, m.n_vert, m.n_tri,
+                           {(w->t_read - w->t0) * 1e3, (t_extract - w->t_read) * 1e3, (t_measure - t_extract) * 1e3,
+                            (t_measure - w->t0) * 1e3}};
+    trimesh_free(&m);
+    if (!rc && !(w->json = iso_model_json(&im, &w->err)))
+        rc = w->err.code;
+    if (!rc) {
+        struct model_rec mr = {w->claim.id, w->claim.id, w->vol.name, w->rec.owner, wall_s(), packed, packed_len, w->json};
+        if (store_model_put(w->svc->store, &mr))
+            rc = sf_fail(&w->err, SF_EIO, "", "the store would not take the mesh");
+    }
+    free(packed);
+    if (!rc) {
+        w->len = strlen(w->json);
+        snprintf(w->meta, sizeof w->meta, "{\"status\":201,\"location\":\"/models/%s\"}", w->claim.id);
+    }
+    return rc;
+}
+
+static void finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
+{
+    (void)j;
+    struct iso_work *w = arg;
+    if (outcome == JOB_SUCCEEDED && store_model(w))
+        outcome = JOB_FAILED;
+    service_job_end(w->svc, &w->claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
+                    "application/json", w->meta[0] ? w->meta : NULL, &w->err);
+    iso_free(w->ij);
+    volume_free(&w->vol);
+    store_rec_free(&w->rec);
+    free(w->json);
+    free(w);
+}
+
+static const struct job_ops ISO_OPS = {.prepare = prepare, .band = band, .next = next, .finish = finish};
+
+int iso_start(struct service *svc, const struct job_claim *c)
+{
+    struct iso_work *w = calloc(1, sizeof *w);
+    if (!w)
+        return -1;
+    w->svc = svc;
+    w->claim = *c;
+    if (jobq_submit(svc->q, c->id, &ISO_OPS, w, true)) {
+        free(w);
+        return -1;
+    }
+    return 0;
+}
+
+const char *iso_format(const char *content_type) { return volume_format_from_type(content_type); }
+
+int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+{
+    (void)svc;
+    struct volume v;
+    int rc = volume_read(b->body ? b->body : "", b->len, b->format, b->options, &v, err);
+    volume_free(&v);
+    return rc;
+}

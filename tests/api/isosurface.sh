@@ -1,0 +1,94 @@
+#!/bin/sh
+# POST /isosurface through HTTP (issue 14): the shared CT crop as raw samples, as NRRD (raw and
+# gzip) and as MetaImage, each a closed mesh model with VTK's figures; the mesh downloaded and
+# checked for closure; every kind of bad input with its status and pointer.
+. "$(dirname "$0")/lib.inc"
+
+V="${SURFD_DATA:-../shared/data}/volumes"
+CT="$V/ct_head_crop64_int16.raw"
+[ -f "$CT" ] || { bad "../shared/data/volumes not found"; checks_done; exit 1; }
+RAW='Content-Type: application/octet-stream'
+Q="iso=226.5&dims=64,64,64&type=int16&spacing=0.9570312,0.9570312,1.5"
+start_daemon "$T/d" --threads 2 || exit 1
+
+field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1])).get(sys.argv[2]))" "$T/body" "$1"; }
+# the figures VTK's Flying Edges gives for the crop at 226.5, padded: 34 996 triangles, 57 560.5 mm^3
+vtk_like() {
+    python3 -c "
+import json, sys
+m = json.load(open(sys.argv[1]))
+ok = (m['source'] == 'isosurface' and abs(m['triangles'] / 34996 - 1) < 0.02 and abs(m['volume_mm3'] / 57560.5 - 1) < 0.002
+      and m['boundary_edges'] == 0 and m['nonmanifold_edges'] == 0 and m['euler_characteristic'] % 2 == 0
+      and m['timings_ms']['extract'] > 0 and m['grid']['dims'] == [64, 64, 64])
+sys.exit(0 if ok else 1)" "$T/body"
+}
+
+code=$(status POST "/isosurface?$Q&name=crop" -H "$RAW" --data-binary @"$CT")
+id=$(field id)
+check "raw samples: 201, Location, the mesh model" '[ "$code" = 201 ] && [ "$(header Location)" = "/models/$id" ] && [ "$(field name)" = crop ]'
+check "... closed, with VTK's triangle count (2 %) and volume (0.2 %)" 'vtk_like'
+check "... listed among the models" '[ "$(status GET /models)" = 200 ] && grep -q "$id" "$T/body"'
+code=$(status GET "/models/$id/mesh?format=stl")
+cp "$T/body" "$T/crop.stl"
+check "its STL: closed, every edge twice, once each way" '[ "$code" = 200 ] && python3 tests/tools/stl_check.py "$T/crop.stl" 57529.6 >/dev/null'
+check "... and PLY and OBJ" '[ "$(status GET "/models/$id/mesh?format=ply")" = 200 ] && head -c 3 "$T/body" | grep -q ply && [ "$(status GET "/models/$id/mesh?format=obj")" = 200 ] && grep -q "^f " "$T/body"'
+check "its /patches: 422 (a mesh has none)" '[ "$(status GET "/models/$id/patches")" = 422 ] && is_problem 422'
+
+# the same samples as an attached NRRD (odd header length: unaligned samples), gzip NRRD, MetaImage
+python3 - "$CT" "$T" <<'EOF'
+import gzip, sys
+raw = open(sys.argv[1], "rb").read()
+h = "NRRD0004\ntype: int16\ndimension: 3\nsizes: 64 64 64\nspace directions: (0.9570312,0,0) (0,0.9570312,0) (0,0,1.5)\nendian: little\n"
+open(sys.argv[2] + "/ct.nrrd", "wb").write((h + "encoding: raw\n\n").encode() + raw)
+open(sys.argv[2] + "/ct_gz.nrrd", "wb").write((h + "encoding: gzip\n\n").encode() + gzip.compress(raw))
+m = ("ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\nCompressedData = False\n"
+     "Offset = 0 0 0\nElementSpacing = 0.9570312 0.9570312 1.5\nDimSize = 64 64 64\nElementType = MET_SHORT\n"
+     "ElementDataFile = LOCAL\n")
+open(sys.argv[2] + "/ct.mha", "wb").write(m.encode() + raw)
+EOF
+code=$(status POST "/isosurface?iso=226.5" -H 'Content-Type: application/x-nrrd' --data-binary @"$T/ct.nrrd")
+check "NRRD (raw encoding): the same mesh" '[ "$code" = 201 ] && vtk_like'
+code=$(status POST "/isosurface?iso=226.5" -H 'Content-Type: application/x-nrrd' --data-binary @"$T/ct_gz.nrrd")
+check "NRRD (gzip)" '[ "$code" = 201 ] && vtk_like'
+code=$(status POST "/isosurface?iso=226.5" -H 'Content-Type: application/x-metaimage' --data-binary @"$T/ct.mha")
+check "MetaImage (.mha)" '[ "$code" = 201 ] && vtk_like'
+code=$(status POST "/isosurface?iso=226.5" --data-binary @"$T/ct.nrrd")
+check "a body without its type is sniffed" '[ "$code" = 201 ] && vtk_like'
+code=$(status POST "/isosurface?$Q&closed=false" -H "$RAW" --data-binary @"$CT")
+check "closed=false: open where the surface meets the border" '[ "$code" = 201 ] && [ "$(field boundary_edges)" -gt 0 ] && [ "$(field nonmanifold_edges)" = 0 ]'
+
+# ---- bad input ----
+head -c 1000 "$CT" >"$T/short.raw"
+code=$(status POST "/isosurface?$Q" -H "$RAW" --data-binary @"$T/short.raw")
+check "a body whose length is not dims x type: 422 at ?dims" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?dims\"" "$T/body"'
+code=$(status POST "/isosurface?dims=64,64,64&type=int16" -H "$RAW" --data-binary @"$CT")
+check "no iso: 422 at ?iso" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?iso\"" "$T/body"'
+code=$(status POST "/isosurface?iso=1&dims=64,64,64&type=int64" -H "$RAW" --data-binary @"$CT")
+check "an unknown type: 422 at ?type" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?type\"" "$T/body"'
+code=$(status POST "/isosurface?iso=1&dims=4000000000,2,2&type=uint8" -H "$RAW" --data-binary @"$CT")
+check "dims past the limits: 422 at ?dims" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?dims\"" "$T/body"'
+code=$(status POST "/isosurface?iso=1&dims=2000,2000,2000&type=uint8" -H "$RAW" --data-binary @"$CT")
+check "dims whose product is over the sample limit: 422 at ?dims" '[ "$code" = 422 ] && grep -q "over the limit" "$T/body"'
+code=$(status POST "/isosurface?$Q&spacing=inf,1,1" -H "$RAW" --data-binary @"$CT")
+check "non-finite spacing: 422 at ?spacing" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?spacing\"" "$T/body"'
+python3 -c "import struct,sys; sys.stdout.buffer.write(struct.pack('<8f', 0, 1, 2, float('nan'), 4, 5, 6, 7))" >"$T/nan.raw"
+code=$(status POST "/isosurface?iso=1&dims=2,2,2&type=float32" -H "$RAW" --data-binary @"$T/nan.raw")
+check "a NaN sample: 422 naming it (refused, not taken as outside)" '[ "$code" = 422 ] && grep -q "sample (1, 1, 0)" "$T/body"'
+printf 'NRRD0004\ntype: int16\nsizes: 64 64\n\n' >"$T/bad.nrrd"
+code=$(status POST "/isosurface?iso=1" -H 'Content-Type: application/x-nrrd' --data-binary @"$T/bad.nrrd")
+check "a garbage NRRD header: 422 naming its line" '[ "$code" = 422 ] && grep -q "header line 3" "$T/body"'
+printf 'NRRD0004\ntype: int16\nsizes: 64 64 64\ndata file: ct.raw\n\n' >"$T/det.nrrd"
+code=$(status POST "/isosurface?iso=1" -H 'Content-Type: application/x-nrrd' --data-binary @"$T/det.nrrd")
+check "a detached NRRD header: 422 saying to attach the data" '[ "$code" = 422 ] && grep -q "attached" "$T/body"'
+code=$(status POST "/isosurface?iso=1" -H 'Content-Type: image/png' --data-binary @"$CT")
+check "a type it does not read: 415" '[ "$code" = 415 ] && is_problem 415'
+code=$(status POST "/isosurface?$Q&levels=3" -H "$RAW" --data-binary @"$CT")
+check "an option it does not take (yet): 422 naming it" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?levels\"" "$T/body"'
+check "the daemon is up after all of it" 'alive'
+
+# ---- it survives a restart, and goes away when deleted ----
+stop_daemon
+start_daemon "$T/d" --threads 2 || exit 1
+check "the model is kept across a restart" '[ "$(status GET "/models/$id")" = 200 ] && [ "$(field triangles)" -gt 30000 ]'
+check "DELETE removes it" '[ "$(status DELETE "/models/$id")" = 204 ] && [ "$(status GET "/models/$id")" = 404 ]'
+finish
