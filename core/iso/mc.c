@@ -145,28 +145,49 @@ static void build_case(int c, int joined, struct cell_case *out)
 
 /* ---- the job ---- */
 
+/* A sample row's states: the first's, and the first and last column whose state differs from it
+ * (lo > hi: the row is all one state). What no crossing can be outside of, as Flying Edges trims
+ * its rows: most rows of a CT are all air or all tissue. */
+struct trim {
+    int lo, hi;
+    bool s0;
+};
+
 struct iso_job {
     struct iso_grid g;
     struct iso_opts o;
     int NX, NY, NZ, shift;           /* the virtual grid; shift: 1 when padded */
     float iso, pad;
     double org[3];                   /* of the virtual grid's sample (0, 0, 0) */
+    float half_inv[3];               /* 1 / (2 spacing): central differences */
     int n_slabs, *k0;                /* slab s: cell layers k0[s] .. k0[s+1]-1 */
     uint32_t *xc, *yc, *zc, *tc, *cc; /* per row [J + NY*K]: crossings, triangles, centres */
     size_t *xb, *yb, *zb, *tb, *cb;  /* where each row's output starts */
     bool *slab_failed;               /* [s]: a pass of slab s found no memory (written by s alone) */
+    struct trim *trim;               /* per sample row [J + NY*K]: where its states change */
     struct trimesh m;
 };
 
 int iso_n_slabs(const struct iso_job *j) { return j->n_slabs; }
 
-static double sample(const struct iso_grid *g, size_t i)
+#define MIN_OF(T)                                        \
+    do {                                                 \
+        const T *p = g->samples;                         \
+        T lo = p[0];                                     \
+        for (size_t i = 1; i < n; i++)                   \
+            lo = p[i] < lo ? p[i] : lo;                  \
+        return (double)lo;                               \
+    } while (0)
+
+/* The smallest sample (a typed loop each, which the compiler vectorises). */
+static double minimum(const struct iso_grid *g)
 {
+    size_t n = (size_t)g->nx * (size_t)g->ny * (size_t)g->nz;
     switch (g->type) {
-    case ISO_U8: return ((const uint8_t *)g->samples)[i];
-    case ISO_I16: return ((const int16_t *)g->samples)[i];
-    case ISO_U16: return ((const uint16_t *)g->samples)[i];
-    default: return ((const float *)g->samples)[i];
+    case ISO_U8: MIN_OF(uint8_t);
+    case ISO_I16: MIN_OF(int16_t);
+    case ISO_U16: MIN_OF(uint16_t);
+    default: MIN_OF(float);
     }
 }
 
@@ -233,6 +254,7 @@ void iso_free(struct iso_job *j)
     free(j->zb);
     free(j->tb);
     free(j->slab_failed);
+    free(j->trim);
     trimesh_free(&j->m);
     free(j);
 }
@@ -275,17 +297,12 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
     j->NY = g->ny + 2 * j->shift;
     j->NZ = g->nz + 2 * j->shift;
     j->iso = (float)o->iso;
-    for (int a = 0; a < 3; a++)
+    for (int a = 0; a < 3; a++) {
         j->org[a] = g->origin[a] - j->shift * g->spacing[a];
-    if (o->closed) { /* below iso and every sample: the volume's minimum, as a CT's air */
-        size_t n = (size_t)g->nx * (size_t)g->ny * (size_t)g->nz;
-        double lo = o->iso - 1;
-        for (size_t i = 0; i < n; i++) {
-            double v = sample(g, i);
-            lo = v < lo ? v : lo;
-        }
-        j->pad = (float)lo;
+        j->half_inv[a] = (float)(0.5 / g->spacing[a]);
     }
+    if (o->closed) /* below iso and every sample: the volume's minimum, as a CT's air */
+        j->pad = (float)fmin(o->iso - 1, minimum(g));
     int layers = j->NZ - 1;
     j->n_slabs = n_slabs < 1 ? 1 : n_slabs > layers ? layers : n_slabs;
     size_t rows = (size_t)j->NY * (size_t)j->NZ;
@@ -296,7 +313,8 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
     j->tc = calloc(rows, sizeof *j->tc);
     j->cc = calloc(rows, sizeof *j->cc);
     j->slab_failed = calloc((size_t)j->n_slabs, sizeof *j->slab_failed);
-    if (!j->k0 || !j->xc || !j->yc || !j->zc || !j->tc || !j->cc || !j->slab_failed) {
+    j->trim = malloc(rows * sizeof *j->trim);
+    if (!j->k0 || !j->xc || !j->yc || !j->zc || !j->tc || !j->cc || !j->slab_failed || !j->trim) {
         iso_free(j);
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     }
@@ -308,14 +326,35 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
 
 /* Corner states of cell I of the rows a0, a1 (y, y+1 at z) and b0, b1 (at z+1), and the
  * decisions of its ambiguous faces: the index of its case. */
-static int cell_case(const struct iso_job *j, const float *a0, const float *a1, const float *b0, const float *b1, int I)
+/* The states of the corners at x = 1 of cell I (rows as in cell_case), in their bits (1, 3, 5, 7):
+ * cell I+1's corners at x = 0. Walking a row, each cell's states are the last one's shifted and
+ * these four. */
+static inline int right_states(float iso, const float *a0, const float *a1, const float *b0, const float *b1, int I)
 {
+    return (a0[I + 1] > iso) << 1 | (a1[I + 1] > iso) << 3 | (b0[I + 1] > iso) << 5 | (b1[I + 1] > iso) << 7;
+}
+
+static inline int first_states(float iso, const float *a0, const float *a1, const float *b0, const float *b1, int I)
+{
+    return (a0[I] > iso) | (a1[I] > iso) << 2 | (b0[I] > iso) << 4 | (b1[I] > iso) << 6 |
+           right_states(iso, a0, a1, b0, b1, I);
+}
+
+static inline int next_states(int c, float iso, const float *a0, const float *a1, const float *b0, const float *b1,
+                              int I)
+{
+    return (c & 0xaa) >> 1 | right_states(iso, a0, a1, b0, b1, I);
+}
+
+/* The case of cell I of corner states c: its ambiguous faces decided from the samples. */
+static int cell_case(const struct iso_job *j, int c, const float *a0, const float *a1, const float *b0, const float *b1,
+                     int I)
+{
+    int amb = AMBIGUOUS[c], joined = 0;
+    if (!amb)
+        return c * 64;
     float iso = j->iso;
     float v[8] = {a0[I], a0[I + 1], a1[I], a1[I + 1], b0[I], b0[I + 1], b1[I], b1[I + 1]};
-    int c = 0;
-    for (int k = 0; k < 8; k++)
-        c |= (v[k] > iso) << k;
-    int amb = AMBIGUOUS[c], joined = 0;
     for (int f = 0; amb; f++, amb >>= 1) {
         if (!(amb & 1))
             continue;
@@ -329,32 +368,69 @@ static int cell_case(const struct iso_job *j, const float *a0, const float *a1, 
     return c * 64 + joined;
 }
 
-static uint32_t row_crossings(const float *a, const float *b, int n, float iso)
+static struct trim trim_row(const float *r, int n, float iso)
+{
+    struct trim t = {n, -1, r[0] > iso};
+    int i = 1;
+    while (i < n && (r[i] > iso) == t.s0)
+        i++;
+    if (i == n)
+        return t;
+    t.lo = i;
+    for (t.hi = n - 1; (r[t.hi] > iso) == t.s0;)
+        t.hi--;
+    return t;
+}
+
+/* The columns [*lo, *hi] outside of which the n rows t can hold no crossing: of x edges and
+ * cells (shift 1: an edge or cell starting one column before a change) or of y and z edges
+ * between the rows (shift 0). last: the last column there is. Empty when *lo > *hi. */
+static void span(const struct trim *const *t, int n, int shift, int last, int *lo, int *hi)
+{
+    int l = INT32_MAX, h = -1;
+    bool same = true;
+    for (int k = 0; k < n; k++) {
+        same = same && t[k]->s0 == t[0]->s0;
+        l = t[k]->lo < l ? t[k]->lo : l;
+        h = t[k]->hi > h ? t[k]->hi : h;
+    }
+    if (!same) { /* rows of different states: crossings anywhere */
+        *lo = 0, *hi = last;
+        return;
+    }
+    *lo = l - shift < 0 ? 0 : l - shift;
+    *hi = h > last ? last : h;
+}
+
+static uint32_t crossings(const float *a, const float *b, int lo, int hi, float iso)
 {
     uint32_t k = 0;
-    for (int i = 0; i < n; i++)
+    for (int i = lo; i <= hi; i++)
         k += (a[i] > iso) != (b[i] > iso);
     return k;
 }
 
-static uint32_t x_crossings(const float *row, int nx, float iso)
+/* The x and y rows of level K (slice a, its rows' trims t). */
+static void count_level(struct iso_job *j, int K, const float *a, const struct trim *t)
 {
-    uint32_t k = 0;
-    for (int i = 0; i + 1 < nx; i++)
-        k += (row[i] > iso) != (row[i + 1] > iso);
-    return k;
-}
-
-/* The x and y rows of level K (slice a). */
-static void count_level(struct iso_job *j, int K, const float *a)
-{
-    int NX = j->NX, NY = j->NY;
+    int NX = j->NX, NY = j->NY, lo, hi;
     for (int J = 0; J < NY; J++) {
         const float *r = a + (size_t)NX * J;
-        j->xc[J + (size_t)NY * K] = x_crossings(r, NX, j->iso);
-        if (J + 1 < NY)
-            j->yc[J + (size_t)NY * K] = row_crossings(r, r + NX, NX, j->iso);
+        const struct trim *x[1] = {&t[J]}, *y[2] = {&t[J], &t[J + 1 < NY ? J + 1 : J]};
+        j->trim[J + (size_t)NY * K] = t[J];
+        span(x, 1, 1, NX - 2, &lo, &hi);
+        j->xc[J + (size_t)NY * K] = crossings(r, r + 1, lo, hi, j->iso);
+        if (J + 1 == NY)
+            continue;
+        span(y, 2, 0, NX - 1, &lo, &hi);
+        j->yc[J + (size_t)NY * K] = crossings(r, r + NX, lo, hi, j->iso);
     }
+}
+
+static void trim_slice(const struct iso_job *j, const float *a, struct trim *t)
+{
+    for (int J = 0; J < j->NY; J++)
+        t[J] = trim_row(a + (size_t)j->NX * J, j->NX, j->iso);
 }
 
 void iso_count(struct iso_job *j, int s)
@@ -362,26 +438,42 @@ void iso_count(struct iso_job *j, int s)
     int NX = j->NX, NY = j->NY;
     size_t plane = (size_t)NX * NY;
     float *a = malloc(2 * plane * sizeof *a);
-    if (!a) {
+    struct trim *ta = malloc(2 * (size_t)NY * sizeof *ta);
+    if (!a || !ta) {
+        free(a);
+        free(ta);
         j->slab_failed[s] = true;
         return;
     }
-    float *b = a + plane;
+    float *b = a + plane, *buf = a;
+    struct trim *tb = ta + NY, *tbuf = ta;
     load(j, j->k0[s], b);
+    trim_slice(j, b, tb);
     for (int K = j->k0[s]; K < j->k0[s + 1]; K++) {
         float *t = a;
-        a = b;
-        b = t;
+        a = b, b = t;
+        struct trim *u = ta;
+        ta = tb, tb = u;
         load(j, K + 1, b);
-        count_level(j, K, a);
+        trim_slice(j, b, tb);
+        count_level(j, K, a, ta);
         for (int J = 0; J < NY; J++) {
             const float *a0 = a + (size_t)NX * J, *b0 = b + (size_t)NX * J;
-            j->zc[J + (size_t)NY * K] = row_crossings(a0, b0, NX, j->iso);
+            const struct trim *z[2] = {&ta[J], &tb[J]};
+            int lo, hi;
+            span(z, 2, 0, NX - 1, &lo, &hi);
+            j->zc[J + (size_t)NY * K] = crossings(a0, b0, lo, hi, j->iso);
             if (J + 1 == NY)
                 continue;
+            const struct trim *c[4] = {&ta[J], &ta[J + 1], &tb[J], &tb[J + 1]};
+            span(c, 4, 1, NX - 2, &lo, &hi);
             uint32_t n = 0, centres = 0;
-            for (int I = 0; I + 1 < NX; I++) {
-                const struct cell_case *cc = &CASES[cell_case(j, a0, a0 + NX, b0, b0 + NX, I)];
+            const float *a1 = a0 + NX, *b1 = b0 + NX;
+            for (int I = lo, st = lo <= hi ? first_states(j->iso, a0, a1, b0, b1, lo) : 0; I <= hi;
+                 st = ++I <= hi ? next_states(st, j->iso, a0, a1, b0, b1, I) : 0) {
+                if (st == 0 || st == 255)
+                    continue;
+                const struct cell_case *cc = &CASES[cell_case(j, st, a0, a1, b0, b1, I)];
                 n += cc->n;
                 centres += cc->n_centres;
             }
@@ -390,8 +482,9 @@ void iso_count(struct iso_job *j, int s)
         }
     }
     if (s == j->n_slabs - 1)
-        count_level(j, j->NZ - 1, b);
-    free(a < b ? a : b);
+        count_level(j, j->NZ - 1, b, tb);
+    free(buf);
+    free(tbuf);
 }
 
 /* Whether a slab's pass ran out of memory (it wrote nothing). */
@@ -472,17 +565,23 @@ static void window_at(const struct iso_job *j, struct window *w, int K)
 
 /* The field's gradient at virtual sample (I, J, K), by central differences (one-sided at the
  * border), in grid units. */
-static void gradient(const struct iso_job *j, const struct window *w, int I, int J, int K, double g[3])
+static void gradient(const struct iso_job *j, const struct window *w, int I, int J, int K, float g[3])
 {
     int NX = j->NX, NY = j->NY, NZ = j->NZ;
-    const float *c = slice(w, K);
-    size_t at = (size_t)I + (size_t)NX * J;
-    int i0 = I > 0 ? I - 1 : I, i1 = I + 1 < NX ? I + 1 : I;
-    int j0 = J > 0 ? J - 1 : J, j1 = J + 1 < NY ? J + 1 : J;
+    const float *c = slice(w, K) + (size_t)I + (size_t)NX * J;
+    if (I > 0 && I + 1 < NX && J > 0 && J + 1 < NY && K > 0 && K + 1 < NZ) { /* the common case */
+        g[0] = (c[1] - c[-1]) * j->half_inv[0];
+        g[1] = (c[NX] - c[-NX]) * j->half_inv[1];
+        g[2] = (slice(w, K + 1)[c - slice(w, K)] - slice(w, K - 1)[c - slice(w, K)]) * j->half_inv[2];
+        return;
+    }
+    size_t at = (size_t)(c - slice(w, K));
+    int i0 = I > 0 ? -1 : 0, i1 = I + 1 < NX ? 1 : 0;
+    int j0 = J > 0 ? -NX : 0, j1 = J + 1 < NY ? NX : 0;
     int k0 = K > 0 ? K - 1 : K, k1 = K + 1 < NZ ? K + 1 : K;
-    g[0] = ((double)c[(size_t)i1 + (size_t)NX * J] - c[(size_t)i0 + (size_t)NX * J]) / ((i1 - i0) * j->g.spacing[0]);
-    g[1] = ((double)c[(size_t)I + (size_t)NX * j1] - c[(size_t)I + (size_t)NX * j0]) / ((j1 - j0) * j->g.spacing[1]);
-    g[2] = ((double)slice(w, k1)[at] - slice(w, k0)[at]) / ((k1 - k0) * j->g.spacing[2]);
+    g[0] = (c[i1] - c[i0]) * j->half_inv[0] * (i1 - i0 == 2 ? 1.0f : 2.0f);
+    g[1] = (c[j1] - c[j0]) * j->half_inv[1] * (j1 - j0 == 2 * NX ? 1.0f : 2.0f);
+    g[2] = (slice(w, k1)[at] - slice(w, k0)[at]) * j->half_inv[2] * (k1 - k0 == 2 ? 1.0f : 2.0f);
 }
 
 /* Vertex v on the edge from virtual sample p to its neighbour along axis. */
@@ -497,14 +596,14 @@ static void put_vertex(struct iso_job *j, const struct window *w, size_t v, int 
         out[d] = (float)(j->org[d] + j->g.spacing[d] * (p[d] + (d == axis ? t : 0)));
     if (!j->m.nrm)
         return;
-    double g0[3], g1[3], n[3];
+    float g0[3], g1[3], n[3], ft = (float)t;
     gradient(j, w, I, J, K, g0);
     gradient(j, w, I + (axis == 0), J + (axis == 1), K + (axis == 2), g1);
     for (int d = 0; d < 3; d++)
-        n[d] = -((1 - t) * g0[d] + t * g1[d]); /* outward: down the gradient */
-    double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        n[d] = (ft - 1) * g0[d] - ft * g1[d]; /* outward: down the gradient */
+    float len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2], inv = len2 > 0 ? 1.0f / sqrtf(len2) : 0.0f;
     for (int d = 0; d < 3; d++)
-        j->m.nrm[3 * v + d] = len > 0 ? (float)(n[d] / len) : 0.0f;
+        j->m.nrm[3 * v + d] = n[d] * inv;
 }
 
 /* Vertex v at the centre of a loop of cell (I, J, K) (rows r[z][y]): the mean of the loop's edge
@@ -549,19 +648,23 @@ static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const f
 /* The x and y vertices of level K. */
 static void emit_level(struct iso_job *j, const struct window *w, int K)
 {
-    int NX = j->NX, NY = j->NY;
+    int NX = j->NX, NY = j->NY, lo, hi;
     const float *a = slice(w, K);
+    const struct trim *t = j->trim + (size_t)NY * K;
     float iso = j->iso;
     for (int J = 0; J < NY; J++) {
         const float *r = a + (size_t)NX * J;
+        const struct trim *x[1] = {&t[J]}, *y[2] = {&t[J], &t[J + 1 < NY ? J + 1 : J]};
         size_t v = j->xb[J + (size_t)NY * K];
-        for (int I = 0; I + 1 < NX; I++)
+        span(x, 1, 1, NX - 2, &lo, &hi);
+        for (int I = lo; I <= hi; I++)
             if ((r[I] > iso) != (r[I + 1] > iso))
                 put_vertex(j, w, v++, I, J, K, 0, r[I], r[I + 1]);
         if (J + 1 == NY)
             continue;
         v = j->yb[J + (size_t)NY * K];
-        for (int I = 0; I < NX; I++)
+        span(y, 2, 0, NX - 1, &lo, &hi);
+        for (int I = lo; I <= hi; I++)
             if ((r[I] > iso) != (r[I + NX] > iso))
                 put_vertex(j, w, v++, I, J, K, 1, r[I], r[I + NX]);
     }
@@ -573,10 +676,14 @@ static void emit_layer(struct iso_job *j, const struct window *w, int K)
     int NX = j->NX, NY = j->NY;
     float iso = j->iso;
     const float *a = slice(w, K), *b = slice(w, K + 1);
+    const struct trim *ta = j->trim + (size_t)NY * K, *tb = ta + NY;
+    int lo, hi;
     for (int J = 0; J < NY; J++) {
         size_t v = j->zb[J + (size_t)NY * K];
         const float *a0 = a + (size_t)NX * J, *b0 = b + (size_t)NX * J;
-        for (int I = 0; I < NX; I++)
+        const struct trim *z[2] = {&ta[J], &tb[J]};
+        span(z, 2, 0, NX - 1, &lo, &hi);
+        for (int I = lo; I <= hi; I++)
             if ((a0[I] > iso) != (b0[I] > iso))
                 put_vertex(j, w, v++, I, J, K, 2, a0[I], b0[I]);
     }
@@ -589,37 +696,37 @@ static void emit_layer(struct iso_job *j, const struct window *w, int K)
         size_t cz[2] = {j->zb[row], j->zb[row + 1]};                            /* y = 0, 1 */
         uint32_t *tri = j->m.tri + 3 * j->tb[row];
         size_t centre = j->cb[row];
-        for (int I = 0; I + 1 < NX; I++) {
-            size_t id[12];
-            bool xs[4], ys[2][2], zs[2][2]; /* crossing at this column (and the next, for y and z) */
-            for (int e = 0; e < 4; e++) {
-                const float *p = r[e >> 1][e & 1];
-                xs[e] = (p[I] > iso) != (p[I + 1] > iso);
-                id[e] = cx[e];
+        const struct trim *rows[4] = {&ta[J], &ta[J + 1], &tb[J], &tb[J + 1]};
+        span(rows, 4, 1, NX - 2, &lo, &hi); /* no crossing of any row the cells touch lies before lo */
+        const float *a0 = r[0][0], *a1 = r[0][1], *b0 = r[1][0], *b1 = r[1][1];
+        for (int I = lo, st = lo <= hi ? first_states(iso, a0, a1, b0, b1, lo) : 0; I <= hi;
+             st = ++I <= hi ? next_states(st, iso, a0, a1, b0, b1, I) : 0) {
+            if (st == 0 || st == 255)
+                continue; /* no edge of it crosses: every running id stays */
+            /* crossings of the cell's edges from its corner states: x edge (y, z) between corners
+             * 2y+4z and 2y+4z+1; y edge (x=0, z) between 4z and 4z+2; z edge (x=0, y) between 2y and 2y+4 */
+            bool xs[4], ys[2], zs[2];
+            for (int e = 0; e < 4; e++)
+                xs[e] = (st >> (2 * e) ^ st >> (2 * e + 1)) & 1;
+            for (int k = 0; k < 2; k++) {
+                ys[k] = (st >> (4 * k) ^ st >> (4 * k + 2)) & 1;
+                zs[k] = (st >> (2 * k) ^ st >> (2 * k + 4)) & 1;
             }
-            for (int z = 0; z < 2; z++)
-                for (int x = 0; x < 2; x++) {
-                    ys[z][x] = (r[z][0][I + x] > iso) != (r[z][1][I + x] > iso);
-                    id[4 + x + 2 * z] = cy[z] + (x ? ys[z][0] : 0);
-                }
-            for (int y = 0; y < 2; y++)
-                for (int x = 0; x < 2; x++) {
-                    zs[y][x] = (r[0][y][I + x] > iso) != (r[1][y][I + x] > iso);
-                    id[8 + x + 2 * y] = cz[y] + (x ? zs[y][0] : 0);
-                }
-            const struct cell_case *cc = &CASES[cell_case(j, r[0][0], r[0][1], r[1][0], r[1][1], I)];
-            size_t ids[12 + MAX_CENTRES];
-            memcpy(ids, id, sizeof id);
+            uint32_t ids[12 + MAX_CENTRES] = {(uint32_t)cx[0], (uint32_t)cx[1], (uint32_t)cx[2], (uint32_t)cx[3],
+                                              (uint32_t)cy[0], (uint32_t)(cy[0] + ys[0]), (uint32_t)cy[1],
+                                              (uint32_t)(cy[1] + ys[1]), (uint32_t)cz[0], (uint32_t)(cz[0] + zs[0]),
+                                              (uint32_t)cz[1], (uint32_t)(cz[1] + zs[1])};
+            const struct cell_case *cc = &CASES[cell_case(j, st, a0, a1, b0, b1, I)];
             for (int c = 0; c < cc->n_centres; c++) {
-                ids[12 + c] = centre;
+                ids[12 + c] = (uint32_t)centre;
                 put_centre(j, centre++, I, J, K, r, cc->centre_of[c]);
             }
             for (int k = 0; k < 3 * cc->n; k++)
-                *tri++ = (uint32_t)ids[cc->e[k]];
+                *tri++ = ids[cc->e[k]];
             for (int e = 0; e < 4; e++)
                 cx[e] += xs[e];
-            cy[0] += ys[0][0], cy[1] += ys[1][0];
-            cz[0] += zs[0][0], cz[1] += zs[1][0];
+            cy[0] += ys[0], cy[1] += ys[1];
+            cz[0] += zs[0], cz[1] += zs[1];
         }
     }
 }

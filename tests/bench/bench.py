@@ -462,8 +462,57 @@ def cluster_bench(lines):
         pg_cluster_stop(pgdir)
 
 
+VOLUMES = [("CT head 256x256x108 int16", "ct_head_256x256x108_int16.raw", (256, 256, 108), "int16", "<i2", 226.5,
+            (0.9570312, 0.9570312, 1.5), -1024),
+           ("MRI Colin27 181x217x181 uint8", "mri_colin27_181x217x181_uint8.raw", (181, 217, 181), "uint8", "u1", 40.5,
+            (1, 1, 1), 0)]
+
+
+def surfd_iso(path, dims, dtype, iso, sp, threads, repeat):
+    p = subprocess.run([SURFD, "isosurface", path, "--iso", str(iso), "--dims", "%d,%d,%d" % dims, "--type", dtype,
+                        "--spacing", "%.9g,%.9g,%.9g" % sp, "--threads", str(threads), "--repeat", str(repeat), "--stats"],
+                       capture_output=True, text=True, check=True)
+    m = json.loads(p.stdout)
+    cold, warm = map(float, re.search(r"extract ([\d.]+) ms cold, ([\d.]+) ms warm", p.stderr).groups())
+    return m, cold, warm
+
+
+def iso_bench(lines):
+    """Issue 14: surfd's isosurface against VTK's Flying Edges and marching cubes on the shared CT and MRI, padded with
+    one layer of the volume's minimum (closed surfaces), normals from the gradient in both, 1 and 2 threads."""
+    vtk_py = "/usr/bin/python3"  # Debian's, with python3-vtk9
+    lines.append("## Isosurfaces (issue 14): surfd against VTK 9.1, padded (closed), normals on\n")
+    lines.append("cold = the first extraction in a fresh process (its memory first touched, as every job of the daemon is); "
+                 "warm = the best of %d in one process (memory reused). surfd's extract: both passes, vertices, normals "
+                 "and triangles (`surfd isosurface --stats`); VTK: `Update()` of the filter (`tests/bench/vtk_iso.py`).\n" % 7)
+    lines.append("| volume | threads | surfd cold ms | FE cold ms | MC cold ms | surfd warm ms | FE warm ms | MC warm ms "
+                 "| surfd / FE (cold) | surfd / FE (warm) | triangles surfd / FE | volume surfd / FE | boundary + non-manifold edges |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for name, f, dims, dtype, npt, iso, sp, pad in VOLUMES:
+        path = os.path.join(DATA, "volumes", f)
+        for threads in (1, 2):
+            m, cold, warm = surfd_iso(path, dims, dtype, iso, sp, threads, 7)
+            p = subprocess.run([vtk_py, os.path.join(ROOT, "tests", "bench", "vtk_iso.py"), path] + [str(d) for d in dims] +
+                               [npt, str(iso)] + ["%.9g" % x for x in sp] + [str(pad), str(threads), "7"],
+                               capture_output=True, text=True, check=True)
+            v = json.loads(p.stdout)
+            fe, mc = v["flying_edges"], v["marching_cubes"]
+            lines.append("| %s, iso %g | %d | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.2f | %.2f | %d / %d (%+.3f %%) | "
+                         "%.1f / %.1f (%+.3f %%) | %d |" % (
+                             name, iso, threads, cold, fe["cold_ms"], mc["cold_ms"], warm, fe["warm_ms"], mc["warm_ms"],
+                             cold / fe["cold_ms"], warm / fe["warm_ms"], m["triangles"], fe["triangles"],
+                             100 * (m["triangles"] / fe["triangles"] - 1), m["volume_mm3"], fe["volume"],
+                             100 * (m["volume_mm3"] / fe["volume"] - 1), m["boundary_edges"] + m["nonmanifold_edges"]))
+    lines.append("")
+
+
 def main():
     rows, notes = [], []
+    if os.environ.get("BENCH_ONLY") == "iso":
+        lines = []
+        iso_bench(lines)
+        print("\n".join(lines))
+        return
     if os.environ.get("BENCH_ONLY") == "cluster":
         lines = []
         cluster_bench(lines)
@@ -542,8 +591,9 @@ def main():
     contour_bench(lines)
     http_bench(lines)
     cluster_bench(lines)
-    lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=http`, `BENCH_ONLY=contours` "
-                 "or `BENCH_ONLY=cluster` for one part).")
+    iso_bench(lines)
+    lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=http`, `BENCH_ONLY=contours`, "
+                 "`BENCH_ONLY=cluster` or `BENCH_ONLY=iso` for one part).")
     out = os.path.join(ROOT, "tests", "bench", "RESULTS.md")
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")
