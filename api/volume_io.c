@@ -141,6 +141,11 @@ static int place_samples(const char *data, size_t n, bool compressed, bool big_e
     size_t ts = type_size(v->g.type);
     size_t count = (size_t)v->g.nx * (size_t)v->g.ny * (size_t)v->g.nz, want = count * ts;
     int rc;
+    if (v->check_only) { /* the layout only: what can be said without reading the samples */
+        if (!compressed && n != want)
+            return sf_fail(err, SF_EINVAL, where, "%zu bytes of samples, but dims x type make %zu", n, want);
+        return 0;
+    }
     if (compressed) {
         if ((rc = inflate_all(data, n, want, &v->owned, err)))
             return rc;
@@ -450,10 +455,11 @@ static int read_header(const char *body, size_t len, bool mha, const char *optio
     return place_samples(body + at, len - at, h.compressed, h.big_endian, "data", v, err);
 }
 
-int volume_read(const char *body, size_t len, const char *format, const char *options, struct volume *v,
-                struct sf_err *err)
+static int read_volume(const char *body, size_t len, const char *format, const char *options, bool check_only,
+                       struct volume *v, struct sf_err *err)
 {
     memset(v, 0, sizeof *v);
+    v->check_only = check_only;
     int rc = common_options(options, v, err);
     if (rc)
         return rc;
@@ -476,6 +482,20 @@ int volume_read(const char *body, size_t len, const char *format, const char *op
     }
     if (rc)
         volume_free(v);
+    return rc;
+}
+
+int volume_read(const char *body, size_t len, const char *format, const char *options, struct volume *v,
+                struct sf_err *err)
+{
+    return read_volume(body, len, format, options, false, v, err);
+}
+
+int volume_check(const char *body, size_t len, const char *format, const char *options, struct sf_err *err)
+{
+    struct volume v;
+    int rc = read_volume(body, len, format, options, true, &v, err);
+    volume_free(&v);
     return rc;
 }
 

@@ -21,6 +21,7 @@ struct volume {
     double iso;              /* ?iso */
     bool closed;             /* ?closed (default true) */
     char name[128];          /* ?name */
+    bool check_only;         /* volume_check: the samples are not read */
 };
 
 /* The body's format from its Content-Type: "raw" (application/octet-stream), "nrrd"
@@ -35,5 +36,9 @@ const char *volume_format_from_type(const char *content_type);
 int volume_read(const char *body, size_t len, const char *format, const char *options, struct volume *v,
                 struct sf_err *err);
 void volume_free(struct volume *v);
+/* What volume_read says of the query and the header and the body's length, without reading the
+ * samples (no inflating, no NaN scan): cheap enough for the HTTP thread that takes the upload.
+ * The job's volume_read says the rest. */
+int volume_check(const char *body, size_t len, const char *format, const char *options, struct sf_err *err);
 
 #endif

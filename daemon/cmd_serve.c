@@ -103,7 +103,7 @@ int cmd_serve(int argc, char **argv)
     svc.started_mono = monotonic_s();
     struct sf_err err = {0};
     struct server *server = NULL;
-    if (store_open(svc.cfg.store[0] ? svc.cfg.store : svc.cfg.data_dir, &svc.store, msg, sizeof msg)) {
+    if (store_open(svc.cfg.store[0] ? svc.cfg.store : svc.cfg.data_dir, svc.cfg.data_dir, &svc.store, msg, sizeof msg)) {
         fprintf(stderr, "surfd serve: store: %s\n", msg);
         goto out_free_tokens;
     }

@@ -34,6 +34,7 @@ static const struct setting SETTINGS[] = {
     L("threads", threads, 0, 1024, "0", "worker threads (0: all cores)"),
     L("queue-max", queue_max, 1, 1000000, "64", "jobs waiting before requests get 429"),
     L("max-body", max_body, 1024, 1L << 30, "67108864", "largest request body in bytes (413 above)"),
+    L("max-volume", max_volume, 1024, 1L << 40, "4294967296", "largest volume POST /isosurface takes, in bytes: streamed to the data dir as it arrives, never held in memory"),
     L("sync-wait", sync_wait, 0, 3600, "60", "seconds a request waits for its job before 202"),
     S("token-file", token_file, "", "file of bearer tokens, one per line"),
     S("tls-cert", tls_cert, "", "PEM certificate for native TLS"),

@@ -3,10 +3,14 @@
  * crash, or claimed by another node, runs as submitted); then core/iso's two passes as two phases
  * of bands, one band a slab of z, on whichever workers are idle (cancel between slabs); then the
  * mesh is measured and stored compactly with its model resource. */
+#include <fcntl.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "../api/iso_json.h"
 #include "../api/mesh_io.h"
@@ -20,6 +24,9 @@ struct iso_work {
     struct job_claim claim;
     struct job *j;
     struct job_rec rec;      /* holds the request: the samples may lie in it */
+    char file[1100];         /* or in the streamed body's file, mapped at map */
+    void *map;
+    size_t map_len;
     struct volume vol;
     struct iso_job *ij;
     int phase, n_slabs;
@@ -31,6 +38,26 @@ struct iso_work {
     struct sf_err err;
 };
 
+/* The whole file at path, mapped read-only (*map NULL for an empty one). 0 or -1. */
+static int map_file(const char *path, void **map, size_t *len)
+{
+    int fd = open(path, O_RDONLY);
+    struct stat st;
+    if (fd < 0 || fstat(fd, &st)) {
+        if (fd >= 0)
+            close(fd);
+        return -1;
+    }
+    *len = (size_t)st.st_size;
+    *map = *len ? mmap(NULL, *len, PROT_READ, MAP_PRIVATE, fd, 0) : NULL;
+    close(fd);
+    if (*map == MAP_FAILED) {
+        *map = NULL;
+        return -1;
+    }
+    return 0;
+}
+
 static int prepare(struct job *j, void *arg, int *n_bands)
 {
     struct iso_work *w = arg;
@@ -38,7 +65,16 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     w->t0 = monotonic_s();
     if (store_get(w->svc->store, w->claim.id, true, false, &w->rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
-    if (volume_read((const char *)w->rec.request, w->rec.request_len, w->rec.format, w->rec.options, &w->vol, &w->err))
+    const char *body = (const char *)w->rec.request;
+    size_t len = w->rec.request_len;
+    if (w->rec.request_file) { /* a streamed volume: mapped, read in place */
+        if (store_request_file(w->svc->store, w->claim.id, w->file, sizeof w->file) != 1 ||
+            map_file(w->file, &w->map, &w->map_len))
+            return sf_fail(&w->err, SF_EIO, "", "the job's volume could not be read from the store"), -1;
+        body = w->map ? w->map : "";
+        len = w->map_len;
+    }
+    if (volume_read(body, len, w->rec.format, w->rec.options, &w->vol, &w->err))
         return -1;
     w->t_read = monotonic_s();
     struct iso_opts o = {w->vol.iso, w->vol.closed, true};
@@ -76,6 +112,18 @@ static int next(struct job *j, void *arg, int *n_bands)
     return 0;
 }
 
+/* Lets go of the samples (the volume's mapping or the request): the mesh is all that is needed
+ * now, and the volume and the mesh together are the job's peak of memory. */
+static void drop_volume(struct iso_work *w)
+{
+    volume_free(&w->vol);
+    if (w->map)
+        munmap(w->map, w->map_len);
+    w->map = NULL;
+    free(w->rec.request);
+    w->rec.request = NULL;
+}
+
 /* The mesh measured and stored as model (the job's id), its resource the job's result. */
 static int store_model(struct iso_work *w)
 {
@@ -85,6 +133,7 @@ static int store_model(struct iso_work *w)
     w->ij = NULL;
     if (rc)
         return rc;
+    drop_volume(w);
     struct trimesh_stats st;
     char *packed = NULL;
     size_t packed_len = 0;
@@ -119,7 +168,9 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     service_job_end(w->svc, &w->claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     iso_free(w->ij);
-    volume_free(&w->vol);
+    drop_volume(w);
+    if (w->file[0])
+        store_request_file_done(w->svc->store, w->file);
     store_rec_free(&w->rec);
     free(w->json);
     free(w);
@@ -146,8 +197,5 @@ const char *iso_format(const char *content_type) { return volume_format_from_typ
 int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     (void)svc;
-    struct volume v;
-    int rc = volume_read(b->body ? b->body : "", b->len, b->format, b->options, &v, err);
-    volume_free(&v);
-    return rc;
+    return volume_check(b->body ? b->body : "", b->len, b->format, b->options, err);
 }

@@ -4,17 +4,20 @@
 #include <string.h>
 
 static const struct job_kind KINDS[] = {
-    {"render", render_format, "application/json, model/x-bpt or model/vrml", true, render_validate, render_start,
-     "image/png, image/x-exr or image/tiff"},
-    {"volume", volume_format, "application/json (contours or a scene), application/dicom, model/x-bpt or model/vrml",
-     false, volume_validate, volume_start, "application/json"},
-    {"model", contour_format, "application/json or application/dicom", false, model_validate_body, model_start,
-     "application/json"},
-    {"mesh", NULL, NULL, false, mesh_validate, mesh_start, "model/stl, application/x-ply or model/obj"},
-    {"patches", NULL, NULL, false, patches_validate, patches_start, "application/json"},
-    {"isosurface", iso_format,
-     "application/octet-stream (raw samples, with ?dims&type), application/x-nrrd or application/x-metaimage", true,
-     iso_validate, iso_start, "application/json"},
+    {.name = "render", .format = render_format, .media = "application/json, model/x-bpt or model/vrml",
+     .format_in_query = true, .validate = render_validate, .start = render_start,
+     .result = "image/png, image/x-exr or image/tiff"},
+    {.name = "volume", .format = volume_format,
+     .media = "application/json (contours or a scene), application/dicom, model/x-bpt or model/vrml",
+     .validate = volume_validate, .start = volume_start, .result = "application/json"},
+    {.name = "model", .format = contour_format, .media = "application/json or application/dicom",
+     .validate = model_validate_body, .start = model_start, .result = "application/json"},
+    {.name = "mesh", .validate = mesh_validate, .start = mesh_start, .result = "model/stl, application/ply or model/obj"},
+    {.name = "patches", .validate = patches_validate, .start = patches_start, .result = "application/json"},
+    {.name = "isosurface", .format = iso_format,
+     .media = "application/octet-stream (raw samples, with ?dims&type), application/x-nrrd or application/x-metaimage",
+     .format_in_query = true, .validate = iso_validate, .start = iso_start, .result = "application/json",
+     .streamed = true},
 };
 
 const struct job_kind *job_kind(const char *name)

@@ -34,6 +34,7 @@ struct job_kind {
     /* Puts a claimed job on the pool: 0, or -1 (the claim is then handed back). */
     int (*start)(struct service *svc, const struct job_claim *c);
     const char *result;      /* media type(s) of its result, as the contract says them */
+    bool streamed;           /* the body is streamed to a file as it arrives (max-volume), not buffered */
 };
 
 /* The kind of that name, or NULL. */

@@ -9,12 +9,16 @@
 
 #include <arpa/inet.h>
 #include <ctype.h>
+#include <errno.h>
 #include <microhttpd.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "../api/model_json.h"
 #include "../api/job_json.h"
@@ -54,6 +58,10 @@ struct req {
     long reserved;            /* bytes of body_bytes this request holds */
     bool too_large;           /* over max-body: 413 */
     bool long_query;          /* over QUERY_MAX_ARGS options: 414 */
+    int fd;                   /* a streamed body (a kind with .streamed): the file it is written to */
+    char upload[1100];        /* its path, "" once the store has taken it */
+    bool write_failed;        /* the file would not take the body (a full disk): 503 */
+    void *map;                /* the file mapped, as body, when it has all arrived */
     bool over_budget;         /* over the shared body budget: 503 */
     bool woken;               /* resumed after a synchronous wait: answer with the job */
     atomic_bool finished;     /* set by the waiter callback before it resumes */
@@ -388,7 +396,9 @@ static enum MHD_Result submit(struct req *r, const struct job_kind *kind, const 
     rec.created = wall_s();
     rec.request = (unsigned char *)(r->body ? r->body : "");
     rec.request_len = r->len;
-    if (store_submit(svc->store, &rec))
+    int stored = r->upload[0] ? store_submit_file(svc->store, &rec, r->upload) : store_submit(svc->store, &rec);
+    r->upload[0] = 0; /* the store has it, or removed it */
+    if (stored)
         return problem(r, 503, "the store cannot take the job now", NULL);
     service_wake(svc);
     snprintf(r->job, sizeof r->job, "%s", rec.id);
@@ -784,6 +794,8 @@ static void *uri_logged(void *cls, const char *uri, struct MHD_Connection *conn)
     (void)cls;
     (void)conn;
     struct req *r = calloc(1, sizeof *r);
+    if (r)
+        r->fd = -1;
     char *q = strchr(uri, '?');
     if (r && q) {
         size_t n = 1;
@@ -797,6 +809,60 @@ static void *uri_logged(void *cls, const char *uri, struct MHD_Connection *conn)
     return r;
 }
 
+/* Whether the request is a POST of a kind whose body is streamed to a file. */
+static bool streamed(const char *path, const char *method)
+{
+    if (strcmp(method, "POST"))
+        return false;
+    char id[40];
+    for (size_t k = 0; k < sizeof ROUTES / sizeof *ROUTES; k++)
+        if (ROUTES[k].kind && match(ROUTES[k].path, path, id))
+            return job_kind(ROUTES[k].kind)->streamed;
+    return false;
+}
+
+/* Starts a streamed body's file in the data dir's uploads/ (the store takes it from there). */
+static bool open_upload(struct req *r)
+{
+    snprintf(r->upload, sizeof r->upload, "%s/uploads", r->svc->cfg.data_dir);
+    mkdir(r->upload, 0700);
+    snprintf(r->upload, sizeof r->upload, "%s/uploads/tmp-XXXXXX", r->svc->cfg.data_dir);
+    if ((r->fd = mkstemp(r->upload)) < 0) {
+        LOG(LOG_ERROR, "cannot write an upload in %s/uploads: %s", r->svc->cfg.data_dir, strerror(errno));
+        r->upload[0] = 0;
+        return false;
+    }
+    return true;
+}
+
+static void write_upload(struct req *r, const char *data, size_t n)
+{
+    while (n && !r->write_failed) {
+        ssize_t w = write(r->fd, data, n);
+        if (w < 0 && errno == EINTR)
+            continue;
+        if (w <= 0) {
+            LOG(LOG_ERROR, "an upload could not be written to %s: %s", r->upload, strerror(errno));
+            r->write_failed = true;
+            return;
+        }
+        data += w, n -= (size_t)w;
+    }
+}
+
+/* The whole streamed body, mapped as r->body. */
+static bool map_upload(struct req *r)
+{
+    if (r->len == 0)
+        return true;
+    void *m = mmap(NULL, r->len, PROT_READ, MAP_PRIVATE, r->fd, 0);
+    if (m == MAP_FAILED)
+        return false;
+    r->map = m;
+    r->body = m;
+    return true;
+}
+
 static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const char *url, const char *method,
                                const char *version, const char *upload, size_t *upload_size, void **con_cls)
 {
@@ -806,6 +872,7 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
     if (!r || !r->conn) {
         if (!r && !(r = calloc(1, sizeof *r)))
             return MHD_NO;
+        r->fd = -1;
         *con_cls = r;
         r->svc = s->svc;
         r->guard = s->guard;
@@ -828,12 +895,16 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
             snprintf(d, sizeof d, "the query has over %d options", QUERY_MAX_ARGS);
             return problem(r, 414, d, NULL);
         }
+        bool stream = streamed(r->path, r->method);
+        long limit = stream ? r->svc->cfg.max_volume : r->svc->cfg.max_body;
         const char *cl = MHD_lookup_connection_value(conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_LENGTH);
-        if (cl && strtoull(cl, NULL, 10) > (unsigned long long)r->svc->cfg.max_body) {
+        if (cl && strtoull(cl, NULL, 10) > (unsigned long long)limit) {
             char d[96];
-            snprintf(d, sizeof d, "the body is over the limit of %ld bytes", r->svc->cfg.max_body);
+            snprintf(d, sizeof d, "the body is over the limit of %ld bytes", limit);
             return problem(r, 413, d, NULL); /* before a byte of it is read */
         }
+        if (stream && !open_upload(r))
+            return problem(r, 503, "the data dir cannot take an upload now", NULL);
         /* libmicrohttpd decodes "chunked" alone; any other coding (gzip, chunked) would leave it
          * waiting for a body it cannot frame */
         const char *te = MHD_lookup_connection_value(conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_TRANSFER_ENCODING);
@@ -848,6 +919,14 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
         *upload_size = 0;
         if (r->too_large || r->over_budget)
             return MHD_YES; /* draining a refused body */
+        if (r->fd >= 0) { /* streamed to its file */
+            if (r->len + n > (size_t)r->svc->cfg.max_volume)
+                r->too_large = true;
+            else
+                write_upload(r, upload, n);
+            r->len += n;
+            return MHD_YES;
+        }
         if (r->len + n > (size_t)r->svc->cfg.max_body) {
             r->too_large = true; /* chunked, without a length to decide by up front */
             return MHD_YES;
@@ -879,6 +958,8 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
         return problem(r, 503, "too many large uploads at once; try again shortly", NULL);
     if (r->too_large)
         return problem(r, 413, "the body is over the limit", NULL);
+    if (r->fd >= 0 && (r->write_failed || !map_upload(r)))
+        return problem(r, 503, "the data dir would not take the upload (is it full?)", NULL);
     return route(r);
 }
 
@@ -894,7 +975,14 @@ static void completed(void *cls, struct MHD_Connection *conn, void **con_cls, en
         r->bytes, (monotonic_s() - r->t0) * 1e3, r->job[0] ? " job=" : "", r->job,
         toe == MHD_REQUEST_TERMINATED_COMPLETED_OK ? "" : " (aborted)");
     atomic_fetch_sub(&body_bytes, r->reserved);
-    free(r->body);
+    if (r->map)
+        munmap(r->map, r->len);
+    else
+        free(r->body);
+    if (r->fd >= 0)
+        close(r->fd);
+    if (r->upload[0]) /* not taken by the store */
+        unlink(r->upload);
     free(r);
     *con_cls = NULL;
 }

@@ -8,10 +8,10 @@
 
 #include "store_backend.h"
 
-int store_open(const char *target, struct store **out, char *msg, size_t msg_len)
+int store_open(const char *target, const char *scratch, struct store **out, char *msg, size_t msg_len)
 {
     if (!strncmp(target, "postgresql://", 13) || !strncmp(target, "postgres://", 11))
-        return store_pg_open(target, out, msg, msg_len);
+        return store_pg_open(target, scratch, out, msg, msg_len);
     return store_sqlite_open(target, out, msg, msg_len);
 }
 
@@ -24,6 +24,18 @@ void store_close(struct store *s)
 const char *store_backend(const struct store *s) { return s->ops->name; }
 
 int store_submit(struct store *s, const struct job_rec *r) { return s->ops->submit(s, r); }
+
+int store_submit_file(struct store *s, const struct job_rec *r, const char *path)
+{
+    return s->ops->submit_file(s, r, path);
+}
+
+int store_request_file(struct store *s, const char *id, char *path, size_t cap)
+{
+    return s->ops->request_file(s, id, path, cap);
+}
+
+void store_request_file_done(struct store *s, const char *path) { s->ops->request_file_done(s, path); }
 
 int store_claim(struct store *s, const char *node, double lease_s, struct job_claim *out)
 {

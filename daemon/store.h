@@ -64,6 +64,7 @@ struct job_rec {
     char result_sum[65];     /* SHA-256 of the result (hex), "" before it has one */
     char node[64];           /* the node that holds (or last held) its claim */
     bool cancel_requested;   /* store_cancel asked a running job to stop */
+    bool request_file;       /* the body was streamed to a file (store_submit_file), not in request */
 };
 
 /* A claim: the job a node now runs, and the fence token its end must show. */
@@ -84,8 +85,9 @@ struct job_end {
 };
 
 /* Opens (creating) the store: target is a data directory (SQLite: DIR/surfd.db) or a
- * postgresql:// or postgres:// URI. On failure writes msg and returns -1. */
-int store_open(const char *target, struct store **out, char *msg, size_t msg_len);
+ * postgresql:// or postgres:// URI; scratch is the node's own directory (the data directory)
+ * for files fetched from a shared store. On failure writes msg and returns -1. */
+int store_open(const char *target, const char *scratch, struct store **out, char *msg, size_t msg_len);
 void store_close(struct store *s);
 /* "sqlite" or "postgresql". */
 const char *store_backend(const struct store *s);
@@ -94,6 +96,15 @@ const char *store_backend(const struct store *s);
 
 /* A new job, QUEUED (r->state is ignored). 0, or -1. */
 int store_submit(struct store *s, const struct job_rec *r);
+/* The same for a job whose body was streamed to the file at path as it arrived (a volume of
+ * hundreds of megabytes, never held in memory): the store takes the file (SQLite: moves it into
+ * DIR/uploads; PostgreSQL: copies it into the database a chunk at a time and removes it);
+ * r->request is ignored. 0, or -1 (the file is removed either way). */
+int store_submit_file(struct store *s, const struct job_rec *r, const char *path);
+/* A local path of job id's streamed body (PostgreSQL: fetched a chunk at a time into the scratch
+ * directory; give it back with store_request_file_done). 1, 0 (none), -1. */
+int store_request_file(struct store *s, const char *id, char *path, size_t cap);
+void store_request_file_done(struct store *s, const char *path);
 /* Claims the oldest queued job for node, its lease lasting lease_s: 1 (and *out), 0 when none
  * is queued, -1 error. */
 int store_claim(struct store *s, const char *node, double lease_s, struct job_claim *out);

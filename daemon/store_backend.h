@@ -10,6 +10,9 @@ struct store_ops {
     const char *name;
     void (*close)(struct store *);
     int (*submit)(struct store *, const struct job_rec *);
+    int (*submit_file)(struct store *, const struct job_rec *, const char *path);
+    int (*request_file)(struct store *, const char *id, char *path, size_t cap);
+    void (*request_file_done)(struct store *, const char *path);
     int (*claim)(struct store *, const char *node, double lease_s, struct job_claim *);
     int (*heartbeat)(struct store *, const char *id, long fence, double lease_s, double progress, bool *cancel);
     int (*finish)(struct store *, const char *id, long fence, const struct job_end *);
@@ -41,6 +44,6 @@ struct store {
 
 /* The backends' openers: 0 and *out, or -1 with msg. */
 int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg_len);
-int store_pg_open(const char *uri, struct store **out, char *msg, size_t msg_len);
+int store_pg_open(const char *uri, const char *scratch, struct store **out, char *msg, size_t msg_len);
 
 #endif

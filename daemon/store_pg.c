@@ -27,7 +27,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "store_backend.h"
 
@@ -39,6 +41,7 @@
 struct pg_store {
     struct store base;
     char *uri;
+    char scratch[1024];      /* the node's directory for streamed bodies fetched to run */
     PGconn *pool[POOL_SIZE];
     bool busy[POOL_SIZE];
     pthread_mutex_t lock;
@@ -59,7 +62,10 @@ static const char SCHEMA[] =
     " attempts integer NOT NULL DEFAULT 0, owner text NOT NULL DEFAULT '', result_sum text,"
     " node text NOT NULL DEFAULT '', fence bigint NOT NULL DEFAULT 0,"
     " lease_until double precision NOT NULL DEFAULT 0, cancel_requested boolean NOT NULL DEFAULT false,"
-    " not_before double precision NOT NULL DEFAULT 0);"
+    " not_before double precision NOT NULL DEFAULT 0, request_file boolean NOT NULL DEFAULT false);"
+    "ALTER TABLE jobs ADD COLUMN IF NOT EXISTS request_file boolean NOT NULL DEFAULT false;"
+    "CREATE TABLE IF NOT EXISTS uploads (job text NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,"
+    " seq integer NOT NULL, data bytea NOT NULL, PRIMARY KEY (job, seq));"
     "CREATE INDEX IF NOT EXISTS jobs_queued ON jobs(created, id) WHERE state='queued';"
     "CREATE INDEX IF NOT EXISTS jobs_running ON jobs(lease_until) WHERE state='running';"
     "CREATE INDEX IF NOT EXISTS jobs_created ON jobs(created);"
@@ -217,6 +223,94 @@ static int pg_submit(struct store *s, const struct job_rec *r)
                  " VALUES($1,$2,'queued',$3,$4,$5,$6,$7) RETURNING id)"
                  " SELECT pg_notify('surfd', 'queued:' || id) FROM j",
                  7, prm) == 1 ? 0 : -1;
+}
+
+/* The job and its file's chunks in one transaction; the file is removed either way. */
+static int pg_submit_file(struct store *s, const struct job_rec *r, const char *path)
+{
+    struct pg_store *p = pg(s);
+    FILE *f = fopen(path, "rb");
+    unsigned char *chunk = malloc(CHUNK);
+    int c = take(p), rc = -1;
+    PGresult *res = f && chunk ? execute(p, c, "BEGIN", 0, NULL, true) : NULL;
+    if (res) {
+        PQclear(res);
+        char created[32];
+        num(created, sizeof created, r->created);
+        struct param prm[] = {T(r->id), T(r->kind), T(created), T(r->format), T(r->options), T(r->owner)};
+        res = execute(p, c,
+                      "INSERT INTO jobs(id,kind,state,created,format,options,request,owner,request_file)"
+                      " VALUES($1,$2,'queued',$3,$4,$5,'',$6,true)",
+                      6, prm, false);
+        bool ok = res != NULL;
+        PQclear(res);
+        for (size_t seq = 0, n; ok && (n = fread(chunk, 1, CHUNK, f)) > 0; seq++) {
+            char sq[24];
+            snprintf(sq, sizeof sq, "%zu", seq);
+            struct param cp[] = {T(r->id), T(sq), BIN(chunk, n)};
+            ok = (res = execute(p, c, "INSERT INTO uploads(job,seq,data) VALUES($1,$2,$3)", 3, cp, false)) != NULL;
+            PQclear(res);
+        }
+        ok = ok && !ferror(f);
+        if (ok) {
+            struct param n1[] = {T(r->id)};
+            ok = (res = execute(p, c, "SELECT pg_notify('surfd', 'queued:' || $1::text)", 1, n1, false)) != NULL;
+            PQclear(res);
+        }
+        res = execute(p, c, ok ? "COMMIT" : "ROLLBACK", 0, NULL, false);
+        rc = res && ok ? 0 : -1;
+        PQclear(res);
+    }
+    give(p, c);
+    free(chunk);
+    if (f)
+        fclose(f);
+    unlink(path);
+    return rc;
+}
+
+/* Fetches job id's streamed body, chunk by chunk (single-row mode), into a scratch file. */
+static int pg_request_file(struct store *s, const char *id, char *path, size_t cap)
+{
+    struct pg_store *p = pg(s);
+    snprintf(path, cap, "%s/fetch-XXXXXX", p->scratch);
+    int fd = mkstemp(path);
+    if (fd < 0)
+        return -1;
+    FILE *f = fdopen(fd, "wb");
+    int c = take(p);
+    PGconn *conn = p->pool[c];
+    const char *values[] = {id};
+    bool ok = f && PQsendQueryParams(conn, "SELECT data FROM uploads WHERE job=$1 ORDER BY seq", 1, NULL, values, NULL,
+                                     NULL, 1) &&
+              PQsetSingleRowMode(conn);
+    long rows = 0;
+    PGresult *res;
+    while ((res = PQgetResult(conn))) {
+        ExecStatusType st = PQresultStatus(res);
+        if (st == PGRES_SINGLE_TUPLE) {
+            size_t n = (size_t)PQgetlength(res, 0, 0);
+            ok = ok && fwrite(PQgetvalue(res, 0, 0), 1, n, f) == n;
+            rows++;
+        } else if (st != PGRES_TUPLES_OK) {
+            ok = false;
+        }
+        PQclear(res);
+    }
+    give(p, c);
+    if (f ? fclose(f) != 0 : (close(fd), true))
+        ok = false;
+    if (!ok || rows == 0) {
+        unlink(path);
+        return ok ? 0 : -1;
+    }
+    return 1;
+}
+
+static void pg_request_file_done(struct store *s, const char *path)
+{
+    (void)s;
+    unlink(path); /* the copy: the database keeps the body until the job is pruned */
 }
 
 static int pg_claim(struct store *s, const char *node, double lease_s, struct job_claim *out)
@@ -419,8 +513,8 @@ static int pg_prune(struct store *s, double now, long ttl, long max_count)
 
 #define REC_COLUMNS                                                                                         \
     "id,kind,state,progress,created,started,finished,format,options,result_type,meta,error,attempts,owner,"        \
-    "result_sum,node,cancel_requested"
-#define REC_N_COLUMNS 17
+    "result_sum,node,cancel_requested,request_file"
+#define REC_N_COLUMNS 18
 
 static void read_rec(const PGresult *r, int row, struct job_rec *out)
 {
@@ -445,6 +539,7 @@ static void read_rec(const PGresult *r, int row, struct job_rec *out)
     get_text(out->result_sum, sizeof out->result_sum, r, row, 14);
     get_text(out->node, sizeof out->node, r, row, 15);
     out->cancel_requested = PQgetvalue(r, row, 16)[0] != 0;
+    out->request_file = PQgetvalue(r, row, 17)[0] != 0;
 }
 
 /* Reads job id's result chunk by chunk (single-row mode) into one buffer of its stored length. */
@@ -720,13 +815,13 @@ static void pg_close(struct store *s)
 }
 
 static const struct store_ops PG_OPS = {
-    "postgresql", pg_close,     pg_submit,    pg_claim,      pg_heartbeat,    pg_finish,
+    "postgresql", pg_close,     pg_submit,    pg_submit_file, pg_request_file, pg_request_file_done, pg_claim,      pg_heartbeat,    pg_finish,
     pg_release,   pg_cancel,    pg_reap,      pg_prune,      pg_get,          pg_list,
     pg_queued,    pg_model_put, pg_model_get, pg_model_list, pg_model_delete, pg_writable,
     pg_on_event,
 };
 
-int store_pg_open(const char *uri, struct store **out, char *msg, size_t msg_len)
+int store_pg_open(const char *uri, const char *scratch, struct store **out, char *msg, size_t msg_len)
 {
     *out = NULL;
     struct pg_store *p = calloc(1, sizeof *p);
@@ -735,6 +830,9 @@ int store_pg_open(const char *uri, struct store **out, char *msg, size_t msg_len
         snprintf(msg, msg_len, "out of memory");
         return -1;
     }
+    mkdir(scratch, 0700);
+    snprintf(p->scratch, sizeof p->scratch, "%s/scratch", scratch);
+    mkdir(p->scratch, 0700);
     p->base.ops = &PG_OPS;
     pthread_mutex_init(&p->lock, NULL);
     pthread_cond_init(&p->freed, NULL);

@@ -10,7 +10,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <dirent.h>
 #include <sys/stat.h>
+#include <unistd.h>
 #include <time.h>
 
 #include "store_backend.h"
@@ -19,6 +21,7 @@ struct sqlite_store {
     struct store base;
     sqlite3 *db;
     pthread_mutex_t lock;
+    char uploads[1024];      /* DIR/uploads: streamed request bodies, one file a job */
 };
 
 static sqlite3 *db_of(struct store *s) { return ((struct sqlite_store *)s)->db; }
@@ -51,6 +54,7 @@ static const char *const MIGRATIONS[] = {
     "ALTER TABLE jobs ADD COLUMN lease_until REAL NOT NULL DEFAULT 0",
     "ALTER TABLE jobs ADD COLUMN cancel_requested INTEGER NOT NULL DEFAULT 0",
     "ALTER TABLE jobs ADD COLUMN not_before REAL NOT NULL DEFAULT 0",
+    "ALTER TABLE jobs ADD COLUMN request_file INTEGER NOT NULL DEFAULT 0",
 };
 
 static const struct store_ops SQLITE_OPS;
@@ -71,6 +75,8 @@ int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg
         return -1;
     }
     s->base.ops = &SQLITE_OPS;
+    snprintf(s->uploads, sizeof s->uploads, "%s/uploads", dir);
+    mkdir(s->uploads, 0700);
     pthread_mutex_init(&s->lock, NULL);
     char *err = NULL;
     if (sqlite3_open_v2(path, &s->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX, NULL) !=
@@ -145,17 +151,17 @@ static double wall_now(void)
 
 static int sq_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out);
 
-/* Runs one statement to its end: the rows it changed, or -1. */
+/* Runs one statement to its end: the rows it changed (or, a query, returned), or -1. */
 static int run(struct store *s, const char *sql, const char *types, ...)
 {
     va_list ap;
     va_start(ap, types);
     pthread_mutex_lock(lock_of(s));
     sqlite3_stmt *st = prepare(s, sql, types, ap);
-    int rc = st ? sqlite3_step(st) : SQLITE_ERROR;
+    int rc = st ? sqlite3_step(st) : SQLITE_ERROR, rows = 0;
     while (rc == SQLITE_ROW)
-        rc = sqlite3_step(st);
-    int n = rc == SQLITE_DONE ? sqlite3_changes(db_of(s)) : -1;
+        rc = sqlite3_step(st), rows++;
+    int n = rc != SQLITE_DONE ? -1 : sqlite3_stmt_readonly(st) ? rows : sqlite3_changes(db_of(s));
     sqlite3_finalize(st);
     pthread_mutex_unlock(lock_of(s));
     va_end(ap);
@@ -202,6 +208,58 @@ static int sq_submit(struct store *s, const struct job_rec *r)
     return run(s, "INSERT INTO jobs(id,kind,state,created,format,options,request,owner) VALUES(?,?,'queued',?,?,?,?,?)",
                "ttdttbt", r->id, r->kind, r->created, r->format, r->options, (const void *)r->request,
                r->request_len, r->owner) == 1 ? 0 : -1;
+}
+
+static int sq_submit_file(struct store *s, const struct job_rec *r, const char *path)
+{
+    char kept[1100];
+    snprintf(kept, sizeof kept, "%s/%s", ((struct sqlite_store *)s)->uploads, r->id);
+    if (rename(path, kept)) {
+        unlink(path);
+        return -1;
+    }
+    if (run(s, "INSERT INTO jobs(id,kind,state,created,format,options,request,owner,request_file)"
+               " VALUES(?,?,'queued',?,?,?,X'',?,1)",
+            "ttdttt", r->id, r->kind, r->created, r->format, r->options, r->owner) != 1) {
+        unlink(kept);
+        return -1;
+    }
+    return 0;
+}
+
+static int sq_request_file(struct store *s, const char *id, char *path, size_t cap)
+{
+    struct job_rec r;
+    int found = sq_get(s, id, false, false, &r);
+    store_rec_free(&r);
+    if (found != 1 || !r.request_file)
+        return found < 0 ? -1 : 0;
+    snprintf(path, cap, "%s/%s", ((struct sqlite_store *)s)->uploads, id);
+    return 1;
+}
+
+static void sq_request_file_done(struct store *s, const char *path)
+{
+    (void)s, (void)path; /* kept with the job, for a run after a crash, until the job is pruned */
+}
+
+/* Removes the streamed bodies of jobs no longer stored. */
+static void sweep_uploads(struct store *s)
+{
+    DIR *d = opendir(((struct sqlite_store *)s)->uploads);
+    if (!d)
+        return;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        if (e->d_name[0] == '.' || !strncmp(e->d_name, "tmp-", 4))
+            continue; /* uploads still arriving belong to the HTTP layer */
+        if (run(s, "SELECT 1 FROM jobs WHERE id=?", "t", e->d_name) == 0) {
+            char path[1400];
+            snprintf(path, sizeof path, "%s/%s", ((struct sqlite_store *)s)->uploads, e->d_name);
+            unlink(path);
+        }
+    }
+    closedir(d);
 }
 
 static int sq_claim(struct store *s, const char *node, double lease_s, struct job_claim *out)
@@ -354,16 +412,18 @@ static int sq_reap(struct store *s, double now, const char *node, int max_attemp
 
 static int sq_prune(struct store *s, double now, long ttl, long max_count)
 {
-    return run(s,
+    int rc = run(s,
                "DELETE FROM jobs WHERE state IN ('succeeded','failed','cancelled') AND (finished < ?1 OR id NOT IN"
                " (SELECT id FROM jobs WHERE state IN ('succeeded','failed','cancelled') ORDER BY finished DESC LIMIT ?2))",
                "di", now - (double)ttl, max_count) < 0 ? -1 : 0;
+    sweep_uploads(s);
+    return rc;
 }
 
 #define REC_COLUMNS                                                                                         \
     "id,kind,state,progress,created,started,finished,format,options,result_type,meta,error,attempts,owner,"        \
-    "result_sum,node,cancel_requested"
-#define REC_N_COLUMNS 17
+    "result_sum,node,cancel_requested,request_file"
+#define REC_N_COLUMNS 18
 
 static void read_rec(sqlite3_stmt *st, struct job_rec *r)
 {
@@ -387,6 +447,7 @@ static void read_rec(sqlite3_stmt *st, struct job_rec *r)
     copy_text(r->result_sum, sizeof r->result_sum, st, 14);
     copy_text(r->node, sizeof r->node, st, 15);
     r->cancel_requested = sqlite3_column_int(st, 16) != 0;
+    r->request_file = sqlite3_column_int(st, 17) != 0;
 }
 
 static int sq_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out)
@@ -528,7 +589,7 @@ static bool sq_writable(struct store *s)
 }
 
 static const struct store_ops SQLITE_OPS = {
-    "sqlite",     sq_close,      sq_submit,    sq_claim,     sq_heartbeat,    sq_finish,
+    "sqlite",     sq_close,      sq_submit,    sq_submit_file, sq_request_file, sq_request_file_done, sq_claim,     sq_heartbeat,    sq_finish,
     sq_release,   sq_cancel,     sq_reap,      sq_prune,     sq_get,          sq_list,
     sq_queued,    sq_model_put,  sq_model_get, sq_model_list, sq_model_delete, sq_writable,
     NULL,

@@ -83,6 +83,14 @@ check "a job's resource and result are the same from every node" '[ $same = 1 ] 
 check "every node lists every job" '[ "$(on n3 GET /jobs)" = 200 ] && [ "$(grep -o "\"kind\":\"volume\"" "$T/body" | wc -l)" = 30 ]'
 
 section sync
+CT="${SURFD_DATA:-../shared/data}/volumes/ct_head_crop64_int16.raw"
+code=$(on n2 POST "/isosurface?iso=226.5&dims=64,64,64&type=int16&spacing=0.9570312,0.9570312,1.5" \
+    -H 'Content-Type: application/octet-stream' --data-binary @"$CT")
+mid=$(field id)
+check "an isosurface (its volume streamed into the database in chunks): 201 on any node" '[ "$code" = 201 ] && [ "$(field boundary_edges)" = 0 ]'
+check "... its mesh downloads closed from another node" '[ "$(on n3 GET "/models/$mid/mesh?format=stl")" = 200 ] && python3 tests/tools/stl_check.py "$T/body" 57529.6 >/dev/null'
+check "... and no node keeps a fetched copy of the volume" '! find "$T"/n?/scratch -type f 2>/dev/null | grep -q .'
+
 # ---- a synchronous request answered when another node runs its job ----------------------------------
 node_kill n1; node_kill n2; node_kill n3
 start_node n1 --threads 1; start_node n2 --threads 1

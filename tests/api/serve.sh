@@ -57,7 +57,7 @@ check "404 job" '[ "$(status GET /jobs/0123456789abcdef0123456789abcdef)" = 404 
 check "404 bad id" '[ "$(status GET /jobs/..%2f..%2fetc)" = 404 ]'
 check "404 route" '[ "$(status GET /nowhere)" = 404 ] && is_problem 404'
 check "405" '[ "$(status GET /render)" = 405 ] && is_problem 405'
-check "501 not built yet" '[ "$(status POST /isosurface -d "{}")" = 501 ]'
+check "/isosurface is built: a body without ?iso is a 422 naming it" '[ "$(status POST /isosurface -d "{}")" = 422 ] && grep -q "?iso" "$T/body"'
 
 # ---- POST /volume (contours) --------------------------------------------------------------
 C="${SURFD_DATA:-../shared/data}/contours"

@@ -15,7 +15,9 @@ for src in tests/fuzz/fuzz_*.c; do
         continue
     fi
     # shellcheck disable=SC2086
-    out=$("$bin" $list tests/fuzz/crashers/"$t" 2>&1); rc=$?
+    kept=""; [ -d "tests/fuzz/crashers/$t" ] && kept="tests/fuzz/crashers/$t"
+    # shellcheck disable=SC2086
+    out=$("$bin" $list $kept 2>&1); rc=$?
     n=$(printf '%s\n' "$out" | sed -n 's/^\([0-9]*\) inputs$/\1/p')
     check "replay $t: $n seeds and crashers, no sanitizer report" '[ "$rc" = 0 ] && [ -n "$n" ] && ! printf "%s" "$out" | grep -q "ERROR: [A-Za-z]*Sanitizer\|runtime error"'
     [ "$rc" = 0 ] || printf '%s\n' "$out" | tail -30

@@ -1,0 +1,41 @@
+/* fuzz_volume.c - the volumes of POST /isosurface: the first line is the query (iso, dims, type,
+ * spacing...), the rest the body (raw, NRRD or MetaImage, sniffed). A volume that reads and is
+ * small is polygonised too, and its mesh must then be a closed, consistently oriented 2-manifold
+ * (the guarantee of core/iso/mc.h): anything else aborts, so the fuzzer reports it. */
+#include "../../api/volume_io.h"
+#include "fuzz.h"
+
+#define EXTRACT_MAX_SAMPLES 40000
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    static bool tables;
+    if (!tables) {
+        iso_init();
+        tables = true;
+    }
+    char *text = fuzz_text(data, size);
+    if (!text)
+        return 0;
+    char *nl = memchr(text, '\n', size);
+    const char *body = nl ? nl + 1 : "";
+    size_t len = nl ? size - (size_t)(nl + 1 - text) : 0;
+    if (nl)
+        *nl = 0;
+    struct volume v;
+    struct sf_err err = {0};
+    if (volume_read(body, len, "", text, &v, &err) == 0) {
+        if ((size_t)v.g.nx * v.g.ny * v.g.nz <= EXTRACT_MAX_SAMPLES) {
+            struct iso_opts o = {v.iso, true, true};
+            struct trimesh m;
+            struct trimesh_stats st;
+            if (iso_extract(&v.g, &o, NULL, &m, &err) == 0 && trimesh_stats(&m, &st, &err) == 0 &&
+                (st.boundary_edges || st.nonmanifold_edges || st.degenerate))
+                abort();
+            trimesh_free(&m);
+        }
+        volume_free(&v);
+    }
+    free(text);
+    return 0;
+}
