@@ -225,6 +225,8 @@ static int fetch_result(const char *id, const char *out)
 static int usage(void)
 {
     fprintf(stderr, "usage: surfctl render FILE -o OUT [--async] [--method M] [--width W] [--height H] [--output png|exr|tiff]\n"
+                    "       surfctl isosurface VOLUME --iso V -o OUT.stl|.ply|.obj [--dims X,Y,Z --type T --spacing S --origin O]\n"
+                    "                          [--closed true|false] [--name N]   (VOLUME: .nrrd, .mha or raw samples)\n"
                     "       surfctl jobs [--state S] | job ID | wait ID [-o OUT] | result ID -o OUT | cancel ID\n"
                     "environment: SURFD_URL (default http://127.0.0.1:8080), SURFD_TOKEN\n");
     return EXIT_USAGE;
@@ -281,6 +283,79 @@ static int cmd_render(int argc, char **argv)
     return rc;
 }
 
+/* POST /isosurface, the job followed with the progress bar, the model resource on stdout and
+ * its mesh written to OUT (format from its extension). */
+static int cmd_isosurface(int argc, char **argv)
+{
+    const char *file = NULL, *out = NULL;
+    char query[600] = "";
+    for (int k = 0; k < argc; k++) {
+        const char *a = argv[k], *v = k + 1 < argc ? argv[k + 1] : NULL;
+        if (!strcmp(a, "-o") && v)
+            out = v, k++;
+        else if ((!strcmp(a, "--iso") || !strcmp(a, "--dims") || !strcmp(a, "--type") || !strcmp(a, "--spacing") ||
+                  !strcmp(a, "--origin") || !strcmp(a, "--closed") || !strcmp(a, "--name")) && v) {
+            size_t n = strlen(query);
+            snprintf(query + n, sizeof query - n, "%c%s=%s", n ? '&' : '?', a + 2, v);
+            k++;
+        } else if (a[0] != '-' && !file)
+            file = a;
+        else
+            return usage();
+    }
+    const char *ext = out ? strrchr(out, '.') : NULL;
+    if (!file || !ext || (strcmp(ext, ".stl") && strcmp(ext, ".ply") && strcmp(ext, ".obj")))
+        return usage();
+    const char *dot = strrchr(file, '.');
+    const char *type = dot && !strcmp(dot, ".nrrd") ? "application/x-nrrd"
+                       : dot && !strcmp(dot, ".mha") ? "application/x-metaimage"
+                                                     : "application/octet-stream";
+    size_t len;
+    char *body = read_file(file, &len);
+    if (!body)
+        return EXIT_USAGE;
+    char path[700];
+    snprintf(path, sizeof path, "/isosurface%s", query);
+    struct response r;
+    int rc = request("POST", path, body, len, type, "respond-async", &r);
+    free(body);
+    if (rc)
+        return rc;
+    if (r.status != 202) {
+        rc = report(&r);
+        free(r.body.data);
+        return rc;
+    }
+    char id[64], state[32];
+    snprintf(id, sizeof id, "%s", r.job_id);
+    free(r.body.data);
+    if ((rc = wait_job(id, state, sizeof state)))
+        return rc;
+    snprintf(path, sizeof path, "/jobs/%s/result", id);
+    if ((rc = request("GET", path, NULL, 0, NULL, NULL, &r)))
+        return rc;
+    if (r.status != 201 && r.status != 200) {
+        rc = r.status == 409 || r.status == 422 ? (report(&r), EXIT_JOB) : report(&r);
+        free(r.body.data);
+        return rc;
+    }
+    printf("%s\n", r.body.data ? r.body.data : "");
+    free(r.body.data);
+    snprintf(path, sizeof path, "/models/%s/mesh?format=%s", id, ext + 1);
+    if ((rc = request("GET", path, NULL, 0, NULL, NULL, &r)))
+        return rc;
+    if (r.status == 202) { /* a mesh job longer than the server's sync wait: follow it too */
+        snprintf(id, sizeof id, "%s", r.job_id);
+        rc = wait_job(id, state, sizeof state);
+        if (!rc)
+            rc = strcmp(state, "succeeded") ? EXIT_JOB : fetch_result(id, out);
+    } else {
+        rc = r.status == 200 ? write_file(out, &r.body) : report(&r);
+    }
+    free(r.body.data);
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 2)
@@ -290,6 +365,8 @@ int main(int argc, char **argv)
     int rc;
     if (!strcmp(cmd, "render")) {
         rc = cmd_render(argc - 2, argv + 2);
+    } else if (!strcmp(cmd, "isosurface")) {
+        rc = cmd_isosurface(argc - 2, argv + 2);
     } else if (!strcmp(cmd, "jobs") || !strcmp(cmd, "job") || !strcmp(cmd, "cancel")) {
         char path[128];
         if (!strcmp(cmd, "jobs"))

@@ -31,6 +31,11 @@ check "surfctl job" '$C job "$id" | grep -q "\"state\":\"succeeded\""'
 check "surfctl jobs --state" '$C jobs --state succeeded | grep -q "$id"'
 $C result "$id" -o "$T/f.png"
 check "surfctl result" '[ $? -eq 0 ] && cmp -s "$T/e.png" "$T/f.png"'
+CT="${SURFD_DATA:-../shared/data}/volumes/ct_head_crop64_int16.raw"
+$C isosurface "$CT" --iso 226.5 --dims 64,64,64 --type int16 --spacing 0.9570312,0.9570312,1.5 -o "$T/ct.stl" >"$T/out" 2>"$T/progress"
+check "surfctl isosurface: the model on stdout, its closed mesh in the file" '[ $? -eq 0 ] && grep -q "\"source\":\"isosurface\"" "$T/out" && python3 tests/tools/stl_check.py "$T/ct.stl" 57529.6 >/dev/null'
+$C isosurface "$CT" --dims 64,64,64 --type int16 -o "$T/x.stl" 2>"$T/err"; rc=$?
+check "surfctl isosurface without --iso exits 4 naming ?iso" '[ $rc -eq 4 ] && grep -q "?iso" "$T/err"'
 $C render "$D/teapot.json" -o "$T/g.png" --width 0 2>"$T/err"; rc=$?
 check "surfctl 4xx exits 4 with the pointer" '[ $rc -eq 4 ] && grep -q "?width" "$T/err"'
 $C cancel "$id" 2>/dev/null; rc=$?
