@@ -78,7 +78,8 @@ $(B)/san/%.o: %.c
 $(B)/rel/api/%.o: api/%.cpp
 	@mkdir -p $(@D)
 	$(CXX) $(CXXFLAGS) -c $< -o $@
-DCM_OBJ := $(B)/rel/api/rtstruct_dcmtk.o
+DCM_SRC := $(wildcard api/*_dcmtk.cpp) # the DCMTK shims: RT Structure Sets, image series
+DCM_OBJ := $(patsubst %.cpp,$(B)/rel/%.o,$(DCM_SRC))
 
 # api/openapi.yaml, served at /openapi.yaml, compiled in as a C string
 $(B)/gen/openapi.c: api/openapi.yaml
@@ -108,7 +109,7 @@ $(B)/fz/%.o: %.c
 $(B)/fz/api/%.o: api/%.cpp
 	@mkdir -p $(@D)
 	$(FUZZ_CC)++ -std=c++17 $(FUZZ_FLAGS) -Wall -Wextra -MMD -MP -c $< -o $@
-FZ_OBJ := $(call obj,fz,$(CORE_SRC) $(API_SRC) $(FUZZ_DAEMON) tests/fuzz/util.c) $(B)/fz/api/rtstruct_dcmtk.o
+FZ_OBJ := $(call obj,fz,$(CORE_SRC) $(API_SRC) $(FUZZ_DAEMON) tests/fuzz/util.c) $(patsubst %.cpp,$(B)/fz/%.o,$(DCM_SRC))
 .SECONDARY: $(FZ_OBJ) $(patsubst %,$(B)/fz/tests/fuzz/fuzz_%.o,$(FUZZ_TARGETS)) # kept, not rebuilt each run
 $(B)/fuzz/%: $(B)/fz/tests/fuzz/fuzz_%.o $(FZ_OBJ)
 	@mkdir -p $(@D)

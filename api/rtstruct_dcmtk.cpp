@@ -1,4 +1,5 @@
-// rtstruct_dcmtk.cpp - the only DCMTK user: an RT Structure Set in memory to contour sets.
+// rtstruct_dcmtk.cpp - DCMTK for RT Structure Sets (series_dcmtk.cpp reads image series): an RT
+// Structure Set in memory to contour sets.
 // ROI names come from StructureSetROISequence, contours from ROIContourSequence (CLOSED_PLANAR
 // only; POINT and OPEN_* contours are skipped, as they bound nothing). Slice z is the contour's
 // own z (ContourData is x, y, z triples in patient coordinates); a contour whose z varies is not

@@ -12,6 +12,8 @@
 #include <strings.h>
 #include <zlib.h>
 
+#include "dicom_series.h"
+#include "multipart.h"
 #include "query.h"
 
 const char *volume_format_from_type(const char *ct)
@@ -25,6 +27,7 @@ const char *volume_format_from_type(const char *ct)
         const char *type, *format;
     } TYPES[] = {{"application/octet-stream", "raw"}, {"application/x-nrrd", "nrrd"}, {"image/x-nrrd", "nrrd"},
                  {"application/x-metaimage", "mha"},   {"application/x-mha", "mha"},   {"image/x-mha", "mha"},
+                 {"multipart/form-data", "dicom"},
                  {"application/x-www-form-urlencoded", ""} /* curl -d's default: sniffed */};
     for (size_t k = 0; k < sizeof TYPES / sizeof *TYPES; k++)
         if (strlen(TYPES[k].type) == n && !strncasecmp(ct, TYPES[k].type, n))
@@ -424,8 +427,8 @@ static int read_raw(const char *body, size_t len, const char *options, struct vo
     return place_samples(body, len, false, false, "?dims", v, err);
 }
 
-static int read_header(const char *body, size_t len, bool mha, const char *options, struct volume *v,
-                       struct sf_err *err)
+/* dims, type, spacing and origin in the query of a volume whose header gives them: refused. */
+static int raw_only_options(const char *options, struct sf_err *err)
 {
     char q[16];
     static const char *const RAW_ONLY[] = {"dims", "type", "spacing", "origin"};
@@ -437,9 +440,18 @@ static int read_header(const char *body, size_t len, bool mha, const char *optio
             return sf_fail(err, SF_EINVAL, where, "%s is for raw samples: this volume's header gives it", RAW_ONLY[k]);
         }
     }
+    return 0;
+}
+
+static int read_header(const char *body, size_t len, bool mha, const char *options, struct volume *v,
+                       struct sf_err *err)
+{
+    int rc = raw_only_options(options, err);
+    if (rc)
+        return rc;
     struct header h = {.spacing = {1, 1, 1}};
     size_t at = 0;
-    int rc = header_lines(body, len, mha ? '=' : ':', mha, mha ? mha_line : nrrd_line, &h, &at, err);
+    rc = header_lines(body, len, mha ? '=' : ':', mha, mha ? mha_line : nrrd_line, &h, &at, err);
     if (rc)
         return rc;
     if (!h.have_dims || !h.have_type)
@@ -455,6 +467,30 @@ static int read_header(const char *body, size_t len, bool mha, const char *optio
     return place_samples(body + at, len - at, h.compressed, h.big_endian, "data", v, err);
 }
 
+/* A DICOM series as multipart/form-data. */
+static int read_series(const char *body, size_t len, const char *options, struct volume *v, struct sf_err *err)
+{
+    int rc = raw_only_options(options, err);
+    if (rc)
+        return rc;
+    struct part *parts;
+    int n;
+    if ((rc = multipart_split(body, len, &parts, &n, err)))
+        return rc;
+    struct series s;
+    rc = series_read(parts, n, v->check_only, VOLUME_MAX_SAMPLES, &s, err);
+    free(parts);
+    if (rc)
+        return rc;
+    v->g = s.g;
+    v->owned = s.owned;
+    memcpy(v->axes, s.axes, sizeof s.axes);
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++)
+            v->oblique = v->oblique || fabs(v->axes[a][b] - (a == b)) > 1e-9;
+    return 0;
+}
+
 static int read_volume(const char *body, size_t len, const char *format, const char *options, bool check_only,
                        struct volume *v, struct sf_err *err)
 {
@@ -465,8 +501,10 @@ static int read_volume(const char *body, size_t len, const char *format, const c
         return rc;
     bool nrrd = len >= 4 && !memcmp(body, "NRRD", 4);
     bool mha = len >= 10 && (!memcmp(body, "ObjectType", 10) || !memcmp(body, "NDims", 5));
+    for (int a = 0; a < 3; a++)
+        v->axes[a][a] = 1;
     if (!*format)
-        format = nrrd ? "nrrd" : mha ? "mha" : "raw";
+        format = nrrd ? "nrrd" : mha ? "mha" : multipart_sniff(body, len) ? "dicom" : "raw";
     if (!strcmp(format, "nrrd")) {
         if (!nrrd)
             return sf_fail(err, SF_EFORMAT, "header", "an NRRD file starts with \"NRRD000x\"");
@@ -477,8 +515,10 @@ static int read_volume(const char *body, size_t len, const char *format, const c
         rc = read_header(body, len, true, options, v, err);
     } else if (!strcmp(format, "raw")) {
         rc = read_raw(body, len, options, v, err);
+    } else if (!strcmp(format, "dicom")) {
+        rc = read_series(body, len, options, v, err);
     } else {
-        rc = sf_fail(err, SF_EFORMAT, "?format", "format is raw, nrrd or mha");
+        rc = sf_fail(err, SF_EFORMAT, "?format", "format is raw, nrrd, mha or dicom");
     }
     if (rc)
         volume_free(v);

@@ -22,11 +22,14 @@ struct volume {
     bool closed;             /* ?closed (default true) */
     char name[128];          /* ?name */
     bool check_only;         /* volume_check: the samples are not read */
+    double axes[3][3];       /* the grid's x, y, z directions (a DICOM series may be oblique) */
+    bool oblique;            /* axes are not the identity: the mesh is turned by them about the origin */
 };
 
 /* The body's format from its Content-Type: "raw" (application/octet-stream), "nrrd"
- * (application/x-nrrd, image/x-nrrd), "mha" (application/x-metaimage); NULL for others. A body
- * posted without a type is sniffed (NRRD's magic, MetaImage's "ObjectType"), else raw. */
+ * (application/x-nrrd, image/x-nrrd), "mha" (application/x-metaimage), "dicom" (a series as
+ * multipart/form-data, one slice a part); NULL for others. A body posted without a type is sniffed
+ * (NRRD's magic, MetaImage's "ObjectType", a multipart boundary), else raw. */
 const char *volume_format_from_type(const char *content_type);
 
 /* Reads a volume: format "raw", "nrrd", "mha" or "" (sniffed); options the query. On success

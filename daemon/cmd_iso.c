@@ -2,12 +2,14 @@
  * same mesh and figures POST /isosurface makes, offline; --threads N runs the slabs of each pass
  * on N threads as the daemon's pool does; -o OUT.stl|.ply|.obj writes the mesh; --stats adds
  * the extraction's timings at every thread count asked, for the benchmarks. */
+#include <dirent.h>
 #include <malloc.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 
 #include "../api/iso_json.h"
@@ -68,6 +70,46 @@ static int extract(const struct volume *v, int threads, struct trimesh *m, doubl
     return rc;
 }
 
+/* A directory's files as the multipart/form-data body POST /isosurface takes for a DICOM series
+ * (the order does not matter: slices are placed by their positions). NULL after saying why. */
+static char *series_body(const char *dir, size_t *len)
+{
+    DIR *d = opendir(dir);
+    if (!d) {
+        perror(dir);
+        return NULL;
+    }
+    char *body = NULL;
+    size_t n = 0;
+    FILE *out = open_memstream(&body, &n);
+    struct dirent *e;
+    bool ok = out != NULL;
+    while (ok && (e = readdir(d))) {
+        char path[4096];
+        struct stat st;
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        if (e->d_name[0] == '.' || stat(path, &st) || !S_ISREG(st.st_mode))
+            continue;
+        size_t flen;
+        char *f = cli_read_all(path, &flen, (size_t)1 << 30);
+        ok = f && fprintf(out, "--surfd-series\r\nContent-Disposition: form-data; name=\"slice\"; filename=\"%s\"\r\n\r\n",
+                          e->d_name) > 0 && fwrite(f, 1, flen, out) == flen && fputs("\r\n", out) >= 0;
+        free(f);
+    }
+    closedir(d);
+    if (out) {
+        ok = ok && fputs("--surfd-series--\r\n", out) >= 0;
+        ok = fclose(out) == 0 && ok;
+    }
+    if (!ok) {
+        free(body);
+        fprintf(stderr, "surfd: %s: cannot read the series\n", dir);
+        return NULL;
+    }
+    *len = n;
+    return body;
+}
+
 int cmd_isosurface(int argc, char **argv)
 {
     char options[512] = "";
@@ -98,7 +140,7 @@ int cmd_isosurface(int argc, char **argv)
         }
     }
     if (bad || threads < 1 || threads > 64 || repeat < 1) {
-        fprintf(stderr, "usage: surfd isosurface VOLUME.nrrd|.mha|.raw --iso V [--dims X,Y,Z --type T "
+        fprintf(stderr, "usage: surfd isosurface VOLUME.nrrd|.mha|.raw|DICOM-DIR --iso V [--dims X,Y,Z --type T "
                         "[--spacing sx,sy,sz] [--origin x,y,z]]\n"
                         "                        [--closed true|false] [--name NAME] [--format raw|nrrd|mha]\n"
                         "                        [-o OUT.stl|.ply|.obj] [--threads N] [--repeat N] [--stats]\n");
@@ -106,7 +148,9 @@ int cmd_isosurface(int argc, char **argv)
     }
     double t0 = now_ms();
     size_t len;
-    char *buf = cli_read_all(argv[1], &len, (size_t)1 << 34);
+    struct stat fs;
+    bool dir = stat(argv[1], &fs) == 0 && S_ISDIR(fs.st_mode);
+    char *buf = dir ? series_body(argv[1], &len) : cli_read_all(argv[1], &len, (size_t)1 << 34);
     if (!buf)
         return 1;
     struct volume v;
@@ -126,6 +170,8 @@ int cmd_isosurface(int argc, char **argv)
             first = ms;
     }
     double t_extract = now_ms();
+    if (!rc && v.oblique)
+        trimesh_turn(&m, v.g.origin, (const double(*)[3])v.axes);
     struct trimesh_stats st;
     if (!rc)
         rc = trimesh_stats(&m, &st, &err);

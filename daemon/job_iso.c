@@ -133,6 +133,8 @@ static int store_model(struct iso_work *w)
     w->ij = NULL;
     if (rc)
         return rc;
+    if (w->vol.oblique)
+        trimesh_turn(&m, w->vol.g.origin, (const double(*)[3])w->vol.axes);
     drop_volume(w);
     struct trimesh_stats st;
     char *packed = NULL;

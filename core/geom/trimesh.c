@@ -17,6 +17,28 @@ void trimesh_free(struct trimesh *m)
     memset(m, 0, sizeof *m);
 }
 
+void trimesh_turn(struct trimesh *m, const double o[3], const double a[3][3])
+{
+    for (size_t v = 0; v < m->n_vert; v++) {
+        double p[3], q[3] = {0, 0, 0};
+        for (int d = 0; d < 3; d++)
+            p[d] = m->pos[3 * v + d] - o[d];
+        for (int d = 0; d < 3; d++)
+            for (int k = 0; k < 3; k++)
+                q[d] += p[k] * a[k][d];
+        for (int d = 0; d < 3; d++)
+            m->pos[3 * v + d] = (float)(o[d] + q[d]);
+        if (!m->nrm)
+            continue;
+        double n[3] = {0, 0, 0};
+        for (int d = 0; d < 3; d++)
+            for (int k = 0; k < 3; k++)
+                n[d] += m->nrm[3 * v + k] * a[k][d];
+        for (int d = 0; d < 3; d++)
+            m->nrm[3 * v + d] = (float)n[d];
+    }
+}
+
 static int cmp_u64(const void *a, const void *b)
 {
     uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;

@@ -27,6 +27,10 @@ struct trimesh_stats {
 };
 
 void trimesh_free(struct trimesh *m);
+/* Turns m about o: a point o + (x, y, z) goes to o + x a[0] + y a[1] + z a[2] (the axes of an
+ * oblique grid, orthonormal and right-handed, so orientation and volume are kept); normals turn
+ * with it. */
+void trimesh_turn(struct trimesh *m, const double o[3], const double a[3][3]);
 /* Figures of m (O(F log F): edges are sorted). 0, or SF_ENOMEM. */
 int trimesh_stats(const struct trimesh *m, struct trimesh_stats *out, struct sf_err *err);
 

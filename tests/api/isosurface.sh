@@ -57,6 +57,47 @@ check "a body without its type is sniffed" '[ "$code" = 201 ] && vtk_like'
 code=$(status POST "/isosurface?$Q&closed=false" -H "$RAW" --data-binary @"$CT")
 check "closed=false: open where the surface meets the border" '[ "$code" = 201 ] && [ "$(field boundary_edges)" -gt 0 ] && [ "$(field nonmanifold_edges)" = 0 ]'
 
+# ---- a DICOM series as multipart/form-data, posted in reverse: sorted by position, rescaled to HU ----
+DD="$V/dicom_ct_head_64x64x27"
+parts=""; for f in $(ls "$DD" | sort -r); do parts="$parts -F slice=@$DD/$f"; done
+# shellcheck disable=SC2086
+code=$(status POST "/isosurface?iso=226.5" $parts)
+check "a DICOM series (parts in reverse order): 201, closed" '[ "$code" = 201 ] && [ "$(field boundary_edges)" = 0 ] && [ "$(field nonmanifold_edges)" = 0 ]'
+cp "$T/body" "$T/series.json"
+# the README: the series is ct[::4, ::4, ::4] of the full CT, in HU: the same mesh from those raw samples
+python3 - "$V/ct_head_256x256x108_int16.raw" "$T/sub.raw" <<'EOF2'
+import array, sys
+a = array.array("h"); a.frombytes(open(sys.argv[1], "rb").read())
+out = array.array("h", (a[x + 256 * (y + 256 * z)] for z in range(0, 108, 4) for y in range(0, 256, 4) for x in range(0, 256, 4)))
+open(sys.argv[2], "wb").write(out.tobytes())
+EOF2
+code=$(status POST "/isosurface?iso=226.5&dims=64,64,27&type=int16&spacing=3.828125,3.828125,6" -H "$RAW" --data-binary @"$T/sub.raw")
+same_mesh() { python3 -c "
+import json, sys
+a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+sys.exit(0 if a['triangles'] == b['triangles'] and abs(a['volume_mm3'] - b['volume_mm3']) < 1e-6 * b['volume_mm3'] and a['grid']['spacing'] == b['grid']['spacing'] else 1)" "$1" "$2"; }
+check "... the same mesh as its samples posted raw (sorting, rescale and spacing right)" '[ "$code" = 201 ] && same_mesh "$T/series.json" "$T/body"'
+$S isosurface "$DD" --iso 226.5 >"$T/offline.json" 2>/dev/null
+check "... and surfd isosurface DIR offline gives it too" 'same_mesh "$T/offline.json" "$T/series.json"'
+P="$V/dicom_pydicom_ct5n_16x16x5"
+parts=""; for f in "$P"/*.dcm; do parts="$parts -F slice=@$f"; done
+# shellcheck disable=SC2086
+code=$(status POST "/isosurface?iso=-500" $parts)
+check "a scanner's series whose file names are not in position order: sorted, 2.5 mm apart" '[ "$code" = 201 ] && python3 -c "
+import json, sys; g = json.load(open(sys.argv[1]))[\"grid\"]; sys.exit(0 if g[\"dims\"] == [16, 16, 5] and abs(g[\"spacing\"][2] - 2.5) < 1e-6 else 1)" "$T/body"'
+parts=""; for f in $(ls "$DD" | grep -v IM0014); do parts="$parts -F slice=@$DD/$f"; done
+# shellcheck disable=SC2086
+code=$(status POST "/isosurface?iso=226.5" $parts)
+check "a series with a slice missing: 422 naming the part after the gap" '[ "$code" = 422 ] && grep -q "\"pointer\":\"/parts/[0-9]*\"" "$T/body" && grep -q "missing" "$T/body"'
+# shellcheck disable=SC2086
+code=$(status POST "/isosurface?iso=226.5" -F "slice=@$DD/IM0001.dcm" -F "slice=@$DD/IM0002.dcm" -F "slice=@$P/2062.dcm")
+check "a series of mixed sizes: 422 naming the odd part" '[ "$code" = 422 ] && grep -q "\"pointer\":\"/parts/2\"" "$T/body" && grep -q "another size" "$T/body"'
+# shellcheck disable=SC2086
+code=$(status POST "/isosurface?iso=226.5" -F "slice=@$DD/IM0001.dcm" -F "slice=@$CT")
+check "a part that is not DICOM: 400 naming it" '[ "$code" = 400 ] && grep -q "\"pointer\":\"/parts/1\"" "$T/body"'
+code=$(status POST "/isosurface?iso=226.5" -F "slice=@$DD/IM0001.dcm")
+check "one slice is not a series: 422" '[ "$code" = 422 ] && is_problem 422'
+
 # ---- bad input ----
 head -c 1000 "$CT" >"$T/short.raw"
 code=$(status POST "/isosurface?$Q" -H "$RAW" --data-binary @"$T/short.raw")

@@ -1,0 +1,200 @@
+// series_dcmtk.cpp - a DICOM CT/MR series to one sample grid (dicom_series.h), with DCMTK as the
+// RT Structure Set reader uses it. Uncompressed transfer syntaxes only (what scanners export for
+// research and what PACS send by default); a compressed one is refused by name.
+#include "dicom_series.h"
+
+#include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dctk.h>
+#include <dcmtk/dcmdata/dcistrmb.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <vector>
+
+namespace {
+
+struct slice {
+    int part;
+    double pos[3], orient[6], spacing[2], slope = 1, intercept = 0, s = 0;
+    unsigned rows = 0, cols = 0, bits = 0, stored = 0;
+    bool is_signed = false;
+    std::vector<uint16_t> pixels; // 8-bit samples widened
+};
+
+int fail_part(struct sf_err *err, int code, int part, const char *fmt, const char *what)
+{
+    char where[32];
+    snprintf(where, sizeof where, "/parts/%d", part);
+    return sf_fail(err, code, where, fmt, what);
+}
+
+bool get_doubles(DcmDataset *ds, const DcmTagKey &tag, double *out, unsigned n)
+{
+    for (unsigned k = 0; k < n; k++) {
+        Float64 v;
+        if (ds->findAndGetFloat64(tag, v, k).bad() || !std::isfinite(v))
+            return false;
+        out[k] = v;
+    }
+    return true;
+}
+
+int read_slice(const struct part &p, int k, bool check_only, slice &sl, struct sf_err *err)
+{
+    DcmFileFormat ff;
+    DcmInputBufferStream in;
+    in.setBuffer(p.data, (offile_off_t)p.len);
+    in.setEos();
+    ff.transferInit();
+    OFCondition c = ff.read(in, EXS_Unknown, EGL_noChange, check_only ? 4096 : DCM_MaxReadLength);
+    ff.transferEnd();
+    if (c.bad())
+        return fail_part(err, SF_EFORMAT, k, "not a readable DICOM object: %s", c.text());
+    DcmDataset *ds = ff.getDataset();
+    E_TransferSyntax xfer = ds->getOriginalXfer();
+    if (xfer != EXS_LittleEndianImplicit && xfer != EXS_LittleEndianExplicit && xfer != EXS_BigEndianExplicit) {
+        DcmXfer x(xfer);
+        return fail_part(err, SF_EINVAL, k, "compressed pixel data (%s) is not read: send the series uncompressed",
+                         x.getXferName());
+    }
+    Uint16 rows = 0, cols = 0, bits = 0, stored = 0, rep = 0, spp = 1;
+    if (ds->findAndGetUint16(DCM_Rows, rows).bad() || ds->findAndGetUint16(DCM_Columns, cols).bad() || rows < 1 ||
+        cols < 1)
+        return fail_part(err, SF_EINVAL, k, "%s", "an image part without Rows and Columns (is it an image?)");
+    ds->findAndGetUint16(DCM_BitsAllocated, bits);
+    ds->findAndGetUint16(DCM_BitsStored, stored);
+    ds->findAndGetUint16(DCM_PixelRepresentation, rep);
+    ds->findAndGetUint16(DCM_SamplesPerPixel, spp);
+    if ((bits != 8 && bits != 16) || spp != 1)
+        return fail_part(err, SF_EINVAL, k, "%s", "samples are one channel of 8 or 16 bits (a CT or MR image)");
+    if (!get_doubles(ds, DCM_ImagePositionPatient, sl.pos, 3))
+        return fail_part(err, SF_EINVAL, k, "%s", "ImagePositionPatient is missing: slices are placed by it");
+    if (!get_doubles(ds, DCM_ImageOrientationPatient, sl.orient, 6))
+        return fail_part(err, SF_EINVAL, k, "%s", "ImageOrientationPatient is missing");
+    if (!get_doubles(ds, DCM_PixelSpacing, sl.spacing, 2) || !(sl.spacing[0] > 0) || !(sl.spacing[1] > 0))
+        return fail_part(err, SF_EINVAL, k, "%s", "PixelSpacing is missing or not positive");
+    double v;
+    if (get_doubles(ds, DCM_RescaleSlope, &v, 1))
+        sl.slope = v;
+    if (get_doubles(ds, DCM_RescaleIntercept, &v, 1))
+        sl.intercept = v;
+    if (sl.slope == 0)
+        return fail_part(err, SF_EINVAL, k, "%s", "RescaleSlope is 0");
+    sl.part = k, sl.rows = rows, sl.cols = cols, sl.bits = bits, sl.stored = stored ? stored : bits;
+    sl.is_signed = rep == 1;
+    if (check_only)
+        return 0;
+    size_t n = (size_t)rows * cols;
+    if (bits == 16) {
+        const Uint16 *px = nullptr;
+        unsigned long count = 0;
+        if (ds->findAndGetUint16Array(DCM_PixelData, px, &count).bad() || !px || count < n)
+            return fail_part(err, SF_EINVAL, k, "%s", "the pixel data is missing or shorter than Rows x Columns");
+        sl.pixels.assign(px, px + n);
+    } else {
+        const Uint8 *px = nullptr;
+        unsigned long count = 0;
+        if (ds->findAndGetUint8Array(DCM_PixelData, px, &count).bad() || !px || count < n)
+            return fail_part(err, SF_EINVAL, k, "%s", "the pixel data is missing or shorter than Rows x Columns");
+        sl.pixels.assign(px, px + n);
+    }
+    return 0;
+}
+
+double stored_value(const slice &sl, uint16_t raw)
+{
+    if (sl.bits == 8)
+        return sl.is_signed ? (double)(int8_t)raw : (double)raw;
+    return sl.is_signed ? (double)(int16_t)raw : (double)(raw & (sl.stored >= 16 ? 0xffffu : (1u << sl.stored) - 1));
+}
+
+} // namespace
+
+extern "C" int series_read(const struct part *parts, int n, bool check_only, size_t max_samples, struct series *out,
+                           struct sf_err *err)
+{
+    memset(out, 0, sizeof *out);
+    if (n < 2)
+        return sf_fail(err, SF_EINVAL, "/parts", "a series is at least 2 slices (one DICOM image a part)");
+    std::vector<slice> sl((size_t)n);
+    for (int k = 0; k < n; k++) {
+        int rc = read_slice(parts[k], k, check_only, sl[(size_t)k], err);
+        if (rc)
+            return rc;
+    }
+    const slice &a = sl[0];
+    if ((size_t)a.rows * a.cols * (size_t)n > max_samples)
+        return sf_fail(err, SF_ELIMIT, "/parts", "the series has over %zu samples", max_samples);
+    double r[3] = {a.orient[0], a.orient[1], a.orient[2]}, c[3] = {a.orient[3], a.orient[4], a.orient[5]};
+    double nrm[3] = {r[1] * c[2] - r[2] * c[1], r[2] * c[0] - r[0] * c[2], r[0] * c[1] - r[1] * c[0]};
+    double len = std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+    if (!(len > 0.99 && len < 1.01))
+        return fail_part(err, SF_EINVAL, 0, "%s", "ImageOrientationPatient is not two unit, perpendicular directions");
+    for (slice &s : sl) {
+        if (s.rows != a.rows || s.cols != a.cols || s.bits != a.bits)
+            return fail_part(err, SF_EINVAL, s.part, "%s", "a slice of another size than the first part's");
+        for (int i = 0; i < 6; i++)
+            if (std::fabs(s.orient[i] - a.orient[i]) > 1e-4)
+                return fail_part(err, SF_EINVAL, s.part, "%s", "a slice of another orientation than the first part's");
+        for (int i = 0; i < 2; i++)
+            if (std::fabs(s.spacing[i] - a.spacing[i]) > 1e-4 * a.spacing[i])
+                return fail_part(err, SF_EINVAL, s.part, "%s", "a slice of another PixelSpacing than the first part's");
+        s.s = (s.pos[0] * nrm[0] + s.pos[1] * nrm[1] + s.pos[2] * nrm[2]) / len;
+    }
+    std::sort(sl.begin(), sl.end(), [](const slice &x, const slice &y) { return x.s < y.s; });
+    double mean = (sl.back().s - sl.front().s) / (n - 1);
+    if (!(mean > 0))
+        return fail_part(err, SF_EINVAL, sl[1].part, "%s", "two slices at the same position");
+    for (int k = 1; k < n; k++) {
+        double d = sl[(size_t)k].s - sl[(size_t)k - 1].s;
+        if (d <= 0)
+            return fail_part(err, SF_EINVAL, sl[(size_t)k].part, "%s", "two slices at the same position");
+        if (std::fabs(d - mean) > std::max(0.01, 0.01 * mean)) {
+            char what[200];
+            snprintf(what, sizeof what, "%.3g mm from the slice before it, %.3g mm on average: a slice is missing or the "
+                     "parts are not one series (surfd does not resample uneven spacing)", d, mean);
+            return fail_part(err, SF_EINVAL, sl[(size_t)k].part, "%s", what);
+        }
+    }
+    out->g.nx = (int)a.cols, out->g.ny = (int)a.rows, out->g.nz = n;
+    out->g.spacing[0] = a.spacing[1]; /* PixelSpacing is row spacing \ column spacing */
+    out->g.spacing[1] = a.spacing[0];
+    out->g.spacing[2] = mean;
+    for (int i = 0; i < 3; i++) {
+        out->g.origin[i] = sl[0].pos[i];
+        out->axes[0][i] = r[i], out->axes[1][i] = c[i], out->axes[2][i] = nrm[i] / len;
+    }
+    out->g.type = ISO_I16;
+    if (check_only)
+        return 0;
+    /* int16 when every rescaled value is a whole number within int16 (a CT in HU), float32 otherwise */
+    bool whole = true;
+    for (const slice &s : sl)
+        whole = whole && s.slope == std::floor(s.slope) && s.intercept == std::floor(s.intercept);
+    double lo = 0, hi = 0;
+    for (const slice &s : sl)
+        for (uint16_t raw : s.pixels) {
+            double v = stored_value(s, raw) * s.slope + s.intercept;
+            lo = std::min(lo, v), hi = std::max(hi, v);
+        }
+    whole = whole && lo >= -32768 && hi <= 32767;
+    size_t plane = (size_t)a.rows * a.cols;
+    out->g.type = whole ? ISO_I16 : ISO_F32;
+    out->owned = malloc(plane * (size_t)n * (whole ? 2 : 4));
+    if (!out->owned)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory for the series' samples");
+    for (size_t k = 0; k < (size_t)n; k++)
+        for (size_t i = 0; i < plane; i++) {
+            double v = stored_value(sl[k], sl[k].pixels[i]) * sl[k].slope + sl[k].intercept;
+            if (whole)
+                ((int16_t *)out->owned)[k * plane + i] = (int16_t)v;
+            else
+                ((float *)out->owned)[k * plane + i] = (float)v;
+        }
+    out->g.samples = out->owned;
+    return 0;
+}
