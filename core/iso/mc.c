@@ -34,6 +34,10 @@ static const int FACE_CANON[6][4] = {{0, 2, 4, 6}, {1, 3, 5, 7}, {0, 1, 4, 5}, {
 struct cell_case {
     uint8_t n;                       /* triangles */
     uint8_t n_centres;               /* vertices inside the cell: the centres of loops fanned from them */
+    /* two loops whose sides could meet inside the cell (MC33's interior ambiguity): test whether
+     * the corners of comp[0] reach those of comp[1] through the interpolant's inside (test 1) or
+     * outside (test 2); the case after it, one entry on, joins the loops by a tube */
+    uint8_t test, comp[2];
     uint8_t e[3 * MAX_CELL_TRIS];    /* the triangles' corners: cell edges 0-11, centres 12.. */
     uint16_t centre_of[MAX_CENTRES]; /* the edges (bit mask) of each centre's loop */
 };
@@ -77,10 +81,131 @@ static int fan_apex(const int *loop, int n)
     return -1;
 }
 
+/* The corners of state s (1 inside, 0 outside) of corner states c, in components: joined along the
+ * cube's edges and, across an ambiguous face, along its diagonal where the face joins them (inside
+ * corners where bit f of joined is set, outside corners where it is not). Masks into comp; the
+ * number of components. */
+static int components(int c, int joined, int s, uint8_t comp[8])
+{
+    int label[8], n = 0;
+    for (int k = 0; k < 8; k++)
+        label[k] = -1;
+    for (int k = 0; k < 8; k++) {
+        if ((c >> k & 1) != s || label[k] >= 0)
+            continue;
+        int stack[8], top = 0;
+        stack[top++] = k;
+        label[k] = n;
+        comp[n] = 0;
+        while (top) {
+            int a = stack[--top];
+            comp[n] |= (uint8_t)(1 << a);
+            int next[9], m = 0;
+            for (int axis = 0; axis < 3; axis++)
+                next[m++] = a ^ 1 << axis;
+            for (int f = 0; f < 6; f++) { /* the diagonal partner across an ambiguous face */
+                const int *q = FACE_CANON[f];
+                if (!(ambiguous_faces(c) >> f & 1) || ((joined >> f & 1) != s))
+                    continue;
+                for (int i = 0; i < 4; i++)
+                    if (q[i] == a)
+                        next[m++] = q[3 - i];
+            }
+            for (int i = 0; i < m; i++)
+                if ((c >> next[i] & 1) == s && label[next[i]] < 0) {
+                    label[next[i]] = n;
+                    stack[top++] = next[i];
+                }
+        }
+        n++;
+    }
+    return n;
+}
+
+/* The middle of cell edge e, in cell units. */
+static void edge_middle(int e, double p[3])
+{
+    int k = e & 3, lo = k & 1, hi = k >> 1, axis = e >> 2;
+    int other[2] = {axis == 0 ? 1 : 0, axis == 2 ? 1 : 2};
+    p[axis] = 0.5;
+    p[other[0]] = lo;
+    p[other[1]] = hi;
+}
+
+/* Whether a rung between crossings e and f may be drawn: not when they lie on one face, where
+ * the neighbour cell (its own tube) could draw the same edge. */
+static bool rung_ok(int e, int f) { return !(edge_faces(e) & edge_faces(f)); }
+
+/* One band from rung (a[0], b[start]): a walked forward and b backward, so that each loop edge
+ * keeps the direction its neighbour cell's triangle reverses, advancing on the two loops in
+ * proportion where the rung that makes may be drawn and no rung comes twice. Its triangles into
+ * tris; their number, or 0 when this start has no band. */
+static int band_from(const int *a, int na, const int *b, int nb, int start, uint8_t *tris)
+{
+    /* The rungs are the points (ia, jb) of a monotone path from (0, 0) to (na, nb), taken modulo
+     * (na, nb): no rung may come twice, so the b steps taken before the first a step (j0 of them)
+     * must not be met again after the last, nor the a steps before the first b step (i0). */
+    int n = 0, cur = start, i0 = -1, j0 = -1;
+    for (int ia = 0, jb = 0; ia < na || jb < nb;) {
+        int prev = (cur + nb - 1) % nb;
+        bool can_a = ia < na && rung_ok(a[(ia + 1) % na], b[cur]) && (ia + 1 < na || jb > j0);
+        bool can_b = jb < nb && rung_ok(a[ia % na], b[prev]) && (jb + 1 < nb || (i0 >= 0 && ia > i0));
+        if (!can_a && !can_b)
+            return 0;
+        uint8_t *t = tris + 3 * n++;
+        if (can_a && (!can_b || ia * nb <= jb * na)) { /* (a[ia], a[ia+1], b[cur]) */
+            t[0] = (uint8_t)a[ia], t[1] = (uint8_t)a[(ia + 1) % na], t[2] = (uint8_t)b[cur];
+            if (j0 < 0)
+                j0 = jb;
+            ia++;
+        } else { /* back along b: (b[cur-1], b[cur], a[ia]) */
+            t[0] = (uint8_t)b[prev], t[1] = (uint8_t)b[cur], t[2] = (uint8_t)a[ia % na];
+            if (i0 < 0)
+                i0 = ia;
+            cur = prev;
+            jb++;
+        }
+    }
+    return n;
+}
+
+/* The band of triangles between loops a and b (a tube), from the first rung of a[0] that has
+ * one, nearest first. false (out unchanged) when there is none: the loops then stay two caps. */
+static bool band(const int *a, int na, const int *b, int nb, struct cell_case *out)
+{
+    int order[12];
+    double pa[3], d[12];
+    edge_middle(a[0], pa);
+    for (int k = 0; k < nb; k++) {
+        double pb[3];
+        edge_middle(b[k], pb);
+        d[k] = (pa[0] - pb[0]) * (pa[0] - pb[0]) + (pa[1] - pb[1]) * (pa[1] - pb[1]) + (pa[2] - pb[2]) * (pa[2] - pb[2]);
+        order[k] = k;
+    }
+    for (int k = 1; k < nb; k++) /* nearest first */
+        for (int i = k; i > 0 && d[order[i]] < d[order[i - 1]]; i--) {
+            int t = order[i];
+            order[i] = order[i - 1], order[i - 1] = t;
+        }
+    uint8_t tris[3 * 24];
+    for (int k = 0; k < nb; k++) {
+        if (!rung_ok(a[0], b[order[k]]))
+            continue;
+        int n = band_from(a, na, b, nb, order[k], tris);
+        if (n && out->n + n <= MAX_CELL_TRIS) {
+            memcpy(out->e + 3 * out->n, tris, 3 * (size_t)n);
+            out->n = (uint8_t)(out->n + n);
+            return true;
+        }
+    }
+    return false;
+}
+
 /* The triangles of corner states c, ambiguous face f's inside corners joined across it when bit
  * f of joined is set: each face's segments run from an entry crossing (walking the face
- * counter-clockwise, out -> in) to an exit; they chain into loops, each fanned into triangles. */
-static void build_case(int c, int joined, struct cell_case *out)
+ * counter-clockwise, out -> in) to an exit; they chain into loops, each fanned into triangles, or,
+ * with tube, two loops joined by a band. */
+static void build_case(int c, int joined, bool tube, struct cell_case *out)
 {
     int next[12];
     for (int e = 0; e < 12; e++)
@@ -110,16 +235,33 @@ static void build_case(int c, int joined, struct cell_case *out)
             }
         }
     }
-    out->n = out->n_centres = 0;
+    out->n = out->n_centres = out->test = 0;
     bool seen[12] = {false};
+    int loops[4][12], sizes[4], n_loops = 0;
     for (int e = 0; e < 12; e++) {
         if (next[e] < 0 || seen[e])
             continue;
-        int loop[12], n = 0;
+        int n = 0;
         for (int v = e; !seen[v]; v = next[v]) {
             seen[v] = true;
-            loop[n++] = v;
+            loops[n_loops][n++] = v;
         }
+        sizes[n_loops++] = n;
+    }
+    uint8_t in[8], outc[8];
+    if (n_loops == 2) { /* two caps, or one tube: the interior decides */
+        if (components(c, joined, 1, in) == 2)
+            out->test = 1, out->comp[0] = in[0], out->comp[1] = in[1];
+        else if (components(c, joined, 0, outc) == 2)
+            out->test = 2, out->comp[0] = outc[0], out->comp[1] = outc[1];
+    }
+    if (out->test && !band(loops[0], sizes[0], loops[1], sizes[1], &(struct cell_case){0}))
+        out->test = 0; /* no band without a rung in a face: two caps, as without the test */
+    if (tube && out->test && band(loops[0], sizes[0], loops[1], sizes[1], out))
+        return;
+    for (int l = 0; l < n_loops; l++) {
+        const int *loop = loops[l];
+        int n = sizes[l];
         int apex = fan_apex(loop, n);
         if (apex < 0) { /* fanned from a vertex at the loop's centre instead */
             int centre = 12 + out->n_centres;
@@ -259,8 +401,8 @@ void iso_free(struct iso_job *j)
     free(j);
 }
 
-/* The cells' tables: [c * 64 + joined], and each corner state's ambiguous faces. */
-static struct cell_case CASES[256 * 64];
+/* The cells' tables: [(c * 64 + joined) * 2 + tube], and each corner state's ambiguous faces. */
+static struct cell_case CASES[256 * 64 * 2];
 static uint8_t AMBIGUOUS[256];
 static bool tables_built;
 
@@ -272,7 +414,8 @@ void iso_init(void)
         AMBIGUOUS[c] = (uint8_t)ambiguous_faces(c);
         for (int m = 0; m < 64; m++)
             if ((m & ~AMBIGUOUS[c]) == 0)
-                build_case(c, m, &CASES[c * 64 + m]);
+                for (int tube = 0; tube < 2; tube++)
+                    build_case(c, m, tube, &CASES[(c * 64 + m) * 2 + tube]);
     }
     tables_built = true;
 }
@@ -346,13 +489,62 @@ static inline int next_states(int c, float iso, const float *a0, const float *a1
     return (c & 0xaa) >> 1 | right_states(iso, a0, a1, b0, b1, I);
 }
 
-/* The case of cell I of corner states c: its ambiguous faces decided from the samples. */
+/* MC33's interior test, by sampling: whether the corners of mask a reach those of mask b through
+ * samples of the trilinear interpolant of g (values less iso) that are inside (s = 1) or outside
+ * (s = 0), on an (INTERIOR_STEPS+1)^3 lattice of the cell. Exact on the corners and faces the
+ * lattice holds; a channel thinner than a lattice step is missed (the loops stay apart). */
+#define INTERIOR_STEPS 4
+static bool interior_joins(const double g[8], int s, int a, int b)
+{
+    enum { N = INTERIOR_STEPS + 1 };
+    bool ok[N * N * N], seen[N * N * N] = {false};
+    for (int z = 0; z < N; z++) { /* separably: along z, then y, then x */
+        double w = (double)z / INTERIOR_STEPS, e[4];
+        for (int k = 0; k < 4; k++)
+            e[k] = g[k] + w * (g[k + 4] - g[k]);
+        for (int y = 0; y < N; y++) {
+            double v = (double)y / INTERIOR_STEPS, l0 = e[0] + v * (e[2] - e[0]), l1 = e[1] + v * (e[3] - e[1]);
+            for (int x = 0; x < N; x++) {
+                double f = l0 + (double)x / INTERIOR_STEPS * (l1 - l0);
+                ok[x + N * (y + N * z)] = s ? f > 0 : f <= 0;
+            }
+        }
+    }
+    int stack[N * N * N], top = 0;
+    for (int k = 0; k < 8; k++)
+        if (a >> k & 1) {
+            int at = (k & 1 ? N - 1 : 0) + N * ((k & 2 ? N - 1 : 0) + N * (k & 4 ? N - 1 : 0));
+            seen[at] = true;
+            stack[top++] = at;
+        }
+    while (top) {
+        int at = stack[--top], x = at % N, y = at / N % N, z = at / (N * N);
+        for (int k = 0; k < 8; k++) /* a corner of b reached */
+            if ((b >> k & 1) && x == (k & 1 ? N - 1 : 0) && y == (k & 2 ? N - 1 : 0) && z == (k & 4 ? N - 1 : 0))
+                return true;
+        const int d[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+        for (int k = 0; k < 6; k++) {
+            int X = x + d[k][0], Y = y + d[k][1], Z = z + d[k][2];
+            if (X < 0 || Y < 0 || Z < 0 || X >= N || Y >= N || Z >= N)
+                continue;
+            int to = X + N * (Y + N * Z);
+            if (ok[to] && !seen[to]) {
+                seen[to] = true;
+                stack[top++] = to;
+            }
+        }
+    }
+    return false;
+}
+
+/* The case of cell I of corner states c: its ambiguous faces decided from the samples, and its
+ * interior where two loops could be one tube. */
 static int cell_case(const struct iso_job *j, int c, const float *a0, const float *a1, const float *b0, const float *b1,
                      int I)
 {
     int amb = AMBIGUOUS[c], joined = 0;
-    if (!amb)
-        return c * 64;
+    if (!amb && !CASES[c * 64 * 2].test)
+        return c * 64 * 2;
     float iso = j->iso;
     float v[8] = {a0[I], a0[I + 1], a1[I], a1[I + 1], b0[I], b0[I + 1], b1[I], b1[I + 1]};
     for (int f = 0; amb; f++, amb >>= 1) {
@@ -365,7 +557,15 @@ static int cell_case(const struct iso_job *j, int c, const float *a0, const floa
         if (g00 > 0 ? det > 0 : det < 0)
             joined |= 1 << f;
     }
-    return c * 64 + joined;
+    int idx = (c * 64 + joined) * 2;
+    const struct cell_case *cc = &CASES[idx];
+    if (cc->test) {
+        double g[8];
+        for (int k = 0; k < 8; k++)
+            g[k] = (double)v[k] - iso;
+        idx += interior_joins(g, cc->test == 1, cc->comp[0], cc->comp[1]);
+    }
+    return idx;
 }
 
 static struct trim trim_row(const float *r, int n, float iso)

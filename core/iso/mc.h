@@ -9,7 +9,9 @@
  * oriented counter-clockwise seen from outside; each loop is fanned into triangles. So every
  * triangle edge on a cell face is shared, the other way round, by the neighbour's triangle:
  * with closed=true (the grid's border counts as outside) the mesh is a closed, consistently
- * oriented 2-manifold on any input. A fan whose diagonal would join two crossings of one face (the
+ * oriented 2-manifold on any input. Where a cell has two loops whose sides could meet inside
+ * it (MC33's interior ambiguity), the trilinear interpolant is sampled across the cell and, when
+ * they meet, the loops are joined by a tube. A fan whose diagonal would join two crossings of one face (the
  * neighbour's fan might draw the same edge) starts from another vertex of the loop, or, when
  * every vertex has such a diagonal, from a vertex added at the loop's centre. The cells' tables
  * (256 corner states x the decisions of their ambiguous faces) are built by these rules at

@@ -68,6 +68,24 @@ TEST(every_cell_configuration)
     CHECK(decided[0] > 0 && decided[1] > 0);
 }
 
+/* MC33's interior ambiguity: two opposite corners in (no face ambiguous). Where the trilinear
+ * interpolant is inside at the cell's centre they are one body through a tube, else two. */
+TEST(interior_tunnel)
+{
+    for (int k = 0; k < 2; k++) {
+        float rest = k ? -0.2f : -1.0f; /* centre (2 + 6 rest) / 8: 0.1 inside, or -0.5 outside */
+        float v[8] = {1, rest, rest, rest, rest, rest, rest, 1};
+        struct iso_grid g = float_grid(2, v);
+        struct trimesh m;
+        struct trimesh_stats st;
+        CHECK(run(&g, 0, true, &m, &st) == 0);
+        CHECK(closed_manifold(&st));
+        CHECK(st.components == (k ? 1 : 2));
+        CHECK(st.euler == (k ? 2 : 4));
+        trimesh_free(&m);
+    }
+}
+
 /* Random fields, saddles everywhere: closed, consistently oriented, even Euler characteristic. */
 TEST(random_fields)
 {
@@ -264,6 +282,7 @@ int main(void)
 {
     iso_init();
     RUN(every_cell_configuration);
+    RUN(interior_tunnel);
     RUN(random_fields);
     RUN(checkerboard);
     RUN(ties_at_the_iso_value);
