@@ -1,8 +1,10 @@
 /* query.c - query options (query.h). */
 #include "query.h"
 
+#include <ctype.h>
 #include <stdio.h>
 #include <string.h>
+#include <strings.h>
 
 void query_option(const char *options, const char *name, char *out, size_t cap)
 {
@@ -14,4 +16,17 @@ void query_option(const char *options, const char *name, char *out, size_t cap)
             snprintf(out, cap, "%.*s", (int)(len - n - 1), p + n + 1);
         p += len + (p[len] == '&');
     }
+}
+
+const char *media_format(const char *ct, const struct media_format *table, size_t n)
+{
+    if (!ct || !*ct)
+        return "";
+    size_t len = strcspn(ct, ";");
+    while (len > 0 && isspace((unsigned char)ct[len - 1]))
+        len--;
+    for (size_t k = 0; k < n; k++)
+        if (strlen(table[k].type) == len && !strncasecmp(ct, table[k].type, len))
+            return table[k].format;
+    return NULL;
 }

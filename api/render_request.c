@@ -1,6 +1,8 @@
 /* render_request.c - query options and media types of POST /render. */
 #include "render_request.h"
 
+#include "query.h"
+
 #include <ctype.h>
 #include <math.h>
 #include <stdio.h>
@@ -10,21 +12,11 @@
 
 const char *render_format_from_type(const char *ct)
 {
-    if (!ct || !*ct)
-        return "";
-    size_t n = strcspn(ct, ";");
-    while (n > 0 && isspace((unsigned char)ct[n - 1]))
-        n--;
-    static const struct {
-        const char *type, *format;
-    } TYPES[] = {{"application/json", "json"}, {"application/scene+json", "json"}, {"model/x-bpt", "bpt"},
+    static const struct media_format TYPES[] = {{"application/json", "json"}, {"application/scene+json", "json"}, {"model/x-bpt", "bpt"},
                  {"application/x-bpt", "bpt"},  {"model/vrml", "nurbs"},           {"x-world/x-vrml", "nurbs"},
                  {"text/plain", ""},            {"application/octet-stream", ""},
                  {"application/x-www-form-urlencoded", ""} /* curl -d's default: sniffed like text */};
-    for (size_t k = 0; k < sizeof TYPES / sizeof *TYPES; k++)
-        if (strlen(TYPES[k].type) == n && !strncasecmp(ct, TYPES[k].type, n))
-            return TYPES[k].format;
-    return NULL;
+    return media_format(ct, TYPES, sizeof TYPES / sizeof *TYPES);
 }
 
 static int num_opt(const char *name, const char *v, double lo, double hi, double *out, struct sf_err *err)

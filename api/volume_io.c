@@ -18,21 +18,11 @@
 
 const char *volume_format_from_type(const char *ct)
 {
-    if (!ct || !*ct)
-        return "";
-    size_t n = strcspn(ct, ";");
-    while (n > 0 && isspace((unsigned char)ct[n - 1]))
-        n--;
-    static const struct {
-        const char *type, *format;
-    } TYPES[] = {{"application/octet-stream", "raw"}, {"application/x-nrrd", "nrrd"}, {"image/x-nrrd", "nrrd"},
+    static const struct media_format TYPES[] = {{"application/octet-stream", "raw"}, {"application/x-nrrd", "nrrd"}, {"image/x-nrrd", "nrrd"},
                  {"application/x-metaimage", "mha"},   {"application/x-mha", "mha"},   {"image/x-mha", "mha"},
                  {"multipart/form-data", "dicom"},
                  {"application/x-www-form-urlencoded", ""} /* curl -d's default: sniffed */};
-    for (size_t k = 0; k < sizeof TYPES / sizeof *TYPES; k++)
-        if (strlen(TYPES[k].type) == n && !strncasecmp(ct, TYPES[k].type, n))
-            return TYPES[k].format;
-    return NULL;
+    return media_format(ct, TYPES, sizeof TYPES / sizeof *TYPES);
 }
 
 static size_t type_size(enum iso_type t) { return t == ISO_U8 ? 1 : t == ISO_F32 ? 4 : 2; }

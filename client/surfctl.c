@@ -222,6 +222,30 @@ static int fetch_result(const char *id, const char *out)
     return rc;
 }
 
+/* Adds "--name value" to query as ?name=value (or &name=value) when name is one of names. */
+static bool query_arg(const char *a, const char *v, const char *const *names, char *query, size_t cap)
+{
+    for (int k = 0; names[k]; k++)
+        if (v && a[0] == '-' && a[1] == '-' && !strcmp(a + 2, names[k])) {
+            size_t n = strlen(query);
+            snprintf(query + n, cap - n, "%c%s=%s", n ? '&' : '?', names[k], v);
+            return true;
+        }
+    return false;
+}
+
+/* A job still running when its request answered 202: followed to its end, its result to out. */
+static int follow(const char *id, const char *out)
+{
+    char state[32];
+    int rc = wait_job(id, state, sizeof state);
+    if (!rc && strcmp(state, "succeeded")) {
+        fprintf(stderr, "surfctl: job %s %s\n", id, state);
+        rc = EXIT_JOB;
+    }
+    return rc ? rc : fetch_result(id, out);
+}
+
 static int usage(void)
 {
     fprintf(stderr, "usage: surfctl render FILE -o OUT [--async] [--method M] [--width W] [--height H] [--output png|exr|tiff]\n"
@@ -234,6 +258,7 @@ static int usage(void)
 
 static int cmd_render(int argc, char **argv)
 {
+    static const char *const OPTIONS[] = {"method", "width", "height", "output", "format", "azimuth", "elevation", NULL};
     const char *file = NULL, *out = NULL;
     char query[512] = "";
     bool async = false;
@@ -243,12 +268,9 @@ static int cmd_render(int argc, char **argv)
             out = v, k++;
         else if (!strcmp(a, "--async"))
             async = true;
-        else if ((!strcmp(a, "--method") || !strcmp(a, "--width") || !strcmp(a, "--height") || !strcmp(a, "--output") ||
-                  !strcmp(a, "--format") || !strcmp(a, "--azimuth") || !strcmp(a, "--elevation")) && v) {
-            size_t n = strlen(query);
-            snprintf(query + n, sizeof query - n, "%c%s=%s", n ? '&' : '?', a + 2, v);
+        else if (query_arg(a, v, OPTIONS, query, sizeof query))
             k++;
-        } else if (a[0] != '-' && !file)
+        else if (a[0] != '-' && !file)
             file = a;
         else
             return usage();
@@ -271,11 +293,7 @@ static int cmd_render(int argc, char **argv)
     } else if (r.status == 202 && async) {
         printf("%s\n", r.job_id);
     } else if (r.status == 202) { /* the sync wait ran out: keep waiting here */
-        char state[32];
-        rc = wait_job(r.job_id, state, sizeof state);
-        if (!rc)
-            rc = strcmp(state, "succeeded") ? (fprintf(stderr, "surfctl: job %s %s\n", r.job_id, state), EXIT_JOB)
-                                             : fetch_result(r.job_id, out);
+        rc = follow(r.job_id, out);
     } else {
         rc = r.status == 422 && r.job_id[0] ? (report(&r), EXIT_JOB) : report(&r);
     }
@@ -287,18 +305,16 @@ static int cmd_render(int argc, char **argv)
  * its mesh written to OUT (format from its extension). */
 static int cmd_isosurface(int argc, char **argv)
 {
+    static const char *const OPTIONS[] = {"iso", "dims", "type", "spacing", "origin", "closed", "name", NULL};
     const char *file = NULL, *out = NULL;
     char query[600] = "";
     for (int k = 0; k < argc; k++) {
         const char *a = argv[k], *v = k + 1 < argc ? argv[k + 1] : NULL;
         if (!strcmp(a, "-o") && v)
             out = v, k++;
-        else if ((!strcmp(a, "--iso") || !strcmp(a, "--dims") || !strcmp(a, "--type") || !strcmp(a, "--spacing") ||
-                  !strcmp(a, "--origin") || !strcmp(a, "--closed") || !strcmp(a, "--name")) && v) {
-            size_t n = strlen(query);
-            snprintf(query + n, sizeof query - n, "%c%s=%s", n ? '&' : '?', a + 2, v);
+        else if (query_arg(a, v, OPTIONS, query, sizeof query))
             k++;
-        } else if (a[0] != '-' && !file)
+        else if (a[0] != '-' && !file)
             file = a;
         else
             return usage();
@@ -345,10 +361,7 @@ static int cmd_isosurface(int argc, char **argv)
     if ((rc = request("GET", path, NULL, 0, NULL, NULL, &r)))
         return rc;
     if (r.status == 202) { /* a mesh job longer than the server's sync wait: follow it too */
-        snprintf(id, sizeof id, "%s", r.job_id);
-        rc = wait_job(id, state, sizeof state);
-        if (!rc)
-            rc = strcmp(state, "succeeded") ? EXIT_JOB : fetch_result(id, out);
+        rc = follow(r.job_id, out);
     } else {
         rc = r.status == 200 ? write_file(out, &r.body) : report(&r);
     }

@@ -124,6 +124,13 @@ static void drop_volume(struct iso_work *w)
     w->rec.request = NULL;
 }
 
+/* SF_ECANCEL when the job has been asked to stop: a cancel that comes before the mesh is stored
+ * is honoured, whichever step it finds (measuring a mesh of millions of triangles takes seconds). */
+static int stopped(struct iso_work *w, double progress)
+{
+    return jobq_cancelled(w->svc->q, w->j, progress) ? sf_fail(&w->err, SF_ECANCEL, "", "cancelled") : 0;
+}
+
 /* The mesh measured and stored as model (the job's id), its resource the job's result. */
 static int store_model(struct iso_work *w)
 {
@@ -139,7 +146,7 @@ static int store_model(struct iso_work *w)
     struct trimesh_stats st;
     char *packed = NULL;
     size_t packed_len = 0;
-    if (!(rc = trimesh_stats(&m, &st, &w->err)))
+    if (!(rc = stopped(w, 0.95)) && !(rc = trimesh_stats(&m, &st, &w->err)) && !(rc = stopped(w, 0.98)))
         rc = mesh_pack(&m, &packed, &packed_len, &w->err);
     double t_measure = monotonic_s();
     struct iso_model im = {w->claim.id, w->vol.name, &w->vol, &st, m.n_vert, m.n_tri,
@@ -165,8 +172,10 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 {
     (void)j;
     struct iso_work *w = arg;
-    if (outcome == JOB_SUCCEEDED && store_model(w))
-        outcome = JOB_FAILED;
+    if (outcome == JOB_SUCCEEDED) {
+        int rc = store_model(w);
+        outcome = rc == SF_ECANCEL ? JOB_CANCELLED : rc ? JOB_FAILED : JOB_SUCCEEDED;
+    }
     service_job_end(w->svc, &w->claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     iso_free(w->ij);

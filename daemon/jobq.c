@@ -391,7 +391,7 @@ bool jobq_cancel(struct jobq *q, const char *id)
 {
     pthread_mutex_lock(&q->lock);
     struct job *j = find_live(q, id);
-    if (j && (j->state == JOB_QUEUED || j->state == JOB_RUNNING)) {
+    if (j) { /* a job finishing sees it too, through jobq_cancelled, until its end is stored */
         j->cancel = true;
         pthread_cond_broadcast(&q->work); /* someone must end it if no band is out */
     }

@@ -51,7 +51,8 @@ int jobq_submit(struct jobq *q, const char *id, const struct job_ops *ops, void 
  * encoding or storing its result is running) and its progress, which never goes back; false when
  * the queue no longer knows it (finished, or never seen: ask the store). */
 bool jobq_peek(struct jobq *q, const char *id, enum job_state *state, double *progress);
-/* Asks a queued or running job to stop. Returns false when the queue does not know it. */
+/* Asks a queued or running job to stop (one whose finish is still running may honour it too,
+ * polling jobq_cancelled). Returns false when the queue does not know it. */
 bool jobq_cancel(struct jobq *q, const char *id);
 /* For a job's own ops, between steps of long work: records progress (0..1; the job's progress
  * never goes back) and answers whether the job has been asked to stop. */

@@ -127,6 +127,32 @@ code=$(status POST "/isosurface?$Q&levels=3" -H "$RAW" --data-binary @"$CT")
 check "an option it does not take (yet): 422 naming it" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?levels\"" "$T/body"'
 check "the daemon is up after all of it" 'alive'
 
+# ---- a long one: progress by slabs, cancel between slabs, and kill -9 recovery from the stored upload ----
+BIG="$V/ct_head_256x256x108_int16.raw"
+cat "$BIG" "$BIG" "$BIG" "$BIG" >"$T/ct4.raw" # 256x256x432
+QB="iso=226.5&dims=256,256,432&type=int16&spacing=0.9570312,0.9570312,1.5"
+code=$(status POST "/isosurface?$QB" -H "$RAW" -H 'Prefer: respond-async' --data-binary @"$T/ct4.raw")
+big=$(field id)
+check "a 57 MB volume, async: 202" '[ "$code" = 202 ]'
+wait_state "$big" running 60
+seen=0
+for _ in $(seq 200); do
+    curl -s "$URL/jobs/$big" >"$T/j"
+    p=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['progress'])" "$T/j")
+    python3 -c "import sys; sys.exit(0 if 0 < float(sys.argv[1]) < 1 else 1)" "$p" && { seen=1; break; }
+    sleep 0.05
+done
+check "... its progress moves by slabs" '[ $seen = 1 ]'
+check "... cancel while it runs: 202" '[ "$(status POST "/jobs/$big/cancel")" = 202 ]'
+check "... and it stops between slabs" 'wait_state "$big" cancelled 30'
+code=$(status POST "/isosurface?$QB" -H "$RAW" -H 'Prefer: respond-async' --data-binary @"$T/ct4.raw")
+again=$(field id)
+wait_state "$again" running 60
+kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""
+check "... killed mid-job, the upload stays in the data dir" '[ -s "$T/d/uploads/$again" ]'
+start_daemon "$T/d" --threads 2 || exit 1
+check "... and at the next start the job runs from it to the end" 'wait_state "$again" succeeded 240 && [ "$(status GET "/models/$again")" = 200 ] && [ "$(field boundary_edges)" = 0 ]'
+
 # ---- it survives a restart, and goes away when deleted ----
 stop_daemon
 start_daemon "$T/d" --threads 2 || exit 1

@@ -23,6 +23,21 @@ static inline char *fuzz_text(const uint8_t *data, size_t size)
     return t;
 }
 
+/* Splits a copy of the input as a request: its first line the query (NUL-terminated in place),
+ * the rest the body (*body, *len). The copy, to free; NULL when out of memory. */
+static inline char *fuzz_request(const uint8_t *data, size_t size, const char **body, size_t *len)
+{
+    char *text = fuzz_text(data, size);
+    if (!text)
+        return NULL;
+    char *nl = memchr(text, '\n', size);
+    *body = nl ? nl + 1 : "";
+    *len = nl ? size - (size_t)(nl + 1 - text) : 0;
+    if (nl)
+        *nl = 0;
+    return text;
+}
+
 /* Runs a text scene decoder (.bpt, VRML) over the input as a string, then validates the scene
  * and extracts its patches, as a render job does. */
 static inline void fuzz_text_scene(const uint8_t *data, size_t size,

@@ -7,14 +7,11 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    char *text = fuzz_text(data, size);
+    const char *body;
+    size_t len;
+    char *text = fuzz_request(data, size, &body, &len);
     if (!text)
         return 0;
-    char *nl = memchr(text, '\n', size);
-    const char *body = nl ? nl + 1 : "";
-    size_t len = nl ? size - (size_t)(nl + 1 - text) : 0;
-    if (nl)
-        *nl = 0;
     struct scene sc;
     enum image_format img;
     struct sf_err err = {0};

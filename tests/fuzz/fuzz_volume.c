@@ -14,14 +14,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         iso_init();
         tables = true;
     }
-    char *text = fuzz_text(data, size);
+    const char *body;
+    size_t len;
+    char *text = fuzz_request(data, size, &body, &len);
     if (!text)
         return 0;
-    char *nl = memchr(text, '\n', size);
-    const char *body = nl ? nl + 1 : "";
-    size_t len = nl ? size - (size_t)(nl + 1 - text) : 0;
-    if (nl)
-        *nl = 0;
     struct volume v;
     struct sf_err err = {0};
     if (volume_read(body, len, "", text, &v, &err) == 0) {
