@@ -485,9 +485,13 @@ int model_patches_json(const char *src, size_t len, char **json, struct sf_err *
 int model_scene_objects(const char *src, size_t len, struct scene *sc, const struct material *mat, const char *where,
                         struct sf_err *err)
 {
-    if (mesh_is_packed(src, len))
-        return sf_fail(err, SF_EINVAL, where, "rendering a triangle-mesh model (an isosurface) is not built yet; "
-                       "download its /mesh");
+    if (mesh_is_packed(src, len)) { /* an isosurface: its triangles beside the patches */
+        struct scene_mesh *sm = scene_add_mesh(sc);
+        if (!sm)
+            return sf_fail(err, SF_ELIMIT, where, "too many objects");
+        sm->mat = *mat;
+        return mesh_unpack(src, len, &sm->m, err);
+    }
     struct solid sd = {0};
     int rc = solid_of(src, len, NULL, &sd, err);
     for (size_t k = 0; !rc && k < sd.set.n; k++) {

@@ -62,6 +62,10 @@ struct bvh {
     size_t n_leaves, cap_leaves;
     /* mesh */
     struct tess mesh;
+    /* triangle meshes beside the patches: mesh k is geometry mesh_geom + k */
+    const struct trimesh *const *meshes;
+    int n_meshes;
+    unsigned mesh_geom;
 };
 
 /* Rides along with every Embree query. ctx must stay first. */
@@ -672,14 +676,44 @@ static struct bvh *bvh_alloc(const struct patch *patches, double tol2)
     return b;
 }
 
-/* Attaches g (taking it over) to a new scene of b and builds it; on failure frees b. */
+/* One triangle geometry of mesh m, or NULL when Embree has no memory for its buffers. */
+static RTCGeometry triangles(struct bvh_device *dev, const struct trimesh *m)
+{
+    RTCGeometry g = rtcNewGeometry(dev->dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), m->n_vert);
+    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), m->n_tri);
+    if (!vb || !ib) {
+        rtcReleaseGeometry(g);
+        return NULL;
+    }
+    memcpy(vb, m->pos, 3 * sizeof(float) * m->n_vert);
+    memcpy(ib, m->tri, 3 * sizeof(unsigned) * m->n_tri);
+    rtcCommitGeometry(g);
+    return g;
+}
+
+/* Attaches g (taking it over; NULL: none) and b's meshes to a new scene of b and builds it; on
+ * failure frees b. */
 static int bvh_commit(struct bvh *b, struct bvh_device *dev, RTCGeometry g, struct bvh **out, struct sf_err *err)
 {
     b->scene = rtcNewScene(dev->dev);
     rtcSetSceneBuildQuality(b->scene, RTC_BUILD_QUALITY_HIGH);
-    rtcCommitGeometry(g);
-    rtcAttachGeometry(b->scene, g);
-    rtcReleaseGeometry(g);
+    if (g) {
+        rtcCommitGeometry(g);
+        rtcAttachGeometry(b->scene, g);
+        rtcReleaseGeometry(g);
+    }
+    for (int k = 0; k < b->n_meshes; k++) {
+        RTCGeometry t = triangles(dev, b->meshes[k]);
+        if (!t) {
+            bvh_free(b);
+            return sf_fail(err, SF_ENOMEM, "", "out of memory for the triangles of a mesh");
+        }
+        unsigned id = rtcAttachGeometry(b->scene, t);
+        if (k == 0)
+            b->mesh_geom = id;
+        rtcReleaseGeometry(t);
+    }
     rtcCommitScene(b->scene);
     enum RTCError e = rtcGetDeviceError(dev->dev);
     if (e != RTC_ERROR_NONE) {
@@ -694,10 +728,18 @@ static int bvh_commit(struct bvh *b, struct bvh_device *dev, RTCGeometry g, stru
 int bvh_build_patches(struct bvh_device *dev, const struct patch *patches, size_t n, double tol2,
                       struct bvh **out, struct sf_err *err)
 {
+    return bvh_build_scene(dev, patches, n, tol2, NULL, 0, out, err);
+}
+
+int bvh_build_scene(struct bvh_device *dev, const struct patch *patches, size_t n, double tol2,
+                    const struct trimesh *const *meshes, int n_meshes, struct bvh **out, struct sf_err *err)
+{
     *out = NULL;
     struct bvh *b = bvh_alloc(patches, tol2);
     if (!b)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    b->meshes = meshes;
+    b->n_meshes = n_meshes;
     int rc = 0;
     for (size_t k = 0; k < n && !rc; k++)
         rc = subdivide(b, &patches[k], (int)k, 0.0, 1.0, 0.0, 1.0, 0);
@@ -705,6 +747,8 @@ int bvh_build_patches(struct bvh_device *dev, const struct patch *patches, size_
         bvh_free(b);
         return sf_fail(err, rc, "", "out of memory building the hierarchy");
     }
+    if (n == 0) /* meshes alone */
+        return bvh_commit(b, dev, NULL, out, err);
     RTCGeometry g = rtcNewGeometry(dev->dev, RTC_GEOMETRY_TYPE_USER);
     rtcSetGeometryUserPrimitiveCount(g, (unsigned)b->n_leaves);
     rtcSetGeometryUserData(g, b);
@@ -773,6 +817,27 @@ bool bvh_intersect_among(const struct bvh *b, const struct dray *r, double tnear
     rtcIntersect1(b->scene, &qy.ctx, &rh);
     if (iters)
         *iters += qy.iters;
+    if (b->n_meshes && rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && rh.hit.geomID >= b->mesh_geom &&
+        rh.hit.geomID < b->mesh_geom + (unsigned)b->n_meshes && rh.ray.tfar > tnear) {
+        /* a mesh's triangle, nearer than any patch: its normals interpolated */
+        int k = (int)(rh.hit.geomID - b->mesh_geom);
+        const struct trimesh *m = b->meshes[k];
+        const uint32_t *tri = m->tri + 3 * (size_t)rh.hit.primID;
+        float w1 = rh.hit.u, w2 = rh.hit.v, w0 = 1.0f - w1 - w2;
+        *hit = (struct bvh_hit){.patch = BVH_MESH_HIT(k), .u = w1, .v = w2, .t = rh.ray.tfar, .has_normal = true};
+        if (m->nrm) {
+            const float *n0 = m->nrm + 3 * (size_t)tri[0], *n1 = m->nrm + 3 * (size_t)tri[1], *n2 = m->nrm + 3 * (size_t)tri[2];
+            hit->normal = v3(w0 * n0[0] + w1 * n1[0] + w2 * n2[0], w0 * n0[1] + w1 * n1[1] + w2 * n2[1],
+                             w0 * n0[2] + w1 * n1[2] + w2 * n2[2]);
+        } else {
+            hit->normal = v3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+        }
+        double len = v3_len(hit->normal);
+        hit->has_normal = len > 0;
+        if (len > 0)
+            hit->normal = v3_scale(hit->normal, 1.0 / len);
+        return true;
+    }
     if (!b->mesh.tri)
         return qy.found;
     /* triangles: interpolate the patch parameters and the normal of the hit */
@@ -808,9 +873,9 @@ void bvh_occluded_many(const struct bvh *b, struct bvh_shadow *rays, size_t n, l
             batch[k].id = (unsigned)(at + k);
         }
         rtcOccluded1M(b->scene, &qy.ctx, batch, (unsigned)m, sizeof *batch);
-        if (b->mesh.tri)
+        if (b->mesh.tri || b->n_meshes) /* triangles block without a callback */
             for (size_t k = 0; k < m; k++)
-                rays[at + k].blocked = batch[k].tfar < 0.0f;
+                rays[at + k].blocked = rays[at + k].blocked || batch[k].tfar < 0.0f;
     }
     if (iters)
         *iters += qy.iters;

@@ -9,6 +9,7 @@
 #include <stddef.h>
 
 #include "../geom/bezier.h"
+#include "../geom/trimesh.h"
 #include "../base/err.h"
 #include "solve.h"
 
@@ -29,6 +30,14 @@ struct bvh_hit {
  * squared root residual accepted, in world units. */
 int bvh_build_patches(struct bvh_device *dev, const struct patch *patches, size_t n, double tol2,
                       struct bvh **out, struct sf_err *err);
+/* The same with triangle meshes beside the patches (isosurface models; the array and the meshes
+ * borrowed until bvh_free):
+ * a hit on mesh k has patch BVH_MESH_HIT(k), its u, v the triangle's barycentric coordinates and
+ * its normal the mesh's normals interpolated (the face's when it has none). */
+#define BVH_MESH_HIT(k) (-2 - (k))
+#define BVH_HIT_MESH(patch) (-2 - (patch))
+int bvh_build_scene(struct bvh_device *dev, const struct patch *patches, size_t n, double tol2,
+                    const struct trimesh *const *meshes, int n_meshes, struct bvh **out, struct sf_err *err);
 /* Triangle hierarchy over a tessellation at chord tolerance chord_tol. */
 int bvh_build_mesh(struct bvh_device *dev, const struct patch *patches, size_t n, double chord_tol,
                    struct bvh **out, struct sf_err *err);

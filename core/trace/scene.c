@@ -32,9 +32,27 @@ void scene_free(struct scene *sc)
         nurbs_surface_free(&sc->objects[k].surf);
     free(sc->objects);
     free(sc->lights);
+    for (int k = 0; k < sc->n_meshes; k++)
+        trimesh_free(&sc->meshes[k].m);
+    free(sc->meshes);
     sc->objects = NULL;
     sc->lights = NULL;
-    sc->n_objects = sc->n_lights = sc->cap_objects = 0;
+    sc->meshes = NULL;
+    sc->n_objects = sc->n_lights = sc->cap_objects = sc->n_meshes = 0;
+}
+
+struct scene_mesh *scene_add_mesh(struct scene *sc)
+{
+    if (sc->n_meshes >= SCENE_MAX_OBJECTS)
+        return NULL;
+    struct scene_mesh *more = realloc(sc->meshes, sizeof *more * (size_t)(sc->n_meshes + 1));
+    if (!more)
+        return NULL;
+    sc->meshes = more;
+    struct scene_mesh *m = &sc->meshes[sc->n_meshes++];
+    memset(m, 0, sizeof *m);
+    m->mat = scene_default_material();
+    return m;
 }
 
 struct object *scene_add_object(struct scene *sc)
@@ -104,8 +122,11 @@ int scene_validate(const struct scene *sc, struct sf_err *err)
                        sc->mesh_tolerance);
     if (!finite3(sc->background))
         return sf_fail(err, SF_EINVAL, "/image/background", "background must be three finite numbers");
-    if (sc->n_objects < 1)
+    if (sc->n_objects < 1 && sc->n_meshes < 1)
         return sf_fail(err, SF_EINVAL, "/objects", "a scene needs at least one object");
+    if (sc->n_meshes && sc->method != METHOD_AUTO && sc->method != METHOD_BVH)
+        return sf_fail(err, SF_EINVAL, "?method", "a scene with a triangle-mesh model (an isosurface) renders with "
+                       "method auto or bvh, not %s", scene_method_name(sc->method));
     return 0;
 }
 

@@ -8,6 +8,7 @@
 
 #include "../base/err.h"
 #include "../geom/nurbs.h"
+#include "../geom/trimesh.h"
 #include "../base/vec.h"
 
 #define SCENE_MAX_SIDE 16384          /* image width or height */
@@ -37,6 +38,12 @@ struct object {
     struct material mat;
 };
 
+/* A triangle mesh beside the free-form objects (an isosurface model), shaded with its normals. */
+struct scene_mesh {
+    struct trimesh m;
+    struct material mat;
+};
+
 struct scene {
     int width, height;
     vec3 background;
@@ -55,6 +62,8 @@ struct scene {
     bool shadows;
     struct object *objects;
     int n_objects, cap_objects; /* scene_add_object() grows objects */
+    struct scene_mesh *meshes;  /* traced with auto or bvh: the map and the mesh method are the patches' */
+    int n_meshes;
 };
 
 /* Defaults of API.md: 800x600, white background, auto method, shadows on. */
@@ -63,6 +72,8 @@ void scene_free(struct scene *sc);
 /* Appends an object and returns it (zeroed, default material), or NULL when out of memory
  * or over SCENE_MAX_OBJECTS. The scene owns what the caller then puts in it. */
 struct object *scene_add_object(struct scene *sc);
+/* Appends a mesh (empty, default material), or NULL when out of memory or over SCENE_MAX_OBJECTS. */
+struct scene_mesh *scene_add_mesh(struct scene *sc);
 /* Light grey, a little specular. */
 struct material scene_default_material(void);
 /* Checks everything but the surfaces' own validity (nurbs_validate does that per object):

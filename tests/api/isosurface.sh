@@ -33,6 +33,13 @@ cp "$T/body" "$T/crop.stl"
 check "its STL: closed, every edge twice, once each way" '[ "$code" = 200 ] && python3 tests/tools/stl_check.py "$T/crop.stl" 57529.6 >/dev/null'
 check "... and PLY and OBJ" '[ "$(status GET "/models/$id/mesh?format=ply")" = 200 ] && head -c 3 "$T/body" | grep -q ply && [ "$(status GET "/models/$id/mesh?format=obj")" = 200 ] && grep -q "^f " "$T/body"'
 check "its /patches: 422 (a mesh has none)" '[ "$(status GET "/models/$id/patches")" = 422 ] && is_problem 422'
+code=$(status GET "/models/$id/render?width=320&height=240")
+cp "$T/body" "$T/crop.png"
+cover=$(python3 tests/tools/png_cover.py "$T/crop.png" 2>/dev/null)
+check "its /render: a PNG of the skull (triangles beside no patch, normals from the gradient)" '[ "$code" = 200 ] && [ "$(header Content-Type)" = image/png ] && python3 -c "import sys; sys.exit(0 if float(sys.argv[1]) > 0.05 else 1)" "$cover"'
+code=$(status POST "/render?width=160&height=120" -H 'Content-Type: application/json' --data-binary "{\"objects\":[{\"type\":\"model\",\"id\":\"$id\"},{\"type\":\"bezier\",\"degree\":[1,1],\"points\":[[0,0,0],[60,0,0],[0,60,0],[60,60,0]]}]}")
+check "... in a scene beside a patch" '[ "$code" = 200 ] && [ "$(header Content-Type)" = image/png ]'
+check "... with method map: 422 naming ?method (the map knows patches alone)" '[ "$(status GET "/models/$id/render?method=map")" = 422 ] && grep -q "?method" "$T/body"'
 
 # the same samples as an attached NRRD (odd header length: unaligned samples), gzip NRRD, MetaImage
 python3 - "$CT" "$T" <<'EOF'
