@@ -39,10 +39,26 @@ void trimesh_turn(struct trimesh *m, const double o[3], const double a[3][3])
     }
 }
 
-static int cmp_u64(const void *a, const void *b)
+/* Sorts n keys by LSD radix, 16 bits a pass (tmp: room for n; count: room for 2^16). Millions
+ * of half-edges: qsort took 3.6 s on the 5.9 M triangles of a 315 MB CT. */
+static void radix_sort(uint64_t *a, uint64_t *tmp, size_t *count, size_t n)
 {
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return (x > y) - (x < y);
+    for (int shift = 0; shift < 64; shift += 16) {
+        memset(count, 0, sizeof *count << 16);
+        for (size_t i = 0; i < n; i++)
+            count[a[i] >> shift & 0xffff]++;
+        if (count[a[0] >> shift & 0xffff] == n)
+            continue; /* every key has these bits alike */
+        size_t sum = 0;
+        for (size_t k = 0; k < 1 << 16; k++) {
+            size_t c = count[k];
+            count[k] = sum;
+            sum += c;
+        }
+        for (size_t i = 0; i < n; i++)
+            tmp[count[a[i] >> shift & 0xffff]++] = a[i];
+        memcpy(a, tmp, n * sizeof *a);
+    }
 }
 
 static uint32_t find(uint32_t *parent, uint32_t v)
@@ -108,7 +124,18 @@ int trimesh_stats(const struct trimesh *m, struct trimesh_stats *out, struct sf_
             if (ra != rb)
                 parent[ra] = rb;
         }
-    qsort(h, nh, sizeof *h, cmp_u64);
+    uint64_t *tmp = malloc(nh * sizeof *tmp);
+    size_t *count = malloc(sizeof *count << 16);
+    if (!tmp || !count) {
+        free(tmp);
+        free(count);
+        free(h);
+        free(parent);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory measuring a mesh of %zu triangles", m->n_tri);
+    }
+    radix_sort(h, tmp, count, nh);
+    free(tmp);
+    free(count);
     long edges = 0;
     for (size_t i = 0; i < nh;) {
         size_t j = i;

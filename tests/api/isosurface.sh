@@ -132,6 +132,13 @@ code=$(status POST "/isosurface?iso=1" -H 'Content-Type: image/png' --data-binar
 check "a type it does not read: 415" '[ "$code" = 415 ] && is_problem 415'
 code=$(status POST "/isosurface?$Q&levels=3" -H "$RAW" --data-binary @"$CT")
 check "an option it does not take (yet): 422 naming it" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?levels\"" "$T/body"'
+python3 - "$T/many.multipart" <<'EOF2'
+import sys
+part = b'--b\r\nContent-Disposition: form-data; name="s"\r\n\r\nx\r\n'
+open(sys.argv[1], "wb").write(part * 10001 + b"--b--\r\n")
+EOF2
+code=$(status POST "/isosurface?iso=1" -H 'Content-Type: multipart/form-data; boundary=b' --data-binary @"$T/many.multipart")
+check "a series of over 10 000 parts: 422 at the part past the cap" '[ "$code" = 422 ] && grep -q "\"pointer\":\"/parts/10000\"" "$T/body"'
 check "the daemon is up after all of it" 'alive'
 
 # ---- a long one: progress by slabs, cancel between slabs, and kill -9 recovery from the stored upload ----
@@ -159,6 +166,17 @@ kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""
 check "... killed mid-job, the upload stays in the data dir" '[ -s "$T/d/uploads/$again" ]'
 start_daemon "$T/d" --threads 2 || exit 1
 check "... and at the next start the job runs from it to the end" 'wait_state "$again" succeeded 240 && [ "$(status GET "/models/$again")" = 200 ] && [ "$(field boundary_edges)" = 0 ]'
+
+# ---- max-volume: the cap of a streamed body, from Content-Length and, chunked, as it arrives ----
+stop_daemon
+start_daemon "$T/capped" --max-volume 100000 || exit 1
+code=$(status POST "/isosurface?$Q" -H "$RAW" --data-binary @"$CT")
+check "a volume over max-volume: 413 before it is read" '[ "$code" = 413 ] && grep -q "limit of 100000" "$T/body"'
+code=$(status POST "/isosurface?$Q" -H "$RAW" -H 'Transfer-Encoding: chunked' --data-binary @"$CT")
+check "... and chunked, once it passes the cap" '[ "$code" = 413 ] && is_problem 413'
+check "... leaving no upload behind" '[ -z "$(ls "$T/capped/uploads" 2>/dev/null)" ]'
+stop_daemon
+start_daemon "$T/d" --threads 2 || exit 1
 
 # ---- it survives a restart, and goes away when deleted ----
 stop_daemon
