@@ -161,16 +161,34 @@ static char *read_file(const char *path, size_t *len)
     return b.data ? b.data : strdup("");
 }
 
-static const char *type_of(const char *path)
+/* A file's media type by its extension, from a {".ext", "type"} table ending in {NULL, fallback}. */
+static const char *type_of(const char *path, const char *const (*table)[2])
 {
     const char *dot = strrchr(path, '.');
-    if (dot && !strcmp(dot, ".bpt"))
-        return "model/x-bpt";
-    if (dot && (!strcmp(dot, ".nurbs") || !strcmp(dot, ".wrl")))
-        return "model/vrml";
-    if (dot && !strcmp(dot, ".json"))
-        return "application/json";
-    return "text/plain";
+    int k = 0;
+    while (table[k][0] && !(dot && !strcmp(dot, table[k][0])))
+        k++;
+    return table[k][1];
+}
+
+static const char *const SCENE_TYPES[][2] = {{".bpt", "model/x-bpt"}, {".nurbs", "model/vrml"}, {".wrl", "model/vrml"},
+                                             {".json", "application/json"}, {NULL, "text/plain"}};
+static const char *const VOLUME_TYPES[][2] = {{".nrrd", "application/x-nrrd"}, {".mha", "application/x-metaimage"},
+                                              {NULL, "application/octet-stream"}};
+
+/* POSTs the file to route + query (the query "" or "?name=value&..."). 0 and *r, or an exit code. */
+static int post_file(const char *route, const char *query, const char *file, const char *type, const char *prefer,
+                     struct response *r)
+{
+    size_t len;
+    char *body = read_file(file, &len);
+    if (!body)
+        return EXIT_USAGE;
+    char path[768];
+    snprintf(path, sizeof path, "%s%s", route, query);
+    int rc = request("POST", path, body, len, type, prefer, r);
+    free(body);
+    return rc;
 }
 
 /* Polls the job until it ends, with a progress bar on stderr when it is a terminal. */
@@ -277,15 +295,8 @@ static int cmd_render(int argc, char **argv)
     }
     if (!file || (!out && !async))
         return usage();
-    size_t len;
-    char *body = read_file(file, &len);
-    if (!body)
-        return EXIT_USAGE;
-    char path[600];
-    snprintf(path, sizeof path, "/render%s", query);
     struct response r;
-    int rc = request("POST", path, body, len, type_of(file), async ? "respond-async" : NULL, &r);
-    free(body);
+    int rc = post_file("/render", query, file, type_of(file, SCENE_TYPES), async ? "respond-async" : NULL, &r);
     if (rc)
         return rc;
     if (r.status == 200) {
@@ -322,19 +333,8 @@ static int cmd_isosurface(int argc, char **argv)
     const char *ext = out ? strrchr(out, '.') : NULL;
     if (!file || !ext || (strcmp(ext, ".stl") && strcmp(ext, ".ply") && strcmp(ext, ".obj")))
         return usage();
-    const char *dot = strrchr(file, '.');
-    const char *type = dot && !strcmp(dot, ".nrrd") ? "application/x-nrrd"
-                       : dot && !strcmp(dot, ".mha") ? "application/x-metaimage"
-                                                     : "application/octet-stream";
-    size_t len;
-    char *body = read_file(file, &len);
-    if (!body)
-        return EXIT_USAGE;
-    char path[700];
-    snprintf(path, sizeof path, "/isosurface%s", query);
     struct response r;
-    int rc = request("POST", path, body, len, type, "respond-async", &r);
-    free(body);
+    int rc = post_file("/isosurface", query, file, type_of(file, VOLUME_TYPES), "respond-async", &r);
     if (rc)
         return rc;
     if (r.status != 202) {
@@ -342,7 +342,7 @@ static int cmd_isosurface(int argc, char **argv)
         free(r.body.data);
         return rc;
     }
-    char id[64], state[32];
+    char id[64], state[32], path[128];
     snprintf(id, sizeof id, "%s", r.job_id);
     free(r.body.data);
     if ((rc = wait_job(id, state, sizeof state)))
