@@ -78,6 +78,18 @@ $(B)/san/%.o: %.c
 $(B)/rel/api/%.o: api/%.cpp
 	@mkdir -p $(@D)
 	$(CXX) $(CXXFLAGS) -c $< -o $@
+# OpenImageIO's shim, a shared object the programs load on their first image (api/image.h)
+$(B)/pic/image_oiio.o: api/image_oiio.cpp
+	@mkdir -p $(@D)
+	$(CXX) $(CXXFLAGS) -fPIC -c $< -o $@
+$(B)/pic/%.o: %.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) -fPIC -c $< -o $@
+$(B)/libsurfd-image.so: $(B)/pic/image_oiio.o $(B)/pic/core/base/err.o
+	$(CXX) -shared -Wl,-z,defs -o $@ $^ $(IMG_LIBS)
+$(B)/san/libsurfd-image.so: $(B)/libsurfd-image.so
+	@mkdir -p $(@D)
+	ln -sf ../libsurfd-image.so $@
 DCM_SRC := $(wildcard api/*_dcmtk.cpp) # the DCMTK shims: RT Structure Sets, image series
 DCM_OBJ := $(patsubst %.cpp,$(B)/rel/%.o,$(DCM_SRC))
 
@@ -88,8 +100,8 @@ $(B)/gen/openapi.c: api/openapi.yaml
 $(B)/gen/openapi.o: $(B)/gen/openapi.c
 	$(CC) -c $< -o $@
 
-$(B)/surfd: $(REL_DMN) $(REL_API) $(B)/rel/api/image_oiio.o $(DCM_OBJ) $(B)/gen/openapi.o $(REL_CORE)
-	$(CC) $(OPT) -o $@ $^ $(IMG_LIBS) $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
+$(B)/surfd: $(REL_DMN) $(REL_API) $(DCM_OBJ) $(B)/gen/openapi.o $(REL_CORE) | $(B)/libsurfd-image.so
+	$(CC) $(OPT) -o $@ $^ $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
 # unit tests link core/ and api/ (with the DCMTK shim), never OpenImageIO
 $(B)/tests/%: tests/%.c tests/unit.h $(SAN_CORE) $(SAN_API) $(DCM_OBJ)
@@ -124,16 +136,17 @@ $(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c
 	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/daemon/test_jobq.c daemon/jobq.c -lpthread
 
 # the daemon with the address and UB sanitizers, for the black-box API tests
-$(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(B)/rel/api/image_oiio.o $(DCM_OBJ) $(B)/gen/openapi.o $(SAN_CORE)
-	$(CC) $(OPT) $(SAN) -o $@ $^ $(IMG_LIBS) $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
+$(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(DCM_OBJ) $(B)/gen/openapi.o $(SAN_CORE) | $(B)/san/libsurfd-image.so
+	$(CC) $(OPT) $(SAN) -o $@ $^ $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
 run: deps $(B)/surfd
 	$(B)/surfd serve --listen 127.0.0.1:8080 --data-dir var
 
 PREFIX  ?= /usr/local
-install: $(B)/surfd $(B)/surfctl
+install: $(B)/surfd $(B)/surfctl $(B)/libsurfd-image.so
 	install -D -m 0755 $(B)/surfd $(DESTDIR)$(PREFIX)/bin/surfd
 	install -D -m 0755 $(B)/surfctl $(DESTDIR)$(PREFIX)/bin/surfctl
+	install -D -m 0644 $(B)/libsurfd-image.so $(DESTDIR)$(PREFIX)/lib/surfd/libsurfd-image.so
 	install -D -m 0644 deploy/surfd.service $(DESTDIR)/etc/systemd/system/surfd.service
 	install -D -m 0644 deploy/surfd@.service $(DESTDIR)/etc/systemd/system/surfd@.service
 	[ -e $(DESTDIR)/etc/surfd/surfd.conf ] || install -D -m 0640 deploy/surfd.conf $(DESTDIR)/etc/surfd/surfd.conf

@@ -1,7 +1,12 @@
 /* image.h - a rendered frame as image-file bytes in memory (PNG 8-bit sRGB, EXR float32 with
- * depth and AOVs, TIFF 16-bit), through OpenImageIO behind image_oiio.cpp. Linking this pulls in
- * OpenImageIO (some 260 shared libraries, about half a second to start): only programs that
- * write images link it. The caller frees *out with free(). */
+ * depth and AOVs, TIFF 16-bit), through OpenImageIO behind image_oiio.cpp.
+ *
+ * OpenImageIO as Debian builds it pulls in some 260 shared libraries (openvdb, gdal, opencv,
+ * poppler...) holding 70-90 MB of a process's resident memory, which a node that only extracts
+ * isosurfaces or measures volumes never uses. So the shim is its own shared object,
+ * libsurfd-image.so, loaded by image.c with dlopen() on the first image (or image_init()):
+ * found next to the executable, then in ../lib/surfd/ beside its bin/ (the installed layout).
+ * The caller of image_encode() frees *out with free(). */
 #ifndef SURFD_IMAGE_H
 #define SURFD_IMAGE_H
 
@@ -17,9 +22,19 @@ extern "C" { /* the C headers below declare C functions */
 
 int image_encode(const struct frame_image *img, enum image_format fmt, unsigned char **out, size_t *out_len,
                  struct sf_err *err);
-/* Loads OpenImageIO's writers now (a one-time cost of tens of milliseconds that the first
- * image_encode() would otherwise pay). Safe to call more than once. */
-void image_init(void);
+/* Loads the library and OpenImageIO's writers now (a one-time cost that the first
+ * image_encode() would otherwise pay): 0, or -1 with why. Safe to call more than once, from
+ * any thread. */
+int image_init(struct sf_err *err);
+/* Finds the library without loading it (a server checks at start what it will need later):
+ * 0, or -1 naming the places looked in. */
+int image_locate(struct sf_err *err);
+
+/* The library's entry points, the same contracts as image_init() and image_encode(); only
+ * image.c calls them. */
+void image_oiio_init(void);
+int image_oiio_encode(const struct frame_image *img, enum image_format fmt, unsigned char **out, size_t *out_len,
+                      struct sf_err *err);
 
 #ifdef __cplusplus
 }

@@ -36,14 +36,14 @@ static int write(const char *ext, ImageSpec &spec, const void *pixels, unsigned 
     return 0;
 }
 
-extern "C" void image_init(void)
+extern "C" void image_oiio_init(void)
 {
     for (const char *ext : {"mem.png", "mem.exr", "mem.tif"})
         ImageOutput::create(ext); // the first create() loads the plugin catalogue
 }
 
-extern "C" int image_encode(const struct frame_image *img, enum image_format fmt, unsigned char **out,
-                            size_t *out_len, struct sf_err *err)
+extern "C" int image_oiio_encode(const struct frame_image *img, enum image_format fmt, unsigned char **out,
+                                 size_t *out_len, struct sf_err *err)
 {
     *out = nullptr;
     *out_len = 0;

@@ -199,7 +199,13 @@ int cmd_render(int argc, char **argv)
         return 1;
     }
     double i0 = now_ms();
-    image_init(); /* a daemon pays this once at start: keep it out of encode_ms */
+    if (image_init(&err)) { /* a daemon pays this once: keep it out of encode_ms */
+        fprintf(stderr, "surfd: %s\n", err.message);
+        frame_free(fr);
+        bvh_device_free(dev);
+        scene_free(&sc);
+        return 1;
+    }
     double init_ms = now_ms() - i0;
     struct band_work w = {.fr = fr, .height = sc.height, .lock = PTHREAD_MUTEX_INITIALIZER};
     atomic_init(&w.next, 0);

@@ -111,7 +111,10 @@ int cmd_serve(int argc, char **argv)
         fprintf(stderr, "surfd serve: %s\n", err.message);
         goto out_close_store;
     }
-    image_init();
+    if (image_locate(&err)) { /* loaded on the first image: a node that never renders is lighter */
+        fprintf(stderr, "surfd serve: %s\n", err.message);
+        goto out_free_device;
+    }
     iso_init();
     if (!(svc.q = jobq_new((int)threads, svc.cfg.queue_max))) {
         fprintf(stderr, "surfd serve: cannot start the worker pool\n");

@@ -12,7 +12,9 @@ check "version" '[ "$(status GET /version)" = 200 ] && grep -q "\"name\":\"surfd
 check "openapi" '[ "$(status GET /openapi.yaml)" = 200 ] && grep -q "^openapi: 3" "$T/body" && grep -q "/jobs/{id}/result" "$T/body"'
 
 # ---- sync render ----------------------------------------------------------------------------
+check "the image writers are not loaded before the first image" '! grep -q libOpenImageIO /proc/$PID/maps'
 code=$(status POST "/render?width=128&height=96" -H 'Content-Type: application/json' --data-binary @"$D/teapot.json")
+check "... and are after it" 'grep -q libOpenImageIO /proc/$PID/maps'
 check "sync render 200 png" '[ "$code" = 200 ] && [ "$(header Content-Type)" = image/png ] && [ "$(head -c 4 "$T/body" | od -An -tx1 | tr -d " \n")" = 89504e47 ]'
 check "sync render headers" '[ -n "$(header X-Job-Id)" ] && [ -n "$(header X-Render-Ms)" ] && [ -n "$(header X-Rays)" ] && [ -n "$(header ETag)" ]'
 code=$(status POST "/render?width=64&height=48&output=exr" -H 'Content-Type: model/x-bpt' --data-binary @"$D/teacup.bpt")
@@ -150,6 +152,9 @@ check "unknown setting refused" '[ "$rc" = 2 ] && grep -q "unknown setting" "$T/
 printf 'threads = 2\nqueue-max = 0\n' >"$T/bad.conf"
 $S serve --config "$T/bad.conf" >"$T/refuse.log" 2>&1; rc=$?
 check "config file checked" '[ "$rc" = 2 ] && grep -q "bad.conf:2: queue-max" "$T/refuse.log"'
+mkdir -p "$T/alone" && cp "$S" "$T/alone/surfd"
+"$T/alone/surfd" serve --listen 127.0.0.1:0 --data-dir "$T/d5" >"$T/refuse.log" 2>&1; rc=$?
+check "without its image library a server says so at start" '[ "$rc" = 1 ] && grep -q "libsurfd-image.so) are in neither $T/alone/libsurfd-image.so" "$T/refuse.log"'
 
 # ---- a shared budget for request bodies: slow large uploads at once get 503, never exhaust memory
 start_daemon "$T/d7" --max-body 1048576 || exit 1
