@@ -3,6 +3,7 @@
 
 #include <jansson.h>
 #include <stdio.h>
+#include <string.h>
 
 static const char *type_name(enum iso_type t)
 {
@@ -20,14 +21,16 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
     json_t *o = json_pack(
         "{s:s, s:s, s:s, s:f, s:b, s:i, s:I, s:I, s:f, s:f, s:I, s:I, s:I, s:I, s:[[f,f,f],[f,f,f]],"
         " s:{s:[i,i,i], s:s, s:[f,f,f], s:[f,f,f]}, s:{s:f, s:f, s:f, s:f}, s:{s:s, s:s, s:s}}",
-        "id", m->id, "name", m->name, "source", "isosurface", "iso", m->vol->iso, "closed", m->vol->closed, "levels", 1,
+        "id", m->id, "name", m->name, "source", m->vol->source, "iso", m->vol->iso, "closed", m->vol->closed, "levels", 1,
         "triangles", (json_int_t)m->triangles, "vertices", (json_int_t)m->vertices, "volume_mm3", s->volume, "area_mm2",
         s->area, "boundary_edges", (json_int_t)s->boundary_edges, "nonmanifold_edges", (json_int_t)s->nonmanifold_edges,
         "components", (json_int_t)s->components, "euler_characteristic", (json_int_t)s->euler, "bounds",
         s->bounds[0][0], s->bounds[0][1], s->bounds[0][2], s->bounds[1][0], s->bounds[1][1], s->bounds[1][2], "grid",
         "dims", g->nx, g->ny, g->nz, "type", type_name(g->type), "spacing", g->spacing[0], g->spacing[1], g->spacing[2],
-        "origin", g->origin[0], g->origin[1], g->origin[2], "timings_ms", "read", m->ms[0], "extract", m->ms[1],
-        "measure", m->ms[2], "total", m->ms[3], "links", "self", self, "mesh", mesh, "render", render);
+        "origin", g->origin[0], g->origin[1], g->origin[2], "timings_ms", "read", m->ms[0], "extract", m->ms[2],
+        "measure", m->ms[3], "total", m->ms[4], "links", "self", self, "mesh", mesh, "render", render);
+    if (o && !strcmp(m->vol->source, "frep"))
+        json_object_set_new(json_object_get(o, "timings_ms"), "sample", json_real(m->ms[1]));
     char *text = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(12)) : NULL;
     json_decref(o);
     if (!text)

@@ -13,7 +13,7 @@ struct iso_model {
     const struct volume *vol;
     const struct trimesh_stats *st;
     size_t vertices, triangles;
-    double ms[4];            /* read, extract, measure, total */
+    double ms[5];            /* read, sample (an FRep's), extract, measure, total */
 };
 
 /* The resource as JSON (caller frees), or NULL with err. */

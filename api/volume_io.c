@@ -20,7 +20,7 @@ const char *volume_format_from_type(const char *ct)
 {
     static const struct media_format TYPES[] = {{"application/octet-stream", "raw"}, {"application/x-nrrd", "nrrd"}, {"image/x-nrrd", "nrrd"},
                  {"application/x-metaimage", "mha"},   {"application/x-mha", "mha"},   {"image/x-mha", "mha"},
-                 {"multipart/form-data", "dicom"},
+                 {"multipart/form-data", "dicom"}, {"application/json", "frep"},
                  {"application/x-www-form-urlencoded", ""} /* curl -d's default: sniffed */};
     return media_format(ct, TYPES, sizeof TYPES / sizeof *TYPES);
 }
@@ -355,7 +355,7 @@ static int query_numbers(const char *options, const char *name, int n, double *o
 }
 
 /* The options every format takes (iso, closed, name), and no unknown one. */
-static int common_options(const char *options, struct volume *v, struct sf_err *err)
+static int common_options(const char *options, bool frep, struct volume *v, struct sf_err *err)
 {
     static const char *const KNOWN[] = {"iso", "closed", "name", "dims", "type", "spacing", "origin", "format", NULL};
     for (const char *p = options ? options : ""; *p;) {
@@ -373,6 +373,8 @@ static int common_options(const char *options, struct volume *v, struct sf_err *
     }
     char s[64];
     query_option(options, "iso", s, sizeof s);
+    if (!s[0] && frep) /* an FRep's surface is f = 0 */
+        s[0] = '0', s[1] = 0;
     char *end;
     v->iso = strtod(s, &end);
     if (!s[0])
@@ -457,6 +459,39 @@ static int read_header(const char *body, size_t len, bool mha, const char *optio
     return place_samples(body + at, len - at, h.compressed, h.big_endian, "data", v, err);
 }
 
+/* An FRep object: its grid is allocated here and sampled by volume_sample(). */
+static int read_frep(const char *body, size_t len, const char *options, struct volume *v, struct sf_err *err)
+{
+    int rc = raw_only_options(options, err);
+    if (rc)
+        return rc;
+    if (!(v->frep = malloc(sizeof *v->frep)))
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    if ((rc = frep_parse(body, len, v->frep, err))) {
+        free(v->frep);
+        v->frep = NULL;
+        return rc;
+    }
+    struct frep_request *r = v->frep;
+    v->g = (struct iso_grid){r->dims[0], r->dims[1], r->dims[2], ISO_F32, NULL, {r->cell, r->cell, r->cell},
+                             {r->lo[0], r->lo[1], r->lo[2]}};
+    if (!v->name[0])
+        snprintf(v->name, sizeof v->name, "%s", r->name);
+    if (v->check_only)
+        return 0;
+    if (!(v->owned = malloc(sizeof(float) * r->dims[0] * r->dims[1] * r->dims[2])))
+        return sf_fail(err, SF_ENOMEM, "/cell", "no memory for a grid of %d x %d x %d samples", r->dims[0],
+                       r->dims[1], r->dims[2]);
+    v->g.samples = v->owned;
+    return 0;
+}
+
+void volume_sample(struct volume *v, int z0, int z1)
+{
+    if (v->frep)
+        frep_sample(&v->frep->f, v->g.origin, v->frep->cell, v->g.nx, v->g.ny, z0, z1, v->owned);
+}
+
 /* A DICOM series as multipart/form-data. */
 static int read_series(const char *body, size_t len, const char *options, struct volume *v, struct sf_err *err)
 {
@@ -486,7 +521,13 @@ static int read_volume(const char *body, size_t len, const char *format, const c
 {
     memset(v, 0, sizeof *v);
     v->check_only = check_only;
-    int rc = common_options(options, v, err);
+    size_t lead = 0;
+    while (lead < len && lead < 64 && strchr(" \t\r\n", body[lead]))
+        lead++;
+    if (!*format && lead < len && body[lead] == '{')
+        format = "frep";
+    v->source = strcmp(format, "frep") ? "isosurface" : "frep";
+    int rc = common_options(options, !strcmp(format, "frep"), v, err);
     if (rc)
         return rc;
     bool nrrd = len >= 4 && !memcmp(body, "NRRD", 4);
@@ -507,8 +548,10 @@ static int read_volume(const char *body, size_t len, const char *format, const c
         rc = read_raw(body, len, options, v, err);
     } else if (!strcmp(format, "dicom")) {
         rc = read_series(body, len, options, v, err);
+    } else if (!strcmp(format, "frep")) {
+        rc = read_frep(body, len, options, v, err);
     } else {
-        rc = sf_fail(err, SF_EFORMAT, "?format", "format is raw, nrrd, mha or dicom");
+        rc = sf_fail(err, SF_EFORMAT, "?format", "format is raw, nrrd, mha, dicom or frep");
     }
     if (rc)
         volume_free(v);
@@ -531,6 +574,10 @@ int volume_check(const char *body, size_t len, const char *format, const char *o
 
 void volume_free(struct volume *v)
 {
+    if (v->frep)
+        frep_request_free(v->frep);
+    free(v->frep);
+    v->frep = NULL;
     free(v->owned);
     v->owned = NULL;
     v->g.samples = NULL;

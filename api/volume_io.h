@@ -10,6 +10,7 @@
 
 #include "../core/base/err.h"
 #include "../core/iso/mc.h"
+#include "frep_json.h"
 
 /* Samples a volume may have (query options and headers are checked against it before anything
  * is allocated): 2^31, a 1290^3 grid, 4 GB of int16. */
@@ -24,21 +25,27 @@ struct volume {
     bool check_only;         /* volume_check: the samples are not read */
     double axes[3][3];       /* the grid's x, y, z directions (a DICOM series may be oblique) */
     bool oblique;            /* axes are not the identity: the mesh is turned by them about the origin */
+    struct frep_request *frep; /* an FRep object: its float32 grid is filled by volume_sample() */
+    const char *source;      /* "isosurface" (sampled) or "frep", as the model resource says */
 };
 
 /* The body's format from its Content-Type: "raw" (application/octet-stream), "nrrd"
  * (application/x-nrrd, image/x-nrrd), "mha" (application/x-metaimage), "dicom" (a series as
- * multipart/form-data, one slice a part); NULL for others. A body posted without a type is sniffed
- * (NRRD's magic, MetaImage's "ObjectType", a multipart boundary), else raw. */
+ * multipart/form-data, one slice a part), "frep" (application/json: an FRep object, frep_json.h);
+ * NULL for others. A body posted without a type is sniffed (NRRD's magic, MetaImage's
+ * "ObjectType", a multipart boundary, a JSON object), else raw. */
 const char *volume_format_from_type(const char *content_type);
 
-/* Reads a volume: format "raw", "nrrd", "mha" or "" (sniffed); options the query. On success
+/* Reads a volume: format "raw", "nrrd", "mha", "dicom", "frep" or "" (sniffed); options the query. On success
  * v->g.samples points into body or v->owned (free with volume_free). Errors name the query option
  * ("?dims"), or the header line ("header line 4: ...") of what is wrong: SF_EINVAL (422),
  * SF_EFORMAT (400: not a volume of that format), SF_ELIMIT (too many samples). */
 int volume_read(const char *body, size_t len, const char *format, const char *options, struct volume *v,
                 struct sf_err *err);
 void volume_free(struct volume *v);
+/* Fills planes [z0, z1) of an FRep volume's grid (any planes, on any threads); nothing for
+ * sampled volumes. */
+void volume_sample(struct volume *v, int z0, int z1);
 /* What volume_read says of the query and the header and the body's length, without reading the
  * samples (no inflating, no NaN scan): cheap enough for the HTTP thread that takes the upload.
  * The job's volume_read says the rest. */

@@ -1,9 +1,11 @@
-/* job_iso.c - the isosurface job kind: a sampled volume (raw, NRRD, MetaImage) and ?iso to a
- * closed triangle mesh, stored as a model. Read back from the store (so a job recovered after a
- * crash, or claimed by another node, runs as submitted); then core/iso's two passes as two phases
- * of bands, one band a slab of z, on whichever workers are idle (cancel between slabs); then the
+/* job_iso.c - the isosurface job kind: a sampled volume (raw, NRRD, MetaImage, a DICOM series)
+ * and ?iso, or an FRep object, to a closed triangle mesh, stored as a model. Read back from the
+ * store (so a job recovered after a crash, or claimed by another node, runs as submitted); an FRep
+ * sampled on its grid in a first phase of bands; then core/iso's two passes as two phases of
+ * bands, one band a slab of z, on whichever workers are idle (cancel between slabs); then the
  * mesh is measured and stored compactly with its model resource. */
 #include <fcntl.h>
+#include <math.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -29,9 +31,10 @@ struct iso_work {
     size_t map_len;
     struct volume vol;
     struct iso_job *ij;
-    int phase, n_slabs;
+    enum { PH_SAMPLE, PH_COUNT, PH_EMIT } phase;
+    int n_slabs, n_sample;
     atomic_int bands_done;
-    double t0, t_read, t_count;
+    double t0, t_read, t_sampled;
     char *json;
     size_t len;
     char meta[128];
@@ -58,6 +61,8 @@ static int map_file(const char *path, void **map, size_t *len)
     return 0;
 }
 
+static int begin_extract(struct iso_work *w, int *n_bands);
+
 static int prepare(struct job *j, void *arg, int *n_bands)
 {
     struct iso_work *w = arg;
@@ -76,12 +81,24 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     }
     if (volume_read(body, len, w->rec.format, w->rec.options, &w->vol, &w->err))
         return -1;
-    w->t_read = monotonic_s();
-    struct iso_opts o = {w->vol.iso, w->vol.closed, true};
+    w->t_read = w->t_sampled = monotonic_s();
     struct jobq_stats qs;
     jobq_stats(w->svc->q, &qs);
-    if (iso_begin(&w->vol.g, &o, (int)qs.workers * SLABS_PER_WORKER, &w->ij, &w->err))
+    w->n_slabs = (int)qs.workers * SLABS_PER_WORKER;
+    if (w->vol.frep) { /* sampled first, in bands of planes */
+        w->phase = PH_SAMPLE;
+        *n_bands = w->n_sample = w->n_slabs < w->vol.g.nz ? w->n_slabs : w->vol.g.nz;
+        return 0;
+    }
+    return begin_extract(w, n_bands);
+}
+
+static int begin_extract(struct iso_work *w, int *n_bands)
+{
+    struct iso_opts o = {w->vol.iso, w->vol.closed, true};
+    if (iso_begin(&w->vol.g, &o, w->n_slabs, &w->ij, &w->err))
         return -1;
+    w->phase = PH_COUNT;
     w->n_slabs = iso_n_slabs(w->ij);
     *n_bands = w->n_slabs;
     return 0;
@@ -90,12 +107,15 @@ static int prepare(struct job *j, void *arg, int *n_bands)
 static void band(struct job *j, void *arg, int k)
 {
     struct iso_work *w = arg;
-    if (w->phase == 0)
+    if (w->phase == PH_SAMPLE)
+        volume_sample(&w->vol, (int)((long)w->vol.g.nz * k / w->n_sample), (int)((long)w->vol.g.nz * (k + 1) / w->n_sample));
+    else if (w->phase == PH_COUNT)
         iso_count(w->ij, k);
     else
         iso_emit(w->ij, k);
+    /* every band of every phase alike (the last 5 %: measuring, storing) */
     int done = atomic_fetch_add(&w->bands_done, 1) + 1;
-    jobq_cancelled(w->svc->q, j, 0.95 * done / (2.0 * w->n_slabs)); /* the rest: measuring, storing */
+    jobq_cancelled(w->svc->q, j, fmin(0.95, 0.95 * done / (w->n_sample + 2.0 * w->n_slabs)));
 }
 
 static int next(struct job *j, void *arg, int *n_bands)
@@ -103,11 +123,15 @@ static int next(struct job *j, void *arg, int *n_bands)
     (void)j;
     struct iso_work *w = arg;
     *n_bands = 0;
-    if (w->phase++ == 1)
+    if (w->phase == PH_SAMPLE) {
+        w->t_sampled = monotonic_s();
+        return begin_extract(w, n_bands);
+    }
+    if (w->phase == PH_EMIT)
         return 0;
-    w->t_count = monotonic_s();
     if (iso_layout(w->ij, &w->err))
         return -1;
+    w->phase = PH_EMIT;
     *n_bands = w->n_slabs;
     return 0;
 }
@@ -150,8 +174,8 @@ static int store_model(struct iso_work *w)
         rc = mesh_pack(&m, &packed, &packed_len, &w->err);
     double t_measure = monotonic_s();
     struct iso_model im = {w->claim.id, w->vol.name, &w->vol, &st, m.n_vert, m.n_tri,
-                           {(w->t_read - w->t0) * 1e3, (t_extract - w->t_read) * 1e3, (t_measure - t_extract) * 1e3,
-                            (t_measure - w->t0) * 1e3}};
+                           {(w->t_read - w->t0) * 1e3, (w->t_sampled - w->t_read) * 1e3,
+                            (t_extract - w->t_sampled) * 1e3, (t_measure - t_extract) * 1e3, (t_measure - w->t0) * 1e3}};
     trimesh_free(&m);
     if (!rc && !(w->json = iso_model_json(&im, &w->err)))
         rc = w->err.code;

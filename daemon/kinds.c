@@ -15,7 +15,8 @@ static const struct job_kind KINDS[] = {
     {.name = "mesh", .validate = mesh_validate, .start = mesh_start, .result = "model/stl, application/ply or model/obj"},
     {.name = "patches", .validate = patches_validate, .start = patches_start, .result = "application/json"},
     {.name = "isosurface", .format = iso_format,
-     .media = "application/octet-stream (raw samples, with ?dims&type), application/x-nrrd or application/x-metaimage",
+     .media = "application/octet-stream (raw samples, with ?dims&type), application/x-nrrd, application/x-metaimage, "
+              "multipart/form-data (a DICOM series) or application/json (an FRep object)",
      .format_in_query = true, .validate = iso_validate, .start = iso_start, .result = "application/json",
      .streamed = true},
 };

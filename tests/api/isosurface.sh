@@ -141,6 +141,51 @@ code=$(status POST "/isosurface?iso=1" -H 'Content-Type: multipart/form-data; bo
 check "a series of over 10 000 parts: 422 at the part past the cap" '[ "$code" = 422 ] && grep -q "\"pointer\":\"/parts/10000\"" "$T/body"'
 check "the daemon is up after all of it" 'alive'
 
+# ---- FRep objects (issue 15): the API.md example, a sphere, and every kind of bad tree ----
+cat >"$T/bracket.json" <<'EOF2'
+{"name": "bracket", "bounds": [[-2, -2, -2], [2, 2, 2]], "cell": 0.02, "alpha": 0,
+ "frep": {"subtract": [
+   {"union": [{"box": {"min": [-1, -1, -1], "max": [1, 1, 1]}},
+              {"cylinder": {"base": [0, 0, -1.5], "axis": [0, 0, 1], "radius": 0.5, "length": 3}}]},
+   {"transform": {"translate": [1, 1, 1], "rotate_deg": [0, 0, 45], "scale": [1, 1, 1],
+                  "object": {"sphere": {"center": [0, 0, 0], "radius": 0.6}}}}]}}
+EOF2
+code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary @"$T/bracket.json")
+fid=$(field id)
+# the box, the cylinder's two ends out of it, less the ball's octant in the box's corner
+check "the API.md bracket: 201, one closed shell, its volume within 0.1 %" '[ "$code" = 201 ] && python3 -c "
+import json, math, sys
+m = json.load(open(sys.argv[1]))
+want = 8 + math.pi * 0.25 * 1 - 4 / 3 * math.pi * 0.6 ** 3 / 8
+ok = (m[\"source\"] == \"frep\" and m[\"name\"] == \"bracket\" and m[\"boundary_edges\"] == 0 and m[\"nonmanifold_edges\"] == 0
+      and m[\"components\"] == 1 and m[\"euler_characteristic\"] == 2 and abs(m[\"volume_mm3\"] / want - 1) < 1e-3
+      and m[\"grid\"][\"dims\"] == [201, 201, 201] and m[\"timings_ms\"][\"sample\"] > 0)
+sys.exit(0 if ok else 1)" "$T/body"'
+check "... rendered like any model" '[ "$(status GET "/models/$fid/render?width=96&height=96")" = 200 ] && [ "$(header Content-Type)" = image/png ]'
+code=$(status POST /isosurface --data-binary '{"bounds": [[-1.2, -1.2, -1.2], [1.2, 1.2, 1.2]], "cell": 0.02, "frep": {"transform": {"translate": [5, 0, 0], "object": {"sphere": {"center": [-5, 0, 0], "radius": 1}}}}}')
+sid=$(field id)
+check "a sphere (sniffed JSON, moved back by a transform): its volume within 0.05 %" '[ "$code" = 201 ] && python3 -c "
+import json, math, sys
+m = json.load(open(sys.argv[1]))
+sys.exit(0 if abs(m[\"volume_mm3\"] / (4 / 3 * math.pi) - 1) < 5e-4 and abs(m[\"area_mm2\"] / (4 * math.pi) - 1) < 1e-3 else 1)" "$T/body"'
+check "... its STL closed, every edge twice, once each way" '[ "$(status GET "/models/$sid/mesh?format=stl")" = 200 ] && cp "$T/body" "$T/sphere.stl" && python3 tests/tools/stl_check.py "$T/sphere.stl" 4.18879 >/dev/null'
+frep_bad() { # body, pointer
+    code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary "{\"bounds\": [[0, 0, 0], [1, 1, 1]], \"cell\": 0.1, \"frep\": $1}")
+    [ "$code" = 422 ] && is_problem 422 && grep -q "\"pointer\":\"$2\"" "$T/body"
+}
+SPH='{"sphere": {"center": [0, 0, 0], "radius": 1}}'
+check "an unknown primitive: 422 at it" 'frep_bad "{\"subtract\": [$SPH, {\"pyramid\": {}}]}" /frep/subtract/1/pyramid'
+check "a negative radius: 422 at it" 'frep_bad "{\"sphere\": {\"center\": [0, 0, 0], \"radius\": -1}}" /frep/sphere/radius'
+check "alpha out of [0, 1]: 422 at it" 'frep_bad "{\"union\": [$SPH, $SPH], \"alpha\": 2}" /frep/alpha'
+check "a misspelt member: 422 at it" 'frep_bad "{\"sphere\": {\"center\": [0, 0, 0], \"raduis\": 1}}" /frep/sphere/raduis'
+deep=$SPH; for _ in $(seq 70); do deep="{\"offset\": {\"distance\": 0, \"object\": $deep}}"; done
+check "a tree over 64 levels deep: 422" 'frep_bad "$deep" "/frep\(/offset/object\)*" && grep -q "levels deep" "$T/body"'
+code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary "{\"bounds\": [[0, 0, 0], [10, 10, 10]], \"cell\": 0.001, \"frep\": $SPH}")
+check "a grid over the sample limit: 422 at /cell, before any sample" '[ "$code" = 422 ] && grep -q "\"pointer\":\"/cell\"" "$T/body"'
+code=$(status POST "/isosurface?dims=2,2,2" -H 'Content-Type: application/json' --data-binary "{\"bounds\": [[0, 0, 0], [1, 1, 1]], \"cell\": 0.1, \"frep\": $SPH}")
+check "raw options on an FRep: 422 naming them" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?dims\"" "$T/body"'
+check "the daemon is up after them" 'alive'
+
 # ---- a long one: progress by slabs, cancel between slabs, and kill -9 recovery from the stored upload ----
 BIG="$V/ct_head_256x256x108_int16.raw"
 cat "$BIG" "$BIG" "$BIG" "$BIG" >"$T/ct4.raw" # 256x256x432

@@ -1,5 +1,5 @@
 /* fuzz_volume.c - the volumes of POST /isosurface: the first line is the query (iso, dims, type,
- * spacing...), the rest the body (raw, NRRD or MetaImage, sniffed). A volume that reads and is
+ * spacing...), the rest the body (raw, NRRD, MetaImage, a DICOM series or an FRep object, sniffed). A volume that reads and is
  * small is polygonised too, and its mesh must then be a closed, consistently oriented 2-manifold
  * (the guarantee of core/iso/mc.h): anything else aborts, so the fuzzer reports it. */
 #include "../../api/volume_io.h"
@@ -23,6 +23,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     struct sf_err err = {0};
     if (volume_read(body, len, "", text, &v, &err) == 0) {
         if ((size_t)v.g.nx * v.g.ny * v.g.nz <= EXTRACT_MAX_SAMPLES) {
+            volume_sample(&v, 0, v.g.nz);
             struct iso_opts o = {v.iso, true, true};
             struct trimesh m;
             struct trimesh_stats st;
