@@ -21,7 +21,7 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
     json_t *o = json_pack(
         "{s:s, s:s, s:s, s:f, s:b, s:i, s:I, s:I, s:f, s:f, s:I, s:I, s:I, s:I, s:[[f,f,f],[f,f,f]],"
         " s:{s:[i,i,i], s:s, s:[f,f,f], s:[f,f,f]}, s:{s:f, s:f, s:f, s:f}, s:{s:s, s:s, s:s}}",
-        "id", m->id, "name", m->name, "source", m->vol->source, "iso", m->vol->iso, "closed", m->vol->closed, "levels", 1,
+        "id", m->id, "name", m->name, "source", m->vol->source, "iso", m->vol->iso, "closed", m->vol->closed, "levels", m->vol->levels,
         "triangles", (json_int_t)m->triangles, "vertices", (json_int_t)m->vertices, "volume_mm3", s->volume, "area_mm2",
         s->area, "boundary_edges", (json_int_t)s->boundary_edges, "nonmanifold_edges", (json_int_t)s->nonmanifold_edges,
         "components", (json_int_t)s->components, "euler_characteristic", (json_int_t)s->euler, "bounds",
@@ -29,6 +29,14 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
         "dims", g->nx, g->ny, g->nz, "type", type_name(g->type), "spacing", g->spacing[0], g->spacing[1], g->spacing[2],
         "origin", g->origin[0], g->origin[1], g->origin[2], "timings_ms", "read", m->ms[0], "extract", m->ms[2],
         "measure", m->ms[3], "total", m->ms[4], "links", "self", self, "mesh", mesh, "render", render);
+    if (o && m->adapt) {
+        json_t *cells = json_array();
+        for (int l = 1; l <= m->vol->levels; l++)
+            json_array_append_new(cells, json_integer(m->adapt->cells[l]));
+        json_object_set_new(o, "max_error", json_real(m->vol->max_error));
+        json_object_set_new(o, "cells_by_level", cells);
+        json_object_set_new(o, "max_error_estimate", json_real(m->adapt->max_estimate));
+    }
     if (o && !strcmp(m->vol->source, "frep"))
         json_object_set_new(json_object_get(o, "timings_ms"), "sample", json_real(m->ms[1]));
     char *text = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(12)) : NULL;

@@ -12,6 +12,7 @@ struct iso_model {
     const char *id, *name;
     const struct volume *vol;
     const struct trimesh_stats *st;
+    const struct iso_adapt_stats *adapt; /* levels > 1, else NULL */
     size_t vertices, triangles;
     double ms[5];            /* read, sample (an FRep's), extract, measure, total */
 };

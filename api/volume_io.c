@@ -357,7 +357,8 @@ static int query_numbers(const char *options, const char *name, int n, double *o
 /* The options every format takes (iso, closed, name), and no unknown one. */
 static int common_options(const char *options, bool frep, struct volume *v, struct sf_err *err)
 {
-    static const char *const KNOWN[] = {"iso", "closed", "name", "dims", "type", "spacing", "origin", "format", NULL};
+    static const char *const KNOWN[] = {"iso", "closed", "name", "levels", "max_error", "dims", "type", "spacing",
+                                        "origin", "format", NULL};
     for (const char *p = options ? options : ""; *p;) {
         size_t len = strcspn(p, "&"), key = strcspn(p, "=&");
         bool known = false;
@@ -367,7 +368,8 @@ static int common_options(const char *options, bool frep, struct volume *v, stru
             char where[48];
             snprintf(where, sizeof where, "?%.*s", (int)(key < 40 ? key : 40), p);
             return sf_fail(err, SF_EINVAL, where, "unknown option \"%.*s\" (isosurfaces take iso, closed, name, "
-                           "and for raw samples dims, type, spacing, origin)", (int)(key < 40 ? key : 40), p);
+                           "levels, max_error, and for raw samples dims, type, spacing, origin)",
+                           (int)(key < 40 ? key : 40), p);
         }
         p += len + (p[len] == '&');
     }
@@ -386,6 +388,14 @@ static int common_options(const char *options, bool frep, struct volume *v, stru
         return sf_fail(err, SF_EINVAL, "?closed", "closed is true or false");
     v->closed = strcmp(s, "false") != 0;
     query_option(options, "name", v->name, sizeof v->name);
+    query_option(options, "levels", s, sizeof s);
+    v->levels = s[0] ? (int)strtol(s, &end, 10) : 1;
+    if (s[0] && (*end || v->levels < 1 || v->levels > ISO_MAX_LEVELS))
+        return sf_fail(err, SF_EINVAL, "?levels", "levels is a whole number from 1 to %d", ISO_MAX_LEVELS);
+    query_option(options, "max_error", s, sizeof s);
+    v->max_error = s[0] ? strtod(s, &end) : -1; /* -1: half the smallest spacing, once it is known */
+    if (s[0] && (end == s || *end || !isfinite(v->max_error) || v->max_error < 0))
+        return sf_fail(err, SF_EINVAL, "?max_error", "max_error is a length in mm, 0 or more");
     return 0;
 }
 
@@ -553,6 +563,8 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     } else {
         rc = sf_fail(err, SF_EFORMAT, "?format", "format is raw, nrrd, mha, dicom or frep");
     }
+    if (!rc && v->max_error < 0)
+        v->max_error = 0.5 * fmin(v->g.spacing[0], fmin(v->g.spacing[1], v->g.spacing[2]));
     if (rc)
         volume_free(v);
     return rc;

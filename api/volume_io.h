@@ -9,6 +9,7 @@
 #include <stddef.h>
 
 #include "../core/base/err.h"
+#include "../core/iso/adapt.h"
 #include "../core/iso/mc.h"
 #include "frep_json.h"
 
@@ -21,6 +22,8 @@ struct volume {
     void *owned;             /* decoded samples, when the body's could not be used in place */
     double iso;              /* ?iso */
     bool closed;             /* ?closed (default true) */
+    int levels;              /* ?levels (1..ISO_MAX_LEVELS, default 1: every cell at full resolution) */
+    double max_error;        /* ?max_error (mm; default half the smallest spacing) */
     char name[128];          /* ?name */
     bool check_only;         /* volume_check: the samples are not read */
     double axes[3][3];       /* the grid's x, y, z directions (a DICOM series may be oblique) */

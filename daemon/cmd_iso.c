@@ -51,10 +51,16 @@ static void run_pass(struct iso_job *j, bool emit, int n)
         pthread_join(t[k], NULL);
 }
 
-static int extract(const struct volume *v, int threads, struct trimesh *m, double *ms, struct sf_err *err)
+static int extract(const struct volume *v, int threads, struct trimesh *m, struct iso_adapt_stats *as, double *ms,
+                   struct sf_err *err)
 {
     double t0 = now_ms();
     struct iso_opts o = {v->iso, v->closed, true};
+    if (v->levels > 1) { /* the adaptive hierarchy: one thread */
+        int rc = iso_extract_adaptive(&v->g, &o, v->levels, v->max_error, NULL, m, as, err);
+        *ms = now_ms() - t0;
+        return rc;
+    }
     struct iso_job *j;
     int rc = iso_begin(&v->g, &o, threads * 4, &j, err);
     if (rc)
@@ -132,8 +138,11 @@ int cmd_isosurface(int argc, char **argv)
         } else if (!strcmp(a, "--format")) {
             format = argv[++k];
         } else if (!strcmp(a, "--iso") || !strcmp(a, "--dims") || !strcmp(a, "--type") || !strcmp(a, "--spacing") ||
-                   !strcmp(a, "--origin") || !strcmp(a, "--closed") || !strcmp(a, "--name")) {
+                   !strcmp(a, "--origin") || !strcmp(a, "--closed") || !strcmp(a, "--name") || !strcmp(a, "--levels")) {
             snprintf(options + n, sizeof options - n, "%s%s=%s", n ? "&" : "", a + 2, argv[k + 1]);
+            k++;
+        } else if (!strcmp(a, "--max-error")) {
+            snprintf(options + n, sizeof options - n, "%smax_error=%s", n ? "&" : "", argv[k + 1]);
             k++;
         } else {
             bad = true;
@@ -143,7 +152,7 @@ int cmd_isosurface(int argc, char **argv)
         fprintf(stderr, "usage: surfd isosurface VOLUME.nrrd|.mha|.raw|DICOM-DIR --iso V [--dims X,Y,Z --type T "
                         "[--spacing sx,sy,sz] [--origin x,y,z]]\n"
                         "       surfd isosurface FREP.json [--iso V]\n"
-                        "                        [--closed true|false] [--name NAME] [--format raw|nrrd|mha|dicom|frep]\n"
+                        "                        [--levels 1-4 [--max-error MM]] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|dicom|frep]\n"
                         "                        [-o OUT.stl|.ply|.obj] [--threads N] [--repeat N] [--stats]\n");
         return 2;
     }
@@ -163,12 +172,13 @@ int cmd_isosurface(int argc, char **argv)
     double t_sampled = now_ms();
     iso_init();
     struct trimesh m = {0};
+    struct iso_adapt_stats as = {0};
     double ms = 0, first = 0, best = 1e300;
     if (repeat > 1) /* later repeats reuse the memory freed, as a long-running process's allocator does */
         mallopt(M_MMAP_THRESHOLD, 1 << 30), mallopt(M_TRIM_THRESHOLD, 1 << 30);
     for (int r = 0; r < repeat && !rc; r++) { /* the first (cold) and the fastest (warm) */
         trimesh_free(&m);
-        if (!(rc = extract(&v, threads, &m, &ms, &err)) && ms < best)
+        if (!(rc = extract(&v, threads, &m, &as, &ms, &err)) && ms < best)
             best = ms;
         if (r == 0)
             first = ms;
@@ -190,7 +200,7 @@ int cmd_isosurface(int argc, char **argv)
             rc = cli_write_all(out, file, file_len) ? SF_EIO : 0;
     }
     if (!rc) {
-        struct iso_model im = {"offline", v.name, &v, &st, m.n_vert, m.n_tri,
+        struct iso_model im = {"offline", v.name, &v, &st, v.levels > 1 ? &as : NULL, m.n_vert, m.n_tri,
                                {t_read - t0, t_sampled - t_read, best, t_measure - t_extract, t_measure - t0}};
         if (!(json = iso_model_json(&im, &err)))
             rc = err.code;

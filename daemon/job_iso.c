@@ -31,7 +31,10 @@ struct iso_work {
     size_t map_len;
     struct volume vol;
     struct iso_job *ij;
-    enum { PH_SAMPLE, PH_COUNT, PH_EMIT } phase;
+    enum { PH_SAMPLE, PH_COUNT, PH_EMIT, PH_ADAPT } phase;
+    struct trimesh adapt;    /* levels > 1: the adaptive hierarchy's mesh (one band, for now) */
+    struct iso_adapt_stats adapt_st;
+    int adapt_rc;
     int n_slabs, n_sample;
     atomic_int bands_done;
     double t0, t_read, t_sampled;
@@ -96,6 +99,12 @@ static int prepare(struct job *j, void *arg, int *n_bands)
 static int begin_extract(struct iso_work *w, int *n_bands)
 {
     struct iso_opts o = {w->vol.iso, w->vol.closed, true};
+    if (w->vol.levels > 1) {
+        w->phase = PH_ADAPT;
+        w->n_slabs = 1;
+        *n_bands = 1;
+        return 0;
+    }
     if (iso_begin(&w->vol.g, &o, w->n_slabs, &w->ij, &w->err))
         return -1;
     w->phase = PH_COUNT;
@@ -104,9 +113,23 @@ static int begin_extract(struct iso_work *w, int *n_bands)
     return 0;
 }
 
+/* sf_progress of the adaptive extraction: the job's cancel flag */
+static bool adapt_poll(void *ctx, double done)
+{
+    struct iso_work *w = ctx;
+    return jobq_cancelled(w->svc->q, w->j, 0.95 * (w->n_sample + done) / (w->n_sample + 1.0));
+}
+
 static void band(struct job *j, void *arg, int k)
 {
     struct iso_work *w = arg;
+    if (w->phase == PH_ADAPT) {
+        struct iso_opts o = {w->vol.iso, w->vol.closed, true};
+        struct sf_progress pr = {adapt_poll, w};
+        w->adapt_rc = iso_extract_adaptive(&w->vol.g, &o, w->vol.levels, w->vol.max_error, &pr, &w->adapt,
+                                           &w->adapt_st, &w->err);
+        return;
+    }
     if (w->phase == PH_SAMPLE)
         volume_sample(&w->vol, (int)((long)w->vol.g.nz * k / w->n_sample), (int)((long)w->vol.g.nz * (k + 1) / w->n_sample));
     else if (w->phase == PH_COUNT)
@@ -129,6 +152,8 @@ static int next(struct job *j, void *arg, int *n_bands)
     }
     if (w->phase == PH_EMIT)
         return 0;
+    if (w->phase == PH_ADAPT)
+        return w->adapt_rc ? -1 : 0;
     if (iso_layout(w->ij, &w->err))
         return -1;
     w->phase = PH_EMIT;
@@ -159,8 +184,9 @@ static int stopped(struct iso_work *w, double progress)
 static int store_model(struct iso_work *w)
 {
     double t_extract = monotonic_s();
-    struct trimesh m;
-    int rc = iso_end(w->ij, &m, &w->err);
+    struct trimesh m = w->adapt;
+    memset(&w->adapt, 0, sizeof w->adapt);
+    int rc = w->vol.levels > 1 ? 0 : iso_end(w->ij, &m, &w->err);
     w->ij = NULL;
     if (rc)
         return rc;
@@ -173,7 +199,8 @@ static int store_model(struct iso_work *w)
     if (!(rc = stopped(w, 0.95)) && !(rc = trimesh_stats(&m, &st, &w->err)) && !(rc = stopped(w, 0.98)))
         rc = mesh_pack(&m, &packed, &packed_len, &w->err);
     double t_measure = monotonic_s();
-    struct iso_model im = {w->claim.id, w->vol.name, &w->vol, &st, m.n_vert, m.n_tri,
+    struct iso_model im = {w->claim.id, w->vol.name, &w->vol, &st, w->vol.levels > 1 ? &w->adapt_st : NULL, m.n_vert,
+                           m.n_tri,
                            {(w->t_read - w->t0) * 1e3, (w->t_sampled - w->t_read) * 1e3,
                             (t_extract - w->t_sampled) * 1e3, (t_measure - t_extract) * 1e3, (t_measure - w->t0) * 1e3}};
     trimesh_free(&m);
@@ -203,6 +230,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     service_job_end(w->svc, &w->claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     iso_free(w->ij);
+    trimesh_free(&w->adapt);
     drop_volume(w);
     if (w->file[0])
         store_request_file_done(w->svc->store, w->file);

@@ -322,7 +322,7 @@ int iso_n_slabs(const struct iso_job *j) { return j->n_slabs; }
     } while (0)
 
 /* The smallest sample (a typed loop each, which the compiler vectorises). */
-static double minimum(const struct iso_grid *g)
+double iso_grid_min(const struct iso_grid *g)
 {
     size_t n = (size_t)g->nx * (size_t)g->ny * (size_t)g->nz;
     switch (g->type) {
@@ -333,8 +333,7 @@ static double minimum(const struct iso_grid *g)
     }
 }
 
-/* Real row (y, z) of the samples into out[0 .. nx-1] as floats. */
-static void real_row(const struct iso_grid *g, int y, int z, float *out)
+void iso_grid_row(const struct iso_grid *g, int y, int z, float *out)
 {
     size_t at = (size_t)g->nx * ((size_t)y + (size_t)g->ny * (size_t)z);
     int n = g->nx;
@@ -374,7 +373,7 @@ static void load(const struct iso_job *j, int K, float *out)
                 row[I] = j->pad;
             continue;
         }
-        real_row(&j->g, y, z, row + s);
+        iso_grid_row(&j->g, y, z, row + s);
         if (s)
             row[0] = row[j->NX - 1] = j->pad;
     }
@@ -445,7 +444,7 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
         j->half_inv[a] = (float)(0.5 / g->spacing[a]);
     }
     if (o->closed) /* below iso and every sample: the volume's minimum, as a CT's air */
-        j->pad = (float)fmin(o->iso - 1, minimum(g));
+        j->pad = (float)fmin(o->iso - 1, iso_grid_min(g));
     int layers = j->NZ - 1;
     j->n_slabs = n_slabs < 1 ? 1 : n_slabs > layers ? layers : n_slabs;
     size_t rows = (size_t)j->NY * (size_t)j->NZ;

@@ -72,6 +72,11 @@ void iso_emit(struct iso_job *j, int s);
 int iso_end(struct iso_job *j, struct trimesh *out, struct sf_err *err);
 void iso_free(struct iso_job *j);
 
+/* The smallest sample; row (y, z) of the samples as floats into out[0 .. nx-1] (for the other
+ * extractions of core/iso). */
+double iso_grid_min(const struct iso_grid *g);
+void iso_grid_row(const struct iso_grid *g, int y, int z, float *out);
+
 /* All of it on the calling thread, polling pr between slabs (SF_ECANCEL when it says stop). */
 int iso_extract(const struct iso_grid *g, const struct iso_opts *o, const struct sf_progress *pr, struct trimesh *out,
                 struct sf_err *err);

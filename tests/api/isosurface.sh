@@ -130,8 +130,12 @@ code=$(status POST "/isosurface?iso=1" -H 'Content-Type: application/x-nrrd' --d
 check "a detached NRRD header: 422 saying to attach the data" '[ "$code" = 422 ] && grep -q "attached" "$T/body"'
 code=$(status POST "/isosurface?iso=1" -H 'Content-Type: image/png' --data-binary @"$CT")
 check "a type it does not read: 415" '[ "$code" = 415 ] && is_problem 415'
-code=$(status POST "/isosurface?$Q&levels=3" -H "$RAW" --data-binary @"$CT")
-check "an option it does not take (yet): 422 naming it" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?levels\"" "$T/body"'
+code=$(status POST "/isosurface?$Q&features=sharp" -H "$RAW" --data-binary @"$CT")
+check "an option it does not take (yet): 422 naming it" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?features\"" "$T/body"'
+code=$(status POST "/isosurface?$Q&levels=5" -H "$RAW" --data-binary @"$CT")
+check "levels over 4: 422 at ?levels" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?levels\"" "$T/body"'
+code=$(status POST "/isosurface?$Q&levels=2&max_error=-1" -H "$RAW" --data-binary @"$CT")
+check "a negative max_error: 422 at ?max_error" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?max_error\"" "$T/body"'
 python3 - "$T/many.multipart" <<'EOF2'
 import sys
 part = b'--b\r\nContent-Disposition: form-data; name="s"\r\n\r\nx\r\n'
@@ -140,6 +144,18 @@ EOF2
 code=$(status POST "/isosurface?iso=1" -H 'Content-Type: multipart/form-data; boundary=b' --data-binary @"$T/many.multipart")
 check "a series of over 10 000 parts: 422 at the part past the cap" '[ "$code" = 422 ] && grep -q "\"pointer\":\"/parts/10000\"" "$T/body"'
 check "the daemon is up after all of it" 'alive'
+
+# ---- the adaptive hierarchy (issue 15): coarser cells where the surface allows, still closed ----
+code=$(status POST "/isosurface?$Q&levels=3&max_error=1" -H "$RAW" --data-binary @"$CT")
+aid=$(field id) avol=$(field volume_mm3)
+check "levels=3&max_error=1: 201, closed, fewer triangles, cells of three levels" '[ "$code" = 201 ] && python3 -c "
+import json, sys
+m = json.load(open(sys.argv[1]))
+ok = (m[\"levels\"] == 3 and m[\"max_error\"] == 1 and m[\"boundary_edges\"] == 0 and m[\"nonmanifold_edges\"] == 0
+      and m[\"triangles\"] < 34996 * 0.8 and all(c > 0 for c in m[\"cells_by_level\"]) and m[\"max_error_estimate\"] <= 1
+      and abs(m[\"volume_mm3\"] / 57560.5 - 1) < 0.05)
+sys.exit(0 if ok else 1)" "$T/body"'
+check "... its STL closed too" '[ "$(status GET "/models/$aid/mesh?format=stl")" = 200 ] && cp "$T/body" "$T/adapt.stl" && python3 tests/tools/stl_check.py "$T/adapt.stl" "$avol" >/dev/null'
 
 # ---- FRep objects (issue 15): the API.md example, a sphere, and every kind of bad tree ----
 cat >"$T/bracket.json" <<'EOF2'
@@ -169,6 +185,14 @@ import json, math, sys
 m = json.load(open(sys.argv[1]))
 sys.exit(0 if abs(m[\"volume_mm3\"] / (4 / 3 * math.pi) - 1) < 5e-4 and abs(m[\"area_mm2\"] / (4 * math.pi) - 1) < 1e-3 else 1)" "$T/body"'
 check "... its STL closed, every edge twice, once each way" '[ "$(status GET "/models/$sid/mesh?format=stl")" = 200 ] && cp "$T/body" "$T/sphere.stl" && python3 tests/tools/stl_check.py "$T/sphere.stl" 4.18879 >/dev/null'
+code=$(status POST "/isosurface?levels=3&max_error=0.01" -H 'Content-Type: application/json' --data-binary @"$T/bracket.json")
+check "the bracket with levels=3&max_error=0.01: closed, one shell, fewer triangles, its volume within 0.2 %" '[ "$code" = 201 ] && python3 -c "
+import json, math, sys
+m = json.load(open(sys.argv[1]))
+want = 8 + math.pi * 0.25 * 1 - 4 / 3 * math.pi * 0.6 ** 3 / 8
+ok = (m[\"boundary_edges\"] == 0 and m[\"nonmanifold_edges\"] == 0 and m[\"components\"] == 1 and m[\"triangles\"] < 137272 / 2
+      and abs(m[\"volume_mm3\"] / want - 1) < 2e-3)
+sys.exit(0 if ok else 1)" "$T/body"'
 frep_bad() { # body, pointer
     code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary "{\"bounds\": [[0, 0, 0], [1, 1, 1]], \"cell\": 0.1, \"frep\": $1}")
     [ "$code" = 422 ] && is_problem 422 && grep -q "\"pointer\":\"$2\"" "$T/body"

@@ -1,0 +1,755 @@
+/* adapt.c - the adaptive hierarchy with crack-free joins (adapt.h). The grid is copied as floats
+ * with its pad layer (closed=true), as mc.c sees it; nodes and cells are addressed by their
+ * integer coordinates in that grid. */
+#include "adapt.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Each face's corners counter-clockwise about its outward normal (as mc.c): -x, +x, -y, +y, -z, +z;
+ * corner c = x + 2y + 4z. */
+static const int FACE_CCW[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+
+struct ad {
+    int N[3], shift;
+    float iso;
+    double org[3], sp[3], max_err;
+    int L;
+    float *F;                          /* the virtual grid, x fastest */
+    int nb[ISO_MAX_LEVELS + 1][3];     /* blocks per axis at each level */
+    uint8_t *M[ISO_MAX_LEVELS + 1];    /* [l][block]: covered by a cell of level >= l (l >= 2) */
+    uint8_t *lev2;                     /* each level-2 block's cell level (1: cut into level-1 cells) */
+    uint8_t *mixed2;                   /* level-2 blocks whose samples are on both sides of iso */
+    uint8_t *calm2;                    /* level-2 blocks that, with the 26 round them, are level-1 cells */
+    float *V2;                         /* V() at the nodes of even coordinates (every corner of a cell of
+                                        * level 2 or more), once filled */
+    int n2[3];
+    /* the mesh: vertices keyed by the finest edge they lie on */
+    uint64_t *keys;
+    uint32_t *slot;
+    size_t cap, used;
+    struct trimesh m;
+    size_t vcap, tcap;
+    bool nomem;
+    struct iso_adapt_stats *st;
+};
+
+static size_t at3(const struct ad *a, int x, int y, int z) { return (size_t)x + (size_t)a->N[0] * ((size_t)y + (size_t)a->N[1] * z); }
+static float F(const struct ad *a, int x, int y, int z) { return a->F[at3(a, x, y, z)]; }
+
+static size_t block(const struct ad *a, int l, int bx, int by, int bz)
+{
+    return (size_t)bx + (size_t)a->nb[l][0] * ((size_t)by + (size_t)a->nb[l][1] * bz);
+}
+
+/* |grad f| at node (x, y, z), central differences (one-sided at the border), in world units. */
+static double grad_norm(const struct ad *a, int x, int y, int z, double g[3])
+{
+    int p[3] = {x, y, z};
+    double s = 0;
+    for (int d = 0; d < 3; d++) {
+        int lo[3] = {x, y, z}, hi[3] = {x, y, z};
+        lo[d] = p[d] > 0 ? p[d] - 1 : p[d];
+        hi[d] = p[d] + 1 < a->N[d] ? p[d] + 1 : p[d];
+        g[d] = (F(a, hi[0], hi[1], hi[2]) - F(a, lo[0], lo[1], lo[2])) / ((hi[d] - lo[d]) * a->sp[d]);
+        s += g[d] * g[d];
+    }
+    return sqrt(s);
+}
+
+/* ---- the hierarchy ---- */
+
+/* The coarse cell's trilinear interpolant of corners c at (u, v, w) in [0, 1]^3, and its gradient
+ * (per cell unit) into g. */
+static double trilinear(const double c[8], double u, double v, double w, double g[3])
+{
+    double x00 = c[0] + u * (c[1] - c[0]), x10 = c[2] + u * (c[3] - c[2]), x01 = c[4] + u * (c[5] - c[4]),
+           x11 = c[6] + u * (c[7] - c[6]);
+    double y0 = x00 + v * (x10 - x00), y1 = x01 + v * (x11 - x01);
+    double dx0 = (1 - v) * (c[1] - c[0]) + v * (c[3] - c[2]), dx1 = (1 - v) * (c[5] - c[4]) + v * (c[7] - c[6]);
+    g[0] = (1 - w) * dx0 + w * dx1;
+    g[1] = (1 - w) * (x10 - x00) + w * (x11 - x01);
+    g[2] = y1 - y0;
+    return y0 + w * (y1 - y0);
+}
+
+/* The error estimate of block b of level l, both ways and where the surfaces are: each crossing
+ * of the samples on the block's fine edges is measured against the coarse interpolant (|c - iso|
+ * / |grad c|), and each crossing of the coarse interpolant on them against the samples' linear
+ * interpolant (|f - iso| / |grad f|, the gradient by central differences): the first-order
+ * distances from each surface's vertices to the other surface. 0 when every sample is on one
+ * side (and so every corner); INFINITY where a gradient vanishes at a crossing. */
+/* What the block's values do to the cells round it: a finer neighbour's edge from a node n on
+ * the block's face out to the sample beyond it reads the coarse value c(n) at n (the seed's
+ * rule), which moves its crossing; each way, the crossing of one is measured against the other's
+ * linear interpolant, |value| / |grad f|. */
+static double outward_error(const struct ad *a, const int o[3], int s, const double c[8], double worst)
+{
+    double iso = a->iso;
+    for (int z = 0; z <= s; z++)
+        for (int y = 0; y <= s; y++)
+            for (int x = 0; x <= s; x++) {
+                int r[3] = {x, y, z}, faces = 0;
+                for (int d = 0; d < 3; d++)
+                    faces |= (r[d] == 0) << (2 * d) | (r[d] == s) << (2 * d + 1);
+                if (!faces)
+                    continue;
+                int n[3] = {o[0] + x, o[1] + y, o[2] + z};
+                double gc[3], m = trilinear(c, (double)x / s, (double)y / s, (double)z / s, gc) - iso;
+                double f = F(a, n[0], n[1], n[2]) - iso;
+                for (int fc = 0; fc < 6; fc++) {
+                    if (!(faces >> fc & 1))
+                        continue;
+                    int q[3] = {n[0], n[1], n[2]}, d = fc >> 1;
+                    q[d] += fc & 1 ? 1 : -1;
+                    if (q[d] < 0 || q[d] >= a->N[d])
+                        continue;
+                    double bq = F(a, q[0], q[1], q[2]) - iso, e = 0;
+                    bool cm = (m > 0) != (bq > 0), cf = (f > 0) != (bq > 0);
+                    if (!cm && !cf)
+                        continue;
+                    double g0[3], g1[3], gl = 0;
+                    grad_norm(a, n[0], n[1], n[2], g0);
+                    grad_norm(a, q[0], q[1], q[2], g1);
+                    for (int k = 0; k < 3; k++)
+                        gl += (0.5 * (g0[k] + g1[k])) * (0.5 * (g0[k] + g1[k]));
+                    gl = sqrt(gl);
+                    if (cm) {
+                        double t = m / (m - bq);
+                        e = fmax(e, gl > 0 ? fabs(f + t * (bq - f)) / gl : INFINITY);
+                    }
+                    if (cf) {
+                        double t = f / (f - bq);
+                        e = fmax(e, gl > 0 ? fabs(m + t * (bq - m)) / gl : INFINITY);
+                    }
+                    if (e > worst)
+                        worst = e;
+                    if (worst > a->max_err)
+                        return worst;
+                }
+            }
+    return worst;
+}
+
+/* The error estimate of block b of level l, both ways and where the surfaces are: each crossing
+ * of the samples on the block's fine edges is measured against the coarse interpolant (|c - iso|
+ * / |grad c|), and each crossing of the coarse interpolant on them against the samples' linear
+ * interpolant (|f - iso| / |grad f|, the gradient by central differences): the first-order
+ * distances from each surface's vertices to the other surface; then what its values do to the
+ * finer cells round it (outward_error). 0 when every sample of the block and of the layer round
+ * it is on one side; INFINITY where a gradient vanishes at a crossing. */
+static double block_error(const struct ad *a, int l, const int b[3], bool *mixed)
+{
+    int s = 1 << (l - 1), o[3] = {b[0] * s, b[1] * s, b[2] * s};
+    bool in = false, out = false, near_in = false, near_out = false;
+    for (int z = -1; z <= s + 1; z++)
+        for (int y = -1; y <= s + 1; y++)
+            for (int x = -1; x <= s + 1; x++) {
+                int p[3] = {o[0] + x, o[1] + y, o[2] + z};
+                if (p[0] < 0 || p[1] < 0 || p[2] < 0 || p[0] >= a->N[0] || p[1] >= a->N[1] || p[2] >= a->N[2])
+                    continue;
+                bool v = F(a, p[0], p[1], p[2]) > a->iso, inner = x >= 0 && y >= 0 && z >= 0 && x <= s && y <= s && z <= s;
+                near_in |= v, near_out |= !v;
+                if (inner)
+                    in |= v, out |= !v;
+            }
+    if (mixed)
+        *mixed = in && out;
+    if (!(near_in && near_out))
+        return 0;
+    double c[8], worst = 0, iso = a->iso;
+    for (int k = 0; k < 8; k++)
+        c[k] = F(a, o[0] + (k & 1) * s, o[1] + (k >> 1 & 1) * s, o[2] + (k >> 2 & 1) * s);
+    for (int z = 0; z <= s && in && out; z++)
+        for (int y = 0; y <= s; y++)
+            for (int x = 0; x <= s; x++)
+                for (int axis = 0; axis < 3; axis++) {
+                    int p[3] = {x, y, z}, q[3] = {x, y, z};
+                    if (++q[axis] > s)
+                        continue;
+                    double f0 = F(a, o[0] + p[0], o[1] + p[1], o[2] + p[2]) - iso,
+                           f1 = F(a, o[0] + q[0], o[1] + q[1], o[2] + q[2]) - iso, g[3], gc[3];
+                    double c0 = trilinear(c, (double)p[0] / s, (double)p[1] / s, (double)p[2] / s, gc) - iso;
+                    double c1 = trilinear(c, (double)q[0] / s, (double)q[1] / s, (double)q[2] / s, gc) - iso;
+                    double e = 0;
+                    if ((f0 > 0) != (f1 > 0)) { /* a vertex of the fine surface, against the coarse one */
+                        double t = f0 / (f0 - f1), r[3] = {p[0], p[1], p[2]}, gl = 0;
+                        r[axis] += t;
+                        double cv = trilinear(c, r[0] / s, r[1] / s, r[2] / s, gc) - iso;
+                        for (int d = 0; d < 3; d++)
+                            gl += gc[d] / (s * a->sp[d]) * (gc[d] / (s * a->sp[d]));
+                        e = gl > 0 ? fabs(cv) / sqrt(gl) : INFINITY;
+                    }
+                    if ((c0 > 0) != (c1 > 0)) { /* a vertex of the coarse surface, against the fine one */
+                        double t = c0 / (c0 - c1), g0[3], g1[3], gl = 0;
+                        grad_norm(a, o[0] + p[0], o[1] + p[1], o[2] + p[2], g0);
+                        grad_norm(a, o[0] + q[0], o[1] + q[1], o[2] + q[2], g1);
+                        for (int d = 0; d < 3; d++) {
+                            g[d] = (1 - t) * g0[d] + t * g1[d];
+                            gl += g[d] * g[d];
+                        }
+                        double fv = f0 + t * (f1 - f0);
+                        double e2 = gl > 0 ? fabs(fv) / sqrt(gl) : INFINITY;
+                        e = e2 > e ? e2 : e;
+                    }
+                    if (e > worst)
+                        worst = e;
+                    if (worst > a->max_err)
+                        return worst;
+                }
+    return outward_error(a, o, s, c, worst);
+}
+
+/* Whether every block of level l that touches block b of level l+1 is covered at l. */
+static bool ring_covered(const struct ad *a, int l, const int b[3])
+{
+    for (int z = 2 * b[2] - 1; z <= 2 * b[2] + 2; z++)
+        for (int y = 2 * b[1] - 1; y <= 2 * b[1] + 2; y++)
+            for (int x = 2 * b[0] - 1; x <= 2 * b[0] + 2; x++) {
+                if (x < 0 || y < 0 || z < 0 || x >= a->nb[l][0] || y >= a->nb[l][1] || z >= a->nb[l][2])
+                    continue;
+                if (!a->M[l][block(a, l, x, y, z)])
+                    return false;
+            }
+    return true;
+}
+
+static int build_masks(struct ad *a)
+{
+    for (int l = 2; l <= a->L; l++) {
+        int s = 1 << (l - 1);
+        for (int d = 0; d < 3; d++)
+            a->nb[l][d] = (a->N[d] - 1 + s - 1) / s;
+        size_t n = (size_t)a->nb[l][0] * a->nb[l][1] * a->nb[l][2];
+        if (!(a->M[l] = calloc(n ? n : 1, 1)))
+            return -1;
+    }
+    size_t n2 = (size_t)a->nb[2][0] * a->nb[2][1] * a->nb[2][2];
+    if (!(a->lev2 = malloc(n2 ? n2 : 1)) || !(a->mixed2 = calloc(n2 ? n2 : 1, 1)))
+        return -1;
+    for (int l = 2; l <= a->L; l++) {
+        int s = 1 << (l - 1), b[3];
+        for (b[2] = 0; b[2] < a->nb[l][2]; b[2]++)
+            for (b[1] = 0; b[1] < a->nb[l][1]; b[1]++)
+                for (b[0] = 0; b[0] < a->nb[l][0]; b[0]++) {
+                    bool inside = true, ok = true, mixed = false;
+                    for (int d = 0; d < 3; d++)
+                        inside = inside && (b[d] + 1) * s <= a->N[d] - 1;
+                    if (l > 2) { /* its children merged, and every block of l-1 round it */
+                        for (int k = 0; k < 8 && ok && inside; k++)
+                            ok = a->M[l - 1][block(a, l - 1, 2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1),
+                                                   2 * b[2] + (k >> 2 & 1))];
+                        ok = ok && inside && ring_covered(a, l - 1, b);
+                    }
+                    double e = ok && inside ? block_error(a, l, b, l == 2 ? &mixed : NULL) : INFINITY;
+                    if (l == 2 && !inside) { /* a block the grid's end cuts: level-1 cells, mixed or not */
+                        mixed = true;
+                    }
+                    if (l == 2)
+                        a->mixed2[block(a, 2, b[0], b[1], b[2])] = mixed;
+                    if (e <= a->max_err) {
+                        a->M[l][block(a, l, b[0], b[1], b[2])] = 1;
+                        if (e > a->st->max_estimate)
+                            a->st->max_estimate = e;
+                    }
+                }
+    }
+    int b[3];
+    for (b[2] = 0; b[2] < a->nb[2][2]; b[2]++)
+        for (b[1] = 0; b[1] < a->nb[2][1]; b[1]++)
+            for (b[0] = 0; b[0] < a->nb[2][0]; b[0]++) {
+                int lev = 1;
+                for (int l = a->L; l >= 2 && lev == 1; l--)
+                    if (a->M[l][block(a, l, b[0] >> (l - 2), b[1] >> (l - 2), b[2] >> (l - 2))])
+                        lev = l;
+                a->lev2[block(a, 2, b[0], b[1], b[2])] = (uint8_t)lev;
+            }
+    if (!(a->calm2 = malloc(n2 ? n2 : 1)))
+        return -1;
+    for (b[2] = 0; b[2] < a->nb[2][2]; b[2]++)
+        for (b[1] = 0; b[1] < a->nb[2][1]; b[1]++)
+            for (b[0] = 0; b[0] < a->nb[2][0]; b[0]++) {
+                bool calm = true;
+                for (int z = b[2] - 1; z <= b[2] + 1 && calm; z++)
+                    for (int y = b[1] - 1; y <= b[1] + 1 && calm; y++)
+                        for (int x = b[0] - 1; x <= b[0] + 1 && calm; x++)
+                            if (x >= 0 && y >= 0 && z >= 0 && x < a->nb[2][0] && y < a->nb[2][1] && z < a->nb[2][2])
+                                calm = a->lev2[block(a, 2, x, y, z)] == 1;
+                a->calm2[block(a, 2, b[0], b[1], b[2])] = calm;
+            }
+    return 0;
+}
+
+/* ---- the values cells read ---- */
+
+/* The value every cell reads at node p: the sample, unless the coarsest cell touching p holds it
+ * inside a face or an edge (or inside), where it is that cell's interpolant of its corners' values. That
+ * cell is found in one order (the lowest level-2 block of the highest level), so every reader
+ * computes the same float. */
+static size_t at2(const struct ad *a, const int p[3])
+{
+    return (size_t)(p[0] >> 1) + (size_t)a->n2[0] * ((size_t)(p[1] >> 1) + (size_t)a->n2[1] * (p[2] >> 1));
+}
+
+static float V(const struct ad *a, const int p[3])
+{
+    if (a->V2 && !(p[0] & 1) && !(p[1] & 1) && !(p[2] & 1))
+        return a->V2[at2(a, p)];
+    int lo[3], hi[3], own[3];
+    for (int d = 0; d < 3; d++)
+        own[d] = p[d] >> 1 < a->nb[2][d] ? p[d] >> 1 : a->nb[2][d] - 1;
+    if (a->calm2[block(a, 2, own[0], own[1], own[2])]) /* every cell touching p is of level 1 */
+        return F(a, p[0], p[1], p[2]);
+    for (int d = 0; d < 3; d++) {
+        lo[d] = p[d] & 1 ? p[d] >> 1 : (p[d] >> 1) - 1;
+        hi[d] = p[d] >> 1;
+        lo[d] = lo[d] < 0 ? 0 : lo[d];
+        hi[d] = hi[d] >= a->nb[2][d] ? a->nb[2][d] - 1 : hi[d];
+    }
+    int lam = 1, cb[3] = {0, 0, 0};
+    for (int z = lo[2]; z <= hi[2]; z++)
+        for (int y = lo[1]; y <= hi[1]; y++)
+            for (int x = lo[0]; x <= hi[0]; x++) {
+                int l = a->lev2[block(a, 2, x, y, z)];
+                if (l > lam)
+                    lam = l, cb[0] = x, cb[1] = y, cb[2] = z;
+            }
+    int s = 1 << (lam - 1);
+    if (lam == 1 || (p[0] % s == 0 && p[1] % s == 0 && p[2] % s == 0))
+        return F(a, p[0], p[1], p[2]);
+    int o[3];
+    double r[3];
+    for (int d = 0; d < 3; d++) {
+        o[d] = (cb[d] >> (lam - 2)) << (lam - 1);
+        r[d] = (double)(p[d] - o[d]) / s;
+    }
+    double v = 0;
+    for (int k = 0; k < 8; k++) {
+        double w = 1;
+        for (int d = 0; d < 3; d++)
+            w *= k >> d & 1 ? r[d] : 1 - r[d];
+        if (w == 0)
+            continue;
+        int q[3] = {o[0] + (k & 1) * s, o[1] + (k >> 1 & 1) * s, o[2] + (k >> 2 & 1) * s};
+        v += w * V(a, q);
+    }
+    return (float)v;
+}
+
+/* ---- the mesh ---- */
+
+static bool grow(void **p, size_t *cap, size_t need, size_t size)
+{
+    if (need <= *cap)
+        return true;
+    size_t c = *cap ? *cap : 4096;
+    while (c < need)
+        c *= 2;
+    void *q = realloc(*p, c * size);
+    if (!q)
+        return false;
+    *p = q;
+    *cap = c;
+    return true;
+}
+
+static uint64_t hash64(uint64_t k)
+{
+    k ^= k >> 33, k *= 0xff51afd7ed558ccdull, k ^= k >> 33, k *= 0xc4ceb9fe1a85ec53ull, k ^= k >> 33;
+    return k;
+}
+
+/* A new vertex at pos with normal nrm: its id, or -1 (no memory, or over the limit). */
+static long new_vertex(struct ad *a, const double pos[3], const double nrm[3])
+{
+    size_t v = a->m.n_vert;
+    size_t pc = a->vcap, nc = a->vcap;
+    if (v >= ISO_MAX_VERTICES || !grow((void **)&a->m.pos, &pc, 3 * (v + 1), sizeof(float)) ||
+        !grow((void **)&a->m.nrm, &nc, 3 * (v + 1), sizeof(float))) {
+        a->nomem = true;
+        return -1;
+    }
+    a->vcap = pc < nc ? pc : nc;
+    double len = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+    for (int d = 0; d < 3; d++) {
+        a->m.pos[3 * v + d] = (float)pos[d];
+        a->m.nrm[3 * v + d] = len > 0 ? (float)(nrm[d] / len) : 0.0f;
+    }
+    return (long)a->m.n_vert++;
+}
+
+/* The vertex on the finest edge from node n along axis, with its two values: found or made. */
+static long edge_vertex(struct ad *a, const int n[3], int axis, float v0, float v1)
+{
+    uint64_t key = (uint64_t)at3(a, n[0], n[1], n[2]) * 3 + (uint64_t)axis;
+    if (a->used * 2 >= a->cap) { /* rehash at half full */
+        size_t cap = a->cap ? a->cap * 2 : 1 << 16;
+        uint64_t *keys = malloc(cap * sizeof *keys);
+        uint32_t *slot = malloc(cap * sizeof *slot);
+        if (!keys || !slot) {
+            free(keys), free(slot);
+            a->nomem = true;
+            return -1;
+        }
+        memset(keys, 0xff, cap * sizeof *keys);
+        for (size_t i = 0; i < a->cap; i++)
+            if (a->keys[i] != UINT64_MAX) {
+                size_t h = hash64(a->keys[i]) & (cap - 1);
+                while (keys[h] != UINT64_MAX)
+                    h = (h + 1) & (cap - 1);
+                keys[h] = a->keys[i], slot[h] = a->slot[i];
+            }
+        free(a->keys), free(a->slot);
+        a->keys = keys, a->slot = slot, a->cap = cap;
+    }
+    size_t h = hash64(key) & (a->cap - 1);
+    while (a->keys[h] != UINT64_MAX) {
+        if (a->keys[h] == key)
+            return a->slot[h];
+        h = (h + 1) & (a->cap - 1);
+    }
+    double t = ((double)a->iso - v0) / ((double)v1 - v0);
+    t = t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
+    double pos[3], g0[3], g1[3], nrm[3];
+    int m[3] = {n[0], n[1], n[2]};
+    m[axis]++;
+    grad_norm(a, n[0], n[1], n[2], g0);
+    grad_norm(a, m[0], m[1], m[2], g1);
+    for (int d = 0; d < 3; d++) {
+        pos[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
+        nrm[d] = -((1 - t) * g0[d] + t * g1[d]); /* outward: down the gradient */
+    }
+    long v = new_vertex(a, pos, nrm);
+    if (v < 0)
+        return -1;
+    a->keys[h] = key, a->slot[h] = (uint32_t)v;
+    a->used++;
+    return v;
+}
+
+static void add_triangle(struct ad *a, long p, long q, long r)
+{
+    if (p < 0 || q < 0 || r < 0)
+        return;
+    size_t t = a->m.n_tri;
+    if (!grow((void **)&a->m.tri, &a->tcap, 3 * (t + 1), sizeof(uint32_t))) {
+        a->nomem = true;
+        return;
+    }
+    a->m.tri[3 * t] = (uint32_t)p, a->m.tri[3 * t + 1] = (uint32_t)q, a->m.tri[3 * t + 2] = (uint32_t)r;
+    a->m.n_tri++;
+}
+
+/* ---- one cell ---- */
+
+#define MAX_SEGS 96
+
+struct cell {
+    int o[3], s;
+    float cv[8];             /* the corners' values */
+    int n;                   /* segments */
+    long from[MAX_SEGS], to[MAX_SEGS];
+    int faces[MAX_SEGS];     /* of from[]: the cell faces its edge lies on (bits) */
+};
+
+/* The crossing on the sub-edge from node p to node q (one axis apart): the finest edge where the
+ * values change side, walked from the lower end, and the faces of the cell it lies on. */
+static long crossing(struct ad *a, const struct cell *c, const int p[3], const int q[3], float vp, float vq,
+                     int *faces)
+{
+    int axis = p[0] != q[0] ? 0 : p[1] != q[1] ? 1 : 2;
+    const int *lo = p[axis] < q[axis] ? p : q;
+    int m = abs(q[axis] - p[axis]), n[3] = {lo[0], lo[1], lo[2]};
+    float prev = lo == p ? vp : vq;
+    long v = -1;
+    if (m == 1)
+        v = edge_vertex(a, n, axis, prev, lo == p ? vq : vp);
+    for (int k = 1; k <= m && m > 1; k++) {
+        int n1[3] = {n[0], n[1], n[2]};
+        n1[axis]++;
+        float cur = V(a, n1);
+        if ((prev > a->iso) != (cur > a->iso)) {
+            v = edge_vertex(a, n, axis, prev, cur);
+            break;
+        }
+        prev = cur;
+        n[axis]++;
+    }
+    *faces = 0;
+    for (int d = 0; d < 3; d++)
+        if (d != axis) {
+            *faces |= lo[d] == c->o[d] ? 1 << (2 * d) : 0;
+            *faces |= lo[d] == c->o[d] + c->s ? 1 << (2 * d + 1) : 0;
+        }
+    return v;
+}
+
+static void add_seg(struct cell *c, long from, int from_faces, long to)
+{
+    if (c->n < MAX_SEGS) {
+        c->from[c->n] = from, c->to[c->n] = to, c->faces[c->n] = from_faces;
+        c->n++;
+    }
+}
+
+/* The segments of face f cut k x k: per sub-square as mc.c's faces (entry to exit, walking it
+ * counter-clockwise; an ambiguous one by the asymptotic decider over its values in x, y, z order). */
+static void face_segments(struct ad *a, struct cell *c, int f, int k)
+{
+    int axis = f >> 1, side = f & 1, h = c->s / k;
+    int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2;
+    for (int j = 0; j < k; j++)
+        for (int i = 0; i < k; i++) {
+            int p[4][3];
+            float v[4];
+            double g[4];
+            for (int q = 0; q < 4; q++) {
+                int cc = FACE_CCW[f][q], b[3] = {cc & 1, cc >> 1 & 1, cc >> 2 & 1};
+                p[q][axis] = c->o[axis] + side * c->s;
+                p[q][u] = c->o[u] + (i + b[u]) * h;
+                p[q][w] = c->o[w] + (j + b[w]) * h;
+                bool corner = (i + b[u]) % k == 0 && (j + b[w]) % k == 0; /* a corner of the cell: known */
+                v[q] = corner ? c->cv[(p[q][0] > c->o[0]) | (p[q][1] > c->o[1]) << 1 | (p[q][2] > c->o[2]) << 2] : V(a, p[q]);
+                g[b[u] + 2 * b[w]] = (double)v[q] - a->iso;
+            }
+            long cross[4];
+            int faces[4], entry[4], n = 0;
+            for (int q = 0; q < 4; q++) {
+                bool sa = v[q] > a->iso, sb = v[(q + 1) % 4] > a->iso;
+                if (sa != sb) {
+                    cross[n] = crossing(a, c, p[q], p[(q + 1) % 4], v[q], v[(q + 1) % 4], &faces[n]);
+                    entry[n++] = sb;
+                }
+            }
+            if (n == 2) {
+                int e = entry[0] ? 0 : 1;
+                add_seg(c, cross[e], faces[e], cross[1 - e]);
+            } else if (n == 4) {
+                int r = entry[0] ? 0 : 1;
+                int e1 = r, x1 = (r + 1) % 4, e2 = (r + 2) % 4, x2 = (r + 3) % 4;
+                double det = g[0] * g[3] - g[1] * g[2];
+                if (g[0] > 0 ? det > 0 : det < 0) { /* inside corners joined: the segments cut off the outside ones */
+                    add_seg(c, cross[e2], faces[e2], cross[x1]);
+                    add_seg(c, cross[e1], faces[e1], cross[x2]);
+                } else {
+                    add_seg(c, cross[e1], faces[e1], cross[x1]);
+                    add_seg(c, cross[e2], faces[e2], cross[x2]);
+                }
+            }
+        }
+}
+
+/* The cell's loops, each fanned from a vertex none of whose diagonals joins two vertices of one
+ * face, else from a vertex at its centre. */
+static void fan_loops(struct ad *a, struct cell *c)
+{
+    bool used[MAX_SEGS] = {false};
+    for (int s0 = 0; s0 < c->n; s0++) {
+        if (used[s0])
+            continue;
+        long loop[MAX_SEGS];
+        int faces[MAX_SEGS], n = 0;
+        for (int s = s0; s >= 0 && !used[s] && n < MAX_SEGS;) {
+            used[s] = true;
+            loop[n] = c->from[s], faces[n++] = c->faces[s];
+            int next = -1;
+            for (int t = 0; t < c->n && next < 0; t++)
+                if (!used[t] && c->from[t] == c->to[s])
+                    next = t;
+            s = next;
+        }
+        if (n < 3)
+            continue;
+        int apex = -1;
+        for (int p = 0; p < n && apex < 0; p++) {
+            bool ok = true;
+            for (int k = 2; k + 1 < n && ok; k++)
+                ok = !(faces[p] & faces[(p + k) % n]);
+            if (ok)
+                apex = p;
+        }
+        if (apex >= 0) {
+            for (int k = 1; k + 1 < n; k++)
+                add_triangle(a, loop[apex], loop[(apex + k) % n], loop[(apex + k + 1) % n]);
+            continue;
+        }
+        double pos[3] = {0, 0, 0}, nrm[3] = {0, 0, 0};
+        for (int k = 0; k < n; k++)
+            for (int d = 0; d < 3; d++) {
+                if (loop[k] < 0)
+                    continue;
+                pos[d] += a->m.pos[3 * loop[k] + d] / n;
+                nrm[d] += a->m.nrm[3 * loop[k] + d];
+            }
+        long centre = new_vertex(a, pos, nrm);
+        for (int k = 0; k < n; k++)
+            add_triangle(a, centre, loop[k], loop[(k + 1) % n]);
+    }
+}
+
+/* Cell of level l at o, its corners' values cv (NULL: read them): its faces cut where the
+ * neighbour across is finer. */
+static void polygonise(struct ad *a, const int o[3], int l, const float *known)
+{
+    int s = 1 << (l - 1), in = 0;
+    float cv[8];
+    for (int k = 0; k < 8; k++) {
+        int p[3] = {o[0] + (k & 1) * s, o[1] + (k >> 1 & 1) * s, o[2] + (k >> 2 & 1) * s};
+        cv[k] = known ? known[k] : V(a, p);
+        in += cv[k] > a->iso;
+    }
+    if (in == 0 || in == 8)
+        return;
+    struct cell c;
+    memcpy(c.o, o, sizeof c.o);
+    memcpy(c.cv, cv, sizeof c.cv);
+    c.s = s;
+    c.n = 0;
+    a->st->cells[l]++;
+    for (int f = 0; f < 6; f++) {
+        int k = 1;
+        if (l >= 2) {
+            int axis = f >> 1, b[3] = {o[0] >> (l - 1), o[1] >> (l - 1), o[2] >> (l - 1)};
+            b[axis] += f & 1 ? 1 : -1;
+            if (b[axis] >= 0 && b[axis] < a->nb[l][axis] && !a->M[l][block(a, l, b[0], b[1], b[2])])
+                k = 2;
+        }
+        face_segments(a, &c, f, k);
+    }
+    fan_loops(a, &c);
+}
+
+/* The cells of level-2 block b (its own level-1 cells, or the cell it starts). */
+static void block_cells(struct ad *a, const int b[3])
+{
+    size_t at = block(a, 2, b[0], b[1], b[2]);
+    int lam = a->lev2[at];
+    if (lam >= 2) {
+        int m = (1 << (lam - 2)) - 1;
+        if (!(b[0] & m) && !(b[1] & m) && !(b[2] & m))
+            polygonise(a, (int[3]){2 * b[0], 2 * b[1], 2 * b[2]}, lam, NULL);
+        return;
+    }
+    /* level-1 cells: where the samples change side, or a coarser cell's values may reach; the
+     * block's 27 values read once (the samples themselves where every neighbour is level 1) */
+    bool calm = a->calm2[at], look = a->mixed2[at];
+    for (int z = b[2] - 1; z <= b[2] + 1 && !look && !calm; z++)
+        for (int y = b[1] - 1; y <= b[1] + 1 && !look; y++)
+            for (int x = b[0] - 1; x <= b[0] + 1 && !look; x++)
+                if (x >= 0 && y >= 0 && z >= 0 && x < a->nb[2][0] && y < a->nb[2][1] && z < a->nb[2][2])
+                    look = a->lev2[block(a, 2, x, y, z)] >= 2;
+    if (!look)
+        return;
+    float val[27];
+    for (int z = 0; z < 3; z++)
+        for (int y = 0; y < 3; y++)
+            for (int x = 0; x < 3; x++) {
+                int p[3] = {2 * b[0] + x, 2 * b[1] + y, 2 * b[2] + z};
+                bool in = p[0] < a->N[0] && p[1] < a->N[1] && p[2] < a->N[2];
+                val[x + 3 * (y + 3 * z)] = !in ? 0 : calm ? F(a, p[0], p[1], p[2]) : V(a, p);
+            }
+    for (int k = 0; k < 8; k++) {
+        int o[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
+        if (o[0] + 1 >= a->N[0] || o[1] + 1 >= a->N[1] || o[2] + 1 >= a->N[2])
+            continue;
+        float cv[8];
+        for (int q = 0; q < 8; q++)
+            cv[q] = val[(k & 1) + (q & 1) + 3 * ((k >> 1 & 1) + (q >> 1 & 1) + 3 * ((k >> 2 & 1) + (q >> 2 & 1)))];
+        polygonise(a, o, 1, cv);
+    }
+}
+
+static void ad_free(struct ad *a)
+{
+    free(a->F);
+    for (int l = 0; l <= ISO_MAX_LEVELS; l++)
+        free(a->M[l]);
+    free(a->lev2);
+    free(a->mixed2);
+    free(a->calm2);
+    free(a->V2);
+    free(a->keys);
+    free(a->slot);
+    trimesh_free(&a->m);
+}
+
+int iso_extract_adaptive(const struct iso_grid *g, const struct iso_opts *o, int levels, double max_error,
+                         const struct sf_progress *pr, struct trimesh *out, struct iso_adapt_stats *st,
+                         struct sf_err *err)
+{
+    memset(out, 0, sizeof *out);
+    memset(st, 0, sizeof *st);
+    if (levels < 1 || levels > ISO_MAX_LEVELS)
+        return sf_fail(err, SF_EINVAL, "?levels", "levels is 1 to %d", ISO_MAX_LEVELS);
+    if (!(max_error >= 0) || !isfinite(max_error))
+        return sf_fail(err, SF_EINVAL, "?max_error", "max_error is a finite length, 0 or more");
+    if (g->nx < 2 || g->ny < 2 || g->nz < 2)
+        return sf_fail(err, SF_EINVAL, "?dims", "a volume has at least 2 samples on every axis");
+    if (!isfinite(o->iso))
+        return sf_fail(err, SF_EINVAL, "?iso", "iso is a finite number");
+    struct ad a = {.shift = o->closed ? 1 : 0, .iso = (float)o->iso, .max_err = max_error, .L = levels < 2 ? 2 : levels,
+                   .st = st};
+    int nn[3] = {g->nx, g->ny, g->nz};
+    for (int d = 0; d < 3; d++) {
+        a.N[d] = nn[d] + 2 * a.shift;
+        a.sp[d] = g->spacing[d];
+        a.org[d] = g->origin[d] - a.shift * g->spacing[d];
+    }
+    if (levels == 1)
+        a.max_err = -1; /* nothing merges */
+    size_t n = (size_t)a.N[0] * a.N[1] * a.N[2];
+    float pad = o->closed ? (float)fmin(o->iso - 1, iso_grid_min(g)) : 0;
+    if (!(a.F = malloc(n * sizeof *a.F))) {
+        ad_free(&a);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory for the volume's %zu samples", n);
+    }
+    for (int z = 0; z < a.N[2]; z++)
+        for (int y = 0; y < a.N[1]; y++) {
+            float *row = a.F + at3(&a, 0, y, z);
+            int ry = y - a.shift, rz = z - a.shift;
+            if (ry < 0 || ry >= g->ny || rz < 0 || rz >= g->nz) {
+                for (int x = 0; x < a.N[0]; x++)
+                    row[x] = pad;
+                continue;
+            }
+            iso_grid_row(g, ry, rz, row + a.shift);
+            if (a.shift)
+                row[0] = row[a.N[0] - 1] = pad;
+        }
+    int rc = 0;
+    if (build_masks(&a)) {
+        ad_free(&a);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    }
+    for (int d = 0; d < 3; d++)
+        a.n2[d] = (a.N[d] - 1) / 2 + 1;
+    float *v2 = malloc(sizeof *v2 * a.n2[0] * a.n2[1] * a.n2[2]);
+    if (!v2) {
+        ad_free(&a);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    }
+    int p[3];
+    for (p[2] = 0; p[2] < a.N[2]; p[2] += 2)
+        for (p[1] = 0; p[1] < a.N[1]; p[1] += 2)
+            for (p[0] = 0; p[0] < a.N[0]; p[0] += 2)
+                v2[at2(&a, p)] = V(&a, p);
+    a.V2 = v2;
+    int b[3];
+    for (b[2] = 0; b[2] < a.nb[2][2] && !rc && !a.nomem; b[2]++) {
+        for (b[1] = 0; b[1] < a.nb[2][1]; b[1]++)
+            for (b[0] = 0; b[0] < a.nb[2][0]; b[0]++)
+                block_cells(&a, b);
+        rc = sf_poll(pr, (b[2] + 1.0) / a.nb[2][2], err);
+    }
+    if (!rc && a.nomem)
+        rc = sf_fail(err, a.m.n_vert >= ISO_MAX_VERTICES ? SF_ELIMIT : SF_ENOMEM, "",
+                     "the mesh would take more memory than there is (or over %u vertices)", ISO_MAX_VERTICES);
+    if (!rc) {
+        *out = a.m;
+        memset(&a.m, 0, sizeof a.m);
+    }
+    ad_free(&a);
+    return rc;
+}

@@ -1,0 +1,217 @@
+/* test_adapt.c - the adaptive hierarchy of core/iso (adapt.h): a closed, consistently oriented
+ * 2-manifold at every mix of levels (analytic fields, random fields, the shared CT crop), levels
+ * that really mix, the error bound against an analytic surface, the same mesh twice, and
+ * max_error 0 giving marching cubes' surface. */
+#include "../../../core/iso/adapt.h"
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "../../unit.h"
+
+static bool extract(const struct iso_grid *g, double iso, int levels, double max_error, struct trimesh *m,
+                    struct trimesh_stats *st, struct iso_adapt_stats *as)
+{
+    struct iso_opts o = {iso, true, true};
+    struct sf_err err = {0};
+    int rc = iso_extract_adaptive(g, &o, levels, max_error, NULL, m, as, &err);
+    if (!rc)
+        rc = trimesh_stats(m, st, &err);
+    if (rc)
+        fprintf(stderr, "  extraction failed: %s\n", err.message);
+    return rc == 0;
+}
+
+static bool closed_manifold(const struct trimesh_stats *st)
+{
+    bool ok = st->boundary_edges == 0 && st->nonmanifold_edges == 0 && st->degenerate == 0;
+    if (!ok)
+        fprintf(stderr, "  boundary %ld, non-manifold %ld, degenerate %ld\n", st->boundary_edges, st->nonmanifold_edges,
+                st->degenerate);
+    return ok;
+}
+
+static struct iso_grid grid(int n, const float *v, double h)
+{
+    return (struct iso_grid){n, n, n, ISO_F32, v, {h, h, h}, {0, 0, 0}};
+}
+
+static double rnd(void)
+{
+    static unsigned long long s = 0x9e3779b97f4a7c15ull;
+    s ^= s << 13, s ^= s >> 7, s ^= s << 17;
+    return (double)(s >> 11) / 9007199254740992.0;
+}
+
+/* a sphere's distance field, a torus's, and a wavy field of many pieces */
+enum { N = 41 };
+static float field[3][N * N * N];
+static void fields(void)
+{
+    for (int z = 0; z < N; z++)
+        for (int y = 0; y < N; y++)
+            for (int x = 0; x < N; x++) {
+                double p[3] = {x - 20.3, y - 19.7, z - 20.1}, r = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+                double q = sqrt(p[0] * p[0] + p[1] * p[1]) - 11;
+                size_t at = (size_t)x + N * ((size_t)y + N * z);
+                field[0][at] = (float)(15 - r);
+                field[1][at] = (float)(4.5 - sqrt(q * q + p[2] * p[2]));
+                field[2][at] = (float)(sin(x * 0.37) * cos(y * 0.29) + sin(z * 0.41 + x * 0.1) - 0.2);
+            }
+}
+
+TEST(closed_at_every_mix_of_levels)
+{
+    fields();
+    const double errs[] = {0, 0.05, 0.3, 1, 1e9};
+    for (int f = 0; f < 3; f++)
+        for (int levels = 2; levels <= ISO_MAX_LEVELS; levels++)
+            for (int e = 0; e < 5; e++) {
+                struct iso_grid g = grid(N, field[f], 1);
+                struct trimesh m;
+                struct trimesh_stats st;
+                struct iso_adapt_stats as;
+                CHECK(extract(&g, 0, levels, errs[e], &m, &st, &as));
+                CHECK(closed_manifold(&st));
+                CHECK(st.euler % 2 == 0);
+                if (f < 2 && errs[e] <= 1) /* (a huge error may close the torus's hole) */
+                    CHECK(st.components == 1 && st.euler == (f == 0 ? 2 : 0));
+                trimesh_free(&m);
+            }
+}
+
+TEST(levels_really_mix)
+{
+    struct iso_grid g = grid(N, field[2], 1);
+    struct trimesh m;
+    struct trimesh_stats st;
+    struct iso_adapt_stats as;
+    CHECK(extract(&g, 0, 4, 0.3, &m, &st, &as));
+    CHECK(as.cells[1] > 0 && as.cells[2] > 0 && as.cells[3] > 0);
+    CHECK(as.max_estimate <= 0.3);
+    trimesh_free(&m);
+    g = grid(N, field[0], 1); /* the sphere, coarse cells all over: fewer triangles, level by level */
+    size_t prev = SIZE_MAX;
+    for (int levels = 1; levels <= 4; levels++) {
+        CHECK(extract(&g, 0, levels, 1e9, &m, &st, &as));
+        CHECK(m.n_tri < prev);
+        prev = m.n_tri;
+        trimesh_free(&m);
+    }
+}
+
+TEST(random_fields)
+{
+    enum { R = 17 };
+    static float v[R * R * R];
+    for (int t = 0; t < 30; t++) {
+        for (int k = 0; k < R * R * R; k++)
+            v[k] = (float)(rnd() < 0.5 ? rnd() : -rnd());
+        if (t % 3 == 1) /* ties: samples equal to iso */
+            for (int k = 0; k < R * R * R; k += 7)
+                v[k] = 0;
+        struct iso_grid g = grid(R, v, 0.5 + t * 0.1);
+        for (int levels = 2; levels <= 4; levels++) {
+            struct trimesh m;
+            struct trimesh_stats st;
+            struct iso_adapt_stats as;
+            CHECK(extract(&g, 0, levels, t % 2 ? 1e9 : 0.2, &m, &st, &as));
+            CHECK(closed_manifold(&st));
+            trimesh_free(&m);
+        }
+    }
+}
+
+TEST(within_max_error_of_the_sphere)
+{
+    /* a sphere of radius 15 sampled with spacing 0.5 mm: every vertex near max_error (plus the
+     * full-resolution surface's own error) of it */
+    struct iso_grid g = grid(N, field[0], 0.5);
+    for (double me = 0.05; me < 0.6; me *= 2) {
+        struct trimesh m;
+        struct trimesh_stats st;
+        struct iso_adapt_stats as;
+        CHECK(extract(&g, 0, 3, me, &m, &st, &as));
+        double worst = 0;
+        for (size_t v = 0; v < m.n_vert; v++) {
+            double p[3];
+            for (int d = 0; d < 3; d++)
+                p[d] = m.pos[3 * v + d] / 0.5 - (d == 0 ? 20.3 : d == 1 ? 19.7 : 20.1);
+            double r = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+            worst = fmax(worst, fabs(r - 15) * 0.5);
+        }
+        /* the test is first order: measured here within 1.5 max_error (the bench measures the CT) */
+        CHECK(worst <= 1.5 * me + 0.01);
+        CHECK(as.cells[2] + as.cells[3] > 0);
+        trimesh_free(&m);
+    }
+}
+
+static int cmp3(const void *p, const void *q)
+{
+    const float *a = p, *b = q;
+    for (int d = 0; d < 3; d++)
+        if (a[d] != b[d])
+            return a[d] < b[d] ? -1 : 1;
+    return 0;
+}
+
+TEST(the_same_mesh_twice_and_mc_at_zero_error)
+{
+    struct iso_grid g = grid(N, field[1], 1);
+    struct trimesh a, b, mc;
+    struct trimesh_stats sa, sb, smc;
+    struct iso_adapt_stats as;
+    CHECK(extract(&g, 0, 3, 0.2, &a, &sa, &as));
+    CHECK(extract(&g, 0, 3, 0.2, &b, &sb, &as));
+    CHECK(a.n_tri == b.n_tri && a.n_vert == b.n_vert);
+    CHECK(!memcmp(a.tri, b.tri, 3 * sizeof *a.tri * a.n_tri) && !memcmp(a.pos, b.pos, 3 * sizeof *a.pos * a.n_vert));
+    trimesh_free(&a);
+    trimesh_free(&b);
+    /* nothing that holds the surface merges at 0: the cells of marching cubes */
+    struct sf_err err = {0};
+    struct iso_opts o = {0, true, true};
+    CHECK(extract(&g, 0, 4, 0, &a, &sa, &as));
+    CHECK(iso_extract(&g, &o, NULL, &mc, &err) == 0 && trimesh_stats(&mc, &smc, &err) == 0);
+    CHECK(as.cells[2] == 0 && as.cells[3] == 0);
+    CHECK(a.n_tri == mc.n_tri && a.n_vert == mc.n_vert); /* the same vertices; loops fanned from other apexes */
+    qsort(a.pos, a.n_vert, 3 * sizeof *a.pos, cmp3);
+    qsort(mc.pos, mc.n_vert, 3 * sizeof *mc.pos, cmp3);
+    CHECK(a.n_vert == mc.n_vert && !memcmp(a.pos, mc.pos, 3 * sizeof *a.pos * a.n_vert));
+    CHECK_NEAR(sa.volume, smc.volume, 1e-3 * smc.volume);
+    trimesh_free(&a);
+    trimesh_free(&mc);
+}
+
+TEST(ct_crop_at_every_level)
+{
+    size_t len;
+    char *raw = unit_data("volumes", "ct_head_crop64_int16.raw", &len);
+    CHECK(raw && len == 64 * 64 * 64 * 2);
+    if (!raw)
+        return;
+    struct iso_grid g = {64, 64, 64, ISO_I16, raw, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
+    for (int levels = 2; levels <= 4; levels++)
+        for (double me = 0.25; me <= 4; me *= 4) {
+            struct trimesh m;
+            struct trimesh_stats st;
+            struct iso_adapt_stats as;
+            CHECK(extract(&g, 226.5, levels, me, &m, &st, &as));
+            CHECK(closed_manifold(&st));
+            CHECK(as.cells[2] > 0);
+            trimesh_free(&m);
+        }
+    free(raw);
+}
+
+int main(void)
+{
+    iso_init();
+    RUN(closed_at_every_mix_of_levels);
+    RUN(levels_really_mix);
+    RUN(random_fields);
+    RUN(within_max_error_of_the_sphere);
+    RUN(the_same_mesh_twice_and_mc_at_zero_error);
+    RUN(ct_crop_at_every_level);
+    UNIT_END();
+}
