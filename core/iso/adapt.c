@@ -22,10 +22,6 @@ struct ad {
     uint8_t *M[ISO_MAX_LEVELS + 1];    /* [l][block]: covered by a cell of level >= l (l >= 2) */
     uint8_t *lev2;                     /* each level-2 block's cell level (1: cut into level-1 cells) */
     uint8_t *mixed2;                   /* level-2 blocks whose samples are on both sides of iso */
-    uint8_t *calm2;                    /* level-2 blocks that, with the 26 round them, are level-1 cells */
-    float *V2;                         /* V() at the nodes of even coordinates (every corner of a cell of
-                                        * level 2 or more), once filled */
-    int n2[3];
     /* the mesh: vertices keyed by the finest edge they lie on */
     uint64_t *keys;
     uint32_t *slot;
@@ -61,85 +57,45 @@ static double grad_norm(const struct ad *a, int x, int y, int z, double g[3])
 
 /* ---- the hierarchy ---- */
 
-/* The coarse cell's trilinear interpolant of corners c at (u, v, w) in [0, 1]^3, and its gradient
- * (per cell unit) into g. */
-static double trilinear(const double c[8], double u, double v, double w, double g[3])
+/* Distance from p to triangle abc. */
+static double tri_dist(const double p[3], const double a[3], const double b[3], const double c[3])
 {
-    double x00 = c[0] + u * (c[1] - c[0]), x10 = c[2] + u * (c[3] - c[2]), x01 = c[4] + u * (c[5] - c[4]),
-           x11 = c[6] + u * (c[7] - c[6]);
-    double y0 = x00 + v * (x10 - x00), y1 = x01 + v * (x11 - x01);
-    double dx0 = (1 - v) * (c[1] - c[0]) + v * (c[3] - c[2]), dx1 = (1 - v) * (c[5] - c[4]) + v * (c[7] - c[6]);
-    g[0] = (1 - w) * dx0 + w * dx1;
-    g[1] = (1 - w) * (x10 - x00) + w * (x11 - x01);
-    g[2] = y1 - y0;
-    return y0 + w * (y1 - y0);
+    double ab[3], ac[3], ap[3], q[3];
+    for (int d = 0; d < 3; d++)
+        ab[d] = b[d] - a[d], ac[d] = c[d] - a[d], ap[d] = p[d] - a[d];
+#define DOT(u, v) ((u)[0] * (v)[0] + (u)[1] * (v)[1] + (u)[2] * (v)[2])
+    double d1 = DOT(ab, ap), d2 = DOT(ac, ap), v, w;
+    double bp[3] = {p[0] - b[0], p[1] - b[1], p[2] - b[2]}, cp[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
+    double d3 = DOT(ab, bp), d4 = DOT(ac, bp), d5 = DOT(ab, cp), d6 = DOT(ac, cp);
+    double va = d3 * d6 - d5 * d4, vb = d5 * d2 - d1 * d6, vc = d1 * d4 - d3 * d2;
+    if (d1 <= 0 && d2 <= 0)
+        v = 0, w = 0;
+    else if (d3 >= 0 && d4 <= d3)
+        v = 1, w = 0;
+    else if (vc <= 0 && d1 >= 0 && d3 <= 0)
+        v = d1 / (d1 - d3), w = 0;
+    else if (d6 >= 0 && d5 <= d6)
+        v = 0, w = 1;
+    else if (vb <= 0 && d2 >= 0 && d6 <= 0)
+        v = 0, w = d2 / (d2 - d6);
+    else if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6)), v = 1 - w;
+    else {
+        double den = 1 / (va + vb + vc);
+        v = vb * den, w = vc * den;
+    }
+    for (int d = 0; d < 3; d++)
+        q[d] = a[d] + v * ab[d] + w * ac[d] - p[d];
+    return sqrt(DOT(q, q));
+#undef DOT
 }
 
-/* The error estimate of block b of level l, both ways and where the surfaces are: each crossing
- * of the samples on the block's fine edges is measured against the coarse interpolant (|c - iso|
- * / |grad c|), and each crossing of the coarse interpolant on them against the samples' linear
- * interpolant (|f - iso| / |grad f|, the gradient by central differences): the first-order
- * distances from each surface's vertices to the other surface. 0 when every sample is on one
- * side (and so every corner); INFINITY where a gradient vanishes at a crossing. */
-/* What the block's values do to the cells round it: a finer neighbour's edge from a node n on
- * the block's face out to the sample beyond it reads the coarse value c(n) at n (the seed's
- * rule), which moves its crossing; each way, the crossing of one is measured against the other's
- * linear interpolant, |value| / |grad f|. */
-static double outward_error(const struct ad *a, const int o[3], int s, const double c[8], double worst)
-{
-    double iso = a->iso;
-    for (int z = 0; z <= s; z++)
-        for (int y = 0; y <= s; y++)
-            for (int x = 0; x <= s; x++) {
-                int r[3] = {x, y, z}, faces = 0;
-                for (int d = 0; d < 3; d++)
-                    faces |= (r[d] == 0) << (2 * d) | (r[d] == s) << (2 * d + 1);
-                if (!faces)
-                    continue;
-                int n[3] = {o[0] + x, o[1] + y, o[2] + z};
-                double gc[3], m = trilinear(c, (double)x / s, (double)y / s, (double)z / s, gc) - iso;
-                double f = F(a, n[0], n[1], n[2]) - iso;
-                for (int fc = 0; fc < 6; fc++) {
-                    if (!(faces >> fc & 1))
-                        continue;
-                    int q[3] = {n[0], n[1], n[2]}, d = fc >> 1;
-                    q[d] += fc & 1 ? 1 : -1;
-                    if (q[d] < 0 || q[d] >= a->N[d])
-                        continue;
-                    double bq = F(a, q[0], q[1], q[2]) - iso, e = 0;
-                    bool cm = (m > 0) != (bq > 0), cf = (f > 0) != (bq > 0);
-                    if (!cm && !cf)
-                        continue;
-                    double g0[3], g1[3], gl = 0;
-                    grad_norm(a, n[0], n[1], n[2], g0);
-                    grad_norm(a, q[0], q[1], q[2], g1);
-                    for (int k = 0; k < 3; k++)
-                        gl += (0.5 * (g0[k] + g1[k])) * (0.5 * (g0[k] + g1[k]));
-                    gl = sqrt(gl);
-                    if (cm) {
-                        double t = m / (m - bq);
-                        e = fmax(e, gl > 0 ? fabs(f + t * (bq - f)) / gl : INFINITY);
-                    }
-                    if (cf) {
-                        double t = f / (f - bq);
-                        e = fmax(e, gl > 0 ? fabs(m + t * (bq - m)) / gl : INFINITY);
-                    }
-                    if (e > worst)
-                        worst = e;
-                    if (worst > a->max_err)
-                        return worst;
-                }
-            }
-    return worst;
-}
-
-/* The error estimate of block b of level l, both ways and where the surfaces are: each crossing
- * of the samples on the block's fine edges is measured against the coarse interpolant (|c - iso|
- * / |grad c|), and each crossing of the coarse interpolant on them against the samples' linear
- * interpolant (|f - iso| / |grad f|, the gradient by central differences): the first-order
- * distances from each surface's vertices to the other surface; then what its values do to the
- * finer cells round it (outward_error). 0 when every sample of the block and of the layer round
- * it is on one side; INFINITY where a gradient vanishes at a crossing. */
+/* The error estimate of block b of level l, merged into one cell: that cell's surface is a
+ * polygon through the samples' own crossings on its twelve edges (each edge must cross at most
+ * once: else INFINITY, a feature finer than the cell), so its vertices lie on the full-resolution
+ * surface, and what is measured is the distance from every full-resolution vertex in the block
+ * (the crossings of its fine edges) to that polygon: INFINITY when the cell would have none. 0
+ * when every sample of the block and of the layer round it is on one side. */
 static double block_error(const struct ad *a, int l, const int b[3], bool *mixed)
 {
     int s = 1 << (l - 1), o[3] = {b[0] * s, b[1] * s, b[2] * s};
@@ -159,47 +115,98 @@ static double block_error(const struct ad *a, int l, const int b[3], bool *mixed
         *mixed = in && out;
     if (!(near_in && near_out))
         return 0;
-    double c[8], worst = 0, iso = a->iso;
-    for (int k = 0; k < 8; k++)
-        c[k] = F(a, o[0] + (k & 1) * s, o[1] + (k >> 1 & 1) * s, o[2] + (k >> 2 & 1) * s);
-    for (int z = 0; z <= s && in && out; z++)
+    double iso = a->iso, c[8], ep[8][8][3]; /* the crossing on the edge between corners i < j, in mm */
+    bool st[8];
+    for (int k = 0; k < 8; k++) {
+        c[k] = F(a, o[0] + (k & 1) * s, o[1] + (k >> 1 & 1) * s, o[2] + (k >> 2 & 1) * s) - iso;
+        st[k] = c[k] > 0;
+    }
+    for (int i = 0; i < 8; i++)
+        for (int axis = 0; axis < 3; axis++) {
+            int j = i | 1 << axis;
+            if (j == i)
+                continue;
+            int p[3] = {o[0] + (i & 1) * s, o[1] + (i >> 1 & 1) * s, o[2] + (i >> 2 & 1) * s}, changes = 0;
+            double prev = c[i];
+            for (int t = 1; t <= s; t++) {
+                int q[3] = {p[0], p[1], p[2]};
+                q[axis] += t;
+                double cur = F(a, q[0], q[1], q[2]) - iso;
+                if ((prev > 0) != (cur > 0)) {
+                    if (++changes > 1)
+                        return INFINITY;
+                    double f = prev / (prev - cur);
+                    for (int d = 0; d < 3; d++)
+                        ep[i][j][d] = a->org[d] + a->sp[d] * (q[d] - (d == axis ? 1 - f : 0));
+                }
+                prev = cur;
+            }
+        }
+    /* the merged cell's polygon: faces' segments between corner-edge crossings, chained, fanned */
+    int next[8][8], tri_n = 0;
+    double tris[16][3][3];
+    memset(next, -1, sizeof next);
+    for (int f = 0; f < 6; f++) {
+        int axis = f >> 1, u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2, cross[4], entry[4], n = 0;
+        double g[4];
+        for (int q = 0; q < 4; q++) {
+            int cc = FACE_CCW[f][q], dd = FACE_CCW[f][(q + 1) % 4];
+            g[(cc >> u & 1) + 2 * (cc >> w & 1)] = c[cc];
+            if (st[cc] != st[dd]) {
+                cross[n] = (cc < dd ? cc : dd) * 8 + (cc < dd ? dd : cc);
+                entry[n++] = st[dd];
+            }
+        }
+        if (n == 2) {
+            int e = entry[0] ? 0 : 1;
+            next[cross[e] / 8][cross[e] % 8] = cross[1 - e];
+        } else if (n == 4) {
+            int r = entry[0] ? 0 : 1, e1 = cross[r], x1 = cross[(r + 1) % 4], e2 = cross[(r + 2) % 4], x2 = cross[(r + 3) % 4];
+            double det = g[0] * g[3] - g[1] * g[2];
+            bool joined = g[0] > 0 ? det > 0 : det < 0;
+            next[(joined ? e2 : e1) / 8][(joined ? e2 : e1) % 8] = x1;
+            next[(joined ? e1 : e2) / 8][(joined ? e1 : e2) % 8] = x2;
+        }
+    }
+    for (int i = 0; i < 8; i++)
+        for (int j = i + 1; j < 8; j++) {
+            if (next[i][j] < 0)
+                continue;
+            int loop[12], n = 0;
+            for (int e = i * 8 + j; e >= 0 && n < 12;) {
+                loop[n++] = e;
+                int nx = next[e / 8][e % 8];
+                next[e / 8][e % 8] = -1;
+                e = nx;
+            }
+            for (int k = 1; k + 1 < n && tri_n < 16; k++, tri_n++)
+                for (int d = 0; d < 3; d++) {
+                    tris[tri_n][0][d] = ep[loop[0] / 8][loop[0] % 8][d];
+                    tris[tri_n][1][d] = ep[loop[k] / 8][loop[k] % 8][d];
+                    tris[tri_n][2][d] = ep[loop[k + 1] / 8][loop[k + 1] % 8][d];
+                }
+        }
+    double worst = 0;
+    for (int z = 0; z <= s; z++)
         for (int y = 0; y <= s; y++)
             for (int x = 0; x <= s; x++)
                 for (int axis = 0; axis < 3; axis++) {
-                    int p[3] = {x, y, z}, q[3] = {x, y, z};
-                    if (++q[axis] > s)
+                    int p[3] = {o[0] + x, o[1] + y, o[2] + z}, q[3] = {p[0], p[1], p[2]};
+                    if (++q[axis] > o[axis] + s)
                         continue;
-                    double f0 = F(a, o[0] + p[0], o[1] + p[1], o[2] + p[2]) - iso,
-                           f1 = F(a, o[0] + q[0], o[1] + q[1], o[2] + q[2]) - iso, g[3], gc[3];
-                    double c0 = trilinear(c, (double)p[0] / s, (double)p[1] / s, (double)p[2] / s, gc) - iso;
-                    double c1 = trilinear(c, (double)q[0] / s, (double)q[1] / s, (double)q[2] / s, gc) - iso;
-                    double e = 0;
-                    if ((f0 > 0) != (f1 > 0)) { /* a vertex of the fine surface, against the coarse one */
-                        double t = f0 / (f0 - f1), r[3] = {p[0], p[1], p[2]}, gl = 0;
-                        r[axis] += t;
-                        double cv = trilinear(c, r[0] / s, r[1] / s, r[2] / s, gc) - iso;
-                        for (int d = 0; d < 3; d++)
-                            gl += gc[d] / (s * a->sp[d]) * (gc[d] / (s * a->sp[d]));
-                        e = gl > 0 ? fabs(cv) / sqrt(gl) : INFINITY;
-                    }
-                    if ((c0 > 0) != (c1 > 0)) { /* a vertex of the coarse surface, against the fine one */
-                        double t = c0 / (c0 - c1), g0[3], g1[3], gl = 0;
-                        grad_norm(a, o[0] + p[0], o[1] + p[1], o[2] + p[2], g0);
-                        grad_norm(a, o[0] + q[0], o[1] + q[1], o[2] + q[2], g1);
-                        for (int d = 0; d < 3; d++) {
-                            g[d] = (1 - t) * g0[d] + t * g1[d];
-                            gl += g[d] * g[d];
-                        }
-                        double fv = f0 + t * (f1 - f0);
-                        double e2 = gl > 0 ? fabs(fv) / sqrt(gl) : INFINITY;
-                        e = e2 > e ? e2 : e;
-                    }
-                    if (e > worst)
-                        worst = e;
+                    double f0 = F(a, p[0], p[1], p[2]) - iso, f1 = F(a, q[0], q[1], q[2]) - iso;
+                    if ((f0 > 0) == (f1 > 0))
+                        continue;
+                    double t = f0 / (f0 - f1), v[3], e = tri_n ? INFINITY : INFINITY;
+                    for (int d = 0; d < 3; d++)
+                        v[d] = a->org[d] + a->sp[d] * (p[d] + (d == axis ? t : 0));
+                    for (int k = 0; k < tri_n; k++)
+                        e = fmin(e, tri_dist(v, tris[k][0], tris[k][1], tris[k][2]));
+                    worst = fmax(worst, e);
                     if (worst > a->max_err)
                         return worst;
                 }
-    return outward_error(a, o, s, c, worst);
+    return worst;
 }
 
 /* Whether every block of level l that touches block b of level l+1 is covered at l. */
@@ -266,77 +273,12 @@ static int build_masks(struct ad *a)
                         lev = l;
                 a->lev2[block(a, 2, b[0], b[1], b[2])] = (uint8_t)lev;
             }
-    if (!(a->calm2 = malloc(n2 ? n2 : 1)))
-        return -1;
-    for (b[2] = 0; b[2] < a->nb[2][2]; b[2]++)
-        for (b[1] = 0; b[1] < a->nb[2][1]; b[1]++)
-            for (b[0] = 0; b[0] < a->nb[2][0]; b[0]++) {
-                bool calm = true;
-                for (int z = b[2] - 1; z <= b[2] + 1 && calm; z++)
-                    for (int y = b[1] - 1; y <= b[1] + 1 && calm; y++)
-                        for (int x = b[0] - 1; x <= b[0] + 1 && calm; x++)
-                            if (x >= 0 && y >= 0 && z >= 0 && x < a->nb[2][0] && y < a->nb[2][1] && z < a->nb[2][2])
-                                calm = a->lev2[block(a, 2, x, y, z)] == 1;
-                a->calm2[block(a, 2, b[0], b[1], b[2])] = calm;
-            }
     return 0;
 }
 
-/* ---- the values cells read ---- */
-
-/* The value every cell reads at node p: the sample, unless the coarsest cell touching p holds it
- * inside a face or an edge (or inside), where it is that cell's interpolant of its corners' values. That
- * cell is found in one order (the lowest level-2 block of the highest level), so every reader
- * computes the same float. */
-static size_t at2(const struct ad *a, const int p[3])
-{
-    return (size_t)(p[0] >> 1) + (size_t)a->n2[0] * ((size_t)(p[1] >> 1) + (size_t)a->n2[1] * (p[2] >> 1));
-}
-
-static float V(const struct ad *a, const int p[3])
-{
-    if (a->V2 && !(p[0] & 1) && !(p[1] & 1) && !(p[2] & 1))
-        return a->V2[at2(a, p)];
-    int lo[3], hi[3], own[3];
-    for (int d = 0; d < 3; d++)
-        own[d] = p[d] >> 1 < a->nb[2][d] ? p[d] >> 1 : a->nb[2][d] - 1;
-    if (a->calm2[block(a, 2, own[0], own[1], own[2])]) /* every cell touching p is of level 1 */
-        return F(a, p[0], p[1], p[2]);
-    for (int d = 0; d < 3; d++) {
-        lo[d] = p[d] & 1 ? p[d] >> 1 : (p[d] >> 1) - 1;
-        hi[d] = p[d] >> 1;
-        lo[d] = lo[d] < 0 ? 0 : lo[d];
-        hi[d] = hi[d] >= a->nb[2][d] ? a->nb[2][d] - 1 : hi[d];
-    }
-    int lam = 1, cb[3] = {0, 0, 0};
-    for (int z = lo[2]; z <= hi[2]; z++)
-        for (int y = lo[1]; y <= hi[1]; y++)
-            for (int x = lo[0]; x <= hi[0]; x++) {
-                int l = a->lev2[block(a, 2, x, y, z)];
-                if (l > lam)
-                    lam = l, cb[0] = x, cb[1] = y, cb[2] = z;
-            }
-    int s = 1 << (lam - 1);
-    if (lam == 1 || (p[0] % s == 0 && p[1] % s == 0 && p[2] % s == 0))
-        return F(a, p[0], p[1], p[2]);
-    int o[3];
-    double r[3];
-    for (int d = 0; d < 3; d++) {
-        o[d] = (cb[d] >> (lam - 2)) << (lam - 1);
-        r[d] = (double)(p[d] - o[d]) / s;
-    }
-    double v = 0;
-    for (int k = 0; k < 8; k++) {
-        double w = 1;
-        for (int d = 0; d < 3; d++)
-            w *= k >> d & 1 ? r[d] : 1 - r[d];
-        if (w == 0)
-            continue;
-        int q[3] = {o[0] + (k & 1) * s, o[1] + (k >> 1 & 1) * s, o[2] + (k >> 2 & 1) * s};
-        v += w * V(a, q);
-    }
-    return (float)v;
-}
+/* What every cell reads at node p: the sample itself (see adapt.h: the coarser side draws a
+ * shared face at the finer side's resolution, so nothing is modified). */
+static float V(const struct ad *a, const int p[3]) { return F(a, p[0], p[1], p[2]); }
 
 /* ---- the mesh ---- */
 
@@ -589,18 +531,33 @@ static void fan_loops(struct ad *a, struct cell *c)
     }
 }
 
-/* Cell of level l at o, its corners' values cv (NULL: read them): its faces cut where the
- * neighbour across is finer. */
-static void polygonise(struct ad *a, const int o[3], int l, const float *known)
+/* Cell of level l at o: its faces cut where the neighbour across is finer. */
+static void polygonise(struct ad *a, const int o[3], int l)
 {
     int s = 1 << (l - 1), in = 0;
     float cv[8];
     for (int k = 0; k < 8; k++) {
         int p[3] = {o[0] + (k & 1) * s, o[1] + (k >> 1 & 1) * s, o[2] + (k >> 2 & 1) * s};
-        cv[k] = known ? known[k] : V(a, p);
+        cv[k] = V(a, p);
         in += cv[k] > a->iso;
     }
-    if (in == 0 || in == 8)
+    bool mixed = in > 0 && in < 8;
+    int ks[6];
+    for (int f = 0; f < 6; f++) {
+        ks[f] = 1;
+        if (l >= 2) {
+            int axis = f >> 1, b[3] = {o[0] >> (l - 1), o[1] >> (l - 1), o[2] >> (l - 1)};
+            b[axis] += f & 1 ? 1 : -1;
+            if (b[axis] >= 0 && b[axis] < a->nb[l][axis] && !a->M[l][block(a, l, b[0], b[1], b[2])])
+                ks[f] = 2;
+        }
+        if ((in == 0 || in == 8) && ks[f] == 2) { /* a face cut in four reads its centre too */
+            int axis = f >> 1, p[3] = {o[0] + s / 2, o[1] + s / 2, o[2] + s / 2};
+            p[axis] = o[axis] + (f & 1) * s;
+            mixed = mixed || (V(a, p) > a->iso) != (in == 8);
+        }
+    }
+    if (!mixed)
         return;
     struct cell c;
     memcpy(c.o, o, sizeof c.o);
@@ -608,16 +565,8 @@ static void polygonise(struct ad *a, const int o[3], int l, const float *known)
     c.s = s;
     c.n = 0;
     a->st->cells[l]++;
-    for (int f = 0; f < 6; f++) {
-        int k = 1;
-        if (l >= 2) {
-            int axis = f >> 1, b[3] = {o[0] >> (l - 1), o[1] >> (l - 1), o[2] >> (l - 1)};
-            b[axis] += f & 1 ? 1 : -1;
-            if (b[axis] >= 0 && b[axis] < a->nb[l][axis] && !a->M[l][block(a, l, b[0], b[1], b[2])])
-                k = 2;
-        }
-        face_segments(a, &c, f, k);
-    }
+    for (int f = 0; f < 6; f++)
+        face_segments(a, &c, f, ks[f]);
     fan_loops(a, &c);
 }
 
@@ -629,35 +578,15 @@ static void block_cells(struct ad *a, const int b[3])
     if (lam >= 2) {
         int m = (1 << (lam - 2)) - 1;
         if (!(b[0] & m) && !(b[1] & m) && !(b[2] & m))
-            polygonise(a, (int[3]){2 * b[0], 2 * b[1], 2 * b[2]}, lam, NULL);
+            polygonise(a, (int[3]){2 * b[0], 2 * b[1], 2 * b[2]}, lam);
         return;
     }
-    /* level-1 cells: where the samples change side, or a coarser cell's values may reach; the
-     * block's 27 values read once (the samples themselves where every neighbour is level 1) */
-    bool calm = a->calm2[at], look = a->mixed2[at];
-    for (int z = b[2] - 1; z <= b[2] + 1 && !look && !calm; z++)
-        for (int y = b[1] - 1; y <= b[1] + 1 && !look; y++)
-            for (int x = b[0] - 1; x <= b[0] + 1 && !look; x++)
-                if (x >= 0 && y >= 0 && z >= 0 && x < a->nb[2][0] && y < a->nb[2][1] && z < a->nb[2][2])
-                    look = a->lev2[block(a, 2, x, y, z)] >= 2;
-    if (!look)
+    if (!a->mixed2[at]) /* level-1 cells where the samples change side */
         return;
-    float val[27];
-    for (int z = 0; z < 3; z++)
-        for (int y = 0; y < 3; y++)
-            for (int x = 0; x < 3; x++) {
-                int p[3] = {2 * b[0] + x, 2 * b[1] + y, 2 * b[2] + z};
-                bool in = p[0] < a->N[0] && p[1] < a->N[1] && p[2] < a->N[2];
-                val[x + 3 * (y + 3 * z)] = !in ? 0 : calm ? F(a, p[0], p[1], p[2]) : V(a, p);
-            }
     for (int k = 0; k < 8; k++) {
         int o[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
-        if (o[0] + 1 >= a->N[0] || o[1] + 1 >= a->N[1] || o[2] + 1 >= a->N[2])
-            continue;
-        float cv[8];
-        for (int q = 0; q < 8; q++)
-            cv[q] = val[(k & 1) + (q & 1) + 3 * ((k >> 1 & 1) + (q >> 1 & 1) + 3 * ((k >> 2 & 1) + (q >> 2 & 1)))];
-        polygonise(a, o, 1, cv);
+        if (o[0] + 1 < a->N[0] && o[1] + 1 < a->N[1] && o[2] + 1 < a->N[2])
+            polygonise(a, o, 1);
     }
 }
 
@@ -668,8 +597,6 @@ static void ad_free(struct ad *a)
         free(a->M[l]);
     free(a->lev2);
     free(a->mixed2);
-    free(a->calm2);
-    free(a->V2);
     free(a->keys);
     free(a->slot);
     trimesh_free(&a->m);
@@ -723,19 +650,6 @@ int iso_extract_adaptive(const struct iso_grid *g, const struct iso_opts *o, int
         ad_free(&a);
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     }
-    for (int d = 0; d < 3; d++)
-        a.n2[d] = (a.N[d] - 1) / 2 + 1;
-    float *v2 = malloc(sizeof *v2 * a.n2[0] * a.n2[1] * a.n2[2]);
-    if (!v2) {
-        ad_free(&a);
-        return sf_fail(err, SF_ENOMEM, "", "out of memory");
-    }
-    int p[3];
-    for (p[2] = 0; p[2] < a.N[2]; p[2] += 2)
-        for (p[1] = 0; p[1] < a.N[1]; p[1] += 2)
-            for (p[0] = 0; p[0] < a.N[0]; p[0] += 2)
-                v2[at2(&a, p)] = V(&a, p);
-    a.V2 = v2;
     int b[3];
     for (b[2] = 0; b[2] < a.nb[2][2] && !rc && !a.nomem; b[2]++) {
         for (b[1] = 0; b[1] < a.nb[2][1]; b[1]++)

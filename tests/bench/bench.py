@@ -518,6 +518,55 @@ def iso_bench(lines):
     lines.append("")
 
 
+def distances(a, b):
+    p = subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "tests", "bench", "mesh_distance.py"), a, b],
+                       capture_output=True, text=True, check=True)
+    return json.loads(p.stdout)
+
+
+def adapt_bench(lines):
+    """Issue 15: the adaptive hierarchy on the shared CT against the full-resolution mesh, beside VTK's Flying Edges
+    followed by vtkQuadricDecimation to the same triangle counts (times, distances both ways)."""
+    name, f, dims, dtype, npt, iso, sp, pad = VOLUMES[0]
+    path = os.path.join(DATA, "volumes", f)
+    common = [path, "--iso", str(iso), "--dims", "%d,%d,%d" % dims, "--type", dtype, "--spacing", "%.9g,%.9g,%.9g" % sp,
+              "--stats"]
+    full = os.path.join(TMP, "ct_full.stl")
+    p = subprocess.run([SURFD, "isosurface"] + common + ["-o", full], capture_output=True, text=True, check=True)
+    m1 = json.loads(p.stdout)
+    runs = []
+    for levels, me, goal in ((2, 0.5, 3.6), (3, 1.0, 10)):
+        out = os.path.join(TMP, "ct_l%d.stl" % levels)
+        p = subprocess.run([SURFD, "isosurface"] + common + ["--levels", str(levels), "--max-error", str(me), "-o", out],
+                           capture_output=True, text=True, check=True)
+        m = json.loads(p.stdout)
+        runs.append((levels, me, goal, m, distances(out, full)))
+    p = subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "tests", "bench", "vtk_decimate.py"), path] +
+                       [str(d) for d in dims] + [npt, str(iso)] + ["%.9g" % x for x in sp] +
+                       [str(pad), os.path.join(TMP, "vtk")] + [str(r[3]["triangles"]) for r in runs],
+                       capture_output=True, text=True, check=True)
+    v = json.loads(p.stdout)
+    lines.append("## The adaptive hierarchy (issue 15) on the %s, iso %g\n" % (name, iso))
+    lines.append("surfd `isosurface --levels L --max-error MM` (one thread; cold) against its own full-resolution mesh "
+                 "(%d triangles, extract %.0f ms); distances from every vertex of each mesh to the other's surface "
+                 "(`tests/bench/mesh_distance.py`, VTK's cell locator), in mm. VTK: Flying Edges (%.0f ms, %d triangles, one "
+                 "thread) then vtkQuadricDecimation to the same count (`tests/bench/vtk_decimate.py`).\n" % (
+                     m1["triangles"], m1["timings_ms"]["extract"], v["fe_ms"], v["fe_triangles"]))
+    lines.append("| pipeline | triangles | fewer than full | goal | ms | p99 to full | p99 from full | max to full | "
+                 "max from full | closed | cells by level |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
+    for (levels, me, goal, m, d), dec in zip(runs, v["decimated"]):
+        lines.append("| surfd levels=%d max_error=%g | %d | %.2fx | %gx | %.0f | %.3f | %.3f | %.3f | %.3f | %s | %s |" % (
+            levels, me, m["triangles"], m1["triangles"] / m["triangles"], goal, m["timings_ms"]["extract"],
+            d["a_to_b"]["p99"], d["b_to_a"]["p99"], d["a_to_b"]["max"], d["b_to_a"]["max"],
+            "yes" if m["boundary_edges"] + m["nonmanifold_edges"] == 0 else "NO", m["cells_by_level"]))
+        dd = distances(os.path.join(TMP, "vtk_%d.stl" % dec["target"]), os.path.join(TMP, "vtk_fe.stl"))
+        lines.append("| VTK FE + quadric decimation | %d | %.2fx | | %.0f + %.0f | %.3f | %.3f | %.3f | %.3f | | |" % (
+            dec["triangles"], v["fe_triangles"] / dec["triangles"], v["fe_ms"], dec["ms"], dd["a_to_b"]["p99"],
+            dd["b_to_a"]["p99"], dd["a_to_b"]["max"], dd["b_to_a"]["max"]))
+    lines.append("")
+
+
 def big_ct(path):
     """A 512x512x600 int16 CT (315 MB): the shared head CT resampled (nearest) onto it, by Debian's numpy."""
     code = ("import numpy as np, sys\n"
@@ -569,7 +618,13 @@ def main():
     if os.environ.get("BENCH_ONLY") == "iso":
         lines = []
         iso_bench(lines)
+        adapt_bench(lines)
         big_volume_bench(lines)
+        print("\n".join(lines))
+        return
+    if os.environ.get("BENCH_ONLY") == "adapt":
+        lines = []
+        adapt_bench(lines)
         print("\n".join(lines))
         return
     if os.environ.get("BENCH_ONLY") == "cluster":
@@ -651,9 +706,10 @@ def main():
     http_bench(lines)
     cluster_bench(lines)
     iso_bench(lines)
+    adapt_bench(lines)
     big_volume_bench(lines)
     lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=http`, `BENCH_ONLY=contours`, "
-                 "`BENCH_ONLY=cluster` or `BENCH_ONLY=iso` for one part).")
+                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso` or `BENCH_ONLY=adapt` for one part).")
     out = os.path.join(ROOT, "tests", "bench", "RESULTS.md")
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")

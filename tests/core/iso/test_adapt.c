@@ -1,7 +1,7 @@
 /* test_adapt.c - the adaptive hierarchy of core/iso (adapt.h): a closed, consistently oriented
  * 2-manifold at every mix of levels (analytic fields, random fields, the shared CT crop), levels
- * that really mix, the error bound against an analytic surface, the same mesh twice, and
- * max_error 0 giving marching cubes' surface. */
+ * that really mix, the error against an analytic surface, the same mesh twice, and max_error 0
+ * keeping marching cubes' vertices. */
 #include "../../../core/iso/adapt.h"
 
 #include <stdbool.h>
@@ -124,7 +124,7 @@ TEST(random_fields)
 
 TEST(within_max_error_of_the_sphere)
 {
-    /* a sphere of radius 15 sampled with spacing 0.5 mm: every vertex near max_error (plus the
+    /* a sphere of radius 15 sampled with spacing 0.5 mm: every vertex within max_error (plus the
      * full-resolution surface's own error) of it */
     struct iso_grid g = grid(N, field[0], 0.5);
     for (double me = 0.05; me < 0.6; me *= 2) {
@@ -140,8 +140,7 @@ TEST(within_max_error_of_the_sphere)
             double r = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
             worst = fmax(worst, fabs(r - 15) * 0.5);
         }
-        /* the test is first order: measured here within 1.5 max_error (the bench measures the CT) */
-        CHECK(worst <= 1.5 * me + 0.01);
+        CHECK(worst <= me + 0.01);
         CHECK(as.cells[2] + as.cells[3] > 0);
         trimesh_free(&m);
     }
@@ -168,16 +167,16 @@ TEST(the_same_mesh_twice_and_mc_at_zero_error)
     CHECK(!memcmp(a.tri, b.tri, 3 * sizeof *a.tri * a.n_tri) && !memcmp(a.pos, b.pos, 3 * sizeof *a.pos * a.n_vert));
     trimesh_free(&a);
     trimesh_free(&b);
-    /* nothing that holds the surface merges at 0: the cells of marching cubes */
+    /* at max_error 0 only blocks whose every full-resolution vertex lies on the merged cell's
+     * polygon merge: every vertex is marching cubes' own, the volume marching cubes' */
     struct sf_err err = {0};
     struct iso_opts o = {0, true, true};
     CHECK(extract(&g, 0, 4, 0, &a, &sa, &as));
     CHECK(iso_extract(&g, &o, NULL, &mc, &err) == 0 && trimesh_stats(&mc, &smc, &err) == 0);
-    CHECK(as.cells[2] == 0 && as.cells[3] == 0);
-    CHECK(a.n_tri == mc.n_tri && a.n_vert == mc.n_vert); /* the same vertices; loops fanned from other apexes */
-    qsort(a.pos, a.n_vert, 3 * sizeof *a.pos, cmp3);
+    CHECK(a.n_tri <= mc.n_tri && a.n_vert <= mc.n_vert);
     qsort(mc.pos, mc.n_vert, 3 * sizeof *mc.pos, cmp3);
-    CHECK(a.n_vert == mc.n_vert && !memcmp(a.pos, mc.pos, 3 * sizeof *a.pos * a.n_vert));
+    for (size_t v = 0; v < a.n_vert; v++)
+        CHECK(bsearch(a.pos + 3 * v, mc.pos, mc.n_vert, 3 * sizeof *mc.pos, cmp3) != NULL);
     CHECK_NEAR(sa.volume, smc.volume, 1e-3 * smc.volume);
     trimesh_free(&a);
     trimesh_free(&mc);
