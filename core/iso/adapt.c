@@ -21,7 +21,8 @@ struct ad {
     int nb[ISO_MAX_LEVELS + 1][3];     /* blocks per axis at each level */
     uint8_t *M[ISO_MAX_LEVELS + 1];    /* [l][block]: covered by a cell of level >= l (l >= 2) */
     uint8_t *lev2;                     /* each level-2 block's cell level (1: cut into level-1 cells) */
-    uint8_t *mixed2;                   /* level-2 blocks whose samples are on both sides of iso */
+    uint8_t *mixed[ISO_MAX_LEVELS + 1]; /* [l][block]: its samples are on both sides of iso (l >= 2;
+                                         * level 2: or the grid's end cuts it) */
     /* the mesh: vertices keyed by the finest edge they lie on */
     uint64_t *keys;
     uint32_t *slot;
@@ -95,25 +96,11 @@ static double tri_dist(const double p[3], const double a[3], const double b[3], 
  * once: else INFINITY, a feature finer than the cell), so its vertices lie on the full-resolution
  * surface, and what is measured is the distance from every full-resolution vertex in the block
  * (the crossings of its fine edges) to that polygon: INFINITY when the cell would have none. 0
- * when every sample of the block and of the layer round it is on one side. */
-static double block_error(const struct ad *a, int l, const int b[3], bool *mixed)
+ * when the block's samples are all on one side (mixed false). */
+static double block_error(const struct ad *a, int l, const int b[3], bool mixed)
 {
     int s = 1 << (l - 1), o[3] = {b[0] * s, b[1] * s, b[2] * s};
-    bool in = false, out = false, near_in = false, near_out = false;
-    for (int z = -1; z <= s + 1; z++)
-        for (int y = -1; y <= s + 1; y++)
-            for (int x = -1; x <= s + 1; x++) {
-                int p[3] = {o[0] + x, o[1] + y, o[2] + z};
-                if (p[0] < 0 || p[1] < 0 || p[2] < 0 || p[0] >= a->N[0] || p[1] >= a->N[1] || p[2] >= a->N[2])
-                    continue;
-                bool v = F(a, p[0], p[1], p[2]) > a->iso, inner = x >= 0 && y >= 0 && z >= 0 && x <= s && y <= s && z <= s;
-                near_in |= v, near_out |= !v;
-                if (inner)
-                    in |= v, out |= !v;
-            }
-    if (mixed)
-        *mixed = in && out;
-    if (!(near_in && near_out))
+    if (!mixed) /* no crossing in the block: nothing to draw either way */
         return 0;
     double iso = a->iso, c[8], ep[8][8][3]; /* the crossing on the edge between corners i < j, in mm */
     bool st[8];
@@ -230,11 +217,11 @@ static int build_masks(struct ad *a)
         for (int d = 0; d < 3; d++)
             a->nb[l][d] = (a->N[d] - 1 + s - 1) / s;
         size_t n = (size_t)a->nb[l][0] * a->nb[l][1] * a->nb[l][2];
-        if (!(a->M[l] = calloc(n ? n : 1, 1)))
+        if (!(a->M[l] = calloc(n ? n : 1, 1)) || !(a->mixed[l] = calloc(n ? n : 1, 1)))
             return -1;
     }
     size_t n2 = (size_t)a->nb[2][0] * a->nb[2][1] * a->nb[2][2];
-    if (!(a->lev2 = malloc(n2 ? n2 : 1)) || !(a->mixed2 = calloc(n2 ? n2 : 1, 1)))
+    if (!(a->lev2 = malloc(n2 ? n2 : 1)))
         return -1;
     for (int l = 2; l <= a->L; l++) {
         int s = 1 << (l - 1), b[3];
@@ -250,12 +237,27 @@ static int build_masks(struct ad *a)
                                                    2 * b[2] + (k >> 2 & 1))];
                         ok = ok && inside && ring_covered(a, l - 1, b);
                     }
-                    double e = ok && inside ? block_error(a, l, b, l == 2 ? &mixed : NULL) : INFINITY;
-                    if (l == 2 && !inside) { /* a block the grid's end cuts: level-1 cells, mixed or not */
-                        mixed = true;
+                    if (l == 2) { /* the block's 27 samples */
+                        bool in = false, out = false;
+                        for (int z = 0; z <= 2; z++)
+                            for (int y = 0; y <= 2; y++)
+                                for (int x = 0; x <= 2; x++) {
+                                    int p[3] = {2 * b[0] + x, 2 * b[1] + y, 2 * b[2] + z};
+                                    if (p[0] >= a->N[0] || p[1] >= a->N[1] || p[2] >= a->N[2])
+                                        continue;
+                                    bool v = F(a, p[0], p[1], p[2]) > a->iso;
+                                    in |= v, out |= !v;
+                                }
+                        mixed = !inside || (in && out); /* a block the grid's end cuts: level-1 cells */
+                    } else { /* any child's */
+                        for (int k = 0; k < 8 && !mixed; k++) {
+                            int c[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
+                            if (c[0] < a->nb[l - 1][0] && c[1] < a->nb[l - 1][1] && c[2] < a->nb[l - 1][2])
+                                mixed = a->mixed[l - 1][block(a, l - 1, c[0], c[1], c[2])];
+                        }
                     }
-                    if (l == 2)
-                        a->mixed2[block(a, 2, b[0], b[1], b[2])] = mixed;
+                    a->mixed[l][block(a, l, b[0], b[1], b[2])] = mixed;
+                    double e = ok && inside ? block_error(a, l, b, mixed) : INFINITY;
                     if (e <= a->max_err) {
                         a->M[l][block(a, l, b[0], b[1], b[2])] = 1;
                         if (e > a->st->max_estimate)
@@ -581,7 +583,7 @@ static void block_cells(struct ad *a, const int b[3])
             polygonise(a, (int[3]){2 * b[0], 2 * b[1], 2 * b[2]}, lam);
         return;
     }
-    if (!a->mixed2[at]) /* level-1 cells where the samples change side */
+    if (!a->mixed[2][at]) /* level-1 cells where the samples change side */
         return;
     for (int k = 0; k < 8; k++) {
         int o[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
@@ -594,9 +596,8 @@ static void ad_free(struct ad *a)
 {
     free(a->F);
     for (int l = 0; l <= ISO_MAX_LEVELS; l++)
-        free(a->M[l]);
+        free(a->M[l]), free(a->mixed[l]);
     free(a->lev2);
-    free(a->mixed2);
     free(a->keys);
     free(a->slot);
     trimesh_free(&a->m);
