@@ -93,6 +93,19 @@ static int vec3(struct builder *b, json_t *o, const char *ptr, const char *key, 
     return 0;
 }
 
+/* o[key] as 3 numbers, each over 0 (radii, scales). */
+static int positive3(struct builder *b, json_t *o, const char *ptr, const char *key, double out[3])
+{
+    int rc = vec3(b, o, ptr, key, false, out);
+    for (int i = 0; i < 3 && !rc; i++)
+        if (!(out[i] > 0)) {
+            char p[176];
+            snprintf(p, sizeof p, "%s/%s/%d", ptr, key, i);
+            rc = sf_fail(b->err, SF_EINVAL, p, "%s are over 0", key);
+        }
+    return rc;
+}
+
 static int add_node(struct builder *b, const char *ptr, struct frep_node n)
 {
     if (b->f->n >= FREP_MAX_NODES)
@@ -191,18 +204,12 @@ static int unary(struct builder *b, const char *key, json_t *v, const char *p, i
     } else {
         double scale[3] = {1, 1, 1}, rot[3] = {0, 0, 0}, tr[3] = {0, 0, 0};
         json_t *s = json_object_get(v, "scale");
-        char q[176];
-        snprintf(q, sizeof q, "%s/scale", p);
         if (json_is_number(s)) {
             if ((rc = num(b, v, p, "scale", 0, 1e6, true, false, 0, &scale[0])))
                 return rc;
             scale[1] = scale[2] = scale[0];
-        } else if (s) {
-            if ((rc = vec3(b, v, p, "scale", false, scale)))
-                return rc;
-            for (int i = 0; i < 3; i++)
-                if (!(scale[i] > 0))
-                    return sf_fail(b->err, SF_EINVAL, q, "scales are over 0");
+        } else if (s && (rc = positive3(b, v, p, "scale", scale))) {
+            return rc;
         }
         if ((json_object_get(v, "rotate_deg") && (rc = vec3(b, v, p, "rotate_deg", false, rot))) ||
             (json_object_get(v, "translate") && (rc = vec3(b, v, p, "translate", false, tr))))
@@ -259,13 +266,7 @@ static int primitive(struct builder *b, const char *key, json_t *v, const char *
         rc = vec3(b, v, p, "center", false, q) || num(b, v, p, "radius", 0, L, true, false, 0, q + 3);
         break;
     case FREP_ELLIPSOID:
-        if (!(rc = vec3(b, v, p, "center", false, q)) && !(rc = vec3(b, v, p, "radii", false, q + 3)))
-            for (int i = 0; i < 3 && !rc; i++)
-                if (!(q[3 + i] > 0)) {
-                    char r[176];
-                    snprintf(r, sizeof r, "%s/radii/%d", p, i);
-                    rc = sf_fail(b->err, SF_EINVAL, r, "radii are over 0");
-                }
+        rc = vec3(b, v, p, "center", false, q) || positive3(b, v, p, "radii", q + 3);
         break;
     case FREP_BOX:
         if (!(rc = vec3(b, v, p, "min", false, q)) && !(rc = vec3(b, v, p, "max", false, q + 3)))
@@ -286,14 +287,8 @@ static int primitive(struct builder *b, const char *key, json_t *v, const char *
              num(b, v, p, "major", 0, L, true, false, 0, q + 6) || num(b, v, p, "minor", 0, L, true, false, 0, q + 7);
         break;
     case FREP_SUPERELLIPSOID:
-        if (!(rc = vec3(b, v, p, "center", false, q)) && !(rc = vec3(b, v, p, "radii", false, q + 3)))
-            for (int i = 0; i < 3 && !rc; i++)
-                if (!(q[3 + i] > 0)) {
-                    char r[176];
-                    snprintf(r, sizeof r, "%s/radii/%d", p, i);
-                    rc = sf_fail(b->err, SF_EINVAL, r, "radii are over 0");
-                }
-        rc = rc || num(b, v, p, "e1", 0.05, 10, false, false, 0, q + 6) || num(b, v, p, "e2", 0.05, 10, false, false, 0, q + 7);
+        rc = vec3(b, v, p, "center", false, q) || positive3(b, v, p, "radii", q + 3) ||
+             num(b, v, p, "e1", 0.05, 10, false, false, 0, q + 6) || num(b, v, p, "e2", 0.05, 10, false, false, 0, q + 7);
         break;
     default: /* halfspace */
         rc = vec3(b, v, p, "point", false, q) || vec3(b, v, p, "normal", true, q + 3);

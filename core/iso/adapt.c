@@ -41,19 +41,18 @@ static size_t block(const struct ad *a, int l, int bx, int by, int bz)
     return (size_t)bx + (size_t)a->nb[l][0] * ((size_t)by + (size_t)a->nb[l][1] * bz);
 }
 
-/* |grad f| at node (x, y, z), central differences (one-sided at the border), in world units. */
-static double grad_norm(const struct ad *a, int x, int y, int z, double g[3])
+static float Fp(const struct ad *a, const int p[3]) { return F(a, p[0], p[1], p[2]); }
+
+/* grad f at node (x, y, z), central differences (one-sided at the border), in world units. */
+static void gradient(const struct ad *a, int x, int y, int z, double g[3])
 {
     int p[3] = {x, y, z};
-    double s = 0;
     for (int d = 0; d < 3; d++) {
         int lo[3] = {x, y, z}, hi[3] = {x, y, z};
         lo[d] = p[d] > 0 ? p[d] - 1 : p[d];
         hi[d] = p[d] + 1 < a->N[d] ? p[d] + 1 : p[d];
-        g[d] = (F(a, hi[0], hi[1], hi[2]) - F(a, lo[0], lo[1], lo[2])) / ((hi[d] - lo[d]) * a->sp[d]);
-        s += g[d] * g[d];
+        g[d] = (Fp(a, hi) - Fp(a, lo)) / ((hi[d] - lo[d]) * a->sp[d]);
     }
-    return sqrt(s);
 }
 
 /* ---- the hierarchy ---- */
@@ -278,10 +277,6 @@ static int build_masks(struct ad *a)
     return 0;
 }
 
-/* What every cell reads at node p: the sample itself (see adapt.h: the coarser side draws a
- * shared face at the finer side's resolution, so nothing is modified). */
-static float V(const struct ad *a, const int p[3]) { return F(a, p[0], p[1], p[2]); }
-
 /* ---- the mesh ---- */
 
 static bool grow(void **p, size_t *cap, size_t need, size_t size)
@@ -359,8 +354,8 @@ static long edge_vertex(struct ad *a, const int n[3], int axis, float v0, float 
     double pos[3], g0[3], g1[3], nrm[3];
     int m[3] = {n[0], n[1], n[2]};
     m[axis]++;
-    grad_norm(a, n[0], n[1], n[2], g0);
-    grad_norm(a, m[0], m[1], m[2], g1);
+    gradient(a, n[0], n[1], n[2], g0);
+    gradient(a, m[0], m[1], m[2], g1);
     for (int d = 0; d < 3; d++) {
         pos[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
         nrm[d] = -((1 - t) * g0[d] + t * g1[d]); /* outward: down the gradient */
@@ -413,7 +408,7 @@ static long crossing(struct ad *a, const struct cell *c, const int p[3], const i
     for (int k = 1; k <= m && m > 1; k++) {
         int n1[3] = {n[0], n[1], n[2]};
         n1[axis]++;
-        float cur = V(a, n1);
+        float cur = Fp(a, n1);
         if ((prev > a->iso) != (cur > a->iso)) {
             v = edge_vertex(a, n, axis, prev, cur);
             break;
@@ -455,7 +450,7 @@ static void face_segments(struct ad *a, struct cell *c, int f, int k)
                 p[q][u] = c->o[u] + (i + b[u]) * h;
                 p[q][w] = c->o[w] + (j + b[w]) * h;
                 bool corner = (i + b[u]) % k == 0 && (j + b[w]) % k == 0; /* a corner of the cell: known */
-                v[q] = corner ? c->cv[(p[q][0] > c->o[0]) | (p[q][1] > c->o[1]) << 1 | (p[q][2] > c->o[2]) << 2] : V(a, p[q]);
+                v[q] = corner ? c->cv[(p[q][0] > c->o[0]) | (p[q][1] > c->o[1]) << 1 | (p[q][2] > c->o[2]) << 2] : Fp(a, p[q]);
                 g[b[u] + 2 * b[w]] = (double)v[q] - a->iso;
             }
             long cross[4];
@@ -540,7 +535,7 @@ static void polygonise(struct ad *a, const int o[3], int l)
     float cv[8];
     for (int k = 0; k < 8; k++) {
         int p[3] = {o[0] + (k & 1) * s, o[1] + (k >> 1 & 1) * s, o[2] + (k >> 2 & 1) * s};
-        cv[k] = V(a, p);
+        cv[k] = Fp(a, p);
         in += cv[k] > a->iso;
     }
     bool mixed = in > 0 && in < 8;
@@ -556,7 +551,7 @@ static void polygonise(struct ad *a, const int o[3], int l)
         if ((in == 0 || in == 8) && ks[f] == 2) { /* a face cut in four reads its centre too */
             int axis = f >> 1, p[3] = {o[0] + s / 2, o[1] + s / 2, o[2] + s / 2};
             p[axis] = o[axis] + (f & 1) * s;
-            mixed = mixed || (V(a, p) > a->iso) != (in == 8);
+            mixed = mixed || (Fp(a, p) > a->iso) != (in == 8);
         }
     }
     if (!mixed)

@@ -111,7 +111,7 @@ TEST(bad_trees)
     CHECK(refused(REQ("{\"blend\": [" SPHERE "," SPHERE "], \"a0\": 1, \"a1\": 0, \"a2\": 1}"), SF_EINVAL, "/frep/a1"));
     CHECK(refused(REQ("{\"subtract\": [" SPHERE "]}"), SF_EINVAL, "/frep/subtract"));
     CHECK(refused(REQ("{\"transform\": {\"scale\": [1, -1, 1], \"object\": " SPHERE "}}"), SF_EINVAL,
-                  "/frep/transform/scale"));
+                  "/frep/transform/scale/1"));
     CHECK(refused(REQ("{\"transform\": {\"translate\": [1, 1, 1]}}"), SF_EINVAL, "/frep/transform/object"));
     CHECK(refused(REQ("{\"offset\": {\"distance\": \"far\", \"object\": " SPHERE "}}"), SF_EINVAL,
                   "/frep/offset/distance"));

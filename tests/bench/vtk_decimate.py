@@ -4,21 +4,16 @@ hierarchy is set against (issue 15): vtkFlyingEdges3D on the padded volume (as v
 of its mesh to each triangle count N. Writes OUT_PREFIX_fe.stl and OUT_PREFIX_N.stl; prints JSON: Flying Edges' time
 and triangles, and per N the decimation's time and the triangles it reached. Run with Debian's python3."""
 import json, sys, time
-import numpy as np
 import vtk
-from vtk.util import numpy_support as ns
+
+from vtk_volume import padded_image
 
 path = sys.argv[1]
 nx, ny, nz = map(int, sys.argv[2:5])
 dtype, iso = sys.argv[5], float(sys.argv[6])
 sp = list(map(float, sys.argv[7:10]))
 pad, prefix, targets = float(sys.argv[10]), sys.argv[11], list(map(int, sys.argv[12:]))
-a = np.pad(np.fromfile(path, dtype=dtype).reshape(nz, ny, nx), 1, constant_values=pad)
-img = vtk.vtkImageData()
-img.SetDimensions(nx + 2, ny + 2, nz + 2)
-img.SetSpacing(*sp)
-img.SetOrigin(-sp[0], -sp[1], -sp[2])
-img.GetPointData().SetScalars(ns.numpy_to_vtk(a.ravel(), deep=True))
+img = padded_image(path, nx, ny, nz, dtype, sp, pad)
 
 
 def write(poly, name):

@@ -4,21 +4,16 @@ on the raw volume padded with one layer of PAD (as tests/bench/bench.py and ../s
 normals computed as surfd computes them. Prints JSON: per filter the first (cold) and the best (warm) Update() time
 in ms, the triangle count and the volume (vtkMassProperties). Run with Debian's python3 (python3-vtk9)."""
 import json, sys, time
-import numpy as np
 import vtk
-from vtk.util import numpy_support as ns
+
+from vtk_volume import padded_image
 
 path = sys.argv[1]
 nx, ny, nz = map(int, sys.argv[2:5])
 dtype, iso = sys.argv[5], float(sys.argv[6])
 sp = list(map(float, sys.argv[7:10]))
 pad, threads, repeat = float(sys.argv[10]), int(sys.argv[11]), int(sys.argv[12])
-a = np.pad(np.fromfile(path, dtype=dtype).reshape(nz, ny, nx), 1, constant_values=pad)
-img = vtk.vtkImageData()
-img.SetDimensions(nx + 2, ny + 2, nz + 2)
-img.SetSpacing(*sp)
-img.SetOrigin(-sp[0], -sp[1], -sp[2])
-img.GetPointData().SetScalars(ns.numpy_to_vtk(a.ravel(), deep=True))
+img = padded_image(path, nx, ny, nz, dtype, sp, pad)
 vtk.vtkSMPTools.Initialize(threads)
 out = {}
 for name, cls in (("flying_edges", vtk.vtkFlyingEdges3D), ("marching_cubes", vtk.vtkMarchingCubes)):
