@@ -59,7 +59,8 @@ check "404 job" '[ "$(status GET /jobs/0123456789abcdef0123456789abcdef)" = 404 
 check "404 bad id" '[ "$(status GET /jobs/..%2f..%2fetc)" = 404 ]'
 check "404 route" '[ "$(status GET /nowhere)" = 404 ] && is_problem 404'
 check "405" '[ "$(status GET /render)" = 405 ] && is_problem 405'
-check "/isosurface is built: a body without ?iso is a 422 naming it" '[ "$(status POST /isosurface -d "{}")" = 422 ] && grep -q "?iso" "$T/body"'
+check "/isosurface is built: samples without ?iso are a 422 naming it" '[ "$(status POST /isosurface -H "Content-Type: application/octet-stream" -d "xxxxxxxx")" = 422 ] && grep -q "?iso" "$T/body"'
+check "... and {} is an FRep request without its tree: a 422 naming /bounds" '[ "$(status POST /isosurface -d "{}")" = 422 ] && grep -q "\"pointer\":\"/bounds\"" "$T/body"'
 
 # ---- POST /volume (contours) --------------------------------------------------------------
 C="${SURFD_DATA:-../shared/data}/contours"
