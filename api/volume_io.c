@@ -496,6 +496,15 @@ static int read_frep(const char *body, size_t len, const char *options, struct v
     return 0;
 }
 
+int volume_mesh_empty(const struct volume *v, const struct trimesh *m, struct sf_err *err)
+{
+    if (m->n_tri)
+        return 0;
+    if (v->frep)
+        return sf_fail(err, SF_EINVAL, "/bounds", "the object has no surface inside its bounds");
+    return sf_fail(err, SF_EINVAL, "?iso", "no surface at iso %g: every sample is on one side of it", v->iso);
+}
+
 void volume_sample(struct volume *v, int z0, int z1)
 {
     if (v->frep)

@@ -46,6 +46,9 @@ const char *volume_format_from_type(const char *content_type);
 int volume_read(const char *body, size_t len, const char *format, const char *options, struct volume *v,
                 struct sf_err *err);
 void volume_free(struct volume *v);
+/* 0, or SF_EINVAL at ?iso when the mesh m extracted from v is empty: every sample on one side of
+ * iso (an FRep object: nothing inside its bounds), which a user wants said, not stored. */
+int volume_mesh_empty(const struct volume *v, const struct trimesh *m, struct sf_err *err);
 /* Fills planes [z0, z1) of an FRep volume's grid (any planes, on any threads); nothing for
  * sampled volumes. */
 void volume_sample(struct volume *v, int z0, int z1);

@@ -184,6 +184,8 @@ int cmd_isosurface(int argc, char **argv)
             first = ms;
     }
     double t_extract = now_ms();
+    if (!rc)
+        rc = volume_mesh_empty(&v, &m, &err);
     if (!rc && v.oblique)
         trimesh_turn(&m, v.g.origin, (const double(*)[3])v.axes);
     struct trimesh_stats st;

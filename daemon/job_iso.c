@@ -188,8 +188,12 @@ static int store_model(struct iso_work *w)
     memset(&w->adapt, 0, sizeof w->adapt);
     int rc = w->vol.levels > 1 ? 0 : iso_end(w->ij, &m, &w->err);
     w->ij = NULL;
-    if (rc)
+    if (!rc)
+        rc = volume_mesh_empty(&w->vol, &m, &w->err);
+    if (rc) {
+        trimesh_free(&m);
         return rc;
+    }
     if (w->vol.oblique)
         trimesh_turn(&m, w->vol.g.origin, (const double(*)[3])w->vol.axes);
     drop_volume(w);

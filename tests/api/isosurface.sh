@@ -130,6 +130,8 @@ code=$(status POST "/isosurface?iso=1" -H 'Content-Type: application/x-nrrd' --d
 check "a detached NRRD header: 422 saying to attach the data" '[ "$code" = 422 ] && grep -q "attached" "$T/body"'
 code=$(status POST "/isosurface?iso=1" -H 'Content-Type: image/png' --data-binary @"$CT")
 check "a type it does not read: 415" '[ "$code" = 415 ] && is_problem 415'
+code=$(status POST "/isosurface?$(echo "$Q" | sed 's/iso=226.5/iso=30000/')" -H "$RAW" --data-binary @"$CT")
+check "an iso above every sample: 422 at ?iso (no empty model stored)" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?iso\"" "$T/body"'
 code=$(status POST "/isosurface?$Q&features=sharp" -H "$RAW" --data-binary @"$CT")
 check "an option it does not take (yet): 422 naming it" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?features\"" "$T/body"'
 code=$(status POST "/isosurface?$Q&levels=5" -H "$RAW" --data-binary @"$CT")
@@ -206,6 +208,8 @@ deep=$SPH; for _ in $(seq 70); do deep="{\"offset\": {\"distance\": 0, \"object\
 check "a tree over 64 levels deep: 422" 'frep_bad "$deep" "/frep\(/offset/object\)*" && grep -q "levels deep" "$T/body"'
 code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary "{\"bounds\": [[0, 0, 0], [10, 10, 10]], \"cell\": 0.001, \"frep\": $SPH}")
 check "a grid over the sample limit: 422 at /cell, before any sample" '[ "$code" = 422 ] && grep -q "\"pointer\":\"/cell\"" "$T/body"'
+code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary "{\"bounds\": [[0, 0, 0], [1, 1, 1]], \"cell\": 0.1, \"frep\": {\"sphere\": {\"center\": [5, 5, 5], \"radius\": 1}}}")
+check "an object outside its bounds: 422 at /bounds (no empty model stored)" '[ "$code" = 422 ] && grep -q "\"pointer\":\"/bounds\"" "$T/body"'
 code=$(status POST "/isosurface?dims=2,2,2" -H 'Content-Type: application/json' --data-binary "{\"bounds\": [[0, 0, 0], [1, 1, 1]], \"cell\": 0.1, \"frep\": $SPH}")
 check "raw options on an FRep: 422 naming them" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?dims\"" "$T/body"'
 check "the daemon is up after them" 'alive'

@@ -1,7 +1,8 @@
 /* fuzz_volume.c - the volumes of POST /isosurface: the first line is the query (iso, dims, type,
  * spacing...), the rest the body (raw, NRRD, MetaImage, a DICOM series or an FRep object, sniffed). A volume that reads and is
- * small is polygonised too, and its mesh must then be a closed, consistently oriented 2-manifold
- * (the guarantee of core/iso/mc.h): anything else aborts, so the fuzzer reports it. */
+ * small is polygonised too (with ?levels, by the adaptive hierarchy), and its mesh must then be a
+ * closed, consistently oriented 2-manifold (the guarantee of core/iso/mc.h and adapt.h): anything
+ * else aborts, so the fuzzer reports it. */
 #include "../../api/volume_io.h"
 #include "fuzz.h"
 
@@ -27,7 +28,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             struct iso_opts o = {v.iso, true, true};
             struct trimesh m;
             struct trimesh_stats st;
-            if (iso_extract(&v.g, &o, NULL, &m, &err) == 0 && trimesh_stats(&m, &st, &err) == 0 &&
+            struct iso_adapt_stats as;
+            int rc = v.levels > 1 ? iso_extract_adaptive(&v.g, &o, v.levels, v.max_error, NULL, &m, &as, &err)
+                                  : iso_extract(&v.g, &o, NULL, &m, &err);
+            if (rc == 0 && trimesh_stats(&m, &st, &err) == 0 &&
                 (st.boundary_edges || st.nonmanifold_edges || st.degenerate))
                 abort();
             trimesh_free(&m);
