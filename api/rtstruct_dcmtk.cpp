@@ -4,6 +4,7 @@
 // only; POINT and OPEN_* contours are skipped, as they bound nothing). Slice z is the contour's
 // own z (ContourData is x, y, z triples in patient coordinates); a contour whose z varies is not
 // planar and is refused. No other element of the object is read.
+#include "dicom_lengths.h"
 #include "rtstruct.h"
 
 #include <dcmtk/config/osconfig.h>
@@ -32,6 +33,8 @@ extern "C" void rtstruct_free(struct rt_roi *rois, int n_rois)
 /* Parses buf into ff: SF_EFORMAT (in err) when it is not DICOM, SF_EINVAL when not an RT Structure Set. */
 static int read_object(const void *buf, size_t len, DcmFileFormat &ff, struct sf_err *err)
 {
+    if (!dicom_lengths_fit(buf, len))
+        return sf_fail(err, SF_EFORMAT, "", "not a readable DICOM object: an element is longer than the file");
     DcmInputBufferStream in;
     in.setBuffer(buf, (offile_off_t)len);
     in.setEos();

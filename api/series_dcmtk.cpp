@@ -1,6 +1,7 @@
 // series_dcmtk.cpp - a DICOM CT/MR series to one sample grid (dicom_series.h), with DCMTK as the
 // RT Structure Set reader uses it. Uncompressed transfer syntaxes only (what scanners export for
 // research and what PACS send by default); a compressed one is refused by name.
+#include "dicom_lengths.h"
 #include "dicom_series.h"
 
 #include <dcmtk/config/osconfig.h>
@@ -43,76 +44,9 @@ bool get_doubles(DcmDataset *ds, const DcmTagKey &tag, double *out, unsigned n)
     return true;
 }
 
-/* Whether every element of the part, at any depth, declares a length that fits in what is left
- * of the part. DCMTK allocates an element's value at its declared length before it looks at what
- * is left (a 20-byte part declaring 2.3 GB asked for 2.3 GB: found by fuzz_volume), so this walk
- * comes first: the file meta header (group 0002, explicit VR little endian, after "DICM" at 0 or
- * 128), then the data set in its transfer syntax (implicit VR when the meta header says
- * 1.2.840.10008.1.2 or, without one, when the first element has no VR), stepping into sequences
- * and items (the dictionary says which implicit elements are sequences) and over other values.
- * Big-endian explicit data is walked as little endian would be only up to its first element: its
- * lengths are checked by DCMTK's own reading of a 16-bit-per-sample image (rare enough). */
-bool lengths_fit(const struct part &p)
-{
-    const unsigned char *b = (const unsigned char *)p.data;
-    const size_t n = p.len;
-    auto u16 = [&](size_t at) { return (unsigned)b[at] | (unsigned)b[at + 1] << 8; };
-    auto u32 = [&](size_t at) { return (size_t)u16(at) | (size_t)u16(at + 2) << 16; };
-    auto vr_at = [&](size_t at) { return at + 6 <= n && b[at + 4] >= 'A' && b[at + 4] <= 'Z' && b[at + 5] >= 'A' && b[at + 5] <= 'Z'; };
-    auto long_vr = [&](size_t at) {
-        char vr[3] = {(char)b[at + 4], (char)b[at + 5], 0};
-        return strstr("OB OD OF OL OV OW SQ SV UC UN UR UT UV", vr) != nullptr;
-    };
-    size_t at = n >= 132 && !memcmp(b + 128, "DICM", 4) ? 132 : n >= 4 && !memcmp(b, "DICM", 4) ? 4 : 0;
-    bool implicit = false, meta = at > 0;
-    if (!meta)
-        implicit = !vr_at(0);
-    for (int steps = 0; at + 8 <= n && steps < 1000000; steps++) {
-        unsigned group = u16(at), elem = u16(at + 2);
-        bool in_meta = meta && group == 0x0002;
-        if (meta && !in_meta) { /* the data set starts: its transfer syntax from the meta header */
-            meta = false;
-            implicit = !vr_at(at);
-        }
-        if (group == 0xfffe) { /* items and delimiters: tag and a 4-byte length, always */
-            size_t len = u32(at + 4);
-            at += 8;
-            if (elem == 0xe000 || len == 0xffffffffu || len == 0)
-                continue; /* step into an item */
-            if (len > n - at)
-                return false;
-            at += len;
-            continue;
-        }
-        size_t head, len;
-        bool sq;
-        if (!implicit || in_meta) {
-            if (!vr_at(at))
-                return true; /* not what this walk reads: DCMTK says what it is */
-            bool lv = long_vr(at);
-            head = lv ? 12 : 8;
-            if (at + head > n)
-                return false;
-            len = lv ? u32(at + 8) : u16(at + 6);
-            sq = b[at + 4] == 'S' && b[at + 5] == 'Q';
-        } else {
-            head = 8;
-            len = u32(at + 4);
-            sq = DcmTag((Uint16)group, (Uint16)elem).getEVR() == EVR_SQ;
-        }
-        at += head;
-        if (len == 0xffffffffu || sq)
-            continue; /* step into an undefined length or a sequence */
-        if (len > n - at)
-            return false;
-        at += len;
-    }
-    return true;
-}
-
 int read_slice(const struct part &p, int k, bool check_only, slice &sl, struct sf_err *err)
 {
-    if (!lengths_fit(p))
+    if (!dicom_lengths_fit(p.data, p.len))
         return fail_part(err, SF_EFORMAT, k, "%s", "not a readable DICOM object: an element is longer than the part");
     DcmFileFormat ff;
     DcmInputBufferStream in;

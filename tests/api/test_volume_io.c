@@ -182,9 +182,41 @@ TEST(shared_ct_as_nrrd)
     free(raw);
 }
 
+/* A slice whose element declares more bytes than the part holds is refused before DCMTK
+ * allocates them (as fuzz_volume found: 2.3 GB asked for by a 20-byte part), at any depth. */
+TEST(dicom_lengths_over_the_part)
+{
+    static const char head[] = "--b\r\nContent-Disposition: form-data; name=\"slice\"\r\n\r\n", tail[] = "\r\n--b--\r\n";
+    /* implicit VR: (0008,0005) length 0x7fffffff; explicit: an OB of 2^31; a sequence's item */
+    static const unsigned char parts[][24] = {
+        {0x08, 0, 0x05, 0, 0xff, 0xff, 0xff, 0x7f, 'I', 'S', 'O'},
+        {0x08, 0, 0x05, 0, 'C', 'S', 0x02, 0, 'A', 'B', 0xe0, 0x7f, 0x10, 0, 'O', 'B', 0, 0, 0, 0, 0, 0x80},
+        {0x08, 0, 0x15, 0x11, 0xff, 0xff, 0xff, 0xff, 0xfe, 0xff, 0, 0xe0, 0xff, 0xff, 0xff, 0xff, 0x08, 0, 0x50, 0x11,
+         0, 0, 0, 0x40},
+    };
+    static const size_t lens[] = {11, 22, 24};
+    for (int k = 0; k < 3; k++) {
+        char body[512];
+        size_t n = 0;
+        for (int twice = 0; twice < 2; twice++) { /* a series is two slices at least */
+            memcpy(body + n, head, sizeof head - 1), n += sizeof head - 1;
+            memcpy(body + n, "DICM", 4), n += 4;
+            memcpy(body + n, parts[k], lens[k]), n += lens[k];
+            if (!twice)
+                memcpy(body + n, "\r\n", 2), n += 2;
+        }
+        memcpy(body + n, tail, sizeof tail - 1), n += sizeof tail - 1;
+        CHECK(refused(body, n, "dicom", "iso=1", SF_EFORMAT, "/parts/0"));
+        struct volume v;
+        struct sf_err err;
+        CHECK(rd(body, n, "dicom", "iso=1", &v, &err) && strstr(err.message, "longer than the part"));
+    }
+}
+
 int main(void)
 {
     RUN(raw_samples);
+    RUN(dicom_lengths_over_the_part);
     RUN(nrrd);
     RUN(metaimage);
     RUN(shared_ct_as_nrrd);
