@@ -24,31 +24,46 @@ static double now_ms(void)
     return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
 }
 
+/* fn(ctx, k) for k in [0, n) on `threads` threads, each taking the next k. */
 struct pass {
-    struct iso_job *j;
-    bool emit;
+    void (*fn)(void *ctx, int k);
+    void *ctx;
+    int n;
     atomic_int next;
 };
 
 static void *worker(void *arg)
 {
     struct pass *p = arg;
-    for (int s; (s = atomic_fetch_add(&p->next, 1)) < iso_n_slabs(p->j);)
-        p->emit ? iso_emit(p->j, s) : iso_count(p->j, s);
+    for (int k; (k = atomic_fetch_add(&p->next, 1)) < p->n;)
+        p->fn(p->ctx, k);
     return NULL;
 }
 
-/* One pass over every slab on n threads. */
-static void run_pass(struct iso_job *j, bool emit, int n)
+static void parallel(int n, int threads, void (*fn)(void *ctx, int k), void *ctx)
 {
-    struct pass p = {j, emit, 0};
+    struct pass p = {fn, ctx, n, 0};
     pthread_t t[64];
     int started = 0;
-    for (int k = 1; k < n && k < 64; k++)
+    for (int k = 1; k < threads && k < 64; k++)
         started += pthread_create(&t[started], NULL, worker, &p) == 0;
     worker(&p);
     for (int k = 0; k < started; k++)
         pthread_join(t[k], NULL);
+}
+
+static void count_slab(void *j, int s) { iso_count(j, s); }
+static void emit_slab(void *j, int s) { iso_emit(j, s); }
+
+struct adapt_phase {
+    struct iso_adapt *a;
+    int phase;
+};
+
+static void adapt_slab(void *ctx, int s)
+{
+    struct adapt_phase *p = ctx;
+    iso_adapt_run(p->a, p->phase, s);
 }
 
 static int extract(const struct volume *v, int threads, struct trimesh *m, struct iso_adapt_stats *as, double *ms,
@@ -56,8 +71,17 @@ static int extract(const struct volume *v, int threads, struct trimesh *m, struc
 {
     double t0 = now_ms();
     struct iso_opts o = {v->iso, v->closed, true};
-    if (v->levels > 1) { /* the adaptive hierarchy: one thread */
-        int rc = iso_extract_adaptive(&v->g, &o, v->levels, v->max_error, NULL, m, as, err);
+    if (v->levels > 1) { /* the adaptive hierarchy: its phases' slabs on the threads */
+        struct iso_adapt *a;
+        int rc = iso_adapt_begin(&v->g, &o, v->levels, v->max_error, &a, err);
+        if (rc)
+            return rc;
+        for (int p = 0; p < iso_adapt_phases(a); p++) {
+            struct adapt_phase ph = {a, p};
+            parallel(iso_adapt_n_slabs(a), threads, adapt_slab, &ph);
+            iso_adapt_between(a, p);
+        }
+        rc = iso_adapt_end(a, m, as, err);
         *ms = now_ms() - t0;
         return rc;
     }
@@ -65,12 +89,12 @@ static int extract(const struct volume *v, int threads, struct trimesh *m, struc
     int rc = iso_begin(&v->g, &o, threads * 4, &j, err);
     if (rc)
         return rc;
-    run_pass(j, false, threads);
+    parallel(iso_n_slabs(j), threads, count_slab, j);
     if ((rc = iso_layout(j, err))) {
         iso_free(j);
         return rc;
     }
-    run_pass(j, true, threads);
+    parallel(iso_n_slabs(j), threads, emit_slab, j);
     rc = iso_end(j, m, err);
     *ms = now_ms() - t0;
     return rc;

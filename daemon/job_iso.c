@@ -32,9 +32,9 @@ struct iso_work {
     struct volume vol;
     struct iso_job *ij;
     enum { PH_SAMPLE, PH_COUNT, PH_EMIT, PH_ADAPT } phase;
-    struct trimesh adapt;    /* levels > 1: the adaptive hierarchy's mesh (one band, for now) */
+    struct iso_adapt *ad;    /* levels > 1: the adaptive hierarchy, its phases of bands */
+    int ad_phase;
     struct iso_adapt_stats adapt_st;
-    int adapt_rc;
     int n_slabs, n_sample;
     atomic_int bands_done;
     double t0, t_read, t_sampled;
@@ -100,9 +100,11 @@ static int begin_extract(struct iso_work *w, int *n_bands)
 {
     struct iso_opts o = {w->vol.iso, w->vol.closed, true};
     if (w->vol.levels > 1) {
+        if (iso_adapt_begin(&w->vol.g, &o, w->vol.levels, w->vol.max_error, &w->ad, &w->err))
+            return -1;
         w->phase = PH_ADAPT;
-        w->n_slabs = 1;
-        *n_bands = 1;
+        w->n_slabs = iso_adapt_n_slabs(w->ad) * iso_adapt_phases(w->ad) / 2; /* for the progress: 2 passes' worth */
+        *n_bands = iso_adapt_n_slabs(w->ad);
         return 0;
     }
     if (iso_begin(&w->vol.g, &o, w->n_slabs, &w->ij, &w->err))
@@ -113,24 +115,12 @@ static int begin_extract(struct iso_work *w, int *n_bands)
     return 0;
 }
 
-/* sf_progress of the adaptive extraction: the job's cancel flag */
-static bool adapt_poll(void *ctx, double done)
-{
-    struct iso_work *w = ctx;
-    return jobq_cancelled(w->svc->q, w->j, 0.95 * (w->n_sample + done) / (w->n_sample + 1.0));
-}
-
 static void band(struct job *j, void *arg, int k)
 {
     struct iso_work *w = arg;
-    if (w->phase == PH_ADAPT) {
-        struct iso_opts o = {w->vol.iso, w->vol.closed, true};
-        struct sf_progress pr = {adapt_poll, w};
-        w->adapt_rc = iso_extract_adaptive(&w->vol.g, &o, w->vol.levels, w->vol.max_error, &pr, &w->adapt,
-                                           &w->adapt_st, &w->err);
-        return;
-    }
-    if (w->phase == PH_SAMPLE)
+    if (w->phase == PH_ADAPT)
+        iso_adapt_run(w->ad, w->ad_phase, k);
+    else if (w->phase == PH_SAMPLE)
         volume_sample(&w->vol, (int)((long)w->vol.g.nz * k / w->n_sample), (int)((long)w->vol.g.nz * (k + 1) / w->n_sample));
     else if (w->phase == PH_COUNT)
         iso_count(w->ij, k);
@@ -152,8 +142,12 @@ static int next(struct job *j, void *arg, int *n_bands)
     }
     if (w->phase == PH_EMIT)
         return 0;
-    if (w->phase == PH_ADAPT)
-        return w->adapt_rc ? -1 : 0;
+    if (w->phase == PH_ADAPT) {
+        iso_adapt_between(w->ad, w->ad_phase);
+        if (++w->ad_phase < iso_adapt_phases(w->ad))
+            *n_bands = iso_adapt_n_slabs(w->ad);
+        return 0;
+    }
     if (iso_layout(w->ij, &w->err))
         return -1;
     w->phase = PH_EMIT;
@@ -184,10 +178,10 @@ static int stopped(struct iso_work *w, double progress)
 static int store_model(struct iso_work *w)
 {
     double t_extract = monotonic_s();
-    struct trimesh m = w->adapt;
-    memset(&w->adapt, 0, sizeof w->adapt);
-    int rc = w->vol.levels > 1 ? 0 : iso_end(w->ij, &m, &w->err);
+    struct trimesh m;
+    int rc = w->ad ? iso_adapt_end(w->ad, &m, &w->adapt_st, &w->err) : iso_end(w->ij, &m, &w->err);
     w->ij = NULL;
+    w->ad = NULL;
     if (!rc)
         rc = volume_mesh_empty(&w->vol, &m, &w->err);
     if (rc) {
@@ -234,7 +228,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     service_job_end(w->svc, &w->claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     iso_free(w->ij);
-    trimesh_free(&w->adapt);
+    iso_adapt_free(w->ad);
     drop_volume(w);
     if (w->file[0])
         store_request_file_done(w->svc->store, w->file);

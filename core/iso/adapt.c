@@ -12,39 +12,48 @@
  * corner c = x + 2y + 4z. */
 static const int FACE_CCW[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
 
-struct ad {
+/* One slab's share of the mesh (the cells phase runs slab by slab, on any threads): vertices keyed
+ * by the finest edge they lie on, merged across slabs at the end. */
+struct piece {
+    uint64_t *keys;
+    uint32_t *slot;
+    size_t cap, used;
+    uint64_t *vkey;                    /* each vertex's key (UINT64_MAX: a fan's centre) */
+    struct trimesh m;
+    size_t vcap, tcap, kcap;
+    bool nomem;
+    long cells[ISO_MAX_LEVELS + 1];
+};
+
+#define ADAPT_SLABS 16 /* fixed, so that the mesh does not depend on the number of threads */
+
+struct iso_adapt {
     int N[3], shift;
     float iso;
     double org[3], sp[3], max_err;
-    int L;
+    int L, n_slabs;
     float *F;                          /* the virtual grid, x fastest */
     int nb[ISO_MAX_LEVELS + 1][3];     /* blocks per axis at each level */
     uint8_t *M[ISO_MAX_LEVELS + 1];    /* [l][block]: covered by a cell of level >= l (l >= 2) */
     uint8_t *lev2;                     /* each level-2 block's cell level (1: cut into level-1 cells) */
     uint8_t *mixed[ISO_MAX_LEVELS + 1]; /* [l][block]: its samples are on both sides of iso (l >= 2;
                                          * level 2: or the grid's end cuts it) */
-    /* the mesh: vertices keyed by the finest edge they lie on */
-    uint64_t *keys;
-    uint32_t *slot;
-    size_t cap, used;
-    struct trimesh m;
-    size_t vcap, tcap;
-    bool nomem;
-    struct iso_adapt_stats *st;
+    double slab_max[ADAPT_SLABS];      /* the largest error a merge accepted, by slab */
+    struct piece pieces[ADAPT_SLABS];
 };
 
-static size_t at3(const struct ad *a, int x, int y, int z) { return (size_t)x + (size_t)a->N[0] * ((size_t)y + (size_t)a->N[1] * z); }
-static float F(const struct ad *a, int x, int y, int z) { return a->F[at3(a, x, y, z)]; }
+static size_t at3(const struct iso_adapt *a, int x, int y, int z) { return (size_t)x + (size_t)a->N[0] * ((size_t)y + (size_t)a->N[1] * z); }
+static float F(const struct iso_adapt *a, int x, int y, int z) { return a->F[at3(a, x, y, z)]; }
 
-static size_t block(const struct ad *a, int l, int bx, int by, int bz)
+static size_t block(const struct iso_adapt *a, int l, int bx, int by, int bz)
 {
     return (size_t)bx + (size_t)a->nb[l][0] * ((size_t)by + (size_t)a->nb[l][1] * bz);
 }
 
-static float Fp(const struct ad *a, const int p[3]) { return F(a, p[0], p[1], p[2]); }
+static float Fp(const struct iso_adapt *a, const int p[3]) { return F(a, p[0], p[1], p[2]); }
 
 /* grad f at node (x, y, z), central differences (one-sided at the border), in world units. */
-static void gradient(const struct ad *a, int x, int y, int z, double g[3])
+static void gradient(const struct iso_adapt *a, int x, int y, int z, double g[3])
 {
     int p[3] = {x, y, z};
     for (int d = 0; d < 3; d++) {
@@ -96,7 +105,7 @@ static double tri_dist(const double p[3], const double a[3], const double b[3], 
  * surface, and what is measured is the distance from every full-resolution vertex in the block
  * (the crossings of its fine edges) to that polygon: INFINITY when the cell would have none. 0
  * when the block's samples are all on one side (mixed false). */
-static double block_error(const struct ad *a, int l, const int b[3], bool mixed)
+static double block_error(const struct iso_adapt *a, int l, const int b[3], bool mixed)
 {
     int s = 1 << (l - 1), o[3] = {b[0] * s, b[1] * s, b[2] * s};
     if (!mixed) /* no crossing in the block: nothing to draw either way */
@@ -196,7 +205,7 @@ static double block_error(const struct ad *a, int l, const int b[3], bool mixed)
 }
 
 /* Whether every block of level l that touches block b of level l+1 is covered at l. */
-static bool ring_covered(const struct ad *a, int l, const int b[3])
+static bool ring_covered(const struct iso_adapt *a, int l, const int b[3])
 {
     for (int z = 2 * b[2] - 1; z <= 2 * b[2] + 2; z++)
         for (int y = 2 * b[1] - 1; y <= 2 * b[1] + 2; y++)
@@ -209,61 +218,53 @@ static bool ring_covered(const struct ad *a, int l, const int b[3])
     return true;
 }
 
-static int build_masks(struct ad *a)
+/* Blocks of level l in layers [z0, z1) of slab s: mixed, merged or not (level l-1 done). */
+static void mask_slab(struct iso_adapt *a, int l, int z0, int z1, int slab)
 {
-    for (int l = 2; l <= a->L; l++) {
-        int s = 1 << (l - 1);
-        for (int d = 0; d < 3; d++)
-            a->nb[l][d] = (a->N[d] - 1 + s - 1) / s;
-        size_t n = (size_t)a->nb[l][0] * a->nb[l][1] * a->nb[l][2];
-        if (!(a->M[l] = calloc(n ? n : 1, 1)) || !(a->mixed[l] = calloc(n ? n : 1, 1)))
-            return -1;
-    }
-    size_t n2 = (size_t)a->nb[2][0] * a->nb[2][1] * a->nb[2][2];
-    if (!(a->lev2 = malloc(n2 ? n2 : 1)))
-        return -1;
-    for (int l = 2; l <= a->L; l++) {
-        int s = 1 << (l - 1), b[3];
-        for (b[2] = 0; b[2] < a->nb[l][2]; b[2]++)
-            for (b[1] = 0; b[1] < a->nb[l][1]; b[1]++)
-                for (b[0] = 0; b[0] < a->nb[l][0]; b[0]++) {
-                    bool inside = true, ok = true, mixed = false;
-                    for (int d = 0; d < 3; d++)
-                        inside = inside && (b[d] + 1) * s <= a->N[d] - 1;
-                    if (l > 2) { /* its children merged, and every block of l-1 round it */
-                        for (int k = 0; k < 8 && ok && inside; k++)
-                            ok = a->M[l - 1][block(a, l - 1, 2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1),
-                                                   2 * b[2] + (k >> 2 & 1))];
-                        ok = ok && inside && ring_covered(a, l - 1, b);
-                    }
-                    if (l == 2) { /* the block's 27 samples */
-                        bool in = false, out = false;
-                        for (int z = 0; z <= 2; z++)
-                            for (int y = 0; y <= 2; y++)
-                                for (int x = 0; x <= 2; x++) {
-                                    int p[3] = {2 * b[0] + x, 2 * b[1] + y, 2 * b[2] + z};
-                                    if (p[0] >= a->N[0] || p[1] >= a->N[1] || p[2] >= a->N[2])
-                                        continue;
-                                    bool v = F(a, p[0], p[1], p[2]) > a->iso;
-                                    in |= v, out |= !v;
-                                }
-                        mixed = !inside || (in && out); /* a block the grid's end cuts: level-1 cells */
-                    } else { /* any child's */
-                        for (int k = 0; k < 8 && !mixed; k++) {
-                            int c[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
-                            if (c[0] < a->nb[l - 1][0] && c[1] < a->nb[l - 1][1] && c[2] < a->nb[l - 1][2])
-                                mixed = a->mixed[l - 1][block(a, l - 1, c[0], c[1], c[2])];
-                        }
-                    }
-                    a->mixed[l][block(a, l, b[0], b[1], b[2])] = mixed;
-                    double e = ok && inside ? block_error(a, l, b, mixed) : INFINITY;
-                    if (e <= a->max_err) {
-                        a->M[l][block(a, l, b[0], b[1], b[2])] = 1;
-                        if (e > a->st->max_estimate)
-                            a->st->max_estimate = e;
+    int s = 1 << (l - 1), b[3];
+    for (b[2] = z0; b[2] < z1; b[2]++)
+        for (b[1] = 0; b[1] < a->nb[l][1]; b[1]++)
+            for (b[0] = 0; b[0] < a->nb[l][0]; b[0]++) {
+                bool inside = true, ok = true, mixed = false;
+                for (int d = 0; d < 3; d++)
+                    inside = inside && (b[d] + 1) * s <= a->N[d] - 1;
+                if (l > 2) { /* its children merged, and every block of l-1 round it */
+                    for (int k = 0; k < 8 && ok && inside; k++)
+                        ok = a->M[l - 1][block(a, l - 1, 2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1),
+                                               2 * b[2] + (k >> 2 & 1))];
+                    ok = ok && inside && ring_covered(a, l - 1, b);
+                }
+                if (l == 2) { /* the block's 27 samples */
+                    bool in = false, out = false;
+                    for (int z = 0; z <= 2; z++)
+                        for (int y = 0; y <= 2; y++)
+                            for (int x = 0; x <= 2; x++) {
+                                int p[3] = {2 * b[0] + x, 2 * b[1] + y, 2 * b[2] + z};
+                                if (p[0] >= a->N[0] || p[1] >= a->N[1] || p[2] >= a->N[2])
+                                    continue;
+                                bool v = F(a, p[0], p[1], p[2]) > a->iso;
+                                in |= v, out |= !v;
+                            }
+                    mixed = !inside || (in && out); /* a block the grid's end cuts: level-1 cells */
+                } else { /* any child's */
+                    for (int k = 0; k < 8 && !mixed; k++) {
+                        int c[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
+                        if (c[0] < a->nb[l - 1][0] && c[1] < a->nb[l - 1][1] && c[2] < a->nb[l - 1][2])
+                            mixed = a->mixed[l - 1][block(a, l - 1, c[0], c[1], c[2])];
                     }
                 }
-    }
+                a->mixed[l][block(a, l, b[0], b[1], b[2])] = mixed;
+                double e = ok && inside ? block_error(a, l, b, mixed) : INFINITY;
+                if (e <= a->max_err) {
+                    a->M[l][block(a, l, b[0], b[1], b[2])] = 1;
+                    a->slab_max[slab] = fmax(a->slab_max[slab], e);
+                }
+            }
+}
+
+/* Each level-2 block's cell level, once every level's blocks are known. */
+static void cell_levels(struct iso_adapt *a)
+{
     int b[3];
     for (b[2] = 0; b[2] < a->nb[2][2]; b[2]++)
         for (b[1] = 0; b[1] < a->nb[2][1]; b[1]++)
@@ -274,7 +275,6 @@ static int build_masks(struct ad *a)
                         lev = l;
                 a->lev2[block(a, 2, b[0], b[1], b[2])] = (uint8_t)lev;
             }
-    return 0;
 }
 
 /* ---- the mesh ---- */
@@ -300,55 +300,76 @@ static uint64_t hash64(uint64_t k)
     return k;
 }
 
-/* A new vertex at pos with normal nrm: its id, or -1 (no memory, or over the limit). */
-static long new_vertex(struct ad *a, const double pos[3], const double nrm[3])
+/* A new vertex of piece pc at pos with normal nrm and key: its id, or -1 (no memory, or over
+ * the limit). */
+static long new_vertex(struct piece *pc, const double pos[3], const double nrm[3], uint64_t key)
 {
-    size_t v = a->m.n_vert;
-    size_t pc = a->vcap, nc = a->vcap;
-    if (v >= ISO_MAX_VERTICES || !grow((void **)&a->m.pos, &pc, 3 * (v + 1), sizeof(float)) ||
-        !grow((void **)&a->m.nrm, &nc, 3 * (v + 1), sizeof(float))) {
-        a->nomem = true;
+    size_t v = pc->m.n_vert, cap = pc->vcap, kcap = pc->kcap;
+    if (v >= ISO_MAX_VERTICES || !grow((void **)&pc->m.pos, &cap, 3 * (v + 1), sizeof(float)) ||
+        !grow((void **)&pc->m.nrm, &pc->vcap, 3 * (v + 1), sizeof(float)) ||
+        !grow((void **)&pc->vkey, &kcap, v + 1, sizeof(uint64_t))) {
+        pc->nomem = true;
         return -1;
     }
-    a->vcap = pc < nc ? pc : nc;
+    pc->kcap = kcap;
     double len = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
     for (int d = 0; d < 3; d++) {
-        a->m.pos[3 * v + d] = (float)pos[d];
-        a->m.nrm[3 * v + d] = len > 0 ? (float)(nrm[d] / len) : 0.0f;
+        pc->m.pos[3 * v + d] = (float)pos[d];
+        pc->m.nrm[3 * v + d] = len > 0 ? (float)(nrm[d] / len) : 0.0f;
     }
-    return (long)a->m.n_vert++;
+    pc->vkey[v] = key;
+    return (long)pc->m.n_vert++;
 }
 
-/* The vertex on the finest edge from node n along axis, with its two values: found or made. */
-static long edge_vertex(struct ad *a, const int n[3], int axis, float v0, float v1)
+/* The slot of key in pc's table (growing it at half full), *found whether it holds key: or NULL
+ * for no memory. */
+static size_t *slot_of(struct piece *pc, uint64_t key, bool *found, size_t *h_out)
 {
-    uint64_t key = (uint64_t)at3(a, n[0], n[1], n[2]) * 3 + (uint64_t)axis;
-    if (a->used * 2 >= a->cap) { /* rehash at half full */
-        size_t cap = a->cap ? a->cap * 2 : 1 << 16;
+    if (pc->used * 2 >= pc->cap) {
+        size_t cap = pc->cap ? pc->cap * 2 : 1 << 14;
         uint64_t *keys = malloc(cap * sizeof *keys);
         uint32_t *slot = malloc(cap * sizeof *slot);
         if (!keys || !slot) {
             free(keys), free(slot);
-            a->nomem = true;
-            return -1;
+            pc->nomem = true;
+            return NULL;
         }
         memset(keys, 0xff, cap * sizeof *keys);
-        for (size_t i = 0; i < a->cap; i++)
-            if (a->keys[i] != UINT64_MAX) {
-                size_t h = hash64(a->keys[i]) & (cap - 1);
+        for (size_t i = 0; i < pc->cap; i++)
+            if (pc->keys[i] != UINT64_MAX) {
+                size_t h = hash64(pc->keys[i]) & (cap - 1);
                 while (keys[h] != UINT64_MAX)
                     h = (h + 1) & (cap - 1);
-                keys[h] = a->keys[i], slot[h] = a->slot[i];
+                keys[h] = pc->keys[i], slot[h] = pc->slot[i];
             }
-        free(a->keys), free(a->slot);
-        a->keys = keys, a->slot = slot, a->cap = cap;
+        free(pc->keys), free(pc->slot);
+        pc->keys = keys, pc->slot = slot, pc->cap = cap;
     }
-    size_t h = hash64(key) & (a->cap - 1);
-    while (a->keys[h] != UINT64_MAX) {
-        if (a->keys[h] == key)
-            return a->slot[h];
-        h = (h + 1) & (a->cap - 1);
-    }
+    size_t h = hash64(key) & (pc->cap - 1);
+    while (pc->keys[h] != UINT64_MAX && pc->keys[h] != key)
+        h = (h + 1) & (pc->cap - 1);
+    *found = pc->keys[h] == key;
+    *h_out = h;
+    return h_out;
+}
+
+/* Records that key is vertex v of pc (its slot from slot_of). */
+static void keep_slot(struct piece *pc, size_t h, uint64_t key, long v)
+{
+    pc->keys[h] = key, pc->slot[h] = (uint32_t)v;
+    pc->used++;
+}
+
+/* The vertex on the finest edge from node n along axis, with its two values: found or made. */
+static long edge_vertex(const struct iso_adapt *a, struct piece *pc, const int n[3], int axis, float v0, float v1)
+{
+    uint64_t key = (uint64_t)at3(a, n[0], n[1], n[2]) * 3 + (uint64_t)axis;
+    bool found;
+    size_t h;
+    if (!slot_of(pc, key, &found, &h))
+        return -1;
+    if (found)
+        return pc->slot[h];
     double t = ((double)a->iso - v0) / ((double)v1 - v0);
     t = t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
     double pos[3], g0[3], g1[3], nrm[3];
@@ -360,25 +381,23 @@ static long edge_vertex(struct ad *a, const int n[3], int axis, float v0, float 
         pos[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
         nrm[d] = -((1 - t) * g0[d] + t * g1[d]); /* outward: down the gradient */
     }
-    long v = new_vertex(a, pos, nrm);
-    if (v < 0)
-        return -1;
-    a->keys[h] = key, a->slot[h] = (uint32_t)v;
-    a->used++;
+    long v = new_vertex(pc, pos, nrm, key);
+    if (v >= 0)
+        keep_slot(pc, h, key, v);
     return v;
 }
 
-static void add_triangle(struct ad *a, long p, long q, long r)
+static void add_triangle(struct piece *pc, long p, long q, long r)
 {
     if (p < 0 || q < 0 || r < 0)
         return;
-    size_t t = a->m.n_tri;
-    if (!grow((void **)&a->m.tri, &a->tcap, 3 * (t + 1), sizeof(uint32_t))) {
-        a->nomem = true;
+    size_t t = pc->m.n_tri;
+    if (!grow((void **)&pc->m.tri, &pc->tcap, 3 * (t + 1), sizeof(uint32_t))) {
+        pc->nomem = true;
         return;
     }
-    a->m.tri[3 * t] = (uint32_t)p, a->m.tri[3 * t + 1] = (uint32_t)q, a->m.tri[3 * t + 2] = (uint32_t)r;
-    a->m.n_tri++;
+    pc->m.tri[3 * t] = (uint32_t)p, pc->m.tri[3 * t + 1] = (uint32_t)q, pc->m.tri[3 * t + 2] = (uint32_t)r;
+    pc->m.n_tri++;
 }
 
 /* ---- one cell ---- */
@@ -386,6 +405,7 @@ static void add_triangle(struct ad *a, long p, long q, long r)
 #define MAX_SEGS 96
 
 struct cell {
+    struct piece *pc;        /* where its triangles go */
     int o[3], s;
     float cv[8];             /* the corners' values */
     int n;                   /* segments */
@@ -395,7 +415,7 @@ struct cell {
 
 /* The crossing on the sub-edge from node p to node q (one axis apart): the finest edge where the
  * values change side, walked from the lower end, and the faces of the cell it lies on. */
-static long crossing(struct ad *a, const struct cell *c, const int p[3], const int q[3], float vp, float vq,
+static long crossing(const struct iso_adapt *a, const struct cell *c, const int p[3], const int q[3], float vp, float vq,
                      int *faces)
 {
     int axis = p[0] != q[0] ? 0 : p[1] != q[1] ? 1 : 2;
@@ -404,13 +424,13 @@ static long crossing(struct ad *a, const struct cell *c, const int p[3], const i
     float prev = lo == p ? vp : vq;
     long v = -1;
     if (m == 1)
-        v = edge_vertex(a, n, axis, prev, lo == p ? vq : vp);
+        v = edge_vertex(a, c->pc, n, axis, prev, lo == p ? vq : vp);
     for (int k = 1; k <= m && m > 1; k++) {
         int n1[3] = {n[0], n[1], n[2]};
         n1[axis]++;
         float cur = Fp(a, n1);
         if ((prev > a->iso) != (cur > a->iso)) {
-            v = edge_vertex(a, n, axis, prev, cur);
+            v = edge_vertex(a, c->pc, n, axis, prev, cur);
             break;
         }
         prev = cur;
@@ -435,7 +455,7 @@ static void add_seg(struct cell *c, long from, int from_faces, long to)
 
 /* The segments of face f cut k x k: per sub-square as mc.c's faces (entry to exit, walking it
  * counter-clockwise; an ambiguous one by the asymptotic decider over its values in x, y, z order). */
-static void face_segments(struct ad *a, struct cell *c, int f, int k)
+static void face_segments(const struct iso_adapt *a, struct cell *c, int f, int k)
 {
     int axis = f >> 1, side = f & 1, h = c->s / k;
     int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2;
@@ -482,7 +502,7 @@ static void face_segments(struct ad *a, struct cell *c, int f, int k)
 
 /* The cell's loops, each fanned from a vertex none of whose diagonals joins two vertices of one
  * face, else from a vertex at its centre. */
-static void fan_loops(struct ad *a, struct cell *c)
+static void fan_loops(struct cell *c)
 {
     bool used[MAX_SEGS] = {false};
     for (int s0 = 0; s0 < c->n; s0++) {
@@ -511,7 +531,7 @@ static void fan_loops(struct ad *a, struct cell *c)
         }
         if (apex >= 0) {
             for (int k = 1; k + 1 < n; k++)
-                add_triangle(a, loop[apex], loop[(apex + k) % n], loop[(apex + k + 1) % n]);
+                add_triangle(c->pc, loop[apex], loop[(apex + k) % n], loop[(apex + k + 1) % n]);
             continue;
         }
         double pos[3] = {0, 0, 0}, nrm[3] = {0, 0, 0};
@@ -519,17 +539,17 @@ static void fan_loops(struct ad *a, struct cell *c)
             for (int d = 0; d < 3; d++) {
                 if (loop[k] < 0)
                     continue;
-                pos[d] += a->m.pos[3 * loop[k] + d] / n;
-                nrm[d] += a->m.nrm[3 * loop[k] + d];
+                pos[d] += c->pc->m.pos[3 * loop[k] + d] / n;
+                nrm[d] += c->pc->m.nrm[3 * loop[k] + d];
             }
-        long centre = new_vertex(a, pos, nrm);
+        long centre = new_vertex(c->pc, pos, nrm, UINT64_MAX);
         for (int k = 0; k < n; k++)
-            add_triangle(a, centre, loop[k], loop[(k + 1) % n]);
+            add_triangle(c->pc, centre, loop[k], loop[(k + 1) % n]);
     }
 }
 
 /* Cell of level l at o: its faces cut where the neighbour across is finer. */
-static void polygonise(struct ad *a, const int o[3], int l)
+static void polygonise(const struct iso_adapt *a, struct piece *pc, const int o[3], int l)
 {
     int s = 1 << (l - 1), in = 0;
     float cv[8];
@@ -557,25 +577,26 @@ static void polygonise(struct ad *a, const int o[3], int l)
     if (!mixed)
         return;
     struct cell c;
+    c.pc = pc;
     memcpy(c.o, o, sizeof c.o);
     memcpy(c.cv, cv, sizeof c.cv);
     c.s = s;
     c.n = 0;
-    a->st->cells[l]++;
+    pc->cells[l]++;
     for (int f = 0; f < 6; f++)
         face_segments(a, &c, f, ks[f]);
-    fan_loops(a, &c);
+    fan_loops(&c);
 }
 
 /* The cells of level-2 block b (its own level-1 cells, or the cell it starts). */
-static void block_cells(struct ad *a, const int b[3])
+static void block_cells(const struct iso_adapt *a, struct piece *pc, const int b[3])
 {
     size_t at = block(a, 2, b[0], b[1], b[2]);
     int lam = a->lev2[at];
     if (lam >= 2) {
         int m = (1 << (lam - 2)) - 1;
         if (!(b[0] & m) && !(b[1] & m) && !(b[2] & m))
-            polygonise(a, (int[3]){2 * b[0], 2 * b[1], 2 * b[2]}, lam);
+            polygonise(a, pc, (int[3]){2 * b[0], 2 * b[1], 2 * b[2]}, lam);
         return;
     }
     if (!a->mixed[2][at]) /* level-1 cells where the samples change side */
@@ -583,27 +604,35 @@ static void block_cells(struct ad *a, const int b[3])
     for (int k = 0; k < 8; k++) {
         int o[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
         if (o[0] + 1 < a->N[0] && o[1] + 1 < a->N[1] && o[2] + 1 < a->N[2])
-            polygonise(a, o, 1);
+            polygonise(a, pc, o, 1);
     }
 }
 
-static void ad_free(struct ad *a)
+static void piece_free(struct piece *pc)
 {
+    free(pc->keys);
+    free(pc->slot);
+    free(pc->vkey);
+    trimesh_free(&pc->m);
+}
+
+void iso_adapt_free(struct iso_adapt *a)
+{
+    if (!a)
+        return;
     free(a->F);
     for (int l = 0; l <= ISO_MAX_LEVELS; l++)
         free(a->M[l]), free(a->mixed[l]);
     free(a->lev2);
-    free(a->keys);
-    free(a->slot);
-    trimesh_free(&a->m);
+    for (int k = 0; k < ADAPT_SLABS; k++)
+        piece_free(&a->pieces[k]);
+    free(a);
 }
 
-int iso_extract_adaptive(const struct iso_grid *g, const struct iso_opts *o, int levels, double max_error,
-                         const struct sf_progress *pr, struct trimesh *out, struct iso_adapt_stats *st,
-                         struct sf_err *err)
+int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int levels, double max_error,
+                    struct iso_adapt **out, struct sf_err *err)
 {
-    memset(out, 0, sizeof *out);
-    memset(st, 0, sizeof *st);
+    *out = NULL;
     if (levels < 1 || levels > ISO_MAX_LEVELS)
         return sf_fail(err, SF_EINVAL, "?levels", "levels is 1 to %d", ISO_MAX_LEVELS);
     if (!(max_error >= 0) || !isfinite(max_error))
@@ -612,54 +641,162 @@ int iso_extract_adaptive(const struct iso_grid *g, const struct iso_opts *o, int
         return sf_fail(err, SF_EINVAL, "?dims", "a volume has at least 2 samples on every axis");
     if (!isfinite(o->iso))
         return sf_fail(err, SF_EINVAL, "?iso", "iso is a finite number");
-    struct ad a = {.shift = o->closed ? 1 : 0, .iso = (float)o->iso, .max_err = max_error, .L = levels < 2 ? 2 : levels,
-                   .st = st};
+    struct iso_adapt *a = calloc(1, sizeof *a);
+    if (!a)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    a->shift = o->closed ? 1 : 0;
+    a->iso = (float)o->iso;
+    a->max_err = levels == 1 ? -1 : max_error; /* levels 1: nothing merges */
+    a->L = levels < 2 ? 2 : levels;
     int nn[3] = {g->nx, g->ny, g->nz};
     for (int d = 0; d < 3; d++) {
-        a.N[d] = nn[d] + 2 * a.shift;
-        a.sp[d] = g->spacing[d];
-        a.org[d] = g->origin[d] - a.shift * g->spacing[d];
+        a->N[d] = nn[d] + 2 * a->shift;
+        a->sp[d] = g->spacing[d];
+        a->org[d] = g->origin[d] - a->shift * g->spacing[d];
     }
-    if (levels == 1)
-        a.max_err = -1; /* nothing merges */
-    size_t n = (size_t)a.N[0] * a.N[1] * a.N[2];
+    size_t n = (size_t)a->N[0] * a->N[1] * a->N[2];
     float pad = o->closed ? (float)fmin(o->iso - 1, iso_grid_min(g)) : 0;
-    if (!(a.F = malloc(n * sizeof *a.F))) {
-        ad_free(&a);
+    if (!(a->F = malloc(n * sizeof *a->F))) {
+        iso_adapt_free(a);
         return sf_fail(err, SF_ENOMEM, "", "out of memory for the volume's %zu samples", n);
     }
-    for (int z = 0; z < a.N[2]; z++)
-        for (int y = 0; y < a.N[1]; y++) {
-            float *row = a.F + at3(&a, 0, y, z);
-            int ry = y - a.shift, rz = z - a.shift;
+    for (int z = 0; z < a->N[2]; z++)
+        for (int y = 0; y < a->N[1]; y++) {
+            float *row = a->F + at3(a, 0, y, z);
+            int ry = y - a->shift, rz = z - a->shift;
             if (ry < 0 || ry >= g->ny || rz < 0 || rz >= g->nz) {
-                for (int x = 0; x < a.N[0]; x++)
+                for (int x = 0; x < a->N[0]; x++)
                     row[x] = pad;
                 continue;
             }
-            iso_grid_row(g, ry, rz, row + a.shift);
-            if (a.shift)
-                row[0] = row[a.N[0] - 1] = pad;
+            iso_grid_row(g, ry, rz, row + a->shift);
+            if (a->shift)
+                row[0] = row[a->N[0] - 1] = pad;
         }
-    int rc = 0;
-    if (build_masks(&a)) {
-        ad_free(&a);
+    for (int l = 2; l <= a->L; l++) {
+        int s = 1 << (l - 1);
+        for (int d = 0; d < 3; d++)
+            a->nb[l][d] = (a->N[d] - 1 + s - 1) / s;
+        size_t nb = (size_t)a->nb[l][0] * a->nb[l][1] * a->nb[l][2];
+        if (!(a->M[l] = calloc(nb ? nb : 1, 1)) || !(a->mixed[l] = calloc(nb ? nb : 1, 1))) {
+            iso_adapt_free(a);
+            return sf_fail(err, SF_ENOMEM, "", "out of memory");
+        }
+    }
+    size_t n2 = (size_t)a->nb[2][0] * a->nb[2][1] * a->nb[2][2];
+    if (!(a->lev2 = malloc(n2 ? n2 : 1))) {
+        iso_adapt_free(a);
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     }
+    a->n_slabs = a->nb[2][2] < ADAPT_SLABS ? a->nb[2][2] : ADAPT_SLABS;
+    *out = a;
+    return 0;
+}
+
+int iso_adapt_phases(const struct iso_adapt *a) { return a->L; }
+int iso_adapt_n_slabs(const struct iso_adapt *a) { return a->n_slabs; }
+
+void iso_adapt_run(struct iso_adapt *a, int phase, int slab)
+{
+    int l = phase + 2 <= a->L ? phase + 2 : 2, nz = a->nb[l][2];
+    int z0 = (int)((long)nz * slab / a->n_slabs), z1 = (int)((long)nz * (slab + 1) / a->n_slabs);
+    if (phase + 2 <= a->L) {
+        mask_slab(a, l, z0, z1, slab);
+        return;
+    }
     int b[3];
-    for (b[2] = 0; b[2] < a.nb[2][2] && !rc && !a.nomem; b[2]++) {
-        for (b[1] = 0; b[1] < a.nb[2][1]; b[1]++)
-            for (b[0] = 0; b[0] < a.nb[2][0]; b[0]++)
-                block_cells(&a, b);
-        rc = sf_poll(pr, (b[2] + 1.0) / a.nb[2][2], err);
+    for (b[2] = z0; b[2] < z1 && !a->pieces[slab].nomem; b[2]++)
+        for (b[1] = 0; b[1] < a->nb[2][1]; b[1]++)
+            for (b[0] = 0; b[0] < a->nb[2][0]; b[0]++)
+                block_cells(a, &a->pieces[slab], b);
+}
+
+void iso_adapt_between(struct iso_adapt *a, int phase)
+{
+    if (phase == a->L - 2) /* the last level's blocks are known */
+        cell_levels(a);
+}
+
+int iso_adapt_end(struct iso_adapt *a, struct trimesh *out, struct iso_adapt_stats *st, struct sf_err *err)
+{
+    memset(out, 0, sizeof *out);
+    memset(st, 0, sizeof *st);
+    struct piece all = {0};
+    int rc = 0;
+    for (int k = 0; k < a->n_slabs && !rc; k++) {
+        struct piece *pc = &a->pieces[k];
+        for (int l = 1; l <= ISO_MAX_LEVELS; l++)
+            st->cells[l] += pc->cells[l];
+        st->max_estimate = fmax(st->max_estimate, a->slab_max[k]);
+        if (pc->nomem) {
+            rc = -1;
+            break;
+        }
+        /* the slab's vertices into the mesh, each key once (the slabs' order: the same mesh on any
+         * number of threads), its triangles renumbered */
+        uint32_t *id = malloc((pc->m.n_vert ? pc->m.n_vert : 1) * sizeof *id);
+        if (!id) {
+            rc = -1;
+            break;
+        }
+        for (size_t v = 0; v < pc->m.n_vert && !all.nomem; v++) {
+            bool found = false;
+            size_t h = 0;
+            if (pc->vkey[v] != UINT64_MAX && !slot_of(&all, pc->vkey[v], &found, &h))
+                break;
+            if (found) {
+                id[v] = all.slot[h];
+                continue;
+            }
+            double pos[3] = {pc->m.pos[3 * v], pc->m.pos[3 * v + 1], pc->m.pos[3 * v + 2]};
+            double nrm[3] = {pc->m.nrm[3 * v], pc->m.nrm[3 * v + 1], pc->m.nrm[3 * v + 2]};
+            long g = new_vertex(&all, pos, nrm, pc->vkey[v]);
+            if (g < 0)
+                break;
+            if (pc->vkey[v] != UINT64_MAX)
+                keep_slot(&all, h, pc->vkey[v], g);
+            id[v] = (uint32_t)g;
+        }
+        for (size_t t = 0; t < pc->m.n_tri && !all.nomem; t++)
+            add_triangle(&all, id[pc->m.tri[3 * t]], id[pc->m.tri[3 * t + 1]], id[pc->m.tri[3 * t + 2]]);
+        free(id);
+        piece_free(pc);
+        memset(pc, 0, sizeof *pc);
+        rc = all.nomem ? -1 : 0;
     }
-    if (!rc && a.nomem)
-        rc = sf_fail(err, a.m.n_vert >= ISO_MAX_VERTICES ? SF_ELIMIT : SF_ENOMEM, "",
+    if (rc) {
+        rc = sf_fail(err, all.m.n_vert >= ISO_MAX_VERTICES ? SF_ELIMIT : SF_ENOMEM, "",
                      "the mesh would take more memory than there is (or over %u vertices)", ISO_MAX_VERTICES);
-    if (!rc) {
-        *out = a.m;
-        memset(&a.m, 0, sizeof a.m);
+    } else {
+        *out = all.m;
+        memset(&all.m, 0, sizeof all.m);
     }
-    ad_free(&a);
+    piece_free(&all);
+    iso_adapt_free(a);
     return rc;
+}
+
+int iso_extract_adaptive(const struct iso_grid *g, const struct iso_opts *o, int levels, double max_error,
+                         const struct sf_progress *pr, struct trimesh *out, struct iso_adapt_stats *st,
+                         struct sf_err *err)
+{
+    memset(out, 0, sizeof *out);
+    memset(st, 0, sizeof *st);
+    struct iso_adapt *a;
+    int rc = iso_adapt_begin(g, o, levels, max_error, &a, err);
+    if (rc)
+        return rc;
+    int phases = iso_adapt_phases(a), n = iso_adapt_n_slabs(a);
+    for (int p = 0; p < phases && !rc; p++) {
+        for (int s = 0; s < n && !rc; s++) {
+            iso_adapt_run(a, p, s);
+            rc = sf_poll(pr, (p * n + s + 1.0) / (phases * n), err);
+        }
+        iso_adapt_between(a, p);
+    }
+    if (rc) {
+        iso_adapt_free(a);
+        return rc;
+    }
+    return iso_adapt_end(a, out, st, err);
 }

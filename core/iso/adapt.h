@@ -39,8 +39,23 @@ struct iso_adapt_stats {
     double max_estimate;              /* the largest |f - c| / |grad f| the merges accepted */
 };
 
-/* The isosurface of g with levels (1..ISO_MAX_LEVELS) and max_error (in the grid's units), on
- * the calling thread, polling pr. 0, or SF_EINVAL, SF_ENOMEM, SF_ELIMIT, SF_ECANCEL. */
+/* The extraction in phases of slabs: each level's blocks (levels 2..L), then the cells. A caller
+ * runs the slabs of each phase in any order on as many threads as it likes, calling
+ * iso_adapt_between() on one thread after each phase; the mesh is the same whatever the order
+ * or the number of threads (the slabs are fixed by the grid). */
+struct iso_adapt;
+/* 0, or SF_EINVAL (a bad levels, max_error, grid or iso, with its pointer), SF_ENOMEM. */
+int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int levels, double max_error,
+                    struct iso_adapt **out, struct sf_err *err);
+int iso_adapt_phases(const struct iso_adapt *a);
+int iso_adapt_n_slabs(const struct iso_adapt *a);
+void iso_adapt_run(struct iso_adapt *a, int phase, int slab);
+void iso_adapt_between(struct iso_adapt *a, int phase);
+/* Hands the mesh over and frees a: 0, or SF_ENOMEM, SF_ELIMIT (nothing handed over). */
+int iso_adapt_end(struct iso_adapt *a, struct trimesh *out, struct iso_adapt_stats *st, struct sf_err *err);
+void iso_adapt_free(struct iso_adapt *a);
+
+/* All of it on the calling thread, polling pr. 0, or SF_EINVAL, SF_ENOMEM, SF_ELIMIT, SF_ECANCEL. */
 int iso_extract_adaptive(const struct iso_grid *g, const struct iso_opts *o, int levels, double max_error,
                          const struct sf_progress *pr, struct trimesh *out, struct iso_adapt_stats *st,
                          struct sf_err *err);

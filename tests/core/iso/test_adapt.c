@@ -182,6 +182,31 @@ TEST(the_same_mesh_twice_and_mc_at_zero_error)
     trimesh_free(&mc);
 }
 
+/* the phases' slabs in reverse order (as threads may take them): the same mesh, byte for byte */
+TEST(the_same_mesh_whatever_the_order_of_the_slabs)
+{
+    struct iso_grid g = grid(N, field[2], 1);
+    struct iso_opts o = {0, true, true};
+    struct trimesh fw, bw;
+    struct trimesh_stats st;
+    struct iso_adapt_stats as;
+    struct sf_err err = {0};
+    CHECK(extract(&g, 0, 4, 0.3, &fw, &st, &as));
+    struct iso_adapt *a;
+    CHECK(iso_adapt_begin(&g, &o, 4, 0.3, &a, &err) == 0);
+    CHECK(iso_adapt_n_slabs(a) > 2);
+    for (int p = 0; p < iso_adapt_phases(a); p++) {
+        for (int s = iso_adapt_n_slabs(a) - 1; s >= 0; s--)
+            iso_adapt_run(a, p, s);
+        iso_adapt_between(a, p);
+    }
+    CHECK(iso_adapt_end(a, &bw, &as, &err) == 0);
+    CHECK(fw.n_tri == bw.n_tri && fw.n_vert == bw.n_vert);
+    CHECK(!memcmp(fw.tri, bw.tri, 3 * sizeof *fw.tri * fw.n_tri) && !memcmp(fw.pos, bw.pos, 3 * sizeof *fw.pos * fw.n_vert));
+    trimesh_free(&fw);
+    trimesh_free(&bw);
+}
+
 TEST(ct_crop_at_every_level)
 {
     size_t len;
@@ -211,6 +236,7 @@ int main(void)
     RUN(random_fields);
     RUN(within_max_error_of_the_sphere);
     RUN(the_same_mesh_twice_and_mc_at_zero_error);
+    RUN(the_same_mesh_whatever_the_order_of_the_slabs);
     RUN(ct_crop_at_every_level);
     UNIT_END();
 }
