@@ -574,6 +574,10 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     }
     if (!rc && v->max_error < 0)
         v->max_error = 0.5 * fmin(v->g.spacing[0], fmin(v->g.spacing[1], v->g.spacing[2]));
+    if (!rc && v->levels > 1 && (double)v->g.nx * v->g.ny * v->g.nz > ISO_ADAPT_MAX_SAMPLES)
+        rc = sf_fail(err, SF_ELIMIT, "?levels", "levels over 1 take volumes of at most %u samples (this one has "
+                     "%.0f): send levels=1, or a cropped or resampled volume", ISO_ADAPT_MAX_SAMPLES,
+                     (double)v->g.nx * v->g.ny * v->g.nz);
     if (rc)
         volume_free(v);
     return rc;

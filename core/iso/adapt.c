@@ -641,6 +641,9 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
         return sf_fail(err, SF_EINVAL, "?dims", "a volume has at least 2 samples on every axis");
     if (!isfinite(o->iso))
         return sf_fail(err, SF_EINVAL, "?iso", "iso is a finite number");
+    if ((double)g->nx * g->ny * g->nz > ISO_ADAPT_MAX_SAMPLES)
+        return sf_fail(err, SF_ELIMIT, "?levels", "levels over 1 take volumes of at most %u samples",
+                       ISO_ADAPT_MAX_SAMPLES);
     struct iso_adapt *a = calloc(1, sizeof *a);
     if (!a)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");

@@ -33,6 +33,8 @@
 #include "mc.h"
 
 #define ISO_MAX_LEVELS 4
+/* Samples the hierarchy takes: it holds the grid as floats (4 bytes a sample, 1 GiB at most) */
+#define ISO_ADAPT_MAX_SAMPLES (1u << 28)
 
 struct iso_adapt_stats {
     long cells[ISO_MAX_LEVELS + 1];   /* cells holding the surface, by level (1..levels) */

@@ -136,6 +136,9 @@ code=$(status POST "/isosurface?$Q&features=sharp" -H "$RAW" --data-binary @"$CT
 check "an option it does not take (yet): 422 naming it" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?features\"" "$T/body"'
 code=$(status POST "/isosurface?$Q&levels=5" -H "$RAW" --data-binary @"$CT")
 check "levels over 4: 422 at ?levels" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?levels\"" "$T/body"'
+{ printf 'NRRD0004\ntype: uint8\ndimension: 3\nsizes: 1024 1024 300\nencoding: gzip\n\n'; printf 'x' | gzip; } >"$T/huge.nrrd"
+code=$(status POST "/isosurface?iso=1&levels=2" -H 'Content-Type: application/x-nrrd' --data-binary @"$T/huge.nrrd")
+check "levels=2 on a volume over 2^28 samples: 422 at ?levels, before it is inflated" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?levels\"" "$T/body"'
 code=$(status POST "/isosurface?$Q&levels=2&max_error=-1" -H "$RAW" --data-binary @"$CT")
 check "a negative max_error: 422 at ?max_error" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?max_error\"" "$T/body"'
 python3 - "$T/many.multipart" <<'EOF2'
