@@ -174,7 +174,7 @@ static const char *type_of(const char *path, const char *const (*table)[2])
 static const char *const SCENE_TYPES[][2] = {{".bpt", "model/x-bpt"}, {".nurbs", "model/vrml"}, {".wrl", "model/vrml"},
                                              {".json", "application/json"}, {NULL, "text/plain"}};
 static const char *const VOLUME_TYPES[][2] = {{".nrrd", "application/x-nrrd"}, {".mha", "application/x-metaimage"},
-                                              {NULL, "application/octet-stream"}};
+                                              {".json", "application/json"}, {NULL, "application/octet-stream"}};
 
 /* POSTs the file to route + query (the query "" or "?name=value&..."). 0 and *r, or an exit code. */
 static int post_file(const char *route, const char *query, const char *file, const char *type, const char *prefer,
@@ -240,11 +240,16 @@ static int fetch_result(const char *id, const char *out)
     return rc;
 }
 
-/* Adds "--name value" to query as ?name=value (or &name=value) when name is one of names. */
+/* Adds "--name value" to query as ?name=value (or &name=value) when name is one of names ("-" in
+ * the flag, "_" in the query: --max-error is ?max_error). */
 static bool query_arg(const char *a, const char *v, const char *const *names, char *query, size_t cap)
 {
+    char flag[32];
+    snprintf(flag, sizeof flag, "%s", a[0] == '-' && a[1] == '-' ? a + 2 : "");
+    for (char *c = flag; *c; c++)
+        *c = *c == '-' ? '_' : *c;
     for (int k = 0; names[k]; k++)
-        if (v && a[0] == '-' && a[1] == '-' && !strcmp(a + 2, names[k])) {
+        if (v && flag[0] && !strcmp(flag, names[k])) {
             size_t n = strlen(query);
             snprintf(query + n, cap - n, "%c%s=%s", n ? '&' : '?', names[k], v);
             return true;
@@ -268,7 +273,8 @@ static int usage(void)
 {
     fprintf(stderr, "usage: surfctl render FILE -o OUT [--async] [--method M] [--width W] [--height H] [--output png|exr|tiff]\n"
                     "       surfctl isosurface VOLUME --iso V -o OUT.stl|.ply|.obj [--dims X,Y,Z --type T --spacing S --origin O]\n"
-                    "                          [--closed true|false] [--name N]   (VOLUME: .nrrd, .mha or raw samples)\n"
+                    "                          [--levels 1-4 [--max-error MM]] [--closed true|false] [--name N]\n"
+                    "                          (VOLUME: .nrrd, .mha, raw samples, or an FRep object as .json)\n"
                     "       surfctl jobs [--state S] | job ID | wait ID [-o OUT] | result ID -o OUT | cancel ID\n"
                     "environment: SURFD_URL (default http://127.0.0.1:8080), SURFD_TOKEN\n");
     return EXIT_USAGE;
@@ -316,7 +322,8 @@ static int cmd_render(int argc, char **argv)
  * its mesh written to OUT (format from its extension). */
 static int cmd_isosurface(int argc, char **argv)
 {
-    static const char *const OPTIONS[] = {"iso", "dims", "type", "spacing", "origin", "closed", "name", NULL};
+    static const char *const OPTIONS[] = {"iso", "dims", "type", "spacing", "origin", "closed", "name", "levels",
+                                          "max_error", NULL};
     const char *file = NULL, *out = NULL;
     char query[600] = "";
     for (int k = 0; k < argc; k++) {

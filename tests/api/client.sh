@@ -34,6 +34,11 @@ check "surfctl result" '[ $? -eq 0 ] && cmp -s "$T/e.png" "$T/f.png"'
 CT="${SURFD_DATA:-../shared/data}/volumes/ct_head_crop64_int16.raw"
 $C isosurface "$CT" --iso 226.5 --dims 64,64,64 --type int16 --spacing 0.9570312,0.9570312,1.5 -o "$T/ct.stl" >"$T/out" 2>"$T/progress"
 check "surfctl isosurface: the model on stdout, its closed mesh in the file" '[ $? -eq 0 ] && grep -q "\"source\":\"isosurface\"" "$T/out" && python3 tests/tools/stl_check.py "$T/ct.stl" 57529.6 >/dev/null'
+$C isosurface "$CT" --iso 226.5 --dims 64,64,64 --type int16 --spacing 0.9570312,0.9570312,1.5 --levels 3 --max-error 1 -o "$T/ct3.stl" >"$T/out" 2>"$T/progress"
+check "surfctl isosurface --levels 3 --max-error 1: coarser, closed" '[ $? -eq 0 ] && grep -q "\"levels\":3" "$T/out" && python3 tests/tools/stl_check.py "$T/ct3.stl" "$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[\"volume_mm3\"])" "$T/out")" >/dev/null'
+printf '{"bounds": [[-1.2, -1.2, -1.2], [1.2, 1.2, 1.2]], "cell": 0.05, "frep": {"torus": {"center": [0, 0, 0], "axis": [0, 0, 1], "major": 0.8, "minor": 0.3}}}' >"$T/torus.json"
+$C isosurface "$T/torus.json" -o "$T/torus.stl" >"$T/out" 2>"$T/progress"
+check "surfctl isosurface of an FRep .json: a closed torus" '[ $? -eq 0 ] && grep -q "\"source\":\"frep\"" "$T/out" && grep -q "\"euler_characteristic\":0" "$T/out"'
 $C isosurface "$CT" --dims 64,64,64 --type int16 -o "$T/x.stl" 2>"$T/err"; rc=$?
 check "surfctl isosurface without --iso exits 4 naming ?iso" '[ $rc -eq 4 ] && grep -q "?iso" "$T/err"'
 $C render "$D/teapot.json" -o "$T/g.png" --width 0 2>"$T/err"; rc=$?
