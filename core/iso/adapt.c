@@ -32,6 +32,8 @@ struct iso_adapt {
     float iso;
     double org[3], sp[3], max_err;
     int L, n_slabs;
+    struct iso_grid g;                 /* the samples, copied into F by the first phase */
+    float pad;
     float *F;                          /* the virtual grid, x fastest */
     int nb[ISO_MAX_LEVELS + 1][3];     /* blocks per axis at each level */
     uint8_t *M[ISO_MAX_LEVELS + 1];    /* [l][block]: covered by a cell of level >= l (l >= 2) */
@@ -658,24 +660,12 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
         a->org[d] = g->origin[d] - a->shift * g->spacing[d];
     }
     size_t n = (size_t)a->N[0] * a->N[1] * a->N[2];
-    float pad = o->closed ? (float)fmin(o->iso - 1, iso_grid_min(g)) : 0;
+    a->g = *g;
+    a->pad = o->closed ? (float)fmin(o->iso - 1, iso_grid_min(g)) : 0;
     if (!(a->F = malloc(n * sizeof *a->F))) {
         iso_adapt_free(a);
         return sf_fail(err, SF_ENOMEM, "", "out of memory for the volume's %zu samples", n);
     }
-    for (int z = 0; z < a->N[2]; z++)
-        for (int y = 0; y < a->N[1]; y++) {
-            float *row = a->F + at3(a, 0, y, z);
-            int ry = y - a->shift, rz = z - a->shift;
-            if (ry < 0 || ry >= g->ny || rz < 0 || rz >= g->nz) {
-                for (int x = 0; x < a->N[0]; x++)
-                    row[x] = pad;
-                continue;
-            }
-            iso_grid_row(g, ry, rz, row + a->shift);
-            if (a->shift)
-                row[0] = row[a->N[0] - 1] = pad;
-        }
     for (int l = 2; l <= a->L; l++) {
         int s = 1 << (l - 1);
         for (int d = 0; d < 3; d++)
@@ -696,11 +686,34 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
     return 0;
 }
 
-int iso_adapt_phases(const struct iso_adapt *a) { return a->L; }
+int iso_adapt_phases(const struct iso_adapt *a) { return a->L + 1; }
+
+/* Phase 0: planes [z0, z1) of the virtual grid from the samples (the pad layer round them). */
+static void load_slab(struct iso_adapt *a, int z0, int z1)
+{
+    for (int z = z0; z < z1; z++)
+        for (int y = 0; y < a->N[1]; y++) {
+            float *row = a->F + at3(a, 0, y, z);
+            int ry = y - a->shift, rz = z - a->shift;
+            if (ry < 0 || ry >= a->g.ny || rz < 0 || rz >= a->g.nz) {
+                for (int x = 0; x < a->N[0]; x++)
+                    row[x] = a->pad;
+                continue;
+            }
+            iso_grid_row(&a->g, ry, rz, row + a->shift);
+            if (a->shift)
+                row[0] = row[a->N[0] - 1] = a->pad;
+        }
+}
 int iso_adapt_n_slabs(const struct iso_adapt *a) { return a->n_slabs; }
 
 void iso_adapt_run(struct iso_adapt *a, int phase, int slab)
 {
+    if (phase == 0) {
+        load_slab(a, (int)((long)a->N[2] * slab / a->n_slabs), (int)((long)a->N[2] * (slab + 1) / a->n_slabs));
+        return;
+    }
+    phase--;
     int l = phase + 2 <= a->L ? phase + 2 : 2, nz = a->nb[l][2];
     int z0 = (int)((long)nz * slab / a->n_slabs), z1 = (int)((long)nz * (slab + 1) / a->n_slabs);
     if (phase + 2 <= a->L) {
@@ -716,7 +729,7 @@ void iso_adapt_run(struct iso_adapt *a, int phase, int slab)
 
 void iso_adapt_between(struct iso_adapt *a, int phase)
 {
-    if (phase == a->L - 2) /* the last level's blocks are known */
+    if (phase == a->L - 1) /* the last level's blocks are known */
         cell_levels(a);
 }
 

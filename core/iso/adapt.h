@@ -41,7 +41,8 @@ struct iso_adapt_stats {
     double max_estimate;              /* the largest |f - c| / |grad f| the merges accepted */
 };
 
-/* The extraction in phases of slabs: each level's blocks (levels 2..L), then the cells. A caller
+/* The extraction in phases of slabs: the samples copied as floats, each level's blocks (levels
+ * 2..L), then the cells. The grid's samples must stay in place until iso_adapt_end. A caller
  * runs the slabs of each phase in any order on as many threads as it likes, calling
  * iso_adapt_between() on one thread after each phase; the mesh is the same whatever the order
  * or the number of threads (the slabs are fixed by the grid). */
