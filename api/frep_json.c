@@ -12,6 +12,7 @@
 
 struct builder {
     struct frep *f;
+    int cap;                 /* of f->nodes */
     double alpha;            /* the request's, for operations that give none */
     struct sf_err *err;
 };
@@ -110,6 +111,13 @@ static int add_node(struct builder *b, const char *ptr, struct frep_node n)
 {
     if (b->f->n >= FREP_MAX_NODES)
         return sf_fail(b->err, SF_ELIMIT, ptr, "an FRep tree has at most %d nodes", FREP_MAX_NODES), -1;
+    if (b->f->n == b->cap) {
+        int cap = b->cap ? 2 * b->cap : 16;
+        struct frep_node *nodes = realloc(b->f->nodes, sizeof *nodes * (size_t)cap);
+        if (!nodes)
+            return sf_fail(b->err, SF_ENOMEM, ptr, "out of memory"), -1;
+        b->f->nodes = nodes, b->cap = cap;
+    }
     b->f->nodes[b->f->n] = n;
     return b->f->n++;
 }
@@ -333,7 +341,7 @@ int frep_parse(const char *buf, size_t len, struct frep_request *r, struct sf_er
     int rc = json_read(buf, len, &root, err);
     if (rc)
         return rc;
-    struct builder b = {&r->f, 0, err};
+    struct builder b = {&r->f, 0, 0, err};
     static const char *const KEYS[] = {"name", "bounds", "cell", "alpha", "frep", NULL};
     if (!json_is_object(root)) {
         rc = sf_fail(err, SF_EINVAL, "", "an FRep request is a JSON object with \"frep\", \"bounds\" and \"cell\"");
@@ -383,10 +391,6 @@ int frep_parse(const char *buf, size_t len, struct frep_request *r, struct sf_er
     json_t *tree = json_object_get(root, "frep");
     if (!tree) {
         rc = sf_fail(err, SF_EINVAL, "/frep", "frep (the object) is required");
-        goto out;
-    }
-    if (!(r->f.nodes = malloc(sizeof *r->f.nodes * FREP_MAX_NODES))) {
-        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
         goto out;
     }
     rc = node(&b, tree, "/frep", 1, &r->f.root);

@@ -280,26 +280,34 @@ static int usage(void)
     return EXIT_USAGE;
 }
 
+/* A command's FILE, -o OUT, --async (when async is not NULL) and the query options of names:
+ * false on anything else. */
+static bool read_args(int argc, char **argv, const char *const *names, const char **file, const char **out,
+                      bool *async, char *query, size_t cap)
+{
+    for (int k = 0; k < argc; k++) {
+        const char *a = argv[k], *v = k + 1 < argc ? argv[k + 1] : NULL;
+        if (!strcmp(a, "-o") && v)
+            *out = v, k++;
+        else if (async && !strcmp(a, "--async"))
+            *async = true;
+        else if (query_arg(a, v, names, query, cap))
+            k++;
+        else if (a[0] != '-' && !*file)
+            *file = a;
+        else
+            return false;
+    }
+    return true;
+}
+
 static int cmd_render(int argc, char **argv)
 {
     static const char *const OPTIONS[] = {"method", "width", "height", "output", "format", "azimuth", "elevation", NULL};
     const char *file = NULL, *out = NULL;
     char query[512] = "";
     bool async = false;
-    for (int k = 0; k < argc; k++) {
-        const char *a = argv[k], *v = k + 1 < argc ? argv[k + 1] : NULL;
-        if (!strcmp(a, "-o") && v)
-            out = v, k++;
-        else if (!strcmp(a, "--async"))
-            async = true;
-        else if (query_arg(a, v, OPTIONS, query, sizeof query))
-            k++;
-        else if (a[0] != '-' && !file)
-            file = a;
-        else
-            return usage();
-    }
-    if (!file || (!out && !async))
+    if (!read_args(argc, argv, OPTIONS, &file, &out, &async, query, sizeof query) || !file || (!out && !async))
         return usage();
     struct response r;
     int rc = post_file("/render", query, file, type_of(file, SCENE_TYPES), async ? "respond-async" : NULL, &r);
@@ -326,17 +334,8 @@ static int cmd_isosurface(int argc, char **argv)
                                           "max_error", NULL};
     const char *file = NULL, *out = NULL;
     char query[600] = "";
-    for (int k = 0; k < argc; k++) {
-        const char *a = argv[k], *v = k + 1 < argc ? argv[k + 1] : NULL;
-        if (!strcmp(a, "-o") && v)
-            out = v, k++;
-        else if (query_arg(a, v, OPTIONS, query, sizeof query))
-            k++;
-        else if (a[0] != '-' && !file)
-            file = a;
-        else
-            return usage();
-    }
+    if (!read_args(argc, argv, OPTIONS, &file, &out, NULL, query, sizeof query))
+        return usage();
     const char *ext = out ? strrchr(out, '.') : NULL;
     if (!file || !ext || (strcmp(ext, ".stl") && strcmp(ext, ".ply") && strcmp(ext, ".obj")))
         return usage();

@@ -35,7 +35,7 @@ struct iso_work {
     struct iso_adapt *ad;    /* levels > 1: the adaptive hierarchy, its phases of bands */
     int ad_phase;
     struct iso_adapt_stats adapt_st;
-    int n_slabs, n_sample;
+    int n_slabs, n_sample, bands_total; /* bands_total: of every phase, for the progress */
     atomic_int bands_done;
     double t0, t_read, t_sampled;
     char *json;
@@ -91,6 +91,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     if (w->vol.frep) { /* sampled first, in bands of planes */
         w->phase = PH_SAMPLE;
         *n_bands = w->n_sample = w->n_slabs < w->vol.g.nz ? w->n_slabs : w->vol.g.nz;
+        w->bands_total = 3 * w->n_sample; /* till the extraction says its own */
         return 0;
     }
     return begin_extract(w, n_bands);
@@ -103,8 +104,8 @@ static int begin_extract(struct iso_work *w, int *n_bands)
         if (iso_adapt_begin(&w->vol.g, &o, w->vol.levels, w->vol.max_error, &w->ad, &w->err))
             return -1;
         w->phase = PH_ADAPT;
-        w->n_slabs = iso_adapt_n_slabs(w->ad) * iso_adapt_phases(w->ad) / 2; /* for the progress: 2 passes' worth */
         *n_bands = iso_adapt_n_slabs(w->ad);
+        w->bands_total = w->n_sample + iso_adapt_phases(w->ad) * *n_bands;
         return 0;
     }
     if (iso_begin(&w->vol.g, &o, w->n_slabs, &w->ij, &w->err))
@@ -112,6 +113,7 @@ static int begin_extract(struct iso_work *w, int *n_bands)
     w->phase = PH_COUNT;
     w->n_slabs = iso_n_slabs(w->ij);
     *n_bands = w->n_slabs;
+    w->bands_total = w->n_sample + 2 * w->n_slabs;
     return 0;
 }
 
@@ -128,7 +130,7 @@ static void band(struct job *j, void *arg, int k)
         iso_emit(w->ij, k);
     /* every band of every phase alike (the last 5 %: measuring, storing) */
     int done = atomic_fetch_add(&w->bands_done, 1) + 1;
-    jobq_cancelled(w->svc->q, j, fmin(0.95, 0.95 * done / (w->n_sample + 2.0 * w->n_slabs)));
+    jobq_cancelled(w->svc->q, j, fmin(0.95, 0.95 * done / w->bands_total));
 }
 
 static int next(struct job *j, void *arg, int *n_bands)

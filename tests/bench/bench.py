@@ -618,31 +618,13 @@ def big_volume_bench(lines):
 
 def main():
     rows, notes = [], []
-    if os.environ.get("BENCH_ONLY") == "iso":
+    parts = {"iso": (iso_bench, adapt_bench, big_volume_bench), "adapt": (adapt_bench,), "cluster": (cluster_bench,),
+             "contours": (contour_bench,), "http": (http_bench,)}
+    only = os.environ.get("BENCH_ONLY")
+    if only in parts:  # one part, printed, RESULTS.md left as it is
         lines = []
-        iso_bench(lines)
-        adapt_bench(lines)
-        big_volume_bench(lines)
-        print("\n".join(lines))
-        return
-    if os.environ.get("BENCH_ONLY") == "adapt":
-        lines = []
-        adapt_bench(lines)
-        print("\n".join(lines))
-        return
-    if os.environ.get("BENCH_ONLY") == "cluster":
-        lines = []
-        cluster_bench(lines)
-        print("\n".join(lines))
-        return
-    if os.environ.get("BENCH_ONLY") == "contours":
-        lines = []
-        contour_bench(lines)
-        print("\n".join(lines))
-        return
-    if os.environ.get("BENCH_ONLY") == "http":
-        lines = []
-        http_bench(lines)
+        for part in parts[only]:
+            part(lines)
         print("\n".join(lines))
         return
     teapot, patches = scene_file("teapot.json", True)
