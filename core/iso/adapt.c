@@ -2,15 +2,14 @@
  * with its pad layer (closed=true), as mc.c sees it; nodes and cells are addressed by their
  * integer coordinates in that grid. */
 #include "adapt.h"
+#include "cube.h"
 
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
-/* Each face's corners counter-clockwise about its outward normal (as mc.c): -x, +x, -y, +y, -z, +z;
- * corner c = x + 2y + 4z. */
-static const int FACE_CCW[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+#include "../base/mem.h"
 
 /* One slab's share of the mesh (the cells phase runs slab by slab, on any threads): vertices keyed
  * by the finest edge they lie on, merged across slabs at the end. */
@@ -147,7 +146,7 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
         int axis = f >> 1, u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2, cross[4], entry[4], n = 0;
         double g[4];
         for (int q = 0; q < 4; q++) {
-            int cc = FACE_CCW[f][q], dd = FACE_CCW[f][(q + 1) % 4];
+            int cc = iso_face_ccw[f][q], dd = iso_face_ccw[f][(q + 1) % 4];
             g[(cc >> u & 1) + 2 * (cc >> w & 1)] = c[cc];
             if (st[cc] != st[dd]) {
                 cross[n] = (cc < dd ? cc : dd) * 8 + (cc < dd ? dd : cc);
@@ -281,21 +280,6 @@ static void cell_levels(struct iso_adapt *a)
 
 /* ---- the mesh ---- */
 
-static bool grow(void **p, size_t *cap, size_t need, size_t size)
-{
-    if (need <= *cap)
-        return true;
-    size_t c = *cap ? *cap : 4096;
-    while (c < need)
-        c *= 2;
-    void *q = realloc(*p, c * size);
-    if (!q)
-        return false;
-    *p = q;
-    *cap = c;
-    return true;
-}
-
 static uint64_t hash64(uint64_t k)
 {
     k ^= k >> 33, k *= 0xff51afd7ed558ccdull, k ^= k >> 33, k *= 0xc4ceb9fe1a85ec53ull, k ^= k >> 33;
@@ -307,9 +291,9 @@ static uint64_t hash64(uint64_t k)
 static long new_vertex(struct piece *pc, const double pos[3], const double nrm[3], uint64_t key)
 {
     size_t v = pc->m.n_vert, cap = pc->vcap, kcap = pc->kcap;
-    if (v >= ISO_MAX_VERTICES || !grow((void **)&pc->m.pos, &cap, 3 * (v + 1), sizeof(float)) ||
-        !grow((void **)&pc->m.nrm, &pc->vcap, 3 * (v + 1), sizeof(float)) ||
-        !grow((void **)&pc->vkey, &kcap, v + 1, sizeof(uint64_t))) {
+    if (v >= ISO_MAX_VERTICES || mem_reserve((void **)&pc->m.pos, &cap, 3 * (v + 1), sizeof(float)) ||
+        mem_reserve((void **)&pc->m.nrm, &pc->vcap, 3 * (v + 1), sizeof(float)) ||
+        mem_reserve((void **)&pc->vkey, &kcap, v + 1, sizeof(uint64_t))) {
         pc->nomem = true;
         return -1;
     }
@@ -323,9 +307,9 @@ static long new_vertex(struct piece *pc, const double pos[3], const double nrm[3
     return (long)pc->m.n_vert++;
 }
 
-/* The slot of key in pc's table (growing it at half full), *found whether it holds key: or NULL
- * for no memory. */
-static size_t *slot_of(struct piece *pc, uint64_t key, bool *found, size_t *h_out)
+/* The slot of key in pc's table into *h (growing the table at half full), *found whether it
+ * holds key: false for no memory. */
+static bool slot_of(struct piece *pc, uint64_t key, bool *found, size_t *h_out)
 {
     if (pc->used * 2 >= pc->cap) {
         size_t cap = pc->cap ? pc->cap * 2 : 1 << 14;
@@ -334,7 +318,7 @@ static size_t *slot_of(struct piece *pc, uint64_t key, bool *found, size_t *h_ou
         if (!keys || !slot) {
             free(keys), free(slot);
             pc->nomem = true;
-            return NULL;
+            return false;
         }
         memset(keys, 0xff, cap * sizeof *keys);
         for (size_t i = 0; i < pc->cap; i++)
@@ -352,7 +336,7 @@ static size_t *slot_of(struct piece *pc, uint64_t key, bool *found, size_t *h_ou
         h = (h + 1) & (pc->cap - 1);
     *found = pc->keys[h] == key;
     *h_out = h;
-    return h_out;
+    return true;
 }
 
 /* Records that key is vertex v of pc (its slot from slot_of). */
@@ -394,7 +378,7 @@ static void add_triangle(struct piece *pc, long p, long q, long r)
     if (p < 0 || q < 0 || r < 0)
         return;
     size_t t = pc->m.n_tri;
-    if (!grow((void **)&pc->m.tri, &pc->tcap, 3 * (t + 1), sizeof(uint32_t))) {
+    if (mem_reserve((void **)&pc->m.tri, &pc->tcap, 3 * (t + 1), sizeof(uint32_t))) {
         pc->nomem = true;
         return;
     }
@@ -409,7 +393,6 @@ static void add_triangle(struct piece *pc, long p, long q, long r)
 struct cell {
     struct piece *pc;        /* where its triangles go */
     int o[3], s;
-    float cv[8];             /* the corners' values */
     int n;                   /* segments */
     long from[MAX_SEGS], to[MAX_SEGS];
     int faces[MAX_SEGS];     /* of from[]: the cell faces its edge lies on (bits) */
@@ -417,17 +400,14 @@ struct cell {
 
 /* The crossing on the sub-edge from node p to node q (one axis apart): the finest edge where the
  * values change side, walked from the lower end, and the faces of the cell it lies on. */
-static long crossing(const struct iso_adapt *a, const struct cell *c, const int p[3], const int q[3], float vp, float vq,
-                     int *faces)
+static long crossing(const struct iso_adapt *a, const struct cell *c, const int p[3], const int q[3], int *faces)
 {
     int axis = p[0] != q[0] ? 0 : p[1] != q[1] ? 1 : 2;
     const int *lo = p[axis] < q[axis] ? p : q;
     int m = abs(q[axis] - p[axis]), n[3] = {lo[0], lo[1], lo[2]};
-    float prev = lo == p ? vp : vq;
+    float prev = Fp(a, n);
     long v = -1;
-    if (m == 1)
-        v = edge_vertex(a, c->pc, n, axis, prev, lo == p ? vq : vp);
-    for (int k = 1; k <= m && m > 1; k++) {
+    for (int k = 1; k <= m; k++) {
         int n1[3] = {n[0], n[1], n[2]};
         n1[axis]++;
         float cur = Fp(a, n1);
@@ -467,12 +447,11 @@ static void face_segments(const struct iso_adapt *a, struct cell *c, int f, int 
             float v[4];
             double g[4];
             for (int q = 0; q < 4; q++) {
-                int cc = FACE_CCW[f][q], b[3] = {cc & 1, cc >> 1 & 1, cc >> 2 & 1};
+                int cc = iso_face_ccw[f][q], b[3] = {cc & 1, cc >> 1 & 1, cc >> 2 & 1};
                 p[q][axis] = c->o[axis] + side * c->s;
                 p[q][u] = c->o[u] + (i + b[u]) * h;
                 p[q][w] = c->o[w] + (j + b[w]) * h;
-                bool corner = (i + b[u]) % k == 0 && (j + b[w]) % k == 0; /* a corner of the cell: known */
-                v[q] = corner ? c->cv[(p[q][0] > c->o[0]) | (p[q][1] > c->o[1]) << 1 | (p[q][2] > c->o[2]) << 2] : Fp(a, p[q]);
+                v[q] = Fp(a, p[q]);
                 g[b[u] + 2 * b[w]] = (double)v[q] - a->iso;
             }
             long cross[4];
@@ -480,7 +459,7 @@ static void face_segments(const struct iso_adapt *a, struct cell *c, int f, int 
             for (int q = 0; q < 4; q++) {
                 bool sa = v[q] > a->iso, sb = v[(q + 1) % 4] > a->iso;
                 if (sa != sb) {
-                    cross[n] = crossing(a, c, p[q], p[(q + 1) % 4], v[q], v[(q + 1) % 4], &faces[n]);
+                    cross[n] = crossing(a, c, p[q], p[(q + 1) % 4], &faces[n]);
                     entry[n++] = sb;
                 }
             }
@@ -554,11 +533,9 @@ static void fan_loops(struct cell *c)
 static void polygonise(const struct iso_adapt *a, struct piece *pc, const int o[3], int l)
 {
     int s = 1 << (l - 1), in = 0;
-    float cv[8];
     for (int k = 0; k < 8; k++) {
         int p[3] = {o[0] + (k & 1) * s, o[1] + (k >> 1 & 1) * s, o[2] + (k >> 2 & 1) * s};
-        cv[k] = Fp(a, p);
-        in += cv[k] > a->iso;
+        in += Fp(a, p) > a->iso;
     }
     bool mixed = in > 0 && in < 8;
     int ks[6];
@@ -581,7 +558,6 @@ static void polygonise(const struct iso_adapt *a, struct piece *pc, const int o[
     struct cell c;
     c.pc = pc;
     memcpy(c.o, o, sizeof c.o);
-    memcpy(c.cv, cv, sizeof c.cv);
     c.s = s;
     c.n = 0;
     pc->cells[l]++;

@@ -6,6 +6,7 @@
  * the cells (I, J, K). Vertices are numbered level by level (x rows, y rows, z rows of level K),
  * triangles cell row by cell row, so the mesh does not depend on the slabs. */
 #include "mc.h"
+#include "cube.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -23,8 +24,7 @@ static int edge_of(int a, int b)
     return d == 1 ? y + 2 * z : d == 2 ? 4 + x + 2 * z : 8 + x + 2 * y;
 }
 
-/* Each face's corners counter-clockwise about its outward normal: -x, +x, -y, +y, -z, +z. */
-static const int FACE_CCW[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+const int iso_face_ccw[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
 /* The same corners in one global order, (u, v) = 00, 10, 01, 11 over the face's two axes in
  * x, y, z order: what the asymptotic decider reads, the same in both cells that share the face. */
 static const int FACE_CANON[6][4] = {{0, 2, 4, 6}, {1, 3, 5, 7}, {0, 1, 4, 5}, {2, 3, 6, 7}, {0, 1, 2, 3}, {4, 5, 6, 7}};
@@ -213,7 +213,7 @@ static void build_case(int c, int joined, bool tube, struct cell_case *out)
     for (int f = 0; f < 6; f++) {
         int cross[4], entry[4], n = 0;
         for (int k = 0; k < 4; k++) {
-            int a = FACE_CCW[f][k], b = FACE_CCW[f][(k + 1) % 4];
+            int a = iso_face_ccw[f][k], b = iso_face_ccw[f][(k + 1) % 4];
             int sa = c >> a & 1, sb = c >> b & 1;
             if (sa != sb) {
                 cross[n] = edge_of(a, b);
