@@ -37,6 +37,12 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
         json_object_set_new(o, "cells_by_level", cells);
         json_object_set_new(o, "max_error_estimate", json_real(m->adapt->max_estimate));
     }
+    if (o)
+        json_object_set_new(o, "features", json_string(m->vol->sharp ? "sharp" : "none"));
+    if (o && m->adapt && m->vol->sharp) {
+        json_object_set_new(o, "feature_points", json_integer(m->adapt->feature_points));
+        json_object_set_new(o, "face_points", json_integer(m->adapt->face_points));
+    }
     if (o && !strcmp(m->vol->source, "frep"))
         json_object_set_new(json_object_get(o, "timings_ms"), "sample", json_real(m->ms[1]));
     char *text = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(12)) : NULL;

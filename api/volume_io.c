@@ -357,8 +357,8 @@ static int query_numbers(const char *options, const char *name, int n, double *o
 /* The options every format takes (iso, closed, name), and no unknown one. */
 static int common_options(const char *options, bool frep, struct volume *v, struct sf_err *err)
 {
-    static const char *const KNOWN[] = {"iso", "closed", "name", "levels", "max_error", "dims", "type", "spacing",
-                                        "origin", "format", NULL};
+    static const char *const KNOWN[] = {"iso", "closed", "name", "levels", "max_error", "features", "dims", "type",
+                                        "spacing", "origin", "format", NULL};
     for (const char *p = options ? options : ""; *p;) {
         size_t len = strcspn(p, "&"), key = strcspn(p, "=&");
         bool known = false;
@@ -368,7 +368,7 @@ static int common_options(const char *options, bool frep, struct volume *v, stru
             char where[48];
             snprintf(where, sizeof where, "?%.*s", (int)(key < 40 ? key : 40), p);
             return sf_fail(err, SF_EINVAL, where, "unknown option \"%.*s\" (isosurfaces take iso, closed, name, "
-                           "levels, max_error, and for raw samples dims, type, spacing, origin)",
+                           "levels, max_error, features, and for raw samples dims, type, spacing, origin)",
                            (int)(key < 40 ? key : 40), p);
         }
         p += len + (p[len] == '&');
@@ -396,6 +396,10 @@ static int common_options(const char *options, bool frep, struct volume *v, stru
     v->max_error = s[0] ? strtod(s, &end) : -1; /* -1: half the smallest spacing, once it is known */
     if (s[0] && (end == s || *end || !isfinite(v->max_error) || v->max_error < 0))
         return sf_fail(err, SF_EINVAL, "?max_error", "max_error is a length in mm, 0 or more");
+    query_option(options, "features", s, sizeof s);
+    if (s[0] && strcmp(s, "none") && strcmp(s, "sharp"))
+        return sf_fail(err, SF_EINVAL, "?features", "features is none or sharp");
+    v->sharp = !strcmp(s, "sharp");
     return 0;
 }
 
@@ -505,6 +509,21 @@ int volume_mesh_empty(const struct volume *v, const struct trimesh *m, struct sf
     return sf_fail(err, SF_EINVAL, "?iso", "no surface at iso %g: every sample is on one side of it", v->iso);
 }
 
+static double frep_field(const void *ctx, const double p[3], double g[3])
+{
+    return frep_eval(&((const struct frep_request *)ctx)->f, p, g);
+}
+
+struct iso_opts volume_iso_opts(const struct volume *v)
+{
+    struct iso_opts o = {v->iso, v->closed, true, v->sharp, NULL, NULL};
+    if (v->sharp && v->frep)
+        o.field = frep_field, o.field_ctx = v->frep;
+    return o;
+}
+
+bool volume_adaptive(const struct volume *v) { return v->levels > 1 || v->sharp; }
+
 void volume_sample(struct volume *v, int z0, int z1)
 {
     if (v->frep)
@@ -574,10 +593,10 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     }
     if (!rc && v->max_error < 0)
         v->max_error = 0.5 * fmin(v->g.spacing[0], fmin(v->g.spacing[1], v->g.spacing[2]));
-    if (!rc && v->levels > 1 && (double)v->g.nx * v->g.ny * v->g.nz > ISO_ADAPT_MAX_SAMPLES)
-        rc = sf_fail(err, SF_ELIMIT, "?levels", "levels over 1 take volumes of at most %u samples (this one has "
-                     "%.0f): send levels=1, or a cropped or resampled volume", ISO_ADAPT_MAX_SAMPLES,
-                     (double)v->g.nx * v->g.ny * v->g.nz);
+    if (!rc && volume_adaptive(v) && (double)v->g.nx * v->g.ny * v->g.nz > ISO_ADAPT_MAX_SAMPLES)
+        rc = sf_fail(err, SF_ELIMIT, v->levels > 1 ? "?levels" : "?features", "levels over 1 and features=sharp take "
+                     "volumes of at most %u samples (this one has %.0f): send levels=1 without features, or a cropped "
+                     "or resampled volume", ISO_ADAPT_MAX_SAMPLES, (double)v->g.nx * v->g.ny * v->g.nz);
     if (rc)
         volume_free(v);
     return rc;

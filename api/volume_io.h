@@ -24,6 +24,7 @@ struct volume {
     bool closed;             /* ?closed (default true) */
     int levels;              /* ?levels (1..ISO_MAX_LEVELS, default 1: every cell at full resolution) */
     double max_error;        /* ?max_error (mm; default half the smallest spacing) */
+    bool sharp;              /* ?features=sharp (default none) */
     char name[128];          /* ?name */
     bool check_only;         /* volume_check: the samples are not read */
     double axes[3][3];       /* the grid's x, y, z directions (a DICOM series may be oblique) */
@@ -49,6 +50,10 @@ void volume_free(struct volume *v);
 /* 0, or SF_EINVAL at ?iso when the mesh m extracted from v is empty: every sample on one side of
  * iso (an FRep object: nothing inside its bounds), which a user wants said, not stored. */
 int volume_mesh_empty(const struct volume *v, const struct trimesh *m, struct sf_err *err);
+/* The extraction's options for v (an FRep's own function for its crossings with features=sharp),
+ * and whether it takes the adaptive hierarchy (levels over 1, or features). */
+struct iso_opts volume_iso_opts(const struct volume *v);
+bool volume_adaptive(const struct volume *v);
 /* Fills planes [z0, z1) of an FRep volume's grid (any planes, on any threads); nothing for
  * sampled volumes. */
 void volume_sample(struct volume *v, int z0, int z1);

@@ -273,7 +273,7 @@ static int usage(void)
 {
     fprintf(stderr, "usage: surfctl render FILE -o OUT [--async] [--method M] [--width W] [--height H] [--output png|exr|tiff]\n"
                     "       surfctl isosurface VOLUME --iso V -o OUT.stl|.ply|.obj [--dims X,Y,Z --type T --spacing S --origin O]\n"
-                    "                          [--levels 1-4 [--max-error MM]] [--closed true|false] [--name N]\n"
+                    "                          [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name N]\n"
                     "                          (VOLUME: .nrrd, .mha, raw samples, or an FRep object as .json)\n"
                     "       surfctl jobs [--state S] | job ID | wait ID [-o OUT] | result ID -o OUT | cancel ID\n"
                     "environment: SURFD_URL (default http://127.0.0.1:8080), SURFD_TOKEN\n");
@@ -331,7 +331,7 @@ static int cmd_render(int argc, char **argv)
 static int cmd_isosurface(int argc, char **argv)
 {
     static const char *const OPTIONS[] = {"iso", "dims", "type", "spacing", "origin", "closed", "name", "levels",
-                                          "max_error", NULL};
+                                          "max_error", "features", NULL};
     const char *file = NULL, *out = NULL;
     char query[600] = "";
     if (!read_args(argc, argv, OPTIONS, &file, &out, NULL, query, sizeof query))

@@ -70,8 +70,8 @@ static int extract(const struct volume *v, int threads, struct trimesh *m, struc
                    struct sf_err *err)
 {
     double t0 = now_ms();
-    struct iso_opts o = {v->iso, v->closed, true};
-    if (v->levels > 1) { /* the adaptive hierarchy: its phases' slabs on the threads */
+    struct iso_opts o = volume_iso_opts(v);
+    if (volume_adaptive(v)) { /* the adaptive hierarchy: its phases' slabs on the threads */
         struct iso_adapt *a;
         int rc = iso_adapt_begin(&v->g, &o, v->levels, v->max_error, &a, err);
         if (rc)
@@ -162,7 +162,8 @@ int cmd_isosurface(int argc, char **argv)
         } else if (!strcmp(a, "--format")) {
             format = argv[++k];
         } else if (!strcmp(a, "--iso") || !strcmp(a, "--dims") || !strcmp(a, "--type") || !strcmp(a, "--spacing") ||
-                   !strcmp(a, "--origin") || !strcmp(a, "--closed") || !strcmp(a, "--name") || !strcmp(a, "--levels")) {
+                   !strcmp(a, "--origin") || !strcmp(a, "--closed") || !strcmp(a, "--name") || !strcmp(a, "--levels") ||
+                   !strcmp(a, "--features")) {
             snprintf(options + n, sizeof options - n, "%s%s=%s", n ? "&" : "", a + 2, argv[k + 1]);
             k++;
         } else if (!strcmp(a, "--max-error")) {
@@ -176,7 +177,7 @@ int cmd_isosurface(int argc, char **argv)
         fprintf(stderr, "usage: surfd isosurface VOLUME.nrrd|.mha|.raw|DICOM-DIR --iso V [--dims X,Y,Z --type T "
                         "[--spacing sx,sy,sz] [--origin x,y,z]]\n"
                         "       surfd isosurface FREP.json [--iso V]\n"
-                        "                        [--levels 1-4 [--max-error MM]] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|dicom|frep]\n"
+                        "                        [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|dicom|frep]\n"
                         "                        [-o OUT.stl|.ply|.obj] [--threads N] [--repeat N] [--stats]\n");
         return 2;
     }
@@ -226,7 +227,7 @@ int cmd_isosurface(int argc, char **argv)
             rc = cli_write_all(out, file, file_len) ? SF_EIO : 0;
     }
     if (!rc) {
-        struct iso_model im = {"offline", v.name, &v, &st, v.levels > 1 ? &as : NULL, m.n_vert, m.n_tri,
+        struct iso_model im = {"offline", v.name, &v, &st, volume_adaptive(&v) ? &as : NULL, m.n_vert, m.n_tri,
                                {t_read - t0, t_sampled - t_read, best, t_measure - t_extract, t_measure - t0}};
         if (!(json = iso_model_json(&im, &err)))
             rc = err.code;

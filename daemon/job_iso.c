@@ -32,7 +32,7 @@ struct iso_work {
     struct volume vol;
     struct iso_job *ij;
     enum { PH_SAMPLE, PH_COUNT, PH_EMIT, PH_ADAPT } phase;
-    struct iso_adapt *ad;    /* levels > 1: the adaptive hierarchy, its phases of bands */
+    struct iso_adapt *ad;    /* volume_adaptive(): the adaptive hierarchy, its phases of bands */
     int ad_phase;
     struct iso_adapt_stats adapt_st;
     int n_slabs, n_sample, bands_total; /* bands_total: of every phase, for the progress */
@@ -99,8 +99,8 @@ static int prepare(struct job *j, void *arg, int *n_bands)
 
 static int begin_extract(struct iso_work *w, int *n_bands)
 {
-    struct iso_opts o = {w->vol.iso, w->vol.closed, true};
-    if (w->vol.levels > 1) {
+    struct iso_opts o = volume_iso_opts(&w->vol);
+    if (volume_adaptive(&w->vol)) {
         if (iso_adapt_begin(&w->vol.g, &o, w->vol.levels, w->vol.max_error, &w->ad, &w->err))
             return -1;
         w->phase = PH_ADAPT;
@@ -199,7 +199,7 @@ static int store_model(struct iso_work *w)
     if (!(rc = stopped(w, 0.95)) && !(rc = trimesh_stats(&m, &st, &w->err)) && !(rc = stopped(w, 0.98)))
         rc = mesh_pack(&m, &packed, &packed_len, &w->err);
     double t_measure = monotonic_s();
-    struct iso_model im = {w->claim.id, w->vol.name, &w->vol, &st, w->vol.levels > 1 ? &w->adapt_st : NULL, m.n_vert,
+    struct iso_model im = {w->claim.id, w->vol.name, &w->vol, &st, volume_adaptive(&w->vol) ? &w->adapt_st : NULL, m.n_vert,
                            m.n_tri,
                            {(w->t_read - w->t0) * 1e3, (w->t_sampled - w->t_read) * 1e3,
                             (t_extract - w->t_sampled) * 1e3, (t_measure - t_extract) * 1e3, (t_measure - w->t0) * 1e3}};

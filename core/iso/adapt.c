@@ -22,8 +22,10 @@ struct piece {
     size_t vcap, tcap, kcap;
     bool nomem;
     long cells[ISO_MAX_LEVELS + 1];
+    long feature_points;
 };
 
+#define HIDES 2 /* in mixed[2]: a fine edge of the block carries crossings its samples do not show */
 #define ADAPT_SLABS 16 /* fixed, so that the mesh does not depend on the number of threads */
 
 struct iso_adapt {
@@ -31,6 +33,9 @@ struct iso_adapt {
     float iso;
     double org[3], sp[3], max_err;
     int L, n_slabs;
+    bool sharp;
+    double (*field)(const void *ctx, const double p[3], double g[3]);
+    const void *field_ctx;
     struct iso_grid g;                 /* the samples, copied into F by the first phase */
     float pad;
     float *F;                          /* the virtual grid, x fastest */
@@ -38,7 +43,7 @@ struct iso_adapt {
     uint8_t *M[ISO_MAX_LEVELS + 1];    /* [l][block]: covered by a cell of level >= l (l >= 2) */
     uint8_t *lev2;                     /* each level-2 block's cell level (1: cut into level-1 cells) */
     uint8_t *mixed[ISO_MAX_LEVELS + 1]; /* [l][block]: its samples are on both sides of iso (l >= 2;
-                                         * level 2: or the grid's end cuts it) */
+                                         * level 2: or the grid's end cuts it, or HIDES) */
     double slab_max[ADAPT_SLABS];      /* the largest error a merge accepted, by slab */
     struct piece pieces[ADAPT_SLABS];
 };
@@ -53,6 +58,15 @@ static size_t block(const struct iso_adapt *a, int l, int bx, int by, int bz)
 
 static float Fp(const struct iso_adapt *a, const int p[3]) { return F(a, p[0], p[1], p[2]); }
 
+/* Whether node p is one of the volume's samples (not the pad layer round them). */
+static bool real_node(const struct iso_adapt *a, const int p[3])
+{
+    for (int d = 0; d < 3; d++)
+        if (p[d] < a->shift || p[d] >= a->N[d] - a->shift)
+            return false;
+    return true;
+}
+
 /* grad f at node (x, y, z), central differences (one-sided at the border), in world units. */
 static void gradient(const struct iso_adapt *a, int x, int y, int z, double g[3])
 {
@@ -64,6 +78,8 @@ static void gradient(const struct iso_adapt *a, int x, int y, int z, double g[3]
         g[d] = (Fp(a, hi) - Fp(a, lo)) / ((hi[d] - lo[d]) * a->sp[d]);
     }
 }
+
+static bool hides_crossings(const struct iso_adapt *a, const int o[3], int s);
 
 /* ---- the hierarchy ---- */
 
@@ -111,6 +127,8 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
     int s = 1 << (l - 1), o[3] = {b[0] * s, b[1] * s, b[2] * s};
     if (!mixed) /* no crossing in the block: nothing to draw either way */
         return 0;
+    if (l == 2 && a->mixed[2][block(a, 2, b[0], b[1], b[2])] & HIDES) /* (a coarser block's children said it) */
+        return INFINITY;
     double iso = a->iso, c[8], ep[8][8][3]; /* the crossing on the edge between corners i < j, in mm */
     bool st[8];
     for (int k = 0; k < 8; k++) {
@@ -226,7 +244,7 @@ static void mask_slab(struct iso_adapt *a, int l, int z0, int z1, int slab)
     for (b[2] = z0; b[2] < z1; b[2]++)
         for (b[1] = 0; b[1] < a->nb[l][1]; b[1]++)
             for (b[0] = 0; b[0] < a->nb[l][0]; b[0]++) {
-                bool inside = true, ok = true, mixed = false;
+                bool inside = true, ok = true, mixed = false, hides = false;
                 for (int d = 0; d < 3; d++)
                     inside = inside && (b[d] + 1) * s <= a->N[d] - 1;
                 if (l > 2) { /* its children merged, and every block of l-1 round it */
@@ -247,6 +265,8 @@ static void mask_slab(struct iso_adapt *a, int l, int z0, int z1, int slab)
                                 in |= v, out |= !v;
                             }
                     mixed = !inside || (in && out); /* a block the grid's end cuts: level-1 cells */
+                    if (hides_crossings(a, (int[3]){2 * b[0], 2 * b[1], 2 * b[2]}, 2))
+                        mixed = true, hides = true;
                 } else { /* any child's */
                     for (int k = 0; k < 8 && !mixed; k++) {
                         int c[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
@@ -254,7 +274,7 @@ static void mask_slab(struct iso_adapt *a, int l, int z0, int z1, int slab)
                             mixed = a->mixed[l - 1][block(a, l - 1, c[0], c[1], c[2])];
                     }
                 }
-                a->mixed[l][block(a, l, b[0], b[1], b[2])] = mixed;
+                a->mixed[l][block(a, l, b[0], b[1], b[2])] = (uint8_t)(mixed | hides << 1);
                 double e = ok && inside ? block_error(a, l, b, mixed) : INFINITY;
                 if (e <= a->max_err) {
                     a->M[l][block(a, l, b[0], b[1], b[2])] = 1;
@@ -346,31 +366,194 @@ static void keep_slot(struct piece *pc, size_t h, uint64_t key, long v)
     pc->used++;
 }
 
+/* Where the field crosses iso on the edge from node n along axis between fractions lo and hi
+ * (f0, f1: the field minus iso there, of opposite signs), by regula falsi with the Illinois step. */
+static double field_root(const struct iso_adapt *a, const int n[3], int axis, double lo, double hi, double f0, double f1)
+{
+    double t = lo + (hi - lo) * f0 / (f0 - f1);
+    int side = 0;
+    for (int it = 0; it < 24 && hi - lo > 1e-9; it++) {
+        double p[3];
+        for (int d = 0; d < 3; d++)
+            p[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
+        double f = a->field(a->field_ctx, p, NULL) - a->iso;
+        if (f == 0 || !isfinite(f))
+            break;
+        if ((f > 0) == (f0 > 0)) {
+            lo = t, f0 = f;
+            if (side < 0)
+                f1 /= 2;
+            side = -1;
+        } else {
+            hi = t, f1 = f;
+            if (side > 0)
+                f0 /= 2;
+            side = 1;
+        }
+        t = lo + (hi - lo) * f0 / (f0 - f1);
+    }
+    return t;
+}
+
+static uint64_t edge_key(const struct iso_adapt *a, const int n[3], int axis)
+{
+    return (uint64_t)at3(a, n[0], n[1], n[2]) * 3 + (uint64_t)axis;
+}
+
+/* Makes the vertex keyed key (its slot from slot_of) at fraction t of the finest edge from node n
+ * along axis; its normal from the field's gradient (on_field) or the samples'. */
+static long place_vertex(const struct iso_adapt *a, struct piece *pc, const int n[3], int axis, double t, bool on_field,
+                         uint64_t key, size_t slot)
+{
+    double pos[3], g0[3], g1[3], nrm[3];
+    int m[3] = {n[0], n[1], n[2]};
+    m[axis]++;
+    t = t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
+    for (int d = 0; d < 3; d++)
+        pos[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
+    if (on_field) {
+        a->field(a->field_ctx, pos, g0);
+        for (int d = 0; d < 3; d++)
+            nrm[d] = -g0[d]; /* outward: down the gradient */
+    } else {
+        gradient(a, n[0], n[1], n[2], g0);
+        gradient(a, m[0], m[1], m[2], g1);
+        for (int d = 0; d < 3; d++)
+            nrm[d] = -((1 - t) * g0[d] + t * g1[d]);
+    }
+    long v = new_vertex(pc, pos, nrm, key);
+    if (v >= 0)
+        keep_slot(pc, slot, key, v);
+    return v;
+}
+
 /* The vertex on the finest edge from node n along axis, with its two values: found or made. */
 static long edge_vertex(const struct iso_adapt *a, struct piece *pc, const int n[3], int axis, float v0, float v1)
 {
-    uint64_t key = (uint64_t)at3(a, n[0], n[1], n[2]) * 3 + (uint64_t)axis;
+    uint64_t key = edge_key(a, n, axis);
     bool found;
     size_t h;
     if (!slot_of(pc, key, &found, &h))
         return -1;
     if (found)
         return pc->slot[h];
-    double t = ((double)a->iso - v0) / ((double)v1 - v0);
-    t = t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
-    double pos[3], g0[3], g1[3], nrm[3];
     int m[3] = {n[0], n[1], n[2]};
     m[axis]++;
-    gradient(a, n[0], n[1], n[2], g0);
-    gradient(a, m[0], m[1], m[2], g1);
-    for (int d = 0; d < 3; d++) {
-        pos[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
-        nrm[d] = -((1 - t) * g0[d] + t * g1[d]); /* outward: down the gradient */
+    double t = ((double)a->iso - v0) / ((double)v1 - v0);
+    bool on_field = a->field && real_node(a, n) && real_node(a, m);
+    if (on_field)
+        t = field_root(a, n, axis, 0, 1, v0 - a->iso, v1 - a->iso);
+    return place_vertex(a, pc, n, axis, t, on_field, key, h);
+}
+
+/* ---- crossings the samples do not show ----
+ * A cell's surface is read from its edges' sign changes, so where an FRep object's sharp edge or
+ * corner pokes through a cell edge between two samples of one side (the surface enters and leaves
+ * the edge), no sign changes and the cells round that edge see nothing: the feature is cut off
+ * there, by up to half a cell, whatever the feature points do (Extended Marching Cubes and Dual
+ * Contouring have the same blind spot). With the field at hand the edge can be asked. Along the
+ * edge the field is, on each side of a feature, close to linear: the lines through the samples
+ * before and after the edge (node - 1, node; node + 1, node + 2) meet where the feature would be;
+ * when they meet inside the edge on the other side of iso, the field there says, and if it is on
+ * the other side the edge carries two crossings (found on the field between the ends and that
+ * point). Only level-1 cells read them: a block whose fine edges carry any is not merged. Ends
+ * further from iso than twice the edge's length are taken to be out of reach (a field whose slope
+ * is 2 at most: FRep's distances, their R-functions and transforms). */
+#define HIDDEN_KEY(k) (1ull << (60 + (k))) /* the first (k = 0, nearer node n) and second crossing */
+
+/* The field minus iso at fraction t of the edge from node n along axis. */
+static double on_edge(const struct iso_adapt *a, const int n[3], int axis, double t)
+{
+    double x[3];
+    for (int d = 0; d < 3; d++)
+        x[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
+    return a->field(a->field_ctx, x, NULL) - a->iso;
+}
+
+static bool hidden_pair(const struct iso_adapt *a, const int n[3], int axis, double t[2])
+{
+    if (!a->field)
+        return false;
+    int m[3] = {n[0], n[1], n[2]}, p[3] = {n[0], n[1], n[2]}, q[3] = {n[0], n[1], n[2]};
+    m[axis]++, p[axis]--, q[axis] += 2;
+    double f0 = Fp(a, n) - a->iso, f1 = Fp(a, m) - a->iso;
+    if (fabs(f0) > 2 * a->sp[axis] || fabs(f1) > 2 * a->sp[axis]) /* out of reach for a slope of 2 or less */
+        return false;
+    if (!real_node(a, p) || !real_node(a, q))
+        return false;
+    double fp = Fp(a, p) - a->iso, fq = Fp(a, q) - a->iso;
+    double s = f0 > 0 ? -1 : 1; /* the ends' side below zero */
+    double g0 = s * f0, g1 = s * f1, d0 = s * (f0 - fp), d1 = s * (fq - f1);
+    if ((g0 > 0) || (g1 > 0) || !(d0 > 0 && d1 < 0))
+        return false;
+    double ts = (g1 - d1 - g0) / (d0 - d1);
+    if (!(ts > 0 && ts < 1) || !(g0 + d0 * ts > -0.5 * fmin(-g0, -g1)))
+        return false;
+    /* the field's extreme on the edge, by golden section from the lines' meeting point (past an
+     * edge or a corner the field bends: a feature grazing the edge is not on the lines) */
+    double fs = s * on_edge(a, n, axis, ts), lo = 0, hi = 1;
+    if (!(fs > 0)) {
+        const double r = 0.6180339887498949;
+        double ta = hi - r * (hi - lo), tb = lo + r * (hi - lo);
+        double fa = s * on_edge(a, n, axis, ta), fb = s * on_edge(a, n, axis, tb);
+        for (int it = 0; it < 30 && !(fa > 0) && !(fb > 0); it++)
+            if (fa > fb) {
+                hi = tb, tb = ta, fb = fa;
+                ta = hi - r * (hi - lo), fa = s * on_edge(a, n, axis, ta);
+            } else {
+                lo = ta, ta = tb, fa = fb;
+                tb = lo + r * (hi - lo), fb = s * on_edge(a, n, axis, tb);
+            }
+        if (!(fa > 0) && !(fb > 0))
+            return false;
+        ts = fa > fb ? ta : tb, fs = fmax(fa, fb);
     }
-    long v = new_vertex(pc, pos, nrm, key);
-    if (v >= 0)
-        keep_slot(pc, h, key, v);
-    return v;
+    fs *= s;
+    if (!isfinite(fs))
+        return false;
+    t[0] = field_root(a, n, axis, 0, ts, f0, fs);
+    t[1] = field_root(a, n, axis, ts, 1, fs, f1);
+    return true;
+}
+
+/* Crossing k (0, 1) of a hidden pair at fraction t of the finest edge from n along axis. */
+static long hidden_vertex(const struct iso_adapt *a, struct piece *pc, const int n[3], int axis, int k, double t)
+{
+    uint64_t key = edge_key(a, n, axis) | HIDDEN_KEY(k);
+    bool found;
+    size_t h;
+    if (!slot_of(pc, key, &found, &h))
+        return -1;
+    return found ? pc->slot[h] : place_vertex(a, pc, n, axis, t, true, key, h);
+}
+
+/* Whether any of the cell of s nodes a side at o's finest edges carries a hidden pair (only
+ * when there is a field). */
+static bool hides_crossings(const struct iso_adapt *a, const int o[3], int s)
+{
+    if (!a->field)
+        return false;
+    double t[2], reach = 2 * fmax(a->sp[0], fmax(a->sp[1], a->sp[2]));
+    bool near = false;
+    for (int z = 0; z <= s && !near; z++) /* (hidden_pair's reach, for the whole cell first) */
+        for (int y = 0; y <= s && !near; y++)
+            for (int x = 0; x <= s && !near; x++) {
+                int p[3] = {o[0] + x, o[1] + y, o[2] + z};
+                near = p[0] < a->N[0] && p[1] < a->N[1] && p[2] < a->N[2] && fabs(Fp(a, p) - a->iso) <= reach;
+            }
+    if (!near)
+        return false;
+    for (int z = 0; z <= s; z++)
+        for (int y = 0; y <= s; y++)
+            for (int x = 0; x <= s; x++)
+                for (int axis = 0; axis < 3; axis++) {
+                    int p[3] = {o[0] + x, o[1] + y, o[2] + z}, q[3] = {p[0], p[1], p[2]};
+                    if (++q[axis] > o[axis] + s || q[0] >= a->N[0] || q[1] >= a->N[1] || q[2] >= a->N[2])
+                        continue;
+                    if ((Fp(a, p) > a->iso) == (Fp(a, q) > a->iso) && hidden_pair(a, p, axis, t))
+                        return true;
+                }
+    return false;
 }
 
 static void add_triangle(struct piece *pc, long p, long q, long r)
@@ -391,12 +574,26 @@ static void add_triangle(struct piece *pc, long p, long q, long r)
 #define MAX_SEGS 96
 
 struct cell {
+    const struct iso_adapt *a;
+    bool hides;              /* a level-1 cell in a block with hidden crossings (HIDES) */
     struct piece *pc;        /* where its triangles go */
     int o[3], s;
     int n;                   /* segments */
     long from[MAX_SEGS], to[MAX_SEGS];
     int faces[MAX_SEGS];     /* of from[]: the cell faces its edge lies on (bits) */
 };
+
+/* The faces of cell c that the edge from node lo along axis lies on (bits). */
+static int cell_edge_faces(const struct cell *c, const int lo[3], int axis)
+{
+    int faces = 0;
+    for (int d = 0; d < 3; d++)
+        if (d != axis) {
+            faces |= lo[d] == c->o[d] ? 1 << (2 * d) : 0;
+            faces |= lo[d] == c->o[d] + c->s ? 1 << (2 * d + 1) : 0;
+        }
+    return faces;
+}
 
 /* The crossing on the sub-edge from node p to node q (one axis apart): the finest edge where the
  * values change side, walked from the lower end, and the faces of the cell it lies on. */
@@ -418,12 +615,7 @@ static long crossing(const struct iso_adapt *a, const struct cell *c, const int 
         prev = cur;
         n[axis]++;
     }
-    *faces = 0;
-    for (int d = 0; d < 3; d++)
-        if (d != axis) {
-            *faces |= lo[d] == c->o[d] ? 1 << (2 * d) : 0;
-            *faces |= lo[d] == c->o[d] + c->s ? 1 << (2 * d + 1) : 0;
-        }
+    *faces = cell_edge_faces(c, lo, axis);
     return v;
 }
 
@@ -433,6 +625,480 @@ static void add_seg(struct cell *c, long from, int from_faces, long to)
         c->from[c->n] = from, c->to[c->n] = to, c->faces[c->n] = from_faces;
         c->n++;
     }
+}
+
+/* ---- feature points (seed 002's second method) ---- */
+
+#define FEATURE_COS 0.9   /* normals further apart than this (26 degrees) make a feature */
+#define CORNER_COS 0.7    /* a third normal this far out of the other two's plane makes a corner */
+#define FACE_POINT (1 << 6) /* in a segment's faces: its start is a face point */
+#define ON_FACE (1 << 7)    /* its start is an isoline point of a face (isoline_point) */
+#define FACE_KEY (1ull << 62)
+
+static double dot3(const double u[3], const double v[3]) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; }
+
+static void vertex_of(const struct piece *pc, long v, double pos[3], double nrm[3])
+{
+    for (int d = 0; d < 3; d++)
+        pos[d] = pc->m.pos[3 * v + d], nrm[d] = pc->m.nrm[3 * v + d];
+}
+
+/* The feature point of segment A -> B of the face square with lowest node sq, h nodes a side,
+ * across axis: where the isoline's tangents at A and B (their tangent planes cut by the face's
+ * plane) meet, when the normals are more than the feature angle apart and the point lies in the
+ * square. Both cells that share the square find it from the same crossings:
+ * one vertex, keyed by the square, the segment (j: its number in the square, 0..7) and which part
+ * of it (sub: 0 the whole, 2 and 3 its halves round an isoline point). -1 for none. */
+/* The field minus iso at x + t dir. */
+static double at_line(const struct iso_adapt *a, const double x[3], const double dir[3], double t)
+{
+    double p[3] = {x[0] + t * dir[0], x[1] + t * dir[1], x[2] + t * dir[2]};
+    return a->field(a->field_ctx, p, NULL) - a->iso;
+}
+
+/* Whether point q of the face plane across axis lies in the square of h nodes a side from node
+ * sq, ISO_EDGE_MARGIN of it in from its sides. */
+static bool in_square(const struct iso_adapt *a, int axis, const int sq[3], int h, const double q[3])
+{
+    for (int d = 0; d < 3; d++) {
+        double lo = a->org[d] + a->sp[d] * sq[d], m = ISO_EDGE_MARGIN * h * a->sp[d];
+        if (d != axis && !(q[d] > lo + m && q[d] < lo + h * a->sp[d] - m))
+            return false;
+    }
+    return true;
+}
+
+static uint64_t face_key(const struct iso_adapt *a, int axis, const int sq[3], int h, int j, int sub)
+{
+    return FACE_KEY | (((((uint64_t)at3(a, sq[0], sq[1], sq[2]) * 3 + (uint64_t)axis) * 4 +
+                         (uint64_t)__builtin_ctz((unsigned)h)) * 8 + (uint64_t)j) * 4 + (uint64_t)sub);
+}
+
+/* The vertex of pc keyed key at q with normal nrm: found or made (-1: no memory). */
+static long keyed_vertex(struct piece *pc, uint64_t key, const double q[3], const double nrm[3])
+{
+    bool found;
+    size_t slot;
+    if (!slot_of(pc, key, &found, &slot))
+        return -1;
+    if (found)
+        return pc->slot[slot];
+    long v = new_vertex(pc, q, nrm, key);
+    if (v >= 0)
+        keep_slot(pc, slot, key, v);
+    return v;
+}
+
+static long face_point(const struct iso_adapt *a, struct piece *pc, long A, long B, int axis, const int sq[3], int h,
+                       int j, int sub)
+{
+    if (A < 0 || B < 0)
+        return -1;
+    double pa[3], na[3], pb[3], nb[3];
+    vertex_of(pc, A, pa, na);
+    vertex_of(pc, B, pb, nb);
+    if (dot3(na, nb) > FEATURE_COS)
+        return -1;
+    int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2;
+    double det = na[u] * nb[w] - na[w] * nb[u];
+    double la = hypot(na[u], na[w]), lb = hypot(nb[u], nb[w]);
+    if (!(fabs(det) > 0.1 * la * lb)) /* tangents (nearly) parallel in the face */
+        return -1;
+    double ca = na[u] * pa[u] + na[w] * pa[w], cb = nb[u] * pb[u] + nb[w] * pb[w], q[3];
+    q[axis] = pa[axis];
+    q[u] = (ca * nb[w] - cb * na[w]) / det;
+    q[w] = (na[u] * cb - nb[u] * ca) / det;
+    if (!in_square(a, axis, sq, h, q))
+        return -1;
+    double mu = ISO_EDGE_MARGIN * h * a->sp[u], mw = ISO_EDGE_MARGIN * h * a->sp[w];
+    double eu = pb[u] - pa[u], ew = pb[w] - pa[w], el = hypot(eu, ew);
+    if (!(fabs((q[u] - pa[u]) * ew - (q[w] - pa[w]) * eu) > el * hypot(mu, mw))) /* (all but on the segment) */
+        return -1;
+    double nrm[3] = {na[0] + nb[0], na[1] + nb[1], na[2] + nb[2]};
+    return keyed_vertex(pc, face_key(a, axis, sq, h, j, sub), q, nrm);
+}
+
+/* With the field at hand: where the face's isoline crosses the perpendicular bisector of segment
+ * A -> B, when that is further than a tenth of a cell from the segment (a curved feature that
+ * grazes the face dips into it between two crossings of one surface, and neither crossing's
+ * tangent shows it). A vertex of both cells that share the square, on the field, its normal the
+ * field's; -1 for none. */
+static long isoline_point(const struct iso_adapt *a, struct piece *pc, long A, long B, int axis, const int sq[3],
+                          int h, int j)
+{
+    if (A < 0 || B < 0)
+        return -1;
+    if (pc->vkey[B] < pc->vkey[A]) { /* the same search from both cells */
+        long t = A;
+        A = B, B = t;
+    }
+    double pa[3], pb[3], n[3], m[3], d[3] = {0, 0, 0}, step = h * fmin(a->sp[0], fmin(a->sp[1], a->sp[2]));
+    vertex_of(pc, A, pa, n);
+    vertex_of(pc, B, pb, n);
+    int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2;
+    for (int k = 0; k < 3; k++)
+        m[k] = 0.5 * (pa[k] + pb[k]);
+    d[u] = pb[w] - pa[w], d[w] = pa[u] - pb[u];
+    double len = hypot(d[u], d[w]);
+    if (!(len > 0))
+        return -1;
+    d[u] /= len, d[w] /= len;
+    double g[3], f0 = a->field(a->field_ctx, m, g) - a->iso, t0 = 0, t1 = 0, f1 = f0;
+    if (!(fabs(f0) > 0.1 * step * sqrt(dot3(g, g)))) /* the isoline is nearer the middle than that */
+        return -1;
+    for (int k = 1; k <= 4 && (f1 > 0) == (f0 > 0); k++) /* out from the middle, both ways */
+        for (int sgn = -1; sgn <= 1 && (f1 > 0) == (f0 > 0); sgn += 2)
+            t1 = sgn * step * k / 4, f1 = at_line(a, m, d, t1);
+    if ((f1 > 0) == (f0 > 0))
+        return -1;
+    double lo = fmin(t0, t1), hi = fmax(t0, t1), flo = t0 < t1 ? f0 : f1;
+    for (int it = 0; it < 30; it++) { /* bisection: the root nearest the middle */
+        double tm = 0.5 * (lo + hi), fm = at_line(a, m, d, tm);
+        if ((fm > 0) == (flo > 0))
+            lo = tm, flo = fm;
+        else
+            hi = tm;
+    }
+    double t = 0.5 * (lo + hi), q[3];
+    if (fabs(t) < 0.1 * step)
+        return -1;
+    for (int k = 0; k < 3; k++)
+        q[k] = m[k] + t * d[k];
+    if (!in_square(a, axis, sq, h, q))
+        return -1;
+    a->field(a->field_ctx, q, g);
+    for (int k = 0; k < 3; k++)
+        g[k] = -g[k];
+    return keyed_vertex(pc, face_key(a, axis, sq, h, j, 1), q, g);
+}
+
+/* Segment from -> to of face f's square sq (h a side, j its number in the square), with features
+ * kept: through its feature point when it has one, else (with the field) through the isoline's
+ * point between them when the isoline strays from the segment, and the feature points of the two
+ * halves. */
+static void add_face_seg(struct cell *c, int f, const int sq[3], int h, int j, long from, int from_faces, long to)
+{
+    const struct iso_adapt *a = c->a;
+    int axis = f >> 1;
+    long q = a->sharp ? face_point(a, c->pc, from, to, axis, sq, h, j, 0) : -1, r = -1;
+    if (q >= 0) {
+        add_seg(c, from, from_faces, q);
+        add_seg(c, q, 1 << f | FACE_POINT, to);
+        return;
+    }
+    if (a->sharp && a->field)
+        r = isoline_point(a, c->pc, from, to, axis, sq, h, j);
+    if (r < 0) {
+        add_seg(c, from, from_faces, to);
+        return;
+    }
+    int first = c->pc->vkey[from] < c->pc->vkey[to]; /* the halves' numbers: 2 for the one by the lesser key */
+    long q0 = face_point(a, c->pc, from, r, axis, sq, h, j, first ? 2 : 3);
+    long q1 = face_point(a, c->pc, r, to, axis, sq, h, j, first ? 3 : 2);
+    if (q0 >= 0) {
+        add_seg(c, from, from_faces, q0);
+        add_seg(c, q0, 1 << f | FACE_POINT, r);
+    } else {
+        add_seg(c, from, from_faces, r);
+    }
+    if (q1 >= 0) {
+        add_seg(c, r, 1 << f | ON_FACE, q1);
+        add_seg(c, q1, 1 << f | FACE_POINT, to);
+    } else {
+        add_seg(c, r, 1 << f | ON_FACE, to);
+    }
+}
+
+/* The planes of a loop's crossings, grouped round n seed normals (each crossing to the seed
+ * nearest its normal): each group's mean normal, through its crossings' mean position. */
+static void group_planes(const struct piece *pc, const long *v, int k, const int *seed, int n, double nrm[3][3],
+                         double off[3])
+{
+    double sn[3][3], sum[3][3] = {{0}}, at[3][3] = {{0}};
+    int cnt[3] = {0};
+    for (int g = 0; g < n; g++) {
+        double p[3];
+        vertex_of(pc, v[seed[g]], p, sn[g]);
+    }
+    for (int i = 0; i < k; i++) {
+        double p[3], m[3];
+        vertex_of(pc, v[i], p, m);
+        int best = 0;
+        for (int g = 1; g < n; g++)
+            if (dot3(m, sn[g]) > dot3(m, sn[best]))
+                best = g;
+        for (int d = 0; d < 3; d++)
+            sum[best][d] += m[d], at[best][d] += p[d];
+        cnt[best]++;
+    }
+    for (int g = 0; g < n; g++) { /* (each seed is in its own group: cnt > 0) */
+        double len = sqrt(dot3(sum[g], sum[g]));
+        for (int d = 0; d < 3; d++)
+            nrm[g][d] = len > 0 ? sum[g][d] / len : sn[g][d], at[g][d] /= cnt[g] ? cnt[g] : 1;
+        off[g] = dot3(nrm[g], at[g]);
+    }
+}
+
+/* The cell's box, a margin of ISO_EDGE_MARGIN round it. */
+static void cell_box(const struct iso_adapt *a, const struct cell *c, double lo[3], double hi[3])
+{
+    for (int d = 0; d < 3; d++) {
+        double m = ISO_EDGE_MARGIN * c->s * a->sp[d];
+        lo[d] = a->org[d] + a->sp[d] * c->o[d] - m;
+        hi[d] = a->org[d] + a->sp[d] * (c->o[d] + c->s) + m;
+    }
+}
+
+static bool in_cell(const struct iso_adapt *a, const struct cell *c, const double x[3])
+{
+    double lo[3], hi[3];
+    cell_box(a, c, lo, hi);
+    for (int d = 0; d < 3; d++)
+        if (!(x[d] > lo[d] && x[d] < hi[d]))
+            return false;
+    return true;
+}
+
+/* Whether x lies past one face of level-1 cell c, in the cell across it, and that cell holds no
+ * surface (its samples on one side, no hidden crossings): a corner whose tip pokes through the
+ * face between samples, which only c's loop can carry. */
+static bool in_empty_neighbour(const struct iso_adapt *a, const struct cell *c, const double x[3])
+{
+    if (c->s != 1)
+        return false;
+    int o[3] = {c->o[0], c->o[1], c->o[2]}, out = 0;
+    for (int d = 0; d < 3; d++) {
+        double g = (x[d] - a->org[d]) / a->sp[d] - c->o[d];
+        if (g < 0 || g > 1)
+            out++, o[d] += g < 0 ? -1 : 1;
+        if (g < -1 || g > 2)
+            return false;
+    }
+    if (out != 1)
+        return false;
+    for (int d = 0; d < 3; d++)
+        if (o[d] < 0 || o[d] + 1 >= a->N[d])
+            return false;
+    int in = 0;
+    for (int k = 0; k < 8; k++) {
+        int p[3] = {o[0] + (k & 1), o[1] + (k >> 1 & 1), o[2] + (k >> 2 & 1)};
+        in += Fp(a, p) > a->iso;
+    }
+    return (in == 0 || in == 8) && !hides_crossings(a, o, 1);
+}
+
+/* The stretch [*t0, *t1] of the line x + t dir in the cell's box: false when it misses it. */
+static bool line_in_cell(const struct iso_adapt *a, const struct cell *c, const double x[3], const double dir[3],
+                         double *t0, double *t1)
+{
+    double lo[3], hi[3];
+    cell_box(a, c, lo, hi);
+    *t0 = -INFINITY, *t1 = INFINITY;
+    for (int d = 0; d < 3; d++) {
+        if (fabs(dir[d]) < 1e-12) {
+            if (!(x[d] > lo[d] && x[d] < hi[d]))
+                return false;
+            continue;
+        }
+        double ta = (lo[d] - x[d]) / dir[d], tb = (hi[d] - x[d]) / dir[d];
+        *t0 = fmax(*t0, fmin(ta, tb)), *t1 = fmin(*t1, fmax(ta, tb));
+    }
+    return *t0 < *t1;
+}
+
+/* Moves x along dir to the nearest point of the line x + t dir inside the cell: false when the
+ * line misses it. */
+static bool clip_to_cell(const struct iso_adapt *a, const struct cell *c, double x[3], const double dir[3])
+{
+    double t0, t1;
+    if (!line_in_cell(a, c, x, dir, &t0, &t1))
+        return false;
+    double t = 0 < t0 ? t0 + 1e-3 * (t1 - t0) : 0 > t1 ? t1 - 1e-3 * (t1 - t0) : 0;
+    for (int d = 0; d < 3; d++)
+        x[d] += t * dir[d];
+    return true;
+}
+
+/* With the field at hand: where the edge through x along dir ends in the cell (a corner whose
+ * third face crosses none of the cell's edges, so that no crossing gave its plane), x is moved
+ * there. The field is zero along the edge and leaves zero past its end: the line is sampled
+ * across the cell, and where it is on the edge at one sample and off it at the next, the end is
+ * found between them by bisection. */
+static void edge_end(const struct iso_adapt *a, const struct cell *c, double x[3], const double dir[3])
+{
+    double t0, t1, tol = 1e-3 * c->s * fmin(a->sp[0], fmin(a->sp[1], a->sp[2]));
+    if (!line_in_cell(a, c, x, dir, &t0, &t1))
+        return;
+#define ON_EDGE(t) (fabs(at_line(a, x, dir, t)) <= tol)
+    enum { K = 8 };
+    bool on[K + 1];
+    int changes = 0, where = -1;
+    for (int k = 0; k <= K; k++) {
+        on[k] = ON_EDGE(t0 + (t1 - t0) * k / K);
+        if (k && on[k] != on[k - 1])
+            changes++, where = k - 1;
+    }
+    if (changes != 1)
+        return;
+    double ta = t0 + (t1 - t0) * where / K, tb = t0 + (t1 - t0) * (where + 1) / K; /* on[where] at ta */
+    for (int it = 0; it < 30; it++) {
+        double tm = 0.5 * (ta + tb);
+        if (ON_EDGE(tm) == on[where])
+            ta = tm;
+        else
+            tb = tm;
+    }
+#undef ON_EDGE
+    double t = on[where] ? ta : tb;
+    for (int d = 0; d < 3; d++)
+        x[d] += t * dir[d];
+}
+
+/* The point of the line where planes (n0, d0) and (n1, d1) meet that lies in the cell nearest
+ * centre (moved along the line into the cell when the nearest is outside it: the line may cross
+ * the cell near a corner of it), and with the field at hand moved to where the edge ends in the
+ * cell (edge_end). false when the planes are parallel or the line misses the cell. */
+static bool edge_point(const struct iso_adapt *a, const struct cell *c, const double n0[3], double d0, const double n1[3],
+                       double d1, const double centre[3], double x[3])
+{
+    double g = dot3(n0, n1), det = 1 - g * g;
+    if (det < 1e-6)
+        return false;
+    double r0 = d0 - dot3(n0, centre), r1 = d1 - dot3(n1, centre);
+    double al = (r0 - g * r1) / det, be = (r1 - g * r0) / det;
+    double dir[3] = {n0[1] * n1[2] - n0[2] * n1[1], n0[2] * n1[0] - n0[0] * n1[2], n0[0] * n1[1] - n0[1] * n1[0]};
+    for (int d = 0; d < 3; d++)
+        x[d] = centre[d] + al * n0[d] + be * n1[d];
+    if (!clip_to_cell(a, c, x, dir))
+        return false;
+    if (a->field)
+        edge_end(a, c, x, dir);
+    return true;
+}
+
+/* Seed 002's interior feature point of a loop: where the tangent planes at its crossings meet,
+ * without SVD. The two most different normals seed two groups of planes (an edge), a third far
+ * out of their plane a third group (a corner); each group is one plane (group_planes). A corner
+ * is where its three planes meet (in the cell, or in an empty one next to it: in_empty_neighbour);
+ * an edge a point of its two planes' line (edge_point). A corner elsewhere falls back to the one
+ * of its three edges that passes nearest the loop's face points.
+ * false when the loop has none. */
+static bool feature_point(const struct iso_adapt *a, const struct cell *c, const long *loop, const int *faces, int n,
+                          double x[3], double nrm[3])
+{
+    const struct piece *pc = c->pc;
+    long v[MAX_SEGS];
+    int k = 0;
+    double centre[3] = {0, 0, 0};
+    for (int d = 0; d < 3; d++)
+        nrm[d] = 0;
+    for (int i = 0; i < n; i++)
+        if (loop[i] < 0) /* (no memory) */
+            return false;
+    for (int i = 0; i < n; i++) {
+        double p[3], m[3];
+        vertex_of(pc, loop[i], p, m);
+        for (int d = 0; d < 3; d++)
+            centre[d] += p[d] / n;
+        if (!(faces[i] & FACE_POINT) && dot3(m, m) > 0.5) {
+            v[k++] = loop[i];
+            for (int d = 0; d < 3; d++)
+                nrm[d] += m[d];
+        }
+    }
+    int seed[3] = {-1, -1, -1};
+    double least = FEATURE_COS;
+    for (int i = 0; i < k; i++)
+        for (int j = i + 1; j < k; j++) {
+            double p[3], mi[3], mj[3];
+            vertex_of(pc, v[i], p, mi);
+            vertex_of(pc, v[j], p, mj);
+            if (dot3(mi, mj) < least)
+                least = dot3(mi, mj), seed[0] = i, seed[1] = j;
+        }
+    if (seed[0] < 0)
+        return false;
+    double pl[3][3], off[3], p[3], m0[3], m1[3], e[3];
+    vertex_of(pc, v[seed[0]], p, m0);
+    vertex_of(pc, v[seed[1]], p, m1);
+    e[0] = m0[1] * m1[2] - m0[2] * m1[1], e[1] = m0[2] * m1[0] - m0[0] * m1[2], e[2] = m0[0] * m1[1] - m0[1] * m1[0];
+    double el = sqrt(dot3(e, e)), most = CORNER_COS;
+    for (int i = 0; i < k; i++) {
+        double m[3];
+        vertex_of(pc, v[i], p, m);
+        if (fabs(dot3(m, e)) / el > most)
+            most = fabs(dot3(m, e)) / el, seed[2] = i;
+    }
+    if (seed[2] >= 0) { /* a corner: three planes, by Cramer's rule */
+        group_planes(pc, v, k, seed, 3, pl, off);
+        double c0[3], c1[3], c2[3]; /* the rows' cross products */
+        c0[0] = pl[1][1] * pl[2][2] - pl[1][2] * pl[2][1], c0[1] = pl[1][2] * pl[2][0] - pl[1][0] * pl[2][2],
+        c0[2] = pl[1][0] * pl[2][1] - pl[1][1] * pl[2][0];
+        c1[0] = pl[2][1] * pl[0][2] - pl[2][2] * pl[0][1], c1[1] = pl[2][2] * pl[0][0] - pl[2][0] * pl[0][2],
+        c1[2] = pl[2][0] * pl[0][1] - pl[2][1] * pl[0][0];
+        c2[0] = pl[0][1] * pl[1][2] - pl[0][2] * pl[1][1], c2[1] = pl[0][2] * pl[1][0] - pl[0][0] * pl[1][2],
+        c2[2] = pl[0][0] * pl[1][1] - pl[0][1] * pl[1][0];
+        double det = dot3(pl[0], c0);
+        if (fabs(det) > 1e-3) {
+            for (int d = 0; d < 3; d++)
+                x[d] = (off[0] * c0[d] + off[1] * c1[d] + off[2] * c2[d]) / det;
+            if (in_cell(a, c, x) || in_empty_neighbour(a, c, x))
+                return true;
+            double lo[3], hi[3], far = 0; /* just outside: its edges run through the cell, from near it */
+            cell_box(a, c, lo, hi);
+            for (int d = 0; d < 3; d++)
+                far = fmax(far, fmax(lo[d] - x[d], x[d] - hi[d]) / (c->s * a->sp[d]));
+            if (far < 0.5) {
+                for (int d = 0; d < 3; d++) {
+                    double m = 2 * ISO_EDGE_MARGIN * c->s * a->sp[d];
+                    x[d] = fmin(fmax(x[d], lo[d] + m), hi[d] - m);
+                }
+                return true;
+            }
+        }
+    }
+    int pairs = 1, pick = -1;
+    if (seed[2] < 0)
+        group_planes(pc, v, k, seed, 2, pl, off);
+    else /* the corner lies outside the cell: one of its three edges runs through it */
+        pairs = 3;
+    double best = INFINITY, bx[3];
+    for (int q = 0; q < pairs; q++) {
+        int i = q == 2 ? 1 : 0, j = q == 0 ? 1 : 2;
+        double y[3], miss = 0;
+        if (!edge_point(a, c, pl[i], off[i], pl[j], off[j], centre, y))
+            continue;
+        for (int r = 0; r < n; r++) /* the face points lie on the edge: the one nearest them */
+            if (faces[r] & FACE_POINT) {
+                double fp[3], m[3], w[3];
+                vertex_of(pc, loop[r], fp, m);
+                for (int d = 0; d < 3; d++)
+                    w[d] = fp[d] - y[d];
+                miss += sqrt(dot3(w, w));
+            }
+        if (miss < best)
+            best = miss, pick = q, memcpy(bx, y, sizeof bx);
+    }
+    if (pick < 0)
+        return false;
+    memcpy(x, bx, sizeof bx);
+    return true;
+}
+
+/* Whether the field is inside at the mean of a face's four crossings: with the field at hand,
+ * whether the face's two stretches of inside border are joined across it, in place of the
+ * asymptotic decider's reading of the samples' bilinear interpolant (the same answer from both
+ * cells that share the face: it does not depend on the order of the crossings). */
+static bool inside_between(const struct iso_adapt *a, const struct piece *pc, const long cross[4])
+{
+    double m[3] = {0, 0, 0};
+    for (int q = 0; q < 4; q++) {
+        if (cross[q] < 0)
+            return false;
+        for (int d = 0; d < 3; d++)
+            m[d] += pc->m.pos[3 * cross[q] + d] / 4;
+    }
+    return a->field(a->field_ctx, m, NULL) > a->iso;
 }
 
 /* The segments of face f cut k x k: per sub-square as mc.c's faces (entry to exit, walking it
@@ -454,31 +1120,72 @@ static void face_segments(const struct iso_adapt *a, struct cell *c, int f, int 
                 v[q] = Fp(a, p[q]);
                 g[b[u] + 2 * b[w]] = (double)v[q] - a->iso;
             }
-            long cross[4];
-            int faces[4], entry[4], n = 0;
+            long cross[8];
+            int faces[8], entry[8], n = 0, sq[3] = {p[0][0], p[0][1], p[0][2]}; /* corner 0: the lowest */
             for (int q = 0; q < 4; q++) {
+                const int *pa = p[q], *pb = p[(q + 1) % 4];
                 bool sa = v[q] > a->iso, sb = v[(q + 1) % 4] > a->iso;
+                int ea = pa[0] != pb[0] ? 0 : pa[1] != pb[1] ? 1 : 2;
+                double t[2];
                 if (sa != sb) {
-                    cross[n] = crossing(a, c, p[q], p[(q + 1) % 4], &faces[n]);
+                    cross[n] = crossing(a, c, pa, pb, &faces[n]);
                     entry[n++] = sb;
+                } else if (c->hides && hidden_pair(a, pa[ea] < pb[ea] ? pa : pb, ea, t)) { /* in, out: walked in order */
+                    const int *lo = pa[ea] < pb[ea] ? pa : pb;
+                    for (int r = 0; r < 2; r++) {
+                        int which = lo == pa ? r : 1 - r;
+                        cross[n] = hidden_vertex(a, c->pc, lo, ea, which, t[which]);
+                        faces[n] = cell_edge_faces(c, lo, ea);
+                        entry[n++] = r ? sa : !sa;
+                    }
                 }
             }
-            if (n == 2) {
-                int e = entry[0] ? 0 : 1;
-                add_seg(c, cross[e], faces[e], cross[1 - e]);
-            } else if (n == 4) {
+            /* each segment's number in the square (a face point's key): how many of its crossings'
+             * keys are less than the least of the segment's */
+            long rank[8];
+            for (int q = 0; q < n; q++) {
+                rank[q] = 0;
+                for (int r = 0; r < n; r++)
+                    rank[q] += cross[q] >= 0 && cross[r] >= 0 && c->pc->vkey[cross[r]] < c->pc->vkey[cross[q]];
+            }
+#define SEG(e, x) add_face_seg(c, f, sq, h, (int)(rank[e] < rank[x] ? rank[e] : rank[x]), cross[e], faces[e], cross[x])
+            if (n == 4) {
                 int r = entry[0] ? 0 : 1;
                 int e1 = r, x1 = (r + 1) % 4, e2 = (r + 2) % 4, x2 = (r + 3) % 4;
                 double det = g[0] * g[3] - g[1] * g[2];
-                if (g[0] > 0 ? det > 0 : det < 0) { /* inside corners joined: the segments cut off the outside ones */
-                    add_seg(c, cross[e2], faces[e2], cross[x1]);
-                    add_seg(c, cross[e1], faces[e1], cross[x2]);
+                if (a->field ? inside_between(a, c->pc, cross) : g[0] > 0 ? det > 0 : det < 0) {
+                    /* inside corners joined: the segments cut off the outside ones */
+                    SEG(e2, x1);
+                    SEG(e1, x2);
                 } else {
-                    add_seg(c, cross[e1], faces[e1], cross[x1]);
-                    add_seg(c, cross[e2], faces[e2], cross[x2]);
+                    SEG(e1, x1);
+                    SEG(e2, x2);
                 }
+            } else { /* each way in to the next way out (6 or 8 crossings: each tip its own) */
+                for (int q = 0; q < n; q++)
+                    if (entry[q])
+                        SEG(q, (q + 1) % n);
             }
+#undef SEG
         }
+}
+
+/* Whether the fan of a loop from x has no triangle of (all but) zero area, as the mesh will hold
+ * it (in floats). */
+static bool fan_ok(const struct cell *c, const double x[3], const long *loop, int n)
+{
+    const float *pos = c->pc->m.pos;
+    double h = c->s * fmax(c->a->sp[0], fmax(c->a->sp[1], c->a->sp[2])), p[3];
+    for (int d = 0; d < 3; d++)
+        p[d] = (float)x[d];
+    for (int k = 0; k < n; k++) {
+        const float *q = pos + 3 * loop[k], *r = pos + 3 * loop[(k + 1) % n];
+        double u[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]}, w[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+        double cr[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+        if (!(dot3(cr, cr) > 1e-12 * h * h * h * h))
+            return false;
+    }
+    return true;
 }
 
 /* The cell's loops, each fanned from a vertex none of whose diagonals joins two vertices of one
@@ -502,8 +1209,16 @@ static void fan_loops(struct cell *c)
         }
         if (n < 3)
             continue;
+        double fx[3], fn[3];
+        if (c->a->sharp && feature_point(c->a, c, loop, faces, n, fx, fn) && fan_ok(c, fx, loop, n)) { /* fanned from it */
+            long centre = new_vertex(c->pc, fx, fn, UINT64_MAX);
+            c->pc->feature_points++;
+            for (int k = 0; k < n; k++)
+                add_triangle(c->pc, centre, loop[k], loop[(k + 1) % n]);
+            continue;
+        }
         int apex = -1;
-        for (int p = 0; p < n && apex < 0; p++) {
+        for (int p = 0; p < n && apex < 0; p++) { /* (a face point lies in a face too: its bit says) */
             bool ok = true;
             for (int k = 2; k + 1 < n && ok; k++)
                 ok = !(faces[p] & faces[(p + k) % n]);
@@ -537,7 +1252,8 @@ static void polygonise(const struct iso_adapt *a, struct piece *pc, const int o[
         int p[3] = {o[0] + (k & 1) * s, o[1] + (k >> 1 & 1) * s, o[2] + (k >> 2 & 1) * s};
         in += Fp(a, p) > a->iso;
     }
-    bool mixed = in > 0 && in < 8;
+    bool hides = l == 1 && a->mixed[2][block(a, 2, o[0] >> 1, o[1] >> 1, o[2] >> 1)] & HIDES;
+    bool mixed = (in > 0 && in < 8) || (hides && hides_crossings(a, o, 1));
     int ks[6];
     for (int f = 0; f < 6; f++) {
         ks[f] = 1;
@@ -556,6 +1272,8 @@ static void polygonise(const struct iso_adapt *a, struct piece *pc, const int o[
     if (!mixed)
         return;
     struct cell c;
+    c.a = a;
+    c.hides = hides;
     c.pc = pc;
     memcpy(c.o, o, sizeof c.o);
     c.s = s;
@@ -627,6 +1345,8 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     a->shift = o->closed ? 1 : 0;
     a->iso = (float)o->iso;
+    a->sharp = o->sharp;
+    a->field = o->field, a->field_ctx = o->field_ctx;
     a->max_err = levels == 1 ? -1 : max_error; /* levels 1: nothing merges */
     a->L = levels < 2 ? 2 : levels;
     int nn[3] = {g->nx, g->ny, g->nz};
@@ -719,6 +1439,7 @@ int iso_adapt_end(struct iso_adapt *a, struct trimesh *out, struct iso_adapt_sta
         struct piece *pc = &a->pieces[k];
         for (int l = 1; l <= ISO_MAX_LEVELS; l++)
             st->cells[l] += pc->cells[l];
+        st->feature_points += pc->feature_points;
         st->max_estimate = fmax(st->max_estimate, a->slab_max[k]);
         if (pc->nomem) {
             rc = -1;
@@ -745,6 +1466,7 @@ int iso_adapt_end(struct iso_adapt *a, struct trimesh *out, struct iso_adapt_sta
             long g = new_vertex(&all, pos, nrm, pc->vkey[v]);
             if (g < 0)
                 break;
+            st->face_points += pc->vkey[v] != UINT64_MAX && pc->vkey[v] & FACE_KEY;
             if (pc->vkey[v] != UINT64_MAX)
                 keep_slot(&all, h, pc->vkey[v], g);
             id[v] = (uint32_t)g;

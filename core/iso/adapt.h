@@ -26,7 +26,31 @@
  * segments into loops (an ambiguous face or sub-face by the asymptotic decider, as mc.c) and fans
  * them from a vertex none of whose diagonals lies in a face, else from the loop's centre. So with
  * closed=true the mesh is a closed, consistently oriented 2-manifold at every mix of levels.
- * Unlike mc.c, a cell's two loops are always two caps (no interior tube test). */
+ * Unlike mc.c, a cell's two loops are always two caps (no interior tube test).
+ *
+ * Sharp features (opts sharp; seed 002's second method: the feature points where the tangent
+ * planes at a cell's crossings, from the gradient, meet). On a face, a segment between two
+ * crossings whose normals are more than 26 degrees apart gets the point where their tangent lines
+ * in the face meet, when it lies in the face: one vertex of both cells that share it (keyed by the
+ * face square and the segment), so the joins stay closed. Inside, a loop whose normals differ that
+ * much gets one point, found without SVD: the two most different normals seed two groups of
+ * planes (each crossing to the nearer seed; each group one plane through its crossings' mean), a
+ * third normal far out of their plane a third (a corner); a corner is where the three planes meet,
+ * an edge the point of the two planes' line in the cell nearest the loop's centre. The loop is
+ * fanned from it, so the mesh's edges run from face point to feature point to face point along
+ * the feature. A corner that lies just outside the cell (less than half a cell) is pulled into
+ * it, or kept where it is when the cell it lies in holds no surface; further out, the one of its
+ * edges that passes nearest the loop's face points is taken.
+ * With a field (opts field: an FRep object's own function), beyond the seed: crossings are put on
+ * the function by regula falsi and their normals taken from its gradient; an ambiguous face is
+ * decided by the function at the mean of its crossings; a cell edge that a feature pokes through
+ * between two samples of one side gets the function's two crossings (the samples alone show
+ * nothing there, and Extended Marching Cubes and Dual Contouring cut the feature off by up to half
+ * a cell); a face segment whose isoline strays from it by more than a tenth of a cell (a curved
+ * feature grazing the face) gets the isoline's point between; and an edge whose line leaves the
+ * function's zero inside the cell ends there, at its corner. Blocks whose fine edges carry such
+ * crossings are not merged. Without a field (sampled volumes) the normals are the samples'
+ * central differences, which blur across an edge: features are kept, less exactly. */
 #ifndef SURFD_ADAPT_H
 #define SURFD_ADAPT_H
 
@@ -39,6 +63,8 @@
 struct iso_adapt_stats {
     long cells[ISO_MAX_LEVELS + 1];   /* cells holding the surface, by level (1..levels) */
     double max_estimate;              /* the largest |f - c| / |grad f| the merges accepted */
+    long feature_points, face_points; /* features=sharp: loops fanned from their feature point, and
+                                       * the points where features cross cell faces */
 };
 
 /* The extraction in phases of slabs: the samples copied as floats, each level's blocks (levels

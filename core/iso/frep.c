@@ -25,14 +25,25 @@ static double radial(const double x[3], const double base[3], const double axis[
     return h;
 }
 
-/* Distance from (px, py) to the segment a-b, the unit direction from the nearest point in *dx, *dy. */
+/* Distance from (px, py) to the segment a-b, the unit direction from the nearest point in *dx, *dy.
+ * Where the nearest point is inside the segment that direction is the segment's normal, one way
+ * or the other (outward: the profile runs counter-clockwise), taken from the segment, not from
+ * the point's offset (which a point on the surface, at a distance of rounding error, does not
+ * give). */
 static double seg_dist(double px, double py, double ax, double ay, double bx, double by, double *dx, double *dy)
 {
-    double ex = bx - ax, ey = by - ay, t = ((px - ax) * ex + (py - ay) * ey) / (ex * ex + ey * ey);
-    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    double ex = bx - ax, ey = by - ay, el = sqrt(ex * ex + ey * ey), t = ((px - ax) * ex + (py - ay) * ey) / (el * el);
+    double nx = ey / el, ny = -ex / el;
+    if (t > 0 && t < 1) {
+        double side = (px - ax) * nx + (py - ay) * ny;
+        *dx = side < 0 ? -nx : nx;
+        *dy = side < 0 ? -ny : ny;
+        return fabs(side);
+    }
+    t = t < 0 ? 0 : 1;
     double rx = px - (ax + t * ex), ry = py - (ay + t * ey), d = sqrt(rx * rx + ry * ry);
-    *dx = d > 0 ? rx / d : 0;
-    *dy = d > 0 ? ry / d : 0;
+    *dx = d > 0 ? rx / d : nx;
+    *dy = d > 0 ? ry / d : ny;
     return d;
 }
 

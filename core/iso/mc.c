@@ -429,6 +429,8 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
         return sf_fail(err, SF_EINVAL, "?dims", "a volume has at least 2 samples on every axis");
     if (!isfinite(o->iso))
         return sf_fail(err, SF_EINVAL, "?iso", "iso is a finite number");
+    if (o->sharp)
+        return sf_fail(err, SF_EINVAL, "?features", "feature points are the adaptive extraction's (adapt.h)");
     struct iso_job *j = calloc(1, sizeof *j);
     if (!j)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");

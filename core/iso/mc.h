@@ -48,6 +48,12 @@ struct iso_opts {
     double iso;
     bool closed;             /* the border counts as outside: pads the grid with one layer below iso */
     bool normals;            /* vertex normals from the field's gradient (central differences) */
+    bool sharp;              /* seed 002's feature points (adapt.h; iso_begin refuses it) */
+    /* The field as a function of position, when there is one (an FRep object's): its value at p
+     * (the samples' quantity) and its gradient into g. adapt.c puts the crossings on it and takes
+     * their normals from its gradient; NULL for sampled volumes. */
+    double (*field)(const void *ctx, const double p[3], double g[3]);
+    const void *field_ctx;
 };
 
 struct iso_job;

@@ -39,6 +39,12 @@ check "surfctl isosurface --levels 3 --max-error 1: coarser, closed" '[ $? -eq 0
 printf '{"bounds": [[-1.2, -1.2, -1.2], [1.2, 1.2, 1.2]], "cell": 0.05, "frep": {"torus": {"center": [0, 0, 0], "axis": [0, 0, 1], "major": 0.8, "minor": 0.3}}}' >"$T/torus.json"
 $C isosurface "$T/torus.json" -o "$T/torus.stl" >"$T/out" 2>"$T/progress"
 check "surfctl isosurface of an FRep .json: a closed torus" '[ $? -eq 0 ] && grep -q "\"source\":\"frep\"" "$T/out" && grep -q "\"euler_characteristic\":0" "$T/out"'
+printf '{"bounds": [[-1.2, -1.2, -1.2], [1.2, 1.2, 1.2]], "cell": 0.05, "frep": {"transform": {"rotate_deg": [20, 30, 10], "object": {"box": {"min": [-0.8, -0.6, -0.5], "max": [0.8, 0.6, 0.5]}}}}}' >"$T/box.json"
+$C isosurface "$T/box.json" --features sharp -o "$T/box.stl" >"$T/out" 2>"$T/progress"
+check "surfctl isosurface --features sharp: a turned box with its feature points, its volume within 0.05 %" '[ $? -eq 0 ] && python3 -c "
+import json, sys
+m = json.load(open(sys.argv[1]))
+sys.exit(0 if m[\"features\"] == \"sharp\" and m[\"feature_points\"] > 0 and abs(m[\"volume_mm3\"] / 1.92 - 1) < 5e-4 else 1)" "$T/out"'
 $C isosurface "$CT" --dims 64,64,64 --type int16 -o "$T/x.stl" 2>"$T/err"; rc=$?
 check "surfctl isosurface without --iso exits 4 naming ?iso" '[ $rc -eq 4 ] && grep -q "?iso" "$T/err"'
 $C render "$D/teapot.json" -o "$T/g.png" --width 0 2>"$T/err"; rc=$?

@@ -12,7 +12,7 @@
 static bool extract(const struct iso_grid *g, double iso, int levels, double max_error, struct trimesh *m,
                     struct trimesh_stats *st, struct iso_adapt_stats *as)
 {
-    struct iso_opts o = {iso, true, true};
+    struct iso_opts o = {.iso = iso, .closed = true, .normals = true};
     struct sf_err err = {0};
     int rc = iso_extract_adaptive(g, &o, levels, max_error, NULL, m, as, &err);
     if (!rc)
@@ -170,7 +170,7 @@ TEST(the_same_mesh_twice_and_mc_at_zero_error)
     /* at max_error 0 only blocks whose every full-resolution vertex lies on the merged cell's
      * polygon merge: every vertex is marching cubes' own, the volume marching cubes' */
     struct sf_err err = {0};
-    struct iso_opts o = {0, true, true};
+    struct iso_opts o = {.iso = 0, .closed = true, .normals = true};
     CHECK(extract(&g, 0, 4, 0, &a, &sa, &as));
     CHECK(iso_extract(&g, &o, NULL, &mc, &err) == 0 && trimesh_stats(&mc, &smc, &err) == 0);
     CHECK(a.n_tri <= mc.n_tri && a.n_vert <= mc.n_vert);
@@ -186,7 +186,7 @@ TEST(the_same_mesh_twice_and_mc_at_zero_error)
 TEST(the_same_mesh_whatever_the_order_of_the_slabs)
 {
     struct iso_grid g = grid(N, field[2], 1);
-    struct iso_opts o = {0, true, true};
+    struct iso_opts o = {.iso = 0, .closed = true, .normals = true};
     struct trimesh fw, bw;
     struct trimesh_stats st;
     struct iso_adapt_stats as;

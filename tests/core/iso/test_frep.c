@@ -1,6 +1,7 @@
 /* test_frep.c - FRep evaluation (core/iso/frep.h): every primitive's value against its closed
  * form, the R-functions' formulas, transforms, gradients against finite differences through a
- * whole tree, the bounds' soundness, and block-skipping sampling against full evaluation. */
+ * whole tree, gradients on the surface itself, the bounds' soundness, and block-skipping sampling
+ * against full evaluation. */
 #include "../../../core/iso/frep.h"
 
 #include <stdbool.h>
@@ -268,6 +269,29 @@ TEST(sampling_skips_only_what_the_mesh_does_not_read)
     CHECK(skipped > N * N * N / 2); /* the blocks far from the surface were skipped */
 }
 
+/* On the surface (and a rounding error off it) a solid of revolution's gradient is its face's
+ * normal, not the direction of an offset of 1e-16 (which is noise): the normals of sharp features
+ * are read there. */
+TEST(gradients_on_the_surface_are_the_faces_normals)
+{
+    tree.n = 0; /* axis along +z from the origin, radius 0.6, length 1 */
+    add((struct frep_node){.kind = FREP_CYLINDER, .p = {0, 0, 0, 0, 0, 1, 0.6, 1}});
+    const double pts[][3] = {{0.6, 0, 0.3}, {0.6 + 1e-16, 0, 0.3}, {0.3, 0.2, 0}, {0.3, 0.2, -1e-17}, {0.1, -0.2, 1}},
+                 want[][3] = {{-1, 0, 0}, {-1, 0, 0}, {0, 0, 1}, {0, 0, 1}, {0, 0, -1}};
+    for (int k = 0; k < 5; k++) {
+        double g[3], f = frep_eval(&tree, pts[k], g);
+        CHECK_NEAR(f, 0, 1e-15);
+        for (int d = 0; d < 3; d++)
+            CHECK_NEAR(g[d], want[k][d], 1e-12);
+    }
+    tree.n = 0; /* the cone's slant, at 45 degrees: the inward normal (-1, 0, -1) / sqrt 2 at (0.5, 0, 0.5) */
+    add((struct frep_node){.kind = FREP_CONE, .p = {0, 0, 0, 0, 0, 1, 1, 1}});
+    double g[3];
+    frep_eval(&tree, (double[3]){0.5, 0, 0.5}, g);
+    CHECK_NEAR(g[0], -sqrt(0.5), 1e-12);
+    CHECK_NEAR(g[2], -sqrt(0.5), 1e-12);
+}
+
 int main(void)
 {
     RUN(primitives_are_signed_distances);
@@ -277,5 +301,6 @@ int main(void)
     RUN(gradients_through_a_tree);
     RUN(bounds_hold_over_their_ball);
     RUN(sampling_skips_only_what_the_mesh_does_not_read);
+    RUN(gradients_on_the_surface_are_the_faces_normals);
     UNIT_END();
 }

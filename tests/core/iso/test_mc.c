@@ -12,7 +12,7 @@
 /* Extracts g at iso (closed unless open) and measures it. */
 static int run(const struct iso_grid *g, double iso, bool closed, struct trimesh *m, struct trimesh_stats *st)
 {
-    struct iso_opts o = {iso, closed, true};
+    struct iso_opts o = {.iso = iso, .closed = closed, .normals = true};
     struct sf_err err = {0};
     int rc = iso_extract(g, &o, NULL, m, &err);
     if (!rc)
@@ -219,7 +219,7 @@ TEST(same_mesh_whatever_the_slabs)
     struct trimesh m[2];
     for (int k = 0; k < 2; k++) {
         struct iso_job *j;
-        struct iso_opts o = {0, true, true};
+        struct iso_opts o = {.iso = 0, .closed = true, .normals = true};
         CHECK(iso_begin(&g, &o, k ? 7 : 1, &j, NULL) == 0);
         int n = iso_n_slabs(j);
         for (int s = n - 1; s >= 0; s--) /* any order */
