@@ -34,4 +34,8 @@ void trimesh_turn(struct trimesh *m, const double o[3], const double a[3][3]);
 /* Figures of m (O(F log F): edges are sorted). 0, or SF_ENOMEM. */
 int trimesh_stats(const struct trimesh *m, struct trimesh_stats *out, struct sf_err *err);
 
+/* Distance from point p to triangle abc (the closest point by Voronoi regions, Ericson's
+ * Real-Time Collision Detection 5.1.5). */
+double trimesh_point_dist(const double p[3], const double a[3], const double b[3], const double c[3]);
+
 #endif

@@ -83,39 +83,6 @@ static bool hides_crossings(const struct iso_adapt *a, const int o[3], int s);
 
 /* ---- the hierarchy ---- */
 
-/* Distance from p to triangle abc. */
-static double tri_dist(const double p[3], const double a[3], const double b[3], const double c[3])
-{
-    double ab[3], ac[3], ap[3], q[3];
-    for (int d = 0; d < 3; d++)
-        ab[d] = b[d] - a[d], ac[d] = c[d] - a[d], ap[d] = p[d] - a[d];
-#define DOT(u, v) ((u)[0] * (v)[0] + (u)[1] * (v)[1] + (u)[2] * (v)[2])
-    double d1 = DOT(ab, ap), d2 = DOT(ac, ap), v, w;
-    double bp[3] = {p[0] - b[0], p[1] - b[1], p[2] - b[2]}, cp[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
-    double d3 = DOT(ab, bp), d4 = DOT(ac, bp), d5 = DOT(ab, cp), d6 = DOT(ac, cp);
-    double va = d3 * d6 - d5 * d4, vb = d5 * d2 - d1 * d6, vc = d1 * d4 - d3 * d2;
-    if (d1 <= 0 && d2 <= 0)
-        v = 0, w = 0;
-    else if (d3 >= 0 && d4 <= d3)
-        v = 1, w = 0;
-    else if (vc <= 0 && d1 >= 0 && d3 <= 0)
-        v = d1 / (d1 - d3), w = 0;
-    else if (d6 >= 0 && d5 <= d6)
-        v = 0, w = 1;
-    else if (vb <= 0 && d2 >= 0 && d6 <= 0)
-        v = 0, w = d2 / (d2 - d6);
-    else if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
-        w = (d4 - d3) / ((d4 - d3) + (d5 - d6)), v = 1 - w;
-    else {
-        double den = 1 / (va + vb + vc);
-        v = vb * den, w = vc * den;
-    }
-    for (int d = 0; d < 3; d++)
-        q[d] = a[d] + v * ab[d] + w * ac[d] - p[d];
-    return sqrt(DOT(q, q));
-#undef DOT
-}
-
 /* The error estimate of block b of level l, merged into one cell: that cell's surface is a
  * polygon through the samples' own crossings on its twelve edges (each edge must cross at most
  * once: else INFINITY, a feature finer than the cell), so its vertices lie on the full-resolution
@@ -215,7 +182,7 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
                     for (int d = 0; d < 3; d++)
                         v[d] = a->org[d] + a->sp[d] * (p[d] + (d == axis ? t : 0));
                     for (int k = 0; k < tri_n; k++)
-                        e = fmin(e, tri_dist(v, tris[k][0], tris[k][1], tris[k][2]));
+                        e = fmin(e, trimesh_point_dist(v, tris[k][0], tris[k][1], tris[k][2]));
                     worst = fmax(worst, e);
                     if (worst > a->max_err)
                         return worst;

@@ -18,17 +18,21 @@ def read(path):
     return r.GetOutput()
 
 
-def one_way(a, b):
+def to_surface(mesh, pts):
+    """The distance from each of pts to mesh's surface."""
     loc = vtk.vtkStaticCellLocator()
-    loc.SetDataSet(b)
+    loc.SetDataSet(mesh)
     loc.BuildLocator()
-    pts = vtk_to_numpy(a.GetPoints().GetData()).astype(float)
     out = np.empty(len(pts))
     c, cell, sub, d2 = [0.0, 0.0, 0.0], vtk.reference(0), vtk.reference(0), vtk.reference(0.0)
     for i, p in enumerate(pts):
-        loc.FindClosestPoint(p, c, cell, sub, d2)
+        loc.FindClosestPoint(list(p), c, cell, sub, d2)
         out[i] = d2.get() ** 0.5
     return out
+
+
+def one_way(a, b):
+    return to_surface(b, vtk_to_numpy(a.GetPoints().GetData()).astype(float))
 
 
 def main():

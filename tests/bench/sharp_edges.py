@@ -9,8 +9,8 @@ usage: sharp_edges.py SURFD TMPDIR"""
 import json, math, os, subprocess, sys
 
 import numpy as np
-import vtk
-from vtk.util.numpy_support import vtk_to_numpy
+
+from mesh_distance import read as read_stl, to_surface as distances
 
 ROT = (20.0, 30.0, 10.0)  # degrees about x, then y, then z (the FRep transform's order)
 
@@ -84,25 +84,6 @@ def solids(step):
     vol = 2 * 1.2 * 0.3 + 0.3 * 1.2 * 1.0 - math.pi * r1 * r1 * 0.3 - math.pi * r2 * r2 * 0.3
     out.append(("bracket", tree, vol, pts, corners))
     return out
-
-
-def read_stl(path):
-    r = vtk.vtkSTLReader()
-    r.SetFileName(path)
-    r.Update()
-    return r.GetOutput()
-
-
-def distances(mesh, pts):
-    loc = vtk.vtkStaticCellLocator()
-    loc.SetDataSet(mesh)
-    loc.BuildLocator()
-    c, cell, sub, d2 = [0.0, 0.0, 0.0], vtk.reference(0), vtk.reference(0), vtk.reference(0.0)
-    out = []
-    for p in pts:
-        loc.FindClosestPoint(list(p), c, cell, sub, d2)
-        out.append(d2.get() ** 0.5)
-    return np.array(out)
 
 
 def main():

@@ -83,44 +83,17 @@ static bool closed_manifold(const struct trimesh_stats *st)
     return ok;
 }
 
-/* distance from p to triangle abc (Ericson's closest point) */
-static double tri_dist(const double p[3], const float *a, const float *b, const float *c)
-{
-    double ab[3], ac[3], ap[3], bp[3], cp[3];
-    for (int d = 0; d < 3; d++)
-        ab[d] = b[d] - a[d], ac[d] = c[d] - a[d], ap[d] = p[d] - a[d], bp[d] = p[d] - b[d], cp[d] = p[d] - c[d];
-#define DOT(u, v) ((u)[0] * (v)[0] + (u)[1] * (v)[1] + (u)[2] * (v)[2])
-    double d1 = DOT(ab, ap), d2 = DOT(ac, ap), d3 = DOT(ab, bp), d4 = DOT(ac, bp), d5 = DOT(ab, cp), d6 = DOT(ac, cp);
-    double va = d3 * d6 - d5 * d4, vb = d5 * d2 - d1 * d6, vc = d1 * d4 - d3 * d2, v, w;
-    if (d1 <= 0 && d2 <= 0)
-        v = 0, w = 0;
-    else if (d3 >= 0 && d4 <= d3)
-        v = 1, w = 0;
-    else if (vc <= 0 && d1 >= 0 && d3 <= 0)
-        v = d1 / (d1 - d3), w = 0;
-    else if (d6 >= 0 && d5 <= d6)
-        v = 0, w = 1;
-    else if (vb <= 0 && d2 >= 0 && d6 <= 0)
-        v = 0, w = d2 / (d2 - d6);
-    else if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
-        w = (d4 - d3) / ((d4 - d3) + (d5 - d6)), v = 1 - w;
-    else
-        v = vb / (va + vb + vc), w = vc / (va + vb + vc);
-    double q[3];
-    for (int d = 0; d < 3; d++)
-        q[d] = a[d] + v * ab[d] + w * ac[d] - p[d];
-    return sqrt(DOT(q, q));
-#undef DOT
-}
-
 /* distance from q (the solid's own frame, turned by ROT) to the mesh, in cells */
 static double to_mesh(const struct trimesh *m, const double q[3])
 {
     double p[3], best = INFINITY;
     turn(q, p);
     for (size_t t = 0; t < m->n_tri; t++) {
-        const uint32_t *v = m->tri + 3 * t;
-        best = fmin(best, tri_dist(p, m->pos + 3 * v[0], m->pos + 3 * v[1], m->pos + 3 * v[2]));
+        double c[3][3];
+        for (int k = 0; k < 3; k++)
+            for (int d = 0; d < 3; d++)
+                c[k][d] = m->pos[3 * m->tri[3 * t + k] + d];
+        best = fmin(best, trimesh_point_dist(p, c[0], c[1], c[2]));
     }
     return best / H;
 }
@@ -159,6 +132,17 @@ static void box_edges(const struct trimesh *m, const double lo[3], const double 
 }
 
 static const double BLO[3] = {-1, -0.7, -0.5}, BHI[3] = {1, 0.7, 0.5};
+
+/* the box less a ball of radius 0.5 centred on its top face, turned, sampled */
+static void box_minus_ball(void)
+{
+    tree.n = 0;
+    int box = add((struct frep_node){.kind = FREP_BOX, .p = {BLO[0], BLO[1], BLO[2], BHI[0], BHI[1], BHI[2]}});
+    int ball = add((struct frep_node){.kind = FREP_SPHERE, .p = {0.3, 0.1, 0.5, 0.5}});
+    add((struct frep_node){.kind = FREP_SUBTRACT, .a = box, .b = ball, .alpha = 0});
+    turned();
+    sample();
+}
 
 TEST(a_turned_box_keeps_its_edges_and_corners)
 {
@@ -219,13 +203,7 @@ TEST(a_cylinders_rims_and_a_balls_cut_lie_on_the_mesh)
     CHECK(fabs(st.volume / (PI * 0.36) - 1) < 5e-3); /* the side's chords, 6 cells from the axis */
     trimesh_free(&m);
 
-    /* the box minus a ball centred on its top face: the cut is a circle of radius 0.5 */
-    tree.n = 0;
-    int box = add((struct frep_node){.kind = FREP_BOX, .p = {BLO[0], BLO[1], BLO[2], BHI[0], BHI[1], BHI[2]}});
-    int ball = add((struct frep_node){.kind = FREP_SPHERE, .p = {0.3, 0.1, 0.5, 0.5}});
-    add((struct frep_node){.kind = FREP_SUBTRACT, .a = box, .b = ball, .alpha = 0});
-    turned();
-    sample();
+    box_minus_ball(); /* its cut is a circle of radius 0.5 */
     CHECK(extract(1, true, true, &m, &st, &as));
     CHECK(closed_manifold(&st));
     worst = 0;
@@ -271,12 +249,7 @@ TEST(sampled_data_keeps_features_closer_without_a_field)
 
 TEST(the_same_mesh_whatever_the_order_of_the_slabs)
 {
-    tree.n = 0;
-    int box = add((struct frep_node){.kind = FREP_BOX, .p = {BLO[0], BLO[1], BLO[2], BHI[0], BHI[1], BHI[2]}});
-    int ball = add((struct frep_node){.kind = FREP_SPHERE, .p = {0.4, 0.2, 0.5, 0.3}});
-    add((struct frep_node){.kind = FREP_SUBTRACT, .a = box, .b = ball, .alpha = 0});
-    turned();
-    sample();
+    box_minus_ball();
     struct iso_grid g = {N, N, N, ISO_F32, samples, {H, H, H}, {ORG, ORG, ORG}};
     struct iso_opts o = {0, true, true, true, field, &tree};
     struct trimesh m[2];
