@@ -688,8 +688,8 @@ static long face_point(const struct iso_adapt *a, struct piece *pc, long A, long
 /* With the field at hand: where the face's isoline crosses the perpendicular bisector of segment
  * A -> B, when that is further than a tenth of a cell from the segment (a curved feature that
  * grazes the face dips into it between two crossings of one surface, and neither crossing's
- * tangent shows it). A vertex of both cells that share the square, on the field, its normal the
- * field's; -1 for none. */
+ * tangent shows it; between a hidden pair the isoline can round a corner's third face). A vertex
+ * of both cells that share the square, on the field, its normal the field's; -1 for none. */
 static long isoline_point(const struct iso_adapt *a, struct piece *pc, long A, long B, int axis, const int sq[3],
                           int h, int j)
 {
@@ -710,11 +710,17 @@ static long isoline_point(const struct iso_adapt *a, struct piece *pc, long A, l
     if (!(len > 0))
         return -1;
     d[u] /= len, d[w] /= len;
+    /* a hidden pair (both ends on one edge of the square): the isoline between them bulges into
+     * the square, however near the edge the function is at the middle */
+    bool pair = (pc->vkey[A] & ~(HIDDEN_KEY(0) | HIDDEN_KEY(1))) == (pc->vkey[B] & ~(HIDDEN_KEY(0) | HIDDEN_KEY(1)));
+    double cu = a->org[u] + a->sp[u] * (sq[u] + 0.5 * h) - m[u], cw = a->org[w] + a->sp[w] * (sq[w] + 0.5 * h) - m[w];
+    if (pair && cu * d[u] + cw * d[w] < 0)
+        d[u] = -d[u], d[w] = -d[w]; /* into the square */
     double g[3], f0 = a->field(a->field_ctx, m, g) - a->iso, t0 = 0, t1 = 0, f1 = f0;
-    if (!(fabs(f0) > 0.1 * step * sqrt(dot3(g, g)))) /* the isoline is nearer the middle than that */
+    if (!pair && !(fabs(f0) > 0.1 * step * sqrt(dot3(g, g)))) /* the isoline is nearer the middle than that */
         return -1;
-    for (int k = 1; k <= 4 && (f1 > 0) == (f0 > 0); k++) /* out from the middle, both ways */
-        for (int sgn = -1; sgn <= 1 && (f1 > 0) == (f0 > 0); sgn += 2)
+    for (int k = 1; k <= 4 && (f1 > 0) == (f0 > 0); k++) /* out from the middle, both ways (a pair's: in) */
+        for (int sgn = pair ? 1 : -1; sgn <= 1 && (f1 > 0) == (f0 > 0); sgn += 2)
             t1 = sgn * step * k / 4, f1 = at_line(a, m, d, t1);
     if ((f1 > 0) == (f0 > 0))
         return -1;
