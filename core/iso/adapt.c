@@ -420,10 +420,11 @@ static long edge_vertex(const struct iso_adapt *a, struct piece *pc, const int n
  * there, by up to half a cell, whatever the feature points do (Extended Marching Cubes and Dual
  * Contouring have the same blind spot). With the field at hand the edge can be asked. Along the
  * edge the field is, on each side of a feature, close to linear: the lines through the samples
- * before and after the edge (node - 1, node; node + 1, node + 2) meet where the feature would be;
- * when they meet inside the edge on the other side of iso, the field there says, and if it is on
- * the other side the edge carries two crossings (found on the field between the ends and that
- * point). Only level-1 cells read them: a block whose fine edges carry any is not merged. Ends
+ * before and after the edge (node - 1, node; node + 1, node + 2) meet where the feature would be.
+ * When they meet inside the edge, not far short of iso, the field is asked there (and, where it
+ * bends past an edge or corner that grazes the cell edge, at its extreme along the edge, by golden
+ * section); if it is on the other side, the edge carries two crossings, found on the field between
+ * the ends and that point. Only level-1 cells read them: a block whose fine edges carry any is not merged. Ends
  * further from iso than twice the edge's length are taken to be out of reach (a field whose slope
  * is 2 at most: FRep's distances, their R-functions and transforms). */
 #define HIDDEN_KEY(k) (1ull << (60 + (k))) /* the first (k = 0, nearer node n) and second crossing */
