@@ -74,6 +74,7 @@ static const char SCHEMA[] =
     "CREATE TABLE IF NOT EXISTS models ("
     " id text PRIMARY KEY, job text NOT NULL, name text NOT NULL, created double precision NOT NULL,"
     " source bytea NOT NULL, resource text NOT NULL, owner text NOT NULL DEFAULT '', sum text);"
+    "ALTER TABLE models ADD COLUMN IF NOT EXISTS resource_sum text;"
     "CREATE INDEX IF NOT EXISTS models_created ON models(created);";
 
 #define NOW "extract(epoch from clock_timestamp())"
@@ -652,21 +653,56 @@ static long pg_queued(struct store *s)
 
 static int pg_model_put(struct store *s, const struct model_rec *m)
 {
-    char created[32], sum[65];
+    char created[32], sum[65], rsum[65];
     num(created, sizeof created, m->created);
     store_checksum(m->source, m->source_len, m->resource, strlen(m->resource), sum);
-    struct param prm[] = {T(m->id), T(m->job), T(m->name ? m->name : ""), T(created),
-                          BIN(m->source, m->source_len), T(m->resource), T(m->owner ? m->owner : ""), T(sum)};
+    store_checksum(m->resource, strlen(m->resource), "", 0, rsum);
+    struct param prm[] = {T(m->id),       T(m->job),   T(m->name ? m->name : ""), T(created), BIN(m->source, m->source_len),
+                          T(m->resource), T(m->owner ? m->owner : ""), T(sum), T(rsum)};
     return exec1(s, NULL,
-                 "INSERT INTO models(id,job,name,created,source,resource,owner,sum) VALUES($1,$2,$3,$4,$5,$6,$7,$8)"
+                 "INSERT INTO models(id,job,name,created,source,resource,owner,sum,resource_sum)"
+                 " VALUES($1,$2,$3,$4,$5,$6,$7,$8,$9)"
                  " ON CONFLICT (id) DO UPDATE SET job=EXCLUDED.job, name=EXCLUDED.name, created=EXCLUDED.created,"
-                 " source=EXCLUDED.source, resource=EXCLUDED.resource, owner=EXCLUDED.owner, sum=EXCLUDED.sum",
-                 8, prm) == 1 ? 0 : -1;
+                 " source=EXCLUDED.source, resource=EXCLUDED.resource, owner=EXCLUDED.owner, sum=EXCLUDED.sum,"
+                 " resource_sum=EXCLUDED.resource_sum",
+                 9, prm) == 1 ? 0 : -1;
+}
+
+/* The resource alone, checked against its own sum, without fetching the source: 1, 0, -1,
+ * STORE_DAMAGED, or 2 for a row written before resource sums were kept. */
+static int pg_resource_get(struct store *s, const char *id, const char *owner, char **resource)
+{
+    struct param prm[] = {T(id), T(owner)};
+    PGresult *res;
+    int n = exec1(s, &res, "SELECT resource, resource_sum FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2,
+                  prm);
+    if (n <= 0) {
+        if (n == 0)
+            PQclear(res);
+        return n;
+    }
+    int found = 1;
+    if (PQgetisnull(res, 0, 1)) {
+        found = 2;
+    } else {
+        char sum[65];
+        store_checksum(PQgetvalue(res, 0, 0), (size_t)PQgetlength(res, 0, 0), "", 0, sum);
+        found = strcmp(sum, PQgetvalue(res, 0, 1)) ? STORE_DAMAGED : 1;
+    }
+    if (found == 1 && resource && !(*resource = dup_text(res, 0, 0)))
+        found = -1;
+    PQclear(res);
+    return found;
 }
 
 static int pg_model_get(struct store *s, const char *id, const char *owner, char **resource, char **source,
                         size_t *source_len)
 {
+    if (!source) {
+        int found = pg_resource_get(s, id, owner, resource);
+        if (found != 2)
+            return found;
+    }
     struct param prm[] = {T(id), T(owner)};
     PGresult *res;
     int n = exec1(s, &res, "SELECT resource, source, sum FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2,

@@ -55,6 +55,7 @@ static const char *const MIGRATIONS[] = {
     "ALTER TABLE jobs ADD COLUMN cancel_requested INTEGER NOT NULL DEFAULT 0",
     "ALTER TABLE jobs ADD COLUMN not_before REAL NOT NULL DEFAULT 0",
     "ALTER TABLE jobs ADD COLUMN request_file INTEGER NOT NULL DEFAULT 0",
+    "ALTER TABLE models ADD COLUMN resource_sum TEXT",
 };
 
 static const struct store_ops SQLITE_OPS;
@@ -522,16 +523,48 @@ static long sq_queued(struct store *s)
 
 static int sq_model_put(struct store *s, const struct model_rec *m)
 {
-    char sum[65];
+    char sum[65], rsum[65];
     store_checksum(m->source, m->source_len, m->resource, strlen(m->resource), sum);
-    return run(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource,owner,sum) VALUES(?,?,?,?,?,?,?,?)",
-               "tttdbttt", m->id, m->job, m->name ? m->name : "", m->created, (const void *)m->source, m->source_len,
-               m->resource, m->owner ? m->owner : "", sum) == 1 ? 0 : -1;
+    store_checksum(m->resource, strlen(m->resource), "", 0, rsum);
+    return run(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource,owner,sum,resource_sum)"
+               " VALUES(?,?,?,?,?,?,?,?,?)",
+               "tttdbtttt", m->id, m->job, m->name ? m->name : "", m->created, (const void *)m->source, m->source_len,
+               m->resource, m->owner ? m->owner : "", sum, rsum) == 1 ? 0 : -1;
+}
+
+/* The resource alone, checked against its own sum, without reading the source (a mesh of
+ * hundreds of MB): 1, 0, -1, STORE_DAMAGED, or 2 for a row written before resource sums were kept. */
+static int sq_resource_get(struct store *s, const char *id, const char *owner, char **resource)
+{
+    sqlite3_stmt *st;
+    int found = -1;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s), "SELECT resource, resource_sum FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)",
+                           -1, &st, NULL) == SQLITE_OK) {
+        sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
+        owner ? sqlite3_bind_text(st, 2, owner, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 2);
+        int rc = sqlite3_step(st);
+        found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
+        if (found == 1 && sqlite3_column_type(st, 1) == SQLITE_NULL)
+            found = 2;
+        else if (found == 1 && !sum_ok(st, 1, sqlite3_column_text(st, 0), (size_t)sqlite3_column_bytes(st, 0), "", 0))
+            found = STORE_DAMAGED;
+        if (found == 1 && resource && !(*resource = dup_text(st, 0)))
+            found = -1;
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return found;
 }
 
 static int sq_model_get(struct store *s, const char *id, const char *owner, char **resource, char **source,
                         size_t *source_len)
 {
+    if (!source) {
+        int found = sq_resource_get(s, id, owner, resource);
+        if (found != 2)
+            return found;
+    }
     sqlite3_stmt *st;
     int found = -1;
     pthread_mutex_lock(lock_of(s));
