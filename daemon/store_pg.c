@@ -657,7 +657,7 @@ static int pg_model_put(struct store *s, const struct model_rec *m)
     num(created, sizeof created, m->created);
     store_checksum(m->source, m->source_len, m->resource, strlen(m->resource), sum);
     store_checksum(m->resource, strlen(m->resource), "", 0, rsum);
-    struct param prm[] = {T(m->id),       T(m->job),   T(m->name ? m->name : ""), T(created), BIN(m->source, m->source_len),
+    struct param prm[] = {T(m->id), T(m->job), T(m->name ? m->name : ""), T(created), BIN(m->source, m->source_len),
                           T(m->resource), T(m->owner ? m->owner : ""), T(sum), T(rsum)};
     return exec1(s, NULL,
                  "INSERT INTO models(id,job,name,created,source,resource,owner,sum,resource_sum)"
