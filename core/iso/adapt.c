@@ -333,6 +333,34 @@ static void keep_slot(struct piece *pc, size_t h, uint64_t key, long v)
     pc->used++;
 }
 
+#define UNKNOWN (-2)
+/* pc's vertex keyed key: its id, or UNKNOWN with *slot where it will go (-1: no memory). */
+static long known_vertex(struct piece *pc, uint64_t key, size_t *slot)
+{
+    bool found;
+    if (!slot_of(pc, key, &found, slot))
+        return -1;
+    return found ? (long)pc->slot[*slot] : UNKNOWN;
+}
+
+/* A new vertex of pc keyed key (its slot from known_vertex). */
+static long keyed_vertex(struct piece *pc, uint64_t key, size_t slot, const double pos[3], const double nrm[3])
+{
+    long v = new_vertex(pc, pos, nrm, key);
+    if (v >= 0)
+        keep_slot(pc, slot, key, v);
+    return v;
+}
+
+/* The field minus iso at fraction t of the edge from node n along axis. */
+static double on_edge(const struct iso_adapt *a, const int n[3], int axis, double t)
+{
+    double x[3];
+    for (int d = 0; d < 3; d++)
+        x[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
+    return a->field(a->field_ctx, x, NULL) - a->iso;
+}
+
 /* Where the field crosses iso on the edge from node n along axis between fractions lo and hi
  * (f0, f1: the field minus iso there, of opposite signs), by regula falsi with the Illinois step. */
 static double field_root(const struct iso_adapt *a, const int n[3], int axis, double lo, double hi, double f0, double f1)
@@ -340,10 +368,7 @@ static double field_root(const struct iso_adapt *a, const int n[3], int axis, do
     double t = lo + (hi - lo) * f0 / (f0 - f1);
     int side = 0;
     for (int it = 0; it < 24 && hi - lo > 1e-9; it++) {
-        double p[3];
-        for (int d = 0; d < 3; d++)
-            p[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
-        double f = a->field(a->field_ctx, p, NULL) - a->iso;
+        double f = on_edge(a, n, axis, t);
         if (f == 0 || !isfinite(f))
             break;
         if ((f > 0) == (f0 > 0)) {
@@ -367,8 +392,8 @@ static uint64_t edge_key(const struct iso_adapt *a, const int n[3], int axis)
     return (uint64_t)at3(a, n[0], n[1], n[2]) * 3 + (uint64_t)axis;
 }
 
-/* Makes the vertex keyed key (its slot from slot_of) at fraction t of the finest edge from node n
- * along axis; its normal from the field's gradient (on_field) or the samples'. */
+/* Makes the vertex keyed key (its slot from known_vertex) at fraction t of the finest edge from
+ * node n along axis; its normal from the field's gradient (on_field) or the samples'. */
 static long place_vertex(const struct iso_adapt *a, struct piece *pc, const int n[3], int axis, double t, bool on_field,
                          uint64_t key, size_t slot)
 {
@@ -388,22 +413,17 @@ static long place_vertex(const struct iso_adapt *a, struct piece *pc, const int 
         for (int d = 0; d < 3; d++)
             nrm[d] = -((1 - t) * g0[d] + t * g1[d]);
     }
-    long v = new_vertex(pc, pos, nrm, key);
-    if (v >= 0)
-        keep_slot(pc, slot, key, v);
-    return v;
+    return keyed_vertex(pc, key, slot, pos, nrm);
 }
 
 /* The vertex on the finest edge from node n along axis, with its two values: found or made. */
 static long edge_vertex(const struct iso_adapt *a, struct piece *pc, const int n[3], int axis, float v0, float v1)
 {
     uint64_t key = edge_key(a, n, axis);
-    bool found;
     size_t h;
-    if (!slot_of(pc, key, &found, &h))
-        return -1;
-    if (found)
-        return pc->slot[h];
+    long v = known_vertex(pc, key, &h);
+    if (v != UNKNOWN)
+        return v;
     int m[3] = {n[0], n[1], n[2]};
     m[axis]++;
     double t = ((double)a->iso - v0) / ((double)v1 - v0);
@@ -428,15 +448,6 @@ static long edge_vertex(const struct iso_adapt *a, struct piece *pc, const int n
  * further from iso than twice the edge's length are taken to be out of reach (a field whose slope
  * is 2 at most: FRep's distances, their R-functions and transforms). */
 #define HIDDEN_KEY(k) (1ull << (60 + (k))) /* the first (k = 0, nearer node n) and second crossing */
-
-/* The field minus iso at fraction t of the edge from node n along axis. */
-static double on_edge(const struct iso_adapt *a, const int n[3], int axis, double t)
-{
-    double x[3];
-    for (int d = 0; d < 3; d++)
-        x[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
-    return a->field(a->field_ctx, x, NULL) - a->iso;
-}
 
 static bool hidden_pair(const struct iso_adapt *a, const int n[3], int axis, double t[2])
 {
@@ -488,11 +499,9 @@ static bool hidden_pair(const struct iso_adapt *a, const int n[3], int axis, dou
 static long hidden_vertex(const struct iso_adapt *a, struct piece *pc, const int n[3], int axis, int k, double t)
 {
     uint64_t key = edge_key(a, n, axis) | HIDDEN_KEY(k);
-    bool found;
     size_t h;
-    if (!slot_of(pc, key, &found, &h))
-        return -1;
-    return found ? pc->slot[h] : place_vertex(a, pc, n, axis, t, true, key, h);
+    long v = known_vertex(pc, key, &h);
+    return v != UNKNOWN ? v : place_vertex(a, pc, n, axis, t, true, key, h);
 }
 
 /* Whether any of the cell of s nodes a side at o's finest edges carries a hidden pair (only
@@ -643,18 +652,11 @@ static uint64_t face_key(const struct iso_adapt *a, int axis, const int sq[3], i
 }
 
 /* The vertex of pc keyed key at q with normal nrm: found or made (-1: no memory). */
-static long keyed_vertex(struct piece *pc, uint64_t key, const double q[3], const double nrm[3])
+static long face_vertex(struct piece *pc, uint64_t key, const double q[3], const double nrm[3])
 {
-    bool found;
     size_t slot;
-    if (!slot_of(pc, key, &found, &slot))
-        return -1;
-    if (found)
-        return pc->slot[slot];
-    long v = new_vertex(pc, q, nrm, key);
-    if (v >= 0)
-        keep_slot(pc, slot, key, v);
-    return v;
+    long v = known_vertex(pc, key, &slot);
+    return v != UNKNOWN ? v : keyed_vertex(pc, key, slot, q, nrm);
 }
 
 static long face_point(const struct iso_adapt *a, struct piece *pc, long A, long B, int axis, const int sq[3], int h,
@@ -683,7 +685,7 @@ static long face_point(const struct iso_adapt *a, struct piece *pc, long A, long
     if (!(fabs((q[u] - pa[u]) * ew - (q[w] - pa[w]) * eu) > el * hypot(mu, mw))) /* (all but on the segment) */
         return -1;
     double nrm[3] = {na[0] + nb[0], na[1] + nb[1], na[2] + nb[2]};
-    return keyed_vertex(pc, face_key(a, axis, sq, h, j, sub), q, nrm);
+    return face_vertex(pc, face_key(a, axis, sq, h, j, sub), q, nrm);
 }
 
 /* With the field at hand: where the face's isoline crosses the perpendicular bisector of segment
@@ -717,7 +719,7 @@ static long isoline_point(const struct iso_adapt *a, struct piece *pc, long A, l
     double cu = a->org[u] + a->sp[u] * (sq[u] + 0.5 * h) - m[u], cw = a->org[w] + a->sp[w] * (sq[w] + 0.5 * h) - m[w];
     if (pair && cu * d[u] + cw * d[w] < 0)
         d[u] = -d[u], d[w] = -d[w]; /* into the square */
-    double g[3], f0 = a->field(a->field_ctx, m, g) - a->iso, t0 = 0, t1 = 0, f1 = f0;
+    double g[3], f0 = a->field(a->field_ctx, m, g) - a->iso, t1 = 0, f1 = f0;
     if (!pair && !(fabs(f0) > 0.1 * step * sqrt(dot3(g, g)))) /* the isoline is nearer the middle than that */
         return -1;
     for (int k = 1; k <= 4 && (f1 > 0) == (f0 > 0); k++) /* out from the middle, both ways (a pair's: in) */
@@ -725,7 +727,7 @@ static long isoline_point(const struct iso_adapt *a, struct piece *pc, long A, l
             t1 = sgn * step * k / 4, f1 = at_line(a, m, d, t1);
     if ((f1 > 0) == (f0 > 0))
         return -1;
-    double lo = fmin(t0, t1), hi = fmax(t0, t1), flo = t0 < t1 ? f0 : f1;
+    double lo = fmin(0, t1), hi = fmax(0, t1), flo = t1 > 0 ? f0 : f1;
     for (int it = 0; it < 30; it++) { /* bisection: the root nearest the middle */
         double tm = 0.5 * (lo + hi), fm = at_line(a, m, d, tm);
         if ((fm > 0) == (flo > 0))
@@ -743,7 +745,18 @@ static long isoline_point(const struct iso_adapt *a, struct piece *pc, long A, l
     a->field(a->field_ctx, q, g);
     for (int k = 0; k < 3; k++)
         g[k] = -g[k];
-    return keyed_vertex(pc, face_key(a, axis, sq, h, j, 1), q, g);
+    return face_vertex(pc, face_key(a, axis, sq, h, j, 1), q, g);
+}
+
+/* Segment from -> to on face f, through q when it is a vertex (a face point). */
+static void seg_via(struct cell *c, int f, long from, int from_faces, long q, long to)
+{
+    if (q < 0) {
+        add_seg(c, from, from_faces, to);
+        return;
+    }
+    add_seg(c, from, from_faces, q);
+    add_seg(c, q, 1 << f | FACE_POINT, to);
 }
 
 /* Segment from -> to of face f's square sq (h a side, j its number in the square), with features
@@ -755,32 +768,13 @@ static void add_face_seg(struct cell *c, int f, const int sq[3], int h, int j, l
     const struct iso_adapt *a = c->a;
     int axis = f >> 1;
     long q = a->sharp ? face_point(a, c->pc, from, to, axis, sq, h, j, 0) : -1, r = -1;
-    if (q >= 0) {
-        add_seg(c, from, from_faces, q);
-        add_seg(c, q, 1 << f | FACE_POINT, to);
-        return;
-    }
-    if (a->sharp && a->field)
-        r = isoline_point(a, c->pc, from, to, axis, sq, h, j);
-    if (r < 0) {
-        add_seg(c, from, from_faces, to);
+    if (q >= 0 || !a->sharp || !a->field || (r = isoline_point(a, c->pc, from, to, axis, sq, h, j)) < 0) {
+        seg_via(c, f, from, from_faces, q, to);
         return;
     }
     int first = c->pc->vkey[from] < c->pc->vkey[to]; /* the halves' numbers: 2 for the one by the lesser key */
-    long q0 = face_point(a, c->pc, from, r, axis, sq, h, j, first ? 2 : 3);
-    long q1 = face_point(a, c->pc, r, to, axis, sq, h, j, first ? 3 : 2);
-    if (q0 >= 0) {
-        add_seg(c, from, from_faces, q0);
-        add_seg(c, q0, 1 << f | FACE_POINT, r);
-    } else {
-        add_seg(c, from, from_faces, r);
-    }
-    if (q1 >= 0) {
-        add_seg(c, r, 1 << f | ON_FACE, q1);
-        add_seg(c, q1, 1 << f | FACE_POINT, to);
-    } else {
-        add_seg(c, r, 1 << f | ON_FACE, to);
-    }
+    seg_via(c, f, from, from_faces, face_point(a, c->pc, from, r, axis, sq, h, j, first ? 2 : 3), r);
+    seg_via(c, f, r, 1 << f | ON_FACE, face_point(a, c->pc, r, to, axis, sq, h, j, first ? 3 : 2), to);
 }
 
 /* The planes of a loop's crossings, grouped round n seed normals (each crossing to the seed
