@@ -516,7 +516,7 @@ static double frep_field(const void *ctx, const double p[3], double g[3])
 
 struct iso_opts volume_iso_opts(const struct volume *v)
 {
-    struct iso_opts o = {v->iso, v->closed, true, v->sharp, NULL, NULL};
+    struct iso_opts o = {.iso = v->iso, .closed = v->closed, .normals = true, .sharp = v->sharp};
     if (v->sharp && v->frep)
         o.field = frep_field, o.field_ctx = v->frep;
     return o;

@@ -20,6 +20,9 @@ struct piece {
     uint64_t *vkey;                    /* each vertex's key (UINT64_MAX: a fan's centre) */
     struct trimesh m;
     size_t vcap, tcap, kcap;
+    uint32_t *owner;                   /* each triangle's level-2 block (the cell <-> triangle map) */
+    size_t ocap;
+    uint32_t block;                    /* the block whose cells are being drawn */
     bool nomem;
     long cells[ISO_MAX_LEVELS + 1];
     long feature_points;
@@ -46,6 +49,15 @@ struct iso_adapt {
                                          * level 2: or the grid's end cuts it, or HIDES) */
     double slab_max[ADAPT_SLABS];      /* the largest error a merge accepted, by slab */
     struct piece pieces[ADAPT_SLABS];
+    /* opts keep: what local rebuilds need (iso_adapt_keep, iso_adapt_edit) */
+    double *berr[ISO_MAX_LEVELS + 1];  /* [l][block]: the error its merge accepted */
+    uint8_t *bcells, *bfeat;           /* [level-2 block]: the cells it drew, their feature points */
+    bool kept;
+    struct piece all;                  /* the mesh, its vertices keyed as the pieces' */
+    uint32_t *refs;                    /* each vertex's triangles */
+    size_t rcap, dead;                 /* dead: vertices no triangle uses */
+    long cells[ISO_MAX_LEVELS + 1], feature_points;
+    double gmin, iso1;                 /* the samples' smallest and iso - 1: the pad is the lower */
 };
 
 static size_t at3(const struct iso_adapt *a, int x, int y, int z) { return (size_t)x + (size_t)a->N[0] * ((size_t)y + (size_t)a->N[1] * z); }
@@ -204,65 +216,78 @@ static bool ring_covered(const struct iso_adapt *a, int l, const int b[3])
     return true;
 }
 
-/* Blocks of level l in layers [z0, z1) of slab s: mixed, merged or not (level l-1 done). */
-static void mask_slab(struct iso_adapt *a, int l, int z0, int z1, int slab)
+/* Block b of level l: mixed, merged or not (level l-1 done, M[l] at b clear): the error its merge
+ * accepted, or -1 when it does not merge. */
+static double mask_block(struct iso_adapt *a, int l, const int b[3])
 {
-    int s = 1 << (l - 1), b[3];
-    for (b[2] = z0; b[2] < z1; b[2]++)
-        for (b[1] = 0; b[1] < a->nb[l][1]; b[1]++)
-            for (b[0] = 0; b[0] < a->nb[l][0]; b[0]++) {
-                bool inside = true, ok = true, mixed = false, hides = false;
-                for (int d = 0; d < 3; d++)
-                    inside = inside && (b[d] + 1) * s <= a->N[d] - 1;
-                if (l > 2) { /* its children merged, and every block of l-1 round it */
-                    for (int k = 0; k < 8 && ok && inside; k++)
-                        ok = a->M[l - 1][block(a, l - 1, 2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1),
-                                               2 * b[2] + (k >> 2 & 1))];
-                    ok = ok && inside && ring_covered(a, l - 1, b);
+    int s = 1 << (l - 1);
+    bool inside = true, ok = true, mixed = false, hides = false;
+    for (int d = 0; d < 3; d++)
+        inside = inside && (b[d] + 1) * s <= a->N[d] - 1;
+    if (l > 2) { /* its children merged, and every block of l-1 round it */
+        for (int k = 0; k < 8 && ok && inside; k++)
+            ok = a->M[l - 1][block(a, l - 1, 2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1))];
+        ok = ok && inside && ring_covered(a, l - 1, b);
+    }
+    if (l == 2) { /* the block's 27 samples */
+        bool in = false, out = false;
+        for (int z = 0; z <= 2; z++)
+            for (int y = 0; y <= 2; y++)
+                for (int x = 0; x <= 2; x++) {
+                    int p[3] = {2 * b[0] + x, 2 * b[1] + y, 2 * b[2] + z};
+                    if (p[0] >= a->N[0] || p[1] >= a->N[1] || p[2] >= a->N[2])
+                        continue;
+                    bool v = F(a, p[0], p[1], p[2]) > a->iso;
+                    in |= v, out |= !v;
                 }
-                if (l == 2) { /* the block's 27 samples */
-                    bool in = false, out = false;
-                    for (int z = 0; z <= 2; z++)
-                        for (int y = 0; y <= 2; y++)
-                            for (int x = 0; x <= 2; x++) {
-                                int p[3] = {2 * b[0] + x, 2 * b[1] + y, 2 * b[2] + z};
-                                if (p[0] >= a->N[0] || p[1] >= a->N[1] || p[2] >= a->N[2])
-                                    continue;
-                                bool v = F(a, p[0], p[1], p[2]) > a->iso;
-                                in |= v, out |= !v;
-                            }
-                    mixed = !inside || (in && out); /* a block the grid's end cuts: level-1 cells */
-                    if (hides_crossings(a, (int[3]){2 * b[0], 2 * b[1], 2 * b[2]}, 2))
-                        mixed = true, hides = true;
-                } else { /* any child's */
-                    for (int k = 0; k < 8 && !mixed; k++) {
-                        int c[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
-                        if (c[0] < a->nb[l - 1][0] && c[1] < a->nb[l - 1][1] && c[2] < a->nb[l - 1][2])
-                            mixed = a->mixed[l - 1][block(a, l - 1, c[0], c[1], c[2])];
-                    }
-                }
-                a->mixed[l][block(a, l, b[0], b[1], b[2])] = (uint8_t)(mixed | hides << 1);
-                double e = ok && inside ? block_error(a, l, b, mixed) : INFINITY;
-                if (e <= a->max_err) {
-                    a->M[l][block(a, l, b[0], b[1], b[2])] = 1;
-                    a->slab_max[slab] = fmax(a->slab_max[slab], e);
-                }
-            }
+        mixed = !inside || (in && out); /* a block the grid's end cuts: level-1 cells */
+        if (hides_crossings(a, (int[3]){2 * b[0], 2 * b[1], 2 * b[2]}, 2))
+            mixed = true, hides = true;
+    } else { /* any child's */
+        for (int k = 0; k < 8 && !mixed; k++) {
+            int c[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
+            if (c[0] < a->nb[l - 1][0] && c[1] < a->nb[l - 1][1] && c[2] < a->nb[l - 1][2])
+                mixed = a->mixed[l - 1][block(a, l - 1, c[0], c[1], c[2])];
+        }
+    }
+    size_t at = block(a, l, b[0], b[1], b[2]);
+    a->mixed[l][at] = (uint8_t)(mixed | hides << 1);
+    double e = ok && inside ? block_error(a, l, b, mixed) : INFINITY;
+    if (!(e <= a->max_err))
+        return -1;
+    a->M[l][at] = 1;
+    if (a->berr[l])
+        a->berr[l][at] = e;
+    return e;
 }
 
-/* Each level-2 block's cell level, once every level's blocks are known. */
+/* Blocks of level l in layers [z0, z1) of slab s. */
+static void mask_slab(struct iso_adapt *a, int l, int z0, int z1, int slab)
+{
+    int b[3];
+    for (b[2] = z0; b[2] < z1; b[2]++)
+        for (b[1] = 0; b[1] < a->nb[l][1]; b[1]++)
+            for (b[0] = 0; b[0] < a->nb[l][0]; b[0]++)
+                a->slab_max[slab] = fmax(a->slab_max[slab], mask_block(a, l, b));
+}
+
+/* Level-2 block b's cell level, once every level's blocks are known. */
+static void cell_level(struct iso_adapt *a, const int b[3])
+{
+    int lev = 1;
+    for (int l = a->L; l >= 2 && lev == 1; l--)
+        if (a->M[l][block(a, l, b[0] >> (l - 2), b[1] >> (l - 2), b[2] >> (l - 2))])
+            lev = l;
+    a->lev2[block(a, 2, b[0], b[1], b[2])] = (uint8_t)lev;
+}
+
 static void cell_levels(struct iso_adapt *a)
 {
     int b[3];
     for (b[2] = 0; b[2] < a->nb[2][2]; b[2]++)
         for (b[1] = 0; b[1] < a->nb[2][1]; b[1]++)
-            for (b[0] = 0; b[0] < a->nb[2][0]; b[0]++) {
-                int lev = 1;
-                for (int l = a->L; l >= 2 && lev == 1; l--)
-                    if (a->M[l][block(a, l, b[0] >> (l - 2), b[1] >> (l - 2), b[2] >> (l - 2))])
-                        lev = l;
-                a->lev2[block(a, 2, b[0], b[1], b[2])] = (uint8_t)lev;
-            }
+            for (b[0] = 0; b[0] < a->nb[2][0]; b[0]++)
+                cell_level(a, b);
 }
 
 /* ---- the mesh ---- */
@@ -271,6 +296,16 @@ static uint64_t hash64(uint64_t k)
 {
     k ^= k >> 33, k *= 0xff51afd7ed558ccdull, k ^= k >> 33, k *= 0xc4ceb9fe1a85ec53ull, k ^= k >> 33;
     return k;
+}
+
+/* Vertex v of pc at pos, its normal nrm made unit. */
+static void set_vertex(struct piece *pc, size_t v, const double pos[3], const double nrm[3])
+{
+    double len = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+    for (int d = 0; d < 3; d++) {
+        pc->m.pos[3 * v + d] = (float)pos[d];
+        pc->m.nrm[3 * v + d] = len > 0 ? (float)(nrm[d] / len) : 0.0f;
+    }
 }
 
 /* A new vertex of piece pc at pos with normal nrm and key: its id, or -1 (no memory, or over
@@ -285,11 +320,7 @@ static long new_vertex(struct piece *pc, const double pos[3], const double nrm[3
         return -1;
     }
     pc->kcap = kcap;
-    double len = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
-    for (int d = 0; d < 3; d++) {
-        pc->m.pos[3 * v + d] = (float)pos[d];
-        pc->m.nrm[3 * v + d] = len > 0 ? (float)(nrm[d] / len) : 0.0f;
-    }
+    set_vertex(pc, v, pos, nrm);
     pc->vkey[v] = key;
     return (long)pc->m.n_vert++;
 }
@@ -538,10 +569,12 @@ static void add_triangle(struct piece *pc, long p, long q, long r)
     if (p < 0 || q < 0 || r < 0)
         return;
     size_t t = pc->m.n_tri;
-    if (mem_reserve((void **)&pc->m.tri, &pc->tcap, 3 * (t + 1), sizeof(uint32_t))) {
+    if (mem_reserve((void **)&pc->m.tri, &pc->tcap, 3 * (t + 1), sizeof(uint32_t)) ||
+        mem_reserve((void **)&pc->owner, &pc->ocap, t + 1, sizeof(uint32_t))) {
         pc->nomem = true;
         return;
     }
+    pc->owner[t] = pc->block;
     pc->m.tri[3 * t] = (uint32_t)p, pc->m.tri[3 * t + 1] = (uint32_t)q, pc->m.tri[3 * t + 2] = (uint32_t)r;
     pc->m.n_tri++;
 }
@@ -1257,18 +1290,22 @@ static void block_cells(const struct iso_adapt *a, struct piece *pc, const int b
 {
     size_t at = block(a, 2, b[0], b[1], b[2]);
     int lam = a->lev2[at];
+    long cells = pc->cells[lam], features = pc->feature_points;
+    pc->block = (uint32_t)at;
     if (lam >= 2) {
         int m = (1 << (lam - 2)) - 1;
         if (!(b[0] & m) && !(b[1] & m) && !(b[2] & m))
             polygonise(a, pc, (int[3]){2 * b[0], 2 * b[1], 2 * b[2]}, lam);
-        return;
+    } else if (a->mixed[2][at]) { /* level-1 cells where the samples change side */
+        for (int k = 0; k < 8; k++) {
+            int o[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
+            if (o[0] + 1 < a->N[0] && o[1] + 1 < a->N[1] && o[2] + 1 < a->N[2])
+                polygonise(a, pc, o, 1);
+        }
     }
-    if (!a->mixed[2][at]) /* level-1 cells where the samples change side */
-        return;
-    for (int k = 0; k < 8; k++) {
-        int o[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
-        if (o[0] + 1 < a->N[0] && o[1] + 1 < a->N[1] && o[2] + 1 < a->N[2])
-            polygonise(a, pc, o, 1);
+    if (a->bcells) {
+        a->bcells[at] = (uint8_t)(pc->cells[lam] - cells);
+        a->bfeat[at] = (uint8_t)(pc->feature_points - features);
     }
 }
 
@@ -1277,6 +1314,7 @@ static void piece_free(struct piece *pc)
     free(pc->keys);
     free(pc->slot);
     free(pc->vkey);
+    free(pc->owner);
     trimesh_free(&pc->m);
 }
 
@@ -1290,6 +1328,10 @@ void iso_adapt_free(struct iso_adapt *a)
     free(a->lev2);
     for (int k = 0; k < ADAPT_SLABS; k++)
         piece_free(&a->pieces[k]);
+    for (int l = 0; l <= ISO_MAX_LEVELS; l++)
+        free(a->berr[l]);
+    free(a->bcells), free(a->bfeat), free(a->refs);
+    piece_free(&a->all);
     free(a);
 }
 
@@ -1325,7 +1367,9 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
     }
     size_t n = (size_t)a->N[0] * a->N[1] * a->N[2];
     a->g = *g;
-    a->pad = o->closed ? (float)fmin(o->iso - 1, iso_grid_min(g)) : 0;
+    a->iso1 = o->iso - 1;
+    a->gmin = iso_grid_min(g);
+    a->pad = o->closed ? (float)fmin(a->iso1, a->gmin) : 0;
     if (!(a->F = malloc(n * sizeof *a->F))) {
         iso_adapt_free(a);
         return sf_fail(err, SF_ENOMEM, "", "out of memory for the volume's %zu samples", n);
@@ -1335,13 +1379,15 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
         for (int d = 0; d < 3; d++)
             a->nb[l][d] = (a->N[d] - 1 + s - 1) / s;
         size_t nb = (size_t)a->nb[l][0] * a->nb[l][1] * a->nb[l][2];
-        if (!(a->M[l] = calloc(nb ? nb : 1, 1)) || !(a->mixed[l] = calloc(nb ? nb : 1, 1))) {
+        if (!(a->M[l] = calloc(nb ? nb : 1, 1)) || !(a->mixed[l] = calloc(nb ? nb : 1, 1)) ||
+            (o->keep && !(a->berr[l] = calloc(nb ? nb : 1, sizeof(double))))) {
             iso_adapt_free(a);
             return sf_fail(err, SF_ENOMEM, "", "out of memory");
         }
     }
     size_t n2 = (size_t)a->nb[2][0] * a->nb[2][1] * a->nb[2][2];
-    if (!(a->lev2 = malloc(n2 ? n2 : 1))) {
+    if (n2 > UINT32_MAX || !(a->lev2 = malloc(n2 ? n2 : 1)) ||
+        (o->keep && (!(a->bcells = calloc(n2 ? n2 : 1, 1)) || !(a->bfeat = calloc(n2 ? n2 : 1, 1))))) {
         iso_adapt_free(a);
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     }
@@ -1397,63 +1443,70 @@ void iso_adapt_between(struct iso_adapt *a, int phase)
         cell_levels(a);
 }
 
-int iso_adapt_end(struct iso_adapt *a, struct trimesh *out, struct iso_adapt_stats *st, struct sf_err *err)
+/* The slabs' pieces into a->all, each key once (the slabs' order: the same mesh on any number of
+ * threads), their triangles renumbered; the counts into st. 0, or -1 (no memory, or over the
+ * vertex limit). */
+static int merge_pieces(struct iso_adapt *a, struct iso_adapt_stats *st)
 {
-    memset(out, 0, sizeof *out);
-    memset(st, 0, sizeof *st);
-    struct piece all = {0};
-    int rc = 0;
-    for (int k = 0; k < a->n_slabs && !rc; k++) {
+    struct piece *all = &a->all;
+    for (int k = 0; k < a->n_slabs; k++) {
         struct piece *pc = &a->pieces[k];
         for (int l = 1; l <= ISO_MAX_LEVELS; l++)
             st->cells[l] += pc->cells[l];
         st->feature_points += pc->feature_points;
         st->max_estimate = fmax(st->max_estimate, a->slab_max[k]);
-        if (pc->nomem) {
-            rc = -1;
-            break;
-        }
-        /* the slab's vertices into the mesh, each key once (the slabs' order: the same mesh on any
-         * number of threads), its triangles renumbered */
+        if (pc->nomem)
+            return -1;
         uint32_t *id = malloc((pc->m.n_vert ? pc->m.n_vert : 1) * sizeof *id);
-        if (!id) {
-            rc = -1;
-            break;
-        }
-        for (size_t v = 0; v < pc->m.n_vert && !all.nomem; v++) {
+        if (!id)
+            return -1;
+        for (size_t v = 0; v < pc->m.n_vert && !all->nomem; v++) {
             bool found = false;
             size_t h = 0;
-            if (pc->vkey[v] != UINT64_MAX && !slot_of(&all, pc->vkey[v], &found, &h))
+            if (pc->vkey[v] != UINT64_MAX && !slot_of(all, pc->vkey[v], &found, &h))
                 break;
             if (found) {
-                id[v] = all.slot[h];
+                id[v] = all->slot[h];
                 continue;
             }
             double pos[3] = {pc->m.pos[3 * v], pc->m.pos[3 * v + 1], pc->m.pos[3 * v + 2]};
             double nrm[3] = {pc->m.nrm[3 * v], pc->m.nrm[3 * v + 1], pc->m.nrm[3 * v + 2]};
-            long g = new_vertex(&all, pos, nrm, pc->vkey[v]);
+            long g = new_vertex(all, pos, nrm, pc->vkey[v]);
             if (g < 0)
                 break;
             st->face_points += pc->vkey[v] != UINT64_MAX && pc->vkey[v] & FACE_KEY;
             if (pc->vkey[v] != UINT64_MAX)
-                keep_slot(&all, h, pc->vkey[v], g);
+                keep_slot(all, h, pc->vkey[v], g);
             id[v] = (uint32_t)g;
         }
-        for (size_t t = 0; t < pc->m.n_tri && !all.nomem; t++)
-            add_triangle(&all, id[pc->m.tri[3 * t]], id[pc->m.tri[3 * t + 1]], id[pc->m.tri[3 * t + 2]]);
+        for (size_t t = 0; t < pc->m.n_tri && !all->nomem; t++) {
+            all->block = pc->owner[t];
+            add_triangle(all, id[pc->m.tri[3 * t]], id[pc->m.tri[3 * t + 1]], id[pc->m.tri[3 * t + 2]]);
+        }
         free(id);
         piece_free(pc);
         memset(pc, 0, sizeof *pc);
-        rc = all.nomem ? -1 : 0;
+        if (all->nomem)
+            return -1;
     }
-    if (rc) {
-        rc = sf_fail(err, all.m.n_vert >= ISO_MAX_VERTICES ? SF_ELIMIT : SF_ENOMEM, "",
-                     "the mesh would take more memory than there is (or over %u vertices)", ISO_MAX_VERTICES);
-    } else {
-        *out = all.m;
-        memset(&all.m, 0, sizeof all.m);
+    return 0;
+}
+
+static int mesh_failed(const struct iso_adapt *a, struct sf_err *err)
+{
+    return sf_fail(err, a->all.m.n_vert >= ISO_MAX_VERTICES ? SF_ELIMIT : SF_ENOMEM, "",
+                   "the mesh would take more memory than there is (or over %u vertices)", ISO_MAX_VERTICES);
+}
+
+int iso_adapt_end(struct iso_adapt *a, struct trimesh *out, struct iso_adapt_stats *st, struct sf_err *err)
+{
+    memset(out, 0, sizeof *out);
+    memset(st, 0, sizeof *st);
+    int rc = merge_pieces(a, st) ? mesh_failed(a, err) : 0;
+    if (!rc) {
+        *out = a->all.m;
+        memset(&a->all.m, 0, sizeof a->all.m);
     }
-    piece_free(&all);
     iso_adapt_free(a);
     return rc;
 }
@@ -1481,4 +1534,314 @@ int iso_extract_adaptive(const struct iso_grid *g, const struct iso_opts *o, int
         return rc;
     }
     return iso_adapt_end(a, out, st, err);
+}
+
+/* ---- local rebuilds (iso_adapt_keep, iso_adapt_edit) ---- */
+
+int iso_adapt_keep(struct iso_adapt *a, struct iso_adapt_stats *st, struct sf_err *err)
+{
+    memset(st, 0, sizeof *st);
+    if (!a->bcells)
+        return sf_fail(err, SF_EINVAL, "", "the extraction was not begun to be kept");
+    if (merge_pieces(a, st))
+        return mesh_failed(a, err);
+    const struct trimesh *m = &a->all.m;
+    if (mem_reserve((void **)&a->refs, &a->rcap, m->n_vert + 1, sizeof *a->refs))
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    memset(a->refs, 0, (m->n_vert + 1) * sizeof *a->refs);
+    for (size_t i = 0; i < 3 * m->n_tri; i++)
+        a->refs[m->tri[i]]++;
+    for (size_t v = 0; v < m->n_vert; v++)
+        a->dead += !a->refs[v];
+    memcpy(a->cells, st->cells, sizeof a->cells);
+    a->feature_points = st->feature_points;
+    a->kept = true;
+    return 0;
+}
+
+int iso_adapt_mesh(const struct iso_adapt *a, struct trimesh *out, struct iso_adapt_stats *st, struct sf_err *err)
+{
+    memset(out, 0, sizeof *out);
+    memset(st, 0, sizeof *st);
+    const struct piece *all = &a->all;
+    size_t nv = all->m.n_vert, nt = all->m.n_tri, live = nv - a->dead;
+    uint32_t *id = malloc((nv ? nv : 1) * sizeof *id);
+    out->pos = malloc((3 * live + 1) * sizeof *out->pos);
+    out->nrm = malloc((3 * live + 1) * sizeof *out->nrm);
+    out->tri = malloc((3 * nt + 1) * sizeof *out->tri);
+    if (!id || !out->pos || !out->nrm || !out->tri) {
+        free(id);
+        trimesh_free(out);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    }
+    for (size_t v = 0; v < nv; v++) {
+        if (!a->refs[v])
+            continue;
+        id[v] = (uint32_t)out->n_vert;
+        memcpy(out->pos + 3 * out->n_vert, all->m.pos + 3 * v, 3 * sizeof *out->pos);
+        memcpy(out->nrm + 3 * out->n_vert, all->m.nrm + 3 * v, 3 * sizeof *out->nrm);
+        out->n_vert++;
+        st->face_points += all->vkey[v] != UINT64_MAX && all->vkey[v] & FACE_KEY;
+    }
+    for (size_t i = 0; i < 3 * nt; i++)
+        out->tri[i] = id[all->m.tri[i]];
+    out->n_tri = nt;
+    free(id);
+    memcpy(st->cells, a->cells, sizeof st->cells);
+    st->feature_points = a->feature_points;
+    for (int l = 2; l <= a->L; l++) {
+        size_t nb = (size_t)a->nb[l][0] * a->nb[l][1] * a->nb[l][2];
+        for (size_t b = 0; b < nb; b++)
+            st->max_estimate = fmax(st->max_estimate, a->berr[l][b]);
+    }
+    return 0;
+}
+
+static int floordiv(int x, int m) { return x >= 0 ? x / m : -((-x + m - 1) / m); }
+
+/* Writes the pad layer round the samples (closed: the border counts as outside). */
+static void set_pad(struct iso_adapt *a)
+{
+    for (int z = 0; z < a->N[2]; z++)
+        for (int y = 0; y < a->N[1]; y++) {
+            bool rim = y == 0 || z == 0 || y == a->N[1] - 1 || z == a->N[2] - 1;
+            for (int x = 0; x < a->N[0]; x += rim || x == a->N[0] - 1 ? 1 : a->N[0] - 1)
+                a->F[at3(a, x, y, z)] = a->pad;
+        }
+}
+
+/* The smallest of the samples (not the pad). */
+static double samples_min(const struct iso_adapt *a)
+{
+    float m = INFINITY;
+    for (int z = a->shift; z < a->N[2] - a->shift; z++)
+        for (int y = a->shift; y < a->N[1] - a->shift; y++) {
+            const float *row = a->F + at3(a, 0, y, z);
+            for (int x = a->shift; x < a->N[0] - a->shift; x++)
+                m = fminf(m, row[x]);
+        }
+    return m;
+}
+
+/* pc's vertices and triangles into the kept mesh: a keyed vertex that kept triangles still use
+ * is theirs (it lies outside what changed, so it is the same), any other takes pc's values. 0,
+ * or -1 (no memory). */
+static int merge_rebuilt(struct iso_adapt *a, const struct piece *pc)
+{
+    struct piece *all = &a->all;
+    uint32_t *id = malloc((pc->m.n_vert ? pc->m.n_vert : 1) * sizeof *id);
+    if (!id)
+        return -1;
+    for (size_t v = 0; v < pc->m.n_vert && !all->nomem; v++) {
+        uint64_t key = pc->vkey[v];
+        bool found = false;
+        size_t h = 0;
+        if (key != UINT64_MAX && !slot_of(all, key, &found, &h))
+            break;
+        long g = found ? (long)all->slot[h] : -1;
+        double pos[3] = {pc->m.pos[3 * v], pc->m.pos[3 * v + 1], pc->m.pos[3 * v + 2]};
+        double nrm[3] = {pc->m.nrm[3 * v], pc->m.nrm[3 * v + 1], pc->m.nrm[3 * v + 2]};
+        if (g >= 0 && !a->refs[g]) { /* unused since: where it is now (as merge_pieces puts it) */
+            set_vertex(all, (size_t)g, pos, nrm);
+        } else if (g < 0) {
+            if ((g = new_vertex(all, pos, nrm, key)) < 0 ||
+                mem_reserve((void **)&a->refs, &a->rcap, all->m.n_vert, sizeof *a->refs)) {
+                all->nomem = true;
+                break;
+            }
+            a->refs[g] = 0;
+            a->dead++;
+            if (key != UINT64_MAX)
+                keep_slot(all, h, key, g);
+        }
+        id[v] = (uint32_t)g;
+    }
+    for (size_t t = 0; t < pc->m.n_tri && !all->nomem; t++) {
+        all->block = pc->owner[t];
+        size_t n = all->m.n_tri;
+        add_triangle(all, id[pc->m.tri[3 * t]], id[pc->m.tri[3 * t + 1]], id[pc->m.tri[3 * t + 2]]);
+        for (int k = 0; k < 3 && all->m.n_tri > n; k++)
+            if (a->refs[all->m.tri[3 * n + k]]++ == 0)
+                a->dead--;
+    }
+    free(id);
+    return all->nomem ? -1 : 0;
+}
+
+/* The kept mesh without its unused vertices (when they outnumber the used ones). 0 or -1. */
+static int compact(struct iso_adapt *a)
+{
+    struct piece *all = &a->all, n = {0};
+    uint32_t *id = malloc((all->m.n_vert ? all->m.n_vert : 1) * sizeof *id);
+    if (!id)
+        return -1;
+    for (size_t v = 0; v < all->m.n_vert && !n.nomem; v++) {
+        if (!a->refs[v])
+            continue;
+        double pos[3] = {all->m.pos[3 * v], all->m.pos[3 * v + 1], all->m.pos[3 * v + 2]};
+        double nrm[3] = {all->m.nrm[3 * v], all->m.nrm[3 * v + 1], all->m.nrm[3 * v + 2]};
+        bool found;
+        size_t h = 0;
+        if (all->vkey[v] != UINT64_MAX && !slot_of(&n, all->vkey[v], &found, &h))
+            break;
+        long g = new_vertex(&n, pos, nrm, all->vkey[v]);
+        if (g < 0)
+            break;
+        memcpy(n.m.nrm + 3 * g, all->m.nrm + 3 * v, 3 * sizeof *n.m.nrm); /* as it was, not made unit again */
+        if (all->vkey[v] != UINT64_MAX)
+            keep_slot(&n, h, all->vkey[v], g);
+        id[v] = (uint32_t)g;
+        a->refs[g] = a->refs[v]; /* g <= v */
+    }
+    for (size_t t = 0; t < all->m.n_tri && !n.nomem; t++) {
+        n.block = all->owner[t];
+        add_triangle(&n, id[all->m.tri[3 * t]], id[all->m.tri[3 * t + 1]], id[all->m.tri[3 * t + 2]]);
+    }
+    free(id);
+    if (n.nomem) {
+        piece_free(&n);
+        return -1;
+    }
+    piece_free(all);
+    *all = n;
+    a->dead = 0;
+    return 0;
+}
+
+/* Level-2 block index at -> its coordinates. */
+static void block_at(const struct iso_adapt *a, size_t at, int b[3])
+{
+    b[0] = (int)(at % (size_t)a->nb[2][0]);
+    at /= (size_t)a->nb[2][0];
+    b[1] = (int)(at % (size_t)a->nb[2][1]);
+    b[2] = (int)(at / (size_t)a->nb[2][1]);
+}
+
+static bool in_box(const int b[3], const int lo[3], const int hi[3])
+{
+    return b[0] >= lo[0] && b[0] <= hi[0] && b[1] >= lo[1] && b[1] <= hi[1] && b[2] >= lo[2] && b[2] <= hi[2];
+}
+
+/* The samples of block blk at lo into F; *lower_min: one of them is under the samples' least,
+ * *took_min: one of those they replace was it. */
+static void write_block(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk, bool *lower_min,
+                        bool *took_min)
+{
+    *lower_min = *took_min = false;
+    for (int z = 0; z < blk->nz; z++)
+        for (int y = 0; y < blk->ny; y++) {
+            float *row = a->F + at3(a, lo[0] + a->shift, lo[1] + y + a->shift, lo[2] + z + a->shift);
+            for (int x = 0; x < blk->nx; x++)
+                *took_min |= row[x] == (float)a->gmin;
+            iso_grid_row(blk, y, z, row);
+            for (int x = 0; x < blk->nx; x++)
+                *lower_min |= row[x] < (float)a->gmin;
+        }
+}
+
+int iso_adapt_edit(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
+                   struct sf_err *err)
+{
+    memset(ed, 0, sizeof *ed);
+    int n[3] = {blk->nx, blk->ny, blk->nz}, e0[3], e1[3];
+    if (!a->kept)
+        return sf_fail(err, SF_EINVAL, "", "the extraction is not kept (or an edit of it failed)");
+    for (int d = 0; d < 3; d++)
+        if (lo[d] < 0 || n[d] < 1 || lo[d] + (long)n[d] > a->N[d] - 2 * a->shift)
+            return sf_fail(err, SF_EINVAL, "?region", "the region lies outside the volume's %d x %d x %d samples",
+                           a->N[0] - 2 * a->shift, a->N[1] - 2 * a->shift, a->N[2] - 2 * a->shift);
+    bool lower_min, took_min;
+    write_block(a, lo, blk, &lower_min, &took_min);
+    if (lower_min || took_min)
+        a->gmin = samples_min(a);
+    float pad = a->shift ? (float)fmin(a->iso1, a->gmin) : 0;
+    ed->whole = pad != a->pad; /* the pad follows the samples' least: every border cell changes */
+    if (ed->whole) {
+        a->pad = pad;
+        set_pad(a);
+    }
+    for (int d = 0; d < 3; d++) { /* the samples that changed, in the virtual grid */
+        e0[d] = ed->whole ? 0 : lo[d] + a->shift;
+        e1[d] = ed->whole ? a->N[d] - 1 : lo[d] + n[d] - 1 + a->shift;
+    }
+    /* the blocks whose decision can change, level by level: those holding a changed sample, and
+     * above them those whose children or ring (mask_block) hold one of those */
+    int blo[ISO_MAX_LEVELS + 1][3], bhi[ISO_MAX_LEVELS + 1][3], ulo[3], uhi[3], rlo[3], rhi[3];
+    int c = 1 << (a->L - 2); /* the coarsest cell, in level-2 blocks */
+    for (int l = 2; l <= a->L; l++)
+        for (int d = 0; d < 3; d++) {
+            int lo_ = l == 2 ? floordiv(e0[d] - 1, 2) : floordiv(blo[l - 1][d] - 1, 2);
+            int hi_ = l == 2 ? floordiv(e1[d], 2) : floordiv(bhi[l - 1][d] + 1, 2);
+            blo[l][d] = lo_ < 0 ? 0 : lo_;
+            bhi[l][d] = hi_ >= a->nb[l][d] ? a->nb[l][d] - 1 : hi_;
+            int u0 = blo[l][d] << (l - 2), u1 = ((bhi[l][d] + 1) << (l - 2)) - 1;
+            ulo[d] = l == 2 || u0 < ulo[d] ? u0 : ulo[d];
+            uhi[d] = l == 2 || u1 > uhi[d] ? u1 : uhi[d];
+        }
+    /* the cells to draw again: those, one block further (normals and neighbours' levels reach
+     * that far), out to whole coarsest cells */
+    for (int d = 0; d < 3; d++) {
+        uhi[d] = uhi[d] >= a->nb[2][d] ? a->nb[2][d] - 1 : uhi[d];
+        rlo[d] = floordiv(ulo[d] - 1, c) * c;
+        rlo[d] = rlo[d] < 0 ? 0 : rlo[d];
+        rhi[d] = (floordiv(uhi[d] + 1, c) + 1) * c - 1;
+        rhi[d] = rhi[d] >= a->nb[2][d] ? a->nb[2][d] - 1 : rhi[d];
+    }
+    int b[3];
+    for (b[2] = rlo[2]; b[2] <= rhi[2]; b[2]++) /* their cells leave the counts */
+        for (b[1] = rlo[1]; b[1] <= rhi[1]; b[1]++)
+            for (b[0] = rlo[0]; b[0] <= rhi[0]; b[0]++) {
+                size_t at = block(a, 2, b[0], b[1], b[2]);
+                a->cells[a->lev2[at]] -= a->bcells[at];
+                a->feature_points -= a->bfeat[at];
+            }
+    for (int l = 2; l <= a->L; l++)
+        for (b[2] = blo[l][2]; b[2] <= bhi[l][2]; b[2]++)
+            for (b[1] = blo[l][1]; b[1] <= bhi[l][1]; b[1]++)
+                for (b[0] = blo[l][0]; b[0] <= bhi[l][0]; b[0]++) {
+                    size_t at = block(a, l, b[0], b[1], b[2]);
+                    a->M[l][at] = 0;
+                    a->berr[l][at] = 0;
+                    mask_block(a, l, b);
+                }
+    for (b[2] = ulo[2]; b[2] <= uhi[2]; b[2]++)
+        for (b[1] = ulo[1]; b[1] <= uhi[1]; b[1]++)
+            for (b[0] = ulo[0]; b[0] <= uhi[0]; b[0]++)
+                cell_level(a, b);
+    /* the old triangles of those cells out */
+    struct piece *all = &a->all;
+    for (size_t t = 0; t < all->m.n_tri;) {
+        int ob[3];
+        block_at(a, all->owner[t], ob);
+        if (!in_box(ob, rlo, rhi)) {
+            t++;
+            continue;
+        }
+        for (int k = 0; k < 3; k++)
+            if (--a->refs[all->m.tri[3 * t + k]] == 0)
+                a->dead++;
+        size_t last = --all->m.n_tri;
+        memcpy(all->m.tri + 3 * t, all->m.tri + 3 * last, 3 * sizeof *all->m.tri);
+        all->owner[t] = all->owner[last];
+        ed->triangles_removed++;
+    }
+    /* and the new ones in */
+    struct piece pc = {0};
+    for (b[2] = rlo[2]; b[2] <= rhi[2] && !pc.nomem; b[2]++)
+        for (b[1] = rlo[1]; b[1] <= rhi[1]; b[1]++)
+            for (b[0] = rlo[0]; b[0] <= rhi[0]; b[0]++)
+                block_cells(a, &pc, b);
+    for (int l = 1; l <= ISO_MAX_LEVELS; l++)
+        a->cells[l] += pc.cells[l], ed->cells_rebuilt += pc.cells[l];
+    a->feature_points += pc.feature_points;
+    ed->triangles_added = (long)pc.m.n_tri;
+    int rc = pc.nomem || merge_rebuilt(a, &pc) ? -1 : 0;
+    piece_free(&pc);
+    if (!rc && a->dead > 4096 && a->dead > all->m.n_vert / 2)
+        rc = compact(a);
+    if (rc) {
+        a->kept = false; /* half rebuilt: of no further use */
+        return mesh_failed(a, err);
+    }
+    return 0;
 }

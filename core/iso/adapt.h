@@ -84,6 +84,29 @@ void iso_adapt_between(struct iso_adapt *a, int phase);
 int iso_adapt_end(struct iso_adapt *a, struct trimesh *out, struct iso_adapt_stats *st, struct sf_err *err);
 void iso_adapt_free(struct iso_adapt *a);
 
+/* Local rebuilds (seed 002: the data change, and only the cells they touch are drawn again).
+ * An extraction begun with opts keep is ended by iso_adapt_keep instead of iso_adapt_end: the
+ * hierarchy, its float samples and the mesh stay, each triangle with its cell (the cell <->
+ * triangle map: the level-2 block that drew it). iso_adapt_edit writes a block of new samples
+ * (blk: its size, type and samples; lo: its first sample) and draws again the cells they reach:
+ * every block whose merge they can change (its samples, children or ring), the cells round those
+ * (normals and the joins read one block further), out to whole cells of the coarsest level. The
+ * mesh is then the one a fresh extraction of the edited samples gives, triangle for triangle
+ * (in another order). When the samples' least value moves the pad layer (closed), every cell is
+ * drawn again (whole). The samples of the grid given to iso_adapt_begin are no longer read. */
+struct iso_edit {
+    long cells_rebuilt, triangles_removed, triangles_added;
+    bool whole;
+};
+/* 0, or SF_ENOMEM, SF_ELIMIT (nothing handed over: a must be freed). */
+int iso_adapt_keep(struct iso_adapt *a, struct iso_adapt_stats *st, struct sf_err *err);
+/* A copy of the kept mesh (unused vertices left out) and its counts. 0 or SF_ENOMEM. */
+int iso_adapt_mesh(const struct iso_adapt *a, struct trimesh *out, struct iso_adapt_stats *st, struct sf_err *err);
+/* 0, or SF_EINVAL (?region outside the samples; a not kept), SF_ENOMEM, SF_ELIMIT (a is then
+ * of no further use: free it). */
+int iso_adapt_edit(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
+                   struct sf_err *err);
+
 /* All of it on the calling thread, polling pr. 0, or SF_EINVAL, SF_ENOMEM, SF_ELIMIT, SF_ECANCEL. */
 int iso_extract_adaptive(const struct iso_grid *g, const struct iso_opts *o, int levels, double max_error,
                          const struct sf_progress *pr, struct trimesh *out, struct iso_adapt_stats *st,

@@ -54,6 +54,7 @@ struct iso_opts {
      * their normals from its gradient; NULL for sampled volumes. */
     double (*field)(const void *ctx, const double p[3], double g[3]);
     const void *field_ctx;
+    bool keep;               /* adapt.c keeps what local rebuilds need (iso_adapt_keep) */
 };
 
 struct iso_job;

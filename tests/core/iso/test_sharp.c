@@ -65,7 +65,7 @@ static bool extract(int levels, bool sharp, bool with_field, struct trimesh *m, 
                     struct iso_adapt_stats *as)
 {
     struct iso_grid g = {N, N, N, ISO_F32, samples, {H, H, H}, {ORG, ORG, ORG}};
-    struct iso_opts o = {0, true, true, sharp, with_field ? field : NULL, with_field ? &tree : NULL};
+    struct iso_opts o = {.closed = true, .normals = true, .sharp = sharp, .field = with_field ? field : NULL, .field_ctx = with_field ? &tree : NULL};
     struct sf_err err = {0};
     int rc = iso_extract_adaptive(&g, &o, levels, 0.5 * H, NULL, m, as, &err);
     if (!rc)
@@ -251,7 +251,7 @@ TEST(the_same_mesh_whatever_the_order_of_the_slabs)
 {
     box_minus_ball();
     struct iso_grid g = {N, N, N, ISO_F32, samples, {H, H, H}, {ORG, ORG, ORG}};
-    struct iso_opts o = {0, true, true, true, field, &tree};
+    struct iso_opts o = {.closed = true, .normals = true, .sharp = true, .field = field, .field_ctx = &tree};
     struct trimesh m[2];
     for (int run = 0; run < 2; run++) {
         struct iso_adapt *a;

@@ -1,0 +1,244 @@
+/* test_edit.c - local rebuilds of the adaptive hierarchy (adapt.h: iso_adapt_keep, iso_adapt_edit):
+ * after each of a run of edits (blocks inside, on the border, over a corner, changing the
+ * samples' least value) the kept mesh equals a fresh extraction of the edited samples triangle for
+ * triangle (positions and normals), at every level count, with and without features; and a region
+ * outside the samples is refused. */
+#include "../../../core/iso/adapt.h"
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "../../unit.h"
+
+/* A triangle as 18 floats (its corners' positions and normals), turned to start at its least
+ * corner: the same triangle whatever the vertex numbering and the order of the list. */
+static int cmp18(const void *p, const void *q) { return memcmp(p, q, 18 * sizeof(float)); }
+
+static float *triangles(const struct trimesh *m)
+{
+    float *t = malloc((m->n_tri ? m->n_tri : 1) * 18 * sizeof *t);
+    for (size_t i = 0; i < m->n_tri; i++) {
+        const uint32_t *v = m->tri + 3 * i;
+        int r = 0;
+        for (int k = 1; k < 3; k++)
+            if (memcmp(m->pos + 3 * v[k], m->pos + 3 * v[r], 3 * sizeof(float)) < 0)
+                r = k;
+        for (int k = 0; k < 3; k++) {
+            memcpy(t + 18 * i + 6 * k, m->pos + 3 * v[(r + k) % 3], 3 * sizeof(float));
+            memcpy(t + 18 * i + 6 * k + 3, m->nrm + 3 * v[(r + k) % 3], 3 * sizeof(float));
+        }
+    }
+    qsort(t, m->n_tri, 18 * sizeof *t, cmp18);
+    return t;
+}
+
+static bool same_mesh(const struct trimesh *x, const struct trimesh *y)
+{
+    if (x->n_tri != y->n_tri) {
+        fprintf(stderr, "  %zu triangles against %zu\n", x->n_tri, y->n_tri);
+        return false;
+    }
+    float *a = triangles(x), *b = triangles(y);
+    size_t differ = 0;
+    for (size_t i = 0; i < x->n_tri; i++)
+        differ += memcmp(a + 18 * i, b + 18 * i, 18 * sizeof *a) != 0;
+    if (differ)
+        fprintf(stderr, "  %zu of %zu triangles differ\n", differ, x->n_tri);
+    free(a);
+    free(b);
+    return differ == 0;
+}
+
+static struct iso_adapt *kept(const struct iso_grid *g, const struct iso_opts *o, int levels, double me)
+{
+    struct iso_adapt *a;
+    struct iso_adapt_stats st;
+    struct sf_err err = {0};
+    if (iso_adapt_begin(g, o, levels, me, &a, &err))
+        return NULL;
+    for (int p = 0; p < iso_adapt_phases(a); p++) {
+        for (int s = 0; s < iso_adapt_n_slabs(a); s++)
+            iso_adapt_run(a, p, s);
+        iso_adapt_between(a, p);
+    }
+    if (iso_adapt_keep(a, &st, &err)) {
+        iso_adapt_free(a);
+        return NULL;
+    }
+    return a;
+}
+
+/* The kept mesh against a fresh extraction of g's samples (as edited), with the same counts. */
+static bool as_fresh(const struct iso_adapt *a, const struct iso_grid *g, const struct iso_opts *o, int levels,
+                     double me)
+{
+    struct trimesh fresh, live;
+    struct iso_adapt_stats fs, ls;
+    struct trimesh_stats st;
+    struct sf_err err = {0};
+    struct iso_opts plain = *o;
+    plain.keep = false;
+    if (iso_extract_adaptive(g, &plain, levels, me, NULL, &fresh, &fs, &err) || iso_adapt_mesh(a, &live, &ls, &err))
+        return false;
+    bool ok = same_mesh(&live, &fresh) && !memcmp(fs.cells, ls.cells, sizeof fs.cells) &&
+              fs.feature_points == ls.feature_points && fs.face_points == ls.face_points &&
+              fs.max_estimate == ls.max_estimate;
+    ok = ok && trimesh_stats(&live, &st, &err) == 0 && st.boundary_edges == 0 && st.nonmanifold_edges == 0;
+    if (!ok)
+        fprintf(stderr, "  cells %ld/%ld %ld/%ld, features %ld/%ld, face points %ld/%ld, max %g/%g\n", ls.cells[1],
+                fs.cells[1], ls.cells[2], fs.cells[2], ls.feature_points, fs.feature_points, ls.face_points,
+                fs.face_points, ls.max_estimate, fs.max_estimate);
+    trimesh_free(&fresh);
+    trimesh_free(&live);
+    return ok;
+}
+
+/* A block of n^3 int16 samples at lo written into a's samples and into the copy vol (nx^3): a
+ * ball of value in of radius r about the block's centre, value out round it. */
+static bool edit_ball(struct iso_adapt *a, int16_t *vol, int nx, const int lo[3], int n, double r, int16_t in,
+                      int16_t out, struct iso_edit *ed)
+{
+    int16_t *blk = malloc((size_t)n * n * n * sizeof *blk);
+    for (int z = 0; z < n; z++)
+        for (int y = 0; y < n; y++)
+            for (int x = 0; x < n; x++) {
+                double d = hypot(hypot(x - n / 2.0 + 0.3, y - n / 2.0 - 0.2), z - n / 2.0 + 0.1);
+                int16_t v = d < r ? in : out;
+                blk[x + n * (y + n * z)] = v;
+                if (lo[0] + x < nx && lo[1] + y < nx && lo[2] + z < nx)
+                    vol[(lo[0] + x) + nx * ((lo[1] + y) + (size_t)nx * (lo[2] + z))] = v;
+            }
+    struct iso_grid bg = {n, n, n, ISO_I16, blk, {1, 1, 1}, {0, 0, 0}};
+    struct sf_err err = {0};
+    int rc = iso_adapt_edit(a, lo, &bg, ed, &err);
+    if (rc)
+        fprintf(stderr, "  edit: %s\n", err.message);
+    free(blk);
+    return rc == 0;
+}
+
+TEST(ct_edits_equal_a_fresh_extraction)
+{
+    size_t len;
+    char *raw = unit_data("volumes", "ct_head_crop64_int16.raw", &len);
+    CHECK(raw && len == 64 * 64 * 64 * 2);
+    if (!raw)
+        return;
+    const int lo[][3] = {{20, 24, 17}, {0, 0, 0}, {48, 48, 48}, {30, 5, 40}, {21, 25, 18}, {8, 40, 3}};
+    const double me[] = {0, 0.5, 1.0, 2.0};
+    for (int levels = 1; levels <= 4; levels++)
+        for (int sharp = 0; sharp < 2; sharp++) {
+            if (levels == 1 && !sharp)
+                continue; /* (levels 1 without features is marching cubes, mc.c) */
+            int16_t *vol = malloc(len);
+            memcpy(vol, raw, len);
+            struct iso_grid g = {64, 64, 64, ISO_I16, vol, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
+            struct iso_opts o = {.iso = 226.5, .closed = true, .normals = true, .sharp = sharp, .keep = true};
+            struct iso_adapt *a = kept(&g, &o, levels, me[levels - 1]);
+            CHECK(a != NULL);
+            if (!a) {
+                free(vol);
+                continue;
+            }
+            for (int e = 0; e < 6; e++) {
+                struct iso_edit ed;
+                int n = e == 2 ? 16 : 12; /* (the third runs past no border: 48 + 16 = 64) */
+                CHECK(edit_ball(a, vol, 64, lo[e], n, 4 + e, e & 1 ? -1000 : 1400, e & 1 ? 300 : -100, &ed));
+                CHECK(ed.cells_rebuilt > 0 && ed.triangles_added > 0 && !ed.whole);
+                CHECK(as_fresh(a, &g, &o, levels, me[levels - 1]));
+            }
+            iso_adapt_free(a);
+            free(vol);
+        }
+    free(raw);
+}
+
+/* Samples under the least one there was move the pad (the border counts as outside below it):
+ * every cell is drawn again, and the mesh is still the fresh one; so when the least one goes. */
+TEST(a_new_least_sample_redraws_every_cell)
+{
+    size_t len;
+    char *raw = unit_data("volumes", "ct_head_crop64_int16.raw", &len);
+    CHECK(raw && len == 64 * 64 * 64 * 2);
+    if (!raw)
+        return;
+    int16_t *vol = malloc(len), least = INT16_MAX;
+    memcpy(vol, raw, len);
+    for (size_t i = 0; i < len / 2; i++)
+        least = vol[i] < least ? vol[i] : least;
+    struct iso_grid g = {64, 64, 64, ISO_I16, vol, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
+    struct iso_opts o = {.iso = -500, .closed = true, .normals = true, .keep = true}; /* (a surface at the border) */
+    struct iso_adapt *a = kept(&g, &o, 3, 1.0);
+    CHECK(a != NULL);
+    struct iso_edit ed;
+    CHECK(edit_ball(a, vol, 64, (int[3]){10, 10, 10}, 8, 3, (int16_t)(least - 500), 0, &ed));
+    CHECK(ed.whole);
+    CHECK(as_fresh(a, &g, &o, 3, 1.0));
+    CHECK(edit_ball(a, vol, 64, (int[3]){10, 10, 10}, 8, 3, 0, 0, &ed)); /* the least one gone again */
+    CHECK(ed.whole);
+    CHECK(as_fresh(a, &g, &o, 3, 1.0));
+    iso_adapt_free(a);
+    free(vol);
+    free(raw);
+}
+
+/* Many edits over one part: the unused vertices are dropped now and then, the mesh stays right. */
+TEST(many_edits_over_one_place)
+{
+    size_t len;
+    char *raw = unit_data("volumes", "ct_head_crop64_int16.raw", &len);
+    CHECK(raw && len == 64 * 64 * 64 * 2);
+    if (!raw)
+        return;
+    int16_t *vol = malloc(len);
+    memcpy(vol, raw, len);
+    struct iso_grid g = {64, 64, 64, ISO_I16, vol, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
+    struct iso_opts o = {.iso = 226.5, .closed = true, .normals = true, .keep = true};
+    struct iso_adapt *a = kept(&g, &o, 2, 0.5);
+    CHECK(a != NULL);
+    for (int e = 0; e < 24; e++) {
+        struct iso_edit ed;
+        CHECK(edit_ball(a, vol, 64, (int[3]){4 + e % 5, 6 + e % 3, 4 + e % 7}, 40, 6 + e % 13, 1400, -100, &ed));
+        if (e % 6 == 5)
+            CHECK(as_fresh(a, &g, &o, 2, 0.5));
+    }
+    CHECK(as_fresh(a, &g, &o, 2, 0.5));
+    iso_adapt_free(a);
+    free(vol);
+    free(raw);
+}
+
+TEST(a_region_outside_is_refused)
+{
+    static float v[8 * 8 * 8];
+    for (int i = 0; i < 8 * 8 * 8; i++)
+        v[i] = (float)(i % 7) - 3;
+    struct iso_grid g = {8, 8, 8, ISO_F32, v, {1, 1, 1}, {0, 0, 0}};
+    struct iso_opts o = {.iso = 0, .closed = true, .normals = true, .keep = true};
+    struct iso_adapt *a = kept(&g, &o, 2, 0.5);
+    CHECK(a != NULL);
+    float blk[27] = {0};
+    struct iso_grid bg = {3, 3, 3, ISO_F32, blk, {1, 1, 1}, {0, 0, 0}};
+    struct iso_edit ed;
+    struct sf_err err = {0};
+    CHECK(iso_adapt_edit(a, (int[3]){6, 0, 0}, &bg, &ed, &err) == SF_EINVAL && !strcmp(err.pointer, "?region"));
+    CHECK(iso_adapt_edit(a, (int[3]){0, -1, 0}, &bg, &ed, &err) == SF_EINVAL);
+    CHECK(iso_adapt_edit(a, (int[3]){5, 5, 5}, &bg, &ed, &err) == 0);
+    iso_adapt_free(a);
+    /* an extraction not begun to be kept cannot be */
+    o.keep = false;
+    struct iso_adapt_stats st;
+    CHECK(iso_adapt_begin(&g, &o, 2, 0.5, &a, &err) == 0);
+    CHECK(iso_adapt_keep(a, &st, &err) == SF_EINVAL);
+    iso_adapt_free(a);
+}
+
+int main(void)
+{
+    iso_init();
+    RUN(ct_edits_equal_a_fresh_extraction);
+    RUN(a_new_least_sample_redraws_every_cell);
+    RUN(many_edits_over_one_place);
+    RUN(a_region_outside_is_refused);
+    UNIT_END();
+}
