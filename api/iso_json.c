@@ -43,6 +43,20 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
         json_object_set_new(o, "feature_points", json_integer(m->adapt->feature_points));
         json_object_set_new(o, "face_points", json_integer(m->adapt->face_points));
     }
+    if (o)
+        json_object_set_new(o, "edits", json_integer(m->edits));
+    if (o && !strcmp(m->vol->source, "isosurface")) {
+        char edit[96];
+        snprintf(edit, sizeof edit, "/models/%s/edit", m->id);
+        json_object_set_new(json_object_get(o, "links"), "edit", json_string(edit));
+    }
+    if (o && m->edit)
+        json_object_set_new(o, "edit",
+                            json_pack("{s:s, s:I, s:I, s:I, s:b, s:f}", "region", m->edit->region, "cells_rebuilt",
+                                      (json_int_t)m->edit->e.cells_rebuilt, "triangles_removed",
+                                      (json_int_t)m->edit->e.triangles_removed, "triangles_added",
+                                      (json_int_t)m->edit->e.triangles_added, "whole", m->edit->e.whole, "ms",
+                                      m->edit->ms));
     if (o && !strcmp(m->vol->source, "frep"))
         json_object_set_new(json_object_get(o, "timings_ms"), "sample", json_real(m->ms[1]));
     char *text = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(12)) : NULL;
@@ -50,4 +64,30 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
     if (!text)
         sf_fail(err, SF_ENOMEM, "", "out of memory");
     return text;
+}
+
+int iso_model_grid(const char *resource, struct iso_grid *g, struct sf_err *err)
+{
+    json_error_t je;
+    json_t *o = json_loads(resource, 0, &je);
+    const char *source = "", *type = "";
+    memset(g, 0, sizeof *g);
+    int rc = !o || json_unpack(o, "{s:s, s:{s:[i,i,i], s:s}}", "source", &source, "grid", "dims", &g->nx, &g->ny, &g->nz,
+                               "type", &type) ? -1 : 0;
+    if (!rc && strcmp(source, "isosurface"))
+        rc = sf_fail(err, SF_ECONFLICT, "", "%s models are not edited by samples (isosurface models of samples are)",
+                     source);
+    else if (rc)
+        rc = sf_fail(err, SF_ECONFLICT, "", "only isosurface models of samples are edited");
+    g->type = !strcmp(type, "uint8") ? ISO_U8 : !strcmp(type, "int16") ? ISO_I16 : !strcmp(type, "uint16") ? ISO_U16 : ISO_F32;
+    json_decref(o);
+    return rc;
+}
+
+long iso_model_edits(const char *resource)
+{
+    json_t *o = json_loads(resource, 0, NULL);
+    long n = (long)json_integer_value(json_object_get(o, "edits"));
+    json_decref(o);
+    return n;
 }

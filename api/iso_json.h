@@ -8,6 +8,13 @@
 #include "../core/geom/trimesh.h"
 #include "volume_io.h"
 
+/* An edit's figures (POST /models/{id}/edit). */
+struct iso_model_edit {
+    const char *region;
+    struct iso_edit e;       /* (whole: every cell drawn again) */
+    double ms;               /* the samples written and the cells drawn again */
+};
+
 struct iso_model {
     const char *id, *name;
     const struct volume *vol;
@@ -15,9 +22,18 @@ struct iso_model {
     const struct iso_adapt_stats *adapt; /* levels > 1, else NULL */
     size_t vertices, triangles;
     double ms[5];            /* read, sample (an FRep's), extract, measure, total */
+    int edits;               /* edits so far */
+    const struct iso_model_edit *edit; /* the last one's, or NULL */
 };
 
 /* The resource as JSON (caller frees), or NULL with err. */
 char *iso_model_json(const struct iso_model *m, struct sf_err *err);
+
+/* The grid (dims, type) of an isosurface model from its resource: 0, or SF_ECONFLICT for a model
+ * of another source (contours, an FRep object). */
+int iso_model_grid(const char *resource, struct iso_grid *g, struct sf_err *err);
+
+/* A model resource's count of edits (0 for a model never edited, or of another kind). */
+long iso_model_edits(const char *resource);
 
 #endif

@@ -28,6 +28,7 @@ int problem_status(int sf_code)
     case SF_EFORMAT: return 400;
     case SF_EINVAL:
     case SF_ELIMIT: return 422;
+    case SF_ECONFLICT: return 409;
     default: return 500;
     }
 }

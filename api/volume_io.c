@@ -626,3 +626,27 @@ void volume_free(struct volume *v)
     v->owned = NULL;
     v->g.samples = NULL;
 }
+
+int volume_region(const char *options, const struct iso_grid *g, size_t len, int lo[3], int n[3], struct sf_err *err)
+{
+    char value[128];
+    double r[6];
+    query_option(options, "region", value, sizeof value);
+    if (!value[0])
+        return sf_fail(err, SF_EINVAL, "?region", "region=x0,y0,z0,nx,ny,nz names the block of samples the body holds");
+    if (numbers(value, 6, r))
+        return sf_fail(err, SF_EINVAL, "?region", "region is six whole numbers x0,y0,z0,nx,ny,nz");
+    int dims[3] = {g->nx, g->ny, g->nz};
+    for (int d = 0; d < 3; d++) {
+        if (r[d] != floor(r[d]) || r[d + 3] != floor(r[d + 3]) || r[d] < 0 || r[d + 3] < 1 ||
+            r[d] + r[d + 3] > dims[d])
+            return sf_fail(err, SF_EINVAL, "?region", "the region must lie in the volume's %d x %d x %d samples",
+                           g->nx, g->ny, g->nz);
+        lo[d] = (int)r[d], n[d] = (int)r[d + 3];
+    }
+    size_t want = (size_t)n[0] * n[1] * n[2] * type_size(g->type);
+    if (len != want)
+        return sf_fail(err, SF_EINVAL, "", "the body holds %zu bytes, but the region's %d x %d x %d samples of the "
+                       "volume's type make %zu", len, n[0], n[1], n[2], want);
+    return 0;
+}

@@ -62,4 +62,9 @@ void volume_sample(struct volume *v, int z0, int z1);
  * The job's volume_read says the rest. */
 int volume_check(const char *body, size_t len, const char *format, const char *options, struct sf_err *err);
 
+/* An edit's block (POST /models/{id}/edit): ?region=x0,y0,z0,nx,ny,nz inside grid g, the body
+ * of len bytes holding its samples in g's type (x fastest, the host's byte order). 0, or
+ * SF_EINVAL at ?region (or at the body, "", for its length). */
+int volume_region(const char *options, const struct iso_grid *g, size_t len, int lo[3], int n[3], struct sf_err *err);
+
 #endif

@@ -228,7 +228,7 @@ int cmd_isosurface(int argc, char **argv)
     }
     if (!rc) {
         struct iso_model im = {"offline", v.name, &v, &st, volume_adaptive(&v) ? &as : NULL, m.n_vert, m.n_tri,
-                               {t_read - t0, t_sampled - t_read, best, t_measure - t_extract, t_measure - t0}};
+                               {t_read - t0, t_sampled - t_read, best, t_measure - t_extract, t_measure - t0}, 0, NULL};
         if (!(json = iso_model_json(&im, &err)))
             rc = err.code;
     }

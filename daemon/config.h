@@ -18,6 +18,7 @@ struct config {
     long queue_max;         /* jobs waiting before 429 */
     long max_body;          /* bytes of request body */
     long max_volume;        /* bytes of a streamed volume (POST /isosurface) */
+    long edit_memory;       /* bytes of the hierarchies kept for edits (daemon/job_edit.c) */
     long sync_wait;         /* seconds a request waits for its job before 202 */
     char token_file[512];
     char tls_cert[512];

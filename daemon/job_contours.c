@@ -42,7 +42,7 @@ static void model_id(void *ctx, int k, char id[40])
 static int model_put(void *ctx, const char *id, const char *name, const char *source, const char *resource)
 {
     const struct contour_work *w = ctx;
-    struct model_rec m = {id, w->claim.id, name, w->owner, wall_s(), source, strlen(source), resource};
+    struct model_rec m = {id, w->claim.id, name, w->owner, wall_s(), source, strlen(source), resource, NULL};
     return store_model_put(w->svc->store, &m);
 }
 

@@ -33,6 +33,7 @@ struct iso_work {
     struct iso_job *ij;
     enum { PH_SAMPLE, PH_COUNT, PH_EMIT, PH_ADAPT } phase;
     struct iso_adapt *ad;    /* volume_adaptive(): the adaptive hierarchy, its phases of bands */
+    bool ad_keep;            /* begun to be kept for the model's edits */
     int ad_phase;
     struct iso_adapt_stats adapt_st;
     int n_slabs, n_sample, bands_total; /* bands_total: of every phase, for the progress */
@@ -100,9 +101,13 @@ static int prepare(struct job *j, void *arg, int *n_bands)
 static int begin_extract(struct iso_work *w, int *n_bands)
 {
     struct iso_opts o = volume_iso_opts(&w->vol);
+    /* a hierarchy of samples is kept for the model's edits when it fits their memory (about 5
+     * bytes a sample) */
+    o.keep = !w->vol.frep && (double)w->vol.g.nx * w->vol.g.ny * w->vol.g.nz * 5 <= (double)w->svc->cfg.edit_memory;
     if (volume_adaptive(&w->vol)) {
         if (iso_adapt_begin(&w->vol.g, &o, w->vol.levels, w->vol.max_error, &w->ad, &w->err))
             return -1;
+        w->ad_keep = o.keep;
         w->phase = PH_ADAPT;
         *n_bands = iso_adapt_n_slabs(w->ad);
         w->bands_total = w->n_sample + iso_adapt_phases(w->ad) * *n_bands;
@@ -157,11 +162,9 @@ static int next(struct job *j, void *arg, int *n_bands)
     return 0;
 }
 
-/* Lets go of the samples (the volume's mapping or the request): the mesh is all that is needed
- * now, and the volume and the mesh together are the job's peak of memory. */
-static void drop_volume(struct iso_work *w)
+/* Lets go of the request (the volume's mapping or its bytes), once stored with the model. */
+static void drop_request(struct iso_work *w)
 {
-    volume_free(&w->vol);
     if (w->map)
         munmap(w->map, w->map_len);
     w->map = NULL;
@@ -181,18 +184,29 @@ static int store_model(struct iso_work *w)
 {
     double t_extract = monotonic_s();
     struct trimesh m;
-    int rc = w->ad ? iso_adapt_end(w->ad, &m, &w->adapt_st, &w->err) : iso_end(w->ij, &m, &w->err);
+    struct iso_adapt *kept = NULL; /* for the model's edits */
+    int rc;
+    if (w->ad && w->ad_keep) {
+        if (!(rc = iso_adapt_keep(w->ad, &w->adapt_st, &w->err)) &&
+            !(rc = iso_adapt_mesh(w->ad, &m, &w->adapt_st, &w->err)))
+            kept = w->ad;
+        else
+            iso_adapt_free(w->ad);
+    } else {
+        rc = w->ad ? iso_adapt_end(w->ad, &m, &w->adapt_st, &w->err) : iso_end(w->ij, &m, &w->err);
+    }
     w->ij = NULL;
     w->ad = NULL;
     if (!rc)
         rc = volume_mesh_empty(&w->vol, &m, &w->err);
     if (rc) {
         trimesh_free(&m);
+        iso_adapt_free(kept);
         return rc;
     }
     if (w->vol.oblique)
         trimesh_turn(&m, w->vol.g.origin, (const double(*)[3])w->vol.axes);
-    drop_volume(w);
+    volume_free(&w->vol); /* the volume and the mesh together are the job's peak of memory */
     struct trimesh_stats st;
     char *packed = NULL;
     size_t packed_len = 0;
@@ -202,16 +216,26 @@ static int store_model(struct iso_work *w)
     struct iso_model im = {w->claim.id, w->vol.name, &w->vol, &st, volume_adaptive(&w->vol) ? &w->adapt_st : NULL, m.n_vert,
                            m.n_tri,
                            {(w->t_read - w->t0) * 1e3, (w->t_sampled - w->t_read) * 1e3,
-                            (t_extract - w->t_sampled) * 1e3, (t_measure - t_extract) * 1e3, (t_measure - w->t0) * 1e3}};
+                            (t_extract - w->t_sampled) * 1e3, (t_measure - t_extract) * 1e3, (t_measure - w->t0) * 1e3},
+                           0, NULL};
     trimesh_free(&m);
     if (!rc && !(w->json = iso_model_json(&im, &w->err)))
         rc = w->err.code;
     if (!rc) {
-        struct model_rec mr = {w->claim.id, w->claim.id, w->vol.name, w->rec.owner, wall_s(), packed, packed_len, w->json};
+        /* a volume of samples is kept with the model, as it was posted, for its edits */
+        struct volume_rec vr = {0, w->rec.format, w->rec.options, w->map ? w->map : (const void *)w->rec.request,
+                                w->map ? w->map_len : w->rec.request_len};
+        struct model_rec mr = {w->claim.id, w->claim.id, w->vol.name, w->rec.owner, wall_s(), packed, packed_len, w->json,
+                               strcmp(w->vol.source, "frep") ? &vr : NULL};
         if (store_model_put(w->svc->store, &mr))
             rc = sf_fail(&w->err, SF_EIO, "", "the store would not take the mesh");
     }
     free(packed);
+    drop_request(w);
+    if (!rc)
+        edit_keep(w->svc, w->claim.id, &w->vol, kept);
+    else
+        iso_adapt_free(kept);
     if (!rc) {
         w->len = strlen(w->json);
         snprintf(w->meta, sizeof w->meta, "{\"status\":201,\"location\":\"/models/%s\"}", w->claim.id);
@@ -231,7 +255,8 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     iso_free(w->ij);
     iso_adapt_free(w->ad);
-    drop_volume(w);
+    volume_free(&w->vol);
+    drop_request(w);
     if (w->file[0])
         store_request_file_done(w->svc->store, w->file);
     store_rec_free(&w->rec);

@@ -57,5 +57,13 @@ int patches_start(struct service *svc, const struct job_claim *c);
 const char *iso_format(const char *content_type);
 int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err);
 int iso_start(struct service *svc, const struct job_claim *c);
+const char *edit_format(const char *content_type);
+int edit_validate(struct service *svc, struct job_body *b, struct sf_err *err);
+int edit_start(struct service *svc, const struct job_claim *c);
+/* job_edit.c: an isosurface job's kept hierarchy a (iso_adapt_keep; NULL: none) for the model's
+ * edits, with its volume's settings (not its samples); a is taken (freed when it does not fit). */
+struct volume;
+struct iso_adapt;
+void edit_keep(struct service *svc, const char *id, const struct volume *vol, struct iso_adapt *a);
 
 #endif

@@ -20,6 +20,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "../api/iso_json.h"
 #include "../api/model_json.h"
 #include "../api/job_json.h"
 #include "../api/problem.h"
@@ -418,8 +419,8 @@ static enum MHD_Result submit(struct req *r, const struct job_kind *kind, const 
 }
 
 /* POST of a kind's request: its body format from Content-Type (or ?format=), its validation, and
- * the job. */
-static enum MHD_Result post_job(struct req *r, const struct job_kind *kind)
+ * the job; model (NULL: none) the stored model it is about, as ?model (a route's {id}). */
+static enum MHD_Result post_job_on(struct req *r, const struct job_kind *kind, const char *model)
 {
     const char *ct = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
     const char *format = kind->format(ct);
@@ -436,6 +437,10 @@ static enum MHD_Result post_job(struct req *r, const struct job_kind *kind)
     enum MHD_Result answer;
     if (!query_options(r, &o, &answer))
         return answer;
+    if (model) /* (the last of a repeated option counts: a ?model in the query changes nothing) */
+        o.n += (size_t)snprintf(o.buf + o.n, sizeof o.buf - o.n, "%smodel=%s", o.n ? "&" : "", model);
+    if (o.n >= sizeof o.buf)
+        return problem(r, 422, "query options must be short name=value pairs without '&', '=' or NUL", NULL);
     struct sf_err err = {0};
     struct job_body b = {r->body, r->len, format, o.buf, scope(r)};
     int rc = kind->validate(r->svc, &b, &err);
@@ -445,6 +450,8 @@ static enum MHD_Result post_job(struct req *r, const struct job_kind *kind)
         return problem_err(r, &err);
     return submit(r, kind, format, o.buf);
 }
+
+static enum MHD_Result post_job(struct req *r, const struct job_kind *kind) { return post_job_on(r, kind, NULL); }
 
 /* ---- models ------------------------------------------------------------------------------- */
 
@@ -547,9 +554,9 @@ static enum MHD_Result model_resource(struct req *r, const char *id)
     if (!strcmp(r->method, "DELETE")) {
         int gone = store_model_delete(r->svc->store, id, scope(r));
         ok = gone < 0 ? problem(r, 500, "the store failed", NULL) : text(r, 204, NULL, "");
-    } else { /* a model never changes: its id is a strong tag */
-        char etag[48];
-        snprintf(etag, sizeof etag, "\"%s\"", id);
+    } else { /* a model changes only by its edits: its id and their count are a strong tag */
+        char etag[64];
+        snprintf(etag, sizeof etag, "\"%s.%ld\"", id, iso_model_edits(resource));
         const char *inm = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_IF_NONE_MATCH);
         struct reply rp = {200, "application/json", resource, strlen(resource), {{"ETag", etag}}};
         if (inm && (strstr(inm, etag) || !strcmp(inm, "*")))
@@ -570,6 +577,13 @@ static enum MHD_Result model_sub(struct req *r, const char *id, const char *what
 static enum MHD_Result model_mesh_route(struct req *r, const char *id) { return model_sub(r, id, "mesh"); }
 static enum MHD_Result model_patches_route(struct req *r, const char *id) { return model_sub(r, id, "patches"); }
 static enum MHD_Result model_view_route(struct req *r, const char *id) { return model_sub(r, id, "render"); }
+
+/* POST /models/{id}/edit: an edit job of the model (the token's), its id in ?model. */
+static enum MHD_Result model_edit_route(struct req *r, const char *id)
+{
+    enum MHD_Result ok;
+    return model_found(r, id, NULL, &ok) ? post_job_on(r, job_kind("edit"), id) : ok;
+}
 
 /* ---- routing ---------------------------------------------------------------------------- */
 
@@ -728,6 +742,7 @@ static const struct route {
     {"/models/{id}/mesh", GET, false, model_mesh_route, NULL},
     {"/models/{id}/patches", GET, false, model_patches_route, NULL},
     {"/models/{id}/render", GET, false, model_view_route, NULL},
+    {"/models/{id}/edit", POST, false, model_edit_route, NULL},
     {"/jobs", GET, false, jobs, NULL},
     {"/jobs/{id}", GET, false, job, NULL},
     {"/jobs/{id}/result", GET, false, result, NULL},

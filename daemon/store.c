@@ -120,6 +120,46 @@ int store_model_delete(struct store *s, const char *id, const char *owner)
     return s->ops->model_delete(s, id, owner);
 }
 
+int store_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit)
+{
+    return s->ops->model_edit(s, m, edit);
+}
+
+int store_volume_get(struct store *s, const char *id, int from, struct volume_rec **parts, int *n)
+{
+    *parts = NULL;
+    *n = 0;
+    return s->ops->volume_get(s, id, from, parts, n);
+}
+
+void store_volume_free(struct volume_rec *parts, int n)
+{
+    for (int k = 0; k < n; k++) {
+        free((void *)parts[k].format);
+        free((void *)parts[k].options);
+        free((void *)parts[k].data);
+    }
+    free(parts);
+}
+
+/* One more part for a backend's volume_get (format, options and data copied): 0 or -1. */
+int store_volume_add(struct volume_rec **parts, int *n, int seq, const char *format, const char *options,
+                     const void *data, size_t len)
+{
+    struct volume_rec *p = realloc(*parts, (size_t)(*n + 1) * sizeof *p);
+    if (!p)
+        return -1;
+    *parts = p;
+    char *f = strdup(format), *o = strdup(options), *d = malloc(len ? len : 1);
+    if (!f || !o || !d) {
+        free(f), free(o), free(d);
+        return -1;
+    }
+    memcpy(d, data, len);
+    p[(*n)++] = (struct volume_rec){seq, f, o, d, len};
+    return 0;
+}
+
 bool store_writable(struct store *s) { return s->ops->writable(s); }
 
 void store_on_event(struct store *s, void (*fn)(enum store_event, const char *, void *), void *arg)

@@ -146,16 +146,38 @@ long store_queued(struct store *s);
 
 /* ---- models: made by model jobs, kept until deleted (job pruning leaves them) ---- */
 
-/* source is the contour JSON a model is rebuilt from, resource the JSON of GET /models/{id}. */
+/* A part of a model's volume, kept for edits (POST /models/{id}/edit): seq 0 the volume as it was
+ * posted (its format, options and body), then each edit in order (seq 1, 2 ...: options the
+ * edit's region, data its samples). */
+struct volume_rec {
+    int seq;
+    const char *format, *options;
+    const void *data;
+    size_t len;
+};
+
+/* source is the contour JSON a model is rebuilt from (an isosurface's mesh, packed), resource the
+ * JSON of GET /models/{id}, volume (NULL: none) the volume an isosurface came from (seq 0). */
 struct model_rec {
     const char *id, *job, *name, *owner;
     double created;
     const char *source;
     size_t source_len;
     const char *resource;
+    const struct volume_rec *volume;
 };
-/* Inserts, or replaces a model of the same id (a job run again after a crash). 0 or -1. */
+/* Inserts, or replaces a model of the same id (a job run again after a crash), with its volume
+ * (and no edits). 0 or -1. */
 int store_model_put(struct store *s, const struct model_rec *m);
+/* An edit of model m->id in one transaction: the volume part edit (its seq the next one) and the
+ * model's new source and resource. 1 stored, 0 when that seq is taken (another edit came first)
+ * or the model is gone, -1. */
+int store_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit);
+/* The parts of model id's volume from seq from on, in order (*parts: caller frees with
+ * store_volume_free; their bytes checked against the sums taken when written): 1 (n >= 1), 0
+ * (none), -1, STORE_DAMAGED. */
+int store_volume_get(struct store *s, const char *id, int from, struct volume_rec **parts, int *n);
+void store_volume_free(struct volume_rec *parts, int n);
 /* Models of another owner are not found, unless owner is NULL (every owner's).
  * 1 found (*resource, *source: caller frees; either pointer may be NULL), 0 not found, -1 error,
  * STORE_DAMAGED. */

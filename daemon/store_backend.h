@@ -30,6 +30,8 @@ struct store_ops {
                      size_t *source_len);
     int (*model_list)(struct store *, const char *owner, long limit, void (*fn)(const char *, void *), void *arg);
     int (*model_delete)(struct store *, const char *id, const char *owner);
+    int (*model_edit)(struct store *, const struct model_rec *, const struct volume_rec *);
+    int (*volume_get)(struct store *, const char *id, int from, struct volume_rec **parts, int *n);
     bool (*writable)(struct store *);
     void (*on_event)(struct store *, void (*fn)(enum store_event, const char *, void *), void *arg); /* may be NULL */
 };
@@ -41,6 +43,10 @@ struct store_ops {
 struct store {
     const struct store_ops *ops;
 };
+
+/* One more part for a backend's volume_get (format, options and data copied): 0 or -1. */
+int store_volume_add(struct volume_rec **parts, int *n, int seq, const char *format, const char *options,
+                     const void *data, size_t len);
 
 /* The backends' openers: 0 and *out, or -1 with msg. */
 int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg_len);

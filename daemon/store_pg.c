@@ -75,7 +75,10 @@ static const char SCHEMA[] =
     " id text PRIMARY KEY, job text NOT NULL, name text NOT NULL, created double precision NOT NULL,"
     " source bytea NOT NULL, resource text NOT NULL, owner text NOT NULL DEFAULT '', sum text);"
     "ALTER TABLE models ADD COLUMN IF NOT EXISTS resource_sum text;"
-    "CREATE INDEX IF NOT EXISTS models_created ON models(created);";
+    "CREATE INDEX IF NOT EXISTS models_created ON models(created);"
+    "CREATE TABLE IF NOT EXISTS model_volumes (model text NOT NULL REFERENCES models(id) ON DELETE CASCADE,"
+    " seq integer NOT NULL, format text NOT NULL, options text NOT NULL, data bytea NOT NULL, sum text NOT NULL,"
+    " PRIMARY KEY (model, seq));";
 
 #define NOW "extract(epoch from clock_timestamp())"
 
@@ -651,7 +654,30 @@ static long pg_queued(struct store *s)
 
 /* ---- models ---- */
 
-static int pg_model_put(struct store *s, const struct model_rec *m)
+/* One statement of a transaction on connection c: the rows it changed, or -1. */
+static int exec_in(struct pg_store *p, int c, const char *sql, int n, const struct param *prm)
+{
+    PGresult *res = execute(p, c, sql, n, prm, false);
+    int rows = res ? atoi(PQcmdTuples(res)) : -1;
+    PQclear(res);
+    return rows;
+}
+
+/* Volume part v of model id on connection c: 1, 0 when its seq is taken, -1. */
+static int volume_put(struct pg_store *p, int c, const char *id, const struct volume_rec *v)
+{
+    char seq[16], sum[65];
+    snprintf(seq, sizeof seq, "%d", v->seq);
+    store_checksum(v->options, strlen(v->options), v->data, v->len, sum);
+    struct param prm[] = {T(id), T(seq), T(v->format), T(v->options), BIN(v->len ? v->data : "", v->len), T(sum)};
+    return exec_in(p, c,
+                   "INSERT INTO model_volumes(model,seq,format,options,data,sum) VALUES($1,$2,$3,$4,$5,$6)"
+                   " ON CONFLICT DO NOTHING",
+                   6, prm);
+}
+
+/* The model's row (update: only its source and resource, of an existing row) on connection c. */
+static int model_row(struct pg_store *p, int c, const struct model_rec *m, bool update)
 {
     char created[32], sum[65], rsum[65];
     num(created, sizeof created, m->created);
@@ -659,13 +685,75 @@ static int pg_model_put(struct store *s, const struct model_rec *m)
     store_checksum(m->resource, strlen(m->resource), "", 0, rsum);
     struct param prm[] = {T(m->id), T(m->job), T(m->name ? m->name : ""), T(created), BIN(m->source, m->source_len),
                           T(m->resource), T(m->owner ? m->owner : ""), T(sum), T(rsum)};
-    return exec1(s, NULL,
-                 "INSERT INTO models(id,job,name,created,source,resource,owner,sum,resource_sum)"
-                 " VALUES($1,$2,$3,$4,$5,$6,$7,$8,$9)"
-                 " ON CONFLICT (id) DO UPDATE SET job=EXCLUDED.job, name=EXCLUDED.name, created=EXCLUDED.created,"
-                 " source=EXCLUDED.source, resource=EXCLUDED.resource, owner=EXCLUDED.owner, sum=EXCLUDED.sum,"
-                 " resource_sum=EXCLUDED.resource_sum",
-                 9, prm) == 1 ? 0 : -1;
+    if (update) {
+        struct param up[] = {prm[0], prm[4], prm[5], prm[7], prm[8]};
+        return exec_in(p, c, "UPDATE models SET source=$2, resource=$3, sum=$4, resource_sum=$5 WHERE id=$1", 5, up);
+    }
+    return exec_in(p, c,
+                   "INSERT INTO models(id,job,name,created,source,resource,owner,sum,resource_sum)"
+                   " VALUES($1,$2,$3,$4,$5,$6,$7,$8,$9)"
+                   " ON CONFLICT (id) DO UPDATE SET job=EXCLUDED.job, name=EXCLUDED.name, created=EXCLUDED.created,"
+                   " source=EXCLUDED.source, resource=EXCLUDED.resource, owner=EXCLUDED.owner, sum=EXCLUDED.sum,"
+                   " resource_sum=EXCLUDED.resource_sum",
+                   9, prm);
+}
+
+/* A model's row and a volume part in one transaction: 1 (committed), 0 (the part's seq was
+ * taken, or no such model to update: nothing written), -1. */
+static int model_txn(struct store *s, const struct model_rec *m, const struct volume_rec *v, bool update)
+{
+    struct pg_store *p = pg(s);
+    int c = take(p), rc = -1;
+    PGresult *res = execute(p, c, "BEGIN", 0, NULL, true);
+    if (res) {
+        PQclear(res);
+        struct param id[] = {T(m->id)};
+        rc = model_row(p, c, m, update);
+        if (rc == 1 && !update && exec_in(p, c, "DELETE FROM model_volumes WHERE model=$1", 1, id) < 0)
+            rc = -1;
+        if (rc == 1 && v)
+            rc = volume_put(p, c, m->id, v);
+        res = execute(p, c, rc == 1 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
+        if (!res)
+            rc = -1;
+        PQclear(res);
+    }
+    give(p, c);
+    return rc;
+}
+
+static int pg_model_put(struct store *s, const struct model_rec *m) { return model_txn(s, m, m->volume, false) == 1 ? 0 : -1; }
+
+static int pg_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit)
+{
+    return model_txn(s, m, edit, true);
+}
+
+static int pg_volume_get(struct store *s, const char *id, int from, struct volume_rec **parts, int *n)
+{
+    char f[16];
+    snprintf(f, sizeof f, "%d", from);
+    struct param prm[] = {T(id), T(f)};
+    PGresult *res;
+    int rows = exec1(s, &res,
+                     "SELECT seq, format, options, data, sum FROM model_volumes WHERE model=$1 AND seq>=$2::integer"
+                     " ORDER BY seq",
+                     2, prm);
+    if (rows < 0)
+        return -1;
+    int found = rows > 0;
+    for (int k = 0; k < rows && found == 1; k++) {
+        const char *opt = PQgetvalue(res, k, 2), *data = PQgetvalue(res, k, 3);
+        size_t len = (size_t)PQgetlength(res, k, 3);
+        char sum[65];
+        store_checksum(opt, strlen(opt), data, len, sum);
+        if (strcmp(sum, PQgetvalue(res, k, 4)))
+            found = STORE_DAMAGED;
+        else if (store_volume_add(parts, n, (int)get_i64(res, k, 0), PQgetvalue(res, k, 1), opt, data, len))
+            found = -1;
+    }
+    PQclear(res);
+    return found;
 }
 
 /* The resource alone, checked against its own sum, without fetching the source: 1, 0, -1,
@@ -853,8 +941,8 @@ static void pg_close(struct store *s)
 static const struct store_ops PG_OPS = {
     "postgresql", pg_close,     pg_submit,    pg_submit_file, pg_request_file, pg_request_file_done, pg_claim,      pg_heartbeat,    pg_finish,
     pg_release,   pg_cancel,    pg_reap,      pg_prune,      pg_get,          pg_list,
-    pg_queued,    pg_model_put, pg_model_get, pg_model_list, pg_model_delete, pg_writable,
-    pg_on_event,
+    pg_queued,    pg_model_put, pg_model_get, pg_model_list, pg_model_delete, pg_model_edit, pg_volume_get,
+    pg_writable,  pg_on_event,
 };
 
 int store_pg_open(const char *uri, const char *scratch, struct store **out, char *msg, size_t msg_len)

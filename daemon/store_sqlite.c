@@ -40,6 +40,9 @@ static const char SCHEMA[] =
     " id TEXT PRIMARY KEY, job TEXT NOT NULL, name TEXT NOT NULL, created REAL NOT NULL,"
     " source BLOB NOT NULL, resource TEXT NOT NULL);"
     "CREATE INDEX IF NOT EXISTS models_created ON models(created);"
+    "CREATE TABLE IF NOT EXISTS model_volumes ("
+    " model TEXT NOT NULL, seq INTEGER NOT NULL, format TEXT NOT NULL, options TEXT NOT NULL, data BLOB NOT NULL,"
+    " sum TEXT NOT NULL, PRIMARY KEY (model, seq));"
     "CREATE TABLE IF NOT EXISTS probe (x INTEGER);";
 
 /* Columns added after the first release, for databases made before them: added when missing. */
@@ -153,18 +156,34 @@ static double wall_now(void)
 static int sq_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out);
 
 /* Runs one statement to its end: the rows it changed (or, a query, returned), or -1. */
-static int run(struct store *s, const char *sql, const char *types, ...)
+static int vrun(struct store *s, const char *sql, const char *types, va_list ap)
 {
-    va_list ap;
-    va_start(ap, types);
-    pthread_mutex_lock(lock_of(s));
     sqlite3_stmt *st = prepare(s, sql, types, ap);
     int rc = st ? sqlite3_step(st) : SQLITE_ERROR, rows = 0;
     while (rc == SQLITE_ROW)
         rc = sqlite3_step(st), rows++;
     int n = rc != SQLITE_DONE ? -1 : sqlite3_stmt_readonly(st) ? rows : sqlite3_changes(db_of(s));
     sqlite3_finalize(st);
+    return n;
+}
+
+static int run(struct store *s, const char *sql, const char *types, ...)
+{
+    va_list ap;
+    va_start(ap, types);
+    pthread_mutex_lock(lock_of(s));
+    int n = vrun(s, sql, types, ap);
     pthread_mutex_unlock(lock_of(s));
+    va_end(ap);
+    return n;
+}
+
+/* run() inside a transaction whose lock the caller holds. */
+static int run_held(struct store *s, const char *sql, const char *types, ...)
+{
+    va_list ap;
+    va_start(ap, types);
+    int n = vrun(s, sql, types, ap);
     va_end(ap);
     return n;
 }
@@ -521,15 +540,97 @@ static long sq_queued(struct store *s)
 
 /* ---- models ---- */
 
-static int sq_model_put(struct store *s, const struct model_rec *m)
+/* Volume part v of model id (lock held): 1, or 0 when its seq is taken, -1. */
+static int volume_put(struct store *s, const char *id, const struct volume_rec *v)
+{
+    char sum[65];
+    store_checksum(v->options, strlen(v->options), v->data, v->len, sum);
+    int n = run_held(s, "INSERT OR IGNORE INTO model_volumes(model,seq,format,options,data,sum) VALUES(?,?,?,?,?,?)",
+                     "tittbt", id, (long)v->seq, v->format, v->options, v->data, v->len, sum);
+    return n < 0 ? -1 : n;
+}
+
+/* Runs the steps of a write as one transaction, under the lock: step's answer (1 commits). */
+static int transaction(struct store *s, int (*step)(struct store *, const void *, const void *), const void *a,
+                       const void *b)
+{
+    pthread_mutex_lock(lock_of(s));
+    int rc = run_held(s, "BEGIN IMMEDIATE", "") < 0 ? -1 : step(s, a, b);
+    if (rc >= 0 && run_held(s, rc == 1 ? "COMMIT" : "ROLLBACK", "") < 0)
+        rc = -1;
+    if (rc < 0)
+        run_held(s, "ROLLBACK", "");
+    pthread_mutex_unlock(lock_of(s));
+    return rc;
+}
+
+static int model_row(struct store *s, const struct model_rec *m, bool update)
 {
     char sum[65], rsum[65];
     store_checksum(m->source, m->source_len, m->resource, strlen(m->resource), sum);
     store_checksum(m->resource, strlen(m->resource), "", 0, rsum);
-    return run(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource,owner,sum,resource_sum)"
-               " VALUES(?,?,?,?,?,?,?,?,?)",
-               "tttdbtttt", m->id, m->job, m->name ? m->name : "", m->created, (const void *)m->source, m->source_len,
-               m->resource, m->owner ? m->owner : "", sum, rsum) == 1 ? 0 : -1;
+    if (update)
+        return run_held(s, "UPDATE models SET source=?2, resource=?3, sum=?4, resource_sum=?5 WHERE id=?1", "tbttt",
+                        m->id, (const void *)m->source, m->source_len, m->resource, sum, rsum);
+    return run_held(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource,owner,sum,resource_sum)"
+                    " VALUES(?,?,?,?,?,?,?,?,?)",
+                    "tttdbtttt", m->id, m->job, m->name ? m->name : "", m->created, (const void *)m->source,
+                    m->source_len, m->resource, m->owner ? m->owner : "", sum, rsum);
+}
+
+static int put_step(struct store *s, const void *a, const void *b)
+{
+    (void)b;
+    const struct model_rec *m = a;
+    if (model_row(s, m, false) != 1 || run_held(s, "DELETE FROM model_volumes WHERE model=?", "t", m->id) < 0)
+        return -1;
+    return m->volume ? (volume_put(s, m->id, m->volume) == 1 ? 1 : -1) : 1;
+}
+
+static int sq_model_put(struct store *s, const struct model_rec *m) { return transaction(s, put_step, m, NULL) == 1 ? 0 : -1; }
+
+static int edit_step(struct store *s, const void *a, const void *b)
+{
+    const struct model_rec *m = a;
+    int n = model_row(s, m, true);
+    return n == 1 ? volume_put(s, m->id, b) : n;
+}
+
+static int sq_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit)
+{
+    return transaction(s, edit_step, m, edit);
+}
+
+static int sq_volume_get(struct store *s, const char *id, int from, struct volume_rec **parts, int *n)
+{
+    sqlite3_stmt *st;
+    int found = -1;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s),
+                           "SELECT seq, format, options, data, sum FROM model_volumes WHERE model=?1 AND seq>=?2 ORDER BY seq",
+                           -1, &st, NULL) == SQLITE_OK) {
+        sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
+        sqlite3_bind_int(st, 2, from);
+        int rc = SQLITE_DONE;
+        found = 0;
+        while (found >= 0 && (rc = sqlite3_step(st)) == SQLITE_ROW) {
+            const char *opt = (const char *)sqlite3_column_text(st, 2);
+            const void *data = sqlite3_column_blob(st, 3);
+            size_t len = (size_t)sqlite3_column_bytes(st, 3);
+            if (!sum_ok(st, 4, opt, strlen(opt), data, len))
+                found = STORE_DAMAGED;
+            else if (store_volume_add(parts, n, sqlite3_column_int(st, 0), (const char *)sqlite3_column_text(st, 1), opt,
+                                      data ? data : "", len))
+                found = -1;
+            else
+                found = 1;
+        }
+        if (found >= 0 && rc != SQLITE_DONE)
+            found = -1;
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return found;
 }
 
 /* The resource alone, checked against its own sum, without reading the source (a mesh of
@@ -613,6 +714,8 @@ static int sq_model_list(struct store *s, const char *owner, long limit, void (*
 static int sq_model_delete(struct store *s, const char *id, const char *owner)
 {
     int n = run(s, "DELETE FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)", "tt", id, owner);
+    if (n > 0 && run(s, "DELETE FROM model_volumes WHERE model=?", "t", id) < 0)
+        return -1;
     return n < 0 ? -1 : n > 0;
 }
 
@@ -624,6 +727,6 @@ static bool sq_writable(struct store *s)
 static const struct store_ops SQLITE_OPS = {
     "sqlite",     sq_close,      sq_submit,    sq_submit_file, sq_request_file, sq_request_file_done, sq_claim,     sq_heartbeat,    sq_finish,
     sq_release,   sq_cancel,     sq_reap,      sq_prune,     sq_get,          sq_list,
-    sq_queued,    sq_model_put,  sq_model_get, sq_model_list, sq_model_delete, sq_writable,
-    NULL,
+    sq_queued,    sq_model_put,  sq_model_get, sq_model_list, sq_model_delete, sq_model_edit, sq_volume_get,
+    sq_writable,  NULL,
 };

@@ -15,7 +15,8 @@
     X(SF_EFORMAT,  -4, "unreadable input")                             \
     X(SF_ECANCEL,  -5, "cancelled")                                    \
     X(SF_EIO,      -6, "input/output error")                           \
-    X(SF_EBACKEND, -7, "library failure")
+    X(SF_EBACKEND, -7, "library failure")                             \
+    X(SF_ECONFLICT, -8, "conflicts with the resource's state")
 
 enum {
     SF_OK = 0,

@@ -1845,3 +1845,13 @@ int iso_adapt_edit(struct iso_adapt *a, const int lo[3], const struct iso_grid *
     }
     return 0;
 }
+
+size_t iso_adapt_bytes(const struct iso_adapt *a)
+{
+    size_t n = (size_t)a->N[0] * a->N[1] * a->N[2] * sizeof *a->F, nb2 = (size_t)a->nb[2][0] * a->nb[2][1] * a->nb[2][2];
+    for (int l = 2; l <= a->L; l++)
+        n += (size_t)a->nb[l][0] * a->nb[l][1] * a->nb[l][2] * (2 + (a->berr[l] ? sizeof(double) : 0));
+    n += nb2 * 3 + a->all.cap * (sizeof(uint64_t) + sizeof(uint32_t));
+    n += a->all.vcap * 2 * sizeof(float) + a->all.kcap * sizeof(uint64_t) + a->rcap * sizeof(uint32_t);
+    return n + a->all.tcap * sizeof(uint32_t) + a->all.ocap * sizeof(uint32_t);
+}

@@ -107,6 +107,9 @@ int iso_adapt_mesh(const struct iso_adapt *a, struct trimesh *out, struct iso_ad
 int iso_adapt_edit(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
                    struct sf_err *err);
 
+/* The memory a holds, in bytes. */
+size_t iso_adapt_bytes(const struct iso_adapt *a);
+
 /* All of it on the calling thread, polling pr. 0, or SF_EINVAL, SF_ENOMEM, SF_ELIMIT, SF_ECANCEL. */
 int iso_extract_adaptive(const struct iso_grid *g, const struct iso_opts *o, int levels, double max_error,
                          const struct sf_progress *pr, struct trimesh *out, struct iso_adapt_stats *st,

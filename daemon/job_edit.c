@@ -1,0 +1,435 @@
+/* job_edit.c - the edit job kind (POST /models/{id}/edit?region=x0,y0,z0,nx,ny,nz, the body the
+ * block's raw samples in the model's sample type): the model's stored volume changes and only the
+ * cells the new samples reach are drawn again (seed 002's local rebuild, core/iso/adapt.h), so
+ * that the mesh equals what a fresh POST /isosurface of the edited volume gives.
+ *
+ * The store keeps each isosurface model's volume as it was posted (seq 0) and every edit after it
+ * (seq 1, 2 ...), so any node can rebuild a model's hierarchy: from the volume and its edits in
+ * order, after a restart or on a node that has not seen the model. The hierarchies of the models
+ * edited last are kept in memory here (the cell <-> triangle map with them), within edit-memory
+ * bytes, the least recently used let go first; an isosurface job leaves its own here when it
+ * fits. Before an edit the parts another node stored since are applied (a shared store), and the
+ * edit is stored under the next seq in one transaction with the new mesh: if another node took
+ * that seq first, the hierarchy is let go and the edit answered 409 (sent again, it is applied
+ * after the other). Models of levels 1 without features are drawn by marching cubes (mc.c), whose
+ * cells this does not keep: their edits write the samples and draw every cell again (whole).
+ * An FRep model is edited by an FRep object, which is not built yet (409). */
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../api/iso_json.h"
+#include "../api/mesh_io.h"
+#include "../api/query.h"
+#include "../api/volume_io.h"
+#include "kinds.h"
+
+/* ---- the hierarchies kept ---- */
+
+struct live {
+    char id[40];
+    int next_seq;            /* the volume's parts applied: 0 .. next_seq - 1 */
+    struct volume vol;       /* its settings; its samples only when a is NULL (marching cubes) */
+    struct iso_adapt *a;     /* the kept hierarchy (levels over 1, or features) */
+    size_t bytes;
+    double used;
+    int users;
+    bool dropped;            /* out of the list: freed when its last user lets go */
+    pthread_mutex_t lock;    /* one edit of a model at a time */
+    struct live *next;
+};
+
+static struct {
+    pthread_mutex_t lock;
+    struct live *head;
+    size_t bytes;
+} kept = {PTHREAD_MUTEX_INITIALIZER, NULL, 0};
+
+static void live_free(struct live *e)
+{
+    iso_adapt_free(e->a);
+    volume_free(&e->vol);
+    pthread_mutex_destroy(&e->lock);
+    free(e);
+}
+
+static size_t live_bytes(const struct live *e)
+{
+    size_t n = e->a ? iso_adapt_bytes(e->a) : 0;
+    if (e->vol.owned)
+        n += (size_t)e->vol.g.nx * e->vol.g.ny * e->vol.g.nz * (e->vol.g.type == ISO_U8 ? 1 : e->vol.g.type == ISO_F32 ? 4 : 2);
+    return n;
+}
+
+/* Out of the list (cache lock held). */
+static void unlink_live(struct live *e)
+{
+    for (struct live **p = &kept.head; *p; p = &(*p)->next)
+        if (*p == e) {
+            *p = e->next;
+            kept.bytes -= e->bytes;
+            e->dropped = true;
+            break;
+        }
+}
+
+/* The least recently used ones nobody holds let go until the rest fit in budget (lock held). */
+static void trim(size_t budget)
+{
+    while (kept.bytes > budget) {
+        struct live *old = NULL;
+        for (struct live *e = kept.head; e; e = e->next)
+            if (!e->users && (!old || e->used < old->used))
+                old = e;
+        if (!old)
+            return;
+        unlink_live(old);
+        live_free(old);
+    }
+}
+
+/* Model id's kept hierarchy, held and locked (NULL: none kept). */
+static struct live *live_take(const char *id)
+{
+    pthread_mutex_lock(&kept.lock);
+    struct live *e = kept.head;
+    while (e && strcmp(e->id, id))
+        e = e->next;
+    if (e)
+        e->users++;
+    pthread_mutex_unlock(&kept.lock);
+    if (e)
+        pthread_mutex_lock(&e->lock);
+    return e;
+}
+
+/* Lets go of e (drop: it no longer matches the store, or is of no further use). */
+static void live_give(struct live *e, bool drop, size_t budget)
+{
+    pthread_mutex_unlock(&e->lock);
+    pthread_mutex_lock(&kept.lock);
+    if (drop && !e->dropped)
+        unlink_live(e);
+    if (!e->dropped) {
+        kept.bytes -= e->bytes;
+        e->bytes = live_bytes(e);
+        kept.bytes += e->bytes;
+        e->used = monotonic_s();
+    }
+    bool gone = --e->users == 0 && e->dropped;
+    trim(budget);
+    pthread_mutex_unlock(&kept.lock);
+    if (gone)
+        live_free(e);
+}
+
+/* A new entry of model id (holding vol and a), held and locked, or NULL. */
+static struct live *live_new(const char *id, struct volume *vol, struct iso_adapt *a, int next_seq)
+{
+    struct live *e = calloc(1, sizeof *e);
+    if (!e)
+        return NULL;
+    snprintf(e->id, sizeof e->id, "%s", id);
+    e->vol = *vol;
+    e->a = a;
+    e->next_seq = next_seq;
+    e->users = 1;
+    pthread_mutex_init(&e->lock, NULL);
+    pthread_mutex_lock(&e->lock);
+    pthread_mutex_lock(&kept.lock);
+    struct live *old = kept.head;
+    while (old && strcmp(old->id, id))
+        old = old->next;
+    if (old) { /* (another job rebuilt it meanwhile: this one is newer) */
+        unlink_live(old);
+        if (!old->users)
+            live_free(old);
+    }
+    e->next = kept.head;
+    kept.head = e;
+    e->bytes = live_bytes(e);
+    kept.bytes += e->bytes;
+    pthread_mutex_unlock(&kept.lock);
+    return e;
+}
+
+void edit_keep(struct service *svc, const char *id, const struct volume *vol, struct iso_adapt *a)
+{
+    struct volume v = *vol;
+    v.g.samples = NULL, v.owned = NULL, v.frep = NULL;
+    if (!a)
+        return;
+    if (svc->cfg.edit_memory <= 0 || iso_adapt_bytes(a) > (size_t)svc->cfg.edit_memory) {
+        iso_adapt_free(a);
+        return;
+    }
+    struct live *e = live_new(id, &v, a, 1);
+    if (!e)
+        iso_adapt_free(a);
+    else
+        live_give(e, false, (size_t)svc->cfg.edit_memory);
+}
+
+/* ---- applying parts of the volume ---- */
+
+/* Block blk at lo written into grid g's samples (same type). */
+static void write_samples(struct iso_grid *g, const int lo[3], const struct iso_grid *blk)
+{
+    size_t ts = g->type == ISO_U8 ? 1 : g->type == ISO_F32 ? 4 : 2;
+    for (int z = 0; z < blk->nz; z++)
+        for (int y = 0; y < blk->ny; y++)
+            memcpy((char *)g->samples + ts * ((size_t)lo[0] + (size_t)g->nx * ((size_t)lo[1] + y + (size_t)g->ny * ((size_t)lo[2] + z))),
+                   (const char *)blk->samples + ts * (size_t)blk->nx * ((size_t)y + (size_t)blk->ny * z),
+                   ts * (size_t)blk->nx);
+}
+
+/* An edit (options: its region; data, len: its samples) applied to the kept volume e: into the
+ * hierarchy (ed: what it redrew) or, without one, into the samples. */
+static int apply(struct live *e, const char *options, const void *data, size_t len, struct iso_edit *ed,
+                 struct sf_err *err)
+{
+    int lo[3], n[3];
+    if (volume_region(options, &e->vol.g, len, lo, n, err))
+        return err->code;
+    struct iso_grid blk = {n[0], n[1], n[2], e->vol.g.type, data, {1, 1, 1}, {0, 0, 0}};
+    memset(ed, 0, sizeof *ed);
+    if (e->a)
+        return iso_adapt_edit(e->a, lo, &blk, ed, err);
+    write_samples(&e->vol.g, lo, &blk);
+    ed->whole = true;
+    return 0;
+}
+
+/* Model id's hierarchy rebuilt from the store (its volume, then its edits in order): held and
+ * locked, or NULL with err. */
+static struct live *rebuild(struct service *svc, const char *id, struct sf_err *err)
+{
+    struct volume_rec *parts;
+    int n, found = store_volume_get(svc->store, id, 0, &parts, &n);
+    if (found != 1 || parts[0].seq != 0) {
+        store_volume_free(parts, n);
+        sf_fail(err, found == 0 || found == 1 ? SF_ECONFLICT : SF_EIO, "",
+                found == 0 || found == 1 ? "this model keeps no volume to edit (made before edits were kept, or not "
+                                           "an isosurface of samples)"
+                                         : "the model's volume could not be read from the store");
+        return NULL;
+    }
+    struct volume vol;
+    struct iso_adapt *a = NULL;
+    int rc = volume_read(parts[0].data, parts[0].len, parts[0].format, parts[0].options, &vol, err);
+    if (!rc && vol.frep)
+        rc = sf_fail(err, SF_ECONFLICT, "", "an FRep model is edited by an FRep object (not built yet), not by samples");
+    if (!rc && !vol.owned) { /* the samples in the part's bytes: copied, to be written */
+        size_t bytes = (size_t)vol.g.nx * vol.g.ny * vol.g.nz * (vol.g.type == ISO_U8 ? 1 : vol.g.type == ISO_F32 ? 4 : 2);
+        if (!(vol.owned = malloc(bytes)))
+            rc = sf_fail(err, SF_ENOMEM, "", "out of memory for the model's volume");
+        else
+            vol.g.samples = memcpy(vol.owned, vol.g.samples, bytes);
+    }
+    struct live tmp = {.vol = vol};
+    for (int k = 1; k < n && !rc; k++) {
+        struct iso_edit ed;
+        rc = apply(&tmp, parts[k].options, parts[k].data, parts[k].len, &ed, err);
+    }
+    if (!rc && volume_adaptive(&vol)) {
+        struct iso_opts o = volume_iso_opts(&vol);
+        o.keep = true;
+        if (!(rc = iso_adapt_begin(&vol.g, &o, vol.levels, vol.max_error, &a, err))) {
+            for (int p = 0; p < iso_adapt_phases(a); p++) {
+                for (int s = 0; s < iso_adapt_n_slabs(a); s++)
+                    iso_adapt_run(a, p, s);
+                iso_adapt_between(a, p);
+            }
+            struct iso_adapt_stats st;
+            rc = iso_adapt_keep(a, &st, err);
+        }
+        free(vol.owned); /* the hierarchy holds the samples now */
+        vol.owned = NULL, vol.g.samples = NULL;
+    }
+    int next = parts[n - 1].seq + 1;
+    store_volume_free(parts, n);
+    if (rc) {
+        iso_adapt_free(a);
+        volume_free(&vol);
+        return NULL;
+    }
+    struct live *e = live_new(id, &vol, a, next);
+    if (!e) {
+        iso_adapt_free(a);
+        volume_free(&vol);
+        sf_fail(err, SF_ENOMEM, "", "out of memory");
+    }
+    return e;
+}
+
+/* The parts other nodes stored since e was built, applied. 0 or an error. */
+static int catch_up(struct service *svc, struct live *e, struct sf_err *err)
+{
+    struct volume_rec *parts;
+    int n, found = store_volume_get(svc->store, e->id, e->next_seq, &parts, &n), rc = 0;
+    if (found < 0)
+        rc = sf_fail(err, SF_EIO, "", "the model's volume could not be read from the store");
+    for (int k = 0; k < n && !rc; k++) {
+        struct iso_edit ed;
+        if (parts[k].seq != e->next_seq)
+            rc = sf_fail(err, SF_EIO, "", "the model's edits in the store skip from %d to %d", e->next_seq, parts[k].seq);
+        else if (!(rc = apply(e, parts[k].options, parts[k].data, parts[k].len, &ed, err)))
+            e->next_seq++;
+    }
+    store_volume_free(parts, n);
+    return rc;
+}
+
+/* ---- the job ---- */
+
+struct edit_work {
+    struct service *svc;
+    struct job_claim claim;
+    char *json;
+    size_t len;
+    char meta[128];
+    struct sf_err err;
+};
+
+/* The edit applied to e and stored with the mesh it gives: the new resource into w->json. */
+static int edit_model(struct edit_work *w, struct live *e, const struct job_rec *rec, const char *model, bool *drop)
+{
+    char region[128];
+    query_option(rec->options, "region", region, sizeof region);
+    double t0 = monotonic_s();
+    struct iso_model_edit me = {region, {0}, 0};
+    int rc = catch_up(w->svc, e, &w->err);
+    if (rc)
+        return rc;
+    *drop = true; /* from here the entry is ahead of the store until the edit is stored */
+    double ta = monotonic_s();
+    if ((rc = apply(e, rec->options, rec->request, rec->request_len, &me.e, &w->err)))
+        return rc;
+    me.ms = (monotonic_s() - ta) * 1e3;
+    struct trimesh m;
+    struct iso_adapt_stats ast = {0};
+    if (e->a) {
+        rc = iso_adapt_mesh(e->a, &m, &ast, &w->err);
+    } else {
+        struct iso_opts o = volume_iso_opts(&e->vol);
+        rc = iso_extract(&e->vol.g, &o, NULL, &m, &w->err);
+        me.e.cells_rebuilt = (long)(e->vol.g.nx + 1) * (e->vol.g.ny + 1) * (e->vol.g.nz + 1);
+        me.e.triangles_added = (long)m.n_tri;
+    }
+    double t_mesh = monotonic_s();
+    if (!e->a)
+        me.ms = (t_mesh - ta) * 1e3; /* (marching cubes: every cell drawn again) */
+    if (!rc)
+        rc = volume_mesh_empty(&e->vol, &m, &w->err);
+    if (!rc && e->vol.oblique)
+        trimesh_turn(&m, e->vol.g.origin, (const double(*)[3])e->vol.axes);
+    struct trimesh_stats st;
+    char *packed = NULL;
+    size_t packed_len = 0;
+    double t1 = monotonic_s();
+    if (!rc)
+        rc = trimesh_stats(&m, &st, &w->err);
+    if (!rc)
+        rc = mesh_pack(&m, &packed, &packed_len, &w->err);
+    if (!rc) {
+        double t2 = monotonic_s();
+        struct iso_model im = {model, e->vol.name, &e->vol, &st, e->a ? &ast : NULL, m.n_vert, m.n_tri,
+                               {(ta - t0) * 1e3, 0, (t_mesh - ta) * 1e3, (t2 - t1) * 1e3, (t2 - t0) * 1e3}, e->next_seq,
+                               &me};
+        if (!(w->json = iso_model_json(&im, &w->err)))
+            rc = w->err.code;
+    }
+    trimesh_free(&m);
+    if (!rc) {
+        struct model_rec mr = {model, model, NULL, NULL, 0, packed, packed_len, w->json, NULL};
+        struct volume_rec part = {e->next_seq, "edit", rec->options, rec->request, rec->request_len};
+        int stored = store_model_edit(w->svc->store, &mr, &part);
+        if (stored == 1) {
+            e->next_seq++;
+            *drop = false;
+        } else {
+            rc = stored == 0 ? sf_fail(&w->err, SF_ECONFLICT, "", "the model was edited by another request meanwhile "
+                                                                   "(or deleted); send the edit again")
+                             : sf_fail(&w->err, SF_EIO, "", "the store would not take the edit");
+        }
+    }
+    free(packed);
+    return rc;
+}
+
+static int prepare(struct job *j, void *arg, int *n_bands)
+{
+    (void)j;
+    struct edit_work *w = arg;
+    *n_bands = 0;
+    struct job_rec rec;
+    if (store_get(w->svc->store, w->claim.id, true, false, &rec) != 1)
+        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
+    char model[40];
+    query_option(rec.options, "model", model, sizeof model);
+    struct live *e = live_take(model);
+    if (!e)
+        e = rebuild(w->svc, model, &w->err);
+    int rc = e ? 0 : -1;
+    if (e) {
+        bool drop = false;
+        rc = edit_model(w, e, &rec, model, &drop);
+        live_give(e, drop || (e->a == NULL && !e->vol.owned), (size_t)w->svc->cfg.edit_memory);
+    }
+    if (!rc) {
+        w->len = strlen(w->json);
+        snprintf(w->meta, sizeof w->meta, "{\"status\":200}");
+    }
+    store_rec_free(&rec);
+    return rc ? -1 : 0;
+}
+
+static void finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
+{
+    (void)j;
+    struct edit_work *w = arg;
+    service_job_end(w->svc, &w->claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
+                    "application/json", w->meta[0] ? w->meta : NULL, &w->err);
+    free(w->json);
+    free(w);
+}
+
+static const struct job_ops EDIT_OPS = {.prepare = prepare, .finish = finish};
+
+int edit_start(struct service *svc, const struct job_claim *c)
+{
+    struct edit_work *w = calloc(1, sizeof *w);
+    if (!w)
+        return -1;
+    w->svc = svc;
+    w->claim = *c;
+    if (jobq_submit(svc->q, c->id, &EDIT_OPS, w, true)) {
+        free(w);
+        return -1;
+    }
+    return 0;
+}
+
+const char *edit_format(const char *content_type)
+{
+    (void)content_type;
+    return "raw";
+}
+
+/* The route checked the model (found, the token's) and put its id in ?model; here: it is an
+ * isosurface of samples, and the region and the body fit its grid. */
+int edit_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+{
+    char model[40], *resource = NULL;
+    query_option(b->options, "model", model, sizeof model);
+    if (store_model_get(svc->store, model, NULL, &resource, NULL, NULL) != 1)
+        return sf_fail(err, SF_EINVAL, "", "no such model");
+    struct iso_grid g;
+    int rc = iso_model_grid(resource, &g, err), lo[3], n[3];
+    if (!rc)
+        rc = volume_region(b->options, &g, b->len, lo, n, err);
+    free(resource);
+    return rc;
+}

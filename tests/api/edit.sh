@@ -1,0 +1,97 @@
+#!/bin/sh
+# POST /models/{id}/edit through HTTP (issue 15): a block of new samples changes an isosurface
+# model, and its mesh equals, triangle for triangle, what a fresh POST /isosurface of the edited
+# volume gives: with the hierarchy (levels 2, levels 3 with features) and with marching cubes
+# (levels 1, every cell drawn again); after a restart (the hierarchy rebuilt from the volume and the
+# edits kept in the store); the ETag follows the edits; every kind of bad edit with its status and
+# pointer, the daemon up after them.
+. "$(dirname "$0")/lib.inc"
+
+V="${SURFD_DATA:-../shared/data}/volumes"
+CT="$V/ct_head_crop64_int16.raw"
+[ -f "$CT" ] || { bad "../shared/data/volumes not found"; checks_done; exit 1; }
+RAW='Content-Type: application/octet-stream'
+G="dims=64,64,64&type=int16&spacing=0.9570312,0.9570312,1.5"
+E=tests/tools/edit_tool.py
+start_daemon "$T/d" --threads 2 || exit 1
+
+field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1])).get(sys.argv[2]))" "$T/body" "$1"; }
+edit_field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['edit'][sys.argv[2]])" "$T/body" "$1"; }
+python3 $E block 12 1400 -100 4.5 "$T/ball.raw"
+python3 $E block 10 -1000 300 3 "$T/hole.raw"
+python3 $E block 2 500 500 1 "$T/tiny.raw"
+
+# same_as_fresh ID Q VOLUME: model ID's STL against a fresh extraction of VOLUME with query Q
+same_as_fresh() {
+    status GET "/models/$1/mesh?format=stl" >/dev/null; cp "$T/body" "$T/edited.stl"
+    code=$(status POST "/isosurface?$2" -H "$RAW" --data-binary @"$3")
+    fresh=$(field id); fvol=$(field volume_mm3); ftri=$(field triangles)
+    status GET "/models/$fresh/mesh?format=stl" >/dev/null; cp "$T/body" "$T/fresh.stl"
+    [ "$code" = 201 ] && python3 $E same "$T/edited.stl" "$T/fresh.stl"
+}
+
+for opts in "iso=226.5&levels=2&max_error=0.5" "iso=226.5&levels=3&max_error=1&features=sharp" "iso=226.5"; do
+    Q="$G&$opts"
+    code=$(status POST "/isosurface?$Q" -H "$RAW" --data-binary @"$CT")
+    id=$(field id)
+    check "[$opts] the model, edits 0, its edit link" '[ "$code" = 201 ] && [ "$(field edits)" = 0 ] && grep -q "/models/$id/edit" "$T/body"'
+    code=$(status POST "/models/$id/edit?region=20,24,17,12,12,12" -H "$RAW" --data-binary @"$T/ball.raw")
+    check "... a 12^3 ball of bone: 200, edits 1, the cells drawn again and the triangles said" '[ "$code" = 200 ] && [ "$(field edits)" = 1 ] && [ "$(edit_field cells_rebuilt)" -gt 0 ] && [ "$(edit_field triangles_added)" -gt 0 ] && [ "$(field boundary_edges)" = 0 ] && [ "$(field nonmanifold_edges)" = 0 ]'
+    evol=$(field volume_mm3); etri=$(field triangles); whole=$(edit_field whole)
+    case "$opts" in *levels*) check "... only the cells it reaches (not every cell)" '[ "$whole" = False ]' ;;
+                    *) check "... marching cubes: every cell drawn again (whole)" '[ "$whole" = True ]' ;; esac
+    code=$(status POST "/models/$id/edit?region=0,50,52,10,10,10" -H "$RAW" --data-binary @"$T/hole.raw")
+    check "... a second edit, on the border: edits 2" '[ "$code" = 200 ] && [ "$(field edits)" = 2 ]'
+    evol=$(field volume_mm3); etri=$(field triangles)
+    python3 $E apply "$CT" 64,64,64 20,24,17,12,12,12 "$T/ball.raw" "$T/v1.raw"
+    python3 $E apply "$T/v1.raw" 64,64,64 0,50,52,10,10,10 "$T/hole.raw" "$T/v2.raw"
+    check "... the mesh equals a fresh POST /isosurface of the edited volume, triangle for triangle" 'same_as_fresh "$id" "$Q" "$T/v2.raw"'
+    check "... the same triangle count and volume" '[ "$ftri" = "$etri" ] && [ "$fvol" = "$evol" ]'
+done
+
+# ---- a restart: the hierarchy rebuilt from the stored volume and its edits ---------------------------
+Q="$G&iso=226.5&levels=2&max_error=0.5"
+code=$(status POST "/isosurface?$Q" -H "$RAW" --data-binary @"$CT"); id=$(field id)
+status POST "/models/$id/edit?region=20,24,17,12,12,12" -H "$RAW" --data-binary @"$T/ball.raw" >/dev/null
+etag1=$(status GET "/models/$id" >/dev/null; header ETag)
+stop_daemon
+start_daemon "$T/d" --threads 2 || exit 1
+code=$(status POST "/models/$id/edit?region=0,50,52,10,10,10" -H "$RAW" --data-binary @"$T/hole.raw")
+check "after a restart: the next edit (edits 2) on the rebuilt hierarchy" '[ "$code" = 200 ] && [ "$(field edits)" = 2 ]'
+check "... equal to a fresh extraction of the twice edited volume" 'same_as_fresh "$id" "$Q" "$T/v2.raw"'
+etag2=$(status GET "/models/$id" >/dev/null; header ETag)
+check "the ETag follows the edits (and 304 on the new one)" '[ -n "$etag1" ] && [ "$etag1" != "$etag2" ] && [ "$(status GET "/models/$id" -H "If-None-Match: $etag2")" = 304 ] && [ "$(status GET "/models/$id" -H "If-None-Match: $etag1")" = 200 ]'
+check "... and the mesh served is the edited one" '[ "$(status GET "/models/$id/mesh?format=stl")" = 200 ] && cmp -s "$T/body" "$T/edited.stl"'
+code=$(status POST "/models/$id/edit?region=0,0,0,2,2,2" -H "$RAW" --data-binary @"$T/tiny.raw" -H 'Prefer: respond-async')
+job=$(header Location | sed 's,.*/,,')
+check "an edit can be asynchronous: 202 and its job, which succeeds" '[ "$code" = 202 ] && [ -n "$job" ] && wait_state "$job" succeeded'
+
+# ---- bad edits -----------------------------------------------------------------------------------
+pointer() { python3 -c "import json,sys; e=json.load(open(sys.argv[1])).get('errors'); print(e[0]['pointer'] if e else '')" "$T/body"; }
+bad_edit() { # bad_edit LABEL STATUS POINTER QUERY [curl args]
+    label=$1; want=$2; ptr=$3; q=$4; shift 4
+    code=$(status POST "/models/$id/edit$q" "$@")
+    check "bad edit: $label -> $want${ptr:+ at $ptr}" '[ "$code" = "$want" ] && is_problem "$want" && { [ -z "$ptr" ] || [ "$(pointer)" = "$ptr" ]; }'
+}
+bad_edit "no region" 422 "?region" "" -H "$RAW" --data-binary @"$T/ball.raw"
+bad_edit "a region of five numbers" 422 "?region" "?region=1,2,3,4,5" -H "$RAW" --data-binary @"$T/ball.raw"
+bad_edit "a region past the volume" 422 "?region" "?region=60,0,0,12,12,12" -H "$RAW" --data-binary @"$T/ball.raw"
+bad_edit "a negative corner" 422 "?region" "?region=-1,0,0,12,12,12" -H "$RAW" --data-binary @"$T/ball.raw"
+bad_edit "a fractional size" 422 "?region" "?region=0,0,0,11.5,12,12" -H "$RAW" --data-binary @"$T/ball.raw"
+bad_edit "an empty region" 422 "?region" "?region=0,0,0,0,12,12" -H "$RAW" --data-binary ""
+bad_edit "a body of the wrong length" 422 "" "?region=0,0,0,12,12,11" -H "$RAW" --data-binary @"$T/ball.raw"
+code=$(status POST "/models/0123456789abcdef0123456789abcdef/edit?region=0,0,0,12,12,12" -H "$RAW" --data-binary @"$T/ball.raw")
+check "bad edit: no such model -> 404" '[ "$code" = 404 ] && is_problem 404'
+check "bad edit: GET on /edit -> 405 with Allow: POST" '[ "$(status GET "/models/$id/edit")" = 405 ] && [ "$(header Allow)" = POST ]'
+C="${SURFD_DATA:-../shared/data}/contours"
+code=$(status POST /model -H 'Content-Type: application/json' --data-binary @"$C/synthetic_bean.json"); cid=$(field id)
+code=$(status POST "/models/$cid/edit?region=0,0,0,12,12,12" -H "$RAW" --data-binary @"$T/ball.raw")
+check "bad edit: a contour model -> 409" '[ "$code" = 409 ] && is_problem 409'
+code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary '{"bounds": [[-1.2, -1.2, -1.2], [1.2, 1.2, 1.2]], "cell": 0.1, "frep": {"sphere": {"center": [0, 0, 0], "radius": 1}}}')
+fid=$(field id)
+code=$(status POST "/models/$fid/edit?region=0,0,0,12,12,12" -H "$RAW" --data-binary @"$T/ball.raw")
+check "bad edit: an FRep model edited by samples -> 409" '[ "$code" = 409 ] && is_problem 409'
+check "the daemon is up after them, and the model as it was" 'alive && [ "$(status GET "/models/$id")" = 200 ] && [ "$(field edits)" = 3 ]'
+check "deleting the model deletes its volume: an edit then finds no model" '[ "$(status DELETE "/models/$id")" = 204 ] && [ "$(status POST "/models/$id/edit?region=0,0,0,2,2,2" -H "$RAW" --data-binary @"$T/tiny.raw")" = 404 ]'
+
+finish
