@@ -58,6 +58,7 @@ struct iso_adapt {
     size_t rcap, dead;                 /* dead: vertices no triangle uses */
     long cells[ISO_MAX_LEVELS + 1], feature_points;
     double gmin, iso1;                 /* the samples' smallest and iso - 1: the pad is the lower */
+    size_t n_min;                      /* samples at gmin */
 };
 
 static size_t at3(const struct iso_adapt *a, int x, int y, int z) { return (size_t)x + (size_t)a->N[0] * ((size_t)y + (size_t)a->N[1] * z); }
@@ -1538,6 +1539,24 @@ int iso_extract_adaptive(const struct iso_grid *g, const struct iso_opts *o, int
 
 /* ---- local rebuilds (iso_adapt_keep, iso_adapt_edit) ---- */
 
+/* The smallest of the samples (not the pad) into a->gmin, and how many are it. */
+static void samples_min(struct iso_adapt *a)
+{
+    float m = INFINITY;
+    size_t n = 0;
+    for (int z = a->shift; z < a->N[2] - a->shift; z++)
+        for (int y = a->shift; y < a->N[1] - a->shift; y++) {
+            const float *row = a->F + at3(a, 0, y, z);
+            for (int x = a->shift; x < a->N[0] - a->shift; x++) {
+                if (row[x] < m)
+                    m = row[x], n = 0;
+                n += row[x] == m;
+            }
+        }
+    a->gmin = m;
+    a->n_min = n;
+}
+
 int iso_adapt_keep(struct iso_adapt *a, struct iso_adapt_stats *st, struct sf_err *err)
 {
     memset(st, 0, sizeof *st);
@@ -1553,6 +1572,7 @@ int iso_adapt_keep(struct iso_adapt *a, struct iso_adapt_stats *st, struct sf_er
         a->refs[m->tri[i]]++;
     for (size_t v = 0; v < m->n_vert; v++)
         a->dead += !a->refs[v];
+    samples_min(a);
     memcpy(a->cells, st->cells, sizeof a->cells);
     a->feature_points = st->feature_points;
     a->kept = true;
@@ -1608,19 +1628,6 @@ static void set_pad(struct iso_adapt *a)
             for (int x = 0; x < a->N[0]; x += rim || x == a->N[0] - 1 ? 1 : a->N[0] - 1)
                 a->F[at3(a, x, y, z)] = a->pad;
         }
-}
-
-/* The smallest of the samples (not the pad). */
-static double samples_min(const struct iso_adapt *a)
-{
-    float m = INFINITY;
-    for (int z = a->shift; z < a->N[2] - a->shift; z++)
-        for (int y = a->shift; y < a->N[1] - a->shift; y++) {
-            const float *row = a->F + at3(a, 0, y, z);
-            for (int x = a->shift; x < a->N[0] - a->shift; x++)
-                m = fminf(m, row[x]);
-        }
-    return m;
 }
 
 /* pc's vertices and triangles into the kept mesh: a keyed vertex that kept triangles still use
@@ -1722,21 +1729,28 @@ static bool in_box(const int b[3], const int lo[3], const int hi[3])
     return b[0] >= lo[0] && b[0] <= hi[0] && b[1] >= lo[1] && b[1] <= hi[1] && b[2] >= lo[2] && b[2] <= hi[2];
 }
 
-/* The samples of block blk at lo into F; *lower_min: one of them is under the samples' least,
- * *took_min: one of those they replace was it. */
-static void write_block(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk, bool *lower_min,
-                        bool *took_min)
+/* The samples of block blk at lo into F, the samples' least value and its count kept. */
+static void write_block(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk)
 {
-    *lower_min = *took_min = false;
+    float m = (float)a->gmin, bmin = INFINITY;
+    size_t gone = 0, come = 0, at_bmin = 0;
     for (int z = 0; z < blk->nz; z++)
         for (int y = 0; y < blk->ny; y++) {
             float *row = a->F + at3(a, lo[0] + a->shift, lo[1] + y + a->shift, lo[2] + z + a->shift);
             for (int x = 0; x < blk->nx; x++)
-                *took_min |= row[x] == (float)a->gmin;
+                gone += row[x] == m;
             iso_grid_row(blk, y, z, row);
-            for (int x = 0; x < blk->nx; x++)
-                *lower_min |= row[x] < (float)a->gmin;
+            for (int x = 0; x < blk->nx; x++) {
+                if (row[x] < bmin)
+                    bmin = row[x], at_bmin = 0;
+                at_bmin += row[x] == bmin;
+                come += row[x] == m;
+            }
         }
+    if (bmin < m) /* (every other sample is at least the old least) */
+        a->gmin = bmin, a->n_min = at_bmin;
+    else if ((a->n_min += come - gone) == 0)
+        samples_min(a);
 }
 
 int iso_adapt_edit(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
@@ -1750,10 +1764,7 @@ int iso_adapt_edit(struct iso_adapt *a, const int lo[3], const struct iso_grid *
         if (lo[d] < 0 || n[d] < 1 || lo[d] + (long)n[d] > a->N[d] - 2 * a->shift)
             return sf_fail(err, SF_EINVAL, "?region", "the region lies outside the volume's %d x %d x %d samples",
                            a->N[0] - 2 * a->shift, a->N[1] - 2 * a->shift, a->N[2] - 2 * a->shift);
-    bool lower_min, took_min;
-    write_block(a, lo, blk, &lower_min, &took_min);
-    if (lower_min || took_min)
-        a->gmin = samples_min(a);
+    write_block(a, lo, blk);
     float pad = a->shift ? (float)fmin(a->iso1, a->gmin) : 0;
     ed->whole = pad != a->pad; /* the pad follows the samples' least: every border cell changes */
     if (ed->whole) {

@@ -90,6 +90,24 @@ mid=$(field id)
 check "an isosurface (its volume streamed into the database in chunks): 201 on any node" '[ "$code" = 201 ] && [ "$(field boundary_edges)" = 0 ]'
 check "... its mesh downloads closed from another node" '[ "$(on n3 GET "/models/$mid/mesh?format=stl")" = 200 ] && python3 tests/tools/stl_check.py "$T/body" 57529.6 >/dev/null'
 check "... and no node keeps a fetched copy of the volume" '! find "$T"/n?/scratch -type f 2>/dev/null | grep -q .'
+# edits posted round the nodes: each node brings its hierarchy up to the store's edits first
+Q="iso=226.5&dims=64,64,64&type=int16&spacing=0.9570312,0.9570312,1.5&levels=2&max_error=0.5"
+E=tests/tools/edit_tool.py
+code=$(on n1 POST "/isosurface?$Q" -H 'Content-Type: application/octet-stream' --data-binary @"$CT"); eid=$(field id)
+cp "$CT" "$T/v.raw"; edits_ok=1; k=0
+for r in 20,24,17 0,50,52 30,5,40 21,25,18; do
+    k=$((k + 1))
+    python3 $E block 10 $((k % 2 ? 1400 : -1000)) $((k % 2 ? -100 : 300)) 3.5 "$T/b.raw"
+    python3 $E apply "$T/v.raw" 64,64,64 "$r,10,10,10" "$T/b.raw" "$T/v2.raw" && mv "$T/v2.raw" "$T/v.raw"
+    code=$(on n$((k % 3 + 1)) POST "/models/$eid/edit?region=$r,10,10,10" -H 'Content-Type: application/octet-stream' --data-binary @"$T/b.raw")
+    [ "$code" = 200 ] && [ "$(field edits)" = $k ] || edits_ok=0
+done
+check "four edits posted round the nodes: 200 each, counted in order" '[ $edits_ok = 1 ]'
+on n2 GET "/models/$eid/mesh?format=stl" >/dev/null; cp "$T/body" "$T/edited.stl"
+code=$(on n3 POST "/isosurface?$Q" -H 'Content-Type: application/octet-stream' --data-binary @"$T/v.raw"); fid=$(field id)
+on n1 GET "/models/$fid/mesh?format=stl" >/dev/null
+check "... the mesh equals a fresh extraction of the edited volume, triangle for triangle" '[ "$code" = 201 ] && python3 $E same "$T/edited.stl" "$T/body"'
+check "... the volume and its four edits kept in the database" '[ "$(pg_sql "SELECT count(*) FROM model_volumes WHERE model='"'$eid'"'")" = 5 ]'
 
 # ---- a synchronous request answered when another node runs its job ----------------------------------
 node_kill n1; node_kill n2; node_kill n3

@@ -9,7 +9,7 @@ method. Each figure is the median of REPEAT runs; POV-Ray's and auto's runs take
 import json
 import urllib.error
 import shutil
-import os, platform, re, signal, statistics, subprocess, sys, tempfile, time, urllib.request
+import os, platform, re, signal, statistics, struct, subprocess, sys, tempfile, time, urllib.request
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DATA = os.environ.get("SURFD_DATA", os.path.join(ROOT, "..", "shared", "data"))
@@ -570,6 +570,70 @@ def adapt_bench(lines):
     lines.append("")
 
 
+def edit_bench(lines, n_edits=20):
+    """Issue 15: POST /models/{id}/edit of 16^3 blocks of the shared CT (bone painted into the samples round the
+    skull), against the full extraction of the same model on the same daemon (2 workers)."""
+    import random
+    name, f, dims, dtype, npt, iso, sp, pad = VOLUMES[0]
+    raw = open(os.path.join(DATA, "volumes", f), "rb").read()
+    nx, ny, nz = dims
+    d, base = start_node("edit", None, threads=2)
+    rng = random.Random(15)
+    blocks = []
+    for _ in range(n_edits):  # blocks holding the surface: samples on both sides of iso
+        while True:
+            x0, y0, z0 = rng.randrange(0, nx - 16), rng.randrange(0, ny - 16), rng.randrange(0, nz - 16)
+            vals = [struct.unpack_from("<16h", raw, 2 * (x0 + nx * (y0 + y + ny * (z0 + z)))) for z in range(16) for y in range(16)]
+            flat = [v for row in vals for v in row]
+            if min(flat) < iso < max(flat):
+                break
+        painted = [v + 400 if (k % 16 - 8) ** 2 + (k // 16 % 16 - 8) ** 2 + (k // 256 - 8) ** 2 < 30 else v
+                   for k, v in enumerate(flat)]
+        blocks.append(("%d,%d,%d,16,16,16" % (x0, y0, z0), struct.pack("<%dh" % len(painted), *painted)))
+    q = "iso=%g&dims=%d,%d,%d&type=%s&spacing=%.9g,%.9g,%.9g" % ((iso,) + tuple(dims) + (dtype,) + tuple(sp))
+    rows = []
+    try:
+        for levels, me in ((2, 0.5), (3, 1.0), (1, None)):
+            opts = q + "&levels=%d" % levels + ("&max_error=%g" % me if me else "")
+            m = post(base + "/isosurface?" + opts, raw, {"Content-Type": "application/octet-stream"})
+            ms, wall, rebuilt = [], [], []
+            for region, body in blocks:
+                t0 = time.time()
+                e = post(base + "/models/%s/edit?region=%s" % (m["id"], region), body,
+                         {"Content-Type": "application/octet-stream"})
+                wall.append((time.time() - t0) * 1e3)
+                ms.append(e["edit"]["ms"])
+                rebuilt.append(e["edit"]["cells_rebuilt"])
+            closed = e["boundary_edges"] + e["nonmanifold_edges"] == 0
+            rows.append((levels, me, m, ms, wall, rebuilt, e, closed))
+        t0 = time.time()
+        other = post(base + "/isosurface?" + q.replace("iso=%g" % iso, "iso=500") + "&levels=2&max_error=0.5", raw,
+                     {"Content-Type": "application/octet-stream"})
+        new_iso = (other["timings_ms"]["extract"], (time.time() - t0) * 1e3)
+    finally:
+        d.terminate()
+        d.wait()
+    lines.append("## Edits (issue 15) of the %s, iso %g\n" % (name, iso))
+    lines.append("%d edits of 16^3 blocks (bone painted into samples that hold the surface), one after another, each "
+                 "`POST /models/{id}/edit` on a daemon with 2 workers, its hierarchy kept since the model's job. edit ms: "
+                 "the model's `edit.ms` (the samples written, the cells they reach drawn again); request ms: the whole "
+                 "answer seen by the client (the mesh copied, measured, packed and stored with the edit in SQLite, "
+                 "the job queued and answered). Full: the model's own extraction on the same daemon. Target: an edit "
+                 "at most 1/20 of the full extraction, goal under 2 ms. Each mesh equals a fresh extraction of the "
+                 "edited volume (tests/api/edit.sh, tests/core/iso/test_edit.c).\n" % n_edits)
+    lines.append("| model | triangles | full extract ms | edit ms median | edit ms max | full / edit | cells redrawn median "
+                 "| request ms median | closed after |")
+    lines.append("|---|---|---|---|---|---|---|---|---|")
+    for levels, me, m, ms, wall, rebuilt, e, closed in rows:
+        label = "levels=%d max_error=%g" % (levels, me) if me else "levels=1 (marching cubes: every cell)"
+        full = m["timings_ms"]["extract"]
+        lines.append("| %s | %d | %.0f | %.2f | %.2f | %.0fx | %d | %.0f | %s |" % (
+            label, m["triangles"], full, statistics.median(ms), max(ms), full / statistics.median(ms),
+            statistics.median(rebuilt), statistics.median(wall), "yes" if closed else "NO"))
+    lines.append("\nA new iso is a new extraction (the seed's open problem): iso 500 at levels=2, %.0f ms to extract, "
+                 "%.0f ms for the request.\n" % new_iso)
+
+
 def sharp_bench(lines):
     """Issue 15: features=sharp on CSG solids turned off the grid's axes, against plain marching cubes on the same
     samples (`tests/bench/sharp_edges.py`: true edges and corners to the mesh, volume against the exact one)."""
@@ -643,7 +707,8 @@ def big_volume_bench(lines):
 
 def main():
     rows, notes = [], []
-    parts = {"iso": (iso_bench, adapt_bench, sharp_bench, big_volume_bench), "adapt": (adapt_bench,),
+    parts = {"iso": (iso_bench, adapt_bench, edit_bench, sharp_bench, big_volume_bench), "adapt": (adapt_bench,),
+             "edit": (edit_bench,),
              "sharp": (sharp_bench,), "cluster": (cluster_bench,),
              "contours": (contour_bench,), "http": (http_bench,)}
     only = os.environ.get("BENCH_ONLY")
@@ -718,10 +783,11 @@ def main():
     cluster_bench(lines)
     iso_bench(lines)
     adapt_bench(lines)
+    edit_bench(lines)
     sharp_bench(lines)
     big_volume_bench(lines)
     lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=http`, `BENCH_ONLY=contours`, "
-                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso`, `BENCH_ONLY=adapt` or `BENCH_ONLY=sharp` for one part).")
+                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso`, `BENCH_ONLY=adapt`, `BENCH_ONLY=edit` or `BENCH_ONLY=sharp` for one part).")
     out = os.path.join(ROOT, "tests", "bench", "RESULTS.md")
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")
