@@ -2,6 +2,8 @@
  * (default http://127.0.0.1:8080) and SURFD_TOKEN from the environment.
  *
  *   surfctl render FILE -o OUT [--async] [--method M] [--width W] [--height H] [--output FMT]
+ *   surfctl isosurface VOLUME --iso V -o OUT.stl [...]
+ *   surfctl edit MODEL BLOCK --region X0,Y0,Z0,NX,NY,NZ [-o OUT.stl]
  *   surfctl jobs [--state S]          surfctl job ID
  *   surfctl wait ID [-o OUT]          (progress bar on stderr)
  *   surfctl result ID -o OUT          surfctl cancel ID
@@ -275,6 +277,8 @@ static int usage(void)
                     "       surfctl isosurface VOLUME --iso V -o OUT.stl|.ply|.obj [--dims X,Y,Z --type T --spacing S --origin O]\n"
                     "                          [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name N]\n"
                     "                          (VOLUME: .nrrd, .mha, raw samples, or an FRep object as .json)\n"
+                    "       surfctl edit MODEL BLOCK --region X0,Y0,Z0,NX,NY,NZ [-o OUT.stl|.ply|.obj]\n"
+                    "                          (BLOCK: the region's raw samples in the model's sample type)\n"
                     "       surfctl jobs [--state S] | job ID | wait ID [-o OUT] | result ID -o OUT | cancel ID\n"
                     "environment: SURFD_URL (default http://127.0.0.1:8080), SURFD_TOKEN\n");
     return EXIT_USAGE;
@@ -326,6 +330,23 @@ static int cmd_render(int argc, char **argv)
     return rc;
 }
 
+/* Model id's mesh to out (its format from the extension), following the mesh job when it is long. */
+static int download_mesh(const char *id, const char *out)
+{
+    char path[160];
+    struct response r;
+    snprintf(path, sizeof path, "/models/%.64s/mesh?format=%s", id, strrchr(out, '.') + 1);
+    int rc = request("GET", path, NULL, 0, NULL, NULL, &r);
+    if (rc)
+        return rc;
+    if (r.status == 202) /* a mesh job longer than the server's sync wait: follow it too */
+        rc = follow(r.job_id, out);
+    else
+        rc = r.status == 200 ? write_file(out, &r.body) : report(&r);
+    free(r.body.data);
+    return rc;
+}
+
 /* POST /isosurface, the job followed with the progress bar, the model resource on stdout and
  * its mesh written to OUT (format from its extension). */
 static int cmd_isosurface(int argc, char **argv)
@@ -363,16 +384,46 @@ static int cmd_isosurface(int argc, char **argv)
     }
     printf("%s\n", r.body.data ? r.body.data : "");
     free(r.body.data);
-    snprintf(path, sizeof path, "/models/%s/mesh?format=%s", id, ext + 1);
-    if ((rc = request("GET", path, NULL, 0, NULL, NULL, &r)))
+    return download_mesh(id, out);
+}
+
+/* POST /models/ID/edit?region=... with BLOCK's raw samples: the model resource after the edit on
+ * stdout, and its mesh written to OUT when -o is given. */
+static int cmd_edit(int argc, char **argv)
+{
+    static const char *const OPTIONS[] = {"region", NULL};
+    const char *model = NULL, *file = NULL, *out = NULL;
+    char query[256] = "";
+    if (argc < 1 || argv[0][0] == '-' || !read_args(argc - 1, argv + 1, OPTIONS, &file, &out, NULL, query, sizeof query))
+        return usage();
+    model = argv[0];
+    const char *ext = out ? strrchr(out, '.') : NULL;
+    if (!file || !query[0] || (out && (!ext || (strcmp(ext, ".stl") && strcmp(ext, ".ply") && strcmp(ext, ".obj")))))
+        return usage();
+    char route[128];
+    snprintf(route, sizeof route, "/models/%.64s/edit", model);
+    struct response r;
+    int rc = post_file(route, query, file, "application/octet-stream", NULL, &r);
+    if (rc)
         return rc;
-    if (r.status == 202) { /* a mesh job longer than the server's sync wait: follow it too */
-        rc = follow(r.job_id, out);
-    } else {
-        rc = r.status == 200 ? write_file(out, &r.body) : report(&r);
+    if (r.status == 202) { /* longer than the server's sync wait (a hierarchy rebuilt from the store) */
+        char id[64], state[32], path[128];
+        snprintf(id, sizeof id, "%s", r.job_id);
+        free(r.body.data);
+        if ((rc = wait_job(id, state, sizeof state)))
+            return rc;
+        snprintf(path, sizeof path, "/jobs/%s/result", id);
+        if ((rc = request("GET", path, NULL, 0, NULL, NULL, &r)))
+            return rc;
     }
+    if (r.status != 200) {
+        rc = r.status == 409 || r.status == 422 ? (report(&r), r.job_id[0] ? EXIT_JOB : EXIT_REFUSED) : report(&r);
+        free(r.body.data);
+        return rc;
+    }
+    printf("%s\n", r.body.data ? r.body.data : "");
     free(r.body.data);
-    return rc;
+    return out ? download_mesh(model, out) : 0;
 }
 
 int main(int argc, char **argv)
@@ -386,6 +437,8 @@ int main(int argc, char **argv)
         rc = cmd_render(argc - 2, argv + 2);
     } else if (!strcmp(cmd, "isosurface")) {
         rc = cmd_isosurface(argc - 2, argv + 2);
+    } else if (!strcmp(cmd, "edit")) {
+        rc = cmd_edit(argc - 2, argv + 2);
     } else if (!strcmp(cmd, "jobs") || !strcmp(cmd, "job") || !strcmp(cmd, "cancel")) {
         char path[128];
         if (!strcmp(cmd, "jobs"))

@@ -37,6 +37,12 @@ check "surfctl isosurface: the model on stdout, its closed mesh in the file" '[ 
 $C isosurface "$CT" --iso 226.5 --dims 64,64,64 --type int16 --spacing 0.9570312,0.9570312,1.5 --levels 3 --max-error 1 -o "$T/ct3.stl" >"$T/out" 2>"$T/progress"
 check "surfctl isosurface --levels 3 --max-error 1: coarser, closed" '[ $? -eq 0 ] && grep -q "\"levels\":3" "$T/out" && python3 tests/tools/stl_check.py "$T/ct3.stl" "$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[\"volume_mm3\"])" "$T/out")" >/dev/null'
 printf '{"bounds": [[-1.2, -1.2, -1.2], [1.2, 1.2, 1.2]], "cell": 0.05, "frep": {"torus": {"center": [0, 0, 0], "axis": [0, 0, 1], "major": 0.8, "minor": 0.3}}}' >"$T/torus.json"
+mid=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['id'])" "$T/out")
+python3 tests/tools/edit_tool.py block 8 1400 -100 3 "$T/blk.raw"
+$C edit "$mid" "$T/blk.raw" --region 20,24,17,8,8,8 -o "$T/ct3e.stl" >"$T/out" 2>"$T/err"
+check "surfctl edit: the edited model on stdout (edits 1), its closed mesh in the file" '[ $? -eq 0 ] && grep -q "\"edits\":1" "$T/out" && python3 tests/tools/stl_check.py "$T/ct3e.stl" "$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[\"volume_mm3\"])" "$T/out")" >/dev/null'
+$C edit "$mid" "$T/blk.raw" --region 60,24,17,8,8,8 >"$T/out" 2>"$T/err"; rc=$?
+check "surfctl edit of a region past the volume exits 4 naming ?region" '[ $rc -eq 4 ] && grep -q "?region" "$T/err"'
 $C isosurface "$T/torus.json" -o "$T/torus.stl" >"$T/out" 2>"$T/progress"
 check "surfctl isosurface of an FRep .json: a closed torus" '[ $? -eq 0 ] && grep -q "\"source\":\"frep\"" "$T/out" && grep -q "\"euler_characteristic\":0" "$T/out"'
 printf '{"bounds": [[-1.2, -1.2, -1.2], [1.2, 1.2, 1.2]], "cell": 0.05, "frep": {"transform": {"rotate_deg": [20, 30, 10], "object": {"box": {"min": [-0.8, -0.6, -0.5], "max": [0.8, 0.6, 0.5]}}}}}' >"$T/box.json"
