@@ -11,6 +11,7 @@
 #define COORD_MAX 1e9 /* mm: any coordinate or length of a request */
 
 struct builder {
+    struct frep_request *req;
     struct frep *f;
     int cap;                 /* of f->nodes */
     double alpha;            /* the request's, for operations that give none */
@@ -238,8 +239,53 @@ static int unary(struct builder *b, const char *key, json_t *v, const char *p, i
     return 0;
 }
 
+/* {"volume": {"model": ID, "scale": s}}: the model's samples, read by the request's caller. */
+static int volume_node(struct builder *b, json_t *v, const char *p, int *out)
+{
+    static const char *const KEYS[] = {"model", "scale", NULL};
+    if (!json_is_object(v))
+        return bad(b, p, "%s is an object", "volume");
+    int rc = only_keys(b, v, p, KEYS);
+    if (rc)
+        return rc;
+    struct frep_request *r = b->req;
+    char q[176];
+    snprintf(q, sizeof q, "%s/model", p);
+    const char *id = json_string_value(json_object_get(v, "model"));
+    size_t n = id ? strlen(id) : 0;
+    if (!id || n < 1 || n > 32 || strspn(id, "0123456789abcdef") != n)
+        return bad(b, q, "%s is the id of a stored isosurface model (32 hex digits)", "model");
+    int k = 0;
+    while (k < r->n_refs && strcmp(r->refs[k].model, id))
+        k++;
+    if (k == FREP_MAX_VOLUMES)
+        return sf_fail(b->err, SF_ELIMIT, q, "an FRep tree reads at most %d volumes", FREP_MAX_VOLUMES);
+    if (k == r->n_refs) {
+        snprintf(r->refs[k].model, sizeof r->refs[k].model, "%s", id);
+        snprintf(r->refs[k].pointer, sizeof r->refs[k].pointer, "%s", q);
+        r->n_refs++;
+    }
+    struct frep_node nd = {.kind = FREP_VOLUME, .p = {k, 0, 1}};
+    if ((rc = num(b, v, p, "scale", 0, 1e9, true, true, 1, &nd.p[2])))
+        return rc;
+    int at = add_node(b, p, nd);
+    if (at < 0)
+        return b->err->code;
+    *out = at;
+    return 0;
+}
+
+void frep_volume_iso(struct frep_request *r, int k, double iso)
+{
+    for (int i = 0; i < r->f.n; i++)
+        if (r->f.nodes[i].kind == FREP_VOLUME && (int)r->f.nodes[i].p[0] == k)
+            r->f.nodes[i].p[1] = iso;
+}
+
 static int primitive(struct builder *b, const char *key, json_t *v, const char *p, int *out)
 {
+    if (!strcmp(key, "volume"))
+        return volume_node(b, v, p, out);
     static const struct {
         const char *name;
         enum frep_kind kind;
@@ -260,7 +306,7 @@ static int primitive(struct builder *b, const char *key, json_t *v, const char *
     if (k == sizeof PRIMS / sizeof *PRIMS)
         return sf_fail(b->err, SF_EINVAL, p,
                        "unknown primitive or operation \"%.40s\" (sphere, ellipsoid, box, cylinder, cone, torus, "
-                       "superellipsoid, halfspace; union, intersect, subtract, blend, offset, transform)", key);
+                       "superellipsoid, halfspace, volume; union, intersect, subtract, blend, offset, transform)", key);
     if (!json_is_object(v))
         return bad(b, p, "%s is an object", key);
     int rc = only_keys(b, v, p, PRIMS[k].keys);
@@ -341,7 +387,8 @@ int frep_parse(const char *buf, size_t len, struct frep_request *r, struct sf_er
     int rc = json_read(buf, len, &root, err);
     if (rc)
         return rc;
-    struct builder b = {&r->f, 0, 0, err};
+    struct builder b = {r, &r->f, 0, 0, err};
+    r->f.volumes = r->vols;
     static const char *const KEYS[] = {"name", "bounds", "cell", "alpha", "frep", NULL};
     if (!json_is_object(root)) {
         rc = sf_fail(err, SF_EINVAL, "", "an FRep request is a JSON object with \"frep\", \"bounds\" and \"cell\"");
@@ -403,6 +450,8 @@ out:
 
 void frep_request_free(struct frep_request *r)
 {
+    for (int k = 0; k < FREP_MAX_VOLUMES; k++)
+        free(r->vol_samples[k]), r->vol_samples[k] = NULL;
     free(r->f.nodes);
     r->f.nodes = NULL;
     r->f.n = 0;

@@ -10,6 +10,8 @@
  *        | {"torus": {"center": [3], "axis": [3], "major": R, "minor": r}}
  *        | {"superellipsoid": {"center": [3], "radii": [3], "e1": e, "e2": e}}
  *        | {"halfspace": {"point": [3], "normal": [3]}}
+ *        | {"volume": {"model": ID, "scale": s}}   (a stored isosurface model's samples, as edited,
+ *                                                  trilinear, minus its iso, times s (default 1))
  *        | {"union" | "intersect": [NODE, ...], "alpha": a}      (alpha: the request's if absent)
  *        | {"subtract": [NODE, NODE, ...], "alpha": a}           (the first minus the others)
  *        | {"blend": [NODE, NODE], "a0": a0, "a1": a1, "a2": a2, "alpha": a}
@@ -30,12 +32,30 @@
 /* Samples an FRep grid may have: 2^28 (a 645^3 grid, 1 GiB of float32 samples). */
 #define FREP_MAX_SAMPLES (1u << 28)
 
+/* Volumes a tree may read (FREP_VOLUME nodes). */
+#define FREP_MAX_VOLUMES 8
+
+/* A volume primitive's model: its id and the pointer to its member, for the caller, who reads
+ * the model's samples into vols[k] (frep_request_free frees them) and sets its nodes' iso
+ * (frep_volume_iso). */
+struct frep_ref {
+    char model[40];
+    char pointer[176];
+};
+
 struct frep_request {
     struct frep f;
     char name[128];
     double lo[3], hi[3], cell;
     int dims[3];             /* samples along x, y, z: lo + i cell covers [lo, hi] */
+    struct frep_ref refs[FREP_MAX_VOLUMES];
+    struct frep_volume vols[FREP_MAX_VOLUMES];
+    float *vol_samples[FREP_MAX_VOLUMES]; /* vols[k].v, owned */
+    int n_refs;
 };
+
+/* The iso of volume k (the model's) into every node that reads it. */
+void frep_volume_iso(struct frep_request *r, int k, double iso);
 
 /* Parses an FRep request: 0, or SF_EFORMAT (not JSON), SF_EINVAL (a bad member, with its
  * pointer), SF_ELIMIT (over FREP_MAX_NODES nodes, FREP_MAX_DEPTH levels or FREP_MAX_SAMPLES). */

@@ -16,6 +16,14 @@
 #include "multipart.h"
 #include "query.h"
 
+const char *volume_format_of(const char *body, size_t len, const char *format)
+{
+    size_t lead = 0;
+    while (lead < len && lead < 64 && strchr(" \t\r\n", body[lead]))
+        lead++;
+    return !*format && lead < len && body[lead] == '{' ? "frep" : format;
+}
+
 const char *volume_format_from_type(const char *ct)
 {
     static const struct media_format TYPES[] = {{"application/octet-stream", "raw"}, {"application/x-nrrd", "nrrd"}, {"image/x-nrrd", "nrrd"},
@@ -559,11 +567,7 @@ static int read_volume(const char *body, size_t len, const char *format, const c
 {
     memset(v, 0, sizeof *v);
     v->check_only = check_only;
-    size_t lead = 0;
-    while (lead < len && lead < 64 && strchr(" \t\r\n", body[lead]))
-        lead++;
-    if (!*format && lead < len && body[lead] == '{')
-        format = "frep";
+    format = volume_format_of(body, len, format);
     v->source = strcmp(format, "frep") ? "isosurface" : "frep";
     int rc = common_options(options, !strcmp(format, "frep"), v, err);
     if (rc)

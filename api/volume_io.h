@@ -39,6 +39,8 @@ struct volume {
  * NULL for others. A body posted without a type is sniffed (NRRD's magic, MetaImage's
  * "ObjectType", a multipart boundary, a JSON object), else raw. */
 const char *volume_format_from_type(const char *content_type);
+/* format, or for "" (sniffed) "frep" when the body is a JSON object ("" otherwise: sniffed later). */
+const char *volume_format_of(const char *body, size_t len, const char *format);
 
 /* Reads a volume: format "raw", "nrrd", "mha", "dicom", "frep" or "" (sniffed); options the query. On success
  * v->g.samples points into body or v->owned (free with volume_free). Errors name the query option

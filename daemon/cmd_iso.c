@@ -191,6 +191,11 @@ int cmd_isosurface(int argc, char **argv)
     struct volume v;
     struct sf_err err = {0};
     int rc = volume_read(buf, len, format, options, &v, &err);
+    if (!rc && v.frep && v.frep->n_refs) {
+        rc = sf_fail(&err, SF_EINVAL, v.frep->refs[0].pointer, "a volume primitive reads a stored model: post the "
+                     "object to surfd serve (POST /isosurface)");
+        volume_free(&v);
+    }
     double t_read = now_ms();
     if (!rc)
         volume_sample(&v, 0, v.g.nz); /* an FRep's grid (on this thread: the daemon's job uses its pool) */

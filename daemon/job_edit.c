@@ -202,38 +202,50 @@ static int apply(struct live *e, const char *options, const void *data, size_t l
     return 0;
 }
 
-/* Model id's hierarchy rebuilt from the store (its volume, then its edits in order): held and
- * locked, or NULL with err. */
-static struct live *rebuild(struct service *svc, const char *id, struct sf_err *err)
+int edit_volume(struct service *svc, const char *id, struct volume *vol, int *next, struct sf_err *err)
 {
+    memset(vol, 0, sizeof *vol);
     struct volume_rec *parts;
     int n, found = store_volume_get(svc->store, id, 0, &parts, &n);
     if (found != 1 || parts[0].seq != 0) {
         store_volume_free(parts, n);
-        sf_fail(err, found == 0 || found == 1 ? SF_ECONFLICT : SF_EIO, "",
-                found == 0 || found == 1 ? "this model keeps no volume to edit (made before edits were kept, or not "
-                                           "an isosurface of samples)"
-                                         : "the model's volume could not be read from the store");
-        return NULL;
+        return sf_fail(err, found == 0 || found == 1 ? SF_ECONFLICT : SF_EIO, "",
+                       found == 0 || found == 1 ? "this model keeps no volume of samples (made before volumes were "
+                                                  "kept, or not an isosurface of samples)"
+                                                : "the model's volume could not be read from the store");
     }
-    struct volume vol;
-    struct iso_adapt *a = NULL;
-    int rc = volume_read(parts[0].data, parts[0].len, parts[0].format, parts[0].options, &vol, err);
-    if (!rc && vol.frep)
+    int rc = volume_read(parts[0].data, parts[0].len, parts[0].format, parts[0].options, vol, err);
+    if (!rc && vol->frep)
         rc = sf_fail(err, SF_ECONFLICT, "", "an FRep model is edited by an FRep object (not built yet), not by samples");
-    if (!rc && !vol.owned) { /* the samples in the part's bytes: copied, to be written */
-        size_t bytes = (size_t)vol.g.nx * vol.g.ny * vol.g.nz * (vol.g.type == ISO_U8 ? 1 : vol.g.type == ISO_F32 ? 4 : 2);
-        if (!(vol.owned = malloc(bytes)))
+    if (!rc && !vol->owned) { /* the samples in the part's bytes: copied, to be written */
+        size_t bytes = (size_t)vol->g.nx * vol->g.ny * vol->g.nz * (vol->g.type == ISO_U8 ? 1 : vol->g.type == ISO_F32 ? 4 : 2);
+        if (!(vol->owned = malloc(bytes)))
             rc = sf_fail(err, SF_ENOMEM, "", "out of memory for the model's volume");
         else
-            vol.g.samples = memcpy(vol.owned, vol.g.samples, bytes);
+            vol->g.samples = memcpy(vol->owned, vol->g.samples, bytes);
     }
-    struct live tmp = {.vol = vol};
+    struct live tmp = {.vol = *vol};
     for (int k = 1; k < n && !rc; k++) {
         struct iso_edit ed;
         rc = apply(&tmp, parts[k].options, parts[k].data, parts[k].len, &ed, err);
     }
-    if (!rc && volume_adaptive(&vol)) {
+    *next = parts[n - 1].seq + 1;
+    store_volume_free(parts, n);
+    if (rc)
+        volume_free(vol);
+    return rc;
+}
+
+/* Model id's hierarchy rebuilt from the store (its volume, then its edits in order): held and
+ * locked, or NULL with err. */
+static struct live *rebuild(struct service *svc, const char *id, struct sf_err *err)
+{
+    struct volume vol;
+    struct iso_adapt *a = NULL;
+    int next, rc = edit_volume(svc, id, &vol, &next, err);
+    if (rc)
+        return NULL;
+    if (volume_adaptive(&vol)) {
         struct iso_opts o = volume_iso_opts(&vol);
         o.keep = true;
         if (!(rc = iso_adapt_begin(&vol.g, &o, vol.levels, vol.max_error, &a, err))) {
@@ -248,8 +260,6 @@ static struct live *rebuild(struct service *svc, const char *id, struct sf_err *
         free(vol.owned); /* the hierarchy holds the samples now */
         vol.owned = NULL, vol.g.samples = NULL;
     }
-    int next = parts[n - 1].seq + 1;
-    store_volume_free(parts, n);
     if (rc) {
         iso_adapt_free(a);
         volume_free(&vol);

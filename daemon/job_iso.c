@@ -67,6 +67,43 @@ static int map_file(const char *path, void **map, size_t *len)
 
 static int begin_extract(struct iso_work *w, int *n_bands);
 
+/* The stored models an FRep tree's volume primitives read (their samples as edited), as floats. */
+static int resolve_volumes(struct iso_work *w)
+{
+    struct frep_request *r = w->vol.frep;
+    r->f.volumes = r->vols;
+    for (int k = 0; k < r->n_refs; k++) {
+        struct volume mv;
+        struct sf_err e = {0};
+        int next;
+        if (edit_volume(w->svc, r->refs[k].model, &mv, &next, &e))
+            return sf_fail(&w->err, e.code == SF_ECONFLICT ? SF_EINVAL : e.code, r->refs[k].pointer, "model %s: %s",
+                           r->refs[k].model, e.message);
+        size_t n = (size_t)mv.g.nx * mv.g.ny * mv.g.nz;
+        float *f = mv.oblique ? NULL : malloc(n * sizeof *f);
+        if (!f) {
+            volume_free(&mv);
+            return mv.oblique ? sf_fail(&w->err, SF_EINVAL, r->refs[k].pointer, "model %s: an oblique series is not "
+                                                                                "read into an FRep object", r->refs[k].model)
+                              : sf_fail(&w->err, SF_ENOMEM, "", "out of memory for a volume's samples");
+        }
+        for (int z = 0; z < mv.g.nz; z++)
+            for (int y = 0; y < mv.g.ny; y++)
+                iso_grid_row(&mv.g, y, z, f + (size_t)mv.g.nx * (y + (size_t)mv.g.ny * z));
+        float lo = INFINITY, hi = -INFINITY;
+        for (size_t i = 0; i < n; i++)
+            lo = fminf(lo, f[i]), hi = fmaxf(hi, f[i]);
+        struct frep_volume *fv = &r->vols[k];
+        *fv = (struct frep_volume){{mv.g.nx, mv.g.ny, mv.g.nz}, {0}, {0}, f, lo, hi, (float)fmin(mv.iso - 1, lo)};
+        memcpy(fv->origin, mv.g.origin, sizeof fv->origin);
+        memcpy(fv->spacing, mv.g.spacing, sizeof fv->spacing);
+        r->vol_samples[k] = f;
+        frep_volume_iso(r, k, mv.iso);
+        volume_free(&mv);
+    }
+    return 0;
+}
+
 static int prepare(struct job *j, void *arg, int *n_bands)
 {
     struct iso_work *w = arg;
@@ -89,6 +126,8 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     struct jobq_stats qs;
     jobq_stats(w->svc->q, &qs);
     w->n_slabs = (int)qs.workers * SLABS_PER_WORKER;
+    if (w->vol.frep && resolve_volumes(w))
+        return -1;
     if (w->vol.frep) { /* sampled first, in bands of planes */
         w->phase = PH_SAMPLE;
         *n_bands = w->n_sample = w->n_slabs < w->vol.g.nz ? w->n_slabs : w->vol.g.nz;
@@ -284,6 +323,26 @@ const char *iso_format(const char *content_type) { return volume_format_from_typ
 
 int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
-    (void)svc;
-    return volume_check(b->body ? b->body : "", b->len, b->format, b->options, err);
+    const char *body = b->body ? b->body : "";
+    int rc = volume_check(body, b->len, b->format, b->options, err);
+    if (rc || strcmp(volume_format_of(body, b->len, b->format), "frep"))
+        return rc;
+    /* an FRep tree's volume primitives: stored isosurface models of samples, the token's */
+    struct frep_request r;
+    if ((rc = frep_parse(body, b->len, &r, err)))
+        return rc;
+    for (int k = 0; k < r.n_refs && !rc; k++) {
+        char *resource = NULL;
+        struct iso_grid g;
+        struct sf_err e = {0};
+        int found = store_model_get(svc->store, r.refs[k].model, b->owner, &resource, NULL, NULL);
+        if (found != 1)
+            rc = found == 0 ? sf_fail(err, SF_EINVAL, r.refs[k].pointer, "no such model")
+                            : sf_fail(err, SF_EIO, "", "the store failed");
+        else if (iso_model_grid(resource, &g, &e))
+            rc = sf_fail(err, SF_EINVAL, r.refs[k].pointer, "%s", e.message);
+        free(resource);
+    }
+    frep_request_free(&r);
+    return rc;
 }

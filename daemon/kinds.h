@@ -65,5 +65,9 @@ int edit_start(struct service *svc, const struct job_claim *c);
 struct volume;
 struct iso_adapt;
 void edit_keep(struct service *svc, const char *id, const struct volume *vol, struct iso_adapt *a);
+/* Model id's volume as the store keeps it, its edits applied (its samples in vol->owned; free with
+ * volume_free), *next the seq after its last edit: 0, or SF_ECONFLICT (the model keeps no volume
+ * of samples), SF_EIO, SF_ENOMEM. */
+int edit_volume(struct service *svc, const char *id, struct volume *vol, int *next, struct sf_err *err);
 
 #endif

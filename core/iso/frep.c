@@ -66,10 +66,45 @@ static double revolve(const double (*pr)[2], int n, int inside, const double x[3
     return s * best;
 }
 
-static double primitive(const struct frep_node *n, const double x[3], double g[3])
+/* Volume v, trilinear, at x (its gradient into g): scale (value - iso). */
+static double sampled(const struct frep_volume *v, double iso, double scale, const double x[3], double g[3])
+{
+    int c[3];
+    double u[3];
+    for (int d = 0; d < 3; d++) {
+        double t = v->v ? (x[d] - v->origin[d]) / v->spacing[d] : -1;
+        if (!(t >= 0 && t <= v->dims[d] - 1)) { /* beyond the grid (or no samples given): outside, flat */
+            if (g)
+                set3(g, 0, 0, 0);
+            return scale * (v->outside - iso);
+        }
+        c[d] = t >= v->dims[d] - 1 ? v->dims[d] - 2 : (int)t;
+        u[d] = t - c[d];
+    }
+    size_t sx = 1, sy = (size_t)v->dims[0], sz = sy * (size_t)v->dims[1];
+    const float *q = v->v + c[0] + sy * c[1] + sz * c[2];
+    double f[8];
+    for (int k = 0; k < 8; k++)
+        f[k] = q[(k & 1) * sx + (k >> 1 & 1) * sy + (k >> 2 & 1) * sz];
+    /* along x, then y, then z */
+    double x00 = f[0] + u[0] * (f[1] - f[0]), x10 = f[2] + u[0] * (f[3] - f[2]);
+    double x01 = f[4] + u[0] * (f[5] - f[4]), x11 = f[6] + u[0] * (f[7] - f[6]);
+    double y0 = x00 + u[1] * (x10 - x00), y1 = x01 + u[1] * (x11 - x01);
+    if (g) {
+        double dx0 = (f[1] - f[0]) + u[1] * ((f[3] - f[2]) - (f[1] - f[0]));
+        double dx1 = (f[5] - f[4]) + u[1] * ((f[7] - f[6]) - (f[5] - f[4]));
+        set3(g, scale * (dx0 + u[2] * (dx1 - dx0)) / v->spacing[0],
+             scale * ((x10 - x00) + u[2] * ((x11 - x01) - (x10 - x00))) / v->spacing[1], scale * (y1 - y0) / v->spacing[2]);
+    }
+    return scale * (y0 + u[2] * (y1 - y0) - iso);
+}
+
+static double primitive(const struct frep *f, const struct frep_node *n, const double x[3], double g[3])
 {
     const double *p = n->p;
     switch (n->kind) {
+    case FREP_VOLUME:
+        return sampled(&f->volumes[(int)p[0]], p[1], p[2], x, g);
     case FREP_SPHERE: {
         double v[3] = {x[0] - p[0], x[1] - p[1], x[2] - p[2]}, r = sqrt(dot3(v, v));
         if (g)
@@ -172,7 +207,7 @@ static double eval(const struct frep *f, int at, const double x[3], double g[3])
 {
     const struct frep_node *n = &f->nodes[at];
     if (n->kind < FREP_UNION)
-        return primitive(n, x, g);
+        return primitive(f, n, x, g);
     double ga[3], gb[3], *pa = g ? ga : NULL, *pb = g ? gb : NULL;
     if (n->kind == FREP_OFFSET) {
         double v = eval(f, n->a, x, g);
@@ -218,8 +253,14 @@ double frep_eval(const struct frep *f, const double x[3], double g[3]) { return 
 static void bound(const struct frep *f, int at, const double c[3], double r, double *lo, double *hi)
 {
     const struct frep_node *n = &f->nodes[at];
+    if (n->kind == FREP_VOLUME) { /* (no Lipschitz constant: the samples' range) */
+        const struct frep_volume *v = &f->volumes[(int)n->p[0]];
+        *lo = n->p[2] * (fminf(v->lo, v->outside) - n->p[1]);
+        *hi = n->p[2] * (fmaxf(v->hi, v->outside) - n->p[1]);
+        return;
+    }
     if (n->kind < FREP_UNION) {
-        double v = primitive(n, c, NULL), lip = 1;
+        double v = primitive(f, n, c, NULL), lip = 1;
         if (n->kind == FREP_SUPERELLIPSOID)
             lip = n->p[6] <= 2 && n->p[7] <= 2 ? sqrt(3.0) : FREP_HUGE;
         *lo = v - lip * r, *hi = v + lip * r;

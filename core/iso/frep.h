@@ -36,6 +36,7 @@ enum frep_kind {
     FREP_TORUS,          /* p: center[3], axis[3] (unit), major radius, minor radius */
     FREP_SUPERELLIPSOID, /* p: center[3], radii[3], e1 (north-south), e2 (east-west) */
     FREP_HALFSPACE,      /* p: point[3], normal[3] (unit, pointing out) */
+    FREP_VOLUME,         /* p: volume index (struct frep's volumes), iso, scale: scale (trilinear - iso) */
     FREP_UNION,          /* a, b; alpha */
     FREP_INTERSECT,      /* a, b; alpha */
     FREP_SUBTRACT,       /* a minus b; alpha */
@@ -52,9 +53,19 @@ struct frep_node {
     double m[3][3], t[3], lip;
 };
 
+/* A sampled volume in a tree (seed 002's hybrid of voxels and functions): its samples, trilinear
+ * between them; beyond the grid, outside (the value the extraction pads a closed volume with). */
+struct frep_volume {
+    int dims[3];
+    double origin[3], spacing[3];
+    const float *v;          /* dims[0] dims[1] dims[2] samples, x fastest (the caller's) */
+    float lo, hi, outside;   /* the samples' least and greatest, the value beyond the grid */
+};
+
 struct frep {
     struct frep_node *nodes;
     int n, root;
+    const struct frep_volume *volumes;
 };
 
 /* The field at x, and its gradient into g when g is not NULL. */

@@ -4,7 +4,8 @@
 # volume gives: with the hierarchy (levels 2, levels 3 with features) and with marching cubes
 # (levels 1, every cell drawn again); after a restart (the hierarchy rebuilt from the volume and the
 # edits kept in the store); the ETag follows the edits; every kind of bad edit with its status and
-# pointer, the daemon up after them.
+# pointer, the daemon up after them. An FRep object's volume primitive reads a model's samples as
+# edited.
 . "$(dirname "$0")/lib.inc"
 
 V="${SURFD_DATA:-../shared/data}/volumes"
@@ -66,8 +67,28 @@ code=$(status POST "/models/$id/edit?region=0,0,0,2,2,2" -H "$RAW" --data-binary
 job=$(header Location | sed 's,.*/,,')
 check "an edit can be asynchronous: 202 and its job, which succeeds" '[ "$code" = 202 ] && [ -n "$job" ] && wait_state "$job" succeeded'
 
-# ---- bad edits -----------------------------------------------------------------------------------
+# ---- an FRep object reads a model's samples as edited (the volume primitive) ----------------------
+Q1="dims=64,64,64&type=int16&spacing=1,1,1&iso=226.5"
+code=$(status POST "/isosurface?$Q1" -H "$RAW" --data-binary @"$CT"); vid=$(field id); vvol=$(field volume_mm3); vtri=$(field triangles)
+VOLREQ="{\"bounds\": [[0, 0, 0], [63, 63, 63]], \"cell\": 1, \"frep\": {\"volume\": {\"model\": \"$vid\"}}}"
+code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary "$VOLREQ")
+check "an FRep {volume: model} on the model's own grid: the model's mesh (its volume and triangles)" '[ "$code" = 201 ] && [ "$(field source)" = frep ] && [ "$(field volume_mm3)" = "$vvol" ] && [ "$(field triangles)" = "$vtri" ]'
+code=$(status POST "/models/$vid/edit?region=20,24,17,12,12,12" -H "$RAW" --data-binary @"$T/ball.raw"); evol=$(field volume_mm3); etri=$(field triangles)
+code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary "$VOLREQ")
+check "... after an edit of the model, the edited samples" '[ "$code" = 201 ] && [ "$evol" != "$vvol" ] && [ "$(field volume_mm3)" = "$evol" ] && [ "$(field triangles)" = "$etri" ]'
+code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary "{\"bounds\": [[-1, -1, -1], [64, 64, 64]], \"cell\": 1, \"frep\": {\"union\": [{\"volume\": {\"model\": \"$vid\", \"scale\": 0.01}}, {\"sphere\": {\"center\": [32, 32, 32], \"radius\": 12}}]}}")
+check "... in a union with a ball (seed 002's hybrid): closed, and more than the model" '[ "$code" = 201 ] && [ "$(field boundary_edges)" = 0 ] && [ "$(field nonmanifold_edges)" = 0 ] && python3 -c "import sys; sys.exit(0 if float(sys.argv[1]) > float(sys.argv[2]) else 1)" "$(field volume_mm3)" "$evol"'
 pointer() { python3 -c "import json,sys; e=json.load(open(sys.argv[1])).get('errors'); print(e[0]['pointer'] if e else '')" "$T/body"; }
+code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary '{"bounds": [[0, 0, 0], [9, 9, 9]], "cell": 1, "frep": {"union": [{"sphere": {"center": [0, 0, 0], "radius": 3}}, {"volume": {"model": "0123456789abcdef0123456789abcdef"}}]}}')
+check "an FRep volume of no such model: 422 at its member" '[ "$code" = 422 ] && [ "$(pointer)" = /frep/union/1/volume/model ]'
+status POST /model -H 'Content-Type: application/json' --data-binary @"${SURFD_DATA:-../shared/data}/contours/synthetic_bean.json" >/dev/null; bean=$(field id)
+code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary "{\"bounds\": [[0, 0, 0], [9, 9, 9]], \"cell\": 1, \"frep\": {\"volume\": {\"model\": \"$bean\"}}}")
+check "... of a contour model: 422 at its member" '[ "$code" = 422 ] && [ "$(pointer)" = /frep/volume/model ]'
+printf '%s' "$VOLREQ" >"$T/vol.json"
+$S isosurface "$T/vol.json" >/dev/null 2>"$T/err"; rc=$?
+check "... offline (surfd isosurface): refused, naming the member" '[ $rc -ne 0 ] && grep -q "/frep/volume/model" "$T/err"'
+
+# ---- bad edits -----------------------------------------------------------------------------------
 bad_edit() { # bad_edit LABEL STATUS POINTER QUERY [curl args]
     label=$1; want=$2; ptr=$3; q=$4; shift 4
     code=$(status POST "/models/$id/edit$q" "$@")

@@ -62,6 +62,29 @@ TEST(the_api_example)
     frep_request_free(&r);
 }
 
+/* volume primitives: one reference a model, however often the tree reads it */
+TEST(volumes_are_referenced_once_each)
+{
+    struct frep_request r;
+    struct sf_err err;
+    const char *text = "{\"bounds\": [[0, 0, 0], [1, 1, 1]], \"cell\": 0.1, \"frep\": {\"union\": ["
+                       "{\"volume\": {\"model\": \"0123456789abcdef0123456789abcdef\", \"scale\": 0.01}},"
+                       "{\"volume\": {\"model\": \"00000000000000000000000000000001\"}},"
+                       "{\"volume\": {\"model\": \"0123456789abcdef0123456789abcdef\"}}]}}";
+    CHECK(parse(text, &r, &err) == 0);
+    CHECK(r.n_refs == 2 && !strcmp(r.refs[1].model, "00000000000000000000000000000001"));
+    CHECK(!strcmp(r.refs[0].pointer, "/frep/union/0/volume/model"));
+    frep_volume_iso(&r, 0, 226.5);
+    int reads0 = 0;
+    for (int i = 0; i < r.f.n; i++)
+        if (r.f.nodes[i].kind == FREP_VOLUME && r.f.nodes[i].p[0] == 0) {
+            CHECK(r.f.nodes[i].p[1] == 226.5);
+            reads0++;
+        }
+    CHECK(reads0 == 2);
+    frep_request_free(&r);
+}
+
 TEST(lists_are_balanced)
 {
     static char text[100000];
@@ -120,6 +143,20 @@ TEST(bad_trees)
                   "/bounds/1/1"));
     CHECK(refused("{\"bounds\": [[0, 0, 0]], \"cell\": 0.1, \"frep\": " SPHERE "}", SF_EINVAL, "/bounds"));
     CHECK(refused("{\"bounds\": [[0, 0, 0], [1, 1, 1]], \"cell\": 0, \"frep\": " SPHERE "}", SF_EINVAL, "/cell"));
+    CHECK(refused(REQ("{\"volume\": {\"model\": \"xyz\"}}"), SF_EINVAL, "/frep/volume/model"));
+    CHECK(refused(REQ("{\"volume\": {}}"), SF_EINVAL, "/frep/volume/model"));
+    CHECK(refused(REQ("{\"volume\": {\"model\": \"0123456789abcdef0123456789abcdef\", \"scale\": 0}}"), SF_EINVAL,
+                  "/frep/volume/scale"));
+    CHECK(refused(REQ("{\"volume\": {\"model\": \"0123456789abcdef0123456789abcdef\", \"iso\": 3}}"), SF_EINVAL,
+                  "/frep/volume/iso"));
+    char many[4000] = "", *q = many;
+    q += sprintf(q, "{\"bounds\": [[0, 0, 0], [1, 1, 1]], \"cell\": 0.1, \"frep\": {\"union\": [");
+    for (int k = 0; k <= FREP_MAX_VOLUMES; k++)
+        q += sprintf(q, "%s{\"volume\": {\"model\": \"%032x\"}}", k ? ", " : "", k);
+    sprintf(q, "]}}");
+    char at[64];
+    snprintf(at, sizeof at, "/frep/union/%d/volume/model", FREP_MAX_VOLUMES);
+    CHECK(refused(many, SF_ELIMIT, at));
     /* the caps: the grid's samples, the tree's depth and its nodes */
     CHECK(refused("{\"bounds\": [[0, 0, 0], [10, 10, 10]], \"cell\": 0.01, \"frep\": " SPHERE "}", SF_ELIMIT, "/cell"));
     char deep[8000] = "", *p = deep;
@@ -145,6 +182,7 @@ int main(void)
 {
     RUN(the_api_example);
     RUN(lists_are_balanced);
+    RUN(volumes_are_referenced_once_each);
     RUN(bad_trees);
     UNIT_END();
 }

@@ -11,7 +11,7 @@
 #define PI 3.14159265358979323846
 
 static struct frep_node nodes[64];
-static struct frep tree = {nodes, 0, 0};
+static struct frep tree = {nodes, 0, 0, NULL};
 
 static int add(struct frep_node n)
 {
@@ -89,7 +89,7 @@ TEST(superellipsoid_of_unit_exponents_is_the_ellipsoid)
 {
     struct frep_node s = {.kind = FREP_SUPERELLIPSOID, .p = {0.5, 0, 0, 1, 2, 1.5, 1, 1}};
     struct frep_node e = {.kind = FREP_ELLIPSOID, .p = {0.5, 0, 0, 1, 2, 1.5}};
-    struct frep ts = {&s, 1, 0}, te = {&e, 1, 0};
+    struct frep ts = {&s, 1, 0, NULL}, te = {&e, 1, 0, NULL};
     for (int k = 0; k < 200; k++) {
         double x[3] = {rnd(-3, 3), rnd(-3, 3), rnd(-3, 3)};
         CHECK_NEAR(frep_eval(&ts, x, NULL), frep_eval(&te, x, NULL), 1e-9);
@@ -292,6 +292,49 @@ TEST(gradients_on_the_surface_are_the_faces_normals)
     CHECK_NEAR(g[2], -sqrt(0.5), 1e-12);
 }
 
+/* A volume primitive: trilinear, so exact on a field linear in each axis (values and gradient), the
+ * samples themselves at the nodes, scale (v - iso), flat and outside beyond the grid; its bounds
+ * hold; in an R-function it mixes with a distance. */
+TEST(a_sampled_volume_in_a_tree)
+{
+    enum { NX = 5, NY = 4, NZ = 3 };
+    static float v[NX * NY * NZ];
+    for (int z = 0; z < NZ; z++)
+        for (int y = 0; y < NY; y++)
+            for (int x = 0; x < NX; x++) /* f = 2x - 3y + 0.5z + xy (bilinear: trilinear reproduces it) */
+                v[x + NX * (y + NY * z)] = (float)(2 * x - 3 * y + 0.5 * z + x * y);
+    struct frep_volume vol = {{NX, NY, NZ}, {10, 20, 30}, {0.5, 2, 4}, v, -9, 14, -20};
+    struct frep_volume vols[1] = {vol};
+    tree = (struct frep){nodes, 0, 0, vols};
+    add((struct frep_node){.kind = FREP_VOLUME, .p = {0, 1.5, 3}});
+    for (int k = 0; k < 200; k++) {
+        double gx = rnd(0, NX - 1), gy = rnd(0, NY - 1), gz = rnd(0, NZ - 1);
+        double p[3] = {10 + 0.5 * gx, 20 + 2 * gy, 30 + 4 * gz}, g[3];
+        double f = frep_eval(&tree, p, g), want = 3 * (2 * gx - 3 * gy + 0.5 * gz + gx * gy - 1.5);
+        CHECK_NEAR(f, want, 1e-5);
+        CHECK_NEAR(g[0], 3 * (2 + gy) / 0.5, 1e-4);
+        CHECK_NEAR(g[1], 3 * (-3 + gx) / 2, 1e-4);
+        CHECK_NEAR(g[2], 3 * 0.5 / 4, 1e-4);
+        double lo, hi;
+        frep_bound(&tree, p, 1, &lo, &hi);
+        CHECK(lo <= f && f <= hi);
+    }
+    CHECK_NEAR(at(10 + 0.5 * 4, 20 + 2 * 3, 30 + 4 * 2), 3 * (v[4 + NX * (3 + NY * 2)] - 1.5), 1e-9); /* the last node */
+    double g[3];
+    CHECK_NEAR(frep_eval(&tree, (double[3]){9.9, 21, 31}, g), 3 * (-20 - 1.5), 1e-12);
+    CHECK(g[0] == 0 && g[1] == 0 && g[2] == 0);
+    CHECK_NEAR(at(11, 20, 38.1), 3 * (-20 - 1.5), 1e-12);
+    int vn = tree.root; /* subtracted from a ball: R0 of the two, inside only where both say so */
+    int ball = add((struct frep_node){.kind = FREP_SPHERE, .p = {11, 23, 34, 2}});
+    add((struct frep_node){.kind = FREP_INTERSECT, .a = ball, .b = vn, .alpha = 1});
+    double p[3] = {11, 23, 34};
+    CHECK_NEAR(frep_eval(&tree, p, NULL), fmin(2, 3 * (2 * 2 - 3 * 1.5 + 0.5 + 3 - 1.5)), 1e-5);
+    struct frep_volume none = {{NX, NY, NZ}, {10, 20, 30}, {0.5, 2, 4}, NULL, 0, 0, 0}; /* no samples given: flat */
+    vols[0] = none;
+    CHECK_NEAR(frep_eval(&tree, p, NULL), fmin(2, 3 * (0 - 1.5)), 1e-12);
+    tree.volumes = NULL;
+}
+
 int main(void)
 {
     RUN(primitives_are_signed_distances);
@@ -302,5 +345,6 @@ int main(void)
     RUN(bounds_hold_over_their_ball);
     RUN(sampling_skips_only_what_the_mesh_does_not_read);
     RUN(gradients_on_the_surface_are_the_faces_normals);
+    RUN(a_sampled_volume_in_a_tree);
     UNIT_END();
 }

@@ -15,7 +15,7 @@
 #define PI 3.14159265358979323846
 
 static struct frep_node nodes[16];
-static struct frep tree = {nodes, 0, 0};
+static struct frep tree = {nodes, 0, 0, NULL};
 static const double ROT[3] = {20, 30, 10}; /* degrees about x, y, z */
 
 static int add(struct frep_node n)
