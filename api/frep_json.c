@@ -456,3 +456,52 @@ void frep_request_free(struct frep_request *r)
     r->f.nodes = NULL;
     r->f.n = 0;
 }
+
+char *frep_combine(const char *request, size_t len, const char *edit, size_t elen, struct sf_err *err)
+{
+    static const char *const KEYS[] = {"op", "object", "alpha", NULL};
+    json_t *req = NULL, *ed = NULL;
+    char *out = NULL;
+    if (json_read(edit, elen, &ed, err))
+        return NULL;
+    struct builder b = {NULL, NULL, 0, 0, err};
+    const char *op = json_string_value(json_object_get(ed, "op"));
+    json_t *object = json_object_get(ed, "object"), *alpha = json_object_get(ed, "alpha");
+    if (!json_is_object(ed))
+        sf_fail(err, SF_EINVAL, "", "an FRep model's edit is {\"op\": \"union|intersect|subtract\", \"object\": {...}}");
+    else if (only_keys(&b, ed, "", KEYS))
+        ;
+    else if (!op || (strcmp(op, "union") && strcmp(op, "intersect") && strcmp(op, "subtract")))
+        sf_fail(err, SF_EINVAL, "/op", "op is union, intersect or subtract");
+    else if (!object)
+        sf_fail(err, SF_EINVAL, "/object", "object (the FRep object to combine) is required");
+    else if (alpha && (!json_is_number(alpha) || !(json_number_value(alpha) >= 0 && json_number_value(alpha) <= 1)))
+        sf_fail(err, SF_EINVAL, "/alpha", "alpha is a number from 0 to 1");
+    else if (json_read(request, len, &req, err) || !json_is_object(req))
+        sf_fail(err, SF_EINVAL, "", "the model's FRep request could not be read back");
+    else {
+        json_t *node = json_pack("{s:[O,O]}", op, json_object_get(req, "frep"), object);
+        if (node && alpha)
+            json_object_set(node, "alpha", alpha);
+        json_object_set_new(req, "frep", node);
+        out = json_dumps(req, JSON_COMPACT | JSON_REAL_PRECISION(17));
+        struct frep_request r;
+        char inner[32];
+        snprintf(inner, sizeof inner, "/frep/%s/1", op);
+        if (!out) {
+            sf_fail(err, SF_ENOMEM, "", "out of memory");
+        } else if (frep_parse(out, strlen(out), &r, err)) { /* the object's pointer, as the edit names it */
+            char p[sizeof err->pointer];
+            size_t n = strlen(inner);
+            snprintf(p, sizeof p, "/object%s", !strncmp(err->pointer, inner, n) ? err->pointer + n : "");
+            snprintf(err->pointer, sizeof err->pointer, "%s", p);
+            free(out);
+            out = NULL;
+        } else {
+            frep_request_free(&r);
+        }
+    }
+    json_decref(req);
+    json_decref(ed);
+    return out;
+}

@@ -62,4 +62,10 @@ void frep_volume_iso(struct frep_request *r, int k, double iso);
 int frep_parse(const char *buf, size_t len, struct frep_request *r, struct sf_err *err);
 void frep_request_free(struct frep_request *r);
 
+/* An FRep model's edit (POST /models/{id}/edit): request (the model's FRep request) with its
+ * tree combined with edit's {"op": "union|intersect|subtract", "object": NODE, "alpha": a} (alpha:
+ * the request's when absent), as a new request (caller frees); NULL with err (pointers name the
+ * edit's members: "/object/sphere/radius"). */
+char *frep_combine(const char *request, size_t len, const char *edit, size_t elen, struct sf_err *err);
+
 #endif

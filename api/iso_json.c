@@ -66,7 +66,7 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
     return text;
 }
 
-int iso_model_grid(const char *resource, struct iso_grid *g, struct sf_err *err)
+int iso_model_grid(const char *resource, struct iso_grid *g, bool *frep, struct sf_err *err)
 {
     json_error_t je;
     json_t *o = json_loads(resource, 0, &je);
@@ -74,9 +74,9 @@ int iso_model_grid(const char *resource, struct iso_grid *g, struct sf_err *err)
     memset(g, 0, sizeof *g);
     int rc = !o || json_unpack(o, "{s:s, s:{s:[i,i,i], s:s}}", "source", &source, "grid", "dims", &g->nx, &g->ny, &g->nz,
                                "type", &type) ? -1 : 0;
-    if (!rc && strcmp(source, "isosurface"))
-        rc = sf_fail(err, SF_ECONFLICT, "", "%s models are not edited by samples (isosurface models of samples are)",
-                     source);
+    *frep = !rc && !strcmp(source, "frep");
+    if (!rc && strcmp(source, "isosurface") && !*frep)
+        rc = sf_fail(err, SF_ECONFLICT, "", "%s models are not edited (isosurface models are)", source);
     else if (rc)
         rc = sf_fail(err, SF_ECONFLICT, "", "only isosurface models of samples are edited");
     g->type = !strcmp(type, "uint8") ? ISO_U8 : !strcmp(type, "int16") ? ISO_I16 : !strcmp(type, "uint16") ? ISO_U16 : ISO_F32;

@@ -2,6 +2,7 @@
 #ifndef SURFD_ISO_JSON_H
 #define SURFD_ISO_JSON_H
 
+#include <stdbool.h>
 #include <stddef.h>
 
 #include "../core/base/err.h"
@@ -29,9 +30,9 @@ struct iso_model {
 /* The resource as JSON (caller frees), or NULL with err. */
 char *iso_model_json(const struct iso_model *m, struct sf_err *err);
 
-/* The grid (dims, type) of an isosurface model from its resource: 0, or SF_ECONFLICT for a model
- * of another source (contours, an FRep object). */
-int iso_model_grid(const char *resource, struct iso_grid *g, struct sf_err *err);
+/* The grid (dims, type) of an isosurface model from its resource, *frep whether it is an FRep
+ * object's: 0, or SF_ECONFLICT for a model of another source (contours). */
+int iso_model_grid(const char *resource, struct iso_grid *g, bool *frep, struct sf_err *err);
 
 /* A model resource's count of edits (0 for a model never edited, or of another kind). */
 long iso_model_edits(const char *resource);

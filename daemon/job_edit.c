@@ -19,7 +19,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
+#include "../api/frep_json.h"
 #include "../api/iso_json.h"
 #include "../api/mesh_io.h"
 #include "../api/query.h"
@@ -236,6 +238,41 @@ int edit_volume(struct service *svc, const char *id, struct volume *vol, int *ne
     return rc;
 }
 
+int frep_volumes(struct service *svc, struct frep_request *r, struct sf_err *err)
+{
+    r->f.volumes = r->vols;
+    for (int k = 0; k < r->n_refs; k++) {
+        struct volume mv;
+        struct sf_err e = {0};
+        int next;
+        if (edit_volume(svc, r->refs[k].model, &mv, &next, &e))
+            return sf_fail(err, e.code == SF_ECONFLICT ? SF_EINVAL : e.code, r->refs[k].pointer, "model %s: %s",
+                           r->refs[k].model, e.message);
+        size_t n = (size_t)mv.g.nx * mv.g.ny * mv.g.nz;
+        float *f = mv.oblique ? NULL : malloc(n * sizeof *f);
+        if (!f) {
+            volume_free(&mv);
+            return mv.oblique ? sf_fail(err, SF_EINVAL, r->refs[k].pointer, "model %s: an oblique series is not read "
+                                                                            "into an FRep object", r->refs[k].model)
+                              : sf_fail(err, SF_ENOMEM, "", "out of memory for a volume's samples");
+        }
+        for (int z = 0; z < mv.g.nz; z++)
+            for (int y = 0; y < mv.g.ny; y++)
+                iso_grid_row(&mv.g, y, z, f + (size_t)mv.g.nx * (y + (size_t)mv.g.ny * z));
+        float lo = INFINITY, hi = -INFINITY;
+        for (size_t i = 0; i < n; i++)
+            lo = fminf(lo, f[i]), hi = fmaxf(hi, f[i]);
+        struct frep_volume *fv = &r->vols[k];
+        *fv = (struct frep_volume){{mv.g.nx, mv.g.ny, mv.g.nz}, {0}, {0}, f, lo, hi, (float)fmin(mv.iso - 1, lo)};
+        memcpy(fv->origin, mv.g.origin, sizeof fv->origin);
+        memcpy(fv->spacing, mv.g.spacing, sizeof fv->spacing);
+        r->vol_samples[k] = f;
+        frep_volume_iso(r, k, mv.iso);
+        volume_free(&mv);
+    }
+    return 0;
+}
+
 /* Model id's hierarchy rebuilt from the store (its volume, then its edits in order): held and
  * locked, or NULL with err. */
 static struct live *rebuild(struct service *svc, const char *id, struct sf_err *err)
@@ -303,6 +340,42 @@ struct edit_work {
     struct sf_err err;
 };
 
+/* The mesh m of model id's volume v measured, packed and stored as the model's next part (seq:
+ * its format, options and data), the resource into w->json with edit me. */
+static int store_edit(struct edit_work *w, const char *id, const struct volume *v, struct trimesh *m,
+                      const struct iso_adapt_stats *ast, struct iso_model_edit *me, const struct volume_rec *part,
+                      double t0, double t_mesh)
+{
+    struct trimesh_stats st;
+    char *packed = NULL;
+    size_t packed_len = 0;
+    double t1 = monotonic_s();
+    int rc = volume_mesh_empty(v, m, &w->err);
+    if (!rc && v->oblique)
+        trimesh_turn(m, v->g.origin, (const double(*)[3])v->axes);
+    if (!rc)
+        rc = trimesh_stats(m, &st, &w->err);
+    if (!rc)
+        rc = mesh_pack(m, &packed, &packed_len, &w->err);
+    if (!rc) {
+        double t2 = monotonic_s();
+        struct iso_model im = {id, v->name, v, &st, ast, m->n_vert, m->n_tri,
+                               {0, 0, (t_mesh - t0) * 1e3, (t2 - t1) * 1e3, (t2 - t0) * 1e3}, part->seq, me};
+        if (!(w->json = iso_model_json(&im, &w->err)))
+            rc = w->err.code;
+    }
+    if (!rc) {
+        struct model_rec mr = {id, id, NULL, NULL, 0, packed, packed_len, w->json, NULL};
+        int stored = store_model_edit(w->svc->store, &mr, part);
+        if (stored != 1)
+            rc = stored == 0 ? sf_fail(&w->err, SF_ECONFLICT, "", "the model was edited by another request meanwhile "
+                                                                   "(or deleted); send the edit again")
+                             : sf_fail(&w->err, SF_EIO, "", "the store would not take the edit");
+    }
+    free(packed);
+    return rc;
+}
+
 /* The edit applied to e and stored with the mesh it gives: the new resource into w->json. */
 static int edit_model(struct edit_work *w, struct live *e, const struct job_rec *rec, const char *model, bool *drop)
 {
@@ -331,41 +404,51 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     double t_mesh = monotonic_s();
     if (!e->a)
         me.ms = (t_mesh - ta) * 1e3; /* (marching cubes: every cell drawn again) */
-    if (!rc)
-        rc = volume_mesh_empty(&e->vol, &m, &w->err);
-    if (!rc && e->vol.oblique)
-        trimesh_turn(&m, e->vol.g.origin, (const double(*)[3])e->vol.axes);
-    struct trimesh_stats st;
-    char *packed = NULL;
-    size_t packed_len = 0;
-    double t1 = monotonic_s();
-    if (!rc)
-        rc = trimesh_stats(&m, &st, &w->err);
-    if (!rc)
-        rc = mesh_pack(&m, &packed, &packed_len, &w->err);
     if (!rc) {
-        double t2 = monotonic_s();
-        struct iso_model im = {model, e->vol.name, &e->vol, &st, e->a ? &ast : NULL, m.n_vert, m.n_tri,
-                               {(ta - t0) * 1e3, 0, (t_mesh - ta) * 1e3, (t2 - t1) * 1e3, (t2 - t0) * 1e3}, e->next_seq,
-                               &me};
-        if (!(w->json = iso_model_json(&im, &w->err)))
-            rc = w->err.code;
+        struct volume_rec part = {e->next_seq, "edit", rec->options, rec->request, rec->request_len};
+        if (!(rc = store_edit(w, model, &e->vol, &m, e->a ? &ast : NULL, &me, &part, t0, t_mesh)))
+            e->next_seq++, *drop = false;
     }
     trimesh_free(&m);
+    return rc;
+}
+
+/* An FRep model's edit: its latest request's tree combined with the body's object, sampled and
+ * extracted again whole (every cell: see the file's head), stored as the next part. */
+static int edit_frep(struct edit_work *w, const struct job_rec *rec, const char *id)
+{
+    struct volume_rec *parts;
+    int n, found = store_volume_get(w->svc->store, id, 0, &parts, &n), rc = 0;
+    if (found != 1)
+        return sf_fail(&w->err, found == 0 ? SF_ECONFLICT : SF_EIO, "",
+                       found == 0 ? "this model keeps no FRep request (made before they were kept)"
+                                  : "the model's FRep request could not be read from the store");
+    double t0 = monotonic_s();
+    char *req = frep_combine(parts[n - 1].data, parts[n - 1].len, (const char *)rec->request, rec->request_len, &w->err);
+    struct volume v = {0};
+    struct iso_model_edit me = {"", {0}, 0};
+    if (!req || volume_read(req, strlen(req), "frep", parts[0].options, &v, &w->err) ||
+        frep_volumes(w->svc, v.frep, &w->err))
+        rc = w->err.code ? w->err.code : SF_EINVAL;
+    struct trimesh m = {0};
+    struct iso_adapt_stats ast = {0};
     if (!rc) {
-        struct model_rec mr = {model, model, NULL, NULL, 0, packed, packed_len, w->json, NULL};
-        struct volume_rec part = {e->next_seq, "edit", rec->options, rec->request, rec->request_len};
-        int stored = store_model_edit(w->svc->store, &mr, &part);
-        if (stored == 1) {
-            e->next_seq++;
-            *drop = false;
-        } else {
-            rc = stored == 0 ? sf_fail(&w->err, SF_ECONFLICT, "", "the model was edited by another request meanwhile "
-                                                                   "(or deleted); send the edit again")
-                             : sf_fail(&w->err, SF_EIO, "", "the store would not take the edit");
-        }
+        volume_sample(&v, 0, v.g.nz);
+        struct iso_opts o = volume_iso_opts(&v);
+        rc = volume_adaptive(&v) ? iso_extract_adaptive(&v.g, &o, v.levels, v.max_error, NULL, &m, &ast, &w->err)
+                                 : iso_extract(&v.g, &o, NULL, &m, &w->err);
     }
-    free(packed);
+    if (!rc) {
+        double t_mesh = monotonic_s();
+        me.e = (struct iso_edit){(long)(v.g.nx + 1) * (v.g.ny + 1) * (v.g.nz + 1), 0, (long)m.n_tri, true};
+        me.ms = (t_mesh - t0) * 1e3;
+        struct volume_rec part = {n, "frep", parts[0].options, req, strlen(req)};
+        rc = store_edit(w, id, &v, &m, volume_adaptive(&v) ? &ast : NULL, &me, &part, t0, t_mesh);
+    }
+    trimesh_free(&m);
+    volume_free(&v);
+    free(req);
+    store_volume_free(parts, n);
     return rc;
 }
 
@@ -379,6 +462,15 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
     char model[40];
     query_option(rec.options, "model", model, sizeof model);
+    if (!strcmp(rec.format, "json")) {
+        int rc = edit_frep(w, &rec, model);
+        if (!rc) {
+            w->len = strlen(w->json);
+            snprintf(w->meta, sizeof w->meta, "{\"status\":200}");
+        }
+        store_rec_free(&rec);
+        return rc ? -1 : 0;
+    }
     struct live *e = live_take(model);
     if (!e)
         e = rebuild(w->svc, model, &w->err);
@@ -424,8 +516,7 @@ int edit_start(struct service *svc, const struct job_claim *c)
 
 const char *edit_format(const char *content_type)
 {
-    (void)content_type;
-    return "raw";
+    return content_type && !strncasecmp(content_type, "application/json", 16) ? "json" : "raw";
 }
 
 /* The route checked the model (found, the token's) and put its id in ?model; here: it is an
@@ -437,9 +528,24 @@ int edit_validate(struct service *svc, struct job_body *b, struct sf_err *err)
     if (store_model_get(svc->store, model, NULL, &resource, NULL, NULL) != 1)
         return sf_fail(err, SF_EINVAL, "", "no such model");
     struct iso_grid g;
-    int rc = iso_model_grid(resource, &g, err), lo[3], n[3];
-    if (!rc)
-        rc = volume_region(b->options, &g, b->len, lo, n, err);
+    bool frep, json = !strcmp(b->format, "json");
+    int rc = iso_model_grid(resource, &g, &frep, err), lo[3], n[3];
     free(resource);
+    if (!rc && frep != json)
+        rc = sf_fail(err, SF_ECONFLICT, "", frep ? "an FRep model is edited by {\"op\", \"object\"} (application/json)"
+                                                 : "an isosurface of samples is edited by the region's raw samples "
+                                                   "(application/octet-stream)");
+    if (rc || !frep)
+        return rc ? rc : volume_region(b->options, &g, b->len, lo, n, err);
+    /* the object combined with the model's latest tree, parsed (its pointers the edit's) */
+    struct volume_rec *parts;
+    int np, found = store_volume_get(svc->store, model, 0, &parts, &np);
+    if (found != 1)
+        return sf_fail(err, found == 0 ? SF_ECONFLICT : SF_EIO, "",
+                       found == 0 ? "this model keeps no FRep request (made before they were kept)" : "the store failed");
+    char *req = frep_combine(parts[np - 1].data, parts[np - 1].len, b->body ? b->body : "", b->len, err);
+    store_volume_free(parts, np);
+    rc = req ? 0 : err->code;
+    free(req);
     return rc;
 }

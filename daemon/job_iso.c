@@ -67,43 +67,6 @@ static int map_file(const char *path, void **map, size_t *len)
 
 static int begin_extract(struct iso_work *w, int *n_bands);
 
-/* The stored models an FRep tree's volume primitives read (their samples as edited), as floats. */
-static int resolve_volumes(struct iso_work *w)
-{
-    struct frep_request *r = w->vol.frep;
-    r->f.volumes = r->vols;
-    for (int k = 0; k < r->n_refs; k++) {
-        struct volume mv;
-        struct sf_err e = {0};
-        int next;
-        if (edit_volume(w->svc, r->refs[k].model, &mv, &next, &e))
-            return sf_fail(&w->err, e.code == SF_ECONFLICT ? SF_EINVAL : e.code, r->refs[k].pointer, "model %s: %s",
-                           r->refs[k].model, e.message);
-        size_t n = (size_t)mv.g.nx * mv.g.ny * mv.g.nz;
-        float *f = mv.oblique ? NULL : malloc(n * sizeof *f);
-        if (!f) {
-            volume_free(&mv);
-            return mv.oblique ? sf_fail(&w->err, SF_EINVAL, r->refs[k].pointer, "model %s: an oblique series is not "
-                                                                                "read into an FRep object", r->refs[k].model)
-                              : sf_fail(&w->err, SF_ENOMEM, "", "out of memory for a volume's samples");
-        }
-        for (int z = 0; z < mv.g.nz; z++)
-            for (int y = 0; y < mv.g.ny; y++)
-                iso_grid_row(&mv.g, y, z, f + (size_t)mv.g.nx * (y + (size_t)mv.g.ny * z));
-        float lo = INFINITY, hi = -INFINITY;
-        for (size_t i = 0; i < n; i++)
-            lo = fminf(lo, f[i]), hi = fmaxf(hi, f[i]);
-        struct frep_volume *fv = &r->vols[k];
-        *fv = (struct frep_volume){{mv.g.nx, mv.g.ny, mv.g.nz}, {0}, {0}, f, lo, hi, (float)fmin(mv.iso - 1, lo)};
-        memcpy(fv->origin, mv.g.origin, sizeof fv->origin);
-        memcpy(fv->spacing, mv.g.spacing, sizeof fv->spacing);
-        r->vol_samples[k] = f;
-        frep_volume_iso(r, k, mv.iso);
-        volume_free(&mv);
-    }
-    return 0;
-}
-
 static int prepare(struct job *j, void *arg, int *n_bands)
 {
     struct iso_work *w = arg;
@@ -126,7 +89,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     struct jobq_stats qs;
     jobq_stats(w->svc->q, &qs);
     w->n_slabs = (int)qs.workers * SLABS_PER_WORKER;
-    if (w->vol.frep && resolve_volumes(w))
+    if (w->vol.frep && frep_volumes(w->svc, w->vol.frep, &w->err))
         return -1;
     if (w->vol.frep) { /* sampled first, in bands of planes */
         w->phase = PH_SAMPLE;
@@ -261,11 +224,11 @@ static int store_model(struct iso_work *w)
     if (!rc && !(w->json = iso_model_json(&im, &w->err)))
         rc = w->err.code;
     if (!rc) {
-        /* a volume of samples is kept with the model, as it was posted, for its edits */
+        /* the volume (samples or an FRep object) is kept with the model, as it was posted, for its edits */
         struct volume_rec vr = {0, w->rec.format, w->rec.options, w->map ? w->map : (const void *)w->rec.request,
                                 w->map ? w->map_len : w->rec.request_len};
         struct model_rec mr = {w->claim.id, w->claim.id, w->vol.name, w->rec.owner, wall_s(), packed, packed_len, w->json,
-                               strcmp(w->vol.source, "frep") ? &vr : NULL};
+                               &vr};
         if (store_model_put(w->svc->store, &mr))
             rc = sf_fail(&w->err, SF_EIO, "", "the store would not take the mesh");
     }
@@ -335,12 +298,14 @@ int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err)
         char *resource = NULL;
         struct iso_grid g;
         struct sf_err e = {0};
+        bool frep;
         int found = store_model_get(svc->store, r.refs[k].model, b->owner, &resource, NULL, NULL);
         if (found != 1)
             rc = found == 0 ? sf_fail(err, SF_EINVAL, r.refs[k].pointer, "no such model")
                             : sf_fail(err, SF_EIO, "", "the store failed");
-        else if (iso_model_grid(resource, &g, &e))
-            rc = sf_fail(err, SF_EINVAL, r.refs[k].pointer, "%s", e.message);
+        else if (iso_model_grid(resource, &g, &frep, &e) || frep)
+            rc = sf_fail(err, SF_EINVAL, r.refs[k].pointer, "a volume reads an isosurface model of samples%s%s",
+                         e.message[0] ? ": " : "", e.message);
         free(resource);
     }
     frep_request_free(&r);

@@ -69,5 +69,9 @@ void edit_keep(struct service *svc, const char *id, const struct volume *vol, st
  * volume_free), *next the seq after its last edit: 0, or SF_ECONFLICT (the model keeps no volume
  * of samples), SF_EIO, SF_ENOMEM. */
 int edit_volume(struct service *svc, const char *id, struct volume *vol, int *next, struct sf_err *err);
+/* The stored models an FRep request's volume primitives read, as float samples into r (their
+ * iso into its nodes): 0, or SF_EINVAL at the primitive's pointer, SF_EIO, SF_ENOMEM. */
+struct frep_request;
+int frep_volumes(struct service *svc, struct frep_request *r, struct sf_err *err);
 
 #endif

@@ -2,7 +2,7 @@
 # POST /models/{id}/edit through HTTP (issue 15): a block of new samples changes an isosurface
 # model, and its mesh equals, triangle for triangle, what a fresh POST /isosurface of the edited
 # volume gives: with the hierarchy (levels 2, levels 3 with features) and with marching cubes
-# (levels 1, every cell drawn again); after a restart (the hierarchy rebuilt from the volume and the
+# (levels 1, every cell drawn again), and an FRep model by an object (its tree combined); after a restart (the hierarchy rebuilt from the volume and the
 # edits kept in the store); the ETag follows the edits; every kind of bad edit with its status and
 # pointer, the daemon up after them. An FRep object's volume primitive reads a model's samples as
 # edited.
@@ -88,6 +88,37 @@ printf '%s' "$VOLREQ" >"$T/vol.json"
 $S isosurface "$T/vol.json" >/dev/null 2>"$T/err"; rc=$?
 check "... offline (surfd isosurface): refused, naming the member" '[ $rc -ne 0 ] && grep -q "/frep/volume/model" "$T/err"'
 
+# ---- an FRep model edited by an object: its tree combined, every cell drawn again -------------------
+J='Content-Type: application/json'
+BOX='{"box": {"min": [-1, -1, -1], "max": [1, 1, 1]}}'
+BALL='{"sphere": {"center": [1, 1, 1], "radius": 0.7}}'
+RING='{"torus": {"center": [0, 0, -1], "axis": [0, 0, 1], "major": 0.8, "minor": 0.25}}'
+frep_req() { printf '{"bounds": [[-1.6, -1.6, -1.6], [1.6, 1.6, 1.6]], "cell": 0.08, "frep": %s}' "$1"; }
+code=$(status POST "/isosurface?levels=2&features=sharp" -H "$J" --data-binary "$(frep_req "$BOX")"); fm=$(field id)
+code=$(status POST "/models/$fm/edit" -H "$J" --data-binary "{\"op\": \"subtract\", \"object\": $BALL}")
+check "an FRep model: {op: subtract, object}: 200, edits 1, every cell drawn again (whole)" '[ "$code" = 200 ] && [ "$(field edits)" = 1 ] && [ "$(edit_field whole)" = True ] && [ "$(field boundary_edges)" = 0 ]'
+code=$(status POST "/models/$fm/edit" -H "$J" --data-binary "{\"op\": \"union\", \"object\": $RING, \"alpha\": 1}")
+evol=$(field volume_mm3); etri=$(field triangles)
+check "... then {op: union, object, alpha: 1}: edits 2" '[ "$code" = 200 ] && [ "$(field edits)" = 2 ]'
+status GET "/models/$fm/mesh?format=stl" >/dev/null; cp "$T/body" "$T/edited.stl"
+code=$(status POST "/isosurface?levels=2&features=sharp" -H "$J" --data-binary "$(frep_req "{\"union\": [{\"subtract\": [$BOX, $BALL]}, $RING], \"alpha\": 1}")")
+check "... equal to a fresh POST /isosurface of the combined tree (volume, triangles, STL)" '[ "$code" = 201 ] && [ "$(field volume_mm3)" = "$evol" ] && [ "$(field triangles)" = "$etri" ] && status GET "/models/$(field id)/mesh?format=stl" >/dev/null && python3 $E same "$T/edited.stl" "$T/body"'
+bad_frep() { # bad_frep LABEL STATUS POINTER BODY
+    label=$1; want=$2; ptr=$3
+    code=$(status POST "/models/$fm/edit" -H "$J" --data-binary "$4")
+    check "bad FRep edit: $label -> $want${ptr:+ at $ptr}" '[ "$code" = "$want" ] && is_problem "$want" && { [ -z "$ptr" ] || [ "$(pointer)" = "$ptr" ]; }'
+}
+bad_frep "an unknown op" 422 /op "{\"op\": \"xor\", \"object\": $BALL}"
+bad_frep "no object" 422 /object '{"op": "union"}'
+bad_frep "a bad radius inside the object" 422 /object/sphere/radius '{"op": "union", "object": {"sphere": {"center": [0, 0, 0], "radius": -1}}}'
+bad_frep "an unknown member" 422 /colour "{\"op\": \"union\", \"object\": $BALL, \"colour\": 1}"
+bad_frep "alpha out of range" 422 /alpha "{\"op\": \"union\", \"object\": $BALL, \"alpha\": 2}"
+bad_frep "not JSON" 400 "" '{"op": '
+code=$(status POST "/models/$fm/edit?region=0,0,0,2,2,2" -H "$RAW" --data-binary @"$T/tiny.raw")
+check "bad edit: raw samples to an FRep model -> 409" '[ "$code" = 409 ] && is_problem 409'
+code=$(status POST "/models/$vid/edit" -H "$J" --data-binary "{\"op\": \"union\", \"object\": $BALL}")
+check "bad edit: an FRep object to a model of samples -> 409" '[ "$code" = 409 ] && is_problem 409'
+
 # ---- bad edits -----------------------------------------------------------------------------------
 bad_edit() { # bad_edit LABEL STATUS POINTER QUERY [curl args]
     label=$1; want=$2; ptr=$3; q=$4; shift 4
@@ -108,10 +139,6 @@ C="${SURFD_DATA:-../shared/data}/contours"
 code=$(status POST /model -H 'Content-Type: application/json' --data-binary @"$C/synthetic_bean.json"); cid=$(field id)
 code=$(status POST "/models/$cid/edit?region=0,0,0,12,12,12" -H "$RAW" --data-binary @"$T/ball.raw")
 check "bad edit: a contour model -> 409" '[ "$code" = 409 ] && is_problem 409'
-code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary '{"bounds": [[-1.2, -1.2, -1.2], [1.2, 1.2, 1.2]], "cell": 0.1, "frep": {"sphere": {"center": [0, 0, 0], "radius": 1}}}')
-fid=$(field id)
-code=$(status POST "/models/$fid/edit?region=0,0,0,12,12,12" -H "$RAW" --data-binary @"$T/ball.raw")
-check "bad edit: an FRep model edited by samples -> 409" '[ "$code" = 409 ] && is_problem 409'
 check "the daemon is up after them, and the model as it was" 'alive && [ "$(status GET "/models/$id")" = 200 ] && [ "$(field edits)" = 3 ]'
 check "deleting the model deletes its volume: an edit then finds no model" '[ "$(status DELETE "/models/$id")" = 204 ] && [ "$(status POST "/models/$id/edit?region=0,0,0,2,2,2" -H "$RAW" --data-binary @"$T/tiny.raw")" = 404 ]'
 
