@@ -947,9 +947,10 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
             return MHD_YES;
         }
         if (r->len + n + 1 > r->cap) {
-            size_t cap = r->cap ? r->cap : 65536;
+            size_t cap = r->cap ? r->cap : 65536, most = (size_t)r->svc->cfg.max_body + 1;
             while (cap < r->len + n + 1)
                 cap *= 2;
+            cap = cap > most ? most : cap; /* (a small max-body: its budget holds its bodies too) */
             long more = (long)cap - r->reserved;
             if (atomic_fetch_add(&body_bytes, more) + more > BODY_BUDGET_BODIES * r->svc->cfg.max_body) {
                 atomic_fetch_sub(&body_bytes, more);

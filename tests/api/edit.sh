@@ -142,4 +142,16 @@ check "bad edit: a contour model -> 409" '[ "$code" = 409 ] && is_problem 409'
 check "the daemon is up after them, and the model as it was" 'alive && [ "$(status GET "/models/$id")" = 200 ] && [ "$(field edits)" = 3 ]'
 check "deleting the model deletes its volume: an edit then finds no model" '[ "$(status DELETE "/models/$id")" = 204 ] && [ "$(status POST "/models/$id/edit?region=0,0,0,2,2,2" -H "$RAW" --data-binary @"$T/tiny.raw")" = 404 ]'
 
+# ---- the caps: a body over max-body is a 413 before it is read; with edit-memory 0 nothing is kept and
+# every edit rebuilds its hierarchy from the store, with the same result ------------------------------
+stop_daemon
+start_daemon "$T/d" --threads 2 --max-body 2048 --edit-memory 0 || exit 1
+Q="$G&iso=226.5&levels=2&max_error=0.5"
+code=$(status POST "/isosurface?$Q" -H "$RAW" --data-binary @"$CT"); id=$(field id)
+code=$(status POST "/models/$id/edit?region=20,24,17,12,12,12" -H "$RAW" --data-binary @"$T/ball.raw")
+check "an edit body over max-body: 413" '[ "$code" = 413 ] && is_problem 413'
+code=$(status POST "/models/$id/edit?region=0,50,52,10,10,10" -H "$RAW" --data-binary @"$T/hole.raw")
+python3 $E apply "$CT" 64,64,64 0,50,52,10,10,10 "$T/hole.raw" "$T/v3.raw"
+check "edit-memory 0: the edit rebuilds the hierarchy from the store, equal to a fresh extraction" '[ "$code" = 200 ] && same_as_fresh "$id" "$Q" "$T/v3.raw"'
+
 finish
