@@ -194,7 +194,8 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
                     double t = f0 / (f0 - f1), v[3], e = tri_n ? INFINITY : INFINITY;
                     for (int d = 0; d < 3; d++)
                         v[d] = a->org[d] + a->sp[d] * (p[d] + (d == axis ? t : 0));
-                    for (int k = 0; k < tri_n; k++)
+                    /* (a triangle within the worst so far settles this vertex: it cannot raise it) */
+                    for (int k = 0; k < tri_n && e > worst; k++)
                         e = fmin(e, trimesh_point_dist(v, tris[k][0], tris[k][1], tris[k][2]));
                     worst = fmax(worst, e);
                     if (worst > a->max_err)
@@ -1298,9 +1299,22 @@ static void block_cells(const struct iso_adapt *a, struct piece *pc, const int b
         if (!(b[0] & m) && !(b[1] & m) && !(b[2] & m))
             polygonise(a, pc, (int[3]){2 * b[0], 2 * b[1], 2 * b[2]}, lam);
     } else if (a->mixed[2][at]) { /* level-1 cells where the samples change side */
+        bool hides = a->mixed[2][at] & HIDES, side[27];
+        int n[3];
+        for (int d = 0; d < 3; d++)
+            n[d] = 2 * b[d] + 2 < a->N[d] ? 3 : a->N[d] - 2 * b[d];
+        for (int z = 0; z < n[2]; z++) /* the block's samples once (a cell's corners lie planes apart) */
+            for (int y = 0; y < n[1]; y++)
+                for (int x = 0; x < n[0]; x++)
+                    side[x + 3 * (y + 3 * z)] = F(a, 2 * b[0] + x, 2 * b[1] + y, 2 * b[2] + z) > a->iso;
         for (int k = 0; k < 8; k++) {
-            int o[3] = {2 * b[0] + (k & 1), 2 * b[1] + (k >> 1 & 1), 2 * b[2] + (k >> 2 & 1)};
-            if (o[0] + 1 < a->N[0] && o[1] + 1 < a->N[1] && o[2] + 1 < a->N[2])
+            int c[3] = {k & 1, k >> 1 & 1, k >> 2 & 1}, o[3] = {2 * b[0] + c[0], 2 * b[1] + c[1], 2 * b[2] + c[2]};
+            if (o[0] + 1 >= a->N[0] || o[1] + 1 >= a->N[1] || o[2] + 1 >= a->N[2])
+                continue;
+            int in = 0;
+            for (int q = 0; q < 8; q++)
+                in += side[(c[0] + (q & 1)) + 3 * ((c[1] + (q >> 1 & 1)) + 3 * (c[2] + (q >> 2 & 1)))];
+            if (hides || (in > 0 && in < 8)) /* (polygonise draws nothing in the others) */
                 polygonise(a, pc, o, 1);
         }
     }
