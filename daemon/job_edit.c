@@ -214,6 +214,8 @@ int edit_volume(struct service *svc, const char *id, struct volume *vol, int *ne
         return sf_fail(err, found == 0 || found == 1 ? SF_ECONFLICT : SF_EIO, "",
                        found == 0 || found == 1 ? "this model keeps no volume of samples (made before volumes were "
                                                   "kept, or not an isosurface of samples)"
+                       : found == STORE_DAMAGED ? "the model's stored volume is damaged (its bytes no longer match "
+                                                  "their checksum): it cannot be edited"
                                                 : "the model's volume could not be read from the store");
     }
     int rc = volume_read(parts[0].data, parts[0].len, parts[0].format, parts[0].options, vol, err);

@@ -153,5 +153,8 @@ check "an edit body over max-body: 413" '[ "$code" = 413 ] && is_problem 413'
 code=$(status POST "/models/$id/edit?region=0,50,52,10,10,10" -H "$RAW" --data-binary @"$T/hole.raw")
 python3 $E apply "$CT" 64,64,64 0,50,52,10,10,10 "$T/hole.raw" "$T/v3.raw"
 check "edit-memory 0: the edit rebuilds the hierarchy from the store, equal to a fresh extraction" '[ "$code" = 200 ] && same_as_fresh "$id" "$Q" "$T/v3.raw"'
+python3 -c "import sqlite3, sys; db = sqlite3.connect(sys.argv[1]); db.execute('UPDATE model_volumes SET data=zeroblob(length(data)) WHERE model=?1 AND seq=0', (sys.argv[2],)); db.commit()" "$T/d/surfd.db" "$id"
+code=$(status POST "/models/$id/edit?region=0,0,0,2,2,2" -H "$RAW" --data-binary @"$T/tiny.raw")
+check "a stored volume damaged on disk: the edit is a 500 problem that says so, the model as it was" '[ "$code" = 500 ] && is_problem 500 && grep -q damaged "$T/body" && [ "$(status GET "/models/$id")" = 200 ] && [ "$(field edits)" = 1 ]'
 
 finish
