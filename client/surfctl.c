@@ -330,6 +330,20 @@ static int cmd_render(int argc, char **argv)
     return rc;
 }
 
+/* The job of a 202 answer r followed to its end, its result's answer into r (the 202's freed). */
+static int job_answer(struct response *r)
+{
+    char id[64], state[32], path[128];
+    snprintf(id, sizeof id, "%s", r->job_id);
+    free(r->body.data);
+    r->body.data = NULL;
+    int rc = wait_job(id, state, sizeof state);
+    if (rc)
+        return rc;
+    snprintf(path, sizeof path, "/jobs/%s/result", id);
+    return request("GET", path, NULL, 0, NULL, NULL, r);
+}
+
 /* Model id's mesh to out (its format from the extension), following the mesh job when it is long. */
 static int download_mesh(const char *id, const char *out)
 {
@@ -369,13 +383,9 @@ static int cmd_isosurface(int argc, char **argv)
         free(r.body.data);
         return rc;
     }
-    char id[64], state[32], path[128];
+    char id[64];
     snprintf(id, sizeof id, "%s", r.job_id);
-    free(r.body.data);
-    if ((rc = wait_job(id, state, sizeof state)))
-        return rc;
-    snprintf(path, sizeof path, "/jobs/%s/result", id);
-    if ((rc = request("GET", path, NULL, 0, NULL, NULL, &r)))
+    if ((rc = job_answer(&r)))
         return rc;
     if (r.status != 201 && r.status != 200) {
         rc = r.status == 409 || r.status == 422 ? (report(&r), EXIT_JOB) : report(&r);
@@ -406,16 +416,8 @@ static int cmd_edit(int argc, char **argv)
     int rc = post_file(route, query, file, "application/octet-stream", NULL, &r);
     if (rc)
         return rc;
-    if (r.status == 202) { /* longer than the server's sync wait (a hierarchy rebuilt from the store) */
-        char id[64], state[32], path[128];
-        snprintf(id, sizeof id, "%s", r.job_id);
-        free(r.body.data);
-        if ((rc = wait_job(id, state, sizeof state)))
-            return rc;
-        snprintf(path, sizeof path, "/jobs/%s/result", id);
-        if ((rc = request("GET", path, NULL, 0, NULL, NULL, &r)))
-            return rc;
-    }
+    if (r.status == 202 && (rc = job_answer(&r))) /* longer than the sync wait (a hierarchy rebuilt from the store) */
+        return rc;
     if (r.status != 200) {
         rc = r.status == 409 || r.status == 422 ? (report(&r), r.job_id[0] ? EXIT_JOB : EXIT_REFUSED) : report(&r);
         free(r.body.data);

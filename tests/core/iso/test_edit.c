@@ -117,11 +117,24 @@ static bool edit_ball(struct iso_adapt *a, int16_t *vol, int nx, const int lo[3]
     return rc == 0;
 }
 
-TEST(ct_edits_equal_a_fresh_extraction)
+/* The shared CT crop's samples (NULL when missing: a failed check), and its grid over them. */
+#define CT_BYTES (64 * 64 * 64 * 2)
+static char *ct_crop(void)
 {
     size_t len;
     char *raw = unit_data("volumes", "ct_head_crop64_int16.raw", &len);
-    CHECK(raw && len == 64 * 64 * 64 * 2);
+    CHECK(raw && len == CT_BYTES);
+    return raw && len == CT_BYTES ? raw : (free(raw), NULL);
+}
+static struct iso_grid ct_grid(const int16_t *vol)
+{
+    return (struct iso_grid){64, 64, 64, ISO_I16, vol, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
+}
+
+TEST(ct_edits_equal_a_fresh_extraction)
+{
+    size_t len = CT_BYTES;
+    char *raw = ct_crop();
     if (!raw)
         return;
     const int lo[][3] = {{20, 24, 17}, {0, 0, 0}, {48, 48, 48}, {30, 5, 40}, {21, 25, 18}, {8, 40, 3}};
@@ -130,9 +143,8 @@ TEST(ct_edits_equal_a_fresh_extraction)
         for (int sharp = 0; sharp < 2; sharp++) {
             if (levels == 1 && !sharp)
                 continue; /* (levels 1 without features is marching cubes, mc.c) */
-            int16_t *vol = malloc(len);
-            memcpy(vol, raw, len);
-            struct iso_grid g = {64, 64, 64, ISO_I16, vol, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
+            int16_t *vol = memcpy(malloc(len), raw, len);
+            struct iso_grid g = ct_grid(vol);
             struct iso_opts o = {.iso = 226.5, .closed = true, .normals = true, .sharp = sharp, .keep = true};
             struct iso_adapt *a = kept(&g, &o, levels, me[levels - 1]);
             CHECK(a != NULL);
@@ -157,16 +169,13 @@ TEST(ct_edits_equal_a_fresh_extraction)
  * every cell is drawn again, and the mesh is still the fresh one; so when the least one goes. */
 TEST(a_new_least_sample_redraws_every_cell)
 {
-    size_t len;
-    char *raw = unit_data("volumes", "ct_head_crop64_int16.raw", &len);
-    CHECK(raw && len == 64 * 64 * 64 * 2);
+    char *raw = ct_crop();
     if (!raw)
         return;
-    int16_t *vol = malloc(len), least = INT16_MAX;
-    memcpy(vol, raw, len);
-    for (size_t i = 0; i < len / 2; i++)
+    int16_t *vol = memcpy(malloc(CT_BYTES), raw, CT_BYTES), least = INT16_MAX;
+    for (size_t i = 0; i < CT_BYTES / 2; i++)
         least = vol[i] < least ? vol[i] : least;
-    struct iso_grid g = {64, 64, 64, ISO_I16, vol, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
+    struct iso_grid g = ct_grid(vol);
     struct iso_opts o = {.iso = -500, .closed = true, .normals = true, .keep = true}; /* (a surface at the border) */
     struct iso_adapt *a = kept(&g, &o, 3, 1.0);
     CHECK(a != NULL);
@@ -185,14 +194,11 @@ TEST(a_new_least_sample_redraws_every_cell)
 /* Many edits over one part: the unused vertices are dropped now and then, the mesh stays right. */
 TEST(many_edits_over_one_place)
 {
-    size_t len;
-    char *raw = unit_data("volumes", "ct_head_crop64_int16.raw", &len);
-    CHECK(raw && len == 64 * 64 * 64 * 2);
+    char *raw = ct_crop();
     if (!raw)
         return;
-    int16_t *vol = malloc(len);
-    memcpy(vol, raw, len);
-    struct iso_grid g = {64, 64, 64, ISO_I16, vol, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
+    int16_t *vol = memcpy(malloc(CT_BYTES), raw, CT_BYTES);
+    struct iso_grid g = ct_grid(vol);
     struct iso_opts o = {.iso = 226.5, .closed = true, .normals = true, .keep = true};
     struct iso_adapt *a = kept(&g, &o, 2, 0.5);
     CHECK(a != NULL);
