@@ -38,11 +38,13 @@ static void put(struct out *o, const void *data, size_t n)
 static void putf(struct out *o, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 static void putf(struct out *o, const char *fmt, ...)
 {
-    char line[256];
+    char line[1024];
     va_list ap;
     va_start(ap, fmt);
     int n = vsnprintf(line, sizeof line, fmt, ap);
     va_end(ap);
+    if (n >= (int)sizeof line) /* (a writer's header is longer than any line: a bug, not a truncation) */
+        o->failed = true;
     put(o, line, n > 0 ? (size_t)n : 0);
 }
 
@@ -61,7 +63,72 @@ const char *mesh_mime(const char *format)
 {
     return !strcmp(format, "stl") ? "model/stl" : !strcmp(format, "ply") ? "application/ply"
                                               : !strcmp(format, "obj") ? "model/obj"
+                                              : !strcmp(format, "vtp") ? "model/vnd.vtk.vtp+xml"
+                                              : !strcmp(format, "vtk") ? "model/vnd.vtk"
                                                                        : NULL;
+}
+
+/* n values of 4 bytes each, big-endian (legacy VTK's binary). */
+static void put_be32(struct out *o, const void *v, size_t n)
+{
+    const unsigned char *b = v;
+    for (size_t k = 0; k < n && !o->failed; k++) {
+        unsigned char w[4] = {b[4 * k + 3], b[4 * k + 2], b[4 * k + 1], b[4 * k]};
+        put(o, w, 4);
+    }
+}
+
+/* VTK XML PolyData: points, triangles and (when the mesh has them) point normals, appended raw
+ * (each array after its 64-bit byte count), the classic cell layout (offsets: each cell's end). */
+static void vtp(struct out *o, const struct trimesh *m)
+{
+    uint64_t np = 3 * sizeof(float) * m->n_vert, nc = 3 * sizeof(int32_t) * m->n_tri, no = sizeof(int32_t) * m->n_tri;
+    uint64_t at_conn = 8 + np, at_off = at_conn + 8 + nc, at_nrm = at_off + 8 + no;
+    putf(o, "<?xml version=\"1.0\"?>\n<!-- surfd model mesh: mm, in the model's coordinates (DICOM patient "
+            "coordinates for DICOM input) -->\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" "
+            "header_type=\"UInt64\">\n<PolyData>\n<Piece NumberOfPoints=\"%zu\" NumberOfVerts=\"0\" NumberOfLines=\"0\" "
+            "NumberOfStrips=\"0\" NumberOfPolys=\"%zu\">\n", m->n_vert, m->n_tri);
+    if (m->nrm)
+        putf(o, "<PointData Normals=\"Normals\"><DataArray type=\"Float32\" Name=\"Normals\" NumberOfComponents=\"3\" "
+                "format=\"appended\" offset=\"%llu\"/></PointData>\n", (unsigned long long)at_nrm);
+    putf(o, "<Points><DataArray type=\"Float32\" Name=\"Points\" NumberOfComponents=\"3\" format=\"appended\" "
+            "offset=\"0\"/></Points>\n<Polys><DataArray type=\"Int32\" Name=\"connectivity\" format=\"appended\" "
+            "offset=\"%llu\"/>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"appended\" offset=\"%llu\"/></Polys>\n"
+            "</Piece>\n</PolyData>\n<AppendedData encoding=\"raw\">\n_", (unsigned long long)at_conn,
+         (unsigned long long)at_off);
+    put(o, &np, 8);
+    put(o, m->pos, np);
+    put(o, &nc, 8);
+    put(o, m->tri, nc);
+    put(o, &no, 8);
+    for (size_t k = 0; k < m->n_tri && !o->failed; k++) {
+        int32_t end = (int32_t)(3 * (k + 1));
+        put(o, &end, 4);
+    }
+    if (m->nrm) {
+        put(o, &np, 8);
+        put(o, m->nrm, np);
+    }
+    putf(o, "\n</AppendedData>\n</VTKFile>\n");
+}
+
+/* Legacy VTK (version 3.0), binary: big-endian points, triangles, and normals when the mesh has
+ * them. */
+static void vtk_legacy(struct out *o, const struct trimesh *m)
+{
+    putf(o, "# vtk DataFile Version 3.0\nsurfd model mesh: mm, in the model's coordinates (DICOM patient coordinates "
+            "for DICOM input)\nBINARY\nDATASET POLYDATA\nPOINTS %zu float\n", m->n_vert);
+    put_be32(o, m->pos, 3 * m->n_vert);
+    putf(o, "\nPOLYGONS %zu %zu\n", m->n_tri, 4 * m->n_tri);
+    for (size_t k = 0; k < m->n_tri && !o->failed; k++) {
+        uint32_t cell[4] = {3, m->tri[3 * k], m->tri[3 * k + 1], m->tri[3 * k + 2]};
+        put_be32(o, cell, 4);
+    }
+    if (m->nrm) {
+        putf(o, "\nPOINT_DATA %zu\nNORMALS Normals float\n", m->n_vert);
+        put_be32(o, m->nrm, 3 * m->n_vert);
+    }
+    putf(o, "\n");
 }
 
 int mesh_encode(const struct trimesh *m, const char *format, char **out, size_t *len, struct sf_err *err)
@@ -69,7 +136,7 @@ int mesh_encode(const struct trimesh *m, const char *format, char **out, size_t 
     struct out o = {0};
     *out = NULL;
     if (!strcmp(format, "stl")) {
-        char head[80] = "surfd model mesh (binary STL, mm)";
+        char head[80] = "surfd model mesh (binary STL), mm, model coords (DICOM input: patient coords)";
         uint32_t n = (uint32_t)m->n_tri;
         put(&o, head, 80);
         put(&o, &n, 4);
@@ -91,7 +158,7 @@ int mesh_encode(const struct trimesh *m, const char *format, char **out, size_t 
             put(&o, "\0\0", 2);
         }
     } else if (!strcmp(format, "ply")) {
-        putf(&o, "ply\nformat binary_little_endian 1.0\ncomment surfd model mesh, mm\nelement vertex %zu\n"
+        putf(&o, "ply\nformat binary_little_endian 1.0\ncomment surfd model mesh, mm, in the model's coordinates (DICOM patient coordinates for DICOM input)\nelement vertex %zu\n"
                  "property float x\nproperty float y\nproperty float z\nelement face %zu\n"
                  "property list uchar int vertex_indices\nend_header\n", m->n_vert, m->n_tri);
         put(&o, m->pos, 3 * sizeof *m->pos * m->n_vert);
@@ -99,8 +166,12 @@ int mesh_encode(const struct trimesh *m, const char *format, char **out, size_t 
             put(&o, "\3", 1);
             put(&o, m->tri + 3 * k, 3 * sizeof *m->tri);
         }
+    } else if (!strcmp(format, "vtp")) {
+        vtp(&o, m);
+    } else if (!strcmp(format, "vtk")) {
+        vtk_legacy(&o, m);
     } else {
-        putf(&o, "# surfd model mesh, mm\n");
+        putf(&o, "# surfd model mesh, mm, in the model's coordinates (DICOM patient coordinates for DICOM input)\n");
         for (size_t k = 0; k < m->n_vert; k++)
             putf(&o, "v %.9g %.9g %.9g\n", m->pos[3 * k], m->pos[3 * k + 1], m->pos[3 * k + 2]);
         for (size_t k = 0; k < m->n_tri; k++)

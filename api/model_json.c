@@ -379,16 +379,16 @@ static int solid_of(const char *src, size_t len, const struct sf_progress *pr, s
 
 int model_mesh_options(const char *options, const char **format, double *tol, struct sf_err *err)
 {
-    static const char *const FORMATS[] = {"stl", "ply", "obj"};
+    static const char *const FORMATS[] = {"stl", "ply", "obj", "vtp", "vtk"};
     char f[16], t[64], *end = NULL;
     query_option(options, "format", f, sizeof f);
     query_option(options, "tolerance", t, sizeof t);
     *format = NULL;
-    for (int k = 0; k < 3; k++)
+    for (size_t k = 0; k < sizeof FORMATS / sizeof *FORMATS; k++)
         if (!strcmp(f[0] ? f : "stl", FORMATS[k]))
             *format = FORMATS[k];
     if (!*format)
-        return sf_fail(err, SF_EINVAL, "?format", "format is stl, ply or obj");
+        return sf_fail(err, SF_EINVAL, "?format", "format is stl, ply, obj, vtp or vtk");
     *tol = t[0] ? strtod(t, &end) : 0.0;
     if ((t[0] && *end) || !(*tol >= 0) || *tol > 1e6)
         return sf_fail(err, SF_EINVAL, "?tolerance", "tolerance is a distance in mm, > 0 (or 0 for the default)");

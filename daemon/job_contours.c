@@ -76,6 +76,12 @@ static int prepare(struct job *j, void *arg, int *n_bands)
             rc = model_mesh(src, n, rec.options, &pr, &w->json, &w->len, &w->type, &w->err);
         else
             rc = model_patches_json(src, n, &w->json, &w->err);
+        if (!rc && w->kind == KIND_MESH) { /* the file's name for the download: the model's id, the format's extension */
+            const char *format;
+            double tol;
+            model_mesh_options(rec.options, &format, &tol, &w->err);
+            snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\"}", model, format);
+        }
         free(src);
     }
     if (!rc && w->kind != KIND_MESH)

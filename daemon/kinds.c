@@ -12,7 +12,7 @@ static const struct job_kind KINDS[] = {
      .validate = volume_validate, .start = volume_start, .result = "application/json"},
     {.name = "model", .format = contour_format, .media = "application/json or application/dicom",
      .validate = model_validate_body, .start = model_start, .result = "application/json"},
-    {.name = "mesh", .validate = mesh_validate, .start = mesh_start, .result = "model/stl, application/ply or model/obj"},
+    {.name = "mesh", .validate = mesh_validate, .start = mesh_start, .result = "model/stl, application/ply, model/obj, model/vnd.vtk.vtp+xml or model/vnd.vtk"},
     {.name = "patches", .validate = patches_validate, .start = patches_start, .result = "application/json"},
     {.name = "isosurface", .format = iso_format,
      .media = "application/octet-stream (raw samples, with ?dims&type), application/x-nrrd, application/x-metaimage, "

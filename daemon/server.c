@@ -249,6 +249,13 @@ static enum MHD_Result job_result(struct req *r, const char *id, bool sync)
                 snprintf(location, sizeof location, "%.*s", (int)strcspn(lo + 12, "\""), lo + 12);
             if (location[0])
                 rp.hdr[h][0] = "Location", rp.hdr[h++][1] = location;
+            char disposition[96] = "";
+            const char *fn = rec.meta ? strstr(rec.meta, "\"filename\":\"") : NULL; /* a mesh's download */
+            if (fn) {
+                snprintf(disposition, sizeof disposition, "attachment; filename=\"%.*s\"", (int)strcspn(fn + 12, "\""),
+                         fn + 12);
+                rp.hdr[h][0] = "Content-Disposition", rp.hdr[h++][1] = disposition;
+            }
             if (ms[0])
                 rp.hdr[h][0] = "X-Render-Ms", rp.hdr[h++][1] = ms;
             if (rays[0])

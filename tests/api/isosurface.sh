@@ -31,6 +31,19 @@ check "... listed among the models" '[ "$(status GET /models)" = 200 ] && grep -
 code=$(status GET "/models/$id/mesh?format=stl")
 cp "$T/body" "$T/crop.stl"
 check "its STL: closed, every edge twice, once each way" '[ "$code" = 200 ] && python3 tests/tools/stl_check.py "$T/crop.stl" 57529.6 >/dev/null'
+vtk_same() { # vtk_same FILE: VTK reads it with the model's triangle count, its normals, closed, and its volume (0.01 %)
+    /usr/bin/python3 tests/tools/vtk_check.py "$1" >"$T/vtk.json" && python3 -c "
+import json, sys
+v = json.load(open(sys.argv[1])); m = json.load(open(sys.argv[2]))
+sys.exit(0 if v['triangles'] == m['triangles'] and v['normals'] and v['boundary_edges'] == 0
+         and abs(v['volume'] / m['volume_mm3'] - 1) < 1e-4 else 1)" "$T/vtk.json" "$T/model.json"
+}
+cp "$T/body" "$T/model.json" 2>/dev/null; status GET "/models/$id" >/dev/null; cp "$T/body" "$T/model.json"
+code=$(status GET "/models/$id/mesh?format=vtp"); cp "$T/body" "$T/crop.vtp"
+check "its VTP (VTK XML PolyData): read by VTK with the model's triangles, normals and volume, closed, named for download" '[ "$code" = 200 ] && [ "$(header Content-Type)" = model/vnd.vtk.vtp+xml ] && header Content-Disposition | grep -q "filename=\"$id.vtp\"" && vtk_same "$T/crop.vtp"'
+code=$(status GET "/models/$id/mesh?format=vtk"); cp "$T/body" "$T/crop.vtk"
+check "... and legacy VTK the same" '[ "$code" = 200 ] && vtk_same "$T/crop.vtk"'
+check "... a format it does not write: 422 at ?format naming the five" '[ "$(status GET "/models/$id/mesh?format=off")" = 422 ] && grep -q "vtp or vtk" "$T/body"'
 check "... and PLY and OBJ" '[ "$(status GET "/models/$id/mesh?format=ply")" = 200 ] && head -c 3 "$T/body" | grep -q ply && [ "$(status GET "/models/$id/mesh?format=obj")" = 200 ] && grep -q "^f " "$T/body"'
 check "its /patches: 422 (a mesh has none)" '[ "$(status GET "/models/$id/patches")" = 422 ] && is_problem 422'
 code=$(status GET "/models/$id/render?width=320&height=240")

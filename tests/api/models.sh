@@ -44,6 +44,10 @@ cp "$T/body" "$T/m.stl"
 check "mesh STL: closed, holding the model's volume" '[ "$code" = 200 ] && [ "$(header Content-Type)" = model/stl ] && python3 tests/tools/stl_check.py "$T/m.stl" "$vol" >/dev/null'
 check "mesh STL is the default" '[ "$(status GET "/models/$id/mesh")" = 200 ] && cmp -s "$T/body" "$T/m.stl"'
 check "mesh PLY" '[ "$(status GET "/models/$id/mesh?format=ply&tolerance=0.2")" = 200 ] && head -c 40 "$T/body" | grep -q "binary_little_endian"'
+code=$(status GET "/models/$id/mesh?format=vtp&tolerance=0.2"); cp "$T/body" "$T/m.vtp"
+check "mesh VTP: VTK reads it, closed" '[ "$code" = 200 ] && /usr/bin/python3 tests/tools/vtk_check.py "$T/m.vtp" | grep -q "\"boundary_edges\": 0"'
+code=$(status GET "/models/$id/mesh?format=vtk&tolerance=0.2"); cp "$T/body" "$T/m.vtk"
+check "mesh legacy VTK: VTK reads it, closed" '[ "$code" = 200 ] && /usr/bin/python3 tests/tools/vtk_check.py "$T/m.vtk" | grep -q "\"boundary_edges\": 0"'
 check "mesh OBJ" '[ "$(status GET "/models/$id/mesh?format=obj&tolerance=0.2")" = 200 ] && grep -q "^v " "$T/body" && grep -q "^f " "$T/body"'
 check "mesh 422 format" '[ "$(status GET "/models/$id/mesh?format=vrml")" = 422 ] && grep -q "\"pointer\":\"?format\"" "$T/body"'
 check "mesh 422 for a tolerance that would make too many triangles" '[ "$(status GET "/models/$id/mesh?tolerance=0.00001")" = 422 ] && grep -q "\"pointer\":\"?tolerance\"" "$T/body" && grep -q "triangles" "$T/body"'
