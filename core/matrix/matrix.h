@@ -1,0 +1,83 @@
+/* matrix.h - seed 003's matrix models (METHODS.md §5): a body in its box stored as six relief
+ * matrices M0..M5, one a face of the box, each element the number of empty voxels between that
+ * face and the body along its line (the line's length where it misses the body); the voxels they
+ * hold, the matrices of a voxel set, and the mesh of the voxels.
+ *
+ * Layout (Table 1, two index typos corrected as METHODS.md says), for N x M x K voxels along
+ * x, y, z, element [i][j] (row i, column j):
+ *   M0 (from Xmax, K x M): voxel (N-1-m, j, K-1-i)      M3 (from Xmin, K x M): (m, M-1-j, K-1-i)
+ *   M1 (from Ymax, K x N): voxel (N-1-j, M-1-m, K-1-i)  M4 (from Ymin, K x N): (j, m, K-1-i)
+ *   M2 (from Zmax, M x N): voxel (j, M-1-i, K-1-m)      M5 (from Zmin, M x N): (N-1-j, M-1-i, m)
+ *
+ * The voxels of a matrix model are those every axis-parallel line through them holds between the
+ * first voxel seen from one end and the first seen from the other (seed 003 eq. 5): the body as
+ * the six views see it. They hold the body exactly when every axis-parallel line meets it once
+ * (convex along the axes); cavities and hidden concavities are filled (the seed's stated limit).
+ *
+ * The mesh (our design: the seed's fragment table is a missing figure). Each voxel of the set is
+ * a solid: its cube, cut at every edge whose two faces are both open (no voxel beyond either) by
+ * the plane through the far edges of those faces (a chamfer: t_f + t_g <= 1, t_f the distance
+ * from the face opposite f, in voxels). The surface is the boundary of the union of the solids:
+ * the chamfers' facets, and on each face the two voxels share (or a voxel shares with the empty
+ * side) the parts one solid covers and the other does not. Every cut runs along a face diagonal,
+ * so a face's part is a union of its four quarters (centre, edge) and the boundary there is
+ * their exclusive or: closed by construction, and two solids never meet along an edge or at a
+ * point alone (an edge both of whose faces are open is cut away). Vertices lie on the half-voxel
+ * lattice: voxel corners, and (computed) face centres, edge midpoints and voxel centres where
+ * chamfers meet. The seed's eight variants of open faces (1; 2 opposite; 2 adjacent; ...; 5)
+ * are the cases of this one rule: 1 open face or 2 opposite give the faces themselves, 2
+ * adjacent a chamfer quad, 3 at a corner three chamfers meeting at the voxel's centre, and so on;
+ * a neighbour's face partly uncovered by a chamfer ("partially open") gets the quarters the
+ * chamfer left. */
+#ifndef SURFD_MATRIX_H
+#define SURFD_MATRIX_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "../base/err.h"
+#include "../geom/trimesh.h"
+
+/* Voxels a matrix model may have along one axis, and in all. */
+#define MATRIX_MAX_SIDE 4096
+#define MATRIX_MAX_VOXELS (1u << 28)
+
+struct matrix_model {
+    int n[3];                /* N, M, K: voxels along x, y, z */
+    double lo[3], hi[3];     /* the box */
+    int *m[6];               /* M0..M5, row by row */
+};
+
+/* Rows and columns of matrix k of a model of n voxels. */
+void matrix_shape(const int n[3], int k, int *rows, int *cols);
+
+/* The voxel that element [i][j] = depth of matrix k names. */
+void matrix_voxel(const int n[3], int k, int i, int j, int depth, int v[3]);
+
+/* The six matrices of voxel set vox (n voxels, x fastest, nonzero: in the body) into m[k] (each
+ * rows x cols ints, the caller's). */
+void matrix_of_voxels(const int n[3], const uint8_t *vox, int *const m[6]);
+
+/* The voxels of model mm into vox (the caller's, n[0] n[1] n[2] bytes). 0; or SF_EINVAL when
+ * the matrices contradict each other (a line seen from both ends where the first voxel from one
+ * lies beyond the first from the other, or a voxel an element names that the others exclude):
+ * *bad_k, *bad_i, *bad_j name the element. */
+int matrix_voxels(const struct matrix_model *mm, uint8_t *vox, int *bad_k, int *bad_i, int *bad_j, struct sf_err *err);
+
+struct matrix_stats {
+    long voxels;             /* surface voxels (named by some element) */
+    long base_voxels;        /* named by an element that is a local maximum of depth among its four
+                              * neighbours (eq. 4: the far side of a bump) */
+    long redundant_voxels;   /* named again by another matrix (eq. 6: handled once) */
+    long computed_vertices;  /* mesh vertices off the voxel corners */
+};
+
+/* The mesh of voxel set vox in the box lo + (0..n) d: a closed, outward-oriented 2-manifold (see
+ * the head). stats may be NULL. 0, or SF_ENOMEM, SF_ELIMIT (over ISO's vertex limit). */
+int matrix_mesh(const int n[3], const uint8_t *vox, const double lo[3], const double d[3], struct trimesh *out,
+                struct matrix_stats *st, struct sf_err *err);
+
+/* The figures of eq. 4-6 of model mm (voxels, base_voxels, redundant_voxels; the rest zeroed). */
+void matrix_counts(const struct matrix_model *mm, struct matrix_stats *st);
+
+#endif
