@@ -13,6 +13,7 @@
 
 #include "../core/geom/enclosed.h"
 #include "../core/contour/solid.h"
+#include "matrix_json.h"
 #include "mesh_io.h"
 #include "query.h"
 #include "rtstruct.h"
@@ -190,8 +191,54 @@ static int scene_figures(const char *buf, size_t len, const char *format, char *
     return rc ? rc : (*json ? 0 : err->code);
 }
 
+/* A matrix model's mesh and resource (id "" when it is not stored: POST /volume), and with a sink
+ * the model stored as its packed mesh. */
+static int matrix_model(const char *buf, size_t len, const struct model_sink *sink, char **json, char location[64],
+                        struct sf_err *err)
+{
+    double t0 = now_ms();
+    struct matrix_request r;
+    int rc = matrix_parse(buf, len, &r, err);
+    if (rc)
+        return rc;
+    struct trimesh m;
+    struct matrix_stats st;
+    struct trimesh_stats ts;
+    char id[40] = "", *packed = NULL;
+    size_t packed_len = 0;
+    if (!(rc = matrix_build(&r, &m, &st, err)))
+        rc = trimesh_stats(&m, &ts, err);
+    double t1 = now_ms();
+    if (!rc && sink && sink->id)
+        sink->id(sink->ctx, 0, id);
+    if (!rc && !(*json = matrix_model_json(id, &r, &m, &ts, &st, t1 - t0, now_ms() - t0, err)))
+        rc = err->code;
+    if (!rc && sink && !(rc = mesh_pack(&m, &packed, &packed_len, err)) &&
+        sink->put(sink->ctx, id, r.name, packed, packed_len, *json))
+        rc = sf_fail(err, SF_EIO, "", "the store could not keep the model");
+    if (location)
+        snprintf(location, 64, "/models/%s", id);
+    free(packed);
+    trimesh_free(&m);
+    matrix_request_free(&r);
+    return rc;
+}
+
 int model_validate(const char *buf, size_t len, const char *format, const char *options, struct sf_err *err)
 {
+    if ((!format || !strcmp(format, "json")) && matrix_body(buf, len)) { /* its shapes, elements and integrity */
+        struct matrix_request r;
+        int rc = matrix_parse(buf, len, &r, err), bk, bi, bj;
+        if (rc)
+            return rc;
+        uint8_t *vox = malloc((size_t)r.mm.n[0] * r.mm.n[1] * r.mm.n[2]);
+        rc = !vox ? sf_fail(err, SF_ENOMEM, "", "out of memory") : matrix_voxels(&r.mm, vox, &bk, &bi, &bj, err);
+        if (vox && rc)
+            snprintf(err->pointer, sizeof err->pointer, "/matrix_model/M%d/%d/%d", bk, bi, bj);
+        free(vox);
+        matrix_request_free(&r);
+        return rc;
+    }
     if (model_body_is_scene(buf, len, format)) {
         struct scene sc;
         enum image_format img;
@@ -306,6 +353,8 @@ static char *answer(json_t *list, bool single, struct sf_err *err)
 int model_figures(const char *buf, size_t len, const char *format, const char *options,
                   const struct sf_progress *pr, char **json, struct sf_err *err)
 {
+    if ((!format || !strcmp(format, "json")) && matrix_body(buf, len))
+        return matrix_model(buf, len, NULL, json, NULL, err);
     if (model_body_is_scene(buf, len, format)) {
         *json = NULL;
         return scene_figures(buf, len, format, json, err);
@@ -342,7 +391,7 @@ static int store_one(void *arg, int k, json_t *fig, const struct contour_set *cs
         snprintf(c->first, sizeof c->first, "%s", id);
     char *source = contour_json_write(cs, req), *resource = json_dumps(fig, JSON_COMPACT | JSON_REAL_PRECISION(12));
     int rc = !source || !resource ? sf_fail(err, SF_ENOMEM, "", "out of memory")
-             : c->sink->put(c->sink->ctx, id, req->name, source, resource)
+             : c->sink->put(c->sink->ctx, id, req->name, source, strlen(source), resource)
                  ? sf_fail(err, SF_EIO, "", "the store could not keep the model")
                  : 0;
     free(source);
@@ -353,6 +402,8 @@ static int store_one(void *arg, int k, json_t *fig, const struct contour_set *cs
 int model_create(const char *buf, size_t len, const char *format, const char *options, const struct model_sink *sink,
                  const struct sf_progress *pr, char **json, char location[64], struct sf_err *err)
 {
+    if ((!format || !strcmp(format, "json")) && matrix_body(buf, len))
+        return matrix_model(buf, len, sink, json, location, err);
     struct create_ctx c = {sink, ""};
     json_t *list;
     bool single;

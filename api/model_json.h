@@ -33,7 +33,7 @@ int model_validate(const char *buf, size_t len, const char *format, const char *
  * Without id (NULL), models get no id or links and put sees id "" (offline, the CLI). */
 struct model_sink {
     void (*id)(void *ctx, int k, char id[40]);
-    int (*put)(void *ctx, const char *id, const char *name, const char *source, const char *resource);
+    int (*put)(void *ctx, const char *id, const char *name, const char *source, size_t source_len, const char *resource);
     void *ctx;
 };
 /* As model_figures, and each model gets an id and links and is put in the sink; location receives

@@ -12,15 +12,20 @@
 /* The sink of offline models: keeps the sources, counts them. */
 struct keep {
     char *source;
+    size_t len;
     int n;
 };
 
-static int keep_put(void *ctx, const char *id, const char *name, const char *source, const char *resource)
+static int keep_put(void *ctx, const char *id, const char *name, const char *source, size_t source_len,
+                    const char *resource)
 {
     (void)id, (void)name, (void)resource;
     struct keep *k = ctx;
-    if (k->n++ == 0)
-        k->source = strdup(source);
+    if (k->n++ == 0 && (k->source = malloc(source_len + 1))) {
+        memcpy(k->source, source, source_len);
+        k->source[source_len] = 0;
+        k->len = source_len;
+    }
     return k->source ? 0 : -1;
 }
 
@@ -82,11 +87,11 @@ int cmd_volume(int argc, char **argv)
     const char *ext = mesh ? strrchr(mesh, '.') : NULL, *mime;
     char mesh_opts[96];
     snprintf(mesh_opts, sizeof mesh_opts, "format=%.8s&tolerance=%.17g", ext ? ext + 1 : "none", tol);
-    if (!rc && mesh && !(rc = model_mesh(kept.source, strlen(kept.source), mesh_opts, NULL, &out, &out_len, &mime, &err)))
+    if (!rc && mesh && !(rc = model_mesh(kept.source, kept.len, mesh_opts, NULL, &out, &out_len, &mime, &err)))
         rc = cli_write_all(mesh, out, out_len) ? SF_EIO : 0;
     free(out);
     out = NULL;
-    if (!rc && patches && !(rc = model_patches_json(kept.source, strlen(kept.source), &out, &err)))
+    if (!rc && patches && !(rc = model_patches_json(kept.source, kept.len, &out, &err)))
         rc = cli_write_all(patches, out, strlen(out)) ? SF_EIO : 0;
     free(out);
     free(kept.source);

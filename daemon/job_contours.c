@@ -39,10 +39,11 @@ static void model_id(void *ctx, int k, char id[40])
         snprintf(id, 40, "%.28s%04x", w->claim.id, (unsigned)k & 0xffff);
 }
 
-static int model_put(void *ctx, const char *id, const char *name, const char *source, const char *resource)
+static int model_put(void *ctx, const char *id, const char *name, const char *source, size_t source_len,
+                     const char *resource)
 {
     const struct contour_work *w = ctx;
-    struct model_rec m = {id, w->claim.id, name, w->owner, wall_s(), source, strlen(source), resource, NULL};
+    struct model_rec m = {id, w->claim.id, name, w->owner, wall_s(), source, source_len, resource, NULL};
     return store_model_put(w->svc->store, &m);
 }
 

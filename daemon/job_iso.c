@@ -45,8 +45,7 @@ struct iso_work {
     struct sf_err err;
 };
 
-/* The whole file at path, mapped read-only (*map NULL for an empty one). 0 or -1. */
-static int map_file(const char *path, void **map, size_t *len)
+int job_map_file(const char *path, void **map, size_t *len)
 {
     int fd = open(path, O_RDONLY);
     struct stat st;
@@ -78,7 +77,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     size_t len = w->rec.request_len;
     if (w->rec.request_file) { /* a streamed volume: mapped, read in place */
         if (store_request_file(w->svc->store, w->claim.id, w->file, sizeof w->file) != 1 ||
-            map_file(w->file, &w->map, &w->map_len))
+            job_map_file(w->file, &w->map, &w->map_len))
             return sf_fail(&w->err, SF_EIO, "", "the job's volume could not be read from the store"), -1;
         body = w->map ? w->map : "";
         len = w->map_len;

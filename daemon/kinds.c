@@ -19,6 +19,11 @@ static const struct job_kind KINDS[] = {
               "multipart/form-data (a DICOM series) or application/json (an FRep object)",
      .format_in_query = true, .validate = iso_validate, .start = iso_start, .result = "application/json",
      .streamed = true},
+    {.name = "matrix", .format = iso_format,
+     .media = "application/octet-stream (raw samples, with ?dims&type), application/x-nrrd, application/x-metaimage, "
+              "multipart/form-data (a DICOM series) or application/json (an FRep object)",
+     .format_in_query = true, .validate = matrix_validate, .start = matrix_start, .result = "application/json",
+     .streamed = true},
     {.name = "edit", .format = edit_format, .media = "application/octet-stream (the region's raw samples)",
      .validate = edit_validate, .start = edit_start, .result = "application/json"},
 };

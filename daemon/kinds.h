@@ -57,6 +57,10 @@ int patches_start(struct service *svc, const struct job_claim *c);
 const char *iso_format(const char *content_type);
 int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err);
 int iso_start(struct service *svc, const struct job_claim *c);
+/* The whole file at path, mapped read-only (*map NULL for an empty one): 0 or -1 (job_iso.c). */
+int job_map_file(const char *path, void **map, size_t *len);
+int matrix_validate(struct service *svc, struct job_body *b, struct sf_err *err);
+int matrix_start(struct service *svc, const struct job_claim *c);
 const char *edit_format(const char *content_type);
 int edit_validate(struct service *svc, struct job_body *b, struct sf_err *err);
 int edit_start(struct service *svc, const struct job_claim *c);

@@ -436,8 +436,8 @@ static enum MHD_Result post_job_on(struct req *r, const struct job_kind *kind, c
     if (qf)
         format = qf;
     if (!format) {
-        char d[200];
-        snprintf(d, sizeof d, "POST /%s reads %s, not %.80s", kind->name, kind->media, ct ? ct : "a body without a type");
+        char d[400];
+        snprintf(d, sizeof d, "POST %.60s reads %s, not %.80s", r->path, kind->media, ct ? ct : "a body without a type");
         return problem(r, 415, d, NULL);
     }
     struct opts o = {.n = 0};
@@ -744,6 +744,7 @@ static const struct route {
     {"/volume", POST, false, NULL, "volume"},
     {"/model", POST, false, NULL, "model"},
     {"/isosurface", POST, false, NULL, "isosurface"},
+    {"/matrix-model", POST, false, NULL, "matrix"},
     {"/models", GET, false, models, NULL},
     {"/models/{id}", GET | DELETE, false, model_resource, NULL},
     {"/models/{id}/mesh", GET, false, model_mesh_route, NULL},

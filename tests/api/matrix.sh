@@ -1,0 +1,93 @@
+#!/bin/sh
+# Matrix models through HTTP (issue 16, seed 003): POST /model with six relief matrices (made here
+# by tests/tools/matrix_tool.py, an implementation of Table 1 of its own) gives a closed, manifold
+# mesh model with the seed's counts, which meshes, renders and is measured like any model; POST
+# /volume measures one without storing it; POST /matrix-model turns a volume back into the same
+# matrices (exact, or exact false for a body with a cavity); the offline CLI takes them; every kind
+# of bad matrix model is a 422 naming the member or element.
+. "$(dirname "$0")/lib.inc"
+
+J='Content-Type: application/json'
+RAW='Content-Type: application/octet-stream'
+M=tests/tools/matrix_tool.py
+start_daemon "$T/d" --threads 2 || exit 1
+field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1])).get(sys.argv[2]))" "$T/body" "$1"; }
+pointer() { python3 -c "import json,sys; e=json.load(open(sys.argv[1])).get('errors'); print(e[0]['pointer'] if e else '')" "$T/body"; }
+near() { python3 -c "import sys; sys.exit(0 if abs(float(sys.argv[1]) / float(sys.argv[2]) - 1) < float(sys.argv[3]) else 1)" "$@"; }
+
+python3 $M ball 36 14 "$T/ball.json"
+code=$(status POST /model -H "$J" --data-binary @"$T/ball.json"); id=$(field id)
+check "a ball's matrix model: 201, source matrix, Location" '[ "$code" = 201 ] && [ "$(field source)" = matrix ] && [ "$(header Location)" = "/models/$id" ]'
+check "... a closed 2-manifold, one component, Euler characteristic 2" '[ "$(field boundary_edges)" = 0 ] && [ "$(field nonmanifold_edges)" = 0 ] && [ "$(field components)" = 1 ] && [ "$(field euler_characteristic)" = 2 ]'
+check "... its volume within 3 % of the ball's" 'near "$(field volume_mm3)" "$(python3 -c "print(4 / 3 * 3.141592653589793 * 14 ** 3)")" 0.03'
+check "... the seed's counts: surface voxels, base and redundant ones, computed vertices" '[ "$(field voxels)" -gt 0 ] && [ "$(field base_voxels)" -gt 0 ] && [ "$(field redundant_voxels)" -gt 0 ] && [ "$(field computed_vertices)" -gt 0 ]'
+vol=$(field volume_mm3)
+code=$(status GET "/models/$id/mesh?format=stl")
+check "... its STL closed, with the model's volume" '[ "$code" = 200 ] && python3 tests/tools/stl_check.py "$T/body" "$vol" >/dev/null'
+code=$(status GET "/models/$id/render?width=160&height=120")
+check "... it renders" '[ "$code" = 200 ] && [ "$(header Content-Type)" = image/png ]'
+python3 $M box 20 3 15 4 12 5 18 "$T/box.json"
+code=$(status POST /model -H "$J" --data-binary @"$T/box.json")
+check "a box: closed, its volume within 3 % of 12 x 8 x 13" '[ "$code" = 201 ] && [ "$(field boundary_edges)" = 0 ] && near "$(field volume_mm3)" 1248 0.03'
+python3 $M steps 24 "$T/steps.json"
+code=$(status POST /model -H "$J" --data-binary @"$T/steps.json")
+check "a stepped pyramid: closed, one component" '[ "$code" = 201 ] && [ "$(field boundary_edges)" = 0 ] && [ "$(field nonmanifold_edges)" = 0 ] && [ "$(field components)" = 1 ]'
+code=$(status POST /volume -H "$J" --data-binary @"$T/ball.json")
+check "POST /volume measures a matrix model without storing it" '[ "$code" = 200 ] && [ "$(field source)" = matrix ] && [ "$(field id)" = "" ]'
+
+# ---- a volume back to its matrices --------------------------------------------------------------------
+python3 $M mask 36 ball 14 "$T/ball.raw"
+code=$(status POST "/matrix-model?iso=128&dims=36,36,36&type=uint8&origin=0.5,0.5,0.5" -H "$RAW" --data-binary @"$T/ball.raw")
+same=$(python3 -c "
+import json, sys
+a = json.load(open(sys.argv[1])); b = json.load(open(sys.argv[2]))
+print(all(a['matrix_model'][k] == b['matrix_model'][k] for k in ('M0', 'M1', 'M2', 'M3', 'M4', 'M5')) and a['exact'])" "$T/body" "$T/ball.json")
+check "POST /matrix-model of the ball's voxels: the same six matrices, exact" '[ "$code" = 200 ] && [ "$same" = True ] && grep -q "\"bounds\":\[\[0.0,0.0,0.0\],\[36.0,36.0,36.0\]\]" "$T/body"'
+cp "$T/body" "$T/back.json"
+code=$(status POST /model -H "$J" --data-binary @"$T/back.json")
+check "... which POST /model takes back" '[ "$code" = 201 ] && [ "$(field source)" = matrix ]'
+python3 - "$T/ball.raw" "$T/hollow.raw" <<'PY'
+import sys
+d = bytearray(open(sys.argv[1], "rb").read())
+for z in range(14, 22):
+    for y in range(14, 22):
+        for x in range(14, 22):
+            d[x + 36 * (y + 36 * z)] = 0
+open(sys.argv[2], "wb").write(d)
+PY
+code=$(status POST "/matrix-model?iso=128&dims=36,36,36&type=uint8" -H "$RAW" --data-binary @"$T/hollow.raw")
+check "... of a ball with a cavity: answered, exact false (the seed's limit)" '[ "$code" = 200 ] && [ "$(field exact)" = False ]'
+check "... without ?iso: 422 at ?iso" '[ "$(status POST "/matrix-model?dims=36,36,36&type=uint8" -H "$RAW" --data-binary @"$T/ball.raw")" = 422 ] && [ "$(pointer)" = "?iso" ]'
+
+# ---- offline --------------------------------------------------------------------------------------------
+$S model "$T/ball.json" --mesh "$T/off.stl" >"$T/out" 2>"$T/err"
+check "surfd model MATRIX.json: the resource, and --mesh writes the closed mesh" '[ $? -eq 0 ] && grep -q "\"source\":\"matrix\"" "$T/out" && python3 tests/tools/stl_check.py "$T/off.stl" "$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[\"volume_mm3\"])" "$T/out")" >/dev/null'
+
+# ---- bad matrix models -------------------------------------------------------------------------------
+edit_json() { python3 -c "
+import json, sys
+m = json.load(open(sys.argv[1])); exec(sys.argv[2]); json.dump(m, open(sys.argv[3], 'w'))" "$T/ball.json" "$1" "$T/bad.json"; }
+bad_matrix() { # bad_matrix LABEL STATUS POINTER PYTHON
+    label=$1; want=$2; ptr=$3
+    edit_json "$4"
+    code=$(status POST /model -H "$J" --data-binary @"$T/bad.json")
+    check "bad matrix model: $label -> $want at $ptr" '[ "$code" = "$want" ] && is_problem "$want" && [ "$(pointer)" = "$ptr" ]'
+}
+bad_matrix "M2 of the wrong shape" 422 /matrix_model/M2 "m['matrix_model']['M2'] = m['matrix_model']['M2'][:-1]"
+bad_matrix "a short row" 422 /matrix_model/M4/3 "m['matrix_model']['M4'][3] = m['matrix_model']['M4'][3][:-2]"
+bad_matrix "an element past its line" 422 /matrix_model/M0/7/12 "m['matrix_model']['M0'][7][12] = 37"
+bad_matrix "a negative element" 422 /matrix_model/M5/0/0 "m['matrix_model']['M5'][0][0] = -1"
+bad_matrix "a fractional element" 422 /matrix_model/M1/2/3 "m['matrix_model']['M1'][2][3] = 1.5"
+bad_matrix "matrices that contradict each other (a line's first voxel from Xmin past the first from Xmax)" 422 /matrix_model/M3/17/17 "m['matrix_model']['M3'][17][17] = 33"
+bad_matrix "a size of 0" 422 /matrix_model/size/1 "m['matrix_model']['size'][1] = 0"
+bad_matrix "a size over the cap" 422 /matrix_model/size "m['matrix_model']['size'] = [4096, 4096, 4096]"
+bad_matrix "bounds upside down" 422 /matrix_model/bounds/1/2 "m['matrix_model']['bounds'][1][2] = -1"
+bad_matrix "an unknown matrix" 422 /matrix_model/M6 "m['matrix_model']['M6'] = []"
+bad_matrix "an unknown member" 422 /colour "m['colour'] = 1"
+bad_matrix "a line one end sees and the other misses" 422 /matrix_model/M5/0/35 "m['matrix_model']['M2'][0][0] = 18"
+bad_matrix "an element naming a voxel the other matrices exclude" 422 /matrix_model/M4/17/18 "m['matrix_model']['M4'][17][18] = 2"
+code=$(status POST /model -H "$J" --data-binary '{"matrix_model": {"size": [2, 2')
+check "bad matrix model: not JSON -> 400" '[ "$code" = 400 ] && is_problem 400'
+check "the daemon is up after them" 'alive'
+
+finish
