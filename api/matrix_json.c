@@ -2,6 +2,7 @@
 #define _GNU_SOURCE /* memmem */
 #include "matrix_json.h"
 #include "json_in.h"
+#include "volume_io.h"
 
 #include <jansson.h>
 #include <math.h>
@@ -234,4 +235,34 @@ char *matrix_json_of_voxels(const char *name, const int n[3], const double lo[3]
     if (!text)
         sf_fail(err, SF_ENOMEM, "", "out of memory");
     return text;
+}
+
+char *matrix_json_of_volume(const struct volume *v, struct sf_err *err)
+{
+    const struct iso_grid *g = &v->g;
+    size_t n = (size_t)g->nx * g->ny * g->nz;
+    if (g->nx > MATRIX_MAX_SIDE || g->ny > MATRIX_MAX_SIDE || g->nz > MATRIX_MAX_SIDE || n > MATRIX_JSON_MAX_VOXELS)
+        return sf_fail(err, SF_ELIMIT, "?dims", "a matrix model has at most %d voxels a side and %u in all",
+                       MATRIX_MAX_SIDE, MATRIX_JSON_MAX_VOXELS), NULL;
+    uint8_t *vox = malloc(n ? n : 1);
+    float *row = malloc(sizeof *row * (size_t)g->nx);
+    char *json = NULL;
+    if (!vox || !row) {
+        sf_fail(err, SF_ENOMEM, "", "out of memory for the voxels");
+    } else {
+        for (int z = 0; z < g->nz; z++)
+            for (int y = 0; y < g->ny; y++) {
+                iso_grid_row(g, y, z, row);
+                for (int x = 0; x < g->nx; x++) /* samples >= iso are the body */
+                    vox[(size_t)x + (size_t)g->nx * ((size_t)y + (size_t)g->ny * z)] = row[x] >= v->iso;
+            }
+        int dims[3] = {g->nx, g->ny, g->nz};
+        double lo[3], hi[3];
+        for (int a = 0; a < 3; a++) /* each voxel centred on its sample */
+            lo[a] = g->origin[a] - g->spacing[a] / 2, hi[a] = lo[a] + g->spacing[a] * dims[a];
+        json = matrix_json_of_voxels(v->name, dims, lo, hi, vox, err);
+    }
+    free(vox);
+    free(row);
+    return json;
 }

@@ -45,4 +45,9 @@ char *matrix_model_json(const char *id, const struct matrix_request *r, const st
 char *matrix_json_of_voxels(const char *name, const int n[3], const double lo[3], const double hi[3],
                             const uint8_t *vox, struct sf_err *err);
 
+/* The matrices of a volume as volume_read gives it (samples >= iso are the body, each voxel centred
+ * on its sample; an FRep's grid sampled), caller frees; NULL with err (SF_ELIMIT at ?dims). */
+struct volume;
+char *matrix_json_of_volume(const struct volume *v, struct sf_err *err);
+
 #endif

@@ -13,6 +13,7 @@
 #include <time.h>
 
 #include "../api/iso_json.h"
+#include "../api/matrix_json.h"
 #include "../api/mesh_io.h"
 #include "../api/volume_io.h"
 #include "cli.h"
@@ -178,7 +179,9 @@ int cmd_isosurface(int argc, char **argv)
                         "[--spacing sx,sy,sz] [--origin x,y,z]]\n"
                         "       surfd isosurface FREP.json [--iso V]\n"
                         "                        [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|dicom|frep]\n"
-                        "                        [-o OUT.stl|.ply|.obj] [--threads N] [--repeat N] [--stats]\n");
+                        "                        [-o OUT.stl|.ply|.obj] [--threads N] [--repeat N] [--stats]\n"
+                        "       surfd matrix VOLUME|FREP.json [--iso V] [the volume's options above] [-o OUT.json]\n"
+                        "                        (its six relief matrices, seed 003: samples >= iso are the body)\n");
         return 2;
     }
     double t0 = now_ms();
@@ -199,6 +202,20 @@ int cmd_isosurface(int argc, char **argv)
     double t_read = now_ms();
     if (!rc)
         volume_sample(&v, 0, v.g.nz); /* an FRep's grid (on this thread: the daemon's job uses its pool) */
+    if (!strcmp(argv[0], "matrix")) { /* surfd matrix: the volume's six relief matrices (seed 003) */
+        char *json = rc ? NULL : matrix_json_of_volume(&v, &err);
+        rc = rc ? rc : json ? 0 : err.code;
+        if (!rc && out && cli_write_all(out, json, strlen(json)))
+            rc = SF_EIO;
+        else if (!rc && !out)
+            printf("%s\n", json);
+        free(json);
+        volume_free(&v);
+        free(buf);
+        if (rc && rc != SF_EIO)
+            fprintf(stderr, "surfd: %s: %s%s%s\n", argv[1], err.message, err.pointer[0] ? " at " : "", err.pointer);
+        return rc ? 1 : 0;
+    }
     double t_sampled = now_ms();
     iso_init();
     struct trimesh m = {0};

@@ -43,33 +43,10 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         rc = volume_read(body, len, rec.format, rec.options, &v, &w->err);
     if (!rc && v.frep)
         rc = frep_volumes(w->svc, v.frep, &w->err);
-    const struct iso_grid *g = &v.g;
-    size_t n = rc ? 0 : (size_t)g->nx * g->ny * g->nz;
-    uint8_t *vox = rc ? NULL : malloc(n ? n : 1);
-    float *row = rc ? NULL : malloc(sizeof *row * (size_t)g->nx);
-    if (!rc && (!vox || !row))
-        rc = sf_fail(&w->err, SF_ENOMEM, "", "out of memory for the voxels");
-    if (!rc && (g->nx > MATRIX_MAX_SIDE || g->ny > MATRIX_MAX_SIDE || g->nz > MATRIX_MAX_SIDE || n > MATRIX_JSON_MAX_VOXELS))
-        rc = sf_fail(&w->err, SF_ELIMIT, "?dims", "a matrix model has at most %d voxels a side and %u in all",
-                     MATRIX_MAX_SIDE, MATRIX_JSON_MAX_VOXELS);
-    if (!rc) {
-        if (v.frep)
-            volume_sample(&v, 0, g->nz);
-        for (int z = 0; z < g->nz; z++)
-            for (int y = 0; y < g->ny; y++) {
-                iso_grid_row(g, y, z, row);
-                for (int x = 0; x < g->nx; x++) /* samples >= iso are the body */
-                    vox[(size_t)x + (size_t)g->nx * ((size_t)y + (size_t)g->ny * z)] = row[x] >= v.iso;
-            }
-        int dims[3] = {g->nx, g->ny, g->nz};
-        double lo[3], hi[3];
-        for (int a = 0; a < 3; a++) /* each voxel centred on its sample */
-            lo[a] = g->origin[a] - g->spacing[a] / 2, hi[a] = lo[a] + g->spacing[a] * dims[a];
-        if (!(w->json = matrix_json_of_voxels(v.name, dims, lo, hi, vox, &w->err)))
-            rc = w->err.code;
-    }
-    free(vox);
-    free(row);
+    if (!rc && v.frep)
+        volume_sample(&v, 0, v.g.nz);
+    if (!rc && !(w->json = matrix_json_of_volume(&v, &w->err)))
+        rc = w->err.code;
     volume_free(&v);
     if (map)
         munmap(map, map_len);

@@ -16,7 +16,7 @@ int main(int argc, char **argv)
         return cmd_serve(argc - 1, argv + 1);
     if (argc >= 2 && (!strcmp(argv[1], "volume") || !strcmp(argv[1], "model")))
         return cmd_volume(argc - 1, argv + 1);
-    if (argc >= 2 && !strcmp(argv[1], "isosurface"))
+    if (argc >= 2 && (!strcmp(argv[1], "isosurface") || !strcmp(argv[1], "matrix")))
         return cmd_isosurface(argc - 1, argv + 1);
     if (argc >= 2 && (!strcmp(argv[1], "--version") || !strcmp(argv[1], "version"))) {
         printf("surfd %s\n", SURFD_VERSION);
@@ -25,6 +25,7 @@ int main(int argc, char **argv)
     fprintf(stderr, "usage: surfd serve [--config FILE] [--SETTING VALUE]...   (surfd serve --help)\n"
                     "       surfd render SCENE... -o OUT [options]\n"
                     "       surfd model|volume CONTOURS.json|RTSTRUCT.dcm [options]\n"
-                    "       surfd isosurface VOLUME --iso V [options]\n");
+                    "       surfd isosurface VOLUME --iso V [options]\n"
+                    "       surfd matrix VOLUME --iso V [options] [-o OUT.json]\n");
     return 2;
 }

@@ -63,6 +63,14 @@ check "... without ?iso: 422 at ?iso" '[ "$(status POST "/matrix-model?dims=36,3
 $S model "$T/ball.json" --mesh "$T/off.stl" >"$T/out" 2>"$T/err"
 check "surfd model MATRIX.json: the resource, and --mesh writes the closed mesh" '[ $? -eq 0 ] && grep -q "\"source\":\"matrix\"" "$T/out" && python3 tests/tools/stl_check.py "$T/off.stl" "$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[\"volume_mm3\"])" "$T/out")" >/dev/null'
 
+$S matrix "$T/ball.raw" --iso 128 --dims 36,36,36 --type uint8 --origin 0.5,0.5,0.5 -o "$T/cli.json" 2>"$T/err"
+check "surfd matrix VOLUME --iso: the same matrices as POST /matrix-model" '[ $? -eq 0 ] && python3 -c "
+import json, sys
+a = json.load(open(sys.argv[1])); b = json.load(open(sys.argv[2]))
+sys.exit(0 if a[\"matrix_model\"] == b[\"matrix_model\"] and a[\"exact\"] else 1)" "$T/cli.json" "$T/back.json"'
+$S matrix "$T/ball.raw" --dims 36,36,36 --type uint8 >/dev/null 2>"$T/err"; rc=$?
+check "... without --iso: refused, naming ?iso" '[ $rc -ne 0 ] && grep -q "?iso" "$T/err"'
+
 # ---- bad matrix models -------------------------------------------------------------------------------
 edit_json() { python3 -c "
 import json, sys
