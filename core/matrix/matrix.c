@@ -313,11 +313,14 @@ static int cut_corners(int open, int f)
 /* Corner k of face f as the voxel across it (face f ^ 1) numbers it. */
 static int corner_across(int k) { return 3 - k; }
 
-static void solid_of(const int n[3], const uint8_t *vox, const int v[3], struct solid *s)
+/* A voxel's solid depends on its open faces alone: the 64 of them, clipped once a mesh. */
+static void solids(struct solid table[64])
 {
-    s->open = open_faces(n, vox, v);
-    chamfers(s);
-    clip_solid(s);
+    for (int open = 0; open < 64; open++) {
+        table[open].open = open;
+        chamfers(&table[open]);
+        clip_solid(&table[open]);
+    }
 }
 
 /* ---- the mesh ---- */
@@ -325,6 +328,7 @@ static void solid_of(const int n[3], const uint8_t *vox, const int v[3], struct 
 struct mesher {
     const int *n;
     const uint8_t *vox;
+    uint8_t *open;           /* each voxel's open faces (0 for voxels out of the set) */
     double lo[3], d[3];
     struct trimesh m;
     size_t vcap, tcap;
@@ -531,7 +535,7 @@ static void voxel_surface(struct mesher *ms, const int v[3], const struct solid 
         w[f >> 1] += f & 1 ? 1 : -1;
         if (s->open >> f & 1)
             continue;
-        int wopen = open_faces(ms->n, ms->vox, w);
+        int wopen = ms->open[at(ms->n, w)]; /* (w is in the set: f is closed) */
         if (!(f & 1) && wopen)
             continue; /* (drawn from w) */
         int mv = cut_corners(s->open, f), mw0 = cut_corners(wopen, f ^ 1), mw = 0;
@@ -618,21 +622,30 @@ int matrix_mesh(const int n[3], const uint8_t *vox, const double lo[3], const do
     struct mesher ms = {.n = n, .vox = vox};
     memcpy(ms.lo, lo, sizeof ms.lo);
     memcpy(ms.d, d, sizeof ms.d);
-    for (int pass = 0; pass < 2 && !ms.nomem; pass++) {
-        int v[3];
+    struct solid *table = malloc(64 * sizeof *table);
+    if (!table)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    solids(table);
+    size_t nv = (size_t)n[0] * n[1] * n[2];
+    if (!(ms.open = malloc(nv ? nv : 1))) {
+        free(table);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    }
+    int v[3];
+    for (v[2] = 0; v[2] < n[2]; v[2]++)
+        for (v[1] = 0; v[1] < n[1]; v[1]++)
+            for (v[0] = 0; v[0] < n[0]; v[0]++)
+                ms.open[at(n, v)] = vox[at(n, v)] ? (uint8_t)open_faces(n, vox, v) : 0;
+    for (int pass = 0; pass < 2 && !ms.nomem; pass++)
         for (v[2] = 0; v[2] < n[2]; v[2]++)
             for (v[1] = 0; v[1] < n[1]; v[1]++)
                 for (v[0] = 0; v[0] < n[0] && !ms.nomem; v[0]++) {
-                    if (!vox[at(n, v)])
-                        continue;
-                    struct solid s;
-                    s.open = open_faces(n, vox, v);
-                    if (!s.open)
-                        continue;
-                    solid_of(n, vox, v, &s);
-                    voxel_surface(&ms, v, &s, pass == 0);
+                    int open = ms.open[at(n, v)];
+                    if (open)
+                        voxel_surface(&ms, v, &table[open], pass == 0);
                 }
-    }
+    free(table);
+    free(ms.open);
     free(ms.keys), free(ms.ids), free(ms.seen);
     if (!ms.nomem && split_fans(&ms))
         ms.nomem = true;

@@ -2,7 +2,7 @@
 """vtk_iso.py RAW NX NY NZ DTYPE ISO SX SY SZ PAD THREADS REPEAT: VTK's vtkFlyingEdges3D and vtkMarchingCubes
 on the raw volume padded with one layer of PAD (as tests/bench/bench.py and ../shared/data/volumes/README.md pad),
 normals computed as surfd computes them. Prints JSON: per filter the first (cold) and the best (warm) Update() time
-in ms, the triangle count and the volume (vtkMassProperties). Run with Debian's python3 (python3-vtk9)."""
+in ms, the triangle and vertex counts and the volume (vtkMassProperties). Run with Debian's python3 (python3-vtk9)."""
 import json, sys, time
 import vtk
 
@@ -32,5 +32,5 @@ for name, cls in (("flying_edges", vtk.vtkFlyingEdges3D), ("marching_cubes", vtk
     mp.SetInputData(f.GetOutput())
     mp.Update()
     out[name] = {"cold_ms": times[0], "warm_ms": min(times), "triangles": f.GetOutput().GetNumberOfPolys(),
-                 "volume": mp.GetVolume()}
+                 "vertices": f.GetOutput().GetNumberOfPoints(), "volume": mp.GetVolume()}
 print(json.dumps(out))
