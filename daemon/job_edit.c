@@ -13,7 +13,9 @@
  * that seq first, the hierarchy is let go and the edit answered 409 (sent again, it is applied
  * after the other). Models of levels 1 without features are drawn by marching cubes (mc.c), whose
  * cells this does not keep: their edits write the samples and draw every cell again (whole).
- * An FRep model is edited by an FRep object, which is not built yet (409). */
+ * An FRep model is edited by an object ({op, object, alpha}): its latest tree (the last part) is
+ * combined with it and extracted again, every cell (an R-function of alpha < 1 moves every
+ * sample); the new request is stored as the next part. */
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -220,7 +222,8 @@ int edit_volume(struct service *svc, const char *id, struct volume *vol, int *ne
     }
     int rc = volume_read(parts[0].data, parts[0].len, parts[0].format, parts[0].options, vol, err);
     if (!rc && vol->frep)
-        rc = sf_fail(err, SF_ECONFLICT, "", "an FRep model is edited by an FRep object (not built yet), not by samples");
+        rc = sf_fail(err, SF_ECONFLICT, "", "an FRep model has no samples (it is edited by {op, object}, and a volume "
+                     "primitive reads isosurfaces of samples)");
     if (!rc && !vol->owned) { /* the samples in the part's bytes: copied, to be written */
         size_t bytes = (size_t)vol->g.nx * vol->g.ny * vol->g.nz * (vol->g.type == ISO_U8 ? 1 : vol->g.type == ISO_F32 ? 4 : 2);
         if (!(vol->owned = malloc(bytes)))
