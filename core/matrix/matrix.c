@@ -541,7 +541,7 @@ static void voxel_surface(struct mesher *ms, const int v[3], const struct solid 
         int mv = cut_corners(s->open, f), mw0 = cut_corners(wopen, f ^ 1), mw = 0;
         for (int k = 0; k < 4; k++)
             mw |= (mw0 >> corner_across(k) & 1) << k;
-        int c[4][3], a = f >> 1;
+        int c[4][3];
         face_corners(f, c);
         for (int k = 0; k < 4; k++) {
             if (!((mv ^ mw) >> k & 1))
@@ -552,7 +552,6 @@ static void voxel_surface(struct mesher *ms, const int v[3], const struct solid 
                 t[1][d] = (c[k][d] + c[next][d]) / 2;
                 t[2][d] = (c[k][d] + c[prev][d]) / 2;
             }
-            (void)a;
             if (mv >> k & 1) { /* w keeps it: outward from w, toward v */
                 int r[3][3];
                 memcpy(r[0], t[0], sizeof r[0]), memcpy(r[1], t[2], sizeof r[1]), memcpy(r[2], t[1], sizeof r[2]);
