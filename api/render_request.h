@@ -10,9 +10,14 @@
 #include "../core/trace/scene.h"
 #include "scene_io.h"
 
-/* format: "json", "bpt", "nurbs" or "" (sniffed). options: a query string of overrides
- * (output=png|exr|tiff, method=, width=, height=, azimuth=, elevation=, shadows=0|1); errors in
- * them point at "?name". models resolves stored-model objects (NULL: refused). */
+/* Applies a query string of overrides to sc: output=png|exr|tiff, method=, width=, height=,
+ * azimuth=, elevation=, shadows=0|1, projection=perspective|orthographic, view=+x|-x|+y|-y|+z|-z,
+ * view_height=, eye=x,y,z, target=x,y,z (with eye unless the scene has a camera), up=x,y,z, fov=;
+ * errors point at "?name". Not validated (scene_validate does that). */
+int render_options_apply(const char *options, struct scene *sc, enum image_format *img, struct sf_err *err);
+
+/* format: "json", "bpt", "nurbs" or "" (sniffed). options: as render_options_apply. models
+ * resolves stored-model objects (NULL: refused). */
 int render_request_parse(const char *body, size_t len, const char *format, const char *options,
                          const struct model_resolver *models, struct scene *sc, enum image_format *img,
                          struct sf_err *err);

@@ -272,6 +272,23 @@ static int camera(json_t *j, struct scene *sc, struct sf_err *err)
         return rc;
     if ((v = json_object_get(j, "elevation")) && (rc = num(v, "/camera/elevation", &sc->elevation_deg, err)))
         return rc;
+    if ((v = json_object_get(j, "projection"))) {
+        const char *s = json_string_value(v);
+        if (!s || (strcmp(s, "perspective") && strcmp(s, "orthographic")))
+            return sf_fail(err, SF_EINVAL, "/camera/projection", "projection is \"perspective\" or \"orthographic\"");
+        sc->ortho = s[0] == 'o';
+    }
+    if ((v = json_object_get(j, "view"))) {
+        const char *s = json_string_value(v);
+        if (!s || scene_view_parse(s, &sc->view))
+            return sf_fail(err, SF_EINVAL, "/camera/view", "view is \"+x\", \"-x\", \"+y\", \"-y\", \"+z\" or \"-z\"");
+        if (sc->has_camera)
+            return sf_fail(err, SF_EINVAL, "/camera/view", "a view along an axis or an eye and target, not both");
+    }
+    if ((v = json_object_get(j, "view_height")) && (rc = num(v, "/camera/view_height", &sc->view_height, err)))
+        return rc;
+    if (json_object_get(j, "view_height") && !(sc->view_height > 0.0))
+        return sf_fail(err, SF_EINVAL, "/camera/view_height", "view_height must be positive");
     return 0;
 }
 

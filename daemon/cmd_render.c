@@ -3,6 +3,7 @@
  * --threads threads claim its scanline bands, then writes PNG/EXR/TIFF by the output's
  * extension. --stats prints one JSON line on stderr. */
 #include <errno.h>
+#include <stdbool.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
@@ -12,6 +13,7 @@
 #include <unistd.h>
 
 #include "../api/image.h"
+#include "../api/render_request.h"
 #include "../api/scene_io.h"
 #include "../core/trace/render.h"
 #include "cli.h"
@@ -49,11 +51,21 @@ static double now_ms(void)
     return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
 }
 
+static bool camera_flag(const char *name, const char *const *flags, int n)
+{
+    for (int k = 0; k < n; k++)
+        if (!strcmp(name, flags[k]))
+            return true;
+    return false;
+}
+
 static int usage(void)
 {
     fprintf(stderr, "usage: surfd render SCENE... -o OUT.png|OUT.exr|OUT.tif [--method auto|map|bvh|mesh|montecarlo]\n"
                     "                    [--width W --height H] [--threads N] [--format json|bpt|nurbs] [--stats]\n"
-                    "                    [--azimuth DEG --elevation DEG] [--no-shadows] [--aovs normal,uv,id]\n");
+                    "                    [--azimuth DEG --elevation DEG] [--no-shadows] [--aovs normal,uv,id]\n"
+                    "                    [--eye X,Y,Z --target X,Y,Z] [--up X,Y,Z] [--fov DEG]\n"
+                    "                    [--projection perspective|orthographic] [--view +x|-x|+y|-y|+z|-z] [--view-height H]\n");
     return 2;
 }
 
@@ -114,6 +126,8 @@ int cmd_render(int argc, char **argv)
     double az = NAN, el = NAN;
     char *inputs[64];
     int n_inputs = 0;
+    char camera[1024] = ""; /* the camera flags as POST /render's query */
+    static const char *const CAMERA_FLAGS[] = {"eye", "target", "up", "fov", "projection", "view", "view-height"};
     for (int k = 1; k < argc; k++) {
         const char *a = argv[k];
         const char *val = k + 1 < argc ? argv[k + 1] : NULL;
@@ -137,6 +151,13 @@ int cmd_render(int argc, char **argv)
             el = atof(val), k++;
         else if (!strcmp(a, "--stats"))
             stats = 1;
+        else if (a[0] == '-' && a[1] == '-' && val && camera_flag(a + 2, CAMERA_FLAGS, 7)) {
+            size_t at = strlen(camera);
+            snprintf(camera + at, sizeof camera - at, "%s%s=%s", at ? "&" : "", a + 2, val);
+            for (char *c = camera + at; *c != '='; c++)
+                *c = *c == '-' ? '_' : *c;
+            k++;
+        }
         else if (!strcmp(a, "--no-shadows"))
             no_shadows = 1;
         else if (a[0] == '-' && a[1])
@@ -182,6 +203,11 @@ int cmd_render(int argc, char **argv)
         sc.elevation_deg = el;
     if (no_shadows)
         sc.shadows = false;
+    if ((rc = render_options_apply(camera, &sc, &ignored, &err)) || (rc = scene_validate(&sc, &err))) {
+        fprintf(stderr, "surfd: %s%s%s\n", err.message, err.pointer[0] ? " at " : "", err.pointer);
+        scene_free(&sc);
+        return 2;
+    }
     if (img_fmt == IMG_PNG)
         sc.srgb8_only = true; /* the bands convert to 8 bits, on every thread */
     if (aovs) {

@@ -1,6 +1,10 @@
-/* camera.h - the pinhole camera of API.md §Scene, shared by the tracer and the map raster. */
+/* camera.h - the camera of API.md §Scene, shared by the tracer and the map raster: a pinhole, or
+ * an orthographic view (parallel rays along f from the eye's plane, hw x hh the half extents:
+ * the axis-aligned views a matrix model is made from, seed 003). */
 #ifndef SURFD_CAMERA_H
 #define SURFD_CAMERA_H
+
+#include <stdbool.h>
 
 #include "../base/vec.h"
 
@@ -10,6 +14,8 @@ struct camera {
     double th;       /* tan(fov/2), fov vertical */
     double aspect;   /* W / H */
     int W, H;
+    bool ortho;      /* orthographic: th unused */
+    double hw, hh;   /* orthographic half width and height (world units) */
 };
 
 /* f = normalize(target - eye), r = normalize(f × up), u = r × f. */
@@ -23,14 +29,29 @@ static inline void camera_init(struct camera *c, vec3 eye, vec3 target, vec3 up,
     c->W = W;
     c->H = H;
     c->aspect = (double)W / H;
+    c->ortho = false;
+    c->hw = c->hh = 0.0;
 }
 
-/* Direction (not normalised) through pixel (px, py), py = 0 the top row. */
-static inline vec3 camera_dir(const struct camera *c, int px, int py)
+/* Makes c orthographic with a view of height view_h; view_w <= 0: view_h times the aspect. */
+static inline void camera_make_ortho(struct camera *c, double view_h, double view_w)
 {
-    double sx = ((px + 0.5) / c->W * 2.0 - 1.0) * c->th * c->aspect;
-    double sy = (1.0 - (py + 0.5) / c->H * 2.0) * c->th;
-    return v3_add(c->f, v3_add(v3_scale(c->r, sx), v3_scale(c->u, sy)));
+    c->ortho = true;
+    c->hh = 0.5 * view_h;
+    c->hw = view_w > 0.0 ? 0.5 * view_w : c->hh * c->aspect;
+}
+
+/* The ray through pixel (px, py), py = 0 the top row: its origin into *o, its direction (not
+ * normalised for a pinhole) returned. */
+static inline vec3 camera_ray(const struct camera *c, int px, int py, vec3 *o)
+{
+    double sx = (px + 0.5) / c->W * 2.0 - 1.0, sy = 1.0 - (py + 0.5) / c->H * 2.0;
+    if (c->ortho) {
+        *o = v3_add(c->eye, v3_add(v3_scale(c->r, sx * c->hw), v3_scale(c->u, sy * c->hh)));
+        return c->f;
+    }
+    *o = c->eye;
+    return v3_add(c->f, v3_add(v3_scale(c->r, sx * c->th * c->aspect), v3_scale(c->u, sy * c->th)));
 }
 
 #endif

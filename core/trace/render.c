@@ -89,20 +89,48 @@ void frame_free(struct frame *fr)
     free(fr);
 }
 
+/* The orthographic half extents that hold the eight corners of the bounds with a 5 % margin, for
+ * the camera's axes (the view's height; its width from the aspect unless the scene gives one). */
+static void fit_ortho(struct frame *fr)
+{
+    const struct scene *sc = fr->sc;
+    double hh = 0.0;
+    for (int k = 0; k < 8; k++) {
+        vec3 p = v3(k & 1 ? fr->hi.x : fr->lo.x, k & 2 ? fr->hi.y : fr->lo.y, k & 4 ? fr->hi.z : fr->lo.z);
+        vec3 d = v3_sub(p, fr->cam.eye);
+        hh = fmax(hh, fmax(fabs(v3_dot(d, fr->cam.u)), fabs(v3_dot(d, fr->cam.r)) / fr->cam.aspect) / 0.95);
+    }
+    camera_make_ortho(&fr->cam, sc->view_height > 0.0 ? sc->view_height : fmax(2.0 * hh, 1e-9 * fr->diag),
+                      sc->view_width);
+}
+
 static void place_camera(struct frame *fr)
 {
     const struct scene *sc = fr->sc;
     if (sc->has_camera) {
         camera_init(&fr->cam, sc->eye, sc->target, sc->up, sc->fov_deg, sc->width, sc->height);
+        if (sc->ortho)
+            fit_ortho(fr);
         return;
     }
-    /* look from azimuth/elevation (azimuth from -y towards +x, z up) at the bounds' centre, from the
-     * nearest distance at which all eight corners of the bounds fit the view with a 5 % margin */
-    vec3 c = v3_scale(v3_add(fr->lo, fr->hi), 0.5);
-    double az = sc->azimuth_deg * M_PI / 180, el = sc->elevation_deg * M_PI / 180;
-    vec3 dir = v3(sin(az) * cos(el), -cos(az) * cos(el), sin(el));
+    /* look from azimuth/elevation (azimuth from -y towards +x, z up), or along an axis, at the
+     * bounds' centre */
+    vec3 c = v3_scale(v3_add(fr->lo, fr->hi), 0.5), dir, up = v3(0, 0, 1);
+    if (sc->view) {
+        scene_view_axes(sc->view, &dir, &up);
+    } else {
+        double az = sc->azimuth_deg * M_PI / 180, el = sc->elevation_deg * M_PI / 180;
+        dir = v3(sin(az) * cos(el), -cos(az) * cos(el), sin(el));
+    }
+    if (sc->ortho) { /* from outside the bounds' sphere: every object in front of the eye's plane */
+        camera_init(&fr->cam, v3_mad(c, dir, fr->diag), c, up, sc->fov_deg, sc->width, sc->height);
+        fit_ortho(fr);
+        return;
+    }
+    /* from the nearest distance at which all eight corners of the bounds fit the view with a 5 %
+     * margin */
     struct camera probe;
-    camera_init(&probe, v3_add(c, dir), c, v3(0, 0, 1), sc->fov_deg, sc->width, sc->height);
+    camera_init(&probe, v3_add(c, dir), c, up, sc->fov_deg, sc->width, sc->height);
     double tv = 0.95 * probe.th, th = tv * probe.aspect, dist = 0.0;
     for (int k = 0; k < 8; k++) {
         vec3 p = v3(k & 1 ? fr->hi.x : fr->lo.x, k & 2 ? fr->hi.y : fr->lo.y, k & 4 ? fr->hi.z : fr->lo.z);
@@ -112,7 +140,7 @@ static void place_camera(struct frame *fr)
         dist = fmax(dist, fmax(fabs(x) / th - z, fabs(y) / tv - z));
     }
     dist = fmax(dist, 1e-6 * fr->diag);
-    camera_init(&fr->cam, v3_mad(c, dir, dist), c, v3(0, 0, 1), sc->fov_deg, sc->width, sc->height);
+    camera_init(&fr->cam, v3_mad(c, dir, dist), c, up, sc->fov_deg, sc->width, sc->height);
 }
 
 static int resolve_lights(struct frame *fr)
@@ -228,7 +256,8 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
     /* auto traces primaries through the map where patches are large on screen; with many small ones
      * (a contour model's thousands) most pixels hold more candidates than the map keeps, and the
      * hierarchy alone is the faster (the heart's 19 014 patches at 500x400: 274 against 368 ms) */
-    bool map_wanted = !sc->n_meshes && (sc->method == METHOD_MAP || /* the map knows patches alone */
+    bool map_wanted = !sc->n_meshes && !sc->ortho && /* the map knows patches in perspective alone */
+                      (sc->method == METHOD_MAP ||
                                         (sc->method == METHOD_AUTO && fr->ps.n * AUTO_MAP_PIXELS_PER_PATCH <= np));
     if (!rc && map_wanted)
         rc = map_build(fr->ps.patches, fr->ps.n, &fr->cam, &fr->map, err);
@@ -547,8 +576,10 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
             for (int j = 0; j < m; j++) {
                 size_t at = (size_t)(y - y0) * W + (size_t)(x0 + j); /* in the band */
                 px[j].ok = !use_map || rw.n[at]; /* false: background by the map, no ray needed */
-                if (px[j].ok)
-                    solve_ray_init(&px[j].r, fr->cam.eye, camera_dir(&fr->cam, x0 + j, y));
+                if (px[j].ok) {
+                    vec3 o, d = camera_ray(&fr->cam, x0 + j, y, &o);
+                    solve_ray_init(&px[j].r, o, d);
+                }
             }
             bool any = false;
             for (int j = 0; j < m; j++) {
@@ -598,4 +629,12 @@ void frame_image(const struct frame *fr, struct frame_image *img)
 }
 
 double frame_prepare_ms(const struct frame *fr) { return fr->prepare_ms; }
+
+const struct bvh *frame_hierarchy(const struct frame *fr) { return fr->exact; }
+
+void frame_bounds(const struct frame *fr, double lo[3], double hi[3])
+{
+    lo[0] = fr->lo.x, lo[1] = fr->lo.y, lo[2] = fr->lo.z;
+    hi[0] = fr->hi.x, hi[1] = fr->hi.y, hi[2] = fr->hi.z;
+}
 size_t frame_n_patches(const struct frame *fr) { return fr->ps.n; }

@@ -52,6 +52,10 @@ void frame_image(const struct frame *fr, struct frame_image *img);
 /* Milliseconds the preparation took, and what it built (for --stats). */
 double frame_prepare_ms(const struct frame *fr);
 size_t frame_n_patches(const struct frame *fr);
+/* The exact hierarchy over the frame's patches and meshes (NULL with the mesh method), and the
+ * objects' bounds: rays other than the camera's (a model's matrices, core/matrix/rays.h). */
+const struct bvh *frame_hierarchy(const struct frame *fr);
+void frame_bounds(const struct frame *fr, double lo[3], double hi[3]);
 void frame_free(struct frame *fr);
 
 void render_stats_add(struct render_stats *into, const struct render_stats *s);

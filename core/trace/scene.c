@@ -105,6 +105,12 @@ int scene_validate(const struct scene *sc, struct sf_err *err)
         if (v3_len(v3_cross(f, sc->up)) <= 1e-12 * v3_len(f) * v3_len(sc->up))
             return sf_fail(err, SF_EINVAL, "/camera/up", "camera up is parallel to the view direction or zero");
     }
+    if (!(sc->view_height >= 0.0 && sc->view_height <= SURF_MAX_COORD) ||
+        !(sc->view_width >= 0.0 && sc->view_width <= SURF_MAX_COORD))
+        return sf_fail(err, SF_EINVAL, "/camera/view_height", "view_height must be within (0, %g], not %g",
+                       SURF_MAX_COORD, sc->view_height);
+    if (sc->view < VIEW_NONE || sc->view > VIEW_NZ)
+        return sf_fail(err, SF_EINVAL, "/camera/view", "view is +x, -x, +y, -y, +z or -z");
     if (!(sc->fov_deg > 0.0 && sc->fov_deg < 179.0))
         return sf_fail(err, SF_EINVAL, "/camera/fov_deg", "fov_deg must be in (0, 179), not %g", sc->fov_deg);
     if (!isfinite(sc->azimuth_deg) || !(sc->elevation_deg >= -89.9 && sc->elevation_deg <= 89.9))
@@ -162,4 +168,23 @@ int scene_patches(const struct scene *sc, struct patch_set *ps, struct sf_err *e
     for (size_t k = 0; k < ps->n; k++) /* the tracer's Newton steps stop on them */
         bezier_second_bounds(&ps->patches[k]);
     return 0;
+}
+
+int scene_view_parse(const char *name, int *view)
+{
+    static const char *const NAMES[] = {"+x", "+y", "+z", "-x", "-y", "-z"};
+    for (int k = 0; k < 6; k++)
+        if (!strcmp(name, NAMES[k]) || !strcmp(name, NAMES[k] + (k < 3))) {
+            *view = VIEW_PX + k;
+            return 0;
+        }
+    return -1;
+}
+
+void scene_view_axes(int v, vec3 *toward_eye, vec3 *up)
+{
+    int axis = (v - VIEW_PX) % 3;
+    double s = v <= VIEW_PZ ? 1.0 : -1.0;
+    *toward_eye = v3(axis == 0 ? s : 0, axis == 1 ? s : 0, axis == 2 ? s : 0);
+    *up = axis == 2 ? v3(0, 1, 0) : v3(0, 0, 1); /* rows as matrix.h's Table 1 lays them out */
 }

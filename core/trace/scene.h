@@ -18,6 +18,10 @@
 
 enum render_method { METHOD_AUTO, METHOD_MAP, METHOD_BVH, METHOD_MESH, METHOD_MONTECARLO };
 
+/* The views along the axes (API.md ?view=+x...), in matrix order: M0 is seen from +x, M1 from
+ * +y, M2 from +z, M3 from -x, M4 from -y, M5 from -z (matrix.h's Table 1). */
+enum scene_view { VIEW_NONE, VIEW_PX, VIEW_PY, VIEW_PZ, VIEW_NX, VIEW_NY, VIEW_NZ };
+
 enum aov { AOV_NORMAL = 1, AOV_UV = 2, AOV_ID = 4 };
 
 struct material {
@@ -54,6 +58,11 @@ struct scene {
     vec3 eye, target, up;
     double fov_deg;           /* vertical field of view */
     double azimuth_deg, elevation_deg;
+    int view;                 /* 0, or looking from the bounds' side VIEW_PX..VIEW_NZ (instead of
+                               * azimuth/elevation): the six views of a matrix model (seed 003) */
+    bool ortho;               /* orthographic projection */
+    double view_height;       /* orthographic view's height (world units); 0: the bounds fit */
+    double view_width;        /* its width; 0: the height times the image's aspect */
     struct light *lights;     /* none: a key light and a head light */
     int n_lights;
     enum render_method method;
@@ -82,6 +91,10 @@ int scene_validate(const struct scene *sc, struct sf_err *err);
 /* Every object as Bézier patches (validated first: errors point at /objects/k); the caller frees ps. */
 int scene_patches(const struct scene *sc, struct patch_set *ps, struct sf_err *err);
 const char *scene_method_name(enum render_method m);
+/* "+x", "-x", ... (also "x" for +x) to VIEW_*; 0, or -1 for another name. */
+int scene_view_parse(const char *name, int *view);
+/* The unit direction from the bounds toward the eye of view v, and the view's up. */
+void scene_view_axes(int v, vec3 *toward_eye, vec3 *up);
 int scene_method_parse(const char *name, enum render_method *m);
 
 #endif

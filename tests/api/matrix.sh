@@ -59,6 +59,56 @@ code=$(status POST "/matrix-model?iso=128&dims=36,36,36&type=uint8" -H "$RAW" --
 check "... of a ball with a cavity: answered, exact false (the seed's limit)" '[ "$code" = 200 ] && [ "$(field exact)" = False ]'
 check "... without ?iso: 422 at ?iso" '[ "$(status POST "/matrix-model?dims=36,36,36&type=uint8" -H "$RAW" --data-binary @"$T/ball.raw")" = 422 ] && [ "$(pointer)" = "?iso" ]'
 
+# ---- a stored model's matrices by rays; the orthographic views they are made from -----------------
+ball=$id
+code=$(status GET "/models/$ball"); size=$(python3 -c "
+import json, sys
+b = json.load(open(sys.argv[1]))['bounds']; print(','.join(str(round(b[1][k] - b[0][k])) for k in range(3)))" "$T/body")
+code=$(status POST "/matrix-model?model=$ball&size=$size")
+cp "$T/body" "$T/rays.json"
+check "POST /matrix-model?model=ID&size= of the ball's model (its exact tracer's rays on the voxels' own grid): exact" '[ "$code" = 200 ] && [ "$(field exact)" = True ]'
+code=$(status POST /model -H "$J" --data-binary @"$T/rays.json")
+check "... the same voxels: posted back, the same volume" '[ "$code" = 201 ] && near "$(field volume_mm3)" "$vol" 1e-9'
+for k in 0 1 2 3 4 5; do
+    view=$(echo "+x +y +z -x -y -z" | cut -d' ' -f$((k + 1)))
+    wh=$(python3 -c "
+import json, sys
+mm = json.load(open(sys.argv[1]))['matrix_model']; m = mm['M' + sys.argv[2]]; b = mm['bounds']
+print('width=%d&height=%d&view_height=%g' % (len(m[0]), len(m), b[1][1 if sys.argv[2] in '25' else 2] - b[0][1 if sys.argv[2] in '25' else 2]))" "$T/rays.json" $k)
+    v=$(printf '%s' "$view" | sed 's/+/%2B/')
+    code=$(status POST "/render?projection=orthographic&view=$v&$wh" -H "$J" --data-binary "{\"image\": {\"background\": [1, 0, 1]}, \"objects\": [{\"type\": \"model\", \"id\": \"$ball\"}]}")
+    check "the ball's orthographic view $view (a pixel a voxel line) is matrix M$k's silhouette, pixel for pixel" '[ "$code" = 200 ] && [ "$(python3 $M silhouette "$T/rays.json" $k "$T/body")" = 0 ]'
+done
+code=$(status GET "/models/$ball/render?projection=orthographic&view=-z&width=64&height=48")
+check "GET /models/{id}/render?projection=orthographic&view=-z: the view framed" '[ "$code" = 200 ] && python3 -c "import sys; sys.exit(0 if 0.2 < float(sys.argv[1]) < 0.8 else 1)" "$(python3 tests/tools/png_cover.py "$T/body")"'
+code=$(status POST "/isosurface?iso=128&dims=36,36,36&type=uint8" -H "$RAW" --data-binary @"$T/ball.raw"); iso=$(field id); isovol=$(field volume_mm3)
+code=$(status POST "/matrix-model?model=$iso")
+cp "$T/body" "$T/isorays.json"
+check "... of an isosurface model (a mesh: Embree's rays), the default size: 128 along the longest side, exact" '[ "$code" = 200 ] && [ "$(field exact)" = True ] && grep -q "\"size\":\[128,128,128\]" "$T/body"'
+code=$(status POST /volume -H "$J" --data-binary @"$T/isorays.json")
+check "... its matrix model's volume within 1 % of the isosurface's" '[ "$code" = 200 ] && near "$(field volume_mm3)" "$isovol" 0.01'
+C="${SURFD_DATA:-../shared/data}/contours/eclipse_femoral_head_lt.json"
+if [ -f "$C" ]; then
+    code=$(status POST /model -H "$J" --data-binary @"$C"); head=$(field id); headvol=$(field volume_mm3)
+    code=$(status POST "/matrix-model?model=$head&size=96,92,88")
+    cp "$T/body" "$T/headrays.json"
+    check "... of a contour model (the patches' exact tracer): answered, exact" '[ "$code" = 200 ] && [ "$(field exact)" = True ]'
+    code=$(status POST /volume -H "$J" --data-binary @"$T/headrays.json")
+    check "... its matrix model's volume within 1.5 % of the contour model's, one closed component" '[ "$code" = 200 ] && near "$(field volume_mm3)" "$headvol" 0.015 && [ "$(field components)" = 1 ] && [ "$(field boundary_edges)" = 0 ]'
+else
+    bad "../shared/data/contours not found"
+fi
+check "?model of no model: 422 at ?model" '[ "$(status POST "/matrix-model?model=0123456789abcdef0123456789abcdef")" = 422 ] && [ "$(pointer)" = "?model" ]'
+check "?size not three sides: 422 at ?size" '[ "$(status POST "/matrix-model?model=$ball&size=4,4")" = 422 ] && [ "$(pointer)" = "?size" ]'
+check "?size over the cap: 422 at ?size" '[ "$(status POST "/matrix-model?model=$ball&size=4096,4096,4096")" = 422 ] && [ "$(pointer)" = "?size" ]'
+check "?model with a body: 422" '[ "$(status POST "/matrix-model?model=$ball" -H "$RAW" --data-binary @"$T/ball.raw")" = 422 ]'
+check "?projection=fisheye: 422 at ?projection" '[ "$(status GET "/models/$ball/render?projection=fisheye")" = 422 ] && [ "$(pointer)" = "?projection" ]'
+check "?view=+w: 422 at ?view" '[ "$(status GET "/models/$ball/render?view=%2Bw")" = 422 ] && [ "$(pointer)" = "?view" ]'
+check "?eye without ?target: 422 at ?target" '[ "$(status GET "/models/$ball/render?eye=1,2,3")" = 422 ] && [ "$(pointer)" = "?target" ]'
+check "?eye=1,2: 422 at ?eye" '[ "$(status GET "/models/$ball/render?eye=1,2&target=0,0,0")" = 422 ] && [ "$(pointer)" = "?eye" ]'
+code=$(status GET "/models/$ball/render?eye=60,-60,50&target=18,18,18&up=0,0,1&fov=30&width=64&height=48")
+check "?eye&target&up&fov: a camera in the query" '[ "$code" = 200 ] && [ "$(header Content-Type)" = image/png ]'
+
 # ---- offline --------------------------------------------------------------------------------------------
 $S model "$T/ball.json" --mesh "$T/off.stl" >"$T/out" 2>"$T/err"
 check "surfd model MATRIX.json: the resource, and --mesh writes the closed mesh" '[ $? -eq 0 ] && grep -q "\"source\":\"matrix\"" "$T/out" && python3 tests/tools/stl_check.py "$T/off.stl" "$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[\"volume_mm3\"])" "$T/out")" >/dev/null'

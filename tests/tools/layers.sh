@@ -1,7 +1,8 @@
 #!/bin/sh
 # The include rules of the source tree (make layers; every build runs it):
 #   core/ is layered, each folder including only itself and the folders below it:
-#     base <- geom <- trace | contour | iso <- matrix   (trace, contour and iso do not see each other)
+#     base <- geom <- trace | contour | iso <- matrix   (trace, contour and iso do not see each other;
+#     matrix sees iso and trace: a model's voxels by rays)
 #   core/ includes nothing of api/, daemon/ or client/, and no library of HTTP, JSON, threads,
 #   storage or logging; api/ includes core/ and api/, never daemon/ or client/.
 # Prints each broken rule as FILE: #include ... and exits 1 if there is one.
@@ -13,7 +14,7 @@ allowed() { # folder of core -> the folders it may include
     trace) echo "base geom trace" ;;
     contour) echo "base geom contour" ;;
     iso) echo "base geom iso" ;;
-    matrix) echo "base geom iso matrix" ;;
+    matrix) echo "base geom iso trace matrix" ;;
     *) echo "" ;;
     esac
 }

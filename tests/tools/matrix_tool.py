@@ -7,9 +7,16 @@ computed here independently of surfd.
   matrix_tool.py box N X0 X1 Y0 Y1 Z0 Z1 OUT.json
   matrix_tool.py steps N OUT.json          a stepped pyramid (every axis line meets it once)
   matrix_tool.py mask N SHAPE... OUT.raw    the shape's voxels as uint8 samples (255 inside), x fastest
+  matrix_tool.py silhouette MATRICES.json K VIEW.png
+                                            the pixels where view K's image (an orthographic render
+                                            from matrix K's face, a pixel a voxel line, magenta
+                                            background) and matrix K disagree on whether the line
+                                            meets the body, printed (0: the same)
 Every file's voxel size is 1 mm, its box [0, N]^3 mm."""
 import json
 import sys
+
+import png_read
 
 
 def inside(shape, n, x, y, z):
@@ -46,7 +53,21 @@ def matrices(vox, n):
     return mm
 
 
+def silhouette(path, k, png):
+    mm = json.load(open(path))["matrix_model"]
+    n = mm["size"]
+    length = n[(0, 1, 2, 0, 1, 2)[k]]
+    w, h, rows = png_read.read(png)
+    m = mm["M%d" % k]
+    if (len(m), len(m[0])) != (h, w):
+        raise SystemExit("the image is %d x %d, the matrix %d x %d" % (w, h, len(m[0]), len(m)))
+    return sum(1 for i in range(h) for j in range(w) if (m[i][j] < length) != (rows[i][j] != (255, 0, 255)))
+
+
 def main():
+    if sys.argv[1] == "silhouette":
+        print(silhouette(sys.argv[2], int(sys.argv[3]), sys.argv[4]))
+        return
     cmd, n, rest = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
     out = rest[-1]
     shape = [cmd] + rest[:-1]

@@ -1,8 +1,10 @@
 /* test_matrix.c - matrix models (core/matrix/matrix.h): Table 1's voxels, voxels -> matrices ->
  * voxels for bodies every axis line meets once, contradicting matrices refused, and the mesh of
  * chamfered voxels closed, oriented and manifold (edges and vertices) on every set of voxels round
- * a lattice point, on each of the seed's eight variants, on random sets, with a sphere's volume. */
+ * a lattice point, on each of the seed's eight variants, on random sets, with a sphere's volume;
+ * and the mesh traced along the voxel lines (rays.h) gives the voxels back. */
 #include "../../../core/matrix/matrix.h"
+#include "../../../core/matrix/rays.h"
 
 #include <stdbool.h>
 
@@ -169,6 +171,22 @@ TEST(a_ball_round_trips_and_meshes_within_its_volume)
     fprintf(stderr, "  ball r 20: mesh %.1f, exact %.1f (%+.2f %%), %zu vertices, %zu triangles\n", st.volume, exact,
             100 * (st.volume / exact - 1), m.n_vert, m.n_tri);
     CHECK(fabs(st.volume / exact - 1) < 0.03);
+    /* the mesh traced along the lines of voxel centres gives the voxels back (rays.h) */
+    struct bvh_device *dev = bvh_device_new(1, &err);
+    struct bvh *b = NULL;
+    const struct trimesh *one = &m;
+    CHECK(dev && bvh_build_scene(dev, NULL, 0, 1e-12, &one, 1, &b, &err) == 0);
+    if (b) {
+        const double lo[3] = {0, 0, 0}, hi[3] = {48, 46, 44};
+        long crossings = matrix_rays_slab(b, n, lo, hi, 0, n[2], back);
+        size_t wrong = 0;
+        for (size_t k = 0; k < nv; k++)
+            wrong += back[k] != vox[k];
+        fprintf(stderr, "  ball r 20 by rays: %ld crossings, %zu of %zu voxels differ\n", crossings, wrong, nv);
+        CHECK(wrong == 0);
+        bvh_free(b);
+    }
+    bvh_device_free(dev);
     struct matrix_stats ms;
     matrix_counts(&mm, &ms);
     CHECK(ms.voxels > 0 && ms.redundant_voxels > 0 && ms.base_voxels > 0);
