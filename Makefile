@@ -100,7 +100,20 @@ $(B)/gen/openapi.c: api/openapi.yaml
 $(B)/gen/openapi.o: $(B)/gen/openapi.c
 	$(CC) -c $< -o $@
 
-$(B)/surfd: $(REL_DMN) $(REL_API) $(DCM_OBJ) $(B)/gen/openapi.o $(REL_CORE) | $(B)/libsurfd-image.so
+# the web page (client/web/), served at / and its files' names, compiled in (daemon/assets.h)
+WEB := client/web/index.html client/web/app.js client/web/style.css
+$(B)/gen/web.c: $(WEB) Makefile
+	@mkdir -p $(@D)
+	@{ echo '#include "daemon/assets.h"'; k=0; for f in $(WEB); do \
+		echo "static const char f$$k[] = {"; od -An -v -tx1 $$f | sed 's/ *\([0-9a-f][0-9a-f]\)/0x\1,/g'; echo '0};'; \
+		k=$$((k + 1)); done; echo 'const struct asset surfd_assets[] = {'; k=0; for f in $(WEB); do \
+		case $$f in *.html) t='text/html; charset=utf-8'; p=/ ;; *.js) t='text/javascript; charset=utf-8'; p=/$${f##*/} ;; \
+		*.css) t='text/css; charset=utf-8'; p=/$${f##*/} ;; esac; \
+		echo "    {\"$$p\", \"$$t\", f$$k, sizeof f$$k - 1},"; k=$$((k + 1)); done; echo '    {0}};'; } >$@
+$(B)/gen/web.o: $(B)/gen/web.c daemon/assets.h
+	$(CC) -I. -c $< -o $@
+
+$(B)/surfd: $(REL_DMN) $(REL_API) $(DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $(REL_CORE) | $(B)/libsurfd-image.so
 	$(CC) $(OPT) -o $@ $^ $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
 # unit tests link core/ and api/ (with the DCMTK shim), never OpenImageIO
@@ -136,7 +149,7 @@ $(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c
 	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/daemon/test_jobq.c daemon/jobq.c -lpthread
 
 # the daemon with the address and UB sanitizers, for the black-box API tests
-$(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(DCM_OBJ) $(B)/gen/openapi.o $(SAN_CORE) | $(B)/san/libsurfd-image.so
+$(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $(SAN_CORE) | $(B)/san/libsurfd-image.so
 	$(CC) $(OPT) $(SAN) -o $@ $^ $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
 run: deps $(B)/surfd

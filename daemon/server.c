@@ -6,6 +6,7 @@
  * Access log: one line per request, without tokens, query strings or bodies. */
 #define _GNU_SOURCE /* strcasestr */
 #include "server.h"
+#include "assets.h"
 
 #include <arpa/inet.h>
 #include <ctype.h>
@@ -683,6 +684,28 @@ static enum MHD_Result openapi(struct req *r, const char *id)
     return text(r, 200, "application/yaml", surfd_openapi_yaml);
 }
 
+/* The web page's files (assets.h): open to all, like the spec they hold no data; the page asks
+ * for the token itself. Its script and styles come from here alone (the policy says so). */
+static enum MHD_Result web_asset(struct req *r, const char *id)
+{
+    (void)id;
+    for (const struct asset *a = surfd_assets; a->path; a++) {
+        if (strcmp(a->path, r->path))
+            continue;
+        char *body = malloc(a->len + 1);
+        if (!body)
+            return problem(r, 500, "out of memory", NULL);
+        memcpy(body, a->data, a->len + 1);
+        struct reply rp = {200, a->type, body, a->len,
+                           {{"Cache-Control", "no-cache"},
+                            {"X-Content-Type-Options", "nosniff"},
+                            {"Content-Security-Policy", "default-src 'self'; img-src 'self' blob: data:; "
+                                                        "frame-ancestors 'none'; base-uri 'none'; form-action 'none'"}}};
+        return send_reply(r, &rp);
+    }
+    return problem(r, 404, "no such file", NULL);
+}
+
 static enum MHD_Result models(struct req *r, const char *id)
 {
     (void)id;
@@ -735,6 +758,9 @@ static const struct route {
     enum MHD_Result (*fn)(struct req *r, const char *id);
     const char *kind;
 } ROUTES[] = {
+    {"/", GET, true, web_asset, NULL},
+    {"/app.js", GET, true, web_asset, NULL},
+    {"/style.css", GET, true, web_asset, NULL},
     {"/livez", GET, true, livez, NULL},
     {"/readyz", GET, true, readyz, NULL},
     {"/version", GET, false, version, NULL},

@@ -1,10 +1,10 @@
 #!/bin/sh
-# Runs every test binary given (and the CLI and API shell tests), adds up their "N passed, N failed" lines,
+# Runs every test binary given (and the CLI, API and web page shell tests), adds up their "N passed, N failed" lines,
 # and ends with the total in the same form. Exit status: 0 only if nothing failed.
 set -u
 pass=0; fail=0
 export SURFD_DATA="${SURFD_DATA:-$(cd "$(dirname "$0")/../../shared/data" 2>/dev/null && pwd)}"
-for t in "$@" tests/cli/*.sh tests/api/*.sh tests/fuzz/*.sh; do
+for t in "$@" tests/cli/*.sh tests/api/*.sh tests/web/*.sh tests/fuzz/*.sh; do
     [ -e "$t" ] || continue
     name=$(basename "$t")
     start=$(date +%s)

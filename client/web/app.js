@@ -1,0 +1,373 @@
+// app.js - the page at / (index.html): submits a file to the route the user picks as a job,
+// follows its progress (cancel on the way), lists the stored models with their volumes beside
+// the baselines, renders one and turns it, downloads its mesh, lists the jobs. Standard DOM and
+// fetch only; the bearer token lives in this tab's sessionStorage and goes in the Authorization
+// header, never in a URL.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const TOKEN_KEY = "surfd.token";
+const state = { job: null, model: null, viewAbort: null, viewUrl: null };
+
+// ---- requests ------------------------------------------------------------------------------
+
+function token() { return sessionStorage.getItem(TOKEN_KEY) || ""; }
+
+async function api(method, path, { body, type, headers, signal } = {}) {
+  const h = Object.assign({}, headers || {});
+  if (token()) h.Authorization = "Bearer " + token();
+  if (type) h["Content-Type"] = type;
+  const r = await fetch(path, { method, headers: h, body, signal });
+  if (r.status === 401) askToken();
+  return r;
+}
+
+// The problem+json body of a failed answer as one line: detail, and where (the pointer).
+async function problemOf(r) {
+  try {
+    return problemText(await r.json());
+  } catch (e) {
+    return r.status + " " + r.statusText;
+  }
+}
+
+function problemText(p) {
+  if (!p) return "failed";
+  const at = (p.errors || []).map((e) => e.pointer).filter((x) => x).join(", ");
+  return (p.title ? p.title + ": " : "") + (p.detail || "") + (at ? " (at " + at + ")" : "");
+}
+
+function askToken() {
+  $("token-state").textContent = token() ? "the server refused this token" : "the server wants a token";
+  $("token").focus();
+}
+
+// ---- the form ------------------------------------------------------------------------------
+
+// Content-Type of a file for a route, from its name (the daemon sniffs text/plain bodies).
+function typeOf(name, route) {
+  const ext = name.toLowerCase().split(".").pop();
+  const types = { json: "application/json", dcm: "application/dicom", bpt: "model/x-bpt", wrl: "model/vrml",
+    vrml: "model/vrml", nurbs: "model/vrml", nrrd: "application/x-nrrd", nhdr: "application/x-nrrd",
+    mha: "application/x-metaimage", mhd: "application/x-metaimage" };
+  if (types[ext]) return types[ext];
+  return route === "render" ? "text/plain" : "application/octet-stream";
+}
+
+function routeFor(name) {
+  const ext = name.toLowerCase().split(".").pop();
+  if (["bpt", "wrl", "vrml", "nurbs"].includes(ext)) return "render";
+  if (["nrrd", "nhdr", "mha", "mhd", "raw"].includes(ext)) return "isosurface";
+  return "model";
+}
+
+function showOptions() {
+  const route = $("route").value;
+  for (const el of document.querySelectorAll("[data-for]")) {
+    const on = el.dataset.for.split(" ").includes(route);
+    el.hidden = !on;
+    for (const input of el.querySelectorAll("input, select")) input.disabled = !on;
+  }
+}
+
+// The query of the chosen route from the form's visible options.
+function queryOf(form, route) {
+  const q = new URLSearchParams();
+  const names = { model: ["method", "caps", "roi"], volume: ["method", "caps", "roi"],
+    isosurface: ["iso", "levels", "max_error", "features", "dims", "type", "spacing"],
+    "matrix-model": ["iso", "dims", "type", "spacing"], render: ["width", "height", "rmethod"] }[route];
+  for (const n of names) {
+    const el = form.elements[n];
+    if (!el || el.disabled) continue;
+    const v = el.type === "checkbox" ? (el.checked ? el.value : "") : el.value.trim();
+    if (v) q.set(n === "rmethod" ? "method" : n, v);
+  }
+  const s = q.toString();
+  return s ? "?" + s : "";
+}
+
+async function submit(ev) {
+  ev.preventDefault();
+  const form = $("job-form"), file = $("file").files[0], route = $("route").value;
+  if (!file) { $("file").focus(); return; }
+  setError("");
+  $("job-output").replaceChildren();
+  $("go").disabled = true;
+  try {
+    const r = await api("POST", "/" + route + queryOf(form, route), { body: file, type: typeOf(file.name, route),
+      headers: { Prefer: "respond-async" } });
+    if (r.status !== 202) {
+      setError(r.ok ? "unexpected answer " + r.status : await problemOf(r));
+      return;
+    }
+    await follow(await r.json(), route, file.name);
+  } catch (e) {
+    setError(String(e));
+  } finally {
+    $("go").disabled = false;
+    $("cancel").disabled = true;
+  }
+}
+
+function setError(text) {
+  $("job-error").textContent = text;
+  $("job-error").hidden = !text;
+}
+
+function setProgress(job) {
+  $("progress-box").hidden = false;
+  $("progress").value = job.progress || 0;
+  $("progress-text").textContent = job.state + " " + Math.round(100 * (job.progress || 0)) + " %";
+}
+
+const sleep = (ms) => new Promise((res) => setTimeout(res, ms));
+
+// Polls the job until it ends, backing off from 200 ms to 2 s; then shows its result.
+async function follow(job, route, fileName) {
+  state.job = job.id;
+  $("cancel").disabled = false;
+  let wait = 200;
+  while (job.state === "queued" || job.state === "running") {
+    setProgress(job);
+    await sleep(wait);
+    wait = Math.min(2000, wait * 1.5);
+    const r = await api("GET", "/jobs/" + job.id);
+    if (!r.ok) { setError(await problemOf(r)); return; }
+    job = await r.json();
+  }
+  setProgress(job);
+  state.job = null;
+  refreshJobs();
+  if (job.state !== "succeeded") {
+    setError(job.state === "cancelled" ? "the job was cancelled" : problemText(job.error));
+    return;
+  }
+  const r = await api("GET", "/jobs/" + job.id + "/result");
+  if (!r.ok) { setError(await problemOf(r)); return; }
+  if (route === "render") {
+    const img = new Image();
+    img.alt = "The rendered scene";
+    img.src = URL.createObjectURL(await r.blob());
+    img.id = "render-result";
+    $("job-output").replaceChildren(img);
+    return;
+  }
+  const answer = await r.json();
+  if (route === "matrix-model") {
+    const a = document.createElement("a");
+    a.href = URL.createObjectURL(new Blob([JSON.stringify(answer)], { type: "application/json" }));
+    a.download = fileName.replace(/\.[^.]*$/, "") + ".matrices.json";
+    a.textContent = "Download the matrices (" + answer.matrix_model.size.join(" × ") + " voxels, exact: " + answer.exact + ")";
+    $("job-output").replaceChildren(a);
+    return;
+  }
+  const models = answer.models || [answer];
+  $("job-output").replaceChildren(...models.map(figures));
+  if (route !== "volume") {
+    await refreshModels();
+    if (models[0] && models[0].id) view(models[0]);
+  }
+}
+
+async function cancel() {
+  if (!state.job) return;
+  const r = await api("POST", "/jobs/" + state.job + "/cancel");
+  if (!r.ok && r.status !== 202) setError(await problemOf(r));
+}
+
+// ---- figures and models ---------------------------------------------------------------------
+
+const cm3 = (mm3) => (typeof mm3 === "number" ? (mm3 / 1000).toFixed(3) : "—");
+
+function volumes(m) {
+  const v = m.volume || {};
+  return { surfd: m.volume_mm3, trapezoid: v.trapezoid, cavalieri: v.cavalieri, frustum: v.frustum };
+}
+
+// A model's (or a measured volume's) figures as a definition list.
+function figures(m) {
+  const dl = document.createElement("dl");
+  dl.className = "figures";
+  dl.dataset.volume = m.volume_mm3;
+  const v = volumes(m);
+  const rows = [["Name", m.name || m.id || ""], ["Volume (surfd)", cm3(v.surfd) + " cm³"],
+    ["Trapezoid", cm3(v.trapezoid) + " cm³"], ["Cavalieri", cm3(v.cavalieri) + " cm³"],
+    ["Frustum", cm3(v.frustum) + " cm³"], ["Area", m.area_mm2 ? (m.area_mm2 / 100).toFixed(2) + " cm²" : "—"],
+    ["Caps", m.caps || "—"], ["Source", m.source || "contours"]];
+  for (const [k, val] of rows) {
+    const dt = document.createElement("dt"), dd = document.createElement("dd");
+    dt.textContent = k;
+    dd.textContent = val;
+    if (k === "Volume (surfd)") dd.className = "volume";
+    dl.append(dt, dd);
+  }
+  return dl;
+}
+
+function cell(text, cls) {
+  const td = document.createElement("td");
+  td.textContent = text;
+  if (cls) td.className = cls;
+  return td;
+}
+
+function button(text, fn, label) {
+  const b = document.createElement("button");
+  b.type = "button";
+  b.className = "small";
+  b.textContent = text;
+  b.setAttribute("aria-label", label);
+  b.addEventListener("click", fn);
+  return b;
+}
+
+async function refreshModels() {
+  const r = await api("GET", "/models");
+  const body = $("models-table").tBodies[0];
+  if (!r.ok) { body.replaceChildren(); return; }
+  const list = (await r.json()).models || [];
+  body.replaceChildren(...list.map((m) => {
+    const tr = document.createElement("tr");
+    tr.dataset.id = m.id;
+    const v = volumes(m);
+    tr.append(cell(m.name || m.id), cell(m.source || "contours"), cell(m.caps || "—"), cell(cm3(v.surfd), "num"),
+      cell(cm3(v.trapezoid), "num"), cell(cm3(v.cavalieri), "num"), cell(cm3(v.frustum), "num"),
+      cell(m.triangles ? m.triangles + " triangles" : (m.patches || 0) + " patches", "num"));
+    const td = document.createElement("td");
+    td.append(button("View", () => view(m), "View " + (m.name || m.id)),
+      button("Delete", () => remove(m), "Delete " + (m.name || m.id)));
+    tr.append(td);
+    return tr;
+  }));
+}
+
+async function remove(m) {
+  if (!confirm("Delete the model " + (m.name || m.id) + "?")) return;
+  const r = await api("DELETE", "/models/" + m.id);
+  if (!r.ok) setError(await problemOf(r));
+  if (state.model && state.model.id === m.id) { $("viewer").hidden = true; state.model = null; }
+  refreshModels();
+}
+
+// ---- the viewer ------------------------------------------------------------------------------
+
+function view(m) {
+  state.model = m;
+  $("viewer").hidden = false;
+  $("viewer-name").textContent = m.name || m.id;
+  render();
+}
+
+// Renders the model at the sliders' angles (a render job on the server); a newer view aborts an
+// older one still on its way.
+async function render() {
+  const m = state.model;
+  if (!m) return;
+  if (state.viewAbort) state.viewAbort.abort();
+  const ctl = new AbortController();
+  state.viewAbort = ctl;
+  const w = Math.max(160, Math.min(1024, Math.round($("view").parentElement.clientWidth || 640)));
+  const h = Math.round(w * 3 / 4);
+  const q = new URLSearchParams({ width: w, height: h, azimuth: $("azimuth").value, elevation: $("elevation").value });
+  $("view-caption").textContent = "rendering…";
+  const t0 = performance.now();
+  try {
+    const r = await api("GET", "/models/" + m.id + "/render?" + q, { signal: ctl.signal });
+    if (!r.ok) { $("view-caption").textContent = await problemOf(r); return; }
+    const url = URL.createObjectURL(await r.blob());
+    if (state.viewUrl) URL.revokeObjectURL(state.viewUrl);
+    state.viewUrl = url;
+    $("view").src = url;
+    $("view").width = w;
+    $("view").height = h;
+    $("view").dataset.azimuth = $("azimuth").value;
+    const ms = r.headers.get("X-Render-Ms");
+    $("view-caption").textContent = "azimuth " + $("azimuth").value + "°, elevation " + $("elevation").value + "°: "
+      + Math.round(performance.now() - t0) + " ms" + (ms ? " (tracing " + Math.round(+ms) + " ms)" : "");
+  } catch (e) {
+    if (e.name !== "AbortError") $("view-caption").textContent = String(e);
+  }
+}
+
+async function download() {
+  const m = state.model, fmt = $("mesh-format").value;
+  if (!m) return;
+  $("view-caption").textContent = "meshing…";
+  const r = await api("GET", "/models/" + m.id + "/mesh?format=" + fmt);
+  if (!r.ok) { $("view-caption").textContent = await problemOf(r); return; }
+  const a = $("download-link");
+  a.href = URL.createObjectURL(await r.blob());
+  a.download = (m.name || m.id).replace(/[^\w.-]+/g, "_") + "." + fmt;
+  a.click();
+  $("view-caption").textContent = "downloaded " + a.download;
+}
+
+// ---- jobs ------------------------------------------------------------------------------------
+
+async function refreshJobs() {
+  const r = await api("GET", "/jobs");
+  const body = $("jobs-table").tBodies[0];
+  if (!r.ok) { body.replaceChildren(); return; }
+  const list = (await r.json()).jobs || [];
+  body.replaceChildren(...list.slice(0, 50).map((j) => {
+    const tr = document.createElement("tr");
+    tr.append(cell(j.id.slice(0, 12)), cell(j.kind), cell(j.state), cell(Math.round(100 * (j.progress || 0)) + " %", "num"),
+      cell(j.created ? new Date(j.created).toLocaleString() : ""), cell(j.error ? problemText(j.error) : ""));
+    return tr;
+  }));
+}
+
+// ---- start -----------------------------------------------------------------------------------
+
+async function start() {
+  $("token").value = token();
+  $("token-form").addEventListener("submit", (ev) => {
+    ev.preventDefault();
+    sessionStorage.setItem(TOKEN_KEY, $("token").value.trim());
+    $("token-state").textContent = token() ? "token kept for this tab" : "";
+    refreshAll();
+  });
+  $("token-forget").addEventListener("click", () => {
+    sessionStorage.removeItem(TOKEN_KEY);
+    $("token").value = "";
+    $("token-state").textContent = "token forgotten";
+  });
+  $("route").addEventListener("change", showOptions);
+  $("file").addEventListener("change", () => {
+    const f = $("file").files[0];
+    if (f) { $("route").value = routeFor(f.name); showOptions(); }
+  });
+  const drop = $("drop");
+  drop.addEventListener("dragover", (ev) => { ev.preventDefault(); drop.classList.add("over"); });
+  drop.addEventListener("dragleave", () => drop.classList.remove("over"));
+  drop.addEventListener("drop", (ev) => {
+    ev.preventDefault();
+    drop.classList.remove("over");
+    if (ev.dataTransfer.files.length) {
+      $("file").files = ev.dataTransfer.files;
+      $("file").dispatchEvent(new Event("change"));
+    }
+  });
+  $("job-form").addEventListener("submit", submit);
+  $("cancel").addEventListener("click", cancel);
+  for (const id of ["azimuth", "elevation"]) {
+    $(id).addEventListener("input", () => { $(id + "-out").textContent = $(id).value; });
+    $(id).addEventListener("change", render); // on release (and on each key step)
+  }
+  $("download").addEventListener("click", download);
+  $("models-refresh").addEventListener("click", refreshModels);
+  $("jobs-refresh").addEventListener("click", refreshJobs);
+  showOptions();
+  refreshAll();
+}
+
+async function refreshAll() {
+  const r = await api("GET", "/version");
+  if (r.ok) {
+    const v = await r.json();
+    $("version").textContent = v.version || "";
+  }
+  await Promise.all([refreshModels(), refreshJobs()]);
+}
+
+start();

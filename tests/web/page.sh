@@ -1,0 +1,38 @@
+#!/bin/sh
+# The web page at / in a real browser (issue 19): tests/web/page.mjs against the real daemon, open
+# and then with a token required; each downloaded STL is checked closed with the model's volume.
+# Needs Debian's chromium (deploy/install-deps.sh) and playwright-core from npm, installed into
+# build/npm on first use. Screenshots stay in build/web-shots for a person to look at.
+. "$(dirname "$0")/../api/lib.inc"
+PLAYWRIGHT_VERSION=1.65.1
+N=build/npm
+SHOTS=build/web-shots
+C="${SURFD_DATA:-../shared/data}/contours/synthetic_ellipsoid.json"
+mkdir -p "$SHOTS"
+if [ ! -d "$N/node_modules/playwright-core" ]; then
+    mkdir -p "$N"
+    npm install --silent --no-audit --no-fund --prefix "$N" "playwright-core@$PLAYWRIGHT_VERSION" >"$N/playwright.log" 2>&1 ||
+        bad "npm could not install playwright-core@$PLAYWRIGHT_VERSION"
+fi
+[ -x /usr/bin/chromium ] || bad "no /usr/bin/chromium (deploy/install-deps.sh installs it)"
+[ -f "$C" ] || bad "../shared/data/contours not found"
+run_page() { # run_page TAG [TOKEN]
+    tag=$1
+    NODE_PATH="$N/node_modules" URL="$URL" CONTOURS="$C" SHOTS="$SHOTS" TOKEN="${2:-}" \
+        node tests/web/page.mjs >"$T/page.out" 2>&1
+    while IFS= read -r line; do
+        case $line in PASS:*) ok ;; FAIL:*) bad "${line#FAIL: }" ;; esac
+    done <"$T/page.out"
+    grep -q "^PASS:\|^FAIL:" "$T/page.out" || { bad "page.mjs did not run:"; tail -5 "$T/page.out"; }
+    code=$(status GET "/models" ${2:+-H "Authorization: Bearer $2"})
+    vol=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['models'][0]['volume_mm3'])" "$T/body" 2>/dev/null)
+    check "the page's STL ($tag) is closed, with the model's volume" 'python3 tests/tools/stl_check.py "$SHOTS/model-$tag.stl" "$vol" >/dev/null'
+}
+if [ "$fail" -eq 0 ]; then
+    start_daemon "$T/open" --threads 2 && run_page open
+    stop_daemon
+    printf 'web:%s\n' "s3cret-web-token" >"$T/tokens"
+    chmod 600 "$T/tokens"
+    start_daemon "$T/tok" --threads 2 --token-file "$T/tokens" && run_page token s3cret-web-token
+fi
+finish
