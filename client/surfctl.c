@@ -1,15 +1,12 @@
 /* surfctl.c - the command-line client of surfd: speaks only HTTP (libcurl), reads SURFD_URL
- * (default http://127.0.0.1:8080) and SURFD_TOKEN from the environment.
- *
- *   surfctl render FILE -o OUT [--async] [--method M] [--width W] [--height H] [--output FMT]
- *   surfctl isosurface VOLUME --iso V -o OUT.stl [...]
- *   surfctl edit MODEL BLOCK --region X0,Y0,Z0,NX,NY,NZ [-o OUT.stl]
- *   surfctl jobs [--state S]          surfctl job ID
- *   surfctl wait ID [-o OUT]          (progress bar on stderr)
- *   surfctl result ID -o OUT          surfctl cancel ID
+ * (default http://127.0.0.1:8080) and SURFD_TOKEN from the environment. A command for every
+ * route (COMMANDS below, each with its --help); long jobs are followed with a progress bar on a
+ * terminal, a plain line every 10 % with an ETA otherwise (--progress=bar|plain|none), polling
+ * from 100 ms backing off to 2 s; a failed or cancelled job prints its problem.
  *
  * Exit codes: 0 done; 1 the job failed or was cancelled; 2 usage; 3 surfd unreachable;
  * 4 request refused (4xx: the problem's detail and pointer go to stderr); 5 server error (5xx). */
+#include <ctype.h>
 #include <curl/curl.h>
 #include <jansson.h>
 #include <stdbool.h>
@@ -23,6 +20,9 @@
 enum { EXIT_JOB = 1, EXIT_USAGE = 2, EXIT_UNREACHABLE = 3, EXIT_REFUSED = 4, EXIT_SERVER = 5 };
 
 #define MAX_RESPONSE (1L << 30) /* a result larger than 1 GiB is refused */
+
+enum progress_mode { PROGRESS_AUTO, PROGRESS_BAR, PROGRESS_PLAIN, PROGRESS_NONE };
+static enum progress_mode progress_mode = PROGRESS_AUTO;
 
 struct buf {
     char *data;
@@ -193,12 +193,32 @@ static int post_file(const char *route, const char *query, const char *file, con
     return rc;
 }
 
-/* Polls the job until it ends, with a progress bar on stderr when it is a terminal. */
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + ts.tv_nsec / 1e9;
+}
+
+/* A job's problem (its "error" member) on stderr. */
+static void job_problem(json_t *job, const char *id, const char *state)
+{
+    json_t *e = json_object_get(job, "error");
+    const char *detail = json_string_value(json_object_get(e, "detail"));
+    const char *ptr = json_string_value(json_object_get(json_array_get(json_object_get(e, "errors"), 0), "pointer"));
+    fprintf(stderr, "surfctl: job %s %s%s%s%s%s\n", id, state, detail ? ": " : "", detail ? detail : "",
+            ptr ? " at " : "", ptr ? ptr : "");
+}
+
+/* Polls the job until it ends (from 100 ms, backing off to 2 s), showing its progress on stderr
+ * as the mode says; a job that did not succeed prints its problem. */
 static int wait_job(const char *id, char *state, size_t state_len)
 {
     char path[128];
     snprintf(path, sizeof path, "/jobs/%s", id);
-    bool tty = isatty(2);
+    enum progress_mode mode = progress_mode == PROGRESS_AUTO ? (isatty(2) ? PROGRESS_BAR : PROGRESS_PLAIN) : progress_mode;
+    double t0 = now_s(), wait = 0.1;
+    int shown = -1; /* the last tenth a plain line was printed for */
     for (;;) {
         struct response r;
         int rc = request("GET", path, NULL, 0, NULL, NULL, &r);
@@ -213,20 +233,31 @@ static int wait_job(const char *id, char *state, size_t state_len)
         const char *s = j ? json_string_value(json_object_get(j, "state")) : "?";
         double progress = j ? json_number_value(json_object_get(j, "progress")) : 0;
         snprintf(state, state_len, "%s", s ? s : "?");
-        json_decref(j);
         free(r.body.data);
         bool done = strcmp(state, "queued") && strcmp(state, "running");
-        if (tty) {
+        if (mode == PROGRESS_BAR) {
             int w = (int)(progress * 40 + 0.5);
             fprintf(stderr, "\r%s [%.*s%*s] %3.0f%% %-9s", id, w, "########################################", 40 - w,
                     "", progress * 100, state);
             if (done)
                 fputc('\n', stderr);
+        } else if (mode == PROGRESS_PLAIN && ((int)(progress * 10) > shown || done)) {
+            shown = (int)(progress * 10);
+            double el = now_s() - t0;
+            if (progress > 0.0 && !done)
+                fprintf(stderr, "surfctl: job %s %3.0f%% %s, ETA %.0f s\n", id, progress * 100, state,
+                        el * (1.0 - progress) / progress);
+            else
+                fprintf(stderr, "surfctl: job %s %3.0f%% %s\n", id, progress * 100, state);
         }
+        if (done && strcmp(state, "succeeded") && j)
+            job_problem(j, id, state);
+        json_decref(j);
         if (done)
             return 0;
-        struct timespec ts = {0, 200 * 1000000L};
+        struct timespec ts = {(time_t)wait, (long)((wait - (time_t)wait) * 1e9)};
         nanosleep(&ts, NULL);
+        wait = wait * 1.5 < 2.0 ? wait * 1.5 : 2.0;
     }
 }
 
@@ -253,7 +284,11 @@ static bool query_arg(const char *a, const char *v, const char *const *names, ch
     for (int k = 0; names[k]; k++)
         if (v && flag[0] && !strcmp(flag, names[k])) {
             size_t n = strlen(query);
-            snprintf(query + n, cap - n, "%c%s=%s", n ? '&' : '?', names[k], v);
+            n += (size_t)snprintf(query + n, cap - n, "%c%s=", n ? '&' : '?', names[k]);
+            for (const char *c = v; *c && n + 4 < cap; c++) /* percent-encoded: --view +x is view=%2Bx */
+                n += (size_t)(isalnum((unsigned char)*c) || strchr("-._~,", *c)
+                                  ? snprintf(query + n, cap - n, "%c", *c)
+                                  : snprintf(query + n, cap - n, "%%%02X", (unsigned char)*c));
             return true;
         }
     return false;
@@ -264,34 +299,71 @@ static int follow(const char *id, const char *out)
 {
     char state[32];
     int rc = wait_job(id, state, sizeof state);
-    if (!rc && strcmp(state, "succeeded")) {
-        fprintf(stderr, "surfctl: job %s %s\n", id, state);
-        rc = EXIT_JOB;
-    }
+    if (!rc && strcmp(state, "succeeded"))
+        rc = EXIT_JOB; /* its problem printed */
     return rc ? rc : fetch_result(id, out);
 }
 
+/* Each command's usage: printed by `surfctl CMD --help` (stdout, exit 0) and on a usage error. */
+static const char *const USAGE[][2] = {
+    {"render", "surfctl render SCENE -o OUT [--async] [--method M] [--width W] [--height H] [--output png|exr|tiff]\n"
+               "               [--azimuth DEG --elevation DEG] [--eye X,Y,Z --target X,Y,Z] [--up X,Y,Z] [--fov DEG]\n"
+               "               [--projection perspective|orthographic] [--view +x|-x|+y|-y|+z|-z] [--view-height H]\n"
+               "    POST /render: SCENE is scene JSON, .bpt or VRML (.nurbs, .wrl); the image to OUT\n"},
+    {"model", "surfctl model CONTOURS [-o OUT.stl|.ply|.obj|.vtp|.vtk] [--method M] [--caps flat|slab|dome]\n"
+              "              [--roi NAME] [--parameterisation arc-length|polar]\n"
+              "    POST /model: contour JSON, an RT Structure Set (.dcm: every ROI, or --roi) or a matrix model;\n"
+              "    the model resource on stdout, its (first model's) mesh to OUT\n"},
+    {"volume", "surfctl volume CONTOURS [--method M] [--caps flat|slab|dome] [--roi NAME] [--parameterisation P]\n"
+               "    POST /volume: the volume figures on stdout, nothing stored\n"},
+    {"isosurface", "surfctl isosurface VOLUME --iso V -o OUT.stl|.ply|.obj [--dims X,Y,Z --type T --spacing S --origin O]\n"
+                   "                   [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name N]\n"
+                   "    POST /isosurface: VOLUME is .nrrd, .mha, raw samples, or an FRep object as .json\n"},
+    {"edit", "surfctl edit MODEL BLOCK --region X0,Y0,Z0,NX,NY,NZ [-o OUT.stl|.ply|.obj]\n"
+             "    POST /models/MODEL/edit: BLOCK is the region's raw samples in the model's sample type\n"},
+    {"matrix", "surfctl matrix VOLUME -o OUT.json [--iso V --dims X,Y,Z --type T --spacing S --origin O]\n"
+               "surfctl matrix --model ID [--size N,M,K] -o OUT.json\n"
+               "    POST /matrix-model: the six relief matrices of a volume or of a stored model\n"},
+    {"models", "surfctl models [ID]\n    GET /models (the list) or GET /models/ID (one model's resource)\n"},
+    {"mesh", "surfctl mesh ID -o OUT [--format stl|ply|obj|vtp|vtk] [--tolerance MM]\n"
+             "    GET /models/ID/mesh: the format from --format, else OUT's extension\n"},
+    {"view", "surfctl view ID -o OUT.png [--width W --height H --azimuth DEG --elevation DEG --output FMT ...]\n"
+             "    GET /models/ID/render, with render's camera options\n"},
+    {"delete", "surfctl delete ID\n    DELETE /models/ID\n"},
+    {"jobs", "surfctl jobs [--state queued|running|succeeded|failed|cancelled]\n    GET /jobs\n"},
+    {"job", "surfctl job ID\n    GET /jobs/ID\n"},
+    {"wait", "surfctl wait ID [-o OUT]\n    follows the job to its end (its result to OUT)\n"},
+    {"result", "surfctl result ID -o OUT\n    GET /jobs/ID/result\n"},
+    {"cancel", "surfctl cancel ID\n    POST /jobs/ID/cancel\n"},
+};
+#define N_USAGE (sizeof USAGE / sizeof *USAGE)
+
+static void usage_to(FILE *f, const char *cmd)
+{
+    for (size_t k = 0; k < N_USAGE; k++)
+        if (!cmd || !strcmp(cmd, USAGE[k][0]))
+            fprintf(f, "%s", USAGE[k][1]);
+    if (!cmd)
+        fprintf(f, "options of every command: --progress=bar|plain|none (default: bar on a terminal, else plain)\n"
+                   "environment: SURFD_URL (default http://127.0.0.1:8080), SURFD_TOKEN\n"
+                   "exit: 0 done, 1 the job failed or was cancelled, 2 usage, 3 surfd unreachable, 4 refused (4xx), 5 server error\n");
+}
+
+static const char *current_cmd;
 static int usage(void)
 {
-    fprintf(stderr, "usage: surfctl render FILE -o OUT [--async] [--method M] [--width W] [--height H] [--output png|exr|tiff]\n"
-                    "       surfctl isosurface VOLUME --iso V -o OUT.stl|.ply|.obj [--dims X,Y,Z --type T --spacing S --origin O]\n"
-                    "                          [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name N]\n"
-                    "                          (VOLUME: .nrrd, .mha, raw samples, or an FRep object as .json)\n"
-                    "       surfctl edit MODEL BLOCK --region X0,Y0,Z0,NX,NY,NZ [-o OUT.stl|.ply|.obj]\n"
-                    "                          (BLOCK: the region's raw samples in the model's sample type)\n"
-                    "       surfctl jobs [--state S] | job ID | wait ID [-o OUT] | result ID -o OUT | cancel ID\n"
-                    "environment: SURFD_URL (default http://127.0.0.1:8080), SURFD_TOKEN\n");
+    usage_to(stderr, current_cmd);
     return EXIT_USAGE;
 }
 
-/* A command's FILE, -o OUT, --async (when async is not NULL) and the query options of names:
- * false on anything else. */
+/* A command's FILE, -o OUT (when out is not NULL), --async (when async is not NULL) and the query
+ * options of names: false on anything else. */
 static bool read_args(int argc, char **argv, const char *const *names, const char **file, const char **out,
                       bool *async, char *query, size_t cap)
 {
     for (int k = 0; k < argc; k++) {
         const char *a = argv[k], *v = k + 1 < argc ? argv[k + 1] : NULL;
-        if (!strcmp(a, "-o") && v)
+        if (out && !strcmp(a, "-o") && v)
             *out = v, k++;
         else if (async && !strcmp(a, "--async"))
             *async = true;
@@ -305,13 +377,16 @@ static bool read_args(int argc, char **argv, const char *const *names, const cha
     return true;
 }
 
+static const char *const RENDER_OPTIONS[] = {"method", "width", "height", "output", "format", "azimuth", "elevation",
+                                             "eye", "target", "up", "fov", "projection", "view", "view_height",
+                                             "shadows", NULL};
+
 static int cmd_render(int argc, char **argv)
 {
-    static const char *const OPTIONS[] = {"method", "width", "height", "output", "format", "azimuth", "elevation", NULL};
     const char *file = NULL, *out = NULL;
-    char query[512] = "";
+    char query[1024] = "";
     bool async = false;
-    if (!read_args(argc, argv, OPTIONS, &file, &out, &async, query, sizeof query) || !file || (!out && !async))
+    if (!read_args(argc, argv, RENDER_OPTIONS, &file, &out, &async, query, sizeof query) || !file || (!out && !async))
         return usage();
     struct response r;
     int rc = post_file("/render", query, file, type_of(file, SCENE_TYPES), async ? "respond-async" : NULL, &r);
@@ -340,8 +415,28 @@ static int job_answer(struct response *r)
     int rc = wait_job(id, state, sizeof state);
     if (rc)
         return rc;
+    if (strcmp(state, "succeeded"))
+        return EXIT_JOB; /* its problem printed */
     snprintf(path, sizeof path, "/jobs/%s/result", id);
     return request("GET", path, NULL, 0, NULL, NULL, r);
+}
+
+/* POSTs FILE (NULL: no body) to route + query as a job, followed to its end: 0 with the result's
+ * answer in *r (its status the route's: 200, 201), or an exit code (the problem printed). */
+static int run_job(const char *route, const char *query, const char *file, const char *type, struct response *r)
+{
+    char path[768];
+    snprintf(path, sizeof path, "%s%s", route, query);
+    int rc = file ? post_file(route, query, file, type, "respond-async", r)
+                  : request("POST", path, NULL, 0, NULL, "respond-async", r);
+    if (!rc && r->status == 202)
+        rc = job_answer(r);
+    if (!rc && r->status >= 300) {
+        rc = (r->status == 409 || r->status == 422) && r->job_id[0] ? (report(r), EXIT_JOB) : report(r);
+        free(r->body.data);
+        r->body.data = NULL;
+    }
+    return rc;
 }
 
 /* Model id's mesh to out (its format from the extension), following the mesh job when it is long. */
@@ -428,33 +523,174 @@ static int cmd_edit(int argc, char **argv)
     return out ? download_mesh(model, out) : 0;
 }
 
+
+static const char *const CONTOUR_TYPES[][2] = {{".dcm", "application/dicom"}, {NULL, "application/json"}};
+static const char *const CONTOUR_OPTIONS[] = {"method", "caps", "roi", "parameterisation", NULL};
+
+/* surfctl model / volume: POST /model or /volume as a job; the resource on stdout, the mesh of the
+ * (first) model to -o OUT. */
+static int cmd_contours(const char *route, int argc, char **argv)
+{
+    const char *file = NULL, *out = NULL;
+    char query[600] = "";
+    if (!read_args(argc, argv, CONTOUR_OPTIONS, &file, route[1] == 'm' ? &out : NULL, NULL, query, sizeof query) || !file)
+        return usage();
+    struct response r;
+    int rc = run_job(route, query, file, type_of(file, CONTOUR_TYPES), &r);
+    if (rc)
+        return rc;
+    char id[64] = "";
+    json_t *j = json_loads(r.body.data ? r.body.data : "", 0, NULL);
+    json_t *first = json_object_get(j, "models") ? json_array_get(json_object_get(j, "models"), 0) : j;
+    const char *s = json_string_value(json_object_get(first, "id"));
+    snprintf(id, sizeof id, "%s", s ? s : "");
+    json_decref(j);
+    printf("%s\n", r.body.data ? r.body.data : "");
+    free(r.body.data);
+    return out && id[0] ? download_mesh(id, out) : 0;
+}
+
+/* surfctl matrix: POST /matrix-model of a volume, or of a stored model (--model ID, no body). */
+static int cmd_matrix(int argc, char **argv)
+{
+    static const char *const OPTIONS[] = {"iso", "dims", "type", "spacing", "origin", "model", "size", NULL};
+    const char *file = NULL, *out = NULL;
+    char query[600] = "";
+    if (!read_args(argc, argv, OPTIONS, &file, &out, NULL, query, sizeof query) || !out ||
+        (!file == !strstr(query, "model=")))
+        return usage();
+    struct response r;
+    int rc = run_job("/matrix-model", query, file, file ? type_of(file, VOLUME_TYPES) : NULL, &r);
+    if (!rc)
+        rc = write_file(out, &r.body);
+    free(r.body.data);
+    return rc;
+}
+
+/* surfctl mesh ID -o OUT [--format F] [--tolerance MM]. */
+static int cmd_mesh(int argc, char **argv)
+{
+    static const char *const OPTIONS[] = {"format", "tolerance", NULL};
+    const char *id = NULL, *out = NULL;
+    char query[256] = "";
+    if (!read_args(argc, argv, OPTIONS, &id, &out, NULL, query, sizeof query) || !id || !out)
+        return usage();
+    const char *ext = strrchr(out, '.');
+    char path[512];
+    snprintf(path, sizeof path, "/models/%.64s/mesh%s%s%s%s", id, query[0] ? query : "?",
+             strstr(query, "format=") ? "" : (query[0] ? "&" : ""), strstr(query, "format=") ? "" : "format=",
+             strstr(query, "format=") ? "" : (ext ? ext + 1 : "stl"));
+    struct response r;
+    int rc = request("GET", path, NULL, 0, NULL, NULL, &r);
+    if (rc)
+        return rc;
+    if (r.status == 202)
+        rc = follow(r.job_id, out);
+    else
+        rc = r.status == 200 ? write_file(out, &r.body) : report(&r);
+    free(r.body.data);
+    return rc;
+}
+
+/* surfctl view ID -o OUT [render's options]: GET /models/ID/render. */
+static int cmd_view(int argc, char **argv)
+{
+    const char *id = NULL, *out = NULL;
+    char query[1024] = "";
+    if (!read_args(argc, argv, RENDER_OPTIONS, &id, &out, NULL, query, sizeof query) || !id || !out)
+        return usage();
+    char path[1200];
+    snprintf(path, sizeof path, "/models/%.64s/render%s", id, query);
+    struct response r;
+    int rc = request("GET", path, NULL, 0, NULL, NULL, &r);
+    if (rc)
+        return rc;
+    if (r.status == 202)
+        rc = follow(r.job_id, out);
+    else
+        rc = r.status == 200 ? write_file(out, &r.body) : report(&r);
+    free(r.body.data);
+    return rc;
+}
+
+/* A request without a body whose answer's body goes to stdout. */
+static int simple(const char *method, const char *path)
+{
+    struct response r;
+    int rc = request(method, path, NULL, 0, NULL, NULL, &r);
+    if (!rc && r.status >= 300)
+        rc = report(&r);
+    else if (!rc && r.status != 204)
+        printf("%s\n", r.body.data ? r.body.data : "");
+    free(r.body.data);
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
+    /* --progress=MODE anywhere, taken out before the command reads its arguments */
+    int n = 0;
+    for (int k = 0; k < argc; k++) {
+        if (!strncmp(argv[k], "--progress=", 11)) {
+            const char *m = argv[k] + 11;
+            progress_mode = !strcmp(m, "bar") ? PROGRESS_BAR : !strcmp(m, "plain") ? PROGRESS_PLAIN
+                            : !strcmp(m, "none")                                    ? PROGRESS_NONE
+                                                                                    : (enum progress_mode)-1;
+            if ((int)progress_mode < 0)
+                return usage();
+            continue;
+        }
+        argv[n++] = argv[k];
+    }
+    argc = n;
     if (argc < 2)
         return usage();
-    curl_global_init(CURL_GLOBAL_DEFAULT);
     const char *cmd = argv[1];
+    if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || !strcmp(cmd, "help")) {
+        usage_to(stdout, argc > 2 ? argv[2] : NULL);
+        return 0;
+    }
+    for (int k = 2; k < argc; k++)
+        if (!strcmp(argv[k], "--help") || !strcmp(argv[k], "-h")) {
+            bool known = false;
+            for (size_t u = 0; u < N_USAGE; u++)
+                known |= !strcmp(USAGE[u][0], cmd);
+            usage_to(stdout, known ? cmd : NULL);
+            return known ? 0 : EXIT_USAGE;
+        }
+    current_cmd = cmd;
+    curl_global_init(CURL_GLOBAL_DEFAULT);
     int rc;
+    char path[160];
+    bool one = argc == 3 && argv[2][0] != '-'; /* a command of one ID */
     if (!strcmp(cmd, "render")) {
         rc = cmd_render(argc - 2, argv + 2);
+    } else if (!strcmp(cmd, "model") || !strcmp(cmd, "volume")) {
+        rc = cmd_contours(cmd[0] == 'm' ? "/model" : "/volume", argc - 2, argv + 2);
     } else if (!strcmp(cmd, "isosurface")) {
         rc = cmd_isosurface(argc - 2, argv + 2);
     } else if (!strcmp(cmd, "edit")) {
         rc = cmd_edit(argc - 2, argv + 2);
-    } else if (!strcmp(cmd, "jobs") || !strcmp(cmd, "job") || !strcmp(cmd, "cancel")) {
-        char path[128];
-        if (!strcmp(cmd, "jobs"))
-            snprintf(path, sizeof path, "/jobs%s%s", argc >= 4 && !strcmp(argv[2], "--state") ? "?state=" : "",
-                     argc >= 4 && !strcmp(argv[2], "--state") ? argv[3] : "");
-        else if (argc == 3)
-            snprintf(path, sizeof path, "/jobs/%.64s%s", argv[2], !strcmp(cmd, "cancel") ? "/cancel" : "");
-        else
-            return usage();
-        struct response r;
-        rc = request(!strcmp(cmd, "cancel") ? "POST" : "GET", path, NULL, 0, NULL, NULL, &r);
+    } else if (!strcmp(cmd, "matrix")) {
+        rc = cmd_matrix(argc - 2, argv + 2);
+    } else if (!strcmp(cmd, "mesh")) {
+        rc = cmd_mesh(argc - 2, argv + 2);
+    } else if (!strcmp(cmd, "view")) {
+        rc = cmd_view(argc - 2, argv + 2);
+    } else if (!strcmp(cmd, "models") && (argc == 2 || one)) {
+        snprintf(path, sizeof path, "/models%s%.64s", one ? "/" : "", one ? argv[2] : "");
+        rc = simple("GET", path);
+    } else if (!strcmp(cmd, "delete") && one) {
+        snprintf(path, sizeof path, "/models/%.64s", argv[2]);
+        rc = simple("DELETE", path);
         if (!rc)
-            rc = r.status < 300 ? (printf("%s\n", r.body.data ? r.body.data : ""), 0) : report(&r);
-        free(r.body.data);
+            fprintf(stderr, "surfctl: model %s deleted\n", argv[2]);
+    } else if (!strcmp(cmd, "jobs") && (argc == 2 || (argc == 4 && !strcmp(argv[2], "--state")))) {
+        snprintf(path, sizeof path, "/jobs%s%.32s", argc == 4 ? "?state=" : "", argc == 4 ? argv[3] : "");
+        rc = simple("GET", path);
+    } else if ((!strcmp(cmd, "job") || !strcmp(cmd, "cancel")) && one) {
+        snprintf(path, sizeof path, "/jobs/%.64s%s", argv[2], cmd[0] == 'c' ? "/cancel" : "");
+        rc = simple(cmd[0] == 'c' ? "POST" : "GET", path);
     } else if (!strcmp(cmd, "wait") && argc >= 3) {
         char state[32];
         rc = wait_job(argv[2], state, sizeof state);
@@ -465,6 +701,7 @@ int main(int argc, char **argv)
     } else if (!strcmp(cmd, "result") && argc == 5 && !strcmp(argv[3], "-o")) {
         rc = fetch_result(argv[2], argv[4]);
     } else {
+        current_cmd = NULL;
         rc = usage();
     }
     curl_global_cleanup();

@@ -141,6 +141,17 @@ static char *series_body(const char *dir, size_t *len)
     return body;
 }
 
+void cmd_isosurface_usage(FILE *f)
+{
+    fprintf(f, "usage: surfd isosurface VOLUME.nrrd|.mha|.raw|DICOM-DIR --iso V [--dims X,Y,Z --type T "
+               "[--spacing sx,sy,sz] [--origin x,y,z]]\n"
+               "       surfd isosurface FREP.json [--iso V]\n"
+               "                        [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|dicom|frep]\n"
+               "                        [-o OUT.stl|.ply|.obj] [--threads N] [--repeat N] [--stats]\n"
+               "       surfd matrix VOLUME|FREP.json [--iso V] [the volume's options above] [-o OUT.json]\n"
+               "                        (its six relief matrices, seed 003: samples >= iso are the body)\n");
+}
+
 int cmd_isosurface(int argc, char **argv)
 {
     char options[512] = "";
@@ -175,13 +186,7 @@ int cmd_isosurface(int argc, char **argv)
         }
     }
     if (bad || threads < 1 || threads > 64 || repeat < 1) {
-        fprintf(stderr, "usage: surfd isosurface VOLUME.nrrd|.mha|.raw|DICOM-DIR --iso V [--dims X,Y,Z --type T "
-                        "[--spacing sx,sy,sz] [--origin x,y,z]]\n"
-                        "       surfd isosurface FREP.json [--iso V]\n"
-                        "                        [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|dicom|frep]\n"
-                        "                        [-o OUT.stl|.ply|.obj] [--threads N] [--repeat N] [--stats]\n"
-                        "       surfd matrix VOLUME|FREP.json [--iso V] [the volume's options above] [-o OUT.json]\n"
-                        "                        (its six relief matrices, seed 003: samples >= iso are the body)\n");
+        cmd_isosurface_usage(stderr);
         return 2;
     }
     double t0 = now_ms();

@@ -29,6 +29,16 @@ static int keep_put(void *ctx, const char *id, const char *name, const char *sou
     return k->source ? 0 : -1;
 }
 
+void cmd_volume_usage(FILE *f)
+{
+    fprintf(f, "usage: surfd volume CONTOURS.json|RTSTRUCT.dcm [--roi NAME] [--caps flat|slab|dome]\n"
+               "                    [--method parabolic|linear-parabolic|coons|bspline]\n"
+               "                    [--parameterisation arc-length|polar] [--repeat N]\n"
+               "       surfd model  CONTOURS.json|RTSTRUCT.dcm [--roi NAME] [--caps ...] [--method ...]\n"
+               "                    [--mesh OUT.stl|OUT.ply|OUT.obj [--tolerance MM]] [--patches OUT.json]\n"
+               "       --repeat runs it N times in one process and reports the last (warm) timings\n");
+}
+
 int cmd_volume(int argc, char **argv)
 {
     bool model = !strcmp(argv[0], "model");
@@ -53,12 +63,7 @@ int cmd_volume(int argc, char **argv)
             repeat = 0;
     }
     if (argc < 2 || argc % 2 || repeat < 1) {
-        fprintf(stderr, "usage: surfd volume CONTOURS.json|RTSTRUCT.dcm [--roi NAME] [--caps flat|slab|dome]\n"
-                        "                    [--method parabolic|linear-parabolic|coons|bspline]\n"
-                        "                    [--parameterisation arc-length|polar] [--repeat N]\n"
-                        "       surfd model  CONTOURS.json|RTSTRUCT.dcm [--roi NAME] [--caps ...] [--method ...]\n"
-                        "                    [--mesh OUT.stl|OUT.ply|OUT.obj [--tolerance MM]] [--patches OUT.json]\n"
-                        "       --repeat runs it N times in one process and reports the last (warm) timings\n");
+        cmd_volume_usage(stderr);
         return 2;
     }
     size_t len;

@@ -59,13 +59,18 @@ static bool camera_flag(const char *name, const char *const *flags, int n)
     return false;
 }
 
-static int usage(void)
+void cmd_render_usage(FILE *f)
 {
-    fprintf(stderr, "usage: surfd render SCENE... -o OUT.png|OUT.exr|OUT.tif [--method auto|map|bvh|mesh|montecarlo]\n"
+    fprintf(f, "usage: surfd render SCENE... -o OUT.png|OUT.exr|OUT.tif [--method auto|map|bvh|mesh|montecarlo]\n"
                     "                    [--width W --height H] [--threads N] [--format json|bpt|nurbs] [--stats]\n"
                     "                    [--azimuth DEG --elevation DEG] [--no-shadows] [--aovs normal,uv,id]\n"
                     "                    [--eye X,Y,Z --target X,Y,Z] [--up X,Y,Z] [--fov DEG]\n"
                     "                    [--projection perspective|orthographic] [--view +x|-x|+y|-y|+z|-z] [--view-height H]\n");
+    }
+
+static int usage(void)
+{
+    cmd_render_usage(stderr);
     return 2;
 }
 
@@ -203,7 +208,7 @@ int cmd_render(int argc, char **argv)
         sc.elevation_deg = el;
     if (no_shadows)
         sc.shadows = false;
-    if ((rc = render_options_apply(camera, &sc, &ignored, &err)) || (rc = scene_validate(&sc, &err))) {
+    if ((rc = render_options_apply(camera, &sc, &ignored, &err))) { /* a bad flag; frame_prepare checks the rest */
         fprintf(stderr, "surfd: %s%s%s\n", err.message, err.pointer[0] ? " at " : "", err.pointer);
         scene_free(&sc);
         return 2;

@@ -62,17 +62,14 @@ static void abandon(const char *id, void *arg)
     service_release(arg, id);
 }
 
+void cmd_serve_usage(FILE *f) { config_usage(f); }
+
 int cmd_serve(int argc, char **argv)
 {
     struct service svc = {0};
     pthread_mutex_init(&svc.lock, NULL);
     char msg[600];
     config_defaults(&svc.cfg);
-    for (int k = 1; k < argc; k++)
-        if (!strcmp(argv[k], "--help") || !strcmp(argv[k], "-h")) {
-            config_usage();
-            return 0;
-        }
     if (config_load(&svc.cfg, argc, argv, msg, sizeof msg) || log_set_level(svc.cfg.log_level)) {
         fprintf(stderr, "surfd serve: %s\n", msg[0] ? msg : "log-level is error, warn, info or debug");
         return 2;

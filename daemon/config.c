@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum ctype { C_STR, C_LONG, C_BOOL };
+enum ctype { C_STR, C_LIST, C_LONG, C_BOOL }; /* C_LIST: a string each use appends to, space-separated */
 
 struct setting {
     const char *name;
@@ -21,6 +21,7 @@ struct setting {
 };
 
 #define S(name, field, dflt, help) {name, C_STR, offsetof(struct config, field), sizeof(((struct config *)0)->field), 0, 0, dflt, help}
+#define LIST(name, field, help) {name, C_LIST, offsetof(struct config, field), sizeof(((struct config *)0)->field), 0, 0, "", help}
 #define L(name, field, lo, hi, dflt, help) {name, C_LONG, offsetof(struct config, field), 0, lo, hi, dflt, help}
 #define B(name, field, dflt, help) {name, C_BOOL, offsetof(struct config, field), 0, 0, 0, dflt, help}
 
@@ -42,6 +43,7 @@ static const struct setting SETTINGS[] = {
     S("tls-key", tls_key, "", "PEM private key for native TLS"),
     S("log-level", log_level, "info", "error, warn, info or debug"),
     B("insecure-no-auth", insecure_no_auth, "false", "allow a non-loopback listener without tokens"),
+    LIST("cors-origin", cors_origins, "an origin (https://portal.example) whose pages may call surfd (CORS; repeatable; * for any; off when none)"),
     L("result-ttl", result_ttl, 1, 365L * 86400, "86400", "seconds finished jobs and results are kept"),
     L("result-max", result_max, 1, 10000000, "10000", "finished jobs kept at most"),
     L("drain-timeout", drain_timeout, 0, 3600, "30", "seconds SIGTERM waits for running jobs"),
@@ -66,6 +68,18 @@ static int config_set(struct config *c, const char *name, const char *value, cha
                 return -1;
             }
             strcpy(field, value);
+        } else if (s->type == C_LIST) {
+            size_t used = strlen(field);
+            if (strpbrk(value, " \t,")) {
+                snprintf(msg, msg_len, "%s: one value a use, without spaces or commas: \"%s\"", name, value);
+                return -1;
+            }
+            if (used + 1 + strlen(value) >= s->size) {
+                snprintf(msg, msg_len, "%s: the values are longer than %zu characters in all", name, s->size - 1);
+                return -1;
+            }
+            if (*value)
+                snprintf((char *)field + used, s->size - used, "%s%s", used ? " " : "", value);
         } else if (s->type == C_LONG) {
             char *end;
             errno = 0;
@@ -174,10 +188,10 @@ int config_load(struct config *c, int argc, char **argv, char *msg, size_t msg_l
     return 0;
 }
 
-void config_usage(void)
+void config_usage(FILE *f)
 {
-    fprintf(stderr, "usage: surfd serve [--config FILE] [--SETTING VALUE]...\n\nsettings (also as \"key = value\" in FILE):\n");
+    fprintf(f, "usage: surfd serve [--config FILE] [--SETTING VALUE]...\n\nsettings (also as \"key = value\" in FILE):\n");
     for (size_t k = 0; k < N_SETTINGS; k++)
-        fprintf(stderr, "  --%-20s %s (default: %s)\n", SETTINGS[k].name, SETTINGS[k].help,
+        fprintf(f, "  --%-20s %s (default: %s)\n", SETTINGS[k].name, SETTINGS[k].help,
                 SETTINGS[k].dflt[0] ? SETTINGS[k].dflt : "none");
 }

@@ -6,6 +6,7 @@
 
 #include <stdbool.h>
 #include <stddef.h>
+#include <stdio.h>
 
 struct config {
     char listen[128];       /* HOST:PORT */
@@ -25,6 +26,7 @@ struct config {
     char tls_key[512];
     char log_level[16];     /* error, warn, info, debug */
     bool insecure_no_auth;  /* allow a non-loopback listener without tokens */
+    char cors_origins[1024]; /* origins allowed to call from a page, space-separated ("*": any); "": CORS off */
     long result_ttl;        /* seconds finished jobs are kept */
     long result_max;        /* finished jobs kept at most */
     long drain_timeout;     /* seconds SIGTERM waits for running jobs */
@@ -40,6 +42,6 @@ void config_defaults(struct config *c);
  * to msg on failure and returns -1. */
 int config_load(struct config *c, int argc, char **argv, char *msg, size_t msg_len);
 /* The usage text, generated from the table. */
-void config_usage(void);
+void config_usage(FILE *f);
 
 #endif

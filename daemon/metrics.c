@@ -70,7 +70,11 @@ char *metrics_text(struct service *svc)
     OUT("# HELP surfd_store_queued Jobs queued in the store, for every node that shares it.\n"
         "# TYPE surfd_store_queued gauge\nsurfd_store_queued %ld\n", store_queued(svc->store));
     OUT("# HELP surfd_queue_depth Jobs waiting for a worker of this node.\n# TYPE surfd_queue_depth gauge\n");
-    OUT("surfd_queue_depth %ld\nsurfd_queue_capacity %ld\nsurfd_workers %ld\n", qs.queued, qs.queue_max, qs.workers);
+    OUT("surfd_queue_depth %ld\n", qs.queued);
+    OUT("# HELP surfd_queue_capacity Jobs this node's queue holds at most before requests get 429.\n"
+        "# TYPE surfd_queue_capacity gauge\nsurfd_queue_capacity %ld\n", qs.queue_max);
+    OUT("# HELP surfd_workers Worker threads of this node's pool.\n# TYPE surfd_workers gauge\nsurfd_workers %ld\n",
+        qs.workers);
     OUT("# HELP surfd_render_seconds Tracing and shading time of render jobs.\n# TYPE surfd_render_seconds histogram\n");
     for (size_t k = 0; k < N_BUCKETS; k++)
         OUT("surfd_render_seconds_bucket{le=\"%g\"} %ld\n", BUCKETS[k], atomic_load(&render_bucket[k]));

@@ -98,6 +98,33 @@ struct reply {
 
 /* ---- replies -------------------------------------------------------------------------- */
 
+/* The request's Origin when the configuration lets it call (cors-origin), else NULL. */
+static const char *cors_origin(const struct req *r)
+{
+    const char *list = r->svc->cfg.cors_origins;
+    const char *o = list[0] ? MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "Origin") : NULL;
+    if (!o || !*o)
+        return NULL;
+    size_t n = strlen(o);
+    for (const char *p = list; *p; p += strcspn(p, " "), p += *p == ' ') {
+        size_t m = strcspn(p, " ");
+        if ((m == 1 && *p == '*') || (m == n && !strncmp(p, o, n)))
+            return o;
+    }
+    return NULL;
+}
+
+static void cors_headers(const struct req *r, struct MHD_Response *resp)
+{
+    const char *o = cors_origin(r);
+    if (!o)
+        return;
+    MHD_add_response_header(resp, "Access-Control-Allow-Origin", o);
+    MHD_add_response_header(resp, "Vary", "Origin");
+    MHD_add_response_header(resp, "Access-Control-Expose-Headers",
+                            "Location, X-Job-Id, X-Render-Ms, X-Rays, ETag, Content-Disposition, Retry-After");
+}
+
 static enum MHD_Result send_reply(struct req *r, struct reply *rp)
 {
     struct MHD_Response *resp =
@@ -113,6 +140,7 @@ static enum MHD_Result send_reply(struct req *r, struct reply *rp)
         MHD_add_response_header(resp, rp->hdr[k][0], rp->hdr[k][1]);
     if (r->job[0])
         MHD_add_response_header(resp, "X-Job-Id", r->job);
+    cors_headers(r, resp);
     r->status = rp->status;
     r->bytes = rp->len;
     enum MHD_Result ok = MHD_queue_response(r->conn, (unsigned)rp->status, resp);
@@ -796,9 +824,26 @@ static bool match(const char *pattern, const char *path, char id[40])
     return split_id(path + pre, id, &rest) && !strcmp(rest ? rest : "", brace + 4);
 }
 
+/* A CORS preflight (OPTIONS with Origin): 204 with what a page of an allowed origin may send, no
+ * token needed (browsers send none); 403 for any other origin. Without cors-origin OPTIONS is a
+ * method no route allows (405). */
+static enum MHD_Result preflight(struct req *r)
+{
+    if (!cors_origin(r))
+        return problem(r, 403, "this origin may not call surfd (see the cors-origin setting)", NULL);
+    struct reply rp = {204, NULL, NULL, 0,
+                       {{"Access-Control-Allow-Methods", "GET, HEAD, POST, DELETE"},
+                        {"Access-Control-Allow-Headers", "Authorization, Content-Type, Prefer, If-None-Match"},
+                        {"Access-Control-Max-Age", "600"}}};
+    return send_reply(r, &rp);
+}
+
 static enum MHD_Result route(struct req *r)
 {
     const char *m = r->method;
+    if (!strcmp(m, "OPTIONS") && r->svc->cfg.cors_origins[0] &&
+        MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "Access-Control-Request-Method"))
+        return preflight(r);
     unsigned method = !strcmp(m, "GET") || !strcmp(m, "HEAD") ? GET : !strcmp(m, "POST") ? POST
                       : !strcmp(m, "DELETE")                  ? DELETE
                                                               : 0;

@@ -86,13 +86,20 @@ TEST(bands_run_once_and_jobs_end)
     for (int k = 0; k < N; k++) {
         w[k] = make_work(k % 5 == 0 ? 0 : (k % 7 == 0 ? -1 : 3 + k % 13), 50);
         snprintf(id[k], sizeof id[k], "job%02d", k);
-        CHECK(jobq_submit(q, id[k], &OPS, w[k], false) == 0);
+        /* the waiter first: one registered after the job ended would wait for its deadline (the
+         * daemon checks the store for that case) */
         jobq_wait(q, id[k], monotonic_s() + 30, on_wait, &wt[k]);
+        CHECK(jobq_submit(q, id[k], &OPS, w[k], false) == 0);
     }
     for (int k = 3; k < N; k += 9)
         jobq_cancel(q, id[k]);
-    for (int t = 0; t < 3000 && atomic_load(&total_finished) < N; t++)
+    /* a job's waiters are called after its finish returns: wait for both */
+    for (int t = 0, waited = 0; t < 3000 && (atomic_load(&total_finished) < N || waited < N); t++) {
         sleep_ms(2);
+        waited = 0;
+        for (int k = 0; k < N; k++)
+            waited += atomic_load(&wt[k].calls) > 0;
+    }
     CHECK(atomic_load(&total_finished) == N);
     for (int k = 0; k < N; k++) {
         CHECK(atomic_load(&w[k]->finished) == 1);
