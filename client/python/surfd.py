@@ -1,0 +1,278 @@
+"""surfd.py - the Python client of surfd (standard library only, one file).
+
+Every route of the HTTP contract (api/openapi.yaml) as a method of :class:`Client`. Work that the
+server runs as a job (renders, models, volumes, isosurfaces, edits, matrices, meshes) is submitted
+with ``Prefer: respond-async`` and followed to its end, polling from 0.1 s backing off to 2 s;
+the method returns the job's result: parsed JSON (``dict``) for JSON answers, ``bytes`` for files
+(images, meshes). Every refusal or failure raises :class:`SurfdError`, which carries the HTTP
+status and the problem object (RFC 9457: ``title``, ``detail``, ``errors[].pointer``).
+
+    >>> import surfd
+    >>> c = surfd.Client("http://127.0.0.1:8080", token=None)   # or SURFD_URL, SURFD_TOKEN
+    >>> m = c.model("../shared/data/contours/synthetic_ellipsoid.json", caps="dome")
+    >>> m["volume_mm3"]
+    >>> open("e.stl", "wb").write(c.mesh(m["id"], format="stl"))
+    >>> png = c.view(m["id"], width=400, height=300, azimuth=45)
+"""
+from __future__ import annotations
+
+import json
+import os
+import time
+import urllib.error
+import urllib.parse
+import urllib.request
+from pathlib import Path
+from typing import Any, Callable, Dict, List, Mapping, Optional, Union
+
+__all__ = ["Client", "SurfdError"]
+
+Body = Union[bytes, str, os.PathLike]
+Options = Mapping[str, Any]
+
+_TYPES = {
+    ".json": "application/json", ".dcm": "application/dicom", ".bpt": "model/x-bpt", ".nurbs": "model/vrml",
+    ".wrl": "model/vrml", ".nrrd": "application/x-nrrd", ".nhdr": "application/x-nrrd",
+    ".mha": "application/x-metaimage", ".mhd": "application/x-metaimage",
+}
+
+
+class SurfdError(Exception):
+    """A request surfd refused or a job that did not succeed.
+
+    status: the HTTP status (0 when surfd could not be reached); problem: the problem object
+    (``{"title", "status", "detail", "errors": [{"pointer", "message"}]}``), or ``{}``;
+    job: the job's id when the error belongs to a job."""
+
+    def __init__(self, status: int, problem: Optional[Dict[str, Any]] = None, job: Optional[str] = None):
+        self.status = status
+        self.problem: Dict[str, Any] = problem or {}
+        self.job = job
+        super().__init__(self._text())
+
+    @property
+    def pointer(self) -> Optional[str]:
+        """The first offending field's JSON pointer ("/objects/0/knots_u/2", "?iso"), if any."""
+        errs = self.problem.get("errors") or []
+        return errs[0].get("pointer") if errs else None
+
+    def _text(self) -> str:
+        p = self.problem
+        text = "%d %s" % (self.status, p.get("detail") or p.get("title") or "")
+        if self.pointer:
+            text += " at " + self.pointer
+        if self.job:
+            text += " (job %s)" % self.job
+        return text
+
+
+class Client:
+    """A surfd server. url defaults to $SURFD_URL, else http://127.0.0.1:8080; token (sent as a
+    bearer token) to $SURFD_TOKEN. timeout: seconds a single HTTP request may take. progress: a
+    function called with each polled job resource while a job runs (None: quiet)."""
+
+    def __init__(self, url: Optional[str] = None, token: Optional[str] = None, timeout: float = 600.0,
+                 progress: Optional[Callable[[Dict[str, Any]], None]] = None):
+        self.url = (url or os.environ.get("SURFD_URL") or "http://127.0.0.1:8080").rstrip("/")
+        self.token = token if token is not None else os.environ.get("SURFD_TOKEN") or None
+        self.timeout = timeout
+        self.progress = progress
+
+    # ---- the HTTP layer -------------------------------------------------------------------
+
+    def request(self, method: str, path: str, body: Optional[bytes] = None, content_type: Optional[str] = None,
+                headers: Optional[Mapping[str, str]] = None) -> "Response":
+        """One request; a status of 400 or above raises SurfdError with the problem."""
+        h = {"Accept": "*/*"}
+        if self.token:
+            h["Authorization"] = "Bearer " + self.token
+        if content_type:
+            h["Content-Type"] = content_type
+        h.update(headers or {})
+        req = urllib.request.Request(self.url + path, data=body, method=method, headers=h)
+        try:
+            with urllib.request.urlopen(req, timeout=self.timeout) as r:
+                return Response(r.status, dict(r.headers.items()), r.read())
+        except urllib.error.HTTPError as e:
+            data = e.read()
+            try:
+                problem = json.loads(data) if data else {}
+            except ValueError:
+                problem = {"detail": data.decode("utf-8", "replace")}
+            raise SurfdError(e.code, problem, e.headers.get("X-Job-Id")) from None
+        except urllib.error.URLError as e:
+            raise SurfdError(0, {"detail": "surfd unreachable at %s: %s" % (self.url, e.reason)}) from None
+
+    def _job(self, method: str, path: str, options: Optional[Options] = None, body: Optional[Body] = None,
+             content_type: Optional[str] = None) -> Union[Dict[str, Any], bytes]:
+        """Submits a job (respond-async), follows it, returns its result."""
+        data, ctype = _body(body, content_type)
+        r = self.request(method, path + _query(options), data, ctype, {"Prefer": "respond-async"})
+        if r.status == 202:
+            job = json.loads(r.body)
+            self.wait(job["id"])
+            r = self.request("GET", "/jobs/%s/result" % job["id"])
+        return r.parsed()
+
+    # ---- jobs -----------------------------------------------------------------------------
+
+    def jobs(self, state: Optional[str] = None) -> List[Dict[str, Any]]:
+        """GET /jobs (newest first); state: queued, running, succeeded, failed or cancelled."""
+        return self.request("GET", "/jobs" + _query({"state": state})).parsed()["jobs"]
+
+    def job(self, job_id: str) -> Dict[str, Any]:
+        """GET /jobs/{id}: the job resource (state, progress, error...)."""
+        return self.request("GET", "/jobs/" + job_id).parsed()
+
+    def wait(self, job_id: str, timeout: Optional[float] = None) -> Dict[str, Any]:
+        """Polls the job until it ends (0.1 s, backing off to 2 s); returns the job resource when it
+        succeeded, else raises SurfdError with its problem (a cancelled job: status 409)."""
+        start, pause = time.monotonic(), 0.1
+        while True:
+            job = self.job(job_id)
+            if self.progress:
+                self.progress(job)
+            if job["state"] == "succeeded":
+                return job
+            if job["state"] in ("failed", "cancelled"):
+                problem = job.get("error") or {"title": "Conflict", "detail": "the job was " + job["state"]}
+                raise SurfdError(problem.get("status", 409), problem, job_id)
+            if timeout is not None and time.monotonic() - start > timeout:
+                raise SurfdError(0, {"detail": "the job is still %s after %g s" % (job["state"], timeout)}, job_id)
+            time.sleep(pause)
+            pause = min(2.0, pause * 1.5)
+
+    def result(self, job_id: str) -> Union[Dict[str, Any], bytes]:
+        """GET /jobs/{id}/result: the ended job's result as its route answers it."""
+        return self.request("GET", "/jobs/%s/result" % job_id).parsed()
+
+    def cancel(self, job_id: str) -> Dict[str, Any]:
+        """POST /jobs/{id}/cancel."""
+        return self.request("POST", "/jobs/%s/cancel" % job_id, b"").parsed()
+
+    def submit(self, route: str, body: Optional[Body] = None, content_type: Optional[str] = None,
+               **options: Any) -> str:
+        """POSTs a job without waiting for it (Prefer: respond-async): its id."""
+        data, ctype = _body(body, content_type)
+        r = self.request("POST", route + _query(options), data if data is not None else b"", ctype,
+                         {"Prefer": "respond-async"})
+        return r.headers.get("X-Job-Id") or json.loads(r.body)["id"]
+
+    # ---- the routes -----------------------------------------------------------------------
+
+    def render(self, scene: Body, content_type: Optional[str] = None, **options: Any) -> bytes:
+        """POST /render: a scene (JSON, .bpt, VRML) to an image (PNG unless output=exr|tiff).
+        options: width, height, output, method, azimuth, elevation, eye, target, up, fov,
+        projection, view, view_height, shadows (vectors as "x,y,z" or a sequence)."""
+        return self._job("POST", "/render", options, scene, content_type)
+
+    def model(self, contours: Body, content_type: Optional[str] = None, **options: Any) -> Dict[str, Any]:
+        """POST /model: contours (JSON), an RT Structure Set (.dcm) or a matrix model; the model
+        resource, or {"models": [...]} for several ROIs. options: method, caps, roi, parameterisation."""
+        return self._job("POST", "/model", options, contours, content_type)
+
+    def volume(self, contours: Body, content_type: Optional[str] = None, **options: Any) -> Dict[str, Any]:
+        """POST /volume: the volume figures of contours or a closed scene, nothing stored."""
+        return self._job("POST", "/volume", options, contours, content_type)
+
+    def isosurface(self, volume: Body, content_type: Optional[str] = None, **options: Any) -> Dict[str, Any]:
+        """POST /isosurface: a volume (NRRD, MetaImage, raw samples with dims and type) or an FRep
+        object; the model resource. options: iso, dims, type, spacing, origin, levels, max_error,
+        features, closed, name."""
+        return self._job("POST", "/isosurface", options, volume, content_type)
+
+    def edit(self, model_id: str, samples: Optional[Body] = None, region: Any = None,
+             frep: Optional[Dict[str, Any]] = None) -> Dict[str, Any]:
+        """POST /models/{id}/edit: raw samples of region (x0,y0,z0,nx,ny,nz), or for an FRep model
+        frep = {"op": ..., "object": {...}}; the updated model resource."""
+        if frep is not None:
+            return self._job("POST", "/models/%s/edit" % model_id, None, json.dumps(frep).encode(), "application/json")
+        return self._job("POST", "/models/%s/edit" % model_id, {"region": region}, samples, "application/octet-stream")
+
+    def matrix(self, volume: Optional[Body] = None, model: Optional[str] = None, size: Any = None,
+               content_type: Optional[str] = None, **options: Any) -> Dict[str, Any]:
+        """POST /matrix-model: the six relief matrices of a volume (options as isosurface's), or of a
+        stored model (model=ID, size=(N, M, K))."""
+        if model is not None:
+            return self._job("POST", "/matrix-model", dict(options, model=model, size=size), b"")
+        return self._job("POST", "/matrix-model", options, volume, content_type)
+
+    def models(self) -> List[Dict[str, Any]]:
+        """GET /models: the stored models' resources."""
+        return self.request("GET", "/models").parsed()["models"]
+
+    def get_model(self, model_id: str) -> Dict[str, Any]:
+        """GET /models/{id}."""
+        return self.request("GET", "/models/" + model_id).parsed()
+
+    def delete_model(self, model_id: str) -> None:
+        """DELETE /models/{id}."""
+        self.request("DELETE", "/models/" + model_id)
+
+    def mesh(self, model_id: str, format: str = "stl", tolerance: Optional[float] = None) -> bytes:
+        """GET /models/{id}/mesh: stl, ply, obj, vtp or vtk; tolerance in mm."""
+        return self._job("GET", "/models/%s/mesh" % model_id, {"format": format, "tolerance": tolerance})
+
+    def patches(self, model_id: str) -> Dict[str, Any]:
+        """GET /models/{id}/patches: the model's Bezier patches as a scene /render takes."""
+        return self._job("GET", "/models/%s/patches" % model_id)
+
+    def view(self, model_id: str, **options: Any) -> bytes:
+        """GET /models/{id}/render with render's options: the image."""
+        return self._job("GET", "/models/%s/render" % model_id, options)
+
+    def version(self) -> Dict[str, Any]:
+        """GET /version."""
+        return self.request("GET", "/version").parsed()
+
+    def metrics(self) -> str:
+        """GET /metrics: Prometheus text."""
+        return self.request("GET", "/metrics").body.decode()
+
+
+class Response:
+    """An HTTP answer: status, headers, body (bytes)."""
+
+    def __init__(self, status: int, headers: Dict[str, str], body: bytes):
+        self.status, self.headers, self.body = status, headers, body
+
+    def parsed(self) -> Union[Dict[str, Any], bytes]:
+        """The body as JSON when it is JSON, else the bytes."""
+        ctype = next((v for k, v in self.headers.items() if k.lower() == "content-type"), "")
+        if "json" in ctype and self.body:
+            return json.loads(self.body)
+        return self.body
+
+
+def _query(options: Optional[Options]) -> str:
+    if not options:
+        return ""
+    pairs = []
+    for k, v in options.items():
+        if v is None:
+            continue
+        if isinstance(v, bool):
+            v = "true" if v else "false"
+        elif isinstance(v, (list, tuple)):
+            v = ",".join(str(x) for x in v)
+        pairs.append((k, str(v)))
+    return "?" + urllib.parse.urlencode(pairs, quote_via=urllib.parse.quote, safe=",") if pairs else ""
+
+
+def _is_file(s: str) -> bool:
+    try:
+        return len(s) < 4096 and not s.lstrip().startswith(("{", "[")) and Path(s).is_file()
+    except OSError:  # a text too long for a file name
+        return False
+
+
+def _body(body: Optional[Body], content_type: Optional[str]):
+    """(bytes, Content-Type) of a body given as bytes, text or a path (its type by extension)."""
+    if body is None:
+        return None, content_type
+    if isinstance(body, os.PathLike) or (isinstance(body, str) and _is_file(body)):
+        path = Path(body)
+        return path.read_bytes(), content_type or _TYPES.get(path.suffix.lower(), "application/octet-stream")
+    if isinstance(body, str):
+        return body.encode(), content_type or "application/json"
+    return bytes(body), content_type or "application/octet-stream"
