@@ -6,6 +6,7 @@
 #   make bench      benchmarks against POV-Ray and surfd's own mesh method -> tests/bench/RESULTS.md
 #   make layers     check the include rules between core/'s folders, api/ and daemon/
 #   make fuzz       every decoder's libFuzzer target for FUZZ_SECONDS (60) each (make test: 10 each)
+#   make deb        build/surfd_VERSION_amd64.deb (deploy/deb.sh)
 # Warnings are errors when CI=true (or WERROR=1).
 
 CC      ?= cc
@@ -56,7 +57,7 @@ SAN_CORE := $(call obj,san,$(CORE_SRC))
 SAN_API  := $(call obj,san,$(API_SRC))
 TESTS    := $(patsubst tests/%.c,$(B)/tests/%,$(TEST_SRC))
 
-.PHONY: all run test bench clean deps install fuzz layers
+.PHONY: all run test bench clean deps install fuzz layers deb
 all: layers $(B)/surfd $(B)/surfctl
 
 # the one-way include rules of core/ and api/
@@ -175,6 +176,11 @@ test: deps layers $(B)/surfd $(B)/surfctl $(B)/san/surfd $(TESTS) $(TSAN_TESTS) 
 bench: $(B)/surfd
 	@deploy/install-deps.sh --bench
 	@tests/bench/run.sh
+
+# a Debian version starts with a digit: 0.1.0+git<commits>.<hash>
+DEB_VERSION := 0.1.0+git$(shell git rev-list --count HEAD 2>/dev/null || echo 0).$(shell git rev-parse --short HEAD 2>/dev/null || echo dev)
+deb: $(B)/surfd $(B)/surfctl $(B)/libsurfd-image.so
+	@deploy/deb.sh $(DEB_VERSION)
 
 clean:
 	rm -rf $(B)

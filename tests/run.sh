@@ -4,7 +4,7 @@
 set -u
 pass=0; fail=0
 export SURFD_DATA="${SURFD_DATA:-$(cd "$(dirname "$0")/../../shared/data" 2>/dev/null && pwd)}"
-for t in "$@" tests/cli/*.sh tests/api/*.sh tests/web/*.sh tests/fuzz/*.sh; do
+for t in "$@" tests/cli/*.sh tests/api/*.sh tests/web/*.sh tests/deploy/*.sh tests/fuzz/*.sh; do
     [ -e "$t" ] || continue
     name=$(basename "$t")
     start=$(date +%s)
