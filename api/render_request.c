@@ -83,6 +83,18 @@ static int apply(const char *name, const char *v, struct scene *sc, enum image_f
             sc->has_camera = true; /* checked below: eye and target come together */
             sc->view = VIEW_NONE;
         }
+    } else if (!strcmp(name, "aovs")) { /* normal,uv,id: EXR (and TIFF) layers besides colour and depth */
+        for (const char *p = v; *p; p += strcspn(p, ","), p += *p == ',') {
+            size_t n = strcspn(p, ",");
+            if (n == 6 && !strncmp(p, "normal", 6))
+                sc->aovs |= AOV_NORMAL;
+            else if (n == 2 && !strncmp(p, "uv", 2))
+                sc->aovs |= AOV_UV;
+            else if (n == 2 && !strncmp(p, "id", 2))
+                sc->aovs |= AOV_ID;
+            else
+                return sf_fail(err, SF_EINVAL, "?aovs", "aovs is a list of normal, uv and id, not \"%.40s\"", v);
+        }
     } else if (!strcmp(name, "shadows")) {
         if (!(rc = num_opt(name, v, 0, 1, &d, err)))
             sc->shadows = d != 0;

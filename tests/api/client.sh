@@ -12,14 +12,16 @@ check "example render_sync" '[ $? -eq 0 ] && [ "$(head -c 4 "$T/a.png" | od -An 
 client/examples/render_async.sh "$D/duck2.nurbs" "$T/b.png"
 check "example render_async" '[ $? -eq 0 ] && [ -s "$T/b.png" ]'
 client/examples/render_exr_depth.sh "$D/teapot.bpt" "$T/c.exr"
-check "example render_exr_depth" '[ $? -eq 0 ] && head -c 2000 "$T/c.exr" | grep -aq "Z"'
+check "example render_exr_depth: the EXR holds Z and the AOVs it claims (N.x, u, id)" '[ $? -eq 0 ] && head -c 3000 "$T/c.exr" | grep -aq "N.x" && head -c 3000 "$T/c.exr" | grep -aq "id" && head -c 3000 "$T/c.exr" | grep -aq "Z"'
 check "example bad_scene" 'client/examples/bad_scene.sh | grep -q "\"pointer\":\"/objects/0/knots_u/2\"" && client/examples/bad_scene.sh | tail -n 1 | grep -q 422'
 check "example health" 'client/examples/health.sh | grep -q surfd_queue_depth'
-client/examples/model_mesh.sh "${SURFD_DATA:-../shared/data}/contours/synthetic_ellipsoid.json" "$T/m.stl" >"$T/out"
+client/examples/model_mesh.sh "${SURFD_DATA:-../shared/data}/contours/synthetic_ellipsoid.json" "$T/m.stl" --caps dome >"$T/out" 2>/dev/null
 vol=$(sed 's/.*"volume_mm3":\([0-9.]*\).*/\1/' "$T/out")
 check "example model_mesh" '[ $? -eq 0 ] && grep -q "\"caps\":\"dome\"" "$T/out" && python3 tests/tools/stl_check.py "$T/m.stl" "$vol" >/dev/null'
-client/examples/model_mesh.sh "${SURFD_DATA:-../shared/data}/contours/dicompyler-core_example_rtss.dcm" "$T/h.obj" Heart >"$T/out"
+client/examples/model_mesh.sh "${SURFD_DATA:-../shared/data}/contours/dicompyler-core_example_rtss.dcm" "$T/h.obj" --roi Heart >"$T/out" 2>/dev/null
 check "example model_mesh of an RTSTRUCT ROI" '[ $? -eq 0 ] && grep -q "\"name\":\"Heart\"" "$T/out" && grep -q "^f " "$T/h.obj"'
+client/examples/model_mesh.sh "${SURFD_DATA:-../shared/data}/contours/dicompyler-core_example_rtss.dcm" "$T/all.stl" --caps slab >"$T/out" 2>"$T/files"
+check "example model_mesh of a whole RTSTRUCT: every ROI, a closed mesh each, named by its ROI" '[ $? -eq 0 ] && [ "$(wc -l <"$T/files")" -gt 1 ] && [ -f "$T/all_Heart.stl" ] && while read -r f; do python3 tests/tools/stl_check.py "$f" - >/dev/null || exit 1; done <"$T/files"'
 
 $C render "$D/teacup.json" -o "$T/d.png" --width 120 --height 90
 check "surfctl render" '[ $? -eq 0 ] && [ -s "$T/d.png" ]'

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """stl_check.py FILE.stl VOLUME: a binary STL is closed (every edge in exactly two triangles, once each
-way) and encloses VOLUME within 0.1 %. Prints the triangle count and the volume; exit 1 otherwise."""
+way) and encloses VOLUME within 0.1 % (VOLUME "-": closed alone). Prints the triangle count and the
+volume; exit 1 otherwise."""
 import struct
 import sys
 
@@ -19,6 +20,9 @@ for k in range(n):
     a, b, c = tri
     vol += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])) / 6
 open_edges = sum(1 for (a, b), m in edges.items() if m != 1 or edges.get((b, a)) != 1)
+if sys.argv[2] == "-":
+    print("%d triangles, volume %.3f, %d unpaired edges" % (n, vol, open_edges))
+    sys.exit(0 if open_edges == 0 and n > 0 else 1)
 want = float(sys.argv[2])
 print("%d triangles, volume %.3f (%+.4f %%), %d unpaired edges" % (n, vol, 100 * (vol - want) / want, open_edges))
 sys.exit(0 if open_edges == 0 and abs(vol - want) <= 1e-3 * abs(want) else 1)
