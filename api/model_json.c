@@ -446,12 +446,23 @@ int model_mesh_options(const char *options, const char **format, double *tol, st
     return 0;
 }
 
+int model_mesh_key(const char *options, char *key, size_t cap, struct sf_err *err)
+{
+    const char *format;
+    double tol;
+    int rc = model_mesh_options(options, &format, &tol, err);
+    if (!rc)
+        tol > 0 ? snprintf(key, cap, "%s %.17g", format, tol) : snprintf(key, cap, "%s default", format);
+    return rc;
+}
+
 int model_mesh(const char *src, size_t len, const char *options, const struct sf_progress *pr, char **out,
-               size_t *out_len, const char **mime, struct sf_err *err)
+               size_t *out_len, const char **mime, double *tol_used, struct sf_err *err)
 {
     const char *format;
     double tol;
     *out = NULL;
+    *tol_used = 0.0;
     int rc = model_mesh_options(options, &format, &tol, err);
     if (rc)
         return rc;
@@ -470,7 +481,8 @@ int model_mesh(const char *src, size_t len, const char *options, const struct sf
     solid_measure(&sd, &sm);
     double dflt = solid_default_tolerance(&sm);
     struct mesh m;
-    rc = solid_mesh(&sd, tol > 0 ? tol : dflt, &m);
+    rc = tol > 0 ? solid_mesh(&sd, tol, &m) : solid_mesh_default(&sd, &sm, &m, &dflt);
+    *tol_used = tol > 0 ? tol : dflt;
     solid_free(&sd);
     if (rc == SF_ECANCEL)
         return sf_fail(err, rc, "", "cancelled");

@@ -41,11 +41,14 @@ struct model_sink {
 int model_create(const char *buf, size_t len, const char *format, const char *options, const struct model_sink *sink,
                  const struct sf_progress *pr, char **json, char location[64], struct sf_err *err);
 
-/* A stored model's mesh; options "format=stl|ply|obj&tolerance=MM": binary STL (the default),
- * binary little-endian PLY or OBJ, within the tolerance (absent or 0: 1e-4 of the size). *out
- * (caller frees), *out_len and *mime receive the file. */
+/* A stored model's mesh; options "format=stl|ply|obj|vtp|vtk&tolerance=MM": binary STL (the
+ * default), binary little-endian PLY, OBJ or VTK, within the tolerance (absent or 0: the coarsest
+ * that holds the model's volume within 0.05 %, solid_mesh_default). *out (caller frees), *out_len
+ * and *mime receive the file, *tol_used the tolerance (0 for an isosurface: its own mesh). */
 int model_mesh(const char *src, size_t len, const char *options, const struct sf_progress *pr, char **out,
-               size_t *out_len, const char **mime, struct sf_err *err);
+               size_t *out_len, const char **mime, double *tol_used, struct sf_err *err);
+/* The cache key of a mesh request's options ("stl default", "ply 0.05"), or their error. */
+int model_mesh_key(const char *options, char *key, size_t cap, struct sf_err *err);
 /* What model_mesh would refuse in its options (errors point at ?format, ?tolerance). */
 int model_mesh_options(const char *options, const char **format, double *tol, struct sf_err *err);
 /* A stored model's patches as a scene: {"objects": [...]}: bicubic "bezier" objects, and the domes'

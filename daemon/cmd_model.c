@@ -90,10 +90,13 @@ int cmd_volume(int argc, char **argv)
     char *out = NULL;
     size_t out_len = 0;
     const char *ext = mesh ? strrchr(mesh, '.') : NULL, *mime;
+    double tol_used = 0.0;
     char mesh_opts[96];
     snprintf(mesh_opts, sizeof mesh_opts, "format=%.8s&tolerance=%.17g", ext ? ext + 1 : "none", tol);
-    if (!rc && mesh && !(rc = model_mesh(kept.source, kept.len, mesh_opts, NULL, &out, &out_len, &mime, &err)))
+    if (!rc && mesh && !(rc = model_mesh(kept.source, kept.len, mesh_opts, NULL, &out, &out_len, &mime, &tol_used, &err)))
         rc = cli_write_all(mesh, out, out_len) ? SF_EIO : 0;
+    if (!rc && mesh && tol_used > 0)
+        fprintf(stderr, "surfd: %s: the surface within %.3g mm\n", mesh, tol_used);
     free(out);
     out = NULL;
     if (!rc && patches && !(rc = model_patches_json(kept.source, kept.len, &out, &err)))

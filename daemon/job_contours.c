@@ -12,6 +12,7 @@
 #include "../api/model_json.h"
 #include "../api/render_request.h"
 #include "../api/rtstruct.h"
+#include "log.h"
 #include "kinds.h"
 
 enum contour_kind { KIND_VOLUME, KIND_MODEL, KIND_MESH, KIND_PATCHES };
@@ -25,6 +26,8 @@ struct contour_work {
     const char *type;
     char meta[128];
     char owner[64];          /* the job's: its models are the same owner's */
+    char model[64], key[96]; /* a mesh's model and cache key (model_mesh_key) */
+    double tol;              /* the mesh's tolerance */
     struct sf_err err;
 };
 
@@ -74,14 +77,19 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         if (store_model_get(w->svc->store, model, NULL, NULL, &src, &n) != 1) /* the route checked the owner */
             rc = sf_fail(&w->err, SF_EINVAL, "", "the model is no longer stored");
         else if (w->kind == KIND_MESH)
-            rc = model_mesh(src, n, rec.options, &pr, &w->json, &w->len, &w->type, &w->err);
+            rc = model_mesh(src, n, rec.options, &pr, &w->json, &w->len, &w->type, &w->tol, &w->err);
         else
             rc = model_patches_json(src, n, &w->json, &w->err);
         if (!rc && w->kind == KIND_MESH) { /* the file's name for the download: the model's id, the format's extension */
             const char *format;
             double tol;
             model_mesh_options(rec.options, &format, &tol, &w->err);
-            snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\"}", model, format);
+            model_mesh_key(rec.options, w->key, sizeof w->key, &w->err);
+            snprintf(w->model, sizeof w->model, "%s", model);
+            if (w->tol > 0)
+                snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\",\"tolerance_mm\":%.6g}", model, format, w->tol);
+            else
+                snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\"}", model, format);
         }
         free(src);
     }
@@ -95,6 +103,11 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 {
     (void)j;
     struct contour_work *w = arg;
+    if (outcome == JOB_SUCCEEDED && w->kind == KIND_MESH && w->key[0] && w->svc->cfg.mesh_cache > 0) {
+        struct mesh_rec m = {(char *)w->type, w->meta, (unsigned char *)w->json, w->len, ""};
+        if (store_mesh_put(w->svc->store, w->model, w->key, &m, w->svc->cfg.mesh_cache) < 0)
+            LOG(LOG_WARN, "model %s: its mesh (%s) could not be cached", w->model, w->key); /* made again next time */
+    }
     service_job_end(w->svc, &w->claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     w->type ? w->type : "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     free(w->json);

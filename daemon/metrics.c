@@ -25,6 +25,8 @@ void metrics_connection_shut(void) { atomic_fetch_add(&connections_shut, 1); }
 
 static atomic_long store_damaged;
 void metrics_store_damaged(void) { atomic_fetch_add(&store_damaged, 1); }
+static atomic_long mesh_lookups[2]; /* misses, hits */
+void metrics_mesh_cache(bool hit) { atomic_fetch_add(&mesh_lookups[hit], 1); }
 
 void metrics_http(int status)
 {
@@ -97,6 +99,12 @@ char *metrics_text(struct service *svc)
     OUT("# HELP surfd_connections_shut_total Connections shut down past their header, body or idle deadline, or "
         "to make room for a new one.\n# TYPE surfd_connections_shut_total counter\nsurfd_connections_shut_total %ld\n",
         atomic_load(&connections_shut));
+    OUT("# HELP surfd_mesh_cache_bytes Bytes of models' meshes the store keeps (mesh-cache bounds them).\n"
+        "# TYPE surfd_mesh_cache_bytes gauge\nsurfd_mesh_cache_bytes %ld\n", store_mesh_bytes(svc->store));
+    OUT("# HELP surfd_mesh_cache_lookups_total GETs of a model's mesh, by whether the cache had it.\n"
+        "# TYPE surfd_mesh_cache_lookups_total counter\n");
+    OUT("surfd_mesh_cache_lookups_total{result=\"hit\"} %ld\nsurfd_mesh_cache_lookups_total{result=\"miss\"} %ld\n",
+        atomic_load(&mesh_lookups[1]), atomic_load(&mesh_lookups[0]));
     OUT("# HELP surfd_store_damaged_total Stored results or models refused: their checksum did not match.\n"
         "# TYPE surfd_store_damaged_total counter\nsurfd_store_damaged_total %ld\n", atomic_load(&store_damaged));
     OUT("# HELP surfd_jobs_stranded Jobs whose end the store refused, kept to run again.\n"

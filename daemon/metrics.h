@@ -16,6 +16,8 @@ void metrics_connection_shut(void);
 void metrics_store_error(void);
 /* A stored result or model whose bytes did not match their checksum. */
 void metrics_store_damaged(void);
+/* A GET of a model's mesh found it in the cache (hit) or not. */
+void metrics_mesh_cache(bool hit);
 /* The exposition text; caller frees. */
 char *metrics_text(struct service *svc);
 

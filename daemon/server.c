@@ -241,6 +241,54 @@ static enum MHD_Result job_resource(struct req *r, int status, const char *id)
     return ok;
 }
 
+/* A stored result (a job's, or a cached mesh) as its route sends it: a strong ETag of its content
+ * (sum; 304 when If-None-Match holds it) and the headers its meta names (a model job's status and
+ * Location, a mesh's file name, a render's figures). body is taken. */
+static enum MHD_Result send_result(struct req *r, char *body, size_t len, const char *type, const char *meta,
+                                   const char *sum)
+{
+    char etag[48];
+    snprintf(etag, sizeof etag, "\"%.32s\"", sum); /* content: strong */
+    const char *inm = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_IF_NONE_MATCH);
+    if (inm && (strstr(inm, etag) || !strcmp(inm, "*"))) {
+        free(body);
+        struct reply rp = {304, NULL, NULL, 0, {{"ETag", etag}}};
+        return send_reply(r, &rp);
+    }
+    struct reply rp = {200, type, body, len, {{"ETag", etag}}};
+    char ms[32] = "", rays[32] = "", location[80] = "", disposition[96] = "", tol[32] = "";
+    const char *m = meta ? strstr(meta, "\"render_ms\":") : NULL;
+    if (m)
+        snprintf(ms, sizeof ms, "%.*s", (int)strcspn(m + 12, ",}"), m + 12);
+    const char *y = meta ? strstr(meta, "\"rays\":") : NULL;
+    if (y)
+        snprintf(rays, sizeof rays, "%.*s", (int)strcspn(y + 7, ",}"), y + 7);
+    const char *st = meta ? strstr(meta, "\"status\":") : NULL; /* a model job's 201 */
+    const char *lo = meta ? strstr(meta, "\"location\":\"") : NULL;
+    const char *fn = meta ? strstr(meta, "\"filename\":\"") : NULL; /* a mesh's download */
+    const char *tl = meta ? strstr(meta, "\"tolerance_mm\":") : NULL; /* the mesh's chord tolerance */
+    int h = 1;
+    if (st)
+        rp.status = atoi(st + 9);
+    if (lo)
+        snprintf(location, sizeof location, "%.*s", (int)strcspn(lo + 12, "\""), lo + 12);
+    if (location[0])
+        rp.hdr[h][0] = "Location", rp.hdr[h++][1] = location;
+    if (fn) {
+        snprintf(disposition, sizeof disposition, "attachment; filename=\"%.*s\"", (int)strcspn(fn + 12, "\""), fn + 12);
+        rp.hdr[h][0] = "Content-Disposition", rp.hdr[h++][1] = disposition;
+    }
+    if (tl) {
+        snprintf(tol, sizeof tol, "%.*s", (int)strcspn(tl + 15, ",}"), tl + 15);
+        rp.hdr[h][0] = "X-Mesh-Tolerance-Mm", rp.hdr[h++][1] = tol;
+    }
+    if (ms[0])
+        rp.hdr[h][0] = "X-Render-Ms", rp.hdr[h++][1] = ms;
+    if (rays[0])
+        rp.hdr[h][0] = "X-Rays", rp.hdr[h++][1] = rays;
+    return send_reply(r, &rp);
+}
+
 /* The job's result as its route would have sent it: the image (200), or the job's problem. */
 static enum MHD_Result job_result(struct req *r, const char *id, bool sync)
 {
@@ -252,45 +300,9 @@ static enum MHD_Result job_result(struct req *r, const char *id, bool sync)
         snprintf(r->job, sizeof r->job, "%s", id);
     enum MHD_Result ok;
     if (rec.state == JOB_SUCCEEDED && rec.result) {
-        char etag[48];
-        snprintf(etag, sizeof etag, "\"%.32s\"", rec.result_sum[0] ? rec.result_sum : id); /* content: strong */
-        const char *inm = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_IF_NONE_MATCH);
-        if (inm && (strstr(inm, etag) || !strcmp(inm, "*"))) {
-            struct reply rp = {304, NULL, NULL, 0, {{"ETag", etag}}};
-            ok = send_reply(r, &rp);
-        } else {
-            struct reply rp = {200, rec.result_type, (char *)rec.result, rec.result_len, {{"ETag", etag}}};
-            rec.result = NULL; /* handed to MHD */
-            char ms[32] = "", rays[32] = "";
-            const char *m = rec.meta ? strstr(rec.meta, "\"render_ms\":") : NULL;
-            if (m)
-                snprintf(ms, sizeof ms, "%.*s", (int)strcspn(m + 12, ",}"), m + 12);
-            const char *y = rec.meta ? strstr(rec.meta, "\"rays\":") : NULL;
-            if (y)
-                snprintf(rays, sizeof rays, "%.*s", (int)strcspn(y + 7, ",}"), y + 7);
-            int h = 1;
-            char location[80] = "";
-            const char *st = rec.meta ? strstr(rec.meta, "\"status\":") : NULL; /* a model job's 201 */
-            const char *lo = rec.meta ? strstr(rec.meta, "\"location\":\"") : NULL;
-            if (st)
-                rp.status = atoi(st + 9);
-            if (lo)
-                snprintf(location, sizeof location, "%.*s", (int)strcspn(lo + 12, "\""), lo + 12);
-            if (location[0])
-                rp.hdr[h][0] = "Location", rp.hdr[h++][1] = location;
-            char disposition[96] = "";
-            const char *fn = rec.meta ? strstr(rec.meta, "\"filename\":\"") : NULL; /* a mesh's download */
-            if (fn) {
-                snprintf(disposition, sizeof disposition, "attachment; filename=\"%.*s\"", (int)strcspn(fn + 12, "\""),
-                         fn + 12);
-                rp.hdr[h][0] = "Content-Disposition", rp.hdr[h++][1] = disposition;
-            }
-            if (ms[0])
-                rp.hdr[h][0] = "X-Render-Ms", rp.hdr[h++][1] = ms;
-            if (rays[0])
-                rp.hdr[h][0] = "X-Rays", rp.hdr[h++][1] = rays;
-            ok = send_reply(r, &rp);
-        }
+        ok = send_result(r, (char *)rec.result, rec.result_len, rec.result_type, rec.meta,
+                         rec.result_sum[0] ? rec.result_sum : id);
+        rec.result = NULL; /* taken */
     } else if (rec.state == JOB_FAILED && rec.error) {
         int status = 500;
         const char *s = strstr(rec.error, "\"status\":");
@@ -564,6 +576,27 @@ static enum MHD_Result model_job(struct req *r, const char *kind_name, char *bod
  * model's id. Each is answered as any job: the result when it ends within the wait, else 202. */
 static enum MHD_Result model_output(struct req *r, const char *id, const char *what)
 {
+    if (!strcmp(what, "mesh") && r->svc->cfg.mesh_cache > 0) { /* computed once: from the cache when it has it */
+        struct opts o = {.n = 0};
+        enum MHD_Result answer;
+        char key[96];
+        struct sf_err err = {0};
+        if (!query_options(r, &o, &answer))
+            return answer;
+        if (model_mesh_key(o.buf, key, sizeof key, &err))
+            return problem_err(r, &err);
+        struct mesh_rec m;
+        int found = store_mesh_get(r->svc->store, id, key, &m);
+        metrics_mesh_cache(found == 1);
+        if (found == 1) {
+            enum MHD_Result ok = send_result(r, (char *)m.data, m.len, m.type, m.meta, m.sum);
+            m.data = NULL; /* taken */
+            store_mesh_free(&m);
+            return ok;
+        }
+        if (found == STORE_DAMAGED)
+            LOG(LOG_WARN, "model %s: a cached mesh does not match its checksum; made again", id);
+    }
     if (strcmp(what, "render"))
         return model_job(r, what, strdup(id), "");
     char *scene = malloc(128);

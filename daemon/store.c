@@ -125,6 +125,40 @@ int store_model_edit(struct store *s, const struct model_rec *m, const struct vo
     return s->ops->model_edit(s, m, edit);
 }
 
+int store_mesh_get(struct store *s, const char *model, const char *key, struct mesh_rec *out)
+{
+    memset(out, 0, sizeof *out);
+    int found = s->ops->mesh_get(s, model, key, out);
+    if (found == 1) {
+        char sum[65];
+        store_checksum(out->data, out->len, "", 0, sum);
+        if (strcmp(sum, out->sum))
+            found = STORE_DAMAGED;
+    }
+    if (found != 1)
+        store_mesh_free(out);
+    return found;
+}
+
+int store_mesh_put(struct store *s, const char *model, const char *key, const struct mesh_rec *m, long max_bytes)
+{
+    if ((long)m->len > max_bytes)
+        return 0;
+    struct mesh_rec with = *m;
+    store_checksum(m->data, m->len, "", 0, with.sum);
+    return s->ops->mesh_put(s, model, key, &with, max_bytes);
+}
+
+long store_mesh_bytes(struct store *s) { return s->ops->mesh_bytes(s); }
+
+void store_mesh_free(struct mesh_rec *m)
+{
+    free(m->type);
+    free(m->meta);
+    free(m->data);
+    memset(m, 0, sizeof *m);
+}
+
 int store_volume_get(struct store *s, const char *id, int from, struct volume_rec **parts, int *n)
 {
     *parts = NULL;

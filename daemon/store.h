@@ -189,6 +189,25 @@ int store_model_list(struct store *s, const char *owner, long limit, void (*fn)(
 /* 1 deleted, 0 not found, -1 error. */
 int store_model_delete(struct store *s, const char *id, const char *owner);
 
+/* Meshes of stored models, cached per (model, key) - the key the request's normalised format and
+ * tolerance (issue 18: computed once): the file, its type and meta (the job's: filename,
+ * tolerance), its SHA-256 (the ETag). Deleting or editing a model drops its meshes; the cache is
+ * kept within max_bytes by dropping the least recently used. */
+struct mesh_rec {
+    char *type, *meta;
+    unsigned char *data;
+    size_t len;
+    char sum[65];
+};
+/* 1 found (*out: free with store_mesh_free; its last use now), 0, -1, STORE_DAMAGED. */
+int store_mesh_get(struct store *s, const char *model, const char *key, struct mesh_rec *out);
+/* Stores a mesh (when the model still exists) and drops the least recently used beyond max_bytes:
+ * 1 stored, 0 the model is gone or the mesh alone is over max_bytes, -1. */
+int store_mesh_put(struct store *s, const char *model, const char *key, const struct mesh_rec *m, long max_bytes);
+/* Bytes the cached meshes take (for /metrics), or -1. */
+long store_mesh_bytes(struct store *s);
+void store_mesh_free(struct mesh_rec *m);
+
 /* What other nodes did, as a shared store tells it (PostgreSQL's LISTEN/NOTIFY): a job was
  * queued (idle workers claim it), ended (its waiters here answer), or asked to stop (the node
  * that runs it cancels it). fn runs on the store's listener thread. The embedded store has one

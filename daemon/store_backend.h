@@ -32,6 +32,9 @@ struct store_ops {
     int (*model_delete)(struct store *, const char *id, const char *owner);
     int (*model_edit)(struct store *, const struct model_rec *, const struct volume_rec *);
     int (*volume_get)(struct store *, const char *id, int from, struct volume_rec **parts, int *n);
+    int (*mesh_get)(struct store *, const char *model, const char *key, struct mesh_rec *); /* sum as stored */
+    int (*mesh_put)(struct store *, const char *model, const char *key, const struct mesh_rec *, long max_bytes);
+    long (*mesh_bytes)(struct store *);
     bool (*writable)(struct store *);
     void (*on_event)(struct store *, void (*fn)(enum store_event, const char *, void *), void *arg); /* may be NULL */
 };

@@ -78,7 +78,10 @@ static const char SCHEMA[] =
     "CREATE INDEX IF NOT EXISTS models_created ON models(created);"
     "CREATE TABLE IF NOT EXISTS model_volumes (model text NOT NULL REFERENCES models(id) ON DELETE CASCADE,"
     " seq integer NOT NULL, format text NOT NULL, options text NOT NULL, data bytea NOT NULL, sum text NOT NULL,"
-    " PRIMARY KEY (model, seq));";
+    " PRIMARY KEY (model, seq));"
+    "CREATE TABLE IF NOT EXISTS meshes (model text NOT NULL REFERENCES models(id) ON DELETE CASCADE,"
+    " key text NOT NULL, type text NOT NULL, meta text NOT NULL, data bytea NOT NULL, sum text NOT NULL,"
+    " used double precision NOT NULL, PRIMARY KEY (model, key));";
 
 #define NOW "extract(epoch from clock_timestamp())"
 
@@ -711,6 +714,8 @@ static int model_txn(struct store *s, const struct model_rec *m, const struct vo
         rc = model_row(p, c, m, update);
         if (rc == 1 && !update && exec_in(p, c, "DELETE FROM model_volumes WHERE model=$1", 1, id) < 0)
             rc = -1;
+        if (rc == 1 && update && exec_in(p, c, "DELETE FROM meshes WHERE model=$1", 1, id) < 0) /* the edit's before */
+            rc = -1;
         if (rc == 1 && v)
             rc = volume_put(p, c, m->id, v);
         res = execute(p, c, rc == 1 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
@@ -848,6 +853,61 @@ static int pg_model_delete(struct store *s, const char *id, const char *owner)
     return n < 0 ? -1 : n > 0;
 }
 
+static int pg_mesh_get(struct store *s, const char *model, const char *key, struct mesh_rec *out)
+{
+    struct param prm[] = {T(model), T(key)};
+    PGresult *res;
+    int rows = exec1(s, &res,
+                     "UPDATE meshes SET used=" NOW " WHERE model=$1 AND key=$2 RETURNING type, meta, data, sum", 2, prm);
+    if (rows < 0)
+        return -1;
+    int found = rows > 0;
+    if (found) {
+        size_t len = (size_t)PQgetlength(res, 0, 2);
+        out->type = strdup(PQgetvalue(res, 0, 0));
+        out->meta = strdup(PQgetvalue(res, 0, 1));
+        out->data = malloc(len ? len : 1);
+        out->len = len;
+        snprintf(out->sum, sizeof out->sum, "%s", PQgetvalue(res, 0, 3));
+        if (out->data)
+            memcpy(out->data, PQgetvalue(res, 0, 2), len);
+        if (!out->type || !out->meta || !out->data)
+            found = -1;
+    }
+    PQclear(res);
+    return found;
+}
+
+static int pg_mesh_put(struct store *s, const char *model, const char *key, const struct mesh_rec *m, long max_bytes)
+{
+    char budget[32];
+    snprintf(budget, sizeof budget, "%ld", max_bytes);
+    struct param prm[] = {T(model), T(key), T(m->type), T(m->meta ? m->meta : ""), BIN(m->data, m->len), T(m->sum)};
+    int n = exec1(s, NULL,
+                  "INSERT INTO meshes(model,key,type,meta,data,sum,used) SELECT $1,$2,$3,$4,$5,$6," NOW
+                  " WHERE EXISTS (SELECT 1 FROM models WHERE id=$1) ON CONFLICT (model, key) DO UPDATE SET"
+                  " type=EXCLUDED.type, meta=EXCLUDED.meta, data=EXCLUDED.data, sum=EXCLUDED.sum, used=EXCLUDED.used",
+                  6, prm);
+    struct param cap[] = {T(budget)};
+    if (n > 0 && exec1(s, NULL,
+                       "DELETE FROM meshes WHERE (model, key) IN (SELECT model, key FROM (SELECT model, key,"
+                       " SUM(octet_length(data)) OVER (ORDER BY used DESC, model, key) AS run FROM meshes) t"
+                       " WHERE run > $1::bigint)", /* the least used past the budget */
+                       1, cap) < 0)
+        n = -1;
+    return n < 0 ? -1 : n > 0;
+}
+
+static long pg_mesh_bytes(struct store *s)
+{
+    PGresult *res;
+    if (exec1(s, &res, "SELECT COALESCE(SUM(octet_length(data)), 0)::bigint FROM meshes", 0, NULL) != 1)
+        return -1;
+    long n = (long)get_i64(res, 0, 0);
+    PQclear(res);
+    return n;
+}
+
 static bool pg_writable(struct store *s)
 {
     PGresult *res;
@@ -942,7 +1002,7 @@ static const struct store_ops PG_OPS = {
     "postgresql", pg_close,     pg_submit,    pg_submit_file, pg_request_file, pg_request_file_done, pg_claim,      pg_heartbeat,    pg_finish,
     pg_release,   pg_cancel,    pg_reap,      pg_prune,      pg_get,          pg_list,
     pg_queued,    pg_model_put, pg_model_get, pg_model_list, pg_model_delete, pg_model_edit, pg_volume_get,
-    pg_writable,  pg_on_event,
+    pg_mesh_get,  pg_mesh_put,  pg_mesh_bytes, pg_writable,  pg_on_event,
 };
 
 int store_pg_open(const char *uri, const char *scratch, struct store **out, char *msg, size_t msg_len)

@@ -43,6 +43,9 @@ static const char SCHEMA[] =
     "CREATE TABLE IF NOT EXISTS model_volumes ("
     " model TEXT NOT NULL, seq INTEGER NOT NULL, format TEXT NOT NULL, options TEXT NOT NULL, data BLOB NOT NULL,"
     " sum TEXT NOT NULL, PRIMARY KEY (model, seq));"
+    "CREATE TABLE IF NOT EXISTS meshes ("
+    " model TEXT NOT NULL, key TEXT NOT NULL, type TEXT NOT NULL, meta TEXT NOT NULL, data BLOB NOT NULL,"
+    " sum TEXT NOT NULL, used REAL NOT NULL, PRIMARY KEY (model, key));"
     "CREATE TABLE IF NOT EXISTS probe (x INTEGER);";
 
 /* Columns added after the first release, for databases made before them: added when missing. */
@@ -593,6 +596,8 @@ static int edit_step(struct store *s, const void *a, const void *b)
 {
     const struct model_rec *m = a;
     int n = model_row(s, m, true);
+    if (n == 1 && run_held(s, "DELETE FROM meshes WHERE model=?", "t", m->id) < 0) /* of the model before the edit */
+        n = -1;
     return n == 1 ? volume_put(s, m->id, b) : n;
 }
 
@@ -714,9 +719,66 @@ static int sq_model_list(struct store *s, const char *owner, long limit, void (*
 static int sq_model_delete(struct store *s, const char *id, const char *owner)
 {
     int n = run(s, "DELETE FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)", "tt", id, owner);
-    if (n > 0 && run(s, "DELETE FROM model_volumes WHERE model=?", "t", id) < 0)
+    if (n > 0 && (run(s, "DELETE FROM model_volumes WHERE model=?", "t", id) < 0 ||
+                  run(s, "DELETE FROM meshes WHERE model=?", "t", id) < 0))
         return -1;
     return n < 0 ? -1 : n > 0;
+}
+
+static int sq_mesh_get(struct store *s, const char *model, const char *key, struct mesh_rec *out)
+{
+    sqlite3_stmt *st;
+    int found = -1;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s), "SELECT type, meta, data, sum FROM meshes WHERE model=?1 AND key=?2", -1, &st,
+                           NULL) == SQLITE_OK) {
+        sqlite3_bind_text(st, 1, model, -1, SQLITE_STATIC);
+        sqlite3_bind_text(st, 2, key, -1, SQLITE_STATIC);
+        int rc = sqlite3_step(st);
+        found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
+        if (found == 1) {
+            out->type = dup_text(st, 0);
+            out->meta = dup_text(st, 1);
+            out->data = dup_blob(st, 2, &out->len);
+            copy_text(out->sum, sizeof out->sum, st, 3);
+            if (!out->type || !out->meta || !out->data)
+                found = -1;
+        }
+        sqlite3_finalize(st);
+    }
+    if (found == 1)
+        run_held(s, "UPDATE meshes SET used=?3 WHERE model=?1 AND key=?2", "ttd", model, key, wall_now());
+    pthread_mutex_unlock(lock_of(s));
+    return found;
+}
+
+static int sq_mesh_put(struct store *s, const char *model, const char *key, const struct mesh_rec *m, long max_bytes)
+{
+    pthread_mutex_lock(lock_of(s));
+    int n = run_held(s, "INSERT OR REPLACE INTO meshes(model,key,type,meta,data,sum,used)"
+                     " SELECT ?1,?2,?3,?4,?5,?6,?7 WHERE EXISTS (SELECT 1 FROM models WHERE id=?1)",
+                     "ttttbtd", model, key, m->type, m->meta ? m->meta : "", (const void *)m->data, m->len, m->sum,
+                     wall_now());
+    if (n > 0 && run_held(s, "DELETE FROM meshes WHERE rowid IN (SELECT rowid FROM (SELECT rowid, SUM(length(data))"
+                             " OVER (ORDER BY used DESC, rowid) AS run FROM meshes) WHERE run > ?1)", /* the least used */
+                          "i", max_bytes) < 0)
+        n = -1;
+    pthread_mutex_unlock(lock_of(s));
+    return n < 0 ? -1 : n > 0;
+}
+
+static long sq_mesh_bytes(struct store *s)
+{
+    sqlite3_stmt *st;
+    long n = -1;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s), "SELECT COALESCE(SUM(length(data)), 0) FROM meshes", -1, &st, NULL) == SQLITE_OK) {
+        if (sqlite3_step(st) == SQLITE_ROW)
+            n = sqlite3_column_int64(st, 0);
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return n;
 }
 
 static bool sq_writable(struct store *s)
@@ -728,5 +790,5 @@ static const struct store_ops SQLITE_OPS = {
     "sqlite",     sq_close,      sq_submit,    sq_submit_file, sq_request_file, sq_request_file_done, sq_claim,     sq_heartbeat,    sq_finish,
     sq_release,   sq_cancel,     sq_reap,      sq_prune,     sq_get,          sq_list,
     sq_queued,    sq_model_put,  sq_model_get, sq_model_list, sq_model_delete, sq_model_edit, sq_volume_get,
-    sq_writable,  NULL,
+    sq_mesh_get,  sq_mesh_put,   sq_mesh_bytes, sq_writable,  NULL,
 };

@@ -657,6 +657,55 @@ double solid_default_tolerance(const struct solid_measures *m)
     return 1e-4 * sqrt(dx * dx + dy * dy + dz * dz);
 }
 
+/* The default's search (issue 18: meshes of a sensible size): the chords of a mesh within tol of
+ * the surface cut off at most area x tol of volume, and on smooth surfaces a fraction of that, so
+ * the first try is V / A times SOLID_MESH_START. A try whose volume misses by more than
+ * SOLID_MESH_TARGET is made again finer, tol scaled by the miss (the chord error goes as tol), at
+ * least halved; one that misses by less than an eighth of it is tried again twice as coarse (a lung
+ * of many small sections: 0.1 mm held it within 0.003 %), the coarsest that holds kept; at most
+ * SOLID_MESH_TRIES meshes, never finer than the old fixed default (1e-4 of the diagonal). */
+#define SOLID_MESH_START 1e-2
+#define SOLID_MESH_TARGET 5e-4
+#define SOLID_MESH_TRIES 6
+
+int solid_mesh_default(const struct solid *s, const struct solid_measures *sm, struct mesh *m, double *tol)
+{
+    double floor = solid_default_tolerance(sm);
+    double t = sm->area > 0.0 ? fmax(floor, SOLID_MESH_START * fabs(sm->volume) / sm->area) : floor;
+    struct mesh best = {0};
+    bool have = false;
+    for (int k = 0; k < SOLID_MESH_TRIES; k++) {
+        struct mesh cur;
+        int rc = solid_mesh(s, t, &cur);
+        if (rc == SF_ELIMIT && have) /* coarser than the best never needs more triangles: finer only */
+            break;
+        if (rc) {
+            solid_mesh_free(&best);
+            return rc;
+        }
+        double miss = fabs(solid_mesh_volume(&cur) / sm->volume - 1.0);
+        bool holds = !(miss > SOLID_MESH_TARGET) || t <= floor;
+        if (holds) {
+            solid_mesh_free(&best);
+            best = cur, *tol = t, have = true;
+            if (!(miss < SOLID_MESH_TARGET / 8) || t <= floor)
+                break;
+            t *= 2.0;
+        } else {
+            solid_mesh_free(&cur);
+            if (have) /* the coarser try failed: the best so far stands */
+                break;
+            t = fmax(floor, t * fmin(0.5, 0.8 * SOLID_MESH_TARGET / miss));
+        }
+    }
+    if (!have) { /* every try missed: the floor, which holds by the old default's tests */
+        *tol = floor;
+        return solid_mesh(s, floor, m);
+    }
+    *m = best;
+    return 0;
+}
+
 int solid_mesh(const struct solid *s, double tol, struct mesh *m)
 {
     memset(m, 0, sizeof *m);

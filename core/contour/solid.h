@@ -75,8 +75,13 @@ struct mesh {
     size_t n_t, cap_t;
 };
 int solid_mesh(const struct solid *s, double tol, struct mesh *m);
-/* 1e-4 of the bounds' diagonal: meshes within 0.1 % of the model's volume (tests/core/test_model.c). */
+/* 1e-4 of the bounds' diagonal: meshes within 0.1 % of the model's volume (tests/core/test_model.c),
+ * finer than most uses need (a lung's 93 MB of STL). */
 double solid_default_tolerance(const struct solid_measures *m);
+/* The mesh at the default tolerance, tied to the model: the coarsest tried (from 1e-2 of volume /
+ * area down, never below solid_default_tolerance) whose volume is within 0.05 % of the model's;
+ * *tol receives it. Returns as solid_mesh. */
+int solid_mesh_default(const struct solid *s, const struct solid_measures *sm, struct mesh *m, double *tol);
 void solid_mesh_free(struct mesh *m);
 /* Signed volume enclosed (sum of signed tetrahedra from the origin). */
 double solid_mesh_volume(const struct mesh *m);

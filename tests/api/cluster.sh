@@ -89,6 +89,9 @@ code=$(on n2 POST "/isosurface?iso=226.5&dims=64,64,64&type=int16&spacing=0.9570
 mid=$(field id)
 check "an isosurface (its volume streamed into the database in chunks): 201 on any node" '[ "$code" = 201 ] && [ "$(field boundary_edges)" = 0 ]'
 check "... its mesh downloads closed from another node" '[ "$(on n3 GET "/models/$mid/mesh?format=stl")" = 200 ] && python3 tests/tools/stl_check.py "$T/body" 57529.6 >/dev/null'
+etag3=$(header ETag) # the mesh just made on n3
+on n1 GET "/models/$mid/mesh?format=stl" >/dev/null
+check "... once made, every node serves it from the shared cache: the same ETag, no job" '[ -n "$etag3" ] && [ "$(header ETag)" = "$etag3" ] && [ -z "$(header X-Job-Id)" ]'
 check "... and no node keeps a fetched copy of the volume" '! find "$T"/n?/scratch -type f 2>/dev/null | grep -q .'
 # edits posted round the nodes: each node brings its hierarchy up to the store's edits first
 Q="iso=226.5&dims=64,64,64&type=int16&spacing=0.9570312,0.9570312,1.5&levels=2&max_error=0.5"
