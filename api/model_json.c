@@ -264,7 +264,9 @@ int model_validate(const char *buf, size_t len, const char *format, const char *
     int n = 0, found = 0;
     rc = rtstruct_read(buf, len, &rois, &n, err);
     for (int k = 0; k < n && !rc; k++)
-        if (!roi[0] || !strcmp(roi, rois[k].name)) {
+        if (roi[0] && rois[k].skipped && !strcmp(roi, rois[k].name))
+            rc = sf_fail(err, SF_EINVAL, "?roi", "ROI \"%.60s\" has nothing to model: %s", rois[k].name, rois[k].skipped);
+        else if (!rois[k].skipped && (!roi[0] || !strcmp(roi, rois[k].name))) {
             found++;
             rc = contour_clean(&rois[k].cs, err);
         }
@@ -280,13 +282,15 @@ typedef int (*model_fn)(void *ctx, int k, json_t *fig, const struct contour_set 
                         struct sf_err *err);
 
 /* Every model the request describes, in order, into *list (one for JSON and for a DICOM ?roi=NAME:
- * *single); fn (may be NULL) sees each. */
+ * *single), and an RT Structure Set's ROIs without contours to model into *skipped ({name,
+ * roi_number, reason}); fn (may be NULL) sees each model. */
 static int each_model(const char *buf, size_t len, const char *format, const char *options, model_fn fn, void *ctx,
-                      const struct sf_progress *pr, json_t **list, bool *single, struct sf_err *err)
+                      const struct sf_progress *pr, json_t **list, json_t **skipped, bool *single, struct sf_err *err)
 {
     double t0 = now_ms();
     *list = json_array();
-    if (!*list)
+    *skipped = json_array();
+    if (!*list || !*skipped)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     int rc = 0;
     char roi[128], caps[16], method[24], param[16];
@@ -319,6 +323,15 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
     for (int k = 0; k < n && !rc; k++) {
         if (roi[0] && strcmp(roi, rois[k].name))
             continue;
+        if (rois[k].skipped) {
+            if (roi[0])
+                rc = sf_fail(err, SF_EINVAL, "?roi", "ROI \"%.60s\" has nothing to model: %s", rois[k].name,
+                             rois[k].skipped);
+            else
+                json_array_append_new(*skipped, json_pack("{s:s, s:i, s:s}", "name", rois[k].name, "roi_number",
+                                                          rois[k].number, "reason", rois[k].skipped));
+            continue;
+        }
         snprintf(req.name, sizeof req.name, "%s", rois[k].name);
         if ((rc = contour_clean(&rois[k].cs, err))) {
             char where[96];
@@ -344,10 +357,11 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
     return rc;
 }
 
-/* The answer: the one object, or {"models": [...]}. */
-static char *answer(json_t *list, bool single, struct sf_err *err)
+/* The answer: the one object, or {"models": [...], "skipped": [...]}. */
+static char *answer(json_t *list, json_t *skipped, bool single, struct sf_err *err)
 {
-    return dump(single ? json_incref(json_array_get(list, 0)) : json_pack("{s:O}", "models", list), err);
+    return dump(single ? json_incref(json_array_get(list, 0)) : json_pack("{s:O, s:O}", "models", list, "skipped", skipped),
+                err);
 }
 
 int model_figures(const char *buf, size_t len, const char *format, const char *options,
@@ -359,11 +373,12 @@ int model_figures(const char *buf, size_t len, const char *format, const char *o
         *json = NULL;
         return scene_figures(buf, len, format, json, err);
     }
-    json_t *list;
+    json_t *list = NULL, *skipped = NULL;
     bool single;
-    int rc = each_model(buf, len, format, options, NULL, NULL, pr, &list, &single, err);
-    *json = rc ? NULL : answer(list, single, err);
+    int rc = each_model(buf, len, format, options, NULL, NULL, pr, &list, &skipped, &single, err);
+    *json = rc ? NULL : answer(list, skipped, single, err);
     json_decref(list);
+    json_decref(skipped);
     return rc ? rc : (*json ? 0 : err->code);
 }
 
@@ -405,11 +420,12 @@ int model_create(const char *buf, size_t len, const char *format, const char *op
     if ((!format || !strcmp(format, "json")) && matrix_body(buf, len))
         return matrix_model(buf, len, sink, json, location, err);
     struct create_ctx c = {sink, ""};
-    json_t *list;
+    json_t *list = NULL, *skipped = NULL;
     bool single;
-    int rc = each_model(buf, len, format, options, store_one, &c, pr, &list, &single, err);
-    *json = rc ? NULL : answer(list, single, err);
+    int rc = each_model(buf, len, format, options, store_one, &c, pr, &list, &skipped, &single, err);
+    *json = rc ? NULL : answer(list, skipped, single, err);
     json_decref(list);
+    json_decref(skipped);
     snprintf(location, 64, "/models/%s", c.first);
     return rc ? rc : (*json ? 0 : err->code);
 }

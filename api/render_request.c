@@ -46,6 +46,11 @@ static int apply(const char *name, const char *v, struct scene *sc, enum image_f
     } else if (!strcmp(name, "method")) {
         if (scene_method_parse(v, &sc->method))
             return sf_fail(err, SF_EINVAL, "?method", "method is auto, map, bvh, mesh or montecarlo");
+    } else if (!strcmp(name, "samples")) {
+        if (!(rc = num_opt(name, v, 1, SCENE_MAX_SAMPLES, &d, err)))
+            sc->samples = (int)d;
+        if (!rc && d != (int)d)
+            rc = sf_fail(err, SF_EINVAL, "?samples", "samples is a whole number of rays a pixel, 1..%d", SCENE_MAX_SAMPLES);
     } else if (!strcmp(name, "width") || !strcmp(name, "height")) {
         if (!(rc = num_opt(name, v, 1, SCENE_MAX_SIDE, &d, err)))
             *(name[0] == 'w' ? &sc->width : &sc->height) = (int)d;

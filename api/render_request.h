@@ -11,7 +11,7 @@
 #include "scene_io.h"
 
 /* Applies a query string of overrides to sc: output=png|exr|tiff, method=, width=, height=,
- * azimuth=, elevation=, shadows=0|1, aovs=normal,uv,id, projection=perspective|orthographic, view=+x|-x|+y|-y|+z|-z,
+ * azimuth=, elevation=, shadows=0|1, samples=N, aovs=normal,uv,id, projection=perspective|orthographic, view=+x|-x|+y|-y|+z|-z,
  * view_height=, eye=x,y,z, target=x,y,z (with eye unless the scene has a camera), up=x,y,z, fov=;
  * errors point at "?name". Not validated (scene_validate does that). */
 int render_options_apply(const char *options, struct scene *sc, enum image_format *img, struct sf_err *err);

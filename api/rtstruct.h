@@ -19,9 +19,10 @@ struct rt_roi {
     char name[128];
     int number;              /* ROI Number */
     struct contour_set cs;   /* uncleaned: contour_clean() is the caller's */
+    const char *skipped;     /* NULL; or why the ROI has nothing to model (cs empty): listed, not built */
 };
 
-/* Reads every ROI that has contours. SF_EFORMAT for what is not DICOM, SF_EINVAL for a DICOM
+/* Reads every ROI: those with closed planar contours, and those without (skipped set). SF_EFORMAT for what is not DICOM, SF_EINVAL for a DICOM
  * object that is not an RT Structure Set or holds malformed contours (pointer: the DICOM path,
  * e.g. "/ROIContourSequence/2/ContourSequence/7/ContourData"). */
 int rtstruct_read(const void *buf, size_t len, struct rt_roi **rois, int *n_rois, struct sf_err *err);

@@ -152,7 +152,8 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
     if (rcs->card() > RTSTRUCT_MAX_ROIS)
         return sf_fail(err, SF_ELIMIT, "/ROIContourSequence", "more than %d ROIs", RTSTRUCT_MAX_ROIS);
 
-    struct rt_roi *rois = (struct rt_roi *)calloc(rcs->card() ? rcs->card() : 1, sizeof *rois);
+    /* room for every ROI Contour item and every named ROI without one (listed as skipped) */
+    struct rt_roi *rois = (struct rt_roi *)calloc(rcs->card() + names.size() + 1, sizeof *rois);
     if (!rois)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     int n = 0, rc = 0;
@@ -161,11 +162,15 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
         Sint32 num = 0;
         roi->findAndGetSint32(DCM_ReferencedROINumber, num);
         DcmSequenceOfItems *cseq = NULL;
-        if (roi->findAndGetSequence(DCM_ContourSequence, cseq).bad() || !cseq || cseq->card() == 0)
-            continue; // an ROI without contours: nothing to model
         struct rt_roi *out_roi = &rois[n];
         out_roi->number = num;
         snprintf(out_roi->name, sizeof out_roi->name, "%s", names.count(num) ? names[num].c_str() : "");
+        names.erase(num); // what stays in names has no ROI Contour item
+        if (roi->findAndGetSequence(DCM_ContourSequence, cseq).bad() || !cseq || cseq->card() == 0) {
+            out_roi->skipped = "no contours"; // nothing to model, listed
+            n++;
+            continue;
+        }
         if (cseq->card() > CONTOUR_MAX_SLICES) {
             rc = sf_fail(err, SF_ELIMIT, "/ROIContourSequence", "ROI %d has more than %d contours", (int)num,
                          CONTOUR_MAX_SLICES);
@@ -238,8 +243,15 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
             }
             s->z = z0;
         }
-        if (!rc && out_roi->cs.n_slices == 0)
-            contour_set_free(&rois[--n].cs); // only non-planar kinds: nothing to model
+        if (!rc && out_roi->cs.n_slices == 0) { // only non-planar kinds: nothing to model, listed
+            contour_set_free(&out_roi->cs);
+            out_roi->skipped = "only POINT or OPEN contours, which bound no volume";
+        }
+    }
+    for (std::map<long, std::string>::const_iterator it = names.begin(); !rc && it != names.end(); ++it) {
+        rois[n].number = (int)it->first;
+        snprintf(rois[n].name, sizeof rois[n].name, "%s", it->second.c_str());
+        rois[n++].skipped = "no contours (no ROI Contour item)";
     }
     if (rc) {
         rtstruct_free(rois, n);

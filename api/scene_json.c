@@ -228,6 +228,10 @@ static int image(json_t *j, struct scene *sc, enum image_format *img, struct sf_
         return rc;
     if ((v = json_object_get(j, "background")) && (rc = vec(v, "/image/background", &sc->background, err)))
         return rc;
+    sc->background_opaque |= v != NULL;
+    if ((v = json_object_get(j, "samples")) &&
+        (rc = integer(v, "/image/samples", 1, SCENE_MAX_SAMPLES, &sc->samples, err)))
+        return rc;
     if ((v = json_object_get(j, "format")) && (!json_is_string(v) || image_format_parse(json_string_value(v), img)))
         return sf_fail(err, SF_EINVAL, "/image/format", "format must be \"png\", \"exr\" or \"tiff\"");
     if ((v = json_object_get(j, "aovs"))) {

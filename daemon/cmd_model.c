@@ -1,7 +1,8 @@
 /* cmd_model.c - `surfd volume FILE` and `surfd model FILE`: contours in, the model's figures out
- * as JSON, offline; the same figures POST /volume and POST /model answer. `model` also writes the
- * model's mesh (--mesh OUT.stl|.ply|.obj) and patches (--patches OUT.json) as GET
- * /models/{id}/mesh and /patches would. */
+ * as JSON, offline; the same figures POST /volume and POST /model answer (an RT Structure Set's
+ * ROIs without contours listed as "skipped", with the reason). `model` also writes the model's
+ * mesh (--mesh OUT.stl|.ply|.obj|.vtp|.vtk, or --mesh DIR/: every model's, DIR/NAME.stl) and
+ * patches (--patches OUT.json) as GET /models/{id}/mesh and /patches would. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,34 +10,71 @@
 #include "../api/model_json.h"
 #include "cli.h"
 
-/* The sink of offline models: keeps the sources, counts them. */
+/* The sink of offline models: keeps their names and sources. */
 struct keep {
-    char *source;
-    size_t len;
+    struct kept_model {
+        char name[128];
+        char *source;
+        size_t len;
+    } *m;
     int n;
 };
 
 static int keep_put(void *ctx, const char *id, const char *name, const char *source, size_t source_len,
                     const char *resource)
 {
-    (void)id, (void)name, (void)resource;
+    (void)id, (void)resource;
     struct keep *k = ctx;
-    if (k->n++ == 0 && (k->source = malloc(source_len + 1))) {
-        memcpy(k->source, source, source_len);
-        k->source[source_len] = 0;
-        k->len = source_len;
-    }
-    return k->source ? 0 : -1;
+    struct kept_model *grown = realloc(k->m, sizeof *k->m * (size_t)(k->n + 1));
+    if (!grown)
+        return -1;
+    k->m = grown;
+    struct kept_model *m = &k->m[k->n];
+    snprintf(m->name, sizeof m->name, "%s", name ? name : "");
+    if (!(m->source = malloc(source_len + 1)))
+        return -1;
+    memcpy(m->source, source, source_len);
+    m->source[source_len] = 0;
+    m->len = source_len;
+    k->n++;
+    return 0;
+}
+
+static void keep_free(struct keep *k)
+{
+    for (int i = 0; i < k->n; i++)
+        free(k->m[i].source);
+    free(k->m);
+    memset(k, 0, sizeof *k);
+}
+
+/* Model m's mesh to path (its format from the extension): 0, or an SF_E* code with err. */
+static int write_mesh(const struct kept_model *m, const char *path, double tol, struct sf_err *err)
+{
+    const char *ext = strrchr(path, '.'), *mime;
+    char opts[96], *out = NULL;
+    size_t out_len = 0;
+    double used = 0.0;
+    snprintf(opts, sizeof opts, "format=%.8s&tolerance=%.17g", ext ? ext + 1 : "none", tol);
+    int rc = model_mesh(m->source, m->len, opts, NULL, &out, &out_len, &mime, &used, err);
+    if (!rc)
+        rc = cli_write_all(path, out, out_len) ? SF_EIO : 0;
+    if (!rc && used > 0)
+        fprintf(stderr, "surfd: %s: the surface within %.3g mm\n", path, used);
+    free(out);
+    return rc;
 }
 
 void cmd_volume_usage(FILE *f)
 {
-    fprintf(f, "usage: surfd volume CONTOURS.json|RTSTRUCT.dcm [--roi NAME] [--caps flat|slab|dome]\n"
+    fprintf(f, "usage: surfd volume CONTOURS.json|RTSTRUCT.dcm|MATRIX.json [--roi NAME] [--caps flat|slab|dome]\n"
                "                    [--method parabolic|linear-parabolic|coons|bspline]\n"
                "                    [--parameterisation arc-length|polar] [--repeat N]\n"
-               "       surfd model  CONTOURS.json|RTSTRUCT.dcm [--roi NAME] [--caps ...] [--method ...]\n"
-               "                    [--mesh OUT.stl|OUT.ply|OUT.obj [--tolerance MM]] [--patches OUT.json]\n"
-               "       --repeat runs it N times in one process and reports the last (warm) timings\n");
+               "       surfd model  CONTOURS.json|RTSTRUCT.dcm|MATRIX.json [--roi NAME] [--caps ...] [--method ...]\n"
+               "                    [--mesh OUT.stl|.ply|.obj|.vtp|.vtk | --mesh DIR/ (every model: DIR/NAME.stl)]\n"
+               "                    [--tolerance MM] [--patches OUT.json]\n"
+               "       --repeat runs it N times in one process and reports the last (warm) timings;\n"
+               "       an RT Structure Set's ROIs without contours are listed as \"skipped\" with the reason\n");
 }
 
 int cmd_volume(int argc, char **argv)
@@ -85,24 +123,27 @@ int cmd_volume(int argc, char **argv)
                    : model_figures(buf, len, format, options, NULL, &json, &err);
     }
     free(buf);
-    if (!rc && (mesh || patches) && kept.n != 1)
-        rc = sf_fail(&err, SF_EINVAL, "--roi", "%d models: choose one with --roi for --mesh or --patches", kept.n);
+    bool to_dir = mesh && mesh[0] && mesh[strlen(mesh) - 1] == '/';
+    if (!rc && ((mesh && !to_dir) || patches) && kept.n != 1)
+        rc = sf_fail(&err, SF_EINVAL, "--roi", "%d models: choose one with --roi, or --mesh DIR/ for all", kept.n);
+    for (int k = 0; !rc && mesh && k < kept.n; k++) {
+        char path[1200];
+        if (to_dir) { /* DIR/NAME.stl, the name's spaces and slashes as _ */
+            char name[128];
+            snprintf(name, sizeof name, "%s", kept.m[k].name[0] ? kept.m[k].name : "model");
+            for (char *c = name; *c; c++)
+                *c = *c == ' ' || *c == '/' || *c == '\\' ? '_' : *c;
+            snprintf(path, sizeof path, "%s%s.stl", mesh, name);
+        } else {
+            snprintf(path, sizeof path, "%s", mesh);
+        }
+        rc = write_mesh(&kept.m[k], path, tol, &err);
+    }
     char *out = NULL;
-    size_t out_len = 0;
-    const char *ext = mesh ? strrchr(mesh, '.') : NULL, *mime;
-    double tol_used = 0.0;
-    char mesh_opts[96];
-    snprintf(mesh_opts, sizeof mesh_opts, "format=%.8s&tolerance=%.17g", ext ? ext + 1 : "none", tol);
-    if (!rc && mesh && !(rc = model_mesh(kept.source, kept.len, mesh_opts, NULL, &out, &out_len, &mime, &tol_used, &err)))
-        rc = cli_write_all(mesh, out, out_len) ? SF_EIO : 0;
-    if (!rc && mesh && tol_used > 0)
-        fprintf(stderr, "surfd: %s: the surface within %.3g mm\n", mesh, tol_used);
-    free(out);
-    out = NULL;
-    if (!rc && patches && !(rc = model_patches_json(kept.source, kept.len, &out, &err)))
+    if (!rc && patches && !(rc = model_patches_json(kept.m[0].source, kept.m[0].len, &out, &err)))
         rc = cli_write_all(patches, out, strlen(out)) ? SF_EIO : 0;
     free(out);
-    free(kept.source);
+    keep_free(&kept);
     if (rc) {
         if (rc != SF_EIO)
             fprintf(stderr, "surfd: %s: %s%s%s\n", argv[1], err.message, err.pointer[0] ? " at " : "", err.pointer);

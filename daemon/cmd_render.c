@@ -65,7 +65,8 @@ void cmd_render_usage(FILE *f)
                     "                    [--width W --height H] [--threads N] [--format json|bpt|nurbs] [--stats]\n"
                     "                    [--azimuth DEG --elevation DEG] [--no-shadows] [--aovs normal,uv,id]\n"
                     "                    [--eye X,Y,Z --target X,Y,Z] [--up X,Y,Z] [--fov DEG]\n"
-                    "                    [--projection perspective|orthographic] [--view +x|-x|+y|-y|+z|-z] [--view-height H]\n");
+                    "                    [--projection perspective|orthographic] [--view +x|-x|+y|-y|+z|-z] [--view-height H]\n"
+                    "                    [--samples N] (rays a pixel, 1..64: anti-aliased, alpha fractional at silhouettes)\n");
     }
 
 static int usage(void)
@@ -132,7 +133,7 @@ int cmd_render(int argc, char **argv)
     char *inputs[64];
     int n_inputs = 0;
     char camera[1024] = ""; /* the camera flags as POST /render's query */
-    static const char *const CAMERA_FLAGS[] = {"eye", "target", "up", "fov", "projection", "view", "view-height"};
+    static const char *const CAMERA_FLAGS[] = {"eye", "target", "up", "fov", "projection", "view", "view-height", "samples"};
     for (int k = 1; k < argc; k++) {
         const char *a = argv[k];
         const char *val = k + 1 < argc ? argv[k + 1] : NULL;
@@ -156,7 +157,7 @@ int cmd_render(int argc, char **argv)
             el = atof(val), k++;
         else if (!strcmp(a, "--stats"))
             stats = 1;
-        else if (a[0] == '-' && a[1] == '-' && val && camera_flag(a + 2, CAMERA_FLAGS, 7)) {
+        else if (a[0] == '-' && a[1] == '-' && val && camera_flag(a + 2, CAMERA_FLAGS, 8)) {
             size_t at = strlen(camera);
             snprintf(camera + at, sizeof camera - at, "%s%s=%s", at ? "&" : "", a + 2, val);
             for (char *c = camera + at; *c != '='; c++)

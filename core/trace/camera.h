@@ -41,17 +41,24 @@ static inline void camera_make_ortho(struct camera *c, double view_h, double vie
     c->hw = view_w > 0.0 ? 0.5 * view_w : c->hh * c->aspect;
 }
 
-/* The ray through pixel (px, py), py = 0 the top row: its origin into *o, its direction (not
- * normalised for a pinhole) returned. */
-static inline vec3 camera_ray(const struct camera *c, int px, int py, vec3 *o)
+/* The ray through point (fx, fy) of the image plane in pixels (pixel (px, py) spans [px, px + 1)
+ * x [py, py + 1), py = 0 the top row): its origin into *o, its direction (not normalised for a
+ * pinhole) returned. */
+static inline vec3 camera_ray_at(const struct camera *c, double fx, double fy, vec3 *o)
 {
-    double sx = (px + 0.5) / c->W * 2.0 - 1.0, sy = 1.0 - (py + 0.5) / c->H * 2.0;
+    double sx = fx / c->W * 2.0 - 1.0, sy = 1.0 - fy / c->H * 2.0;
     if (c->ortho) {
         *o = v3_add(c->eye, v3_add(v3_scale(c->r, sx * c->hw), v3_scale(c->u, sy * c->hh)));
         return c->f;
     }
     *o = c->eye;
     return v3_add(c->f, v3_add(v3_scale(c->r, sx * c->th * c->aspect), v3_scale(c->u, sy * c->th)));
+}
+
+/* The ray through the centre of pixel (px, py). */
+static inline vec3 camera_ray(const struct camera *c, int px, int py, vec3 *o)
+{
+    return camera_ray_at(c, px + 0.5, py + 0.5, o);
 }
 
 #endif

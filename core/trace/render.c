@@ -507,20 +507,27 @@ static void shade_chunk(const struct frame *fr, struct chunk_px *px, int m, stru
 }
 
 /* Writes pixel (x, y) of the frame's buffers. */
-static void put_pixel(struct frame *fr, int x, int y, const struct chunk_px *p)
+/* Writes pixel (x, y): colour c premultiplied by its coverage a (the fraction of its rays that hit),
+ * the rest background for an 8-bit picture and for a request that gave one (opaque), else left
+ * transparent (RGB 0 where a = 0: premultiplied, as EXR means it); depth and the AOVs from p, the
+ * pixel's nearest hit (or none). */
+static void put_pixel(struct frame *fr, int x, int y, const struct chunk_px *p, vec3 c, double a)
 {
     const struct scene *sc = fr->sc;
     size_t idx = (size_t)y * sc->width + x;
     if (fr->srgb8) {
         unsigned char *px = &fr->srgb8[3 * idx];
-        if (p->ok) /* else background, as frame_prepare wrote it */
-            px[0] = srgb8(fr->srgb, (float)p->c.x), px[1] = srgb8(fr->srgb, (float)p->c.y),
-            px[2] = srgb8(fr->srgb, (float)p->c.z);
+        if (a > 0.0) { /* else background, as frame_prepare wrote it */
+            c = v3_mad(c, sc->background, 1.0 - a);
+            px[0] = srgb8(fr->srgb, (float)c.x), px[1] = srgb8(fr->srgb, (float)c.y), px[2] = srgb8(fr->srgb, (float)c.z);
+        }
         return;
     }
     float *px = &fr->rgba[4 * idx];
-    vec3 c = p->ok ? p->c : sc->background, n = p->ok ? p->n : v3(0, 0, 0);
-    px[0] = (float)c.x, px[1] = (float)c.y, px[2] = (float)c.z, px[3] = p->ok ? 1.0f : 0.0f;
+    if (sc->background_opaque)
+        c = v3_mad(c, sc->background, 1.0 - a), a = 1.0;
+    vec3 n = p->ok ? p->n : v3(0, 0, 0);
+    px[0] = (float)c.x, px[1] = (float)c.y, px[2] = (float)c.z, px[3] = (float)a;
     fr->depth[idx] = p->ok ? (float)p->hit.t : INFINITY;
     if (fr->normal)
         fr->normal[3 * idx] = (float)n.x, fr->normal[3 * idx + 1] = (float)n.y, fr->normal[3 * idx + 2] = (float)n.z;
@@ -548,6 +555,107 @@ static bool none_listed(const unsigned char *n, int m)
     return !any;
 }
 
+/* Traces and shades the m pixels of row y from x0, each through its point (x + ox, y + oy):
+ * method's primary rays (the map's candidates when rw is given: rows y0 on), the row's seed rs
+ * carried from chunk to chunk. */
+static void trace_chunk(const struct frame *fr, enum render_method method, struct map_rows *rw, int y0, int y, int x0,
+                        int m, double ox, double oy, struct chunk_px *px, struct row_seed *rs, uint64_t *rng,
+                        struct render_stats *st)
+{
+    const int W = fr->sc->width;
+    st->rays += m;
+    st->primary += m;
+    /* the chunk's rays first: independent of each other, their square roots and divisions
+     * overlap, where each pixel's would wait for the one before to be traced */
+    for (int j = 0; j < m; j++) {
+        size_t at = (size_t)(y - y0) * W + (size_t)(x0 + j); /* in the band */
+        px[j].ok = !rw || rw->n[at]; /* false: background by the map, no ray needed */
+        if (px[j].ok) {
+            vec3 o, d = camera_ray_at(&fr->cam, x0 + j + ox, y + oy, &o);
+            solve_ray_init(&px[j].r, o, d);
+        }
+    }
+    bool any = false;
+    for (int j = 0; j < m; j++) {
+        struct chunk_px *p = &px[j];
+        size_t at = (size_t)(y - y0) * W + (size_t)(x0 + j);
+        if (!p->ok) {
+            rs->patch = -1;
+            continue;
+        }
+        switch (method) {
+        case METHOD_MAP:
+        case METHOD_AUTO: p->ok = primary_map(fr, rw, at, rs, &p->r, &p->hit, st); break;
+        case METHOD_MONTECARLO: p->ok = primary_montecarlo(fr, &p->r, rng, &p->hit, st); break;
+        case METHOD_MESH: p->ok = bvh_intersect(fr->mesh, &p->r, 0.0, INFINITY, &p->hit, &st->iterations); break;
+        default: p->ok = bvh_intersect(fr->exact, &p->r, 0.0, INFINITY, &p->hit, &st->iterations); break;
+        }
+        if (!p->ok)
+            rs->patch = -1;
+        else if (p->hit.patch == rs->patch)
+            *rs = (struct row_seed){p->hit.patch, p->hit.u, p->hit.v, p->hit.u - rs->u, p->hit.v - rs->v};
+        else
+            *rs = (struct row_seed){p->hit.patch, p->hit.u, p->hit.v, 0.0, 0.0};
+        st->hits += p->ok;
+        any |= p->ok;
+    }
+    if (any)
+        shade_chunk(fr, px, m, st);
+}
+
+static int gcd_int(int a, int b)
+{
+    while (b) {
+        int r = a % b;
+        a = b, b = r;
+    }
+    return a;
+}
+
+/* Sample s of n within a pixel: n rooks (one in each column and each row of an n x n grid, the
+ * rows a coprime stride apart), so an edge of any slope sees n levels of coverage. */
+static void rook(int s, int n, double *ox, double *oy)
+{
+    int stride = (int)(0.618 * n + 0.5);
+    while (stride > 1 && gcd_int(n, stride) != 1)
+        stride--;
+    *ox = (s + 0.5) / n;
+    *oy = ((long)s * (stride > 0 ? stride : 1) % n + 0.5) / n;
+}
+
+/* Rows [y0, y1) with samples rays a pixel: the hierarchy's (the map's candidates are the pixel
+ * centres'), colours averaged, coverage the fraction that hit, depth and AOVs of the nearest hit. */
+static void band_sampled(struct frame *fr, enum render_method method, int y0, int y1, struct render_stats *st)
+{
+    const int W = fr->sc->width, n = fr->sc->samples;
+    if (method == METHOD_MAP || method == METHOD_AUTO)
+        method = METHOD_BVH;
+    uint64_t rng = 0x9E3779B97F4A7C15ull ^ (uint64_t)(y0 + 1) * 0xBF58476D1CE4E5B9ull;
+    struct chunk_px px[SHADE_CHUNK], near[SHADE_CHUNK];
+    vec3 sum[SHADE_CHUNK];
+    int hits[SHADE_CHUNK];
+    for (int y = y0; y < y1; y++)
+        for (int x0 = 0; x0 < W; x0 += SHADE_CHUNK) {
+            int m = W - x0 < SHADE_CHUNK ? W - x0 : SHADE_CHUNK;
+            for (int j = 0; j < m; j++)
+                sum[j] = v3(0, 0, 0), hits[j] = 0, near[j].ok = false;
+            for (int s = 0; s < n; s++) {
+                double ox, oy;
+                rook(s, n, &ox, &oy);
+                struct row_seed rs = {.patch = -1};
+                trace_chunk(fr, method, NULL, y0, y, x0, m, ox, oy, px, &rs, &rng, st);
+                for (int j = 0; j < m; j++)
+                    if (px[j].ok) {
+                        sum[j] = v3_add(sum[j], px[j].c), hits[j]++;
+                        if (!near[j].ok || px[j].hit.t < near[j].hit.t)
+                            near[j] = px[j];
+                    }
+            }
+            for (int j = 0; j < m; j++)
+                put_pixel(fr, x0 + j, y, &near[j], v3_scale(sum[j], 1.0 / n), (double)hits[j] / n);
+        }
+}
+
 void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
 {
     const struct scene *sc = fr->sc;
@@ -555,6 +663,10 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
     enum render_method method = sc->method;
     if ((method == METHOD_MAP || method == METHOD_AUTO) && (!fr->map || !fr->map->complete))
         method = METHOD_BVH; /* too large for a map, or the eye inside the scene's hull */
+    if (sc->samples > 1) {
+        band_sampled(fr, method, y0, y1, st);
+        return;
+    }
     struct map_rows rw = {0};
     if ((method == METHOD_MAP || method == METHOD_AUTO) && map_raster_rows(fr->map, y0, y1, &rw))
         method = METHOD_BVH; /* no memory for the band's candidates: exact all the same */
@@ -565,52 +677,15 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
         struct row_seed rs = {.patch = -1};
         for (int x0 = 0; x0 < W; x0 += SHADE_CHUNK) {
             int m = W - x0 < SHADE_CHUNK ? W - x0 : SHADE_CHUNK;
-            st->rays += m;
-            st->primary += m;
             if (use_map && fr->srgb8 && none_listed(&rw.n[(size_t)(y - y0) * W + x0], m)) {
+                st->rays += m;
+                st->primary += m;
                 rs.patch = -1; /* background alone, by the map (most chunks of a frame): written already */
                 continue;
             }
-            /* the chunk's rays first: independent of each other, their square roots and divisions
-             * overlap, where each pixel's would wait for the one before to be traced */
-            for (int j = 0; j < m; j++) {
-                size_t at = (size_t)(y - y0) * W + (size_t)(x0 + j); /* in the band */
-                px[j].ok = !use_map || rw.n[at]; /* false: background by the map, no ray needed */
-                if (px[j].ok) {
-                    vec3 o, d = camera_ray(&fr->cam, x0 + j, y, &o);
-                    solve_ray_init(&px[j].r, o, d);
-                }
-            }
-            bool any = false;
-            for (int j = 0; j < m; j++) {
-                struct chunk_px *p = &px[j];
-                size_t at = (size_t)(y - y0) * W + (size_t)(x0 + j);
-                if (!p->ok) {
-                    rs.patch = -1;
-                    continue;
-                }
-                switch (method) {
-                case METHOD_MAP:
-                case METHOD_AUTO: p->ok = primary_map(fr, &rw, at, &rs, &p->r, &p->hit, st); break;
-                case METHOD_MONTECARLO: p->ok = primary_montecarlo(fr, &p->r, &rng, &p->hit, st); break;
-                case METHOD_MESH:
-                    p->ok = bvh_intersect(fr->mesh, &p->r, 0.0, INFINITY, &p->hit, &st->iterations);
-                    break;
-                default: p->ok = bvh_intersect(fr->exact, &p->r, 0.0, INFINITY, &p->hit, &st->iterations); break;
-                }
-                if (!p->ok)
-                    rs.patch = -1;
-                else if (p->hit.patch == rs.patch)
-                    rs = (struct row_seed){p->hit.patch, p->hit.u, p->hit.v, p->hit.u - rs.u, p->hit.v - rs.v};
-                else
-                    rs = (struct row_seed){p->hit.patch, p->hit.u, p->hit.v, 0.0, 0.0};
-                st->hits += p->ok;
-                any |= p->ok;
-            }
-            if (any)
-                shade_chunk(fr, px, m, st);
+            trace_chunk(fr, method, use_map ? &rw : NULL, y0, y, x0, m, 0.5, 0.5, px, &rs, &rng, st);
             for (int j = 0; j < m; j++)
-                put_pixel(fr, x0 + j, y, &px[j]);
+                put_pixel(fr, x0 + j, y, &px[j], px[j].ok ? px[j].c : v3(0, 0, 0), px[j].ok);
         }
     }
     map_rows_free(&rw);

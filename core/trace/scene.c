@@ -14,6 +14,7 @@ void scene_init(struct scene *sc)
     sc->width = 800;
     sc->height = 600;
     sc->background = v3(1, 1, 1);
+    sc->samples = 1;
     sc->up = v3(0, 0, 1);
     sc->fov_deg = 35.0;
     sc->azimuth_deg = 30.0;
@@ -126,6 +127,9 @@ int scene_validate(const struct scene *sc, struct sf_err *err)
     if (!(sc->mesh_tolerance >= 1e-7 && sc->mesh_tolerance <= 1e-1))
         return sf_fail(err, SF_EINVAL, "/render/mesh_tolerance", "mesh_tolerance must be within [1e-7, 0.1], not %g",
                        sc->mesh_tolerance);
+    if (sc->samples < 1 || sc->samples > SCENE_MAX_SAMPLES)
+        return sf_fail(err, SF_EINVAL, "/image/samples", "samples must be 1..%d rays a pixel, not %d", SCENE_MAX_SAMPLES,
+                       sc->samples);
     if (!finite3(sc->background))
         return sf_fail(err, SF_EINVAL, "/image/background", "background must be three finite numbers");
     if (sc->n_objects < 1 && sc->n_meshes < 1)

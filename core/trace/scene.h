@@ -15,6 +15,7 @@
 #define SCENE_MAX_PIXELS (64u << 20)  /* width * height */
 #define SCENE_MAX_OBJECTS 100000
 #define SCENE_MAX_LIGHTS 64
+#define SCENE_MAX_SAMPLES 64          /* rays a pixel */
 
 enum render_method { METHOD_AUTO, METHOD_MAP, METHOD_BVH, METHOD_MESH, METHOD_MONTECARLO };
 
@@ -51,6 +52,10 @@ struct scene_mesh {
 struct scene {
     int width, height;
     vec3 background;
+    bool background_opaque;   /* the request gave a background: EXR/TIFF pixels composite over it
+                               * (alpha 1); else premultiplied, RGB 0 where alpha is 0 */
+    int samples;              /* primary rays a pixel (1: its centre; more: stratified over it,
+                               * alpha the covered fraction) */
     unsigned aovs;            /* AOV_* bits wanted besides colour and depth */
     bool srgb8_only;          /* keep only the 8-bit sRGB picture (a PNG's pixels, converted band by
                                * band on the render's threads): no float colour, depth or AOVs */

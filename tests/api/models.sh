@@ -58,6 +58,10 @@ check "patches: bicubic and rational dome patches" '[ "$code" = 200 ] && grep -q
 check "patches render as a scene" '[ "$(status POST "/render?width=64&height=48" -H "$J" --data-binary @"$T/p.json")" = 200 ] && [ "$(header Content-Type)" = image/png ]'
 
 check "a mesh is a job of its own kind" '[ "$(status GET "/models/$id/mesh?tolerance=0.5")" = 200 ] && mj=$(header X-Job-Id) && [ "$(status GET /jobs/$mj)" = 200 ] && grep -q "\"kind\":\"mesh\"" "$T/body"'
+code=$(status POST /volume -H 'Content-Type: application/dicom' --data-binary @"$C/dicompyler-core_example_rtss.dcm")
+check "an RT Structure Set's ROIs without contours are listed as skipped, with the reason" '[ "$code" = 200 ] && grep -q "\"skipped\":\[{\"name\":\"Areola\",\"roi_number\":2,\"reason\":\"no contours\"}\]" "$T/body"'
+code=$(status POST "/volume?roi=Areola" -H 'Content-Type: application/dicom' --data-binary @"$C/dicompyler-core_example_rtss.dcm")
+check "... ?roi naming one: 422 at ?roi with the reason" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?roi\"" "$T/body" && grep -q "no contours" "$T/body"'
 status POST "/model?roi=Heart" -H 'Content-Type: application/dicom' --data-binary @"$C/dicompyler-core_example_rtss.dcm" >/dev/null
 heart=$(field id)
 pids=""

@@ -68,9 +68,9 @@ def povray_scene(patches):
     return pov
 
 
-def povray_once(pov, threads):
+def povray_once(pov, threads, aa=()):
     p = subprocess.run(["povray", "+I" + pov, "+O" + os.path.join(TMP, "pov.png"), "+W%d" % W, "+H%d" % H,
-                        "-D", "+WT%d" % threads, "-V"], capture_output=True, text=True)
+                        "-D", "+WT%d" % threads, "-V", *aa], capture_output=True, text=True)
     m = re.search(r"Trace Time:.*\(([\d.]+) seconds\)", p.stderr)
     if not m:
         sys.exit("povray: no trace time\n" + p.stderr[-2000:])
@@ -634,6 +634,38 @@ def edit_bench(lines, n_edits=20):
                  "%.0f ms for the request.\n" % new_iso)
 
 
+def aa_bench(lines):
+    """Issue 18: anti-aliasing (?samples=N, stratified rays a pixel) on the teapot at 1024x1024, 2 threads, against
+    one ray a pixel and POV-Ray's own supersampling (+A0.0 +AM1 +R4: 16 rays a pixel everywhere), same run."""
+    teapot, patches = scene_file("teapot.json", True)
+    pov_file = povray_scene(patches)
+    runs = {}
+    for n in (1, 4, 16):
+        out = os.path.join(TMP, "aa.png")
+        rs = []
+        for _ in range(REPEAT):
+            p = subprocess.run([SURFD, "render", teapot, "-o", out, "--threads", "2", "--width", str(W), "--height",
+                                str(H), "--samples", str(n), "--stats"], capture_output=True, text=True)
+            if p.returncode:
+                sys.exit("surfd failed: " + p.stderr)
+            rs.append(json.loads(p.stderr.strip().splitlines()[-1]))
+        runs[n] = medians(rs)
+    pov1 = statistics.median(povray_once(pov_file, 2) for _ in range(REPEAT))
+    pov16 = statistics.median(povray_once(pov_file, 2, ("+A0.0", "+AM1", "+R4")) for _ in range(REPEAT))
+    lines.append("## Anti-aliasing (issue 18)\n")
+    lines.append("Teapot 1024x1024, 2 threads, PNG: `surfd render teapot.json --samples N --stats` (stratified rays a "
+                 "pixel through the hierarchy: the map's candidates are the pixel centres'); POV-Ray 3.7 with +A0.0 +AM1 "
+                 "+R4 (16 rays a pixel). Median of %d runs.\n" % REPEAT)
+    lines.append("| renderer | rays a pixel | render ms | x one ray |")
+    lines.append("|---|---|---|---|")
+    for n in (1, 4, 16):
+        lines.append("| surfd | %d | %.1f | %.2f |" % (n, runs[n]["render_ms"], runs[n]["render_ms"] / runs[1]["render_ms"]))
+    lines.append("| POV-Ray | 1 | %.1f | 1.00 |" % pov1)
+    lines.append("| POV-Ray | 16 | %.1f | %.2f |" % (pov16, pov16 / pov1))
+    lines.append("")
+    lines.append("- surfd at 16 rays a pixel against POV-Ray at 16: %.1fx faster.\n" % (pov16 / runs[16]["render_ms"]))
+
+
 def matrix_bench(lines):
     """Issue 16: matrix models (seed 003) to meshes against marching cubes on the same voxels (VTK's Flying Edges on
     the mask at iso 127.5, padded), in the same run."""
@@ -748,7 +780,7 @@ def big_volume_bench(lines):
 def main():
     rows, notes = [], []
     parts = {"iso": (iso_bench, adapt_bench, edit_bench, sharp_bench, big_volume_bench), "adapt": (adapt_bench,),
-             "edit": (edit_bench,), "matrix": (matrix_bench,),
+             "edit": (edit_bench,), "matrix": (matrix_bench,), "aa": (aa_bench,),
              "sharp": (sharp_bench,), "cluster": (cluster_bench,),
              "contours": (contour_bench,), "http": (http_bench,)}
     only = os.environ.get("BENCH_ONLY")
@@ -826,9 +858,10 @@ def main():
     edit_bench(lines)
     sharp_bench(lines)
     matrix_bench(lines)
+    aa_bench(lines)
     big_volume_bench(lines)
     lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=http`, `BENCH_ONLY=contours`, "
-                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso`, `BENCH_ONLY=adapt`, `BENCH_ONLY=edit`, `BENCH_ONLY=sharp` or `BENCH_ONLY=matrix` for one part).")
+                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso`, `BENCH_ONLY=adapt`, `BENCH_ONLY=edit`, `BENCH_ONLY=sharp`, `BENCH_ONLY=matrix` or `BENCH_ONLY=aa` for one part).")
     out = os.path.join(ROOT, "tests", "bench", "RESULTS.md")
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")

@@ -20,7 +20,7 @@ $S volume "$T/x.json" >/dev/null 2>"$T/err"; rc=$?
 check "self-crossing contour" '[ $rc -eq 1 ] && grep -q "crosses itself" "$T/err" && grep -q "at /slices/0/points" "$T/err"'
 # DICOM RT Structure Sets
 $S volume "$C/dicompyler-core_example_rtss.dcm" >"$T/out" 2>"$T/err"
-check "rtstruct: every ROI with contours" '[ $? -eq 0 ] && [ "$(grep -o "\"roi_number\"" "$T/out" | wc -l)" -eq 9 ] && grep -q "\"name\":\"Lt Lung\"" "$T/out"'
+check "rtstruct: every ROI with contours" '[ $? -eq 0 ] && [ "$(python3 -c "import json, sys; print(len(json.load(open(sys.argv[1]))[\"models\"]))" "$T/out")" -eq 9 ] && grep -q "\"name\":\"Lt Lung\"" "$T/out"'
 $S volume "$C/dicompyler-core_example_rtss.dcm" --roi Heart >"$T/out"
 check "rtstruct --roi Heart equals the JSON file" '[ $? -eq 0 ] && grep -q "\"volume_mm3\":434480.14" "$T/out" && ! grep -q "\"models\"" "$T/out"'
 $S volume "$C/slicerrt_EclipseProstatePhantom_RS.dcm" --roi Bladder --caps slab >"$T/out"
@@ -55,6 +55,16 @@ $S volume "$C/synthetic_bean.json" --method nurbs >/dev/null 2>"$T/err"; rc=$?
 check "volume --method unknown" '[ $rc -eq 1 ] && grep -q "at ?method" "$T/err"'
 $S volume "$T/none.json" 2>/dev/null; rc=$?
 check "missing file" '[ $rc -eq 1 ]'
+$S volume "$C/dicompyler-core_example_rtss.dcm" >"$T/out" 2>/dev/null
+check "an RT Structure Set's ROI without contours is listed as skipped, with the reason" 'python3 -c "
+import json, sys
+s = json.load(open(sys.argv[1]))[\"skipped\"]
+sys.exit(0 if [r[\"name\"] for r in s] == [\"Areola\"] and s[0][\"reason\"] == \"no contours\" else 1)" "$T/out"'
+$S volume "$C/dicompyler-core_example_rtss.dcm" --roi Areola >/dev/null 2>"$T/err"; rc=$?
+check "... and --roi naming it: refused with the reason" '[ $rc -ne 0 ] && grep -q "nothing to model: no contours" "$T/err"'
+mkdir -p "$T/rois"
+$S model "$C/dicompyler-core_example_rtss.dcm" --caps slab --mesh "$T/rois/" >"$T/out" 2>"$T/err"
+check "surfd model RS.dcm --mesh DIR/: every ROI's closed mesh, DIR/NAME.stl" '[ $? -eq 0 ] && [ "$(ls "$T/rois" | wc -l)" = 9 ] && [ -f "$T/rois/Tumor_Bed_Block.stl" ] && for f in "$T"/rois/*.stl; do python3 tests/tools/stl_check.py "$f" - >/dev/null || exit 1; done'
 $S volume 2>/dev/null; rc=$?
 check "usage" '[ $rc -eq 2 ]'
 checks_done
