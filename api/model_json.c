@@ -345,6 +345,10 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
             break;
         }
         json_object_set_new(o, "roi_number", json_integer(rois[k].number));
+        if (rois[k].frame_uid[0]) /* what an export references (GET /models/{id}/rtstruct) */
+            json_object_set_new(o, "frame_of_reference_uid", json_string(rois[k].frame_uid));
+        if (rois[k].study_uid[0])
+            json_object_set_new(o, "study_instance_uid", json_string(rois[k].study_uid));
         json_array_append_new(*list, o);
         if (fn)
             rc = fn(ctx, (int)json_array_size(*list) - 1, o, &rois[k].cs, &req, err);
@@ -472,26 +476,18 @@ int model_mesh_key(const char *options, char *key, size_t cap, struct sf_err *er
     return rc;
 }
 
-int model_mesh(const char *src, size_t len, const char *options, const struct sf_progress *pr, char **out,
-               size_t *out_len, const char **mime, double *tol_used, struct sf_err *err)
+/* A stored model as triangles: an isosurface's own mesh, or a contour model's at tol (0: the
+ * default tied to it, solid_mesh_default); *tol_used the tolerance (0 for a mesh model). */
+static int model_trimesh(const char *src, size_t len, double tol, const struct sf_progress *pr, struct trimesh *tm,
+                         double *tol_used, struct sf_err *err)
 {
-    const char *format;
-    double tol;
-    *out = NULL;
+    memset(tm, 0, sizeof *tm);
     *tol_used = 0.0;
-    int rc = model_mesh_options(options, &format, &tol, err);
-    if (rc)
-        return rc;
-    *mime = mesh_mime(format);
-    if (mesh_is_packed(src, len)) { /* an isosurface: the mesh itself */
-        struct trimesh tm;
-        if (!(rc = mesh_unpack(src, len, &tm, err)))
-            rc = mesh_encode(&tm, format, out, out_len, err);
-        trimesh_free(&tm);
-        return rc;
-    }
+    if (mesh_is_packed(src, len)) /* an isosurface or a matrix model: the mesh itself */
+        return mesh_unpack(src, len, tm, err);
     struct solid sd;
-    if ((rc = solid_of(src, len, pr, &sd, err)))
+    int rc = solid_of(src, len, pr, &sd, err);
+    if (rc)
         return rc;
     struct solid_measures sm;
     solid_measure(&sd, &sm);
@@ -507,17 +503,163 @@ int model_mesh(const char *src, size_t len, const char *options, const struct sf
                        tol > 0 ? tol : dflt, MESH_MAX_TRIANGLES, dflt);
     if (rc)
         return sf_fail(err, SF_ENOMEM, "", "out of memory meshing the model");
-    struct trimesh tm = {malloc(12 * (m.n_v ? m.n_v : 1)), NULL, malloc(12 * (m.n_t ? m.n_t : 1)), m.n_v, m.n_t};
-    if (tm.pos && tm.tri) { /* the formats' own precision */
+    *tm = (struct trimesh){malloc(12 * (m.n_v ? m.n_v : 1)), NULL, malloc(12 * (m.n_t ? m.n_t : 1)), m.n_v, m.n_t};
+    if (tm->pos && tm->tri) { /* the formats' own precision */
         for (size_t k = 0; k < 3 * m.n_v; k++)
-            tm.pos[k] = (float)m.v[k / 3][k % 3];
+            tm->pos[k] = (float)m.v[k / 3][k % 3];
         for (size_t k = 0; k < 3 * m.n_t; k++)
-            tm.tri[k] = m.t[k / 3][k % 3];
-        rc = mesh_encode(&tm, format, out, out_len, err);
+            tm->tri[k] = m.t[k / 3][k % 3];
     } else {
+        trimesh_free(tm);
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory writing the mesh");
     }
     solid_mesh_free(&m);
+    return rc;
+}
+
+int model_mesh(const char *src, size_t len, const char *options, const struct sf_progress *pr, char **out,
+               size_t *out_len, const char **mime, double *tol_used, struct sf_err *err)
+{
+    const char *format;
+    double tol;
+    *out = NULL;
+    *tol_used = 0.0;
+    int rc = model_mesh_options(options, &format, &tol, err);
+    if (rc)
+        return rc;
+    *mime = mesh_mime(format);
+    struct trimesh tm;
+    if (!(rc = model_trimesh(src, len, tol, pr, &tm, tol_used, err)))
+        rc = mesh_encode(&tm, format, out, out_len, err);
+    trimesh_free(&tm);
+    return rc;
+}
+
+int model_rtstruct_options(const char *options, double *spacing, struct sf_err *err)
+{
+    char v[64], *end = NULL;
+    query_option(options, "spacing", v, sizeof v);
+    *spacing = v[0] ? strtod(v, &end) : 0.0;
+    if ((v[0] && (*end || !(*spacing > 0))) || !(*spacing >= 0) || *spacing > 1000)
+        return sf_fail(err, SF_EINVAL, "?spacing", "spacing is the distance of the sections in mm, (0, 1000]");
+    return 0;
+}
+
+/* The planes an export cuts: ?spacing apart from the first slice of a contour model (or the mesh's
+ * lowest point), else a contour model's own slices, else an isosurface's grid spacing; spaced
+ * planes get the mesh's lowest and highest points too (its ends), and planes on them are moved in
+ * by 1e-6 of its height (a flat cap lies in them). */
+static int section_planes(const char *src, size_t len, const char *resource, double spacing, const struct trimesh *tm,
+                          double **z, int *n, struct sf_err *err)
+{
+    double lo = INFINITY, hi = -INFINITY;
+    for (size_t k = 0; k < tm->n_vert; k++)
+        lo = fmin(lo, tm->pos[3 * k + 2]), hi = fmax(hi, tm->pos[3 * k + 2]);
+    double first = lo;
+    *z = NULL;
+    *n = 0;
+    int rc = 0;
+    if (!mesh_is_packed(src, len)) {
+        struct contour_set cs;
+        struct contour_request req;
+        if ((rc = contour_parse_json(src, len, &cs, &req, err)))
+            return rc;
+        if (!spacing && !(*z = malloc(sizeof **z * (size_t)(cs.n_slices + 1))))
+            rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+        for (int k = 0; !rc && k < cs.n_slices; k++) {
+            if (spacing) {
+                first = k == 0 ? cs.s[k].z : fmin(first, cs.s[k].z);
+            } else if (*n == 0 || cs.s[k].z != (*z)[*n - 1]) { /* several contours of a slice: one plane */
+                (*z)[(*n)++] = cs.s[k].z;
+            }
+        }
+        contour_set_free(&cs);
+    } else if (!spacing) { /* an isosurface of samples: its grid's slices */
+        json_t *r = json_loads(resource, 0, NULL);
+        double sz = 0.0, oz = 0.0;
+        if (!r || json_unpack(r, "{s:{s:[F,F,F], s:[F,F,F]}}", "grid", "spacing", &sz, &sz, &sz, "origin", &oz, &oz, &oz) ||
+            !(sz > 0)) {
+            json_decref(r);
+            return sf_fail(err, SF_EINVAL, "?spacing", "this model has no slices of its own: give ?spacing in mm");
+        }
+        json_decref(r);
+        spacing = sz, first = oz;
+    }
+    if (!rc && spacing) {
+        double k0 = ceil((lo - first) / spacing - 1e-9), k1 = floor((hi - first) / spacing + 1e-9);
+        if (k1 - k0 + 1 > CONTOUR_MAX_SLICES)
+            return sf_fail(err, SF_ELIMIT, "?spacing", "%g mm gives over %d sections", spacing, CONTOUR_MAX_SLICES);
+        if (!(*z = malloc(sizeof **z * (size_t)(k1 - k0 + 4))))
+            return sf_fail(err, SF_ENOMEM, "", "out of memory");
+        if (k0 > k1 || first + k0 * spacing - lo > 1e-3 * spacing) /* the lowest point: the structure's end */
+            (*z)[(*n)++] = lo;
+        for (double k = k0; k <= k1; k++)
+            (*z)[(*n)++] = first + k * spacing;
+        if (k0 > k1 || hi - (first + k1 * spacing) > 1e-3 * spacing)
+            (*z)[(*n)++] = hi;
+    }
+    double eps = 1e-6 * (hi - lo);
+    for (int k = 0; !rc && k < *n; k++)
+        (*z)[k] = fmin(fmax((*z)[k], lo + eps), hi - eps);
+    return rc;
+}
+
+int model_rtstruct(const char *src, size_t len, const char *resource, const char *options,
+                   const struct sf_progress *pr, unsigned char **out, size_t *out_len, struct sf_err *err)
+{
+    *out = NULL;
+    double spacing, tol;
+    struct trimesh tm;
+    int rc = model_rtstruct_options(options, &spacing, err);
+    if (rc || (rc = model_trimesh(src, len, 0.0, pr, &tm, &tol, err)))
+        return rc;
+    double *z = NULL;
+    int n_z = 0, n_c = 0, cap = 0;
+    struct rt_contour *c = NULL;
+    rc = section_planes(src, len, resource, spacing, &tm, &z, &n_z, err);
+    for (int k = 0; !rc && k < n_z; k++) {
+        struct trimesh_loops l;
+        if ((rc = trimesh_slice(&tm, z[k], &l, err)))
+            break;
+        for (int i = 0; !rc && i < l.n; i++) {
+            int np = l.start[i + 1] - l.start[i];
+            if (n_c == cap) {
+                struct rt_contour *g = realloc(c, sizeof *c * (size_t)(cap = cap ? 2 * cap : 64));
+                if (!g) {
+                    rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+                    break;
+                }
+                c = g;
+            }
+            if (!(c[n_c].p = malloc(sizeof *c[n_c].p * (size_t)np))) {
+                rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+                break;
+            }
+            c[n_c].n = np;
+            for (int j = 0; j < np; j++)
+                c[n_c].p[j][0] = l.p[l.start[i] + j][0], c[n_c].p[j][1] = l.p[l.start[i] + j][1], c[n_c].p[j][2] = z[k];
+            n_c++;
+        }
+        trimesh_loops_free(&l);
+    }
+    json_t *r = rc ? NULL : json_loads(resource, 0, NULL);
+    if (!rc && !r)
+        rc = sf_fail(err, SF_EINVAL, "", "the model's resource is not JSON");
+    if (!rc && n_c == 0)
+        rc = sf_fail(err, SF_EINVAL, "?spacing", "no section of the model: its planes miss it");
+    if (!rc) {
+        json_t *num = json_object_get(r, "roi_number");
+        const char *name = json_string_value(json_object_get(r, "name"));
+        struct rt_export e = {"surfd", name && *name ? name : "model", num ? (int)json_integer_value(num) : 1,
+                              json_string_value(json_object_get(r, "study_instance_uid")),
+                              json_string_value(json_object_get(r, "frame_of_reference_uid")), c, n_c};
+        rc = rtstruct_write(&e, out, out_len, err);
+    }
+    json_decref(r);
+    for (int k = 0; k < n_c; k++)
+        free(c[k].p);
+    free(c);
+    free(z);
     trimesh_free(&tm);
     return rc;
 }

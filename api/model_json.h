@@ -47,6 +47,15 @@ int model_create(const char *buf, size_t len, const char *format, const char *op
  * and *mime receive the file, *tol_used the tolerance (0 for an isosurface: its own mesh). */
 int model_mesh(const char *src, size_t len, const char *options, const struct sf_progress *pr, char **out,
                size_t *out_len, const char **mime, double *tol_used, struct sf_err *err);
+/* A stored model (resource: its resource JSON) as a DICOM RT Structure Set of one ROI: the mesh at
+ * the default tolerance cut by planes - a contour model's own slices, or ?spacing=MM apart (an
+ * isosurface: its grid's slices by default) - into CLOSED_PLANAR contours in patient coordinates,
+ * referencing the source's study and frame of reference where it came from one (else fresh UIDs).
+ * *out (caller frees) receives the DICOM Part 10 object. */
+int model_rtstruct(const char *src, size_t len, const char *resource, const char *options,
+                   const struct sf_progress *pr, unsigned char **out, size_t *out_len, struct sf_err *err);
+/* What model_rtstruct would refuse in its options (?spacing). */
+int model_rtstruct_options(const char *options, double *spacing, struct sf_err *err);
 /* The cache key of a mesh request's options ("stl default", "ply 0.05"), or their error. */
 int model_mesh_key(const char *options, char *key, size_t cap, struct sf_err *err);
 /* What model_mesh would refuse in its options (errors point at ?format, ?tolerance). */

@@ -1,5 +1,5 @@
 // rtstruct_dcmtk.cpp - DCMTK for RT Structure Sets (series_dcmtk.cpp reads image series): an RT
-// Structure Set in memory to contour sets.
+// Structure Set in memory to contour sets, and a model's sections back to one (rtstruct_write).
 // ROI names come from StructureSetROISequence, contours from ROIContourSequence (CLOSED_PLANAR
 // only; POINT and OPEN_* contours are skipped, as they bound nothing). Slice z is the contour's
 // own z (ContourData is x, y, z triples in patient coordinates); a contour whose z varies is not
@@ -61,6 +61,33 @@ static bool copy_elements(DcmItem *from, DcmItem *to, const DcmTagKey *tags, siz
     return true;
 }
 
+/* ff as a DICOM Part 10 object (explicit little endian) into *out (caller frees). what names it in
+ * errors. */
+static int write_object(DcmFileFormat &ff, unsigned char **out, size_t *out_len, const char *what, struct sf_err *err)
+{
+    const E_TransferSyntax xfer = EXS_LittleEndianExplicit;
+    if (ff.validateMetaInfo(xfer).bad())
+        return sf_fail(err, SF_EBACKEND, "", "DCMTK could not make %s's meta header", what);
+    size_t cap = (size_t)ff.calcElementLength(xfer, EET_ExplicitLength) + 1024;
+    unsigned char *mem = (unsigned char *)malloc(cap);
+    if (!mem)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    DcmOutputBufferStream os(mem, (offile_off_t)cap);
+    ff.transferInit();
+    OFCondition c = ff.write(os, xfer, EET_ExplicitLength, NULL);
+    ff.transferEnd();
+    void *written = NULL;
+    offile_off_t n = 0;
+    os.flushBuffer(written, n);
+    if (c.bad()) {
+        free(mem);
+        return sf_fail(err, SF_EBACKEND, "", "DCMTK could not write %s: %s", what, c.text());
+    }
+    *out = mem;
+    *out_len = (size_t)n;
+    return 0;
+}
+
 extern "C" int rtstruct_strip(const void *buf, size_t len, unsigned char **out, size_t *out_len, struct sf_err *err)
 {
     *out = NULL;
@@ -73,9 +100,12 @@ extern "C" int rtstruct_strip(const void *buf, size_t len, unsigned char **out, 
     DcmFileFormat kept;
     DcmDataset *kd = kept.getDataset();
     char uid[100];
+    OFString study;
+    ds->findAndGetOFString(DCM_StudyInstanceUID, study);
     bool ok = kd->putAndInsertString(DCM_SOPClassUID, RT_STRUCT_SOP_CLASS).good() &&
               kd->putAndInsertString(DCM_SOPInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT)).good() &&
-              kd->putAndInsertString(DCM_Modality, "RTSTRUCT").good();
+              kd->putAndInsertString(DCM_Modality, "RTSTRUCT").good() &&
+              (study.empty() || kd->putAndInsertString(DCM_StudyInstanceUID, study.c_str()).good());
     static const DcmTagKey ROI_TAGS[] = {DCM_ROINumber, DCM_ROIName, DCM_ReferencedFrameOfReferenceUID};
     static const DcmTagKey CONTOUR_ROI_TAGS[] = {DCM_ReferencedROINumber, DCM_ROIDisplayColor};
     static const DcmTagKey CONTOUR_TAGS[] = {DCM_ContourGeometricType, DCM_NumberOfContourPoints, DCM_ContourData};
@@ -101,27 +131,7 @@ extern "C" int rtstruct_strip(const void *buf, size_t len, unsigned char **out, 
         }
     if (!ok)
         return sf_fail(err, SF_ENOMEM, "", "out of memory copying the structure set");
-    const E_TransferSyntax xfer = EXS_LittleEndianExplicit;
-    if (kept.validateMetaInfo(xfer).bad())
-        return sf_fail(err, SF_EBACKEND, "", "DCMTK could not make the stripped object's meta header");
-    size_t cap = (size_t)kept.calcElementLength(xfer, EET_ExplicitLength) + 1024;
-    unsigned char *mem = (unsigned char *)malloc(cap);
-    if (!mem)
-        return sf_fail(err, SF_ENOMEM, "", "out of memory");
-    DcmOutputBufferStream os(mem, (offile_off_t)cap);
-    kept.transferInit();
-    OFCondition c = kept.write(os, xfer, EET_ExplicitLength, NULL);
-    kept.transferEnd();
-    void *written = NULL;
-    offile_off_t n = 0;
-    os.flushBuffer(written, n);
-    if (c.bad()) {
-        free(mem);
-        return sf_fail(err, SF_EBACKEND, "", "DCMTK could not write the stripped object: %s", c.text());
-    }
-    *out = mem;
-    *out_len = (size_t)n;
-    return 0;
+    return write_object(kept, out, out_len, "the stripped object", err);
 }
 
 extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, int *n_out, struct sf_err *err)
@@ -134,16 +144,20 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
         return rc0;
     DcmDataset *ds = ff.getDataset();
 
-    std::map<long, std::string> names; // ROI Number -> ROI Name
+    std::map<long, std::string> names, frames; // ROI Number -> ROI Name, its frame of reference
+    OFString study;
+    ds->findAndGetOFString(DCM_StudyInstanceUID, study);
     DcmSequenceOfItems *seq = NULL;
     if (ds->findAndGetSequence(DCM_StructureSetROISequence, seq).good() && seq)
         for (unsigned long i = 0; i < seq->card(); i++) {
             DcmItem *it = seq->getItem(i);
             Sint32 num = 0;
-            OFString name;
+            OFString name, frame;
             if (it->findAndGetSint32(DCM_ROINumber, num).good()) {
                 it->findAndGetOFString(DCM_ROIName, name);
+                it->findAndGetOFString(DCM_ReferencedFrameOfReferenceUID, frame);
                 names[num] = name.c_str();
+                frames[num] = frame.c_str();
             }
         }
     DcmSequenceOfItems *rcs = NULL;
@@ -165,6 +179,8 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
         struct rt_roi *out_roi = &rois[n];
         out_roi->number = num;
         snprintf(out_roi->name, sizeof out_roi->name, "%s", names.count(num) ? names[num].c_str() : "");
+        snprintf(out_roi->frame_uid, sizeof out_roi->frame_uid, "%s", frames.count(num) ? frames[num].c_str() : "");
+        snprintf(out_roi->study_uid, sizeof out_roi->study_uid, "%s", study.c_str());
         names.erase(num); // what stays in names has no ROI Contour item
         if (roi->findAndGetSequence(DCM_ContourSequence, cseq).bad() || !cseq || cseq->card() == 0) {
             out_roi->skipped = "no contours"; // nothing to model, listed
@@ -260,4 +276,92 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
     *out = rois;
     *n_out = n;
     return 0;
+}
+
+/* ---- a model's sections as an RT Structure Set ------------------------------------------------ */
+
+extern "C" int rtstruct_write(const struct rt_export *e, unsigned char **out, size_t *out_len, struct sf_err *err)
+{
+    *out = NULL;
+    *out_len = 0;
+    DcmFileFormat ff;
+    DcmDataset *ds = ff.getDataset();
+    char sop[100], series[100], study[100], frame[100], date[16], tm[16], num[16];
+    dcmGenerateUniqueIdentifier(sop, SITE_INSTANCE_UID_ROOT);
+    dcmGenerateUniqueIdentifier(series, SITE_SERIES_UID_ROOT);
+    snprintf(study, sizeof study, "%s", e->study_uid && *e->study_uid ? e->study_uid : "");
+    if (!study[0])
+        dcmGenerateUniqueIdentifier(study, SITE_STUDY_UID_ROOT);
+    snprintf(frame, sizeof frame, "%s", e->frame_uid && *e->frame_uid ? e->frame_uid : "");
+    if (!frame[0])
+        dcmGenerateUniqueIdentifier(frame, SITE_INSTANCE_UID_ROOT);
+    OFDateTime now = OFDateTime::getCurrentDateTime();
+    OFString d, t;
+    now.getDate().getISOFormattedDate(d, false);
+    now.getTime().getISOFormattedTime(t, true, false, false, false);
+    snprintf(date, sizeof date, "%s", d.c_str());
+    snprintf(tm, sizeof tm, "%s", t.c_str());
+    snprintf(num, sizeof num, "%d", e->roi_number);
+    /* the modules of the RT Structure Set IOD; the patient's and the study's type 2 elements empty:
+     * a request carries no patient data, and none is made up */
+    static const DcmTagKey EMPTY[] = {DCM_PatientName, DCM_PatientID, DCM_PatientBirthDate, DCM_PatientSex,
+                                      DCM_StudyDate, DCM_StudyTime, DCM_ReferringPhysicianName, DCM_StudyID,
+                                      DCM_AccessionNumber, DCM_OperatorsName};
+    bool ok = ds->putAndInsertString(DCM_SpecificCharacterSet, "ISO_IR 192").good() &&
+              ds->putAndInsertString(DCM_SOPClassUID, RT_STRUCT_SOP_CLASS).good() &&
+              ds->putAndInsertString(DCM_SOPInstanceUID, sop).good() &&
+              ds->putAndInsertString(DCM_StudyInstanceUID, study).good() &&
+              ds->putAndInsertString(DCM_SeriesInstanceUID, series).good() &&
+              ds->putAndInsertString(DCM_Modality, "RTSTRUCT").good() &&
+              ds->putAndInsertString(DCM_SeriesNumber, "1").good() &&
+              ds->putAndInsertString(DCM_InstanceNumber, "1").good() &&
+              ds->putAndInsertString(DCM_Manufacturer, "surfd").good() &&
+              ds->putAndInsertString(DCM_StructureSetLabel, e->label && *e->label ? e->label : "surfd").good() &&
+              ds->putAndInsertString(DCM_StructureSetDate, date).good() &&
+              ds->putAndInsertString(DCM_StructureSetTime, tm).good() &&
+              ds->putAndInsertString(DCM_InstanceCreationDate, date).good() &&
+              ds->putAndInsertString(DCM_InstanceCreationTime, tm).good() &&
+              ds->putAndInsertString(DCM_FrameOfReferenceUID, frame).good() &&
+              ds->insertEmptyElement(DCM_PositionReferenceIndicator).good();
+    for (size_t k = 0; ok && k < sizeof EMPTY / sizeof *EMPTY; k++)
+        ok = ds->insertEmptyElement(EMPTY[k]).good();
+    DcmItem *it = NULL;
+    ok = ok && ds->findOrCreateSequenceItem(DCM_ReferencedFrameOfReferenceSequence, it, -2).good() &&
+         it->putAndInsertString(DCM_FrameOfReferenceUID, frame).good();
+    ok = ok && ds->findOrCreateSequenceItem(DCM_StructureSetROISequence, it, -2).good() &&
+         it->putAndInsertString(DCM_ROINumber, num).good() &&
+         it->putAndInsertString(DCM_ReferencedFrameOfReferenceUID, frame).good() &&
+         it->putAndInsertString(DCM_ROIName, e->roi_name).good() &&
+         it->putAndInsertString(DCM_ROIGenerationAlgorithm, "SEMIAUTOMATIC").good();
+    ok = ok && ds->findOrCreateSequenceItem(DCM_RTROIObservationsSequence, it, -2).good() &&
+         it->putAndInsertString(DCM_ObservationNumber, num).good() &&
+         it->putAndInsertString(DCM_ReferencedROINumber, num).good() &&
+         it->insertEmptyElement(DCM_RTROIInterpretedType).good() && it->insertEmptyElement(DCM_ROIInterpreter).good();
+    DcmItem *roi = NULL;
+    ok = ok && ds->findOrCreateSequenceItem(DCM_ROIContourSequence, roi, -2).good() &&
+         roi->putAndInsertString(DCM_ReferencedROINumber, num).good() &&
+         roi->putAndInsertString(DCM_ROIDisplayColor, "255\\128\\0").good();
+    std::string data;
+    for (int c = 0; ok && c < e->n; c++) {
+        const struct rt_contour *k = &e->c[c];
+        DcmItem *ci = NULL;
+        char n[16], cn[16];
+        snprintf(n, sizeof n, "%d", k->n);
+        snprintf(cn, sizeof cn, "%d", c + 1);
+        data.clear();
+        for (int i = 0; i < k->n; i++)
+            for (int d3 = 0; d3 < 3; d3++) {
+                char v[32];
+                snprintf(v, sizeof v, "%s%.9g", data.empty() ? "" : "\\", k->p[i][d3]); /* DS: 16 characters at most */
+                data += v;
+            }
+        ok = roi->findOrCreateSequenceItem(DCM_ContourSequence, ci, -2).good() &&
+             ci->putAndInsertString(DCM_ContourNumber, cn).good() &&
+             ci->putAndInsertString(DCM_ContourGeometricType, "CLOSED_PLANAR").good() &&
+             ci->putAndInsertString(DCM_NumberOfContourPoints, n).good() &&
+             ci->putAndInsertString(DCM_ContourData, data.c_str()).good();
+    }
+    if (!ok)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory making the structure set");
+    return write_object(ff, out, out_len, "the structure set", err);
 }

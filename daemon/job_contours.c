@@ -15,7 +15,7 @@
 #include "log.h"
 #include "kinds.h"
 
-enum contour_kind { KIND_VOLUME, KIND_MODEL, KIND_MESH, KIND_PATCHES };
+enum contour_kind { KIND_VOLUME, KIND_MODEL, KIND_MESH, KIND_PATCHES, KIND_RTSTRUCT };
 
 struct contour_work {
     struct service *svc;
@@ -71,12 +71,16 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     } else if (w->kind == KIND_VOLUME) {
         rc = model_figures(body, rec.request_len, rec.format, rec.options, &pr, &w->json, &w->err);
     } else { /* the request is the model's id */
-        char model[40], *src = NULL;
+        char model[40], *src = NULL, *resource = NULL;
         size_t n = 0;
         snprintf(model, sizeof model, "%.*s", (int)rec.request_len, body);
-        if (store_model_get(w->svc->store, model, NULL, NULL, &src, &n) != 1) /* the route checked the owner */
+        if (store_model_get(w->svc->store, model, NULL, &resource, &src, &n) != 1) /* the route checked the owner */
             rc = sf_fail(&w->err, SF_EINVAL, "", "the model is no longer stored");
-        else if (w->kind == KIND_MESH)
+        else if (w->kind == KIND_RTSTRUCT) {
+            rc = model_rtstruct(src, n, resource, rec.options, &pr, (unsigned char **)&w->json, &w->len, &w->err);
+            w->type = "application/dicom";
+            snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.dcm\"}", model);
+        } else if (w->kind == KIND_MESH)
             rc = model_mesh(src, n, rec.options, &pr, &w->json, &w->len, &w->type, &w->tol, &w->err);
         else
             rc = model_patches_json(src, n, &w->json, &w->err);
@@ -92,8 +96,9 @@ static int prepare(struct job *j, void *arg, int *n_bands)
                 snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\"}", model, format);
         }
         free(src);
+        free(resource);
     }
-    if (!rc && w->kind != KIND_MESH)
+    if (!rc && w->kind != KIND_MESH && w->kind != KIND_RTSTRUCT)
         w->len = strlen(w->json);
     store_rec_free(&rec);
     return rc ? -1 : 0;
@@ -135,6 +140,7 @@ int volume_start(struct service *svc, const struct job_claim *c) { return start(
 int model_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_MODEL); }
 int mesh_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_MESH); }
 int patches_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_PATCHES); }
+int rtstruct_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_RTSTRUCT); }
 
 /* ---- the requests: contour JSON or an RT Structure Set (both kinds); /volume also measures a
  * scene (JSON, .bpt, VRML) whose patches bound a closed solid ---- */
@@ -191,6 +197,13 @@ int mesh_validate(struct service *svc, struct job_body *b, struct sf_err *err)
     const char *format;
     double tol;
     return model_mesh_options(b->options, &format, &tol, err);
+}
+
+int rtstruct_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+{
+    (void)svc;
+    double spacing;
+    return model_rtstruct_options(b->options, &spacing, err);
 }
 
 int patches_validate(struct service *svc, struct job_body *b, struct sf_err *err)

@@ -14,6 +14,7 @@ static const struct job_kind KINDS[] = {
      .validate = model_validate_body, .start = model_start, .result = "application/json"},
     {.name = "mesh", .validate = mesh_validate, .start = mesh_start, .result = "model/stl, application/ply, model/obj, model/vnd.vtk.vtp+xml or model/vnd.vtk"},
     {.name = "patches", .validate = patches_validate, .start = patches_start, .result = "application/json"},
+    {.name = "rtstruct", .validate = rtstruct_validate, .start = rtstruct_start, .result = "application/dicom"},
     {.name = "isosurface", .format = iso_format,
      .media = "application/octet-stream (raw samples, with ?dims&type), application/x-nrrd, application/x-metaimage, "
               "multipart/form-data (a DICOM series) or application/json (an FRep object)",

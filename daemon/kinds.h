@@ -54,6 +54,8 @@ int volume_start(struct service *svc, const struct job_claim *c);
 int model_start(struct service *svc, const struct job_claim *c);
 int mesh_start(struct service *svc, const struct job_claim *c);
 int patches_start(struct service *svc, const struct job_claim *c);
+int rtstruct_validate(struct service *svc, struct job_body *b, struct sf_err *err);
+int rtstruct_start(struct service *svc, const struct job_claim *c);
 const char *iso_format(const char *content_type);
 int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err);
 int iso_start(struct service *svc, const struct job_claim *c);

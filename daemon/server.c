@@ -646,6 +646,7 @@ static enum MHD_Result model_sub(struct req *r, const char *id, const char *what
 static enum MHD_Result model_mesh_route(struct req *r, const char *id) { return model_sub(r, id, "mesh"); }
 static enum MHD_Result model_patches_route(struct req *r, const char *id) { return model_sub(r, id, "patches"); }
 static enum MHD_Result model_view_route(struct req *r, const char *id) { return model_sub(r, id, "render"); }
+static enum MHD_Result model_rtstruct_route(struct req *r, const char *id) { return model_sub(r, id, "rtstruct"); }
 
 /* POST /models/{id}/edit: an edit job of the model (the token's), its id in ?model. */
 static enum MHD_Result model_edit_route(struct req *r, const char *id)
@@ -837,6 +838,7 @@ static const struct route {
     {"/models/{id}/mesh", GET, false, model_mesh_route, NULL},
     {"/models/{id}/patches", GET, false, model_patches_route, NULL},
     {"/models/{id}/render", GET, false, model_view_route, NULL},
+    {"/models/{id}/rtstruct", GET, false, model_rtstruct_route, NULL},
     {"/models/{id}/edit", POST, false, model_edit_route, NULL},
     {"/jobs", GET, false, jobs, NULL},
     {"/jobs/{id}", GET, false, job, NULL},

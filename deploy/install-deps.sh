@@ -7,7 +7,7 @@ set -eu
 
 BUILD="build-essential pkg-config libembree-dev libopenimageio-dev libmicrohttpd-dev libjansson-dev \
 libsqlite3-dev libpq-dev postgresql zlib1g-dev libcurl4-openssl-dev libdcmtk-dev libgnutls28-dev curl openssl python3 clang libclang-rt-14-dev \
-chromium prometheus lintian" # the last three for the tests: the page in a headless browser, promtool on /metrics, make deb
+chromium prometheus lintian dicom3tools" # for the tests: the page in a headless browser, promtool on /metrics, make deb, exported RT Structure Sets
 BENCH="povray wrk plastimatch python3-vtk9 python3-numpy"
 
 want="$BUILD"

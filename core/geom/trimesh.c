@@ -201,3 +201,113 @@ double trimesh_point_dist(const double p[3], const double a[3], const double b[3
     return sqrt(DOT(q, q));
 #undef DOT
 }
+
+/* ---- sections by a plane z = const ------------------------------------------------------- */
+
+/* Open addressing from a mesh edge (its two vertex ids, smaller first) to its crossing point. */
+struct edge_map {
+    uint64_t *key;           /* (a << 32 | b) + 1; 0: empty */
+    int *point;
+    size_t cap;
+};
+
+static int edge_point(struct edge_map *h, uint32_t a, uint32_t b, int fresh)
+{
+    uint64_t k = ((uint64_t)(a < b ? a : b) << 32 | (a < b ? b : a)) + 1;
+    size_t i = (size_t)(k * 0x9E3779B97F4A7C15ull >> 17) & (h->cap - 1);
+    while (h->key[i] && h->key[i] != k)
+        i = (i + 1) & (h->cap - 1);
+    if (!h->key[i])
+        h->key[i] = k, h->point[i] = fresh;
+    return h->point[i];
+}
+
+int trimesh_slice(const struct trimesh *m, double z, struct trimesh_loops *out, struct sf_err *err)
+{
+    memset(out, 0, sizeof *out);
+    /* the crossing triangles: each gives one segment, from its edge that goes down through the
+     * plane to its edge that goes up (counter-clockwise round the inside, seen from +z) */
+    size_t n_seg = 0;
+    for (size_t t = 0; t < m->n_tri; t++) {
+        int above = 0;
+        for (int c = 0; c < 3; c++)
+            above += m->pos[3 * m->tri[3 * t + c] + 2] >= z;
+        n_seg += above == 1 || above == 2;
+    }
+    struct edge_map h = {0};
+    h.cap = 16;
+    while (h.cap < 4 * n_seg + 16)
+        h.cap *= 2;
+    h.key = calloc(h.cap, sizeof *h.key);
+    h.point = malloc(h.cap * sizeof *h.point);
+    double(*pt)[2] = malloc((2 * n_seg + 1) * sizeof *pt);
+    int *next = malloc((2 * n_seg + 1) * sizeof *next);
+    bool *used = calloc(2 * n_seg + 1, sizeof *used);
+    int n_pt = 0;
+    if (!h.key || !h.point || !pt || !next || !used)
+        goto fail;
+    for (size_t k = 0; k < 2 * n_seg + 1; k++)
+        next[k] = -1;
+    for (size_t t = 0; t < m->n_tri; t++) {
+        int down = -1, up = -1;
+        for (int c = 0; c < 3; c++) {
+            uint32_t a = m->tri[3 * t + c], b = m->tri[3 * t + (c + 1) % 3];
+            double za = m->pos[3 * a + 2], zb = m->pos[3 * b + 2];
+            bool aa = za >= z, ab = zb >= z;
+            if (aa == ab)
+                continue;
+            int id = edge_point(&h, a, b, n_pt);
+            if (id == n_pt) { /* a new crossing: the point on the edge */
+                double f = (z - za) / (zb - za);
+                pt[n_pt][0] = m->pos[3 * a] + f * (m->pos[3 * b] - m->pos[3 * a]);
+                pt[n_pt][1] = m->pos[3 * a + 1] + f * (m->pos[3 * b + 1] - m->pos[3 * a + 1]);
+                n_pt++;
+            }
+            if (aa)
+                down = id;
+            else
+                up = id;
+        }
+        if (down >= 0 && up >= 0)
+            next[down] = up;
+    }
+    /* the loops: follow next from each point not yet used */
+    out->p = malloc((size_t)(n_pt + 1) * sizeof *out->p);
+    out->start = malloc((size_t)(n_pt + 2) * sizeof *out->start);
+    if (!out->p || !out->start)
+        goto fail;
+    int at = 0;
+    for (int s = 0; s < n_pt; s++) {
+        if (used[s])
+            continue;
+        int first = at;
+        for (int q = s; q >= 0 && !used[q]; q = next[q]) {
+            used[q] = true;
+            if (at > first && pt[q][0] == out->p[at - 1][0] && pt[q][1] == out->p[at - 1][1])
+                continue; /* the plane through a vertex: two edges, one point */
+            out->p[at][0] = pt[q][0], out->p[at][1] = pt[q][1];
+            at++;
+        }
+        while (at - first > 1 && out->p[at - 1][0] == out->p[first][0] && out->p[at - 1][1] == out->p[first][1])
+            at--;
+        if (at - first < 3) {
+            at = first; /* a touch, not a section */
+            continue;
+        }
+        out->start[out->n++] = first;
+    }
+    out->start[out->n] = at;
+    free(h.key), free(h.point), free(pt), free(next), free(used);
+    return 0;
+fail:
+    free(h.key), free(h.point), free(pt), free(next), free(used);
+    trimesh_loops_free(out);
+    return sf_fail(err, SF_ENOMEM, "", "out of memory slicing the mesh");
+}
+
+void trimesh_loops_free(struct trimesh_loops *l)
+{
+    free(l->p);
+    free(l->start);
+    memset(l, 0, sizeof *l);
+}

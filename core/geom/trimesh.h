@@ -34,6 +34,19 @@ void trimesh_turn(struct trimesh *m, const double o[3], const double a[3][3]);
 /* Figures of m (O(F log F): edges are sorted). 0, or SF_ENOMEM. */
 int trimesh_stats(const struct trimesh *m, struct trimesh_stats *out, struct sf_err *err);
 
+/* The section of a closed, outward-oriented mesh by the plane z = const: closed loops, each
+ * counter-clockwise seen from +z round the solid's inside (holes clockwise), as planning systems
+ * store contours (issue 18: a model back to an RT Structure Set). */
+struct trimesh_loops {
+    double (*p)[2];          /* the loops' points, one loop after another */
+    int *start;              /* loop k: points start[k] .. start[k + 1] - 1 */
+    int n;                   /* loops */
+};
+/* A vertex on the plane counts as above it (so the loops close where the plane meets vertices);
+ * consecutive equal points are merged and loops of under three points dropped. 0, or SF_ENOMEM. */
+int trimesh_slice(const struct trimesh *m, double z, struct trimesh_loops *out, struct sf_err *err);
+void trimesh_loops_free(struct trimesh_loops *l);
+
 /* Distance from point p to triangle abc (the closest point by Voronoi regions, Ericson's
  * Real-Time Collision Detection 5.1.5). */
 double trimesh_point_dist(const double p[3], const double a[3], const double b[3], const double c[3]);
