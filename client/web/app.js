@@ -292,12 +292,12 @@ async function render() {
 async function download() {
   const m = state.model, fmt = $("mesh-format").value;
   if (!m) return;
-  $("view-caption").textContent = "meshing…";
-  const r = await api("GET", "/models/" + m.id + "/mesh?format=" + fmt);
+  $("view-caption").textContent = fmt === "rtstruct" ? "cutting the structure set…" : "meshing…";
+  const r = await api("GET", "/models/" + m.id + (fmt === "rtstruct" ? "/rtstruct" : "/mesh?format=" + fmt));
   if (!r.ok) { $("view-caption").textContent = await problemOf(r); return; }
   const a = $("download-link");
   a.href = URL.createObjectURL(await r.blob());
-  a.download = (m.name || m.id).replace(/[^\w.-]+/g, "_") + "." + fmt;
+  a.download = (m.name || m.id).replace(/[^\w.-]+/g, "_") + "." + (fmt === "rtstruct" ? "dcm" : fmt);
   a.click();
   $("view-caption").textContent = "downloaded " + a.download;
 }

@@ -1,6 +1,6 @@
 /* fuzz_request.c - a request's query options with its body, as the routes take them: the first
  * line is the query string, the rest the body. Render options with a scene (format sniffed),
- * contour options with contours, mesh options alone. */
+ * contour options with contours, mesh and structure set options alone. */
 #include "../../api/model_json.h"
 #include "../../api/render_request.h"
 #include "fuzz.h"
@@ -23,6 +23,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     double tol;
     struct sf_err err3 = {0};
     model_mesh_options(text, &format, &tol, &err3);
+    struct sf_err err4 = {0};
+    model_rtstruct_options(text, &tol, &err4);
     free(text);
     return 0;
 }

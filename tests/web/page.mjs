@@ -1,6 +1,7 @@
 // page.mjs - the web page driven as a person would, in Debian's headless Chromium through
 // playwright-core (nothing downloaded): load /, upload a contour file, wait for the job, read the
-// volume shown against the API's, see the render, turn it by keyboard, download the STL. Prints
+// volume shown against the API's, see the render, turn it by keyboard, download the STL and the
+// RT Structure Set. Prints
 // "PASS: ..." / "FAIL: ..." lines (tests/web/page.sh counts them); screenshots into SHOTS.
 // Environment: URL, CONTOURS (a contour JSON), SHOTS (a directory), TOKEN (optional), NODE_PATH.
 import { createRequire } from "node:module";
@@ -74,6 +75,10 @@ try {
   const [dl] = await Promise.all([page.waitForEvent("download", { timeout: 120000 }), page.click("#download")]);
   await dl.saveAs(SHOTS + "/model-" + tag + ".stl");
   check("the STL downloads", dl.suggestedFilename().endsWith(".stl"), dl.suggestedFilename());
+  await page.selectOption("#mesh-format", "rtstruct");
+  const [rs] = await Promise.all([page.waitForEvent("download", { timeout: 120000 }), page.click("#download")]);
+  await rs.saveAs(SHOTS + "/model-" + tag + ".dcm");
+  check("the RT Structure Set downloads", rs.suggestedFilename().endsWith(".dcm"), rs.suggestedFilename());
 
   await page.click("#jobs-refresh");
   await page.waitForFunction(() => document.querySelectorAll("#jobs-table tbody tr").length > 0);

@@ -27,6 +27,7 @@ run_page() { # run_page TAG [TOKEN]
     code=$(status GET "/models" ${2:+-H "Authorization: Bearer $2"})
     vol=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['models'][0]['volume_mm3'])" "$T/body" 2>/dev/null)
     check "the page's STL ($tag) is closed, with the model's volume" 'python3 tests/tools/stl_check.py "$SHOTS/model-$tag.stl" "$vol" >/dev/null'
+    check "the page's RT Structure Set ($tag) is DICOM" '[ "$(dd if="$SHOTS/model-$tag.dcm" bs=1 skip=128 count=4 2>/dev/null)" = DICM ]'
 }
 if [ "$fail" -eq 0 ]; then
     start_daemon "$T/open" --threads 2 && run_page open
