@@ -65,6 +65,7 @@ const char *mesh_mime(const char *format)
                                               : !strcmp(format, "obj") ? "model/obj"
                                               : !strcmp(format, "vtp") ? "model/vnd.vtk.vtp+xml"
                                               : !strcmp(format, "vtk") ? "model/vnd.vtk"
+                                              : !strcmp(format, "dicom-stl") ? "application/dicom"
                                                                        : NULL;
 }
 

@@ -13,6 +13,7 @@
 
 #include "../core/geom/enclosed.h"
 #include "../core/contour/solid.h"
+#include "dicom_stl.h"
 #include "matrix_json.h"
 #include "mesh_io.h"
 #include "query.h"
@@ -450,7 +451,7 @@ static int solid_of(const char *src, size_t len, const struct sf_progress *pr, s
 
 int model_mesh_options(const char *options, const char **format, double *tol, struct sf_err *err)
 {
-    static const char *const FORMATS[] = {"stl", "ply", "obj", "vtp", "vtk"};
+    static const char *const FORMATS[] = {"stl", "ply", "obj", "vtp", "vtk", "dicom-stl"};
     char f[16], t[64], *end = NULL;
     query_option(options, "format", f, sizeof f);
     query_option(options, "tolerance", t, sizeof t);
@@ -459,7 +460,7 @@ int model_mesh_options(const char *options, const char **format, double *tol, st
         if (!strcmp(f[0] ? f : "stl", FORMATS[k]))
             *format = FORMATS[k];
     if (!*format)
-        return sf_fail(err, SF_EINVAL, "?format", "format is stl, ply, obj, vtp or vtk");
+        return sf_fail(err, SF_EINVAL, "?format", "format is stl, ply, obj, vtp, vtk or dicom-stl");
     *tol = t[0] ? strtod(t, &end) : 0.0;
     if ((t[0] && *end) || !(*tol >= 0) || *tol > 1e6)
         return sf_fail(err, SF_EINVAL, "?tolerance", "tolerance is a distance in mm, > 0 (or 0 for the default)");
@@ -517,8 +518,8 @@ static int model_trimesh(const char *src, size_t len, double tol, const struct s
     return rc;
 }
 
-int model_mesh(const char *src, size_t len, const char *options, const struct sf_progress *pr, char **out,
-               size_t *out_len, const char **mime, double *tol_used, struct sf_err *err)
+int model_mesh(const char *src, size_t len, const char *resource, const char *options, const struct sf_progress *pr,
+               char **out, size_t *out_len, const char **mime, double *tol_used, struct sf_err *err)
 {
     const char *format;
     double tol;
@@ -529,9 +530,20 @@ int model_mesh(const char *src, size_t len, const char *options, const struct sf
         return rc;
     *mime = mesh_mime(format);
     struct trimesh tm;
+    bool dicom = !strcmp(format, "dicom-stl"); /* STL in a DICOM Encapsulated STL object */
     if (!(rc = model_trimesh(src, len, tol, pr, &tm, tol_used, err)))
-        rc = mesh_encode(&tm, format, out, out_len, err);
+        rc = mesh_encode(&tm, dicom ? "stl" : format, out, out_len, err);
     trimesh_free(&tm);
+    if (!rc && dicom) {
+        json_t *r = resource ? json_loads(resource, 0, NULL) : NULL;
+        unsigned char *d = NULL;
+        rc = dicom_stl_wrap(*out, *out_len, json_string_value(json_object_get(r, "name")),
+                            json_string_value(json_object_get(r, "study_instance_uid")),
+                            json_string_value(json_object_get(r, "frame_of_reference_uid")), &d, out_len, err);
+        json_decref(r);
+        free(*out);
+        *out = (char *)d;
+    }
     return rc;
 }
 

@@ -41,12 +41,14 @@ struct model_sink {
 int model_create(const char *buf, size_t len, const char *format, const char *options, const struct model_sink *sink,
                  const struct sf_progress *pr, char **json, char location[64], struct sf_err *err);
 
-/* A stored model's mesh; options "format=stl|ply|obj|vtp|vtk&tolerance=MM": binary STL (the
- * default), binary little-endian PLY, OBJ or VTK, within the tolerance (absent or 0: the coarsest
- * that holds the model's volume within 0.05 %, solid_mesh_default). *out (caller frees), *out_len
- * and *mime receive the file, *tol_used the tolerance (0 for an isosurface: its own mesh). */
-int model_mesh(const char *src, size_t len, const char *options, const struct sf_progress *pr, char **out,
-               size_t *out_len, const char **mime, double *tol_used, struct sf_err *err);
+/* A stored model's mesh; options "format=stl|ply|obj|vtp|vtk|dicom-stl&tolerance=MM": binary STL
+ * (the default), binary little-endian PLY, OBJ, VTK, or the STL as a DICOM Encapsulated STL
+ * (referencing the study and frame of reference resource names, when it does; resource may be
+ * NULL), within the tolerance (absent or 0: the coarsest that holds the model's volume within
+ * 0.05 %, solid_mesh_default). *out (caller frees), *out_len and *mime receive the file, *tol_used
+ * the tolerance (0 for an isosurface: its own mesh). */
+int model_mesh(const char *src, size_t len, const char *resource, const char *options, const struct sf_progress *pr,
+               char **out, size_t *out_len, const char **mime, double *tol_used, struct sf_err *err);
 /* A stored model (resource: its resource JSON) as a DICOM RT Structure Set of one ROI: the mesh at
  * the default tolerance cut by planes - a contour model's own slices, or ?spacing=MM apart (an
  * isosurface: its grid's slices by default) - into CLOSED_PLANAR contours in patient coordinates,

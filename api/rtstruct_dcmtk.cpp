@@ -4,6 +4,7 @@
 // only; POINT and OPEN_* contours are skipped, as they bound nothing). Slice z is the contour's
 // own z (ContourData is x, y, z triples in patient coordinates); a contour whose z varies is not
 // planar and is refused. No other element of the object is read.
+#include "dcmtk_out.h"
 #include "dicom_lengths.h"
 #include "rtstruct.h"
 
@@ -61,33 +62,6 @@ static bool copy_elements(DcmItem *from, DcmItem *to, const DcmTagKey *tags, siz
     return true;
 }
 
-/* ff as a DICOM Part 10 object (explicit little endian) into *out (caller frees). what names it in
- * errors. */
-static int write_object(DcmFileFormat &ff, unsigned char **out, size_t *out_len, const char *what, struct sf_err *err)
-{
-    const E_TransferSyntax xfer = EXS_LittleEndianExplicit;
-    if (ff.validateMetaInfo(xfer).bad())
-        return sf_fail(err, SF_EBACKEND, "", "DCMTK could not make %s's meta header", what);
-    size_t cap = (size_t)ff.calcElementLength(xfer, EET_ExplicitLength) + 1024;
-    unsigned char *mem = (unsigned char *)malloc(cap);
-    if (!mem)
-        return sf_fail(err, SF_ENOMEM, "", "out of memory");
-    DcmOutputBufferStream os(mem, (offile_off_t)cap);
-    ff.transferInit();
-    OFCondition c = ff.write(os, xfer, EET_ExplicitLength, NULL);
-    ff.transferEnd();
-    void *written = NULL;
-    offile_off_t n = 0;
-    os.flushBuffer(written, n);
-    if (c.bad()) {
-        free(mem);
-        return sf_fail(err, SF_EBACKEND, "", "DCMTK could not write %s: %s", what, c.text());
-    }
-    *out = mem;
-    *out_len = (size_t)n;
-    return 0;
-}
-
 extern "C" int rtstruct_strip(const void *buf, size_t len, unsigned char **out, size_t *out_len, struct sf_err *err)
 {
     *out = NULL;
@@ -131,7 +105,7 @@ extern "C" int rtstruct_strip(const void *buf, size_t len, unsigned char **out, 
         }
     if (!ok)
         return sf_fail(err, SF_ENOMEM, "", "out of memory copying the structure set");
-    return write_object(kept, out, out_len, "the stripped object", err);
+    return dcm_write_object(kept, out, out_len, "the stripped object", err);
 }
 
 extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, int *n_out, struct sf_err *err)
@@ -287,20 +261,11 @@ extern "C" int rtstruct_write(const struct rt_export *e, unsigned char **out, si
     DcmFileFormat ff;
     DcmDataset *ds = ff.getDataset();
     char sop[100], series[100], study[100], frame[100], date[16], tm[16], num[16];
-    dcmGenerateUniqueIdentifier(sop, SITE_INSTANCE_UID_ROOT);
-    dcmGenerateUniqueIdentifier(series, SITE_SERIES_UID_ROOT);
-    snprintf(study, sizeof study, "%s", e->study_uid && *e->study_uid ? e->study_uid : "");
-    if (!study[0])
-        dcmGenerateUniqueIdentifier(study, SITE_STUDY_UID_ROOT);
-    snprintf(frame, sizeof frame, "%s", e->frame_uid && *e->frame_uid ? e->frame_uid : "");
-    if (!frame[0])
-        dcmGenerateUniqueIdentifier(frame, SITE_INSTANCE_UID_ROOT);
-    OFDateTime now = OFDateTime::getCurrentDateTime();
-    OFString d, t;
-    now.getDate().getISOFormattedDate(d, false);
-    now.getTime().getISOFormattedTime(t, true, false, false, false);
-    snprintf(date, sizeof date, "%s", d.c_str());
-    snprintf(tm, sizeof tm, "%s", t.c_str());
+    dcm_uid(sop, NULL, SITE_INSTANCE_UID_ROOT);
+    dcm_uid(series, NULL, SITE_SERIES_UID_ROOT);
+    dcm_uid(study, e->study_uid, SITE_STUDY_UID_ROOT);
+    dcm_uid(frame, e->frame_uid, SITE_INSTANCE_UID_ROOT);
+    dcm_now(date, tm);
     snprintf(num, sizeof num, "%d", e->roi_number);
     /* the modules of the RT Structure Set IOD; the patient's and the study's type 2 elements empty:
      * a request carries no patient data, and none is made up */
@@ -363,5 +328,5 @@ extern "C" int rtstruct_write(const struct rt_export *e, unsigned char **out, si
     }
     if (!ok)
         return sf_fail(err, SF_ENOMEM, "", "out of memory making the structure set");
-    return write_object(ff, out, out_len, "the structure set", err);
+    return dcm_write_object(ff, out, out_len, "the structure set", err);
 }

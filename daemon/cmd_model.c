@@ -55,8 +55,9 @@ static int write_mesh(const struct kept_model *m, const char *path, double tol, 
     char opts[96], *out = NULL;
     size_t out_len = 0;
     double used = 0.0;
-    snprintf(opts, sizeof opts, "format=%.8s&tolerance=%.17g", ext ? ext + 1 : "none", tol);
-    int rc = model_mesh(m->source, m->len, opts, NULL, &out, &out_len, &mime, &used, err);
+    snprintf(opts, sizeof opts, "format=%.10s&tolerance=%.17g", !ext ? "none" : strcmp(ext, ".dcm") ? ext + 1 : "dicom-stl",
+             tol); /* .dcm: a DICOM Encapsulated STL */
+    int rc = model_mesh(m->source, m->len, NULL, opts, NULL, &out, &out_len, &mime, &used, err);
     if (!rc)
         rc = cli_write_all(path, out, out_len) ? SF_EIO : 0;
     if (!rc && used > 0)
@@ -71,7 +72,7 @@ void cmd_volume_usage(FILE *f)
                "                    [--method parabolic|linear-parabolic|coons|bspline]\n"
                "                    [--parameterisation arc-length|polar] [--repeat N]\n"
                "       surfd model  CONTOURS.json|RTSTRUCT.dcm|MATRIX.json [--roi NAME] [--caps ...] [--method ...]\n"
-               "                    [--mesh OUT.stl|.ply|.obj|.vtp|.vtk | --mesh DIR/ (every model: DIR/NAME.stl)]\n"
+               "                    [--mesh OUT.stl|.ply|.obj|.vtp|.vtk|.dcm (Encapsulated STL) | --mesh DIR/ (every model: DIR/NAME.stl)]\n"
                "                    [--tolerance MM] [--patches OUT.json]\n"
                "       --repeat runs it N times in one process and reports the last (warm) timings;\n"
                "       an RT Structure Set's ROIs without contours are listed as \"skipped\" with the reason\n");

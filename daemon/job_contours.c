@@ -81,7 +81,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
             w->type = "application/dicom";
             snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.dcm\"}", model);
         } else if (w->kind == KIND_MESH)
-            rc = model_mesh(src, n, rec.options, &pr, &w->json, &w->len, &w->type, &w->tol, &w->err);
+            rc = model_mesh(src, n, resource, rec.options, &pr, &w->json, &w->len, &w->type, &w->tol, &w->err);
         else
             rc = model_patches_json(src, n, &w->json, &w->err);
         if (!rc && w->kind == KIND_MESH) { /* the file's name for the download: the model's id, the format's extension */
@@ -90,10 +90,11 @@ static int prepare(struct job *j, void *arg, int *n_bands)
             model_mesh_options(rec.options, &format, &tol, &w->err);
             model_mesh_key(rec.options, w->key, sizeof w->key, &w->err);
             snprintf(w->model, sizeof w->model, "%s", model);
+            const char *ext = strcmp(format, "dicom-stl") ? format : "dcm";
             if (w->tol > 0)
-                snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\",\"tolerance_mm\":%.6g}", model, format, w->tol);
+                snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\",\"tolerance_mm\":%.6g}", model, ext, w->tol);
             else
-                snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\"}", model, format);
+                snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\"}", model, ext);
         }
         free(src);
         free(resource);

@@ -297,7 +297,7 @@ async function download() {
   if (!r.ok) { $("view-caption").textContent = await problemOf(r); return; }
   const a = $("download-link");
   a.href = URL.createObjectURL(await r.blob());
-  a.download = (m.name || m.id).replace(/[^\w.-]+/g, "_") + "." + (fmt === "rtstruct" ? "dcm" : fmt);
+  a.download = (m.name || m.id).replace(/[^\w.-]+/g, "_") + "." + (fmt === "rtstruct" || fmt === "dicom-stl" ? "dcm" : fmt);
   a.click();
   $("view-caption").textContent = "downloaded " + a.download;
 }

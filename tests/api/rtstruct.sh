@@ -1,5 +1,6 @@
 #!/bin/sh
-# Models back to the planning system (issue 18): GET /models/{id}/rtstruct is a DICOM RT Structure
+# Models back to the planning system (issue 18): GET /models/{id}/mesh?format=dicom-stl is a DICOM
+# Encapsulated STL of the mesh; GET /models/{id}/rtstruct is a DICOM RT Structure
 # Set of the model's sections (its own slices, or ?spacing=MM apart; an isosurface's grid slices)
 # that dciodvfy (dicom3tools) passes without errors, that our own reader takes back with the
 # model's volume, that references the source's study and frame of reference and carries no patient
@@ -43,5 +44,17 @@ iid=$(field id); ivol=$(field volume_mm3)
 code=$(status GET "/models/$iid/rtstruct"); cp "$T/body" "$T/ct.dcm"
 code=$(status POST /volume -H "$DCM" --data-binary @"$T/ct.dcm")
 check "an isosurface model: cut at its grid's slices, read back within 2 % (flat ends at the last slices)" '[ "$code" = 200 ] && near "$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[\"models\"][0][\"volume_mm3\"])" "$T/body")" "$ivol" 0.02'
+code=$(status GET "/models/$id/mesh?format=dicom-stl"); cp "$T/body" "$T/heart_stl.dcm"
+check "?format=dicom-stl: a DICOM Encapsulated STL, named ID.dcm" '[ "$code" = 200 ] && [ "$(header Content-Type)" = application/dicom ] && header Content-Disposition | grep -q "$id.dcm"'
+if command -v dciodvfy >/dev/null; then
+    dciodvfy "$T/heart_stl.dcm" >"$T/vfy" 2>&1
+    check "... dciodvfy knows it (EncapsulatedSTL) and finds no errors" 'grep -q EncapsulatedSTL "$T/vfy" && ! grep -q "^Error" "$T/vfy"'
+fi
+code=$(status GET "/models/$id/mesh?format=stl"); cp "$T/body" "$T/heart.stl"
+check "... holding the very STL of ?format=stl, referencing the source's study and frame of reference" 'python3 -c "
+import struct, sys
+d = open(sys.argv[1], \"rb\").read(); i = d.find(b\"\\x42\\x00\\x11\\x00OB\")
+n = struct.unpack_from(\"<I\", d, i + 8)[0]; stl = open(sys.argv[2], \"rb\").read()
+sys.exit(0 if i > 0 and d[i + 12:i + 12 + len(stl)] == stl and sys.argv[3].encode() in d and sys.argv[4].encode() in d else 1)" "$T/heart_stl.dcm" "$T/heart.stl" "$study" "$frame"'
 check "no such model: 404" '[ "$(status GET /models/0123456789abcdef0123456789abcdef/rtstruct)" = 404 ]'
 finish
