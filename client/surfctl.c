@@ -439,21 +439,34 @@ static int run_job(const char *route, const char *query, const char *file, const
     return rc;
 }
 
-/* Model id's mesh to out (its format from the extension), following the mesh job when it is long. */
-static int download_mesh(const char *id, const char *out)
+/* GET path into out, following the job when the answer is a 202 (longer than the server's wait). */
+static int get_file(const char *path, const char *out)
 {
-    char path[160];
     struct response r;
-    snprintf(path, sizeof path, "/models/%.64s/mesh?format=%s", id, strrchr(out, '.') + 1);
     int rc = request("GET", path, NULL, 0, NULL, NULL, &r);
     if (rc)
         return rc;
-    if (r.status == 202) /* a mesh job longer than the server's sync wait: follow it too */
+    if (r.status == 202)
         rc = follow(r.job_id, out);
     else
         rc = r.status == 200 ? write_file(out, &r.body) : report(&r);
     free(r.body.data);
     return rc;
+}
+
+/* The mesh format an output file's extension names (.dcm: a DICOM Encapsulated STL). */
+static const char *mesh_format_of(const char *out)
+{
+    const char *ext = strrchr(out, '.');
+    return !ext ? "stl" : strcmp(ext, ".dcm") ? ext + 1 : "dicom-stl";
+}
+
+/* Model id's mesh to out (its format from the extension), following the mesh job when it is long. */
+static int download_mesh(const char *id, const char *out)
+{
+    char path[160];
+    snprintf(path, sizeof path, "/models/%.64s/mesh?format=%s", id, mesh_format_of(out));
+    return get_file(path, out);
 }
 
 /* POST /isosurface, the job followed with the progress bar, the model resource on stdout and
@@ -575,21 +588,12 @@ static int cmd_mesh(int argc, char **argv)
     char query[256] = "";
     if (!read_args(argc, argv, OPTIONS, &id, &out, NULL, query, sizeof query) || !id || !out)
         return usage();
-    const char *ext = strrchr(out, '.');
     char path[512];
-    snprintf(path, sizeof path, "/models/%.64s/mesh%s%s%s%s", id, query[0] ? query : "?",
-             strstr(query, "format=") ? "" : (query[0] ? "&" : ""), strstr(query, "format=") ? "" : "format=",
-             strstr(query, "format=") ? "" : (ext ? ext + 1 : "stl"));
-    struct response r;
-    int rc = request("GET", path, NULL, 0, NULL, NULL, &r);
-    if (rc)
-        return rc;
-    if (r.status == 202)
-        rc = follow(r.job_id, out);
+    if (strstr(query, "format=")) /* --format given */
+        snprintf(path, sizeof path, "/models/%.64s/mesh%s", id, query);
     else
-        rc = r.status == 200 ? write_file(out, &r.body) : report(&r);
-    free(r.body.data);
-    return rc;
+        snprintf(path, sizeof path, "/models/%.64s/mesh%s%sformat=%s", id, query, query[0] ? "&" : "?", mesh_format_of(out));
+    return get_file(path, out);
 }
 
 /* surfctl view ID -o OUT [render's options]: GET /models/ID/render. */
@@ -601,16 +605,7 @@ static int cmd_view(int argc, char **argv)
         return usage();
     char path[1200];
     snprintf(path, sizeof path, "/models/%.64s/render%s", id, query);
-    struct response r;
-    int rc = request("GET", path, NULL, 0, NULL, NULL, &r);
-    if (rc)
-        return rc;
-    if (r.status == 202)
-        rc = follow(r.job_id, out);
-    else
-        rc = r.status == 200 ? write_file(out, &r.body) : report(&r);
-    free(r.body.data);
-    return rc;
+    return get_file(path, out);
 }
 
 /* A request without a body whose answer's body goes to stdout. */

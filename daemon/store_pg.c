@@ -645,15 +645,18 @@ static int pg_list(struct store *s, const enum job_state *state, const char *own
     return n < 0 ? -1 : 0;
 }
 
-static long pg_queued(struct store *s)
+/* The one bigint a query answers, or -1. */
+static long query_count(struct store *s, const char *sql)
 {
     PGresult *res;
-    if (exec1(s, &res, "SELECT count(*) FROM jobs WHERE state='queued'", 0, NULL) != 1)
+    if (exec1(s, &res, sql, 0, NULL) != 1)
         return -1;
     long n = (long)get_i64(res, 0, 0);
     PQclear(res);
     return n;
 }
+
+static long pg_queued(struct store *s) { return query_count(s, "SELECT count(*) FROM jobs WHERE state='queued'"); }
 
 /* ---- models ---- */
 
@@ -900,12 +903,7 @@ static int pg_mesh_put(struct store *s, const char *model, const char *key, cons
 
 static long pg_mesh_bytes(struct store *s)
 {
-    PGresult *res;
-    if (exec1(s, &res, "SELECT COALESCE(SUM(octet_length(data)), 0)::bigint FROM meshes", 0, NULL) != 1)
-        return -1;
-    long n = (long)get_i64(res, 0, 0);
-    PQclear(res);
-    return n;
+    return query_count(s, "SELECT COALESCE(SUM(octet_length(data)), 0)::bigint FROM meshes");
 }
 
 static bool pg_writable(struct store *s)
