@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "../api/image.h"
+#include "frames.h"
 #include "../core/iso/mc.h"
 
 #ifndef SURFD_VERSION
@@ -168,6 +169,7 @@ int cmd_serve(int argc, char **argv)
     service_stop(&svc); /* heartbeats went on while the drain ran; the draining flag stopped claims */
     server_stop(server);
     jobq_free(svc.q);
+    frames_free_all(&svc); /* after the pool: no job holds one */
     LOG(LOG_INFO, "stopped");
     rc = 0;
 out_free_device:

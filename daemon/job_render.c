@@ -1,6 +1,8 @@
 /* job_render.c - the render job kind: rebuilds the scene from the stored request (so a job
  * recovered after a crash runs exactly as submitted), prepares one frame, renders it in
- * MAP_TILE_ROWS-row bands on whichever workers are idle, encodes the image and stores it. */
+ * MAP_TILE_ROWS-row bands on whichever workers are idle, encodes the image and stores it. A
+ * stored model's view (GET /models/{id}/render) takes the model's parsed objects and hierarchy
+ * from the frame cache (frames.h) and prepares only the camera's part. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,6 +11,8 @@
 #include "../api/render_request.h"
 #include "../core/trace/map.h"
 #include "../core/trace/render.h"
+#include "../api/iso_json.h"
+#include "frames.h"
 #include "kinds.h"
 #include "log.h"
 #include "metrics.h"
@@ -22,11 +26,78 @@ struct render_work {
     bool have_scene;
     enum image_format fmt;
     struct frame *fr;
+    struct frame_entry *cached; /* a model's view: its objects and hierarchy, the cache's */
     int n_bands;
     struct render_stats *band_stats; /* one per band: bands never share a counter */
     double t0;
     struct sf_err err;
 };
+
+/* The model a request's scene is alone, when it is exactly what GET /models/{id}/render makes. */
+static bool model_view(const struct job_rec *rec, char id[40])
+{
+    static const char HEAD[] = "{\"objects\":[{\"type\":\"model\",\"id\":\"";
+    char want[128];
+    snprintf(id, 40, "%.32s", rec->request_len > sizeof HEAD - 1 ? (const char *)rec->request + sizeof HEAD - 1 : "");
+    snprintf(want, sizeof want, "%s%s\"}]}", HEAD, id);
+    return !strcmp(rec->format, "json") && rec->request_len == strlen(want) &&
+           !memcmp(rec->request, want, rec->request_len);
+}
+
+struct model_build {
+    struct service *svc;
+    const struct job_rec *rec;
+    bool mesh; /* the mesh method's hierarchy */
+};
+
+/* A model's objects and their hierarchy for the cache: the scene as the request has it, without
+ * its options, prepared at one pixel (the picture is each view's). */
+static int build_model(void *ctx, struct scene *sc, struct frame **base, struct sf_err *err)
+{
+    const struct model_build *b = ctx;
+    struct model_scope scope = {b->svc, NULL}; /* the route checked the owner's models */
+    struct model_resolver models = service_models(&scope);
+    enum image_format img;
+    int rc = render_request_parse((const char *)b->rec->request, b->rec->request_len, b->rec->format, "", &models, sc,
+                                  &img, err);
+    if (rc)
+        return rc;
+    sc->width = sc->height = 1;
+    sc->srgb8_only = true;
+    sc->method = b->mesh ? METHOD_MESH : METHOD_BVH;
+    return frame_prepare(sc, b->svc->dev, base, err);
+}
+
+/* A model's view on its cached hierarchy: 0, or -1 with w->err; 1 when the cache cannot serve it. */
+static int prepare_view(struct render_work *w, const struct job_rec *rec, const char *id)
+{
+    char *resource = NULL, key[96];
+    if (w->svc->cfg.frame_cache <= 0 || store_model_get(w->svc->store, id, NULL, &resource, NULL, NULL) != 1)
+        return 1;
+    struct scene probe; /* the request's options: the hierarchy they need */
+    scene_init(&probe);
+    int rc = render_options_apply(rec->options, &probe, &w->fmt, &w->err);
+    bool mesh = probe.method == METHOD_MESH;
+    scene_free(&probe);
+    if (rc)
+        return free(resource), -1;
+    snprintf(key, sizeof key, "%s.%ld.%s", id, iso_model_edits(resource), mesh ? "mesh" : "exact");
+    free(resource);
+    struct model_build b = {w->svc, rec, mesh};
+    if (!(w->cached = frames_take(w->svc, key, build_model, &b, &w->err)))
+        return -1;
+    scene_init(&w->sc);
+    w->sc.objects = w->cached->sc.objects, w->sc.n_objects = w->cached->sc.n_objects;
+    w->sc.meshes = w->cached->sc.meshes, w->sc.n_meshes = w->cached->sc.n_meshes;
+    w->sc.borrowed = true;
+    w->have_scene = true;
+    w->fmt = IMG_PNG;
+    if (render_options_apply(rec->options, &w->sc, &w->fmt, &w->err))
+        return -1;
+    if (w->fmt == IMG_PNG)
+        w->sc.srgb8_only = true;
+    return frame_prepare_from(&w->sc, w->cached->base, &w->fr, &w->err) ? -1 : 0;
+}
 
 static int prepare(struct job *j, void *arg, int *n_bands)
 {
@@ -35,17 +106,21 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     struct job_rec rec;
     if (store_get(w->svc->store, w->claim.id, true, false, &rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
-    struct model_scope scope = {w->svc, NULL}; /* the route checked the owner's models */
-    struct model_resolver models = service_models(&scope);
-    int rc = render_request_parse((const char *)rec.request, rec.request_len, rec.format, rec.options, &models, &w->sc,
-                                  &w->fmt, &w->err);
+    char id[40];
+    int rc = model_view(&rec, id) ? prepare_view(w, &rec, id) : 1;
+    if (rc == 1) { /* any other scene: parsed and prepared whole */
+        struct model_scope scope = {w->svc, NULL}; /* the route checked the owner's models */
+        struct model_resolver models = service_models(&scope);
+        rc = render_request_parse((const char *)rec.request, rec.request_len, rec.format, rec.options, &models, &w->sc,
+                                  &w->fmt, &w->err) ? -1 : 0;
+        w->have_scene = rc == 0;
+        if (!rc && w->fmt == IMG_PNG)
+            w->sc.srgb8_only = true; /* the bands convert to 8 bits, on every thread */
+        if (!rc && frame_prepare(&w->sc, w->svc->dev, &w->fr, &w->err))
+            rc = -1;
+    }
     store_rec_free(&rec);
     if (rc)
-        return -1;
-    w->have_scene = true;
-    if (w->fmt == IMG_PNG)
-        w->sc.srgb8_only = true; /* the bands convert to 8 bits, on every thread */
-    if (frame_prepare(&w->sc, w->svc->dev, &w->fr, &w->err))
         return -1;
     w->n_bands = (w->sc.height + JOB_BAND_ROWS - 1) / JOB_BAND_ROWS;
     w->band_stats = calloc((size_t)w->n_bands, sizeof *w->band_stats);
@@ -91,6 +166,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     frame_free(w->fr);
     if (w->have_scene)
         scene_free(&w->sc);
+    frames_give(w->svc, w->cached); /* after the frame and the scene that borrowed from it */
     free(w->band_stats);
     free(w);
 }

@@ -27,6 +27,8 @@ static atomic_long store_damaged;
 void metrics_store_damaged(void) { atomic_fetch_add(&store_damaged, 1); }
 static atomic_long mesh_lookups[2]; /* misses, hits */
 void metrics_mesh_cache(bool hit) { atomic_fetch_add(&mesh_lookups[hit], 1); }
+static atomic_long frame_lookups[2];
+void metrics_frame_cache(bool hit) { atomic_fetch_add(&frame_lookups[hit], 1); }
 
 void metrics_http(int status)
 {
@@ -105,6 +107,10 @@ char *metrics_text(struct service *svc)
         "# TYPE surfd_mesh_cache_lookups_total counter\n");
     OUT("surfd_mesh_cache_lookups_total{result=\"hit\"} %ld\nsurfd_mesh_cache_lookups_total{result=\"miss\"} %ld\n",
         atomic_load(&mesh_lookups[1]), atomic_load(&mesh_lookups[0]));
+    OUT("# HELP surfd_frame_cache_lookups_total Views of a stored model, by whether its prepared hierarchy was in memory.\n"
+        "# TYPE surfd_frame_cache_lookups_total counter\n");
+    OUT("surfd_frame_cache_lookups_total{result=\"hit\"} %ld\nsurfd_frame_cache_lookups_total{result=\"miss\"} %ld\n",
+        atomic_load(&frame_lookups[1]), atomic_load(&frame_lookups[0]));
     OUT("# HELP surfd_store_damaged_total Stored results or models refused: their checksum did not match.\n"
         "# TYPE surfd_store_damaged_total counter\nsurfd_store_damaged_total %ld\n", atomic_load(&store_damaged));
     OUT("# HELP surfd_jobs_stranded Jobs whose end the store refused, kept to run again.\n"

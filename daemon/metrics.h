@@ -18,6 +18,8 @@ void metrics_store_error(void);
 void metrics_store_damaged(void);
 /* A GET of a model's mesh found it in the cache (hit) or not. */
 void metrics_mesh_cache(bool hit);
+/* A model's view found its prepared hierarchy in memory (hit) or built it. */
+void metrics_frame_cache(bool hit);
 /* The exposition text; caller frees. */
 char *metrics_text(struct service *svc);
 

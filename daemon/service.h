@@ -33,6 +33,8 @@ struct claim {
     int tries;
 };
 
+struct frame_entry;
+
 struct service {
     struct config cfg;
     struct store *store;
@@ -49,6 +51,7 @@ struct service {
     bool wake, stop;
     struct claim claims[CLAIMS_MAX];
     int n_claims;
+    struct frame_entry *frames; /* models' prepared hierarchies (frames.h) */
     pthread_t keeper;
     bool keeper_started;
 };

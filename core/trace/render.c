@@ -31,6 +31,7 @@
 
 struct frame {
     const struct scene *sc;
+    bool borrowed;            /* ps, exact, mesh and meshes are another frame's (frame_prepare_from) */
     struct camera cam;
     struct patch_set ps;
     vec3 lo, hi;
@@ -73,10 +74,12 @@ void frame_free(struct frame *fr)
     if (!fr)
         return;
     map_free(fr->map);
-    bvh_free(fr->exact);
-    bvh_free(fr->mesh);
-    free(fr->meshes);
-    nurbs_patch_set_free(&fr->ps);
+    if (!fr->borrowed) {
+        bvh_free(fr->exact);
+        bvh_free(fr->mesh);
+        free(fr->meshes);
+        nurbs_patch_set_free(&fr->ps);
+    }
     free(fr->lights);
     free(fr->toward);
     free(fr->rgba);
@@ -170,6 +173,68 @@ static int resolve_lights(struct frame *fr)
 #define FRAME_MAX_EYE 1e17
 #define AUTO_MAP_PIXELS_PER_PATCH 64 /* frame pixels per patch below which auto leaves the map out */
 
+/* The view's part of a frame whose hierarchy is in place: camera, lights, buffers, the map.
+ * Frees fr on failure. */
+static int frame_view(struct frame *fr, double t0, struct frame **out, struct sf_err *err)
+{
+    const struct scene *sc = fr->sc;
+    int rc = 0;
+    place_camera(fr);
+    if (!(fabs(fr->cam.eye.x) <= FRAME_MAX_EYE && fabs(fr->cam.eye.y) <= FRAME_MAX_EYE &&
+          fabs(fr->cam.eye.z) <= FRAME_MAX_EYE)) {
+        frame_free(fr);
+        return sf_fail(err, SF_EINVAL, "/camera/fov_deg",
+                       "framing the objects at fov_deg %g puts the eye beyond ±%g; widen the view", sc->fov_deg,
+                       FRAME_MAX_EYE);
+    }
+    if (resolve_lights(fr))
+        goto out_fail_mem;
+
+    size_t np = (size_t)sc->width * sc->height;
+    if (sc->srgb8_only) {
+        if (!(fr->srgb8 = malloc(3 * np)) || !(fr->srgb = malloc(sizeof *fr->srgb)))
+            goto out_fail_mem;
+        srgb_table_init(fr->srgb);
+        /* the picture starts as background: the bands write only the pixels something covers */
+        const float bg[3] = {(float)sc->background.x, (float)sc->background.y, (float)sc->background.z};
+        unsigned char run[3 * SHADE_CHUNK]; /* a run of background pixels */
+        for (int k = 0; k < 3 * SHADE_CHUNK; k++)
+            run[k] = srgb8(fr->srgb, bg[k % 3]);
+        for (size_t at = 0; at < 3 * np; at += sizeof run)
+            memcpy(fr->srgb8 + at, run, 3 * np - at < sizeof run ? 3 * np - at : sizeof run);
+    } else {
+        fr->rgba = malloc(sizeof(float) * 4 * np);
+        fr->depth = malloc(sizeof(float) * np);
+        if (!fr->rgba || !fr->depth)
+            goto out_fail_mem;
+        if ((sc->aovs & AOV_NORMAL) && !(fr->normal = malloc(sizeof(float) * 3 * np)))
+            goto out_fail_mem;
+        if ((sc->aovs & AOV_UV) && !(fr->uv = malloc(sizeof(float) * 2 * np)))
+            goto out_fail_mem;
+        if ((sc->aovs & AOV_ID) && !(fr->id = malloc(sizeof(float) * np)))
+            goto out_fail_mem;
+    }
+    /* auto traces primaries through the map where patches are large on screen; with many small ones
+     * (a contour model's thousands) most pixels hold more candidates than the map keeps, and the
+     * hierarchy alone is the faster (the heart's 19 014 patches at 500x400: 274 against 368 ms) */
+    bool map_wanted = !sc->n_meshes && !sc->ortho && /* the map knows patches in perspective alone */
+                      (sc->method == METHOD_MAP ||
+                       (sc->method == METHOD_AUTO && fr->ps.n * AUTO_MAP_PIXELS_PER_PATCH <= np));
+    if (map_wanted)
+        rc = map_build(fr->ps.patches, fr->ps.n, &fr->cam, &fr->map, err);
+    if (rc) {
+        frame_free(fr);
+        return rc;
+    }
+    fr->prepare_ms = now_ms() - t0;
+    *out = fr;
+    return 0;
+
+out_fail_mem:
+    frame_free(fr);
+    return sf_fail(err, SF_ENOMEM, "", "out of memory preparing the frame");
+}
+
 int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame **out, struct sf_err *err)
 {
     double t0 = now_ms();
@@ -213,65 +278,45 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
         return sf_fail(err, SF_EINVAL, "/objects", "the objects have no extent (every control point is the same)");
     }
     fr->tol2 = (sc->tolerance * fr->diag) * (sc->tolerance * fr->diag);
-    place_camera(fr);
-    if (!(fabs(fr->cam.eye.x) <= FRAME_MAX_EYE && fabs(fr->cam.eye.y) <= FRAME_MAX_EYE &&
-          fabs(fr->cam.eye.z) <= FRAME_MAX_EYE)) {
-        frame_free(fr);
-        return sf_fail(err, SF_EINVAL, "/camera/fov_deg",
-                       "framing the objects at fov_deg %g puts the eye beyond ±%g; widen the view", sc->fov_deg,
-                       FRAME_MAX_EYE);
-    }
-    if (resolve_lights(fr))
-        goto out_fail_mem;
-
-    size_t np = (size_t)sc->width * sc->height;
-    if (sc->srgb8_only) {
-        if (!(fr->srgb8 = malloc(3 * np)) || !(fr->srgb = malloc(sizeof *fr->srgb)))
-            goto out_fail_mem;
-        srgb_table_init(fr->srgb);
-        /* the picture starts as background: the bands write only the pixels something covers */
-        const float bg[3] = {(float)sc->background.x, (float)sc->background.y, (float)sc->background.z};
-        unsigned char run[3 * SHADE_CHUNK]; /* a run of background pixels */
-        for (int k = 0; k < 3 * SHADE_CHUNK; k++)
-            run[k] = srgb8(fr->srgb, bg[k % 3]);
-        for (size_t at = 0; at < 3 * np; at += sizeof run)
-            memcpy(fr->srgb8 + at, run, 3 * np - at < sizeof run ? 3 * np - at : sizeof run);
-    } else {
-        fr->rgba = malloc(sizeof(float) * 4 * np);
-        fr->depth = malloc(sizeof(float) * np);
-        if (!fr->rgba || !fr->depth)
-            goto out_fail_mem;
-        if ((sc->aovs & AOV_NORMAL) && !(fr->normal = malloc(sizeof(float) * 3 * np)))
-            goto out_fail_mem;
-        if ((sc->aovs & AOV_UV) && !(fr->uv = malloc(sizeof(float) * 2 * np)))
-            goto out_fail_mem;
-        if ((sc->aovs & AOV_ID) && !(fr->id = malloc(sizeof(float) * np)))
-            goto out_fail_mem;
-    }
-
     if (sc->method == METHOD_MESH)
         rc = bvh_build_mesh(dev, fr->ps.patches, fr->ps.n, sc->mesh_tolerance * fr->diag, &fr->mesh, err);
     else
         rc = bvh_build_scene(dev, fr->ps.patches, fr->ps.n, fr->tol2, fr->meshes, sc->n_meshes, &fr->exact, err);
-    /* auto traces primaries through the map where patches are large on screen; with many small ones
-     * (a contour model's thousands) most pixels hold more candidates than the map keeps, and the
-     * hierarchy alone is the faster (the heart's 19 014 patches at 500x400: 274 against 368 ms) */
-    bool map_wanted = !sc->n_meshes && !sc->ortho && /* the map knows patches in perspective alone */
-                      (sc->method == METHOD_MAP ||
-                                        (sc->method == METHOD_AUTO && fr->ps.n * AUTO_MAP_PIXELS_PER_PATCH <= np));
-    if (!rc && map_wanted)
-        rc = map_build(fr->ps.patches, fr->ps.n, &fr->cam, &fr->map, err);
     if (rc) {
         frame_free(fr);
         return rc;
     }
-    fr->prepare_ms = now_ms() - t0;
-    *out = fr;
-    return 0;
+    return frame_view(fr, t0, out, err);
+}
 
-out_fail_mem:
-    frame_free(fr);
-    return sf_fail(err, SF_ENOMEM, "", "out of memory preparing the frame");
+int frame_prepare_from(const struct scene *sc, const struct frame *base, struct frame **out, struct sf_err *err)
+{
+    double t0 = now_ms();
+    *out = NULL;
+    int rc = scene_validate(sc, err);
+    if (rc)
+        return rc;
+    if (sc->objects != base->sc->objects || sc->n_objects != base->sc->n_objects || sc->meshes != base->sc->meshes ||
+        sc->n_meshes != base->sc->n_meshes || sc->tolerance != base->sc->tolerance ||
+        (sc->method == METHOD_MESH) != (base->mesh != NULL) ||
+        (base->mesh && sc->mesh_tolerance != base->sc->mesh_tolerance))
+        return sf_fail(err, SF_EINVAL, "", "the frame's hierarchy was built for other objects or tolerances");
+    struct frame *fr = calloc(1, sizeof *fr);
+    if (!fr)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    fr->sc = sc;
+    fr->borrowed = true; /* the base's patches, bounds and hierarchies: read-only, shared */
+    fr->ps = base->ps, fr->lo = base->lo, fr->hi = base->hi, fr->diag = base->diag, fr->tol2 = base->tol2;
+    fr->exact = base->exact, fr->mesh = base->mesh, fr->meshes = base->meshes;
+    return frame_view(fr, t0, out, err);
+}
+
+size_t frame_hierarchy_bytes(const struct frame *fr)
+{
+    size_t n = fr->ps.n * (sizeof *fr->ps.patches + 256); /* the patches, and about their hierarchy's leaves */
+    for (int k = 0; k < fr->sc->n_meshes; k++)
+        n += fr->sc->meshes[k].m.n_tri * 64 + fr->sc->meshes[k].m.n_vert * 24;
+    return n;
 }
 
 /* ---- primary rays ----------------------------------------------------------------------- */

@@ -46,6 +46,13 @@ struct frame_image {
 
 /* Returns 0 or an SF_E* code with err filled. dev is borrowed until frame_free(). */
 int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame **out, struct sf_err *err);
+/* A frame of scene sc on base's patches and hierarchies (built by frame_prepare for the same
+ * objects, tolerance and method; borrowed, read-only, until this frame is freed): only the view's
+ * part is made - camera, lights, buffers, the map - so a second view of the same objects skips
+ * the hierarchy (issue 17). SF_EINVAL when base was built for other objects or tolerances. */
+int frame_prepare_from(const struct scene *sc, const struct frame *base, struct frame **out, struct sf_err *err);
+/* About the bytes a frame's patches and hierarchies take (a cache's budget). */
+size_t frame_hierarchy_bytes(const struct frame *fr);
 /* Renders rows [y0, y1), adding to *stats. */
 void frame_band(struct frame *fr, int y0, int y1, struct render_stats *stats);
 void frame_image(const struct frame *fr, struct frame_image *img);

@@ -29,13 +29,15 @@ void scene_free(struct scene *sc)
 {
     if (!sc)
         return;
-    for (int k = 0; k < sc->n_objects; k++)
+    for (int k = 0; !sc->borrowed && k < sc->n_objects; k++)
         nurbs_surface_free(&sc->objects[k].surf);
-    free(sc->objects);
+    if (!sc->borrowed)
+        free(sc->objects);
     free(sc->lights);
-    for (int k = 0; k < sc->n_meshes; k++)
+    for (int k = 0; !sc->borrowed && k < sc->n_meshes; k++)
         trimesh_free(&sc->meshes[k].m);
-    free(sc->meshes);
+    if (!sc->borrowed)
+        free(sc->meshes);
     sc->objects = NULL;
     sc->lights = NULL;
     sc->meshes = NULL;

@@ -78,6 +78,7 @@ struct scene {
     int n_objects, cap_objects; /* scene_add_object() grows objects */
     struct scene_mesh *meshes;  /* traced with auto or bvh: the map and the mesh method are the patches' */
     int n_meshes;
+    bool borrowed;            /* objects and meshes are another scene's: scene_free leaves them */
 };
 
 /* Defaults of API.md: 800x600, white background, auto method, shadows on. */

@@ -634,6 +634,55 @@ def edit_bench(lines, n_edits=20):
                  "%.0f ms for the request.\n" % new_iso)
 
 
+def views_bench(lines):
+    """Issue 17: repeat views of a stored model over HTTP (GET /models/{id}/render, 1024x1024, 2 threads): the first
+    builds the model's hierarchy, the next ones take it from the frame cache; wall time against X-Render-Ms."""
+    data = os.path.join(TMP, "views")
+    log_path = os.path.join(TMP, "views.log")
+    log = open(log_path, "w")
+    d = subprocess.Popen([SURFD, "serve", "--listen", "127.0.0.1:0", "--data-dir", data, "--log-level", "warn",
+                          "--threads", "2"], stdout=log, stderr=log)
+    port = None
+    for _ in range(200):
+        time.sleep(0.05)
+        with open(log_path) as f:
+            m = re.search(r"listening on http://127\.0\.0\.1:(\d+)", f.read())
+        if m:
+            port = int(m.group(1))
+            break
+    base = "http://127.0.0.1:%d" % port
+    try:
+        with open(os.path.join(DATA, "contours", "dicompyler_heart.json"), "rb") as f:
+            req = urllib.request.Request(base + "/model", data=f.read(), headers={"Content-Type": "application/json"})
+        with urllib.request.urlopen(req, timeout=120) as r:
+            mid = json.load(r)["id"]
+        views = []
+        for k, az in enumerate([30, 45, 60, 75, 90, 105]):
+            t0 = time.monotonic()
+            with urllib.request.urlopen("%s/models/%s/render?width=%d&height=%d&azimuth=%d" % (base, mid, W, H, az),
+                                        timeout=300) as r:
+                r.read()
+                render = float(r.headers["X-Render-Ms"])
+            views.append(((time.monotonic() - t0) * 1000, render))
+    finally:
+        d.terminate()
+        d.wait()
+    first, rest = views[0], views[1:]
+    wall = statistics.median(v[0] for v in rest)
+    render = statistics.median(v[1] for v in rest)
+    lines.append("## Repeat views of a stored model (issue 17)\n")
+    lines.append("The heart contour model (`dicompyler_heart.json`, 19 014 patches), GET /models/{id}/render at %dx%d, "
+                 "2 threads, azimuth 30, 45, ... 105: the first view parses the model and builds its hierarchy, the "
+                 "next take both from the frame cache (`frame-cache`) and prepare only the camera. Wall = the whole "
+                 "HTTP request (job, render, PNG, store); render = X-Render-Ms.\n" % (W, H))
+    lines.append("| view | wall ms | render ms | wall / render |")
+    lines.append("|---|---|---|---|")
+    lines.append("| first | %.0f | %.0f | %.2f |" % (first[0], first[1], first[0] / first[1]))
+    lines.append("| repeat (median of %d) | %.0f | %.0f | %.2f |" % (len(rest), wall, render, wall / render))
+    lines.append("")
+    lines.append("- Target of issue 17: a repeat view within 1.3x of its render time: %.2fx.\n" % (wall / render))
+
+
 def aa_bench(lines):
     """Issue 18: anti-aliasing (?samples=N, stratified rays a pixel) on the teapot at 1024x1024, 2 threads, against
     one ray a pixel and POV-Ray's own supersampling (+A0.0 +AM1 +R4: 16 rays a pixel everywhere), same run."""
@@ -780,7 +829,7 @@ def big_volume_bench(lines):
 def main():
     rows, notes = [], []
     parts = {"iso": (iso_bench, adapt_bench, edit_bench, sharp_bench, big_volume_bench), "adapt": (adapt_bench,),
-             "edit": (edit_bench,), "matrix": (matrix_bench,), "aa": (aa_bench,),
+             "edit": (edit_bench,), "matrix": (matrix_bench,), "aa": (aa_bench,), "views": (views_bench,),
              "sharp": (sharp_bench,), "cluster": (cluster_bench,),
              "contours": (contour_bench,), "http": (http_bench,)}
     only = os.environ.get("BENCH_ONLY")
@@ -859,9 +908,10 @@ def main():
     sharp_bench(lines)
     matrix_bench(lines)
     aa_bench(lines)
+    views_bench(lines)
     big_volume_bench(lines)
     lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=http`, `BENCH_ONLY=contours`, "
-                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso`, `BENCH_ONLY=adapt`, `BENCH_ONLY=edit`, `BENCH_ONLY=sharp`, `BENCH_ONLY=matrix` or `BENCH_ONLY=aa` for one part).")
+                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso`, `BENCH_ONLY=adapt`, `BENCH_ONLY=edit`, `BENCH_ONLY=sharp`, `BENCH_ONLY=matrix`, `BENCH_ONLY=aa` or `BENCH_ONLY=views` for one part).")
     out = os.path.join(ROOT, "tests", "bench", "RESULTS.md")
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")

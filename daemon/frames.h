@@ -1,0 +1,33 @@
+/* frames.h - prepared hierarchies of stored models, kept between their renders (issue 17: a repeat
+ * view of a model prepares only what the camera changes). An entry holds a model's scene objects
+ * (parsed from its source once) and a frame whose patches and hierarchy every later frame of that
+ * model borrows (frame_prepare_from). Keyed by model, edit count and hierarchy kind; bounded by
+ * frame-cache bytes, the least recently used idle entries dropped first. Thread-safe. */
+#ifndef SURFD_FRAMES_H
+#define SURFD_FRAMES_H
+
+#include "../core/trace/render.h"
+#include "service.h"
+
+struct frame_entry {
+    char key[96];
+    struct scene sc;         /* the model's objects (a frame's scene borrows them) */
+    struct frame *base;      /* their patches and hierarchy */
+    size_t bytes;
+    long refs;               /* jobs using it */
+    double used;             /* monotonic seconds of its last take */
+    struct frame_entry *next;
+};
+
+/* The entry of key, built by build(ctx, &sc, &base, err) when there is none (not kept when it
+ * alone is over the budget: then it is the caller's to give back all the same). NULL with err
+ * when the build fails. */
+struct frame_entry *frames_take(struct service *svc, const char *key,
+                                int (*build)(void *ctx, struct scene *sc, struct frame **base, struct sf_err *err),
+                                void *ctx, struct sf_err *err);
+/* Gives an entry back (frames_take's); one no longer kept is freed with its last user. */
+void frames_give(struct service *svc, struct frame_entry *e);
+/* Frees every entry (at shutdown, no job running). */
+void frames_free_all(struct service *svc);
+
+#endif
