@@ -32,6 +32,7 @@ check "... read back by our own reader: the model's volume within 0.1 %, its sli
 code=$(status GET "/models/$id/rtstruct?spacing=1.5"); cp "$T/body" "$T/fine.dcm"
 code=$(status POST "/volume?roi=Heart" -H "$DCM" --data-binary @"$T/fine.dcm")
 check "?spacing=1.5: more sections (the ends kept), the volume within 0.1 %" '[ "$code" = 200 ] && [ "$(field slices)" -gt "$n" ] && near "$(field volume_mm3)" "$vol" 0.001'
+check "?spacing=0.001: more sections than a structure set holds, 422 at ?spacing (the cap)" '[ "$(status GET "/models/$id/rtstruct?spacing=0.001")" = 422 ] && grep -q "?spacing" "$T/body" && grep -q "sections" "$T/body"'
 for bad_spacing in 0 -1 5000 x; do
     check "?spacing=$bad_spacing: 422 at ?spacing" '[ "$(status GET "/models/$id/rtstruct?spacing=$bad_spacing")" = 422 ] && grep -q "?spacing" "$T/body"'
 done

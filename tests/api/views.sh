@@ -34,6 +34,10 @@ cp "$T/cached" "$T/before"
 code=$(status POST "/models/$iso/edit" -H "$J" --data-binary '{"op": "subtract", "object": {"box": {"min": [0, 0, 0], "max": [2, 2, 2]}}}')
 check "... after an edit, the edited model (a new hierarchy), the same as fresh" '[ "$code" = 200 ] && same_view "$iso" "width=64&height=48&azimuth=200" && ! cmp -s "$T/body" "$T/before" '
 stop_daemon
+start_daemon "$T/d" --frame-cache 1000 || exit 1
+status GET "/models/$id/render?width=64&height=48" >/dev/null
+check "a hierarchy over --frame-cache (1000 bytes) is used for its view and not kept: the next view builds it again" 'same_view "$id" "width=64&height=48&azimuth=10" && [ "$(metric "surfd_frame_cache_lookups_total{result=\"miss\"}")" = 2 ] && [ "$(metric "surfd_frame_cache_lookups_total{result=\"hit\"}")" = 0 ]'
+stop_daemon
 start_daemon "$T/d" --frame-cache 0 || exit 1
 status GET "/models/$id/render?width=64&height=48" >/dev/null; status GET "/models/$id/render?width=64&height=48" >/dev/null
 check "--frame-cache 0: every view a miss, still rendered" '[ "$(header Content-Type)" = image/png ] && [ "$(metric "surfd_frame_cache_lookups_total{result=\"hit\"}")" = 0 ]'
