@@ -9,6 +9,7 @@
 #include <string.h>
 #include <strings.h>
 
+#include "../api/iso_json.h"
 #include "../api/model_json.h"
 #include "../api/render_request.h"
 #include "../api/rtstruct.h"
@@ -89,6 +90,8 @@ static int prepare(struct job *j, void *arg, int *n_bands)
             double tol;
             model_mesh_options(rec.options, &format, &tol, &w->err);
             model_mesh_key(rec.options, w->key, sizeof w->key, &w->err);
+            size_t kn = strlen(w->key); /* with the edits the mesh was made from (the route's key too) */
+            snprintf(w->key + kn, sizeof w->key - kn, " e%ld", iso_model_edits(resource));
             snprintf(w->model, sizeof w->model, "%s", model);
             const char *ext = strcmp(format, "dicom-stl") ? format : "dcm";
             if (w->tol > 0)

@@ -585,6 +585,12 @@ static enum MHD_Result model_output(struct req *r, const char *id, const char *w
             return answer;
         if (model_mesh_key(o.buf, key, sizeof key, &err))
             return problem_err(r, &err);
+        char *resource = NULL; /* the key holds the model's edit count: a mesh made before an edit never matches */
+        if (store_model_get(r->svc->store, id, scope(r), &resource, NULL, NULL) == 1) {
+            size_t n = strlen(key);
+            snprintf(key + n, sizeof key - n, " e%ld", iso_model_edits(resource));
+        }
+        free(resource);
         struct mesh_rec m;
         int found = store_mesh_get(r->svc->store, id, key, &m);
         metrics_mesh_cache(found == 1);
