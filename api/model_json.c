@@ -467,13 +467,13 @@ int model_mesh_options(const char *options, const char **format, double *tol, st
     return 0;
 }
 
-int model_mesh_key(const char *options, char *key, size_t cap, struct sf_err *err)
+int model_mesh_key(const char *options, long edits, char *key, size_t cap, struct sf_err *err)
 {
     const char *format;
     double tol;
     int rc = model_mesh_options(options, &format, &tol, err);
     if (!rc)
-        tol > 0 ? snprintf(key, cap, "%s %.17g", format, tol) : snprintf(key, cap, "%s default", format);
+        tol > 0 ? snprintf(key, cap, "%s %.17g e%ld", format, tol, edits) : snprintf(key, cap, "%s default e%ld", format, edits);
     return rc;
 }
 

@@ -58,9 +58,9 @@ int model_rtstruct(const char *src, size_t len, const char *resource, const char
                    const struct sf_progress *pr, unsigned char **out, size_t *out_len, struct sf_err *err);
 /* What model_rtstruct would refuse in its options (?spacing). */
 int model_rtstruct_options(const char *options, double *spacing, struct sf_err *err);
-/* The cache key of a mesh request's options ("stl default", "ply 0.05"; the daemon adds the model's
- * edit count), or their error. */
-int model_mesh_key(const char *options, char *key, size_t cap, struct sf_err *err);
+/* The cache key of a mesh request's options for a model after edits edits ("stl default e0",
+ * "ply 0.05 e2": a mesh made before an edit never matches after it), or their error. */
+int model_mesh_key(const char *options, long edits, char *key, size_t cap, struct sf_err *err);
 /* What model_mesh would refuse in its options (errors point at ?format, ?tolerance). */
 int model_mesh_options(const char *options, const char **format, double *tol, struct sf_err *err);
 /* A stored model's patches as a scene: {"objects": [...]}: bicubic "bezier" objects, and the domes'

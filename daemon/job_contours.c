@@ -89,9 +89,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
             const char *format;
             double tol;
             model_mesh_options(rec.options, &format, &tol, &w->err);
-            model_mesh_key(rec.options, w->key, sizeof w->key, &w->err);
-            size_t kn = strlen(w->key); /* with the edits the mesh was made from (the route's key too) */
-            snprintf(w->key + kn, sizeof w->key - kn, " e%ld", iso_model_edits(resource));
+            model_mesh_key(rec.options, iso_model_edits(resource), w->key, sizeof w->key, &w->err);
             snprintf(w->model, sizeof w->model, "%s", model);
             const char *ext = strcmp(format, "dicom-stl") ? format : "dcm";
             if (w->tol > 0)

@@ -74,26 +74,20 @@ static int prepare_view(struct render_work *w, const struct job_rec *rec, const 
     char *resource = NULL, key[96];
     if (w->svc->cfg.frame_cache <= 0 || store_model_get(w->svc->store, id, NULL, &resource, NULL, NULL) != 1)
         return 1;
-    struct scene probe; /* the request's options: the hierarchy they need */
-    scene_init(&probe);
-    int rc = render_options_apply(rec->options, &probe, &w->fmt, &w->err);
-    bool mesh = probe.method == METHOD_MESH;
-    scene_free(&probe);
-    if (rc)
+    scene_init(&w->sc); /* the request's options first: the hierarchy they need */
+    w->sc.borrowed = true;
+    w->have_scene = true;
+    w->fmt = IMG_PNG;
+    if (render_options_apply(rec->options, &w->sc, &w->fmt, &w->err))
         return free(resource), -1;
+    bool mesh = w->sc.method == METHOD_MESH;
     snprintf(key, sizeof key, "%s.%ld.%s", id, iso_model_edits(resource), mesh ? "mesh" : "exact");
     free(resource);
     struct model_build b = {w->svc, rec, mesh};
     if (!(w->cached = frames_take(w->svc, key, build_model, &b, &w->err)))
         return -1;
-    scene_init(&w->sc);
     w->sc.objects = w->cached->sc.objects, w->sc.n_objects = w->cached->sc.n_objects;
     w->sc.meshes = w->cached->sc.meshes, w->sc.n_meshes = w->cached->sc.n_meshes;
-    w->sc.borrowed = true;
-    w->have_scene = true;
-    w->fmt = IMG_PNG;
-    if (render_options_apply(rec->options, &w->sc, &w->fmt, &w->err))
-        return -1;
     if (w->fmt == IMG_PNG)
         w->sc.srgb8_only = true;
     return frame_prepare_from(&w->sc, w->cached->base, &w->fr, &w->err) ? -1 : 0;

@@ -583,14 +583,11 @@ static enum MHD_Result model_output(struct req *r, const char *id, const char *w
         struct sf_err err = {0};
         if (!query_options(r, &o, &answer))
             return answer;
-        if (model_mesh_key(o.buf, key, sizeof key, &err))
-            return problem_err(r, &err);
-        char *resource = NULL; /* the key holds the model's edit count: a mesh made before an edit never matches */
-        if (store_model_get(r->svc->store, id, scope(r), &resource, NULL, NULL) == 1) {
-            size_t n = strlen(key);
-            snprintf(key + n, sizeof key - n, " e%ld", iso_model_edits(resource));
-        }
+        char *resource = NULL;
+        long edits = store_model_get(r->svc->store, id, scope(r), &resource, NULL, NULL) == 1 ? iso_model_edits(resource) : 0;
         free(resource);
+        if (model_mesh_key(o.buf, edits, key, sizeof key, &err))
+            return problem_err(r, &err);
         struct mesh_rec m;
         int found = store_mesh_get(r->svc->store, id, key, &m);
         metrics_mesh_cache(found == 1);

@@ -2,7 +2,7 @@
 # Images for compositing (issue 18): EXR premultiplied (RGB 0 where alpha is 0) unless the request
 # gives a background (then opaque over it), alpha only 0 or 1 at one ray a pixel, fractional at the
 # silhouettes with ?samples=N (stratified rays: at most N + 1 levels), PNG anti-aliased the same
-# way (its edges' steps softened); bad sample counts refused. EXR read back by tests/tools/exr_read.py.
+# way (its edges' steps softened); bad sample counts and bad camera inputs (query and JSON) refused. EXR read back by tests/tools/exr_read.py.
 . "$(dirname "$0")/lib.inc"
 start_daemon "$T/d" || exit 1
 exr_stats() { # exr_stats FILE: "fractional levels rgb_where_transparent alpha_min"
@@ -43,4 +43,26 @@ check "?samples=65: 422 at ?samples" '[ "$(status POST "/render?samples=65" -H "
 check "?samples=2.5: 422 at ?samples" '[ "$(status POST "/render?samples=2.5" -H "Content-Type: model/x-bpt" --data-binary @"$D/teapot.bpt")" = 422 ]'
 code=$(status POST /render -H 'Content-Type: application/json' --data-binary '{"image": {"samples": 100}, "objects": [{"degree": [1, 1], "points": [[0,0,0],[1,0,0],[0,1,0],[1,1,1]]}]}')
 check "image.samples 100: 422 at /image/samples" '[ "$code" = 422 ] && grep -q "/image/samples" "$T/body"'
+# ---- the camera's new inputs, bad: a 422 at the field, the daemon still up ------------------------------
+P='{"degree": [1, 1], "points": [[0,0,0],[1,0,0],[0,1,0],[1,1,1]]}'
+bad_q() { # bad_q QUERY POINTER
+    want=$2
+    code=$(status POST "/render?$1" -H 'Content-Type: model/x-bpt' --data-binary @"$D/teapot.bpt")
+    check "?$1: 422 at $2" '[ "$code" = 422 ] && is_problem 422 && grep -q "\"pointer\":\"$want\"" "$T/body"'
+}
+bad_q "aovs=normal,depth" "?aovs"
+bad_q "view_height=0" "?view_height"
+bad_q "fov=180" "?fov"
+bad_q "up=0,0" "?up"
+bad_q "projection=orthographic&view=%2Bq" "?view"
+bad_j() { # bad_j CAMERA POINTER
+    want=$2
+    code=$(status POST /render -H 'Content-Type: application/json' --data-binary "{\"camera\": $1, \"objects\": [$P]}")
+    check "camera $1: 422 at $2" '[ "$code" = 422 ] && is_problem 422 && grep -q "\"pointer\":\"$want\"" "$T/body"'
+}
+bad_j '{"projection": "fisheye"}' /camera/projection
+bad_j '{"view": "+w"}' /camera/view
+bad_j '{"view": "+x", "eye": [5, 0, 0], "target": [0, 0, 0]}' /camera/view
+bad_j '{"projection": "orthographic", "view_height": -2}' /camera/view_height
+check "the daemon is up after them" 'alive'
 finish

@@ -116,22 +116,25 @@ def wrk(url, body_path, conns, secs):
     return rps, pct(50), pct(99), total
 
 
-def http_bench(lines):
-    """Issue 4: wrk against the daemon, RSS over 10 000 requests, 1024² over HTTP vs in-process."""
-    data = os.path.join(TMP, "srv")
-    log_path = os.path.join(TMP, "srv.log")
+def start_daemon(name, *args):
+    """surfd serve on a free loopback port, its data and log under TMP/name: (the process, its base URL)."""
+    log_path = os.path.join(TMP, name + ".log")
     log = open(log_path, "w")  # a file, never a pipe nobody reads: a full pipe would block the daemon's log
-    d = subprocess.Popen([SURFD, "serve", "--listen", "127.0.0.1:0", "--data-dir", data, "--log-level", "warn",
-                          "--queue-max", "64"], stdout=log, stderr=log)
-    port = None
+    d = subprocess.Popen([SURFD, "serve", "--listen", "127.0.0.1:0", "--data-dir", os.path.join(TMP, name),
+                          "--log-level", "warn", *args], stdout=log, stderr=log)
     for _ in range(200):
         time.sleep(0.05)
         with open(log_path) as f:
             m = re.search(r"listening on http://127\.0\.0\.1:(\d+)", f.read())
         if m:
-            port = int(m.group(1))
-            break
-    base = "http://127.0.0.1:%d" % port
+            return d, "http://127.0.0.1:%d" % int(m.group(1))
+    d.terminate()
+    sys.exit("surfd serve did not start: see " + log_path)
+
+
+def http_bench(lines):
+    """Issue 4: wrk against the daemon, RSS over 10 000 requests, 1024² over HTTP vs in-process."""
+    d, base = start_daemon("srv", "--queue-max", "64")
     small = os.path.join(TMP, "teapot256.json")
     with open(os.path.join(DATA, "scenes", "teapot.json")) as f:
         sc = {"image": {"width": 256, "height": 256}, "camera": CAM, "lights": [LIGHT], "objects": json.load(f)["patches"]}
@@ -637,20 +640,7 @@ def edit_bench(lines, n_edits=20):
 def views_bench(lines):
     """Issue 17: repeat views of a stored model over HTTP (GET /models/{id}/render, 1024x1024, 2 threads): the first
     builds the model's hierarchy, the next ones take it from the frame cache; wall time against X-Render-Ms."""
-    data = os.path.join(TMP, "views")
-    log_path = os.path.join(TMP, "views.log")
-    log = open(log_path, "w")
-    d = subprocess.Popen([SURFD, "serve", "--listen", "127.0.0.1:0", "--data-dir", data, "--log-level", "warn",
-                          "--threads", "2"], stdout=log, stderr=log)
-    port = None
-    for _ in range(200):
-        time.sleep(0.05)
-        with open(log_path) as f:
-            m = re.search(r"listening on http://127\.0\.0\.1:(\d+)", f.read())
-        if m:
-            port = int(m.group(1))
-            break
-    base = "http://127.0.0.1:%d" % port
+    d, base = start_daemon("views", "--threads", "2")
     try:
         with open(os.path.join(DATA, "contours", "dicompyler_heart.json"), "rb") as f:
             req = urllib.request.Request(base + "/model", data=f.read(), headers={"Content-Type": "application/json"})
