@@ -90,15 +90,10 @@ static int apply(const char *name, const char *v, struct scene *sc, enum image_f
         }
     } else if (!strcmp(name, "aovs")) { /* normal,uv,id: EXR (and TIFF) layers besides colour and depth */
         for (const char *p = v; *p; p += strcspn(p, ","), p += *p == ',') {
-            size_t n = strcspn(p, ",");
-            if (n == 6 && !strncmp(p, "normal", 6))
-                sc->aovs |= AOV_NORMAL;
-            else if (n == 2 && !strncmp(p, "uv", 2))
-                sc->aovs |= AOV_UV;
-            else if (n == 2 && !strncmp(p, "id", 2))
-                sc->aovs |= AOV_ID;
-            else
+            unsigned aov = scene_aov_parse(p, strcspn(p, ","));
+            if (!aov)
                 return sf_fail(err, SF_EINVAL, "?aovs", "aovs is a list of normal, uv and id, not \"%.40s\"", v);
+            sc->aovs |= aov;
         }
     } else if (!strcmp(name, "shadows")) {
         if (!(rc = num_opt(name, v, 0, 1, &d, err)))
@@ -134,7 +129,7 @@ int render_options_apply(const char *options, struct scene *sc, enum image_forma
         if (name[0])
             rc = apply(name, value, sc, img, &seen, err);
     }
-    if (!rc && !body_camera && (seen & SEEN_EYE) != (seen & SEEN_TARGET) / 2 * SEEN_EYE)
+    if (!rc && !body_camera && !(seen & SEEN_EYE) != !(seen & SEEN_TARGET))
         rc = sf_fail(err, SF_EINVAL, seen & SEEN_EYE ? "?target" : "?eye", "eye and target come together");
     return rc;
 }

@@ -241,14 +241,10 @@ static int image(json_t *j, struct scene *sc, enum image_format *img, struct sf_
             const char *s = json_string_value(json_array_get(v, k));
             char p[64];
             snprintf(p, sizeof p, "/image/aovs/%zu", k);
-            if (s && !strcmp(s, "normal"))
-                sc->aovs |= AOV_NORMAL;
-            else if (s && !strcmp(s, "uv"))
-                sc->aovs |= AOV_UV;
-            else if (s && !strcmp(s, "id"))
-                sc->aovs |= AOV_ID;
-            else
+            unsigned aov = s ? scene_aov_parse(s, strlen(s)) : 0;
+            if (!aov)
                 return sf_fail(err, SF_EINVAL, p, "unknown AOV (normal, uv, id)");
+            sc->aovs |= aov;
         }
     }
     return 0;

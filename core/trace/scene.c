@@ -176,6 +176,13 @@ int scene_patches(const struct scene *sc, struct patch_set *ps, struct sf_err *e
     return 0;
 }
 
+unsigned scene_aov_parse(const char *name, size_t n)
+{
+    return n == 6 && !strncmp(name, "normal", 6) ? AOV_NORMAL : n == 2 && !strncmp(name, "uv", 2) ? AOV_UV
+                                                              : n == 2 && !strncmp(name, "id", 2) ? AOV_ID
+                                                                                                 : 0;
+}
+
 int scene_view_parse(const char *name, int *view)
 {
     static const char *const NAMES[] = {"+x", "+y", "+z", "-x", "-y", "-z"};

@@ -97,6 +97,8 @@ int scene_validate(const struct scene *sc, struct sf_err *err);
 /* Every object as Bézier patches (validated first: errors point at /objects/k); the caller frees ps. */
 int scene_patches(const struct scene *sc, struct patch_set *ps, struct sf_err *err);
 const char *scene_method_name(enum render_method m);
+/* The AOV_* bit of the n characters at name ("normal", "uv", "id"), or 0. */
+unsigned scene_aov_parse(const char *name, size_t n);
 /* "+x", "-x", ... (also "x" for +x) to VIEW_*; 0, or -1 for another name. */
 int scene_view_parse(const char *name, int *view);
 /* The unit direction from the bounds toward the eye of view v, and the view's up. */
