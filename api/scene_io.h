@@ -15,9 +15,9 @@
 
 enum image_format { IMG_PNG, IMG_EXR, IMG_TIFF };
 
-enum scene_format { SCENE_JSON, SCENE_BPT, SCENE_VRML, SCENE_UNKNOWN };
+enum scene_format { SCENE_JSON, SCENE_BPT, SCENE_VRML, SCENE_IGES, SCENE_UNKNOWN };
 
-/* "json", "bpt", "nurbs"/"vrml" -> enum; NULL or "" -> SCENE_UNKNOWN (sniff the body). */
+/* "json", "bpt", "nurbs"/"vrml", "iges"/"igs" -> enum; NULL or "" -> SCENE_UNKNOWN (sniff the body). */
 enum scene_format scene_format_parse(const char *name);
 /* Guesses the format from the first bytes. */
 enum scene_format scene_format_sniff(const char *buf, size_t len);
@@ -41,6 +41,9 @@ int scene_parse_json(const char *buf, size_t len, const struct model_resolver *m
                      enum image_format *img, struct sf_err *err);
 int scene_parse_bpt(const char *buf, size_t len, struct scene *sc, struct sf_err *err);
 int scene_parse_vrml(const char *buf, size_t len, struct scene *sc, struct sf_err *err);
+/* IGES 5.3 trimmed NURBS (iges.c): independent 128, 143 and 144 entities, in millimetres; errors
+ * name the entity by its first directory line ("D5"). */
+int scene_parse_iges(const char *buf, size_t len, struct scene *sc, struct sf_err *err);
 
 int image_format_parse(const char *name, enum image_format *f);
 const char *image_format_mime(enum image_format f);

@@ -283,6 +283,8 @@ enum scene_format scene_format_parse(const char *name)
         return SCENE_BPT;
     if (!strcmp(name, "nurbs") || !strcmp(name, "vrml") || !strcmp(name, "wrl"))
         return SCENE_VRML;
+    if (!strcmp(name, "iges") || !strcmp(name, "igs"))
+        return SCENE_IGES;
     return (enum scene_format)-1;
 }
 
@@ -293,6 +295,10 @@ enum scene_format scene_format_sniff(const char *buf, size_t len)
         k++;
     if (k < len && (buf[k] == '{' || buf[k] == '['))
         return SCENE_JSON;
+    const char *nl = memchr(buf, '\n', len);
+    size_t first = nl ? (size_t)(nl - buf) : len;
+    if (first >= 73 && buf[72] == 'S') /* an IGES Start line: the section letter in column 73 */
+        return SCENE_IGES;
     if (k < len && isdigit((unsigned char)buf[k]))
         return SCENE_BPT;
     return SCENE_VRML;
@@ -316,6 +322,7 @@ int scene_parse_models(const char *buf, size_t len, enum scene_format fmt, const
     case SCENE_JSON: return scene_parse_json(buf, len, models, sc, img, err);
     case SCENE_BPT: return scene_parse_bpt(buf, len, sc, err);
     case SCENE_VRML: return scene_parse_vrml(buf, len, sc, err);
+    case SCENE_IGES: return scene_parse_iges(buf, len, sc, err);
     default: return sf_fail(err, SF_EFORMAT, "", "unknown scene format");
     }
 }

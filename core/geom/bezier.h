@@ -10,6 +10,7 @@
 #include <stdbool.h>
 
 #include "../base/vec.h"
+#include "trim.h"
 
 #define PATCH_MAX_DEGREE 24 /* bounds every stack array below; higher degrees are refused */
 
@@ -20,6 +21,7 @@ struct patch {
     int surface;         /* index of the scene object this patch came from */
     double u0, u1;       /* the patch's span in the object's own parameters (for uv output) */
     double v0, v1;
+    const struct trim *trim; /* the object's trim region where it cuts the patch; NULL: the whole patch counts */
     /* bounds over the patch, set by bezier_second_bounds (scene_patches does, for the tracer; wmin
      * 0: not set): |second partial| of the homogeneous x·w, y·w, z·w (d2) and of w (d2w), and
      * the least weight */
@@ -52,6 +54,12 @@ void bezier_bounds(const struct patch *pt, vec3 *lo, vec3 *hi);
  * Bézier patch is a convex combination of them, times the degrees). They bound the Taylor
  * remainder of a Newton step, so a solver can accept a step without evaluating its end. */
 void bezier_second_bounds(struct patch *pt);
+
+/* Whether the patch's point (u, v) lies in its object's trim region. */
+static inline bool bezier_kept(const struct patch *pt, double u, double v)
+{
+    return !pt->trim || trim_contains(pt->trim, pt->u0 + u * (pt->u1 - pt->u0), pt->v0 + v * (pt->v1 - pt->v0));
+}
 
 /* Euclidean control point (i, j) (a polynomial patch's w is 1: no division). */
 static inline vec3 bezier_point(const struct patch *pt, int i, int j)

@@ -477,6 +477,7 @@ int nurbs_extract(const struct surface *s, int surface_index, struct patch_set *
             pt->q = q;
             pt->rational = rational;
             pt->surface = surface_index;
+            pt->trim = NULL;
             pt->u0 = U[ru];
             pt->u1 = U[ru + 1];
             pt->v0 = V[rv];

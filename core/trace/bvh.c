@@ -37,6 +37,7 @@ struct leaf {
     vec3 c00, c10, c01, c11; /* corner points: the Newton seed comes from them */
     vec3 n;                  /* unit normal of the corner quad (zero where the corners are degenerate) */
     bool has_axes;           /* n is a unit vector, and e, d0, d1, e0, e1 are set */
+    bool trim_cut;           /* its patch's trim loops cross it: each root is tested against them */
     double slack;            /* how far off the corner quad a root may lie (world units): the net's
                               * deviation from the bilinear plus the bilinear's twist */
     double alt[2][3];        /* altitudes of the corner triangles (c00 c10 c11) and (c00 c11 c01) */
@@ -334,13 +335,14 @@ static void leaf_fill(struct leaf *l, const struct patch *sub, int patch, double
 }
 
 static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
-                    double dev)
+                    double dev, bool trim_cut)
 {
     if (mem_reserve((void **)&b->leaves, &b->cap_leaves, b->n_leaves + 1, sizeof *b->leaves))
         return SF_ENOMEM;
     struct leaf *l = &b->leaves[b->n_leaves++];
     bezier_bounds(sub, &l->lo, &l->hi);
     leaf_fill(l, sub, patch, u0, u1, v0, v1, dev);
+    l->trim_cut = trim_cut;
     normal_cone(sub, &l->cone_axis, &l->cone_sin);
     /* the neighbourhood's chord bound */
     const struct patch *pt = &b->patches[patch];
@@ -358,16 +360,26 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
     return 0;
 }
 
+/* Splits sub-patch sub (the part [u0, u1] x [v0, v1] of patch `patch`) until its parts are flat,
+ * leaving out the parts its trim region holds none of; trim_cut: the region's loops may cross it. */
 static int subdivide(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
-                     int depth)
+                     int depth, bool trim_cut)
 {
+    const struct patch *pt = &b->patches[patch];
+    if (trim_cut) {
+        double su = pt->u1 - pt->u0, sv = pt->v1 - pt->v0;
+        enum trim_class c = trim_classify(pt->trim, pt->u0 + u0 * su, pt->u0 + u1 * su, pt->v0 + v0 * sv, pt->v0 + v1 * sv);
+        if (c == TRIM_OUT)
+            return 0;
+        trim_cut = c == TRIM_CUT;
+    }
     double cu, cv;
     vec3 lo, hi;
     bezier_bounds(sub, &lo, &hi);
     double size = v3_len(v3_sub(hi, lo));
     double dev = net_deviation(sub, &cu, &cv);
     if (dev <= LEAF_FLAT_REL * size || depth >= LEAF_MAX_DEPTH)
-        return add_leaf(b, sub, patch, u0, u1, v0, v1, dev);
+        return add_leaf(b, sub, patch, u0, u1, v0, v1, dev, trim_cut);
 
     size_t n_pts = (size_t)(sub->p + 1) * (sub->q + 1);
     double(*net)[4] = malloc(sizeof *net * 2 * n_pts);
@@ -380,15 +392,15 @@ static int subdivide(struct bvh *b, const struct patch *sub, int patch, double u
     if (cu >= cv) {
         bezier_split_u(sub, 0.5, lo_p.cw, hi_p.cw);
         double um = 0.5 * (u0 + u1);
-        rc = subdivide(b, &lo_p, patch, u0, um, v0, v1, depth + 1);
+        rc = subdivide(b, &lo_p, patch, u0, um, v0, v1, depth + 1, trim_cut);
         if (!rc)
-            rc = subdivide(b, &hi_p, patch, um, u1, v0, v1, depth + 1);
+            rc = subdivide(b, &hi_p, patch, um, u1, v0, v1, depth + 1, trim_cut);
     } else {
         bezier_split_v(sub, 0.5, lo_p.cw, hi_p.cw);
         double vm = 0.5 * (v0 + v1);
-        rc = subdivide(b, &lo_p, patch, u0, u1, v0, vm, depth + 1);
+        rc = subdivide(b, &lo_p, patch, u0, u1, v0, vm, depth + 1, trim_cut);
         if (!rc)
-            rc = subdivide(b, &hi_p, patch, u0, u1, vm, v1, depth + 1);
+            rc = subdivide(b, &hi_p, patch, u0, u1, vm, v1, depth + 1, trim_cut);
     }
     free(net);
     return rc;
@@ -537,7 +549,7 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)
             ok = solve_newton_cramer(pt, r, 0.5 * (l->u0 + l->u1), 0.5 * (l->v0 + l->v1), &box, b->tol2, h);
             *iters += h->iters;
         }
-        return ok && h->t > tnear && h->t < tmax;
+        return ok && h->t > tnear && h->t < tmax && (!l->trim_cut || bezier_kept(pt, h->u, h->v));
     }
     /* the quarters' nets from the leaf's by halving it in u, then each half in v */
     const size_t n_pts = (size_t)(pt->p + 1) * (pt->q + 1);
@@ -567,6 +579,7 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)
         struct leaf quarter;
         bezier_bounds(&sub, &quarter.lo, &quarter.hi);
         quarter.has_axes = false; /* the box alone first: most quarters are missed */
+        quarter.trim_cut = l->trim_cut;
         if (!leaf_reachable(&quarter, r, tnear, found ? h->t : tmax))
             continue;
         if (l->has_axes) { /* then the box along the leaf's axes, which fit a quarter nearly as well */
@@ -742,7 +755,7 @@ int bvh_build_scene(struct bvh_device *dev, const struct patch *patches, size_t 
     b->n_meshes = n_meshes;
     int rc = 0;
     for (size_t k = 0; k < n && !rc; k++)
-        rc = subdivide(b, &patches[k], (int)k, 0.0, 1.0, 0.0, 1.0, 0);
+        rc = subdivide(b, &patches[k], (int)k, 0.0, 1.0, 0.0, 1.0, 0, patches[k].trim != NULL);
     if (rc) {
         bvh_free(b);
         return sf_fail(err, rc, "", "out of memory building the hierarchy");

@@ -284,10 +284,12 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
     size_t n_prims = 2 * nc + (size_t)gu * (gv + 1) + (size_t)gv * (gu + 1) + nc;
     float *zc = malloc(2 * nc * sizeof *zc);
     signed char *sg = malloc(2 * nc);
-    if (!zc || !sg || mem_reserve((void **)&m->verts, cap_v, base + nv, sizeof *m->verts) ||
+    bool *keep = malloc(nc * sizeof *keep); /* the cells the trim region holds some of */
+    if (!zc || !sg || !keep || mem_reserve((void **)&m->verts, cap_v, base + nv, sizeof *m->verts) ||
         mem_reserve((void **)&m->tris, cap_t, m->n_tris + n_prims, sizeof *m->tris)) {
         free(zc);
         free(sg);
+        free(keep);
         return SF_ENOMEM;
     }
     for (int i = 0; i <= gu; i++)
@@ -310,14 +312,19 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
      * folds there. sg: each triangle's turn (-1, 0, 1); zc: each cell's nearest vertex depth. */
 #define VTX(i, j) ((unsigned)(base + (size_t)(i) * (gv + 1) + (size_t)(j)))
 #define CELL(i, j) ((size_t)(i) * gv + (size_t)(j))
+    const double su = (pt->u1 - pt->u0) / gu, sv = (pt->v1 - pt->v0) / gv;
     for (int i = 0; i < gu; i++)
         for (int j = 0; j < gv; j++) {
             unsigned a = VTX(i, j), b = VTX(i + 1, j);
             const unsigned tri[2][3] = {{a, b, b + 1}, {a, b + 1, a + 1}};
+            /* a cell the trims cut away whole draws nothing (its roots are no hits), and its edges
+             * toward kept cells are their outline; the chord padding covers the loop's path */
+            double cu = pt->u0 + i * su, cv = pt->v0 + j * sv;
+            keep[CELL(i, j)] = !pt->trim || trim_classify(pt->trim, cu, cu + su, cv, cv + sv) != TRIM_OUT;
             for (int k = 0; k < 2; k++) {
                 const struct map_vert *p = &m->verts[tri[k][0]], *q = &m->verts[tri[k][1]], *r = &m->verts[tri[k][2]];
                 double area = (q->x - p->x) * (r->y - p->y) - (q->y - p->y) * (r->x - p->x);
-                sg[2 * CELL(i, j) + k] = (signed char)((area > 0) - (area < 0));
+                sg[2 * CELL(i, j) + k] = keep[CELL(i, j)] ? (signed char)((area > 0) - (area < 0)) : 0;
             }
             double iz = fmax(fmax(m->verts[a].iz, m->verts[a + 1].iz), fmax(m->verts[b].iz, m->verts[b + 1].iz));
             zc[CELL(i, j)] = (float)(1.0 / iz);
@@ -331,20 +338,20 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
             for (int a = i > 0 ? i - 1 : 0; a <= i + 1 && a < gu; a++)
                 for (int b = j > 0 ? j - 1 : 0; b <= j + 1 && b < gv; b++)
                     z = fmin(z, zc[CELL(a, b)]);
-            zlo[CELL(i, j)] = (float)(z - chord);
+            zlo[CELL(i, j)] = keep[CELL(i, j)] ? (float)(z - chord) : INFINITY; /* a dropped cell: no bound */
         }
     for (int i = 0; i < gu; i++)
         for (int j = 0; j < gv; j++) {
             unsigned a = VTX(i, j), b = VTX(i + 1, j);
             const unsigned tri[2][3] = {{a, b, b + 1}, {a, b + 1, a + 1}};
-            for (int k = 0; k < 2; k++)
+            for (int k = 0; k < 2 && keep[CELL(i, j)]; k++)
                 m->tris[m->n_tris++] =
                     (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)], false};
         }
     /* the outline: the grid's border, and every edge whose two triangles turn different ways
      * (or either none) on screen; s0, s1 are the turns on either side (0 where there is none) */
 #define OUTLINE(v0, v1, s0, s1, z, inside)                                                         \
-    if ((s0) == 0 || (s0) != (s1))                                                              \
+    if (((s0) == 0 || (s0) != (s1)) && (z) < INFINITY)                                          \
         m->tris[m->n_tris++] = (struct map_tri){{(v0), (v1), EDGE}, index, pad, (z), (inside)};
     for (int i = 0; i < gu; i++)
         for (int j = 0; j < gv; j++) /* the diagonal a-(b+1) between a cell's two triangles */
@@ -366,6 +373,7 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
 #undef VTX
     free(zc);
     free(sg);
+    free(keep);
     return 0;
 }
 

@@ -350,7 +350,7 @@ static bool refine(const struct frame *fr, const struct map_cand *c, const struc
         default: ok = solve_newton_seeded(pt, r, c->u, c->v, &all, fr->tol2, h); break;
         }
     }
-    return ok && h->t > 0.0;
+    return ok && h->t > 0.0 && bezier_kept(pt, h->u, h->v); /* a root the trims cut away is no hit */
 }
 
 /* Branch and bound over the pixel's candidates (nearest depth bound first): a candidate whose
@@ -442,7 +442,7 @@ static bool primary_montecarlo(const struct frame *fr, const struct dray *r, uin
         st->refinements++;
         bool ok = solve_montecarlo(&fr->ps.patches[k], r, MC_SAMPLES, rng, fr->tol2, &h);
         st->iterations += h.iters;
-        if (ok && (!found || h.t < hit->t)) {
+        if (ok && bezier_kept(&fr->ps.patches[k], h.u, h.v) && (!found || h.t < hit->t)) {
             *hit = (struct bvh_hit){(int)k, h.u, h.v, h.t, v3_dot(h.n, h.n) > 0, h.n};
             found = true;
         }

@@ -29,8 +29,11 @@ void scene_free(struct scene *sc)
 {
     if (!sc)
         return;
-    for (int k = 0; !sc->borrowed && k < sc->n_objects; k++)
+    for (int k = 0; !sc->borrowed && k < sc->n_objects; k++) {
         nurbs_surface_free(&sc->objects[k].surf);
+        trim_free(sc->objects[k].trim);
+        free(sc->objects[k].trim);
+    }
     if (!sc->borrowed)
         free(sc->objects);
     free(sc->lights);
@@ -171,8 +174,18 @@ int scene_patches(const struct scene *sc, struct patch_set *ps, struct sf_err *e
         return rc;
     }
     nurbs_patches_fix(ps);
-    for (size_t k = 0; k < ps->n; k++) /* the tracer's Newton steps stop on them */
-        bezier_second_bounds(&ps->patches[k]);
+    size_t kept = 0;
+    for (size_t k = 0; k < ps->n; k++) {
+        struct patch *pt = &ps->patches[k];
+        const struct trim *t = sc->objects[pt->surface].trim;
+        enum trim_class c = t ? trim_classify(t, pt->u0, pt->u1, pt->v0, pt->v1) : TRIM_IN;
+        if (c == TRIM_OUT)
+            continue; /* trimmed away whole */
+        pt->trim = c == TRIM_CUT ? t : NULL;
+        bezier_second_bounds(pt); /* the tracer's Newton steps stop on them */
+        ps->patches[kept++] = *pt;
+    }
+    ps->n = kept;
     return 0;
 }
 

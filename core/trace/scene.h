@@ -41,6 +41,7 @@ struct light {
 struct object {
     struct surface surf;
     struct material mat;
+    struct trim *trim; /* owned; NULL: untrimmed (the whole domain) */
 };
 
 /* A triangle mesh beside the free-form objects (an isosurface model), shaded with its normals. */

@@ -1,0 +1,1238 @@
+/* iges.c - IGES 5.3 files (fixed 80-column ASCII) to a scene of trimmed NURBS surfaces.
+ *
+ * Read: the Global section's delimiters, unit flag (coordinates become millimetres) and
+ * Hollerith strings; the Directory's pairs of lines (status: only independent, unblanked
+ * entities are drawn; transform pointer; colour number or 314 pointer); parameter data with D
+ * exponents. Entities: 128 rational B-spline surface; 126 B-spline curve, 110 line, 100 circular
+ * arc, 102 composite curve and 106 copious data (forms 1, 2, 11, 12) as trim curves; 142 curve on
+ * a surface (its parameter-space curve preferred, else the model-space curve projected onto the
+ * surface); 144 trimmed surface (outer loop or the natural boundary, and holes); 141 boundary and
+ * 143 bounded surface; 124 transforms (chained); 314 colours. A 128 that a 143/144 bounds is drawn
+ * only trimmed, whatever its status says.
+ *
+ * Trim curves become polylines in the surface's (u, v) (core/geom/trim.h), sampled until the chord
+ * is within TRIM_TOL_REL of the domain's size. Consecutive curves of a loop are joined end to end,
+ * each turned round where its far end meets the loop (a SENSE flag in the wild is not always right);
+ * a loop whose ends stay apart by more than LOOP_GAP_REL of its size is refused.
+ *
+ * Errors: text that is not IGES is 400 (SF_EFORMAT) naming the line; an entity that cannot be used
+ * (a bad knot vector, missing U/V ranges, a loop that does not close, a pointer to nothing) is 422
+ * (SF_EINVAL) with the pointer "D<n>", n the entity's first directory line.
+ *
+ * Written here: Open CASCADE reads IGES, but as a C++ toolkit of some hundred megabytes whose
+ * B-rep would then have to be turned back into our surfaces; the format itself is small. */
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "../core/base/mem.h"
+#include "../core/geom/trim.h"
+#include "scene_io.h"
+
+#define IGES_MAX_ENTITIES 1000000 /* directory entries */
+#define IGES_MAX_DEPTH 16         /* nested composites and chained transforms */
+#define CURVE_MAX_POINTS (1 << 20) /* control points of one curve */
+#define TRIM_TOL_REL 2e-5         /* chord error of a trim polyline, of its surface's domain diagonal */
+#define LOOP_GAP_REL 1e-2         /* largest gap in a loop, of the loop's size */
+#define ARC_MAX_STEPS 4096
+#define PROJECT_OFF_REL 2e-2      /* a model-space trim curve may lie this far off its surface, of its size
+                                   * (exporters approximate: mug.iges's handle boundary is 0.6 % off) */
+
+struct de { /* one directory entry */
+    int type, param, n_lines, transform, color, form;
+    int blank, sub;   /* status: blanked; subordinate switch (0 independent) */
+    int line;         /* its first D line: the entity's name in errors */
+    bool bounded;     /* a surface a 143/144 bounds */
+};
+
+struct iges {
+    char pd, rd;            /* parameter and record delimiters */
+    double to_mm;
+    struct de *de;
+    int n_de;
+    const char **p_line;    /* the P section's lines, by sequence number - 1 */
+    int n_p;
+    struct sf_err *err;
+};
+
+/* ---- lines and fields ------------------------------------------------------------------ */
+
+struct line {
+    const char *s; /* 80 columns (shorter lines padded by the reader) */
+    char section;
+};
+
+/* The parameters of one entity, or the Global section: numbers, and strings as pointers into text. */
+struct params {
+    char *text;
+    int n, cap;
+    double *num;
+    const char **str; /* Hollerith string start, or NULL */
+    int *str_len;
+    bool *empty;
+};
+
+static void params_free(struct params *p)
+{
+    free(p->text);
+    free(p->num);
+    free(p->str);
+    free(p->str_len);
+    free(p->empty);
+    memset(p, 0, sizeof *p);
+}
+
+static int params_push(struct params *p)
+{
+    if (p->n < p->cap)
+        return 0;
+    int cap = p->cap ? 2 * p->cap : 32;
+    double *num = realloc(p->num, sizeof *num * (size_t)cap);
+    if (num)
+        p->num = num;
+    const char **str = realloc(p->str, sizeof *str * (size_t)cap);
+    if (str)
+        p->str = str;
+    int *sl = realloc(p->str_len, sizeof *sl * (size_t)cap);
+    if (sl)
+        p->str_len = sl;
+    bool *em = realloc(p->empty, sizeof *em * (size_t)cap);
+    if (em)
+        p->empty = em;
+    if (!num || !str || !sl || !em)
+        return SF_ENOMEM;
+    p->cap = cap;
+    return 0;
+}
+
+/* Splits text (owned by p from now on) into fields by the delimiters, up to the record delimiter. */
+static int split_fields(struct params *p, char *text, size_t len, char pd, char rd, const char *where,
+                        struct sf_err *err)
+{
+    p->text = text;
+    size_t k = 0;
+    for (;;) {
+        while (k < len && text[k] == ' ')
+            k++;
+        if (params_push(p))
+            return sf_fail(err, SF_ENOMEM, where, "out of memory");
+        int i = p->n++;
+        p->num[i] = NAN, p->str[i] = NULL, p->str_len[i] = 0, p->empty[i] = false;
+        size_t s = k;
+        while (k < len && isdigit((unsigned char)text[k]))
+            k++;
+        if (k > s && k < len && text[k] == 'H') { /* Hollerith: nH then n characters */
+            long n = strtol(text + s, NULL, 10);
+            if (n < 0 || (size_t)n > len - k - 1)
+                return sf_fail(err, SF_EFORMAT, where, "a Hollerith string runs past the parameters");
+            p->str[i] = text + k + 1;
+            p->str_len[i] = (int)n;
+            k += 1 + (size_t)n;
+        } else {
+            while (k < len && text[k] != pd && text[k] != rd)
+                k++;
+            size_t e = k;
+            while (e > s && text[e - 1] == ' ')
+                e--;
+            if (e == s) {
+                p->empty[i] = true;
+            } else {
+                char num[64];
+                if (e - s >= sizeof num)
+                    return sf_fail(err, SF_EFORMAT, where, "parameter %d is not a number", i);
+                for (size_t c = s; c < e; c++)
+                    num[c - s] = text[c] == 'D' || text[c] == 'd' ? 'E' : text[c];
+                num[e - s] = 0;
+                char *end;
+                errno = 0;
+                double v = strtod(num, &end);
+                if (*end || errno == ERANGE || !isfinite(v))
+                    return sf_fail(err, SF_EFORMAT, where, "parameter %d (\"%s\") is not a number", i, num);
+                p->num[i] = v;
+            }
+        }
+        while (k < len && text[k] == ' ')
+            k++;
+        if (k >= len || text[k] == rd)
+            return 0;
+        if (text[k] != pd)
+            return sf_fail(err, SF_EFORMAT, where, "parameter %d is followed by '%c', not a delimiter", i, text[k]);
+        k++;
+    }
+}
+
+/* Field accessors: k counts from 0 (the entity type). */
+static bool p_num(const struct params *p, int k, double *v)
+{
+    if (k >= p->n || p->empty[k] || p->str[k])
+        return false;
+    *v = p->num[k];
+    return true;
+}
+
+static bool p_int(const struct params *p, int k, int *v)
+{
+    double d;
+    if (!p_num(p, k, &d) || d != floor(d) || fabs(d) > 1e9)
+        return false;
+    *v = (int)d;
+    return true;
+}
+
+static int p_int_or(const struct params *p, int k, int dflt)
+{
+    int v;
+    return p_int(p, k, &v) ? v : dflt;
+}
+
+/* ---- directory and parameter sections --------------------------------------------------- */
+
+static int field8(const char *s, int k, int *v) /* directory field k (0-8) of a line as an integer */
+{
+    char f[9];
+    memcpy(f, s + 8 * k, 8);
+    f[8] = 0;
+    char *p = f;
+    while (*p == ' ')
+        p++;
+    if (!*p) {
+        *v = 0;
+        return 0;
+    }
+    char *end;
+    long n = strtol(p, &end, 10);
+    while (*end == ' ')
+        end++;
+    if (*end || n > 1000000000L || n < -1000000000L)
+        return -1;
+    *v = (int)n;
+    return 0;
+}
+
+static struct de *entity(struct iges *g, int ptr, const struct de *from, const char *what)
+{
+    if (ptr <= 0 || ptr % 2 == 0 || (ptr - 1) / 2 >= g->n_de) {
+        char where[24];
+        snprintf(where, sizeof where, "D%d", from ? from->line : 0);
+        sf_fail(g->err, SF_EINVAL, where, "entity %d's %s points at directory line %d, which starts no entity",
+                from ? from->type : 0, what, ptr);
+        return NULL;
+    }
+    return &g->de[(ptr - 1) / 2];
+}
+
+static void where_of(const struct de *e, char where[24])
+{
+    snprintf(where, 24, "D%d", e->line);
+}
+
+static int load_params(struct iges *g, const struct de *e, struct params *p)
+{
+    char where[24];
+    where_of(e, where);
+    memset(p, 0, sizeof *p);
+    if (e->param < 1 || e->n_lines < 1 || e->param - 1 > g->n_p - e->n_lines)
+        return sf_fail(g->err, SF_EINVAL, where, "entity %d's parameter data (lines %d to %d) is not in the file",
+                       e->type, e->param, e->param + e->n_lines - 1);
+    size_t len = (size_t)e->n_lines * 64;
+    char *text = malloc(len + 1);
+    if (!text)
+        return sf_fail(g->err, SF_ENOMEM, where, "out of memory");
+    for (int k = 0; k < e->n_lines; k++)
+        memcpy(text + 64 * k, g->p_line[e->param - 1 + k], 64);
+    text[len] = 0;
+    int rc = split_fields(p, text, len, g->pd, g->rd, where, g->err);
+    int type;
+    if (!rc && (!p_int(p, 0, &type) || type != e->type))
+        rc = sf_fail(g->err, SF_EINVAL, where, "the parameter data of entity %d begins with another entity type",
+                     e->type);
+    if (rc)
+        params_free(p);
+    return rc;
+}
+
+/* ---- transforms (124) ------------------------------------------------------------------- */
+
+struct xform {
+    double r[3][3], t[3];
+};
+
+static void xform_identity(struct xform *x)
+{
+    memset(x, 0, sizeof *x);
+    x->r[0][0] = x->r[1][1] = x->r[2][2] = 1.0;
+}
+
+static void xform_apply(const struct xform *x, const double in[3], double out[3])
+{
+    double o[3];
+    for (int i = 0; i < 3; i++)
+        o[i] = x->r[i][0] * in[0] + x->r[i][1] * in[1] + x->r[i][2] * in[2] + x->t[i];
+    memcpy(out, o, sizeof o);
+}
+
+/* The transform of entity e (its 124 chain composed, outermost last), identity when it has none. */
+static int entity_xform(struct iges *g, const struct de *e, struct xform *x)
+{
+    xform_identity(x);
+    const struct de *at = e;
+    for (int depth = 0; at->transform; depth++) {
+        char where[24];
+        where_of(e, where);
+        if (depth >= IGES_MAX_DEPTH)
+            return sf_fail(g->err, SF_EINVAL, where, "transforms chained deeper than %d", IGES_MAX_DEPTH);
+        const struct de *t = entity(g, at->transform, at, "transform");
+        if (!t)
+            return SF_EINVAL;
+        if (t->type != 124)
+            return sf_fail(g->err, SF_EINVAL, where, "the transform pointer names entity type %d, not 124", t->type);
+        struct params p;
+        int rc = load_params(g, t, &p);
+        if (rc)
+            return rc;
+        struct xform m;
+        for (int i = 0; i < 3 && !rc; i++)
+            for (int j = 0; j < 4 && !rc; j++) {
+                double v;
+                if (!p_num(&p, 1 + 4 * i + j, &v)) {
+                    where_of(t, where);
+                    rc = sf_fail(g->err, SF_EINVAL, where, "transform matrix element %d is missing", 4 * i + j + 1);
+                } else if (j < 3) {
+                    m.r[i][j] = v;
+                } else {
+                    m.t[i] = v;
+                }
+            }
+        params_free(&p);
+        if (rc)
+            return rc;
+        struct xform c; /* m after x */
+        for (int i = 0; i < 3; i++) {
+            for (int j = 0; j < 3; j++)
+                c.r[i][j] = m.r[i][0] * x->r[0][j] + m.r[i][1] * x->r[1][j] + m.r[i][2] * x->r[2][j];
+            c.t[i] = m.r[i][0] * x->t[0] + m.r[i][1] * x->t[1] + m.r[i][2] * x->t[2] + m.t[i];
+        }
+        *x = c;
+        at = t;
+    }
+    return 0;
+}
+
+/* ---- curves to polylines ---------------------------------------------------------------- */
+
+struct poly {
+    double (*p)[3];
+    size_t n, cap;
+};
+
+static int poly_add(struct iges *g, struct poly *pl, const double q[3], const char *where)
+{
+    if (pl->n >= TRIM_MAX_POINTS)
+        return sf_fail(g->err, SF_ELIMIT, where, "trim curves need more than %u points", TRIM_MAX_POINTS);
+    if (mem_reserve((void **)&pl->p, &pl->cap, pl->n + 1, sizeof *pl->p))
+        return sf_fail(g->err, SF_ENOMEM, where, "out of memory");
+    memcpy(pl->p[pl->n++], q, sizeof *pl->p);
+    return 0;
+}
+
+struct bcurve {
+    int deg, n;
+    double *knots, *w, (*cp)[3];
+    double t0, t1;
+};
+
+static void bcurve_eval(const struct bcurve *c, double t, double out[3])
+{
+    double N[PATCH_MAX_DEGREE + 1];
+    int r = nurbs_basis(c->knots, c->n, c->deg, t, N);
+    double s[4] = {0, 0, 0, 0};
+    for (int k = 0; k <= c->deg; k++) {
+        int i = r - c->deg + k;
+        double w = c->w ? c->w[i] : 1.0;
+        for (int d = 0; d < 3; d++)
+            s[d] += N[k] * w * c->cp[i][d];
+        s[3] += N[k] * w;
+    }
+    for (int d = 0; d < 3; d++)
+        out[d] = s[d] / s[3];
+}
+
+static double dist3(const double a[3], const double b[3])
+{
+    return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/* Points of c on (a, b] until each chord is within tol of the curve at its middle. */
+static int bcurve_sample(struct iges *g, const struct bcurve *c, double a, const double pa[3], double b,
+                         const double pb[3], double tol, int depth, struct poly *pl, const char *where)
+{
+    double m = 0.5 * (a + b), pm[3], mid[3];
+    bcurve_eval(c, m, pm);
+    for (int d = 0; d < 3; d++)
+        mid[d] = 0.5 * (pa[d] + pb[d]);
+    if (depth < 3 || (depth < 14 && dist3(pm, mid) > tol)) {
+        int rc = bcurve_sample(g, c, a, pa, m, pm, tol, depth + 1, pl, where);
+        return rc ? rc : bcurve_sample(g, c, m, pm, b, pb, tol, depth + 1, pl, where);
+    }
+    return poly_add(g, pl, pb, where);
+}
+
+static int curve_126(struct iges *g, const struct de *e, const struct params *p, double tol, struct poly *pl,
+                     const char *where)
+{
+    int K, M;
+    if (!p_int(p, 1, &K) || !p_int(p, 2, &M) || M < 1 || M > PATCH_MAX_DEGREE || K < M || K >= CURVE_MAX_POINTS)
+        return sf_fail(g->err, SF_EINVAL, where, "B-spline curve: upper index K and degree M must satisfy 1 <= M <= K "
+                       "(M at most %d)", PATCH_MAX_DEGREE);
+    int n = K + 1, nk = K + M + 2, at = 7;
+    if (p->n < at + nk + n + 3 * n + 2)
+        return sf_fail(g->err, SF_EINVAL, where, "B-spline curve: %d parameters, %d needed (knots, weights, points, "
+                       "V(0), V(1))", p->n - 1, at + nk + n + 3 * n + 2 - 1);
+    struct bcurve c = {M, n, malloc(sizeof(double) * (size_t)nk), malloc(sizeof(double) * (size_t)n),
+                       malloc(sizeof(double[3]) * (size_t)n), 0, 0};
+    int rc = 0;
+    if (!c.knots || !c.w || !c.cp)
+        rc = sf_fail(g->err, SF_ENOMEM, where, "out of memory");
+    for (int k = 0; k < nk && !rc; k++)
+        if (!p_num(p, at + k, &c.knots[k]) || (k && c.knots[k] < c.knots[k - 1]))
+            rc = sf_fail(g->err, SF_EINVAL, where, "B-spline curve: knot %d is missing or decreases", k);
+    for (int k = 0; k < n && !rc; k++)
+        if (!p_num(p, at + nk + k, &c.w[k]) || !(c.w[k] > 0))
+            rc = sf_fail(g->err, SF_EINVAL, where, "B-spline curve: weight %d is missing or not positive", k);
+    for (int k = 0; k < 3 * n && !rc; k++)
+        if (!p_num(p, at + nk + n + k, &c.cp[k / 3][k % 3]))
+            rc = sf_fail(g->err, SF_EINVAL, where, "B-spline curve: control point coordinate %d is missing", k);
+    if (!rc && (!p_num(p, at + nk + 4 * n, &c.t0) || !p_num(p, at + nk + 4 * n + 1, &c.t1)))
+        rc = sf_fail(g->err, SF_EINVAL, where, "B-spline curve: its parameter range V(0), V(1) is missing");
+    if (!rc && !(c.t0 < c.t1 && c.t0 >= c.knots[M] - 1e-9 * fabs(c.knots[n] - c.knots[M]) &&
+                 c.t1 <= c.knots[n] + 1e-9 * fabs(c.knots[n] - c.knots[M])))
+        rc = sf_fail(g->err, SF_EINVAL, where, "B-spline curve: parameter range [%g, %g] is not within its knots [%g, %g]",
+                     c.t0, c.t1, c.knots[M], c.knots[n]);
+    if (!rc) {
+        c.t0 = fmax(c.t0, c.knots[M]), c.t1 = fmin(c.t1, c.knots[n]);
+        struct xform x;
+        rc = entity_xform(g, e, &x);
+        for (int k = 0; k < n && !rc; k++)
+            xform_apply(&x, c.cp[k], c.cp[k]);
+    }
+    /* sample span by span, so no span is passed over */
+    double a = c.t0, pa[3];
+    if (!rc) {
+        bcurve_eval(&c, a, pa);
+        rc = poly_add(g, pl, pa, where);
+    }
+    for (int k = M + 1; k <= n && !rc; k++) {
+        double b = fmin(c.knots[k], c.t1);
+        if (b <= a)
+            continue;
+        double pb[3];
+        bcurve_eval(&c, nextafter(b, a), pb); /* the span's own end, from inside it */
+        rc = bcurve_sample(g, &c, a, pa, b, pb, tol, 0, pl, where);
+        memcpy(pa, pb, sizeof pa);
+        a = b;
+        if (a >= c.t1)
+            break;
+    }
+    free(c.knots);
+    free(c.w);
+    free(c.cp);
+    return rc;
+}
+
+static int curve_points(struct iges *g, const struct de *e, double tol, int depth, struct poly *pl);
+
+static int curve_params(struct iges *g, const struct de *e, const struct params *p, double tol, int depth,
+                        struct poly *pl)
+{
+    char where[24];
+    where_of(e, where);
+    struct xform x;
+    int rc;
+    switch (e->type) {
+    case 126: return curve_126(g, e, p, tol, pl, where);
+    case 110: { /* line */
+        double a[3], b[3];
+        for (int k = 0; k < 3; k++)
+            if (!p_num(p, 1 + k, &a[k]) || !p_num(p, 4 + k, &b[k]))
+                return sf_fail(g->err, SF_EINVAL, where, "line: its end points are missing");
+        if (e->form != 0)
+            return sf_fail(g->err, SF_EINVAL, where, "line form %d (a ray or unbounded line) bounds no region", e->form);
+        if ((rc = entity_xform(g, e, &x)))
+            return rc;
+        xform_apply(&x, a, a);
+        xform_apply(&x, b, b);
+        return (rc = poly_add(g, pl, a, where)) ? rc : poly_add(g, pl, b, where);
+    }
+    case 100: { /* arc in the plane z = ZT of its definition space, counter-clockwise from start to end */
+        double v[7];
+        for (int k = 0; k < 7; k++)
+            if (!p_num(p, 1 + k, &v[k]))
+                return sf_fail(g->err, SF_EINVAL, where, "circular arc: parameter %d is missing", k + 1);
+        double zt = v[0], cx = v[1], cy = v[2], r = hypot(v[3] - cx, v[4] - cy);
+        double a0 = atan2(v[4] - cy, v[3] - cx), a1 = atan2(v[6] - cy, v[5] - cx);
+        if (!(r > 0))
+            return sf_fail(g->err, SF_EINVAL, where, "circular arc: its radius is zero");
+        if (a1 <= a0 + 1e-12)
+            a1 += 2 * M_PI;
+        double step = 2 * acos(fmax(-1.0, 1.0 - fmin(tol / r, 1.0)));
+        int n = (int)fmin(ARC_MAX_STEPS, fmax(4.0, ceil((a1 - a0) / fmax(step, 1e-6))));
+        if ((rc = entity_xform(g, e, &x)))
+            return rc;
+        for (int k = 0; k <= n && !rc; k++) {
+            double a = a0 + (a1 - a0) * k / n, q[3] = {cx + r * cos(a), cy + r * sin(a), zt};
+            xform_apply(&x, q, q);
+            rc = poly_add(g, pl, q, where);
+        }
+        return rc;
+    }
+    case 106: { /* copious data: points (forms 1, 2) or a polyline (11, 12) */
+        int ip, n;
+        if ((e->form != 1 && e->form != 2 && e->form != 11 && e->form != 12) || !p_int(p, 1, &ip) || !p_int(p, 2, &n) ||
+            (ip != 1 && ip != 2) || n < 2 || n > CURVE_MAX_POINTS)
+            return sf_fail(g->err, SF_EINVAL, where, "copious data form %d: only point lists (forms 1, 2, 11, 12) of "
+                           "at least 2 points trim", e->form);
+        double zt = 0;
+        int at = 3;
+        if (ip == 1 && !p_num(p, at++, &zt))
+            return sf_fail(g->err, SF_EINVAL, where, "copious data: its common z is missing");
+        if ((rc = entity_xform(g, e, &x)))
+            return rc;
+        int stride = ip == 1 ? 2 : 3;
+        for (int k = 0; k < n && !rc; k++) {
+            double q[3] = {0, 0, zt};
+            for (int d = 0; d < stride; d++)
+                if (!p_num(p, at + stride * k + d, &q[d]))
+                    return sf_fail(g->err, SF_EINVAL, where, "copious data: point %d is missing", k);
+            xform_apply(&x, q, q);
+            rc = poly_add(g, pl, q, where);
+        }
+        return rc;
+    }
+    case 102: { /* composite curve: its constituents end to end */
+        int n;
+        if (!p_int(p, 1, &n) || n < 1 || n > p->n - 2)
+            return sf_fail(g->err, SF_EINVAL, where, "composite curve: its count of constituents is missing or wrong");
+        if (depth >= IGES_MAX_DEPTH)
+            return sf_fail(g->err, SF_EINVAL, where, "composite curves nested deeper than %d", IGES_MAX_DEPTH);
+        const size_t start = pl->n;
+        for (int k = 0; k < n; k++) {
+            int ptr;
+            const struct de *c;
+            if (!p_int(p, 2 + k, &ptr) || !(c = entity(g, ptr, e, "constituent")))
+                return SF_EINVAL;
+            size_t from = pl->n;
+            if ((rc = curve_points(g, c, tol, depth + 1, pl)))
+                return rc;
+            if (from > 0 && pl->n - from >= 2) { /* turned round where its far end meets the curve so far */
+                const double *last = pl->p[from - 1];
+                if (dist3(last, pl->p[pl->n - 1]) < dist3(last, pl->p[from]))
+                    for (size_t i = from, j = pl->n - 1; i < j; i++, j--) {
+                        double t[3];
+                        memcpy(t, pl->p[i], sizeof t);
+                        memcpy(pl->p[i], pl->p[j], sizeof t);
+                        memcpy(pl->p[j], t, sizeof t);
+                    }
+            }
+        }
+        if ((rc = entity_xform(g, e, &x))) /* the composite's own transform, after its constituents' */
+            return rc;
+        for (size_t k = start; k < pl->n; k++)
+            xform_apply(&x, pl->p[k], pl->p[k]);
+        return 0;
+    }
+    default:
+        return sf_fail(g->err, SF_EINVAL, where, "entity type %d is not a trim curve (126, 110, 100, 102 or 106)",
+                       e->type);
+    }
+}
+
+/* Appends the points of curve e (in its own space, after its transform) to pl. */
+static int curve_points(struct iges *g, const struct de *e, double tol, int depth, struct poly *pl)
+{
+    struct params p;
+    int rc = load_params(g, e, &p);
+    if (!rc)
+        rc = curve_params(g, e, &p, tol, depth, pl);
+    params_free(&p);
+    return rc;
+}
+
+/* ---- surfaces (128) --------------------------------------------------------------------- */
+
+/* The surface of entity e (a 128), in millimetres after its transform, and its U/V ranges. */
+static int read_surface(struct iges *g, const struct de *e, struct surface *s, double dom[4])
+{
+    char where[24];
+    where_of(e, where);
+    memset(s, 0, sizeof *s);
+    if (e->type != 128)
+        return sf_fail(g->err, SF_EINVAL, where, "entity type %d is not a rational B-spline surface (128), the one "
+                       "surface surfd reads", e->type);
+    struct params p;
+    int rc = load_params(g, e, &p);
+    if (rc)
+        return rc;
+    int K1, K2, M1, M2;
+    if (!p_int(&p, 1, &K1) || !p_int(&p, 2, &K2) || !p_int(&p, 3, &M1) || !p_int(&p, 4, &M2) || M1 < 1 || M2 < 1 ||
+        M1 > PATCH_MAX_DEGREE || M2 > PATCH_MAX_DEGREE || K1 < M1 || K2 < M2) {
+        params_free(&p);
+        return sf_fail(g->err, SF_EINVAL, where, "B-spline surface: upper indices K1, K2 and degrees M1, M2 must "
+                       "satisfy 1 <= M <= K (degrees at most %d)", PATCH_MAX_DEGREE);
+    }
+    if ((double)(K1 + 1) * (K2 + 1) > SURF_MAX_POINTS) {
+        params_free(&p);
+        return sf_fail(g->err, SF_ELIMIT, where, "B-spline surface: %d x %d control points, over the limit of %d",
+                       K1 + 1, K2 + 1, SURF_MAX_POINTS);
+    }
+    int nu = K1 + 1, nv = K2 + 1, nku = K1 + M1 + 2, nkv = K2 + M2 + 2, c = nu * nv;
+    int at_ku = 10, at_kv = at_ku + nku, at_w = at_kv + nkv, at_p = at_w + c, at_d = at_p + 3 * c;
+    if (p.n < at_d) {
+        params_free(&p);
+        return sf_fail(g->err, SF_EINVAL, where, "B-spline surface: %d parameters, %d needed for its knots, weights "
+                       "and points", p.n - 1, at_d - 1);
+    }
+    bool rational = false;
+    double w0 = p.num[at_w];
+    for (int k = 0; k < c; k++)
+        rational |= !(p.num[at_w + k] == w0);
+    if ((rc = nurbs_surface_alloc(s, rational ? SURF_NURBS : SURF_BSPLINE, M1, M2, nu, nv, g->err))) {
+        params_free(&p);
+        return rc;
+    }
+    for (int k = 0; k < nku && !rc; k++)
+        if (!p_num(&p, at_ku + k, &s->knots_u[k]))
+            rc = sf_fail(g->err, SF_EINVAL, where, "B-spline surface: knot %d along u is missing", k);
+    for (int k = 0; k < nkv && !rc; k++)
+        if (!p_num(&p, at_kv + k, &s->knots_v[k]))
+            rc = sf_fail(g->err, SF_EINVAL, where, "B-spline surface: knot %d along v is missing", k);
+    struct xform x;
+    if (!rc)
+        rc = entity_xform(g, e, &x);
+    for (int j = 0; j < nv && !rc; j++) /* IGES runs u fastest; ours is row-major along u */
+        for (int i = 0; i < nu && !rc; i++) {
+            int src = j * nu + i, dst = i * nv + j;
+            double q[3];
+            for (int d = 0; d < 3 && !rc; d++)
+                if (!p_num(&p, at_p + 3 * src + d, &q[d]))
+                    rc = sf_fail(g->err, SF_EINVAL, where, "B-spline surface: control point (%d, %d) is missing", i, j);
+            if (rc)
+                break;
+            xform_apply(&x, q, q);
+            for (int d = 0; d < 3; d++)
+                s->points[3 * dst + d] = q[d] * g->to_mm;
+            if (rational && !p_num(&p, at_w + src, &s->weights[dst]))
+                rc = sf_fail(g->err, SF_EINVAL, where, "B-spline surface: weight (%d, %d) is missing", i, j);
+        }
+    if (!rc)
+        rc = nurbs_validate(s, where, g->err);
+    double k0, k1, l0, l1;
+    if (!rc) {
+        nurbs_domain(s, &k0, &k1, &l0, &l1);
+        for (int k = 0; k < 4 && !rc; k++)
+            if (!p_num(&p, at_d + k, &dom[k]))
+                rc = sf_fail(g->err, SF_EINVAL, where, "B-spline surface: its parameter ranges U(0), U(1), V(0), V(1) "
+                             "are missing");
+    }
+    if (!rc) {
+        double eu = 1e-9 * (k1 - k0), ev = 1e-9 * (l1 - l0);
+        if (!(dom[0] < dom[1] && dom[2] < dom[3] && dom[0] >= k0 - eu && dom[1] <= k1 + eu && dom[2] >= l0 - ev &&
+              dom[3] <= l1 + ev))
+            rc = sf_fail(g->err, SF_EINVAL, where, "B-spline surface: parameter ranges [%g, %g] x [%g, %g] are not "
+                         "within its knots [%g, %g] x [%g, %g]", dom[0], dom[1], dom[2], dom[3], k0, k1, l0, l1);
+        dom[0] = fmax(dom[0], k0), dom[1] = fmin(dom[1], k1), dom[2] = fmax(dom[2], l0), dom[3] = fmin(dom[3], l1);
+    }
+    params_free(&p);
+    if (rc)
+        nurbs_surface_free(s);
+    return rc;
+}
+
+/* What a loop's pieces are drawn on. */
+struct on_surface {
+    const struct surface *s;
+    double dom[4];
+    double tol_uv;   /* chord error of a parameter-space piece */
+    double tol_mm;   /* of a model-space piece */
+    double size_mm;  /* the surface's control hull diagonal */
+    bool closed[2];  /* it closes along u, along v (closes()) */
+};
+
+/* The parameters (u, v) of the surface point nearest P: Gauss–Newton from uv (seeded) or from the
+ * nearest point of a coarse grid; *dist is what remains. */
+static void invert(const struct on_surface *on, const double P[3], double uv[2], bool seeded, double *dist)
+{
+    const struct surface *s = on->s;
+    const double *dom = on->dom;
+    const vec3 q = v3(P[0], P[1], P[2]);
+    vec3 S, Su, Sv;
+    for (int pass = seeded ? 0 : 1; pass < 2; pass++) {
+        if (pass == 1) { /* the grid's nearest point */
+            double best = INFINITY;
+            enum { G = 24 };
+            for (int i = 0; i <= G; i++)
+                for (int j = 0; j <= G; j++) {
+                    double u = dom[0] + (dom[1] - dom[0]) * i / G, v = dom[2] + (dom[3] - dom[2]) * j / G;
+                    nurbs_eval(s, u, v, &S, NULL, NULL);
+                    double d = v3_len(v3_sub(S, q));
+                    if (d < best)
+                        best = d, uv[0] = u, uv[1] = v;
+                }
+        }
+        for (int it = 0; it < 30; it++) {
+            nurbs_eval(s, uv[0], uv[1], &S, &Su, &Sv);
+            vec3 r = v3_sub(q, S);
+            double a = v3_dot(Su, Su), b = v3_dot(Su, Sv), c = v3_dot(Sv, Sv), det = a * c - b * b;
+            if (!(det > 0))
+                break;
+            double ru = v3_dot(Su, r), rv = v3_dot(Sv, r);
+            double du = (c * ru - b * rv) / det, dv = (a * rv - b * ru) / det;
+            const double step[2] = {du, dv};
+            for (int d = 0; d < 2; d++) { /* across a closed surface's seam: on round it */
+                double lo = dom[2 * d], hi = dom[2 * d + 1], x = uv[d] + step[d];
+                uv[d] = on->closed[d] ? (x < lo ? x + (hi - lo) : x > hi ? x - (hi - lo) : x) : fmin(hi, fmax(lo, x));
+                uv[d] = fmin(hi, fmax(lo, uv[d]));
+            }
+            if (fabs(du) < 1e-14 * (dom[1] - dom[0]) && fabs(dv) < 1e-14 * (dom[3] - dom[2]))
+                break;
+        }
+        nurbs_eval(s, uv[0], uv[1], &S, NULL, NULL);
+        *dist = v3_len(v3_sub(S, q));
+        if (*dist <= 1e-6 * on->size_mm)
+            return;
+    }
+}
+
+/* ---- trim loops ------------------------------------------------------------------------- */
+
+struct loops {
+    double (*uv)[2];
+    size_t n, cap;
+    size_t *counts;
+    size_t n_loops, cap_loops;
+};
+
+static void loops_free(struct loops *l)
+{
+    free(l->uv);
+    free(l->counts);
+    memset(l, 0, sizeof *l);
+}
+
+
+/* Whether the surface closes along direction d (0: u, 1: v): its two edges across d coincide. */
+static bool closes(const struct on_surface *on, int d)
+{
+    for (int k = 0; k <= 4; k++) {
+        double t = on->dom[2 - 2 * d] + (on->dom[3 - 2 * d] - on->dom[2 - 2 * d]) * k / 4;
+        vec3 a, b;
+        if (d == 0) {
+            nurbs_eval(on->s, on->dom[0], t, &a, NULL, NULL);
+            nurbs_eval(on->s, on->dom[1], t, &b, NULL, NULL);
+        } else {
+            nurbs_eval(on->s, t, on->dom[2], &a, NULL, NULL);
+            nurbs_eval(on->s, t, on->dom[3], &b, NULL, NULL);
+        }
+        if (v3_len(v3_sub(a, b)) > 1e-6 * on->size_mm)
+            return false;
+    }
+    return true;
+}
+
+/* A projected point on the seam of a closed surface may take either side's parameter: each such
+ * point takes the side of its nearest point off the seam in the piece, and a piece lying wholly on
+ * the seam (a boundary that runs up the seam and back, as a closed surface's natural boundary does)
+ * one side: the one nearer the loop's end, or for a loop's first piece the side it starts on. */
+static void seam_sides(const struct on_surface *on, double (*uv)[2], size_t n, const double *loop_end)
+{
+    for (int d = 0; d < 2; d++) {
+        if (!on->closed[d])
+            continue;
+        const double lo = on->dom[2 * d], hi = on->dom[2 * d + 1], eps = 1e-6 * (hi - lo);
+#define ON_SEAM(k) (fabs(uv[k][d] - lo) <= eps || fabs(uv[k][d] - hi) <= eps)
+        size_t off = 0;
+        while (off < n && ON_SEAM(off))
+            off++;
+        if (off == n) {
+            const double at = loop_end ? loop_end[d] : uv[0][d]; /* else the side it starts on */
+            for (size_t k = 0; k < n; k++)
+                uv[k][d] = fabs(at - lo) < fabs(at - hi) ? lo : hi;
+            continue;
+        }
+        for (size_t k = 0; k < n; k++) {
+            if (!ON_SEAM(k))
+                continue;
+            size_t near = k; /* the nearest point off the seam, before or after */
+            for (size_t j = 1; j < n; j++) {
+                if (k >= j && !ON_SEAM(k - j)) {
+                    near = k - j;
+                    break;
+                }
+                if (k + j < n && !ON_SEAM(k + j)) {
+                    near = k + j;
+                    break;
+                }
+            }
+            uv[k][d] = fabs(uv[near][d] - lo) < fabs(uv[near][d] - hi) ? lo : hi;
+        }
+#undef ON_SEAM
+    }
+}
+
+/* Appends piece (points in the surface's (u, v), or in model space to be projected) to the loop
+ * being built from loop_start on, turned round where its far end meets the loop. */
+static int loop_add(struct iges *g, struct loops *l, size_t loop_start, struct poly *piece, bool model, bool reverse,
+                    const struct on_surface *on, const struct de *owner)
+{
+    char where[24];
+    where_of(owner, where);
+    if (piece->n == 0)
+        return 0;
+    double (*uv)[2] = malloc(sizeof *uv * piece->n);
+    if (!uv)
+        return sf_fail(g->err, SF_ENOMEM, where, "out of memory");
+    for (size_t k = 0; k < piece->n; k++) {
+        if (!model) {
+            uv[k][0] = piece->p[k][0], uv[k][1] = piece->p[k][1];
+            continue;
+        }
+        double P[3] = {piece->p[k][0] * g->to_mm, piece->p[k][1] * g->to_mm, piece->p[k][2] * g->to_mm}, d;
+        const double *seed = k ? uv[k - 1] : l->n > loop_start ? l->uv[l->n - 1] : NULL; /* the point before */
+        if (seed)
+            uv[k][0] = seed[0], uv[k][1] = seed[1];
+        invert(on, P, uv[k], seed != NULL, &d);
+        if (d > PROJECT_OFF_REL * on->size_mm) {
+            free(uv);
+            return sf_fail(g->err, SF_EINVAL, where, "a model-space trim curve lies %.3g mm off its surface (at %g, %g, "
+                           "%g)", d, P[0], P[1], P[2]);
+        }
+    }
+    const double diag = hypot(on->dom[1] - on->dom[0], on->dom[3] - on->dom[2]);
+    size_t n = piece->n;
+    if (model)
+        seam_sides(on, uv, n, l->n > loop_start ? l->uv[l->n - 1] : NULL);
+    if (l->n > loop_start) {
+        const double *end = l->uv[l->n - 1];
+        double d0 = hypot(uv[0][0] - end[0], uv[0][1] - end[1]), d1 = hypot(uv[n - 1][0] - end[0], uv[n - 1][1] - end[1]);
+        reverse = d1 < d0;
+        if (fmin(d0, d1) > LOOP_GAP_REL * diag) {
+            free(uv);
+            return sf_fail(g->err, SF_EINVAL, where, "a trim loop's curves do not meet: a gap of %.3g in (u, v), %.2g "
+                           "of the domain", fmin(d0, d1), fmin(d0, d1) / diag);
+        }
+    }
+    int rc = 0;
+    for (size_t k = 0; k < n && !rc; k++) {
+        const double *q = uv[reverse ? n - 1 - k : k];
+        if (l->n > loop_start && q[0] == l->uv[l->n - 1][0] && q[1] == l->uv[l->n - 1][1])
+            continue;
+        if (l->n >= TRIM_MAX_POINTS)
+            rc = sf_fail(g->err, SF_ELIMIT, where, "trim loops need more than %u points", TRIM_MAX_POINTS);
+        else if (mem_reserve((void **)&l->uv, &l->cap, l->n + 1, sizeof *l->uv))
+            rc = sf_fail(g->err, SF_ENOMEM, where, "out of memory");
+        else
+            l->uv[l->n][0] = q[0], l->uv[l->n][1] = q[1], l->n++;
+    }
+    free(uv);
+    return rc;
+}
+
+/* Closes the loop begun at loop_start: its ends must meet. */
+static int loop_close(struct iges *g, struct loops *l, size_t loop_start, const struct de *owner)
+{
+    char where[24];
+    where_of(owner, where);
+    size_t n = l->n - loop_start;
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    for (size_t k = loop_start; k < l->n; k++)
+        for (int d = 0; d < 2; d++)
+            lo[d] = fmin(lo[d], l->uv[k][d]), hi[d] = fmax(hi[d], l->uv[k][d]);
+    double size = n ? hypot(hi[0] - lo[0], hi[1] - lo[1]) : 0;
+    if (n < 3 || !(size > 0))
+        return sf_fail(g->err, SF_EINVAL, where, "a trim loop encloses no area");
+    double gap = hypot(l->uv[l->n - 1][0] - l->uv[loop_start][0], l->uv[l->n - 1][1] - l->uv[loop_start][1]);
+    if (gap > LOOP_GAP_REL * size)
+        return sf_fail(g->err, SF_EINVAL, where, "a trim loop does not close: its ends are %.3g apart in (u, v), %.2g "
+                       "of its size", gap, gap / size);
+    if (gap == 0)
+        l->n--; /* the first point again */
+    if (mem_reserve((void **)&l->counts, &l->cap_loops, l->n_loops + 1, sizeof *l->counts))
+        return sf_fail(g->err, SF_ENOMEM, where, "out of memory");
+    l->counts[l->n_loops++] = l->n - loop_start;
+    return 0;
+}
+
+/* Adds the points of curve entity ptr (of owner) to the loop, in parameter or model space. */
+static int loop_curve(struct iges *g, struct loops *l, size_t loop_start, int ptr, bool model, bool reverse,
+                      const struct on_surface *on, const struct de *owner)
+{
+    const struct de *c = entity(g, ptr, owner, "curve");
+    if (!c)
+        return SF_EINVAL;
+    struct poly pl = {0};
+    int rc = curve_points(g, c, model ? on->tol_mm / g->to_mm : on->tol_uv, 0, &pl);
+    if (!rc)
+        rc = loop_add(g, l, loop_start, &pl, model, reverse, on, owner);
+    free(pl.p);
+    return rc;
+}
+
+/* A 142's loop: its parameter-space curve, else its model-space curve projected. */
+static int loop_142(struct iges *g, struct loops *l, int ptr, const struct on_surface *on, const struct de *owner)
+{
+    const struct de *e = entity(g, ptr, owner, "loop");
+    if (!e)
+        return SF_EINVAL;
+    char where[24];
+    where_of(e, where);
+    if (e->type != 142)
+        return sf_fail(g->err, SF_EINVAL, where, "entity type %d where a curve on a surface (142) belongs", e->type);
+    struct params p;
+    int rc = load_params(g, e, &p);
+    if (rc)
+        return rc;
+    int bptr = p_int_or(&p, 3, 0), cptr = p_int_or(&p, 4, 0);
+    size_t start = l->n;
+    if (bptr)
+        rc = loop_curve(g, l, start, bptr, false, false, on, e);
+    else if (cptr)
+        rc = loop_curve(g, l, start, cptr, true, false, on, e);
+    else
+        rc = sf_fail(g->err, SF_EINVAL, where, "a curve on a surface with neither a parameter-space nor a model-space "
+                     "curve");
+    params_free(&p);
+    return rc ? rc : loop_close(g, l, start, e);
+}
+
+/* A 141's loop: per curve its parameter-space curves, else the model-space curve projected. */
+static int loop_141(struct iges *g, struct loops *l, int ptr, const struct on_surface *on, const struct de *owner)
+{
+    const struct de *e = entity(g, ptr, owner, "boundary");
+    if (!e)
+        return SF_EINVAL;
+    char where[24];
+    where_of(e, where);
+    if (e->type != 141)
+        return sf_fail(g->err, SF_EINVAL, where, "entity type %d where a boundary (141) belongs", e->type);
+    struct params p;
+    int rc = load_params(g, e, &p);
+    if (rc)
+        return rc;
+    int n, at = 5;
+    if (!p_int(&p, 4, &n) || n < 1 || n > p.n)
+        rc = sf_fail(g->err, SF_EINVAL, where, "boundary: its count of curves is missing or wrong");
+    size_t start = l->n;
+    for (int k = 0; k < n && !rc; k++) {
+        int crv, sense, m;
+        if (!p_int(&p, at, &crv) || !p_int(&p, at + 1, &sense) || !p_int(&p, at + 2, &m) || m < 0 || m > p.n) {
+            rc = sf_fail(g->err, SF_EINVAL, where, "boundary: curve %d's pointer, sense or count is missing", k + 1);
+            break;
+        }
+        bool reverse = sense == 2;
+        if (m == 0)
+            rc = loop_curve(g, l, start, crv, true, reverse, on, e);
+        for (int j = 0; j < m && !rc; j++) {
+            int psc;
+            if (!p_int(&p, at + 3 + (reverse ? m - 1 - j : j), &psc))
+                rc = sf_fail(g->err, SF_EINVAL, where, "boundary: parameter-space curve %d of curve %d is missing", j + 1,
+                             k + 1);
+            else
+                rc = loop_curve(g, l, start, psc, false, reverse, on, e);
+        }
+        at += 3 + m;
+    }
+    params_free(&p);
+    return rc ? rc : loop_close(g, l, start, e);
+}
+
+/* The rectangle of the U/V ranges as a loop. */
+static int loop_rect(struct iges *g, struct loops *l, const double dom[4], const char *where)
+{
+    const double rect[4][2] = {{dom[0], dom[2]}, {dom[1], dom[2]}, {dom[1], dom[3]}, {dom[0], dom[3]}};
+    if (mem_reserve((void **)&l->uv, &l->cap, l->n + 4, sizeof *l->uv) ||
+        mem_reserve((void **)&l->counts, &l->cap_loops, l->n_loops + 1, sizeof *l->counts))
+        return sf_fail(g->err, SF_ENOMEM, where, "out of memory");
+    memcpy(l->uv + l->n, rect, sizeof rect);
+    l->n += 4;
+    l->counts[l->n_loops++] = 4;
+    return 0;
+}
+
+/* ---- the scene -------------------------------------------------------------------------- */
+
+static vec3 colour_of(struct iges *g, const struct de *e, vec3 dflt)
+{
+    static const double STANDARD[9][3] = {{0.8, 0.8, 0.8}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1},
+                                          {1, 1, 0},       {1, 0, 1}, {0, 1, 1}, {1, 1, 1}};
+    double c[3] = {dflt.x, dflt.y, dflt.z};
+    if (e->color > 0 && e->color <= 8) {
+        for (int d = 0; d < 3; d++)
+            c[d] = STANDARD[e->color][d];
+    } else if (e->color < 0) {
+        const struct de *t = entity(g, -e->color, e, "colour");
+        struct params p;
+        if (!t || t->type != 314 || load_params(g, t, &p))
+            return dflt; /* a colour is no reason to refuse a part */
+        for (int d = 0; d < 3; d++) {
+            double v;
+            if (p_num(&p, 1 + d, &v))
+                c[d] = pow(fmin(fmax(v / 100.0, 0.0), 1.0), 2.2); /* percent of a display intensity: sRGB-like */
+        }
+        params_free(&p);
+        if (c[0] == 0 && c[1] == 0 && c[2] == 0)
+            return dflt; /* Rhino's "no colour": a black part shows nothing but its outline */
+    } else {
+        return dflt;
+    }
+    return v3(c[0], c[1], c[2]);
+}
+
+static double hull_size(const struct surface *s)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int k = 0; k < s->n_u * s->n_v; k++)
+        for (int d = 0; d < 3; d++)
+            lo[d] = fmin(lo[d], s->points[3 * k + d]), hi[d] = fmax(hi[d], s->points[3 * k + d]);
+    return hypot(hypot(hi[0] - lo[0], hi[1] - lo[1]), hi[2] - lo[2]);
+}
+
+/* One drawn object: surface sde trimmed as entity owner (a 143 or 144) says, or untrimmed but for
+ * its U/V ranges (owner NULL). */
+static int add_object(struct iges *g, struct scene *sc, const struct de *sde, const struct de *owner)
+{
+    struct object *o = scene_add_object(sc);
+    char where[24];
+    where_of(owner ? owner : sde, where);
+    if (!o)
+        return sf_fail(g->err, SF_ELIMIT, where, "more than %d surfaces, or out of memory", SCENE_MAX_OBJECTS);
+    struct on_surface on;
+    int rc = read_surface(g, sde, &o->surf, on.dom);
+    if (rc)
+        return rc;
+    on.s = &o->surf;
+    on.size_mm = hull_size(&o->surf);
+    on.tol_uv = TRIM_TOL_REL * hypot(on.dom[1] - on.dom[0], on.dom[3] - on.dom[2]);
+    on.tol_mm = TRIM_TOL_REL * on.size_mm;
+    on.closed[0] = closes(&on, 0), on.closed[1] = closes(&on, 1);
+    o->mat.color = colour_of(g, owner && owner->color ? owner : sde, o->mat.color);
+    double k0, k1, l0, l1;
+    nurbs_domain(&o->surf, &k0, &k1, &l0, &l1);
+    const bool whole = on.dom[0] == k0 && on.dom[1] == k1 && on.dom[2] == l0 && on.dom[3] == l1;
+    struct loops l = {0};
+    if (owner) {
+        struct params p;
+        if ((rc = load_params(g, owner, &p)))
+            return rc;
+        if (owner->type == 144) { /* PTS, N1, N2, PTO, PTI(N2) */
+            int n1 = p_int_or(&p, 2, 0), n2 = p_int_or(&p, 3, 0);
+            if (n2 < 0 || n2 > p.n)
+                rc = sf_fail(g->err, SF_EINVAL, where, "trimmed surface: its count of holes is wrong");
+            if (!rc && n1 == 0 && (n2 > 0 || !whole)) /* the natural boundary: a loop round the U/V ranges */
+                rc = loop_rect(g, &l, on.dom, where);
+            else if (!rc && n1)
+                rc = loop_142(g, &l, p_int_or(&p, 4, 0), &on, owner);
+            for (int k = 0; k < n2 && !rc; k++)
+                rc = loop_142(g, &l, p_int_or(&p, 5 + k, 0), &on, owner);
+        } else { /* 143: TYPE, SPTR, N, BDPT(N) */
+            int n = p_int_or(&p, 3, 0);
+            if (n < 1 || n > p.n)
+                rc = sf_fail(g->err, SF_EINVAL, where, "bounded surface: its count of boundaries is missing or wrong");
+            for (int k = 0; k < n && !rc; k++)
+                rc = loop_141(g, &l, p_int_or(&p, 4 + k, 0), &on, owner);
+        }
+        params_free(&p);
+    } else if (!whole) { /* U/V ranges within the knots: the rectangle they span */
+        rc = loop_rect(g, &l, on.dom, where);
+    }
+    if (!rc && l.n_loops) {
+        o->trim = calloc(1, sizeof *o->trim);
+        if (!o->trim)
+            rc = sf_fail(g->err, SF_ENOMEM, where, "out of memory");
+        else if ((rc = trim_build(o->trim, (const double(*)[2])l.uv, l.counts, (int)l.n_loops, where, g->err))) {
+            free(o->trim);
+            o->trim = NULL;
+        }
+    }
+    loops_free(&l);
+    return rc;
+}
+
+/* Millimetres per unit of the Global section's unit flag (and, for flag 3, its name). */
+static double unit_mm(int flag, const char *name, int name_len)
+{
+    static const double MM[12] = {0, 25.4, 1, 0, 304.8, 1609344, 1000, 1e6, 0.0254, 0.001, 10, 2.54e-5};
+    if (flag >= 1 && flag <= 11 && flag != 3)
+        return MM[flag];
+    static const struct {
+        const char *name;
+        double mm;
+    } NAMES[] = {{"IN", 25.4}, {"INCH", 25.4}, {"MM", 1}, {"FT", 304.8}, {"MI", 1609344}, {"M", 1000},
+                 {"KM", 1e6},  {"MIL", 0.0254}, {"UM", 0.001}, {"CM", 10}, {"UIN", 2.54e-5}};
+    for (size_t k = 0; name && k < sizeof NAMES / sizeof *NAMES; k++)
+        if ((int)strlen(NAMES[k].name) == name_len && !strncasecmp(NAMES[k].name, name, (size_t)name_len))
+            return NAMES[k].mm;
+    return 0;
+}
+
+/* The Global section: delimiters (fields 1, 2) and the unit (13 scale is left alone, as by other
+ * readers; 14 flag, 15 name). */
+static int read_global(struct iges *g, char *text, size_t len)
+{
+    size_t k = 0;
+    char d[2] = {',', ';'};
+    for (int f = 0; f < 2; f++) { /* each "1Hc" or empty, then the parameter delimiter */
+        if (k + 3 <= len && text[k] == '1' && (text[k + 1] == 'H' || text[k + 1] == 'h')) {
+            d[f] = text[k + 2];
+            k += 3;
+        }
+        if (f == 0 && k < len && text[k] != d[0] && d[0] != ',')
+            return sf_fail(g->err, SF_EFORMAT, "G1", "the Global section's first field is not a delimiter");
+        if (k < len && (text[k] == d[0] || text[k] == d[1]))
+            k++;
+    }
+    g->pd = d[0], g->rd = d[1];
+    if (g->pd == g->rd || isdigit((unsigned char)g->pd) || g->pd == ' ' || g->rd == ' ')
+        return sf_fail(g->err, SF_EFORMAT, "G1", "the Global section's delimiters are not usable");
+    struct params p = {0};
+    int rc = split_fields(&p, text, len, g->pd, g->rd, "G1", g->err); /* takes text */
+    if (rc) {
+        params_free(&p);
+        return rc;
+    }
+    /* fields count from 1 in the standard: field f is p.num[f - 1] */
+    int flag = p_int_or(&p, 13, 1);
+    g->to_mm = unit_mm(flag, 14 < p.n ? p.str[14] : NULL, 14 < p.n ? p.str_len[14] : 0);
+    params_free(&p);
+    if (!(g->to_mm > 0))
+        return sf_fail(g->err, SF_EINVAL, "G14", "unit flag %d (and its name) names no unit", flag);
+    return 0;
+}
+
+int scene_parse_iges(const char *buf, size_t len, struct scene *sc, struct sf_err *err)
+{
+    scene_init(sc);
+    struct iges g = {0};
+    g.err = err;
+    /* the lines by section */
+    struct line *lines = NULL;
+    size_t n_lines = 0, cap = 0;
+    int rc = 0;
+    char where[32];
+    for (size_t at = 0, no = 1; at < len && !rc; no++) {
+        const char *e = memchr(buf + at, '\n', len - at);
+        size_t end = e ? (size_t)(e - buf) : len, n = end - at;
+        if (n && buf[at + n - 1] == '\r')
+            n--;
+        snprintf(where, sizeof where, "line %zu", no);
+        bool blank = true;
+        for (size_t k = 0; k < n && blank; k++)
+            blank = isspace((unsigned char)buf[at + k]);
+        if (!blank && n < 73)
+            rc = sf_fail(err, SF_EFORMAT, where, "not an IGES line: %zu columns, where 80 carry the section in column 73",
+                         n);
+        else if (!blank && !strchr("SGDPT", buf[at + 72]))
+            rc = sf_fail(err, SF_EFORMAT, where, "column 73 holds '%c', not a section letter (S, G, D, P, T)%s",
+                         buf[at + 72], buf[at + 72] == 'C' || buf[at + 72] == 'B' ? ": compressed and binary IGES are "
+                                                                                    "not read" : "");
+        else if (!blank && n_lines && strchr("SGDPT", lines[n_lines - 1].section) >
+                                          strchr("SGDPT", buf[at + 72]))
+            rc = sf_fail(err, SF_EFORMAT, where, "section %c after section %c", buf[at + 72], lines[n_lines - 1].section);
+        else if (!blank && mem_reserve((void **)&lines, &cap, n_lines + 1, sizeof *lines))
+            rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+        else if (!blank)
+            lines[n_lines++] = (struct line){buf + at, buf[at + 72]};
+        at = end + 1;
+    }
+    size_t first[6] = {0}; /* first line of S, G, D, P, T, and the end */
+    for (int s = 0; s < 5; s++) {
+        size_t k = first[s];
+        while (k < n_lines && lines[k].section == "SGDPT"[s])
+            k++;
+        first[s + 1] = k;
+    }
+    if (!rc && (first[2] == first[1] || first[3] == first[2] || first[4] == first[3]))
+        rc = sf_fail(err, SF_EFORMAT, "", "not an IGES file: it needs Global, Directory and Parameter sections");
+    /* Global */
+    if (!rc) {
+        size_t n = first[2] - first[1];
+        char *text = malloc(72 * n + 1);
+        if (!text)
+            rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+        for (size_t k = 0; text && k < n; k++)
+            memcpy(text + 72 * k, lines[first[1] + k].s, 72);
+        if (text)
+            rc = read_global(&g, text, 72 * n);
+    }
+    /* Directory */
+    size_t n_d = first[3] - first[2];
+    if (!rc && n_d % 2)
+        rc = sf_fail(err, SF_EFORMAT, "", "the Directory has %zu lines: entries are pairs", n_d);
+    if (!rc && n_d / 2 > IGES_MAX_ENTITIES)
+        rc = sf_fail(err, SF_ELIMIT, "", "%zu entities, over the limit of %d", n_d / 2, IGES_MAX_ENTITIES);
+    if (!rc && !(g.de = calloc(n_d / 2, sizeof *g.de)))
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+    g.n_de = (int)(n_d / 2);
+    for (int k = 0; k < g.n_de && !rc; k++) {
+        const char *a = lines[first[2] + 2 * (size_t)k].s, *b = lines[first[2] + 2 * (size_t)k + 1].s;
+        struct de *e = &g.de[k];
+        int type2, status;
+        e->line = 2 * k + 1;
+        snprintf(where, sizeof where, "D%d", e->line);
+        if (field8(a, 0, &e->type) || field8(a, 1, &e->param) || field8(a, 6, &e->transform) ||
+            field8(a, 8, &status) || field8(b, 0, &type2) || field8(b, 2, &e->color) || field8(b, 3, &e->n_lines) ||
+            field8(b, 4, &e->form))
+            rc = sf_fail(err, SF_EFORMAT, where, "a directory field is not a number");
+        else if (type2 != e->type)
+            rc = sf_fail(err, SF_EFORMAT, where, "the entry's two lines give entity types %d and %d", e->type, type2);
+        e->blank = status / 1000000;
+        e->sub = status / 10000 % 100;
+    }
+    /* Parameter data */
+    size_t n_p = first[4] - first[3];
+    if (!rc && !(g.p_line = malloc(sizeof *g.p_line * n_p)))
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+    for (size_t k = 0; !rc && k < n_p; k++)
+        g.p_line[k] = lines[first[3] + k].s;
+    g.n_p = (int)n_p;
+    /* the surfaces that 143s and 144s bound are drawn only so */
+    for (int k = 0; k < g.n_de && !rc; k++) {
+        struct de *e = &g.de[k];
+        if (e->type != 143 && e->type != 144)
+            continue;
+        struct params p;
+        if ((rc = load_params(&g, e, &p)))
+            break;
+        const struct de *s = entity(&g, p_int_or(&p, e->type == 143 ? 2 : 1, 0), e, "surface");
+        if (s)
+            g.de[s - g.de].bounded = true;
+        else
+            rc = SF_EINVAL;
+        params_free(&p);
+    }
+    for (int k = 0; k < g.n_de && !rc; k++) {
+        struct de *e = &g.de[k];
+        if (e->blank || e->sub != 0)
+            continue;
+        if (e->type == 128 && !e->bounded)
+            rc = add_object(&g, sc, e, NULL);
+        else if (e->type == 143 || e->type == 144) {
+            struct params p;
+            if (!(rc = load_params(&g, e, &p))) {
+                const struct de *s = entity(&g, p_int_or(&p, e->type == 143 ? 2 : 1, 0), e, "surface");
+                params_free(&p);
+                rc = s ? add_object(&g, sc, s, e) : SF_EINVAL;
+            }
+        }
+    }
+    if (!rc && sc->n_objects == 0)
+        rc = sf_fail(err, SF_EINVAL, "", "the file has no independent surface to draw (128, 143 or 144)");
+    free(lines);
+    free(g.de);
+    free(g.p_line);
+    if (rc)
+        scene_free(sc);
+    return rc ? (err && err->code ? err->code : rc) : 0;
+}

@@ -1,0 +1,224 @@
+/* trim.c - the trimmed region's index and its point and box tests (trim.h). */
+#include "trim.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Twice the signed area of (a, b, c): > 0 when c lies left of a -> b. */
+static double orient(const double a[2], const double b[2], const double c[2])
+{
+    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+}
+
+/* Segment s runs from pt[s] to pt[s + 1]: each loop is stored closed, its first point repeated. */
+static void seg_ends(const struct trim *t, uint32_t s, const double **a, const double **b)
+{
+    *a = t->pt[s];
+    *b = t->pt[s + 1];
+}
+
+static int cell_col(const struct trim *t, double u)
+{
+    double f = floor((u - t->u0) / t->du);
+    return f < 0 ? 0 : f >= t->gu ? t->gu - 1 : (int)f;
+}
+
+static int cell_row(const struct trim *t, double v)
+{
+    double f = floor((v - t->v0) / t->dv);
+    return f < 0 ? 0 : f >= t->gv ? t->gv - 1 : (int)f;
+}
+
+/* Bins every segment into the cells its bounding box meets (count when fill is false). */
+static size_t bin(struct trim *t, bool fill, uint32_t *at)
+{
+    size_t total = 0;
+    for (int l = 0; l < t->n_loops; l++)
+        for (size_t k = t->start[l]; k + 1 < t->start[l + 1]; k++) {
+            const double *a = t->pt[k], *b = t->pt[k + 1];
+            int i0 = cell_col(t, fmin(a[0], b[0])), i1 = cell_col(t, fmax(a[0], b[0]));
+            int j0 = cell_row(t, fmin(a[1], b[1])), j1 = cell_row(t, fmax(a[1], b[1]));
+            total += (size_t)(i1 - i0 + 1) * (size_t)(j1 - j0 + 1);
+            if (!fill) {
+                if (total > TRIM_MAX_ENTRIES)
+                    return total;
+                for (int j = j0; j <= j1; j++)
+                    for (int i = i0; i <= i1; i++)
+                        t->cell_first[(size_t)j * t->gu + i + 1]++;
+                continue;
+            }
+            for (int j = j0; j <= j1; j++)
+                for (int i = i0; i <= i1; i++)
+                    t->cell_seg[at[(size_t)j * t->gu + i]++] = (uint32_t)k;
+        }
+    return total;
+}
+
+/* Whether each cell's centre is inside: along each row's centre line, the crossings left of a
+ * centre (even-odd, half-open in v so a vertex on the line counts once). A crossing is counted in
+ * the one cell whose columns hold it, though its segment is binned in every cell of its box. */
+static void centres(struct trim *t)
+{
+    for (int j = 0; j < t->gv; j++) {
+        double vc = t->v0 + (j + 0.5) * t->dv;
+        int parity = 0;
+        for (int i = 0; i < t->gu; i++) {
+            double uc = t->u0 + (i + 0.5) * t->du, left = t->u0 + i * t->du, right = left + t->du;
+            int before = 0, after = 0;
+            size_t c = (size_t)j * t->gu + i;
+            for (uint32_t e = t->cell_first[c]; e < t->cell_first[c + 1]; e++) {
+                const double *a, *b;
+                seg_ends(t, t->cell_seg[e], &a, &b);
+                if ((a[1] > vc) == (b[1] > vc))
+                    continue;
+                double u = a[0] + (vc - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
+                if ((u < left && i > 0) || (u >= right && i < t->gu - 1))
+                    continue; /* another cell's crossing */
+                if (u < uc)
+                    before++;
+                else
+                    after++;
+            }
+            t->cell_in[c] = (uint8_t)((parity + before) & 1);
+            parity += before + after;
+        }
+    }
+}
+
+int trim_build(struct trim *t, const double (*pts)[2], const size_t *counts, int n_loops, const char *where,
+               struct sf_err *err)
+{
+    memset(t, 0, sizeof *t);
+    size_t n = 0;
+    if (n_loops < 1)
+        return sf_fail(err, SF_EINVAL, where, "a trimmed surface needs at least one loop");
+    for (int l = 0; l < n_loops; l++) {
+        if (counts[l] < 3)
+            return sf_fail(err, SF_EINVAL, where, "trim loop %d has %zu points: at least 3 close a region", l,
+                           counts[l]);
+        n += counts[l];
+        if (n > TRIM_MAX_POINTS)
+            return sf_fail(err, SF_ELIMIT, where, "trim loops have more than %u points", TRIM_MAX_POINTS);
+    }
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    for (size_t k = 0; k < n; k++)
+        for (int d = 0; d < 2; d++) {
+            if (!isfinite(pts[k][d]))
+                return sf_fail(err, SF_EINVAL, where, "trim loop point %zu is not finite", k);
+            lo[d] = fmin(lo[d], pts[k][d]);
+            hi[d] = fmax(hi[d], pts[k][d]);
+        }
+    if (!(hi[0] > lo[0]) || !(hi[1] > lo[1]))
+        return sf_fail(err, SF_EINVAL, where, "the trim loops enclose no area");
+    t->n_pts = n + (size_t)n_loops;
+    t->n_loops = n_loops;
+    t->pt = malloc(sizeof *t->pt * t->n_pts);
+    t->start = malloc(sizeof *t->start * (size_t)(n_loops + 1));
+    int g = (int)ceil(2.0 * sqrt((double)n));
+    g = g < 4 ? 4 : g > TRIM_GRID_MAX ? TRIM_GRID_MAX : g;
+    t->gu = t->gv = g;
+    t->cell_first = calloc((size_t)g * g + 1, sizeof *t->cell_first);
+    t->cell_in = malloc((size_t)g * g);
+    if (!t->pt || !t->start || !t->cell_first || !t->cell_in) {
+        trim_free(t);
+        return sf_fail(err, SF_ENOMEM, where, "out of memory");
+    }
+    t->start[0] = 0;
+    const double(*from)[2] = pts;
+    for (int l = 0; l < n_loops; from += counts[l], l++) {
+        memcpy(t->pt[t->start[l]], from, sizeof *t->pt * counts[l]);
+        memcpy(t->pt[t->start[l] + counts[l]], from, sizeof *t->pt);
+        t->start[l + 1] = t->start[l] + counts[l] + 1;
+    }
+    /* a little margin: no loop point on the grid's outer edge */
+    double mu = 1e-9 * (hi[0] - lo[0]), mv = 1e-9 * (hi[1] - lo[1]);
+    t->u0 = lo[0] - mu, t->v0 = lo[1] - mv;
+    t->du = (hi[0] - lo[0] + 2 * mu) / g, t->dv = (hi[1] - lo[1] + 2 * mv) / g;
+    size_t cells = (size_t)g * g;
+    if (bin(t, false, NULL) > TRIM_MAX_ENTRIES) {
+        trim_free(t);
+        return sf_fail(err, SF_ELIMIT, where, "trim loops too long across their bounds to index");
+    }
+    for (size_t c = 0; c < cells; c++)
+        t->cell_first[c + 1] += t->cell_first[c];
+    t->cell_seg = malloc(sizeof *t->cell_seg * (t->cell_first[cells] ? t->cell_first[cells] : 1));
+    uint32_t *at = malloc(sizeof *at * cells);
+    if (!t->cell_seg || !at) {
+        free(at);
+        trim_free(t);
+        return sf_fail(err, SF_ENOMEM, where, "out of memory");
+    }
+    memcpy(at, t->cell_first, sizeof *at * cells);
+    bin(t, true, at);
+    free(at);
+    centres(t);
+    return 0;
+}
+
+void trim_free(struct trim *t)
+{
+    if (!t)
+        return;
+    free(t->pt);
+    free(t->start);
+    free(t->cell_first);
+    free(t->cell_seg);
+    free(t->cell_in);
+    memset(t, 0, sizeof *t);
+}
+
+bool trim_contains(const struct trim *t, double u, double v)
+{
+    if (u < t->u0 || v < t->v0 || u > t->u0 + t->gu * t->du || v > t->v0 + t->gv * t->dv)
+        return false; /* beyond every loop */
+    int i = cell_col(t, u), j = cell_row(t, v);
+    size_t c = (size_t)j * t->gu + i;
+    const double p[2] = {u, v}, m[2] = {t->u0 + (i + 0.5) * t->du, t->v0 + (j + 0.5) * t->dv};
+    int in = t->cell_in[c];
+    /* every loop edge the stretch from p to the centre crosses lies in this cell */
+    for (uint32_t e = t->cell_first[c]; e < t->cell_first[c + 1]; e++) {
+        const double *a, *b;
+        seg_ends(t, t->cell_seg[e], &a, &b);
+        if ((orient(a, b, p) > 0) != (orient(a, b, m) > 0) && (orient(p, m, a) > 0) != (orient(p, m, b) > 0))
+            in ^= 1;
+    }
+    return in;
+}
+
+/* Whether segment a-b meets the box. */
+static bool seg_meets_box(const double *a, const double *b, double u0, double u1, double v0, double v1)
+{
+    if (fmax(a[0], b[0]) < u0 || fmin(a[0], b[0]) > u1 || fmax(a[1], b[1]) < v0 || fmin(a[1], b[1]) > v1)
+        return false;
+    const double corner[4][2] = {{u0, v0}, {u1, v0}, {u1, v1}, {u0, v1}};
+    int pos = 0, neg = 0;
+    for (int k = 0; k < 4; k++) {
+        double o = orient(a, b, corner[k]);
+        pos += o >= 0, neg += o <= 0;
+    }
+    return pos && neg; /* the line through a, b separates the corners (or touches one) */
+}
+
+enum trim_class trim_classify(const struct trim *t, double u0, double u1, double v0, double v1)
+{
+    double gu1 = t->u0 + t->gu * t->du, gv1 = t->v0 + t->gv * t->dv;
+    if (u1 < t->u0 || v1 < t->v0 || u0 > gu1 || v0 > gv1)
+        return TRIM_OUT;
+    int i0 = cell_col(t, u0), i1 = cell_col(t, u1), j0 = cell_row(t, v0), j1 = cell_row(t, v1);
+    for (int j = j0; j <= j1; j++)
+        for (int i = i0; i <= i1; i++) {
+            size_t c = (size_t)j * t->gu + i;
+            for (uint32_t e = t->cell_first[c]; e < t->cell_first[c + 1]; e++) {
+                const double *a, *b;
+                seg_ends(t, t->cell_seg[e], &a, &b);
+                if (seg_meets_box(a, b, u0, u1, v0, v1))
+                    return TRIM_CUT;
+            }
+        }
+    /* no loop crosses the box: a box reaching past the loops' bounds lies partly outside them all,
+     * so wholly outside; else its centre decides */
+    if (u0 < t->u0 || v0 < t->v0 || u1 > gu1 || v1 > gv1)
+        return TRIM_OUT;
+    return trim_contains(t, 0.5 * (u0 + u1), 0.5 * (v0 + v1)) ? TRIM_IN : TRIM_OUT;
+}
