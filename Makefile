@@ -170,7 +170,14 @@ install: $(B)/surfd $(B)/surfctl $(B)/libsurfd-image.so
 		useradd --system --home-dir /var/lib/surfd --shell /usr/sbin/nologin surfd; fi
 	@echo "installed; start with: systemctl daemon-reload && systemctl enable --now surfd"
 
-test: deps layers $(B)/surfd $(B)/surfctl $(B)/san/surfd $(TESTS) $(TSAN_TESTS) $(REPLAYS) $(FUZZERS)
+# Open CASCADE as the oracle of the IGES tests (tests/tools/occt_iges.cpp), never linked into surfd
+OCCT_LIBS := -lTKIGES -lTKXSBase -lTKShHealing -lTKMesh -lTKTopAlgo -lTKGeomAlgo -lTKBRep -lTKGeomBase -lTKG3d -lTKG2d \
+             -lTKMath -lTKernel
+$(B)/tests/tools/occt_iges: tests/tools/occt_iges.cpp
+	@mkdir -p $(@D)
+	$(CXX) -O2 -std=c++17 -Wall -Wextra -Werror -isystem /usr/include/opencascade -o $@ $< $(OCCT_LIBS)
+
+test: deps layers $(B)/surfd $(B)/surfctl $(B)/san/surfd $(TESTS) $(TSAN_TESTS) $(REPLAYS) $(FUZZERS) $(B)/tests/tools/occt_iges
 	@SURFD_BIN=$(B)/san/surfd FUZZ_SECONDS=$${FUZZ_SECONDS:-10} tests/run.sh $(TESTS) $(TSAN_TESTS)
 
 bench: $(B)/surfd

@@ -36,7 +36,7 @@
 #define IGES_MAX_ENTITIES 1000000 /* directory entries */
 #define IGES_MAX_DEPTH 16         /* nested composites and chained transforms */
 #define CURVE_MAX_POINTS (1 << 20) /* control points of one curve */
-#define TRIM_TOL_REL 2e-5         /* chord error of a trim polyline, of its surface's domain diagonal */
+#define TRIM_TOL_REL 4e-6         /* chord error of a trim polyline, of its surface's domain diagonal */
 #define LOOP_GAP_REL 1e-2         /* largest gap in a loop, of the loop's size */
 #define ARC_MAX_STEPS 4096
 #define PROJECT_OFF_REL 2e-2      /* a model-space trim curve may lie this far off its surface, of its size
@@ -1018,6 +1018,7 @@ static int add_object(struct iges *g, struct scene *sc, const struct de *sde, co
     on.tol_mm = TRIM_TOL_REL * on.size_mm;
     on.closed[0] = closes(&on, 0), on.closed[1] = closes(&on, 1);
     o->mat.color = colour_of(g, owner && owner->color ? owner : sde, o->mat.color);
+    o->source = (owner ? owner : sde)->line;
     double k0, k1, l0, l1;
     nurbs_domain(&o->surf, &k0, &k1, &l0, &l1);
     const bool whole = on.dom[0] == k0 && on.dom[1] == k1 && on.dom[2] == l0 && on.dom[3] == l1;

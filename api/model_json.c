@@ -20,6 +20,8 @@
 #include "rtstruct.h"
 #include "scene_io.h"
 
+#define SHELL_GAP_REL 1e-4 /* trimmed surfaces meet where their boundaries come this close, of the bounds' diagonal */
+
 static double now_ms(void)
 {
     struct timespec ts;
@@ -141,13 +143,83 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
     return o;
 }
 
+/* The scene format of a body: as named, but an IGES file is one whatever its Content-Type said
+ * (curl sends files as forms, and a JSON default would refuse it). */
+static enum scene_format scene_body_format(const char *buf, size_t len, const char *format)
+{
+    enum scene_format f = scene_format_parse(format);
+    return (f == SCENE_JSON || f == SCENE_UNKNOWN) && scene_format_sniff(buf, len) == SCENE_IGES ? SCENE_IGES : f;
+}
+
 bool model_body_is_scene(const char *buf, size_t len, const char *format)
 {
-    if (format && (!strcmp(format, "bpt") || !strcmp(format, "nurbs") || !strcmp(format, "vrml")))
+    if (scene_body_format(buf, len, format) == SCENE_IGES)
+        return true;
+    if (format && (!strcmp(format, "bpt") || !strcmp(format, "nurbs") || !strcmp(format, "vrml") ||
+                   !strcmp(format, "iges") || !strcmp(format, "igs")))
         return true;
     if (format && *format && strcmp(format, "json"))
         return false;
     return !memmem(buf, len, "\"slices\"", 8) && (memmem(buf, len, "\"objects\"", 9) || memmem(buf, len, "\"patches\"", 9));
+}
+
+/* Where a scene's object came from, for an error's pointer: its IGES entity, else /objects/k. */
+static void object_pointer(const struct scene *sc, int k, char *where, size_t n)
+{
+    if (k >= 0 && k < sc->n_objects && sc->objects[k].source)
+        snprintf(where, n, "D%d", sc->objects[k].source);
+    else
+        snprintf(where, n, "/objects/%d", k);
+}
+
+/* Trimmed surfaces as a solid: their area over the trimmed domains, and the volume they enclose
+ * when their boundaries meet (enclosed_shell), each turned the way its neighbours face. */
+static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, double t0, double t1, char **json,
+                           struct sf_err *err)
+{
+    struct enclosed e;
+    double *vol = malloc(sizeof *vol * (size_t)sc->n_objects);
+    struct shell_part *parts = malloc(sizeof *parts * (size_t)sc->n_objects);
+    signed char *sign = malloc((size_t)sc->n_objects);
+    struct shell sh;
+    int rc = 0;
+    if (!vol || !parts || !sign || enclosed_measure_objects(ps, &e, vol, sc->n_objects))
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+    double diag = hypot(hypot(e.hi[0] - e.lo[0], e.hi[1] - e.lo[1]), e.hi[2] - e.lo[2]);
+    for (int k = 0; !rc && k < sc->n_objects; k++)
+        parts[k] = (struct shell_part){&sc->objects[k].surf, sc->objects[k].trim};
+    if (!rc && enclosed_shell(parts, sc->n_objects, SHELL_GAP_REL * diag, &sh, sign))
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+    char where[32];
+    if (!rc && sh.open_samples) {
+        object_pointer(sc, sh.open_object, where, sizeof where);
+        rc = sf_fail(err, SF_EINVAL, where, "the surfaces do not close a solid: %zu of %zu boundary points meet no "
+                     "other surface within %.3g mm, the first of this surface at (%.4g, %.4g, %.4g) mm; their area is "
+                     "%.6g mm²", sh.open_samples, sh.samples, SHELL_GAP_REL * diag, sh.open_at[0], sh.open_at[1],
+                     sh.open_at[2], e.area);
+    } else if (!rc && sh.conflicts) {
+        rc = sf_fail(err, SF_EINVAL, "", "the surfaces close, but no choice of their sides faces them all the same way "
+                     "(%d neighbouring pairs disagree): a one-sided shell", sh.conflicts);
+    }
+    double v = 0;
+    int turned = 0;
+    for (int k = 0; !rc && k < sc->n_objects; k++)
+        v += sign[k] * vol[k];
+    for (int k = 0; !rc && k < sc->n_objects; k++)
+        turned += (v < 0 ? -sign[k] : sign[k]) < 0;
+    double t2 = now_ms();
+    if (!rc)
+        *json = dump(json_pack("{s:s, s:i, s:I, s:b, s:s, s:i, s:f, s:f, s:{s:f}, s:I, s:[[f,f,f],[f,f,f]], s:{s:f, "
+                               "s:f}}", "kind", "trimmed surfaces", "surfaces", sc->n_objects, "patches", (json_int_t)ps->n,
+                               "closed", 1, "orientation", turned ? "mixed" : v >= 0 ? "outward" : "inward",
+                               "surfaces_turned", turned, "volume_mm3", fabs(v), "area_mm2", e.area, "volume", "exact",
+                               fabs(v), "boundary_points", (json_int_t)sh.samples, "bounds", e.lo[0], e.lo[1], e.lo[2],
+                               e.hi[0], e.hi[1], e.hi[2], "timings_ms", "read", t1 - t0, "volume", t2 - t1),
+                     err);
+    free(vol);
+    free(parts);
+    free(sign);
+    return rc ? rc : (*json ? 0 : err->code);
 }
 
 /* A scene's patches as a solid (POST /volume): the volume they enclose, when they close. */
@@ -156,13 +228,22 @@ static int scene_figures(const char *buf, size_t len, const char *format, char *
     double t0 = now_ms();
     struct scene sc;
     enum image_format img;
-    int rc = scene_parse(buf, len, scene_format_parse(format), &sc, &img, err);
+    int rc = scene_parse(buf, len, scene_body_format(buf, len, format), &sc, &img, err);
     if (rc)
         return rc;
     struct patch_set ps;
     struct enclosed e;
     double t1 = now_ms();
     if ((rc = scene_patches(&sc, &ps, err))) {
+        scene_free(&sc);
+        return rc;
+    }
+    bool trimmed = false;
+    for (int k = 0; k < sc.n_objects; k++)
+        trimmed |= sc.objects[k].trim != NULL;
+    if (trimmed) {
+        rc = trimmed_figures(&sc, &ps, t0, t1, json, err);
+        nurbs_patch_set_free(&ps);
         scene_free(&sc);
         return rc;
     }
@@ -243,7 +324,7 @@ int model_validate(const char *buf, size_t len, const char *format, const char *
     if (model_body_is_scene(buf, len, format)) {
         struct scene sc;
         enum image_format img;
-        int rc = scene_parse(buf, len, scene_format_parse(format), &sc, &img, err);
+        int rc = scene_parse(buf, len, scene_body_format(buf, len, format), &sc, &img, err);
         if (!rc)
             scene_free(&sc);
         return rc;

@@ -14,6 +14,7 @@ const char *render_format_from_type(const char *ct)
 {
     static const struct media_format TYPES[] = {{"application/json", "json"}, {"application/scene+json", "json"}, {"model/x-bpt", "bpt"},
                  {"application/x-bpt", "bpt"},  {"model/vrml", "nurbs"},           {"x-world/x-vrml", "nurbs"},
+                 {"model/iges", "iges"},        {"application/iges", "iges"},      {"application/x-iges", "iges"},
                  {"text/plain", ""},            {"application/octet-stream", ""},
                  {"application/x-www-form-urlencoded", ""} /* curl -d's default: sniffed like text */};
     return media_format(ct, TYPES, sizeof TYPES / sizeof *TYPES);
@@ -140,7 +141,7 @@ int render_request_parse(const char *body, size_t len, const char *format, const
 {
     enum scene_format fmt = scene_format_parse(format);
     if ((int)fmt < 0)
-        return sf_fail(err, SF_EFORMAT, "?format", "format is json, bpt or nurbs, not \"%s\"", format);
+        return sf_fail(err, SF_EFORMAT, "?format", "format is json, bpt, nurbs or iges, not \"%s\"", format);
     int rc = scene_parse_models(body, len, fmt, models, sc, img, err);
     if (rc)
         return rc;

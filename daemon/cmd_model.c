@@ -71,6 +71,7 @@ void cmd_volume_usage(FILE *f)
     fprintf(f, "usage: surfd volume CONTOURS.json|RTSTRUCT.dcm|MATRIX.json [--roi NAME] [--caps flat|slab|dome]\n"
                "                    [--method parabolic|linear-parabolic|coons|bspline]\n"
                "                    [--parameterisation arc-length|polar] [--repeat N]\n"
+               "       surfd volume SCENE.igs|.iges|.bpt|.nurbs|.json (patches that close a solid: area and volume)\n"
                "       surfd model  CONTOURS.json|RTSTRUCT.dcm|MATRIX.json [--roi NAME] [--caps ...] [--method ...]\n"
                "                    [--mesh OUT.stl|.ply|.obj|.vtp|.vtk|.dcm (Encapsulated STL) | --mesh DIR/ (every model: DIR/NAME.stl)]\n"
                "                    [--tolerance MM] [--patches OUT.json]\n"
@@ -117,8 +118,12 @@ int cmd_volume(int argc, char **argv)
     for (int k = 0; k < repeat && !rc; k++) {
         free(json);
         json = NULL;
-        /* DICOM Part 10 files carry "DICM" after a 128-byte preamble */
-        const char *format = len > 132 && !memcmp(buf + 128, "DICM", 4) ? "dicom" : "json";
+        /* DICOM Part 10 files carry "DICM" after a 128-byte preamble; scene files go by their extension */
+        const char *dot = strrchr(argv[1], '.'), *format = len > 132 && !memcmp(buf + 128, "DICM", 4) ? "dicom" : "json";
+        if (dot && (!strcmp(dot, ".igs") || !strcmp(dot, ".iges")))
+            format = "iges";
+        else if (dot && (!strcmp(dot, ".bpt") || !strcmp(dot, ".nurbs") || !strcmp(dot, ".wrl")))
+            format = dot + 1;
         char location[64];
         rc = model ? model_create(buf, len, format, options, &sink, NULL, &json, location, &err)
                    : model_figures(buf, len, format, options, NULL, &json, &err);

@@ -62,7 +62,7 @@ static bool camera_flag(const char *name, const char *const *flags, int n)
 void cmd_render_usage(FILE *f)
 {
     fprintf(f, "usage: surfd render SCENE... -o OUT.png|OUT.exr|OUT.tif [--method auto|map|bvh|mesh|montecarlo]\n"
-                    "                    [--width W --height H] [--threads N] [--format json|bpt|nurbs] [--stats]\n"
+                    "                    [--width W --height H] [--threads N] [--format json|bpt|nurbs|iges] [--stats]\n"
                     "                    [--azimuth DEG --elevation DEG] [--no-shadows] [--aovs normal,uv,id]\n"
                     "                    [--eye X,Y,Z --target X,Y,Z] [--up X,Y,Z] [--fov DEG]\n"
                     "                    [--projection perspective|orthographic] [--view +x|-x|+y|-y|+z|-z] [--view-height H]\n"

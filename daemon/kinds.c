@@ -4,12 +4,12 @@
 #include <string.h>
 
 static const struct job_kind KINDS[] = {
-    {.name = "render", .format = render_format, .media = "application/json, model/x-bpt or model/vrml",
+    {.name = "render", .format = render_format, .media = "application/json, model/x-bpt, model/vrml or model/iges",
      .format_in_query = true, .validate = render_validate, .start = render_start,
      .result = "image/png, image/x-exr or image/tiff"},
     {.name = "volume", .format = volume_format,
-     .media = "application/json (contours or a scene), application/dicom, model/x-bpt or model/vrml",
-     .validate = volume_validate, .start = volume_start, .result = "application/json"},
+     .media = "application/json (contours or a scene), application/dicom, model/x-bpt, model/vrml or model/iges",
+     .format_in_query = true, .validate = volume_validate, .start = volume_start, .result = "application/json"},
     {.name = "model", .format = contour_format, .media = "application/json or application/dicom",
      .validate = model_validate_body, .start = model_start, .result = "application/json"},
     {.name = "mesh", .validate = mesh_validate, .start = mesh_start, .result = "model/stl, application/ply, model/obj, model/vnd.vtk.vtp+xml or model/vnd.vtk"},

@@ -19,7 +19,33 @@ struct enclosed {
                               * flipped edges (the one turned the wrong way), or -1 */
 };
 
-/* ps must be resolved (nurbs_patches_fix). Returns 0 or SF_ENOMEM. */
+/* ps must be resolved (nurbs_patches_fix). Patches with a trim (bezier.h) count only their trim
+ * region; the edges of a set with any are not matched (open_edges and flipped_edges stay 0:
+ * enclosed_shell checks such a set). Returns 0 or SF_ENOMEM. */
 int enclosed_measure(const struct patch_set *ps, struct enclosed *e);
+/* The same, and each object's own share of the volume (object_volume[0..n_objects - 1]). */
+int enclosed_measure_objects(const struct patch_set *ps, struct enclosed *e, double *object_volume, int n_objects);
+
+/* ---- trimmed surfaces: closure along the loops ---- */
+
+struct shell_part {
+    const struct surface *s;
+    const struct trim *t;  /* NULL: the whole domain */
+};
+
+struct shell {
+    size_t samples;        /* boundary points tested */
+    size_t open_samples;   /* ... that lie on no other boundary */
+    int open_object;       /* a part with one, or -1 */
+    double open_at[3];     /* the first such point */
+    size_t flipped;        /* matched points where the two parts face opposite ways */
+    int conflicts;         /* parts whose facing no choice of signs makes agree with every neighbour */
+};
+
+/* Whether the parts close a solid: every point of every boundary (trim loops, or the domain's edges;
+ * collapsed edges need no partner) within tol of another boundary (a part's own, across a seam, too),
+ * and how each part must be turned (sign[k] = +1 or -1, caller's array of n) so that neighbours face
+ * the same way. Returns 0 or SF_ENOMEM. */
+int enclosed_shell(const struct shell_part *parts, int n, double tol, struct shell *out, signed char *sign);
 
 #endif

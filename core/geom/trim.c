@@ -186,6 +186,12 @@ bool trim_contains(const struct trim *t, double u, double v)
     return in;
 }
 
+static int by_u32(const void *x, const void *y)
+{
+    uint32_t a = *(const uint32_t *)x, b = *(const uint32_t *)y;
+    return (a > b) - (a < b);
+}
+
 /* Whether segment a-b meets the box. */
 static bool seg_meets_box(const double *a, const double *b, double u0, double u1, double v0, double v1)
 {
@@ -221,4 +227,133 @@ enum trim_class trim_classify(const struct trim *t, double u0, double u1, double
     if (u0 < t->u0 || v0 < t->v0 || u1 > gu1 || v1 > gv1)
         return TRIM_OUT;
     return trim_contains(t, 0.5 * (u0 + u1), 0.5 * (v0 + v1)) ? TRIM_IN : TRIM_OUT;
+}
+
+/* ---- the region's area within a box (Green's theorem on its boundary there) -------------- */
+
+/* Adds the edge a -> b to the area and first moments: the region lies on its left. */
+static void green_add(const double a[2], const double b[2], double m[3])
+{
+    double c = a[0] * b[1] - b[0] * a[1];
+    m[0] += 0.5 * c;
+    m[1] += (a[0] + b[0]) * c / 6.0;
+    m[2] += (a[1] + b[1]) * c / 6.0;
+}
+
+static int by_double(const void *x, const void *y)
+{
+    double a = *(const double *)x, b = *(const double *)y;
+    return (a > b) - (a < b);
+}
+
+#define BOX_MAX_SEGS 4096 /* loop segments one box may meet; more: the caller subdivides */
+
+double trim_box_moments(const struct trim *t, double u0, double u1, double v0, double v1, double centroid[2])
+{
+    const double box[4][2] = {{u0, v0}, {u1, v0}, {u1, v1}, {u0, v1}};
+    const double lo[2] = {u0, v0}, hi[2] = {u1, v1};
+    const double eps_u = 1e-9 * (u1 - u0), eps_v = 1e-9 * (v1 - v0);
+    uint32_t segs[BOX_MAX_SEGS];
+    size_t n = 0;
+    int i0 = cell_col(t, u0), i1 = cell_col(t, u1), j0 = cell_row(t, v0), j1 = cell_row(t, v1);
+    for (int j = j0; j <= j1; j++)
+        for (int i = i0; i <= i1; i++) {
+            size_t c = (size_t)j * t->gu + i;
+            for (uint32_t e = t->cell_first[c]; e < t->cell_first[c + 1]; e++) {
+                const double *a, *b;
+                seg_ends(t, t->cell_seg[e], &a, &b);
+                if (!seg_meets_box(a, b, u0, u1, v0, v1))
+                    continue;
+                if (n == BOX_MAX_SEGS)
+                    return -1.0;
+                segs[n++] = t->cell_seg[e];
+            }
+        }
+    /* each segment once, though binned in several cells */
+    qsort(segs, n, sizeof *segs, by_u32);
+    double m[3] = {0, 0, 0};
+    double cuts[4][BOX_MAX_SEGS / 4 + 2];
+    int n_cuts[4] = {0, 0, 0, 0};
+    for (size_t k = 0; k < n; k++) {
+        if (k && segs[k] == segs[k - 1])
+            continue;
+        const double *a, *b;
+        seg_ends(t, segs[k], &a, &b);
+        /* Liang–Barsky: the part of a -> b inside the box */
+        double f0 = 0, f1 = 1, d[2] = {b[0] - a[0], b[1] - a[1]};
+        for (int ax = 0; ax < 2; ax++) {
+            if (d[ax] == 0) {
+                if (a[ax] < lo[ax] || a[ax] > hi[ax])
+                    f0 = 1, f1 = 0;
+                continue;
+            }
+            double g0 = (lo[ax] - a[ax]) / d[ax], g1 = (hi[ax] - a[ax]) / d[ax];
+            if (g0 > g1) {
+                double x = g0;
+                g0 = g1;
+                g1 = x;
+            }
+            f0 = fmax(f0, g0), f1 = fmin(f1, g1);
+        }
+        if (!(f1 > f0))
+            continue;
+        double p[2] = {a[0] + f0 * d[0], a[1] + f0 * d[1]}, q[2] = {a[0] + f1 * d[0], a[1] + f1 * d[1]};
+        /* a part along the box's own edge is the box edge's business (its inside test below) */
+        bool on_edge = (fabs(p[0] - u0) <= eps_u && fabs(q[0] - u0) <= eps_u) ||
+                       (fabs(p[0] - u1) <= eps_u && fabs(q[0] - u1) <= eps_u) ||
+                       (fabs(p[1] - v0) <= eps_v && fabs(q[1] - v0) <= eps_v) ||
+                       (fabs(p[1] - v1) <= eps_v && fabs(q[1] - v1) <= eps_v);
+        if (!on_edge) {
+            /* the region on its left, or the part runs the other way */
+            double mid[2] = {0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])}, len = hypot(d[0], d[1]);
+            double off = 1e-7 * fmax(u1 - u0, v1 - v0);
+            bool left_in = trim_contains(t, mid[0] - d[1] / len * off, mid[1] + d[0] / len * off);
+            if (left_in)
+                green_add(p, q, m);
+            else
+                green_add(q, p, m);
+        }
+        /* where it crosses the box's edges: edge e runs from box[e] to box[e + 1] */
+        for (int e = 0; e < 4; e++) {
+            const double *c0 = box[e], *c1 = box[(e + 1) % 4];
+            int ax = e % 2 ? 0 : 1; /* the edge's fixed coordinate: v for the bottom and top, u for the sides */
+            double fixed = c0[ax];
+            if (d[ax] == 0)
+                continue;
+            double f = (fixed - a[ax]) / d[ax];
+            if (f < 0 || f > 1)
+                continue;
+            int along = 1 - ax;
+            double x = a[along] + f * d[along], s = (x - c0[along]) / (c1[along] - c0[along]);
+            if (s > 0 && s < 1 && n_cuts[e] < BOX_MAX_SEGS / 4)
+                cuts[e][n_cuts[e]++] = s;
+        }
+    }
+    /* the box's edges, counter-clockwise, where the region holds them (tested just inside the box) */
+    const double in_off = 1e-7;
+    for (int e = 0; e < 4; e++) {
+        const double *c0 = box[e], *c1 = box[(e + 1) % 4];
+        qsort(cuts[e], (size_t)n_cuts[e], sizeof(double), by_double);
+        double prev = 0;
+        for (int k = 0; k <= n_cuts[e]; k++) {
+            double next = k < n_cuts[e] ? cuts[e][k] : 1.0;
+            if (next <= prev)
+                continue;
+            double mid = 0.5 * (prev + next);
+            double x = c0[0] + mid * (c1[0] - c0[0]), y = c0[1] + mid * (c1[1] - c0[1]);
+            x += in_off * (0.5 * (u0 + u1) - x), y += in_off * (0.5 * (v0 + v1) - y);
+            if (trim_contains(t, x, y)) {
+                double p[2] = {c0[0] + prev * (c1[0] - c0[0]), c0[1] + prev * (c1[1] - c0[1])};
+                double q[2] = {c0[0] + next * (c1[0] - c0[0]), c0[1] + next * (c1[1] - c0[1])};
+                green_add(p, q, m);
+            }
+            prev = next;
+        }
+    }
+    if (m[0] > 0) {
+        centroid[0] = m[1] / m[0], centroid[1] = m[2] / m[0];
+    } else {
+        centroid[0] = 0.5 * (u0 + u1), centroid[1] = 0.5 * (v0 + v1);
+    }
+    return fmax(m[0], 0.0);
 }

@@ -46,4 +46,9 @@ bool trim_contains(const struct trim *t, double u, double v);
 /* Where the box [u0, u1] x [v0, v1] lies: inside or outside every loop, or cut by one. */
 enum trim_class trim_classify(const struct trim *t, double u0, double u1, double v0, double v1);
 
+/* The area in (u, v) of the region's part within the box (exact for the loops' polylines: Green's
+ * theorem round that part's boundary), and its centroid; -1 when more loop segments meet the box
+ * than one call takes (split the box). */
+double trim_box_moments(const struct trim *t, double u0, double u1, double v0, double v1, double centroid[2]);
+
 #endif

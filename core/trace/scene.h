@@ -42,6 +42,7 @@ struct object {
     struct surface surf;
     struct material mat;
     struct trim *trim; /* owned; NULL: untrimmed (the whole domain) */
+    int source;        /* the input's own number for it (an IGES entity's first directory line), 0: none */
 };
 
 /* A triangle mesh beside the free-form objects (an isosurface model), shaded with its normals. */

@@ -102,6 +102,38 @@ TEST(boxes_classified_hold_at_every_sample)
     trim_free(&t);
 }
 
+TEST(box_areas_are_exact_for_the_polylines)
+{
+    shape();
+    struct trim t;
+    CHECK(trim_build(&t, (const double(*)[2])pts, counts, 3, "", NULL) == 0);
+    double c[2];
+    /* the outer square's edges on the box's own edges, and through it */
+    CHECK_NEAR(trim_box_moments(&t, 0, 0.5, 0, 0.5, c), 0.25, 1e-12);
+    CHECK_NEAR(c[0], 0.25, 1e-12);
+    CHECK_NEAR(trim_box_moments(&t, -1, 0.5, -1, 0.5, c), 0.25, 1e-12);
+    CHECK_NEAR(trim_box_moments(&t, 3.5, 4.5, 2.5, 3.5, c), 0.25, 1e-12);
+    CHECK_NEAR(c[0], 3.75, 1e-12);
+    CHECK_NEAR(c[1], 2.75, 1e-12);
+    CHECK_NEAR(trim_box_moments(&t, 2.4, 2.6, 1.4, 1.6, c), 0.0, 1e-12); /* in the hole */
+    CHECK_NEAR(trim_box_moments(&t, 1.8, 2.2, 1.3, 1.7, c), 0.16, 1e-12); /* the island exactly */
+    /* random boxes against a fine lattice of the brute-force test */
+    double worst = 0;
+    for (int k = 0; k < 200; k++) {
+        double w = 0.05 + 0.5 * uniform(), u0 = -0.3 + 4.3 * uniform(), v0 = -0.3 + 3.3 * uniform();
+        double a = trim_box_moments(&t, u0, u0 + w, v0, v0 + w, c);
+        enum { M = 200 };
+        int in = 0;
+        for (int i = 0; i < M; i++)
+            for (int j = 0; j < M; j++)
+                in += brute((const double(*)[2])pts, counts, 3, u0 + w * (i + 0.5) / M, v0 + w * (j + 0.5) / M);
+        worst = fmax(worst, fabs(a - w * w * in / (M * M)) / (w * w));
+    }
+    fprintf(stderr, "  worst box area off the lattice's by %.2e of the box\n", worst);
+    CHECK(worst < 0.01); /* the lattice's own error: a boundary's width of cells */
+    trim_free(&t);
+}
+
 TEST(bad_loops_are_refused)
 {
     struct trim t;
@@ -128,6 +160,7 @@ int main(void)
 {
     RUN(points_agree_with_brute_force);
     RUN(boxes_classified_hold_at_every_sample);
+    RUN(box_areas_are_exact_for_the_polylines);
     RUN(bad_loops_are_refused);
     UNIT_END();
 }
