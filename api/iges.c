@@ -1079,7 +1079,7 @@ static double unit_mm(int flag, const char *name, int name_len)
 }
 
 /* The Global section: delimiters (fields 1, 2) and the unit (13 scale is left alone, as by other
- * readers; 14 flag, 15 name). */
+ * readers; 14 flag, 15 name). Takes text (frees it). */
 static int read_global(struct iges *g, char *text, size_t len)
 {
     size_t k = 0;
@@ -1089,14 +1089,18 @@ static int read_global(struct iges *g, char *text, size_t len)
             d[f] = text[k + 2];
             k += 3;
         }
-        if (f == 0 && k < len && text[k] != d[0] && d[0] != ',')
+        if (f == 0 && k < len && text[k] != d[0] && d[0] != ',') {
+            free(text);
             return sf_fail(g->err, SF_EFORMAT, "G1", "the Global section's first field is not a delimiter");
+        }
         if (k < len && (text[k] == d[0] || text[k] == d[1]))
             k++;
     }
     g->pd = d[0], g->rd = d[1];
-    if (g->pd == g->rd || isdigit((unsigned char)g->pd) || g->pd == ' ' || g->rd == ' ')
+    if (g->pd == g->rd || isdigit((unsigned char)g->pd) || g->pd == ' ' || g->rd == ' ') {
+        free(text);
         return sf_fail(g->err, SF_EFORMAT, "G1", "the Global section's delimiters are not usable");
+    }
     struct params p = {0};
     int rc = split_fields(&p, text, len, g->pd, g->rd, "G1", g->err); /* takes text */
     if (rc) {
@@ -1179,7 +1183,7 @@ int scene_parse_iges(const char *buf, size_t len, struct scene *sc, struct sf_er
     for (int k = 0; k < g.n_de && !rc; k++) {
         const char *a = lines[first[2] + 2 * (size_t)k].s, *b = lines[first[2] + 2 * (size_t)k + 1].s;
         struct de *e = &g.de[k];
-        int type2, status;
+        int type2 = 0, status = 0;
         e->line = 2 * k + 1;
         snprintf(where, sizeof where, "D%d", e->line);
         if (field8(a, 0, &e->type) || field8(a, 1, &e->param) || field8(a, 6, &e->transform) ||

@@ -477,7 +477,8 @@ int enclosed_shell(const struct shell_part *parts, int n, double tol, struct she
         out->flipped += fa == fb;
     }
     /* each pair's verdict by majority, then signs spread from part 0 over the pairs */
-    qsort(votes, n_votes, sizeof *votes, by_pair);
+    if (n_votes)
+        qsort(votes, n_votes, sizeof *votes, by_pair);
     size_t n_pairs = 0;
     for (size_t k = 0; k < n_votes;) {
         size_t j = k;
