@@ -174,6 +174,7 @@ static const char *type_of(const char *path, const char *const (*table)[2])
 }
 
 static const char *const SCENE_TYPES[][2] = {{".bpt", "model/x-bpt"}, {".nurbs", "model/vrml"}, {".wrl", "model/vrml"},
+                                             {".igs", "model/iges"}, {".iges", "model/iges"},
                                              {".json", "application/json"}, {NULL, "text/plain"}};
 static const char *const VOLUME_TYPES[][2] = {{".nrrd", "application/x-nrrd"}, {".mha", "application/x-metaimage"},
                                               {".json", "application/json"}, {NULL, "application/octet-stream"}};
@@ -309,13 +310,14 @@ static const char *const USAGE[][2] = {
     {"render", "surfctl render SCENE -o OUT [--async] [--method M] [--width W] [--height H] [--output png|exr|tiff]\n"
                "               [--azimuth DEG --elevation DEG] [--eye X,Y,Z --target X,Y,Z] [--up X,Y,Z] [--fov DEG]\n"
                "               [--projection perspective|orthographic] [--view +x|-x|+y|-y|+z|-z] [--view-height H]\n"
-               "    POST /render: SCENE is scene JSON, .bpt or VRML (.nurbs, .wrl); the image to OUT\n"},
+               "    POST /render: SCENE is scene JSON, .bpt, VRML (.nurbs, .wrl) or IGES (.igs, .iges); the image to OUT\n"},
     {"model", "surfctl model CONTOURS [-o OUT.stl|.ply|.obj|.vtp|.vtk] [--method M] [--caps flat|slab|dome]\n"
               "              [--roi NAME] [--parameterisation arc-length|polar]\n"
               "    POST /model: contour JSON, an RT Structure Set (.dcm: every ROI, or --roi) or a matrix model;\n"
               "    the model resource on stdout, its (first model's) mesh to OUT\n"},
-    {"volume", "surfctl volume CONTOURS [--method M] [--caps flat|slab|dome] [--roi NAME] [--parameterisation P]\n"
-               "    POST /volume: the volume figures on stdout, nothing stored\n"},
+    {"volume", "surfctl volume CONTOURS|SCENE [--method M] [--caps flat|slab|dome] [--roi NAME] [--parameterisation P]\n"
+               "    POST /volume: the volume figures on stdout, nothing stored (a scene's, .igs too: area and\n"
+               "    the volume its surfaces close)\n"},
     {"isosurface", "surfctl isosurface VOLUME --iso V -o OUT.stl|.ply|.obj [--dims X,Y,Z --type T --spacing S --origin O]\n"
                    "                   [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name N]\n"
                    "    POST /isosurface: VOLUME is .nrrd, .mha, raw samples, or an FRep object as .json\n"},
@@ -537,7 +539,8 @@ static int cmd_edit(int argc, char **argv)
 }
 
 
-static const char *const CONTOUR_TYPES[][2] = {{".dcm", "application/dicom"}, {NULL, "application/json"}};
+static const char *const CONTOUR_TYPES[][2] = {{".dcm", "application/dicom"}, {".igs", "model/iges"}, {".iges", "model/iges"},
+                                                {".bpt", "model/x-bpt"}, {".nurbs", "model/vrml"}, {NULL, "application/json"}};
 static const char *const CONTOUR_OPTIONS[] = {"method", "caps", "roi", "parameterisation", NULL};
 
 /* surfctl model / volume: POST /model or /volume as a job; the resource on stdout, the mesh of the

@@ -32,7 +32,7 @@ Options = Mapping[str, Any]
 
 _TYPES = {
     ".json": "application/json", ".dcm": "application/dicom", ".bpt": "model/x-bpt", ".nurbs": "model/vrml",
-    ".wrl": "model/vrml", ".nrrd": "application/x-nrrd", ".nhdr": "application/x-nrrd",
+    ".wrl": "model/vrml", ".igs": "model/iges", ".iges": "model/iges", ".nrrd": "application/x-nrrd", ".nhdr": "application/x-nrrd",
     ".mha": "application/x-metaimage", ".mhd": "application/x-metaimage",
 }
 
@@ -161,7 +161,7 @@ class Client:
     # ---- the routes -----------------------------------------------------------------------
 
     def render(self, scene: Body, content_type: Optional[str] = None, **options: Any) -> bytes:
-        """POST /render: a scene (JSON, .bpt, VRML) to an image (PNG unless output=exr|tiff).
+        """POST /render: a scene (JSON, .bpt, VRML, IGES) to an image (PNG unless output=exr|tiff).
         options: width, height, output, method, azimuth, elevation, eye, target, up, fov,
         projection, view, view_height, shadows (vectors as "x,y,z" or a sequence)."""
         return self._job("POST", "/render", options, scene, content_type)

@@ -49,14 +49,14 @@ function typeOf(name, route) {
   const ext = name.toLowerCase().split(".").pop();
   const types = { json: "application/json", dcm: "application/dicom", bpt: "model/x-bpt", wrl: "model/vrml",
     vrml: "model/vrml", nurbs: "model/vrml", nrrd: "application/x-nrrd", nhdr: "application/x-nrrd",
-    mha: "application/x-metaimage", mhd: "application/x-metaimage" };
+    mha: "application/x-metaimage", mhd: "application/x-metaimage", igs: "model/iges", iges: "model/iges" };
   if (types[ext]) return types[ext];
   return route === "render" ? "text/plain" : "application/octet-stream";
 }
 
 function routeFor(name) {
   const ext = name.toLowerCase().split(".").pop();
-  if (["bpt", "wrl", "vrml", "nurbs"].includes(ext)) return "render";
+  if (["bpt", "wrl", "vrml", "nurbs", "igs", "iges"].includes(ext)) return "render";
   if (["nrrd", "nhdr", "mha", "mhd", "raw"].includes(ext)) return "isosurface";
   return "model";
 }

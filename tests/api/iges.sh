@@ -78,6 +78,16 @@ w, h, r = png_read.read('$T/red.png'); p = r[20][32]  # 30 mm above the centre: 
 print(int(p[0] > 2 * p[1] and p[0] > 2 * p[2]))")
 check "a 314 colour reaches the picture (the plate is red)" '[ "$code" = 200 ] && [ "$red" = 1 ]'
 
+# ---- the clients ----------------------------------------------------------------------------------
+SURFD_URL="$URL" ./build/surfctl render "$MS" -o "$T/c.png" --width 96 --height 96 --eye 250,-300,220 --target 0,0,40
+check "surfctl render PART.igs (model/iges by the extension)" '[ $? -eq 0 ] && [ "$(head -c 4 "$T/c.png" | od -An -tx1 | tr -d " \n")" = 89504e47 ]'
+SURFD_URL="$URL" ./build/surfctl volume "$MS" >"$T/v.json"
+check "surfctl volume PART.igs: the figures, closed" '[ $? -eq 0 ] && grep -q "\"kind\":\"trimmed surfaces\"" "$T/v.json" && grep -q "\"closed\":true" "$T/v.json"'
+got=$(python3 -c "
+import sys; sys.path.insert(0, 'client/python'); import surfd
+print(surfd.Client('$URL').volume('$MS')['volume_mm3'])")
+check "the Python client's volume() of PART.igs: $got mm³" '[ "$(echo "$got" | cut -d. -f1)" = "$(echo "$vol" | cut -d. -f1)" ]'
+
 # ---- broken files ----------------------------------------------------------------------------------
 # bad NAME STATUS POINTER_PATTERN: the mutated file $T/bad.igs refused so
 bad_file() {
