@@ -19,6 +19,7 @@
 
 #define LEAF_FLAT_REL 0.05  /* leaf is flat when its net deviates < 5 % of its size ...       */
 #define LEAF_MAX_DEPTH 14   /* ... or after this many splits; trades leaves for Newton starts */
+#define LEAF_TRIM_DEPTH 10  /* ... but a leaf a trim loop crosses splits to this depth at least */
 #define LEAF_GRAZING 0.25   /* |cos| of a ray's angle to a leaf's normal below which it grazes the leaf */
 #define LEAF_SPLIT_DEPTH 4  /* ... and intersection queries search its quarters, this many levels deep */
 #define REGION_GROW 0.25    /* a leaf's neighbourhood: its box grown by this much of its size each way
@@ -378,7 +379,9 @@ static int subdivide(struct bvh *b, const struct patch *sub, int patch, double u
     bezier_bounds(sub, &lo, &hi);
     double size = v3_len(v3_sub(hi, lo));
     double dev = net_deviation(sub, &cu, &cv);
-    if (dev <= LEAF_FLAT_REL * size || depth >= LEAF_MAX_DEPTH)
+    /* a flat leaf a trim loop crosses is split on (to LEAF_TRIM_DEPTH): its parts the trims cut away
+     * go, and the rest hug the region, so that rays through the cut-away part meet no leaf */
+    if ((dev <= LEAF_FLAT_REL * size && !(trim_cut && depth < LEAF_TRIM_DEPTH)) || depth >= LEAF_MAX_DEPTH)
         return add_leaf(b, sub, patch, u0, u1, v0, v1, dev, trim_cut);
 
     size_t n_pts = (size_t)(sub->p + 1) * (sub->q + 1);
@@ -389,7 +392,7 @@ static int subdivide(struct bvh *b, const struct patch *sub, int patch, double u
     lo_p.cw = net;
     hi_p.cw = net + n_pts;
     int rc;
-    if (cu >= cv) {
+    if (cu > cv || (cu == cv && (u1 - u0) >= (v1 - v0))) { /* the more curved way; flat: the longer */
         bezier_split_u(sub, 0.5, lo_p.cw, hi_p.cw);
         double um = 0.5 * (u0 + u1);
         rc = subdivide(b, &lo_p, patch, u0, um, v0, v1, depth + 1, trim_cut);

@@ -26,6 +26,7 @@
 #define MAP_ERR_PX 0.5   /* chord error allowed, in pixels at the patch's nearest depth */
 #define MAP_PAD_SLACK 0.1 /* pixels the outline is widened by beyond the projected chord error */
 #define MAP_MAX_SIDE 96  /* grid cap per patch side; the pad grows where the cap binds */
+#define MAP_TRIM_SIDE 32 /* grid side at least, on a patch a trim loop crosses */
 #define NEAR_EPS 1e-9    /* relative depth below which a vertex counts as behind the eye */
 
 struct map_vert { /* a tessellation vertex on screen */
@@ -271,6 +272,10 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
     double pix = zmin / px_per_unit; /* world size of a pixel at the nearest depth */
     int gu, gv;
     tess_grid_size(pt, MAP_ERR_PX * pix, MAP_MAX_SIDE, &gu, &gv);
+    if (pt->trim) { /* a grid fine enough that its cells the trims cut away can be left out */
+        gu = gu < MAP_TRIM_SIDE ? MAP_TRIM_SIDE : gu;
+        gv = gv < MAP_TRIM_SIDE ? MAP_TRIM_SIDE : gv;
+    }
     double err_px = tess_grid_error(pt, gu, gv) / pix;
     /* on screen a world displacement at depth z spans at most sqrt(1 + x² + y²) / z of its size
      * on the axis (the projection's largest singular value; x, y the tangents of the frame's
