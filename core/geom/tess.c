@@ -1,5 +1,5 @@
-/* tess.c - uniform grids sized by the second-difference chord bound, the same size for every
- * patch so that shared edges match (no cracks where patches meet edge to edge). */
+/* tess.c - grids sized by the second-difference chord bound, each patch its own (tess.h: shared
+ * edges snapped to the coarser side, so no cracks where patches meet edge to edge). */
 #include "tess.h"
 
 #include <limits.h>
@@ -131,45 +131,163 @@ static int trim_tri(struct tess *out, struct tess_caps *cap, const struct patch 
     return 0;
 }
 
+/* ---- edges shared between patches ----------------------------------------------------- */
+
+/* A patch edge by its two end points and its middle, quantised (ends in order, so that both patches
+ * along it give the same key whichever way they run it), and the segments its patch gives it. */
+struct tedge {
+    long long key[9];
+    int n;
+    size_t patch;
+    int side; /* 0: v = 0, 1: u = 1, 2: v = 1, 3: u = 0 */
+};
+
+static vec3 edge_point(const struct patch *pt, int side, double t)
+{
+    double u = side == 0 || side == 2 ? t : side == 1 ? 1.0 : 0.0, v = side == 1 || side == 3 ? t : side == 2 ? 1.0 : 0.0;
+    vec3 P;
+    bezier_eval(pt, u, v, &P, NULL, NULL);
+    return P;
+}
+
+static int by_key(const void *x, const void *y)
+{
+    const struct tedge *a = x, *b = y;
+    for (int k = 0; k < 9; k++)
+        if (a->key[k] != b->key[k])
+            return a->key[k] < b->key[k] ? -1 : 1;
+    return 0;
+}
+
+static void edge_key(struct tedge *e, const struct patch *pt, double quantum)
+{
+    vec3 p[3] = {edge_point(pt, e->side, 0.0), edge_point(pt, e->side, 1.0), edge_point(pt, e->side, 0.5)};
+    if (p[1].x < p[0].x || (p[1].x == p[0].x && (p[1].y < p[0].y || (p[1].y == p[0].y && p[1].z < p[0].z)))) {
+        vec3 t = p[0];
+        p[0] = p[1];
+        p[1] = t;
+    }
+    for (int k = 0; k < 3; k++) {
+        e->key[3 * k] = llround(p[k].x / quantum);
+        e->key[3 * k + 1] = llround(p[k].y / quantum);
+        e->key[3 * k + 2] = llround(p[k].z / quantum);
+    }
+}
+
+static int pow2_at_least(int n, int cap)
+{
+    int p = 1;
+    while (p < n && p < cap)
+        p <<= 1;
+    return p;
+}
+
+/* Each patch side's segments as its neighbour across it has them (its own where it has none or a
+ * finer one): edges[4 k + side]. */
+static int neighbour_counts(const struct patch *patches, size_t n, const int (*sizes)[2], int *counts)
+{
+    vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
+    for (size_t k = 0; k < n; k++) {
+        vec3 a, b;
+        bezier_bounds(&patches[k], &a, &b);
+        lo = v3_min(lo, a), hi = v3_max(hi, b);
+    }
+    double quantum = 1e-7 * fmax(v3_len(v3_sub(hi, lo)), 1e-300);
+    struct tedge *e = malloc(sizeof *e * 4 * (n ? n : 1));
+    if (!e)
+        return SF_ENOMEM;
+    for (size_t k = 0; k < n; k++)
+        for (int s = 0; s < 4; s++) {
+            struct tedge *x = &e[4 * k + s];
+            x->patch = k, x->side = s, x->n = sizes[k][s % 2 == 0 ? 0 : 1];
+            edge_key(x, &patches[k], quantum);
+            counts[4 * k + s] = x->n;
+        }
+    qsort(e, 4 * n, sizeof *e, by_key);
+    for (size_t a = 0; a < 4 * n;) {
+        size_t b = a;
+        int least = e[a].n;
+        while (b < 4 * n && !by_key(&e[a], &e[b]))
+            least = e[b].n < least ? e[b].n : least, b++;
+        for (size_t k = a; k < b; k++)
+            counts[4 * e[k].patch + e[k].side] = least;
+        a = b;
+    }
+    free(e);
+    return 0;
+}
+
+/* Moves the vertices of patch k's side s that its coarser neighbour does not have onto the
+ * neighbour's chords there (grid sizes are powers of two: the coarse vertices are among the fine),
+ * so that the mesh has no cracks where patches of different sizes meet. */
+static void snap_side(struct tess *out, size_t base, const struct patch *pt, int gu, int gv, int s, int coarse)
+{
+    int n = s % 2 == 0 ? gu : gv;
+    if (coarse >= n)
+        return;
+    for (int j = 1; j < n; j++) {
+        if ((long long)j * coarse % n == 0)
+            continue;
+        double t = (double)j / n * coarse, f = t - floor(t);
+        int i = (int)floor(t);
+        vec3 A = edge_point(pt, s, (double)i / coarse), B = edge_point(pt, s, (double)(i + 1) / coarse);
+        vec3 P = v3_add(A, v3_scale(v3_sub(B, A), f));
+        int gi = s == 0 || s == 2 ? j : s == 1 ? gu : 0, gj = s == 1 || s == 3 ? j : s == 2 ? gv : 0;
+        memcpy(out->pos[base + (size_t)gi * (gv + 1) + gj], &P, sizeof out->pos[0]);
+    }
+}
+
 int tess_build(const struct patch *patches, size_t n, double tol, int max_side, struct tess *out)
 {
     memset(out, 0, sizeof *out);
-    /* One grid size for every patch and both directions: patches that share an edge curve then
-     * share its vertices exactly, so the mesh has no cracks between them. */
-    int side = 1;
+    /* Each patch its own grid, sized for tol, in powers of two; where a neighbour across a side is
+     * coarser, that side's extra vertices go onto the neighbour's chords: no cracks, and a model of
+     * many small patches is not tessellated everywhere as finely as its most curved patch needs. */
+    int(*sizes)[2] = malloc(sizeof *sizes * (n ? n : 1));
+    int *counts = malloc(sizeof *counts * 4 * (n ? n : 1));
+    if (!sizes || !counts) {
+        free(sizes);
+        free(counts);
+        return SF_ENOMEM;
+    }
+    size_t nt = 0;
     for (size_t k = 0; k < n; k++) {
         int gu, gv;
         tess_grid_size(&patches[k], tol, max_side, &gu, &gv);
-        side = gu > side ? gu : side;
-        side = gv > side ? gv : side;
+        sizes[k][0] = pow2_at_least(gu, max_side), sizes[k][1] = pow2_at_least(gv, max_side);
+        nt += 2 * (size_t)sizes[k][0] * sizes[k][1];
     }
     struct tess_caps cap = {0, 0};
-    if (mem_reserve((void **)&out->tri, &cap.t, n ? 2 * (size_t)side * side * n : 1, sizeof *out->tri))
-        return SF_ENOMEM;
-    int rc = 0;
+    int rc = neighbour_counts(patches, n, (const int(*)[2])sizes, counts);
+    if (!rc && mem_reserve((void **)&out->tri, &cap.t, nt ? nt : 1, sizeof *out->tri))
+        rc = SF_ENOMEM;
     for (size_t k = 0; k < n && !rc; k++) {
         const struct patch *pt = &patches[k];
-        const int g = side;
+        const int gu = sizes[k][0], gv = sizes[k][1];
         size_t base = out->n_verts;
-        for (int i = 0; i <= g && !rc; i++)
-            for (int j = 0; j <= g && !rc; j++)
-                rc = add_vertex(out, &cap, pt, (int)k, (double)i / g, (double)j / g);
-        for (int i = 0; i < g && !rc; i++)
-            for (int j = 0; j < g && !rc; j++) {
-                unsigned a = (unsigned)(base + (size_t)i * (g + 1) + j), b = a + (unsigned)(g + 1);
+        for (int i = 0; i <= gu && !rc; i++)
+            for (int j = 0; j <= gv && !rc; j++)
+                rc = add_vertex(out, &cap, pt, (int)k, (double)i / gu, (double)j / gv);
+        for (int s = 0; s < 4 && !rc; s++)
+            snap_side(out, base, pt, gu, gv, s, counts[4 * k + s]);
+        for (int i = 0; i < gu && !rc; i++)
+            for (int j = 0; j < gv && !rc; j++) {
+                unsigned a = (unsigned)(base + (size_t)i * (gv + 1) + j), b = a + (unsigned)(gv + 1);
                 const unsigned tri[2][3] = {{a, b, b + 1}, {a, b + 1, a + 1}};
                 for (int h = 0; h < 2 && !rc; h++) {
                     if (!pt->trim) {
                         rc = add_tri(out, &cap, tri[h][0], tri[h][1], tri[h][2]);
                         continue;
                     }
-                    const double u0 = (double)i / g, u1 = (double)(i + 1) / g, w0 = (double)j / g,
-                                 w1 = (double)(j + 1) / g;
+                    const double u0 = (double)i / gu, u1 = (double)(i + 1) / gu, w0 = (double)j / gv,
+                                 w1 = (double)(j + 1) / gv;
                     const double uv[2][3][2] = {{{u0, w0}, {u1, w0}, {u1, w1}}, {{u0, w0}, {u1, w1}, {u0, w1}}};
                     rc = trim_tri(out, &cap, pt, (int)k, uv[h], tri[h], 0);
                 }
             }
     }
+    free(sizes);
+    free(counts);
     if (rc)
         tess_free(out);
     return rc;
