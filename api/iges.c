@@ -880,20 +880,32 @@ static int loop_curve(struct iges *g, struct loops *l, size_t loop_start, int pt
     return rc;
 }
 
-/* A 142's loop: its parameter-space curve, else its model-space curve projected. */
-static int loop_142(struct iges *g, struct loops *l, int ptr, const struct on_surface *on, const struct de *owner)
+/* The entity owner's pointer ptr names, which must be of type `type` (what: its name), and its
+ * parameters (the caller frees them). */
+static int typed_entity(struct iges *g, int ptr, const struct de *owner, int type, const char *what,
+                        const struct de **out, struct params *p)
 {
-    const struct de *e = entity(g, ptr, owner, "loop");
+    const struct de *e = entity(g, ptr, owner, what);
     if (!e)
         return SF_EINVAL;
     char where[24];
     where_of(e, where);
-    if (e->type != 142)
-        return sf_fail(g->err, SF_EINVAL, where, "entity type %d where a curve on a surface (142) belongs", e->type);
+    if (e->type != type)
+        return sf_fail(g->err, SF_EINVAL, where, "entity type %d where a %s (%d) belongs", e->type, what, type);
+    *out = e;
+    return load_params(g, e, p);
+}
+
+/* A 142's loop: its parameter-space curve, else its model-space curve projected. */
+static int loop_142(struct iges *g, struct loops *l, int ptr, const struct on_surface *on, const struct de *owner)
+{
+    const struct de *e;
     struct params p;
-    int rc = load_params(g, e, &p);
+    int rc = typed_entity(g, ptr, owner, 142, "curve on a surface", &e, &p);
     if (rc)
         return rc;
+    char where[24];
+    where_of(e, where);
     int bptr = p_int_or(&p, 3, 0), cptr = p_int_or(&p, 4, 0);
     size_t start = l->n;
     if (bptr)
@@ -910,17 +922,13 @@ static int loop_142(struct iges *g, struct loops *l, int ptr, const struct on_su
 /* A 141's loop: per curve its parameter-space curves, else the model-space curve projected. */
 static int loop_141(struct iges *g, struct loops *l, int ptr, const struct on_surface *on, const struct de *owner)
 {
-    const struct de *e = entity(g, ptr, owner, "boundary");
-    if (!e)
-        return SF_EINVAL;
-    char where[24];
-    where_of(e, where);
-    if (e->type != 141)
-        return sf_fail(g->err, SF_EINVAL, where, "entity type %d where a boundary (141) belongs", e->type);
+    const struct de *e;
     struct params p;
-    int rc = load_params(g, e, &p);
+    int rc = typed_entity(g, ptr, owner, 141, "boundary", &e, &p);
     if (rc)
         return rc;
+    char where[24];
+    where_of(e, where);
     int n, at = 5;
     if (!p_int(&p, 4, &n) || n < 1 || n > p.n)
         rc = sf_fail(g->err, SF_EINVAL, where, "boundary: its count of curves is missing or wrong");

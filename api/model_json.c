@@ -163,15 +163,6 @@ bool model_body_is_scene(const char *buf, size_t len, const char *format)
     return !memmem(buf, len, "\"slices\"", 8) && (memmem(buf, len, "\"objects\"", 9) || memmem(buf, len, "\"patches\"", 9));
 }
 
-/* Where a scene's object came from, for an error's pointer: its IGES entity, else /objects/k. */
-static void object_pointer(const struct scene *sc, int k, char *where, size_t n)
-{
-    if (k >= 0 && k < sc->n_objects && sc->objects[k].source)
-        snprintf(where, n, "D%d", sc->objects[k].source);
-    else
-        snprintf(where, n, "/objects/%d", k);
-}
-
 /* Trimmed surfaces as a solid: their area over the trimmed domains, and the volume they enclose
  * when their boundaries meet (enclosed_shell), each turned the way its neighbours face. */
 static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, double t0, double t1, char **json,
@@ -192,7 +183,7 @@ static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, d
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
     char where[32];
     if (!rc && sh.open_samples) {
-        object_pointer(sc, sh.open_object, where, sizeof where);
+        scene_object_pointer(sc, sh.open_object, where, sizeof where);
         rc = sf_fail(err, SF_EINVAL, where, "the surfaces do not close a solid: %zu of %zu boundary points meet no "
                      "other surface within %.3g mm, the first of this surface at (%.4g, %.4g, %.4g) mm; their area is "
                      "%.6g mm²", sh.open_samples, sh.samples, SHELL_GAP_REL * diag, sh.open_at[0], sh.open_at[1],

@@ -398,7 +398,7 @@ int enclosed_shell(const struct shell_part *parts, int n, double tol, struct she
     struct vote *votes = NULL;
     size_t n_votes = 0, cap_votes = 0;
     uint32_t *at = NULL;
-    if (rc)
+    if (rc || n_segs == 0)
         goto done;
     vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
     for (size_t k = 0; k < n_segs; k++)

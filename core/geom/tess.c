@@ -89,21 +89,34 @@ static int add_tri(struct tess *out, struct tess_caps *cap, unsigned a, unsigned
     return 0;
 }
 
-/* A grid triangle that a trim loop crosses, split into four by its edges' midpoints down to
- * TESS_TRIM_DEPTH levels; the smallest parts whose centres the region holds are kept (so the
- * mesh follows the loop to within a sixteenth of a grid cell). uv: the corners' patch parameters. */
-#define TESS_TRIM_DEPTH 4
+/* A grid triangle that a trim loop crosses, halved across its longest side (in space: a grid cell
+ * may be a long strip) until its sides are within 8 chord tolerances tol (at most TESS_TRIM_DEPTH
+ * halvings); the smallest parts whose centres the region holds are kept (at the default tolerance,
+ * a pixel of a 1024-pixel view of the part: the mugs' outlines as Open CASCADE's). uv: the corners'
+ * patch parameters; idx: their vertices, UINT_MAX where there is none yet. */
+#define TESS_TRIM_DEPTH 24
 static int trim_tri(struct tess *out, struct tess_caps *cap, const struct patch *pt, int k, const double uv[3][2],
-                    const unsigned idx[3], int depth)
+                    const unsigned idx[3], double tol, int depth)
 {
     double lo[2] = {fmin(fmin(uv[0][0], uv[1][0]), uv[2][0]), fmin(fmin(uv[0][1], uv[1][1]), uv[2][1])};
     double hi[2] = {fmax(fmax(uv[0][0], uv[1][0]), uv[2][0]), fmax(fmax(uv[0][1], uv[1][1]), uv[2][1])};
     double su = pt->u1 - pt->u0, sv = pt->v1 - pt->v0;
     enum trim_class c = trim_classify(pt->trim, pt->u0 + lo[0] * su, pt->u0 + hi[0] * su, pt->v0 + lo[1] * sv,
                                       pt->v0 + hi[1] * sv);
-    if (c == TRIM_CUT && depth >= TESS_TRIM_DEPTH)
-        c = bezier_kept(pt, (uv[0][0] + uv[1][0] + uv[2][0]) / 3, (uv[0][1] + uv[1][1] + uv[2][1]) / 3) ? TRIM_IN
-                                                                                                         : TRIM_OUT;
+    int longest = 0; /* the side from corner longest to the next */
+    if (c == TRIM_CUT) {
+        vec3 P[3];
+        double len[3];
+        for (int e = 0; e < 3; e++)
+            bezier_eval(pt, uv[e][0], uv[e][1], &P[e], NULL, NULL);
+        for (int e = 0; e < 3; e++) {
+            len[e] = v3_len(v3_sub(P[(e + 1) % 3], P[e]));
+            longest = len[e] > len[longest] ? e : longest;
+        }
+        if (depth >= TESS_TRIM_DEPTH || len[longest] <= 8.0 * tol)
+            c = bezier_kept(pt, (uv[0][0] + uv[1][0] + uv[2][0]) / 3, (uv[0][1] + uv[1][1] + uv[2][1]) / 3) ? TRIM_IN
+                                                                                                             : TRIM_OUT;
+    }
     if (c == TRIM_OUT)
         return 0;
     unsigned at[3];
@@ -116,17 +129,15 @@ static int trim_tri(struct tess *out, struct tess_caps *cap, const struct patch 
             at[e] = (unsigned)(out->n_verts - 1);
     if (c == TRIM_IN)
         return add_tri(out, cap, at[0], at[1], at[2]);
-    const double m[3][2] = {{0.5 * (uv[0][0] + uv[1][0]), 0.5 * (uv[0][1] + uv[1][1])},
-                            {0.5 * (uv[1][0] + uv[2][0]), 0.5 * (uv[1][1] + uv[2][1])},
-                            {0.5 * (uv[2][0] + uv[0][0]), 0.5 * (uv[2][1] + uv[0][1])}};
-    const double part[4][3][2] = {{{uv[0][0], uv[0][1]}, {m[0][0], m[0][1]}, {m[2][0], m[2][1]}},
-                                  {{m[0][0], m[0][1]}, {uv[1][0], uv[1][1]}, {m[1][0], m[1][1]}},
-                                  {{m[2][0], m[2][1]}, {m[1][0], m[1][1]}, {uv[2][0], uv[2][1]}},
-                                  {{m[0][0], m[0][1]}, {m[1][0], m[1][1]}, {m[2][0], m[2][1]}}};
-    const unsigned corner[4][3] = {{at[0], UINT_MAX, UINT_MAX}, {UINT_MAX, at[1], UINT_MAX},
-                                   {UINT_MAX, UINT_MAX, at[2]}, {UINT_MAX, UINT_MAX, UINT_MAX}};
-    for (int q = 0; q < 4; q++)
-        if (trim_tri(out, cap, pt, k, part[q], corner[q], depth + 1))
+    /* corners a, b (the longest side) and c; m the middle of a-b: halves (a, m, c) and (m, b, c),
+     * both turning as the triangle does */
+    const int ia = longest, ib = (longest + 1) % 3, ic = (longest + 2) % 3;
+    const double m[2] = {0.5 * (uv[ia][0] + uv[ib][0]), 0.5 * (uv[ia][1] + uv[ib][1])};
+    const double half[2][3][2] = {{{uv[ia][0], uv[ia][1]}, {m[0], m[1]}, {uv[ic][0], uv[ic][1]}},
+                                  {{m[0], m[1]}, {uv[ib][0], uv[ib][1]}, {uv[ic][0], uv[ic][1]}}};
+    const unsigned corner[2][3] = {{at[ia], UINT_MAX, at[ic]}, {UINT_MAX, at[ib], at[ic]}};
+    for (int q = 0; q < 2; q++)
+        if (trim_tri(out, cap, pt, k, half[q], corner[q], tol, depth + 1))
             return SF_ENOMEM;
     return 0;
 }
@@ -174,12 +185,27 @@ static void edge_key(struct tedge *e, const struct patch *pt, double quantum)
     }
 }
 
-static int pow2_at_least(int n, int cap)
+/* The grid sizes patches may take: top (the most any needs, rounded up to a multiple of 16, or to a
+ * power of two below 16) and its halves while they are whole, so that every size divides every
+ * larger one; a patch takes the least that holds its need. At most a sixteenth over the finest
+ * patch's need at the top, and under twice each other patch's. */
+static int chain_size(int need, int top)
 {
-    int p = 1;
-    while (p < n && p < cap)
-        p <<= 1;
-    return p;
+    int n = top;
+    while (n % 2 == 0 && n / 2 >= need)
+        n /= 2;
+    return n;
+}
+
+static int chain_top(int most, int cap)
+{
+    int top = 1;
+    if (most <= 16)
+        while (top < most)
+            top <<= 1;
+    else
+        top = (most + 15) / 16 * 16;
+    return top > cap ? cap : top;
 }
 
 /* Each patch side's segments as its neighbour across it has them (its own where it has none or a
@@ -218,7 +244,7 @@ static int neighbour_counts(const struct patch *patches, size_t n, const int (*s
 }
 
 /* Moves the vertices of patch k's side s that its coarser neighbour does not have onto the
- * neighbour's chords there (grid sizes are powers of two: the coarse vertices are among the fine),
+ * neighbour's chords there (grid sizes divide one another: the coarse vertices are among the fine),
  * so that the mesh has no cracks where patches of different sizes meet. */
 static void snap_side(struct tess *out, size_t base, const struct patch *pt, int gu, int gv, int s, int coarse)
 {
@@ -240,7 +266,7 @@ static void snap_side(struct tess *out, size_t base, const struct patch *pt, int
 int tess_build(const struct patch *patches, size_t n, double tol, int max_side, struct tess *out)
 {
     memset(out, 0, sizeof *out);
-    /* Each patch its own grid, sized for tol, in powers of two; where a neighbour across a side is
+    /* Each patch its own grid, sized for tol, from one chain of sizes; where a neighbour across a side is
      * coarser, that side's extra vertices go onto the neighbour's chords: no cracks, and a model of
      * many small patches is not tessellated everywhere as finely as its most curved patch needs. */
     int(*sizes)[2] = malloc(sizeof *sizes * (n ? n : 1));
@@ -251,10 +277,15 @@ int tess_build(const struct patch *patches, size_t n, double tol, int max_side, 
         return SF_ENOMEM;
     }
     size_t nt = 0;
+    int most = 1;
     for (size_t k = 0; k < n; k++) {
-        int gu, gv;
-        tess_grid_size(&patches[k], tol, max_side, &gu, &gv);
-        sizes[k][0] = pow2_at_least(gu, max_side), sizes[k][1] = pow2_at_least(gv, max_side);
+        tess_grid_size(&patches[k], tol, max_side, &sizes[k][0], &sizes[k][1]);
+        most = sizes[k][0] > most ? sizes[k][0] : most;
+        most = sizes[k][1] > most ? sizes[k][1] : most;
+    }
+    const int top = chain_top(most, max_side & ~15);
+    for (size_t k = 0; k < n; k++) {
+        sizes[k][0] = chain_size(sizes[k][0], top), sizes[k][1] = chain_size(sizes[k][1], top);
         nt += 2 * (size_t)sizes[k][0] * sizes[k][1];
     }
     struct tess_caps cap = {0, 0};
@@ -282,7 +313,7 @@ int tess_build(const struct patch *patches, size_t n, double tol, int max_side, 
                     const double u0 = (double)i / gu, u1 = (double)(i + 1) / gu, w0 = (double)j / gv,
                                  w1 = (double)(j + 1) / gv;
                     const double uv[2][3][2] = {{{u0, w0}, {u1, w0}, {u1, w1}}, {{u0, w0}, {u1, w1}, {u0, w1}}};
-                    rc = trim_tri(out, &cap, pt, (int)k, uv[h], tri[h], 0);
+                    rc = trim_tri(out, &cap, pt, (int)k, uv[h], tri[h], tol, 0);
                 }
             }
     }

@@ -26,7 +26,8 @@ void tess_grid_size(const struct patch *pt, double tol, int max_side, int *n_u, 
 /* The chord error bound of an n_u x n_v grid (the inverse of tess_grid_size). */
 double tess_grid_error(const struct patch *pt, int n_u, int n_v);
 
-/* Tessellates every patch with its own grid for tol (powers of two, at most max_side a side); where
+/* Tessellates every patch with its own grid for tol (sizes that divide one another, at most max_side
+ * a side); where
  * patches meet edge to edge (the same end points and middle) the finer side's extra vertices lie on
  * the coarser's chords, so the mesh has no cracks. Returns 0 or SF_ENOMEM. */
 int tess_build(const struct patch *patches, size_t n, double tol, int max_side, struct tess *out);

@@ -192,25 +192,27 @@ static int by_u32(const void *x, const void *y)
     return (a > b) - (a < b);
 }
 
-/* Whether segment a-b meets the box. */
+/* Whether segment a-b enters the box's interior. One that only runs along its edge or touches it
+ * does not: a loop along a patch's own border (a trimmed cylinder's seam, a face trimmed to its
+ * natural boundary) leaves the patch wholly inside, not cut all round. */
 static bool seg_meets_box(const double *a, const double *b, double u0, double u1, double v0, double v1)
 {
-    if (fmax(a[0], b[0]) < u0 || fmin(a[0], b[0]) > u1 || fmax(a[1], b[1]) < v0 || fmin(a[1], b[1]) > v1)
+    if (fmax(a[0], b[0]) <= u0 || fmin(a[0], b[0]) >= u1 || fmax(a[1], b[1]) <= v0 || fmin(a[1], b[1]) >= v1)
         return false;
     const double corner[4][2] = {{u0, v0}, {u1, v0}, {u1, v1}, {u0, v1}};
     int pos = 0, neg = 0;
     for (int k = 0; k < 4; k++) {
         double o = orient(a, b, corner[k]);
-        pos += o >= 0, neg += o <= 0;
+        pos += o > 0, neg += o < 0;
     }
-    return pos && neg; /* the line through a, b separates the corners (or touches one) */
+    return pos && neg; /* the line through a, b separates the corners */
 }
 
-enum trim_class trim_classify(const struct trim *t, double u0, double u1, double v0, double v1)
+/* The loop segments that meet the box, into out (at most cap; a segment binned in several cells the
+ * box covers comes once for each): their count, or -1 when there are more than cap. */
+static long box_segments(const struct trim *t, double u0, double u1, double v0, double v1, uint32_t *out, size_t cap)
 {
-    double gu1 = t->u0 + t->gu * t->du, gv1 = t->v0 + t->gv * t->dv;
-    if (u1 < t->u0 || v1 < t->v0 || u0 > gu1 || v0 > gv1)
-        return TRIM_OUT;
+    size_t n = 0;
     int i0 = cell_col(t, u0), i1 = cell_col(t, u1), j0 = cell_row(t, v0), j1 = cell_row(t, v1);
     for (int j = j0; j <= j1; j++)
         for (int i = i0; i <= i1; i++) {
@@ -218,10 +220,24 @@ enum trim_class trim_classify(const struct trim *t, double u0, double u1, double
             for (uint32_t e = t->cell_first[c]; e < t->cell_first[c + 1]; e++) {
                 const double *a, *b;
                 seg_ends(t, t->cell_seg[e], &a, &b);
-                if (seg_meets_box(a, b, u0, u1, v0, v1))
-                    return TRIM_CUT;
+                if (!seg_meets_box(a, b, u0, u1, v0, v1))
+                    continue;
+                if (n == cap)
+                    return -1;
+                out[n++] = t->cell_seg[e];
             }
         }
+    return (long)n;
+}
+
+enum trim_class trim_classify(const struct trim *t, double u0, double u1, double v0, double v1)
+{
+    double gu1 = t->u0 + t->gu * t->du, gv1 = t->v0 + t->gv * t->dv;
+    if (u1 < t->u0 || v1 < t->v0 || u0 > gu1 || v0 > gv1)
+        return TRIM_OUT;
+    uint32_t any;
+    if (box_segments(t, u0, u1, v0, v1, &any, 1) != 0)
+        return TRIM_CUT;
     /* no loop crosses the box: a box reaching past the loops' bounds lies partly outside them all,
      * so wholly outside; else its centre decides */
     if (u0 < t->u0 || v0 < t->v0 || u1 > gu1 || v1 > gv1)
@@ -254,21 +270,10 @@ double trim_box_moments(const struct trim *t, double u0, double u1, double v0, d
     const double lo[2] = {u0, v0}, hi[2] = {u1, v1};
     const double eps_u = 1e-9 * (u1 - u0), eps_v = 1e-9 * (v1 - v0);
     uint32_t segs[BOX_MAX_SEGS];
-    size_t n = 0;
-    int i0 = cell_col(t, u0), i1 = cell_col(t, u1), j0 = cell_row(t, v0), j1 = cell_row(t, v1);
-    for (int j = j0; j <= j1; j++)
-        for (int i = i0; i <= i1; i++) {
-            size_t c = (size_t)j * t->gu + i;
-            for (uint32_t e = t->cell_first[c]; e < t->cell_first[c + 1]; e++) {
-                const double *a, *b;
-                seg_ends(t, t->cell_seg[e], &a, &b);
-                if (!seg_meets_box(a, b, u0, u1, v0, v1))
-                    continue;
-                if (n == BOX_MAX_SEGS)
-                    return -1.0;
-                segs[n++] = t->cell_seg[e];
-            }
-        }
+    long found = box_segments(t, u0, u1, v0, v1, segs, BOX_MAX_SEGS);
+    if (found < 0)
+        return -1.0;
+    size_t n = (size_t)found;
     /* each segment once, though binned in several cells */
     qsort(segs, n, sizeof *segs, by_u32);
     double m[3] = {0, 0, 0};

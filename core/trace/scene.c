@@ -186,7 +186,21 @@ int scene_patches(const struct scene *sc, struct patch_set *ps, struct sf_err *e
         ps->patches[kept++] = *pt;
     }
     ps->n = kept;
+    if (kept == 0 && sc->n_objects > 0) { /* every patch trimmed away */
+        scene_object_pointer(sc, 0, where, sizeof where);
+        nurbs_patch_set_free(ps);
+        return sf_fail(err, SF_EINVAL, where, "the trim loops leave nothing of any surface: every loop lies off its "
+                       "surface's parameter domain");
+    }
     return 0;
+}
+
+void scene_object_pointer(const struct scene *sc, int k, char *where, size_t n)
+{
+    if (k >= 0 && k < sc->n_objects && sc->objects[k].source)
+        snprintf(where, n, "D%d", sc->objects[k].source);
+    else
+        snprintf(where, n, "/objects/%d", k);
 }
 
 unsigned scene_aov_parse(const char *name, size_t n)

@@ -96,9 +96,12 @@ struct material scene_default_material(void);
 /* Checks everything but the surfaces' own validity (nurbs_validate does that per object):
  * image size, camera, lights, options, at least one object. */
 int scene_validate(const struct scene *sc, struct sf_err *err);
-/* Every object as Bézier patches (validated first: errors point at /objects/k); the caller frees ps. */
+/* Every object as Bézier patches (validated first: errors point at /objects/k), those its trims cut
+ * away whole left out (none left: an error); the caller frees ps. */
 int scene_patches(const struct scene *sc, struct patch_set *ps, struct sf_err *err);
 const char *scene_method_name(enum render_method m);
+/* Where object k came from, for an error: its IGES entity ("D5") or "/objects/k". */
+void scene_object_pointer(const struct scene *sc, int k, char *where, size_t n);
 /* The AOV_* bit of the n characters at name ("normal", "uv", "id"), or 0. */
 unsigned scene_aov_parse(const char *name, size_t n);
 /* "+x", "-x", ... (also "x" for +x) to VIEW_*; 0, or -1 for another name. */

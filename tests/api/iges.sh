@@ -131,5 +131,9 @@ python3 -c "import sys; sys.path.insert(0, 'tests/tools'); import iges_write as 
 bad_file "unit flag 3 naming no unit" 422 "G14"
 code=$(status POST "/volume?format=iges" --data-binary @"$T/bad.igs")
 check "/volume refuses the same way" '[ "$code" = 422 ] && grep -q "\"pointer\":\"G14\"" "$T/body"'
+mutate "ents[1] = w.arc(5, 5, 0.1); ents[3]['params'][1:3] = [1, 0]; ents[3]['params'][3:] = [('D', 2)]"
+bad_file "an outer loop wholly off the surface's domain (nothing left to draw)" 422 "D7"
+code=$(status POST "/volume?format=iges" --data-binary @"$T/bad.igs")
+check "... and nothing left to measure: /volume 422 at D7" '[ "$code" = 422 ] && grep -q "\"pointer\":\"D7" "$T/body"'
 check "the daemon is up after every broken file" 'alive'
 finish

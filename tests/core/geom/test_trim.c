@@ -119,10 +119,10 @@ TEST(box_areas_are_exact_for_the_polylines)
     CHECK_NEAR(trim_box_moments(&t, 1.8, 2.2, 1.3, 1.7, c), 0.16, 1e-12); /* the island exactly */
     /* random boxes against a fine lattice of the brute-force test */
     double worst = 0;
-    for (int k = 0; k < 200; k++) {
+    for (int k = 0; k < 60; k++) {
         double w = 0.05 + 0.5 * uniform(), u0 = -0.3 + 4.3 * uniform(), v0 = -0.3 + 3.3 * uniform();
         double a = trim_box_moments(&t, u0, u0 + w, v0, v0 + w, c);
-        enum { M = 200 };
+        enum { M = 100 };
         int in = 0;
         for (int i = 0; i < M; i++)
             for (int j = 0; j < M; j++)
@@ -130,7 +130,7 @@ TEST(box_areas_are_exact_for_the_polylines)
         worst = fmax(worst, fabs(a - w * w * in / (M * M)) / (w * w));
     }
     fprintf(stderr, "  worst box area off the lattice's by %.2e of the box\n", worst);
-    CHECK(worst < 0.01); /* the lattice's own error: a boundary's width of cells */
+    CHECK(worst < 0.02); /* the lattice's own error: a boundary's width of cells */
     trim_free(&t);
 }
 
