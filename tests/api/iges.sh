@@ -135,5 +135,7 @@ mutate "ents[1] = w.arc(5, 5, 0.1); ents[3]['params'][1:3] = [1, 0]; ents[3]['pa
 bad_file "an outer loop wholly off the surface's domain (nothing left to draw)" 422 "D7"
 code=$(status POST "/volume?format=iges" --data-binary @"$T/bad.igs")
 check "... and nothing left to measure: /volume 422 at D7" '[ "$code" = 422 ] && grep -q "\"pointer\":\"D7" "$T/body"'
+code=$(status POST "/volume?format=step" --data-binary @"$MS")
+check "/volume?format=step: 400 at ?format (no silent fall to the contour reader)" '[ "$code" = 400 ] && grep -q "\"pointer\":\"?format\"" "$T/body"'
 check "the daemon is up after every broken file" 'alive'
 finish
