@@ -46,6 +46,7 @@ struct de { /* one directory entry */
     int type, param, n_lines, transform, color, form;
     int blank, sub;   /* status: blanked; subordinate switch (0 independent) */
     int line;         /* its first D line: the entity's name in errors */
+    char label[9];    /* the entity label (directory field 18), blanks trimmed */
     bool bounded;     /* a surface a 143/144 bounds */
 };
 
@@ -956,6 +957,27 @@ static int loop_141(struct iges *g, struct loops *l, int ptr, const struct on_su
     return rc ? rc : loop_close(g, l, start, e);
 }
 
+/* The name a 406 (form 15) among the property pointers of p gives, the pointers' block starting at
+ * parameter at (NA associativities, then NP properties); else the entity's label. */
+static void entity_name(struct iges *g, const struct de *e, const struct params *p, int at, char *name, size_t n)
+{
+    snprintf(name, n, "%s", e->label);
+    int na = p_int_or(p, at, 0), np = na >= 0 ? p_int_or(p, at + 1 + na, 0) : 0;
+    for (int k = 0; k < np && k < 64; k++) {
+        int ptr = p_int_or(p, at + 2 + na + k, 0);
+        if (ptr <= 0 || ptr % 2 == 0 || (ptr - 1) / 2 >= g->n_de)
+            continue;
+        const struct de *q = &g->de[(ptr - 1) / 2];
+        struct params qp;
+        if (q->type != 406 || q->form != 15 || load_params(g, q, &qp))
+            continue;
+        if (qp.n > 2 && qp.str[2]) /* NP = 1, then the name */
+            snprintf(name, n, "%.*s", qp.str_len[2], qp.str[2]);
+        params_free(&qp);
+        return;
+    }
+}
+
 /* The rectangle of the U/V ranges as a loop. */
 static int loop_rect(struct iges *g, struct loops *l, const double dom[4], const char *where)
 {
@@ -1027,6 +1049,7 @@ static int add_object(struct iges *g, struct scene *sc, const struct de *sde, co
     on.closed[0] = closes(&on, 0), on.closed[1] = closes(&on, 1);
     o->mat.color = colour_of(g, owner && owner->color ? owner : sde, o->mat.color);
     o->source = (owner ? owner : sde)->line;
+    snprintf(o->name, sizeof o->name, "%s", (owner ? owner : sde)->label);
     double k0, k1, l0, l1;
     nurbs_domain(&o->surf, &k0, &k1, &l0, &l1);
     const bool whole = on.dom[0] == k0 && on.dom[1] == k1 && on.dom[2] == l0 && on.dom[3] == l1;
@@ -1045,12 +1068,14 @@ static int add_object(struct iges *g, struct scene *sc, const struct de *sde, co
                 rc = loop_142(g, &l, p_int_or(&p, 4, 0), &on, owner);
             for (int k = 0; k < n2 && !rc; k++)
                 rc = loop_142(g, &l, p_int_or(&p, 5 + k, 0), &on, owner);
+            entity_name(g, owner, &p, 5 + n2, o->name, sizeof o->name);
         } else { /* 143: TYPE, SPTR, N, BDPT(N) */
             int n = p_int_or(&p, 3, 0);
             if (n < 1 || n > p.n)
                 rc = sf_fail(g->err, SF_EINVAL, where, "bounded surface: its count of boundaries is missing or wrong");
             for (int k = 0; k < n && !rc; k++)
                 rc = loop_141(g, &l, p_int_or(&p, 4 + k, 0), &on, owner);
+            entity_name(g, owner, &p, 4 + n, o->name, sizeof o->name);
         }
         params_free(&p);
     } else if (!whole) { /* U/V ranges within the knots: the rectangle they span */
@@ -1202,6 +1227,13 @@ int scene_parse_iges(const char *buf, size_t len, struct scene *sc, struct sf_er
             rc = sf_fail(err, SF_EFORMAT, where, "the entry's two lines give entity types %d and %d", e->type, type2);
         e->blank = status / 1000000;
         e->sub = status / 10000 % 100;
+        size_t lb = 0, le = 8;
+        while (lb < 8 && b[56 + lb] == ' ')
+            lb++;
+        while (le > lb && b[56 + le - 1] == ' ')
+            le--;
+        memcpy(e->label, b + 56 + lb, le - lb);
+        e->label[le - lb] = 0;
     }
     /* Parameter data */
     size_t n_p = first[4] - first[3];

@@ -169,12 +169,12 @@ static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, d
                            struct sf_err *err)
 {
     struct enclosed e;
-    double *vol = malloc(sizeof *vol * (size_t)sc->n_objects);
+    double *vol = malloc(sizeof *vol * (size_t)sc->n_objects), *area = malloc(sizeof *area * (size_t)sc->n_objects);
     struct shell_part *parts = malloc(sizeof *parts * (size_t)sc->n_objects);
     signed char *sign = malloc((size_t)sc->n_objects);
     struct shell sh;
     int rc = 0;
-    if (!vol || !parts || !sign || enclosed_measure_objects(ps, &e, vol, sc->n_objects))
+    if (!vol || !area || !parts || !sign || enclosed_measure_objects(ps, &e, vol, area, sc->n_objects))
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
     double diag = hypot(hypot(e.hi[0] - e.lo[0], e.hi[1] - e.lo[1]), e.hi[2] - e.lo[2]);
     for (int k = 0; !rc && k < sc->n_objects; k++)
@@ -184,10 +184,11 @@ static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, d
     char where[32];
     if (!rc && sh.open_samples) {
         scene_object_pointer(sc, sh.open_object, where, sizeof where);
+        const char *name = sc->objects[sh.open_object].name;
         rc = sf_fail(err, SF_EINVAL, where, "the surfaces do not close a solid: %zu of %zu boundary points meet no "
-                     "other surface within %.3g mm, the first of this surface at (%.4g, %.4g, %.4g) mm; their area is "
-                     "%.6g mm²", sh.open_samples, sh.samples, SHELL_GAP_REL * diag, sh.open_at[0], sh.open_at[1],
-                     sh.open_at[2], e.area);
+                     "other surface within %.3g mm, the first of this surface%s%s%s at (%.4g, %.4g, %.4g) mm; their "
+                     "area is %.6g mm²", sh.open_samples, sh.samples, SHELL_GAP_REL * diag, *name ? " (" : "", name,
+                     *name ? ")" : "", sh.open_at[0], sh.open_at[1], sh.open_at[2], e.area);
     } else if (!rc && sh.conflicts) {
         rc = sf_fail(err, SF_EINVAL, "", "the surfaces close, but no choice of their sides faces them all the same way "
                      "(%d neighbouring pairs disagree): a one-sided shell", sh.conflicts);
@@ -199,15 +200,23 @@ static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, d
     for (int k = 0; !rc && k < sc->n_objects; k++)
         turned += (v < 0 ? -sign[k] : sign[k]) < 0;
     double t2 = now_ms();
+    json_t *list = rc ? NULL : json_array();
+    for (int k = 0; list && k < sc->n_objects; k++) {
+        scene_object_pointer(sc, k, where, sizeof where);
+        json_array_append_new(list, json_pack("{s:s, s:s, s:f, s:b}", "entity", where, "name", sc->objects[k].name,
+                                              "area_mm2", area[k], "turned", (v < 0 ? -sign[k] : sign[k]) < 0));
+    }
     if (!rc)
-        *json = dump(json_pack("{s:s, s:i, s:I, s:b, s:s, s:i, s:f, s:f, s:{s:f}, s:I, s:[[f,f,f],[f,f,f]], s:{s:f, "
-                               "s:f}}", "kind", "trimmed surfaces", "surfaces", sc->n_objects, "patches", (json_int_t)ps->n,
+        *json = dump(json_pack("{s:s, s:i, s:o, s:I, s:b, s:s, s:i, s:f, s:f, s:{s:f}, s:I, s:[[f,f,f],[f,f,f]], s:{s:f, "
+                               "s:f}}", "kind", "trimmed surfaces", "surfaces", sc->n_objects, "surface_figures", list,
+                               "patches", (json_int_t)ps->n,
                                "closed", 1, "orientation", turned ? "mixed" : v >= 0 ? "outward" : "inward",
                                "surfaces_turned", turned, "volume_mm3", fabs(v), "area_mm2", e.area, "volume", "exact",
                                fabs(v), "boundary_points", (json_int_t)sh.samples, "bounds", e.lo[0], e.lo[1], e.lo[2],
                                e.hi[0], e.hi[1], e.hi[2], "timings_ms", "read", t1 - t0, "volume", t2 - t1),
                      err);
     free(vol);
+    free(area);
     free(parts);
     free(sign);
     return rc ? rc : (*json ? 0 : err->code);

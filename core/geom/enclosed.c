@@ -140,10 +140,11 @@ static void trimmed_measure(const struct patch *pt, double a0, double a1, double
 
 int enclosed_measure(const struct patch_set *ps, struct enclosed *e)
 {
-    return enclosed_measure_objects(ps, e, NULL, 0);
+    return enclosed_measure_objects(ps, e, NULL, NULL, 0);
 }
 
-int enclosed_measure_objects(const struct patch_set *ps, struct enclosed *e, double *object_volume, int n_objects)
+int enclosed_measure_objects(const struct patch_set *ps, struct enclosed *e, double *object_volume, double *object_area,
+                             int n_objects)
 {
     memset(e, 0, sizeof *e);
     e->open_object = -1;
@@ -151,7 +152,7 @@ int enclosed_measure_objects(const struct patch_set *ps, struct enclosed *e, dou
         e->lo[d] = INFINITY, e->hi[d] = -INFINITY;
     bool trimmed = false;
     for (int k = 0; k < n_objects; k++)
-        object_volume[k] = 0.0;
+        object_volume[k] = object_area[k] = 0.0;
     for (size_t k = 0; k < ps->n; k++) {
         const struct patch *pt = &ps->patches[k];
         vec3 lo, hi;
@@ -159,15 +160,16 @@ int enclosed_measure_objects(const struct patch_set *ps, struct enclosed *e, dou
         e->lo[0] = fmin(e->lo[0], lo.x), e->lo[1] = fmin(e->lo[1], lo.y), e->lo[2] = fmin(e->lo[2], lo.z);
         e->hi[0] = fmax(e->hi[0], hi.x), e->hi[1] = fmax(e->hi[1], hi.y), e->hi[2] = fmax(e->hi[2], hi.z);
         int nu = nodes_for(pt->p, pt->rational), nv = nodes_for(pt->q, pt->rational);
-        double volume = 0.0;
+        double volume = 0.0, area = 0.0;
         if (pt->trim)
-            trimmed_measure(pt, 0, 1, 0, 1, nu, nv, 0, &volume, &e->area);
+            trimmed_measure(pt, 0, 1, 0, 1, nu, nv, 0, &volume, &area);
         else
-            box_measure(pt, 0, 1, 0, 1, nu, nv, true, &volume, &e->area);
+            box_measure(pt, 0, 1, 0, 1, nu, nv, true, &volume, &area);
         trimmed |= pt->trim != NULL;
         e->volume += volume;
+        e->area += area;
         if (pt->surface < n_objects)
-            object_volume[pt->surface] += volume;
+            object_volume[pt->surface] += volume, object_area[pt->surface] += area;
     }
     if (trimmed) /* trimmed patches close along their loops, not edge to edge: enclosed_shell() tells */
         return 0;

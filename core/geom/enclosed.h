@@ -23,8 +23,10 @@ struct enclosed {
  * region; the edges of a set with any are not matched (open_edges and flipped_edges stay 0:
  * enclosed_shell checks such a set). Returns 0 or SF_ENOMEM. */
 int enclosed_measure(const struct patch_set *ps, struct enclosed *e);
-/* The same, and each object's own share of the volume (object_volume[0..n_objects - 1]). */
-int enclosed_measure_objects(const struct patch_set *ps, struct enclosed *e, double *object_volume, int n_objects);
+/* The same, and each object's own share of the volume and of the area (object_volume and object_area
+ * [0..n_objects - 1]). */
+int enclosed_measure_objects(const struct patch_set *ps, struct enclosed *e, double *object_volume, double *object_area,
+                             int n_objects);
 
 /* ---- trimmed surfaces: closure along the loops ---- */
 

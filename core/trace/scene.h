@@ -43,6 +43,7 @@ struct object {
     struct material mat;
     struct trim *trim; /* owned; NULL: untrimmed (the whole domain) */
     int source;        /* the input's own number for it (an IGES entity's first directory line), 0: none */
+    char name[48];     /* the input's name for it (an IGES 406 name, else the entity's label), "" if none */
 };
 
 /* A triangle mesh beside the free-form objects (an isosurface model), shaded with its normals. */

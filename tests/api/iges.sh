@@ -56,8 +56,14 @@ vol=$(python3 -c "import json; print(json.load(open('$T/body'))['volume_mm3'])" 
 oa=$(occt "$MS" area_mm2); ov=$(occt "$MS" volume_mm3)
 check "mug_solid.igs: closed; area $area mm² within 0.1 % of OCCT's $oa" '[ "$code" = 200 ] && grep -q "\"closed\":true" "$T/body" && near "$area" "$oa" 1e-3'
 check "mug_solid.igs: volume $vol mm³ within 0.1 % of OCCT's $ov (the divergence theorem over the trimmed domains)" 'near "$vol" "$ov" 1e-3'
+cp "$T/body" "$T/mug.json"
+faces=$("$OCCT" "$MS" | tail -n 1 | python3 -c "
+import json, sys
+ours = json.load(open(sys.argv[1]))['surface_figures']; theirs = json.load(sys.stdin)['face_areas_mm2']
+print(len(ours) == len(theirs) and all(abs(a['area_mm2'] / b - 1) < 1e-3 and a['entity'].startswith('D') for a, b in zip(ours, theirs)))" "$T/mug.json")
+check "mug_solid.igs: each surface's area (surface_figures, by entity) within 0.1 % of OCCT's face" '[ "$faces" = True ]'
 code=$(status POST /volume -H 'Content-Type: model/iges' --data-binary @"$D/mug.iges")
-check "mug.iges (an open sheet): 422 naming a surface's entity, saying where it is open" '[ "$code" = 422 ] && is_problem 422 && grep -q "\"pointer\":\"D[0-9]*\"" "$T/body" && grep -q "do not close a solid" "$T/body"'
+check "mug.iges (an open sheet): 422 naming a surface's entity and its 406 name, saying where it is open" '[ "$code" = 422 ] && is_problem 422 && grep -q "\"pointer\":\"D[0-9]*\"" "$T/body" && grep -q "do not close a solid" "$T/body" && grep -q "(Body1[24])" "$T/body"'
 while read -r name want; do
     code=$(status POST "/volume?format=iges" --data-binary @"$T/$name.igs")
     got=$(sed -n 's/.*their area is \([0-9.e+]*\) mm.*/\1/p' "$T/body")
