@@ -67,47 +67,27 @@ struct line {
     char section;
 };
 
-/* The parameters of one entity, or the Global section: numbers, and strings as pointers into text. */
+/* One parameter: a number, a Hollerith string (a pointer into the text), or empty. */
+struct field {
+    double num;       /* NAN unless a number */
+    const char *str;  /* the string's first character, or NULL */
+    int str_len;
+    bool empty;
+};
+
+/* The parameters of one entity, or the Global section. */
 struct params {
     char *text;
-    int n, cap;
-    double *num;
-    const char **str; /* Hollerith string start, or NULL */
-    int *str_len;
-    bool *empty;
+    struct field *f;
+    int n;
+    size_t cap;
 };
 
 static void params_free(struct params *p)
 {
     free(p->text);
-    free(p->num);
-    free(p->str);
-    free(p->str_len);
-    free(p->empty);
+    free(p->f);
     memset(p, 0, sizeof *p);
-}
-
-static int params_push(struct params *p)
-{
-    if (p->n < p->cap)
-        return 0;
-    int cap = p->cap ? 2 * p->cap : 32;
-    double *num = realloc(p->num, sizeof *num * (size_t)cap);
-    if (num)
-        p->num = num;
-    const char **str = realloc(p->str, sizeof *str * (size_t)cap);
-    if (str)
-        p->str = str;
-    int *sl = realloc(p->str_len, sizeof *sl * (size_t)cap);
-    if (sl)
-        p->str_len = sl;
-    bool *em = realloc(p->empty, sizeof *em * (size_t)cap);
-    if (em)
-        p->empty = em;
-    if (!num || !str || !sl || !em)
-        return SF_ENOMEM;
-    p->cap = cap;
-    return 0;
 }
 
 /* Splits text (owned by p from now on) into fields by the delimiters, up to the record delimiter. */
@@ -119,10 +99,11 @@ static int split_fields(struct params *p, char *text, size_t len, char pd, char 
     for (;;) {
         while (k < len && text[k] == ' ')
             k++;
-        if (params_push(p))
+        if (mem_reserve((void **)&p->f, &p->cap, (size_t)p->n + 1, sizeof *p->f))
             return sf_fail(err, SF_ENOMEM, where, "out of memory");
         int i = p->n++;
-        p->num[i] = NAN, p->str[i] = NULL, p->str_len[i] = 0, p->empty[i] = false;
+        struct field *fd = &p->f[i];
+        *fd = (struct field){NAN, NULL, 0, false};
         size_t s = k;
         while (k < len && isdigit((unsigned char)text[k]))
             k++;
@@ -130,8 +111,8 @@ static int split_fields(struct params *p, char *text, size_t len, char pd, char 
             long n = strtol(text + s, NULL, 10);
             if (n < 0 || (size_t)n > len - k - 1)
                 return sf_fail(err, SF_EFORMAT, where, "a Hollerith string runs past the parameters");
-            p->str[i] = text + k + 1;
-            p->str_len[i] = (int)n;
+            fd->str = text + k + 1;
+            fd->str_len = (int)n;
             k += 1 + (size_t)n;
         } else {
             while (k < len && text[k] != pd && text[k] != rd)
@@ -140,7 +121,7 @@ static int split_fields(struct params *p, char *text, size_t len, char pd, char 
             while (e > s && text[e - 1] == ' ')
                 e--;
             if (e == s) {
-                p->empty[i] = true;
+                fd->empty = true;
             } else {
                 char num[64];
                 if (e - s >= sizeof num)
@@ -153,7 +134,7 @@ static int split_fields(struct params *p, char *text, size_t len, char pd, char 
                 double v = strtod(num, &end);
                 if (*end || errno == ERANGE || !isfinite(v))
                     return sf_fail(err, SF_EFORMAT, where, "parameter %d (\"%s\") is not a number", i, num);
-                p->num[i] = v;
+                fd->num = v;
             }
         }
         while (k < len && text[k] == ' ')
@@ -169,9 +150,9 @@ static int split_fields(struct params *p, char *text, size_t len, char pd, char 
 /* Field accessors: k counts from 0 (the entity type). */
 static bool p_num(const struct params *p, int k, double *v)
 {
-    if (k >= p->n || p->empty[k] || p->str[k])
+    if (k >= p->n || p->f[k].empty || p->f[k].str)
         return false;
-    *v = p->num[k];
+    *v = p->f[k].num;
     return true;
 }
 
@@ -597,9 +578,9 @@ static int read_surface(struct iges *g, const struct de *e, struct surface *s, d
                        "and points", p.n - 1, at_d - 1);
     }
     bool rational = false;
-    double w0 = p.num[at_w];
+    double w0 = p.f[at_w].num;
     for (int k = 0; k < c; k++)
-        rational |= !(p.num[at_w + k] == w0);
+        rational |= !(p.f[at_w + k].num == w0);
     if ((rc = nurbs_surface_alloc(s, rational ? SURF_NURBS : SURF_BSPLINE, M1, M2, nu, nv, g->err))) {
         params_free(&p);
         return rc;
@@ -971,8 +952,8 @@ static void entity_name(struct iges *g, const struct de *e, const struct params 
         struct params qp;
         if (q->type != 406 || q->form != 15 || load_params(g, q, &qp))
             continue;
-        if (qp.n > 2 && qp.str[2]) /* NP = 1, then the name */
-            snprintf(name, n, "%.*s", qp.str_len[2], qp.str[2]);
+        if (qp.n > 2 && qp.f[2].str) /* NP = 1, then the name */
+            snprintf(name, n, "%.*s", qp.f[2].str_len, qp.f[2].str);
         params_free(&qp);
         return;
     }
@@ -1140,9 +1121,9 @@ static int read_global(struct iges *g, char *text, size_t len)
         params_free(&p);
         return rc;
     }
-    /* fields count from 1 in the standard: field f is p.num[f - 1] */
+    /* fields count from 1 in the standard: field f is p.f[f - 1] */
     int flag = p_int_or(&p, 13, 1);
-    g->to_mm = unit_mm(flag, 14 < p.n ? p.str[14] : NULL, 14 < p.n ? p.str_len[14] : 0);
+    g->to_mm = unit_mm(flag, 14 < p.n ? p.f[14].str : NULL, 14 < p.n ? p.f[14].str_len : 0);
     params_free(&p);
     if (!(g->to_mm > 0))
         return sf_fail(g->err, SF_EINVAL, "G14", "unit flag %d (and its name) names no unit", flag);
