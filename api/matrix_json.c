@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 bool matrix_body(const char *buf, size_t len) { return memmem(buf, len, "\"matrix_model\"", 14) != NULL; }
 
@@ -72,7 +73,7 @@ int matrix_parse(const char *buf, size_t len, struct matrix_request *r, struct s
         goto out;
     }
     json_object_foreach(root, k_, v_) {
-        if (strcmp(k_, "name") && strcmp(k_, "matrix_model") && strcmp(k_, "exact")) { /* (exact: as /matrix-model answers) */
+        if (strcmp(k_, "name") && strcmp(k_, "matrix_model") && strcmp(k_, "exact") && strcmp(k_, "mesher")) { /* (exact: as /matrix-model answers) */
             char p[64];
             snprintf(p, sizeof p, "/%.40s", k_);
             rc = sf_fail(err, SF_EINVAL, p, "unknown member \"%.40s\"", k_);
@@ -96,6 +97,14 @@ int matrix_parse(const char *buf, size_t len, struct matrix_request *r, struct s
         goto out;
     }
     snprintf(r->name, sizeof r->name, "%s", name ? json_string_value(name) : "");
+    json_t *mesher = json_object_get(root, "mesher");
+    const char *how = json_is_string(mesher) ? json_string_value(mesher) : "";
+    if (mesher && strcmp(how, "fragments") && strcmp(how, "chamfer")) {
+        rc = sf_fail(err, SF_EINVAL, "/mesher", "mesher is \"fragments\" (the seed's, vertices at voxel corners) or "
+                     "\"chamfer\" (every voxel centre kept on its side)");
+        goto out;
+    }
+    r->chamfer = !strcmp(how, "chamfer");
     if ((rc = box(mm, r, err)))
         goto out;
     for (int k = 0; k < 6 && !rc; k++) {
@@ -139,7 +148,15 @@ out:
     return rc;
 }
 
-int matrix_build(const struct matrix_request *r, struct trimesh *m, struct matrix_stats *st, struct sf_err *err)
+static double clock_ms(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return t.tv_sec * 1e3 + t.tv_nsec / 1e6;
+}
+
+int matrix_build(const struct matrix_request *r, struct trimesh *m, struct matrix_stats *st, double *mesh_ms,
+                 struct sf_err *err)
 {
     const int *n = r->mm.n;
     memset(m, 0, sizeof *m);
@@ -153,10 +170,15 @@ int matrix_build(const struct matrix_request *r, struct trimesh *m, struct matri
     for (int a = 0; a < 3; a++)
         d[a] = (r->mm.hi[a] - r->mm.lo[a]) / n[a];
     struct matrix_stats counts;
-    if (!rc && !(rc = matrix_mesh(n, vox, r->mm.lo, d, m, st, err))) {
+    double t0 = clock_ms();
+    if (!rc && !(rc = (r->chamfer ? matrix_mesh : matrix_fragments)(n, vox, r->mm.lo, d, m, st, err))) {
+        *mesh_ms = clock_ms() - t0;
         matrix_counts(&r->mm, &counts);
         st->voxels = counts.voxels, st->base_voxels = counts.base_voxels, st->redundant_voxels = counts.redundant_voxels;
-        if (!m->n_tri)
+        if (!m->n_tri && st->dropped_voxels)
+            rc = sf_fail(err, SF_EINVAL, "/mesher", "the body is under two voxels thick everywhere: the fragments keep "
+                         "none of its %ld voxels (\"mesher\": \"chamfer\" keeps every voxel)", st->dropped_voxels);
+        else if (!m->n_tri)
             rc = sf_fail(err, SF_EINVAL, "/matrix_model", "every line misses the body: the matrices hold no voxel");
     }
     free(vox);
@@ -164,8 +186,8 @@ int matrix_build(const struct matrix_request *r, struct trimesh *m, struct matri
 }
 
 char *matrix_model_json(const char *id, const struct matrix_request *r, const struct trimesh *m,
-                        const struct trimesh_stats *s, const struct matrix_stats *st, double build_ms, double total_ms,
-                        struct sf_err *err)
+                        const struct trimesh_stats *s, const struct matrix_stats *st, double mesh_ms, double build_ms,
+                        double total_ms, struct sf_err *err)
 {
     char self[64], mesh[96], render[96];
     snprintf(self, sizeof self, "/models/%s", id);
@@ -174,15 +196,17 @@ char *matrix_model_json(const char *id, const struct matrix_request *r, const st
     const struct matrix_model *mm = &r->mm;
     json_t *o = json_pack(
         "{s:s, s:s, s:s, s:I, s:I, s:f, s:f, s:I, s:I, s:I, s:I, s:[[f,f,f],[f,f,f]], s:{s:[i,i,i], s:[[f,f,f],[f,f,f]]},"
-        " s:I, s:I, s:I, s:I, s:{s:f, s:f}, s:{s:s, s:s, s:s}}",
+        " s:s, s:I, s:I, s:I, s:I, s:I, s:{s:f, s:f, s:f}, s:{s:s, s:s, s:s}}",
         "id", id, "name", r->name, "source", "matrix", "triangles", (json_int_t)m->n_tri, "vertices",
         (json_int_t)m->n_vert, "volume_mm3", s->volume, "area_mm2", s->area, "boundary_edges",
         (json_int_t)s->boundary_edges, "nonmanifold_edges", (json_int_t)s->nonmanifold_edges, "components",
         (json_int_t)s->components, "euler_characteristic", (json_int_t)s->euler, "bounds", s->bounds[0][0],
         s->bounds[0][1], s->bounds[0][2], s->bounds[1][0], s->bounds[1][1], s->bounds[1][2], "matrix_model", "size",
-        mm->n[0], mm->n[1], mm->n[2], "bounds", mm->lo[0], mm->lo[1], mm->lo[2], mm->hi[0], mm->hi[1], mm->hi[2], "voxels",
+        mm->n[0], mm->n[1], mm->n[2], "bounds", mm->lo[0], mm->lo[1], mm->lo[2], mm->hi[0], mm->hi[1], mm->hi[2], "mesher",
+        r->chamfer ? "chamfer" : "fragments", "voxels",
         (json_int_t)st->voxels, "base_voxels", (json_int_t)st->base_voxels, "redundant_voxels",
-        (json_int_t)st->redundant_voxels, "computed_vertices", (json_int_t)st->computed_vertices, "timings_ms", "build",
+        (json_int_t)st->redundant_voxels, "computed_vertices", (json_int_t)st->computed_vertices, "dropped_voxels",
+        (json_int_t)st->dropped_voxels, "timings_ms", "mesh", mesh_ms, "build",
         build_ms, "total", total_ms, "links", "self", self, "mesh", mesh, "render", render);
     char *text = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(12)) : NULL;
     json_decref(o);

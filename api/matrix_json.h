@@ -2,7 +2,8 @@
  * /model, the model resource of its mesh, and the six matrices POST /matrix-model answers.
  *
  *   {"name": "part", "matrix_model": {"size": [N, M, K], "bounds": [[x0, y0, z0], [x1, y1, z1]],
- *    "M0": [[..M..], ..K rows..], "M1": K x N, "M2": M x N, "M3": K x M, "M4": K x N, "M5": M x N}}
+ *    "M0": [[..M..], ..K rows..], "M1": K x N, "M2": M x N, "M3": K x M, "M4": K x N, "M5": M x N},
+ *    "mesher": "fragments" (the default: seed 003's corner fragments) | "chamfer" (every voxel centre kept)}
  *
  * Errors are 422s whose pointer names the member, the matrix, or the element
  * ("/matrix_model/M0/7/12"); matrices that contradict each other name the element whose voxel the
@@ -22,6 +23,7 @@
 struct matrix_request {
     char name[128];
     struct matrix_model mm;
+    bool chamfer;            /* "mesher": "chamfer" (matrix_mesh); else "fragments", the seed's (matrix_fragments) */
 };
 
 /* Whether a JSON body is a matrix model (it has "matrix_model"). */
@@ -33,12 +35,14 @@ void matrix_request_free(struct matrix_request *r);
 
 /* The voxels, the mesh and their figures of a parsed request: 0, or SF_EINVAL (contradicting
  * matrices, at the element), SF_ENOMEM. *vox (the caller frees) may be NULL when not wanted. */
-int matrix_build(const struct matrix_request *r, struct trimesh *m, struct matrix_stats *st, struct sf_err *err);
+int matrix_build(const struct matrix_request *r, struct trimesh *m, struct matrix_stats *st, double *mesh_ms,
+                 struct sf_err *err);
 
-/* The model resource (caller frees): id, the mesh figures, the counts, timings. */
+/* The model resource (caller frees): id, the mesh figures, the counts, timings (mesh: the mesher on
+ * the voxels; build: from the body to the figures). */
 char *matrix_model_json(const char *id, const struct matrix_request *r, const struct trimesh *m,
-                        const struct trimesh_stats *ts, const struct matrix_stats *st, double build_ms, double total_ms,
-                        struct sf_err *err);
+                        const struct trimesh_stats *ts, const struct matrix_stats *st, double mesh_ms, double build_ms,
+                        double total_ms, struct sf_err *err);
 
 /* A voxel set's six matrices as a request ({"name", "matrix_model": {...}, "exact"}; exact: the
  * matrices give the set back), caller frees. */

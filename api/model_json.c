@@ -288,12 +288,13 @@ static int matrix_model(const char *buf, size_t len, const struct model_sink *si
     struct trimesh_stats ts;
     char id[40] = "", *packed = NULL;
     size_t packed_len = 0;
-    if (!(rc = matrix_build(&r, &m, &st, err)))
+    double mesh_ms = 0;
+    if (!(rc = matrix_build(&r, &m, &st, &mesh_ms, err)))
         rc = trimesh_stats(&m, &ts, err);
     double t1 = now_ms();
     if (!rc && sink && sink->id)
         sink->id(sink->ctx, 0, id);
-    if (!rc && !(*json = matrix_model_json(id, &r, &m, &ts, &st, t1 - t0, now_ms() - t0, err)))
+    if (!rc && !(*json = matrix_model_json(id, &r, &m, &ts, &st, mesh_ms, t1 - t0, now_ms() - t0, err)))
         rc = err->code;
     if (!rc && sink && !(rc = mesh_pack(&m, &packed, &packed_len, err)) &&
         sink->put(sink->ctx, id, r.name, packed, packed_len, *json))

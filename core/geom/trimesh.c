@@ -4,6 +4,8 @@
  * Components by union-find over vertices joined by edges (isolated vertices do not count). */
 #include "trimesh.h"
 
+#include "../base/mem.h"
+
 #include <math.h>
 #include <stdbool.h>
 #include <stdlib.h>
@@ -310,4 +312,188 @@ void trimesh_loops_free(struct trimesh_loops *l)
     free(l->p);
     free(l->start);
     memset(l, 0, sizeof *l);
+}
+
+/* ---- trimesh_manifold ---- */
+
+/* The corners (3 t + k) round each vertex, grouped by vertex (counting sort), with the vertices
+ * after them in their triangles (nb[2 i]: the next, nb[2 i + 1]: the one after). */
+struct corners {
+    uint32_t *start, *corner, *nb;
+};
+
+static void corners_free(struct corners *c) { free(c->start), free(c->corner), free(c->nb); }
+
+static int corners_build(const struct trimesh *m, struct corners *c)
+{
+    size_t nv = m->n_vert, nc = 3 * m->n_tri;
+    uint32_t *fill = calloc(nv + 1, sizeof *fill);
+    c->start = calloc(nv + 1, sizeof *c->start);
+    c->corner = malloc((nc ? nc : 1) * sizeof *c->corner);
+    c->nb = malloc((nc ? nc : 1) * 2 * sizeof *c->nb);
+    if (!fill || !c->start || !c->corner || !c->nb) {
+        free(fill), corners_free(c);
+        return SF_ENOMEM;
+    }
+    for (size_t i = 0; i < nc; i++)
+        c->start[m->tri[i] + 1]++;
+    for (size_t v = 0; v < nv; v++)
+        c->start[v + 1] += c->start[v];
+    for (size_t t = 0; t < m->n_tri; t++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t v = m->tri[3 * t + k], at = c->start[v] + fill[v]++;
+            c->corner[at] = (uint32_t)(3 * t + k);
+            c->nb[2 * at] = m->tri[3 * t + (k + 1) % 3], c->nb[2 * at + 1] = m->tri[3 * t + (k + 2) % 3];
+        }
+    free(fill);
+    return 0;
+}
+
+static int add_vertex(struct trimesh *m, size_t *vcap, const float *p)
+{
+    size_t i = m->n_vert;
+    if (i >= 0x7fffffffu || mem_reserve((void **)&m->pos, vcap, 3 * (i + 1), sizeof(float)))
+        return -1;
+    memmove(m->pos + 3 * i, p, 3 * sizeof(float));
+    m->n_vert++;
+    return 0;
+}
+
+/* The triangles of edge p-q: (p, q, r) ones and (q, p, s) ones, in turn round the edge (sorted by
+ * the angle of their third vertex); each (q, p, s) is paired with the next (p, q, r), the other side
+ * of the solid wedge between them (the outside of (p, q, r) lies the way the angle grows), and the
+ * edge of each pair is split at its own midpoint. */
+static int split_edge(struct trimesh *m, size_t *vcap, size_t *tcap, uint32_t p, uint32_t q, const uint32_t *tris, int n)
+{
+    double e[3], u[3] = {0, 0, 0}, w[3] = {0, 0, 0}, ang[16];
+    const float *P = m->pos + 3 * p, *Q = m->pos + 3 * q;
+    for (int d = 0; d < 3; d++)
+        e[d] = Q[d] - P[d];
+    int dir[16], order[16];
+    for (int k = 0; k < n; k++) {
+        const uint32_t *t = m->tri + 3 * tris[k];
+        uint32_t r = t[0] != p && t[0] != q ? t[0] : t[1] != p && t[1] != q ? t[1] : t[2];
+        int at = t[0] == p ? 0 : t[1] == p ? 1 : 2;
+        dir[k] = t[(at + 1) % 3] == q; /* (p, q, r) */
+        double x[3], ee = e[0] * e[0] + e[1] * e[1] + e[2] * e[2], xe;
+        for (int d = 0; d < 3; d++)
+            x[d] = m->pos[3 * r + d] - P[d];
+        xe = (x[0] * e[0] + x[1] * e[1] + x[2] * e[2]) / ee;
+        for (int d = 0; d < 3; d++)
+            x[d] -= xe * e[d];
+        if (!k) {
+            memcpy(u, x, sizeof u);
+            w[0] = e[1] * u[2] - e[2] * u[1], w[1] = e[2] * u[0] - e[0] * u[2], w[2] = e[0] * u[1] - e[1] * u[0];
+        }
+        ang[k] = atan2(x[0] * w[0] + x[1] * w[1] + x[2] * w[2], x[0] * u[0] + x[1] * u[1] + x[2] * u[2]);
+        order[k] = k;
+    }
+    for (int k = 1; k < n; k++)
+        for (int j = k; j > 0 && ang[order[j]] < ang[order[j - 1]]; j--) {
+            int t = order[j];
+            order[j] = order[j - 1], order[j - 1] = t;
+        }
+    for (int k = 0; k < n; k++) {
+        int a = order[k], b = order[(k + 1) % n];
+        if (dir[a] || !dir[b])
+            continue; /* a: (q, p, s); b: (p, q, r) */
+        float mid[3];
+        for (int d = 0; d < 3; d++)
+            mid[d] = (P[d] + Q[d]) / 2;
+        if (add_vertex(m, vcap, mid) || mem_reserve((void **)&m->tri, tcap, 3 * (m->n_tri + 2), sizeof(uint32_t)))
+            return SF_ENOMEM;
+        P = m->pos + 3 * p; /* (pos may have moved) */
+        Q = m->pos + 3 * q;
+        uint32_t mv = (uint32_t)(m->n_vert - 1);
+        for (int s = 0; s < 2; s++) { /* (x, y, z) with edge x -> y: (x, m, z) and (m, y, z) */
+            uint32_t *t = m->tri + 3 * tris[s ? a : b];
+            int at = 0;
+            while (!((t[at] == p || t[at] == q) && (t[(at + 1) % 3] == p || t[(at + 1) % 3] == q)))
+                at++;
+            uint32_t y = t[(at + 1) % 3], z = t[(at + 2) % 3], *nt = m->tri + 3 * m->n_tri++;
+            t[(at + 1) % 3] = mv;
+            nt[0] = mv, nt[1] = y, nt[2] = z;
+        }
+    }
+    return 0;
+}
+
+int trimesh_manifold(struct trimesh *m, size_t *vcap, size_t *tcap, long *midpoints)
+{
+    struct corners c;
+    size_t nv0 = m->n_vert;
+    int rc = 0;
+    /* edges of more than two triangles (a next vertex seen twice among a vertex's corners), split
+     * in passes: a split leaves the corner lists of its vertices stale, so an edge at a vertex of a
+     * triangle split in this pass waits for the next */
+    for (;;) {
+        size_t nv = m->n_vert;
+        uint8_t *stale = calloc(nv + 1, 1);
+        if (!stale || corners_build(m, &c)) {
+            free(stale);
+            return SF_ENOMEM;
+        }
+        bool split = false;
+        for (uint32_t v = 0; v < nv && !rc; v++)
+            for (uint32_t i = c.start[v]; i < c.start[v + 1] && !rc; i++) {
+                uint32_t a = c.nb[2 * i], tris[16];
+                int n = 0, same = 0;
+                if (a < v || stale[v] || stale[a])
+                    continue;
+                for (uint32_t j = c.start[v]; j < c.start[v + 1]; j++) {
+                    bool out = c.nb[2 * j] == a, in = c.nb[2 * j + 1] == a;
+                    same += out && j < i;
+                    n += out || in;
+                    if ((out || in) && n <= 16)
+                        tris[n - 1] = c.corner[j] / 3;
+                }
+                if (n <= 2 || n > 16 || same) /* (an edge once: at its first corner) */
+                    continue;
+                for (int k = 0; k < n; k++)
+                    for (int d = 0; d < 3; d++)
+                        stale[m->tri[3 * tris[k] + d]] = 1;
+                rc = split_edge(m, vcap, tcap, v, a, tris, n);
+                split = true;
+            }
+        free(stale);
+        if (rc || !split)
+            break;
+        corners_free(&c);
+    }
+    *midpoints += (long)(m->n_vert - nv0);
+    size_t nv = m->n_vert;
+    /* vertices of several fans: walked from triangle (v, a, b) to the one (v, b, ...) */
+    uint8_t *done = calloc(3 * m->n_tri + 1, 1);
+    if (!done)
+        rc = SF_ENOMEM;
+    for (uint32_t v = 0; v < nv && !rc; v++) {
+        int fans = 0;
+        for (uint32_t c0 = c.start[v]; c0 < c.start[v + 1] && !rc; c0++) {
+            if (done[c0])
+                continue;
+            uint32_t id = v;
+            if (fans++) {
+                float p[3];
+                memcpy(p, m->pos + 3 * v, sizeof p);
+                if (add_vertex(m, vcap, p)) {
+                    rc = SF_ENOMEM;
+                    break;
+                }
+                id = (uint32_t)(m->n_vert - 1);
+            }
+            for (uint32_t k = c0; !done[k];) { /* (k: v's corners in turn; ids as they were) */
+                done[k] = 1;
+                uint32_t b = c.nb[2 * k + 1];
+                m->tri[c.corner[k]] = id;
+                for (uint32_t q = c.start[v]; q < c.start[v + 1]; q++)
+                    if (c.nb[2 * q] == b) {
+                        k = q;
+                        break;
+                    }
+            }
+        }
+    }
+    free(done);
+    corners_free(&c);
+    return rc;
 }

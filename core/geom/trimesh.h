@@ -47,6 +47,15 @@ struct trimesh_loops {
 int trimesh_slice(const struct trimesh *m, double z, struct trimesh_loops *out, struct sf_err *err);
 void trimesh_loops_free(struct trimesh_loops *l);
 
+/* Makes a closed, outward-oriented mesh that bounds solids touching along edges or at points a
+ * 2-manifold (each edge two triangles, each vertex one fan). An edge of 2k triangles is split at
+ * its midpoint, one new vertex for each pair of triangles that bound one solid wedge round it
+ * (paired by their angles about the edge); then a vertex whose triangles form several fans gets a
+ * copy for each fan after the first. The solids stay as they were, touching without sharing.
+ * *vcap and *tcap are the capacities of m->pos (floats) and m->tri (ids), which may grow;
+ * *midpoints counts the new edge midpoints. 0, or SF_ENOMEM. */
+int trimesh_manifold(struct trimesh *m, size_t *vcap, size_t *tcap, long *midpoints);
+
 /* Distance from point p to triangle abc (the closest point by Voronoi regions, Ericson's
  * Real-Time Collision Detection 5.1.5). */
 double trimesh_point_dist(const double p[3], const double a[3], const double b[3], const double c[3]);

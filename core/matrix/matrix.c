@@ -46,6 +46,26 @@ static bool in_set(const int n[3], const uint8_t *vox, const int v[3])
     return vox[at(n, v)] != 0;
 }
 
+/* The line of element [i][j] of matrix k: the index of its voxel at depth 0, and the step to the
+ * next depth. */
+static void line_of(const int n[3], int k, int i, int j, size_t *first, ptrdiff_t *step)
+{
+    int v0[3], v1[3];
+    matrix_voxel(n, k, i, j, 0, v0);
+    matrix_voxel(n, k, i, j, 1, v1);
+    *first = at(n, v0);
+    *step = (ptrdiff_t)at(n, v1) - (ptrdiff_t)*first; /* (v1 may lie outside: the index is only a difference) */
+}
+
+/* The depth of the first voxel of the set along the line, or its length. */
+static int first_in(const uint8_t *vox, size_t first, ptrdiff_t step, int len)
+{
+    int d = 0;
+    for (ptrdiff_t q = (ptrdiff_t)first; d < len && !vox[q]; d++, q += step)
+        ;
+    return d;
+}
+
 void matrix_of_voxels(const int n[3], const uint8_t *vox, int *const m[6])
 {
     for (int k = 0; k < 6; k++) {
@@ -53,13 +73,10 @@ void matrix_of_voxels(const int n[3], const uint8_t *vox, int *const m[6])
         matrix_shape(n, k, &rows, &cols);
         for (int i = 0; i < rows; i++)
             for (int j = 0; j < cols; j++) {
-                int d = 0, v[3];
-                for (; d < len; d++) {
-                    matrix_voxel(n, k, i, j, d, v);
-                    if (vox[at(n, v)])
-                        break;
-                }
-                m[k][(size_t)i * cols + j] = d;
+                size_t first;
+                ptrdiff_t step;
+                line_of(n, k, i, j, &first, &step);
+                m[k][(size_t)i * cols + j] = first_in(vox, first, step, len);
             }
     }
 }
@@ -99,33 +116,36 @@ int matrix_voxels(const struct matrix_model *mm, uint8_t *vox, int *bad_k, int *
                 }
             }
     }
-    int v[3];
-    for (v[2] = 0; v[2] < n[2]; v[2]++)
-        for (v[1] = 0; v[1] < n[1]; v[1]++)
-            for (v[0] = 0; v[0] < n[0]; v[0]++) {
-                bool in = true;
-                for (int k = 3; k < 6 && in; k++) { /* between the first voxels seen from both ends */
-                    int a = axis_of(k), i, j, oi, oj, rows, cols;
-                    matrix_shape(n, k, &rows, &cols);
-                    element_of(n, k, v, &i, &j);
-                    element_of(n, k - 3, v, &oi, &oj);
-                    int lo = mm->m[k][(size_t)i * cols + j], hi = n[a] - 1 - mm->m[k - 3][(size_t)oi * cols + oj];
-                    in = v[a] >= lo && v[a] <= hi;
-                }
-                vox[at(n, v)] = in;
+    /* the voxels between the first seen from both ends of every line, along all three axes */
+    memset(vox, 1, (size_t)n[0] * n[1] * n[2]);
+    for (int k = 3; k < 6; k++) {
+        int rows, cols, len = n[axis_of(k)];
+        matrix_shape(n, k, &rows, &cols);
+        for (int i = 0; i < rows; i++)
+            for (int j = 0; j < cols; j++) {
+                int lo = mm->m[k][(size_t)i * cols + j], v[3], oi, oj;
+                matrix_voxel(n, k, i, j, 0, v);
+                element_of(n, k - 3, v, &oi, &oj);
+                int hi = len - 1 - mm->m[k - 3][(size_t)oi * cols + oj];
+                size_t first;
+                ptrdiff_t step;
+                line_of(n, k, i, j, &first, &step);
+                ptrdiff_t q = (ptrdiff_t)first;
+                for (int d = 0; d < len; d++, q += step)
+                    if (d < lo || d > hi)
+                        vox[q] = 0;
             }
+    }
     /* and every element names a voxel the others keep: the set's own matrices are the model's */
     for (int k = 0; k < 6; k++) {
         int rows, cols, len = n[axis_of(k)];
         matrix_shape(n, k, &rows, &cols);
         for (int i = 0; i < rows; i++)
             for (int j = 0; j < cols; j++) {
-                int want = mm->m[k][(size_t)i * cols + j], d = 0, w[3];
-                for (; d < len; d++) {
-                    matrix_voxel(n, k, i, j, d, w);
-                    if (vox[at(n, w)])
-                        break;
-                }
+                size_t first;
+                ptrdiff_t step;
+                line_of(n, k, i, j, &first, &step);
+                int want = mm->m[k][(size_t)i * cols + j], d = first_in(vox, first, step, len);
                 if (d != want) {
                     *bad_k = k, *bad_i = i, *bad_j = j;
                     return sf_fail(err, SF_EINVAL, "", "M%d[%d][%d] = %d names a voxel the other matrices exclude (the "
@@ -563,57 +583,6 @@ static void voxel_surface(struct mesher *ms, const int v[3], const struct solid 
     }
 }
 
-/* Where two solids touch at a point only (a voxel corner both keep, their other corners there
- * apart), two fans of triangles meet at one vertex. Each vertex is given one copy per fan (walked
- * from triangle to triangle across the edges round it: every edge has two triangles, one each
- * way), so the surfaces touch there without sharing a vertex. 0 or -1 (no memory). */
-static int split_fans(struct mesher *ms)
-{
-    struct trimesh *m = &ms->m;
-    size_t nv = m->n_vert, nc = 3 * m->n_tri;
-    uint32_t *start = calloc(nv + 1, sizeof *start), *fill = calloc(nv + 1, sizeof *fill);
-    uint32_t *corner = malloc((nc ? nc : 1) * sizeof *corner); /* the corners (3 t + k) round each vertex */
-    uint8_t *done = calloc(nc ? nc : 1, 1);
-    int rc = -1;
-    if (!start || !fill || !corner || !done)
-        goto out;
-    for (size_t i = 0; i < nc; i++)
-        start[m->tri[i] + 1]++;
-    for (size_t v = 0; v < nv; v++)
-        start[v + 1] += start[v];
-    for (size_t i = 0; i < nc; i++)
-        corner[start[m->tri[i]] + fill[m->tri[i]]++] = (uint32_t)i;
-    for (size_t v = 0; v < nv; v++) {
-        int fans = 0;
-        for (uint32_t c0 = start[v]; c0 < start[v + 1]; c0++) {
-            if (done[corner[c0]])
-                continue;
-            uint32_t id = (uint32_t)v;
-            if (fans++) {
-                size_t i = m->n_vert;
-                if (i >= ISO_MAX_VERTICES || mem_reserve((void **)&m->pos, &ms->vcap, 3 * (i + 1), sizeof(float)))
-                    goto out;
-                memcpy(m->pos + 3 * i, m->pos + 3 * v, 3 * sizeof(float));
-                id = (uint32_t)m->n_vert++;
-            }
-            for (uint32_t c = corner[c0]; !done[c];) { /* (v, a, b) -> the triangle (v, b, ...) */
-                done[c] = 1;
-                uint32_t b = m->tri[3 * (c / 3) + (c % 3 + 2) % 3];
-                m->tri[c] = id;
-                for (uint32_t q = start[v]; q < start[v + 1]; q++)
-                    if (m->tri[3 * (corner[q] / 3) + (corner[q] % 3 + 1) % 3] == b) {
-                        c = corner[q];
-                        break;
-                    }
-            }
-        }
-    }
-    rc = 0;
-out:
-    free(start), free(fill), free(corner), free(done);
-    return rc;
-}
-
 int matrix_mesh(const int n[3], const uint8_t *vox, const double lo[3], const double d[3], struct trimesh *out,
                 struct matrix_stats *st, struct sf_err *err)
 {
@@ -646,7 +615,8 @@ int matrix_mesh(const int n[3], const uint8_t *vox, const double lo[3], const do
     free(table);
     free(ms.open);
     free(ms.keys), free(ms.ids), free(ms.seen);
-    if (!ms.nomem && split_fans(&ms))
+    long mid = 0; /* (where solids touch at a point: a voxel corner both keep, their other corners apart) */
+    if (!ms.nomem && trimesh_manifold(&ms.m, &ms.vcap, &ms.tcap, &mid))
         ms.nomem = true;
     if (ms.nomem) {
         bool limit = ms.m.n_vert >= ISO_MAX_VERTICES;
@@ -655,6 +625,6 @@ int matrix_mesh(const int n[3], const uint8_t *vox, const double lo[3], const do
     }
     *out = ms.m;
     if (st)
-        st->computed_vertices = ms.computed;
+        st->computed_vertices = ms.computed + mid, st->dropped_voxels = 0;
     return 0;
 }

@@ -75,12 +75,22 @@ struct matrix_stats {
                               * neighbours (eq. 4: the far side of a bump) */
     long redundant_voxels;   /* named again by another matrix (eq. 6: handled once) */
     long computed_vertices;  /* mesh vertices off the voxel corners */
+    long dropped_voxels;     /* voxels of the set whose cube holds none of the solid (matrix_fragments:
+                              * parts under two voxels thick) */
 };
 
 /* The mesh of voxel set vox in the box lo + (0..n) d: a closed, outward-oriented 2-manifold (see
  * the head). stats may be NULL. 0, or SF_ENOMEM, SF_ELIMIT (over ISO's vertex limit). */
 int matrix_mesh(const int n[3], const uint8_t *vox, const double lo[3], const double d[3], struct trimesh *out,
                 struct matrix_stats *st, struct sf_err *err);
+
+/* The mesh of voxel set vox as seed 003 builds it: a fixed fragment of triangles a voxel from a
+ * table, every vertex a voxel corner (fragment.c says how the table is made); closed, outward,
+ * a 2-manifold; volume within a few per cent of the voxels', but its chamfers pass through the
+ * centres of the voxels they cut (matrix_mesh keeps every centre on its side). Same contract as
+ * matrix_mesh; computed_vertices counts the edge midpoints that part solids touching along an edge. */
+int matrix_fragments(const int n[3], const uint8_t *vox, const double lo[3], const double d[3], struct trimesh *out,
+                     struct matrix_stats *st, struct sf_err *err);
 
 /* The figures of eq. 4-6 of model mm (voxels, base_voxels, redundant_voxels; the rest zeroed). */
 void matrix_counts(const struct matrix_model *mm, struct matrix_stats *st);

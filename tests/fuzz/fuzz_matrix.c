@@ -1,5 +1,5 @@
 /* fuzz_matrix.c - matrix models (api/matrix_json.h): parse and check; a model that reads and is
- * small is also meshed (the model job's whole path), and its mesh must then be a closed,
+ * small is also meshed by both meshers (the model job's whole path), and each mesh must then be a closed,
  * consistently oriented mesh without degenerate triangles (the guarantee of core/matrix/matrix.h):
  * anything else aborts, so the fuzzer reports it. */
 #include "../../api/matrix_json.h"
@@ -14,13 +14,17 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (matrix_parse((const char *)data, size, &r, &err))
         return 0;
     if ((long)r.mm.n[0] * r.mm.n[1] * r.mm.n[2] <= MESH_MAX_VOXELS) {
-        struct trimesh m;
-        struct matrix_stats st;
-        struct trimesh_stats ts;
-        if (matrix_build(&r, &m, &st, &err) == 0) {
-            if (trimesh_stats(&m, &ts, &err) == 0 && (ts.boundary_edges || ts.nonmanifold_edges || ts.degenerate))
-                abort();
-            trimesh_free(&m);
+        for (int chamfer = 0; chamfer < 2; chamfer++) { /* both meshers, whichever the body asked for */
+            struct trimesh m;
+            struct matrix_stats st;
+            struct trimesh_stats ts;
+            double ms;
+            r.chamfer = chamfer;
+            if (matrix_build(&r, &m, &st, &ms, &err) == 0) {
+                if (trimesh_stats(&m, &ts, &err) == 0 && (ts.boundary_edges || ts.nonmanifold_edges || ts.degenerate))
+                    abort();
+                trimesh_free(&m);
+            }
         }
     }
     matrix_request_free(&r);
