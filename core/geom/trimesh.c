@@ -418,6 +418,21 @@ static int split_edge(struct trimesh *m, size_t *vcap, size_t *tcap, uint32_t p,
     return 0;
 }
 
+/* Whether a vertex after v in one of v's triangles, or one before it, repeats: what an edge at v
+ * of more than two triangles implies. mark (zeroed, 2 a vertex) remembers what was seen at which
+ * vertex. */
+static bool repeats(const struct corners *c, uint32_t v, uint32_t *mark)
+{
+    for (uint32_t i = c->start[v]; i < c->start[v + 1]; i++)
+        for (int side = 0; side < 2; side++) {
+            uint32_t *seen = &mark[2 * c->nb[2 * i + side] + side];
+            if (*seen == v + 1)
+                return true;
+            *seen = v + 1;
+        }
+    return false;
+}
+
 int trimesh_manifold(struct trimesh *m, size_t *vcap, size_t *tcap, long *midpoints)
 {
     struct corners c;
@@ -429,12 +444,15 @@ int trimesh_manifold(struct trimesh *m, size_t *vcap, size_t *tcap, long *midpoi
     for (;;) {
         size_t nv = m->n_vert;
         uint8_t *stale = calloc(nv + 1, 1);
-        if (!stale || corners_build(m, &c)) {
-            free(stale);
+        uint32_t *mark = calloc(2 * nv + 1, sizeof *mark);
+        if (!stale || !mark || corners_build(m, &c)) {
+            free(stale), free(mark);
             return SF_ENOMEM;
         }
         bool split = false;
-        for (uint32_t v = 0; v < nv && !rc; v++)
+        for (uint32_t v = 0; v < nv && !rc; v++) {
+            if (!repeats(&c, v, mark))
+                continue;
             for (uint32_t i = c.start[v]; i < c.start[v + 1] && !rc; i++) {
                 uint32_t a = c.nb[2 * i], tris[16];
                 int n = 0, same = 0;
@@ -455,19 +473,24 @@ int trimesh_manifold(struct trimesh *m, size_t *vcap, size_t *tcap, long *midpoi
                 rc = split_edge(m, vcap, tcap, v, a, tris, n);
                 split = true;
             }
-        free(stale);
+        }
+        free(stale), free(mark);
         if (rc || !split)
             break;
         corners_free(&c);
     }
     *midpoints += (long)(m->n_vert - nv0);
     size_t nv = m->n_vert;
-    /* vertices of several fans: walked from triangle (v, a, b) to the one (v, b, ...) */
+    /* vertices of several fans: walked from triangle (v, a, b) to the one (v, b, ...), found by
+     * b's corner at v (mark: v + 1 where it is known) */
     uint8_t *done = calloc(3 * m->n_tri + 1, 1);
-    if (!done)
+    uint32_t *mark = calloc(nv + 1, sizeof *mark), *slot = malloc((nv + 1) * sizeof *slot);
+    if (!done || !mark || !slot)
         rc = SF_ENOMEM;
     for (uint32_t v = 0; v < nv && !rc; v++) {
         int fans = 0;
+        for (uint32_t q = c.start[v]; q < c.start[v + 1]; q++)
+            mark[c.nb[2 * q]] = v + 1, slot[c.nb[2 * q]] = q;
         for (uint32_t c0 = c.start[v]; c0 < c.start[v + 1] && !rc; c0++) {
             if (done[c0])
                 continue;
@@ -485,15 +508,12 @@ int trimesh_manifold(struct trimesh *m, size_t *vcap, size_t *tcap, long *midpoi
                 done[k] = 1;
                 uint32_t b = c.nb[2 * k + 1];
                 m->tri[c.corner[k]] = id;
-                for (uint32_t q = c.start[v]; q < c.start[v + 1]; q++)
-                    if (c.nb[2 * q] == b) {
-                        k = q;
-                        break;
-                    }
+                if (mark[b] == v + 1)
+                    k = slot[b];
             }
         }
     }
-    free(done);
+    free(done), free(mark), free(slot);
     corners_free(&c);
     return rc;
 }

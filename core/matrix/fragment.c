@@ -4,8 +4,7 @@
  * The seed's table is a missing figure (METHODS.md §5), and it chooses a voxel's fragment by the
  * voxel's open faces, re-choosing where a neighbour's fragment makes a face "partially open". We
  * choose by corners instead, which makes the re-choice unnecessary: a corner of the lattice is
- * kept when at least 4 of the 8 voxels round it are in the set (the level 1/2 of the voxels'
- * average there), and every cube of the lattice holds the convex hull of its kept corners. The
+ * kept when at least 3 of the 8 voxels round it are in the set (KEEP_AT below), and every cube of the lattice holds the convex hull of its kept corners. The
  * solid is the union of the hulls. A hull meets a face of its cube in the hull of that face's
  * kept corners, which depends on the face alone, so the two cubes of a face always agree on it:
  * the surface is the hulls' facets inside their cubes, and the faces where a solid hull meets
@@ -134,36 +133,106 @@ struct emit {
     bool nomem;
 };
 
+/* The id of corner (x, y, z), made on first use (room for it reserved by emit_cube). */
 static int32_t corner_id(struct emit *e, int x, int y, int z)
 {
     int32_t *id = &e->ids[z & 1][x + (size_t)e->nx * y];
     if (*id >= 0)
         return *id;
-    size_t i = e->m.n_vert;
-    if (i >= ISO_MAX_VERTICES || mem_reserve((void **)&e->m.pos, &e->vcap, 3 * (i + 1), sizeof(float))) {
-        e->nomem = true;
-        return 0;
-    }
+    size_t i = e->m.n_vert++;
     e->m.pos[3 * i] = (float)(e->lo[0] + e->d[0] * x);
     e->m.pos[3 * i + 1] = (float)(e->lo[1] + e->d[1] * y);
     e->m.pos[3 * i + 2] = (float)(e->lo[2] + e->d[2] * z);
-    e->m.n_vert++;
     return *id = (int32_t)i;
 }
 
-static void emit_tris(struct emit *e, const int v[3], const uint8_t (*t)[3], int n)
+/* Triangles t of the cube at v (corners by number; cid: their ids as far as known, else -1). */
+static void emit_tris(struct emit *e, int32_t cid[8], const int v[3], const uint8_t (*t)[3], int n)
 {
-    if (mem_reserve((void **)&e->m.tri, &e->tcap, 3 * (e->m.n_tri + n), sizeof(uint32_t))) {
-        e->nomem = true;
-        return;
-    }
+    uint32_t *out = e->m.tri + 3 * e->m.n_tri;
     for (int k = 0; k < n; k++)
         for (int q = 0; q < 3; q++) {
             int c = t[k][q];
-            e->m.tri[3 * e->m.n_tri + q] = (uint32_t)corner_id(e, v[0] + CX(c), v[1] + CY(c), v[2] + CZ(c));
-            if (q == 2)
-                e->m.n_tri++;
+            if (cid[c] < 0)
+                cid[c] = corner_id(e, v[0] + CX(c), v[1] + CY(c), v[2] + CZ(c));
+            *out++ = (uint32_t)cid[c];
         }
+    e->m.n_tri += (size_t)n;
+}
+
+/* Eight bytes at a time (byte lanes of a word, memcpy'd so alignment and byte order do not matter):
+ * sums of 0/1 bytes and shifts of them by under 8 never carry into the next lane. */
+#define ONES 0x0101010101010101ull
+
+static uint64_t load8(const uint8_t *p)
+{
+    uint64_t v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+static void store8(uint8_t *p, uint64_t v) { memcpy(p, &v, sizeof v); }
+
+static uint64_t nonzero8(uint64_t v) { return ((((v & 0x7f * ONES) + 0x7f * ONES) | v) >> 7) & ONES; }
+
+struct cubes {
+    struct fragment *tab;     /* by corner mask, made on first use (have) */
+    bool have[256];
+    const uint8_t *mask, *vox;
+    size_t n[3];
+    long dropped;
+};
+
+static const struct fragment *fragment(struct cubes *c, int k)
+{
+    if (!c->have[k])
+        fragment_of(k, &c->tab[k]), c->have[k] = true;
+    return &c->tab[k];
+}
+
+/* Cube (x, y, z)'s facets inside it, and those on its faces where the cube across has no volume. */
+static void emit_cube(struct emit *e, struct cubes *c, size_t x, size_t y, size_t z)
+{
+    const size_t N = c->n[0], M = c->n[1], K = c->n[2], at = x + N * (y + M * z);
+    uint8_t k = c->mask[at];
+    const struct fragment *fr = fragment(c, k);
+    if (!fr->solid) {
+        c->dropped += c->vox[at] != 0;
+        return;
+    }
+    bool inner = x > 0 && x + 1 < N && y > 0 && y + 1 < M && z > 0 && z + 1 < K;
+    const uint8_t *mk = c->mask;
+    if (k == 255 && inner && (mk[at - 1] & mk[at + 1] & mk[at - N] & mk[at + N] & mk[at - N * M] & mk[at + N * M]) == 255)
+        return; /* inside */
+    int v[3] = {(int)x, (int)y, (int)z};
+    int32_t cid[8] = {-1, -1, -1, -1, -1, -1, -1, -1};
+    if (e->m.n_vert + 8 > ISO_MAX_VERTICES ||
+        mem_reserve((void **)&e->m.pos, &e->vcap, 3 * (e->m.n_vert + 8), sizeof(float)) ||
+        mem_reserve((void **)&e->m.tri, &e->tcap, 3 * (e->m.n_tri + MAX_TRIS + 12), sizeof(uint32_t))) {
+        e->nomem = true;
+        return;
+    }
+    if (fr->n_tri)
+        emit_tris(e, cid, v, (const uint8_t(*)[3])fr->tri, fr->n_tri);
+    const size_t pos[3] = {x, y, z};
+    const ptrdiff_t step[6] = {-1, 1, -(ptrdiff_t)N, (ptrdiff_t)N, -(ptrdiff_t)(N * M), (ptrdiff_t)(N * M)};
+    for (int f = 0; f < 6; f++) {
+        if (!fr->n_face[f])
+            continue;
+        size_t a = pos[f >> 1];
+        bool edge = f & 1 ? a + 1 == c->n[f >> 1] : a == 0;
+        if (edge || !fragment(c, mk[at + step[f]])->solid) /* drawn from the solid side */
+            emit_tris(e, cid, v, (const uint8_t(*)[3])fr->face[f], fr->n_face[f]);
+    }
+}
+
+/* Whether the 8 cubes from `at` on, all whole, are inside (whole neighbours all round). */
+static bool inside8(const struct cubes *c, size_t x, size_t y, size_t z, size_t at)
+{
+    const size_t N = c->n[0], NM = N * c->n[1];
+    const uint8_t *mk = c->mask;
+    return x > 0 && x + 8 < N && y > 0 && y + 1 < c->n[1] && z > 0 && z + 1 < c->n[2] && mk[at - 1] == 255 &&
+           mk[at + 8] == 255 && (load8(mk + at - N) & load8(mk + at + N) & load8(mk + at - NM) & load8(mk + at + NM)) == ~0ull;
 }
 
 int matrix_fragments(const int n[3], const uint8_t *vox, const double lo[3], const double d[3], struct trimesh *out,
@@ -175,40 +244,54 @@ int matrix_fragments(const int n[3], const uint8_t *vox, const double lo[3], con
     struct fragment *tab = malloc(256 * sizeof *tab);
     uint8_t *kept = malloc(plane * (K + 1)), *mask = calloc(nv ? nv : 1, 1), *col = malloc((N + 2) * (M + 2));
     struct emit e = {.nx = (int)cx, .ny = (int)cy};
-    long dropped = 0;
+    struct cubes cu = {.tab = tab, .mask = mask, .vox = vox, .n = {N, M, K}};
     e.ids[0] = malloc(plane * sizeof(int32_t)), e.ids[1] = malloc(plane * sizeof(int32_t));
     memcpy(e.lo, lo, sizeof e.lo);
     memcpy(e.d, d, sizeof e.d);
     e.nomem = !tab || !kept || !mask || !col || !e.ids[0] || !e.ids[1];
     if (!e.nomem) {
-        for (int k = 0; k < 256; k++)
-            fragment_of(k, &tab[k]);
         /* the set's box: no cube outside it holds a solid hull (its kept corners lie in one face) */
         size_t lo3[3] = {N, M, K}, hi3[3] = {0, 0, 0};
         for (size_t z = 0; z < K; z++)
             for (size_t y = 0; y < M; y++) {
                 const uint8_t *r = vox + N * (y + M * z);
                 size_t x0 = 0, x1 = N;
+                while (x0 + 8 <= N && !load8(r + x0))
+                    x0 += 8;
                 while (x0 < N && !r[x0])
                     x0++;
                 if (x0 == N)
                     continue;
+                while (x1 >= x0 + 8 && !load8(r + x1 - 8))
+                    x1 -= 8;
                 while (!r[x1 - 1])
                     x1--;
                 lo3[0] = x0 < lo3[0] ? x0 : lo3[0], hi3[0] = x1 > hi3[0] ? x1 : hi3[0];
                 lo3[1] = y < lo3[1] ? y : lo3[1], hi3[1] = y + 1 > hi3[1] ? y + 1 : hi3[1];
                 lo3[2] = z < lo3[2] ? z : lo3[2], hi3[2] = z + 1;
             }
+        const size_t x0 = lo3[0], x1 = hi3[0];
         /* kept corners: at least KEEP_AT of their 8 voxels in (the sums of two layers, then of 2 x 2) */
         for (size_t z = lo3[2]; z <= hi3[2]; z++) {
             memset(col, 0, (N + 2) * (M + 2));
-            for (size_t y = lo3[1]; y < hi3[1]; y++)
-                for (size_t x = lo3[0]; x < hi3[0]; x++)
-                    col[(x + 1) + (N + 2) * (y + 1)] = (uint8_t)((z > 0 && vox[x + N * (y + M * (z - 1))]) + (z < K && vox[x + N * (y + M * z)]));
+            for (size_t y = lo3[1]; y < hi3[1]; y++) {
+                const uint8_t *a = z > 0 ? vox + N * (y + M * (z - 1)) : NULL, *b = z < K ? vox + N * (y + M * z) : NULL;
+                uint8_t *cr = col + (N + 2) * (y + 1) + 1;
+                size_t x = x0;
+                for (; x + 8 <= x1; x += 8)
+                    store8(cr + x, (a ? nonzero8(load8(a + x)) : 0) + (b ? nonzero8(load8(b + x)) : 0));
+                for (; x < x1; x++)
+                    cr[x] = (uint8_t)((a && a[x]) + (b && b[x]));
+            }
             for (size_t y = lo3[1]; y <= hi3[1]; y++) {
                 const uint8_t *r0 = col + (N + 2) * y, *r1 = r0 + (N + 2);
                 uint8_t *kr = kept + plane * z + cx * y;
-                for (size_t x = lo3[0]; x <= hi3[0]; x++)
+                size_t x = x0;
+                for (; x + 8 <= x1 + 1; x += 8) {
+                    uint64_t sum = load8(r0 + x) + load8(r0 + x + 1) + load8(r1 + x) + load8(r1 + x + 1);
+                    store8(kr + x, ((sum + (128 - KEEP_AT) * ONES) >> 7) & ONES);
+                }
+                for (; x <= x1; x++)
                     kr[x] = r0[x] + r0[x + 1] + r1[x] + r1[x + 1] >= KEEP_AT;
             }
         }
@@ -216,54 +299,42 @@ int matrix_fragments(const int n[3], const uint8_t *vox, const double lo[3], con
             for (size_t y = lo3[1]; y < hi3[1]; y++) {
                 const uint8_t *k00 = kept + plane * z + cx * y, *k01 = k00 + cx, *k10 = k00 + plane, *k11 = k10 + cx;
                 uint8_t *mr = mask + N * (y + M * z);
-                for (size_t x = lo3[0]; x < hi3[0]; x++)
+                size_t x = x0;
+                for (; x + 8 <= x1; x += 8)
+                    store8(mr + x, load8(k00 + x) | load8(k00 + x + 1) << 1 | load8(k01 + x) << 2 |
+                                       load8(k01 + x + 1) << 3 | load8(k10 + x) << 4 | load8(k10 + x + 1) << 5 |
+                                       load8(k11 + x) << 6 | load8(k11 + x + 1) << 7);
+                for (; x < x1; x++)
                     mr[x] = (uint8_t)(k00[x] | k00[x + 1] << 1 | k01[x] << 2 | k01[x + 1] << 3 | k10[x] << 4 |
                                       k10[x + 1] << 5 | k11[x] << 6 | k11[x + 1] << 7);
             }
         memset(e.ids[0], 0xff, plane * sizeof(int32_t));
-        /* each solid cube's facets inside it, and those on its faces where the cube across has no volume */
-        const ptrdiff_t step[6] = {-1, 1, -(ptrdiff_t)N, (ptrdiff_t)N, -(ptrdiff_t)(N * M), (ptrdiff_t)(N * M)};
-        uint8_t solid[256];
-        for (int k = 0; k < 256; k++)
-            solid[k] = tab[k].solid;
+        /* the cubes, eight at a time past empty runs and inside ones */
         for (size_t z = lo3[2]; z < hi3[2] && !e.nomem; z++) {
             memset(e.ids[(z + 1) & 1], 0xff, plane * sizeof(int32_t));
             for (size_t y = lo3[1]; y < hi3[1]; y++) {
-                const uint8_t *mr = mask + N * (y + M * z);
-                for (size_t x = lo3[0]; x < hi3[0]; x++) {
-                    uint8_t k = mr[x];
-                    if (!solid[k]) {
-                        dropped += vox[mr - mask + x] != 0;
-                        continue;
-                    }
-                    size_t at = (size_t)(mr - mask) + x;
-                    bool inner = x > 0 && x + 1 < N && y > 0 && y + 1 < M && z > 0 && z + 1 < K;
-                    if (k == 255 && inner && (mr[x - 1] & mr[x + 1] & mask[at - N] & mask[at + N] & mask[at - N * M] &
-                                              mask[at + N * M]) == 255)
-                        continue; /* inside */
-                    const struct fragment *fr = &tab[k];
-                    int v[3] = {(int)x, (int)y, (int)z};
-                    if (fr->n_tri)
-                        emit_tris(&e, v, (const uint8_t(*)[3])fr->tri, fr->n_tri);
-                    const size_t pos[3] = {x, y, z}, len[3] = {N, M, K};
-                    for (int f = 0; f < 6; f++) {
-                        if (!fr->n_face[f])
+                const size_t row = N * (y + M * z);
+                for (size_t x = x0; x < x1;) {
+                    if (x + 8 <= x1) {
+                        uint64_t m8 = load8(mask + row + x);
+                        if ((!m8 && !load8(vox + row + x)) || (m8 == ~0ull && inside8(&cu, x, y, z, row + x))) {
+                            x += 8;
                             continue;
-                        size_t a = pos[f >> 1];
-                        bool edge = f & 1 ? a + 1 == len[f >> 1] : a == 0;
-                        if (edge || !solid[mask[at + step[f]]]) /* drawn from the solid side */
-                            emit_tris(&e, v, (const uint8_t(*)[3])fr->face[f], fr->n_face[f]);
+                        }
                     }
+                    for (size_t end = x + 8 < x1 ? x + 8 : x1; x < end; x++)
+                        emit_cube(&e, &cu, x, y, z);
                 }
             }
         }
     }
+    long dropped = cu.dropped;
     free(tab), free(kept), free(mask), free(col), free(e.ids[0]), free(e.ids[1]);
     long mid = 0;
     if (!e.nomem && trimesh_manifold(&e.m, &e.vcap, &e.tcap, &mid))
         e.nomem = true;
     if (e.nomem) {
-        bool limit = e.m.n_vert >= ISO_MAX_VERTICES;
+        bool limit = e.m.n_vert + 8 > ISO_MAX_VERTICES;
         trimesh_free(&e.m);
         return sf_fail(err, limit ? SF_ELIMIT : SF_ENOMEM, "", "the mesh would take more memory than there is");
     }

@@ -765,40 +765,50 @@ def cad_bench(lines):
 
 def matrix_bench(lines):
     """Issue 16: matrix models (seed 003) to meshes against marching cubes on the same voxels (VTK's Flying Edges on
-    the mask at iso 127.5, padded), in the same run."""
-    n_ball, n_box, n_steps = 64, 48, 48
-    shapes = [("ball r 30 in 64^3", n_ball, ["ball", "30"], 4 / 3 * 3.141592653589793 * 30 ** 3),
-              ("box 40x30x20 in 48^3", n_box, ["box", "4", "44", "9", "39", "14", "34"], 40 * 30 * 20),
-              ("stepped pyramid in 48^3", n_steps, ["steps"], None)]
+    the mask at iso 127.5, padded), in the same run; both of surfd's meshers."""
+    shapes = [("ball r 30 in 64^3", 64, ["ball", "30"], 4 / 3 * 3.141592653589793 * 30 ** 3),
+              ("ball r 60 in 128^3", 128, ["ball", "60"], 4 / 3 * 3.141592653589793 * 60 ** 3),
+              ("box 40x30x20 in 48^3", 48, ["box", "4", "44", "9", "39", "14", "34"], 40 * 30 * 20),
+              ("stepped pyramid in 48^3", 48, ["steps"], None)]
     tool = os.path.join(ROOT, "tests", "tools", "matrix_tool.py")
     lines.append("## Matrix models (issue 16)\n")
-    lines.append("surfd: `surfd model MATRIX.json --repeat 5` (matrices -> voxels -> mesh; `timings_ms.build`, warm, one "
-                 "thread). VTK: Flying Edges on the same voxels as a uint8 mask (255 inside) at iso 127.5, padded, one "
-                 "thread, warm (`tests/bench/vtk_iso.py`); all its vertices are computed (edge crossings). Exact volume: "
-                 "the shape's (the ball's 4/3 pi r^3, the box's, the pyramid's voxel count). Sizes: the matrix model as "
-                 "16-bit elements (6 matrices of N^2) and as JSON, against the mask (a byte a voxel). Targets of the issue: "
-                 "fewer vertices than Flying Edges, computed vertices under 12 %, volume within 3 %, faster than Flying "
-                 "Edges.\n")
-    lines.append("| shape | mesher | vertices | computed | triangles | ms | volume error | closed | matrices (16-bit / JSON) "
-                 "vs mask |")
-    lines.append("|---|---|---|---|---|---|---|---|---|")
+    lines.append("surfd: `surfd model MATRIX.json --repeat 5` (one thread, warm). `fragments` is the default mesher (the "
+                 "seed's: a fixed fragment per cube of voxel centres, every vertex at a voxel corner); `chamfer` "
+                 "(`\"mesher\": \"chamfer\"`) keeps the voxel faces with chamfered edges and corners. `mesh ms` is the "
+                 "mesher alone (`timings_ms.mesh`: voxels -> closed manifold mesh, the step Flying Edges does), `build ms` "
+                 "adds matrices -> voxels and the figures. VTK: Flying Edges on the same voxels as a uint8 mask (255 "
+                 "inside) at iso 127.5, padded, one thread, warm (`tests/bench/vtk_iso.py`); all its vertices are "
+                 "computed (edge crossings). Exact volume: the shape's (the ball's 4/3 pi r^3, the box's, the pyramid's "
+                 "voxel count). Sizes: the matrix model as 16-bit elements (6 matrices of N^2) and as JSON, against the "
+                 "mask (a byte a voxel). Targets of the issue: fewer vertices than Flying Edges, computed vertices under "
+                 "12 %, volume within 3 %, faster than Flying Edges.\n")
+    lines.append("| shape | mesher | vertices | computed | triangles | mesh ms | build ms | volume error | dropped voxels | "
+                 "closed | matrices (16-bit / JSON) vs mask |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
     for name, n, shape, exact in shapes:
         js, raw = os.path.join(TMP, "matrix.json"), os.path.join(TMP, "mask.raw")
         subprocess.run(["python3", tool, shape[0], str(n)] + shape[1:] + [js], check=True)
         subprocess.run(["python3", tool, "mask", str(n)] + shape + [raw], check=True)
-        p = subprocess.run([SURFD, "model", js, "--repeat", "5"], capture_output=True, text=True, check=True)
-        m = json.loads(p.stdout)
+        chamfer = os.path.join(TMP, "matrix_chamfer.json")
+        doc = json.load(open(js))
+        doc["mesher"] = "chamfer"
+        json.dump(doc, open(chamfer, "w"))
         if exact is None:
             exact = sum(open(raw, "rb").read()) / 255
+        size16, size_json, mask = 6 * n * n * 2, os.path.getsize(js), n ** 3
+        for mesher, path in (("fragments", js), ("chamfer", chamfer)):
+            p = subprocess.run([SURFD, "model", path, "--repeat", "5"], capture_output=True, text=True, check=True)
+            m = json.loads(p.stdout)
+            lines.append("| %s | surfd %s | %d | %d (%.0f %%) | %d | %.2f | %.2f | %+.2f %% | %d | %s | %s |" % (
+                name if mesher == "fragments" else "", mesher, m["vertices"], m["computed_vertices"],
+                100 * m["computed_vertices"] / m["vertices"], m["triangles"], m["timings_ms"]["mesh"],
+                m["timings_ms"]["build"], 100 * (m["volume_mm3"] / exact - 1), m["dropped_voxels"],
+                "yes" if m["boundary_edges"] + m["nonmanifold_edges"] == 0 else "NO",
+                "%.1fx / %.1fx smaller" % (mask / size16, mask / size_json) if mesher == "fragments" else ""))
         p = subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "tests", "bench", "vtk_iso.py"), raw, str(n), str(n),
                             str(n), "u1", "127.5", "1", "1", "1", "0", "1", "5"], capture_output=True, text=True, check=True)
         fe = json.loads(p.stdout)["flying_edges"]
-        size16, size_json, mask = 6 * n * n * 2, os.path.getsize(js), n ** 3
-        lines.append("| %s | surfd (chamfered voxels) | %d | %d (%.0f %%) | %d | %.1f | %+.2f %% | %s | %.1fx / %.1fx smaller |" % (
-            name, m["vertices"], m["computed_vertices"], 100 * m["computed_vertices"] / m["vertices"], m["triangles"],
-            m["timings_ms"]["build"], 100 * (m["volume_mm3"] / exact - 1),
-            "yes" if m["boundary_edges"] + m["nonmanifold_edges"] == 0 else "NO", mask / size16, mask / size_json))
-        lines.append("| | VTK Flying Edges | %d | %d (100 %%) | %d | %.1f | %+.2f %% | | |" % (
+        lines.append("| | VTK Flying Edges | %d | %d (100 %%) | %d | %.2f | | %+.2f %% | | | |" % (
             fe["vertices"], fe["vertices"], fe["triangles"], fe["warm_ms"], 100 * (fe["volume"] / exact - 1)))
     lines.append("")
 
