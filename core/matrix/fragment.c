@@ -1,24 +1,26 @@
 /* fragment.c - the mesh of a voxel set as seed 003 has it (matrix.h, matrix_fragments): a fixed
- * fragment of triangles a voxel, most of whose vertices are voxel corners, chosen by a table.
+ * fragment of triangles a voxel, every vertex a voxel corner, chosen by a table.
  *
  * The seed's table is a missing figure (METHODS.md §5), and it chooses a voxel's fragment by the
  * voxel's open faces, re-choosing where a neighbour's fragment makes a face "partially open". We
  * choose by corners instead, which makes the re-choice unnecessary: a corner of the lattice is
- * kept when at least 3 of the 8 voxels round it are in the set (KEEP_AT below), and every cube of the lattice holds the convex hull of its kept corners. The
- * solid is the union of the hulls. A hull meets a face of its cube in the hull of that face's
- * kept corners, which depends on the face alone, so the two cubes of a face always agree on it:
- * the surface is the hulls' facets inside their cubes, and the faces where a solid hull meets
- * one of no volume, and it is closed by construction, with every vertex a kept corner. What the
- * seed's variants become, a voxel whose neighbours continue its faces: 1 open face or 2 opposite,
- * the faces (2 triangles each); 2 adjacent, the diagonal rectangle through the faces' far edges
- * (2 triangles, a chamfer of half the voxel); 3 at a corner, the triangle through the three
- * corners next to the cut one; 3 with two opposite and more, thinner parts that the corners of
- * their neighbours decide. An empty voxel in a concave edge is half filled the same way, so
- * steps lose at their outer edges what they gain at their inner ones. Where hulls touch along an
- * edge or at a point only, trimesh_manifold separates them.
+ * kept when at least KEEP_AT = 3 of the 8 voxels round it are in the set, and each voxel's cube
+ * holds the convex hull of its kept corners (its fragment: 256 corner masks, the table made by
+ * brute-force hulls on first use). The solid is the union of the hulls. A hull meets a face of
+ * its cube in the hull of that face's kept corners, which depends on the face alone, so the two
+ * cubes of a face always agree on it: the surface is the hulls' facets inside their cubes, and the
+ * faces where a solid hull meets one of no volume, closed by construction. Where hulls touch along
+ * an edge or at a point only, trimesh_manifold parts them (midpoints: the computed vertices).
  *
- * The price of corner vertices is that a chamfer passes through the centres of the voxels it
- * cuts: use matrix_mesh where the surface must keep every voxel centre on its side. */
+ * The seed's eight variants, for a voxel whose neighbours continue its closed faces (corners as
+ * xyz bits, the open faces on the + sides): 1 open face (+z), nothing cut, the face square; 2
+ * opposite (a plate a voxel thick), both faces; 2 adjacent (+x +z), corners 101 111 cut, the
+ * chamfer quad 100-110-011-001 (half the voxel); 3 at a corner, 110 101 011 111 cut, the triangle
+ * 100-010-001 (a sixth kept); 3 with two opposite, 4 with the closed pair adjacent, 4 opposite and
+ * 5 (a plate's rim, its corner, a rod a voxel thick, a lone bump) keep no volume: parts under two
+ * voxels thick vanish (counted as dropped_voxels). A concave edge keeps its corners, so a voxel
+ * set loses half a voxel along each convex edge (a 2:1 terrace loses it on every step, and nothing
+ * fills its inner edges); matrix_mesh's half-depth chamfers lose a quarter of that. */
 #include "matrix.h"
 
 #include <math.h>

@@ -14,7 +14,10 @@
  * the six views see it. They hold the body exactly when every axis-parallel line meets it once
  * (convex along the axes); cavities and hidden concavities are filled (the seed's stated limit).
  *
- * The mesh (our design: the seed's fragment table is a missing figure). Each voxel of the set is
+ * Two meshes (our design: the seed's fragment table is a missing figure). matrix_fragments, the
+ * default, is the seed's: a fixed fragment a voxel from a table, every vertex a voxel corner
+ * (fragment.c has the table and why it is made by corners). matrix_mesh keeps every voxel centre
+ * on the body's side (so rays through the centres give the voxels back). Each voxel of the set is
  * a solid: its cube, cut at every edge whose two faces are both open (no voxel beyond either) by
  * the plane t_f + t_g = 3/2 (t_f the distance from the face opposite f, in voxels): a chamfer that
  * takes off the prism of legs half a voxel along the edge. The surface is the boundary of the
@@ -25,12 +28,9 @@
  * by construction. Where two solids touch at a point only, that vertex is given a copy per fan
  * of triangles round it, so the mesh is a 2-manifold. Vertices lie on the quarter-voxel lattice
  * (merged by exact keys): voxel corners, edge midpoints, and (computed) the points where chamfers
- * meet. We tried the seed's deeper cut first (through the open faces' far edges: most vertices at
- * voxel corners, as the seed counts them): two neighbours' parts of a shared face can then meet
- * along a diagonal only, and the solids touch along that line (a non-manifold edge that no
- * splitting resolves in general); the half cut keeps the faces overlapping and loses less volume
- * (a ball of radius 20 voxels: -1.3 %, against -4.2 %), at the cost of computed vertices at the
- * edge midpoints. The seed's eight variants of open faces (1; 2 opposite; 2 adjacent; 3 with two
+ * meet. The seed's deeper cut by faces (through the open faces' far edges) lets two neighbours'
+ * parts of a shared face meet along a diagonal only and loses more volume (a ball of radius 20
+ * voxels: -4.2 %, against -1.3 %); matrix_fragments makes the deep cut by corners instead. The seed's eight variants of open faces (1; 2 opposite; 2 adjacent; 3 with two
  * opposite; 3 at a corner; 4 with the closed pair adjacent; 4 opposite; 5) are cases of the one
  * rule (1 or 2 opposite: the faces themselves; 2 adjacent: one chamfer; 3 at a corner: three
  * meeting; ...), and its "partially open" faces are the corner triangles a neighbour's cut leaves. */
