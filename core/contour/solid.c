@@ -1,6 +1,5 @@
 /* solid.c - contour models closed into solids: tubes of bands (solid.h), their measures and
- * their triangle meshes. Ear clipping for the flat ends is written here because it is the only
- * polygon triangulation surfd needs and the polygons are simple (a cleaned contour's curve). */
+ * their triangle meshes (flat ends ear-clipped and joined where tubes meet in a plane: join.c). */
 #include "solid.h"
 
 #include <math.h>
@@ -10,6 +9,7 @@
 
 #include "../base/gauss.h"
 #include "../base/mem.h"
+#include "join.h"
 
 /* ---- building ------------------------------------------------------------------------------ */
 
@@ -557,70 +557,65 @@ static int add_vertex(struct mesh *m, vec3 p, unsigned *idx)
 
 static int add_tri(struct mesh *m, unsigned a, unsigned b, unsigned c, bool flip)
 {
-    if (a == b || b == c || a == c) /* a collapsed ring's triangles have no area */
-        return 0;
-    if (m->n_t >= MESH_MAX_TRIANGLES)
-        return SF_ELIMIT;
-    if (mem_reserve((void **)&m->t, &m->cap_t, m->n_t + 1, sizeof *m->t))
-        return SF_ENOMEM;
-    m->t[m->n_t][0] = a, m->t[m->n_t][1] = flip ? c : b, m->t[m->n_t][2] = flip ? b : c;
-    m->n_t++;
-    return 0;
+    return flip ? mesh_tri(m, a, c, b) : mesh_tri(m, a, b, c);
 }
 
-/* Ear clipping of the ring's polygon (counter-clockwise in x, y); up: the triangles face +z. */
-static int ear_clip(struct mesh *m, const unsigned *ring, int n, bool up)
+/* The caps a mesh's tubes end in (join.h), for solid_mesh to join where they share a plane. */
+struct caps {
+    struct mesh_cap *c;
+    int n;
+    size_t cap;
+};
+
+/* Cap of ring (nu vertices), its triangles from t0 on, facing up or down; its walls unknown yet. */
+static struct mesh_cap *add_cap(struct caps *cs, const struct mesh *m, const unsigned *ring, int nu, bool up, size_t t0)
 {
-    int *prev = malloc(sizeof *prev * (size_t)n), *next = malloc(sizeof *next * (size_t)n), rc = 0;
-    if (!prev || !next) {
-        free(prev);
-        free(next);
-        return SF_ENOMEM;
+    if (mem_reserve((void **)&cs->c, &cs->cap, (size_t)cs->n + 1, sizeof *cs->c))
+        return NULL;
+    struct mesh_cap *c = &cs->c[cs->n];
+    c->ring = malloc(sizeof *c->ring * (size_t)nu);
+    c->wall = malloc(sizeof *c->wall * (size_t)nu);
+    if (!c->ring || !c->wall) {
+        free(c->ring), free(c->wall);
+        return NULL;
     }
-    for (int i = 0; i < n; i++)
-        prev[i] = (i + n - 1) % n, next[i] = (i + 1) % n;
-#define XY(i) m->v[ring[i]]
-#define CROSS(a, b, c) ((XY(b)[0] - XY(a)[0]) * (XY(c)[1] - XY(a)[1]) - (XY(b)[1] - XY(a)[1]) * (XY(c)[0] - XY(a)[0]))
-    int left = n, i = 0, since_ear = 0;
-    while (left > 3 && !rc) {
-        int a = prev[i], c = next[i];
-        bool ear = CROSS(a, i, c) > 0;
-        for (int k = next[c]; ear && k != a; k = next[k]) /* no other vertex inside or on (a, i, c) */
-            ear = !(CROSS(a, i, k) >= 0 && CROSS(i, c, k) >= 0 && CROSS(c, a, k) >= 0);
-        if (ear || since_ear > left) { /* stuck (a curve that grazes itself): clip anyway */
-            rc = add_tri(m, ring[a], ring[i], ring[c], !up);
-            next[a] = c, prev[c] = a;
-            left--;
-            since_ear = 0;
-            i = c;
-        } else {
-            i = c;
-            since_ear++;
-        }
-    }
-    if (!rc)
-        rc = add_tri(m, ring[prev[i]], ring[i], ring[next[i]], !up);
-#undef CROSS
-#undef XY
-    free(prev);
-    free(next);
-    return rc;
+    memcpy(c->ring, ring, sizeof *ring * (size_t)nu);
+    for (int k = 0; k < nu; k++)
+        c->wall[k] = SIZE_MAX;
+    c->n = nu, c->z = m->v[ring[0]][2], c->up = up, c->t0 = t0, c->t1 = m->n_t;
+    cs->n++;
+    return c;
 }
 
-static int mesh_tube(const struct solid *s, const struct tube *tb, double tol, struct mesh *m)
+static void caps_free(struct caps *cs)
+{
+    for (int k = 0; k < cs->n; k++)
+        free(cs->c[k].ring), free(cs->c[k].wall);
+    free(cs->c);
+}
+
+static int mesh_tube(const struct solid *s, const struct tube *tb, double tol, struct mesh *m, struct caps *cs)
 {
     int nu, rc = 0;
     double *us = choose_u(s, tb, tol, &nu);
     unsigned *ring = malloc(sizeof *ring * (size_t)nu), *next = malloc(sizeof *next * (size_t)nu);
+    size_t *top = malloc(sizeof *top * (size_t)nu); /* the last row's triangle on each edge of its top ring */
+    int bottom = -1;                                 /* the bottom cap (index in cs) while its walls are made */
     bool have_ring = false;
-    if (!us || !ring || !next)
+    if (!us || !ring || !next || !top)
         rc = SF_ENOMEM;
     for (int b = tb->first; b < tb->first + tb->n && !rc && !(rc = sf_poll(s->progress, 0.0, NULL)); b++) {
         const struct band *bd = &s->bands[b];
         bool first = b == tb->first, last = b == tb->first + tb->n - 1;
         if (bd->kind == BAND_CAP) { /* the bottom cap comes before its ring exists: it is clipped below */
-            if (last)
-                rc = ear_clip(m, ring, nu, !tb->hole);
+            if (last) {
+                size_t t0 = m->n_t;
+                struct mesh_cap *c = (rc = mesh_clip(m, ring, (size_t)nu, !tb->hole)) ? NULL : add_cap(cs, m, ring, nu, !tb->hole, t0);
+                if (!rc && !c)
+                    rc = SF_ENOMEM;
+                else if (c)
+                    memcpy(c->wall, top, sizeof *top * (size_t)nu);
+            }
             continue;
         }
         int nt = choose_nt(s, bd, tb->hole, us, nu, tol);
@@ -635,11 +630,23 @@ static int mesh_tube(const struct solid *s, const struct tube *tb, double tol, s
             }
             for (int k = 0; k < nu && have_ring && !rc; k++) {
                 int k1 = (k + 1) % nu;
-                if (!(rc = add_tri(m, ring[k], ring[k1], next[k1], tb->hole)))
-                    rc = add_tri(m, ring[k], next[k1], next[k], tb->hole);
+                size_t at = m->n_t;
+                if (!(rc = add_tri(m, ring[k], ring[k1], next[k1], tb->hole)) && bottom >= 0)
+                    cs->c[bottom].wall[k] = m->n_t > at ? at : SIZE_MAX;
+                at = m->n_t;
+                if (!rc && !(rc = add_tri(m, ring[k], next[k1], next[k], tb->hole)))
+                    top[k] = m->n_t > at ? at : SIZE_MAX;
             }
-            if (!have_ring && b > tb->first && s->bands[tb->first].kind == BAND_CAP && !rc)
-                rc = ear_clip(m, next, nu, tb->hole);
+            if (have_ring)
+                bottom = -1;
+            if (!have_ring && b > tb->first && s->bands[tb->first].kind == BAND_CAP && !rc) {
+                size_t t0 = m->n_t;
+                if (!(rc = mesh_clip(m, next, (size_t)nu, tb->hole))) {
+                    if (!add_cap(cs, m, next, nu, tb->hole, t0))
+                        rc = SF_ENOMEM;
+                    bottom = cs->n - 1;
+                }
+            }
             unsigned *sw = ring;
             ring = next, next = sw;
             have_ring = true;
@@ -648,6 +655,7 @@ static int mesh_tube(const struct solid *s, const struct tube *tb, double tol, s
     free(us);
     free(ring);
     free(next);
+    free(top);
     return rc;
 }
 
@@ -710,8 +718,12 @@ int solid_mesh(const struct solid *s, double tol, struct mesh *m)
 {
     memset(m, 0, sizeof *m);
     int rc = 0;
+    struct caps cs = {0};
     for (int k = 0; k < s->n_tubes && !rc; k++)
-        rc = mesh_tube(s, &s->tubes[k], tol, m);
+        rc = mesh_tube(s, &s->tubes[k], tol, m, &cs);
+    if (!rc) /* one surface where tubes end and begin in one plane */
+        rc = mesh_join_caps(m, cs.c, cs.n);
+    caps_free(&cs);
     if (rc)
         solid_mesh_free(m);
     return rc;
