@@ -1,7 +1,9 @@
 /* fuzz_contours.c - contour JSON: parse and clean; small inputs are also modelled and measured
- * (the volume job's whole path), large ones only parsed, to keep each run short. */
+ * (the volume job's whole path) and meshed (the caps joined where tubes meet: join.c), large ones
+ * only parsed, to keep each run short. */
 #include "../../api/contour_json.h"
 #include "../../api/model_json.h"
+#include "../../core/contour/solid.h"
 #include "fuzz.h"
 
 #define MODEL_MAX_INPUT 4096 /* bytes: inputs up to this size are modelled too */
@@ -12,6 +14,16 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     struct contour_request req;
     struct sf_err err = {0};
     if (contour_parse_json((const char *)data, size, &cs, &req, &err) == 0) {
+        struct solid sd;
+        if (size <= MODEL_MAX_INPUT && solid_build(&cs, (struct model_opts){MODEL_PARABOLIC, false, NULL}, CAPS_FLAT, &sd,
+                                                   &err) == 0) {
+            struct solid_measures sm;
+            struct mesh m;
+            solid_measure(&sd, &sm);
+            if (solid_mesh(&sd, 10 * solid_default_tolerance(&sm), &m) == 0)
+                solid_mesh_free(&m);
+            solid_free(&sd);
+        }
         contour_set_free(&cs);
         char *json = NULL;
         struct sf_err err2 = {0};
