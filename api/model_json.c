@@ -164,9 +164,11 @@ bool model_body_is_scene(const char *buf, size_t len, const char *format)
 }
 
 /* Trimmed surfaces as a solid: their area over the trimmed domains, and the volume they enclose
- * when their boundaries meet (enclosed_shell), each turned the way its neighbours face. */
-static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, double t0, double t1, char **json,
-                           struct sf_err *err)
+ * when their boundaries meet (enclosed_shell), each turned the way its neighbours face. Patches
+ * whose edges meet parts of others (a contour model's: its caps' fans against the walls' rows)
+ * close the same way (trimmed false: no list of surfaces). */
+static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, bool trimmed, double t0, double t1,
+                           char **json, struct sf_err *err)
 {
     struct enclosed e;
     double *vol = malloc(sizeof *vol * (size_t)sc->n_objects), *area = malloc(sizeof *area * (size_t)sc->n_objects);
@@ -185,7 +187,7 @@ static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, d
     if (!rc && sh.open_samples) {
         scene_object_pointer(sc, sh.open_object, where, sizeof where);
         const char *name = sc->objects[sh.open_object].name;
-        rc = sf_fail(err, SF_EINVAL, where, "the surfaces do not close a solid: %zu of %zu boundary points meet no "
+        rc = sf_fail(err, SF_EINVAL, where, "the surfaces do not bound a closed solid: %zu of %zu boundary points meet no "
                      "other surface within %.3g mm, the first of this surface%s%s%s at (%.4g, %.4g, %.4g) mm; their "
                      "area is %.6g mm²", sh.open_samples, sh.samples, SHELL_GAP_REL * diag, *name ? " (" : "", name,
                      *name ? ")" : "", sh.open_at[0], sh.open_at[1], sh.open_at[2], e.area);
@@ -201,14 +203,14 @@ static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, d
         turned += (v < 0 ? -sign[k] : sign[k]) < 0;
     double t2 = now_ms();
     json_t *list = rc ? NULL : json_array();
-    for (int k = 0; list && k < sc->n_objects; k++) {
+    for (int k = 0; list && trimmed && k < sc->n_objects; k++) {
         scene_object_pointer(sc, k, where, sizeof where);
         json_array_append_new(list, json_pack("{s:s, s:s, s:f, s:b}", "entity", where, "name", sc->objects[k].name,
                                               "area_mm2", area[k], "turned", (v < 0 ? -sign[k] : sign[k]) < 0));
     }
     if (!rc)
         *json = dump(json_pack("{s:s, s:i, s:o, s:I, s:b, s:s, s:i, s:f, s:f, s:{s:f}, s:I, s:[[f,f,f],[f,f,f]], s:{s:f, "
-                               "s:f}}", "kind", "trimmed surfaces", "surfaces", sc->n_objects, "surface_figures", list,
+                               "s:f}}", "kind", trimmed ? "trimmed surfaces" : "patches", "surfaces", sc->n_objects, "surface_figures", list,
                                "patches", (json_int_t)ps->n,
                                "closed", 1, "orientation", turned ? "mixed" : v >= 0 ? "outward" : "inward",
                                "surfaces_turned", turned, "volume_mm3", fabs(v), "area_mm2", e.area, "volume", "exact",
@@ -241,8 +243,9 @@ static int scene_figures(const char *buf, size_t len, const char *format, char *
     bool trimmed = false;
     for (int k = 0; k < sc.n_objects; k++)
         trimmed |= sc.objects[k].trim != NULL;
-    if (trimmed) {
-        rc = trimmed_figures(&sc, &ps, t0, t1, json, err);
+    bool along = !trimmed && !enclosed_measure(&ps, &e) && e.open_edges; /* edges meeting parts of others */
+    if (trimmed || along) {
+        rc = trimmed_figures(&sc, &ps, trimmed, t0, t1, json, err);
         nurbs_patch_set_free(&ps);
         scene_free(&sc);
         return rc;

@@ -490,23 +490,42 @@ int enclosed_shell(const struct shell_part *parts, int n, double tol, struct she
         votes[n_pairs++] = (struct vote){votes[k].a, votes[k].b, sum >= 0 ? 1 : -1};
         k = j;
     }
+    /* breadth first over the pairs of each part (both ways, counting sort) */
+    size_t *first = calloc((size_t)n + 1, sizeof *first), *adj = malloc(sizeof *adj * (2 * n_pairs + 1));
+    int *queue = malloc(sizeof *queue * ((size_t)n + 1));
+    if (!first || !adj || !queue) {
+        free(first), free(adj), free(queue);
+        rc = SF_ENOMEM;
+        goto done;
+    }
+    for (size_t k = 0; k < n_pairs; k++)
+        first[votes[k].a + 1]++, first[votes[k].b + 1]++;
+    for (int k = 0; k < n; k++)
+        first[k + 1] += first[k];
+    for (size_t k = 0; k < n_pairs; k++)
+        adj[first[votes[k].a]++] = k, adj[first[votes[k].b]++] = k;
+    for (int k = n; k > 0; k--) /* (the fill moved each start to the next part's) */
+        first[k] = first[k - 1];
+    first[0] = 0;
     for (int k = 0; k < n; k++)
         sign[k] = 0;
     for (int root = 0; root < n; root++) {
         if (sign[root])
             continue;
         sign[root] = 1;
-        for (bool grew = true; grew;) { /* parts are few: sweep the pairs until nothing changes */
-            grew = false;
-            for (size_t k = 0; k < n_pairs; k++) {
-                int a = votes[k].a, b = votes[k].b;
-                if (sign[a] && !sign[b])
-                    sign[b] = (signed char)(sign[a] * votes[k].same), grew = true;
-                else if (sign[b] && !sign[a])
-                    sign[a] = (signed char)(sign[b] * votes[k].same), grew = true;
+        size_t head = 0, tail = 0;
+        queue[tail++] = root;
+        while (head < tail) {
+            int a = queue[head++];
+            for (size_t i = first[a]; i < first[a + 1]; i++) {
+                const struct vote *v = &votes[adj[i]];
+                int b = v->a == a ? v->b : v->a;
+                if (!sign[b])
+                    sign[b] = (signed char)(sign[a] * v->same), queue[tail++] = b;
             }
         }
     }
+    free(first), free(adj), free(queue);
     for (size_t k = 0; k < n_pairs; k++)
         out->conflicts += sign[votes[k].a] * sign[votes[k].b] != votes[k].same;
 done:

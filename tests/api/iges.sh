@@ -63,7 +63,7 @@ ours = json.load(open(sys.argv[1]))['surface_figures']; theirs = json.load(sys.s
 print(len(ours) == len(theirs) and all(abs(a['area_mm2'] / b - 1) < 1e-3 and a['entity'].startswith('D') for a, b in zip(ours, theirs)))" "$T/mug.json")
 check "mug_solid.igs: each surface's area (surface_figures, by entity) within 0.1 % of OCCT's face" '[ "$faces" = True ]'
 code=$(status POST /volume -H 'Content-Type: model/iges' --data-binary @"$D/mug.iges")
-check "mug.iges (an open sheet): 422 naming a surface's entity and its 406 name, saying where it is open" '[ "$code" = 422 ] && is_problem 422 && grep -q "\"pointer\":\"D[0-9]*\"" "$T/body" && grep -q "do not close a solid" "$T/body" && grep -q "(Body1[24])" "$T/body"'
+check "mug.iges (an open sheet): 422 naming a surface's entity and its 406 name, saying where it is open" '[ "$code" = 422 ] && is_problem 422 && grep -q "\"pointer\":\"D[0-9]*\"" "$T/body" && grep -q "do not bound a closed solid" "$T/body" && grep -q "(Body1[24])" "$T/body"'
 while read -r name want; do
     code=$(status POST "/volume?format=iges" --data-binary @"$T/$name.igs")
     got=$(sed -n 's/.*their area is \([0-9.e+]*\) mm.*/\1/p' "$T/body")
