@@ -99,24 +99,7 @@ int matrix_voxels(const struct matrix_model *mm, uint8_t *vox, int *bad_k, int *
 {
     const int *n = mm->n;
     /* each line seen from both ends: both miss, or the first from the low end lies before the
-     * first from the high end (eq. 5) */
-    for (int k = 3; k < 6; k++) {
-        int rows, cols, len = n[axis_of(k)];
-        matrix_shape(n, k, &rows, &cols);
-        for (int i = 0; i < rows; i++)
-            for (int j = 0; j < cols; j++) {
-                int lo = mm->m[k][(size_t)i * cols + j], v[3], oi, oj;
-                matrix_voxel(n, k, i, j, 0, v);
-                element_of(n, k - 3, v, &oi, &oj);
-                int hi = mm->m[k - 3][(size_t)oi * cols + oj];
-                if ((lo == len) != (hi == len) || (lo < len && lo > len - 1 - hi)) {
-                    *bad_k = k, *bad_i = i, *bad_j = j;
-                    return sf_fail(err, SF_EINVAL, "", "M%d[%d][%d] = %d and M%d[%d][%d] = %d see one line: the first voxel "
-                                   "from one end lies beyond the first from the other", k, i, j, lo, k - 3, oi, oj, hi);
-                }
-            }
-    }
-    /* the voxels between the first seen from both ends of every line, along all three axes */
+     * first from the high end (eq. 5); the voxels between them kept, along all three axes */
     memset(vox, 1, (size_t)n[0] * n[1] * n[2]);
     for (int k = 3; k < 6; k++) {
         int rows, cols, len = n[axis_of(k)];
@@ -126,7 +109,12 @@ int matrix_voxels(const struct matrix_model *mm, uint8_t *vox, int *bad_k, int *
                 int lo = mm->m[k][(size_t)i * cols + j], v[3], oi, oj;
                 matrix_voxel(n, k, i, j, 0, v);
                 element_of(n, k - 3, v, &oi, &oj);
-                int hi = len - 1 - mm->m[k - 3][(size_t)oi * cols + oj];
+                int hi_depth = mm->m[k - 3][(size_t)oi * cols + oj], hi = len - 1 - hi_depth;
+                if ((lo == len) != (hi_depth == len) || (lo < len && lo > hi)) {
+                    *bad_k = k, *bad_i = i, *bad_j = j;
+                    return sf_fail(err, SF_EINVAL, "", "M%d[%d][%d] = %d and M%d[%d][%d] = %d see one line: the first voxel "
+                                   "from one end lies beyond the first from the other", k, i, j, lo, k - 3, oi, oj, hi_depth);
+                }
                 size_t first;
                 ptrdiff_t step;
                 line_of(n, k, i, j, &first, &step);
