@@ -243,25 +243,18 @@ static int scene_figures(const char *buf, size_t len, const char *format, char *
     bool trimmed = false;
     for (int k = 0; k < sc.n_objects; k++)
         trimmed |= sc.objects[k].trim != NULL;
-    bool along = !trimmed && !enclosed_measure(&ps, &e) && e.open_edges; /* edges meeting parts of others */
-    if (trimmed || along) {
+    if (!trimmed && enclosed_measure(&ps, &e))
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+    else if (trimmed || e.open_edges) { /* trimmed, or edges meeting parts of others: closed along the boundaries */
         rc = trimmed_figures(&sc, &ps, trimmed, t0, t1, json, err);
         nurbs_patch_set_free(&ps);
         scene_free(&sc);
         return rc;
-    }
-    char where[32];
-    snprintf(where, sizeof where, "/objects/%d", 0);
-    if (enclosed_measure(&ps, &e))
-        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
-    else if (e.open_edges || e.flipped_edges) {
+    } else if (e.flipped_edges) {
+        char where[32];
         snprintf(where, sizeof where, "/objects/%d", e.open_object);
-        rc = e.open_edges ? sf_fail(err, SF_EINVAL, where,
-                                    "the patches do not bound a closed solid: %zu patch edges meet no other patch edge "
-                                    "to edge (this object has one)", e.open_edges)
-                          : sf_fail(err, SF_EINVAL, where,
-                                    "neighbouring patches face opposite ways across %zu edges (this object has one)",
-                                    e.flipped_edges / 2);
+        rc = sf_fail(err, SF_EINVAL, where, "neighbouring patches face opposite ways across %zu edges (this object has one)",
+                     e.flipped_edges / 2);
     }
     double t2 = now_ms(), v = fabs(e.volume);
     if (!rc)

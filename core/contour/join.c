@@ -92,12 +92,12 @@ static double cross3(const double *a, const double *b, const double *c)
     return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
 }
 
-/* Whether (x, y) is inside the polygon of ring r (crossing number). */
-static bool inside(const struct join *j, const struct mesh_cap *r, double x, double y)
+/* Whether (x, y) is inside the polygon of vertices v (crossing number). */
+static bool in_loop(const struct join *j, const unsigned *v, size_t n, double x, double y)
 {
     bool in = false;
-    for (int k = 0, l = r->n - 1; k < r->n; l = k++) {
-        const double *a = xy(j, r->ring[k]), *b = xy(j, r->ring[l]);
+    for (size_t k = 0, l = n - 1; k < n; l = k++) {
+        const double *a = xy(j, v[k]), *b = xy(j, v[l]);
         if ((a[1] > y) != (b[1] > y) && x < a[0] + (y - a[1]) * (b[0] - a[0]) / (b[1] - a[1]))
             in = !in;
     }
@@ -108,7 +108,7 @@ static int depth(const struct join *j, struct mesh_cap *const *caps, int n, doub
 {
     int d = 0;
     for (int c = 0; c < n; c++)
-        if (inside(j, caps[c], x, y))
+        if (in_loop(j, caps[c]->ring, (size_t)caps[c]->n, x, y))
             d += caps[c]->up ? 1 : -1;
     return d;
 }
@@ -218,17 +218,6 @@ static double loop_area(const struct join *j, const unsigned *v, size_t n)
     for (size_t k = 0, l = n - 1; k < n; l = k++)
         a += xy(j, v[l])[0] * xy(j, v[k])[1] - xy(j, v[k])[0] * xy(j, v[l])[1];
     return a / 2;
-}
-
-static bool in_loop(const struct join *j, const unsigned *v, size_t n, double x, double y)
-{
-    bool in = false;
-    for (size_t k = 0, l = n - 1; k < n; l = k++) {
-        const double *a = xy(j, v[k]), *b = xy(j, v[l]);
-        if ((a[1] > y) != (b[1] > y) && x < a[0] + (y - a[1]) * (b[0] - a[0]) / (b[1] - a[1]))
-            in = !in;
-    }
-    return in;
 }
 
 /* Joins hole h (clockwise) into ring r (counter-clockwise) by a bridge from the hole's rightmost

@@ -330,7 +330,6 @@ int matrix_fragments(const int n[3], const uint8_t *vox, const double lo[3], con
             }
         }
     }
-    long dropped = cu.dropped;
     free(tab), free(kept), free(mask), free(col), free(e.ids[0]), free(e.ids[1]);
     long mid = 0;
     if (!e.nomem && trimesh_manifold(&e.m, &e.vcap, &e.tcap, &mid))
@@ -342,6 +341,6 @@ int matrix_fragments(const int n[3], const uint8_t *vox, const double lo[3], con
     }
     *out = e.m;
     if (st)
-        st->computed_vertices = mid, st->dropped_voxels = dropped;
+        st->computed_vertices = mid, st->dropped_voxels = cu.dropped;
     return 0;
 }
