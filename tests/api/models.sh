@@ -56,6 +56,9 @@ code=$(status GET "/models/$dome/patches")
 cp "$T/body" "$T/p.json"
 check "patches: bicubic and rational dome patches" '[ "$code" = 200 ] && grep -q "\"type\":\"bezier\"" "$T/p.json" && grep -q "\"type\":\"nurbs\"" "$T/p.json"'
 check "patches posted back to POST /volume: closed (edges meeting parts of others), the model's volume" '[ "$(status POST /volume -H "$J" --data-binary @"$T/p.json")" = 200 ] && grep -q "\"closed\":true" "$T/body" && python3 -c "import json,sys; v=json.load(open(sys.argv[1]))[\"volume_mm3\"]; sys.exit(abs(v/125639.0867-1)>1e-6)" "$T/body"'
+code=$(status POST /model -H "$J" --data-binary @"$C/synthetic_torus_branching.json"); tid=$(field id)
+[ "$code" = 201 ] && status GET "/models/$tid/patches" >/dev/null && cp "$T/body" "$T/tp.json"
+check "a branching model's patches (its tubes' caps overlap): 422, problem+json, the daemon still up" '[ "$(status POST /volume -H "$J" --data-binary @"$T/tp.json")" = 422 ] && is_problem 422 && grep -q "one-sided shell" "$T/body" && [ "$(status GET /livez)" = 200 ]'
 check "patches render as a scene" '[ "$(status POST "/render?width=64&height=48" -H "$J" --data-binary @"$T/p.json")" = 200 ] && [ "$(header Content-Type)" = image/png ]'
 
 check "a mesh is a job of its own kind" '[ "$(status GET "/models/$id/mesh?tolerance=0.5")" = 200 ] && mj=$(header X-Job-Id) && [ "$(status GET /jobs/$mj)" = 200 ] && grep -q "\"kind\":\"mesh\"" "$T/body"'
