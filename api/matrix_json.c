@@ -176,8 +176,8 @@ int matrix_build(const struct matrix_request *r, struct trimesh *m, struct matri
         matrix_counts(&r->mm, &counts);
         st->voxels = counts.voxels, st->base_voxels = counts.base_voxels, st->redundant_voxels = counts.redundant_voxels;
         if (!m->n_tri && st->dropped_voxels)
-            rc = sf_fail(err, SF_EINVAL, "/mesher", "the body is under two voxels thick everywhere: the fragments keep "
-                         "none of its %ld voxels (\"mesher\": \"chamfer\" keeps every voxel)", st->dropped_voxels);
+            rc = sf_fail(err, SF_EINVAL, "/mesher", "the body's voxels meet only along edges or at points, or "
+                         "stand alone: the fragments keep none of its %ld voxels (\"mesher\": \"chamfer\" keeps every voxel)", st->dropped_voxels);
         else if (!m->n_tri)
             rc = sf_fail(err, SF_EINVAL, "/matrix_model", "every line misses the body: the matrices hold no voxel");
     }

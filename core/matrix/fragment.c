@@ -4,7 +4,8 @@
  * The seed's table is a missing figure (METHODS.md §5), and it chooses a voxel's fragment by the
  * voxel's open faces, re-choosing where a neighbour's fragment makes a face "partially open". We
  * choose by corners instead, which makes the re-choice unnecessary: a corner of the lattice is
- * kept when at least KEEP_AT = 3 of the 8 voxels round it are in the set, and each voxel's cube
+ * kept when at least KEEP_AT = 4 of the 8 voxels round it are in the set, or two that share a face
+ * (an edge of the set: a convex edge, a plate's rim, a rod a voxel across), and each voxel's cube
  * holds the convex hull of its kept corners (its fragment: 256 corner masks, the table made by
  * brute-force hulls on first use). The solid is the union of the hulls. A hull meets a face of
  * its cube in the hull of that face's kept corners, which depends on the face alone, so the two
@@ -12,15 +13,17 @@
  * faces where a solid hull meets one of no volume, closed by construction. Where hulls touch along
  * an edge or at a point only, trimesh_manifold parts them (midpoints: the computed vertices).
  *
- * The seed's eight variants, for a voxel whose neighbours continue its closed faces (corners as
- * xyz bits, the open faces on the + sides): 1 open face (+z), nothing cut, the face square; 2
- * opposite (a plate a voxel thick), both faces; 2 adjacent (+x +z), corners 101 111 cut, the
- * chamfer quad 100-110-011-001 (half the voxel); 3 at a corner, 110 101 011 111 cut, the triangle
- * 100-010-001 (a sixth kept); 3 with two opposite, 4 with the closed pair adjacent, 4 opposite and
- * 5 (a plate's rim, its corner, a rod a voxel thick, a lone bump) keep no volume: parts under two
- * voxels thick vanish (counted as dropped_voxels). A concave edge keeps its corners, so a voxel
- * set loses half a voxel along each convex edge (a 2:1 terrace loses it on every step, and nothing
- * fills its inner edges); matrix_mesh's half-depth chamfers lose a quarter of that. */
+ * The seed's variants, for a voxel whose neighbours continue its closed faces (corners as xyz
+ * bits, the open faces on the + sides): 1 open face (+z), nothing cut, the face square; 2 opposite
+ * (a plate a voxel thick), both faces; 2 adjacent (+x +z), nothing cut, both faces (the edge kept
+ * sharp); 3 at a corner, 111 cut, the triangle 110-101-011 (five sixths kept); 3 with two opposite
+ * (a plate's rim) and 4 with the closed pair opposite (a rod a voxel across), nothing cut; 4 with
+ * the closed pair adjacent (a plate's corner), 110 111 cut, the quad 100-010-011-101 (half kept);
+ * 5 (a rod's end, a lone bump) and 6 keep no volume (counted as dropped_voxels, as are voxels that
+ * meet the others only along an edge or at a point). Concave edges keep their corners too, so the
+ * empty voxel at a concave edge whose face beyond is a voxel high (the inner edge of a terrace)
+ * holds half a voxel: a 2:1 terrace gains half a voxel a step, a ball about nothing (its convex
+ * and concave steps balance); matrix_mesh's half-depth chamfers lose a quarter voxel at edges. */
 #include "matrix.h"
 
 #include <math.h>
@@ -36,10 +39,10 @@
 #define CY(c) ((c) >> 1 & 1)
 #define CZ(c) ((c) >> 2 & 1)
 #define MAX_TRIS 12
-/* A corner is kept when this many of its 8 voxels are in: 3, not the even 4, since a hull of kept
- * corners lies inside the level it stands for (measured: a ball of radius 20 voxels -1.6 % with 3,
- * -3.9 % with 4; a box's faces, edges and corners (4, 2, 1 voxels) are the same with either). */
-#define KEEP_AT 3
+/* A corner is kept when this many of its 8 voxels are in, or two that share a face (edge_corner).
+ * Measured on a ball of radius 30 voxels: -0.2 % with 4, +1.4 % with 3; with 3 and no edge corners
+ * -1.2 % (a box then loses half a voxel along every edge, thin parts vanish). */
+#define KEEP_AT 4
 
 struct fragment {
     bool solid;              /* the hull has volume */
@@ -177,6 +180,21 @@ static void store8(uint8_t *p, uint64_t v) { memcpy(p, &v, sizeof v); }
 
 static uint64_t nonzero8(uint64_t v) { return ((((v & 0x7f * ONES) + 0x7f * ONES) | v) >> 7) & ONES; }
 
+/* Whether corner (x, y, z), two of whose 8 voxels are in, stands on an edge of the set: the two share a
+ * face (a convex edge, a voxel-thick plate's rim, a rod a voxel across), not only an edge or a point. */
+static bool edge_corner(const uint8_t *vox, const int n[3], size_t x, size_t y, size_t z)
+{
+    int occ = 0;
+    for (int c = 0; c < 8; c++) {
+        size_t vx = x - 1 + (size_t)CX(c), vy = y - 1 + (size_t)CY(c), vz = z - 1 + (size_t)CZ(c);
+        if (vx < (size_t)n[0] && vy < (size_t)n[1] && vz < (size_t)n[2] &&
+            vox[vx + (size_t)n[0] * (vy + (size_t)n[1] * vz)])
+            occ |= 1 << c;
+    }
+    int i = __builtin_ctz((unsigned)occ), j = 31 - __builtin_clz((unsigned)occ), d = i ^ j;
+    return !(d & (d - 1));
+}
+
 struct cubes {
     struct fragment *tab;     /* by corner mask, made on first use (have) */
     bool have[256];
@@ -292,9 +310,14 @@ int matrix_fragments(const int n[3], const uint8_t *vox, const double lo[3], con
                 for (; x + 8 <= x1 + 1; x += 8) {
                     uint64_t sum = load8(r0 + x) + load8(r0 + x + 1) + load8(r1 + x) + load8(r1 + x + 1);
                     store8(kr + x, ((sum + (128 - KEEP_AT) * ONES) >> 7) & ONES);
+                    for (uint64_t two = ~nonzero8(sum ^ 2 * ONES) & ONES; two; two &= two - 1) {
+                        size_t at = x + (size_t)(__builtin_ctzll(two) >> 3);
+                        kr[at] = edge_corner(vox, n, at, y, z);
+                    }
                 }
                 for (; x <= x1; x++)
-                    kr[x] = r0[x] + r0[x + 1] + r1[x] + r1[x + 1] >= KEEP_AT;
+                    kr[x] = r0[x] + r0[x + 1] + r1[x] + r1[x + 1] >= KEEP_AT ||
+                            (r0[x] + r0[x + 1] + r1[x] + r1[x + 1] == 2 && edge_corner(vox, n, x, y, z));
             }
         }
         for (size_t z = lo3[2]; z < hi3[2]; z++)

@@ -76,7 +76,8 @@ struct matrix_stats {
     long redundant_voxels;   /* named again by another matrix (eq. 6: handled once) */
     long computed_vertices;  /* mesh vertices off the voxel corners */
     long dropped_voxels;     /* voxels of the set whose cube holds none of the solid (matrix_fragments:
-                              * parts under two voxels thick) */
+                              * lone voxels, a rod's ends, voxels meeting the others only at
+                              * an edge or a point) */
 };
 
 /* The mesh of voxel set vox in the box lo + (0..n) d: a closed, outward-oriented 2-manifold (see
