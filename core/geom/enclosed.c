@@ -228,7 +228,8 @@ int enclosed_measure_objects(const struct patch_set *ps, struct enclosed *e, dou
 
 /* ---- trimmed surfaces: closure along the loops ------------------------------------------ */
 
-#define SHELL_EDGE_POINTS 64 /* points along each edge of an untrimmed domain (then halved as add_seg needs) */
+#define SHELL_EDGE_POINTS 64 /* at most, along each edge of an untrimmed domain (then halved as add_seg needs) */
+#define SHELL_EDGE_STEP 50.0   /* ... one every this many tol along it, at least 4 */
 #define SHELL_MAX_ENTRIES (1u << 26)
 
 struct bseg { /* one boundary segment, in (u, v) and its chord in space */
@@ -239,10 +240,12 @@ struct bseg { /* one boundary segment, in (u, v) and its chord in space */
     size_t loop_len;
 };
 
+/* Cells of side `cell` from lo, hashed into buckets (a power of two; cells that share a bucket
+ * only add candidates, each tested by its distance). */
 struct seg_grid {
     vec3 lo;
     double cell;
-    int n[3];
+    size_t buckets;
     uint32_t *first, *seg;
 };
 
@@ -251,8 +254,15 @@ static void cell_of(const struct seg_grid *g, vec3 p, int c[3])
     const double q[3] = {p.x - g->lo.x, p.y - g->lo.y, p.z - g->lo.z};
     for (int d = 0; d < 3; d++) {
         double f = floor(q[d] / g->cell);
-        c[d] = f < 0 ? 0 : f >= g->n[d] ? g->n[d] - 1 : (int)f;
+        c[d] = f < 0 ? 0 : f > 1e6 ? 1000000 : (int)f;
     }
+}
+
+static size_t bucket_of(const struct seg_grid *g, const int c[3])
+{
+    uint64_t h = (uint64_t)c[0] * 0x9e3779b97f4a7c15ull ^ (uint64_t)c[1] * 0xc2b2ae3d27d4eb4full ^
+                 (uint64_t)c[2] * 0x165667b19e3779f9ull;
+    return (size_t)((h ^ h >> 29) & (g->buckets - 1));
 }
 
 /* Bins each segment into the cells its box grown by tol meets (counting when fill is false). */
@@ -267,7 +277,7 @@ static size_t grid_bin(struct seg_grid *g, const struct bseg *segs, size_t n, do
         for (int x = c0[0]; x <= c1[0]; x++)
             for (int y = c0[1]; y <= c1[1]; y++)
                 for (int z = c0[2]; z <= c1[2]; z++) {
-                    size_t c = ((size_t)z * g->n[1] + y) * g->n[0] + x;
+                    size_t c = bucket_of(g, (int[3]){x, y, z});
                     total++;
                     if (at)
                         g->seg[at[c]++] = (uint32_t)k;
@@ -333,9 +343,18 @@ static int boundary_segments(const struct shell_part *parts, int n, double tol, 
         double u0, u1, v0, v1;
         nurbs_domain(parts[k].s, &u0, &u1, &v0, &v1);
         const double corner[5][2] = {{u0, v0}, {u1, v0}, {u1, v1}, {u0, v1}, {u0, v0}};
-        for (int e = 0; e < 4; e++)
-            for (int i = 0; i < SHELL_EDGE_POINTS; i++) {
-                double f0 = (double)i / SHELL_EDGE_POINTS, f1 = (double)(i + 1) / SHELL_EDGE_POINTS;
+        for (int e = 0; e < 4; e++) {
+            double len = 0; /* the edge's length, roughly: 8 chords */
+            vec3 q0, q1;
+            nurbs_eval(parts[k].s, corner[e][0], corner[e][1], &q0, NULL, NULL);
+            for (int i = 1; i <= 8; i++, q0 = q1) {
+                nurbs_eval(parts[k].s, corner[e][0] + i / 8.0 * (corner[e + 1][0] - corner[e][0]),
+                           corner[e][1] + i / 8.0 * (corner[e + 1][1] - corner[e][1]), &q1, NULL, NULL);
+                len += v3_len(v3_sub(q1, q0));
+            }
+            int np = (int)fmin(SHELL_EDGE_POINTS, fmax(4.0, ceil(len / (SHELL_EDGE_STEP * tol))));
+            for (int i = 0; i < np; i++) {
+                double f0 = (double)i / np, f1 = (double)(i + 1) / np;
                 const double a[2] = {corner[e][0] + f0 * (corner[e + 1][0] - corner[e][0]),
                                      corner[e][1] + f0 * (corner[e + 1][1] - corner[e][1])};
                 const double b[2] = {corner[e][0] + f1 * (corner[e + 1][0] - corner[e][0]),
@@ -343,6 +362,7 @@ static int boundary_segments(const struct shell_part *parts, int n, double tol, 
                 if (add_uv_seg(segs, n_segs, &cap, parts[k].s, a, b, tol, k, loop))
                     return SF_ENOMEM;
             }
+        }
         for (size_t i = first; i < *n_segs; i++)
             (*segs)[i].index = i - first, (*segs)[i].loop_len = *n_segs - first;
     }
@@ -389,6 +409,15 @@ static int by_pair(const void *x, const void *y)
     return p->a != q->a ? (p->a > q->a) - (p->a < q->a) : (p->b > q->b) - (p->b < q->b);
 }
 
+/* Whether a and b are the same stretch of one loop (at most two segments apart along it). */
+static bool along(const struct bseg *a, const struct bseg *b)
+{
+    if (a->loop != b->loop)
+        return false;
+    size_t di = a->index > b->index ? a->index - b->index : b->index - a->index;
+    return di <= 2 || a->loop_len - di <= 2;
+}
+
 int enclosed_shell(const struct shell_part *parts, int n, double tol, struct shell *out, signed char *sign)
 {
     memset(out, 0, sizeof *out);
@@ -405,14 +434,19 @@ int enclosed_shell(const struct shell_part *parts, int n, double tol, struct she
     vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
     for (size_t k = 0; k < n_segs; k++)
         lo = v3_min(lo, v3_min(segs[k].pa, segs[k].pb)), hi = v3_max(hi, v3_max(segs[k].pa, segs[k].pb));
+    /* cells twice the mean chord (4 tol at least): a few cells a chord, a few chords a cell; and
+     * an eighth of the longest at least, so that no chord is binned into more than 9^3 cells */
+    double mean = 0, longest = 0;
+    for (size_t k = 0; k < n_segs; k++) {
+        double len = v3_len(v3_sub(segs[k].pb, segs[k].pa));
+        mean += len / (double)n_segs, longest = fmax(longest, len);
+    }
     vec3 size = v3_sub(hi, lo);
     g.lo = lo;
-    g.cell = fmax(fmax(size.x, fmax(size.y, size.z)) / 64.0, 4.0 * tol);
-    for (int d = 0; d < 3; d++) {
-        double ext = d == 0 ? size.x : d == 1 ? size.y : size.z;
-        g.n[d] = (int)fmin(64.0, floor(ext / g.cell) + 1);
-    }
-    size_t cells = (size_t)g.n[0] * g.n[1] * g.n[2];
+    g.cell = fmax(fmax(fmax(2 * mean, longest / 8), 4.0 * tol), fmax(size.x, fmax(size.y, size.z)) / 1e6);
+    for (g.buckets = 1024; g.buckets < 2 * n_segs && g.buckets < SHELL_MAX_ENTRIES; g.buckets *= 2)
+        ;
+    size_t cells = g.buckets;
     g.first = calloc(cells + 1, sizeof *g.first);
     if (!g.first || grid_bin(&g, segs, n_segs, tol, NULL) > SHELL_MAX_ENTRIES) {
         rc = SF_ENOMEM;
@@ -439,19 +473,18 @@ int enclosed_shell(const struct shell_part *parts, int n, double tol, struct she
         out->samples++;
         int c[3];
         cell_of(&g, p, c);
-        size_t cell = ((size_t)c[2] * g.n[1] + c[1]) * g.n[0] + c[0];
+        size_t cell = bucket_of(&g, c);
         const struct bseg *best = NULL;
         double best_d = tol, best_f = 0;
+        bool own = false; /* another stretch of one surface's boundary within tol too */
         for (uint32_t e = g.first[cell]; e < g.first[cell + 1]; e++) {
             const struct bseg *o = &segs[g.seg[e]];
-            if (o->loop == s->loop) { /* its own loop: only far along it (a seam run up and back) */
-                size_t di = o->index > s->index ? o->index - s->index : s->index - o->index;
-                if (di <= 2 || s->loop_len - di <= 2)
-                    continue;
-            }
+            if (along(o, s)) /* its own loop: only far along it (a seam run up and back) */
+                continue;
             if (v3_len(v3_sub(o->pb, o->pa)) <= collapsed)
                 continue;
             double f, d = seg_dist(o, p, &f);
+            own |= o->part == s->part && d <= tol;
             if (d <= best_d)
                 best = o, best_d = d, best_f = f;
         }
@@ -462,8 +495,15 @@ int enclosed_shell(const struct shell_part *parts, int n, double tol, struct she
             }
             continue;
         }
-        if (best->part == s->part)
-            continue;
+        for (uint32_t e = g.first[cell]; e < g.first[cell + 1] && !own; e++) {
+            const struct bseg *o = &segs[g.seg[e]];
+            own = o->part == best->part && !along(o, best) && v3_len(v3_sub(o->pb, o->pa)) > collapsed &&
+                  seg_dist(o, p, &(double){0}) <= tol;
+        }
+        if (own)
+            continue; /* matched, but which way the two face is not to be read here: a surface
+                       * whose opposite edges come within tol of each other (a sliver between two
+                       * slices, a seam) has both on its neighbour */
         vec3 e = v3_sub(s->pb, s->pa);
         const double ts[2] = {s->b[0] - s->a[0], s->b[1] - s->a[1]}, tb[2] = {best->b[0] - best->a[0], best->b[1] - best->a[1]};
         const double ub[2] = {best->a[0] + best_f * tb[0], best->a[1] + best_f * tb[1]};
