@@ -754,6 +754,33 @@ int model_rtstruct(const char *src, size_t len, const char *resource, const char
     return rc;
 }
 
+/* A region of a plane (solid.h) as a bilinear patch over its loops' box, a little larger, facing up
+ * (u along x) or down (u along y), trimmed by the loops in (u, v). */
+static json_t *plane_region_json(const struct cap_region *r)
+{
+    double lo[2], size[2];
+    for (int d = 0; d < 2; d++) {
+        double m = 0.01 * (r->hi[d] - r->lo[d]);
+        lo[d] = r->lo[d] - m, size[d] = r->hi[d] - r->lo[d] + 2 * m;
+    }
+    int a = r->up ? 0 : 1; /* the axis u runs along */
+    json_t *pts = json_array(), *loops = json_array();
+    for (int i = 0; i < 2; i++)
+        for (int j = 0; j < 2; j++) {
+            double p[2];
+            p[a] = lo[a] + i * size[a], p[1 - a] = lo[1 - a] + j * size[1 - a];
+            json_array_append_new(pts, json_pack("[f,f,f]", p[0], p[1], r->z));
+        }
+    double(*pt)[2] = r->pt;
+    for (int l = 0; l < r->n_loops; pt += r->counts[l], l++) {
+        json_t *loop = json_array();
+        for (size_t k = 0; k < r->counts[l]; k++)
+            json_array_append_new(loop, json_pack("[f,f]", (pt[k][a] - lo[a]) / size[a], (pt[k][1 - a] - lo[1 - a]) / size[1 - a]));
+        json_array_append_new(loops, loop);
+    }
+    return json_pack("{s:s, s:[i,i], s:o, s:o}", "type", "bezier", "degree", 1, 1, "points", pts, "trim", loops);
+}
+
 int model_patches_json(const char *src, size_t len, char **json, struct sf_err *err)
 {
     struct solid sd;
@@ -763,8 +790,25 @@ int model_patches_json(const char *src, size_t len, char **json, struct sf_err *
     int rc = solid_of(src, len, NULL, &sd, err);
     if (rc)
         return rc;
+    /* where tubes end and begin in one plane, the plane's part of the surface for their overlapping
+     * caps, within a fifth of the tolerance POST /volume matches boundaries by */
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t k = 0; k < sd.set.n_pool; k++)
+        for (int d = 0; d < 3; d++) {
+            double x = sd.set.pool[k][d] / sd.set.pool[k][3];
+            lo[d] = fmin(lo[d], x), hi[d] = fmax(hi[d], x);
+        }
+    struct cap_regions joined;
+    bool *skip = malloc(sizeof *skip * (size_t)(sd.n_bands ? sd.n_bands : 1));
+    double diag = sd.set.n_pool ? sqrt(pow(hi[0] - lo[0], 2) + pow(hi[1] - lo[1], 2) + pow(hi[2] - lo[2], 2)) : 0.0;
+    if (!skip || solid_join_caps(&sd, 0.2 * SHELL_GAP_REL * diag, &joined, skip)) {
+        free(skip);
+        solid_free(&sd);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    }
     json_t *objs = json_array();
-    for (size_t k = 0; objs && k < sd.set.n; k++) {
+    for (int b = 0; objs && b < sd.n_bands; b++)
+        for (size_t k = sd.bands[b].first; !skip[b] && k < sd.bands[b].first + sd.bands[b].n; k++) {
         const struct patch *pt = &sd.set.patches[k];
         json_t *pts = json_array(), *w = pt->rational ? json_array() : NULL;
         for (int i = 0; i <= pt->p; i++)
@@ -788,6 +832,10 @@ int model_patches_json(const char *src, size_t len, char **json, struct sf_err *
         }
         json_array_append_new(objs, o);
     }
+    for (int k = 0; objs && k < joined.n; k++) /* each a plane patch over its loops' box, trimmed by them */
+        json_array_append_new(objs, plane_region_json(&joined.r[k]));
+    solid_cap_regions_free(&joined);
+    free(skip);
     solid_free(&sd);
     *json = dump(objs ? json_pack("{s:o}", "objects", objs) : NULL, err);
     return *json ? 0 : err->code;

@@ -124,6 +124,51 @@ static int model_object(json_t *j, const char *where, const struct model_resolve
     return rc;
 }
 
+/* "trim": loops in the surface's (u, v) domain, each an array of at least 3 [u, v] points (closed
+ * without repeating the first), whose even-odd inside is the surface's region (as an IGES 144's
+ * outer loop and holes): o's trim. */
+static int trim_loops(json_t *j, const char *where, struct object *o, struct sf_err *err)
+{
+    char p[400];
+    snprintf(p, sizeof p, "%s/trim", where);
+    size_t nl = json_array_size(j), total = 0;
+    if (!json_is_array(j) || nl == 0)
+        return sf_fail(err, SF_EINVAL, p, "expected an array of loops, each an array of [u, v] points");
+    for (size_t l = 0; l < nl; l++) {
+        json_t *loop = json_array_get(j, l);
+        snprintf(p, sizeof p, "%s/trim/%zu", where, l);
+        if (!json_is_array(loop) || json_array_size(loop) < 3)
+            return sf_fail(err, SF_EINVAL, p, "expected a loop of at least 3 [u, v] points");
+        if ((total += json_array_size(loop)) > TRIM_MAX_POINTS)
+            return sf_fail(err, SF_ELIMIT, p, "trim loops have more than %u points", TRIM_MAX_POINTS);
+    }
+    double(*pts)[2] = malloc(sizeof *pts * total), u0, u1, v0, v1;
+    size_t *counts = malloc(sizeof *counts * nl), at = 0;
+    int rc = !pts || !counts ? sf_fail(err, SF_ENOMEM, where, "out of memory") : 0;
+    nurbs_domain(&o->surf, &u0, &u1, &v0, &v1);
+    double su = 1e-9 * (u1 - u0), sv = 1e-9 * (v1 - v0);
+    for (size_t l = 0; !rc && l < nl; l++) {
+        json_t *loop = json_array_get(j, l);
+        counts[l] = json_array_size(loop);
+        for (size_t k = 0; !rc && k < counts[l]; k++, at++) {
+            snprintf(p, sizeof p, "%s/trim/%zu/%zu", where, l, k);
+            if (!(rc = numbers(json_array_get(loop, k), p, 2, pts[at], err)) &&
+                !(pts[at][0] >= u0 - su && pts[at][0] <= u1 + su && pts[at][1] >= v0 - sv && pts[at][1] <= v1 + sv))
+                rc = sf_fail(err, SF_EINVAL, p, "a trim point outside the surface's domain [%g, %g] x [%g, %g]", u0, u1,
+                             v0, v1);
+        }
+    }
+    if (!rc && !(o->trim = calloc(1, sizeof *o->trim)))
+        rc = sf_fail(err, SF_ENOMEM, where, "out of memory");
+    snprintf(p, sizeof p, "%s/trim", where);
+    if (!rc && (rc = trim_build(o->trim, (const double(*)[2])pts, counts, (int)nl, p, err))) { /* (nl < total / 3) */
+        free(o->trim);
+        o->trim = NULL;
+    }
+    free(pts), free(counts);
+    return rc;
+}
+
 static int object(json_t *j, const char *where, const struct model_resolver *models, struct scene *sc,
                   struct sf_err *err)
 {
@@ -212,6 +257,9 @@ static int object(json_t *j, const char *where, const struct model_resolver *mod
         if ((rc = numbers(json_object_get(j, "weights"), p, np, o->surf.weights, err)))
             return rc;
     }
+    json_t *tr = json_object_get(j, "trim");
+    if (tr && (rc = trim_loops(tr, where, o, err)))
+        return rc;
     json_t *m = json_object_get(j, "material");
     return m ? material(m, where, &o->mat, err) : 0;
 }

@@ -593,6 +593,8 @@ int mesh_join_caps(struct mesh *m, struct mesh_cap *caps, int n_caps)
             continue;
         int x = join_plane(&j, order + a, b - a, drop);
         joined |= x == 0;
+        for (int c = a; c < b; c++)
+            order[c]->joined = x == 0;
         rc = x == 1 ? 0 : x;
     }
     if (!rc && joined) { /* the joined planes' caps out, coinciding vertices as one */

@@ -18,6 +18,7 @@ struct mesh_cap {
     double z;
     bool up;
     size_t t0, t1;
+    bool joined;   /* set by mesh_join_caps: its plane joined (its triangles replaced) */
 };
 
 /* Where caps facing up (a tube ending below) and down (one beginning above) lie in one plane and

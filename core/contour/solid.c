@@ -582,7 +582,7 @@ static struct mesh_cap *add_cap(struct caps *cs, const struct mesh *m, const uns
     memcpy(c->ring, ring, sizeof *ring * (size_t)nu);
     for (int k = 0; k < nu; k++)
         c->wall[k] = SIZE_MAX;
-    c->n = nu, c->z = m->v[ring[0]][2], c->up = up, c->t0 = t0, c->t1 = m->n_t;
+    c->n = nu, c->z = m->v[ring[0]][2], c->up = up, c->t0 = t0, c->t1 = m->n_t, c->joined = false;
     cs->n++;
     return c;
 }
@@ -727,6 +727,195 @@ int solid_mesh(const struct solid *s, double tol, struct mesh *m)
     if (rc)
         solid_mesh_free(m);
     return rc;
+}
+
+/* The end rings of the tubes' flat caps, within tol, as mesh_tube makes them (their caps clipped,
+ * each ring edge with a wall triangle to a point a little off the plane, so that join.c can split
+ * it where rings cross), joined (join.c); the joined planes' triangles kept, every other one
+ * dropped. */
+static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *skip)
+{
+    memset(m, 0, sizeof *m);
+    for (int b = 0; b < s->n_bands; b++)
+        skip[b] = false;
+    struct caps cs = {0};
+    int *band_of = NULL, rc = 0; /* each cap's band */
+    size_t cap_band = 0;
+    /* the plane of each tube end's flat cap (NAN: none), so that only those sharing theirs with a cap
+     * facing the other way are sampled */
+    double *zs = malloc(sizeof *zs * (size_t)(2 * s->n_tubes + 1));
+    if (!zs)
+        return SF_ENOMEM;
+    for (int k = 0; k < s->n_tubes; k++)
+        for (int end = 0; end < 2; end++) {
+            const struct tube *tb = &s->tubes[k];
+            int b = end ? tb->first + tb->n - 1 : tb->first;
+            zs[2 * k + end] = tb->n > 1 && s->bands[b].kind == BAND_CAP
+                                  ? band_point(s, &s->bands[end ? b - 1 : b + 1], tb->hole, 0.0, end ? 1.0 : 0.0).z
+                                  : NAN;
+        }
+    for (int k = 0; k < s->n_tubes && !rc; k++) {
+        const struct tube *tb = &s->tubes[k];
+        bool shared[2] = {false, false};
+        for (int end = 0; end < 2; end++)
+            for (int o = 0; o < 2 * s->n_tubes && !shared[end]; o++) {
+                bool up = end ? !tb->hole : tb->hole, o_up = o % 2 ? !s->tubes[o / 2].hole : s->tubes[o / 2].hole;
+                shared[end] = up != o_up && fabs(zs[o] - zs[2 * k + end]) <= 1e-6 * (1 + fabs(zs[o]));
+            }
+        if (!shared[0] && !shared[1])
+            continue;
+        int nu;
+        double *us = choose_u(s, tb, tol, &nu);
+        unsigned *ring = us ? malloc(sizeof *ring * (size_t)nu) : NULL, *off = ring ? malloc(sizeof *off * (size_t)nu) : NULL;
+        rc = off ? 0 : SF_ENOMEM;
+        for (int end = 0; end < 2 && !rc && tb->n > 1; end++) {
+            int b = end ? tb->first + tb->n - 1 : tb->first, next = end ? b - 1 : b + 1;
+            if (!shared[end])
+                continue;
+            bool up = end ? !tb->hole : tb->hole; /* (a tube's top faces up, a hole's into the hole) */
+            for (int q = 0; q < nu && !rc; q++) {
+                vec3 p = band_point(s, &s->bands[next], tb->hole, us[q], end ? 1.0 : 0.0);
+                if (!(rc = add_vertex(m, p, &ring[q])))
+                    rc = add_vertex(m, v3_add(p, v3(0, 0, end ? -tol : tol)), &off[q]);
+            }
+            size_t t0 = m->n_t;
+            struct mesh_cap *c = rc || (rc = mesh_clip(m, ring, (size_t)nu, up)) ? NULL : add_cap(&cs, m, ring, nu, up, t0);
+            if (!rc && (!c || mem_reserve((void **)&band_of, &cap_band, (size_t)cs.n, sizeof *band_of)))
+                rc = SF_ENOMEM;
+            for (int q = 0; q < nu && !rc; q++) { /* the walls as mesh_tube's last (first) row has them */
+                int q1 = (q + 1) % nu;
+                size_t at = m->n_t;
+                rc = end ? add_tri(m, off[q], ring[q1], ring[q], tb->hole) : add_tri(m, ring[q], ring[q1], off[q1], tb->hole);
+                cs.c[cs.n - 1].wall[q] = m->n_t > at ? at : SIZE_MAX;
+            }
+            if (!rc)
+                band_of[cs.n - 1] = b;
+        }
+        free(us), free(ring), free(off);
+    }
+    free(zs);
+    if (!rc)
+        rc = mesh_join_caps(m, cs.c, cs.n);
+    size_t o = 0;
+    for (size_t t = 0; !rc && t < m->n_t; t++) { /* the joined planes' triangles */
+        double z = m->v[m->t[t][0]][2], dz = 1e-6 * (1 + fabs(z));
+        bool keep = false;
+        for (int c = 0; !keep && c < cs.n; c++)
+            keep = cs.c[c].joined && fabs(cs.c[c].z - z) <= dz;
+        for (int q = 1; keep && q < 3; q++)
+            keep = fabs(m->v[m->t[t][q]][2] - z) <= dz;
+        if (keep)
+            memmove(m->t[o++], m->t[t], sizeof *m->t);
+    }
+    m->n_t = o;
+    for (int c = 0; !rc && c < cs.n; c++)
+        skip[band_of[c]] = cs.c[c].joined;
+    caps_free(&cs);
+    free(band_of);
+    if (rc)
+        solid_mesh_free(m);
+    return rc;
+}
+
+/* Region r's loops: the directed edges of its triangles (ids into m) that no triangle of it has the
+ * other way, followed from each unused one until they close (where several leave one vertex, any:
+ * the even-odd region is the same). */
+static int region_loops(const struct mesh *m, const size_t *tris, size_t nt, struct cap_region *r)
+{
+    size_t ne = 3 * nt, *out = malloc(sizeof *out * (ne ? ne : 1));
+    unsigned(*e)[2] = malloc(sizeof *e * (ne ? ne : 1));
+    bool *used = calloc(ne ? ne : 1, sizeof *used);
+    size_t n_out = 0, cap = 0, n_pt = 0;
+    int rc = !out || !e || !used ? SF_ENOMEM : 0;
+    for (size_t k = 0; !rc && k < nt; k++)
+        for (int q = 0; q < 3; q++)
+            e[3 * k + (size_t)q][0] = m->t[tris[k]][q], e[3 * k + (size_t)q][1] = m->t[tris[k]][(q + 1) % 3];
+    for (size_t a = 0; !rc && a < ne; a++) { /* (a plane's triangles are a few thousand at most) */
+        bool inner = false;
+        for (size_t b = 0; !inner && b < ne; b++)
+            inner = e[b][0] == e[a][1] && e[b][1] == e[a][0];
+        if (!inner)
+            out[n_out++] = a;
+    }
+    r->lo[0] = r->lo[1] = INFINITY, r->hi[0] = r->hi[1] = -INFINITY;
+    for (size_t s0 = 0; !rc && s0 < n_out; s0++) {
+        if (used[s0])
+            continue;
+        size_t count = 0;
+        for (size_t cur = s0; !rc;) {
+            used[cur] = true;
+            const double *v = m->v[e[out[cur]][0]];
+            if (mem_reserve((void **)&r->pt, &cap, n_pt + 1, sizeof *r->pt)) {
+                rc = SF_ENOMEM;
+                break;
+            }
+            r->pt[n_pt][0] = v[0], r->pt[n_pt++][1] = v[1], count++;
+            for (int d = 0; d < 2; d++)
+                r->lo[d] = fmin(r->lo[d], v[d]), r->hi[d] = fmax(r->hi[d], v[d]);
+            size_t nx = SIZE_MAX;
+            for (size_t q = 0; q < n_out && nx == SIZE_MAX; q++)
+                if (!used[q] && e[out[q]][0] == e[out[cur]][1])
+                    nx = q;
+            if (nx == SIZE_MAX)
+                break; /* back where it began (or, were the boundary not closed, stopped) */
+            cur = nx;
+        }
+        size_t *grown = rc ? NULL : realloc(r->counts, sizeof *r->counts * (size_t)(r->n_loops + 1));
+        if (!grown)
+            rc = rc ? rc : SF_ENOMEM;
+        else
+            r->counts = grown, r->counts[r->n_loops++] = count;
+    }
+    free(out), free(e), free(used);
+    return rc;
+}
+
+int solid_join_caps(const struct solid *s, double tol, struct cap_regions *out, bool *skip)
+{
+    memset(out, 0, sizeof *out);
+    struct mesh m;
+    int rc = joined_caps(s, tol, &m, skip);
+    size_t *tris = rc ? NULL : malloc(sizeof *tris * (m.n_t ? m.n_t : 1));
+    bool *done = rc ? NULL : calloc(m.n_t ? m.n_t : 1, sizeof *done);
+    if (!rc && (!tris || !done))
+        rc = SF_ENOMEM;
+    for (size_t t0 = 0; !rc && t0 < m.n_t; t0++) { /* the planes' triangles by plane and side */
+        if (done[t0])
+            continue;
+        double z = m.v[m.t[t0][0]][2];
+        size_t nt = 0;
+        bool up = false;
+        for (size_t t = t0; t < m.n_t; t++) {
+            const double *a = m.v[m.t[t][0]], *b = m.v[m.t[t][1]], *c = m.v[m.t[t][2]];
+            bool tup = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) > 0;
+            if (t == t0)
+                up = tup;
+            if (!done[t] && tup == up && fabs(a[2] - z) <= 1e-6 * (1 + fabs(z)))
+                done[t] = true, tris[nt++] = t;
+        }
+        struct cap_region *grown = realloc(out->r, sizeof *out->r * (size_t)(out->n + 1));
+        if (!grown) {
+            rc = SF_ENOMEM;
+            break;
+        }
+        out->r = grown;
+        struct cap_region *r = &out->r[out->n++];
+        *r = (struct cap_region){.z = z, .up = up};
+        rc = region_loops(&m, tris, nt, r);
+    }
+    free(tris), free(done);
+    solid_mesh_free(&m);
+    if (rc)
+        solid_cap_regions_free(out);
+    return rc;
+}
+
+void solid_cap_regions_free(struct cap_regions *r)
+{
+    for (int k = 0; k < r->n; k++)
+        free(r->r[k].counts), free(r->r[k].pt);
+    free(r->r);
+    memset(r, 0, sizeof *r);
 }
 
 void solid_mesh_free(struct mesh *m)

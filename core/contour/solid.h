@@ -82,6 +82,26 @@ double solid_default_tolerance(const struct solid_measures *m);
  * area down, never below solid_default_tolerance) whose volume is within 0.05 % of the model's;
  * *tol receives it. Returns as solid_mesh. */
 int solid_mesh_default(const struct solid *s, const struct solid_measures *sm, struct mesh *m, double *tol);
+/* The flat surface of the planes where tubes end and begin (issue 18: a model's patches close as one
+ * solid where its contours branch): the caps' rims sampled within tol and joined as solid_mesh
+ * joins them (join.h), as regions, one a plane and side: the boundary of the joined triangles facing
+ * that way, as closed loops in (x, y) whose even-odd inside is the region (loop k: counts[k] points
+ * from pt + the earlier counts, the first not repeated). skip (caller's array of n_bands) is set for
+ * the cap bands the regions replace. Returns 0 or SF_ENOMEM. */
+struct cap_region {
+    double z;
+    bool up;
+    int n_loops;
+    size_t *counts;
+    double (*pt)[2];
+    double lo[2], hi[2];     /* the loops' bounds */
+};
+struct cap_regions {
+    struct cap_region *r;
+    int n;
+};
+int solid_join_caps(const struct solid *s, double tol, struct cap_regions *out, bool *skip);
+void solid_cap_regions_free(struct cap_regions *r);
 void solid_mesh_free(struct mesh *m);
 /* Signed volume enclosed (sum of signed tetrahedra from the origin). */
 double solid_mesh_volume(const struct mesh *m);

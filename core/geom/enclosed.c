@@ -231,11 +231,13 @@ int enclosed_measure_objects(const struct patch_set *ps, struct enclosed *e, dou
 #define SHELL_EDGE_POINTS 64 /* at most, along each edge of an untrimmed domain (then halved as add_seg needs) */
 #define SHELL_EDGE_STEP 50.0   /* ... one every this many tol along it, at least 4 */
 #define SHELL_MAX_ENTRIES (1u << 26)
+#define SHELL_PARALLEL 0.9     /* chords whose directions' cosine is under this cross: no facing read */
 
 struct bseg { /* one boundary segment, in (u, v) and its chord in space */
     double a[2], b[2];
     vec3 pa, pb;
     int part, loop;
+    int side;        /* an untrimmed domain's edge (0-3), or -1 on a trim loop */
     size_t index;    /* within its loop */
     size_t loop_len;
 };
@@ -306,7 +308,7 @@ static int add_seg(struct bseg **segs, size_t *n, size_t *cap, const struct surf
     memcpy(g->a, a, sizeof g->a);
     memcpy(g->b, b, sizeof g->b);
     g->pa = pa, g->pb = pb;
-    g->part = part, g->loop = loop;
+    g->part = part, g->loop = loop, g->side = -1;
     return 0;
 }
 
@@ -353,6 +355,7 @@ static int boundary_segments(const struct shell_part *parts, int n, double tol, 
                 len += v3_len(v3_sub(q1, q0));
             }
             int np = (int)fmin(SHELL_EDGE_POINTS, fmax(4.0, ceil(len / (SHELL_EDGE_STEP * tol))));
+            size_t first_of_side = *n_segs;
             for (int i = 0; i < np; i++) {
                 double f0 = (double)i / np, f1 = (double)(i + 1) / np;
                 const double a[2] = {corner[e][0] + f0 * (corner[e + 1][0] - corner[e][0]),
@@ -362,6 +365,8 @@ static int boundary_segments(const struct shell_part *parts, int n, double tol, 
                 if (add_uv_seg(segs, n_segs, &cap, parts[k].s, a, b, tol, k, loop))
                     return SF_ENOMEM;
             }
+            for (size_t i = first_of_side; i < *n_segs; i++)
+                (*segs)[i].side = e;
         }
         for (size_t i = first; i < *n_segs; i++)
             (*segs)[i].index = i - first, (*segs)[i].loop_len = *n_segs - first;
@@ -409,11 +414,15 @@ static int by_pair(const void *x, const void *y)
     return p->a != q->a ? (p->a > q->a) - (p->a < q->a) : (p->b > q->b) - (p->b < q->b);
 }
 
-/* Whether a and b are the same stretch of one loop (at most two segments apart along it). */
+/* Whether a and b are the same stretch of one loop: one edge of an untrimmed domain, or at most
+ * two segments apart along a trim loop, running the same way (a loop that doubles back on itself,
+ * a spike of a contour, has two stretches there). */
 static bool along(const struct bseg *a, const struct bseg *b)
 {
-    if (a->loop != b->loop)
+    if (a->loop != b->loop || v3_dot(v3_sub(a->pb, a->pa), v3_sub(b->pb, b->pa)) < 0)
         return false;
+    if (a->side >= 0)
+        return a->side == b->side;
     size_t di = a->index > b->index ? a->index - b->index : b->index - a->index;
     return di <= 2 || a->loop_len - di <= 2;
 }
@@ -504,7 +513,10 @@ int enclosed_shell(const struct shell_part *parts, int n, double tol, struct she
             continue; /* matched, but which way the two face is not to be read here: a surface
                        * whose opposite edges come within tol of each other (a sliver between two
                        * slices, a seam) has both on its neighbour */
-        vec3 e = v3_sub(s->pb, s->pa);
+        vec3 e = v3_sub(s->pb, s->pa), eb = v3_sub(best->pb, best->pa);
+        if (fabs(v3_dot(e, eb)) < SHELL_PARALLEL * v3_len(e) * v3_len(eb))
+            continue; /* boundaries that cross (where two rings do, in a plane of branchings) meet at a
+                       * point: which way the two face is not to be read there either */
         const double ts[2] = {s->b[0] - s->a[0], s->b[1] - s->a[1]}, tb[2] = {best->b[0] - best->a[0], best->b[1] - best->a[1]};
         const double ub[2] = {best->a[0] + best_f * tb[0], best->a[1] + best_f * tb[1]};
         int fa = facing(&parts[s->part], mid, ts, e), fb = facing(&parts[best->part], ub, tb, e);

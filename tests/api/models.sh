@@ -66,7 +66,10 @@ for f in eclipse_bladder eclipse_ptv dicompyler_tumor_bed; do
 done
 code=$(status POST /model -H "$J" --data-binary @"$C/synthetic_torus_branching.json"); tid=$(field id)
 [ "$code" = 201 ] && status GET "/models/$tid/patches" >/dev/null && cp "$T/body" "$T/tp.json"
-check "a branching model's patches (its tubes' caps overlap): 422, problem+json, the daemon still up" '[ "$(status POST /volume -H "$J" --data-binary @"$T/tp.json")" = 422 ] && is_problem 422 && grep -q "one-sided shell" "$T/body" && [ "$(status GET /livez)" = 200 ]'
+[ "$code" = 201 ] && status GET "/models/$tid" >/dev/null && tvol=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['volume_mm3'])" "$T/body")
+check "a branching model's patches: the planes where tubes end and begin as trimmed flat patches" 'python3 -c "import json,sys; o=json.load(open(sys.argv[1]))[\"objects\"]; t=[x for x in o if \"trim\" in x]; sys.exit(not (len(t) == 4 and all(x[\"degree\"] == [1, 1] for x in t)))" "$T/tp.json"'
+check "... posted back to POST /volume: one closed solid, none turned, the model's volume" '[ "$(status POST /volume -H "$J" --data-binary @"$T/tp.json")" = 200 ] && grep -q "\"closed\":true" "$T/body" && grep -q "\"surfaces_turned\":0" "$T/body" && python3 -c "import json,sys; v=json.load(open(sys.argv[1]))[\"volume_mm3\"]; sys.exit(abs(v/float(sys.argv[2])-1)>1e-6)" "$T/body" "$tvol"'
+check "... rendered as a scene" '[ "$(status POST "/render?width=64&height=48" -H "$J" --data-binary @"$T/tp.json")" = 200 ] && [ "$(header Content-Type)" = image/png ]'
 check "patches render as a scene" '[ "$(status POST "/render?width=64&height=48" -H "$J" --data-binary @"$T/p.json")" = 200 ] && [ "$(header Content-Type)" = image/png ]'
 
 check "a mesh is a job of its own kind" '[ "$(status GET "/models/$id/mesh?tolerance=0.5")" = 200 ] && mj=$(header X-Job-Id) && [ "$(status GET /jobs/$mj)" = 200 ] && grep -q "\"kind\":\"mesh\"" "$T/body"'
@@ -91,6 +94,25 @@ check "a model object in a scene" '[ "$(status POST "/render?width=64&height=48"
 check "422 unknown model in a scene" '[ "$(status POST /render -H "$J" --data-binary "{\"objects\":[{\"type\":\"model\",\"id\":\"0123456789abcdef\"}]}")" = 422 ] && grep -q "\"pointer\":\"/objects/0/id\"" "$T/body"'
 check "422 model object without id" '[ "$(status POST /render -H "$J" --data-binary "{\"objects\":[{\"type\":\"model\"}]}")" = 422 ] && grep -q "\"pointer\":\"/objects/0/id\"" "$T/body"'
 check "422 model material" '[ "$(status POST /render -H "$J" --data-binary "{\"objects\":[{\"type\":\"model\",\"id\":\"$id\",\"material\":{\"color\":[1,1]}}]}")" = 422 ] && grep -q "/objects/0/material" "$T/body"'
+
+# ---- trimmed patches in a JSON scene -------------------------------------------------------------
+# a flat unit square seen from above, whole and trimmed to a disk of radius 0.4 (64 points): pi 0.16
+flat() { printf '{"objects":[{"degree":[1,1],"points":[[0,0,0],[0,1,0],[1,0,0],[1,1,0]]%s}]}' "$1"; }
+DISK=$(python3 -c "import math; print([[0.5 + 0.4 * math.cos(math.pi * k / 32), 0.5 + 0.4 * math.sin(math.pi * k / 32)] for k in range(64)])")
+VIEW="/render?width=128&height=128&eye=0.5,0.5,3&target=0.5,0.5,0&up=0,1,0&fov=30"
+status POST "$VIEW" -H "$J" --data-binary "$(flat "")" >/dev/null && cp "$T/body" "$T/whole.png"
+code=$(status POST "$VIEW" -H "$J" --data-binary "$(flat ",\"trim\":[$DISK]")")
+check "a patch trimmed to a disk draws the disk: pi 0.16 of the square's pixels" '[ "$code" = 200 ] && cp "$T/body" "$T/disk.png" && python3 -c "import sys; r=float(sys.argv[2])/float(sys.argv[1]); sys.exit(abs(r-0.5027)>0.02)" "$(python3 tests/tools/png_cover.py "$T/whole.png")" "$(python3 tests/tools/png_cover.py "$T/disk.png")"'
+code=$(status POST "$VIEW" -H "$J" --data-binary "$(flat ",\"trim\":[$DISK,[[0.4,0.4],[0.6,0.4],[0.6,0.6],[0.4,0.6]]]")")
+check "... with a square hole (even-odd): fewer pixels" '[ "$code" = 200 ] && python3 -c "import sys; sys.exit(not 0 < float(sys.argv[2]) < float(sys.argv[1]))" "$(python3 tests/tools/png_cover.py "$T/disk.png")" "$(python3 tests/tools/png_cover.py "$T/body")"'
+for bad in '5|/objects/0/trim' '[]|/objects/0/trim' '[[[0,0],[1,0]]]|/objects/0/trim/0' '[[[0,0],[1,0],[2,1]]]|/objects/0/trim/0/2' \
+           '[[[0,0],[1,0],["a",1]]]|/objects/0/trim/0/2/0' '[[[0,0],[1,0],[1]]]|/objects/0/trim/0/2' \
+           '[[[0,0],[0.5,0],[1,0]]]|/objects/0/trim'; do
+    trim=${bad%|*} ptr=${bad#*|}
+    code=$(status POST "$VIEW" -H "$J" --data-binary "$(flat ",\"trim\":$trim")")
+    check "trim $trim: 422 at $ptr" '[ "$code" = 422 ] && is_problem 422 && grep -q "\"pointer\":\"$ptr\"" "$T/body"'
+done
+check "the daemon is up after the bad trims" '[ "$(status GET /livez)" = 200 ]'
 
 # ---- POST /volume of a scene whose patches close ---------------------------------------------------
 printf '{"objects":[' >"$T/cube.json"

@@ -1,0 +1,44 @@
+#!/bin/sh
+# A contour model's patches (`surfd model --patches`) posted back to `surfd volume`, the figures path
+# of POST /volume (issue 18): every shared contour file and RT Structure Set ROI closes as one solid
+# with its model's volume, branchings (trimmed flat patches where tubes end and begin) and slivers
+# between slices included; those over the request's caps are refused with the cap's message.
+set -u
+cd "$(dirname "$0")/../.." || exit 1
+S=./build/surfd
+C="${SURFD_DATA:-../shared/data}/contours"
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+. tests/check.inc
+
+# $1: a name for the check; the rest: surfd model's input and options. The patches' figures must be
+# closed, none turned (where they are matched along their boundaries), the model's volume within 1e-6; or, with BIG set, over a cap.
+closes() {
+    name=$1; shift
+    $S model "$@" --patches "$T/p.json" >"$T/model" 2>"$T/err"
+    mvol=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['volume_mm3'])" "$T/model" 2>/dev/null)
+    $S volume "$T/p.json" >"$T/out" 2>"$T/err"; rc=$?
+    if [ -n "${BIG:-}" ]; then
+        check "$name: over the request's caps, refused so" '[ $rc -eq 1 ] && grep -q "JSON values\|objects" "$T/err"'
+        return
+    fi
+    check "$name: its patches close with its volume" '[ $rc -eq 0 ] && grep -q "\"closed\":true" "$T/out" && ! grep -q "\"surfaces_turned\":[1-9]" "$T/out" && python3 -c "import json,sys; v=json.load(open(sys.argv[1]))[\"volume_mm3\"]; sys.exit(abs(v/float(sys.argv[2])-1)>1e-6)" "$T/out" "$mvol"'
+}
+
+for f in synthetic_ellipsoid synthetic_bean dicompyler_heart dicompyler_tumor_bed eclipse_bladder eclipse_ptv \
+         eclipse_rectum eclipse_femoral_head_lt; do
+    closes "$f" "$C/$f.json"
+done
+for caps in flat slab dome; do
+    closes "synthetic_torus_branching, $caps caps" "$C/synthetic_torus_branching.json" --caps "$caps"
+done
+check "the torus's branching planes are trimmed flat patches" 'python3 -c "import json,sys; o=json.load(open(sys.argv[1]))[\"objects\"]; sys.exit(sum(\"trim\" in x for x in o) != 4)" "$T/p.json"'
+closes "synthetic_torus_branching.rtstruct.dcm" "$C/synthetic_torus_branching.rtstruct.dcm" --roi torus_branching
+for roi in Borders Heart Nodes Scar "Tumor Bed" "Tumor Bed Block"; do
+    closes "dicompyler RT Structure Set, $roi" "$C/dicompyler-core_example_rtss.dcm" --roi "$roi"
+done
+for roi in Bladder "Femoral Head Lt" "Femoral Head RT" PTV Rectum; do
+    closes "Eclipse prostate phantom, $roi" "$C/slicerrt_EclipseProstatePhantom_RS.dcm" --roi "$roi"
+done
+BIG=1 closes "dicompyler_lt_lung_multicontour" "$C/dicompyler_lt_lung_multicontour.json"
+BIG=1 closes "eclipse_body" "$C/eclipse_body.json"
+checks_done
