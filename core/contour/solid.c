@@ -817,25 +817,30 @@ static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *
     return rc;
 }
 
+static int by_edge(const void *x, const void *y)
+{
+    const unsigned *a = x, *b = y;
+    return a[0] != b[0] ? (a[0] > b[0]) - (a[0] < b[0]) : (a[1] > b[1]) - (a[1] < b[1]);
+}
+
 /* Region r's loops: the directed edges of its triangles (ids into m) that no triangle of it has the
- * other way, followed from each unused one until they close (where several leave one vertex, any:
- * the even-odd region is the same). */
+ * other way (sorted, each looked up), followed from each unused one until they close (where several
+ * leave one vertex, any: the even-odd region is the same). */
 static int region_loops(const struct mesh *m, const size_t *tris, size_t nt, struct cap_region *r)
 {
-    size_t ne = 3 * nt, *out = malloc(sizeof *out * (ne ? ne : 1));
-    unsigned(*e)[2] = malloc(sizeof *e * (ne ? ne : 1));
+    size_t ne = 3 * nt, n_out = 0, cap = 0, n_pt = 0;
+    unsigned(*e)[2] = malloc(sizeof *e * (ne ? ne : 1)), (*out)[2] = malloc(sizeof *out * (ne ? ne : 1));
     bool *used = calloc(ne ? ne : 1, sizeof *used);
-    size_t n_out = 0, cap = 0, n_pt = 0;
     int rc = !out || !e || !used ? SF_ENOMEM : 0;
     for (size_t k = 0; !rc && k < nt; k++)
         for (int q = 0; q < 3; q++)
             e[3 * k + (size_t)q][0] = m->t[tris[k]][q], e[3 * k + (size_t)q][1] = m->t[tris[k]][(q + 1) % 3];
-    for (size_t a = 0; !rc && a < ne; a++) { /* (a plane's triangles are a few thousand at most) */
-        bool inner = false;
-        for (size_t b = 0; !inner && b < ne; b++)
-            inner = e[b][0] == e[a][1] && e[b][1] == e[a][0];
-        if (!inner)
-            out[n_out++] = a;
+    if (!rc)
+        qsort(e, ne, sizeof *e, by_edge);
+    for (size_t k = 0; !rc && k < ne; k++) {
+        unsigned back[2] = {e[k][1], e[k][0]};
+        if (!bsearch(back, e, ne, sizeof *e, by_edge))
+            out[n_out][0] = e[k][0], out[n_out++][1] = e[k][1]; /* (sorted by start too) */
     }
     r->lo[0] = r->lo[1] = INFINITY, r->hi[0] = r->hi[1] = -INFINITY;
     for (size_t s0 = 0; !rc && s0 < n_out; s0++) {
@@ -844,7 +849,7 @@ static int region_loops(const struct mesh *m, const size_t *tris, size_t nt, str
         size_t count = 0;
         for (size_t cur = s0; !rc;) {
             used[cur] = true;
-            const double *v = m->v[e[out[cur]][0]];
+            const double *v = m->v[out[cur][0]];
             if (mem_reserve((void **)&r->pt, &cap, n_pt + 1, sizeof *r->pt)) {
                 rc = SF_ENOMEM;
                 break;
@@ -852,13 +857,19 @@ static int region_loops(const struct mesh *m, const size_t *tris, size_t nt, str
             r->pt[n_pt][0] = v[0], r->pt[n_pt++][1] = v[1], count++;
             for (int d = 0; d < 2; d++)
                 r->lo[d] = fmin(r->lo[d], v[d]), r->hi[d] = fmax(r->hi[d], v[d]);
-            size_t nx = SIZE_MAX;
-            for (size_t q = 0; q < n_out && nx == SIZE_MAX; q++)
-                if (!used[q] && e[out[q]][0] == e[out[cur]][1])
-                    nx = q;
-            if (nx == SIZE_MAX)
+            size_t lo = 0, hi = n_out; /* the first boundary edge from cur's end, then an unused one */
+            while (lo < hi) {
+                size_t mid = (lo + hi) / 2;
+                if (out[mid][0] < out[cur][1])
+                    lo = mid + 1;
+                else
+                    hi = mid;
+            }
+            while (lo < n_out && out[lo][0] == out[cur][1] && used[lo])
+                lo++;
+            if (lo == n_out || out[lo][0] != out[cur][1])
                 break; /* back where it began (or, were the boundary not closed, stopped) */
-            cur = nx;
+            cur = lo;
         }
         size_t *grown = rc ? NULL : realloc(r->counts, sizeof *r->counts * (size_t)(r->n_loops + 1));
         if (!grown)
