@@ -807,30 +807,33 @@ int model_patches_json(const char *src, size_t len, char **json, struct sf_err *
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     }
     json_t *objs = json_array();
-    for (int b = 0; objs && b < sd.n_bands; b++)
-        for (size_t k = sd.bands[b].first; !skip[b] && k < sd.bands[b].first + sd.bands[b].n; k++) {
-        const struct patch *pt = &sd.set.patches[k];
-        json_t *pts = json_array(), *w = pt->rational ? json_array() : NULL;
-        for (int i = 0; i <= pt->p; i++)
-            for (int j = 0; j <= pt->q; j++) {
-                vec3 P = bezier_point(pt, i, j);
-                json_array_append_new(pts, json_pack("[f,f,f]", P.x, P.y, P.z));
-                if (w)
-                    json_array_append_new(w, json_real(pt->cw[i * (pt->q + 1) + j][3]));
+    for (int b = 0; objs && b < sd.n_bands; b++) {
+        if (skip[b]) /* (a cap the plane's part of the surface replaces) */
+            continue;
+        for (size_t k = sd.bands[b].first; k < sd.bands[b].first + sd.bands[b].n; k++) {
+            const struct patch *pt = &sd.set.patches[k];
+            json_t *pts = json_array(), *w = pt->rational ? json_array() : NULL;
+            for (int i = 0; i <= pt->p; i++)
+                for (int j = 0; j <= pt->q; j++) {
+                    vec3 P = bezier_point(pt, i, j);
+                    json_array_append_new(pts, json_pack("[f,f,f]", P.x, P.y, P.z));
+                    if (w)
+                        json_array_append_new(w, json_real(pt->cw[i * (pt->q + 1) + j][3]));
+                }
+            json_t *o = json_pack("{s:s, s:[i,i], s:o}", "type", w ? "nurbs" : "bezier", "degree", pt->p, pt->q, "points", pts);
+            if (w) { /* one span: clamped knots of the Bézier degree */
+                json_t *ku = json_array(), *kv = json_array();
+                for (int i = 0; i < 2 * (pt->p + 1); i++)
+                    json_array_append_new(ku, json_real(i > pt->p));
+                for (int j = 0; j < 2 * (pt->q + 1); j++)
+                    json_array_append_new(kv, json_real(j > pt->q));
+                json_object_set_new(o, "size", json_pack("[i,i]", pt->p + 1, pt->q + 1));
+                json_object_set_new(o, "knots_u", ku);
+                json_object_set_new(o, "knots_v", kv);
+                json_object_set_new(o, "weights", w);
             }
-        json_t *o = json_pack("{s:s, s:[i,i], s:o}", "type", w ? "nurbs" : "bezier", "degree", pt->p, pt->q, "points", pts);
-        if (w) { /* one span: clamped knots of the Bézier degree */
-            json_t *ku = json_array(), *kv = json_array();
-            for (int i = 0; i < 2 * (pt->p + 1); i++)
-                json_array_append_new(ku, json_real(i > pt->p));
-            for (int j = 0; j < 2 * (pt->q + 1); j++)
-                json_array_append_new(kv, json_real(j > pt->q));
-            json_object_set_new(o, "size", json_pack("[i,i]", pt->p + 1, pt->q + 1));
-            json_object_set_new(o, "knots_u", ku);
-            json_object_set_new(o, "knots_v", kv);
-            json_object_set_new(o, "weights", w);
+            json_array_append_new(objs, o);
         }
-        json_array_append_new(objs, o);
     }
     for (int k = 0; objs && k < joined.n; k++) /* each a plane patch over its loops' box, trimmed by them */
         json_array_append_new(objs, plane_region_json(&joined.r[k]));

@@ -486,7 +486,10 @@ static int cutting_pairs(const struct mesh *m, const struct contour_set *cs, dou
  * every shared contour file's mesh is one outer shell (the lung's holes that end inside it are
  * cavities), closed, with no triangle of a cap plane cut by another, and the volume held. Without the
  * join the torus is 4 shells with 9210 such pairs, the lung 14 with 3829. (The lung's 353 pairs
- * elsewhere, at z -75.9, are its side surface folding where the contours' correspondence twists.) */
+ * elsewhere are not the join's: 137 are the half-spacing extension of a hole poking out through the
+ * body where it grows between two levels - the hole at z -74.44 lies wholly outside the lung's one
+ * contour at -77.44 - and most of the rest, at z -106.7..-105.9, the side surface folding between
+ * the dissimilar contours at -107.44 and -104.44, where the two contours' parameters line up badly.) */
 TEST(branchings_are_one_surface)
 {
     const struct {
