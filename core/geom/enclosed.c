@@ -267,25 +267,34 @@ static size_t bucket_of(const struct seg_grid *g, const int c[3])
     return (size_t)((h ^ h >> 29) & (g->buckets - 1));
 }
 
-/* Bins each segment into the cells its box grown by tol meets (counting when fill is false). */
+/* Bins each segment into the cells its box grown by tol meets, a long one piece by piece (pieces of
+ * a cell at most, so that its entries go as its length, not as its box's volume); counting when at
+ * is NULL, and then only up to SHELL_MAX_ENTRIES (past it the count is all the caller needs). */
 static size_t grid_bin(struct seg_grid *g, const struct bseg *segs, size_t n, double tol, uint32_t *at)
 {
     size_t total = 0;
+    const vec3 t = v3(tol, tol, tol);
     for (size_t k = 0; k < n; k++) {
-        int c0[3], c1[3];
-        vec3 t = v3(tol, tol, tol);
-        cell_of(g, v3_sub(v3_min(segs[k].pa, segs[k].pb), t), c0);
-        cell_of(g, v3_add(v3_max(segs[k].pa, segs[k].pb), t), c1);
-        for (int x = c0[0]; x <= c1[0]; x++)
-            for (int y = c0[1]; y <= c1[1]; y++)
-                for (int z = c0[2]; z <= c1[2]; z++) {
-                    size_t c = bucket_of(g, (int[3]){x, y, z});
-                    total++;
-                    if (at)
-                        g->seg[at[c]++] = (uint32_t)k;
-                    else if (total <= SHELL_MAX_ENTRIES)
-                        g->first[c + 1]++;
-                }
+        vec3 d = v3_sub(segs[k].pb, segs[k].pa);
+        double pieces = ceil(v3_len(d) / g->cell);
+        int np = pieces > 1 ? (int)fmin(pieces, 1e6) : 1;
+        for (int i = 0; i < np; i++) {
+            vec3 a = v3_add(segs[k].pa, v3_scale(d, (double)i / np)), b = v3_add(segs[k].pa, v3_scale(d, (i + 1.0) / np));
+            int c0[3], c1[3];
+            cell_of(g, v3_sub(v3_min(a, b), t), c0);
+            cell_of(g, v3_add(v3_max(a, b), t), c1);
+            for (int x = c0[0]; x <= c1[0]; x++)
+                for (int y = c0[1]; y <= c1[1]; y++)
+                    for (int z = c0[2]; z <= c1[2]; z++) {
+                        size_t c = bucket_of(g, (int[3]){x, y, z});
+                        if (at)
+                            g->seg[at[c]++] = (uint32_t)k;
+                        else if (++total > SHELL_MAX_ENTRIES)
+                            return total;
+                        else
+                            g->first[c + 1]++;
+                    }
+        }
     }
     return total;
 }
@@ -443,16 +452,13 @@ int enclosed_shell(const struct shell_part *parts, int n, double tol, struct she
     vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
     for (size_t k = 0; k < n_segs; k++)
         lo = v3_min(lo, v3_min(segs[k].pa, segs[k].pb)), hi = v3_max(hi, v3_max(segs[k].pa, segs[k].pb));
-    /* cells twice the mean chord (4 tol at least): a few cells a chord, a few chords a cell; and
-     * an eighth of the longest at least, so that no chord is binned into more than 9^3 cells */
-    double mean = 0, longest = 0;
-    for (size_t k = 0; k < n_segs; k++) {
-        double len = v3_len(v3_sub(segs[k].pb, segs[k].pa));
-        mean += len / (double)n_segs, longest = fmax(longest, len);
-    }
+    /* cells twice the mean chord (4 tol at least): a few cells a chord, a few chords a cell */
+    double mean = 0;
+    for (size_t k = 0; k < n_segs; k++)
+        mean += v3_len(v3_sub(segs[k].pb, segs[k].pa)) / (double)n_segs;
     vec3 size = v3_sub(hi, lo);
     g.lo = lo;
-    g.cell = fmax(fmax(fmax(2 * mean, longest / 8), 4.0 * tol), fmax(size.x, fmax(size.y, size.z)) / 1e6);
+    g.cell = fmax(fmax(2 * mean, 4.0 * tol), fmax(size.x, fmax(size.y, size.z)) / 1e6);
     for (g.buckets = 1024; g.buckets < 2 * n_segs && g.buckets < SHELL_MAX_ENTRIES; g.buckets *= 2)
         ;
     size_t cells = g.buckets;
