@@ -90,7 +90,11 @@ extern "C" int rtstruct_strip(const void *buf, size_t len, unsigned char **out, 
             ok = kd->findOrCreateSequenceItem(DCM_StructureSetROISequence, item, -2).good() &&
                  copy_elements(seq->getItem(i), item, ROI_TAGS, 3);
         }
-    if (ok && ds->findAndGetSequence(DCM_ROIContourSequence, seq).good() && seq)
+    seq = NULL;
+    bool contours = ok && ds->findAndGetSequence(DCM_ROIContourSequence, seq).good() && seq;
+    if (contours && seq->card() == 0) /* kept, empty: its ROIs read as skipped, as they were */
+        ok = kd->insert(new DcmSequenceOfItems(DCM_ROIContourSequence)).good();
+    if (contours)
         for (unsigned long r = 0; ok && r < seq->card(); r++) {
             DcmItem *roi = seq->getItem(r), *item = NULL;
             ok = kd->findOrCreateSequenceItem(DCM_ROIContourSequence, item, -2).good() &&
