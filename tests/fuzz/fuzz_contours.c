@@ -1,6 +1,7 @@
 /* fuzz_contours.c - contour JSON: parse and clean; small inputs are also modelled and measured
- * (the volume job's whole path) and meshed (the caps joined where tubes meet: join.c), large ones
- * only parsed, to keep each run short. */
+ * (the volume job's whole path), meshed (the caps joined where tubes meet: join.c) and their joined
+ * planes taken as /patches exports them (solid_join_caps), large ones only parsed, to keep each run
+ * short. */
 #include "../../api/contour_json.h"
 #include "../../api/model_json.h"
 #include "../../core/contour/solid.h"
@@ -22,6 +23,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             solid_measure(&sd, &sm);
             if (solid_mesh(&sd, 10 * solid_default_tolerance(&sm), &m) == 0)
                 solid_mesh_free(&m);
+            bool *skip = malloc(sizeof *skip * (size_t)(sd.n_bands ? sd.n_bands : 1));
+            struct cap_regions regions; /* the planes where tubes meet, as /patches exports them */
+            if (skip && solid_join_caps(&sd, 10 * solid_default_tolerance(&sm), &regions, skip) == 0)
+                solid_cap_regions_free(&regions);
+            free(skip);
             solid_free(&sd);
         }
         contour_set_free(&cs);
