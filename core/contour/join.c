@@ -569,6 +569,8 @@ static int by_z(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+bool join_same_plane(double a, double b) { return fabs(a - b) <= 1e-6 * (1 + fabs(b)); }
+
 int mesh_join_caps(struct mesh *m, struct mesh_cap *caps, int n_caps)
 {
     struct join j = {.m = m};
@@ -587,7 +589,7 @@ int mesh_join_caps(struct mesh *m, struct mesh_cap *caps, int n_caps)
     bool joined = false;
     for (int a = 0, b; !rc && a < n_caps; a = b) {
         bool up = false, down = false;
-        for (b = a; b < n_caps && order[b]->z - order[a]->z <= 1e-6 * (1 + fabs(order[a]->z)); b++)
+        for (b = a; b < n_caps && join_same_plane(order[b]->z, order[a]->z); b++)
             up |= order[b]->up, down |= !order[b]->up;
         if (!up || !down)
             continue;

@@ -28,6 +28,9 @@ struct mesh_cap {
  * its caps as they were. Returns 0 or SF_ENOMEM (the mesh then unchanged but for unused vertices). */
 int mesh_join_caps(struct mesh *m, struct mesh_cap *caps, int n_caps);
 
+/* Whether heights a and b are one cap plane (within 1e-6, relative above 1). */
+bool join_same_plane(double a, double b);
+
 /* Appends triangle (a, b, c) unless two of its vertices are one. 0, SF_ENOMEM or SF_ELIMIT. */
 int mesh_tri(struct mesh *m, unsigned a, unsigned b, unsigned c);
 

@@ -729,6 +729,10 @@ int solid_mesh(const struct solid *s, double tol, struct mesh *m)
     return rc;
 }
 
+/* Whether end e (0 bottom, 1 top) of tube tb faces up: a tube's top does, a hole's bottom (it faces
+ * into the hole). */
+static bool end_up(const struct tube *tb, int e) { return e ? !tb->hole : tb->hole; }
+
 /* The end rings of the tubes' flat caps, within tol, as mesh_tube makes them (their caps clipped,
  * each ring edge with a wall triangle to a point a little off the plane, so that join.c can split
  * it where rings cross), joined (join.c); the joined planes' triangles kept, every other one
@@ -756,23 +760,21 @@ static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *
         }
     for (int k = 0; k < s->n_tubes && !rc; k++) {
         const struct tube *tb = &s->tubes[k];
-        bool shared[2] = {false, false};
+        bool shared[2] = {false, false}; /* (NAN shares nothing) */
         for (int end = 0; end < 2; end++)
-            for (int o = 0; o < 2 * s->n_tubes && !shared[end]; o++) {
-                bool up = end ? !tb->hole : tb->hole, o_up = o % 2 ? !s->tubes[o / 2].hole : s->tubes[o / 2].hole;
-                shared[end] = up != o_up && fabs(zs[o] - zs[2 * k + end]) <= 1e-6 * (1 + fabs(zs[o]));
-            }
+            for (int o = 0; o < 2 * s->n_tubes && !shared[end]; o++)
+                shared[end] = end_up(tb, end) != end_up(&s->tubes[o / 2], o % 2) && join_same_plane(zs[2 * k + end], zs[o]);
         if (!shared[0] && !shared[1])
             continue;
         int nu;
         double *us = choose_u(s, tb, tol, &nu);
         unsigned *ring = us ? malloc(sizeof *ring * (size_t)nu) : NULL, *off = ring ? malloc(sizeof *off * (size_t)nu) : NULL;
         rc = off ? 0 : SF_ENOMEM;
-        for (int end = 0; end < 2 && !rc && tb->n > 1; end++) {
+        for (int end = 0; end < 2 && !rc; end++) {
             int b = end ? tb->first + tb->n - 1 : tb->first, next = end ? b - 1 : b + 1;
             if (!shared[end])
                 continue;
-            bool up = end ? !tb->hole : tb->hole; /* (a tube's top faces up, a hole's into the hole) */
+            bool up = end_up(tb, end);
             for (int q = 0; q < nu && !rc; q++) {
                 vec3 p = band_point(s, &s->bands[next], tb->hole, us[q], end ? 1.0 : 0.0);
                 if (!(rc = add_vertex(m, p, &ring[q])))
@@ -798,12 +800,12 @@ static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *
         rc = mesh_join_caps(m, cs.c, cs.n);
     size_t o = 0;
     for (size_t t = 0; !rc && t < m->n_t; t++) { /* the joined planes' triangles */
-        double z = m->v[m->t[t][0]][2], dz = 1e-6 * (1 + fabs(z));
+        double z = m->v[m->t[t][0]][2];
         bool keep = false;
         for (int c = 0; !keep && c < cs.n; c++)
-            keep = cs.c[c].joined && fabs(cs.c[c].z - z) <= dz;
+            keep = cs.c[c].joined && join_same_plane(cs.c[c].z, z);
         for (int q = 1; keep && q < 3; q++)
-            keep = fabs(m->v[m->t[t][q]][2] - z) <= dz;
+            keep = join_same_plane(m->v[m->t[t][q]][2], z);
         if (keep)
             memmove(m->t[o++], m->t[t], sizeof *m->t);
     }
@@ -901,7 +903,7 @@ int solid_join_caps(const struct solid *s, double tol, struct cap_regions *out, 
             bool tup = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) > 0;
             if (t == t0)
                 up = tup;
-            if (!done[t] && tup == up && fabs(a[2] - z) <= 1e-6 * (1 + fabs(z)))
+            if (!done[t] && tup == up && join_same_plane(a[2], z))
                 done[t] = true, tris[nt++] = t;
         }
         struct cap_region *grown = realloc(out->r, sizeof *out->r * (size_t)(out->n + 1));
