@@ -18,6 +18,17 @@ static int unit_failed_checks, unit_passed, unit_failed;
         }                                                                             \
     } while (0)
 
+/* CHECK, and the test case goes no further when it fails: what follows would read what was never
+ * made (a data file that is missing, a parse that failed). */
+#define REQUIRE(cond)                                                                   \
+    do {                                                                                \
+        if (!(cond)) {                                                                  \
+            fprintf(stderr, "  %s:%d: REQUIRE(%s) failed\n", __FILE__, __LINE__, #cond); \
+            unit_failed_checks++;                                                       \
+            return;                                                                     \
+        }                                                                               \
+    } while (0)
+
 #define CHECK_NEAR(a, b, tol)                                                                    \
     do {                                                                                         \
         double unit_a = (a), unit_b = (b);                                                       \

@@ -58,7 +58,7 @@ TEST(bpt_equals_json)
     char *a = unit_data("scenes", "teapot.json", &la), *b = unit_data("scenes", "teapot.bpt", &lb);
     struct scene sa, sb;
     enum image_format img;
-    CHECK(a && b && scene_parse(a, la, SCENE_JSON, &sa, &img, NULL) == 0 && scene_parse(b, lb, SCENE_BPT, &sb, &img, NULL) == 0);
+    REQUIRE(a && b && scene_parse(a, la, SCENE_JSON, &sa, &img, NULL) == 0 && scene_parse(b, lb, SCENE_BPT, &sb, &img, NULL) == 0);
     for (int o = 0; o < 32; o++)
         for (int k = 0; k < 48; k++)
             CHECK_NEAR(sa.objects[o].surf.points[k], sb.objects[o].surf.points[k], 0);
@@ -73,10 +73,10 @@ TEST(vrml_order_and_concatenation)
 {
     size_t l1, l2, l3;
     char *d1 = unit_data("scenes", "duck1.nurbs", &l1), *d2 = unit_data("scenes", "duck2.nurbs", &l2), *d3 = unit_data("scenes", "duck3.nurbs", &l3);
-    CHECK(d1 && d2 && d3);
+    REQUIRE(d1 && d2 && d3);
     struct scene sc;
     enum image_format img;
-    CHECK(scene_parse(d1, l1, SCENE_VRML, &sc, &img, NULL) == 0);
+    REQUIRE(scene_parse(d1, l1, SCENE_VRML, &sc, &img, NULL) == 0);
     const struct surface *s = &sc.objects[0].surf;
     CHECK(s->n_u == 13 && s->n_v == 14);
     for (int i = 1; i < 13; i++) /* point (i, 0) for every i: the collapsed row */

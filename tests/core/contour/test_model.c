@@ -140,7 +140,7 @@ TEST(interpolates_points_and_faces_outward)
     char *buf = unit_data("contours", "synthetic_bean.json", &len);
     struct contour_set cs;
     struct patch_set ps;
-    CHECK(buf && model_of(buf, len, &cs, &ps, NULL) == 0);
+    REQUIRE(buf && model_of(buf, len, &cs, &ps, NULL) == 0);
     long found = 0, total = 0;
     for (int k = 0; k < cs.n_slices; k++)
         for (int i = 0; i < cs.s[k].n; i++, total++) {
@@ -183,7 +183,7 @@ TEST(closed_form_equals_quadrature)
         char *buf = unit_data("contours", files[f], &len);
         struct contour_set cs;
         struct patch_set ps;
-        CHECK(buf && model_of(buf, len, &cs, &ps, NULL) == 0);
+        REQUIRE(buf && model_of(buf, len, &cs, &ps, NULL) == 0);
         double v, ends[2];
         CHECK(model_volume_closed(&cs, PARABOLIC, &v, ends, NULL) == 0);
         struct solid_measures m;
@@ -207,7 +207,7 @@ TEST(volume_quadrature_is_exact)
     char *buf = unit_data("contours", "synthetic_ellipsoid.json", &len);
     struct contour_set cs;
     struct patch_set ps;
-    CHECK(buf && model_of(buf, len, &cs, &ps, NULL) == 0);
+    REQUIRE(buf && model_of(buf, len, &cs, &ps, NULL) == 0);
     double v8 = 0;
     for (size_t p = 0; p < ps.n; p++)
         for (int a = 0; a < 8; a++)
@@ -307,7 +307,7 @@ TEST(meshes_are_closed_and_hold_the_volume)
         struct solid sd;
         struct solid_measures sm;
         struct mesh m;
-        CHECK(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
+        REQUIRE(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
         CHECK(solid_build(&cs, PARABOLIC, cases[k].caps, &sd, NULL) == 0);
         solid_measure(&sd, &sm);
         CHECK(solid_mesh(&sd, solid_default_tolerance(&sm), &m) == 0);
@@ -510,7 +510,7 @@ TEST(branchings_are_one_surface)
         struct solid sd;
         struct solid_measures sm;
         struct mesh m;
-        CHECK(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
+        REQUIRE(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
         if (!buf)
             continue;
         CHECK(solid_build(&cs, PARABOLIC, cases[k].caps, &sd, NULL) == 0);
@@ -545,7 +545,7 @@ TEST(the_four_methods)
         char *buf = unit_data("contours", cases[k].file, &len);
         struct contour_set cs;
         struct contour_request req;
-        CHECK(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
+        REQUIRE(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
         struct solid ref;
         CHECK(solid_build(&cs, PARABOLIC, CAPS_FLAT, &ref, NULL) == 0);
         for (int m = 0; m < 4; m++) {
@@ -622,7 +622,7 @@ TEST(polar_parameterisation)
         char *buf = unit_data("contours", cases[k].file, &len);
         struct contour_set cs;
         struct contour_request req;
-        CHECK(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
+        REQUIRE(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
         struct solid_measures arc, polar;
         measure(&cs, CAPS_FLAT, &arc);
         struct solid sd;

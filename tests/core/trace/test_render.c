@@ -184,7 +184,7 @@ TEST(contour_model_exact)
     struct scene sc;
     scene_init(&sc);
     struct material mat = scene_default_material();
-    CHECK(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
+    REQUIRE(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
     CHECK((src = contour_json_write(&cs, &req)) != NULL);
     CHECK(src && model_scene_objects(src, strlen(src), &sc, &mat, "/objects/0", NULL) == 0);
     const int W = 400, H = 300;
