@@ -238,6 +238,111 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
     return rc == SF_ENOMEM ? sf_fail(err, rc, "", "out of memory building the solid") : rc;
 }
 
+/* ---- holes that would leave the body ------------------------------------------------------------
+ * A hole's chain end extends flat by half a spacing (model_chains), a prism of its end contour. Where
+ * the body's side surface moves in between two levels (the left lung's hole at z -74.44 lies outside
+ * the lung's one contour at -77.44), that prism pokes out through the body: the mesh cuts itself and
+ * the volume takes away what was never in the body. Ours (the seeds are silent): such an end stops at
+ * the greatest tenth of its extension up to which the contour's points, and the midpoints between
+ * them, lie inside the sections of the body's tubes at every tenth, by at least HOLE_MARGIN of the
+ * spacing. The sections are those of side and wall bands (z linear in t), sampled HOLE_SAMPLES times
+ * a patch. (A hole cut by the body at its own level as well ends there, flat.) */
+#define HOLE_MARGIN 0.02
+#define HOLE_SAMPLES 4
+
+/* Sets in[i] for the points p[i] at height z inside the section of the tubes built so far that are
+ * not holes, by at least margin. */
+static int mark_inside(const struct solid *s, const double (*p)[2], int n, double z, double margin, bool *in)
+{
+    for (int k = 0; k < s->n_tubes; k++) {
+        const struct tube *tb = &s->tubes[k];
+        if (tb->hole || !tb->n)
+            continue;
+        for (int b = tb->first; b < tb->first + tb->n; b++) {
+            const struct band *bd = &s->bands[b];
+            if (bd->kind != BAND_SIDE && bd->kind != BAND_WALL)
+                continue;
+            struct patch p0 = resolved(&s->set, bd->first);
+            vec3 lo, hi;
+            bezier_eval(&p0, 0.0, 0.0, &lo, NULL, NULL);
+            bezier_eval(&p0, 0.0, 1.0, &hi, NULL, NULL);
+            if (!(z >= fmin(lo.z, hi.z) && z <= fmax(lo.z, hi.z)) || lo.z == hi.z)
+                continue;
+            double t = (z - lo.z) / (hi.z - lo.z);
+            size_t m = HOLE_SAMPLES * bd->n;
+            double(*ring)[2] = malloc(sizeof *ring * m);
+            if (!ring)
+                return SF_ENOMEM;
+            for (size_t q = 0; q < bd->n; q++) {
+                struct patch pt = resolved(&s->set, bd->first + q);
+                for (int i = 0; i < HOLE_SAMPLES; i++) {
+                    vec3 P;
+                    bezier_eval(&pt, (double)i / HOLE_SAMPLES, t, &P, NULL, NULL);
+                    ring[HOLE_SAMPLES * q + (size_t)i][0] = P.x, ring[HOLE_SAMPLES * q + (size_t)i][1] = P.y;
+                }
+            }
+            for (int i = 0; i < n; i++) {
+                if (in[i])
+                    continue;
+                bool odd = false;
+                double d2 = INFINITY;
+                for (size_t a = 0, c = m - 1; a < m; c = a++) {
+                    const double *A = ring[a], *C = ring[c];
+                    if ((A[1] > p[i][1]) != (C[1] > p[i][1]) &&
+                        p[i][0] < A[0] + (C[0] - A[0]) * (p[i][1] - A[1]) / (C[1] - A[1]))
+                        odd = !odd;
+                    double ex = C[0] - A[0], ey = C[1] - A[1], l2 = ex * ex + ey * ey;
+                    double f = l2 > 0 ? fmin(fmax(((p[i][0] - A[0]) * ex + (p[i][1] - A[1]) * ey) / l2, 0.0), 1.0) : 0.0;
+                    double dx = A[0] + f * ex - p[i][0], dy = A[1] + f * ey - p[i][1];
+                    d2 = fmin(d2, dx * dx + dy * dy);
+                }
+                in[i] = odd && d2 >= margin * margin;
+            }
+            free(ring);
+        }
+    }
+    return 0;
+}
+
+/* The extensions of the hole chain's ends shortened where the prism would leave the body. */
+static int hole_reach(const struct solid *s, const struct contour_set *cs, struct model_chain *ch)
+{
+    for (int e = 0; e < 2; e++) {
+        const struct contour_slice *c = &cs->s[ch->idx[e ? ch->n - 1 : 0]];
+        if (ch->ext[e] <= 0 || ch->at_end[e])
+            continue;
+        int n = 2 * c->n, ok = 0;
+        double(*p)[2] = malloc(sizeof *p * (size_t)n);
+        bool *in = malloc((size_t)n);
+        if (!p || !in) {
+            free(p), free(in);
+            return SF_ENOMEM;
+        }
+        for (int i = 0; i < c->n; i++) {
+            const double *a = c->p[i], *b = c->p[(i + 1) % c->n];
+            p[2 * i][0] = a[0], p[2 * i][1] = a[1];
+            p[2 * i + 1][0] = 0.5 * (a[0] + b[0]), p[2 * i + 1][1] = 0.5 * (a[1] + b[1]);
+        }
+        int rc = 0;
+        for (int k = 1; k <= 10 && !rc; k++) {
+            memset(in, 0, (size_t)n);
+            double z = c->z + (e ? 1 : -1) * ch->ext[e] * k / 10;
+            rc = mark_inside(s, (const double(*)[2])p, n, z, HOLE_MARGIN * ch->spacing[e], in);
+            bool all = true;
+            for (int i = 0; i < n && all; i++)
+                all = in[i];
+            if (!all)
+                break;
+            ok = k;
+        }
+        free(p), free(in);
+        if (rc)
+            return rc;
+        ch->ext[e] *= ok / 10.0;
+    }
+    return 0;
+}
+
 int solid_build(const struct contour_set *cs, struct model_opts o, enum model_caps caps, struct solid *s,
                 struct sf_err *err)
 {
@@ -251,8 +356,16 @@ int solid_build(const struct contour_set *cs, struct model_opts o, enum model_ca
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
     s->n_tubes = n_chains;
     s->progress = o.progress;
-    for (int c = 0; c < n_chains && !rc && !(rc = sf_poll(o.progress, (double)c / n_chains, err)); c++)
-        rc = tube_build(s, cs, &s->chains[c], o, caps, storage, &s->tubes[c], err);
+    /* the body's tubes, then the holes' (hole_reach reads the body) */
+    for (int pass = 0, done = 0; pass < 2 && !rc; pass++)
+        for (int c = 0; c < n_chains && !rc; c++) {
+            if (s->chains[c].hole != (pass == 1) || (rc = sf_poll(o.progress, (double)done++ / n_chains, err)))
+                continue;
+            if (pass == 1 && hole_reach(s, cs, &s->chains[c]))
+                rc = sf_fail(err, SF_ENOMEM, "", "out of memory building the solid");
+            else
+                rc = tube_build(s, cs, &s->chains[c], o, caps, storage, &s->tubes[c], err);
+        }
     free(storage);
     nurbs_patches_fix(&s->set);
     if (rc)
