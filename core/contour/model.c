@@ -181,6 +181,109 @@ static void curve_eval(const struct curve *c, double u, double *x, double *y)
     *y = blend(c->lsq, u, ts, ys);
 }
 
+/* ---- lining up a chain's curves ----
+ * The +x ray out of the centroid starts every curve at a like place while contours are alike, but
+ * on a C-shaped contour it may cross another lobe from one level to the next (the left lung at z
+ * -107.44 and -104.44: corresponding points 18 mm apart on average, 9 mm from the best start), and
+ * the side surface between them folds through itself. Ours (the seeds are silent): each curve after
+ * a chain's first may start elsewhere, where the mean squared distance to the curve below at equal
+ * parameter steps is least (ALIGN_SHIFTS starts tried on ALIGN_SAMPLES points, the best refined by
+ * golden section), when that start is nearer by ALIGN_GAIN in root mean square; otherwise the ray's
+ * start stands, as it lines up unlike shapes better than least distance does (the lung at -77.44
+ * and -74.44, where its section almost doubles: 48 pairs of cutting triangles with the ray, 105 with
+ * least distance). Lung: 446 -> 42 cutting pairs with hole_reach (solid.c). A start only moves the
+ * parameter along the curve, whose shape is its points' and their spacing's, so every method reads
+ * the same curves and a model's volume and patches agree as before. */
+#define ALIGN_SAMPLES 64
+#define ALIGN_SHIFTS 256
+#define ALIGN_GAIN 0.7
+
+/* The curve started at parameter d: u -> u - d (mod 1), the points rotated to keep u increasing. */
+static void curve_shift(struct curve *c, double d)
+{
+    int n = c->n, first = 0;
+    double best = 2.0;
+    for (int k = 0; k < n; k++) {
+        double w = c->u[k] - d;
+        w -= floor(w);
+        if (w < best)
+            best = w, first = k;
+    }
+    double(*p)[2] = malloc(sizeof *p * (size_t)n), *u = malloc(sizeof *u * (size_t)n);
+    if (!p || !u) { /* (left as it was) */
+        free(p), free(u);
+        return;
+    }
+    for (int k = 0; k < n; k++) {
+        int i = (first + k) % n;
+        p[k][0] = c->p[i][0], p[k][1] = c->p[i][1];
+        u[k] = c->u[i] - d;
+        u[k] -= floor(u[k]);
+    }
+    free(c->p), free(c->u);
+    c->p = p, c->u = u;
+}
+
+static void curve_at(const struct curve *c, double u, double *x, double *y) { curve_eval(c, u - floor(u), x, y); }
+
+/* Mean squared distance of b at u + d from a's samples sa (at u = (m + 0.5) / ALIGN_SAMPLES). */
+static double align_cost(double (*sa)[2], const struct curve *b, double d)
+{
+    double sum = 0.0;
+    for (int m = 0; m < ALIGN_SAMPLES; m++) {
+        double x, y;
+        curve_at(b, (m + 0.5) / ALIGN_SAMPLES + d, &x, &y);
+        sum += (x - sa[m][0]) * (x - sa[m][0]) + (y - sa[m][1]) * (y - sa[m][1]);
+    }
+    return sum / ALIGN_SAMPLES;
+}
+
+/* Starts b where it lines up with a (the curve below it), if that is worth it (ALIGN_GAIN). */
+static void curve_align(const struct curve *a, struct curve *b)
+{
+    const int K = ALIGN_SHIFTS, M = ALIGN_SAMPLES, step = K / M;
+    double sa[ALIGN_SAMPLES][2], sb[ALIGN_SHIFTS][2], best = INFINITY;
+    for (int m = 0; m < M; m++)
+        curve_at(a, (m + 0.5) / M, &sa[m][0], &sa[m][1]);
+    for (int k = 0; k < K; k++)
+        curve_at(b, (k + 0.5 * step) / K, &sb[k][0], &sb[k][1]);
+    int at = 0;
+    for (int s = 0; s < K; s++) { /* start s / K: b's samples s, s + step, ... against a's */
+        double sum = 0.0;
+        for (int m = 0; m < M; m++) {
+            const double *q = sb[(m * step + s) % K];
+            sum += (q[0] - sa[m][0]) * (q[0] - sa[m][0]) + (q[1] - sa[m][1]) * (q[1] - sa[m][1]);
+        }
+        if (sum < best)
+            best = sum, at = s;
+    }
+    const double g = 0.5 * (sqrt(5.0) - 1.0); /* golden section between the neighbouring starts */
+    double lo = (at - 1.0) / K, hi = (at + 1.0) / K, x1 = hi - g * (hi - lo), x2 = lo + g * (hi - lo);
+    double f1 = align_cost(sa, b, x1), f2 = align_cost(sa, b, x2);
+    for (int it = 0; it < 24; it++)
+        if (f1 < f2)
+            hi = x2, x2 = x1, f2 = f1, x1 = hi - g * (hi - lo), f1 = align_cost(sa, b, x1);
+        else
+            lo = x1, x1 = x2, f1 = f2, x2 = lo + g * (hi - lo), f2 = align_cost(sa, b, x2);
+    double d = 0.5 * (lo + hi);
+    if (align_cost(sa, b, d) < ALIGN_GAIN * ALIGN_GAIN * align_cost(sa, b, 0.0))
+        curve_shift(b, d - floor(d));
+}
+
+/* The curves of a chain's contours (one a level, bottom up), each after the first lined up with the
+ * one below unless the parameters are polar (the angle lines them up). */
+static int curves_build(const struct contour_set *cs, bool lsq, bool polar, struct curve *cv)
+{
+    for (int j = 0; j < cs->n_slices; j++) {
+        int rc = curve_build(&cs->s[j], lsq, polar, &cv[j]);
+        if (rc)
+            return rc;
+        if (j > 0 && !polar)
+            curve_align(&cv[j - 1], &cv[j]);
+    }
+    return 0;
+}
+
 /* Power-basis cubic per segment i of a curve, in t = (u - u_i) / (u_{i+1} - u_i). */
 struct curve_poly {
     int n;
@@ -317,9 +420,10 @@ static int curve_surface(const struct contour_set *cs, bool lsq, bool polar, con
     struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
     if (!cv || !cp)
         rc = SF_ENOMEM;
+    if (!rc)
+        rc = curves_build(cs, lsq, polar, cv);
     for (int j = 0; j < n && !rc; j++)
-        if (!(rc = curve_build(&cs->s[j], lsq, polar, &cv[j])))
-            rc = curve_poly_build(&cv[j], &cp[j]);
+        rc = curve_poly_build(&cv[j], &cp[j]);
     double inv[4][4];
     bernstein_inverse(inv);
     double *brk = NULL;
@@ -409,20 +513,20 @@ static double (*grid_sample(const struct contour_set *cs, int N, bool polar))[3]
 {
     int n = cs->n_slices;
     double(*Q)[3] = malloc(sizeof *Q * (size_t)n * (size_t)N);
-    for (int j = 0; Q && j < n; j++) {
-        struct curve c = {0};
-        if (curve_build(&cs->s[j], false, polar, &c)) {
-            curve_free(&c);
-            free(Q);
-            return NULL;
-        }
+    struct curve *cv = calloc((size_t)n, sizeof *cv);
+    if (!Q || !cv || curves_build(cs, false, polar, cv)) {
+        free(Q);
+        Q = NULL;
+    }
+    for (int j = 0; Q && j < n; j++)
         for (int k = 0; k < N; k++) {
             double *q = Q[(size_t)j * N + k];
-            curve_eval(&c, (double)k / N, &q[0], &q[1]);
+            curve_eval(&cv[j], (double)k / N, &q[0], &q[1]);
             q[2] = cs->s[j].z;
         }
-        curve_free(&c);
-    }
+    for (int j = 0; cv && j < n; j++)
+        curve_free(&cv[j]);
+    free(cv);
     return Q;
 }
 
@@ -783,9 +887,10 @@ int model_volume_closed(const struct contour_set *cs, struct model_opts o, doubl
     double *M = calloc((size_t)n * 7, sizeof *M);
     if (!cv || !cp || !M)
         rc = SF_ENOMEM;
+    if (!rc)
+        rc = curves_build(cs, lsq, o.polar, cv);
     for (int j = 0; j < n && !rc; j++)
-        if (!(rc = curve_build(&cs->s[j], lsq, o.polar, &cv[j])))
-            rc = curve_poly_build(&cv[j], &cp[j]);
+        rc = curve_poly_build(&cv[j], &cp[j]);
     for (int j = 0; j < n && !rc; j++)
         for (int l = j; l <= j + 3 && l < n; l++)
             M[(size_t)j * 7 + (size_t)(l - j + 3)] = mixed_area(&cp[j], &cp[l], l > j);

@@ -441,25 +441,28 @@ static int by_x0(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* Pairs of triangles that cut each other, among those within `reach` of the planes half way between
- * the slices (where tubes end and begin) or of the end slices, by a sweep along x: those where one
- * lies in such a plane (a cap's), returned, and the others (a side folding on itself) into *others. */
-static int cutting_pairs(const struct mesh *m, const struct contour_set *cs, double reach, int *others)
+/* Whether z is a plane where tubes end and begin: half way between levels, or an end level. */
+static bool cap_plane(const struct contour_set *cs, double z)
 {
-    size_t n = 0;
-    struct near_tri *nt = malloc(sizeof *nt * m->n_t);
-    for (size_t t = 0; t < m->n_t; t++) {
+    bool on = z == cs->s[0].z || z == cs->s[cs->n_slices - 1].z;
+    for (int k = 0; k + 1 < cs->n_slices && !on; k++)
+        on = fabs(z - 0.5 * (cs->s[k].z + cs->s[k + 1].z)) < 1e-9;
+    return on;
+}
+
+/* Pairs of triangles that cut each other, by a sweep along x: those where one lies in a plane where
+ * tubes end and begin (a cap's), returned, and the others (a side folding on itself, a cavity
+ * cutting the outer surface) into *others. */
+static int cutting_pairs(const struct mesh *m, const struct contour_set *cs, int *others)
+{
+    size_t n = m->n_t;
+    struct near_tri *nt = malloc(sizeof *nt * n);
+    for (size_t t = 0; t < n; t++) {
         struct near_tri x = {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}, t};
         for (int i = 0; i < 3; i++)
             for (int c = 0; c < 3; c++)
                 x.lo[c] = fmin(x.lo[c], m->v[m->t[t][i]][c]), x.hi[c] = fmax(x.hi[c], m->v[m->t[t][i]][c]);
-        bool keep = x.lo[2] <= cs->s[0].z + reach || x.hi[2] >= cs->s[cs->n_slices - 1].z - reach;
-        for (int k = 0; k + 1 < cs->n_slices && !keep; k++) {
-            double z = 0.5 * (cs->s[k].z + cs->s[k + 1].z);
-            keep = x.lo[2] <= z + reach && x.hi[2] >= z - reach;
-        }
-        if (keep)
-            nt[n++] = x;
+        nt[t] = x;
     }
     qsort(nt, n, sizeof *nt, by_x0);
     int pairs = 0;
@@ -476,7 +479,10 @@ static int cutting_pairs(const struct mesh *m, const struct contour_set *cs, dou
                     shared |= ta[i] == tb[k];
             const double *p[3] = {m->v[ta[0]], m->v[ta[1]], m->v[ta[2]]}, *q[3] = {m->v[tb[0]], m->v[tb[1]], m->v[tb[2]]};
             if (!shared && tris_cut(p, q))
-                ++*(nt[a].lo[2] == nt[a].hi[2] || nt[b].lo[2] == nt[b].hi[2] ? &pairs : others);
+                ++*((nt[a].lo[2] == nt[a].hi[2] && cap_plane(cs, nt[a].lo[2])) ||
+                            (nt[b].lo[2] == nt[b].hi[2] && cap_plane(cs, nt[b].lo[2]))
+                        ? &pairs
+                        : others);
         }
     free(nt);
     return pairs;
@@ -485,23 +491,23 @@ static int cutting_pairs(const struct mesh *m, const struct contour_set *cs, dou
 /* Issue 18: where chains branch, merge or hold islands, the caps that meet in a plane are one surface:
  * every shared contour file's mesh is one outer shell (the lung's holes that end inside it are
  * cavities), closed, with no triangle of a cap plane cut by another, and the volume held. Without the
- * join the torus is 4 shells with 9210 such pairs, the lung 14 with 3829. (The lung's 353 pairs
- * elsewhere are not the join's: 137 are the half-spacing extension of a hole poking out through the
- * body where it grows between two levels - the hole at z -74.44 lies wholly outside the lung's one
- * contour at -77.44 - and most of the rest, at z -106.7..-105.9, the side surface folding between
- * the dissimilar contours at -107.44 and -104.44, where the two contours' parameters line up badly.) */
+ * join the torus is 4 shells with 9210 such pairs, the lung 14 with 3829. Elsewhere, no triangles
+ * cut each other but the lung's 42 pairs (446 before hole_reach and curve_align: holes' ends poking
+ * out of the body where it moves in between levels, 247; the side folding between unlike contours
+ * where their starts lined up badly, 114 at z -106): 7 where a hole's side (z 9.56..12.56) meets the
+ * body's, the rest by small holes near the surface (z -103, 40..41) and in two folds (-106, -75). */
 TEST(branchings_are_one_surface)
 {
     const struct {
         const char *file;
         enum model_caps caps;
-        int cavities;
-    } cases[] = {{"synthetic_torus_branching.json", CAPS_FLAT, 0}, {"synthetic_torus_branching.json", CAPS_SLAB, 0},
-                 {"synthetic_torus_branching.json", CAPS_DOME, 0}, {"dicompyler_lt_lung_multicontour.json", CAPS_FLAT, 40},
-                 {"dicompyler_heart.json", CAPS_FLAT, 0},          {"dicompyler_tumor_bed.json", CAPS_FLAT, 0},
-                 {"eclipse_ptv.json", CAPS_FLAT, 0},               {"eclipse_body.json", CAPS_FLAT, 0},
-                 {"eclipse_bladder.json", CAPS_FLAT, 0},           {"eclipse_rectum.json", CAPS_FLAT, 0},
-                 {"eclipse_femoral_head_lt.json", CAPS_FLAT, 0},   {"synthetic_bean.json", CAPS_FLAT, 0}};
+        int cavities, folds;
+    } cases[] = {{"synthetic_torus_branching.json", CAPS_FLAT, 0, 0}, {"synthetic_torus_branching.json", CAPS_SLAB, 0, 0},
+                 {"synthetic_torus_branching.json", CAPS_DOME, 0, 0}, {"dicompyler_lt_lung_multicontour.json", CAPS_FLAT, 40, 42},
+                 {"dicompyler_heart.json", CAPS_FLAT, 0, 0},          {"dicompyler_tumor_bed.json", CAPS_FLAT, 0, 0},
+                 {"eclipse_ptv.json", CAPS_FLAT, 0, 0},               {"eclipse_body.json", CAPS_FLAT, 0, 0},
+                 {"eclipse_bladder.json", CAPS_FLAT, 0, 0},           {"eclipse_rectum.json", CAPS_FLAT, 0, 0},
+                 {"eclipse_femoral_head_lt.json", CAPS_FLAT, 0, 0},   {"synthetic_bean.json", CAPS_FLAT, 0, 0}};
     for (size_t k = 0; k < sizeof cases / sizeof *cases; k++) {
         size_t len;
         char *buf = unit_data("contours", cases[k].file, &len);
@@ -517,13 +523,13 @@ TEST(branchings_are_one_surface)
         solid_measure(&sd, &sm);
         double tol;
         CHECK(solid_mesh_default(&sd, &sm, &m, &tol) == 0);
-        int outer, cavities, folds, cut = cutting_pairs(&m, &cs, 0.1, &folds);
+        int outer, cavities, folds, cut = cutting_pairs(&m, &cs, &folds);
         shells(&m, &outer, &cavities);
         double rel = solid_mesh_volume(&m) / sm.volume - 1.0;
         fprintf(stderr, "  %s (caps %d): %d chains, %d outer shell(s), %d cavities, %d pairs cutting a cap plane's triangles "
                 "(%d elsewhere), volume %+.4f %%\n",
                 cases[k].file, (int)cases[k].caps, sd.n_tubes, outer, cavities, cut, folds, 100 * rel);
-        CHECK(outer == 1 && cavities == cases[k].cavities && cut == 0);
+        CHECK(outer == 1 && cavities == cases[k].cavities && cut == 0 && folds <= cases[k].folds);
         CHECK(watertight(&m) && fabs(rel) <= 5e-4);
         solid_mesh_free(&m);
         solid_free(&sd);
