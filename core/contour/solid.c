@@ -246,7 +246,8 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
  * the greatest tenth of its extension up to which the contour's points, and the midpoints between
  * them, lie inside the sections of the body's tubes at every tenth, by at least HOLE_MARGIN of the
  * spacing. The sections are those of side and wall bands (z linear in t), sampled HOLE_SAMPLES times
- * a patch. (A hole cut by the body at its own level as well ends there, flat.) */
+ * a patch. A hole cut by the body at its own level ends there, flat, unless it has no other level:
+ * then it keeps its extensions (a contour of no volume is no hole). */
 #define HOLE_MARGIN 0.02
 #define HOLE_SAMPLES 4
 
@@ -307,6 +308,7 @@ static int mark_inside(const struct solid *s, const double (*p)[2], int n, doubl
 /* The extensions of the hole chain's ends shortened where the prism would leave the body. */
 static int hole_reach(const struct solid *s, const struct contour_set *cs, struct model_chain *ch)
 {
+    double was[2] = {ch->ext[0], ch->ext[1]};
     for (int e = 0; e < 2; e++) {
         const struct contour_slice *c = &cs->s[ch->idx[e ? ch->n - 1 : 0]];
         if (ch->ext[e] <= 0 || ch->at_end[e])
@@ -340,6 +342,8 @@ static int hole_reach(const struct solid *s, const struct contour_set *cs, struc
             return rc;
         ch->ext[e] *= ok / 10.0;
     }
+    if (ch->n == 1 && ch->ext[0] + ch->ext[1] <= 0) /* (a hole of one level keeps some height) */
+        ch->ext[0] = was[0], ch->ext[1] = was[1];
     return 0;
 }
 

@@ -492,10 +492,10 @@ static int cutting_pairs(const struct mesh *m, const struct contour_set *cs, int
  * every shared contour file's mesh is one outer shell (the lung's holes that end inside it are
  * cavities), closed, with no triangle of a cap plane cut by another, and the volume held. Without the
  * join the torus is 4 shells with 9210 such pairs, the lung 14 with 3829. Elsewhere, no triangles
- * cut each other but the lung's 42 pairs (446 before hole_reach and curve_align: holes' ends poking
- * out of the body where it moves in between levels, 247; the side folding between unlike contours
- * where their starts lined up badly, 114 at z -106): 7 where a hole's side (z 9.56..12.56) meets the
- * body's, the rest by small holes near the surface (z -103, 40..41) and in two folds (-106, -75). */
+ * cut each other but 36 pairs of the lung's (446 before hole_reach and curve_align: holes' ends
+ * poking out of the body where it moves in between levels, 247; the side folding between unlike
+ * contours whose starts lined up badly, 114 at z -106): where a hole's side meets the body's, by
+ * small holes near the surface, and in folds between unlike contours. */
 TEST(branchings_are_one_surface)
 {
     const struct {
@@ -503,7 +503,7 @@ TEST(branchings_are_one_surface)
         enum model_caps caps;
         int cavities, folds;
     } cases[] = {{"synthetic_torus_branching.json", CAPS_FLAT, 0, 0}, {"synthetic_torus_branching.json", CAPS_SLAB, 0, 0},
-                 {"synthetic_torus_branching.json", CAPS_DOME, 0, 0}, {"dicompyler_lt_lung_multicontour.json", CAPS_FLAT, 40, 42},
+                 {"synthetic_torus_branching.json", CAPS_DOME, 0, 0}, {"dicompyler_lt_lung_multicontour.json", CAPS_FLAT, 40, 36},
                  {"dicompyler_heart.json", CAPS_FLAT, 0, 0},          {"dicompyler_tumor_bed.json", CAPS_FLAT, 0, 0},
                  {"eclipse_ptv.json", CAPS_FLAT, 0, 0},               {"eclipse_body.json", CAPS_FLAT, 0, 0},
                  {"eclipse_bladder.json", CAPS_FLAT, 0, 0},           {"eclipse_rectum.json", CAPS_FLAT, 0, 0},
