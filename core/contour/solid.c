@@ -249,11 +249,95 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
  * a patch. A hole cut by the body at its own level ends there, flat, unless it has no other level:
  * then it keeps its extensions (a contour of no volume is no hole). */
 #define HOLE_MARGIN 0.02
-#define HOLE_SAMPLES 4
+#define HOLE_SAMPLES 2
 
-/* Sets in[i] for the points p[i] at height z inside the section of the tubes built so far that are
- * not holes, by at least margin. */
-static int mark_inside(const struct solid *s, const double (*p)[2], int n, double z, double margin, bool *in)
+/* Sets in[i] for the points p[i] inside the edges e (x0, y0, x1, y1: all those of a closed section
+ * that reach the points' +x rays or come within margin of them) by even-odd and by at least
+ * margin. The edges are binned by y, each into the bins its y-range (widened by margin) meets, so
+ * that a point reads only those that may cross its line or come near; fewer bins while they would
+ * fill more than RING_FILL entries an edge (a comb of long teeth). */
+#define RING_FILL 16
+static int edges_inside(const double (*e)[4], size_t m, const double (*p)[2], int n, double margin, bool *in)
+{
+    double y0 = INFINITY, y1 = -INFINITY;
+    for (size_t a = 0; a < m; a++)
+        y0 = fmin(y0, fmin(e[a][1], e[a][3])), y1 = fmax(y1, fmax(e[a][1], e[a][3]));
+    y0 -= margin, y1 += margin;
+    size_t nb = m / 8 + 1, total = 0;
+    double bh = 0.0;
+    for (; m; nb = nb / 2 + (nb == 1)) {
+        bh = (y1 - y0) / (double)nb;
+        total = 0;
+        for (size_t a = 0; a < m; a++) {
+            double lo = fmin(e[a][1], e[a][3]) - margin, hi = fmax(e[a][1], e[a][3]) + margin;
+            total += (size_t)fmin((hi - y0) / bh, (double)nb - 1) - (size_t)fmax((lo - y0) / bh, 0.0) + 1;
+        }
+        if (total <= RING_FILL * m || nb == 1 || !(bh > 0))
+            break;
+    }
+    size_t *start = calloc(nb + 1, sizeof *start), *edge = malloc(sizeof *edge * (total ? total : 1));
+    if (!start || !edge) {
+        free(start), free(edge);
+        return SF_ENOMEM;
+    }
+    for (int pass = 0; pass < 2; pass++) { /* counts, then the edges */
+        for (size_t a = 0; a < m; a++) {
+            double lo = fmin(e[a][1], e[a][3]) - margin, hi = fmax(e[a][1], e[a][3]) + margin;
+            size_t b0 = bh > 0 ? (size_t)fmax((lo - y0) / bh, 0.0) : 0;
+            size_t b1 = bh > 0 ? (size_t)fmin((hi - y0) / bh, (double)nb - 1) : 0;
+            for (size_t b = b0; b <= b1; b++)
+                if (pass)
+                    edge[start[b]++] = a;
+                else
+                    start[b + 1]++;
+        }
+        for (size_t b = 0; b < nb && !pass; b++)
+            start[b + 1] += start[b];
+    }
+    for (size_t b = nb; b > 0; b--) /* (filling moved each start to the next's) */
+        start[b] = start[b - 1];
+    start[0] = 0;
+    for (int i = 0; i < n && m; i++) {
+        if (in[i] || !(p[i][1] >= y0 && p[i][1] <= y1))
+            continue;
+        size_t b = bh > 0 ? (size_t)fmin((p[i][1] - y0) / bh, (double)nb - 1) : 0;
+        bool odd = false, near = false;
+        for (size_t k = start[b]; k < start[b + 1] && !near; k++) {
+            const double *A = e[edge[k]], *C = e[edge[k]] + 2;
+            if ((A[1] > p[i][1]) != (C[1] > p[i][1]) && p[i][0] < A[0] + (C[0] - A[0]) * (p[i][1] - A[1]) / (C[1] - A[1]))
+                odd = !odd;
+            double ex = C[0] - A[0], ey = C[1] - A[1], l2 = ex * ex + ey * ey;
+            double f = l2 > 0 ? fmin(fmax(((p[i][0] - A[0]) * ex + (p[i][1] - A[1]) * ey) / l2, 0.0), 1.0) : 0.0;
+            double dx = A[0] + f * ex - p[i][0], dy = A[1] + f * ey - p[i][1];
+            near = dx * dx + dy * dy < margin * margin;
+        }
+        in[i] = odd && !near;
+    }
+    free(start), free(edge);
+    return 0;
+}
+
+/* The x-y bounds (x0, y0, x1, y1) of every patch's control points: its surface lies inside. */
+static double (*patch_boxes(const struct solid *s))[4]
+{
+    double(*box)[4] = malloc(sizeof *box * (s->set.n ? s->set.n : 1));
+    for (size_t q = 0; box && q < s->set.n; q++) {
+        struct patch pt = resolved(&s->set, q);
+        box[q][0] = box[q][1] = INFINITY, box[q][2] = box[q][3] = -INFINITY;
+        for (int i = 0; i < (pt.p + 1) * (pt.q + 1); i++)
+            for (int d = 0; d < 2; d++) {
+                double x = pt.rational ? pt.cw[i][d] / pt.cw[i][3] : pt.cw[i][d];
+                box[q][d] = fmin(box[q][d], x), box[q][2 + d] = fmax(box[q][2 + d], x);
+            }
+    }
+    return box;
+}
+
+/* Sets in[i] for the points p[i] (within bounds pb) at height z inside the section of the tubes
+ * built so far that are not holes, by at least margin: each side or wall band at z, cut at z into
+ * HOLE_SAMPLES edges a patch, of the patches (box: patch_boxes) that reach the points' +x rays. */
+static int mark_inside(const struct solid *s, const double (*box)[4], const double (*p)[2], int n, const double pb[4],
+                       double z, double margin, bool *in)
 {
     for (int k = 0; k < s->n_tubes; k++) {
         const struct tube *tb = &s->tubes[k];
@@ -269,44 +353,35 @@ static int mark_inside(const struct solid *s, const double (*p)[2], int n, doubl
             bezier_eval(&p0, 0.0, 1.0, &hi, NULL, NULL);
             if (!(z >= fmin(lo.z, hi.z) && z <= fmax(lo.z, hi.z)) || lo.z == hi.z)
                 continue;
-            double t = (z - lo.z) / (hi.z - lo.z);
-            size_t m = HOLE_SAMPLES * bd->n;
-            double(*ring)[2] = malloc(sizeof *ring * m);
-            if (!ring)
+            double t = (z - lo.z) / (hi.z - lo.z), (*e)[4] = malloc(sizeof *e * HOLE_SAMPLES * bd->n);
+            size_t m = 0;
+            if (!e)
                 return SF_ENOMEM;
-            for (size_t q = 0; q < bd->n; q++) {
-                struct patch pt = resolved(&s->set, bd->first + q);
-                for (int i = 0; i < HOLE_SAMPLES; i++) {
-                    vec3 P;
-                    bezier_eval(&pt, (double)i / HOLE_SAMPLES, t, &P, NULL, NULL);
-                    ring[HOLE_SAMPLES * q + (size_t)i][0] = P.x, ring[HOLE_SAMPLES * q + (size_t)i][1] = P.y;
-                }
-            }
-            for (int i = 0; i < n; i++) {
-                if (in[i])
+            for (size_t q = bd->first; q < bd->first + bd->n; q++) {
+                const double *bx = box[q];
+                if (bx[1] > pb[3] + margin || bx[3] < pb[1] - margin || bx[2] < pb[0] - margin)
                     continue;
-                bool odd = false;
-                double d2 = INFINITY;
-                for (size_t a = 0, c = m - 1; a < m; c = a++) {
-                    const double *A = ring[a], *C = ring[c];
-                    if ((A[1] > p[i][1]) != (C[1] > p[i][1]) &&
-                        p[i][0] < A[0] + (C[0] - A[0]) * (p[i][1] - A[1]) / (C[1] - A[1]))
-                        odd = !odd;
-                    double ex = C[0] - A[0], ey = C[1] - A[1], l2 = ex * ex + ey * ey;
-                    double f = l2 > 0 ? fmin(fmax(((p[i][0] - A[0]) * ex + (p[i][1] - A[1]) * ey) / l2, 0.0), 1.0) : 0.0;
-                    double dx = A[0] + f * ex - p[i][0], dy = A[1] + f * ey - p[i][1];
-                    d2 = fmin(d2, dx * dx + dy * dy);
+                struct patch pt = resolved(&s->set, q);
+                vec3 P;
+                bezier_eval(&pt, 0.0, t, &P, NULL, NULL);
+                for (int i = 1; i <= HOLE_SAMPLES; i++, m++) {
+                    e[m][0] = P.x, e[m][1] = P.y;
+                    bezier_eval(&pt, (double)i / HOLE_SAMPLES, t, &P, NULL, NULL);
+                    e[m][2] = P.x, e[m][3] = P.y;
                 }
-                in[i] = odd && d2 >= margin * margin;
             }
-            free(ring);
+            int rc = edges_inside((const double(*)[4])e, m, p, n, margin, in);
+            free(e);
+            if (rc)
+                return rc;
         }
     }
     return 0;
 }
 
 /* The extensions of the hole chain's ends shortened where the prism would leave the body. */
-static int hole_reach(const struct solid *s, const struct contour_set *cs, struct model_chain *ch)
+static int hole_reach(const struct solid *s, const double (*box)[4], const struct contour_set *cs,
+                      struct model_chain *ch)
 {
     double was[2] = {ch->ext[0], ch->ext[1]};
     for (int e = 0; e < 2; e++) {
@@ -320,16 +395,18 @@ static int hole_reach(const struct solid *s, const struct contour_set *cs, struc
             free(p), free(in);
             return SF_ENOMEM;
         }
+        double pb[4] = {INFINITY, INFINITY, -INFINITY, -INFINITY};
         for (int i = 0; i < c->n; i++) {
             const double *a = c->p[i], *b = c->p[(i + 1) % c->n];
             p[2 * i][0] = a[0], p[2 * i][1] = a[1];
             p[2 * i + 1][0] = 0.5 * (a[0] + b[0]), p[2 * i + 1][1] = 0.5 * (a[1] + b[1]);
+            pb[0] = fmin(pb[0], a[0]), pb[1] = fmin(pb[1], a[1]), pb[2] = fmax(pb[2], a[0]), pb[3] = fmax(pb[3], a[1]);
         }
         int rc = 0;
         for (int k = 1; k <= 10 && !rc; k++) {
             memset(in, 0, (size_t)n);
             double z = c->z + (e ? 1 : -1) * ch->ext[e] * k / 10;
-            rc = mark_inside(s, (const double(*)[2])p, n, z, HOLE_MARGIN * ch->spacing[e], in);
+            rc = mark_inside(s, box, (const double(*)[2])p, n, pb, z, HOLE_MARGIN * ch->spacing[e], in);
             bool all = true;
             for (int i = 0; i < n && all; i++)
                 all = in[i];
@@ -360,16 +437,18 @@ int solid_build(const struct contour_set *cs, struct model_opts o, enum model_ca
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
     s->n_tubes = n_chains;
     s->progress = o.progress;
-    /* the body's tubes, then the holes' (hole_reach reads the body) */
+    /* the body's tubes, then the holes' (hole_reach reads the body's patches, within their bounds) */
+    double(*box)[4] = NULL;
     for (int pass = 0, done = 0; pass < 2 && !rc; pass++)
         for (int c = 0; c < n_chains && !rc; c++) {
             if (s->chains[c].hole != (pass == 1) || (rc = sf_poll(o.progress, (double)done++ / n_chains, err)))
                 continue;
-            if (pass == 1 && hole_reach(s, cs, &s->chains[c]))
+            if (pass == 1 && ((!box && !(box = patch_boxes(s))) || hole_reach(s, (const double(*)[4])box, cs, &s->chains[c])))
                 rc = sf_fail(err, SF_ENOMEM, "", "out of memory building the solid");
             else
                 rc = tube_build(s, cs, &s->chains[c], o, caps, storage, &s->tubes[c], err);
         }
+    free(box);
     free(storage);
     nurbs_patches_fix(&s->set);
     if (rc)
