@@ -618,6 +618,63 @@ TEST(keyholes_split_into_outer_and_hole)
     contour_set_free(&cs);
 }
 
+/* A square of side n from (x, y), a point every unit, counter-clockwise, as JSON. */
+static int square_json(char *out, size_t cap, int x, int y, int n)
+{
+    int len = snprintf(out, cap, "[");
+    for (int k = 0; k < 4 * n; k++) {
+        int s = k / n, t = k % n, px = s == 0 ? t : s == 1 ? n : s == 2 ? n - t : 0, py = s == 0 ? 0 : s == 1 ? t : s == 2 ? n : n - t;
+        len += snprintf(out + len, cap - (size_t)len, "%s[%d,%d]", k ? "," : "", x + px, y + py);
+    }
+    return len + snprintf(out + len, cap - (size_t)len, "]");
+}
+
+/* A hole's end stops where it would leave the body (hole_reach, solid.c): a 4 x 4 hole on level 1
+ * of a body that grows from 10 x 10 (level 0) to 20 x 20 (levels 1, 2). Half way down the body's
+ * side is at 16.25 (the parabola through 10, 20, 20), short of the hole's far side at 17, so the
+ * end reaches down to z 0.6 (8 tenths of the half spacing: 17.2 there, 16.74 at 0.55), and up the
+ * whole half spacing: the solid is the body's less the hole's section times 0.4 + 0.5, and its mesh
+ * is closed with no triangles cutting each other (a whole half spacing down, they do). */
+TEST(a_hole_stops_inside_the_body)
+{
+    static char small[1024], big[2048], hole[1024], text[8192];
+    square_json(small, sizeof small, 0, 0, 10);
+    square_json(big, sizeof big, 0, 0, 20);
+    square_json(hole, sizeof hole, 13, 13, 4);
+    double v[2], area = 0.0;
+    for (int with = 0; with < 2; with++) {
+        snprintf(text, sizeof text,
+                 "{\"slices\":[{\"z\":0,\"points\":%s},{\"z\":1,\"contours\":[{\"points\":%s}%s%s%s]},"
+                 "{\"z\":2,\"points\":%s}]}",
+                 small, big, with ? ",{\"points\":" : "", with ? hole : "", with ? "}" : "", big);
+        struct contour_set cs;
+        struct contour_request req;
+        struct solid sd;
+        struct solid_measures sm;
+        struct mesh m;
+        REQUIRE(contour_parse_json(text, strlen(text), &cs, &req, NULL) == 0);
+        REQUIRE(solid_build(&cs, PARABOLIC, CAPS_FLAT, &sd, NULL) == 0);
+        solid_measure(&sd, &sm);
+        v[with] = sm.volume;
+        for (int k = 0; k < sd.n_tubes && with; k++)
+            if (sd.tubes[k].hole) {
+                area = model_curve_area(&cs.s[sd.chains[k].idx[0]]);
+                CHECK_NEAR(sd.chains[k].ext[0], 0.4, 1e-12);
+                CHECK_NEAR(sd.chains[k].ext[1], 0.5, 1e-12);
+            }
+        CHECK(solid_mesh(&sd, solid_default_tolerance(&sm), &m) == 0);
+        int outer, cavities, others, cut = cutting_pairs(&m, &cs, &others);
+        shells(&m, &outer, &cavities);
+        CHECK(watertight(&m) && outer == 1 && cavities == with && cut == 0 && others == 0);
+        solid_mesh_free(&m);
+        solid_free(&sd);
+        contour_set_free(&cs);
+    }
+    fprintf(stderr, "  hole section %.6f, volumes %.6f %.6f\n", area, v[0], v[1]);
+    CHECK_NEAR(area, 16.0 + 1.0 / 3, 1e-9); /* (the curve through the points swells a twelfth at each corner) */
+    CHECK_NEAR(v[1], v[0] - 0.9 * area, 1e-9 * v[0]);
+}
+
 /* Seed 004's polar parameterisation: within 0.2 % on the synthetic shapes too, and a different
  * surface from the arc-length one; a C shape (centroid outside) keeps arc length and still models. */
 TEST(polar_parameterisation)
@@ -697,6 +754,7 @@ int main(void)
     RUN(branchings_are_one_surface);
     RUN(the_four_methods);
     RUN(keyholes_split_into_outer_and_hole);
+    RUN(a_hole_stops_inside_the_body);
     RUN(polar_parameterisation);
     RUN(rejections);
     UNIT_END();
