@@ -406,10 +406,11 @@ int scene_parse_json(const char *buf, size_t len, const struct model_resolver *m
     scene_init(sc);
     *img = IMG_PNG;
     json_t *root;
-    int rc = json_read(buf, len, &root, err);
+    struct json_split sp; /* (a scene's bulk is its objects: read one at a time) */
+    int rc = json_read_split(buf, len, (const char *const[]){"objects", "patches", NULL}, SCENE_MAX_OBJECTS, &root,
+                             &sp, err);
     if (rc)
         return rc;
-    rc = 0;
     json_t *v;
     if (!json_is_object(root)) {
         rc = sf_fail(err, SF_EINVAL, "", "a scene is a JSON object");
@@ -425,20 +426,28 @@ int scene_parse_json(const char *buf, size_t len, const struct model_resolver *m
         goto out;
     const char *key = json_object_get(root, "objects") ? "objects" : "patches";
     json_t *objs = json_object_get(root, key);
-    if (!json_is_array(objs) || json_array_size(objs) == 0) {
+    bool held = sp.held && !strcmp(sp.key, key);
+    size_t n = held ? sp.n : json_array_size(objs);
+    if (!json_is_array(objs) || n == 0) {
         rc = sf_fail(err, SF_EINVAL, "/objects", "a scene needs a non-empty \"objects\" array");
         goto out;
     }
-    if (json_array_size(objs) > SCENE_MAX_OBJECTS) {
+    if (n > SCENE_MAX_OBJECTS) {
         rc = sf_fail(err, SF_ELIMIT, "/objects", "at most %d objects", SCENE_MAX_OBJECTS);
         goto out;
     }
-    for (size_t k = 0; k < json_array_size(objs) && !rc; k++) {
+    for (size_t k = 0; k < n && !rc; k++) {
         char where[64];
         snprintf(where, sizeof where, "/%s/%zu", key, k);
-        rc = object(json_array_get(objs, k), where, models, sc, err);
+        json_t *o = held ? NULL : json_array_get(objs, k);
+        if (held && (rc = json_read_element(&sp, k, &o, err)))
+            break;
+        rc = object(o, where, models, sc, err);
+        if (held)
+            json_decref(o);
     }
 out:
+    json_split_free(&sp);
     json_decref(root);
     if (rc)
         scene_free(sc);

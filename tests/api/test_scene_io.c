@@ -153,6 +153,16 @@ TEST(bad_json_scenes)
         {"{\"lights\":[{\"direction\":[0,0]}],\"objects\":[{%s}]}", SF_EINVAL, "/lights/0/direction"},
         {"{\"objects\":[{%s,\"material\":{\"shininess\":-1}}]}", SF_EINVAL, "/objects/0/material/shininess"},
         {"{\"objects\":[{%s}],\"objects\":[]}", SF_EFORMAT, NULL},
+        /* the objects are read one at a time (json_read_split): what the whole document's parse
+         * refuses is refused still, where it is */
+        {"{\"objects\":[{%s},]}", SF_EFORMAT, NULL},
+        {"{\"objects\":[,{%s}]}", SF_EFORMAT, "line 1, column 13"},
+        {"{\"objects\":[{%s},\n{\"type\":\"bezier\" 3}]}", SF_EFORMAT, "line 2, column 18"},
+        {"{\"objects\":[{%s,\"degree\":[1,1]}]}", SF_EFORMAT, NULL}, /* a key twice */
+        {"{\"objects\":[{%s} 7]}", SF_EFORMAT, NULL},
+        {"{\"objects\":[{%s}]", SF_EFORMAT, NULL},
+        {"{\"objects\":[{%s,\"name\":\"a]},{\\\"\"}, 7]}", SF_EINVAL, "/objects/1"},
+        {"{\"patches\":[{%s}],\"objects\":5}", SF_EINVAL, "/objects"},
     };
     for (size_t k = 0; k < sizeof cases / sizeof *cases; k++) {
         snprintf(buf, sizeof buf, cases[k].body, obj);

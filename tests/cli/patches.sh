@@ -1,8 +1,8 @@
 #!/bin/sh
 # A contour model's patches (`surfd model --patches`) posted back to `surfd volume`, the figures path
 # of POST /volume (issue 18): every shared contour file and RT Structure Set ROI closes as one solid
-# with its model's volume, branchings (trimmed flat patches where tubes end and begin) and slivers
-# between slices included; those over the request's caps are refused with the cap's message.
+# with its model's volume, branchings (trimmed flat patches where tubes end and begin), holes and
+# slivers between slices included; those over the request's caps are refused with the cap's message.
 set -u
 cd "$(dirname "$0")/../.." || exit 1
 S=./build/surfd
@@ -33,12 +33,16 @@ for caps in flat slab dome; do
 done
 check "the torus's branching planes are trimmed flat patches" 'python3 -c "import json,sys; o=json.load(open(sys.argv[1]))[\"objects\"]; sys.exit(sum(\"trim\" in x for x in o) != 4)" "$T/p.json"'
 closes "synthetic_torus_branching.rtstruct.dcm" "$C/synthetic_torus_branching.rtstruct.dcm" --roi torus_branching
-for roi in Borders Heart Nodes Scar "Tumor Bed" "Tumor Bed Block"; do
+# (Breast is left out: its 37 188 patches close, but 10 neighbouring pairs disagree on which way
+# they face, and enclosed_shell refuses them as one-sided - open in issue 18)
+for roi in Borders Heart "Lt Lung" Nodes Scar "Tumor Bed" "Tumor Bed Block"; do
     closes "dicompyler RT Structure Set, $roi" "$C/dicompyler-core_example_rtss.dcm" --roi "$roi"
 done
 for roi in Bladder "Femoral Head Lt" "Femoral Head RT" PTV Rectum; do
     closes "Eclipse prostate phantom, $roi" "$C/slicerrt_EclipseProstatePhantom_RS.dcm" --roi "$roi"
 done
-BIG=1 closes "dicompyler_lt_lung_multicontour" "$C/dicompyler_lt_lung_multicontour.json"
+# the lung's 77 455 patches are 5.5 M JSON values, read an object at a time (json_read_split); the
+# bodies' 190 000 and more are over the objects a scene may hold
+closes "dicompyler_lt_lung_multicontour" "$C/dicompyler_lt_lung_multicontour.json"
 BIG=1 closes "eclipse_body" "$C/eclipse_body.json"
 checks_done
