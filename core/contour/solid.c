@@ -929,10 +929,29 @@ int solid_mesh(const struct solid *s, double tol, struct mesh *m)
  * into the hole). */
 static bool end_up(const struct tube *tb, int e) { return e ? !tb->hole : tb->hole; }
 
+/* Whether cap band b's fan folds: its end curve is not star-shaped about the centre it fans from
+ * (seen from the rim, a fan patch P = (1 - v) C(u) + v c has the normal (1 - v) C'(u) x (c - C(u)),
+ * whose z keeps its sign along v: its sign at v = 0 at the patches' ends and thirds, some of them
+ * against the rest). */
+static bool fan_folds(const struct solid *s, const struct band *bd)
+{
+    bool pos = false, neg = false;
+    for (size_t k = bd->first; k < bd->first + bd->n; k++)
+        for (int i = 0; i <= 3; i++) {
+            vec3 P, Su, Sv;
+            bezier_eval(&s->set.patches[k], i / 3.0, 0.0, &P, &Su, &Sv);
+            double nz = Su.x * Sv.y - Su.y * Sv.x, scale = v3_len(Su) * v3_len(Sv);
+            pos |= nz > 1e-9 * scale, neg |= nz < -1e-9 * scale;
+        }
+    return pos && neg;
+}
+
 /* The end rings of the tubes' flat caps, within tol, as mesh_tube makes them (their caps clipped,
  * each ring edge with a wall triangle to a point a little off the plane, so that join.c can split
  * it where rings cross), joined (join.c); the joined planes' triangles kept, every other one
- * dropped. */
+ * dropped. A cap whose fan folds (a not star-shaped end, as the dicompyler Breast's: its fan's
+ * patches overlap, and their edges are taken for each other's neighbours) is kept as a region of
+ * its own plane, its ring ear-clipped, even where no other cap shares the plane. */
 static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *skip)
 {
     memset(m, 0, sizeof *m);
@@ -940,7 +959,8 @@ static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *
         skip[b] = false;
     struct caps cs = {0};
     int *band_of = NULL, rc = 0; /* each cap's band */
-    size_t cap_band = 0;
+    bool *lone = NULL;           /* ... and whether it is sampled for its fan alone */
+    size_t cap_band = 0, cap_lone = 0;
     /* the plane of each tube end's flat cap (NAN: none), so that only those sharing theirs with a cap
      * facing the other way are sampled */
     double *zs = malloc(sizeof *zs * (size_t)(2 * s->n_tubes + 1));
@@ -956,11 +976,13 @@ static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *
         }
     for (int k = 0; k < s->n_tubes && !rc; k++) {
         const struct tube *tb = &s->tubes[k];
-        bool shared[2] = {false, false}; /* (NAN shares nothing) */
-        for (int end = 0; end < 2; end++)
+        bool shared[2] = {false, false}, folds[2]; /* (NAN shares nothing) */
+        for (int end = 0; end < 2; end++) {
             for (int o = 0; o < 2 * s->n_tubes && !shared[end]; o++)
                 shared[end] = end_up(tb, end) != end_up(&s->tubes[o / 2], o % 2) && join_same_plane(zs[2 * k + end], zs[o]);
-        if (!shared[0] && !shared[1])
+            folds[end] = !isnan(zs[2 * k + end]) && fan_folds(s, &s->bands[end ? tb->first + tb->n - 1 : tb->first]);
+        }
+        if (!shared[0] && !shared[1] && !folds[0] && !folds[1])
             continue;
         int nu;
         double *us = choose_u(s, tb, tol, &nu);
@@ -968,7 +990,7 @@ static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *
         rc = off ? 0 : SF_ENOMEM;
         for (int end = 0; end < 2 && !rc; end++) {
             int b = end ? tb->first + tb->n - 1 : tb->first, next = end ? b - 1 : b + 1;
-            if (!shared[end])
+            if (!shared[end] && !folds[end])
                 continue;
             bool up = end_up(tb, end);
             for (int q = 0; q < nu && !rc; q++) {
@@ -978,7 +1000,8 @@ static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *
             }
             size_t t0 = m->n_t;
             struct mesh_cap *c = rc || (rc = mesh_clip(m, ring, (size_t)nu, up)) ? NULL : add_cap(&cs, m, ring, nu, up, t0);
-            if (!rc && (!c || mem_reserve((void **)&band_of, &cap_band, (size_t)cs.n, sizeof *band_of)))
+            if (!rc && (!c || mem_reserve((void **)&band_of, &cap_band, (size_t)cs.n, sizeof *band_of) ||
+                        mem_reserve((void **)&lone, &cap_lone, (size_t)cs.n, sizeof *lone)))
                 rc = SF_ENOMEM;
             for (int q = 0; q < nu && !rc; q++) { /* the walls as mesh_tube's last (first) row has them */
                 int q1 = (q + 1) % nu;
@@ -987,13 +1010,15 @@ static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *
                 cs.c[cs.n - 1].wall[q] = m->n_t > at ? at : SIZE_MAX;
             }
             if (!rc)
-                band_of[cs.n - 1] = b;
+                band_of[cs.n - 1] = b, lone[cs.n - 1] = !shared[end];
         }
         free(us), free(ring), free(off);
     }
     free(zs);
     if (!rc)
         rc = mesh_join_caps(m, cs.c, cs.n);
+    for (int c = 0; !rc && c < cs.n; c++) /* (a folding fan's plane: its clipped ring stands) */
+        cs.c[c].joined |= lone[c];
     size_t o = 0;
     for (size_t t = 0; !rc && t < m->n_t; t++) { /* the joined planes' triangles */
         double z = m->v[m->t[t][0]][2];
@@ -1009,7 +1034,7 @@ static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *
     for (int c = 0; !rc && c < cs.n; c++)
         skip[band_of[c]] = cs.c[c].joined;
     caps_free(&cs);
-    free(band_of);
+    free(band_of), free(lone);
     if (rc)
         solid_mesh_free(m);
     return rc;

@@ -83,8 +83,9 @@ double solid_default_tolerance(const struct solid_measures *m);
  * *tol receives it. Returns as solid_mesh. */
 int solid_mesh_default(const struct solid *s, const struct solid_measures *sm, struct mesh *m, double *tol);
 /* The flat surface of the planes where tubes end and begin (issue 18: a model's patches close as one
- * solid where its contours branch): the caps' rims sampled within tol and joined as solid_mesh
- * joins them (join.h), as regions, one a plane and side: the boundary of the joined triangles facing
+ * solid where its contours branch), and of the ends whose fans fold (not star-shaped about their
+ * centroids): the caps' rims sampled within tol and joined as solid_mesh joins them (join.h), as
+ * regions, one a plane and side: the boundary of the joined triangles facing
  * that way, as closed loops in (x, y) whose even-odd inside is the region (loop k: counts[k] points
  * from pt + the earlier counts, the first not repeated). skip (caller's array of n_bands) is set for
  * the cap bands the regions replace. Returns 0 or SF_ENOMEM. */
