@@ -30,19 +30,22 @@ static size_t values_at_most(const char *buf, size_t len)
     return n;
 }
 
-/* Parses buf[0 .. len) (at offset `at` of the body body[0 .. at + len): an element, any value)
- * with the values bound `most`: errors say where in the body. */
-static int parse(const char *body, size_t at, size_t len, size_t most, json_t **root, struct sf_err *err)
+/* Parses text[0 .. len) with the values bound `most`. The text is the body's from byte `at` on (an
+ * element: any value), or the body with its bytes [gap, gap + gap_len) left out (the rest of a
+ * split document): errors say where in the body, counted to the last byte jansson read (as its
+ * column does; an empty element reads what ends it). */
+static int parse(const char *text, size_t len, size_t most, const char *body, size_t at, size_t gap, size_t gap_len,
+                 json_t **root, struct sf_err *err)
 {
     *root = NULL;
-    if (values_at_most(body + at, len) > most)
+    if (values_at_most(text, len) > most)
         return sf_fail(err, SF_ELIMIT, "", "the body holds over %zu JSON values", most);
     json_error_t je;
-    if (!(*root = json_loadb(body + at, len, JSON_REJECT_DUPLICATES | (at ? JSON_DECODE_ANY : 0), &je))) {
+    if (!(*root = json_loadb(text, len, JSON_REJECT_DUPLICATES | (at ? JSON_DECODE_ANY : 0), &je))) {
         int line = je.line, column = je.column;
-        if (at) { /* (jansson counts in the element: count again from the body's start, to the last
-                   * character read, as jansson's column does; an empty element reads what ends it) */
-            size_t end = at + (je.position > 0 ? (size_t)je.position : 1);
+        if (at || gap_len) { /* (jansson counted in the text: count again in the body) */
+            size_t end = je.position > 0 ? (size_t)je.position : 1;
+            end = at + (end > gap ? end + gap_len : end);
             line = 1, column = 0;
             for (size_t i = 0; i < end; i++)
                 line += body[i] == '\n', column = body[i] == '\n' ? 0 : column + 1;
@@ -56,7 +59,7 @@ static int parse(const char *body, size_t at, size_t len, size_t most, json_t **
 
 int json_read(const char *buf, size_t len, json_t **root, struct sf_err *err)
 {
-    return parse(buf, 0, len, JSON_MAX_VALUES, root, err);
+    return parse(buf, len, JSON_MAX_VALUES, buf, 0, 0, 0, root, err);
 }
 
 /* ---- one array held back ----
@@ -169,7 +172,7 @@ int json_read_split(const char *buf, size_t len, const char *const *keys, size_t
     }
     memcpy(rest, buf, open + 1);
     memcpy(rest + open + 1, buf + close, len - close);
-    int rc = json_read(rest, len - (close - open - 1), root, err);
+    int rc = parse(rest, len - (close - open - 1), JSON_MAX_VALUES, buf, 0, open + 1, close - open - 1, root, err);
     free(rest);
     if (rc)
         json_split_free(sp);
@@ -180,7 +183,8 @@ int json_read_split(const char *buf, size_t len, const char *const *keys, size_t
 
 int json_read_element(const struct json_split *sp, size_t k, json_t **out, struct sf_err *err)
 {
-    return parse(sp->buf, sp->range[k][0], sp->range[k][1] - sp->range[k][0], JSON_MAX_VALUES, out, err);
+    const size_t *r = sp->range[k];
+    return parse(sp->buf + r[0], r[1] - r[0], JSON_MAX_VALUES, sp->buf, r[0], 0, 0, out, err);
 }
 
 void json_split_free(struct json_split *sp)

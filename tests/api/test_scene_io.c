@@ -163,6 +163,7 @@ TEST(bad_json_scenes)
         {"{\"objects\":[{%s}]", SF_EFORMAT, NULL},
         {"{\"objects\":[{%s,\"name\":\"a]},{\\\"\"}, 7]}", SF_EINVAL, "/objects/1"},
         {"{\"patches\":[{%s}],\"objects\":5}", SF_EINVAL, "/objects"},
+        {"{\"objects\":[{%s}],\n \"image\": {\"width\" 8}}", SF_EFORMAT, "line 2, column 20"},
     };
     for (size_t k = 0; k < sizeof cases / sizeof *cases; k++) {
         snprintf(buf, sizeof buf, cases[k].body, obj);
