@@ -3,12 +3,7 @@
 # of POST /volume (issue 18): every shared contour file and RT Structure Set ROI closes as one solid
 # with its model's volume, branchings (trimmed flat patches where tubes end and begin), holes and
 # slivers between slices included; those over the request's caps are refused with the cap's message.
-set -u
-cd "$(dirname "$0")/../.." || exit 1
-S=./build/surfd
-C="${SURFD_DATA:-../shared/data}/contours"
-T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
-. tests/check.inc
+. "$(dirname "$0")/lib.inc"
 
 # $1: a name for the check; the rest: surfd model's input and options. The patches' figures must be
 # closed, none turned (where they are matched along their boundaries), the model's volume within 1e-6; or, with BIG set, over a cap.

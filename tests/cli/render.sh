@@ -1,12 +1,7 @@
 #!/bin/sh
 # Drives `build/surfd render` as a user would: every scene format, PNG/EXR/TIFF, --stats, the
 # three ducks as one scene, and the clear failures (bad file, bad option, unknown method).
-set -u
-cd "$(dirname "$0")/../.." || exit 1
-S=./build/surfd
-D="${SURFD_DATA:-../shared/data}/scenes"
-T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
-. tests/check.inc
+. "$(dirname "$0")/lib.inc"
 
 # every shared scene renders to a PNG with content (not just background)
 for f in teapot.json teapot.bpt teacup.json teacup.bpt teaspoon.json teaspoon.bpt duck1.nurbs duck2.nurbs duck3.nurbs; do

@@ -1,11 +1,6 @@
 #!/bin/sh
 # `surfd volume` as a user runs it: JSON figures for real and synthetic contours, clear failures.
-set -u
-cd "$(dirname "$0")/../.." || exit 1
-S=./build/surfd
-C="${SURFD_DATA:-../shared/data}/contours"
-T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
-. tests/check.inc
+. "$(dirname "$0")/lib.inc"
 
 for f in synthetic_ellipsoid synthetic_bean synthetic_torus_branching dicompyler_heart dicompyler_tumor_bed \
          dicompyler_lt_lung_multicontour eclipse_bladder eclipse_ptv eclipse_rectum eclipse_femoral_head_lt eclipse_body; do
