@@ -251,11 +251,18 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
 #define HOLE_MARGIN 0.02
 #define HOLE_SAMPLES 2
 
+/* The bin of height y among nb bins of height bh from y0 (clamped to them). */
+static size_t bin_of(double y, double y0, double bh, size_t nb)
+{
+    return bh > 0 ? (size_t)fmin(fmax((y - y0) / bh, 0.0), (double)nb - 1) : 0;
+}
+
 /* Sets in[i] for the points p[i] inside the edges e (x0, y0, x1, y1: all those of a closed section
  * that reach the points' +x rays or come within margin of them) by even-odd and by at least
  * margin. The edges are binned by y, each into the bins its y-range (widened by margin) meets, so
  * that a point reads only those that may cross its line or come near; fewer bins while they would
- * fill more than RING_FILL entries an edge (a comb of long teeth). */
+ * fill more than RING_FILL entries an edge (a comb of long teeth). (trim.c indexes closed loops
+ * alone; the section here is cut only where it can reach the hole, a few edges of thousands.) */
 #define RING_FILL 16
 static int edges_inside(const double (*e)[4], size_t m, const double (*p)[2], int n, double margin, bool *in)
 {
@@ -268,10 +275,8 @@ static int edges_inside(const double (*e)[4], size_t m, const double (*p)[2], in
     for (; m; nb = nb / 2 + (nb == 1)) {
         bh = (y1 - y0) / (double)nb;
         total = 0;
-        for (size_t a = 0; a < m; a++) {
-            double lo = fmin(e[a][1], e[a][3]) - margin, hi = fmax(e[a][1], e[a][3]) + margin;
-            total += (size_t)fmin((hi - y0) / bh, (double)nb - 1) - (size_t)fmax((lo - y0) / bh, 0.0) + 1;
-        }
+        for (size_t a = 0; a < m; a++)
+            total += bin_of(fmax(e[a][1], e[a][3]) + margin, y0, bh, nb) - bin_of(fmin(e[a][1], e[a][3]) - margin, y0, bh, nb) + 1;
         if (total <= RING_FILL * m || nb == 1 || !(bh > 0))
             break;
     }
@@ -282,10 +287,8 @@ static int edges_inside(const double (*e)[4], size_t m, const double (*p)[2], in
     }
     for (int pass = 0; pass < 2; pass++) { /* counts, then the edges */
         for (size_t a = 0; a < m; a++) {
-            double lo = fmin(e[a][1], e[a][3]) - margin, hi = fmax(e[a][1], e[a][3]) + margin;
-            size_t b0 = bh > 0 ? (size_t)fmax((lo - y0) / bh, 0.0) : 0;
-            size_t b1 = bh > 0 ? (size_t)fmin((hi - y0) / bh, (double)nb - 1) : 0;
-            for (size_t b = b0; b <= b1; b++)
+            size_t b1 = bin_of(fmax(e[a][1], e[a][3]) + margin, y0, bh, nb);
+            for (size_t b = bin_of(fmin(e[a][1], e[a][3]) - margin, y0, bh, nb); b <= b1; b++)
                 if (pass)
                     edge[start[b]++] = a;
                 else
@@ -300,7 +303,7 @@ static int edges_inside(const double (*e)[4], size_t m, const double (*p)[2], in
     for (int i = 0; i < n && m; i++) {
         if (in[i] || !(p[i][1] >= y0 && p[i][1] <= y1))
             continue;
-        size_t b = bh > 0 ? (size_t)fmin((p[i][1] - y0) / bh, (double)nb - 1) : 0;
+        size_t b = bin_of(p[i][1], y0, bh, nb);
         bool odd = false, near = false;
         for (size_t k = start[b]; k < start[b + 1] && !near; k++) {
             const double *A = e[edge[k]], *C = e[edge[k]] + 2;
@@ -323,12 +326,9 @@ static double (*patch_boxes(const struct solid *s))[4]
     double(*box)[4] = malloc(sizeof *box * (s->set.n ? s->set.n : 1));
     for (size_t q = 0; box && q < s->set.n; q++) {
         struct patch pt = resolved(&s->set, q);
-        box[q][0] = box[q][1] = INFINITY, box[q][2] = box[q][3] = -INFINITY;
-        for (int i = 0; i < (pt.p + 1) * (pt.q + 1); i++)
-            for (int d = 0; d < 2; d++) {
-                double x = pt.rational ? pt.cw[i][d] / pt.cw[i][3] : pt.cw[i][d];
-                box[q][d] = fmin(box[q][d], x), box[q][2 + d] = fmax(box[q][2 + d], x);
-            }
+        vec3 lo, hi;
+        bezier_bounds(&pt, &lo, &hi);
+        box[q][0] = lo.x, box[q][1] = lo.y, box[q][2] = hi.x, box[q][3] = hi.y;
     }
     return box;
 }
@@ -443,7 +443,9 @@ int solid_build(const struct contour_set *cs, struct model_opts o, enum model_ca
         for (int c = 0; c < n_chains && !rc; c++) {
             if (s->chains[c].hole != (pass == 1) || (rc = sf_poll(o.progress, (double)done++ / n_chains, err)))
                 continue;
-            if (pass == 1 && ((!box && !(box = patch_boxes(s))) || hole_reach(s, (const double(*)[4])box, cs, &s->chains[c])))
+            if (pass == 1 && !box)
+                box = patch_boxes(s); /* (once the body is built, and only for a model with holes) */
+            if (pass == 1 && (!box || hole_reach(s, (const double(*)[4])box, cs, &s->chains[c])))
                 rc = sf_fail(err, SF_ENOMEM, "", "out of memory building the solid");
             else
                 rc = tube_build(s, cs, &s->chains[c], o, caps, storage, &s->tubes[c], err);
