@@ -94,6 +94,58 @@ static void gradient(const struct iso_adapt *a, int x, int y, int z, double g[3]
 
 static bool hides_crossings(const struct iso_adapt *a, const int o[3], int s);
 
+/* A crossing's key: the finest edge it lies on. */
+static uint64_t edge_key(const struct iso_adapt *a, const int n[3], int axis)
+{
+    return (uint64_t)at3(a, n[0], n[1], n[2]) * 3 + (uint64_t)axis;
+}
+
+/* The vertex a loop of n is fanned from: of those none of whose diagonals joins two vertices of
+ * one cell face (faces: each vertex's face bits), the first, or with keys the one of least key
+ * (merged cells: so that block_error and the mesh pick the same whichever vertex their loops
+ * start from), or -1 (then from a centre). */
+static int fan_apex(const int *faces, const uint64_t *keys, int n)
+{
+    int apex = -1;
+    for (int p = 0; p < n && (keys || apex < 0); p++) {
+        bool ok = true;
+        for (int k = 2; k + 1 < n && ok; k++)
+            ok = !(faces[p] & faces[(p + k) % n]);
+        if (ok && (apex < 0 || keys[p] < keys[apex]))
+            apex = p;
+    }
+    return apex;
+}
+
+/* The centre of a loop without an apex in the cell of s nodes a side at o: the crossing of a fine
+ * edge inside the cell (on none of its faces) nearest the loop's mean x, a vertex of the
+ * full-resolution surface, so that the fan's centre lies on it: its edge's lower node into n and
+ * axis, or false when the cell has none (level 1). */
+static bool inner_crossing(const struct iso_adapt *a, const int o[3], int s, const double x[3], int n[3], int *axis)
+{
+    double best = INFINITY;
+    for (int ax = 0; ax < 3; ax++) {
+        int u = (ax + 1) % 3, w = (ax + 2) % 3, p[3];
+        for (p[u] = o[u] + 1; p[u] < o[u] + s; p[u]++)
+            for (p[w] = o[w] + 1; p[w] < o[w] + s; p[w]++)
+                for (p[ax] = o[ax]; p[ax] < o[ax] + s; p[ax]++) {
+                    int q[3] = {p[0], p[1], p[2]};
+                    q[ax]++;
+                    double f0 = Fp(a, p) - a->iso, f1 = Fp(a, q) - a->iso;
+                    if ((f0 > 0) == (f1 > 0))
+                        continue;
+                    double t = f0 / (f0 - f1), d2 = 0;
+                    for (int d = 0; d < 3; d++) {
+                        double e = a->org[d] + a->sp[d] * (p[d] + (d == ax ? t : 0)) - x[d];
+                        d2 += e * e;
+                    }
+                    if (d2 < best)
+                        best = d2, memcpy(n, p, sizeof p), *axis = ax;
+                }
+    }
+    return best < INFINITY;
+}
+
 /* ---- the hierarchy ---- */
 
 /* The error estimate of block b of level l, merged into one cell: that cell's surface is a
@@ -110,6 +162,7 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
     if (l == 2 && a->mixed[2][block(a, 2, b[0], b[1], b[2])] & HIDES) /* (a coarser block's children said it) */
         return INFINITY;
     double iso = a->iso, c[8], ep[8][8][3]; /* the crossing on the edge between corners i < j, in mm */
+    uint64_t ek[8][8];                      /* and its vertex's key */
     bool st[8];
     for (int k = 0; k < 8; k++) {
         c[k] = F(a, o[0] + (k & 1) * s, o[1] + (k >> 1 & 1) * s, o[2] + (k >> 2 & 1) * s) - iso;
@@ -132,6 +185,8 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
                     double f = prev / (prev - cur);
                     for (int d = 0; d < 3; d++)
                         ep[i][j][d] = a->org[d] + a->sp[d] * (q[d] - (d == axis ? 1 - f : 0));
+                    q[axis]--;
+                    ek[i][j] = edge_key(a, q, axis);
                 }
                 prev = cur;
             }
@@ -166,19 +221,45 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
         for (int j = i + 1; j < 8; j++) {
             if (next[i][j] < 0)
                 continue;
-            int loop[12], n = 0;
-            for (int e = i * 8 + j; e >= 0 && n < 12;) {
+            int loop[12], faces[12], n = 0;
+            uint64_t keys[12];
+            for (int e = i * 8 + j; e >= 0 && n < 12 && (n == 0 || e != i * 8 + j);) {
+                int lo = e / 8, axis = __builtin_ctz((unsigned)(e % 8 ^ lo));
+                faces[n] = 0;
+                for (int d = 0; d < 3; d++)
+                    if (d != axis)
+                        faces[n] |= 1 << (2 * d + (lo >> d & 1));
+                keys[n] = ek[lo][e % 8];
                 loop[n++] = e;
                 int nx = next[e / 8][e % 8];
                 next[e / 8][e % 8] = -1;
                 e = nx;
             }
-            for (int k = 1; k + 1 < n && tri_n < 16; k++, tri_n++)
+            /* fanned as fan_loops will: from its apex, else from the inner crossing nearest its mean */
+            int apex = fan_apex(faces, keys, n);
+            double centre[3] = {0, 0, 0};
+            if (apex < 0) {
+                int cn[3], axis;
+                for (int k = 0; k < n; k++)
+                    for (int d = 0; d < 3; d++)
+                        centre[d] += ep[loop[k] / 8][loop[k] % 8][d] / n;
+                if (!inner_crossing(a, o, s, centre, cn, &axis))
+                    return INFINITY;
+                int cm[3] = {cn[0], cn[1], cn[2]};
+                cm[axis]++;
+                double f0 = Fp(a, cn) - iso, t = f0 / (f0 - (Fp(a, cm) - iso));
+                for (int d = 0; d < 3; d++)
+                    centre[d] = a->org[d] + a->sp[d] * (cn[d] + (d == axis ? t : 0));
+            }
+            int from = apex < 0 ? 0 : 1, base = apex < 0 ? 0 : apex;
+            for (int k = from; k + from < n && tri_n < 16; k++, tri_n++) {
+                int p = (base + k) % n, q = (base + k + 1) % n;
                 for (int d = 0; d < 3; d++) {
-                    tris[tri_n][0][d] = ep[loop[0] / 8][loop[0] % 8][d];
-                    tris[tri_n][1][d] = ep[loop[k] / 8][loop[k] % 8][d];
-                    tris[tri_n][2][d] = ep[loop[k + 1] / 8][loop[k + 1] % 8][d];
+                    tris[tri_n][0][d] = apex < 0 ? centre[d] : ep[loop[apex] / 8][loop[apex] % 8][d];
+                    tris[tri_n][1][d] = ep[loop[p] / 8][loop[p] % 8][d];
+                    tris[tri_n][2][d] = ep[loop[q] / 8][loop[q] % 8][d];
                 }
+            }
         }
     double worst = 0;
     for (int z = 0; z <= s; z++)
@@ -420,10 +501,6 @@ static double field_root(const struct iso_adapt *a, const int n[3], int axis, do
     return t;
 }
 
-static uint64_t edge_key(const struct iso_adapt *a, const int n[3], int axis)
-{
-    return (uint64_t)at3(a, n[0], n[1], n[2]) * 3 + (uint64_t)axis;
-}
 
 /* Makes the vertex keyed key (its slot from known_vertex) at fraction t of the finest edge from
  * node n along axis; its normal from the field's gradient (on_field) or the samples'. */
@@ -1220,14 +1297,10 @@ static void fan_loops(struct cell *c)
                 add_triangle(c->pc, centre, loop[k], loop[(k + 1) % n]);
             continue;
         }
-        int apex = -1;
-        for (int p = 0; p < n && apex < 0; p++) { /* (a face point lies in a face too: its bit says) */
-            bool ok = true;
-            for (int k = 2; k + 1 < n && ok; k++)
-                ok = !(faces[p] & faces[(p + k) % n]);
-            if (ok)
-                apex = p;
-        }
+        uint64_t keys[MAX_SEGS];
+        for (int k = 0; k < n; k++)
+            keys[k] = loop[k] < 0 ? UINT64_MAX : c->pc->vkey[loop[k]];
+        int apex = fan_apex(faces, c->s > 1 ? keys : NULL, n); /* (a face point lies in a face too: its bit says) */
         if (apex >= 0) {
             for (int k = 1; k + 1 < n; k++)
                 add_triangle(c->pc, loop[apex], loop[(apex + k) % n], loop[(apex + k + 1) % n]);
@@ -1241,7 +1314,15 @@ static void fan_loops(struct cell *c)
                 pos[d] += c->pc->m.pos[3 * loop[k] + d] / n;
                 nrm[d] += c->pc->m.nrm[3 * loop[k] + d];
             }
-        long centre = new_vertex(c->pc, pos, nrm, UINT64_MAX);
+        int cn[3], axis;
+        long centre;
+        if (inner_crossing(c->a, c->o, c->s, pos, cn, &axis)) {
+            int cm[3] = {cn[0], cn[1], cn[2]};
+            cm[axis]++;
+            centre = edge_vertex(c->a, c->pc, cn, axis, Fp(c->a, cn), Fp(c->a, cm));
+        } else {
+            centre = new_vertex(c->pc, pos, nrm, UINT64_MAX);
+        }
         for (int k = 0; k < n; k++)
             add_triangle(c->pc, centre, loop[k], loop[(k + 1) % n]);
     }
