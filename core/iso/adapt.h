@@ -11,8 +11,10 @@
  * edges (an edge the samples cross twice or more carries a feature finer than the cell: no
  * merge), so its vertices lie on the full-resolution surface; the error is the distance from
  * every full-resolution vertex in the block (the crossings of its fine edges) to that polygon,
- * the bench's measure (vertex distances both ways; the other way is 0 by construction but for
- * the fans' centre vertices).
+ * the bench's measure (vertex distances both ways; the other way is 0 by construction), with the
+ * polygon fanned as the mesh will fan it. Where a merged cell's neighbour stays finer, the cell
+ * draws that face at the neighbour's resolution (below), which the estimate does not see: the
+ * mesh's largest distances can pass max_error there (RESULTS.md).
  *
  * Crack-free joins. The seed makes the finer side of a shared face read the coarser cell's
  * interpolant there (its node values modified, the coarser side unchanged). Built that way first,
@@ -24,7 +26,9 @@
  * modified; its edges cross at most once, so reading an edge whole or in halves finds the same
  * crossing. Each crossing is keyed by the finest edge it lies on; each cell chains its faces'
  * segments into loops (an ambiguous face or sub-face by the asymptotic decider, as mc.c) and fans
- * them from a vertex none of whose diagonals lies in a face, else from the loop's centre. So with
+ * them from a vertex none of whose diagonals lies in a face (in a merged cell the one of least
+ * key), else from a centre: in a merged cell the crossing of a fine edge inside it nearest the
+ * loop's mean (a full-resolution vertex), in a level-1 cell the mean. So with
  * closed=true the mesh is a closed, consistently oriented 2-manifold at every mix of levels.
  * Unlike mc.c, a cell's two loops are always two caps (no interior tube test).
  *
