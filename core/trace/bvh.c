@@ -547,13 +547,15 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)
     if (!split) {
         double u = l->u0 + s * (l->u1 - l->u0), v = l->v0 + t * (l->v1 - l->v0);
         /* from the corner quad's seed, giving up when the residual stops falling fast (no root near
-         * it: most leaves a ray's box test lets through are missed so); then the full iteration from
-         * the centre, which finds what the seed's start did not (the heart model: iterations a
-         * primary ray 10.5 -> 7.6, the same pixels and depths as before on it and the teapot) */
+         * it: most leaves a ray's box test lets through are missed so); then from the centre, which
+         * finds what the seed's start did not (the heart model: iterations a primary ray 10.5 ->
+         * 7.6), giving up as fast: the centre found 616 roots in 763 k retries at 8.6 M iterations
+         * iterating on, 593 at 3.0 M giving up (the heart at 1024^2: render 1120 -> 840 ms, 2
+         * pixels of 313 k shaded otherwise; the teapot, cup and mug the same) */
         bool ok = solve_newton_seeded(pt, r, u, v, &box, b->tol2, h);
         *iters += h->iters;
         if (!ok) { /* no root from the seed: retry from the centre */
-            ok = solve_newton_cramer(pt, r, 0.5 * (l->u0 + l->u1), 0.5 * (l->v0 + l->v1), &box, b->tol2, h);
+            ok = solve_newton_seeded(pt, r, 0.5 * (l->u0 + l->u1), 0.5 * (l->v0 + l->v1), &box, b->tol2, h);
             *iters += h->iters;
         }
         return ok && h->t > tnear && h->t < tmax && (!l->trim_cut || bezier_kept(pt, h->u, h->v));
