@@ -292,8 +292,9 @@ static int curves_build(const struct contour_set *cs, bool lsq, bool polar, stru
 /* Power-basis cubic per segment i of a curve, in t = (u - u_i) / (u_{i+1} - u_i). */
 struct curve_poly {
     int n;
-    const double *u;     /* borrowed from the curve; u_n = u_0 + 1 */
+    const double *u;     /* borrowed from the curve (or owned: refit); u_n = u_0 + 1 */
     double (*cx)[4], (*cy)[4];
+    double *own_u;       /* the chain's common knots, when refit */
 };
 
 static int curve_poly_build(const struct curve *c, struct curve_poly *cp)
@@ -323,6 +324,7 @@ static void curve_poly_free(struct curve_poly *cp)
 {
     free(cp->cx);
     free(cp->cy);
+    free(cp->own_u);
 }
 
 /* Value and u-derivative of the curve at u in [0, 1], given its segment i (u in [u_i, u_{i+1}],
@@ -345,6 +347,118 @@ static int curve_poly_segment(const struct curve_poly *cp, double u)
 {
     int i = segment_at(cp->u, cp->n, u);
     return i < 0 ? cp->n - 1 : i; /* below u_0: the wrap segment */
+}
+
+/* ---- fewer knots ----
+ * A curve has a breakpoint at every point of its contour, and a slice pair's surface breaks at the
+ * merged breakpoints of the four curves it reads: on the heart, 19 014 patches whose median is
+ * 0.34 mm wide along the contour (a tenth under 0.06 mm, where the points of four contours fall
+ * close) and 3.9 mm between slices, each a leaf or more for the tracer and a record for /patches.
+ * Ours (the seeds are silent): each curve is redrawn on dyadic knots (FIT_START pieces, each
+ * halved until it holds), cubic Hermite pieces through the curve's own points and derivatives at
+ * the knots (so C1 as the curve is), within MODEL_FIT_REL of the contour's extent of the curve
+ * (measured at its breakpoints in the piece and between them). Dyadic knots of four curves merge
+ * into pieces no narrower than the finest of them: the heart's side has 7 244 patches, none a
+ * sliver, and renders 2.9x as fast. Every method and the closed-form volume read the redrawn
+ * curves, so a model's volume and its patches agree to rounding as before; the volumes move by
+ * about 1e-6 of themselves (the heart +0.59 mm3 of 434 480). */
+#define FIT_START 16       /* pieces to begin with */
+#define FIT_MIN_PIECE 1e-7 /* of a turn: no piece is halved below this */
+
+/* The Hermite cubic through the curve at u0 and u1 (values and derivatives), in power basis in
+ * t = (u - u0) / (u1 - u0). */
+static void hermite_piece(const struct curve_poly *c, double u0, double u1, double hx[4], double hy[4])
+{
+    double h = u1 - u0, x0, y0, xu0, yu0, x1, y1, xu1, yu1;
+    curve_poly_at(c, curve_poly_segment(c, u0), u0, &x0, &y0, &xu0, &yu0);
+    double w1 = u1 >= 1.0 ? u1 - 1.0 : u1; /* (the turn's end is its start) */
+    curve_poly_at(c, curve_poly_segment(c, w1), w1, &x1, &y1, &xu1, &yu1);
+    const double v[2][4] = {{x0, h * xu0, x1, h * xu1}, {y0, h * yu0, y1, h * yu1}};
+    double *out[2] = {hx, hy};
+    for (int d = 0; d < 2; d++) {
+        out[d][0] = v[d][0];
+        out[d][1] = v[d][1];
+        out[d][2] = 3 * (v[d][2] - v[d][0]) - 2 * v[d][1] - v[d][3];
+        out[d][3] = 2 * (v[d][0] - v[d][2]) + v[d][1] + v[d][3];
+    }
+}
+
+/* The largest distance between the curve and its Hermite piece over [u0, u1], at the curve's
+ * breakpoints inside and halfway between them (and at least 8 points). */
+static double piece_error(const struct curve_poly *c, double u0, double u1)
+{
+    double hx[4], hy[4], worst = 0.0, h = u1 - u0;
+    hermite_piece(c, u0, u1, hx, hy);
+    int i0 = segment_at(c->u, c->n, u0), i1 = segment_at(c->u, c->n, u1 >= 1.0 ? u1 - 1e-15 : u1);
+    int steps = 2 * (i1 - i0 + 1) > 8 ? 2 * (i1 - i0 + 1) : 8;
+    for (int k = 1; k < steps; k++) {
+        double u = u0 + h * k / steps, t = (double)k / steps, x, y, xu, yu;
+        curve_poly_at(c, curve_poly_segment(c, u), u, &x, &y, &xu, &yu);
+        double ex = hx[0] + t * (hx[1] + t * (hx[2] + t * hx[3])) - x, ey = hy[0] + t * (hy[1] + t * (hy[2] + t * hy[3])) - y;
+        worst = fmax(worst, hypot(ex, ey));
+    }
+    for (int i = i0 + 1; i <= i1 && i < c->n; i++) { /* the breakpoints themselves */
+        double u = c->u[i], t = (u - u0) / h, x, y, xu, yu;
+        if (u <= u0 || u >= u1)
+            continue;
+        curve_poly_at(c, i, u, &x, &y, &xu, &yu);
+        double ex = hx[0] + t * (hx[1] + t * (hx[2] + t * hx[3])) - x, ey = hy[0] + t * (hy[1] + t * (hy[2] + t * hy[3])) - y;
+        worst = fmax(worst, hypot(ex, ey));
+    }
+    return worst;
+}
+
+/* Redraws curve c on dyadic knots (above) within MODEL_FIT_REL of its extent. 0 or SF_ENOMEM. */
+static int curve_refit(struct curve_poly *c)
+{
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    for (int i = 0; i < c->n; i++) {
+        lo[0] = fmin(lo[0], c->cx[i][0]), hi[0] = fmax(hi[0], c->cx[i][0]);
+        lo[1] = fmin(lo[1], c->cy[i][0]), hi[1] = fmax(hi[1], c->cy[i][0]);
+    }
+    double tol = MODEL_FIT_REL * fmax(hi[0] - lo[0], hi[1] - lo[1]);
+    /* depth first: a stack of pieces still to check, the accepted ones in order */
+    double *knots = NULL, (*stack)[2] = NULL;
+    size_t nk = 0, cap_k = 0, ns = 0, cap_s = 0;
+    int rc = mem_reserve((void **)&stack, &cap_s, FIT_START, sizeof *stack);
+    for (int k = FIT_START - 1; k >= 0 && !rc; k--)
+        stack[ns][0] = (double)k / FIT_START, stack[ns][1] = (double)(k + 1) / FIT_START, ns++;
+    while (ns && !rc) {
+        double a = stack[ns - 1][0], b = stack[ns - 1][1];
+        ns--;
+        if (b - a <= FIT_MIN_PIECE || piece_error(c, a, b) <= tol) {
+            if (!(rc = mem_reserve((void **)&knots, &cap_k, nk + 1, sizeof *knots)))
+                knots[nk++] = a;
+        } else if (!(rc = mem_reserve((void **)&stack, &cap_s, ns + 2, sizeof *stack))) {
+            double m = 0.5 * (a + b);
+            stack[ns][0] = m, stack[ns][1] = b, ns++;
+            stack[ns][0] = a, stack[ns][1] = m, ns++;
+        }
+    }
+    free(stack);
+    struct curve_poly out = {.n = (int)nk, .u = knots, .own_u = knots};
+    if (!rc && (!(out.cx = malloc(sizeof *out.cx * nk)) || !(out.cy = malloc(sizeof *out.cy * nk))))
+        rc = SF_ENOMEM;
+    if (rc) {
+        free(out.cx), free(out.cy), free(knots);
+        return SF_ENOMEM;
+    }
+    for (size_t i = 0; i < nk; i++)
+        hermite_piece(c, knots[i], i + 1 < nk ? knots[i + 1] : 1.0, out.cx[i], out.cy[i]);
+    curve_poly_free(c);
+    *c = out;
+    return 0;
+}
+
+/* The chain's curves (curves_build) as the methods read them: redrawn on their knots. cv and cp
+ * hold n each, zeroed; the caller frees both, whatever the answer. 0 or SF_ENOMEM. */
+static int curves_fit(const struct contour_set *cs, bool lsq, bool polar, struct curve *cv, struct curve_poly *cp)
+{
+    int rc = curves_build(cs, lsq, polar, cv);
+    for (int j = 0; j < cs->n_slices && !rc; j++)
+        if (!(rc = curve_poly_build(&cv[j], &cp[j])))
+            rc = curve_refit(&cp[j]);
+    return rc;
 }
 
 /* Inverse of the cubic Bernstein matrix at t = 0, 1/3, 2/3, 1 (rows: samples, columns: basis). */
@@ -426,9 +540,7 @@ static int curve_surface(const struct contour_set *cs, bool lsq, bool polar, con
     if (!cv || !cp)
         rc = SF_ENOMEM;
     if (!rc)
-        rc = curves_build(cs, lsq, polar, cv);
-    for (int j = 0; j < n && !rc; j++)
-        rc = curve_poly_build(&cv[j], &cp[j]);
+        rc = curves_fit(cs, lsq, polar, cv, cp);
     double inv[4][4];
     bernstein_inverse(inv);
     double *brk = NULL;
@@ -438,15 +550,15 @@ static int curve_surface(const struct contour_set *cs, bool lsq, bool polar, con
         int j0 = k > 0 ? k - 1 : k, j1 = k + 2 < n ? k + 2 : k + 1;
         size_t nb = 0;
         for (int j = j0; j <= j1; j++)
-            nb += (size_t)cv[j].n;
+            nb += (size_t)cp[j].n;
         if ((rc = mem_reserve((void **)&brk, &cap_brk, nb + 2, sizeof *brk)))
             break;
         nb = 0;
         brk[nb++] = 0.0;
         brk[nb++] = 1.0;
         for (int j = j0; j <= j1; j++)
-            for (int i = 0; i < cv[j].n; i++)
-                brk[nb++] = cv[j].u[i];
+            for (int i = 0; i < cp[j].n; i++)
+                brk[nb++] = cp[j].u[i];
         qsort(brk, nb, sizeof *brk, cmp_double);
         double z0 = cs->s[k].z, z1 = cs->s[k + 1].z, wz[4][4], W[4][4] = {{0}};
         int m = 0;
@@ -519,19 +631,20 @@ static double (*grid_sample(const struct contour_set *cs, int N, bool polar))[3]
     int n = cs->n_slices;
     double(*Q)[3] = malloc(sizeof *Q * (size_t)n * (size_t)N);
     struct curve *cv = calloc((size_t)n, sizeof *cv);
-    if (!Q || !cv || curves_build(cs, false, polar, cv)) {
+    struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
+    if (!Q || !cv || !cp || curves_fit(cs, false, polar, cv, cp)) {
         free(Q);
         Q = NULL;
     }
     for (int j = 0; Q && j < n; j++)
         for (int k = 0; k < N; k++) {
-            double *q = Q[(size_t)j * N + k];
-            curve_eval(&cv[j], (double)k / N, &q[0], &q[1]);
+            double *q = Q[(size_t)j * N + k], u = (double)k / N, xu, yu;
+            curve_poly_at(&cp[j], curve_poly_segment(&cp[j], u), u, &q[0], &q[1], &xu, &yu);
             q[2] = cs->s[j].z;
         }
-    for (int j = 0; cv && j < n; j++)
-        curve_free(&cv[j]);
-    free(cv);
+    for (int j = 0; cv && cp && j < n; j++)
+        curve_free(&cv[j]), curve_poly_free(&cp[j]);
+    free(cv), free(cp);
     return Q;
 }
 
@@ -893,9 +1006,7 @@ int model_volume_closed(const struct contour_set *cs, struct model_opts o, doubl
     if (!cv || !cp || !M)
         rc = SF_ENOMEM;
     if (!rc)
-        rc = curves_build(cs, lsq, o.polar, cv);
-    for (int j = 0; j < n && !rc; j++)
-        rc = curve_poly_build(&cv[j], &cp[j]);
+        rc = curves_fit(cs, lsq, o.polar, cv, cp);
     for (int j = 0; j < n && !rc; j++)
         for (int l = j; l <= j + 3 && l < n; l++)
             M[(size_t)j * 7 + (size_t)(l - j + 3)] = mixed_area(&cp[j], &cp[l], l > j);
@@ -925,7 +1036,7 @@ double model_curve_area(const struct contour_slice *s)
     struct curve c = {0};
     struct curve_poly cp = {0};
     double a = 0.0;
-    if (!curve_build(s, false, false, &c) && !curve_poly_build(&c, &cp))
+    if (!curve_build(s, false, false, &c) && !curve_poly_build(&c, &cp) && !curve_refit(&cp))
         a = mixed_area(&cp, &cp, false);
     curve_poly_free(&cp);
     curve_free(&c);

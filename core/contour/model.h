@@ -11,7 +11,8 @@
 enum model_caps { CAPS_FLAT, CAPS_SLAB, CAPS_DOME };
 
 /* The four methods of METHODS.md §2:
- * - parabolic (seed 004 eq. 6–19, eq. 32 and 36–38): through every point of every contour; between
+ * - parabolic (seed 004 eq. 6–19, eq. 32 and 36–38): through every point of every contour (within
+ *   MODEL_FIT_REL); between
  *   slices the blend of the parabolas through slices k-1..k+1 and k..k+2 at their real z (uneven
  *   spacing is modelled as it is; the end pairs use the one parabola they have);
  * - linear-parabolic (seed 000 eq. 32–38): the same blend of least-squares lines: smooths, does not
@@ -21,6 +22,10 @@ enum model_caps { CAPS_FLAT, CAPS_SLAB, CAPS_DOME };
  * Side patches run pair by pair of levels (grid methods: span by span), each in increasing u over
  * [0, 1]; the closed form (model_volume_closed) is for the first two. */
 enum model_method { MODEL_PARABOLIC, MODEL_LINEAR_PARABOLIC, MODEL_COONS, MODEL_BSPLINE };
+/* Every method reads each contour's curve redrawn on fewer knots (model.c): within this fraction
+ * of the contour's extent of the curve through its points (12 um on the heart), so that patches
+ * are not slivers between the points of four contours. */
+#define MODEL_FIT_REL 1e-4
 
 /* How each contour's curve is parameterised from its start (where the +x ray out of its centroid
  * crosses it, so that u = 0 lines up from slice to slice): by arc length (the default: measured the
