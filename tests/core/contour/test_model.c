@@ -768,6 +768,61 @@ TEST(rejections)
     }
 }
 
+/* The patches a chain would make are bounded before any is built (MODEL_MAX_PATCHES: 40 levels of
+ * 13 000 points would make about 4 M), refused with the pointer /slices. */
+TEST(patch_cap)
+{
+    enum { LEVELS = 40, POINTS = 13000 };
+    struct contour_slice sl[LEVELS];
+    double(*pts)[2] = malloc(sizeof *pts * POINTS);
+    REQUIRE(pts);
+    for (int i = 0; i < POINTS; i++)
+        pts[i][0] = 10 * cos(2 * M_PI * i / POINTS), pts[i][1] = 10 * sin(2 * M_PI * i / POINTS);
+    for (int k = 0; k < LEVELS; k++)
+        sl[k] = (struct contour_slice){.z = k, .n = POINTS, .p = pts, .src = k, .src_contour = -1};
+    struct contour_set cs = {sl, LEVELS};
+    struct patch_set ps = {0};
+    struct sf_err err = {0};
+    CHECK(model_side(&cs, PARABOLIC, &ps, &err) == SF_ELIMIT && !strcmp(err.pointer, "/slices"));
+    CHECK(ps.n == 0);
+    nurbs_patch_set_free(&ps);
+    free(pts);
+}
+
+/* Curves redrawn on fewer knots: a circle's prism with far fewer patches than points, its volume
+ * the closed form's; a zigzag star, which would take more knots than twice its points, keeps its
+ * own curve (a patch a point and level pair, as before the knots were redrawn). */
+TEST(fewer_knots)
+{
+    enum { POINTS = 400 };
+    double(*pts)[2] = malloc(sizeof *pts * POINTS), (*zig)[2] = malloc(sizeof *zig * POINTS);
+    REQUIRE(pts && zig);
+    for (int i = 0; i < POINTS; i++) {
+        pts[i][0] = 10 * cos(2 * M_PI * i / POINTS), pts[i][1] = 10 * sin(2 * M_PI * i / POINTS);
+        double r = i % 2 ? 10.5 : 10; /* a zigzag */
+        zig[i][0] = r * cos(2 * M_PI * i / POINTS), zig[i][1] = r * sin(2 * M_PI * i / POINTS);
+    }
+    for (int c = 0; c < 2; c++) {
+        struct contour_slice sl[3];
+        for (int k = 0; k < 3; k++)
+            sl[k] = (struct contour_slice){.z = k, .n = POINTS, .p = c ? zig : pts, .src = k, .src_contour = -1};
+        struct contour_set cs = {sl, 3};
+        struct patch_set ps = {0};
+        double v, ends[2];
+        CHECK(model_side(&cs, PARABOLIC, &ps, NULL) == 0);
+        CHECK(model_volume_closed(&cs, PARABOLIC, &v, ends, NULL) == 0);
+        double exact = 2 * ends[0]; /* a prism: the end area times the height */
+        fprintf(stderr, "  %s: %zu patches of %d points a level, volume %+.2e of the prism's\n", c ? "zigzag" : "circle",
+                ps.n, POINTS, v / exact - 1);
+        CHECK(fabs(v / exact - 1) < 1e-9);
+        CHECK(c || fabs(ends[0] / (M_PI * 100) - 1) < 1e-4); /* (the curve through 400 points of it) */
+        CHECK(c ? ps.n == 2 * POINTS : ps.n < POINTS / 4);
+        nurbs_patch_set_free(&ps);
+    }
+    free(pts);
+    free(zig);
+}
+
 int main(void)
 {
     RUN(synthetic_volumes_within_0_2_percent);
@@ -784,5 +839,7 @@ int main(void)
     RUN(a_hole_stops_inside_the_body);
     RUN(polar_parameterisation);
     RUN(rejections);
+    RUN(patch_cap);
+    RUN(fewer_knots);
     UNIT_END();
 }
