@@ -386,29 +386,32 @@ static void hermite_piece(const struct curve_poly *c, double u0, double u1, doub
     }
 }
 
-/* The largest distance between the curve and its Hermite piece over [u0, u1], at the curve's
- * breakpoints inside and halfway between them (and at least 8 points). */
+/* The largest squared distance between the curve and its Hermite piece over [u0, u1]: 0 when no
+ * breakpoint of the curve lies inside (the piece is one of its cubics, which the Hermite piece
+ * equals), else measured at those breakpoints and at the quarters between them. */
 static double piece_error(const struct curve_poly *c, double u0, double u1)
 {
-    double hx[4], hy[4], worst = 0.0, h = u1 - u0;
+    int i = segment_at(c->u, c->n, u0) + 1; /* the first breakpoint past u0 */
+    if (i >= c->n || c->u[i] >= u1)
+        return 0.0;
+    double hx[4], hy[4], worst = 0.0, h = u1 - u0, prev = u0;
     hermite_piece(c, u0, u1, hx, hy);
-    int i0 = segment_at(c->u, c->n, u0), i1 = segment_at(c->u, c->n, u1 >= 1.0 ? u1 - 1e-15 : u1);
-    int steps = 2 * (i1 - i0 + 1) > 8 ? 2 * (i1 - i0 + 1) : 8;
-    for (int k = 1; k < steps; k++) {
-        double u = u0 + h * k / steps, t = (double)k / steps, x, y, xu, yu;
-        curve_poly_at(c, curve_poly_segment(c, u), u, &x, &y, &xu, &yu);
-        double ex = hx[0] + t * (hx[1] + t * (hx[2] + t * hx[3])) - x, ey = hy[0] + t * (hy[1] + t * (hy[2] + t * hy[3])) - y;
-        worst = fmax(worst, hypot(ex, ey));
+    for (;; i++) {
+        double b = i < c->n && c->u[i] < u1 ? c->u[i] : u1;
+        int seg = i > 0 ? i - 1 : c->n - 1; /* the segment [prev, b] lies in */
+        for (int q = 1; q <= 4; q++) { /* its quarters, and b when it is a breakpoint */
+            double u = q < 4 ? prev + (b - prev) * q / 4 : b, t = (u - u0) / h, x, y, xu, yu;
+            if (q == 4 && b >= u1)
+                break;
+            curve_poly_at(c, q < 4 ? seg : i, u, &x, &y, &xu, &yu);
+            double ex = hx[0] + t * (hx[1] + t * (hx[2] + t * hx[3])) - x;
+            double ey = hy[0] + t * (hy[1] + t * (hy[2] + t * hy[3])) - y;
+            worst = fmax(worst, ex * ex + ey * ey);
+        }
+        if (b >= u1)
+            return worst;
+        prev = b;
     }
-    for (int i = i0 + 1; i <= i1 && i < c->n; i++) { /* the breakpoints themselves */
-        double u = c->u[i], t = (u - u0) / h, x, y, xu, yu;
-        if (u <= u0 || u >= u1)
-            continue;
-        curve_poly_at(c, i, u, &x, &y, &xu, &yu);
-        double ex = hx[0] + t * (hx[1] + t * (hx[2] + t * hx[3])) - x, ey = hy[0] + t * (hy[1] + t * (hy[2] + t * hy[3])) - y;
-        worst = fmax(worst, hypot(ex, ey));
-    }
-    return worst;
 }
 
 /* Redraws curve c on dyadic knots (above) within MODEL_FIT_REL of its extent, unless that takes
@@ -430,7 +433,7 @@ static int curve_refit(struct curve_poly *c)
     while (ns && !rc && nk + ns <= FIT_MAX_KNOTS(c->n)) {
         double a = stack[ns - 1][0], b = stack[ns - 1][1];
         ns--;
-        if (b - a <= FIT_MIN_PIECE || piece_error(c, a, b) <= tol) {
+        if (b - a <= FIT_MIN_PIECE || piece_error(c, a, b) <= tol * tol) {
             if (!(rc = mem_reserve((void **)&knots, &cap_k, nk + 1, sizeof *knots)))
                 knots[nk++] = a;
         } else if (!(rc = mem_reserve((void **)&stack, &cap_s, ns + 2, sizeof *stack))) {
