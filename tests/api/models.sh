@@ -13,14 +13,14 @@ start_daemon "$T/m1" --threads 2 || exit 1
 # ---- POST /model, GET /models/{id}, GET /models ------------------------------------------------
 code=$(status POST /model -H "$J" --data-binary @"$C/synthetic_bean.json")
 id=$(field id); loc=$(header Location)
-check "model 201 with Location" '[ "$code" = 201 ] && [ "$loc" = "/models/$id" ] && grep -q "\"volume_mm3\":66500.7" "$T/body" && grep -q "\"mesh\":\"/models/$id/mesh?format=stl\"" "$T/body"'
+check "model 201 with Location" '[ "$code" = 201 ] && [ "$loc" = "/models/$id" ] && grep -q "\"volume_mm3\":665[0-9][0-9]\." "$T/body" && grep -q "\"mesh\":\"/models/$id/mesh?format=stl\"" "$T/body"'
 vol=$(sed 's/.*"volume_mm3":\([0-9.]*\).*/\1/' "$T/body")
 check "GET the model" '[ "$(status GET "$loc")" = 200 ] && grep -q "\"id\":\"$id\"" "$T/body" && grep -q "\"caps\":\"flat\"" "$T/body"'
 etag=$(header ETag)
 check "GET the model again: 304 on its ETag" '[ -n "$etag" ] && [ "$(status GET "$loc" -H "If-None-Match: $etag")" = 304 ]'
 check "GET /models lists it" '[ "$(status GET /models)" = 200 ] && grep -q "\"models\":\[{" "$T/body" && grep -q "\"id\":\"$id\"" "$T/body"'
 code=$(status POST "/model?caps=dome" -H "$J" --data-binary @"$C/synthetic_ellipsoid.json")
-dome=$(field id)
+dome=$(field id); domevol=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['volume_mm3'])" "$T/body")
 check "model ?caps=dome" '[ "$code" = 201 ] && grep -q "\"caps\":\"dome\"" "$T/body" && grep -q "\"dome_ends_flat\":0" "$T/body"'
 code=$(status POST /model -H 'Content-Type: application/dicom' --data-binary @"$C/slicerrt_EclipseProstatePhantom_RS.dcm")
 ids=$(grep -o '"id":"[0-9a-f]*"' "$T/body" | cut -d'"' -f4 | sort -u)
@@ -55,7 +55,7 @@ check "mesh 422 tolerance" '[ "$(status GET "/models/$id/mesh?tolerance=abc")" =
 code=$(status GET "/models/$dome/patches")
 cp "$T/body" "$T/p.json"
 check "patches: bicubic and rational dome patches" '[ "$code" = 200 ] && grep -q "\"type\":\"bezier\"" "$T/p.json" && grep -q "\"type\":\"nurbs\"" "$T/p.json"'
-check "patches posted back to POST /volume: closed (edges meeting parts of others), the model's volume" '[ "$(status POST /volume -H "$J" --data-binary @"$T/p.json")" = 200 ] && grep -q "\"closed\":true" "$T/body" && python3 -c "import json,sys; v=json.load(open(sys.argv[1]))[\"volume_mm3\"]; sys.exit(abs(v/125639.946-1)>1e-6)" "$T/body"'
+check "patches posted back to POST /volume: closed (edges meeting parts of others), the model's volume" '[ "$(status POST /volume -H "$J" --data-binary @"$T/p.json")" = 200 ] && grep -q "\"closed\":true" "$T/body" && python3 -c "import json,sys; v=json.load(open(sys.argv[1]))[\"volume_mm3\"]; sys.exit(abs(v/float(sys.argv[2])-1)>1e-6 or abs(v/125663.7-1)>5e-4)" "$T/body" "$domevol"'
 # clinical structures: patches between slices whose corresponding points nearly coincide are slivers,
 # their opposite edges within the matching tolerance of each other (the bladder has some)
 for f in eclipse_bladder eclipse_ptv dicompyler_tumor_bed; do
