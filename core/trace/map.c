@@ -382,37 +382,39 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
     return 0;
 }
 
-/* The triangles' indices by increasing depth bound: a radix sort of the bounds' bits, flipped so
- * that unsigned order is float order. NULL when out of memory. */
+/* The triangles' indices by increasing depth bound: a radix sort of (bound, index) pairs, the
+ * bound's bits flipped so that unsigned order is float order, each pass reading and writing in
+ * order (sorting the indices by a key looked up through them missed the cache at every step:
+ * 4x slower on the heart's 208 k triangles). NULL when out of memory. */
 static unsigned *depth_order(const struct map *m)
 {
     const size_t n = m->n_tris;
-    unsigned *a = malloc(sizeof *a * (n ? n : 1)), *b = malloc(sizeof *b * (n ? n : 1));
-    uint32_t *key = malloc(sizeof *key * (n ? n : 1));
-    if (!a || !b || !key) {
-        free(a), free(b), free(key);
+    uint64_t *a = malloc(sizeof *a * (n ? n : 1)), *b = malloc(sizeof *b * (n ? n : 1));
+    unsigned *out = malloc(sizeof *out * (n ? n : 1));
+    if (!a || !b || !out) {
+        free(a), free(b), free(out);
         return NULL;
     }
     for (size_t k = 0; k < n; k++) {
         uint32_t bits;
         memcpy(&bits, &m->tris[k].zlo, sizeof bits);
-        key[k] = bits & 0x80000000u ? ~bits : bits | 0x80000000u;
-        a[k] = (unsigned)k;
+        a[k] = (uint64_t)(bits & 0x80000000u ? ~bits : bits | 0x80000000u) << 32 | k;
     }
-    for (int shift = 0; shift < 32; shift += 8) {
+    for (int shift = 32; shift < 64; shift += 8) {
         size_t count[257] = {0};
         for (size_t k = 0; k < n; k++)
-            count[((key[a[k]] >> shift) & 0xff) + 1]++;
+            count[((a[k] >> shift) & 0xff) + 1]++;
         for (int d = 0; d < 256; d++)
             count[d + 1] += count[d];
         for (size_t k = 0; k < n; k++)
-            b[count[(key[a[k]] >> shift) & 0xff]++] = a[k];
-        unsigned *t = a;
+            b[count[(a[k] >> shift) & 0xff]++] = a[k];
+        uint64_t *t = a;
         a = b, b = t;
     }
-    free(b);
-    free(key);
-    return a;
+    for (size_t k = 0; k < n; k++)
+        out[k] = (unsigned)(a[k] & 0xffffffffu);
+    free(a), free(b);
+    return out;
 }
 
 int map_build(const struct patch *patches, size_t n, const struct camera *cam, struct map **out, struct sf_err *err)
@@ -434,15 +436,23 @@ int map_build(const struct patch *patches, size_t n, const struct camera *cam, s
     unsigned *order = depth_order(m);
     if (!order)
         goto out_nomem;
+    /* each triangle's tiles, once and in storage order (the passes below read them in depth order) */
+    int (*tiles)[2] = malloc(sizeof *tiles * (m->n_tris ? m->n_tris : 1));
+    if (!tiles) {
+        free(order);
+        goto out_nomem;
+    }
+    for (size_t k = 0; k < m->n_tris; k++) {
+        int x0, x1, y0, y1;
+        tri_bbox(m, &m->tris[k], &x0, &x1, &y0, &y1);
+        tiles[k][0] = x0 > x1 || y0 > y1 ? 1 : y0 / MAP_TILE_ROWS; /* (off the picture: none) */
+        tiles[k][1] = x0 > x1 || y0 > y1 ? 0 : y1 / MAP_TILE_ROWS;
+    }
     size_t n_refs = 0;
     for (int pass = 0; pass < 2; pass++) {
         for (size_t o = 0; o < m->n_tris; o++) {
             size_t k = order[o];
-            int x0, x1, y0, y1;
-            tri_bbox(m, &m->tris[k], &x0, &x1, &y0, &y1);
-            if (x0 > x1 || y0 > y1)
-                continue;
-            for (int t = y0 / MAP_TILE_ROWS; t <= y1 / MAP_TILE_ROWS; t++) {
+            for (int t = tiles[k][0]; t <= tiles[k][1]; t++) {
                 if (pass == 0)
                     m->tile_first[t + 2]++;
                 else
@@ -454,12 +464,12 @@ int map_build(const struct patch *patches, size_t n, const struct camera *cam, s
                 m->tile_first[t + 2] += m->tile_first[t + 1];
             n_refs = m->tile_first[n_tiles + 1];
             if (!(m->tile_tris = malloc(sizeof *m->tile_tris * (n_refs ? n_refs : 1)))) {
-                free(order);
+                free(order), free(tiles);
                 goto out_nomem;
             }
         }
     }
-    free(order);
+    free(order), free(tiles);
     *out = m;
     return 0;
 
