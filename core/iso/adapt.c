@@ -120,9 +120,10 @@ static int fan_apex(const int *faces, const uint64_t *keys, int n)
 /* The centre of a loop without an apex in the cell of s nodes a side at o: the crossing of a fine
  * edge inside the cell (on none of its faces) nearest the loop's mean x, a vertex of the
  * full-resolution surface, so that the fan's centre lies on it: its edge's lower node into n and
- * axis, or false when the cell has none (level 1). */
-static bool inner_crossing(const struct iso_adapt *a, const int o[3], int s, const double x[3], int n[3], int *axis)
+ * axis, and the samples' crossing into x; false when the cell has none (level 1). */
+static bool inner_crossing(const struct iso_adapt *a, const int o[3], int s, double x[3], int n[3], int *axis)
 {
+    double at[3];
     double best = INFINITY;
     for (int ax = 0; ax < 3; ax++) {
         int u = (ax + 1) % 3, w = (ax + 2) % 3, p[3];
@@ -134,15 +135,17 @@ static bool inner_crossing(const struct iso_adapt *a, const int o[3], int s, con
                     double f0 = Fp(a, p) - a->iso, f1 = Fp(a, q) - a->iso;
                     if ((f0 > 0) == (f1 > 0))
                         continue;
-                    double t = f0 / (f0 - f1), d2 = 0;
+                    double t = f0 / (f0 - f1), d2 = 0, y[3];
                     for (int d = 0; d < 3; d++) {
-                        double e = a->org[d] + a->sp[d] * (p[d] + (d == ax ? t : 0)) - x[d];
-                        d2 += e * e;
+                        y[d] = a->org[d] + a->sp[d] * (p[d] + (d == ax ? t : 0));
+                        d2 += (y[d] - x[d]) * (y[d] - x[d]);
                     }
                     if (d2 < best)
-                        best = d2, memcpy(n, p, sizeof p), *axis = ax;
+                        best = d2, memcpy(n, p, sizeof p), *axis = ax, memcpy(at, y, sizeof y);
                 }
     }
+    if (best < INFINITY)
+        memcpy(x, at, sizeof at);
     return best < INFINITY;
 }
 
@@ -245,11 +248,6 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
                         centre[d] += ep[loop[k] / 8][loop[k] % 8][d] / n;
                 if (!inner_crossing(a, o, s, centre, cn, &axis))
                     return INFINITY;
-                int cm[3] = {cn[0], cn[1], cn[2]};
-                cm[axis]++;
-                double f0 = Fp(a, cn) - iso, t = f0 / (f0 - (Fp(a, cm) - iso));
-                for (int d = 0; d < 3; d++)
-                    centre[d] = a->org[d] + a->sp[d] * (cn[d] + (d == axis ? t : 0));
             }
             int from = apex < 0 ? 0 : 1, base = apex < 0 ? 0 : apex;
             for (int k = from; k + from < n && tri_n < 16; k++, tri_n++) {
@@ -500,7 +498,6 @@ static double field_root(const struct iso_adapt *a, const int n[3], int axis, do
     }
     return t;
 }
-
 
 /* Makes the vertex keyed key (its slot from known_vertex) at fraction t of the finest edge from
  * node n along axis; its normal from the field's gradient (on_field) or the samples'. */
