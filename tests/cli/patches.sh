@@ -26,7 +26,7 @@ check "the torus's branching planes are trimmed flat patches" 'python3 -c "impor
 closes "synthetic_torus_branching.rtstruct.dcm" "$C/synthetic_torus_branching.rtstruct.dcm" --roi torus_branching
 # (Breast: its ends are not star-shaped about their centroids, so their fans fold; its patches
 # carry each end as a trimmed flat patch instead)
-for roi in Borders Breast Heart "Lt Lung" Nodes Scar "Tumor Bed" "Tumor Bed Block"; do
+for roi in BODY Borders Breast Heart "Lt Lung" Nodes Scar "Tumor Bed" "Tumor Bed Block"; do
     closes "dicompyler RT Structure Set, $roi" "$C/dicompyler-core_example_rtss.dcm" --roi "$roi"
 done
 for roi in Bladder "Femoral Head Lt" "Femoral Head RT" PTV Rectum; do
