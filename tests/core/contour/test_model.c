@@ -519,7 +519,7 @@ static int cutting_pairs(const struct mesh *m, const struct contour_set *cs, int
  * every shared contour file's mesh is one outer shell (the lung's holes that end inside it are
  * cavities), closed, with no triangle of a cap plane cut by another, and the volume held. Without the
  * join the torus is 4 shells with 9210 such pairs, the lung 14 with 3829. Elsewhere, no triangles
- * cut each other but 36 pairs of the lung's (446 before hole_reach and curve_align: holes' ends
+ * cut each other but 29 pairs of the lung's (446 before hole_reach and curve_align: holes' ends
  * poking out of the body where it moves in between levels, 247; the side folding between unlike
  * contours whose starts lined up badly, 114 at z -106): where a hole's side meets the body's, by
  * small holes near the surface, and in folds between unlike contours. */
