@@ -389,13 +389,12 @@ static void hermite_piece(const struct curve_poly *c, double u0, double u1, doub
 /* The largest squared distance between the curve and its Hermite piece over [u0, u1]: 0 when no
  * breakpoint of the curve lies inside (the piece is one of its cubics, which the Hermite piece
  * equals), else measured at those breakpoints and at the quarters between them. */
-static double piece_error(const struct curve_poly *c, double u0, double u1)
+static double piece_error(const struct curve_poly *c, double u0, double u1, const double hx[4], const double hy[4])
 {
     int i = segment_at(c->u, c->n, u0) + 1; /* the first breakpoint past u0 */
     if (i >= c->n || c->u[i] >= u1)
         return 0.0;
-    double hx[4], hy[4], worst = 0.0, h = u1 - u0, prev = u0;
-    hermite_piece(c, u0, u1, hx, hy);
+    double worst = 0.0, h = u1 - u0, prev = u0;
     for (;; i++) {
         double b = i < c->n && c->u[i] < u1 ? c->u[i] : u1;
         int seg = i > 0 ? i - 1 : c->n - 1; /* the segment [prev, b] lies in */
@@ -424,38 +423,39 @@ static int curve_refit(struct curve_poly *c)
         lo[1] = fmin(lo[1], c->cy[i][0]), hi[1] = fmax(hi[1], c->cy[i][0]);
     }
     double tol = MODEL_FIT_REL * fmax(hi[0] - lo[0], hi[1] - lo[1]);
-    /* depth first: a stack of pieces still to check, the accepted ones in order */
-    double *knots = NULL, (*stack)[2] = NULL;
-    size_t nk = 0, cap_k = 0, ns = 0, cap_s = 0;
-    int rc = mem_reserve((void **)&stack, &cap_s, FIT_START, sizeof *stack);
-    for (int k = FIT_START - 1; k >= 0 && !rc; k--)
+    /* depth first: a stack of pieces still to check (one more than the knots allowed: a split
+     * adds one), the accepted ones in order with their Hermite pieces */
+    const size_t cap = FIT_MAX_KNOTS(c->n);
+    double(*stack)[2] = malloc(sizeof *stack * (cap + 1));
+    struct curve_poly out = {.own_u = malloc(sizeof *out.own_u * cap), .cx = malloc(sizeof *out.cx * cap),
+                             .cy = malloc(sizeof *out.cy * cap)};
+    if (!stack || !out.own_u || !out.cx || !out.cy) {
+        free(stack), curve_poly_free(&out);
+        return SF_ENOMEM;
+    }
+    size_t nk = 0, ns = 0;
+    for (int k = FIT_START - 1; k >= 0; k--)
         stack[ns][0] = (double)k / FIT_START, stack[ns][1] = (double)(k + 1) / FIT_START, ns++;
-    while (ns && !rc && nk + ns <= FIT_MAX_KNOTS(c->n)) {
-        double a = stack[ns - 1][0], b = stack[ns - 1][1];
+    while (ns && nk + ns <= cap) {
+        double a = stack[ns - 1][0], b = stack[ns - 1][1], hx[4], hy[4];
         ns--;
-        if (b - a <= FIT_MIN_PIECE || piece_error(c, a, b) <= tol * tol) {
-            if (!(rc = mem_reserve((void **)&knots, &cap_k, nk + 1, sizeof *knots)))
-                knots[nk++] = a;
-        } else if (!(rc = mem_reserve((void **)&stack, &cap_s, ns + 2, sizeof *stack))) {
+        hermite_piece(c, a, b, hx, hy);
+        if (b - a <= FIT_MIN_PIECE || piece_error(c, a, b, hx, hy) <= tol * tol) {
+            out.own_u[nk] = a;
+            memcpy(out.cx[nk], hx, sizeof hx), memcpy(out.cy[nk], hy, sizeof hy);
+            nk++;
+        } else {
             double m = 0.5 * (a + b);
             stack[ns][0] = m, stack[ns][1] = b, ns++;
             stack[ns][0] = a, stack[ns][1] = m, ns++;
         }
     }
     free(stack);
-    if (!rc && ns) { /* over FIT_MAX_KNOTS */
-        free(knots);
+    if (ns) { /* over FIT_MAX_KNOTS */
+        curve_poly_free(&out);
         return 0;
     }
-    struct curve_poly out = {.n = (int)nk, .u = knots, .own_u = knots};
-    if (!rc && (!(out.cx = malloc(sizeof *out.cx * nk)) || !(out.cy = malloc(sizeof *out.cy * nk))))
-        rc = SF_ENOMEM;
-    if (rc) {
-        free(out.cx), free(out.cy), free(knots);
-        return SF_ENOMEM;
-    }
-    for (size_t i = 0; i < nk; i++)
-        hermite_piece(c, knots[i], i + 1 < nk ? knots[i + 1] : 1.0, out.cx[i], out.cy[i]);
+    out.n = (int)nk, out.u = out.own_u;
     curve_poly_free(c);
     *c = out;
     return 0;
