@@ -183,6 +183,13 @@ static int place_samples(const char *data, size_t n, bool compressed, bool big_e
 
 /* ---- headers ---- */
 
+/* NRRD's magic; a MetaImage header's first key. */
+static bool sniff_nrrd(const char *body, size_t len) { return len >= 4 && !memcmp(body, "NRRD", 4); }
+static bool sniff_mha(const char *body, size_t len)
+{
+    return len >= 10 && (!memcmp(body, "ObjectType", 10) || !memcmp(body, "NDims", 5));
+}
+
 /* The header's lines up to its end (NRRD: a blank line; MetaImage: the ElementDataFile line):
  * each line to fn(key, value, line number) with the key and value trimmed. *data_at: where the
  * samples start. sep: ':' (NRRD) or '=' (MetaImage). */
@@ -347,6 +354,37 @@ static int mha_line(void *ctx, const char *key, const char *value, int line, str
         return 1;
     }
     return 0;
+}
+
+/* A detached header's data file (volume_data_file): the line that names one ends the search. */
+struct data_file {
+    char *name;
+    size_t cap;
+    int line;
+};
+
+static int data_file_line(void *ctx, const char *key, const char *value, int line, struct sf_err *err)
+{
+    (void)err;
+    struct data_file *d = ctx;
+    if (strcmp(key, "data file") && strcmp(key, "datafile") && strcmp(key, "ElementDataFile"))
+        return 0;
+    if (strcmp(value, "LOCAL") && strncmp(value, "LIST", 4) && !strchr(value, '%') && strlen(value) < d->cap) {
+        snprintf(d->name, d->cap, "%s", value);
+        d->line = line;
+    }
+    return 1;
+}
+
+int volume_data_file(const char *buf, size_t len, char *name, size_t cap)
+{
+    bool nrrd = sniff_nrrd(buf, len), mha = sniff_mha(buf, len);
+    struct data_file d = {name, cap, 0};
+    size_t at;
+    struct sf_err err = {0};
+    if (nrrd || mha) /* (a header that does not end before its data file line names none) */
+        header_lines(buf, len, mha ? '=' : ':', mha, data_file_line, &d, &at, &err);
+    return d.line;
 }
 
 /* ---- the query ---- */
@@ -572,8 +610,7 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     int rc = common_options(options, !strcmp(format, "frep"), v, err);
     if (rc)
         return rc;
-    bool nrrd = len >= 4 && !memcmp(body, "NRRD", 4);
-    bool mha = len >= 10 && (!memcmp(body, "ObjectType", 10) || !memcmp(body, "NDims", 5));
+    bool nrrd = sniff_nrrd(body, len), mha = sniff_mha(body, len);
     for (int a = 0; a < 3; a++)
         v->axes[a][a] = 1;
     if (!*format)

@@ -42,6 +42,12 @@ const char *volume_format_from_type(const char *content_type);
 /* format, or for "" (sniffed) "frep" when the body is a JSON object ("" otherwise: sniffed later). */
 const char *volume_format_of(const char *body, size_t len, const char *format);
 
+/* A detached header (NRRD's "data file: F", MetaImage's "ElementDataFile = F", not LOCAL, a list
+ * or a pattern): F into name (cap bytes) and the number of the header line that names it; 0 when
+ * buf names none. The daemon reads attached headers only (an upload is one body); the offline
+ * CLI attaches F's samples itself. */
+int volume_data_file(const char *buf, size_t len, char *name, size_t cap);
+
 /* Reads a volume: format "raw", "nrrd", "mha", "dicom", "frep" or "" (sniffed); options the query. On success
  * v->g.samples points into body or v->owned (free with volume_free). Errors name the query option
  * ("?dims"), or the header line ("header line 4: ...") of what is wrong: SF_EINVAL (422),

@@ -153,65 +153,43 @@ void cmd_isosurface_usage(FILE *f)
                "                        (its six relief matrices, seed 003: samples >= iso are the body)\n");
 }
 
-/* A detached header (NRRD's "data file: F", MetaImage's "ElementDataFile = F", as the shared
- * .nhdr and .mhd and most tools' exports come) made whole: the header with F's samples attached,
- * as POST /isosurface takes it (an upload is one body: the daemon reads attached ones only). F is
- * read beside the header. buf is freed; NULL when F cannot be read. Other bodies are returned
- * as they are; a multi-file NRRD (LIST, a pattern) reaches volume_read and its answer. */
+/* A detached header (volume_data_file: the shared .nhdr and .mhd and most tools' exports come so)
+ * made whole, as POST /isosurface takes it: the line naming the data file F dropped (MetaImage:
+ * replaced by ElementDataFile = LOCAL, its last line), F's samples after the header (NRRD: after
+ * a blank line). F is read beside the header. buf is freed; NULL when F cannot be read. Other
+ * bodies are returned as they are (a multi-file NRRD reaches volume_read and its answer). */
 static char *attach_data(const char *path, char *buf, size_t *len)
 {
-    bool nrrd = *len >= 4 && !memcmp(buf, "NRRD", 4);
-    size_t at = 0, line_at = 0, line_end = 0;
-    const char *file = NULL;
-    size_t file_len = 0;
-    for (int line = 1; at < *len && line <= 256 && !file; line++) {
-        char *nl = memchr(buf + at, '\n', *len - at);
-        if (!nl || nl == buf + at || (nl == buf + at + 1 && buf[at] == '\r'))
-            break; /* NRRD's blank line: the samples follow */
-        const char *key = nrrd ? "data file:" : "ElementDataFile", *k = buf + at;
-        size_t kn = strlen(key);
-        if ((size_t)(nl - k) > kn && !strncmp(k, key, kn)) {
-            const char *v = k + kn;
-            while (v < nl && (*v == ' ' || *v == '=' || *v == '\t'))
-                v++;
-            const char *e = nl;
-            while (e > v && (e[-1] == '\r' || e[-1] == ' '))
-                e--;
-            if (!(e - v == 5 && !memcmp(v, "LOCAL", 5)) && !memchr(v, '%', (size_t)(e - v)) &&
-                !(e - v >= 4 && !memcmp(v, "LIST", 4)))
-                file = v, file_len = (size_t)(e - v), line_at = at, line_end = (size_t)(nl - buf) + 1;
-        }
-        at = (size_t)(nl - buf) + 1;
-        if (!nrrd && !strncmp(k, "ElementDataFile", 15))
-            break; /* MetaImage: its last line */
-    }
-    if (!file)
+    char file[4096];
+    int line = volume_data_file(buf, *len, file, sizeof file);
+    if (!line)
         return buf;
-    size_t rest_end = line_end; /* NRRD: the header's lines after it, to a blank line or the end */
+    size_t at = 0, end; /* the line's first byte and the next line's (header lines end in newlines) */
+    for (int l = 1; l < line; l++)
+        at = (size_t)((char *)memchr(buf + at, '\n', *len - at) - buf) + 1;
+    end = (size_t)((char *)memchr(buf + at, '\n', *len - at) - buf) + 1;
+    bool nrrd = !memcmp(buf, "NRRD", 4); /* (else MetaImage) */
+    size_t rest_end = end; /* NRRD: the header's lines after it, to a blank line or the end */
     while (nrrd && rest_end < *len && buf[rest_end] != '\n' && buf[rest_end] != '\r') {
         char *nl = memchr(buf + rest_end, '\n', *len - rest_end);
         rest_end = nl ? (size_t)(nl - buf) + 1 : *len;
     }
     const char *slash = strrchr(path, '/');
-    size_t dn = file[0] == '/' || !slash ? 0 : (size_t)(slash - path) + 1;
-    char *data_path = malloc(dn + file_len + 1);
-    size_t data_len = 0;
-    char *data = NULL;
+    size_t dn = file[0] == '/' || !slash ? 0 : (size_t)(slash - path) + 1, data_len = 0;
+    char *data_path = malloc(dn + strlen(file) + 1), *data = NULL;
     if (data_path) {
-        memcpy(data_path, path, dn);
-        memcpy(data_path + dn, file, file_len);
-        data_path[dn + file_len] = 0;
+        snprintf(data_path, dn + strlen(file) + 1, "%.*s%s", (int)dn, path, file);
         data = cli_read_all(data_path, &data_len, (size_t)1 << 34);
     }
-    const char *tail = nrrd ? "\n" : "ElementDataFile = LOCAL\n"; /* NRRD: the line goes, a blank line ends it */
-    size_t head = line_at, rest = rest_end - line_end, tn = strlen(tail);
-    char *whole = data ? malloc(head + rest + tn + data_len + 1) : NULL;
+    const char *tail = nrrd ? "\n" : "ElementDataFile = LOCAL\n";
+    size_t rest = rest_end - end, tn = strlen(tail);
+    char *whole = data ? malloc(at + rest + tn + data_len + 1) : NULL;
     if (whole) {
-        memcpy(whole, buf, head);
-        memcpy(whole + head, buf + line_end, rest);
-        memcpy(whole + head + rest, tail, tn);
-        memcpy(whole + head + rest + tn, data, data_len);
-        *len = head + rest + tn + data_len;
+        memcpy(whole, buf, at);
+        memcpy(whole + at, buf + end, rest);
+        memcpy(whole + at + rest, tail, tn);
+        memcpy(whole + at + rest + tn, data, data_len);
+        *len = at + rest + tn + data_len;
         whole[*len] = 0;
     } else if (data) {
         fprintf(stderr, "surfd: %s: out of memory\n", data_path);

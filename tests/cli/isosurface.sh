@@ -25,6 +25,11 @@ printf 'NRRD0004\ntype: uint8\ndimension: 3\ndata file: b.raw\nsizes: 4 4 4\nenc
 python3 -c "import sys; sys.stdout.buffer.write(bytes(200 if 0 < x < 3 and 0 < y < 3 and 0 < z < 3 else 0 for z in range(4) for y in range(4) for x in range(4)))" >"$T/b.raw"
 $S isosurface "$T/b.nhdr" --iso 100 >"$T/out" 2>"$T/err"
 check "a detached NRRD's fields after its data file line" '[ $? -eq 0 ] && grep -q "\"closed\":true" "$T/out" && [ "$(tri "$T/out")" -gt 0 ]'
+# a MetaImage header that starts with NDims, its data file by a path relative to the header
+mkdir -p "$T/d"; cp "$T/b.raw" "$T/d/c.raw"
+printf 'NDims = 3\nDimSize = 4 4 4\nElementType = MET_UCHAR\nElementDataFile = d/c.raw\n' >"$T/c.mhd"
+$S isosurface "$T/c.mhd" --iso 100 >"$T/out2" 2>"$T/err"
+check "a .mhd starting with NDims: the same mesh as the NRRD's" '[ $? -eq 0 ] && [ "$(tri "$T/out2")" = "$(tri "$T/out")" ]'
 # a multi-file NRRD is not read: volume_read's own answer, naming the line
 printf 'NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 4 4\nencoding: raw\ndata file: LIST\nb.raw\n' >"$T/l.nhdr"
 $S isosurface "$T/l.nhdr" --iso 100 >/dev/null 2>"$T/err"; rc=$?

@@ -4,7 +4,8 @@
  * closed, consistently oriented 2-manifold (the guarantee of core/iso/mc.h and adapt.h): anything
  * else aborts, so the fuzzer reports it. With ?region (POST /models/{id}/edit's), a sampled volume's
  * hierarchy is kept and edited by a block of its own last samples, and the edited mesh must equal
- * a fresh extraction of the edited samples, triangle for triangle. */
+ * a fresh extraction of the edited samples, triangle for triangle. The body is also searched for a
+ * detached header's data file (volume_data_file, the offline CLI's). */
 #include "../../api/query.h"
 #include "../../api/volume_io.h"
 #include "fuzz.h"
@@ -97,6 +98,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         return 0;
     struct volume v;
     struct sf_err err = {0};
+    char file[64]; /* a detached header's data file, as `surfd isosurface` looks for it: a name that fits, or none */
+    int line = volume_data_file(body, len, file, sizeof file);
+    if (line < 0 || (line && (line < 2 || strlen(file) >= sizeof file)))
+        abort();
     if (volume_read(body, len, "", text, &v, &err) == 0) {
         if ((size_t)v.g.nx * v.g.ny * v.g.nz <= EXTRACT_MAX_SAMPLES) {
             volume_sample(&v, 0, v.g.nz);
