@@ -242,6 +242,27 @@ TEST(fragments_put_vertices_at_corners)
     trimesh_free(&fm);
 }
 
+/* Five voxels making two solids that touch along an edge (found by a search of random sets): an
+ * edge of four triangles, seen as the mesh is made, parted at its midpoint (two computed vertices)
+ * into two closed manifolds. The ball above had no such edge: none computed. */
+TEST(fragments_part_solids_touching_along_an_edge)
+{
+    int n[3] = {4, 4, 4};
+    uint8_t vox[64] = {0};
+    static const int set[5][3] = {{0, 0, 2}, {2, 1, 2}, {2, 1, 3}, {3, 1, 3}, {3, 2, 3}};
+    for (int i = 0; i < 5; i++)
+        vox[set[i][0] + 4 * (set[i][1] + 4 * set[i][2])] = 1;
+    struct sf_err err = {0};
+    struct matrix_stats ms;
+    struct trimesh m;
+    struct trimesh_stats st;
+    CHECK(matrix_fragments(n, vox, (double[3]){0, 0, 0}, (double[3]){1, 1, 1}, &m, &ms, &err) == 0);
+    CHECK(ms.computed_vertices == 2);
+    CHECK(trimesh_stats(&m, &st, &err) == 0 && st.boundary_edges == 0 && st.nonmanifold_edges == 0 && vertex_manifold(&m));
+    CHECK(st.components == 2);
+    trimesh_free(&m);
+}
+
 int main(void)
 {
     RUN(the_eight_variants);
@@ -254,5 +275,6 @@ int main(void)
     RUN(random_sets);
     RUN(a_ball_round_trips_and_meshes_within_its_volume);
     RUN(fragments_put_vertices_at_corners);
+    RUN(fragments_part_solids_touching_along_an_edge);
     UNIT_END();
 }
