@@ -152,7 +152,6 @@ static double blend(bool lsq, double t, const double ts[4], const double v[4])
     return (t - ts[2]) / (ts[1] - ts[2]) * L1 + (t - ts[1]) / (ts[2] - ts[1]) * L2;
 }
 
-/* The curve at u in [0, 1]. */
 /* The last i with u[i] <= x among n increasing parameters, or -1 when x < u[0]. */
 static int segment_at(const double *u, int n, double x)
 {
@@ -169,6 +168,7 @@ static int segment_at(const double *u, int n, double x)
     return lo;
 }
 
+/* The curve at u in [0, 1]. */
 static void curve_eval(const struct curve *c, double u, double *x, double *y)
 {
     /* segment i: u_i <= u < u_{i+1} (periodic; u below u_0 belongs to the segment from the last
@@ -308,9 +308,13 @@ static int curve_poly_build(const struct curve *c, struct curve_poly *cp)
     if (!cp->cx || !cp->cy)
         return SF_ENOMEM;
     for (int i = 0; i < c->n; i++) {
-        double u0 = c->u[i], u1 = i + 1 < c->n ? c->u[i + 1] : c->u[0] + 1.0, sx[4], sy[4];
-        for (int a = 0; a < 4; a++) /* the wrap segment's u runs past 1: curve_eval takes it as it is */
-            curve_eval(c, u0 + (u1 - u0) * a / 3.0, &sx[a], &sy[a]);
+        double ts[4], xs[4], ys[4], sx[4], sy[4]; /* (curve_eval on segment i, whose u may run past 1) */
+        for (int k = 0; k < 4; k++)
+            ts[k] = cu(c, i - 1 + k, &xs[k], &ys[k]);
+        for (int a = 0; a < 4; a++) {
+            double u = ts[1] + (ts[2] - ts[1]) * a / 3.0;
+            sx[a] = blend(c->lsq, u, ts, xs), sy[a] = blend(c->lsq, u, ts, ys);
+        }
         for (int k = 0; k < 4; k++) {
             cp->cx[i][k] = cp->cy[i][k] = 0;
             for (int a = 0; a < 4; a++)
@@ -368,15 +372,26 @@ static int curve_poly_segment(const struct curve_poly *cp, double u)
 #define FIT_MIN_PIECE 1e-7 /* of a turn: no piece is halved below this */
 #define FIT_MAX_KNOTS(n) (2 * (size_t)(n) + FIT_START) /* (the heart's curves take 1.1 to 1.5 n) */
 
-/* The Hermite cubic through the curve at u0 and u1 (values and derivatives), in power basis in
- * t = (u - u0) / (u1 - u0). */
-static void hermite_piece(const struct curve_poly *c, double u0, double u1, double hx[4], double hy[4])
+/* A knot of the redrawn curve: the curve's value and u-derivative there (the turn's end, u = 1,
+ * read at its start). */
+struct knot {
+    double u, x, y, xu, yu;
+};
+
+static struct knot knot_at(const struct curve_poly *c, double u)
 {
-    double h = u1 - u0, x0, y0, xu0, yu0, x1, y1, xu1, yu1;
-    curve_poly_at(c, curve_poly_segment(c, u0), u0, &x0, &y0, &xu0, &yu0);
-    double w1 = u1 >= 1.0 ? u1 - 1.0 : u1; /* (the turn's end is its start) */
-    curve_poly_at(c, curve_poly_segment(c, w1), w1, &x1, &y1, &xu1, &yu1);
-    const double v[2][4] = {{x0, h * xu0, x1, h * xu1}, {y0, h * yu0, y1, h * yu1}};
+    struct knot k = {.u = u};
+    double w = u >= 1.0 ? u - 1.0 : u;
+    curve_poly_at(c, curve_poly_segment(c, w), w, &k.x, &k.y, &k.xu, &k.yu);
+    return k;
+}
+
+/* The Hermite cubic through the curve at knots k0 and k1 (values and derivatives), in power basis
+ * in t = (u - u0) / (u1 - u0). */
+static void hermite_piece(const struct knot *k0, const struct knot *k1, double hx[4], double hy[4])
+{
+    double h = k1->u - k0->u;
+    const double v[2][4] = {{k0->x, h * k0->xu, k1->x, h * k1->xu}, {k0->y, h * k0->yu, k1->y, h * k1->yu}};
     double *out[2] = {hx, hy};
     for (int d = 0; d < 2; d++) {
         out[d][0] = v[d][0];
@@ -386,15 +401,17 @@ static void hermite_piece(const struct curve_poly *c, double u0, double u1, doub
     }
 }
 
-/* The largest squared distance between the curve and its Hermite piece over [u0, u1]: 0 when no
+/* Whether the curve and its Hermite piece over [u0, u1] are within tol2 (squared): so when no
  * breakpoint of the curve lies inside (the piece is one of its cubics, which the Hermite piece
- * equals), else measured at those breakpoints and at the quarters between them. */
-static double piece_error(const struct curve_poly *c, double u0, double u1, const double hx[4], const double hy[4])
+ * equals), else as measured at those breakpoints and at the quarters between them (stopping at
+ * the first sample beyond). */
+static bool piece_holds(const struct curve_poly *c, double u0, double u1, const double hx[4], const double hy[4],
+                        double tol2)
 {
     int i = segment_at(c->u, c->n, u0) + 1; /* the first breakpoint past u0 */
     if (i >= c->n || c->u[i] >= u1)
-        return 0.0;
-    double worst = 0.0, h = u1 - u0, prev = u0;
+        return true;
+    double h = u1 - u0, prev = u0;
     for (;; i++) {
         double b = i < c->n && c->u[i] < u1 ? c->u[i] : u1;
         int seg = i > 0 ? i - 1 : c->n - 1; /* the segment [prev, b] lies in */
@@ -405,10 +422,11 @@ static double piece_error(const struct curve_poly *c, double u0, double u1, cons
             curve_poly_at(c, q < 4 ? seg : i, u, &x, &y, &xu, &yu);
             double ex = hx[0] + t * (hx[1] + t * (hx[2] + t * hx[3])) - x;
             double ey = hy[0] + t * (hy[1] + t * (hy[2] + t * hy[3])) - y;
-            worst = fmax(worst, ex * ex + ey * ey);
+            if (ex * ex + ey * ey > tol2)
+                return false;
         }
         if (b >= u1)
-            return worst;
+            return true;
         prev = b;
     }
 }
@@ -426,7 +444,7 @@ static int curve_refit(struct curve_poly *c)
     /* depth first: a stack of pieces still to check (one more than the knots allowed: a split
      * adds one), the accepted ones in order with their Hermite pieces */
     const size_t cap = FIT_MAX_KNOTS(c->n);
-    double(*stack)[2] = malloc(sizeof *stack * (cap + 1));
+    struct knot(*stack)[2] = malloc(sizeof *stack * (cap + 1)); /* (each knot read once) */
     struct curve_poly out = {.own_u = malloc(sizeof *out.own_u * cap), .cx = malloc(sizeof *out.cx * cap),
                              .cy = malloc(sizeof *out.cy * cap)};
     if (!stack || !out.own_u || !out.cx || !out.cy) {
@@ -434,18 +452,20 @@ static int curve_refit(struct curve_poly *c)
         return SF_ENOMEM;
     }
     size_t nk = 0, ns = 0;
-    for (int k = FIT_START - 1; k >= 0; k--)
-        stack[ns][0] = (double)k / FIT_START, stack[ns][1] = (double)(k + 1) / FIT_START, ns++;
+    struct knot next = knot_at(c, 1.0);
+    for (int k = FIT_START - 1; k >= 0; k--, ns++)
+        stack[ns][1] = next, stack[ns][0] = next = knot_at(c, (double)k / FIT_START);
     while (ns && nk + ns <= cap) {
-        double a = stack[ns - 1][0], b = stack[ns - 1][1], hx[4], hy[4];
+        struct knot a = stack[ns - 1][0], b = stack[ns - 1][1];
+        double hx[4], hy[4];
         ns--;
-        hermite_piece(c, a, b, hx, hy);
-        if (b - a <= FIT_MIN_PIECE || piece_error(c, a, b, hx, hy) <= tol * tol) {
-            out.own_u[nk] = a;
+        hermite_piece(&a, &b, hx, hy);
+        if (b.u - a.u <= FIT_MIN_PIECE || piece_holds(c, a.u, b.u, hx, hy, tol * tol)) {
+            out.own_u[nk] = a.u;
             memcpy(out.cx[nk], hx, sizeof hx), memcpy(out.cy[nk], hy, sizeof hy);
             nk++;
         } else {
-            double m = 0.5 * (a + b);
+            struct knot m = knot_at(c, 0.5 * (a.u + b.u));
             stack[ns][0] = m, stack[ns][1] = b, ns++;
             stack[ns][0] = a, stack[ns][1] = m, ns++;
         }
@@ -579,14 +599,17 @@ static int curve_surface(const struct contour_set *cs, bool lsq, bool polar, con
             for (int b = 0; b < 4; b++)
                 for (int c = 0; c < 4; c++)
                     W[j][b] += inv[b][c] * wz[c][j];
+        int at[4] = {-1, -1, -1, -1}; /* each curve's last breakpoint at or before the piece (segment_at) */
         for (size_t q = 0; q + 1 < nb && !rc; q++) {
             double ua = brk[q], ub = brk[q + 1], h = ub - ua;
             if (h <= BREAK_EPS)
                 continue;
-            double C[4][4][2]; /* curve j's Bézier points on the piece */
+            double C[4][4][2], mid = 0.5 * (ua + ub); /* curve j's Bézier points on the piece */
             for (int j = 0; j < m; j++) {
                 const struct curve_poly *c = &cp[j0 + j];
-                int seg = curve_poly_segment(c, 0.5 * (ua + ub));
+                while (at[j] + 1 < c->n && c->u[at[j] + 1] <= mid)
+                    at[j]++;
+                int seg = at[j] < 0 ? c->n - 1 : at[j]; /* (curve_poly_segment, walked) */
                 double xa, ya, xua, yua, xb, yb, xub, yub;
                 curve_poly_at(c, seg, ua, &xa, &ya, &xua, &yua);
                 curve_poly_at(c, seg, ub, &xb, &yb, &xub, &yub);
@@ -932,9 +955,8 @@ static double mixed_area(const struct curve_poly *a, const struct curve_poly *b,
     int ia = 0, ib = 0; /* next breakpoint index in each */
     while (lo < 1.0) {
         double na = ia < a->n ? a->u[ia] : 1.0, nb = ib < b->n ? b->u[ib] : 1.0, hi = fmin(fmin(na, nb), 1.0);
-        if (hi > lo) {
-            double mid = 0.5 * (lo + hi);
-            int sa = curve_poly_segment(a, mid), sb = curve_poly_segment(b, mid);
+        if (hi > lo) { /* (in the segments that end at the next breakpoints: before the first, the wrap one) */
+            int sa = ia ? ia - 1 : a->n - 1, sb = ib ? ib - 1 : b->n - 1;
             for (int g = 0; g < 3; g++) {
                 double u = lo + (hi - lo) * GL3_X[g], xa, ya, xua, yua, xb, yb, xub, yub;
                 curve_poly_at(a, sa, u, &xa, &ya, &xua, &yua);
