@@ -36,7 +36,7 @@ CORE_SRC   := $(wildcard core/*/*.c)
 API_SRC    := $(wildcard api/*.c)
 DAEMON_SRC := $(wildcard daemon/*.c)
 TEST_SRC   := $(wildcard tests/core/*/test_*.c) $(wildcard tests/api/test_*.c)
-TSAN_TESTS := $(B)/tests/daemon/test_jobq
+TSAN_TESTS := $(B)/tests/daemon/test_jobq $(B)/tests/core/matrix/tsan_fragments
 
 obj = $(patsubst %.c,$(B)/$(1)/%.o,$(2))
 
@@ -148,6 +148,11 @@ fuzz: deps $(FUZZERS)
 $(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c daemon/jobq.h
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/daemon/test_jobq.c daemon/jobq.c -lpthread
+
+# matrix_fragments' table, made once a process, under the thread sanitizer
+$(B)/tests/core/matrix/tsan_fragments: tests/core/matrix/tsan_fragments.c tests/unit.h core/matrix/fragment.c core/matrix/matrix.h core/geom/trimesh.c core/base/mem.c core/base/err.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/core/matrix/tsan_fragments.c core/matrix/fragment.c core/geom/trimesh.c core/base/mem.c core/base/err.c -lm -lpthread
 
 # the daemon with the address and UB sanitizers, for the black-box API tests
 $(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $(SAN_CORE) | $(B)/san/libsurfd-image.so
