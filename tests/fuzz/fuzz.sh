@@ -10,7 +10,7 @@ cd "$(dirname "$0")/../.." || exit 1
 S=${FUZZ_SECONDS:-60}
 # a value length a decoder trusts (DCMTK allocates what a DICOM element claims, up to 4 GB, before
 # reading it) fails as an allocation, not as minutes of shadow-memory writes
-export ASAN_OPTIONS="${ASAN_OPTIONS:-max_allocation_size_mb=512:allocator_may_return_null=1}"
+export ASAN_OPTIONS="${ASAN_OPTIONS:-max_allocation_size_mb=512:allocator_may_return_null=1:malloc_fill_byte=1}"
 for src in tests/fuzz/fuzz_${FUZZ_ONLY:-*}.c; do # FUZZ_ONLY=NAME: one target
     t=${src#tests/fuzz/fuzz_}; t=${t%.c}; bin=build/fuzz/$t
     [ -x "$bin" ] || { bad "fuzz $t: $bin is not built (clang and libclang-rt-14-dev)"; continue; }

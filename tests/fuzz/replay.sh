@@ -5,7 +5,7 @@ set -u
 cd "$(dirname "$0")/../.." || exit 1
 . tests/check.inc
 . tests/fuzz/seeds.inc
-export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:max_allocation_size_mb=512:allocator_may_return_null=1}" UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1}"
+export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:max_allocation_size_mb=512:allocator_may_return_null=1:malloc_fill_byte=1}" UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1}"
 for src in tests/fuzz/fuzz_*.c; do
     t=${src#tests/fuzz/fuzz_}; t=${t%.c}; bin=build/tests/fuzz/replay_$t
     [ -x "$bin" ] || { bad "replay $t: $bin is not built"; continue; }
