@@ -3,10 +3,12 @@
  * ROIs without contours listed as "skipped", with the reason). `model` also writes the model's
  * mesh (--mesh OUT.stl|.ply|.obj|.vtp|.vtk, or --mesh DIR/: every model's, DIR/NAME.stl) and
  * patches (--patches OUT.json) as GET /models/{id}/mesh and /patches would. */
+#include <errno.h>
 #include <jansson.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "../api/model_json.h"
 #include "cli.h"
@@ -74,7 +76,7 @@ void cmd_volume_usage(FILE *f)
                "                    [--parameterisation arc-length|polar] [--repeat N]\n"
                "       surfd volume SCENE.igs|.iges|.bpt|.nurbs|.json (patches that close a solid: area and volume)\n"
                "       surfd model  CONTOURS.json|RTSTRUCT.dcm|MATRIX.json [--roi NAME] [--caps ...] [--method ...]\n"
-               "                    [--mesh OUT.stl|.ply|.obj|.vtp|.vtk|.dcm (Encapsulated STL) | --mesh DIR/ (every model: DIR/NAME.stl)]\n"
+               "                    [--mesh OUT.stl|.ply|.obj|.vtp|.vtk|.dcm (Encapsulated STL) | --mesh DIR/ (every model: DIR/NAME.stl; DIR made)]\n"
                "                    [--tolerance MM] [--patches OUT.json]\n"
                "       --repeat runs it N times in one process and reports the fastest run (by timings_ms.total);\n"
                "       an RT Structure Set's ROIs without contours are listed as \"skipped\" with the reason\n");
@@ -144,6 +146,10 @@ int cmd_volume(int argc, char **argv)
     bool to_dir = mesh && mesh[0] && mesh[strlen(mesh) - 1] == '/';
     if (!rc && ((mesh && !to_dir) || patches) && kept.n != 1)
         rc = sf_fail(&err, SF_EINVAL, "--roi", "%d models: choose one with --roi, or --mesh DIR/ for all", kept.n);
+    if (!rc && to_dir && mkdir(mesh, 0777) && errno != EEXIST) { /* (the last level; its parent must be there) */
+        fprintf(stderr, "surfd: cannot make %s: %s\n", mesh, strerror(errno));
+        rc = SF_EIO;
+    }
     for (int k = 0; !rc && mesh && k < kept.n; k++) {
         char path[1200];
         if (to_dir) { /* DIR/NAME.stl, the name's spaces and slashes as _ */

@@ -61,9 +61,10 @@ s = json.load(open(sys.argv[1]))[\"skipped\"]
 sys.exit(0 if [r[\"name\"] for r in s] == [\"Areola\"] and s[0][\"reason\"] == \"no contours\" else 1)" "$T/out"'
 $S volume "$C/dicompyler-core_example_rtss.dcm" --roi Areola >/dev/null 2>"$T/err"; rc=$?
 check "... and --roi naming it: refused with the reason" '[ $rc -ne 0 ] && grep -q "nothing to model: no contours" "$T/err"'
-mkdir -p "$T/rois"
 $S model "$C/dicompyler-core_example_rtss.dcm" --caps slab --mesh "$T/rois/" >"$T/out" 2>"$T/err"
-check "surfd model RS.dcm --mesh DIR/: every ROI's closed mesh, DIR/NAME.stl" '[ $? -eq 0 ] && [ "$(ls "$T/rois" | wc -l)" = 9 ] && [ -f "$T/rois/Tumor_Bed_Block.stl" ] && for f in "$T"/rois/*.stl; do python3 tests/tools/stl_check.py "$f" - >/dev/null || exit 1; done'
+check "surfd model RS.dcm --mesh DIR/: the directory made, every ROI's closed mesh, DIR/NAME.stl" '[ $? -eq 0 ] && [ "$(ls "$T/rois" | wc -l)" = 9 ] && [ -f "$T/rois/Tumor_Bed_Block.stl" ] && for f in "$T"/rois/*.stl; do python3 tests/tools/stl_check.py "$f" - >/dev/null || exit 1; done'
+$S model "$C/dicompyler-core_example_rtss.dcm" --roi Heart --mesh "$T/none/rois/" >/dev/null 2>"$T/err"; rc=$?
+check "--mesh DIR/ whose parent is missing: refused, naming the directory" '[ $rc -ne 0 ] && grep -q "cannot make $T/none/rois/" "$T/err"'
 $S volume 2>/dev/null; rc=$?
 check "usage" '[ $rc -eq 2 ]'
 checks_done
