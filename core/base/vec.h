@@ -22,6 +22,16 @@ static inline vec3 v3_norm(vec3 a)
     double l = v3_len(a);
     return l > 0 ? v3_scale(a, 1.0 / l) : a;
 }
+/* The distance from p to segment a-b; *t (may be NULL) gets where along it (0..1) the nearest point lies. */
+static inline double v3_seg_dist(vec3 a, vec3 b, vec3 p, double *t)
+{
+    vec3 d = v3_sub(b, a);
+    double dd = v3_dot(d, d), f = dd > 0 ? v3_dot(v3_sub(p, a), d) / dd : 0.0;
+    f = f < 0 ? 0 : f > 1 ? 1 : f;
+    if (t)
+        *t = f;
+    return v3_len(v3_sub(p, v3_mad(a, d, f)));
+}
 /* Minimum and maximum by one comparison: inlined, where fmin/fmax are libm calls (they must
  * treat NaN specially); with a NaN these return b. */
 static inline double dmin(double a, double b) { return a < b ? a : b; }

@@ -681,14 +681,6 @@ static double dist_to_mid(vec3 a, vec3 b, vec3 p)
     return v3_len(v3_sub(p, v3_scale(v3_add(a, b), 0.5)));
 }
 
-/* The distance from p to the segment a-b. */
-static double dist_to_segment(vec3 a, vec3 b, vec3 p)
-{
-    vec3 ab = v3_sub(b, a);
-    double l2 = v3_dot(ab, ab), t = l2 > 0 ? v3_dot(v3_sub(p, a), ab) / l2 : 0.0;
-    return v3_len(v3_sub(p, v3_add(a, v3_scale(ab, fmin(1.0, fmax(0.0, t))))));
-}
-
 /* Whether the row between u0 and u1 (chord a-c) strays more than tol from its chord: at the middle
  * (from the chord's middle) and at the quarters (from the chord), so that a row that bends one way
  * and back within a step, straight through the middle, is seen (a wall's rim of the dicompyler
@@ -699,7 +691,7 @@ static bool strays(const struct solid *s, const struct band *bd, bool hole, doub
     if (dist_to_mid(a, c, band_point(s, bd, hole, 0.5 * (u0 + u1), t)) > tol)
         return true;
     for (int q = 1; q <= 3; q += 2)
-        if (dist_to_segment(a, c, band_point(s, bd, hole, u0 + (u1 - u0) * q / 4, t)) > tol)
+        if (v3_seg_dist(a, c, band_point(s, bd, hole, u0 + (u1 - u0) * q / 4, t), NULL) > tol)
             return true;
     return false;
 }

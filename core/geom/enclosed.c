@@ -384,14 +384,7 @@ static int boundary_segments(const struct shell_part *parts, int n, double tol, 
 }
 
 /* Distance from p to the chord of g, and where along it (0..1). */
-static double seg_dist(const struct bseg *g, vec3 p, double *at)
-{
-    vec3 d = v3_sub(g->pb, g->pa);
-    double dd = v3_dot(d, d), f = dd > 0 ? v3_dot(v3_sub(p, g->pa), d) / dd : 0.0;
-    f = f < 0 ? 0 : f > 1 ? 1 : f;
-    *at = f;
-    return v3_len(v3_sub(p, v3_mad(g->pa, d, f)));
-}
+static double seg_dist(const struct bseg *g, vec3 p, double *at) { return v3_seg_dist(g->pa, g->pb, p, at); }
 
 /* The sign of (N × e) · inward at (u, v) of part k, inward the way into its region across the
  * boundary direction t (in (u, v)): +1 or -1, 0 where undefined. */
