@@ -387,6 +387,39 @@ int volume_data_file(const char *buf, size_t len, char *name, size_t cap)
     return d.line;
 }
 
+/* The offset of the line after the one starting at `at` (len past the last). */
+static size_t next_line(const char *buf, size_t len, size_t at)
+{
+    const char *nl = memchr(buf + at, '\n', len - at);
+    return nl ? (size_t)(nl - buf) + 1 : len;
+}
+
+char *volume_attach(const char *hdr, size_t len, int line, const char *data, size_t data_len, size_t *out_len)
+{
+    size_t at = 0, end, rest_end;
+    for (int l = 1; l < line; l++)
+        at = next_line(hdr, len, at);
+    end = rest_end = next_line(hdr, len, at);
+    bool nrrd = sniff_nrrd(hdr, len); /* (else MetaImage, whose data file line is its last) */
+    while (nrrd && rest_end < len && hdr[rest_end] != '\n' && hdr[rest_end] != '\r') /* to a blank line */
+        rest_end = next_line(hdr, len, rest_end);
+    bool open = rest_end > end && hdr[rest_end - 1] != '\n'; /* the last line without its newline */
+    const char *tail = nrrd ? "\n" : "ElementDataFile = LOCAL\n";
+    size_t rest = rest_end - end, tn = strlen(tail), n = at + rest + open + tn + data_len;
+    char *whole = n < len ? NULL : malloc(n + 1); /* (n < len: the sizes wrapped) */
+    if (!whole)
+        return NULL;
+    memcpy(whole, hdr, at);
+    memcpy(whole + at, hdr + end, rest);
+    if (open)
+        whole[at + rest] = '\n';
+    memcpy(whole + at + rest + open, tail, tn);
+    memcpy(whole + at + rest + open + tn, data, data_len);
+    whole[n] = 0;
+    *out_len = n;
+    return whole;
+}
+
 /* ---- the query ---- */
 
 static int query_numbers(const char *options, const char *name, int n, double *out, bool *given, struct sf_err *err)

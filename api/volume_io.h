@@ -47,6 +47,11 @@ const char *volume_format_of(const char *body, size_t len, const char *format);
  * buf names none. The daemon reads attached headers only (an upload is one body); the offline
  * CLI attaches F's samples itself. */
 int volume_data_file(const char *buf, size_t len, char *name, size_t cap);
+/* The detached header hdr made whole, as one body volume_read takes: its data file line (number
+ * line, from volume_data_file) dropped (MetaImage: ElementDataFile = LOCAL in its place, last), the
+ * data file's bytes after the header (NRRD: after a blank line). Its length into *out_len; NULL
+ * without memory. */
+char *volume_attach(const char *hdr, size_t len, int line, const char *data, size_t data_len, size_t *out_len);
 
 /* Reads a volume: format "raw", "nrrd", "mha", "dicom", "frep" or "" (sniffed); options the query. On success
  * v->g.samples points into body or v->owned (free with volume_free). Errors name the query option

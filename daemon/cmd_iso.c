@@ -154,46 +154,24 @@ void cmd_isosurface_usage(FILE *f)
 }
 
 /* A detached header (volume_data_file: the shared .nhdr and .mhd and most tools' exports come so)
- * made whole, as POST /isosurface takes it: the line naming the data file F dropped (MetaImage:
- * replaced by ElementDataFile = LOCAL, its last line), F's samples after the header (NRRD: after
- * a blank line). F is read beside the header. buf is freed; NULL when F cannot be read. Other
- * bodies are returned as they are (a multi-file NRRD reaches volume_read and its answer). */
+ * made whole with the data file it names, read beside it (volume_attach), as POST /isosurface
+ * takes it. buf is freed; NULL when the file cannot be read. Other bodies are returned as they are
+ * (a multi-file NRRD reaches volume_read and its answer). */
 static char *attach_data(const char *path, char *buf, size_t *len)
 {
     char file[4096];
     int line = volume_data_file(buf, *len, file, sizeof file);
     if (!line)
         return buf;
-    size_t at = 0, end; /* the line's first byte and the next line's (header lines end in newlines) */
-    for (int l = 1; l < line; l++)
-        at = (size_t)((char *)memchr(buf + at, '\n', *len - at) - buf) + 1;
-    end = (size_t)((char *)memchr(buf + at, '\n', *len - at) - buf) + 1;
-    bool nrrd = !memcmp(buf, "NRRD", 4); /* (else MetaImage) */
-    size_t rest_end = end; /* NRRD: the header's lines after it, to a blank line or the end */
-    while (nrrd && rest_end < *len && buf[rest_end] != '\n' && buf[rest_end] != '\r') {
-        char *nl = memchr(buf + rest_end, '\n', *len - rest_end);
-        rest_end = nl ? (size_t)(nl - buf) + 1 : *len;
-    }
     const char *slash = strrchr(path, '/');
     size_t dn = file[0] == '/' || !slash ? 0 : (size_t)(slash - path) + 1, data_len = 0;
-    char *data_path = malloc(dn + strlen(file) + 1), *data = NULL;
+    char *data_path = malloc(dn + strlen(file) + 1), *data = NULL, *whole = NULL;
     if (data_path) {
         snprintf(data_path, dn + strlen(file) + 1, "%.*s%s", (int)dn, path, file);
         data = cli_read_all(data_path, &data_len, (size_t)1 << 34);
     }
-    const char *tail = nrrd ? "\n" : "ElementDataFile = LOCAL\n";
-    size_t rest = rest_end - end, tn = strlen(tail);
-    char *whole = data ? malloc(at + rest + tn + data_len + 1) : NULL;
-    if (whole) {
-        memcpy(whole, buf, at);
-        memcpy(whole + at, buf + end, rest);
-        memcpy(whole + at + rest, tail, tn);
-        memcpy(whole + at + rest + tn, data, data_len);
-        *len = at + rest + tn + data_len;
-        whole[*len] = 0;
-    } else if (data) {
+    if (data && !(whole = volume_attach(buf, *len, line, data, data_len, len)))
         fprintf(stderr, "surfd: %s: out of memory\n", data_path);
-    }
     free(data_path), free(data), free(buf);
     return whole;
 }

@@ -5,7 +5,8 @@
  * else aborts, so the fuzzer reports it. With ?region (POST /models/{id}/edit's), a sampled volume's
  * hierarchy is kept and edited by a block of its own last samples, and the edited mesh must equal
  * a fresh extraction of the edited samples, triangle for triangle. The body is also searched for a
- * detached header's data file (volume_data_file, the offline CLI's). */
+ * detached header's data file (volume_data_file, the offline CLI's), and one found is made whole
+ * with a few bytes of data (volume_attach) and read. */
 #include "../../api/query.h"
 #include "../../api/volume_io.h"
 #include "fuzz.h"
@@ -102,6 +103,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     int line = volume_data_file(body, len, file, sizeof file);
     if (line < 0 || (line && (line < 2 || strlen(file) >= sizeof file)))
         abort();
+    if (line) { /* made whole with a data file of 64 bytes, as the CLI does, and read */
+        static const char samples[64];
+        size_t n;
+        char *whole = volume_attach(body, len, line, samples, sizeof samples, &n);
+        if (whole && volume_read(whole, n, "", text, &v, &err) == 0)
+            volume_free(&v);
+        free(whole);
+    }
     if (volume_read(body, len, "", text, &v, &err) == 0) {
         if ((size_t)v.g.nx * v.g.ny * v.g.nz <= EXTRACT_MAX_SAMPLES) {
             volume_sample(&v, 0, v.g.nz);
