@@ -376,14 +376,30 @@ static int data_file_line(void *ctx, const char *key, const char *value, int lin
     return 1;
 }
 
+/* A detached header's text with a newline after its last line when it has none (editors leave it
+ * off: header_lines reads whole lines); NULL when buf needs none, or is not text alone. */
+#define DETACHED_MAX (1 << 18) /* header_lines' 256 lines of under 1 KiB */
+
+static char *terminated(const char *buf, size_t len)
+{
+    if (!len || buf[len - 1] == '\n' || len > DETACHED_MAX || memchr(buf, 0, len))
+        return NULL;
+    char *t = malloc(len + 1);
+    if (t)
+        memcpy(t, buf, len), t[len] = '\n';
+    return t;
+}
+
 int volume_data_file(const char *buf, size_t len, char *name, size_t cap)
 {
     bool nrrd = sniff_nrrd(buf, len), mha = sniff_mha(buf, len);
     struct data_file d = {name, cap, 0};
     size_t at;
     struct sf_err err = {0};
+    char *t = nrrd || mha ? terminated(buf, len) : NULL;
     if (nrrd || mha) /* (a header that does not end before its data file line names none) */
-        header_lines(buf, len, mha ? '=' : ':', mha, data_file_line, &d, &at, &err);
+        header_lines(t ? t : buf, t ? len + 1 : len, mha ? '=' : ':', mha, data_file_line, &d, &at, &err);
+    free(t);
     return d.line;
 }
 

@@ -30,6 +30,13 @@ mkdir -p "$T/d"; cp "$T/b.raw" "$T/d/c.raw"
 printf 'NDims = 3\nDimSize = 4 4 4\nElementType = MET_UCHAR\nElementDataFile = d/c.raw\n' >"$T/c.mhd"
 $S isosurface "$T/c.mhd" --iso 100 >"$T/out2" 2>"$T/err"
 check "a .mhd starting with NDims: the same mesh as the NRRD's" '[ $? -eq 0 ] && [ "$(tri "$T/out2")" = "$(tri "$T/out")" ]'
+# headers whose last line has no newline (editors leave it off): the same meshes
+printf 'NDims = 3\nDimSize = 4 4 4\nElementType = MET_UCHAR\nElementDataFile = d/c.raw' >"$T/e.mhd"
+$S isosurface "$T/e.mhd" --iso 100 >"$T/out3" 2>"$T/err"
+check "a .mhd without a newline after its data file line" '[ $? -eq 0 ] && [ "$(tri "$T/out3")" = "$(tri "$T/out")" ]'
+printf 'NRRD0004\ntype: uint8\ndimension: 3\ndata file: b.raw\nsizes: 4 4 4\nencoding: raw' >"$T/e.nhdr"
+$S isosurface "$T/e.nhdr" --iso 100 >"$T/out4" 2>"$T/err"
+check "a .nhdr without a newline or a blank line after its last field" '[ $? -eq 0 ] && [ "$(tri "$T/out4")" = "$(tri "$T/out")" ]'
 # a multi-file NRRD is not read: volume_read's own answer, naming the line
 printf 'NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 4 4\nencoding: raw\ndata file: LIST\nb.raw\n' >"$T/l.nhdr"
 $S isosurface "$T/l.nhdr" --iso 100 >/dev/null 2>"$T/err"; rc=$?
