@@ -845,7 +845,10 @@ static long isoline_point(const struct iso_adapt *a, struct piece *pc, long A, l
             hi = tm;
     }
     double t = 0.5 * (lo + hi), q[3];
-    if (fabs(t) < 0.1 * step)
+    if (pair) /* however near the edge: each square round it its own vertex, else two squares that
+               * share the edge would draw one chord between the pair, an edge of four triangles */
+        t = fmax(t, 2 * ISO_EDGE_MARGIN * step);
+    else if (fabs(t) < 0.1 * step)
         return -1;
     for (int k = 0; k < 3; k++)
         q[k] = m[k] + t * d[k];

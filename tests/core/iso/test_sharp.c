@@ -273,11 +273,53 @@ TEST(the_same_mesh_whatever_the_order_of_the_slabs)
     trimesh_free(&m[1]);
 }
 
+/* A solid's edge that grazes a cell edge between two samples of one side gives that edge a hidden
+ * pair of crossings (adapt.c); when it only just pokes through, every face square round the edge
+ * sees the pair alone, and each square joins it through its own isoline point, else two squares
+ * drew one chord between the pair: an edge of four triangles. Box minus cylinder, as found by a
+ * sweep of turns and cell sizes (the first at levels 3, the second at levels 1). */
+TEST(an_edge_that_only_just_pokes_through_a_cell_edge_stays_manifold)
+{
+    static const struct {
+        double rot[3], move[3], cell, lo[3];
+        int n, levels;
+    } cases[] = {
+        {{20, 30, 11}, {0, 0, 0}, 0.15, {0, -2, -2}, 28, 3},
+        {{53.376663315225166, 86.9823262449512, 74.44176436793649},
+         {-0.041047550708231545, 0.0808701125823443, -0.09195770029965758}, 0.23, {-2.2, -2.2, -2.2}, 21, 1},
+    };
+    static float grid[28 * 28 * 28];
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        tree.n = 0;
+        int box = add((struct frep_node){.kind = FREP_BOX, .p = {0, -1, -1, 1, 1, 5}});
+        int hole = add((struct frep_node){.kind = FREP_CYLINDER, .p = {0, 0, -2, 0, 0, 1, 0.5, 4}});
+        add((struct frep_node){.kind = FREP_SUBTRACT, .a = box, .b = hole, .alpha = 0});
+        struct frep_node t = {.kind = FREP_TRANSFORM, .a = tree.root};
+        frep_transform(&t, (double[3]){1, 1, 1}, cases[i].rot, cases[i].move);
+        add(t);
+        int n = cases[i].n;
+        double h = cases[i].cell;
+        frep_sample(&tree, cases[i].lo, h, n, n, 0, n, grid);
+        struct iso_grid g = {n, n, n, ISO_F32, grid, {h, h, h}, {cases[i].lo[0], cases[i].lo[1], cases[i].lo[2]}};
+        struct iso_opts o = {.closed = true, .normals = true, .sharp = true, .field = field, .field_ctx = &tree};
+        struct trimesh m;
+        struct trimesh_stats st;
+        struct iso_adapt_stats as;
+        struct sf_err err = {0};
+        CHECK(iso_extract_adaptive(&g, &o, cases[i].levels, 0.5 * h, NULL, &m, &as, &err) == 0);
+        CHECK(trimesh_stats(&m, &st, &err) == 0);
+        CHECK(closed_manifold(&st));
+        CHECK(st.components == 1);
+        trimesh_free(&m);
+    }
+}
+
 int main(void)
 {
     RUN(a_turned_box_keeps_its_edges_and_corners);
     RUN(a_cylinders_rims_and_a_balls_cut_lie_on_the_mesh);
     RUN(sampled_data_keeps_features_closer_without_a_field);
     RUN(the_same_mesh_whatever_the_order_of_the_slabs);
+    RUN(an_edge_that_only_just_pokes_through_a_cell_edge_stays_manifold);
     UNIT_END();
 }
