@@ -16,12 +16,26 @@
 #include "multipart.h"
 #include "query.h"
 
+/* Whether body begins as a JSON object's text does: '{', then a key or '}', and no byte of its
+ * first 64 a control character but blanks (raw samples whose first byte is 123 are not). */
+static bool json_object_text(const char *body, size_t len)
+{
+    size_t at = 0;
+    for (size_t k = 0; k < len && k < 64; k++)
+        if ((unsigned char)body[k] < 0x20 && !strchr(" \t\r\n", body[k]))
+            return false;
+    while (at < len && at < 64 && body[at] && strchr(" \t\r\n", body[at]))
+        at++;
+    if (at >= len || body[at++] != '{')
+        return false;
+    while (at < len && body[at] && strchr(" \t\r\n", body[at]))
+        at++;
+    return at < len && (body[at] == '"' || body[at] == '}');
+}
+
 const char *volume_format_of(const char *body, size_t len, const char *format)
 {
-    size_t lead = 0;
-    while (lead < len && lead < 64 && strchr(" \t\r\n", body[lead]))
-        lead++;
-    return !*format && lead < len && body[lead] == '{' ? "frep" : format;
+    return !*format && json_object_text(body, len) ? "frep" : format;
 }
 
 const char *volume_format_from_type(const char *ct)

@@ -54,6 +54,13 @@ TEST(raw_samples)
     CHECK(refused(b, n, "raw", "iso=1&dims=4,3,2&type=int16&spacing=0,1,1", SF_EINVAL, "?spacing"));
     CHECK(refused(b, n, "raw", "iso=1&dims=4,3,2&type=int16&closed=maybe", SF_EINVAL, "?closed"));
     CHECK(refused(b, n, "raw", "iso=1&dims=4,3,2&type=int16&levels=9", SF_EINVAL, "?levels"));
+    /* sniffed: samples whose first byte is '{' are raw samples, not an FRep object */
+    uint8_t brace[8] = {'{', 200, 3, '"', 9, 1, 0, 7};
+    CHECK(rd((const char *)brace, sizeof brace, "", "iso=5&dims=2,2,2&type=uint8", &v, &err) == 0);
+    CHECK(v.g.nx == 2 && !strcmp(v.source, "isosurface"));
+    volume_free(&v);
+    CHECK(!strcmp(volume_format_of(" {\"sphere\": 1}", 15, ""), "frep") && !strcmp(volume_format_of("{}", 2, ""), "frep"));
+    CHECK(!strcmp(volume_format_of((const char *)brace, sizeof brace, ""), ""));
     float f[8] = {0, 1, 2, 3, 4, 5, 6, 0};
     f[5] = NAN;
     CHECK(refused((const char *)f, sizeof f, "raw", "iso=1&dims=2,2,2&type=float32", SF_EINVAL, "?dims"));
