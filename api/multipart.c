@@ -27,7 +27,12 @@ bool multipart_sniff(const char *body, size_t len)
     if (len < 4 || body[0] != '-' || body[1] != '-')
         return false;
     const char *eol = memchr(body, '\n', len < 200 ? len : 200);
-    return eol && eol - body > 2;
+    if (!eol || eol - body <= 2)
+        return false;
+    for (const char *c = body + 2; c < eol - (eol[-1] == '\r'); c++) /* a boundary is printable (RFC 2046) */
+        if ((unsigned char)*c < 0x20 || (unsigned char)*c > 0x7e)
+            return false;
+    return true;
 }
 
 int multipart_split(const char *body, size_t len, struct part **parts, int *n, struct sf_err *err)

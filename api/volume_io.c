@@ -676,8 +676,10 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     bool nrrd = sniff_nrrd(body, len), mha = sniff_mha(body, len);
     for (int a = 0; a < 3; a++)
         v->axes[a][a] = 1;
-    if (!*format)
-        format = nrrd ? "nrrd" : mha ? "mha" : multipart_sniff(body, len) ? "dicom" : "raw";
+    char dims[8];
+    query_option(options, "dims", dims, sizeof dims);
+    if (!*format) /* (dims given: raw samples, whatever their first bytes look like) */
+        format = dims[0] ? "raw" : nrrd ? "nrrd" : mha ? "mha" : multipart_sniff(body, len) ? "dicom" : "raw";
     if (!strcmp(format, "nrrd")) {
         if (!nrrd)
             return sf_fail(err, SF_EFORMAT, "header", "an NRRD file starts with \"NRRD000x\"");
