@@ -117,6 +117,17 @@ static int fan_apex(const int *faces, const uint64_t *keys, int n)
     return apex;
 }
 
+/* The triangle of a loop of n fanned from its apex (-1: from a centre) that holds the loop's
+ * edge from vertex k to k + 1: the fan's triangles numbered from the apex's next edge (from a
+ * centre: one an edge); the apex's own two edges are those of the first and the last. */
+static int fan_triangle(int k, int apex, int n)
+{
+    if (apex < 0)
+        return k;
+    int r = (k - apex + n) % n;
+    return r == 0 ? 0 : r == n - 1 ? n - 3 : r - 1;
+}
+
 /* The centre of a loop without an apex in the cell of s nodes a side at o: the crossing of a fine
  * edge inside the cell (on none of its faces) nearest the loop's mean x, a vertex of the
  * full-resolution surface, so that the fan's centre lies on it: its edge's lower node into n and
@@ -149,7 +160,214 @@ static bool inner_crossing(const struct iso_adapt *a, const int o[3], int s, dou
     return best < INFINITY;
 }
 
+/* Whether 2-D segments p-q and r-s cross, or may touch. */
+static bool segs_meet(const double p[2], const double q[2], const double r[2], const double s[2])
+{
+    double d1 = (s[0] - r[0]) * (p[1] - r[1]) - (s[1] - r[1]) * (p[0] - r[0]);
+    double d2 = (s[0] - r[0]) * (q[1] - r[1]) - (s[1] - r[1]) * (q[0] - r[0]);
+    double d3 = (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]);
+    double d4 = (q[0] - p[0]) * (s[1] - p[1]) - (q[1] - p[1]) * (s[0] - p[0]);
+    if (d1 == 0 || d2 == 0 || d3 == 0 || d4 == 0) /* (an end on the other's line: taken to meet) */
+        return true;
+    return (d1 > 0) != (d2 > 0) && (d3 > 0) != (d4 > 0);
+}
+
+/* Whether the 2-D polygon p[0..n) is simple (no two of its edges meet but neighbours at their
+ * shared end) and has some area. */
+static bool simple_polygon(const double (*p)[2], int n)
+{
+    double area = 0;
+    for (int k = 0; k < n; k++)
+        area += p[k][0] * p[(k + 1) % n][1] - p[(k + 1) % n][0] * p[k][1];
+    if (area == 0)
+        return false;
+    for (int i = 0; i < n; i++)
+        for (int j = i + 2; j < n; j++)
+            if ((j + 1) % n != i && segs_meet(p[i], p[(i + 1) % n], p[j], p[(j + 1) % n]))
+                return false;
+    return true;
+}
+
 /* ---- the hierarchy ---- */
+
+/* The face square across axis of s nodes a side (s >= 2) from node sq, its inside corners
+ * diagonal: whether they are joined across it as its nine nodes (corners, mid-edges, centre) join
+ * them, 4 neighbours to a node (as the square cut in four draws it); -1 when a quarter is itself
+ * ambiguous (then the corners' bilinear decides). Every square of 2 or more nodes a side is drawn
+ * so, from both cells that share it, so that a merged cell's face joins its crossings as the same
+ * face cut in four does where finer cells lie across. */
+static int face_inside_joined(const struct iso_adapt *a, int axis, const int sq[3], int s)
+{
+    int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2, h = s / 2;
+    bool in[3][3];
+    for (int j = 0; j < 3; j++)
+        for (int i = 0; i < 3; i++) {
+            int p[3] = {sq[0], sq[1], sq[2]};
+            p[u] += i * h, p[w] += j * h;
+            in[i][j] = Fp(a, p) > a->iso;
+        }
+    for (int b = 0; b < 2; b++)
+        for (int q = 0; q < 2; q++)
+            if (in[q][b] == in[q + 1][b + 1] && in[q + 1][b] == in[q][b + 1] && in[q][b] != in[q + 1][b])
+                return -1;
+    /* the inside corners, (0, 0) and (2, 2) or (2, 0) and (0, 2): flood the inside nodes from one */
+    int c0 = in[0][0] ? 0 : 2, stack[9], top = 0;
+    bool seen[3][3] = {{false}};
+    seen[c0][0] = true, stack[top++] = c0;
+    while (top > 0) {
+        int at = stack[--top], i = at % 3, j = at / 3;
+        static const int STEP[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+        for (int k = 0; k < 4; k++) {
+            int ni = i + STEP[k][0], nj = j + STEP[k][1];
+            if (ni >= 0 && ni < 3 && nj >= 0 && nj < 3 && in[ni][nj] && !seen[ni][nj])
+                seen[ni][nj] = true, stack[top++] = ni + 3 * nj;
+        }
+    }
+    return seen[2 - c0][2];
+}
+
+
+#define MAX_EAR 8 /* vertices of an ear: a chord's two ends and the crossings between them */
+
+/* The place of a sample crossing at fraction t of the finest edge from node n along axis, kept
+ * ISO_EDGE_MARGIN off its ends as place_vertex keeps it. */
+static inline void crossing_at(const struct iso_adapt *a, const int n[3], int axis, double t, double x[3])
+{
+    t = t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
+    for (int d = 0; d < 3; d++)
+        x[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
+}
+
+/* The crossing of the edge of len samples from node n along axis, as crossing() finds it (the
+ * first change of side from n): false when there is none. */
+static bool walk_crossing(const struct iso_adapt *a, const int n[3], int axis, int len, double x[3])
+{
+    int p[3] = {n[0], n[1], n[2]};
+    float prev = Fp(a, p);
+    for (int k = 0; k < len; k++, p[axis]++) {
+        int q[3] = {p[0], p[1], p[2]};
+        q[axis]++;
+        float cur = Fp(a, q);
+        if ((prev > a->iso) != (cur > a->iso)) {
+            crossing_at(a, p, axis, ((double)a->iso - prev) / ((double)cur - prev), x);
+            return true;
+        }
+        prev = cur;
+    }
+    return false;
+}
+
+/* The distance from point p to segment a-b. */
+static double seg_dist(const double p[3], const double a[3], const double b[3])
+{
+    double ab[3], ap[3], ll = 0, t = 0, d2 = 0;
+    for (int d = 0; d < 3; d++)
+        ab[d] = b[d] - a[d], ap[d] = p[d] - a[d], ll += ab[d] * ab[d], t += ab[d] * ap[d];
+    t = ll > 0 ? fmin(1, fmax(0, t / ll)) : 0;
+    for (int d = 0; d < 3; d++)
+        d2 += (ap[d] - t * ab[d]) * (ap[d] - t * ab[d]);
+    return sqrt(d2);
+}
+
+/* Whether face f of the merged cell of s nodes a side at o, drawn cut in four (where a finer cell
+ * lies across it), joins its corner-edge crossings as the whole face does (pairs: from -> to,
+ * as corner-edge ids i * 8 + j, their places in ep), with no other path on it and no ambiguous
+ * quarter; dev[k]: -1 where pair k's path and its chord bound a simple polygon (coarse_fan closes
+ * it with triangles in the face), else how far the path strays from the chord (the chord's
+ * triangle is then fanned over the path). */
+static bool face_cut_ok(const struct iso_adapt *a, const int o[3], int s, int f, const bool (*half)[3][3],
+                        const int (*pairs)[2], int n_pairs, double (*ep)[8][3], double dev[2])
+{
+    int axis = f >> 1, side = f & 1, u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2, h = s / 2;
+    /* the 3 x 3 nodes (i along u, j along w), from the cell's nodes half a side apart (half[z][y][x]);
+     * edges: e < 6 along u from (e % 2, e / 2), else along w from ((e - 6) / 2, (e - 6) % 2) */
+    bool in[3][3];
+    for (int j = 0; j < 3; j++)
+        for (int i = 0; i < 3; i++) {
+            int c[3];
+            c[axis] = 2 * side, c[u] = i, c[w] = j;
+            in[i][j] = half[c[2]][c[1]][c[0]];
+        }
+    if (n_pairs == 0) /* no corner-edge crossing: no path on the face unless a node inside it differs */
+        return in[1][0] == in[0][0] && in[0][1] == in[0][0] && in[1][1] == in[0][0] && in[2][1] == in[0][0] &&
+               in[1][2] == in[0][0];
+    bool centre = in[1][1];
+    if (n_pairs == 1 && in[1][0] == centre && in[0][1] == centre && in[2][1] == centre && in[1][2] == centre) {
+        dev[0] = -1; /* no inner edge cut: the path is one quarter's segment, the chord itself */
+        return true;
+    }
+    bool cut[12];
+    for (int e = 0; e < 12; e++) {
+        int i = e < 6 ? e % 2 : (e - 6) / 2, j = e < 6 ? e / 2 : (e - 6) % 2;
+        cut[e] = in[i][j] != (e < 6 ? in[i + 1][j] : in[i][j + 1]);
+    }
+    /* each quarter's segment: its two cut edges (of bottom, top, left, right) */
+    int seg[2][2][2];
+    for (int b = 0; b < 2; b++)
+        for (int q = 0; q < 2; q++) {
+            int edges[4] = {q + 2 * b, q + 2 * (b + 1), 6 + b + 2 * q, 6 + b + 2 * (q + 1)}, k = 0;
+            seg[q][b][0] = seg[q][b][1] = -1;
+            for (int r = 0; r < 4; r++)
+                if (cut[edges[r]]) {
+                    if (k == 2)
+                        return false; /* ambiguous */
+                    seg[q][b][k++] = edges[r];
+                }
+        }
+    int visited = 0, inner = 0;
+    for (int e = 0; e < 12; e++)
+        inner += cut[e] && (e < 6 ? e / 2 == 1 : (e - 6) / 2 == 1);
+    for (int k = 0; k < n_pairs; k++) {
+        double poly[MAX_EAR][2], *A = ep[pairs[k][0] / 8][pairs[k][0] % 8], *B = ep[pairs[k][1] / 8][pairs[k][1] % 8];
+        int m = 0, ends[2];
+        dev[k] = -1;
+        for (int r = 0; r < 2; r++) { /* the cut half of each corner edge */
+            int i0 = pairs[k][r] / 8, j0 = pairs[k][r] % 8, along = __builtin_ctz((unsigned)(i0 ^ j0));
+            int bu = i0 >> u & 1, bw = i0 >> w & 1;
+            int e0 = along == u ? 2 * (2 * bw) : 6 + 2 * (2 * bu), e1 = e0 + 1;
+            ends[r] = cut[e0] ? e0 : e1;
+        }
+        poly[m][0] = A[u], poly[m][1] = A[w], m++;
+        double path[MAX_EAR][3];
+        int e = ends[0], q = -1, b = -1;
+        for (int steps = 0; steps < 8; steps++) {
+            /* the quarter e leads into (not the one it came from) */
+            int i = e < 6 ? e % 2 : (e - 6) / 2, j = e < 6 ? e / 2 : (e - 6) % 2, nq = -1, nb = -1;
+            for (int c = 0; c < 4 && nq < 0; c++) {
+                int cq = e < 6 ? i : i - (c & 1), cb = e < 6 ? j - (c & 1) : j;
+                if (cq < 0 || cq > 1 || cb < 0 || cb > 1 || (cq == q && cb == b))
+                    continue;
+                if (seg[cq][cb][0] == e || seg[cq][cb][1] == e)
+                    nq = cq, nb = cb;
+            }
+            if (nq < 0)
+                return false;
+            q = nq, b = nb;
+            e = seg[q][b][0] == e ? seg[q][b][1] : seg[q][b][0];
+            bool border = e < 6 ? e / 2 != 1 : (e - 6) / 2 != 1;
+            if (border)
+                break;
+            int ei = e < 6 ? e % 2 : (e - 6) / 2, ej = e < 6 ? e / 2 : (e - 6) % 2, n0[3];
+            n0[axis] = o[axis] + side * s, n0[u] = o[u] + ei * h, n0[w] = o[w] + ej * h;
+            double x[3];
+            if (m + 1 >= MAX_EAR || !walk_crossing(a, n0, e < 6 ? u : w, h, x))
+                return false;
+            memcpy(path[m], x, sizeof x);
+            poly[m][0] = x[u], poly[m][1] = x[w], m++;
+            visited++;
+        }
+        if (e != ends[1])
+            return false;
+        poly[m][0] = B[u], poly[m][1] = B[w], m++;
+        if (m >= 3 && !simple_polygon((const double (*)[2])poly, m)) {
+            dev[k] = 0;
+            for (int j = 1; j + 1 < m; j++)
+                dev[k] = fmax(dev[k], seg_dist(path[j], A, B));
+        }
+    }
+    return visited == inner;
+}
+
 
 /* The error estimate of block b of level l, merged into one cell: that cell's surface is a
  * polygon through the samples' own crossings on its twelve edges (each edge must cross at most
@@ -185,17 +403,15 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
                 if ((prev > 0) != (cur > 0)) {
                     if (++changes > 1)
                         return INFINITY;
-                    double f = prev / (prev - cur);
-                    for (int d = 0; d < 3; d++)
-                        ep[i][j][d] = a->org[d] + a->sp[d] * (q[d] - (d == axis ? 1 - f : 0));
                     q[axis]--;
+                    crossing_at(a, q, axis, prev / (prev - cur), ep[i][j]);
                     ek[i][j] = edge_key(a, q, axis);
                 }
                 prev = cur;
             }
         }
     /* the merged cell's polygon: faces' segments between corner-edge crossings, chained, fanned */
-    int next[8][8], tri_n = 0;
+    int next[8][8], tri_n = 0, pairs[6][2][2], n_pairs[6] = {0};
     double tris[16][3][3];
     memset(next, -1, sizeof next);
     for (int f = 0; f < 6; f++) {
@@ -212,12 +428,18 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
         if (n == 2) {
             int e = entry[0] ? 0 : 1;
             next[cross[e] / 8][cross[e] % 8] = cross[1 - e];
+            pairs[f][n_pairs[f]][0] = cross[e], pairs[f][n_pairs[f]++][1] = cross[1 - e];
         } else if (n == 4) {
             int r = entry[0] ? 0 : 1, e1 = cross[r], x1 = cross[(r + 1) % 4], e2 = cross[(r + 2) % 4], x2 = cross[(r + 3) % 4];
             double det = g[0] * g[3] - g[1] * g[2];
-            bool joined = g[0] > 0 ? det > 0 : det < 0;
+            int sq[3] = {o[0], o[1], o[2]};
+            sq[axis] += (f & 1) * s;
+            int nine = face_inside_joined(a, axis, sq, s);
+            bool joined = nine >= 0 ? nine : g[0] > 0 ? det > 0 : det < 0;
             next[(joined ? e2 : e1) / 8][(joined ? e2 : e1) % 8] = x1;
             next[(joined ? e1 : e2) / 8][(joined ? e1 : e2) % 8] = x2;
+            pairs[f][n_pairs[f]][0] = joined ? e2 : e1, pairs[f][n_pairs[f]++][1] = x1;
+            pairs[f][n_pairs[f]][0] = joined ? e1 : e2, pairs[f][n_pairs[f]++][1] = x2;
         }
     }
     for (int i = 0; i < 8; i++)
@@ -270,9 +492,8 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
                     double f0 = F(a, p[0], p[1], p[2]) - iso, f1 = F(a, q[0], q[1], q[2]) - iso;
                     if ((f0 > 0) == (f1 > 0))
                         continue;
-                    double t = f0 / (f0 - f1), v[3], e = tri_n ? INFINITY : INFINITY;
-                    for (int d = 0; d < 3; d++)
-                        v[d] = a->org[d] + a->sp[d] * (p[d] + (d == axis ? t : 0));
+                    double v[3], e = INFINITY;
+                    crossing_at(a, p, axis, f0 / (f0 - f1), v);
                     /* (a triangle within the worst so far settles this vertex: it cannot raise it) */
                     for (int k = 0; k < tri_n && e > worst; k++)
                         e = fmin(e, trimesh_point_dist(v, tris[k][0], tris[k][1], tris[k][2]));
@@ -280,7 +501,24 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
                     if (worst > a->max_err)
                         return worst;
                 }
-    return worst;
+    /* the faces as the mesh draws them where finer cells lie across (last: most blocks that fail,
+     * fail the distances): a path that strays to the far side of its chord is fanned over in place
+     * of the chord's triangle (coarse_fan), which moves that triangle's points by at most the
+     * path's stray */
+    double stray = 0;
+    bool half[3][3][3]; /* the cell's nodes half a side apart: in or not */
+    for (int z = 0; z < 3; z++)
+        for (int y = 0; y < 3; y++)
+            for (int x = 0; x < 3; x++)
+                half[z][y][x] = F(a, o[0] + x * s / 2, o[1] + y * s / 2, o[2] + z * s / 2) > iso;
+    for (int f = 0; f < 6; f++) {
+        double dev[2];
+        if (!face_cut_ok(a, o, s, f, (const bool (*)[3][3])half, (const int (*)[2])pairs[f], n_pairs[f], ep, dev))
+            return INFINITY;
+        for (int k = 0; k < n_pairs[f]; k++)
+            stray = fmax(stray, dev[k]);
+    }
+    return worst + stray;
 }
 
 /* Whether every block of level l that touches block b of level l+1 is covered at l. */
@@ -1280,7 +1518,8 @@ static void face_segments(const struct iso_adapt *a, struct cell *c, int f, int 
                 int r = entry[0] ? 0 : 1;
                 int e1 = r, x1 = (r + 1) % 4, e2 = (r + 2) % 4, x2 = (r + 3) % 4;
                 double det = g[0] * g[3] - g[1] * g[2];
-                if (a->field ? inside_between(a, c->pc, cross) : g[0] > 0 ? det > 0 : det < 0) {
+                int nine = !a->field && h >= 2 ? face_inside_joined(a, axis, sq, h) : -1;
+                if (a->field ? inside_between(a, c->pc, cross) : nine >= 0 ? nine : g[0] > 0 ? det > 0 : det < 0) {
                     /* inside corners joined: the segments cut off the outside ones */
                     SEG(e2, x1);
                     SEG(e1, x2);
@@ -1315,6 +1554,145 @@ static bool fan_ok(const struct cell *c, const double x[3], const long *loop, in
     return true;
 }
 
+/* The triangles (into tri, 3 per triangle, as indices of v) of the ear v[0..n) lying in the face
+ * across axis: the polygon between a chord of a merged cell's face (v[n-1] -> v[0]) and the
+ * finer path the face was cut into (v[0] -> ... -> v[n-1]), by clipping ears; false when it is
+ * not a simple polygon of some area (then the cell is fanned whole). */
+static bool ear_triangles(const float *pos, const long *v, int n, int axis, int *tri)
+{
+    int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2, idx[MAX_EAR], m = n, t = 0;
+    double p[MAX_EAR][2], area = 0;
+    for (int k = 0; k < n; k++)
+        p[k][0] = pos[3 * v[k] + u], p[k][1] = pos[3 * v[k] + w], idx[k] = k;
+    if (!simple_polygon((const double (*)[2])p, n))
+        return false;
+    for (int k = 0; k < n; k++)
+        area += p[k][0] * p[(k + 1) % n][1] - p[(k + 1) % n][0] * p[k][1];
+    while (m > 3) {
+        int e = -1;
+        for (int k = 0; k < m && e < 0; k++) {
+            const double *a = p[idx[(k + m - 1) % m]], *b = p[idx[k]], *cc = p[idx[(k + 1) % m]];
+            double cr = (b[0] - a[0]) * (cc[1] - a[1]) - (b[1] - a[1]) * (cc[0] - a[0]);
+            if (!(cr * area > 0))
+                continue;
+            bool empty = true;
+            for (int j = 0; j < m && empty; j++) {
+                if (j == k || j == (k + 1) % m || j == (k + m - 1) % m)
+                    continue;
+                const double *q = p[idx[j]];
+                double s1 = (b[0] - a[0]) * (q[1] - a[1]) - (b[1] - a[1]) * (q[0] - a[0]);
+                double s2 = (cc[0] - b[0]) * (q[1] - b[1]) - (cc[1] - b[1]) * (q[0] - b[0]);
+                double s3 = (a[0] - cc[0]) * (q[1] - cc[1]) - (a[1] - cc[1]) * (q[0] - cc[0]);
+                empty = !(s1 * area >= 0 && s2 * area >= 0 && s3 * area >= 0);
+            }
+            if (empty)
+                e = k;
+        }
+        if (e < 0)
+            return false;
+        tri[t++] = idx[(e + m - 1) % m], tri[t++] = idx[e], tri[t++] = idx[(e + 1) % m];
+        for (int k = e; k + 1 < m; k++)
+            idx[k] = idx[k + 1];
+        m--;
+    }
+    tri[t++] = idx[0], tri[t++] = idx[1], tri[t++] = idx[2];
+    return true;
+}
+
+/* A merged cell's loop that the faces it shares with finer cells cut (crossings on those faces'
+ * inner edges between its corner-edge crossings): fanned as block_error measured it - its
+ * corner-edge crossings alone, from the apex of least key or the inner crossing nearest their
+ * mean - and each stretch of finer path closed against its chord by triangles in the face (the
+ * ears), so that every full-resolution vertex lies within the accepted error of the fan and the
+ * bound holds wherever the cell meets finer ones. False (nothing drawn) when the loop is not of
+ * that form. */
+static bool coarse_fan(struct cell *c, const long *loop, const int *faces, int n)
+{
+    int at[MAX_SEGS], nc = 0;
+    for (int k = 0; k < n; k++) {
+        if (loop[k] < 0 || faces[k] & (FACE_POINT | ON_FACE))
+            return false;
+        if (__builtin_popcount((unsigned)faces[k] & 63) == 2)
+            at[nc++] = k;
+    }
+    if (nc < 3 || nc == n)
+        return false;
+    long cv[MAX_SEGS];
+    int cf[MAX_SEGS], ears[MAX_SEGS][3 * (MAX_EAR - 2)], n_ear[MAX_SEGS];
+    uint64_t keys[MAX_SEGS];
+    long ev[MAX_SEGS][MAX_EAR];
+    const float *pos = c->pc->m.pos;
+    for (int i = 0; i < nc; i++) {
+        int k0 = at[i], k1 = at[(i + 1) % nc], m = (k1 - k0 + n) % n + 1; /* the stretch k0 .. k1 */
+        cv[i] = loop[k0], cf[i] = faces[k0], keys[i] = c->pc->vkey[loop[k0]], n_ear[i] = 0;
+        if (m == 2)
+            continue;
+        int f = faces[k0] & faces[k1] & 63;
+        if (m > MAX_EAR || __builtin_popcount((unsigned)f) != 1)
+            return false;
+        for (int j = 0; j < m; j++) {
+            ev[i][j] = loop[(k0 + j) % n];
+            if (j > 0 && j + 1 < m && (faces[(k0 + j) % n] & 63) != f)
+                return false;
+        }
+        n_ear[i] = ear_triangles(pos, ev[i], m, __builtin_ctz((unsigned)f) >> 1, ears[i]) ? m - 2 : -m;
+    }
+    int apex = fan_apex(cf, keys, nc), nt = apex >= 0 ? nc - 2 : nc, over[MAX_SEGS], paths[MAX_SEGS] = {0};
+    for (int i = 0; i < nc; i++) /* the triangle of each stretch whose path is fanned over */
+        if (n_ear[i] < 0) {
+            int t = fan_triangle(i, apex, nc);
+            over[t] = i, paths[t]++;
+        }
+    long centre = -1;
+    if (apex < 0) {
+        double x[3] = {0, 0, 0};
+        int cn[3], axis;
+        for (int i = 0; i < nc; i++)
+            for (int d = 0; d < 3; d++)
+                x[d] += pos[3 * cv[i] + d] / nc;
+        if (!inner_crossing(c->a, c->o, c->s, x, cn, &axis))
+            return false;
+        int cm[3] = {cn[0], cn[1], cn[2]};
+        cm[axis]++;
+        centre = edge_vertex(c->a, c->pc, cn, axis, Fp(c->a, cn), Fp(c->a, cm));
+    }
+    for (int t = 0; t < nt; t++) {
+        /* triangle t as (x, p, q), the loop's edge p -> q */
+        int p = apex >= 0 ? (apex + t + 1) % nc : t, q = (p + 1) % nc, i = paths[t] ? over[t] : -1;
+        long x = apex >= 0 ? cv[apex] : centre;
+        if (i < 0) {
+            add_triangle(c->pc, x, cv[p], cv[q]);
+        } else if (paths[t] == 1) { /* a path on both sides of its chord: the triangle fanned over it */
+            if (apex >= 0 && i != p) /* (the apex's own edge: the triangle seen from its third corner) */
+                x = cv[i == apex ? q : p];
+            for (int j = 0; j + 1 < -n_ear[i]; j++)
+                add_triangle(c->pc, x, ev[i][j], ev[i][j + 1]);
+        } else { /* two or three: fanned from the triangle's centre over its sides x -> p -> q -> x */
+            int side[3] = {apex >= 0 && t == 0 ? apex : -1, p, apex >= 0 && t == nt - 1 ? q : -1};
+            long corner[3] = {x, cv[p], cv[q]}, mid;
+            double m[3] = {0, 0, 0}, nrm[3] = {0, 0, 0};
+            for (int k = 0; k < 3; k++)
+                for (int d = 0; d < 3; d++)
+                    m[d] += pos[3 * corner[k] + d] / 3, nrm[d] += c->pc->m.nrm[3 * corner[k] + d];
+            if ((mid = new_vertex(c->pc, m, nrm, UINT64_MAX)) < 0)
+                return true; /* (no memory: the piece says so) */
+            pos = c->pc->m.pos;
+            for (int k = 0; k < 3; k++) {
+                int st = side[k];
+                if (st >= 0 && n_ear[st] < 0)
+                    for (int j = 0; j + 1 < -n_ear[st]; j++)
+                        add_triangle(c->pc, mid, ev[st][j], ev[st][j + 1]);
+                else
+                    add_triangle(c->pc, mid, corner[k], corner[(k + 1) % 3]);
+            }
+        }
+    }
+    for (int i = 0; i < nc; i++)
+        for (int t = 0; t < n_ear[i]; t++)
+            add_triangle(c->pc, ev[i][ears[i][3 * t]], ev[i][ears[i][3 * t + 1]], ev[i][ears[i][3 * t + 2]]);
+    return true;
+}
+
 /* The cell's loops, each fanned from a vertex none of whose diagonals joins two vertices of one
  * face, else from a vertex at its centre. */
 static void fan_loops(struct cell *c)
@@ -1344,6 +1722,8 @@ static void fan_loops(struct cell *c)
                 add_triangle(c->pc, centre, loop[k], loop[(k + 1) % n]);
             continue;
         }
+        if (c->s > 1 && coarse_fan(c, loop, faces, n))
+            continue;
         uint64_t keys[MAX_SEGS];
         for (int k = 0; k < n; k++)
             keys[k] = loop[k] < 0 ? UINT64_MAX : c->pc->vkey[loop[k]];

@@ -13,19 +13,29 @@
  * every full-resolution vertex in the block (the crossings of its fine edges) to that polygon,
  * the bench's measure (vertex distances both ways; the other way is 0 by construction), with the
  * polygon fanned as the mesh will fan it. Where a merged cell's neighbour stays finer, the cell
- * draws that face at the neighbour's resolution (below), which the estimate does not see: the
- * mesh's largest distances can pass max_error there (RESULTS.md).
+ * draws that face at the neighbour's resolution (below): its loop gains the crossings of the
+ * face's inner edges. The mesh still fans the loop's corner-edge crossings as the estimate did,
+ * and closes each stretch of finer path against its chord with triangles in the face (which only
+ * add surface); where a path crosses its chord, the chord's triangle is fanned over the path
+ * instead, which moves its points by at most the path's stray from the chord, and the estimate
+ * adds that stray. So that the face cut in four joins the crossings as the whole face does, a
+ * face square of two or more samples a side with diagonal inside corners is decided by its nine
+ * nodes (corners, mid-edges, centre: the inside ones linked or not), from both cells that share
+ * it; a block whose face, cut, would join them otherwise (an ambiguous quarter) or hold a path of
+ * its own does not merge. Then every full-resolution vertex lies within max_error of the mesh,
+ * whichever neighbours stay finer (tests/core/iso/test_adapt.c measures it; RESULTS.md).
  *
  * Crack-free joins. The seed makes the finer side of a shared face read the coarser cell's
  * interpolant there (its node values modified, the coarser side unchanged). Built that way first,
  * it costs accuracy (the finer cells' vertices move off the full-resolution surface with it:
- * 1.09x fewer triangles at max_error 0.5 on the shared CT, against 2.3x now) and it cannot be
+ * 1.09x fewer triangles at max_error 0.5 on the shared CT, against 2.5x now) and it cannot be
  * combined with coarse edges that carry the samples' crossings (an edge read at two resolutions
  * by a cell's two faces can then disagree). So the other way round: the coarser cell draws a
  * face it shares with finer cells at their resolution, from the same samples, and nothing is
  * modified; its edges cross at most once, so reading an edge whole or in halves finds the same
  * crossing. Each crossing is keyed by the finest edge it lies on; each cell chains its faces'
- * segments into loops (an ambiguous face or sub-face by the asymptotic decider, as mc.c) and fans
+ * segments into loops (an ambiguous face square of one sample a side by the asymptotic decider,
+ * as mc.c; larger ones by their nine nodes, above) and fans
  * them from a vertex none of whose diagonals lies in a face (in a merged cell the one of least
  * key), else from a centre: in a merged cell the crossing of a fine edge inside it nearest the
  * loop's mean (a full-resolution vertex), in a level-1 cell the mean. So with

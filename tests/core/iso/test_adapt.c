@@ -228,6 +228,106 @@ TEST(ct_crop_at_every_level)
     free(raw);
 }
 
+/* The largest distance from a vertex of mesh from to mesh to (brute force over the triangles whose
+ * box, grown by reach, holds the vertex: bucketed in a grid of cells of size reach; a vertex
+ * farther than reach from every triangle counts as INFINITY). */
+static double farthest(const struct trimesh *from, const struct trimesh *to, double reach)
+{
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < to->n_vert; v++)
+        for (int d = 0; d < 3; d++)
+            lo[d] = fminf(lo[d], to->pos[3 * v + d]), hi[d] = fmaxf(hi[d], to->pos[3 * v + d]);
+    int n[3];
+    for (int d = 0; d < 3; d++)
+        n[d] = (int)((hi[d] - lo[d]) / reach) + 3;
+    size_t cells = (size_t)n[0] * n[1] * n[2], *first = calloc(cells + 1, sizeof *first), *list = NULL;
+#define CELL(p, d) ((int)(((p) - lo[d]) / reach) + 1)
+    for (int pass = 0; pass < 2; pass++) {
+        for (size_t t = 0; t < to->n_tri; t++) {
+            int c0[3], c1[3];
+            for (int d = 0; d < 3; d++) {
+                float a = INFINITY, b = -INFINITY;
+                for (int k = 0; k < 3; k++)
+                    a = fminf(a, to->pos[3 * to->tri[3 * t + k] + d]), b = fmaxf(b, to->pos[3 * to->tri[3 * t + k] + d]);
+                c0[d] = CELL(a, d) - 1, c1[d] = CELL(b, d) + 1;
+            }
+            for (int z = c0[2]; z <= c1[2]; z++)
+                for (int y = c0[1]; y <= c1[1]; y++)
+                    for (int x = c0[0]; x <= c1[0]; x++) {
+                        size_t at = (size_t)x + (size_t)n[0] * ((size_t)y + (size_t)n[1] * z);
+                        if (pass == 0)
+                            first[at + 1]++;
+                        else
+                            list[first[at]++] = t;
+                    }
+        }
+        if (pass == 0) {
+            for (size_t c = 0; c < cells; c++)
+                first[c + 1] += first[c];
+            list = malloc((first[cells] + 1) * sizeof *list);
+        } else {
+            for (size_t c = cells; c > 0; c--) /* (the second pass moved each start to its end) */
+                first[c] = first[c - 1];
+            first[0] = 0;
+        }
+    }
+    double worst = 0;
+    for (size_t v = 0; v < from->n_vert; v++) {
+        double p[3], best = INFINITY;
+        int c[3];
+        for (int d = 0; d < 3; d++) {
+            p[d] = from->pos[3 * v + d];
+            c[d] = CELL(from->pos[3 * v + d], d);
+            c[d] = c[d] < 0 ? 0 : c[d] >= n[d] ? n[d] - 1 : c[d];
+        }
+        size_t at = (size_t)c[0] + (size_t)n[0] * ((size_t)c[1] + (size_t)n[1] * c[2]);
+        for (size_t k = first[at]; k < first[at + 1]; k++) {
+            double q[3][3];
+            for (int j = 0; j < 3; j++)
+                for (int d = 0; d < 3; d++)
+                    q[j][d] = to->pos[3 * to->tri[3 * list[k] + j] + d];
+            best = fmin(best, trimesh_point_dist(p, q[0], q[1], q[2]));
+        }
+        worst = fmax(worst, best);
+    }
+#undef CELL
+    free(first);
+    free(list);
+    return worst;
+}
+
+/* max_error bounds the real distance: every vertex of the full-resolution mesh (marching cubes'
+ * own) lies within it of the adaptive mesh, on the CT crop at levels 2 and 3, wherever merged
+ * cells meet finer ones (their faces cut at the finer resolution) */
+TEST(every_full_resolution_vertex_within_max_error)
+{
+    size_t len;
+    char *raw = unit_data("volumes", "ct_head_crop64_int16.raw", &len);
+    CHECK(raw && len == 64 * 64 * 64 * 2);
+    if (!raw)
+        return;
+    struct iso_grid g = {64, 64, 64, ISO_I16, raw, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
+    struct iso_opts o = {.iso = 226.5, .closed = true, .normals = true};
+    struct trimesh mc;
+    struct sf_err err = {0};
+    CHECK(iso_extract(&g, &o, NULL, &mc, &err) == 0);
+    for (int levels = 2; levels <= 3; levels++)
+        for (double me = 0.25; me <= 1; me *= 2) {
+            struct trimesh m;
+            struct trimesh_stats st;
+            struct iso_adapt_stats as;
+            CHECK(extract(&g, 226.5, levels, me, &m, &st, &as));
+            double far = farthest(&mc, &m, 2 * me);
+            fprintf(stderr, "  levels %d max_error %.2f: %zu triangles of %zu, farthest vertex %.4f\n", levels, me,
+                    m.n_tri, mc.n_tri, far);
+            CHECK(far <= me * (1 + 1e-6) + 1e-5); /* (float positions) */
+            CHECK(as.cells[2] > 0);
+            trimesh_free(&m);
+        }
+    trimesh_free(&mc);
+    free(raw);
+}
+
 int main(void)
 {
     iso_init();
@@ -238,5 +338,6 @@ int main(void)
     RUN(the_same_mesh_twice_and_mc_at_zero_error);
     RUN(the_same_mesh_whatever_the_order_of_the_slabs);
     RUN(ct_crop_at_every_level);
+    RUN(every_full_resolution_vertex_within_max_error);
     UNIT_END();
 }
