@@ -207,14 +207,26 @@ TEST(the_same_mesh_whatever_the_order_of_the_slabs)
     trimesh_free(&bw);
 }
 
-TEST(ct_crop_at_every_level)
+/* The shared CT crop (64^3 int16) as a grid; its samples (to free), or NULL (a failed check). */
+static char *ct_crop(struct iso_grid *g)
 {
     size_t len;
     char *raw = unit_data("volumes", "ct_head_crop64_int16.raw", &len);
     CHECK(raw && len == 64 * 64 * 64 * 2);
+    if (raw && len != 64 * 64 * 64 * 2) {
+        free(raw);
+        raw = NULL;
+    }
+    *g = (struct iso_grid){64, 64, 64, ISO_I16, raw, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
+    return raw;
+}
+
+TEST(ct_crop_at_every_level)
+{
+    struct iso_grid g;
+    char *raw = ct_crop(&g);
     if (!raw)
         return;
-    struct iso_grid g = {64, 64, 64, ISO_I16, raw, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
     for (int levels = 2; levels <= 4; levels++)
         for (double me = 0.25; me <= 4; me *= 4) {
             struct trimesh m;
@@ -301,12 +313,10 @@ static double farthest(const struct trimesh *from, const struct trimesh *to, dou
  * cells meet finer ones (their faces cut at the finer resolution) */
 TEST(every_full_resolution_vertex_within_max_error)
 {
-    size_t len;
-    char *raw = unit_data("volumes", "ct_head_crop64_int16.raw", &len);
-    CHECK(raw && len == 64 * 64 * 64 * 2);
+    struct iso_grid g;
+    char *raw = ct_crop(&g);
     if (!raw)
         return;
-    struct iso_grid g = {64, 64, 64, ISO_I16, raw, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
     struct iso_opts o = {.iso = 226.5, .closed = true, .normals = true};
     struct trimesh mc;
     struct sf_err err = {0};
