@@ -226,7 +226,6 @@ static int face_inside_joined(const struct iso_adapt *a, int axis, const int sq[
     return seen[2 - c0][2];
 }
 
-
 #define MAX_EAR 8 /* vertices of an ear: a chord's two ends and the crossings between them */
 
 /* The place of a sample crossing at fraction t of the finest edge from node n along axis, kept
@@ -367,7 +366,6 @@ static bool face_cut_ok(const struct iso_adapt *a, const int o[3], int s, int f,
     }
     return visited == inner;
 }
-
 
 /* The error estimate of block b of level l, merged into one cell: that cell's surface is a
  * polygon through the samples' own crossings on its twelve edges (each edge must cross at most
