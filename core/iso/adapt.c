@@ -291,8 +291,12 @@ static bool face_cut_ok(const struct iso_adapt *a, const int o[3], int s, int f,
         return in[1][0] == in[0][0] && in[0][1] == in[0][0] && in[1][1] == in[0][0] && in[2][1] == in[0][0] &&
                in[1][2] == in[0][0];
     bool centre = in[1][1];
-    if (n_pairs == 1 && in[1][0] == centre && in[0][1] == centre && in[2][1] == centre && in[1][2] == centre) {
-        dev[0] = -1; /* no inner edge cut: the path is one quarter's segment, the chord itself */
+    int inner = (in[1][0] != centre) + (in[0][1] != centre) + (in[2][1] != centre) + (in[1][2] != centre);
+    if (n_pairs == 1 && inner <= 1) {
+        /* no inner edge cut: the path is one quarter's segment, the chord itself; one: it runs
+         * through the two quarters by that edge, a triangle with its chord (simple; its points all
+         * on the chord at worst, when the fan over the path is the chord's triangle) */
+        dev[0] = -1;
         return true;
     }
     bool cut[12];
@@ -313,9 +317,7 @@ static bool face_cut_ok(const struct iso_adapt *a, const int o[3], int s, int f,
                     seg[q][b][k++] = edges[r];
                 }
         }
-    int visited = 0, inner = 0;
-    for (int e = 0; e < 12; e++)
-        inner += cut[e] && (e < 6 ? e / 2 == 1 : (e - 6) / 2 == 1);
+    int visited = 0;
     for (int k = 0; k < n_pairs; k++) {
         double poly[MAX_EAR][2], *A = ep[pairs[k][0] / 8][pairs[k][0] % 8], *B = ep[pairs[k][1] / 8][pairs[k][1] % 8];
         int m = 0, ends[2];
