@@ -521,13 +521,22 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
     return worst + stray;
 }
 
-/* Whether every block of level l that touches block b of level l+1 is covered at l. */
+/* Whether every block of level l that shares a face with block b of level l+1 is covered at l,
+ * so that cells that share a face differ by one level at most (a face drawn by the coarser cell
+ * at the finer one's resolution is cut in four). Cells that share only an edge or a corner may
+ * differ by more: an edge's crossing is keyed by the finest edge it lies on, one vertex whatever
+ * the levels that read it (the CT head at levels=3: 3.69x -> 3.76x fewer triangles than with
+ * every touching block required). */
 static bool ring_covered(const struct iso_adapt *a, int l, const int b[3])
 {
     for (int z = 2 * b[2] - 1; z <= 2 * b[2] + 2; z++)
         for (int y = 2 * b[1] - 1; y <= 2 * b[1] + 2; y++)
             for (int x = 2 * b[0] - 1; x <= 2 * b[0] + 2; x++) {
                 if (x < 0 || y < 0 || z < 0 || x >= a->nb[l][0] || y >= a->nb[l][1] || z >= a->nb[l][2])
+                    continue;
+                int out = (x < 2 * b[0] || x > 2 * b[0] + 1) + (y < 2 * b[1] || y > 2 * b[1] + 1) +
+                          (z < 2 * b[2] || z > 2 * b[2] + 1);
+                if (out >= 2) /* (across an edge or a corner) */
                     continue;
                 if (!a->M[l][block(a, l, x, y, z)])
                     return false;

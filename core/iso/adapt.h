@@ -5,9 +5,10 @@
  * Level l's cells are 2^(l-1) samples a side, aligned to multiples of it. One byte mask per level
  * marks the blocks covered by a cell of that level or a coarser one (the seed keeps bit masks:
  * which cell a sample lies in is a look-up, not an octree walk). A block merges at level l when
- * its eight children merged at l-1, every block of level l-1 that touches it (by a face, an edge
- * or a corner) merged too, so that cells that touch differ by one level at most, and its error
- * holds. The merged cell's surface is a polygon through the samples' own crossings on its twelve
+ * its eight children merged at l-1, every block of level l-1 that shares a face with it merged
+ * too, so that cells that share a face differ by one level at most (cells that share only an edge
+ * or a corner may differ more: an edge's crossing is one vertex, keyed by the finest edge it lies
+ * on, whatever the levels that read it), and its error holds. The merged cell's surface is a polygon through the samples' own crossings on its twelve
  * edges (an edge the samples cross twice or more carries a feature finer than the cell: no
  * merge), so its vertices lie on the full-resolution surface; the error is the distance from
  * every full-resolution vertex in the block (the crossings of its fine edges) to that polygon,
