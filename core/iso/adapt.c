@@ -1664,6 +1664,7 @@ static bool coarse_fan(struct cell *c, const long *loop, const int *faces, int n
         int cm[3] = {cn[0], cn[1], cn[2]};
         cm[axis]++;
         centre = edge_vertex(c->a, c->pc, cn, axis, Fp(c->a, cn), Fp(c->a, cm));
+        pos = c->pc->m.pos; /* (a new vertex may have moved them) */
     }
     for (int t = 0; t < nt; t++) {
         /* triangle t as (x, p, q), the loop's edge p -> q */
@@ -1685,7 +1686,7 @@ static bool coarse_fan(struct cell *c, const long *loop, const int *faces, int n
                     m[d] += pos[3 * corner[k] + d] / 3, nrm[d] += c->pc->m.nrm[3 * corner[k] + d];
             if ((mid = new_vertex(c->pc, m, nrm, UINT64_MAX)) < 0)
                 return true; /* (no memory: the piece says so) */
-            pos = c->pc->m.pos;
+            pos = c->pc->m.pos; /* (the new vertex may have moved them) */
             for (int k = 0; k < 3; k++) {
                 int st = side[k];
                 if (st >= 0 && n_ear[st] < 0)
