@@ -1,7 +1,8 @@
 /* test_adapt.c - the adaptive hierarchy of core/iso (adapt.h): a closed, consistently oriented
  * 2-manifold at every mix of levels (analytic fields, random fields, the shared CT crop), levels
- * that really mix, the error against an analytic surface, the same mesh twice, and max_error 0
- * keeping marching cubes' vertices. */
+ * that really mix, the error against an analytic surface, the same mesh twice, max_error 0
+ * keeping marching cubes' vertices, and max_error bounding the distance of every marching-cubes
+ * vertex to the mesh (the CT crop, smooth random fields with noise). */
 #include "../../../core/iso/adapt.h"
 
 #include <stdbool.h>
@@ -336,6 +337,42 @@ TEST(every_full_resolution_vertex_within_max_error)
         }
     trimesh_free(&mc);
     free(raw);
+    /* and on smooth random fields with noise (many merged cells next to finer ones, paths that
+     * cross their chords, faces whose nine nodes decide) */
+    enum { R = 33 };
+    static float v[R * R * R];
+    for (int t = 0; t < 6; t++) {
+        double k[4][3], ph[4];
+        for (int i = 0; i < 4; i++) {
+            for (int d = 0; d < 3; d++)
+                k[i][d] = (rnd() - 0.5) * 0.8;
+            ph[i] = rnd() * 6.28;
+        }
+        for (int z = 0; z < R; z++)
+            for (int y = 0; y < R; y++)
+                for (int x = 0; x < R; x++) {
+                    double f = 0.1 * (rnd() - 0.5);
+                    for (int i = 0; i < 4; i++)
+                        f += sin(k[i][0] * x + k[i][1] * y + k[i][2] * z + ph[i]);
+                    v[x + R * (y + R * z)] = (float)f;
+                }
+        struct iso_grid rg = grid(R, v, 1);
+        CHECK(iso_extract(&rg, &(struct iso_opts){.iso = 0, .closed = true, .normals = true}, NULL, &mc, &err) == 0);
+        for (int levels = 2; levels <= 3; levels++) {
+            struct trimesh m;
+            struct trimesh_stats st;
+            struct iso_adapt_stats as;
+            double me = 0.2 + 0.2 * (t % 3);
+            CHECK(extract(&rg, 0, levels, me, &m, &st, &as));
+            CHECK(closed_manifold(&st));
+            double far = farthest(&mc, &m, 2 * me);
+            if (!(far <= me * (1 + 1e-6) + 1e-5))
+                fprintf(stderr, "  random field %d, levels %d: farthest vertex %.4f over max_error %.2f\n", t, levels, far, me);
+            CHECK(far <= me * (1 + 1e-6) + 1e-5);
+            trimesh_free(&m);
+        }
+        trimesh_free(&mc);
+    }
 }
 
 int main(void)
