@@ -172,20 +172,18 @@ static bool segs_meet(const double p[2], const double q[2], const double r[2], c
     return (d1 > 0) != (d2 > 0) && (d3 > 0) != (d4 > 0);
 }
 
-/* Whether the 2-D polygon p[0..n) is simple (no two of its edges meet but neighbours at their
- * shared end) and has some area. */
-static bool simple_polygon(const double (*p)[2], int n)
+/* Twice the signed area of the 2-D polygon p[0..n) when it is simple (no two of its edges meet
+ * but neighbours at their shared end), else 0. */
+static double simple_area(const double (*p)[2], int n)
 {
     double area = 0;
     for (int k = 0; k < n; k++)
         area += p[k][0] * p[(k + 1) % n][1] - p[(k + 1) % n][0] * p[k][1];
-    if (area == 0)
-        return false;
-    for (int i = 0; i < n; i++)
+    for (int i = 0; i < n && area != 0; i++)
         for (int j = i + 2; j < n; j++)
             if ((j + 1) % n != i && segs_meet(p[i], p[(i + 1) % n], p[j], p[(j + 1) % n]))
-                return false;
-    return true;
+                return 0;
+    return area;
 }
 
 /* ---- the hierarchy ---- */
@@ -360,7 +358,7 @@ static bool face_cut_ok(const struct iso_adapt *a, const int o[3], int s, int f,
         if (e != ends[1])
             return false;
         poly[m][0] = B[u], poly[m][1] = B[w], m++;
-        if (m >= 3 && !simple_polygon((const double (*)[2])poly, m)) {
+        if (m >= 3 && simple_area((const double (*)[2])poly, m) == 0) {
             dev[k] = 0;
             for (int j = 1; j + 1 < m; j++)
                 dev[k] = fmax(dev[k], seg_dist(path[j], A, B));
@@ -1570,13 +1568,12 @@ static bool fan_ok(const struct cell *c, const double x[3], const long *loop, in
 static bool ear_triangles(const float *pos, const long *v, int n, int axis, int *tri)
 {
     int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2, idx[MAX_EAR], m = n, t = 0;
-    double p[MAX_EAR][2], area = 0;
+    double p[MAX_EAR][2];
     for (int k = 0; k < n; k++)
         p[k][0] = pos[3 * v[k] + u], p[k][1] = pos[3 * v[k] + w], idx[k] = k;
-    if (!simple_polygon((const double (*)[2])p, n))
+    double area = simple_area((const double (*)[2])p, n);
+    if (area == 0)
         return false;
-    for (int k = 0; k < n; k++)
-        area += p[k][0] * p[(k + 1) % n][1] - p[(k + 1) % n][0] * p[k][1];
     while (m > 3) {
         int e = -1;
         for (int k = 0; k < m && e < 0; k++) {
