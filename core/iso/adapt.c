@@ -1564,7 +1564,7 @@ static bool fan_ok(const struct cell *c, const double x[3], const long *loop, in
 /* The triangles (into tri, 3 per triangle, as indices of v) of the ear v[0..n) lying in the face
  * across axis: the polygon between a chord of a merged cell's face (v[n-1] -> v[0]) and the
  * finer path the face was cut into (v[0] -> ... -> v[n-1]), by clipping ears; false when it is
- * not a simple polygon of some area (then the cell is fanned whole). */
+ * not a simple polygon of some area (then the chord's triangle is fanned over the path). */
 static bool ear_triangles(const float *pos, const long *v, int n, int axis, int *tri)
 {
     int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2, idx[MAX_EAR], m = n, t = 0;
