@@ -33,9 +33,13 @@ static bool json_object_text(const char *body, size_t len)
     return at < len && (body[at] == '"' || body[at] == '}');
 }
 
-const char *volume_format_of(const char *body, size_t len, const char *format)
+const char *volume_format_of(const char *body, size_t len, const char *format, const char *options)
 {
-    return !*format && json_object_text(body, len) ? "frep" : format;
+    if (*format)
+        return format;
+    char dims[8];
+    query_option(options, "dims", dims, sizeof dims);
+    return dims[0] ? "raw" : json_object_text(body, len) ? "frep" : ""; /* (dims: whatever the first bytes) */
 }
 
 const char *volume_format_from_type(const char *ct)
@@ -668,7 +672,7 @@ static int read_volume(const char *body, size_t len, const char *format, const c
 {
     memset(v, 0, sizeof *v);
     v->check_only = check_only;
-    format = volume_format_of(body, len, format);
+    format = volume_format_of(body, len, format, options);
     v->source = strcmp(format, "frep") ? "isosurface" : "frep";
     int rc = common_options(options, !strcmp(format, "frep"), v, err);
     if (rc)
@@ -676,10 +680,8 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     bool nrrd = sniff_nrrd(body, len), mha = sniff_mha(body, len);
     for (int a = 0; a < 3; a++)
         v->axes[a][a] = 1;
-    char dims[8];
-    query_option(options, "dims", dims, sizeof dims);
-    if (!*format) /* (dims given: raw samples, whatever their first bytes look like) */
-        format = dims[0] ? "raw" : nrrd ? "nrrd" : mha ? "mha" : multipart_sniff(body, len) ? "dicom" : "raw";
+    if (!*format)
+        format = nrrd ? "nrrd" : mha ? "mha" : multipart_sniff(body, len) ? "dicom" : "raw";
     if (!strcmp(format, "nrrd")) {
         if (!nrrd)
             return sf_fail(err, SF_EFORMAT, "header", "an NRRD file starts with \"NRRD000x\"");

@@ -39,8 +39,9 @@ struct volume {
  * NULL for others. A body posted without a type is sniffed (NRRD's magic, MetaImage's
  * "ObjectType", a multipart boundary, a JSON object), else raw. */
 const char *volume_format_from_type(const char *content_type);
-/* format, or for "" (sniffed) "frep" when the body is a JSON object ("" otherwise: sniffed later). */
-const char *volume_format_of(const char *body, size_t len, const char *format);
+/* format, or for "" (sniffed): "raw" when options give dims, "frep" when the body begins as a JSON
+ * object's text, else "" (sniffed later: NRRD, MetaImage, multipart, raw). */
+const char *volume_format_of(const char *body, size_t len, const char *format, const char *options);
 
 /* A detached header (NRRD's "data file: F", MetaImage's "ElementDataFile = F", not LOCAL, a list
  * or a pattern): F into name (cap bytes) and the number of the header line that names it; 0 when

@@ -287,7 +287,7 @@ int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     const char *body = b->body ? b->body : "";
     int rc = volume_check(body, b->len, b->format, b->options, err);
-    if (rc || strcmp(volume_format_of(body, b->len, b->format), "frep"))
+    if (rc || strcmp(volume_format_of(body, b->len, b->format, b->options), "frep"))
         return rc;
     /* an FRep tree's volume primitives: stored isosurface models of samples, the token's */
     struct frep_request r;

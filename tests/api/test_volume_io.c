@@ -59,8 +59,8 @@ TEST(raw_samples)
     CHECK(rd((const char *)brace, sizeof brace, "", "iso=5&dims=2,2,2&type=uint8", &v, &err) == 0);
     CHECK(v.g.nx == 2 && !strcmp(v.source, "isosurface"));
     volume_free(&v);
-    CHECK(!strcmp(volume_format_of(" {\"sphere\": 1}", 15, ""), "frep") && !strcmp(volume_format_of("{}", 2, ""), "frep"));
-    CHECK(!strcmp(volume_format_of((const char *)brace, sizeof brace, ""), ""));
+    CHECK(!strcmp(volume_format_of(" {\"sphere\": 1}", 15, "", ""), "frep") && !strcmp(volume_format_of("{}", 2, "", ""), "frep"));
+    CHECK(!strcmp(volume_format_of((const char *)brace, sizeof brace, "", ""), ""));
     uint8_t dashes[8] = {'-', '-', 3, 200, 9, '\n', 0, 7}; /* (a multipart body's start, but for the bytes) */
     CHECK(rd((const char *)dashes, sizeof dashes, "", "iso=5&dims=2,2,2&type=uint8", &v, &err) == 0);
     CHECK(v.g.nx == 2);
