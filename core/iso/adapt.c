@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "../base/mem.h"
+#include "../base/vec.h"
 
 /* One slab's share of the mesh (the cells phase runs slab by slab, on any threads): vertices keyed
  * by the finest edge they lie on, merged across slabs at the end. */
@@ -226,27 +227,32 @@ static int face_inside_joined(const struct iso_adapt *a, int axis, const int sq[
 
 #define MAX_EAR 8 /* vertices of an ear: a chord's two ends and the crossings between them */
 
-/* The place of a sample crossing at fraction t of the finest edge from node n along axis, kept
- * ISO_EDGE_MARGIN off its ends as place_vertex keeps it. */
+/* A crossing's fraction t of its finest edge, kept ISO_EDGE_MARGIN off the edge's ends. */
+static inline double edge_fraction(double t)
+{
+    return t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
+}
+
+/* The place of a sample crossing at fraction t of the finest edge from node n along axis, as
+ * place_vertex puts it. */
 static inline void crossing_at(const struct iso_adapt *a, const int n[3], int axis, double t, double x[3])
 {
-    t = t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
+    t = edge_fraction(t);
     for (int d = 0; d < 3; d++)
         x[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
 }
 
-/* The crossing of the edge of len samples from node n along axis, as crossing() finds it (the
- * first change of side from n): false when there is none. */
-static bool walk_crossing(const struct iso_adapt *a, const int n[3], int axis, int len, double x[3])
+/* The first change of side on the edge of len samples from node n along axis: false when there is
+ * none; else n is moved to the finest edge's lower node and v0, v1 get its two values. */
+static bool first_change(const struct iso_adapt *a, int n[3], int axis, int len, float *v0, float *v1)
 {
-    int p[3] = {n[0], n[1], n[2]};
-    float prev = Fp(a, p);
-    for (int k = 0; k < len; k++, p[axis]++) {
-        int q[3] = {p[0], p[1], p[2]};
+    float prev = Fp(a, n);
+    for (int k = 0; k < len; k++, n[axis]++) {
+        int q[3] = {n[0], n[1], n[2]};
         q[axis]++;
         float cur = Fp(a, q);
         if ((prev > a->iso) != (cur > a->iso)) {
-            crossing_at(a, p, axis, ((double)a->iso - prev) / ((double)cur - prev), x);
+            *v0 = prev, *v1 = cur;
             return true;
         }
         prev = cur;
@@ -254,16 +260,16 @@ static bool walk_crossing(const struct iso_adapt *a, const int n[3], int axis, i
     return false;
 }
 
-/* The distance from point p to segment a-b. */
-static double seg_dist(const double p[3], const double a[3], const double b[3])
+/* The place of the crossing of the edge of len samples from node n along axis that crossing()
+ * finds there: false when there is none. */
+static bool walk_crossing(const struct iso_adapt *a, const int n[3], int axis, int len, double x[3])
 {
-    double ab[3], ap[3], ll = 0, t = 0, d2 = 0;
-    for (int d = 0; d < 3; d++)
-        ab[d] = b[d] - a[d], ap[d] = p[d] - a[d], ll += ab[d] * ab[d], t += ab[d] * ap[d];
-    t = ll > 0 ? fmin(1, fmax(0, t / ll)) : 0;
-    for (int d = 0; d < 3; d++)
-        d2 += (ap[d] - t * ab[d]) * (ap[d] - t * ab[d]);
-    return sqrt(d2);
+    int p[3] = {n[0], n[1], n[2]};
+    float v0, v1;
+    if (!first_change(a, p, axis, len, &v0, &v1))
+        return false;
+    crossing_at(a, p, axis, ((double)a->iso - v0) / ((double)v1 - v0), x);
+    return true;
 }
 
 /* Whether face f of the merged cell of s nodes a side at o, drawn cut in four (where a finer cell
@@ -361,7 +367,8 @@ static bool face_cut_ok(const struct iso_adapt *a, const int o[3], int s, int f,
         if (m >= 3 && simple_area((const double (*)[2])poly, m) == 0) {
             dev[k] = 0;
             for (int j = 1; j + 1 < m; j++)
-                dev[k] = fmax(dev[k], seg_dist(path[j], A, B));
+                dev[k] = fmax(dev[k], v3_seg_dist(v3(A[0], A[1], A[2]), v3(B[0], B[1], B[2]),
+                                                  v3(path[j][0], path[j][1], path[j][2]), NULL));
         }
     }
     return visited == inner;
@@ -799,9 +806,8 @@ static long place_vertex(const struct iso_adapt *a, struct piece *pc, const int 
     double pos[3], g0[3], g1[3], nrm[3];
     int m[3] = {n[0], n[1], n[2]};
     m[axis]++;
-    t = t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
-    for (int d = 0; d < 3; d++)
-        pos[d] = a->org[d] + a->sp[d] * (n[d] + (d == axis ? t : 0));
+    t = edge_fraction(t);
+    crossing_at(a, n, axis, t, pos);
     if (on_field) {
         a->field(a->field_ctx, pos, g0);
         for (int d = 0; d < 3; d++)
@@ -979,22 +985,10 @@ static long crossing(const struct iso_adapt *a, const struct cell *c, const int 
 {
     int axis = p[0] != q[0] ? 0 : p[1] != q[1] ? 1 : 2;
     const int *lo = p[axis] < q[axis] ? p : q;
-    int m = abs(q[axis] - p[axis]), n[3] = {lo[0], lo[1], lo[2]};
-    float prev = Fp(a, n);
-    long v = -1;
-    for (int k = 1; k <= m; k++) {
-        int n1[3] = {n[0], n[1], n[2]};
-        n1[axis]++;
-        float cur = Fp(a, n1);
-        if ((prev > a->iso) != (cur > a->iso)) {
-            v = edge_vertex(a, c->pc, n, axis, prev, cur);
-            break;
-        }
-        prev = cur;
-        n[axis]++;
-    }
+    int n[3] = {lo[0], lo[1], lo[2]};
+    float v0, v1;
     *faces = cell_edge_faces(c, lo, axis);
-    return v;
+    return first_change(a, n, axis, abs(q[axis] - p[axis]), &v0, &v1) ? edge_vertex(a, c->pc, n, axis, v0, v1) : -1;
 }
 
 static void add_seg(struct cell *c, long from, int from_faces, long to)
