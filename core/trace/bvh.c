@@ -10,6 +10,7 @@
 
 #include <embree3/rtcore.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -55,9 +56,24 @@ struct leaf {
     double chord_sin;        /* > 1: no such bound */
 };
 
+/* A patch's chord bounds (chord_bound): its own, and with each neighbour that shares a whole
+ * edge with it the same way round (the seam's other patch continues its u or v parameter: the
+ * two are one surface over a longer rectangle, and the bound holds for its chords as for one
+ * patch's). A ray steeper than a bound meets that surface once at most. */
+struct chords {
+    vec3 n;
+    double sin;            /* > 1: no bound */
+    struct seam {
+        int other;         /* -1: none */
+        vec3 n;
+        double sin;
+    } seam[4];             /* across u = 0, u = 1, v = 0, v = 1 */
+};
+
 struct bvh {
     RTCScene scene;
     const struct patch *patches;
+    struct chords *chords; /* per patch; NULL for the mesh */
     double tol2;
     /* exact */
     struct leaf *leaves;
@@ -120,6 +136,7 @@ void bvh_free(struct bvh *b)
     if (b->scene)
         rtcReleaseScene(b->scene);
     free(b->leaves);
+    free(b->chords);
     tess_free(&b->mesh);
     free(b);
 }
@@ -224,27 +241,43 @@ static double net_deviation(const struct patch *pt, double *curv_u, double *curv
  * and a unit w with w·g >= k |g| for all of them (k > 0): |c·n| <= max(|g·n| / |g|) sum l|g| and
  * |c| >= w·c >= k sum l|g|, so |c·n| / |c| <= max(|g·n| / |g|) / k. Both sign pairings (the
  * other two are their negatives) give the bound *sin_max on |c·n| / |c| for every chord. */
-static void chord_bound(const struct patch *pt, vec3 *n, double *sin_max)
+#define CHORD_MAX_GENS (4 * PATCH_MAX_DEGREE * (PATCH_MAX_DEGREE + 1)) /* two patches' differences */
+
+/* Appends pt's net differences to g: the u ones at g[*n_u..] (moving the v ones already there up),
+ * the v ones after them; zero ones (a collapsed edge's) add nothing to any chord. Rational
+ * patches have no such bound: false. */
+static bool chord_generators(const struct patch *pt, vec3 *g, int *n_g, int *n_u)
 {
-    *sin_max = 2.0;
-    const int p = pt->p, q = pt->q;
     if (pt->rational)
-        return;
+        return false;
     vec3 du[PATCH_MAX_DEGREE][PATCH_MAX_DEGREE + 1], dv[PATCH_MAX_DEGREE + 1][PATCH_MAX_DEGREE];
     net_differences(pt, du, dv);
-    /* the generators, u differences then v ones; a collapsed edge's zero ones add nothing to any chord */
-    vec3 g[2 * PATCH_MAX_DEGREE * (PATCH_MAX_DEGREE + 1)];
-    int n_g = 0, n_u;
-    vec3 au = v3(0, 0, 0), av = v3(0, 0, 0); /* their mean directions */
-    for (int i = 0; i < p; i++)
-        for (int j = 0; j <= q; j++)
+    vec3 v_ones[CHORD_MAX_GENS];
+    int n_v = *n_g - *n_u;
+    memcpy(v_ones, g + *n_u, sizeof *g * (size_t)n_v);
+    for (int i = 0; i < pt->p; i++)
+        for (int j = 0; j <= pt->q; j++)
             if (v3_len(du[i][j]) > 0)
-                au = v3_add(au, v3_norm(g[n_g++] = du[i][j]));
-    n_u = n_g;
-    for (int i = 0; i <= p; i++)
-        for (int j = 0; j < q; j++)
+                g[(*n_u)++] = du[i][j];
+    memcpy(g + *n_u, v_ones, sizeof *g * (size_t)n_v);
+    *n_g = *n_u + n_v;
+    for (int i = 0; i <= pt->p; i++)
+        for (int j = 0; j < pt->q; j++)
             if (v3_len(dv[i][j]) > 0)
-                av = v3_add(av, v3_norm(g[n_g++] = dv[i][j]));
+                g[(*n_g)++] = dv[i][j];
+    return true;
+}
+
+/* The bound of chord_bound from the generators g (the u ones first, n_u of them). */
+static void chord_bound_of(const vec3 *g, int n_g, int n_u, vec3 *n, double *sin_max)
+{
+    *sin_max = 2.0;
+    vec3 au = v3(0, 0, 0), av = v3(0, 0, 0); /* their mean directions */
+    for (int m = 0; m < n_g; m++)
+        if (m < n_u)
+            au = v3_add(au, v3_norm(g[m]));
+        else
+            av = v3_add(av, v3_norm(g[m]));
     vec3 axis = v3_cross(au, av);
     if (!(v3_len(axis) > 1e-9 * v3_len(au) * v3_len(av)))
         return;
@@ -262,6 +295,15 @@ static void chord_bound(const struct patch *pt, vec3 *n, double *sin_max)
         return;
     *n = axis;
     *sin_max = tilt / fmin(k[0], k[1]) + 1e-9;
+}
+
+static void chord_bound(const struct patch *pt, vec3 *n, double *sin_max)
+{
+    vec3 g[CHORD_MAX_GENS];
+    int n_g = 0, n_u = 0;
+    *sin_max = 2.0;
+    if (chord_generators(pt, g, &n_g, &n_u))
+        chord_bound_of(g, n_g, n_u, n, sin_max);
 }
 
 /* The net of pt's part over [u0, u1] x [v0, v1] (de Casteljau twice each way) into out; tmp holds
@@ -407,6 +449,112 @@ static int subdivide(struct bvh *b, const struct patch *sub, int patch, double u
     }
     free(net);
     return rc;
+}
+
+/* ---- seams ---------------------------------------------------------------------------- */
+
+/* Control point k of edge e of pt (0: u = 0, 1: u = 1, 2: v = 0, 3: v = 1), k along the edge. */
+static const double *edge_point(const struct patch *pt, int e, int k)
+{
+    int i = e == 0 ? 0 : e == 1 ? pt->p : k, j = e == 2 ? 0 : e == 3 ? pt->q : k;
+    return pt->cw[i * (pt->q + 1) + j];
+}
+
+static int edge_len(const struct patch *pt, int e) { return (e < 2 ? pt->q : pt->p) + 1; }
+
+static uint64_t edge_hash(const struct patch *pt, int e)
+{
+    uint64_t h = 0xcbf29ce484222325ull ^ (uint64_t)(e >> 1); /* u edges meet u edges */
+    for (int k = 0; k < edge_len(pt, e); k++) {
+        const unsigned char *c = (const unsigned char *)edge_point(pt, e, k);
+        for (size_t m = 0; m < 4 * sizeof(double); m++)
+            h = (h ^ c[m]) * 0x100000001b3ull;
+    }
+    return h;
+}
+
+static bool same_edge(const struct patch *a, int ea, const struct patch *b, int eb)
+{
+    if (edge_len(a, ea) != edge_len(b, eb))
+        return false;
+    for (int k = 0; k < edge_len(a, ea); k++)
+        if (memcmp(edge_point(a, ea, k), edge_point(b, eb, k), 4 * sizeof(double)))
+            return false;
+    return true;
+}
+
+#define SEAM_PROBES 64 /* slots an edge's search looks at, at most: many patches with one edge (copies
+                        * of a patch, a cap's apex) cost no more than that each */
+
+/* Every patch's own chord bound, and its seams: where edge u = 1 of one patch is edge u = 0 of
+ * another point for point (or v = 1 of one v = 0 of another), the pair's bound over both nets'
+ * differences. Found through a hash of the u = 0 and v = 0 edges; 0 or SF_ENOMEM. */
+static int find_seams(struct bvh *b, size_t n)
+{
+    if (!(b->chords = malloc(sizeof *b->chords * (n ? n : 1))))
+        return SF_ENOMEM;
+    size_t cap = 16;
+    while (cap < 4 * n)
+        cap *= 2;
+    int *slot = malloc(sizeof *slot * cap); /* patch * 4 + edge of a u = 0 or v = 0 edge, or -1 */
+    if (!slot)
+        return SF_ENOMEM;
+    memset(slot, 0xff, sizeof *slot * cap);
+    for (size_t k = 0; k < n; k++) {
+        struct chords *c = &b->chords[k];
+        chord_bound(&b->patches[k], &c->n, &c->sin);
+        for (int e = 0; e < 4; e++)
+            c->seam[e].other = -1;
+        for (int e = 0; e < 4; e += 2) { /* (a run of SEAM_PROBES taken: the edge is left out, seamless) */
+            size_t at = edge_hash(&b->patches[k], e) & (cap - 1);
+            for (int probe = 0; slot[at] >= 0 && probe < SEAM_PROBES; probe++)
+                at = (at + 1) & (cap - 1);
+            if (slot[at] < 0)
+                slot[at] = (int)k * 4 + e;
+        }
+    }
+    for (size_t k = 0; k < n; k++)
+        for (int e = 1; e < 4; e += 2) { /* edge u = 1 or v = 1 of k against u = 0 or v = 0 of another */
+            const struct patch *a = &b->patches[k];
+            if (!memcmp(edge_point(a, e, 0), edge_point(a, e, edge_len(a, e) - 1), 4 * sizeof(double)))
+                continue; /* a collapsed edge (a cap's apex): a point many patches share */
+            size_t at = edge_hash(a, e) & (cap - 1);
+            for (int probe = 0; slot[at] >= 0 && probe <= SEAM_PROBES; probe++, at = (at + 1) & (cap - 1)) {
+                int other = slot[at] / 4, eo = slot[at] % 4;
+                if (eo != e - 1 || other == (int)k || b->chords[other].seam[eo].other >= 0 ||
+                    !same_edge(a, e, &b->patches[other], eo))
+                    continue;
+                vec3 g[CHORD_MAX_GENS];
+                int n_g = 0, n_u = 0;
+                struct seam sm = {other, v3(0, 0, 0), 2.0};
+                if (chord_generators(a, g, &n_g, &n_u) && chord_generators(&b->patches[other], g, &n_g, &n_u))
+                    chord_bound_of(g, n_g, n_u, &sm.n, &sm.sin);
+                b->chords[k].seam[e] = sm;
+                sm.other = (int)k;
+                b->chords[other].seam[eo] = sm;
+                break;
+            }
+        }
+    free(slot);
+    return 0;
+}
+
+int bvh_seam(const struct bvh *b, int patch, int edge)
+{
+    return b->chords ? b->chords[patch].seam[edge].other : -1;
+}
+
+bool bvh_meets_once(const struct bvh *b, int pa, int pb, vec3 d)
+{
+    if (!b->chords || pa < 0 || pb < 0)
+        return false;
+    const struct chords *c = &b->chords[pa];
+    if (pa == pb)
+        return c->sin < 1.0 && fabs(v3_dot(d, c->n)) > c->sin;
+    for (int e = 0; e < 4; e++)
+        if (c->seam[e].other == pb)
+            return c->seam[e].sin < 1.0 && fabs(v3_dot(d, c->seam[e].n)) > c->seam[e].sin;
+    return false;
 }
 
 /* ---- exact: callbacks ----------------------------------------------------------------- */
@@ -679,7 +827,8 @@ static void leaf_occluded(const struct RTCOccludedFunctionNArguments *args)
             continue;
         struct bvh_shadow *s = &qy->shadows[RAYN_ID(args->ray, args->N, i)];
         struct solve_hit h;
-        if (s->blocked || leaves_only_its_origin(l, &s->from, &s->r) || leaves_its_neighbourhood(l, &s->from, &s->r))
+        if (s->blocked || leaves_only_its_origin(l, &s->from, &s->r) || leaves_its_neighbourhood(l, &s->from, &s->r) ||
+            bvh_meets_once(b, s->from.patch, l->patch, s->r.d))
             continue;
         if (leaf_hit(b, l, &s->r, s->tnear, s->tfar, &h, &qy->iters)) {
             s->blocked = true;
@@ -762,7 +911,7 @@ int bvh_build_scene(struct bvh_device *dev, const struct patch *patches, size_t 
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     b->meshes = meshes;
     b->n_meshes = n_meshes;
-    int rc = 0;
+    int rc = find_seams(b, n);
     for (size_t k = 0; k < n && !rc; k++)
         rc = subdivide(b, &patches[k], (int)k, 0.0, 1.0, 0.0, 1.0, 0, patches[k].trim != NULL);
     if (rc) {

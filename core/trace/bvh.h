@@ -51,6 +51,16 @@ bool bvh_intersect(const struct bvh *b, const struct dray *r, double tnear, doub
 /* The same among the given patches only (n of them; the mesh ignores the list). */
 bool bvh_intersect_among(const struct bvh *b, const struct dray *r, double tnear, double tfar, const int *patches,
                          int n, struct bvh_hit *hit, long *iters);
+/* The patch that shares edge `edge` of `patch` whole (0: u = 0, 1: u = 1, 2: v = 0, 3: v = 1),
+ * continuing its parameter (edge 1 of one is edge 0 of the other, or 3 is 2), or -1. */
+int bvh_seam(const struct bvh *b, int patch, int edge);
+/* True when a line along d meets patches pa and pb (pa == pb: the one patch) together in one
+ * point at most: d is steeper than every chord of the surface they make (the patch's own
+ * control net's differences bound its chords; two patches count together where they share a
+ * whole edge, one's u or v parameter going on into the other's). False where no such bound
+ * is known. */
+bool bvh_meets_once(const struct bvh *b, int pa, int pb, vec3 d);
+
 /* Where a shadow ray leaves the surface: its own point needs no root search. */
 struct bvh_origin {
     int patch;

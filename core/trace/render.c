@@ -364,8 +364,9 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
     const int n = rw->n[at];
     const double zscale = v3_dot(r->d, fr->cam.f); /* camera depth per unit of t */
     bool found = false;
-    float undecided = rw->dropped[at]; /* least bound of a candidate not resolved */
     int open[MAP_CANDS], n_open = 0;   /* the patches not resolved */
+    float open_zlo[MAP_CANDS];
+    bool open_ok[MAP_CANDS];           /* ... and whether a root of theirs was found */
     /* a root this far (relative) behind its seed's fragment lies on a farther sheet of the patch */
     const double sheet = SHEET_PX * 2.0 * fr->cam.th / fr->cam.H;
     for (int k = 0; k < n; k++) {
@@ -390,11 +391,20 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
          * that outline alone (the pixel off the patch's tessellated image): else a nearer sheet
          * may lie in front */
         const bool resolved = ok && h.t * zscale <= far && h.t * zscale <= c[k].zfold && c[k].zs < c[k].zoutline;
-        if (!resolved) {
-            undecided = dmin(undecided, c[k].zlo);
-            open[n_open++] = c[k].patch;
-        }
+        if (!resolved)
+            open_ok[n_open] = ok, open_zlo[n_open] = c[k].zlo, open[n_open++] = c[k].patch;
     }
+    /* a patch meets the ray once at most where the ray is steeper than all its chords, or than all
+     * of it and the patch hit together (neighbours across a seam): the root found is then its
+     * only one, or the one hit is the only point of both, and the patch has none of its own */
+    float undecided = rw->dropped[at]; /* least bound of a candidate not resolved */
+    int n_left = 0;
+    for (int k = 0; k < n_open; k++)
+        if (!(found && bvh_meets_once(fr->exact, open[k], open_ok[k] ? open[k] : hit->patch, r->d))) {
+            undecided = dmin(undecided, open_zlo[k]);
+            open[n_left++] = open[k];
+        }
+    n_open = n_left;
     if (found && !(undecided <= hit->t * zscale))
         return true;
     st->misses++;

@@ -1,5 +1,7 @@
 /* test_bvh.c - the exact hierarchy: rays aimed at surface points find them (nearest first), and
  * skipping a shadow ray's origin leaf by its normal cone never changes an occlusion answer. */
+#include "../../../api/contour_json.h"
+#include "../../../api/model_json.h"
 #include "../../../api/scene_io.h"
 #include "../../../core/trace/bvh.h"
 #include "../../unit.h"
@@ -121,11 +123,99 @@ TEST(intersect_finds_sampled_points)
     scene_free(&sc);
 }
 
+/* A point of patch a, or (half the time, when it has one) of its neighbour across seam e. */
+static vec3 seam_point(const struct patch_set *ps, const struct bvh *b, int a, int e, uint64_t *s, int *on)
+{
+    int other = bvh_seam(b, a, e);
+    *on = other >= 0 && rnd(s) < 0.5 ? other : a;
+    vec3 P;
+    double u = rnd(s), v = rnd(s);
+    if (rnd(s) < 0.5) /* near the seam, where the two patches' points come closest */
+        u = e < 2 ? (*on == a) == (e == 1) ? 1 - 0.01 * u : 0.01 * u : u,
+        v = e >= 2 ? (*on == a) == (e == 3) ? 1 - 0.01 * v : 0.01 * v : v;
+    bezier_eval(&ps->patches[*on], u, v, &P, NULL, NULL);
+    return P;
+}
+
+/* The heart's contour model as patches (thousands of small ones, sharing edges). */
+static int load_heart(struct scene *sc, struct patch_set *ps)
+{
+    size_t len;
+    memset(ps, 0, sizeof *ps);
+    scene_init(sc);
+    char *buf = unit_data("contours", "dicompyler_heart.json", &len), *src = NULL;
+    if (!buf)
+        return -1;
+    struct contour_set cs;
+    struct contour_request req;
+    struct material mat = scene_default_material();
+    int rc = contour_parse_json(buf, len, &cs, &req, NULL);
+    if (!rc) {
+        rc = (src = contour_json_write(&cs, &req)) ? model_scene_objects(src, strlen(src), sc, &mat, "/objects/0", NULL) : -1;
+        contour_set_free(&cs);
+    }
+    if (!rc)
+        rc = scene_patches(sc, ps, NULL);
+    free(src);
+    free(buf);
+    return rc;
+}
+
+/* The bound that lets a ray skip a patch or a seam's pair of patches never holds along a chord of
+ * them (a line through two of their points): pairs of points near seams and anywhere, on the
+ * teapot (large curved patches: the bound seldom holds) and the heart's contour model (where it
+ * holds along a third of the normals: sheared patches' bounds are loose). */
+TEST(meets_once_never_along_a_chord)
+{
+    for (int f = 0; f < 2; f++) {
+        struct scene sc;
+        struct patch_set ps;
+        CHECK((f == 0 ? load("teapot.json", &sc, &ps) : load_heart(&sc, &ps)) == 0);
+        if (!ps.patches)
+            continue; /* no data: nothing to trace */
+        struct bvh *b;
+        CHECK(bvh_build_patches(dev, ps.patches, ps.n, 1e-20, &b, NULL) == 0);
+        uint64_t s = 4242;
+        long seams = 0, chords = 0, wrong = 0, normals = 0, held = 0;
+        const int per_seam = f == 0 ? 2000 : 20;
+        for (size_t k = 0; k < ps.n; k++)
+            for (int e = 0; e < 4; e++) {
+                int other = bvh_seam(b, (int)k, e);
+                if (other < 0)
+                    continue;
+                seams++;
+                CHECK(bvh_seam(b, other, e ^ 1) == (int)k);
+                for (int j = 0; j < per_seam; j++) {
+                    int on1, on2;
+                    vec3 p1 = seam_point(&ps, b, (int)k, e, &s, &on1), p2 = seam_point(&ps, b, (int)k, e, &s, &on2);
+                    vec3 c = v3_sub(p2, p1);
+                    if (!(v3_len(c) > 0))
+                        continue;
+                    chords++;
+                    c = v3_norm(c);
+                    wrong += bvh_meets_once(b, (int)k, other, c) || (on1 == on2 && bvh_meets_once(b, on1, on1, c));
+                    vec3 n;
+                    if (bezier_normal(&ps.patches[on1], rnd(&s), rnd(&s), &n))
+                        normals++, held += bvh_meets_once(b, (int)k, other, n);
+                }
+            }
+        fprintf(stderr, "  %s: %ld seams, %ld chords, the bound held along %ld; along normals %ld of %ld\n",
+                f ? "heart" : "teapot", seams, chords, wrong, held, normals);
+        CHECK(seams >= (f == 0 ? 40 : 10000));
+        CHECK(wrong == 0);
+        CHECK(f == 0 || held > normals / 4);
+        bvh_free(b);
+        nurbs_patch_set_free(&ps);
+        scene_free(&sc);
+    }
+}
+
 int main(void)
 {
     dev = bvh_device_new(1, NULL);
     RUN(origin_skip_never_changes_occlusion);
     RUN(intersect_finds_sampled_points);
+    RUN(meets_once_never_along_a_chord);
     bvh_device_free(dev);
     UNIT_END();
 }
