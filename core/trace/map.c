@@ -22,6 +22,7 @@
 
 #include "../base/mem.h"
 #include "../geom/tess.h"
+#include "bvh.h"
 
 #define MAP_ERR_PX 0.5   /* chord error allowed, in pixels at the patch's nearest depth */
 #define MAP_PAD_SLACK 0.1 /* pixels the outline is widened by beyond the projected chord error */
@@ -40,6 +41,8 @@ struct map_tri {           /* a triangle, or (v[2] == EDGE) a padded outline edg
     float pad;            /* dilation, pixels: 0 for triangles */
     float zlo;            /* depth bound of the patch's surface near this primitive */
     bool fold;            /* an outline edge inside the grid (where the surface turns away), not its border */
+    signed char turn;     /* a border edge: the turn on screen of the triangle inside it */
+    bool gone;            /* a seam's border edge where both sides turn alike: no outline */
 };
 
 #define EDGE UINT_MAX
@@ -52,6 +55,9 @@ void map_free(struct map *m)
         return;
     free(m->verts);
     free(m->tris);
+    free(m->grid);
+    free(m->border);
+    free(m->seamed);
     free(m->tile_first);
     free(m->tile_tris);
     free(m);
@@ -250,9 +256,10 @@ void map_rows_free(struct map_rows *rw)
     memset(rw, 0, sizeof *rw);
 }
 
-/* Tessellates patch pt for the camera and appends its screen vertices and triangles. */
-static int add_patch(struct map *m, const struct patch *pt, int index, const struct camera *cam, size_t *cap_v,
-                     size_t *cap_t)
+/* The grid patch pt is tessellated on for the camera: chord error under MAP_ERR_PX pixels at its
+ * nearest depth. False where the patch is wholly behind the eye, or crosses the eye's plane (then
+ * the map is not complete). *pix: a pixel's world size at its nearest depth. */
+static bool patch_grid(struct map *m, const struct patch *pt, const struct camera *cam, int *gu, int *gv, double *pix)
 {
     double px_per_unit = cam->H / (2.0 * cam->th); /* pixels per world unit at depth 1 */
     /* nearest depth of the patch: control points bound it (convex hull) */
@@ -264,18 +271,25 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
             zmax = fmax(zmax, z);
         }
     if (zmax <= 0)
-        return 0; /* wholly behind the eye */
+        return false; /* wholly behind the eye */
     if (zmin <= NEAR_EPS * fmax(zmax, 1.0)) {
         m->complete = false;
-        return 0;
+        return false;
     }
-    double pix = zmin / px_per_unit; /* world size of a pixel at the nearest depth */
-    int gu, gv;
-    tess_grid_size(pt, MAP_ERR_PX * pix, MAP_MAX_SIDE, &gu, &gv);
+    *pix = zmin / px_per_unit; /* world size of a pixel at the nearest depth */
+    tess_grid_size(pt, MAP_ERR_PX * *pix, MAP_MAX_SIDE, gu, gv);
     if (pt->trim) { /* a grid fine enough that its cells the trims cut away can be left out */
-        gu = gu < MAP_TRIM_SIDE ? MAP_TRIM_SIDE : gu;
-        gv = gv < MAP_TRIM_SIDE ? MAP_TRIM_SIDE : gv;
+        *gu = *gu < MAP_TRIM_SIDE ? MAP_TRIM_SIDE : *gu;
+        *gv = *gv < MAP_TRIM_SIDE ? MAP_TRIM_SIDE : *gv;
     }
+    return true;
+}
+
+/* Tessellates patch pt on a gu x gv grid for the camera and appends its screen vertices and
+ * triangles, its border's edges last, edge by edge (u = 0, u = 1, v = 0, v = 1: m->border). */
+static int add_patch(struct map *m, const struct patch *pt, int index, const struct camera *cam, int gu, int gv,
+                     double pix, size_t *cap_v, size_t *cap_t)
+{
     double err_px = tess_grid_error(pt, gu, gv) / pix;
     /* on screen a world displacement at depth z spans at most sqrt(1 + x² + y²) / z of its size
      * on the axis (the projection's largest singular value; x, y the tangents of the frame's
@@ -351,28 +365,40 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
             const unsigned tri[2][3] = {{a, b, b + 1}, {a, b + 1, a + 1}};
             for (int k = 0; k < 2 && keep[CELL(i, j)]; k++)
                 m->tris[m->n_tris++] =
-                    (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)], false};
+                    (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)], false, 0, false};
         }
     /* the outline: the grid's border, and every edge whose two triangles turn different ways
      * (or either none) on screen; s0, s1 are the turns on either side (0 where there is none) */
 #define OUTLINE(v0, v1, s0, s1, z, inside)                                                         \
     if (((s0) == 0 || (s0) != (s1)) && (z) < INFINITY)                                          \
-        m->tris[m->n_tris++] = (struct map_tri){{(v0), (v1), EDGE}, index, pad, (z), (inside)};
+        m->tris[m->n_tris++] = (struct map_tri){{(v0), (v1), EDGE}, index, pad, (z), (inside), 0, false};
     for (int i = 0; i < gu; i++)
         for (int j = 0; j < gv; j++) /* the diagonal a-(b+1) between a cell's two triangles */
             OUTLINE(VTX(i, j), VTX(i + 1, j + 1), sg[2 * CELL(i, j)], sg[2 * CELL(i, j) + 1], zlo[CELL(i, j)], true);
     for (int i = 0; i < gu; i++)
-        for (int j = 0; j <= gv; j++) { /* (i, j)-(i+1, j): first triangle of cell (i, j), second of (i, j-1) */
-            int s0 = j < gv ? sg[2 * CELL(i, j)] : 0, s1 = j > 0 ? sg[2 * CELL(i, j - 1) + 1] : 0;
-            float z = fminf(j < gv ? zlo[CELL(i, j)] : INFINITY, j > 0 ? zlo[CELL(i, j - 1)] : INFINITY);
-            OUTLINE(VTX(i, j), VTX(i + 1, j), s0, s1, z, j > 0 && j < gv);
+        for (int j = 1; j < gv; j++) { /* (i, j)-(i+1, j): first triangle of cell (i, j), second of (i, j-1) */
+            int s0 = sg[2 * CELL(i, j)], s1 = sg[2 * CELL(i, j - 1) + 1];
+            OUTLINE(VTX(i, j), VTX(i + 1, j), s0, s1, fminf(zlo[CELL(i, j)], zlo[CELL(i, j - 1)]), true);
         }
-    for (int i = 0; i <= gu; i++)
+    for (int i = 1; i < gu; i++)
         for (int j = 0; j < gv; j++) { /* (i, j)-(i, j+1): second triangle of cell (i, j), first of (i-1, j) */
-            int s0 = i < gu ? sg[2 * CELL(i, j) + 1] : 0, s1 = i > 0 ? sg[2 * CELL(i - 1, j)] : 0;
-            float z = fminf(i < gu ? zlo[CELL(i, j)] : INFINITY, i > 0 ? zlo[CELL(i - 1, j)] : INFINITY);
-            OUTLINE(VTX(i, j), VTX(i, j + 1), s0, s1, z, i > 0 && i < gu);
+            int s0 = sg[2 * CELL(i, j) + 1], s1 = sg[2 * CELL(i - 1, j)];
+            OUTLINE(VTX(i, j), VTX(i, j + 1), s0, s1, fminf(zlo[CELL(i, j)], zlo[CELL(i - 1, j)]), true);
         }
+    /* the border, edge by edge along its parameter; each segment with the turn of the triangle
+     * inside it (a kept cell's: a trimmed patch's border has gaps, and no seams) */
+    for (int e = 0; e < 4; e++) {
+        const int n_seg = e < 2 ? gv : gu, i = e == 1 ? gu - 1 : 0, j = e == 3 ? gv - 1 : 0;
+        m->border[index][e] = pt->trim ? SIZE_MAX : m->n_tris;
+        for (int k = 0; k < n_seg; k++) {
+            size_t c = e < 2 ? CELL(i, k) : CELL(k, j);
+            int turn = sg[2 * c + (e == 0 || e == 3)]; /* u = 0 and v = 1 edges: the cell's second triangle */
+            unsigned v0 = e < 2 ? VTX(i + (e == 1), k) : VTX(k, j + (e == 3));
+            unsigned v1 = e < 2 ? VTX(i + (e == 1), k + 1) : VTX(k + 1, j + (e == 3));
+            if (zlo[c] < INFINITY)
+                m->tris[m->n_tris++] = (struct map_tri){{v0, v1, EDGE}, index, pad, zlo[c], false, (signed char)turn, false};
+        }
+    }
 #undef OUTLINE
 #undef CELL
 #undef VTX
@@ -417,7 +443,80 @@ static unsigned *depth_order(const struct map *m)
     return out;
 }
 
-int map_build(const struct patch *patches, size_t n, const struct camera *cam, struct map **out, struct sf_err *err)
+/* Union-find root of k, halving the path. */
+static size_t find_root(size_t *up, size_t k)
+{
+    while (up[k] != k)
+        k = up[k] = up[up[k]];
+    return k;
+}
+
+/* The patches' grids (grid[k][0] == 0: left out), the same along every seam: a seam's two sides
+ * are sampled at the same parameters (the larger count of the patches the seams chain together
+ * along it: u seams chain the v counts, v seams the u counts), so their border vertices meet. */
+static int seam_grids(const struct patch *patches, size_t n, const struct bvh *seams, struct map *m,
+                      const struct camera *cam, int (*grid)[2], double *pix)
+{
+    size_t *up = malloc(sizeof *up * 2 * (n ? n : 1)); /* [0, n): by u seams; [n, 2n): by v seams */
+    if (!up)
+        return SF_ENOMEM;
+    for (size_t k = 0; k < 2 * n; k++)
+        up[k] = k;
+    for (size_t k = 0; k < n; k++)
+        if (!patch_grid(m, &patches[k], cam, &grid[k][0], &grid[k][1], &pix[k]))
+            grid[k][0] = 0;
+    for (size_t k = 0; k < n; k++)
+        for (int e = 1; e < 4; e += 2) {
+            int o = bvh_seam(seams, (int)k, e);
+            if (o < 0 || !grid[k][0] || !grid[o][0] || patches[k].trim || patches[o].trim)
+                continue;
+            size_t base = e == 1 ? 0 : n, a = find_root(up, base + k), b = find_root(up, base + (size_t)o);
+            up[a] = b;
+        }
+    int *most = calloc(2 * (n ? n : 1), sizeof *most); /* per root: the largest count */
+    if (!most) {
+        free(up);
+        return SF_ENOMEM;
+    }
+    for (size_t k = 0; k < n; k++) {
+        size_t a = find_root(up, k), b = find_root(up, n + k);
+        most[a] = most[a] > grid[k][1] ? most[a] : grid[k][1];
+        most[b] = most[b] > grid[k][0] ? most[b] : grid[k][0];
+    }
+    for (size_t k = 0; k < n; k++)
+        if (grid[k][0])
+            grid[k][1] = most[find_root(up, k)], grid[k][0] = most[find_root(up, n + k)];
+    free(most);
+    free(up);
+    return 0;
+}
+
+/* Each seam's border edges, segment by segment: where the triangles either side turn alike on
+ * screen the two patches go on as one surface there, and the edges are no outline (gone); where
+ * they do not, the surface folds there, and both are outline inside the pair's grid (fold). */
+static void join_seams(struct map *m, size_t n, const struct bvh *seams)
+{
+    for (size_t k = 0; k < n; k++)
+        for (int e = 1; e < 4; e += 2) {
+            int o = bvh_seam(seams, (int)k, e);
+            if (o < 0 || m->border[k][e] == SIZE_MAX || m->border[o][e - 1] == SIZE_MAX)
+                continue;
+            const int n_seg = m->grid[k][e < 2];
+            if (n_seg != m->grid[o][e < 2])
+                continue; /* (seam_grids made them equal) */
+            struct map_tri *a = &m->tris[m->border[k][e]], *b = &m->tris[m->border[o][e - 1]];
+            for (int s = 0; s < n_seg; s++) {
+                bool alike = a[s].turn != 0 && a[s].turn == b[s].turn;
+                a[s].gone = b[s].gone = alike;
+                a[s].fold = b[s].fold = !alike;
+                m->seamed[k] |= alike;
+                m->seamed[o] |= alike;
+            }
+        }
+}
+
+int map_build(const struct patch *patches, size_t n, const struct bvh *seams, const struct camera *cam,
+              struct map **out, struct sf_err *err)
 {
     *out = NULL;
     struct map *m = calloc(1, sizeof *m);
@@ -428,9 +527,30 @@ int map_build(const struct patch *patches, size_t n, const struct camera *cam, s
     m->W = cam->W;
     m->H = cam->H;
     m->complete = true;
-    for (size_t k = 0; k < n; k++)
-        if (add_patch(m, &patches[k], (int)k, cam, &cap_v, &cap_t))
+    int(*grid)[2] = m->grid = malloc(sizeof *grid * (n ? n : 1));
+    double *pix = malloc(sizeof *pix * (n ? n : 1));
+    m->border = malloc(sizeof *m->border * (n ? n : 1));
+    m->seamed = calloc(n ? n : 1, 1);
+    if (!grid || !pix || !m->border || !m->seamed || (seams && seam_grids(patches, n, seams, m, cam, grid, pix))) {
+        free(pix);
+        goto out_nomem;
+    }
+    if (!seams)
+        for (size_t k = 0; k < n; k++)
+            if (!patch_grid(m, &patches[k], cam, &grid[k][0], &grid[k][1], &pix[k]))
+                grid[k][0] = 0;
+    for (size_t k = 0; k < n; k++) {
+        for (int e = 0; e < 4; e++)
+            m->border[k][e] = SIZE_MAX;
+        if (grid[k][0] &&
+            add_patch(m, &patches[k], (int)k, cam, grid[k][0], grid[k][1], pix[k], &cap_v, &cap_t)) {
+            free(pix);
             goto out_nomem;
+        }
+    }
+    free(pix);
+    if (seams)
+        join_seams(m, n, seams);
     /* bucket the triangles, nearest depth bound first, by the row tiles their padded boxes touch
      * (counting sorts) */
     unsigned *order = depth_order(m);
@@ -445,6 +565,8 @@ int map_build(const struct patch *patches, size_t n, const struct camera *cam, s
     for (size_t k = 0; k < m->n_tris; k++) {
         int x0, x1, y0, y1;
         tri_bbox(m, &m->tris[k], &x0, &x1, &y0, &y1);
+        if (m->tris[k].gone)
+            x0 = 1, x1 = 0;
         tiles[k][0] = x0 > x1 || y0 > y1 ? 1 : y0 / MAP_TILE_ROWS; /* (off the picture: none) */
         tiles[k][1] = x0 > x1 || y0 > y1 ? 0 : y1 / MAP_TILE_ROWS;
     }

@@ -15,6 +15,8 @@
 #include "camera.h"
 #include "../base/err.h"
 
+struct bvh;
+
 #define MAP_CANDS 3 /* patches kept per pixel, nearest lower bound first */
 
 struct map_cand {
@@ -40,6 +42,13 @@ struct map {
     size_t n_verts, n_tris;
     unsigned *tile_first;    /* n_tiles + 1 offsets into tile_tris */
     unsigned *tile_tris;
+    /* per patch: its grid (u, v counts; 0, 0: left out), the index in tris of each border edge's
+     * first segment (SIZE_MAX: none kept in order, as on a trimmed patch), and whether a seam
+     * joins it to a neighbour without an outline somewhere (a candidate of its may then be the
+     * neighbour's root: map_seamed) */
+    int (*grid)[2];
+    size_t (*border)[4];
+    unsigned char *seamed;
 };
 
 #define MAP_TILE_ROWS 16
@@ -57,7 +66,8 @@ struct map_rows {
 
 /* Tessellates and projects the patches and buckets the triangles by row tiles; no pixel is
  * written yet. */
-int map_build(const struct patch *patches, size_t n, const struct camera *cam, struct map **out, struct sf_err *err);
+int map_build(const struct patch *patches, size_t n, const struct bvh *seams, const struct camera *cam,
+              struct map **out, struct sf_err *err);
 /* Fills rw (growing its buffers as needed) with the candidates of rows [y0, y1). The map is
  * only read, so threads may fill their own rows from one map at once. 0 or SF_ENOMEM. */
 int map_raster_rows(const struct map *m, int y0, int y1, struct map_rows *rw);

@@ -221,7 +221,7 @@ static int frame_view(struct frame *fr, double t0, struct frame **out, struct sf
                       (sc->method == METHOD_MAP ||
                        (sc->method == METHOD_AUTO && fr->ps.n * AUTO_MAP_PIXELS_PER_PATCH <= np));
     if (map_wanted)
-        rc = map_build(fr->ps.patches, fr->ps.n, &fr->cam, &fr->map, err);
+        rc = map_build(fr->ps.patches, fr->ps.n, fr->exact, &fr->cam, &fr->map, err);
     if (rc) {
         frame_free(fr);
         return rc;
@@ -399,9 +399,11 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
      * only one, or the one hit is the only point of both, and the patch has none of its own */
     float undecided = rw->dropped[at]; /* least bound of a candidate not resolved */
     int n_left = 0;
+    bool seamed = false; /* a patch left open may stand for its neighbour across a seam */
     for (int k = 0; k < n_open; k++)
         if (!(found && bvh_meets_once(fr->exact, open[k], open_ok[k] ? open[k] : hit->patch, r->d))) {
             undecided = dmin(undecided, open_zlo[k]);
+            seamed |= fr->map->seamed[open[k]];
             open[n_left++] = open[k];
         }
     n_open = n_left;
@@ -409,10 +411,12 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
         return true;
     st->misses++;
     /* only a root in front of the one found matters, and none lies in front of the least depth
-     * bound left open (less a margin for the bound's float rounding): a short stretch of ray */
+     * bound left open (less a margin for the bound's float rounding): a short stretch of ray.
+     * Where a seam drew no outline, the pixel's root may be the neighbour's, unlisted and
+     * unbounded: all patches, from the eye */
     struct bvh_hit h;
-    double tfar = found ? hit->t : INFINITY, tnear = dmax(0.0, undecided / zscale * (1.0 - 1e-6));
-    bool nearer = rw->dropped[at] < INFINITY && rw->dropped[at] <= tfar * zscale
+    double tfar = found ? hit->t : INFINITY, tnear = seamed ? 0.0 : dmax(0.0, undecided / zscale * (1.0 - 1e-6));
+    bool nearer = seamed || (rw->dropped[at] < INFINITY && rw->dropped[at] <= tfar * zscale)
                       ? bvh_intersect(fr->exact, r, tnear, tfar, &h, &st->iterations)
                       : bvh_intersect_among(fr->exact, r, tnear, tfar, open, n_open, &h, &st->iterations);
     if (nearer)
