@@ -78,8 +78,7 @@ struct bvh_shadow {
     double tnear, tfar;
     bool blocked;
 };
-/* bvh_occluded for n rays at once: rays from neighbouring pixels go through Embree as coherent
- * packets, which share the hierarchy's traversal. */
+/* bvh_occluded for n rays at once (a chunk of a row's pixels: one call into Embree a batch). */
 void bvh_occluded_many(const struct bvh *b, struct bvh_shadow *rays, size_t n, long *iters);
 
 #endif
