@@ -9,7 +9,11 @@
  * perspective-correct attributes of the covering triangle, or of the nearest point of the
  * outline edge; a candidate near its patch's outline remembers the depth of the outline and of
  * any fold there (the tracer then trusts no root behind a fold, nor one seeded by the outline
- * alone). Primitives are rasterised nearest depth bound first, and a fragment behind
+ * alone). A seam - a whole edge two patches share, one's parameter going on into the other's
+ * (bvh_seam) - is sampled at the same parameters on both sides and is no outline where the
+ * triangles either side turn alike: the two tile their joint image as one patch's cells do, and a
+ * pixel there may list one where the root is the other's (the tracer then searches all patches).
+ * Primitives are rasterised nearest depth bound first, and a fragment behind
  * where a nearer triangle expects its patch's root is culled as from a full list. Written by
  * hand: no library rasterises with these guarantees, and the rows are filled by bands. */
 #include "map.h"

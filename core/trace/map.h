@@ -65,7 +65,8 @@ struct map_rows {
 };
 
 /* Tessellates and projects the patches and buckets the triangles by row tiles; no pixel is
- * written yet. */
+ * written yet. seams (may be NULL: every border an outline): the hierarchy whose bvh_seam says
+ * which patches share an edge. */
 int map_build(const struct patch *patches, size_t n, const struct bvh *seams, const struct camera *cam,
               struct map **out, struct sf_err *err);
 /* Fills rw (growing its buffers as needed) with the candidates of rows [y0, y1). The map is

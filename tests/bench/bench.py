@@ -661,7 +661,7 @@ def views_bench(lines):
     wall = statistics.median(v[0] for v in rest)
     render = statistics.median(v[1] for v in rest)
     lines.append("## Repeat views of a stored model (issue 17)\n")
-    lines.append("The heart contour model (`dicompyler_heart.json`, 7 726 patches), GET /models/{id}/render at %dx%d, "
+    lines.append("The heart contour model (`dicompyler_heart.json`), GET /models/{id}/render at %dx%d, "
                  "2 threads, azimuth 30, 45, ... 105: the first view parses the model and builds its hierarchy, the "
                  "next take both from the frame cache (`frame-cache`) and prepare only the camera. Wall = the whole "
                  "HTTP request (job, render, PNG, store); render = X-Render-Ms.\n" % (W, H))
@@ -769,7 +769,8 @@ def cad_bench(lines):
     lines.append("`surfd render PART --method M --threads T --width 1024 --height 1024 --stats`: mug_solid.igs (13 trimmed "
                  "NURBS surfaces, 47 patches after the trims drop the wholly cut-away ones) from eye [250,-300,220] "
                  "towards [0,0,40], fov 30; the heart model's patches (`surfd model dicompyler_heart.json --patches`, "
-                 "7 726 bicubic patches) auto-framed. render = trace and shade. Median of %d runs.\n" % REPEAT)
+                 "%d Bezier patches) auto-framed. render = trace and shade. Median of %d runs.\n" % (
+                     rows[("heart model", "auto", 1)]["patches"], REPEAT))
     lines.append("| part | method | threads | prepare ms | render ms | x teapot auto render | iterations/primary |")
     lines.append("|---|---|---|---|---|---|---|")
     for (name, method, t), r in rows.items():
