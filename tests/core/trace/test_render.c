@@ -173,36 +173,55 @@ TEST(shared_scenes_agree_across_methods)
     }
 }
 
+/* A contour file's model as a scene (its parsed contours and written model kept beside it). */
+struct contour_scene {
+    char *buf, *src;
+    struct contour_set cs;
+    struct scene sc;
+};
+
+static bool contour_scene_load(const char *file, struct contour_scene *c)
+{
+    size_t len;
+    struct contour_request req;
+    struct material mat = scene_default_material();
+    memset(c, 0, sizeof *c);
+    scene_init(&c->sc);
+    if (!(c->buf = unit_data("contours", file, &len)) || contour_parse_json(c->buf, len, &c->cs, &req, NULL))
+        return false;
+    return (c->src = contour_json_write(&c->cs, &req)) &&
+           model_scene_objects(c->src, strlen(c->src), &c->sc, &mat, "/objects/0", NULL) == 0;
+}
+
+static void contour_scene_free(struct contour_scene *c)
+{
+    scene_free(&c->sc);
+    free(c->src);
+    if (c->buf)
+        contour_set_free(&c->cs);
+    free(c->buf);
+}
+
 /* A contour model (thousands of small patches, some of them slivers a hundredth of a millimetre wide
  * where neighbouring curves' breakpoints nearly meet): auto and bvh against a dense tessellation. */
 TEST(contour_model_exact)
 {
-    size_t len;
-    char *buf = unit_data("contours", "synthetic_ellipsoid.json", &len), *src = NULL;
-    struct contour_set cs;
-    struct contour_request req;
-    struct scene sc;
-    scene_init(&sc);
-    struct material mat = scene_default_material();
-    REQUIRE(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
-    CHECK((src = contour_json_write(&cs, &req)) != NULL);
-    CHECK(src && model_scene_objects(src, strlen(src), &sc, &mat, "/objects/0", NULL) == 0);
+    struct contour_scene c;
+    bool ok = contour_scene_load("synthetic_ellipsoid.json", &c);
+    CHECK(ok);
     const int W = 400, H = 300;
-    float *ref = scene_depth(&sc, METHOD_MESH, W, H, false, NULL);
+    float *ref = ok ? scene_depth(&c.sc, METHOD_MESH, W, H, false, NULL) : NULL;
     const enum render_method methods[] = {METHOD_AUTO, METHOD_BVH};
     for (int k = 0; k < 2 && ref; k++) {
-        float *got = scene_depth(&sc, methods[k], W, H, false, NULL);
-        struct compare c = compare(ref, got, W, H);
+        float *got = scene_depth(&c.sc, methods[k], W, H, false, NULL);
+        struct compare cmp = compare(ref, got, W, H);
         fprintf(stderr, "  %-5s interior %ld missed %ld depth_off %ld extra %ld\n", scene_method_name(methods[k]),
-                c.interior, c.missed, c.depth_off, c.extra);
-        CHECK(c.interior > 20000 && c.missed == 0 && c.depth_off == 0 && c.extra == 0);
+                cmp.interior, cmp.missed, cmp.depth_off, cmp.extra);
+        CHECK(cmp.interior > 20000 && cmp.missed == 0 && cmp.depth_off == 0 && cmp.extra == 0);
         free(got);
     }
     free(ref);
-    scene_free(&sc);
-    free(src);
-    contour_set_free(&cs);
-    free(buf);
+    contour_scene_free(&c);
 }
 
 /* The heart's contour model (7 587 patches, most of them meeting their neighbours along whole
@@ -212,23 +231,17 @@ TEST(contour_model_exact)
  * seams went without outline another nearer by 0.05 mm): a nearer root is allowed twice a view. */
 TEST(heart_model_auto_equals_bvh)
 {
-    size_t len;
-    char *buf = unit_data("contours", "dicompyler_heart.json", &len), *src = NULL;
-    struct contour_set cs;
-    struct contour_request req;
-    struct scene sc;
-    scene_init(&sc);
-    struct material mat = scene_default_material();
-    REQUIRE(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
-    CHECK((src = contour_json_write(&cs, &req)) != NULL);
-    CHECK(src && model_scene_objects(src, strlen(src), &sc, &mat, "/objects/0", NULL) == 0);
+    struct contour_scene c;
+    bool ok = contour_scene_load("dicompyler_heart.json", &c);
+    CHECK(ok);
+    struct scene *sc = &c.sc;
     const int W = 720, H = 720; /* 64 pixels a patch: auto takes the map (AUTO_MAP_PIXELS_PER_PATCH) */
     const double azimuths[] = {0, 70, 160, 250};
-    for (int k = 0; k < 4; k++) {
-        sc.azimuth_deg = azimuths[k], sc.elevation_deg = 20;
-        struct render_stats st;
-        float *bvh = scene_depth(&sc, METHOD_BVH, W, H, false, NULL);
-        float *got = scene_depth(&sc, METHOD_AUTO, W, H, false, &st);
+    for (int k = 0; k < 4 && ok; k++) {
+        sc->azimuth_deg = azimuths[k], sc->elevation_deg = 20;
+        struct render_stats st = {0};
+        float *bvh = scene_depth(sc, METHOD_BVH, W, H, false, NULL);
+        float *got = scene_depth(sc, METHOD_AUTO, W, H, false, &st);
         CHECK(bvh && got);
         long hit = 0, missed = 0, farther = 0, more = 0;
         for (int i = 0; bvh && got && i < W * H; i++) {
@@ -243,10 +256,7 @@ TEST(heart_model_auto_equals_bvh)
         free(bvh);
         free(got);
     }
-    scene_free(&sc);
-    free(src);
-    contour_set_free(&cs);
-    free(buf);
+    contour_scene_free(&c);
 }
 
 /* Bad scenes get an error naming the object and field, never a crash. */
