@@ -405,6 +405,8 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
             unsigned v1 = e < 2 ? VTX(i + (e == 1), k + 1) : VTX(k + 1, j + (e == 3));
             if (zlo[c] < INFINITY)
                 m->tris[m->n_tris++] = (struct map_tri){{v0, v1, EDGE}, index, pad, zlo[c], false, (signed char)turn, false};
+            else
+                m->border[index][e] = SIZE_MAX; /* a segment left out: the edge's run is not whole */
         }
     }
 #undef OUTLINE
