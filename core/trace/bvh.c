@@ -237,13 +237,6 @@ static double net_deviation(const struct patch *pt, double *curv_u, double *curv
     return sqrt(dev2);
 }
 
-/* Bounds the directions of the chords of a polynomial patch. A chord S(u1, v1) - S(u2, v2) is
- * the integral of Pu along u, then of Pv along v, and each is a non-negative combination of the
- * net's differences g (Bernstein weights are non-negative); so with the u differences taken with
- * one sign and the v differences with another, every chord c = sum l_g g, l >= 0. For a unit n
- * and a unit w with w·g >= k |g| for all of them (k > 0): |c·n| <= max(|g·n| / |g|) sum l|g| and
- * |c| >= w·c >= k sum l|g|, so |c·n| / |c| <= max(|g·n| / |g|) / k. Both sign pairings (the
- * other two are their negatives) give the bound *sin_max on |c·n| / |c| for every chord. */
 #define CHORD_MAX_GENS (4 * PATCH_MAX_DEGREE * (PATCH_MAX_DEGREE + 1)) /* two patches' differences */
 
 /* Appends pt's net differences to g: the u ones at g[*n_u..] (moving the v ones already there up),
@@ -271,7 +264,17 @@ static bool chord_generators(const struct patch *pt, vec3 *g, int *n_g, int *n_u
     return true;
 }
 
-/* The bound of chord_bound from the generators g (the u ones first, n_u of them). */
+/* Bounds the directions of the chords of a polynomial patch. A chord S(u1, v1) - S(u2, v2) is
+ * the integral of Pu along u, then of Pv along v, and each is a non-negative combination of the
+ * net's differences g (Bernstein weights are non-negative); so with the u differences taken with
+ * one sign and the v differences with another, every chord c = sum l_g g, l >= 0. For a unit n
+ * and a unit w with w·g >= k |g| for all of them (k > 0): |c·n| <= max(|g·n| / |g|) sum l|g| and
+ * |c| >= w·c >= k sum l|g|, so |c·n| / |c| <= max(|g·n| / |g|) / k. Both sign pairings (the
+ * other two are their negatives) give the bound *sin_max on |c·n| / |c| for every chord. The same
+ * holds for two patches that share an edge, one's parameter going on into the other's (a seam): a
+ * path between two of their points runs monotone in both parameters of the longer rectangle, and
+ * its tangents are combinations of the one net's differences or the other's. Here from the
+ * generators g, the u ones first (n_u of them). */
 static void chord_bound_of(const vec3 *g, int n_g, int n_u, vec3 *n, double *sin_max)
 {
     *sin_max = 2.0;
