@@ -278,12 +278,15 @@ static bool chord_generators(const struct patch *pt, vec3 *g, int *n_g, int *n_u
 static void chord_bound_of(const vec3 *g, int n_g, int n_u, vec3 *n, double *sin_max)
 {
     *sin_max = 2.0;
+    double inv[CHORD_MAX_GENS]; /* 1 / |g|: one square root each */
     vec3 au = v3(0, 0, 0), av = v3(0, 0, 0); /* their mean directions */
-    for (int m = 0; m < n_g; m++)
+    for (int m = 0; m < n_g; m++) {
+        inv[m] = 1.0 / v3_len(g[m]);
         if (m < n_u)
-            au = v3_add(au, v3_norm(g[m]));
+            au = v3_mad(au, g[m], inv[m]);
         else
-            av = v3_add(av, v3_norm(g[m]));
+            av = v3_mad(av, g[m], inv[m]);
+    }
     vec3 axis = v3_cross(au, av);
     if (!(v3_len(axis) > 1e-9 * v3_len(au) * v3_len(av)))
         return;
@@ -292,10 +295,9 @@ static void chord_bound_of(const vec3 *g, int n_g, int n_u, vec3 *n, double *sin
     const vec3 w[2] = {v3_norm(v3_add(au, av)), v3_norm(v3_sub(au, av))}; /* v differences taken +, then - */
     double tilt = 0.0, k[2] = {1.0, 1.0};
     for (int m = 0; m < n_g; m++) {
-        double l = v3_len(g[m]);
-        tilt = fmax(tilt, fabs(v3_dot(g[m], axis)) / l);
-        for (int s = 0; s < 2; s++)
-            k[s] = fmin(k[s], (m >= n_u && s == 1 ? -1.0 : 1.0) * v3_dot(w[s], g[m]) / l);
+        tilt = fmax(tilt, fabs(v3_dot(g[m], axis)) * inv[m]);
+        k[0] = fmin(k[0], v3_dot(w[0], g[m]) * inv[m]);
+        k[1] = fmin(k[1], (m >= n_u ? -1.0 : 1.0) * v3_dot(w[1], g[m]) * inv[m]);
     }
     if (k[0] <= 0 || k[1] <= 0)
         return;
