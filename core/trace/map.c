@@ -176,7 +176,6 @@ static void raster_tri(const struct map *m, struct map_rows *rw, const struct ma
     /* edge function k (opposite vertex k), positive inside: w_k = A_k x + B_k y + C_k; inside,
      * the w_k / |area| are the barycentrics */
     double A[3], B[3], C[3], eps[3], iA[3], sgn = area > 0 ? 1.0 : -1.0;
-    double plane[3][3] = {{0}}; /* iz, uz, vz: coefficients of x, y, 1 */
     for (int k = 0; k < 3; k++) {
         const struct map_vert *p = v[(k + 1) % 3], *q = v[(k + 2) % 3];
         A[k] = -sgn * (q->y - p->y);
@@ -184,13 +183,11 @@ static void raster_tri(const struct map *m, struct map_rows *rw, const struct ma
         C[k] = -(A[k] * p->x + B[k] * p->y);
         eps[k] = COVER_EPS * (fabs(A[k]) + fabs(B[k])); /* at least COVER_EPS of distance */
         iA[k] = A[k] != 0.0 ? 1.0 / A[k] : 0.0;
-        const double at[3] = {v[k]->iz, v[k]->uz, v[k]->vz}, inv = 1.0 / fabs(area);
-        for (int c = 0; c < 3; c++) {
-            plane[c][0] += A[k] * at[c] * inv;
-            plane[c][1] += B[k] * at[c] * inv;
-            plane[c][2] += C[k] * at[c] * inv;
-        }
     }
+    /* iz, uz, vz: coefficients of x, y, 1; made at the first pixel centre covered (a tessellation
+     * of small patches has many triangles that cover none) */
+    double plane[3][3] = {{0}};
+    bool have_plane = false;
     for (int y = y0; y <= y1; y++) {
         double lo = x0, hi = x1;
         for (int k = 0; k < 3; k++) {
@@ -210,6 +207,17 @@ static void raster_tri(const struct map *m, struct map_rows *rw, const struct ma
         /* ceil and floor by truncation (lo >= x0 - SPAN_SLACK > -1): libm's are calls here */
         int xs = (int)lo, xe = (int)(hi + 1.0) - 1;
         xs += xs < lo;
+        if (xs > xe)
+            continue;
+        for (int k = 0; k < 3 && !have_plane; k++) {
+            const double at[3] = {v[k]->iz, v[k]->uz, v[k]->vz}, inv = 1.0 / fabs(area);
+            for (int c = 0; c < 3; c++) {
+                plane[c][0] += A[k] * at[c] * inv;
+                plane[c][1] += B[k] * at[c] * inv;
+                plane[c][2] += C[k] * at[c] * inv;
+            }
+        }
+        have_plane = true;
         double iz_y = plane[0][1] * y + plane[0][2], uz_y = plane[1][1] * y + plane[1][2];
         double vz_y = plane[2][1] * y + plane[2][2];
         size_t row = (size_t)(y - rw->y0) * rw->W;
