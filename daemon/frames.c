@@ -93,6 +93,16 @@ void frames_give(struct service *svc, struct frame_entry *e)
     pthread_mutex_unlock(&svc->lock);
 }
 
+size_t frames_bytes(struct service *svc)
+{
+    size_t total = 0;
+    pthread_mutex_lock(&svc->lock);
+    for (struct frame_entry *e = svc->frames; e; e = e->next)
+        total += e->bytes;
+    pthread_mutex_unlock(&svc->lock);
+    return total;
+}
+
 void frames_free_all(struct service *svc)
 {
     pthread_mutex_lock(&svc->lock);

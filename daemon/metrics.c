@@ -1,6 +1,8 @@
 /* metrics.c - process-wide counters and their Prometheus exposition. */
 #include "metrics.h"
 
+#include "frames.h"
+
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -111,6 +113,8 @@ char *metrics_text(struct service *svc)
         "# TYPE surfd_frame_cache_lookups_total counter\n");
     OUT("surfd_frame_cache_lookups_total{result=\"hit\"} %ld\nsurfd_frame_cache_lookups_total{result=\"miss\"} %ld\n",
         atomic_load(&frame_lookups[1]), atomic_load(&frame_lookups[0]));
+    OUT("# HELP surfd_frame_cache_bytes Bytes of stored models' prepared hierarchies kept in memory (frame-cache "
+        "bounds them).\n# TYPE surfd_frame_cache_bytes gauge\nsurfd_frame_cache_bytes %zu\n", frames_bytes(svc));
     OUT("# HELP surfd_store_damaged_total Stored results or models refused: their checksum did not match.\n"
         "# TYPE surfd_store_damaged_total counter\nsurfd_store_damaged_total %ld\n", atomic_load(&store_damaged));
     OUT("# HELP surfd_jobs_stranded Jobs whose end the store refused, kept to run again.\n"

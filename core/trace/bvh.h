@@ -44,6 +44,8 @@ int bvh_build_mesh(struct bvh_device *dev, const struct patch *patches, size_t n
 void bvh_free(struct bvh *b);
 
 size_t bvh_n_leaves(const struct bvh *b);
+/* About the bytes b takes (its leaves, seams and triangles, and Embree's nodes over them); 0 for NULL. */
+size_t bvh_bytes(const struct bvh *b, size_t n_patches);
 
 /* Nearest hit with t in (tnear, tfar). *iters accumulates solver iterations. */
 bool bvh_intersect(const struct bvh *b, const struct dray *r, double tnear, double tfar, struct bvh_hit *hit,

@@ -313,7 +313,10 @@ int frame_prepare_from(const struct scene *sc, const struct frame *base, struct 
 
 size_t frame_hierarchy_bytes(const struct frame *fr)
 {
-    size_t n = fr->ps.n * (sizeof *fr->ps.patches + 256); /* the patches, and about their hierarchy's leaves */
+    size_t n = bvh_bytes(fr->exact, fr->ps.n) + bvh_bytes(fr->mesh, fr->ps.n);
+    for (size_t k = 0; k < fr->ps.n; k++) /* the patches and their control points */
+        n += sizeof *fr->ps.patches + sizeof *fr->ps.patches[k].cw * (size_t)(fr->ps.patches[k].p + 1) *
+                                          (size_t)(fr->ps.patches[k].q + 1);
     for (int k = 0; k < fr->sc->n_meshes; k++)
         n += fr->sc->meshes[k].m.n_tri * 64 + fr->sc->meshes[k].m.n_vert * 24;
     return n;

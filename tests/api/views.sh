@@ -21,7 +21,7 @@ sys.exit(0 if a[:2] == b[:2] and all(str(a[2][k]) == str(b[2][k]) for k in a[2])
 }
 code=$(status POST /model -H "$J" --data-binary @"$C/synthetic_ellipsoid.json"); id=$(field id)
 status GET "/models/$id/render?width=96&height=72" >/dev/null
-check "a contour model's first view builds its hierarchy (a miss)" '[ "$(metric "surfd_frame_cache_lookups_total{result=\"miss\"}")" = 1 ]'
+check "a contour model's first view builds its hierarchy (a miss), kept: its bytes in surfd_frame_cache_bytes" '[ "$(metric "surfd_frame_cache_lookups_total{result=\"miss\"}")" = 1 ] && [ "$(metric surfd_frame_cache_bytes)" -gt 100000 ]'
 check "... a second view from another side uses it (a hit), the image byte for byte a fresh preparation's" 'same_view "$id" "width=96&height=72&azimuth=120&elevation=10" && [ "$(metric "surfd_frame_cache_lookups_total{result=\"hit\"}")" = 1 ]'
 check "... orthographic, an axis view: the same as fresh" 'same_view "$id" "width=64&height=48&projection=orthographic&view=%2Bz"'
 check "... EXR with AOVs: the same as fresh" 'same_view "$id" "width=64&height=48&output=exr&aovs=normal,uv,id"'
@@ -37,6 +37,13 @@ stop_daemon
 start_daemon "$T/d" --frame-cache 1000 || exit 1
 status GET "/models/$id/render?width=64&height=48" >/dev/null
 check "a hierarchy over --frame-cache (1000 bytes) is used for its view and not kept: the next view builds it again" 'same_view "$id" "width=64&height=48&azimuth=10" && [ "$(metric "surfd_frame_cache_lookups_total{result=\"miss\"}")" = 2 ] && [ "$(metric "surfd_frame_cache_lookups_total{result=\"hit\"}")" = 0 ]'
+stop_daemon
+# the budget counts a hierarchy's leaves, seams and Embree's nodes (the heart's about 40 MB, its
+# process growing 59 MB), not only its patches (2.7 MB): under a 20 MB budget it is not kept
+start_daemon "$T/d" --frame-cache 20000000 || exit 1
+code=$(status POST /model -H "$J" --data-binary @"$C/dicompyler_heart.json"); heart=$(field id)
+status GET "/models/$heart/render?width=64&height=48" >/dev/null; status GET "/models/$heart/render?width=64&height=48" >/dev/null
+check "the heart's hierarchy, over a 20 MB frame-cache, is not kept: two views, two misses, nothing held" '[ "$(metric "surfd_frame_cache_lookups_total{result=\"miss\"}")" = 2 ] && [ "$(metric surfd_frame_cache_bytes)" = 0 ]'
 stop_daemon
 start_daemon "$T/d" --frame-cache 0 || exit 1
 status GET "/models/$id/render?width=64&height=48" >/dev/null; status GET "/models/$id/render?width=64&height=48" >/dev/null
