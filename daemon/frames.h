@@ -27,9 +27,9 @@ struct frame_entry *frames_take(struct service *svc, const char *key,
                                 void *ctx, struct sf_err *err);
 /* Gives an entry back (frames_take's); one no longer kept is freed with its last user. */
 void frames_give(struct service *svc, struct frame_entry *e);
-/* Frees every entry (at shutdown, no job running). */
 /* The bytes of the hierarchies kept (frame_hierarchy_bytes of each), for /metrics. */
 size_t frames_bytes(struct service *svc);
+/* Frees every entry (at shutdown, no job running). */
 void frames_free_all(struct service *svc);
 
 #endif

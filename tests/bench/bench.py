@@ -980,7 +980,8 @@ def teapot_bench(lines):
 
 
 def main():
-    parts = {"teapot": (teapot_bench,), "iso": (iso_bench, adapt_bench, edit_bench, sharp_bench, big_volume_bench), "adapt": (adapt_bench,),
+    parts = {"teapot": (teapot_bench,),
+             "iso": (iso_bench, adapt_bench, edit_bench, sharp_bench, big_volume_bench), "adapt": (adapt_bench,),
              "edit": (edit_bench,), "matrix": (matrix_bench,), "aa": (aa_bench,), "views": (views_bench,),
              "cad": (cad_bench,), "shell": (shell_bench,),
              "sharp": (sharp_bench,), "cluster": (cluster_bench,),
