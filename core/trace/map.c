@@ -209,15 +209,17 @@ static void raster_tri(const struct map *m, struct map_rows *rw, const struct ma
         xs += xs < lo;
         if (xs > xe)
             continue;
-        for (int k = 0; k < 3 && !have_plane; k++) {
-            const double at[3] = {v[k]->iz, v[k]->uz, v[k]->vz}, inv = 1.0 / fabs(area);
-            for (int c = 0; c < 3; c++) {
-                plane[c][0] += A[k] * at[c] * inv;
-                plane[c][1] += B[k] * at[c] * inv;
-                plane[c][2] += C[k] * at[c] * inv;
+        if (!have_plane) {
+            for (int k = 0; k < 3; k++) {
+                const double at[3] = {v[k]->iz, v[k]->uz, v[k]->vz}, inv = 1.0 / fabs(area);
+                for (int c = 0; c < 3; c++) {
+                    plane[c][0] += A[k] * at[c] * inv;
+                    plane[c][1] += B[k] * at[c] * inv;
+                    plane[c][2] += C[k] * at[c] * inv;
+                }
             }
+            have_plane = true;
         }
-        have_plane = true;
         double iz_y = plane[0][1] * y + plane[0][2], uz_y = plane[1][1] * y + plane[1][2];
         double vz_y = plane[2][1] * y + plane[2][2];
         size_t row = (size_t)(y - rw->y0) * rw->W;
@@ -469,21 +471,17 @@ static size_t find_root(size_t *up, size_t k)
     return k;
 }
 
-/* The patches' grids (grid[k][0] == 0: left out), the same along seams: a seam's two sides are
+/* The patches' grids (grid[k][0] == 0: left out) made the same along seams: a seam's two sides are
  * sampled at the same parameters (the largest count of the patches the seams chain together
  * along it: u seams chain the v counts, v seams the u counts; no more than MAP_SEAM_GROW times a
  * patch's own), so their border vertices meet. */
-static int seam_grids(const struct patch *patches, size_t n, const struct bvh *seams, struct map *m,
-                      const struct camera *cam, int (*grid)[2], double *pix)
+static int seam_grids(const struct patch *patches, size_t n, const struct bvh *seams, int (*grid)[2])
 {
     size_t *up = malloc(sizeof *up * 2 * (n ? n : 1)); /* [0, n): by u seams; [n, 2n): by v seams */
     if (!up)
         return SF_ENOMEM;
     for (size_t k = 0; k < 2 * n; k++)
         up[k] = k;
-    for (size_t k = 0; k < n; k++)
-        if (!patch_grid(m, &patches[k], cam, &grid[k][0], &grid[k][1], &pix[k]))
-            grid[k][0] = 0;
     for (size_t k = 0; k < n; k++)
         for (int e = 1; e < 4; e += 2) {
             int o = bvh_seam(seams, (int)k, e);
@@ -525,7 +523,7 @@ static void join_seams(struct map *m, size_t n, const struct bvh *seams)
                 continue;
             const int n_seg = m->grid[k][e < 2];
             if (n_seg != m->grid[o][e < 2])
-                continue; /* (seam_grids made them equal) */
+                continue; /* counts MAP_SEAM_GROW kept apart: the seam stays an outline */
             struct map_tri *a = &m->tris[m->border[k][e]], *b = &m->tris[m->border[o][e - 1]];
             for (int s = 0; s < n_seg; s++) {
                 bool alike = a[s].turn != 0 && a[s].turn == b[s].turn;
@@ -553,14 +551,17 @@ int map_build(const struct patch *patches, size_t n, const struct bvh *seams, co
     double *pix = malloc(sizeof *pix * (n ? n : 1));
     m->border = malloc(sizeof *m->border * (n ? n : 1));
     m->seamed = calloc(n ? n : 1, 1);
-    if (!grid || !pix || !m->border || !m->seamed || (seams && seam_grids(patches, n, seams, m, cam, grid, pix))) {
+    if (!grid || !pix || !m->border || !m->seamed) {
         free(pix);
         goto out_nomem;
     }
-    if (!seams)
-        for (size_t k = 0; k < n; k++)
-            if (!patch_grid(m, &patches[k], cam, &grid[k][0], &grid[k][1], &pix[k]))
-                grid[k][0] = 0;
+    for (size_t k = 0; k < n; k++)
+        if (!patch_grid(m, &patches[k], cam, &grid[k][0], &grid[k][1], &pix[k]))
+            grid[k][0] = 0;
+    if (seams && seam_grids(patches, n, seams, grid)) {
+        free(pix);
+        goto out_nomem;
+    }
     for (size_t k = 0; k < n; k++) {
         for (int e = 0; e < 4; e++)
             m->border[k][e] = SIZE_MAX;
