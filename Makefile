@@ -118,7 +118,7 @@ $(B)/surfd: $(REL_DMN) $(REL_API) $(DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $
 	$(CC) $(OPT) -o $@ $^ $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
 # unit tests link core/ and api/ (with the DCMTK shim), never OpenImageIO
-$(B)/tests/%: tests/%.c tests/unit.h $(SAN_CORE) $(SAN_API) $(DCM_OBJ)
+$(B)/tests/%: tests/%.c tests/unit.h $(wildcard tests/core/*/*.h) $(SAN_CORE) $(SAN_API) $(DCM_OBJ)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(SAN) -o $@ $< $(SAN_CORE) $(SAN_API) $(DCM_OBJ) $(API_LIBS) $(DCM_LIBS) $(CORE_LIBS)
 

@@ -1,10 +1,9 @@
 /* test_bvh.c - the exact hierarchy: rays aimed at surface points find them (nearest first), and
  * skipping a shadow ray's origin leaf by its normal cone never changes an occlusion answer. */
-#include "../../../api/contour_json.h"
-#include "../../../api/model_json.h"
 #include "../../../api/scene_io.h"
 #include "../../../core/trace/bvh.h"
 #include "../../unit.h"
+#include "contour_scene.h"
 
 #include <stdlib.h>
 
@@ -137,30 +136,6 @@ static vec3 seam_point(const struct patch_set *ps, const struct bvh *b, int a, i
     return P;
 }
 
-/* The heart's contour model as patches (thousands of small ones, sharing edges). */
-static int load_heart(struct scene *sc, struct patch_set *ps)
-{
-    size_t len;
-    memset(ps, 0, sizeof *ps);
-    scene_init(sc);
-    char *buf = unit_data("contours", "dicompyler_heart.json", &len), *src = NULL;
-    if (!buf)
-        return -1;
-    struct contour_set cs;
-    struct contour_request req;
-    struct material mat = scene_default_material();
-    int rc = contour_parse_json(buf, len, &cs, &req, NULL);
-    if (!rc) {
-        rc = (src = contour_json_write(&cs, &req)) ? model_scene_objects(src, strlen(src), sc, &mat, "/objects/0", NULL) : -1;
-        contour_set_free(&cs);
-    }
-    if (!rc)
-        rc = scene_patches(sc, ps, NULL);
-    free(src);
-    free(buf);
-    return rc;
-}
-
 /* The bound that lets a ray skip a patch or a seam's pair of patches never holds along a chord of
  * them (a line through two of their points): pairs of points near seams and anywhere, on the
  * teapot (large curved patches: the bound seldom holds) and the heart's contour model (where it
@@ -169,10 +144,16 @@ TEST(meets_once_never_along_a_chord)
 {
     for (int f = 0; f < 2; f++) {
         struct scene sc;
-        struct patch_set ps;
-        CHECK((f == 0 ? load("teapot.json", &sc, &ps) : load_heart(&sc, &ps)) == 0);
-        if (!ps.patches)
-            continue; /* no data: nothing to trace */
+        struct patch_set ps = {0};
+        struct contour_scene heart = {0};
+        if (f == 0)
+            CHECK(load("teapot.json", &sc, &ps) == 0);
+        else
+            CHECK(contour_scene_load("dicompyler_heart.json", &heart) && scene_patches(&heart.sc, &ps, NULL) == 0);
+        if (!ps.patches) { /* no data: nothing to trace */
+            contour_scene_free(&heart);
+            continue;
+        }
         struct bvh *b;
         CHECK(bvh_build_patches(dev, ps.patches, ps.n, 1e-20, &b, NULL) == 0);
         uint64_t s = 4242;
@@ -206,7 +187,9 @@ TEST(meets_once_never_along_a_chord)
         CHECK(f == 0 || held > normals / 4);
         bvh_free(b);
         nurbs_patch_set_free(&ps);
-        scene_free(&sc);
+        if (f == 0)
+            scene_free(&sc);
+        contour_scene_free(&heart);
     }
 }
 

@@ -2,12 +2,11 @@
  * fov 30°) by the exact methods against a dense tessellation of the same patches: zero missed
  * interior pixels, depth within 1e-3 relative; map, bvh and mesh agree. Every shared scene renders
  * through every exact method with the same coverage. Bad scenes fail with a pointer. */
-#include "../../../api/contour_json.h"
-#include "../../../api/model_json.h"
 #include "../../../api/scene_io.h"
 #include "../../../core/trace/render.h"
 #include "../../../core/trace/srgb.h"
 #include "../../unit.h"
+#include "contour_scene.h"
 
 #include <stdlib.h>
 
@@ -171,35 +170,6 @@ TEST(shared_scenes_agree_across_methods)
         }
         free(ref);
     }
-}
-
-/* A contour file's model as a scene (its parsed contours and written model kept beside it). */
-struct contour_scene {
-    char *buf, *src;
-    struct contour_set cs;
-    struct scene sc;
-};
-
-static bool contour_scene_load(const char *file, struct contour_scene *c)
-{
-    size_t len;
-    struct contour_request req;
-    struct material mat = scene_default_material();
-    memset(c, 0, sizeof *c);
-    scene_init(&c->sc);
-    if (!(c->buf = unit_data("contours", file, &len)) || contour_parse_json(c->buf, len, &c->cs, &req, NULL))
-        return false;
-    return (c->src = contour_json_write(&c->cs, &req)) &&
-           model_scene_objects(c->src, strlen(c->src), &c->sc, &mat, "/objects/0", NULL) == 0;
-}
-
-static void contour_scene_free(struct contour_scene *c)
-{
-    scene_free(&c->sc);
-    free(c->src);
-    if (c->buf)
-        contour_set_free(&c->cs);
-    free(c->buf);
 }
 
 /* A contour model (thousands of small patches, some of them slivers a hundredth of a millimetre wide
