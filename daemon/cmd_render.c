@@ -1,6 +1,6 @@
 /* cmd_render.c - `surfd render SCENE... -o OUT`: the offline renderer. Reads the scene (JSON,
- * .bpt or VRML NurbsSurface; several text files are one scene), prepares one frame and lets
- * --threads threads claim its scanline bands, then writes PNG/EXR/TIFF by the output's
+ * .bpt or VRML NurbsSurface; several text files are one scene), prepares one frame (its map's
+ * parts tessellated by --threads threads) and lets them claim its scanline bands, then writes PNG/EXR/TIFF by the output's
  * extension. --stats prints one JSON line on stderr. */
 #include <errno.h>
 #include <stdbool.h>
@@ -23,6 +23,7 @@
 struct band_work {
     struct frame *fr;
     int height;
+    int parts;      /* > 0: the threads tessellate the frame's map (frame_part), not its bands */
     atomic_int next;
     pthread_mutex_t lock;
     struct render_stats total;
@@ -32,7 +33,9 @@ static void *band_worker(void *arg)
 {
     struct band_work *w = arg;
     struct render_stats st = {0};
-    for (;;) {
+    for (int p; w->parts && (p = atomic_fetch_add(&w->next, 1)) < w->parts;)
+        frame_part(w->fr, p);
+    for (; !w->parts;) {
         int y0 = atomic_fetch_add(&w->next, BAND_ROWS);
         if (y0 >= w->height)
             break;
@@ -224,7 +227,20 @@ int cmd_render(int argc, char **argv)
 
     struct bvh_device *dev = bvh_device_new(threads, &err);
     struct frame *fr = NULL;
-    if (!dev || (rc = frame_prepare(&sc, dev, &fr, &err))) {
+    pthread_t tid[256];
+    int n_threads = threads > 256 ? 256 : threads;
+    if (dev && (rc = frame_begin(&sc, dev, &fr, &err)) == 0) {
+        struct band_work parts = {.fr = fr, .parts = frame_parts(fr)};
+        atomic_init(&parts.next, 0);
+        for (int k = 1; k < n_threads && parts.parts; k++)
+            pthread_create(&tid[k], NULL, band_worker, &parts);
+        band_worker(&parts);
+        for (int k = 1; k < n_threads && parts.parts; k++)
+            pthread_join(tid[k], NULL);
+        if ((rc = frame_end(fr, &err)))
+            frame_free(fr);
+    }
+    if (!dev || rc) {
         fprintf(stderr, "surfd: %s%s%s\n", err.message, err.pointer[0] ? " at " : "", err.pointer);
         bvh_device_free(dev);
         scene_free(&sc);
@@ -242,8 +258,6 @@ int cmd_render(int argc, char **argv)
     struct band_work w = {.fr = fr, .height = sc.height, .lock = PTHREAD_MUTEX_INITIALIZER};
     atomic_init(&w.next, 0);
     double t0 = now_ms();
-    pthread_t tid[256];
-    int n_threads = threads > 256 ? 256 : threads;
     for (int k = 1; k < n_threads; k++)
         pthread_create(&tid[k], NULL, band_worker, &w);
     band_worker(&w);

@@ -79,6 +79,18 @@ struct frame_entry *frames_take(struct service *svc, const char *key,
     return e;
 }
 
+bool frames_counts(struct service *svc, const char *key, int *n_objects, int *n_meshes)
+{
+    pthread_mutex_lock(&svc->lock);
+    struct frame_entry *e = svc->frames;
+    while (e && strcmp(e->key, key))
+        e = e->next;
+    if (e)
+        *n_objects = e->sc.n_objects, *n_meshes = e->sc.n_meshes;
+    pthread_mutex_unlock(&svc->lock);
+    return e != NULL;
+}
+
 void frames_give(struct service *svc, struct frame_entry *e)
 {
     if (!e)

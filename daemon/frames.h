@@ -25,6 +25,8 @@ struct frame_entry {
 struct frame_entry *frames_take(struct service *svc, const char *key,
                                 int (*build)(void *ctx, struct scene *sc, struct frame **base, struct sf_err *err),
                                 void *ctx, struct sf_err *err);
+/* Whether the cache holds key; then its scene's object and mesh counts. */
+bool frames_counts(struct service *svc, const char *key, int *n_objects, int *n_meshes);
 /* Gives an entry back (frames_take's); one no longer kept is freed with its last user. */
 void frames_give(struct service *svc, struct frame_entry *e);
 /* The bytes of the hierarchies kept (frame_hierarchy_bytes of each), for /metrics. */

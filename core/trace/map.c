@@ -64,6 +64,12 @@ void map_free(struct map *m)
     free(m->verts);
     free(m->tris);
     free(m->grid);
+    free(m->pix);
+    free(m->vfirst);
+    free(m->first);
+    free(m->end);
+    free(m->part_first);
+    free(m->part_failed);
     free(m->border);
     free(m->seamed);
     free(m->tile_first);
@@ -303,12 +309,41 @@ static bool patch_grid(struct map *m, const struct patch *pt, const struct camer
     return true;
 }
 
-/* Tessellates patch pt on a gu x gv grid for the camera and appends its screen vertices and
- * triangles, its border's edges last, edge by edge (u = 0, u = 1, v = 0, v = 1: m->border). */
-static int add_patch(struct map *m, const struct patch *pt, int index, const struct camera *cam, int gu, int gv,
-                     double pix, size_t *cap_v, size_t *cap_t)
+/* Bernstein polynomials of degree p at t into b[0..p], by de Casteljau's triangle: exactly 0 and 1
+ * at t = 0 and t = 1. */
+static void bernstein(int p, double t, double *b)
 {
-    double err_px = tess_grid_error(pt, gu, gv) / pix;
+    const double s = 1.0 - t;
+    b[0] = 1.0;
+    for (int d = 1; d <= p; d++) {
+        double carry = 0.0;
+        for (int a = 0; a < d; a++) {
+            double x = b[a];
+            b[a] = carry + s * x;
+            carry = t * x;
+        }
+        b[d] = carry;
+    }
+}
+
+/* A part's scratch, sized for its largest grid. */
+struct grid_scratch {
+    float *zc;         /* 2 per cell: nearest vertex depth, then the cell's bound */
+    signed char *sg;   /* 2 per cell: the triangles' turns on screen */
+    bool *keep;        /* 1 per cell: the trim region holds some of it */
+    double *bv;        /* (gv + 1) x (q + 1): the Bernstein values of the grid's rows */
+};
+
+/* Tessellates patch `index` on its grid for the camera into its slots of m->verts and m->tris
+ * (map_begin's), its border's edges last, edge by edge (u = 0, u = 1, v = 0, v = 1: m->border).
+ * The grid's points by the tensor product: the net's rows taken at each u first, those q + 1
+ * points then at each v (16 multiply-adds a vertex on a bicubic; the two sides of a seam take the
+ * same operations on the same points there, so their border vertices agree to the bit). */
+static void add_patch(struct map *m, const struct patch *pt, int index, const struct camera *cam,
+                      struct grid_scratch *sc)
+{
+    const int gu = m->grid[index][0], gv = m->grid[index][1];
+    double err_px = tess_grid_error(pt, gu, gv) / m->pix[index];
     /* on screen a world displacement at depth z spans at most sqrt(1 + x² + y²) / z of its size
      * on the axis (the projection's largest singular value; x, y the tangents of the frame's
      * corner): the outline is widened by the chord error so stretched */
@@ -316,34 +351,39 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
     double twice = pt->rational ? 2.0 : 1.0; /* the bound taken twice for rational patches */
     float pad = (float)(twice * err_px * stretch + MAP_PAD_SLACK);
     double chord = 2.0 * tess_grid_error(pt, gu, gv); /* twice the bound: rational patches */
-    /* room for every triangle and, at worst, every edge of the grid */
-    size_t base = m->n_verts, nv = (size_t)(gu + 1) * (gv + 1), nc = (size_t)gu * gv;
-    size_t n_prims = 2 * nc + (size_t)gu * (gv + 1) + (size_t)gv * (gu + 1) + nc;
-    float *zc = malloc(2 * nc * sizeof *zc);
-    signed char *sg = malloc(2 * nc);
-    bool *keep = malloc(nc * sizeof *keep); /* the cells the trim region holds some of */
-    if (!zc || !sg || !keep || mem_reserve((void **)&m->verts, cap_v, base + nv, sizeof *m->verts) ||
-        mem_reserve((void **)&m->tris, cap_t, m->n_tris + n_prims, sizeof *m->tris)) {
-        free(zc);
-        free(sg);
-        free(keep);
-        return SF_ENOMEM;
-    }
-    for (int i = 0; i <= gu; i++)
+    const size_t base = m->vfirst[index], nc = (size_t)gu * gv;
+    size_t nt = m->first[index];
+    float *zc = sc->zc;
+    signed char *sg = sc->sg;
+    bool *keep = sc->keep;
+    const int p = pt->p, q = pt->q;
+    for (int j = 0; j <= gv; j++)
+        bernstein(q, (double)j / gv, sc->bv + (size_t)j * (q + 1));
+    const double sx = 0.5 * cam->W / (cam->th * cam->aspect), sy = 0.5 * cam->H / cam->th;
+    for (int i = 0; i <= gu; i++) {
+        double bu[PATCH_MAX_DEGREE + 1], row[PATCH_MAX_DEGREE + 1][4] = {{0}};
+        const double u = (double)i / gu;
+        bernstein(p, u, bu);
+        for (int a = 0; a <= p; a++)
+            for (int b = 0; b <= q; b++)
+                for (int c = 0; c < 4; c++)
+                    row[b][c] += bu[a] * pt->cw[a * (q + 1) + b][c];
         for (int j = 0; j <= gv; j++) {
-            double u = (double)i / gu, v = (double)j / gv;
-            vec3 P;
-            bezier_eval(pt, u, v, &P, NULL, NULL);
-            vec3 d = v3_sub(P, cam->eye);
-            double z = fmax(v3_dot(d, cam->f), NEAR_EPS);
+            const double *bv = sc->bv + (size_t)j * (q + 1);
+            double S[4] = {0, 0, 0, 0};
+            for (int b = 0; b <= q; b++)
+                for (int c = 0; c < 4; c++)
+                    S[c] += bv[b] * row[b][c];
+            vec3 d = v3_sub(v3(S[0] / S[3], S[1] / S[3], S[2] / S[3]), cam->eye);
+            double z = dmax(v3_dot(d, cam->f), NEAR_EPS), iz = 1.0 / z;
             struct map_vert *s = &m->verts[base + (size_t)i * (gv + 1) + j];
-            s->x = (v3_dot(d, cam->r) / (z * cam->th * cam->aspect) + 1.0) * 0.5 * cam->W - 0.5;
-            s->y = (1.0 - v3_dot(d, cam->u) / (z * cam->th)) * 0.5 * cam->H - 0.5;
-            s->iz = 1.0 / z;
-            s->uz = u / z;
-            s->vz = v / z;
+            s->x = v3_dot(d, cam->r) * iz * sx + 0.5 * cam->W - 0.5;
+            s->y = 0.5 * cam->H - v3_dot(d, cam->u) * iz * sy - 0.5;
+            s->iz = iz;
+            s->uz = u * iz;
+            s->vz = (double)j / gv * iz;
         }
-    m->n_verts += nv;
+    }
     /* cell (i, j) holds triangles {a, b, b+1} and {a, b+1, a+1}, a = vertex (i, j), b = (i+1, j):
      * both wind the same way in (u, v), so on screen they turn the same way unless the surface
      * folds there. sg: each triangle's turn (-1, 0, 1); zc: each cell's nearest vertex depth. */
@@ -359,11 +399,11 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
             double cu = pt->u0 + i * su, cv = pt->v0 + j * sv;
             keep[CELL(i, j)] = !pt->trim || trim_classify(pt->trim, cu, cu + su, cv, cv + sv) != TRIM_OUT;
             for (int k = 0; k < 2; k++) {
-                const struct map_vert *p = &m->verts[tri[k][0]], *q = &m->verts[tri[k][1]], *r = &m->verts[tri[k][2]];
-                double area = (q->x - p->x) * (r->y - p->y) - (q->y - p->y) * (r->x - p->x);
+                const struct map_vert *p0 = &m->verts[tri[k][0]], *p1 = &m->verts[tri[k][1]], *p2 = &m->verts[tri[k][2]];
+                double area = (p1->x - p0->x) * (p2->y - p0->y) - (p1->y - p0->y) * (p2->x - p0->x);
                 sg[2 * CELL(i, j) + k] = keep[CELL(i, j)] ? (signed char)((area > 0) - (area < 0)) : 0;
             }
-            double iz = fmax(fmax(m->verts[a].iz, m->verts[a + 1].iz), fmax(m->verts[b].iz, m->verts[b + 1].iz));
+            double iz = dmax(dmax(m->verts[a].iz, m->verts[a + 1].iz), dmax(m->verts[b].iz, m->verts[b + 1].iz));
             zc[CELL(i, j)] = (float)(1.0 / iz);
         }
     /* a root seen through one triangle may belong to a neighbouring cell's part of the patch:
@@ -371,10 +411,10 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
     float *zlo = zc + nc;
     for (int i = 0; i < gu; i++)
         for (int j = 0; j < gv; j++) {
-            double z = INFINITY;
+            float z = INFINITY;
             for (int a = i > 0 ? i - 1 : 0; a <= i + 1 && a < gu; a++)
                 for (int b = j > 0 ? j - 1 : 0; b <= j + 1 && b < gv; b++)
-                    z = fmin(z, zc[CELL(a, b)]);
+                    z = zc[CELL(a, b)] < z ? zc[CELL(a, b)] : z;
             zlo[CELL(i, j)] = keep[CELL(i, j)] ? (float)(z - chord) : INFINITY; /* a dropped cell: no bound */
         }
     for (int i = 0; i < gu; i++)
@@ -382,14 +422,13 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
             unsigned a = VTX(i, j), b = VTX(i + 1, j);
             const unsigned tri[2][3] = {{a, b, b + 1}, {a, b + 1, a + 1}};
             for (int k = 0; k < 2 && keep[CELL(i, j)]; k++)
-                m->tris[m->n_tris++] =
-                    (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)], false, 0, false};
+                m->tris[nt++] = (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)], false, 0, false};
         }
     /* the outline: the grid's border, and every edge whose two triangles turn different ways
      * (or either none) on screen; s0, s1 are the turns on either side (0 where there is none) */
 #define OUTLINE(v0, v1, s0, s1, z, inside)                                                         \
     if (((s0) == 0 || (s0) != (s1)) && (z) < INFINITY)                                          \
-        m->tris[m->n_tris++] = (struct map_tri){{(v0), (v1), EDGE}, index, pad, (z), (inside), 0, false};
+        m->tris[nt++] = (struct map_tri){{(v0), (v1), EDGE}, index, pad, (z), (inside), 0, false};
     for (int i = 0; i < gu; i++)
         for (int j = 0; j < gv; j++) /* the diagonal a-(b+1) between a cell's two triangles */
             OUTLINE(VTX(i, j), VTX(i + 1, j + 1), sg[2 * CELL(i, j)], sg[2 * CELL(i, j) + 1], zlo[CELL(i, j)], true);
@@ -407,14 +446,14 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
      * inside it (a kept cell's: a trimmed patch's border has gaps, and no seams) */
     for (int e = 0; e < 4; e++) {
         const int n_seg = e < 2 ? gv : gu, i = e == 1 ? gu - 1 : 0, j = e == 3 ? gv - 1 : 0;
-        m->border[index][e] = pt->trim ? SIZE_MAX : m->n_tris;
+        m->border[index][e] = pt->trim ? SIZE_MAX : nt;
         for (int k = 0; k < n_seg; k++) {
             size_t c = e < 2 ? CELL(i, k) : CELL(k, j);
             int turn = sg[2 * c + (e == 0 || e == 3)]; /* u = 0 and v = 1 edges: the cell's second triangle */
             unsigned v0 = e < 2 ? VTX(i + (e == 1), k) : VTX(k, j + (e == 3));
             unsigned v1 = e < 2 ? VTX(i + (e == 1), k + 1) : VTX(k + 1, j + (e == 3));
             if (zlo[c] < INFINITY)
-                m->tris[m->n_tris++] = (struct map_tri){{v0, v1, EDGE}, index, pad, zlo[c], false, (signed char)turn, false};
+                m->tris[nt++] = (struct map_tri){{v0, v1, EDGE}, index, pad, zlo[c], false, (signed char)turn, false};
             else
                 m->border[index][e] = SIZE_MAX; /* a segment left out: the edge's run is not whole */
         }
@@ -422,30 +461,14 @@ static int add_patch(struct map *m, const struct patch *pt, int index, const str
 #undef OUTLINE
 #undef CELL
 #undef VTX
-    free(zc);
-    free(sg);
-    free(keep);
-    return 0;
+    m->end[index] = nt;
 }
 
-/* The triangles' indices by increasing depth bound: a radix sort of (bound, index) pairs, the
- * bound's bits flipped so that unsigned order is float order, each pass reading and writing in
- * order (sorting the indices by a key looked up through them missed the cache at every step:
- * 4x slower on the heart's 208 k triangles). NULL when out of memory. */
-static unsigned *depth_order(const struct map *m)
+/* Sorts the n (depth bound, primitive) keys by the bound: a radix sort whose passes read and
+ * write in order (sorting indices by a key looked up through them missed the cache at every step:
+ * 4x slower on the heart's 208 k triangles). b: n keys of scratch. Returns the sorted array (a or b). */
+static uint64_t *depth_sort(uint64_t *a, uint64_t *b, size_t n)
 {
-    const size_t n = m->n_tris;
-    uint64_t *a = malloc(sizeof *a * (n ? n : 1)), *b = malloc(sizeof *b * (n ? n : 1));
-    unsigned *out = malloc(sizeof *out * (n ? n : 1));
-    if (!a || !b || !out) {
-        free(a), free(b), free(out);
-        return NULL;
-    }
-    for (size_t k = 0; k < n; k++) {
-        uint32_t bits;
-        memcpy(&bits, &m->tris[k].zlo, sizeof bits);
-        a[k] = (uint64_t)(bits & 0x80000000u ? ~bits : bits | 0x80000000u) << 32 | k;
-    }
     for (int shift = 32; shift < 64; shift += 8) {
         size_t count[257] = {0};
         for (size_t k = 0; k < n; k++)
@@ -457,10 +480,7 @@ static unsigned *depth_order(const struct map *m)
         uint64_t *t = a;
         a = b, b = t;
     }
-    for (size_t k = 0; k < n; k++)
-        out[k] = (unsigned)(a[k] & 0xffffffffu);
-    free(a), free(b);
-    return out;
+    return a;
 }
 
 /* Union-find root of k, halving the path. */
@@ -535,90 +555,169 @@ static void join_seams(struct map *m, size_t n, const struct bvh *seams)
         }
 }
 
-int map_build(const struct patch *patches, size_t n, const struct bvh *seams, const struct camera *cam,
+/* Patches to a part of the tessellation, at most: parts are whole patches of about equal work. */
+#define MAP_PARTS 32
+
+int map_begin(const struct patch *patches, size_t n, const struct bvh *seams, const struct camera *cam,
               struct map **out, struct sf_err *err)
 {
     *out = NULL;
     struct map *m = calloc(1, sizeof *m);
-    size_t cap_v = 0, cap_t = 0;
     int n_tiles = (cam->H + MAP_TILE_ROWS - 1) / MAP_TILE_ROWS;
+    const size_t n1 = n ? n : 1;
     if (!m || !(m->tile_first = calloc((size_t)n_tiles + 2, sizeof(unsigned))))
         goto out_nomem;
     m->W = cam->W;
     m->H = cam->H;
     m->complete = true;
-    int(*grid)[2] = m->grid = malloc(sizeof *grid * (n ? n : 1));
-    double *pix = malloc(sizeof *pix * (n ? n : 1));
-    m->border = malloc(sizeof *m->border * (n ? n : 1));
-    m->seamed = calloc(n ? n : 1, 1);
-    if (!grid || !pix || !m->border || !m->seamed) {
-        free(pix);
+    m->cam = *cam;
+    m->patches = patches;
+    m->n_patches = n;
+    m->grid = malloc(sizeof *m->grid * n1);
+    m->pix = malloc(sizeof *m->pix * n1);
+    m->border = malloc(sizeof *m->border * n1);
+    m->seamed = calloc(n1, 1);
+    m->vfirst = malloc(sizeof *m->vfirst * n1);
+    m->first = malloc(sizeof *m->first * n1);
+    m->end = calloc(n1, sizeof *m->end);
+    m->part_first = calloc(MAP_PARTS + 1, sizeof *m->part_first);
+    m->part_failed = calloc(MAP_PARTS, 1);
+    if (!m->part_failed || !m->grid || !m->pix || !m->border || !m->seamed || !m->vfirst || !m->first || !m->end || !m->part_first)
         goto out_nomem;
-    }
-    for (size_t k = 0; k < n; k++)
-        if (!patch_grid(m, &patches[k], cam, &grid[k][0], &grid[k][1], &pix[k]))
-            grid[k][0] = 0;
-    if (seams && seam_grids(patches, n, seams, grid)) {
-        free(pix);
-        goto out_nomem;
-    }
     for (size_t k = 0; k < n; k++) {
+        if (!patch_grid(m, &patches[k], cam, &m->grid[k][0], &m->grid[k][1], &m->pix[k]))
+            m->grid[k][0] = m->grid[k][1] = 0;
         for (int e = 0; e < 4; e++)
             m->border[k][e] = SIZE_MAX;
-        if (grid[k][0] &&
-            add_patch(m, &patches[k], (int)k, cam, grid[k][0], grid[k][1], pix[k], &cap_v, &cap_t)) {
-            free(pix);
-            goto out_nomem;
-        }
     }
-    free(pix);
-    if (seams)
-        join_seams(m, n, seams);
-    /* bucket the triangles, nearest depth bound first, by the row tiles their padded boxes touch
-     * (counting sorts) */
-    unsigned *order = depth_order(m);
-    if (!order)
+    if (seams && seam_grids(patches, n, seams, m->grid))
         goto out_nomem;
-    /* each triangle's tiles, once and in storage order (the passes below read them in depth order) */
-    int (*tiles)[2] = malloc(sizeof *tiles * (m->n_tris ? m->n_tris : 1));
-    if (!tiles) {
-        free(order);
+    /* each patch's slots: its vertices, and room for every triangle and, at worst, every edge of
+     * its grid (what is not used stays untouched) */
+    size_t nv = 0, nt = 0;
+    for (size_t k = 0; k < n; k++) {
+        size_t gu = (size_t)m->grid[k][0], gv = (size_t)m->grid[k][1], nc = gu * gv;
+        m->vfirst[k] = nv, m->first[k] = m->end[k] = nt;
+        if (gu) {
+            nv += (gu + 1) * (gv + 1);
+            nt += 3 * nc + gu * (gv + 1) + gv * (gu + 1);
+        }
+    }
+    if (nv >= UINT_MAX || nt >= UINT_MAX || !(m->verts = malloc(sizeof *m->verts * (nv ? nv : 1))) ||
+        !(m->tris = malloc(sizeof *m->tris * (nt ? nt : 1))))
         goto out_nomem;
+    m->n_verts = nv, m->n_tris = nt;
+    /* parts of about nt / MAP_PARTS slots each */
+    size_t k = 0;
+    for (int p = 0; p < MAP_PARTS && k < n; p++) {
+        m->part_first[p] = k;
+        size_t goal = (size_t)((double)nt * (p + 1) / MAP_PARTS);
+        while (k < n && (m->first[k] < goal || p == MAP_PARTS - 1))
+            k++;
+        m->n_parts = p + 1;
     }
-    for (size_t k = 0; k < m->n_tris; k++) {
-        int x0, x1, y0, y1;
-        tri_bbox(m, &m->tris[k], &x0, &x1, &y0, &y1);
-        if (m->tris[k].gone)
-            x0 = 1, x1 = 0;
-        tiles[k][0] = x0 > x1 || y0 > y1 ? 1 : y0 / MAP_TILE_ROWS; /* (off the picture: none) */
-        tiles[k][1] = x0 > x1 || y0 > y1 ? 0 : y1 / MAP_TILE_ROWS;
-    }
-    size_t n_refs = 0;
-    for (int pass = 0; pass < 2; pass++) {
-        for (size_t o = 0; o < m->n_tris; o++) {
-            size_t k = order[o];
-            for (int t = tiles[k][0]; t <= tiles[k][1]; t++) {
-                if (pass == 0)
-                    m->tile_first[t + 2]++;
-                else
-                    m->tile_tris[m->tile_first[t + 1]++] = (unsigned)k;
-            }
-        }
-        if (pass == 0) {
-            for (int t = 0; t < n_tiles; t++)
-                m->tile_first[t + 2] += m->tile_first[t + 1];
-            n_refs = m->tile_first[n_tiles + 1];
-            if (!(m->tile_tris = malloc(sizeof *m->tile_tris * (n_refs ? n_refs : 1)))) {
-                free(order), free(tiles);
-                goto out_nomem;
-            }
-        }
-    }
-    free(order), free(tiles);
+    m->part_first[m->n_parts] = n;
     *out = m;
     return 0;
 
 out_nomem:
     map_free(m);
     return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
+}
+
+int map_parts(const struct map *m) { return m->n_parts; }
+
+int map_part(struct map *m, int part)
+{
+    size_t k0 = m->part_first[part], k1 = m->part_first[part + 1], most_c = 0, most_v = 0;
+    for (size_t k = k0; k < k1; k++) {
+        size_t nc = (size_t)m->grid[k][0] * m->grid[k][1], nv = (size_t)(m->grid[k][1] + 1) * (m->patches[k].q + 1);
+        most_c = nc > most_c ? nc : most_c;
+        most_v = nv > most_v ? nv : most_v;
+    }
+    struct grid_scratch sc = {malloc(2 * sizeof *sc.zc * (most_c + 1)), malloc(2 * most_c + 2),
+                              malloc(sizeof *sc.keep * (most_c + 1)), malloc(sizeof *sc.bv * (most_v + 1))};
+    int rc = sc.zc && sc.sg && sc.keep && sc.bv ? 0 : SF_ENOMEM;
+    for (size_t k = k0; k < k1 && !rc; k++)
+        if (m->grid[k][0])
+            add_patch(m, &m->patches[k], (int)k, &m->cam, &sc);
+    free(sc.zc), free(sc.sg), free(sc.keep), free(sc.bv);
+    m->part_failed[part] = rc != 0;
+    return rc;
+}
+
+int map_end(struct map *m, const struct bvh *seams, struct sf_err *err)
+{
+    const size_t n = m->n_patches;
+    const int n_tiles = (m->H + MAP_TILE_ROWS - 1) / MAP_TILE_ROWS;
+    for (int p = 0; p < m->n_parts; p++)
+        if (m->part_failed[p])
+            return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
+    if (seams)
+        join_seams(m, n, seams);
+    /* the primitives on the picture (a seam's edges that are no outline left out), each with its
+     * row tiles, bucketed nearest depth bound first (counting sorts) */
+    size_t live = 0;
+    for (size_t k = 0; k < n; k++)
+        live += m->end[k] - m->first[k];
+    uint64_t *a = malloc(sizeof *a * (live ? live : 1)), *b = malloc(sizeof *b * (live ? live : 1));
+    int(*tiles)[2] = malloc(sizeof *tiles * (live ? live : 1));
+    if (!a || !b || !tiles) {
+        free(a), free(b), free(tiles);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
+    }
+    live = 0;
+    for (size_t k = 0; k < n; k++)
+        for (size_t t = m->first[k]; t < m->end[k]; t++) {
+            int x0, x1, y0, y1;
+            tri_bbox(m, &m->tris[t], &x0, &x1, &y0, &y1);
+            if (m->tris[t].gone || x0 > x1 || y0 > y1)
+                continue;
+            uint32_t bits;
+            memcpy(&bits, &m->tris[t].zlo, sizeof bits);
+            tiles[live][0] = y0 / MAP_TILE_ROWS, tiles[live][1] = y1 / MAP_TILE_ROWS;
+            /* the bound's bits flipped so that unsigned order is float order; then where it is */
+            a[live] = (uint64_t)(bits & 0x80000000u ? ~bits : bits | 0x80000000u) << 32 | live;
+            for (int y = tiles[live][0]; y <= tiles[live][1]; y++)
+                m->tile_first[y + 2]++;
+            b[live++] = t;
+        }
+    /* b held each live primitive's index until sorted: keep them beside the order */
+    unsigned *prim = malloc(sizeof *prim * (live ? live : 1));
+    if (!prim) {
+        free(a), free(b), free(tiles);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
+    }
+    for (size_t k = 0; k < live; k++)
+        prim[k] = (unsigned)b[k];
+    uint64_t *order = depth_sort(a, b, live);
+    for (int t = 0; t < n_tiles; t++)
+        m->tile_first[t + 2] += m->tile_first[t + 1];
+    size_t n_refs = m->tile_first[n_tiles + 1];
+    if (!(m->tile_tris = malloc(sizeof *m->tile_tris * (n_refs ? n_refs : 1)))) {
+        free(a), free(b), free(tiles), free(prim);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
+    }
+    for (size_t o = 0; o < live; o++) {
+        size_t k = order[o] & 0xffffffffu;
+        for (int t = tiles[k][0]; t <= tiles[k][1]; t++)
+            m->tile_tris[m->tile_first[t + 1]++] = prim[k];
+    }
+    free(a), free(b), free(tiles), free(prim);
+    return 0;
+}
+
+int map_build(const struct patch *patches, size_t n, const struct bvh *seams, const struct camera *cam,
+              struct map **out, struct sf_err *err)
+{
+    int rc = map_begin(patches, n, seams, cam, out, err);
+    for (int p = 0; !rc && p < (*out)->n_parts; p++)
+        map_part(*out, p);
+    if (!rc)
+        rc = map_end(*out, seams, err);
+    if (rc) {
+        map_free(*out);
+        *out = NULL;
+    }
+    return rc;
 }

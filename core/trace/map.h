@@ -36,10 +36,19 @@ struct map_tri;
 struct map {
     int W, H;
     bool complete;           /* false: some patch crosses the eye plane; trust no pixel */
-    /* the projected tessellation, bucketed by tiles of MAP_TILE_ROWS rows */
+    struct camera cam;
+    const struct patch *patches; /* borrowed from map_begin to map_end */
+    size_t n_patches;
+    /* the projected tessellation, bucketed by tiles of MAP_TILE_ROWS rows: patch k's vertices
+     * from vfirst[k], its primitives in [first[k], end[k]) (slots up to first[k + 1]) */
     struct map_vert *verts;
     struct map_tri *tris;
-    size_t n_verts, n_tris;
+    size_t n_verts, n_tris;  /* slots */
+    size_t *vfirst, *first, *end;
+    double *pix;             /* per patch: a pixel's world size at its nearest depth */
+    int n_parts;             /* the tessellation's parts: patches [part_first[p], part_first[p + 1]) */
+    size_t *part_first;
+    unsigned char *part_failed; /* per part: out of memory (map_end answers so) */
     unsigned *tile_first;    /* n_tiles + 1 offsets into tile_tris */
     unsigned *tile_tris;
     /* per patch: its grid (u, v counts; 0, 0: left out), the index in tris of each border edge's
@@ -66,9 +75,19 @@ struct map_rows {
 
 /* Tessellates and projects the patches and buckets the triangles by row tiles; no pixel is
  * written yet. seams (may be NULL: every border an outline): the hierarchy whose bvh_seam says
- * which patches share an edge. */
+ * which patches share an edge. map_build() is the three steps below on one thread:
+ *   map_begin()  each patch's grid for the camera, and room for its tessellation
+ *   map_part()   tessellates part p of map_parts(): distinct parts on any threads at once
+ *   map_end()    after every part: the seams joined, the primitives bucketed by tiles
+ * The patches and seams are borrowed until map_end; map_free() at any step. */
 int map_build(const struct patch *patches, size_t n, const struct bvh *seams, const struct camera *cam,
               struct map **out, struct sf_err *err);
+int map_begin(const struct patch *patches, size_t n, const struct bvh *seams, const struct camera *cam,
+              struct map **out, struct sf_err *err);
+int map_parts(const struct map *m);
+/* 0 or SF_ENOMEM (the map is then of no use: map_free it). */
+int map_part(struct map *m, int p);
+int map_end(struct map *m, const struct bvh *seams, struct sf_err *err);
 /* Fills rw (growing its buffers as needed) with the candidates of rows [y0, y1). The map is
  * only read, so threads may fill their own rows from one map at once. 0 or SF_ENOMEM. */
 int map_raster_rows(const struct map *m, int y0, int y1, struct map_rows *rw);

@@ -43,7 +43,7 @@ struct frame {
     struct bvh *exact, *mesh;
     const struct trimesh **meshes; /* the scene's triangle meshes, for the hierarchy */
     struct map *map;
-    double prepare_ms;
+    double t0, prepare_ms;  /* when its preparation began; how long it took, to frame_end */
     float *rgba, *depth, *normal, *uv, *id;
     unsigned char *srgb8;     /* srgb8_only: the picture, in place of rgba and depth */
     struct srgb_table *srgb;
@@ -173,9 +173,9 @@ static int resolve_lights(struct frame *fr)
 #define FRAME_MAX_EYE 1e17
 #define AUTO_MAP_PIXELS_PER_PATCH 64 /* frame pixels per patch below which auto leaves the map out */
 
-/* The view's part of a frame whose hierarchy is in place: camera, lights, buffers, the map.
- * Frees fr on failure. */
-static int frame_view(struct frame *fr, double t0, struct frame **out, struct sf_err *err)
+/* The view's part of a frame whose hierarchy is in place: camera, lights, buffers, the map begun
+ * (whole: finished too). Frees fr on failure. */
+static int frame_view(struct frame *fr, bool whole, struct frame **out, struct sf_err *err)
 {
     const struct scene *sc = fr->sc;
     int rc = 0;
@@ -221,12 +221,15 @@ static int frame_view(struct frame *fr, double t0, struct frame **out, struct sf
                       (sc->method == METHOD_MAP ||
                        (sc->method == METHOD_AUTO && fr->ps.n * AUTO_MAP_PIXELS_PER_PATCH <= np));
     if (map_wanted)
-        rc = map_build(fr->ps.patches, fr->ps.n, fr->exact, &fr->cam, &fr->map, err);
+        rc = map_begin(fr->ps.patches, fr->ps.n, fr->exact, &fr->cam, &fr->map, err);
+    for (int p = 0; !rc && whole && p < frame_parts(fr); p++)
+        frame_part(fr, p);
+    if (!rc && whole)
+        rc = frame_end(fr, err);
     if (rc) {
         frame_free(fr);
         return rc;
     }
-    fr->prepare_ms = now_ms() - t0;
     *out = fr;
     return 0;
 
@@ -235,7 +238,18 @@ out_fail_mem:
     return sf_fail(err, SF_ENOMEM, "", "out of memory preparing the frame");
 }
 
-int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame **out, struct sf_err *err)
+int frame_parts(const struct frame *fr) { return fr->map ? map_parts(fr->map) : 0; }
+
+void frame_part(struct frame *fr, int p) { map_part(fr->map, p); }
+
+int frame_end(struct frame *fr, struct sf_err *err)
+{
+    int rc = fr->map ? map_end(fr->map, fr->exact, err) : 0;
+    fr->prepare_ms = now_ms() - fr->t0;
+    return rc;
+}
+
+static int prepare(const struct scene *sc, struct bvh_device *dev, bool whole, struct frame **out, struct sf_err *err)
 {
     double t0 = now_ms();
     *out = NULL;
@@ -246,6 +260,7 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
     if (!fr)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     fr->sc = sc;
+    fr->t0 = t0;
     if ((rc = scene_patches(sc, &fr->ps, err))) {
         free(fr);
         return rc;
@@ -286,10 +301,21 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
         frame_free(fr);
         return rc;
     }
-    return frame_view(fr, t0, out, err);
+    return frame_view(fr, whole, out, err);
 }
 
-int frame_prepare_from(const struct scene *sc, const struct frame *base, struct frame **out, struct sf_err *err)
+int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame **out, struct sf_err *err)
+{
+    return prepare(sc, dev, true, out, err);
+}
+
+int frame_begin(const struct scene *sc, struct bvh_device *dev, struct frame **out, struct sf_err *err)
+{
+    return prepare(sc, dev, false, out, err);
+}
+
+static int prepare_from(const struct scene *sc, const struct frame *base, bool whole, struct frame **out,
+                        struct sf_err *err)
 {
     double t0 = now_ms();
     *out = NULL;
@@ -305,10 +331,21 @@ int frame_prepare_from(const struct scene *sc, const struct frame *base, struct 
     if (!fr)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     fr->sc = sc;
+    fr->t0 = t0;
     fr->borrowed = true; /* the base's patches, bounds and hierarchies: read-only, shared */
     fr->ps = base->ps, fr->lo = base->lo, fr->hi = base->hi, fr->diag = base->diag, fr->tol2 = base->tol2;
     fr->exact = base->exact, fr->mesh = base->mesh, fr->meshes = base->meshes;
-    return frame_view(fr, t0, out, err);
+    return frame_view(fr, whole, out, err);
+}
+
+int frame_prepare_from(const struct scene *sc, const struct frame *base, struct frame **out, struct sf_err *err)
+{
+    return prepare_from(sc, base, true, out, err);
+}
+
+int frame_begin_from(const struct scene *sc, const struct frame *base, struct frame **out, struct sf_err *err)
+{
+    return prepare_from(sc, base, false, out, err);
 }
 
 size_t frame_hierarchy_bytes(const struct frame *fr)
