@@ -2,6 +2,7 @@
  * image.h for why it is not linked. One pthread_once: every thread that asks waits for the
  * one load and sees its outcome. */
 #include "image.h"
+#include "png.h"
 
 #include <dlfcn.h>
 #include <limits.h>
@@ -87,6 +88,8 @@ int image_encode(const struct frame_image *img, enum image_format fmt, unsigned 
 {
     *out = NULL;
     *out_len = 0;
+    if (fmt == IMG_PNG && img->srgb8) /* by hand, without the library (png.h) */
+        return png_encode(img->srgb8, img->width, img->height, out, out_len, err);
     int rc = image_init(err);
     return rc ? rc : encode_fn(img, fmt, out, out_len, err);
 }

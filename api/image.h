@@ -1,5 +1,6 @@
 /* image.h - a rendered frame as image-file bytes in memory (PNG 8-bit sRGB, EXR float32 with
- * depth and AOVs, TIFF 16-bit), through OpenImageIO behind image_oiio.cpp.
+ * depth and AOVs, TIFF 16-bit), through OpenImageIO behind image_oiio.cpp; PNG from the 8-bit
+ * picture (srgb8_only) by png.h, without it.
  *
  * OpenImageIO as Debian builds it pulls in some 260 shared libraries (openvdb, gdal, opencv,
  * poppler...) holding 70-90 MB of a process's resident memory, which a node that only extracts

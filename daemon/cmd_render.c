@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "../api/image.h"
+#include "../api/png.h"
 #include "../api/render_request.h"
 #include "../api/scene_io.h"
 #include "../core/trace/render.h"
@@ -20,10 +21,13 @@
 
 #define BAND_ROWS 16 /* rows per band: one map tile (MAP_TILE_ROWS); 64 bands balance two cores at 1024 rows */
 
+/* What the threads share out, item by item: the map's parts, the frame's bands or the PNG's. */
 struct band_work {
+    enum { PARTS, BANDS, DEFLATE } what;
+    int n, step;
     struct frame *fr;
     int height;
-    int parts;      /* > 0: the threads tessellate the frame's map (frame_part), not its bands */
+    struct png_bands *png;
     atomic_int next;
     pthread_mutex_t lock;
     struct render_stats total;
@@ -33,18 +37,30 @@ static void *band_worker(void *arg)
 {
     struct band_work *w = arg;
     struct render_stats st = {0};
-    for (int p; w->parts && (p = atomic_fetch_add(&w->next, 1)) < w->parts;)
-        frame_part(w->fr, p);
-    for (; !w->parts;) {
-        int y0 = atomic_fetch_add(&w->next, BAND_ROWS);
-        if (y0 >= w->height)
-            break;
-        frame_band(w->fr, y0, y0 + BAND_ROWS < w->height ? y0 + BAND_ROWS : w->height, &st);
+    for (int k; (k = atomic_fetch_add(&w->next, 1)) < w->n;) {
+        if (w->what == PARTS)
+            frame_part(w->fr, w->step, k);
+        else if (w->what == DEFLATE)
+            png_band(w->png, k);
+        else
+            frame_band(w->fr, k * BAND_ROWS, (k + 1) * BAND_ROWS < w->height ? (k + 1) * BAND_ROWS : w->height, &st);
     }
     pthread_mutex_lock(&w->lock);
     render_stats_add(&w->total, &st);
     pthread_mutex_unlock(&w->lock);
     return NULL;
+}
+
+/* w's items on n_threads threads (this one among them). */
+static void share_out(struct band_work *w, int n_threads)
+{
+    pthread_t tid[256];
+    atomic_init(&w->next, 0);
+    for (int k = 1; k < n_threads && k < w->n; k++)
+        pthread_create(&tid[k], NULL, band_worker, w);
+    band_worker(w);
+    for (int k = 1; k < n_threads && k < w->n; k++)
+        pthread_join(tid[k], NULL);
 }
 
 static double now_ms(void)
@@ -227,16 +243,11 @@ int cmd_render(int argc, char **argv)
 
     struct bvh_device *dev = bvh_device_new(threads, &err);
     struct frame *fr = NULL;
-    pthread_t tid[256];
     int n_threads = threads > 256 ? 256 : threads;
     if (dev && (rc = frame_begin(&sc, dev, &fr, &err)) == 0) {
-        struct band_work parts = {.fr = fr, .parts = frame_parts(fr)};
-        atomic_init(&parts.next, 0);
-        for (int k = 1; k < n_threads && parts.parts; k++)
-            pthread_create(&tid[k], NULL, band_worker, &parts);
-        band_worker(&parts);
-        for (int k = 1; k < n_threads && parts.parts; k++)
-            pthread_join(tid[k], NULL);
+        struct band_work parts = {.what = PARTS, .n = frame_parts(fr), .fr = fr, .lock = PTHREAD_MUTEX_INITIALIZER};
+        for (; parts.step < frame_steps(fr); parts.step++)
+            share_out(&parts, n_threads);
         if ((rc = frame_end(fr, &err)))
             frame_free(fr);
     }
@@ -247,7 +258,7 @@ int cmd_render(int argc, char **argv)
         return 1;
     }
     double i0 = now_ms();
-    if (image_init(&err)) { /* a daemon pays this once: keep it out of encode_ms */
+    if (img_fmt != IMG_PNG && image_init(&err)) { /* a daemon pays this once: keep it out of encode_ms */
         fprintf(stderr, "surfd: %s\n", err.message);
         frame_free(fr);
         bvh_device_free(dev);
@@ -255,14 +266,10 @@ int cmd_render(int argc, char **argv)
         return 1;
     }
     double init_ms = now_ms() - i0;
-    struct band_work w = {.fr = fr, .height = sc.height, .lock = PTHREAD_MUTEX_INITIALIZER};
-    atomic_init(&w.next, 0);
+    struct band_work w = {.what = BANDS, .n = (sc.height + BAND_ROWS - 1) / BAND_ROWS, .fr = fr, .height = sc.height,
+                          .lock = PTHREAD_MUTEX_INITIALIZER};
     double t0 = now_ms();
-    for (int k = 1; k < n_threads; k++)
-        pthread_create(&tid[k], NULL, band_worker, &w);
-    band_worker(&w);
-    for (int k = 1; k < n_threads; k++)
-        pthread_join(tid[k], NULL);
+    share_out(&w, n_threads);
     double render_ms = now_ms() - t0;
 
     struct frame_image img;
@@ -270,7 +277,15 @@ int cmd_render(int argc, char **argv)
     unsigned char *bytes = NULL;
     size_t n_bytes = 0;
     double e0 = now_ms();
-    rc = image_encode(&img, img_fmt, &bytes, &n_bytes, &err);
+    struct band_work deflate = {.what = DEFLATE, .png = img_fmt == IMG_PNG ? png_bands_new(img.srgb8, img.width, img.height, BAND_ROWS) : NULL};
+    if (deflate.png) { /* the PNG deflated by bands on the threads (png.h) */
+        deflate.n = png_bands_n(deflate.png);
+        share_out(&deflate, n_threads);
+        rc = png_join(deflate.png, &bytes, &n_bytes, &err);
+        png_bands_free(deflate.png);
+    } else {
+        rc = image_encode(&img, img_fmt, &bytes, &n_bytes, &err);
+    }
     double encode_ms = now_ms() - e0;
     if (!rc) {
         FILE *f = fopen(out, "wb");

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "../api/image.h"
+#include "../api/png.h"
 #include "../api/render_request.h"
 #include "../core/trace/map.h"
 #include "../core/trace/render.h"
@@ -28,11 +29,13 @@ struct render_work {
     enum image_format fmt;
     struct frame *fr;
     struct frame_entry *cached; /* a model's view: its objects and hierarchy, the cache's */
-    bool tessellating;          /* the first phase: the frame's map in parts (frame_part) */
+    enum { PREPARE, RENDER, DEFLATE } phase; /* the map's parts, the frame's bands, a PNG's bands */
+    int step;                                /* of the frame's preparation (frame_part) */
     int n_bands;
     atomic_int bands_done;
+    struct png_bands *png;
     struct render_stats *band_stats; /* one per band: bands never share a counter */
-    double t0;
+    double at[5]; /* monotonic s: prepare begun, frame begun, bands begun, bands done, PNG done */
     struct sf_err err;
 };
 
@@ -112,12 +115,12 @@ static int begin_bands(struct render_work *w, int *n_bands)
 {
     if (frame_end(w->fr, &w->err))
         return -1;
-    w->tessellating = false;
+    w->phase = RENDER;
     w->n_bands = (w->sc.height + JOB_BAND_ROWS - 1) / JOB_BAND_ROWS;
     w->band_stats = calloc((size_t)w->n_bands, sizeof *w->band_stats);
     if (!w->band_stats)
         return sf_fail(&w->err, SF_ENOMEM, "", "out of memory"), -1;
-    w->t0 = monotonic_s();
+    w->at[2] = monotonic_s();
     *n_bands = w->n_bands;
     return 0;
 }
@@ -126,6 +129,8 @@ static int prepare(struct job *j, void *arg, int *n_bands)
 {
     (void)j;
     struct render_work *w = arg;
+    w->at[0] = monotonic_s();
+    LOG(LOG_INFO, "T prepare %.3f", monotonic_s()*1e3);
     struct job_rec rec;
     if (store_get(w->svc->store, w->claim.id, true, false, &rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
@@ -145,22 +150,26 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     store_rec_free(&rec);
     if (rc)
         return -1;
-    /* the map's tessellation by every idle worker (the heart's: 19 ms on one), then the bands */
-    if ((*n_bands = frame_parts(w->fr)) > 0)
-        return w->tessellating = true, 0;
+    w->at[1] = monotonic_s();
+    /* the map's parts by every idle worker (the heart's: 19 ms on one), then the bands */
+    if (frame_steps(w->fr) > 0)
+        return *n_bands = frame_parts(w->fr), w->phase = PREPARE, 0;
     return begin_bands(w, n_bands);
 }
 
 static void band(struct job *j, void *arg, int k)
 {
     struct render_work *w = arg;
-    if (w->tessellating) {
-        frame_part(w->fr, k);
+    if (w->phase != RENDER) {
+        if (w->phase == PREPARE)
+            frame_part(w->fr, w->step, k);
+        else
+            png_band(w->png, k);
         return;
     }
     int y0 = k * JOB_BAND_ROWS, y1 = y0 + JOB_BAND_ROWS < w->sc.height ? y0 + JOB_BAND_ROWS : w->sc.height;
     frame_band(w->fr, y0, y1, &w->band_stats[k]);
-    jobq_cancelled(w->svc->q, j, (double)(atomic_fetch_add(&w->bands_done, 1) + 1) / w->n_bands);
+    jobq_cancelled(w->svc->q, j, 0.95 * (atomic_fetch_add(&w->bands_done, 1) + 1) / w->n_bands); /* then the PNG */
 }
 
 static int next(struct job *j, void *arg, int *n_bands)
@@ -168,7 +177,22 @@ static int next(struct job *j, void *arg, int *n_bands)
     (void)j;
     struct render_work *w = arg;
     *n_bands = 0;
-    return w->tessellating ? begin_bands(w, n_bands) : 0;
+    if (w->phase == PREPARE && ++w->step < frame_steps(w->fr))
+        return *n_bands = frame_parts(w->fr), 0;
+    if (w->phase == PREPARE)
+        return begin_bands(w, n_bands);
+    if (w->phase == RENDER) {
+        w->at[3] = monotonic_s();
+        if (w->fmt == IMG_PNG) { /* deflated by bands on every idle worker (png.h) */
+            struct frame_image img;
+            frame_image(w->fr, &img);
+            if (!(w->png = png_bands_new(img.srgb8, img.width, img.height, JOB_BAND_ROWS)))
+                return sf_fail(&w->err, SF_ENOMEM, "", "out of memory"), -1;
+            w->phase = DEFLATE;
+            *n_bands = png_bands_n(w->png);
+        }
+    }
+    return 0;
 }
 
 static void finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
@@ -179,22 +203,28 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     size_t n = 0;
     char meta[160] = "";
     if (outcome == JOB_SUCCEEDED) {
-        double render_s = monotonic_s() - w->t0;
+        double render_s = w->at[3] - w->at[2];
         struct render_stats total = {0};
         for (int k = 0; k < w->n_bands; k++)
             render_stats_add(&total, &w->band_stats[k]);
         struct frame_image img;
         frame_image(w->fr, &img);
-        if (image_encode(&img, w->fmt, &bytes, &n, &w->err) == 0) {
-            snprintf(meta, sizeof meta, "{\"render_ms\":%.1f,\"prepare_ms\":%.1f,\"rays\":%ld}", render_s * 1e3,
-                     frame_prepare_ms(w->fr), total.rays);
+        if ((w->png ? png_join(w->png, &bytes, &n, &w->err) : image_encode(&img, w->fmt, &bytes, &n, &w->err)) == 0) {
+            snprintf(meta, sizeof meta, "{\"render_ms\":%.1f,\"prepare_ms\":%.1f,\"rays\":%ld}",
+                     render_s * 1e3, frame_prepare_ms(w->fr), total.rays);
             metrics_render(render_s, total.rays);
+            w->at[4] = monotonic_s();
+            LOG(LOG_DEBUG, "job %s: %.1f ms to read and begin the frame, %.1f to finish its map, %.1f to render, "
+                "%.1f to encode", w->claim.id, 1e3 * (w->at[1] - w->at[0]), 1e3 * (w->at[2] - w->at[1]),
+                1e3 * render_s, 1e3 * (w->at[4] - w->at[3]));
         } else {
             outcome = JOB_FAILED;
         }
     }
     service_job_end(w->svc, &w->claim, outcome, requeue, bytes, n, image_format_mime(w->fmt), meta, &w->err);
+    LOG(LOG_INFO, "T job_end %.3f", monotonic_s()*1e3);
     free(bytes);
+    png_bands_free(w->png);
     frame_free(w->fr);
     if (w->have_scene)
         scene_free(&w->sc);

@@ -213,6 +213,25 @@ void bezier_split_v(const struct patch *pt, double t, double (*lo)[4], double (*
     }
 }
 
+double bezier_net_curvature(const struct patch *pt, int dir)
+{
+    int p = pt->p, q = pt->q, n = dir ? q : p;
+    if (n < 2)
+        return 0.0;
+    double m = 0.0;
+    for (int i = 0; i <= p; i++)
+        for (int j = 0; j <= q; j++) {
+            if ((dir == 0 && i + 2 > p) || (dir == 1 && j + 2 > q))
+                continue;
+            vec3 a = bezier_point(pt, i, j);
+            vec3 b = dir ? bezier_point(pt, i, j + 1) : bezier_point(pt, i + 1, j);
+            vec3 c = dir ? bezier_point(pt, i, j + 2) : bezier_point(pt, i + 2, j);
+            m = fmax(m, v3_len(v3_add(v3_sub(a, v3_scale(b, 2.0)), c)));
+        }
+    /* rational patches: the Euclidean net is only a guide, so take a safety factor of 2 */
+    return m * n * (n - 1) * (pt->rational ? 2.0 : 1.0);
+}
+
 void bezier_second_bounds(struct patch *pt)
 {
     static const double DIFF[3][3] = {{1, 0, 0}, {-1, 1, 0}, {1, -2, 1}}; /* forward differences */
@@ -239,6 +258,8 @@ void bezier_second_bounds(struct patch *pt)
     pt->d2 = d2;
     pt->d2w = d2w;
     pt->wmin = wmin;
+    pt->curv[0] = bezier_net_curvature(pt, 0);
+    pt->curv[1] = bezier_net_curvature(pt, 1);
 }
 
 void bezier_bounds(const struct patch *pt, vec3 *lo, vec3 *hi)

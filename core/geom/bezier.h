@@ -26,6 +26,7 @@ struct patch {
      * 0: not set): |second partial| of the homogeneous x·w, y·w, z·w (d2) and of w (d2w), and
      * the least weight */
     double d2, d2w, wmin;
+    double curv[2]; /* set with them: bezier_net_curvature along u and v (a tessellation's chord bound) */
 };
 
 /* Bernstein basis of degree n at t and its derivative: B[0..n], dB[0..n] (dB may be NULL). */
@@ -54,6 +55,10 @@ void bezier_bounds(const struct patch *pt, vec3 *lo, vec3 *hi);
  * Bézier patch is a convex combination of them, times the degrees). They bound the Taylor
  * remainder of a Newton step, so a solver can accept a step without evaluating its end. */
 void bezier_second_bounds(struct patch *pt);
+/* The largest second difference of the Euclidean control net along u (dir 0) or v, times
+ * n (n - 1) for degree n there (twice that for rational patches): the tessellation's bound on a
+ * chord's distance from the surface (tess.h). */
+double bezier_net_curvature(const struct patch *pt, int dir);
 
 /* Whether the patch's point (u, v) lies in its object's trim region. */
 static inline bool bezier_kept(const struct patch *pt, double u, double v)

@@ -9,24 +9,10 @@
 
 #include "../base/mem.h"
 
-/* max |Δ²P| along u (dir 0) or v (dir 1) of the Euclidean control net, times p(p-1) */
+/* bezier_net_curvature, as bezier_second_bounds keeps it where it ran (wmin set) */
 static double second_diff(const struct patch *pt, int dir)
 {
-    int p = pt->p, q = pt->q, n = dir ? q : p;
-    if (n < 2)
-        return 0.0;
-    double m = 0.0;
-    for (int i = 0; i <= p; i++)
-        for (int j = 0; j <= q; j++) {
-            if ((dir == 0 && i + 2 > p) || (dir == 1 && j + 2 > q))
-                continue;
-            vec3 a = bezier_point(pt, i, j);
-            vec3 b = dir ? bezier_point(pt, i, j + 1) : bezier_point(pt, i + 1, j);
-            vec3 c = dir ? bezier_point(pt, i, j + 2) : bezier_point(pt, i + 2, j);
-            m = fmax(m, v3_len(v3_add(v3_sub(a, v3_scale(b, 2.0)), c)));
-        }
-    /* rational patches: the Euclidean net is only a guide, so take a safety factor of 2 */
-    return m * n * (n - 1) * (pt->rational ? 2.0 : 1.0);
+    return pt->wmin > 0.0 ? pt->curv[dir] : bezier_net_curvature(pt, dir);
 }
 
 void tess_grid_size(const struct patch *pt, double tol, int max_side, int *n_u, int *n_v)

@@ -51,6 +51,7 @@ struct map_tri {           /* a triangle, or (v[2] == EDGE) a padded outline edg
     bool fold;            /* an outline edge inside the grid (where the surface turns away), not its border */
     signed char turn;     /* a border edge: the turn on screen of the triangle inside it */
     bool gone;            /* a seam's border edge where both sides turn alike: no outline */
+    short box[4];         /* its pixel centres x0, x1, y0, y1, padding in (x0 > x1 or y0 > y1: none) */
 };
 
 #define EDGE UINT_MAX
@@ -70,10 +71,16 @@ void map_free(struct map *m)
     free(m->end);
     free(m->part_first);
     free(m->part_failed);
+    for (int p = 0; m->part_keys && p < m->n_parts; p++)
+        free(m->part_keys[p]);
+    free(m->part_keys);
+    free(m->part_hist);
     free(m->border);
     free(m->seamed);
-    free(m->tile_first);
-    free(m->tile_tris);
+    for (int y = 0; m->tile_list && y < m->n_tiles; y++)
+        free(m->tile_list[y]);
+    free(m->tile_list);
+    free(m->tile_n);
     free(m);
 }
 
@@ -133,18 +140,25 @@ static bool culled(struct map_rows *rw, size_t idx, float zlo)
     return true;
 }
 
-static void tri_bbox(const struct map *m, const struct map_tri *t, int *x0, int *x1, int *y0, int *y1)
+/* floor(x) (ceil: up) clamped to [-1, n]: off the picture either side stays off it */
+static inline int pixel_of(double x, int n, bool up)
+{
+    x = x >= -1.0 ? (x <= n ? x : n) : -1.0; /* (NaN: -1) */
+    int i = (int)x;
+    return up ? i + (i < x) : i - (i > x);
+}
+
+/* t's box of pixel centres, its padding in (x0 > x1 or y0 > y1: off the picture). */
+static void tri_box(const struct map *m, struct map_tri *t)
 {
     const struct map_vert *a = &m->verts[t->v[0]], *b = &m->verts[t->v[1]];
     const struct map_vert *c = t->v[2] == EDGE ? b : &m->verts[t->v[2]];
-    *x0 = (int)floor(dmin(a->x, dmin(b->x, c->x)) - t->pad);
-    *x1 = (int)ceil(dmax(a->x, dmax(b->x, c->x)) + t->pad);
-    *y0 = (int)floor(dmin(a->y, dmin(b->y, c->y)) - t->pad);
-    *y1 = (int)ceil(dmax(a->y, dmax(b->y, c->y)) + t->pad);
-    *x0 = *x0 < 0 ? 0 : *x0;
-    *y0 = *y0 < 0 ? 0 : *y0;
-    *x1 = *x1 > m->W - 1 ? m->W - 1 : *x1;
-    *y1 = *y1 > m->H - 1 ? m->H - 1 : *y1;
+    int x0 = pixel_of(dmin(a->x, dmin(b->x, c->x)) - t->pad, m->W, false);
+    int x1 = pixel_of(dmax(a->x, dmax(b->x, c->x)) + t->pad, m->W, true);
+    int y0 = pixel_of(dmin(a->y, dmin(b->y, c->y)) - t->pad, m->H, false);
+    int y1 = pixel_of(dmax(a->y, dmax(b->y, c->y)) + t->pad, m->H, true);
+    t->box[0] = (short)(x0 < 0 ? 0 : x0), t->box[1] = (short)(x1 > m->W - 1 ? m->W - 1 : x1);
+    t->box[2] = (short)(y0 < 0 ? 0 : y0), t->box[3] = (short)(y1 > m->H - 1 ? m->H - 1 : y1);
 }
 
 /* Marks every pixel centre of rows [y0, y1] within t->pad of the edge t->v[0]-t->v[1]. */
@@ -259,13 +273,10 @@ int map_raster_rows(const struct map *m, int y0, int y1, struct map_rows *rw)
     for (int tile = y0 / MAP_TILE_ROWS; tile * MAP_TILE_ROWS < y1; tile++) {
         int lo = tile * MAP_TILE_ROWS > y0 ? tile * MAP_TILE_ROWS : y0;
         int hi = (tile + 1) * MAP_TILE_ROWS < y1 ? (tile + 1) * MAP_TILE_ROWS : y1;
-        for (unsigned k = m->tile_first[tile]; k < m->tile_first[tile + 1]; k++) {
-            const struct map_tri *t = &m->tris[m->tile_tris[k]];
-            int x0, x1, ya, yb;
-            tri_bbox(m, t, &x0, &x1, &ya, &yb);
-            ya = ya < lo ? lo : ya;
-            yb = yb > hi - 1 ? hi - 1 : yb;
-            (t->v[2] == EDGE ? raster_edge : raster_tri)(m, rw, t, x0, x1, ya, yb);
+        for (unsigned k = 0; k < m->tile_n[tile]; k++) {
+            const struct map_tri *t = &m->tris[m->tile_list[tile][k]];
+            int ya = t->box[2] < lo ? lo : t->box[2], yb = t->box[3] > hi - 1 ? hi - 1 : t->box[3];
+            (t->v[2] == EDGE ? raster_edge : raster_tri)(m, rw, t, t->box[0], t->box[1], ya, yb);
         }
     }
     return 0;
@@ -422,13 +433,13 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
             unsigned a = VTX(i, j), b = VTX(i + 1, j);
             const unsigned tri[2][3] = {{a, b, b + 1}, {a, b + 1, a + 1}};
             for (int k = 0; k < 2 && keep[CELL(i, j)]; k++)
-                m->tris[nt++] = (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)], false, 0, false};
+                m->tris[nt++] = (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)], false, 0, false, {0}};
         }
     /* the outline: the grid's border, and every edge whose two triangles turn different ways
      * (or either none) on screen; s0, s1 are the turns on either side (0 where there is none) */
 #define OUTLINE(v0, v1, s0, s1, z, inside)                                                         \
     if (((s0) == 0 || (s0) != (s1)) && (z) < INFINITY)                                          \
-        m->tris[nt++] = (struct map_tri){{(v0), (v1), EDGE}, index, pad, (z), (inside), 0, false};
+        m->tris[nt++] = (struct map_tri){{(v0), (v1), EDGE}, index, pad, (z), (inside), 0, false, {0}};
     for (int i = 0; i < gu; i++)
         for (int j = 0; j < gv; j++) /* the diagonal a-(b+1) between a cell's two triangles */
             OUTLINE(VTX(i, j), VTX(i + 1, j + 1), sg[2 * CELL(i, j)], sg[2 * CELL(i, j) + 1], zlo[CELL(i, j)], true);
@@ -453,7 +464,7 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
             unsigned v0 = e < 2 ? VTX(i + (e == 1), k) : VTX(k, j + (e == 3));
             unsigned v1 = e < 2 ? VTX(i + (e == 1), k + 1) : VTX(k + 1, j + (e == 3));
             if (zlo[c] < INFINITY)
-                m->tris[nt++] = (struct map_tri){{v0, v1, EDGE}, index, pad, zlo[c], false, (signed char)turn, false};
+                m->tris[nt++] = (struct map_tri){{v0, v1, EDGE}, index, pad, zlo[c], false, (signed char)turn, false, {0}};
             else
                 m->border[index][e] = SIZE_MAX; /* a segment left out: the edge's run is not whole */
         }
@@ -461,6 +472,8 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
 #undef OUTLINE
 #undef CELL
 #undef VTX
+    for (size_t t = m->first[index]; t < nt; t++)
+        tri_box(m, &m->tris[t]);
     m->end[index] = nt;
 }
 
@@ -531,28 +544,110 @@ static int seam_grids(const struct patch *patches, size_t n, const struct bvh *s
     return 0;
 }
 
-/* Each seam's border edges, segment by segment: where the triangles either side turn alike on
- * screen the two patches go on as one surface there, and the edges are no outline (gone); where
- * they do not, the surface folds there, and both are outline inside the pair's grid (fold). */
-static void join_seams(struct map *m, size_t n, const struct bvh *seams)
+/* Patch k's seams' border edges, segment by segment, against its neighbours' (every patch
+ * tessellated): where the triangles either side turn alike on screen the two patches go on as one
+ * surface there, and k's edges are no outline (gone); where they do not, the surface folds there,
+ * and they are outline inside the pair's grid (fold). Each side decides its own edges alike. */
+static void join_seams(struct map *m, size_t k)
 {
-    for (size_t k = 0; k < n; k++)
-        for (int e = 1; e < 4; e += 2) {
-            int o = bvh_seam(seams, (int)k, e);
-            if (o < 0 || m->border[k][e] == SIZE_MAX || m->border[o][e - 1] == SIZE_MAX)
-                continue;
-            const int n_seg = m->grid[k][e < 2];
-            if (n_seg != m->grid[o][e < 2])
-                continue; /* counts MAP_SEAM_GROW kept apart: the seam stays an outline */
-            struct map_tri *a = &m->tris[m->border[k][e]], *b = &m->tris[m->border[o][e - 1]];
-            for (int s = 0; s < n_seg; s++) {
-                bool alike = a[s].turn != 0 && a[s].turn == b[s].turn;
-                a[s].gone = b[s].gone = alike;
-                a[s].fold = b[s].fold = !alike;
-                m->seamed[k] |= alike;
-                m->seamed[o] |= alike;
-            }
+    for (int e = 0; e < 4; e++) {
+        int o = bvh_seam(m->seams, (int)k, e);
+        if (o < 0 || m->border[k][e] == SIZE_MAX || m->border[o][e ^ 1] == SIZE_MAX)
+            continue;
+        const int n_seg = m->grid[k][e < 2];
+        if (n_seg != m->grid[o][e < 2])
+            continue; /* counts MAP_SEAM_GROW kept apart: the seam stays an outline */
+        struct map_tri *a = &m->tris[m->border[k][e]];
+        const struct map_tri *b = &m->tris[m->border[o][e ^ 1]];
+        for (int s = 0; s < n_seg; s++) {
+            bool alike = a[s].turn != 0 && a[s].turn == b[s].turn;
+            a[s].gone = alike;
+            a[s].fold = !alike;
+            m->seamed[k] |= alike;
         }
+    }
+}
+
+/* The bound's bits flipped so that unsigned order is float order, above primitive t's index. */
+static uint64_t depth_key(const struct map_tri *tri, size_t t)
+{
+    uint32_t bits;
+    memcpy(&bits, &tri->zlo, sizeof bits);
+    return (uint64_t)(bits & 0x80000000u ? ~bits : bits | 0x80000000u) << 32 | t;
+}
+
+/* Step 1 of part p: its patches' seams joined, and its primitives on the picture (a seam's edges
+ * that are no outline left out) as depth keys grouped by the row tiles they touch, with how many
+ * each tile has (a primitive over several tiles is in each). */
+static int part_keys(struct map *m, int p)
+{
+    const size_t k0 = m->part_first[p], k1 = m->part_first[p + 1];
+    unsigned *hist = m->part_hist + (size_t)p * m->n_tiles;
+    for (size_t k = k0; k < k1; k++) {
+        if (m->seams && m->grid[k][0])
+            join_seams(m, k);
+        for (size_t t = m->first[k]; t < m->end[k]; t++) {
+            const short *box = m->tris[t].box;
+            if (!m->tris[t].gone && box[0] <= box[1] && box[2] <= box[3])
+                for (int y = box[2] / MAP_TILE_ROWS; y <= box[3] / MAP_TILE_ROWS; y++)
+                    hist[y]++;
+        }
+    }
+    size_t n = 0, *at = malloc(sizeof *at * (size_t)m->n_tiles);
+    for (int y = 0; at && y < m->n_tiles; y++)
+        at[y] = n, n += hist[y];
+    uint64_t *keys = malloc(sizeof *keys * (n ? n : 1));
+    if (!at || !keys) {
+        free(at), free(keys);
+        return SF_ENOMEM;
+    }
+    for (size_t k = k0; k < k1; k++)
+        for (size_t t = m->first[k]; t < m->end[k]; t++) {
+            const short *box = m->tris[t].box;
+            if (!m->tris[t].gone && box[0] <= box[1] && box[2] <= box[3])
+                for (int y = box[2] / MAP_TILE_ROWS; y <= box[3] / MAP_TILE_ROWS; y++)
+                    keys[at[y]++] = depth_key(&m->tris[t], t);
+        }
+    free(at);
+    m->part_keys[p] = keys;
+    return 0;
+}
+
+/* Step 2 of part p: its share of the row tiles, each tile's primitives from every part sorted by
+ * depth key into the tile's list. */
+static int tile_lists(struct map *m, int p)
+{
+    const int y0 = (int)((long)m->n_tiles * p / m->n_parts), y1 = (int)((long)m->n_tiles * (p + 1) / m->n_parts);
+    size_t most = 0;
+    for (int y = y0; y < y1; y++) {
+        size_t n = 0;
+        for (int q = 0; q < m->n_parts; q++)
+            n += m->part_hist[(size_t)q * m->n_tiles + y];
+        most = n > most ? n : most;
+    }
+    uint64_t *a = malloc(sizeof *a * (most ? most : 1)), *b = malloc(sizeof *b * (most ? most : 1));
+    int rc = a && b ? 0 : SF_ENOMEM;
+    for (int y = y0; y < y1 && !rc; y++) {
+        size_t n = 0;
+        for (int q = 0; q < m->n_parts; q++) { /* part q's keys of tile y follow those of the tiles above */
+            const unsigned *hist = m->part_hist + (size_t)q * m->n_tiles;
+            size_t from = 0;
+            for (int z = 0; z < y; z++)
+                from += hist[z];
+            memcpy(a + n, m->part_keys[q] + from, sizeof *a * hist[y]);
+            n += hist[y];
+        }
+        const uint64_t *order = depth_sort(a, b, n);
+        if (!(m->tile_list[y] = malloc(sizeof *m->tile_list[y] * (n ? n : 1)))) {
+            rc = SF_ENOMEM;
+            break;
+        }
+        for (size_t k = 0; k < n; k++)
+            m->tile_list[y][k] = (unsigned)(order[k] & 0xffffffffu);
+        m->tile_n[y] = (unsigned)n;
+    }
+    free(a), free(b);
+    return rc;
 }
 
 /* Patches to a part of the tessellation, at most: parts are whole patches of about equal work. */
@@ -565,7 +660,7 @@ int map_begin(const struct patch *patches, size_t n, const struct bvh *seams, co
     struct map *m = calloc(1, sizeof *m);
     int n_tiles = (cam->H + MAP_TILE_ROWS - 1) / MAP_TILE_ROWS;
     const size_t n1 = n ? n : 1;
-    if (!m || !(m->tile_first = calloc((size_t)n_tiles + 2, sizeof(unsigned))))
+    if (!m)
         goto out_nomem;
     m->W = cam->W;
     m->H = cam->H;
@@ -580,9 +675,16 @@ int map_begin(const struct patch *patches, size_t n, const struct bvh *seams, co
     m->vfirst = malloc(sizeof *m->vfirst * n1);
     m->first = malloc(sizeof *m->first * n1);
     m->end = calloc(n1, sizeof *m->end);
+    m->seams = seams;
     m->part_first = calloc(MAP_PARTS + 1, sizeof *m->part_first);
     m->part_failed = calloc(MAP_PARTS, 1);
-    if (!m->part_failed || !m->grid || !m->pix || !m->border || !m->seamed || !m->vfirst || !m->first || !m->end || !m->part_first)
+    m->part_keys = calloc(MAP_PARTS, sizeof *m->part_keys);
+    m->part_hist = calloc((size_t)MAP_PARTS * n_tiles, sizeof *m->part_hist);
+    m->n_tiles = n_tiles;
+    m->tile_list = calloc((size_t)n_tiles, sizeof *m->tile_list);
+    m->tile_n = calloc((size_t)n_tiles, sizeof *m->tile_n);
+    if (!m->tile_list || !m->tile_n || !m->part_failed || !m->part_keys || !m->part_hist || !m->grid || !m->pix ||
+        !m->border || !m->seamed || !m->vfirst || !m->first || !m->end || !m->part_first)
         goto out_nomem;
     for (size_t k = 0; k < n; k++) {
         if (!patch_grid(m, &patches[k], cam, &m->grid[k][0], &m->grid[k][1], &m->pix[k]))
@@ -627,9 +729,14 @@ out_nomem:
 
 int map_parts(const struct map *m) { return m->n_parts; }
 
-int map_part(struct map *m, int part)
+int map_part(struct map *m, int step, int part)
 {
     size_t k0 = m->part_first[part], k1 = m->part_first[part + 1], most_c = 0, most_v = 0;
+    if (step > 0) {
+        int rc = step == 1 ? part_keys(m, part) : tile_lists(m, part);
+        m->part_failed[part] |= rc != 0;
+        return rc;
+    }
     for (size_t k = k0; k < k1; k++) {
         size_t nc = (size_t)m->grid[k][0] * m->grid[k][1], nv = (size_t)(m->grid[k][1] + 1) * (m->patches[k].q + 1);
         most_c = nc > most_c ? nc : most_c;
@@ -642,68 +749,19 @@ int map_part(struct map *m, int part)
         if (m->grid[k][0])
             add_patch(m, &m->patches[k], (int)k, &m->cam, &sc);
     free(sc.zc), free(sc.sg), free(sc.keep), free(sc.bv);
-    m->part_failed[part] = rc != 0;
+    m->part_failed[part] |= rc != 0;
     return rc;
 }
 
-int map_end(struct map *m, const struct bvh *seams, struct sf_err *err)
+int map_end(struct map *m, struct sf_err *err)
 {
-    const size_t n = m->n_patches;
-    const int n_tiles = (m->H + MAP_TILE_ROWS - 1) / MAP_TILE_ROWS;
     for (int p = 0; p < m->n_parts; p++)
         if (m->part_failed[p])
             return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
-    if (seams)
-        join_seams(m, n, seams);
-    /* the primitives on the picture (a seam's edges that are no outline left out), each with its
-     * row tiles, bucketed nearest depth bound first (counting sorts) */
-    size_t live = 0;
-    for (size_t k = 0; k < n; k++)
-        live += m->end[k] - m->first[k];
-    uint64_t *a = malloc(sizeof *a * (live ? live : 1)), *b = malloc(sizeof *b * (live ? live : 1));
-    int(*tiles)[2] = malloc(sizeof *tiles * (live ? live : 1));
-    if (!a || !b || !tiles) {
-        free(a), free(b), free(tiles);
-        return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
+    for (int p = 0; p < m->n_parts; p++) { /* in the tiles' lists now */
+        free(m->part_keys[p]);
+        m->part_keys[p] = NULL;
     }
-    live = 0;
-    for (size_t k = 0; k < n; k++)
-        for (size_t t = m->first[k]; t < m->end[k]; t++) {
-            int x0, x1, y0, y1;
-            tri_bbox(m, &m->tris[t], &x0, &x1, &y0, &y1);
-            if (m->tris[t].gone || x0 > x1 || y0 > y1)
-                continue;
-            uint32_t bits;
-            memcpy(&bits, &m->tris[t].zlo, sizeof bits);
-            tiles[live][0] = y0 / MAP_TILE_ROWS, tiles[live][1] = y1 / MAP_TILE_ROWS;
-            /* the bound's bits flipped so that unsigned order is float order; then where it is */
-            a[live] = (uint64_t)(bits & 0x80000000u ? ~bits : bits | 0x80000000u) << 32 | live;
-            for (int y = tiles[live][0]; y <= tiles[live][1]; y++)
-                m->tile_first[y + 2]++;
-            b[live++] = t;
-        }
-    /* b held each live primitive's index until sorted: keep them beside the order */
-    unsigned *prim = malloc(sizeof *prim * (live ? live : 1));
-    if (!prim) {
-        free(a), free(b), free(tiles);
-        return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
-    }
-    for (size_t k = 0; k < live; k++)
-        prim[k] = (unsigned)b[k];
-    uint64_t *order = depth_sort(a, b, live);
-    for (int t = 0; t < n_tiles; t++)
-        m->tile_first[t + 2] += m->tile_first[t + 1];
-    size_t n_refs = m->tile_first[n_tiles + 1];
-    if (!(m->tile_tris = malloc(sizeof *m->tile_tris * (n_refs ? n_refs : 1)))) {
-        free(a), free(b), free(tiles), free(prim);
-        return sf_fail(err, SF_ENOMEM, "", "out of memory for the preliminary-value map");
-    }
-    for (size_t o = 0; o < live; o++) {
-        size_t k = order[o] & 0xffffffffu;
-        for (int t = tiles[k][0]; t <= tiles[k][1]; t++)
-            m->tile_tris[m->tile_first[t + 1]++] = prim[k];
-    }
-    free(a), free(b), free(tiles), free(prim);
     return 0;
 }
 
@@ -711,10 +769,11 @@ int map_build(const struct patch *patches, size_t n, const struct bvh *seams, co
               struct map **out, struct sf_err *err)
 {
     int rc = map_begin(patches, n, seams, cam, out, err);
-    for (int p = 0; !rc && p < (*out)->n_parts; p++)
-        map_part(*out, p);
+    for (int step = 0; !rc && step < MAP_STEPS; step++)
+        for (int p = 0; p < (*out)->n_parts; p++)
+            map_part(*out, step, p);
     if (!rc)
-        rc = map_end(*out, seams, err);
+        rc = map_end(*out, err);
     if (rc) {
         map_free(*out);
         *out = NULL;

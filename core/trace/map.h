@@ -10,6 +10,7 @@
 
 #include <stdbool.h>
 #include <stddef.h>
+#include <stdint.h>
 
 #include "../geom/bezier.h"
 #include "camera.h"
@@ -49,8 +50,12 @@ struct map {
     int n_parts;             /* the tessellation's parts: patches [part_first[p], part_first[p + 1]) */
     size_t *part_first;
     unsigned char *part_failed; /* per part: out of memory (map_end answers so) */
-    unsigned *tile_first;    /* n_tiles + 1 offsets into tile_tris */
-    unsigned *tile_tris;
+    const struct bvh *seams;     /* borrowed from map_begin to map_end */
+    uint64_t **part_keys;        /* per part: its primitives on the picture by tile, as depth keys */
+    unsigned *part_hist;         /* per part and row tile: how many */
+    int n_tiles;
+    unsigned **tile_list;    /* per tile: its primitives, nearest depth bound first */
+    unsigned *tile_n;
     /* per patch: its grid (u, v counts; 0, 0: left out), the index in tris of each border edge's
      * first segment (SIZE_MAX: none kept in order, as on a trimmed patch), and whether a seam
      * joins it to a neighbour without an outline somewhere (a candidate of its may then be the
@@ -75,19 +80,23 @@ struct map_rows {
 
 /* Tessellates and projects the patches and buckets the triangles by row tiles; no pixel is
  * written yet. seams (may be NULL: every border an outline): the hierarchy whose bvh_seam says
- * which patches share an edge. map_build() is the three steps below on one thread:
+ * which patches share an edge. map_build() is the steps below on one thread:
  *   map_begin()  each patch's grid for the camera, and room for its tessellation
- *   map_part()   tessellates part p of map_parts(): distinct parts on any threads at once
- *   map_end()    after every part: the seams joined, the primitives bucketed by tiles
+ *   map_part()   step 0: tessellates part p of map_parts(); step 1: joins its patches' seams to
+ *                their neighbours' and groups its primitives on the picture by row tiles; step 2:
+ *                sorts its share of the tiles' lists, nearest depth bound first. The parts of a
+ *                step on any threads at once, each step after every part of the one before
+ *   map_end()    checks that every part went well
  * The patches and seams are borrowed until map_end; map_free() at any step. */
 int map_build(const struct patch *patches, size_t n, const struct bvh *seams, const struct camera *cam,
               struct map **out, struct sf_err *err);
 int map_begin(const struct patch *patches, size_t n, const struct bvh *seams, const struct camera *cam,
               struct map **out, struct sf_err *err);
+#define MAP_STEPS 3
 int map_parts(const struct map *m);
-/* 0 or SF_ENOMEM (the map is then of no use: map_free it). */
-int map_part(struct map *m, int p);
-int map_end(struct map *m, const struct bvh *seams, struct sf_err *err);
+/* 0 or SF_ENOMEM (map_end then fails). */
+int map_part(struct map *m, int step, int p);
+int map_end(struct map *m, struct sf_err *err);
 /* Fills rw (growing its buffers as needed) with the candidates of rows [y0, y1). The map is
  * only read, so threads may fill their own rows from one map at once. 0 or SF_ENOMEM. */
 int map_raster_rows(const struct map *m, int y0, int y1, struct map_rows *rw);

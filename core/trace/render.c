@@ -46,6 +46,7 @@ struct frame {
     double t0, prepare_ms;  /* when its preparation began; how long it took, to frame_end */
     float *rgba, *depth, *normal, *uv, *id;
     unsigned char *srgb8;     /* srgb8_only: the picture, in place of rgba and depth */
+    unsigned char bg8[3 * SHADE_CHUNK]; /* a run of background pixels in it (each band starts its rows so) */
     struct srgb_table *srgb;
 };
 
@@ -195,13 +196,9 @@ static int frame_view(struct frame *fr, bool whole, struct frame **out, struct s
         if (!(fr->srgb8 = malloc(3 * np)) || !(fr->srgb = malloc(sizeof *fr->srgb)))
             goto out_fail_mem;
         srgb_table_init(fr->srgb);
-        /* the picture starts as background: the bands write only the pixels something covers */
         const float bg[3] = {(float)sc->background.x, (float)sc->background.y, (float)sc->background.z};
-        unsigned char run[3 * SHADE_CHUNK]; /* a run of background pixels */
         for (int k = 0; k < 3 * SHADE_CHUNK; k++)
-            run[k] = srgb8(fr->srgb, bg[k % 3]);
-        for (size_t at = 0; at < 3 * np; at += sizeof run)
-            memcpy(fr->srgb8 + at, run, 3 * np - at < sizeof run ? 3 * np - at : sizeof run);
+            fr->bg8[k] = srgb8(fr->srgb, bg[k % 3]);
     } else {
         fr->rgba = malloc(sizeof(float) * 4 * np);
         fr->depth = malloc(sizeof(float) * np);
@@ -222,8 +219,9 @@ static int frame_view(struct frame *fr, bool whole, struct frame **out, struct s
                        (sc->method == METHOD_AUTO && fr->ps.n * AUTO_MAP_PIXELS_PER_PATCH <= np));
     if (map_wanted)
         rc = map_begin(fr->ps.patches, fr->ps.n, fr->exact, &fr->cam, &fr->map, err);
-    for (int p = 0; !rc && whole && p < frame_parts(fr); p++)
-        frame_part(fr, p);
+    for (int step = 0; !rc && whole && step < frame_steps(fr); step++)
+        for (int p = 0; p < frame_parts(fr); p++)
+            frame_part(fr, step, p);
     if (!rc && whole)
         rc = frame_end(fr, err);
     if (rc) {
@@ -238,13 +236,15 @@ out_fail_mem:
     return sf_fail(err, SF_ENOMEM, "", "out of memory preparing the frame");
 }
 
+int frame_steps(const struct frame *fr) { return fr->map && map_parts(fr->map) ? MAP_STEPS : 0; }
+
 int frame_parts(const struct frame *fr) { return fr->map ? map_parts(fr->map) : 0; }
 
-void frame_part(struct frame *fr, int p) { map_part(fr->map, p); }
+void frame_part(struct frame *fr, int step, int p) { map_part(fr->map, step, p); }
 
 int frame_end(struct frame *fr, struct sf_err *err)
 {
-    int rc = fr->map ? map_end(fr->map, fr->exact, err) : 0;
+    int rc = fr->map ? map_end(fr->map, err) : 0;
     fr->prepare_ms = now_ms() - fr->t0;
     return rc;
 }
@@ -762,6 +762,11 @@ void frame_band(struct frame *fr, int y0, int y1, struct render_stats *st)
     enum render_method method = sc->method;
     if ((method == METHOD_MAP || method == METHOD_AUTO) && (!fr->map || !fr->map->complete))
         method = METHOD_BVH; /* too large for a map, or the eye inside the scene's hull */
+    if (fr->srgb8) { /* the rows start as background: only the pixels something covers are written */
+        unsigned char *row = fr->srgb8 + 3 * (size_t)W * y0, *end = fr->srgb8 + 3 * (size_t)W * y1;
+        for (; row < end; row += sizeof fr->bg8)
+            memcpy(row, fr->bg8, (size_t)(end - row) < sizeof fr->bg8 ? (size_t)(end - row) : sizeof fr->bg8);
+    }
     if (sc->samples > 1) {
         band_sampled(fr, method, y0, y1, st);
         return;

@@ -51,14 +51,16 @@ int frame_prepare(const struct scene *sc, struct bvh_device *dev, struct frame *
  * part is made - camera, lights, buffers, the map - so a second view of the same objects skips
  * the hierarchy (issue 17). SF_EINVAL when base was built for other objects or tolerances. */
 int frame_prepare_from(const struct scene *sc, const struct frame *base, struct frame **out, struct sf_err *err);
-/* Either preparation in steps, for a caller with threads: frame_begin() and frame_begin_from() do
- * all but the map's tessellation, which frame_part(fr, p) does for each p in [0, frame_parts(fr))
- * on any threads at once; frame_end() then finishes (0, or an SF_E* code: frame_free the frame).
- * frame_prepare() is frame_begin() and the rest on one thread. */
+/* Either preparation in parts, for a caller with threads: frame_begin() and frame_begin_from() do
+ * all but the map's, which frame_part(fr, step, p) does for each step in [0, frame_steps(fr)), in
+ * order, and each p in [0, frame_parts(fr)), the parts of a step on any threads at once;
+ * frame_end() then finishes (0, or an SF_E* code: frame_free the frame). frame_prepare() is
+ * frame_begin() and the rest on one thread. */
 int frame_begin(const struct scene *sc, struct bvh_device *dev, struct frame **out, struct sf_err *err);
 int frame_begin_from(const struct scene *sc, const struct frame *base, struct frame **out, struct sf_err *err);
+int frame_steps(const struct frame *fr);
 int frame_parts(const struct frame *fr);
-void frame_part(struct frame *fr, int p);
+void frame_part(struct frame *fr, int step, int p);
 int frame_end(struct frame *fr, struct sf_err *err);
 /* About the bytes a frame's patches and hierarchies take (a cache's budget). */
 size_t frame_hierarchy_bytes(const struct frame *fr);
