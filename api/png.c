@@ -40,6 +40,12 @@ struct png_bands *png_bands_new(const unsigned char *rgb, int width, int height,
 
 int png_bands_n(const struct png_bands *pb) { return pb->n; }
 
+int png_band_rows(int width)
+{
+    const int least = 48 * 1024, row = 3 * (width > 0 ? width : 1) + 1;
+    return row * 16 >= least ? 16 : (least + row - 1) / row;
+}
+
 /* Feeds len bytes to the stream, growing b's buffer as the output needs. */
 static int feed(z_stream *zs, struct band *b, size_t *cap, const unsigned char *in, size_t len, int flush)
 {

@@ -21,6 +21,11 @@
 
 struct png_bands;
 
+/* Rows a band for a picture width pixels wide, as the callers take them: 16 (a 1024-wide band
+ * deflates in 0.12 ms), more where rows are short, so that a band holds 48 KB at least (its
+ * deflate state, some 270 KB, is made afresh for each). */
+int png_band_rows(int width);
+
 /* NULL when out of memory. rgb (width * height * 3 bytes, rows top first) is borrowed until
  * png_join. */
 struct png_bands *png_bands_new(const unsigned char *rgb, int width, int height, int rows_per_band);

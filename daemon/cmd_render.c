@@ -277,7 +277,7 @@ int cmd_render(int argc, char **argv)
     unsigned char *bytes = NULL;
     size_t n_bytes = 0;
     double e0 = now_ms();
-    struct band_work deflate = {.what = DEFLATE, .png = img_fmt == IMG_PNG ? png_bands_new(img.srgb8, img.width, img.height, BAND_ROWS) : NULL};
+    struct band_work deflate = {.what = DEFLATE, .png = img_fmt == IMG_PNG ? png_bands_new(img.srgb8, img.width, img.height, png_band_rows(img.width)) : NULL};
     if (deflate.png) { /* the PNG deflated by bands on the threads (png.h) */
         deflate.n = png_bands_n(deflate.png);
         share_out(&deflate, n_threads);

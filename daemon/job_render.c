@@ -130,7 +130,6 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     (void)j;
     struct render_work *w = arg;
     w->at[0] = monotonic_s();
-    LOG(LOG_INFO, "T prepare %.3f", monotonic_s()*1e3);
     struct job_rec rec;
     if (store_get(w->svc->store, w->claim.id, true, false, &rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
@@ -151,9 +150,12 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     if (rc)
         return -1;
     w->at[1] = monotonic_s();
-    /* the map's parts by every idle worker (the heart's: 19 ms on one), then the bands */
-    if (frame_steps(w->fr) > 0)
+    /* the map's parts by every idle worker (the heart's: 19 ms on one), then the bands; a map of
+     * one part here (handing it over would cost more) */
+    if (frame_parts(w->fr) > 1)
         return *n_bands = frame_parts(w->fr), w->phase = PREPARE, 0;
+    for (int step = 0; step < frame_steps(w->fr); step++)
+        frame_part(w->fr, step, 0);
     return begin_bands(w, n_bands);
 }
 
@@ -186,10 +188,11 @@ static int next(struct job *j, void *arg, int *n_bands)
         if (w->fmt == IMG_PNG) { /* deflated by bands on every idle worker (png.h) */
             struct frame_image img;
             frame_image(w->fr, &img);
-            if (!(w->png = png_bands_new(img.srgb8, img.width, img.height, JOB_BAND_ROWS)))
+            if (!(w->png = png_bands_new(img.srgb8, img.width, img.height, png_band_rows(img.width))))
                 return sf_fail(&w->err, SF_ENOMEM, "", "out of memory"), -1;
             w->phase = DEFLATE;
-            *n_bands = png_bands_n(w->png);
+            if ((*n_bands = png_bands_n(w->png)) == 1) /* here: handing one band over costs more */
+                png_band(w->png, 0), *n_bands = 0;
         }
     }
     return 0;
@@ -222,7 +225,6 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
         }
     }
     service_job_end(w->svc, &w->claim, outcome, requeue, bytes, n, image_format_mime(w->fmt), meta, &w->err);
-    LOG(LOG_INFO, "T job_end %.3f", monotonic_s()*1e3);
     free(bytes);
     png_bands_free(w->png);
     frame_free(w->fr);

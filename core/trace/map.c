@@ -650,8 +650,10 @@ static int tile_lists(struct map *m, int p)
     return rc;
 }
 
-/* Patches to a part of the tessellation, at most: parts are whole patches of about equal work. */
+/* Parts of the tessellation, at most: whole patches of about equal work, MAP_PART_SLOTS primitive
+ * slots each at least (a small map is one part: a step of parts costs its threads a hand-over) */
 #define MAP_PARTS 32
+#define MAP_PART_SLOTS 16384
 
 int map_begin(const struct patch *patches, size_t n, const struct bvh *seams, const struct camera *cam,
               struct map **out, struct sf_err *err)
@@ -709,14 +711,15 @@ int map_begin(const struct patch *patches, size_t n, const struct bvh *seams, co
         !(m->tris = malloc(sizeof *m->tris * (nt ? nt : 1))))
         goto out_nomem;
     m->n_verts = nv, m->n_tris = nt;
-    /* parts of about nt / MAP_PARTS slots each */
+    /* parts of about nt / parts slots each */
+    const size_t parts = nt / MAP_PART_SLOTS < 1 ? 1 : nt / MAP_PART_SLOTS > MAP_PARTS ? MAP_PARTS : nt / MAP_PART_SLOTS;
     size_t k = 0;
-    for (int p = 0; p < MAP_PARTS && k < n; p++) {
+    for (size_t p = 0; p < parts && k < n; p++) {
         m->part_first[p] = k;
-        size_t goal = (size_t)((double)nt * (p + 1) / MAP_PARTS);
-        while (k < n && (m->first[k] < goal || p == MAP_PARTS - 1))
+        size_t goal = (size_t)((double)nt * (p + 1) / parts);
+        while (k < n && (m->first[k] < goal || p == parts - 1))
             k++;
-        m->n_parts = p + 1;
+        m->n_parts = (int)p + 1;
     }
     m->part_first[m->n_parts] = n;
     *out = m;

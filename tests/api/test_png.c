@@ -96,6 +96,9 @@ TEST(a_missing_band_fails_the_join)
         png_band(pb, k);
     CHECK(png_join(pb, &out, &len, &err) != 0 && !out && len == 0 && strstr(err.message, "band 1"));
     CHECK(png_bands_new(rgb, 0, 8, 2) == NULL && png_bands_new(rgb, 8, 8, 0) == NULL);
+    /* bands of 48 KB at least, 16 rows where rows are long */
+    CHECK(png_band_rows(1024) == 16 && png_band_rows(4096) == 16 && png_band_rows(256) == 64);
+    CHECK(png_band_rows(1) * 4 >= 48 * 1024 && png_band_rows(0) == png_band_rows(1));
     png_bands_free(pb);
     free(rgb);
 }
