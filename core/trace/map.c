@@ -50,7 +50,6 @@ struct map_tri {           /* a triangle, or (v[2] == EDGE) a padded outline edg
     float zlo;            /* depth bound of the patch's surface near this primitive */
     bool fold;            /* an outline edge inside the grid (where the surface turns away), not its border */
     signed char turn;     /* a border edge: the turn on screen of the triangle inside it */
-    bool gone;            /* a seam's border edge where both sides turn alike: no outline */
     short box[4];         /* its pixel centres x0, x1, y0, y1, padding in (x0 > x1 or y0 > y1: none) */
 };
 
@@ -76,6 +75,9 @@ void map_free(struct map *m)
     free(m->part_keys);
     free(m->part_hist);
     free(m->border);
+    free(m->segs);
+    free(m->sfirst);
+    free(m->pad);
     free(m->seamed);
     for (int y = 0; m->tile_list && y < m->n_tiles; y++)
         free(m->tile_list[y]);
@@ -337,6 +339,14 @@ static void bernstein(int p, double t, double *b)
     }
 }
 
+struct border_seg { /* a border segment: its cell's depth bound (INFINITY: left out), its triangle's turn */
+    float zlo;
+    signed char turn;
+};
+
+static size_t border_edges(struct map *m, size_t k, int e, const struct border_seg *seg,
+                           const struct border_seg *other, size_t nt);
+
 /* A part's scratch, sized for its largest grid. */
 struct grid_scratch {
     float *zc;         /* 2 per cell: nearest vertex depth, then the cell's bound */
@@ -433,13 +443,13 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
             unsigned a = VTX(i, j), b = VTX(i + 1, j);
             const unsigned tri[2][3] = {{a, b, b + 1}, {a, b + 1, a + 1}};
             for (int k = 0; k < 2 && keep[CELL(i, j)]; k++)
-                m->tris[nt++] = (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)], false, 0, false, {0}};
+                m->tris[nt++] = (struct map_tri){{tri[k][0], tri[k][1], tri[k][2]}, index, 0.0f, zlo[CELL(i, j)], false, 0, {0}};
         }
     /* the outline: the grid's border, and every edge whose two triangles turn different ways
      * (or either none) on screen; s0, s1 are the turns on either side (0 where there is none) */
 #define OUTLINE(v0, v1, s0, s1, z, inside)                                                         \
     if (((s0) == 0 || (s0) != (s1)) && (z) < INFINITY)                                          \
-        m->tris[nt++] = (struct map_tri){{(v0), (v1), EDGE}, index, pad, (z), (inside), 0, false, {0}};
+        m->tris[nt++] = (struct map_tri){{(v0), (v1), EDGE}, index, pad, (z), (inside), 0, {0}};
     for (int i = 0; i < gu; i++)
         for (int j = 0; j < gv; j++) /* the diagonal a-(b+1) between a cell's two triangles */
             OUTLINE(VTX(i, j), VTX(i + 1, j + 1), sg[2 * CELL(i, j)], sg[2 * CELL(i, j) + 1], zlo[CELL(i, j)], true);
@@ -454,20 +464,21 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
             OUTLINE(VTX(i, j), VTX(i, j + 1), s0, s1, fminf(zlo[CELL(i, j)], zlo[CELL(i - 1, j)]), true);
         }
     /* the border, edge by edge along its parameter; each segment with the turn of the triangle
-     * inside it (a kept cell's: a trimmed patch's border has gaps, and no seams) */
+     * inside it (a kept cell's: a trimmed patch's border has gaps, and no seams). An edge along a
+     * seam is kept as segments (border_segs): step 1 draws what of it is outline. */
+    m->pad[index] = pad;
     for (int e = 0; e < 4; e++) {
         const int n_seg = e < 2 ? gv : gu, i = e == 1 ? gu - 1 : 0, j = e == 3 ? gv - 1 : 0;
-        m->border[index][e] = pt->trim ? SIZE_MAX : nt;
+        struct border_seg *seg = m->segs + m->sfirst[index] + (e == 0 ? 0 : e == 1 ? gv : e == 2 ? 2 * gv : 2 * gv + gu);
+        bool whole = !pt->trim && m->seams && bvh_seam(m->seams, index, e) >= 0;
         for (int k = 0; k < n_seg; k++) {
             size_t c = e < 2 ? CELL(i, k) : CELL(k, j);
-            int turn = sg[2 * c + (e == 0 || e == 3)]; /* u = 0 and v = 1 edges: the cell's second triangle */
-            unsigned v0 = e < 2 ? VTX(i + (e == 1), k) : VTX(k, j + (e == 3));
-            unsigned v1 = e < 2 ? VTX(i + (e == 1), k + 1) : VTX(k + 1, j + (e == 3));
-            if (zlo[c] < INFINITY)
-                m->tris[nt++] = (struct map_tri){{v0, v1, EDGE}, index, pad, zlo[c], false, (signed char)turn, false, {0}};
-            else
-                m->border[index][e] = SIZE_MAX; /* a segment left out: the edge's run is not whole */
+            seg[k] = (struct border_seg){zlo[c], sg[2 * c + (e == 0 || e == 3)]}; /* u = 0, v = 1: a cell's second */
+            whole &= zlo[c] < INFINITY; /* a segment left out: the edge's run is not whole */
         }
+        m->border[index][e] = whole ? (size_t)(seg - m->segs) : SIZE_MAX;
+        if (!whole)
+            nt = border_edges(m, index, e, seg, NULL, nt);
     }
 #undef OUTLINE
 #undef CELL
@@ -544,27 +555,43 @@ static int seam_grids(const struct patch *patches, size_t n, const struct bvh *s
     return 0;
 }
 
-/* Patch k's seams' border edges, segment by segment, against its neighbours' (every patch
- * tessellated): where the triangles either side turn alike on screen the two patches go on as one
- * surface there, and k's edges are no outline (gone); where they do not, the surface folds there,
- * and they are outline inside the pair's grid (fold). Each side decides its own edges alike. */
+/* Appends at tris[nt] the outline edges of edge e of patch k, its segments seg: each kept one
+ * (zlo finite), or where other (the neighbour's across a seam) is given, those where the triangles
+ * either side turn different ways (a fold). Returns the new nt. */
+static size_t border_edges(struct map *m, size_t k, int e, const struct border_seg *seg,
+                           const struct border_seg *other, size_t nt)
+{
+    const int gu = m->grid[k][0], gv = m->grid[k][1], n_seg = e < 2 ? gv : gu;
+    const int i = e == 0 ? 0 : gu, j = e == 2 ? 0 : gv; /* the edge's fixed grid line */
+    const unsigned base = (unsigned)m->vfirst[k];
+    for (int s = 0; s < n_seg; s++) {
+        if (!(seg[s].zlo < INFINITY) || (other && seg[s].turn != 0 && seg[s].turn == other[s].turn))
+            continue;
+        unsigned v0 = base + (unsigned)(e < 2 ? i * (gv + 1) + s : s * (gv + 1) + j);
+        unsigned v1 = v0 + (e < 2 ? 1u : (unsigned)(gv + 1));
+        m->tris[nt] = (struct map_tri){{v0, v1, EDGE}, (int)k, m->pad[k], seg[s].zlo, other != NULL, seg[s].turn, {0}};
+        tri_box(m, &m->tris[nt++]);
+    }
+    return nt;
+}
+
+/* Patch k's edges along seams against its neighbours' (every patch tessellated), segment by
+ * segment: where the triangles either side turn alike on screen the two patches go on as one
+ * surface there, and k draws no outline (its candidates may then be the neighbour's roots:
+ * seamed); where they do not, the surface folds there, and the segment is outline inside the
+ * pair's grid (fold). Each side decides its own edges alike. */
 static void join_seams(struct map *m, size_t k)
 {
     for (int e = 0; e < 4; e++) {
-        int o = bvh_seam(m->seams, (int)k, e);
-        if (o < 0 || m->border[k][e] == SIZE_MAX || m->border[o][e ^ 1] == SIZE_MAX)
+        if (m->border[k][e] == SIZE_MAX)
             continue;
-        const int n_seg = m->grid[k][e < 2];
-        if (n_seg != m->grid[o][e < 2])
-            continue; /* counts MAP_SEAM_GROW kept apart: the seam stays an outline */
-        struct map_tri *a = &m->tris[m->border[k][e]];
-        const struct map_tri *b = &m->tris[m->border[o][e ^ 1]];
-        for (int s = 0; s < n_seg; s++) {
-            bool alike = a[s].turn != 0 && a[s].turn == b[s].turn;
-            a[s].gone = alike;
-            a[s].fold = !alike;
-            m->seamed[k] |= alike;
-        }
+        const struct border_seg *seg = m->segs + m->border[k][e], *other = NULL;
+        int o = bvh_seam(m->seams, (int)k, e);
+        if (o >= 0 && m->border[o][e ^ 1] != SIZE_MAX && m->grid[k][e < 2] == m->grid[o][e < 2])
+            other = m->segs + m->border[o][e ^ 1]; /* (counts MAP_SEAM_GROW kept apart: all outline) */
+        for (int s = 0; other && s < m->grid[k][e < 2]; s++)
+            m->seamed[k] |= seg[s].turn != 0 && seg[s].turn == other[s].turn;
+        m->end[k] = border_edges(m, k, e, seg, other, m->end[k]);
     }
 }
 
@@ -584,11 +611,11 @@ static int part_keys(struct map *m, int p)
     const size_t k0 = m->part_first[p], k1 = m->part_first[p + 1];
     unsigned *hist = m->part_hist + (size_t)p * m->n_tiles;
     for (size_t k = k0; k < k1; k++) {
-        if (m->seams && m->grid[k][0])
+        if (m->grid[k][0])
             join_seams(m, k);
         for (size_t t = m->first[k]; t < m->end[k]; t++) {
             const short *box = m->tris[t].box;
-            if (!m->tris[t].gone && box[0] <= box[1] && box[2] <= box[3])
+            if (box[0] <= box[1] && box[2] <= box[3])
                 for (int y = box[2] / MAP_TILE_ROWS; y <= box[3] / MAP_TILE_ROWS; y++)
                     hist[y]++;
         }
@@ -604,7 +631,7 @@ static int part_keys(struct map *m, int p)
     for (size_t k = k0; k < k1; k++)
         for (size_t t = m->first[k]; t < m->end[k]; t++) {
             const short *box = m->tris[t].box;
-            if (!m->tris[t].gone && box[0] <= box[1] && box[2] <= box[3])
+            if (box[0] <= box[1] && box[2] <= box[3])
                 for (int y = box[2] / MAP_TILE_ROWS; y <= box[3] / MAP_TILE_ROWS; y++)
                     keys[at[y]++] = depth_key(&m->tris[t], t);
         }
@@ -673,6 +700,8 @@ int map_begin(const struct patch *patches, size_t n, const struct bvh *seams, co
     m->grid = malloc(sizeof *m->grid * n1);
     m->pix = malloc(sizeof *m->pix * n1);
     m->border = malloc(sizeof *m->border * n1);
+    m->sfirst = malloc(sizeof *m->sfirst * n1);
+    m->pad = malloc(sizeof *m->pad * n1);
     m->seamed = calloc(n1, 1);
     m->vfirst = malloc(sizeof *m->vfirst * n1);
     m->first = malloc(sizeof *m->first * n1);
@@ -686,7 +715,7 @@ int map_begin(const struct patch *patches, size_t n, const struct bvh *seams, co
     m->tile_list = calloc((size_t)n_tiles, sizeof *m->tile_list);
     m->tile_n = calloc((size_t)n_tiles, sizeof *m->tile_n);
     if (!m->tile_list || !m->tile_n || !m->part_failed || !m->part_keys || !m->part_hist || !m->grid || !m->pix ||
-        !m->border || !m->seamed || !m->vfirst || !m->first || !m->end || !m->part_first)
+        !m->border || !m->sfirst || !m->pad || !m->seamed || !m->vfirst || !m->first || !m->end || !m->part_first)
         goto out_nomem;
     for (size_t k = 0; k < n; k++) {
         if (!patch_grid(m, &patches[k], cam, &m->grid[k][0], &m->grid[k][1], &m->pix[k]))
@@ -698,15 +727,18 @@ int map_begin(const struct patch *patches, size_t n, const struct bvh *seams, co
         goto out_nomem;
     /* each patch's slots: its vertices, and room for every triangle and, at worst, every edge of
      * its grid (what is not used stays untouched) */
-    size_t nv = 0, nt = 0;
+    size_t nv = 0, nt = 0, ns = 0;
     for (size_t k = 0; k < n; k++) {
         size_t gu = (size_t)m->grid[k][0], gv = (size_t)m->grid[k][1], nc = gu * gv;
-        m->vfirst[k] = nv, m->first[k] = m->end[k] = nt;
+        m->vfirst[k] = nv, m->first[k] = m->end[k] = nt, m->sfirst[k] = ns;
         if (gu) {
             nv += (gu + 1) * (gv + 1);
             nt += 3 * nc + gu * (gv + 1) + gv * (gu + 1);
+            ns += 2 * (gu + gv);
         }
     }
+    if (!(m->segs = malloc(sizeof *m->segs * (ns ? ns : 1))))
+        goto out_nomem;
     if (nv >= UINT_MAX || nt >= UINT_MAX || !(m->verts = malloc(sizeof *m->verts * (nv ? nv : 1))) ||
         !(m->tris = malloc(sizeof *m->tris * (nt ? nt : 1))))
         goto out_nomem;

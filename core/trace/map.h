@@ -33,6 +33,7 @@ struct map_cand {
 
 struct map_vert;
 struct map_tri;
+struct border_seg;
 
 struct map {
     int W, H;
@@ -56,12 +57,15 @@ struct map {
     int n_tiles;
     unsigned **tile_list;    /* per tile: its primitives, nearest depth bound first */
     unsigned *tile_n;
-    /* per patch: its grid (u, v counts; 0, 0: left out), the index in tris of each border edge's
-     * first segment (SIZE_MAX: none kept in order, as on a trimmed patch), and whether a seam
-     * joins it to a neighbour without an outline somewhere (a candidate of its may then be the
-     * neighbour's root: map_seamed) */
+    /* per patch: its grid (u, v counts; 0, 0: left out); the index in segs of each border edge
+     * along a seam (SIZE_MAX: none, or the edge drawn whole, as on a trimmed patch) and where
+     * its segments start; its outline's padding; and whether a seam joins it to a neighbour
+     * without an outline somewhere (a candidate of its may then be the neighbour's root) */
     int (*grid)[2];
     size_t (*border)[4];
+    struct border_seg *segs;
+    size_t *sfirst;
+    float *pad;
     unsigned char *seamed;
 };
 
