@@ -36,7 +36,7 @@ CORE_SRC   := $(wildcard core/*/*.c)
 API_SRC    := $(wildcard api/*.c)
 DAEMON_SRC := $(wildcard daemon/*.c)
 TEST_SRC   := $(wildcard tests/core/*/test_*.c) $(wildcard tests/api/test_*.c)
-TSAN_TESTS := $(B)/tests/daemon/test_jobq $(B)/tests/core/matrix/tsan_fragments
+TSAN_TESTS := $(B)/tests/daemon/test_jobq $(B)/tests/core/matrix/tsan_fragments $(B)/tests/core/trace/tsan_map
 
 obj = $(patsubst %.c,$(B)/$(1)/%.o,$(2))
 
@@ -153,6 +153,11 @@ $(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c
 $(B)/tests/core/matrix/tsan_fragments: tests/core/matrix/tsan_fragments.c tests/unit.h core/matrix/fragment.c core/matrix/matrix.h core/geom/trimesh.c core/base/mem.c core/base/err.c
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/core/matrix/tsan_fragments.c core/matrix/fragment.c core/geom/trimesh.c core/base/mem.c core/base/err.c -lm -lpthread
+# the map's parts on threads (its seams from the test's own table: no hierarchy, no Embree)
+TSAN_MAP_SRC := core/trace/map.c core/geom/tess.c core/geom/bezier.c core/geom/trim.c core/base/mem.c core/base/err.c
+$(B)/tests/core/trace/tsan_map: tests/core/trace/tsan_map.c tests/unit.h $(TSAN_MAP_SRC) $(wildcard core/trace/*.h core/geom/*.h)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/core/trace/tsan_map.c $(TSAN_MAP_SRC) -lm -lpthread
 
 # the daemon with the address and UB sanitizers, for the black-box API tests
 $(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $(SAN_CORE) | $(B)/san/libsurfd-image.so

@@ -58,7 +58,8 @@ void bezier_basis(int n, double t, double *B, double *dB)
 typedef double v4d __attribute__((vector_size(4 * sizeof(double))));
 typedef double v4du __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double)), may_alias));
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
+/* (not under the thread sanitizer: a clone's resolver runs at relocation, before its runtime) */
 #define SIMD_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define SIMD_CLONES

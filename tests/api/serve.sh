@@ -14,11 +14,12 @@ check "openapi" '[ "$(status GET /openapi.yaml)" = 200 ] && grep -q "^openapi: 3
 # ---- sync render ----------------------------------------------------------------------------
 check "the image writers are not loaded before the first image" '! grep -q libOpenImageIO /proc/$PID/maps'
 code=$(status POST "/render?width=128&height=96" -H 'Content-Type: application/json' --data-binary @"$D/teapot.json")
-check "... and are after it" 'grep -q libOpenImageIO /proc/$PID/maps'
+check "... nor after a PNG (api/png.c writes it)" '! grep -q libOpenImageIO /proc/$PID/maps'
 check "sync render 200 png" '[ "$code" = 200 ] && [ "$(header Content-Type)" = image/png ] && [ "$(head -c 4 "$T/body" | od -An -tx1 | tr -d " \n")" = 89504e47 ]'
 check "sync render headers" '[ -n "$(header X-Job-Id)" ] && [ -n "$(header X-Render-Ms)" ] && [ -n "$(header X-Rays)" ] && [ -n "$(header ETag)" ]'
 code=$(status POST "/render?width=64&height=48&output=exr" -H 'Content-Type: model/x-bpt' --data-binary @"$D/teacup.bpt")
 check "bpt body, exr out" '[ "$code" = 200 ] && [ "$(header Content-Type)" = image/x-exr ]'
+check "... and the image writers are loaded after an EXR" 'grep -q libOpenImageIO /proc/$PID/maps'
 code=$(status POST "/render?format=nurbs&width=64&height=48" --data-binary @"$D/duck1.nurbs")
 check "?format=nurbs, curl -d default type" '[ "$code" = 200 ]'
 code=$(status POST "/render?width=64&height=48" -H 'Content-Type: text/plain' --data-binary @"$D/duck3.nurbs")
