@@ -322,23 +322,6 @@ static bool patch_grid(struct map *m, const struct patch *pt, const struct camer
     return true;
 }
 
-/* Bernstein polynomials of degree p at t into b[0..p], by de Casteljau's triangle: exactly 0 and 1
- * at t = 0 and t = 1. */
-static void bernstein(int p, double t, double *b)
-{
-    const double s = 1.0 - t;
-    b[0] = 1.0;
-    for (int d = 1; d <= p; d++) {
-        double carry = 0.0;
-        for (int a = 0; a < d; a++) {
-            double x = b[a];
-            b[a] = carry + s * x;
-            carry = t * x;
-        }
-        b[d] = carry;
-    }
-}
-
 struct border_seg { /* a border segment: its cell's depth bound (INFINITY: left out), its triangle's turn */
     float zlo;
     signed char turn;
@@ -379,12 +362,12 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
     bool *keep = sc->keep;
     const int p = pt->p, q = pt->q;
     for (int j = 0; j <= gv; j++)
-        bernstein(q, (double)j / gv, sc->bv + (size_t)j * (q + 1));
+        bezier_basis(q, (double)j / gv, sc->bv + (size_t)j * (q + 1), NULL); /* exactly 0 and 1 at the ends */
     const double sx = 0.5 * cam->W / (cam->th * cam->aspect), sy = 0.5 * cam->H / cam->th;
     for (int i = 0; i <= gu; i++) {
         double bu[PATCH_MAX_DEGREE + 1], row[PATCH_MAX_DEGREE + 1][4] = {{0}};
         const double u = (double)i / gu;
-        bernstein(p, u, bu);
+        bezier_basis(p, u, bu, NULL);
         for (int a = 0; a <= p; a++)
             for (int b = 0; b <= q; b++)
                 for (int c = 0; c < 4; c++)
@@ -467,6 +450,8 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
      * inside it (a kept cell's: a trimmed patch's border has gaps, and no seams). An edge along a
      * seam is kept as segments (border_segs): step 1 draws what of it is outline. */
     m->pad[index] = pad;
+    for (size_t t = m->first[index]; t < nt; t++) /* (border_edges boxes its own) */
+        tri_box(m, &m->tris[t]);
     for (int e = 0; e < 4; e++) {
         const int n_seg = e < 2 ? gv : gu, i = e == 1 ? gu - 1 : 0, j = e == 3 ? gv - 1 : 0;
         struct border_seg *seg = m->segs + m->sfirst[index] + (e == 0 ? 0 : e == 1 ? gv : e == 2 ? 2 * gv : 2 * gv + gu);
@@ -483,8 +468,6 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
 #undef OUTLINE
 #undef CELL
 #undef VTX
-    for (size_t t = m->first[index]; t < nt; t++)
-        tri_box(m, &m->tris[t]);
     m->end[index] = nt;
 }
 
