@@ -110,11 +110,9 @@ static int prepare_view(struct render_work *w, const struct job_rec *rec, const 
     return frame_begin_from(&w->sc, w->cached->base, &w->fr, &w->err) ? -1 : 0;
 }
 
-/* The frame's preparation done: its bands next. */
+/* The frame prepared: its bands next. */
 static int begin_bands(struct render_work *w, int *n_bands)
 {
-    if (frame_end(w->fr, &w->err))
-        return -1;
     w->phase = RENDER;
     w->n_bands = (w->sc.height + JOB_BAND_ROWS - 1) / JOB_BAND_ROWS;
     w->band_stats = calloc((size_t)w->n_bands, sizeof *w->band_stats);
@@ -154,9 +152,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
      * one part here (handing it over would cost more) */
     if (frame_parts(w->fr) > 1)
         return *n_bands = frame_parts(w->fr), w->phase = PREPARE, 0;
-    for (int step = 0; step < frame_steps(w->fr); step++)
-        frame_part(w->fr, step, 0);
-    return begin_bands(w, n_bands);
+    return frame_finish(w->fr, &w->err) ? -1 : begin_bands(w, n_bands);
 }
 
 static void band(struct job *j, void *arg, int k)
@@ -182,7 +178,7 @@ static int next(struct job *j, void *arg, int *n_bands)
     if (w->phase == PREPARE && ++w->step < frame_steps(w->fr))
         return *n_bands = frame_parts(w->fr), 0;
     if (w->phase == PREPARE)
-        return begin_bands(w, n_bands);
+        return frame_end(w->fr, &w->err) ? -1 : begin_bands(w, n_bands);
     if (w->phase == RENDER) {
         w->at[3] = monotonic_s();
         if (w->fmt == IMG_PNG) { /* deflated by bands on every idle worker (png.h) */

@@ -679,7 +679,6 @@ int map_begin(const struct patch *patches, size_t n, const struct bvh *seams, co
     m->complete = true;
     m->cam = *cam;
     m->patches = patches;
-    m->n_patches = n;
     m->grid = malloc(sizeof *m->grid * n1);
     m->pix = malloc(sizeof *m->pix * n1);
     m->border = malloc(sizeof *m->border * n1);
@@ -725,7 +724,7 @@ int map_begin(const struct patch *patches, size_t n, const struct bvh *seams, co
     if (nv >= UINT_MAX || nt >= UINT_MAX || !(m->verts = malloc(sizeof *m->verts * (nv ? nv : 1))) ||
         !(m->tris = malloc(sizeof *m->tris * (nt ? nt : 1))))
         goto out_nomem;
-    m->n_verts = nv, m->n_tris = nt;
+    m->n_tris = nt;
     /* parts of about nt / parts slots each */
     const size_t parts = nt / MAP_PART_SLOTS < 1 ? 1 : nt / MAP_PART_SLOTS > MAP_PARTS ? MAP_PARTS : nt / MAP_PART_SLOTS;
     size_t k = 0;

@@ -40,12 +40,11 @@ struct map {
     bool complete;           /* false: some patch crosses the eye plane; trust no pixel */
     struct camera cam;
     const struct patch *patches; /* borrowed from map_begin to map_end */
-    size_t n_patches;
     /* the projected tessellation, bucketed by tiles of MAP_TILE_ROWS rows: patch k's vertices
      * from vfirst[k], its primitives in [first[k], end[k]) (slots up to first[k + 1]) */
     struct map_vert *verts;
     struct map_tri *tris;
-    size_t n_verts, n_tris;  /* slots */
+    size_t n_tris;           /* primitive slots */
     size_t *vfirst, *first, *end;
     double *pix;             /* per patch: a pixel's world size at its nearest depth */
     int n_parts;             /* the tessellation's parts: patches [part_first[p], part_first[p + 1]) */

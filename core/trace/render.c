@@ -219,11 +219,8 @@ static int frame_view(struct frame *fr, bool whole, struct frame **out, struct s
                        (sc->method == METHOD_AUTO && fr->ps.n * AUTO_MAP_PIXELS_PER_PATCH <= np));
     if (map_wanted)
         rc = map_begin(fr->ps.patches, fr->ps.n, fr->exact, &fr->cam, &fr->map, err);
-    for (int step = 0; !rc && whole && step < frame_steps(fr); step++)
-        for (int p = 0; p < frame_parts(fr); p++)
-            frame_part(fr, step, p);
     if (!rc && whole)
-        rc = frame_end(fr, err);
+        rc = frame_finish(fr, err);
     if (rc) {
         frame_free(fr);
         return rc;
@@ -247,6 +244,14 @@ int frame_end(struct frame *fr, struct sf_err *err)
     int rc = fr->map ? map_end(fr->map, err) : 0;
     fr->prepare_ms = now_ms() - fr->t0;
     return rc;
+}
+
+int frame_finish(struct frame *fr, struct sf_err *err)
+{
+    for (int step = 0; step < frame_steps(fr); step++)
+        for (int p = 0; p < frame_parts(fr); p++)
+            frame_part(fr, step, p);
+    return frame_end(fr, err);
 }
 
 static int prepare(const struct scene *sc, struct bvh_device *dev, bool whole, struct frame **out, struct sf_err *err)

@@ -55,13 +55,15 @@ int frame_prepare_from(const struct scene *sc, const struct frame *base, struct 
  * all but the map's, which frame_part(fr, step, p) does for each step in [0, frame_steps(fr)), in
  * order, and each p in [0, frame_parts(fr)), the parts of a step on any threads at once;
  * frame_end() then finishes (0, or an SF_E* code: frame_free the frame). frame_prepare() is
- * frame_begin() and the rest on one thread. */
+ * frame_begin() and frame_finish(). */
 int frame_begin(const struct scene *sc, struct bvh_device *dev, struct frame **out, struct sf_err *err);
 int frame_begin_from(const struct scene *sc, const struct frame *base, struct frame **out, struct sf_err *err);
 int frame_steps(const struct frame *fr);
 int frame_parts(const struct frame *fr);
 void frame_part(struct frame *fr, int step, int p);
 int frame_end(struct frame *fr, struct sf_err *err);
+/* Every part of every step left on this thread, then frame_end (a map too small to share out). */
+int frame_finish(struct frame *fr, struct sf_err *err);
 /* About the bytes a frame's patches and hierarchies take (a cache's budget). */
 size_t frame_hierarchy_bytes(const struct frame *fr);
 /* Renders rows [y0, y1), adding to *stats. */
