@@ -26,10 +26,20 @@ check "... a second view from another side uses it (a hit), the image byte for b
 check "... orthographic, an axis view: the same as fresh" 'same_view "$id" "width=64&height=48&projection=orthographic&view=%2Bz"'
 check "... EXR with AOVs: the same as fresh" 'same_view "$id" "width=64&height=48&output=exr&aovs=normal,uv,id"'
 check "... the mesh method: its own hierarchy, the same as fresh" 'same_view "$id" "width=64&height=48&method=mesh"'
+# a cached model's view checks its query against the cached objects: the answers a fresh parse gives
+bad_view() { # bad_view ID QUERY POINTER: 422 at POINTER when asked (async: no job made), as POST /render of the same scene answers
+    code=$(status GET "/models/$1/render?$2" -H 'Prefer: respond-async'); cp "$T/body" "$T/viewed"
+    [ "$code" = 422 ] && is_problem 422 && grep -q "\"pointer\":\"$3\"" "$T/viewed" &&
+        [ "$(status POST "/render?$2" -H "$J" --data-binary "{\"objects\": [{\"type\": \"model\", \"id\": \"$1\"}]}")" = 422 ] &&
+        grep -q "\"pointer\":\"$3\"" "$T/body" && alive
+}
+check "... a bad option on a cached view: 422 at its field, as a fresh parse says, the daemon up" 'bad_view "$id" "width=0&height=48" "?width" && bad_view "$id" "width=64&height=48&elevation=95" "?elevation" && bad_view "$id" "width=64&samples=999" "?samples" && bad_view "$id" "width=64&eye=1,1,1&target=1,1,1" /camera/target'
+check "... and a view of a model nobody stored: 404 as before" '[ "$(status GET "/models/00000000000000000000000000000000/render?width=8")" = 404 ]'
 printf '{"bounds": [[-1.2, -1.2, -1.2], [1.2, 1.2, 1.2]], "cell": 0.1, "frep": {"sphere": {"center": [0, 0, 0], "radius": 1}}}' >"$T/s.json"
 code=$(status POST /isosurface -H "$J" --data-binary @"$T/s.json"); iso=$(field id)
 status GET "/models/$iso/render?width=64&height=48" >/dev/null
 check "an isosurface model's second view: the same as fresh" 'same_view "$iso" "width=64&height=48&azimuth=200"'
+check "... the map method on its cached mesh: 422 at ?method, as a fresh parse says" 'bad_view "$iso" "width=64&height=48&method=map" "?method"'
 cp "$T/cached" "$T/before"
 code=$(status POST "/models/$iso/edit" -H "$J" --data-binary '{"op": "subtract", "object": {"box": {"min": [0, 0, 0], "max": [2, 2, 2]}}}')
 check "... after an edit, the edited model (a new hierarchy), the same as fresh" '[ "$code" = 200 ] && same_view "$iso" "width=64&height=48&azimuth=200" && ! cmp -s "$T/body" "$T/before" '
