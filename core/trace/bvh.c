@@ -81,6 +81,10 @@ struct bvh {
     /* exact */
     struct leaf *leaves;
     size_t n_leaves, cap_leaves;
+    /* the leaves along each patch edge that has a seam (edge e of patch k: border[border_at[4k + e]]
+     * up to border[border_at[4k + e + 1]]), in order along it; NULL: none known */
+    uint32_t *border;
+    size_t *border_at;
     /* mesh */
     struct tess mesh;
     /* triangle meshes beside the patches: mesh k is geometry mesh_geom + k */
@@ -137,6 +141,8 @@ size_t bvh_bytes(const struct bvh *b, size_t n_patches)
     if (!b)
         return 0;
     size_t n = sizeof *b + b->cap_leaves * sizeof *b->leaves + (b->chords ? n_patches * sizeof *b->chords : 0);
+    if (b->border_at)
+        n += (4 * n_patches + 1) * sizeof *b->border_at + b->border_at[4 * n_patches] * sizeof *b->border;
     n += b->mesh.n_tris * sizeof *b->mesh.tri +
          b->mesh.n_verts * (sizeof *b->mesh.pos + sizeof *b->mesh.nrm + sizeof *b->mesh.uv + sizeof *b->mesh.patch);
     return n + b->n_leaves * 64 + b->mesh.n_tris * 96; /* Embree's nodes over them, about (measured: the
@@ -150,6 +156,8 @@ void bvh_free(struct bvh *b)
     if (b->scene)
         rtcReleaseScene(b->scene);
     free(b->leaves);
+    free(b->border);
+    free(b->border_at);
     free(b->chords);
     tess_free(&b->mesh);
     free(b);
@@ -841,6 +849,101 @@ static bool leaves_its_neighbourhood(const struct leaf *l, const struct bvh_orig
            o->v >= l->rv0 && o->v <= l->rv1 && fabs(v3_dot(r->d, l->chord_n)) > l->chord_sin;
 }
 
+/* Where leaf l's parameter box starts and ends along edge e of its patch (u = 0 or 1: along v),
+ * and whether it touches that edge. */
+static bool on_edge(const struct leaf *l, int e, double *lo, double *hi)
+{
+    *lo = e < 2 ? l->v0 : l->u0, *hi = e < 2 ? l->v1 : l->u1;
+    return e == 0 ? l->u0 == 0.0 : e == 1 ? l->u1 == 1.0 : e == 2 ? l->v0 == 0.0 : l->v1 == 1.0;
+}
+
+struct border_key {
+    double at;        /* where the leaf starts along the edge */
+    uint32_t leaf;
+};
+
+static int border_cmp(const void *x, const void *y)
+{
+    const struct border_key *a = x, *c = y;
+    return (a->at > c->at) - (a->at < c->at);
+}
+
+/* The border lists of b's n patches (bvh.border): each seam edge's leaves, in order along it. */
+static int find_borders(struct bvh *b, size_t n)
+{
+    if (!(b->border_at = calloc(4 * n + 1, sizeof *b->border_at)))
+        return SF_ENOMEM;
+    double lo, hi;
+    for (size_t k = 0; k < b->n_leaves; k++) /* counts, each after its list's start */
+        for (int e = 0; e < 4; e++)
+            if (b->chords[b->leaves[k].patch].seam[e].other >= 0 && on_edge(&b->leaves[k], e, &lo, &hi))
+                b->border_at[4 * (size_t)b->leaves[k].patch + e + 1]++;
+    for (size_t at = 1; at <= 4 * n; at++)
+        b->border_at[at] += b->border_at[at - 1];
+    size_t total = b->border_at[4 * n], *fill = malloc(sizeof *fill * 4 * n);
+    struct border_key *keys = malloc(sizeof *keys * (total ? total : 1));
+    b->border = malloc(sizeof *b->border * (total ? total : 1));
+    if (!fill || !keys || !b->border) {
+        free(fill), free(keys);
+        return SF_ENOMEM;
+    }
+    memcpy(fill, b->border_at, sizeof *fill * 4 * n);
+    for (size_t k = 0; k < b->n_leaves; k++)
+        for (int e = 0; e < 4; e++)
+            if (b->chords[b->leaves[k].patch].seam[e].other >= 0 && on_edge(&b->leaves[k], e, &lo, &hi))
+                keys[fill[4 * (size_t)b->leaves[k].patch + e]++] = (struct border_key){lo, (uint32_t)k};
+    for (size_t at = 0; at < 4 * n; at++)
+        qsort(keys + b->border_at[at], b->border_at[at + 1] - b->border_at[at], sizeof *keys, border_cmp);
+    for (size_t k = 0; k < total; k++)
+        b->border[k] = keys[k].leaf;
+    free(fill), free(keys);
+    return 0;
+}
+
+/* A shadow ray leaving a point of a border leaf of its patch meets the neighbour's leaf l across
+ * the seam nowhere when the two leaves touch along the seam and d lies on the same side of every
+ * normal of both (their normal cones): the neighbour continues the patch's parameters, so the two
+ * leaves are one surface, every normal of which has the same sign along the ray, a height field
+ * along it (as in leaves_only_its_origin), which the ray leaves at its origin. Rays near seams
+ * were most of the heart model's shadow iterations (Newton failing on the neighbour's leaves). */
+static bool leaves_across_seam(const struct bvh *b, const struct leaf *l, const struct bvh_origin *o, const struct dray *r)
+{
+    if (!o || o->patch < 0 || !b->border || l->cone_sin > 1.0)
+        return false;
+    double sb = v3_dot(r->d, l->cone_axis);
+    if (fabs(sb) <= l->cone_sin)
+        return false;
+    const struct chords *c = &b->chords[o->patch];
+    for (int e = 0; e < 4; e++) {
+        double lo, hi, alo, ahi;
+        if (c->seam[e].other != l->patch || !on_edge(l, e ^ 1, &lo, &hi))
+            continue;
+        /* the origin's leaf: the last along the edge that starts at or before it */
+        const uint32_t *list = b->border + b->border_at[4 * (size_t)o->patch + e];
+        size_t n = b->border_at[4 * (size_t)o->patch + e + 1] - b->border_at[4 * (size_t)o->patch + e], k0 = 0;
+        double t = e < 2 ? o->v : o->u;
+        while (n > 1) {
+            size_t half = n / 2;
+            const struct leaf *m = &b->leaves[list[k0 + half]];
+            if ((e < 2 ? m->v0 : m->u0) <= t)
+                k0 += half, n -= half;
+            else
+                n = half;
+        }
+        if (n == 0)
+            continue;
+        const struct leaf *a = &b->leaves[list[k0]];
+        on_edge(a, e, &alo, &ahi);
+        if (o->u < a->u0 || o->u > a->u1 || o->v < a->v0 || o->v > a->v1 || fmin(ahi, hi) <= fmax(alo, lo) ||
+            a->cone_sin > 1.0)
+            continue;
+        double sa = v3_dot(r->d, a->cone_axis);
+        if (fabs(sa) > a->cone_sin && (sa > 0) == (sb > 0))
+            return true;
+    }
+    return false;
+}
+
 /* Any-hit callback: Embree may hand over a packet of rays (N lanes); each lane's double ray is
  * the shadow request its id names. A packet is laid out field by field, N of each (as the
  * RTCRayN_* accessors of rtcore_ray.h, which are C++ only): tfar is field 8, id field 10. */
@@ -857,7 +960,7 @@ static void leaf_occluded(const struct RTCOccludedFunctionNArguments *args)
         struct bvh_shadow *s = &qy->shadows[RAYN_ID(args->ray, args->N, i)];
         struct solve_hit h;
         if (s->blocked || leaves_only_its_origin(l, &s->from, &s->r) || leaves_its_neighbourhood(l, &s->from, &s->r) ||
-            bvh_meets_once(b, s->from.patch, l->patch, s->r.d))
+            bvh_meets_once(b, s->from.patch, l->patch, s->r.d) || leaves_across_seam(b, l, &s->from, &s->r))
             continue;
         if (leaf_hit(b, l, &s->r, s->tnear, s->tfar, &h, &qy->iters)) {
             s->blocked = true;
@@ -943,6 +1046,8 @@ int bvh_build_scene(struct bvh_device *dev, const struct patch *patches, size_t 
     int rc = find_seams(b, n);
     for (size_t k = 0; k < n && !rc; k++)
         rc = subdivide(b, &patches[k], (int)k, 0.0, 1.0, 0.0, 1.0, 0, patches[k].trim != NULL);
+    if (!rc)
+        rc = find_borders(b, n);
     if (rc) {
         bvh_free(b);
         return sf_fail(err, rc, "", "out of memory building the hierarchy");
