@@ -387,11 +387,21 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
         return 0;
     if (l == 2 && a->mixed[2][block(a, 2, b[0], b[1], b[2])] & HIDES) /* (a coarser block's children said it) */
         return INFINITY;
-    double iso = a->iso, c[8], ep[8][8][3]; /* the crossing on the edge between corners i < j, in mm */
-    uint64_t ek[8][8];                      /* and its vertex's key */
+    /* the block's samples, read once */
+    enum { SIDE = (1 << (ISO_MAX_LEVELS - 1)) + 1 };
+    double val[SIDE * SIDE * SIDE];
+    const int n1 = s + 1, step[3] = {1, n1, n1 * n1};
+    for (int z = 0, k = 0; z <= s; z++)
+        for (int y = 0; y <= s; y++)
+            for (int x = 0; x <= s; x++)
+                val[k++] = F(a, o[0] + x, o[1] + y, o[2] + z) - (double)a->iso;
+    double c[8], ep[8][8][3]; /* the crossing on the edge between corners i < j, in mm */
+    uint64_t ek[8][8];        /* and its vertex's key */
+    int at[8];                /* each corner in val */
     bool st[8];
     for (int k = 0; k < 8; k++) {
-        c[k] = F(a, o[0] + (k & 1) * s, o[1] + (k >> 1 & 1) * s, o[2] + (k >> 2 & 1) * s) - iso;
+        at[k] = s * ((k & 1) * step[0] + (k >> 1 & 1) * step[1] + (k >> 2 & 1) * step[2]);
+        c[k] = val[at[k]];
         st[k] = c[k] > 0;
     }
     for (int i = 0; i < 8; i++)
@@ -399,16 +409,15 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
             int j = i | 1 << axis;
             if (j == i)
                 continue;
-            int p[3] = {o[0] + (i & 1) * s, o[1] + (i >> 1 & 1) * s, o[2] + (i >> 2 & 1) * s}, changes = 0;
+            int changes = 0;
             double prev = c[i];
             for (int t = 1; t <= s; t++) {
-                int q[3] = {p[0], p[1], p[2]};
-                q[axis] += t;
-                double cur = F(a, q[0], q[1], q[2]) - iso;
+                double cur = val[at[i] + t * step[axis]];
                 if ((prev > 0) != (cur > 0)) {
                     if (++changes > 1)
                         return INFINITY;
-                    q[axis]--;
+                    int q[3] = {o[0] + (i & 1) * s, o[1] + (i >> 1 & 1) * s, o[2] + (i >> 2 & 1) * s};
+                    q[axis] += t - 1;
                     crossing_at(a, q, axis, prev / (prev - cur), ep[i][j]);
                     ek[i][j] = edge_key(a, q, axis);
                 }
@@ -486,26 +495,34 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
                 }
             }
         }
+    /* every full-resolution vertex of the block (the crossings of its fine edges) against it */
     double worst = 0;
-    for (int z = 0; z <= s; z++)
+    int last = 0; /* the triangle that settled the last vertex: the next one's is often the same */
+    for (int z = 0, k = 0; z <= s; z++)
         for (int y = 0; y <= s; y++)
-            for (int x = 0; x <= s; x++)
+            for (int x = 0; x <= s; x++, k++) {
+                const int r[3] = {x, y, z};
                 for (int axis = 0; axis < 3; axis++) {
-                    int p[3] = {o[0] + x, o[1] + y, o[2] + z}, q[3] = {p[0], p[1], p[2]};
-                    if (++q[axis] > o[axis] + s)
+                    /* (an edge along one of the cell's own holds one of the polygon's vertices, or none) */
+                    if (r[axis] == s || (!(r[(axis + 1) % 3] & (s - 1)) && !(r[(axis + 2) % 3] & (s - 1))))
                         continue;
-                    double f0 = F(a, p[0], p[1], p[2]) - iso, f1 = F(a, q[0], q[1], q[2]) - iso;
+                    double f0 = val[k], f1 = val[k + step[axis]];
                     if ((f0 > 0) == (f1 > 0))
                         continue;
                     double v[3], e = INFINITY;
-                    crossing_at(a, p, axis, f0 / (f0 - f1), v);
+                    crossing_at(a, (int[3]){o[0] + x, o[1] + y, o[2] + z}, axis, f0 / (f0 - f1), v);
                     /* (a triangle within the worst so far settles this vertex: it cannot raise it) */
-                    for (int k = 0; k < tri_n && e > worst; k++)
-                        e = fmin(e, trimesh_point_dist(v, tris[k][0], tris[k][1], tris[k][2]));
+                    for (int j = 0; j < tri_n && e > worst; j++) {
+                        int t = j == 0 ? last : j == last ? 0 : j;
+                        e = fmin(e, trimesh_point_dist(v, tris[t][0], tris[t][1], tris[t][2]));
+                        if (e <= worst)
+                            last = t;
+                    }
                     worst = fmax(worst, e);
                     if (worst > a->max_err)
                         return worst;
                 }
+            }
     /* the faces as the mesh draws them where finer cells lie across (last: most blocks that fail,
      * fail the distances): a path that strays to the far side of its chord is fanned over in place
      * of the chord's triangle (coarse_fan), which moves that triangle's points by at most the
@@ -515,7 +532,7 @@ static double block_error(const struct iso_adapt *a, int l, const int b[3], bool
     for (int z = 0; z < 3; z++)
         for (int y = 0; y < 3; y++)
             for (int x = 0; x < 3; x++)
-                half[z][y][x] = F(a, o[0] + x * s / 2, o[1] + y * s / 2, o[2] + z * s / 2) > iso;
+                half[z][y][x] = val[(x * step[0] + y * step[1] + z * step[2]) * s / 2] > 0;
     for (int f = 0; f < 6; f++) {
         double dev[2];
         if (!face_cut_ok(a, o, s, f, (const bool (*)[3][3])half, (const int (*)[2])pairs[f], n_pairs[f], ep, dev))
@@ -1804,8 +1821,11 @@ static void block_cells(const struct iso_adapt *a, struct piece *pc, const int b
     long cells = pc->cells[lam], features = pc->feature_points;
     pc->block = (uint32_t)at;
     if (lam >= 2) {
+        /* (a cell whose samples all lie on one side draws nothing, whichever neighbours it has:
+         * most blocks, merged at every level as they hold no surface) */
         int m = (1 << (lam - 2)) - 1;
-        if (!(b[0] & m) && !(b[1] & m) && !(b[2] & m))
+        if (!(b[0] & m) && !(b[1] & m) && !(b[2] & m) &&
+            a->mixed[lam][block(a, lam, b[0] >> (lam - 2), b[1] >> (lam - 2), b[2] >> (lam - 2))])
             polygonise(a, pc, (int[3]){2 * b[0], 2 * b[1], 2 * b[2]}, lam);
     } else if (a->mixed[2][at]) { /* level-1 cells where the samples change side */
         bool hides = a->mixed[2][at] & HIDES, side[27];
