@@ -49,6 +49,7 @@ struct iso_adapt {
     uint8_t *mixed[ISO_MAX_LEVELS + 1]; /* [l][block]: its samples are on both sides of iso (l >= 2;
                                          * level 2: or the grid's end cuts it, or HIDES) */
     double slab_max[ADAPT_SLABS];      /* the largest error a merge accepted, by slab */
+    float slab_min[ADAPT_SLABS];       /* the least sample, by slab (the first phase's) */
     struct piece pieces[ADAPT_SLABS];
     /* opts keep: what local rebuilds need (iso_adapt_keep, iso_adapt_edit) */
     double *berr[ISO_MAX_LEVELS + 1];  /* [l][block]: the error its merge accepted */
@@ -1911,9 +1912,7 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
     }
     size_t n = (size_t)a->N[0] * a->N[1] * a->N[2];
     a->g = *g;
-    a->iso1 = o->iso - 1;
-    a->gmin = iso_grid_min(g);
-    a->pad = o->closed ? (float)fmin(a->iso1, a->gmin) : 0;
+    a->iso1 = o->iso - 1; /* (the pad, below iso and the samples' least, is set when they are read) */
     if (!(a->F = malloc(n * sizeof *a->F))) {
         iso_adapt_free(a);
         return sf_fail(err, SF_ENOMEM, "", "out of memory for the volume's %zu samples", n);
@@ -1943,28 +1942,32 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
 int iso_adapt_phases(const struct iso_adapt *a) { return a->L + 1; }
 
 /* Phase 0: planes [z0, z1) of the virtual grid from the samples (the pad layer round them). */
-static void load_slab(struct iso_adapt *a, int z0, int z1)
+static void set_pad(struct iso_adapt *a);
+
+/* The samples of layers [z0, z1) as floats, and their least into slab_min[slab]; the pad layer
+ * round them is written after every slab's (iso_adapt_between), when the least of all is known. */
+static void load_slab(struct iso_adapt *a, int z0, int z1, int slab)
 {
+    float lo = INFINITY;
     for (int z = z0; z < z1; z++)
         for (int y = 0; y < a->N[1]; y++) {
-            float *row = a->F + at3(a, 0, y, z);
+            float *row = a->F + at3(a, 0, y, z) + a->shift;
             int ry = y - a->shift, rz = z - a->shift;
-            if (ry < 0 || ry >= a->g.ny || rz < 0 || rz >= a->g.nz) {
-                for (int x = 0; x < a->N[0]; x++)
-                    row[x] = a->pad;
+            if (ry < 0 || ry >= a->g.ny || rz < 0 || rz >= a->g.nz)
                 continue;
-            }
-            iso_grid_row(&a->g, ry, rz, row + a->shift);
-            if (a->shift)
-                row[0] = row[a->N[0] - 1] = a->pad;
+            iso_grid_row(&a->g, ry, rz, row);
+            for (int x = 0; x < a->g.nx; x++)
+                lo = row[x] < lo ? row[x] : lo;
         }
+    a->slab_min[slab] = lo;
 }
+
 int iso_adapt_n_slabs(const struct iso_adapt *a) { return a->n_slabs; }
 
 void iso_adapt_run(struct iso_adapt *a, int phase, int slab)
 {
     if (phase == 0) {
-        load_slab(a, (int)((long)a->N[2] * slab / a->n_slabs), (int)((long)a->N[2] * (slab + 1) / a->n_slabs));
+        load_slab(a, (int)((long)a->N[2] * slab / a->n_slabs), (int)((long)a->N[2] * (slab + 1) / a->n_slabs), slab);
         return;
     }
     phase--;
@@ -1983,6 +1986,14 @@ void iso_adapt_run(struct iso_adapt *a, int phase, int slab)
 
 void iso_adapt_between(struct iso_adapt *a, int phase)
 {
+    if (phase == 0) { /* the samples are read: the pad below them and iso */
+        a->gmin = INFINITY;
+        for (int s = 0; s < a->n_slabs; s++)
+            a->gmin = fmin(a->gmin, a->slab_min[s]);
+        a->pad = a->shift ? (float)fmin(a->iso1, a->gmin) : 0;
+        if (a->shift)
+            set_pad(a);
+    }
     if (phase == a->L - 1) /* the last level's blocks are known */
         cell_levels(a);
 }
