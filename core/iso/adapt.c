@@ -1941,11 +1941,11 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
 
 int iso_adapt_phases(const struct iso_adapt *a) { return a->L + 1; }
 
-/* Phase 0: planes [z0, z1) of the virtual grid from the samples (the pad layer round them). */
 static void set_pad(struct iso_adapt *a);
 
-/* The samples of layers [z0, z1) as floats, and their least into slab_min[slab]; the pad layer
- * round them is written after every slab's (iso_adapt_between), when the least of all is known. */
+/* Phase 0: the samples of planes [z0, z1) of the virtual grid as floats, and their least into
+ * slab_min[slab]; the pad layer round them is written after every slab's (iso_adapt_between),
+ * when the least of all is known. */
 static void load_slab(struct iso_adapt *a, int z0, int z1, int slab)
 {
     float lo = INFINITY;
