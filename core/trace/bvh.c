@@ -21,9 +21,12 @@
 #define LEAF_FLAT_REL 0.05  /* leaf is flat when its net deviates < 5 % of its size ...       */
 #define LEAF_MAX_DEPTH 14   /* ... or after this many splits; trades leaves for Newton starts */
 #define LEAF_TRIM_DEPTH 10  /* ... but a leaf a trim loop crosses splits to this depth at least */
-#define LEAF_MAX_ASPECT 4.0 /* ... and an untrimmed one longer than this many times its width splits
-                             * across (the heart at 1024^2: shadow rays 94 -> 79 ms, primaries 46 ->
-                             * 42; 2 and 3 little better, for more leaves: 31 k, 52 k at 4, 87 k at 2) */
+#define LEAF_MAX_ASPECT 8.0 /* ... and an untrimmed one longer than this many times its width splits
+                             * across (the heart of 19 k sliver patches at 1024^2: shadow rays 94 -> 79
+                             * ms at 4. Its model of 7.6 k patches since the curves were redrawn on
+                             * fewer knots: auto's render the same at 4, 8 and 16, 168 ms without
+                             * the split; preparation 139 ms at 4, 122 at 8 (the teacup 10 -> 4.6
+                             * ms, the teapot 12 -> 8); the bvh method's render 5 % slower at 8) */
 #define LEAF_GRAZING 0.25   /* |cos| of a ray's angle to a leaf's normal below which it grazes the leaf */
 #define LEAF_SPLIT_DEPTH 4  /* ... and intersection queries search its quarters, this many levels deep */
 #define REGION_GROW 0.25    /* a leaf's neighbourhood: its box grown by this much of its size each way
