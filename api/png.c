@@ -65,15 +65,23 @@ static int feed(z_stream *zs, struct band *b, size_t *cap, const unsigned char *
         int z = deflate(zs, flush);
         if (z == Z_STREAM_ERROR)
             return SF_EBACKEND;
-        if (zs->avail_in == 0 && zs->avail_out > 0 && (flush == Z_NO_FLUSH || z == Z_STREAM_END || flush == Z_SYNC_FLUSH))
+        if (zs->avail_in == 0 && zs->avail_out > 0 && (flush != Z_FINISH || z == Z_STREAM_END))
             return 0;
     }
+}
+
+/* Band k's rows [*y0, *y1), and the bytes they deflate (a filter byte a row). */
+static size_t band_rows(const struct png_bands *pb, int k, int *y0, int *y1)
+{
+    *y0 = k * pb->rows, *y1 = *y0 + pb->rows < pb->height ? *y0 + pb->rows : pb->height;
+    return (3 * (size_t)pb->width + 1) * (size_t)(*y1 - *y0);
 }
 
 int png_band(struct png_bands *pb, int k)
 {
     struct band *b = &pb->band[k];
-    const int y0 = k * pb->rows, y1 = y0 + pb->rows < pb->height ? y0 + pb->rows : pb->height;
+    int y0, y1;
+    const size_t in = band_rows(pb, k, &y0, &y1);
     const size_t row = 3 * (size_t)pb->width;
     const bool last = k == pb->n - 1;
     static const unsigned char none = 0; /* each row's filter type */
@@ -81,7 +89,7 @@ int png_band(struct png_bands *pb, int k)
     memset(&zs, 0, sizeof zs);
     if (deflateInit2(&zs, PNG_LEVEL, Z_DEFLATED, -15, 8, Z_DEFAULT_STRATEGY) != Z_OK)
         return b->rc = SF_ENOMEM;
-    size_t cap = deflateBound(&zs, (uLong)((row + 1) * (size_t)(y1 - y0))) + 64;
+    size_t cap = deflateBound(&zs, (uLong)in) + 64;
     int rc = (b->bytes = malloc(cap)) ? 0 : SF_ENOMEM;
     zs.next_out = b->bytes;
     zs.avail_out = (uInt)cap;
@@ -124,14 +132,12 @@ int png_join(struct png_bands *pb, unsigned char **out, size_t *out_len, struct 
     *out_len = 0;
     size_t data = 2 + 4; /* the zlib header and checksum about the bands' streams */
     uLong adler = adler32(0L, Z_NULL, 0);
-    const size_t band_in = (3 * (size_t)pb->width + 1) * (size_t)pb->rows;
-    for (int k = 0; k < pb->n; k++) {
+    for (int k = 0, y0, y1; k < pb->n; k++) {
         if (pb->band[k].rc)
             return sf_fail(err, pb->band[k].rc < 0 ? pb->band[k].rc : SF_EBACKEND, "",
                            "the PNG's band %d could not be deflated", k);
         data += pb->band[k].len;
-        size_t in = k < pb->n - 1 ? band_in : (3 * (size_t)pb->width + 1) * (size_t)(pb->height - k * pb->rows);
-        adler = adler32_combine(adler, pb->band[k].adler, (z_off_t)in);
+        adler = adler32_combine(adler, pb->band[k].adler, (z_off_t)band_rows(pb, k, &y0, &y1));
     }
     if (data > 0x7fffffffu)
         return sf_fail(err, SF_ELIMIT, "", "the PNG's data is over the 2 GB a chunk holds");

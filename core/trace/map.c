@@ -586,6 +586,13 @@ static uint64_t depth_key(const struct map_tri *tri, size_t t)
     return (uint64_t)(bits & 0x80000000u ? ~bits : bits | 0x80000000u) << 32 | t;
 }
 
+/* The row tiles [*y0, *y1] primitive t's box touches; false when it is off the picture. */
+static bool tiles_of(const struct map_tri *t, int *y0, int *y1)
+{
+    *y0 = t->box[2] / MAP_TILE_ROWS, *y1 = t->box[3] / MAP_TILE_ROWS;
+    return t->box[0] <= t->box[1] && t->box[2] <= t->box[3];
+}
+
 /* Step 1 of part p: its patches' seams joined, and its primitives on the picture (a seam's edges
  * that are no outline left out) as depth keys grouped by the row tiles they touch, with how many
  * each tile has (a primitive over several tiles is in each). */
@@ -596,12 +603,9 @@ static int part_keys(struct map *m, int p)
     for (size_t k = k0; k < k1; k++) {
         if (m->grid[k][0])
             join_seams(m, k);
-        for (size_t t = m->first[k]; t < m->end[k]; t++) {
-            const short *box = m->tris[t].box;
-            if (box[0] <= box[1] && box[2] <= box[3])
-                for (int y = box[2] / MAP_TILE_ROWS; y <= box[3] / MAP_TILE_ROWS; y++)
-                    hist[y]++;
-        }
+        for (size_t t = m->first[k]; t < m->end[k]; t++)
+            for (int y, y1, on = tiles_of(&m->tris[t], &y, &y1); on && y <= y1; y++)
+                hist[y]++;
     }
     size_t n = 0, *at = malloc(sizeof *at * (size_t)m->n_tiles);
     for (int y = 0; at && y < m->n_tiles; y++)
@@ -612,12 +616,9 @@ static int part_keys(struct map *m, int p)
         return SF_ENOMEM;
     }
     for (size_t k = k0; k < k1; k++)
-        for (size_t t = m->first[k]; t < m->end[k]; t++) {
-            const short *box = m->tris[t].box;
-            if (box[0] <= box[1] && box[2] <= box[3])
-                for (int y = box[2] / MAP_TILE_ROWS; y <= box[3] / MAP_TILE_ROWS; y++)
-                    keys[at[y]++] = depth_key(&m->tris[t], t);
-        }
+        for (size_t t = m->first[k]; t < m->end[k]; t++)
+            for (int y, y1, on = tiles_of(&m->tris[t], &y, &y1); on && y <= y1; y++)
+                keys[at[y]++] = depth_key(&m->tris[t], t);
     free(at);
     m->part_keys[p] = keys;
     return 0;
@@ -636,16 +637,17 @@ static int tile_lists(struct map *m, int p)
         most = n > most ? n : most;
     }
     uint64_t *a = malloc(sizeof *a * (most ? most : 1)), *b = malloc(sizeof *b * (most ? most : 1));
-    int rc = a && b ? 0 : SF_ENOMEM;
+    size_t *from = calloc((size_t)m->n_parts, sizeof *from); /* where each part's keys of tile y start */
+    int rc = a && b && from ? 0 : SF_ENOMEM;
+    for (int q = 0; q < m->n_parts && !rc; q++) /* (a part's keys of a tile follow those of the tiles above) */
+        for (int z = 0; z < y0; z++)
+            from[q] += m->part_hist[(size_t)q * m->n_tiles + z];
     for (int y = y0; y < y1 && !rc; y++) {
         size_t n = 0;
-        for (int q = 0; q < m->n_parts; q++) { /* part q's keys of tile y follow those of the tiles above */
-            const unsigned *hist = m->part_hist + (size_t)q * m->n_tiles;
-            size_t from = 0;
-            for (int z = 0; z < y; z++)
-                from += hist[z];
-            memcpy(a + n, m->part_keys[q] + from, sizeof *a * hist[y]);
-            n += hist[y];
+        for (int q = 0; q < m->n_parts; q++) {
+            unsigned h = m->part_hist[(size_t)q * m->n_tiles + y];
+            memcpy(a + n, m->part_keys[q] + from[q], sizeof *a * h);
+            n += h, from[q] += h;
         }
         const uint64_t *order = depth_sort(a, b, n);
         if (!(m->tile_list[y] = malloc(sizeof *m->tile_list[y] * (n ? n : 1)))) {
@@ -656,7 +658,7 @@ static int tile_lists(struct map *m, int p)
             m->tile_list[y][k] = (unsigned)(order[k] & 0xffffffffu);
         m->tile_n[y] = (unsigned)n;
     }
-    free(a), free(b);
+    free(a), free(b), free(from);
     return rc;
 }
 
