@@ -572,6 +572,18 @@ def adapt_bench(lines):
             dec["triangles"], v["fe_triangles"] / dec["triangles"], v["fe_ms"], dec["ms"], dd["a_to_b"]["p99"],
             dd["b_to_a"]["p99"], dd["a_to_b"]["max"], dd["b_to_a"]["max"]))
     lines.append("")
+    # the hierarchy's own ceiling: no bound on the distance at all
+    ceiling = []
+    for levels, goal in ((2, 3.6), (3, 10)):
+        p = subprocess.run([SURFD, "isosurface"] + common + ["--levels", str(levels), "--max-error", "1000"],
+                           capture_output=True, text=True, check=True)
+        m = json.loads(p.stdout)
+        ceiling.append("levels=%d: %d triangles, %.2fx (goal %gx), cells by level %s" % (
+            levels, m["triangles"], m1["triangles"] / m["triangles"], goal, m["cells_by_level"]))
+    lines.append("With no bound on the distance (max_error=1000 mm, every block whose merged cell can be drawn merges): %s. "
+                 "A merged cell draws at most one crossing on each of its edges, so that the mesh stays closed and "
+                 "manifold where cell sizes change; blocks whose coarse edges the surface crosses twice (thin bone) stay "
+                 "level-1 cells whatever the bound.\n" % "; ".join(ceiling))
 
 
 def edit_bench(lines, n_edits=20):
