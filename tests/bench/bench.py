@@ -574,7 +574,7 @@ def adapt_bench(lines):
     lines.append("")
     # the hierarchy's own ceiling: no bound on the distance at all
     ceiling = []
-    for levels, goal in ((2, 3.6), (3, 10)):
+    for levels, _, goal, _, _ in runs:
         p = subprocess.run([SURFD, "isosurface"] + common + ["--levels", str(levels), "--max-error", "1000"],
                            capture_output=True, text=True, check=True)
         m = json.loads(p.stdout)
