@@ -371,6 +371,7 @@ static int curve_poly_segment(const struct curve_poly *cp, double u)
 #define FIT_START 16       /* pieces to begin with */
 #define FIT_MIN_PIECE 1e-7 /* of a turn: no piece is halved below this */
 #define FIT_MAX_KNOTS(n) (2 * (size_t)(n) + FIT_START) /* (the heart's curves take 1.1 to 1.5 n) */
+#define WARP_MAX_KNOTS(n) (2 * FIT_MAX_KNOTS(n)) /* a warped curve's (curves_unfold) */
 
 /* A knot of the redrawn curve: the curve's value and u-derivative there (the turn's end, u = 1,
  * read at its start). */
@@ -383,6 +384,50 @@ static struct knot knot_at(const struct curve_poly *c, double u)
     struct knot k = {.u = u};
     double w = u >= 1.0 ? u - 1.0 : u;
     curve_poly_at(c, curve_poly_segment(c, w), w, &k.x, &k.y, &k.xu, &k.yu);
+    return k;
+}
+
+/* A warp of a curve's parameter (curves_unfold): u -> φ(u) over a window [w0, w0 + len] of the turn
+ * (mod 1), the identity elsewhere; φ is the monotone cubic Hermite through n nodes at even steps s of
+ * the window, y and d its value and slope there (in the window's own [0, 1]; d = 1 at both ends, so
+ * it joins the identity C1). */
+struct warp {
+    double w0, len;
+    int n;
+    double *y, *d;
+};
+
+static double warp_at(const struct warp *w, double u, double *slope)
+{
+    double s = u - w->w0;
+    s -= floor(s);
+    if (s >= w->len)
+        return u;
+    double x = s / w->len * (w->n - 1);
+    int i = x >= w->n - 1 ? w->n - 2 : (int)x;
+    double t = x - i, h = 1.0 / (w->n - 1), y0 = w->y[i], y1 = w->y[i + 1], m0 = w->d[i] * h, m1 = w->d[i + 1] * h;
+    double t2 = t * t, t3 = t2 * t;
+    double y = (2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * m0 + (-2 * t3 + 3 * t2) * y1 + (t3 - t2) * m1;
+    *slope *= ((6 * t2 - 6 * t) * y0 + (3 * t2 - 4 * t + 1) * m0 + (-6 * t2 + 6 * t) * y1 + (3 * t2 - 2 * t) * m1) / h;
+    return w->w0 + w->len * y;
+}
+
+/* A curve to redraw: c read at Φ(u) = w[0](w[1](... w[n_w - 1](u))), or as it is (n_w 0). */
+struct redraw_src {
+    const struct curve_poly *c;
+    const struct warp *w;
+    int n_w;
+};
+
+static struct knot src_knot(const struct redraw_src *s, double u)
+{
+    if (!s->n_w)
+        return knot_at(s->c, u);
+    double slope = 1.0, v = u;
+    for (int i = s->n_w - 1; i >= 0; i--)
+        v = warp_at(&s->w[i], v, &slope);
+    struct knot k = knot_at(s->c, v - floor(v));
+    k.u = u, k.xu *= slope, k.yu *= slope;
     return k;
 }
 
@@ -404,14 +449,26 @@ static void hermite_piece(const struct knot *k0, const struct knot *k1, double h
 /* Whether the curve and its Hermite piece over [u0, u1] are within tol2 (squared): so when no
  * breakpoint of the curve lies inside (the piece is one of its cubics, which the Hermite piece
  * equals), else as measured at those breakpoints and at the quarters between them (stopping at
- * the first sample beyond). */
-static bool piece_holds(const struct curve_poly *c, double u0, double u1, const double hx[4], const double hy[4],
+ * the first sample beyond). A warped curve is no cubic anywhere: measured at the piece's eighths. */
+static bool piece_holds(const struct redraw_src *src, double u0, double u1, const double hx[4], const double hy[4],
                         double tol2)
 {
+    const struct curve_poly *c = src->c;
+    double h = u1 - u0;
+    if (src->n_w) {
+        for (int q = 1; q < 8; q++) {
+            struct knot k = src_knot(src, u0 + h * q / 8.0);
+            double t = q / 8.0, ex = hx[0] + t * (hx[1] + t * (hx[2] + t * hx[3])) - k.x;
+            double ey = hy[0] + t * (hy[1] + t * (hy[2] + t * hy[3])) - k.y;
+            if (ex * ex + ey * ey > tol2)
+                return false;
+        }
+        return true;
+    }
     int i = segment_at(c->u, c->n, u0) + 1; /* the first breakpoint past u0 */
     if (i >= c->n || c->u[i] >= u1)
         return true;
-    double h = u1 - u0, prev = u0;
+    double prev = u0;
     for (;; i++) {
         double b = i < c->n && c->u[i] < u1 ? c->u[i] : u1;
         int seg = i > 0 ? i - 1 : c->n - 1; /* the segment [prev, b] lies in */
@@ -431,102 +488,67 @@ static bool piece_holds(const struct curve_poly *c, double u0, double u1, const 
     }
 }
 
-/* Redraws curve c on dyadic knots (above) within MODEL_FIT_REL of its extent, unless that takes
- * more than FIT_MAX_KNOTS (then c stays). 0 or SF_ENOMEM. */
-static int curve_refit(struct curve_poly *c)
+/* MODEL_FIT_REL of the curve's extent. */
+static double curve_tol(const struct curve_poly *c)
 {
     double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
     for (int i = 0; i < c->n; i++) {
         lo[0] = fmin(lo[0], c->cx[i][0]), hi[0] = fmax(hi[0], c->cx[i][0]);
         lo[1] = fmin(lo[1], c->cy[i][0]), hi[1] = fmax(hi[1], c->cy[i][0]);
     }
-    double tol = MODEL_FIT_REL * fmax(hi[0] - lo[0], hi[1] - lo[1]);
+    return MODEL_FIT_REL * fmax(hi[0] - lo[0], hi[1] - lo[1]);
+}
+
+/* Draws src on dyadic knots (above) within tol into *out (zeroed; the caller frees it). 0, SF_ENOMEM,
+ * or SF_ELIMIT when that takes more than cap knots. */
+static int curve_redraw(const struct redraw_src *src, double tol, size_t cap, struct curve_poly *out)
+{
     /* depth first: a stack of pieces still to check (one more than the knots allowed: a split
      * adds one), the accepted ones in order with their Hermite pieces */
-    const size_t cap = FIT_MAX_KNOTS(c->n);
     struct knot(*stack)[2] = malloc(sizeof *stack * (cap + 1)); /* (each knot read once) */
-    struct curve_poly out = {.own_u = malloc(sizeof *out.own_u * cap), .cx = malloc(sizeof *out.cx * cap),
-                             .cy = malloc(sizeof *out.cy * cap)};
-    if (!stack || !out.own_u || !out.cx || !out.cy) {
-        free(stack), curve_poly_free(&out);
+    *out = (struct curve_poly){.own_u = malloc(sizeof *out->own_u * cap), .cx = malloc(sizeof *out->cx * cap),
+                               .cy = malloc(sizeof *out->cy * cap)};
+    if (!stack || !out->own_u || !out->cx || !out->cy) {
+        free(stack);
         return SF_ENOMEM;
     }
     size_t nk = 0, ns = 0;
-    struct knot next = knot_at(c, 1.0);
+    struct knot next = src_knot(src, 1.0);
     for (int k = FIT_START - 1; k >= 0; k--, ns++)
-        stack[ns][1] = next, stack[ns][0] = next = knot_at(c, (double)k / FIT_START);
+        stack[ns][1] = next, stack[ns][0] = next = src_knot(src, (double)k / FIT_START);
     while (ns && nk + ns <= cap) {
         struct knot a = stack[ns - 1][0], b = stack[ns - 1][1];
         double hx[4], hy[4];
         ns--;
         hermite_piece(&a, &b, hx, hy);
-        if (b.u - a.u <= FIT_MIN_PIECE || piece_holds(c, a.u, b.u, hx, hy, tol * tol)) {
-            out.own_u[nk] = a.u;
-            memcpy(out.cx[nk], hx, sizeof hx), memcpy(out.cy[nk], hy, sizeof hy);
+        if (b.u - a.u <= FIT_MIN_PIECE || piece_holds(src, a.u, b.u, hx, hy, tol * tol)) {
+            out->own_u[nk] = a.u;
+            memcpy(out->cx[nk], hx, sizeof hx), memcpy(out->cy[nk], hy, sizeof hy);
             nk++;
         } else {
-            struct knot m = knot_at(c, 0.5 * (a.u + b.u));
+            struct knot m = src_knot(src, 0.5 * (a.u + b.u));
             stack[ns][0] = m, stack[ns][1] = b, ns++;
             stack[ns][0] = a, stack[ns][1] = m, ns++;
         }
     }
     free(stack);
-    if (ns) { /* over FIT_MAX_KNOTS */
+    out->n = (int)nk, out->u = out->own_u;
+    return ns ? SF_ELIMIT : 0;
+}
+
+/* Redraws curve c on dyadic knots (above) within MODEL_FIT_REL of its extent, unless that takes
+ * more than FIT_MAX_KNOTS (then c stays). 0 or SF_ENOMEM. */
+static int curve_refit(struct curve_poly *c)
+{
+    struct curve_poly out;
+    int rc = curve_redraw(&(struct redraw_src){c, NULL, 0}, curve_tol(c), FIT_MAX_KNOTS(c->n), &out);
+    if (rc) {
         curve_poly_free(&out);
-        return 0;
+        return rc == SF_ELIMIT ? 0 : rc;
     }
-    out.n = (int)nk, out.u = out.own_u;
     curve_poly_free(c);
     *c = out;
     return 0;
-}
-
-/* The chain's curves (curves_build) as the methods read them: redrawn on their knots. cv and cp
- * hold n each, zeroed; the caller frees both, whatever the answer. 0 or SF_ENOMEM. */
-static int curves_fit(const struct contour_set *cs, bool lsq, bool polar, struct curve *cv, struct curve_poly *cp)
-{
-    int rc = curves_build(cs, lsq, polar, cv);
-    for (int j = 0; j < cs->n_slices && !rc; j++)
-        if (!(rc = curve_poly_build(&cv[j], &cp[j])))
-            rc = curve_refit(&cp[j]);
-    return rc;
-}
-
-/* Inverse of the cubic Bernstein matrix at t = 0, 1/3, 2/3, 1 (rows: samples, columns: basis). */
-static void bernstein_inverse(double inv[4][4])
-{
-    double m[4][8];
-    for (int a = 0; a < 4; a++) {
-        double t = a / 3.0, B[4];
-        bezier_basis(3, t, B, NULL);
-        for (int b = 0; b < 4; b++) {
-            m[a][b] = B[b];
-            m[a][4 + b] = a == b;
-        }
-    }
-    for (int c = 0; c < 4; c++) { /* Gauss–Jordan with partial pivoting */
-        int piv = c;
-        for (int r = c + 1; r < 4; r++)
-            if (fabs(m[r][c]) > fabs(m[piv][c]))
-                piv = r;
-        for (int k = 0; k < 8; k++) {
-            double t = m[c][k];
-            m[c][k] = m[piv][k];
-            m[piv][k] = t;
-        }
-        double d = m[c][c];
-        for (int k = 0; k < 8; k++)
-            m[c][k] /= d;
-        for (int r = 0; r < 4; r++)
-            if (r != c) {
-                double f = m[r][c];
-                for (int k = 0; k < 8; k++)
-                    m[r][k] -= f * m[c][k];
-            }
-    }
-    for (int a = 0; a < 4; a++)
-        for (int b = 0; b < 4; b++)
-            inv[a][b] = m[a][4 + b];
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -557,91 +579,681 @@ static void slice_weights(const struct contour_set *cs, bool lsq, int k, double 
     }
 }
 
-/* Parabolic or linear-parabolic (eq. 32 in both directions), exactly as bicubic patches: on a piece
- * [ua, ub] between the merged breakpoints of the (up to) four curves pair k depends on, the surface is
- * sum_j w_j(z) C_j(u) with each C_j a cubic in u and each w_j a cubic in z, so its Bézier points are
- * sum_j C_j[a] W_j[b]: the curves' Bézier points on the piece (from their values and derivatives at
- * the ends) times the weights' Bernstein coefficients over the pair (once per pair). */
+/* A slice pair's side surface as Bézier nets in (x, y), z being linear in v: one for each piece
+ * between the merged breakpoints of the (up to) four curves the pair reads, in increasing u. */
+struct pair_nets {
+    size_t n, cap_u, cap_net, cap_brk;
+    double *brk;            /* the merged breakpoints (scratch) */
+    double (*u)[2];         /* each piece's [ua, ub] */
+    double (*net)[4][4][2]; /* its points [a along u][b along z] */
+};
+
+static void pair_nets_free(struct pair_nets *pn)
+{
+    free(pn->brk);
+    free(pn->u);
+    free(pn->net);
+}
+
+/* Pair k's nets (parabolic or linear-parabolic, eq. 32 in both directions): on a piece [ua, ub]
+ * between the merged breakpoints of the curves pair k depends on, the surface is sum_j w_j(z) C_j(u)
+ * with each C_j a cubic in u and each w_j a cubic in z, so its Bézier points are sum_j C_j[a] W_j[b]:
+ * the curves' Bézier points on the piece (from their values and derivatives at the ends) times the
+ * weights' Bernstein coefficients over the pair. 0 or SF_ENOMEM. */
+static int pair_nets(const struct contour_set *cs, bool lsq, const struct curve_poly *cp, int k, struct pair_nets *pn)
+{
+    static const double INV[4][4] = {{1, 0, 0, 0}, {-5.0 / 6, 3, -1.5, 1.0 / 3}, {1.0 / 3, -1.5, 3, -5.0 / 6}, {0, 0, 0, 1}};
+    int n = cs->n_slices, j0 = k > 0 ? k - 1 : k, j1 = k + 2 < n ? k + 2 : k + 1;
+    size_t nb = 2;
+    for (int j = j0; j <= j1; j++)
+        nb += (size_t)cp[j].n;
+    if (mem_reserve((void **)&pn->brk, &pn->cap_brk, nb, sizeof *pn->brk) ||
+        mem_reserve((void **)&pn->u, &pn->cap_u, nb, sizeof *pn->u) ||
+        mem_reserve((void **)&pn->net, &pn->cap_net, nb, sizeof *pn->net))
+        return SF_ENOMEM;
+    /* the curves' breakpoints merged (each list increasing), with 0 and 1 */
+    int next[4] = {0, 0, 0, 0};
+    nb = 0;
+    pn->brk[nb++] = 0.0;
+    for (;;) {
+        int at = -1;
+        for (int j = j0; j <= j1; j++)
+            if (next[j - j0] < cp[j].n && (at < 0 || cp[j].u[next[j - j0]] < cp[at].u[next[at - j0]]))
+                at = j;
+        if (at < 0)
+            break;
+        pn->brk[nb++] = cp[at].u[next[at - j0]++];
+    }
+    pn->brk[nb++] = 1.0;
+    double z0 = cs->s[k].z, z1 = cs->s[k + 1].z, wz[4][4], W[4][4] = {{0}};
+    int m = 0;
+    for (int c = 0; c < 4; c++) /* the slice weights at the four z samples ... */
+        slice_weights(cs, lsq, k, z0 + (z1 - z0) * c / 3.0, wz[c], &j0, &m);
+    for (int j = 0; j < m; j++) /* ... as Bernstein coefficients W[j][b] */
+        for (int b = 0; b < 4; b++)
+            for (int c = 0; c < 4; c++)
+                W[j][b] += INV[b][c] * wz[c][j];
+    int at[4] = {-1, -1, -1, -1}; /* each curve's last breakpoint at or before the piece (segment_at) */
+    pn->n = 0;
+    for (size_t q = 0; q + 1 < nb; q++) {
+        double ua = pn->brk[q], ub = pn->brk[q + 1], h = ub - ua;
+        if (h <= BREAK_EPS)
+            continue;
+        double C[4][4][2], mid = 0.5 * (ua + ub); /* curve j's Bézier points on the piece */
+        for (int j = 0; j < m; j++) {
+            const struct curve_poly *c = &cp[j0 + j];
+            while (at[j] + 1 < c->n && c->u[at[j] + 1] <= mid)
+                at[j]++;
+            int seg = at[j] < 0 ? c->n - 1 : at[j]; /* (curve_poly_segment, walked) */
+            double xa, ya, xua, yua, xb, yb, xub, yub;
+            curve_poly_at(c, seg, ua, &xa, &ya, &xua, &yua);
+            curve_poly_at(c, seg, ub, &xb, &yb, &xub, &yub);
+            C[j][0][0] = xa, C[j][0][1] = ya;
+            C[j][1][0] = xa + h * xua / 3, C[j][1][1] = ya + h * yua / 3;
+            C[j][2][0] = xb - h * xub / 3, C[j][2][1] = yb - h * yub / 3;
+            C[j][3][0] = xb, C[j][3][1] = yb;
+        }
+        double(*P)[4][2] = pn->net[pn->n];
+        for (int a = 0; a < 4; a++)
+            for (int b = 0; b < 4; b++) {
+                P[a][b][0] = P[a][b][1] = 0.0;
+                for (int j = 0; j < m; j++)
+                    P[a][b][0] += C[j][a][0] * W[j][b], P[a][b][1] += C[j][a][1] * W[j][b];
+            }
+        pn->u[pn->n][0] = ua, pn->u[pn->n][1] = ub;
+        pn->n++;
+    }
+    return 0;
+}
+
+/* ---- folds ----
+ * Where the contours of two levels are unlike (a slit in one that the other lacks, a bay that
+ * becomes a hole), the side surface between them may pass through itself: two parts of one section
+ * z = const cross. The seeds are silent; ours: each pair's surface is checked for it (pair_folds)
+ * and where it folds, the parameters of every curve above are warped over a window round the fold
+ * so that the upper curve's points pair with the nearest of the lower's (curves_unfold). The
+ * surfaces above keep their shape, since all their curves move alike; the curves are redrawn on
+ * dyadic knots as before, so the volume and the patches still read the same curves.
+ *
+ * The check: at a fixed z the section sum_j w_j C_j(u) is a curve; two pieces of it can only meet
+ * where their nets' boxes (in x, y, over the pair's z) overlap. Pieces along a stretch whose
+ * tangents all lie within 90 degrees of one direction (the nets' u-differences bound them) cannot
+ * meet each other at any z: a section is monotone along that direction there. The rest whose boxes
+ * overlap are cut at FOLD_HEIGHTS heights, each section drawn as FOLD_CHORDS chords, and their
+ * chords that cross are counted: the measure of a fold. (Splitting the nets until their boxes part
+ * proves more but costs without bound where two sheets run close for long, as a slit's sides do.) */
+#define FOLD_HEIGHTS 32
+#define FOLD_CHORDS 8
+#define FOLD_NEAR 2e-3 /* of the chain's extent: sections this close count as folding, but for finding them */
+#define FOLD_MAX_SECTIONS 4096 /* pieces a pair's check draws sections of (4.6 kB each) */
+#define FOLD_SPOTS 64          /* where the folds are: the pieces' middles kept for the warp's window */
+
+typedef double net_t[4][4][2];
+typedef double section_t[FOLD_HEIGHTS][FOLD_CHORDS + 1][2]; /* a piece's sections (net_section) */
+
+struct fold_scratch {
+    size_t cap;                /* pieces the arrays hold */
+    double (*box)[4];          /* each piece's box: x0 x1 y0 y1 */
+    size_t *order;             /* pieces by x0 */
+    double *ang, *half;        /* each piece's tangent direction (unwrapped) and cone half-angle */
+    size_t *reach;             /* the last piece (unwrapped index) of a monotone stretch from each */
+    size_t *dq;                /* (deques of the sliding extremes) */
+    int *slot;                 /* each piece's sections in sec and sbox, or -1 (pieces_cross) */
+    size_t n_slots, cap_sec, cap_sbox;
+    section_t *sec;
+    double (*sbox)[FOLD_HEIGHTS][4];
+};
+
+static void fold_scratch_free(struct fold_scratch *f)
+{
+    free(f->box), free(f->order), free(f->ang), free(f->half), free(f->reach), free(f->dq), free(f->slot), free(f->sec),
+        free(f->sbox);
+}
+
+static void net_box(net_t N, double b[4])
+{
+    b[0] = b[2] = INFINITY, b[1] = b[3] = -INFINITY;
+    for (int a = 0; a < 4; a++)
+        for (int c = 0; c < 4; c++) {
+            b[0] = dmin(b[0], N[a][c][0]), b[1] = dmax(b[1], N[a][c][0]);
+            b[2] = dmin(b[2], N[a][c][1]), b[3] = dmax(b[3], N[a][c][1]);
+        }
+}
+
+static bool boxes_apart(const double a[4], const double b[4])
+{
+    return a[0] > b[1] || b[0] > a[1] || a[2] > b[3] || b[2] > a[3];
+}
+
+/* Whether segments pq and rs cross (each one's ends on either side of the other). */
+static bool segments_cross(const double p[2], const double q[2], const double r[2], const double s[2])
+{
+    double d0 = (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]);
+    double d1 = (q[0] - p[0]) * (s[1] - p[1]) - (q[1] - p[1]) * (s[0] - p[0]);
+    double d2 = (s[0] - r[0]) * (p[1] - r[1]) - (s[1] - r[1]) * (p[0] - r[0]);
+    double d3 = (s[0] - r[0]) * (q[1] - r[1]) - (s[1] - r[1]) * (q[0] - r[0]);
+    return (d0 > 0) != (d1 > 0) && (d2 > 0) != (d3 > 0);
+}
+
+/* The section of net N at t as FOLD_CHORDS chords (FOLD_CHORDS + 1 points), and their box. */
+static void net_section(net_t N, double t, double (*pt)[2], double box[4])
+{
+    const double s = 1.0 - t, B[4] = {s * s * s, 3 * s * s * t, 3 * s * t * t, t * t * t};
+    double Q[4][2];
+    for (int a = 0; a < 4; a++)
+        for (int d = 0; d < 2; d++)
+            Q[a][d] = B[0] * N[a][0][d] + B[1] * N[a][1][d] + B[2] * N[a][2][d] + B[3] * N[a][3][d];
+    box[0] = box[2] = INFINITY, box[1] = box[3] = -INFINITY;
+    for (int c = 0; c <= FOLD_CHORDS; c++) {
+        double u = (double)c / FOLD_CHORDS, v = 1.0 - u, C[4] = {v * v * v, 3 * v * v * u, 3 * v * u * u, u * u * u};
+        for (int d = 0; d < 2; d++)
+            pt[c][d] = C[0] * Q[0][d] + C[1] * Q[1][d] + C[2] * Q[2][d] + C[3] * Q[3][d];
+        box[0] = dmin(box[0], pt[c][0]), box[1] = dmax(box[1], pt[c][0]);
+        box[2] = dmin(box[2], pt[c][1]), box[3] = dmax(box[3], pt[c][1]);
+    }
+}
+
+/* Squared distance from p to segment ab. */
+static double point_segment2(const double p[2], const double a[2], const double b[2])
+{
+    double ex = b[0] - a[0], ey = b[1] - a[1], l2 = ex * ex + ey * ey;
+    double t = l2 > 0 ? dmax(0.0, dmin(1.0, ((p[0] - a[0]) * ex + (p[1] - a[1]) * ey) / l2)) : 0.0;
+    double dx = a[0] + t * ex - p[0], dy = a[1] + t * ey - p[1];
+    return dx * dx + dy * dy;
+}
+
+/* Crossings of pieces i and j's sections at FOLD_HEIGHTS heights, their chords against each other's,
+ * and with near2 > 0 chords whose ends come within sqrt(near2) of the other's; each piece's sections
+ * drawn once, into a slot of f. Past FOLD_MAX_SECTIONS slots (a contour that winds back and forth
+ * thousands of times) the rest are taken not to cross. */
+static long pieces_cross(net_t *net, struct fold_scratch *f, size_t i, size_t j, double near2)
+{
+    const size_t p[2] = {i, j};
+    for (int e = 0; e < 2; e++)
+        if (f->slot[p[e]] < 0) {
+            if (f->n_slots == FOLD_MAX_SECTIONS ||
+                mem_reserve((void **)&f->sec, &f->cap_sec, f->n_slots + 1, sizeof *f->sec) ||
+                mem_reserve((void **)&f->sbox, &f->cap_sbox, f->n_slots + 1, sizeof *f->sbox))
+                return 0;
+            for (int h = 0; h < FOLD_HEIGHTS; h++)
+                net_section(net[p[e]], (h + 0.5) / FOLD_HEIGHTS, f->sec[f->n_slots][h], f->sbox[f->n_slots][h]);
+            f->slot[p[e]] = (int)f->n_slots++;
+        }
+    const int si = f->slot[i], sj = f->slot[j];
+    long n = 0;
+    for (int h = 0; h < FOLD_HEIGHTS; h++) {
+        if (boxes_apart(f->sbox[si][h], f->sbox[sj][h]))
+            continue;
+        double(*pa)[2] = f->sec[si][h], (*pb)[2] = f->sec[sj][h];
+        for (int a = 0; a < FOLD_CHORDS; a++)
+            for (int b = 0; b < FOLD_CHORDS; b++)
+                n += segments_cross(pa[a], pa[a + 1], pb[b], pb[b + 1]) ||
+                     (near2 > 0 && (point_segment2(pa[a], pb[b], pb[b + 1]) < near2 ||
+                                    point_segment2(pb[b], pa[a], pa[a + 1]) < near2));
+    }
+    return n;
+}
+
+/* For each piece i of n, the last piece (unwrapped: up to i + n - 1) of a stretch from i along
+ * which the section is monotone: the pieces' tangent cones (from their nets' u-differences, every
+ * stretch of z) spread over less than half a turn. */
+static void monotone_reach(net_t *net, size_t n, struct fold_scratch *f)
+{
+    for (size_t i = 0; i < n; i++) {
+        double sx = 0, sy = 0, d[12][2];
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 4; b++) {
+                double *v = d[a * 4 + b], l;
+                v[0] = net[i][a + 1][b][0] - net[i][a][b][0], v[1] = net[i][a + 1][b][1] - net[i][a][b][1];
+                if ((l = sqrt(v[0] * v[0] + v[1] * v[1])) > 0)
+                    sx += v[0] / l, sy += v[1] / l;
+            }
+        double l = sqrt(sx * sx + sy * sy), cmin = 1.0;
+        for (int q = 0; q < 12 && l > 0; q++) {
+            double lv = sqrt(d[q][0] * d[q][0] + d[q][1] * d[q][1]);
+            if (lv > 0)
+                cmin = dmin(cmin, (d[q][0] * sx + d[q][1] * sy) / (lv * l));
+        }
+        /* (π/2 sqrt(1 - c) >= acos c on [0, 1]: a cone no narrower, without acos) */
+        f->half[i] = l > 0 && cmin > 0 ? M_PI_2 * sqrt(1.0 - cmin) + 1e-9 : M_PI; /* M_PI: no cone */
+        double a = l > 0 ? atan2(sy, sx) : 0.0;
+        if (i > 0) /* unwrapped: within half a turn of the piece before */
+            a += 2 * M_PI * round((f->ang[i - 1] - a) / (2 * M_PI));
+        f->ang[i] = a;
+    }
+    /* the turn's second lap, to reach past its end: piece q + n is piece q turned by the winding */
+    double shift = 2 * M_PI * round((f->ang[n - 1] - f->ang[0]) / (2 * M_PI));
+    /* two pointers, with deques of the stretch's least and greatest cone edge */
+    size_t *lo = f->dq, *hi = f->dq + 2 * n, lh = 0, lt = 0, hh = 0, ht = 0, j = 0;
+#define ANG(q) ((q) < n ? f->ang[q] : f->ang[(q) - n] + shift)
+#define HALF(q) f->half[(q) < n ? (q) : (q) - n]
+    for (size_t i = 0; i < n; i++) {
+        if (j < i)
+            j = i, lh = lt = hh = ht = 0;
+        while (lh < lt && lo[lh] < i)
+            lh++;
+        while (hh < ht && hi[hh] < i)
+            hh++;
+        for (; j < i + n; j++) { /* can piece j join? */
+            if (HALF(j) >= M_PI)
+                break;
+            double l = ANG(j) - HALF(j), h = ANG(j) + HALF(j);
+            double least = lh < lt ? fmin(l, ANG(lo[lh]) - HALF(lo[lh])) : l;
+            double most = hh < ht ? fmax(h, ANG(hi[hh]) + HALF(hi[hh])) : h;
+            if (most - least >= M_PI)
+                break;
+            while (lt > lh && ANG(lo[lt - 1]) - HALF(lo[lt - 1]) >= l)
+                lt--;
+            lo[lt++] = j;
+            while (ht > hh && ANG(hi[ht - 1]) + HALF(hi[ht - 1]) <= h)
+                ht--;
+            hi[ht++] = j;
+        }
+        f->reach[i] = j > i ? j - 1 : i;
+    }
+#undef ANG
+#undef HALF
+}
+
+/* How much pair pn folds: the chords that cross (pieces_cross; 0: none); with first, 1 at the
+ * first. The middles of the pieces that cross go to spots (up to FOLD_SPOTS; *n_spots counts them
+ * all). SF_ENOMEM as a negative count. */
+static long pair_folds(const struct pair_nets *pn, bool first, double near, struct fold_scratch *f, double *spots,
+                       int *n_spots)
+{
+    size_t n = pn->n;
+    *n_spots = 0;
+    if (n < 3)
+        return 0;
+    if (n > f->cap) {
+        fold_scratch_free(f);
+        *f = (struct fold_scratch){.cap = n, .box = malloc(sizeof *f->box * n), .order = malloc(sizeof *f->order * n),
+                                   .ang = malloc(sizeof *f->ang * n), .half = malloc(sizeof *f->half * n),
+                                   .reach = malloc(sizeof *f->reach * n), .dq = malloc(sizeof *f->dq * 4 * n),
+                                   .slot = malloc(sizeof *f->slot * n)};
+        if (!f->box || !f->order || !f->ang || !f->half || !f->reach || !f->dq || !f->slot) {
+            fold_scratch_free(f);
+            *f = (struct fold_scratch){0};
+            return SF_ENOMEM;
+        }
+    }
+    monotone_reach(pn->net, n, f);
+    for (size_t i = 0; i < n; i++)
+        f->slot[i] = -1;
+    f->n_slots = 0;
+    size_t *ord = f->order;
+    for (size_t i = 0; i < n; i++) {
+        net_box(pn->net[i], f->box[i]);
+        /* insertion sort by x0: the pieces come round the section, in order along runs */
+        size_t q = i;
+        for (; q > 0 && f->box[ord[q - 1]][0] > f->box[i][0]; q--)
+            ord[q] = ord[q - 1];
+        ord[q] = i;
+    }
+    long folds = 0;
+    for (size_t x = 0; x < n; x++)
+        for (size_t y = x + 1; y < n; y++) {
+            size_t i = ord[x], j = ord[y];
+            const double *bi = f->box[i], *bj = f->box[j];
+            if (bj[0] > bi[1])
+                break;
+            if (i > j) {
+                size_t t = i;
+                i = j, j = t;
+            }
+            /* neighbours, and pieces of one monotone stretch, cannot cross */
+            if (bi[2] > bj[3] || bj[2] > bi[3] || j - i <= 1 || i + n - j <= 1 || j <= f->reach[i] ||
+                i + n <= f->reach[j])
+                continue;
+            long m = pieces_cross(pn->net, f, i, j, first ? 0.0 : near * near);
+            if (m > 0) {
+                for (int e = 0; e < 2; e++, ++*n_spots)
+                    if (*n_spots < FOLD_SPOTS)
+                        spots[*n_spots] = 0.5 * (pn->u[e ? j : i][0] + pn->u[e ? j : i][1]);
+                folds += m;
+                if (first)
+                    return 1;
+            }
+        }
+    return folds;
+}
+
+/* The warp: the lower curve a and the upper b sampled at UNFOLD_SAMPLES even steps over the window,
+ * b's samples paired with a's by dynamic time warping (least total squared distance plus, weighed by
+ * tangent_weight, h2 times the tangents' disagreement, the path monotone from the window's start to
+ * its end), each of a's samples given the mean of its partners' parameters (map, in the window's
+ * [0, 1]); that map smoothed over UNFOLD_SMOOTH samples, tapered into the identity at each end,
+ * kept increasing, and drawn as a monotone cubic (the slopes harmonic means of the secants). */
+#define UNFOLD_SAMPLES 400
+#define UNFOLD_SMOOTH 3
+#define UNFOLD_MIN_SLOPE 0.05
+
+static int warp_pairing(const struct curve_poly *a, const struct curve_poly *b, double w0, double len,
+                        double tangent_weight, double h2, double *map)
+{
+    const int N = UNFOLD_SAMPLES;
+    double(*pa)[4] = malloc(sizeof *pa * N), (*pb)[4] = malloc(sizeof *pb * N), *D = malloc(sizeof *D * N * N);
+    double *cnt = malloc(sizeof *cnt * N);
+    if (!pa || !pb || !D || !cnt) {
+        free(pa), free(pb), free(D), free(cnt);
+        return SF_ENOMEM;
+    }
+    for (int i = 0; i < N; i++) {
+        double u = w0 + len * i / (N - 1);
+        struct knot ka = knot_at(a, u - floor(u)), kb = knot_at(b, u - floor(u));
+        double la = hypot(ka.xu, ka.yu), lb = hypot(kb.xu, kb.yu);
+        pa[i][0] = ka.x, pa[i][1] = ka.y, pa[i][2] = la > 0 ? ka.xu / la : 0, pa[i][3] = la > 0 ? ka.yu / la : 0;
+        pb[i][0] = kb.x, pb[i][1] = kb.y, pb[i][2] = lb > 0 ? kb.xu / lb : 0, pb[i][3] = lb > 0 ? kb.yu / lb : 0;
+    }
+    for (int i = 0; i < N; i++)
+        for (int j = 0; j < N; j++) {
+            double dx = pa[i][0] - pb[j][0], dy = pa[i][1] - pb[j][1];
+            double c = dx * dx + dy * dy + tangent_weight * h2 * (1.0 - pa[i][2] * pb[j][2] - pa[i][3] * pb[j][3]);
+            double best = i == 0 && j == 0 ? 0.0 : INFINITY;
+            if (i > 0)
+                best = dmin(best, D[(i - 1) * N + j]);
+            if (j > 0)
+                best = dmin(best, D[i * N + j - 1]);
+            if (i > 0 && j > 0)
+                best = dmin(best, D[(i - 1) * N + j - 1]);
+            D[i * N + j] = c + best;
+        }
+    for (int i = 0; i < N; i++)
+        map[i] = cnt[i] = 0;
+    for (int i = N - 1, j = N - 1;;) { /* back along the path */
+        map[i] += j, cnt[i] += 1;
+        if (i == 0 && j == 0)
+            break;
+        double up = i > 0 ? D[(i - 1) * N + j] : INFINITY, left = j > 0 ? D[i * N + j - 1] : INFINITY;
+        double diag = i > 0 && j > 0 ? D[(i - 1) * N + j - 1] : INFINITY;
+        if (diag <= up && diag <= left)
+            i--, j--;
+        else if (up <= left)
+            i--;
+        else
+            j--;
+    }
+    for (int i = 0; i < N; i++)
+        map[i] = map[i] / cnt[i] / (N - 1);
+    free(pa), free(pb), free(D), free(cnt);
+    return 0;
+}
+
+/* The warp over window [w0, w0 + len] from the pairing's map (warp_pairing), tapered over taper of
+ * the window at each end. */
+static int warp_shape(const double *map, double w0, double len, double taper, struct warp *w)
+{
+    const int N = UNFOLD_SAMPLES;
+    *w = (struct warp){w0, len, N, malloc(sizeof *w->y * N), malloc(sizeof *w->d * N)};
+    if (!w->y || !w->d)
+        return SF_ENOMEM;
+    for (int i = 0; i < N; i++) {
+        double sum = 0.0;
+        int k = 0;
+        for (int q = i - UNFOLD_SMOOTH; q <= i + UNFOLD_SMOOTH; q++)
+            if (q >= 0 && q < N)
+                sum += map[q], k++;
+        double x = (double)i / (N - 1), e = dmin(x, 1.0 - x) / taper;
+        double ramp = e >= 1.0 ? 1.0 : e * e * (3 - 2 * e);
+        w->y[i] = x + ramp * (sum / k - x);
+    }
+    const double step = UNFOLD_MIN_SLOPE / (N - 1);
+    w->y[0] = 0.0, w->y[N - 1] = 1.0;
+    for (int i = 1; i < N - 1; i++)
+        w->y[i] = dmax(w->y[i], w->y[i - 1] + step);
+    for (int i = N - 2; i > 0; i--)
+        w->y[i] = dmin(w->y[i], w->y[i + 1] - step);
+    w->d[0] = w->d[N - 1] = 1.0;
+    for (int i = 1; i < N - 1; i++) {
+        double s0 = (w->y[i] - w->y[i - 1]) * (N - 1), s1 = (w->y[i + 1] - w->y[i]) * (N - 1);
+        w->d[i] = 2 * s0 * s1 / (s0 + s1);
+    }
+    return 0;
+}
+
+/* ---- unfolding a chain ---- */
+#define UNFOLD_MAX 32   /* warps a chain may take */
+
+struct unfold {
+    const struct contour_set *cs;
+    bool lsq;
+    struct curve_poly *cp, *orig; /* the curves as warped, and as fitted (orig[j] set once warped) */
+    int *applied;                  /* warps drawn into cp[j] */
+    struct warp w[UNFOLD_MAX + 1];
+    int w_band[UNFOLD_MAX + 1], n_w;
+    double near;                   /* sections this close count as folding (pair_folds), but for finding them */
+    struct pair_nets pn;
+    struct fold_scratch fs;
+    double spots[FOLD_SPOTS];
+    int n_spots;
+};
+
+/* The warps below curve j (those of pairs under it). */
+static int warps_below(const struct unfold *uf, int j)
+{
+    int c = 0;
+    while (c < uf->n_w && uf->w_band[c] < j)
+        c++;
+    return c;
+}
+
+/* A copy of curve c with its own knots. */
+static int curve_copy(const struct curve_poly *c, struct curve_poly *out)
+{
+    size_t n = (size_t)c->n;
+    *out = (struct curve_poly){.n = c->n, .own_u = malloc(sizeof *out->own_u * n), .cx = malloc(sizeof *out->cx * n),
+                               .cy = malloc(sizeof *out->cy * n)};
+    if (!out->own_u || !out->cx || !out->cy)
+        return SF_ENOMEM;
+    memcpy(out->own_u, c->u, sizeof *out->own_u * n);
+    memcpy(out->cx, c->cx, sizeof *out->cx * n);
+    memcpy(out->cy, c->cy, sizeof *out->cy * n);
+    out->u = out->own_u;
+    return 0;
+}
+
+/* Curve j redrawn through the first count warps (SF_ELIMIT, the curve as it was, when that takes too
+ * many knots). */
+static int curve_warp(struct unfold *uf, int j, int count)
+{
+    if (uf->applied[j] == count)
+        return 0;
+    const struct curve_poly *src = uf->orig[j].cx ? &uf->orig[j] : &uf->cp[j];
+    struct curve_poly out = {0};
+    int rc = count ? curve_redraw(&(struct redraw_src){src, uf->w, count}, curve_tol(src),
+                                  WARP_MAX_KNOTS(uf->cs->s[j].n), &out)
+                   : curve_copy(src, &out);
+    if (rc) {
+        curve_poly_free(&out);
+        return rc;
+    }
+    if (!uf->orig[j].cx) /* the fitted curve, kept */
+        uf->orig[j] = uf->cp[j];
+    else
+        curve_poly_free(&uf->cp[j]);
+    uf->cp[j] = out;
+    uf->applied[j] = count;
+    return 0;
+}
+
+/* Pair k's folds with the curves it reads drawn through the warps below each (negative: SF_*). */
+static long unfold_count(struct unfold *uf, int k, bool first)
+{
+    int n = uf->cs->n_slices, rc = 0;
+    if (k < 0 || k + 1 >= n)
+        return 0;
+    for (int j = k > 0 ? k - 1 : k; j <= k + 2 && j < n && !rc; j++)
+        rc = curve_warp(uf, j, warps_below(uf, j));
+    if (rc || (rc = pair_nets(uf->cs, uf->lsq, uf->cp, k, &uf->pn)))
+        return rc;
+    return pair_folds(&uf->pn, first, uf->near, &uf->fs, uf->spots, &uf->n_spots);
+}
+
+/* The window round pair k's fold spots: the shortest arc holding them all, grown by grow each way. */
+static void fold_window(const struct unfold *uf, double grow, double *w0, double *len)
+{
+    int n = uf->n_spots < FOLD_SPOTS ? uf->n_spots : FOLD_SPOTS;
+    double sp[FOLD_SPOTS];
+    memcpy(sp, uf->spots, sizeof *sp * (size_t)n);
+    qsort(sp, (size_t)n, sizeof *sp, cmp_double);
+    double gap = sp[0] + 1.0 - sp[n - 1];
+    int at = 0; /* the arc starts after the widest gap */
+    for (int i = 1; i < n; i++)
+        if (sp[i] - sp[i - 1] > gap)
+            gap = sp[i] - sp[i - 1], at = i;
+    *len = 1.0 - gap + 2 * grow;
+    *w0 = sp[at] - grow;
+    if (*len >= 1.0)
+        *len = 1.0;
+    *w0 -= floor(*w0);
+}
+
+static void warp_free(struct warp *w)
+{
+    free(w->y), free(w->d);
+    *w = (struct warp){0};
+}
+
+/* Pair k folds: the warp of the curves above it, among the windows and weights tried, under which
+ * pairs k-1..k+1 fold least, if less than now (taken: appended to uf->w). */
+static int unfold_pair(struct unfold *uf, int k)
+{
+    static const double GROW[] = {0.03, 0.06, 0.1, 0.25}, TANGENT[] = {0.0, 4.0}, TAPER[] = {0.2, 0.4};
+    const int n = uf->cs->n_slices;
+    long now = 0, here[3];
+    for (int d = -1; d <= 1; d++) {
+        if ((here[d + 1] = unfold_count(uf, k + d, false)) < 0)
+            return (int)here[d + 1];
+        now += here[d + 1];
+    }
+    if (unfold_count(uf, k, false) < 0) /* (the spots are pair k's) */
+        return SF_ENOMEM;
+    double spots[FOLD_SPOTS];
+    int n_spots = uf->n_spots;
+    memcpy(spots, uf->spots, sizeof spots);
+    double h = uf->cs->s[k + 1].z - uf->cs->s[k].z, map[UNFOLD_SAMPLES];
+    struct warp best = {0};
+    long least = now;
+    for (size_t g = 0; g < sizeof GROW / sizeof *GROW; g++)
+        for (size_t t = 0; t < sizeof TANGENT / sizeof *TANGENT; t++) {
+            memcpy(uf->spots, spots, sizeof spots), uf->n_spots = n_spots;
+            double w0, len;
+            fold_window(uf, GROW[g], &w0, &len);
+            int rc = warp_pairing(&uf->cp[k], &uf->cp[k + 1], w0, len, TANGENT[t], h * h, map);
+            for (size_t tp = 0; tp < sizeof TAPER / sizeof *TAPER && !rc; tp++) {
+                struct warp *w = &uf->w[uf->n_w];
+                if ((rc = warp_shape(map, w0, len, TAPER[tp], w)))
+                    break;
+                uf->w_band[uf->n_w++] = k; /* tried: pairs k-1..k+1 under it */
+                long sum = 0, c = 0;
+                for (int d = -1; d <= 1 && c >= 0; d++)
+                    if ((c = unfold_count(uf, k + d, false)) >= 0)
+                        sum += c;
+                uf->n_w--;
+                for (int j = k + 1; j <= k + 3 && j < n; j++) /* drawn through the try: not as the warps stand */
+                    uf->applied[j] = -1;
+                if (c < 0 && c != SF_ELIMIT)
+                    rc = (int)c;
+                else if (c >= 0 && sum < least)
+                    warp_free(&best), best = *w, least = sum, *w = (struct warp){0};
+                warp_free(w);
+            }
+            if (rc) {
+                warp_free(&uf->w[uf->n_w]), warp_free(&best);
+                return rc;
+            }
+        }
+    if (best.y) {
+        uf->w[uf->n_w] = best;
+        uf->w_band[uf->n_w++] = k;
+    }
+    int rc = 0;
+    for (int j = k > 0 ? k - 1 : k; j <= k + 3 && j < n && (!rc || rc == SF_ELIMIT); j++) /* as the warps now stand */
+        rc = curve_warp(uf, j, warps_below(uf, j));
+    return rc == SF_ELIMIT ? 0 : rc;
+}
+
+/* Checks every pair of the chain's curves cp (n, fitted) for folds, and warps the curves above
+ * those that fold where that folds them less. 0 or SF_ENOMEM. */
+static int curves_unfold(const struct contour_set *cs, bool lsq, struct curve_poly *cp)
+{
+    const int n = cs->n_slices;
+    struct unfold uf = {.cs = cs, .lsq = lsq, .cp = cp, .orig = calloc((size_t)n, sizeof *uf.orig),
+                        .applied = calloc((size_t)n, sizeof *uf.applied)};
+    int rc = uf.orig && uf.applied ? 0 : SF_ENOMEM;
+    for (int j = 0; j < n; j++)
+        uf.near = dmax(uf.near, FOLD_NEAR * curve_tol(&cp[j]) / MODEL_FIT_REL);
+    for (int k = 0; k + 1 < n && !rc; k++) {
+        long f = unfold_count(&uf, k, true);
+        if (f < 0)
+            rc = (int)f;
+        else if (f > 0 && uf.n_w < UNFOLD_MAX)
+            rc = unfold_pair(&uf, k);
+    }
+    for (int j = 0; j < n && (!rc || rc == SF_ELIMIT); j++) /* (one too many knots to warp stays as it is) */
+        rc = curve_warp(&uf, j, warps_below(&uf, j));
+    for (int j = 0; j < n && uf.orig; j++)
+        curve_poly_free(&uf.orig[j]);
+    for (int i = 0; i < uf.n_w; i++)
+        warp_free(&uf.w[i]);
+    pair_nets_free(&uf.pn);
+    fold_scratch_free(&uf.fs);
+    free(uf.orig), free(uf.applied);
+    return rc == SF_ELIMIT ? 0 : rc;
+}
+
+/* The chain's curves (curves_build) as the methods read them: redrawn on their knots, and unfolded.
+ * cv and cp hold n each, zeroed; the caller frees both, whatever the answer. 0 or SF_ENOMEM. */
+static int curves_fit(const struct contour_set *cs, bool lsq, bool polar, struct curve *cv, struct curve_poly *cp)
+{
+    int rc = curves_build(cs, lsq, polar, cv);
+    for (int j = 0; j < cs->n_slices && !rc; j++)
+        if (!(rc = curve_poly_build(&cv[j], &cp[j])))
+            rc = curve_refit(&cp[j]);
+    return rc ? rc : curves_unfold(cs, lsq, cp);
+}
+
+/* Parabolic or linear-parabolic (eq. 32 in both directions), exactly as bicubic patches: each pair's
+ * nets (pair_nets), z linear in v. */
 static int curve_surface(const struct contour_set *cs, bool lsq, bool polar, const struct sf_progress *pr,
                          struct patch_set *set, struct sf_err *err)
 {
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
     struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
+    struct pair_nets pn = {0};
     if (!cv || !cp)
         rc = SF_ENOMEM;
     if (!rc)
         rc = curves_fit(cs, lsq, polar, cv, cp);
-    double inv[4][4];
-    bernstein_inverse(inv);
-    double *brk = NULL;
-    size_t cap_brk = 0;
     for (int k = 0; k + 1 < n && !rc && !(rc = sf_poll(pr, (double)k / n, err)); k++) {
-        /* breakpoints: every parameter of the curves this pair depends on */
-        int j0 = k > 0 ? k - 1 : k, j1 = k + 2 < n ? k + 2 : k + 1;
-        size_t nb = 0;
-        for (int j = j0; j <= j1; j++)
-            nb += (size_t)cp[j].n;
-        if ((rc = mem_reserve((void **)&brk, &cap_brk, nb + 2, sizeof *brk)))
+        if ((rc = pair_nets(cs, lsq, cp, k, &pn)))
             break;
-        nb = 0;
-        brk[nb++] = 0.0;
-        brk[nb++] = 1.0;
-        for (int j = j0; j <= j1; j++)
-            for (int i = 0; i < cp[j].n; i++)
-                brk[nb++] = cp[j].u[i];
-        qsort(brk, nb, sizeof *brk, cmp_double);
-        double z0 = cs->s[k].z, z1 = cs->s[k + 1].z, wz[4][4], W[4][4] = {{0}};
-        int m = 0;
-        for (int c = 0; c < 4; c++) /* the slice weights at the four z samples, once per pair */
-            slice_weights(cs, lsq, k, z0 + (z1 - z0) * c / 3.0, wz[c], &j0, &m);
-        for (int j = 0; j < m; j++) /* ... as Bernstein coefficients W[j][b] */
-            for (int b = 0; b < 4; b++)
-                for (int c = 0; c < 4; c++)
-                    W[j][b] += inv[b][c] * wz[c][j];
-        int at[4] = {-1, -1, -1, -1}; /* each curve's last breakpoint at or before the piece (segment_at) */
-        for (size_t q = 0; q + 1 < nb && !rc; q++) {
-            double ua = brk[q], ub = brk[q + 1], h = ub - ua;
-            if (h <= BREAK_EPS)
-                continue;
-            double C[4][4][2], mid = 0.5 * (ua + ub); /* curve j's Bézier points on the piece */
-            for (int j = 0; j < m; j++) {
-                const struct curve_poly *c = &cp[j0 + j];
-                while (at[j] + 1 < c->n && c->u[at[j] + 1] <= mid)
-                    at[j]++;
-                int seg = at[j] < 0 ? c->n - 1 : at[j]; /* (curve_poly_segment, walked) */
-                double xa, ya, xua, yua, xb, yb, xub, yub;
-                curve_poly_at(c, seg, ua, &xa, &ya, &xua, &yua);
-                curve_poly_at(c, seg, ub, &xb, &yb, &xub, &yub);
-                C[j][0][0] = xa, C[j][0][1] = ya;
-                C[j][1][0] = xa + h * xua / 3, C[j][1][1] = ya + h * yua / 3;
-                C[j][2][0] = xb - h * xub / 3, C[j][2][1] = yb - h * yub / 3;
-                C[j][3][0] = xb, C[j][3][1] = yb;
-            }
+        double z0 = cs->s[k].z, z1 = cs->s[k + 1].z;
+        for (size_t q = 0; q < pn.n && !rc; q++) {
             if ((rc = mem_reserve((void **)&set->patches, &set->cap, set->n + 1, sizeof *set->patches)) ||
                 (rc = mem_reserve((void **)&set->pool, &set->cap_pool, set->n_pool + 16, sizeof *set->pool)))
                 break;
-            set->patches[set->n++] = (struct patch){.p = 3, .q = 3, .cw = (double(*)[4])(uintptr_t)set->n_pool, .u0 = ua, .u1 = ub, .v0 = z0, .v1 = z1};
+            set->patches[set->n++] = (struct patch){.p = 3, .q = 3, .cw = (double(*)[4])(uintptr_t)set->n_pool,
+                                                    .u0 = pn.u[q][0], .u1 = pn.u[q][1], .v0 = z0, .v1 = z1};
             for (int a = 0; a < 4; a++)
                 for (int b = 0; b < 4; b++) {
                     double *P = set->pool[set->n_pool + (size_t)(a * 4 + b)];
-                    P[0] = P[1] = 0.0;
-                    for (int j = 0; j < m; j++)
-                        P[0] += C[j][a][0] * W[j][b], P[1] += C[j][a][1] * W[j][b];
+                    P[0] = pn.net[q][a][b][0], P[1] = pn.net[q][a][b][1];
                     P[2] = z0 + (z1 - z0) * b / 3.0; /* z is linear in v */
                     P[3] = 1.0;
                 }
             set->n_pool += 16;
         }
     }
-    free(brk);
+    pair_nets_free(&pn);
     for (int j = 0; j < n && cv && cp; j++) {
         curve_free(&cv[j]);
         curve_poly_free(&cp[j]);
     }
     free(cv);
     free(cp);
-    return rc ? sf_fail(err, SF_ENOMEM, "", "out of memory building the model") : 0;
+    return rc == SF_ECANCEL ? rc : rc ? sf_fail(err, SF_ENOMEM, "", "out of memory building the model") : 0;
 }
 
 /* ---- grid methods: Coons and B-spline ------------------------------------------------------------
@@ -899,7 +1511,7 @@ static double patches_bound(const struct contour_set *cs, enum model_method m)
     double sum = 0.0;
     for (int k = 0; k + 1 < n; k++)
         for (int j = k > 0 ? k - 1 : k; j <= (k + 2 < n ? k + 2 : k + 1); j++)
-            sum += (double)FIT_MAX_KNOTS(cs->s[j].n) + 1;
+            sum += (double)WARP_MAX_KNOTS(cs->s[j].n) + 1;
     return sum;
 }
 
