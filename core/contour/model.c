@@ -10,6 +10,7 @@
  * not used yet: chord length is robust but lines up less well on strongly non-convex shapes. */
 #include "model.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -855,10 +856,10 @@ static void monotone_reach(net_t *net, size_t n, struct fold_scratch *f)
 #undef HALF
 }
 
-/* How much pair pn folds: the chords that cross (pieces_cross; 0: none); with first, 1 at the
- * first. The middles of the pieces that cross go to spots (up to FOLD_SPOTS; *n_spots counts them
+/* How much pair pn folds: the chords that cross, and with near > 0 those within near (pieces_cross;
+ * 0: none), counted up to limit at least. The middles of the pieces that cross go to spots (up to FOLD_SPOTS; *n_spots counts them
  * all). SF_ENOMEM as a negative count. */
-static long pair_folds(const struct pair_nets *pn, bool first, double near, struct fold_scratch *f, double *spots,
+static long pair_folds(const struct pair_nets *pn, long limit, double near, struct fold_scratch *f, double *spots,
                        int *n_spots)
 {
     size_t n = pn->n;
@@ -905,14 +906,14 @@ static long pair_folds(const struct pair_nets *pn, bool first, double near, stru
             if (bi[2] > bj[3] || bj[2] > bi[3] || j - i <= 1 || i + n - j <= 1 || j <= f->reach[i] ||
                 i + n <= f->reach[j])
                 continue;
-            long m = pieces_cross(pn->net, f, i, j, first ? 0.0 : near * near);
+            long m = pieces_cross(pn->net, f, i, j, near * near);
             if (m > 0) {
                 for (int e = 0; e < 2; e++, ++*n_spots)
                     if (*n_spots < FOLD_SPOTS)
                         spots[*n_spots] = 0.5 * (pn->u[e ? j : i][0] + pn->u[e ? j : i][1]);
                 folds += m;
-                if (first)
-                    return 1;
+                if (folds >= limit)
+                    return folds;
             }
         }
     return folds;
@@ -1077,7 +1078,7 @@ static int curve_warp(struct unfold *uf, int j, int count)
 }
 
 /* Pair k's folds with the curves it reads drawn through the warps below each (negative: SF_*). */
-static long unfold_count(struct unfold *uf, int k, bool first)
+static long unfold_count(struct unfold *uf, int k, bool near, long limit)
 {
     int n = uf->cs->n_slices, rc = 0;
     if (k < 0 || k + 1 >= n)
@@ -1086,7 +1087,7 @@ static long unfold_count(struct unfold *uf, int k, bool first)
         rc = curve_warp(uf, j, warps_below(uf, j));
     if (rc || (rc = pair_nets(uf->cs, uf->lsq, uf->cp, k, &uf->pn)))
         return rc;
-    return pair_folds(&uf->pn, first, uf->near, &uf->fs, uf->spots, &uf->n_spots);
+    return pair_folds(&uf->pn, limit, near ? uf->near : 0.0, &uf->fs, uf->spots, &uf->n_spots);
 }
 
 /* The window round pair k's fold spots: the shortest arc holding them all, grown by grow each way. */
@@ -1122,11 +1123,11 @@ static int unfold_pair(struct unfold *uf, int k)
     const int n = uf->cs->n_slices;
     long now = 0, here[3];
     for (int d = -1; d <= 1; d++) {
-        if ((here[d + 1] = unfold_count(uf, k + d, false)) < 0)
+        if ((here[d + 1] = unfold_count(uf, k + d, true, LONG_MAX)) < 0)
             return (int)here[d + 1];
         now += here[d + 1];
     }
-    if (unfold_count(uf, k, false) < 0) /* (the spots are pair k's) */
+    if (unfold_count(uf, k, true, LONG_MAX) < 0) /* (the spots are pair k's) */
         return SF_ENOMEM;
     double spots[FOLD_SPOTS];
     int n_spots = uf->n_spots;
@@ -1146,8 +1147,8 @@ static int unfold_pair(struct unfold *uf, int k)
                     break;
                 uf->w_band[uf->n_w++] = k; /* tried: pairs k-1..k+1 under it */
                 long sum = 0, c = 0;
-                for (int d = -1; d <= 1 && c >= 0; d++)
-                    if ((c = unfold_count(uf, k + d, false)) >= 0)
+                for (int d = 0; d < 3 && c >= 0 && sum < least; d++) /* k first: a try no better stops early */
+                    if ((c = unfold_count(uf, k + (d == 2 ? -1 : d), true, least - sum)) >= 0)
                         sum += c;
                 uf->n_w--;
                 for (int j = k + 1; j <= k + 3 && j < n; j++) /* drawn through the try: not as the warps stand */
@@ -1184,7 +1185,7 @@ static int curves_unfold(const struct contour_set *cs, bool lsq, struct curve_po
     for (int j = 0; j < n; j++)
         uf.near = dmax(uf.near, FOLD_NEAR * curve_tol(&cp[j]) / MODEL_FIT_REL);
     for (int k = 0; k + 1 < n && !rc; k++) {
-        long f = unfold_count(&uf, k, true);
+        long f = unfold_count(&uf, k, false, 1);
         if (f < 0)
             rc = (int)f;
         else if (f > 0 && uf.n_w < UNFOLD_MAX)
