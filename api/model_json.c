@@ -61,7 +61,7 @@ static enum model_caps caps_of(const char *name)
 
 static struct model_opts opts_of(const struct contour_request *req, const struct sf_progress *pr)
 {
-    struct model_opts o = {MODEL_PARABOLIC, !strcmp(req->param, "polar"), pr};
+    struct model_opts o = {.method = MODEL_PARABOLIC, .polar = !strcmp(req->param, "polar"), .progress = pr};
     model_method_parse(req->method, &o.method);
     return o;
 }
@@ -77,13 +77,15 @@ static void override(struct contour_request *req, const char *caps, const char *
         snprintf(req->param, sizeof req->param, "%s", param);
 }
 
-/* The figures of one cleaned contour set as a JSON object (NULL with err set on failure). */
+/* The figures of one cleaned contour set as a JSON object (NULL with err set on failure); a model's
+ * (unfold: of its surface with the folds undone, as solid_of builds it), or a volume's (model.h). */
 static json_t *figures(struct contour_set *cs_in, const struct contour_request *req, const struct sf_progress *pr,
-                       double t0, struct sf_err *err)
+                       bool unfold, double t0, struct sf_err *err)
 {
     struct contour_set cs = *cs_in;
     struct solid sd;
     struct model_opts mo = opts_of(req, pr);
+    mo.unfold = unfold;
     bool curves = mo.method == MODEL_PARABOLIC || mo.method == MODEL_LINEAR_PARABOLIC;
     double t1 = now_ms();
     if (solid_build(&cs, mo, caps_of(req->caps), &sd, err))
@@ -362,7 +364,8 @@ typedef int (*model_fn)(void *ctx, int k, json_t *fig, const struct contour_set 
 
 /* Every model the request describes, in order, into *list (one for JSON and for a DICOM ?roi=NAME:
  * *single), and an RT Structure Set's ROIs without contours to model into *skipped ({name,
- * roi_number, reason}); fn (may be NULL) sees each model. */
+ * roi_number, reason}); fn (may be NULL: volumes only, their surfaces' folds left as they are) sees
+ * each model. */
 static int each_model(const char *buf, size_t len, const char *format, const char *options, model_fn fn, void *ctx,
                       const struct sf_progress *pr, json_t **list, json_t **skipped, bool *single, struct sf_err *err)
 {
@@ -383,7 +386,7 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
         if ((rc = contour_parse_json(buf, len, &cs, &req, err)))
             return rc;
         override(&req, caps, method, param);
-        json_t *o = figures(&cs, &req, pr, t0, err);
+        json_t *o = figures(&cs, &req, pr, fn != NULL, t0, err);
         if (!o)
             rc = err->code ? err->code : SF_ENOMEM;
         else if (json_array_append_new(*list, o) || (fn && (rc = fn(ctx, 0, o, &cs, &req, err))))
@@ -418,7 +421,7 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
             snprintf(err->pointer, sizeof err->pointer, "/ROIContourSequence(%.40s)%s", rois[k].name, where);
             break;
         }
-        json_t *o = figures(&rois[k].cs, &req, pr, t0, err);
+        json_t *o = figures(&rois[k].cs, &req, pr, fn != NULL, t0, err);
         if (!o) {
             rc = err->code ? err->code : SF_ENOMEM;
             break;
@@ -522,7 +525,9 @@ static int solid_of(const char *src, size_t len, const struct sf_progress *pr, s
     int rc = contour_parse_json(src, len, &cs, &req, err);
     if (rc)
         return rc;
-    rc = solid_build(&cs, opts_of(&req, pr), caps_of(req.caps), sd, err);
+    struct model_opts o = opts_of(&req, pr);
+    o.unfold = true; /* a surface: its folds undone (model.h) */
+    rc = solid_build(&cs, o, caps_of(req.caps), sd, err);
     contour_set_free(&cs);
     return rc;
 }

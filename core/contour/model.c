@@ -687,15 +687,28 @@ static int pair_nets(const struct contour_set *cs, bool lsq, const struct curve_
 #define FOLD_CHORDS 8
 #define FOLD_NEAR 2e-3 /* of the chain's extent: sections this close count as folding, but for finding them */
 #define FOLD_MAX_SECTIONS 4096 /* pieces a pair's check draws sections of (4.6 kB each) */
+#define FOLD_MAX_TESTS 2000000 /* pairs of boxes it compares (a contour drawn along one line a thousand
+                                 * times over would have every pair's boxes overlap): past it, no fold */
 #define FOLD_SPOTS 64          /* where the folds are: the pieces' middles kept for the warp's window */
 
 typedef double net_t[4][4][2];
+
+struct by_x {
+    double x0;
+    size_t i;
+};
+
+static int cmp_by_x(const void *a, const void *b)
+{
+    double x = ((const struct by_x *)a)->x0, y = ((const struct by_x *)b)->x0;
+    return (x > y) - (x < y);
+}
 typedef double section_t[FOLD_HEIGHTS][FOLD_CHORDS + 1][2]; /* a piece's sections (net_section) */
 
 struct fold_scratch {
     size_t cap;                /* pieces the arrays hold */
     double (*box)[4];          /* each piece's box: x0 x1 y0 y1 */
-    size_t *order;             /* pieces by x0 */
+    struct by_x *order;        /* pieces by x0 */
     double *ang, *half;        /* each piece's tangent direction (unwrapped) and cone half-angle */
     size_t *reach;             /* the last piece (unwrapped index) of a monotone stretch from each */
     size_t *dq;                /* (deques of the sliding extremes) */
@@ -882,19 +895,16 @@ static long pair_folds(const struct pair_nets *pn, long limit, double near, stru
     for (size_t i = 0; i < n; i++)
         f->slot[i] = -1;
     f->n_slots = 0;
-    size_t *ord = f->order;
+    struct by_x *ord = f->order;
     for (size_t i = 0; i < n; i++) {
         net_box(pn->net[i], f->box[i]);
-        /* insertion sort by x0: the pieces come round the section, in order along runs */
-        size_t q = i;
-        for (; q > 0 && f->box[ord[q - 1]][0] > f->box[i][0]; q--)
-            ord[q] = ord[q - 1];
-        ord[q] = i;
+        ord[i] = (struct by_x){f->box[i][0], i};
     }
-    long folds = 0;
+    qsort(ord, n, sizeof *ord, cmp_by_x);
+    long folds = 0, tests = FOLD_MAX_TESTS;
     for (size_t x = 0; x < n; x++)
-        for (size_t y = x + 1; y < n; y++) {
-            size_t i = ord[x], j = ord[y];
+        for (size_t y = x + 1; y < n && --tests > 0; y++) {
+            size_t i = ord[x].i, j = ord[y].i;
             const double *bi = f->box[i], *bj = f->box[j];
             if (bj[0] > bi[1])
                 break;
@@ -1095,6 +1105,10 @@ static void fold_window(const struct unfold *uf, double grow, double *w0, double
 {
     int n = uf->n_spots < FOLD_SPOTS ? uf->n_spots : FOLD_SPOTS;
     double sp[FOLD_SPOTS];
+    if (n == 0) { /* (none: the whole turn) */
+        *w0 = 0.0, *len = 1.0;
+        return;
+    }
     memcpy(sp, uf->spots, sizeof *sp * (size_t)n);
     qsort(sp, (size_t)n, sizeof *sp, cmp_double);
     double gap = sp[0] + 1.0 - sp[n - 1];
@@ -1203,21 +1217,23 @@ static int curves_unfold(const struct contour_set *cs, bool lsq, struct curve_po
     return rc == SF_ELIMIT ? 0 : rc;
 }
 
-/* The chain's curves (curves_build) as the methods read them: redrawn on their knots, and unfolded.
+/* The chain's curves (curves_build) as the methods read them: redrawn on their knots, and unfolded
+ * if asked.
  * cv and cp hold n each, zeroed; the caller frees both, whatever the answer. 0 or SF_ENOMEM. */
-static int curves_fit(const struct contour_set *cs, bool lsq, bool polar, struct curve *cv, struct curve_poly *cp)
+static int curves_fit(const struct contour_set *cs, bool lsq, bool polar, bool unfold, struct curve *cv,
+                      struct curve_poly *cp)
 {
     int rc = curves_build(cs, lsq, polar, cv);
     for (int j = 0; j < cs->n_slices && !rc; j++)
         if (!(rc = curve_poly_build(&cv[j], &cp[j])))
             rc = curve_refit(&cp[j]);
-    return rc ? rc : curves_unfold(cs, lsq, cp);
+    return rc || !unfold ? rc : curves_unfold(cs, lsq, cp);
 }
 
 /* Parabolic or linear-parabolic (eq. 32 in both directions), exactly as bicubic patches: each pair's
  * nets (pair_nets), z linear in v. */
-static int curve_surface(const struct contour_set *cs, bool lsq, bool polar, const struct sf_progress *pr,
-                         struct patch_set *set, struct sf_err *err)
+static int curve_surface(const struct contour_set *cs, bool lsq, struct model_opts o, struct patch_set *set,
+                         struct sf_err *err)
 {
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
@@ -1226,8 +1242,8 @@ static int curve_surface(const struct contour_set *cs, bool lsq, bool polar, con
     if (!cv || !cp)
         rc = SF_ENOMEM;
     if (!rc)
-        rc = curves_fit(cs, lsq, polar, cv, cp);
-    for (int k = 0; k + 1 < n && !rc && !(rc = sf_poll(pr, (double)k / n, err)); k++) {
+        rc = curves_fit(cs, lsq, o.polar, o.unfold, cv, cp);
+    for (int k = 0; k + 1 < n && !rc && !(rc = sf_poll(o.progress, (double)k / n, err)); k++) {
         if ((rc = pair_nets(cs, lsq, cp, k, &pn)))
             break;
         double z0 = cs->s[k].z, z1 = cs->s[k + 1].z;
@@ -1279,7 +1295,7 @@ static double (*grid_sample(const struct contour_set *cs, int N, bool polar))[3]
     double(*Q)[3] = malloc(sizeof *Q * (size_t)n * (size_t)N);
     struct curve *cv = calloc((size_t)n, sizeof *cv);
     struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
-    if (!Q || !cv || !cp || curves_fit(cs, false, polar, cv, cp)) {
+    if (!Q || !cv || !cp || curves_fit(cs, false, polar, false, cv, cp)) {
         free(Q);
         Q = NULL;
     }
@@ -1528,7 +1544,7 @@ int model_side(const struct contour_set *cs, struct model_opts o, struct patch_s
     switch (o.method) {
     case MODEL_COONS: rc = coons_surface(cs, o.polar, o.progress, set); break;
     case MODEL_BSPLINE: rc = bspline_surface(cs, o.polar, o.progress, set); break;
-    default: return curve_surface(cs, o.method == MODEL_LINEAR_PARABOLIC, o.polar, o.progress, set, err);
+    default: return curve_surface(cs, o.method == MODEL_LINEAR_PARABOLIC, o, set, err);
     }
     return rc == SF_ECANCEL ? sf_fail(err, rc, "", "cancelled")
            : rc            ? sf_fail(err, rc, "", "out of memory building the model")
@@ -1652,7 +1668,7 @@ int model_volume_closed(const struct contour_set *cs, struct model_opts o, doubl
     if (!cv || !cp || !M)
         rc = SF_ENOMEM;
     if (!rc)
-        rc = curves_fit(cs, lsq, o.polar, cv, cp);
+        rc = curves_fit(cs, lsq, o.polar, o.unfold, cv, cp);
     for (int j = 0; j < n && !rc; j++)
         for (int l = j; l <= j + 3 && l < n; l++)
             M[(size_t)j * 7 + (size_t)(l - j + 3)] = mixed_area(&cp[j], &cp[l], l > j);

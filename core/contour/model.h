@@ -35,6 +35,11 @@ struct model_opts {
     enum model_method method;
     bool polar;
     const struct sf_progress *progress; /* polled between steps (err.h); NULL: never stops */
+    /* Folds between unlike contours undone (model.c curves_unfold): for a model (its figures, meshes,
+     * patches, renders, exports); POST /volume leaves it off, so that its closed form stays fast
+     * (checking costs the heart 3 ms a path, a folding band's tries the lung 150 ms) - where a band
+     * folds (the lung), the two surfaces' volumes differ by the pockets the fold holds (1.2e-4). */
+    bool unfold;
 };
 const char *model_method_name(enum model_method m);
 int model_method_parse(const char *name, enum model_method *m);
