@@ -1135,14 +1135,13 @@ static int unfold_pair(struct unfold *uf, int k)
 {
     static const double GROW[] = {0.03, 0.06, 0.1, 0.25}, TANGENT[] = {0.0, 4.0}, TAPER[] = {0.2, 0.4};
     const int n = uf->cs->n_slices;
-    long now = 0, here[3];
-    for (int d = -1; d <= 1; d++) {
-        if ((here[d + 1] = unfold_count(uf, k + d, true, LONG_MAX)) < 0)
-            return (int)here[d + 1];
-        now += here[d + 1];
+    long now = 0;
+    for (int d = 0; d < 3; d++) { /* pairs k-1, k+1 and k, whose spots are kept */
+        long c = unfold_count(uf, k + (d == 2 ? 0 : 2 * d - 1), true, LONG_MAX);
+        if (c < 0)
+            return (int)c;
+        now += c;
     }
-    if (unfold_count(uf, k, true, LONG_MAX) < 0) /* (the spots are pair k's) */
-        return SF_ENOMEM;
     double spots[FOLD_SPOTS];
     int n_spots = uf->n_spots;
     memcpy(spots, uf->spots, sizeof spots);
