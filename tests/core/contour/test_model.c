@@ -274,6 +274,38 @@ TEST(unfolded_curves_keep_volume_and_patches_together)
     }
 }
 
+/* The fold check's caps (model.c FOLD_MAX_TESTS, FOLD_MAX_SECTIONS): contours of 4400 points that
+ * zigzag 2200 times across the same 10 mm, each tooth leaning back (so no stretch of two is monotone),
+ * each level's teeth half a tooth off the one below, so that the sections fold at every tooth. Teeth across x (the check's sweep): every piece's box overlaps
+ * every other's along x, past the comparisons' cap; teeth along x: each overlaps its neighbours',
+ * the pieces to cut past the sections' cap. The model is built, unfolded as far as the caps let it. */
+TEST(fold_check_caps)
+{
+    enum { LEVELS = 3, TEETH = 2200, POINTS = 2 * TEETH };
+    struct contour_slice sl[LEVELS];
+    double(*pts)[2] = malloc(sizeof *pts * LEVELS * POINTS);
+    REQUIRE(pts);
+    for (int across = 0; across < 2; across++) {
+        for (int k = 0; k < LEVELS; k++) {
+            double(*p)[2] = pts + (size_t)k * POINTS, shift = k % 2 ? 0.05 : 0.0;
+            for (int i = 0; i < TEETH; i++) { /* along the zigzag, then straight back beside it */
+                int a = across, b = !across;
+                p[i][a] = i % 2 ? 10.0 : 0.0, p[i][b] = 0.1 * i + (i % 2 ? 0.3 : 0.0) + shift; /* leaning back */
+                p[POINTS - 1 - i][a] = 12.0, p[POINTS - 1 - i][b] = 0.1 * i + shift;
+            }
+            sl[k] = (struct contour_slice){.z = 3.0 * k, .n = POINTS, .p = p, .src = k, .src_contour = -1};
+        }
+        struct contour_set cs = {sl, LEVELS};
+        struct solid sd;
+        CHECK(solid_build(&cs, PARABOLIC, CAPS_FLAT, &sd, NULL) == 0);
+        struct solid_measures m;
+        solid_measure(&sd, &m);
+        CHECK(isfinite(m.volume) && m.volume != 0.0); /* (one way round negative) */
+        solid_free(&sd);
+    }
+    free(pts);
+}
+
 /* Gauss–Legendre of 3x4 points (the measures) and of 8x8 are both exact for the bicubic side patches:
  * they must agree. */
 TEST(volume_quadrature_is_exact)
@@ -881,6 +913,7 @@ int main(void)
     RUN(volume_quadrature_is_exact);
     RUN(closed_form_equals_quadrature);
     RUN(unfolded_curves_keep_volume_and_patches_together);
+    RUN(fold_check_caps);
     RUN(cylinder_and_baselines);
     RUN(meshes_are_closed_and_hold_the_volume);
     RUN(branchings_are_one_surface);
