@@ -603,7 +603,9 @@ static void pair_nets_free(struct pair_nets *pn)
  * weights' Bernstein coefficients over the pair. 0 or SF_ENOMEM. */
 static int pair_nets(const struct contour_set *cs, bool lsq, const struct curve_poly *cp, int k, struct pair_nets *pn)
 {
-    static const double INV[4][4] = {{1, 0, 0, 0}, {-5.0 / 6, 3, -1.5, 1.0 / 3}, {1.0 / 3, -1.5, 3, -5.0 / 6}, {0, 0, 0, 1}};
+    /* a cubic's samples at t = 0, 1/3, 2/3, 1 to its Bernstein coefficients */
+    static const double INV[4][4] = {
+        {1, 0, 0, 0}, {-5.0 / 6, 3, -1.5, 1.0 / 3}, {1.0 / 3, -1.5, 3, -5.0 / 6}, {0, 0, 0, 1}};
     int n = cs->n_slices, j0 = k > 0 ? k - 1 : k, j1 = k + 2 < n ? k + 2 : k + 1;
     size_t nb = 2;
     for (int j = j0; j <= j1; j++)
@@ -870,8 +872,8 @@ static void monotone_reach(net_t *net, size_t n, struct fold_scratch *f)
 }
 
 /* How much pair pn folds: the chords that cross, and with near > 0 those within near (pieces_cross;
- * 0: none), counted up to limit at least. The middles of the pieces that cross go to spots (up to FOLD_SPOTS; *n_spots counts them
- * all). SF_ENOMEM as a negative count. */
+ * 0: none), counted until limit is reached. The middles of the pieces that count go to spots (up to
+ * FOLD_SPOTS; *n_spots counts them all). SF_ENOMEM as a negative count. */
 static long pair_folds(const struct pair_nets *pn, long limit, double near, struct fold_scratch *f, double *spots,
                        int *n_spots)
 {

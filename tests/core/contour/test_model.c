@@ -12,7 +12,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const struct model_opts PARABOLIC = {MODEL_PARABOLIC, false, NULL, true}; /* folds undone, as a model's surface */
+/* folds undone, as a model's surface */
+static const struct model_opts PARABOLIC = {MODEL_PARABOLIC, false, NULL, true};
 
 /* The synthetic shapes and their exact volumes between the end slices (from the files). */
 static const struct synthetic {
@@ -275,10 +276,12 @@ TEST(unfolded_curves_keep_volume_and_patches_together)
 }
 
 /* The fold check's caps (model.c FOLD_MAX_TESTS, FOLD_MAX_SECTIONS): contours of 4400 points that
- * zigzag 2200 times across the same 10 mm, each tooth leaning back (so no stretch of two is monotone),
- * each level's teeth half a tooth off the one below, so that the sections fold at every tooth. Teeth across x (the check's sweep): every piece's box overlaps
- * every other's along x, past the comparisons' cap; teeth along x: each overlaps its neighbours',
- * the pieces to cut past the sections' cap. The model is built, unfolded as far as the caps let it. */
+ * zigzag 2200 times across the same 10 mm, each tooth leaning back (so no stretch of two is
+ * monotone), each level's teeth half a tooth off the one below, so that the sections fold at every
+ * tooth. Teeth across x (the check's sweep): every piece's box overlaps every other's along x, past
+ * the comparisons' cap; teeth along x: each overlaps its neighbours', the pieces to cut past the
+ * sections' cap (both reached: counted in a build that prints them). The model is built, unfolded
+ * as far as the caps let it. */
 TEST(fold_check_caps)
 {
     enum { LEVELS = 3, TEETH = 2200, POINTS = 2 * TEETH };
