@@ -69,13 +69,11 @@ static double orient(const double *a, const double *b, const double *c)
     return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
 }
 
-/* Proper or touching intersection of segments ab and cd. */
-static int segments_meet(const double *a, const double *b, const double *c, const double *d)
+bool contour_segments_cross(const double *a, const double *b, const double *c, const double *d)
 {
     double o1 = orient(a, b, c), o2 = orient(a, b, d), o3 = orient(c, d, a), o4 = orient(c, d, b);
-    if (((o1 > 0 && o2 < 0) || (o1 < 0 && o2 > 0)) && ((o3 > 0 && o4 < 0) || (o3 < 0 && o4 > 0)))
-        return 1;
-    return 0; /* collinear touching is left to the duplicate-point rule */
+    /* (collinear touching is left to the duplicate-point rule) */
+    return ((o1 > 0 && o2 < 0) || (o1 < 0 && o2 > 0)) && ((o3 > 0 && o4 < 0) || (o3 < 0 && o4 > 0));
 }
 
 struct edge_span {
@@ -137,7 +135,7 @@ static int sweep_crossing(const struct contour_slice *a, const struct contour_sl
             const double *pi, *qi, *pj, *qj;
             sweep_edge(a, b, na, i, &pi, &qi);
             sweep_edge(a, b, na, j, &pj, &qj);
-            if (segments_meet(pi, qi, pj, qj))
+            if (contour_segments_cross(pi, qi, pj, qj))
                 found = b == a ? (i < j ? i : j) : (i < na ? i : j);
         }
     free(e);

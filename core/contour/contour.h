@@ -43,6 +43,8 @@ double contour_area(const struct contour_slice *s);
 void contour_centroid(const struct contour_slice *s, double *x, double *y);
 /* Whether point (x, y) is inside the contour's polygon (even-odd). */
 bool contour_inside(const struct contour_slice *s, double x, double y);
+/* Whether segments ab and cd cross properly (each one's ends strictly either side of the other). */
+bool contour_segments_cross(const double *a, const double *b, const double *c, const double *d);
 /* Whether two contours' regions overlap: a vertex of one inside the other, or crossing edges. */
 bool contour_overlap(const struct contour_slice *a, const struct contour_slice *b);
 

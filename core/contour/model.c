@@ -705,6 +705,7 @@ static int cmp_by_x(const void *a, const void *b)
     double x = ((const struct by_x *)a)->x0, y = ((const struct by_x *)b)->x0;
     return (x > y) - (x < y);
 }
+
 typedef double section_t[FOLD_HEIGHTS][FOLD_CHORDS + 1][2]; /* a piece's sections (net_section) */
 
 struct fold_scratch {
@@ -739,16 +740,6 @@ static void net_box(net_t N, double b[4])
 static bool boxes_apart(const double a[4], const double b[4])
 {
     return a[0] > b[1] || b[0] > a[1] || a[2] > b[3] || b[2] > a[3];
-}
-
-/* Whether segments pq and rs cross (each one's ends on either side of the other). */
-static bool segments_cross(const double p[2], const double q[2], const double r[2], const double s[2])
-{
-    double d0 = (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]);
-    double d1 = (q[0] - p[0]) * (s[1] - p[1]) - (q[1] - p[1]) * (s[0] - p[0]);
-    double d2 = (s[0] - r[0]) * (p[1] - r[1]) - (s[1] - r[1]) * (p[0] - r[0]);
-    double d3 = (s[0] - r[0]) * (q[1] - r[1]) - (s[1] - r[1]) * (q[0] - r[0]);
-    return (d0 > 0) != (d1 > 0) && (d2 > 0) != (d3 > 0);
 }
 
 /* The section of net N at t as FOLD_CHORDS chords (FOLD_CHORDS + 1 points), and their box. */
@@ -803,7 +794,7 @@ static long pieces_cross(net_t *net, struct fold_scratch *f, size_t i, size_t j,
         double(*pa)[2] = f->sec[si][h], (*pb)[2] = f->sec[sj][h];
         for (int a = 0; a < FOLD_CHORDS; a++)
             for (int b = 0; b < FOLD_CHORDS; b++)
-                n += segments_cross(pa[a], pa[a + 1], pb[b], pb[b + 1]) ||
+                n += contour_segments_cross(pa[a], pa[a + 1], pb[b], pb[b + 1]) ||
                      (near2 > 0 && (point_segment2(pa[a], pb[b], pb[b + 1]) < near2 ||
                                     point_segment2(pb[b], pa[a], pa[a + 1]) < near2));
     }
