@@ -559,10 +559,12 @@ static int cmp_double(const void *a, const void *b)
 }
 
 /* Weights of the slices at hand at height z, for the pair (k, k+1): the surface point is the sum
- * of weight_j C_j(u), since every blend is linear in the values. m receives the slice count. */
-static void slice_weights(const struct contour_set *cs, bool lsq, int k, double z, double w[4], int *j0, int *m)
+ * of weight_j C_j(u), since every blend is linear in the values. m receives the slice count. A
+ * ruled pair (curves_unfold) reads its own two slices alone, linearly. */
+static void slice_weights(const struct contour_set *cs, bool lsq, bool ruled, int k, double z, double w[4], int *j0,
+                          int *m)
 {
-    int n = cs->n_slices, first = k > 0 ? k - 1 : k, last = k + 2 < n ? k + 2 : k + 1;
+    int n = cs->n_slices, first = k > 0 && !ruled ? k - 1 : k, last = k + 2 < n && !ruled ? k + 2 : k + 1;
     double zs[4];
     *j0 = first;
     *m = last - first + 1;
@@ -601,12 +603,13 @@ static void pair_nets_free(struct pair_nets *pn)
  * with each C_j a cubic in u and each w_j a cubic in z, so its Bézier points are sum_j C_j[a] W_j[b]:
  * the curves' Bézier points on the piece (from their values and derivatives at the ends) times the
  * weights' Bernstein coefficients over the pair. 0 or SF_ENOMEM. */
-static int pair_nets(const struct contour_set *cs, bool lsq, const struct curve_poly *cp, int k, struct pair_nets *pn)
+static int pair_nets(const struct contour_set *cs, bool lsq, bool ruled, const struct curve_poly *cp, int k,
+                     struct pair_nets *pn)
 {
     /* a cubic's samples at t = 0, 1/3, 2/3, 1 to its Bernstein coefficients */
     static const double INV[4][4] = {
         {1, 0, 0, 0}, {-5.0 / 6, 3, -1.5, 1.0 / 3}, {1.0 / 3, -1.5, 3, -5.0 / 6}, {0, 0, 0, 1}};
-    int n = cs->n_slices, j0 = k > 0 ? k - 1 : k, j1 = k + 2 < n ? k + 2 : k + 1;
+    int n = cs->n_slices, j0 = k > 0 && !ruled ? k - 1 : k, j1 = k + 2 < n && !ruled ? k + 2 : k + 1;
     size_t nb = 2;
     for (int j = j0; j <= j1; j++)
         nb += (size_t)cp[j].n;
@@ -631,7 +634,7 @@ static int pair_nets(const struct contour_set *cs, bool lsq, const struct curve_
     double z0 = cs->s[k].z, z1 = cs->s[k + 1].z, wz[4][4], W[4][4] = {{0}};
     int m = 0;
     for (int c = 0; c < 4; c++) /* the slice weights at the four z samples ... */
-        slice_weights(cs, lsq, k, z0 + (z1 - z0) * c / 3.0, wz[c], &j0, &m);
+        slice_weights(cs, lsq, ruled, k, z0 + (z1 - z0) * c / 3.0, wz[c], &j0, &m);
     for (int j = 0; j < m; j++) /* ... as Bernstein coefficients W[j][b] */
         for (int b = 0; b < 4; b++)
             for (int c = 0; c < 4; c++)
@@ -772,9 +775,11 @@ static double point_segment2(const double p[2], const double a[2], const double 
 /* Crossings of pieces i and j's sections at FOLD_HEIGHTS heights, their chords against each other's,
  * and with near2 > 0 chords whose ends come within sqrt(near2) of the other's; each piece's sections
  * drawn once, into a slot of f. Past FOLD_MAX_SECTIONS slots (a contour that winds back and forth
- * thousands of times) the rest are taken not to cross. */
-static long pieces_cross(net_t *net, struct fold_scratch *f, size_t i, size_t j, double near2)
+ * thousands of times) the rest are taken not to cross. With next, j follows i: the chords at the
+ * point they share are not compared; i == j compares a piece's chords but neighbours. */
+static long pieces_cross(net_t *net, struct fold_scratch *f, size_t i, size_t j, bool next, double near2)
 {
+    const bool self = i == j;
     const size_t p[2] = {i, j};
     for (int e = 0; e < 2; e++)
         if (f->slot[p[e]] < 0) {
@@ -793,7 +798,7 @@ static long pieces_cross(net_t *net, struct fold_scratch *f, size_t i, size_t j,
             continue;
         double(*pa)[2] = f->sec[si][h], (*pb)[2] = f->sec[sj][h];
         for (int a = 0; a < FOLD_CHORDS; a++)
-            for (int b = 0; b < FOLD_CHORDS; b++)
+            for (int b = self ? a + 2 : next && a == FOLD_CHORDS - 1; b < FOLD_CHORDS; b++)
                 n += contour_segments_cross(pa[a], pa[a + 1], pb[b], pb[b + 1]) ||
                      (near2 > 0 && (point_segment2(pa[a], pb[b], pb[b + 1]) < near2 ||
                                     point_segment2(pb[b], pa[a], pa[a + 1]) < near2));
@@ -895,6 +900,18 @@ static long pair_folds(const struct pair_nets *pn, long limit, double near, stru
     }
     qsort(ord, n, sizeof *ord, cmp_by_x);
     long folds = 0, tests = FOLD_MAX_TESTS;
+    /* a piece whose tangents spread over half a turn or more, against itself; one that makes no
+     * monotone stretch with the next, against that (at their sections' chords alone: near sections
+     * are what neighbouring chords are) */
+    for (size_t i = 0; i < n; i++)
+        for (int e = 0; e < 2; e++) {
+            size_t j = e ? (i + 1) % n : i;
+            if (e ? f->reach[i] > i : f->half[i] < M_PI_2)
+                continue;
+            long m = pieces_cross(pn->net, f, i, j, e, 0.0);
+            if ((folds += m) >= limit)
+                return folds;
+        }
     for (size_t x = 0; x < n; x++)
         for (size_t y = x + 1; y < n && --tests > 0; y++) {
             size_t i = ord[x].i, j = ord[y].i;
@@ -909,7 +926,7 @@ static long pair_folds(const struct pair_nets *pn, long limit, double near, stru
             if (bi[2] > bj[3] || bj[2] > bi[3] || j - i <= 1 || i + n - j <= 1 || j <= f->reach[i] ||
                 i + n <= f->reach[j])
                 continue;
-            long m = pieces_cross(pn->net, f, i, j, near * near);
+            long m = pieces_cross(pn->net, f, i, j, false, near * near);
             if (m > 0) {
                 for (int e = 0; e < 2; e++, ++*n_spots)
                     if (*n_spots < FOLD_SPOTS)
@@ -1023,6 +1040,7 @@ struct unfold {
     bool lsq;
     struct curve_poly *cp, *orig; /* the curves as warped, and as fitted (orig[j] set once warped) */
     int *applied;                  /* warps drawn into cp[j] */
+    bool *ruled;                   /* pairs drawn ruled (the caller's, n - 1) */
     struct warp w[UNFOLD_MAX + 1];
     int w_band[UNFOLD_MAX + 1], n_w;
     double near;                   /* sections this close count as folding (pair_folds), but for finding them */
@@ -1088,7 +1106,7 @@ static long unfold_count(struct unfold *uf, int k, bool near, long limit)
         return 0;
     for (int j = k > 0 ? k - 1 : k; j <= k + 2 && j < n && !rc; j++)
         rc = curve_warp(uf, j, warps_below(uf, j));
-    if (rc || (rc = pair_nets(uf->cs, uf->lsq, uf->cp, k, &uf->pn)))
+    if (rc || (rc = pair_nets(uf->cs, uf->lsq, uf->ruled[k], uf->cp, k, &uf->pn)))
         return rc;
     return pair_folds(&uf->pn, limit, near ? uf->near : 0.0, &uf->fs, uf->spots, &uf->n_spots);
 }
@@ -1177,15 +1195,24 @@ static int unfold_pair(struct unfold *uf, int k)
     int rc = 0;
     for (int j = k > 0 ? k - 1 : k; j <= k + 3 && j < n && (!rc || rc == SF_ELIMIT); j++) /* as the warps now stand */
         rc = curve_warp(uf, j, warps_below(uf, j));
-    return rc == SF_ELIMIT ? 0 : rc;
+    if (rc && rc != SF_ELIMIT)
+        return rc;
+    /* the pair ruled, if that folds it less (its neighbours do not read it) */
+    long blended = unfold_count(uf, k, true, LONG_MAX), ruled = 0;
+    if (blended > 0) {
+        uf->ruled[k] = true;
+        ruled = unfold_count(uf, k, true, blended);
+        uf->ruled[k] = ruled >= 0 && ruled < blended;
+    }
+    return blended < 0 ? (int)blended : ruled < 0 && ruled != SF_ELIMIT ? (int)ruled : 0;
 }
 
 /* Checks every pair of the chain's curves cp (n, fitted) for folds, and warps the curves above
  * those that fold where that folds them less. 0 or SF_ENOMEM. */
-static int curves_unfold(const struct contour_set *cs, bool lsq, struct curve_poly *cp)
+static int curves_unfold(const struct contour_set *cs, bool lsq, struct curve_poly *cp, bool *ruled)
 {
     const int n = cs->n_slices;
-    struct unfold uf = {.cs = cs, .lsq = lsq, .cp = cp, .orig = calloc((size_t)n, sizeof *uf.orig),
+    struct unfold uf = {.cs = cs, .lsq = lsq, .cp = cp, .ruled = ruled, .orig = calloc((size_t)n, sizeof *uf.orig),
                         .applied = calloc((size_t)n, sizeof *uf.applied)};
     int rc = uf.orig && uf.applied ? 0 : SF_ENOMEM;
     for (int j = 0; j < n; j++)
@@ -1210,16 +1237,16 @@ static int curves_unfold(const struct contour_set *cs, bool lsq, struct curve_po
 }
 
 /* The chain's curves (curves_build) as the methods read them: redrawn on their knots, and unfolded
- * if asked.
+ * if asked (ruled not NULL: n zeroed flags, set for the pairs to be drawn ruled).
  * cv and cp hold n each, zeroed; the caller frees both, whatever the answer. 0 or SF_ENOMEM. */
-static int curves_fit(const struct contour_set *cs, bool lsq, bool polar, bool unfold, struct curve *cv,
+static int curves_fit(const struct contour_set *cs, bool lsq, bool polar, bool *ruled, struct curve *cv,
                       struct curve_poly *cp)
 {
     int rc = curves_build(cs, lsq, polar, cv);
     for (int j = 0; j < cs->n_slices && !rc; j++)
         if (!(rc = curve_poly_build(&cv[j], &cp[j])))
             rc = curve_refit(&cp[j]);
-    return rc || !unfold ? rc : curves_unfold(cs, lsq, cp);
+    return rc || !ruled ? rc : curves_unfold(cs, lsq, cp, ruled);
 }
 
 /* Parabolic or linear-parabolic (eq. 32 in both directions), exactly as bicubic patches: each pair's
@@ -1230,13 +1257,14 @@ static int curve_surface(const struct contour_set *cs, bool lsq, struct model_op
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
     struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
+    bool *ruled = o.unfold ? calloc((size_t)n, sizeof *ruled) : NULL;
     struct pair_nets pn = {0};
-    if (!cv || !cp)
+    if (!cv || !cp || (o.unfold && !ruled))
         rc = SF_ENOMEM;
     if (!rc)
-        rc = curves_fit(cs, lsq, o.polar, o.unfold, cv, cp);
+        rc = curves_fit(cs, lsq, o.polar, ruled, cv, cp);
     for (int k = 0; k + 1 < n && !rc && !(rc = sf_poll(o.progress, (double)k / n, err)); k++) {
-        if ((rc = pair_nets(cs, lsq, cp, k, &pn)))
+        if ((rc = pair_nets(cs, lsq, ruled && ruled[k], cp, k, &pn)))
             break;
         double z0 = cs->s[k].z, z1 = cs->s[k + 1].z;
         for (size_t q = 0; q < pn.n && !rc; q++) {
@@ -1262,6 +1290,7 @@ static int curve_surface(const struct contour_set *cs, bool lsq, struct model_op
     }
     free(cv);
     free(cp);
+    free(ruled);
     return rc == SF_ECANCEL ? rc : rc ? sf_fail(err, SF_ENOMEM, "", "out of memory building the model") : 0;
 }
 
@@ -1287,7 +1316,7 @@ static double (*grid_sample(const struct contour_set *cs, int N, bool polar))[3]
     double(*Q)[3] = malloc(sizeof *Q * (size_t)n * (size_t)N);
     struct curve *cv = calloc((size_t)n, sizeof *cv);
     struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
-    if (!Q || !cv || !cp || curves_fit(cs, false, polar, false, cv, cp)) {
+    if (!Q || !cv || !cp || curves_fit(cs, false, polar, NULL, cv, cp)) {
         free(Q);
         Q = NULL;
     }
@@ -1600,11 +1629,11 @@ static double mixed_area(const struct curve_poly *a, const struct curve_poly *b,
 }
 
 /* Section area of pair k's blend at any z (inside or beyond the pair). */
-static double section_area(const struct contour_set *cs, bool lsq, const double *M, int k, double z)
+static double section_area(const struct contour_set *cs, bool lsq, bool ruled, const double *M, int k, double z)
 {
     double w[4], area = 0.0;
     int j0, m;
-    slice_weights(cs, lsq, k, z, w, &j0, &m);
+    slice_weights(cs, lsq, ruled, k, z, w, &j0, &m);
     for (int a = 0; a < m; a++)
         for (int b = a; b < m; b++) /* b > a: the symmetric sum stands for both orders */
             area += w[a] * w[b] * M[(size_t)(j0 + a) * 7 + (size_t)(b - a + 3)];
@@ -1657,10 +1686,11 @@ int model_volume_closed(const struct contour_set *cs, struct model_opts o, doubl
     struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
     /* M[j*7 + 3] = M_jj (the curve's area); M[j*7 + (l - j + 3)] for l > j: M_jl + M_lj */
     double *M = calloc((size_t)n * 7, sizeof *M);
-    if (!cv || !cp || !M)
+    bool *ruled = o.unfold ? calloc((size_t)n, sizeof *ruled) : NULL;
+    if (!cv || !cp || !M || (o.unfold && !ruled))
         rc = SF_ENOMEM;
     if (!rc)
-        rc = curves_fit(cs, lsq, o.polar, o.unfold, cv, cp);
+        rc = curves_fit(cs, lsq, o.polar, ruled, cv, cp);
     for (int j = 0; j < n && !rc; j++)
         for (int l = j; l <= j + 3 && l < n; l++)
             M[(size_t)j * 7 + (size_t)(l - j + 3)] = mixed_area(&cp[j], &cp[l], l > j);
@@ -1668,7 +1698,7 @@ int model_volume_closed(const struct contour_set *cs, struct model_opts o, doubl
     for (int k = 0; k + 1 < n && !rc; k++) {
         double z0 = cs->s[k].z, z1 = cs->s[k + 1].z;
         for (int g = 0; g < 4; g++)
-            v += GL4_W[g] * (z1 - z0) * section_area(cs, lsq, M, k, z0 + (z1 - z0) * GL4_X[g]);
+            v += GL4_W[g] * (z1 - z0) * section_area(cs, lsq, ruled && ruled[k], M, k, z0 + (z1 - z0) * GL4_X[g]);
     }
     if (!rc) {
         *volume = v;
@@ -1682,6 +1712,7 @@ int model_volume_closed(const struct contour_set *cs, struct model_opts o, doubl
     free(cv);
     free(cp);
     free(M);
+    free(ruled);
     return rc ? sf_fail(err, SF_ENOMEM, "", "out of memory") : 0;
 }
 
