@@ -15,6 +15,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "../base/gauss.h"
 #include "../base/mem.h"
@@ -1249,11 +1250,22 @@ static int curves_fit(const struct contour_set *cs, bool lsq, bool polar, bool *
     return rc || !ruled ? rc : curves_unfold(cs, lsq, cp, ruled);
 }
 
-/* Parabolic or linear-parabolic (eq. 32 in both directions), exactly as bicubic patches: each pair's
- * nets (pair_nets), z linear in v. */
-static int curve_surface(const struct contour_set *cs, bool lsq, struct model_opts o, struct patch_set *set,
-                         struct sf_err *err)
+static int closed_form(const struct contour_set *cs, bool lsq, const struct curve_poly *cp, const bool *ruled,
+                       double *volume, double end_area[2]);
+
+static double now_ms(void)
 {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
+}
+
+/* Parabolic or linear-parabolic (eq. 32 in both directions), exactly as bicubic patches: each pair's
+ * nets (pair_nets), z linear in v; with cl, the closed form from the same curves. */
+static int curve_surface(const struct contour_set *cs, bool lsq, struct model_opts o, struct patch_set *set,
+                         struct model_closed *cl, struct sf_err *err)
+{
+    double t0 = now_ms();
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
     struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
@@ -1263,6 +1275,9 @@ static int curve_surface(const struct contour_set *cs, bool lsq, struct model_op
         rc = SF_ENOMEM;
     if (!rc)
         rc = curves_fit(cs, lsq, o.polar, ruled, cv, cp);
+    double ends[2];
+    if (!rc && cl && !(rc = closed_form(cs, lsq, cp, ruled, &cl->volume, ends)))
+        cl->ms = now_ms() - t0;
     for (int k = 0; k + 1 < n && !rc && !(rc = sf_poll(o.progress, (double)k / n, err)); k++) {
         if ((rc = pair_nets(cs, lsq, ruled && ruled[k], cp, k, &pn)))
             break;
@@ -1555,6 +1570,14 @@ static double patches_bound(const struct contour_set *cs, enum model_method m)
 
 int model_side(const struct contour_set *cs, struct model_opts o, struct patch_set *set, struct sf_err *err)
 {
+    return model_side_closed(cs, o, set, NULL, err);
+}
+
+int model_side_closed(const struct contour_set *cs, struct model_opts o, struct patch_set *set,
+                      struct model_closed *cl, struct sf_err *err)
+{
+    if (cl)
+        *cl = (struct model_closed){NAN, 0.0};
     double bound = patches_bound(cs, o.method);
     if (bound > MODEL_MAX_PATCHES)
         return sf_fail(err, SF_ELIMIT, "/slices",
@@ -1565,7 +1588,7 @@ int model_side(const struct contour_set *cs, struct model_opts o, struct patch_s
     switch (o.method) {
     case MODEL_COONS: rc = coons_surface(cs, o.polar, o.progress, set); break;
     case MODEL_BSPLINE: rc = bspline_surface(cs, o.polar, o.progress, set); break;
-    default: return curve_surface(cs, o.method == MODEL_LINEAR_PARABOLIC, o, set, err);
+    default: return curve_surface(cs, o.method == MODEL_LINEAR_PARABOLIC, o, set, cl, err);
     }
     return rc == SF_ECANCEL ? sf_fail(err, rc, "", "cancelled")
            : rc            ? sf_fail(err, rc, "", "out of memory building the model")
@@ -1675,6 +1698,32 @@ double model_dome(const double z[3], const double A[3], int n, struct model_dome
     return isnan(root) ? NAN : A[0] * root + b * root * root / 2 + cq * root * root * root / 3;
 }
 
+/* The closed form from a chain's fitted curves cp (ruled: curves_fit's flags, or NULL). 0 or
+ * SF_ENOMEM. */
+static int closed_form(const struct contour_set *cs, bool lsq, const struct curve_poly *cp, const bool *ruled,
+                       double *volume, double end_area[2])
+{
+    int n = cs->n_slices;
+    /* M[j*7 + 3] = M_jj (the curve's area); M[j*7 + (l - j + 3)] for l > j: M_jl + M_lj */
+    double *M = calloc((size_t)n * 7, sizeof *M);
+    if (!M)
+        return SF_ENOMEM;
+    for (int j = 0; j < n; j++)
+        for (int l = j; l <= j + 3 && l < n; l++)
+            M[(size_t)j * 7 + (size_t)(l - j + 3)] = mixed_area(&cp[j], &cp[l], l > j);
+    double v = 0.0;
+    for (int k = 0; k + 1 < n; k++) {
+        double z0 = cs->s[k].z, z1 = cs->s[k + 1].z;
+        for (int g = 0; g < 4; g++)
+            v += GL4_W[g] * (z1 - z0) * section_area(cs, lsq, ruled && ruled[k], M, k, z0 + (z1 - z0) * GL4_X[g]);
+    }
+    *volume = v;
+    end_area[0] = M[3];
+    end_area[1] = M[(size_t)(n - 1) * 7 + 3];
+    free(M);
+    return 0;
+}
+
 int model_volume_closed(const struct contour_set *cs, struct model_opts o, double *volume, double end_area[2],
                         struct sf_err *err)
 {
@@ -1684,34 +1733,19 @@ int model_volume_closed(const struct contour_set *cs, struct model_opts o, doubl
     int n = cs->n_slices, rc = 0;
     struct curve *cv = calloc((size_t)n, sizeof *cv);
     struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
-    /* M[j*7 + 3] = M_jj (the curve's area); M[j*7 + (l - j + 3)] for l > j: M_jl + M_lj */
-    double *M = calloc((size_t)n * 7, sizeof *M);
     bool *ruled = o.unfold ? calloc((size_t)n, sizeof *ruled) : NULL;
-    if (!cv || !cp || !M || (o.unfold && !ruled))
+    if (!cv || !cp || (o.unfold && !ruled))
         rc = SF_ENOMEM;
     if (!rc)
         rc = curves_fit(cs, lsq, o.polar, ruled, cv, cp);
-    for (int j = 0; j < n && !rc; j++)
-        for (int l = j; l <= j + 3 && l < n; l++)
-            M[(size_t)j * 7 + (size_t)(l - j + 3)] = mixed_area(&cp[j], &cp[l], l > j);
-    double v = 0.0;
-    for (int k = 0; k + 1 < n && !rc; k++) {
-        double z0 = cs->s[k].z, z1 = cs->s[k + 1].z;
-        for (int g = 0; g < 4; g++)
-            v += GL4_W[g] * (z1 - z0) * section_area(cs, lsq, ruled && ruled[k], M, k, z0 + (z1 - z0) * GL4_X[g]);
-    }
-    if (!rc) {
-        *volume = v;
-        end_area[0] = M[3];
-        end_area[1] = M[(size_t)(n - 1) * 7 + 3];
-    }
-    for (int j = 0; j < n; j++) {
+    if (!rc)
+        rc = closed_form(cs, lsq, cp, ruled, volume, end_area);
+    for (int j = 0; j < n && cv && cp; j++) {
         curve_free(&cv[j]);
         curve_poly_free(&cp[j]);
     }
     free(cv);
     free(cp);
-    free(M);
     free(ruled);
     return rc ? sf_fail(err, SF_ENOMEM, "", "out of memory") : 0;
 }

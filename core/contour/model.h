@@ -52,6 +52,14 @@ int model_method_parse(const char *name, enum model_method *m);
  * does: call nurbs_patches_fix() after the last append; the caller frees the set. SF_ELIMIT
  * (pointer /slices) when the method would make more than MODEL_MAX_PATCHES patches. */
 int model_side(const struct contour_set *cs, struct model_opts o, struct patch_set *set, struct sf_err *err);
+/* model_side, and with cl not NULL the closed form model_volume_closed gives, from the same curves,
+ * fitted (and unfolded) once for both (volume NAN for the grid methods), and the time fitting them
+ * and the closed form took (what the volume alone costs; the patches are the rest). */
+struct model_closed {
+    double volume, ms;
+};
+int model_side_closed(const struct contour_set *cs, struct model_opts o, struct patch_set *set,
+                      struct model_closed *cl, struct sf_err *err);
 
 /* The volume with flat caps straight from the curves (closed form: mixed areas of curve pairs,
  * integrated over z exactly), without building patches; and the end curves' areas. Parabolic and

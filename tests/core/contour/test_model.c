@@ -250,10 +250,11 @@ static bool roi_set(const char *file, const char *name, struct contour_set *cs)
 }
 
 /* Folds undone (model.c curves_unfold): on the lung's chains and the dicompyler BODY's (whose folding
- * pairs at z 24.56 and 108.56 are drawn ruled), the closed form from the warped curves equals the
- * divergence theorem over the patches drawn from them, as without the warps; the two surfaces differ
- * only where a band folds, by the pockets a fold holds (the lung: 1.1e-4 of its volume; the heart,
- * which does not fold: to the last bit). */
+ * pair at z 24.56 is drawn ruled), the closed form from the warped curves equals the
+ * divergence theorem over the patches drawn from them, as without the warps, and is the one the
+ * solid's tubes carry (fitted once for both); the two surfaces differ only where a band folds, by
+ * the pockets a fold holds (the lung: 1.1e-4 of its volume; the heart, which does not fold: to the
+ * last bit). */
 TEST(unfolded_curves_keep_volume_and_patches_together)
 {
     const char *files[] = {"dicompyler_lt_lung_multicontour.json", "dicompyler_heart.json", "BODY"};
@@ -269,6 +270,8 @@ TEST(unfolded_curves_keep_volume_and_patches_together)
         REQUIRE(model_chains(&cs, CAPS_FLAT, &ch, &n_ch, NULL) == 0);
         struct contour_slice *storage = malloc(sizeof *storage * (size_t)cs.n_slices);
         double plain = 0.0, unfolded = 0.0;
+        struct solid sd; /* whose tubes carry the closed form from the curves their patches came from */
+        CHECK(solid_build(&cs, PARABOLIC, CAPS_FLAT, &sd, NULL) == 0 && sd.n_tubes == n_ch);
         for (int c = 0; c < n_ch; c++) {
             struct contour_set v = model_chain_view(&cs, &ch[c], storage);
             if (v.n_slices < 2)
@@ -277,6 +280,7 @@ TEST(unfolded_curves_keep_volume_and_patches_together)
             struct model_opts o = PARABOLIC;
             struct patch_set ps = {0};
             CHECK(model_volume_closed(&v, o, &b, ends, NULL) == 0);
+            CHECK(sd.tubes[c].side.volume == b);
             o.unfold = false;
             CHECK(model_volume_closed(&v, o, &a, ends, NULL) == 0);
             CHECK(model_side(&v, PARABOLIC, &ps, NULL) == 0);
@@ -291,6 +295,7 @@ TEST(unfolded_curves_keep_volume_and_patches_together)
         fprintf(stderr, "  %s: %.6f cm3 as fitted, %.6f unfolded (%+.2e)\n", files[f], plain / 1e3, unfolded / 1e3,
                 unfolded / plain - 1.0);
         CHECK(f != 1 ? fabs(unfolded / plain - 1.0) > 1e-6 && fabs(unfolded / plain - 1.0) < 2e-4 : unfolded == plain);
+        solid_free(&sd);
         free(storage);
         model_chains_free(ch, n_ch);
         contour_set_free(&cs);
