@@ -1237,17 +1237,35 @@ static int curves_unfold(const struct contour_set *cs, bool lsq, struct curve_po
     return rc == SF_ELIMIT ? 0 : rc;
 }
 
-/* The chain's curves (curves_build) as the methods read them: redrawn on their knots, and unfolded
- * if asked (ruled not NULL: n zeroed flags, set for the pairs to be drawn ruled).
- * cv and cp hold n each, zeroed; the caller frees both, whatever the answer. 0 or SF_ENOMEM. */
-static int curves_fit(const struct contour_set *cs, bool lsq, bool polar, bool *ruled, struct curve *cv,
-                      struct curve_poly *cp)
+/* A chain's curves (curves_build) as the methods read them: redrawn on their knots, and unfolded
+ * if asked, with the pairs to be drawn ruled (ruled[k]: pair k, k+1; NULL when not unfolded). */
+struct fitted {
+    int n;
+    struct curve *cv;
+    struct curve_poly *cp;
+    bool *ruled;
+};
+
+static void fitted_free(struct fitted *f)
 {
-    int rc = curves_build(cs, lsq, polar, cv);
-    for (int j = 0; j < cs->n_slices && !rc; j++)
-        if (!(rc = curve_poly_build(&cv[j], &cp[j])))
-            rc = curve_refit(&cp[j]);
-    return rc || !ruled ? rc : curves_unfold(cs, lsq, cp, ruled);
+    for (int j = 0; j < f->n && f->cv && f->cp; j++)
+        curve_free(&f->cv[j]), curve_poly_free(&f->cp[j]);
+    free(f->cv), free(f->cp), free(f->ruled);
+}
+
+/* f's curves; the caller frees them with fitted_free, whatever the answer. 0 or SF_ENOMEM. */
+static int curves_fit(const struct contour_set *cs, bool lsq, bool polar, bool unfold, struct fitted *f)
+{
+    int n = cs->n_slices;
+    *f = (struct fitted){n, calloc((size_t)n, sizeof *f->cv), calloc((size_t)n, sizeof *f->cp),
+                         unfold ? calloc((size_t)n, sizeof *f->ruled) : NULL};
+    if (!f->cv || !f->cp || (unfold && !f->ruled))
+        return SF_ENOMEM;
+    int rc = curves_build(cs, lsq, polar, f->cv);
+    for (int j = 0; j < n && !rc; j++)
+        if (!(rc = curve_poly_build(&f->cv[j], &f->cp[j])))
+            rc = curve_refit(&f->cp[j]);
+    return rc || !unfold ? rc : curves_unfold(cs, lsq, f->cp, f->ruled);
 }
 
 static int closed_form(const struct contour_set *cs, bool lsq, const struct curve_poly *cp, const bool *ruled,
@@ -1265,21 +1283,15 @@ static double now_ms(void)
 static int curve_surface(const struct contour_set *cs, bool lsq, struct model_opts o, struct patch_set *set,
                          struct model_closed *cl, struct sf_err *err)
 {
-    double t0 = now_ms();
-    int n = cs->n_slices, rc = 0;
-    struct curve *cv = calloc((size_t)n, sizeof *cv);
-    struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
-    bool *ruled = o.unfold ? calloc((size_t)n, sizeof *ruled) : NULL;
+    double t0 = now_ms(), ends[2];
+    int n = cs->n_slices;
+    struct fitted f;
     struct pair_nets pn = {0};
-    if (!cv || !cp || (o.unfold && !ruled))
-        rc = SF_ENOMEM;
-    if (!rc)
-        rc = curves_fit(cs, lsq, o.polar, ruled, cv, cp);
-    double ends[2];
-    if (!rc && cl && !(rc = closed_form(cs, lsq, cp, ruled, &cl->volume, ends)))
+    int rc = curves_fit(cs, lsq, o.polar, o.unfold, &f);
+    if (!rc && cl && !(rc = closed_form(cs, lsq, f.cp, f.ruled, &cl->volume, ends)))
         cl->ms = now_ms() - t0;
     for (int k = 0; k + 1 < n && !rc && !(rc = sf_poll(o.progress, (double)k / n, err)); k++) {
-        if ((rc = pair_nets(cs, lsq, ruled && ruled[k], cp, k, &pn)))
+        if ((rc = pair_nets(cs, lsq, f.ruled && f.ruled[k], f.cp, k, &pn)))
             break;
         double z0 = cs->s[k].z, z1 = cs->s[k + 1].z;
         for (size_t q = 0; q < pn.n && !rc; q++) {
@@ -1299,13 +1311,7 @@ static int curve_surface(const struct contour_set *cs, bool lsq, struct model_op
         }
     }
     pair_nets_free(&pn);
-    for (int j = 0; j < n && cv && cp; j++) {
-        curve_free(&cv[j]);
-        curve_poly_free(&cp[j]);
-    }
-    free(cv);
-    free(cp);
-    free(ruled);
+    fitted_free(&f);
     return rc == SF_ECANCEL ? rc : rc ? sf_fail(err, SF_ENOMEM, "", "out of memory building the model") : 0;
 }
 
@@ -1329,21 +1335,18 @@ static double (*grid_sample(const struct contour_set *cs, int N, bool polar))[3]
 {
     int n = cs->n_slices;
     double(*Q)[3] = malloc(sizeof *Q * (size_t)n * (size_t)N);
-    struct curve *cv = calloc((size_t)n, sizeof *cv);
-    struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
-    if (!Q || !cv || !cp || curves_fit(cs, false, polar, NULL, cv, cp)) {
+    struct fitted f;
+    if (curves_fit(cs, false, polar, false, &f) || !Q) {
         free(Q);
         Q = NULL;
     }
     for (int j = 0; Q && j < n; j++)
         for (int k = 0; k < N; k++) {
             double *q = Q[(size_t)j * N + k], u = (double)k / N, xu, yu;
-            curve_poly_at(&cp[j], curve_poly_segment(&cp[j], u), u, &q[0], &q[1], &xu, &yu);
+            curve_poly_at(&f.cp[j], curve_poly_segment(&f.cp[j], u), u, &q[0], &q[1], &xu, &yu);
             q[2] = cs->s[j].z;
         }
-    for (int j = 0; cv && cp && j < n; j++)
-        curve_free(&cv[j]), curve_poly_free(&cp[j]);
-    free(cv), free(cp);
+    fitted_free(&f);
     return Q;
 }
 
@@ -1730,23 +1733,11 @@ int model_volume_closed(const struct contour_set *cs, struct model_opts o, doubl
     if (o.method != MODEL_PARABOLIC && o.method != MODEL_LINEAR_PARABOLIC)
         return sf_fail(err, SF_EINVAL, "/method", "the closed form is for the curve-based methods");
     bool lsq = o.method == MODEL_LINEAR_PARABOLIC;
-    int n = cs->n_slices, rc = 0;
-    struct curve *cv = calloc((size_t)n, sizeof *cv);
-    struct curve_poly *cp = calloc((size_t)n, sizeof *cp);
-    bool *ruled = o.unfold ? calloc((size_t)n, sizeof *ruled) : NULL;
-    if (!cv || !cp || (o.unfold && !ruled))
-        rc = SF_ENOMEM;
+    struct fitted f;
+    int rc = curves_fit(cs, lsq, o.polar, o.unfold, &f);
     if (!rc)
-        rc = curves_fit(cs, lsq, o.polar, ruled, cv, cp);
-    if (!rc)
-        rc = closed_form(cs, lsq, cp, ruled, volume, end_area);
-    for (int j = 0; j < n && cv && cp; j++) {
-        curve_free(&cv[j]);
-        curve_poly_free(&cp[j]);
-    }
-    free(cv);
-    free(cp);
-    free(ruled);
+        rc = closed_form(cs, lsq, f.cp, f.ruled, volume, end_area);
+    fitted_free(&f);
     return rc ? sf_fail(err, SF_ENOMEM, "", "out of memory") : 0;
 }
 
