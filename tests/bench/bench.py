@@ -250,9 +250,10 @@ def contour_bench(lines):
     t = json.loads(p.stdout)["timings_ms"]
     lines.append("")
     lines.append("Heart (33 slices, up to 178 points), warm (`surfd volume FILE --repeat 20`, last run): read %.1f ms; "
-                 "model + exact volume %.1f ms (target < 10 ms): the closed solid as exact Bezier patches %.1f ms, the "
-                 "exact volume (closed form) %.1f ms; area, quadrature and 10x10 grid cross-checks %.1f ms more.\n"
-                 % (t["read"], t["fit"] + t["volume"], t["fit"], t["volume"], t["measure"]))
+                 "model + exact volume %.1f ms (target < 10 ms): the curves fitted and the exact volume (closed form) "
+                 "%.1f ms, the closed solid as exact Bezier patches from the same curves %.1f ms; area, quadrature and "
+                 "10x10 grid cross-checks %.1f ms more.\n"
+                 % (t["read"], t["fit"] + t["volume"], t["volume"], t["fit"], t["measure"]))
     for rs in ("dicompyler-core_example_rtss.dcm", "slicerrt_EclipseProstatePhantom_RS.dcm"):
         rtstruct_bench(lines, os.path.join(cdir, rs))
 
