@@ -680,14 +680,18 @@ static int pair_nets(const struct contour_set *cs, bool lsq, bool ruled, const s
  * and where it folds, the parameters of every curve above are warped over a window round the fold
  * so that the upper curve's points pair with the nearest of the lower's (curves_unfold). The
  * surfaces above keep their shape, since all their curves move alike; the curves are redrawn on
- * dyadic knots as before, so the volume and the patches still read the same curves.
+ * dyadic knots as before, so the volume and the patches still read the same curves. Where no warp
+ * folds the pair less, it is drawn ruled (its two curves blended linearly, no overshoot from the
+ * neighbours' curves: the dicompyler BODY's neck to a skin marker), if that folds it less.
  *
  * The check: at a fixed z the section sum_j w_j C_j(u) is a curve; two pieces of it can only meet
  * where their nets' boxes (in x, y, over the pair's z) overlap. Pieces along a stretch whose
  * tangents all lie within 90 degrees of one direction (the nets' u-differences bound them) cannot
  * meet each other at any z: a section is monotone along that direction there. The rest whose boxes
  * overlap are cut at FOLD_HEIGHTS heights, each section drawn as FOLD_CHORDS chords, and their
- * chords that cross are counted: the measure of a fold. (Splitting the nets until their boxes part
+ * chords that cross are counted: the measure of a fold; so are a piece's own chords, where its
+ * tangents turn half a turn or more, and a piece's against the next one's, where the two make no
+ * monotone stretch (a loop within neighbours). (Splitting the nets until their boxes part
  * proves more but costs without bound where two sheets run close for long, as a slit's sides do.) */
 #define FOLD_HEIGHTS 32
 #define FOLD_CHORDS 8
