@@ -87,6 +87,7 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
     struct model_opts mo = opts_of(req, pr);
     mo.unfold = unfold;
     bool curves = mo.method == MODEL_PARABOLIC || mo.method == MODEL_LINEAR_PARABOLIC;
+    mo.closed = curves;
     double t1 = now_ms();
     if (solid_build(&cs, mo, caps_of(req->caps), &sd, err))
         return NULL;

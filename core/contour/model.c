@@ -559,13 +559,22 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
+/* The slices pair (k, k+1) of n reads, first to last: k-1 to k+2 where they exist; a ruled pair
+ * (curves_unfold) its own two alone. */
+static void pair_reads(int n, int k, bool ruled, int *first, int *last)
+{
+    *first = k > 0 && !ruled ? k - 1 : k;
+    *last = k + 2 < n && !ruled ? k + 2 : k + 1;
+}
+
 /* Weights of the slices at hand at height z, for the pair (k, k+1): the surface point is the sum
  * of weight_j C_j(u), since every blend is linear in the values. m receives the slice count. A
- * ruled pair (curves_unfold) reads its own two slices alone, linearly. */
+ * ruled pair reads its own two slices, linearly. */
 static void slice_weights(const struct contour_set *cs, bool lsq, bool ruled, int k, double z, double w[4], int *j0,
                           int *m)
 {
-    int n = cs->n_slices, first = k > 0 && !ruled ? k - 1 : k, last = k + 2 < n && !ruled ? k + 2 : k + 1;
+    int first, last;
+    pair_reads(cs->n_slices, k, ruled, &first, &last);
     double zs[4];
     *j0 = first;
     *m = last - first + 1;
@@ -610,7 +619,8 @@ static int pair_nets(const struct contour_set *cs, bool lsq, bool ruled, const s
     /* a cubic's samples at t = 0, 1/3, 2/3, 1 to its Bernstein coefficients */
     static const double INV[4][4] = {
         {1, 0, 0, 0}, {-5.0 / 6, 3, -1.5, 1.0 / 3}, {1.0 / 3, -1.5, 3, -5.0 / 6}, {0, 0, 0, 1}};
-    int n = cs->n_slices, j0 = k > 0 && !ruled ? k - 1 : k, j1 = k + 2 < n && !ruled ? k + 2 : k + 1;
+    int j0, j1;
+    pair_reads(cs->n_slices, k, ruled, &j0, &j1);
     size_t nb = 2;
     for (int j = j0; j <= j1; j++)
         nb += (size_t)cp[j].n;
@@ -1106,10 +1116,11 @@ static int curve_warp(struct unfold *uf, int j, int count)
 /* Pair k's folds with the curves it reads drawn through the warps below each (negative: SF_*). */
 static long unfold_count(struct unfold *uf, int k, bool near, long limit)
 {
-    int n = uf->cs->n_slices, rc = 0;
+    int n = uf->cs->n_slices, rc = 0, j0, j1;
     if (k < 0 || k + 1 >= n)
         return 0;
-    for (int j = k > 0 ? k - 1 : k; j <= k + 2 && j < n && !rc; j++)
+    pair_reads(n, k, false, &j0, &j1); /* (warped as the blend would read them, ruled or not) */
+    for (int j = j0; j <= j1 && !rc; j++)
         rc = curve_warp(uf, j, warps_below(uf, j));
     if (rc || (rc = pair_nets(uf->cs, uf->lsq, uf->ruled[k], uf->cp, k, &uf->pn)))
         return rc;
@@ -1146,7 +1157,8 @@ static void warp_free(struct warp *w)
 }
 
 /* Pair k folds: the warp of the curves above it, among the windows and weights tried, under which
- * pairs k-1..k+1 fold least, if less than now (taken: appended to uf->w). */
+ * pairs k-1..k+1 fold least, if less than now (taken: appended to uf->w); then the pair drawn ruled
+ * if that folds it less (uf->ruled[k]). */
 static int unfold_pair(struct unfold *uf, int k)
 {
     static const double GROW[] = {0.03, 0.06, 0.1, 0.25}, TANGENT[] = {0.0, 4.0}, TAPER[] = {0.2, 0.4};
@@ -1569,9 +1581,11 @@ static double patches_bound(const struct contour_set *cs, enum model_method m)
     if (m == MODEL_COONS || m == MODEL_BSPLINE)
         return (double)grid_count(cs) * (n - 1);
     double sum = 0.0;
-    for (int k = 0; k + 1 < n; k++)
-        for (int j = k > 0 ? k - 1 : k; j <= (k + 2 < n ? k + 2 : k + 1); j++)
+    for (int k = 0, j0, j1; k + 1 < n; k++) {
+        pair_reads(n, k, false, &j0, &j1);
+        for (int j = j0; j <= j1; j++)
             sum += (double)WARP_MAX_KNOTS(cs->s[j].n) + 1;
+    }
     return sum;
 }
 

@@ -173,7 +173,7 @@ static int tube_build(struct solid *s, const struct contour_set *cs, const struc
         ext[0] = ext[1] = 0.0;
     }
     size_t p0 = s->set.n;
-    int rc = model_side_closed(&v, o, &s->set, island_h > 0 ? NULL : &tb->side, err);
+    int rc = model_side_closed(&v, o, &s->set, island_h > 0 || !o.closed ? NULL : &tb->side, err);
     if (rc)
         return rc;
     int n_side = 0, nb = 0; /* one side band per run of equal v0: a level pair, or a span */

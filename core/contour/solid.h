@@ -32,9 +32,9 @@ struct tube {
     bool hole;
     int first, n;        /* bands */
     double volume_ends;  /* the dome and wall volumes beyond the side surface (signed as the tube) */
-    struct model_closed side; /* the side's volume with flat ends, closed form (model_side_closed;
-                               * unsigned): 0 for an island's prism (in volume_ends), NAN for the
-                               * grid methods; and the time it took */
+    struct model_closed side; /* with model_opts.closed: the side's volume with flat ends, closed form
+                               * (model_side_closed; unsigned), 0 for an island's prism (in
+                               * volume_ends), NAN for the grid methods; and the time it took */
 };
 
 struct solid {

@@ -271,7 +271,9 @@ TEST(unfolded_curves_keep_volume_and_patches_together)
         struct contour_slice *storage = malloc(sizeof *storage * (size_t)cs.n_slices);
         double plain = 0.0, unfolded = 0.0;
         struct solid sd; /* whose tubes carry the closed form from the curves their patches came from */
-        CHECK(solid_build(&cs, PARABOLIC, CAPS_FLAT, &sd, NULL) == 0 && sd.n_tubes == n_ch);
+        struct model_opts with_closed = PARABOLIC;
+        with_closed.closed = true;
+        CHECK(solid_build(&cs, with_closed, CAPS_FLAT, &sd, NULL) == 0 && sd.n_tubes == n_ch);
         for (int c = 0; c < n_ch; c++) {
             struct contour_set v = model_chain_view(&cs, &ch[c], storage);
             if (v.n_slices < 2)
