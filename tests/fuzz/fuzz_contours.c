@@ -16,7 +16,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     struct sf_err err = {0};
     if (contour_parse_json((const char *)data, size, &cs, &req, &err) == 0) {
         struct solid sd;
-        if (size <= MODEL_MAX_INPUT && solid_build(&cs, (struct model_opts){MODEL_PARABOLIC, false, NULL, true, true}, CAPS_FLAT, &sd,
+        if (size <= MODEL_MAX_INPUT && solid_build(&cs, (struct model_opts){.method = MODEL_PARABOLIC, .unfold = true, .closed = true}, CAPS_FLAT, &sd,
                                                    &err) == 0) {
             struct solid_measures sm;
             struct mesh m;

@@ -14,7 +14,7 @@
 #include <string.h>
 
 /* folds undone, as a model's surface */
-static const struct model_opts PARABOLIC = {MODEL_PARABOLIC, false, NULL, true};
+static const struct model_opts PARABOLIC = {.method = MODEL_PARABOLIC, .unfold = true};
 
 /* The synthetic shapes and their exact volumes between the end slices (from the files). */
 static const struct synthetic {
@@ -733,7 +733,7 @@ TEST(the_four_methods)
             struct solid sd;
             struct solid_measures sm;
             struct mesh mesh;
-            CHECK(solid_build(&cs, (struct model_opts){methods[m], false, NULL, true}, CAPS_FLAT, &sd, NULL) == 0);
+            CHECK(solid_build(&cs, (struct model_opts){.method = methods[m], .unfold = true}, CAPS_FLAT, &sd, NULL) == 0);
             solid_measure(&sd, &sm);
             double rel = (sm.volume - cases[k].exact) / cases[k].exact;
             fprintf(stderr, "  %-30s %-16s %12.3f mm3 %+8.4f %% (%zu patches)\n", cases[k].file,
@@ -864,7 +864,7 @@ TEST(polar_parameterisation)
         struct solid_measures arc, polar;
         measure(&cs, CAPS_FLAT, &arc);
         struct solid sd;
-        CHECK(solid_build(&cs, (struct model_opts){MODEL_PARABOLIC, true, NULL, true}, CAPS_FLAT, &sd, NULL) == 0);
+        CHECK(solid_build(&cs, (struct model_opts){.method = MODEL_PARABOLIC, .polar = true, .unfold = true}, CAPS_FLAT, &sd, NULL) == 0);
         solid_measure(&sd, &polar);
         solid_free(&sd);
         double rel = (polar.volume - cases[k].exact) / cases[k].exact;
