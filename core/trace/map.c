@@ -163,6 +163,45 @@ static void tri_box(const struct map *m, struct map_tri *t)
     t->box[2] = (short)(y0 < 0 ? 0 : y0), t->box[3] = (short)(y1 > m->H - 1 ? m->H - 1 : y1);
 }
 
+/* Narrows [*lo, *hi] to the x where a <= k x + c <= b. */
+static inline void span_between(double k, double c, double a, double b, double *lo, double *hi)
+{
+    if (k == 0.0) {
+        if (c < a || c > b)
+            *hi = -INFINITY;
+        return;
+    }
+    double xa = (a - c) / k, xb = (b - c) / k;
+    *lo = dmax(*lo, dmin(xa, xb)), *hi = dmin(*hi, dmax(xa, xb));
+}
+
+/* The x where row y meets the capsule of radius r round segment a-b (the two end discs and the
+ * strip between them; convex, so one span), widened by SPAN_SLACK; false where it misses. A
+ * superset only: raster_edge tests each pixel centre in it exactly. */
+static bool capsule_span(const struct map_vert *a, const struct map_vert *b, double r, double y, double *lo,
+                         double *hi)
+{
+    double dx = b->x - a->x, dy = b->y - a->y, len = sqrt(dx * dx + dy * dy), ey = y - a->y;
+    *lo = INFINITY, *hi = -INFINITY;
+    for (int k = 0; k < 2; k++) {
+        const struct map_vert *c = k ? b : a;
+        double h = r * r - (y - c->y) * (y - c->y);
+        if (h >= 0.0)
+            *lo = dmin(*lo, c->x - sqrt(h)), *hi = dmax(*hi, c->x + sqrt(h));
+    }
+    if (len > 0.0) { /* the strip: 0 <= (p - a)·(b - a) <= len², |(p - a) × (b - a)| <= r len */
+        double slo = -INFINITY, shi = INFINITY;
+        span_between(dx, ey * dy - a->x * dx, 0.0, len * len, &slo, &shi);
+        span_between(dy, -ey * dx - a->x * dy, -r * len, r * len, &slo, &shi);
+        if (slo <= shi)
+            *lo = dmin(*lo, slo), *hi = dmax(*hi, shi);
+    }
+    if (*lo != *lo || *hi != *hi) /* (not finite: every pixel of the row, tested one by one) */
+        *lo = -INFINITY, *hi = INFINITY;
+    *lo -= SPAN_SLACK * (1.0 + fabs(*lo)), *hi += SPAN_SLACK * (1.0 + fabs(*hi));
+    return *lo <= *hi;
+}
+
 /* Marks every pixel centre of rows [y0, y1] within t->pad of the edge t->v[0]-t->v[1]. */
 static void raster_edge(const struct map *m, struct map_rows *rw, const struct map_tri *t, int x0, int x1, int y0,
                         int y1)
@@ -170,8 +209,12 @@ static void raster_edge(const struct map *m, struct map_rows *rw, const struct m
     const struct map_vert *v[2] = {&m->verts[t->v[0]], &m->verts[t->v[1]]};
     double dx = v[1]->x - v[0]->x, dy = v[1]->y - v[0]->y, l2 = dx * dx + dy * dy;
     double pad2 = (double)t->pad * t->pad;
-    for (int y = y0; y <= y1; y++)
-        for (int x = x0; x <= x1; x++) {
+    for (int y = y0; y <= y1; y++) {
+        double lo, hi;
+        if (!capsule_span(v[0], v[1], t->pad, y, &lo, &hi))
+            continue;
+        int xs = lo > x0 ? (lo > x1 ? x1 + 1 : (int)ceil(lo)) : x0, xe = hi < x1 ? (hi < x0 ? x0 - 1 : (int)floor(hi)) : x1;
+        for (int x = xs; x <= xe; x++) {
             double s = l2 > 0 ? ((x - v[0]->x) * dx + (y - v[0]->y) * dy) / l2 : 0.0;
             s = s < 0 ? 0 : (s > 1 ? 1 : s);
             double ex = v[0]->x + s * dx - x, ey = v[0]->y + s * dy - y;
@@ -184,6 +227,7 @@ static void raster_edge(const struct map *m, struct map_rows *rw, const struct m
             double uz = v[0]->uz + s * (v[1]->uz - v[0]->uz), vz = v[0]->vz + s * (v[1]->vz - v[0]->vz);
             put(rw, idx, t, (float)(uz * z), (float)(vz * z), (float)z);
         }
+    }
 }
 
 /* Marks every pixel centre of rows [y0, y1] that triangle t covers, row by row over the span
