@@ -55,6 +55,7 @@ struct map_tri {           /* a triangle, or (v[2] == EDGE) a padded outline edg
 
 #define EDGE UINT_MAX
 #define COVER_EPS 1e-7  /* pixels: a centre this near a triangle's edge counts as inside it */
+#define PREFETCH_AHEAD 16 /* triangles of a tile's list fetched ahead of the raster */
 #define SPAN_SLACK 1e-6 /* pixels: a row's span ends, widened past their rounding */
 
 void map_free(struct map *m)
@@ -319,8 +320,18 @@ int map_raster_rows(const struct map *m, int y0, int y1, struct map_rows *rw)
     for (int tile = y0 / MAP_TILE_ROWS; tile * MAP_TILE_ROWS < y1; tile++) {
         int lo = tile * MAP_TILE_ROWS > y0 ? tile * MAP_TILE_ROWS : y0;
         int hi = (tile + 1) * MAP_TILE_ROWS < y1 ? (tile + 1) * MAP_TILE_ROWS : y1;
-        for (unsigned k = 0; k < m->tile_n[tile]; k++) {
-            const struct map_tri *t = &m->tris[m->tile_list[tile][k]];
+        const unsigned *list = m->tile_list[tile], n_list = m->tile_n[tile];
+        for (unsigned k = 0; k < n_list; k++) {
+            /* the list goes by depth, so its triangles and their vertices lie anywhere in memory:
+             * fetched a few triangles ahead */
+            if (k + PREFETCH_AHEAD < n_list)
+                __builtin_prefetch(&m->tris[list[k + PREFETCH_AHEAD]]);
+            if (k + PREFETCH_AHEAD / 2 < n_list) {
+                const struct map_tri *ahead = &m->tris[list[k + PREFETCH_AHEAD / 2]];
+                for (int i = 0; i < 3 && ahead->v[i] != EDGE; i++)
+                    __builtin_prefetch(&m->verts[ahead->v[i]]);
+            }
+            const struct map_tri *t = &m->tris[list[k]];
             int ya = t->box[2] < lo ? lo : t->box[2], yb = t->box[3] > hi - 1 ? hi - 1 : t->box[3];
             (t->v[2] == EDGE ? raster_edge : raster_tri)(m, rw, t, t->box[0], t->box[1], ya, yb);
         }
