@@ -19,6 +19,10 @@
 #include "../geom/tess.h"
 
 #define LEAF_FLAT_REL 0.05  /* leaf is flat when its net deviates < 5 % of its size ...       */
+#define LEAF_FINE_REL 0.025 /* ... or 2.5 % where it deviates by more than bvh.fine (the teapot at
+                             * 1024^2: 3.1 k -> 7.6 k leaves, shadow iterations 144 k -> 74 k, render
+                             * 6 % faster, preparation 10 -> 20 ms; at 2.5 % everywhere the heart
+                             * model's preparation 140 -> 230 ms for no faster render) */
 #define LEAF_MAX_DEPTH 14   /* ... or after this many splits; trades leaves for Newton starts */
 #define LEAF_TRIM_DEPTH 10  /* ... but a leaf a trim loop crosses splits to this depth at least */
 #define LEAF_MAX_ASPECT 8.0 /* ... and an untrimmed one longer than this many times its width splits
@@ -81,6 +85,7 @@ struct bvh {
     const struct patch *patches;
     struct chords *chords; /* per patch; NULL for the mesh */
     double tol2;
+    double fine;           /* LEAF_FINE_REL's deviation (bvh_build_scene) */
     /* exact */
     struct leaf *leaves;
     size_t n_leaves, cap_leaves;
@@ -461,9 +466,10 @@ static int subdivide(struct bvh *b, const struct patch *sub, int patch, double u
     bool slim = !pt->trim && (lu > LEAF_MAX_ASPECT * lv || lv > LEAF_MAX_ASPECT * lu);
     /* a flat leaf a trim loop crosses is split on (to LEAF_TRIM_DEPTH): its parts the trims cut away
      * go, and the rest hug the region, so that rays through the cut-away part meet no leaf */
-    if ((dev <= LEAF_FLAT_REL * size && !slim && !(trim_cut && depth < LEAF_TRIM_DEPTH)) || depth >= LEAF_MAX_DEPTH)
+    bool flat = dev <= LEAF_FLAT_REL * size && (dev <= LEAF_FINE_REL * size || dev <= b->fine);
+    if ((flat && !slim && !(trim_cut && depth < LEAF_TRIM_DEPTH)) || depth >= LEAF_MAX_DEPTH)
         return add_leaf(b, sub, patch, u0, u1, v0, v1, dev, trim_cut);
-    if (dev <= LEAF_FLAT_REL * size) /* slim: its length halved */
+    if (flat) /* slim: its length halved */
         cu = lu, cv = lv;
 
     size_t n_pts = (size_t)(sub->p + 1) * (sub->q + 1);
@@ -1034,10 +1040,10 @@ static int bvh_commit(struct bvh *b, struct bvh_device *dev, RTCGeometry g, stru
 int bvh_build_patches(struct bvh_device *dev, const struct patch *patches, size_t n, double tol2,
                       struct bvh **out, struct sf_err *err)
 {
-    return bvh_build_scene(dev, patches, n, tol2, NULL, 0, out, err);
+    return bvh_build_scene(dev, patches, n, tol2, INFINITY, NULL, 0, out, err);
 }
 
-int bvh_build_scene(struct bvh_device *dev, const struct patch *patches, size_t n, double tol2,
+int bvh_build_scene(struct bvh_device *dev, const struct patch *patches, size_t n, double tol2, double fine,
                     const struct trimesh *const *meshes, int n_meshes, struct bvh **out, struct sf_err *err)
 {
     *out = NULL;
@@ -1046,6 +1052,7 @@ int bvh_build_scene(struct bvh_device *dev, const struct patch *patches, size_t 
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     b->meshes = meshes;
     b->n_meshes = n_meshes;
+    b->fine = fine;
     int rc = find_seams(b, n);
     for (size_t k = 0; k < n && !rc; k++)
         rc = subdivide(b, &patches[k], (int)k, 0.0, 1.0, 0.0, 1.0, 0, patches[k].trim != NULL);

@@ -31,12 +31,15 @@ struct bvh_hit {
 int bvh_build_patches(struct bvh_device *dev, const struct patch *patches, size_t n, double tol2,
                       struct bvh **out, struct sf_err *err);
 /* The same with triangle meshes beside the patches (isosurface models; the array and the meshes
- * borrowed until bvh_free):
+ * borrowed until bvh_free), and fine: a leaf flat by LEAF_FLAT_REL whose net still deviates by
+ * more than this (world units; INFINITY: never) splits on to LEAF_FINE_REL - a renderer passes
+ * about half a pixel of the scene's size, so that large leaves get near seeds and tight bounds and
+ * a small picture's preparation stays short:
  * a hit on mesh k has patch BVH_MESH_HIT(k), its u, v the triangle's barycentric coordinates and
  * its normal the mesh's normals interpolated (the face's when it has none). */
 #define BVH_MESH_HIT(k) (-2 - (k))
 #define BVH_HIT_MESH(patch) (-2 - (patch))
-int bvh_build_scene(struct bvh_device *dev, const struct patch *patches, size_t n, double tol2,
+int bvh_build_scene(struct bvh_device *dev, const struct patch *patches, size_t n, double tol2, double fine,
                     const struct trimesh *const *meshes, int n_meshes, struct bvh **out, struct sf_err *err);
 /* Triangle hierarchy over a tessellation at chord tolerance chord_tol. */
 int bvh_build_mesh(struct bvh_device *dev, const struct patch *patches, size_t n, double chord_tol,

@@ -27,6 +27,8 @@
 #define MESH_SHADOW_EPS 1e-4  /* the same from a triangle of a mesh: float triangles, and shading
                                * normals that are not the facet's, need more room (0.03 mm on a head) */
 #define SHEET_PX 2.0          /* pixels of depth between a seed's fragment and a root on its own sheet */
+#define LEAF_FINE_PX 0.5      /* pixels (of the scene's size over the picture's larger side) a flat leaf
+                               * may still deviate by before it splits on (bvh_build_scene's fine) */
 #define SHADE_CHUNK 64        /* pixels of a row shaded together: their shadow rays go out at once */
 
 struct frame {
@@ -301,7 +303,8 @@ static int prepare(const struct scene *sc, struct bvh_device *dev, bool whole, s
     if (sc->method == METHOD_MESH)
         rc = bvh_build_mesh(dev, fr->ps.patches, fr->ps.n, sc->mesh_tolerance * fr->diag, &fr->mesh, err);
     else
-        rc = bvh_build_scene(dev, fr->ps.patches, fr->ps.n, fr->tol2, fr->meshes, sc->n_meshes, &fr->exact, err);
+        rc = bvh_build_scene(dev, fr->ps.patches, fr->ps.n, fr->tol2, LEAF_FINE_PX * fr->diag / (sc->width > sc->height ? sc->width : sc->height),
+                             fr->meshes, sc->n_meshes, &fr->exact, err);
     if (rc) {
         frame_free(fr);
         return rc;

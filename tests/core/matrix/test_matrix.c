@@ -180,7 +180,7 @@ TEST(a_ball_round_trips_and_meshes_within_its_volume)
     struct bvh_device *dev = mesher == matrix_mesh ? bvh_device_new(1, &err) : NULL;
     struct bvh *b = NULL;
     const struct trimesh *one = &m;
-    CHECK(mesher != matrix_mesh || (dev && bvh_build_scene(dev, NULL, 0, 1e-12, &one, 1, &b, &err) == 0));
+    CHECK(mesher != matrix_mesh || (dev && bvh_build_scene(dev, NULL, 0, 1e-12, INFINITY, &one, 1, &b, &err) == 0));
     if (b) {
         const double lo[3] = {0, 0, 0}, hi[3] = {48, 46, 44};
         long crossings = matrix_rays_slab(b, n, lo, hi, 0, n[2], back);
