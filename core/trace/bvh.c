@@ -188,15 +188,169 @@ static void net_differences(const struct patch *pt, vec3 du[][PATCH_MAX_DEGREE +
         }
 }
 
-/* Normal cone of a polynomial patch. Pu × Pv is a polynomial of degree (2p-1, 2q-1) whose
- * Bernstein coefficients are sums of cross products of the derivative nets, weighted by
+/* The cone of directions holding every coefficient c[m * stride + n] (m <= M, n <= N) that is not
+ * zero: *axis and the sine of its half-angle, *sin_half (> 1: none narrower than a hemisphere). */
+static void cone_of(const vec3 *c, int stride, int M, int N, vec3 *axis, double *sin_half)
+{
+    *sin_half = 2.0;
+    vec3 sum = v3(0, 0, 0);
+    for (int m = 0; m <= M; m++)
+        for (int n = 0; n <= N; n++)
+            sum = v3_add(sum, v3_norm(c[m * stride + n]));
+    if (v3_len(sum) == 0.0)
+        return;
+    vec3 ax = v3_norm(sum);
+    double cos_min = 1.0;
+    for (int m = 0; m <= M; m++)
+        for (int n = 0; n <= N; n++) {
+            double l = v3_len(c[m * stride + n]);
+            if (l > 0)
+                cos_min = fmin(cos_min, v3_dot(ax, c[m * stride + n]) / l);
+        }
+    if (cos_min <= 0.0)
+        return; /* wider than a hemisphere: no use */
+    *axis = ax;
+    *sin_half = sqrt(fmax(0.0, 1.0 - cos_min * cos_min)) + 1e-9;
+}
+
+/* ---- rational patches: their derivatives' directions as Bernstein polynomials --------------- */
+
+/* A rational patch P = s / w (s the net's x·w, y·w, z·w) has Pu = (su w - s wu) / w², and
+ * Pu × Pv = (w su × sv + wv s × su + wu sv × s) / w³. With every weight positive the numerators
+ * are polynomials whose Bernstein coefficients hold the directions of every tangent along u
+ * (degree (2p-1, 2q)), along v, and every normal (degree (3p-1, 3q-1)), as a polynomial patch's
+ * differences and cross products do: a product of two Bernstein polynomials of degrees a and b
+ * has degree a + b, the term (i, k) weighted C(a,i) C(b,k) / C(a+b,i+k) each way. (The degrees'
+ * factors p and q, common to every term, are left out.) */
+#define RATIONAL_MAX_DEGREE 8 /* a rational patch up to this degree gets cones and chord bounds */
+#define RAT_N (3 * RATIONAL_MAX_DEGREE + 1)
+
+struct vpoly { /* a polynomial with vector or scalar coefficients, degree (m, n) */
+    int m, n;
+    vec3 c[RAT_N][RAT_N];
+};
+struct spoly {
+    int m, n;
+    double c[RAT_N][RAT_N];
+};
+
+struct rnet { /* a rational net split up: s and w, and their differences along u and v */
+    struct vpoly s, su, sv;
+    struct spoly w, wu, wv;
+    double bin[RAT_N][RAT_N]; /* binomials up to the normals' degree */
+};
+
+/* False where the patch is polynomial, of too high a degree, or a weight is not positive. */
+static bool rnet_of(const struct patch *pt, struct rnet *r)
+{
+    int p = pt->p, q = pt->q;
+    if (!pt->rational || p > RATIONAL_MAX_DEGREE || q > RATIONAL_MAX_DEGREE || p < 1 || q < 1)
+        return false;
+    for (int n = 0; n < RAT_N; n++)
+        for (int k = 0; k <= n; k++)
+            r->bin[n][k] = k == 0 || k == n ? 1.0 : r->bin[n - 1][k - 1] + r->bin[n - 1][k];
+    r->s.m = r->w.m = r->sv.m = r->wv.m = p, r->s.n = r->w.n = r->su.n = r->wu.n = q;
+    r->su.m = r->wu.m = p - 1, r->sv.n = r->wv.n = q - 1;
+    for (int i = 0; i <= p; i++)
+        for (int j = 0; j <= q; j++) {
+            const double *c = pt->cw[i * (q + 1) + j];
+            if (!(c[3] > 0.0))
+                return false;
+            r->s.c[i][j] = v3(c[0], c[1], c[2]), r->w.c[i][j] = c[3];
+        }
+    for (int i = 0; i <= p; i++)
+        for (int j = 0; j <= q; j++) {
+            if (i < p)
+                r->su.c[i][j] = v3_sub(r->s.c[i + 1][j], r->s.c[i][j]), r->wu.c[i][j] = r->w.c[i + 1][j] - r->w.c[i][j];
+            if (j < q)
+                r->sv.c[i][j] = v3_sub(r->s.c[i][j + 1], r->s.c[i][j]), r->wv.c[i][j] = r->w.c[i][j + 1] - r->w.c[i][j];
+        }
+    return true;
+}
+
+static void vpoly_zero(struct vpoly *out, int m, int n)
+{
+    out->m = m, out->n = n;
+    for (int i = 0; i <= m; i++)
+        for (int j = 0; j <= n; j++)
+            out->c[i][j] = v3(0, 0, 0);
+}
+
+/* out += f a b (a scalar polynomial times a vector one; out of degree a's plus b's) */
+static void vpoly_add_scaled(struct vpoly *out, double f, const struct spoly *a, const struct vpoly *b,
+                             const double (*bin)[RAT_N])
+{
+    for (int i = 0; i <= a->m; i++)
+        for (int j = 0; j <= a->n; j++)
+            for (int k = 0; k <= b->m; k++)
+                for (int l = 0; l <= b->n; l++) {
+                    double w = f * a->c[i][j] * bin[a->m][i] * bin[b->m][k] / bin[out->m][i + k] * bin[a->n][j] *
+                               bin[b->n][l] / bin[out->n][j + l];
+                    out->c[i + k][j + l] = v3_mad(out->c[i + k][j + l], b->c[k][l], w);
+                }
+}
+
+/* out = a × b */
+static void vpoly_cross(struct vpoly *out, const struct vpoly *a, const struct vpoly *b, const double (*bin)[RAT_N])
+{
+    vpoly_zero(out, a->m + b->m, a->n + b->n);
+    for (int i = 0; i <= a->m; i++)
+        for (int j = 0; j <= a->n; j++)
+            for (int k = 0; k <= b->m; k++)
+                for (int l = 0; l <= b->n; l++) {
+                    double w = bin[a->m][i] * bin[b->m][k] / bin[out->m][i + k] * bin[a->n][j] * bin[b->n][l] /
+                               bin[out->n][j + l];
+                    out->c[i + k][j + l] = v3_mad(out->c[i + k][j + l], v3_cross(a->c[i][j], b->c[k][l]), w);
+                }
+}
+
+/* The tangents' numerators: su w - s wu (along u) and sv w - s wv (along v). */
+static void rational_tangents(const struct rnet *r, struct vpoly *tu, struct vpoly *tv)
+{
+    vpoly_zero(tu, r->su.m + r->w.m, r->su.n + r->w.n);
+    vpoly_add_scaled(tu, 1.0, &r->w, &r->su, r->bin);
+    vpoly_add_scaled(tu, -1.0, &r->wu, &r->s, r->bin);
+    vpoly_zero(tv, r->sv.m + r->w.m, r->sv.n + r->w.n);
+    vpoly_add_scaled(tv, 1.0, &r->w, &r->sv, r->bin);
+    vpoly_add_scaled(tv, -1.0, &r->wv, &r->s, r->bin);
+}
+
+/* The normals' numerator: w su × sv + wv s × su + wu sv × s. */
+static void rational_normals(const struct rnet *r, struct vpoly *out)
+{
+    struct vpoly *x = malloc(sizeof *x);
+    vpoly_zero(out, 3 * r->s.m - 1, 3 * r->s.n - 1);
+    if (!x) { /* (no cone: every coefficient zero) */
+        return;
+    }
+    vpoly_cross(x, &r->su, &r->sv, r->bin);
+    vpoly_add_scaled(out, 1.0, &r->w, x, r->bin);
+    vpoly_cross(x, &r->s, &r->su, r->bin);
+    vpoly_add_scaled(out, 1.0, &r->wv, x, r->bin);
+    vpoly_cross(x, &r->sv, &r->s, r->bin);
+    vpoly_add_scaled(out, 1.0, &r->wu, x, r->bin);
+    free(x);
+}
+
+/* Normal cone of a patch. A polynomial one's Pu × Pv is a polynomial of degree (2p-1, 2q-1)
+ * whose Bernstein coefficients are sums of cross products of the derivative nets, weighted by
  * binomial ratios; a cone holding every coefficient holds every normal (Bernstein weights are
- * non-negative). Rational patches get no cone. */
+ * non-negative). A rational one's normals are its numerator's (above). */
 static void normal_cone(const struct patch *pt, vec3 *axis, double *sin_half)
 {
     *sin_half = 2.0;
     int p = pt->p, q = pt->q, M = 2 * p - 1, N = 2 * q - 1;
-    if (pt->rational || M > PATCH_MAX_DEGREE || N > PATCH_MAX_DEGREE)
+    if (pt->rational) {
+        struct rnet *r = malloc(sizeof *r);
+        struct vpoly *n = malloc(sizeof *n);
+        if (r && n && rnet_of(pt, r)) {
+            rational_normals(r, n);
+            cone_of(&n->c[0][0], RAT_N, n->m, n->n, axis, sin_half);
+        }
+        free(r), free(n);
+        return;
+    }
+    if (M > PATCH_MAX_DEGREE || N > PATCH_MAX_DEGREE)
         return;
     double bin[2 * PATCH_MAX_DEGREE + 1][2 * PATCH_MAX_DEGREE + 1];
     for (int n = 0; n <= M || n <= N; n++)
@@ -217,24 +371,7 @@ static void normal_cone(const struct patch *pt, vec3 *axis, double *sin_half)
                                bin[N][j + l];
                     C[i + k][j + l] = v3_add(C[i + k][j + l], v3_scale(v3_cross(du[i][j], dv[k][l]), w));
                 }
-    vec3 sum = v3(0, 0, 0);
-    for (int m = 0; m <= M; m++)
-        for (int n = 0; n <= N; n++)
-            sum = v3_add(sum, v3_norm(C[m][n]));
-    if (v3_len(sum) == 0.0)
-        return;
-    vec3 ax = v3_norm(sum);
-    double cos_min = 1.0;
-    for (int m = 0; m <= M; m++)
-        for (int n = 0; n <= N; n++) {
-            double l = v3_len(C[m][n]);
-            if (l > 0)
-                cos_min = fmin(cos_min, v3_dot(ax, C[m][n]) / l);
-        }
-    if (cos_min <= 0.0)
-        return; /* wider than a hemisphere: no use */
-    *axis = ax;
-    *sin_half = sqrt(fmax(0.0, 1.0 - cos_min * cos_min)) + 1e-9;
+    cone_of(&C[0][0], 2 * PATCH_MAX_DEGREE, M, N, axis, sin_half);
 }
 
 /* Largest distance of a control point from the bilinear through the corners, and (when curv_u
@@ -266,18 +403,36 @@ static double net_deviation(const struct patch *pt, double *curv_u, double *curv
 
 #define CHORD_MAX_GENS (4 * PATCH_MAX_DEGREE * (PATCH_MAX_DEGREE + 1)) /* two patches' differences */
 
-/* Appends pt's net differences to g: the u ones at g[*n_u..] (moving the v ones already there up),
- * the v ones after them; zero ones (a collapsed edge's) add nothing to any chord. Rational
- * patches have no such bound: false. */
+/* Appends pt's net differences to g (a rational patch's: its tangents' numerators' coefficients):
+ * the u ones at g[*n_u..] (moving the v ones already there up), the v ones after them; zero ones
+ * (a collapsed edge's) add nothing to any chord. False where there is no such bound (rnet_of). */
 static bool chord_generators(const struct patch *pt, vec3 *g, int *n_g, int *n_u)
 {
-    if (pt->rational)
-        return false;
-    vec3 du[PATCH_MAX_DEGREE][PATCH_MAX_DEGREE + 1], dv[PATCH_MAX_DEGREE + 1][PATCH_MAX_DEGREE];
-    net_differences(pt, du, dv);
     vec3 v_ones[CHORD_MAX_GENS];
     int n_v = *n_g - *n_u;
     memcpy(v_ones, g + *n_u, sizeof *g * (size_t)n_v);
+    if (pt->rational) { /* the tangents' numerators' coefficients (rational_tangents) */
+        struct rnet *r = malloc(sizeof *r);
+        struct vpoly *t = malloc(2 * sizeof *t);
+        bool ok = r && t && rnet_of(pt, r);
+        if (ok) {
+            rational_tangents(r, &t[0], &t[1]);
+            for (int i = 0; i <= t[0].m; i++)
+                for (int j = 0; j <= t[0].n; j++)
+                    if (v3_len(t[0].c[i][j]) > 0)
+                        g[(*n_u)++] = t[0].c[i][j];
+            memcpy(g + *n_u, v_ones, sizeof *g * (size_t)n_v);
+            *n_g = *n_u + n_v;
+            for (int i = 0; i <= t[1].m; i++)
+                for (int j = 0; j <= t[1].n; j++)
+                    if (v3_len(t[1].c[i][j]) > 0)
+                        g[(*n_g)++] = t[1].c[i][j];
+        }
+        free(r), free(t);
+        return ok;
+    }
+    vec3 du[PATCH_MAX_DEGREE][PATCH_MAX_DEGREE + 1], dv[PATCH_MAX_DEGREE + 1][PATCH_MAX_DEGREE];
+    net_differences(pt, du, dv);
     for (int i = 0; i < pt->p; i++)
         for (int j = 0; j <= pt->q; j++)
             if (v3_len(du[i][j]) > 0)
@@ -291,9 +446,10 @@ static bool chord_generators(const struct patch *pt, vec3 *g, int *n_g, int *n_u
     return true;
 }
 
-/* Bounds the directions of the chords of a polynomial patch. A chord S(u1, v1) - S(u2, v2) is
- * the integral of Pu along u, then of Pv along v, and each is a non-negative combination of the
- * net's differences g (Bernstein weights are non-negative); so with the u differences taken with
+/* Bounds the directions of the chords of a patch. A chord S(u1, v1) - S(u2, v2) is the integral
+ * of Pu along u, then of Pv along v, and each is a non-negative combination of the net's
+ * differences g (Bernstein weights are non-negative; a rational patch's tangents' numerators'
+ * coefficients, over w² > 0); so with the u differences taken with
  * one sign and the v differences with another, every chord c = sum l_g g, l >= 0. For a unit n
  * and a unit w with w·g >= k |g| for all of them (k > 0): |c·n| <= max(|g·n| / |g|) sum l|g| and
  * |c| >= w·c >= k sum l|g|, so |c·n| / |c| <= max(|g·n| / |g|) / k. Both sign pairings (the
