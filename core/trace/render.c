@@ -377,9 +377,10 @@ struct row_seed {
 };
 
 /* Refines one map candidate with the method the frame asks for; auto seeds from the row's last
- * hit where it is on the same patch (rs may be NULL: the map's seed). */
+ * hit where it is on the same patch (rs may be NULL: the map's seed). *cut: a root was found that
+ * is no hit (the trims cut it away, or it lies behind the eye). */
 static bool refine(const struct frame *fr, const struct map_cand *c, const struct row_seed *rs, const struct dray *r,
-                   struct solve_hit *h)
+                   struct solve_hit *h, bool *cut)
 {
     const struct patch *pt = &fr->ps.patches[c->patch];
     const struct solve_box all = {0, 1, 0, 1};
@@ -398,7 +399,9 @@ static bool refine(const struct frame *fr, const struct map_cand *c, const struc
         default: ok = solve_newton_seeded(pt, r, c->u, c->v, &all, fr->tol2, h); break;
         }
     }
-    return ok && h->t > 0.0 && bezier_kept(pt, h->u, h->v); /* a root the trims cut away is no hit */
+    bool hit = ok && h->t > 0.0 && bezier_kept(pt, h->u, h->v); /* a root the trims cut away is no hit */
+    *cut = ok && !hit;
+    return hit;
 }
 
 /* Branch and bound over the pixel's candidates (nearest depth bound first): a candidate whose
@@ -415,6 +418,7 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
     int open[MAP_CANDS], n_open = 0;   /* the patches not resolved */
     float open_zlo[MAP_CANDS];
     bool open_ok[MAP_CANDS];           /* ... and whether a root of theirs was found */
+    bool open_cut[MAP_CANDS];          /* ... or one that is no hit (refine) */
     /* a root this far (relative) behind its seed's fragment lies on a farther sheet of the patch */
     const double sheet = SHEET_PX * 2.0 * fr->cam.th / fr->cam.H;
     for (int k = 0; k < n; k++) {
@@ -422,12 +426,13 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
             break;
         const double far = c[k].zs * (1.0 + sheet); /* depth beyond which a root is on another sheet */
         struct solve_hit h;
+        bool cut;
         st->refinements++;
-        bool ok = refine(fr, &c[k], rs, r, &h);
+        bool ok = refine(fr, &c[k], rs, r, &h, &cut);
         st->iterations += h.iters;
         if ((!ok || h.t * zscale > far) && rs->patch == c[k].patch) {
             st->refinements++; /* the row's seed led astray: the map's own */
-            ok = refine(fr, &c[k], NULL, r, &h);
+            ok = refine(fr, &c[k], NULL, r, &h, &cut);
             st->iterations += h.iters;
         }
         if (ok && (!found || h.t < hit->t)) {
@@ -440,16 +445,18 @@ static bool primary_map(const struct frame *fr, const struct map_rows *rw, size_
          * may lie in front */
         const bool resolved = ok && h.t * zscale <= far && h.t * zscale <= c[k].zfold && c[k].zs < c[k].zoutline;
         if (!resolved)
-            open_ok[n_open] = ok, open_zlo[n_open] = c[k].zlo, open[n_open++] = c[k].patch;
+            open_ok[n_open] = ok, open_cut[n_open] = cut, open_zlo[n_open] = c[k].zlo, open[n_open++] = c[k].patch;
     }
     /* a patch meets the ray once at most where the ray is steeper than all its chords, or than all
      * of it and the patch hit together (neighbours across a seam): the root found is then its
-     * only one, or the one hit is the only point of both, and the patch has none of its own */
+     * only one (one that is no hit: it has none), or the one hit is the only point of both, and
+     * the patch has none of its own */
     float undecided = rw->dropped[at]; /* least bound of a candidate not resolved */
     int n_left = 0;
     bool seamed = false; /* a patch left open may stand for its neighbour across a seam */
     for (int k = 0; k < n_open; k++)
-        if (!(found && bvh_meets_once(fr->exact, open[k], open_ok[k] ? open[k] : hit->patch, r->d))) {
+        if (!((open_ok[k] || open_cut[k]) && bvh_meets_once(fr->exact, open[k], open[k], r->d)) &&
+            !(found && !open_ok[k] && bvh_meets_once(fr->exact, open[k], hit->patch, r->d))) {
             undecided = dmin(undecided, open_zlo[k]);
             seamed |= fr->map->seamed[open[k]];
             open[n_left++] = open[k];

@@ -141,11 +141,13 @@ TEST(teapot_exact_methods_against_dense_mesh)
     free(ref);
 }
 
-/* Every shared scene through bvh, auto and map: away from silhouettes (where a grazing root may
- * fall either side of a pixel centre) the same pixels hit at the same depths. */
+/* Every shared scene (the IGES mug: trimmed rational patches) through bvh, auto and map: away from
+ * silhouettes (where a grazing root may fall either side of a pixel centre) the same pixels hit at
+ * the same depths. */
 TEST(shared_scenes_agree_across_methods)
 {
-    const char *names[] = {"teacup.json", "teaspoon.bpt", "duck1.nurbs", "duck2.nurbs", "duck3.nurbs", "teapot.bpt"};
+    const char *names[] = {"teacup.json", "teaspoon.bpt", "duck1.nurbs", "duck2.nurbs", "duck3.nurbs", "teapot.bpt",
+                           "mug_solid.igs"};
     for (size_t n = 0; n < sizeof names / sizeof *names; n++) {
         const int W = 240, H = 180;
         struct render_stats st;
@@ -227,6 +229,42 @@ TEST(heart_model_auto_equals_bvh)
         free(got);
     }
     contour_scene_free(&c);
+}
+
+/* The IGES mug (13 trimmed rational surfaces) from three sides: auto finds every root the hierarchy
+ * finds, none farther (a nearer one twice a view at most: a grazing root the hierarchy misses, as
+ * on the heart). A pixel whose candidate's root the trims cut away is settled without the
+ * hierarchy only where the ray meets that patch once (its chord bound). */
+TEST(trimmed_mug_auto_equals_bvh)
+{
+    struct scene sc;
+    if (!load_scene("mug_solid.igs", &sc)) {
+        CHECK(!"mug_solid.igs loads");
+        return;
+    }
+    const int W = 720, H = 720;
+    const vec3 eyes[] = {v3(250, -300, 220), v3(-300, -120, 60), v3(80, 260, -200)};
+    for (int k = 0; k < 3; k++) {
+        sc.has_camera = true;
+        sc.eye = eyes[k], sc.target = v3(0, 0, 40), sc.up = v3(0, 0, 1), sc.fov_deg = 30;
+        struct render_stats st = {0};
+        float *bvh = scene_depth(&sc, METHOD_BVH, W, H, false, NULL);
+        float *got = scene_depth(&sc, METHOD_AUTO, W, H, false, &st);
+        CHECK(bvh && got);
+        long hit = 0, missed = 0, farther = 0, more = 0;
+        for (int i = 0; bvh && got && i < W * H; i++) {
+            hit += isfinite(bvh[i]);
+            missed += isfinite(bvh[i]) && !isfinite(got[i]);
+            farther += isfinite(bvh[i]) && got[i] - bvh[i] > 1e-5f * bvh[i];
+            more += isfinite(got[i]) && !(got[i] - bvh[i] > -1e-5f * got[i]);
+        }
+        fprintf(stderr, "  eye %d: %ld pixels hit, auto missed %ld, farther at %ld, nearer at %ld (searched %ld)\n", k,
+                hit, missed, farther, more, st.misses);
+        CHECK(hit > W * H / 10 && missed == 0 && farther == 0 && more <= 2);
+        free(bvh);
+        free(got);
+    }
+    scene_free(&sc);
 }
 
 /* Bad scenes get an error naming the object and field, never a crash. */
@@ -372,6 +410,7 @@ int main(void)
     RUN(teapot_exact_methods_against_dense_mesh);
     RUN(contour_model_exact);
     RUN(heart_model_auto_equals_bvh);
+    RUN(trimmed_mug_auto_equals_bvh);
     RUN(shared_scenes_agree_across_methods);
     RUN(wide_angle_close_up);
     RUN(srgb8_picture);
