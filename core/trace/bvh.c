@@ -888,12 +888,12 @@ static bool leaf_search(const struct bvh *b, const struct leaf *l, double (*net)
     double margin = 0.25 * dmin(dmin(l->alt[0][0], l->alt[0][1]), dmin(l->alt[1][1], l->alt[1][2]));
     if (out > margin + 4.0 * l->slack / dmax(cosang, 1e-6))
         return false;
-    /* a ray that grazes the leaf, or may cross it twice (a polynomial leaf's normal cone does not
+    /* a ray that grazes the leaf, or may cross it twice (the leaf's normal cone does not
      * show it a height field along the ray; quarters have no cone), searches the quarters instead
      * (every root lies in one of them) */
     bool split = depth >= 0 && depth < LEAF_SPLIT_DEPTH;
     if (split && cosang >= LEAF_GRAZING)
-        split = depth == 0 && !pt->rational && !(l->cone_sin <= 1.0 && fabs(v3_dot(r->d, l->cone_axis)) > l->cone_sin);
+        split = depth == 0 && !(l->cone_sin <= 1.0 && fabs(v3_dot(r->d, l->cone_axis)) > l->cone_sin);
     if (!split) {
         double u = l->u0 + s * (l->u1 - l->u0), v = l->v0 + t * (l->v1 - l->v0);
         /* from the corner quad's seed, giving up when the residual stops falling fast (no root near
