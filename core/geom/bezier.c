@@ -238,11 +238,12 @@ void bezier_second_bounds(struct patch *pt)
     static const double DIFF[3][3] = {{1, 0, 0}, {-1, 1, 0}, {1, -2, 1}}; /* forward differences */
     static const int ORDER[3][2] = {{2, 0}, {1, 1}, {0, 2}};               /* uu, uv, vv */
     const int p = pt->p, q = pt->q, m = q + 1;
-    double(*cw)[4] = pt->cw, d2 = 0.0, d2w = 0.0, wmin = INFINITY;
+    double(*cw)[4] = pt->cw, wmin = INFINITY;
     for (int k = 0; k < (p + 1) * m; k++)
         wmin = fmin(wmin, cw[k][3]);
     for (int o = 0; o < 3; o++) {
         const int di = ORDER[o][0], dj = ORDER[o][1];
+        double d2 = 0.0, d2w = 0.0;
         /* d^(di+dj) S / du^di dv^dj = p!/(p-di)! q!/(q-dj)! sum B B (Delta_u^di Delta_v^dj cw) */
         const double f = (di == 2 ? p * (p - 1.0) : di == 1 ? p : 1.0) * (dj == 2 ? q * (q - 1.0) : dj == 1 ? q : 1.0);
         for (int i = 0; i + di <= p; i++)
@@ -255,9 +256,8 @@ void bezier_second_bounds(struct patch *pt)
                 d2 = fmax(d2, f * sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]));
                 d2w = fmax(d2w, f * fabs(d[3]));
             }
+        pt->d2[o] = d2, pt->d2w[o] = d2w;
     }
-    pt->d2 = d2;
-    pt->d2w = d2w;
     pt->wmin = wmin;
     pt->curv[0] = bezier_net_curvature(pt, 0);
     pt->curv[1] = bezier_net_curvature(pt, 1);

@@ -23,9 +23,9 @@ struct patch {
     double v0, v1;
     const struct trim *trim; /* the object's trim region where it cuts the patch; NULL: the whole patch counts */
     /* bounds over the patch, set by bezier_second_bounds (scene_patches does, for the tracer; wmin
-     * 0: not set): |second partial| of the homogeneous x·w, y·w, z·w (d2) and of w (d2w), and
-     * the least weight */
-    double d2, d2w, wmin;
+     * 0: not set): |second partial| along uu, uv and vv of the homogeneous x·w, y·w, z·w (d2) and
+     * of w (d2w), and the least weight */
+    double d2[3], d2w[3], wmin;
     double curv[2]; /* set with them: bezier_net_curvature along u and v (a tessellation's chord bound) */
 };
 
@@ -51,7 +51,7 @@ void bezier_split_v(const struct patch *pt, double t, double (*lo)[4], double (*
  * property, weights positive). */
 void bezier_bounds(const struct patch *pt, vec3 *lo, vec3 *hi);
 
-/* Fills pt->d2, d2w, wmin from the control net's second differences (each partial of a
+/* Fills pt->d2, d2w (uu, uv, vv), wmin from the control net's second differences (each partial of a
  * Bézier patch is a convex combination of them, times the degrees). They bound the Taylor
  * remainder of a Newton step, so a solver can accept a step without evaluating its end. */
 void bezier_second_bounds(struct patch *pt);

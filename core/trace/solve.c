@@ -93,10 +93,13 @@ static bool newton_cramer(const struct patch *pt, const struct dray *r, double u
     struct proj p;
     const double mu = 0.5 * (box->u1 - box->u0) + 1e-3, mv = 0.5 * (box->v1 - box->v0) + 1e-3;
     /* Taylor: after a step (du, dv) that zeroes the linear part, the ray's distance from the
-     * surface is at most rem (|du| + |dv|)^2 (bezier_second_bounds; the homogeneous point less
-     * the origin times w, over the least weight) */
-    const double rem = pt->wmin > 0 ? 0.5 * (pt->d2 + (pt->d2w > 0 ? v3_len(r->o) * pt->d2w : 0.0)) / pt->wmin
-                                    : INFINITY;
+     * surface is at most ru du² + ruv |du dv| + rv dv² (bezier_second_bounds, each partial its
+     * own: a sliver's steps across it are long in its parameter and short in the world; the
+     * homogeneous point less the origin times w, over the least weight) */
+    const double olen = pt->d2w[0] > 0 || pt->d2w[1] > 0 || pt->d2w[2] > 0 ? v3_len(r->o) : 0.0;
+    const double half = pt->wmin > 0 ? 0.5 / pt->wmin : INFINITY;
+    const double ru = (pt->d2[0] + olen * pt->d2w[0]) * half, ruv = 2.0 * (pt->d2[1] + olen * pt->d2w[1]) * half,
+                 rv = (pt->d2[2] + olen * pt->d2w[2]) * half;
     hit->iters = 0;
     double prev2 = INFINITY;
     for (int it = 0; it < SOLVE_MAX_NEWTON; it++) {
@@ -118,8 +121,9 @@ static bool newton_cramer(const struct patch *pt, const struct dray *r, double u
         if (M == 0.0 || !isfinite(M))
             return res2 <= tol2 && accept(r, box, u, v, &p, hit);
         double du = p.w / M * Mu, dv = p.w / M * Mv; /* eq. 11 */
-        double nu = clamp01(u + du), nv = clamp01(v + dv), a = fabs(du) + fabs(dv);
-        if ((res2 <= tol2 || rem * a * a * (rem * a * a) <= tol2) && nu == u + du && nv == v + dv) {
+        double nu = clamp01(u + du), nv = clamp01(v + dv);
+        double rem = ru * du * du + ruv * fabs(du * dv) + rv * dv * dv;
+        if ((res2 <= tol2 || rem * rem <= tol2) && nu == u + du && nv == v + dv) {
             /* Within tolerance here, or provably so at the step's end: take the step without
              * evaluating again. The point there is the first-order expansion S + Su du + Sv dv,
              * on the ray and within the remainder bound of the surface. */

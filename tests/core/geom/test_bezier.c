@@ -142,7 +142,8 @@ TEST(normal_at_collapsed_edge)
 }
 
 /* The remainder of a first-order step is within the bound the solvers trust to skip an evaluation:
- * |H(u+du, v+dv) - H - Hu du - Hv dv| <= (d2 + |o| d2w) / 2 (|du| + |dv|)^2, H = xyz·w - o w. */
+ * |H(u+du, v+dv) - H - Hu du - Hv dv| <= (A_uu du² + 2 A_uv |du dv| + A_vv dv²) / 2, with
+ * A = d2 + |o| d2w per partial, H = xyz·w - o w. */
 TEST(second_bounds_hold_taylor_remainder)
 {
     const int degs[][2] = {{3, 3}, {5, 2}, {1, 4}, {2, 2}};
@@ -153,7 +154,8 @@ TEST(second_bounds_hold_taylor_remainder)
             struct patch pt = {.p = degs[d][0], .q = degs[d][1], .rational = r,
                                .cw = random_net(degs[d][0], degs[d][1], 3 + (unsigned)d, r)};
             bezier_second_bounds(&pt);
-            CHECK(pt.wmin > 0 && pt.d2 > 0 && (r ? pt.d2w > 0 : pt.d2w == 0));
+            CHECK(pt.wmin > 0 && (pt.d2[0] > 0) == (pt.p > 1) && pt.d2[1] > 0 && (pt.d2[2] > 0) == (pt.q > 1) &&
+                  (r ? pt.d2w[1] > 0 : pt.d2w[1] == 0));
             double worst = 0; /* largest remainder over its bound */
             for (int k = 0; k < 2000; k++) {
                 double u = rand() / (double)RAND_MAX, v = rand() / (double)RAND_MAX;
@@ -166,7 +168,9 @@ TEST(second_bounds_hold_taylor_remainder)
                                                          (Sv[c] - o[c] * Sv[3]) * dv;
                     e2 += (h - lin) * (h - lin);
                 }
-                double bound = 0.5 * (pt.d2 + olen * pt.d2w) * (fabs(du) + fabs(dv)) * (fabs(du) + fabs(dv));
+                double bound = 0.5 * ((pt.d2[0] + olen * pt.d2w[0]) * du * du +
+                                      2.0 * (pt.d2[1] + olen * pt.d2w[1]) * fabs(du * dv) +
+                                      (pt.d2[2] + olen * pt.d2w[2]) * dv * dv);
                 worst = fmax(worst, sqrt(e2) / bound);
             }
             CHECK(worst <= 1.0 + 1e-9);
@@ -177,7 +181,7 @@ TEST(second_bounds_hold_taylor_remainder)
     double flat[4][4] = {{0, 0, 0, 1}, {0, 1, 0, 1}, {1, 0.5, 0, 1}, {1, 1.5, 0, 1}};
     struct patch pl = {.p = 1, .q = 1, .cw = flat};
     bezier_second_bounds(&pl);
-    CHECK(pl.d2 == 0.0 && pl.d2w == 0.0 && pl.wmin == 1.0);
+    CHECK(pl.d2[0] == 0.0 && pl.d2[1] == 0.0 && pl.d2[2] == 0.0 && pl.d2w[1] == 0.0 && pl.wmin == 1.0);
 }
 
 int main(void)
