@@ -651,8 +651,8 @@ static void leaf_fill(struct leaf *l, const struct patch *sub, int patch, double
     axes_extents(l, sub, size);
 }
 
-static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
-                    double dev, bool trim_cut)
+static int add_leaf(struct bvh *b, const struct patch *sub, const struct patch *nrm, int patch, double u0, double u1,
+                    double v0, double v1, double dev, bool trim_cut)
 {
     if (mem_reserve((void **)&b->leaves, &b->cap_leaves, b->n_leaves + 1, sizeof *b->leaves))
         return SF_ENOMEM;
@@ -665,9 +665,9 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
     l->ru0 = fmax(0.0, u0 - REGION_GROW * (u1 - u0)), l->ru1 = fmin(1.0, u1 + REGION_GROW * (u1 - u0));
     l->rv0 = fmax(0.0, v0 - REGION_GROW * (v1 - v0)), l->rv1 = fmin(1.0, v1 + REGION_GROW * (v1 - v0));
     struct rat_polys *rp = b->rat;
-    if (pt->rational && rp && rp->patch == patch && rp->ok) { /* the patch's numerators over the parts */
+    if (nrm && rp && rp->patch == patch && rp->ok) { /* the patch's numerators over the parts */
         struct patch part;
-        cone_of_net(rat_part(rp, &rp->n, u0, u1, v0, v1, &part), &l->cone_axis, &l->cone_sin);
+        cone_of_net(nrm, &l->cone_axis, &l->cone_sin);
         vec3 g[2 * RAT_N * RAT_N];
         int n_g = 0, n_u;
         append_net(rat_part(rp, &rp->tu, l->ru0, l->ru1, l->rv0, l->rv1, &part), g, &n_g);
@@ -691,9 +691,10 @@ static int add_leaf(struct bvh *b, const struct patch *sub, int patch, double u0
 }
 
 /* Splits sub-patch sub (the part [u0, u1] x [v0, v1] of patch `patch`) until its parts are flat,
- * leaving out the parts its trim region holds none of; trim_cut: the region's loops may cross it. */
-static int subdivide(struct bvh *b, const struct patch *sub, int patch, double u0, double u1, double v0, double v1,
-                     int depth, bool trim_cut)
+ * leaving out the parts its trim region holds none of; trim_cut: the region's loops may cross it.
+ * nrm: a rational patch's normals' numerator over the same part (b->rat), split alongside, or NULL. */
+static int subdivide(struct bvh *b, const struct patch *sub, const struct patch *nrm, int patch, double u0, double u1,
+                     double v0, double v1, int depth, bool trim_cut)
 {
     const struct patch *pt = &b->patches[patch];
     if (trim_cut) {
@@ -720,30 +721,37 @@ static int subdivide(struct bvh *b, const struct patch *sub, int patch, double u
      * go, and the rest hug the region, so that rays through the cut-away part meet no leaf */
     bool flat = dev <= LEAF_FLAT_REL * size && (dev <= LEAF_FINE_REL * size || dev <= b->fine);
     if ((flat && !slim && !(trim_cut && depth < LEAF_TRIM_DEPTH)) || depth >= LEAF_MAX_DEPTH)
-        return add_leaf(b, sub, patch, u0, u1, v0, v1, dev, trim_cut);
+        return add_leaf(b, sub, nrm, patch, u0, u1, v0, v1, dev, trim_cut);
     if (flat) /* slim: its length halved */
         cu = lu, cv = lv;
 
-    size_t n_pts = (size_t)(sub->p + 1) * (sub->q + 1);
-    double(*net)[4] = malloc(sizeof *net * 2 * n_pts);
+    size_t n_pts = (size_t)(sub->p + 1) * (sub->q + 1), n_nrm = nrm ? (size_t)(nrm->p + 1) * (nrm->q + 1) : 0;
+    double(*net)[4] = malloc(sizeof *net * 2 * (n_pts + n_nrm));
     if (!net)
         return SF_ENOMEM;
-    struct patch lo_p = *sub, hi_p = *sub;
+    struct patch lo_p = *sub, hi_p = *sub, lo_n, hi_n;
     lo_p.cw = net;
     hi_p.cw = net + n_pts;
+    if (nrm)
+        lo_n = *nrm, hi_n = *nrm, lo_n.cw = net + 2 * n_pts, hi_n.cw = net + 2 * n_pts + n_nrm;
+    const struct patch *ln = nrm ? &lo_n : NULL, *hn = nrm ? &hi_n : NULL;
     int rc;
     if (cu > cv || (cu == cv && (u1 - u0) >= (v1 - v0))) { /* the more curved way; flat: the longer */
         bezier_split_u(sub, 0.5, lo_p.cw, hi_p.cw);
+        if (nrm)
+            bezier_split_u(nrm, 0.5, lo_n.cw, hi_n.cw);
         double um = 0.5 * (u0 + u1);
-        rc = subdivide(b, &lo_p, patch, u0, um, v0, v1, depth + 1, trim_cut);
+        rc = subdivide(b, &lo_p, ln, patch, u0, um, v0, v1, depth + 1, trim_cut);
         if (!rc)
-            rc = subdivide(b, &hi_p, patch, um, u1, v0, v1, depth + 1, trim_cut);
+            rc = subdivide(b, &hi_p, hn, patch, um, u1, v0, v1, depth + 1, trim_cut);
     } else {
         bezier_split_v(sub, 0.5, lo_p.cw, hi_p.cw);
+        if (nrm)
+            bezier_split_v(nrm, 0.5, lo_n.cw, hi_n.cw);
         double vm = 0.5 * (v0 + v1);
-        rc = subdivide(b, &lo_p, patch, u0, u1, v0, vm, depth + 1, trim_cut);
+        rc = subdivide(b, &lo_p, ln, patch, u0, u1, v0, vm, depth + 1, trim_cut);
         if (!rc)
-            rc = subdivide(b, &hi_p, patch, u0, u1, vm, v1, depth + 1, trim_cut);
+            rc = subdivide(b, &hi_p, hn, patch, u0, u1, vm, v1, depth + 1, trim_cut);
     }
     free(net);
     return rc;
@@ -1311,7 +1319,8 @@ int bvh_build_scene(struct bvh_device *dev, const struct patch *patches, size_t 
             b->rat->patch = -1;
         if (patches[k].rational && b->rat) /* (no memory: each leaf forms its own) */
             rat_polys_make(b->rat, &patches[k], (int)k);
-        rc = subdivide(b, &patches[k], (int)k, 0.0, 1.0, 0.0, 1.0, 0, patches[k].trim != NULL);
+        const struct patch *nrm = patches[k].rational && b->rat && b->rat->ok ? &b->rat->n : NULL;
+        rc = subdivide(b, &patches[k], nrm, (int)k, 0.0, 1.0, 0.0, 1.0, 0, patches[k].trim != NULL);
     }
     free(b->rat);
     b->rat = NULL;
