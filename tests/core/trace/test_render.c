@@ -196,6 +196,29 @@ TEST(contour_model_exact)
     contour_scene_free(&c);
 }
 
+/* Auto against the hierarchy on sc at W x H, pixel by pixel: the pixels bvh hits, those auto misses,
+ * those where its root lies farther or nearer (beyond 1e-5 relative). */
+struct against_bvh {
+    long hit, missed, farther, more;
+};
+
+static struct against_bvh auto_against_bvh(struct scene *sc, int W, int H, struct render_stats *st)
+{
+    struct against_bvh a = {0};
+    float *bvh = scene_depth(sc, METHOD_BVH, W, H, false, NULL);
+    float *got = scene_depth(sc, METHOD_AUTO, W, H, false, st);
+    CHECK(bvh && got);
+    for (int i = 0; bvh && got && i < W * H; i++) {
+        a.hit += isfinite(bvh[i]);
+        a.missed += isfinite(bvh[i]) && !isfinite(got[i]);
+        a.farther += isfinite(bvh[i]) && got[i] - bvh[i] > 1e-5f * bvh[i];
+        a.more += isfinite(got[i]) && !(got[i] - bvh[i] > -1e-5f * got[i]);
+    }
+    free(bvh);
+    free(got);
+    return a;
+}
+
 /* The heart's contour model (7 587 patches, most of them meeting their neighbours along whole
  * edges, where the map draws no outline): from four sides auto finds every root the hierarchy
  * finds, none farther. Its roots are roots (their residual within tolerance), and it finds a few
@@ -212,21 +235,10 @@ TEST(heart_model_auto_equals_bvh)
     for (int k = 0; k < 4 && ok; k++) {
         sc->azimuth_deg = azimuths[k], sc->elevation_deg = 20;
         struct render_stats st = {0};
-        float *bvh = scene_depth(sc, METHOD_BVH, W, H, false, NULL);
-        float *got = scene_depth(sc, METHOD_AUTO, W, H, false, &st);
-        CHECK(bvh && got);
-        long hit = 0, missed = 0, farther = 0, more = 0;
-        for (int i = 0; bvh && got && i < W * H; i++) {
-            hit += isfinite(bvh[i]);
-            missed += isfinite(bvh[i]) && !isfinite(got[i]);
-            farther += isfinite(bvh[i]) && got[i] - bvh[i] > 1e-5f * bvh[i];
-            more += isfinite(got[i]) && !(got[i] - bvh[i] > -1e-5f * got[i]);
-        }
+        struct against_bvh a = auto_against_bvh(sc, W, H, &st);
         fprintf(stderr, "  azimuth %3.0f: %ld pixels hit, auto missed %ld, farther at %ld, nearer at %ld (searched %ld)\n",
-                azimuths[k], hit, missed, farther, more, st.misses);
-        CHECK(hit > W * H / 8 && missed == 0 && farther == 0 && more <= 2 && st.refinements > hit);
-        free(bvh);
-        free(got);
+                azimuths[k], a.hit, a.missed, a.farther, a.more, st.misses);
+        CHECK(a.hit > W * H / 8 && a.missed == 0 && a.farther == 0 && a.more <= 2 && st.refinements > a.hit);
     }
     contour_scene_free(&c);
 }
@@ -248,21 +260,10 @@ TEST(trimmed_mug_auto_equals_bvh)
         sc.has_camera = true;
         sc.eye = eyes[k], sc.target = v3(0, 0, 40), sc.up = v3(0, 0, 1), sc.fov_deg = 30;
         struct render_stats st = {0};
-        float *bvh = scene_depth(&sc, METHOD_BVH, W, H, false, NULL);
-        float *got = scene_depth(&sc, METHOD_AUTO, W, H, false, &st);
-        CHECK(bvh && got);
-        long hit = 0, missed = 0, farther = 0, more = 0;
-        for (int i = 0; bvh && got && i < W * H; i++) {
-            hit += isfinite(bvh[i]);
-            missed += isfinite(bvh[i]) && !isfinite(got[i]);
-            farther += isfinite(bvh[i]) && got[i] - bvh[i] > 1e-5f * bvh[i];
-            more += isfinite(got[i]) && !(got[i] - bvh[i] > -1e-5f * got[i]);
-        }
+        struct against_bvh a = auto_against_bvh(&sc, W, H, &st);
         fprintf(stderr, "  eye %d: %ld pixels hit, auto missed %ld, farther at %ld, nearer at %ld (searched %ld)\n", k,
-                hit, missed, farther, more, st.misses);
-        CHECK(hit > W * H / 10 && missed == 0 && farther == 0 && more <= 2);
-        free(bvh);
-        free(got);
+                a.hit, a.missed, a.farther, a.more, st.misses);
+        CHECK(a.hit > W * H / 10 && a.missed == 0 && a.farther == 0 && a.more <= 2);
     }
     scene_free(&sc);
 }
