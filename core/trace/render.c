@@ -303,8 +303,9 @@ static int prepare(const struct scene *sc, struct bvh_device *dev, bool whole, s
     if (sc->method == METHOD_MESH)
         rc = bvh_build_mesh(dev, fr->ps.patches, fr->ps.n, sc->mesh_tolerance * fr->diag, &fr->mesh, err);
     else
-        rc = bvh_build_scene(dev, fr->ps.patches, fr->ps.n, fr->tol2, LEAF_FINE_PX * fr->diag / (sc->width > sc->height ? sc->width : sc->height),
-                             fr->meshes, sc->n_meshes, &fr->exact, err);
+        rc = bvh_build_scene(dev, fr->ps.patches, fr->ps.n, fr->tol2,
+                             LEAF_FINE_PX * fr->diag / (sc->width > sc->height ? sc->width : sc->height), fr->meshes,
+                             sc->n_meshes, &fr->exact, err);
     if (rc) {
         frame_free(fr);
         return rc;

@@ -96,8 +96,9 @@ static bool newton_cramer(const struct patch *pt, const struct dray *r, double u
      * surface is at most ru du² + ruv |du dv| + rv dv² (bezier_second_bounds, each partial its
      * own: a sliver's steps across it are long in its parameter and short in the world; the
      * homogeneous point less the origin times w, over the least weight) */
+    const bool bounded = pt->wmin > 0; /* (bezier_second_bounds ran) */
     const double olen = pt->d2w[0] > 0 || pt->d2w[1] > 0 || pt->d2w[2] > 0 ? v3_len(r->o) : 0.0;
-    const double half = pt->wmin > 0 ? 0.5 / pt->wmin : INFINITY;
+    const double half = bounded ? 0.5 / pt->wmin : 0.0;
     const double ru = (pt->d2[0] + olen * pt->d2w[0]) * half, ruv = 2.0 * (pt->d2[1] + olen * pt->d2w[1]) * half,
                  rv = (pt->d2[2] + olen * pt->d2w[2]) * half;
     hit->iters = 0;
@@ -122,7 +123,7 @@ static bool newton_cramer(const struct patch *pt, const struct dray *r, double u
             return res2 <= tol2 && accept(r, box, u, v, &p, hit);
         double du = p.w / M * Mu, dv = p.w / M * Mv; /* eq. 11 */
         double nu = clamp01(u + du), nv = clamp01(v + dv);
-        double rem = ru * du * du + ruv * fabs(du * dv) + rv * dv * dv;
+        double rem = bounded ? ru * du * du + ruv * fabs(du * dv) + rv * dv * dv : INFINITY;
         if ((res2 <= tol2 || rem * rem <= tol2) && nu == u + du && nv == v + dv) {
             /* Within tolerance here, or provably so at the step's end: take the step without
              * evaluating again. The point there is the first-order expansion S + Su du + Sv dv,
