@@ -364,7 +364,6 @@ static void rational_normals(const struct rnet *r, struct vpoly *out)
  * hierarchy (subdivide). The ducks' preparation: 55 ms forming them per leaf, 31 so (12 without
  * rational cones, for a render 53 -> 38 ms). */
 struct rat_polys {
-    int patch;                 /* -1: none made */
     bool ok;                   /* rnet_of held */
     struct patch n, tu, tv;    /* degrees (3p-1, 3q-1), (2p-1, 2q), (2p, 2q-1) */
     double net[5][RAT_N * RAT_N][4]; /* their nets, and two to work in */
@@ -380,9 +379,8 @@ static void rat_net(struct patch *pt, const struct vpoly *v, double (*net)[4])
         }
 }
 
-static void rat_polys_make(struct rat_polys *rp, const struct patch *pt, int patch)
+static void rat_polys_make(struct rat_polys *rp, const struct patch *pt)
 {
-    rp->patch = patch;
     struct rnet *r = malloc(sizeof *r);
     struct vpoly *v = malloc(sizeof *v);
     rp->ok = r && v && rnet_of(pt, r);
@@ -430,25 +428,15 @@ static void append_net(const struct patch *part, vec3 *g, int *n)
     }
 }
 
-/* Normal cone of a patch. A polynomial one's Pu × Pv is a polynomial of degree (2p-1, 2q-1)
- * whose Bernstein coefficients are sums of cross products of the derivative nets, weighted by
+/* Normal cone of a polynomial patch. Pu × Pv is a polynomial of degree (2p-1, 2q-1) whose
+ * Bernstein coefficients are sums of cross products of the derivative nets, weighted by
  * binomial ratios; a cone holding every coefficient holds every normal (Bernstein weights are
- * non-negative). A rational one's normals are its numerator's (above). */
+ * non-negative). A rational patch's leaves take theirs from its normals' numerator (rat_polys). */
 static void normal_cone(const struct patch *pt, vec3 *axis, double *sin_half)
 {
     *sin_half = 2.0;
     int p = pt->p, q = pt->q, M = 2 * p - 1, N = 2 * q - 1;
-    if (pt->rational) {
-        struct rnet *r = malloc(sizeof *r);
-        struct vpoly *n = malloc(sizeof *n);
-        if (r && n && rnet_of(pt, r)) {
-            rational_normals(r, n);
-            cone_of(&n->c[0][0], RAT_N, n->m, n->n, axis, sin_half);
-        }
-        free(r), free(n);
-        return;
-    }
-    if (M > PATCH_MAX_DEGREE || N > PATCH_MAX_DEGREE)
+    if (pt->rational || M > PATCH_MAX_DEGREE || N > PATCH_MAX_DEGREE)
         return;
     double bin[2 * PATCH_MAX_DEGREE + 1][2 * PATCH_MAX_DEGREE + 1];
     for (int n = 0; n <= M || n <= N; n++)
@@ -667,7 +655,7 @@ static int add_leaf(struct bvh *b, const struct patch *sub, const struct patch *
     l->ru0 = fmax(0.0, u0 - REGION_GROW * (u1 - u0)), l->ru1 = fmin(1.0, u1 + REGION_GROW * (u1 - u0));
     l->rv0 = fmax(0.0, v0 - REGION_GROW * (v1 - v0)), l->rv1 = fmin(1.0, v1 + REGION_GROW * (v1 - v0));
     struct rat_polys *rp = b->rat;
-    if (nrm && rp && rp->patch == patch && rp->ok) { /* the patch's numerators over the parts */
+    if (nrm) { /* a rational patch: its numerators (rp, made for it) over the parts */
         struct patch part;
         cone_of_net(nrm, &l->cone_axis, &l->cone_sin);
         vec3 g[2 * RAT_N * RAT_N];
@@ -1317,10 +1305,10 @@ int bvh_build_scene(struct bvh_device *dev, const struct patch *patches, size_t 
     b->fine = fine;
     int rc = find_seams(b, n);
     for (size_t k = 0; k < n && !rc; k++) {
-        if (patches[k].rational && !b->rat && (b->rat = malloc(sizeof *b->rat)))
-            b->rat->patch = -1;
-        if (patches[k].rational && b->rat) /* (no memory: each leaf forms its own) */
-            rat_polys_make(b->rat, &patches[k], (int)k);
+        if (patches[k].rational && !b->rat)
+            b->rat = malloc(sizeof *b->rat);
+        if (patches[k].rational && b->rat) /* (no memory: its leaves get no cones, their chords from their nets) */
+            rat_polys_make(b->rat, &patches[k]);
         const struct patch *nrm = patches[k].rational && b->rat && b->rat->ok ? &b->rat->n : NULL;
         rc = subdivide(b, &patches[k], nrm, (int)k, 0.0, 1.0, 0.0, 1.0, 0, patches[k].trim != NULL);
     }
