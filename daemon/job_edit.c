@@ -551,6 +551,12 @@ int edit_validate(struct service *svc, struct job_body *b, struct sf_err *err)
     char *req = frep_combine(parts[np - 1].data, parts[np - 1].len, b->body ? b->body : "", b->len, err);
     store_volume_free(parts, np);
     rc = req ? 0 : err->code;
+    /* the object's volume primitives are the token's models, as on POST /isosurface */
+    struct frep_request r;
+    if (!rc && !(rc = frep_parse(req, strlen(req), &r, err))) {
+        rc = frep_refs_check(svc, &r, b->owner, "/object", err);
+        frep_request_free(&r);
+    }
     free(req);
     return rc;
 }

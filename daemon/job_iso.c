@@ -289,24 +289,32 @@ int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err)
     int rc = volume_check(body, b->len, b->format, b->options, err);
     if (rc || strcmp(volume_format_of(body, b->len, b->format, b->options), "frep"))
         return rc;
-    /* an FRep tree's volume primitives: stored isosurface models of samples, the token's */
     struct frep_request r;
     if ((rc = frep_parse(body, b->len, &r, err)))
         return rc;
-    for (int k = 0; k < r.n_refs && !rc; k++) {
+    rc = frep_refs_check(svc, &r, b->owner, NULL, err);
+    frep_request_free(&r);
+    return rc;
+}
+
+int frep_refs_check(struct service *svc, const struct frep_request *r, const char *owner, const char *pointer,
+                    struct sf_err *err)
+{
+    int rc = 0;
+    for (int k = 0; k < r->n_refs && !rc; k++) {
         char *resource = NULL;
         struct iso_grid g;
         struct sf_err e = {0};
         bool frep;
-        int found = store_model_get(svc->store, r.refs[k].model, b->owner, &resource, NULL, NULL);
+        const char *at = pointer ? pointer : r->refs[k].pointer;
+        int found = store_model_get(svc->store, r->refs[k].model, owner, &resource, NULL, NULL);
         if (found != 1)
-            rc = found == 0 ? sf_fail(err, SF_EINVAL, r.refs[k].pointer, "no such model")
+            rc = found == 0 ? sf_fail(err, SF_EINVAL, at, "no such model: %s", r->refs[k].model)
                             : sf_fail(err, SF_EIO, "", "the store failed");
         else if (iso_model_grid(resource, &g, &frep, &e) || frep)
-            rc = sf_fail(err, SF_EINVAL, r.refs[k].pointer, "a volume reads an isosurface model of samples%s%s",
+            rc = sf_fail(err, SF_EINVAL, at, "a volume reads an isosurface model of samples%s%s",
                          e.message[0] ? ": " : "", e.message);
         free(resource);
     }
-    frep_request_free(&r);
     return rc;
 }

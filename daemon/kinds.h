@@ -79,5 +79,10 @@ int edit_volume(struct service *svc, const char *id, struct volume *vol, int *ne
  * iso into its nodes): 0, or SF_EINVAL at the primitive's pointer, SF_EIO, SF_ENOMEM. */
 struct frep_request;
 int frep_volumes(struct service *svc, struct frep_request *r, struct sf_err *err);
+/* The one owner check of an FRep request's volume primitives (job_iso.c), for every route that
+ * reads one: each a stored isosurface model of samples that owner (NULL: anyone's) may see. 0, or
+ * SF_EINVAL at the primitive's pointer (or at pointer, when not NULL), SF_EIO. */
+int frep_refs_check(struct service *svc, const struct frep_request *r, const char *owner, const char *pointer,
+                    struct sf_err *err);
 
 #endif

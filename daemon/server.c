@@ -10,6 +10,7 @@
 
 #include <arpa/inet.h>
 #include <ctype.h>
+#include <dirent.h>
 #include <errno.h>
 #include <microhttpd.h>
 #include <stdatomic.h>
@@ -136,6 +137,7 @@ static enum MHD_Result send_reply(struct req *r, struct reply *rp)
     }
     if (rp->type)
         MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE, rp->type);
+    MHD_add_response_header(resp, "X-Content-Type-Options", "nosniff"); /* every answer, API and page alike */
     for (int k = 0; k < 6 && rp->hdr[k][0]; k++)
         MHD_add_response_header(resp, rp->hdr[k][0], rp->hdr[k][1]);
     if (r->job[0])
@@ -660,19 +662,24 @@ static enum MHD_Result model_edit_route(struct req *r, const char *id)
 
 /* ---- routing ---------------------------------------------------------------------------- */
 
-/* Finds the request's bearer token; sets r->owner and r->admin from it. */
+/* Finds the request's bearer token; sets r->owner and r->admin from it. The whole header value is
+ * compared (its length from libmicrohttpd, so "TOKEN\0junk" is not TOKEN), in time that depends on
+ * the secrets' lengths only, every token compared. */
 static bool authorised(struct req *r)
 {
     struct service *svc = r->svc;
     if (svc->n_tokens == 0)
         return true;
-    const char *h = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_AUTHORIZATION);
-    if (!h || strncasecmp(h, "Bearer ", 7))
+    const char *h = NULL;
+    size_t hn = 0;
+    if (MHD_lookup_connection_value_n(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_AUTHORIZATION,
+                                      strlen(MHD_HTTP_HEADER_AUTHORIZATION), &h, &hn) != MHD_YES ||
+        hn < 7 || strncasecmp(h, "Bearer ", 7))
         return false;
     const char *tok = h + 7;
-    size_t n = strlen(tok);
+    size_t n = hn - 7;
     const struct token *found = NULL;
-    for (size_t k = 0; k < svc->n_tokens; k++) { /* constant time in the token's content */
+    for (size_t k = 0; k < svc->n_tokens; k++) {
         const char *t = svc->tokens[k].secret;
         size_t m = strlen(t);
         unsigned diff = (unsigned)(m ^ n);
@@ -763,7 +770,6 @@ static enum MHD_Result web_asset(struct req *r, const char *id)
         memcpy(body, a->data, a->len + 1);
         struct reply rp = {200, a->type, body, a->len,
                            {{"Cache-Control", "no-cache"},
-                            {"X-Content-Type-Options", "nosniff"},
                             {"Content-Security-Policy", "default-src 'self'; img-src 'self' blob: data:; "
                                                         "frame-ancestors 'none'; base-uri 'none'; form-action 'none'"}}};
         return send_reply(r, &rp);
@@ -876,22 +882,42 @@ static enum MHD_Result preflight(struct req *r)
     return send_reply(r, &rp);
 }
 
+/* The route path matches (its {id} into id), or NULL. */
+static const struct route *find_route(const char *path, char id[40])
+{
+    for (size_t k = 0; k < sizeof ROUTES / sizeof *ROUTES; k++)
+        if (match(ROUTES[k].path, path, id))
+            return &ROUTES[k];
+    return NULL;
+}
+
+/* Whether the request is a CORS preflight (answered without a token). */
+static bool is_preflight(const struct req *r)
+{
+    return !strcmp(r->method, "OPTIONS") && r->svc->cfg.cors_origins[0] &&
+           MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "Access-Control-Request-Method");
+}
+
+/* Whether the request needs a token it lacks: decided from its headers alone, before a byte of
+ * its body is read or written (an unknown route needs one too, so that it reveals nothing). */
+static bool unauthorised(struct req *r)
+{
+    char id[40];
+    const struct route *rt = find_route(r->path, id);
+    return !is_preflight(r) && !(rt && rt->open) && !authorised(r);
+}
+
 static enum MHD_Result route(struct req *r)
 {
     const char *m = r->method;
-    if (!strcmp(m, "OPTIONS") && r->svc->cfg.cors_origins[0] &&
-        MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "Access-Control-Request-Method"))
+    if (is_preflight(r))
         return preflight(r);
     unsigned method = !strcmp(m, "GET") || !strcmp(m, "HEAD") ? GET : !strcmp(m, "POST") ? POST
                       : !strcmp(m, "DELETE")                  ? DELETE
                                                               : 0;
     char id[40] = "";
-    for (size_t k = 0; k < sizeof ROUTES / sizeof *ROUTES; k++) {
-        const struct route *rt = &ROUTES[k];
-        if (!match(rt->path, r->path, id))
-            continue;
-        if (!rt->open && !authorised(r))
-            return problem(r, 401, "a valid bearer token is required", NULL);
+    const struct route *rt = find_route(r->path, id);
+    if (rt) {
         if (!(rt->methods & method)) {
             char allow[32];
             snprintf(allow, sizeof allow, "%s%s%s", rt->methods & GET ? "GET, HEAD" : "",
@@ -904,8 +930,6 @@ static enum MHD_Result route(struct req *r)
         }
         return rt->kind ? post_job(r, job_kind(rt->kind)) : rt->fn(r, id);
     }
-    if (!authorised(r))
-        return problem(r, 401, "a valid bearer token is required", NULL);
     if (!strncmp(r->path, "/jobs/", 6))
         return problem(r, 404, "no such job", NULL);
     if (!strncmp(r->path, "/models/", 8))
@@ -947,10 +971,29 @@ static bool streamed(const char *path, const char *method)
     if (strcmp(method, "POST"))
         return false;
     char id[40];
-    for (size_t k = 0; k < sizeof ROUTES / sizeof *ROUTES; k++)
-        if (ROUTES[k].kind && match(ROUTES[k].path, path, id))
-            return job_kind(ROUTES[k].kind)->streamed;
-    return false;
+    const struct route *rt = find_route(path, id);
+    return rt && rt->kind && job_kind(rt->kind)->streamed;
+}
+
+/* Removes the uploads/tmp-* files a process before this one left when it was stopped mid-upload (a
+ * kill -9): nobody will take them. A data dir is one node's, so none of them is still arriving. */
+static void sweep_cut_uploads(const char *data_dir)
+{
+    char path[1100];
+    snprintf(path, sizeof path, "%s/uploads", data_dir);
+    DIR *d = opendir(path);
+    if (!d)
+        return;
+    int n = 0;
+    struct dirent *e;
+    while ((e = readdir(d)))
+        if (!strncmp(e->d_name, "tmp-", 4)) {
+            snprintf(path, sizeof path, "%s/uploads/%s", data_dir, e->d_name);
+            n += unlink(path) == 0;
+        }
+    closedir(d);
+    if (n)
+        LOG(LOG_WARN, "removed %d upload%s cut off when the service last stopped", n, n == 1 ? "" : "s");
 }
 
 /* Starts a streamed body's file in the data dir's uploads/ (the store takes it from there). */
@@ -1027,6 +1070,8 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
             snprintf(d, sizeof d, "the query has over %d options", QUERY_MAX_ARGS);
             return problem(r, 414, d, NULL);
         }
+        if (unauthorised(r)) /* from the headers: no body byte is read or written first */
+            return problem(r, 401, "a valid bearer token is required", NULL);
         bool stream = streamed(r->path, r->method);
         long limit = stream ? r->svc->cfg.max_volume : r->svc->cfg.max_body;
         const char *cl = MHD_lookup_connection_value(conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_LENGTH);
@@ -1173,10 +1218,12 @@ static int parse_listen(const char *s, struct sockaddr_storage *ss, unsigned sho
 }
 
 /* GnuTLS priorities: TLS 1.3 as GnuTLS has it; TLS 1.2 only with ephemeral elliptic-curve key
- * exchange (forward secrecy) and AEAD ciphers: no static RSA, no CBC, no SHA-1 MACs. */
+ * exchange (forward secrecy) and AEAD ciphers: no static RSA, no CBC, no SHA-1 MACs, and no SHA-1
+ * (or SHA-224) signatures on the key exchange. */
 #define TLS_PRIORITIES                                                                                    \
     "NORMAL:-VERS-ALL:+VERS-TLS1.3:+VERS-TLS1.2:-KX-ALL:+ECDHE-ECDSA:+ECDHE-RSA:-CIPHER-ALL:+AES-256-GCM:" \
-    "+AES-128-GCM:+CHACHA20-POLY1305:-MAC-ALL:+AEAD"
+    "+AES-128-GCM:+CHACHA20-POLY1305:-MAC-ALL:+AEAD:-SIGN-RSA-SHA1:-SIGN-DSA-SHA1:-SIGN-ECDSA-SHA1:"       \
+    "-SIGN-RSA-SHA224:-SIGN-DSA-SHA224:-SIGN-ECDSA-SHA224"
 
 struct server *server_start(struct service *svc, char *msg, size_t msg_len)
 {
@@ -1191,6 +1238,7 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
     if (!s)
         return NULL;
     s->svc = svc;
+    sweep_cut_uploads(svc->cfg.data_dir);
     if (!(s->guard = guard_new(svc->cfg.max_connections, (double)svc->cfg.header_timeout,
                                (double)svc->cfg.body_timeout, (double)svc->cfg.connection_timeout))) {
         snprintf(msg, msg_len, "cannot start the connection guard");
