@@ -49,8 +49,10 @@ static void recovered(const char *id, enum job_state state, void *arg)
     const struct service *svc = arg;
     if (state == JOB_FAILED)
         LOG(LOG_ERROR, "job %s stopped the service %ld times: failed, not recovered", id, svc->cfg.max_attempts);
+    else if (state == JOB_CANCELLED)
+        LOG(LOG_INFO, "job %s was cancelled before the service stopped: not run again", id);
     else
-        LOG(LOG_INFO, "recovered job %s", id);
+        LOG(LOG_INFO, "recovered job %s (to run alone)", id);
 }
 
 /* Seconds a running job has to stop once the drain timeout has passed and it has been cancelled. */

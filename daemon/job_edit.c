@@ -288,7 +288,7 @@ static struct live *rebuild(struct service *svc, const char *id, struct sf_err *
     if (rc)
         return NULL;
     if (volume_adaptive(&vol)) {
-        struct iso_opts o = volume_iso_opts(&vol);
+        struct iso_opts o = job_iso_opts(svc, &vol);
         o.keep = true;
         if (!(rc = iso_adapt_begin(&vol.g, &o, vol.levels, vol.max_error, &a, err))) {
             for (int p = 0; p < iso_adapt_phases(a); p++) {
@@ -401,7 +401,7 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     if (e->a) {
         rc = iso_adapt_mesh(e->a, &m, &ast, &w->err);
     } else {
-        struct iso_opts o = volume_iso_opts(&e->vol);
+        struct iso_opts o = job_iso_opts(w->svc, &e->vol);
         rc = iso_extract(&e->vol.g, &o, NULL, &m, &w->err);
         me.e.cells_rebuilt = (long)(e->vol.g.nx + 1) * (e->vol.g.ny + 1) * (e->vol.g.nz + 1);
         me.e.triangles_added = (long)m.n_tri;
@@ -439,7 +439,7 @@ static int edit_frep(struct edit_work *w, const struct job_rec *rec, const char 
     struct iso_adapt_stats ast = {0};
     if (!rc) {
         volume_sample(&v, 0, v.g.nz);
-        struct iso_opts o = volume_iso_opts(&v);
+        struct iso_opts o = job_iso_opts(w->svc, &v);
         rc = volume_adaptive(&v) ? iso_extract_adaptive(&v.g, &o, v.levels, v.max_error, NULL, &m, &ast, &w->err)
                                  : iso_extract(&v.g, &o, NULL, &m, &w->err);
     }

@@ -64,6 +64,13 @@ int job_map_file(const char *path, void **map, size_t *len)
     return 0;
 }
 
+struct iso_opts job_iso_opts(const struct service *svc, const struct volume *v)
+{
+    struct iso_opts o = volume_iso_opts(v);
+    o.max_triangles = (size_t)svc->cfg.max_triangles;
+    return o;
+}
+
 static int begin_extract(struct iso_work *w, int *n_bands);
 
 static int prepare(struct job *j, void *arg, int *n_bands)
@@ -101,7 +108,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
 
 static int begin_extract(struct iso_work *w, int *n_bands)
 {
-    struct iso_opts o = volume_iso_opts(&w->vol);
+    struct iso_opts o = job_iso_opts(w->svc, &w->vol);
     /* a hierarchy of samples is kept for the model's edits when it fits their memory (about 5
      * bytes a sample) */
     o.keep = !w->vol.frep && (double)w->vol.g.nx * w->vol.g.ny * w->vol.g.nz * 5 <= (double)w->svc->cfg.edit_memory;
@@ -184,7 +191,7 @@ static int stopped(struct iso_work *w, double progress)
 static int store_model(struct iso_work *w)
 {
     double t_extract = monotonic_s();
-    struct trimesh m;
+    struct trimesh m = {0}; /* (iso_adapt_keep may fail before iso_adapt_mesh sets it) */
     struct iso_adapt *kept = NULL; /* for the model's edits */
     int rc;
     if (w->ad && w->ad_keep) {

@@ -302,8 +302,8 @@ int jobq_shutdown(struct jobq *q, double timeout_s, double grace_s, void (*aband
     wait_idle(q, monotonic_s() + timeout_s);
     for (struct job *j = q->live; j; j = j->next_live)
         if (j->state == JOB_RUNNING) {
+            j->requeue = !j->cancel; /* a job its user cancelled ends cancelled, not queued again */
             j->cancel = true;
-            j->requeue = true;
         }
     wait_idle(q, monotonic_s() + grace_s); /* bands end, prepares poll their cancel flag */
     if (q->n_active > 0) { /* deaf to cancel: the process ends with them, the store keeps them */

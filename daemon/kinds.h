@@ -59,6 +59,9 @@ int rtstruct_start(struct service *svc, const struct job_claim *c);
 const char *iso_format(const char *content_type);
 int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err);
 int iso_start(struct service *svc, const struct job_claim *c);
+/* A volume's extraction options with this node's limits on the output (max-triangles) (job_iso.c). */
+struct volume;
+struct iso_opts job_iso_opts(const struct service *svc, const struct volume *v);
 /* The whole file at path, mapped read-only (*map NULL for an empty one): 0 or -1 (job_iso.c). */
 int job_map_file(const char *path, void **map, size_t *len);
 int matrix_validate(struct service *svc, struct job_body *b, struct sf_err *err);

@@ -58,17 +58,24 @@ static void claim_drop(struct service *svc, const struct job_claim *c)
     pthread_mutex_unlock(&svc->lock);
 }
 
-/* Takes one queued job from the store and starts it: true when one was started. */
+/* Takes one queued job from the store and starts it: true when one was started. A suspect (a
+ * job queued again after a node stopped while it ran beside others) is claimed only when no other
+ * job runs here, and nothing else is claimed while it runs: if it stops the node, the reap then
+ * finds it alone and charges it, and no innocent job is charged with it. */
 static bool claim_one(struct service *svc)
 {
     pthread_mutex_lock(&svc->lock);
-    bool full = svc->n_claims >= CLAIMS_MAX;
+    bool full = svc->n_claims >= CLAIMS_MAX, alone = svc->n_claims == 0, isolated = false;
+    for (int k = 0; k < svc->n_claims; k++)
+        isolated = isolated || svc->claims[k].c.suspect;
     pthread_mutex_unlock(&svc->lock);
-    if (full || atomic_load(&svc->draining) || jobq_room(svc->q) == 0)
+    if (full || isolated || atomic_load(&svc->draining) || jobq_room(svc->q) == 0)
         return false;
     struct job_claim c;
-    if (store_claim(svc->store, svc->node, (double)svc->cfg.lease, &c) != 1)
+    if (store_claim(svc->store, svc->node, (double)svc->cfg.lease, alone, &c) != 1)
         return false;
+    if (c.suspect)
+        LOG(LOG_INFO, "job %s runs alone: it was running when the service last stopped", c.id);
     pthread_mutex_lock(&svc->lock);
     svc->claims[svc->n_claims++] = (struct claim){.c = c};
     pthread_mutex_unlock(&svc->lock);

@@ -37,10 +37,17 @@ int store_request_file(struct store *s, const char *id, char *path, size_t cap)
 
 void store_request_file_done(struct store *s, const char *path) { s->ops->request_file_done(s, path); }
 
-int store_claim(struct store *s, const char *node, double lease_s, struct job_claim *out)
+int store_claim(struct store *s, const char *node, double lease_s, bool alone, struct job_claim *out)
 {
     memset(out, 0, sizeof *out);
-    return s->ops->claim(s, node, lease_s, out);
+    return s->ops->claim(s, node, lease_s, alone, out);
+}
+
+enum job_state store_reaped_state(const struct reaped *r, int max_attempts)
+{
+    if (r->cancelled)
+        return JOB_CANCELLED;
+    return r->beside == 0 && r->attempts >= max_attempts ? JOB_FAILED : JOB_QUEUED;
 }
 
 int store_heartbeat(struct store *s, const char *id, long fence, double lease_s, double progress, bool *cancel)

@@ -15,7 +15,8 @@
  *          |                |                                         |
  *   store_release           | store_claim: attempts + 1, a lease       |
  *   (drain: the attempt     |   (lease_until) held by one node, and    |
- *   not counted)            |   a new fence token                      v
+ *   not counted; CANCELLED  |   a new fence token                      |
+ *   if its user asked)      |                                          v
  *   store_reap (the lease   v                                     CANCELLED
  *   ran out, or its node    RUNNING --- store_heartbeat: lease renewed, progress,
  *   restarted: counted)  |  |             the cancel request read (cancel on a
@@ -27,7 +28,9 @@
  *              SUCCEEDED | FAILED | CANCELLED  ---- store_prune (ttl, count) ----> gone
  *
  *   store_reap also ends a job whose attempts reached the maximum as FAILED: the job that keeps
- *   stopping a node (a crash in its run) is not run a third time.
+ *   stopping a node (a crash in its run) is not run a third time. Only a job that ran alone when
+ *   its node stopped is charged; jobs that ran together get their attempt back and run again one
+ *   at a time (suspects, store_claim), so that the next stop names its cause and innocents finish.
  *
  * Thread-safe: every call is one short transaction; none is held across a job's run. */
 #ifndef SURFD_STORE_H
@@ -72,6 +75,7 @@ struct job_claim {
     char id[40];
     char kind[16];
     long fence;
+    bool suspect;            /* queued again by a reap: run alone (store_claim) */
 };
 
 /* A job's end for store_finish: outcome SUCCEEDED (with result, type, meta), FAILED (error: the
@@ -106,14 +110,16 @@ int store_submit_file(struct store *s, const struct job_rec *r, const char *path
 int store_request_file(struct store *s, const char *id, char *path, size_t cap);
 void store_request_file_done(struct store *s, const char *path);
 /* Claims the oldest queued job for node, its lease lasting lease_s: 1 (and *out), 0 when none
- * is queued, -1 error. */
-int store_claim(struct store *s, const char *node, double lease_s, struct job_claim *out);
+ * is queued or the oldest is a suspect (out->suspect: a reap queued it again) and the node is not
+ * alone (runs other jobs), -1 error. A node runs a suspect alone: it claims nothing else meanwhile. */
+int store_claim(struct store *s, const char *node, double lease_s, bool alone, struct job_claim *out);
 /* Renews a running job's lease and stores its progress: 1 still held (*cancel: a cancel was
  * asked), 0 the claim is lost (the lease ran out and the job was reaped, or it ended), -1 error. */
 int store_heartbeat(struct store *s, const char *id, long fence, double lease_s, double progress, bool *cancel);
 /* Records a running job's end: 1, 0 when the claim is no longer held (nothing written), -1. */
 int store_finish(struct store *s, const char *id, long fence, const struct job_end *end);
-/* Hands a running job back unfinished (a draining node): QUEUED, the attempt not counted. 1, 0, -1. */
+/* Hands a running job back unfinished (a draining node): QUEUED, the attempt not counted, or
+ * CANCELLED when its user asked it to stop. 1, 0, -1. */
 int store_release(struct store *s, const char *id, long fence);
 /* The answer of store_cancel. */
 enum store_cancel { CANCEL_ERROR = -1, CANCEL_NOT_FOUND, CANCEL_ENDED, CANCEL_DONE, CANCEL_ASKED };
@@ -122,8 +128,9 @@ enum store_cancel { CANCEL_ERROR = -1, CANCEL_NOT_FOUND, CANCEL_ENDED, CANCEL_DO
  * of other owners are not found unless owner is NULL. */
 enum store_cancel store_cancel(struct store *s, const char *id, const char *owner, double now);
 /* Running jobs whose lease ran out before now, or (node not NULL) claimed by node (a node that
- * restarted holds nothing): QUEUED again, or FAILED with the problem JSON give_up once their
- * attempts reached max_attempts. fn (may be NULL) is told each (id, the new state). The number
+ * restarted holds nothing): QUEUED again as suspects, FAILED with the problem JSON give_up once the
+ * attempts of a job that ran alone reached max_attempts, or CANCELLED when their user asked
+ * (store_reaped_state says which). fn (may be NULL) is told each (id, the new state). The number
  * reaped, or -1. */
 int store_reap(struct store *s, double now, const char *node, int max_attempts, const char *give_up,
                void (*fn)(const char *id, enum job_state state, void *arg), void *arg);

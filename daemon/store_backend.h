@@ -13,7 +13,7 @@ struct store_ops {
     int (*submit_file)(struct store *, const struct job_rec *, const char *path);
     int (*request_file)(struct store *, const char *id, char *path, size_t cap);
     void (*request_file_done)(struct store *, const char *path);
-    int (*claim)(struct store *, const char *node, double lease_s, struct job_claim *);
+    int (*claim)(struct store *, const char *node, double lease_s, bool alone, struct job_claim *);
     int (*heartbeat)(struct store *, const char *id, long fence, double lease_s, double progress, bool *cancel);
     int (*finish)(struct store *, const char *id, long fence, const struct job_end *);
     int (*release)(struct store *, const char *id, long fence);
@@ -38,6 +38,22 @@ struct store_ops {
     bool (*writable)(struct store *);
     void (*on_event)(struct store *, void (*fn)(enum store_event, const char *, void *), void *arg); /* may be NULL */
 };
+
+/* A running job a reap found, with what decides its new state (store_reaped_state). */
+struct reaped {
+    char id[40];
+    long fence;
+    int attempts;            /* counting the claim it was running under */
+    bool cancelled;          /* its user asked it to stop */
+    int beside;              /* other jobs of its node reaped with it: it ran beside them when the node stopped */
+};
+
+/* A reaped job's new state: CANCELLED when its user asked it to stop; else a job that ran alone
+ * when its node stopped is the cause, its attempt counted (FAILED at max_attempts); one that ran
+ * beside others cannot be blamed, so its attempt is given back: QUEUED. Every job QUEUED by a reap
+ * is a suspect, claimed only by a node that runs nothing else (store_claim's alone), so that the
+ * next stop, if it comes, has one cause. The PostgreSQL backend says the same in SQL. */
+enum job_state store_reaped_state(const struct reaped *r, int max_attempts);
 
 /* Seconds a reaped job waits before it is claimed again, after its attempts so far: 1, 2, 4 ...
  * up to a minute, so that a job that takes nodes down does not take them all at once. */

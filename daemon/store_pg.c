@@ -64,6 +64,7 @@ static const char SCHEMA[] =
     " lease_until double precision NOT NULL DEFAULT 0, cancel_requested boolean NOT NULL DEFAULT false,"
     " not_before double precision NOT NULL DEFAULT 0, request_file boolean NOT NULL DEFAULT false);"
     "ALTER TABLE jobs ADD COLUMN IF NOT EXISTS request_file boolean NOT NULL DEFAULT false;"
+    "ALTER TABLE jobs ADD COLUMN IF NOT EXISTS suspect boolean NOT NULL DEFAULT false;"
     "CREATE TABLE IF NOT EXISTS uploads (job text NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,"
     " seq integer NOT NULL, data bytea NOT NULL, PRIMARY KEY (job, seq));"
     "CREATE INDEX IF NOT EXISTS jobs_queued ON jobs(created, id) WHERE state='queued';"
@@ -320,22 +321,24 @@ static void pg_request_file_done(struct store *s, const char *path)
     unlink(path); /* the copy: the database keeps the body until the job is pruned */
 }
 
-static int pg_claim(struct store *s, const char *node, double lease_s, struct job_claim *out)
+static int pg_claim(struct store *s, const char *node, double lease_s, bool alone, struct job_claim *out)
 {
     char lease[32];
     num(lease, sizeof lease, lease_s);
-    struct param prm[] = {T(node), T(lease)};
+    struct param prm[] = {T(node), T(lease), T(alone ? "true" : "false")};
     PGresult *res;
     int n = exec1(s, &res,
                   "UPDATE jobs SET state='running', progress=0, started=" NOW ", attempts=attempts+1, fence=fence+1,"
                   " node=$1, lease_until=" NOW "+$2::float8, cancel_requested=false"
                   " WHERE id=(SELECT id FROM jobs WHERE state='queued' AND not_before<=" NOW
-                  " ORDER BY created, id LIMIT 1 FOR UPDATE SKIP LOCKED) RETURNING id, kind, fence",
-                  2, prm);
+                  " ORDER BY created, id LIMIT 1 FOR UPDATE SKIP LOCKED) AND (NOT suspect OR $3::boolean)"
+                  " RETURNING id, kind, fence, suspect",
+                  3, prm);
     if (n == 1) {
         get_text(out->id, sizeof out->id, res, 0, 0);
         get_text(out->kind, sizeof out->kind, res, 0, 1);
         out->fence = (long)get_i64(res, 0, 2);
+        out->suspect = PQgetvalue(res, 0, 3)[0] == 't';
     }
     if (n >= 0)
         PQclear(res);
@@ -426,9 +429,11 @@ static int pg_release(struct store *s, const char *id, long fence)
     snprintf(f, sizeof f, "%ld", fence);
     struct param prm[] = {T(id), T(f)};
     return exec1(s, NULL,
-                 "WITH j AS (UPDATE jobs SET state='queued', progress=0, attempts=GREATEST(attempts-1,0), lease_until=0"
-                 " WHERE id=$1 AND fence=$2 AND state='running' RETURNING id)"
-                 " SELECT pg_notify('surfd', 'queued:' || id) FROM j",
+                 "WITH j AS (UPDATE jobs SET state=CASE WHEN cancel_requested THEN 'cancelled' ELSE 'queued' END,"
+                 " finished=CASE WHEN cancel_requested THEN " NOW " ELSE finished END, progress=0,"
+                 " attempts=GREATEST(attempts-1,0), lease_until=0 WHERE id=$1 AND fence=$2 AND state='running'"
+                 " RETURNING id, state)"
+                 " SELECT pg_notify('surfd', CASE WHEN state='queued' THEN 'queued:' ELSE 'ended:' END || id) FROM j",
                  2, prm);
 }
 
@@ -470,19 +475,25 @@ static int pg_reap(struct store *s, double now, const char *node, int max_attemp
         bool mine = res && PQgetvalue(res, 0, 0)[0];
         PQclear(res);
         reaped = 0;
-        if (mine) /* one statement: fail those at the maximum, queue the others after their backoff */
+        if (mine) /* one statement, store_reaped_state's rule: cancel those asked, fail the lone ones at the
+                   * maximum, queue the others as suspects after their backoff (those that ran beside
+                   * others with their attempt given back) */
             rows = execute(p, c,
                            "WITH r AS (SELECT id FROM jobs WHERE state='running' AND (lease_until<" NOW
                            " OR node=$1) FOR UPDATE SKIP LOCKED),"
+                           " c AS (SELECT j.id, j.cancel_requested AS cx, j.attempts>=$2::int AND count(*) OVER"
+                           "  (PARTITION BY j.node)=1 AS fail, count(*) OVER (PARTITION BY j.node)>1 AS beside"
+                           "  FROM jobs j JOIN r ON j.id=r.id),"
                            " u AS (UPDATE jobs j SET"
-                           "  state=CASE WHEN j.attempts>=$2::int THEN 'failed' ELSE 'queued' END,"
-                           "  error=CASE WHEN j.attempts>=$2::int THEN $3::text ELSE j.error END,"
-                           "  finished=CASE WHEN j.attempts>=$2::int THEN " NOW " ELSE j.finished END,"
-                           "  progress=0, lease_until=0,"
+                           "  state=CASE WHEN c.cx THEN 'cancelled' WHEN c.fail THEN 'failed' ELSE 'queued' END,"
+                           "  error=CASE WHEN NOT c.cx AND c.fail THEN $3::text ELSE j.error END,"
+                           "  finished=CASE WHEN c.cx OR c.fail THEN " NOW " ELSE j.finished END,"
+                           "  attempts=CASE WHEN c.beside AND NOT c.cx THEN GREATEST(j.attempts-1, 0) ELSE j.attempts END,"
+                           "  suspect=true, progress=0, lease_until=0,"
                            "  not_before=" NOW "+LEAST(60, power(2, GREATEST(j.attempts-1, 0)))"
-                           "  FROM r WHERE j.id=r.id RETURNING j.id, j.state)"
-                           " SELECT id, state, pg_notify('surfd', CASE WHEN state='failed' THEN 'ended:' ELSE"
-                           " 'queued:' END || id) FROM u",
+                           "  FROM c WHERE j.id=c.id RETURNING j.id, j.state)"
+                           " SELECT id, state, pg_notify('surfd', CASE WHEN state='queued' THEN 'queued:' ELSE"
+                           " 'ended:' END || id) FROM u",
                            3, prm, false);
         res = execute(p, c, rows ? "COMMIT" : "ROLLBACK", 0, NULL, false);
         if (!res || (mine && !rows))
@@ -496,7 +507,9 @@ static int pg_reap(struct store *s, double now, const char *node, int max_attemp
             char id[40], state[16];
             get_text(id, sizeof id, rows, k, 0);
             get_text(state, sizeof state, rows, k, 1);
-            fn(id, strcmp(state, "failed") ? JOB_QUEUED : JOB_FAILED, arg);
+            enum job_state st = JOB_QUEUED;
+            job_state_parse(state, &st);
+            fn(id, st, arg);
         }
     }
     PQclear(rows);

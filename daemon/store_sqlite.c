@@ -62,6 +62,7 @@ static const char *const MIGRATIONS[] = {
     "ALTER TABLE jobs ADD COLUMN not_before REAL NOT NULL DEFAULT 0",
     "ALTER TABLE jobs ADD COLUMN request_file INTEGER NOT NULL DEFAULT 0",
     "ALTER TABLE models ADD COLUMN resource_sum TEXT",
+    "ALTER TABLE jobs ADD COLUMN suspect INTEGER NOT NULL DEFAULT 0",
 };
 
 static const struct store_ops SQLITE_OPS;
@@ -285,7 +286,7 @@ static void sweep_uploads(struct store *s)
     closedir(d);
 }
 
-static int sq_claim(struct store *s, const char *node, double lease_s, struct job_claim *out)
+static int sq_claim(struct store *s, const char *node, double lease_s, bool alone, struct job_claim *out)
 {
     pthread_mutex_lock(lock_of(s));
     sqlite3_stmt *st;
@@ -294,17 +295,19 @@ static int sq_claim(struct store *s, const char *node, double lease_s, struct jo
                            "UPDATE jobs SET state='running', progress=0, started=?1, attempts=attempts+1,"
                            " fence=fence+1, node=?2, lease_until=?1+?3, cancel_requested=0"
                            " WHERE id=(SELECT id FROM jobs WHERE state='queued' AND not_before<=?1 ORDER BY created, id LIMIT 1)"
-                           " RETURNING id, kind, fence",
+                           " AND (suspect=0 OR ?4) RETURNING id, kind, fence, suspect",
                            -1, &st, NULL) == SQLITE_OK) {
         sqlite3_bind_double(st, 1, wall_now());
         sqlite3_bind_text(st, 2, node, -1, SQLITE_STATIC);
         sqlite3_bind_double(st, 3, lease_s);
+        sqlite3_bind_int(st, 4, alone);
         int rc = sqlite3_step(st);
         found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
         if (found == 1) {
             copy_text(out->id, sizeof out->id, st, 0);
             copy_text(out->kind, sizeof out->kind, st, 1);
             out->fence = (long)sqlite3_column_int64(st, 2);
+            out->suspect = sqlite3_column_int(st, 3) != 0;
             found = sqlite3_step(st) == SQLITE_DONE ? 1 : -1;
         }
         sqlite3_finalize(st);
@@ -357,9 +360,10 @@ static int sq_finish(struct store *s, const char *id, long fence, const struct j
 static int sq_release(struct store *s, const char *id, long fence)
 {
     return run(s,
-               "UPDATE jobs SET state='queued', progress=0, attempts=MAX(attempts-1,0), lease_until=0 WHERE id=?1 AND"
-               " fence=?2 AND state='running'",
-               "ti", id, fence);
+               "UPDATE jobs SET state=IIF(cancel_requested, 'cancelled', 'queued'), finished=IIF(cancel_requested, ?3,"
+               " finished), progress=0, attempts=MAX(attempts-1,0), lease_until=0 WHERE id=?1 AND fence=?2 AND"
+               " state='running'",
+               "tid", id, fence, wall_now());
 }
 
 static enum store_cancel sq_cancel(struct store *s, const char *id, const char *owner, double now)
@@ -386,15 +390,12 @@ static int sq_reap(struct store *s, double now, const char *node, int max_attemp
     pthread_mutex_lock(lock_of(s));
     sqlite3_stmt *st;
     size_t n = 0, cap = 0;
-    struct {
-        char id[40];
-        long fence;
-        int attempts;
-    } *c = NULL;
+    struct reaped *c = NULL;
     int rc = SQLITE_ERROR;
     if (sqlite3_prepare_v2(db_of(s),
-                           "SELECT id, fence, attempts FROM jobs WHERE state='running' AND (lease_until<?1 OR node=?2)"
-                           " ORDER BY created", -1, &st, NULL) == SQLITE_OK) {
+                           "SELECT id, fence, attempts, cancel_requested, count(*) OVER (PARTITION BY node) FROM jobs"
+                           " WHERE state='running' AND (lease_until<?1 OR node=?2) ORDER BY created", -1, &st,
+                           NULL) == SQLITE_OK) {
         sqlite3_bind_double(st, 1, now);
         node ? sqlite3_bind_text(st, 2, node, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 2);
         while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
@@ -409,6 +410,8 @@ static int sq_reap(struct store *s, double now, const char *node, int max_attemp
             copy_text(c[n].id, sizeof c[n].id, st, 0);
             c[n].fence = (long)sqlite3_column_int64(st, 1);
             c[n].attempts = sqlite3_column_int(st, 2);
+            c[n].cancelled = sqlite3_column_int(st, 3) != 0;
+            c[n].beside = sqlite3_column_int(st, 4) - 1;
             n++;
         }
         sqlite3_finalize(st);
@@ -416,18 +419,19 @@ static int sq_reap(struct store *s, double now, const char *node, int max_attemp
     pthread_mutex_unlock(lock_of(s));
     int reaped = rc == SQLITE_DONE ? 0 : -1;
     for (size_t k = 0; k < n; k++) {
-        int attempts = c[k].attempts;
-        bool fail = attempts >= max_attempts;
+        enum job_state to = store_reaped_state(&c[k], max_attempts);
         double t = wall_now();
-        int done = fail ? run(s, "UPDATE jobs SET state='failed', finished=?1, error=?2, lease_until=0 WHERE id=?3 AND"
-                                 " fence=?4 AND state='running'", "dtti", t, give_up, c[k].id, c[k].fence)
-                        : run(s, "UPDATE jobs SET state='queued', progress=0, lease_until=0, not_before=?1 WHERE id=?2"
-                                 " AND fence=?3 AND state='running'", "dti", t + STORE_BACKOFF_S(attempts), c[k].id,
-                              c[k].fence);
+        int done = to == JOB_QUEUED
+                       ? run(s, "UPDATE jobs SET state='queued', progress=0, lease_until=0, not_before=?1,"
+                                " attempts=attempts-?2, suspect=1 WHERE id=?3 AND fence=?4 AND state='running'",
+                             "diti", t + STORE_BACKOFF_S(c[k].attempts), (long)(c[k].beside > 0), c[k].id, c[k].fence)
+                       : run(s, "UPDATE jobs SET state=?1, finished=?2, error=?3, lease_until=0 WHERE id=?4 AND"
+                                " fence=?5 AND state='running'",
+                             "tdtti", job_state_name(to), t, to == JOB_FAILED ? give_up : NULL, c[k].id, c[k].fence);
         if (done == 1 && reaped >= 0)
             reaped++;
         if (done == 1 && fn)
-            fn(c[k].id, fail ? JOB_FAILED : JOB_QUEUED, arg);
+            fn(c[k].id, to, arg);
     }
     free(c);
     return reaped;

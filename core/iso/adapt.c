@@ -5,6 +5,7 @@
 #include "cube.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -24,6 +25,9 @@ struct piece {
     uint32_t *owner;                   /* each triangle's level-2 block (the cell <-> triangle map) */
     size_t ocap;
     uint32_t block;                    /* the block whose cells are being drawn */
+    atomic_size_t *tri_total;          /* the slabs' triangles together, by TRI_CHUNK (NULL: uncounted) */
+    size_t tri_limit;                  /* ... the opts' max_triangles */
+    bool over;                         /* stopped at tri_limit (with nomem) */
     bool nomem;
     long cells[ISO_MAX_LEVELS + 1];
     long feature_points;
@@ -51,6 +55,7 @@ struct iso_adapt {
     double slab_max[ADAPT_SLABS];      /* the largest error a merge accepted, by slab */
     float slab_min[ADAPT_SLABS];       /* the least sample, by slab (the first phase's) */
     struct piece pieces[ADAPT_SLABS];
+    atomic_size_t tri_total;           /* the pieces' triangles, counted as they grow */
     /* opts keep: what local rebuilds need (iso_adapt_keep, iso_adapt_edit) */
     double *berr[ISO_MAX_LEVELS + 1];  /* [l][block]: the error its merge accepted */
     uint8_t *bcells, *bfeat;           /* [level-2 block]: the cells it drew, their feature points */
@@ -956,11 +961,20 @@ static bool hides_crossings(const struct iso_adapt *a, const int o[3], int s)
     return false;
 }
 
+/* Triangles a piece adds to the shared count at a time: the count runs ahead of the pieces by at
+ * most this each, so a surface stops within ADAPT_SLABS TRI_CHUNK triangles of the limit. */
+#define TRI_CHUNK 4096
+
 static void add_triangle(struct piece *pc, long p, long q, long r)
 {
     if (p < 0 || q < 0 || r < 0)
         return;
     size_t t = pc->m.n_tri;
+    if (pc->tri_total && t % TRI_CHUNK == 0 &&
+        atomic_fetch_add(pc->tri_total, TRI_CHUNK) + TRI_CHUNK > pc->tri_limit + ADAPT_SLABS * TRI_CHUNK) {
+        pc->over = pc->nomem = true;
+        return;
+    }
     if (mem_reserve((void **)&pc->m.tri, &pc->tcap, 3 * (t + 1), sizeof(uint32_t)) ||
         mem_reserve((void **)&pc->owner, &pc->ocap, t + 1, sizeof(uint32_t))) {
         pc->nomem = true;
@@ -1903,6 +1917,8 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
     a->sharp = o->sharp;
     a->field = o->field, a->field_ctx = o->field_ctx;
     a->max_err = levels == 1 ? -1 : max_error; /* levels 1: nothing merges */
+    for (int k = 0; o->max_triangles && k < ADAPT_SLABS; k++)
+        a->pieces[k].tri_total = &a->tri_total, a->pieces[k].tri_limit = o->max_triangles;
     a->L = levels < 2 ? 2 : levels;
     int nn[3] = {g->nx, g->ny, g->nz};
     for (int d = 0; d < 3; d++) {
@@ -2049,6 +2065,10 @@ static int merge_pieces(struct iso_adapt *a, struct iso_adapt_stats *st)
 
 static int mesh_failed(const struct iso_adapt *a, struct sf_err *err)
 {
+    for (int k = 0; k < ADAPT_SLABS; k++)
+        if (a->pieces[k].over)
+            return sf_fail(err, SF_ELIMIT, "", "the isosurface would have over %zu triangles, this node's "
+                           "max-triangles", a->pieces[k].tri_limit);
     return sf_fail(err, a->all.m.n_vert >= ISO_MAX_VERTICES ? SF_ELIMIT : SF_ENOMEM, "",
                    "the mesh would take more memory than there is (or over %u vertices)", ISO_MAX_VERTICES);
 }

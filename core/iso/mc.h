@@ -55,6 +55,8 @@ struct iso_opts {
     double (*field)(const void *ctx, const double p[3], double g[3]);
     const void *field_ctx;
     bool keep;               /* adapt.c keeps what local rebuilds need (iso_adapt_keep) */
+    size_t max_triangles;    /* 0: none; a surface of more is SF_ELIMIT, found before its mesh is allocated
+                              * (iso_layout) or while its pieces grow (adapt.c), never after */
 };
 
 struct iso_job;
@@ -70,7 +72,7 @@ int iso_n_slabs(const struct iso_job *j);
 /* Pass 1: counts slab s's vertices and triangles. */
 void iso_count(struct iso_job *j, int s);
 /* Between the passes, on one thread: places every row's output. 0, or SF_ELIMIT (over
- * ISO_MAX_VERTICES), SF_ENOMEM. */
+ * ISO_MAX_VERTICES or the options' max_triangles: nothing of the mesh allocated), SF_ENOMEM. */
 int iso_layout(struct iso_job *j, struct sf_err *err);
 /* Pass 2: writes slab s's vertices and triangles. */
 void iso_emit(struct iso_job *j, int s);

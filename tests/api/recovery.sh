@@ -1,0 +1,71 @@
+#!/bin/sh
+# Black-box regression tests of issue 48's findings 3, 9 and 2 (isosurfaces): the job that stops
+# the service is blamed, not the innocent one running beside it (a kill -9 stands for the kernel's
+# OOM killer: it strikes whenever the poison job runs); a job cancelled before a stop is not run
+# again; and a field whose surface is over max-triangles fails alone with a 422, before its mesh.
+. "$(dirname "$0")/lib.inc"
+
+RAW='Content-Type: application/octet-stream'
+field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1])).get(sys.argv[2], ''))" "$T/body" "$1"; }
+state_of() { curl -s "$URL/jobs/$1" | python3 -c "import json,sys; d=json.load(sys.stdin); print(d['state'], d.get('attempts', ''))"; }
+# a striped field: every cell holds surface (N^3 samples, 4 N^3 triangles or so)
+checker() {
+    python3 -c "
+import sys
+n = int(sys.argv[1])
+a = bytes((i % 2) * 200 for i in range(n)); b = bytes(((i + 1) % 2) * 200 for i in range(n))
+sys.stdout.buffer.write(b''.join(a if (y + z) % 2 == 0 else b for z in range(n) for y in range(n)))" "$1" >"$2"
+}
+checker 96 "$T/c96.raw"
+
+# ---- 3: blame the right job after a crash ----------------------------------------------------------
+start_daemon "$T/d1" --threads 2 --max-attempts 2 || exit 1
+status POST "/isosurface?dims=96,96,96&type=uint8&iso=100" -H 'Prefer: respond-async' -H "$RAW" --data-binary @"$T/c96.raw" >/dev/null
+innocent=$(header X-Job-Id)
+status POST "/isosurface?dims=96,96,96&type=uint8&iso=50" -H 'Prefer: respond-async' -H "$RAW" --data-binary @"$T/c96.raw" >/dev/null
+poison=$(header X-Job-Id)
+# the killer: whenever the poison runs (beside the innocent the first time), kill -9, and start again
+kills=0; beside=0
+for round in $(seq 8); do
+    for _ in $(seq 600); do
+        s=$(state_of "$poison"); i=$(state_of "$innocent")
+        case "$s" in running*) break ;; failed* | succeeded*) break ;; esac
+        sleep 0.05
+    done
+    case "$s" in running*) ;; *) break ;; esac
+    case "$i" in running*) beside=$((beside + 1)) ;; esac
+    kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""; kills=$((kills + 1))
+    start_daemon "$T/d1" --threads 2 --max-attempts 2 || exit 1
+done
+check "the poison ran beside the innocent when it first took the service down" '[ "$beside" -ge 1 ]'
+check "... after the restarts, the innocent succeeded (it was failed after 2 stops)" 'wait_state "$innocent" succeeded 120'
+check "... and the poison failed alone, charged with its own stops" 'wait_state "$poison" failed 30 && [ "$(status GET "/jobs/$poison/result")" = 500 ] && grep -q "stopped the service 2 times" "$T/body"'
+check "... after $kills kills, each restart logged the suspects running alone" 'grep -q "runs alone: it was running when the service last stopped" "$T/all.log" "$T/daemon.log"'
+
+# ---- 9: a job cancelled before the service stops is not run again ----------------------------------
+status POST "/isosurface?dims=96,96,96&type=uint8&iso=100&levels=2" -H 'Prefer: respond-async' -H "$RAW" --data-binary @"$T/c96.raw" >/dev/null
+long=$(header X-Job-Id)
+for _ in $(seq 200); do state_of "$long" | grep -q running && break; sleep 0.05; done
+# the cancel reaches the store (cancel_requested), then the node is killed before the job stops
+status POST "/jobs/$long/cancel" >/dev/null
+kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""
+start_daemon "$T/d1" --threads 2 --max-attempts 2 || exit 1
+check "a job cancelled, then kill -9: cancelled at the restart, not queued again" 'wait_state "$long" cancelled 10 && grep -q "was cancelled before the service stopped" "$T/daemon.log"'
+stop_daemon
+
+# ---- 2: over max-triangles: a 422 before the mesh is made, for either extraction --------------------
+start_daemon "$T/d2" --threads 2 --max-triangles 100000 || exit 1
+for q in "" "&levels=2"; do
+    code=$(status POST "/isosurface?dims=96,96,96&type=uint8&iso=100$q" -H "$RAW" --data-binary @"$T/c96.raw")
+    check "a striped field of 3.5 M triangles, max-triangles 100 000 [${q:-levels=1}]: 422 naming the cap" '[ "$code" = 422 ] && is_problem 422 && grep -q "max-triangles" "$T/body"'
+done
+python3 -c "
+import struct, sys
+n = 24
+v = [200 if (x-12)**2 + (y-12)**2 + (z-12)**2 < 64 else 0 for z in range(n) for y in range(n) for x in range(n)]
+sys.stdout.buffer.write(struct.pack('<%dh' % len(v), *v))" >"$T/ball.raw"
+code=$(status POST "/isosurface?dims=24,24,24&type=int16&iso=100" -H "$RAW" --data-binary @"$T/ball.raw")
+check "... a ball under the cap is made as ever" '[ "$code" = 201 ] && [ "$(field boundary_edges)" = 0 ]'
+check "the daemon is up" 'alive'
+
+finish
