@@ -15,7 +15,11 @@
  * cells this does not keep: their edits write the samples and draw every cell again (whole).
  * An FRep model is edited by an object ({op, object, alpha}): its latest tree (the last part) is
  * combined with it and extracted again, every cell (an R-function of alpha < 1 moves every
- * sample); the new request is stored as the next part. */
+ * sample); the new request is stored as the next part.
+ *
+ * An edit is applied once: its part carries its job's id (job=ID among the part's options), and a
+ * job run again after a crash that came between its part's store and its end finds its part and
+ * answers with the model as it is, so that it does not undo edits answered after it. */
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -27,6 +31,7 @@
 #include "../api/iso_json.h"
 #include "../api/mesh_io.h"
 #include "../api/query.h"
+#include "log.h"
 #include "../api/volume_io.h"
 #include "kinds.h"
 
@@ -345,6 +350,33 @@ struct edit_work {
     struct sf_err err;
 };
 
+/* Whether the job's edit is among the model's stored parts (a run before a crash stored it): 1
+ * (the model's resource then into w->json), 0, or -1 with w->err. */
+static int applied_before(struct edit_work *w, const char *model)
+{
+    struct volume_rec *parts;
+    int n, found = store_volume_get(w->svc->store, model, 1, &parts, &n), was = 0;
+    if (found < 0)
+        return sf_fail(&w->err, SF_EIO, "", "the model's edits could not be read from the store"), -1;
+    for (int k = 0; found == 1 && k < n && !was; k++) {
+        char job[40] = "";
+        query_option(parts[k].options, "job", job, sizeof job);
+        was = !strcmp(job, w->claim.id);
+    }
+    store_volume_free(parts, found == 1 ? n : 0);
+    if (was && store_model_get(w->svc->store, model, NULL, &w->json, NULL, NULL) != 1)
+        return sf_fail(&w->err, SF_EIO, "", "the model could not be read from the store"), -1;
+    if (was)
+        LOG(LOG_INFO, "job %s: its edit was stored before the service stopped; not applied again", w->claim.id);
+    return was;
+}
+
+/* A part's options: the request's and the job's id (applied_before). */
+static void part_options(const char *options, const char *job, char *out, size_t cap)
+{
+    snprintf(out, cap, "%s%sjob=%s", options, options[0] ? "&" : "", job);
+}
+
 /* The mesh m of model id's volume v measured, packed and stored as the model's next part (seq:
  * its format, options and data), the resource into w->json with edit me. */
 static int store_edit(struct edit_work *w, const char *id, const struct volume *v, struct trimesh *m,
@@ -410,7 +442,9 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     if (!e->a)
         me.ms = (t_mesh - ta) * 1e3; /* (marching cubes: every cell drawn again) */
     if (!rc) {
-        struct volume_rec part = {e->next_seq, "edit", rec->options, rec->request, rec->request_len};
+        char opts[sizeof rec->options + 48];
+        part_options(rec->options, w->claim.id, opts, sizeof opts);
+        struct volume_rec part = {e->next_seq, "edit", opts, rec->request, rec->request_len};
         if (!(rc = store_edit(w, model, &e->vol, &m, e->a ? &ast : NULL, &me, &part, t0, t_mesh)))
             e->next_seq++, *drop = false;
     }
@@ -447,7 +481,9 @@ static int edit_frep(struct edit_work *w, const struct job_rec *rec, const char 
         double t_mesh = monotonic_s();
         me.e = (struct iso_edit){(long)(v.g.nx + 1) * (v.g.ny + 1) * (v.g.nz + 1), 0, (long)m.n_tri, true};
         me.ms = (t_mesh - t0) * 1e3;
-        struct volume_rec part = {n, "frep", parts[0].options, req, strlen(req)};
+        char opts[600];
+        part_options(parts[0].options, w->claim.id, opts, sizeof opts);
+        struct volume_rec part = {n, "frep", opts, req, strlen(req)};
         rc = store_edit(w, id, &v, &m, volume_adaptive(&v) ? &ast : NULL, &me, &part, t0, t_mesh);
     }
     trimesh_free(&m);
@@ -467,6 +503,15 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
     char model[40];
     query_option(rec.options, "model", model, sizeof model);
+    int was = applied_before(w, model);
+    if (was) {
+        if (was == 1) {
+            w->len = strlen(w->json);
+            snprintf(w->meta, sizeof w->meta, "{\"status\":200}");
+        }
+        store_rec_free(&rec);
+        return was == 1 ? 0 : -1;
+    }
     if (!strcmp(rec.format, "json")) {
         int rc = edit_frep(w, &rec, model);
         if (!rc) {

@@ -51,6 +51,27 @@ status POST "/jobs/$long/cancel" >/dev/null
 kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""
 start_daemon "$T/d1" --threads 2 --max-attempts 2 || exit 1
 check "a job cancelled, then kill -9: cancelled at the restart, not queued again" 'wait_state "$long" cancelled 10 && grep -q "was cancelled before the service stopped" "$T/daemon.log"'
+
+# ---- 10a: an edit is applied once, even when its job runs again after a crash --------------------
+# the state a kill -9 leaves between an edit's store and its job's end, made with sqlite3 while the
+# daemon is stopped: the edit stored, its job still running on a node that is gone
+python3 -c "
+import struct, sys
+n = 24
+v = [200 if (x-12)**2 + (y-12)**2 + (z-12)**2 < 64 else 0 for z in range(n) for y in range(n) for x in range(n)]
+sys.stdout.buffer.write(struct.pack('<%dh' % len(v), *v))" >"$T/ball.raw"
+python3 -c "import struct, sys; sys.stdout.buffer.write(struct.pack('<512h', *([300] * 512)))" >"$T/cube.raw"
+python3 -c "import struct, sys; sys.stdout.buffer.write(struct.pack('<512h', *([0] * 512)))" >"$T/hole.raw"
+status POST "/isosurface?dims=24,24,24&type=int16&iso=100" -H "$RAW" --data-binary @"$T/ball.raw" >/dev/null; mdl=$(field id)
+status POST "/models/$mdl/edit?region=2,2,2,8,8,8" -H "$RAW" --data-binary @"$T/cube.raw" >/dev/null; a=$(header X-Job-Id)
+check "edit A (a cube of bone): edits 1" '[ -n "$a" ] && [ "$(field edits)" = 1 ]'
+stop_daemon
+sqlite3 "$T/d1/surfd.db" "UPDATE jobs SET state='running', node='gone', lease_until=0, finished=0 WHERE id='$a'"
+start_daemon "$T/d1" --threads 2 --max-attempts 2 || exit 1
+code=$(status POST "/models/$mdl/edit?region=2,2,2,8,8,8" -H "$RAW" --data-binary @"$T/hole.raw"); bvol=$(field volume_mm3)
+check "edit B of the same region, answered after the restart: edits 2" '[ "$code" = 200 ] && [ "$(field edits)" = 2 ]'
+check "A, run again after the restart, succeeds ..." 'wait_state "$a" succeeded 30'
+check "... without being applied again (edits stay 2, B's surface stays: it undid B)" '[ "$(status GET "/models/$mdl")" = 200 ] && [ "$(field edits)" = 2 ] && [ "$(field volume_mm3)" = "$bvol" ] && grep -q "not applied again" "$T/daemon.log"'
 stop_daemon
 
 # ---- 2: over max-triangles: a 422 before the mesh is made, for either extraction --------------------
@@ -59,11 +80,6 @@ for q in "" "&levels=2"; do
     code=$(status POST "/isosurface?dims=96,96,96&type=uint8&iso=100$q" -H "$RAW" --data-binary @"$T/c96.raw")
     check "a striped field of 3.5 M triangles, max-triangles 100 000 [${q:-levels=1}]: 422 naming the cap" '[ "$code" = 422 ] && is_problem 422 && grep -q "max-triangles" "$T/body"'
 done
-python3 -c "
-import struct, sys
-n = 24
-v = [200 if (x-12)**2 + (y-12)**2 + (z-12)**2 < 64 else 0 for z in range(n) for y in range(n) for x in range(n)]
-sys.stdout.buffer.write(struct.pack('<%dh' % len(v), *v))" >"$T/ball.raw"
 code=$(status POST "/isosurface?dims=24,24,24&type=int16&iso=100" -H "$RAW" --data-binary @"$T/ball.raw")
 check "... a ball under the cap is made as ever" '[ "$code" = 201 ] && [ "$(field boundary_edges)" = 0 ]'
 check "the daemon is up" 'alive'
