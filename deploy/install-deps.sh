@@ -1,15 +1,15 @@
 #!/bin/sh
 # Installs the Debian packages surfd builds, tests and benchmarks with. Idempotent: asks apt only
 # for what is missing, so `make run` and CI on a fresh machine call it unconditionally.
-# Usage: deploy/install-deps.sh [--bench]   (--bench adds the reference tools: povray, wrk, plastimatch, VTK)
+# Usage: deploy/install-deps.sh [--bench]   (--bench adds the reference tools: povray, wrk, plastimatch, numpy)
 # npm (the machine's, or Debian's when there is none) installs the OpenAPI linter the tests use.
 set -eu
 
 BUILD="build-essential pkg-config libembree-dev libopenimageio-dev libmicrohttpd-dev libjansson-dev \
 libsqlite3-dev libpq-dev postgresql zlib1g-dev libcurl4-openssl-dev libdcmtk-dev libgnutls28-dev curl openssl python3 clang libclang-rt-14-dev \
-chromium prometheus lintian dicom3tools \
-libocct-data-exchange-dev libocct-modeling-algorithms-dev" # for the tests: the page in a headless browser, promtool on /metrics, make deb, exported RT Structure Sets, Open CASCADE as the IGES oracle
-BENCH="povray wrk plastimatch python3-vtk9 python3-numpy"
+chromium prometheus lintian dicom3tools python3-vtk9 \
+libocct-data-exchange-dev libocct-modeling-algorithms-dev" # for the tests: the page in a headless browser, promtool on /metrics, make deb, exported RT Structure Sets, VTK reading our VTP/VTK meshes, Open CASCADE as the IGES oracle
+BENCH="povray wrk plastimatch python3-numpy"
 
 want="$BUILD"
 [ "${1:-}" = "--bench" ] && want="$want $BENCH"
