@@ -9,11 +9,13 @@ int cmd_render(int argc, char **argv);
 int cmd_serve(int argc, char **argv);
 int cmd_volume(int argc, char **argv);
 int cmd_isosurface(int argc, char **argv);
+int cmd_store(int argc, char **argv);
 /* Their usage texts (`surfd CMD --help` prints one on stdout and exits 0). */
 void cmd_render_usage(FILE *f);
 void cmd_serve_usage(FILE *f);
 void cmd_volume_usage(FILE *f);
 void cmd_isosurface_usage(FILE *f);
+void cmd_store_usage(FILE *f);
 
 #include <stddef.h>
 /* A whole file (NUL-terminated, caller frees), or NULL after saying why on stderr. Files up to

@@ -55,6 +55,12 @@ static void recovered(const char *id, enum job_state state, void *arg)
         LOG(LOG_INFO, "recovered job %s (to run alone)", id);
 }
 
+static void log_finding(const char *line, void *arg)
+{
+    (void)arg;
+    LOG(LOG_ERROR, "store check: %s", line);
+}
+
 /* Seconds a running job has to stop once the drain timeout has passed and it has been cancelled. */
 #define DRAIN_GRACE_S 5.0
 
@@ -106,6 +112,15 @@ int cmd_serve(int argc, char **argv)
     if (store_open(svc.cfg.store[0] ? svc.cfg.store : svc.cfg.data_dir, svc.cfg.data_dir, &svc.store, msg, sizeof msg)) {
         fprintf(stderr, "surfd serve: store: %s\n", msg);
         goto out_free_tokens;
+    }
+    /* a damaged store is not served: its pages and every job's and model's JSON are checked first */
+    int checked = store_check(svc.store, false, log_finding, NULL);
+    if (checked) {
+        if (checked > 0)
+            LOG(LOG_ERROR, "the store in %s is damaged: not starting (surfd store check lists what; restore a backup)",
+                svc.cfg.store[0] ? "the database" : svc.cfg.data_dir);
+        fprintf(stderr, "surfd serve: the store is %s\n", checked > 0 ? "damaged (see the log)" : "not readable");
+        goto out_close_store;
     }
     if (!(svc.dev = bvh_device_new((int)threads, &err))) {
         fprintf(stderr, "surfd serve: %s\n", err.message);

@@ -1,5 +1,5 @@
 /* main.c - build/surfd: dispatches to its subcommands (serve, render, model, volume, isosurface,
- * matrix); `surfd --help` and `surfd CMD --help` print the usage on stdout and exit 0. */
+ * matrix, store); `surfd --help` and `surfd CMD --help` print the usage on stdout and exit 0. */
 #include <stdio.h>
 #include <string.h>
 
@@ -17,6 +17,7 @@ static const struct command {
     {"serve", cmd_serve, cmd_serve_usage},           {"render", cmd_render, cmd_render_usage},
     {"model", cmd_volume, cmd_volume_usage},         {"volume", cmd_volume, cmd_volume_usage},
     {"isosurface", cmd_isosurface, cmd_isosurface_usage}, {"matrix", cmd_isosurface, cmd_isosurface_usage},
+    {"store", cmd_store, cmd_store_usage},
 };
 
 static void usage(FILE *f)
@@ -26,6 +27,7 @@ static void usage(FILE *f)
                "       surfd model|volume CONTOURS.json|RTSTRUCT.dcm|MATRIX.json [options]\n"
                "       surfd isosurface VOLUME --iso V [options]\n"
                "       surfd matrix VOLUME --iso V [options] [-o OUT.json]\n"
+               "       surfd store check [--data-dir DIR | --store URI]\n"
                "       surfd --version\n"
                "each command's options: surfd COMMAND --help\n");
 }

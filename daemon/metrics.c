@@ -25,8 +25,8 @@ void metrics_store_error(void) { atomic_fetch_add(&store_errors, 1); }
 static atomic_long connections_shut;
 void metrics_connection_shut(void) { atomic_fetch_add(&connections_shut, 1); }
 
-static atomic_long store_damaged;
-void metrics_store_damaged(void) { atomic_fetch_add(&store_damaged, 1); }
+static atomic_long damaged_reads;
+void metrics_store_damaged(void) { atomic_fetch_add(&damaged_reads, 1); }
 static atomic_long mesh_lookups[2]; /* misses, hits */
 void metrics_mesh_cache(bool hit) { atomic_fetch_add(&mesh_lookups[hit], 1); }
 static atomic_long frame_lookups[2];
@@ -116,7 +116,7 @@ char *metrics_text(struct service *svc)
     OUT("# HELP surfd_frame_cache_bytes Bytes of stored models' prepared hierarchies kept in memory (frame-cache "
         "bounds them).\n# TYPE surfd_frame_cache_bytes gauge\nsurfd_frame_cache_bytes %zu\n", frames_bytes(svc));
     OUT("# HELP surfd_store_damaged_total Stored results or models refused: their checksum did not match.\n"
-        "# TYPE surfd_store_damaged_total counter\nsurfd_store_damaged_total %ld\n", atomic_load(&store_damaged));
+        "# TYPE surfd_store_damaged_total counter\nsurfd_store_damaged_total %ld\n", atomic_load(&damaged_reads));
     OUT("# HELP surfd_jobs_stranded Jobs whose end the store refused, kept to run again.\n"
         "# TYPE surfd_jobs_stranded gauge\nsurfd_jobs_stranded %d\n", service_n_stranded(svc));
 #undef OUT

@@ -167,7 +167,8 @@ static enum MHD_Result damaged_or_failed(struct req *r, int found)
     if (found != STORE_DAMAGED)
         return problem(r, 500, "the store failed", NULL);
     metrics_store_damaged();
-    LOG(LOG_ERROR, "%s: the stored bytes do not match their checksum; not served", r->path);
+    LOG(LOG_ERROR, "%s: the store is damaged (bytes that do not match their checksum, or a page SQLite cannot read): not "
+                  "served; /readyz is 503 until the operator has run surfd store check and restarted", r->path);
     return problem(r, 500, "the stored data is damaged (its checksum does not match); it is not served", NULL);
 }
 
@@ -355,10 +356,10 @@ static enum MHD_Result job_list(struct req *r)
         free(c.recs);
         return problem(r, 500, "out of memory", NULL);
     }
-    store_list(r->svc->store, name ? &state : NULL, scope(r), LIST_MAX, collect, &c);
+    int listed = store_list(r->svc->store, name ? &state : NULL, scope(r), LIST_MAX, collect, &c);
     for (int k = 0; k < c.n; k++)
         c.v[k] = view_of(r->svc, &c.recs[k]);
-    enum MHD_Result ok = json_reply(r, 200, job_list_json(c.v, c.n), NULL);
+    enum MHD_Result ok = listed ? damaged_or_failed(r, listed) : json_reply(r, 200, job_list_json(c.v, c.n), NULL);
     for (int k = 0; k < c.n; k++)
         free(c.recs[k].error);
     free(c.v);
@@ -543,9 +544,10 @@ static enum MHD_Result model_list(struct req *r)
 {
     struct model_list l = {0};
     list_put(&l, "{\"models\":[");
-    if (store_model_list(r->svc->store, scope(r), 1000, add_resource, &l) || l.failed) {
+    int listed = store_model_list(r->svc->store, scope(r), 1000, add_resource, &l);
+    if (listed || l.failed) {
         free(l.buf);
-        return problem(r, 500, l.failed ? "out of memory" : "the store failed", NULL);
+        return listed ? damaged_or_failed(r, listed) : problem(r, 500, "out of memory", NULL);
     }
     list_put(&l, "]}");
     return json_reply(r, 200, l.buf, NULL);
@@ -730,6 +732,8 @@ static enum MHD_Result readyz(struct req *r, const char *id)
     (void)id;
     if (atomic_load(&r->svc->draining))
         return problem(r, 503, "draining", NULL);
+    if (store_damaged(r->svc->store))
+        return problem(r, 503, "the store is damaged (see the log, and surfd store check)", NULL);
     return store_writable(r->svc->store) ? text(r, 200, "text/plain", "ready\n")
                                           : problem(r, 503, "the store is not writable", NULL);
 }

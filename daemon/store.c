@@ -79,10 +79,19 @@ int store_prune(struct store *s, double now, long ttl, long max_count)
     return s->ops->prune(s, now, ttl, max_count);
 }
 
+/* A read's answer, noted: damage makes the store not ready (store_writable) until the operator
+ * has looked (store_check) and restarted. */
+static int noted(struct store *s, int rc)
+{
+    if (rc == STORE_DAMAGED)
+        atomic_store(&s->damaged, true);
+    return rc;
+}
+
 int store_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out)
 {
     memset(out, 0, sizeof *out);
-    return s->ops->get(s, id, with_request, with_result, out);
+    return noted(s, s->ops->get(s, id, with_request, with_result, out));
 }
 
 void store_rec_free(struct job_rec *r)
@@ -100,7 +109,7 @@ void store_rec_free(struct job_rec *r)
 int store_list(struct store *s, const enum job_state *state, const char *owner, long limit,
                void (*fn)(const struct job_rec *, void *), void *arg)
 {
-    return s->ops->list(s, state, owner, limit, fn, arg);
+    return noted(s, s->ops->list(s, state, owner, limit, fn, arg));
 }
 
 long store_queued(struct store *s) { return s->ops->queued(s); }
@@ -114,12 +123,12 @@ int store_model_get(struct store *s, const char *id, const char *owner, char **r
         *resource = NULL;
     if (source)
         *source = NULL;
-    return s->ops->model_get(s, id, owner, resource, source, source_len);
+    return noted(s, s->ops->model_get(s, id, owner, resource, source, source_len));
 }
 
 int store_model_list(struct store *s, const char *owner, long limit, void (*fn)(const char *, void *), void *arg)
 {
-    return s->ops->model_list(s, owner, limit, fn, arg);
+    return noted(s, s->ops->model_list(s, owner, limit, fn, arg));
 }
 
 int store_model_delete(struct store *s, const char *id, const char *owner)
@@ -170,7 +179,7 @@ int store_volume_get(struct store *s, const char *id, int from, struct volume_re
 {
     *parts = NULL;
     *n = 0;
-    return s->ops->volume_get(s, id, from, parts, n);
+    return noted(s, s->ops->volume_get(s, id, from, parts, n));
 }
 
 void store_volume_free(struct volume_rec *parts, int n)
@@ -201,7 +210,21 @@ int store_volume_add(struct volume_rec **parts, int *n, int seq, const char *for
     return 0;
 }
 
-bool store_writable(struct store *s) { return s->ops->writable(s); }
+bool store_writable(struct store *s) { return !atomic_load(&s->damaged) && s->ops->writable(s); }
+
+bool store_damaged(struct store *s) { return atomic_load(&s->damaged); }
+
+int store_check(struct store *s, bool deep, void (*report)(const char *line, void *), void *arg)
+{
+    if (!s->ops->check) {
+        report("this store is checked by its own tools (PostgreSQL: pg_amcheck)", arg);
+        return 0;
+    }
+    int rc = s->ops->check(s, deep, report, arg);
+    if (rc == 1)
+        atomic_store(&s->damaged, true);
+    return rc;
+}
 
 void store_on_event(struct store *s, void (*fn)(enum store_event, const char *, void *), void *arg)
 {

@@ -222,8 +222,14 @@ void store_mesh_free(struct mesh_rec *m);
 enum store_event { STORE_QUEUED, STORE_ENDED, STORE_CANCEL };
 void store_on_event(struct store *s, void (*fn)(enum store_event ev, const char *id, void *arg), void *arg);
 
-/* A write succeeds (for /readyz). */
+/* A write succeeds and no read has found damage (for /readyz). */
 bool store_writable(struct store *s);
+/* Whether a read has found damage (bytes that do not match their sums, or the database's own). */
+bool store_damaged(struct store *s);
+/* Checks the database's pages and the sums of every job's and model's JSON (deep: of every stored
+ * byte too: results, models' sources, volumes), reporting each finding as a line: 0 sound, 1
+ * damaged (the store is then not ready), -1 the check could not run. */
+int store_check(struct store *s, bool deep, void (*report)(const char *line, void *), void *arg);
 
 /* SHA-256 of a then b (either may be empty) as 64 hex digits: what a stored result or model is
  * checked against when read back (the databases check their pages, not a blob's bytes). */

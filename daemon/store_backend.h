@@ -4,6 +4,8 @@
 #ifndef SURFD_STORE_BACKEND_H
 #define SURFD_STORE_BACKEND_H
 
+#include <stdatomic.h>
+
 #include "store.h"
 
 struct store_ops {
@@ -37,6 +39,8 @@ struct store_ops {
     long (*mesh_bytes)(struct store *);
     bool (*writable)(struct store *);
     void (*on_event)(struct store *, void (*fn)(enum store_event, const char *, void *), void *arg); /* may be NULL */
+    /* store_check: NULL when the backend leaves it to its own tools (PostgreSQL's). */
+    int (*check)(struct store *, bool deep, void (*report)(const char *line, void *), void *arg);
 };
 
 /* A running job a reap found, with what decides its new state (store_reaped_state). */
@@ -61,6 +65,7 @@ enum job_state store_reaped_state(const struct reaped *r, int max_attempts);
 
 struct store {
     const struct store_ops *ops;
+    atomic_bool damaged;     /* a read found damage (store.c's wrappers): not ready until restarted */
 };
 
 /* One more part for a backend's volume_get (format, options and data copied): 0 or -1. */

@@ -849,17 +849,22 @@ static int pg_model_list(struct store *s, const char *owner, long limit, void (*
     struct param prm[] = {T(owner), T(lim)};
     PGresult *res;
     int n = exec1(s, &res,
-                  "SELECT resource FROM models WHERE $1::text IS NULL OR owner=$1 ORDER BY created DESC, id LIMIT $2::bigint",
+                  "SELECT resource, resource_sum FROM models WHERE $1::text IS NULL OR owner=$1 ORDER BY created DESC, id"
+                  " LIMIT $2::bigint",
                   2, prm);
-    for (int k = 0; k < n; k++) {
-        char *r = dup_text(res, k, 0);
+    bool damaged = false;
+    for (int k = 0; k < n && !damaged; k++) {
+        char sum[65];
+        store_checksum(PQgetvalue(res, k, 0), (size_t)PQgetlength(res, k, 0), "", 0, sum);
+        damaged = !PQgetisnull(res, k, 1) && strcmp(sum, PQgetvalue(res, k, 1));
+        char *r = damaged ? NULL : dup_text(res, k, 0);
         if (r)
             fn(r, arg);
         free(r);
     }
     if (n >= 0)
         PQclear(res);
-    return n < 0 ? -1 : 0;
+    return n < 0 ? -1 : damaged ? STORE_DAMAGED : 0;
 }
 
 static int pg_model_delete(struct store *s, const char *id, const char *owner)
@@ -1013,7 +1018,7 @@ static const struct store_ops PG_OPS = {
     "postgresql", pg_close,     pg_submit,    pg_submit_file, pg_request_file, pg_request_file_done, pg_claim,      pg_heartbeat,    pg_finish,
     pg_release,   pg_cancel,    pg_reap,      pg_prune,      pg_get,          pg_list,
     pg_queued,    pg_model_put, pg_model_get, pg_model_list, pg_model_delete, pg_model_edit, pg_volume_get,
-    pg_mesh_get,  pg_mesh_put,  pg_mesh_bytes, pg_writable,  pg_on_event,
+    pg_mesh_get,  pg_mesh_put,  pg_mesh_bytes, pg_writable,  pg_on_event,  NULL,
 };
 
 int store_pg_open(const char *uri, const char *scratch, struct store **out, char *msg, size_t msg_len)

@@ -524,7 +524,7 @@ static int sq_list(struct store *s, const enum job_state *state, const char *own
             fn(&r, arg);
             store_rec_free(&r);
         }
-        rc = rc == SQLITE_DONE ? 0 : -1;
+        rc = rc == SQLITE_DONE ? 0 : rc == SQLITE_CORRUPT ? STORE_DAMAGED : -1;
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
@@ -707,13 +707,19 @@ static int sq_model_list(struct store *s, const char *owner, long limit, void (*
     int rc = -1;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s),
-                           "SELECT resource FROM models WHERE ?2 IS NULL OR owner=?2 ORDER BY created DESC, id LIMIT ?1",
+                           "SELECT resource, resource_sum FROM models WHERE ?2 IS NULL OR owner=?2 ORDER BY created DESC,"
+                           " id LIMIT ?1",
                            -1, &st, NULL) == SQLITE_OK) {
         sqlite3_bind_int64(st, 1, limit > 0 ? limit : -1);
         owner ? sqlite3_bind_text(st, 2, owner, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 2);
-        while ((rc = sqlite3_step(st)) == SQLITE_ROW)
-            fn((const char *)sqlite3_column_text(st, 0), arg);
-        rc = rc == SQLITE_DONE ? 0 : -1;
+        bool damaged = false;
+        while (!damaged && (rc = sqlite3_step(st)) == SQLITE_ROW) {
+            damaged = sqlite3_column_type(st, 1) != SQLITE_NULL &&
+                      !sum_ok(st, 1, sqlite3_column_text(st, 0), (size_t)sqlite3_column_bytes(st, 0), "", 0);
+            if (!damaged)
+                fn((const char *)sqlite3_column_text(st, 0), arg);
+        }
+        rc = damaged || rc == SQLITE_CORRUPT ? STORE_DAMAGED : rc == SQLITE_DONE ? 0 : -1;
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
@@ -785,6 +791,78 @@ static long sq_mesh_bytes(struct store *s)
     return n;
 }
 
+/* One check's query: each row's bytes (columns data..) against its sum (column sum_col, NULL for
+ * rows written before sums were kept), a line reported for each that does not match. */
+static int check_sums(struct store *s, const char *what, const char *sql, int sum_col, bool two,
+                      void (*report)(const char *, void *), void *arg)
+{
+    sqlite3_stmt *st;
+    int bad = 0, rc = -1;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s), sql, -1, &st, NULL) == SQLITE_OK) {
+        while ((rc = sqlite3_step(st)) == SQLITE_ROW)
+            if (sqlite3_column_type(st, sum_col) != SQLITE_NULL &&
+                !sum_ok(st, sum_col, sqlite3_column_blob(st, 1), (size_t)sqlite3_column_bytes(st, 1),
+                        two ? sqlite3_column_blob(st, 2) : "", two ? (size_t)sqlite3_column_bytes(st, 2) : 0)) {
+                char line[160];
+                snprintf(line, sizeof line, "%s %s: its bytes do not match their sum", what,
+                         (const char *)sqlite3_column_text(st, 0));
+                report(line, arg);
+                bad = 1;
+            }
+        if (rc == SQLITE_CORRUPT) {
+            char line[200];
+            snprintf(line, sizeof line, "%s: the database could not be read: %s", what, sqlite3_errmsg(db_of(s)));
+            report(line, arg);
+        }
+        rc = rc == SQLITE_DONE ? bad : rc == SQLITE_CORRUPT ? 1 : -1;
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return rc;
+}
+
+static int sq_check(struct store *s, bool deep, void (*report)(const char *, void *), void *arg)
+{
+    sqlite3_stmt *st;
+    int rc = -1;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s), "PRAGMA quick_check(20)", -1, &st, NULL) == SQLITE_OK) {
+        rc = 0;
+        int step;
+        while ((step = sqlite3_step(st)) == SQLITE_ROW) {
+            const char *line = (const char *)sqlite3_column_text(st, 0);
+            if (line && strcmp(line, "ok")) {
+                report(line, arg);
+                rc = 1;
+            }
+        }
+        if (step != SQLITE_DONE) {
+            report(sqlite3_errmsg(db_of(s)), arg);
+            rc = step == SQLITE_CORRUPT || step == SQLITE_NOTADB ? 1 : -1;
+        }
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    const struct {
+        const char *what, *sql;
+        int sum_col;
+        bool two, deep;
+    } CHECKS[] = {
+        {"model", "SELECT id, resource, resource_sum FROM models", 2, false, false},
+        {"model", "SELECT id, source, resource, sum FROM models", 3, true, true},
+        {"job result", "SELECT id, result, result_sum FROM jobs WHERE result IS NOT NULL", 2, false, true},
+        {"model volume", "SELECT model || '/' || seq, options, data, sum FROM model_volumes", 3, true, true},
+    };
+    for (size_t k = 0; rc >= 0 && k < sizeof CHECKS / sizeof *CHECKS; k++) {
+        if (CHECKS[k].deep && !deep)
+            continue;
+        int c = check_sums(s, CHECKS[k].what, CHECKS[k].sql, CHECKS[k].sum_col, CHECKS[k].two, report, arg);
+        rc = c < 0 ? -1 : rc | c;
+    }
+    return rc;
+}
+
 static bool sq_writable(struct store *s)
 {
     return run(s, "INSERT INTO probe(x) VALUES(1)", "") == 1 && run(s, "DELETE FROM probe", "") >= 0;
@@ -794,5 +872,5 @@ static const struct store_ops SQLITE_OPS = {
     "sqlite",     sq_close,      sq_submit,    sq_submit_file, sq_request_file, sq_request_file_done, sq_claim,     sq_heartbeat,    sq_finish,
     sq_release,   sq_cancel,     sq_reap,      sq_prune,     sq_get,          sq_list,
     sq_queued,    sq_model_put,  sq_model_get, sq_model_list, sq_model_delete, sq_model_edit, sq_volume_get,
-    sq_mesh_get,  sq_mesh_put,   sq_mesh_bytes, sq_writable,  NULL,
+    sq_mesh_get,  sq_mesh_put,   sq_mesh_bytes, sq_writable,  NULL,         sq_check,
 };

@@ -1,0 +1,54 @@
+#!/bin/sh
+# Black-box regression tests of issue 48's finding 10e: a damaged store is not served as if it
+# were sound. At start the store checks its pages (PRAGMA quick_check) and every model's sums, and
+# refuses to serve on damage with a log line naming what; a read that finds damage while serving
+# answers 500 (not 200 with an empty or altered list) and makes /readyz 503; `surfd store check`
+# is the operator's look (exit 0 sound, 1 damaged), naming each damaged job, model or volume.
+. "$(dirname "$0")/lib.inc"
+
+RAW='Content-Type: application/octet-stream'
+DB="$T/d/surfd.db"
+python3 -c "
+import sys
+sys.stdout.buffer.write(bytes(200 if 2 < x < 6 and 2 < y < 6 and 2 < z < 6 else 0 for z in range(8) for y in range(8) for x in range(8)))" >"$T/cube.raw"
+
+start_daemon "$T/d" || exit 1
+for k in 1 2 3; do
+    status POST "/isosurface?dims=8,8,8&type=uint8&iso=$((90 + k))" -H "$RAW" --data-binary @"$T/cube.raw" >/dev/null
+done
+victim=$(header Location | sed 's,.*/,,')
+stop_daemon
+cp "$DB" "$T/clean.db"
+
+$S store check --data-dir "$T/d" >"$T/out" 2>&1; rc=$?
+check "store check on a sound store: exit 0, 'sound'" '[ "$rc" = 0 ] && grep -q "is sound" "$T/out"'
+
+# a model's resource changed behind the store's back (its sums kept): the service does not start
+sqlite3 "$DB" "UPDATE models SET resource = replace(resource, '\"name\":\"\"', '\"name\":\"altered\"') WHERE id = '$victim'"
+$S store check --data-dir "$T/d" >"$T/out" 2>&1; rc=$?
+check "store check on a model whose bytes do not match their sum: exit 1, naming that model (and only it)" \
+    '[ "$rc" = 1 ] && grep -q "model $victim: its bytes do not match" "$T/out" && [ "$(grep -c "do not match" "$T/out")" = 2 ]'
+$S serve --listen 127.0.0.1:0 --data-dir "$T/d" >"$T/serve.log" 2>&1 & spid=$!
+for _ in $(seq 100); do kill -0 "$spid" 2>/dev/null || break; sleep 0.05; done
+wait "$spid"; rc=$?
+check "... serve refuses to start on it, with a log line naming the model" \
+    '! kill -0 "$spid" 2>/dev/null && [ "$rc" != 0 ] && grep -q "store check: model $victim" "$T/serve.log" && grep -q "is damaged: not starting" "$T/serve.log"'
+
+# a damaged page: the jobs table's root (page 2) overwritten
+cp "$T/clean.db" "$DB"
+printf '\377\377\377\377\377\377\377\377' | dd of="$DB" bs=1 seek=4096 conv=notrunc 2>/dev/null
+$S store check --data-dir "$T/d" >"$T/out" 2>&1; rc=$?
+check "store check on a damaged page: exit 1, SQLite's finding printed" '[ "$rc" = 1 ] && grep -q "Page 2" "$T/out"'
+$S serve --listen 127.0.0.1:0 --data-dir "$T/d" >"$T/serve.log" 2>&1; rc=$?
+check "... serve refuses to start on it" '[ "$rc" != 0 ] && grep -q "is damaged: not starting" "$T/serve.log"'
+
+# damage found while serving: a model altered under the running service
+cp "$T/clean.db" "$DB"
+start_daemon "$T/d" || exit 1
+check "the sound store serves: /readyz 200, three models" '[ "$(status GET /readyz)" = 200 ] && [ "$(status GET /models)" = 200 ] && [ "$(grep -o "\"id\"" "$T/body" | wc -l)" = 3 ]'
+sqlite3 "$DB" "UPDATE models SET resource = replace(resource, '\"name\":\"\"', '\"name\":\"altered\"') WHERE id = '$victim'"
+check "GET /models over an altered model: 500 problem, not the altered bytes" '[ "$(status GET /models)" = 500 ] && is_problem 500 && ! grep -q altered "$T/body"'
+check "GET /models/ID of it: 500, damaged" '[ "$(status GET "/models/$victim")" = 500 ] && grep -qi "damaged" "$T/body"'
+check "... and /readyz is then 503, saying why" '[ "$(status GET /readyz)" = 503 ] && grep -q "store is damaged" "$T/body"'
+check "... the damage is logged" 'grep -qi "damaged" "$T/daemon.log"'
+finish
