@@ -185,6 +185,15 @@ static const char MAGIC[8] = "SFMESH1\n";
 
 bool mesh_is_packed(const char *src, size_t len) { return len >= 32 && !memcmp(src, MAGIC, 8); }
 
+size_t mesh_packed_triangles(const char *src, size_t len)
+{
+    uint64_t nt;
+    if (!mesh_is_packed(src, len))
+        return 0;
+    memcpy(&nt, src + 16, sizeof nt);
+    return nt < SIZE_MAX ? (size_t)nt : SIZE_MAX;
+}
+
 int mesh_pack(const struct trimesh *m, char **out, size_t *len, struct sf_err *err)
 {
     struct out o = {0};

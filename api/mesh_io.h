@@ -18,6 +18,8 @@ int mesh_encode(const struct trimesh *m, const char *format, char **out, size_t 
  * (uint64), then float32 positions, float32 normals, uint32 triangles, little-endian. */
 int mesh_pack(const struct trimesh *m, char **out, size_t *len, struct sf_err *err);
 bool mesh_is_packed(const char *src, size_t len);
+/* The triangles a packed mesh declares (what unpacking it will cost; mesh_unpack checks them). */
+size_t mesh_packed_triangles(const char *src, size_t len);
 /* Reads a packed mesh (checking its counts against its length): 0, or SF_EFORMAT, SF_ENOMEM. */
 int mesh_unpack(const char *src, size_t len, struct trimesh *m, struct sf_err *err);
 

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "json_in.h"
+#include "mesh_io.h"
 #include "model_json.h"
 #include "scene_io.h"
 
@@ -118,6 +119,12 @@ static int model_object(json_t *j, const char *where, const struct model_resolve
     if (!rc && found != 1)
         rc = found == 0 ? sf_fail(err, SF_EINVAL, p, "no stored model has this id")
                         : sf_fail(err, SF_EIO, p, "the store could not be read");
+    size_t tris = rc ? 0 : mesh_packed_triangles(src, len); /* every reference is a copy of its mesh */
+    for (int k = 0; tris && k < sc->n_meshes; k++)
+        tris += sc->meshes[k].m.n_tri;
+    if (!rc && models->max_triangles && tris > models->max_triangles)
+        rc = sf_fail(err, SF_ELIMIT, p, "the scene's stored meshes come to %zu triangles with this one: over this "
+                     "node's %zu (max-triangles)", tris, models->max_triangles);
     if (!rc)
         rc = model_scene_objects(src, len, sc, &mat, where, err);
     free(src);

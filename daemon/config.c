@@ -37,7 +37,7 @@ static const struct setting SETTINGS[] = {
     L("max-body", max_body, 1024, 1L << 30, "67108864", "largest request body in bytes (413 above)"),
     L("max-volume", max_volume, 1024, 1L << 40, "4294967296", "largest volume POST /isosurface takes, in bytes: streamed to the data dir as it arrives, never held in memory"),
     L("edit-memory", edit_memory, 0, 1L << 40, "1073741824", "bytes of memory kept for edits of isosurface models (the hierarchies of the models edited last; 0: rebuilt for every edit)"),
-    L("max-triangles", max_triangles, 1000, 2000000000, "40000000", "triangles of one isosurface at most: more fails the job with a 422 before its mesh is allocated (a mesh costs some 80 bytes a triangle from extraction to the store)"),
+    L("max-triangles", max_triangles, 1000, 2000000000, "40000000", "triangles of one isosurface, or of the stored meshes one scene names, at most: more fails the job with a 422 before its mesh is allocated (a mesh costs some 80 bytes a triangle from extraction to the store)"),
     L("mesh-cache", mesh_cache, 0, 1L << 40, "536870912", "bytes of the store kept for models' meshes, each computed once per format and tolerance (the least recently used dropped beyond; 0: none kept)"),
     L("frame-cache", frame_cache, 0, 1L << 40, "536870912", "bytes of memory kept for stored models' prepared hierarchies, so a repeat view of a model prepares only its camera (the least recently used dropped beyond; 0: none kept)"),
     L("sync-wait", sync_wait, 0, 3600, "60", "seconds a request waits for its job before 202"),

@@ -342,7 +342,7 @@ static int model_source(void *ctx, const char *id, char **src, size_t *len)
 
 struct model_resolver service_models(struct model_scope *scope)
 {
-    return (struct model_resolver){model_source, scope};
+    return (struct model_resolver){model_source, scope, (size_t)scope->svc->cfg.max_triangles};
 }
 
 bool service_poll_job(void *ctx, double done)

@@ -2,7 +2,8 @@
 # Black-box regression tests of issue 48's findings 3, 9 and 2 (isosurfaces): the job that stops
 # the service is blamed, not the innocent one running beside it (a kill -9 stands for the kernel's
 # OOM killer: it strikes whenever the poison job runs); a job cancelled before a stop is not run
-# again; and a field whose surface is over max-triangles fails alone with a 422, before its mesh.
+# again; and a field whose surface is over max-triangles fails alone with a 422, before its mesh,
+# as does a scene whose stored meshes come to more.
 . "$(dirname "$0")/lib.inc"
 
 RAW='Content-Type: application/octet-stream'
@@ -82,6 +83,15 @@ for q in "" "&levels=2"; do
 done
 code=$(status POST "/isosurface?dims=24,24,24&type=int16&iso=100" -H "$RAW" --data-binary @"$T/ball.raw")
 check "... a ball under the cap is made as ever" '[ "$code" = 201 ] && [ "$(field boundary_edges)" = 0 ]'
+ball=$(field id); bt=$(field triangles)
+# a scene names the ball's mesh once a reference: 100 000 / its triangles references fit, one more does not
+fit=$((100000 / bt))
+scene() { python3 -c "import json, sys; print(json.dumps({'objects': [{'type': 'model', 'id': sys.argv[1]}] * int(sys.argv[2])}))" "$ball" "$1" >"$T/scene.json"; }
+scene "$fit"
+check "a scene naming the ball $fit times ($((fit * bt)) triangles): rendered" '[ "$(status POST "/render?width=32&height=32" -H "Content-Type: application/json" --data-binary @"$T/scene.json")" = 200 ]'
+scene 50
+code=$(status POST "/render?width=32&height=32" -H "Content-Type: application/json" --data-binary @"$T/scene.json")
+check "... naming it 50 times: 422 at the reference past the cap, with the figure" '[ "$code" = 422 ] && is_problem 422 && grep -q "\"pointer\":\"/objects/$fit/id\"" "$T/body" && grep -q "max-triangles" "$T/body"'
 check "the daemon is up" 'alive'
 
 finish
