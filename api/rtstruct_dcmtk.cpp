@@ -5,7 +5,7 @@
 // own z (ContourData is x, y, z triples in patient coordinates); a contour whose z varies is not
 // planar and is refused. No other element of the object is read.
 #include "dcmtk_out.h"
-#include "dicom_lengths.h"
+#include "dcmtk_in.h"
 #include "rtstruct.h"
 
 #include <dcmtk/config/osconfig.h>
@@ -23,6 +23,9 @@
 
 static const char RT_STRUCT_SOP_CLASS[] = "1.2.840.10008.5.1.4.1.1.481.3";
 #define PLANAR_EPS 1e-3 /* mm: z spread allowed within one CLOSED_PLANAR contour */
+/* mm from the origin: patient coordinates are within a metre or two of it; 1 km keeps any real
+ * contour and every product the modelling makes of them (areas, volumes) finite */
+#define RTSTRUCT_MAX_COORD 1e6
 
 extern "C" void rtstruct_free(struct rt_roi *rois, int n_rois)
 {
@@ -34,16 +37,9 @@ extern "C" void rtstruct_free(struct rt_roi *rois, int n_rois)
 /* Parses buf into ff: SF_EFORMAT (in err) when it is not DICOM, SF_EINVAL when not an RT Structure Set. */
 static int read_object(const void *buf, size_t len, DcmFileFormat &ff, struct sf_err *err)
 {
-    if (!dicom_lengths_fit(buf, len))
-        return sf_fail(err, SF_EFORMAT, "", "not a readable DICOM object: an element is longer than the file");
-    DcmInputBufferStream in;
-    in.setBuffer(buf, (offile_off_t)len);
-    in.setEos();
-    ff.transferInit();
-    OFCondition c = ff.read(in, EXS_Unknown, EGL_noChange, DCM_MaxReadLength);
-    ff.transferEnd();
-    if (c.bad())
-        return sf_fail(err, SF_EFORMAT, "", "not a readable DICOM object: %s", c.text());
+    int rc = dcm_read_object(buf, len, "", DCM_MaxReadLength, ff, err);
+    if (rc)
+        return rc;
     OFString sop;
     if (ff.getDataset()->findAndGetOFString(DCM_SOPClassUID, sop).bad() || sop != RT_STRUCT_SOP_CLASS)
         return sf_fail(err, SF_EINVAL, "/SOPClassUID", "the DICOM object is not an RT Structure Set");
@@ -218,6 +214,9 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
                     v[d] = strtod(p, &end);
                     if (end == p || !std::isfinite(v[d]))
                         rc = sf_fail(err, SF_EINVAL, ptr, "point %lu is not three finite numbers", i);
+                    else if (std::fabs(v[d]) > RTSTRUCT_MAX_COORD)
+                        rc = sf_fail(err, SF_EINVAL, ptr, "point %lu has a coordinate of %.6g mm: surfd reads up to %g mm "
+                                     "from the origin", i, v[d], RTSTRUCT_MAX_COORD);
                     p = end;
                     while (*p == ' ')
                         p++;

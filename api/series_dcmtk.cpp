@@ -1,7 +1,7 @@
 // series_dcmtk.cpp - a DICOM CT/MR series to one sample grid (dicom_series.h), with DCMTK as the
 // RT Structure Set reader uses it. Uncompressed transfer syntaxes only (what scanners export for
 // research and what PACS send by default); a compressed one is refused by name.
-#include "dicom_lengths.h"
+#include "dcmtk_in.h"
 #include "dicom_series.h"
 
 #include <dcmtk/config/osconfig.h>
@@ -18,6 +18,18 @@
 
 namespace {
 
+/* The ranges a slice's geometry and rescale must keep, so that every product the grid and the
+ * mesh make of them (positions over spacings, samples times slopes) stays finite in float, and
+ * a volume comes out of real numbers: patient coordinates are within a metre or two of the
+ * scanner's origin, 1 km is room for any table offset; 1 um is finer than micro-CT's pixels and
+ * 10 m coarser than any scanner's; a 16-bit sample times 1e6 plus 1e9 is well inside float. */
+#define SERIES_MAX_COORD 1e6     /* mm from the origin, ImagePositionPatient */
+#define SERIES_MIN_SPACING 1e-3  /* mm: PixelSpacing and the spacing between slices */
+#define SERIES_MAX_SPACING 1e4   /* mm */
+#define SERIES_MAX_SLOPE 1e6     /* |RescaleSlope| */
+#define SERIES_MAX_INTERCEPT 1e9 /* |RescaleIntercept| */
+#define ORIENT_EPS 1e-3          /* how far past 1 a direction cosine may round */
+
 struct slice {
     int part;
     double pos[3], orient[6], spacing[2], slope = 1, intercept = 0, s = 0;
@@ -33,30 +45,59 @@ int fail_part(struct sf_err *err, int code, int part, const char *fmt, const cha
     return sf_fail(err, code, where, fmt, what);
 }
 
-bool get_doubles(DcmDataset *ds, const DcmTagKey &tag, double *out, unsigned n)
+enum { GOT, MISSING, NOT_FINITE };
+
+/* The first n values of tag: GOT, MISSING (absent or fewer than n) or NOT_FINITE. */
+int get_doubles(DcmDataset *ds, const DcmTagKey &tag, double *out, unsigned n)
 {
     for (unsigned k = 0; k < n; k++) {
         Float64 v;
-        if (ds->findAndGetFloat64(tag, v, k).bad() || !std::isfinite(v))
-            return false;
+        if (ds->findAndGetFloat64(tag, v, k).bad())
+            return MISSING;
+        if (!std::isfinite(v))
+            return NOT_FINITE;
         out[k] = v;
     }
-    return true;
+    return GOT;
+}
+
+/* 0 when each of the n values of name (read as got says) is within [lo, hi] in magnitude; else
+ * SF_EINVAL naming the element and its values. missing_ok: an absent element keeps the default. */
+int check_range(struct sf_err *err, int part, const char *name, int got, const double *v, unsigned n, double lo,
+                double hi, bool missing_ok)
+{
+    char what[240];
+    if (got == MISSING && missing_ok)
+        return 0;
+    if (got == MISSING) {
+        snprintf(what, sizeof what, "%s is missing or has fewer than %u values", name, n);
+        return fail_part(err, SF_EINVAL, part, "%s", what);
+    }
+    if (got == NOT_FINITE) {
+        snprintf(what, sizeof what, "%s holds a value that is not a finite number", name);
+        return fail_part(err, SF_EINVAL, part, "%s", what);
+    }
+    for (unsigned k = 0; k < n; k++)
+        if (!(std::fabs(v[k]) >= lo && std::fabs(v[k]) <= hi)) {
+            if (lo > 0)
+                snprintf(what, sizeof what, "%s value %u is %.6g: surfd reads %g to %g in magnitude", name, k + 1,
+                         v[k], lo, hi);
+            else
+                snprintf(what, sizeof what, "%s value %u is %.6g: surfd reads at most %g in magnitude", name, k + 1,
+                         v[k], hi);
+            return fail_part(err, SF_EINVAL, part, "%s", what);
+        }
+    return 0;
 }
 
 int read_slice(const struct part &p, int k, bool check_only, slice &sl, struct sf_err *err)
 {
-    if (!dicom_lengths_fit(p.data, p.len))
-        return fail_part(err, SF_EFORMAT, k, "%s", "not a readable DICOM object: an element is longer than the part");
+    char where[32];
+    snprintf(where, sizeof where, "/parts/%d", k);
     DcmFileFormat ff;
-    DcmInputBufferStream in;
-    in.setBuffer(p.data, (offile_off_t)p.len);
-    in.setEos();
-    ff.transferInit();
-    OFCondition c = ff.read(in, EXS_Unknown, EGL_noChange, check_only ? 4096 : DCM_MaxReadLength);
-    ff.transferEnd();
-    if (c.bad())
-        return fail_part(err, SF_EFORMAT, k, "not a readable DICOM object: %s", c.text());
+    int rc = dcm_read_object(p.data, p.len, where, check_only ? 4096 : DCM_MaxReadLength, ff, err);
+    if (rc)
+        return rc;
     DcmDataset *ds = ff.getDataset();
     E_TransferSyntax xfer = ds->getOriginalXfer();
     if (xfer != EXS_LittleEndianImplicit && xfer != EXS_LittleEndianExplicit && xfer != EXS_BigEndianExplicit) {
@@ -74,17 +115,21 @@ int read_slice(const struct part &p, int k, bool check_only, slice &sl, struct s
     ds->findAndGetUint16(DCM_SamplesPerPixel, spp);
     if ((bits != 8 && bits != 16) || spp != 1)
         return fail_part(err, SF_EINVAL, k, "%s", "samples are one channel of 8 or 16 bits (a CT or MR image)");
-    if (!get_doubles(ds, DCM_ImagePositionPatient, sl.pos, 3))
-        return fail_part(err, SF_EINVAL, k, "%s", "ImagePositionPatient is missing: slices are placed by it");
-    if (!get_doubles(ds, DCM_ImageOrientationPatient, sl.orient, 6))
-        return fail_part(err, SF_EINVAL, k, "%s", "ImageOrientationPatient is missing");
-    if (!get_doubles(ds, DCM_PixelSpacing, sl.spacing, 2) || !(sl.spacing[0] > 0) || !(sl.spacing[1] > 0))
-        return fail_part(err, SF_EINVAL, k, "%s", "PixelSpacing is missing or not positive");
-    double v;
-    if (get_doubles(ds, DCM_RescaleSlope, &v, 1))
-        sl.slope = v;
-    if (get_doubles(ds, DCM_RescaleIntercept, &v, 1))
-        sl.intercept = v;
+    /* ImagePositionPatient: the slice's corner; ImageOrientationPatient: two direction cosines */
+    if ((rc = check_range(err, k, "ImagePositionPatient (mm)", get_doubles(ds, DCM_ImagePositionPatient, sl.pos, 3),
+                          sl.pos, 3, 0, SERIES_MAX_COORD, false)) ||
+        (rc = check_range(err, k, "ImageOrientationPatient", get_doubles(ds, DCM_ImageOrientationPatient, sl.orient, 6),
+                          sl.orient, 6, 0, 1 + ORIENT_EPS, false)) ||
+        (rc = check_range(err, k, "PixelSpacing (mm)", get_doubles(ds, DCM_PixelSpacing, sl.spacing, 2), sl.spacing, 2,
+                          SERIES_MIN_SPACING, SERIES_MAX_SPACING, false)))
+        return rc;
+    if (!(sl.spacing[0] > 0) || !(sl.spacing[1] > 0))
+        return fail_part(err, SF_EINVAL, k, "%s", "PixelSpacing is not positive");
+    if ((rc = check_range(err, k, "RescaleSlope", get_doubles(ds, DCM_RescaleSlope, &sl.slope, 1), &sl.slope, 1, 0,
+                          SERIES_MAX_SLOPE, true)) ||
+        (rc = check_range(err, k, "RescaleIntercept", get_doubles(ds, DCM_RescaleIntercept, &sl.intercept, 1),
+                          &sl.intercept, 1, 0, SERIES_MAX_INTERCEPT, true)))
+        return rc;
     if (sl.slope == 0)
         return fail_part(err, SF_EINVAL, k, "%s", "RescaleSlope is 0");
     sl.part = k, sl.rows = rows, sl.cols = cols, sl.bits = bits, sl.stored = stored ? stored : bits;
@@ -152,6 +197,12 @@ extern "C" int series_read(const struct part *parts, int n, bool check_only, siz
     double mean = (sl.back().s - sl.front().s) / (n - 1);
     if (!(mean > 0))
         return fail_part(err, SF_EINVAL, sl[1].part, "%s", "two slices at the same position");
+    if (mean < SERIES_MIN_SPACING || mean > SERIES_MAX_SPACING) {
+        char what[200];
+        snprintf(what, sizeof what, "ImagePositionPatient puts the slices %.3g mm apart on average: surfd reads %g to "
+                 "%g mm", mean, SERIES_MIN_SPACING, SERIES_MAX_SPACING);
+        return fail_part(err, SF_EINVAL, sl[(size_t)n - 1].part, "%s", what);
+    }
     for (int k = 1; k < n; k++) {
         double d = sl[(size_t)k].s - sl[(size_t)k - 1].s;
         if (d <= 0)

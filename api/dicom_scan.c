@@ -1,0 +1,304 @@
+/* dicom_scan.c - the pass over a DICOM object's structure that comes before DCMTK (dicom_scan.h).
+ * It reads what DCMTK's reader would: the meta header (explicit VR little endian), then the data
+ * set in the transfer syntax the header names (or, without one, as its first element looks, as
+ * DCMTK guesses), stepping into sequences and items with a stack of its own (never recursion)
+ * and over every other value, so its cost is one look at each element. It must not accept what
+ * DCMTK would read deeper or longer than the caps say. */
+#include "dicom_scan.h"
+
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <string.h>
+
+#define UNDEFINED 0xffffffffu /* an undefined length */
+
+enum frame_kind {
+    F_DATASET, /* the top: elements up to the end of the buffer */
+    F_SEQ,     /* a sequence: items, up to its end or its delimiter */
+    F_ITEM,    /* an item's data set: elements, up to its end or its delimiter */
+    F_FRAGS,   /* encapsulated pixel data: fragment items, up to its delimiter */
+};
+
+struct frame {
+    enum frame_kind kind;
+    size_t end;          /* where a defined length ends; the parent's end when undefined */
+    bool undefined;      /* ends at a delimiter */
+    bool implicit;       /* implicit VR inside */
+    bool big;            /* big endian inside */
+    bool tentative;      /* an implicit VR value taken for a sequence because it starts with an item */
+    uint32_t max_tag;    /* greatest tag read in this data set or item */
+    int n_creators;      /* private creators read in it */
+};
+
+/* the stack: the top data set, then up to DICOM_MAX_DEPTH sequences, each with its item or
+ * fragment list (+1: the sequence past the cap is pushed, then refused) */
+#define STACK_MAX (2 * DICOM_MAX_DEPTH + 3)
+
+struct scan {
+    const unsigned char *b;
+    size_t n, at;
+    struct frame st[STACK_MAX];
+    int top;             /* st[top] is the innermost frame */
+    int depth;           /* sequences open */
+    struct dicom_scan_stats s;
+    const char *pointer;
+    struct sf_err *err;
+};
+
+static unsigned u16(const struct scan *c, size_t at, bool big)
+{
+    return big ? (unsigned)c->b[at] << 8 | c->b[at + 1] : (unsigned)c->b[at] | (unsigned)c->b[at + 1] << 8;
+}
+
+static uint32_t u32(const struct scan *c, size_t at, bool big)
+{
+    return big ? (uint32_t)u16(c, at, true) << 16 | u16(c, at + 2, true) : u16(c, at, false) | (uint32_t)u16(c, at + 2, false) << 16;
+}
+
+/* The VRs of PS3.5 6.2; those with a 4-byte length after two reserved bytes in explicit VR. */
+static const char VRS[] = "AEASATCSDADSDTFDFLISLOLTOBODOFOLOVOWPNSHSLSQSSSTSVTMUCUIULUNURUSUTUV";
+static const char LONG_VRS[] = "OBODOFOLOVOWSQSVUCUNURUTUV";
+
+static bool vr_in(const unsigned char *vr, const char *list)
+{
+    for (const char *p = list; *p; p += 2)
+        if (p[0] == (char)vr[0] && p[1] == (char)vr[1])
+            return true;
+    return false;
+}
+
+static int fail(struct scan *c, int code, const char *what, uint32_t tag)
+{
+    return sf_fail(c->err, code, c->pointer, "%s (element (%04X,%04X) at byte %zu)", what, (unsigned)(tag >> 16),
+                   (unsigned)(tag & 0xffff), c->at);
+}
+
+/* A structural fault: inside a tentative sequence, the value was not a sequence after all and is
+ * stepped over whole (as DCMTK would read it without a dictionary entry saying SQ); else refused. */
+static int fault(struct scan *c, const char *what, uint32_t tag)
+{
+    for (int k = c->top; k > 0; k--)
+        if (c->st[k].tentative) {
+            c->at = c->st[k].end;
+            for (int j = c->top; j >= k; j--)
+                if (c->st[j].kind == F_SEQ || c->st[j].kind == F_FRAGS)
+                    c->depth--;
+            c->top = k - 1;
+            return 0;
+        }
+    char msg[160];
+    snprintf(msg, sizeof msg, "not a readable DICOM object: %s", what);
+    return fail(c, SF_EFORMAT, msg, tag);
+}
+
+static int push(struct scan *c, enum frame_kind kind, size_t len, bool implicit, bool big, bool tentative,
+                uint32_t tag)
+{
+    const struct frame *p = &c->st[c->top];
+    if (kind == F_SEQ || kind == F_FRAGS) {
+        if (++c->depth > DICOM_MAX_DEPTH) {
+            char what[64];
+            snprintf(what, sizeof what, "sequences nested deeper than %d", DICOM_MAX_DEPTH);
+            return fail(c, SF_ELIMIT, what, tag);
+        }
+        if (c->depth > c->s.max_depth)
+            c->s.max_depth = c->depth;
+    }
+    struct frame f = {.kind = kind, .implicit = implicit, .big = big, .tentative = tentative};
+    f.undefined = len == UNDEFINED;
+    f.end = f.undefined ? p->end : c->at + len;
+    c->st[++c->top] = f;
+    return 0;
+}
+
+/* How the data set is encoded when no meta header says it, from its first element: explicit when
+ * a VR follows the tag; big endian when the tag reads as a public group only byte-swapped. DCMTK
+ * guesses otherwise (from its dictionary), so the readers tell it this guess (dcmtk_in.h). */
+static void guess_syntax(struct scan *c, size_t at, bool *implicit, bool *big)
+{
+    *implicit = !(at + 6 <= c->n && vr_in(c->b + at + 4, VRS));
+    unsigned le = at + 2 <= c->n ? u16(c, at, false) : 0;
+    *big = (le & 0xff) == 0 && le >> 8 >= 0x02 && le >> 8 <= 0x7f && !(le >> 8 & 1);
+}
+
+/* Reads the meta header from c->at (group 0002, explicit VR little endian) and says how the data
+ * set after it is encoded, by its transfer syntax (which DCMTK reads it in, dicom_scan.h). */
+static int read_meta(struct scan *c, bool *implicit, bool *big)
+{
+    char *ts = c->s.transfer_syntax;
+    while (c->at + 8 <= c->n && u16(c, c->at, false) == 0x0002) {
+        uint32_t tag = 0x00020000u | u16(c, c->at + 2, false);
+        if (!vr_in(c->b + c->at + 4, VRS))
+            return fail(c, SF_EFORMAT, "not a readable DICOM object: a meta header element without a known VR", tag);
+        bool lv = vr_in(c->b + c->at + 4, LONG_VRS);
+        size_t head = lv ? 12 : 8;
+        if (c->at + head > c->n)
+            return fail(c, SF_EFORMAT, "not a readable DICOM object: the part ends inside a meta header element", tag);
+        size_t len = lv ? u32(c, c->at + 8, false) : u16(c, c->at + 6, false);
+        if (len > c->n - c->at - head)
+            return fail(c, SF_EFORMAT, "not a readable DICOM object: an element is longer than the part", tag);
+        if (tag == 0x00020010 && len < sizeof c->s.transfer_syntax) {
+            memcpy(ts, c->b + c->at + head, len);
+            ts[len] = 0;
+            for (size_t k = len; k > 0 && (ts[k - 1] == ' ' || ts[k - 1] == 0); k--)
+                ts[k - 1] = 0;
+        }
+        c->s.n_elements++;
+        c->at += head + len;
+    }
+    if (!ts[0])
+        return fail(c, SF_EFORMAT, "not a readable DICOM object: a meta header without its TransferSyntaxUID", 0x00020010);
+    if (!strcmp(ts, "1.2.840.10008.1.2")) {
+        *implicit = true, *big = false;
+    } else if (!strcmp(ts, "1.2.840.10008.1.2.2")) {
+        *implicit = false, *big = true;
+    } else if (!strcmp(ts, "1.2.840.10008.1.2.1.99") || !strcmp(ts, "1.2.840.10008.1.2.4.95")) {
+        return sf_fail(c->err, SF_EINVAL, c->pointer, "a deflated data set (%s) is not read: send it uncompressed", ts);
+    } else if (!strncmp(ts, "1.2.840.10008.1.2.", 18)) {
+        *implicit = false, *big = false; /* explicit VR little endian, the pixel data perhaps encapsulated */
+    } else {
+        return sf_fail(c->err, SF_EINVAL, c->pointer, "transfer syntax %s is not a standard one: send the object in "
+                       "explicit or implicit VR little endian", ts);
+    }
+    return 0;
+}
+
+/* One item tag (FFFE,xxxx) inside a sequence, an item or a fragment list. */
+static int read_item_tag(struct scan *c, struct frame *f, uint32_t tag, uint32_t len)
+{
+    c->at += 8;
+    switch (tag) {
+    case 0xfffee000u: /* an item */
+        if (f->kind == F_SEQ) {
+            if (len != UNDEFINED && len > f->end - c->at)
+                return fault(c, "an item is longer than its sequence", tag);
+            return push(c, F_ITEM, len, f->implicit, f->big, false, tag);
+        }
+        if (f->kind == F_FRAGS) {
+            if (len == UNDEFINED || len > f->end - c->at)
+                return fault(c, "a pixel data fragment is longer than the part", tag);
+            c->at += len;
+            return 0;
+        }
+        return fault(c, "an item outside a sequence", tag);
+    case 0xfffee00du: /* the end of an item */
+        if (f->kind != F_ITEM)
+            return fault(c, "an item delimiter outside an item", tag);
+        if (f->undefined)
+            c->top--;
+        return 0;
+    case 0xfffee0ddu: /* the end of a sequence */
+        if (f->kind != F_SEQ && f->kind != F_FRAGS)
+            return fault(c, "a sequence delimiter outside a sequence", tag);
+        if (f->undefined) {
+            c->top--;
+            c->depth--;
+        }
+        return 0;
+    default:
+        return fault(c, "an unknown item tag", tag);
+    }
+}
+
+/* One data element of f (a data set or an item): its tag checked for order and creators, then
+ * stepped over, or into when it is a sequence or encapsulated pixel data. */
+static int read_element(struct scan *c, struct frame *f, uint32_t tag)
+{
+    size_t head = 8;
+    uint32_t len;
+    bool seq, frags = false, inner_implicit = f->implicit, inner_big = f->big, tentative = false;
+    if (f->implicit) {
+        len = u32(c, c->at + 4, f->big);
+        seq = len == UNDEFINED && tag != 0x7fe00010u; /* undefined: a sequence (pixel data: fragments) */
+        frags = len == UNDEFINED && !seq;
+        /* DCMTK's dictionary says which defined-length elements are sequences; without it, a value
+         * that starts with an item is taken for one, and stepped over whole if it is not */
+        if (len != UNDEFINED && len >= 8 && tag != 0x7fe00010u && c->at + 16 <= f->end &&
+            u32(c, c->at + 8, f->big) == (f->big ? 0xfffee000u : 0xe000fffeu))
+            seq = tentative = true;
+    } else {
+        const unsigned char *vr = c->b + c->at + 4;
+        if (!vr_in(vr, VRS))
+            return fault(c, "an element without a known VR", tag);
+        bool lv = vr_in(vr, LONG_VRS);
+        head = lv ? 12 : 8;
+        if (c->at + head > f->end)
+            return fault(c, "the part ends inside an element", tag);
+        len = lv ? u32(c, c->at + 8, f->big) : u16(c, c->at + 6, f->big);
+        seq = vr[0] == 'S' && vr[1] == 'Q';
+        if (vr[0] == 'U' && vr[1] == 'N' && len == UNDEFINED) /* read as an implicit VR sequence (PS3.5 6.2.2) */
+            seq = inner_implicit = true, inner_big = false;
+        frags = !seq && len == UNDEFINED;
+    }
+    if (f->max_tag && tag < f->max_tag && ++c->s.n_disorder > DICOM_MAX_DISORDER) {
+        char what[96];
+        snprintf(what, sizeof what, "more than %d elements out of ascending tag order (PS3.5 7.1)", DICOM_MAX_DISORDER);
+        return fail(c, SF_EFORMAT, what, tag);
+    }
+    if (tag > f->max_tag)
+        f->max_tag = tag;
+    if ((tag >> 16 & 1) && (tag & 0xffff) >= 0x10 && (tag & 0xffff) <= 0xff && ++f->n_creators > DICOM_MAX_CREATORS) {
+        char what[96];
+        snprintf(what, sizeof what, "more than %d private creators in one data set or item", DICOM_MAX_CREATORS);
+        return fail(c, SF_ELIMIT, what, tag);
+    }
+    size_t start = c->at;
+    c->at += head;
+    if (len != UNDEFINED && len > f->end - c->at) {
+        c->at = start;
+        return fault(c, "an element is longer than the part", tag);
+    }
+    if (seq || frags) {
+        int rc = push(c, frags ? F_FRAGS : F_SEQ, len, inner_implicit, inner_big, tentative, tag);
+        if (rc)
+            c->at = start;
+        return rc;
+    }
+    c->at += len;
+    return 0;
+}
+
+int dicom_scan(const void *data, size_t len, const char *pointer, struct dicom_scan_stats *stats, struct sf_err *err)
+{
+    struct scan c = {.b = data, .n = len, .pointer = pointer ? pointer : "", .err = err};
+    bool implicit = false, big = false;
+    int rc = 0;
+    /* "DICM" only after the preamble: DCMTK reads one at 0 as an element (4944,4D43), and so must this */
+    if (len >= 132 && !memcmp(c.b + 128, "DICM", 4))
+        c.at = 132;
+    if (c.at || (len >= 8 && u16(&c, 0, false) == 0x0002 && vr_in(c.b + 4, VRS)))
+        rc = read_meta(&c, &implicit, &big);
+    else
+        guess_syntax(&c, 0, &implicit, &big);
+    c.s.implicit = implicit, c.s.big_endian = big;
+    c.st[0] = (struct frame){.kind = F_DATASET, .end = len, .implicit = implicit, .big = big};
+    while (!rc && c.at + 8 <= len) {
+        struct frame *f = &c.st[c.top];
+        if (f->kind != F_DATASET && !f->undefined && c.at >= f->end) {
+            if (f->kind == F_SEQ || f->kind == F_FRAGS)
+                c.depth--;
+            c.top--; /* a defined length ends */
+            continue;
+        }
+        if (c.at + 8 > f->end) {
+            rc = fault(&c, "the part ends inside an element", 0);
+            continue;
+        }
+        if (++c.s.n_elements > DICOM_MAX_ELEMENTS) {
+            rc = sf_fail(err, SF_ELIMIT, c.pointer, "more than %d elements, items and fragments", DICOM_MAX_ELEMENTS);
+            break;
+        }
+        uint32_t tag = (uint32_t)u16(&c, c.at, f->big) << 16 | u16(&c, c.at + 2, f->big);
+        if (tag >> 16 == 0xfffe)
+            rc = read_item_tag(&c, f, tag, u32(&c, c.at + 4, f->big));
+        else if (f->kind == F_DATASET || f->kind == F_ITEM)
+            rc = read_element(&c, f, tag);
+        else
+            rc = fault(&c, f->kind == F_SEQ ? "an element where a sequence has items" : "an element among pixel data fragments", tag);
+    }
+    /* what is left is under 8 bytes, or delimiters never came: DCMTK says what it makes of that */
+    if (stats)
+        *stats = c.s;
+    return rc;
+}

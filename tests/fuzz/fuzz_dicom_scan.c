@@ -1,0 +1,30 @@
+/* fuzz_dicom_scan.c - the structure pass before DCMTK (api/dicom_scan.h): what it accepts must be
+ * within its caps, and must then go through DCMTK's reader without a crash, read as an RT
+ * Structure Set and as both slices of a two-part series (each reader scans it again first). */
+#include "../../api/dicom_scan.h"
+#include "../../api/dicom_series.h"
+#include "../../api/rtstruct.h"
+#include "fuzz.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    struct dicom_scan_stats st;
+    struct sf_err err = {0};
+    if (dicom_scan(data, size, "", &st, &err))
+        return 0;
+    if (st.max_depth > DICOM_MAX_DEPTH || st.n_elements > DICOM_MAX_ELEMENTS || st.n_disorder > DICOM_MAX_DISORDER)
+        abort(); /* accepted past a cap */
+    struct rt_roi *rois = NULL;
+    int n = 0;
+    struct sf_err e2 = {0};
+    if (rtstruct_read(data, size, &rois, &n, &e2) == 0)
+        rtstruct_free(rois, n);
+    struct part parts[2] = {{0}};
+    for (int k = 0; k < 2; k++)
+        parts[k].data = (const char *)data, parts[k].len = size;
+    struct series s;
+    struct sf_err e3 = {0};
+    if (series_read(parts, 2, false, 1u << 20, &s, &e3) == 0)
+        free(s.owned);
+    return 0;
+}
