@@ -225,9 +225,9 @@ void service_stop(struct service *svc)
 
 /* ---- a job's end ---- */
 
-/* Keeps a claimed job for a later run (or counts one more try of a job kept already). Its claim
- * stays held, its lease renewed by the heartbeats. */
-static void strand(struct service *svc, const struct job_claim *c)
+/* Keeps a claimed job for a later run (or counts one more try of a job kept already), saying why.
+ * Its claim stays held, its lease renewed by the heartbeats. */
+static void strand(struct service *svc, const struct job_claim *c, const char *why)
 {
     metrics_store_error();
     pthread_mutex_lock(&svc->lock);
@@ -238,7 +238,7 @@ static void strand(struct service *svc, const struct job_claim *c)
         double delay = STRANDED_FIRST_S * (double)(1 << (h->tries < 7 ? h->tries - 1 : 6));
         delay = delay < STRANDED_LAST_S ? delay : STRANDED_LAST_S;
         h->retry_at = monotonic_s() + delay;
-        LOG(LOG_ERROR, "job %s: the store will not take its end (%d); run again in %.0f s", c->id, h->tries, delay);
+        LOG(LOG_ERROR, "job %s: %s (%d); run again in %.0f s", c->id, why, h->tries, delay);
     }
     pthread_mutex_unlock(&svc->lock);
 }
@@ -267,13 +267,18 @@ void service_job_end(struct service *svc, const struct job_claim *c, enum job_st
         claim_drop(svc, c);
         return;
     }
+    /* a result the store would not take for a full disk: the job waits for room and runs again */
+    if (outcome == JOB_FAILED && err->code == SF_EIO && store_full(svc->store)) {
+        strand(svc, c, "the disk is full: the store would not take its result");
+        return;
+    }
     char *p = outcome == JOB_FAILED ? problem_from_err(err) : NULL;
     if (outcome == JOB_FAILED)
         LOG(LOG_WARN, "job %s failed: %s", c->id, err->message);
     struct job_end end = {outcome, result, len, type, meta, p, wall_s()};
     int rc = store_end(svc, c, &end);
     if (rc < 0) {
-        strand(svc, c);
+        strand(svc, c, "the store will not take its end");
     } else {
         if (rc == 1)
             metrics_job_end(outcome);
@@ -302,6 +307,8 @@ void service_release(struct service *svc, const char *id)
 
 void service_retry_stranded(struct service *svc)
 {
+    if (store_full(svc->store) && !store_writable(svc->store))
+        return; /* no room yet: running them again would only fill it */
     double now = monotonic_s();
     pthread_mutex_lock(&svc->lock);
     for (int k = 0; k < svc->n_claims; k++) {

@@ -214,6 +214,8 @@ bool store_writable(struct store *s) { return !atomic_load(&s->damaged) && s->op
 
 bool store_damaged(struct store *s) { return atomic_load(&s->damaged); }
 
+bool store_full(struct store *s) { return atomic_load(&s->full); }
+
 int store_check(struct store *s, bool deep, void (*report)(const char *line, void *), void *arg)
 {
     if (!s->ops->check) {

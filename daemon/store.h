@@ -226,6 +226,9 @@ void store_on_event(struct store *s, void (*fn)(enum store_event ev, const char 
 bool store_writable(struct store *s);
 /* Whether a read has found damage (bytes that do not match their sums, or the database's own). */
 bool store_damaged(struct store *s);
+/* Whether a write has met a full disk since store_writable last found room: a job whose result
+ * the store would not take then waits and runs again (service_job_end), never fails for good. */
+bool store_full(struct store *s);
 /* Checks the database's pages and the sums of every job's and model's JSON (deep: of every stored
  * byte too: results, models' sources, volumes), reporting each finding as a line: 0 sound, 1
  * damaged (the store is then not ready), -1 the check could not run. */

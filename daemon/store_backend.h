@@ -66,6 +66,7 @@ enum job_state store_reaped_state(const struct reaped *r, int max_attempts);
 struct store {
     const struct store_ops *ops;
     atomic_bool damaged;     /* a read found damage (store.c's wrappers): not ready until restarted */
+    atomic_bool full;        /* a write met a full disk: not ready until the backend's writable() finds room */
 };
 
 /* One more part for a backend's volume_get (format, options and data copied): 0 or -1. */

@@ -151,6 +151,9 @@ static PGresult *execute(struct pg_store *p, int c, const char *sql, int n, cons
         ExecStatusType st = PQresultStatus(res);
         if (st == PGRES_COMMAND_OK || st == PGRES_TUPLES_OK)
             return res;
+        const char *state = PQresultErrorField(res, PG_DIAG_SQLSTATE);
+        if (state && !strcmp(state, "53100")) /* disk_full: cleared by the next probe that writes */
+            atomic_store(&p->base.full, true);
         PQclear(res);
         if (PQstatus(p->pool[c]) == CONNECTION_OK)
             return NULL; /* the statement failed, not the connection */
@@ -931,6 +934,11 @@ static bool pg_writable(struct store *s)
         return false;
     bool ok = PQgetvalue(res, 0, 0)[0] != 0;
     PQclear(res);
+    /* after a full disk, room again is a 32 MB sort (past work_mem: written to the server's disk) */
+    if (ok && atomic_load(&s->full) &&
+        (ok = exec1(s, NULL, "SELECT count(*) FROM (SELECT repeat(g::text, 1 << 20) AS x FROM generate_series(1, 32) g"
+                             " ORDER BY x) t", 0, NULL) >= 0))
+        atomic_store(&s->full, false);
     return ok;
 }
 

@@ -7,6 +7,7 @@
 #include <pthread.h>
 #include <stdarg.h>
 #include <sqlite3.h>
+#include <sys/statvfs.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -167,6 +168,8 @@ static int vrun(struct store *s, const char *sql, const char *types, va_list ap)
     while (rc == SQLITE_ROW)
         rc = sqlite3_step(st), rows++;
     int n = rc != SQLITE_DONE ? -1 : sqlite3_stmt_readonly(st) ? rows : sqlite3_changes(db_of(s));
+    if ((rc & 0xff) == SQLITE_FULL) /* the unix VFS's ENOSPC */
+        atomic_store(&s->full, true);
     sqlite3_finalize(st);
     return n;
 }
@@ -863,8 +866,18 @@ static int sq_check(struct store *s, bool deep, void (*report)(const char *, voi
     return rc;
 }
 
+/* Room the data dir must have again before a store that met a full disk takes work: a probe's row
+ * fits in a page the WAL has, so it alone would say ready while every mesh is refused. */
+#define ROOM_BYTES (64L << 20)
+
 static bool sq_writable(struct store *s)
 {
+    struct statvfs fs;
+    if (atomic_load(&s->full)) {
+        if (statvfs(((struct sqlite_store *)s)->uploads, &fs) || (double)fs.f_bavail * fs.f_frsize < ROOM_BYTES)
+            return false;
+        atomic_store(&s->full, false);
+    }
     return run(s, "INSERT INTO probe(x) VALUES(1)", "") == 1 && run(s, "DELETE FROM probe", "") >= 0;
 }
 
