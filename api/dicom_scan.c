@@ -29,6 +29,9 @@ struct frame {
     bool tentative;      /* an implicit VR value taken for a sequence because it starts with an item */
     uint32_t max_tag;    /* greatest tag read in this data set or item */
     int n_creators;      /* private creators read in it */
+    bool blank;          /* dicom_blank_identity: every value inside is blanked (an identifying sequence) */
+    unsigned char fill;  /* ... a tentative sequence's value with this byte */
+    size_t start;        /* a tentative sequence's value: blanked whole when it was not a sequence */
 };
 
 /* the stack: the top data set, then up to DICOM_MAX_DEPTH sequences, each with its item or
@@ -37,6 +40,8 @@ struct frame {
 
 struct scan {
     const unsigned char *b;
+    unsigned char *w;    /* dicom_blank_identity: b, writable; NULL for dicom_scan */
+    size_t n_blanked;
     size_t n, at;
     struct frame st[STACK_MAX];
     int top;             /* st[top] is the innermost frame */
@@ -74,12 +79,74 @@ static int fail(struct scan *c, int code, const char *what, uint32_t tag)
                    (unsigned)(tag & 0xffff), c->at);
 }
 
+/* ---- dicom_blank_identity: the PS3.15 basic profile's identifying elements, blanked ---- */
+
+/* The basic application level confidentiality profile's (PS3.15 E.1-1) elements that name or
+ * describe the patient, the people and places of their care, and when it happened, sorted. UIDs
+ * are kept (its Retain UIDs option: the series, its frame of reference and the structure sets
+ * made from it must still refer to each other), as are the geometry and the pixel data. */
+static const uint32_t IDENTIFYING[] = {
+    0x00080020, 0x00080021, 0x00080022, 0x00080023, 0x00080024, 0x00080025, 0x0008002a, 0x00080030, 0x00080031,
+    0x00080032, 0x00080033, 0x00080034, 0x00080035, 0x00080050, 0x00080080, 0x00080081, 0x00080082, 0x00080090,
+    0x00080092, 0x00080094, 0x00080096, 0x00081010, 0x00081030, 0x0008103e, 0x00081040, 0x00081048, 0x00081049,
+    0x00081050, 0x00081052, 0x00081060, 0x00081062, 0x00081070, 0x00081072, 0x00081080, 0x00081084, 0x00081120,
+    0x00084000, 0x00100010, 0x00100020, 0x00100021, 0x00100030, 0x00100032, 0x00100040, 0x00100050, 0x00100101,
+    0x00100102, 0x00101000, 0x00101001, 0x00101002, 0x00101005, 0x00101010, 0x00101020, 0x00101030, 0x00101040,
+    0x00101050, 0x00101060, 0x00101080, 0x00101081, 0x00101090, 0x00102000, 0x00102110, 0x00102150, 0x00102152,
+    0x00102154, 0x00102160, 0x00102180, 0x001021a0, 0x001021b0, 0x001021c0, 0x001021d0, 0x001021f0, 0x00104000,
+    0x00181000, 0x00181030, 0x00200010, 0x00204000, 0x00321032, 0x00321033, 0x00321060, 0x00321070, 0x00324000,
+    0x00380010, 0x00380011, 0x00380300, 0x00380400, 0x00380500, 0x00384000, 0x00400006, 0x00400241, 0x00400242,
+    0x00400243, 0x00400244, 0x00400245, 0x00400253, 0x00400254, 0x00400275, 0x00401001, 0x00402016, 0x00402017,
+    0x0040a123, 0x0040a730, 0x30060002, 0x30060004, 0x30060008, 0x30060009,
+};
+
+/* Whether tag is blanked. Private elements are (the profile removes them: vendors keep names and
+ * dates there); their creators are kept. */
+static bool identifying(uint32_t tag)
+{
+    bool private = (tag >> 16 & 1) && (tag & 0xffff) >= 0x1000;
+    size_t lo = 0, hi = sizeof IDENTIFYING / sizeof *IDENTIFYING;
+    while (!private && lo < hi) {
+        size_t mid = (lo + hi) / 2;
+        if (IDENTIFYING[mid] < tag)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return private || (lo < sizeof IDENTIFYING / sizeof *IDENTIFYING && IDENTIFYING[lo] == tag);
+}
+
+/* What a blanked value is filled with: text with spaces (an empty value, padded, to DCMTK), others
+ * with zeros; in implicit VR (vr NULL), the listed public elements are text, private ones unknown. */
+static unsigned char fill_for(uint32_t tag, const unsigned char *vr)
+{
+    if (vr)
+        return vr_in(vr, "AEASCSDADSDTISLOLTPNSHSTTMUCURUT") ? ' ' : 0;
+    return tag >> 16 & 1 ? 0 : ' ';
+}
+
+static bool in_tentative(const struct scan *c)
+{
+    for (int k = c->top; k > 0; k--)
+        if (c->st[k].tentative)
+            return true;
+    return false;
+}
+
+static void blank(struct scan *c, size_t at, size_t len, unsigned char fill)
+{
+    memset(c->w + at, fill, len);
+    c->n_blanked++;
+}
+
 /* A structural fault: inside a tentative sequence, the value was not a sequence after all and is
  * stepped over whole (as DCMTK would read it without a dictionary entry saying SQ); else refused. */
 static int fault(struct scan *c, const char *what, uint32_t tag)
 {
     for (int k = c->top; k > 0; k--)
         if (c->st[k].tentative) {
+            if (c->w && c->st[k].blank)
+                blank(c, c->st[k].start, c->st[k].end - c->st[k].start, c->st[k].fill);
             c->at = c->st[k].end;
             for (int j = c->top; j >= k; j--)
                 if (c->st[j].kind == F_SEQ || c->st[j].kind == F_FRAGS)
@@ -93,7 +160,7 @@ static int fault(struct scan *c, const char *what, uint32_t tag)
 }
 
 static int push(struct scan *c, enum frame_kind kind, size_t len, bool implicit, bool big, bool tentative,
-                uint32_t tag)
+                bool blank, unsigned char fill, uint32_t tag)
 {
     const struct frame *p = &c->st[c->top];
     if (kind == F_SEQ || kind == F_FRAGS) {
@@ -105,7 +172,8 @@ static int push(struct scan *c, enum frame_kind kind, size_t len, bool implicit,
         if (c->depth > c->s.max_depth)
             c->s.max_depth = c->depth;
     }
-    struct frame f = {.kind = kind, .implicit = implicit, .big = big, .tentative = tentative};
+    struct frame f = {.kind = kind, .implicit = implicit, .big = big, .tentative = tentative, .start = c->at,
+                      .blank = kind != F_FRAGS && (p->blank || blank), .fill = fill};
     f.undefined = len == UNDEFINED;
     f.end = f.undefined ? p->end : c->at + len;
     c->st[++c->top] = f;
@@ -173,7 +241,7 @@ static int read_item_tag(struct scan *c, struct frame *f, uint32_t tag, uint32_t
         if (f->kind == F_SEQ) {
             if (len != UNDEFINED && len > f->end - c->at)
                 return fault(c, "an item is longer than its sequence", tag);
-            return push(c, F_ITEM, len, f->implicit, f->big, false, tag);
+            return push(c, F_ITEM, len, f->implicit, f->big, false, false, 0, tag);
         }
         if (f->kind == F_FRAGS) {
             if (len == UNDEFINED || len > f->end - c->at)
@@ -249,19 +317,24 @@ static int read_element(struct scan *c, struct frame *f, uint32_t tag)
         c->at = start;
         return fault(c, "an element is longer than the part", tag);
     }
+    bool listed = c->w && identifying(tag);
+    unsigned char fill = fill_for(tag, f->implicit ? NULL : c->b + start + 4);
     if (seq || frags) {
-        int rc = push(c, frags ? F_FRAGS : F_SEQ, len, inner_implicit, inner_big, tentative, tag);
+        int rc = push(c, frags ? F_FRAGS : F_SEQ, len, inner_implicit, inner_big, tentative, listed, fill, tag);
         if (rc)
             c->at = start;
         return rc;
     }
+    if (c->w && (f->blank || (listed && !in_tentative(c))))
+        blank(c, c->at, len, fill);
     c->at += len;
     return 0;
 }
 
-int dicom_scan(const void *data, size_t len, const char *pointer, struct dicom_scan_stats *stats, struct sf_err *err)
+static int walk(const void *data, unsigned char *w, size_t len, const char *pointer, struct dicom_scan_stats *stats,
+                size_t *n_blanked, struct sf_err *err)
 {
-    struct scan c = {.b = data, .n = len, .pointer = pointer ? pointer : "", .err = err};
+    struct scan c = {.b = data, .w = w, .n = len, .pointer = pointer ? pointer : "", .err = err};
     bool implicit = false, big = false;
     int rc = 0;
     /* "DICM" only after the preamble: DCMTK reads one at 0 as an element (4944,4D43), and so must this */
@@ -300,5 +373,17 @@ int dicom_scan(const void *data, size_t len, const char *pointer, struct dicom_s
     /* what is left is under 8 bytes, or delimiters never came: DCMTK says what it makes of that */
     if (stats)
         *stats = c.s;
+    if (n_blanked)
+        *n_blanked = c.n_blanked;
     return rc;
+}
+
+int dicom_scan(const void *data, size_t len, const char *pointer, struct dicom_scan_stats *stats, struct sf_err *err)
+{
+    return walk(data, NULL, len, pointer, stats, NULL, err);
+}
+
+int dicom_blank_identity(void *data, size_t len, const char *pointer, size_t *n_blanked, struct sf_err *err)
+{
+    return walk(data, data, len, pointer, NULL, n_blanked, err);
 }

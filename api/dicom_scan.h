@@ -52,6 +52,12 @@ struct dicom_scan_stats {
  * byte offset. stats may be NULL. */
 int dicom_scan(const void *data, size_t len, const char *pointer, struct dicom_scan_stats *stats, struct sf_err *err);
 
+/* The same pass, blanking in place the values of the elements that identify the patient (PS3.15's
+ * basic profile, keeping UIDs; and every private element), at any depth: each value keeps its
+ * length, so the object's layout (and a multipart body around it) is unchanged, and DCMTK reads
+ * the same structure with empty values. *n_blanked: the values blanked. Errors as dicom_scan. */
+int dicom_blank_identity(void *data, size_t len, const char *pointer, size_t *n_blanked, struct sf_err *err);
+
 #ifdef __cplusplus
 }
 #endif

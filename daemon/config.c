@@ -46,6 +46,7 @@ static const struct setting SETTINGS[] = {
     S("tls-key", tls_key, "", "PEM private key for native TLS"),
     S("log-level", log_level, "info", "error, warn, info or debug"),
     B("insecure-no-auth", insecure_no_auth, "false", "allow a non-loopback listener without tokens"),
+    B("keep-phi", keep_phi, "false", "keep the elements of uploaded DICOM series that identify the patient (names, IDs, dates, institutions, private elements: PS3.15's basic profile); by default they are blanked before the upload is stored"),
     LIST("cors-origin", cors_origins, "an origin (https://portal.example) whose pages may call surfd (CORS; repeatable; * for any; off when none)"),
     L("result-ttl", result_ttl, 1, 365L * 86400, "86400", "seconds finished jobs and results are kept"),
     L("result-max", result_max, 1, 10000000, "10000", "finished jobs kept at most"),

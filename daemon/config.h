@@ -29,6 +29,7 @@ struct config {
     char tls_key[512];
     char log_level[16];     /* error, warn, info, debug */
     bool insecure_no_auth;  /* allow a non-loopback listener without tokens */
+    bool keep_phi;          /* keep DICOM uploads' identifying elements (job_iso.c blanks them) */
     char cors_origins[1024]; /* origins allowed to call from a page, space-separated ("*": any); "": CORS off */
     long result_ttl;        /* seconds finished jobs are kept */
     long result_max;        /* finished jobs kept at most */

@@ -14,10 +14,13 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "../api/dicom_scan.h"
 #include "../api/iso_json.h"
 #include "../api/mesh_io.h"
+#include "../api/multipart.h"
 #include "../api/volume_io.h"
 #include "kinds.h"
+#include "log.h"
 
 #define SLABS_PER_WORKER 4 /* a few bands a worker: the slabs' costs differ */
 
@@ -290,11 +293,35 @@ int iso_start(struct service *svc, const struct job_claim *c)
 
 const char *iso_format(const char *content_type) { return volume_format_from_type(content_type); }
 
+/* A DICOM series' identifying elements blanked in place in the body, before it is stored (each
+ * value keeps its length: the multipart body and the slices read the same). */
+static int blank_identity(struct job_body *b, struct sf_err *err)
+{
+    struct part *parts;
+    int n, rc = multipart_split(b->body, b->len, &parts, &n, err);
+    if (rc)
+        return rc;
+    size_t blanked = 0;
+    for (int k = 0; !rc && k < n; k++) {
+        char where[32];
+        size_t m = 0;
+        snprintf(where, sizeof where, "/parts/%d", k);
+        rc = dicom_blank_identity((char *)parts[k].data, parts[k].len, where, &m, err);
+        blanked += m;
+    }
+    free(parts);
+    LOG(LOG_DEBUG, "a DICOM series of %d parts: %zu identifying values blanked", n, blanked);
+    return rc;
+}
+
 int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     const char *body = b->body ? b->body : "";
     int rc = volume_check(body, b->len, b->format, b->options, err);
-    if (rc || strcmp(volume_format_of(body, b->len, b->format, b->options), "frep"))
+    const char *format = rc ? "" : volume_format_of(body, b->len, b->format, b->options);
+    if (!rc && !strcmp(format, "dicom") && !svc->cfg.keep_phi)
+        return blank_identity(b, err);
+    if (rc || strcmp(format, "frep"))
         return rc;
     struct frep_request r;
     if ((rc = frep_parse(body, b->len, &r, err)))

@@ -1034,7 +1034,9 @@ static bool map_upload(struct req *r)
 {
     if (r->len == 0)
         return true;
-    void *m = mmap(NULL, r->len, PROT_READ, MAP_PRIVATE, r->fd, 0);
+    /* shared and writable: what validation changes in place (a series' identifying elements
+     * blanked) is what the store keeps */
+    void *m = mmap(NULL, r->len, PROT_READ | PROT_WRITE, MAP_SHARED, r->fd, 0);
     if (m == MAP_FAILED)
         return false;
     r->map = m;

@@ -1,6 +1,7 @@
 #!/bin/sh
 # Black-box regression tests of the hostile DICOM parts of issue 48 (findings 1, 4 and 5's DICOM
-# half): each once crashed the daemon, held an HTTP thread for a minute or answered 500. The parts
+# half): each once crashed the daemon, held an HTTP thread for a minute or answered 500; and of
+# 8c: a series' identifying elements were stored verbatim. The parts
 # are written here byte by byte (no pydicom, nothing from ../shared but one real series).
 . "$(dirname "$0")/lib.inc"
 
@@ -77,6 +78,11 @@ series([ok[0], slice_(1, pos="0\\0\\1e300"), ok[2]], d + "/far.mp")
 series([ok[0], ok[1], slice_(2, slope="1e308")], d + "/slope.mp")
 series([slice_(z, pos="0\\0\\%g" % (z * 1e-6)) for z in range(3)], d + "/thin.mp")
 series([slice_(z, spacing="1e-9\\1e-9") for z in range(3)], d + "/pixel.mp")
+# a patient's identity where scanners put it: names, IDs, dates, an institution, a private element
+phi = (el(8, 0x20, b"DA", "19990401") + el(8, 0x80, b"LO", "ST ELSEWHERE HOSPITAL") + el(8, 0x90, b"PN", "HOUSE^GREGORY") +
+       el(9, 0x10, b"LO", "ACME 1.0") + el(9, 0x1001, b"LO", "DOE JANE 1970") + el(0x10, 0x10, b"PN", "DOE^JANE") +
+       el(0x10, 0x20, b"LO", "PID4471150") + el(0x10, 0x30, b"DA", "19700101"))
+series([slice_(z, extra=phi) for z in range(3)], d + "/phi.mp")
 open(d + "/rt_ok.dcm", "wb").write(rtss())
 open(d + "/rt_deep.dcm", "wb").write(rtss(nested(10000)))
 open(d + "/rt_many.dcm", "wb").write(rtss(private(2000001)))
@@ -130,6 +136,20 @@ code=$(post_series pixel)
 check "PixelSpacing 1e-9: 422 naming the element" '[ "$code" = 422 ] && names /parts/0 PixelSpacing'
 code=$(status POST /model -H "$DCM" --data-binary @"$T/rt_far.dcm")
 check "a contour point at 1e300 mm: 422 naming the ContourData" '[ "$code" = 422 ] && names "/ROIContourSequence/0/ContourSequence/0/ContourData" "1e+300"'
+
+# ---- 8c: a series' identifying elements are not kept at rest (nor logged) unless the operator asks ----
+code=$(post_series phi); phi_tris=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['triangles'])" "$T/body" 2>/dev/null)
+ok_tris=$(post_series ok >/dev/null; python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['triangles'])" "$T/body")
+# (the private creator, "ACME 1.0", is kept: it names a vendor, not a patient)
+leaks() { grep -raE "DOE|JANE|PID4471150|19700101|19990401|ELSEWHERE|HOUSE" "$@" | head -3; }
+check "a series carrying its patient's name, ID, birth date, institution and a private element: 201, the same surface" '[ "$code" = 201 ] && [ -n "$phi_tris" ] && [ "$phi_tris" = "$ok_tris" ]'
+check "... none of them in the data dir (database, uploads) or the log" '[ -z "$(leaks "$T/d" "$T/daemon.log")" ]'
+stop_daemon
+start_daemon "$T/keep" --threads 2 --keep-phi || exit 1
+code=$(post_series phi)
+check "with --keep-phi the series is kept as sent (the test can see them)" '[ "$code" = 201 ] && [ -n "$(leaks "$T/keep")" ] && [ -z "$(leaks "$T/daemon.log")" ]'
+stop_daemon
+start_daemon "$T/d" --threads 2 || exit 1
 
 # ---- real series still read --------------------------------------------------------------------------
 DD="${SURFD_DATA:-../shared/data}/volumes/dicom_ct_head_64x64x27"
