@@ -637,10 +637,10 @@ struct iso_opts volume_iso_opts(const struct volume *v)
 
 bool volume_adaptive(const struct volume *v) { return v->levels > 1 || v->sharp; }
 
-void volume_sample(struct volume *v, int z0, int z1)
+int volume_sample(struct volume *v, int z0, int z1, const struct sf_progress *pr, struct sf_err *err)
 {
-    if (v->frep)
-        frep_sample(&v->frep->f, v->g.origin, v->frep->cell, v->g.nx, v->g.ny, z0, z1, v->owned);
+    return v->frep ? frep_sample(&v->frep->f, v->g.origin, v->frep->cell, v->g.nx, v->g.ny, z0, z1, v->owned, pr, err)
+                   : 0;
 }
 
 /* A DICOM series as multipart/form-data. */

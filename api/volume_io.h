@@ -69,8 +69,8 @@ int volume_mesh_empty(const struct volume *v, const struct trimesh *m, struct sf
 struct iso_opts volume_iso_opts(const struct volume *v);
 bool volume_adaptive(const struct volume *v);
 /* Fills planes [z0, z1) of an FRep volume's grid (any planes, on any threads); nothing for
- * sampled volumes. */
-void volume_sample(struct volume *v, int z0, int z1);
+ * sampled volumes. 0, or SF_ECANCEL when pr asks to stop (polled every 8^3 samples). */
+int volume_sample(struct volume *v, int z0, int z1, const struct sf_progress *pr, struct sf_err *err);
 /* What volume_read says of the query and the header and the body's length, without reading the
  * samples (no inflating, no NaN scan): cheap enough for the HTTP thread that takes the upload.
  * The job's volume_read says the rest. */

@@ -232,7 +232,7 @@ int cmd_isosurface(int argc, char **argv)
     }
     double t_read = now_ms();
     if (!rc)
-        volume_sample(&v, 0, v.g.nz); /* an FRep's grid (on this thread: the daemon's job uses its pool) */
+        volume_sample(&v, 0, v.g.nz, NULL, NULL); /* an FRep's grid (on this thread: the daemon's job uses its pool) */
     if (!strcmp(argv[0], "matrix")) { /* surfd matrix: the volume's six relief matrices (seed 003) */
         char *json = rc ? NULL : matrix_json_of_volume(&v, &err);
         rc = rc ? rc : json ? 0 : err.code;

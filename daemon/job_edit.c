@@ -454,8 +454,10 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
 
 /* An FRep model's edit: its latest request's tree combined with the body's object, sampled and
  * extracted again whole (every cell: see the file's head), stored as the next part. */
-static int edit_frep(struct edit_work *w, const struct job_rec *rec, const char *id)
+static int edit_frep(struct edit_work *w, struct job *j, const struct job_rec *rec, const char *id)
 {
+    struct job_poll pc = {w->svc->q, j};
+    const struct sf_progress pr = {service_poll_cancel, &pc};
     struct volume_rec *parts;
     int n, found = store_volume_get(w->svc->store, id, 0, &parts, &n), rc = 0;
     if (found != 1)
@@ -471,8 +473,7 @@ static int edit_frep(struct edit_work *w, const struct job_rec *rec, const char 
         rc = w->err.code ? w->err.code : SF_EINVAL;
     struct trimesh m = {0};
     struct iso_adapt_stats ast = {0};
-    if (!rc) {
-        volume_sample(&v, 0, v.g.nz);
+    if (!rc && !(rc = volume_sample(&v, 0, v.g.nz, &pr, &w->err))) {
         struct iso_opts o = job_iso_opts(w->svc, &v);
         rc = volume_adaptive(&v) ? iso_extract_adaptive(&v.g, &o, v.levels, v.max_error, NULL, &m, &ast, &w->err)
                                  : iso_extract(&v.g, &o, NULL, &m, &w->err);
@@ -495,7 +496,6 @@ static int edit_frep(struct edit_work *w, const struct job_rec *rec, const char 
 
 static int prepare(struct job *j, void *arg, int *n_bands)
 {
-    (void)j;
     struct edit_work *w = arg;
     *n_bands = 0;
     struct job_rec rec;
@@ -513,7 +513,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         return was == 1 ? 0 : -1;
     }
     if (!strcmp(rec.format, "json")) {
-        int rc = edit_frep(w, &rec, model);
+        int rc = edit_frep(w, j, &rec, model);
         if (!rc) {
             w->len = strlen(w->json);
             snprintf(w->meta, sizeof w->meta, "{\"status\":200}");

@@ -138,8 +138,12 @@ static void band(struct job *j, void *arg, int k)
     struct iso_work *w = arg;
     if (w->phase == PH_ADAPT)
         iso_adapt_run(w->ad, w->ad_phase, k);
-    else if (w->phase == PH_SAMPLE)
-        volume_sample(&w->vol, (int)((long)w->vol.g.nz * k / w->n_sample), (int)((long)w->vol.g.nz * (k + 1) / w->n_sample));
+    else if (w->phase == PH_SAMPLE) { /* a cancel stops it mid-band: the job ends at the band's end */
+        struct job_poll pc = {w->svc->q, j};
+        const struct sf_progress pr = {service_poll_cancel, &pc};
+        volume_sample(&w->vol, (int)((long)w->vol.g.nz * k / w->n_sample), (int)((long)w->vol.g.nz * (k + 1) / w->n_sample),
+                      &pr, NULL);
+    }
     else if (w->phase == PH_COUNT)
         iso_count(w->ij, k);
     else

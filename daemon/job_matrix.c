@@ -106,8 +106,9 @@ static void band(struct job *j, void *arg, int k)
 
 static int prepare(struct job *j, void *arg, int *n_bands)
 {
-    (void)j;
     struct matrix_work *w = arg;
+    struct job_poll pc = {w->svc->q, j};
+    const struct sf_progress pr = {service_poll_cancel, &pc};
     *n_bands = 0;
     struct job_rec rec;
     char file[1100] = "";
@@ -136,7 +137,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     if (!rc && v.frep)
         rc = frep_volumes(w->svc, v.frep, &w->err);
     if (!rc && v.frep)
-        volume_sample(&v, 0, v.g.nz);
+        rc = volume_sample(&v, 0, v.g.nz, &pr, &w->err);
     if (!rc && !(w->json = matrix_json_of_volume(&v, &w->err)))
         rc = w->err.code;
     volume_free(&v);

@@ -357,3 +357,10 @@ bool service_poll_job(void *ctx, double done)
     const struct job_poll *p = ctx;
     return jobq_cancelled(p->q, p->j, done);
 }
+
+bool service_poll_cancel(void *ctx, double done)
+{
+    (void)done;
+    const struct job_poll *p = ctx;
+    return jobq_cancelled(p->q, p->j, 0);
+}

@@ -100,5 +100,7 @@ struct job_poll {
     struct job *j;
 };
 bool service_poll_job(void *ctx, double done);
+/* The same, for work that is one step of its job's progress: the fraction it is given is not the job's. */
+bool service_poll_cancel(void *ctx, double done);
 
 #endif

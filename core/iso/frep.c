@@ -302,11 +302,17 @@ void frep_bound(const struct frep *f, const double c[3], double r, double *lo, d
 
 #define BLOCK 8 /* samples a side of the blocks that bounds may skip */
 
-void frep_sample(const struct frep *f, const double origin[3], double cell, int nx, int ny, int z0, int z1, float *out)
+int frep_sample(const struct frep *f, const double origin[3], double cell, int nx, int ny, int z0, int z1, float *out,
+                const struct sf_progress *pr, struct sf_err *err)
 {
+    /* polled a block at a time: a block of a 2 048-primitive union is some milliseconds, so a
+     * cancel is heard at once, where a slab of it was hours */
+    double blocks = ceil((z1 - z0) / (double)BLOCK) * ceil(ny / (double)BLOCK) * ceil(nx / (double)BLOCK), done = 0;
     for (int k0 = z0; k0 < z1; k0 += BLOCK)
         for (int j0 = 0; j0 < ny; j0 += BLOCK)
-            for (int i0 = 0; i0 < nx; i0 += BLOCK) {
+            for (int i0 = 0; i0 < nx; i0 += BLOCK, done++) {
+                if (sf_poll(pr, done / blocks, err))
+                    return SF_ECANCEL;
                 int i1 = i0 + BLOCK < nx ? i0 + BLOCK : nx, j1 = j0 + BLOCK < ny ? j0 + BLOCK : ny,
                     k1 = k0 + BLOCK < z1 ? k0 + BLOCK : z1;
                 /* the block and two samples round it: when the field keeps one sign there, no
@@ -336,6 +342,7 @@ void frep_sample(const struct frep *f, const double origin[3], double cell, int 
                         }
                     }
             }
+    return 0;
 }
 
 void frep_transform(struct frep_node *n, const double scale[3], const double rotate_deg[3], const double translate[3])

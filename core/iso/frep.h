@@ -24,6 +24,8 @@
 
 #include <stddef.h>
 
+#include "../base/err.h"
+
 #define FREP_MAX_NODES 4096
 #define FREP_MAX_DEPTH 64
 
@@ -79,7 +81,8 @@ void frep_bound(const struct frep *f, const double c[3], double r, double *lo, d
  * whose bounds (two samples round them included) keep one sign get that sign only (a value of
  * the bounds): no cell near them holds the surface, so the mesh and its normals are those of the
  * fully sampled field. */
-void frep_sample(const struct frep *f, const double origin[3], double cell, int nx, int ny, int z0, int z1, float *out);
+int frep_sample(const struct frep *f, const double origin[3], double cell, int nx, int ny, int z0, int z1, float *out,
+                const struct sf_progress *pr, struct sf_err *err);
 
 /* Builds the rotation of a transform (degrees about x, then y, then z) and its inverse map: sets
  * n->m, n->t and n->lip from scale[3] (all > 0), rotate_deg[3] and translate[3]. */

@@ -53,6 +53,23 @@ kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""
 start_daemon "$T/d1" --threads 2 --max-attempts 2 || exit 1
 check "a job cancelled, then kill -9: cancelled at the restart, not queued again" 'wait_state "$long" cancelled 10 && grep -q "was cancelled before the service stopped" "$T/daemon.log"'
 
+# ---- 9: an FRep whose sampling is hours of work stops at its cancel (polled a block of 8^3 samples at a time) ----
+python3 -c "
+import json, random
+random.seed(48)
+objs = [{'superellipsoid': {'center': [random.uniform(-9, 9) for _ in range(3)], 'radii': [random.uniform(0.3, 1.5) for _ in range(3)],
+                            'e1': random.uniform(0.3, 2), 'e2': random.uniform(0.3, 2)}} for _ in range(512)]
+print(json.dumps({'bounds': [[-10, -10, -10], [10, 10, 10]], 'cell': 0.05, 'frep': {'union': objs}}))" >"$T/union.json"
+status POST /isosurface -H 'Prefer: respond-async' -H 'Content-Type: application/json' --data-binary @"$T/union.json" >/dev/null
+big=$(header X-Job-Id)
+for _ in $(seq 200); do state_of "$big" | grep -q running && break; sleep 0.05; done
+sleep 1
+t0=$(date +%s%N)
+status POST "/jobs/$big/cancel" >/dev/null
+wait_state "$big" cancelled 30; took=$((($(date +%s%N) - t0) / 1000000))
+echo "an FRep cancelled while sampling ended after $took ms"
+check "a union of 512 superellipsoids on 64 M samples, cancelled while sampling: cancelled (it ran on for hours)" '[ "$(state_of "$big" | cut -d" " -f1)" = cancelled ]'
+
 # ---- 10a: an edit is applied once, even when its job runs again after a crash --------------------
 # the state a kill -9 leaves between an edit's store and its job's end, made with sqlite3 while the
 # daemon is stopped: the edit stored, its job still running on a node that is gone

@@ -245,8 +245,8 @@ TEST(sampling_skips_only_what_the_mesh_does_not_read)
     enum { N = 61 };
     static float got[N * N * N];
     double org[3] = {-1.5, -1.5, -1.5}, h = 3.0 / (N - 1);
-    frep_sample(&tree, org, h, N, N, 0, 30, got);  /* in two slabs */
-    frep_sample(&tree, org, h, N, N, 30, N, got);
+    frep_sample(&tree, org, h, N, N, 0, 30, got, NULL, NULL);  /* in two slabs */
+    frep_sample(&tree, org, h, N, N, 30, N, got, NULL, NULL);
     int skipped = 0;
     for (int k = 0; k < N; k++)
         for (int j = 0; j < N; j++)

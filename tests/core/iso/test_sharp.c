@@ -58,7 +58,7 @@ static float samples[N * N * N];
 
 static void sample(void)
 {
-    frep_sample(&tree, (double[3]){ORG, ORG, ORG}, H, N, N, 0, N, samples);
+    frep_sample(&tree, (double[3]){ORG, ORG, ORG}, H, N, N, 0, N, samples, NULL, NULL);
 }
 
 static bool extract(int levels, bool sharp, bool with_field, struct trimesh *m, struct trimesh_stats *st,
@@ -299,7 +299,7 @@ TEST(an_edge_that_only_just_pokes_through_a_cell_edge_stays_manifold)
         add(t);
         int n = cases[i].n;
         double h = cases[i].cell;
-        frep_sample(&tree, cases[i].lo, h, n, n, 0, n, grid);
+        frep_sample(&tree, cases[i].lo, h, n, n, 0, n, grid, NULL, NULL);
         struct iso_grid g = {n, n, n, ISO_F32, grid, {h, h, h}, {cases[i].lo[0], cases[i].lo[1], cases[i].lo[2]}};
         struct iso_opts o = {.closed = true, .normals = true, .sharp = true, .field = field, .field_ctx = &tree};
         struct trimesh m;
