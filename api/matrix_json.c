@@ -1,5 +1,4 @@
 /* matrix_json.c - matrix models as JSON with jansson (matrix_json.h). */
-#define _GNU_SOURCE /* memmem */
 #include "matrix_json.h"
 #include "json_in.h"
 #include "volume_io.h"
@@ -10,8 +9,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-
-bool matrix_body(const char *buf, size_t len) { return memmem(buf, len, "\"matrix_model\"", 14) != NULL; }
 
 void matrix_request_free(struct matrix_request *r)
 {

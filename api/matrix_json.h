@@ -26,8 +26,6 @@ struct matrix_request {
     bool chamfer;            /* "mesher": "chamfer" (matrix_mesh); else "fragments", the seed's (matrix_fragments) */
 };
 
-/* Whether a JSON body is a matrix model (it has "matrix_model"). */
-bool matrix_body(const char *buf, size_t len);
 /* Parses and checks a request (shapes, elements in [0, the line's length], the voxel cap): 0, or
  * SF_EFORMAT (not JSON), SF_EINVAL, SF_ELIMIT with the pointer. */
 int matrix_parse(const char *buf, size_t len, struct matrix_request *r, struct sf_err *err);

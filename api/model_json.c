@@ -1,6 +1,5 @@
 /* model_json.c - contours in, models out: figures (the CLI, the volume and model jobs), stored models'
  * sources, meshes, patch lists and scene objects made from them, and the volume a closed scene encloses. */
-#define _GNU_SOURCE /* memmem */
 #include "model_json.h"
 
 #include <jansson.h>
@@ -141,6 +140,72 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
     return o;
 }
 
+/* ---- what a JSON body is (a contour set, a scene, a matrix model): the members of its top-level
+ * object, found by a scan of the text's structure (strings, brackets, commas), never a tree (a
+ * contour set's would cost 100 bytes a value, again), and never the text anywhere: a structure
+ * named "matrix_model" is still a contour set. A key spelt with escapes is not found. ---- */
+
+static size_t skip_space(const char *b, size_t len, size_t i)
+{
+    while (i < len && (b[i] == ' ' || b[i] == '\t' || b[i] == '\n' || b[i] == '\r'))
+        i++;
+    return i;
+}
+
+/* Past the string opening at b[i] ('"'); len when it does not close. */
+static size_t skip_string(const char *b, size_t len, size_t i)
+{
+    for (i++; i < len; i++)
+        if (b[i] == '\\')
+            i++;
+        else if (b[i] == '"')
+            return i + 1;
+    return len;
+}
+
+/* Past the value starting at b[i], to the ',' or '}' that ends it at its depth; len when it does
+ * not end. */
+static size_t skip_value(const char *b, size_t len, size_t i)
+{
+    for (int depth = 0; i < len; i++) {
+        char c = b[i];
+        if (c == '"')
+            i = skip_string(b, len, i) - 1;
+        else if (c == '[' || c == '{')
+            depth++;
+        else if ((c == ']' || c == '}') && depth-- == 0)
+            return i;
+        else if (c == ',' && depth == 0)
+            return i;
+    }
+    return len;
+}
+
+/* Whether the body's top-level object has member key (the scan stops at what it cannot walk: the
+ * parser that reads the body then says what is wrong). */
+static bool has_member(const char *b, size_t len, const char *key)
+{
+    size_t i = skip_space(b, len, 0), klen = strlen(key);
+    if (i >= len || b[i] != '{')
+        return false;
+    for (i = skip_space(b, len, i + 1); i < len && b[i] == '"';) {
+        size_t k0 = i + 1, k1 = skip_string(b, len, i);
+        if (k1 == k0 + klen + 1 && !memcmp(b + k0, key, klen))
+            return true;
+        i = skip_space(b, len, k1);
+        if (i >= len || b[i] != ':')
+            return false;
+        i = skip_value(b, len, i + 1);
+        if (i >= len || b[i] != ',')
+            return false;
+        i = skip_space(b, len, i + 1);
+    }
+    return false;
+}
+
+/* A matrix model (matrix_json.h) rather than a contour set. */
+static bool matrix_body(const char *buf, size_t len) { return has_member(buf, len, "matrix_model"); }
+
 /* The scene format of a body: as named, but an IGES file is one whatever its Content-Type said
  * (curl sends files as forms, and a JSON default would refuse it). */
 static enum scene_format scene_body_format(const char *buf, size_t len, const char *format)
@@ -153,12 +218,12 @@ bool model_body_is_scene(const char *buf, size_t len, const char *format)
 {
     if (scene_body_format(buf, len, format) == SCENE_IGES)
         return true;
-    if (format && (!strcmp(format, "bpt") || !strcmp(format, "nurbs") || !strcmp(format, "vrml") ||
-                   !strcmp(format, "iges") || !strcmp(format, "igs")))
+    enum scene_format f = scene_format_parse(format);
+    if (f == SCENE_BPT || f == SCENE_VRML || f == SCENE_IGES) /* (by any of its names) */
         return true;
     if (format && *format && strcmp(format, "json"))
         return false;
-    return !memmem(buf, len, "\"slices\"", 8) && (memmem(buf, len, "\"objects\"", 9) || memmem(buf, len, "\"patches\"", 9));
+    return !has_member(buf, len, "slices") && (has_member(buf, len, "objects") || has_member(buf, len, "patches"));
 }
 
 /* Trimmed surfaces as a solid: their area over the trimmed domains, and the volume they enclose
@@ -677,16 +742,19 @@ static int section_planes(const char *src, size_t len, const char *resource, dou
         spacing = sz, first = oz;
     }
     if (!rc && spacing) {
-        double k0 = ceil((lo - first) / spacing - 1e-9), k1 = floor((hi - first) / spacing + 1e-9);
-        if (k1 - k0 + 1 > CONTOUR_MAX_SLICES)
+        /* the planes first + k spacing, k from k0 to k1, counted by an integer: a double k stops
+         * advancing past 2^53 (a grid whose origin is 1e24 mm away), and the planes would not end */
+        double k0 = ceil((lo - first) / spacing - 1e-9), k1 = floor((hi - first) / spacing + 1e-9), count = k1 - k0 + 1;
+        if (!(count <= CONTOUR_MAX_SLICES))
             return sf_fail(err, SF_ELIMIT, "?spacing", "%g mm gives over %d sections", spacing, CONTOUR_MAX_SLICES);
-        if (!(*z = malloc(sizeof **z * (size_t)(k1 - k0 + 4))))
+        int n_k = count > 0 ? (int)count : 0;
+        if (!(*z = malloc(sizeof **z * (size_t)(n_k + 2))))
             return sf_fail(err, SF_ENOMEM, "", "out of memory");
-        if (k0 > k1 || first + k0 * spacing - lo > 1e-3 * spacing) /* the lowest point: the structure's end */
+        if (!n_k || first + k0 * spacing - lo > 1e-3 * spacing) /* the lowest point: the structure's end */
             (*z)[(*n)++] = lo;
-        for (double k = k0; k <= k1; k++)
-            (*z)[(*n)++] = first + k * spacing;
-        if (k0 > k1 || hi - (first + k1 * spacing) > 1e-3 * spacing)
+        for (int i = 0; i < n_k; i++)
+            (*z)[(*n)++] = first + (k0 + i) * spacing;
+        if (!n_k || hi - (first + k1 * spacing) > 1e-3 * spacing)
             (*z)[(*n)++] = hi;
     }
     double eps = 1e-6 * (hi - lo);

@@ -273,18 +273,21 @@ out:
     return rc;
 }
 
+/* The names a scene's format goes by, in ?format= and as a file's extension: every route that reads
+ * a scene (/render, /volume, /model, the CLI) takes them from here. */
+static const struct {
+    const char *name;
+    enum scene_format format;
+} SCENE_FORMATS[] = {{"json", SCENE_JSON}, {"bpt", SCENE_BPT},   {"nurbs", SCENE_VRML}, {"vrml", SCENE_VRML},
+                     {"wrl", SCENE_VRML},  {"iges", SCENE_IGES}, {"igs", SCENE_IGES}};
+
 enum scene_format scene_format_parse(const char *name)
 {
     if (!name || !*name)
         return SCENE_UNKNOWN;
-    if (!strcmp(name, "json"))
-        return SCENE_JSON;
-    if (!strcmp(name, "bpt"))
-        return SCENE_BPT;
-    if (!strcmp(name, "nurbs") || !strcmp(name, "vrml") || !strcmp(name, "wrl"))
-        return SCENE_VRML;
-    if (!strcmp(name, "iges") || !strcmp(name, "igs"))
-        return SCENE_IGES;
+    for (size_t k = 0; k < sizeof SCENE_FORMATS / sizeof *SCENE_FORMATS; k++)
+        if (!strcmp(name, SCENE_FORMATS[k].name))
+            return SCENE_FORMATS[k].format;
     return (enum scene_format)-1;
 }
 

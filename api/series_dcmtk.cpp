@@ -3,6 +3,7 @@
 // research and what PACS send by default); a compressed one is refused by name.
 #include "dcmtk_in.h"
 #include "dicom_series.h"
+#include "ranges.h"
 
 #include <dcmtk/config/osconfig.h>
 #include <dcmtk/dcmdata/dctk.h>
@@ -20,12 +21,9 @@ namespace {
 
 /* The ranges a slice's geometry and rescale must keep, so that every product the grid and the
  * mesh make of them (positions over spacings, samples times slopes) stays finite in float, and
- * a volume comes out of real numbers: patient coordinates are within a metre or two of the
- * scanner's origin, 1 km is room for any table offset; 1 um is finer than micro-CT's pixels and
- * 10 m coarser than any scanner's; a 16-bit sample times 1e6 plus 1e9 is well inside float. */
-#define SERIES_MAX_COORD 1e6     /* mm from the origin, ImagePositionPatient */
-#define SERIES_MIN_SPACING 1e-3  /* mm: PixelSpacing and the spacing between slices */
-#define SERIES_MAX_SPACING 1e4   /* mm */
+ * a volume comes out of real numbers: positions within RANGE_MAX_COORD, PixelSpacing and the
+ * spacing between slices within [RANGE_MIN_SPACING, RANGE_MAX_SPACING] (ranges.h, as every
+ * volume's); a 16-bit sample times 1e6 plus 1e9 is well inside float. */
 #define SERIES_MAX_SLOPE 1e6     /* |RescaleSlope| */
 #define SERIES_MAX_INTERCEPT 1e9 /* |RescaleIntercept| */
 #define ORIENT_EPS 1e-3          /* how far past 1 a direction cosine may round */
@@ -117,11 +115,11 @@ int read_slice(const struct part &p, int k, bool check_only, slice &sl, struct s
         return fail_part(err, SF_EINVAL, k, "%s", "samples are one channel of 8 or 16 bits (a CT or MR image)");
     /* ImagePositionPatient: the slice's corner; ImageOrientationPatient: two direction cosines */
     if ((rc = check_range(err, k, "ImagePositionPatient (mm)", get_doubles(ds, DCM_ImagePositionPatient, sl.pos, 3),
-                          sl.pos, 3, 0, SERIES_MAX_COORD, false)) ||
+                          sl.pos, 3, 0, RANGE_MAX_COORD, false)) ||
         (rc = check_range(err, k, "ImageOrientationPatient", get_doubles(ds, DCM_ImageOrientationPatient, sl.orient, 6),
                           sl.orient, 6, 0, 1 + ORIENT_EPS, false)) ||
         (rc = check_range(err, k, "PixelSpacing (mm)", get_doubles(ds, DCM_PixelSpacing, sl.spacing, 2), sl.spacing, 2,
-                          SERIES_MIN_SPACING, SERIES_MAX_SPACING, false)))
+                          RANGE_MIN_SPACING, RANGE_MAX_SPACING, false)))
         return rc;
     if (!(sl.spacing[0] > 0) || !(sl.spacing[1] > 0))
         return fail_part(err, SF_EINVAL, k, "%s", "PixelSpacing is not positive");
@@ -197,10 +195,10 @@ extern "C" int series_read(const struct part *parts, int n, bool check_only, siz
     double mean = (sl.back().s - sl.front().s) / (n - 1);
     if (!(mean > 0))
         return fail_part(err, SF_EINVAL, sl[1].part, "%s", "two slices at the same position");
-    if (mean < SERIES_MIN_SPACING || mean > SERIES_MAX_SPACING) {
+    if (mean < RANGE_MIN_SPACING || mean > RANGE_MAX_SPACING) {
         char what[200];
         snprintf(what, sizeof what, "ImagePositionPatient puts the slices %.3g mm apart on average: surfd reads %g to "
-                 "%g mm", mean, SERIES_MIN_SPACING, SERIES_MAX_SPACING);
+                 "%g mm", mean, RANGE_MIN_SPACING, RANGE_MAX_SPACING);
         return fail_part(err, SF_EINVAL, sl[(size_t)n - 1].part, "%s", what);
     }
     for (int k = 1; k < n; k++) {

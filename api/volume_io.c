@@ -15,6 +15,7 @@
 #include "dicom_series.h"
 #include "multipart.h"
 #include "query.h"
+#include "ranges.h"
 
 /* Whether body begins as a JSON object's text does: '{', then a key or '}', and no byte of its
  * first 64 a control character but blanks (raw samples whose first byte is 123 are not). */
@@ -106,12 +107,49 @@ static int check_dims(const double d[3], const char *where, int dims[3], struct 
     return 0;
 }
 
-static int check_spacing(const double s[3], const char *where, struct sf_err *err)
+/* What names a grid's origin, spacing and far corner in a request: the pointers (the query option,
+ * the header line) and the fields' own names (?origin, "space origin", Offset). */
+struct grid_fields {
+    const char *origin_at, *origin;
+    const char *spacing_at, *spacing;
+    const char *corner_at;   /* the far corner: origin + (sizes - 1) x spacing, or the bounds' second */
+};
+
+/* A grid's geometry within ranges.h's: its origin lo and far corner hi within RANGE_MAX_COORD of
+ * 0, its spacings sp within [RANGE_MIN_SPACING, RANGE_MAX_SPACING] and not finer than float32
+ * vertices (the mesh's) hold apart where the grid lies. */
+static int check_grid(const double lo[3], const double hi[3], const double sp[3], const struct grid_fields *f,
+                      struct sf_err *err)
 {
-    for (int a = 0; a < 3; a++)
-        if (!(s[a] > 0) || !(s[a] < 1e6))
-            return sf_fail(err, SF_EINVAL, where, "spacings are positive and finite (mm)");
+    for (int a = 0; a < 3; a++) {
+        char axis = (char)('x' + a);
+        if (!(fabs(lo[a]) <= RANGE_MAX_COORD))
+            return sf_fail(err, SF_EINVAL, f->origin_at, "%s: %c is %g mm; a volume lies within %g mm of 0", f->origin,
+                           axis, lo[a], RANGE_MAX_COORD);
+        if (!(sp[a] >= RANGE_MIN_SPACING && sp[a] <= RANGE_MAX_SPACING))
+            return sf_fail(err, SF_EINVAL, f->spacing_at, "%s: %g mm along %c; spacings are from %g to %g mm",
+                           f->spacing, sp[a], axis, RANGE_MIN_SPACING, RANGE_MAX_SPACING);
+        if (!(fabs(hi[a]) <= RANGE_MAX_COORD))
+            return sf_fail(err, SF_EINVAL, f->corner_at, "the grid reaches %g mm along %c (%s plus its samples "
+                           "times %s); a volume lies within %g mm of 0", hi[a], axis, f->origin, f->spacing,
+                           RANGE_MAX_COORD);
+        double far = fmax(fabs(lo[a]), fabs(hi[a]));
+        if (sp[a] < far * RANGE_MIN_CELL_REL)
+            return sf_fail(err, SF_EINVAL, f->spacing_at, "%s: cells of %g mm along %c, %g mm from 0, are finer than "
+                           "the mesh's float32 vertices hold apart there (%g mm at least): move %s nearer 0",
+                           f->spacing, sp[a], axis, far, far * RANGE_MIN_CELL_REL, f->origin);
+    }
     return 0;
+}
+
+/* check_grid for a grid of n samples from origin o, sp apart. */
+static int check_samples(const int n[3], const double o[3], const double sp[3], const struct grid_fields *f,
+                         struct sf_err *err)
+{
+    double hi[3];
+    for (int a = 0; a < 3; a++)
+        hi[a] = o[a] + (n[a] - 1) * sp[a];
+    return check_grid(o, hi, sp, f, err);
 }
 
 /* ---- the samples ---- */
@@ -264,6 +302,7 @@ struct header {
     double dims[3], spacing[3], origin[3];
     bool have_dims, have_type, have_spacing, compressed, big_endian;
     enum iso_type type;
+    int spacing_line, origin_line; /* the lines that gave them (0: the defaults) */
 };
 
 static int bad_line(struct sf_err *err, int line, const char *what)
@@ -291,6 +330,7 @@ static int nrrd_line(void *ctx, const char *key, const char *value, int line, st
         if (numbers(value, 3, h->spacing))
             return bad_line(err, line, "spacings are three numbers");
         h->have_spacing = true;
+        h->spacing_line = line;
     } else if (!strcmp(key, "space directions")) {
         double d[9];
         if (numbers(value, 9, d))
@@ -302,9 +342,11 @@ static int nrrd_line(void *ctx, const char *key, const char *value, int line, st
         for (int a = 0; a < 3; a++)
             h->spacing[a] = fabs(d[4 * a]);
         h->have_spacing = true;
+        h->spacing_line = line;
     } else if (!strcmp(key, "space origin")) {
         if (numbers(value, 3, h->origin))
             return bad_line(err, line, "the space origin is (x,y,z)");
+        h->origin_line = line;
     } else if (!strcmp(key, "endian")) {
         if (strcmp(value, "little") && strcmp(value, "big"))
             return bad_line(err, line, "endian is little or big");
@@ -345,9 +387,11 @@ static int mha_line(void *ctx, const char *key, const char *value, int line, str
         if (numbers(value, 3, h->spacing))
             return bad_line(err, line, "ElementSpacing is three numbers");
         h->have_spacing = true;
+        h->spacing_line = line;
     } else if (!strcmp(key, "Offset") || !strcmp(key, "Position") || !strcmp(key, "Origin")) {
         if (numbers(value, 3, h->origin))
             return bad_line(err, line, "Offset is three numbers");
+        h->origin_line = line;
     } else if (!strcmp(key, "TransformMatrix") || !strcmp(key, "Rotation") || !strcmp(key, "Orientation")) {
         double m[9];
         if (numbers(value, 9, m) || m[0] != 1 || m[4] != 1 || m[8] != 1 || m[1] || m[2] || m[3] || m[5] || m[6] || m[7])
@@ -496,6 +540,8 @@ static int common_options(const char *options, bool frep, struct volume *v, stru
         return sf_fail(err, SF_EINVAL, "?iso", "iso=V is required: the sample value the surface follows");
     if (end == s || *end || !isfinite(v->iso))
         return sf_fail(err, SF_EINVAL, "?iso", "iso is a finite number, not \"%s\"", s);
+    if (!(fabs(v->iso) <= RANGE_MAX_ISO))
+        return sf_fail(err, SF_EINVAL, "?iso", "iso is a number within %g of 0, not %g", RANGE_MAX_ISO, v->iso);
     query_option(options, "closed", s, sizeof s);
     if (s[0] && strcmp(s, "true") && strcmp(s, "false"))
         return sf_fail(err, SF_EINVAL, "?closed", "closed is true or false");
@@ -534,12 +580,11 @@ static int read_raw(const char *body, size_t len, const char *options, struct vo
         return sf_fail(err, SF_EINVAL, "?type", "raw samples need type=uint8|int16|uint16|float32");
     if (parse_type(t, &v->g.type) || (strcmp(t, "uint8") && strcmp(t, "int16") && strcmp(t, "uint16") && strcmp(t, "float32")))
         return sf_fail(err, SF_EINVAL, "?type", "type is uint8, int16, uint16 or float32, not \"%.20s\"", t);
-    if ((rc = query_numbers(options, "spacing", 3, sp, &given, err)) || (rc = check_spacing(sp, "?spacing", err)) ||
-        (rc = query_numbers(options, "origin", 3, org, &given, err)))
+    if ((rc = query_numbers(options, "spacing", 3, sp, &given, err)) ||
+        (rc = query_numbers(options, "origin", 3, org, &given, err)) ||
+        (rc = check_samples(dims, org, sp, &(struct grid_fields){"?origin", "origin", "?spacing", "spacing", "?spacing"},
+                            err)))
         return rc;
-    for (int a = 0; a < 3; a++)
-        if (fabs(org[a]) > 1e9)
-            return sf_fail(err, SF_EINVAL, "?origin", "the origin is within 1e9 mm");
     v->g.nx = dims[0], v->g.ny = dims[1], v->g.nz = dims[2];
     memcpy(v->g.spacing, sp, sizeof sp);
     memcpy(v->g.origin, org, sizeof org);
@@ -577,7 +622,13 @@ static int read_header(const char *body, size_t len, bool mha, const char *optio
         return sf_fail(err, SF_EINVAL, "header", "the header gives no %s", h.have_dims ? mha ? "ElementType" : "type"
                                                                                        : mha ? "DimSize" : "sizes");
     int dims[3];
-    if ((rc = check_dims(h.dims, "header", dims, err)) || (rc = check_spacing(h.spacing, "header", err)))
+    char at_sp[32] = "header", at_org[32] = "header";
+    if (h.spacing_line)
+        snprintf(at_sp, sizeof at_sp, "header line %d", h.spacing_line);
+    if (h.origin_line)
+        snprintf(at_org, sizeof at_org, "header line %d", h.origin_line);
+    struct grid_fields f = {at_org, mha ? "Offset" : "space origin", at_sp, mha ? "ElementSpacing" : "spacings", at_sp};
+    if ((rc = check_dims(h.dims, "header", dims, err)) || (rc = check_samples(dims, h.origin, h.spacing, &f, err)))
         return rc;
     v->g.nx = dims[0], v->g.ny = dims[1], v->g.nz = dims[2];
     v->g.type = h.type;
@@ -602,6 +653,9 @@ static int read_frep(const char *body, size_t len, const char *options, struct v
     struct frep_request *r = v->frep;
     v->g = (struct iso_grid){r->dims[0], r->dims[1], r->dims[2], ISO_F32, NULL, {r->cell, r->cell, r->cell},
                              {r->lo[0], r->lo[1], r->lo[2]}};
+    if ((rc = check_grid(r->lo, r->hi, v->g.spacing, &(struct grid_fields){"/bounds/0", "bounds", "/cell", "cell", "/bounds/1"},
+                         err)))
+        return rc;
     if (!v->name[0])
         snprintf(v->name, sizeof v->name, "%s", r->name);
     if (v->check_only)
@@ -660,11 +714,40 @@ static int read_series(const char *body, size_t len, const char *options, struct
         return rc;
     v->g = s.g;
     v->owned = s.owned;
+    if (v->check_only) /* int16 or float32 is decided by the samples' rescaled values: the wider until then */
+        v->g.type = ISO_F32;
     memcpy(v->axes, s.axes, sizeof s.axes);
     for (int a = 0; a < 3; a++)
         for (int b = 0; b < 3; b++)
             v->oblique = v->oblique || fabs(v->axes[a][b] - (a == b)) > 1e-9;
-    return 0;
+    /* the reader kept each slice's position in range; here the grid's box in patient coordinates,
+     * corner to corner along its axes (an oblique one's turned) */
+    double lo[3], hi[3], steps[3] = {v->g.nx - 1, v->g.ny - 1, v->g.nz - 1};
+    for (int b = 0; b < 3; b++) {
+        lo[b] = hi[b] = v->g.origin[b];
+        for (int a = 0; a < 3; a++) {
+            double d = steps[a] * v->g.spacing[a] * v->axes[a][b];
+            lo[b] += fmin(d, 0), hi[b] += fmax(d, 0);
+        }
+    }
+    return check_grid(lo, hi, v->g.spacing, &(struct grid_fields){"/parts", "ImagePositionPatient", "/parts",
+                      "the spacing (PixelSpacing, between slices)", "/parts"}, err);
+}
+
+/* ?iso within what the samples' type can hold (a DICOM series' after its rescale: int16 when its
+ * values fit, float32 else): past it every sample is on one side, which is said before any work. */
+static int check_iso_reach(const struct volume *v, struct sf_err *err)
+{
+    static const struct type_reach {
+        const char *name;
+        double lo, hi;
+    } REACH[] = {[ISO_U8] = {"uint8", 0, 255}, [ISO_I16] = {"int16", -32768, 32767}, [ISO_U16] = {"uint16", 0, 65535},
+                 [ISO_F32] = {"float32", -RANGE_MAX_ISO, RANGE_MAX_ISO}};
+    const struct type_reach *r = &REACH[v->g.type];
+    if (v->iso >= r->lo && v->iso <= r->hi)
+        return 0;
+    return sf_fail(err, SF_EINVAL, "?iso", "iso %g is past what the volume's %s samples hold (%g to %g): every sample "
+                   "would be on one side of it", v->iso, r->name, r->lo, r->hi);
 }
 
 static int read_volume(const char *body, size_t len, const char *format, const char *options, bool check_only,
@@ -699,6 +782,8 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     } else {
         rc = sf_fail(err, SF_EFORMAT, "?format", "format is raw, nrrd, mha, dicom or frep");
     }
+    if (!rc)
+        rc = check_iso_reach(v, err);
     if (!rc && v->max_error < 0)
         v->max_error = 0.5 * fmin(v->g.spacing[0], fmin(v->g.spacing[1], v->g.spacing[2]));
     if (!rc && volume_adaptive(v) && (double)v->g.nx * v->g.ny * v->g.nz > ISO_ADAPT_MAX_SAMPLES)

@@ -57,7 +57,10 @@ char *volume_attach(const char *hdr, size_t len, int line, const char *data, siz
 /* Reads a volume: format "raw", "nrrd", "mha", "dicom", "frep" or "" (sniffed); options the query. On success
  * v->g.samples points into body or v->owned (free with volume_free). Errors name the query option
  * ("?dims"), or the header line ("header line 4: ...") of what is wrong: SF_EINVAL (422),
- * SF_EFORMAT (400: not a volume of that format), SF_ELIMIT (too many samples). */
+ * SF_EFORMAT (400: not a volume of that format), SF_ELIMIT (too many samples). The grid's origin,
+ * far corner and spacings, and ?iso, are in ranges.h's ranges (iso also within what the samples'
+ * type holds), else SF_EINVAL naming ?origin, ?spacing, ?iso, the header line, an FRep's /bounds
+ * or /cell, or a series' /parts. */
 int volume_read(const char *body, size_t len, const char *format, const char *options, struct volume *v,
                 struct sf_err *err);
 void volume_free(struct volume *v);

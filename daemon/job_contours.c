@@ -184,12 +184,10 @@ static int validate(struct job_body *b, bool scenes, struct sf_err *err)
 int volume_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     (void)svc;
-    static const char *const FORMATS[] = {"json", "dicom", "bpt", "nurbs", "vrml", "iges", "igs"};
-    size_t k = 0;
-    while (k < sizeof FORMATS / sizeof *FORMATS && strcmp(b->format, FORMATS[k]))
-        k++;
-    if (k == sizeof FORMATS / sizeof *FORMATS) /* ?format= names it */
-        return sf_fail(err, SF_EFORMAT, "?format", "format is json, dicom, bpt, nurbs or iges, not \"%s\"", b->format);
+    /* ?format= names it: an RT Structure Set, or a scene by any name /render takes (scene_text.c's table) */
+    if (strcmp(b->format, "dicom") && scene_format_parse(b->format) == (enum scene_format)-1)
+        return sf_fail(err, SF_EFORMAT, "?format", "format is json, dicom, bpt, nurbs (vrml, wrl) or iges (igs), not \"%s\"",
+                       b->format);
     return validate(b, true, err);
 }
 

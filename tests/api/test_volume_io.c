@@ -19,6 +19,8 @@ static bool refused(const char *body, size_t len, const char *format, const char
     struct volume v;
     struct sf_err err;
     int rc = rd(body, len, format, options, &v, &err);
+    if (!rc)
+        volume_free(&v);
     if (rc != code || strncmp(err.pointer, ptr, strlen(ptr)))
         fprintf(stderr, "  %s | %s: rc %d pointer \"%s\" (%s), expected %d \"%s\"\n", format, options, rc, err.pointer,
                 err.message, code, ptr);
@@ -173,6 +175,70 @@ TEST(metaimage)
     free(b);
 }
 
+/* Every origin, spacing and iso in ranges.h's ranges, else a 422 (SF_EINVAL) naming the option or
+ * the header line (issue 48: an origin of 1e300 answered 500 "out of memory", 1e-300 mm spacings
+ * and an origin 1e9 mm out stored meshes of volume 0). */
+TEST(numbers_in_range)
+{
+    const char *b = (const char *)samples;
+    size_t n = sizeof samples;
+    static const struct {
+        const char *options, *pointer;
+    } RAW[] = {
+        {"iso=-1e308", "?iso"},
+        {"iso=1e31", "?iso"},
+        {"iso=40000", "?iso"},                                /* past int16 */
+        {"iso=1&origin=1e300,0,0", "?origin"},
+        {"iso=1&origin=0,-1e9,0", "?origin"},
+        {"iso=1&origin=0,0,1000001", "?origin"},
+        {"iso=1&spacing=1e-300,1,1", "?spacing"},
+        {"iso=1&spacing=1,1,0.0009", "?spacing"},
+        {"iso=1&spacing=1,20000,1", "?spacing"},
+        {"iso=1&spacing=1e4,1,1&origin=980000,0,0", "?spacing"}, /* the far corner 1 010 000 mm out */
+        {"iso=1&spacing=0.001,1,1&origin=1e6,0,0", "?spacing"},   /* cells float32 cannot hold apart there */
+    };
+    for (size_t k = 0; k < sizeof RAW / sizeof *RAW; k++) {
+        char q[160];
+        snprintf(q, sizeof q, "dims=4,3,2&type=int16&%s", RAW[k].options);
+        CHECK(refused(b, n, "raw", q, SF_EINVAL, RAW[k].pointer));
+    }
+    struct volume v;
+    struct sf_err err;
+    CHECK(rd(b, n, "raw", "iso=32767&dims=4,3,2&type=int16&spacing=1e-3,1e4,1&origin=900,-1e6,1000", &v, &err) == 0);
+    volume_free(&v);
+    float f[8] = {0, 1, 2, 3, 4, 5, 6, 7};
+    CHECK(rd((const char *)f, sizeof f, "raw", "iso=-1e30&dims=2,2,2&type=float32", &v, &err) == 0);
+    volume_free(&v);
+    static const struct {
+        const char *header, *pointer;
+    } HDR[] = {
+        {"NRRD0004\ntype: int16\ndimension: 3\nsizes: 4 3 2\nspace origin: (1e300,0,0)\nencoding: raw\n\n",
+         "header line 5"},
+        {"NRRD0004\ntype: int16\ndimension: 3\nsizes: 4 3 2\nspacings: 1 1e-300 1\nencoding: raw\n\n", "header line 5"},
+        {"NRRD0004\ntype: int16\nsizes: 4 3 2\nspace directions: (1e5,0,0) (0,1,0) (0,0,1)\n\n", "header line 4"},
+        {"ObjectType = Image\nNDims = 3\nDimSize = 4 3 2\nElementType = MET_SHORT\nOffset = 1e300 0 0\n"
+         "ElementDataFile = LOCAL\n", "header line 5"},
+        {"ObjectType = Image\nNDims = 3\nDimSize = 4 3 2\nElementSpacing = 1e-300 1 1\nElementType = MET_SHORT\n"
+         "ElementDataFile = LOCAL\n", "header line 4"},
+    };
+    for (size_t k = 0; k < sizeof HDR / sizeof *HDR; k++) {
+        size_t len;
+        char *h = with_header(HDR[k].header, samples, sizeof samples, &len);
+        CHECK(refused(h, len, "", "iso=1", SF_EINVAL, HDR[k].pointer));
+        free(h);
+    }
+    static const struct {
+        const char *body, *pointer;
+    } FREP[] = {
+        {"{\"bounds\": [[-2e6, 0, 0], [1, 1, 1]], \"cell\": 0.5, \"frep\": {\"sphere\": {\"center\": [0, 0, 0], "
+         "\"radius\": 1}}}", "/bounds/0"},
+        {"{\"bounds\": [[0, 0, 0], [0.01, 0.01, 0.01]], \"cell\": 0.0001, \"frep\": {\"sphere\": {\"center\": [0, 0, 0], "
+         "\"radius\": 1}}}", "/cell"},
+    };
+    for (size_t k = 0; k < sizeof FREP / sizeof *FREP; k++)
+        CHECK(refused(FREP[k].body, strlen(FREP[k].body), "frep", "", SF_EINVAL, FREP[k].pointer));
+}
+
 /* The shared CT crop as an attached NRRD reads the same samples as its raw file. */
 TEST(shared_ct_as_nrrd)
 {
@@ -230,6 +296,7 @@ int main(void)
     RUN(dicom_lengths_over_the_part);
     RUN(nrrd);
     RUN(metaimage);
+    RUN(numbers_in_range);
     RUN(shared_ct_as_nrrd);
     UNIT_END();
 }
