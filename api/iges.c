@@ -15,6 +15,15 @@
  * each turned round where its far end meets the loop (a SENSE flag in the wild is not always right);
  * a loop whose ends stay apart by more than LOOP_GAP_REL of its size is refused.
  *
+ * Budget: before any loop is built, what every drawn surface's loops will hold is counted from what
+ * the file declares (trim_budget): a B-spline curve's spans each sampled as deep as its second
+ * derivative's control points need at the surface's tolerance, an arc's steps, a polyline's points,
+ * a composite's constituents; a curve that several loops (or composites) use is counted at each use,
+ * as each use is expanded anew, and its count memoized per entity so that nesting cannot make the
+ * counting itself exponential. Over IGES_MAX_TRIM_POINTS the part is refused (SF_ELIMIT, 422) at the
+ * surface where the count passed it; the points the loops then take are counted against the same
+ * figure as they are made.
+ *
  * Errors: text that is not IGES is 400 (SF_EFORMAT) naming the line; an entity that cannot be used
  * (a bad knot vector, missing U/V ranges, a loop that does not close, a pointer to nothing) is 422
  * (SF_EINVAL) with the pointer "D<n>", n the entity's first directory line.
@@ -31,6 +40,7 @@
 
 #include "../core/base/mem.h"
 #include "../core/geom/trim.h"
+#include "iges.h"
 #include "scene_io.h"
 
 #define IGES_MAX_ENTITIES 1000000 /* directory entries */
@@ -39,6 +49,18 @@
 #define TRIM_TOL_REL 4e-6         /* chord error of a trim polyline, of its surface's domain diagonal */
 #define LOOP_GAP_REL 1e-2         /* largest gap in a loop, of the loop's size */
 #define ARC_MAX_STEPS 4096
+#define SAMPLE_MIN_DEPTH 3        /* a B-spline span is halved at least this often (8 chords): a wiggle within a
+                                   * span that its ends and middle miss is still seen */
+#define SAMPLE_MAX_DEPTH 14       /* and at most this often (16 384 chords a span) */
+/* Trim points of all the surfaces' loops of one file, each use of a shared curve counted. A point
+ * held costs some 20 bytes (its loop and its index; three times that while its loop is made) and
+ * half a microsecond, so 2^23 is some 170 MB and 4 s of a job. The real parts count a few
+ * thousand (mug_solid.igs, 13 faces: 6 156, of which 6 099 are made; mug.iges: 3 128): the figure
+ * leaves three orders of magnitude for assemblies of thousands of faces, and twice the largest
+ * loop one surface may hold (TRIM_MAX_POINTS). */
+#define IGES_MAX_TRIM_POINTS (1u << 23)
+#define POLL_POINTS 65536         /* trim points made between two polls of the job's cancel */
+#define POLL_PROJECTED 1024       /* model-space points projected between two polls: each a Newton solve */
 #define PROJECT_OFF_REL 2e-2      /* a model-space trim curve may lie this far off its surface, of its size
                                    * (exporters approximate: mug.iges's handle boundary is 0.6 % off) */
 
@@ -48,6 +70,11 @@ struct de { /* one directory entry */
     int line;         /* its first D line: the entity's name in errors */
     char label[9];    /* the entity label (directory field 18), blanks trimmed */
     bool bounded;     /* a surface a 143/144 bounds */
+    /* the budget's memo (trim_budget): a curve's points at tolerance est_tol; a surface's tolerances */
+    enum { EST_NONE, EST_BUSY, EST_DONE } est;
+    double est_tol, est_points;
+    bool tols_known;
+    double tol_uv, tol_mm;
 };
 
 struct iges {
@@ -58,6 +85,9 @@ struct iges {
     const char **p_line;    /* the P section's lines, by sequence number - 1 */
     int n_p;
     struct sf_err *err;
+    const struct sf_progress *pr; /* polled while loops are made; NULL: never stops */
+    double n_est;           /* trim points the loops will take, by trim_budget */
+    double n_trim;          /* trim points the loops have taken so far */
 };
 
 /* ---- lines and fields ------------------------------------------------------------------ */
@@ -311,10 +341,19 @@ struct poly {
     size_t n, cap;
 };
 
+/* sf_poll with the share of the estimated trim points made so far, extra of them not yet counted. */
+static int poll_cancel(struct iges *g, size_t extra)
+{
+    return sf_poll(g->pr, g->n_est > 0 ? fmin(1.0, (g->n_trim + (double)extra) / g->n_est) : 0, g->err);
+}
+
 static int poly_add(struct iges *g, struct poly *pl, const double q[3], const char *where)
 {
     if (pl->n >= TRIM_MAX_POINTS)
         return sf_fail(g->err, SF_ELIMIT, where, "trim curves need more than %u points", TRIM_MAX_POINTS);
+    int rc;
+    if (pl->n && pl->n % POLL_POINTS == 0 && (rc = poll_cancel(g, pl->n)))
+        return rc;
     if (mem_reserve((void **)&pl->p, &pl->cap, pl->n + 1, sizeof *pl->p))
         return sf_fail(g->err, SF_ENOMEM, where, "out of memory");
     memcpy(pl->p[pl->n++], q, sizeof *pl->p);
@@ -356,16 +395,27 @@ static int bcurve_sample(struct iges *g, const struct bcurve *c, double a, const
     bcurve_eval(c, m, pm);
     for (int d = 0; d < 3; d++)
         mid[d] = 0.5 * (pa[d] + pb[d]);
-    if (depth < 3 || (depth < 14 && dist3(pm, mid) > tol)) {
+    if (depth < SAMPLE_MIN_DEPTH || (depth < SAMPLE_MAX_DEPTH && dist3(pm, mid) > tol)) {
         int rc = bcurve_sample(g, c, a, pa, m, pm, tol, depth + 1, pl, where);
         return rc ? rc : bcurve_sample(g, c, m, pm, b, pb, tol, depth + 1, pl, where);
     }
     return poly_add(g, pl, pb, where);
 }
 
-static int curve_126(struct iges *g, const struct de *e, const struct params *p, double tol, struct poly *pl,
-                     const char *where)
+static void bcurve_free(struct bcurve *c)
 {
+    free(c->knots);
+    free(c->w);
+    free(c->cp);
+    memset(c, 0, sizeof *c);
+}
+
+/* The B-spline curve of 126 entity e (parameters p), after its transform; caller frees c with
+ * bcurve_free(), also on failure. */
+static int bcurve_read(struct iges *g, const struct de *e, const struct params *p, struct bcurve *c,
+                       const char *where)
+{
+    memset(c, 0, sizeof *c);
     int K, M;
     if (!p_int(p, 1, &K) || !p_int(p, 2, &M) || M < 1 || M > PATCH_MAX_DEGREE || K < M || K >= CURVE_MAX_POINTS)
         return sf_fail(g->err, SF_EINVAL, where, "B-spline curve: upper index K and degree M must satisfy 1 <= M <= K "
@@ -374,55 +424,141 @@ static int curve_126(struct iges *g, const struct de *e, const struct params *p,
     if (p->n < at + nk + n + 3 * n + 2)
         return sf_fail(g->err, SF_EINVAL, where, "B-spline curve: %d parameters, %d needed (knots, weights, points, "
                        "V(0), V(1))", p->n - 1, at + nk + n + 3 * n + 2 - 1);
-    struct bcurve c = {M, n, malloc(sizeof(double) * (size_t)nk), malloc(sizeof(double) * (size_t)n),
-                       malloc(sizeof(double[3]) * (size_t)n), 0, 0};
+    *c = (struct bcurve){M, n, malloc(sizeof(double) * (size_t)nk), malloc(sizeof(double) * (size_t)n),
+                         malloc(sizeof(double[3]) * (size_t)n), 0, 0};
     int rc = 0;
-    if (!c.knots || !c.w || !c.cp)
+    if (!c->knots || !c->w || !c->cp)
         rc = sf_fail(g->err, SF_ENOMEM, where, "out of memory");
     for (int k = 0; k < nk && !rc; k++)
-        if (!p_num(p, at + k, &c.knots[k]) || (k && c.knots[k] < c.knots[k - 1]))
+        if (!p_num(p, at + k, &c->knots[k]) || (k && c->knots[k] < c->knots[k - 1]))
             rc = sf_fail(g->err, SF_EINVAL, where, "B-spline curve: knot %d is missing or decreases", k);
     for (int k = 0; k < n && !rc; k++)
-        if (!p_num(p, at + nk + k, &c.w[k]) || !(c.w[k] > 0))
+        if (!p_num(p, at + nk + k, &c->w[k]) || !(c->w[k] > 0))
             rc = sf_fail(g->err, SF_EINVAL, where, "B-spline curve: weight %d is missing or not positive", k);
     for (int k = 0; k < 3 * n && !rc; k++)
-        if (!p_num(p, at + nk + n + k, &c.cp[k / 3][k % 3]))
+        if (!p_num(p, at + nk + n + k, &c->cp[k / 3][k % 3]))
             rc = sf_fail(g->err, SF_EINVAL, where, "B-spline curve: control point coordinate %d is missing", k);
-    if (!rc && (!p_num(p, at + nk + 4 * n, &c.t0) || !p_num(p, at + nk + 4 * n + 1, &c.t1)))
+    if (!rc && (!p_num(p, at + nk + 4 * n, &c->t0) || !p_num(p, at + nk + 4 * n + 1, &c->t1)))
         rc = sf_fail(g->err, SF_EINVAL, where, "B-spline curve: its parameter range V(0), V(1) is missing");
-    if (!rc && !(c.t0 < c.t1 && c.t0 >= c.knots[M] - 1e-9 * fabs(c.knots[n] - c.knots[M]) &&
-                 c.t1 <= c.knots[n] + 1e-9 * fabs(c.knots[n] - c.knots[M])))
+    if (!rc && !(c->t0 < c->t1 && c->t0 >= c->knots[M] - 1e-9 * fabs(c->knots[n] - c->knots[M]) &&
+                 c->t1 <= c->knots[n] + 1e-9 * fabs(c->knots[n] - c->knots[M])))
         rc = sf_fail(g->err, SF_EINVAL, where, "B-spline curve: parameter range [%g, %g] is not within its knots [%g, %g]",
-                     c.t0, c.t1, c.knots[M], c.knots[n]);
+                     c->t0, c->t1, c->knots[M], c->knots[n]);
     if (!rc) {
-        c.t0 = fmax(c.t0, c.knots[M]), c.t1 = fmin(c.t1, c.knots[n]);
+        c->t0 = fmax(c->t0, c->knots[M]), c->t1 = fmin(c->t1, c->knots[n]);
         struct xform x;
         rc = entity_xform(g, e, &x);
         for (int k = 0; k < n && !rc; k++)
-            xform_apply(&x, c.cp[k], c.cp[k]);
+            xform_apply(&x, c->cp[k], c->cp[k]);
     }
-    /* sample span by span, so no span is passed over */
-    double a = c.t0, pa[3];
+    return rc;
+}
+
+/* The next piece c is sampled in, span by span so that no span is passed over: from *a (where the
+ * last one ended, c->t0 at first) to *b, within knot span *s (knots[s] to knots[s + 1]); *k is the
+ * knot to look at next (c->deg + 1 at first). False when no piece is left. */
+static bool bcurve_piece(const struct bcurve *c, int *k, double *a, double *b, int *s)
+{
+    for (; *k <= c->n && *a < c->t1; ++*k) {
+        *b = fmin(c->knots[*k], c->t1);
+        if (*b > *a) {
+            *s = *k - 1;
+            ++*k;
+            return true;
+        }
+    }
+    return false;
+}
+
+static int curve_126(struct iges *g, const struct de *e, const struct params *p, double tol, struct poly *pl,
+                     const char *where)
+{
+    struct bcurve c;
+    int rc = bcurve_read(g, e, p, &c, where);
+    double a = c.t0, b, pa[3];
     if (!rc) {
         bcurve_eval(&c, a, pa);
         rc = poly_add(g, pl, pa, where);
     }
-    for (int k = M + 1; k <= n && !rc; k++) {
-        double b = fmin(c.knots[k], c.t1);
-        if (b <= a)
-            continue;
+    for (int k = c.deg + 1, s; !rc && bcurve_piece(&c, &k, &a, &b, &s); a = b) {
         double pb[3];
         bcurve_eval(&c, nextafter(b, a), pb); /* the span's own end, from inside it */
         rc = bcurve_sample(g, &c, a, pa, b, pb, tol, 0, pl, where);
         memcpy(pa, pb, sizeof pa);
-        a = b;
-        if (a >= c.t1)
-            break;
     }
-    free(c.knots);
-    free(c.w);
-    free(c.cp);
+    bcurve_free(&c);
     return rc;
+}
+
+/* The points curve_126 gives c at tol, from above: bcurve_sample halves a piece of length h until
+ * the chord's middle is within tol of the curve's, which holds once h^2 / 8 max|C''| <= tol; |C''|
+ * is bounded on a span by its second-derivative control points (Piegl and Tiller, The NURBS Book,
+ * eq. 3.9: C'' lies in their hull), per coordinate. A rational span's bound is that of its points
+ * times (w_max / w_min)^2: an estimate there, not a bound (the points made are counted too). */
+static double bcurve_estimate(const struct bcurve *c, double tol)
+{
+    const int M = c->deg;
+    const double *U = c->knots;
+    double n = 1, a = c->t0, b;
+    for (int k = M + 1, s; bcurve_piece(c, &k, &a, &b, &s); a = b) {
+        double d2[3] = {0, 0, 0}, wlo = INFINITY, whi = 0;
+        for (int i = s - M; i <= s - 2; i++) { /* R_i, of Q_i and Q_i+1 (the first derivative's) */
+            double du = U[i + M + 1] - U[i + 2];
+            if (!(du > 0))
+                continue; /* its basis function is zero on every span */
+            double dq0 = U[i + M + 1] - U[i + 1], dq1 = U[i + M + 2] - U[i + 2];
+            for (int d = 0; d < 3; d++) {
+                double q0 = M * (c->cp[i + 1][d] - c->cp[i][d]) / dq0;
+                double q1 = M * (c->cp[i + 2][d] - c->cp[i + 1][d]) / dq1;
+                d2[d] = fmax(d2[d], fabs((M - 1) * (q1 - q0) / du));
+            }
+        }
+        for (int i = s - M; c->w && i <= s; i++)
+            wlo = fmin(wlo, c->w[i]), whi = fmax(whi, c->w[i]);
+        double bound = sqrt(d2[0] * d2[0] + d2[1] * d2[1] + d2[2] * d2[2]) * (c->w ? (whi / wlo) * (whi / wlo) : 1);
+        double need = (b - a) * sqrt(bound / (8 * tol)); /* chords a piece needs */
+        int depth = SAMPLE_MIN_DEPTH;
+        while (depth < SAMPLE_MAX_DEPTH && !(ldexp(1.0, depth) >= need)) /* NaN, inf: the deepest */
+            depth++;
+        n += ldexp(1.0, depth);
+    }
+    return n;
+}
+
+/* A circular arc (100): centre, radius, angles and the n steps (n + 1 points) that keep its chords
+ * within tol. */
+struct arc {
+    double zt, cx, cy, r, a0, a1;
+    int n;
+};
+
+static int arc_read(struct iges *g, const struct params *p, double tol, struct arc *c, const char *where)
+{
+    double v[7];
+    for (int k = 0; k < 7; k++)
+        if (!p_num(p, 1 + k, &v[k]))
+            return sf_fail(g->err, SF_EINVAL, where, "circular arc: parameter %d is missing", k + 1);
+    c->zt = v[0], c->cx = v[1], c->cy = v[2], c->r = hypot(v[3] - c->cx, v[4] - c->cy);
+    c->a0 = atan2(v[4] - c->cy, v[3] - c->cx), c->a1 = atan2(v[6] - c->cy, v[5] - c->cx);
+    if (!(c->r > 0))
+        return sf_fail(g->err, SF_EINVAL, where, "circular arc: its radius is zero");
+    if (c->a1 <= c->a0 + 1e-12)
+        c->a1 += 2 * M_PI;
+    double step = 2 * acos(fmax(-1.0, 1.0 - fmin(tol / c->r, 1.0)));
+    c->n = (int)fmin(ARC_MAX_STEPS, fmax(4.0, ceil((c->a1 - c->a0) / fmax(step, 1e-6))));
+    return 0;
+}
+
+/* A copious data entity's (106) point layout (ip: 1 for (x, y) at a common z, 2 for (x, y, z)) and
+ * count n. */
+static int copious_count(struct iges *g, const struct de *e, const struct params *p, int *ip, int *n,
+                         const char *where)
+{
+    if ((e->form != 1 && e->form != 2 && e->form != 11 && e->form != 12) || !p_int(p, 1, ip) || !p_int(p, 2, n) ||
+        (*ip != 1 && *ip != 2) || *n < 2 || *n > CURVE_MAX_POINTS)
+        return sf_fail(g->err, SF_EINVAL, where, "copious data form %d: only point lists (forms 1, 2, 11, 12) of "
+                       "at least 2 points trim", e->form);
+    return 0;
 }
 
 static int curve_points(struct iges *g, const struct de *e, double tol, int depth, struct poly *pl);
@@ -450,22 +586,11 @@ static int curve_params(struct iges *g, const struct de *e, const struct params 
         return (rc = poly_add(g, pl, a, where)) ? rc : poly_add(g, pl, b, where);
     }
     case 100: { /* arc in the plane z = ZT of its definition space, counter-clockwise from start to end */
-        double v[7];
-        for (int k = 0; k < 7; k++)
-            if (!p_num(p, 1 + k, &v[k]))
-                return sf_fail(g->err, SF_EINVAL, where, "circular arc: parameter %d is missing", k + 1);
-        double zt = v[0], cx = v[1], cy = v[2], r = hypot(v[3] - cx, v[4] - cy);
-        double a0 = atan2(v[4] - cy, v[3] - cx), a1 = atan2(v[6] - cy, v[5] - cx);
-        if (!(r > 0))
-            return sf_fail(g->err, SF_EINVAL, where, "circular arc: its radius is zero");
-        if (a1 <= a0 + 1e-12)
-            a1 += 2 * M_PI;
-        double step = 2 * acos(fmax(-1.0, 1.0 - fmin(tol / r, 1.0)));
-        int n = (int)fmin(ARC_MAX_STEPS, fmax(4.0, ceil((a1 - a0) / fmax(step, 1e-6))));
-        if ((rc = entity_xform(g, e, &x)))
+        struct arc c;
+        if ((rc = arc_read(g, p, tol, &c, where)) || (rc = entity_xform(g, e, &x)))
             return rc;
-        for (int k = 0; k <= n && !rc; k++) {
-            double a = a0 + (a1 - a0) * k / n, q[3] = {cx + r * cos(a), cy + r * sin(a), zt};
+        for (int k = 0; k <= c.n && !rc; k++) {
+            double a = c.a0 + (c.a1 - c.a0) * k / c.n, q[3] = {c.cx + c.r * cos(a), c.cy + c.r * sin(a), c.zt};
             xform_apply(&x, q, q);
             rc = poly_add(g, pl, q, where);
         }
@@ -473,10 +598,8 @@ static int curve_params(struct iges *g, const struct de *e, const struct params 
     }
     case 106: { /* copious data: points (forms 1, 2) or a polyline (11, 12) */
         int ip, n;
-        if ((e->form != 1 && e->form != 2 && e->form != 11 && e->form != 12) || !p_int(p, 1, &ip) || !p_int(p, 2, &n) ||
-            (ip != 1 && ip != 2) || n < 2 || n > CURVE_MAX_POINTS)
-            return sf_fail(g->err, SF_EINVAL, where, "copious data form %d: only point lists (forms 1, 2, 11, 12) of "
-                           "at least 2 points trim", e->form);
+        if ((rc = copious_count(g, e, p, &ip, &n, where)))
+            return rc;
         double zt = 0;
         int at = 3;
         if (ip == 1 && !p_num(p, at++, &zt))
@@ -540,6 +663,68 @@ static int curve_points(struct iges *g, const struct de *e, double tol, int dept
     if (!rc)
         rc = curve_params(g, e, &p, tol, depth, pl);
     params_free(&p);
+    return rc;
+}
+
+/* Adds to *n the points curve_points gives e at tol: from above where bcurve_estimate can tell, as
+ * many as it makes for the others. Errors as curve_points has them, where they would stop the count;
+ * an entity it cannot use counts nothing (curve_points refuses it). Memoized per entity at one
+ * tolerance, so that a curve named by many composites, or composites nested each naming the one
+ * below many times, take time linear in the file. */
+static int curve_estimate(struct iges *g, struct de *e, double tol, int depth, double *n)
+{
+    char where[24];
+    where_of(e, where);
+    if (e->est == EST_DONE && e->est_tol == tol) {
+        *n += e->est_points;
+        return 0;
+    }
+    if (e->est == EST_BUSY) /* a composite within itself: as deep as curve_points would go */
+        return sf_fail(g->err, SF_EINVAL, where, "composite curves nested deeper than %d", IGES_MAX_DEPTH);
+    struct params p;
+    int rc = load_params(g, e, &p);
+    if (rc)
+        return rc;
+    e->est = EST_BUSY;
+    double m = 0;
+    switch (e->type) {
+    case 126: {
+        struct bcurve c;
+        if (!(rc = bcurve_read(g, e, &p, &c, where)))
+            m = bcurve_estimate(&c, tol);
+        bcurve_free(&c);
+        break;
+    }
+    case 110:
+        m = 2;
+        break;
+    case 100: {
+        struct arc c;
+        if (!(rc = arc_read(g, &p, tol, &c, where)))
+            m = c.n + 1;
+        break;
+    }
+    case 106: {
+        int ip, k;
+        if (!(rc = copious_count(g, e, &p, &ip, &k, where)))
+            m = k;
+        break;
+    }
+    case 102:
+        if (depth >= IGES_MAX_DEPTH) {
+            rc = sf_fail(g->err, SF_EINVAL, where, "composite curves nested deeper than %d", IGES_MAX_DEPTH);
+            break;
+        }
+        for (int k = 0, n_c = p_int_or(&p, 1, 0); k < n_c && k < p.n - 2 && !rc; k++) {
+            struct de *c = entity(g, p_int_or(&p, 2 + k, 0), e, "constituent");
+            rc = c ? curve_estimate(g, c, tol, depth + 1, &m) : SF_EINVAL;
+        }
+        break;
+    }
+    params_free(&p);
+    e->est = rc ? EST_NONE : EST_DONE;
+    e->est_tol = tol, e->est_points = m;
+    *n += m;
     return rc;
 }
 
@@ -776,10 +961,15 @@ static int loop_add(struct iges *g, struct loops *l, size_t loop_start, struct p
     double (*uv)[2] = malloc(sizeof *uv * piece->n);
     if (!uv)
         return sf_fail(g->err, SF_ENOMEM, where, "out of memory");
+    int rc = 0;
     for (size_t k = 0; k < piece->n; k++) {
         if (!model) {
             uv[k][0] = piece->p[k][0], uv[k][1] = piece->p[k][1];
             continue;
+        }
+        if (k && k % POLL_PROJECTED == 0 && (rc = poll_cancel(g, k))) {
+            free(uv);
+            return rc;
         }
         double P[3] = {piece->p[k][0] * g->to_mm, piece->p[k][1] * g->to_mm, piece->p[k][2] * g->to_mm}, d;
         const double *seed = k ? uv[k - 1] : l->n > loop_start ? l->uv[l->n - 1] : NULL; /* the point before */
@@ -806,25 +996,46 @@ static int loop_add(struct iges *g, struct loops *l, size_t loop_start, struct p
                            "of the domain", fmin(d0, d1), fmin(d0, d1) / diag);
         }
     }
-    int rc = 0;
     for (size_t k = 0; k < n && !rc; k++) {
         const double *q = uv[reverse ? n - 1 - k : k];
         if (l->n > loop_start && q[0] == l->uv[l->n - 1][0] && q[1] == l->uv[l->n - 1][1])
             continue;
         if (l->n >= TRIM_MAX_POINTS)
             rc = sf_fail(g->err, SF_ELIMIT, where, "trim loops need more than %u points", TRIM_MAX_POINTS);
+        else if (g->n_trim >= IGES_MAX_TRIM_POINTS) /* past trim_budget's count: a rational curve's estimate */
+            rc = sf_fail(g->err, SF_ELIMIT, where, "the surfaces' trim loops take more than the budget of %u trim "
+                         "points", IGES_MAX_TRIM_POINTS);
         else if (mem_reserve((void **)&l->uv, &l->cap, l->n + 1, sizeof *l->uv))
             rc = sf_fail(g->err, SF_ENOMEM, where, "out of memory");
         else
-            l->uv[l->n][0] = q[0], l->uv[l->n][1] = q[1], l->n++;
+            l->uv[l->n][0] = q[0], l->uv[l->n][1] = q[1], l->n++, g->n_trim++;
     }
     free(uv);
     return rc;
 }
 
-/* Closes the loop begun at loop_start: its ends must meet. */
-static int loop_close(struct iges *g, struct loops *l, size_t loop_start, const struct de *owner)
+/* In trim_budget's count: n more points of owner's loops, refused once the count is past the budget. */
+static int budget_add(struct iges *g, double n, const struct de *owner)
 {
+    g->n_est += n;
+    if (g->n_est <= IGES_MAX_TRIM_POINTS)
+        return 0;
+    char where[24];
+    where_of(owner, where);
+    return sf_fail(g->err, SF_ELIMIT, where, "the surfaces' trim loops come to %.0f points with this one's %.0f (a "
+                   "curve is counted at each use, as each use is made anew), over the budget of %u trim points",
+                   g->n_est, n, IGES_MAX_TRIM_POINTS);
+}
+
+/* Closes the loop begun at loop_start: its ends must meet. l NULL (trim_budget's count): the loop's
+ * points, counted into g->n_est since it was before, are held against the budget at owner. */
+static int loop_close(struct iges *g, struct loops *l, size_t loop_start, double before, const struct de *owner)
+{
+    if (!l) {
+        double n = g->n_est - before;
+        g->n_est = before;
+        return budget_add(g, n, owner);
+    }
     char where[24];
     where_of(owner, where);
     size_t n = l->n - loop_start;
@@ -847,15 +1058,19 @@ static int loop_close(struct iges *g, struct loops *l, size_t loop_start, const 
     return 0;
 }
 
-/* Adds the points of curve entity ptr (of owner) to the loop, in parameter or model space. */
+/* Adds the points of curve entity ptr (of owner) to the loop, in parameter or model space; l NULL
+ * (trim_budget's count): adds how many it would be to g->n_est. */
 static int loop_curve(struct iges *g, struct loops *l, size_t loop_start, int ptr, bool model, bool reverse,
                       const struct on_surface *on, const struct de *owner)
 {
-    const struct de *c = entity(g, ptr, owner, "curve");
+    struct de *c = entity(g, ptr, owner, "curve");
     if (!c)
         return SF_EINVAL;
+    const double tol = model ? on->tol_mm / g->to_mm : on->tol_uv;
+    if (!l)
+        return curve_estimate(g, c, tol, 0, &g->n_est);
     struct poly pl = {0};
-    int rc = curve_points(g, c, model ? on->tol_mm / g->to_mm : on->tol_uv, 0, &pl);
+    int rc = curve_points(g, c, tol, 0, &pl);
     if (!rc)
         rc = loop_add(g, l, loop_start, &pl, model, reverse, on, owner);
     free(pl.p);
@@ -878,7 +1093,7 @@ static int typed_entity(struct iges *g, int ptr, const struct de *owner, int typ
     return load_params(g, e, p);
 }
 
-/* A 142's loop: its parameter-space curve, else its model-space curve projected. */
+/* A 142's loop: its parameter-space curve, else its model-space curve projected (l NULL: counted). */
 static int loop_142(struct iges *g, struct loops *l, int ptr, const struct on_surface *on, const struct de *owner)
 {
     const struct de *e;
@@ -889,7 +1104,8 @@ static int loop_142(struct iges *g, struct loops *l, int ptr, const struct on_su
     char where[24];
     where_of(e, where);
     int bptr = p_int_or(&p, 3, 0), cptr = p_int_or(&p, 4, 0);
-    size_t start = l->n;
+    size_t start = l ? l->n : 0;
+    double before = g->n_est;
     if (bptr)
         rc = loop_curve(g, l, start, bptr, false, false, on, e);
     else if (cptr)
@@ -898,10 +1114,11 @@ static int loop_142(struct iges *g, struct loops *l, int ptr, const struct on_su
         rc = sf_fail(g->err, SF_EINVAL, where, "a curve on a surface with neither a parameter-space nor a model-space "
                      "curve");
     params_free(&p);
-    return rc ? rc : loop_close(g, l, start, e);
+    return rc ? rc : loop_close(g, l, start, before, l ? e : owner);
 }
 
-/* A 141's loop: per curve its parameter-space curves, else the model-space curve projected. */
+/* A 141's loop: per curve its parameter-space curves, else the model-space curve projected (l NULL:
+ * counted). */
 static int loop_141(struct iges *g, struct loops *l, int ptr, const struct on_surface *on, const struct de *owner)
 {
     const struct de *e;
@@ -914,7 +1131,8 @@ static int loop_141(struct iges *g, struct loops *l, int ptr, const struct on_su
     int n, at = 5;
     if (!p_int(&p, 4, &n) || n < 1 || n > p.n)
         rc = sf_fail(g->err, SF_EINVAL, where, "boundary: its count of curves is missing or wrong");
-    size_t start = l->n;
+    size_t start = l ? l->n : 0;
+    double before = g->n_est;
     for (int k = 0; k < n && !rc; k++) {
         int crv, sense, m;
         if (!p_int(&p, at, &crv) || !p_int(&p, at + 1, &sense) || !p_int(&p, at + 2, &m) || m < 0 || m > p.n) {
@@ -935,7 +1153,7 @@ static int loop_141(struct iges *g, struct loops *l, int ptr, const struct on_su
         at += 3 + m;
     }
     params_free(&p);
-    return rc ? rc : loop_close(g, l, start, e);
+    return rc ? rc : loop_close(g, l, start, before, l ? e : owner);
 }
 
 /* The name a 406 (form 15) among the property pointers of p gives, the pointers' block starting at
@@ -1010,6 +1228,53 @@ static double hull_size(const struct surface *s)
     return hypot(hypot(hi[0] - lo[0], hi[1] - lo[1]), hi[2] - lo[2]);
 }
 
+/* What the loops of surface s (its U/V ranges in on->dom) are drawn on. */
+static void on_surface_init(struct on_surface *on, const struct surface *s)
+{
+    on->s = s;
+    on->size_mm = hull_size(s);
+    on->tol_uv = TRIM_TOL_REL * hypot(on->dom[1] - on->dom[0], on->dom[3] - on->dom[2]);
+    on->tol_mm = TRIM_TOL_REL * on->size_mm;
+    on->closed[0] = closes(on, 0), on->closed[1] = closes(on, 1);
+}
+
+/* The loops that owner (a 143 or 144) gives surface on, appended to l, and its 406's name into
+ * name; l NULL (trim_budget's count, name NULL): their points counted into g->n_est instead. whole:
+ * the surface's U/V ranges are its knots' (a 144 without an outer loop then needs no rectangle). */
+static int owner_loops(struct iges *g, struct loops *l, const struct on_surface *on, bool whole,
+                       const struct de *owner, char *name, size_t name_len)
+{
+    char where[24];
+    where_of(owner, where);
+    struct params p;
+    int rc = load_params(g, owner, &p);
+    if (rc)
+        return rc;
+    if (owner->type == 144) { /* PTS, N1, N2, PTO, PTI(N2) */
+        int n1 = p_int_or(&p, 2, 0), n2 = p_int_or(&p, 3, 0);
+        if (n2 < 0 || n2 > p.n)
+            rc = sf_fail(g->err, SF_EINVAL, where, "trimmed surface: its count of holes is wrong");
+        if (!rc && n1 == 0 && (n2 > 0 || !whole)) /* the natural boundary: a loop round the U/V ranges */
+            rc = l ? loop_rect(g, l, on->dom, where) : budget_add(g, 4, owner);
+        else if (!rc && n1)
+            rc = loop_142(g, l, p_int_or(&p, 4, 0), on, owner);
+        for (int k = 0; k < n2 && !rc; k++)
+            rc = loop_142(g, l, p_int_or(&p, 5 + k, 0), on, owner);
+        if (name)
+            entity_name(g, owner, &p, 5 + n2, name, name_len);
+    } else { /* 143: TYPE, SPTR, N, BDPT(N) */
+        int n = p_int_or(&p, 3, 0);
+        if (n < 1 || n > p.n)
+            rc = sf_fail(g->err, SF_EINVAL, where, "bounded surface: its count of boundaries is missing or wrong");
+        for (int k = 0; k < n && !rc; k++)
+            rc = loop_141(g, l, p_int_or(&p, 4 + k, 0), on, owner);
+        if (name)
+            entity_name(g, owner, &p, 4 + n, name, name_len);
+    }
+    params_free(&p);
+    return rc;
+}
+
 /* One drawn object: surface sde trimmed as entity owner (a 143 or 144) says, or untrimmed but for
  * its U/V ranges (owner NULL). */
 static int add_object(struct iges *g, struct scene *sc, const struct de *sde, const struct de *owner)
@@ -1023,11 +1288,7 @@ static int add_object(struct iges *g, struct scene *sc, const struct de *sde, co
     int rc = read_surface(g, sde, &o->surf, on.dom);
     if (rc)
         return rc;
-    on.s = &o->surf;
-    on.size_mm = hull_size(&o->surf);
-    on.tol_uv = TRIM_TOL_REL * hypot(on.dom[1] - on.dom[0], on.dom[3] - on.dom[2]);
-    on.tol_mm = TRIM_TOL_REL * on.size_mm;
-    on.closed[0] = closes(&on, 0), on.closed[1] = closes(&on, 1);
+    on_surface_init(&on, &o->surf);
     o->mat.color = colour_of(g, owner && owner->color ? owner : sde, o->mat.color);
     o->source = (owner ? owner : sde)->line;
     snprintf(o->name, sizeof o->name, "%s", (owner ? owner : sde)->label);
@@ -1035,33 +1296,10 @@ static int add_object(struct iges *g, struct scene *sc, const struct de *sde, co
     nurbs_domain(&o->surf, &k0, &k1, &l0, &l1);
     const bool whole = on.dom[0] == k0 && on.dom[1] == k1 && on.dom[2] == l0 && on.dom[3] == l1;
     struct loops l = {0};
-    if (owner) {
-        struct params p;
-        if ((rc = load_params(g, owner, &p)))
-            return rc;
-        if (owner->type == 144) { /* PTS, N1, N2, PTO, PTI(N2) */
-            int n1 = p_int_or(&p, 2, 0), n2 = p_int_or(&p, 3, 0);
-            if (n2 < 0 || n2 > p.n)
-                rc = sf_fail(g->err, SF_EINVAL, where, "trimmed surface: its count of holes is wrong");
-            if (!rc && n1 == 0 && (n2 > 0 || !whole)) /* the natural boundary: a loop round the U/V ranges */
-                rc = loop_rect(g, &l, on.dom, where);
-            else if (!rc && n1)
-                rc = loop_142(g, &l, p_int_or(&p, 4, 0), &on, owner);
-            for (int k = 0; k < n2 && !rc; k++)
-                rc = loop_142(g, &l, p_int_or(&p, 5 + k, 0), &on, owner);
-            entity_name(g, owner, &p, 5 + n2, o->name, sizeof o->name);
-        } else { /* 143: TYPE, SPTR, N, BDPT(N) */
-            int n = p_int_or(&p, 3, 0);
-            if (n < 1 || n > p.n)
-                rc = sf_fail(g->err, SF_EINVAL, where, "bounded surface: its count of boundaries is missing or wrong");
-            for (int k = 0; k < n && !rc; k++)
-                rc = loop_141(g, &l, p_int_or(&p, 4 + k, 0), &on, owner);
-            entity_name(g, owner, &p, 4 + n, o->name, sizeof o->name);
-        }
-        params_free(&p);
-    } else if (!whole) { /* U/V ranges within the knots: the rectangle they span */
+    if (owner)
+        rc = owner_loops(g, &l, &on, whole, owner, o->name, sizeof o->name);
+    else if (!whole) /* U/V ranges within the knots: the rectangle they span */
         rc = loop_rect(g, &l, on.dom, where);
-    }
     if (!rc && l.n_loops) {
         o->trim = calloc(1, sizeof *o->trim);
         if (!o->trim)
@@ -1072,6 +1310,54 @@ static int add_object(struct iges *g, struct scene *sc, const struct de *sde, co
         }
     }
     loops_free(&l);
+    return rc;
+}
+
+/* The surface a 143 or 144 bounds (not yet checked to be a 128), or NULL (err set). */
+static struct de *bounded_surface(struct iges *g, const struct de *e)
+{
+    struct params p;
+    if (load_params(g, e, &p))
+        return NULL;
+    struct de *s = entity(g, p_int_or(&p, e->type == 143 ? 2 : 1, 0), e, "surface");
+    params_free(&p);
+    return s;
+}
+
+/* Counts, before any loop is made, the points the loops of every surface scene_parse_iges draws
+ * will take (g->n_est) and refuses the part (SF_ELIMIT) at the surface where the count passes
+ * IGES_MAX_TRIM_POINTS. Each bounded surface is read once here for its tolerances. */
+static int trim_budget(struct iges *g)
+{
+    int rc = 0;
+    for (int k = 0; k < g->n_de && !rc; k++) {
+        const struct de *e = &g->de[k];
+        if (e->blank || e->sub != 0)
+            continue;
+        if (e->type == 128 && !e->bounded) { /* at most the rectangle of its U/V ranges */
+            rc = budget_add(g, 4, e);
+            continue;
+        }
+        if (e->type != 143 && e->type != 144)
+            continue;
+        struct de *s = bounded_surface(g, e);
+        if (!s) {
+            rc = SF_EINVAL;
+            break;
+        }
+        struct on_surface on = {0};
+        if (!s->tols_known) {
+            struct surface surf;
+            if ((rc = read_surface(g, s, &surf, on.dom)))
+                break;
+            on_surface_init(&on, &surf);
+            s->tol_uv = on.tol_uv, s->tol_mm = on.tol_mm, s->tols_known = true;
+            nurbs_surface_free(&surf);
+        }
+        on = (struct on_surface){.tol_uv = s->tol_uv, .tol_mm = s->tol_mm};
+        if (!(rc = owner_loops(g, NULL, &on, false, e, NULL, 0)))
+            rc = sf_poll(g->pr, 0, g->err);
+    }
     return rc;
 }
 
@@ -1132,9 +1418,15 @@ static int read_global(struct iges *g, char *text, size_t len)
 
 int scene_parse_iges(const char *buf, size_t len, struct scene *sc, struct sf_err *err)
 {
+    return iges_parse(buf, len, NULL, sc, err);
+}
+
+int iges_parse(const char *buf, size_t len, const struct sf_progress *pr, struct scene *sc, struct sf_err *err)
+{
     scene_init(sc);
     struct iges g = {0};
     g.err = err;
+    g.pr = pr;
     /* the lines by section */
     struct line *lines = NULL;
     size_t n_lines = 0, cap = 0;
@@ -1228,16 +1520,14 @@ int scene_parse_iges(const char *buf, size_t len, struct scene *sc, struct sf_er
         struct de *e = &g.de[k];
         if (e->type != 143 && e->type != 144)
             continue;
-        struct params p;
-        if ((rc = load_params(&g, e, &p)))
-            break;
-        const struct de *s = entity(&g, p_int_or(&p, e->type == 143 ? 2 : 1, 0), e, "surface");
+        struct de *s = bounded_surface(&g, e);
         if (s)
-            g.de[s - g.de].bounded = true;
+            s->bounded = true;
         else
             rc = SF_EINVAL;
-        params_free(&p);
     }
+    if (!rc)
+        rc = trim_budget(&g);
     for (int k = 0; k < g.n_de && !rc; k++) {
         struct de *e = &g.de[k];
         if (e->blank || e->sub != 0)
@@ -1245,13 +1535,11 @@ int scene_parse_iges(const char *buf, size_t len, struct scene *sc, struct sf_er
         if (e->type == 128 && !e->bounded)
             rc = add_object(&g, sc, e, NULL);
         else if (e->type == 143 || e->type == 144) {
-            struct params p;
-            if (!(rc = load_params(&g, e, &p))) {
-                const struct de *s = entity(&g, p_int_or(&p, e->type == 143 ? 2 : 1, 0), e, "surface");
-                params_free(&p);
-                rc = s ? add_object(&g, sc, s, e) : SF_EINVAL;
-            }
+            const struct de *s = bounded_surface(&g, e);
+            rc = s ? add_object(&g, sc, s, e) : SF_EINVAL;
         }
+        if (!rc && (e->type == 128 || e->type == 143 || e->type == 144))
+            rc = poll_cancel(&g, 0);
     }
     if (!rc && sc->n_objects == 0)
         rc = sf_fail(err, SF_EINVAL, "", "the file has no independent surface to draw (128, 143 or 144)");
