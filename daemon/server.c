@@ -1,6 +1,8 @@
 /* server.c - HTTP on libmicrohttpd: its own thread pool polls with epoll; handlers never block.
  * A request's body is read into a buffer capped at --max-body (413 is decided from
- * Content-Length before any of it is read), validated, stored and queued, and answered. A
+ * Content-Length before any of it is read; a volume's is streamed to a file), then validated and
+ * stored as a job on the checks pool (its connection suspended: the HTTP threads never parse a
+ * body or wait on the store for one), and answered. A
  * synchronous request suspends its connection; the job's end (or --sync-wait / Prefer: wait=N
  * running out) resumes it, and the handler then answers with the result or 202 + Location.
  * Access log: one line per request, without tokens, query strings or bodies. */
@@ -41,7 +43,13 @@ struct server {
     struct MHD_Daemon *mhd;
     struct service *svc;
     struct guard *guard;      /* header, body and idle deadlines; the connection reserve */
+    struct jobq *checks;      /* validates and stores requests' bodies, off the HTTP threads */
 };
+
+/* Threads that validate bodies (DCMTK, IGES, JSON trees, volume headers) and store them as jobs:
+ * an HTTP thread never parses untrusted bytes or waits on the store for a body (four hostile
+ * DICOM parts at once held both HTTP threads, and /livez, for 30 s). */
+#define CHECK_THREADS 2
 
 /* Bytes of request bodies held by all connections together; capped at BODY_BUDGET_BODIES bodies
  * of max-body, so that many large uploads at once get 503 instead of exhausting memory. */
@@ -51,6 +59,7 @@ static atomic_long body_bytes;
 struct req {
     struct service *svc;
     struct guard *guard;
+    struct jobq *checks;
     struct MHD_Connection *conn;
     double t0;
     char method[8];
@@ -68,6 +77,15 @@ struct req {
     bool over_budget;         /* over the shared body budget: 503 */
     bool woken;               /* resumed after a synchronous wait: answer with the job */
     atomic_bool finished;     /* set by the waiter callback before it resumes */
+    /* a job's request on the checks pool (suspended meanwhile), and what it found */
+    const struct job_kind *kind;
+    char format[16];          /* as job_rec's */
+    char options[512];
+    bool checked;             /* resumed from the pool: answer with what it found */
+    int check_rc;             /* validation's SF_E* code (check_err), or 0 */
+    struct sf_err check_err;
+    int check_status;         /* the store's refusal (503, 429), with check_detail; or 0 */
+    const char *check_detail;
     char job[40];
     char owner[64];           /* the token's name ("" in open mode) */
     bool admin;               /* sees every owner's jobs and models */
@@ -427,44 +445,101 @@ static void woken(void *arg, bool finished)
     MHD_resume_connection(r->conn);
 }
 
-/* Stores and answers a validated request: at once (async, 202), or after the job ends (on this
- * node or another) or the wait runs out. */
-static enum MHD_Result submit(struct req *r, const struct job_kind *kind, const char *format, const char *options)
+/* On the checks pool: validates the request's body as its kind reads it, and stores it as a job
+ * (r->job), or says why not (check_rc, check_status). */
+static int check_and_store(struct job *j, void *arg, int *n_bands)
 {
+    (void)j;
+    struct req *r = arg;
     struct service *svc = r->svc;
-    if (atomic_load(&svc->draining))
-        return problem(r, 503, "the service is shutting down", NULL);
-    long queued = store_queued(svc->store);
-    if (queued < 0)
-        return problem(r, 503, "the store cannot take the job now", NULL);
-    if (queued >= svc->cfg.queue_max)
-        return problem(r, 429, "the job queue is full; try again shortly", NULL);
+    *n_bands = 0;
+    struct job_body b = {r->body, r->len, r->format, r->options, scope(r)};
+    r->check_rc = r->kind->validate(svc, &b, &r->check_err);
+    r->body = b.body; /* validate may have replaced it */
+    r->len = b.len;
+    if (r->check_rc)
+        return 0;
+    long queued = atomic_load(&svc->draining) ? -2 : store_queued(svc->store);
+    if (queued < 0 || queued >= svc->cfg.queue_max) {
+        r->check_status = queued >= 0 ? 429 : 503;
+        r->check_detail = queued >= 0 ? "the job queue is full; try again shortly"
+                          : queued == -2 ? "the service is shutting down" : "the store cannot take the job now";
+        return 0;
+    }
     struct job_rec rec = {0};
     service_new_id(rec.id);
-    snprintf(rec.kind, sizeof rec.kind, "%s", kind->name);
-    snprintf(rec.format, sizeof rec.format, "%s", format);
-    snprintf(rec.options, sizeof rec.options, "%s", options);
+    snprintf(rec.kind, sizeof rec.kind, "%s", r->kind->name);
+    snprintf(rec.format, sizeof rec.format, "%s", r->format);
+    snprintf(rec.options, sizeof rec.options, "%s", r->options);
     snprintf(rec.owner, sizeof rec.owner, "%s", r->owner);
     rec.created = wall_s();
     rec.request = (unsigned char *)(r->body ? r->body : "");
     rec.request_len = r->len;
     int stored = r->upload[0] ? store_submit_file(svc->store, &rec, r->upload) : store_submit(svc->store, &rec);
     r->upload[0] = 0; /* the store has it, or removed it */
-    if (stored)
-        return problem(r, 503, "the store cannot take the job now", NULL);
-    service_wake(svc);
-    snprintf(r->job, sizeof r->job, "%s", rec.id);
+    if (stored) {
+        r->check_status = 503;
+        r->check_detail = "the store cannot take the job now";
+    } else {
+        snprintf(r->job, sizeof r->job, "%s", rec.id);
+        service_wake(svc);
+    }
+    return 0;
+}
+
+static void checked(struct job *j, void *arg, enum job_state outcome, bool requeue)
+{
+    (void)j, (void)requeue;
+    struct req *r = arg;
+    if (outcome != JOB_SUCCEEDED && !r->check_rc && !r->job[0]) { /* never run: the service stopped */
+        r->check_status = 503;
+        r->check_detail = "the service is shutting down";
+    }
+    r->checked = true;
+    MHD_resume_connection(r->conn); /* the last touch of r here: the handler answers */
+}
+
+static const struct job_ops CHECK_OPS = {.prepare = check_and_store, .finish = checked};
+
+/* A job's request: validated and stored on the checks pool while the connection is suspended;
+ * the handler, called again, answers (answer_job). */
+static enum MHD_Result submit(struct req *r, const struct job_kind *kind, const char *format, const char *options)
+{
+    static atomic_ulong n_checks;
+    char id[32];
+    r->kind = kind;
+    snprintf(r->format, sizeof r->format, "%s", format);
+    snprintf(r->options, sizeof r->options, "%s", options);
+    snprintf(id, sizeof id, "check-%lu", atomic_fetch_add(&n_checks, 1));
+    MHD_suspend_connection(r->conn);
+    if (jobq_submit(r->checks, id, &CHECK_OPS, r, false)) {
+        MHD_resume_connection(r->conn);
+        return problem(r, 503, "too many requests are being read; try again shortly", NULL);
+    }
+    return MHD_YES;
+}
+
+/* Answers a request the checks pool has seen: its problem, or its job at once (async, 202), or
+ * after the job ends (on this node or another) or the wait runs out. */
+static enum MHD_Result answer_job(struct req *r)
+{
+    struct service *svc = r->svc;
+    r->checked = false;
+    if (r->check_rc)
+        return problem_err(r, &r->check_err);
+    if (r->check_status)
+        return problem(r, r->check_status, r->check_detail, NULL);
     bool async;
     double wait;
     prefer(r, &async, &wait);
     if (async || wait <= 0)
-        return job_resource(r, 202, rec.id);
+        return job_resource(r, 202, r->job);
     MHD_suspend_connection(r->conn);
-    jobq_wait(svc->q, rec.id, monotonic_s() + wait, woken, r);
+    jobq_wait(svc->q, r->job, monotonic_s() + wait, woken, r);
     /* an end stored before the wait began would wake nobody */
     struct job_rec now;
-    if (store_get(svc->store, rec.id, false, false, &now) != 1 || job_state_ended(now.state))
-        jobq_notify(svc->q, rec.id);
+    if (store_get(svc->store, r->job, false, false, &now) != 1 || job_state_ended(now.state))
+        jobq_notify(svc->q, r->job);
     store_rec_free(&now);
     return MHD_YES;
 }
@@ -492,13 +567,6 @@ static enum MHD_Result post_job_on(struct req *r, const struct job_kind *kind, c
         o.n += (size_t)snprintf(o.buf + o.n, sizeof o.buf - o.n, "%smodel=%s", o.n ? "&" : "", model);
     if (o.n >= sizeof o.buf)
         return problem(r, 422, "query options must be short name=value pairs without '&', '=' or NUL", NULL);
-    struct sf_err err = {0};
-    struct job_body b = {r->body, r->len, format, o.buf, scope(r)};
-    int rc = kind->validate(r->svc, &b, &err);
-    r->body = b.body; /* validate may have replaced it */
-    r->len = b.len;
-    if (rc)
-        return problem_err(r, &err);
     return submit(r, kind, format, o.buf);
 }
 
@@ -567,10 +635,6 @@ static enum MHD_Result model_job(struct req *r, const char *kind_name, char *bod
     enum MHD_Result answer;
     if (!query_options(r, &o, &answer))
         return answer;
-    struct sf_err err = {0};
-    struct job_body b = {r->body, r->len, format, o.buf, scope(r)};
-    if (kind->validate(r->svc, &b, &err))
-        return problem_err(r, &err);
     return submit(r, kind, format, o.buf);
 }
 
@@ -1057,6 +1121,7 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
         *con_cls = r;
         r->svc = s->svc;
         r->guard = s->guard;
+        r->checks = s->checks;
         r->conn = conn;
         guard_request_started(r->guard, conn);
         r->t0 = monotonic_s();
@@ -1095,6 +1160,8 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
             return problem(r, 501, "the only Transfer-Encoding surfd reads is chunked", NULL);
         return MHD_YES;
     }
+    if (r->checked) /* back from the checks pool */
+        return answer_job(r);
     if (r->woken) /* back from a synchronous wait */
         return atomic_load(&r->finished) ? job_result(r, r->job, true) : job_resource(r, 202, r->job);
     if (*upload_size) {
@@ -1245,9 +1312,16 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
         return NULL;
     s->svc = svc;
     sweep_cut_uploads(svc->cfg.data_dir);
+    if (!(s->checks = jobq_new(CHECK_THREADS, svc->cfg.max_connections))) {
+        snprintf(msg, msg_len, "cannot start the threads that read requests");
+        free(s);
+        return NULL;
+    }
     if (!(s->guard = guard_new(svc->cfg.max_connections, (double)svc->cfg.header_timeout,
                                (double)svc->cfg.body_timeout, (double)svc->cfg.connection_timeout))) {
         snprintf(msg, msg_len, "cannot start the connection guard");
+        jobq_shutdown(s->checks, 0, 0, NULL, NULL);
+        jobq_free(s->checks);
         free(s);
         return NULL;
     }
@@ -1265,6 +1339,8 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
             free(cert);
             free(key);
             guard_free(s->guard);
+            jobq_shutdown(s->checks, 0, 0, NULL, NULL);
+            jobq_free(s->checks);
             free(s);
             return NULL;
         }
@@ -1290,6 +1366,8 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
     if (!s->mhd) {
         snprintf(msg, msg_len, "cannot listen on %s (in use, or not an address of this host)", svc->cfg.listen);
         guard_free(s->guard);
+        jobq_shutdown(s->checks, 0, 0, NULL, NULL);
+        jobq_free(s->checks);
         free(s);
         return NULL;
     }
@@ -1312,6 +1390,9 @@ void server_stop(struct server *s)
 {
     if (!s)
         return;
+    /* every request on the checks pool is answered (its connection resumed) before MHD stops */
+    jobq_shutdown(s->checks, 5.0, 5.0, NULL, NULL);
+    jobq_free(s->checks);
     MHD_stop_daemon(s->mhd);
     guard_free(s->guard);
     free(s);

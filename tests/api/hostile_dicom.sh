@@ -73,6 +73,7 @@ series([ok[0], ok[1], slice_(2, extra=nested(10000))], d + "/deep.mp")
 series([ok[0], slice_(1, extra=nested(16)), ok[2]], d + "/deep16.mp")
 series([ok[0], slice_(1, extra=private(100000, descending=True)), ok[2]], d + "/descending.mp")
 series([ok[0], slice_(1, extra=private(200000)), ok[2]], d + "/private.mp")
+series([ok[0], slice_(1, extra=private(400000)), ok[2]], d + "/heavy.mp")
 series([ok[0], ok[1], slice_(2, extra=creators(65))], d + "/creators.mp")
 series([ok[0], slice_(1, pos="0\\0\\1e300"), ok[2]], d + "/far.mp")
 series([ok[0], ok[1], slice_(2, slope="1e308")], d + "/slope.mp")
@@ -124,6 +125,25 @@ check "200 000 empty private elements in order are read (DCMTK is linear in them
 code=$(status POST /model -m 60 -H "$DCM" --data-binary @"$T/rt_many.dcm")
 check "2 000 001 elements: 422 naming the cap" '[ "$code" = 422 ] && grep -q "more than 2000000 elements" "$T/body"'
 check "the daemon is up after them" 'alive'
+
+# ---- 4: bodies are read off the HTTP threads: /livez answers while four heavy parts are validated ----
+posts=""
+for k in 1 2 3 4; do
+    curl -s -o "$T/heavy$k.out" -w '%{http_code}' -H 'Prefer: respond-async' -H "$MP" --data-binary @"$T/heavy.mp" "$URL/isosurface?iso=100" >"$T/heavy$k.code" &
+    posts="$posts $!"
+done
+sleep 1
+busy=0; worst=0
+for _ in 1 2 3 4 5; do
+    ms=$(curl -s -o /dev/null -m 3 -w '%{http_code} %{time_total}' "$URL/livez" | awk '$1 == 200 { printf "%d", $2 * 1000 } $1 != 200 { print 99999 }')
+    [ "$ms" -gt "$worst" ] && worst=$ms
+    for k in 1 2 3 4; do [ -s "$T/heavy$k.code" ] || busy=$((busy + 1)); done
+    sleep 0.2
+done
+wait $posts # (not the daemon's)
+echo "/livez while four parts of 400 000 elements were validated: slowest ${worst} ms"
+check "/livez answers while four parts of 400 000 elements are validated (it waited 30 s behind them)" '[ "$busy" -gt 0 ] && [ "$worst" -lt 3000 ]'
+check "... and the four are taken (202)" '[ "$(cat "$T"/heavy?.code)" = 202202202202 ]'
 
 # ---- 5: numbers that made a volume of nothing or a 500 ------------------------------------------------
 code=$(post_series far)
