@@ -4,6 +4,7 @@
  * speed. One connection behind one mutex: one node uses it, and the store is not on any hot path.
  * Leases and fences are kept as PostgreSQL keeps them, so that the lifecycle is the same; with one
  * node a lease runs out only when the process has died (store_reap at the next start). */
+#include <math.h>
 #include <pthread.h>
 #include <stdarg.h>
 #include <sqlite3.h>
@@ -866,15 +867,17 @@ static int sq_check(struct store *s, bool deep, void (*report)(const char *, voi
     return rc;
 }
 
-/* Room the data dir must have again before a store that met a full disk takes work: a probe's row
- * fits in a page the WAL has, so it alone would say ready while every mesh is refused. */
-#define ROOM_BYTES (64L << 20)
+/* Room the data dir must have again before a store that met a full disk takes work (64 MB, or an
+ * eighth of a smaller file system): a probe's row fits in a page the WAL has, so it alone would
+ * say ready while every mesh is refused. */
+#define ROOM_BYTES (64.0 * (1 << 20))
 
 static bool sq_writable(struct store *s)
 {
     struct statvfs fs;
     if (atomic_load(&s->full)) {
-        if (statvfs(((struct sqlite_store *)s)->uploads, &fs) || (double)fs.f_bavail * fs.f_frsize < ROOM_BYTES)
+        if (statvfs(((struct sqlite_store *)s)->uploads, &fs) ||
+            (double)fs.f_bavail * fs.f_frsize < fmin(ROOM_BYTES, (double)fs.f_blocks * fs.f_frsize / 8))
             return false;
         atomic_store(&s->full, false);
     }

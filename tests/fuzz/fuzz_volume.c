@@ -113,7 +113,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     if (volume_read(body, len, "", text, &v, &err) == 0) {
         if ((size_t)v.g.nx * v.g.ny * v.g.nz <= EXTRACT_MAX_SAMPLES) {
-            volume_sample(&v, 0, v.g.nz);
+            volume_sample(&v, 0, v.g.nz, NULL, NULL);
             struct iso_opts o = volume_iso_opts(&v);
             struct trimesh m;
             struct trimesh_stats st;
