@@ -103,8 +103,8 @@ static size_t skip_value(const char *b, size_t len, size_t i)
     return depth == 0 ? len : len + 1;
 }
 
-/* Finds key's array in the top-level object: its '[' at *open and the matching ']' at *close. */
-static bool find_array(const char *b, size_t len, const char *key, size_t *open, size_t *close)
+/* Finds member key of the top-level object: its value from b[*at] to the ',' or '}' at *end. */
+static bool find_member(const char *b, size_t len, const char *key, size_t *at, size_t *end)
 {
     size_t i = skip_space(b, len, 0), klen = strlen(key);
     if (i >= len || b[i] != '{')
@@ -115,23 +115,39 @@ static bool find_array(const char *b, size_t len, const char *key, size_t *open,
         if (i >= len || b[i] != ':')
             return false;
         i = skip_space(b, len, i + 1);
-        size_t end = skip_value(b, len, i);
-        if (end >= len)
+        size_t e = skip_value(b, len, i);
+        if (e >= len)
             return false;
-        if (k1 - 1 - k0 == klen && !memcmp(b + k0, key, klen) && b[i] == '[') {
-            size_t j = end; /* back from the value's end over space to its ']' */
-            while (j > i && (b[j - 1] == ' ' || b[j - 1] == '\t' || b[j - 1] == '\n' || b[j - 1] == '\r'))
-                j--;
-            if (j <= i || b[j - 1] != ']')
-                return false;
-            *open = i, *close = j - 1;
+        if (k1 - 1 - k0 == klen && !memcmp(b + k0, key, klen)) {
+            *at = i, *end = e;
             return true;
         }
-        if (b[end] != ',')
+        if (b[e] != ',')
             return false;
-        i = skip_space(b, len, end + 1);
+        i = skip_space(b, len, e + 1);
     }
     return false;
+}
+
+bool json_has_member(const char *b, size_t len, const char *key)
+{
+    size_t at, end;
+    return find_member(b, len, key, &at, &end);
+}
+
+/* Finds key's array in the top-level object: its '[' at *open and the matching ']' at *close. */
+static bool find_array(const char *b, size_t len, const char *key, size_t *open, size_t *close)
+{
+    size_t i, end;
+    if (!find_member(b, len, key, &i, &end) || b[i] != '[')
+        return false;
+    size_t j = end; /* back from the value's end over space to its ']' */
+    while (j > i && (b[j - 1] == ' ' || b[j - 1] == '\t' || b[j - 1] == '\n' || b[j - 1] == '\r'))
+        j--;
+    if (j <= i || b[j - 1] != ']')
+        return false;
+    *open = i, *close = j - 1;
+    return true;
 }
 
 int json_read_split(const char *buf, size_t len, const char *const *keys, size_t max_elements, json_t **root,

@@ -18,6 +18,9 @@
 /* Parses buf into *root (duplicate keys refused): 0, or SF_ELIMIT over JSON_MAX_VALUES, or
  * SF_EFORMAT (pointer "line L, column C") when it is not JSON. */
 int json_read(const char *buf, size_t len, json_t **root, struct sf_err *err);
+/* Whether the top-level object has member key, by a scan of the text's structure (no tree; a key
+ * spelt with escapes, or a text the scan cannot walk, is not found: the parser then says why). */
+bool json_has_member(const char *buf, size_t len, const char *key);
 
 /* A body whose bulk is one array of the top-level object (a scene's "objects": a contour model's
  * patches run to 5.5 M values) is read with that array held back: *root is the document with the

@@ -13,6 +13,7 @@
 #include "../core/geom/enclosed.h"
 #include "../core/contour/solid.h"
 #include "dicom_stl.h"
+#include "json_in.h"
 #include "matrix_json.h"
 #include "mesh_io.h"
 #include "query.h"
@@ -140,71 +141,11 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
     return o;
 }
 
-/* ---- what a JSON body is (a contour set, a scene, a matrix model): the members of its top-level
- * object, found by a scan of the text's structure (strings, brackets, commas), never a tree (a
- * contour set's would cost 100 bytes a value, again), and never the text anywhere: a structure
- * named "matrix_model" is still a contour set. A key spelt with escapes is not found. ---- */
-
-static size_t skip_space(const char *b, size_t len, size_t i)
-{
-    while (i < len && (b[i] == ' ' || b[i] == '\t' || b[i] == '\n' || b[i] == '\r'))
-        i++;
-    return i;
-}
-
-/* Past the string opening at b[i] ('"'); len when it does not close. */
-static size_t skip_string(const char *b, size_t len, size_t i)
-{
-    for (i++; i < len; i++)
-        if (b[i] == '\\')
-            i++;
-        else if (b[i] == '"')
-            return i + 1;
-    return len;
-}
-
-/* Past the value starting at b[i], to the ',' or '}' that ends it at its depth; len when it does
- * not end. */
-static size_t skip_value(const char *b, size_t len, size_t i)
-{
-    for (int depth = 0; i < len; i++) {
-        char c = b[i];
-        if (c == '"')
-            i = skip_string(b, len, i) - 1;
-        else if (c == '[' || c == '{')
-            depth++;
-        else if ((c == ']' || c == '}') && depth-- == 0)
-            return i;
-        else if (c == ',' && depth == 0)
-            return i;
-    }
-    return len;
-}
-
-/* Whether the body's top-level object has member key (the scan stops at what it cannot walk: the
- * parser that reads the body then says what is wrong). */
-static bool has_member(const char *b, size_t len, const char *key)
-{
-    size_t i = skip_space(b, len, 0), klen = strlen(key);
-    if (i >= len || b[i] != '{')
-        return false;
-    for (i = skip_space(b, len, i + 1); i < len && b[i] == '"';) {
-        size_t k0 = i + 1, k1 = skip_string(b, len, i);
-        if (k1 == k0 + klen + 1 && !memcmp(b + k0, key, klen))
-            return true;
-        i = skip_space(b, len, k1);
-        if (i >= len || b[i] != ':')
-            return false;
-        i = skip_value(b, len, i + 1);
-        if (i >= len || b[i] != ',')
-            return false;
-        i = skip_space(b, len, i + 1);
-    }
-    return false;
-}
+/* What a JSON body is (a contour set, a scene, a matrix model): by the members of its top-level
+ * object, never the text anywhere (a structure named "matrix_model" is still a contour set). */
 
 /* A matrix model (matrix_json.h) rather than a contour set. */
-static bool matrix_body(const char *buf, size_t len) { return has_member(buf, len, "matrix_model"); }
+static bool matrix_body(const char *buf, size_t len) { return json_has_member(buf, len, "matrix_model"); }
 
 /* The scene format of a body: as named, but an IGES file is one whatever its Content-Type said
  * (curl sends files as forms, and a JSON default would refuse it). */
@@ -223,7 +164,8 @@ bool model_body_is_scene(const char *buf, size_t len, const char *format)
         return true;
     if (format && *format && strcmp(format, "json"))
         return false;
-    return !has_member(buf, len, "slices") && (has_member(buf, len, "objects") || has_member(buf, len, "patches"));
+    return !json_has_member(buf, len, "slices") &&
+           (json_has_member(buf, len, "objects") || json_has_member(buf, len, "patches"));
 }
 
 /* Trimmed surfaces as a solid: their area over the trimmed domains, and the volume they enclose
