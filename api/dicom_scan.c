@@ -9,6 +9,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #define UNDEFINED 0xffffffffu /* an undefined length */
@@ -30,8 +31,8 @@ struct frame {
     uint32_t max_tag;    /* greatest tag read in this data set or item */
     int n_creators;      /* private creators read in it */
     bool blank;          /* dicom_blank_identity: every value inside is blanked (an identifying sequence) */
-    unsigned char fill;  /* ... a tentative sequence's value with this byte */
-    size_t start;        /* a tentative sequence's value: blanked whole when it was not a sequence */
+    size_t start;        /* a tentative sequence's value: stepped over whole when it was not a sequence */
+    struct dicom_scan_stats s; /* ... and counted as one element: the counts before its inside was read */
 };
 
 /* the stack: the top data set, then up to DICOM_MAX_DEPTH sequences, each with its item or
@@ -42,6 +43,11 @@ struct scan {
     const unsigned char *b;
     unsigned char *w;    /* dicom_blank_identity: b, writable; NULL for dicom_scan */
     size_t n_blanked;
+    /* dicom_blank_identity walks twice: the first notes where the values taken for sequences were
+     * not one (ascending: a fault resumes past its value), so that the second, which blanks, knows
+     * each value's structure before it writes anything inside */
+    size_t *not_seq, n_not_seq, cap_not_seq, next_not_seq;
+    bool note_not_seq;
     size_t n, at;
     struct frame st[STACK_MAX];
     int top;             /* st[top] is the innermost frame */
@@ -125,14 +131,6 @@ static unsigned char fill_for(uint32_t tag, const unsigned char *vr)
     return tag >> 16 & 1 ? 0 : ' ';
 }
 
-static bool in_tentative(const struct scan *c)
-{
-    for (int k = c->top; k > 0; k--)
-        if (c->st[k].tentative)
-            return true;
-    return false;
-}
-
 static void blank(struct scan *c, size_t at, size_t len, unsigned char fill)
 {
     memset(c->w + at, fill, len);
@@ -140,14 +138,24 @@ static void blank(struct scan *c, size_t at, size_t len, unsigned char fill)
 }
 
 /* A structural fault: inside a tentative sequence, the value was not a sequence after all and is
- * stepped over whole (as DCMTK would read it without a dictionary entry saying SQ); else refused. */
+ * stepped over whole (as DCMTK would read it without a dictionary entry saying SQ), counted as
+ * one element; else refused. */
 static int fault(struct scan *c, const char *what, uint32_t tag)
 {
     for (int k = c->top; k > 0; k--)
         if (c->st[k].tentative) {
-            if (c->w && c->st[k].blank)
-                blank(c, c->st[k].start, c->st[k].end - c->st[k].start, c->st[k].fill);
+            if (c->note_not_seq) {
+                if (c->n_not_seq == c->cap_not_seq) {
+                    size_t cap = c->cap_not_seq ? 2 * c->cap_not_seq : 64;
+                    size_t *p = realloc(c->not_seq, cap * sizeof *p);
+                    if (!p)
+                        return sf_fail(c->err, SF_ENOMEM, c->pointer, "out of memory");
+                    c->not_seq = p, c->cap_not_seq = cap;
+                }
+                c->not_seq[c->n_not_seq++] = c->st[k].start;
+            }
             c->at = c->st[k].end;
+            c->s = c->st[k].s;
             for (int j = c->top; j >= k; j--)
                 if (c->st[j].kind == F_SEQ || c->st[j].kind == F_FRAGS)
                     c->depth--;
@@ -160,9 +168,11 @@ static int fault(struct scan *c, const char *what, uint32_t tag)
 }
 
 static int push(struct scan *c, enum frame_kind kind, size_t len, bool implicit, bool big, bool tentative,
-                bool blank, unsigned char fill, uint32_t tag)
+                bool blank, uint32_t tag)
 {
     const struct frame *p = &c->st[c->top];
+    struct frame f = {.kind = kind, .implicit = implicit, .big = big, .tentative = tentative, .start = c->at,
+                      .blank = kind != F_FRAGS && (p->blank || blank), .s = c->s};
     if (kind == F_SEQ || kind == F_FRAGS) {
         if (++c->depth > DICOM_MAX_DEPTH) {
             char what[64];
@@ -172,8 +182,6 @@ static int push(struct scan *c, enum frame_kind kind, size_t len, bool implicit,
         if (c->depth > c->s.max_depth)
             c->s.max_depth = c->depth;
     }
-    struct frame f = {.kind = kind, .implicit = implicit, .big = big, .tentative = tentative, .start = c->at,
-                      .blank = kind != F_FRAGS && (p->blank || blank), .fill = fill};
     f.undefined = len == UNDEFINED;
     f.end = f.undefined ? p->end : c->at + len;
     c->st[++c->top] = f;
@@ -241,7 +249,7 @@ static int read_item_tag(struct scan *c, struct frame *f, uint32_t tag, uint32_t
         if (f->kind == F_SEQ) {
             if (len != UNDEFINED && len > f->end - c->at)
                 return fault(c, "an item is longer than its sequence", tag);
-            return push(c, F_ITEM, len, f->implicit, f->big, false, false, 0, tag);
+            return push(c, F_ITEM, len, f->implicit, f->big, false, false, tag);
         }
         if (f->kind == F_FRAGS) {
             if (len == UNDEFINED || len > f->end - c->at)
@@ -285,6 +293,9 @@ static int read_element(struct scan *c, struct frame *f, uint32_t tag)
         if (len != UNDEFINED && len >= 8 && tag != 0x7fe00010u && c->at + 16 <= f->end &&
             u32(c, c->at + 8, f->big) == (f->big ? 0xfffee000u : 0xe000fffeu))
             seq = tentative = true;
+        /* blanking: the first walk found it was not one */
+        if (tentative && c->next_not_seq < c->n_not_seq && c->not_seq[c->next_not_seq] == c->at + 8)
+            seq = tentative = false, c->next_not_seq++;
     } else {
         const unsigned char *vr = c->b + c->at + 4;
         if (!vr_in(vr, VRS))
@@ -318,72 +329,80 @@ static int read_element(struct scan *c, struct frame *f, uint32_t tag)
         return fault(c, "an element is longer than the part", tag);
     }
     bool listed = c->w && identifying(tag);
-    unsigned char fill = fill_for(tag, f->implicit ? NULL : c->b + start + 4);
     if (seq || frags) {
-        int rc = push(c, frags ? F_FRAGS : F_SEQ, len, inner_implicit, inner_big, tentative, listed, fill, tag);
+        int rc = push(c, frags ? F_FRAGS : F_SEQ, len, inner_implicit, inner_big, tentative, listed, tag);
         if (rc)
             c->at = start;
         return rc;
     }
-    if (c->w && (f->blank || (listed && !in_tentative(c))))
-        blank(c, c->at, len, fill);
+    if (c->w && (f->blank || listed))
+        blank(c, c->at, len, fill_for(tag, f->implicit ? NULL : c->b + start + 4));
     c->at += len;
     return 0;
 }
 
-static int walk(const void *data, unsigned char *w, size_t len, const char *pointer, struct dicom_scan_stats *stats,
-                size_t *n_blanked, struct sf_err *err)
+/* The pass over c->b's c->n bytes (c's other fields as the caller set them). */
+static int walk(struct scan *c)
 {
-    struct scan c = {.b = data, .w = w, .n = len, .pointer = pointer ? pointer : "", .err = err};
+    size_t len = c->n;
     bool implicit = false, big = false;
     int rc = 0;
     /* "DICM" only after the preamble: DCMTK reads one at 0 as an element (4944,4D43), and so must this */
-    if (len >= 132 && !memcmp(c.b + 128, "DICM", 4))
-        c.at = 132;
-    if (c.at || (len >= 8 && u16(&c, 0, false) == 0x0002 && vr_in(c.b + 4, VRS)))
-        rc = read_meta(&c, &implicit, &big);
+    if (len >= 132 && !memcmp(c->b + 128, "DICM", 4))
+        c->at = 132;
+    if (c->at || (len >= 8 && u16(c, 0, false) == 0x0002 && vr_in(c->b + 4, VRS)))
+        rc = read_meta(c, &implicit, &big);
     else
-        guess_syntax(&c, 0, &implicit, &big);
-    c.s.implicit = implicit, c.s.big_endian = big;
-    c.st[0] = (struct frame){.kind = F_DATASET, .end = len, .implicit = implicit, .big = big};
-    while (!rc && c.at + 8 <= len) {
-        struct frame *f = &c.st[c.top];
-        if (f->kind != F_DATASET && !f->undefined && c.at >= f->end) {
+        guess_syntax(c, 0, &implicit, &big);
+    c->s.implicit = implicit, c->s.big_endian = big;
+    c->st[0] = (struct frame){.kind = F_DATASET, .end = len, .implicit = implicit, .big = big};
+    while (!rc && c->at + 8 <= len) {
+        struct frame *f = &c->st[c->top];
+        if (f->kind != F_DATASET && !f->undefined && c->at >= f->end) {
             if (f->kind == F_SEQ || f->kind == F_FRAGS)
-                c.depth--;
-            c.top--; /* a defined length ends */
+                c->depth--;
+            c->top--; /* a defined length ends */
             continue;
         }
-        if (c.at + 8 > f->end) {
-            rc = fault(&c, "the part ends inside an element", 0);
+        if (c->at + 8 > f->end) {
+            rc = fault(c, "the part ends inside an element", 0);
             continue;
         }
-        if (++c.s.n_elements > DICOM_MAX_ELEMENTS) {
-            rc = sf_fail(err, SF_ELIMIT, c.pointer, "more than %d elements, items and fragments", DICOM_MAX_ELEMENTS);
+        if (++c->s.n_elements > DICOM_MAX_ELEMENTS) {
+            rc = sf_fail(c->err, SF_ELIMIT, c->pointer, "more than %d elements, items and fragments", DICOM_MAX_ELEMENTS);
             break;
         }
-        uint32_t tag = (uint32_t)u16(&c, c.at, f->big) << 16 | u16(&c, c.at + 2, f->big);
+        uint32_t tag = (uint32_t)u16(c, c->at, f->big) << 16 | u16(c, c->at + 2, f->big);
         if (tag >> 16 == 0xfffe)
-            rc = read_item_tag(&c, f, tag, u32(&c, c.at + 4, f->big));
+            rc = read_item_tag(c, f, tag, u32(c, c->at + 4, f->big));
         else if (f->kind == F_DATASET || f->kind == F_ITEM)
-            rc = read_element(&c, f, tag);
+            rc = read_element(c, f, tag);
         else
-            rc = fault(&c, f->kind == F_SEQ ? "an element where a sequence has items" : "an element among pixel data fragments", tag);
+            rc = fault(c, f->kind == F_SEQ ? "an element where a sequence has items" : "an element among pixel data fragments", tag);
     }
     /* what is left is under 8 bytes, or delimiters never came: DCMTK says what it makes of that */
-    if (stats)
-        *stats = c.s;
-    if (n_blanked)
-        *n_blanked = c.n_blanked;
     return rc;
 }
 
 int dicom_scan(const void *data, size_t len, const char *pointer, struct dicom_scan_stats *stats, struct sf_err *err)
 {
-    return walk(data, NULL, len, pointer, stats, NULL, err);
+    struct scan c = {.b = data, .n = len, .pointer = pointer ? pointer : "", .err = err};
+    int rc = walk(&c);
+    if (stats)
+        *stats = c.s;
+    return rc;
 }
 
 int dicom_blank_identity(void *data, size_t len, const char *pointer, size_t *n_blanked, struct sf_err *err)
 {
-    return walk(data, data, len, pointer, NULL, n_blanked, err);
+    struct scan c = {.b = data, .n = len, .pointer = pointer ? pointer : "", .err = err, .note_not_seq = true};
+    int rc = walk(&c);
+    struct scan wr = {.b = data, .w = data, .n = len, .pointer = c.pointer, .err = err, .not_seq = c.not_seq,
+                      .n_not_seq = c.n_not_seq};
+    if (!rc)
+        rc = walk(&wr);
+    if (n_blanked)
+        *n_blanked = wr.n_blanked;
+    free(c.not_seq);
+    return rc;
 }

@@ -285,7 +285,7 @@ TEST(lengths_and_structure)
     o.n = 0; /* implicit VR: a value that starts like an item but is not a sequence is stepped over */
     ihead(&o, 0x0009, 0x1001, 12), item_tag(&o, 0xe000, 99), put(&o, "\0\0\0\0", 4);
     ihead(&o, 0x0009, 0x1002, 4), put(&o, "abcd", 4);
-    CHECK(scan(&o, &st, &err) == 0 && st.max_depth == 1);
+    CHECK(scan(&o, &st, &err) == 0 && st.max_depth == 0 && st.n_elements == 2);
     /* ... and pixel data is never taken for one */
     o.n = 0;
     ihead(&o, 0x7fe0, 0x0010, 16), item_tag(&o, 0xe000, 8), ihead(&o, 0x0008, 0x0001, 0);
@@ -295,6 +295,38 @@ TEST(lengths_and_structure)
     item_tag(&o, 0xe000, UNDEF);
     CHECK(scan(&o, &st, &err) == SF_EFORMAT && strstr(err.message, "outside"));
     CHECK(dicom_scan(NULL, 0, NULL, &st, &err) == 0 && st.n_elements == 0); /* nothing: DCMTK says what it is */
+    free(o.b);
+}
+
+/* blanking, in implicit VR where defined-length sequences are known only by their first item:
+ * a name inside a real one is blanked; a value that only starts like one is left whole (not
+ * identifying) or blanked whole (identifying), and counts as one element */
+TEST(blanking_sees_sequences_as_dcmtk_does)
+{
+    struct dicom_scan_stats st;
+    struct sf_err err;
+    struct buf o = {0};
+    ihead(&o, 0x0008, 0x1115, 8 + 8 + 6), item_tag(&o, 0xe000, 8 + 6); /* a sequence: an item, a name */
+    ihead(&o, 0x0010, 0x0010, 6), put(&o, "Doe^J ", 6);
+    size_t not_seq = o.n; /* starts like one: an item of 14 bytes, then a name, then 4 bytes past the item */
+    ihead(&o, 0x0008, 0x1140, 8 + 8 + 6 + 4), item_tag(&o, 0xe000, 8 + 6);
+    ihead(&o, 0x0010, 0x0010, 6), put(&o, "Roe^K ", 6), put(&o, "\1\2\3\4", 4);
+    size_t priv = o.n;
+    ihead(&o, 0x0009, 0x1001, 8 + 8 + 6 + 4), item_tag(&o, 0xe000, 8 + 6); /* the same, private */
+    ihead(&o, 0x0008, 0x0001, 6), put(&o, "Poe^L ", 6), put(&o, "\1\2\3\4", 4);
+    ihead(&o, 0x0009, 0x1002, 0);
+    unsigned char *before = malloc(o.n);
+    REQUIRE(before);
+    memcpy(before, o.b, o.n);
+    CHECK(scan(&o, &st, &err) == 0 && st.n_elements == 1 + 2 + 1 + 1 + 1 && st.max_depth == 1);
+    size_t n = 0;
+    CHECK(dicom_blank_identity(o.b, o.n, "", &n, &err) == 0 && n == 3); /* the name, (0009,1001), (0009,1002) */
+    static const unsigned char zeros[26];
+    CHECK(!memcmp(o.b + 24, "      ", 6) && !memcmp(o.b + priv + 8, zeros, 26));
+    CHECK(!memcmp(o.b, before, 24) && !memcmp(o.b + not_seq, before + not_seq, 34)); /* heads, and the non-sequence */
+    struct dicom_scan_stats st2;
+    CHECK(scan(&o, &st2, &err) == 0 && st2.n_elements == st.n_elements && st2.max_depth == st.max_depth);
+    free(before);
     free(o.b);
 }
 
@@ -329,6 +361,7 @@ int main(void)
     RUN(order_and_creators_are_capped);
     RUN(elements_are_capped);
     RUN(lengths_and_structure);
+    RUN(blanking_sees_sequences_as_dcmtk_does);
     RUN(real_objects_pass);
     UNIT_END();
 }
