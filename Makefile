@@ -2,10 +2,12 @@
 #   make            build/surfd (release)
 #   make run        install missing Debian packages, build, serve on 127.0.0.1:8080 with the store in ./var
 #   make install    binary, systemd unit and config (DESTDIR and PREFIX respected)
-#   make test       sanitized unit and tracer tests; last line "N passed, N failed"
+#   make check      unit tests, thread-sanitizer tests and fuzz replays: a few minutes, for every change
+#   make test       make check's and the black-box suites (API, CLI, page in a browser, package): what CI runs;
+#                   last line "N passed, N failed"
 #   make bench      benchmarks against POV-Ray and surfd's own mesh method -> tests/bench/RESULTS.md
 #   make layers     check the include rules between core/'s folders, api/ and daemon/
-#   make fuzz       every decoder's libFuzzer target for FUZZ_SECONDS (60) each (make test: 10 each)
+#   make fuzz       every decoder's libFuzzer target for FUZZ_SECONDS (60) each (its crashers replayed by check)
 #   make deb        build/surfd_VERSION_amd64.deb (deploy/deb.sh)
 # Warnings are errors when CI=true (or WERROR=1).
 
@@ -37,6 +39,7 @@ API_SRC    := $(wildcard api/*.c)
 DAEMON_SRC := $(wildcard daemon/*.c)
 TEST_SRC   := $(wildcard tests/core/*/test_*.c) $(wildcard tests/api/test_*.c)
 TSAN_TESTS := $(B)/tests/daemon/test_jobq $(B)/tests/core/matrix/tsan_fragments $(B)/tests/core/trace/tsan_map
+TESTS_MORE := $(B)/tests/daemon/test_memwrap
 
 obj = $(patsubst %.c,$(B)/$(1)/%.o,$(2))
 
@@ -57,7 +60,7 @@ SAN_CORE := $(call obj,san,$(CORE_SRC))
 SAN_API  := $(call obj,san,$(API_SRC))
 TESTS    := $(patsubst tests/%.c,$(B)/tests/%,$(TEST_SRC))
 
-.PHONY: all run test bench clean deps install fuzz layers deb
+.PHONY: all run check test bench clean deps install fuzz layers deb
 all: layers $(B)/surfd $(B)/surfctl
 
 # the one-way include rules of core/ and api/
@@ -117,8 +120,10 @@ $(B)/gen/web.c: $(WEB) Makefile
 $(B)/gen/web.o: $(B)/gen/web.c daemon/assets.h
 	$(CC) -I. -c $< -o $@
 
+# the daemon's own allocations charged to the job a thread works for (daemon/memwrap.c)
+MEMWRAP := -Wl,--wrap=malloc,--wrap=calloc,--wrap=realloc,--wrap=strdup,--wrap=free
 $(B)/surfd: $(REL_DMN) $(REL_API) $(DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $(REL_CORE) | $(B)/libsurfd-image.so
-	$(CC) $(OPT) -o $@ $^ $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
+	$(CC) $(OPT) $(MEMWRAP) -o $@ $^ $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
 # unit tests link core/ and api/ (with the DCMTK shim), never OpenImageIO
 $(B)/tests/%: tests/%.c tests/unit.h $(wildcard tests/core/*/*.h) $(SAN_CORE) $(SAN_API) $(DCM_OBJ)
@@ -148,9 +153,14 @@ fuzz: deps $(FUZZERS)
 	@FUZZ_SECONDS=$(FUZZ_SECONDS) tests/fuzz/fuzz.sh
 
 # the pool and queue under the thread sanitizer
-$(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c daemon/jobq.h
+$(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c daemon/jobq.h core/base/mem.c
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/daemon/test_jobq.c daemon/jobq.c -lpthread
+	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/daemon/test_jobq.c daemon/jobq.c core/base/mem.c -lpthread
+
+# the allocator wrappers, linked as the daemon links them
+$(B)/tests/daemon/test_memwrap: tests/daemon/test_memwrap.c tests/unit.h daemon/memwrap.c core/base/mem.c core/base/mem.h
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(SAN) $(MEMWRAP) -o $@ tests/daemon/test_memwrap.c daemon/memwrap.c core/base/mem.c -lpthread
 
 # matrix_fragments' table, made once a process, under the thread sanitizer
 $(B)/tests/core/matrix/tsan_fragments: tests/core/matrix/tsan_fragments.c tests/unit.h core/matrix/fragment.c core/matrix/matrix.h core/geom/trimesh.c core/base/mem.c core/base/err.c
@@ -164,7 +174,7 @@ $(B)/tests/core/trace/tsan_map: tests/core/trace/tsan_map.c tests/unit.h $(TSAN_
 
 # the daemon with the address and UB sanitizers, for the black-box API tests
 $(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $(SAN_CORE) | $(B)/san/libsurfd-image.so
-	$(CC) $(OPT) $(SAN) -o $@ $^ $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
+	$(CC) $(OPT) $(SAN) $(MEMWRAP) -o $@ $^ $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
 run: deps $(B)/surfd
 	$(B)/surfd serve --listen 127.0.0.1:8080 --data-dir var
@@ -190,8 +200,17 @@ $(B)/tests/tools/occt_iges: tests/tools/occt_iges.cpp
 	@mkdir -p $(@D)
 	$(CXX) -O2 -std=c++17 -Wall -Wextra -Werror -isystem /usr/include/opencascade -o $@ $< $(OCCT_LIBS)
 
-test: deps layers $(B)/surfd $(B)/surfctl $(B)/san/surfd $(TESTS) $(TSAN_TESTS) $(REPLAYS) $(FUZZERS) $(B)/tests/tools/occt_iges
-	@SURFD_BIN=$(B)/san/surfd FUZZ_SECONDS=$${FUZZ_SECONDS:-10} tests/run.sh $(TESTS) $(TSAN_TESTS)
+# the tiers: what each builds (on every core, once the packages are in) and runs
+NPROC      := $(shell nproc 2>/dev/null || echo 2)
+CHECK_BINS := $(TESTS) $(TESTS_MORE) $(TSAN_TESTS) $(REPLAYS)
+CHECKS     := $(TESTS) $(TESTS_MORE) $(TSAN_TESTS) tests/fuzz/replay.sh
+SUITES     := $(wildcard tests/cli/*.sh tests/api/*.sh tests/web/*.sh tests/deploy/*.sh)
+check: deps layers
+	@$(MAKE) --no-print-directory -j$(NPROC) $(CHECK_BINS)
+	@tests/run.sh $(CHECKS)
+test: deps layers
+	@$(MAKE) --no-print-directory -j$(NPROC) $(CHECK_BINS) $(B)/surfd $(B)/surfctl $(B)/san/surfd $(B)/tests/tools/occt_iges
+	@SURFD_BIN=$(B)/san/surfd tests/run.sh $(CHECKS) $(SUITES)
 
 bench: $(B)/surfd
 	@deploy/install-deps.sh --bench

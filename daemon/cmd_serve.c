@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -23,6 +24,32 @@
 #include "server.h"
 #include "service.h"
 #include "tokens.h"
+
+/* job-memory 0: three quarters of the memory the process may use (the machine's, or less under
+ * RLIMIT_AS or its cgroup's memory.max), shared among the workers. */
+static long long job_memory_share(long threads)
+{
+    long long total = (long long)sysconf(_SC_PHYS_PAGES) * sysconf(_SC_PAGESIZE);
+    struct rlimit rl;
+    if (!getrlimit(RLIMIT_AS, &rl) && rl.rlim_cur != RLIM_INFINITY && (long long)rl.rlim_cur < total)
+        total = (long long)rl.rlim_cur;
+    char line[512], path[600];
+    FILE *f = fopen("/proc/self/cgroup", "r");
+    while (f && fgets(line, sizeof line, f)) /* "0::/PATH": cgroup v2 */
+        if (!strncmp(line, "0::", 3)) {
+            line[strcspn(line, "\n")] = 0;
+            snprintf(path, sizeof path, "/sys/fs/cgroup%s/memory.max", line + 3);
+            FILE *m = fopen(path, "r");
+            long long max;
+            if (m && fscanf(m, "%lld", &max) == 1 && max > 0 && max < total) /* "max": none */
+                total = max;
+            if (m)
+                fclose(m);
+        }
+    if (f)
+        fclose(f);
+    return total / 4 * 3 / (threads > 0 ? threads : 1);
+}
 
 /* The node's name in the store: --node-name, or host name and port. */
 static void node_name(struct service *svc, unsigned port)
@@ -131,7 +158,9 @@ int cmd_serve(int argc, char **argv)
         goto out_free_device;
     }
     iso_init();
-    if (!(svc.q = jobq_new((int)threads, svc.cfg.queue_max))) {
+    if (!svc.cfg.job_memory)
+        svc.cfg.job_memory = job_memory_share(threads);
+    if (!(svc.q = jobq_new((int)threads, svc.cfg.queue_max, svc.cfg.job_memory))) {
         fprintf(stderr, "surfd serve: cannot start the worker pool\n");
         goto out_free_device;
     }
@@ -158,8 +187,8 @@ int cmd_serve(int argc, char **argv)
     char host[128];
     snprintf(host, sizeof host, "%.*s", (int)(strrchr(svc.cfg.listen, ':') - svc.cfg.listen), svc.cfg.listen);
     /* the one line an operator always needs, whatever the level */
-    log_write(LOG_INFO, "surfd %s listening on %s%s:%u, %ld workers, node %s, %s store%s%s%s", SURFD_VERSION,
-        svc.cfg.tls_cert[0] ? "https://" : "http://", host, server_port(server), threads, svc.node,
+    log_write(LOG_INFO, "surfd %s listening on %s%s:%u, %ld workers of %ld MB, node %s, %s store%s%s%s", SURFD_VERSION,
+        svc.cfg.tls_cert[0] ? "https://" : "http://", host, server_port(server), threads, svc.cfg.job_memory >> 20, svc.node,
         store_backend(svc.store), shared ? "" : " in ", shared ? "" : svc.cfg.data_dir,
         svc.n_tokens ? ", bearer tokens required" : "");
 

@@ -71,6 +71,12 @@ struct iso_opts job_iso_opts(const struct service *svc, const struct volume *v)
 {
     struct iso_opts o = volume_iso_opts(v);
     o.max_triangles = (size_t)svc->cfg.max_triangles;
+    o.max_triangles_by = "this node's max-triangles";
+    long long held = svc->cfg.job_memory / ISO_BYTES_PER_TRIANGLE;
+    if (svc->cfg.job_memory && held < svc->cfg.max_triangles) {
+        o.max_triangles = (size_t)held;
+        o.max_triangles_by = "what this node's job-memory holds (some 80 bytes a triangle from extraction to the store)";
+    }
     return o;
 }
 

@@ -13,8 +13,12 @@
  *                runs ops->finish unlocked, then unlinks the job and wakes its waiters.
  *   What a worker may call: its job's ops (which call core/ and the store), never the HTTP layer;
  *   waiter callbacks are the only path back to connections, and they only resume them.
- *   Memory bound: at most n_workers jobs are prepared at once; others wait queued. */
+ *   Memory bound: at most n_workers jobs are prepared at once; others wait queued. Each job's ops
+ *   run with its memory account entered (core/base/mem.h), so what they allocate is charged to it
+ *   and refused past the queue's job budget. */
 #include "jobq.h"
+
+#include "../core/base/mem.h"
 
 #include <pthread.h>
 #include <stdio.h>
@@ -41,6 +45,7 @@ struct job {
     int n_bands, next_band;      /* [q] */
     int bands_done, bands_out;   /* [q] finished / being rendered */
     double progress;             /* [q] as the job reported it (jobq_cancelled), never decreasing */
+    struct mem_account mem;      /* charged by the thread running its ops, whatever the lock */
     struct job *next_queued;     /* [q] FIFO link */
     struct job *next_live;       /* [q] all queued and running jobs */
 };
@@ -53,6 +58,7 @@ struct jobq {
     struct job *live;
     long n_queued, queue_max;
     int n_workers, n_active;     /* n_active: jobs taken off the queue and not finished */
+    long long job_memory;        /* each job's memory budget (0: none) */
     bool stop_taking, stop;
     pthread_t *threads, timer;
     struct waiter *waiters;      /* every waiter, by job id */
@@ -138,7 +144,9 @@ static void finish_job(struct jobq *q, struct job *j, enum job_state outcome)
     j->state = outcome;
     bool requeue = j->requeue;
     pthread_mutex_unlock(&q->lock);
+    mem_account_enter(&j->mem);
     j->ops->finish(j, j->work, outcome, requeue);
+    mem_account_enter(NULL);
     pthread_mutex_lock(&q->lock);
     unlink_live(q, j);
     q->n_active--;
@@ -175,7 +183,9 @@ static void *worker(void *arg)
             j->preparing = true;
             pthread_mutex_unlock(&q->lock);
             int n_bands = 0;
+            mem_account_enter(&j->mem);
             int rc = j->ops->prepare(j, j->work, &n_bands);
+            mem_account_enter(NULL);
             pthread_mutex_lock(&q->lock);
             j->preparing = false;
             j->n_bands = rc ? 0 : n_bands;
@@ -189,7 +199,9 @@ static void *worker(void *arg)
             int band = j->next_band++;
             j->bands_out++;
             pthread_mutex_unlock(&q->lock);
+            mem_account_enter(&j->mem);
             j->ops->band(j, j->work, band);
+            mem_account_enter(NULL);
             pthread_mutex_lock(&q->lock);
             j->bands_out--;
             j->bands_done++;
@@ -197,7 +209,9 @@ static void *worker(void *arg)
             if (all && !j->cancel && j->ops->next) { /* the next phase, prepared as the first was */
                 j->preparing = true;
                 pthread_mutex_unlock(&q->lock);
+                mem_account_enter(&j->mem);
                 int n_bands = 0, rc = j->ops->next(j, j->work, &n_bands);
+                mem_account_enter(NULL);
                 pthread_mutex_lock(&q->lock);
                 j->preparing = false;
                 if (rc == 0 && n_bands > 0 && !j->cancel) {
@@ -258,7 +272,7 @@ static void *timer(void *arg)
     return NULL;
 }
 
-struct jobq *jobq_new(int n_workers, long queue_max)
+struct jobq *jobq_new(int n_workers, long queue_max, long long job_memory)
 {
     struct jobq *q = calloc(1, sizeof *q);
     if (!q)
@@ -272,6 +286,7 @@ struct jobq *jobq_new(int n_workers, long queue_max)
     pthread_cond_init(&q->work, NULL);
     q->n_workers = n_workers < 1 ? 1 : n_workers;
     q->queue_max = queue_max;
+    q->job_memory = job_memory;
     q->threads = calloc((size_t)q->n_workers, sizeof *q->threads);
     if (!q->threads) {
         free(q);
@@ -356,6 +371,7 @@ int jobq_submit(struct jobq *q, const char *id, const struct job_ops *ops, void 
     j->work = work;
     j->state = JOB_QUEUED;
     pthread_mutex_lock(&q->lock);
+    j->mem.budget = q->job_memory;
     if ((q->n_queued >= q->queue_max && !force) || q->stop_taking) {
         pthread_mutex_unlock(&q->lock);
         free(j);

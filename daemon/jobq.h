@@ -31,8 +31,9 @@ struct job_ops {
     void (*finish)(struct job *j, void *work, enum job_state outcome, bool requeue);
 };
 
-/* Creates the pool with n_workers threads and room for queue_max waiting jobs. */
-struct jobq *jobq_new(int n_workers, long queue_max);
+/* Creates the pool with n_workers threads and room for queue_max waiting jobs, each job's ops
+ * charged to a memory account of job_memory bytes (0: unbounded; core/base/mem.h). */
+struct jobq *jobq_new(int n_workers, long queue_max, long long job_memory);
 /* Stops taking queued jobs, waits up to timeout_s for running ones, cancels (requeue) the rest
  * and gives them grace_s to stop; then joins the workers and returns 0 (jobq_free frees it). Queued
  * jobs stay in the store. A job still running after the grace (deaf to its cancel flag) is named

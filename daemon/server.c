@@ -455,6 +455,8 @@ static int check_and_store(struct job *j, void *arg, int *n_bands)
     *n_bands = 0;
     struct job_body b = {r->body, r->len, r->format, r->options, scope(r)};
     r->check_rc = r->kind->validate(svc, &b, &r->check_err);
+    if (r->check_rc)
+        r->check_rc = service_outgrown(&r->check_err);
     r->body = b.body; /* validate may have replaced it */
     r->len = b.len;
     if (r->check_rc)
@@ -1312,7 +1314,7 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
         return NULL;
     s->svc = svc;
     sweep_cut_uploads(svc->cfg.data_dir);
-    if (!(s->checks = jobq_new(CHECK_THREADS, svc->cfg.max_connections))) {
+    if (!(s->checks = jobq_new(CHECK_THREADS, svc->cfg.max_connections, svc->cfg.job_memory))) {
         snprintf(msg, msg_len, "cannot start the threads that read requests");
         free(s);
         return NULL;

@@ -10,6 +10,7 @@
 #include <time.h>
 
 #include "../api/problem.h"
+#include "../core/base/mem.h"
 #include "kinds.h"
 #include "log.h"
 #include "metrics.h"
@@ -258,6 +259,20 @@ static int store_end(struct service *svc, const struct job_claim *c, const struc
     return rc;
 }
 
+int service_outgrown(struct sf_err *err)
+{
+    const struct mem_account *a = mem_account_current();
+    long long refused = a ? atomic_load(&a->refused) : 0;
+    /* what a refused allocation turns into: core's and the store's failures, never the input's own */
+    if (!refused || (err->code != SF_ENOMEM && err->code != SF_EIO && err->code != SF_EBACKEND))
+        return err->code;
+    long long held = atomic_load(&a->held), mb = 1 << 20;
+    held = held < 0 ? 0 : held; /* credited frees of what other accounts allocated */
+    *err = (struct sf_err){0};
+    return sf_fail(err, SF_ELIMIT, "", "the job needs more memory than this node gives one job (job-memory, %lld MB): "
+                   "%lld MB more were refused with %lld MB in use", a->budget / mb, (refused + mb - 1) / mb, held / mb);
+}
+
 void service_job_end(struct service *svc, const struct job_claim *c, enum job_state outcome, bool requeue,
                      const unsigned char *result, size_t len, const char *type, const char *meta,
                      const struct sf_err *err)
@@ -272,6 +287,9 @@ void service_job_end(struct service *svc, const struct job_claim *c, enum job_st
         strand(svc, c, "the disk is full: the store would not take its result");
         return;
     }
+    struct sf_err outgrown = *err;
+    if (outcome == JOB_FAILED && service_outgrown(&outgrown))
+        err = &outgrown;
     char *p = outcome == JOB_FAILED ? problem_from_err(err) : NULL;
     if (outcome == JOB_FAILED)
         LOG(LOG_WARN, "job %s failed: %s", c->id, err->message);

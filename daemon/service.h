@@ -75,6 +75,10 @@ void service_wake(struct service *svc);
 void service_job_end(struct service *svc, const struct job_claim *c, enum job_state outcome, bool requeue,
                      const unsigned char *result, size_t len, const char *type, const char *meta,
                      const struct sf_err *err);
+/* For a failed job's ops: when the failure came from an allocation its memory account refused
+ * (core/base/mem.h: the job outgrew job-memory), err becomes the 422 that says so, with the
+ * figures. Returns err's code. */
+int service_outgrown(struct sf_err *err);
 /* A job of this node's pool that a drain could not stop: handed back queued. */
 void service_release(struct service *svc, const char *id);
 

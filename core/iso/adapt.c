@@ -44,6 +44,7 @@ struct iso_adapt {
     bool sharp;
     double (*field)(const void *ctx, const double p[3], double g[3]);
     const void *field_ctx;
+    const char *tri_limit_by;          /* the opts' max_triangles_by */
     struct iso_grid g;                 /* the samples, copied into F by the first phase */
     float pad;
     float *F;                          /* the virtual grid, x fastest */
@@ -1916,6 +1917,7 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
     a->iso = (float)o->iso;
     a->sharp = o->sharp;
     a->field = o->field, a->field_ctx = o->field_ctx;
+    a->tri_limit_by = o->max_triangles_by ? o->max_triangles_by : "the limit";
     a->max_err = levels == 1 ? -1 : max_error; /* levels 1: nothing merges */
     for (int k = 0; o->max_triangles && k < ADAPT_SLABS; k++)
         a->pieces[k].tri_total = &a->tri_total, a->pieces[k].tri_limit = o->max_triangles;
@@ -2067,8 +2069,8 @@ static int mesh_failed(const struct iso_adapt *a, struct sf_err *err)
 {
     for (int k = 0; k < ADAPT_SLABS; k++)
         if (a->pieces[k].over)
-            return sf_fail(err, SF_ELIMIT, "", "the isosurface would have over %zu triangles, this node's "
-                           "max-triangles", a->pieces[k].tri_limit);
+            return sf_fail(err, SF_ELIMIT, "", "the isosurface would have over %zu triangles, %s",
+                           a->pieces[k].tri_limit, a->tri_limit_by);
     return sf_fail(err, a->all.m.n_vert >= ISO_MAX_VERTICES ? SF_ELIMIT : SF_ENOMEM, "",
                    "the mesh would take more memory than there is (or over %u vertices)", ISO_MAX_VERTICES);
 }

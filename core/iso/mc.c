@@ -728,8 +728,8 @@ int iso_layout(struct iso_job *j, struct sf_err *err)
         return sf_fail(err, SF_ELIMIT, "", "the isosurface would have %zu vertices, over the limit of %u", v,
                        ISO_MAX_VERTICES);
     if (j->o.max_triangles && t > j->o.max_triangles)
-        return sf_fail(err, SF_ELIMIT, "", "the isosurface would have %zu triangles, over this node's max-triangles "
-                       "of %zu", t, j->o.max_triangles);
+        return sf_fail(err, SF_ELIMIT, "", "the isosurface would have %zu triangles, over the %zu of %s", t,
+                       j->o.max_triangles, j->o.max_triangles_by ? j->o.max_triangles_by : "the limit");
     j->m.n_vert = v;
     j->m.n_tri = t;
     j->m.pos = malloc((v ? v : 1) * 3 * sizeof *j->m.pos);

@@ -57,6 +57,7 @@ struct iso_opts {
     bool keep;               /* adapt.c keeps what local rebuilds need (iso_adapt_keep) */
     size_t max_triangles;    /* 0: none; a surface of more is SF_ELIMIT, found before its mesh is allocated
                               * (iso_layout) or while its pieces grow (adapt.c), never after */
+    const char *max_triangles_by; /* what sets it, for the message ("this node's max-triangles") */
 };
 
 struct iso_job;

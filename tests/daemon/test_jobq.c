@@ -79,7 +79,7 @@ static void sleep_ms(int ms)
 TEST(bands_run_once_and_jobs_end)
 {
     enum { N = 40 };
-    struct jobq *q = jobq_new(4, N);
+    struct jobq *q = jobq_new(4, N, 0);
     struct work *w[N];
     struct waited wt[N] = {0};
     char id[N][40];
@@ -126,7 +126,7 @@ TEST(bands_run_once_and_jobs_end)
 TEST(full_queue_timeouts_and_shutdown)
 {
     atomic_store(&total_finished, 0);
-    struct jobq *q = jobq_new(1, 2);
+    struct jobq *q = jobq_new(1, 2, 0);
     struct work *slow = make_work(200, 2000), *a = make_work(2, 10), *b = make_work(2, 10), *c = make_work(2, 10);
     CHECK(jobq_submit(q, "slow", &OPS, slow, false) == 0);
     sleep_ms(20); /* slow is running now */
@@ -211,7 +211,7 @@ static const struct job_ops PHASED = {.prepare = ph_prepare, .band = ph_band, .n
 
 TEST(phases_of_bands)
 {
-    struct jobq *q = jobq_new(4, 8);
+    struct jobq *q = jobq_new(4, 8, 0);
     struct phased p = {0};
     struct waited w = {0};
     jobq_wait(q, "p", monotonic_s() + 30, on_wait, &w);

@@ -1,5 +1,5 @@
 #!/bin/sh
-# make fuzz (and make test, with FUZZ_SECONDS=10): each libFuzzer target in build/fuzz for
+# make fuzz: each libFuzzer target in build/fuzz for
 # FUZZ_SECONDS seconds, from its seeds (seeds.inc) and the corpus it grew before (build/fuzz/corpus).
 # A crash, leak, timeout or sanitizer report fails the target and leaves the input in
 # build/fuzz/crashes/NAME: keep it as a regression input in tests/fuzz/crashers/NAME once fixed.

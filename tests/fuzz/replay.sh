@@ -1,5 +1,5 @@
 #!/bin/sh
-# make test: every fuzz target (built with gcc and the sanitizers over tests/fuzz/replay.c) replays
+# make check: every fuzz target (built with gcc and the sanitizers over tests/fuzz/replay.c) replays
 # its seeds and the crashers kept in tests/fuzz/crashers/NAME: each once crashed or hung a decoder.
 set -u
 cd "$(dirname "$0")/../.." || exit 1
