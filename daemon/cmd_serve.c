@@ -140,6 +140,7 @@ int cmd_serve(int argc, char **argv)
         fprintf(stderr, "surfd serve: store: %s\n", msg);
         goto out_free_tokens;
     }
+    store_set_piece(svc.store, (size_t)svc.cfg.store_piece);
     /* a damaged store is not served: its pages and every job's and model's JSON are checked first */
     int checked = store_check(svc.store, false, log_finding, NULL);
     if (checked) {

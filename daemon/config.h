@@ -21,6 +21,7 @@ struct config {
     long max_volume;        /* bytes of a streamed volume (POST /isosurface) */
     long edit_memory;       /* bytes of the hierarchies kept for edits (daemon/job_edit.c) */
     long max_triangles;     /* of one isosurface (job_iso_opts) */
+    long store_piece;       /* bytes of a stored value kept in one piece at most (store.h) */
     long job_memory;        /* bytes one job may allocate (jobq.h); 0 in the file: a share (cmd_serve.c) */
     long mesh_cache;        /* bytes of cached meshes in the store (0: none) */
     long frame_cache;       /* bytes of models' prepared hierarchies kept in memory (daemon/frames.c) */

@@ -5,14 +5,31 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/random.h>
 
 #include "store_backend.h"
 
 int store_open(const char *target, const char *scratch, struct store **out, char *msg, size_t msg_len)
 {
-    if (!strncmp(target, "postgresql://", 13) || !strncmp(target, "postgres://", 11))
-        return store_pg_open(target, scratch, out, msg, msg_len);
-    return store_sqlite_open(target, out, msg, msg_len);
+    int rc = !strncmp(target, "postgresql://", 13) || !strncmp(target, "postgres://", 11)
+                 ? store_pg_open(target, scratch, out, msg, msg_len)
+                 : store_sqlite_open(target, out, msg, msg_len);
+    if (!rc)
+        (*out)->piece = STORE_PIECE;
+    return rc;
+}
+
+void store_set_piece(struct store *s, size_t bytes) { s->piece = bytes; }
+
+int store_piece_name(char name[48])
+{
+    unsigned char r[16];
+    if (getrandom(r, sizeof r, 0) != (ssize_t)sizeof r)
+        return -1;
+    int at = snprintf(name, 48, "pieces:");
+    for (size_t k = 0; k < sizeof r; k++)
+        at += snprintf(name + at, (size_t)(48 - at), "%02x", r[k]);
+    return 0;
 }
 
 void store_close(struct store *s)

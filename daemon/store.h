@@ -93,6 +93,12 @@ struct job_end {
  * for files fetched from a shared store. On failure writes msg and returns -1. */
 int store_open(const char *target, const char *scratch, struct store **out, char *msg, size_t msg_len);
 void store_close(struct store *s);
+/* A value (a model's mesh, a volume kept for edits, a cached mesh, a job's request or result)
+ * longer than a piece is kept as several rows of one piece each: SQLite holds at most 1e9 bytes
+ * in one value and PostgreSQL 1 GB. STORE_PIECE by default; store-piece sets it (tests make it
+ * small). */
+#define STORE_PIECE (256u << 20)
+void store_set_piece(struct store *s, size_t bytes);
 /* "sqlite" or "postgresql". */
 const char *store_backend(const struct store *s);
 

@@ -67,11 +67,15 @@ struct store {
     const struct store_ops *ops;
     atomic_bool damaged;     /* a read found damage (store.c's wrappers): not ready until restarted */
     atomic_bool full;        /* a write met a full disk: not ready until the backend's writable() finds room */
+    size_t piece;            /* bytes of a value stored in one piece at most (store_set_piece) */
 };
 
 /* One more part for a backend's volume_get (format, options and data copied): 0 or -1. */
 int store_volume_add(struct volume_rec **parts, int *n, int seq, const char *format, const char *options,
                      const void *data, size_t len);
+
+/* A new name for a value's pieces (store.h's STORE_PIECE): "pieces:" and 32 random hex digits. 0 or -1. */
+int store_piece_name(char name[48]);
 
 /* The backends' openers: 0 and *out, or -1 with msg. */
 int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg_len);

@@ -82,7 +82,13 @@ static const char SCHEMA[] =
     " PRIMARY KEY (model, seq));"
     "CREATE TABLE IF NOT EXISTS meshes (model text NOT NULL REFERENCES models(id) ON DELETE CASCADE,"
     " key text NOT NULL, type text NOT NULL, meta text NOT NULL, data bytea NOT NULL, sum text NOT NULL,"
-    " used double precision NOT NULL, PRIMARY KEY (model, key));";
+    " used double precision NOT NULL, PRIMARY KEY (model, key));"
+    /* values longer than a piece (store.h): the column empty, its rows in pieces, named by *_pieces */
+    "CREATE TABLE IF NOT EXISTS pieces (name text NOT NULL, seq integer NOT NULL, data bytea NOT NULL,"
+    " PRIMARY KEY (name, seq));"
+    "ALTER TABLE models ADD COLUMN IF NOT EXISTS source_pieces text;"
+    "ALTER TABLE model_volumes ADD COLUMN IF NOT EXISTS data_pieces text;"
+    "ALTER TABLE meshes ADD COLUMN IF NOT EXISTS data_pieces text;";
 
 #define NOW "extract(epoch from clock_timestamp())"
 
@@ -367,15 +373,17 @@ static int pg_heartbeat(struct store *s, const char *id, long fence, double leas
     return n < 0 ? -1 : n == 1;
 }
 
-/* Writes a result's chunks on connection c, inside the caller's transaction. 0 or -1. */
-static int put_chunks(struct pg_store *p, int c, const char *id, const unsigned char *data, size_t len)
+/* Writes len bytes as rows of size bytes (insert: "INSERT INTO T(key,seq,data) VALUES($1,$2,$3)")
+ * on connection c, inside the caller's transaction: a result's chunks, a value's pieces. 0 or -1. */
+static int put_rows(struct pg_store *p, int c, const char *insert, const char *key, const unsigned char *data,
+                    size_t len, size_t size)
 {
-    for (size_t off = 0, seq = 0; off < len || seq == 0; off += CHUNK, seq++) {
-        size_t n = len - off < CHUNK ? len - off : CHUNK;
+    for (size_t off = 0, seq = 0; off < len || seq == 0; off += size, seq++) {
+        size_t n = len - off < size ? len - off : size;
         char sq[24];
         snprintf(sq, sizeof sq, "%zu", seq);
-        struct param prm[] = {T(id), T(sq), BIN(len ? (const void *)(data + off) : "", n)};
-        PGresult *res = execute(p, c, "INSERT INTO results(job,seq,data) VALUES($1,$2,$3)", 3, prm, false);
+        struct param prm[] = {T(key), T(sq), BIN(len ? (const void *)(data + off) : "", n)};
+        PGresult *res = execute(p, c, insert, 3, prm, false);
         if (!res)
             return -1;
         PQclear(res);
@@ -409,7 +417,8 @@ static int pg_finish(struct store *s, const char *id, long fence, const struct j
                       9, prm, false);
         int changed = res ? atoi(PQcmdTuples(res)) : -1;
         PQclear(res);
-        if (changed == 1 && e->outcome == JOB_SUCCEEDED && put_chunks(p, c, id, e->result, e->len))
+        if (changed == 1 && e->outcome == JOB_SUCCEEDED &&
+            put_rows(p, c, "INSERT INTO results(job,seq,data) VALUES($1,$2,$3)", id, e->result, e->len, CHUNK))
             changed = -1;
         if (changed == 1) {
             struct param n1[] = {T(id)};
@@ -565,17 +574,16 @@ static void read_rec(const PGresult *r, int row, struct job_rec *out)
     out->request_file = PQgetvalue(r, row, 17)[0] != 0;
 }
 
-/* Reads job id's result chunk by chunk (single-row mode) into one buffer of its stored length. */
-static int get_result(struct pg_store *p, const char *id, size_t len, unsigned char **out)
+/* Reads the rows select (of key, "SELECT data ... ORDER BY seq") one at a time (single-row mode)
+ * into one buffer of len bytes, their sum: a result's chunks, a value's pieces. */
+static int get_rows(struct pg_store *p, const char *select, const char *key, size_t len, unsigned char **out)
 {
     int c = take(p);
     PGconn *conn = p->pool[c];
-    const char *values[] = {id};
+    const char *values[] = {key};
     unsigned char *buf = malloc(len ? len : 1);
     size_t at = 0;
-    bool ok = buf && PQsendQueryParams(conn, "SELECT data FROM results WHERE job=$1 ORDER BY seq", 1, NULL, values,
-                                       NULL, NULL, 1) &&
-              PQsetSingleRowMode(conn);
+    bool ok = buf && PQsendQueryParams(conn, select, 1, NULL, values, NULL, NULL, 1) && PQsetSingleRowMode(conn);
     PGresult *res;
     while ((res = PQgetResult(conn))) {
         ExecStatusType st = PQresultStatus(res);
@@ -624,7 +632,7 @@ static int pg_get(struct store *s, const char *id, bool with_request, bool with_
     size_t len = has_result ? (size_t)get_i64(res, 0, REC_N_COLUMNS + 1) : 0;
     PQclear(res);
     if (found == 1 && with_result && has_result) {
-        if (get_result(pg(s), id, len, &out->result)) {
+        if (get_rows(pg(s), "SELECT data FROM results WHERE job=$1 ORDER BY seq", id, len, &out->result)) {
             found = -1;
         } else {
             out->result_len = len;
@@ -685,17 +693,75 @@ static int exec_in(struct pg_store *p, int c, const char *sql, int n, const stru
     return rows;
 }
 
+/* Values longer than a piece (store.h): PostgreSQL holds at most 1 GB in one bytea. Such a value
+ * is written as rows of pieces(name, seq, data) on the writer's connection, in its transaction;
+ * its column is left empty and the column *_pieces names them (NULL for a value in its column).
+ * A row deleted or replaced leaves its pieces until sweep_pieces (another node's sweep cannot see
+ * pieces whose row is not committed yet). */
+
+/* The parameters for a value of len bytes written on connection c: *v the bytes, or (the pieces
+ * written first, named in name) empty, with *pieces the name or NULL. 0, or -1. */
+static int value_params(struct pg_store *p, int c, const void *data, size_t len, char name[48], struct param *v,
+                        struct param *pieces)
+{
+    *v = BIN(len ? data : "", len), *pieces = T(NULL);
+    if (len <= p->base.piece)
+        return 0;
+    if (store_piece_name(name) ||
+        put_rows(p, c, "INSERT INTO pieces(name,seq,data) VALUES($1,$2,$3)", name, data, len, p->base.piece))
+        return -1;
+    *v = BIN("", 0), *pieces = T(name);
+    return 0;
+}
+
+/* Row row's value: column col, or the pieces column pieces_col names. A copy (*len bytes; the
+ * caller frees it), or NULL without memory or when the pieces cannot be read. */
+static unsigned char *value_copy(struct pg_store *p, const PGresult *res, int row, int col, int pieces_col, size_t *len)
+{
+    if (PQgetisnull(res, row, pieces_col)) {
+        *len = (size_t)PQgetlength(res, row, col);
+        unsigned char *b = malloc(*len + 1);
+        if (b) {
+            memcpy(b, PQgetvalue(res, row, col), *len);
+            b[*len] = 0;
+        }
+        return b;
+    }
+    const char *name = PQgetvalue(res, row, pieces_col);
+    struct param prm[] = {T(name)};
+    PGresult *r;
+    if (exec1(&p->base, &r, "SELECT COALESCE(sum(octet_length(data)), 0)::bigint FROM pieces WHERE name=$1", 1, prm) != 1)
+        return NULL;
+    *len = (size_t)get_i64(r, 0, 0);
+    PQclear(r);
+    unsigned char *b = NULL;
+    return get_rows(p, "SELECT data FROM pieces WHERE name=$1 ORDER BY seq", name, *len, &b) ? NULL : b;
+}
+
+/* Removes the pieces no row names any more. */
+static void sweep_pieces(struct store *s)
+{
+    exec1(s, NULL,
+          "DELETE FROM pieces WHERE name NOT IN (SELECT source_pieces FROM models WHERE source_pieces IS NOT NULL"
+          " UNION ALL SELECT data_pieces FROM model_volumes WHERE data_pieces IS NOT NULL"
+          " UNION ALL SELECT data_pieces FROM meshes WHERE data_pieces IS NOT NULL)",
+          0, NULL);
+}
+
 /* Volume part v of model id on connection c: 1, 0 when its seq is taken, -1. */
 static int volume_put(struct pg_store *p, int c, const char *id, const struct volume_rec *v)
 {
     char seq[16], sum[65];
     snprintf(seq, sizeof seq, "%d", v->seq);
     store_checksum(v->options, strlen(v->options), v->data, v->len, sum);
-    struct param prm[] = {T(id), T(seq), T(v->format), T(v->options), BIN(v->len ? v->data : "", v->len), T(sum)};
+    char name[48];
+    struct param prm[] = {T(id), T(seq), T(v->format), T(v->options), T(NULL), T(sum), T(NULL)};
+    if (value_params(p, c, v->data, v->len, name, &prm[4], &prm[6]))
+        return -1;
     return exec_in(p, c,
-                   "INSERT INTO model_volumes(model,seq,format,options,data,sum) VALUES($1,$2,$3,$4,$5,$6)"
+                   "INSERT INTO model_volumes(model,seq,format,options,data,sum,data_pieces) VALUES($1,$2,$3,$4,$5,$6,$7)"
                    " ON CONFLICT DO NOTHING",
-                   6, prm);
+                   7, prm);
 }
 
 /* The model's row (update: only its source and resource, of an existing row) on connection c. */
@@ -705,19 +771,23 @@ static int model_row(struct pg_store *p, int c, const struct model_rec *m, bool 
     num(created, sizeof created, m->created);
     store_checksum(m->source, m->source_len, m->resource, strlen(m->resource), sum);
     store_checksum(m->resource, strlen(m->resource), "", 0, rsum);
-    struct param prm[] = {T(m->id), T(m->job), T(m->name ? m->name : ""), T(created), BIN(m->source, m->source_len),
-                          T(m->resource), T(m->owner ? m->owner : ""), T(sum), T(rsum)};
+    char name[48];
+    struct param prm[] = {T(m->id), T(m->job), T(m->name ? m->name : ""), T(created), T(NULL),
+                          T(m->resource), T(m->owner ? m->owner : ""), T(sum), T(rsum), T(NULL)};
+    if (value_params(p, c, m->source, m->source_len, name, &prm[4], &prm[9]))
+        return -1;
     if (update) {
-        struct param up[] = {prm[0], prm[4], prm[5], prm[7], prm[8]};
-        return exec_in(p, c, "UPDATE models SET source=$2, resource=$3, sum=$4, resource_sum=$5 WHERE id=$1", 5, up);
+        struct param up[] = {prm[0], prm[4], prm[5], prm[7], prm[8], prm[9]};
+        return exec_in(p, c, "UPDATE models SET source=$2, resource=$3, sum=$4, resource_sum=$5, source_pieces=$6"
+                       " WHERE id=$1", 6, up);
     }
     return exec_in(p, c,
-                   "INSERT INTO models(id,job,name,created,source,resource,owner,sum,resource_sum)"
-                   " VALUES($1,$2,$3,$4,$5,$6,$7,$8,$9)"
+                   "INSERT INTO models(id,job,name,created,source,resource,owner,sum,resource_sum,source_pieces)"
+                   " VALUES($1,$2,$3,$4,$5,$6,$7,$8,$9,$10)"
                    " ON CONFLICT (id) DO UPDATE SET job=EXCLUDED.job, name=EXCLUDED.name, created=EXCLUDED.created,"
                    " source=EXCLUDED.source, resource=EXCLUDED.resource, owner=EXCLUDED.owner, sum=EXCLUDED.sum,"
-                   " resource_sum=EXCLUDED.resource_sum",
-                   9, prm);
+                   " resource_sum=EXCLUDED.resource_sum, source_pieces=EXCLUDED.source_pieces",
+                   10, prm);
 }
 
 /* A model's row and a volume part in one transaction: 1 (committed), 0 (the part's seq was
@@ -743,6 +813,8 @@ static int model_txn(struct store *s, const struct model_rec *m, const struct vo
         PQclear(res);
     }
     give(p, c);
+    if (rc == 1)
+        sweep_pieces(s); /* of the row replaced, or of the meshes before an edit */
     return rc;
 }
 
@@ -760,21 +832,26 @@ static int pg_volume_get(struct store *s, const char *id, int from, struct volum
     struct param prm[] = {T(id), T(f)};
     PGresult *res;
     int rows = exec1(s, &res,
-                     "SELECT seq, format, options, data, sum FROM model_volumes WHERE model=$1 AND seq>=$2::integer"
-                     " ORDER BY seq",
+                     "SELECT seq, format, options, data, sum, data_pieces FROM model_volumes WHERE model=$1 AND"
+                     " seq>=$2::integer ORDER BY seq",
                      2, prm);
     if (rows < 0)
         return -1;
     int found = rows > 0;
     for (int k = 0; k < rows && found == 1; k++) {
-        const char *opt = PQgetvalue(res, k, 2), *data = PQgetvalue(res, k, 3);
-        size_t len = (size_t)PQgetlength(res, k, 3);
+        const char *opt = PQgetvalue(res, k, 2);
+        size_t len;
+        unsigned char *data = value_copy(pg(s), res, k, 3, 5, &len);
         char sum[65];
-        store_checksum(opt, strlen(opt), data, len, sum);
-        if (strcmp(sum, PQgetvalue(res, k, 4)))
+        if (data)
+            store_checksum(opt, strlen(opt), data, len, sum);
+        if (!data)
+            found = -1;
+        else if (strcmp(sum, PQgetvalue(res, k, 4)))
             found = STORE_DAMAGED;
         else if (store_volume_add(parts, n, (int)get_i64(res, k, 0), PQgetvalue(res, k, 1), opt, data, len))
             found = -1;
+        free(data);
     }
     PQclear(res);
     return found;
@@ -817,30 +894,29 @@ static int pg_model_get(struct store *s, const char *id, const char *owner, char
     }
     struct param prm[] = {T(id), T(owner)};
     PGresult *res;
-    int n = exec1(s, &res, "SELECT resource, source, sum FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2,
-                  prm);
+    int n = exec1(s, &res,
+                  "SELECT resource, source, sum, source_pieces FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)",
+                  2, prm);
     if (n <= 0) {
         if (n == 0)
             PQclear(res);
         return n;
     }
-    const char *src = PQgetvalue(res, 0, 1), *rsc = PQgetvalue(res, 0, 0);
-    size_t ns = (size_t)PQgetlength(res, 0, 1), nr = (size_t)PQgetlength(res, 0, 0);
+    const char *rsc = PQgetvalue(res, 0, 0);
+    size_t ns = 0, nr = (size_t)PQgetlength(res, 0, 0);
+    unsigned char *src = value_copy(pg(s), res, 0, 1, 3, &ns);
     char sum[65];
-    store_checksum(src, ns, rsc, nr, sum);
-    int found = PQgetisnull(res, 0, 2) || !strcmp(sum, PQgetvalue(res, 0, 2)) ? 1 : STORE_DAMAGED;
+    if (src)
+        store_checksum(src, ns, rsc, nr, sum);
+    int found = !src ? -1 : PQgetisnull(res, 0, 2) || !strcmp(sum, PQgetvalue(res, 0, 2)) ? 1 : STORE_DAMAGED;
     if (found == 1 && resource && !(*resource = dup_text(res, 0, 0)))
         found = -1;
     if (found == 1 && source) {
-        if ((*source = malloc(ns + 1))) {
-            memcpy(*source, src, ns);
-            (*source)[ns] = 0;
-            if (source_len)
-                *source_len = ns;
-        } else {
-            found = -1;
-        }
+        *source = (char *)src, src = NULL;
+        if (source_len)
+            *source_len = ns;
     }
+    free(src);
     PQclear(res);
     return found;
 }
@@ -874,6 +950,8 @@ static int pg_model_delete(struct store *s, const char *id, const char *owner)
 {
     struct param prm[] = {T(id), T(owner)};
     int n = exec1(s, NULL, "DELETE FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2, prm);
+    if (n > 0)
+        sweep_pieces(s); /* of its source, volumes and meshes (the rows gone by cascade) */
     return n < 0 ? -1 : n > 0;
 }
 
@@ -882,19 +960,16 @@ static int pg_mesh_get(struct store *s, const char *model, const char *key, stru
     struct param prm[] = {T(model), T(key)};
     PGresult *res;
     int rows = exec1(s, &res,
-                     "UPDATE meshes SET used=" NOW " WHERE model=$1 AND key=$2 RETURNING type, meta, data, sum", 2, prm);
+                     "UPDATE meshes SET used=" NOW " WHERE model=$1 AND key=$2 RETURNING type, meta, data, sum,"
+                     " data_pieces", 2, prm);
     if (rows < 0)
         return -1;
     int found = rows > 0;
     if (found) {
-        size_t len = (size_t)PQgetlength(res, 0, 2);
         out->type = strdup(PQgetvalue(res, 0, 0));
         out->meta = strdup(PQgetvalue(res, 0, 1));
-        out->data = malloc(len ? len : 1);
-        out->len = len;
+        out->data = value_copy(pg(s), res, 0, 2, 4, &out->len);
         snprintf(out->sum, sizeof out->sum, "%s", PQgetvalue(res, 0, 3));
-        if (out->data)
-            memcpy(out->data, PQgetvalue(res, 0, 2), len);
         if (!out->type || !out->meta || !out->data)
             found = -1;
     }
@@ -902,29 +977,50 @@ static int pg_mesh_get(struct store *s, const char *model, const char *key, stru
     return found;
 }
 
+/* A cached mesh's bytes, in its row or its pieces. */
+#define MESH_BYTES                                                                                                  \
+    "CASE WHEN data_pieces IS NULL THEN octet_length(data)"                                                         \
+    " ELSE (SELECT sum(octet_length(p.data)) FROM pieces p WHERE p.name = meshes.data_pieces) END"
+
 static int pg_mesh_put(struct store *s, const char *model, const char *key, const struct mesh_rec *m, long max_bytes)
 {
     char budget[32];
     snprintf(budget, sizeof budget, "%ld", max_bytes);
-    struct param prm[] = {T(model), T(key), T(m->type), T(m->meta ? m->meta : ""), BIN(m->data, m->len), T(m->sum)};
-    int n = exec1(s, NULL,
-                  "INSERT INTO meshes(model,key,type,meta,data,sum,used) SELECT $1,$2,$3,$4,$5,$6," NOW
-                  " WHERE EXISTS (SELECT 1 FROM models WHERE id=$1) ON CONFLICT (model, key) DO UPDATE SET"
-                  " type=EXCLUDED.type, meta=EXCLUDED.meta, data=EXCLUDED.data, sum=EXCLUDED.sum, used=EXCLUDED.used",
-                  6, prm);
+    struct pg_store *p = pg(s);
+    char name[48];
+    struct param prm[] = {T(model), T(key), T(m->type), T(m->meta ? m->meta : ""), T(NULL), T(m->sum), T(NULL)};
+    int c = take(p), n = -1;
+    PGresult *res = execute(p, c, "BEGIN", 0, NULL, true);
+    if (res) {
+        PQclear(res);
+        if (!value_params(p, c, m->data, m->len, name, &prm[4], &prm[6]))
+            n = exec_in(p, c,
+                        "INSERT INTO meshes(model,key,type,meta,data,sum,used,data_pieces) SELECT $1,$2,$3,$4,$5,$6," NOW
+                        ",$7 WHERE EXISTS (SELECT 1 FROM models WHERE id=$1) ON CONFLICT (model, key) DO UPDATE SET"
+                        " type=EXCLUDED.type, meta=EXCLUDED.meta, data=EXCLUDED.data, sum=EXCLUDED.sum,"
+                        " used=EXCLUDED.used, data_pieces=EXCLUDED.data_pieces",
+                        7, prm);
+        res = execute(p, c, n > 0 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
+        if (!res)
+            n = -1;
+        PQclear(res);
+    }
+    give(p, c);
     struct param cap[] = {T(budget)};
     if (n > 0 && exec1(s, NULL,
                        "DELETE FROM meshes WHERE (model, key) IN (SELECT model, key FROM (SELECT model, key,"
-                       " SUM(octet_length(data)) OVER (ORDER BY used DESC, model, key) AS run FROM meshes) t"
+                       " SUM(" MESH_BYTES ") OVER (ORDER BY used DESC, model, key) AS run FROM meshes) t"
                        " WHERE run > $1::bigint)", /* the least used past the budget */
                        1, cap) < 0)
         n = -1;
+    if (n > 0)
+        sweep_pieces(s); /* of a mesh replaced or dropped */
     return n < 0 ? -1 : n > 0;
 }
 
 static long pg_mesh_bytes(struct store *s)
 {
-    return query_count(s, "SELECT COALESCE(SUM(octet_length(data)), 0)::bigint FROM meshes");
+    return query_count(s, "SELECT COALESCE(SUM(" MESH_BYTES "), 0)::bigint FROM meshes");
 }
 
 static bool pg_writable(struct store *s)
@@ -1067,6 +1163,7 @@ int store_pg_open(const char *uri, const char *scratch, struct store **out, char
         pg_close(&p->base);
         return -1;
     }
+    sweep_pieces(&p->base); /* left by a stop between a row's replacement and its sweep */
     *out = &p->base;
     return 0;
 }

@@ -48,7 +48,9 @@ static const char SCHEMA[] =
     "CREATE TABLE IF NOT EXISTS meshes ("
     " model TEXT NOT NULL, key TEXT NOT NULL, type TEXT NOT NULL, meta TEXT NOT NULL, data BLOB NOT NULL,"
     " sum TEXT NOT NULL, used REAL NOT NULL, PRIMARY KEY (model, key));"
-    "CREATE TABLE IF NOT EXISTS probe (x INTEGER);";
+    "CREATE TABLE IF NOT EXISTS probe (x INTEGER);"
+    "CREATE TABLE IF NOT EXISTS pieces (name TEXT NOT NULL, seq INTEGER NOT NULL, data BLOB NOT NULL,"
+    " PRIMARY KEY (name, seq));";
 
 /* Columns added after the first release, for databases made before them: added when missing. */
 static const char *const MIGRATIONS[] = {
@@ -69,6 +71,7 @@ static const char *const MIGRATIONS[] = {
 
 static const struct store_ops SQLITE_OPS;
 static void sq_close(struct store *base);
+static void sweep_pieces(struct store *s);
 
 int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg_len)
 {
@@ -114,6 +117,7 @@ int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg
                 return -1;
             }
         }
+    sweep_pieces(&s->base); /* left by a stop between a row's replacement and its sweep */
     *out = &s->base;
     return 0;
 }
@@ -126,8 +130,96 @@ static void sq_close(struct store *base)
     free(s);
 }
 
+static int run_held(struct store *s, const char *sql, const char *types, ...);
+
+/* ---- values longer than a piece --------------------------------------------------------------
+ * SQLite holds at most 1e9 bytes in one value (SQLITE_MAX_LENGTH), and a mesh, a volume kept for
+ * edits or a result can be longer. A blob longer than the store's piece (store.h) is written as
+ * rows of pieces(name, seq, data), and its column holds the pieces' name as TEXT
+ * (store_piece_name): every value surfd writes is bound as a blob, so a column's type says which
+ * it is. A row deleted or replaced leaves its pieces behind until sweep_pieces. */
+
+#define PIECES_PREFIX "pieces:"
+
+/* Writes n bytes at p as pieces under a new name (lock held): 0, or -1. */
+static int pieces_put(struct store *s, const unsigned char *p, size_t n, char name[48])
+{
+    if (store_piece_name(name))
+        return -1;
+    for (size_t off = 0, seq = 0; off < n; off += s->piece, seq++) {
+        size_t len = n - off < s->piece ? n - off : s->piece;
+        if (run_held(s, "INSERT INTO pieces(name,seq,data) VALUES(?,?,?)", "tib", name, (long)seq, p + off, len) != 1)
+            return -1;
+    }
+    return 0;
+}
+
+/* Column col of st's row: its blob, borrowed from st, or the pieces its TEXT names, assembled into
+ * *owned (the caller frees it). NULL (*len 0) for NULL, or when the pieces cannot be read. */
+static const void *value_of(struct store *s, sqlite3_stmt *st, int col, size_t *len, void **owned)
+{
+    *owned = NULL;
+    *len = 0;
+    if (sqlite3_column_type(st, col) != SQLITE_TEXT) {
+        *len = (size_t)sqlite3_column_bytes(st, col);
+        const void *b = sqlite3_column_blob(st, col);
+        return b ? b : *len ? NULL : "";
+    }
+    const char *name = (const char *)sqlite3_column_text(st, col);
+    sqlite3_stmt *q;
+    if (!name || strncmp(name, PIECES_PREFIX, strlen(PIECES_PREFIX)) ||
+        sqlite3_prepare_v2(db_of(s), "SELECT data, sum(length(data)) OVER () FROM pieces WHERE name=? ORDER BY seq", -1,
+                           &q, NULL) != SQLITE_OK)
+        return NULL;
+    sqlite3_bind_text(q, 1, name, -1, SQLITE_STATIC);
+    unsigned char *b = NULL;
+    size_t at = 0;
+    int rc;
+    while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
+        size_t total = (size_t)sqlite3_column_int64(q, 1), n = (size_t)sqlite3_column_bytes(q, 0);
+        if (!b && !(b = malloc(total ? total : 1)))
+            break;
+        if (at + n > total)
+            break;
+        memcpy(b + at, sqlite3_column_blob(q, 0), n);
+        at += n;
+    }
+    sqlite3_finalize(q);
+    if (rc != SQLITE_DONE || !b) {
+        free(b);
+        return NULL;
+    }
+    *len = at;
+    return *owned = b;
+}
+
+/* Column col as a copy of its own (the caller frees it): NULL for NULL, or without memory. */
+static unsigned char *dup_value(struct store *s, sqlite3_stmt *st, int col, size_t *len)
+{
+    void *owned;
+    const void *v = value_of(s, st, col, len, &owned);
+    if (!v || owned)
+        return owned;
+    unsigned char *p = malloc(*len ? *len : 1);
+    if (p)
+        memcpy(p, v, *len);
+    return p;
+}
+
+/* Removes the pieces no column names any more (lock held). */
+static void sweep_pieces(struct store *s)
+{
+    run_held(s, "DELETE FROM pieces WHERE name NOT IN (SELECT source FROM models WHERE typeof(source)='text'"
+                " UNION ALL SELECT data FROM model_volumes WHERE typeof(data)='text'"
+                " UNION ALL SELECT data FROM meshes WHERE typeof(data)='text'"
+                " UNION ALL SELECT result FROM jobs WHERE typeof(result)='text'"
+                " UNION ALL SELECT request FROM jobs WHERE typeof(request)='text')"
+                " AND EXISTS (SELECT 1 FROM pieces)", "");
+}
+
 /* Prepares sql and binds its parameters from types: 't' text (NULL binds NULL), 'd' double,
- * 'i' long, 'b' blob (pointer, size_t). Lock held by the caller. NULL on failure. */
+ * 'i' long, 'b' blob (pointer, size_t), 'B' a blob that may be longer than a piece (written as
+ * pieces then, and its name bound). Lock held by the caller. NULL on failure. */
 static sqlite3_stmt *prepare(struct store *s, const char *sql, const char *types, va_list ap)
 {
     sqlite3_stmt *st;
@@ -142,10 +234,20 @@ static sqlite3_stmt *prepare(struct store *s, const char *sql, const char *types
         }
         case 'd': sqlite3_bind_double(st, k, va_arg(ap, double)); break;
         case 'i': sqlite3_bind_int64(st, k, va_arg(ap, long)); break;
-        case 'b': {
+        case 'b':
+        case 'B': {
             const void *p = va_arg(ap, const void *);
             size_t n = va_arg(ap, size_t);
-            sqlite3_bind_blob64(st, k, n ? p : "", n, SQLITE_STATIC);
+            char name[48];
+            if (types[k - 1] == 'B' && n > s->piece) {
+                if (pieces_put(s, p, n, name)) {
+                    sqlite3_finalize(st);
+                    return NULL;
+                }
+                sqlite3_bind_text(st, k, name, -1, SQLITE_TRANSIENT);
+            } else {
+                sqlite3_bind_blob64(st, k, n ? p : "", n, SQLITE_STATIC);
+            }
             break;
         }
         }
@@ -219,22 +321,10 @@ static void copy_text(char *dst, size_t cap, sqlite3_stmt *st, int col)
     snprintf(dst, cap, "%s", t ? (const char *)t : "");
 }
 
-static unsigned char *dup_blob(sqlite3_stmt *st, int col, size_t *len)
-{
-    *len = (size_t)sqlite3_column_bytes(st, col);
-    const void *b = sqlite3_column_blob(st, col);
-    if (!b)
-        return NULL;
-    unsigned char *p = malloc(*len ? *len : 1);
-    if (p)
-        memcpy(p, b, *len);
-    return p;
-}
-
 static int sq_submit(struct store *s, const struct job_rec *r)
 {
     return run(s, "INSERT INTO jobs(id,kind,state,created,format,options,request,owner) VALUES(?,?,'queued',?,?,?,?,?)",
-               "ttdttbt", r->id, r->kind, r->created, r->format, r->options, (const void *)r->request,
+               "ttdttBt", r->id, r->kind, r->created, r->format, r->options, (const void *)r->request,
                r->request_len, r->owner) == 1 ? 0 : -1;
 }
 
@@ -350,10 +440,15 @@ static int sq_finish(struct store *s, const char *id, long fence, const struct j
     if (e->outcome == JOB_SUCCEEDED) {
         char sum[65];
         store_checksum(e->result, e->len, "", 0, sum);
-        return run(s,
-                   "UPDATE jobs SET state='succeeded', progress=1, finished=?1, result=?2, result_type=?3, meta=?4,"
-                   " result_sum=?5, lease_until=0 WHERE id=?6 AND fence=?7 AND state='running'",
-                   "dbtttti", e->finished, (const void *)e->result, e->len, e->type, e->meta, sum, id, fence);
+        pthread_mutex_lock(lock_of(s));
+        int n = run_held(s,
+                         "UPDATE jobs SET state='succeeded', progress=1, finished=?1, result=?2, result_type=?3, meta=?4,"
+                         " result_sum=?5, lease_until=0 WHERE id=?6 AND fence=?7 AND state='running'",
+                         "dBtttti", e->finished, (const void *)e->result, e->len, e->type, e->meta, sum, id, fence);
+        if (n != 1 && e->len > s->piece) /* pieces written for a claim that was lost */
+            sweep_pieces(s);
+        pthread_mutex_unlock(lock_of(s));
+        return n;
     }
     return run(s,
                "UPDATE jobs SET state=?1, finished=?2, error=?3, lease_until=0 WHERE id=?4 AND fence=?5 AND"
@@ -447,6 +542,9 @@ static int sq_prune(struct store *s, double now, long ttl, long max_count)
                "DELETE FROM jobs WHERE state IN ('succeeded','failed','cancelled') AND (finished < ?1 OR id NOT IN"
                " (SELECT id FROM jobs WHERE state IN ('succeeded','failed','cancelled') ORDER BY finished DESC LIMIT ?2))",
                "di", now - (double)ttl, max_count) < 0 ? -1 : 0;
+    pthread_mutex_lock(lock_of(s));
+    sweep_pieces(s);
+    pthread_mutex_unlock(lock_of(s));
     sweep_uploads(s);
     return rc;
 }
@@ -494,9 +592,9 @@ static int sq_get(struct store *s, const char *id, bool with_request, bool with_
         if (found == 1) {
             read_rec(st, out);
             if (with_request)
-                out->request = dup_blob(st, REC_N_COLUMNS, &out->request_len);
+                out->request = dup_value(s, st, REC_N_COLUMNS, &out->request_len);
             if (with_result) {
-                out->result = dup_blob(st, REC_N_COLUMNS + 1, &out->result_len);
+                out->result = dup_value(s, st, REC_N_COLUMNS + 1, &out->result_len);
                 if (out->result && !sum_ok(st, 14, out->result, out->result_len, "", 0)) {
                     store_rec_free(out);
                     found = STORE_DAMAGED;
@@ -557,7 +655,7 @@ static int volume_put(struct store *s, const char *id, const struct volume_rec *
     char sum[65];
     store_checksum(v->options, strlen(v->options), v->data, v->len, sum);
     int n = run_held(s, "INSERT OR IGNORE INTO model_volumes(model,seq,format,options,data,sum) VALUES(?,?,?,?,?,?)",
-                     "tittbt", id, (long)v->seq, v->format, v->options, v->data, v->len, sum);
+                     "tittBt", id, (long)v->seq, v->format, v->options, v->data, v->len, sum);
     return n < 0 ? -1 : n;
 }
 
@@ -581,11 +679,11 @@ static int model_row(struct store *s, const struct model_rec *m, bool update)
     store_checksum(m->source, m->source_len, m->resource, strlen(m->resource), sum);
     store_checksum(m->resource, strlen(m->resource), "", 0, rsum);
     if (update)
-        return run_held(s, "UPDATE models SET source=?2, resource=?3, sum=?4, resource_sum=?5 WHERE id=?1", "tbttt",
+        return run_held(s, "UPDATE models SET source=?2, resource=?3, sum=?4, resource_sum=?5 WHERE id=?1", "tBttt",
                         m->id, (const void *)m->source, m->source_len, m->resource, sum, rsum);
     return run_held(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource,owner,sum,resource_sum)"
                     " VALUES(?,?,?,?,?,?,?,?,?)",
-                    "tttdbtttt", m->id, m->job, m->name ? m->name : "", m->created, (const void *)m->source,
+                    "tttdBtttt", m->id, m->job, m->name ? m->name : "", m->created, (const void *)m->source,
                     m->source_len, m->resource, m->owner ? m->owner : "", sum, rsum);
 }
 
@@ -595,6 +693,7 @@ static int put_step(struct store *s, const void *a, const void *b)
     const struct model_rec *m = a;
     if (model_row(s, m, false) != 1 || run_held(s, "DELETE FROM model_volumes WHERE model=?", "t", m->id) < 0)
         return -1;
+    sweep_pieces(s); /* of a model replaced (a job run again) */
     return m->volume ? (volume_put(s, m->id, m->volume) == 1 ? 1 : -1) : 1;
 }
 
@@ -606,6 +705,8 @@ static int edit_step(struct store *s, const void *a, const void *b)
     int n = model_row(s, m, true);
     if (n == 1 && run_held(s, "DELETE FROM meshes WHERE model=?", "t", m->id) < 0) /* of the model before the edit */
         n = -1;
+    if (n == 1)
+        sweep_pieces(s);
     return n == 1 ? volume_put(s, m->id, b) : n;
 }
 
@@ -628,15 +729,19 @@ static int sq_volume_get(struct store *s, const char *id, int from, struct volum
         found = 0;
         while (found >= 0 && (rc = sqlite3_step(st)) == SQLITE_ROW) {
             const char *opt = (const char *)sqlite3_column_text(st, 2);
-            const void *data = sqlite3_column_blob(st, 3);
-            size_t len = (size_t)sqlite3_column_bytes(st, 3);
-            if (!sum_ok(st, 4, opt, strlen(opt), data, len))
+            size_t len;
+            void *owned;
+            const void *data = value_of(s, st, 3, &len, &owned);
+            if (!data)
+                found = -1;
+            else if (!sum_ok(st, 4, opt, strlen(opt), data, len))
                 found = STORE_DAMAGED;
             else if (store_volume_add(parts, n, sqlite3_column_int(st, 0), (const char *)sqlite3_column_text(st, 1), opt,
-                                      data ? data : "", len))
+                                      data, len))
                 found = -1;
             else
                 found = 1;
+            free(owned);
         }
         if (found >= 0 && rc != SQLITE_DONE)
             found = -1;
@@ -688,16 +793,22 @@ static int sq_model_get(struct store *s, const char *id, const char *owner, char
         owner ? sqlite3_bind_text(st, 2, owner, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 2);
         int rc = sqlite3_step(st);
         found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
-        if (found == 1 && !sum_ok(st, 2, sqlite3_column_blob(st, 1), (size_t)sqlite3_column_bytes(st, 1),
-                                  sqlite3_column_text(st, 0), (size_t)sqlite3_column_bytes(st, 0)))
+        size_t n = 0;
+        char *src = found == 1 ? (char *)dup_value(s, st, 1, &n) : NULL;
+        if (found == 1 && !src)
+            found = -1;
+        else if (found == 1 && !sum_ok(st, 2, src, n, sqlite3_column_text(st, 0), (size_t)sqlite3_column_bytes(st, 0)))
             found = STORE_DAMAGED;
         if (found == 1) {
-            size_t n;
             if (resource)
                 *resource = dup_text(st, 0);
-            if (source)
-                *source = (char *)dup_blob(st, 1, source_len ? source_len : &n);
+            if (source) {
+                *source = src, src = NULL;
+                if (source_len)
+                    *source_len = n;
+            }
         }
+        free(src);
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
@@ -736,6 +847,11 @@ static int sq_model_delete(struct store *s, const char *id, const char *owner)
     if (n > 0 && (run(s, "DELETE FROM model_volumes WHERE model=?", "t", id) < 0 ||
                   run(s, "DELETE FROM meshes WHERE model=?", "t", id) < 0))
         return -1;
+    if (n > 0) {
+        pthread_mutex_lock(lock_of(s));
+        sweep_pieces(s);
+        pthread_mutex_unlock(lock_of(s));
+    }
     return n < 0 ? -1 : n > 0;
 }
 
@@ -753,7 +869,7 @@ static int sq_mesh_get(struct store *s, const char *model, const char *key, stru
         if (found == 1) {
             out->type = dup_text(st, 0);
             out->meta = dup_text(st, 1);
-            out->data = dup_blob(st, 2, &out->len);
+            out->data = dup_value(s, st, 2, &out->len);
             copy_text(out->sum, sizeof out->sum, st, 3);
             if (!out->type || !out->meta || !out->data)
                 found = -1;
@@ -766,17 +882,24 @@ static int sq_mesh_get(struct store *s, const char *model, const char *key, stru
     return found;
 }
 
+/* A cached mesh's bytes, in its row or its pieces. */
+#define MESH_BYTES                                                                                                  \
+    "CASE typeof(data) WHEN 'text' THEN (SELECT sum(length(p.data)) FROM pieces p WHERE p.name = meshes.data)"     \
+    " ELSE length(data) END"
+
 static int sq_mesh_put(struct store *s, const char *model, const char *key, const struct mesh_rec *m, long max_bytes)
 {
     pthread_mutex_lock(lock_of(s));
     int n = run_held(s, "INSERT OR REPLACE INTO meshes(model,key,type,meta,data,sum,used)"
                      " SELECT ?1,?2,?3,?4,?5,?6,?7 WHERE EXISTS (SELECT 1 FROM models WHERE id=?1)",
-                     "ttttbtd", model, key, m->type, m->meta ? m->meta : "", (const void *)m->data, m->len, m->sum,
+                     "ttttBtd", model, key, m->type, m->meta ? m->meta : "", (const void *)m->data, m->len, m->sum,
                      wall_now());
-    if (n > 0 && run_held(s, "DELETE FROM meshes WHERE rowid IN (SELECT rowid FROM (SELECT rowid, SUM(length(data))"
+    if (n > 0 && run_held(s, "DELETE FROM meshes WHERE rowid IN (SELECT rowid FROM (SELECT rowid, SUM(" MESH_BYTES ")"
                              " OVER (ORDER BY used DESC, rowid) AS run FROM meshes) WHERE run > ?1)", /* the least used */
                           "i", max_bytes) < 0)
         n = -1;
+    if (n > 0)
+        sweep_pieces(s);
     pthread_mutex_unlock(lock_of(s));
     return n < 0 ? -1 : n > 0;
 }
@@ -786,7 +909,7 @@ static long sq_mesh_bytes(struct store *s)
     sqlite3_stmt *st;
     long n = -1;
     pthread_mutex_lock(lock_of(s));
-    if (sqlite3_prepare_v2(db_of(s), "SELECT COALESCE(SUM(length(data)), 0) FROM meshes", -1, &st, NULL) == SQLITE_OK) {
+    if (sqlite3_prepare_v2(db_of(s), "SELECT COALESCE(SUM(" MESH_BYTES "), 0) FROM meshes", -1, &st, NULL) == SQLITE_OK) {
         if (sqlite3_step(st) == SQLITE_ROW)
             n = sqlite3_column_int64(st, 0);
         sqlite3_finalize(st);
@@ -797,23 +920,36 @@ static long sq_mesh_bytes(struct store *s)
 
 /* One check's query: each row's bytes (columns data..) against its sum (column sum_col, NULL for
  * rows written before sums were kept), a line reported for each that does not match. */
-static int check_sums(struct store *s, const char *what, const char *sql, int sum_col, bool two,
+static int check_sums(struct store *s, const char *what, const char *sql, int sum_col, bool two, int piece_col,
                       void (*report)(const char *, void *), void *arg)
 {
     sqlite3_stmt *st;
     int bad = 0, rc = -1;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s), sql, -1, &st, NULL) == SQLITE_OK) {
-        while ((rc = sqlite3_step(st)) == SQLITE_ROW)
-            if (sqlite3_column_type(st, sum_col) != SQLITE_NULL &&
-                !sum_ok(st, sum_col, sqlite3_column_blob(st, 1), (size_t)sqlite3_column_bytes(st, 1),
-                        two ? sqlite3_column_blob(st, 2) : "", two ? (size_t)sqlite3_column_bytes(st, 2) : 0)) {
+        while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
+            size_t n[3] = {0};
+            void *own[3] = {NULL};
+            const void *v[3] = {NULL, "", ""};
+            for (int c = 1; c <= (two ? 2 : 1); c++)
+                if (c == piece_col)
+                    v[c] = value_of(s, st, c, &n[c], &own[c]);
+                else if (!(v[c] = sqlite3_column_blob(st, c)) || !(n[c] = (size_t)sqlite3_column_bytes(st, c)))
+                    v[c] = "", n[c] = 0;
+            const void *v1 = v[1], *v2 = v[2];
+            size_t n1 = n[1], n2 = n[2];
+            const char *why = !v1 || !v2 ? "its pieces could not be read"
+                              : sqlite3_column_type(st, sum_col) != SQLITE_NULL && !sum_ok(st, sum_col, v1, n1, v2, n2)
+                                  ? "its bytes do not match their sum" : NULL;
+            if (why) {
                 char line[160];
-                snprintf(line, sizeof line, "%s %s: its bytes do not match their sum", what,
-                         (const char *)sqlite3_column_text(st, 0));
+                snprintf(line, sizeof line, "%s %s: %s", what, (const char *)sqlite3_column_text(st, 0), why);
                 report(line, arg);
                 bad = 1;
             }
+            free(own[1]);
+            free(own[2]);
+        }
         if (rc == SQLITE_CORRUPT) {
             char line[200];
             snprintf(line, sizeof line, "%s: the database could not be read: %s", what, sqlite3_errmsg(db_of(s)));
@@ -852,16 +988,18 @@ static int sq_check(struct store *s, bool deep, void (*report)(const char *, voi
         const char *what, *sql;
         int sum_col;
         bool two, deep;
+        int piece_col; /* the column that may name pieces */
     } CHECKS[] = {
-        {"model", "SELECT id, resource, resource_sum FROM models", 2, false, false},
-        {"model", "SELECT id, source, resource, sum FROM models", 3, true, true},
-        {"job result", "SELECT id, result, result_sum FROM jobs WHERE result IS NOT NULL", 2, false, true},
-        {"model volume", "SELECT model || '/' || seq, options, data, sum FROM model_volumes", 3, true, true},
+        {"model", "SELECT id, resource, resource_sum FROM models", 2, false, false, 0},
+        {"model", "SELECT id, source, resource, sum FROM models", 3, true, true, 1},
+        {"job result", "SELECT id, result, result_sum FROM jobs WHERE result IS NOT NULL", 2, false, true, 1},
+        {"model volume", "SELECT model || '/' || seq, options, data, sum FROM model_volumes", 3, true, true, 2},
     };
     for (size_t k = 0; rc >= 0 && k < sizeof CHECKS / sizeof *CHECKS; k++) {
         if (CHECKS[k].deep && !deep)
             continue;
-        int c = check_sums(s, CHECKS[k].what, CHECKS[k].sql, CHECKS[k].sum_col, CHECKS[k].two, report, arg);
+        int c = check_sums(s, CHECKS[k].what, CHECKS[k].sql, CHECKS[k].sum_col, CHECKS[k].two, CHECKS[k].piece_col,
+                           report, arg);
         rc = c < 0 ? -1 : rc | c;
     }
     return rc;

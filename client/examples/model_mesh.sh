@@ -25,9 +25,28 @@ urlencode() { # a query value, percent-encoded (ROI names have spaces)
     done
 }
 auth=${SURFD_TOKEN:+Authorization: Bearer $SURFD_TOKEN}
+# call OUT CURL-ARGS...: the answer's body in OUT, whether it came at once (200, 201) or, when the
+# job took longer than the server waits (202, a busy server or a large structure set), from its job
+call() {
+    dst=$1; shift
+    got=$(curl -sS ${auth:+-H "$auth"} -o "$dst" -w '%{http_code} %header{location}' "$@")
+    case $got in
+    202*)
+        job=${got#202 }
+        until curl -sSf ${auth:+-H "$auth"} "$SURFD_URL$job" | grep -qE '"state":"(succeeded|failed|cancelled)"'; do
+            sleep 0.2
+        done
+        curl -sSf ${auth:+-H "$auth"} "$SURFD_URL$job/result" -o "$dst" ;;
+    2*) ;;
+    *) cat "$dst" >&2; echo >&2; return 1 ;;
+    esac
+}
+tmp=$(mktemp)
+trap 'rm -f "$tmp"' EXIT
 case "$in" in *.dcm) type=application/dicom ;; *) type=application/json ;; esac
 query=${caps:+caps=$caps}${roi:+${caps:+&}roi=$(urlencode "$roi")}
-answer=$(curl -sSf ${auth:+-H "$auth"} -H "Content-Type: $type" --data-binary @"$in" "$SURFD_URL/model${query:+?$query}")
+call "$tmp" -H "Content-Type: $type" --data-binary @"$in" "$SURFD_URL/model${query:+?$query}"
+answer=$(cat "$tmp")
 echo "$answer"
 ids=$(printf '%s' "$answer" | grep -o '"id":"[0-9a-f]\{32\}"' | cut -d'"' -f4)
 n=$(echo "$ids" | wc -l)
@@ -37,6 +56,6 @@ for id in $ids; do
         name=$(curl -sSf ${auth:+-H "$auth"} "$SURFD_URL/models/$id" | sed 's/^{"name":"\([^"]*\)".*/\1/' | tr ' /' '__')
         file="${out%.*}_$name.${out##*.}"
     fi
-    curl -sSf ${auth:+-H "$auth"} "$SURFD_URL/models/$id/mesh?format=${out##*.}" -o "$file"
+    call "$file" "$SURFD_URL/models/$id/mesh?format=${out##*.}"
     echo "$file" >&2
 done
