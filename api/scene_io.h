@@ -22,15 +22,17 @@ enum scene_format scene_format_parse(const char *name);
 /* Guesses the format from the first bytes. */
 enum scene_format scene_format_sniff(const char *buf, size_t len);
 
-/* Where the objects {"type": "model", "id": ...} of a JSON scene come from: source() gives a stored
- * model's source (contour JSON; the caller frees it) and returns 1, or 0 for no such model, -1 when
- * the store failed. Without one, model objects are refused. max_triangles: what the meshes of all
- * of a scene's model objects may come to (each reference a copy: a 3 KB scene naming one model 50
- * times cost 5.5 GB); 0, no limit. */
+/* What a scene is parsed within. Where the objects {"type": "model", "id": ...} of a JSON scene
+ * come from: source() gives a stored model's source (contour JSON; the caller frees it) and returns
+ * 1, or 0 for no such model, -1 when the store failed. Without one, model objects are refused.
+ * max_triangles: what the meshes of all of a scene's model objects may come to (each reference a
+ * copy: a 3 KB scene naming one model 50 times cost 5.5 GB); 0, no limit. progress: polled by the
+ * parses that can take long (an IGES part's trimming loops, iges.h); NULL, never stops. */
 struct model_resolver {
     int (*source)(void *ctx, const char *id, char **src, size_t *len);
     void *ctx;
     size_t max_triangles;
+    const struct sf_progress *progress;
 };
 
 /* Parses buf as fmt (SCENE_UNKNOWN: sniffed). *img receives image.format (PNG by default). */

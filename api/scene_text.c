@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "iges.h"
 #include "scene_io.h"
 
 struct lexer {
@@ -325,7 +326,7 @@ int scene_parse_models(const char *buf, size_t len, enum scene_format fmt, const
     case SCENE_JSON: return scene_parse_json(buf, len, models, sc, img, err);
     case SCENE_BPT: return scene_parse_bpt(buf, len, sc, err);
     case SCENE_VRML: return scene_parse_vrml(buf, len, sc, err);
-    case SCENE_IGES: return scene_parse_iges(buf, len, sc, err);
+    case SCENE_IGES: return iges_parse(buf, len, models ? models->progress : NULL, sc, err);
     default: return sf_fail(err, SF_EFORMAT, "", "unknown scene format");
     }
 }

@@ -125,7 +125,6 @@ static int begin_bands(struct render_work *w, int *n_bands)
 
 static int prepare(struct job *j, void *arg, int *n_bands)
 {
-    (void)j;
     struct render_work *w = arg;
     w->at[0] = monotonic_s();
     struct job_rec rec;
@@ -136,6 +135,9 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     if (rc == 1) { /* any other scene: parsed and prepared whole */
         struct model_scope scope = {w->svc, NULL}; /* the route checked the owner's models */
         struct model_resolver models = service_models(&scope);
+        struct job_poll pc = {w->svc->q, j}; /* an IGES part's loops stop at a cancel */
+        const struct sf_progress pr = {service_poll_cancel, &pc};
+        models.progress = &pr;
         rc = render_request_parse((const char *)rec.request, rec.request_len, rec.format, rec.options, &models, &w->sc,
                                   &w->fmt, &w->err) ? -1 : 0;
         w->have_scene = rc == 0;

@@ -367,7 +367,7 @@ static int model_source(void *ctx, const char *id, char **src, size_t *len)
 
 struct model_resolver service_models(struct model_scope *scope)
 {
-    return (struct model_resolver){model_source, scope, (size_t)scope->svc->cfg.max_triangles};
+    return (struct model_resolver){model_source, scope, (size_t)scope->svc->cfg.max_triangles, NULL};
 }
 
 bool service_poll_job(void *ctx, double done)

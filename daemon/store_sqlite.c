@@ -600,6 +600,12 @@ static int sq_get(struct store *s, const char *id, bool with_request, bool with_
                     found = STORE_DAMAGED;
                 }
             }
+            /* a value that is there but could not be read (no memory, or its pieces gone) */
+            if (found == 1 && ((with_request && !out->request && sqlite3_column_type(st, REC_N_COLUMNS) != SQLITE_NULL) ||
+                               (with_result && !out->result && sqlite3_column_type(st, REC_N_COLUMNS + 1) != SQLITE_NULL))) {
+                store_rec_free(out);
+                found = -1;
+            }
         }
         sqlite3_finalize(st);
     }

@@ -4,7 +4,7 @@
 # (every cell holds surface) just under and just over max-triangles (40 M), the first under a
 # job-memory of 1 GB (what its mesh would need is refused from the count pass), a scene naming one
 # stored model 50 times, a DICOM part of 10 000 nested sequences.
-# Usage: tests/bench/small_inputs.sh   (make bench runs it; figures into RESULTS.md by hand)
+# Usage: tests/bench/small_inputs.sh   (make bench runs it: bench.py's small_inputs_bench, BENCH_ONLY=small)
 set -u
 cd "$(dirname "$0")/../.." || exit 1
 S=./build/surfd
