@@ -84,13 +84,11 @@ int multipart_split(const char *body, size_t len, struct part **parts, int *n, s
         struct part *pt = &(*parts)[(*n)++];
         pt->data = data;
         pt->len = (size_t)(next - data);
-        pt->filename[0] = 0;
+        pt->filename = NULL, pt->filename_len = 0;
         const char *fn = find(p, (size_t)(head_end - p), "filename=\"", 10);
-        if (fn) {
-            const char *q = memchr(fn + 10, '"', (size_t)(head_end - fn - 10));
-            if (q)
-                snprintf(pt->filename, sizeof pt->filename, "%.*s", (int)(q - fn - 10), fn + 10);
-        }
+        const char *q = fn ? memchr(fn + 10, '"', (size_t)(head_end - fn - 10)) : NULL;
+        if (q)
+            pt->filename = fn + 10, pt->filename_len = (size_t)(q - fn - 10);
         p = next + dlen;
         if (end - p >= 2 && p[0] == '-' && p[1] == '-')
             return 0; /* the closing boundary */

@@ -13,7 +13,8 @@
 struct part {
     const char *data;        /* into the body */
     size_t len;
-    char filename[128];      /* the part's filename="...", "" when it has none */
+    const char *filename;    /* the part's filename="..." value, in the body (NULL: none): a slice's file */
+    size_t filename_len;     /* name often names the patient, so it is blanked with the series' identity */
 };
 
 /* Whether body looks like multipart/form-data: its first line is "--" and a boundary. */

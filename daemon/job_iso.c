@@ -304,7 +304,8 @@ int iso_start(struct service *svc, const struct job_claim *c)
 const char *iso_format(const char *content_type) { return volume_format_from_type(content_type); }
 
 /* A DICOM series' identifying elements blanked in place in the body, before it is stored (each
- * value keeps its length: the multipart body and the slices read the same). */
+ * value keeps its length: the multipart body and the slices read the same), and the parts' file
+ * names (exports name them by patient). */
 static int blank_identity(struct job_body *b, struct sf_err *err)
 {
     struct part *parts;
@@ -318,6 +319,8 @@ static int blank_identity(struct job_body *b, struct sf_err *err)
         snprintf(where, sizeof where, "/parts/%d", k);
         rc = dicom_blank_identity((char *)parts[k].data, parts[k].len, where, &m, err);
         blanked += m;
+        if (parts[k].filename)
+            memset((char *)parts[k].filename, '_', parts[k].filename_len);
     }
     free(parts);
     LOG(LOG_DEBUG, "a DICOM series of %d parts: %zu identifying values blanked", n, blanked);

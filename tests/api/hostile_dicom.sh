@@ -62,8 +62,8 @@ def private(n, descending=False):
 def creators(n):
     return b"".join(el(0x0009 + 2 * (k // 240), 0x10 + k % 240, b"LO", "SURFD%04d" % k) for k in range(n))
 
-def series(parts, path):
-    out = b"".join(b"--hostile\r\nContent-Disposition: form-data; name=\"slice\"; filename=\"s%d.dcm\"\r\n\r\n" % k + p + b"\r\n"
+def series(parts, path, name=b"s%d.dcm"):
+    out = b"".join(b"--hostile\r\nContent-Disposition: form-data; name=\"slice\"; filename=\"" + name % k + b"\"\r\n\r\n" + p + b"\r\n"
                    for k, p in enumerate(parts))
     open(path, "wb").write(out + b"--hostile--\r\n")
 
@@ -83,7 +83,7 @@ series([slice_(z, spacing="1e-9\\1e-9") for z in range(3)], d + "/pixel.mp")
 phi = (el(8, 0x20, b"DA", "19990401") + el(8, 0x80, b"LO", "ST ELSEWHERE HOSPITAL") + el(8, 0x90, b"PN", "HOUSE^GREGORY") +
        el(9, 0x10, b"LO", "ACME 1.0") + el(9, 0x1001, b"LO", "DOE JANE 1970") + el(0x10, 0x10, b"PN", "DOE^JANE") +
        el(0x10, 0x20, b"LO", "PID4471150") + el(0x10, 0x30, b"DA", "19700101"))
-series([slice_(z, extra=phi) for z in range(3)], d + "/phi.mp")
+series([slice_(z, extra=phi) for z in range(3)], d + "/phi.mp", b"DOE_JANE_PID4471150_CT_%d.dcm")  # as exports name them
 open(d + "/rt_ok.dcm", "wb").write(rtss())
 open(d + "/rt_deep.dcm", "wb").write(rtss(nested(10000)))
 open(d + "/rt_many.dcm", "wb").write(rtss(private(2000001)))
@@ -162,7 +162,7 @@ code=$(post_series phi); phi_tris=$(python3 -c "import json,sys; print(json.load
 ok_tris=$(post_series ok >/dev/null; python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['triangles'])" "$T/body")
 # (the private creator, "ACME 1.0", is kept: it names a vendor, not a patient)
 leaks() { grep -raE "DOE|JANE|PID4471150|19700101|19990401|ELSEWHERE|HOUSE" "$@" | head -3; }
-check "a series carrying its patient's name, ID, birth date, institution and a private element: 201, the same surface" '[ "$code" = 201 ] && [ -n "$phi_tris" ] && [ "$phi_tris" = "$ok_tris" ]'
+check "a series carrying its patient's name, ID, birth date, institution and a private element, its files named by the patient: 201, the same surface" '[ "$code" = 201 ] && [ -n "$phi_tris" ] && [ "$phi_tris" = "$ok_tris" ]'
 check "... none of them in the data dir (database, uploads) or the log" '[ -z "$(leaks "$T/d" "$T/daemon.log")" ]'
 stop_daemon
 start_daemon "$T/keep" --threads 2 --keep-phi || exit 1
