@@ -290,6 +290,9 @@ void service_job_end(struct service *svc, const struct job_claim *c, enum job_st
     struct sf_err outgrown = *err;
     if (outcome == JOB_FAILED && service_outgrown(&outgrown))
         err = &outgrown;
+    const struct mem_account *a = mem_account_current();
+    if (a) /* what job-memory must hold for jobs like it */
+        LOG(LOG_DEBUG, "job %s: its own allocations peaked at %lld MB", c->id, atomic_load(&a->peak) >> 20);
     char *p = outcome == JOB_FAILED ? problem_from_err(err) : NULL;
     if (outcome == JOB_FAILED)
         LOG(LOG_WARN, "job %s failed: %s", c->id, err->message);
