@@ -88,7 +88,19 @@ static const char SCHEMA[] =
     " PRIMARY KEY (name, seq));"
     "ALTER TABLE models ADD COLUMN IF NOT EXISTS source_pieces text;"
     "ALTER TABLE model_volumes ADD COLUMN IF NOT EXISTS data_pieces text;"
-    "ALTER TABLE meshes ADD COLUMN IF NOT EXISTS data_pieces text;";
+    "ALTER TABLE meshes ADD COLUMN IF NOT EXISTS data_pieces text;"
+    /* a row's pieces go with it, however it goes (a delete, a cascade, an update naming others) */
+    "CREATE OR REPLACE FUNCTION surfd_drop_pieces() RETURNS trigger LANGUAGE plpgsql AS $$"
+    " DECLARE n text; m text; BEGIN"
+    " IF TG_TABLE_NAME = 'models' THEN n := OLD.source_pieces; IF TG_OP = 'UPDATE' THEN m := NEW.source_pieces; END IF;"
+    " ELSE n := OLD.data_pieces; IF TG_OP = 'UPDATE' THEN m := NEW.data_pieces; END IF; END IF;"
+    " IF n IS NOT NULL AND n IS DISTINCT FROM m THEN DELETE FROM pieces WHERE name = n; END IF;"
+    " RETURN NULL; END $$;"
+    "CREATE OR REPLACE TRIGGER models_pieces AFTER DELETE OR UPDATE OF source_pieces ON models"
+    " FOR EACH ROW EXECUTE FUNCTION surfd_drop_pieces();"
+    "CREATE OR REPLACE TRIGGER volumes_pieces AFTER DELETE ON model_volumes FOR EACH ROW EXECUTE FUNCTION surfd_drop_pieces();"
+    "CREATE OR REPLACE TRIGGER meshes_pieces AFTER DELETE OR UPDATE OF data_pieces ON meshes"
+    " FOR EACH ROW EXECUTE FUNCTION surfd_drop_pieces();";
 
 #define NOW "extract(epoch from clock_timestamp())"
 
@@ -696,8 +708,8 @@ static int exec_in(struct pg_store *p, int c, const char *sql, int n, const stru
 /* Values longer than a piece (store.h): PostgreSQL holds at most 1 GB in one bytea. Such a value
  * is written as rows of pieces(name, seq, data) on the writer's connection, in its transaction;
  * its column is left empty and the column *_pieces names them (NULL for a value in its column).
- * A row deleted or replaced leaves its pieces until sweep_pieces (another node's sweep cannot see
- * pieces whose row is not committed yet). */
+ * A row's pieces are deleted with it by the schema's trigger (surfd_drop_pieces); pieces written
+ * in a transaction that rolled back are gone with it. */
 
 /* The parameters for a value of len bytes written on connection c: *v the bytes, or (the pieces
  * written first, named in name) empty, with *pieces the name or NULL. 0, or -1. */
@@ -736,16 +748,6 @@ static unsigned char *value_copy(struct pg_store *p, const PGresult *res, int ro
     PQclear(r);
     unsigned char *b = NULL;
     return get_rows(p, "SELECT data FROM pieces WHERE name=$1 ORDER BY seq", name, *len, &b) ? NULL : b;
-}
-
-/* Removes the pieces no row names any more. */
-static void sweep_pieces(struct store *s)
-{
-    exec1(s, NULL,
-          "DELETE FROM pieces WHERE name NOT IN (SELECT source_pieces FROM models WHERE source_pieces IS NOT NULL"
-          " UNION ALL SELECT data_pieces FROM model_volumes WHERE data_pieces IS NOT NULL"
-          " UNION ALL SELECT data_pieces FROM meshes WHERE data_pieces IS NOT NULL)",
-          0, NULL);
 }
 
 /* Volume part v of model id on connection c: 1, 0 when its seq is taken, -1. */
@@ -813,8 +815,6 @@ static int model_txn(struct store *s, const struct model_rec *m, const struct vo
         PQclear(res);
     }
     give(p, c);
-    if (rc == 1)
-        sweep_pieces(s); /* of the row replaced, or of the meshes before an edit */
     return rc;
 }
 
@@ -950,8 +950,6 @@ static int pg_model_delete(struct store *s, const char *id, const char *owner)
 {
     struct param prm[] = {T(id), T(owner)};
     int n = exec1(s, NULL, "DELETE FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2, prm);
-    if (n > 0)
-        sweep_pieces(s); /* of its source, volumes and meshes (the rows gone by cascade) */
     return n < 0 ? -1 : n > 0;
 }
 
@@ -1013,8 +1011,6 @@ static int pg_mesh_put(struct store *s, const char *model, const char *key, cons
                        " WHERE run > $1::bigint)", /* the least used past the budget */
                        1, cap) < 0)
         n = -1;
-    if (n > 0)
-        sweep_pieces(s); /* of a mesh replaced or dropped */
     return n < 0 ? -1 : n > 0;
 }
 
@@ -1163,7 +1159,6 @@ int store_pg_open(const char *uri, const char *scratch, struct store **out, char
         pg_close(&p->base);
         return -1;
     }
-    sweep_pieces(&p->base); /* left by a stop between a row's replacement and its sweep */
     *out = &p->base;
     return 0;
 }

@@ -62,6 +62,8 @@ names="SELECT source FROM models UNION ALL SELECT data FROM model_volumes UNION 
 before=$(q "SELECT count(*) FROM pieces WHERE name IN ($names)")
 check "the model deleted: 204" '[ "$(status DELETE "/models/$mdl")" = 204 ]'
 check "... and its $before pieces with it; the render's stay" '[ "$before" -gt 8 ] && [ "$(q "SELECT count(*) FROM pieces WHERE name IN ($names)")" = 0 ] && [ "$(q "SELECT count(*) FROM pieces")" -gt 0 ] && [ "$(status GET "/jobs/$job/result")" = 200 ] && cmp -s "$T/body" "$T/a.png"'
+check "... and no piece is left that no row names (the edit's old mesh and meshes went with their rows)" \
+    '[ "$(q "SELECT count(*) FROM pieces WHERE name NOT IN (SELECT result FROM jobs WHERE typeof(result)='\''text'\'' UNION SELECT request FROM jobs WHERE typeof(request)='\''text'\'')")" = 0 ]'
 stop_daemon
 
 # ---- PostgreSQL ---------------------------------------------------------------------------------
