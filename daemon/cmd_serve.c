@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
+#include <sys/statvfs.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -23,6 +24,7 @@
 #include "log.h"
 #include "server.h"
 #include "service.h"
+#include "shares.h"
 #include "tokens.h"
 
 /* job-memory 0: three quarters of the memory the process may use (the machine's, or less under
@@ -49,6 +51,13 @@ static long long job_memory_share(long threads)
     if (f)
         fclose(f);
     return total / 4 * 3 / (threads > 0 ? threads : 1);
+}
+
+/* upload-share 0: a quarter of the file system that holds the data dir. */
+static long long upload_share(const char *data_dir)
+{
+    struct statvfs fs;
+    return statvfs(data_dir, &fs) ? 1LL << 30 : (long long)(fs.f_blocks / 4) * (long long)fs.f_frsize;
 }
 
 /* The node's name in the store: --node-name, or host name and port. */
@@ -158,6 +167,12 @@ int cmd_serve(int argc, char **argv)
         fprintf(stderr, "surfd serve: %s\n", err.message);
         goto out_free_device;
     }
+    if (!svc.cfg.upload_share)
+        svc.cfg.upload_share = upload_share(svc.cfg.data_dir);
+    if (!(svc.shares = shares_new(svc.tokens, svc.n_tokens)) || shares_refresh(svc.shares, svc.store)) {
+        fprintf(stderr, "surfd serve: cannot read what the store holds of each owner's uploads\n");
+        goto out_free_device;
+    }
     iso_init();
     if (!svc.cfg.job_memory)
         svc.cfg.job_memory = job_memory_share(threads);
@@ -199,6 +214,7 @@ int cmd_serve(int argc, char **argv)
         if (sig == SIGTERM || sig == SIGINT)
             break;
         service_retry_stranded(&svc);
+        shares_refresh(svc.shares, svc.store);
         if (monotonic_s() - pruned >= 60) {
             store_prune(svc.store, wall_s(), svc.cfg.result_ttl, svc.cfg.result_max);
             pruned = monotonic_s();
@@ -220,6 +236,7 @@ int cmd_serve(int argc, char **argv)
     LOG(LOG_INFO, "stopped");
     rc = 0;
 out_free_device:
+    shares_free(svc.shares);
     bvh_device_free(svc.dev);
 out_close_store:
     store_close(svc.store);

@@ -1,18 +1,25 @@
 /* cmd_store.c - `surfd store check`: the operator's look at a store the service refused to start
- * on (or whose /readyz says damaged): every page and every stored sum, one line a finding. It
- * reads the same settings as serve (--config, --data-dir, --store) and changes nothing. */
+ * on (or whose /readyz says damaged): every page and every stored sum, one line a finding; and
+ * `surfd store recover`: keeps the sound part of a damaged store (store_recover), the service
+ * stopped. Both read the same settings as serve (--config, --data-dir, --store). */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
+#include "../api/problem.h"
 #include "cli.h"
 #include "config.h"
 #include "store.h"
 
 void cmd_store_usage(FILE *f)
 {
-    fprintf(f, "usage: surfd store check [--config FILE] [--data-dir DIR] [--store URI]\n"
-               "  checks the store's pages and the sums of every stored byte (jobs' results, models,\n"
-               "  volumes); prints each finding; exit 0 sound, 1 damaged, 2 usage, 3 not readable\n");
+    fprintf(f, "usage: surfd store check|recover [--config FILE] [--data-dir DIR] [--store URI]\n"
+               "  check: the store's pages, its journal (commits lost from SQLite's WAL) and the sums of every\n"
+               "    stored byte (jobs' results, models, volumes); prints each finding; exit 0 sound, 1 damaged,\n"
+               "    2 usage, 3 not readable\n"
+               "  recover (the service stopped): keeps a copy of the store, then keeps its sound part: a loss\n"
+               "    from the WAL accepted, models whose bytes do not match removed, jobs whose results do not\n"
+               "    failed; prints each step; exit 0 mended, 1 pages damaged (restore a backup), 3 error\n");
 }
 
 static void print_line(const char *line, void *arg)
@@ -23,7 +30,8 @@ static void print_line(const char *line, void *arg)
 
 int cmd_store(int argc, char **argv)
 {
-    if (argc < 2 || strcmp(argv[1], "check")) {
+    bool recover = argc >= 2 && !strcmp(argv[1], "recover");
+    if (argc < 2 || (strcmp(argv[1], "check") && !recover)) {
         cmd_store_usage(stderr);
         return 2;
     }
@@ -39,6 +47,21 @@ int cmd_store(int argc, char **argv)
     if (store_open(target, cfg.data_dir, &s, msg, sizeof msg)) {
         fprintf(stderr, "surfd store: %s\n", msg);
         return 3;
+    }
+    if (recover) {
+        struct sf_err err = {0};
+        sf_fail(&err, SF_EBACKEND, "", "the result was damaged in the store and removed by surfd store recover; "
+                                       "send the job again");
+        char *problem = problem_from_err(&err);
+        int rc = problem ? store_recover(s, problem, print_line, NULL) : -1;
+        free(problem);
+        if (rc == 0) /* what is left, checked as check does */
+            rc = store_check(s, true, print_line, NULL);
+        store_close(s);
+        printf(rc == 0 ? "the store in %s is mended: what is left is sound\n"
+                       : rc > 0 ? "the store in %s is not mended: restore it from a backup\n"
+                                : "the store in %s was not mended\n", target);
+        return rc == 0 ? 0 : rc > 0 ? 1 : 3;
     }
     int rc = store_check(s, true, print_line, NULL);
     store_close(s);

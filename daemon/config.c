@@ -36,6 +36,7 @@ static const struct setting SETTINGS[] = {
     L("queue-max", queue_max, 1, 1000000, "64", "jobs waiting before requests get 429"),
     L("max-body", max_body, 1024, 1L << 30, "67108864", "largest request body in bytes (413 above)"),
     L("max-volume", max_volume, 1024, 1L << 40, "4294967296", "largest volume POST /isosurface takes, in bytes: streamed to the data dir as it arrives, never held in memory"),
+    L("upload-share", upload_share, 0, 1L << 50, "0", "bytes of the data dir one owner's uploads may hold: the streamed bodies arriving and those kept for its jobs not yet ended; an upload that would go over is refused from its headers with 429, or 413 when it alone is larger (0: a quarter of the data dir's file system)"),
     L("edit-memory", edit_memory, 0, 1L << 40, "1073741824", "bytes of memory kept for edits of isosurface models (the hierarchies of the models edited last; 0: rebuilt for every edit)"),
     L("max-triangles", max_triangles, 1000, 2000000000, "40000000", "triangles of one isosurface, or of the stored meshes one scene names, at most: more fails the job with a 422 before its mesh is allocated (a mesh costs some 80 bytes a triangle from extraction to the store)"),
     L("store-piece", store_piece, 65536, 512L << 20, "268435456", "bytes of a stored value (a mesh, a volume kept for edits, a result) kept in one row at most: a longer one is kept as several (SQLite and PostgreSQL hold at most 1 GB in one value)"),

@@ -19,6 +19,7 @@ struct config {
     long queue_max;         /* jobs waiting before 429 */
     long max_body;          /* bytes of request body */
     long max_volume;        /* bytes of a streamed volume (POST /isosurface) */
+    long upload_share;      /* bytes of the data dir one owner's uploads may hold (shares.h) */
     long edit_memory;       /* bytes of the hierarchies kept for edits (daemon/job_edit.c) */
     long max_triangles;     /* of one isosurface (job_iso_opts) */
     long store_piece;       /* bytes of a stored value kept in one piece at most (store.h) */

@@ -27,7 +27,7 @@ static void usage(FILE *f)
                "       surfd model|volume CONTOURS.json|RTSTRUCT.dcm|MATRIX.json [options]\n"
                "       surfd isosurface VOLUME --iso V [options]\n"
                "       surfd matrix VOLUME --iso V [options] [-o OUT.json]\n"
-               "       surfd store check [--data-dir DIR | --store URI]\n"
+               "       surfd store check|recover [--data-dir DIR | --store URI]\n"
                "       surfd --version\n"
                "each command's options: surfd COMMAND --help\n");
 }

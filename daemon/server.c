@@ -32,6 +32,7 @@
 #include "kinds.h"
 #include "log.h"
 #include "metrics.h"
+#include "shares.h"
 
 #ifndef SURFD_VERSION
 #define SURFD_VERSION "dev"
@@ -73,6 +74,10 @@ struct req {
     int fd;                   /* a streamed body (a kind with .streamed): the file it is written to */
     char upload[1100];        /* its path, "" once the store has taken it */
     bool write_failed;        /* the file would not take the body (a full disk): 503 */
+    long long shared;         /* bytes of its owner's upload share it holds while it arrives */
+    bool over_share;          /* a body without a length that outgrew the share */
+    int share_status;         /* 429, or 413 for a body larger than a whole share */
+    char share_detail[256];
     void *map;                /* the file mapped, as body, when it has all arrived */
     bool over_budget;         /* over the shared body budget: 503 */
     bool woken;               /* resumed after a synchronous wait: answer with the job */
@@ -477,8 +482,12 @@ static int check_and_store(struct job *j, void *arg, int *n_bands)
     rec.created = wall_s();
     rec.request = (unsigned char *)(r->body ? r->body : "");
     rec.request_len = r->len;
+    struct stat sb;
+    bool upload = r->upload[0] && !fstat(r->fd, &sb);
     int stored = r->upload[0] ? store_submit_file(svc->store, &rec, r->upload) : store_submit(svc->store, &rec);
     r->upload[0] = 0; /* the store has it, or removed it */
+    if (!stored && upload)
+        shares_stored(svc->shares, r->owner, (long long)sb.st_size);
     if (stored) {
         r->check_status = 503;
         r->check_detail = "the store cannot take the job now";
@@ -1066,6 +1075,34 @@ static void sweep_cut_uploads(const char *data_dir)
         LOG(LOG_WARN, "removed %d upload%s cut off when the service last stopped", n, n == 1 ? "" : "s");
 }
 
+/* Takes bytes more of the owner's upload share for the request (r->shared): false when they would
+ * not fit, with r->share_detail saying why. */
+static bool take_share(struct req *r, long long bytes)
+{
+    long long held, share = r->svc->cfg.upload_share;
+    if (shares_take(r->svc->shares, r->owner, bytes, share, &held)) {
+        r->shared += bytes;
+        return true;
+    }
+    long long whole = r->shared + bytes; /* the body's bytes, as far as they are known */
+    if (whole > share)
+        snprintf(r->share_detail, sizeof r->share_detail,
+                 "the upload (%lld bytes or more) is larger than one owner's share of the data dir (upload-share, %lld"
+                 " bytes)", whole, share);
+    else
+        snprintf(r->share_detail, sizeof r->share_detail,
+                 "your uploads not yet run to their end hold %lld of your share of the data dir (upload-share, %lld"
+                 " bytes); this one (%lld bytes) would go over it: try again when your jobs have run",
+                 held - r->shared, share, whole);
+    r->share_status = whole > share ? 413 : 429;
+    return false;
+}
+
+static enum MHD_Result share_problem(struct req *r)
+{
+    return problem(r, r->share_status, r->share_detail, NULL);
+}
+
 /* Starts a streamed body's file in the data dir's uploads/ (the store takes it from there). */
 static bool open_upload(struct req *r)
 {
@@ -1153,6 +1190,8 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
             snprintf(d, sizeof d, "the body is over the limit of %ld bytes", limit);
             return problem(r, 413, d, NULL); /* before a byte of it is read */
         }
+        if (stream && cl && !take_share(r, (long long)strtoull(cl, NULL, 10)))
+            return share_problem(r);
         if (stream && !open_upload(r))
             return problem(r, 503, "the data dir cannot take an upload now", NULL);
         /* libmicrohttpd decodes "chunked" alone; any other coding (gzip, chunked) would leave it
@@ -1169,11 +1208,13 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
     if (*upload_size) {
         size_t n = *upload_size;
         *upload_size = 0;
-        if (r->too_large || r->over_budget)
+        if (r->too_large || r->over_budget || r->over_share)
             return MHD_YES; /* draining a refused body */
         if (r->fd >= 0) { /* streamed to its file */
             if (r->len + n > (size_t)r->svc->cfg.max_volume)
                 r->too_large = true;
+            else if ((long long)(r->len + n) > r->shared && !take_share(r, (long long)(r->len + n) - r->shared))
+                r->over_share = true; /* chunked: its share taken as it arrives */
             else
                 write_upload(r, upload, n);
             r->len += n;
@@ -1211,6 +1252,8 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
         return problem(r, 503, "too many large uploads at once; try again shortly", NULL);
     if (r->too_large)
         return problem(r, 413, "the body is over the limit", NULL);
+    if (r->over_share)
+        return share_problem(r);
     if (r->fd >= 0 && (r->write_failed || !map_upload(r)))
         return problem(r, 503, "the data dir would not take the upload (is it full?)", NULL);
     return route(r);
@@ -1228,6 +1271,8 @@ static void completed(void *cls, struct MHD_Connection *conn, void **con_cls, en
         r->bytes, (monotonic_s() - r->t0) * 1e3, r->job[0] ? " job=" : "", r->job,
         toe == MHD_REQUEST_TERMINATED_COMPLETED_OK ? "" : " (aborted)");
     atomic_fetch_sub(&body_bytes, r->reserved);
+    if (r->shared)
+        shares_give(r->svc->shares, r->owner, r->shared);
     if (r->map)
         munmap(r->map, r->len);
     else

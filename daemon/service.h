@@ -42,6 +42,7 @@ struct service {
     struct bvh_device *dev;
     struct token *tokens;    /* bearer tokens; none: open (loopback, or --insecure-no-auth) */
     size_t n_tokens;
+    struct shares *shares;   /* each owner's uploads held in the data dir (shares.h) */
     char node[64];           /* this node's name in the store */
     atomic_bool draining;
     double started_wall;     /* Unix seconds */

@@ -245,6 +245,20 @@ int store_check(struct store *s, bool deep, void (*report)(const char *line, voi
     return rc;
 }
 
+int store_recover(struct store *s, const char *problem, void (*report)(const char *line, void *), void *arg)
+{
+    if (!s->ops->recover) {
+        report("this store's own tools mend it (PostgreSQL: pg_amcheck, a backup)", arg);
+        return -1;
+    }
+    return s->ops->recover(s, problem, report, arg);
+}
+
+int store_uploads_held(struct store *s, void (*fn)(const char *owner, long long bytes, void *arg), void *arg)
+{
+    return s->ops->uploads_held(s, fn, arg);
+}
+
 void store_on_event(struct store *s, void (*fn)(enum store_event, const char *, void *), void *arg)
 {
     if (s->ops->on_event)

@@ -140,7 +140,8 @@ enum store_cancel store_cancel(struct store *s, const char *id, const char *owne
  * reaped, or -1. */
 int store_reap(struct store *s, double now, const char *node, int max_attempts, const char *give_up,
                void (*fn)(const char *id, enum job_state state, void *arg), void *arg);
-/* Removes ended jobs older than ttl seconds and all but the newest max_count ended ones. */
+/* Removes ended jobs older than ttl seconds and all but the newest max_count ended ones, and the
+ * streamed bodies of every ended job (kept only for a run after a crash). */
 int store_prune(struct store *s, double now, long ttl, long max_count);
 
 /* ---- reading ---- */
@@ -239,6 +240,17 @@ bool store_full(struct store *s);
  * byte too: results, models' sources, volumes), reporting each finding as a line: 0 sound, 1
  * damaged (the store is then not ready), -1 the check could not run. */
 int store_check(struct store *s, bool deep, void (*report)(const char *line, void *), void *arg);
+
+/* Mends what store_check finds, keeping every sound job and model: a copy of the store is kept
+ * beside it first; a loss from the WAL is accepted; a model whose bytes do not match their sums
+ * is removed, and a job whose result does not is failed with problem (JSON). Damaged pages are
+ * not mended (a backup is the way). Each step is reported as a line: 0 mended (or sound), 1 not
+ * mendable, -1 error (the service holds the store; PostgreSQL's is its own tools' work). */
+int store_recover(struct store *s, const char *problem, void (*report)(const char *line, void *), void *arg);
+
+/* Calls fn with each owner's bytes of streamed request bodies (store_submit_file) kept for jobs
+ * not yet ended (an ended job's are removed by store_prune): 0, or -1. */
+int store_uploads_held(struct store *s, void (*fn)(const char *owner, long long bytes, void *arg), void *arg);
 
 /* SHA-256 of a then b (either may be empty) as 64 hex digits: what a stored result or model is
  * checked against when read back (the databases check their pages, not a blob's bytes). */

@@ -41,6 +41,8 @@ struct store_ops {
     void (*on_event)(struct store *, void (*fn)(enum store_event, const char *, void *), void *arg); /* may be NULL */
     /* store_check: NULL when the backend leaves it to its own tools (PostgreSQL's). */
     int (*check)(struct store *, bool deep, void (*report)(const char *line, void *), void *arg);
+    int (*recover)(struct store *, const char *problem, void (*report)(const char *line, void *), void *arg); /* or NULL */
+    int (*uploads_held)(struct store *, void (*fn)(const char *owner, long long bytes, void *), void *arg);
 };
 
 /* A running job a reap found, with what decides its new state (store_reaped_state). */

@@ -546,6 +546,10 @@ static int pg_prune(struct store *s, double now, long ttl, long max_count)
     num(before, sizeof before, now - (double)ttl);
     snprintf(max, sizeof max, "%ld", max_count);
     struct param prm[] = {T(before), T(max)};
+    /* the streamed bodies of ended jobs: their runs are over, the space is the owner's share again */
+    if (exec1(s, NULL, "DELETE FROM uploads WHERE job IN (SELECT id FROM jobs WHERE state NOT IN ('queued','running'))",
+              0, NULL) < 0)
+        return -1;
     return exec1(s, NULL,
                  "DELETE FROM jobs WHERE state IN ('succeeded','failed','cancelled') AND (finished < $1::float8 OR id NOT IN"
                  " (SELECT id FROM jobs WHERE state IN ('succeeded','failed','cancelled') ORDER BY finished DESC"
@@ -1114,11 +1118,25 @@ static void pg_close(struct store *s)
     free(p);
 }
 
+static int pg_uploads_held(struct store *s, void (*fn)(const char *owner, long long bytes, void *), void *arg)
+{
+    PGresult *res;
+    int n = exec1(s, &res,
+                  "SELECT j.owner, sum(octet_length(u.data))::bigint FROM uploads u JOIN jobs j ON j.id = u.job"
+                  " WHERE j.state IN ('queued','running') GROUP BY j.owner",
+                  0, NULL);
+    for (int k = 0; k < n; k++)
+        fn(PQgetvalue(res, k, 0), get_i64(res, k, 1), arg);
+    if (n >= 0)
+        PQclear(res);
+    return n < 0 ? -1 : 0;
+}
+
 static const struct store_ops PG_OPS = {
     "postgresql", pg_close,     pg_submit,    pg_submit_file, pg_request_file, pg_request_file_done, pg_claim,      pg_heartbeat,    pg_finish,
     pg_release,   pg_cancel,    pg_reap,      pg_prune,      pg_get,          pg_list,
     pg_queued,    pg_model_put, pg_model_get, pg_model_list, pg_model_delete, pg_model_edit, pg_volume_get,
-    pg_mesh_get,  pg_mesh_put,  pg_mesh_bytes, pg_writable,  pg_on_event,  NULL,
+    pg_mesh_get,  pg_mesh_put,  pg_mesh_bytes, pg_writable,  pg_on_event,  NULL,         NULL,         pg_uploads_held,
 };
 
 int store_pg_open(const char *uri, const char *scratch, struct store **out, char *msg, size_t msg_len)

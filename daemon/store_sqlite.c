@@ -18,12 +18,16 @@
 #include <time.h>
 
 #include "store_backend.h"
+#include "store_walmark.h"
 
 struct sqlite_store {
     struct store base;
     sqlite3 *db;
     pthread_mutex_t lock;
+    char path[1024];         /* DIR/surfd.db */
     char uploads[1024];      /* DIR/uploads: streamed request bodies, one file a job */
+    struct walmark *mark;    /* what the WAL held at the last commit (store_walmark.h); NULL in
+                                a process that does not serve the store while another does */
 };
 
 static sqlite3 *db_of(struct store *s) { return ((struct sqlite_store *)s)->db; }
@@ -85,6 +89,7 @@ static const char *const MIGRATIONS[] = {
 static const struct store_ops SQLITE_OPS;
 static void sq_close(struct store *base);
 static void sweep_pieces(struct store *s);
+static void sweep_uploads(struct store *s, bool all);
 
 int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg_len)
 {
@@ -101,20 +106,23 @@ int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg
         return -1;
     }
     s->base.ops = &SQLITE_OPS;
+    snprintf(s->path, sizeof s->path, "%s", path);
     snprintf(s->uploads, sizeof s->uploads, "%s/uploads", dir);
     mkdir(s->uploads, 0700);
     pthread_mutex_init(&s->lock, NULL);
     char *err = NULL;
-    if (sqlite3_open_v2(path, &s->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX, NULL) !=
-            SQLITE_OK ||
-        sqlite3_busy_timeout(s->db, 5000) != SQLITE_OK || sqlite3_exec(s->db, SCHEMA, NULL, NULL, &err) != SQLITE_OK) {
+    bool opened = sqlite3_open_v2(path, &s->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX,
+                                  NULL) == SQLITE_OK && sqlite3_busy_timeout(s->db, 5000) == SQLITE_OK;
+    if (opened)
+        s->mark = walmark_open(path, s->db); /* before the schema's first write can restart the WAL */
+    if (!opened || sqlite3_exec(s->db, SCHEMA, NULL, NULL, &err) != SQLITE_OK) {
         snprintf(msg, msg_len, "%s: %s", path, err ? err : sqlite3_errmsg(s->db));
         sqlite3_free(err);
         sq_close(&s->base);
         return -1;
     }
-    const char *const suffixes[] = {"", "-wal", "-shm"};
-    for (size_t k = 0; k < 3; k++) {
+    const char *const suffixes[] = {"", "-wal", "-shm", "-mark"};
+    for (size_t k = 0; k < 4; k++) {
         char f[1100];
         snprintf(f, sizeof f, "%s%s", path, suffixes[k]);
         chmod(f, 0600);
@@ -131,6 +139,7 @@ int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg
             }
         }
     sweep_pieces(&s->base); /* written by a statement outside a transaction that a stop cut short */
+    sweep_uploads(&s->base, true);
     *out = &s->base;
     return 0;
 }
@@ -138,7 +147,9 @@ int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg
 static void sq_close(struct store *base)
 {
     struct sqlite_store *s = (struct sqlite_store *)base;
+    walmark_closing(s->mark);
     sqlite3_close(s->db);
+    walmark_free(s->mark);
     pthread_mutex_destroy(&s->lock);
     free(s);
 }
@@ -373,11 +384,13 @@ static int sq_request_file(struct store *s, const char *id, char *path, size_t c
 
 static void sq_request_file_done(struct store *s, const char *path)
 {
-    (void)s, (void)path; /* kept with the job, for a run after a crash, until the job is pruned */
+    (void)s, (void)path; /* kept with the job, for a run after a crash, until the job ends */
 }
 
-/* Removes the streamed bodies of jobs no longer stored. */
-static void sweep_uploads(struct store *s)
+/* Removes the streamed bodies of ended jobs (their runs are over: the disk is the owner's share
+ * again, shares.h) and, at start (all), those of jobs no longer stored. A body without a row is
+ * left alone otherwise: sq_submit_file moves it in before its row is written. */
+static void sweep_uploads(struct store *s, bool all)
 {
     DIR *d = opendir(((struct sqlite_store *)s)->uploads);
     if (!d)
@@ -386,13 +399,37 @@ static void sweep_uploads(struct store *s)
     while ((e = readdir(d))) {
         if (e->d_name[0] == '.' || !strncmp(e->d_name, "tmp-", 4))
             continue; /* uploads still arriving belong to the HTTP layer */
-        if (run(s, "SELECT 1 FROM jobs WHERE id=?", "t", e->d_name) == 0) {
+        if (all ? run(s, "SELECT 1 FROM jobs WHERE id=? AND state IN ('queued','running')", "t", e->d_name) == 0
+                : run(s, "SELECT 1 FROM jobs WHERE id=? AND state NOT IN ('queued','running')", "t", e->d_name) == 1) {
             char path[1400];
             snprintf(path, sizeof path, "%s/%s", ((struct sqlite_store *)s)->uploads, e->d_name);
             unlink(path);
         }
     }
     closedir(d);
+}
+
+static int sq_uploads_held(struct store *s, void (*fn)(const char *owner, long long bytes, void *), void *arg)
+{
+    sqlite3_stmt *st;
+    int rc = -1;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s), "SELECT id, owner FROM jobs WHERE request_file=1 AND state IN ('queued','running')",
+                           -1, &st, NULL) == SQLITE_OK) {
+        int step;
+        while ((step = sqlite3_step(st)) == SQLITE_ROW) {
+            char path[1400];
+            struct stat sb;
+            const unsigned char *owner = sqlite3_column_text(st, 1);
+            snprintf(path, sizeof path, "%s/%s", ((struct sqlite_store *)s)->uploads, sqlite3_column_text(st, 0));
+            if (!stat(path, &sb))
+                fn(owner ? (const char *)owner : "", (long long)sb.st_size, arg);
+        }
+        rc = step == SQLITE_DONE ? 0 : -1;
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return rc;
 }
 
 static int sq_claim(struct store *s, const char *node, double lease_s, bool alone, struct job_claim *out)
@@ -553,11 +590,11 @@ static int sq_reap(struct store *s, double now, const char *node, int max_attemp
 
 static int sq_prune(struct store *s, double now, long ttl, long max_count)
 {
+    sweep_uploads(s, false); /* before their rows go */
     int rc = run(s,
                "DELETE FROM jobs WHERE state IN ('succeeded','failed','cancelled') AND (finished < ?1 OR id NOT IN"
                " (SELECT id FROM jobs WHERE state IN ('succeeded','failed','cancelled') ORDER BY finished DESC LIMIT ?2))",
                "di", now - (double)ttl, max_count) < 0 ? -1 : 0;
-    sweep_uploads(s);
     return rc;
 }
 
@@ -928,8 +965,10 @@ static long sq_mesh_bytes(struct store *s)
 
 /* One check's query: each row's bytes (columns data..) against its sum (column sum_col, NULL for
  * rows written before sums were kept), a line reported for each that does not match. */
+/* The rows of sql whose bytes do not match their sums, or whose pieces cannot be read, each reported
+ * and, with keys, its column 0 kept in *keys (the caller frees them). 0 sound, 1 damaged, -1. */
 static int check_sums(struct store *s, const char *what, const char *sql, int sum_col, bool two, int piece_col,
-                      void (*report)(const char *, void *), void *arg)
+                      void (*report)(const char *, void *), void *arg, char ***keys, size_t *n_keys)
 {
     sqlite3_stmt *st;
     int bad = 0, rc = -1;
@@ -954,6 +993,11 @@ static int check_sums(struct store *s, const char *what, const char *sql, int su
                 snprintf(line, sizeof line, "%s %s: %s", what, (const char *)sqlite3_column_text(st, 0), why);
                 report(line, arg);
                 bad = 1;
+                char **more = keys ? realloc(*keys, (*n_keys + 1) * sizeof **keys) : NULL;
+                if (more && (more[*n_keys] = strdup((const char *)sqlite3_column_text(st, 0))))
+                    *keys = more, ++*n_keys;
+                else if (more)
+                    *keys = more;
             }
             free(own[1]);
             free(own[2]);
@@ -970,13 +1014,18 @@ static int check_sums(struct store *s, const char *what, const char *sql, int su
     return rc;
 }
 
-static int sq_check(struct store *s, bool deep, void (*report)(const char *, void *), void *arg)
+/* The WAL's loss (store_walmark.h) and the pages (quick_check), each finding reported: 0 sound, 1
+ * damaged, -1. */
+static int check_pages(struct store *s, void (*report)(const char *, void *), void *arg)
 {
     sqlite3_stmt *st;
     int rc = -1;
     pthread_mutex_lock(lock_of(s));
+    const char *lost = walmark_finding(((struct sqlite_store *)s)->mark);
+    if (lost)
+        report(lost, arg);
     if (sqlite3_prepare_v2(db_of(s), "PRAGMA quick_check(20)", -1, &st, NULL) == SQLITE_OK) {
-        rc = 0;
+        rc = lost ? 1 : 0;
         int step;
         while ((step = sqlite3_step(st)) == SQLITE_ROW) {
             const char *line = (const char *)sqlite3_column_text(st, 0);
@@ -992,25 +1041,111 @@ static int sq_check(struct store *s, bool deep, void (*report)(const char *, voi
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
-    const struct {
-        const char *what, *sql;
-        int sum_col;
-        bool two, deep;
-        int piece_col; /* the column that may name pieces */
-    } CHECKS[] = {
-        {"model", "SELECT id, resource, resource_sum FROM models", 2, false, false, 0},
-        {"model", "SELECT id, source, resource, sum FROM models", 3, true, true, 1},
-        {"job result", "SELECT id, result, result_sum FROM jobs WHERE result IS NOT NULL", 2, false, true, 1},
-        {"model volume", "SELECT model || '/' || seq, options, data, sum FROM model_volumes", 3, true, true, 2},
-    };
+    return rc;
+}
+
+/* What the sums cover, and how recover mends a row of each (?1 its key, ?2 a failed job's problem). */
+static const struct {
+    const char *what, *sql;
+    int sum_col;
+    bool two, deep;
+    int piece_col; /* the column that may name pieces */
+    const char *mend, *mended;
+} CHECKS[] = {
+    {"model", "SELECT id, resource, resource_sum FROM models", 2, false, false, 0,
+     "DELETE FROM models WHERE id=?1", "removed"},
+    {"model", "SELECT id, source, resource, sum FROM models", 3, true, true, 1, "DELETE FROM models WHERE id=?1",
+     "removed"},
+    {"job result", "SELECT id, result, result_sum FROM jobs WHERE result IS NOT NULL", 2, false, true, 1,
+     "UPDATE jobs SET state='failed', result=NULL, result_sum=NULL, result_type=NULL, error=?2 WHERE id=?1",
+     "failed, its result removed"},
+    {"model volume", "SELECT model || '/' || seq, options, data, sum FROM model_volumes", 3, true, true, 2,
+     "DELETE FROM models WHERE id=substr(?1, 1, instr(?1, '/') - 1)", "removed with its model"},
+};
+
+/* check_sums over CHECKS; with a problem, each damaged row is mended as CHECKS says (reported). */
+static int check_all_sums(struct store *s, bool deep, const char *problem, void (*report)(const char *, void *),
+                          void *arg)
+{
+    int rc = 0;
     for (size_t k = 0; rc >= 0 && k < sizeof CHECKS / sizeof *CHECKS; k++) {
         if (CHECKS[k].deep && !deep)
             continue;
+        char **keys = NULL;
+        size_t n = 0;
         int c = check_sums(s, CHECKS[k].what, CHECKS[k].sql, CHECKS[k].sum_col, CHECKS[k].two, CHECKS[k].piece_col,
-                           report, arg);
+                           report, arg, problem ? &keys : NULL, &n);
         rc = c < 0 ? -1 : rc | c;
+        for (size_t j = 0; j < n; j++) {
+            char line[200];
+            bool done = run(s, CHECKS[k].mend, "tt", keys[j], problem) >= 0;
+            snprintf(line, sizeof line, "%s %s: %s", CHECKS[k].what, keys[j], done ? CHECKS[k].mended : "NOT mended");
+            report(line, arg);
+            rc = done ? rc : -1;
+            free(keys[j]);
+        }
+        free(keys);
     }
+    if (problem && rc >= 0 && /* what a removed model leaves */
+        (run(s, "DELETE FROM model_volumes WHERE model NOT IN (SELECT id FROM models)", "") < 0 ||
+         run(s, "DELETE FROM meshes WHERE model NOT IN (SELECT id FROM models)", "") < 0))
+        rc = -1;
     return rc;
+}
+
+static int sq_check(struct store *s, bool deep, void (*report)(const char *, void *), void *arg)
+{
+    int rc = check_pages(s, report, arg);
+    int sums = rc < 0 ? -1 : check_all_sums(s, deep, NULL, report, arg);
+    return sums < 0 ? -1 : rc | sums;
+}
+
+/* store_recover: pages are not mended (1: a backup is the way); else a copy is kept beside the
+ * database, a loss from the WAL accepted, and the rows whose bytes do not match mended. */
+static int sq_recover(struct store *s, const char *problem, void (*report)(const char *, void *), void *arg)
+{
+    struct sqlite_store *q = (struct sqlite_store *)s;
+    char line[1300];
+    if (!q->mark) {
+        report("the service holds this store: stop it first", arg);
+        return -1;
+    }
+    const char *lost = walmark_finding(q->mark);
+    pthread_mutex_lock(lock_of(s)); /* pages alone: the loss is what recover accepts */
+    sqlite3_stmt *st;
+    int pages = -1;
+    if (sqlite3_prepare_v2(q->db, "PRAGMA quick_check(1)", -1, &st, NULL) == SQLITE_OK) {
+        pages = sqlite3_step(st) == SQLITE_ROW && !strcmp((const char *)sqlite3_column_text(st, 0), "ok") ? 0 : 1;
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    if (pages) {
+        report("its pages are damaged, which recover does not mend: restore a backup (surfd store check lists them)",
+               arg);
+        return pages;
+    }
+    snprintf(line, sizeof line, "%s.before-recover-%ld", q->path, (long)time(NULL));
+    sqlite3 *copy = NULL;
+    pthread_mutex_lock(lock_of(s));
+    sqlite3_backup *b = sqlite3_open(line, &copy) == SQLITE_OK ? sqlite3_backup_init(copy, "main", q->db, "main") : NULL;
+    bool kept = b && sqlite3_backup_step(b, -1) == SQLITE_DONE;
+    sqlite3_backup_finish(b);
+    pthread_mutex_unlock(lock_of(s));
+    sqlite3_close(copy);
+    chmod(line, 0600);
+    if (!kept) {
+        report("a copy of the store could not be kept beside it (is the disk full?): nothing changed", arg);
+        return -1;
+    }
+    char copied[1400];
+    snprintf(copied, sizeof copied, "kept the store as it was in %s", line);
+    report(copied, arg);
+    if (lost) {
+        snprintf(line, sizeof line, "accepted: %s", lost);
+        report(line, arg);
+        walmark_accept(q->mark);
+    }
+    return check_all_sums(s, true, problem, report, arg) < 0 ? -1 : 0;
 }
 
 /* Room the data dir must have again before a store that met a full disk takes work (64 MB, or an
@@ -1034,5 +1169,5 @@ static const struct store_ops SQLITE_OPS = {
     "sqlite",     sq_close,      sq_submit,    sq_submit_file, sq_request_file, sq_request_file_done, sq_claim,     sq_heartbeat,    sq_finish,
     sq_release,   sq_cancel,     sq_reap,      sq_prune,     sq_get,          sq_list,
     sq_queued,    sq_model_put,  sq_model_get, sq_model_list, sq_model_delete, sq_model_edit, sq_volume_get,
-    sq_mesh_get,  sq_mesh_put,   sq_mesh_bytes, sq_writable,  NULL,         sq_check,
+    sq_mesh_get,  sq_mesh_put,   sq_mesh_bytes, sq_writable,  NULL,         sq_check,     sq_recover,  sq_uploads_held,
 };

@@ -3,7 +3,9 @@
 # were sound. At start the store checks its pages (PRAGMA quick_check) and every model's sums, and
 # refuses to serve on damage with a log line naming what; a read that finds damage while serving
 # answers 500 (not 200 with an empty or altered list) and makes /readyz 503; `surfd store check`
-# is the operator's look (exit 0 sound, 1 damaged), naming each damaged job, model or volume.
+# is the operator's look (exit 0 sound, 1 damaged), naming each damaged job, model or volume, and
+# `surfd store recover` keeps the sound part. Commits lost from a truncated WAL are found (a
+# kill -9 loses none, so a WAL that holds fewer frames than its last commit left was cut).
 . "$(dirname "$0")/lib.inc"
 
 RAW='Content-Type: application/octet-stream'
@@ -34,6 +36,15 @@ wait "$spid"; rc=$?
 check "... serve refuses to start on it, with a log line naming the model" \
     '! kill -0 "$spid" 2>/dev/null && [ "$rc" != 0 ] && grep -q "store check: model $victim" "$T/serve.log" && grep -q "is damaged: not starting" "$T/serve.log"'
 
+$S store recover --data-dir "$T/d" >"$T/out" 2>&1; rc=$?
+check "store recover: exit 0, a copy kept, that model (and only it) removed" \
+    '[ "$rc" = 0 ] && grep -q "kept the store as it was in .*surfd.db.before-recover-" "$T/out" && grep -q "model $victim: removed" "$T/out" && [ "$(grep -c ": removed" "$T/out")" = 1 ] && grep -q "is mended" "$T/out"'
+check "... the copy is the service user's alone, and holds the model" \
+    'c=$(ls "$T"/d/surfd.db.before-recover-*) && [ "$(stat -c %a "$c")" = 600 ] && [ "$(sqlite3 "$c" "SELECT count(*) FROM models")" = 3 ]'
+$S store check --data-dir "$T/d" >"$T/out" 2>&1; rc=$?
+check "... and the store left is sound: check exit 0, two models" '[ "$rc" = 0 ] && [ "$(sqlite3 "$DB" "SELECT count(*) FROM models")" = 2 ]'
+rm -f "$T"/d/surfd.db.before-recover-*
+
 # a damaged page: the jobs table's root (page 2) overwritten
 cp "$T/clean.db" "$DB"
 printf '\377\377\377\377\377\377\377\377' | dd of="$DB" bs=1 seek=4096 conv=notrunc 2>/dev/null
@@ -41,6 +52,8 @@ $S store check --data-dir "$T/d" >"$T/out" 2>&1; rc=$?
 check "store check on a damaged page: exit 1, SQLite's finding printed" '[ "$rc" = 1 ] && grep -q "Page 2" "$T/out"'
 $S serve --listen 127.0.0.1:0 --data-dir "$T/d" >"$T/serve.log" 2>&1; rc=$?
 check "... serve refuses to start on it" '[ "$rc" != 0 ] && grep -q "is damaged: not starting" "$T/serve.log"'
+$S store recover --data-dir "$T/d" >"$T/out" 2>&1; rc=$?
+check "... store recover does not pretend to mend pages: exit 1, restore a backup" '[ "$rc" = 1 ] && grep -q "restore a backup" "$T/out"'
 
 # damage found while serving: a model altered under the running service
 cp "$T/clean.db" "$DB"
@@ -51,4 +64,37 @@ check "GET /models over an altered model: 500 problem, not the altered bytes" '[
 check "GET /models/ID of it: 500, damaged" '[ "$(status GET "/models/$victim")" = 500 ] && grep -qi "damaged" "$T/body"'
 check "... and /readyz is then 503, saying why" '[ "$(status GET /readyz)" = 503 ] && grep -q "store is damaged" "$T/body"'
 check "... the damage is logged" 'grep -qi "damaged" "$T/daemon.log"'
+stop_daemon
+
+# ---- commits lost from the WAL: a kill -9 loses none; a WAL truncated behind the store is found
+rm -rf "$T/w"
+start_daemon "$T/w" || exit 1
+post_three() {
+    for k in 1 2 3; do
+        status POST "/isosurface?dims=8,8,8&type=uint8&iso=$((90 + k))" -H "$RAW" --data-binary @"$T/cube.raw" >/dev/null
+    done
+}
+models() { status GET /models >/dev/null; grep -o '"id"' "$T/body" | wc -l; }
+post_three
+kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""
+check "after a kill -9 the WAL holds the commits" '[ -s "$T/w/surfd.db-wal" ]'
+start_daemon "$T/w" || exit 1
+check "... the store starts on it (no loss found where there is none), its 3 models served" '[ "$(models)" = 3 ] && [ "$(status GET /readyz)" = 200 ]'
+post_three
+kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""
+size=$(stat -c %s "$T/w/surfd.db-wal")
+truncate -s $((size / 2)) "$T/w/surfd.db-wal"
+$S store check --data-dir "$T/w" >"$T/out" 2>&1; rc=$?
+check "the WAL truncated to half: store check exit 1, naming the frames lost" \
+    '[ "$rc" = 1 ] && grep -q "the WAL (surfd.db-wal) holds [0-9]* valid frames of the [0-9]* its last commit left" "$T/out"'
+$S serve --listen 127.0.0.1:0 --data-dir "$T/w" >"$T/serve.log" 2>&1; rc=$?
+check "... serve refuses to start on it, saying so (was: half the jobs and models silently gone)" \
+    '[ "$rc" != 0 ] && grep -q "valid frames of the" "$T/serve.log" && grep -q "is damaged: not starting" "$T/serve.log"'
+$S serve --listen 127.0.0.1:0 --data-dir "$T/w" >"$T/serve.log" 2>&1; rc=$?
+check "... and again: the loss is remembered, not forgotten at the next start" '[ "$rc" != 0 ] && grep -q "valid frames of the" "$T/serve.log"'
+$S store recover --data-dir "$T/w" >"$T/out" 2>&1; rc=$?
+check "store recover accepts the store as it is: exit 0" '[ "$rc" = 0 ] && grep -q "^accepted: the WAL" "$T/out" && grep -q "is mended" "$T/out"'
+start_daemon "$T/w" || exit 1
+n=$(models)
+check "... the service starts, serving what the WAL kept ($n of 6 models)" '[ "$n" -ge 3 ] && [ "$n" -lt 6 ] && [ "$(status GET /readyz)" = 200 ]'
 finish
