@@ -173,7 +173,7 @@ bool model_body_is_scene(const char *buf, size_t len, const char *format)
  * whose edges meet parts of others (a contour model's: its caps' fans against the walls' rows)
  * close the same way (trimmed false: no list of surfaces). */
 static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, bool trimmed, double t0, double t1,
-                           char **json, struct sf_err *err)
+                           const struct sf_progress *pr, char **json, struct sf_err *err)
 {
     struct enclosed e;
     double *vol = malloc(sizeof *vol * (size_t)sc->n_objects), *area = malloc(sizeof *area * (size_t)sc->n_objects);
@@ -186,8 +186,8 @@ static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, b
     double diag = hypot(hypot(e.hi[0] - e.lo[0], e.hi[1] - e.lo[1]), e.hi[2] - e.lo[2]);
     for (int k = 0; !rc && k < sc->n_objects; k++)
         parts[k] = (struct shell_part){&sc->objects[k].surf, sc->objects[k].trim};
-    if (!rc && enclosed_shell(parts, sc->n_objects, SHELL_GAP_REL * diag, &sh, sign))
-        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+    if (!rc && (rc = enclosed_shell(parts, sc->n_objects, SHELL_GAP_REL * diag, pr, &sh, sign)))
+        rc = rc == SF_ECANCEL ? sf_fail(err, rc, "", "cancelled") : sf_fail(err, SF_ENOMEM, "", "out of memory");
     char where[32];
     if (!rc && sh.open_samples) {
         scene_object_pointer(sc, sh.open_object, where, sizeof where);
@@ -230,12 +230,17 @@ static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, b
 }
 
 /* A scene's patches as a solid (POST /volume): the volume they enclose, when they close. */
-static int scene_figures(const char *buf, size_t len, const char *format, char **json, struct sf_err *err)
+static int scene_figures(const char *buf, size_t len, const char *format, const struct sf_progress *pr, char **json,
+                         struct sf_err *err)
 {
     double t0 = now_ms();
     struct scene sc;
     enum image_format img;
-    int rc = scene_parse(buf, len, scene_body_format(buf, len, format), &sc, &img, err);
+    /* an IGES part's loops, and the matching of their points, stop at a cancel */
+    struct sf_span reading = {pr, 0, 0.5}, closing = {pr, 0.5, 1};
+    const struct sf_progress read_pr = {sf_span_poll, &reading}, close_pr = {sf_span_poll, &closing};
+    const struct model_resolver polled = {.progress = pr ? &read_pr : NULL};
+    int rc = scene_parse_models(buf, len, scene_body_format(buf, len, format), &polled, &sc, &img, err);
     if (rc)
         return rc;
     struct patch_set ps;
@@ -251,7 +256,7 @@ static int scene_figures(const char *buf, size_t len, const char *format, char *
     if (!trimmed && enclosed_measure(&ps, &e))
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
     else if (trimmed || e.open_edges) { /* trimmed, or edges meeting parts of others: closed along the boundaries */
-        rc = trimmed_figures(&sc, &ps, trimmed, t0, t1, json, err);
+        rc = trimmed_figures(&sc, &ps, trimmed, t0, t1, pr ? &close_pr : NULL, json, err);
         nurbs_patch_set_free(&ps);
         scene_free(&sc);
         return rc;
@@ -460,7 +465,7 @@ int model_figures(const char *buf, size_t len, const char *format, const char *o
         return matrix_model(buf, len, NULL, json, NULL, err);
     if (model_body_is_scene(buf, len, format)) {
         *json = NULL;
-        return scene_figures(buf, len, format, json, err);
+        return scene_figures(buf, len, format, pr, json, err);
     }
     json_t *list = NULL, *skipped = NULL;
     bool single;

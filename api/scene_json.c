@@ -108,7 +108,7 @@ static int model_object(json_t *j, const char *where, const struct model_resolve
     json_t *id = json_object_get(j, "id");
     if (!json_is_string(id))
         return sf_fail(err, SF_EINVAL, p, "expected the id of a stored model");
-    if (!models)
+    if (!models || !models->source)
         return sf_fail(err, SF_EINVAL, p, "stored models are only available through the service");
     struct material mat = scene_default_material();
     json_t *m = json_object_get(j, "material");

@@ -29,6 +29,12 @@ const char *sf_strerror(int code)
     return "unknown error";
 }
 
+bool sf_span_poll(void *span, double done)
+{
+    const struct sf_span *s = span;
+    return sf_poll(s->outer, s->lo + done * (s->hi - s->lo), NULL) != 0;
+}
+
 int sf_poll(const struct sf_progress *pr, double done, struct sf_err *err)
 {
     if (!pr || !pr->poll || !pr->poll(pr->ctx, done < 0 ? 0 : done > 1 ? 1 : done))

@@ -41,6 +41,13 @@ struct sf_progress {
 };
 /* 0, or SF_ECANCEL (recorded in err) when pr asks to stop. */
 int sf_poll(const struct sf_progress *pr, double done, struct sf_err *err);
+/* One step of a computation polled as a stretch [lo, hi] of the whole's progress: the step's
+ * {sf_span_poll, &span} passes done on to outer (NULL: never stops) as lo + done * (hi - lo). */
+struct sf_span {
+    const struct sf_progress *outer;
+    double lo, hi;
+};
+bool sf_span_poll(void *span, double done);
 
 /* Fills err (if not NULL) and returns code. The first failure recorded wins. */
 int sf_fail(struct sf_err *err, int code, const char *pointer, const char *fmt, ...)

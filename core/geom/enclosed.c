@@ -330,8 +330,10 @@ static int add_uv_seg(struct bseg **segs, size_t *n, size_t *cap, const struct s
     return add_seg(segs, n, cap, s, a, b, pa, pb, tol, 0, part, loop);
 }
 
-/* Every part's boundary as segments: its trim loops, or its domain's four edges as one loop. */
-static int boundary_segments(const struct shell_part *parts, int n, double tol, struct bseg **segs, size_t *n_segs)
+/* Every part's boundary as segments: its trim loops, or its domain's four edges as one loop. 0,
+ * SF_ENOMEM, or SF_ECANCEL when pr asks. */
+static int boundary_segments(const struct shell_part *parts, int n, double tol, const struct sf_progress *pr,
+                             struct bseg **segs, size_t *n_segs)
 {
     size_t cap = 0;
     *segs = NULL;
@@ -343,9 +345,12 @@ static int boundary_segments(const struct shell_part *parts, int n, double tol, 
         if (t) {
             for (int l = 0; l < t->n_loops; l++, loop++) {
                 first = *n_segs;
-                for (size_t i = t->start[l]; i + 1 < t->start[l + 1]; i++)
+                for (size_t i = t->start[l]; i + 1 < t->start[l + 1]; i++) {
+                    if (i % 4096 == 0 && sf_poll(pr, 0, NULL))
+                        return SF_ECANCEL;
                     if (add_uv_seg(segs, n_segs, &cap, parts[k].s, t->pt[i], t->pt[i + 1], tol, k, loop))
                         return SF_ENOMEM;
+                }
                 for (size_t i = first; i < *n_segs; i++)
                     (*segs)[i].index = i - first, (*segs)[i].loop_len = *n_segs - first;
             }
@@ -429,13 +434,14 @@ static bool along(const struct bseg *a, const struct bseg *b)
     return di <= 2 || a->loop_len - di <= 2;
 }
 
-int enclosed_shell(const struct shell_part *parts, int n, double tol, struct shell *out, signed char *sign)
+int enclosed_shell(const struct shell_part *parts, int n, double tol, const struct sf_progress *pr, struct shell *out,
+                   signed char *sign)
 {
     memset(out, 0, sizeof *out);
     out->open_object = -1;
     struct bseg *segs;
     size_t n_segs;
-    int rc = boundary_segments(parts, n, tol, &segs, &n_segs);
+    int rc = boundary_segments(parts, n, tol, pr, &segs, &n_segs);
     struct seg_grid g = {0};
     struct vote *votes = NULL;
     size_t n_votes = 0, cap_votes = 0;
@@ -473,6 +479,8 @@ int enclosed_shell(const struct shell_part *parts, int n, double tol, struct she
     const double collapsed = 1e-3 * tol;
     for (size_t k = 0; k < n_segs; k++) {
         const struct bseg *s = &segs[k];
+        if (k % 64 == 0 && (rc = sf_poll(pr, (double)k / (double)n_segs, NULL)))
+            goto done;
         if (v3_len(v3_sub(s->pb, s->pa)) <= collapsed)
             continue; /* a pole: no partner needed */
         double mid[2] = {0.5 * (s->a[0] + s->b[0]), 0.5 * (s->a[1] + s->b[1])};

@@ -47,7 +47,9 @@ struct shell {
 /* Whether the parts close a solid: every point of every boundary (trim loops, or the domain's edges;
  * collapsed edges need no partner) within tol of another boundary (a part's own, across a seam, too),
  * and how each part must be turned (sign[k] = +1 or -1, caller's array of n) so that neighbours face
- * the same way. Returns 0 or SF_ENOMEM. */
-int enclosed_shell(const struct shell_part *parts, int n, double tol, struct shell *out, signed char *sign);
+ * the same way. pr is polled as the boundary's segments are matched (a loop of millions of points
+ * takes minutes). Returns 0, SF_ENOMEM or SF_ECANCEL. */
+int enclosed_shell(const struct shell_part *parts, int n, double tol, const struct sf_progress *pr, struct shell *out,
+                   signed char *sign);
 
 #endif

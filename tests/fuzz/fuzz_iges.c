@@ -22,7 +22,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         for (int k = 0; parts && k < sc.n_objects; k++)
             parts[k] = (struct shell_part){&sc.objects[k].surf, sc.objects[k].trim};
         if (parts && sign)
-            enclosed_shell(parts, sc.n_objects, 1e-3, &sh, sign);
+            enclosed_shell(parts, sc.n_objects, 1e-3, NULL, &sh, sign);
         free(parts);
         free(sign);
         scene_free(&sc);
