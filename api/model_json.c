@@ -187,7 +187,11 @@ static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, b
     for (int k = 0; !rc && k < sc->n_objects; k++)
         parts[k] = (struct shell_part){&sc->objects[k].surf, sc->objects[k].trim};
     if (!rc && (rc = enclosed_shell(parts, sc->n_objects, SHELL_GAP_REL * diag, pr, &sh, sign)))
-        rc = rc == SF_ECANCEL ? sf_fail(err, rc, "", "cancelled") : sf_fail(err, SF_ENOMEM, "", "out of memory");
+        rc = rc == SF_ECANCEL ? sf_fail(err, rc, "", "cancelled")
+             : rc == SF_ELIMIT
+                 ? sf_fail(err, rc, "", "the surfaces' boundaries crowd together: matching their points would take "
+                           "some %.3g tests, over the limit of %.3g", sh.tests, SHELL_MAX_TESTS)
+                 : sf_fail(err, SF_ENOMEM, "", "out of memory");
     char where[32];
     if (!rc && sh.open_samples) {
         scene_object_pointer(sc, sh.open_object, where, sizeof where);

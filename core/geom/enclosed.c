@@ -475,6 +475,15 @@ int enclosed_shell(const struct shell_part *parts, int n, double tol, const stru
         goto done;
     }
     memcpy(at, g.first, sizeof *at * cells);
+    /* what matching will cost, decided before it: a point is tested against every segment of its
+     * cell, so about the sum over cells of their segments squared (a few tens a segment for real
+     * parts, thousands where a hostile part crowds its loops together) */
+    for (size_t c = 0; c < cells; c++)
+        out->tests += (double)(g.first[c + 1] - g.first[c]) * (double)(g.first[c + 1] - g.first[c]);
+    if (out->tests > SHELL_MAX_TESTS) {
+        rc = SF_ELIMIT;
+        goto done;
+    }
     grid_bin(&g, segs, n_segs, tol, at);
     const double collapsed = 1e-3 * tol;
     for (size_t k = 0; k < n_segs; k++) {

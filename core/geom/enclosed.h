@@ -42,13 +42,19 @@ struct shell {
     double open_at[3];     /* the first such point */
     size_t flipped;        /* matched points where the two parts face opposite ways */
     int conflicts;         /* parts whose facing no choice of signs makes agree with every neighbour */
+    double tests;          /* point-segment tests the matching takes (about) */
 };
+
+/* The most point-segment tests enclosed_shell makes (some 25 s here): the real parts take tens a
+ * boundary point; a 6.6 KB part whose loops crowd together took 1.7e10, seven minutes. */
+#define SHELL_MAX_TESTS 1e9
 
 /* Whether the parts close a solid: every point of every boundary (trim loops, or the domain's edges;
  * collapsed edges need no partner) within tol of another boundary (a part's own, across a seam, too),
  * and how each part must be turned (sign[k] = +1 or -1, caller's array of n) so that neighbours face
  * the same way. pr is polled as the boundary's segments are matched (a loop of millions of points
- * takes minutes). Returns 0, SF_ENOMEM or SF_ECANCEL. */
+ * takes minutes). Returns 0, SF_ENOMEM, SF_ECANCEL, or SF_ELIMIT when the matching would take more
+ * than SHELL_MAX_TESTS tests (out->tests says how many), decided before it starts. */
 int enclosed_shell(const struct shell_part *parts, int n, double tol, const struct sf_progress *pr, struct shell *out,
                    signed char *sign);
 

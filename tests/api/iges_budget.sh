@@ -3,7 +3,8 @@
 # share one composite loop of 2.8 M points once took 2.3 GB and 93 s. What every surface's loops
 # will hold is counted from what the file declares before any loop is built, each use of a shared
 # curve counted again, and a part over the budget is a quick 422 naming the budget and the figure.
-# The real parts stay within it: tests/api/iges.sh renders and measures them.
+# The real parts stay within it: tests/api/iges.sh renders and measures them. A part within it whose
+# loops crowd together is refused by /volume before their points are matched (SHELL_MAX_TESTS).
 . "$(dirname "$0")/lib.inc"
 
 # hostile.py OUT USES [NEST]: a plate whose USES 144s share one 142 -> 102 -> 126. The 126 is a
@@ -65,5 +66,9 @@ check "one loop through 15 composites, each naming the one below twice (2^15 use
 post "/render?format=iges&width=32&height=32" "$T/once.igs"
 check "the same loop used once is within the budget: not refused for it ($code in $secs s)" \
     '! grep -q "budget of" "$T/body" && { [ "$code" = 200 ] || [ "$code" = 422 ]; }'
+post "/volume?format=iges" "$T/once.igs"
+[ -n "${IGES_VERBOSE:-}" ] && echo "volume once: $code in $secs s: $(cat "$T/body")"
+check "... but /volume of it, whose 2.8 M boundary points crowd into few cells (minutes of matching): 422 naming the tests it would take, before them ($code in $secs s)" \
+    '[ "$code" = 422 ] && is_problem 422 && grep -q "crowd together: matching their points would take some [0-9.e+]* tests, over the limit of 1e+09" "$T/body"'
 check "the daemon is up after them" 'alive'
 finish
