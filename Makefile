@@ -160,7 +160,7 @@ $(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c
 # the allocator wrappers, linked as the daemon links them
 $(B)/tests/daemon/test_memwrap: tests/daemon/test_memwrap.c tests/unit.h daemon/memwrap.c core/base/mem.c core/base/mem.h
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS) $(SAN) $(MEMWRAP) -o $@ tests/daemon/test_memwrap.c daemon/memwrap.c core/base/mem.c -lpthread
+	$(CC) $(CFLAGS) $(SAN) $(MEMWRAP) -o $@ tests/daemon/test_memwrap.c daemon/memwrap.c core/base/mem.c -ljansson -lpthread
 
 # matrix_fragments' table, made once a process, under the thread sanitizer
 $(B)/tests/core/matrix/tsan_fragments: tests/core/matrix/tsan_fragments.c tests/unit.h core/matrix/fragment.c core/matrix/matrix.h core/geom/trimesh.c core/base/mem.c core/base/err.c

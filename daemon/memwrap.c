@@ -1,11 +1,12 @@
 /* memwrap.c - the daemon's allocator wrappers, linked with -Wl,--wrap=malloc (and calloc, realloc,
  * strdup, free: the Makefile's MEMWRAP), so that every allocation of surfd's own code (core/, api/,
- * daemon/) is charged to the memory account of the job its thread works for (core/base/mem.h),
+ * daemon/) and of jansson's (below) is charged to the memory account of the job its thread works for (core/base/mem.h),
  * and refused past the job's budget. Written by hand: glibc has no per-thread allocation hooks
  * any more, and an arena per job (or a second allocator) would change where every free goes.
  * The cost without an account is a thread-local load; with one, malloc_usable_size and an atomic
  * add per call. Sizes are charged as the allocator rounds them (malloc_usable_size), so what is
  * charged on allocation is what free credits. */
+#include <jansson.h>
 #include <malloc.h>
 #include <string.h>
 
@@ -76,3 +77,8 @@ void __wrap_free(void *p)
         mem_adjust(-(long long)malloc_usable_size(p));
     __real_free(p);
 }
+
+/* jansson allocates inside its own library, where --wrap does not reach: its allocations (a JSON
+ * tree a job parses) go through the wrappers too, set before main so that nothing jansson frees
+ * was allocated otherwise. */
+__attribute__((constructor)) static void charge_jansson(void) { json_set_alloc_funcs(__wrap_malloc, __wrap_free); }

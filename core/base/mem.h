@@ -16,7 +16,8 @@ int mem_reserve(void **p, size_t *cap, size_t need, size_t elem);
  * allocate is charged to the job's account and what they free is credited, and an allocation that
  * would take the account past its budget fails as malloc fails (NULL: SF_ENOMEM to core/), so a
  * job that outgrows its estimate ends alone with its problem instead of the kernel killing the
- * node. What libraries allocate for themselves (DCMTK, Embree, jansson) is not charged; memory
+ * node. jansson's allocations are wrapped too (its allocation functions); what DCMTK and Embree
+ * allocate for themselves is not charged (DCMTK does not expect new to throw); memory
  * freed by a thread of another account is credited there (an account may go below 0). */
 struct mem_account {
     atomic_llong held;    /* bytes allocated for the job and not freed */

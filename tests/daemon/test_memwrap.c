@@ -1,8 +1,9 @@
 /* test_memwrap.c - the allocator wrappers (daemon/memwrap.c), linked with the daemon's --wrap
  * flags: what a job's thread allocates is charged to its account and what it frees credited, to
  * the byte, through every path (malloc, calloc, realloc growing, shrinking, moving, to 0, strdup);
- * past the budget an allocation fails as malloc fails and nothing is charged; threads of other
- * accounts (or none) are charged nothing. */
+ * past the budget an allocation fails as malloc fails and nothing is charged; jansson's are charged
+ * and refused alike; threads of other accounts (or none) are charged nothing. */
+#include <jansson.h>
 #include <pthread.h>
 
 #include "../../core/base/mem.h"
@@ -56,6 +57,24 @@ TEST(refused_past_the_budget)
     mem_account_enter(NULL);
 }
 
+TEST(jansson_charged_and_refused)
+{
+    struct mem_account a = {.budget = 1 << 20};
+    mem_account_enter(&a);
+    json_t *small = json_loads("[1, 2, 3, {\"a\": \"b\"}]", 0, NULL);
+    CHECK(small && held(&a) > 0);
+    json_decref(small);
+    CHECK(held(&a) == 0);
+    json_t *big = json_array(); /* a tree past the budget: jansson answers NULL, nothing is lost */
+    int refused = 0;
+    for (int k = 0; big && k < 100000 && !refused; k++)
+        refused = json_array_append_new(big, json_integer(k));
+    CHECK(refused && atomic_load(&a.refused) > 0);
+    json_decref(big);
+    CHECK(held(&a) == 0);
+    mem_account_enter(NULL);
+}
+
 static void *other_thread(void *arg)
 {
     struct mem_account *b = arg;
@@ -91,6 +110,7 @@ int main(void)
 {
     RUN(charged_and_credited_to_the_byte);
     RUN(refused_past_the_budget);
+    RUN(jansson_charged_and_refused);
     RUN(accounts_are_per_thread);
     UNIT_END();
 }
