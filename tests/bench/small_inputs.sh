@@ -2,8 +2,10 @@
 # The largest memory an input under 64 KB costs the release daemon (issue 48's figure): each
 # input to a fresh daemon, its peak RSS (VmHWM) and answer. Inputs: gzip NRRDs of a striped field
 # (every cell holds surface) just under and just over max-triangles (40 M), the first under a
-# job-memory of 1 GB (what its mesh would need is refused from the count pass), a scene naming one
-# stored model 50 times, a DICOM part of 10 000 nested sequences.
+# job-memory of 1 GB (what its mesh would need is refused from the count pass); an IGES part of two
+# uses of a 2.8 M-point loop whose points crowd together (tests/tools/iges_hostile.py) sent to
+# /volume. (A scene naming one model 50 times and a DICOM part of 10 000 nested sequences are
+# refused before any work: tests/api/hardening.sh and hostile_dicom.sh.)
 # Usage: tests/bench/small_inputs.sh   (make bench runs it: bench.py's small_inputs_bench, BENCH_ONLY=small)
 set -u
 cd "$(dirname "$0")/../.." || exit 1
@@ -40,3 +42,5 @@ nrrd 214 "$T/under.nrrd"; nrrd 218 "$T/over.nrrd"
 URLPATH="/isosurface?iso=100" run "striped field 214^3, 39.2 M triangles" "$T/under.nrrd" -H 'Content-Type: application/x-nrrd'
 URLPATH="/isosurface?iso=100" run "striped field 218^3, 41.4 M triangles (over max-triangles)" "$T/over.nrrd" -H 'Content-Type: application/x-nrrd'
 SERVE_ARGS="--job-memory 1073741824" URLPATH="/isosurface?iso=100" run "striped field 214^3, job-memory 1 GB" "$T/under.nrrd" -H 'Content-Type: application/x-nrrd'
+python3 tests/tools/iges_hostile.py "$T/crowded.igs" 2
+URLPATH="/volume?format=iges" run "IGES part, two uses of a 2.8 M-point loop crowded into few cells, /volume" "$T/crowded.igs"
