@@ -22,6 +22,7 @@ struct config {
     long upload_share;      /* bytes of the data dir one owner's uploads may hold (shares.h) */
     long edit_memory;       /* bytes of the hierarchies kept for edits (daemon/job_edit.c) */
     long max_triangles;     /* of one isosurface (job_iso_opts) */
+    long max_triangles_per_byte; /* ... for each byte of its request (job_iso.c) */
     long store_piece;       /* bytes of a stored value kept in one piece at most (store.h) */
     long job_memory;        /* bytes one job may allocate (jobq.h); 0 in the file: a share (cmd_serve.c) */
     long mesh_cache;        /* bytes of cached meshes in the store (0: none) */

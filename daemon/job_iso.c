@@ -45,8 +45,14 @@ struct iso_work {
     char *json;
     size_t len;
     char meta[128];
+    size_t input_len;        /* bytes of the request (the volume's file, the FRep's JSON) */
+    char tri_by[160];        /* what limits its triangles, when its size does */
     struct sf_err err;
 };
+
+/* Triangles any request may make, however small (max-triangles-per-byte): an FRep's fine grid,
+ * a small label map. */
+#define ISO_TRIANGLES_ANY_INPUT 4000000
 
 int job_map_file(const char *path, void **map, size_t *len)
 {
@@ -98,6 +104,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         body = w->map ? w->map : "";
         len = w->map_len;
     }
+    w->input_len = len;
     if (volume_read(body, len, w->rec.format, w->rec.options, &w->vol, &w->err))
         return -1;
     w->t_read = w->t_sampled = monotonic_s();
@@ -118,6 +125,16 @@ static int prepare(struct job *j, void *arg, int *n_bands)
 static int begin_extract(struct iso_work *w, int *n_bands)
 {
     struct iso_opts o = job_iso_opts(w->svc, &w->vol);
+    /* what the request's size lets it make: real scans make under 1 triangle a byte (the CT head's
+     * gzip NRRD 0.17, the MRI's 0.43), gzip label maps 3 to 5; a 43 KB gzip NRRD of a striped
+     * field (surface in every cell) would make 916, 39 M triangles and 3 GB */
+    double per_byte = (double)w->svc->cfg.max_triangles_per_byte * (double)w->input_len;
+    if (w->svc->cfg.max_triangles_per_byte && fmax(per_byte, ISO_TRIANGLES_ANY_INPUT) < (double)o.max_triangles) {
+        o.max_triangles = (size_t)fmax(per_byte, ISO_TRIANGLES_ANY_INPUT);
+        snprintf(w->tri_by, sizeof w->tri_by, "what a request of %zu bytes may make (max-triangles-per-byte, %ld a byte,"
+                 " %d M at least)", w->input_len, w->svc->cfg.max_triangles_per_byte, ISO_TRIANGLES_ANY_INPUT / 1000000);
+        o.max_triangles_by = w->tri_by;
+    }
     /* a hierarchy of samples is kept for the model's edits when it fits their memory (about 5
      * bytes a sample) */
     o.keep = !w->vol.frep && (double)w->vol.g.nx * w->vol.g.ny * w->vol.g.nz * 5 <= (double)w->svc->cfg.edit_memory;

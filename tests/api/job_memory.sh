@@ -1,8 +1,9 @@
 #!/bin/sh
 # Issue 48's per-job memory budget (job-memory): each job's own allocations are charged to it
 # (daemon/memwrap.c, core/base/mem.h) and refused past its budget, so a job that outgrows it fails
-# alone with a 422 naming the budget while the jobs beside it run on; and an isosurface whose mesh
-# would not fit (some 80 bytes a triangle) is refused before it is made.
+# alone with a 422 naming the budget while the jobs beside it run on; an isosurface whose mesh
+# would not fit (some 80 bytes a triangle) is refused before it is made, as is one that would make
+# more triangles than its request's size allows (max-triangles-per-byte).
 . "$(dirname "$0")/lib.inc"
 
 RAW='Content-Type: application/octet-stream'
@@ -50,5 +51,23 @@ total=$(awk '/MemTotal/ {print int($2 / 1024)}' /proc/meminfo)
 check "without job-memory, each of 2 workers gets at most 3/8 of the machine's $total MB (${mb:-?} MB)" '[ -n "$mb" ] && [ "$mb" -gt 0 ] && [ "$mb" -le $((total * 3 / 8 + 1)) ]'
 code=$(status POST /isosurface -H 'Content-Type: application/json' --data-binary @"$T/big.json")
 check "... which the FRep of 256 MB fits: 201" '[ "$code" = 201 ]'
+
+# ---- what a request's size lets it make (max-triangles-per-byte, 64 a byte, 4 M at least) --------
+python3 - "$T" <<'EOF'
+import gzip, sys
+t = sys.argv[1]
+def nrrd(name, n, value):
+    raw = bytes(value(x, y, z) for z in range(n) for y in range(n) for x in range(n))
+    head = "NRRD0004\ntype: uint8\ndimension: 3\nsizes: %d %d %d\nspacings: 1 1 1\nencoding: gzip\n\n" % (n, n, n)
+    open("%s/%s.nrrd" % (t, name), "wb").write(head.encode() + gzip.compress(raw, 9))
+nrrd("striped", 112, lambda x, y, z: 200 * ((x + y + z) % 2))  # surface in every cell: some 5.6 M triangles
+nrrd("label", 112, lambda x, y, z: 1 if (x - 56)**2 + (y - 56)**2 + (z - 56)**2 < 45**2 else 0)  # a label map's ball
+EOF
+size=$(wc -c <"$T/striped.nrrd")
+code=$(status POST "/isosurface?iso=100" -H 'Content-Type: application/x-nrrd' --data-binary @"$T/striped.nrrd")
+check "a ${size}-byte gzip NRRD of a striped field (1.4 M samples): 422 from the count pass, naming max-triangles-per-byte" \
+    '[ "$code" = 422 ] && is_problem 422 && grep -q "what a request of $size bytes may make (max-triangles-per-byte, 64 a byte, 4 M at least)" "$T/body"'
+code=$(status POST "/isosurface?iso=0.5" -H 'Content-Type: application/x-nrrd' --data-binary @"$T/label.nrrd")
+check "a gzip label map of a ball, $(wc -c <"$T/label.nrrd") bytes: 201, closed" '[ "$code" = 201 ] && [ "$(field boundary_edges)" = 0 ]'
 
 finish

@@ -2,7 +2,9 @@
 # The largest memory an input under 64 KB costs the release daemon (issue 48's figure): each
 # input to a fresh daemon, its peak RSS (VmHWM) and answer. Inputs: gzip NRRDs of a striped field
 # (every cell holds surface) just under and just over max-triangles (40 M), the first under a
-# job-memory of 1 GB (what its mesh would need is refused from the count pass); an IGES part of two
+# job-memory of 1 GB (what its mesh would need is refused from the count pass), and with
+# max-triangles-per-byte off (0), what it cost before that default; an FRep on the most samples an
+# FRep may have (its grid is what an 80-byte request may cost); an IGES part of two
 # uses of a 2.8 M-point loop whose points crowd together (tests/tools/iges_hostile.py) sent to
 # /volume. (A scene naming one model 50 times and a DICOM part of 10 000 nested sequences are
 # refused before any work: tests/api/hardening.sh and hostile_dicom.sh.)
@@ -41,6 +43,9 @@ echo "|---|---|---|---|---|"
 nrrd 214 "$T/under.nrrd"; nrrd 218 "$T/over.nrrd"
 URLPATH="/isosurface?iso=100" run "striped field 214^3, 39.2 M triangles" "$T/under.nrrd" -H 'Content-Type: application/x-nrrd'
 URLPATH="/isosurface?iso=100" run "striped field 218^3, 41.4 M triangles (over max-triangles)" "$T/over.nrrd" -H 'Content-Type: application/x-nrrd'
+SERVE_ARGS="--max-triangles-per-byte 0" URLPATH="/isosurface?iso=100" run "striped field 214^3, max-triangles-per-byte 0" "$T/under.nrrd" -H 'Content-Type: application/x-nrrd'
 SERVE_ARGS="--job-memory 1073741824" URLPATH="/isosurface?iso=100" run "striped field 214^3, job-memory 1 GB" "$T/under.nrrd" -H 'Content-Type: application/x-nrrd'
 python3 tests/tools/iges_hostile.py "$T/crowded.igs" 2
 URLPATH="/volume?format=iges" run "IGES part, two uses of a 2.8 M-point loop crowded into few cells, /volume" "$T/crowded.igs"
+echo '{"bounds": [[-10, -10, -10], [10, 10, 10]], "cell": 0.0311, "frep": {"sphere": {"center": [0, 0, 0], "radius": 9}}}' >"$T/frep.json"
+URLPATH="/isosurface" run "FRep sphere on 644^3 samples (FREP_MAX_SAMPLES is 2^28)" "$T/frep.json" -H 'Content-Type: application/json'
