@@ -964,9 +964,9 @@ static long sq_mesh_bytes(struct store *s)
 }
 
 /* One check's query: each row's bytes (columns data..) against its sum (column sum_col, NULL for
- * rows written before sums were kept), a line reported for each that does not match. */
-/* The rows of sql whose bytes do not match their sums, or whose pieces cannot be read, each reported
- * and, with keys, its column 0 kept in *keys (the caller frees them). 0 sound, 1 damaged, -1. */
+ * rows written before sums were kept), a line reported for each that does not match or whose
+ * pieces cannot be read and, with keys, its column 0 kept in *keys (the caller frees them). 0
+ * sound, 1 damaged, -1. */
 static int check_sums(struct store *s, const char *what, const char *sql, int sum_col, bool two, int piece_col,
                       void (*report)(const char *, void *), void *arg, char ***keys, size_t *n_keys)
 {
@@ -1014,18 +1014,14 @@ static int check_sums(struct store *s, const char *what, const char *sql, int su
     return rc;
 }
 
-/* The WAL's loss (store_walmark.h) and the pages (quick_check), each finding reported: 0 sound, 1
- * damaged, -1. */
+/* The pages (quick_check), each finding reported: 0 sound, 1 damaged, -1. */
 static int check_pages(struct store *s, void (*report)(const char *, void *), void *arg)
 {
     sqlite3_stmt *st;
     int rc = -1;
     pthread_mutex_lock(lock_of(s));
-    const char *lost = walmark_finding(((struct sqlite_store *)s)->mark);
-    if (lost)
-        report(lost, arg);
     if (sqlite3_prepare_v2(db_of(s), "PRAGMA quick_check(20)", -1, &st, NULL) == SQLITE_OK) {
-        rc = lost ? 1 : 0;
+        rc = 0;
         int step;
         while ((step = sqlite3_step(st)) == SQLITE_ROW) {
             const char *line = (const char *)sqlite3_column_text(st, 0);
@@ -1095,9 +1091,12 @@ static int check_all_sums(struct store *s, bool deep, const char *problem, void 
 
 static int sq_check(struct store *s, bool deep, void (*report)(const char *, void *), void *arg)
 {
+    const char *lost = walmark_finding(((struct sqlite_store *)s)->mark); /* commits lost from the WAL */
+    if (lost)
+        report(lost, arg);
     int rc = check_pages(s, report, arg);
     int sums = rc < 0 ? -1 : check_all_sums(s, deep, NULL, report, arg);
-    return sums < 0 ? -1 : rc | sums;
+    return rc < 0 || sums < 0 ? -1 : rc | sums | (lost != NULL);
 }
 
 /* store_recover: pages are not mended (1: a backup is the way); else a copy is kept beside the
@@ -1110,18 +1109,10 @@ static int sq_recover(struct store *s, const char *problem, void (*report)(const
         report("the service holds this store: stop it first", arg);
         return -1;
     }
-    const char *lost = walmark_finding(q->mark);
-    pthread_mutex_lock(lock_of(s)); /* pages alone: the loss is what recover accepts */
-    sqlite3_stmt *st;
-    int pages = -1;
-    if (sqlite3_prepare_v2(q->db, "PRAGMA quick_check(1)", -1, &st, NULL) == SQLITE_OK) {
-        pages = sqlite3_step(st) == SQLITE_ROW && !strcmp((const char *)sqlite3_column_text(st, 0), "ok") ? 0 : 1;
-        sqlite3_finalize(st);
-    }
-    pthread_mutex_unlock(lock_of(s));
+    int pages = check_pages(s, report, arg);
     if (pages) {
-        report("its pages are damaged, which recover does not mend: restore a backup (surfd store check lists them)",
-               arg);
+        if (pages > 0)
+            report("its pages are damaged, which recover does not mend: restore a backup", arg);
         return pages;
     }
     snprintf(line, sizeof line, "%s.before-recover-%ld", q->path, (long)time(NULL));
@@ -1140,6 +1131,7 @@ static int sq_recover(struct store *s, const char *problem, void (*report)(const
     char copied[1400];
     snprintf(copied, sizeof copied, "kept the store as it was in %s", line);
     report(copied, arg);
+    const char *lost = walmark_finding(q->mark);
     if (lost) {
         snprintf(line, sizeof line, "accepted: %s", lost);
         report(line, arg);

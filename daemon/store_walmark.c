@@ -138,7 +138,7 @@ struct walmark *walmark_open(const char *db_path, sqlite3 *db)
         walmark_free(wm);
         return NULL;
     }
-    struct mark old;
+    struct mark old = {0};
     bool had = get(wm->fd, &old);
     unsigned salt1 = 0, salt2 = 0;
     bool header = wal_salts(wm->wal, &salt1, &salt2); /* before the checkpoint below can restart it */
@@ -158,11 +158,12 @@ struct walmark *walmark_open(const char *db_path, sqlite3 *db)
         wm->m.state = MARK_LOST;
         wm->m.salt1 = old.salt1, wm->m.salt2 = old.salt2;
         wm->m.frames = old.frames, wm->m.ckpt = old.ckpt;
+        const char *name = strrchr(wm->wal, '/') ? strrchr(wm->wal, '/') + 1 : wm->wal;
         snprintf(wm->m.finding, sizeof wm->m.finding,
-                 "the WAL (%.64s) %s %d valid frames of the %d its last commit left: the commits after frame %d are lost"
-                 " (it was truncated, removed or damaged since); restore a backup, or accept the store as it is with"
-                 " surfd store recover",
-                 strrchr(wm->wal, '/') ? strrchr(wm->wal, '/') + 1 : wm->wal, header ? "holds" : "is gone, with", header ? (log > 0 ? log : 0) : 0, old.frames, kept);
+                 "the WAL (%.64s) %s %d valid frames of the %d its last commit left: the commits after frame %d are"
+                 " lost (it was truncated, removed or damaged since); restore a backup, or accept the store as it is"
+                 " with surfd store recover",
+                 name, header ? "holds" : "is gone, with", header && log > 0 ? log : 0, old.frames, kept);
         put(wm);
         return wm;
     }
