@@ -2,7 +2,8 @@
 #   make            build/surfd (release)
 #   make run        install missing Debian packages, build, serve on 127.0.0.1:8080 with the store in ./var
 #   make install    binary, systemd unit and config (DESTDIR and PREFIX respected)
-#   make check      unit tests, thread-sanitizer tests and fuzz replays: a few minutes, for every change
+#   make check      unit tests, thread-sanitizer tests, fuzz replays and torture (every allocation of
+#                   the fuzz seeds refused in turn): a few minutes, for every change
 #   make test       make check's and the black-box suites (API, CLI, page in a browser, package): what CI runs;
 #                   last line "N passed, N failed"
 #   make bench      benchmarks against POV-Ray and surfd's own mesh method -> tests/bench/RESULTS.md
@@ -48,6 +49,7 @@ obj = $(patsubst %.c,$(B)/$(1)/%.o,$(2))
 FUZZ_TARGETS := $(patsubst tests/fuzz/fuzz_%.c,%,$(wildcard tests/fuzz/fuzz_*.c))
 FUZZ_DAEMON  := daemon/config.c daemon/tokens.c
 REPLAYS      := $(patsubst %,$(B)/tests/fuzz/replay_%,$(FUZZ_TARGETS))
+TORTURES     := $(patsubst %,$(B)/tests/fuzz/torture_%,$(FUZZ_TARGETS))
 FUZZERS      := $(patsubst %,$(B)/fuzz/%,$(FUZZ_TARGETS))
 FUZZ_CC      := clang
 FUZZ_FLAGS   := -g -O1 -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer
@@ -136,6 +138,12 @@ $(B)/tests/fuzz/replay_%: tests/fuzz/fuzz_%.c tests/fuzz/replay.c tests/fuzz/uti
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(SAN) -o $@ $(filter %.c %.o,$^) $(API_LIBS) $(DCM_LIBS) $(CORE_LIBS)
 
+# ... and with every allocation of an input refused in turn (tests/fuzz/torture.sh)
+$(B)/tests/fuzz/torture_%: tests/fuzz/fuzz_%.c tests/fuzz/replay.c tests/fuzz/util.c tests/fuzz/fuzz.h daemon/memwrap.c \
+		$(SAN_CORE) $(SAN_API) $(call obj,san,$(FUZZ_DAEMON)) $(DCM_OBJ)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(SAN) $(MEMWRAP) -DTORTURE -o $@ $(filter %.c %.o,$^) $(API_LIBS) $(DCM_LIBS) $(CORE_LIBS)
+
 # the same targets under libFuzzer (clang), the DCMTK shim instrumented too
 $(B)/fz/%.o: %.c
 	@mkdir -p $(@D)
@@ -202,8 +210,8 @@ $(B)/tests/tools/occt_iges: tests/tools/occt_iges.cpp
 
 # the tiers: what each builds (on every core, once the packages are in) and runs
 NPROC      := $(shell nproc 2>/dev/null || echo 2)
-CHECK_BINS := $(TESTS) $(TESTS_MORE) $(TSAN_TESTS) $(REPLAYS)
-CHECKS     := $(TESTS) $(TESTS_MORE) $(TSAN_TESTS) tests/fuzz/replay.sh
+CHECK_BINS := $(TESTS) $(TESTS_MORE) $(TSAN_TESTS) $(REPLAYS) $(TORTURES)
+CHECKS     := $(TESTS) $(TESTS_MORE) $(TSAN_TESTS) tests/fuzz/replay.sh tests/fuzz/torture.sh
 SUITES     := $(wildcard tests/cli/*.sh tests/api/*.sh tests/web/*.sh tests/deploy/*.sh)
 check: deps layers
 	@$(MAKE) --no-print-directory -j$(NPROC) $(CHECK_BINS)

@@ -1,6 +1,6 @@
 /* memwrap.c - the daemon's allocator wrappers, linked with -Wl,--wrap=malloc (and calloc, realloc,
  * strdup, free: the Makefile's MEMWRAP), so that every allocation of surfd's own code (core/, api/,
- * daemon/) and of jansson's (below) is charged to the memory account of the job its thread works for (core/base/mem.h),
+ * daemon/) is charged to the memory account of the job its thread works for (core/base/mem.h),
  * and refused past the job's budget. Written by hand: glibc has no per-thread allocation hooks
  * any more, and an arena per job (or a second allocator) would change where every free goes.
  * The cost without an account is a thread-local load; with one, malloc_usable_size and an atomic
@@ -79,6 +79,17 @@ void __wrap_free(void *p)
 }
 
 /* jansson allocates inside its own library, where --wrap does not reach: its allocations (a JSON
- * tree a job parses) go through the wrappers too, set before main so that nothing jansson frees
- * was allocated otherwise. */
-__attribute__((constructor)) static void charge_jansson(void) { json_set_alloc_funcs(__wrap_malloc, __wrap_free); }
+ * tree a job parses) are charged to the job too, but never refused, since jansson 2.14 does not
+ * survive a failed allocation in the middle of a parse (its lexer drops the failure and walks past
+ * its buffer: jansson issue #362; found by tests/fuzz/torture.sh). What it holds counts against
+ * the budget, so the job's own next allocation is refused instead. Set before main, so that
+ * nothing jansson frees was allocated otherwise. */
+static void *jansson_malloc(size_t n)
+{
+    void *p = __real_malloc(n);
+    if (p && mem_account_current())
+        mem_adjust((long long)malloc_usable_size(p));
+    return p;
+}
+
+__attribute__((constructor)) static void charge_jansson(void) { json_set_alloc_funcs(jansson_malloc, __wrap_free); }

@@ -16,14 +16,17 @@ int mem_reserve(void **p, size_t *cap, size_t need, size_t elem);
  * allocate is charged to the job's account and what they free is credited, and an allocation that
  * would take the account past its budget fails as malloc fails (NULL: SF_ENOMEM to core/), so a
  * job that outgrows its estimate ends alone with its problem instead of the kernel killing the
- * node. jansson's allocations are wrapped too (its allocation functions); what DCMTK and Embree
- * allocate for themselves is not charged (DCMTK does not expect new to throw); memory
+ * node. jansson's allocations are charged too, never refused (memwrap.c says why); what DCMTK and
+ * Embree allocate for themselves is not charged (DCMTK does not expect new to throw); memory
  * freed by a thread of another account is credited there (an account may go below 0). */
 struct mem_account {
     atomic_llong held;    /* bytes allocated for the job and not freed */
     atomic_llong peak;
     atomic_llong refused; /* the size of the last allocation refused for the budget; 0: none */
     long long budget;     /* bytes; 0: none */
+    atomic_llong allocs;  /* allocations charged (refused ones too) */
+    long long fail_at;    /* the allocation (1, 2 ...) to refuse whatever the budget: the torture
+                           * tests' (tests/fuzz/torture.sh); 0: none */
 };
 
 /* Charges this thread's allocations to a (NULL: to none) until the next call; returns the

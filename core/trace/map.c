@@ -683,6 +683,9 @@ static int part_keys(struct map *m, int p)
  * depth key into the tile's list. */
 static int tile_lists(struct map *m, int p)
 {
+    for (int q = 0; q < m->n_parts; q++)
+        if (!m->part_keys[q]) /* its step 1 found no memory (set before this step began) */
+            return SF_ENOMEM;
     const int y0 = (int)((long)m->n_tiles * p / m->n_parts), y1 = (int)((long)m->n_tiles * (p + 1) / m->n_parts);
     size_t most = 0;
     for (int y = y0; y < y1; y++) {

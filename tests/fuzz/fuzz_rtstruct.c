@@ -14,11 +14,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         unsigned char *kept = NULL;
         size_t n = 0;
         if (rtstruct_strip(data, size, &kept, &n, &err) == 0) {
-            if (rtstruct_read(kept, n, &b, &nb, &err) || nb != na) {
+            int again = rtstruct_read(kept, n, &b, &nb, &err); /* (out of memory: the torture test's doing) */
+            if ((again && again != SF_ENOMEM) || (!again && nb != na)) {
                 fprintf(stderr, "the stripped copy reads differently: %d ROIs, then %d (%s)\n", na, nb, err.message);
                 abort();
             }
-            for (int k = 0; k < na; k++)
+            for (int k = 0; !again && k < na; k++)
                 if (a[k].number != b[k].number || a[k].cs.n_slices != b[k].cs.n_slices || strcmp(a[k].name, b[k].name)) {
                     fprintf(stderr, "ROI %d differs in the stripped copy\n", k);
                     abort();
