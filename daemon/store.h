@@ -39,13 +39,15 @@
 #include <stdbool.h>
 #include <stddef.h>
 
+#include "../core/base/err.h"
 #include "job_state.h"
 
 struct store;
 
 /* What a read answers when a stored result or model's bytes no longer match the checksum taken
- * when they were written (damage below the database: a flipped bit on disk): never the bytes. */
-#define STORE_DAMAGED -2
+ * when they were written (damage below the database: a flipped bit on disk): never the bytes.
+ * Core's code, no longer -2, which is also SF_ENOMEM's. */
+#define STORE_DAMAGED SF_EDAMAGED
 
 struct job_rec {
     char id[40];

@@ -16,7 +16,8 @@
     X(SF_ECANCEL,  -5, "cancelled")                                    \
     X(SF_EIO,      -6, "input/output error")                           \
     X(SF_EBACKEND, -7, "library failure")                             \
-    X(SF_ECONFLICT, -8, "conflicts with the resource's state")
+    X(SF_ECONFLICT, -8, "conflicts with the resource's state")        \
+    X(SF_EDAMAGED, -9, "stored bytes no longer match their sum")
 
 enum {
     SF_OK = 0,
