@@ -94,7 +94,7 @@ int main(int argc, char **argv)
     for (int k = 1; k < argc; k++)
         run_path(argv[k]);
 #ifdef TORTURE
-    printf("%ld inputs, %ld runs, %ld kept bytes\n", n_inputs, n_runs, n_kept);
+    printf("%ld inputs, %ld runs, %ld of them kept bytes\n", n_inputs, n_runs, n_kept);
     return n_kept != 0;
 #else
     printf("%ld inputs\n", n_inputs);
