@@ -40,7 +40,7 @@ API_SRC    := $(wildcard api/*.c)
 DAEMON_SRC := $(wildcard daemon/*.c)
 TEST_SRC   := $(wildcard tests/core/*/test_*.c) $(wildcard tests/api/test_*.c)
 TSAN_TESTS := $(B)/tests/daemon/test_jobq $(B)/tests/core/matrix/tsan_fragments $(B)/tests/core/trace/tsan_map
-TESTS_MORE := $(B)/tests/daemon/test_memwrap
+TESTS_MORE := $(B)/tests/daemon/test_memwrap $(B)/tests/daemon/test_store
 
 obj = $(patsubst %.c,$(B)/$(1)/%.o,$(2))
 
@@ -161,6 +161,11 @@ fuzz: deps $(FUZZERS)
 	@FUZZ_SECONDS=$(FUZZ_SECONDS) tests/fuzz/fuzz.sh
 
 # the pool and queue under the thread sanitizer
+# the store conformance suite: SQLite here, both backends in tests/api/store_conformance.sh
+STORE_SRC := daemon/store.c daemon/store_sqlite.c daemon/store_pg.c daemon/store_walmark.c daemon/job_state.c
+$(B)/tests/daemon/test_store: tests/daemon/test_store.c tests/unit.h $(STORE_SRC) $(wildcard daemon/store*.h)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(SAN) -o $@ tests/daemon/test_store.c $(STORE_SRC) -lsqlite3 -lpq -lgnutls -lpthread -lm
 $(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c daemon/jobq.h core/base/mem.c
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/daemon/test_jobq.c daemon/jobq.c core/base/mem.c -lpthread

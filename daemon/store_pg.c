@@ -359,7 +359,7 @@ static int pg_claim(struct store *s, const char *node, double lease_s, bool alon
         get_text(out->id, sizeof out->id, res, 0, 0);
         get_text(out->kind, sizeof out->kind, res, 0, 1);
         out->fence = (long)get_i64(res, 0, 2);
-        out->suspect = PQgetvalue(res, 0, 3)[0] == 't';
+        out->suspect = PQgetvalue(res, 0, 3)[0] != 0; /* results are binary: a boolean is 0 or 1 */
     }
     if (n >= 0)
         PQclear(res);

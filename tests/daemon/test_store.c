@@ -1,0 +1,292 @@
+/* test_store.c - the store conformance suite (issue 43, 8): each backend held to store.h's diagram
+ * directly, not only through HTTP. Every transition of a job and who may make it (fences,
+ * owners), reaps and suspects, cancels in each state, prune with the streamed bodies it removes,
+ * values longer than a piece, models scoped by owner. The backend is STORE_TARGET (a data
+ * directory or a postgresql:// URI; tests/api/store_conformance.sh runs both), else a new SQLite
+ * store in a temporary directory. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "../../daemon/store.h"
+#include "../unit.h"
+
+static struct store *S;
+static char scratch[256];
+static int serial;
+
+/* A new job of owner, queued at created (its id unique in this run and across runs on one store). */
+static void submit(const char *owner, double created, char id[40])
+{
+    struct job_rec r = {0};
+    snprintf(id, 40, "%08x%08x%016d", (unsigned)getpid(), (unsigned)rand(), ++serial);
+    snprintf(r.id, sizeof r.id, "%s", id);
+    snprintf(r.kind, sizeof r.kind, "volume");
+    snprintf(r.format, sizeof r.format, "json");
+    snprintf(r.owner, sizeof r.owner, "%s", owner);
+    r.created = created;
+    r.request = (unsigned char *)"{}";
+    r.request_len = 2;
+    REQUIRE(store_submit(S, &r) == 0);
+}
+
+static enum job_state state_of(const char *id)
+{
+    struct job_rec r;
+    int found = store_get(S, id, false, false, &r);
+    enum job_state st = found == 1 ? r.state : (enum job_state)-1;
+    store_rec_free(&r);
+    return st;
+}
+
+/* Claims queued jobs until id's is claimed (others queued before it by earlier cases are finished). */
+static int claim(const char *id, bool alone, struct job_claim *c)
+{
+    for (int k = 0; k < 1000; k++) {
+        int got = store_claim(S, "node-a", 30, alone, c);
+        if (got != 1 || !strcmp(c->id, id))
+            return got;
+        struct job_end end = {.outcome = JOB_CANCELLED};
+        store_finish(S, c->id, c->fence, &end);
+    }
+    return -1;
+}
+
+TEST(a_job_runs_through_its_states_under_its_fence)
+{
+    char id[40];
+    submit("alice", 1000, id);
+    CHECK(state_of(id) == JOB_QUEUED);
+    struct job_claim c;
+    REQUIRE(claim(id, true, &c) == 1);
+    CHECK(state_of(id) == JOB_RUNNING);
+    bool cancel = true;
+    CHECK(store_heartbeat(S, id, c.fence, 30, 0.5, &cancel) == 1 && !cancel);
+    struct job_end end = {.outcome = JOB_SUCCEEDED, .result = (const unsigned char *)"result", .len = 6,
+                          .type = "text/plain", .meta = "{}", .finished = 2000};
+    CHECK(store_finish(S, id, c.fence + 1, &end) == 0); /* another claim's fence: nothing written */
+    CHECK(state_of(id) == JOB_RUNNING);
+    CHECK(store_finish(S, id, c.fence, &end) == 1);
+    struct job_rec r;
+    REQUIRE(store_get(S, id, false, true, &r) == 1);
+    CHECK(r.state == JOB_SUCCEEDED && r.result_len == 6 && !memcmp(r.result, "result", 6) && r.attempts == 1 &&
+          !strcmp(r.result_type, "text/plain") && r.result_sum[0]);
+    store_rec_free(&r);
+    CHECK(store_heartbeat(S, id, c.fence, 30, 1, &cancel) == 0); /* ended: the claim is gone */
+    CHECK(store_finish(S, id, c.fence, &end) == 0);              /* and ends once */
+}
+
+TEST(a_released_job_is_queued_again_its_attempt_given_back)
+{
+    char id[40];
+    submit("alice", 1001, id);
+    struct job_claim c;
+    REQUIRE(claim(id, true, &c) == 1);
+    CHECK(store_release(S, id, c.fence) == 1 && state_of(id) == JOB_QUEUED);
+    struct job_claim again;
+    REQUIRE(claim(id, true, &again) == 1);
+    CHECK(again.fence != c.fence);
+    CHECK(store_finish(S, id, c.fence, &(struct job_end){.outcome = JOB_CANCELLED}) == 0); /* the old claim */
+    struct job_rec r;
+    REQUIRE(store_get(S, id, false, false, &r) == 1);
+    CHECK(r.attempts == 1);
+    store_rec_free(&r);
+    CHECK(store_finish(S, id, again.fence, &(struct job_end){.outcome = JOB_CANCELLED}) == 1);
+}
+
+TEST(cancel_in_each_state_and_only_by_its_owner)
+{
+    char queued[40], running[40];
+    submit("alice", 1002, queued);
+    CHECK(store_cancel(S, queued, "bob", 1003) == CANCEL_NOT_FOUND);
+    CHECK(store_cancel(S, queued, "alice", 1003) == CANCEL_DONE && state_of(queued) == JOB_CANCELLED);
+    CHECK(store_cancel(S, queued, NULL, 1004) == CANCEL_ENDED);
+    submit("alice", 1005, running);
+    struct job_claim c;
+    REQUIRE(claim(running, true, &c) == 1);
+    CHECK(store_cancel(S, running, "alice", 1006) == CANCEL_ASKED && state_of(running) == JOB_RUNNING);
+    bool cancel = false;
+    CHECK(store_heartbeat(S, running, c.fence, 30, 0.1, &cancel) == 1 && cancel); /* its node hears it */
+    CHECK(store_release(S, running, c.fence) == 1 && state_of(running) == JOB_CANCELLED); /* not queued again */
+    CHECK(store_cancel(S, "0123456789abcdef0123456789abcdef", NULL, 1007) == CANCEL_NOT_FOUND);
+}
+
+static void reaped(const char *id, enum job_state st, void *arg)
+{
+    (void)id, (void)st;
+    ++*(int *)arg;
+}
+
+TEST(a_job_whose_lease_ran_out_is_a_suspect_run_alone)
+{
+    char id[40];
+    submit("alice", 1008, id);
+    struct job_claim c;
+    REQUIRE(claim(id, true, &c) == 1);
+    REQUIRE(store_release(S, id, c.fence) == 1); /* claimed again under a lease that runs out at once */
+    for (int k = 0; k < 1000 && store_claim(S, "node-a", 0.001, true, &c) == 1 && strcmp(c.id, id); k++)
+        store_finish(S, c.id, c.fence, &(struct job_end){.outcome = JOB_CANCELLED});
+    REQUIRE(!strcmp(c.id, id));
+    usleep(100000);
+    int n = 0;
+    CHECK(store_reap(S, (double)time(NULL) + 1, NULL, 3, "{\"status\":500}", reaped, &n) >= 1 && n >= 1);
+    CHECK(state_of(id) == JOB_QUEUED);
+    usleep(2100000); /* its backoff: 1 s after one attempt */
+    CHECK(store_heartbeat(S, id, c.fence, 30, 0.5, &(bool){false}) == 0); /* its old claim is lost */
+    struct job_claim s;
+    CHECK(store_claim(S, "node-b", 30, false, &s) == 0); /* a node running others does not take it */
+    REQUIRE(store_claim(S, "node-b", 30, true, &s) == 1);
+    CHECK(!strcmp(s.id, id) && s.suspect);
+    CHECK(store_finish(S, id, s.fence, &(struct job_end){.outcome = JOB_CANCELLED}) == 1);
+}
+
+static long long held_alice, held_bob;
+
+static void held(const char *owner, long long bytes, void *arg)
+{
+    (void)arg;
+    if (!strcmp(owner, "alice"))
+        held_alice += bytes;
+    else if (!strcmp(owner, "bob"))
+        held_bob += bytes;
+}
+
+TEST(streamed_bodies_are_counted_by_owner_and_go_when_their_job_ends)
+{
+    char path[300], id[40];
+    snprintf(path, sizeof path, "%s/body-XXXXXX", scratch);
+    int fd = mkstemp(path);
+    REQUIRE(fd >= 0);
+    static char body[100000];
+    memset(body, 7, sizeof body);
+    REQUIRE(write(fd, body, sizeof body) == (ssize_t)sizeof body);
+    close(fd);
+    struct job_rec r = {0};
+    snprintf(id, sizeof id, "%08x%08xf%015d", (unsigned)getpid(), (unsigned)rand(), ++serial);
+    snprintf(r.id, sizeof r.id, "%s", id);
+    snprintf(r.kind, sizeof r.kind, "isosurface");
+    snprintf(r.owner, sizeof r.owner, "bob");
+    r.created = 1009;
+    REQUIRE(store_submit_file(S, &r, path) == 0);
+    CHECK(access(path, F_OK) != 0); /* the store took the file */
+    held_alice = held_bob = 0;
+    CHECK(store_uploads_held(S, held, NULL) == 0 && held_bob == (long long)sizeof body && held_alice == 0);
+    char local[1100];
+    REQUIRE(store_request_file(S, id, local, sizeof local) == 1);
+    FILE *f = fopen(local, "rb");
+    static char back[sizeof body + 1];
+    size_t n = f ? fread(back, 1, sizeof back, f) : 0;
+    if (f)
+        fclose(f);
+    CHECK(n == sizeof body && !memcmp(back, body, n));
+    store_request_file_done(S, local);
+    struct job_claim c;
+    REQUIRE(claim(id, true, &c) == 1);
+    CHECK(store_finish(S, id, c.fence, &(struct job_end){.outcome = JOB_FAILED, .error = "{\"status\":422}",
+                                                          .finished = (double)time(NULL)}) == 1);
+    held_bob = 0;
+    CHECK(store_uploads_held(S, held, NULL) == 0 && held_bob == 0); /* ended: no longer held */
+    CHECK(store_prune(S, (double)time(NULL), 365L * 86400, 1000000) == 0); /* its body removed, the job kept */
+    CHECK(state_of(id) == JOB_FAILED &&
+          (store_request_file(S, id, local, sizeof local) != 1 || access(local, F_OK) != 0));
+}
+
+TEST(prune_removes_ended_jobs_by_age_and_count)
+{
+    char old[40], young[40], waiting[40];
+    submit("alice", 1010, old);
+    submit("alice", 1011, young);
+    submit("alice", 1012, waiting);
+    struct job_claim c;
+    REQUIRE(claim(old, true, &c) == 1);
+    CHECK(store_finish(S, old, c.fence, &(struct job_end){.outcome = JOB_CANCELLED, .finished = 100}) == 1);
+    REQUIRE(claim(young, true, &c) == 1);
+    double now = (double)time(NULL);
+    CHECK(store_finish(S, young, c.fence, &(struct job_end){.outcome = JOB_CANCELLED, .finished = now}) == 1);
+    CHECK(store_prune(S, now, 3600, 1000000) == 0);
+    CHECK(state_of(old) == (enum job_state)-1 && state_of(young) == JOB_CANCELLED);
+    CHECK(state_of(waiting) == JOB_QUEUED); /* never a job not ended */
+    CHECK(store_cancel(S, waiting, NULL, now) == CANCEL_DONE);
+}
+
+TEST(a_result_longer_than_a_piece_reads_back_whole)
+{
+    store_set_piece(S, 1000);
+    char id[40];
+    submit("alice", 1013, id);
+    struct job_claim c;
+    REQUIRE(claim(id, true, &c) == 1);
+    static unsigned char big[10007];
+    for (size_t k = 0; k < sizeof big; k++)
+        big[k] = (unsigned char)(k * 31 + 7);
+    CHECK(store_finish(S, id, c.fence, &(struct job_end){.outcome = JOB_SUCCEEDED, .result = big, .len = sizeof big,
+                                                          .type = "application/octet-stream", .finished = 4000}) == 1);
+    struct job_rec r;
+    REQUIRE(store_get(S, id, false, true, &r) == 1);
+    CHECK(r.result_len == sizeof big && !memcmp(r.result, big, sizeof big));
+    store_rec_free(&r);
+    store_set_piece(S, STORE_PIECE);
+}
+
+static int listed;
+static void count(const char *resource, void *arg)
+{
+    (void)resource, (void)arg;
+    listed++;
+}
+
+TEST(models_are_scoped_by_owner)
+{
+    char id[40], job[40];
+    snprintf(id, sizeof id, "%08x%08xm%015d", (unsigned)getpid(), (unsigned)rand(), ++serial);
+    submit("alice", 1014, job);
+    const char *resource = "{\"id\":\"m\"}";
+    struct model_rec m = {id, job, "skull", "alice", 1014, "{\"slices\":[]}", 13, resource, NULL};
+    REQUIRE(store_model_put(S, &m) == 0);
+    char *res = NULL, *src = NULL;
+    size_t n = 0;
+    CHECK(store_model_get(S, id, "bob", &res, &src, &n) == 0 && !res);
+    CHECK(store_model_get(S, id, "alice", &res, &src, &n) == 1 && res && !strcmp(res, resource) && n == 13 &&
+          src && !memcmp(src, "{\"slices\":[]}", 13));
+    free(res), free(src);
+    listed = 0;
+    CHECK(store_model_list(S, "bob", 0, count, NULL) == 0 && listed == 0);
+    CHECK(store_model_list(S, "alice", 0, count, NULL) == 0 && listed >= 1);
+    CHECK(store_model_delete(S, id, "bob") == 0);
+    CHECK(store_model_delete(S, id, "alice") == 1 && store_model_get(S, id, NULL, &res, &src, &n) == 0);
+    CHECK(store_cancel(S, job, NULL, 1015) == CANCEL_DONE);
+}
+
+int main(void)
+{
+    srand((unsigned)time(NULL));
+    const char *target = getenv("STORE_TARGET");
+    snprintf(scratch, sizeof scratch, "/tmp/test_store-XXXXXX");
+    if (!mkdtemp(scratch)) {
+        perror("mkdtemp");
+        return 1;
+    }
+    char msg[600];
+    if (store_open(target && *target ? target : scratch, scratch, &S, msg, sizeof msg)) {
+        fprintf(stderr, "store_open: %s\n", msg);
+        return 1;
+    }
+    printf("store: %s\n", store_backend(S));
+    RUN(a_job_runs_through_its_states_under_its_fence);
+    RUN(a_released_job_is_queued_again_its_attempt_given_back);
+    RUN(cancel_in_each_state_and_only_by_its_owner);
+    RUN(a_job_whose_lease_ran_out_is_a_suspect_run_alone);
+    RUN(streamed_bodies_are_counted_by_owner_and_go_when_their_job_ends);
+    RUN(prune_removes_ended_jobs_by_age_and_count);
+    RUN(a_result_longer_than_a_piece_reads_back_whole);
+    RUN(models_are_scoped_by_owner);
+    store_close(S);
+    char cmd[300];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", scratch);
+    if (system(cmd)) {
+        /* a temporary directory left behind is no failure of the store */
+    }
+    UNIT_END();
+}
