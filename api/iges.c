@@ -997,6 +997,8 @@ static int loop_add(struct iges *g, struct loops *l, size_t loop_start, struct p
         }
     }
     for (size_t k = 0; k < n && !rc; k++) {
+        if (k && k % POLL_POINTS == 0 && (rc = poll_cancel(g, 0)))
+            break;
         const double *q = uv[reverse ? n - 1 - k : k];
         if (l->n > loop_start && q[0] == l->uv[l->n - 1][0] && q[1] == l->uv[l->n - 1][1])
             continue;
@@ -1304,7 +1306,7 @@ static int add_object(struct iges *g, struct scene *sc, const struct de *sde, co
         o->trim = calloc(1, sizeof *o->trim);
         if (!o->trim)
             rc = sf_fail(g->err, SF_ENOMEM, where, "out of memory");
-        else if ((rc = trim_build(o->trim, (const double(*)[2])l.uv, l.counts, (int)l.n_loops, where, g->err))) {
+        else if ((rc = trim_build(o->trim, (const double(*)[2])l.uv, l.counts, (int)l.n_loops, where, g->pr, g->err))) {
             free(o->trim);
             o->trim = NULL;
         }

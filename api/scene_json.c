@@ -168,7 +168,7 @@ static int trim_loops(json_t *j, const char *where, struct object *o, struct sf_
     if (!rc && !(o->trim = calloc(1, sizeof *o->trim)))
         rc = sf_fail(err, SF_ENOMEM, where, "out of memory");
     snprintf(p, sizeof p, "%s/trim", where);
-    if (!rc && (rc = trim_build(o->trim, (const double(*)[2])pts, counts, (int)nl, p, err))) { /* (nl < total / 3) */
+    if (!rc && (rc = trim_build(o->trim, (const double(*)[2])pts, counts, (int)nl, p, NULL, err))) { /* (nl < total / 3) */
         free(o->trim);
         o->trim = NULL;
     }

@@ -2,6 +2,7 @@
 #include "trim.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -30,12 +31,16 @@ static int cell_row(const struct trim *t, double v)
     return f < 0 ? 0 : f >= t->gv ? t->gv - 1 : (int)f;
 }
 
-/* Bins every segment into the cells its bounding box meets (count when fill is false). */
-static size_t bin(struct trim *t, bool fill, uint32_t *at)
+/* Bins every segment into the cells its bounding box meets (count when fill is false); SIZE_MAX
+ * when pr asks to stop (polled every TRIM_POLL segments). */
+#define TRIM_POLL 65536
+static size_t bin(struct trim *t, bool fill, uint32_t *at, const struct sf_progress *pr)
 {
     size_t total = 0;
     for (int l = 0; l < t->n_loops; l++)
         for (size_t k = t->start[l]; k + 1 < t->start[l + 1]; k++) {
+            if (k % TRIM_POLL == 0 && sf_poll(pr, 0, NULL))
+                return SIZE_MAX;
             const double *a = t->pt[k], *b = t->pt[k + 1];
             int i0 = cell_col(t, fmin(a[0], b[0])), i1 = cell_col(t, fmax(a[0], b[0]));
             int j0 = cell_row(t, fmin(a[1], b[1])), j1 = cell_row(t, fmax(a[1], b[1]));
@@ -87,7 +92,7 @@ static void centres(struct trim *t)
 }
 
 int trim_build(struct trim *t, const double (*pts)[2], const size_t *counts, int n_loops, const char *where,
-               struct sf_err *err)
+               const struct sf_progress *pr, struct sf_err *err)
 {
     memset(t, 0, sizeof *t);
     size_t n = 0;
@@ -136,9 +141,11 @@ int trim_build(struct trim *t, const double (*pts)[2], const size_t *counts, int
     t->u0 = lo[0] - mu, t->v0 = lo[1] - mv;
     t->du = (hi[0] - lo[0] + 2 * mu) / g, t->dv = (hi[1] - lo[1] + 2 * mv) / g;
     size_t cells = (size_t)g * g;
-    if (bin(t, false, NULL) > TRIM_MAX_ENTRIES) {
+    size_t entries = bin(t, false, NULL, pr);
+    if (entries > TRIM_MAX_ENTRIES) {
         trim_free(t);
-        return sf_fail(err, SF_ELIMIT, where, "trim loops too long across their bounds to index");
+        return entries == SIZE_MAX ? sf_fail(err, SF_ECANCEL, where, "cancelled")
+                                   : sf_fail(err, SF_ELIMIT, where, "trim loops too long across their bounds to index");
     }
     for (size_t c = 0; c < cells; c++)
         t->cell_first[c + 1] += t->cell_first[c];
@@ -150,8 +157,12 @@ int trim_build(struct trim *t, const double (*pts)[2], const size_t *counts, int
         return sf_fail(err, SF_ENOMEM, where, "out of memory");
     }
     memcpy(at, t->cell_first, sizeof *at * cells);
-    bin(t, true, at);
+    size_t filled = bin(t, true, at, pr);
     free(at);
+    if (filled == SIZE_MAX) {
+        trim_free(t);
+        return sf_fail(err, SF_ECANCEL, where, "cancelled");
+    }
     centres(t);
     return 0;
 }

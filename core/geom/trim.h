@@ -36,10 +36,11 @@ struct trim {
 };
 
 /* Takes loops (n_loops of them; loop k has counts[k] >= 3 points at pts[...], consecutive) and
- * builds the index. The loops are copied. Returns 0, SF_ENOMEM, or SF_ELIMIT / SF_EINVAL (too many
- * points, a loop of fewer than 3, a coordinate not finite) with err's pointer where. */
+ * builds the index. The loops are copied. Returns 0, SF_ENOMEM, SF_ECANCEL (pr, polled as the
+ * segments are binned, asked to stop; NULL: never), or SF_ELIMIT / SF_EINVAL (too many points, a
+ * loop of fewer than 3, a coordinate not finite) with err's pointer where. */
 int trim_build(struct trim *t, const double (*pts)[2], const size_t *counts, int n_loops, const char *where,
-               struct sf_err *err);
+               const struct sf_progress *pr, struct sf_err *err);
 void trim_free(struct trim *t);
 
 bool trim_contains(const struct trim *t, double u, double v);

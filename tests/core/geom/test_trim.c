@@ -49,7 +49,7 @@ TEST(points_agree_with_brute_force)
     shape();
     struct trim t;
     struct sf_err err = {0};
-    CHECK(trim_build(&t, (const double(*)[2])pts, counts, 3, "/x", &err) == 0);
+    CHECK(trim_build(&t, (const double(*)[2])pts, counts, 3, "/x", NULL, &err) == 0);
     int wrong = 0, n_in = 0;
     for (int k = 0; k < 200000; k++) {
         double u = -0.5 + 5 * uniform(), v = -0.5 + 4 * uniform();
@@ -79,7 +79,7 @@ TEST(boxes_classified_hold_at_every_sample)
 {
     shape();
     struct trim t;
-    CHECK(trim_build(&t, (const double(*)[2])pts, counts, 3, "", NULL) == 0);
+    CHECK(trim_build(&t, (const double(*)[2])pts, counts, 3, "", NULL, NULL) == 0);
     int n[3] = {0}, wrong = 0;
     for (int k = 0; k < 3000; k++) {
         double w = 0.5 * uniform() * uniform(), u0 = -0.3 + 4.6 * uniform(), v0 = -0.3 + 3.6 * uniform();
@@ -106,7 +106,7 @@ TEST(box_areas_are_exact_for_the_polylines)
 {
     shape();
     struct trim t;
-    CHECK(trim_build(&t, (const double(*)[2])pts, counts, 3, "", NULL) == 0);
+    CHECK(trim_build(&t, (const double(*)[2])pts, counts, 3, "", NULL, NULL) == 0);
     double c[2];
     /* the outer square's edges on the box's own edges, and through it */
     CHECK_NEAR(trim_box_moments(&t, 0, 0.5, 0, 0.5, c), 0.25, 1e-12);
@@ -140,20 +140,20 @@ TEST(bad_loops_are_refused)
     struct sf_err err = {0};
     const double two[2][2] = {{0, 0}, {1, 1}};
     size_t c2 = 2;
-    CHECK(trim_build(&t, two, &c2, 1, "/entities/D7", &err) == SF_EINVAL);
+    CHECK(trim_build(&t, two, &c2, 1, "/entities/D7", NULL, &err) == SF_EINVAL);
     CHECK_STR(err.pointer, "/entities/D7");
     const double flat[3][2] = {{0, 0}, {1, 0}, {2, 0}};
     size_t c3 = 3;
     err = (struct sf_err){0};
-    CHECK(trim_build(&t, flat, &c3, 1, "", &err) == SF_EINVAL);
+    CHECK(trim_build(&t, flat, &c3, 1, "", NULL, &err) == SF_EINVAL);
     const double nan3[3][2] = {{0, 0}, {1, NAN}, {2, 1}};
     err = (struct sf_err){0};
-    CHECK(trim_build(&t, nan3, &c3, 1, "", &err) == SF_EINVAL);
+    CHECK(trim_build(&t, nan3, &c3, 1, "", NULL, &err) == SF_EINVAL);
     size_t big = TRIM_MAX_POINTS + 1;
     err = (struct sf_err){0};
-    CHECK(trim_build(&t, two, &big, 1, "", &err) == SF_ELIMIT); /* refused before any point is read */
+    CHECK(trim_build(&t, two, &big, 1, "", NULL, &err) == SF_ELIMIT); /* refused before any point is read */
     err = (struct sf_err){0};
-    CHECK(trim_build(&t, two, &c2, 0, "", &err) == SF_EINVAL);
+    CHECK(trim_build(&t, two, &c2, 0, "", NULL, &err) == SF_EINVAL);
 }
 
 int main(void)
