@@ -8,8 +8,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
+#include "../core/base/clock.h"
 void matrix_request_free(struct matrix_request *r)
 {
     for (int k = 0; k < 6; k++)
@@ -145,13 +145,6 @@ out:
     return rc;
 }
 
-static double clock_ms(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return t.tv_sec * 1e3 + t.tv_nsec / 1e6;
-}
-
 int matrix_build(const struct matrix_request *r, struct trimesh *m, struct matrix_stats *st, double *mesh_ms,
                  struct sf_err *err)
 {
@@ -167,9 +160,9 @@ int matrix_build(const struct matrix_request *r, struct trimesh *m, struct matri
     for (int a = 0; a < 3; a++)
         d[a] = (r->mm.hi[a] - r->mm.lo[a]) / n[a];
     struct matrix_stats counts;
-    double t0 = clock_ms();
+    double t0 = sf_now_ms();
     if (!rc && !(rc = (r->chamfer ? matrix_mesh : matrix_fragments)(n, vox, r->mm.lo, d, m, st, err))) {
-        *mesh_ms = clock_ms() - t0;
+        *mesh_ms = sf_now_ms() - t0;
         matrix_counts(&r->mm, &counts);
         st->voxels = counts.voxels, st->base_voxels = counts.base_voxels, st->redundant_voxels = counts.redundant_voxels;
         if (!m->n_tri && st->dropped_voxels)

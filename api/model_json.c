@@ -8,8 +8,8 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
+#include "../core/base/clock.h"
 #include "../core/geom/enclosed.h"
 #include "../core/contour/solid.h"
 #include "dicom_stl.h"
@@ -21,13 +21,6 @@
 #include "scene_io.h"
 
 #define SHELL_GAP_REL 1e-4 /* trimmed surfaces meet where their boundaries come this close, of the bounds' diagonal */
-
-static double now_ms(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
-}
 
 static char *dump(json_t *o, struct sf_err *err)
 {
@@ -88,24 +81,24 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
     mo.unfold = unfold;
     bool curves = mo.method == MODEL_PARABOLIC || mo.method == MODEL_LINEAR_PARABOLIC;
     mo.closed = curves;
-    double t1 = now_ms();
+    double t1 = sf_now_ms();
     if (solid_build(&cs, mo, caps_of(req->caps), &sd, err))
         return NULL;
     /* the curve methods' exact volume straight from the curves, tube by tube (the closed form, made
      * by solid_build from the curves it fitted), and the ends as built; the grid methods' is the
      * quadrature below (exact for polynomial patches). Timed: fitting the curves and the closed
      * form ("volume": what the volume alone costs), the rest of solid_build ("fit": the patches) */
-    double t2 = now_ms(), closed = 0.0, volume_ms = 0.0;
+    double t2 = sf_now_ms(), closed = 0.0, volume_ms = 0.0;
     for (int c = 0; c < sd.n_tubes && curves; c++) {
         const struct tube *tb = &sd.tubes[c];
         closed += (tb->hole ? -tb->side.volume : tb->side.volume) + tb->volume_ends;
         volume_ms += tb->side.ms;
     }
     /* the divergence theorem over every patch as a cross-check, the area and the bounds */
-    double t3 = now_ms();
+    double t3 = sf_now_ms();
     struct solid_measures all;
     solid_measure(&sd, &all);
-    double t4 = now_ms();
+    double t4 = sf_now_ms();
     if (!curves)
         closed = all.volume;
     size_t n_patches = sd.set.n;
@@ -210,7 +203,7 @@ static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, b
         v += sign[k] * vol[k];
     for (int k = 0; !rc && k < sc->n_objects; k++)
         turned += (v < 0 ? -sign[k] : sign[k]) < 0;
-    double t2 = now_ms();
+    double t2 = sf_now_ms();
     json_t *list = rc ? NULL : json_array();
     for (int k = 0; list && trimmed && k < sc->n_objects; k++) {
         scene_object_pointer(sc, k, where, sizeof where);
@@ -237,7 +230,7 @@ static int trimmed_figures(const struct scene *sc, const struct patch_set *ps, b
 static int scene_figures(const char *buf, size_t len, const char *format, const struct sf_progress *pr, char **json,
                          struct sf_err *err)
 {
-    double t0 = now_ms();
+    double t0 = sf_now_ms();
     struct scene sc;
     enum image_format img;
     /* an IGES part's loops, and the matching of their points, stop at a cancel */
@@ -249,7 +242,7 @@ static int scene_figures(const char *buf, size_t len, const char *format, const 
         return rc;
     struct patch_set ps;
     struct enclosed e;
-    double t1 = now_ms();
+    double t1 = sf_now_ms();
     if ((rc = scene_patches(&sc, &ps, err))) {
         scene_free(&sc);
         return rc;
@@ -270,7 +263,7 @@ static int scene_figures(const char *buf, size_t len, const char *format, const 
         rc = sf_fail(err, SF_EINVAL, where, "neighbouring patches face opposite ways across %zu edges (this object has one)",
                      e.flipped_edges / 2);
     }
-    double t2 = now_ms(), v = fabs(e.volume);
+    double t2 = sf_now_ms(), v = fabs(e.volume);
     if (!rc)
         *json = dump(json_pack("{s:s, s:I, s:b, s:s, s:f, s:f, s:{s:f}, s:[[f,f,f],[f,f,f]], s:{s:f, s:f}}", "kind",
                                "patches", "patches", (json_int_t)ps.n, "closed", 1, "orientation",
@@ -288,7 +281,7 @@ static int scene_figures(const char *buf, size_t len, const char *format, const 
 static int matrix_model(const char *buf, size_t len, const struct model_sink *sink, char **json, char location[64],
                         struct sf_err *err)
 {
-    double t0 = now_ms();
+    double t0 = sf_now_ms();
     struct matrix_request r;
     int rc = matrix_parse(buf, len, &r, err);
     if (rc)
@@ -301,10 +294,10 @@ static int matrix_model(const char *buf, size_t len, const struct model_sink *si
     double mesh_ms = 0;
     if (!(rc = matrix_build(&r, &m, &st, &mesh_ms, err)))
         rc = trimesh_stats(&m, &ts, err);
-    double t1 = now_ms();
+    double t1 = sf_now_ms();
     if (!rc && sink && sink->id)
         sink->id(sink->ctx, 0, id);
-    if (!rc && !(*json = matrix_model_json(id, &r, &m, &ts, &st, mesh_ms, t1 - t0, now_ms() - t0, err)))
+    if (!rc && !(*json = matrix_model_json(id, &r, &m, &ts, &st, mesh_ms, t1 - t0, sf_now_ms() - t0, err)))
         rc = err->code;
     if (!rc && sink && !(rc = mesh_pack(&m, &packed, &packed_len, err)) &&
         sink->put(sink->ctx, id, r.name, packed, packed_len, *json))
@@ -381,7 +374,7 @@ typedef int (*model_fn)(void *ctx, int k, json_t *fig, const struct contour_set 
 static int each_model(const char *buf, size_t len, const char *format, const char *options, model_fn fn, void *ctx,
                       const struct sf_progress *pr, json_t **list, json_t **skipped, bool *single, struct sf_err *err)
 {
-    double t0 = now_ms();
+    double t0 = sf_now_ms();
     *list = json_array();
     *skipped = json_array();
     if (!*list || !*skipped)
@@ -446,7 +439,7 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
         json_array_append_new(*list, o);
         if (fn)
             rc = fn(ctx, (int)json_array_size(*list) - 1, o, &rois[k].cs, &req, err);
-        t0 = now_ms();
+        t0 = sf_now_ms();
     }
     rtstruct_free(rois, n);
     if (!rc && json_array_size(*list) == 0)

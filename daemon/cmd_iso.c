@@ -11,20 +11,13 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <time.h>
 
+#include "../core/base/clock.h"
 #include "../api/iso_json.h"
 #include "../api/matrix_json.h"
 #include "../api/mesh_io.h"
 #include "../api/volume_io.h"
 #include "cli.h"
-
-static double now_ms(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
-}
 
 /* fn(ctx, k) for k in [0, n) on `threads` threads, each taking the next k. */
 struct pass {
@@ -71,7 +64,7 @@ static void adapt_slab(void *ctx, int s)
 static int extract(const struct volume *v, int threads, struct trimesh *m, struct iso_adapt_stats *as, double *ms,
                    struct sf_err *err)
 {
-    double t0 = now_ms();
+    double t0 = sf_now_ms();
     struct iso_opts o = volume_iso_opts(v);
     if (volume_adaptive(v)) { /* the adaptive hierarchy: its phases' slabs on the threads */
         struct iso_adapt *a;
@@ -84,7 +77,7 @@ static int extract(const struct volume *v, int threads, struct trimesh *m, struc
             iso_adapt_between(a, p);
         }
         rc = iso_adapt_end(a, m, as, err);
-        *ms = now_ms() - t0;
+        *ms = sf_now_ms() - t0;
         return rc;
     }
     struct iso_job *j;
@@ -98,7 +91,7 @@ static int extract(const struct volume *v, int threads, struct trimesh *m, struc
     }
     parallel(iso_n_slabs(j), threads, emit_slab, j);
     rc = iso_end(j, m, err);
-    *ms = now_ms() - t0;
+    *ms = sf_now_ms() - t0;
     return rc;
 }
 
@@ -213,7 +206,7 @@ int cmd_isosurface(int argc, char **argv)
         cmd_isosurface_usage(stderr);
         return 2;
     }
-    double t0 = now_ms();
+    double t0 = sf_now_ms();
     size_t len;
     struct stat fs;
     bool dir = stat(argv[1], &fs) == 0 && S_ISDIR(fs.st_mode);
@@ -230,7 +223,7 @@ int cmd_isosurface(int argc, char **argv)
                      "object to surfd serve (POST /isosurface)");
         volume_free(&v);
     }
-    double t_read = now_ms();
+    double t_read = sf_now_ms();
     if (!rc)
         volume_sample(&v, 0, v.g.nz, NULL, NULL); /* an FRep's grid (on this thread: the daemon's job uses its pool) */
     if (!strcmp(argv[0], "matrix")) { /* surfd matrix: the volume's six relief matrices (seed 003) */
@@ -247,7 +240,7 @@ int cmd_isosurface(int argc, char **argv)
             fprintf(stderr, "surfd: %s: %s%s%s\n", argv[1], err.message, err.pointer[0] ? " at " : "", err.pointer);
         return rc ? 1 : 0;
     }
-    double t_sampled = now_ms();
+    double t_sampled = sf_now_ms();
     iso_init();
     struct trimesh m = {0};
     struct iso_adapt_stats as = {0};
@@ -261,7 +254,7 @@ int cmd_isosurface(int argc, char **argv)
         if (r == 0)
             first = ms;
     }
-    double t_extract = now_ms();
+    double t_extract = sf_now_ms();
     if (!rc)
         rc = volume_mesh_empty(&v, &m, &err);
     if (!rc && v.oblique)
@@ -269,7 +262,7 @@ int cmd_isosurface(int argc, char **argv)
     struct trimesh_stats st;
     if (!rc)
         rc = trimesh_stats(&m, &st, &err);
-    double t_measure = now_ms();
+    double t_measure = sf_now_ms();
     char *json = NULL, *file = NULL;
     size_t file_len = 0;
     const char *ext = out ? strrchr(out, '.') : NULL;

@@ -9,9 +9,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 
+#include "../core/base/clock.h"
 #include "../api/image.h"
 #include "../api/png.h"
 #include "../api/render_request.h"
@@ -61,13 +61,6 @@ static void share_out(struct band_work *w, int n_threads)
     band_worker(w);
     for (int k = 1; k < n_threads && k < w->n; k++)
         pthread_join(tid[k], NULL);
-}
-
-static double now_ms(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
 }
 
 static bool camera_flag(const char *name, const char *const *flags, int n)
@@ -257,7 +250,7 @@ int cmd_render(int argc, char **argv)
         scene_free(&sc);
         return 1;
     }
-    double i0 = now_ms();
+    double i0 = sf_now_ms();
     if (img_fmt != IMG_PNG && image_init(&err)) { /* a daemon pays this once: keep it out of encode_ms */
         fprintf(stderr, "surfd: %s\n", err.message);
         frame_free(fr);
@@ -265,18 +258,18 @@ int cmd_render(int argc, char **argv)
         scene_free(&sc);
         return 1;
     }
-    double init_ms = now_ms() - i0;
+    double init_ms = sf_now_ms() - i0;
     struct band_work w = {.what = BANDS, .n = (sc.height + BAND_ROWS - 1) / BAND_ROWS, .fr = fr, .height = sc.height,
                           .lock = PTHREAD_MUTEX_INITIALIZER};
-    double t0 = now_ms();
+    double t0 = sf_now_ms();
     share_out(&w, n_threads);
-    double render_ms = now_ms() - t0;
+    double render_ms = sf_now_ms() - t0;
 
     struct frame_image img;
     frame_image(fr, &img);
     unsigned char *bytes = NULL;
     size_t n_bytes = 0;
-    double e0 = now_ms();
+    double e0 = sf_now_ms();
     struct band_work deflate = {.what = DEFLATE, .png = img_fmt == IMG_PNG ? png_bands_new(img.srgb8, img.width, img.height, png_band_rows(img.width)) : NULL};
     if (deflate.png) { /* the PNG deflated by bands on the threads (png.h) */
         deflate.n = png_bands_n(deflate.png);
@@ -286,7 +279,7 @@ int cmd_render(int argc, char **argv)
     } else {
         rc = image_encode(&img, img_fmt, &bytes, &n_bytes, &err);
     }
-    double encode_ms = now_ms() - e0;
+    double encode_ms = sf_now_ms() - e0;
     if (!rc) {
         FILE *f = fopen(out, "wb");
         if (!f || fwrite(bytes, 1, n_bytes, f) != n_bytes) {

@@ -15,8 +15,8 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
+#include "../base/clock.h"
 #include "../base/gauss.h"
 #include "../base/mem.h"
 
@@ -1287,25 +1287,18 @@ static int curves_fit(const struct contour_set *cs, bool lsq, bool polar, bool u
 static int closed_form(const struct contour_set *cs, bool lsq, const struct curve_poly *cp, const bool *ruled,
                        double *volume, double end_area[2]);
 
-static double now_ms(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
-}
-
 /* Parabolic or linear-parabolic (eq. 32 in both directions), exactly as bicubic patches: each pair's
  * nets (pair_nets), z linear in v; with cl, the closed form from the same curves. */
 static int curve_surface(const struct contour_set *cs, bool lsq, struct model_opts o, struct patch_set *set,
                          struct model_closed *cl, struct sf_err *err)
 {
-    double t0 = now_ms(), ends[2];
+    double t0 = sf_now_ms(), ends[2];
     int n = cs->n_slices;
     struct fitted f;
     struct pair_nets pn = {0};
     int rc = curves_fit(cs, lsq, o.polar, o.unfold, &f);
     if (!rc && cl && !(rc = closed_form(cs, lsq, f.cp, f.ruled, &cl->volume, ends)))
-        cl->ms = now_ms() - t0;
+        cl->ms = sf_now_ms() - t0;
     for (int k = 0; k + 1 < n && !rc && !(rc = sf_poll(o.progress, (double)k / n, err)); k++) {
         if ((rc = pair_nets(cs, lsq, f.ruled && f.ruled[k], f.cp, k, &pn)))
             break;

@@ -14,8 +14,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
+#include "../base/clock.h"
 #include "camera.h"
 #include "map.h"
 #include "solve.h"
@@ -51,13 +51,6 @@ struct frame {
     unsigned char bg8[3 * SHADE_CHUNK]; /* a run of background pixels in it (each band starts its rows so) */
     struct srgb_table *srgb;
 };
-
-static double now_ms(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
-}
 
 void render_stats_add(struct render_stats *into, const struct render_stats *s)
 {
@@ -244,7 +237,7 @@ void frame_part(struct frame *fr, int step, int p) { map_part(fr->map, step, p);
 int frame_end(struct frame *fr, struct sf_err *err)
 {
     int rc = fr->map ? map_end(fr->map, err) : 0;
-    fr->prepare_ms = now_ms() - fr->t0;
+    fr->prepare_ms = sf_now_ms() - fr->t0;
     return rc;
 }
 
@@ -258,7 +251,7 @@ int frame_finish(struct frame *fr, struct sf_err *err)
 
 static int prepare(const struct scene *sc, struct bvh_device *dev, bool whole, struct frame **out, struct sf_err *err)
 {
-    double t0 = now_ms();
+    double t0 = sf_now_ms();
     *out = NULL;
     int rc = scene_validate(sc, err);
     if (rc)
@@ -326,7 +319,7 @@ int frame_begin(const struct scene *sc, struct bvh_device *dev, struct frame **o
 static int prepare_from(const struct scene *sc, const struct frame *base, bool whole, struct frame **out,
                         struct sf_err *err)
 {
-    double t0 = now_ms();
+    double t0 = sf_now_ms();
     *out = NULL;
     int rc = scene_validate(sc, err);
     if (rc)
