@@ -997,7 +997,7 @@ static int loop_add(struct iges *g, struct loops *l, size_t loop_start, struct p
         }
     }
     for (size_t k = 0; k < n && !rc; k++) {
-        if (k && k % POLL_POINTS == 0 && (rc = poll_cancel(g, 0)))
+        if (k && k % POLL_POINTS == 0 && (rc = poll_cancel(g, n - k))) /* (as counted: the piece's points) */
             break;
         const double *q = uv[reverse ? n - 1 - k : k];
         if (l->n > loop_start && q[0] == l->uv[l->n - 1][0] && q[1] == l->uv[l->n - 1][1])
@@ -1302,11 +1302,16 @@ static int add_object(struct iges *g, struct scene *sc, const struct de *sde, co
         rc = owner_loops(g, &l, &on, whole, owner, o->name, sizeof o->name);
     else if (!whole) /* U/V ranges within the knots: the rectangle they span */
         rc = loop_rect(g, &l, on.dom, where);
+    /* trim_build polls where the count stands now: the progress never goes back */
+    struct sf_span at = {g->pr, g->n_est > 0 ? fmin(1.0, g->n_trim / g->n_est) : 0, 0};
+    at.hi = at.lo;
+    const struct sf_progress at_pr = {sf_span_poll, &at};
     if (!rc && l.n_loops) {
         o->trim = calloc(1, sizeof *o->trim);
         if (!o->trim)
             rc = sf_fail(g->err, SF_ENOMEM, where, "out of memory");
-        else if ((rc = trim_build(o->trim, (const double(*)[2])l.uv, l.counts, (int)l.n_loops, where, g->pr, g->err))) {
+        else if ((rc = trim_build(o->trim, (const double(*)[2])l.uv, l.counts, (int)l.n_loops, where,
+                                  g->pr ? &at_pr : NULL, g->err))) {
             free(o->trim);
             o->trim = NULL;
         }
