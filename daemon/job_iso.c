@@ -128,9 +128,9 @@ static int begin_extract(struct iso_work *w, int *n_bands)
     /* what the request's size lets it make: real scans make under 1 triangle a byte (the CT head's
      * gzip NRRD 0.17, the MRI's 0.43), gzip label maps 3 to 5; a 43 KB gzip NRRD of a striped
      * field (surface in every cell) would make 916, 39 M triangles and 3 GB */
-    double per_byte = (double)w->svc->cfg.max_triangles_per_byte * (double)w->input_len;
-    if (w->svc->cfg.max_triangles_per_byte && fmax(per_byte, ISO_TRIANGLES_ANY_INPUT) < (double)o.max_triangles) {
-        o.max_triangles = (size_t)fmax(per_byte, ISO_TRIANGLES_ANY_INPUT);
+    double by_size = fmax((double)w->svc->cfg.max_triangles_per_byte * (double)w->input_len, ISO_TRIANGLES_ANY_INPUT);
+    if (w->svc->cfg.max_triangles_per_byte && by_size < (double)o.max_triangles) {
+        o.max_triangles = (size_t)by_size;
         snprintf(w->tri_by, sizeof w->tri_by, "what a request of %zu bytes may make (max-triangles-per-byte, %ld a byte,"
                  " %d M at least)", w->input_len, w->svc->cfg.max_triangles_per_byte, ISO_TRIANGLES_ANY_INPUT / 1000000);
         o.max_triangles_by = w->tri_by;

@@ -54,9 +54,8 @@ bool mem_charge(size_t n)
     struct mem_account *a = current;
     if (!a)
         return true;
-    long long nth = atomic_fetch_add_explicit(&a->allocs, 1, memory_order_relaxed) + 1;
-    if (a->fail_at && nth == a->fail_at)
-        return refuse(a, n > (size_t)LLONG_MAX ? LLONG_MAX : (long long)n);
+    if (a->fail_at && atomic_fetch_add_explicit(&a->allocs, 1, memory_order_relaxed) + 1 == a->fail_at)
+        return refuse(a, n > (size_t)LLONG_MAX ? LLONG_MAX : (long long)n); /* (counted for tests only) */
     if (a->budget && n > (size_t)a->budget)
         return refuse(a, n > (size_t)LLONG_MAX ? LLONG_MAX : (long long)n);
     long long m = (long long)n; /* under a budget, or from an allocator that cannot give 2^63 */

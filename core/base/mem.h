@@ -24,9 +24,10 @@ struct mem_account {
     atomic_llong peak;
     atomic_llong refused; /* the size of the last allocation refused for the budget; 0: none */
     long long budget;     /* bytes; 0: none */
-    atomic_llong allocs;  /* allocations charged (refused ones too) */
+    atomic_llong allocs;  /* allocations charged (refused ones too), counted while fail_at is set */
     long long fail_at;    /* the allocation (1, 2 ...) to refuse whatever the budget: the torture
-                           * tests' (tests/fuzz/torture.sh); 0: none */
+                           * tests' (tests/fuzz/torture.sh; LLONG_MAX: only count); 0: none, and
+                           * nothing counted (the jobs' allocations pay no more than held's add) */
 };
 
 /* Charges this thread's allocations to a (NULL: to none) until the next call; returns the

@@ -2,7 +2,7 @@
  * directly, not only through HTTP. Every transition of a job and who may make it (fences,
  * owners), reaps and suspects, cancels in each state, prune with the streamed bodies it removes,
  * values longer than a piece, models scoped by owner. The backend is STORE_TARGET (a data
- * directory or a postgresql:// URI; tests/api/store_conformance.sh runs both), else a new SQLite
+ * directory or a postgresql:// URI; tests/api/store_conformance.sh runs it on PostgreSQL), else a new SQLite
  * store in a temporary directory. */
 #include <stdio.h>
 #include <stdlib.h>
