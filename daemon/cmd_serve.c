@@ -173,6 +173,10 @@ int cmd_serve(int argc, char **argv)
         fprintf(stderr, "surfd serve: cannot read what the store holds of each owner's uploads\n");
         goto out_free_device;
     }
+    if (!(svc.frames = frames_open((size_t)svc.cfg.frame_cache))) {
+        fprintf(stderr, "surfd serve: out of memory\n");
+        goto out_free_device;
+    }
     iso_init();
     if (!svc.cfg.job_memory)
         svc.cfg.job_memory = job_memory_share(threads);
@@ -232,10 +236,10 @@ int cmd_serve(int argc, char **argv)
     service_stop(&svc); /* heartbeats went on while the drain ran; the draining flag stopped claims */
     server_stop(server);
     jobq_free(svc.q);
-    frames_free_all(&svc); /* after the pool: no job holds one */
     LOG(LOG_INFO, "stopped");
     rc = 0;
 out_free_device:
+    frames_close(svc.frames); /* after the pool: no job holds one */
     shares_free(svc.shares);
     bvh_device_free(svc.dev);
 out_close_store:

@@ -101,7 +101,7 @@ static int prepare_view(struct render_work *w, const struct job_rec *rec, const 
     if (view_key(w->svc, id, NULL, mesh, key))
         return 1;
     struct model_build b = {w->svc, rec, mesh};
-    if (!(w->cached = frames_take(w->svc, key, build_model, &b, &w->err)))
+    if (!(w->cached = frames_take(w->svc->frames, key, build_model, &b, &w->err)))
         return -1;
     w->sc.objects = w->cached->sc.objects, w->sc.n_objects = w->cached->sc.n_objects;
     w->sc.meshes = w->cached->sc.meshes, w->sc.n_meshes = w->cached->sc.n_meshes;
@@ -228,7 +228,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     frame_free(w->fr);
     if (w->have_scene)
         scene_free(&w->sc);
-    frames_give(w->svc, w->cached); /* after the frame and the scene that borrowed from it */
+    frames_give(w->svc->frames, w->cached); /* after the frame and the scene that borrowed from it */
     free(w->band_stats);
     free(w);
 }
@@ -249,7 +249,7 @@ static int validate_view(struct service *svc, const struct job_body *b, const ch
     sc.borrowed = true;
     int rc = render_options_apply(b->options, &sc, &img, err);
     if (!rc && (view_key(svc, id, b->owner, sc.method == METHOD_MESH, key) ||
-                !frames_counts(svc, key, &sc.n_objects, &sc.n_meshes)))
+                !frames_counts(svc->frames, key, &sc.n_objects, &sc.n_meshes)))
         rc = 1;
     if (!rc)
         rc = scene_validate(&sc, err);

@@ -1,8 +1,6 @@
 /* metrics.c - process-wide counters and their Prometheus exposition. */
 #include "metrics.h"
 
-#include "frames.h"
-
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -56,31 +54,29 @@ void metrics_render(double seconds, long rays)
 
 void metrics_job_end(enum job_state outcome) { atomic_fetch_add(&jobs_ended[outcome], 1); }
 
-char *metrics_text(struct service *svc)
+char *metrics_text(const struct metrics_gauges *g)
 {
     size_t cap = 8192, n = 0;
     char *buf = malloc(cap);
     if (!buf)
         return NULL;
 #define OUT(...) n += (size_t)snprintf(buf + n, n < cap ? cap - n : 0, __VA_ARGS__)
-    struct jobq_stats qs;
-    jobq_stats(svc->q, &qs);
     OUT("# HELP surfd_uptime_seconds Seconds since the daemon started.\n# TYPE surfd_uptime_seconds gauge\n");
-    OUT("surfd_uptime_seconds %.3f\n", monotonic_s() - svc->started_mono);
+    OUT("surfd_uptime_seconds %.3f\n", g->uptime_s);
     OUT("# HELP surfd_jobs Jobs this node's pool holds now, by state.\n# TYPE surfd_jobs gauge\n");
-    OUT("surfd_jobs{state=\"queued\"} %ld\nsurfd_jobs{state=\"running\"} %ld\n", qs.queued, qs.running);
+    OUT("surfd_jobs{state=\"queued\"} %ld\nsurfd_jobs{state=\"running\"} %ld\n", g->queued, g->running);
     OUT("# HELP surfd_jobs_ended_total Jobs ended since start, by outcome.\n# TYPE surfd_jobs_ended_total counter\n");
     OUT("surfd_jobs_ended_total{state=\"succeeded\"} %ld\n", atomic_load(&jobs_ended[JOB_SUCCEEDED]));
     OUT("surfd_jobs_ended_total{state=\"failed\"} %ld\n", atomic_load(&jobs_ended[JOB_FAILED]));
     OUT("surfd_jobs_ended_total{state=\"cancelled\"} %ld\n", atomic_load(&jobs_ended[JOB_CANCELLED]));
     OUT("# HELP surfd_store_queued Jobs queued in the store, for every node that shares it.\n"
-        "# TYPE surfd_store_queued gauge\nsurfd_store_queued %ld\n", store_queued(svc->store));
+        "# TYPE surfd_store_queued gauge\nsurfd_store_queued %ld\n", g->store_queued);
     OUT("# HELP surfd_queue_depth Jobs waiting for a worker of this node.\n# TYPE surfd_queue_depth gauge\n");
-    OUT("surfd_queue_depth %ld\n", qs.queued);
+    OUT("surfd_queue_depth %ld\n", g->queued);
     OUT("# HELP surfd_queue_capacity Jobs this node's queue holds at most before requests get 429.\n"
-        "# TYPE surfd_queue_capacity gauge\nsurfd_queue_capacity %ld\n", qs.queue_max);
+        "# TYPE surfd_queue_capacity gauge\nsurfd_queue_capacity %ld\n", g->queue_max);
     OUT("# HELP surfd_workers Worker threads of this node's pool.\n# TYPE surfd_workers gauge\nsurfd_workers %ld\n",
-        qs.workers);
+        g->workers);
     OUT("# HELP surfd_render_seconds Tracing and shading time of render jobs.\n# TYPE surfd_render_seconds histogram\n");
     for (size_t k = 0; k < N_BUCKETS; k++)
         OUT("surfd_render_seconds_bucket{le=\"%g\"} %ld\n", BUCKETS[k], atomic_load(&render_bucket[k]));
@@ -104,7 +100,7 @@ char *metrics_text(struct service *svc)
         "to make room for a new one.\n# TYPE surfd_connections_shut_total counter\nsurfd_connections_shut_total %ld\n",
         atomic_load(&connections_shut));
     OUT("# HELP surfd_mesh_cache_bytes Bytes of models' meshes the store keeps (mesh-cache bounds them).\n"
-        "# TYPE surfd_mesh_cache_bytes gauge\nsurfd_mesh_cache_bytes %ld\n", store_mesh_bytes(svc->store));
+        "# TYPE surfd_mesh_cache_bytes gauge\nsurfd_mesh_cache_bytes %ld\n", g->mesh_cache_bytes);
     OUT("# HELP surfd_mesh_cache_lookups_total GETs of a model's mesh, by whether the cache had it.\n"
         "# TYPE surfd_mesh_cache_lookups_total counter\n");
     OUT("surfd_mesh_cache_lookups_total{result=\"hit\"} %ld\nsurfd_mesh_cache_lookups_total{result=\"miss\"} %ld\n",
@@ -114,11 +110,11 @@ char *metrics_text(struct service *svc)
     OUT("surfd_frame_cache_lookups_total{result=\"hit\"} %ld\nsurfd_frame_cache_lookups_total{result=\"miss\"} %ld\n",
         atomic_load(&frame_lookups[1]), atomic_load(&frame_lookups[0]));
     OUT("# HELP surfd_frame_cache_bytes Bytes of stored models' prepared hierarchies kept in memory (frame-cache "
-        "bounds them).\n# TYPE surfd_frame_cache_bytes gauge\nsurfd_frame_cache_bytes %zu\n", frames_bytes(svc));
+        "bounds them).\n# TYPE surfd_frame_cache_bytes gauge\nsurfd_frame_cache_bytes %zu\n", g->frame_cache_bytes);
     OUT("# HELP surfd_store_damaged_total Stored results or models refused: their checksum did not match.\n"
         "# TYPE surfd_store_damaged_total counter\nsurfd_store_damaged_total %ld\n", atomic_load(&damaged_reads));
     OUT("# HELP surfd_jobs_stranded Jobs whose end the store refused, kept to run again.\n"
-        "# TYPE surfd_jobs_stranded gauge\nsurfd_jobs_stranded %d\n", service_n_stranded(svc));
+        "# TYPE surfd_jobs_stranded gauge\nsurfd_jobs_stranded %d\n", g->stranded);
 #undef OUT
     if (n >= cap) { /* grew past the buffer: the table is fixed, so this is a programming error */
         free(buf);

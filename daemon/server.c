@@ -28,6 +28,7 @@
 #include "../api/model_json.h"
 #include "../api/job_json.h"
 #include "../api/problem.h"
+#include "frames.h"
 #include "guard.h"
 #include "kinds.h"
 #include "log.h"
@@ -822,7 +823,13 @@ static enum MHD_Result version(struct req *r, const char *id)
 static enum MHD_Result metrics(struct req *r, const char *id)
 {
     (void)id;
-    char *t = metrics_text(r->svc);
+    struct service *svc = r->svc;
+    struct jobq_stats qs;
+    jobq_stats(svc->q, &qs);
+    struct metrics_gauges g = {monotonic_s() - svc->started_mono, qs.queued, qs.running, qs.queue_max, qs.workers,
+                               store_queued(svc->store), store_mesh_bytes(svc->store), frames_bytes(svc->frames),
+                               service_n_stranded(svc)};
+    char *t = metrics_text(&g);
     if (!t)
         return problem(r, 500, "metrics failed", NULL);
     struct reply rp = {200, "text/plain; version=0.0.4", t, strlen(t), {{0}}};

@@ -33,7 +33,7 @@ struct claim {
     int tries;
 };
 
-struct frame_entry;
+struct frames;
 
 struct service {
     struct config cfg;
@@ -43,6 +43,7 @@ struct service {
     struct token *tokens;    /* bearer tokens; none: open (loopback, or --insecure-no-auth) */
     size_t n_tokens;
     struct shares *shares;   /* each owner's uploads held in the data dir (shares.h) */
+    struct frames *frames;   /* models' prepared hierarchies (frames.h; its own lock) */
     char node[64];           /* this node's name in the store */
     atomic_bool draining;
     double started_wall;     /* Unix seconds */
@@ -52,7 +53,6 @@ struct service {
     bool wake, stop;
     struct claim claims[CLAIMS_MAX];
     int n_claims;
-    struct frame_entry *frames; /* models' prepared hierarchies (frames.h) */
     pthread_t keeper;
     bool keeper_started;
 };
