@@ -7,7 +7,8 @@
 #   make test       make check's and the black-box suites (API, CLI, page in a browser, package): what CI runs;
 #                   last line "N passed, N failed"
 #   make bench      benchmarks against POV-Ray and surfd's own mesh method -> tests/bench/RESULTS.md
-#   make layers     check the include rules between core/'s folders, api/ and daemon/
+#   make layers     check the include rules between core/'s folders, api/ and daemon/ (make check also
+#                   checks that no files call or include each other in a circle: tests/tools/circles.sh)
 #   make fuzz       every decoder's libFuzzer target for FUZZ_SECONDS (60) each (its crashers replayed by check)
 #   make deb        build/surfd_VERSION_amd64.deb (deploy/deb.sh)
 # Warnings are errors when CI=true (or WERROR=1).
@@ -162,7 +163,7 @@ fuzz: deps $(FUZZERS)
 
 # the pool and queue under the thread sanitizer
 # the store conformance suite: SQLite here, both backends in tests/api/store_conformance.sh
-STORE_SRC := daemon/store.c daemon/store_sqlite.c daemon/store_pg.c daemon/store_walmark.c daemon/job_state.c
+STORE_SRC := daemon/store.c daemon/store_values.c daemon/store_sqlite.c daemon/store_pg.c daemon/store_walmark.c daemon/job_state.c
 $(B)/tests/daemon/test_store: tests/daemon/test_store.c tests/unit.h $(STORE_SRC) $(wildcard daemon/store*.h)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(SAN) -o $@ tests/daemon/test_store.c $(STORE_SRC) -lsqlite3 -lpq -lgnutls -lpthread -lm
@@ -215,8 +216,9 @@ $(B)/tests/tools/occt_iges: tests/tools/occt_iges.cpp
 
 # the tiers: what each builds (on every core, once the packages are in) and runs
 NPROC      := $(shell nproc 2>/dev/null || echo 2)
-CHECK_BINS := $(TESTS) $(TESTS_MORE) $(TSAN_TESTS) $(REPLAYS) $(TORTURES)
-CHECKS     := $(TESTS) $(TESTS_MORE) $(TSAN_TESTS) tests/fuzz/replay.sh tests/fuzz/torture.sh
+# (the objects of core/, api/ and daemon/ for tests/tools/circles.sh: no circle between files)
+CHECK_BINS := $(TESTS) $(TESTS_MORE) $(TSAN_TESTS) $(REPLAYS) $(TORTURES) $(SAN_CORE) $(SAN_API) $(call obj,san,$(DAEMON_SRC))
+CHECKS     := $(TESTS) $(TESTS_MORE) $(TSAN_TESTS) tests/fuzz/replay.sh tests/fuzz/torture.sh tests/tools/circles.sh
 SUITES     := $(wildcard tests/cli/*.sh tests/api/*.sh tests/web/*.sh tests/deploy/*.sh)
 check: deps layers
 	@$(MAKE) --no-print-directory -j$(NPROC) $(CHECK_BINS)

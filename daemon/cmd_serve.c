@@ -15,6 +15,7 @@
 
 #include "../api/image.h"
 #include "frames.h"
+#include "keeper.h"
 #include "../core/iso/mc.h"
 
 #ifndef SURFD_VERSION
@@ -197,7 +198,7 @@ int cmd_serve(int argc, char **argv)
     bool shared = strcmp(store_backend(svc.store), "sqlite");
     store_reap(svc.store, shared ? wall_s() : INFINITY, svc.node, (int)svc.cfg.max_attempts, give_up, recovered, &svc);
     free(give_up);
-    if (service_start(&svc)) {
+    if (keeper_start(&svc)) {
         fprintf(stderr, "surfd serve: cannot start the keeper thread\n");
         server_stop(server);
         jobq_shutdown(svc.q, 0, DRAIN_GRACE_S, NULL, NULL);
@@ -217,7 +218,7 @@ int cmd_serve(int argc, char **argv)
         int sig = sigtimedwait(&sigs, NULL, &every);
         if (sig == SIGTERM || sig == SIGINT)
             break;
-        service_retry_stranded(&svc);
+        keeper_retry_stranded(&svc);
         shares_refresh(svc.shares, svc.store);
         if (monotonic_s() - pruned >= 60) {
             store_prune(svc.store, wall_s(), svc.cfg.result_ttl, svc.cfg.result_max);
@@ -233,7 +234,7 @@ int cmd_serve(int argc, char **argv)
                   left == 1 ? "" : "s", svc.cfg.drain_timeout, DRAIN_GRACE_S, left == 1 ? "it stays" : "they stay");
         _exit(0);
     }
-    service_stop(&svc); /* heartbeats went on while the drain ran; the draining flag stopped claims */
+    keeper_stop(&svc); /* heartbeats went on while the drain ran; the draining flag stopped claims */
     server_stop(server);
     jobq_free(svc.q);
     LOG(LOG_INFO, "stopped");

@@ -1,6 +1,6 @@
 /* job_contours.c - the job kinds made of contours: volume (figures only), model (figures, and the
- * models kept in the store), and what is made from a stored model: mesh and patches (GET
- * /models/{id}/mesh and /patches, which can take seconds and hundreds of megabytes: a job, so that
+ * models kept in the store), and what is made from a stored model: mesh, patches and rtstruct
+ * (GET /models/{id}/mesh, /patches and /rtstruct, which can take seconds and hundreds of megabytes: a job, so that
  * the HTTP threads never build them). One step each (no bands). The request is read back from the
  * store, so that a job recovered after a crash computes exactly what was submitted; a model job run
  * again gives its models the same ids, replacing what the first run may have stored. */
@@ -16,12 +16,8 @@
 #include "log.h"
 #include "kinds.h"
 
-enum contour_kind { KIND_VOLUME, KIND_MODEL, KIND_MESH, KIND_PATCHES, KIND_RTSTRUCT };
-
 struct contour_work {
-    struct service *svc;
-    struct job_claim claim;
-    enum contour_kind kind;
+    struct job_work job;     /* first: job_start fills it */
     char *json;              /* the result (JSON, or the mesh file) */
     size_t len;
     const char *type;
@@ -38,127 +34,167 @@ static void model_id(void *ctx, int k, char id[40])
 {
     const struct contour_work *w = ctx;
     if (k == 0)
-        snprintf(id, 40, "%s", w->claim.id);
+        snprintf(id, 40, "%s", w->job.claim.id);
     else
-        snprintf(id, 40, "%.28s%04x", w->claim.id, (unsigned)k & 0xffff);
+        snprintf(id, 40, "%.28s%04x", w->job.claim.id, (unsigned)k & 0xffff);
 }
 
 static int model_put(void *ctx, const char *id, const char *name, const char *source, size_t source_len,
                      const char *resource)
 {
     const struct contour_work *w = ctx;
-    struct model_rec m = {id, w->claim.id, name, w->owner, wall_s(), source, source_len, resource, NULL};
-    return store_model_put(w->svc->store, &m);
+    struct model_rec m = {id, w->job.claim.id, name, w->owner, wall_s(), source, source_len, resource, NULL};
+    return store_model_put(w->job.svc->store, &m);
 }
 
-static int prepare(struct job *j, void *arg, int *n_bands)
+/* What every kind here does first: read the job's request (its record, the owner kept) and make
+ * the poll; then make its result (w->json, w->len) from the request. */
+static int prepare_with(struct job *j, struct contour_work *w, int *n_bands,
+                        int (*make)(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr))
 {
-    struct contour_work *w = arg;
-    struct job_poll pc = {w->svc->q, j};
+    struct job_poll pc = {w->job.svc->q, j};
     const struct sf_progress pr = {service_poll_job, &pc};
     *n_bands = 0;
     struct job_rec rec;
-    if (store_get(w->svc->store, w->claim.id, true, false, &rec) != 1)
+    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
     snprintf(w->owner, sizeof w->owner, "%s", rec.owner);
-    const char *body = (const char *)rec.request;
-    int rc;
     w->type = "application/json";
-    if (w->kind == KIND_MODEL) {
-        struct model_sink sink = {model_id, model_put, w};
-        char location[64];
-        rc = model_create(body, rec.request_len, rec.format, rec.options, &sink, &pr, &w->json, location, &w->err);
-        snprintf(w->meta, sizeof w->meta, "{\"status\":201,\"location\":\"%s\"}", location);
-    } else if (w->kind == KIND_VOLUME) {
-        rc = model_figures(body, rec.request_len, rec.format, rec.options, &pr, &w->json, &w->err);
-    } else { /* the request is the model's id */
-        char model[40], *src = NULL, *resource = NULL;
-        size_t n = 0;
-        snprintf(model, sizeof model, "%.*s", (int)rec.request_len, body);
-        if (store_model_get(w->svc->store, model, NULL, &resource, &src, &n) != 1) /* the route checked the owner */
-            rc = sf_fail(&w->err, SF_EINVAL, "", "the model is no longer stored");
-        else if (w->kind == KIND_RTSTRUCT) {
-            rc = model_rtstruct(src, n, resource, rec.options, &pr, (unsigned char **)&w->json, &w->len, &w->err);
-            w->type = "application/dicom";
-            snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.dcm\"}", model);
-        } else if (w->kind == KIND_MESH)
-            rc = model_mesh(src, n, resource, rec.options, &pr, &w->json, &w->len, &w->type, &w->tol, &w->err);
-        else
-            rc = model_patches_json(src, n, &w->json, &w->err);
-        if (!rc && w->kind == KIND_MESH) { /* the file's name for the download: the model's id, the format's extension */
-            const char *format;
-            double tol;
-            model_mesh_options(rec.options, &format, &tol, &w->err);
-            model_mesh_key(rec.options, iso_model_edits(resource), w->key, sizeof w->key, &w->err);
-            snprintf(w->model, sizeof w->model, "%s", model);
-            const char *ext = strcmp(format, "dicom-stl") ? format : "dcm";
-            if (w->tol > 0)
-                snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\",\"tolerance_mm\":%.6g}", model, ext, w->tol);
-            else
-                snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\"}", model, ext);
-        }
-        free(src);
-        free(resource);
-    }
-    if (!rc && w->kind != KIND_MESH && w->kind != KIND_RTSTRUCT)
-        w->len = strlen(w->json);
+    int rc = make(w, &rec, &pr);
     store_rec_free(&rec);
     return rc ? -1 : 0;
 }
+
+static int make_model(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
+{
+    struct model_sink sink = {model_id, model_put, w};
+    char location[64];
+    int rc = model_create((const char *)rec->request, rec->request_len, rec->format, rec->options, &sink, pr, &w->json,
+                          location, &w->err);
+    snprintf(w->meta, sizeof w->meta, "{\"status\":201,\"location\":\"%s\"}", location);
+    w->len = rc ? 0 : strlen(w->json);
+    return rc;
+}
+
+static int make_figures(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
+{
+    int rc = model_figures((const char *)rec->request, rec->request_len, rec->format, rec->options, pr, &w->json, &w->err);
+    w->len = rc ? 0 : strlen(w->json);
+    return rc;
+}
+
+/* The stored model a request names (its id: the route checked its owner): its source and
+ * resource (the caller frees), and its id into w->model. 0 or SF_EINVAL. */
+static int stored_model(struct contour_work *w, const struct job_rec *rec, char **src, size_t *n, char **resource)
+{
+    snprintf(w->model, sizeof w->model, "%.*s", (int)rec->request_len, (const char *)rec->request);
+    *src = NULL, *resource = NULL, *n = 0;
+    if (store_model_get(w->job.svc->store, w->model, NULL, resource, src, n) != 1)
+        return sf_fail(&w->err, SF_EINVAL, "", "the model is no longer stored");
+    return 0;
+}
+
+static int make_rtstruct(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
+{
+    char *src, *resource;
+    size_t n;
+    int rc = stored_model(w, rec, &src, &n, &resource);
+    if (!rc)
+        rc = model_rtstruct(src, n, resource, rec->options, pr, (unsigned char **)&w->json, &w->len, &w->err);
+    w->type = "application/dicom";
+    snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.dcm\"}", w->model);
+    free(src);
+    free(resource);
+    return rc;
+}
+
+static int make_patches(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
+{
+    (void)pr;
+    char *src, *resource;
+    size_t n;
+    int rc = stored_model(w, rec, &src, &n, &resource);
+    if (!rc && !(rc = model_patches_json(src, n, &w->json, &w->err)))
+        w->len = strlen(w->json);
+    free(src);
+    free(resource);
+    return rc;
+}
+
+/* A mesh, and its file's name for the download: the model's id, the format's extension. */
+static int make_mesh(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
+{
+    char *src, *resource;
+    size_t n;
+    int rc = stored_model(w, rec, &src, &n, &resource);
+    if (!rc)
+        rc = model_mesh(src, n, resource, rec->options, pr, &w->json, &w->len, &w->type, &w->tol, &w->err);
+    if (!rc) {
+        const char *format;
+        double tol;
+        model_mesh_options(rec->options, &format, &tol, &w->err);
+        model_mesh_key(rec->options, iso_model_edits(resource), w->key, sizeof w->key, &w->err);
+        const char *ext = strcmp(format, "dicom-stl") ? format : "dcm";
+        if (w->tol > 0)
+            snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\",\"tolerance_mm\":%.6g}", w->model, ext, w->tol);
+        else
+            snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.%s\"}", w->model, ext);
+    }
+    free(src);
+    free(resource);
+    return rc;
+}
+
+static int prepare_model(struct job *j, void *arg, int *n_bands) { return prepare_with(j, arg, n_bands, make_model); }
+static int prepare_volume(struct job *j, void *arg, int *n_bands) { return prepare_with(j, arg, n_bands, make_figures); }
+static int prepare_rtstruct(struct job *j, void *arg, int *n_bands) { return prepare_with(j, arg, n_bands, make_rtstruct); }
+static int prepare_patches(struct job *j, void *arg, int *n_bands) { return prepare_with(j, arg, n_bands, make_patches); }
+static int prepare_mesh(struct job *j, void *arg, int *n_bands) { return prepare_with(j, arg, n_bands, make_mesh); }
 
 static void finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
 {
     (void)j;
     struct contour_work *w = arg;
-    if (outcome == JOB_SUCCEEDED && w->kind == KIND_MESH && w->key[0] && w->svc->cfg.mesh_cache > 0) {
-        struct mesh_rec m = {(char *)w->type, w->meta, (unsigned char *)w->json, w->len, ""};
-        if (store_mesh_put(w->svc->store, w->model, w->key, &m, w->svc->cfg.mesh_cache) < 0)
-            LOG(LOG_WARN, "model %s: its mesh (%s) could not be cached", w->model, w->key); /* made again next time */
-    }
-    service_job_end(w->svc, &w->claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
+    service_job_end(w->job.svc, &w->job.claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     w->type ? w->type : "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     free(w->json);
     free(w);
 }
 
-static const struct job_ops CONTOUR_OPS = {.prepare = prepare, .finish = finish};
-
-static int start(struct service *svc, const struct job_claim *c, enum contour_kind kind)
+/* A mesh is cached (mesh-cache) before its job ends: the next GET of it is answered from there. */
+static void finish_mesh(struct job *j, void *arg, enum job_state outcome, bool requeue)
 {
-    struct contour_work *w = calloc(1, sizeof *w);
-    if (!w)
-        return -1;
-    w->svc = svc;
-    w->kind = kind;
-    w->claim = *c;
-    if (jobq_submit(svc->q, c->id, &CONTOUR_OPS, w, true)) {
-        free(w);
-        return -1;
+    struct contour_work *w = arg;
+    struct service *svc = w->job.svc;
+    if (outcome == JOB_SUCCEEDED && w->key[0] && svc->cfg.mesh_cache > 0) {
+        struct mesh_rec m = {(char *)w->type, w->meta, (unsigned char *)w->json, w->len, ""};
+        if (store_mesh_put(svc->store, w->model, w->key, &m, svc->cfg.mesh_cache) < 0)
+            LOG(LOG_WARN, "model %s: its mesh (%s) could not be cached", w->model, w->key); /* made again next time */
     }
-    return 0;
+    finish(j, arg, outcome, requeue);
 }
 
-int volume_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_VOLUME); }
-int model_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_MODEL); }
-int mesh_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_MESH); }
-int patches_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_PATCHES); }
-int rtstruct_start(struct service *svc, const struct job_claim *c) { return start(svc, c, KIND_RTSTRUCT); }
+static const struct job_ops MODEL_OPS = {.prepare = prepare_model, .finish = finish};
+static const struct job_ops VOLUME_OPS = {.prepare = prepare_volume, .finish = finish};
+static const struct job_ops RTSTRUCT_OPS = {.prepare = prepare_rtstruct, .finish = finish};
+static const struct job_ops PATCHES_OPS = {.prepare = prepare_patches, .finish = finish};
+static const struct job_ops MESH_OPS = {.prepare = prepare_mesh, .finish = finish_mesh};
 
 /* ---- the requests: contour JSON or an RT Structure Set (both kinds); /volume also measures a
  * scene (JSON, .bpt, VRML) whose patches bound a closed solid ---- */
 
-const char *contour_format(const char *content_type)
-{
-    const char *f = volume_format(content_type);
-    return f && (!strcmp(f, "json") || !strcmp(f, "dicom")) ? f : NULL;
-}
-
-const char *volume_format(const char *content_type)
+static const char *volume_format(const char *content_type)
 {
     if (content_type && !strncasecmp(content_type, "application/dicom", 17))
         return "dicom";
     const char *f = render_format_from_type(content_type);
     return f && !*f ? "json" : f;
+}
+
+static const char *contour_format(const char *content_type)
+{
+    const char *f = volume_format(content_type);
+    return f && (!strcmp(f, "json") || !strcmp(f, "dicom")) ? f : NULL;
 }
 
 /* An RT Structure Set is stored without the patient: only what the job reads. */
@@ -181,7 +217,7 @@ static int validate(struct job_body *b, bool scenes, struct sf_err *err)
     return 0;
 }
 
-int volume_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+static int volume_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     (void)svc;
     /* ?format= names it: an RT Structure Set, or a scene by any name /render takes (scene_text.c's table) */
@@ -191,13 +227,13 @@ int volume_validate(struct service *svc, struct job_body *b, struct sf_err *err)
     return validate(b, true, err);
 }
 
-int model_validate_body(struct service *svc, struct job_body *b, struct sf_err *err)
+static int model_validate_body(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     (void)svc;
     return validate(b, false, err);
 }
 
-int mesh_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+static int mesh_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     (void)svc;
     const char *format;
@@ -205,17 +241,34 @@ int mesh_validate(struct service *svc, struct job_body *b, struct sf_err *err)
     return model_mesh_options(b->options, &format, &tol, err);
 }
 
-int rtstruct_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+static int rtstruct_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     (void)svc;
     double spacing;
     return model_rtstruct_options(b->options, &spacing, err);
 }
 
-int patches_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+static int patches_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     (void)svc;
     (void)b;
     (void)err;
     return 0;
 }
+
+const struct job_kind volume_kind = {
+    .name = "volume", .format = volume_format,
+    .media = "application/json (contours or a scene), application/dicom, model/x-bpt, model/vrml or model/iges",
+    .format_in_query = true, .validate = volume_validate, .ops = &VOLUME_OPS, .work_size = sizeof(struct contour_work),
+    .result = "application/json"};
+const struct job_kind model_kind = {
+    .name = "model", .format = contour_format, .media = "application/json or application/dicom",
+    .validate = model_validate_body, .ops = &MODEL_OPS, .work_size = sizeof(struct contour_work),
+    .result = "application/json"};
+const struct job_kind patches_kind = {.name = "patches", .validate = patches_validate, .ops = &PATCHES_OPS,
+                                      .work_size = sizeof(struct contour_work), .result = "application/json"};
+const struct job_kind mesh_kind = {
+    .name = "mesh", .validate = mesh_validate, .ops = &MESH_OPS, .work_size = sizeof(struct contour_work),
+    .result = "model/stl, application/ply, model/obj, model/vnd.vtk.vtp+xml or model/vnd.vtk"};
+const struct job_kind rtstruct_kind = {.name = "rtstruct", .validate = rtstruct_validate, .ops = &RTSTRUCT_OPS,
+                                       .work_size = sizeof(struct contour_work), .result = "application/dicom"};

@@ -33,6 +33,7 @@
 #include "../api/query.h"
 #include "log.h"
 #include "../api/volume_io.h"
+#include "job_edit.h"
 #include "kinds.h"
 
 /* ---- the hierarchies kept ---- */
@@ -183,113 +184,13 @@ void edit_keep(struct service *svc, const char *id, const struct volume *vol, st
 
 /* ---- applying parts of the volume ---- */
 
-/* Block blk at lo written into grid g's samples (same type). */
-static void write_samples(struct iso_grid *g, const int lo[3], const struct iso_grid *blk)
-{
-    size_t ts = g->type == ISO_U8 ? 1 : g->type == ISO_F32 ? 4 : 2;
-    for (int z = 0; z < blk->nz; z++)
-        for (int y = 0; y < blk->ny; y++)
-            memcpy((char *)g->samples + ts * ((size_t)lo[0] + (size_t)g->nx * ((size_t)lo[1] + y + (size_t)g->ny * ((size_t)lo[2] + z))),
-                   (const char *)blk->samples + ts * (size_t)blk->nx * ((size_t)y + (size_t)blk->ny * z),
-                   ts * (size_t)blk->nx);
-}
-
-/* An edit (options: its region; data, len: its samples) applied to the kept volume e: into the
- * hierarchy (ed: what it redrew) or, without one, into the samples. */
-static int apply(struct live *e, const char *options, const void *data, size_t len, struct iso_edit *ed,
-                 struct sf_err *err)
-{
-    int lo[3], n[3];
-    if (volume_region(options, &e->vol.g, len, lo, n, err))
-        return err->code;
-    struct iso_grid blk = {n[0], n[1], n[2], e->vol.g.type, data, {1, 1, 1}, {0, 0, 0}};
-    memset(ed, 0, sizeof *ed);
-    if (e->a)
-        return iso_adapt_edit(e->a, lo, &blk, ed, err);
-    write_samples(&e->vol.g, lo, &blk);
-    ed->whole = true;
-    return 0;
-}
-
-int edit_volume(struct service *svc, const char *id, struct volume *vol, int *next, struct sf_err *err)
-{
-    memset(vol, 0, sizeof *vol);
-    struct volume_rec *parts;
-    int n, found = store_volume_get(svc->store, id, 0, &parts, &n);
-    if (found != 1 || parts[0].seq != 0) {
-        store_volume_free(parts, n);
-        return sf_fail(err, found == 0 || found == 1 ? SF_ECONFLICT : SF_EIO, "",
-                       found == 0 || found == 1 ? "this model keeps no volume of samples (made before volumes were "
-                                                  "kept, or not an isosurface of samples)"
-                       : found == STORE_DAMAGED ? "the model's stored volume is damaged (its bytes no longer match "
-                                                  "their checksum): it cannot be edited"
-                                                : "the model's volume could not be read from the store");
-    }
-    int rc = volume_read(parts[0].data, parts[0].len, parts[0].format, parts[0].options, vol, err);
-    if (!rc && vol->frep)
-        rc = sf_fail(err, SF_ECONFLICT, "", "an FRep model has no samples (it is edited by {op, object}, and a volume "
-                     "primitive reads isosurfaces of samples)");
-    if (!rc && !vol->owned) { /* the samples in the part's bytes: copied, to be written */
-        size_t bytes = (size_t)vol->g.nx * vol->g.ny * vol->g.nz * (vol->g.type == ISO_U8 ? 1 : vol->g.type == ISO_F32 ? 4 : 2);
-        if (!(vol->owned = malloc(bytes)))
-            rc = sf_fail(err, SF_ENOMEM, "", "out of memory for the model's volume");
-        else
-            vol->g.samples = memcpy(vol->owned, vol->g.samples, bytes);
-    }
-    struct live tmp = {.vol = *vol};
-    for (int k = 1; k < n && !rc; k++) {
-        struct iso_edit ed;
-        rc = apply(&tmp, parts[k].options, parts[k].data, parts[k].len, &ed, err);
-    }
-    *next = parts[n - 1].seq + 1;
-    store_volume_free(parts, n);
-    if (rc)
-        volume_free(vol);
-    return rc;
-}
-
-int frep_volumes(struct service *svc, struct frep_request *r, struct sf_err *err)
-{
-    r->f.volumes = r->vols;
-    for (int k = 0; k < r->n_refs; k++) {
-        struct volume mv;
-        struct sf_err e = {0};
-        int next;
-        if (edit_volume(svc, r->refs[k].model, &mv, &next, &e))
-            return sf_fail(err, e.code == SF_ECONFLICT ? SF_EINVAL : e.code, r->refs[k].pointer, "model %s: %s",
-                           r->refs[k].model, e.message);
-        size_t n = (size_t)mv.g.nx * mv.g.ny * mv.g.nz;
-        float *f = mv.oblique ? NULL : malloc(n * sizeof *f);
-        if (!f) {
-            volume_free(&mv);
-            return mv.oblique ? sf_fail(err, SF_EINVAL, r->refs[k].pointer, "model %s: an oblique series is not read "
-                                                                            "into an FRep object", r->refs[k].model)
-                              : sf_fail(err, SF_ENOMEM, "", "out of memory for a volume's samples");
-        }
-        for (int z = 0; z < mv.g.nz; z++)
-            for (int y = 0; y < mv.g.ny; y++)
-                iso_grid_row(&mv.g, y, z, f + (size_t)mv.g.nx * (y + (size_t)mv.g.ny * z));
-        float lo = INFINITY, hi = -INFINITY;
-        for (size_t i = 0; i < n; i++)
-            lo = fminf(lo, f[i]), hi = fmaxf(hi, f[i]);
-        struct frep_volume *fv = &r->vols[k];
-        *fv = (struct frep_volume){{mv.g.nx, mv.g.ny, mv.g.nz}, {0}, {0}, f, lo, hi, (float)fmin(mv.iso - 1, lo)};
-        memcpy(fv->origin, mv.g.origin, sizeof fv->origin);
-        memcpy(fv->spacing, mv.g.spacing, sizeof fv->spacing);
-        r->vol_samples[k] = f;
-        frep_volume_iso(r, k, mv.iso);
-        volume_free(&mv);
-    }
-    return 0;
-}
-
 /* Model id's hierarchy rebuilt from the store (its volume, then its edits in order): held and
  * locked, or NULL with err. */
 static struct live *rebuild(struct service *svc, const char *id, struct sf_err *err)
 {
     struct volume vol;
     struct iso_adapt *a = NULL;
-    int next, rc = edit_volume(svc, id, &vol, &next, err);
+    int next, rc = stored_volume(svc, id, &vol, &next, err);
     if (rc)
         return NULL;
     if (volume_adaptive(&vol)) {
@@ -332,7 +233,7 @@ static int catch_up(struct service *svc, struct live *e, struct sf_err *err)
         struct iso_edit ed;
         if (parts[k].seq != e->next_seq)
             rc = sf_fail(err, SF_EIO, "", "the model's edits in the store skip from %d to %d", e->next_seq, parts[k].seq);
-        else if (!(rc = apply(e, parts[k].options, parts[k].data, parts[k].len, &ed, err)))
+        else if (!(rc = part_apply(&e->vol, e->a, parts[k].options, parts[k].data, parts[k].len, &ed, err)))
             e->next_seq++;
     }
     store_volume_free(parts, n);
@@ -342,8 +243,7 @@ static int catch_up(struct service *svc, struct live *e, struct sf_err *err)
 /* ---- the job ---- */
 
 struct edit_work {
-    struct service *svc;
-    struct job_claim claim;
+    struct job_work job;     /* first: job_start fills it */
     char *json;
     size_t len;
     char meta[128];
@@ -355,19 +255,19 @@ struct edit_work {
 static int applied_before(struct edit_work *w, const char *model)
 {
     struct volume_rec *parts;
-    int n, found = store_volume_get(w->svc->store, model, 1, &parts, &n), was = 0;
+    int n, found = store_volume_get(w->job.svc->store, model, 1, &parts, &n), was = 0;
     if (found < 0)
         return sf_fail(&w->err, SF_EIO, "", "the model's edits could not be read from the store"), -1;
     for (int k = 0; found == 1 && k < n && !was; k++) {
         char job[40] = "";
         query_option(parts[k].options, "job", job, sizeof job);
-        was = !strcmp(job, w->claim.id);
+        was = !strcmp(job, w->job.claim.id);
     }
     store_volume_free(parts, found == 1 ? n : 0);
-    if (was && store_model_get(w->svc->store, model, NULL, &w->json, NULL, NULL) != 1)
+    if (was && store_model_get(w->job.svc->store, model, NULL, &w->json, NULL, NULL) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the model could not be read from the store"), -1;
     if (was)
-        LOG(LOG_INFO, "job %s: its edit was stored before the service stopped; not applied again", w->claim.id);
+        LOG(LOG_INFO, "job %s: its edit was stored before the service stopped; not applied again", w->job.claim.id);
     return was;
 }
 
@@ -403,7 +303,7 @@ static int store_edit(struct edit_work *w, const char *id, const struct volume *
     }
     if (!rc) {
         struct model_rec mr = {id, id, NULL, NULL, 0, packed, packed_len, w->json, NULL};
-        int stored = store_model_edit(w->svc->store, &mr, part);
+        int stored = store_model_edit(w->job.svc->store, &mr, part);
         if (stored != 1)
             rc = stored == 0 ? sf_fail(&w->err, SF_ECONFLICT, "", "the model was edited by another request meanwhile "
                                                                    "(or deleted); send the edit again")
@@ -420,12 +320,12 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     query_option(rec->options, "region", region, sizeof region);
     double t0 = monotonic_s();
     struct iso_model_edit me = {region, {0}, 0};
-    int rc = catch_up(w->svc, e, &w->err);
+    int rc = catch_up(w->job.svc, e, &w->err);
     if (rc)
         return rc;
     *drop = true; /* from here the entry is ahead of the store until the edit is stored */
     double ta = monotonic_s();
-    if ((rc = apply(e, rec->options, rec->request, rec->request_len, &me.e, &w->err)))
+    if ((rc = part_apply(&e->vol, e->a, rec->options, rec->request, rec->request_len, &me.e, &w->err)))
         return rc;
     me.ms = (monotonic_s() - ta) * 1e3;
     struct trimesh m;
@@ -433,7 +333,7 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     if (e->a) {
         rc = iso_adapt_mesh(e->a, &m, &ast, &w->err);
     } else {
-        struct iso_opts o = job_iso_opts(w->svc, &e->vol);
+        struct iso_opts o = job_iso_opts(w->job.svc, &e->vol);
         rc = iso_extract(&e->vol.g, &o, NULL, &m, &w->err);
         me.e.cells_rebuilt = (long)(e->vol.g.nx + 1) * (e->vol.g.ny + 1) * (e->vol.g.nz + 1);
         me.e.triangles_added = (long)m.n_tri;
@@ -443,7 +343,7 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
         me.ms = (t_mesh - ta) * 1e3; /* (marching cubes: every cell drawn again) */
     if (!rc) {
         char opts[sizeof rec->options + 48];
-        part_options(rec->options, w->claim.id, opts, sizeof opts);
+        part_options(rec->options, w->job.claim.id, opts, sizeof opts);
         struct volume_rec part = {e->next_seq, "edit", opts, rec->request, rec->request_len};
         if (!(rc = store_edit(w, model, &e->vol, &m, e->a ? &ast : NULL, &me, &part, t0, t_mesh)))
             e->next_seq++, *drop = false;
@@ -456,10 +356,10 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
  * extracted again whole (every cell: see the file's head), stored as the next part. */
 static int edit_frep(struct edit_work *w, struct job *j, const struct job_rec *rec, const char *id)
 {
-    struct job_poll pc = {w->svc->q, j};
+    struct job_poll pc = {w->job.svc->q, j};
     const struct sf_progress pr = {service_poll_cancel, &pc};
     struct volume_rec *parts;
-    int n, found = store_volume_get(w->svc->store, id, 0, &parts, &n), rc = 0;
+    int n, found = store_volume_get(w->job.svc->store, id, 0, &parts, &n), rc = 0;
     if (found != 1)
         return sf_fail(&w->err, found == 0 ? SF_ECONFLICT : SF_EIO, "",
                        found == 0 ? "this model keeps no FRep request (made before they were kept)"
@@ -469,12 +369,12 @@ static int edit_frep(struct edit_work *w, struct job *j, const struct job_rec *r
     struct volume v = {0};
     struct iso_model_edit me = {"", {0}, 0};
     if (!req || volume_read(req, strlen(req), "frep", parts[0].options, &v, &w->err) ||
-        frep_volumes(w->svc, v.frep, &w->err))
+        frep_volumes(w->job.svc, v.frep, &w->err))
         rc = w->err.code ? w->err.code : SF_EINVAL;
     struct trimesh m = {0};
     struct iso_adapt_stats ast = {0};
     if (!rc && !(rc = volume_sample(&v, 0, v.g.nz, &pr, &w->err))) {
-        struct iso_opts o = job_iso_opts(w->svc, &v);
+        struct iso_opts o = job_iso_opts(w->job.svc, &v);
         rc = volume_adaptive(&v) ? iso_extract_adaptive(&v.g, &o, v.levels, v.max_error, NULL, &m, &ast, &w->err)
                                  : iso_extract(&v.g, &o, NULL, &m, &w->err);
     }
@@ -483,7 +383,7 @@ static int edit_frep(struct edit_work *w, struct job *j, const struct job_rec *r
         me.e = (struct iso_edit){(long)(v.g.nx + 1) * (v.g.ny + 1) * (v.g.nz + 1), 0, (long)m.n_tri, true};
         me.ms = (t_mesh - t0) * 1e3;
         char opts[600];
-        part_options(parts[0].options, w->claim.id, opts, sizeof opts);
+        part_options(parts[0].options, w->job.claim.id, opts, sizeof opts);
         struct volume_rec part = {n, "frep", opts, req, strlen(req)};
         rc = store_edit(w, id, &v, &m, volume_adaptive(&v) ? &ast : NULL, &me, &part, t0, t_mesh);
     }
@@ -499,7 +399,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     struct edit_work *w = arg;
     *n_bands = 0;
     struct job_rec rec;
-    if (store_get(w->svc->store, w->claim.id, true, false, &rec) != 1)
+    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
     char model[40];
     query_option(rec.options, "model", model, sizeof model);
@@ -523,12 +423,12 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     }
     struct live *e = live_take(model);
     if (!e)
-        e = rebuild(w->svc, model, &w->err);
+        e = rebuild(w->job.svc, model, &w->err);
     int rc = e ? 0 : -1;
     if (e) {
         bool drop = false;
         rc = edit_model(w, e, &rec, model, &drop);
-        live_give(e, drop || (e->a == NULL && !e->vol.owned), (size_t)w->svc->cfg.edit_memory);
+        live_give(e, drop || (e->a == NULL && !e->vol.owned), (size_t)w->job.svc->cfg.edit_memory);
     }
     if (!rc) {
         w->len = strlen(w->json);
@@ -542,7 +442,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 {
     (void)j;
     struct edit_work *w = arg;
-    service_job_end(w->svc, &w->claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
+    service_job_end(w->job.svc, &w->job.claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     free(w->json);
     free(w);
@@ -550,28 +450,15 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 
 static const struct job_ops EDIT_OPS = {.prepare = prepare, .finish = finish};
 
-int edit_start(struct service *svc, const struct job_claim *c)
-{
-    struct edit_work *w = calloc(1, sizeof *w);
-    if (!w)
-        return -1;
-    w->svc = svc;
-    w->claim = *c;
-    if (jobq_submit(svc->q, c->id, &EDIT_OPS, w, true)) {
-        free(w);
-        return -1;
-    }
-    return 0;
-}
 
-const char *edit_format(const char *content_type)
+static const char *edit_format(const char *content_type)
 {
     return content_type && !strncasecmp(content_type, "application/json", 16) ? "json" : "raw";
 }
 
 /* The route checked the model (found, the token's) and put its id in ?model; here: it is an
  * isosurface of samples, and the region and the body fit its grid. */
-int edit_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+static int edit_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     char model[40], *resource = NULL;
     query_option(b->options, "model", model, sizeof model);
@@ -605,3 +492,7 @@ int edit_validate(struct service *svc, struct job_body *b, struct sf_err *err)
     free(req);
     return rc;
 }
+
+const struct job_kind edit_kind = {
+    .name = "edit", .format = edit_format, .media = "application/octet-stream (the region's raw samples)",
+    .validate = edit_validate, .ops = &EDIT_OPS, .work_size = sizeof(struct edit_work), .result = "application/json"};

@@ -19,14 +19,15 @@
 #include "../api/mesh_io.h"
 #include "../api/multipart.h"
 #include "../api/volume_io.h"
+#include "job_edit.h"
 #include "kinds.h"
 #include "log.h"
+#include "volumes.h"
 
 #define SLABS_PER_WORKER 4 /* a few bands a worker: the slabs' costs differ */
 
 struct iso_work {
-    struct service *svc;
-    struct job_claim claim;
+    struct job_work job;     /* first: job_start fills it */
     struct job *j;
     struct job_rec rec;      /* holds the request: the samples may lie in it */
     char file[1100];         /* or in the streamed body's file, mapped at map */
@@ -54,38 +55,6 @@ struct iso_work {
  * a small label map. */
 #define ISO_TRIANGLES_ANY_INPUT 4000000
 
-int job_map_file(const char *path, void **map, size_t *len)
-{
-    int fd = open(path, O_RDONLY);
-    struct stat st;
-    if (fd < 0 || fstat(fd, &st)) {
-        if (fd >= 0)
-            close(fd);
-        return -1;
-    }
-    *len = (size_t)st.st_size;
-    *map = *len ? mmap(NULL, *len, PROT_READ, MAP_PRIVATE, fd, 0) : NULL;
-    close(fd);
-    if (*map == MAP_FAILED) {
-        *map = NULL;
-        return -1;
-    }
-    return 0;
-}
-
-struct iso_opts job_iso_opts(const struct service *svc, const struct volume *v)
-{
-    struct iso_opts o = volume_iso_opts(v);
-    o.max_triangles = (size_t)svc->cfg.max_triangles;
-    o.max_triangles_by = "this node's max-triangles";
-    long long held = svc->cfg.job_memory / ISO_BYTES_PER_TRIANGLE;
-    if (svc->cfg.job_memory && held < svc->cfg.max_triangles) {
-        o.max_triangles = (size_t)held;
-        o.max_triangles_by = "what this node's job-memory holds (some 80 bytes a triangle from extraction to the store)";
-    }
-    return o;
-}
-
 static int begin_extract(struct iso_work *w, int *n_bands);
 
 static int prepare(struct job *j, void *arg, int *n_bands)
@@ -93,12 +62,12 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     struct iso_work *w = arg;
     w->j = j;
     w->t0 = monotonic_s();
-    if (store_get(w->svc->store, w->claim.id, true, false, &w->rec) != 1)
+    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &w->rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
     const char *body = (const char *)w->rec.request;
     size_t len = w->rec.request_len;
     if (w->rec.request_file) { /* a streamed volume: mapped, read in place */
-        if (store_request_file(w->svc->store, w->claim.id, w->file, sizeof w->file) != 1 ||
+        if (store_request_file(w->job.svc->store, w->job.claim.id, w->file, sizeof w->file) != 1 ||
             job_map_file(w->file, &w->map, &w->map_len))
             return sf_fail(&w->err, SF_EIO, "", "the job's volume could not be read from the store"), -1;
         body = w->map ? w->map : "";
@@ -109,9 +78,9 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         return -1;
     w->t_read = w->t_sampled = monotonic_s();
     struct jobq_stats qs;
-    jobq_stats(w->svc->q, &qs);
+    jobq_stats(w->job.svc->q, &qs);
     w->n_slabs = (int)qs.workers * SLABS_PER_WORKER;
-    if (w->vol.frep && frep_volumes(w->svc, w->vol.frep, &w->err))
+    if (w->vol.frep && frep_volumes(w->job.svc, w->vol.frep, &w->err))
         return -1;
     if (w->vol.frep) { /* sampled first, in bands of planes */
         w->phase = PH_SAMPLE;
@@ -124,20 +93,20 @@ static int prepare(struct job *j, void *arg, int *n_bands)
 
 static int begin_extract(struct iso_work *w, int *n_bands)
 {
-    struct iso_opts o = job_iso_opts(w->svc, &w->vol);
+    struct iso_opts o = job_iso_opts(w->job.svc, &w->vol);
     /* what the request's size lets it make: real scans make under 1 triangle a byte (the CT head's
      * gzip NRRD 0.17, the MRI's 0.43), gzip label maps 3 to 5; a 43 KB gzip NRRD of a striped
      * field (surface in every cell) would make 916, 39 M triangles and 3 GB */
-    double by_size = fmax((double)w->svc->cfg.max_triangles_per_byte * (double)w->input_len, ISO_TRIANGLES_ANY_INPUT);
-    if (w->svc->cfg.max_triangles_per_byte && by_size < (double)o.max_triangles) {
+    double by_size = fmax((double)w->job.svc->cfg.max_triangles_per_byte * (double)w->input_len, ISO_TRIANGLES_ANY_INPUT);
+    if (w->job.svc->cfg.max_triangles_per_byte && by_size < (double)o.max_triangles) {
         o.max_triangles = (size_t)by_size;
         snprintf(w->tri_by, sizeof w->tri_by, "what a request of %zu bytes may make (max-triangles-per-byte, %ld a byte,"
-                 " %d M at least)", w->input_len, w->svc->cfg.max_triangles_per_byte, ISO_TRIANGLES_ANY_INPUT / 1000000);
+                 " %d M at least)", w->input_len, w->job.svc->cfg.max_triangles_per_byte, ISO_TRIANGLES_ANY_INPUT / 1000000);
         o.max_triangles_by = w->tri_by;
     }
     /* a hierarchy of samples is kept for the model's edits when it fits their memory (about 5
      * bytes a sample) */
-    o.keep = !w->vol.frep && (double)w->vol.g.nx * w->vol.g.ny * w->vol.g.nz * 5 <= (double)w->svc->cfg.edit_memory;
+    o.keep = !w->vol.frep && (double)w->vol.g.nx * w->vol.g.ny * w->vol.g.nz * 5 <= (double)w->job.svc->cfg.edit_memory;
     if (volume_adaptive(&w->vol)) {
         if (iso_adapt_begin(&w->vol.g, &o, w->vol.levels, w->vol.max_error, &w->ad, &w->err))
             return -1;
@@ -162,7 +131,7 @@ static void band(struct job *j, void *arg, int k)
     if (w->phase == PH_ADAPT)
         iso_adapt_run(w->ad, w->ad_phase, k);
     else if (w->phase == PH_SAMPLE) { /* a cancel stops it mid-band: the job ends at the band's end */
-        struct job_poll pc = {w->svc->q, j};
+        struct job_poll pc = {w->job.svc->q, j};
         const struct sf_progress pr = {service_poll_cancel, &pc};
         volume_sample(&w->vol, (int)((long)w->vol.g.nz * k / w->n_sample), (int)((long)w->vol.g.nz * (k + 1) / w->n_sample),
                       &pr, NULL);
@@ -173,7 +142,7 @@ static void band(struct job *j, void *arg, int k)
         iso_emit(w->ij, k);
     /* every band of every phase alike (the last 5 %: measuring, storing) */
     int done = atomic_fetch_add(&w->bands_done, 1) + 1;
-    jobq_cancelled(w->svc->q, j, fmin(0.95, 0.95 * done / w->bands_total));
+    jobq_cancelled(w->job.svc->q, j, fmin(0.95, 0.95 * done / w->bands_total));
 }
 
 static int next(struct job *j, void *arg, int *n_bands)
@@ -214,7 +183,7 @@ static void drop_request(struct iso_work *w)
  * is honoured, whichever step it finds (measuring a mesh of millions of triangles takes seconds). */
 static int stopped(struct iso_work *w, double progress)
 {
-    return jobq_cancelled(w->svc->q, w->j, progress) ? sf_fail(&w->err, SF_ECANCEL, "", "cancelled") : 0;
+    return jobq_cancelled(w->job.svc->q, w->j, progress) ? sf_fail(&w->err, SF_ECANCEL, "", "cancelled") : 0;
 }
 
 /* The mesh measured and stored as model (the job's id), its resource the job's result. */
@@ -251,7 +220,7 @@ static int store_model(struct iso_work *w)
     if (!(rc = stopped(w, 0.95)) && !(rc = trimesh_stats(&m, &st, &w->err)) && !(rc = stopped(w, 0.98)))
         rc = mesh_pack(&m, &packed, &packed_len, &w->err);
     double t_measure = monotonic_s();
-    struct iso_model im = {w->claim.id, w->vol.name, &w->vol, &st, volume_adaptive(&w->vol) ? &w->adapt_st : NULL, m.n_vert,
+    struct iso_model im = {w->job.claim.id, w->vol.name, &w->vol, &st, volume_adaptive(&w->vol) ? &w->adapt_st : NULL, m.n_vert,
                            m.n_tri,
                            {(w->t_read - w->t0) * 1e3, (w->t_sampled - w->t_read) * 1e3,
                             (t_extract - w->t_sampled) * 1e3, (t_measure - t_extract) * 1e3, (t_measure - w->t0) * 1e3},
@@ -263,20 +232,20 @@ static int store_model(struct iso_work *w)
         /* the volume (samples or an FRep object) is kept with the model, as it was posted, for its edits */
         struct volume_rec vr = {0, w->rec.format, w->rec.options, w->map ? w->map : (const void *)w->rec.request,
                                 w->map ? w->map_len : w->rec.request_len};
-        struct model_rec mr = {w->claim.id, w->claim.id, w->vol.name, w->rec.owner, wall_s(), packed, packed_len, w->json,
+        struct model_rec mr = {w->job.claim.id, w->job.claim.id, w->vol.name, w->rec.owner, wall_s(), packed, packed_len, w->json,
                                &vr};
-        if (store_model_put(w->svc->store, &mr))
+        if (store_model_put(w->job.svc->store, &mr))
             rc = sf_fail(&w->err, SF_EIO, "", "the store would not take the mesh");
     }
     free(packed);
     drop_request(w);
     if (!rc)
-        edit_keep(w->svc, w->claim.id, &w->vol, kept);
+        edit_keep(w->job.svc, w->job.claim.id, &w->vol, kept);
     else
         iso_adapt_free(kept);
     if (!rc) {
         w->len = strlen(w->json);
-        snprintf(w->meta, sizeof w->meta, "{\"status\":201,\"location\":\"/models/%s\"}", w->claim.id);
+        snprintf(w->meta, sizeof w->meta, "{\"status\":201,\"location\":\"/models/%s\"}", w->job.claim.id);
     }
     return rc;
 }
@@ -289,14 +258,14 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
         int rc = store_model(w);
         outcome = rc == SF_ECANCEL ? JOB_CANCELLED : rc ? JOB_FAILED : JOB_SUCCEEDED;
     }
-    service_job_end(w->svc, &w->claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
+    service_job_end(w->job.svc, &w->job.claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     iso_free(w->ij);
     iso_adapt_free(w->ad);
     volume_free(&w->vol);
     drop_request(w);
     if (w->file[0])
-        store_request_file_done(w->svc->store, w->file);
+        store_request_file_done(w->job.svc->store, w->file);
     store_rec_free(&w->rec);
     free(w->json);
     free(w);
@@ -304,21 +273,6 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 
 static const struct job_ops ISO_OPS = {.prepare = prepare, .band = band, .next = next, .finish = finish};
 
-int iso_start(struct service *svc, const struct job_claim *c)
-{
-    struct iso_work *w = calloc(1, sizeof *w);
-    if (!w)
-        return -1;
-    w->svc = svc;
-    w->claim = *c;
-    if (jobq_submit(svc->q, c->id, &ISO_OPS, w, true)) {
-        free(w);
-        return -1;
-    }
-    return 0;
-}
-
-const char *iso_format(const char *content_type) { return volume_format_from_type(content_type); }
 
 /* A DICOM series' identifying elements blanked in place in the body, before it is stored (each
  * value keeps its length: the multipart body and the slices read the same), and the parts' file
@@ -344,7 +298,7 @@ static int blank_identity(struct job_body *b, struct sf_err *err)
     return rc;
 }
 
-int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+static int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     const char *body = b->body ? b->body : "";
     int rc = volume_check(body, b->len, b->format, b->options, err);
@@ -361,24 +315,7 @@ int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err)
     return rc;
 }
 
-int frep_refs_check(struct service *svc, const struct frep_request *r, const char *owner, const char *pointer,
-                    struct sf_err *err)
-{
-    int rc = 0;
-    for (int k = 0; k < r->n_refs && !rc; k++) {
-        char *resource = NULL;
-        struct iso_grid g;
-        struct sf_err e = {0};
-        bool frep;
-        const char *at = pointer ? pointer : r->refs[k].pointer;
-        int found = store_model_get(svc->store, r->refs[k].model, owner, &resource, NULL, NULL);
-        if (found != 1)
-            rc = found == 0 ? sf_fail(err, SF_EINVAL, at, "no such model: %s", r->refs[k].model)
-                            : sf_fail(err, SF_EIO, "", "the store failed");
-        else if (iso_model_grid(resource, &g, &frep, &e) || frep)
-            rc = sf_fail(err, SF_EINVAL, at, "a volume reads an isosurface model of samples%s%s",
-                         e.message[0] ? ": " : "", e.message);
-        free(resource);
-    }
-    return rc;
-}
+const struct job_kind isosurface_kind = {
+    .name = "isosurface", .format = volume_format_from_type, .media = VOLUME_MEDIA,
+    .format_in_query = true, .validate = iso_validate, .ops = &ISO_OPS, .work_size = sizeof(struct iso_work),
+    .result = "application/json", .streamed = true};

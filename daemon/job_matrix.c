@@ -19,14 +19,14 @@
 #include "../core/matrix/rays.h"
 #include "../core/trace/render.h"
 #include "kinds.h"
+#include "volumes.h"
 
 /* Voxels along the longest side of a model's box when ?size is not given (cubic voxels). */
 #define MATRIX_RAYS_DEFAULT_SIDE 128
 #define MATRIX_RAYS_BANDS 64
 
 struct matrix_work {
-    struct service *svc;
-    struct job_claim claim;
+    struct job_work job;     /* first: job_start fills it */
     char *json;
     struct sf_err err;
     /* a stored model's: */
@@ -77,12 +77,12 @@ static int model_scene(struct service *svc, const char *owner, const char *id, s
 static int prepare_model(struct matrix_work *w, const char *options, int *n_bands)
 {
     query_option(options, "model", w->model, sizeof w->model);
-    if (size_option(options, w->n, &w->err) || model_scene(w->svc, NULL, w->model, &w->sc, &w->err))
+    if (size_option(options, w->n, &w->err) || model_scene(w->job.svc, NULL, w->model, &w->sc, &w->err))
         return -1;
     w->have_scene = true;
     w->sc.width = w->sc.height = 1; /* no picture: the hierarchy alone */
     w->sc.srgb8_only = true;
-    if (frame_prepare(&w->sc, w->svc->dev, &w->fr, &w->err))
+    if (frame_prepare(&w->sc, w->job.svc->dev, &w->fr, &w->err))
         return -1;
     frame_bounds(w->fr, w->lo, w->hi);
     if (!w->n[0]) { /* cubic voxels, the longest side MATRIX_RAYS_DEFAULT_SIDE */
@@ -107,14 +107,14 @@ static void band(struct job *j, void *arg, int k)
 static int prepare(struct job *j, void *arg, int *n_bands)
 {
     struct matrix_work *w = arg;
-    struct job_poll pc = {w->svc->q, j};
+    struct job_poll pc = {w->job.svc->q, j};
     const struct sf_progress pr = {service_poll_cancel, &pc};
     *n_bands = 0;
     struct job_rec rec;
     char file[1100] = "";
     void *map = NULL;
     size_t map_len = 0;
-    if (store_get(w->svc->store, w->claim.id, true, false, &rec) != 1)
+    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
     const char *body = (const char *)rec.request;
     size_t len = rec.request_len;
@@ -127,7 +127,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         return rc;
     }
     if (rec.request_file) {
-        if (store_request_file(w->svc->store, w->claim.id, file, sizeof file) != 1 || job_map_file(file, &map, &map_len))
+        if (store_request_file(w->job.svc->store, w->job.claim.id, file, sizeof file) != 1 || job_map_file(file, &map, &map_len))
             rc = sf_fail(&w->err, SF_EIO, "", "the job's volume could not be read from the store");
         body = map ? map : "", len = map_len;
     }
@@ -135,7 +135,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     if (!rc)
         rc = volume_read(body, len, rec.format, rec.options, &v, &w->err);
     if (!rc && v.frep)
-        rc = frep_volumes(w->svc, v.frep, &w->err);
+        rc = frep_volumes(w->job.svc, v.frep, &w->err);
     if (!rc && v.frep)
         rc = volume_sample(&v, 0, v.g.nz, &pr, &w->err);
     if (!rc && !(w->json = matrix_json_of_volume(&v, &w->err)))
@@ -144,7 +144,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     if (map)
         munmap(map, map_len);
     if (file[0])
-        store_request_file_done(w->svc->store, file);
+        store_request_file_done(w->job.svc->store, file);
     store_rec_free(&rec);
     return rc ? -1 : 0;
 }
@@ -155,7 +155,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     struct matrix_work *w = arg;
     if (outcome == JOB_SUCCEEDED && w->vox && !(w->json = matrix_json_of_voxels(w->model, w->n, w->lo, w->hi, w->vox, &w->err)))
         outcome = JOB_FAILED;
-    service_job_end(w->svc, &w->claim, outcome, requeue, (const unsigned char *)w->json, w->json ? strlen(w->json) : 0,
+    service_job_end(w->job.svc, &w->job.claim, outcome, requeue, (const unsigned char *)w->json, w->json ? strlen(w->json) : 0,
                     "application/json", NULL, &w->err);
     free(w->json);
     free(w->vox);
@@ -167,26 +167,13 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 
 static const struct job_ops MATRIX_OPS = {.prepare = prepare, .band = band, .finish = finish};
 
-int matrix_start(struct service *svc, const struct job_claim *c)
-{
-    struct matrix_work *w = calloc(1, sizeof *w);
-    if (!w)
-        return -1;
-    w->svc = svc;
-    w->claim = *c;
-    if (jobq_submit(svc->q, c->id, &MATRIX_OPS, w, true)) {
-        free(w);
-        return -1;
-    }
-    return 0;
-}
 
-int matrix_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+static int matrix_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     char id[64];
     query_option(b->options, "model", id, sizeof id);
     if (!id[0])
-        return iso_validate(svc, b, err);
+        return isosurface_kind.validate(svc, b, err);
     if (b->len)
         return sf_fail(err, SF_EINVAL, "", "a stored model's matrices (?model) take no body");
     int n[3], rc;
@@ -196,3 +183,8 @@ int matrix_validate(struct service *svc, struct job_body *b, struct sf_err *err)
     scene_free(&sc);
     return 0;
 }
+
+/* The isosurface kind's requests (a volume, or an FRep object), or a stored model by ?model. */
+const struct job_kind matrix_kind = {
+    .name = "matrix", .format = volume_format_from_type, .media = VOLUME_MEDIA, .format_in_query = true, .validate = matrix_validate,
+    .ops = &MATRIX_OPS, .work_size = sizeof(struct matrix_work), .result = "application/json", .streamed = true};

@@ -22,8 +22,7 @@
 #define JOB_BAND_ROWS MAP_TILE_ROWS /* a band is one map tile: no tile is rasterised twice */
 
 struct render_work {
-    struct service *svc;
-    struct job_claim claim;
+    struct job_work job;     /* first: job_start fills it */
     struct scene sc;
     bool have_scene;
     enum image_format fmt;
@@ -89,7 +88,7 @@ static int build_model(void *ctx, struct scene *sc, struct frame **base, struct 
 static int prepare_view(struct render_work *w, const struct job_rec *rec, const char *id)
 {
     char key[96];
-    if (w->svc->cfg.frame_cache <= 0)
+    if (w->job.svc->cfg.frame_cache <= 0)
         return 1;
     scene_init(&w->sc); /* the request's options first: the hierarchy they need */
     w->sc.borrowed = true;
@@ -98,10 +97,10 @@ static int prepare_view(struct render_work *w, const struct job_rec *rec, const 
     if (render_options_apply(rec->options, &w->sc, &w->fmt, &w->err))
         return -1;
     bool mesh = w->sc.method == METHOD_MESH;
-    if (view_key(w->svc, id, NULL, mesh, key))
+    if (view_key(w->job.svc, id, NULL, mesh, key))
         return 1;
-    struct model_build b = {w->svc, rec, mesh};
-    if (!(w->cached = frames_take(w->svc->frames, key, build_model, &b, &w->err)))
+    struct model_build b = {w->job.svc, rec, mesh};
+    if (!(w->cached = frames_take(w->job.svc->frames, key, build_model, &b, &w->err)))
         return -1;
     w->sc.objects = w->cached->sc.objects, w->sc.n_objects = w->cached->sc.n_objects;
     w->sc.meshes = w->cached->sc.meshes, w->sc.n_meshes = w->cached->sc.n_meshes;
@@ -128,14 +127,14 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     struct render_work *w = arg;
     w->at[0] = monotonic_s();
     struct job_rec rec;
-    if (store_get(w->svc->store, w->claim.id, true, false, &rec) != 1)
+    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &rec) != 1)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
     char id[40];
     int rc = model_view(rec.format, (const char *)rec.request, rec.request_len, id) ? prepare_view(w, &rec, id) : 1;
     if (rc == 1) { /* any other scene: parsed and prepared whole */
-        struct model_scope scope = {w->svc, NULL}; /* the route checked the owner's models */
+        struct model_scope scope = {w->job.svc, NULL}; /* the route checked the owner's models */
         struct model_resolver models = service_models(&scope);
-        struct job_poll pc = {w->svc->q, j}; /* an IGES part's loops stop at a cancel */
+        struct job_poll pc = {w->job.svc->q, j}; /* an IGES part's loops stop at a cancel */
         const struct sf_progress pr = {service_poll_cancel, &pc};
         models.progress = &pr;
         rc = render_request_parse((const char *)rec.request, rec.request_len, rec.format, rec.options, &models, &w->sc,
@@ -143,7 +142,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         w->have_scene = rc == 0;
         if (!rc && w->fmt == IMG_PNG)
             w->sc.srgb8_only = true; /* the bands convert to 8 bits, on every thread */
-        if (!rc && frame_begin(&w->sc, w->svc->dev, &w->fr, &w->err))
+        if (!rc && frame_begin(&w->sc, w->job.svc->dev, &w->fr, &w->err))
             rc = -1;
     }
     store_rec_free(&rec);
@@ -169,7 +168,7 @@ static void band(struct job *j, void *arg, int k)
     }
     int y0 = k * JOB_BAND_ROWS, y1 = y0 + JOB_BAND_ROWS < w->sc.height ? y0 + JOB_BAND_ROWS : w->sc.height;
     frame_band(w->fr, y0, y1, &w->band_stats[k]);
-    jobq_cancelled(w->svc->q, j, 0.95 * (atomic_fetch_add(&w->bands_done, 1) + 1) / w->n_bands); /* then the PNG */
+    jobq_cancelled(w->job.svc->q, j, 0.95 * (atomic_fetch_add(&w->bands_done, 1) + 1) / w->n_bands); /* then the PNG */
 }
 
 static int next(struct job *j, void *arg, int *n_bands)
@@ -216,26 +215,26 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
             metrics_render(render_s, total.rays);
             w->at[4] = monotonic_s();
             LOG(LOG_DEBUG, "job %s: %.1f ms to read and begin the frame, %.1f to finish its map, %.1f to render, "
-                "%.1f to encode", w->claim.id, 1e3 * (w->at[1] - w->at[0]), 1e3 * (w->at[2] - w->at[1]),
+                "%.1f to encode", w->job.claim.id, 1e3 * (w->at[1] - w->at[0]), 1e3 * (w->at[2] - w->at[1]),
                 1e3 * render_s, 1e3 * (w->at[4] - w->at[3]));
         } else {
             outcome = JOB_FAILED;
         }
     }
-    service_job_end(w->svc, &w->claim, outcome, requeue, bytes, n, image_format_mime(w->fmt), meta, &w->err);
+    service_job_end(w->job.svc, &w->job.claim, outcome, requeue, bytes, n, image_format_mime(w->fmt), meta, &w->err);
     free(bytes);
     png_bands_free(w->png);
     frame_free(w->fr);
     if (w->have_scene)
         scene_free(&w->sc);
-    frames_give(w->svc->frames, w->cached); /* after the frame and the scene that borrowed from it */
+    frames_give(w->job.svc->frames, w->cached); /* after the frame and the scene that borrowed from it */
     free(w->band_stats);
     free(w);
 }
 
 static const struct job_ops RENDER_OPS = {.prepare = prepare, .band = band, .next = next, .finish = finish};
 
-const char *render_format(const char *content_type) { return render_format_from_type(content_type); }
+static const char *render_format(const char *content_type) { return render_format_from_type(content_type); }
 
 /* A view of a stored model whose objects the frame cache holds (parsed and checked when the model
  * was stored and again when they were cached): only the request's options are checked, against
@@ -257,7 +256,7 @@ static int validate_view(struct service *svc, const struct job_body *b, const ch
     return rc;
 }
 
-int render_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+static int render_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     struct scene sc;
     enum image_format img;
@@ -273,16 +272,7 @@ int render_validate(struct service *svc, struct job_body *b, struct sf_err *err)
     return 0;
 }
 
-int render_start(struct service *svc, const struct job_claim *c)
-{
-    struct render_work *w = calloc(1, sizeof *w);
-    if (!w)
-        return -1;
-    w->svc = svc;
-    w->claim = *c;
-    if (jobq_submit(svc->q, c->id, &RENDER_OPS, w, true)) {
-        free(w);
-        return -1;
-    }
-    return 0;
-}
+const struct job_kind render_kind = {
+    .name = "render", .format = render_format, .media = "application/json, model/x-bpt, model/vrml or model/iges",
+    .format_in_query = true, .validate = render_validate, .ops = &RENDER_OPS, .work_size = sizeof(struct render_work),
+    .result = "image/png, image/x-exr or image/tiff"};

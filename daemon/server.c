@@ -635,9 +635,8 @@ static enum MHD_Result model_list(struct req *r)
 
 /* A job of a kind made by a GET on a model: its request is body (made here), its options the
  * query's. */
-static enum MHD_Result model_job(struct req *r, const char *kind_name, char *body, const char *format)
+static enum MHD_Result model_job(struct req *r, const struct job_kind *kind, char *body, const char *format)
 {
-    const struct job_kind *kind = job_kind(kind_name);
     free(r->body);
     r->body = body;
     if (!body)
@@ -654,9 +653,9 @@ static enum MHD_Result model_job(struct req *r, const char *kind_name, char *bod
  * with the query's render options. GET /models/{id}/mesh and /patches: a job of that kind (they
  * can take seconds and hundreds of megabytes, which no HTTP thread should spend), its request the
  * model's id. Each is answered as any job: the result when it ends within the wait, else 202. */
-static enum MHD_Result model_output(struct req *r, const char *id, const char *what)
+static enum MHD_Result model_output(struct req *r, const char *id, const struct job_kind *kind)
 {
-    if (!strcmp(what, "mesh") && r->svc->cfg.mesh_cache > 0) { /* computed once: from the cache when it has it */
+    if (kind == &mesh_kind && r->svc->cfg.mesh_cache > 0) { /* computed once: from the cache when it has it */
         struct opts o = {.n = 0};
         enum MHD_Result answer;
         char key[96];
@@ -680,12 +679,12 @@ static enum MHD_Result model_output(struct req *r, const char *id, const char *w
         if (found == STORE_DAMAGED)
             LOG(LOG_WARN, "model %s: a cached mesh does not match its checksum; made again", id);
     }
-    if (strcmp(what, "render"))
-        return model_job(r, what, strdup(id), "");
+    if (kind != &render_kind)
+        return model_job(r, kind, strdup(id), "");
     char *scene = malloc(128);
     if (scene)
         snprintf(scene, 128, "{\"objects\":[{\"type\":\"model\",\"id\":\"%s\"}]}", id);
-    return model_job(r, "render", scene, "json");
+    return model_job(r, &render_kind, scene, "json");
 }
 
 /* Whether model id is the request's to see; answers 404 (or the store's failure) when not. */
@@ -721,21 +720,21 @@ static enum MHD_Result model_resource(struct req *r, const char *id)
     return ok;
 }
 
-static enum MHD_Result model_sub(struct req *r, const char *id, const char *what)
+static enum MHD_Result model_sub(struct req *r, const char *id, const struct job_kind *kind)
 {
     enum MHD_Result ok;
-    return model_found(r, id, NULL, &ok) ? model_output(r, id, what) : ok;
+    return model_found(r, id, NULL, &ok) ? model_output(r, id, kind) : ok;
 }
-static enum MHD_Result model_mesh_route(struct req *r, const char *id) { return model_sub(r, id, "mesh"); }
-static enum MHD_Result model_patches_route(struct req *r, const char *id) { return model_sub(r, id, "patches"); }
-static enum MHD_Result model_view_route(struct req *r, const char *id) { return model_sub(r, id, "render"); }
-static enum MHD_Result model_rtstruct_route(struct req *r, const char *id) { return model_sub(r, id, "rtstruct"); }
+static enum MHD_Result model_mesh_route(struct req *r, const char *id) { return model_sub(r, id, &mesh_kind); }
+static enum MHD_Result model_patches_route(struct req *r, const char *id) { return model_sub(r, id, &patches_kind); }
+static enum MHD_Result model_view_route(struct req *r, const char *id) { return model_sub(r, id, &render_kind); }
+static enum MHD_Result model_rtstruct_route(struct req *r, const char *id) { return model_sub(r, id, &rtstruct_kind); }
 
 /* POST /models/{id}/edit: an edit job of the model (the token's), its id in ?model. */
 static enum MHD_Result model_edit_route(struct req *r, const char *id)
 {
     enum MHD_Result ok;
-    return model_found(r, id, NULL, &ok) ? post_job_on(r, job_kind("edit"), id) : ok;
+    return model_found(r, id, NULL, &ok) ? post_job_on(r, &edit_kind, id) : ok;
 }
 
 /* ---- routing ---------------------------------------------------------------------------- */
@@ -913,7 +912,7 @@ static const struct route {
     unsigned methods;
     bool open;
     enum MHD_Result (*fn)(struct req *r, const char *id);
-    const char *kind;
+    const struct job_kind *kind;
 } ROUTES[] = {
     {"/", GET, true, web_asset, NULL},
     {"/app.js", GET, true, web_asset, NULL},
@@ -923,11 +922,11 @@ static const struct route {
     {"/version", GET, false, version, NULL},
     {"/metrics", GET, false, metrics, NULL},
     {"/openapi.yaml", GET, false, openapi, NULL},
-    {"/render", POST, false, NULL, "render"},
-    {"/volume", POST, false, NULL, "volume"},
-    {"/model", POST, false, NULL, "model"},
-    {"/isosurface", POST, false, NULL, "isosurface"},
-    {"/matrix-model", POST, false, NULL, "matrix"},
+    {"/render", POST, false, NULL, &render_kind},
+    {"/volume", POST, false, NULL, &volume_kind},
+    {"/model", POST, false, NULL, &model_kind},
+    {"/isosurface", POST, false, NULL, &isosurface_kind},
+    {"/matrix-model", POST, false, NULL, &matrix_kind},
     {"/models", GET, false, models, NULL},
     {"/models/{id}", GET | DELETE, false, model_resource, NULL},
     {"/models/{id}/mesh", GET, false, model_mesh_route, NULL},
@@ -1014,7 +1013,7 @@ static enum MHD_Result route(struct req *r)
             rp.len = rp.body ? strlen(rp.body) : 0;
             return send_reply(r, &rp);
         }
-        return rt->kind ? post_job(r, job_kind(rt->kind)) : rt->fn(r, id);
+        return rt->kind ? post_job(r, rt->kind) : rt->fn(r, id);
     }
     if (!strncmp(r->path, "/jobs/", 6))
         return problem(r, 404, "no such job", NULL);
@@ -1058,7 +1057,7 @@ static bool streamed(const char *path, const char *method)
         return false;
     char id[40];
     const struct route *rt = find_route(path, id);
-    return rt && rt->kind && job_kind(rt->kind)->streamed;
+    return rt && rt->kind && rt->kind->streamed;
 }
 
 /* Removes the uploads/tmp-* files a process before this one left when it was stopped mid-upload (a

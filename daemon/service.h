@@ -1,6 +1,7 @@
 /* service.h - what the running daemon shares between its HTTP front end and its jobs: settings,
- * store, queue, Embree device, tokens, the draining flag; and the node's keeper, the thread that
- * moves jobs between the store and the worker pool. Created by cmd_serve.c.
+ * store, queue, Embree device, tokens, the draining flag, the claims this node holds; and what the
+ * job kinds call: the end of a job, its polls, stored models for scenes. Created by cmd_serve.c;
+ * the keeper (keeper.h) moves jobs between the store and the worker pool.
  *
  * How a job travels: the HTTP layer validates a request and store_submit()s it (QUEUED), then
  * wakes the keeper. The keeper claims queued jobs (store_claim: any node's, oldest first) while
@@ -32,6 +33,9 @@ struct claim {
     double retry_at;         /* monotonic seconds, when stranded */
     int tries;
 };
+/* A stranded job's first delay before it runs again; doubled each time, up to STRANDED_LAST_S. */
+#define STRANDED_FIRST_S 5.0
+#define STRANDED_LAST_S 300.0
 
 struct frames;
 
@@ -61,10 +65,11 @@ double wall_s(void);
 /* A new random job id (32 hex digits). */
 void service_new_id(char out[40]);
 
-/* Starts the keeper (after the pool and the store are open). 0 or -1. */
-int service_start(struct service *svc);
-/* Stops the keeper: no more claims, heartbeats or reaps. */
-void service_stop(struct service *svc);
+/* The claim on job id under fence (any fence: fence < 0), or NULL. svc->lock held. */
+struct claim *claim_find(struct service *svc, const char *id, long fence);
+/* Drops the claim c (takes svc->lock). */
+void claim_drop(struct service *svc, const struct job_claim *c);
+
 /* Asks the keeper to look for queued jobs now (a job was submitted, or one ended). */
 void service_wake(struct service *svc);
 
@@ -72,7 +77,7 @@ void service_wake(struct service *svc);
  * failed (problem from err) or cancelled, or, with requeue, handed back queued (a drain). result
  * may be NULL for outcomes other than JOB_SUCCEEDED. A claim this node no longer holds changes
  * nothing (the job was reaped and runs elsewhere). When the store will not take the end (after a
- * few tries), the job is stranded, and run again by service_retry_stranded(). */
+ * few tries), the job is stranded, and run again by keeper_retry_stranded(). */
 void service_job_end(struct service *svc, const struct job_claim *c, enum job_state outcome, bool requeue,
                      const unsigned char *result, size_t len, const char *type, const char *meta,
                      const struct sf_err *err);
@@ -83,8 +88,6 @@ int service_outgrown(struct sf_err *err);
 /* A job of this node's pool that a drain could not stop: handed back queued. */
 void service_release(struct service *svc, const char *id);
 
-/* Runs the stranded jobs whose delay has passed (the daemon's main loop calls it). */
-void service_retry_stranded(struct service *svc);
 /* Jobs stranded now (for /metrics). */
 int service_n_stranded(struct service *svc);
 

@@ -1,11 +1,9 @@
 /* store.c - store.h over its backends: picks one by the target's form and forwards each call. */
 #include "store.h"
 
-#include <gnutls/crypto.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/random.h>
 
 #include "store_backend.h"
 
@@ -20,17 +18,6 @@ int store_open(const char *target, const char *scratch, struct store **out, char
 }
 
 void store_set_piece(struct store *s, size_t bytes) { s->piece = bytes; }
-
-int store_piece_name(char name[48])
-{
-    unsigned char r[16];
-    if (getrandom(r, sizeof r, 0) != (ssize_t)sizeof r)
-        return -1;
-    int at = snprintf(name, 48, "pieces:");
-    for (size_t k = 0; k < sizeof r; k++)
-        at += snprintf(name + at, (size_t)(48 - at), "%02x", r[k]);
-    return 0;
-}
 
 void store_close(struct store *s)
 {
@@ -58,13 +45,6 @@ int store_claim(struct store *s, const char *node, double lease_s, bool alone, s
 {
     memset(out, 0, sizeof *out);
     return s->ops->claim(s, node, lease_s, alone, out);
-}
-
-enum job_state store_reaped_state(const struct reaped *r, int max_attempts)
-{
-    if (r->cancelled)
-        return JOB_CANCELLED;
-    return r->beside == 0 && r->attempts >= max_attempts ? JOB_FAILED : JOB_QUEUED;
 }
 
 int store_heartbeat(struct store *s, const char *id, long fence, double lease_s, double progress, bool *cancel)
@@ -109,18 +89,6 @@ int store_get(struct store *s, const char *id, bool with_request, bool with_resu
 {
     memset(out, 0, sizeof *out);
     return noted(s, s->ops->get(s, id, with_request, with_result, out));
-}
-
-void store_rec_free(struct job_rec *r)
-{
-    if (!r)
-        return;
-    free(r->request);
-    free(r->result);
-    free(r->meta);
-    free(r->error);
-    r->request = r->result = NULL;
-    r->meta = r->error = NULL;
 }
 
 int store_list(struct store *s, const enum job_state *state, const char *owner, long limit,
@@ -184,47 +152,11 @@ int store_mesh_put(struct store *s, const char *model, const char *key, const st
 
 long store_mesh_bytes(struct store *s) { return s->ops->mesh_bytes(s); }
 
-void store_mesh_free(struct mesh_rec *m)
-{
-    free(m->type);
-    free(m->meta);
-    free(m->data);
-    memset(m, 0, sizeof *m);
-}
-
 int store_volume_get(struct store *s, const char *id, int from, struct volume_rec **parts, int *n)
 {
     *parts = NULL;
     *n = 0;
     return noted(s, s->ops->volume_get(s, id, from, parts, n));
-}
-
-void store_volume_free(struct volume_rec *parts, int n)
-{
-    for (int k = 0; k < n; k++) {
-        free((void *)parts[k].format);
-        free((void *)parts[k].options);
-        free((void *)parts[k].data);
-    }
-    free(parts);
-}
-
-/* One more part for a backend's volume_get (format, options and data copied): 0 or -1. */
-int store_volume_add(struct volume_rec **parts, int *n, int seq, const char *format, const char *options,
-                     const void *data, size_t len)
-{
-    struct volume_rec *p = realloc(*parts, (size_t)(*n + 1) * sizeof *p);
-    if (!p)
-        return -1;
-    *parts = p;
-    char *f = strdup(format), *o = strdup(options), *d = malloc(len ? len : 1);
-    if (!f || !o || !d) {
-        free(f), free(o), free(d);
-        return -1;
-    }
-    memcpy(d, data, len);
-    p[(*n)++] = (struct volume_rec){seq, f, o, d, len};
-    return 0;
 }
 
 bool store_writable(struct store *s) { return !atomic_load(&s->damaged) && s->ops->writable(s); }
@@ -263,17 +195,4 @@ void store_on_event(struct store *s, void (*fn)(enum store_event, const char *, 
 {
     if (s->ops->on_event)
         s->ops->on_event(s, fn, arg);
-}
-
-void store_checksum(const void *a, size_t na, const void *b, size_t nb, char out[65])
-{
-    unsigned char d[32] = {0};
-    gnutls_hash_hd_t h;
-    if (gnutls_hash_init(&h, GNUTLS_DIG_SHA256) == 0) {
-        gnutls_hash(h, a, na);
-        gnutls_hash(h, b, nb);
-        gnutls_hash_deinit(h, d);
-    }
-    for (int k = 0; k < 32; k++)
-        snprintf(out + 2 * k, 3, "%02x", d[k]);
 }

@@ -1,0 +1,12 @@
+/* job_edit.h - the hierarchies the edit kind keeps in memory (job_edit.c), given by the
+ * isosurface kind when it makes one. */
+#ifndef SURFD_JOB_EDIT_H
+#define SURFD_JOB_EDIT_H
+
+#include "volumes.h"
+
+/* An isosurface job's kept hierarchy a (iso_adapt_keep; NULL: none) for the model's edits, with
+ * its volume's settings (not its samples); a is taken (freed when it does not fit edit-memory). */
+void edit_keep(struct service *svc, const char *id, const struct volume *vol, struct iso_adapt *a);
+
+#endif

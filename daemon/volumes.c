@@ -1,0 +1,164 @@
+/* volumes.c - what the kinds that read volumes share (volumes.h). */
+#include "volumes.h"
+
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "../api/iso_json.h"
+
+int job_map_file(const char *path, void **map, size_t *len)
+{
+    int fd = open(path, O_RDONLY);
+    struct stat st;
+    if (fd < 0 || fstat(fd, &st)) {
+        if (fd >= 0)
+            close(fd);
+        return -1;
+    }
+    *len = (size_t)st.st_size;
+    *map = *len ? mmap(NULL, *len, PROT_READ, MAP_PRIVATE, fd, 0) : NULL;
+    close(fd);
+    if (*map == MAP_FAILED) {
+        *map = NULL;
+        return -1;
+    }
+    return 0;
+}
+
+struct iso_opts job_iso_opts(const struct service *svc, const struct volume *v)
+{
+    struct iso_opts o = volume_iso_opts(v);
+    o.max_triangles = (size_t)svc->cfg.max_triangles;
+    o.max_triangles_by = "this node's max-triangles";
+    long long held = svc->cfg.job_memory / ISO_BYTES_PER_TRIANGLE;
+    if (svc->cfg.job_memory && held < svc->cfg.max_triangles) {
+        o.max_triangles = (size_t)held;
+        o.max_triangles_by = "what this node's job-memory holds (some 80 bytes a triangle from extraction to the store)";
+    }
+    return o;
+}
+
+/* Block blk at lo written into grid g's samples (same type). */
+static void write_samples(struct iso_grid *g, const int lo[3], const struct iso_grid *blk)
+{
+    size_t ts = g->type == ISO_U8 ? 1 : g->type == ISO_F32 ? 4 : 2;
+    for (int z = 0; z < blk->nz; z++)
+        for (int y = 0; y < blk->ny; y++)
+            memcpy((char *)g->samples + ts * ((size_t)lo[0] + (size_t)g->nx * ((size_t)lo[1] + y + (size_t)g->ny * ((size_t)lo[2] + z))),
+                   (const char *)blk->samples + ts * (size_t)blk->nx * ((size_t)y + (size_t)blk->ny * z),
+                   ts * (size_t)blk->nx);
+}
+
+int part_apply(struct volume *vol, struct iso_adapt *a, const char *options, const void *data, size_t len,
+                 struct iso_edit *ed, struct sf_err *err)
+{
+    int lo[3], n[3];
+    if (volume_region(options, &vol->g, len, lo, n, err))
+        return err->code;
+    struct iso_grid blk = {n[0], n[1], n[2], vol->g.type, data, {1, 1, 1}, {0, 0, 0}};
+    memset(ed, 0, sizeof *ed);
+    if (a)
+        return iso_adapt_edit(a, lo, &blk, ed, err);
+    write_samples(&vol->g, lo, &blk);
+    ed->whole = true;
+    return 0;
+}
+
+int stored_volume(struct service *svc, const char *id, struct volume *vol, int *next, struct sf_err *err)
+{
+    memset(vol, 0, sizeof *vol);
+    struct volume_rec *parts;
+    int n, found = store_volume_get(svc->store, id, 0, &parts, &n);
+    if (found != 1 || parts[0].seq != 0) {
+        store_volume_free(parts, n);
+        return sf_fail(err, found == 0 || found == 1 ? SF_ECONFLICT : SF_EIO, "",
+                       found == 0 || found == 1 ? "this model keeps no volume of samples (made before volumes were "
+                                                  "kept, or not an isosurface of samples)"
+                       : found == STORE_DAMAGED ? "the model's stored volume is damaged (its bytes no longer match "
+                                                  "their checksum): it cannot be edited"
+                                                : "the model's volume could not be read from the store");
+    }
+    int rc = volume_read(parts[0].data, parts[0].len, parts[0].format, parts[0].options, vol, err);
+    if (!rc && vol->frep)
+        rc = sf_fail(err, SF_ECONFLICT, "", "an FRep model has no samples (it is edited by {op, object}, and a volume "
+                     "primitive reads isosurfaces of samples)");
+    if (!rc && !vol->owned) { /* the samples in the part's bytes: copied, to be written */
+        size_t bytes = (size_t)vol->g.nx * vol->g.ny * vol->g.nz * (vol->g.type == ISO_U8 ? 1 : vol->g.type == ISO_F32 ? 4 : 2);
+        if (!(vol->owned = malloc(bytes)))
+            rc = sf_fail(err, SF_ENOMEM, "", "out of memory for the model's volume");
+        else
+            vol->g.samples = memcpy(vol->owned, vol->g.samples, bytes);
+    }
+    for (int k = 1; k < n && !rc; k++) {
+        struct iso_edit ed;
+        rc = part_apply(vol, NULL, parts[k].options, parts[k].data, parts[k].len, &ed, err);
+    }
+    *next = parts[n - 1].seq + 1;
+    store_volume_free(parts, n);
+    if (rc)
+        volume_free(vol);
+    return rc;
+}
+
+int frep_volumes(struct service *svc, struct frep_request *r, struct sf_err *err)
+{
+    r->f.volumes = r->vols;
+    for (int k = 0; k < r->n_refs; k++) {
+        struct volume mv;
+        struct sf_err e = {0};
+        int next;
+        if (stored_volume(svc, r->refs[k].model, &mv, &next, &e))
+            return sf_fail(err, e.code == SF_ECONFLICT ? SF_EINVAL : e.code, r->refs[k].pointer, "model %s: %s",
+                           r->refs[k].model, e.message);
+        size_t n = (size_t)mv.g.nx * mv.g.ny * mv.g.nz;
+        float *f = mv.oblique ? NULL : malloc(n * sizeof *f);
+        if (!f) {
+            volume_free(&mv);
+            return mv.oblique ? sf_fail(err, SF_EINVAL, r->refs[k].pointer, "model %s: an oblique series is not read "
+                                                                            "into an FRep object", r->refs[k].model)
+                              : sf_fail(err, SF_ENOMEM, "", "out of memory for a volume's samples");
+        }
+        for (int z = 0; z < mv.g.nz; z++)
+            for (int y = 0; y < mv.g.ny; y++)
+                iso_grid_row(&mv.g, y, z, f + (size_t)mv.g.nx * (y + (size_t)mv.g.ny * z));
+        float lo = INFINITY, hi = -INFINITY;
+        for (size_t i = 0; i < n; i++)
+            lo = fminf(lo, f[i]), hi = fmaxf(hi, f[i]);
+        struct frep_volume *fv = &r->vols[k];
+        *fv = (struct frep_volume){{mv.g.nx, mv.g.ny, mv.g.nz}, {0}, {0}, f, lo, hi, (float)fmin(mv.iso - 1, lo)};
+        memcpy(fv->origin, mv.g.origin, sizeof fv->origin);
+        memcpy(fv->spacing, mv.g.spacing, sizeof fv->spacing);
+        r->vol_samples[k] = f;
+        frep_volume_iso(r, k, mv.iso);
+        volume_free(&mv);
+    }
+    return 0;
+}
+
+int frep_refs_check(struct service *svc, const struct frep_request *r, const char *owner, const char *pointer,
+                    struct sf_err *err)
+{
+    int rc = 0;
+    for (int k = 0; k < r->n_refs && !rc; k++) {
+        char *resource = NULL;
+        struct iso_grid g;
+        struct sf_err e = {0};
+        bool frep;
+        const char *at = pointer ? pointer : r->refs[k].pointer;
+        int found = store_model_get(svc->store, r->refs[k].model, owner, &resource, NULL, NULL);
+        if (found != 1)
+            rc = found == 0 ? sf_fail(err, SF_EINVAL, at, "no such model: %s", r->refs[k].model)
+                            : sf_fail(err, SF_EIO, "", "the store failed");
+        else if (iso_model_grid(resource, &g, &frep, &e) || frep)
+            rc = sf_fail(err, SF_EINVAL, at, "a volume reads an isosurface model of samples%s%s",
+                         e.message[0] ? ": " : "", e.message);
+        free(resource);
+    }
+    return rc;
+}

@@ -1,0 +1,46 @@
+/* volumes.h - what the kinds that read volumes share (isosurface, matrix, edit): a stored model's
+ * volume read back with its edits, the samples of FRep volume primitives and their owner check,
+ * the extraction's limits on this node, and a streamed request's file mapped. */
+#ifndef SURFD_VOLUMES_H
+#define SURFD_VOLUMES_H
+
+#include "../api/frep_json.h"
+#include "../api/volume_io.h"
+#include "../core/iso/adapt.h"
+#include "service.h"
+
+/* The bodies the isosurface and matrix kinds read (their format: volume_format_from_type). */
+#define VOLUME_MEDIA                                                                                                   \
+    "application/octet-stream (raw samples, with ?dims&type), application/x-nrrd, application/x-metaimage, "           \
+    "multipart/form-data (a DICOM series) or application/json (an FRep object)"
+
+/* What a triangle of an isosurface costs from its extraction to the store (the mesh, its packing
+ * and its measures; 78 bytes measured on a striped field of 39 M triangles, tests/bench/RESULTS.md). */
+#define ISO_BYTES_PER_TRIANGLE 80
+
+/* A volume's extraction options with this node's limits on the output: max-triangles, and what
+ * job-memory holds. */
+struct iso_opts job_iso_opts(const struct service *svc, const struct volume *v);
+/* The whole file at path, mapped read-only (*map NULL for an empty one): 0 or -1. */
+int job_map_file(const char *path, void **map, size_t *len);
+
+/* A part of a model's stored volume after the first (an edit: options its region, data and len its
+ * samples) applied to vol: into the hierarchy a (ed: what it redrew) or, when a is NULL, into
+ * vol's samples. 0, or the region's error. */
+int part_apply(struct volume *vol, struct iso_adapt *a, const char *options, const void *data, size_t len,
+               struct iso_edit *ed, struct sf_err *err);
+/* Model id's volume as the store keeps it, its edits applied (its samples in vol->owned; free with
+ * volume_free), *next the seq after its last edit: 0, or SF_ECONFLICT (the model keeps no volume
+ * of samples), SF_EIO, SF_ENOMEM. */
+int stored_volume(struct service *svc, const char *id, struct volume *vol, int *next, struct sf_err *err);
+
+/* The stored models an FRep request's volume primitives read, as float samples into r (their
+ * iso into its nodes): 0, or SF_EINVAL at the primitive's pointer, SF_EIO, SF_ENOMEM. */
+int frep_volumes(struct service *svc, struct frep_request *r, struct sf_err *err);
+/* The one owner check of an FRep request's volume primitives, for every route that reads one:
+ * each a stored isosurface model of samples that owner (NULL: anyone's) may see. 0, or SF_EINVAL
+ * at the primitive's pointer (or at pointer, when not NULL), SF_EIO. */
+int frep_refs_check(struct service *svc, const struct frep_request *r, const char *owner, const char *pointer,
+                    struct sf_err *err);
+
+#endif
