@@ -183,7 +183,7 @@ static const struct job_ops MESH_OPS = {.prepare = prepare_mesh, .finish = finis
 /* ---- the requests: contour JSON or an RT Structure Set (both kinds); /volume also measures a
  * scene (JSON, .bpt, VRML) whose patches bound a closed solid ---- */
 
-static const char *volume_format(const char *content_type)
+static const char *figures_format(const char *content_type)
 {
     if (content_type && !strncasecmp(content_type, "application/dicom", 17))
         return "dicom";
@@ -193,7 +193,7 @@ static const char *volume_format(const char *content_type)
 
 static const char *contour_format(const char *content_type)
 {
-    const char *f = volume_format(content_type);
+    const char *f = figures_format(content_type);
     return f && (!strcmp(f, "json") || !strcmp(f, "dicom")) ? f : NULL;
 }
 
@@ -257,7 +257,7 @@ static int patches_validate(struct service *svc, struct job_body *b, struct sf_e
 }
 
 const struct job_kind volume_kind = {
-    .name = "volume", .format = volume_format,
+    .name = "volume", .format = figures_format,
     .media = "application/json (contours or a scene), application/dicom, model/x-bpt, model/vrml or model/iges",
     .format_in_query = true, .validate = volume_validate, .ops = &VOLUME_OPS, .work_size = sizeof(struct contour_work),
     .result = "application/json"};
