@@ -201,6 +201,7 @@ install: $(B)/surfd $(B)/surfctl $(B)/libsurfd-image.so
 	install -D -m 0644 deploy/surfd@.service $(DESTDIR)/etc/systemd/system/surfd@.service
 	[ -e $(DESTDIR)/etc/surfd/surfd.conf ] || install -D -m 0640 deploy/surfd.conf $(DESTDIR)/etc/surfd/surfd.conf
 	install -D -m 0644 README.md $(DESTDIR)$(PREFIX)/share/doc/surfd/README.md
+	install -D -m 0644 LICENSE $(DESTDIR)$(PREFIX)/share/doc/surfd/LICENSE
 	install -D -m 0644 api/openapi.yaml $(DESTDIR)$(PREFIX)/share/doc/surfd/openapi.yaml
 	@if [ -z "$(DESTDIR)" ] && ! id surfd >/dev/null 2>&1; then \
 		useradd --system --home-dir /var/lib/surfd --shell /usr/sbin/nologin surfd; fi
