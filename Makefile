@@ -1,6 +1,6 @@
 # surfd - one plain Makefile (STYLE.md §12).
 #   make            build/surfd (release)
-#   make run        install missing Debian packages, build, serve on 127.0.0.1:8080 with the store in ./var
+#   make run        install missing Debian packages, build, serve on 127.0.0.1:8080 (PORT=N: port N) with the store in ./var
 #   make install    binary, systemd unit and config (DESTDIR and PREFIX respected)
 #   make check      unit tests, thread-sanitizer tests, fuzz replays and torture (every allocation of
 #                   the fuzz seeds refused in turn): a few minutes, for every change
@@ -190,8 +190,10 @@ $(B)/tests/core/trace/tsan_map: tests/core/trace/tsan_map.c tests/unit.h $(TSAN_
 $(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $(SAN_CORE) | $(B)/san/libsurfd-image.so
 	$(CC) $(OPT) $(SAN) $(MEMWRAP) -o $@ $^ $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
+# the port make run serves on: make run PORT=8081
+PORT ?= 8080
 run: deps $(B)/surfd
-	$(B)/surfd serve --listen 127.0.0.1:8080 --data-dir var
+	$(B)/surfd serve --listen 127.0.0.1:$(PORT) --data-dir var
 
 PREFIX  ?= /usr/local
 install: $(B)/surfd $(B)/surfctl $(B)/libsurfd-image.so
@@ -202,6 +204,7 @@ install: $(B)/surfd $(B)/surfctl $(B)/libsurfd-image.so
 	install -D -m 0644 deploy/surfd@.service $(DESTDIR)/etc/systemd/system/surfd@.service
 	[ -e $(DESTDIR)/etc/surfd/surfd.conf ] || install -D -m 0640 deploy/surfd.conf $(DESTDIR)/etc/surfd/surfd.conf
 	install -D -m 0644 README.md $(DESTDIR)$(PREFIX)/share/doc/surfd/README.md
+	install -D -m 0644 LICENSE $(DESTDIR)$(PREFIX)/share/doc/surfd/LICENSE
 	install -D -m 0644 api/openapi.yaml $(DESTDIR)$(PREFIX)/share/doc/surfd/openapi.yaml
 	@if [ -z "$(DESTDIR)" ] && ! id surfd >/dev/null 2>&1; then \
 		useradd --system --home-dir /var/lib/surfd --shell /usr/sbin/nologin surfd; fi

@@ -37,21 +37,18 @@ Source: the surfd repository
 
 Files: *
 Copyright: 2026 the surfd developers
-License: MIT
- Permission is hereby granted, free of charge, to any person obtaining a copy of this software and
- associated documentation files (the "Software"), to deal in the Software without restriction,
- including without limitation the rights to use, copy, modify, merge, publish, distribute,
- sublicense, and/or sell copies of the Software, and to permit persons to whom the Software is
- furnished to do so, subject to the following conditions:
+License: Apache-2.0
+ Licensed under the Apache License, Version 2.0 (the "License"); you may not use this software
+ except in compliance with the License. You may obtain a copy of the License at
+ https://www.apache.org/licenses/LICENSE-2.0
  .
- The above copyright notice and this permission notice shall be included in all copies or
- substantial portions of the Software.
+ Unless required by applicable law or agreed to in writing, software distributed under the
+ License is distributed on an "AS IS" BASIS, WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either
+ express or implied. See the License for the specific language governing permissions and
+ limitations under the License.
  .
- THE SOFTWARE IS PROVIDED "AS IS", WITHOUT WARRANTY OF ANY KIND, EXPRESS OR IMPLIED, INCLUDING BUT
- NOT LIMITED TO THE WARRANTIES OF MERCHANTABILITY, FITNESS FOR A PARTICULAR PURPOSE AND
- NONINFRINGEMENT. IN NO EVENT SHALL THE AUTHORS OR COPYRIGHT HOLDERS BE LIABLE FOR ANY CLAIM, DAMAGES
- OR OTHER LIABILITY, WHETHER IN AN ACTION OF CONTRACT, TORT OR OTHERWISE, ARISING FROM, OUT OF OR IN
- CONNECTION WITH THE SOFTWARE OR THE USE OR OTHER DEALINGS IN THE SOFTWARE.
+ On Debian systems, the complete text of the Apache License, Version 2.0 can be found in
+ "/usr/share/common-licenses/Apache-2.0". The same text is LICENSE in the source tree.
 C
 inst 0644 "$B/deb/copyright" $D/copyright
 { printf 'surfd (%s) unstable; urgency=medium\n\n  * Built from the repository at %s.\n\n' "$V" "$(git rev-parse --short HEAD 2>/dev/null || echo unknown)"

@@ -18,6 +18,7 @@ mkdir -p "$R/var/lib/dpkg/info" "$R/var/lib/dpkg/updates" "$R/var/lib/dpkg/trigg
 dpkg --root="$R" --force-depends --force-script-chrootless --log=/dev/null -i "$deb" >"$T/dpkg.out" 2>&1
 check "dpkg installs it into a scratch root" '[ $? -eq 0 ] && dpkg --root="$R" -s surfd 2>/dev/null | grep -q "Status: install ok installed"'
 check "... binaries, unit, conffile, Python client, man pages, docs in place" '[ -x "$R/usr/bin/surfd" ] && [ -x "$R/usr/bin/surfctl" ] && [ -f "$R/usr/lib/surfd/libsurfd-image.so" ] && grep -q "^ExecStart=/usr/bin/surfd serve --config /etc/surfd/surfd.conf" "$R/lib/systemd/system/surfd.service" && [ -f "$R/etc/surfd/surfd.conf" ] && [ -f "$R/usr/lib/python3/dist-packages/surfd.py" ] && [ -f "$R/usr/share/man/man1/surfctl.1.gz" ] && [ -f "$R/usr/share/doc/surfd/copyright" ]'
+check "... its copyright names the licence of LICENSE (Apache-2.0)" 'grep -qx "License: Apache-2.0" "$R/usr/share/doc/surfd/copyright" && grep -q "Apache License" LICENSE && grep -q "Version 2.0, January 2004" LICENSE'
 S="$R/usr/bin/surfd"
 start_daemon "$T/d" --config "$R/etc/surfd/surfd.conf" --listen 127.0.0.1:0 || cat "$T/dpkg.out"
 code=$(status GET /)
