@@ -1,6 +1,6 @@
 /* surfctl.c - the command-line client of surfd: speaks only HTTP (libcurl), reads SURFD_URL
- * (default http://127.0.0.1:8080) and SURFD_TOKEN from the environment. A command for every
- * route (COMMANDS below, each with its --help); long jobs are followed with a progress bar on a
+ * (default http://127.0.0.1:8080) and SURFD_TOKEN from the environment. A command for each
+ * route but a model's patches and RT Structure Set (COMMANDS below, each with its --help); long jobs are followed with a progress bar on a
  * terminal, a plain line every 10 % with an ETA otherwise (--progress=bar|plain|none), polling
  * from 100 ms backing off to 2 s; a failed or cancelled job prints its problem.
  *
