@@ -110,28 +110,120 @@ static void abandon(const char *id, void *arg)
 
 void cmd_serve_usage(FILE *f) { config_usage(f); }
 
+/* The settings, the tokens, and whether they may serve where they listen: 0, or 2 (said on stderr). */
+static int settings(struct service *svc, int argc, char **argv)
+{
+    char msg[600];
+    config_defaults(&svc->cfg);
+    if (config_load(&svc->cfg, argc, argv, msg, sizeof msg) || log_set_level(svc->cfg.log_level)) {
+        fprintf(stderr, "surfd serve: %s\n", msg[0] ? msg : "log-level is error, warn, info or debug");
+        return 2;
+    }
+    if (svc->cfg.token_file[0] && tokens_read(svc->cfg.token_file, &svc->tokens, &svc->n_tokens, msg, sizeof msg)) {
+        fprintf(stderr, "surfd serve: %s\n", msg);
+        return 2;
+    }
+    if (!loopback(svc->cfg.listen) && svc->n_tokens == 0 && !svc->cfg.insecure_no_auth) {
+        fprintf(stderr,
+                "surfd serve: refusing to listen on %s without authentication: give --token-file FILE, listen on "
+                "127.0.0.1, or say --insecure-no-auth if a proxy in front authenticates\n",
+                svc->cfg.listen);
+        return 2;
+    }
+    return 0;
+}
+
+/* What the node serves with, but the pool: the store (a damaged one is not served: its pages and
+ * every job's and model's JSON are checked first), the Embree device, the image library's place,
+ * the upload ledger, the frame cache. 0, or -1 (said on stderr; close_parts frees what opened). */
+static int open_parts(struct service *svc, long threads)
+{
+    char msg[600];
+    struct sf_err err = {0};
+    if (store_open(svc->cfg.store[0] ? svc->cfg.store : svc->cfg.data_dir, svc->cfg.data_dir, &svc->store, msg, sizeof msg)) {
+        fprintf(stderr, "surfd serve: store: %s\n", msg);
+        return -1;
+    }
+    store_set_piece(svc->store, (size_t)svc->cfg.store_piece);
+    int checked = store_check(svc->store, false, log_finding, NULL);
+    if (checked) {
+        if (checked > 0)
+            LOG(LOG_ERROR, "the store in %s is damaged: not starting (surfd store check lists what; restore a backup)",
+                svc->cfg.store[0] ? "the database" : svc->cfg.data_dir);
+        fprintf(stderr, "surfd serve: the store is %s\n", checked > 0 ? "damaged (see the log)" : "not readable");
+        return -1;
+    }
+    if (!(svc->dev = bvh_device_new((int)threads, &err)) ||
+        image_locate(&err)) { /* loaded on the first image: a node that never renders is lighter */
+        fprintf(stderr, "surfd serve: %s\n", err.message);
+        return -1;
+    }
+    if (!svc->cfg.upload_share)
+        svc->cfg.upload_share = upload_share(svc->cfg.data_dir);
+    if (!(svc->shares = shares_new(svc->tokens, svc->n_tokens)) || shares_refresh(svc->shares, svc->store)) {
+        fprintf(stderr, "surfd serve: cannot read what the store holds of each owner's uploads\n");
+        return -1;
+    }
+    if (!(svc->frames = frames_open((size_t)svc->cfg.frame_cache))) {
+        fprintf(stderr, "surfd serve: out of memory\n");
+        return -1;
+    }
+    return 0;
+}
+
+static void close_parts(struct service *svc)
+{
+    frames_close(svc->frames); /* after the pool: no job holds one */
+    shares_free(svc->shares);
+    bvh_device_free(svc->dev);
+    store_close(svc->store);
+    tokens_free(svc->tokens, svc->n_tokens);
+}
+
+/* Until SIGTERM or SIGINT: every 5 s the stranded jobs and the upload ledger, every minute pruning. */
+static void run_until_stopped(struct service *svc, sigset_t *sigs)
+{
+    for (double pruned = monotonic_s();;) {
+        struct timespec every = {5, 0};
+        int sig = sigtimedwait(sigs, NULL, &every);
+        if (sig == SIGTERM || sig == SIGINT)
+            return;
+        keeper_retry_stranded(svc);
+        shares_refresh(svc->shares, svc->store);
+        if (monotonic_s() - pruned >= 60) {
+            store_prune(svc->store, wall_s(), svc->cfg.result_ttl, svc->cfg.result_max);
+            pruned = monotonic_s();
+        }
+    }
+}
+
+/* The drain: no new jobs, the running ones given drain-timeout; those still running after it and
+ * the grace are left to the next start (the process ends under them). */
+static void drain(struct service *svc, struct server *server)
+{
+    LOG(LOG_INFO, "draining: no new jobs; running ones get %lds", svc->cfg.drain_timeout);
+    atomic_store(&svc->draining, true);
+    server_quiesce(server);
+    int left = jobq_shutdown(svc->q, (double)svc->cfg.drain_timeout, DRAIN_GRACE_S, abandon, svc);
+    if (left) { /* their workers are still in core code: end the process under them */
+        log_write(LOG_WARN, "%d job%s did not stop within %lds + %.0fs; exiting, %s queued for the next start", left,
+                  left == 1 ? "" : "s", svc->cfg.drain_timeout, DRAIN_GRACE_S, left == 1 ? "it stays" : "they stay");
+        _exit(0);
+    }
+    keeper_stop(svc); /* heartbeats went on while the drain ran; the draining flag stopped claims */
+    server_stop(server);
+    jobq_free(svc->q);
+    LOG(LOG_INFO, "stopped");
+}
+
 int cmd_serve(int argc, char **argv)
 {
     struct service svc = {0};
     pthread_mutex_init(&svc.lock, NULL);
-    char msg[600];
-    config_defaults(&svc.cfg);
-    if (config_load(&svc.cfg, argc, argv, msg, sizeof msg) || log_set_level(svc.cfg.log_level)) {
-        fprintf(stderr, "surfd serve: %s\n", msg[0] ? msg : "log-level is error, warn, info or debug");
-        return 2;
-    }
-    if (svc.cfg.token_file[0] && tokens_read(svc.cfg.token_file, &svc.tokens, &svc.n_tokens, msg, sizeof msg)) {
-        fprintf(stderr, "surfd serve: %s\n", msg);
-        return 2;
-    }
-    if (!loopback(svc.cfg.listen) && svc.n_tokens == 0 && !svc.cfg.insecure_no_auth) {
-        fprintf(stderr,
-                "surfd serve: refusing to listen on %s without authentication: give --token-file FILE, listen on "
-                "127.0.0.1, or say --insecure-no-auth if a proxy in front authenticates\n",
-                svc.cfg.listen);
-        return 2;
-    }
-    /* signals are taken by sigwait below; block them before any thread starts */
+    int rc = settings(&svc, argc, argv);
+    if (rc)
+        return rc;
+    /* signals are taken by sigtimedwait below; block them before any thread starts */
     sigset_t sigs;
     sigemptyset(&sigs);
     sigaddset(&sigs, SIGTERM);
@@ -140,56 +232,24 @@ int cmd_serve(int argc, char **argv)
     signal(SIGPIPE, SIG_IGN);
     umask(077); /* the store, its journals and anything else made here hold patient data */
 
-    int rc = 1;
     long threads = svc.cfg.threads ? svc.cfg.threads : sysconf(_SC_NPROCESSORS_ONLN);
     svc.started_wall = wall_s();
     svc.started_mono = monotonic_s();
-    struct sf_err err = {0};
+    char msg[600];
     struct server *server = NULL;
-    if (store_open(svc.cfg.store[0] ? svc.cfg.store : svc.cfg.data_dir, svc.cfg.data_dir, &svc.store, msg, sizeof msg)) {
-        fprintf(stderr, "surfd serve: store: %s\n", msg);
-        goto out_free_tokens;
-    }
-    store_set_piece(svc.store, (size_t)svc.cfg.store_piece);
-    /* a damaged store is not served: its pages and every job's and model's JSON are checked first */
-    int checked = store_check(svc.store, false, log_finding, NULL);
-    if (checked) {
-        if (checked > 0)
-            LOG(LOG_ERROR, "the store in %s is damaged: not starting (surfd store check lists what; restore a backup)",
-                svc.cfg.store[0] ? "the database" : svc.cfg.data_dir);
-        fprintf(stderr, "surfd serve: the store is %s\n", checked > 0 ? "damaged (see the log)" : "not readable");
-        goto out_close_store;
-    }
-    if (!(svc.dev = bvh_device_new((int)threads, &err))) {
-        fprintf(stderr, "surfd serve: %s\n", err.message);
-        goto out_close_store;
-    }
-    if (image_locate(&err)) { /* loaded on the first image: a node that never renders is lighter */
-        fprintf(stderr, "surfd serve: %s\n", err.message);
-        goto out_free_device;
-    }
-    if (!svc.cfg.upload_share)
-        svc.cfg.upload_share = upload_share(svc.cfg.data_dir);
-    if (!(svc.shares = shares_new(svc.tokens, svc.n_tokens)) || shares_refresh(svc.shares, svc.store)) {
-        fprintf(stderr, "surfd serve: cannot read what the store holds of each owner's uploads\n");
-        goto out_free_device;
-    }
-    if (!(svc.frames = frames_open((size_t)svc.cfg.frame_cache))) {
-        fprintf(stderr, "surfd serve: out of memory\n");
-        goto out_free_device;
-    }
+    rc = 1;
+    if (open_parts(&svc, threads))
+        goto out;
     iso_init();
     if (!svc.cfg.job_memory)
         svc.cfg.job_memory = job_memory_share(threads);
     if (!(svc.q = jobq_new((int)threads, svc.cfg.queue_max, svc.cfg.job_memory))) {
         fprintf(stderr, "surfd serve: cannot start the worker pool\n");
-        goto out_free_device;
+        goto out;
     }
     if (!(server = server_start(&svc, msg, sizeof msg))) {
         fprintf(stderr, "surfd serve: %s\n", msg);
-        jobq_shutdown(svc.q, 0, DRAIN_GRACE_S, NULL, NULL);
-        jobq_free(svc.q);
-        goto out_free_device;
+        goto out_stop_pool;
     }
     node_name(&svc, server_port(server));
     /* what this node held when it last stopped (the embedded store: every running job, since one
@@ -201,9 +261,7 @@ int cmd_serve(int argc, char **argv)
     if (keeper_start(&svc)) {
         fprintf(stderr, "surfd serve: cannot start the keeper thread\n");
         server_stop(server);
-        jobq_shutdown(svc.q, 0, DRAIN_GRACE_S, NULL, NULL);
-        jobq_free(svc.q);
-        goto out_free_device;
+        goto out_stop_pool;
     }
     char host[128];
     snprintf(host, sizeof host, "%.*s", (int)(strrchr(svc.cfg.listen, ':') - svc.cfg.listen), svc.cfg.listen);
@@ -212,40 +270,14 @@ int cmd_serve(int argc, char **argv)
         svc.cfg.tls_cert[0] ? "https://" : "http://", host, server_port(server), threads, svc.cfg.job_memory >> 20, svc.node,
         store_backend(svc.store), shared ? "" : " in ", shared ? "" : svc.cfg.data_dir,
         svc.n_tokens ? ", bearer tokens required" : "");
-
-    for (double pruned = monotonic_s();;) { /* every 5 s stranded jobs, every minute pruning */
-        struct timespec every = {5, 0};
-        int sig = sigtimedwait(&sigs, NULL, &every);
-        if (sig == SIGTERM || sig == SIGINT)
-            break;
-        keeper_retry_stranded(&svc);
-        shares_refresh(svc.shares, svc.store);
-        if (monotonic_s() - pruned >= 60) {
-            store_prune(svc.store, wall_s(), svc.cfg.result_ttl, svc.cfg.result_max);
-            pruned = monotonic_s();
-        }
-    }
-    LOG(LOG_INFO, "draining: no new jobs; running ones get %lds", svc.cfg.drain_timeout);
-    atomic_store(&svc.draining, true);
-    server_quiesce(server);
-    int left = jobq_shutdown(svc.q, (double)svc.cfg.drain_timeout, DRAIN_GRACE_S, abandon, &svc);
-    if (left) { /* their workers are still in core code: end the process under them */
-        log_write(LOG_WARN, "%d job%s did not stop within %lds + %.0fs; exiting, %s queued for the next start", left,
-                  left == 1 ? "" : "s", svc.cfg.drain_timeout, DRAIN_GRACE_S, left == 1 ? "it stays" : "they stay");
-        _exit(0);
-    }
-    keeper_stop(&svc); /* heartbeats went on while the drain ran; the draining flag stopped claims */
-    server_stop(server);
-    jobq_free(svc.q);
-    LOG(LOG_INFO, "stopped");
+    run_until_stopped(&svc, &sigs);
+    drain(&svc, server);
     rc = 0;
-out_free_device:
-    frames_close(svc.frames); /* after the pool: no job holds one */
-    shares_free(svc.shares);
-    bvh_device_free(svc.dev);
-out_close_store:
-    store_close(svc.store);
-out_free_tokens:
-    tokens_free(svc.tokens, svc.n_tokens);
+    goto out;
+out_stop_pool:
+    jobq_shutdown(svc.q, 0, DRAIN_GRACE_S, NULL, NULL);
+    jobq_free(svc.q);
+out:
+    close_parts(&svc);
     return rc;
 }
