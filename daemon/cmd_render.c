@@ -137,102 +137,125 @@ static enum scene_format format_of(const char *path)
     return dot ? scene_format_parse(dot + 1) : SCENE_UNKNOWN;
 }
 
-int cmd_render(int argc, char **argv)
-{
-    const char *out = NULL, *method = NULL, *fmt_name = NULL, *aovs = NULL;
-    int width = 0, height = 0, threads = (int)sysconf(_SC_NPROCESSORS_ONLN), stats = 0, no_shadows = 0;
-    double az = NAN, el = NAN;
+/* What the command line asks for. */
+struct render_args {
+    const char *out, *method, *fmt_name, *aovs;
+    int width, height, threads, stats, no_shadows;
+    double az, el;
     char *inputs[64];
-    int n_inputs = 0;
-    char camera[1024] = ""; /* the camera flags as POST /render's query */
+    int n_inputs;
+    char camera[1024];       /* the camera flags as POST /render's query */
+};
+
+/* argv into a: 0, or usage()'s 2. */
+static int parse_args(int argc, char **argv, struct render_args *a)
+{
     static const char *const CAMERA_FLAGS[] = {"eye", "target", "up", "fov", "projection", "view", "view-height", "samples"};
+    *a = (struct render_args){.threads = (int)sysconf(_SC_NPROCESSORS_ONLN), .az = NAN, .el = NAN};
     for (int k = 1; k < argc; k++) {
-        const char *a = argv[k];
+        const char *f = argv[k];
         const char *val = k + 1 < argc ? argv[k + 1] : NULL;
-        if (!strcmp(a, "-o") && val)
-            out = val, k++;
-        else if (!strcmp(a, "--method") && val)
-            method = val, k++;
-        else if (!strcmp(a, "--format") && val)
-            fmt_name = val, k++;
-        else if (!strcmp(a, "--aovs") && val)
-            aovs = val, k++;
-        else if (!strcmp(a, "--width") && val)
-            width = atoi(val), k++;
-        else if (!strcmp(a, "--height") && val)
-            height = atoi(val), k++;
-        else if (!strcmp(a, "--threads") && val)
-            threads = atoi(val), k++;
-        else if (!strcmp(a, "--azimuth") && val)
-            az = atof(val), k++;
-        else if (!strcmp(a, "--elevation") && val)
-            el = atof(val), k++;
-        else if (!strcmp(a, "--stats"))
-            stats = 1;
-        else if (a[0] == '-' && a[1] == '-' && val && camera_flag(a + 2, CAMERA_FLAGS, 8)) {
-            size_t at = strlen(camera);
-            snprintf(camera + at, sizeof camera - at, "%s%s=%s", at ? "&" : "", a + 2, val);
-            for (char *c = camera + at; *c != '='; c++)
+        if (!strcmp(f, "-o") && val)
+            a->out = val, k++;
+        else if (!strcmp(f, "--method") && val)
+            a->method = val, k++;
+        else if (!strcmp(f, "--format") && val)
+            a->fmt_name = val, k++;
+        else if (!strcmp(f, "--aovs") && val)
+            a->aovs = val, k++;
+        else if (!strcmp(f, "--width") && val)
+            a->width = atoi(val), k++;
+        else if (!strcmp(f, "--height") && val)
+            a->height = atoi(val), k++;
+        else if (!strcmp(f, "--threads") && val)
+            a->threads = atoi(val), k++;
+        else if (!strcmp(f, "--azimuth") && val)
+            a->az = atof(val), k++;
+        else if (!strcmp(f, "--elevation") && val)
+            a->el = atof(val), k++;
+        else if (!strcmp(f, "--stats"))
+            a->stats = 1;
+        else if (f[0] == '-' && f[1] == '-' && val && camera_flag(f + 2, CAMERA_FLAGS, 8)) {
+            size_t at = strlen(a->camera);
+            snprintf(a->camera + at, sizeof a->camera - at, "%s%s=%s", at ? "&" : "", f + 2, val);
+            for (char *c = a->camera + at; *c != '='; c++)
                 *c = *c == '-' ? '_' : *c;
             k++;
         }
-        else if (!strcmp(a, "--no-shadows"))
-            no_shadows = 1;
-        else if (a[0] == '-' && a[1])
+        else if (!strcmp(f, "--no-shadows"))
+            a->no_shadows = 1;
+        else if (f[0] == '-' && f[1])
             return usage();
-        else if (n_inputs < 64)
-            inputs[n_inputs++] = argv[k];
+        else if (a->n_inputs < 64)
+            a->inputs[a->n_inputs++] = argv[k];
     }
-    if (!out || n_inputs == 0 || threads < 1)
-        return usage();
+    return !a->out || a->n_inputs == 0 || a->threads < 1 ? usage() : 0;
+}
+
+/* The inputs read into sc with the flags applied: 0, or the command's exit code (said on stderr). */
+static int scene_of_args(struct render_args *a, enum image_format img_fmt, struct scene *sc)
+{
+    enum scene_format sfmt = a->fmt_name ? scene_format_parse(a->fmt_name) : format_of(a->inputs[0]);
+    size_t len = 0;
+    char *buf = read_inputs(a->inputs, a->n_inputs, &len);
+    if (!buf)
+        return 1;
+    struct sf_err err = {0};
+    enum image_format ignored;
+    int rc = scene_parse(buf, len, sfmt, sc, &ignored, &err);
+    free(buf);
+    if (rc) {
+        fprintf(stderr, "surfd: %s: %s%s%s\n", a->inputs[0], err.message, err.pointer[0] ? " at " : "", err.pointer);
+        return 1;
+    }
+    if (a->method && scene_method_parse(a->method, &sc->method)) {
+        fprintf(stderr, "surfd: unknown method \"%s\"\n", a->method);
+        scene_free(sc);
+        return 2;
+    }
+    if (a->width > 0)
+        sc->width = a->width;
+    if (a->height > 0)
+        sc->height = a->height;
+    if (a->az == a->az)
+        sc->azimuth_deg = a->az;
+    if (a->el == a->el)
+        sc->elevation_deg = a->el;
+    if (a->no_shadows)
+        sc->shadows = false;
+    if (render_options_apply(a->camera, sc, &ignored, &err)) { /* a bad flag; frame_prepare checks the rest */
+        fprintf(stderr, "surfd: %s%s%s\n", err.message, err.pointer[0] ? " at " : "", err.pointer);
+        scene_free(sc);
+        return 2;
+    }
+    if (img_fmt == IMG_PNG)
+        sc->srgb8_only = true; /* the bands convert to 8 bits, on every thread */
+    if (a->aovs) {
+        sc->aovs |= strstr(a->aovs, "normal") ? AOV_NORMAL : 0;
+        sc->aovs |= strstr(a->aovs, "uv") ? AOV_UV : 0;
+        sc->aovs |= strstr(a->aovs, "id") ? AOV_ID : 0;
+    }
+    return 0;
+}
+
+int cmd_render(int argc, char **argv)
+{
+    struct render_args a;
+    int rc = parse_args(argc, argv, &a);
+    if (rc)
+        return rc;
+    const char *out = a.out;
+    int threads = a.threads, stats = a.stats;
     enum image_format img_fmt = IMG_PNG;
     const char *odot = strrchr(out, '.');
     if (!odot || image_format_parse(odot + 1, &img_fmt)) {
         fprintf(stderr, "surfd: the output's extension must be .png, .exr or .tif\n");
         return 2;
     }
-    enum scene_format sfmt = fmt_name ? scene_format_parse(fmt_name) : format_of(inputs[0]);
-    size_t len = 0;
-    char *buf = read_inputs(inputs, n_inputs, &len);
-    if (!buf)
-        return 1;
-
     struct scene sc;
     struct sf_err err = {0};
-    enum image_format ignored;
-    int rc = scene_parse(buf, len, sfmt, &sc, &ignored, &err);
-    free(buf);
-    if (rc) {
-        fprintf(stderr, "surfd: %s: %s%s%s\n", inputs[0], err.message, err.pointer[0] ? " at " : "", err.pointer);
-        return 1;
-    }
-    if (method && scene_method_parse(method, &sc.method)) {
-        fprintf(stderr, "surfd: unknown method \"%s\"\n", method);
-        scene_free(&sc);
-        return 2;
-    }
-    if (width > 0)
-        sc.width = width;
-    if (height > 0)
-        sc.height = height;
-    if (az == az)
-        sc.azimuth_deg = az;
-    if (el == el)
-        sc.elevation_deg = el;
-    if (no_shadows)
-        sc.shadows = false;
-    if ((rc = render_options_apply(camera, &sc, &ignored, &err))) { /* a bad flag; frame_prepare checks the rest */
-        fprintf(stderr, "surfd: %s%s%s\n", err.message, err.pointer[0] ? " at " : "", err.pointer);
-        scene_free(&sc);
-        return 2;
-    }
-    if (img_fmt == IMG_PNG)
-        sc.srgb8_only = true; /* the bands convert to 8 bits, on every thread */
-    if (aovs) {
-        sc.aovs |= strstr(aovs, "normal") ? AOV_NORMAL : 0;
-        sc.aovs |= strstr(aovs, "uv") ? AOV_UV : 0;
-        sc.aovs |= strstr(aovs, "id") ? AOV_ID : 0;
-    }
+    if ((rc = scene_of_args(&a, img_fmt, &sc)))
+        return rc;
 
     struct bvh_device *dev = bvh_device_new(threads, &err);
     struct frame *fr = NULL;
