@@ -23,15 +23,16 @@ enum scene_format scene_format_parse(const char *name);
 enum scene_format scene_format_sniff(const char *buf, size_t len);
 
 /* What a scene is parsed within. Where the objects {"type": "model", "id": ...} of a JSON scene
- * come from: source() gives a stored model's source (contour JSON; the caller frees it) and returns
- * 1, or 0 for no such model, -1 when the store failed. Without one, model objects are refused.
- * max_triangles: what the meshes of all of a scene's model objects may come to (each reference a
- * copy: a 3 KB scene naming one model 50 times cost 5.5 GB); 0, no limit. progress: polled by the
- * parses that can take long (an IGES part's trimming loops, iges.h); NULL, never stops. */
+ * come from: objects() appends stored model id's objects and meshes to sc, of material mat, and
+ * returns 0, or fails with err's pointer at <where>/id (no such model: SF_EINVAL; the store failed:
+ * SF_EIO; the meshes of all of a scene's model objects over the resolver's limit: SF_ELIMIT, each
+ * reference a copy: a 3 KB scene naming one model 50 times cost 5.5 GB), or as the model's objects
+ * fail (at <where>). Without one, model objects are refused. progress: polled by the parses that
+ * can take long (an IGES part's trimming loops, iges.h); NULL, never stops. */
 struct model_resolver {
-    int (*source)(void *ctx, const char *id, char **src, size_t *len);
+    int (*objects)(void *ctx, const char *id, const struct material *mat, const char *where, struct scene *sc,
+                   struct sf_err *err);
     void *ctx;
-    size_t max_triangles;
     const struct sf_progress *progress;
 };
 

@@ -8,8 +8,6 @@
 #include <string.h>
 
 #include "json_in.h"
-#include "mesh_io.h"
-#include "model_json.h"
 #include "scene_io.h"
 
 /* Reads a finite number (integers too). */
@@ -99,7 +97,7 @@ static int material(json_t *j, const char *where, struct material *m, struct sf_
 }
 
 /* One object of "objects" (or of a bare "patches" list, where type defaults to bezier). */
-/* {"type": "model", "id": ..., "material": ...}: the stored model's patches. */
+/* {"type": "model", "id": ..., "material": ...}: the stored model's patches, from the resolver. */
 static int model_object(json_t *j, const char *where, const struct model_resolver *models, struct scene *sc,
                         struct sf_err *err)
 {
@@ -108,27 +106,12 @@ static int model_object(json_t *j, const char *where, const struct model_resolve
     json_t *id = json_object_get(j, "id");
     if (!json_is_string(id))
         return sf_fail(err, SF_EINVAL, p, "expected the id of a stored model");
-    if (!models || !models->source)
+    if (!models || !models->objects)
         return sf_fail(err, SF_EINVAL, p, "stored models are only available through the service");
     struct material mat = scene_default_material();
     json_t *m = json_object_get(j, "material");
     int rc = m ? material(m, where, &mat, err) : 0;
-    char *src = NULL;
-    size_t len = 0;
-    int found = rc ? 0 : models->source(models->ctx, json_string_value(id), &src, &len);
-    if (!rc && found != 1)
-        rc = found == 0 ? sf_fail(err, SF_EINVAL, p, "no stored model has this id")
-                        : sf_fail(err, SF_EIO, p, "the store could not be read");
-    size_t tris = rc ? 0 : mesh_packed_triangles(src, len); /* every reference is a copy of its mesh */
-    for (int k = 0; tris && k < sc->n_meshes; k++)
-        tris += sc->meshes[k].m.n_tri;
-    if (!rc && models->max_triangles && tris > models->max_triangles)
-        rc = sf_fail(err, SF_ELIMIT, p, "the scene's stored meshes come to %zu triangles with this one: over this "
-                     "node's %zu (max-triangles)", tris, models->max_triangles);
-    if (!rc)
-        rc = model_scene_objects(src, len, sc, &mat, where, err);
-    free(src);
-    return rc;
+    return rc ? rc : models->objects(models->ctx, json_string_value(id), &mat, where, sc, err);
 }
 
 /* "trim": loops in the surface's (u, v) domain, each an array of at least 3 [u, v] points (closed

@@ -9,6 +9,8 @@
 #include <sys/random.h>
 #include <time.h>
 
+#include "../api/mesh_io.h"
+#include "../api/model_json.h"
 #include "../api/problem.h"
 #include "../core/base/mem.h"
 #include "log.h"
@@ -185,15 +187,36 @@ int service_n_stranded(struct service *svc)
 
 /* ---- helpers of the job kinds ---- */
 
-static int model_source(void *ctx, const char *id, char **src, size_t *len)
+/* The resolver's objects(): stored model id's patches (or mesh) appended to the scene, refused
+ * when the meshes all of the scene's model objects name would come to over max-triangles (every
+ * reference is a copy of its mesh). */
+static int model_objects(void *ctx, const char *id, const struct material *mat, const char *where, struct scene *sc,
+                         struct sf_err *err)
 {
     const struct model_scope *ms = ctx;
-    return store_model_get(ms->svc->store, id, ms->owner, NULL, src, len);
+    size_t max_triangles = (size_t)ms->svc->cfg.max_triangles;
+    char p[400], *src = NULL;
+    size_t len = 0;
+    snprintf(p, sizeof p, "%s/id", where);
+    int found = store_model_get(ms->svc->store, id, ms->owner, NULL, &src, &len), rc = 0;
+    if (found != 1)
+        rc = found == 0 ? sf_fail(err, SF_EINVAL, p, "no stored model has this id")
+                        : sf_fail(err, SF_EIO, p, "the store could not be read");
+    size_t tris = rc ? 0 : mesh_packed_triangles(src, len);
+    for (int k = 0; tris && k < sc->n_meshes; k++)
+        tris += sc->meshes[k].m.n_tri;
+    if (!rc && max_triangles && tris > max_triangles)
+        rc = sf_fail(err, SF_ELIMIT, p, "the scene's stored meshes come to %zu triangles with this one: over this "
+                     "node's %zu (max-triangles)", tris, max_triangles);
+    if (!rc)
+        rc = model_scene_objects(src, len, sc, mat, where, err);
+    free(src);
+    return rc;
 }
 
 struct model_resolver service_models(struct model_scope *scope)
 {
-    return (struct model_resolver){model_source, scope, (size_t)scope->svc->cfg.max_triangles, NULL};
+    return (struct model_resolver){model_objects, scope, NULL};
 }
 
 bool service_poll_job(void *ctx, double done)
