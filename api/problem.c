@@ -31,6 +31,7 @@ int problem_status(int sf_code)
     case SF_EINVAL:
     case SF_ELIMIT: return 422;
     case SF_ECONFLICT: return 409;
+    case SF_ENOTFOUND: return 404;
     default: return 500;
     }
 }

@@ -17,7 +17,8 @@
     X(SF_EIO,      -6, "input/output error")                           \
     X(SF_EBACKEND, -7, "library failure")                             \
     X(SF_ECONFLICT, -8, "conflicts with the resource's state")        \
-    X(SF_EDAMAGED, -9, "stored bytes no longer match their sum")
+    X(SF_EDAMAGED, -9, "stored bytes no longer match their sum")     \
+    X(SF_ENOTFOUND, -10, "not found")
 
 enum {
     SF_OK = 0,
