@@ -113,14 +113,14 @@ void cmd_serve_usage(FILE *f) { config_usage(f); }
 /* The settings, the tokens, and whether they may serve where they listen: 0, or 2 (said on stderr). */
 static int settings(struct service *svc, int argc, char **argv)
 {
-    char msg[600];
+    struct sf_err err = {0};
     config_defaults(&svc->cfg);
-    if (config_load(&svc->cfg, argc, argv, msg, sizeof msg) || log_set_level(svc->cfg.log_level)) {
-        fprintf(stderr, "surfd serve: %s\n", msg[0] ? msg : "log-level is error, warn, info or debug");
+    if (config_load(&svc->cfg, argc, argv, &err) || log_set_level(svc->cfg.log_level)) {
+        fprintf(stderr, "surfd serve: %s\n", err.code ? err.message : "log-level is error, warn, info or debug");
         return 2;
     }
-    if (svc->cfg.token_file[0] && tokens_read(svc->cfg.token_file, &svc->tokens, &svc->n_tokens, msg, sizeof msg)) {
-        fprintf(stderr, "surfd serve: %s\n", msg);
+    if (svc->cfg.token_file[0] && tokens_read(svc->cfg.token_file, &svc->tokens, &svc->n_tokens, &err)) {
+        fprintf(stderr, "surfd serve: %s\n", err.message);
         return 2;
     }
     if (!loopback(svc->cfg.listen) && svc->n_tokens == 0 && !svc->cfg.insecure_no_auth) {
@@ -138,19 +138,19 @@ static int settings(struct service *svc, int argc, char **argv)
  * the upload ledger, the frame cache. 0, or -1 (said on stderr; close_parts frees what opened). */
 static int open_parts(struct service *svc, long threads)
 {
-    char msg[600];
     struct sf_err err = {0};
-    if (store_open(svc->cfg.store[0] ? svc->cfg.store : svc->cfg.data_dir, svc->cfg.data_dir, &svc->store, msg, sizeof msg)) {
-        fprintf(stderr, "surfd serve: store: %s\n", msg);
+    if (store_open(svc->cfg.store[0] ? svc->cfg.store : svc->cfg.data_dir, svc->cfg.data_dir, &svc->store, &err)) {
+        fprintf(stderr, "surfd serve: store: %s\n", err.message);
         return -1;
     }
     store_set_piece(svc->store, (size_t)svc->cfg.store_piece);
     int checked = store_check(svc->store, false, log_finding, NULL);
     if (checked) {
-        if (checked > 0)
+        if (checked == SF_EDAMAGED)
             LOG(LOG_ERROR, "the store in %s is damaged: not starting (surfd store check lists what; restore a backup)",
                 svc->cfg.store[0] ? "the database" : svc->cfg.data_dir);
-        fprintf(stderr, "surfd serve: the store is %s\n", checked > 0 ? "damaged (see the log)" : "not readable");
+        fprintf(stderr, "surfd serve: the store is %s\n",
+                checked == SF_EDAMAGED ? "damaged (see the log)" : "not readable");
         return -1;
     }
     if (!(svc->dev = bvh_device_new((int)threads, &err)) ||
@@ -235,7 +235,7 @@ int cmd_serve(int argc, char **argv)
     long threads = svc.cfg.threads ? svc.cfg.threads : sysconf(_SC_NPROCESSORS_ONLN);
     svc.started_wall = wall_s();
     svc.started_mono = monotonic_s();
-    char msg[600];
+    struct sf_err err = {0};
     struct server *server = NULL;
     rc = 1;
     if (open_parts(&svc, threads))
@@ -247,8 +247,8 @@ int cmd_serve(int argc, char **argv)
         fprintf(stderr, "surfd serve: cannot start the worker pool\n");
         goto out;
     }
-    if (!(server = server_start(&svc, msg, sizeof msg))) {
-        fprintf(stderr, "surfd serve: %s\n", msg);
+    if (!(server = server_start(&svc, &err))) {
+        fprintf(stderr, "surfd serve: %s\n", err.message);
         goto out_stop_pool;
     }
     node_name(&svc, server_port(server));

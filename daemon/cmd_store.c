@@ -36,38 +36,37 @@ int cmd_store(int argc, char **argv)
         return 2;
     }
     struct config cfg;
-    char msg[600];
     config_defaults(&cfg);
-    if (config_load(&cfg, argc - 1, argv + 1, msg, sizeof msg)) {
-        fprintf(stderr, "surfd store: %s\n", msg);
+    struct sf_err err = {0};
+    if (config_load(&cfg, argc - 1, argv + 1, &err)) {
+        fprintf(stderr, "surfd store: %s\n", err.message);
         return 2;
     }
     const char *target = cfg.store[0] ? cfg.store : cfg.data_dir;
     struct store *s;
-    if (store_open(target, cfg.data_dir, &s, msg, sizeof msg)) {
-        fprintf(stderr, "surfd store: %s\n", msg);
+    if (store_open(target, cfg.data_dir, &s, &err)) {
+        fprintf(stderr, "surfd store: %s\n", err.message);
         return 3;
     }
     if (recover) {
-        struct sf_err err = {0};
         sf_fail(&err, SF_EBACKEND, "", "the result was damaged in the store and removed by surfd store recover; "
                                        "send the job again");
         char *problem = problem_from_err(&err);
-        int rc = problem ? store_recover(s, problem, print_line, NULL) : -1;
+        int rc = problem ? store_recover(s, problem, print_line, NULL) : SF_EIO;
         free(problem);
         if (rc == 0) /* what is left, checked as check does */
             rc = store_check(s, true, print_line, NULL);
         store_close(s);
         printf(rc == 0 ? "the store in %s is mended: what is left is sound\n"
-                       : rc > 0 ? "the store in %s is not mended: restore it from a backup\n"
-                                : "the store in %s was not mended\n", target);
-        return rc == 0 ? 0 : rc > 0 ? 1 : 3;
+                       : rc == SF_EDAMAGED ? "the store in %s is not mended: restore it from a backup\n"
+                                           : "the store in %s was not mended\n", target);
+        return rc == 0 ? 0 : rc == SF_EDAMAGED ? 1 : 3;
     }
     int rc = store_check(s, true, print_line, NULL);
     store_close(s);
     if (rc == 0)
         printf("the store in %s is sound\n", target);
-    else if (rc > 0)
+    else if (rc == SF_EDAMAGED)
         printf("the store in %s is damaged: restore it from a backup (its jobs can be sent again)\n", target);
-    return rc == 0 ? 0 : rc > 0 ? 1 : 3;
+    return rc == 0 ? 0 : rc == SF_EDAMAGED ? 1 : 3;
 }

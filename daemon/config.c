@@ -63,7 +63,7 @@ static const struct setting SETTINGS[] = {
 };
 #define N_SETTINGS (sizeof SETTINGS / sizeof *SETTINGS)
 
-static int config_set(struct config *c, const char *name, const char *value, char *msg, size_t msg_len)
+static int config_set(struct config *c, const char *name, const char *value, struct sf_err *err)
 {
     for (size_t k = 0; k < N_SETTINGS; k++) {
         const struct setting *s = &SETTINGS[k];
@@ -72,19 +72,18 @@ static int config_set(struct config *c, const char *name, const char *value, cha
         void *field = (char *)c + s->offset;
         if (s->type == C_STR) {
             if (strlen(value) >= s->size) {
-                snprintf(msg, msg_len, "%s: value longer than %zu characters", name, s->size - 1);
-                return -1;
+                return sf_fail(err, SF_EINVAL, "", "%s: value longer than %zu characters", name, s->size - 1);
             }
             strcpy(field, value);
         } else if (s->type == C_LIST) {
             size_t used = strlen(field);
             if (strpbrk(value, " \t,")) {
-                snprintf(msg, msg_len, "%s: one value a use, without spaces or commas: \"%s\"", name, value);
-                return -1;
+                return sf_fail(err, SF_EINVAL, "", "%s: one value a use, without spaces or commas: \"%s\"", name,
+                               value);
             }
             if (used + 1 + strlen(value) >= s->size) {
-                snprintf(msg, msg_len, "%s: the values are longer than %zu characters in all", name, s->size - 1);
-                return -1;
+                return sf_fail(err, SF_EINVAL, "", "%s: the values are longer than %zu characters in all", name,
+                               s->size - 1);
             }
             if (*value)
                 snprintf((char *)field + used, s->size - used, "%s%s", used ? " " : "", value);
@@ -93,8 +92,8 @@ static int config_set(struct config *c, const char *name, const char *value, cha
             errno = 0;
             long v = strtol(value, &end, 10);
             if (errno || end == value || *end || v < s->lo || v > s->hi) {
-                snprintf(msg, msg_len, "%s: expected an integer in %ld..%ld, got \"%s\"", name, s->lo, s->hi, value);
-                return -1;
+                return sf_fail(err, SF_EINVAL, "", "%s: expected an integer in %ld..%ld, got \"%s\"", name, s->lo,
+                               s->hi, value);
             }
             *(long *)field = v;
         } else {
@@ -103,22 +102,19 @@ static int config_set(struct config *c, const char *name, const char *value, cha
             else if (!strcmp(value, "false") || !strcmp(value, "0") || !strcmp(value, "no"))
                 *(bool *)field = false;
             else {
-                snprintf(msg, msg_len, "%s: expected true or false, got \"%s\"", name, value);
-                return -1;
+                return sf_fail(err, SF_EINVAL, "", "%s: expected true or false, got \"%s\"", name, value);
             }
         }
         return 0;
     }
-    snprintf(msg, msg_len, "unknown setting \"%s\"", name);
-    return -1;
+    return sf_fail(err, SF_EINVAL, "", "unknown setting \"%s\"", name);
 }
 
 void config_defaults(struct config *c)
 {
     memset(c, 0, sizeof *c);
-    char msg[64];
     for (size_t k = 0; k < N_SETTINGS; k++)
-        config_set(c, SETTINGS[k].name, SETTINGS[k].dflt, msg, sizeof msg);
+        config_set(c, SETTINGS[k].name, SETTINGS[k].dflt, NULL);
 }
 
 static char *trim(char *s)
@@ -131,13 +127,11 @@ static char *trim(char *s)
     return s;
 }
 
-static int load_file(struct config *c, const char *path, char *msg, size_t msg_len)
+static int load_file(struct config *c, const char *path, struct sf_err *err)
 {
     FILE *f = fopen(path, "r");
-    if (!f) {
-        snprintf(msg, msg_len, "%s: %s", path, strerror(errno));
-        return -1;
-    }
+    if (!f)
+        return sf_fail(err, SF_EIO, "", "%s: %s", path, strerror(errno));
     char line[1024];
     int n = 0, rc = 0;
     while (!rc && fgets(line, sizeof line, f)) {
@@ -150,30 +144,29 @@ static int load_file(struct config *c, const char *path, char *msg, size_t msg_l
             continue;
         char *eq = strchr(s, '=');
         if (!eq) {
-            snprintf(msg, msg_len, "%s:%d: expected \"key = value\"", path, n);
-            rc = -1;
+            rc = sf_fail(err, SF_EINVAL, "", "%s:%d: expected \"key = value\"", path, n);
             break;
         }
         *eq = 0;
-        char inner[256];
-        if ((rc = config_set(c, trim(s), trim(eq + 1), inner, sizeof inner)))
-            snprintf(msg, msg_len, "%s:%d: %s", path, n, inner);
+        struct sf_err inner = {0};
+        if ((rc = config_set(c, trim(s), trim(eq + 1), &inner)))
+            sf_fail(err, rc, "", "%s:%d: %s", path, n, inner.message);
     }
     fclose(f);
     return rc;
 }
 
-int config_load(struct config *c, int argc, char **argv, char *msg, size_t msg_len)
+int config_load(struct config *c, int argc, char **argv, struct sf_err *err)
 {
-    for (int k = 1; k + 1 < argc; k++)
-        if (!strcmp(argv[k], "--config") && load_file(c, argv[k + 1], msg, msg_len))
-            return -1;
+    for (int k = 1; k + 1 < argc; k++) {
+        int rc = strcmp(argv[k], "--config") ? 0 : load_file(c, argv[k + 1], err);
+        if (rc)
+            return rc;
+    }
     for (int k = 1; k < argc; k++) {
         const char *a = argv[k];
-        if (strncmp(a, "--", 2)) {
-            snprintf(msg, msg_len, "unexpected argument \"%s\"", a);
-            return -1;
-        }
+        if (strncmp(a, "--", 2))
+            return sf_fail(err, SF_EINVAL, "", "unexpected argument \"%s\"", a);
         if (!strcmp(a, "--config")) {
             k++;
             continue;
@@ -184,14 +177,13 @@ int config_load(struct config *c, int argc, char **argv, char *msg, size_t msg_l
             is_bool |= !strcmp(SETTINGS[s].name, a + 2) && SETTINGS[s].type == C_BOOL;
         const char *value = is_bool && (k + 1 >= argc || !strncmp(argv[k + 1], "--", 2)) ? "true" : NULL;
         if (!value) {
-            if (k + 1 >= argc) {
-                snprintf(msg, msg_len, "%s needs a value", a);
-                return -1;
-            }
+            if (k + 1 >= argc)
+                return sf_fail(err, SF_EINVAL, "", "%s needs a value", a);
             value = argv[++k];
         }
-        if (config_set(c, a + 2, value, msg, msg_len))
-            return -1;
+        int rc = config_set(c, a + 2, value, err);
+        if (rc)
+            return rc;
     }
     return 0;
 }

@@ -8,6 +8,8 @@
 #include <stddef.h>
 #include <stdio.h>
 
+#include "../core/base/err.h"
+
 struct config {
     char listen[128];       /* HOST:PORT */
     char data_dir[512];
@@ -46,9 +48,9 @@ struct config {
 };
 
 void config_defaults(struct config *c);
-/* Applies argv (after "serve"); --config F is read first wherever it stands. Writes a message
- * to msg on failure and returns -1. */
-int config_load(struct config *c, int argc, char **argv, char *msg, size_t msg_len);
+/* Applies argv (after "serve"); --config F is read first wherever it stands. 0, or SF_EINVAL (a
+ * setting or argument) or SF_EIO (the file) with err's message. */
+int config_load(struct config *c, int argc, char **argv, struct sf_err *err);
 /* The usage text, generated from the table. */
 void config_usage(FILE *f);
 

@@ -56,13 +56,13 @@ static int prepare_with(struct job *j, struct contour_work *w, int *n_bands,
     const struct sf_progress pr = {service_poll_job, &pc};
     *n_bands = 0;
     struct job_rec rec;
-    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &rec) != 1)
-        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
+    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &rec))
+        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store");
     snprintf(w->owner, sizeof w->owner, "%s", rec.owner);
     w->type = "application/json";
     int rc = make(w, &rec, &pr);
     store_rec_free(&rec);
-    return rc ? -1 : 0;
+    return rc;
 }
 
 static int make_model(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
@@ -89,7 +89,7 @@ static int stored_model(struct contour_work *w, const struct job_rec *rec, char 
 {
     snprintf(w->model, sizeof w->model, "%.*s", (int)rec->request_len, (const char *)rec->request);
     *src = NULL, *resource = NULL, *n = 0;
-    if (store_model_get(w->job.svc->store, w->model, NULL, resource, src, n) != 1)
+    if (store_model_get(w->job.svc->store, w->model, NULL, resource, src, n))
         return sf_fail(&w->err, SF_EINVAL, "", "the model is no longer stored");
     return 0;
 }
@@ -168,7 +168,7 @@ static void finish_mesh(struct job *j, void *arg, enum job_state outcome, bool r
     struct service *svc = w->job.svc;
     if (outcome == JOB_SUCCEEDED && w->key[0] && svc->cfg.mesh_cache > 0) {
         struct mesh_rec m = {(char *)w->type, w->meta, (unsigned char *)w->json, w->len, ""};
-        if (store_mesh_put(svc->store, w->model, w->key, &m, svc->cfg.mesh_cache) < 0)
+        if (store_mesh_put(svc->store, w->model, w->key, &m, svc->cfg.mesh_cache) == SF_EIO)
             LOG(LOG_WARN, "model %s: its mesh (%s) could not be cached", w->model, w->key); /* made again next time */
     }
     finish(j, arg, outcome, requeue);

@@ -250,25 +250,26 @@ struct edit_work {
     struct sf_err err;
 };
 
-/* Whether the job's edit is among the model's stored parts (a run before a crash stored it): 1
- * (the model's resource then into w->json), 0, or -1 with w->err. */
-static int applied_before(struct edit_work *w, const char *model)
+/* Whether the job's edit is among the model's stored parts (*was: a run before a crash stored it;
+ * the model's resource then into w->json): 0, or SF_EIO with w->err. */
+static int applied_before(struct edit_work *w, const char *model, bool *was)
 {
     struct volume_rec *parts;
-    int n, found = store_volume_get(w->job.svc->store, model, 1, &parts, &n), was = 0;
-    if (found < 0)
-        return sf_fail(&w->err, SF_EIO, "", "the model's edits could not be read from the store"), -1;
-    for (int k = 0; found == 1 && k < n && !was; k++) {
+    int n, found = store_volume_get(w->job.svc->store, model, 1, &parts, &n);
+    *was = false;
+    if (found)
+        return sf_fail(&w->err, SF_EIO, "", "the model's edits could not be read from the store");
+    for (int k = 0; k < n && !*was; k++) {
         char job[40] = "";
         query_option(parts[k].options, "job", job, sizeof job);
-        was = !strcmp(job, w->job.claim.id);
+        *was = !strcmp(job, w->job.claim.id);
     }
-    store_volume_free(parts, found == 1 ? n : 0);
-    if (was && store_model_get(w->job.svc->store, model, NULL, &w->json, NULL, NULL) != 1)
-        return sf_fail(&w->err, SF_EIO, "", "the model could not be read from the store"), -1;
-    if (was)
+    store_volume_free(parts, n);
+    if (*was && store_model_get(w->job.svc->store, model, NULL, &w->json, NULL, NULL))
+        return sf_fail(&w->err, SF_EIO, "", "the model could not be read from the store");
+    if (*was)
         LOG(LOG_INFO, "job %s: its edit was stored before the service stopped; not applied again", w->job.claim.id);
-    return was;
+    return 0;
 }
 
 /* A part's options: the request's and the job's id (applied_before). */
@@ -304,10 +305,11 @@ static int store_edit(struct edit_work *w, const char *id, const struct volume *
     if (!rc) {
         struct model_rec mr = {id, id, NULL, NULL, 0, packed, packed_len, w->json, NULL};
         int stored = store_model_edit(w->job.svc->store, &mr, part);
-        if (stored != 1)
-            rc = stored == 0 ? sf_fail(&w->err, SF_ECONFLICT, "", "the model was edited by another request meanwhile "
-                                                                   "(or deleted); send the edit again")
-                             : sf_fail(&w->err, SF_EIO, "", "the store would not take the edit");
+        if (stored == SF_ECONFLICT)
+            rc = sf_fail(&w->err, SF_ECONFLICT, "", "the model was edited by another request meanwhile (or deleted); "
+                         "send the edit again");
+        else if (stored)
+            rc = sf_fail(&w->err, SF_EIO, "", "the store would not take the edit");
     }
     free(packed);
     return rc;
@@ -360,10 +362,10 @@ static int edit_frep(struct edit_work *w, struct job *j, const struct job_rec *r
     const struct sf_progress pr = {service_poll_cancel, &pc};
     struct volume_rec *parts;
     int n, found = store_volume_get(w->job.svc->store, id, 0, &parts, &n), rc = 0;
-    if (found != 1)
-        return sf_fail(&w->err, found == 0 ? SF_ECONFLICT : SF_EIO, "",
-                       found == 0 ? "this model keeps no FRep request (made before they were kept)"
-                                  : "the model's FRep request could not be read from the store");
+    if (found || n == 0)
+        return sf_fail(&w->err, found ? SF_EIO : SF_ECONFLICT, "",
+                       found ? "the model's FRep request could not be read from the store"
+                             : "this model keeps no FRep request (made before they were kept)");
     double t0 = monotonic_s();
     char *req = frep_combine(parts[n - 1].data, parts[n - 1].len, (const char *)rec->request, rec->request_len, &w->err);
     struct volume v = {0};
@@ -399,43 +401,31 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     struct edit_work *w = arg;
     *n_bands = 0;
     struct job_rec rec;
-    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &rec) != 1)
-        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
+    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &rec))
+        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store");
     char model[40];
     query_option(rec.options, "model", model, sizeof model);
-    int was = applied_before(w, model);
-    if (was) {
-        if (was == 1) {
-            w->len = strlen(w->json);
-            snprintf(w->meta, sizeof w->meta, "{\"status\":200}");
+    bool was;
+    int rc = applied_before(w, model, &was);
+    if (!rc && !was && !strcmp(rec.format, "json")) {
+        rc = edit_frep(w, j, &rec, model);
+    } else if (!rc && !was) {
+        struct live *e = live_take(model);
+        if (!e)
+            e = rebuild(w->job.svc, model, &w->err);
+        rc = e ? 0 : w->err.code;
+        if (e) {
+            bool drop = false;
+            rc = edit_model(w, e, &rec, model, &drop);
+            live_give(e, drop || (e->a == NULL && !e->vol.owned), (size_t)w->job.svc->cfg.edit_memory);
         }
-        store_rec_free(&rec);
-        return was == 1 ? 0 : -1;
-    }
-    if (!strcmp(rec.format, "json")) {
-        int rc = edit_frep(w, j, &rec, model);
-        if (!rc) {
-            w->len = strlen(w->json);
-            snprintf(w->meta, sizeof w->meta, "{\"status\":200}");
-        }
-        store_rec_free(&rec);
-        return rc ? -1 : 0;
-    }
-    struct live *e = live_take(model);
-    if (!e)
-        e = rebuild(w->job.svc, model, &w->err);
-    int rc = e ? 0 : -1;
-    if (e) {
-        bool drop = false;
-        rc = edit_model(w, e, &rec, model, &drop);
-        live_give(e, drop || (e->a == NULL && !e->vol.owned), (size_t)w->job.svc->cfg.edit_memory);
     }
     if (!rc) {
         w->len = strlen(w->json);
         snprintf(w->meta, sizeof w->meta, "{\"status\":200}");
     }
     store_rec_free(&rec);
-    return rc ? -1 : 0;
+    return rc;
 }
 
 static void finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
@@ -462,7 +452,7 @@ static int edit_validate(struct service *svc, struct job_body *b, struct sf_err 
 {
     char model[40], *resource = NULL;
     query_option(b->options, "model", model, sizeof model);
-    if (store_model_get(svc->store, model, NULL, &resource, NULL, NULL) != 1)
+    if (store_model_get(svc->store, model, NULL, &resource, NULL, NULL))
         return sf_fail(err, SF_EINVAL, "", "no such model");
     struct iso_grid g;
     bool frep, json = !strcmp(b->format, "json");
@@ -477,9 +467,9 @@ static int edit_validate(struct service *svc, struct job_body *b, struct sf_err 
     /* the object combined with the model's latest tree, parsed (its pointers the edit's) */
     struct volume_rec *parts;
     int np, found = store_volume_get(svc->store, model, 0, &parts, &np);
-    if (found != 1)
-        return sf_fail(err, found == 0 ? SF_ECONFLICT : SF_EIO, "",
-                       found == 0 ? "this model keeps no FRep request (made before they were kept)" : "the store failed");
+    if (found || np == 0)
+        return sf_fail(err, found ? SF_EIO : SF_ECONFLICT, "",
+                       found ? "the store failed" : "this model keeps no FRep request (made before they were kept)");
     char *req = frep_combine(parts[np - 1].data, parts[np - 1].len, b->body ? b->body : "", b->len, err);
     store_volume_free(parts, np);
     rc = req ? 0 : err->code;

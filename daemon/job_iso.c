@@ -62,26 +62,26 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     struct iso_work *w = arg;
     w->j = j;
     w->t0 = monotonic_s();
-    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &w->rec) != 1)
-        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
+    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &w->rec))
+        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store");
     const char *body = (const char *)w->rec.request;
     size_t len = w->rec.request_len;
     if (w->rec.request_file) { /* a streamed volume: mapped, read in place */
-        if (store_request_file(w->job.svc->store, w->job.claim.id, w->file, sizeof w->file) != 1 ||
+        if (store_request_file(w->job.svc->store, w->job.claim.id, w->file, sizeof w->file) ||
             job_map_file(w->file, &w->map, &w->map_len))
-            return sf_fail(&w->err, SF_EIO, "", "the job's volume could not be read from the store"), -1;
+            return sf_fail(&w->err, SF_EIO, "", "the job's volume could not be read from the store");
         body = w->map ? w->map : "";
         len = w->map_len;
     }
     w->input_len = len;
     if (volume_read(body, len, w->rec.format, w->rec.options, &w->vol, &w->err))
-        return -1;
+        return w->err.code;
     w->t_read = w->t_sampled = monotonic_s();
     struct jobq_stats qs;
     jobq_stats(w->job.svc->q, &qs);
     w->n_slabs = (int)qs.workers * SLABS_PER_WORKER;
     if (w->vol.frep && frep_volumes(w->job.svc, w->vol.frep, &w->err))
-        return -1;
+        return w->err.code;
     if (w->vol.frep) { /* sampled first, in bands of planes */
         w->phase = PH_SAMPLE;
         *n_bands = w->n_sample = w->n_slabs < w->vol.g.nz ? w->n_slabs : w->vol.g.nz;
@@ -109,7 +109,7 @@ static int begin_extract(struct iso_work *w, int *n_bands)
     o.keep = !w->vol.frep && (double)w->vol.g.nx * w->vol.g.ny * w->vol.g.nz * 5 <= (double)w->job.svc->cfg.edit_memory;
     if (volume_adaptive(&w->vol)) {
         if (iso_adapt_begin(&w->vol.g, &o, w->vol.levels, w->vol.max_error, &w->ad, &w->err))
-            return -1;
+            return w->err.code;
         w->ad_keep = o.keep;
         w->phase = PH_ADAPT;
         *n_bands = iso_adapt_n_slabs(w->ad);
@@ -117,7 +117,7 @@ static int begin_extract(struct iso_work *w, int *n_bands)
         return 0;
     }
     if (iso_begin(&w->vol.g, &o, w->n_slabs, &w->ij, &w->err))
-        return -1;
+        return w->err.code;
     w->phase = PH_COUNT;
     w->n_slabs = iso_n_slabs(w->ij);
     *n_bands = w->n_slabs;
@@ -163,7 +163,7 @@ static int next(struct job *j, void *arg, int *n_bands)
         return 0;
     }
     if (iso_layout(w->ij, &w->err))
-        return -1;
+        return w->err.code;
     w->phase = PH_EMIT;
     *n_bands = w->n_slabs;
     return 0;

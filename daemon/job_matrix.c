@@ -78,12 +78,12 @@ static int prepare_model(struct matrix_work *w, const char *options, int *n_band
 {
     query_option(options, "model", w->model, sizeof w->model);
     if (size_option(options, w->n, &w->err) || model_scene(w->job.svc, NULL, w->model, &w->sc, &w->err))
-        return -1;
+        return w->err.code;
     w->have_scene = true;
     w->sc.width = w->sc.height = 1; /* no picture: the hierarchy alone */
     w->sc.srgb8_only = true;
     if (frame_prepare(&w->sc, w->job.svc->dev, &w->fr, &w->err))
-        return -1;
+        return w->err.code;
     frame_bounds(w->fr, w->lo, w->hi);
     if (!w->n[0]) { /* cubic voxels, the longest side MATRIX_RAYS_DEFAULT_SIDE */
         double side = fmax(w->hi[0] - w->lo[0], fmax(w->hi[1] - w->lo[1], w->hi[2] - w->lo[2]));
@@ -91,7 +91,7 @@ static int prepare_model(struct matrix_work *w, const char *options, int *n_band
             w->n[k] = (int)fmax(1.0, ceil(MATRIX_RAYS_DEFAULT_SIDE * (w->hi[k] - w->lo[k]) / side - 1e-9));
     }
     if (!(w->vox = malloc((size_t)w->n[0] * w->n[1] * w->n[2])))
-        return sf_fail(&w->err, SF_ENOMEM, "", "out of memory for %d x %d x %d voxels", w->n[0], w->n[1], w->n[2]), -1;
+        return sf_fail(&w->err, SF_ENOMEM, "", "out of memory for %d x %d x %d voxels", w->n[0], w->n[1], w->n[2]);
     *n_bands = w->n_bands = w->n[2] < MATRIX_RAYS_BANDS ? w->n[2] : MATRIX_RAYS_BANDS;
     return 0;
 }
@@ -114,8 +114,8 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     char file[1100] = "";
     void *map = NULL;
     size_t map_len = 0;
-    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &rec) != 1)
-        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
+    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &rec))
+        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store");
     const char *body = (const char *)rec.request;
     size_t len = rec.request_len;
     int rc = 0;
@@ -127,7 +127,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         return rc;
     }
     if (rec.request_file) {
-        if (store_request_file(w->job.svc->store, w->job.claim.id, file, sizeof file) != 1 || job_map_file(file, &map, &map_len))
+        if (store_request_file(w->job.svc->store, w->job.claim.id, file, sizeof file) || job_map_file(file, &map, &map_len))
             rc = sf_fail(&w->err, SF_EIO, "", "the job's volume could not be read from the store");
         body = map ? map : "", len = map_len;
     }
@@ -146,7 +146,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     if (file[0])
         store_request_file_done(w->job.svc->store, file);
     store_rec_free(&rec);
-    return rc ? -1 : 0;
+    return rc;
 }
 
 static void finish(struct job *j, void *arg, enum job_state outcome, bool requeue)

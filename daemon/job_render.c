@@ -49,12 +49,13 @@ static bool model_view(const char *format, const char *request, size_t len, char
 }
 
 /* The frame cache's key of model id (owner's; NULL: anyone's) for the hierarchy the method needs:
- * 0, or 1 when the store does not have the model. */
+ * 0, or the store's answer when it does not give the model. */
 static int view_key(struct service *svc, const char *id, const char *owner, bool mesh, char key[96])
 {
     char *resource = NULL;
-    if (store_model_get(svc->store, id, owner, &resource, NULL, NULL) != 1)
-        return 1;
+    int found = store_model_get(svc->store, id, owner, &resource, NULL, NULL);
+    if (found)
+        return found;
     snprintf(key, 96, "%s.%ld.%s", id, iso_model_edits(resource), mesh ? "mesh" : "exact");
     free(resource);
     return 0;
@@ -84,29 +85,32 @@ static int build_model(void *ctx, struct scene *sc, struct frame **base, struct 
     return frame_prepare(sc, b->svc->dev, base, err);
 }
 
-/* A model's view on its cached hierarchy: 0, or -1 with w->err; 1 when the cache cannot serve it. */
-static int prepare_view(struct render_work *w, const struct job_rec *rec, const char *id)
+/* A model's view on its cached hierarchy (*viewed), or nothing done when the cache cannot serve it
+ * (*viewed false): 0, or an error in w->err. */
+static int prepare_view(struct render_work *w, const struct job_rec *rec, const char *id, bool *viewed)
 {
     char key[96];
+    *viewed = false;
     if (w->job.svc->cfg.frame_cache <= 0)
-        return 1;
+        return 0;
     scene_init(&w->sc); /* the request's options first: the hierarchy they need */
     w->sc.borrowed = true;
     w->have_scene = true;
     w->fmt = IMG_PNG;
     if (render_options_apply(rec->options, &w->sc, &w->fmt, &w->err))
-        return -1;
+        return w->err.code;
     bool mesh = w->sc.method == METHOD_MESH;
     if (view_key(w->job.svc, id, NULL, mesh, key))
-        return 1;
+        return 0;
+    *viewed = true;
     struct model_build b = {w->job.svc, rec, mesh};
     if (!(w->cached = frames_take(w->job.svc->frames, key, build_model, &b, &w->err)))
-        return -1;
+        return w->err.code;
     w->sc.objects = w->cached->sc.objects, w->sc.n_objects = w->cached->sc.n_objects;
     w->sc.meshes = w->cached->sc.meshes, w->sc.n_meshes = w->cached->sc.n_meshes;
     if (w->fmt == IMG_PNG)
         w->sc.srgb8_only = true;
-    return frame_begin_from(&w->sc, w->cached->base, &w->fr, &w->err) ? -1 : 0;
+    return frame_begin_from(&w->sc, w->cached->base, &w->fr, &w->err);
 }
 
 /* The frame prepared: its bands next. */
@@ -116,7 +120,7 @@ static int begin_bands(struct render_work *w, int *n_bands)
     w->n_bands = (w->sc.height + JOB_BAND_ROWS - 1) / JOB_BAND_ROWS;
     w->band_stats = calloc((size_t)w->n_bands, sizeof *w->band_stats);
     if (!w->band_stats)
-        return sf_fail(&w->err, SF_ENOMEM, "", "out of memory"), -1;
+        return sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
     w->at[2] = monotonic_s();
     *n_bands = w->n_bands;
     return 0;
@@ -127,27 +131,30 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     struct render_work *w = arg;
     w->at[0] = monotonic_s();
     struct job_rec rec;
-    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &rec) != 1)
-        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store"), -1;
+    if (store_get(w->job.svc->store, w->job.claim.id, true, false, &rec))
+        return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store");
     char id[40];
-    int rc = model_view(rec.format, (const char *)rec.request, rec.request_len, id) ? prepare_view(w, &rec, id) : 1;
-    if (rc == 1) { /* any other scene: parsed and prepared whole */
+    bool viewed = false;
+    int rc = 0;
+    if (model_view(rec.format, (const char *)rec.request, rec.request_len, id))
+        rc = prepare_view(w, &rec, id, &viewed);
+    if (!rc && !viewed) { /* any other scene: parsed and prepared whole */
         struct model_scope scope = {w->job.svc, NULL}; /* the route checked the owner's models */
         struct model_resolver models = service_models(&scope);
         struct job_poll pc = {w->job.svc->q, j}; /* an IGES part's loops stop at a cancel */
         const struct sf_progress pr = {service_poll_cancel, &pc};
         models.progress = &pr;
         rc = render_request_parse((const char *)rec.request, rec.request_len, rec.format, rec.options, &models, &w->sc,
-                                  &w->fmt, &w->err) ? -1 : 0;
+                                  &w->fmt, &w->err);
         w->have_scene = rc == 0;
         if (!rc && w->fmt == IMG_PNG)
             w->sc.srgb8_only = true; /* the bands convert to 8 bits, on every thread */
-        if (!rc && frame_begin(&w->sc, w->job.svc->dev, &w->fr, &w->err))
-            rc = -1;
+        if (!rc)
+            rc = frame_begin(&w->sc, w->job.svc->dev, &w->fr, &w->err);
     }
     store_rec_free(&rec);
     if (rc)
-        return -1;
+        return rc;
     w->at[1] = monotonic_s();
     /* the map's parts by every idle worker (the heart's: 19 ms on one), then the bands; a map of
      * one part here (handing it over would cost more) */
@@ -186,7 +193,7 @@ static int next(struct job *j, void *arg, int *n_bands)
             struct frame_image img;
             frame_image(w->fr, &img);
             if (!(w->png = png_bands_new(img.srgb8, img.width, img.height, png_band_rows(img.width))))
-                return sf_fail(&w->err, SF_ENOMEM, "", "out of memory"), -1;
+                return sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
             w->phase = DEFLATE;
             if ((*n_bands = png_bands_n(w->png)) == 1) /* here: handing one band over costs more */
                 png_band(w->png, 0), *n_bands = 0;
@@ -238,8 +245,10 @@ static const char *render_format(const char *content_type) { return render_forma
 
 /* A view of a stored model whose objects the frame cache holds (parsed and checked when the model
  * was stored and again when they were cached): only the request's options are checked, against
- * them (parsing the heart's model took 11 ms of a 120 ms view). 1 when the cache does not hold it. */
-static int validate_view(struct service *svc, const struct job_body *b, const char *id, struct sf_err *err)
+ * them (parsing the heart's model took 11 ms of a 120 ms view); *checked false when the cache does not
+ * hold it (nothing checked then). */
+static int validate_view(struct service *svc, const struct job_body *b, const char *id, bool *checked,
+                         struct sf_err *err)
 {
     struct scene sc;
     enum image_format img = IMG_PNG;
@@ -247,10 +256,9 @@ static int validate_view(struct service *svc, const struct job_body *b, const ch
     scene_init(&sc);
     sc.borrowed = true;
     int rc = render_options_apply(b->options, &sc, &img, err);
-    if (!rc && (view_key(svc, id, b->owner, sc.method == METHOD_MESH, key) ||
-                !frames_counts(svc->frames, key, &sc.n_objects, &sc.n_meshes)))
-        rc = 1;
-    if (!rc)
+    *checked = !rc && !view_key(svc, id, b->owner, sc.method == METHOD_MESH, key) &&
+               frames_counts(svc->frames, key, &sc.n_objects, &sc.n_meshes);
+    if (*checked)
         rc = scene_validate(&sc, err);
     scene_free(&sc);
     return rc;
@@ -261,8 +269,9 @@ static int render_validate(struct service *svc, struct job_body *b, struct sf_er
     struct scene sc;
     enum image_format img;
     char id[40];
-    int rc = model_view(b->format, b->body ? b->body : "", b->len, id) ? validate_view(svc, b, id, err) : 1;
-    if (rc != 1)
+    bool checked = false;
+    int rc = model_view(b->format, b->body ? b->body : "", b->len, id) ? validate_view(svc, b, id, &checked, err) : 0;
+    if (rc || checked)
         return rc;
     struct model_scope ms = {svc, b->owner};
     struct model_resolver models = service_models(&ms);

@@ -17,13 +17,13 @@ struct jobq;
 struct job;
 
 struct job_ops {
-    /* Sets *n_bands (0: all work done here). Returns 0, or -1 when the job failed (finish is then
-     * called with JOB_FAILED, or JOB_CANCELLED when the job had been asked to stop). Runs without
-     * the queue lock. */
+    /* Sets *n_bands (0: all work done here). Returns 0, or a negative SF_E* code when the job
+     * failed (the kind keeps its error for finish, which is then called with JOB_FAILED, or
+     * JOB_CANCELLED when the job had been asked to stop). Runs without the queue lock. */
     int (*prepare)(struct job *j, void *work, int *n_bands);
     void (*band)(struct job *j, void *work, int band); /* NULL for kinds without bands */
     /* NULL, or called (without the lock) when every band of a phase is done: sets *n_bands for
-     * the next phase (0: all done). Returns 0, or -1 when the job failed. A job reports its own
+     * the next phase (0: all done). Returns 0, or an SF_E* code when the job failed. A job reports its own
      * progress (jobq_cancelled) when it has phases. */
     int (*next)(struct job *j, void *work, int *n_bands);
     /* outcome: JOB_SUCCEEDED, JOB_FAILED (prepare failed) or JOB_CANCELLED (by the user; or, with

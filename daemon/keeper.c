@@ -26,7 +26,7 @@ static bool claim_one(struct service *svc)
     if (full || isolated || atomic_load(&svc->draining) || jobq_room(svc->q) == 0)
         return false;
     struct job_claim c;
-    if (store_claim(svc->store, svc->node, (double)svc->cfg.lease, alone, &c) != 1)
+    if (store_claim(svc->store, svc->node, (double)svc->cfg.lease, alone, &c))
         return false;
     if (c.suspect)
         LOG(LOG_INFO, "job %s runs alone: it was running when the service last stopped", c.id);
@@ -59,9 +59,9 @@ static void heartbeat(struct service *svc)
         jobq_peek(svc->q, held[k].id, &st, &progress);
         bool cancel = false;
         int rc = store_heartbeat(svc->store, held[k].id, held[k].fence, (double)svc->cfg.lease, progress, &cancel);
-        if (rc == 0)
+        if (rc == SF_ECONFLICT)
             LOG(LOG_WARN, "job %s: this node's claim was lost (its lease ran out); stopping it here", held[k].id);
-        if (rc == 0 || (rc == 1 && cancel))
+        if (rc == SF_ECONFLICT || (rc == 0 && cancel))
             jobq_cancel(svc->q, held[k].id);
     }
     free(held);

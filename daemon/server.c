@@ -188,7 +188,7 @@ static enum MHD_Result problem(struct req *r, int status, const char *detail, co
 /* A store read that failed: damaged bytes (counted, never sent) or another failure. */
 static enum MHD_Result damaged_or_failed(struct req *r, int found)
 {
-    if (found != STORE_DAMAGED)
+    if (found != SF_EDAMAGED)
         return problem(r, 500, "the store failed", NULL);
     metrics_store_damaged();
     LOG(LOG_ERROR, "%s: the store is damaged (bytes that do not match their checksum, or a page SQLite cannot read): not "
@@ -196,14 +196,14 @@ static enum MHD_Result damaged_or_failed(struct req *r, int found)
     return problem(r, 500, "the stored data is damaged (its checksum does not match); it is not served", NULL);
 }
 
-/* store_get for the request: another owner's job is not found (0), and *rec holds nothing unless
- * the answer is 1. */
+/* store_get for the request: another owner's job is not found (SF_ENOTFOUND), and *rec holds
+ * nothing unless the answer is 0. */
 static int get_job(struct req *r, const char *id, bool with_result, struct job_rec *rec)
 {
     int found = store_get(r->svc->store, id, false, with_result, rec);
-    if (found == 1 && !visible(r, rec))
-        found = 0;
-    if (found != 1)
+    if (!found && !visible(r, rec))
+        found = SF_ENOTFOUND;
+    if (found)
         store_rec_free(rec);
     return found;
 }
@@ -211,7 +211,7 @@ static int get_job(struct req *r, const char *id, bool with_result, struct job_r
 /* The answer to a get_job that found nothing: 404, or the store's failure. */
 static enum MHD_Result no_job(struct req *r, int found)
 {
-    return found == 0 ? problem(r, 404, "no such job", NULL) : damaged_or_failed(r, found);
+    return found == SF_ENOTFOUND ? problem(r, 404, "no such job", NULL) : damaged_or_failed(r, found);
 }
 
 static enum MHD_Result problem_err(struct req *r, const struct sf_err *e)
@@ -256,7 +256,7 @@ static enum MHD_Result job_resource(struct req *r, int status, const char *id)
 {
     struct job_rec rec;
     int found = get_job(r, id, false, &rec);
-    if (found != 1)
+    if (found)
         return no_job(r, found);
     struct job_view v = view_of(r->svc, &rec);
     char location[80];
@@ -321,7 +321,7 @@ static enum MHD_Result job_result(struct req *r, const char *id, bool sync)
 {
     struct job_rec rec;
     int found = get_job(r, id, true, &rec);
-    if (found != 1)
+    if (found)
         return no_job(r, found);
     if (id != r->job)
         snprintf(r->job, sizeof r->job, "%s", id);
@@ -467,11 +467,13 @@ static int check_and_store(struct job *j, void *arg, int *n_bands)
     r->len = b.len;
     if (r->check_rc)
         return 0;
-    long queued = atomic_load(&svc->draining) ? -2 : store_queued(svc->store);
-    if (queued < 0 || queued >= svc->cfg.queue_max) {
-        r->check_status = queued >= 0 ? 429 : 503;
-        r->check_detail = queued >= 0 ? "the job queue is full; try again shortly"
-                          : queued == -2 ? "the service is shutting down" : "the store cannot take the job now";
+    bool draining = atomic_load(&svc->draining);
+    long queued = draining ? 0 : store_queued(svc->store);
+    if (draining || queued < 0 || queued >= svc->cfg.queue_max) {
+        r->check_status = draining || queued < 0 ? 503 : 429;
+        r->check_detail = draining     ? "the service is shutting down"
+                          : queued < 0 ? "the store cannot take the job now"
+                                       : "the job queue is full; try again shortly";
         return 0;
     }
     struct job_rec rec = {0};
@@ -550,7 +552,7 @@ static enum MHD_Result answer_job(struct req *r)
     jobq_wait(svc->q, r->job, monotonic_s() + wait, woken, r);
     /* an end stored before the wait began would wake nobody */
     struct job_rec now;
-    if (store_get(svc->store, r->job, false, false, &now) != 1 || job_state_ended(now.state))
+    if (store_get(svc->store, r->job, false, false, &now) || job_state_ended(now.state))
         jobq_notify(svc->q, r->job);
     store_rec_free(&now);
     return MHD_YES;
@@ -663,20 +665,21 @@ static enum MHD_Result model_output(struct req *r, const char *id, const struct 
         if (!query_options(r, &o, &answer))
             return answer;
         char *resource = NULL;
-        long edits = store_model_get(r->svc->store, id, scope(r), &resource, NULL, NULL) == 1 ? iso_model_edits(resource) : 0;
+        bool stored = !store_model_get(r->svc->store, id, scope(r), &resource, NULL, NULL);
+        long edits = stored ? iso_model_edits(resource) : 0;
         free(resource);
         if (model_mesh_key(o.buf, edits, key, sizeof key, &err))
             return problem_err(r, &err);
         struct mesh_rec m;
         int found = store_mesh_get(r->svc->store, id, key, &m);
-        metrics_mesh_cache(found == 1);
-        if (found == 1) {
+        metrics_mesh_cache(found == 0);
+        if (!found) {
             enum MHD_Result ok = send_result(r, (char *)m.data, m.len, m.type, m.meta, m.sum);
             m.data = NULL; /* taken */
             store_mesh_free(&m);
             return ok;
         }
-        if (found == STORE_DAMAGED)
+        if (found == SF_EDAMAGED)
             LOG(LOG_WARN, "model %s: a cached mesh does not match its checksum; made again", id);
     }
     if (kind != &render_kind)
@@ -691,9 +694,9 @@ static enum MHD_Result model_output(struct req *r, const char *id, const struct 
 static bool model_found(struct req *r, const char *id, char **resource, enum MHD_Result *answer)
 {
     int found = store_model_get(r->svc->store, id, scope(r), resource, NULL, NULL);
-    if (found != 1)
-        *answer = found == 0 ? problem(r, 404, "no such model", NULL) : damaged_or_failed(r, found);
-    return found == 1;
+    if (found)
+        *answer = found == SF_ENOTFOUND ? problem(r, 404, "no such model", NULL) : damaged_or_failed(r, found);
+    return !found;
 }
 
 static enum MHD_Result model_resource(struct req *r, const char *id)
@@ -704,7 +707,7 @@ static enum MHD_Result model_resource(struct req *r, const char *id)
         return ok;
     if (!strcmp(r->method, "DELETE")) {
         int gone = store_model_delete(r->svc->store, id, scope(r));
-        ok = gone < 0 ? problem(r, 500, "the store failed", NULL) : text(r, 204, NULL, "");
+        ok = gone && gone != SF_ENOTFOUND ? problem(r, 500, "the store failed", NULL) : text(r, 204, NULL, "");
     } else { /* a model changes only by its edits: its id and their count are a strong tag */
         char etag[64];
         snprintf(etag, sizeof etag, "\"%s.%ld\"", id, iso_model_edits(resource));
@@ -883,20 +886,22 @@ static enum MHD_Result cancel(struct req *r, const char *id)
 {
     struct job_rec rec;
     int found = get_job(r, id, false, &rec);
-    if (found != 1)
+    if (found)
         return no_job(r, found);
     store_rec_free(&rec);
-    switch (store_cancel(r->svc->store, id, scope(r), wall_s())) {
-    case CANCEL_DONE:
-        metrics_job_end(JOB_CANCELLED);
-        jobq_notify(r->svc->q, id);
+    bool asked;
+    switch (store_cancel(r->svc->store, id, scope(r), wall_s(), &asked)) {
+    case 0:
+        if (asked) {
+            jobq_cancel(r->svc->q, id);
+        } else {
+            metrics_job_end(JOB_CANCELLED);
+            jobq_notify(r->svc->q, id);
+        }
         return job_resource(r, 202, id);
-    case CANCEL_ASKED:
-        jobq_cancel(r->svc->q, id);
-        return job_resource(r, 202, id);
-    case CANCEL_ENDED:
+    case SF_ECONFLICT:
         return problem(r, 409, "the job has already ended", NULL);
-    case CANCEL_NOT_FOUND:
+    case SF_ENOTFOUND:
         return problem(r, 404, "no such job", NULL);
     default:
         return problem(r, 500, "the store failed", NULL);
@@ -1351,28 +1356,28 @@ static int parse_listen(const char *s, struct sockaddr_storage *ss, unsigned sho
     "+AES-128-GCM:+CHACHA20-POLY1305:-MAC-ALL:+AEAD:-SIGN-RSA-SHA1:-SIGN-DSA-SHA1:-SIGN-ECDSA-SHA1:"       \
     "-SIGN-RSA-SHA224:-SIGN-DSA-SHA224:-SIGN-ECDSA-SHA224"
 
-struct server *server_start(struct service *svc, char *msg, size_t msg_len)
+struct server *server_start(struct service *svc, struct sf_err *err)
 {
     struct sockaddr_storage ss;
     unsigned short port;
     bool v6;
     if (parse_listen(svc->cfg.listen, &ss, &port, &v6)) {
-        snprintf(msg, msg_len, "listen: expected HOST:PORT with a numeric address, got \"%s\"", svc->cfg.listen);
+        sf_fail(err, SF_EINVAL, "", "listen: expected HOST:PORT with a numeric address, got \"%s\"", svc->cfg.listen);
         return NULL;
     }
     struct server *s = calloc(1, sizeof *s);
     if (!s)
-        return NULL;
+        return sf_fail(err, SF_ENOMEM, "", "out of memory"), NULL;
     s->svc = svc;
     sweep_cut_uploads(svc->cfg.data_dir);
     if (!(s->checks = jobq_new(CHECK_THREADS, svc->cfg.max_connections, svc->cfg.job_memory))) {
-        snprintf(msg, msg_len, "cannot start the threads that read requests");
+        sf_fail(err, SF_EIO, "", "cannot start the threads that read requests");
         free(s);
         return NULL;
     }
     if (!(s->guard = guard_new(svc->cfg.max_connections, (double)svc->cfg.header_timeout,
                                (double)svc->cfg.body_timeout, (double)svc->cfg.connection_timeout))) {
-        snprintf(msg, msg_len, "cannot start the connection guard");
+        sf_fail(err, SF_EIO, "", "cannot start the connection guard");
         jobq_shutdown(s->checks, 0, 0, NULL, NULL);
         jobq_free(s->checks);
         free(s);
@@ -1387,8 +1392,8 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
         cert = read_file(svc->cfg.tls_cert);
         key = read_file(svc->cfg.tls_key);
         if (!cert || !key || !MHD_is_feature_supported(MHD_FEATURE_TLS)) {
-            snprintf(msg, msg_len, "TLS: cannot read %s or %s, or libmicrohttpd has no TLS", svc->cfg.tls_cert,
-                     svc->cfg.tls_key);
+            sf_fail(err, SF_EINVAL, "", "TLS: cannot read %s or %s, or libmicrohttpd has no TLS", svc->cfg.tls_cert,
+                    svc->cfg.tls_key);
             free(cert);
             free(key);
             guard_free(s->guard);
@@ -1417,7 +1422,7 @@ struct server *server_start(struct service *svc, char *msg, size_t msg_len)
     free(cert);
     free(key);
     if (!s->mhd) {
-        snprintf(msg, msg_len, "cannot listen on %s (in use, or not an address of this host)", svc->cfg.listen);
+        sf_fail(err, SF_EIO, "", "cannot listen on %s (in use, or not an address of this host)", svc->cfg.listen);
         guard_free(s->guard);
         jobq_shutdown(s->checks, 0, 0, NULL, NULL);
         jobq_free(s->checks);

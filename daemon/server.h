@@ -8,8 +8,8 @@
 
 struct server;
 
-/* Starts listening per svc->cfg (address, TLS, limits). On failure writes msg, returns NULL. */
-struct server *server_start(struct service *svc, char *msg, size_t msg_len);
+/* Starts listening per svc->cfg (address, TLS, limits). NULL on failure, with err. */
+struct server *server_start(struct service *svc, struct sf_err *err);
 /* The port it listens on (the one the system chose, when asked for port 0). */
 unsigned short server_port(struct server *s);
 /* Stops accepting new connections (draining); requests in flight go on. */

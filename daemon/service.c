@@ -94,11 +94,12 @@ static void strand(struct service *svc, const struct job_claim *c, const char *w
 }
 
 /* Writes a job's end, trying a few times a moment apart (a full disk may clear as pruning or a
- * checkpoint frees pages): 1 written, 0 the claim is lost, -1 the store refused. */
+ * checkpoint frees pages): store_finish's answer, 0 written, SF_ECONFLICT the claim is lost,
+ * SF_EIO the store refused. */
 static int store_end(struct service *svc, const struct job_claim *c, const struct job_end *end)
 {
-    int rc = -1;
-    for (int k = 0; k < STORE_TRIES && rc < 0; k++) {
+    int rc = SF_EIO;
+    for (int k = 0; k < STORE_TRIES && rc == SF_EIO; k++) {
         if (k) {
             struct timespec ts = {0, 200 * 1000000L};
             nanosleep(&ts, NULL);
@@ -147,10 +148,10 @@ void service_job_end(struct service *svc, const struct job_claim *c, enum job_st
         LOG(LOG_WARN, "job %s failed: %s", c->id, err->message);
     struct job_end end = {outcome, result, len, type, meta, p, wall_s()};
     int rc = store_end(svc, c, &end);
-    if (rc < 0) {
+    if (rc && rc != SF_ECONFLICT) {
         strand(svc, c, "the store will not take its end");
     } else {
-        if (rc == 1)
+        if (rc == 0)
             metrics_job_end(outcome);
         else
             LOG(LOG_WARN, "job %s: ended here after its claim was lost; its outcome is dropped", c->id);
@@ -199,8 +200,8 @@ static int model_objects(void *ctx, const char *id, const struct material *mat, 
     size_t len = 0;
     snprintf(p, sizeof p, "%s/id", where);
     int found = store_model_get(ms->svc->store, id, ms->owner, NULL, &src, &len), rc = 0;
-    if (found != 1)
-        rc = found == 0 ? sf_fail(err, SF_EINVAL, p, "no stored model has this id")
+    if (found)
+        rc = found == SF_ENOTFOUND ? sf_fail(err, SF_EINVAL, p, "no stored model has this id")
                         : sf_fail(err, SF_EIO, p, "the store could not be read");
     size_t tris = rc ? 0 : mesh_packed_triangles(src, len);
     for (int k = 0; tris && k < sc->n_meshes; k++)

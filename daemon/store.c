@@ -7,11 +7,11 @@
 
 #include "store_backend.h"
 
-int store_open(const char *target, const char *scratch, struct store **out, char *msg, size_t msg_len)
+int store_open(const char *target, const char *scratch, struct store **out, struct sf_err *err)
 {
     int rc = !strncmp(target, "postgresql://", 13) || !strncmp(target, "postgres://", 11)
-                 ? store_pg_open(target, scratch, out, msg, msg_len)
-                 : store_sqlite_open(target, out, msg, msg_len);
+                 ? store_pg_open(target, scratch, out, err)
+                 : store_sqlite_open(target, out, err);
     if (!rc)
         (*out)->piece = STORE_PIECE;
     return rc;
@@ -60,9 +60,10 @@ int store_finish(struct store *s, const char *id, long fence, const struct job_e
 
 int store_release(struct store *s, const char *id, long fence) { return s->ops->release(s, id, fence); }
 
-enum store_cancel store_cancel(struct store *s, const char *id, const char *owner, double now)
+int store_cancel(struct store *s, const char *id, const char *owner, double now, bool *asked)
 {
-    return s->ops->cancel(s, id, owner, now);
+    *asked = false;
+    return s->ops->cancel(s, id, owner, now, asked);
 }
 
 int store_reap(struct store *s, double now, const char *node, int max_attempts, const char *give_up,
@@ -80,7 +81,7 @@ int store_prune(struct store *s, double now, long ttl, long max_count)
  * has looked (store_check) and restarted. */
 static int noted(struct store *s, int rc)
 {
-    if (rc == STORE_DAMAGED)
+    if (rc == SF_EDAMAGED)
         atomic_store(&s->damaged, true);
     return rc;
 }
@@ -129,22 +130,22 @@ int store_model_edit(struct store *s, const struct model_rec *m, const struct vo
 int store_mesh_get(struct store *s, const char *model, const char *key, struct mesh_rec *out)
 {
     memset(out, 0, sizeof *out);
-    int found = s->ops->mesh_get(s, model, key, out);
-    if (found == 1) {
+    int rc = s->ops->mesh_get(s, model, key, out);
+    if (rc == 0) {
         char sum[65];
         store_checksum(out->data, out->len, "", 0, sum);
         if (strcmp(sum, out->sum))
-            found = STORE_DAMAGED;
+            rc = SF_EDAMAGED;
     }
-    if (found != 1)
+    if (rc)
         store_mesh_free(out);
-    return found;
+    return rc;
 }
 
 int store_mesh_put(struct store *s, const char *model, const char *key, const struct mesh_rec *m, long max_bytes)
 {
     if ((long)m->len > max_bytes)
-        return 0;
+        return SF_ECONFLICT;
     struct mesh_rec with = *m;
     store_checksum(m->data, m->len, "", 0, with.sum);
     return s->ops->mesh_put(s, model, key, &with, max_bytes);
@@ -172,7 +173,7 @@ int store_check(struct store *s, bool deep, void (*report)(const char *line, voi
         return 0;
     }
     int rc = s->ops->check(s, deep, report, arg);
-    if (rc == 1)
+    if (rc == SF_EDAMAGED)
         atomic_store(&s->damaged, true);
     return rc;
 }
@@ -181,7 +182,7 @@ int store_recover(struct store *s, const char *problem, void (*report)(const cha
 {
     if (!s->ops->recover) {
         report("this store's own tools mend it (PostgreSQL: pg_amcheck, a backup)", arg);
-        return -1;
+        return SF_EIO;
     }
     return s->ops->recover(s, problem, report, arg);
 }

@@ -32,7 +32,13 @@
  *   its node stopped is charged; jobs that ran together get their attempt back and run again one
  *   at a time (suspects, store_claim), so that the next stop names its cause and innocents finish.
  *
- * Thread-safe: every call is one short transaction; none is held across a job's run. */
+ * Thread-safe: every call is one short transaction; none is held across a job's run.
+ *
+ * Answers are core's convention (core/base/err.h): 0, or a negative SF_E* code: SF_ENOTFOUND (no
+ * such row), SF_ECONFLICT (the row is not in the state the call needs: a claim lost, a job ended,
+ * an edit's seq taken), SF_EDAMAGED (stored bytes no longer match the checksum taken when they
+ * were written: damage below the database, a flipped bit on disk; never the bytes), SF_EIO (the
+ * database failed). Counts (store_reap, store_queued, store_mesh_bytes) are >= 0, or SF_EIO. */
 #ifndef SURFD_STORE_H
 #define SURFD_STORE_H
 
@@ -43,11 +49,6 @@
 #include "job_state.h"
 
 struct store;
-
-/* What a read answers when a stored result or model's bytes no longer match the checksum taken
- * when they were written (damage below the database: a flipped bit on disk): never the bytes.
- * Core's code, no longer -2, which is also SF_ENOMEM's. */
-#define STORE_DAMAGED SF_EDAMAGED
 
 struct job_rec {
     char id[40];
@@ -92,8 +93,8 @@ struct job_end {
 
 /* Opens (creating) the store: target is a data directory (SQLite: DIR/surfd.db) or a
  * postgresql:// or postgres:// URI; scratch is the node's own directory (the data directory)
- * for files fetched from a shared store. On failure writes msg and returns -1. */
-int store_open(const char *target, const char *scratch, struct store **out, char *msg, size_t msg_len);
+ * for files fetched from a shared store. 0, or SF_EIO with err's message. */
+int store_open(const char *target, const char *scratch, struct store **out, struct sf_err *err);
 void store_close(struct store *s);
 /* A value (a model's mesh, a volume kept for edits, a cached mesh, a job's request or result)
  * longer than a piece is kept as several rows of one piece each: SQLite holds at most 1e9 bytes
@@ -106,58 +107,59 @@ const char *store_backend(const struct store *s);
 
 /* ---- the lifecycle (see the diagram above) ---- */
 
-/* A new job, QUEUED (r->state is ignored). 0, or -1. */
+/* A new job, QUEUED (r->state is ignored). 0, or SF_EIO. */
 int store_submit(struct store *s, const struct job_rec *r);
 /* The same for a job whose body was streamed to the file at path as it arrived (a volume of
  * hundreds of megabytes, never held in memory): the store takes the file (SQLite: moves it into
  * DIR/uploads; PostgreSQL: copies it into the database a chunk at a time and removes it);
- * r->request is ignored. 0, or -1 (the file is removed either way). */
+ * r->request is ignored. 0, or SF_EIO (the file is removed either way). */
 int store_submit_file(struct store *s, const struct job_rec *r, const char *path);
 /* A local path of job id's streamed body (PostgreSQL: fetched a chunk at a time into the scratch
- * directory; give it back with store_request_file_done). 1, 0 (none), -1. */
+ * directory; give it back with store_request_file_done). 0, SF_ENOTFOUND (none), SF_EIO. */
 int store_request_file(struct store *s, const char *id, char *path, size_t cap);
 void store_request_file_done(struct store *s, const char *path);
-/* Claims the oldest queued job for node, its lease lasting lease_s: 1 (and *out), 0 when none
- * is queued or the oldest is a suspect (out->suspect: a reap queued it again) and the node is not
- * alone (runs other jobs), -1 error. A node runs a suspect alone: it claims nothing else meanwhile. */
+/* Claims the oldest queued job for node, its lease lasting lease_s: 0 (and *out), SF_ENOTFOUND
+ * when none is queued or the oldest is a suspect (out->suspect: a reap queued it again) and the
+ * node is not alone (runs other jobs), SF_EIO. A node runs a suspect alone: it claims nothing else
+ * meanwhile. */
 int store_claim(struct store *s, const char *node, double lease_s, bool alone, struct job_claim *out);
-/* Renews a running job's lease and stores its progress: 1 still held (*cancel: a cancel was
- * asked), 0 the claim is lost (the lease ran out and the job was reaped, or it ended), -1 error. */
+/* Renews a running job's lease and stores its progress: 0 still held (*cancel: a cancel was
+ * asked), SF_ECONFLICT the claim is lost (the lease ran out and the job was reaped, or it ended),
+ * SF_EIO. */
 int store_heartbeat(struct store *s, const char *id, long fence, double lease_s, double progress, bool *cancel);
-/* Records a running job's end: 1, 0 when the claim is no longer held (nothing written), -1. */
+/* Records a running job's end: 0, SF_ECONFLICT when the claim is no longer held (nothing
+ * written), SF_EIO. */
 int store_finish(struct store *s, const char *id, long fence, const struct job_end *end);
 /* Hands a running job back unfinished (a draining node): QUEUED, the attempt not counted, or
- * CANCELLED when its user asked it to stop. 1, 0, -1. */
+ * CANCELLED when its user asked it to stop. 0, SF_ECONFLICT (the claim is not held), SF_EIO. */
 int store_release(struct store *s, const char *id, long fence);
-/* The answer of store_cancel. */
-enum store_cancel { CANCEL_ERROR = -1, CANCEL_NOT_FOUND, CANCEL_ENDED, CANCEL_DONE, CANCEL_ASKED };
-/* A queued job is cancelled at once (CANCEL_DONE); a running one is asked to stop
- * (CANCEL_ASKED: its node's heartbeat sees it); an ended one stays as it is (CANCEL_ENDED). Jobs
- * of other owners are not found unless owner is NULL. */
-enum store_cancel store_cancel(struct store *s, const char *id, const char *owner, double now);
+/* A queued job is cancelled at once (0, *asked false); a running one is asked to stop (0, *asked
+ * true: its node's heartbeat sees it); an ended one stays as it is (SF_ECONFLICT). Jobs of other
+ * owners are not found (SF_ENOTFOUND) unless owner is NULL. SF_EIO. */
+int store_cancel(struct store *s, const char *id, const char *owner, double now, bool *asked);
 /* Running jobs whose lease ran out before now, or (node not NULL) claimed by node (a node that
  * restarted holds nothing): QUEUED again as suspects, FAILED with the problem JSON give_up once the
  * attempts of a job that ran alone reached max_attempts, or CANCELLED when their user asked
  * (store_reaped_state says which). fn (may be NULL) is told each (id, the new state). The number
- * reaped, or -1. */
+ * reaped, or SF_EIO. */
 int store_reap(struct store *s, double now, const char *node, int max_attempts, const char *give_up,
                void (*fn)(const char *id, enum job_state state, void *arg), void *arg);
 /* Removes ended jobs older than ttl seconds and all but the newest max_count ended ones, and the
- * streamed bodies of every ended job (kept only for a run after a crash). */
+ * streamed bodies of every ended job (kept only for a run after a crash). 0, or SF_EIO. */
 int store_prune(struct store *s, double now, long ttl, long max_count);
 
 /* ---- reading ---- */
 
-/* Reads one record (with the request and, if with_result, the result). Returns 1 found, 0 not
- * found, -1 error, STORE_DAMAGED (the result is damaged). *out is zeroed first, so
- * store_rec_free() is safe whatever the answer. */
+/* Reads one record (with the request and, if with_result, the result): 0, SF_ENOTFOUND, SF_EIO,
+ * SF_EDAMAGED (the result is damaged). *out is zeroed first, so store_rec_free() is safe whatever
+ * the answer. */
 int store_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out);
 void store_rec_free(struct job_rec *r);
 /* Calls fn for each record (no blobs), newest first; state NULL for all, owner NULL for every
- * owner's, limit <= 0 for no limit. */
+ * owner's, limit <= 0 for no limit. 0, SF_EIO, SF_EDAMAGED. */
 int store_list(struct store *s, const enum job_state *state, const char *owner, long limit,
                void (*fn)(const struct job_rec *, void *), void *arg);
-/* Jobs queued (all nodes'), or -1. */
+/* Jobs queued (all nodes'), or SF_EIO. */
 long store_queued(struct store *s);
 
 /* ---- models: made by model jobs, kept until deleted (job pruning leaves them) ---- */
@@ -183,26 +185,25 @@ struct model_rec {
     const struct volume_rec *volume;
 };
 /* Inserts, or replaces a model of the same id (a job run again after a crash), with its volume
- * (and no edits). 0 or -1. */
+ * (and no edits). 0 or SF_EIO. */
 int store_model_put(struct store *s, const struct model_rec *m);
 /* An edit of model m->id in one transaction: the volume part edit (its seq the next one) and the
- * model's new source and resource. 1 stored, 0 when that seq is taken (another edit came first)
- * or the model is gone, -1. */
+ * model's new source and resource. 0 stored, SF_ECONFLICT when that seq is taken (another edit
+ * came first) or the model is gone, SF_EIO. */
 int store_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit);
 /* The parts of model id's volume from seq from on, in order (*parts: caller frees with
- * store_volume_free; their bytes checked against the sums taken when written): 1 (n >= 1), 0
- * (none), -1, STORE_DAMAGED. */
+ * store_volume_free; their bytes checked against the sums taken when written): 0 (*n of them, 0
+ * when none), SF_EIO, SF_EDAMAGED. */
 int store_volume_get(struct store *s, const char *id, int from, struct volume_rec **parts, int *n);
 void store_volume_free(struct volume_rec *parts, int n);
-/* Models of another owner are not found, unless owner is NULL (every owner's).
- * 1 found (*resource, *source: caller frees; either pointer may be NULL), 0 not found, -1 error,
- * STORE_DAMAGED. */
+/* Models of another owner are not found, unless owner is NULL (every owner's). 0 (*resource,
+ * *source: caller frees; either pointer may be NULL), SF_ENOTFOUND, SF_EIO, SF_EDAMAGED. */
 int store_model_get(struct store *s, const char *id, const char *owner, char **resource, char **source,
                     size_t *source_len);
-/* Resources, newest first (limit <= 0: all). 0 or -1. */
+/* Resources, newest first (limit <= 0: all). 0, SF_EIO, SF_EDAMAGED. */
 int store_model_list(struct store *s, const char *owner, long limit, void (*fn)(const char *resource, void *),
                      void *arg);
-/* 1 deleted, 0 not found, -1 error. */
+/* 0 deleted, SF_ENOTFOUND, SF_EIO. */
 int store_model_delete(struct store *s, const char *id, const char *owner);
 
 /* Meshes of stored models, cached per (model, key) - the key the request's normalised format and
@@ -215,12 +216,12 @@ struct mesh_rec {
     size_t len;
     char sum[65];
 };
-/* 1 found (*out: free with store_mesh_free; its last use now), 0, -1, STORE_DAMAGED. */
+/* 0 (*out: free with store_mesh_free; its last use now), SF_ENOTFOUND, SF_EIO, SF_EDAMAGED. */
 int store_mesh_get(struct store *s, const char *model, const char *key, struct mesh_rec *out);
 /* Stores a mesh (when the model still exists) and drops the least recently used beyond max_bytes:
- * 1 stored, 0 the model is gone or the mesh alone is over max_bytes, -1. */
+ * 0 stored, SF_ECONFLICT the model is gone or the mesh alone is over max_bytes, SF_EIO. */
 int store_mesh_put(struct store *s, const char *model, const char *key, const struct mesh_rec *m, long max_bytes);
-/* Bytes the cached meshes take (for /metrics), or -1. */
+/* Bytes the cached meshes take (for /metrics), or SF_EIO. */
 long store_mesh_bytes(struct store *s);
 void store_mesh_free(struct mesh_rec *m);
 
@@ -239,19 +240,20 @@ bool store_damaged(struct store *s);
  * the store would not take then waits and runs again (service_job_end), never fails for good. */
 bool store_full(struct store *s);
 /* Checks the database's pages and the sums of every job's and model's JSON (deep: of every stored
- * byte too: results, models' sources, volumes), reporting each finding as a line: 0 sound, 1
- * damaged (the store is then not ready), -1 the check could not run. */
+ * byte too: results, models' sources, volumes), reporting each finding as a line: 0 sound,
+ * SF_EDAMAGED (the store is then not ready), SF_EIO (the check could not run). */
 int store_check(struct store *s, bool deep, void (*report)(const char *line, void *), void *arg);
 
 /* Mends what store_check finds, keeping every sound job and model: a copy of the store is kept
  * beside it first; a loss from the WAL is accepted; a model whose bytes do not match their sums
  * is removed, and a job whose result does not is failed with problem (JSON). Damaged pages are
- * not mended (a backup is the way). Each step is reported as a line: 0 mended (or sound), 1 not
- * mendable, -1 error (the service holds the store; PostgreSQL's is its own tools' work). */
+ * not mended (a backup is the way). Each step is reported as a line: 0 mended (or sound),
+ * SF_EDAMAGED not mendable, SF_EIO (the service holds the store; PostgreSQL's is its own tools'
+ * work). */
 int store_recover(struct store *s, const char *problem, void (*report)(const char *line, void *), void *arg);
 
 /* Calls fn with each owner's bytes of streamed request bodies (store_submit_file) kept for jobs
- * not yet ended (an ended job's are removed by store_prune): 0, or -1. */
+ * not yet ended (an ended job's are removed by store_prune): 0, or SF_EIO. */
 int store_uploads_held(struct store *s, void (*fn)(const char *owner, long long bytes, void *arg), void *arg);
 
 /* SHA-256 of a then b (either may be empty) as 64 hex digits: what a stored result or model is

@@ -1,6 +1,7 @@
 /* store_backend.h - the seam between store.h and its backends (store_sqlite.c, store_pg.c):
- * one table of operations, each with the meaning its store_* function has in store.h. A backend's
- * handle starts with struct store, whose ops point at its table. */
+ * one table of operations, each with the meaning (and the answers, core's SF_E* codes) its store_*
+ * function has in store.h. A backend's handle starts with struct store, whose ops point at its
+ * table. */
 #ifndef SURFD_STORE_BACKEND_H
 #define SURFD_STORE_BACKEND_H
 
@@ -19,7 +20,7 @@ struct store_ops {
     int (*heartbeat)(struct store *, const char *id, long fence, double lease_s, double progress, bool *cancel);
     int (*finish)(struct store *, const char *id, long fence, const struct job_end *);
     int (*release)(struct store *, const char *id, long fence);
-    enum store_cancel (*cancel)(struct store *, const char *id, const char *owner, double now);
+    int (*cancel)(struct store *, const char *id, const char *owner, double now, bool *asked); /* *asked false on entry */
     int (*reap)(struct store *, double now, const char *node, int max_attempts, const char *give_up,
                 void (*fn)(const char *, enum job_state, void *), void *arg);
     int (*prune)(struct store *, double now, long ttl, long max_count);
@@ -72,15 +73,16 @@ struct store {
     size_t piece;            /* bytes of a value stored in one piece at most (store_set_piece) */
 };
 
-/* One more part for a backend's volume_get (format, options and data copied): 0 or -1. */
+/* One more part for a backend's volume_get (format, options and data copied): 0 or SF_ENOMEM. */
 int store_volume_add(struct volume_rec **parts, int *n, int seq, const char *format, const char *options,
                      const void *data, size_t len);
 
-/* A new name for a value's pieces (store.h's STORE_PIECE): "pieces:" and 32 random hex digits. 0 or -1. */
+/* A new name for a value's pieces (store.h's STORE_PIECE): "pieces:" and 32 random hex digits. 0, or
+ * SF_EIO (no randomness). */
 int store_piece_name(char name[48]);
 
-/* The backends' openers: 0 and *out, or -1 with msg. */
-int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg_len);
-int store_pg_open(const char *uri, const char *scratch, struct store **out, char *msg, size_t msg_len);
+/* The backends' openers: 0 and *out, or SF_EIO with err's message (store_open). */
+int store_sqlite_open(const char *dir, struct store **out, struct sf_err *err);
+int store_pg_open(const char *uri, const char *scratch, struct store **out, struct sf_err *err);
 
 #endif

@@ -180,7 +180,7 @@ static PGresult *execute(struct pg_store *p, int c, const char *sql, int n, cons
     return NULL;
 }
 
-/* One statement on a pooled connection: the rows it changed (or returned), or -1. *out, when
+/* One statement on a pooled connection: the rows it changed (or returned), or SF_EIO. *out, when
  * given, receives the result (caller PQclear()s). */
 static int exec1(struct store *s, PGresult **out, const char *sql, int n, const struct param *prm)
 {
@@ -189,7 +189,7 @@ static int exec1(struct store *s, PGresult **out, const char *sql, int n, const 
     PGresult *res = execute(p, c, sql, n, prm, true);
     give(p, c);
     if (!res)
-        return -1;
+        return SF_EIO;
     int rows = PQresultStatus(res) == PGRES_TUPLES_OK ? PQntuples(res) : atoi(PQcmdTuples(res));
     if (out)
         *out = res;
@@ -239,6 +239,10 @@ static char *dup_text(const PGresult *r, int row, int col)
 
 static void num(char *buf, size_t cap, double v) { snprintf(buf, cap, "%.17g", v); }
 
+/* The answer of a statement that changes one row, from the n rows exec1() says it changed: 0 when
+ * it did, none when no row was in the state it needs, SF_EIO when it failed. */
+static int one_row(int n, int none) { return n < 0 ? SF_EIO : n == 0 ? none : 0; }
+
 /* ---- the lifecycle ---- */
 
 static int pg_submit(struct store *s, const struct job_rec *r)
@@ -251,7 +255,7 @@ static int pg_submit(struct store *s, const struct job_rec *r)
                  "WITH j AS (INSERT INTO jobs(id,kind,state,created,format,options,request,owner)"
                  " VALUES($1,$2,'queued',$3,$4,$5,$6,$7) RETURNING id)"
                  " SELECT pg_notify('surfd', 'queued:' || id) FROM j",
-                 7, prm) == 1 ? 0 : -1;
+                 7, prm) == 1 ? 0 : SF_EIO;
 }
 
 /* The job and its file's chunks in one transaction; the file is removed either way. */
@@ -260,7 +264,7 @@ static int pg_submit_file(struct store *s, const struct job_rec *r, const char *
     struct pg_store *p = pg(s);
     FILE *f = fopen(path, "rb");
     unsigned char *chunk = malloc(CHUNK);
-    int c = take(p), rc = -1;
+    int c = take(p), rc = SF_EIO;
     PGresult *res = f && chunk ? execute(p, c, "BEGIN", 0, NULL, true) : NULL;
     if (res) {
         PQclear(res);
@@ -287,7 +291,7 @@ static int pg_submit_file(struct store *s, const struct job_rec *r, const char *
             PQclear(res);
         }
         res = execute(p, c, ok ? "COMMIT" : "ROLLBACK", 0, NULL, false);
-        rc = res && ok ? 0 : -1;
+        rc = res && ok ? 0 : SF_EIO;
         PQclear(res);
     }
     give(p, c);
@@ -305,7 +309,7 @@ static int pg_request_file(struct store *s, const char *id, char *path, size_t c
     snprintf(path, cap, "%s/fetch-XXXXXX", p->scratch);
     int fd = mkstemp(path);
     if (fd < 0)
-        return -1;
+        return SF_EIO;
     FILE *f = fdopen(fd, "wb");
     int c = take(p);
     PGconn *conn = p->pool[c];
@@ -331,9 +335,9 @@ static int pg_request_file(struct store *s, const char *id, char *path, size_t c
         ok = false;
     if (!ok || rows == 0) {
         unlink(path);
-        return ok ? 0 : -1;
+        return ok ? SF_ENOTFOUND : SF_EIO;
     }
-    return 1;
+    return 0;
 }
 
 static void pg_request_file_done(struct store *s, const char *path)
@@ -363,7 +367,7 @@ static int pg_claim(struct store *s, const char *node, double lease_s, bool alon
     }
     if (n >= 0)
         PQclear(res);
-    return n < 0 ? -1 : n == 1;
+    return one_row(n, SF_ENOTFOUND); /* none queued that this node may take */
 }
 
 static int pg_heartbeat(struct store *s, const char *id, long fence, double lease_s, double progress, bool *cancel)
@@ -382,11 +386,11 @@ static int pg_heartbeat(struct store *s, const char *id, long fence, double leas
         *cancel = PQgetvalue(res, 0, 0)[0] != 0;
     if (n >= 0)
         PQclear(res);
-    return n < 0 ? -1 : n == 1;
+    return one_row(n, SF_ECONFLICT); /* no running row under that fence: the claim is lost */
 }
 
 /* Writes len bytes as rows of size bytes (insert: "INSERT INTO T(key,seq,data) VALUES($1,$2,$3)")
- * on connection c, inside the caller's transaction: a result's chunks, a value's pieces. 0 or -1. */
+ * on connection c, inside the caller's transaction: a result's chunks, a value's pieces. 0 or SF_EIO. */
 static int put_rows(struct pg_store *p, int c, const char *insert, const char *key, const unsigned char *data,
                     size_t len, size_t size)
 {
@@ -397,7 +401,7 @@ static int put_rows(struct pg_store *p, int c, const char *insert, const char *k
         struct param prm[] = {T(key), T(sq), BIN(len ? (const void *)(data + off) : "", n)};
         PGresult *res = execute(p, c, insert, 3, prm, false);
         if (!res)
-            return -1;
+            return SF_EIO;
         PQclear(res);
         if (len == 0)
             break;
@@ -418,7 +422,7 @@ static int pg_finish(struct store *s, const char *id, long fence, const struct j
                           T(e->outcome == JOB_SUCCEEDED ? sum : NULL), T(e->outcome == JOB_SUCCEEDED ? len : NULL),
                           T(id), T(f)};
     int c = take(p);
-    int rc = -1;
+    int rc = SF_EIO;
     PGresult *res = execute(p, c, "BEGIN", 0, NULL, true);
     if (res) {
         PQclear(res);
@@ -427,20 +431,20 @@ static int pg_finish(struct store *s, const char *id, long fence, const struct j
                       " result_len=$7, progress=CASE WHEN $1::text='succeeded' THEN 1 ELSE progress END, lease_until=0"
                       " WHERE id=$8 AND fence=$9 AND state='running'",
                       9, prm, false);
-        int changed = res ? atoi(PQcmdTuples(res)) : -1;
+        int changed = res ? atoi(PQcmdTuples(res)) : SF_EIO;
         PQclear(res);
         if (changed == 1 && e->outcome == JOB_SUCCEEDED &&
             put_rows(p, c, "INSERT INTO results(job,seq,data) VALUES($1,$2,$3)", id, e->result, e->len, CHUNK))
-            changed = -1;
+            changed = SF_EIO;
         if (changed == 1) {
             struct param n1[] = {T(id)};
             res = execute(p, c, "SELECT pg_notify('surfd', 'ended:' || $1::text)", 1, n1, false);
-            changed = res ? 1 : -1;
+            changed = res ? 1 : SF_EIO;
             PQclear(res);
         }
         res = execute(p, c, changed == 1 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
         if (res && changed >= 0)
-            rc = changed;
+            rc = one_row(changed, SF_ECONFLICT);
         PQclear(res);
     }
     give(p, c);
@@ -452,16 +456,18 @@ static int pg_release(struct store *s, const char *id, long fence)
     char f[24];
     snprintf(f, sizeof f, "%ld", fence);
     struct param prm[] = {T(id), T(f)};
-    return exec1(s, NULL,
-                 "WITH j AS (UPDATE jobs SET state=CASE WHEN cancel_requested THEN 'cancelled' ELSE 'queued' END,"
-                 " finished=CASE WHEN cancel_requested THEN " NOW " ELSE finished END, progress=0,"
-                 " attempts=GREATEST(attempts-1,0), lease_until=0 WHERE id=$1 AND fence=$2 AND state='running'"
-                 " RETURNING id, state)"
-                 " SELECT pg_notify('surfd', CASE WHEN state='queued' THEN 'queued:' ELSE 'ended:' END || id) FROM j",
-                 2, prm);
+    return one_row(exec1(s, NULL,
+                         "WITH j AS (UPDATE jobs SET state=CASE WHEN cancel_requested THEN 'cancelled' ELSE 'queued' END,"
+                         " finished=CASE WHEN cancel_requested THEN " NOW " ELSE finished END, progress=0,"
+                         " attempts=GREATEST(attempts-1,0), lease_until=0 WHERE id=$1 AND fence=$2 AND state='running'"
+                         " RETURNING id, state)"
+                         " SELECT pg_notify('surfd', CASE WHEN state='queued' THEN 'queued:' ELSE 'ended:' END || id)"
+                         " FROM j",
+                         2, prm),
+                   SF_ECONFLICT);
 }
 
-static enum store_cancel pg_cancel(struct store *s, const char *id, const char *owner, double now)
+static int pg_cancel(struct store *s, const char *id, const char *owner, double now, bool *asked)
 {
     char t[32];
     num(t, sizeof t, now);
@@ -471,15 +477,17 @@ static enum store_cancel pg_cancel(struct store *s, const char *id, const char *
                   " ($2::text IS NULL OR owner=$2) RETURNING id) SELECT pg_notify('surfd', 'ended:' || id) FROM j",
                   3, prm);
     if (n)
-        return n > 0 ? CANCEL_DONE : CANCEL_ERROR;
+        return n > 0 ? 0 : SF_EIO;
     n = exec1(s, NULL,
               "WITH j AS (UPDATE jobs SET cancel_requested=true WHERE id=$1 AND state='running' AND"
               " ($2::text IS NULL OR owner=$2) RETURNING id) SELECT pg_notify('surfd', 'cancel:' || id) FROM j",
               2, prm);
+    if (n > 0)
+        *asked = true;
     if (n)
-        return n > 0 ? CANCEL_ASKED : CANCEL_ERROR;
+        return n > 0 ? 0 : SF_EIO;
     n = exec1(s, NULL, "SELECT 1 FROM jobs WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2, prm);
-    return n < 0 ? CANCEL_ERROR : n ? CANCEL_ENDED : CANCEL_NOT_FOUND;
+    return n < 0 ? SF_EIO : n ? SF_ECONFLICT : SF_ENOTFOUND; /* ended, or not this owner's */
 }
 
 static int pg_reap(struct store *s, double now, const char *node, int max_attempts, const char *give_up,
@@ -491,7 +499,7 @@ static int pg_reap(struct store *s, double now, const char *node, int max_attemp
     snprintf(max, sizeof max, "%d", max_attempts);
     struct param prm[] = {T(node), T(max), T(give_up)};
     int c = take(p);
-    int reaped = -1;
+    int reaped = SF_EIO;
     PGresult *res = execute(p, c, "BEGIN", 0, NULL, true), *rows = NULL;
     if (res) {
         PQclear(res);
@@ -521,7 +529,7 @@ static int pg_reap(struct store *s, double now, const char *node, int max_attemp
                            3, prm, false);
         res = execute(p, c, rows ? "COMMIT" : "ROLLBACK", 0, NULL, false);
         if (!res || (mine && !rows))
-            reaped = -1;
+            reaped = SF_EIO;
         PQclear(res);
     }
     give(p, c);
@@ -549,12 +557,12 @@ static int pg_prune(struct store *s, double now, long ttl, long max_count)
     /* the streamed bodies of ended jobs: their runs are over, the space is the owner's share again */
     if (exec1(s, NULL, "DELETE FROM uploads WHERE job IN (SELECT id FROM jobs WHERE state NOT IN ('queued','running'))",
               0, NULL) < 0)
-        return -1;
+        return SF_EIO;
     return exec1(s, NULL,
                  "DELETE FROM jobs WHERE state IN ('succeeded','failed','cancelled') AND (finished < $1::float8 OR id NOT IN"
                  " (SELECT id FROM jobs WHERE state IN ('succeeded','failed','cancelled') ORDER BY finished DESC"
                  " LIMIT $2::bigint))",
-                 2, prm) < 0 ? -1 : 0;
+                 2, prm) < 0 ? SF_EIO : 0;
 }
 
 /* ---- reading ---- */
@@ -591,7 +599,8 @@ static void read_rec(const PGresult *r, int row, struct job_rec *out)
 }
 
 /* Reads the rows select (of key, "SELECT data ... ORDER BY seq") one at a time (single-row mode)
- * into one buffer of len bytes, their sum: a result's chunks, a value's pieces. */
+ * into one buffer of len bytes, their sum: a result's chunks, a value's pieces. 0 (*out: the caller
+ * frees it), or SF_EIO. */
 static int get_rows(struct pg_store *p, const char *select, const char *key, size_t len, unsigned char **out)
 {
     int c = take(p);
@@ -617,7 +626,7 @@ static int get_rows(struct pg_store *p, const char *select, const char *key, siz
     give(p, c);
     if (!ok || at != len) {
         free(buf);
-        return -1;
+        return SF_EIO;
     }
     *out = buf;
     return 0;
@@ -627,40 +636,41 @@ static int pg_get(struct store *s, const char *id, bool with_request, bool with_
 {
     struct param prm[] = {T(id)};
     PGresult *res;
+    memset(out, 0, sizeof *out); /* store_rec_free()-safe whatever the answer */
     int n = exec1(s, &res, "SELECT " REC_COLUMNS ",request,result_len FROM jobs WHERE id=$1", 1, prm);
     if (n < 0)
-        return -1;
+        return SF_EIO;
     if (n == 0) {
         PQclear(res);
-        return 0;
+        return SF_ENOTFOUND;
     }
     read_rec(res, 0, out);
-    int found = 1;
+    int rc = 0;
     if (with_request) {
         out->request_len = (size_t)PQgetlength(res, 0, REC_N_COLUMNS);
         out->request = malloc(out->request_len ? out->request_len : 1);
         if (out->request)
             memcpy(out->request, PQgetvalue(res, 0, REC_N_COLUMNS), out->request_len);
         else
-            found = -1;
+            rc = SF_EIO;
     }
     bool has_result = !PQgetisnull(res, 0, REC_N_COLUMNS + 1);
     size_t len = has_result ? (size_t)get_i64(res, 0, REC_N_COLUMNS + 1) : 0;
     PQclear(res);
-    if (found == 1 && with_result && has_result) {
+    if (rc == 0 && with_result && has_result) {
         if (get_rows(pg(s), "SELECT data FROM results WHERE job=$1 ORDER BY seq", id, len, &out->result)) {
-            found = -1;
+            rc = SF_EIO;
         } else {
             out->result_len = len;
             char sum[65];
             store_checksum(out->result, len, "", 0, sum);
             if (out->result_sum[0] && strcmp(sum, out->result_sum))
-                found = STORE_DAMAGED;
+                rc = SF_EDAMAGED;
         }
     }
-    if (found != 1)
+    if (rc)
         store_rec_free(out);
-    return found;
+    return rc;
 }
 
 static int pg_list(struct store *s, const enum job_state *state, const char *owner, long limit,
@@ -682,15 +692,19 @@ static int pg_list(struct store *s, const enum job_state *state, const char *own
     }
     if (n >= 0)
         PQclear(res);
-    return n < 0 ? -1 : 0;
+    return n < 0 ? SF_EIO : 0;
 }
 
-/* The one bigint a query answers, or -1. */
+/* The one bigint a query answers, or SF_EIO. */
 static long query_count(struct store *s, const char *sql)
 {
     PGresult *res;
-    if (exec1(s, &res, sql, 0, NULL) != 1)
-        return -1;
+    int rows = exec1(s, &res, sql, 0, NULL);
+    if (rows != 1) {
+        if (rows >= 0)
+            PQclear(res);
+        return SF_EIO;
+    }
     long n = (long)get_i64(res, 0, 0);
     PQclear(res);
     return n;
@@ -700,11 +714,11 @@ static long pg_queued(struct store *s) { return query_count(s, "SELECT count(*) 
 
 /* ---- models ---- */
 
-/* One statement of a transaction on connection c: the rows it changed, or -1. */
+/* One statement of a transaction on connection c: the rows it changed, or SF_EIO. */
 static int exec_in(struct pg_store *p, int c, const char *sql, int n, const struct param *prm)
 {
     PGresult *res = execute(p, c, sql, n, prm, false);
-    int rows = res ? atoi(PQcmdTuples(res)) : -1;
+    int rows = res ? atoi(PQcmdTuples(res)) : SF_EIO;
     PQclear(res);
     return rows;
 }
@@ -716,7 +730,7 @@ static int exec_in(struct pg_store *p, int c, const char *sql, int n, const stru
  * in a transaction that rolled back are gone with it. */
 
 /* The parameters for a value of len bytes written on connection c: *v the bytes, or (the pieces
- * written first, named in name) empty, with *pieces the name or NULL. 0, or -1. */
+ * written first, named in name) empty, with *pieces the name or NULL. 0, or SF_EIO. */
 static int value_params(struct pg_store *p, int c, const void *data, size_t len, char name[48], struct param *v,
                         struct param *pieces)
 {
@@ -725,7 +739,7 @@ static int value_params(struct pg_store *p, int c, const void *data, size_t len,
         return 0;
     if (store_piece_name(name) ||
         put_rows(p, c, "INSERT INTO pieces(name,seq,data) VALUES($1,$2,$3)", name, data, len, p->base.piece))
-        return -1;
+        return SF_EIO;
     *v = BIN("", 0), *pieces = T(name);
     return 0;
 }
@@ -754,7 +768,7 @@ static unsigned char *value_copy(struct pg_store *p, const PGresult *res, int ro
     return get_rows(p, "SELECT data FROM pieces WHERE name=$1 ORDER BY seq", name, *len, &b) ? NULL : b;
 }
 
-/* Volume part v of model id on connection c: 1, 0 when its seq is taken, -1. */
+/* Volume part v of model id on connection c: 0, SF_ECONFLICT when its seq is taken, SF_EIO. */
 static int volume_put(struct pg_store *p, int c, const char *id, const struct volume_rec *v)
 {
     char seq[16], sum[65];
@@ -763,14 +777,16 @@ static int volume_put(struct pg_store *p, int c, const char *id, const struct vo
     char name[48];
     struct param prm[] = {T(id), T(seq), T(v->format), T(v->options), T(NULL), T(sum), T(NULL)};
     if (value_params(p, c, v->data, v->len, name, &prm[4], &prm[6]))
-        return -1;
-    return exec_in(p, c,
-                   "INSERT INTO model_volumes(model,seq,format,options,data,sum,data_pieces) VALUES($1,$2,$3,$4,$5,$6,$7)"
-                   " ON CONFLICT DO NOTHING",
-                   7, prm);
+        return SF_EIO;
+    return one_row(exec_in(p, c,
+                           "INSERT INTO model_volumes(model,seq,format,options,data,sum,data_pieces)"
+                           " VALUES($1,$2,$3,$4,$5,$6,$7) ON CONFLICT DO NOTHING",
+                           7, prm),
+                   SF_ECONFLICT);
 }
 
-/* The model's row (update: only its source and resource, of an existing row) on connection c. */
+/* The model's row (update: only its source and resource, of an existing row) on connection c: the
+ * rows written (0: no such row to update), or SF_EIO. */
 static int model_row(struct pg_store *p, int c, const struct model_rec *m, bool update)
 {
     char created[32], sum[65], rsum[65];
@@ -781,7 +797,7 @@ static int model_row(struct pg_store *p, int c, const struct model_rec *m, bool 
     struct param prm[] = {T(m->id), T(m->job), T(m->name ? m->name : ""), T(created), T(NULL),
                           T(m->resource), T(m->owner ? m->owner : ""), T(sum), T(rsum), T(NULL)};
     if (value_params(p, c, m->source, m->source_len, name, &prm[4], &prm[9]))
-        return -1;
+        return SF_EIO;
     if (update) {
         struct param up[] = {prm[0], prm[4], prm[5], prm[7], prm[8], prm[9]};
         return exec_in(p, c, "UPDATE models SET source=$2, resource=$3, sum=$4, resource_sum=$5, source_pieces=$6"
@@ -796,33 +812,33 @@ static int model_row(struct pg_store *p, int c, const struct model_rec *m, bool 
                    10, prm);
 }
 
-/* A model's row and a volume part in one transaction: 1 (committed), 0 (the part's seq was
- * taken, or no such model to update: nothing written), -1. */
+/* A model's row and a volume part in one transaction: 0 (committed), SF_ECONFLICT (the part's seq
+ * was taken, or no such model to update: nothing written), SF_EIO. */
 static int model_txn(struct store *s, const struct model_rec *m, const struct volume_rec *v, bool update)
 {
     struct pg_store *p = pg(s);
-    int c = take(p), rc = -1;
+    int c = take(p), rc = SF_EIO;
     PGresult *res = execute(p, c, "BEGIN", 0, NULL, true);
     if (res) {
         PQclear(res);
         struct param id[] = {T(m->id)};
-        rc = model_row(p, c, m, update);
-        if (rc == 1 && !update && exec_in(p, c, "DELETE FROM model_volumes WHERE model=$1", 1, id) < 0)
-            rc = -1;
-        if (rc == 1 && update && exec_in(p, c, "DELETE FROM meshes WHERE model=$1", 1, id) < 0) /* the edit's before */
-            rc = -1;
-        if (rc == 1 && v)
+        rc = one_row(model_row(p, c, m, update), SF_ECONFLICT);
+        if (rc == 0 && !update && exec_in(p, c, "DELETE FROM model_volumes WHERE model=$1", 1, id) < 0)
+            rc = SF_EIO;
+        if (rc == 0 && update && exec_in(p, c, "DELETE FROM meshes WHERE model=$1", 1, id) < 0) /* the edit's before */
+            rc = SF_EIO;
+        if (rc == 0 && v)
             rc = volume_put(p, c, m->id, v);
-        res = execute(p, c, rc == 1 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
+        res = execute(p, c, rc == 0 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
         if (!res)
-            rc = -1;
+            rc = SF_EIO;
         PQclear(res);
     }
     give(p, c);
     return rc;
 }
 
-static int pg_model_put(struct store *s, const struct model_rec *m) { return model_txn(s, m, m->volume, false) == 1 ? 0 : -1; }
+static int pg_model_put(struct store *s, const struct model_rec *m) { return model_txn(s, m, m->volume, false) ? SF_EIO : 0; }
 
 static int pg_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit)
 {
@@ -840,9 +856,9 @@ static int pg_volume_get(struct store *s, const char *id, int from, struct volum
                      " seq>=$2::integer ORDER BY seq",
                      2, prm);
     if (rows < 0)
-        return -1;
-    int found = rows > 0;
-    for (int k = 0; k < rows && found == 1; k++) {
+        return SF_EIO;
+    int rc = 0;
+    for (int k = 0; k < rows && rc == 0; k++) {
         const char *opt = PQgetvalue(res, k, 2);
         size_t len;
         unsigned char *data = value_copy(pg(s), res, k, 3, 5, &len);
@@ -850,51 +866,54 @@ static int pg_volume_get(struct store *s, const char *id, int from, struct volum
         if (data)
             store_checksum(opt, strlen(opt), data, len, sum);
         if (!data)
-            found = -1;
+            rc = SF_EIO;
         else if (strcmp(sum, PQgetvalue(res, k, 4)))
-            found = STORE_DAMAGED;
+            rc = SF_EDAMAGED;
         else if (store_volume_add(parts, n, (int)get_i64(res, k, 0), PQgetvalue(res, k, 1), opt, data, len))
-            found = -1;
+            rc = SF_EIO;
         free(data);
     }
     PQclear(res);
-    return found;
+    return rc;
 }
 
-/* The resource alone, checked against its own sum, without fetching the source: 1, 0, -1,
- * STORE_DAMAGED, or 2 for a row written before resource sums were kept. */
-static int pg_resource_get(struct store *s, const char *id, const char *owner, char **resource)
+/* The resource alone, checked against its own sum, without fetching the source: 0, SF_ENOTFOUND,
+ * SF_EIO, SF_EDAMAGED. *summed false (0 answered, nothing read): a row written before resource sums
+ * were kept, whose resource only the model's sum covers. */
+static int pg_resource_get(struct store *s, const char *id, const char *owner, char **resource, bool *summed)
 {
     struct param prm[] = {T(id), T(owner)};
     PGresult *res;
+    *summed = true;
     int n = exec1(s, &res, "SELECT resource, resource_sum FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2,
                   prm);
     if (n <= 0) {
         if (n == 0)
             PQclear(res);
-        return n;
+        return n == 0 ? SF_ENOTFOUND : SF_EIO;
     }
-    int found = 1;
+    int rc = 0;
     if (PQgetisnull(res, 0, 1)) {
-        found = 2;
+        *summed = false;
     } else {
         char sum[65];
         store_checksum(PQgetvalue(res, 0, 0), (size_t)PQgetlength(res, 0, 0), "", 0, sum);
-        found = strcmp(sum, PQgetvalue(res, 0, 1)) ? STORE_DAMAGED : 1;
+        rc = strcmp(sum, PQgetvalue(res, 0, 1)) ? SF_EDAMAGED : 0;
     }
-    if (found == 1 && resource && !(*resource = dup_text(res, 0, 0)))
-        found = -1;
+    if (rc == 0 && *summed && resource && !(*resource = dup_text(res, 0, 0)))
+        rc = SF_EIO;
     PQclear(res);
-    return found;
+    return rc;
 }
 
 static int pg_model_get(struct store *s, const char *id, const char *owner, char **resource, char **source,
                         size_t *source_len)
 {
     if (!source) {
-        int found = pg_resource_get(s, id, owner, resource);
-        if (found != 2)
-            return found;
+        bool summed;
+        int rc = pg_resource_get(s, id, owner, resource, &summed);
+        if (rc || summed)
+            return rc;
     }
     struct param prm[] = {T(id), T(owner)};
     PGresult *res;
@@ -904,7 +923,7 @@ static int pg_model_get(struct store *s, const char *id, const char *owner, char
     if (n <= 0) {
         if (n == 0)
             PQclear(res);
-        return n;
+        return n == 0 ? SF_ENOTFOUND : SF_EIO;
     }
     const char *rsc = PQgetvalue(res, 0, 0);
     size_t ns = 0, nr = (size_t)PQgetlength(res, 0, 0);
@@ -912,17 +931,17 @@ static int pg_model_get(struct store *s, const char *id, const char *owner, char
     char sum[65];
     if (src)
         store_checksum(src, ns, rsc, nr, sum);
-    int found = !src ? -1 : PQgetisnull(res, 0, 2) || !strcmp(sum, PQgetvalue(res, 0, 2)) ? 1 : STORE_DAMAGED;
-    if (found == 1 && resource && !(*resource = dup_text(res, 0, 0)))
-        found = -1;
-    if (found == 1 && source) {
+    int rc = !src ? SF_EIO : PQgetisnull(res, 0, 2) || !strcmp(sum, PQgetvalue(res, 0, 2)) ? 0 : SF_EDAMAGED;
+    if (rc == 0 && resource && !(*resource = dup_text(res, 0, 0)))
+        rc = SF_EIO;
+    if (rc == 0 && source) {
         *source = (char *)src, src = NULL;
         if (source_len)
             *source_len = ns;
     }
     free(src);
     PQclear(res);
-    return found;
+    return rc;
 }
 
 static int pg_model_list(struct store *s, const char *owner, long limit, void (*fn)(const char *, void *), void *arg)
@@ -947,14 +966,14 @@ static int pg_model_list(struct store *s, const char *owner, long limit, void (*
     }
     if (n >= 0)
         PQclear(res);
-    return n < 0 ? -1 : damaged ? STORE_DAMAGED : 0;
+    return n < 0 ? SF_EIO : damaged ? SF_EDAMAGED : 0;
 }
 
 static int pg_model_delete(struct store *s, const char *id, const char *owner)
 {
     struct param prm[] = {T(id), T(owner)};
-    int n = exec1(s, NULL, "DELETE FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2, prm);
-    return n < 0 ? -1 : n > 0;
+    return one_row(exec1(s, NULL, "DELETE FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2, prm),
+                   SF_ENOTFOUND);
 }
 
 static int pg_mesh_get(struct store *s, const char *model, const char *key, struct mesh_rec *out)
@@ -965,18 +984,18 @@ static int pg_mesh_get(struct store *s, const char *model, const char *key, stru
                      "UPDATE meshes SET used=" NOW " WHERE model=$1 AND key=$2 RETURNING type, meta, data, sum,"
                      " data_pieces", 2, prm);
     if (rows < 0)
-        return -1;
-    int found = rows > 0;
-    if (found) {
+        return SF_EIO;
+    int rc = rows > 0 ? 0 : SF_ENOTFOUND;
+    if (rc == 0) {
         out->type = strdup(PQgetvalue(res, 0, 0));
         out->meta = strdup(PQgetvalue(res, 0, 1));
         out->data = value_copy(pg(s), res, 0, 2, 4, &out->len);
         snprintf(out->sum, sizeof out->sum, "%s", PQgetvalue(res, 0, 3));
         if (!out->type || !out->meta || !out->data)
-            found = -1;
+            rc = SF_EIO;
     }
     PQclear(res);
-    return found;
+    return rc;
 }
 
 /* A cached mesh's bytes, in its row or its pieces. */
@@ -991,7 +1010,7 @@ static int pg_mesh_put(struct store *s, const char *model, const char *key, cons
     struct pg_store *p = pg(s);
     char name[48];
     struct param prm[] = {T(model), T(key), T(m->type), T(m->meta ? m->meta : ""), T(NULL), T(m->sum), T(NULL)};
-    int c = take(p), n = -1;
+    int c = take(p), n = SF_EIO;
     PGresult *res = execute(p, c, "BEGIN", 0, NULL, true);
     if (res) {
         PQclear(res);
@@ -1004,7 +1023,7 @@ static int pg_mesh_put(struct store *s, const char *model, const char *key, cons
                         7, prm);
         res = execute(p, c, n > 0 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
         if (!res)
-            n = -1;
+            n = SF_EIO;
         PQclear(res);
     }
     give(p, c);
@@ -1014,8 +1033,8 @@ static int pg_mesh_put(struct store *s, const char *model, const char *key, cons
                        " SUM(" MESH_BYTES ") OVER (ORDER BY used DESC, model, key) AS run FROM meshes) t"
                        " WHERE run > $1::bigint)", /* the least used past the budget */
                        1, cap) < 0)
-        n = -1;
-    return n < 0 ? -1 : n > 0;
+        n = SF_EIO;
+    return one_row(n, SF_ECONFLICT); /* no row: the model is gone */
 }
 
 static long pg_mesh_bytes(struct store *s)
@@ -1129,7 +1148,7 @@ static int pg_uploads_held(struct store *s, void (*fn)(const char *owner, long l
         fn(PQgetvalue(res, k, 0), get_i64(res, k, 1), arg);
     if (n >= 0)
         PQclear(res);
-    return n < 0 ? -1 : 0;
+    return n < 0 ? SF_EIO : 0;
 }
 
 static const struct store_ops PG_OPS = {
@@ -1139,14 +1158,13 @@ static const struct store_ops PG_OPS = {
     pg_mesh_get,  pg_mesh_put,  pg_mesh_bytes, pg_writable,  pg_on_event,  NULL,         NULL,         pg_uploads_held,
 };
 
-int store_pg_open(const char *uri, const char *scratch, struct store **out, char *msg, size_t msg_len)
+int store_pg_open(const char *uri, const char *scratch, struct store **out, struct sf_err *err)
 {
     *out = NULL;
     struct pg_store *p = calloc(1, sizeof *p);
     if (!p || !(p->uri = strdup(uri))) {
         free(p);
-        snprintf(msg, msg_len, "out of memory");
-        return -1;
+        return sf_fail(err, SF_EIO, NULL, "out of memory");
     }
     mkdir(scratch, 0700);
     snprintf(p->scratch, sizeof p->scratch, "%s/scratch", scratch);
@@ -1157,12 +1175,11 @@ int store_pg_open(const char *uri, const char *scratch, struct store **out, char
     for (int k = 0; k < POOL_SIZE; k++)
         p->pool[k] = connect_db(uri);
     if (PQstatus(p->pool[0]) != CONNECTION_OK) {
-        snprintf(msg, msg_len, "PostgreSQL: %s", PQerrorMessage(p->pool[0]));
-        char *nl = strrchr(msg, '\n');
-        if (nl && !nl[1])
-            *nl = 0;
+        const char *why = PQerrorMessage(p->pool[0]);
+        size_t n = strlen(why);
+        sf_fail(err, SF_EIO, NULL, "PostgreSQL: %.*s", (int)(n && why[n - 1] == '\n' ? n - 1 : n), why);
         pg_close(&p->base);
-        return -1;
+        return SF_EIO;
     }
     /* one node at a time creates the schema (two starting at once would race on CREATE) */
     PGresult *r = PQexec(p->pool[0], "SELECT pg_advisory_lock(" SCHEMA_LOCK ")");
@@ -1170,12 +1187,12 @@ int store_pg_open(const char *uri, const char *scratch, struct store **out, char
     r = PQexec(p->pool[0], SCHEMA);
     bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
     if (!ok)
-        snprintf(msg, msg_len, "PostgreSQL: cannot create the schema: %s", PQerrorMessage(p->pool[0]));
+        sf_fail(err, SF_EIO, NULL, "PostgreSQL: cannot create the schema: %s", PQerrorMessage(p->pool[0]));
     PQclear(r);
     PQclear(PQexec(p->pool[0], "SELECT pg_advisory_unlock(" SCHEMA_LOCK ")"));
     if (!ok) {
         pg_close(&p->base);
-        return -1;
+        return SF_EIO;
     }
     *out = &p->base;
     return 0;

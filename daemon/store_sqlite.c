@@ -91,7 +91,7 @@ static void sq_close(struct store *base);
 static void sweep_pieces(struct store *s);
 static void sweep_uploads(struct store *s, bool all);
 
-int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg_len)
+int store_sqlite_open(const char *dir, struct store **out, struct sf_err *err)
 {
     *out = NULL;
     /* patient data: the directory and every file SQLite makes in it (db, -wal, -shm) are the
@@ -101,25 +101,23 @@ int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg
     char path[1024];
     snprintf(path, sizeof path, "%s/surfd.db", dir);
     struct sqlite_store *s = calloc(1, sizeof *s);
-    if (!s) {
-        snprintf(msg, msg_len, "out of memory");
-        return -1;
-    }
+    if (!s)
+        return sf_fail(err, SF_EIO, NULL, "out of memory");
     s->base.ops = &SQLITE_OPS;
     snprintf(s->path, sizeof s->path, "%s", path);
     snprintf(s->uploads, sizeof s->uploads, "%s/uploads", dir);
     mkdir(s->uploads, 0700);
     pthread_mutex_init(&s->lock, NULL);
-    char *err = NULL;
+    char *why = NULL;
     bool opened = sqlite3_open_v2(path, &s->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX,
                                   NULL) == SQLITE_OK && sqlite3_busy_timeout(s->db, 5000) == SQLITE_OK;
     if (opened)
         s->mark = walmark_open(path, s->db); /* before the schema's first write can restart the WAL */
-    if (!opened || sqlite3_exec(s->db, SCHEMA, NULL, NULL, &err) != SQLITE_OK) {
-        snprintf(msg, msg_len, "%s: %s", path, err ? err : sqlite3_errmsg(s->db));
-        sqlite3_free(err);
+    if (!opened || sqlite3_exec(s->db, SCHEMA, NULL, NULL, &why) != SQLITE_OK) {
+        sf_fail(err, SF_EIO, NULL, "%s: %s", path, why ? why : sqlite3_errmsg(s->db));
+        sqlite3_free(why);
         sq_close(&s->base);
-        return -1;
+        return SF_EIO;
     }
     const char *const suffixes[] = {"", "-wal", "-shm", "-mark"};
     for (size_t k = 0; k < 4; k++) {
@@ -128,14 +126,14 @@ int store_sqlite_open(const char *dir, struct store **out, char *msg, size_t msg
         chmod(f, 0600);
     }
     for (size_t k = 0; k < sizeof MIGRATIONS / sizeof *MIGRATIONS; k++)
-        if (sqlite3_exec(s->db, MIGRATIONS[k], NULL, NULL, &err) != SQLITE_OK) {
-            bool had = err && strstr(err, "duplicate column");
-            sqlite3_free(err);
-            err = NULL;
+        if (sqlite3_exec(s->db, MIGRATIONS[k], NULL, NULL, &why) != SQLITE_OK) {
+            bool had = why && strstr(why, "duplicate column");
+            sqlite3_free(why);
+            why = NULL;
             if (!had) {
-                snprintf(msg, msg_len, "%s: cannot upgrade the schema: %s", path, sqlite3_errmsg(s->db));
+                sf_fail(err, SF_EIO, NULL, "%s: cannot upgrade the schema: %s", path, sqlite3_errmsg(s->db));
                 sq_close(&s->base);
-                return -1;
+                return SF_EIO;
             }
         }
     sweep_pieces(&s->base); /* written by a statement outside a transaction that a stop cut short */
@@ -166,15 +164,15 @@ static int run_held(struct store *s, const char *sql, const char *types, ...);
 
 #define PIECES_PREFIX "pieces:"
 
-/* Writes n bytes at p as pieces under a new name (lock held): 0, or -1. */
+/* Writes n bytes at p as pieces under a new name (lock held): 0, or SF_EIO. */
 static int pieces_put(struct store *s, const unsigned char *p, size_t n, char name[48])
 {
     if (store_piece_name(name))
-        return -1;
+        return SF_EIO;
     for (size_t off = 0, seq = 0; off < n; off += s->piece, seq++) {
         size_t len = n - off < s->piece ? n - off : s->piece;
         if (run_held(s, "INSERT INTO pieces(name,seq,data) VALUES(?,?,?)", "tib", name, (long)seq, p + off, len) != 1)
-            return -1;
+            return SF_EIO;
     }
     return 0;
 }
@@ -289,14 +287,14 @@ static double wall_now(void)
 
 static int sq_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out);
 
-/* Runs one statement to its end: the rows it changed (or, a query, returned), or -1. */
+/* Runs one statement to its end: the rows it changed (or, a query, returned), or SF_EIO. */
 static int vrun(struct store *s, const char *sql, const char *types, va_list ap)
 {
     sqlite3_stmt *st = prepare(s, sql, types, ap);
     int rc = st ? sqlite3_step(st) : SQLITE_ERROR, rows = 0;
     while (rc == SQLITE_ROW)
         rc = sqlite3_step(st), rows++;
-    int n = rc != SQLITE_DONE ? -1 : sqlite3_stmt_readonly(st) ? rows : sqlite3_changes(db_of(s));
+    int n = rc != SQLITE_DONE ? SF_EIO : sqlite3_stmt_readonly(st) ? rows : sqlite3_changes(db_of(s));
     if ((rc & 0xff) == SQLITE_FULL) /* the unix VFS's ENOSPC */
         atomic_store(&s->full, true);
     sqlite3_finalize(st);
@@ -323,6 +321,13 @@ static int run_held(struct store *s, const char *sql, const char *types, ...)
     va_end(ap);
     return n;
 }
+
+/* The answer of a statement that changes one row, from the n rows run() says it changed: 0 when
+ * it did, none when no row was in the state it needs, SF_EIO when it failed. */
+static int one_row(int n, int none) { return n < 0 ? SF_EIO : n == 0 ? none : 0; }
+
+/* A sqlite3_step()'s answer for a statement of one row: 0 a row, SF_ENOTFOUND none, SF_EIO. */
+static int row_of(int step) { return step == SQLITE_ROW ? 0 : step == SQLITE_DONE ? SF_ENOTFOUND : SF_EIO; }
 
 /* Whether blob bytes match their stored sum (a row written before sums were kept has none). */
 static bool sum_ok(sqlite3_stmt *st, int col_sum, const void *a, size_t na, const void *b, size_t nb)
@@ -351,7 +356,7 @@ static int sq_submit(struct store *s, const struct job_rec *r)
 {
     return run(s, "INSERT INTO jobs(id,kind,state,created,format,options,request,owner) VALUES(?,?,'queued',?,?,?,?,?)",
                "ttdttBt", r->id, r->kind, r->created, r->format, r->options, (const void *)r->request,
-               r->request_len, r->owner) == 1 ? 0 : -1;
+               r->request_len, r->owner) == 1 ? 0 : SF_EIO;
 }
 
 static int sq_submit_file(struct store *s, const struct job_rec *r, const char *path)
@@ -360,13 +365,13 @@ static int sq_submit_file(struct store *s, const struct job_rec *r, const char *
     snprintf(kept, sizeof kept, "%s/%s", ((struct sqlite_store *)s)->uploads, r->id);
     if (rename(path, kept)) {
         unlink(path);
-        return -1;
+        return SF_EIO;
     }
     if (run(s, "INSERT INTO jobs(id,kind,state,created,format,options,request,owner,request_file)"
                " VALUES(?,?,'queued',?,?,?,X'',?,1)",
             "ttdttt", r->id, r->kind, r->created, r->format, r->options, r->owner) != 1) {
         unlink(kept);
-        return -1;
+        return SF_EIO;
     }
     return 0;
 }
@@ -374,12 +379,14 @@ static int sq_submit_file(struct store *s, const struct job_rec *r, const char *
 static int sq_request_file(struct store *s, const char *id, char *path, size_t cap)
 {
     struct job_rec r;
-    int found = sq_get(s, id, false, false, &r);
+    int rc = sq_get(s, id, false, false, &r);
     store_rec_free(&r);
-    if (found != 1 || !r.request_file)
-        return found < 0 ? -1 : 0;
+    if (rc == 0 && !r.request_file)
+        rc = SF_ENOTFOUND; /* its body is in its row */
+    if (rc)
+        return rc == SF_ENOTFOUND ? rc : SF_EIO;
     snprintf(path, cap, "%s/%s", ((struct sqlite_store *)s)->uploads, id);
-    return 1;
+    return 0;
 }
 
 static void sq_request_file_done(struct store *s, const char *path)
@@ -412,7 +419,7 @@ static void sweep_uploads(struct store *s, bool all)
 static int sq_uploads_held(struct store *s, void (*fn)(const char *owner, long long bytes, void *), void *arg)
 {
     sqlite3_stmt *st;
-    int rc = -1;
+    int rc = SF_EIO;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s), "SELECT id, owner FROM jobs WHERE request_file=1 AND state IN ('queued','running')",
                            -1, &st, NULL) == SQLITE_OK) {
@@ -425,7 +432,7 @@ static int sq_uploads_held(struct store *s, void (*fn)(const char *owner, long l
             if (!stat(path, &sb))
                 fn(owner ? (const char *)owner : "", (long long)sb.st_size, arg);
         }
-        rc = step == SQLITE_DONE ? 0 : -1;
+        rc = step == SQLITE_DONE ? 0 : SF_EIO;
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
@@ -436,7 +443,7 @@ static int sq_claim(struct store *s, const char *node, double lease_s, bool alon
 {
     pthread_mutex_lock(lock_of(s));
     sqlite3_stmt *st;
-    int found = -1;
+    int rc = SF_EIO;
     if (sqlite3_prepare_v2(db_of(s),
                            "UPDATE jobs SET state='running', progress=0, started=?1, attempts=attempts+1,"
                            " fence=fence+1, node=?2, lease_until=?1+?3, cancel_requested=0"
@@ -447,26 +454,25 @@ static int sq_claim(struct store *s, const char *node, double lease_s, bool alon
         sqlite3_bind_text(st, 2, node, -1, SQLITE_STATIC);
         sqlite3_bind_double(st, 3, lease_s);
         sqlite3_bind_int(st, 4, alone);
-        int rc = sqlite3_step(st);
-        found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
-        if (found == 1) {
+        rc = row_of(sqlite3_step(st));
+        if (rc == 0) {
             copy_text(out->id, sizeof out->id, st, 0);
             copy_text(out->kind, sizeof out->kind, st, 1);
             out->fence = (long)sqlite3_column_int64(st, 2);
             out->suspect = sqlite3_column_int(st, 3) != 0;
-            found = sqlite3_step(st) == SQLITE_DONE ? 1 : -1;
+            rc = sqlite3_step(st) == SQLITE_DONE ? 0 : SF_EIO;
         }
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
-    return found;
+    return rc;
 }
 
 static int sq_heartbeat(struct store *s, const char *id, long fence, double lease_s, double progress, bool *cancel)
 {
     pthread_mutex_lock(lock_of(s));
     sqlite3_stmt *st;
-    int held = -1;
+    int rc = SF_EIO;
     if (sqlite3_prepare_v2(db_of(s),
                            "UPDATE jobs SET lease_until=?1, progress=MAX(progress,?2) WHERE id=?3 AND fence=?4 AND"
                            " state='running' RETURNING cancel_requested",
@@ -475,16 +481,15 @@ static int sq_heartbeat(struct store *s, const char *id, long fence, double leas
         sqlite3_bind_double(st, 2, progress);
         sqlite3_bind_text(st, 3, id, -1, SQLITE_STATIC);
         sqlite3_bind_int64(st, 4, fence);
-        int rc = sqlite3_step(st);
-        held = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
-        if (held == 1) {
+        rc = row_of(sqlite3_step(st));
+        if (rc == 0) {
             *cancel = sqlite3_column_int(st, 0) != 0;
-            held = sqlite3_step(st) == SQLITE_DONE ? 1 : -1;
+            rc = sqlite3_step(st) == SQLITE_DONE ? 0 : SF_EIO;
         }
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
-    return held;
+    return rc == SF_ENOTFOUND ? SF_ECONFLICT : rc; /* no running row under that fence: the claim is lost */
 }
 
 static int sq_finish(struct store *s, const char *id, long fence, const struct job_end *e)
@@ -500,38 +505,42 @@ static int sq_finish(struct store *s, const char *id, long fence, const struct j
         if (n != 1 && e->len > s->piece) /* pieces written for a claim that was lost */
             sweep_pieces(s);
         pthread_mutex_unlock(lock_of(s));
-        return n;
+        return one_row(n, SF_ECONFLICT);
     }
-    return run(s,
-               "UPDATE jobs SET state=?1, finished=?2, error=?3, lease_until=0 WHERE id=?4 AND fence=?5 AND"
-               " state='running'",
-               "tdtti", job_state_name(e->outcome), e->finished, e->error, id, fence);
+    return one_row(run(s,
+                       "UPDATE jobs SET state=?1, finished=?2, error=?3, lease_until=0 WHERE id=?4 AND fence=?5 AND"
+                       " state='running'",
+                       "tdtti", job_state_name(e->outcome), e->finished, e->error, id, fence),
+                   SF_ECONFLICT);
 }
 
 static int sq_release(struct store *s, const char *id, long fence)
 {
-    return run(s,
-               "UPDATE jobs SET state=IIF(cancel_requested, 'cancelled', 'queued'), finished=IIF(cancel_requested, ?3,"
-               " finished), progress=0, attempts=MAX(attempts-1,0), lease_until=0 WHERE id=?1 AND fence=?2 AND"
-               " state='running'",
-               "tid", id, fence, wall_now());
+    return one_row(run(s,
+                       "UPDATE jobs SET state=IIF(cancel_requested, 'cancelled', 'queued'), finished=IIF(cancel_requested,"
+                       " ?3, finished), progress=0, attempts=MAX(attempts-1,0), lease_until=0 WHERE id=?1 AND fence=?2"
+                       " AND state='running'",
+                       "tid", id, fence, wall_now()),
+                   SF_ECONFLICT);
 }
 
-static enum store_cancel sq_cancel(struct store *s, const char *id, const char *owner, double now)
+static int sq_cancel(struct store *s, const char *id, const char *owner, double now, bool *asked)
 {
     int n = run(s, "UPDATE jobs SET state='cancelled', finished=?1 WHERE id=?2 AND state='queued' AND (?3 IS NULL OR"
                    " owner=?3)", "dtt", now, id, owner);
     if (n)
-        return n > 0 ? CANCEL_DONE : CANCEL_ERROR;
+        return n > 0 ? 0 : SF_EIO;
     n = run(s, "UPDATE jobs SET cancel_requested=1 WHERE id=?1 AND state='running' AND (?2 IS NULL OR owner=?2)",
             "tt", id, owner);
+    if (n > 0)
+        *asked = true;
     if (n)
-        return n > 0 ? CANCEL_ASKED : CANCEL_ERROR;
+        return n > 0 ? 0 : SF_EIO;
     struct job_rec r;
-    int found = sq_get(s, id, false, false, &r);
-    bool mine = found == 1 && (!owner || !strcmp(owner, r.owner));
+    int rc = sq_get(s, id, false, false, &r);
+    bool mine = rc == 0 && (!owner || !strcmp(owner, r.owner));
     store_rec_free(&r);
-    return found < 0 ? CANCEL_ERROR : mine ? CANCEL_ENDED : CANCEL_NOT_FOUND;
+    return rc && rc != SF_ENOTFOUND ? SF_EIO : mine ? SF_ECONFLICT : SF_ENOTFOUND;
 }
 
 static int sq_reap(struct store *s, double now, const char *node, int max_attempts, const char *give_up,
@@ -568,7 +577,7 @@ static int sq_reap(struct store *s, double now, const char *node, int max_attemp
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
-    int reaped = rc == SQLITE_DONE ? 0 : -1;
+    int reaped = rc == SQLITE_DONE ? 0 : SF_EIO;
     for (size_t k = 0; k < n; k++) {
         enum job_state to = store_reaped_state(&c[k], max_attempts);
         double t = wall_now();
@@ -594,7 +603,7 @@ static int sq_prune(struct store *s, double now, long ttl, long max_count)
     int rc = run(s,
                "DELETE FROM jobs WHERE state IN ('succeeded','failed','cancelled') AND (finished < ?1 OR id NOT IN"
                " (SELECT id FROM jobs WHERE state IN ('succeeded','failed','cancelled') ORDER BY finished DESC LIMIT ?2))",
-               "di", now - (double)ttl, max_count) < 0 ? -1 : 0;
+               "di", now - (double)ttl, max_count) < 0 ? SF_EIO : 0;
     return rc;
 }
 
@@ -631,14 +640,14 @@ static void read_rec(sqlite3_stmt *st, struct job_rec *r)
 static int sq_get(struct store *s, const char *id, bool with_request, bool with_result, struct job_rec *out)
 {
     sqlite3_stmt *st;
-    int found = -1;
+    int rc = SF_EIO;
+    memset(out, 0, sizeof *out); /* store_rec_free()-safe whatever the answer (sq_cancel, sq_request_file) */
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s), "SELECT " REC_COLUMNS ",request,result FROM jobs WHERE id=?", -1, &st, NULL) ==
         SQLITE_OK) {
         sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
-        int rc = sqlite3_step(st);
-        found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
-        if (found == 1) {
+        rc = row_of(sqlite3_step(st));
+        if (rc == 0) {
             read_rec(st, out);
             if (with_request)
                 out->request = dup_value(s, st, REC_N_COLUMNS, &out->request_len);
@@ -646,27 +655,27 @@ static int sq_get(struct store *s, const char *id, bool with_request, bool with_
                 out->result = dup_value(s, st, REC_N_COLUMNS + 1, &out->result_len);
                 if (out->result && !sum_ok(st, 14, out->result, out->result_len, "", 0)) {
                     store_rec_free(out);
-                    found = STORE_DAMAGED;
+                    rc = SF_EDAMAGED;
                 }
             }
             /* a value that is there but could not be read (no memory, or its pieces gone) */
-            if (found == 1 && ((with_request && !out->request && sqlite3_column_type(st, REC_N_COLUMNS) != SQLITE_NULL) ||
-                               (with_result && !out->result && sqlite3_column_type(st, REC_N_COLUMNS + 1) != SQLITE_NULL))) {
+            if (rc == 0 && ((with_request && !out->request && sqlite3_column_type(st, REC_N_COLUMNS) != SQLITE_NULL) ||
+                            (with_result && !out->result && sqlite3_column_type(st, REC_N_COLUMNS + 1) != SQLITE_NULL))) {
                 store_rec_free(out);
-                found = -1;
+                rc = SF_EIO;
             }
         }
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
-    return found;
+    return rc;
 }
 
 static int sq_list(struct store *s, const enum job_state *state, const char *owner, long limit,
                    void (*fn)(const struct job_rec *, void *), void *arg)
 {
     sqlite3_stmt *st;
-    int rc = -1;
+    int rc = SF_EIO;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s),
                            "SELECT " REC_COLUMNS " FROM jobs WHERE (?1 IS NULL OR state=?1) AND (?3 IS NULL OR owner=?3)"
@@ -681,7 +690,7 @@ static int sq_list(struct store *s, const enum job_state *state, const char *own
             fn(&r, arg);
             store_rec_free(&r);
         }
-        rc = rc == SQLITE_DONE ? 0 : rc == SQLITE_CORRUPT ? STORE_DAMAGED : -1;
+        rc = rc == SQLITE_DONE ? 0 : rc == SQLITE_CORRUPT ? SF_EDAMAGED : SF_EIO;
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
@@ -691,7 +700,7 @@ static int sq_list(struct store *s, const enum job_state *state, const char *own
 static long sq_queued(struct store *s)
 {
     sqlite3_stmt *st;
-    long n = -1;
+    long n = SF_EIO;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s), "SELECT count(*) FROM jobs WHERE state='queued'", -1, &st, NULL) == SQLITE_OK) {
         if (sqlite3_step(st) == SQLITE_ROW)
@@ -704,25 +713,26 @@ static long sq_queued(struct store *s)
 
 /* ---- models ---- */
 
-/* Volume part v of model id (lock held): 1, or 0 when its seq is taken, -1. */
+/* Volume part v of model id (lock held): 0, SF_ECONFLICT when its seq is taken, SF_EIO. */
 static int volume_put(struct store *s, const char *id, const struct volume_rec *v)
 {
     char sum[65];
     store_checksum(v->options, strlen(v->options), v->data, v->len, sum);
     int n = run_held(s, "INSERT OR IGNORE INTO model_volumes(model,seq,format,options,data,sum) VALUES(?,?,?,?,?,?)",
                      "tittBt", id, (long)v->seq, v->format, v->options, v->data, v->len, sum);
-    return n < 0 ? -1 : n;
+    return one_row(n, SF_ECONFLICT);
 }
 
-/* Runs the steps of a write as one transaction, under the lock: step's answer (1 commits). */
+/* Runs the steps of a write as one transaction, under the lock: step's answer (0 commits,
+ * SF_ECONFLICT rolls back), or SF_EIO. */
 static int transaction(struct store *s, int (*step)(struct store *, const void *, const void *), const void *a,
                        const void *b)
 {
     pthread_mutex_lock(lock_of(s));
-    int rc = run_held(s, "BEGIN IMMEDIATE", "") < 0 ? -1 : step(s, a, b);
-    if (rc >= 0 && run_held(s, rc == 1 ? "COMMIT" : "ROLLBACK", "") < 0)
-        rc = -1;
-    if (rc < 0)
+    int rc = run_held(s, "BEGIN IMMEDIATE", "") < 0 ? SF_EIO : step(s, a, b);
+    if ((rc == 0 || rc == SF_ECONFLICT) && run_held(s, rc == 0 ? "COMMIT" : "ROLLBACK", "") < 0)
+        rc = SF_EIO;
+    if (rc && rc != SF_ECONFLICT)
         run_held(s, "ROLLBACK", "");
     pthread_mutex_unlock(lock_of(s));
     return rc;
@@ -747,19 +757,19 @@ static int put_step(struct store *s, const void *a, const void *b)
     (void)b;
     const struct model_rec *m = a;
     if (model_row(s, m, false) != 1 || run_held(s, "DELETE FROM model_volumes WHERE model=?", "t", m->id) < 0)
-        return -1;
-    return m->volume ? (volume_put(s, m->id, m->volume) == 1 ? 1 : -1) : 1;
+        return SF_EIO;
+    return m->volume && volume_put(s, m->id, m->volume) ? SF_EIO : 0;
 }
 
-static int sq_model_put(struct store *s, const struct model_rec *m) { return transaction(s, put_step, m, NULL) == 1 ? 0 : -1; }
+static int sq_model_put(struct store *s, const struct model_rec *m) { return transaction(s, put_step, m, NULL) ? SF_EIO : 0; }
 
 static int edit_step(struct store *s, const void *a, const void *b)
 {
     const struct model_rec *m = a;
-    int n = model_row(s, m, true);
-    if (n == 1 && run_held(s, "DELETE FROM meshes WHERE model=?", "t", m->id) < 0) /* of the model before the edit */
-        n = -1;
-    return n == 1 ? volume_put(s, m->id, b) : n;
+    int rc = one_row(model_row(s, m, true), SF_ECONFLICT); /* the model is gone */
+    if (rc == 0 && run_held(s, "DELETE FROM meshes WHERE model=?", "t", m->id) < 0) /* of the model before the edit */
+        rc = SF_EIO;
+    return rc ? rc : volume_put(s, m->id, b);
 }
 
 static int sq_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit)
@@ -770,88 +780,87 @@ static int sq_model_edit(struct store *s, const struct model_rec *m, const struc
 static int sq_volume_get(struct store *s, const char *id, int from, struct volume_rec **parts, int *n)
 {
     sqlite3_stmt *st;
-    int found = -1;
+    int rc = SF_EIO;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s),
                            "SELECT seq, format, options, data, sum FROM model_volumes WHERE model=?1 AND seq>=?2 ORDER BY seq",
                            -1, &st, NULL) == SQLITE_OK) {
         sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
         sqlite3_bind_int(st, 2, from);
-        int rc = SQLITE_DONE;
-        found = 0;
-        while (found >= 0 && (rc = sqlite3_step(st)) == SQLITE_ROW) {
+        int step = SQLITE_DONE;
+        rc = 0;
+        while (rc == 0 && (step = sqlite3_step(st)) == SQLITE_ROW) {
             const char *opt = (const char *)sqlite3_column_text(st, 2);
             size_t len;
             void *owned;
             const void *data = value_of(s, st, 3, &len, &owned);
             if (!data)
-                found = -1;
+                rc = SF_EIO;
             else if (!sum_ok(st, 4, opt, strlen(opt), data, len))
-                found = STORE_DAMAGED;
+                rc = SF_EDAMAGED;
             else if (store_volume_add(parts, n, sqlite3_column_int(st, 0), (const char *)sqlite3_column_text(st, 1), opt,
                                       data, len))
-                found = -1;
-            else
-                found = 1;
+                rc = SF_EIO;
             free(owned);
         }
-        if (found >= 0 && rc != SQLITE_DONE)
-            found = -1;
+        if (rc == 0 && step != SQLITE_DONE)
+            rc = SF_EIO;
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
-    return found;
+    return rc;
 }
 
 /* The resource alone, checked against its own sum, without reading the source (a mesh of
- * hundreds of MB): 1, 0, -1, STORE_DAMAGED, or 2 for a row written before resource sums were kept. */
-static int sq_resource_get(struct store *s, const char *id, const char *owner, char **resource)
+ * hundreds of MB): 0, SF_ENOTFOUND, SF_EIO, SF_EDAMAGED. *summed false (0 answered, nothing read):
+ * a row written before resource sums were kept, whose resource only the model's sum covers. */
+static int sq_resource_get(struct store *s, const char *id, const char *owner, char **resource, bool *summed)
 {
     sqlite3_stmt *st;
-    int found = -1;
+    int rc = SF_EIO;
+    *summed = true;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s), "SELECT resource, resource_sum FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)",
                            -1, &st, NULL) == SQLITE_OK) {
         sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
         owner ? sqlite3_bind_text(st, 2, owner, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 2);
-        int rc = sqlite3_step(st);
-        found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
-        if (found == 1 && sqlite3_column_type(st, 1) == SQLITE_NULL)
-            found = 2;
-        else if (found == 1 && !sum_ok(st, 1, sqlite3_column_text(st, 0), (size_t)sqlite3_column_bytes(st, 0), "", 0))
-            found = STORE_DAMAGED;
-        if (found == 1 && resource && !(*resource = dup_text(st, 0)))
-            found = -1;
+        rc = row_of(sqlite3_step(st));
+        if (rc == 0 && sqlite3_column_type(st, 1) == SQLITE_NULL)
+            *summed = false;
+        else if (rc == 0 && !sum_ok(st, 1, sqlite3_column_text(st, 0), (size_t)sqlite3_column_bytes(st, 0), "", 0))
+            rc = SF_EDAMAGED;
+        if (rc == 0 && *summed && resource && !(*resource = dup_text(st, 0)))
+            rc = SF_EIO;
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
-    return found;
+    return rc;
 }
 
 static int sq_model_get(struct store *s, const char *id, const char *owner, char **resource, char **source,
                         size_t *source_len)
 {
     if (!source) {
-        int found = sq_resource_get(s, id, owner, resource);
-        if (found != 2)
-            return found;
+        bool summed;
+        int rc = sq_resource_get(s, id, owner, resource, &summed);
+        if (rc || summed)
+            return rc;
     }
     sqlite3_stmt *st;
-    int found = -1;
+    int rc = SF_EIO;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s), "SELECT resource, source, sum FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)",
                            -1, &st, NULL) == SQLITE_OK) {
         sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
         owner ? sqlite3_bind_text(st, 2, owner, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 2);
-        int rc = sqlite3_step(st);
-        found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
+        rc = row_of(sqlite3_step(st));
         size_t n = 0;
-        char *src = found == 1 ? (char *)dup_value(s, st, 1, &n) : NULL;
-        if (found == 1 && !src)
-            found = -1;
-        else if (found == 1 && !sum_ok(st, 2, src, n, sqlite3_column_text(st, 0), (size_t)sqlite3_column_bytes(st, 0)))
-            found = STORE_DAMAGED;
-        if (found == 1) {
+        char *src = rc == 0 ? (char *)dup_value(s, st, 1, &n) : NULL;
+        if (rc == 0 && !src)
+            rc = SF_EIO;
+        else if (rc == 0 && !sum_ok(st, 2, src, n, sqlite3_column_text(st, 0), (size_t)sqlite3_column_bytes(st, 0)))
+            rc = SF_EDAMAGED;
+        if (rc == 0) {
             if (resource)
                 *resource = dup_text(st, 0);
             if (source) {
@@ -864,14 +873,14 @@ static int sq_model_get(struct store *s, const char *id, const char *owner, char
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
-    return found;
+    return rc;
 }
 
 static int sq_model_list(struct store *s, const char *owner, long limit, void (*fn)(const char *resource, void *),
                          void *arg)
 {
     sqlite3_stmt *st;
-    int rc = -1;
+    int rc = SF_EIO;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s),
                            "SELECT resource, resource_sum FROM models WHERE ?2 IS NULL OR owner=?2 ORDER BY created DESC,"
@@ -886,7 +895,7 @@ static int sq_model_list(struct store *s, const char *owner, long limit, void (*
             if (!damaged)
                 fn((const char *)sqlite3_column_text(st, 0), arg);
         }
-        rc = damaged || rc == SQLITE_CORRUPT ? STORE_DAMAGED : rc == SQLITE_DONE ? 0 : -1;
+        rc = damaged || rc == SQLITE_CORRUPT ? SF_EDAMAGED : rc == SQLITE_DONE ? 0 : SF_EIO;
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
@@ -898,35 +907,34 @@ static int sq_model_delete(struct store *s, const char *id, const char *owner)
     int n = run(s, "DELETE FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)", "tt", id, owner);
     if (n > 0 && (run(s, "DELETE FROM model_volumes WHERE model=?", "t", id) < 0 ||
                   run(s, "DELETE FROM meshes WHERE model=?", "t", id) < 0))
-        return -1;
-    return n < 0 ? -1 : n > 0;
+        return SF_EIO;
+    return one_row(n, SF_ENOTFOUND);
 }
 
 static int sq_mesh_get(struct store *s, const char *model, const char *key, struct mesh_rec *out)
 {
     sqlite3_stmt *st;
-    int found = -1;
+    int rc = SF_EIO;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s), "SELECT type, meta, data, sum FROM meshes WHERE model=?1 AND key=?2", -1, &st,
                            NULL) == SQLITE_OK) {
         sqlite3_bind_text(st, 1, model, -1, SQLITE_STATIC);
         sqlite3_bind_text(st, 2, key, -1, SQLITE_STATIC);
-        int rc = sqlite3_step(st);
-        found = rc == SQLITE_ROW ? 1 : rc == SQLITE_DONE ? 0 : -1;
-        if (found == 1) {
+        rc = row_of(sqlite3_step(st));
+        if (rc == 0) {
             out->type = dup_text(st, 0);
             out->meta = dup_text(st, 1);
             out->data = dup_value(s, st, 2, &out->len);
             copy_text(out->sum, sizeof out->sum, st, 3);
             if (!out->type || !out->meta || !out->data)
-                found = -1;
+                rc = SF_EIO;
         }
         sqlite3_finalize(st);
     }
-    if (found == 1)
+    if (rc == 0)
         run_held(s, "UPDATE meshes SET used=?3 WHERE model=?1 AND key=?2", "ttd", model, key, wall_now());
     pthread_mutex_unlock(lock_of(s));
-    return found;
+    return rc;
 }
 
 /* A cached mesh's bytes, in its row or its pieces. */
@@ -944,15 +952,15 @@ static int sq_mesh_put(struct store *s, const char *model, const char *key, cons
     if (n > 0 && run_held(s, "DELETE FROM meshes WHERE rowid IN (SELECT rowid FROM (SELECT rowid, SUM(" MESH_BYTES ")"
                              " OVER (ORDER BY used DESC, rowid) AS run FROM meshes) WHERE run > ?1)", /* the least used */
                           "i", max_bytes) < 0)
-        n = -1;
+        n = SF_EIO;
     pthread_mutex_unlock(lock_of(s));
-    return n < 0 ? -1 : n > 0;
+    return one_row(n, SF_ECONFLICT); /* no row: the model is gone */
 }
 
 static long sq_mesh_bytes(struct store *s)
 {
     sqlite3_stmt *st;
-    long n = -1;
+    long n = SF_EIO;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s), "SELECT COALESCE(SUM(" MESH_BYTES "), 0) FROM meshes", -1, &st, NULL) == SQLITE_OK) {
         if (sqlite3_step(st) == SQLITE_ROW)
@@ -966,12 +974,12 @@ static long sq_mesh_bytes(struct store *s)
 /* One check's query: each row's bytes (columns data..) against its sum (column sum_col, NULL for
  * rows written before sums were kept), a line reported for each that does not match or whose
  * pieces cannot be read and, with keys, its column 0 kept in *keys (the caller frees them). 0
- * sound, 1 damaged, -1. */
+ * sound, SF_EDAMAGED, SF_EIO. */
 static int check_sums(struct store *s, const char *what, const char *sql, int sum_col, bool two, int piece_col,
                       void (*report)(const char *, void *), void *arg, char ***keys, size_t *n_keys)
 {
     sqlite3_stmt *st;
-    int bad = 0, rc = -1;
+    int bad = 0, rc = SF_EIO;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s), sql, -1, &st, NULL) == SQLITE_OK) {
         while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
@@ -992,7 +1000,7 @@ static int check_sums(struct store *s, const char *what, const char *sql, int su
                 char line[160];
                 snprintf(line, sizeof line, "%s %s: %s", what, (const char *)sqlite3_column_text(st, 0), why);
                 report(line, arg);
-                bad = 1;
+                bad = SF_EDAMAGED;
                 char **more = keys ? realloc(*keys, (*n_keys + 1) * sizeof **keys) : NULL;
                 if (more && (more[*n_keys] = strdup((const char *)sqlite3_column_text(st, 0))))
                     *keys = more, ++*n_keys;
@@ -1007,18 +1015,18 @@ static int check_sums(struct store *s, const char *what, const char *sql, int su
             snprintf(line, sizeof line, "%s: the database could not be read: %s", what, sqlite3_errmsg(db_of(s)));
             report(line, arg);
         }
-        rc = rc == SQLITE_DONE ? bad : rc == SQLITE_CORRUPT ? 1 : -1;
+        rc = rc == SQLITE_DONE ? bad : rc == SQLITE_CORRUPT ? SF_EDAMAGED : SF_EIO;
         sqlite3_finalize(st);
     }
     pthread_mutex_unlock(lock_of(s));
     return rc;
 }
 
-/* The pages (quick_check), each finding reported: 0 sound, 1 damaged, -1. */
+/* The pages (quick_check), each finding reported: 0 sound, SF_EDAMAGED, SF_EIO. */
 static int check_pages(struct store *s, void (*report)(const char *, void *), void *arg)
 {
     sqlite3_stmt *st;
-    int rc = -1;
+    int rc = SF_EIO;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s), "PRAGMA quick_check(20)", -1, &st, NULL) == SQLITE_OK) {
         rc = 0;
@@ -1027,12 +1035,12 @@ static int check_pages(struct store *s, void (*report)(const char *, void *), vo
             const char *line = (const char *)sqlite3_column_text(st, 0);
             if (line && strcmp(line, "ok")) {
                 report(line, arg);
-                rc = 1;
+                rc = SF_EDAMAGED;
             }
         }
         if (step != SQLITE_DONE) {
             report(sqlite3_errmsg(db_of(s)), arg);
-            rc = step == SQLITE_CORRUPT || step == SQLITE_NOTADB ? 1 : -1;
+            rc = step == SQLITE_CORRUPT || step == SQLITE_NOTADB ? SF_EDAMAGED : SF_EIO;
         }
         sqlite3_finalize(st);
     }
@@ -1059,33 +1067,37 @@ static const struct {
      "DELETE FROM models WHERE id=substr(?1, 1, instr(?1, '/') - 1)", "removed with its model"},
 };
 
-/* check_sums over CHECKS; with a problem, each damaged row is mended as CHECKS says (reported). */
+/* Two findings as one: SF_EIO (a check that could not run) over SF_EDAMAGED over 0 (sound). */
+static int worse(int a, int b) { return a == SF_EIO || b == SF_EIO ? SF_EIO : a ? a : b; }
+
+/* check_sums over CHECKS; with a problem, each damaged row is mended as CHECKS says (reported):
+ * 0 sound, SF_EDAMAGED (found, and mended with a problem), SF_EIO. */
 static int check_all_sums(struct store *s, bool deep, const char *problem, void (*report)(const char *, void *),
                           void *arg)
 {
     int rc = 0;
-    for (size_t k = 0; rc >= 0 && k < sizeof CHECKS / sizeof *CHECKS; k++) {
+    for (size_t k = 0; rc != SF_EIO && k < sizeof CHECKS / sizeof *CHECKS; k++) {
         if (CHECKS[k].deep && !deep)
             continue;
         char **keys = NULL;
         size_t n = 0;
         int c = check_sums(s, CHECKS[k].what, CHECKS[k].sql, CHECKS[k].sum_col, CHECKS[k].two, CHECKS[k].piece_col,
                            report, arg, problem ? &keys : NULL, &n);
-        rc = c < 0 ? -1 : rc | c;
+        rc = worse(rc, c);
         for (size_t j = 0; j < n; j++) {
             char line[200];
             bool done = run(s, CHECKS[k].mend, "tt", keys[j], problem) >= 0;
             snprintf(line, sizeof line, "%s %s: %s", CHECKS[k].what, keys[j], done ? CHECKS[k].mended : "NOT mended");
             report(line, arg);
-            rc = done ? rc : -1;
+            rc = done ? rc : SF_EIO;
             free(keys[j]);
         }
         free(keys);
     }
-    if (problem && rc >= 0 && /* what a removed model leaves */
+    if (problem && rc != SF_EIO && /* what a removed model leaves */
         (run(s, "DELETE FROM model_volumes WHERE model NOT IN (SELECT id FROM models)", "") < 0 ||
          run(s, "DELETE FROM meshes WHERE model NOT IN (SELECT id FROM models)", "") < 0))
-        rc = -1;
+        rc = SF_EIO;
     return rc;
 }
 
@@ -1095,23 +1107,24 @@ static int sq_check(struct store *s, bool deep, void (*report)(const char *, voi
     if (lost)
         report(lost, arg);
     int rc = check_pages(s, report, arg);
-    int sums = rc < 0 ? -1 : check_all_sums(s, deep, NULL, report, arg);
-    return rc < 0 || sums < 0 ? -1 : rc | sums | (lost != NULL);
+    if (rc != SF_EIO)
+        rc = worse(rc, check_all_sums(s, deep, NULL, report, arg));
+    return worse(rc, lost ? SF_EDAMAGED : 0);
 }
 
-/* store_recover: pages are not mended (1: a backup is the way); else a copy is kept beside the
- * database, a loss from the WAL accepted, and the rows whose bytes do not match mended. */
+/* store_recover: pages are not mended (SF_EDAMAGED: a backup is the way); else a copy is kept beside
+ * the database, a loss from the WAL accepted, and the rows whose bytes do not match mended. */
 static int sq_recover(struct store *s, const char *problem, void (*report)(const char *, void *), void *arg)
 {
     struct sqlite_store *q = (struct sqlite_store *)s;
     char line[1300];
     if (!q->mark) {
         report("the service holds this store: stop it first", arg);
-        return -1;
+        return SF_EIO;
     }
     int pages = check_pages(s, report, arg);
     if (pages) {
-        if (pages > 0)
+        if (pages == SF_EDAMAGED)
             report("its pages are damaged, which recover does not mend: restore a backup", arg);
         return pages;
     }
@@ -1126,7 +1139,7 @@ static int sq_recover(struct store *s, const char *problem, void (*report)(const
     chmod(line, 0600);
     if (!kept) {
         report("a copy of the store could not be kept beside it (is the disk full?): nothing changed", arg);
-        return -1;
+        return SF_EIO;
     }
     char copied[1400];
     snprintf(copied, sizeof copied, "kept the store as it was in %s", line);
@@ -1137,7 +1150,7 @@ static int sq_recover(struct store *s, const char *problem, void (*report)(const
         report(line, arg);
         walmark_accept(q->mark);
     }
-    return check_all_sums(s, true, problem, report, arg) < 0 ? -1 : 0;
+    return check_all_sums(s, true, problem, report, arg) == SF_EIO ? SF_EIO : 0; /* damage found is mended */
 }
 
 /* Room the data dir must have again before a store that met a full disk takes work (64 MB, or an

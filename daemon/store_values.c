@@ -13,7 +13,7 @@ int store_piece_name(char name[48])
 {
     unsigned char r[16];
     if (getrandom(r, sizeof r, 0) != (ssize_t)sizeof r)
-        return -1;
+        return SF_EIO;
     int at = snprintf(name, 48, "pieces:");
     for (size_t k = 0; k < sizeof r; k++)
         at += snprintf(name + at, (size_t)(48 - at), "%02x", r[k]);
@@ -57,18 +57,18 @@ void store_volume_free(struct volume_rec *parts, int n)
     free(parts);
 }
 
-/* One more part for a backend's volume_get (format, options and data copied): 0 or -1. */
+/* One more part for a backend's volume_get (format, options and data copied): 0 or SF_ENOMEM. */
 int store_volume_add(struct volume_rec **parts, int *n, int seq, const char *format, const char *options,
                      const void *data, size_t len)
 {
     struct volume_rec *p = realloc(*parts, (size_t)(*n + 1) * sizeof *p);
     if (!p)
-        return -1;
+        return SF_ENOMEM;
     *parts = p;
     char *f = strdup(format), *o = strdup(options), *d = malloc(len ? len : 1);
     if (!f || !o || !d) {
         free(f), free(o), free(d);
-        return -1;
+        return SF_ENOMEM;
     }
     memcpy(d, data, len);
     p[(*n)++] = (struct volume_rec){seq, f, o, d, len};

@@ -11,17 +11,15 @@
 /* One token a line: "name:secret" or "name:secret:admin", or a bare "secret" (named "default");
  * blank lines and # comments skipped. Names are letters, digits, '.', '_' and '-'. A file others
  * may read or write, or its group write, is refused: it holds every client's credentials. */
-int tokens_read(const char *path, struct token **tokens, size_t *n_tokens, char *msg, size_t msg_len)
+int tokens_read(const char *path, struct token **tokens, size_t *n_tokens, struct sf_err *err)
 {
     FILE *f = fopen(path, "r");
-    if (!f) {
-        snprintf(msg, msg_len, "token file %s: %s", path, strerror(errno));
-        return -1;
-    }
-    int rc = -1, n = 0;
+    if (!f)
+        return sf_fail(err, SF_EIO, "", "token file %s: %s", path, strerror(errno));
+    int rc = SF_EINVAL, n = 0;
     struct stat st;
     if (fstat(fileno(f), &st) == 0 && (st.st_mode & 0027)) {
-        snprintf(msg, msg_len, "token file %.200s is mode %04o: others may read it or the group may write it; "
+        sf_fail(err, SF_EINVAL, "", "token file %.200s is mode %04o: others may read it or the group may write it; "
                  "chmod 0600 (or 0640 for a group the service is in)", path, (unsigned)(st.st_mode & 07777));
         goto out_close;
     }
@@ -44,7 +42,8 @@ int tokens_read(const char *path, struct token **tokens, size_t *n_tokens, char 
             if (c2) {
                 *c2 = 0;
                 if (!(admin = !strcmp(c2 + 1, "admin"))) {
-                    snprintf(msg, msg_len, "token file %.200s:%d: expected name:token or name:token:admin", path, n);
+                    sf_fail(err, SF_EINVAL, "", "token file %.200s:%d: expected name:token or name:token:admin", path,
+                            n);
                     goto out_close;
                 }
             }
@@ -52,14 +51,14 @@ int tokens_read(const char *path, struct token **tokens, size_t *n_tokens, char 
             for (const char *p = name; *p; p++)
                 ok &= isalnum((unsigned char)*p) || *p == '.' || *p == '_' || *p == '-';
             if (!ok) {
-                snprintf(msg, msg_len, "token file %.200s:%d: a name is 1-63 letters, digits, '.', '_' or '-', then ':' and "
-                         "the token", path, n);
+                sf_fail(err, SF_EINVAL, "", "token file %.200s:%d: a name is 1-63 letters, digits, '.', '_' or '-', "
+                        "then ':' and the token", path, n);
                 goto out_close;
             }
         }
         struct token *more = realloc(*tokens, sizeof *more * (*n_tokens + 1));
         if (!more) {
-            snprintf(msg, msg_len, "out of memory");
+            rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
             goto out_close;
         }
         *tokens = more;
@@ -68,13 +67,13 @@ int tokens_read(const char *path, struct token **tokens, size_t *n_tokens, char 
         if (!tk->name || !tk->secret) {
             free(tk->name);
             free(tk->secret);
-            snprintf(msg, msg_len, "out of memory");
+            rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
             goto out_close;
         }
         (*n_tokens)++;
     }
     if (*n_tokens == 0)
-        snprintf(msg, msg_len, "token file %s holds no token", path);
+        sf_fail(err, SF_EINVAL, "", "token file %s holds no token", path);
     else
         rc = 0;
 out_close:

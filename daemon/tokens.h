@@ -7,6 +7,8 @@
 #include <stdbool.h>
 #include <stddef.h>
 
+#include "../core/base/err.h"
+
 struct token {
     char *name;
     char *secret;
@@ -14,10 +16,10 @@ struct token {
 };
 
 /* Appends the file's tokens to *tokens (growing it; *n_tokens counts them). A file others may read,
- * or its group write, is refused, as is a malformed line (msg names the line) or a file without a
- * token: -1 with msg. What was read stays in *tokens either way: the caller frees it with
- * tokens_free(). */
-int tokens_read(const char *path, struct token **tokens, size_t *n_tokens, char *msg, size_t msg_len);
+ * or its group write, is refused, as is a malformed line (err names the line) or a file without a
+ * token: SF_EINVAL, or SF_EIO (the file) or SF_ENOMEM, with err's message. What was read stays in
+ * *tokens either way: the caller frees it with tokens_free(). */
+int tokens_read(const char *path, struct token **tokens, size_t *n_tokens, struct sf_err *err);
 void tokens_free(struct token *tokens, size_t n_tokens);
 
 #endif

@@ -75,14 +75,14 @@ int stored_volume(struct service *svc, const char *id, struct volume *vol, int *
     memset(vol, 0, sizeof *vol);
     struct volume_rec *parts;
     int n, found = store_volume_get(svc->store, id, 0, &parts, &n);
-    if (found != 1 || parts[0].seq != 0) {
+    if (found || n == 0 || parts[0].seq != 0) {
         store_volume_free(parts, n);
-        return sf_fail(err, found == 0 || found == 1 ? SF_ECONFLICT : SF_EIO, "",
-                       found == 0 || found == 1 ? "this model keeps no volume of samples (made before volumes were "
-                                                  "kept, or not an isosurface of samples)"
-                       : found == STORE_DAMAGED ? "the model's stored volume is damaged (its bytes no longer match "
-                                                  "their checksum): it cannot be edited"
-                                                : "the model's volume could not be read from the store");
+        return sf_fail(err, !found ? SF_ECONFLICT : SF_EIO, "",
+                       !found ? "this model keeps no volume of samples (made before volumes were kept, or not an "
+                                "isosurface of samples)"
+                       : found == SF_EDAMAGED ? "the model's stored volume is damaged (its bytes no longer match "
+                                                "their checksum): it cannot be edited"
+                                              : "the model's volume could not be read from the store");
     }
     int rc = volume_read(parts[0].data, parts[0].len, parts[0].format, parts[0].options, vol, err);
     if (!rc && vol->frep)
@@ -152,8 +152,8 @@ int frep_refs_check(struct service *svc, const struct frep_request *r, const cha
         bool frep;
         const char *at = pointer ? pointer : r->refs[k].pointer;
         int found = store_model_get(svc->store, r->refs[k].model, owner, &resource, NULL, NULL);
-        if (found != 1)
-            rc = found == 0 ? sf_fail(err, SF_EINVAL, at, "no such model: %s", r->refs[k].model)
+        if (found)
+            rc = found == SF_ENOTFOUND ? sf_fail(err, SF_EINVAL, at, "no such model: %s", r->refs[k].model)
                             : sf_fail(err, SF_EIO, "", "the store failed");
         else if (iso_model_grid(resource, &g, &frep, &e) || frep)
             rc = sf_fail(err, SF_EINVAL, at, "a volume reads an isosurface model of samples%s%s",

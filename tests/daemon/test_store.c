@@ -1,7 +1,8 @@
 /* test_store.c - the store conformance suite (issue 43, 8): each backend held to store.h's diagram
  * directly, not only through HTTP. Every transition of a job and who may make it (fences,
  * owners), reaps and suspects, cancels in each state, prune with the streamed bodies it removes,
- * values longer than a piece, models scoped by owner. The backend is STORE_TARGET (a data
+ * values longer than a piece, models scoped by owner, their volumes and edits, cached meshes; every
+ * answer in core's convention (store.h: 0 or an SF_E* code). The backend is STORE_TARGET (a data
  * directory or a postgresql:// URI; tests/api/store_conformance.sh runs it on PostgreSQL), else a new SQLite
  * store in a temporary directory. */
 #include <stdio.h>
@@ -35,23 +36,24 @@ static void submit(const char *owner, double created, char id[40])
 static enum job_state state_of(const char *id)
 {
     struct job_rec r;
-    int found = store_get(S, id, false, false, &r);
-    enum job_state st = found == 1 ? r.state : (enum job_state)-1;
+    int rc = store_get(S, id, false, false, &r);
+    enum job_state st = rc == 0 ? r.state : (enum job_state)-1;
     store_rec_free(&r);
     return st;
 }
 
-/* Claims queued jobs until id's is claimed (others queued before it by earlier cases are finished). */
+/* Claims queued jobs until id's is claimed (others queued before it by earlier cases are finished):
+ * store_claim's answer, SF_ENOTFOUND when id's was not among the first 1000. */
 static int claim(const char *id, bool alone, struct job_claim *c)
 {
     for (int k = 0; k < 1000; k++) {
         int got = store_claim(S, "node-a", 30, alone, c);
-        if (got != 1 || !strcmp(c->id, id))
+        if (got != 0 || !strcmp(c->id, id))
             return got;
         struct job_end end = {.outcome = JOB_CANCELLED};
         store_finish(S, c->id, c->fence, &end);
     }
-    return -1;
+    return SF_ENOTFOUND;
 }
 
 TEST(a_job_runs_through_its_states_under_its_fence)
@@ -60,22 +62,24 @@ TEST(a_job_runs_through_its_states_under_its_fence)
     submit("alice", 1000, id);
     CHECK(state_of(id) == JOB_QUEUED);
     struct job_claim c;
-    REQUIRE(claim(id, true, &c) == 1);
+    REQUIRE(claim(id, true, &c) == 0);
     CHECK(state_of(id) == JOB_RUNNING);
     bool cancel = true;
-    CHECK(store_heartbeat(S, id, c.fence, 30, 0.5, &cancel) == 1 && !cancel);
+    CHECK(store_heartbeat(S, id, c.fence, 30, 0.5, &cancel) == 0 && !cancel);
     struct job_end end = {.outcome = JOB_SUCCEEDED, .result = (const unsigned char *)"result", .len = 6,
                           .type = "text/plain", .meta = "{}", .finished = 2000};
-    CHECK(store_finish(S, id, c.fence + 1, &end) == 0); /* another claim's fence: nothing written */
+    CHECK(store_finish(S, id, c.fence + 1, &end) == SF_ECONFLICT); /* another claim's fence: nothing written */
     CHECK(state_of(id) == JOB_RUNNING);
-    CHECK(store_finish(S, id, c.fence, &end) == 1);
+    CHECK(store_finish(S, id, c.fence, &end) == 0);
     struct job_rec r;
-    REQUIRE(store_get(S, id, false, true, &r) == 1);
+    REQUIRE(store_get(S, id, false, true, &r) == 0);
     CHECK(r.state == JOB_SUCCEEDED && r.result_len == 6 && !memcmp(r.result, "result", 6) && r.attempts == 1 &&
           !strcmp(r.result_type, "text/plain") && r.result_sum[0]);
     store_rec_free(&r);
-    CHECK(store_heartbeat(S, id, c.fence, 30, 1, &cancel) == 0); /* ended: the claim is gone */
-    CHECK(store_finish(S, id, c.fence, &end) == 0);              /* and ends once */
+    CHECK(store_heartbeat(S, id, c.fence, 30, 1, &cancel) == SF_ECONFLICT); /* ended: the claim is gone */
+    CHECK(store_finish(S, id, c.fence, &end) == SF_ECONFLICT);              /* and ends once */
+    CHECK(store_get(S, "0123456789abcdef0123456789abcdef", false, true, &r) == SF_ENOTFOUND);
+    store_rec_free(&r); /* zeroed whatever the answer */
 }
 
 TEST(a_released_job_is_queued_again_its_attempt_given_back)
@@ -83,34 +87,40 @@ TEST(a_released_job_is_queued_again_its_attempt_given_back)
     char id[40];
     submit("alice", 1001, id);
     struct job_claim c;
-    REQUIRE(claim(id, true, &c) == 1);
-    CHECK(store_release(S, id, c.fence) == 1 && state_of(id) == JOB_QUEUED);
+    REQUIRE(claim(id, true, &c) == 0);
+    CHECK(store_release(S, id, c.fence) == 0 && state_of(id) == JOB_QUEUED);
+    CHECK(store_release(S, id, c.fence) == SF_ECONFLICT); /* no longer running under that claim */
     struct job_claim again;
-    REQUIRE(claim(id, true, &again) == 1);
+    REQUIRE(claim(id, true, &again) == 0);
     CHECK(again.fence != c.fence);
-    CHECK(store_finish(S, id, c.fence, &(struct job_end){.outcome = JOB_CANCELLED}) == 0); /* the old claim */
+    CHECK(store_finish(S, id, c.fence, &(struct job_end){.outcome = JOB_CANCELLED}) == SF_ECONFLICT); /* the old claim */
     struct job_rec r;
-    REQUIRE(store_get(S, id, false, false, &r) == 1);
+    REQUIRE(store_get(S, id, false, false, &r) == 0);
     CHECK(r.attempts == 1);
     store_rec_free(&r);
-    CHECK(store_finish(S, id, again.fence, &(struct job_end){.outcome = JOB_CANCELLED}) == 1);
+    CHECK(store_finish(S, id, again.fence, &(struct job_end){.outcome = JOB_CANCELLED}) == 0);
 }
 
 TEST(cancel_in_each_state_and_only_by_its_owner)
 {
     char queued[40], running[40];
     submit("alice", 1002, queued);
-    CHECK(store_cancel(S, queued, "bob", 1003) == CANCEL_NOT_FOUND);
-    CHECK(store_cancel(S, queued, "alice", 1003) == CANCEL_DONE && state_of(queued) == JOB_CANCELLED);
-    CHECK(store_cancel(S, queued, NULL, 1004) == CANCEL_ENDED);
+    bool asked = true;
+    CHECK(store_cancel(S, queued, "bob", 1003, &asked) == SF_ENOTFOUND && !asked);
+    asked = true;
+    CHECK(store_cancel(S, queued, "alice", 1003, &asked) == 0 && !asked && state_of(queued) == JOB_CANCELLED);
+    asked = true;
+    CHECK(store_cancel(S, queued, NULL, 1004, &asked) == SF_ECONFLICT && !asked);
     submit("alice", 1005, running);
     struct job_claim c;
-    REQUIRE(claim(running, true, &c) == 1);
-    CHECK(store_cancel(S, running, "alice", 1006) == CANCEL_ASKED && state_of(running) == JOB_RUNNING);
+    REQUIRE(claim(running, true, &c) == 0);
+    CHECK(store_cancel(S, running, "bob", 1006, &asked) == SF_ENOTFOUND && !asked);
+    CHECK(store_cancel(S, running, "alice", 1006, &asked) == 0 && asked && state_of(running) == JOB_RUNNING);
     bool cancel = false;
-    CHECK(store_heartbeat(S, running, c.fence, 30, 0.1, &cancel) == 1 && cancel); /* its node hears it */
-    CHECK(store_release(S, running, c.fence) == 1 && state_of(running) == JOB_CANCELLED); /* not queued again */
-    CHECK(store_cancel(S, "0123456789abcdef0123456789abcdef", NULL, 1007) == CANCEL_NOT_FOUND);
+    CHECK(store_heartbeat(S, running, c.fence, 30, 0.1, &cancel) == 0 && cancel); /* its node hears it */
+    CHECK(store_release(S, running, c.fence) == 0 && state_of(running) == JOB_CANCELLED); /* not queued again */
+    asked = true;
+    CHECK(store_cancel(S, "0123456789abcdef0123456789abcdef", NULL, 1007, &asked) == SF_ENOTFOUND && !asked);
 }
 
 static void reaped(const char *id, enum job_state st, void *arg)
@@ -124,9 +134,9 @@ TEST(a_job_whose_lease_ran_out_is_a_suspect_run_alone)
     char id[40];
     submit("alice", 1008, id);
     struct job_claim c;
-    REQUIRE(claim(id, true, &c) == 1);
-    REQUIRE(store_release(S, id, c.fence) == 1); /* claimed again under a lease that runs out at once */
-    for (int k = 0; k < 1000 && store_claim(S, "node-a", 0.001, true, &c) == 1 && strcmp(c.id, id); k++)
+    REQUIRE(claim(id, true, &c) == 0);
+    REQUIRE(store_release(S, id, c.fence) == 0); /* claimed again under a lease that runs out at once */
+    for (int k = 0; k < 1000 && store_claim(S, "node-a", 0.001, true, &c) == 0 && strcmp(c.id, id); k++)
         store_finish(S, c.id, c.fence, &(struct job_end){.outcome = JOB_CANCELLED});
     REQUIRE(!strcmp(c.id, id));
     usleep(100000);
@@ -134,12 +144,12 @@ TEST(a_job_whose_lease_ran_out_is_a_suspect_run_alone)
     CHECK(store_reap(S, (double)time(NULL) + 1, NULL, 3, "{\"status\":500}", reaped, &n) >= 1 && n >= 1);
     CHECK(state_of(id) == JOB_QUEUED);
     usleep(2100000); /* its backoff: 1 s after one attempt */
-    CHECK(store_heartbeat(S, id, c.fence, 30, 0.5, &(bool){false}) == 0); /* its old claim is lost */
+    CHECK(store_heartbeat(S, id, c.fence, 30, 0.5, &(bool){false}) == SF_ECONFLICT); /* its old claim is lost */
     struct job_claim s;
-    CHECK(store_claim(S, "node-b", 30, false, &s) == 0); /* a node running others does not take it */
-    REQUIRE(store_claim(S, "node-b", 30, true, &s) == 1);
+    CHECK(store_claim(S, "node-b", 30, false, &s) == SF_ENOTFOUND); /* a node running others does not take it */
+    REQUIRE(store_claim(S, "node-b", 30, true, &s) == 0);
     CHECK(!strcmp(s.id, id) && s.suspect);
-    CHECK(store_finish(S, id, s.fence, &(struct job_end){.outcome = JOB_CANCELLED}) == 1);
+    CHECK(store_finish(S, id, s.fence, &(struct job_end){.outcome = JOB_CANCELLED}) == 0);
 }
 
 static long long held_alice, held_bob;
@@ -174,7 +184,7 @@ TEST(streamed_bodies_are_counted_by_owner_and_go_when_their_job_ends)
     held_alice = held_bob = 0;
     CHECK(store_uploads_held(S, held, NULL) == 0 && held_bob == (long long)sizeof body && held_alice == 0);
     char local[1100];
-    REQUIRE(store_request_file(S, id, local, sizeof local) == 1);
+    REQUIRE(store_request_file(S, id, local, sizeof local) == 0);
     FILE *f = fopen(local, "rb");
     static char back[sizeof body + 1];
     size_t n = f ? fread(back, 1, sizeof back, f) : 0;
@@ -183,14 +193,15 @@ TEST(streamed_bodies_are_counted_by_owner_and_go_when_their_job_ends)
     CHECK(n == sizeof body && !memcmp(back, body, n));
     store_request_file_done(S, local);
     struct job_claim c;
-    REQUIRE(claim(id, true, &c) == 1);
+    REQUIRE(claim(id, true, &c) == 0);
     CHECK(store_finish(S, id, c.fence, &(struct job_end){.outcome = JOB_FAILED, .error = "{\"status\":422}",
-                                                          .finished = (double)time(NULL)}) == 1);
+                                                          .finished = (double)time(NULL)}) == 0);
     held_bob = 0;
     CHECK(store_uploads_held(S, held, NULL) == 0 && held_bob == 0); /* ended: no longer held */
     CHECK(store_prune(S, (double)time(NULL), 365L * 86400, 1000000) == 0); /* its body removed, the job kept */
-    CHECK(state_of(id) == JOB_FAILED &&
-          (store_request_file(S, id, local, sizeof local) != 1 || access(local, F_OK) != 0));
+    int rc = store_request_file(S, id, local, sizeof local);
+    CHECK(state_of(id) == JOB_FAILED && (rc == SF_ENOTFOUND || (rc == 0 && access(local, F_OK) != 0)));
+    CHECK(store_request_file(S, "0123456789abcdef0123456789abcdef", local, sizeof local) == SF_ENOTFOUND);
 }
 
 TEST(prune_removes_ended_jobs_by_age_and_count)
@@ -200,15 +211,16 @@ TEST(prune_removes_ended_jobs_by_age_and_count)
     submit("alice", 1011, young);
     submit("alice", 1012, waiting);
     struct job_claim c;
-    REQUIRE(claim(old, true, &c) == 1);
-    CHECK(store_finish(S, old, c.fence, &(struct job_end){.outcome = JOB_CANCELLED, .finished = 100}) == 1);
-    REQUIRE(claim(young, true, &c) == 1);
+    REQUIRE(claim(old, true, &c) == 0);
+    CHECK(store_finish(S, old, c.fence, &(struct job_end){.outcome = JOB_CANCELLED, .finished = 100}) == 0);
+    REQUIRE(claim(young, true, &c) == 0);
     double now = (double)time(NULL);
-    CHECK(store_finish(S, young, c.fence, &(struct job_end){.outcome = JOB_CANCELLED, .finished = now}) == 1);
+    CHECK(store_finish(S, young, c.fence, &(struct job_end){.outcome = JOB_CANCELLED, .finished = now}) == 0);
     CHECK(store_prune(S, now, 3600, 1000000) == 0);
     CHECK(state_of(old) == (enum job_state)-1 && state_of(young) == JOB_CANCELLED);
     CHECK(state_of(waiting) == JOB_QUEUED); /* never a job not ended */
-    CHECK(store_cancel(S, waiting, NULL, now) == CANCEL_DONE);
+    bool asked = true;
+    CHECK(store_cancel(S, waiting, NULL, now, &asked) == 0 && !asked);
 }
 
 TEST(a_result_longer_than_a_piece_reads_back_whole)
@@ -217,14 +229,14 @@ TEST(a_result_longer_than_a_piece_reads_back_whole)
     char id[40];
     submit("alice", 1013, id);
     struct job_claim c;
-    REQUIRE(claim(id, true, &c) == 1);
+    REQUIRE(claim(id, true, &c) == 0);
     static unsigned char big[10007];
     for (size_t k = 0; k < sizeof big; k++)
         big[k] = (unsigned char)(k * 31 + 7);
     CHECK(store_finish(S, id, c.fence, &(struct job_end){.outcome = JOB_SUCCEEDED, .result = big, .len = sizeof big,
-                                                          .type = "application/octet-stream", .finished = 4000}) == 1);
+                                                          .type = "application/octet-stream", .finished = 4000}) == 0);
     struct job_rec r;
-    REQUIRE(store_get(S, id, false, true, &r) == 1);
+    REQUIRE(store_get(S, id, false, true, &r) == 0);
     CHECK(r.result_len == sizeof big && !memcmp(r.result, big, sizeof big));
     store_rec_free(&r);
     store_set_piece(S, STORE_PIECE);
@@ -247,16 +259,94 @@ TEST(models_are_scoped_by_owner)
     REQUIRE(store_model_put(S, &m) == 0);
     char *res = NULL, *src = NULL;
     size_t n = 0;
-    CHECK(store_model_get(S, id, "bob", &res, &src, &n) == 0 && !res);
-    CHECK(store_model_get(S, id, "alice", &res, &src, &n) == 1 && res && !strcmp(res, resource) && n == 13 &&
+    CHECK(store_model_get(S, id, "bob", &res, &src, &n) == SF_ENOTFOUND && !res);
+    CHECK(store_model_get(S, id, "bob", &res, NULL, NULL) == SF_ENOTFOUND && !res); /* the resource alone */
+    CHECK(store_model_get(S, id, "alice", &res, &src, &n) == 0 && res && !strcmp(res, resource) && n == 13 &&
           src && !memcmp(src, "{\"slices\":[]}", 13));
     free(res), free(src);
+    res = NULL;
+    CHECK(store_model_get(S, id, "alice", &res, NULL, NULL) == 0 && res && !strcmp(res, resource));
+    free(res);
     listed = 0;
     CHECK(store_model_list(S, "bob", 0, count, NULL) == 0 && listed == 0);
     CHECK(store_model_list(S, "alice", 0, count, NULL) == 0 && listed >= 1);
-    CHECK(store_model_delete(S, id, "bob") == 0);
-    CHECK(store_model_delete(S, id, "alice") == 1 && store_model_get(S, id, NULL, &res, &src, &n) == 0);
-    CHECK(store_cancel(S, job, NULL, 1015) == CANCEL_DONE);
+    CHECK(store_model_delete(S, id, "bob") == SF_ENOTFOUND);
+    CHECK(store_model_delete(S, id, "alice") == 0 && store_model_get(S, id, NULL, &res, &src, &n) == SF_ENOTFOUND);
+    CHECK(store_model_delete(S, id, "alice") == SF_ENOTFOUND); /* once */
+    bool asked = true;
+    CHECK(store_cancel(S, job, NULL, 1015, &asked) == 0 && !asked);
+}
+
+TEST(a_models_volume_and_its_edits_in_order)
+{
+    char id[40], job[40];
+    snprintf(id, sizeof id, "%08x%08xv%015d", (unsigned)getpid(), (unsigned)rand(), ++serial);
+    submit("alice", 1016, job);
+    struct volume_rec posted = {0, "json", "", "abc", 3};
+    struct model_rec m = {id, job, "skull", "alice", 1016, "{}", 2, "{\"v\":0}", &posted};
+    REQUIRE(store_model_put(S, &m) == 0);
+    struct volume_rec *parts = NULL;
+    int n = -1;
+    CHECK(store_volume_get(S, id, 0, &parts, &n) == 0 && n == 1 && parts[0].seq == 0 && parts[0].len == 3 &&
+          !memcmp(parts[0].data, "abc", 3) && !strcmp(parts[0].format, "json"));
+    store_volume_free(parts, n);
+    CHECK(store_volume_get(S, id, 1, &parts, &n) == 0 && n == 0); /* no edits yet: none, not an error */
+    store_volume_free(parts, n);
+    struct volume_rec edit = {1, "json", "region=1", "de", 2};
+    struct model_rec edited = {id, job, "skull", "alice", 1016, "{ }", 3, "{\"v\":1}", NULL};
+    CHECK(store_model_edit(S, &edited, &edit) == 0);
+    CHECK(store_model_edit(S, &edited, &edit) == SF_ECONFLICT); /* its seq is taken: another edit came first */
+    CHECK(store_volume_get(S, id, 0, &parts, &n) == 0 && n == 2 && parts[0].seq == 0 && parts[1].seq == 1 &&
+          parts[1].len == 2 && !memcmp(parts[1].data, "de", 2) && !strcmp(parts[1].options, "region=1"));
+    store_volume_free(parts, n);
+    char *res = NULL;
+    CHECK(store_model_get(S, id, NULL, &res, NULL, NULL) == 0 && res && !strcmp(res, "{\"v\":1}"));
+    free(res);
+    CHECK(store_model_delete(S, id, NULL) == 0);
+    edit.seq = 2;
+    CHECK(store_model_edit(S, &edited, &edit) == SF_ECONFLICT); /* the model is gone */
+    CHECK(store_volume_get(S, id, 0, &parts, &n) == 0 && n == 0);
+    store_volume_free(parts, n);
+    bool asked = true;
+    CHECK(store_cancel(S, job, NULL, 1017, &asked) == 0 && !asked);
+}
+
+TEST(meshes_are_cached_while_their_model_lasts)
+{
+    char id[40], job[40];
+    snprintf(id, sizeof id, "%08x%08xc%015d", (unsigned)getpid(), (unsigned)rand(), ++serial);
+    submit("alice", 1018, job);
+    struct model_rec m = {id, job, "skull", "alice", 1018, "{}", 2, "{\"c\":0}", NULL};
+    REQUIRE(store_model_put(S, &m) == 0);
+    struct mesh_rec got;
+    CHECK(store_mesh_get(S, id, "stl", &got) == SF_ENOTFOUND && !got.data);
+    static unsigned char mesh[5000];
+    memset(mesh, 3, sizeof mesh);
+    struct mesh_rec put = {"model/stl", "{}", mesh, sizeof mesh, ""};
+    CHECK(store_mesh_put(S, id, "stl", &put, 1L << 30) == 0);
+    REQUIRE(store_mesh_get(S, id, "stl", &got) == 0);
+    CHECK(got.len == sizeof mesh && !memcmp(got.data, mesh, sizeof mesh) && !strcmp(got.type, "model/stl") &&
+          strlen(got.sum) == 64);
+    store_mesh_free(&got);
+    CHECK(store_mesh_bytes(S) >= (long)sizeof mesh);
+    CHECK(store_mesh_put(S, id, "small", &put, 100) == SF_ECONFLICT); /* alone over the budget */
+    CHECK(store_mesh_get(S, id, "small", &got) == SF_ENOTFOUND);
+    CHECK(store_mesh_put(S, "0123456789abcdef0123456789abcdef", "stl", &put, 1L << 30) == SF_ECONFLICT); /* no model */
+    struct volume_rec edit = {1, "json", "", "x", 1};
+    CHECK(store_model_edit(S, &m, &edit) == 0);
+    CHECK(store_mesh_get(S, id, "stl", &got) == SF_ENOTFOUND); /* an edit drops the model's meshes */
+    CHECK(store_model_delete(S, id, NULL) == 0);
+    bool asked = true;
+    CHECK(store_cancel(S, job, NULL, 1019, &asked) == 0 && !asked);
+}
+
+TEST(an_unopenable_store_says_why)
+{
+    struct store *bad = (struct store *)1;
+    struct sf_err err = {0};
+    CHECK(store_open("/dev/null/nowhere", scratch, &bad, &err) == SF_EIO && !bad && err.code == SF_EIO &&
+          strstr(err.message, "/dev/null/nowhere/surfd.db: "));
+    CHECK(store_open("/dev/null/nowhere", scratch, &bad, NULL) == SF_EIO); /* err may be NULL */
 }
 
 int main(void)
@@ -268,9 +358,9 @@ int main(void)
         perror("mkdtemp");
         return 1;
     }
-    char msg[600];
-    if (store_open(target && *target ? target : scratch, scratch, &S, msg, sizeof msg)) {
-        fprintf(stderr, "store_open: %s\n", msg);
+    struct sf_err err = {0};
+    if (store_open(target && *target ? target : scratch, scratch, &S, &err)) {
+        fprintf(stderr, "store_open: %s\n", err.message);
         return 1;
     }
     printf("store: %s\n", store_backend(S));
@@ -282,6 +372,9 @@ int main(void)
     RUN(prune_removes_ended_jobs_by_age_and_count);
     RUN(a_result_longer_than_a_piece_reads_back_whole);
     RUN(models_are_scoped_by_owner);
+    RUN(a_models_volume_and_its_edits_in_order);
+    RUN(meshes_are_cached_while_their_model_lasts);
+    RUN(an_unopenable_store_says_why);
     store_close(S);
     char cmd[300];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", scratch);

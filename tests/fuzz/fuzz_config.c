@@ -8,12 +8,12 @@
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     struct config c;
-    char msg[600];
+    struct sf_err err;
     char *path = fuzz_file(data, size, 0600);
     if (path) {
         char *argv[] = {"serve", "--config", path, NULL};
         config_defaults(&c);
-        config_load(&c, 3, argv, msg, sizeof msg);
+        config_load(&c, 3, argv, &err);
     }
     char *text = fuzz_text(data, size), *argv[ARGS_MAX + 1] = {"serve"};
     int argc = 1;
@@ -23,7 +23,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     argv[argc] = NULL;
     config_defaults(&c);
     if (text)
-        config_load(&c, argc, argv, msg, sizeof msg);
+        config_load(&c, argc, argv, &err);
     free(text);
     return 0;
 }

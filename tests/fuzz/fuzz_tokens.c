@@ -4,11 +4,12 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    char *path = fuzz_file(data, size, 0600), msg[600];
+    char *path = fuzz_file(data, size, 0600);
+    struct sf_err err;
     struct token *t = NULL;
     size_t n = 0;
     if (path)
-        tokens_read(path, &t, &n, msg, sizeof msg);
+        tokens_read(path, &t, &n, &err);
     tokens_free(t, n);
     return 0;
 }
