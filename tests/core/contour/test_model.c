@@ -249,7 +249,7 @@ static bool roi_set(const char *file, const char *name, struct contour_set *cs)
     return ok;
 }
 
-/* Folds undone (model.c curves_unfold): on the lung's chains and the dicompyler BODY's (whose folding
+/* Folds undone (model_fold.c curves_unfold): on the lung's chains and the dicompyler BODY's (whose folding
  * pair at z 24.56 is drawn ruled), the closed form from the warped curves equals the
  * divergence theorem over the patches drawn from them, as without the warps, and is the one the
  * solid's tubes carry (fitted once for both); the two surfaces differ only where a band folds, by
@@ -305,7 +305,7 @@ TEST(unfolded_curves_keep_volume_and_patches_together)
     }
 }
 
-/* The fold check's caps (model.c FOLD_MAX_TESTS, FOLD_MAX_SECTIONS): contours of 4400 points that
+/* The fold check's caps (model_fold.c FOLD_MAX_TESTS, FOLD_MAX_SECTIONS): contours of 4400 points that
  * zigzag 2200 times across the same 10 mm, each tooth leaning back (so no stretch of two is
  * monotone), each level's teeth half a tooth off the one below, so that the sections fold at every
  * tooth. Teeth across x (the check's sweep): every piece's box overlaps every other's along x, past
@@ -657,7 +657,7 @@ static void one_surface(const char *what, const struct contour_set *cs, enum mod
  * lung 14 with 3829. Elsewhere, no triangles cut each other but 7 pairs of the lung's (446 before
  * hole_reach and curve_align: holes' ends poking out of the body where it moves in between levels,
  * 247; the side folding between unlike contours whose starts lined up badly, 114 at z -106; 29 before
- * the folds were unfolded, model.c curves_unfold: slits at z -107.44 and -104.44, a bay becoming a
+ * the folds were unfolded, model_fold.c curves_unfold: slits at z -107.44 and -104.44, a bay becoming a
  * hole at -77.44, a notch at 39.56): the 7 at z 41.8-42.6, where the bay of z 39.56 closes (its sides
  * meet, 1 um apart at z 42.34, and cross there). The dicompyler BODY is 12 bodies (the torso, a piece
  * of the right arm at z -122..-97 that never meets it, 10 skin markers of one or two levels); its
