@@ -157,7 +157,7 @@ int model_validate(const char *buf, size_t len, const char *format, const char *
             rc = sf_fail(err, SF_EINVAL, "?roi", "ROI \"%.60s\" has nothing to model: %s", rois[k].name, rois[k].skipped);
         else if (!rois[k].skipped && (!roi[0] || !strcmp(roi, rois[k].name))) {
             found++;
-            rc = contour_clean(&rois[k].cs, err);
+            rc = contour_json_clean(&rois[k].cs, err);
         }
     rtstruct_free(rois, n);
     if (!rc && !found)
@@ -223,7 +223,7 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
             continue;
         }
         snprintf(req.name, sizeof req.name, "%s", rois[k].name);
-        if ((rc = contour_clean(&rois[k].cs, err))) {
+        if ((rc = contour_json_clean(&rois[k].cs, err))) {
             char where[96];
             snprintf(where, sizeof where, "%.95s", err->pointer);
             snprintf(err->pointer, sizeof err->pointer, "/ROIContourSequence(%.40s)%s", rois[k].name, where);

@@ -10,8 +10,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../base/vec.h"
-
 /* The place of the crossing of the edge of len samples from node n along axis that crossing()
  * finds there: false when there is none. */
 static bool walk_crossing(const struct iso_adapt *a, const int n[3], int axis, int len, double x[3])

@@ -10,6 +10,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "../base/vec.h"
 #include "adapt.h"
 
 /* One slab's share of the mesh (the cells phase runs slab by slab, on any threads): vertices keyed
@@ -115,8 +116,6 @@ struct cell {
 #define FACE_POINT (1 << 6) /* in a segment's faces: its start is a face point */
 #define ON_FACE (1 << 7)    /* its start is an isoline point of a face (isoline_point) */
 #define FACE_KEY (1ull << 62)
-
-static inline double dot3(const double u[3], const double v[3]) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; }
 
 /* ---- one file's functions that another calls (their comments at their definitions) ---- */
 

@@ -239,7 +239,7 @@ static bool roi_set(const char *file, const char *name, struct contour_set *cs)
     bool ok = false;
     if (buf && rtstruct_read(buf, len, &rois, &n, NULL) == 0)
         for (int k = 0; k < n && !ok; k++)
-            if (strcmp(rois[k].name, name) == 0 && !rois[k].skipped && contour_clean(&rois[k].cs, NULL) == 0) {
+            if (strcmp(rois[k].name, name) == 0 && !rois[k].skipped && contour_clean(&rois[k].cs, NULL, NULL) == 0) {
                 *cs = rois[k].cs;
                 rois[k].cs = (struct contour_set){0};
                 ok = true;
@@ -501,8 +501,6 @@ static void shells(const struct mesh *m, int *outer, int *cavities)
     free(up), free(vol);
 }
 
-static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-
 static void sub3(const double *a, const double *b, double *o) { o[0] = a[0] - b[0], o[1] = a[1] - b[1], o[2] = a[2] - b[2]; }
 
 static void cross(const double *a, const double *b, double *o)
@@ -703,7 +701,7 @@ TEST(branchings_are_one_surface)
             bool body = f == 0 && strcmp(rois[k].name, "BODY") == 0, lung = strcmp(rois[k].name, "Lt Lung") == 0;
             char what[200];
             snprintf(what, sizeof what, "%s %s", rs[f], rois[k].name);
-            CHECK(contour_clean(&rois[k].cs, NULL) == 0);
+            CHECK(contour_clean(&rois[k].cs, NULL, NULL) == 0);
             one_surface(what, &rois[k].cs, CAPS_FLAT, body ? 12 : 1, lung ? 40 : 0, lung ? 7 : 0);
             rois_seen++;
         }
