@@ -1,6 +1,6 @@
 /* model_json.c - contours in, models out: a model request's body by its kind (contours, a scene,
- * a matrix model), the figures of each model of a contour set or an RT Structure Set, and the
- * models made stored in the sink with their sources (contour JSON). The other parts of model_json.h:
+ * a matrix model), the figures of each model of a contour set or an RT Structure Set, and each
+ * model made stored in the sink with its source (contour JSON). The other parts of model_json.h:
  * model_scene.c, model_matrix.c, model_mesh.c, model_rtstruct.c, model_patches.c. */
 #include "model_json_internal.h"
 
