@@ -131,11 +131,31 @@ int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, stru
         }
     }
     if (!rc)
-        rc = contour_clean(cs, err);
+        rc = contour_json_clean(cs, err);
 out:
     json_decref(root);
     if (rc)
         contour_set_free(cs);
+    return rc;
+}
+
+int contour_json_clean(struct contour_set *cs, struct sf_err *err)
+{
+    struct contour_fault f;
+    bool fresh = err && !err->code; /* (the first failure recorded wins: its pointer too) */
+    int rc = contour_clean(cs, &f, err);
+    if (!rc || !fresh)
+        return rc;
+    if (f.slice < 0)
+        snprintf(err->pointer, sizeof err->pointer, "/slices");
+    else if (f.z)
+        snprintf(err->pointer, sizeof err->pointer, "/slices/%d/z", f.slice);
+    else if (f.contour < 0)
+        snprintf(err->pointer, sizeof err->pointer, "/slices/%d/points", f.slice);
+    else
+        snprintf(err->pointer, sizeof err->pointer, "/slices/%d/contours/%d/points", f.slice, f.contour);
+    if (f.slice >= 0 && !f.z && f.point >= 0)
+        snprintf(err->pointer + strlen(err->pointer), sizeof err->pointer - strlen(err->pointer), "/%d", f.point);
     return rc;
 }
 

@@ -17,6 +17,9 @@ struct contour_request {
 
 int contour_parse_json(const char *buf, size_t len, struct contour_set *cs, struct contour_request *req,
                        struct sf_err *err);
+/* contour_clean, its fault named by its JSON pointer ("/slices/2/contours/1/points/7",
+ * "/slices/2/z", "/slices"): how every reader of contours cleans them. */
+int contour_json_clean(struct contour_set *cs, struct sf_err *err);
 
 /* The cleaned set and its options back as contour JSON (every slice in the "contours" form, full
  * double precision, so that parsing it again gives the same model): how a stored model keeps its

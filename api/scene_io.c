@@ -1,11 +1,12 @@
 /* scene_io.c - which parser reads a scene: the table of the names its format goes by, the sniffing
  * of a body that names none, and the dispatch to the JSON, .bpt, VRML and IGES parsers (scene_io.h).
  * It parses nothing itself. */
+#include "scene_io.h"
+
 #include <ctype.h>
 #include <string.h>
 
 #include "iges.h"
-#include "scene_io.h"
 
 /* The names a scene's format goes by, in ?format= and as a file's extension: every route that reads
  * a scene (/render, /volume, /model, the CLI) takes them from here. */

@@ -1,8 +1,9 @@
 /* scene_io.h - request bodies to struct scene: the JSON scene of API.md (with JSON pointers in
- * every error), Newell's .bpt patch files and VRML97 NurbsSurface fragments, as users have them.
- * Unparsable input fails with SF_EFORMAT (HTTP 400), parsable but invalid with SF_EINVAL or
- * SF_ELIMIT (422). On success the caller owns the scene (scene_free()); on failure nothing is
- * left to free. */
+ * every error; scene_json.c), Newell's .bpt patch files and VRML97 NurbsSurface fragments, as users
+ * have them (scene_text.c), and IGES trimmed NURBS (iges.c), each by the format table and sniffing
+ * of scene_io.c. Unparsable input fails with SF_EFORMAT (HTTP 400), parsable but invalid with
+ * SF_EINVAL or SF_ELIMIT (422). On success the caller owns the scene (scene_free()); on failure
+ * nothing is left to free. */
 #ifndef SURFD_SCENE_IO_H
 #define SURFD_SCENE_IO_H
 

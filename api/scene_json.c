@@ -96,7 +96,6 @@ static int material(json_t *j, const char *where, struct material *m, struct sf_
     return 0;
 }
 
-/* One object of "objects" (or of a bare "patches" list, where type defaults to bezier). */
 /* {"type": "model", "id": ..., "material": ...}: the stored model's patches, from the resolver. */
 static int model_object(json_t *j, const char *where, const struct model_resolver *models, struct scene *sc,
                         struct sf_err *err)
@@ -159,6 +158,7 @@ static int trim_loops(json_t *j, const char *where, struct object *o, struct sf_
     return rc;
 }
 
+/* One object of "objects" (or of a bare "patches" list, where type defaults to bezier). */
 static int object(json_t *j, const char *where, const struct model_resolver *models, struct scene *sc,
                   struct sf_err *err)
 {

@@ -1,6 +1,7 @@
-/* volume_io.c - raw, NRRD (attached header) and MetaImage (.mha) volumes (volume_io.h). The two
- * header formats are a handful of "key: value" / "Key = Value" lines: read here by hand (teem and
- * ITK would bring whole toolkits for it); gzip and zlib data through zlib. */
+/* volume_io.c - raw, NRRD (attached header), MetaImage (.mha), DICOM series and FRep volumes
+ * (volume_io.h). The two header formats are a handful of "key: value" / "Key = Value" lines: read
+ * here by hand (teem and ITK would bring whole toolkits for it); gzip and zlib data through zlib;
+ * a DICOM series through dicom_series.h's DCMTK shim, an FRep object through frep_json.h. */
 #include "volume_io.h"
 
 #include <ctype.h>

@@ -1,8 +1,10 @@
-/* volume_io.h - the sampled volumes POST /isosurface reads (API.md §Volumes): raw samples with
- * their layout in the query (?dims=X,Y,Z&type=uint8|int16|uint16|float32&spacing=sx,sy,sz
- * &origin=ox,oy,oz), NRRD with an attached header (raw or gzip encoding), and MetaImage .mha
- * (ElementDataFile = LOCAL). The samples are used where they lie in the body when they can be
- * (raw encoding in the host's byte order), decoded otherwise; core/iso sees only the grid. */
+/* volume_io.h - the volumes POST /isosurface reads (API.md §Volumes): raw samples with their
+ * layout in the query (?dims=X,Y,Z&type=uint8|int16|uint16|float32&spacing=sx,sy,sz
+ * &origin=ox,oy,oz), NRRD with an attached header (raw or gzip encoding), MetaImage .mha
+ * (ElementDataFile = LOCAL), a DICOM CT or MR series as multipart/form-data (dicom_series.h), and
+ * an FRep object's JSON (frep_json.h), whose grid is sampled from its function (volume_sample).
+ * Samples are used where they lie in the body when they can be (raw encoding in the host's byte
+ * order), decoded otherwise; core/iso sees only the grid. */
 #ifndef SURFD_VOLUME_IO_H
 #define SURFD_VOLUME_IO_H
 

@@ -3,7 +3,6 @@
 #include "contour.h"
 
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -286,30 +285,28 @@ static int split_keyhole(struct contour_set *cs, int k)
     return 1;
 }
 
-static void pointer_of(const struct contour_slice *s, char *ptr, size_t cap)
+/* Contour s's points (point -1: all of them) or its slice's z, as the request numbers them. */
+static struct contour_fault fault_of(const struct contour_slice *s, int point, bool z)
 {
-    if (s->src_contour < 0)
-        snprintf(ptr, cap, "/slices/%d/points", s->src);
-    else
-        snprintf(ptr, cap, "/slices/%d/contours/%d/points", s->src, s->src_contour);
+    return (struct contour_fault){s->src, s->src_contour, point, z};
 }
 
-int contour_clean(struct contour_set *cs, struct sf_err *err)
+int contour_clean(struct contour_set *cs, struct contour_fault *fault, struct sf_err *err)
 {
-    char ptr[64];
+    struct contour_fault none, *f = fault ? fault : &none;
     for (int k = 0; k < cs->n_slices; k++) {
         struct contour_slice *s = &cs->s[k];
-        pointer_of(s, ptr, sizeof ptr);
+        *f = fault_of(s, -1, false);
         if (!(fabs(s->z) <= CONTOUR_MAX_COORD)) {
-            snprintf(ptr, sizeof ptr, "/slices/%d/z", s->src);
-            return sf_fail(err, SF_EINVAL, ptr, "z is %g; it must be a finite number within ±%g mm", s->z,
+            *f = fault_of(s, -1, true);
+            return sf_fail(err, SF_EINVAL, "", "z is %g; it must be a finite number within ±%g mm", s->z,
                            CONTOUR_MAX_COORD);
         }
         int m = 0;
         for (int i = 0; i < s->n; i++) {
             if (!(fabs(s->p[i][0]) <= CONTOUR_MAX_COORD && fabs(s->p[i][1]) <= CONTOUR_MAX_COORD)) {
-                snprintf(ptr + strlen(ptr), sizeof ptr - strlen(ptr), "/%d", i);
-                return sf_fail(err, SF_EINVAL, ptr, "point %d is not two finite numbers within ±%g mm", i,
+                *f = fault_of(s, i, false);
+                return sf_fail(err, SF_EINVAL, "", "point %d is not two finite numbers within ±%g mm", i,
                                CONTOUR_MAX_COORD);
             }
             if (m > 0 && fabs(s->p[i][0] - s->p[m - 1][0]) <= POINT_EPS && fabs(s->p[i][1] - s->p[m - 1][1]) <= POINT_EPS)
@@ -327,18 +324,18 @@ int contour_clean(struct contour_set *cs, struct sf_err *err)
             m = s->n;
         }
         if (m >= 3 && split)
-            return sf_fail(err, SF_ENOMEM, ptr, "out of memory");
+            return sf_fail(err, SF_ENOMEM, "", "out of memory");
         if (m < 3)
-            return sf_fail(err, SF_EINVAL, ptr, "a contour needs at least 3 distinct points, this one has %d", m);
+            return sf_fail(err, SF_EINVAL, "", "a contour needs at least 3 distinct points, this one has %d", m);
         int at = sweep_crossing(s, s);
         if (at == CROSS_TOO_COMPLEX)
-            return sf_fail(err, SF_ELIMIT, ptr, "the contour is too complex to check for crossings (over %ld edge pairs "
+            return sf_fail(err, SF_ELIMIT, "", "the contour is too complex to check for crossings (over %ld edge pairs "
                            "overlap in x)", CROSS_MAX_PAIRS);
         if (at >= 0) /* a contour that crosses itself cannot bound a solid */
-            return sf_fail(err, SF_EINVAL, ptr, "the contour crosses itself (at edge %d)", at);
+            return sf_fail(err, SF_EINVAL, "", "the contour crosses itself (at edge %d)", at);
         double a = contour_area(s);
         if (!(fabs(a) > 0))
-            return sf_fail(err, SF_EINVAL, ptr, "the contour encloses no area");
+            return sf_fail(err, SF_EINVAL, "", "the contour encloses no area");
         if (a < 0) /* clockwise: reverse */
             for (int i = 0, j = m - 1; i < j; i++, j--) {
                 double t0 = s->p[i][0], t1 = s->p[i][1];
@@ -354,8 +351,8 @@ int contour_clean(struct contour_set *cs, struct sf_err *err)
             b++;
         levels++;
         if (a > 0 && !(cs->s[a].z - cs->s[a - 1].z >= CONTOUR_MIN_SPACING)) {
-            snprintf(ptr, sizeof ptr, "/slices/%d/z", cs->s[a].src);
-            return sf_fail(err, SF_EINVAL, ptr, "z = %g is within %g mm of the level below (z = %g)", cs->s[a].z,
+            *f = fault_of(&cs->s[a], -1, true);
+            return sf_fail(err, SF_EINVAL, "", "z = %g is within %g mm of the level below (z = %g)", cs->s[a].z,
                            CONTOUR_MIN_SPACING, cs->s[a - 1].z);
         }
         for (int i = a; i < b; i++) { /* contours of one slice: nesting, and no crossing edges */
@@ -365,11 +362,11 @@ int contour_clean(struct contour_set *cs, struct sf_err *err)
                     continue;
                 int cross = j > i ? edges_cross(&cs->s[i], &cs->s[j]) : 0;
                 if (cross) {
-                    pointer_of(&cs->s[j], ptr, sizeof ptr);
+                    *f = fault_of(&cs->s[j], -1, false);
                     return cross == CROSS_TOO_COMPLEX
-                               ? sf_fail(err, SF_ELIMIT, ptr, "too complex to check against the other contours at z = %g",
+                               ? sf_fail(err, SF_ELIMIT, "", "too complex to check against the other contours at z = %g",
                                          cs->s[i].z)
-                               : sf_fail(err, SF_EINVAL, ptr, "this contour crosses another contour at z = %g", cs->s[i].z);
+                               : sf_fail(err, SF_EINVAL, "", "this contour crosses another contour at z = %g", cs->s[i].z);
                 }
                 depth += contour_inside(&cs->s[j], cs->s[i].p[0][0], cs->s[i].p[0][1]);
             }
@@ -377,8 +374,9 @@ int contour_clean(struct contour_set *cs, struct sf_err *err)
         }
         a = b;
     }
+    *f = (struct contour_fault){-1, -1, -1, false};
     if (levels < 2)
-        return sf_fail(err, SF_EINVAL, "/slices", "a model needs contours on at least 2 distinct z, got %d", levels);
+        return sf_fail(err, SF_EINVAL, "", "a model needs contours on at least 2 distinct z, got %d", levels);
     return 0;
 }
 

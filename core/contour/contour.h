@@ -19,7 +19,7 @@ struct contour_slice {   /* one contour (a slice may hold several, at the same z
     double z;
     int n;              /* points */
     double (*p)[2];     /* x, y, counter-clockwise */
-    int src;            /* index of the slice in the request, for error pointers */
+    int src;            /* index of the slice in the request, for naming it in errors */
     int src_contour;    /* index in the slice's "contours", or -1 for the "points" form */
     bool hole;          /* inside an odd number of the other contours at its z */
 };
@@ -29,12 +29,20 @@ struct contour_set {
     int n_slices;       /* contours, sorted by z */
 };
 
+/* Where contour_clean found a set wrong, as the request numbers it (a contour_slice's src and
+ * src_contour), for api/ to name: the set as a whole (slice -1), a slice's z (z), a contour's
+ * points (contour -1: its slice's "points" form), or one of them (point >= 0). */
+struct contour_fault {
+    int slice, contour, point;
+    bool z;
+};
+
 /* Cleans in place: sorts by z; drops the repeated closing point and repeated points; turns
- * clockwise contours; marks holes; rejects (SF_EINVAL with a pointer to the contour's points)
+ * clockwise contours; marks holes; rejects (SF_EINVAL, *fault saying where; fault may be NULL)
  * fewer than 3 distinct points, values that are not finite or past CONTOUR_MAX_COORD, levels
  * closer than CONTOUR_MIN_SPACING, a contour that crosses itself, two contours at
  * one z whose edges cross, fewer than two distinct z. */
-int contour_clean(struct contour_set *cs, struct sf_err *err);
+int contour_clean(struct contour_set *cs, struct contour_fault *fault, struct sf_err *err);
 void contour_set_free(struct contour_set *cs);
 
 /* Signed area (shoelace; positive counter-clockwise) of a contour's polygon. */

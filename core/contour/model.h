@@ -22,9 +22,9 @@ enum model_caps { CAPS_FLAT, CAPS_SLAB, CAPS_DOME };
  * Side patches run pair by pair of levels (grid methods: span by span), each in increasing u over
  * [0, 1]; the closed form (model_volume_closed) is for the first two. */
 enum model_method { MODEL_PARABOLIC, MODEL_LINEAR_PARABOLIC, MODEL_COONS, MODEL_BSPLINE };
-/* Every method reads each contour's curve redrawn on fewer knots (model.c): within this fraction
- * of the contour's extent of the curve through its points (12 um on the heart), so that patches
- * are not slivers between the points of four contours. */
+/* Every method reads each contour's curve redrawn on fewer knots (model_curve.c): within this
+ * fraction of the contour's extent of the curve through its points (12 um on the heart), so that
+ * patches are not slivers between the points of four contours. */
 #define MODEL_FIT_REL 1e-4
 
 /* How each contour's curve is parameterised from its start (where the +x ray out of its centroid
@@ -35,8 +35,8 @@ struct model_opts {
     enum model_method method;
     bool polar;
     const struct sf_progress *progress; /* polled between steps (err.h); NULL: never stops */
-    /* Folds between unlike contours undone (model.c curves_unfold): for a model (its figures, meshes,
-     * patches, renders, exports); POST /volume leaves it off, so that its closed form stays fast
+    /* Folds between unlike contours undone (model_fold.c curves_unfold): for a model (its figures,
+     * meshes, patches, renders, exports); POST /volume leaves it off, so that its closed form stays fast
      * (checking costs the heart 3 ms a path, a folding band's tries the lung 150 ms) - where a band
      * folds (the lung), the two surfaces' volumes differ by the pockets the fold holds (1.2e-4). */
     bool unfold;

@@ -5,7 +5,7 @@
 #include <math.h>
 #include <string.h>
 
-static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+#include "../base/vec.h"
 
 static void set3(double g[3], double x, double y, double z)
 {

@@ -64,7 +64,8 @@ struct fragment {
 /* The lattice direction from corner a of a cube to corner b (0..26, 13 itself). */
 static int dir_of(int a, int b) { return 13 + (CX(b) - CX(a)) + 3 * (CY(b) - CY(a)) + 9 * (CZ(b) - CZ(a)); }
 
-static int dot3(const int a[3], const int b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+/* The dot product of integer lattice vectors (exact; vec.h's dot3 is of doubles). */
+static int idot3(const int a[3], const int b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 static void corner_of(int c, int p[3]) { p[0] = CX(c), p[1] = CY(c), p[2] = CZ(c); }
 
@@ -88,7 +89,7 @@ static void fragment_of(int k, struct fragment *fr)
                 if (!n[0] && !n[1] && !n[2])
                     continue;
                 for (int q = 0; q < np; q++) {
-                    int s = dot3(n, p[q]) - dot3(n, p[a]);
+                    int s = idot3(n, p[q]) - idot3(n, p[a]);
                     pos += s > 0, neg += s < 0;
                 }
                 if (pos && neg)
@@ -103,7 +104,7 @@ static void fragment_of(int k, struct fragment *fr)
                     key[d] = n[d];
                 while (!(g & 1))
                     g >>= 1, key[0] /= 2, key[1] /= 2, key[2] /= 2;
-                key[3] = dot3(key, p[a]);
+                key[3] = idot3(key, p[a]);
                 bool seen = false;
                 for (int q = 0; q < n_planes && !seen; q++)
                     seen = !memcmp(planes[q], key, sizeof key);
@@ -114,7 +115,7 @@ static void fragment_of(int k, struct fragment *fr)
         const int *n = planes[q];
         int on[4], m = 0;
         for (int i = 0; i < np && m < 4; i++)
-            if (dot3(n, p[i]) == n[3])
+            if (idot3(n, p[i]) == n[3])
                 on[m++] = i;
         /* counter-clockwise about n: by angle round their centre */
         double o[3] = {0, 0, 0}, u[3], w[3], ang[4];

@@ -239,7 +239,7 @@ static bool roi_set(const char *file, const char *name, struct contour_set *cs)
     bool ok = false;
     if (buf && rtstruct_read(buf, len, &rois, &n, NULL) == 0)
         for (int k = 0; k < n && !ok; k++)
-            if (strcmp(rois[k].name, name) == 0 && !rois[k].skipped && contour_clean(&rois[k].cs, NULL) == 0) {
+            if (strcmp(rois[k].name, name) == 0 && !rois[k].skipped && contour_clean(&rois[k].cs, NULL, NULL) == 0) {
                 *cs = rois[k].cs;
                 rois[k].cs = (struct contour_set){0};
                 ok = true;
@@ -249,7 +249,7 @@ static bool roi_set(const char *file, const char *name, struct contour_set *cs)
     return ok;
 }
 
-/* Folds undone (model.c curves_unfold): on the lung's chains and the dicompyler BODY's (whose folding
+/* Folds undone (model_fold.c curves_unfold): on the lung's chains and the dicompyler BODY's (whose folding
  * pair at z 24.56 is drawn ruled), the closed form from the warped curves equals the
  * divergence theorem over the patches drawn from them, as without the warps, and is the one the
  * solid's tubes carry (fitted once for both); the two surfaces differ only where a band folds, by
@@ -305,7 +305,7 @@ TEST(unfolded_curves_keep_volume_and_patches_together)
     }
 }
 
-/* The fold check's caps (model.c FOLD_MAX_TESTS, FOLD_MAX_SECTIONS): contours of 4400 points that
+/* The fold check's caps (model_fold.c FOLD_MAX_TESTS, FOLD_MAX_SECTIONS): contours of 4400 points that
  * zigzag 2200 times across the same 10 mm, each tooth leaning back (so no stretch of two is
  * monotone), each level's teeth half a tooth off the one below, so that the sections fold at every
  * tooth. Teeth across x (the check's sweep): every piece's box overlaps every other's along x, past
@@ -501,8 +501,6 @@ static void shells(const struct mesh *m, int *outer, int *cavities)
     free(up), free(vol);
 }
 
-static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-
 static void sub3(const double *a, const double *b, double *o) { o[0] = a[0] - b[0], o[1] = a[1] - b[1], o[2] = a[2] - b[2]; }
 
 static void cross(const double *a, const double *b, double *o)
@@ -657,7 +655,7 @@ static void one_surface(const char *what, const struct contour_set *cs, enum mod
  * lung 14 with 3829. Elsewhere, no triangles cut each other but 7 pairs of the lung's (446 before
  * hole_reach and curve_align: holes' ends poking out of the body where it moves in between levels,
  * 247; the side folding between unlike contours whose starts lined up badly, 114 at z -106; 29 before
- * the folds were unfolded, model.c curves_unfold: slits at z -107.44 and -104.44, a bay becoming a
+ * the folds were unfolded, model_fold.c curves_unfold: slits at z -107.44 and -104.44, a bay becoming a
  * hole at -77.44, a notch at 39.56): the 7 at z 41.8-42.6, where the bay of z 39.56 closes (its sides
  * meet, 1 um apart at z 42.34, and cross there). The dicompyler BODY is 12 bodies (the torso, a piece
  * of the right arm at z -122..-97 that never meets it, 10 skin markers of one or two levels); its
@@ -703,7 +701,7 @@ TEST(branchings_are_one_surface)
             bool body = f == 0 && strcmp(rois[k].name, "BODY") == 0, lung = strcmp(rois[k].name, "Lt Lung") == 0;
             char what[200];
             snprintf(what, sizeof what, "%s %s", rs[f], rois[k].name);
-            CHECK(contour_clean(&rois[k].cs, NULL) == 0);
+            CHECK(contour_clean(&rois[k].cs, NULL, NULL) == 0);
             one_surface(what, &rois[k].cs, CAPS_FLAT, body ? 12 : 1, lung ? 40 : 0, lung ? 7 : 0);
             rois_seen++;
         }
