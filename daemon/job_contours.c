@@ -220,7 +220,7 @@ static int validate(struct job_body *b, bool scenes, struct sf_err *err)
 static int volume_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     (void)svc;
-    /* ?format= names it: an RT Structure Set, or a scene by any name /render takes (scene_text.c's table) */
+    /* ?format= names it: an RT Structure Set, or a scene by any name /render takes (scene_io.c's table) */
     if (strcmp(b->format, "dicom") && scene_format_parse(b->format) == (enum scene_format)-1)
         return sf_fail(err, SF_EFORMAT, "?format", "format is json, dicom, bpt, nurbs (vrml, wrl) or iges (igs), not \"%s\"",
                        b->format);
