@@ -168,9 +168,9 @@ STORE_SRC := daemon/store.c daemon/store_values.c daemon/store_sqlite.c daemon/s
 $(B)/tests/daemon/test_store: tests/daemon/test_store.c tests/unit.h $(STORE_SRC) $(wildcard daemon/store*.h)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(SAN) -o $@ tests/daemon/test_store.c $(STORE_SRC) -lsqlite3 -lpq -lgnutls -lpthread -lm
-$(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c daemon/jobq.h core/base/mem.c
+$(B)/tests/daemon/test_jobq: tests/daemon/test_jobq.c tests/unit.h daemon/jobq.c daemon/jobq.h core/base/mem.c core/base/clock.c
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/daemon/test_jobq.c daemon/jobq.c core/base/mem.c -lpthread
+	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/daemon/test_jobq.c daemon/jobq.c core/base/mem.c core/base/clock.c -lpthread
 
 # the allocator wrappers, linked as the daemon links them
 $(B)/tests/daemon/test_memwrap: tests/daemon/test_memwrap.c tests/unit.h daemon/memwrap.c core/base/mem.c core/base/mem.h

@@ -18,6 +18,7 @@
  *   and refused past the queue's job budget. */
 #include "jobq.h"
 
+#include "../core/base/clock.h"
 #include "../core/base/mem.h"
 
 #include <pthread.h>
@@ -66,12 +67,7 @@ struct jobq {
     void *room_arg;
 };
 
-double monotonic_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec + ts.tv_nsec / 1e9;
-}
+double monotonic_s(void) { return sf_now_ms() / 1e3; }
 
 const char *job_id(const struct job *j) { return j->id; }
 

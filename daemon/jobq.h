@@ -78,6 +78,8 @@ struct jobq_stats {
     long queued, running, workers, queue_max;
 };
 void jobq_stats(struct jobq *q, struct jobq_stats *out);
+/* The daemon's deadlines and durations, in seconds: core's one clock (core/base/clock.h), CLOCK_MONOTONIC
+ * as the condition variables wait on. */
 double monotonic_s(void);
 
 #endif
