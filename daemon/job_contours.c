@@ -68,7 +68,7 @@ static int prepare_with(struct job *j, struct contour_work *w, int *n_bands,
 static int make_model(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
 {
     struct model_sink sink = {model_id, model_put, w};
-    char location[64];
+    char location[64] = "";
     int rc = model_create((const char *)rec->request, rec->request_len, rec->format, rec->options, &sink, pr, &w->json,
                           location, &w->err);
     snprintf(w->meta, sizeof w->meta, "{\"status\":201,\"location\":\"%s\"}", location);

@@ -74,14 +74,15 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         len = w->map_len;
     }
     w->input_len = len;
-    if (volume_read(body, len, w->rec.format, w->rec.options, &w->vol, &w->err))
-        return w->err.code;
+    int rc = volume_read(body, len, w->rec.format, w->rec.options, &w->vol, &w->err);
+    if (rc)
+        return rc;
     w->t_read = w->t_sampled = monotonic_s();
     struct jobq_stats qs;
     jobq_stats(w->job.svc->q, &qs);
     w->n_slabs = (int)qs.workers * SLABS_PER_WORKER;
-    if (w->vol.frep && frep_volumes(w->job.svc, w->vol.frep, &w->err))
-        return w->err.code;
+    if (w->vol.frep && (rc = frep_volumes(w->job.svc, w->vol.frep, &w->err)))
+        return rc;
     if (w->vol.frep) { /* sampled first, in bands of planes */
         w->phase = PH_SAMPLE;
         *n_bands = w->n_sample = w->n_slabs < w->vol.g.nz ? w->n_slabs : w->vol.g.nz;
@@ -107,17 +108,18 @@ static int begin_extract(struct iso_work *w, int *n_bands)
     /* a hierarchy of samples is kept for the model's edits when it fits their memory (about 5
      * bytes a sample) */
     o.keep = !w->vol.frep && (double)w->vol.g.nx * w->vol.g.ny * w->vol.g.nz * 5 <= (double)w->job.svc->cfg.edit_memory;
+    int rc;
     if (volume_adaptive(&w->vol)) {
-        if (iso_adapt_begin(&w->vol.g, &o, w->vol.levels, w->vol.max_error, &w->ad, &w->err))
-            return w->err.code;
+        if ((rc = iso_adapt_begin(&w->vol.g, &o, w->vol.levels, w->vol.max_error, &w->ad, &w->err)))
+            return rc;
         w->ad_keep = o.keep;
         w->phase = PH_ADAPT;
         *n_bands = iso_adapt_n_slabs(w->ad);
         w->bands_total = w->n_sample + iso_adapt_phases(w->ad) * *n_bands;
         return 0;
     }
-    if (iso_begin(&w->vol.g, &o, w->n_slabs, &w->ij, &w->err))
-        return w->err.code;
+    if ((rc = iso_begin(&w->vol.g, &o, w->n_slabs, &w->ij, &w->err)))
+        return rc;
     w->phase = PH_COUNT;
     w->n_slabs = iso_n_slabs(w->ij);
     *n_bands = w->n_slabs;
@@ -162,8 +164,9 @@ static int next(struct job *j, void *arg, int *n_bands)
             *n_bands = iso_adapt_n_slabs(w->ad);
         return 0;
     }
-    if (iso_layout(w->ij, &w->err))
-        return w->err.code;
+    int rc = iso_layout(w->ij, &w->err);
+    if (rc)
+        return rc;
     w->phase = PH_EMIT;
     *n_bands = w->n_slabs;
     return 0;

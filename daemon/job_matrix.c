@@ -77,13 +77,14 @@ static int model_scene(struct service *svc, const char *owner, const char *id, s
 static int prepare_model(struct matrix_work *w, const char *options, int *n_bands)
 {
     query_option(options, "model", w->model, sizeof w->model);
-    if (size_option(options, w->n, &w->err) || model_scene(w->job.svc, NULL, w->model, &w->sc, &w->err))
-        return w->err.code;
+    int rc;
+    if ((rc = size_option(options, w->n, &w->err)) || (rc = model_scene(w->job.svc, NULL, w->model, &w->sc, &w->err)))
+        return rc;
     w->have_scene = true;
     w->sc.width = w->sc.height = 1; /* no picture: the hierarchy alone */
     w->sc.srgb8_only = true;
-    if (frame_prepare(&w->sc, w->job.svc->dev, &w->fr, &w->err))
-        return w->err.code;
+    if ((rc = frame_prepare(&w->sc, w->job.svc->dev, &w->fr, &w->err)))
+        return rc;
     frame_bounds(w->fr, w->lo, w->hi);
     if (!w->n[0]) { /* cubic voxels, the longest side MATRIX_RAYS_DEFAULT_SIDE */
         double side = fmax(w->hi[0] - w->lo[0], fmax(w->hi[1] - w->lo[1], w->hi[2] - w->lo[2]));

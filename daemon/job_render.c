@@ -97,15 +97,16 @@ static int prepare_view(struct render_work *w, const struct job_rec *rec, const 
     w->sc.borrowed = true;
     w->have_scene = true;
     w->fmt = IMG_PNG;
-    if (render_options_apply(rec->options, &w->sc, &w->fmt, &w->err))
-        return w->err.code;
+    int rc = render_options_apply(rec->options, &w->sc, &w->fmt, &w->err);
+    if (rc)
+        return rc;
     bool mesh = w->sc.method == METHOD_MESH;
     if (view_key(w->job.svc, id, NULL, mesh, key))
         return 0;
     *viewed = true;
     struct model_build b = {w->job.svc, rec, mesh};
     if (!(w->cached = frames_take(w->job.svc->frames, key, build_model, &b, &w->err)))
-        return w->err.code;
+        return w->err.code ? w->err.code : SF_ENOMEM; /* frames_take says why in err */
     w->sc.objects = w->cached->sc.objects, w->sc.n_objects = w->cached->sc.n_objects;
     w->sc.meshes = w->cached->sc.meshes, w->sc.n_meshes = w->cached->sc.n_meshes;
     if (w->fmt == IMG_PNG)
@@ -160,7 +161,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
      * one part here (handing it over would cost more) */
     if (frame_parts(w->fr) > 1)
         return *n_bands = frame_parts(w->fr), w->phase = PREPARE, 0;
-    return frame_finish(w->fr, &w->err) ? -1 : begin_bands(w, n_bands);
+    return (rc = frame_finish(w->fr, &w->err)) ? rc : begin_bands(w, n_bands);
 }
 
 static void band(struct job *j, void *arg, int k)
@@ -185,8 +186,9 @@ static int next(struct job *j, void *arg, int *n_bands)
     *n_bands = 0;
     if (w->phase == PREPARE && ++w->step < frame_steps(w->fr))
         return *n_bands = frame_parts(w->fr), 0;
+    int rc;
     if (w->phase == PREPARE)
-        return frame_end(w->fr, &w->err) ? -1 : begin_bands(w, n_bands);
+        return (rc = frame_end(w->fr, &w->err)) ? rc : begin_bands(w, n_bands);
     if (w->phase == RENDER) {
         w->at[3] = monotonic_s();
         if (w->fmt == IMG_PNG) { /* deflated by bands on every idle worker (png.h) */

@@ -19,8 +19,10 @@
 #include "jobq.h"
 
 #include "../core/base/clock.h"
+#include "../core/base/err.h"
 #include "../core/base/mem.h"
 
+#include <assert.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -53,6 +55,8 @@ struct job {
 
 struct jobq {
     pthread_mutex_t lock;
+    pthread_t holder;            /* [q] who holds the lock, while held (the asserts' HELD) */
+    bool held;                   /* [q] */
     pthread_cond_t work;         /* a queued job or a band is available, or stop */
     pthread_cond_t timer_cond;   /* a waiter with a deadline was added, or stop */
     struct job *queue_head, *queue_tail;
@@ -71,8 +75,41 @@ double monotonic_s(void) { return sf_now_ms() / 1e3; }
 
 const char *job_id(const struct job *j) { return j->id; }
 
+/* The one lock, and who holds it: the contract's "lock held" and its state rules are asserted
+ * where they are relied on (assert: the test and sanitizer builds; the release build has NDEBUG). */
+static void q_lock(struct jobq *q)
+{
+    pthread_mutex_lock(&q->lock);
+    q->holder = pthread_self();
+    q->held = true;
+}
+
+#define HELD(q) assert((q)->held && pthread_equal((q)->holder, pthread_self()))
+
+static void q_unlock(struct jobq *q)
+{
+    HELD(q);
+    q->held = false;
+    pthread_mutex_unlock(&q->lock);
+}
+
+/* Waits on c (until the monotonic time until, when not NULL), the lock let go meanwhile. */
+static void q_wait(struct jobq *q, pthread_cond_t *c, const struct timespec *until)
+{
+    HELD(q);
+    q->held = false;
+    if (until)
+        pthread_cond_timedwait(c, &q->lock, until);
+    else
+        pthread_cond_wait(c, &q->lock);
+    q->holder = pthread_self();
+    q->held = true;
+}
+
+
 static struct job *find_live(struct jobq *q, const char *id)
 {
+    HELD(q);
     for (struct job *j = q->live; j; j = j->next_live)
         if (!strcmp(j->id, id))
             return j;
@@ -81,6 +118,7 @@ static struct job *find_live(struct jobq *q, const char *id)
 
 static void unlink_live(struct jobq *q, struct job *j)
 {
+    HELD(q);
     for (struct job **p = &q->live; *p; p = &(*p)->next_live)
         if (*p == j) {
             *p = j->next_live;
@@ -91,6 +129,7 @@ static void unlink_live(struct jobq *q, struct job *j)
 /* A banded job with a band left to hand out. */
 static struct job *band_job(struct jobq *q)
 {
+    HELD(q);
     for (struct job *j = q->live; j; j = j->next_live)
         if (j->state == JOB_RUNNING && !j->preparing && !j->cancel && j->next_band < j->n_bands)
             return j;
@@ -100,6 +139,7 @@ static struct job *band_job(struct jobq *q)
 /* A banded job cancelled between bands: nobody holds a band of it, so nobody else will end it. */
 static struct job *stranded_job(struct jobq *q)
 {
+    HELD(q);
     for (struct job *j = q->live; j; j = j->next_live)
         if (j->state == JOB_RUNNING && !j->preparing && j->cancel && j->bands_out == 0 && j->n_bands > 0)
             return j;
@@ -109,6 +149,7 @@ static struct job *stranded_job(struct jobq *q)
 /* Unlinks the waiters of job id (all, with id NULL) into a list. Lock held. */
 static struct waiter *take_waiters(struct jobq *q, const char *id)
 {
+    HELD(q);
     struct waiter *taken = NULL;
     for (struct waiter **p = &q->waiters; *p;) {
         struct waiter *w = *p;
@@ -137,31 +178,34 @@ static void fire(struct waiter *w, bool finished)
 /* Called with the lock held; returns with it held. Runs finish unlocked and wakes the waiters. */
 static void finish_job(struct jobq *q, struct job *j, enum job_state outcome)
 {
+    HELD(q);
+    /* a job ends once, with an end state, when nobody prepares it or holds a band of it */
+    assert(!job_state_ended(j->state) && job_state_ended(outcome) && !j->preparing && j->bands_out == 0);
     j->state = outcome;
     bool requeue = j->requeue;
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
     mem_account_enter(&j->mem);
     j->ops->finish(j, j->work, outcome, requeue);
     mem_account_enter(NULL);
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     unlink_live(q, j);
     q->n_active--;
     struct waiter *w = take_waiters(q, j->id);
     pthread_cond_broadcast(&q->work); /* room for another prepared job */
     void (*room)(void *) = q->room;
     void *room_arg = q->room_arg;
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
     fire(w, true);
     if (room)
         room(room_arg);
     free(j);
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
 }
 
 static void *worker(void *arg)
 {
     struct jobq *q = arg;
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     for (;;) {
         struct job *j;
         if (!q->stop_taking && q->queue_head && q->n_active < q->n_workers) {
@@ -175,14 +219,15 @@ static void *worker(void *arg)
                 finish_job(q, j, JOB_CANCELLED);
                 continue;
             }
+            assert(j->state == JOB_QUEUED);
             j->state = JOB_RUNNING;
             j->preparing = true;
-            pthread_mutex_unlock(&q->lock);
+            q_unlock(q);
             int n_bands = 0;
             mem_account_enter(&j->mem);
             int rc = j->ops->prepare(j, j->work, &n_bands);
             mem_account_enter(NULL);
-            pthread_mutex_lock(&q->lock);
+            q_lock(q);
             j->preparing = false;
             j->n_bands = rc ? 0 : n_bands;
             if (rc || n_bands == 0) /* a prepare that stopped on its cancel flag was cancelled, not failed */
@@ -192,23 +237,24 @@ static void *worker(void *arg)
         } else if ((j = stranded_job(q))) {
             finish_job(q, j, JOB_CANCELLED);
         } else if ((j = band_job(q))) {
+            assert(j->state == JOB_RUNNING && j->next_band < j->n_bands);
             int band = j->next_band++;
             j->bands_out++;
-            pthread_mutex_unlock(&q->lock);
+            q_unlock(q);
             mem_account_enter(&j->mem);
             j->ops->band(j, j->work, band);
             mem_account_enter(NULL);
-            pthread_mutex_lock(&q->lock);
+            q_lock(q);
             j->bands_out--;
             j->bands_done++;
             bool all = j->bands_done == j->n_bands || (j->cancel && j->bands_out == 0);
             if (all && !j->cancel && j->ops->next) { /* the next phase, prepared as the first was */
                 j->preparing = true;
-                pthread_mutex_unlock(&q->lock);
+                q_unlock(q);
                 mem_account_enter(&j->mem);
                 int n_bands = 0, rc = j->ops->next(j, j->work, &n_bands);
                 mem_account_enter(NULL);
-                pthread_mutex_lock(&q->lock);
+                q_lock(q);
                 j->preparing = false;
                 if (rc == 0 && n_bands > 0 && !j->cancel) {
                     j->n_bands = n_bands;
@@ -223,10 +269,10 @@ static void *worker(void *arg)
         } else if (q->stop) {
             break;
         } else {
-            pthread_cond_wait(&q->work, &q->lock);
+            q_wait(q, &q->work, NULL);
         }
     }
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
     return NULL;
 }
 
@@ -234,7 +280,7 @@ static void *worker(void *arg)
 static void *timer(void *arg)
 {
     struct jobq *q = arg;
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     while (!q->stop) {
         double now = monotonic_s(), next = now + 0.25;
         struct waiter *due = NULL;
@@ -250,9 +296,9 @@ static void *timer(void *arg)
             }
         }
         if (due) {
-            pthread_mutex_unlock(&q->lock);
+            q_unlock(q);
             fire(due, false);
-            pthread_mutex_lock(&q->lock);
+            q_lock(q);
             continue;
         }
         struct timespec ts;
@@ -262,9 +308,9 @@ static void *timer(void *arg)
         ts.tv_nsec += (long)((wait - (double)(time_t)wait) * 1e9);
         if (ts.tv_nsec >= 1000000000L)
             ts.tv_sec++, ts.tv_nsec -= 1000000000L;
-        pthread_cond_timedwait(&q->timer_cond, &q->lock, &ts);
+        q_wait(q, &q->timer_cond, &ts);
     }
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
     return NULL;
 }
 
@@ -297,18 +343,19 @@ struct jobq *jobq_new(int n_workers, long queue_max, long long job_memory)
 /* Sleeps in 50 ms steps, the lock released, until no job is active or the deadline. Lock held. */
 static void wait_idle(struct jobq *q, double deadline)
 {
+    HELD(q);
     while (q->n_active > 0 && monotonic_s() < deadline) {
-        pthread_mutex_unlock(&q->lock);
+        q_unlock(q);
         struct timespec ts = {0, 50 * 1000000L};
         nanosleep(&ts, NULL);
-        pthread_mutex_lock(&q->lock);
+        q_lock(q);
     }
 }
 
 int jobq_shutdown(struct jobq *q, double timeout_s, double grace_s, void (*abandoned)(const char *id, void *arg),
                   void *arg)
 {
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     q->stop_taking = true;
     wait_idle(q, monotonic_s() + timeout_s);
     for (struct job *j = q->live; j; j = j->next_live)
@@ -325,24 +372,29 @@ int jobq_shutdown(struct jobq *q, double timeout_s, double grace_s, void (*aband
                 if (abandoned)
                     abandoned(j->id, arg);
             }
-        pthread_mutex_unlock(&q->lock);
+        q_unlock(q);
         return n;
     }
     q->stop = true;
     pthread_cond_broadcast(&q->work);
     pthread_cond_broadcast(&q->timer_cond);
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
     for (int k = 0; k < q->n_workers; k++)
         pthread_join(q->threads[k], NULL);
     pthread_join(q->timer, NULL);
-    /* queued jobs stay queued in the store; their in-memory records and waiters go */
-    fire(take_waiters(q, NULL), false);
-    for (struct job *j = q->live, *n; j; j = n) {
+    /* queued jobs stay queued in the store; their in-memory records and waiters go (under the
+     * lock: the HTTP threads may still ask for them until the server stops) */
+    q_lock(q);
+    struct waiter *w = take_waiters(q, NULL);
+    struct job *live = q->live;
+    q->live = NULL;
+    q_unlock(q);
+    fire(w, false);
+    for (struct job *j = live, *n; j; j = n) {
         n = j->next_live;
         j->ops->finish(j, j->work, JOB_CANCELLED, true);
         free(j);
     }
-    q->live = NULL;
     return 0;
 }
 
@@ -361,17 +413,17 @@ int jobq_submit(struct jobq *q, const char *id, const struct job_ops *ops, void 
 {
     struct job *j = calloc(1, sizeof *j);
     if (!j)
-        return -1;
+        return SF_ENOMEM;
     snprintf(j->id, sizeof j->id, "%s", id);
     j->ops = ops;
     j->work = work;
     j->state = JOB_QUEUED;
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     j->mem.budget = q->job_memory;
     if ((q->n_queued >= q->queue_max && !force) || q->stop_taking) {
-        pthread_mutex_unlock(&q->lock);
+        q_unlock(q);
         free(j);
-        return -1;
+        return SF_ELIMIT;
     }
     if (q->queue_tail)
         q->queue_tail->next_queued = j;
@@ -382,32 +434,32 @@ int jobq_submit(struct jobq *q, const char *id, const struct job_ops *ops, void 
     j->next_live = q->live;
     q->live = j;
     pthread_cond_signal(&q->work);
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
     return 0;
 }
 
 bool jobq_peek(struct jobq *q, const char *id, enum job_state *state, double *progress)
 {
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     struct job *j = find_live(q, id);
     if (j) {
         *state = j->state == JOB_QUEUED ? JOB_QUEUED : JOB_RUNNING; /* finishing is running until stored */
         double bands = j->n_bands && !j->ops->next ? (double)j->bands_done / j->n_bands : 0.0;
         *progress = bands > j->progress ? bands : j->progress;
     }
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
     return j != NULL;
 }
 
 bool jobq_cancel(struct jobq *q, const char *id)
 {
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     struct job *j = find_live(q, id);
     if (j) { /* a job finishing sees it too, through jobq_cancelled, until its end is stored */
         j->cancel = true;
         pthread_cond_broadcast(&q->work); /* someone must end it if no band is out */
     }
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
     return j != NULL;
 }
 
@@ -420,53 +472,53 @@ void jobq_wait(struct jobq *q, const char *id, double deadline, void (*fn)(void 
     }
     *w = (struct waiter){.fn = fn, .arg = arg, .deadline = deadline};
     snprintf(w->id, sizeof w->id, "%s", id);
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     w->next = q->waiters;
     q->waiters = w;
     pthread_cond_signal(&q->timer_cond);
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
 }
 
 void jobq_notify(struct jobq *q, const char *id)
 {
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     struct waiter *w = take_waiters(q, id);
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
     fire(w, true);
 }
 
 void jobq_on_room(struct jobq *q, void (*fn)(void *), void *arg)
 {
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     q->room = fn;
     q->room_arg = arg;
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
 }
 
 int jobq_room(struct jobq *q)
 {
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     int n = q->stop_taking ? 0 : q->n_workers - q->n_active - (int)q->n_queued;
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
     return n > 0 ? n : 0;
 }
 
 bool jobq_cancelled(struct jobq *q, struct job *j, double progress)
 {
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     if (progress > j->progress)
         j->progress = progress;
     bool cancel = j->cancel;
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
     return cancel;
 }
 
 void jobq_stats(struct jobq *q, struct jobq_stats *out)
 {
-    pthread_mutex_lock(&q->lock);
+    q_lock(q);
     out->queued = q->n_queued;
     out->running = q->n_active;
     out->workers = q->n_workers;
     out->queue_max = q->queue_max;
-    pthread_mutex_unlock(&q->lock);
+    q_unlock(q);
 }

@@ -11,6 +11,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 
+#include "../core/base/err.h"
 #include "job_state.h"
 
 struct jobq;
@@ -44,8 +45,9 @@ int jobq_shutdown(struct jobq *q, double timeout_s, double grace_s, void (*aband
 /* Frees a queue that jobq_shutdown stopped (0). Its waiters and jobs are gone by then. */
 void jobq_free(struct jobq *q);
 
-/* Queues a job. work is handed over (ops->finish frees it). Returns 0, or -1 when the queue is
- * full or shutting down (work not taken). force: ignore queue_max (jobs recovered at start). */
+/* Queues a job. work is handed over (ops->finish frees it). Returns 0, or SF_ELIMIT when the
+ * queue is full or shutting down, SF_ENOMEM (work not taken). force: ignore queue_max (jobs
+ * recovered at start). */
 int jobq_submit(struct jobq *q, const char *id, const struct job_ops *ops, void *work, bool force);
 
 /* Live state of a queued or running job (JOB_QUEUED or JOB_RUNNING: a job whose finish is still

@@ -142,7 +142,7 @@ int keeper_start(struct service *svc)
     store_on_event(svc->store, on_store_event, svc);
     svc->wake = true;
     if (pthread_create(&svc->keeper, NULL, keeper, svc))
-        return -1;
+        return SF_ENOMEM;
     svc->keeper_started = true;
     return 0;
 }

@@ -4,7 +4,7 @@
 
 #include "service.h"
 
-/* Starts the keeper (after the pool and the store are open). 0 or -1. */
+/* Starts the keeper (after the pool and the store are open). 0, or SF_ENOMEM (no thread). */
 int keeper_start(struct service *svc);
 /* Stops the keeper: no more claims, heartbeats or reaps. */
 void keeper_stop(struct service *svc);

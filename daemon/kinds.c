@@ -18,14 +18,16 @@ const struct job_kind *job_kind(const char *name)
 int job_start(struct service *svc, const struct job_claim *c)
 {
     const struct job_kind *kind = job_kind(c->kind);
-    struct job_work *w = kind ? calloc(1, kind->work_size) : NULL;
+    if (!kind)
+        return SF_ENOTFOUND;
+    struct job_work *w = calloc(1, kind->work_size);
     if (!w)
-        return -1;
+        return SF_ENOMEM;
     w->svc = svc;
     w->claim = *c;
     if (jobq_submit(svc->q, c->id, kind->ops, w, true)) {
         free(w);
-        return -1;
+        return SF_ELIMIT;
     }
     return 0;
 }

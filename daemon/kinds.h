@@ -59,8 +59,9 @@ extern const struct job_kind edit_kind;                   /* job_edit.c */
 
 /* The kind of that name (a stored job's), or NULL. */
 const struct job_kind *job_kind(const char *name);
-/* Puts a claimed job on the pool as its kind runs it: 0, or -1 (an unknown kind, no memory, a
- * pool shutting down: the claim is then the caller's to hand back). */
+/* Puts a claimed job on the pool as its kind runs it: 0, or SF_ENOTFOUND (no kind of its name),
+ * SF_ENOMEM, SF_ELIMIT (the pool takes no more: shutting down); the claim is then the caller's to
+ * hand back. */
 int job_start(struct service *svc, const struct job_claim *c);
 
 #endif

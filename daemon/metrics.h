@@ -29,7 +29,7 @@ struct metrics_gauges {
     double uptime_s;
     long queued, running;    /* this node's pool */
     long queue_max, workers;
-    long store_queued;       /* every node's */
+    long store_queued;       /* every node's; -1 when the store failed (as mesh_cache_bytes) */
     long mesh_cache_bytes;
     size_t frame_cache_bytes;
     int stranded;

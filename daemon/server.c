@@ -828,8 +828,9 @@ static enum MHD_Result metrics(struct req *r, const char *id)
     struct service *svc = r->svc;
     struct jobq_stats qs;
     jobq_stats(svc->q, &qs);
+    long queued = store_queued(svc->store), meshes = store_mesh_bytes(svc->store); /* -1: the store failed */
     struct metrics_gauges g = {monotonic_s() - svc->started_mono, qs.queued, qs.running, qs.queue_max, qs.workers,
-                               store_queued(svc->store), store_mesh_bytes(svc->store), frames_bytes(svc->frames),
+                               queued < 0 ? -1 : queued, meshes < 0 ? -1 : meshes, frames_bytes(svc->frames),
                                service_n_stranded(svc)};
     char *t = metrics_text(&g);
     if (!t)
@@ -1309,7 +1310,7 @@ static char *read_file(const char *path)
     return buf;
 }
 
-/* HOST:PORT, [V6]:PORT */
+/* HOST:PORT, [V6]:PORT: 0, or SF_EINVAL. */
 static int parse_listen(const char *s, struct sockaddr_storage *ss, unsigned short *port, bool *v6)
 {
     char host[128];
@@ -1317,18 +1318,18 @@ static int parse_listen(const char *s, struct sockaddr_storage *ss, unsigned sho
     if (s[0] == '[') {
         const char *end = strchr(s, ']');
         if (!end || end[1] != ':')
-            return -1;
+            return SF_EINVAL;
         snprintf(host, sizeof host, "%.*s", (int)(end - s - 1), s + 1);
         colon = end + 1;
     } else {
         colon = strrchr(s, ':');
         if (!colon)
-            return -1;
+            return SF_EINVAL;
         snprintf(host, sizeof host, "%.*s", (int)(colon - s), s);
     }
     long p = strtol(colon + 1, NULL, 10);
     if (p < 0 || p > 65535)
-        return -1;
+        return SF_EINVAL;
     *port = (unsigned short)p;
     memset(ss, 0, sizeof *ss);
     struct sockaddr_in *a4 = (struct sockaddr_in *)ss;
@@ -1345,7 +1346,7 @@ static int parse_listen(const char *s, struct sockaddr_storage *ss, unsigned sho
         *v6 = true;
         return 0;
     }
-    return -1;
+    return SF_EINVAL;
 }
 
 /* GnuTLS priorities: TLS 1.3 as GnuTLS has it; TLS 1.2 only with ephemeral elliptic-curve key

@@ -157,7 +157,13 @@ int store_volume_get(struct store *s, const char *id, int from, struct volume_re
 {
     *parts = NULL;
     *n = 0;
-    return noted(s, s->ops->volume_get(s, id, from, parts, n));
+    int rc = noted(s, s->ops->volume_get(s, id, from, parts, n));
+    if (rc) { /* the parts read before the failure */
+        store_volume_free(*parts, *n);
+        *parts = NULL;
+        *n = 0;
+    }
+    return rc;
 }
 
 bool store_writable(struct store *s) { return !atomic_load(&s->damaged) && s->ops->writable(s); }

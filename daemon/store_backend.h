@@ -81,6 +81,10 @@ int store_volume_add(struct volume_rec **parts, int *n, int seq, const char *for
  * SF_EIO (no randomness). */
 int store_piece_name(char name[48]);
 
+/* The answer of a statement that changes one row, from the n rows it changed (< 0: it failed): 0
+ * when it did, none when no row was in the state it needs, SF_EIO when it failed. */
+int store_one_row(int n, int none);
+
 /* The backends' openers: 0 and *out, or SF_EIO with err's message (store_open). */
 int store_sqlite_open(const char *dir, struct store **out, struct sf_err *err);
 int store_pg_open(const char *uri, const char *scratch, struct store **out, struct sf_err *err);

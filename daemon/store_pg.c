@@ -239,9 +239,6 @@ static char *dup_text(const PGresult *r, int row, int col)
 
 static void num(char *buf, size_t cap, double v) { snprintf(buf, cap, "%.17g", v); }
 
-/* The answer of a statement that changes one row, from the n rows exec1() says it changed: 0 when
- * it did, none when no row was in the state it needs, SF_EIO when it failed. */
-static int one_row(int n, int none) { return n < 0 ? SF_EIO : n == 0 ? none : 0; }
 
 /* ---- the lifecycle ---- */
 
@@ -367,7 +364,7 @@ static int pg_claim(struct store *s, const char *node, double lease_s, bool alon
     }
     if (n >= 0)
         PQclear(res);
-    return one_row(n, SF_ENOTFOUND); /* none queued that this node may take */
+    return store_one_row(n, SF_ENOTFOUND); /* none queued that this node may take */
 }
 
 static int pg_heartbeat(struct store *s, const char *id, long fence, double lease_s, double progress, bool *cancel)
@@ -386,7 +383,7 @@ static int pg_heartbeat(struct store *s, const char *id, long fence, double leas
         *cancel = PQgetvalue(res, 0, 0)[0] != 0;
     if (n >= 0)
         PQclear(res);
-    return one_row(n, SF_ECONFLICT); /* no running row under that fence: the claim is lost */
+    return store_one_row(n, SF_ECONFLICT); /* no running row under that fence: the claim is lost */
 }
 
 /* Writes len bytes as rows of size bytes (insert: "INSERT INTO T(key,seq,data) VALUES($1,$2,$3)")
@@ -444,7 +441,7 @@ static int pg_finish(struct store *s, const char *id, long fence, const struct j
         }
         res = execute(p, c, changed == 1 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
         if (res && changed >= 0)
-            rc = one_row(changed, SF_ECONFLICT);
+            rc = store_one_row(changed, SF_ECONFLICT);
         PQclear(res);
     }
     give(p, c);
@@ -456,7 +453,7 @@ static int pg_release(struct store *s, const char *id, long fence)
     char f[24];
     snprintf(f, sizeof f, "%ld", fence);
     struct param prm[] = {T(id), T(f)};
-    return one_row(exec1(s, NULL,
+    return store_one_row(exec1(s, NULL,
                          "WITH j AS (UPDATE jobs SET state=CASE WHEN cancel_requested THEN 'cancelled' ELSE 'queued' END,"
                          " finished=CASE WHEN cancel_requested THEN " NOW " ELSE finished END, progress=0,"
                          " attempts=GREATEST(attempts-1,0), lease_until=0 WHERE id=$1 AND fence=$2 AND state='running'"
@@ -778,7 +775,7 @@ static int volume_put(struct pg_store *p, int c, const char *id, const struct vo
     struct param prm[] = {T(id), T(seq), T(v->format), T(v->options), T(NULL), T(sum), T(NULL)};
     if (value_params(p, c, v->data, v->len, name, &prm[4], &prm[6]))
         return SF_EIO;
-    return one_row(exec_in(p, c,
+    return store_one_row(exec_in(p, c,
                            "INSERT INTO model_volumes(model,seq,format,options,data,sum,data_pieces)"
                            " VALUES($1,$2,$3,$4,$5,$6,$7) ON CONFLICT DO NOTHING",
                            7, prm),
@@ -822,7 +819,7 @@ static int model_txn(struct store *s, const struct model_rec *m, const struct vo
     if (res) {
         PQclear(res);
         struct param id[] = {T(m->id)};
-        rc = one_row(model_row(p, c, m, update), SF_ECONFLICT);
+        rc = store_one_row(model_row(p, c, m, update), SF_ECONFLICT);
         if (rc == 0 && !update && exec_in(p, c, "DELETE FROM model_volumes WHERE model=$1", 1, id) < 0)
             rc = SF_EIO;
         if (rc == 0 && update && exec_in(p, c, "DELETE FROM meshes WHERE model=$1", 1, id) < 0) /* the edit's before */
@@ -972,7 +969,7 @@ static int pg_model_list(struct store *s, const char *owner, long limit, void (*
 static int pg_model_delete(struct store *s, const char *id, const char *owner)
 {
     struct param prm[] = {T(id), T(owner)};
-    return one_row(exec1(s, NULL, "DELETE FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2, prm),
+    return store_one_row(exec1(s, NULL, "DELETE FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)", 2, prm),
                    SF_ENOTFOUND);
 }
 
@@ -1034,7 +1031,7 @@ static int pg_mesh_put(struct store *s, const char *model, const char *key, cons
                        " WHERE run > $1::bigint)", /* the least used past the budget */
                        1, cap) < 0)
         n = SF_EIO;
-    return one_row(n, SF_ECONFLICT); /* no row: the model is gone */
+    return store_one_row(n, SF_ECONFLICT); /* no row: the model is gone */
 }
 
 static long pg_mesh_bytes(struct store *s)

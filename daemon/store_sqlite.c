@@ -322,10 +322,6 @@ static int run_held(struct store *s, const char *sql, const char *types, ...)
     return n;
 }
 
-/* The answer of a statement that changes one row, from the n rows run() says it changed: 0 when
- * it did, none when no row was in the state it needs, SF_EIO when it failed. */
-static int one_row(int n, int none) { return n < 0 ? SF_EIO : n == 0 ? none : 0; }
-
 /* A sqlite3_step()'s answer for a statement of one row: 0 a row, SF_ENOTFOUND none, SF_EIO. */
 static int row_of(int step) { return step == SQLITE_ROW ? 0 : step == SQLITE_DONE ? SF_ENOTFOUND : SF_EIO; }
 
@@ -505,9 +501,9 @@ static int sq_finish(struct store *s, const char *id, long fence, const struct j
         if (n != 1 && e->len > s->piece) /* pieces written for a claim that was lost */
             sweep_pieces(s);
         pthread_mutex_unlock(lock_of(s));
-        return one_row(n, SF_ECONFLICT);
+        return store_one_row(n, SF_ECONFLICT);
     }
-    return one_row(run(s,
+    return store_one_row(run(s,
                        "UPDATE jobs SET state=?1, finished=?2, error=?3, lease_until=0 WHERE id=?4 AND fence=?5 AND"
                        " state='running'",
                        "tdtti", job_state_name(e->outcome), e->finished, e->error, id, fence),
@@ -516,7 +512,7 @@ static int sq_finish(struct store *s, const char *id, long fence, const struct j
 
 static int sq_release(struct store *s, const char *id, long fence)
 {
-    return one_row(run(s,
+    return store_one_row(run(s,
                        "UPDATE jobs SET state=IIF(cancel_requested, 'cancelled', 'queued'), finished=IIF(cancel_requested,"
                        " ?3, finished), progress=0, attempts=MAX(attempts-1,0), lease_until=0 WHERE id=?1 AND fence=?2"
                        " AND state='running'",
@@ -720,7 +716,7 @@ static int volume_put(struct store *s, const char *id, const struct volume_rec *
     store_checksum(v->options, strlen(v->options), v->data, v->len, sum);
     int n = run_held(s, "INSERT OR IGNORE INTO model_volumes(model,seq,format,options,data,sum) VALUES(?,?,?,?,?,?)",
                      "tittBt", id, (long)v->seq, v->format, v->options, v->data, v->len, sum);
-    return one_row(n, SF_ECONFLICT);
+    return store_one_row(n, SF_ECONFLICT);
 }
 
 /* Runs the steps of a write as one transaction, under the lock: step's answer (0 commits,
@@ -766,7 +762,7 @@ static int sq_model_put(struct store *s, const struct model_rec *m) { return tra
 static int edit_step(struct store *s, const void *a, const void *b)
 {
     const struct model_rec *m = a;
-    int rc = one_row(model_row(s, m, true), SF_ECONFLICT); /* the model is gone */
+    int rc = store_one_row(model_row(s, m, true), SF_ECONFLICT); /* the model is gone */
     if (rc == 0 && run_held(s, "DELETE FROM meshes WHERE model=?", "t", m->id) < 0) /* of the model before the edit */
         rc = SF_EIO;
     return rc ? rc : volume_put(s, m->id, b);
@@ -908,7 +904,7 @@ static int sq_model_delete(struct store *s, const char *id, const char *owner)
     if (n > 0 && (run(s, "DELETE FROM model_volumes WHERE model=?", "t", id) < 0 ||
                   run(s, "DELETE FROM meshes WHERE model=?", "t", id) < 0))
         return SF_EIO;
-    return one_row(n, SF_ENOTFOUND);
+    return store_one_row(n, SF_ENOTFOUND);
 }
 
 static int sq_mesh_get(struct store *s, const char *model, const char *key, struct mesh_rec *out)
@@ -954,7 +950,7 @@ static int sq_mesh_put(struct store *s, const char *model, const char *key, cons
                           "i", max_bytes) < 0)
         n = SF_EIO;
     pthread_mutex_unlock(lock_of(s));
-    return one_row(n, SF_ECONFLICT); /* no row: the model is gone */
+    return store_one_row(n, SF_ECONFLICT); /* no row: the model is gone */
 }
 
 static long sq_mesh_bytes(struct store *s)

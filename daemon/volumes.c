@@ -19,14 +19,14 @@ int job_map_file(const char *path, void **map, size_t *len)
     if (fd < 0 || fstat(fd, &st)) {
         if (fd >= 0)
             close(fd);
-        return -1;
+        return SF_EIO;
     }
     *len = (size_t)st.st_size;
     *map = *len ? mmap(NULL, *len, PROT_READ, MAP_PRIVATE, fd, 0) : NULL;
     close(fd);
     if (*map == MAP_FAILED) {
         *map = NULL;
-        return -1;
+        return SF_EIO;
     }
     return 0;
 }

@@ -21,7 +21,7 @@
 /* A volume's extraction options with this node's limits on the output: max-triangles, and what
  * job-memory holds. */
 struct iso_opts job_iso_opts(const struct service *svc, const struct volume *v);
-/* The whole file at path, mapped read-only (*map NULL for an empty one): 0 or -1. */
+/* The whole file at path, mapped read-only (*map NULL for an empty one): 0 or SF_EIO. */
 int job_map_file(const char *path, void **map, size_t *len);
 
 /* A part of a model's stored volume after the first (an edit: options its region, data and len its

@@ -132,7 +132,7 @@ TEST(full_queue_timeouts_and_shutdown)
     sleep_ms(20); /* slow is running now */
     CHECK(jobq_submit(q, "a", &OPS, a, false) == 0);
     CHECK(jobq_submit(q, "b", &OPS, b, false) == 0);
-    CHECK(jobq_submit(q, "c", &OPS, c, false) == -1); /* full: two queued */
+    CHECK(jobq_submit(q, "c", &OPS, c, false) == SF_ELIMIT); /* full: two queued */
     CHECK(jobq_submit(q, "c", &OPS, c, true) == 0);   /* recovery may overfill */
     CHECK(jobq_room(q) == 0);
     struct waited early = {0}, elsewhere = {0}, gone = {0};

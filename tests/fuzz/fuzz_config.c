@@ -8,7 +8,7 @@
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     struct config c;
-    struct sf_err err;
+    struct sf_err err = {0};
     char *path = fuzz_file(data, size, 0600);
     if (path) {
         char *argv[] = {"serve", "--config", path, NULL};
@@ -22,6 +22,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             argv[argc++] = line;
     argv[argc] = NULL;
     config_defaults(&c);
+    err = (struct sf_err){0};
     if (text)
         config_load(&c, argc, argv, &err);
     free(text);

@@ -5,7 +5,7 @@
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     char *path = fuzz_file(data, size, 0600);
-    struct sf_err err;
+    struct sf_err err = {0};
     struct token *t = NULL;
     size_t n = 0;
     if (path)

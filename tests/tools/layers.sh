@@ -6,6 +6,8 @@
 #   core/ includes nothing of api/, daemon/ or client/, and no library of HTTP, JSON, threads,
 #   storage or logging; api/ includes core/ and api/, never daemon/ or client/.
 # Prints each broken rule as FILE: #include ... and exits 1 if there is one.
+# `layers.sh --below LAYER` prints the folders LAYER may include (the Makefile links a layer's unit
+# tests with them alone).
 cd "$(dirname "$0")/../.." || exit 2
 allowed() { # folder of core -> the folders it may include
     case $1 in
@@ -18,6 +20,10 @@ allowed() { # folder of core -> the folders it may include
     *) echo "" ;;
     esac
 }
+if [ "${1:-}" = --below ]; then
+    allowed "$2"
+    exit 0
+fi
 bad=0
 say() { echo "$1: $2"; bad=1; }
 for f in core/*.c core/*.h core/*.cpp; do

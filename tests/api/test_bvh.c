@@ -1,8 +1,8 @@
 /* test_bvh.c - the exact hierarchy: rays aimed at surface points find them (nearest first), and
  * skipping a shadow ray's origin leaf by its normal cone never changes an occlusion answer. */
-#include "../../../api/scene_io.h"
-#include "../../../core/trace/bvh.h"
-#include "../../unit.h"
+#include "../../api/scene_io.h"
+#include "../../core/trace/bvh.h"
+#include "../unit.h"
 #include "contour_scene.h"
 
 #include <stdlib.h>

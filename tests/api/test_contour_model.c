@@ -1,13 +1,13 @@
-/* test_model.c - contours to parabolic surface to volume: the synthetic shapes' exact volumes
+/* test_contour_model.c - contours to parabolic surface to volume: the synthetic shapes' exact volumes
  * between their end slices (caps flat), exactness of the quadrature, outward orientation,
  * interpolation of every contour point, baselines, and every rejection with its pointer. */
-#include "../../../api/contour_json.h"
-#include "../../../api/model_json.h"
-#include "../../../api/rtstruct.h"
-#include "../../../core/base/gauss.h"
-#include "../../../core/contour/solid.h"
-#include "../../../core/geom/enclosed.h"
-#include "../../unit.h"
+#include "../../api/contour_json.h"
+#include "../../api/model_json.h"
+#include "../../api/rtstruct.h"
+#include "../../core/base/gauss.h"
+#include "../../core/contour/solid.h"
+#include "../../core/geom/enclosed.h"
+#include "../unit.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -1,8 +1,8 @@
 /* test_enclosed.c - the volume any closed patch set encloses, through the figures path POST /volume
  * takes for a scene: a unit cube of six bilinear patches, a NURBS sphere (rational, poles collapsed),
  * the teapot (open: refused with the object's pointer), a cube with a face missing or turned. */
-#include "../../../api/model_json.h"
-#include "../../unit.h"
+#include "../../api/model_json.h"
+#include "../unit.h"
 
 #include <stdlib.h>
 

@@ -2,10 +2,10 @@
  * fov 30°) by the exact methods against a dense tessellation of the same patches: zero missed
  * interior pixels, depth within 1e-3 relative; map, bvh and mesh agree. Every shared scene renders
  * through every exact method with the same coverage. Bad scenes fail with a pointer. */
-#include "../../../api/scene_io.h"
-#include "../../../core/trace/render.h"
-#include "../../../core/trace/srgb.h"
-#include "../../unit.h"
+#include "../../api/scene_io.h"
+#include "../../core/trace/render.h"
+#include "../../core/trace/srgb.h"
+#include "../unit.h"
 #include "contour_scene.h"
 
 #include <stdlib.h>

@@ -4,10 +4,10 @@
 #ifndef SURFD_TEST_CONTOUR_SCENE_H
 #define SURFD_TEST_CONTOUR_SCENE_H
 
-#include "../../../api/contour_json.h"
-#include "../../../api/model_json.h"
-#include "../../../api/scene_io.h"
-#include "../../unit.h"
+#include "../../api/contour_json.h"
+#include "../../api/model_json.h"
+#include "../../api/scene_io.h"
+#include "../unit.h"
 
 struct contour_scene {
     char *buf, *src;
