@@ -71,7 +71,7 @@ int model_trimesh(const char *src, size_t len, double tol, const struct sf_progr
     struct solid_measures sm;
     solid_measure(&sd, &sm);
     double dflt = solid_default_tolerance(&sm);
-    struct mesh m;
+    struct solid_mesh m;
     rc = tol > 0 ? solid_mesh(&sd, tol, &m) : solid_mesh_default(&sd, &sm, &m, &dflt);
     *tol_used = tol > 0 ? tol : dflt;
     solid_free(&sd);
@@ -79,7 +79,7 @@ int model_trimesh(const char *src, size_t len, double tol, const struct sf_progr
         return sf_fail(err, rc, "", "cancelled");
     if (rc == SF_ELIMIT)
         return sf_fail(err, rc, "?tolerance", "at %g mm the mesh would have over %u triangles; the default is %.3g mm",
-                       tol > 0 ? tol : dflt, MESH_MAX_TRIANGLES, dflt);
+                       tol > 0 ? tol : dflt, SOLID_MESH_MAX_TRIANGLES, dflt);
     if (rc)
         return sf_fail(err, SF_ENOMEM, "", "out of memory meshing the model");
     *tm = (struct trimesh){malloc(12 * (m.n_v ? m.n_v : 1)), NULL, malloc(12 * (m.n_t ? m.n_t : 1)), m.n_v, m.n_t};

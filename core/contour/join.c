@@ -52,7 +52,7 @@ struct list {
 };
 
 struct join {
-    struct mesh *m;
+    struct solid_mesh *m;
     unsigned *alias; /* vertex -> the vertex it coincides with (itself mostly) */
     size_t cap_alias;
     struct list undo; /* aliases set in this plane: undone if it fails */
@@ -77,7 +77,7 @@ static int push(struct list *l, unsigned v)
 
 static int new_vertex(struct join *j, double x, double y, double z, unsigned *out)
 {
-    struct mesh *m = j->m;
+    struct solid_mesh *m = j->m;
     if (m->n_v >= UINT32_MAX || mem_reserve((void **)&m->v, &m->cap_v, m->n_v + 1, sizeof *m->v) ||
         mem_reserve((void **)&j->alias, &j->cap_alias, m->n_v + 1, sizeof *j->alias))
         return SF_ENOMEM;
@@ -104,7 +104,7 @@ static bool in_loop(const struct join *j, const unsigned *v, size_t n, double x,
     return in;
 }
 
-static int depth(const struct join *j, struct mesh_cap *const *caps, int n, double x, double y)
+static int depth(const struct join *j, struct solid_cap *const *caps, int n, double x, double y)
 {
     int d = 0;
     for (int c = 0; c < n; c++)
@@ -127,7 +127,7 @@ static int by_t(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-static void box_of(const struct join *j, const struct mesh_cap *r, double b[4])
+static void box_of(const struct join *j, const struct solid_cap *r, double b[4])
 {
     b[0] = b[1] = INFINITY, b[2] = b[3] = -INFINITY;
     for (int k = 0; k < r->n; k++) {
@@ -143,9 +143,9 @@ static bool boxes_meet(const double a[4], const double b[4])
 
 /* Where edges e1 and e2 of two rings cross: splits, a new vertex, or an alias where two vertices
  * coincide. 1 when they overlap along a stretch (the plane is left as it is). */
-static int cross_edges(struct join *j, struct mesh_cap *const *caps, struct edge *e1, struct edge *e2)
+static int cross_edges(struct join *j, struct solid_cap *const *caps, struct edge *e1, struct edge *e2)
 {
-    const struct mesh_cap *r1 = caps[e1->c], *r2 = caps[e2->c];
+    const struct solid_cap *r1 = caps[e1->c], *r2 = caps[e2->c];
     unsigned A = r1->ring[e1->k], B = r1->ring[(e1->k + 1) % r1->n];
     unsigned C = r2->ring[e2->k], D = r2->ring[(e2->k + 1) % r2->n];
     const double *a = xy(j, A), *b = xy(j, B), *c = xy(j, C), *d = xy(j, D);
@@ -274,11 +274,11 @@ static int bridge(const struct join *j, struct list *r, const unsigned *h, size_
     return 0;
 }
 
-int mesh_tri(struct mesh *m, unsigned a, unsigned b, unsigned c)
+int solid_mesh_tri(struct solid_mesh *m, unsigned a, unsigned b, unsigned c)
 {
     if (a == b || b == c || a == c) /* a collapsed ring's triangles have no area */
         return 0;
-    if (m->n_t >= MESH_MAX_TRIANGLES)
+    if (m->n_t >= SOLID_MESH_MAX_TRIANGLES)
         return SF_ELIMIT;
     if (mem_reserve((void **)&m->t, &m->cap_t, m->n_t + 1, sizeof *m->t))
         return SF_ENOMEM;
@@ -287,7 +287,7 @@ int mesh_tri(struct mesh *m, unsigned a, unsigned b, unsigned c)
     return 0;
 }
 
-int mesh_clip(struct mesh *m, const unsigned *ring, size_t n, bool up)
+int solid_mesh_clip(struct solid_mesh *m, const unsigned *ring, size_t n, bool up)
 {
     size_t *prev = malloc(sizeof *prev * (n ? n : 1)), *next = malloc(sizeof *next * (n ? n : 1));
     int rc = 0;
@@ -309,7 +309,7 @@ int mesh_clip(struct mesh *m, const unsigned *ring, size_t n, bool up)
             ear = !(cross3(A, I, q) >= 0 && cross3(I, C, q) >= 0 && cross3(C, A, q) >= 0);
         }
         if (ear || since > left) { /* stuck (a curve that grazes itself): clip anyway */
-            rc = up ? mesh_tri(m, ring[a], ring[i], ring[c]) : mesh_tri(m, ring[a], ring[c], ring[i]);
+            rc = up ? solid_mesh_tri(m, ring[a], ring[i], ring[c]) : solid_mesh_tri(m, ring[a], ring[c], ring[i]);
             next[a] = c, prev[c] = a;
             left--, since = 0;
             i = c;
@@ -318,7 +318,7 @@ int mesh_clip(struct mesh *m, const unsigned *ring, size_t n, bool up)
         }
     }
     if (!rc && left == 3)
-        rc = up ? mesh_tri(m, ring[prev[i]], ring[i], ring[next[i]]) : mesh_tri(m, ring[prev[i]], ring[next[i]], ring[i]);
+        rc = up ? solid_mesh_tri(m, ring[prev[i]], ring[i], ring[next[i]]) : solid_mesh_tri(m, ring[prev[i]], ring[next[i]], ring[i]);
     free(prev), free(next);
     return rc;
 }
@@ -419,7 +419,7 @@ static int region(struct join *j, struct piece *p, size_t n, bool up)
         }
         free(mine);
         if (!rc && ring.n >= 3)
-            rc = mesh_clip(j->m, ring.v, ring.n, up);
+            rc = solid_mesh_clip(j->m, ring.v, ring.n, up);
         free(ring.v);
     }
     for (size_t k = 0; k < nl; k++)
@@ -447,7 +447,7 @@ static int wall_edge(const struct join *j, size_t t, unsigned p, unsigned q, boo
  * third vertex. */
 static int split_wall(struct join *j, size_t t, const unsigned *v, size_t n)
 {
-    struct mesh *m = j->m;
+    struct solid_mesh *m = j->m;
     bool forward;
     int at = wall_edge(j, t, v[0], v[n - 1], &forward);
     unsigned o = m->t[t][(at + 2) % 3];
@@ -456,7 +456,7 @@ static int split_wall(struct join *j, size_t t, const unsigned *v, size_t n)
         if (k == 0) {
             m->t[t][0] = a, m->t[t][1] = b, m->t[t][2] = o;
         } else {
-            int rc = mesh_tri(m, a, b, o);
+            int rc = solid_mesh_tri(m, a, b, o);
             if (rc)
                 return rc;
         }
@@ -465,9 +465,9 @@ static int split_wall(struct join *j, size_t t, const unsigned *v, size_t n)
 }
 
 /* Edge e's vertices from its start through its crossings to its end, into l. */
-static int edge_run(const struct join *j, struct mesh_cap *const *caps, const struct edge *e, struct list *l)
+static int edge_run(const struct join *j, struct solid_cap *const *caps, const struct edge *e, struct list *l)
 {
-    const struct mesh_cap *r = caps[e->c];
+    const struct solid_cap *r = caps[e->c];
     l->n = 0;
     int rc = push(l, root(j, r->ring[e->k]));
     for (size_t s = 0; !rc && s < e->n; s++)
@@ -481,9 +481,9 @@ static int edge_run(const struct join *j, struct mesh_cap *const *caps, const st
 
 /* One plane's caps (n of them, facing both ways). 0 joined (their triangles to be dropped: drop),
  * 1 left as they were, or an SF_* code. */
-static int join_plane(struct join *j, struct mesh_cap *const *caps, int n, bool *drop)
+static int join_plane(struct join *j, struct solid_cap *const *caps, int n, bool *drop)
 {
-    struct mesh *m = j->m;
+    struct solid_mesh *m = j->m;
     size_t n_t0 = m->n_t, n_e = 0;
     j->undo.n = 0;
     for (int c = 0; c < n; c++)
@@ -565,16 +565,16 @@ static int join_plane(struct join *j, struct mesh_cap *const *caps, int n, bool 
 
 static int by_z(const void *a, const void *b)
 {
-    double x = (*(struct mesh_cap *const *)a)->z, y = (*(struct mesh_cap *const *)b)->z;
+    double x = (*(struct solid_cap *const *)a)->z, y = (*(struct solid_cap *const *)b)->z;
     return (x > y) - (x < y);
 }
 
 bool join_same_plane(double a, double b) { return fabs(a - b) <= 1e-6 * (1 + fabs(b)); }
 
-int mesh_join_caps(struct mesh *m, struct mesh_cap *caps, int n_caps)
+int solid_mesh_join_caps(struct solid_mesh *m, struct solid_cap *caps, int n_caps)
 {
     struct join j = {.m = m};
-    struct mesh_cap **order = malloc(sizeof *order * (size_t)(n_caps ? n_caps : 1));
+    struct solid_cap **order = malloc(sizeof *order * (size_t)(n_caps ? n_caps : 1));
     bool *drop = calloc(m->n_t ? m->n_t : 1, sizeof *drop);
     int rc = !order || !drop || mem_reserve((void **)&j.alias, &j.cap_alias, m->n_v ? m->n_v : 1, sizeof *j.alias)
                  ? SF_ENOMEM

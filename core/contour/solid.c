@@ -643,7 +643,7 @@ void solid_measure(const struct solid *s, struct solid_measures *m)
 struct mesher {
     const struct solid *s;
     const struct tube *tb;
-    struct mesh *m;
+    struct solid_mesh *m;
     double tol;
     int nu;
 };
@@ -759,7 +759,7 @@ static int choose_nt(const struct solid *s, const struct band *bd, bool hole, co
     return nt;
 }
 
-static int add_vertex(struct mesh *m, vec3 p, unsigned *idx)
+static int add_vertex(struct solid_mesh *m, vec3 p, unsigned *idx)
 {
     if (m->n_v >= UINT32_MAX || mem_reserve((void **)&m->v, &m->cap_v, m->n_v + 1, sizeof *m->v))
         return SF_ENOMEM;
@@ -768,24 +768,24 @@ static int add_vertex(struct mesh *m, vec3 p, unsigned *idx)
     return 0;
 }
 
-static int add_tri(struct mesh *m, unsigned a, unsigned b, unsigned c, bool flip)
+static int add_tri(struct solid_mesh *m, unsigned a, unsigned b, unsigned c, bool flip)
 {
-    return flip ? mesh_tri(m, a, c, b) : mesh_tri(m, a, b, c);
+    return flip ? solid_mesh_tri(m, a, c, b) : solid_mesh_tri(m, a, b, c);
 }
 
 /* The caps a mesh's tubes end in (join.h), for solid_mesh to join where they share a plane. */
 struct caps {
-    struct mesh_cap *c;
+    struct solid_cap *c;
     int n;
     size_t cap;
 };
 
 /* Cap of ring (nu vertices), its triangles from t0 on, facing up or down; its walls unknown yet. */
-static struct mesh_cap *add_cap(struct caps *cs, const struct mesh *m, const unsigned *ring, int nu, bool up, size_t t0)
+static struct solid_cap *add_cap(struct caps *cs, const struct solid_mesh *m, const unsigned *ring, int nu, bool up, size_t t0)
 {
     if (mem_reserve((void **)&cs->c, &cs->cap, (size_t)cs->n + 1, sizeof *cs->c))
         return NULL;
-    struct mesh_cap *c = &cs->c[cs->n];
+    struct solid_cap *c = &cs->c[cs->n];
     c->ring = malloc(sizeof *c->ring * (size_t)nu);
     c->wall = malloc(sizeof *c->wall * (size_t)nu);
     if (!c->ring || !c->wall) {
@@ -807,7 +807,7 @@ static void caps_free(struct caps *cs)
     free(cs->c);
 }
 
-static int mesh_tube(const struct solid *s, const struct tube *tb, double tol, struct mesh *m, struct caps *cs)
+static int mesh_tube(const struct solid *s, const struct tube *tb, double tol, struct solid_mesh *m, struct caps *cs)
 {
     int nu, rc = 0;
     double *us = choose_u(s, tb, tol, &nu);
@@ -823,7 +823,7 @@ static int mesh_tube(const struct solid *s, const struct tube *tb, double tol, s
         if (bd->kind == BAND_CAP) { /* the bottom cap comes before its ring exists: it is clipped below */
             if (last) {
                 size_t t0 = m->n_t;
-                struct mesh_cap *c = (rc = mesh_clip(m, ring, (size_t)nu, !tb->hole)) ? NULL : add_cap(cs, m, ring, nu, !tb->hole, t0);
+                struct solid_cap *c = (rc = solid_mesh_clip(m, ring, (size_t)nu, !tb->hole)) ? NULL : add_cap(cs, m, ring, nu, !tb->hole, t0);
                 if (!rc && !c)
                     rc = SF_ENOMEM;
                 else if (c)
@@ -854,7 +854,7 @@ static int mesh_tube(const struct solid *s, const struct tube *tb, double tol, s
                 bottom = -1;
             if (!have_ring && b > tb->first && s->bands[tb->first].kind == BAND_CAP && !rc) {
                 size_t t0 = m->n_t;
-                if (!(rc = mesh_clip(m, next, (size_t)nu, tb->hole))) {
+                if (!(rc = solid_mesh_clip(m, next, (size_t)nu, tb->hole))) {
                     if (!add_cap(cs, m, next, nu, tb->hole, t0))
                         rc = SF_ENOMEM;
                     bottom = cs->n - 1;
@@ -889,14 +889,14 @@ double solid_default_tolerance(const struct solid_measures *m)
 #define SOLID_MESH_TARGET 5e-4
 #define SOLID_MESH_TRIES 6
 
-int solid_mesh_default(const struct solid *s, const struct solid_measures *sm, struct mesh *m, double *tol)
+int solid_mesh_default(const struct solid *s, const struct solid_measures *sm, struct solid_mesh *m, double *tol)
 {
     double floor = solid_default_tolerance(sm);
     double t = sm->area > 0.0 ? fmax(floor, SOLID_MESH_START * fabs(sm->volume) / sm->area) : floor;
-    struct mesh best = {0};
+    struct solid_mesh best = {0};
     bool have = false;
     for (int k = 0; k < SOLID_MESH_TRIES; k++) {
-        struct mesh cur;
+        struct solid_mesh cur;
         int rc = solid_mesh(s, t, &cur);
         if (rc == SF_ELIMIT && have) /* coarser than the best never needs more triangles: finer only */
             break;
@@ -927,7 +927,7 @@ int solid_mesh_default(const struct solid *s, const struct solid_measures *sm, s
     return 0;
 }
 
-int solid_mesh(const struct solid *s, double tol, struct mesh *m)
+int solid_mesh(const struct solid *s, double tol, struct solid_mesh *m)
 {
     memset(m, 0, sizeof *m);
     int rc = 0;
@@ -935,7 +935,7 @@ int solid_mesh(const struct solid *s, double tol, struct mesh *m)
     for (int k = 0; k < s->n_tubes && !rc; k++)
         rc = mesh_tube(s, &s->tubes[k], tol, m, &cs);
     if (!rc) /* one surface where tubes end and begin in one plane */
-        rc = mesh_join_caps(m, cs.c, cs.n);
+        rc = solid_mesh_join_caps(m, cs.c, cs.n);
     caps_free(&cs);
     if (rc)
         solid_mesh_free(m);
@@ -969,7 +969,7 @@ static bool fan_folds(const struct solid *s, const struct band *bd)
  * dropped. A cap whose fan folds (a not star-shaped end, as the dicompyler Breast's: its fan's
  * patches overlap, and their edges are taken for each other's neighbours) is kept as a region of
  * its own plane, its ring ear-clipped, even where no other cap shares the plane. */
-static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *skip)
+static int joined_caps(const struct solid *s, double tol, struct solid_mesh *m, bool *skip)
 {
     memset(m, 0, sizeof *m);
     for (int b = 0; b < s->n_bands; b++)
@@ -1016,7 +1016,7 @@ static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *
                     rc = add_vertex(m, v3_add(p, v3(0, 0, end ? -tol : tol)), &off[q]);
             }
             size_t t0 = m->n_t;
-            struct mesh_cap *c = rc || (rc = mesh_clip(m, ring, (size_t)nu, up)) ? NULL : add_cap(&cs, m, ring, nu, up, t0);
+            struct solid_cap *c = rc || (rc = solid_mesh_clip(m, ring, (size_t)nu, up)) ? NULL : add_cap(&cs, m, ring, nu, up, t0);
             if (!rc && (!c || mem_reserve((void **)&band_of, &cap_band, (size_t)cs.n, sizeof *band_of) ||
                         mem_reserve((void **)&lone, &cap_lone, (size_t)cs.n, sizeof *lone)))
                 rc = SF_ENOMEM;
@@ -1033,7 +1033,7 @@ static int joined_caps(const struct solid *s, double tol, struct mesh *m, bool *
     }
     free(zs);
     if (!rc)
-        rc = mesh_join_caps(m, cs.c, cs.n);
+        rc = solid_mesh_join_caps(m, cs.c, cs.n);
     for (int c = 0; !rc && c < cs.n; c++) /* (a folding fan's plane: its clipped ring stands) */
         cs.c[c].joined |= lone[c];
     size_t o = 0;
@@ -1066,7 +1066,7 @@ static int by_edge(const void *x, const void *y)
 /* Region r's loops: the directed edges of its triangles (ids into m) that no triangle of it has the
  * other way (sorted, each looked up), followed from each unused one until they close (where several
  * leave one vertex, any: the even-odd region is the same). */
-static int region_loops(const struct mesh *m, const size_t *tris, size_t nt, struct cap_region *r)
+static int region_loops(const struct solid_mesh *m, const size_t *tris, size_t nt, struct cap_region *r)
 {
     size_t ne = 3 * nt, n_out = 0, cap = 0, n_pt = 0;
     unsigned(*e)[2] = malloc(sizeof *e * (ne ? ne : 1)), (*out)[2] = malloc(sizeof *out * (ne ? ne : 1));
@@ -1124,7 +1124,7 @@ static int region_loops(const struct mesh *m, const size_t *tris, size_t nt, str
 int solid_join_caps(const struct solid *s, double tol, struct cap_regions *out, bool *skip)
 {
     memset(out, 0, sizeof *out);
-    struct mesh m;
+    struct solid_mesh m;
     int rc = joined_caps(s, tol, &m, skip);
     size_t *tris = rc ? NULL : malloc(sizeof *tris * (m.n_t ? m.n_t : 1));
     bool *done = rc ? NULL : calloc(m.n_t ? m.n_t : 1, sizeof *done);
@@ -1169,14 +1169,14 @@ void solid_cap_regions_free(struct cap_regions *r)
     memset(r, 0, sizeof *r);
 }
 
-void solid_mesh_free(struct mesh *m)
+void solid_mesh_free(struct solid_mesh *m)
 {
     free(m->v);
     free(m->t);
     memset(m, 0, sizeof *m);
 }
 
-double solid_mesh_volume(const struct mesh *m)
+double solid_mesh_volume(const struct solid_mesh *m)
 {
     double v = 0.0;
     for (size_t k = 0; k < m->n_t; k++) {

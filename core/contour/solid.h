@@ -68,23 +68,23 @@ void solid_measure(const struct solid *s, struct solid_measures *m);
 
 /* A triangle mesh of the solid, within tol (length units) of the surface: closed (every edge in
  * exactly two triangles, opposite ways) per tube, triangles counter-clockwise seen from outside.
- * Returns 0, SF_ENOMEM, SF_ELIMIT past MESH_MAX_TRIANGLES (a tolerance too fine for the model), or
+ * Returns 0, SF_ENOMEM, SF_ELIMIT past SOLID_MESH_MAX_TRIANGLES (a tolerance too fine for the model), or
  * SF_ECANCEL when the solid's progress asks it to stop. */
-#define MESH_MAX_TRIANGLES (4u << 20) /* 200 MB of binary STL */
-struct mesh {
+#define SOLID_MESH_MAX_TRIANGLES (4u << 20) /* 200 MB of binary STL */
+struct solid_mesh {
     double (*v)[3];
     size_t n_v, cap_v;
     unsigned (*t)[3];
     size_t n_t, cap_t;
 };
-int solid_mesh(const struct solid *s, double tol, struct mesh *m);
-/* 1e-4 of the bounds' diagonal: meshes within 0.1 % of the model's volume (tests/core/test_model.c),
+int solid_mesh(const struct solid *s, double tol, struct solid_mesh *m);
+/* 1e-4 of the bounds' diagonal: meshes within 0.1 % of the model's volume (tests/api/test_contour_model.c),
  * finer than most uses need (a lung's 93 MB of STL). */
 double solid_default_tolerance(const struct solid_measures *m);
 /* The mesh at the default tolerance, tied to the model: the coarsest tried (from 1e-2 of volume /
  * area down, never below solid_default_tolerance) whose volume is within 0.05 % of the model's;
  * *tol receives it. Returns as solid_mesh. */
-int solid_mesh_default(const struct solid *s, const struct solid_measures *sm, struct mesh *m, double *tol);
+int solid_mesh_default(const struct solid *s, const struct solid_measures *sm, struct solid_mesh *m, double *tol);
 /* The flat surface of the planes where tubes end and begin (issue 18: a model's patches close as one
  * solid where its contours branch), and of the ends whose fans fold (not star-shaped about their
  * centroids): the caps' rims sampled within tol and joined as solid_mesh joins them (join.h), as
@@ -106,8 +106,8 @@ struct cap_regions {
 };
 int solid_join_caps(const struct solid *s, double tol, struct cap_regions *out, bool *skip);
 void solid_cap_regions_free(struct cap_regions *r);
-void solid_mesh_free(struct mesh *m);
+void solid_mesh_free(struct solid_mesh *m);
 /* Signed volume enclosed (sum of signed tetrahedra from the origin). */
-double solid_mesh_volume(const struct mesh *m);
+double solid_mesh_volume(const struct solid_mesh *m);
 
 #endif

@@ -413,7 +413,7 @@ static int cmp_edge(const void *a, const void *b)
 }
 
 /* Every directed edge once, and its reverse once: closed and consistently oriented. */
-static bool watertight(const struct mesh *m)
+static bool watertight(const struct solid_mesh *m)
 {
     size_t n = 3 * m->n_t;
     unsigned(*e)[2] = malloc(sizeof *e * n);
@@ -446,7 +446,7 @@ TEST(meshes_are_closed_and_hold_the_volume)
         struct contour_request req;
         struct solid sd;
         struct solid_measures sm;
-        struct mesh m;
+        struct solid_mesh m;
         REQUIRE(buf && contour_parse_json(buf, len, &cs, &req, NULL) == 0);
         CHECK(solid_build(&cs, PARABOLIC, cases[k].caps, &sd, NULL) == 0);
         solid_measure(&sd, &sm);
@@ -456,7 +456,7 @@ TEST(meshes_are_closed_and_hold_the_volume)
         CHECK(watertight(&m));
         CHECK(fabs(rel) < 1e-3);
         /* the default tied to the model: as closed, within 0.05 %, and no finer than the fixed one */
-        struct mesh d;
+        struct solid_mesh d;
         double tol = 0.0;
         CHECK(solid_mesh_default(&sd, &sm, &d, &tol) == 0);
         double rd = solid_mesh_volume(&d) / sm.volume - 1.0;
@@ -478,7 +478,7 @@ static size_t find(size_t *up, size_t x)
     return x;
 }
 
-static void shells(const struct mesh *m, int *outer, int *cavities)
+static void shells(const struct solid_mesh *m, int *outer, int *cavities)
 {
     size_t *up = malloc(sizeof *up * m->n_v);
     double *vol = calloc(m->n_v, sizeof *vol);
@@ -591,7 +591,7 @@ static bool cap_plane(const struct contour_set *cs, double z)
 /* Pairs of triangles that cut each other, by a sweep along x: those where one lies in a plane where
  * tubes end and begin (a cap's), returned, and the others (a side folding on itself, a cavity
  * cutting the outer surface) into *others. */
-static int cutting_pairs(const struct mesh *m, const struct contour_set *cs, int *others)
+static int cutting_pairs(const struct solid_mesh *m, const struct contour_set *cs, int *others)
 {
     size_t n = m->n_t;
     struct near_tri *nt = malloc(sizeof *nt * n);
@@ -632,7 +632,7 @@ static void one_surface(const char *what, const struct contour_set *cs, enum mod
 {
     struct solid sd;
     struct solid_measures sm;
-    struct mesh m;
+    struct solid_mesh m;
     double tol;
     CHECK(solid_build(cs, PARABOLIC, caps, &sd, NULL) == 0);
     solid_measure(&sd, &sm);
@@ -730,7 +730,7 @@ TEST(the_four_methods)
         for (int m = 0; m < 4; m++) {
             struct solid sd;
             struct solid_measures sm;
-            struct mesh mesh;
+            struct solid_mesh mesh;
             CHECK(solid_build(&cs, (struct model_opts){.method = methods[m], .unfold = true}, CAPS_FLAT, &sd, NULL) == 0);
             solid_measure(&sd, &sm);
             double rel = (sm.volume - cases[k].exact) / cases[k].exact;
@@ -824,7 +824,7 @@ TEST(a_hole_stops_inside_the_body)
         struct contour_request req;
         struct solid sd;
         struct solid_measures sm;
-        struct mesh m;
+        struct solid_mesh m;
         REQUIRE(contour_parse_json(text, strlen(text), &cs, &req, NULL) == 0);
         REQUIRE(solid_build(&cs, PARABOLIC, CAPS_FLAT, &sd, NULL) == 0);
         solid_measure(&sd, &sm);

@@ -19,7 +19,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         if (size <= MODEL_MAX_INPUT && solid_build(&cs, (struct model_opts){.method = MODEL_PARABOLIC, .unfold = true, .closed = true}, CAPS_FLAT, &sd,
                                                    &err) == 0) {
             struct solid_measures sm;
-            struct mesh m;
+            struct solid_mesh m;
             solid_measure(&sd, &sm);
             if (solid_mesh(&sd, 10 * solid_default_tolerance(&sm), &m) == 0)
                 solid_mesh_free(&m);
