@@ -1,10 +1,11 @@
-/* server.c - HTTP on libmicrohttpd: its own thread pool polls with epoll; handlers never block.
- * A request's body is read into a buffer capped at --max-body (413 is decided from
- * Content-Length before any of it is read; a volume's is streamed to a file), then validated and
- * stored as a job on the checks pool (its connection suspended: the HTTP threads never parse a
- * body or wait on the store for one), and answered. A
- * synchronous request suspends its connection; the job's end (or --sync-wait / Prefer: wait=N
- * running out) resumes it, and the handler then answers with the result or 202 + Location.
+/* server.c - HTTP on libmicrohttpd: its own thread pool polls with epoll. Handlers never wait on
+ * a job or parse a body: a request's body is read into a buffer capped at --max-body (413 is
+ * decided from Content-Length before any of it is read; a volume's is streamed to a file), then
+ * validated and stored as a job on the checks pool (its connection suspended meanwhile), and
+ * answered. A synchronous request suspends its connection; the job's end (or --sync-wait /
+ * Prefer: wait=N running out) resumes it, and the handler then answers with the result or 202 +
+ * Location. What a handler does itself is a read of the store (one short transaction: a job's or
+ * a model's record, a list, a cached mesh) and the answer.
  * Access log: one line per request, without tokens, query strings or bodies. */
 #define _GNU_SOURCE /* strcasestr */
 #include "server.h"
