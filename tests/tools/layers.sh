@@ -4,7 +4,8 @@
 #     base <- geom <- trace | contour | iso <- matrix   (trace, contour and iso do not see each other;
 #     matrix sees iso and trace: a model's voxels by rays)
 #   core/ includes nothing of api/, daemon/ or client/, and no library of HTTP, JSON, threads,
-#   storage or logging; api/ includes core/ and api/, never daemon/ or client/.
+#   storage or logging; api/ includes core/ and api/, never daemon/ or client/; the tests of a
+#   core/ layer (tests/core/LAYER) include that layer and those below it.
 # Prints each broken rule as FILE: #include ... and exits 1 if there is one.
 # `layers.sh --below LAYER` prints the folders LAYER may include (the Makefile links a layer's unit
 # tests with them alone).
@@ -48,6 +49,19 @@ for f in $(find core -name '*.[ch]' -o -name '*.cpp'); do
         esac
     done
 done >"${TMPDIR:-/tmp}/layers.$$"
+for f in $(find tests/core -name '*.[ch]'); do # a layer's tests include that layer and those below it
+    dir=$(basename "$(dirname "$f")")
+    ok=$(allowed "$dir")
+    grep -n '#include "' "$f" | while IFS= read -r line; do
+        inc=$(printf '%s' "$line" | sed -n 's/.*#include *"\([^"]*\)".*/\1/p')
+        target=$(realpath -m --relative-to=. "$(dirname "$f")/$inc")
+        case $target in
+        core/*/*) layer=$(echo "$target" | cut -d/ -f2)
+                  case " $ok " in *" $layer "*) ;; *) echo "$f: $line (a test of core/$dir may include: $ok)" ;; esac ;;
+        api/* | daemon/* | client/*) echo "$f: $line (tests of core/ include only core; tests/api/ reads with api/)" ;;
+        esac
+    done
+done >>"${TMPDIR:-/tmp}/layers.$$"
 for f in api/*.c api/*.h api/*.cpp; do
     grep -Hn '#include "\.\./\(daemon\|client\)/' "$f"
 done >>"${TMPDIR:-/tmp}/layers.$$"
