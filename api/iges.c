@@ -1,8 +1,10 @@
 /* iges.c - IGES 5.3 files (fixed 80-column ASCII) to a scene of trimmed NURBS surfaces.
  *
  * Read: the Global section's delimiters, unit flag (coordinates become millimetres) and
- * Hollerith strings; the Directory's pairs of lines (status: only independent, unblanked
- * entities are drawn; transform pointer; colour number or 314 pointer); parameter data with D
+ * Hollerith strings; the Directory's pairs of lines (status: unblanked entities are drawn unless
+ * physically dependent, subordinate switch 01 or 03, which are drawn through their parents only;
+ * logically dependent ones, 02, the members of a 402 group as CAD systems write them, are drawn as
+ * independent ones are; transform pointer; colour number or 314 pointer); parameter data with D
  * exponents. Entities: 128 rational B-spline surface; 126 B-spline curve, 110 line, 100 circular
  * arc, 102 composite curve and 106 copious data (forms 1, 2, 11, 12) as trim curves; 142 curve on
  * a surface (its parameter-space curve preferred, else the model-space curve projected onto the
@@ -66,7 +68,8 @@
 
 struct de { /* one directory entry */
     int type, param, n_lines, transform, color, form;
-    int blank, sub;   /* status: blanked; subordinate switch (0 independent) */
+    int blank, sub;   /* status: blanked; subordinate switch (0 independent, 1 physically dependent,
+                       * 2 logically dependent, 3 both) */
     int line;         /* its first D line: the entity's name in errors */
     char label[9];    /* the entity label (directory field 18), blanks trimmed */
     bool bounded;     /* a surface a 143/144 bounds */
@@ -1331,6 +1334,9 @@ static struct de *bounded_surface(struct iges *g, const struct de *e)
     return s;
 }
 
+/* Drawn only through a parent (subordinate switch 01 or 03): a 144's own 128, a loop's curves. */
+static bool physically_dependent(const struct de *e) { return e->sub & 1; }
+
 /* Counts, before any loop is made, the points the loops of every surface scene_parse_iges draws
  * will take (g->n_est) and refuses the part (SF_ELIMIT) at the surface where the count passes
  * IGES_MAX_TRIM_POINTS. Each bounded surface is read once here for its tolerances. */
@@ -1339,7 +1345,7 @@ static int trim_budget(struct iges *g)
     int rc = 0;
     for (int k = 0; k < g->n_de && !rc; k++) {
         const struct de *e = &g->de[k];
-        if (e->blank || e->sub != 0)
+        if (e->blank || physically_dependent(e))
             continue;
         if (e->type == 128 && !e->bounded) { /* at most the rectangle of its U/V ranges */
             rc = budget_add(g, 4, e);
@@ -1537,7 +1543,7 @@ int iges_parse(const char *buf, size_t len, const struct sf_progress *pr, struct
         rc = trim_budget(&g);
     for (int k = 0; k < g.n_de && !rc; k++) {
         struct de *e = &g.de[k];
-        if (e->blank || e->sub != 0)
+        if (e->blank || physically_dependent(e))
             continue;
         if (e->type == 128 && !e->bounded)
             rc = add_object(&g, sc, e, NULL);
@@ -1549,7 +1555,7 @@ int iges_parse(const char *buf, size_t len, const struct sf_progress *pr, struct
             rc = poll_cancel(&g, 0);
     }
     if (!rc && sc->n_objects == 0)
-        rc = sf_fail(err, SF_EINVAL, "", "the file has no independent surface to draw (128, 143 or 144)");
+        rc = sf_fail(err, SF_EINVAL, "", "the file has no surface to draw (a 128, 143 or 144 that is not blanked or physically dependent)");
     free(lines);
     free(g.de);
     free(g.p_line);

@@ -3,7 +3,8 @@
 # triangulation of the same file (tests/tools/occt_iges: masks and depths along the same pixel
 # rays: nothing drawn that the trims cut away, no holes inside), trimmed areas and the mug's volume
 # against OCCT's and the analytic figures of hand-made parts (tests/tools/iges_write.py: every
-# entity the reader takes), and every kind of broken file as it occurs in the wild refused with the
+# entity the reader takes, and a part's 144 a 402 group's logically dependent member, as CAD systems
+# write them), and every kind of broken file as it occurs in the wild refused with the
 # entity's directory line, the daemon up after all of them.
 . "$(dirname "$0")/lib.inc"
 OCCT=build/tests/tools/occt_iges
@@ -109,6 +110,8 @@ ents = w.plate_hole()
 $1
 w.write(sys.argv[1], ents)" "$T/bad.igs"
 }
+mutate "ents[3]['status'] = 10000"
+bad_file "the trimmed surface physically dependent (01: drawn through a parent, and it has none): nothing to draw" 422 ""
 mutate "ents[0]['params'][12] = 0.5"
 bad_file "a bad final knot (0, 0, 1, 0.5)" 422 "D1"
 mutate "ents[0]['params'] = ents[0]['params'][:-4]"

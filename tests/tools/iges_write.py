@@ -121,15 +121,26 @@ def plate_model():
             {"type": 143, "params": [1, ("D", 0), 1, ("D", 2)]}]
 
 
+def plate_group():
+    """plate_hole as CAD systems write a part (Open CASCADE's samples): its 144 logically dependent
+    (subordinate switch 02), a member of a 402 group (form 7: unordered, no back pointers); drawn as
+    an independent one is."""
+    ents = plate_hole()
+    ents[3]["status"] = 20000
+    ents.append({"type": 402, "form": 7, "params": [1, ("D", 3)]})
+    return ents
+
+
 def parts(out):
     """Writes the hand-made parts into out; returns {name: area in mm^2}."""
     write(out + "/plate_hole.igs", plate_hole())
     write(out + "/plate_inch.igs", plate_hole(), unit=1, unit_name="IN")
     write(out + "/plate_square.igs", plate_square())
     write(out + "/plate_model.igs", plate_model())
+    write(out + "/plate_group.igs", plate_group())
     hole = 10000 - math.pi * 25 ** 2
     return {"plate_hole": hole, "plate_inch": hole * 25.4 ** 2, "plate_square": 80 ** 2 - math.pi * 20 ** 2,
-            "plate_model": math.pi * 30 ** 2}
+            "plate_model": math.pi * 30 ** 2, "plate_group": hole}
 
 
 if __name__ == "__main__":
