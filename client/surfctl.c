@@ -1,6 +1,7 @@
 /* surfctl.c - the command-line client of surfd: speaks only HTTP (libcurl), reads SURFD_URL
- * (default http://127.0.0.1:8080) and SURFD_TOKEN from the environment. A command for each
- * route but a model's patches and RT Structure Set (COMMANDS below, each with its --help); long jobs are followed with a progress bar on a
+ * (default http://127.0.0.1:8080) and SURFD_TOKEN from the environment (a daemon signed by a site's
+ * own certificate authority: --cacert FILE or SURFD_CACERT). A command for every route (USAGE
+ * below, each with its --help); long jobs are followed with a progress bar on a
  * terminal, a plain line every 10 % with an ETA otherwise (--progress=bar|plain|none), polling
  * from 100 ms backing off to 2 s; a failed or cancelled job prints its problem.
  *
@@ -61,6 +62,8 @@ static size_t on_header(char *p, size_t size, size_t n, void *arg)
     return len;
 }
 
+static const char *cacert; /* --cacert FILE (else SURFD_CACERT): the CA bundle TLS is checked against */
+
 static const char *base_url(void)
 {
     const char *u = getenv("SURFD_URL");
@@ -104,6 +107,8 @@ static int request(const char *method, const char *path, const char *body, size_
     curl_easy_setopt(c, CURLOPT_HEADERFUNCTION, on_header);
     curl_easy_setopt(c, CURLOPT_HEADERDATA, r);
     curl_easy_setopt(c, CURLOPT_CONNECTTIMEOUT, 10L);
+    if (cacert)
+        curl_easy_setopt(c, CURLOPT_CAINFO, cacert);
     CURLcode rc = curl_easy_perform(c);
     char *ct = NULL;
     curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &r->status);
@@ -331,6 +336,10 @@ static const char *const USAGE[][2] = {
              "    GET /models/ID/mesh: the format from --format, else OUT's extension\n"},
     {"view", "surfctl view ID -o OUT.png [--width W --height H --azimuth DEG --elevation DEG --output FMT ...]\n"
              "    GET /models/ID/render, with render's camera options\n"},
+    {"patches", "surfctl patches ID [-o OUT.json]\n    GET /models/ID/patches: the model's surfaces as scene JSON (stdout without -o)\n"},
+    {"rtstruct", "surfctl rtstruct ID -o OUT.dcm [--spacing MM]\n"
+                 "    GET /models/ID/rtstruct: the model as a DICOM RT Structure Set, its contours --spacing apart\n"
+                 "    (default: a contour model's own slices, an isosurface's grid)\n"},
     {"delete", "surfctl delete ID\n    DELETE /models/ID\n"},
     {"jobs", "surfctl jobs [--state queued|running|succeeded|failed|cancelled]\n    GET /jobs\n"},
     {"job", "surfctl job ID\n    GET /jobs/ID\n"},
@@ -347,7 +356,8 @@ static void usage_to(FILE *f, const char *cmd)
             fprintf(f, "%s", USAGE[k][1]);
     if (!cmd)
         fprintf(f, "options of every command: --progress=bar|plain|none (default: bar on a terminal, else plain)\n"
-                   "environment: SURFD_URL (default http://127.0.0.1:8080), SURFD_TOKEN\n"
+                   "              --cacert FILE: the certificate authority a TLS daemon is checked against\n"
+                   "environment: SURFD_URL (default http://127.0.0.1:8080), SURFD_TOKEN, SURFD_CACERT (as --cacert)\n"
                    "exit: 0 done, 1 the job failed or was cancelled, 2 usage, 3 surfd unreachable, 4 refused (4xx), 5 server error\n");
 }
 
@@ -611,6 +621,18 @@ static int cmd_view(int argc, char **argv)
     return get_file(path, out);
 }
 
+/* surfctl patches ID [-o OUT] and surfctl rtstruct ID -o OUT [--spacing MM]: a stored model's
+ * output, following its job. */
+static int cmd_model_output(const char *what, const char *const *options, bool need_out, int argc, char **argv)
+{
+    const char *id = NULL, *out = NULL;
+    char query[256] = "", path[512];
+    if (!read_args(argc, argv, options, &id, &out, NULL, query, sizeof query) || !id || (need_out && !out))
+        return usage();
+    snprintf(path, sizeof path, "/models/%.64s/%s%s", id, what, query);
+    return get_file(path, out ? out : "-");
+}
+
 /* A request without a body whose answer's body goes to stdout. */
 static int simple(const char *method, const char *path)
 {
@@ -626,9 +648,14 @@ static int simple(const char *method, const char *path)
 
 int main(int argc, char **argv)
 {
-    /* --progress=MODE anywhere, taken out before the command reads its arguments */
+    /* --progress=MODE and --cacert FILE anywhere, taken out before the command reads its arguments */
     int n = 0;
+    cacert = getenv("SURFD_CACERT") && *getenv("SURFD_CACERT") ? getenv("SURFD_CACERT") : NULL;
     for (int k = 0; k < argc; k++) {
+        if (!strcmp(argv[k], "--cacert") && k + 1 < argc) {
+            cacert = argv[++k];
+            continue;
+        }
         if (!strncmp(argv[k], "--progress=", 11)) {
             const char *m = argv[k] + 11;
             progress_mode = !strcmp(m, "bar") ? PROGRESS_BAR : !strcmp(m, "plain") ? PROGRESS_PLAIN
@@ -675,6 +702,12 @@ int main(int argc, char **argv)
         rc = cmd_mesh(argc - 2, argv + 2);
     } else if (!strcmp(cmd, "view")) {
         rc = cmd_view(argc - 2, argv + 2);
+    } else if (!strcmp(cmd, "patches")) {
+        static const char *const NONE[] = {NULL};
+        rc = cmd_model_output("patches", NONE, false, argc - 2, argv + 2);
+    } else if (!strcmp(cmd, "rtstruct")) {
+        static const char *const SPACING[] = {"spacing", NULL};
+        rc = cmd_model_output("rtstruct", SPACING, true, argc - 2, argv + 2);
     } else if (!strcmp(cmd, "models") && (argc == 2 || one)) {
         snprintf(path, sizeof path, "/models%s%.64s", one ? "/" : "", one ? argv[2] : "");
         rc = simple("GET", path);

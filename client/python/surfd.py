@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+import ssl
 import time
 import urllib.error
 import urllib.parse
@@ -69,14 +70,18 @@ class SurfdError(Exception):
 class Client:
     """A surfd server. url defaults to $SURFD_URL, else http://127.0.0.1:8080; token (sent as a
     bearer token) to $SURFD_TOKEN. timeout: seconds a single HTTP request may take. progress: a
-    function called with each polled job resource while a job runs (None: quiet)."""
+    function called with each polled job resource while a job runs (None: quiet). cafile: the
+    certificate authority (PEM) a TLS daemon signed by a site's own CA is checked against, else
+    $SURFD_CACERT, else the system's."""
 
     def __init__(self, url: Optional[str] = None, token: Optional[str] = None, timeout: float = 600.0,
-                 progress: Optional[Callable[[Dict[str, Any]], None]] = None):
+                 progress: Optional[Callable[[Dict[str, Any]], None]] = None, cafile: Optional[str] = None):
         self.url = (url or os.environ.get("SURFD_URL") or "http://127.0.0.1:8080").rstrip("/")
         self.token = token if token is not None else os.environ.get("SURFD_TOKEN") or None
         self.timeout = timeout
         self.progress = progress
+        cafile = cafile or os.environ.get("SURFD_CACERT") or None
+        self._tls = ssl.create_default_context(cafile=cafile) if cafile else None
 
     # ---- the HTTP layer -------------------------------------------------------------------
 
@@ -91,7 +96,7 @@ class Client:
         h.update(headers or {})
         req = urllib.request.Request(self.url + path, data=body, method=method, headers=h)
         try:
-            with urllib.request.urlopen(req, timeout=self.timeout) as r:
+            with urllib.request.urlopen(req, timeout=self.timeout, context=self._tls) as r:
                 return Response(r.status, dict(r.headers.items()), r.read())
         except urllib.error.HTTPError as e:
             data = e.read()
@@ -216,6 +221,11 @@ class Client:
     def patches(self, model_id: str) -> Dict[str, Any]:
         """GET /models/{id}/patches: the model's Bezier patches as a scene /render takes."""
         return self._job("GET", "/models/%s/patches" % model_id)
+
+    def rtstruct(self, model_id: str, spacing: Optional[float] = None) -> bytes:
+        """GET /models/{id}/rtstruct: the model as a DICOM RT Structure Set (bytes of a .dcm), its
+        contours spacing mm apart (None: a contour model's own slices, an isosurface's grid)."""
+        return self._job("GET", "/models/%s/rtstruct" % model_id, {"spacing": spacing})
 
     def view(self, model_id: str, **options: Any) -> bytes:
         """GET /models/{id}/render with render's options: the image."""

@@ -1,6 +1,7 @@
 #!/bin/sh
 # The README's curl examples (client/examples) and surfctl against a real daemon with tokens:
-# outputs, exit codes, SURFD_URL and SURFD_TOKEN.
+# outputs, exit codes, SURFD_URL, SURFD_TOKEN and a TLS daemon signed by a site's own CA (--cacert,
+# SURFD_CACERT, the Python client's cafile=).
 . "$(dirname "$0")/lib.inc"
 C=./build/surfctl
 printf 'tok-for-tests\n' >"$T/tokens"; chmod 600 "$T/tokens"
@@ -23,6 +24,14 @@ check "example model_mesh of an RTSTRUCT ROI" '[ $? -eq 0 ] && grep -q "\"name\"
 client/examples/model_mesh.sh "${SURFD_DATA:-../shared/data}/contours/dicompyler-core_example_rtss.dcm" "$T/all.stl" --caps slab >"$T/out" 2>"$T/files"
 check "example model_mesh of a whole RTSTRUCT: every ROI, a closed mesh each, named by its ROI" '[ $? -eq 0 ] && [ "$(wc -l <"$T/files")" -gt 1 ] && [ -f "$T/all_Heart.stl" ] && while read -r f; do python3 tests/tools/stl_check.py "$f" - >/dev/null || exit 1; done <"$T/files"'
 
+$C model "${SURFD_DATA:-../shared/data}/contours/synthetic_ellipsoid.json" >"$T/mres" 2>/dev/null
+mid=$(python3 -c "import json, sys; print(json.load(open(sys.argv[1]))['id'])" "$T/mres" 2>/dev/null)
+$C rtstruct "$mid" -o "$T/e.dcm" --spacing 5 2>/dev/null; rc=$?
+check "surfctl rtstruct ID -o OUT --spacing: a DICOM RT Structure Set" '[ $rc -eq 0 ] && [ "$(dd if="$T/e.dcm" bs=1 skip=128 count=4 2>/dev/null)" = DICM ] && grep -aq RTSTRUCT "$T/e.dcm"'
+$C rtstruct "$mid" 2>/dev/null; rc=$?
+check "surfctl rtstruct without -o exits 2" '[ $rc -eq 2 ]'
+$C patches "$mid" >"$T/p.json" 2>/dev/null; rc=$?
+check "surfctl patches ID: the model's scene on stdout" '[ $rc -eq 0 ] && python3 -c "import json, sys; sys.exit(not json.load(open(sys.argv[1]))[\"objects\"])" "$T/p.json"'
 $C render "$D/teacup.json" -o "$T/d.png" --width 120 --height 90
 check "surfctl render" '[ $? -eq 0 ] && [ -s "$T/d.png" ]'
 id=$($C render "$D/duck1.nurbs" --async --width 200 --height 150)
@@ -72,4 +81,27 @@ check "surfctl daemon down exits 3" '[ $rc -eq 3 ]'
 # the shipped config file is valid as it is
 start_daemon "$T/d2" --config deploy/surfd.conf --listen 127.0.0.1:0 || exit 1
 check "deploy/surfd.conf loads" 'alive'
+stop_daemon
+
+# a daemon whose certificate a site's own certificate authority signed
+openssl req -x509 -newkey rsa:2048 -nodes -keyout "$T/ca.key" -out "$T/ca.pem" -days 1 -subj /CN=surfd-test-CA >/dev/null 2>&1
+openssl req -newkey rsa:2048 -nodes -keyout "$T/key.pem" -out "$T/req.pem" -subj /CN=127.0.0.1 >/dev/null 2>&1
+printf 'subjectAltName=IP:127.0.0.1\n' >"$T/san"
+openssl x509 -req -in "$T/req.pem" -CA "$T/ca.pem" -CAkey "$T/ca.key" -CAcreateserial -out "$T/cert.pem" -days 1 \
+    -extfile "$T/san" >/dev/null 2>&1
+start_daemon "$T/d3" --tls-cert "$T/cert.pem" --tls-key "$T/key.pem" || exit 1
+SURFD_URL=$URL $C models >/dev/null 2>&1; rc=$?
+check "surfctl to a TLS daemon of a CA it does not know exits 3" '[ $rc -eq 3 ]'
+SURFD_URL=$URL $C --cacert "$T/ca.pem" models >/dev/null 2>&1; rc=$?
+check "surfctl --cacert CA: the daemon's answer" '[ $rc -eq 0 ]'
+SURFD_URL=$URL SURFD_CACERT="$T/ca.pem" $C models >/dev/null 2>&1; rc=$?
+check "SURFD_CACERT=CA: the same" '[ $rc -eq 0 ]'
+check "the Python client's cafile=: the daemon's version" 'PYTHONPATH=client/python python3 -c "import surfd, sys; sys.exit(surfd.Client(sys.argv[1], token=\"\", cafile=sys.argv[2]).version()[\"name\"] != \"surfd\")" "$URL" "$T/ca.pem"'
+check "... and without it, surfd unreachable (status 0) naming the certificate" 'PYTHONPATH=client/python python3 -c "
+import surfd, sys
+try:
+    surfd.Client(sys.argv[1], token=\"\").version()
+except surfd.SurfdError as e:
+    sys.exit(not (e.status == 0 and \"CERTIFICATE\" in str(e).upper()))
+sys.exit(1)" "$URL"'
 finish

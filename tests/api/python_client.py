@@ -54,6 +54,8 @@ check("mesh(format=vtp): VTK XML", b"VTKFile" in c.mesh(m["id"], format="vtp")[:
 png = c.view(m["id"], width=80, height=60, projection="orthographic", view="+z")
 check("view(projection=, view=+z): a PNG", png[:4] == b"\x89PNG")
 check("patches(): a scene of patches", len(c.patches(m["id"]).get("objects", [])) > 0)
+rt = c.rtstruct(m["id"], spacing=5)
+check("rtstruct(spacing=5): bytes of a DICOM RT Structure Set", rt[128:132] == b"DICM" and b"RTSTRUCT" in rt)
 png = c.render(os.path.join(DATA, "scenes", "teapot.bpt"), width=64, height=48, eye=(6, -6, 5), target=(0, 0, 1))
 check("render(.bpt, eye=(...), target=(...)): a PNG", png[:4] == b"\x89PNG")
 mm = c.matrix(model=m["id"], size=(20, 13, 15))
