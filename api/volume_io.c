@@ -15,6 +15,7 @@
 
 #include "dicom_series.h"
 #include "multipart.h"
+#include "nifti.h"
 #include "query.h"
 #include "ranges.h"
 
@@ -49,6 +50,7 @@ const char *volume_format_from_type(const char *ct)
     static const struct media_format TYPES[] = {{"application/octet-stream", "raw"}, {"application/x-nrrd", "nrrd"}, {"image/x-nrrd", "nrrd"},
                  {"application/x-metaimage", "mha"},   {"application/x-mha", "mha"},   {"image/x-mha", "mha"},
                  {"multipart/form-data", "dicom"}, {"application/json", "frep"},
+                 {"application/x-nifti", "nifti"}, {"image/x-nifti", "nifti"}, {"application/gzip", ""},
                  {"application/x-www-form-urlencoded", ""} /* curl -d's default: sniffed */};
     return media_format(ct, TYPES, sizeof TYPES / sizeof *TYPES);
 }
@@ -191,6 +193,27 @@ static int inflate_all(const char *src, size_t n, size_t want, void **out, struc
     return 0;
 }
 
+/* The first bytes of a gzip (or zlib) stream, up to cap, into out (*got of them: fewer when the
+ * stream is shorter): 0, or SF_EFORMAT when it does not inflate. */
+static int inflate_prefix(const char *src, size_t n, unsigned char *out, size_t cap, size_t *got, struct sf_err *err)
+{
+    z_stream z = {0};
+    if (inflateInit2(&z, 15 + 32) != Z_OK)
+        return sf_fail(err, SF_EBACKEND, "", "zlib would not start");
+    z.next_in = (unsigned char *)(uintptr_t)src;
+    z.avail_in = (unsigned)(n < (1u << 30) ? n : 1u << 30);
+    z.next_out = out;
+    z.avail_out = (unsigned)cap;
+    int rc = Z_OK;
+    while (rc == Z_OK && z.avail_out > 0)
+        rc = inflate(&z, Z_NO_FLUSH);
+    *got = (size_t)z.total_out;
+    inflateEnd(&z);
+    return rc == Z_OK || rc == Z_STREAM_END || (rc == Z_BUF_ERROR && *got > 0)
+               ? 0
+               : sf_fail(err, SF_EFORMAT, "header", "gzip data that does not inflate");
+}
+
 /* Points v at the samples: in place when they are raw, in the host's order and aligned; copied
  * (swapped) or inflated otherwise. Then refuses samples that are not finite. */
 static int place_samples(const char *data, size_t n, bool compressed, bool big_endian, const char *where,
@@ -240,8 +263,17 @@ static int place_samples(const char *data, size_t n, bool compressed, bool big_e
 
 /* ---- headers ---- */
 
-/* NRRD's magic; a MetaImage header's first key. */
+/* NRRD's magic; a MetaImage header's first key; a NIfTI header, or the gzip of one (its first bytes
+ * inflated). */
 static bool sniff_nrrd(const char *body, size_t len) { return len >= 4 && !memcmp(body, "NRRD", 4); }
+static bool sniff_nifti(const char *body, size_t len)
+{
+    unsigned char head[NIFTI_HEADER_MAX];
+    size_t got = 0;
+    if (len >= 2 && (unsigned char)body[0] == 0x1f && (unsigned char)body[1] == 0x8b)
+        return !inflate_prefix(body, len, head, sizeof head, &got, NULL) && nifti_sniff(head, got);
+    return nifti_sniff((const unsigned char *)body, len);
+}
 static bool sniff_mha(const char *body, size_t len)
 {
     return len >= 10 && (!memcmp(body, "ObjectType", 10) || !memcmp(body, "NDims", 5));
@@ -699,6 +731,24 @@ int volume_sample(struct volume *v, int z0, int z1, const struct sf_progress *pr
 }
 
 /* A DICOM series as multipart/form-data. */
+/* v's grid in range as it lies in patient coordinates: its box corner to corner along its axes (an
+ * oblique one's turned), its spacings. */
+static int check_turned_grid(struct volume *v, const struct grid_fields *f, struct sf_err *err)
+{
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++)
+            v->oblique = v->oblique || fabs(v->axes[a][b] - (a == b)) > 1e-9;
+    double lo[3], hi[3], steps[3] = {v->g.nx - 1, v->g.ny - 1, v->g.nz - 1};
+    for (int b = 0; b < 3; b++) {
+        lo[b] = hi[b] = v->g.origin[b];
+        for (int a = 0; a < 3; a++) {
+            double d = steps[a] * v->g.spacing[a] * v->axes[a][b];
+            lo[b] += fmin(d, 0), hi[b] += fmax(d, 0);
+        }
+    }
+    return check_grid(lo, hi, v->g.spacing, f, err);
+}
+
 static int read_series(const char *body, size_t len, const char *options, struct volume *v, struct sf_err *err)
 {
     int rc = raw_only_options(options, err);
@@ -718,21 +768,158 @@ static int read_series(const char *body, size_t len, const char *options, struct
     if (v->check_only) /* int16 or float32 is decided by the samples' rescaled values: the wider until then */
         v->g.type = ISO_F32;
     memcpy(v->axes, s.axes, sizeof s.axes);
-    for (int a = 0; a < 3; a++)
+    /* the reader kept each slice's position in range; here the grid's box */
+    return check_turned_grid(v, &(struct grid_fields){"/parts", "ImagePositionPatient", "/parts",
+                             "the spacing (PixelSpacing, between slices)", "/parts"}, err);
+}
+
+/* The grid a NIfTI header's affine gives, in patient coordinates (DICOM's LPS: the RAS affine's x
+ * and y rows negated): spacings the columns' lengths, axes their directions, at right angles. A
+ * left-handed one is read with x reversed (*flip; its origin the far end of x), so that the mesh
+ * faces out. */
+static int nifti_grid(const struct nifti_header *h, struct volume *v, bool *flip, struct sf_err *err)
+{
+    double sign[3] = {-1, -1, 1};
+    for (int a = 0; a < 3; a++) {
+        double c[3], n = 0;
         for (int b = 0; b < 3; b++)
-            v->oblique = v->oblique || fabs(v->axes[a][b] - (a == b)) > 1e-9;
-    /* the reader kept each slice's position in range; here the grid's box in patient coordinates,
-     * corner to corner along its axes (an oblique one's turned) */
-    double lo[3], hi[3], steps[3] = {v->g.nx - 1, v->g.ny - 1, v->g.nz - 1};
-    for (int b = 0; b < 3; b++) {
-        lo[b] = hi[b] = v->g.origin[b];
-        for (int a = 0; a < 3; a++) {
-            double d = steps[a] * v->g.spacing[a] * v->axes[a][b];
-            lo[b] += fmin(d, 0), hi[b] += fmax(d, 0);
-        }
+            c[b] = sign[b] * h->affine[b][a], n += c[b] * c[b];
+        v->g.spacing[a] = sqrt(n);
+        if (!(v->g.spacing[a] > 0))
+            return sf_fail(err, SF_EINVAL, "header", "the %s's column %d is zero: its voxels have no size along an axis",
+                           h->xform, a);
+        for (int b = 0; b < 3; b++)
+            v->axes[a][b] = c[b] / v->g.spacing[a];
+        v->g.origin[a] = sign[a] * h->affine[a][3];
     }
-    return check_grid(lo, hi, v->g.spacing, &(struct grid_fields){"/parts", "ImagePositionPatient", "/parts",
-                      "the spacing (PixelSpacing, between slices)", "/parts"}, err);
+    for (int a = 0; a < 3; a++)
+        for (int b = a + 1; b < 3; b++) {
+            double dot = v->axes[a][0] * v->axes[b][0] + v->axes[a][1] * v->axes[b][1] + v->axes[a][2] * v->axes[b][2];
+            if (fabs(dot) > 1e-4)
+                return sf_fail(err, SF_EINVAL, "header", "the %s shears the grid (its axes %d and %d are %.2f degrees "
+                               "apart, not 90): surfd meshes grids whose axes are at right angles", h->xform, a, b,
+                               acos(fmax(-1, fmin(1, dot))) * 180 / M_PI);
+        }
+    const double(*x)[3] = (const double(*)[3])v->axes;
+    double det = x[0][0] * (x[1][1] * x[2][2] - x[1][2] * x[2][1]) - x[0][1] * (x[1][0] * x[2][2] - x[1][2] * x[2][0]) +
+                 x[0][2] * (x[1][0] * x[2][1] - x[1][1] * x[2][0]);
+    *flip = det < 0;
+    for (int b = 0; *flip && b < 3; b++) {
+        v->g.origin[b] += (v->g.nx - 1) * v->g.spacing[0] * v->axes[0][b];
+        v->axes[0][b] = -v->axes[0][b];
+    }
+    return check_turned_grid(v, &(struct grid_fields){"header", h->xform, "header", "the voxel size", "header"}, err);
+}
+
+/* A NIfTI sample k of datatype (bytes each, swapped or not) as a double. */
+static double nifti_value(const unsigned char *p, int datatype, int bytes, bool swap)
+{
+    unsigned char b[8];
+    for (int k = 0; k < bytes; k++)
+        b[k] = p[swap ? bytes - 1 - k : k];
+    int8_t i8; int16_t i16; uint16_t u16; int32_t i32; uint32_t u32; float f; double d;
+    switch (datatype) {
+    case 2: return b[0];
+    case 256: memcpy(&i8, b, 1); return i8;
+    case 4: memcpy(&i16, b, 2); return i16;
+    case 512: memcpy(&u16, b, 2); return u16;
+    case 8: memcpy(&i32, b, 4); return i32;
+    case 768: memcpy(&u32, b, 4); return u32;
+    case 16: memcpy(&f, b, 4); return f;
+    default: memcpy(&d, b, 8); return d;
+    }
+}
+
+/* A NIfTI-1 or NIfTI-2 single file, gzip or not (nifti.h), in patient coordinates (nifti_grid).
+ * Samples of a type core/iso has a grid of (uint8, int16, uint16, float32), unscaled, are used as
+ * they are (in place when they can be); others, scaled ones (scl_slope: iso is in the scaled
+ * values), swapped or reversed ones are written anew, float32 unless only their order changes. */
+static int read_nifti(const char *body, size_t len, const char *options, struct volume *v, struct sf_err *err)
+{
+    int rc = raw_only_options(options, err);
+    if (rc)
+        return rc;
+    bool gz = len >= 2 && (unsigned char)body[0] == 0x1f && (unsigned char)body[1] == 0x8b;
+    unsigned char head[NIFTI_HEADER_MAX];
+    size_t hn = len;
+    const unsigned char *hb = (const unsigned char *)body;
+    if (gz && (rc = inflate_prefix(body, len, head, sizeof head, &hn, err)))
+        return rc;
+    struct nifti_header h;
+    if ((rc = nifti_header(gz ? head : hb, hn, &h, err)))
+        return rc;
+    int dims[3];
+    bool flip = false;
+    if ((rc = check_dims((const double[3]){(double)h.dims[0], (double)h.dims[1], (double)h.dims[2]}, "header", dims, err)))
+        return rc;
+    v->g.nx = dims[0], v->g.ny = dims[1], v->g.nz = dims[2];
+    if ((rc = nifti_grid(&h, v, &flip, err)))
+        return rc;
+    static const struct { int datatype; enum iso_type type; } NATIVE[] = {{2, ISO_U8}, {4, ISO_I16}, {512, ISO_U16},
+                                                                          {16, ISO_F32}};
+    bool scaled = h.slope != 0 && (h.slope != 1 || h.inter != 0), native = false;
+    v->g.type = ISO_F32;
+    for (size_t k = 0; k < sizeof NATIVE / sizeof *NATIVE && !scaled; k++)
+        if (NATIVE[k].datatype == h.datatype)
+            v->g.type = NATIVE[k].type, native = true;
+    size_t count = (size_t)dims[0] * (size_t)dims[1] * (size_t)dims[2], bytes = count * (size_t)h.bytes;
+    if ((uint64_t)h.vox_offset > (uint64_t)(SIZE_MAX - bytes))
+        return sf_fail(err, SF_EINVAL, "header", "vox_offset %lld is past any file", (long long)h.vox_offset);
+    size_t need = (size_t)h.vox_offset + bytes;
+    if (!gz && len != need)
+        return sf_fail(err, SF_EINVAL, "data", "the file holds %zu bytes; its header makes %zu (vox_offset and dims x "
+                       "datatype)", len, need);
+    if (v->check_only)
+        return 0;
+    void *whole = NULL;
+    if (gz && (rc = inflate_all(body, len, need, &whole, err)))
+        return rc;
+    const unsigned char *data = (const unsigned char *)(gz ? whole : body) + h.vox_offset;
+    size_t ts = type_size(v->g.type);
+    if (native && !flip && !h.big_endian && (uintptr_t)data % ts == 0) { /* as it is */
+        v->owned = whole;
+        v->g.samples = data;
+    } else {
+        unsigned char *out = malloc(count * ts);
+        if (!out) {
+            free(whole);
+            return sf_fail(err, SF_ENOMEM, "", "out of memory for %zu samples", count);
+        }
+        for (size_t i = 0; i < count; i++) {
+            size_t x = i % (size_t)dims[0], src = flip ? i - x + (size_t)dims[0] - 1 - x : i;
+            const unsigned char *p = data + src * (size_t)h.bytes;
+            if (native && !h.big_endian) {
+                memcpy(out + i * ts, p, ts);
+            } else {
+                double val = nifti_value(p, h.datatype, h.bytes, h.big_endian);
+                if (scaled)
+                    val = h.slope * val + h.inter;
+                if (v->g.type == ISO_F32) {
+                    float fv = (float)val;
+                    memcpy(out + i * ts, &fv, ts);
+                } else if (v->g.type == ISO_I16) {
+                    int16_t s16 = (int16_t)val;
+                    memcpy(out + i * ts, &s16, ts);
+                } else if (v->g.type == ISO_U16) {
+                    uint16_t s16 = (uint16_t)val;
+                    memcpy(out + i * ts, &s16, ts);
+                } else {
+                    out[i] = (unsigned char)val;
+                }
+            }
+        }
+        free(whole);
+        v->owned = out;
+        v->g.samples = out;
+    }
+    if (v->g.type == ISO_F32) {
+        const float *f = v->g.samples;
+        for (size_t i = 0; i < count; i++)
+            if (!isfinite(f[i]))
+                return sf_fail(err, SF_EINVAL, "data", "sample %zu is not a finite number (after scl_slope and "
+                               "scl_inter): NaN and infinite samples are refused, not taken as outside", i);
+    }
+    return 0;
 }
 
 /* ?iso within what the samples' type can hold (a DICOM series' after its rescale: int16 when its
@@ -761,11 +948,15 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     int rc = common_options(options, !strcmp(format, "frep"), v, err);
     if (rc)
         return rc;
-    bool nrrd = sniff_nrrd(body, len), mha = sniff_mha(body, len);
+    bool nrrd = sniff_nrrd(body, len), mha = sniff_mha(body, len), nifti = sniff_nifti(body, len);
     for (int a = 0; a < 3; a++)
         v->axes[a][a] = 1;
-    if (!*format)
-        format = nrrd ? "nrrd" : mha ? "mha" : multipart_sniff(body, len) ? "dicom" : "raw";
+    char dims[8];
+    query_option(options, "dims", dims, sizeof dims);
+    /* a file posted as octet-stream is what it is (a NIfTI header is no raw samples' chance bytes,
+     * so a NIfTI file's ?dims is refused as its header's) */
+    if (!*format || (!strcmp(format, "raw") && (nifti || (!dims[0] && (nrrd || mha)))))
+        format = nrrd ? "nrrd" : mha ? "mha" : nifti ? "nifti" : multipart_sniff(body, len) ? "dicom" : "raw";
     if (!strcmp(format, "nrrd")) {
         if (!nrrd)
             return sf_fail(err, SF_EFORMAT, "header", "an NRRD file starts with \"NRRD000x\"");
@@ -774,6 +965,11 @@ static int read_volume(const char *body, size_t len, const char *format, const c
         if (!mha)
             return sf_fail(err, SF_EFORMAT, "header", "a MetaImage header starts with ObjectType or NDims");
         rc = read_header(body, len, true, options, v, err);
+    } else if (!strcmp(format, "nifti")) {
+        if (!nifti)
+            return sf_fail(err, SF_EFORMAT, "header", "a NIfTI file begins with its header (sizeof_hdr 348 or 540), "
+                           "or is the gzip of one");
+        rc = read_nifti(body, len, options, v, err);
     } else if (!strcmp(format, "raw")) {
         rc = read_raw(body, len, options, v, err);
     } else if (!strcmp(format, "dicom")) {
@@ -781,7 +977,7 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     } else if (!strcmp(format, "frep")) {
         rc = read_frep(body, len, options, v, err);
     } else {
-        rc = sf_fail(err, SF_EFORMAT, "?format", "format is raw, nrrd, mha, dicom or frep");
+        rc = sf_fail(err, SF_EFORMAT, "?format", "format is raw, nrrd, mha, nifti, dicom or frep");
     }
     if (!rc)
         rc = check_iso_reach(v, err);

@@ -35,11 +35,13 @@ struct volume {
     const char *source;      /* "isosurface" (sampled) or "frep", as the model resource says */
 };
 
-/* The body's format from its Content-Type: "raw" (application/octet-stream), "nrrd"
- * (application/x-nrrd, image/x-nrrd), "mha" (application/x-metaimage), "dicom" (a series as
- * multipart/form-data, one slice a part), "frep" (application/json: an FRep object, frep_json.h);
- * NULL for others. A body posted without a type is sniffed (NRRD's magic, MetaImage's
- * "ObjectType", a multipart boundary, a JSON object), else raw. */
+/* The body's format from its Content-Type: "raw" (application/octet-stream; a NRRD, MetaImage or
+ * NIfTI file posted so, without ?dims, is read as what it is), "nrrd" (application/x-nrrd,
+ * image/x-nrrd), "mha" (application/x-metaimage), "nifti" (application/x-nifti, image/x-nifti),
+ * "dicom" (a series as multipart/form-data, one slice a part), "frep" (application/json: an FRep
+ * object, frep_json.h); NULL for others. A body posted without a type (or as application/gzip) is
+ * sniffed (NRRD's magic, MetaImage's "ObjectType", a NIfTI header, gzip or not, a multipart
+ * boundary, a JSON object), else raw. */
 const char *volume_format_from_type(const char *content_type);
 /* format, or for "" (sniffed): "raw" when options give dims, "frep" when the body begins as a JSON
  * object's text, else "" (sniffed later: NRRD, MetaImage, multipart, raw). */
@@ -56,7 +58,7 @@ int volume_data_file(const char *buf, size_t len, char *name, size_t cap);
  * without memory. */
 char *volume_attach(const char *hdr, size_t len, int line, const char *data, size_t data_len, size_t *out_len);
 
-/* Reads a volume: format "raw", "nrrd", "mha", "dicom", "frep" or "" (sniffed); options the query. On success
+/* Reads a volume: format "raw", "nrrd", "mha", "nifti", "dicom", "frep" or "" (sniffed); options the query. On success
  * v->g.samples points into body or v->owned (free with volume_free). Errors name the query option
  * ("?dims"), or the header line ("header line 4: ...") of what is wrong: SF_EINVAL (422),
  * SF_EFORMAT (400: not a volume of that format), SF_ELIMIT (too many samples). The grid's origin,

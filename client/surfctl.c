@@ -182,6 +182,7 @@ static const char *const SCENE_TYPES[][2] = {{".bpt", "model/x-bpt"}, {".nurbs",
                                              {".igs", "model/iges"}, {".iges", "model/iges"},
                                              {".json", "application/json"}, {NULL, "text/plain"}};
 static const char *const VOLUME_TYPES[][2] = {{".nrrd", "application/x-nrrd"}, {".mha", "application/x-metaimage"},
+                                              {".nii", "application/x-nifti"}, {".gz", "application/gzip"},
                                               {".json", "application/json"}, {NULL, "application/octet-stream"}};
 
 /* POSTs the file to route + query (the query "" or "?name=value&..."). 0 and *r, or an exit code. */
@@ -325,7 +326,7 @@ static const char *const USAGE[][2] = {
                "    the volume its surfaces close)\n"},
     {"isosurface", "surfctl isosurface VOLUME --iso V -o OUT.stl|.ply|.obj [--dims X,Y,Z --type T --spacing S --origin O]\n"
                    "                   [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name N]\n"
-                   "    POST /isosurface: VOLUME is .nrrd, .mha, raw samples, or an FRep object as .json\n"},
+                   "    POST /isosurface: VOLUME is .nrrd, .mha, NIfTI (.nii, .nii.gz), raw samples, or an FRep object as .json\n"},
     {"edit", "surfctl edit MODEL BLOCK --region X0,Y0,Z0,NX,NY,NZ [-o OUT.stl|.ply|.obj]\n"
              "    POST /models/MODEL/edit: BLOCK is the region's raw samples in the model's sample type\n"},
     {"matrix", "surfctl matrix VOLUME -o OUT.json [--iso V --dims X,Y,Z --type T --spacing S --origin O]\n"

@@ -137,10 +137,10 @@ static char *series_body(const char *dir, size_t *len)
 
 void cmd_isosurface_usage(FILE *f)
 {
-    fprintf(f, "usage: surfd isosurface VOLUME.nrrd|.nhdr|.mha|.mhd|.raw|DICOM-DIR --iso V [--dims X,Y,Z --type T "
+    fprintf(f, "usage: surfd isosurface VOLUME.nrrd|.nhdr|.mha|.mhd|.nii|.nii.gz|.raw|DICOM-DIR --iso V [--dims X,Y,Z --type T "
                "[--spacing sx,sy,sz] [--origin x,y,z]]\n"
                "       surfd isosurface FREP.json [--iso V]\n"
-               "                        [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|dicom|frep]\n"
+               "                        [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|nifti|dicom|frep]\n"
                "                        [-o OUT.stl|.ply|.obj] [--threads N] [--repeat N] [--stats]\n"
                "       surfd matrix VOLUME|FREP.json [--iso V] [the volume's options above] [-o OUT.json]\n"
                "                        (its six relief matrices, seed 003: samples >= iso are the body)\n");

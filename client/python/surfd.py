@@ -34,7 +34,8 @@ Options = Mapping[str, Any]
 _TYPES = {
     ".json": "application/json", ".dcm": "application/dicom", ".bpt": "model/x-bpt", ".nurbs": "model/vrml",
     ".wrl": "model/vrml", ".igs": "model/iges", ".iges": "model/iges", ".nrrd": "application/x-nrrd", ".nhdr": "application/x-nrrd",
-    ".mha": "application/x-metaimage", ".mhd": "application/x-metaimage",
+    ".mha": "application/x-metaimage", ".mhd": "application/x-metaimage", ".nii": "application/x-nifti",
+    ".gz": "application/gzip",  # .nii.gz: the daemon sniffs the NIfTI in it
 }
 
 

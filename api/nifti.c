@@ -1,0 +1,157 @@
+/* nifti.c - NIfTI-1 and NIfTI-2 headers (nifti.h). The fields are read at nifti1.h's and
+ * nifti2.h's offsets in the file's byte order (sizeof_hdr, 348 or 540, says which). */
+#include "nifti.h"
+
+#include <math.h>
+#include <string.h>
+
+/* A field of the header in its byte order. */
+struct fields {
+    const unsigned char *b;
+    bool swap;
+};
+
+static uint64_t raw(const struct fields *f, size_t at, int n)
+{
+    uint64_t v = 0;
+    for (int k = 0; k < n; k++)
+        v |= (uint64_t)f->b[at + (f->swap ? n - 1 - k : k)] << (8 * k);
+    return v;
+}
+static int64_t i16(const struct fields *f, size_t at) { return (int16_t)raw(f, at, 2); }
+static int64_t i32(const struct fields *f, size_t at) { return (int32_t)raw(f, at, 4); }
+static int64_t i64(const struct fields *f, size_t at) { return (int64_t)raw(f, at, 8); }
+static double f32(const struct fields *f, size_t at)
+{
+    uint32_t u = (uint32_t)raw(f, at, 4);
+    float x;
+    memcpy(&x, &u, sizeof x);
+    return x;
+}
+static double f64(const struct fields *f, size_t at)
+{
+    uint64_t u = raw(f, at, 8);
+    double x;
+    memcpy(&x, &u, sizeof x);
+    return x;
+}
+
+/* The version sizeof_hdr names (0: none) and whether the file's order is the other one. */
+static int version_of(const unsigned char *buf, size_t len, bool *swap)
+{
+    if (len < 348)
+        return 0;
+    for (int s = 0; s < 2; s++) {
+        struct fields f = {buf, s == 1};
+        int64_t n = i32(&f, 0);
+        *swap = s == 1;
+        if (n == 348 && (!memcmp(buf + 344, "n+1", 4) || !memcmp(buf + 344, "ni1", 4)))
+            return 1;
+        if (n == 540 && len >= 12 && (!memcmp(buf + 4, "n+2\0\r\n\032\n", 8) || !memcmp(buf + 4, "ni2\0\r\n\032\n", 8)))
+            return 2;
+    }
+    return 0;
+}
+
+bool nifti_sniff(const unsigned char *buf, size_t len)
+{
+    bool swap;
+    return version_of(buf, len, &swap) != 0;
+}
+
+/* The rotation of NIfTI's quaternion (b, c, d; a from the unit norm), nifti1.h's method 2. */
+static void quaternion(double b, double c, double d, double r[3][3])
+{
+    double a = 1 - (b * b + c * c + d * d);
+    a = a > 0 ? sqrt(a) : 0;
+    double m[3][3] = {{a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)},
+                      {2 * (b * c + a * d), a * a + c * c - b * b - d * d, 2 * (c * d - a * b)},
+                      {2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - c * c - b * b}};
+    memcpy(r, m, sizeof m);
+}
+
+static int sample_bytes(int datatype)
+{
+    switch (datatype) {
+    case 2: case 256: return 1;
+    case 4: case 512: return 2;
+    case 8: case 16: case 768: return 4;
+    case 64: return 8;
+    default: return 0;
+    }
+}
+
+int nifti_header(const unsigned char *buf, size_t len, struct nifti_header *h, struct sf_err *err)
+{
+    memset(h, 0, sizeof *h);
+    bool swap;
+    int version = version_of(buf, len, &swap);
+    if (!version)
+        return sf_fail(err, SF_EFORMAT, "header", "not a NIfTI-1 or NIfTI-2 header (sizeof_hdr 348 or 540 and its magic)");
+    const struct fields f = {buf, swap};
+    bool pair = version == 1 ? buf[345] == 'i' : buf[5] == 'i';
+    if (pair)
+        return sf_fail(err, SF_EINVAL, "header", "a NIfTI header of a pair (.hdr and .img, magic ni%d): send the "
+                       "single file (.nii or .nii.gz) its samples follow", version);
+    if (version == 2 && len < 540)
+        return sf_fail(err, SF_EFORMAT, "header", "a NIfTI-2 header is 540 bytes; the file has %zu", len);
+    h->version = version;
+    h->big_endian = swap; /* every host surfd is built for is little-endian */
+    int64_t dim[8];
+    double pixdim[8];
+    for (int k = 0; k < 8; k++) {
+        dim[k] = version == 1 ? i16(&f, 40 + 2 * (size_t)k) : i64(&f, 16 + 8 * (size_t)k);
+        pixdim[k] = version == 1 ? f32(&f, 76 + 4 * (size_t)k) : f64(&f, 104 + 8 * (size_t)k);
+    }
+    h->datatype = (int)(version == 1 ? i16(&f, 70) : i16(&f, 12));
+    h->vox_offset = version == 1 ? (int64_t)f32(&f, 108) : i64(&f, 168);
+    h->slope = version == 1 ? f32(&f, 112) : f64(&f, 176);
+    h->inter = version == 1 ? f32(&f, 116) : f64(&f, 184);
+    int units = (version == 1 ? buf[123] : (int)i32(&f, 500)) & 7;
+    int qform = (int)(version == 1 ? i16(&f, 252) : i32(&f, 344)), sform = (int)(version == 1 ? i16(&f, 254) : i32(&f, 348));
+    if (dim[0] < 3 || dim[0] > 7)
+        return sf_fail(err, SF_EINVAL, "header", "dim[0] is %lld: a volume has 3 dimensions", (long long)dim[0]);
+    for (int k = 4; k <= dim[0]; k++)
+        if (dim[k] != 1)
+            return sf_fail(err, SF_EINVAL, "header", "dim[%d] is %lld: a series of volumes (4-D and over); one volume is "
+                           "read", k, (long long)dim[k]);
+    for (int a = 0; a < 3; a++)
+        h->dims[a] = dim[a + 1];
+    if (!(h->bytes = sample_bytes(h->datatype)))
+        return sf_fail(err, SF_EINVAL, "header", "datatype %d: surfd reads NIfTI samples of uint8, int8, int16, uint16, "
+                       "int32, uint32, float32 and float64 (codes 2, 256, 4, 512, 8, 768, 16, 64), not colours, complex "
+                       "or 64-bit integers", h->datatype);
+    if (h->vox_offset < (version == 1 ? 352 : 544))
+        return sf_fail(err, SF_EINVAL, "header", "vox_offset %lld: a single file's samples follow its header (%d bytes "
+                       "at least)", (long long)h->vox_offset, version == 1 ? 352 : 544);
+    if (!isfinite(h->slope) || !isfinite(h->inter))
+        return sf_fail(err, SF_EINVAL, "header", "scl_slope and scl_inter are finite numbers");
+    /* units: meters, mm, microns (0: unknown, taken as mm) */
+    double unit = units == 1 ? 1000 : units == 3 ? 1e-3 : 1;
+    if (sform > 0) {
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 4; c++)
+                h->affine[r][c] = unit * (version == 1 ? f32(&f, 280 + 16 * (size_t)r + 4 * (size_t)c)
+                                                      : f64(&f, 400 + 32 * (size_t)r + 8 * (size_t)c));
+        h->xform = "sform";
+    } else if (qform > 0) {
+        double r[3][3], qfac = pixdim[0] < 0 ? -1 : 1;
+        quaternion(version == 1 ? f32(&f, 256) : f64(&f, 352), version == 1 ? f32(&f, 260) : f64(&f, 360),
+                   version == 1 ? f32(&f, 264) : f64(&f, 368), r);
+        for (int i = 0; i < 3; i++) {
+            for (int c = 0; c < 3; c++)
+                h->affine[i][c] = unit * r[i][c] * pixdim[c + 1] * (c == 2 ? qfac : 1);
+            h->affine[i][3] = unit * (version == 1 ? f32(&f, 268 + 4 * (size_t)i) : f64(&f, 376 + 8 * (size_t)i));
+        }
+        h->xform = "qform";
+    } else { /* method 1: the pixdims alone, the first voxel at 0 */
+        for (int a = 0; a < 3; a++)
+            h->affine[a][a] = unit * pixdim[a + 1];
+        h->xform = "pixdim";
+    }
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 4; c++)
+            if (!isfinite(h->affine[r][c]))
+                return sf_fail(err, SF_EINVAL, "header", "the %s is not finite", h->xform);
+    return 0;
+}
