@@ -406,3 +406,15 @@ int dicom_blank_identity(void *data, size_t len, const char *pointer, size_t *n_
     free(c.not_seq);
     return rc;
 }
+
+bool dicom_sniff(const void *data, size_t len)
+{
+    const unsigned char *b = data;
+    if (len >= 132 && !memcmp(b + 128, "DICM", 4))
+        return true;
+    if (len < 8 || b[1] != 0 || (b[0] != 2 && b[0] != 8))
+        return false;
+    bool explicit_vr = b[4] >= 'A' && b[4] <= 'Z' && b[5] >= 'A' && b[5] <= 'Z';
+    uint32_t implicit_len = (uint32_t)b[4] | (uint32_t)b[5] << 8 | (uint32_t)b[6] << 16 | (uint32_t)b[7] << 24;
+    return explicit_vr || implicit_len <= len - 8;
+}

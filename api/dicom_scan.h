@@ -6,6 +6,7 @@
 #ifndef SURFD_DICOM_SCAN_H
 #define SURFD_DICOM_SCAN_H
 
+#include <stdbool.h>
 #include <stddef.h>
 
 #ifdef __cplusplus
@@ -42,6 +43,12 @@ struct dicom_scan_stats {
     char transfer_syntax[65];/* the meta header's TransferSyntaxUID; "" without a meta header (the
                               * encoding above is then guessed from the first element) */
 };
+
+/* Whether data looks like DICOM: "DICM" after a 128-byte preamble, or, for a file without one (as
+ * PS3.10 allows and some exports write), a first element of group 0002 or 0008 in little-endian
+ * order whose VR is two capital letters (explicit VR) or whose length lies within the data
+ * (implicit). What it is is then dicom_scan's to say. */
+bool dicom_sniff(const void *data, size_t len);
 
 /* 0 when DCMTK may read data (len bytes: a Part 10 file, with its preamble, "DICM" and meta
  * header, or a bare data set) in the encoding stats says (dcmtk_in.h reads it so, never in

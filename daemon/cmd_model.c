@@ -10,6 +10,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "../api/dicom_scan.h"
 #include "../api/model_json.h"
 #include "cli.h"
 
@@ -121,8 +122,8 @@ int cmd_volume(int argc, char **argv)
     double best = 0;
     for (int k = 0; k < repeat && !rc; k++) {
         char *run = NULL;
-        /* DICOM Part 10 files carry "DICM" after a 128-byte preamble; scene files go by their extension */
-        const char *dot = strrchr(argv[1], '.'), *format = len > 132 && !memcmp(buf + 128, "DICM", 4) ? "dicom" : "json";
+        /* DICOM by its content, with its preamble or without (dicom_sniff); scene files by their extension */
+        const char *dot = strrchr(argv[1], '.'), *format = dicom_sniff(buf, len) ? "dicom" : "json";
         if (dot && (!strcmp(dot, ".igs") || !strcmp(dot, ".iges")))
             format = "iges";
         else if (dot && (!strcmp(dot, ".bpt") || !strcmp(dot, ".nurbs") || !strcmp(dot, ".wrl")))
