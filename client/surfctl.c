@@ -9,12 +9,14 @@
  * 4 request refused (4xx: the problem's detail and pointer go to stderr); 5 server error (5xx). */
 #include <ctype.h>
 #include <curl/curl.h>
+#include <dirent.h>
 #include <jansson.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -30,20 +32,24 @@ struct buf {
     size_t len;
 };
 
+/* Appends n bytes at p to b (kept 0-terminated): false when out of memory. */
+static bool buf_add(struct buf *b, const void *p, size_t n)
+{
+    char *d = realloc(b->data, b->len + n + 1);
+    if (!d)
+        return false;
+    memcpy(d + b->len, p, n);
+    b->data = d;
+    b->len += n;
+    b->data[b->len] = 0;
+    return true;
+}
+
 static size_t on_data(char *p, size_t size, size_t n, void *arg)
 {
     struct buf *b = arg;
     size_t add = size * n;
-    if (b->len + add > (size_t)MAX_RESPONSE)
-        return 0;
-    char *d = realloc(b->data, b->len + add + 1);
-    if (!d)
-        return 0;
-    memcpy(d + b->len, p, add);
-    b->data = d;
-    b->len += add;
-    b->data[b->len] = 0;
-    return add;
+    return b->len + add <= (size_t)MAX_RESPONSE && buf_add(b, p, add) ? add : 0;
 }
 
 struct response {
@@ -200,6 +206,73 @@ static int post_file(const char *route, const char *query, const char *file, con
     return rc;
 }
 
+static int by_name(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+/* A directory's files (a DICOM series, one image a file; hidden ones skipped, in name order) as
+ * multipart/form-data, one part "slice" a file, as curl -F slice=@FILE sends them; the parts are
+ * named slice0001.dcm ... (a series' own file names may name the patient). The type (with its
+ * boundary) into type. 0, or an exit code. */
+static int series_body(const char *dir, struct buf *b, char *type, size_t cap)
+{
+    DIR *d = opendir(dir);
+    if (!d) {
+        perror(dir);
+        return EXIT_USAGE;
+    }
+    char **names = NULL;
+    size_t n = 0;
+    for (struct dirent *e; (e = readdir(d));) {
+        char path[4096];
+        struct stat st;
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        if (e->d_name[0] == '.' || stat(path, &st) || !S_ISREG(st.st_mode))
+            continue;
+        char **more = realloc(names, (n + 1) * sizeof *names);
+        if (!more || !(more[n] = strdup(path)))
+            break;
+        names = more, n++;
+    }
+    closedir(d);
+    qsort(names, n, sizeof *names, by_name);
+    char boundary[48];
+    snprintf(boundary, sizeof boundary, "surfctl-%08lx%08lx", (unsigned long)time(NULL), (unsigned long)getpid() * 2654435761ul);
+    snprintf(type, cap, "multipart/form-data; boundary=%s", boundary);
+    int rc = n ? 0 : (fprintf(stderr, "surfctl: %s holds no files\n", dir), EXIT_USAGE);
+    for (size_t k = 0; k < n && !rc; k++) {
+        size_t len;
+        char *data = read_file(names[k], &len), head[256];
+        int hn = snprintf(head, sizeof head, "--%s\r\nContent-Disposition: form-data; name=\"slice\"; "
+                          "filename=\"slice%04zu.dcm\"\r\nContent-Type: application/dicom\r\n\r\n", boundary, k + 1);
+        if (!data || !buf_add(b, head, (size_t)hn) || !buf_add(b, data, len) || !buf_add(b, "\r\n", 2))
+            rc = EXIT_USAGE;
+        free(data);
+    }
+    char tail[64];
+    int tn = snprintf(tail, sizeof tail, "--%s--\r\n", boundary);
+    if (!rc && !buf_add(b, tail, (size_t)tn))
+        rc = EXIT_USAGE;
+    for (size_t k = 0; k < n; k++)
+        free(names[k]);
+    free(names);
+    return rc;
+}
+
+/* POSTs a volume to route + query: a file, or a directory's files as a DICOM series (series_body). */
+static int post_volume(const char *route, const char *query, const char *file, const char *prefer, struct response *r)
+{
+    struct stat st;
+    if (stat(file, &st) || !S_ISDIR(st.st_mode))
+        return post_file(route, query, file, type_of(file, VOLUME_TYPES), prefer, r);
+    struct buf b = {0};
+    char type[96], path[768];
+    int rc = series_body(file, &b, type, sizeof type);
+    snprintf(path, sizeof path, "%s%s", route, query);
+    if (!rc)
+        rc = request("POST", path, b.data, b.len, type, prefer, r);
+    free(b.data);
+    return rc;
+}
+
 static double now_s(void)
 {
     struct timespec ts;
@@ -326,7 +399,8 @@ static const char *const USAGE[][2] = {
                "    the volume its surfaces close)\n"},
     {"isosurface", "surfctl isosurface VOLUME --iso V -o OUT.stl|.ply|.obj [--dims X,Y,Z --type T --spacing S --origin O]\n"
                    "                   [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name N]\n"
-                   "    POST /isosurface: VOLUME is .nrrd, .mha, NIfTI (.nii, .nii.gz), raw samples, or an FRep object as .json\n"},
+                   "    POST /isosurface: VOLUME is .nrrd, .mha, NIfTI (.nii, .nii.gz), raw samples, a directory of a DICOM\n"
+                   "    series' images (each file a part), or an FRep object as .json\n"},
     {"edit", "surfctl edit MODEL BLOCK --region X0,Y0,Z0,NX,NY,NZ [-o OUT.stl|.ply|.obj]\n"
              "    POST /models/MODEL/edit: BLOCK is the region's raw samples in the model's sample type\n"},
     {"matrix", "surfctl matrix VOLUME -o OUT.json [--iso V --dims X,Y,Z --type T --spacing S --origin O]\n"
@@ -496,7 +570,7 @@ static int cmd_isosurface(int argc, char **argv)
     if (!file || !ext || (strcmp(ext, ".stl") && strcmp(ext, ".ply") && strcmp(ext, ".obj")))
         return usage();
     struct response r;
-    int rc = post_file("/isosurface", query, file, type_of(file, VOLUME_TYPES), "respond-async", &r);
+    int rc = post_volume("/isosurface", query, file, "respond-async", &r);
     if (rc)
         return rc;
     if (r.status != 202) {

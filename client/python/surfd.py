@@ -182,8 +182,8 @@ class Client:
         return self._job("POST", "/volume", options, contours, content_type)
 
     def isosurface(self, volume: Body, content_type: Optional[str] = None, **options: Any) -> Dict[str, Any]:
-        """POST /isosurface: a volume (NRRD, MetaImage, raw samples with dims and type) or an FRep
-        object; the model resource. options: iso, dims, type, spacing, origin, levels, max_error,
+        """POST /isosurface: a volume (NRRD, MetaImage, NIfTI, raw samples with dims and type, a
+        directory of a DICOM series' images) or an FRep object; the model resource. options: iso, dims, type, spacing, origin, levels, max_error,
         features, closed, name."""
         return self._job("POST", "/isosurface", options, volume, content_type)
 
@@ -277,10 +277,37 @@ def _is_file(s: str) -> bool:
         return False
 
 
+def _is_dir(s: Body) -> bool:
+    try:
+        return isinstance(s, (str, os.PathLike)) and len(str(s)) < 4096 and Path(s).is_dir()
+    except OSError:
+        return False
+
+
+def _series(directory: Path):
+    """A directory's files (a DICOM series, one image a file; hidden ones skipped, in name order)
+    as multipart/form-data, one part "slice" a file, named slice0001.dcm ... (a series' own file
+    names may name the patient)."""
+    files = sorted(p for p in directory.iterdir() if p.is_file() and not p.name.startswith("."))
+    if not files:
+        raise SurfdError(0, {"detail": "%s holds no files" % directory})
+    boundary = "surfd-py-" + os.urandom(12).hex()
+    out = bytearray()
+    for k, p in enumerate(files, 1):
+        out += ("--%s\r\nContent-Disposition: form-data; name=\"slice\"; filename=\"slice%04d.dcm\"\r\n"
+                "Content-Type: application/dicom\r\n\r\n" % (boundary, k)).encode()
+        out += p.read_bytes() + b"\r\n"
+    out += ("--%s--\r\n" % boundary).encode()
+    return bytes(out), "multipart/form-data; boundary=" + boundary
+
+
 def _body(body: Optional[Body], content_type: Optional[str]):
-    """(bytes, Content-Type) of a body given as bytes, text or a path (its type by extension)."""
+    """(bytes, Content-Type) of a body given as bytes, text, a path (its type by extension) or a
+    directory (a DICOM series: _series)."""
     if body is None:
         return None, content_type
+    if _is_dir(body):
+        return _series(Path(body))
     if isinstance(body, os.PathLike) or (isinstance(body, str) and _is_file(body)):
         path = Path(body)
         return path.read_bytes(), content_type or _TYPES.get(path.suffix.lower(), "application/octet-stream")

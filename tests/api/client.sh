@@ -32,6 +32,20 @@ $C rtstruct "$mid" 2>/dev/null; rc=$?
 check "surfctl rtstruct without -o exits 2" '[ $rc -eq 2 ]'
 $C patches "$mid" >"$T/p.json" 2>/dev/null; rc=$?
 check "surfctl patches ID: the model's scene on stdout" '[ $rc -eq 0 ] && python3 -c "import json, sys; sys.exit(not json.load(open(sys.argv[1]))[\"objects\"])" "$T/p.json"'
+DD="${SURFD_DATA:-../shared/data}/volumes/dicom_ct_head_64x64x27"
+parts=""; for f in "$DD"/*; do parts="$parts -F slice=@$f"; done
+# shellcheck disable=SC2086
+curl -s -H "Authorization: Bearer tok-for-tests" $parts "$URL/isosurface?iso=226.5" >"$T/curl_series.json"
+# same_series FILE: the model FILE holds is the one curl -F's upload of the series made
+same_series() { python3 -c "
+import json, sys
+a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+sys.exit(0 if a['triangles'] == b['triangles'] and abs(a['volume_mm3'] / b['volume_mm3'] - 1) < 1e-9 else 1)" "$1" "$T/curl_series.json"; }
+$C isosurface "$DD" --iso 226.5 -o "$T/series.stl" >"$T/out" 2>/dev/null; rc=$?
+check "surfctl isosurface DICOM-DIR: the series uploaded (a part a file), curl -F's model, its mesh closed" '[ $rc -eq 0 ] && same_series "$T/out" && python3 tests/tools/stl_check.py "$T/series.stl" - >/dev/null'
+check "the Python client's isosurface(DICOM-DIR): the same" 'PYTHONPATH=client/python python3 -c "
+import json, surfd, sys
+json.dump(surfd.Client().isosurface(sys.argv[1], iso=226.5), open(sys.argv[2], \"w\"))" "$DD" "$T/py_series.json" && same_series "$T/py_series.json"'
 $C render "$D/teacup.json" -o "$T/d.png" --width 120 --height 90
 check "surfctl render" '[ $? -eq 0 ] && [ -s "$T/d.png" ]'
 id=$($C render "$D/duck1.nurbs" --async --width 200 --height 150)
