@@ -1555,7 +1555,8 @@ int iges_parse(const char *buf, size_t len, const struct sf_progress *pr, struct
             rc = poll_cancel(&g, 0);
     }
     if (!rc && sc->n_objects == 0)
-        rc = sf_fail(err, SF_EINVAL, "", "the file has no surface to draw (a 128, 143 or 144 that is not blanked or physically dependent)");
+        rc = sf_fail(err, SF_EINVAL, "", "the file has no surface to draw (a 128, 143 or 144 that is not blanked or "
+                     "physically dependent)");
     free(lines);
     free(g.de);
     free(g.p_line);
