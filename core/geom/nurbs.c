@@ -472,17 +472,12 @@ int nurbs_extract(const struct surface *s, int surface_index, struct patch_set *
             if (mem_reserve((void **)&set->patches, &set->cap, set->n + 1, sizeof *set->patches) ||
                 mem_reserve((void **)&set->pool, &set->cap_pool, set->n_pool + (size_t)(p + 1) * (q + 1), sizeof *set->pool))
                 goto out_free;
-            struct patch *pt = &set->patches[set->n++];
-            pt->p = p;
-            pt->q = q;
-            pt->rational = rational;
-            pt->surface = surface_index;
-            pt->trim = NULL;
-            pt->u0 = U[ru];
-            pt->u1 = U[ru + 1];
-            pt->v0 = V[rv];
-            pt->v1 = V[rv + 1];
-            pt->cw = (double(*)[4])(uintptr_t)set->n_pool; /* offset until nurbs_patches_fix() */
+            /* every field set: the second-difference bounds zero (wmin 0: not set), as the other
+             * patch makers leave them, where a stale heap value sent the solver's steps astray */
+            set->patches[set->n++] = (struct patch){.p = p, .q = q, .rational = rational, .surface = surface_index,
+                                                    .u0 = U[ru], .u1 = U[ru + 1], .v0 = V[rv], .v1 = V[rv + 1],
+                                                    /* an offset until nurbs_patches_fix() */
+                                                    .cw = (double(*)[4])(uintptr_t)set->n_pool};
             for (int i = 0; i <= p; i++)
                 for (int j = 0; j <= q; j++) {
                     const double *src = t[(size_t)(rv - q + j) * n_u + (size_t)(ru - p + i)];
