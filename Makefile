@@ -33,7 +33,7 @@ CORE_LIBS := -lembree3 -lm
 API_LIBS  := -ljansson -lz
 DAEMON_LIBS := -lmicrohttpd -lsqlite3 -lpq -lgnutls -lpthread
 IMG_LIBS  := -lOpenImageIO -lOpenImageIO_Util -lstdc++
-DCM_LIBS  := -ldcmdata -loflog -lofstd -lstdc++
+DCM_LIBS  := -ldcmjpls -ldcmjpeg -ldcmimgle -ldcmdata -loflog -lofstd -lstdc++
 
 # sources by wildcard: core/ by layer (tests/tools/layers.sh), api/'s C++ shims linked on their own
 CORE_SRC   := $(wildcard core/*/*.c)

@@ -1,13 +1,19 @@
 // series_dcmtk.cpp - a DICOM CT/MR series to one sample grid (dicom_series.h), with DCMTK as the
-// RT Structure Set reader uses it. Uncompressed transfer syntaxes only (what scanners export for
-// research and what PACS send by default); a compressed one is refused by name.
+// RT Structure Set reader uses it. Uncompressed transfer syntaxes, and the compressed ones a PACS
+// sends that Debian's DCMTK decodes: RLE (dcmdata), JPEG baseline, extended and lossless (dcmjpeg),
+// JPEG-LS (dcmjpls); JPEG 2000, for which it has no codec, is refused by name. A slice is decoded
+// on the worker that reads the series (the check on the HTTP side reads its header alone), into
+// Rows x Columns samples its header declared and the series' size was checked against.
 #include "dcmtk_in.h"
 #include "dicom_series.h"
 #include "ranges.h"
 
 #include <dcmtk/config/osconfig.h>
-#include <dcmtk/dcmdata/dctk.h>
 #include <dcmtk/dcmdata/dcistrmb.h>
+#include <dcmtk/dcmdata/dcrledrg.h>
+#include <dcmtk/dcmdata/dctk.h>
+#include <dcmtk/dcmjpeg/djdecode.h>
+#include <dcmtk/dcmjpls/djdecode.h>
 
 #include <algorithm>
 #include <cmath>
@@ -15,6 +21,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
 #include <vector>
 
 namespace {
@@ -88,6 +95,34 @@ int check_range(struct sf_err *err, int part, const char *name, int got, const d
     return 0;
 }
 
+/* The decoders, registered once a process (DCMTK's registries are global). */
+void register_codecs()
+{
+    static std::once_flag once;
+    std::call_once(once, [] {
+        DcmRLEDecoderRegistration::registerCodecs();
+        DJDecoderRegistration::registerCodecs();
+        DJLSDecoderRegistration::registerCodecs();
+    });
+}
+
+/* Whether a compressed transfer syntax is one those decoders take. */
+bool decodable(E_TransferSyntax t)
+{
+    switch (t) {
+    case EXS_RLELossless:
+    case EXS_JPEGProcess1:
+    case EXS_JPEGProcess2_4:
+    case EXS_JPEGProcess14:
+    case EXS_JPEGProcess14SV1:
+    case EXS_JPEGLSLossless:
+    case EXS_JPEGLSLossy:
+        return true;
+    default:
+        return false;
+    }
+}
+
 int read_slice(const struct part &p, int k, bool check_only, slice &sl, struct sf_err *err)
 {
     char where[32];
@@ -98,11 +133,10 @@ int read_slice(const struct part &p, int k, bool check_only, slice &sl, struct s
         return rc;
     DcmDataset *ds = ff.getDataset();
     E_TransferSyntax xfer = ds->getOriginalXfer();
-    if (xfer != EXS_LittleEndianImplicit && xfer != EXS_LittleEndianExplicit && xfer != EXS_BigEndianExplicit) {
-        DcmXfer x(xfer);
-        return fail_part(err, SF_EINVAL, k, "compressed pixel data (%s) is not read: send the series uncompressed",
-                         x.getXferName());
-    }
+    DcmXfer x(xfer);
+    if (x.isEncapsulated() && !decodable(xfer))
+        return fail_part(err, SF_EINVAL, k, "compressed pixel data (%s) is not read: send the series uncompressed, or "
+                         "as RLE, JPEG (baseline, extended, lossless) or JPEG-LS", x.getXferName());
     Uint16 rows = 0, cols = 0, bits = 0, stored = 0, rep = 0, spp = 1;
     if (ds->findAndGetUint16(DCM_Rows, rows).bad() || ds->findAndGetUint16(DCM_Columns, cols).bad() || rows < 1 ||
         cols < 1)
@@ -134,6 +168,13 @@ int read_slice(const struct part &p, int k, bool check_only, slice &sl, struct s
     sl.is_signed = rep == 1;
     if (check_only)
         return 0;
+    if (x.isEncapsulated()) { /* decoded in place, to the samples Rows x Columns declare */
+        register_codecs();
+        OFCondition c = ds->chooseRepresentation(EXS_LittleEndianExplicit, nullptr);
+        if (c.bad() || !ds->canWriteXfer(EXS_LittleEndianExplicit))
+            return fail_part(err, SF_EINVAL, k, "the compressed pixel data does not decode: %s",
+                             c.bad() ? c.text() : "its frames do not make the image");
+    }
     size_t n = (size_t)rows * cols;
     if (bits == 16) {
         const Uint16 *px = nullptr;
