@@ -104,9 +104,11 @@ int nifti_header(const unsigned char *buf, size_t len, struct nifti_header *h, s
         pixdim[k] = version == 1 ? f32(&f, 76 + 4 * (size_t)k) : f64(&f, 104 + 8 * (size_t)k);
     }
     h->datatype = (int)(version == 1 ? i16(&f, 70) : i16(&f, 12));
-    h->vox_offset = version == 1 ? (int64_t)f32(&f, 108) : i64(&f, 168);
+    double vox = version == 1 ? f32(&f, 108) : (double)i64(&f, 168);
     h->slope = version == 1 ? f32(&f, 112) : f64(&f, 176);
     h->inter = version == 1 ? f32(&f, 116) : f64(&f, 184);
+    if (!isfinite(h->slope) || h->slope == 0) /* no scaling (nibabel writes NaN for none), whatever scl_inter is */
+        h->slope = 0, h->inter = 0;
     int units = (version == 1 ? buf[123] : (int)i32(&f, 500)) & 7;
     int qform = (int)(version == 1 ? i16(&f, 252) : i32(&f, 344)), sform = (int)(version == 1 ? i16(&f, 254) : i32(&f, 348));
     if (dim[0] < 3 || dim[0] > 7)
@@ -121,11 +123,13 @@ int nifti_header(const unsigned char *buf, size_t len, struct nifti_header *h, s
         return sf_fail(err, SF_EINVAL, "header", "datatype %d: surfd reads NIfTI samples of uint8, int8, int16, uint16, "
                        "int32, uint32, float32 and float64 (codes 2, 256, 4, 512, 8, 768, 16, 64), not colours, complex "
                        "or 64-bit integers", h->datatype);
-    if (h->vox_offset < (version == 1 ? 352 : 544))
-        return sf_fail(err, SF_EINVAL, "header", "vox_offset %lld: a single file's samples follow its header (%d bytes "
-                       "at least)", (long long)h->vox_offset, version == 1 ? 352 : 544);
-    if (!isfinite(h->slope) || !isfinite(h->inter))
-        return sf_fail(err, SF_EINVAL, "header", "scl_slope and scl_inter are finite numbers");
+    int head = version == 1 ? 352 : 544;
+    if (!(vox >= head && vox <= head + NIFTI_MAX_EXTENSIONS))
+        return sf_fail(err, SF_EINVAL, "header", "vox_offset %g: a single file's samples follow its header (%d bytes) "
+                       "and at most %d bytes of extensions", vox, head, NIFTI_MAX_EXTENSIONS);
+    h->vox_offset = (int64_t)vox;
+    if (!isfinite(h->inter))
+        return sf_fail(err, SF_EINVAL, "header", "scl_inter is not a finite number");
     /* units: meters, mm, microns (0: unknown, taken as mm) */
     double unit = units == 1 ? 1000 : units == 3 ? 1e-3 : 1;
     if (sform > 0) {

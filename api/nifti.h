@@ -16,6 +16,9 @@
 
 /* Bytes of the header that decide everything (NIfTI-2's; NIfTI-1's is 348). */
 #define NIFTI_HEADER_MAX 540
+/* Bytes of header extensions a file may hold between its header and its samples (what a gzip
+ * file makes surfd inflate beyond its samples). */
+#define NIFTI_MAX_EXTENSIONS (16 << 20)
 
 struct nifti_header {
     int version;             /* 1 or 2 */
@@ -25,7 +28,7 @@ struct nifti_header {
     int bytes;               /* of one sample */
     bool big_endian;
     int64_t vox_offset;      /* where the samples begin */
-    double slope, inter;     /* a sample's value is slope * stored + inter (slope 0: none) */
+    double slope, inter;     /* a sample's value is slope * stored + inter (slope 0: none; a file's NaN or 0 is none) */
     double affine[3][4];     /* voxel (i, j, k) to world RAS+ in mm: x = affine[0] . (i, j, k, 1) */
     const char *xform;       /* what gave the affine: "sform", "qform" or "pixdim" */
 };

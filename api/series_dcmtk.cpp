@@ -22,6 +22,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <mutex>
+#include <new>
 #include <vector>
 
 namespace {
@@ -147,6 +148,14 @@ int read_slice(const struct part &p, int k, bool check_only, slice &sl, struct s
     ds->findAndGetUint16(DCM_SamplesPerPixel, spp);
     if ((bits != 8 && bits != 16) || spp != 1)
         return fail_part(err, SF_EINVAL, k, "%s", "samples are one channel of 8 or 16 bits (a CT or MR image)");
+    /* one frame a part, of less than 2 GB: DCMTK 3.6.7's decoders size their buffer as a frame
+     * times NumberOfFrames in 32 bits, which a crafted header makes wrap (upstream 31ff413f9) */
+    Sint32 frames = 1;
+    if (ds->findAndGetSint32(DCM_NumberOfFrames, frames).good() && frames != 1)
+        return fail_part(err, SF_EINVAL, k, "%s", "a multi-frame image (NumberOfFrames over 1): a series is read one "
+                         "image a part");
+    if ((uint64_t)rows * cols * (bits / 8) >= (1ull << 31))
+        return fail_part(err, SF_ELIMIT, k, "%s", "an image of 2 GB or more (Rows x Columns x BitsAllocated)");
     /* ImagePositionPatient: the slice's corner; ImageOrientationPatient: two direction cosines */
     if ((rc = check_range(err, k, "ImagePositionPatient (mm)", get_doubles(ds, DCM_ImagePositionPatient, sl.pos, 3),
                           sl.pos, 3, 0, RANGE_MAX_COORD, false)) ||
@@ -174,6 +183,16 @@ int read_slice(const struct part &p, int k, bool check_only, slice &sl, struct s
         if (c.bad() || !ds->canWriteXfer(EXS_LittleEndianExplicit))
             return fail_part(err, SF_EINVAL, k, "the compressed pixel data does not decode: %s",
                              c.bad() ? c.text() : "its frames do not make the image");
+        /* the decoder writes what the stream held: samples of another width than the header said
+         * are refused, a narrower precision taken */
+        Uint16 now_bits = 0, now_spp = 1, now_stored = 0;
+        ds->findAndGetUint16(DCM_BitsAllocated, now_bits);
+        ds->findAndGetUint16(DCM_SamplesPerPixel, now_spp);
+        if (now_bits != bits || now_spp != spp)
+            return fail_part(err, SF_EINVAL, k, "%s", "the compressed samples are not of the width the header says "
+                             "(BitsAllocated, SamplesPerPixel)");
+        if (ds->findAndGetUint16(DCM_BitsStored, now_stored).good() && now_stored > 0 && now_stored <= bits)
+            sl.stored = now_stored;
     }
     size_t n = (size_t)rows * cols;
     if (bits == 16) {
@@ -192,19 +211,38 @@ int read_slice(const struct part &p, int k, bool check_only, slice &sl, struct s
     return 0;
 }
 
+/* A sample's value: its BitsStored low bits, two's complement when signed (the bits above them
+ * are not the sign: writers and decoders leave them as they are). */
 double stored_value(const slice &sl, uint16_t raw)
 {
-    if (sl.bits == 8)
-        return sl.is_signed ? (double)(int8_t)raw : (double)raw;
-    return sl.is_signed ? (double)(int16_t)raw : (double)(raw & (sl.stored >= 16 ? 0xffffu : (1u << sl.stored) - 1));
+    unsigned bits = sl.stored >= sl.bits || sl.stored == 0 ? sl.bits : sl.stored;
+    uint32_t v = raw & (bits >= 16 ? 0xffffu : (1u << bits) - 1);
+    if (sl.is_signed && (v >> (bits - 1)) & 1)
+        return (double)v - (double)(1u << bits);
+    return (double)v;
 }
 
 } // namespace
+
+static int read_series(const struct part *parts, int n, bool check_only, size_t max_samples, struct series *out,
+                       struct sf_err *err);
 
 extern "C" int series_read(const struct part *parts, int n, bool check_only, size_t max_samples, struct series *out,
                            struct sf_err *err)
 {
     memset(out, 0, sizeof *out);
+    try { /* what C++ allocates here, DCMTK's buffers and the slices', may throw: never past C */
+        return read_series(parts, n, check_only, max_samples, out, err);
+    } catch (const std::bad_alloc &) {
+        free(out->owned);
+        memset(out, 0, sizeof *out);
+        return sf_fail(err, SF_ENOMEM, "/parts", "out of memory for the series");
+    }
+}
+
+static int read_series(const struct part *parts, int n, bool check_only, size_t max_samples, struct series *out,
+                       struct sf_err *err)
+{
     if (n < 2)
         return sf_fail(err, SF_EINVAL, "/parts", "a series is at least 2 slices (one DICOM image a part)");
     std::vector<slice> sl((size_t)n);

@@ -773,11 +773,21 @@ static int read_series(const char *body, size_t len, const char *options, struct
                              "the spacing (PixelSpacing, between slices)", "/parts"}, err);
 }
 
+/* Reverses axis a of v's grid (its samples are to be read so): the origin moves to its far end. */
+static void reverse_axis(struct volume *v, int a, const int n[3])
+{
+    for (int b = 0; b < 3; b++) {
+        v->g.origin[b] += (n[a] - 1) * v->g.spacing[a] * v->axes[a][b];
+        v->axes[a][b] = -v->axes[a][b];
+    }
+}
+
 /* The grid a NIfTI header's affine gives, in patient coordinates (DICOM's LPS: the RAS affine's x
- * and y rows negated): spacings the columns' lengths, axes their directions, at right angles. A
- * left-handed one is read with x reversed (*flip; its origin the far end of x), so that the mesh
- * faces out. */
-static int nifti_grid(const struct nifti_header *h, struct volume *v, bool *flip, struct sf_err *err)
+ * and y rows negated): spacings the columns' lengths, axes their directions, at right angles.
+ * Axes along the patient's own but reversed (the RAS files' usual LPS diag(-1, -1, 1), LAS, ...)
+ * are read reversed (flip[a]), so that the grid is not turned at all; a turned left-handed one has
+ * its x reversed, so that the mesh faces out. */
+static int nifti_grid(const struct nifti_header *h, struct volume *v, bool flip[3], struct sf_err *err)
 {
     double sign[3] = {-1, -1, 1};
     for (int a = 0; a < 3; a++) {
@@ -800,13 +810,19 @@ static int nifti_grid(const struct nifti_header *h, struct volume *v, bool *flip
                                "apart, not 90): surfd meshes grids whose axes are at right angles", h->xform, a, b,
                                acos(fmax(-1, fmin(1, dot))) * 180 / M_PI);
         }
+    const int n[3] = {v->g.nx, v->g.ny, v->g.nz};
+    bool along = true; /* each axis along the patient's own, either way */
+    for (int a = 0; a < 3; a++)
+        along = along && fabs(fabs(v->axes[a][a]) - 1) < 1e-9;
+    for (int a = 0; a < 3; a++)
+        if ((flip[a] = along && v->axes[a][a] < 0))
+            reverse_axis(v, a, n);
     const double(*x)[3] = (const double(*)[3])v->axes;
     double det = x[0][0] * (x[1][1] * x[2][2] - x[1][2] * x[2][1]) - x[0][1] * (x[1][0] * x[2][2] - x[1][2] * x[2][0]) +
                  x[0][2] * (x[1][0] * x[2][1] - x[1][1] * x[2][0]);
-    *flip = det < 0;
-    for (int b = 0; *flip && b < 3; b++) {
-        v->g.origin[b] += (v->g.nx - 1) * v->g.spacing[0] * v->axes[0][b];
-        v->axes[0][b] = -v->axes[0][b];
+    if (det < 0) {
+        flip[0] = !flip[0];
+        reverse_axis(v, 0, n);
     }
     return check_turned_grid(v, &(struct grid_fields){"header", h->xform, "header", "the voxel size", "header"}, err);
 }
@@ -849,11 +865,11 @@ static int read_nifti(const char *body, size_t len, const char *options, struct 
     if ((rc = nifti_header(gz ? head : hb, hn, &h, err)))
         return rc;
     int dims[3];
-    bool flip = false;
+    bool flip[3] = {false, false, false};
     if ((rc = check_dims((const double[3]){(double)h.dims[0], (double)h.dims[1], (double)h.dims[2]}, "header", dims, err)))
         return rc;
     v->g.nx = dims[0], v->g.ny = dims[1], v->g.nz = dims[2];
-    if ((rc = nifti_grid(&h, v, &flip, err)))
+    if ((rc = nifti_grid(&h, v, flip, err)))
         return rc;
     static const struct { int datatype; enum iso_type type; } NATIVE[] = {{2, ISO_U8}, {4, ISO_I16}, {512, ISO_U16},
                                                                           {16, ISO_F32}};
@@ -876,7 +892,7 @@ static int read_nifti(const char *body, size_t len, const char *options, struct 
         return rc;
     const unsigned char *data = (const unsigned char *)(gz ? whole : body) + h.vox_offset;
     size_t ts = type_size(v->g.type);
-    if (native && !flip && !h.big_endian && (uintptr_t)data % ts == 0) { /* as it is */
+    if (native && !flip[0] && !flip[1] && !flip[2] && !h.big_endian && (uintptr_t)data % ts == 0) { /* as it is */
         v->owned = whole;
         v->g.samples = data;
     } else {
@@ -886,7 +902,10 @@ static int read_nifti(const char *body, size_t len, const char *options, struct 
             return sf_fail(err, SF_ENOMEM, "", "out of memory for %zu samples", count);
         }
         for (size_t i = 0; i < count; i++) {
-            size_t x = i % (size_t)dims[0], src = flip ? i - x + (size_t)dims[0] - 1 - x : i;
+            size_t c[3] = {i % (size_t)dims[0], i / (size_t)dims[0] % (size_t)dims[1], i / ((size_t)dims[0] * dims[1])};
+            for (int a = 0; a < 3; a++)
+                c[a] = flip[a] ? (size_t)dims[a] - 1 - c[a] : c[a];
+            size_t src = c[0] + (size_t)dims[0] * (c[1] + (size_t)dims[1] * c[2]);
             const unsigned char *p = data + src * (size_t)h.bytes;
             if (native && !h.big_endian) {
                 memcpy(out + i * ts, p, ts);

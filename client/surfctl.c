@@ -228,9 +228,17 @@ static int series_body(const char *dir, struct buf *b, char *type, size_t cap)
         if (e->d_name[0] == '.' || stat(path, &st) || !S_ISREG(st.st_mode))
             continue;
         char **more = realloc(names, (n + 1) * sizeof *names);
-        if (!more || !(more[n] = strdup(path)))
-            break;
-        names = more, n++;
+        if (more)
+            names = more;
+        if (!more || !(names[n] = strdup(path))) {
+            closedir(d);
+            for (size_t k = 0; k < n; k++)
+                free(names[k]);
+            free(names);
+            fprintf(stderr, "surfctl: out of memory listing %s\n", dir);
+            return EXIT_USAGE;
+        }
+        n++;
     }
     closedir(d);
     qsort(names, n, sizeof *names, by_name);

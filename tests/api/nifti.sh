@@ -22,8 +22,14 @@ d = (64, 64, 64)
 ras = [[-sx, 0, 0, 100], [0, -sx, 0, 120], [0, 0, sz, -50]]         # LPS: +x, +y, +z from (-100, -120, -50)
 nw.write(t + "/a.nii", le, d, 4, 16, sform=ras)
 nw.write(t + "/a2.nii.gz", big, d, 4, 16, sform=ras, version=2, gz=True, big=True)
-nw.write(t + "/q.nii", le, d, 4, 16, qform=(0, 0, 0, 100, 120, -50, 1), pixdim=(sx, sx, sz))
+nw.write(t + "/q.nii", le, d, 4, 16, qform=(0, 0, 0, 100, 120, -50, 1), pixdim=(sx, sx, sz))   # RAS as stored
+h = 0.5 ** 0.5                                                      # 90 degrees about z, qfac -1: k reversed
+nw.write(t + "/q90.nii", le, d, 4, 16, qform=(0, 0, h, 100, 120, -50, -1), pixdim=(sx, sx, sz))
 nw.write(t + "/l.nii", le, d, 4, 16, sform=[[-sx, 0, 0, 100], [0, sx, 0, 120], [0, 0, sz, -50]])  # left-handed
+nw.write(t + "/nan.nii", le, d, 4, 16, sform=ras, slope=float("nan"), inter=float("nan"))  # nibabel's "no scaling"
+nw.write(t + "/ext.nii", big, d, 4, 16, sform=ras, big=True, extension=48)
+i32 = struct.pack("<%di" % (len(le) // 2), *struct.unpack("<%dh" % (len(le) // 2), le))
+nw.write(t + "/i32.nii", i32, d, 8, 32, sform=ras)
 nw.write(t + "/s.nii", le, d, 4, 16, sform=ras, slope=2.0, inter=-1000.0)
 nw.write(t + "/f64.nii", f64, d, 64, 64, sform=ras)
 nw.write(t + "/m.nii", le, d, 4, 16, sform=[[v / 1000 for v in r] for r in ras], units=1)   # in metres
@@ -33,7 +39,7 @@ nw.write(t + "/4d.nii", le, d, 4, 16, sform=ras, dim0=4, dim4=3)
 nw.write(t + "/zero.nii", le, d, 4, 16, sform=[[0, 0, 0, 0], [0, -sx, 0, 0], [0, 0, sz, 0]])
 nw.write(t + "/shear.nii", le, d, 4, 16, sform=[[-sx, sx, 0, 0], [0, -sx, 0, 0], [0, 0, sz, 0]])
 nw.write(t + "/pair.nii", le, d, 4, 16, sform=ras, magic=b"ni1\0")
-nw.write(t + "/nan.nii", le, d, 4, 16, sform=[[float("nan"), 0, 0, 0], [0, -sx, 0, 0], [0, 0, sz, 0]])
+nw.write(t + "/nans.nii", le, d, 4, 16, sform=[[float("nan"), 0, 0, 0], [0, -sx, 0, 0], [0, 0, sz, 0]])
 open(t + "/cut.nii", "wb").write(open(t + "/a.nii", "rb").read()[:-1000])
 nw.write(t + "/huge.nii.gz", b"", (2000, 2000, 2000), 4, 16, sform=ras, gz=True)   # 16 GB declared in 60 bytes
 PY
@@ -43,15 +49,21 @@ code=$(status POST "/isosurface?iso=226.5&dims=64,64,64&type=int16&spacing=$SX,$
     -H 'Content-Type: application/octet-stream' --data-binary @"$CT")
 cp "$T/body" "$T/ref.json"
 check "the raw samples at the place the affines say: 201" '[ "$code" = 201 ]'
-# same [REL [nobox]]: the model in $T/body has the reference's triangles, volume (within REL; 1e-6:
-# NIfTI-1's sform is float32) and bounds (1e-3 mm), and is closed
+# same [REL [PLACE]]: the model in $T/body has the reference's triangles, volume (within REL; 1e-6:
+# NIfTI-1's sform is float32; 1e-4 mirrored, whose cubes' ambiguous faces split the other way), bounds (1e-3 mm) where PLACE puts the reference's (id: the same;
+# q0: the RAS grid as stored, x and y through -100, -120; q90: turned a quarter about z and k
+# reversed; lh: y mirrored about -120), and is closed
 same() {
     python3 -c "
 import json, sys
-a = json.load(open(sys.argv[1])); b = json.load(open(sys.argv[2])); rel = float(sys.argv[3]); box = sys.argv[4] == 'box'
+a = json.load(open(sys.argv[1])); b = json.load(open(sys.argv[2])); rel = float(sys.argv[3]); place = sys.argv[4]
+(x0, y0, z0), (x1, y1, z1) = b['bounds']
+want = {'id': b['bounds'], 'q0': [[-x1 - 200, -y1 - 240, z0], [-x0 - 200, -y0 - 240, z1]],
+        'q90': [[y0 + 20, -x1 - 220, -z1 - 100], [y1 + 20, -x0 - 220, -z0 - 100]],
+        'lh': [[x0, -y1 - 240, z0], [x1, -y0 - 240, z1]]}[place]
 ok = (a['triangles'] == b['triangles'] and abs(a['volume_mm3'] / b['volume_mm3'] - 1) < rel and a['boundary_edges'] == 0
-      and (not box or all(abs(x - y) < 1e-3 for p, q in zip(a['bounds'], b['bounds']) for x, y in zip(p, q))))
-sys.exit(0 if ok else 1)" "$T/body" "$T/ref.json" "${1:-1e-6}" "${2:-box}"
+      and all(abs(x - y) < 1e-3 for p, q in zip(a['bounds'], want) for x, y in zip(p, q)))
+sys.exit(0 if ok else 1)" "$T/body" "$T/ref.json" "${1:-1e-6}" "${2:-id}"
 }
 code=$(status POST "/isosurface?iso=226.5" --data-binary @"$T/a.nii")
 check "NIfTI-1 by its sform, posted without a type: the raw samples' mesh, in the same place" '[ "$code" = 201 ] && same'
@@ -64,9 +76,17 @@ check "posted as application/octet-stream without ?dims: read as the NIfTI it is
 code=$(status POST "/isosurface?iso=226.5" -H 'Content-Type: application/x-nifti' --data-binary @"$T/m.nii")
 check "application/x-nifti, an affine in metres (xyzt_units): the same, in mm" '[ "$code" = 201 ] && same 1e-6'
 code=$(status POST "/isosurface?iso=226.5" --data-binary @"$T/q.nii")
-check "by its qform (the identity: RAS+, turned half round z into LPS): the same mesh turned" '[ "$code" = 201 ] && same 1e-6 nobox'
+check "by its qform (the identity: the grid as stored in RAS+): the mesh where RAS puts it" '[ "$code" = 201 ] && same 1e-4 q0 && grep -q "\"origin\":\[-160" "$T/body"'
+code=$(status POST "/isosurface?iso=226.5" --data-binary @"$T/q90.nii")
+check "by a qform turned a quarter round z, qfac -1: the mesh turned and its k reversed" '[ "$code" = 201 ] && same 1e-4 q90'
 code=$(status POST "/isosurface?iso=226.5" --data-binary @"$T/l.nii")
-check "a left-handed sform (x reversed): closed, its triangles, its volume to 1e-4 (the mirror's cubes), positive (facing out)" '[ "$code" = 201 ] && same 1e-4 nobox'
+check "a left-handed sform (y reversed): closed, facing out, y mirrored about -120" '[ "$code" = 201 ] && same 1e-4 lh'
+code=$(status POST "/isosurface?iso=226.5" --data-binary @"$T/nan.nii")
+check "scl_slope and scl_inter NaN (nibabel's no scaling): the same" '[ "$code" = 201 ] && same'
+code=$(status POST "/isosurface?iso=226.5" --data-binary @"$T/ext.nii")
+check "big-endian, uncompressed, 48 bytes of extension before its samples (vox_offset 400): the same" '[ "$code" = 201 ] && same'
+code=$(status POST "/isosurface?iso=226.5" --data-binary @"$T/i32.nii")
+check "int32 samples (a label map's type): the same" '[ "$code" = 201 ] && same'
 code=$(status POST "/isosurface?iso=-547" --data-binary @"$T/s.nii")
 check "scl_slope 2, scl_inter -1000: iso in the scaled values (-547 is 226.5 stored) gives the same" '[ "$code" = 201 ] && same 1e-6'
 code=$(status POST "/isosurface?iso=226.5" --data-binary @"$T/f64.nii")
@@ -82,7 +102,7 @@ refused 4d.nii 422 "a series of volumes"
 refused zero.nii 422 "column 0 is zero"
 refused shear.nii 422 "shears the grid"
 refused pair.nii 422 "pair"
-refused nan.nii 422 "not finite"
+refused nans.nii 422 "not finite"
 refused cut.nii 422 "the file holds"
 refused huge.nii.gz 422 "over the limit"
 code=$(status POST "/isosurface?iso=226.5&dims=64,64,64" --data-binary @"$T/a.nii")

@@ -10,7 +10,8 @@ import struct
 
 
 def write(path, data, dims, datatype, bitpix, sform=None, qform=None, pixdim=(1, 1, 1), version=1, gz=False,
-          slope=0.0, inter=0.0, units=2, big=False, magic=None, dim0=3, dim4=1):
+          slope=0.0, inter=0.0, units=2, big=False, magic=None, dim0=3, dim4=1, extension=0):
+    """extension: bytes of an (empty) extension between the header and the samples (vox_offset grows)."""
     e = ">" if big else "<"
     qfac = qform[6] if qform else 1.0
     dim = [dim0] + list(dims) + [dim4, 1, 1, 1]
@@ -21,7 +22,7 @@ def write(path, data, dims, datatype, bitpix, sform=None, qform=None, pixdim=(1,
         struct.pack_into(e + "8h", h, 40, *dim)
         struct.pack_into(e + "hh", h, 70, datatype, bitpix)
         struct.pack_into(e + "8f", h, 76, *pix)
-        struct.pack_into(e + "fff", h, 108, 352.0, slope, inter)
+        struct.pack_into(e + "fff", h, 108, 352.0 + extension, slope, inter)
         h[123] = units
         if qform:
             struct.pack_into(e + "h", h, 252, 1)
@@ -37,7 +38,7 @@ def write(path, data, dims, datatype, bitpix, sform=None, qform=None, pixdim=(1,
         struct.pack_into(e + "hh", h, 12, datatype, bitpix)
         struct.pack_into(e + "8q", h, 16, *dim)
         struct.pack_into(e + "8d", h, 104, *pix)
-        struct.pack_into(e + "q", h, 168, 544)
+        struct.pack_into(e + "q", h, 168, 544 + extension)
         struct.pack_into(e + "dd", h, 176, slope, inter)
         if qform:
             struct.pack_into(e + "i", h, 344, 1)
@@ -46,6 +47,6 @@ def write(path, data, dims, datatype, bitpix, sform=None, qform=None, pixdim=(1,
             struct.pack_into(e + "i", h, 348, 1)
             struct.pack_into(e + "12d", h, 400, *[v for row in sform for v in row])
         struct.pack_into(e + "i", h, 500, units)
-    out = bytes(h) + b"\0" * 4 + data
+    out = bytes(h) + b"\0" * (4 + extension) + data
     with open(path, "wb") as f:
         f.write(gzip.compress(out) if gz else out)
