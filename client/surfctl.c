@@ -208,10 +208,19 @@ static int post_file(const char *route, const char *query, const char *file, con
 
 static int by_name(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
 
-/* A directory's files (a DICOM series, one image a file; hidden ones skipped, in name order) as
- * multipart/form-data, one part "slice" a file, as curl -F slice=@FILE sends them; the parts are
- * named slice0001.dcm ... (a series' own file names may name the patient). The type (with its
- * boundary) into type. 0, or an exit code. */
+/* Whether a file of a series' directory is one of its images: DICOM ("DICM" after the preamble,
+ * or a first element of group 0002 or 0008 without one), and not the media's DICOMDIR. */
+static bool series_image(const char *name, const char *data, size_t len)
+{
+    if (!strcasecmp(name, "DICOMDIR"))
+        return false;
+    return (len >= 132 && !memcmp(data + 128, "DICM", 4)) || (len >= 8 && data[1] == 0 && (data[0] == 2 || data[0] == 8));
+}
+
+/* A directory's images (a DICOM series, one image a file; hidden files, the DICOMDIR and files that
+ * are not DICOM skipped, in name order) as multipart/form-data, one part "slice" a file, as curl
+ * -F slice=@FILE sends them; the parts are named slice0001.dcm ... (a series' own file names may
+ * name the patient). The type (with its boundary) into type. 0, or an exit code. */
 static int series_body(const char *dir, struct buf *b, char *type, size_t cap)
 {
     DIR *d = opendir(dir);
@@ -246,11 +255,18 @@ static int series_body(const char *dir, struct buf *b, char *type, size_t cap)
     snprintf(boundary, sizeof boundary, "surfctl-%08lx%08lx", (unsigned long)time(NULL), (unsigned long)getpid() * 2654435761ul);
     snprintf(type, cap, "multipart/form-data; boundary=%s", boundary);
     int rc = n ? 0 : (fprintf(stderr, "surfctl: %s holds no files\n", dir), EXIT_USAGE);
+    size_t parts = 0;
     for (size_t k = 0; k < n && !rc; k++) {
         size_t len;
         char *data = read_file(names[k], &len), head[256];
+        const char *base = strrchr(names[k], '/') + 1;
+        if (data && !series_image(base, data, len)) {
+            fprintf(stderr, "surfctl: %s is not an image of the series; left out\n", names[k]);
+            free(data);
+            continue;
+        }
         int hn = snprintf(head, sizeof head, "--%s\r\nContent-Disposition: form-data; name=\"slice\"; "
-                          "filename=\"slice%04zu.dcm\"\r\nContent-Type: application/dicom\r\n\r\n", boundary, k + 1);
+                          "filename=\"slice%04zu.dcm\"\r\nContent-Type: application/dicom\r\n\r\n", boundary, ++parts);
         if (!data || !buf_add(b, head, (size_t)hn) || !buf_add(b, data, len) || !buf_add(b, "\r\n", 2))
             rc = EXIT_USAGE;
         free(data);

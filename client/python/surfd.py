@@ -284,19 +284,28 @@ def _is_dir(s: Body) -> bool:
         return False
 
 
+def _series_image(name: str, data: bytes) -> bool:
+    """Whether a file of a series' directory is one of its images: DICOM ("DICM" after the preamble,
+    or a first element of group 0002 or 0008 without one), and not the media's DICOMDIR."""
+    if name.upper() == "DICOMDIR":
+        return False
+    return data[128:132] == b"DICM" or (len(data) >= 8 and data[1] == 0 and data[0] in (2, 8))
+
+
 def _series(directory: Path):
-    """A directory's files (a DICOM series, one image a file; hidden ones skipped, in name order)
-    as multipart/form-data, one part "slice" a file, named slice0001.dcm ... (a series' own file
-    names may name the patient)."""
+    """A directory's images (a DICOM series, one image a file; hidden files, the DICOMDIR and files
+    that are not DICOM skipped, in name order) as multipart/form-data, one part "slice" a file,
+    named slice0001.dcm ... (a series' own file names may name the patient)."""
     files = sorted(p for p in directory.iterdir() if p.is_file() and not p.name.startswith("."))
-    if not files:
-        raise SurfdError(0, {"detail": "%s holds no files" % directory})
+    images = [d for p in files for d in (p.read_bytes(),) if _series_image(p.name, d)]
+    if not images:
+        raise SurfdError(0, {"detail": "%s holds no DICOM images" % directory})
     boundary = "surfd-py-" + os.urandom(12).hex()
     out = bytearray()
-    for k, p in enumerate(files, 1):
+    for k, data in enumerate(images, 1):
         out += ("--%s\r\nContent-Disposition: form-data; name=\"slice\"; filename=\"slice%04d.dcm\"\r\n"
                 "Content-Type: application/dicom\r\n\r\n" % (boundary, k)).encode()
-        out += p.read_bytes() + b"\r\n"
+        out += data + b"\r\n"
     out += ("--%s--\r\n" % boundary).encode()
     return bytes(out), "multipart/form-data; boundary=" + boundary
 

@@ -46,6 +46,12 @@ check "surfctl isosurface DICOM-DIR: the series uploaded (a part a file), curl -
 check "the Python client's isosurface(DICOM-DIR): the same" 'PYTHONPATH=client/python python3 -c "
 import json, surfd, sys
 json.dump(surfd.Client().isosurface(sys.argv[1], iso=226.5), open(sys.argv[2], \"w\"))" "$DD" "$T/py_series.json" && same_series "$T/py_series.json"'
+mkdir -p "$T/export"; cp "$DD"/* "$T/export/"; cp "$DD/$(ls "$DD" | head -n 1)" "$T/export/DICOMDIR"; echo "export notes" >"$T/export/README.txt"
+$C isosurface "$T/export" --iso 226.5 -o "$T/export.stl" >"$T/out" 2>"$T/err"; rc=$?
+check "surfctl isosurface of an export's directory (a DICOMDIR, a README beside the images): the images alone, the same model" '[ $rc -eq 0 ] && same_series "$T/out" && grep -q "README.txt is not an image" "$T/err"'
+check "... and the Python client's" 'PYTHONPATH=client/python python3 -c "
+import json, surfd, sys
+json.dump(surfd.Client().isosurface(sys.argv[1], iso=226.5), open(sys.argv[2], \"w\"))" "$T/export" "$T/py_export.json" && same_series "$T/py_export.json"'
 $C render "$D/teacup.json" -o "$T/d.png" --width 120 --height 90
 check "surfctl render" '[ $? -eq 0 ] && [ -s "$T/d.png" ]'
 id=$($C render "$D/duck1.nurbs" --async --width 200 --height 150)
