@@ -214,6 +214,23 @@ static int inflate_prefix(const char *src, size_t n, unsigned char *out, size_t 
                : sf_fail(err, SF_EFORMAT, "header", "gzip data that does not inflate");
 }
 
+/* 0, or SF_EINVAL at where when a float32 sample of v is NaN or infinite. */
+static int finite_samples(const struct volume *v, const char *where, struct sf_err *err)
+{
+    if (v->g.type != ISO_F32)
+        return 0;
+    const float *f = v->g.samples;
+    size_t count = (size_t)v->g.nx * (size_t)v->g.ny * (size_t)v->g.nz;
+    for (size_t i = 0; i < count; i++)
+        if (!isfinite(f[i])) {
+            size_t x = i % (size_t)v->g.nx, y = i / (size_t)v->g.nx % (size_t)v->g.ny,
+                   z = i / ((size_t)v->g.nx * (size_t)v->g.ny);
+            return sf_fail(err, SF_EINVAL, where, "sample (%zu, %zu, %zu) is not a finite number: NaN and infinite "
+                           "samples are refused, not taken as outside", x, y, z);
+        }
+    return 0;
+}
+
 /* Points v at the samples: in place when they are raw, in the host's order and aligned; copied
  * (swapped) or inflated otherwise. Then refuses samples that are not finite. */
 static int place_samples(const char *data, size_t n, bool compressed, bool big_endian, const char *where,
@@ -248,17 +265,7 @@ static int place_samples(const char *data, size_t n, bool compressed, bool big_e
                 b[i * ts + ts - 1 - k] = t;
             }
     v->g.samples = v->owned ? v->owned : (const void *)data;
-    if (v->g.type == ISO_F32) {
-        const float *f = v->g.samples;
-        for (size_t i = 0; i < count; i++)
-            if (!isfinite(f[i])) {
-                size_t x = i % (size_t)v->g.nx, y = i / (size_t)v->g.nx % (size_t)v->g.ny,
-                       z = i / ((size_t)v->g.nx * (size_t)v->g.ny);
-                return sf_fail(err, SF_EINVAL, where, "sample (%zu, %zu, %zu) is not a finite number: NaN and infinite "
-                               "samples are refused, not taken as outside", x, y, z);
-            }
-    }
-    return 0;
+    return finite_samples(v, where, err);
 }
 
 /* ---- headers ---- */
@@ -931,14 +938,7 @@ static int read_nifti(const char *body, size_t len, const char *options, struct 
         v->owned = out;
         v->g.samples = out;
     }
-    if (v->g.type == ISO_F32) {
-        const float *f = v->g.samples;
-        for (size_t i = 0; i < count; i++)
-            if (!isfinite(f[i]))
-                return sf_fail(err, SF_EINVAL, "data", "sample %zu is not a finite number (after scl_slope and "
-                               "scl_inter): NaN and infinite samples are refused, not taken as outside", i);
-    }
-    return 0;
+    return finite_samples(v, "data", err);
 }
 
 /* ?iso within what the samples' type can hold (a DICOM series' after its rescale: int16 when its

@@ -633,8 +633,7 @@ static int pg_get(struct store *s, const char *id, bool with_request, bool with_
 {
     struct param prm[] = {T(id)};
     PGresult *res;
-    memset(out, 0, sizeof *out); /* store_rec_free()-safe whatever the answer */
-    int n = exec1(s, &res, "SELECT " REC_COLUMNS ",request,result_len FROM jobs WHERE id=$1", 1, prm);
+    int n = exec1(s, &res, "SELECT " REC_COLUMNS ",request,result_len FROM jobs WHERE id=$1", 1, prm); /* out zeroed by store_get */
     if (n < 0)
         return SF_EIO;
     if (n == 0) {
