@@ -43,6 +43,29 @@ static void override(struct contour_request *req, const char *caps, const char *
         snprintf(req->param, sizeof req->param, "%s", param);
 }
 
+/* Adds figures' "warnings" where the model's curves depart from the polygons (model_departure):
+ * what a planning system measures is the polygons, so a user comparing volumes learns why they
+ * differ and which figure is theirs. 0 or SF_ENOMEM. */
+static int departure_warning(const struct contour_set *cs, enum model_method m, json_t *figures)
+{
+    struct model_departure d;
+    if (model_departure(cs, m, &d))
+        return SF_ENOMEM;
+    if (fabs(d.rel) <= MODEL_DEPART_WARN)
+        return 0;
+    const struct contour_slice *w = &cs->s[d.worst];
+    char msg[400];
+    snprintf(msg, sizeof msg,
+             "the surface's contours enclose %.1f %% %s than their polygons, which planning systems measure "
+             "(volume.trapezoid is the polygons' volume): the contours have few points for how they turn (the "
+             "most: %d points at z %g, %.1f %% %s)",
+             100 * fabs(d.rel), d.rel > 0 ? "more" : "less", w->n, w->z, 100 * fabs(d.worst_rel),
+             d.worst_rel > 0 ? "more" : "less");
+    json_t *list = json_pack("[{s:s, s:s, s:f}]", "code", "curves-depart-from-polygons", "message", msg,
+                             "departure", d.rel);
+    return list && !json_object_set_new(figures, "warnings", list) ? 0 : SF_ENOMEM;
+}
+
 /* The figures of one cleaned contour set as a JSON object (NULL with err set on failure); a model's
  * (unfold: of its surface with the folds undone, as solid_of builds it), or a volume's (model.h). */
 static json_t *figures(struct contour_set *cs_in, const struct contour_request *req, const struct sf_progress *pr,
@@ -102,8 +125,11 @@ static json_t *figures(struct contour_set *cs_in, const struct contour_request *
                           "trapezoid", b.trapezoid, "cavalieri", b.cavalieri, "frustum", b.frustum, "bounds",
                           all.lo[0], all.lo[1], all.lo[2], all.hi[0], all.hi[1], all.hi[2], "timings_ms", "read",
                           t1 - t0, "fit", t2 - t1 - volume_ms, "volume", t3 - t2 + volume_ms, "measure", t4 - t3);
-    if (!o)
+    if (!o || departure_warning(&cs, mo.method, o)) {
+        json_decref(o);
         sf_fail(err, SF_ENOMEM, "", "out of memory");
+        return NULL;
+    }
     return o;
 }
 

@@ -239,16 +239,41 @@ int model_volume_closed(const struct contour_set *cs, struct model_opts o, doubl
     return rc ? sf_fail(err, SF_ENOMEM, "", "out of memory") : 0;
 }
 
-double model_curve_area(const struct contour_slice *s)
+/* The area enclosed by s's curve (parabolic or linear-parabolic), redrawn as the methods read it or
+ * as drawn through its points; NAN when out of memory. */
+static double curve_area(const struct contour_slice *s, bool lsq, bool redrawn)
 {
     struct curve c = {0};
     struct curve_poly cp = {0};
-    double a = 0.0;
-    if (!curve_build(s, false, false, &c) && !curve_poly_build(&c, &cp) && !curve_refit(&cp))
+    double a = NAN;
+    if (!curve_build(s, lsq, false, &c) && !curve_poly_build(&c, &cp) && (!redrawn || !curve_refit(&cp)))
         a = mixed_area(&cp, &cp, false);
     curve_poly_free(&cp);
     curve_free(&c);
     return a;
+}
+
+double model_curve_area(const struct contour_slice *s)
+{
+    double a = curve_area(s, false, true);
+    return isnan(a) ? 0.0 : a;
+}
+
+int model_departure(const struct contour_set *cs, enum model_method m, struct model_departure *d)
+{
+    double curves = 0.0, polygons = 0.0;
+    *d = (struct model_departure){0.0, -1, 0.0};
+    for (int k = 0; k < cs->n_slices; k++) {
+        double ap = fabs(contour_area(&cs->s[k])), ac = curve_area(&cs->s[k], m == MODEL_LINEAR_PARABOLIC, false);
+        if (isnan(ac))
+            return SF_ENOMEM;
+        double sign = cs->s[k].hole ? -1.0 : 1.0, rel = ac / ap - 1.0;
+        curves += sign * ac, polygons += sign * ap;
+        if (d->worst < 0 || fabs(rel) > fabs(d->worst_rel))
+            d->worst = k, d->worst_rel = rel;
+    }
+    d->rel = polygons > 0.0 ? curves / polygons - 1.0 : 0.0;
+    return 0;
 }
 
 void model_chains_free(struct model_chain *c, int n)

@@ -23,6 +23,9 @@ void curve_free(struct curve *c)
 {
     free(c->p);
     free(c->u);
+    free(c->corner);
+    free(c->t_in);
+    free(c->t_out);
 }
 
 /* Seed 004 eq. 1–5: rays from the centroid give u = φ / 2π where the contour turns steadily about it
@@ -54,6 +57,165 @@ static void polar_parameters(struct curve *c, double cx, double cy)
     free(u);
 }
 
+/* Parameter and point of index i, any integer (periodic: one turn adds 1 to u). */
+static double cu(const struct curve *c, int i, double *x, double *y)
+{
+    int n = c->n, k = ((i % n) + n) % n, turns = (i - k) / n;
+    *x = c->p[k][0];
+    *y = c->p[k][1];
+    return c->u[k] + turns;
+}
+
+/* ---- corners, straight runs and bulges (parabolic) ----
+ * The curve through every point is right where the points sample a smooth outline densely. Where a
+ * planning system draws a box, a couch or a hand-made structure with 4 to 6 points a slice, the
+ * parabolas round its corners off and bulge between far-apart points: a 50 mm square of 4 points
+ * modelled +36.7 %, an L of 6 +43 %. Ours (the seeds are silent; the local fits are seed 004's),
+ * features counting where they are drawn at the contour's scale, FEATURE_REL of its extent or more
+ * (so that a dense outline's pixel steps and spikes are not taken for them: the lung's slits, 2 mm
+ * steps on a 100 mm contour, folded the surface between levels as corners):
+ * - a run of edges in line (each turning less than STRAIGHT_TURN from the last), FEATURE_REL long or
+ *   more, is straight: the tangents at its ends run along it, so it stays a line and the curve leaves
+ *   it tangentially;
+ * - a point where the contour turns by CORNER_TURN or more next to an edge or run FEATURE_REL long,
+ *   or between two straight runs turning by RUN_CORNER_TURN or more, is a corner: the curve is C0
+ *   there, each side's tangent from its own side alone (the parabola through that point and the
+ *   next two, as at an open end; the edge itself where the next point is a corner or the edge is
+ *   straight, so corners are joined straight). Dense outlines bend between runs by less (Eclipse's
+ *   body: 2831 such bends, all under 10 degrees, which as corners cut it into 2.6 times the patches);
+ * - no piece leaves its edge's line by more than BULGE_REL of the edge's length or BULGE_EXT of the
+ *   contour's extent, whichever is more: the tangents at its ends are shortened until the bound
+ *   4/27 (|a0| + |a1|) on the piece's offset from that line holds (a0, a1: the end tangents'
+ *   components across the edge times the piece's span; the Hermite basis functions t(1-t)² and
+ *   t²(1-t) peak at 4/27). A point's two tangents shorten together but at a corner, so the curve
+ *   stays C1 where it was.
+ * So a 4 to 6 point polygon is modelled as the polygon, an octagon as a curve within 0.1 of an edge
+ * of it (the figures warn: model_departure), and dense organ contours as before: their volumes move
+ * by 3e-4 (the tumour bed's two corners) down to 2e-8 (Eclipse's body). */
+#define CORNER_TURN 60.0     /* degrees */
+#define RUN_CORNER_TURN 10.0 /* degrees */
+#define STRAIGHT_TURN 0.25   /* degrees */
+#define FEATURE_REL 0.05
+#define BULGE_REL 0.1
+#define BULGE_EXT 0.005
+
+/* The turn of the contour at point i, in degrees (0 straight on, 180 back). */
+static double turn_at(const struct curve *c, int i)
+{
+    double a[2], b[2], d[2];
+    cu(c, i - 1, &a[0], &a[1]), cu(c, i, &b[0], &b[1]), cu(c, i + 1, &d[0], &d[1]);
+    double e[2] = {b[0] - a[0], b[1] - a[1]}, f[2] = {d[0] - b[0], d[1] - b[1]};
+    return fabs(atan2(e[0] * f[1] - e[1] * f[0], e[0] * f[0] + e[1] * f[1])) * (180.0 / M_PI);
+}
+
+/* The u-derivative at point at of the parabola through points i, i+1, i+2 (at one of them). */
+static void parabola_slope(const struct curve *c, int i, int at, double out[2])
+{
+    double ts[3], v[3][2], t = 0.0;
+    for (int a = 0; a < 3; a++) {
+        ts[a] = cu(c, i + a, &v[a][0], &v[a][1]);
+        if (i + a == at)
+            t = ts[a];
+    }
+    out[0] = out[1] = 0.0;
+    for (int a = 0; a < 3; a++) { /* d/dt of v_a's Lagrange basis (t - t_b)(t - t_d) / ... */
+        int b = (a + 1) % 3, d = (a + 2) % 3;
+        double w = ((t - ts[b]) + (t - ts[d])) / ((ts[a] - ts[b]) * (ts[a] - ts[d]));
+        out[0] += w * v[a][0], out[1] += w * v[a][1];
+    }
+}
+
+/* The edge from point i to i+1 as a u-derivative (its chord over its span). */
+static void edge_slope(const struct curve *c, int i, double out[2])
+{
+    double a[2], b[2], h = cu(c, i + 1, &b[0], &b[1]) - cu(c, i, &a[0], &a[1]);
+    out[0] = (b[0] - a[0]) / h, out[1] = (b[1] - a[1]) / h;
+}
+
+/* Corners and tangents of a parabolic curve (above). */
+static void curve_shape(struct curve *c)
+{
+    int n = c->n;
+    double *turn = malloc(sizeof *turn * (size_t)n), *s = malloc(sizeof *s * (size_t)n);
+    bool *straight = malloc(sizeof *straight * (size_t)n); /* edge i, i+1 */
+    if (!turn || !s || !straight) { /* (seed 004's curve as it was: no corners, the parabolas' tangents) */
+        for (int i = 0; i < n; i++)
+            parabola_slope(c, i - 1, i, c->t_in[i]), memcpy(c->t_out[i], c->t_in[i], sizeof c->t_in[i]);
+        free(turn), free(s), free(straight);
+        return;
+    }
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    for (int i = 0; i < n; i++) {
+        turn[i] = turn_at(c, i);
+        for (int d = 0; d < 2; d++)
+            lo[d] = fmin(lo[d], c->p[i][d]), hi[d] = fmax(hi[d], c->p[i][d]);
+    }
+    /* s[i]: the length of the run of edges in line that edge i is part of (itself alone if none) */
+    double feature = FEATURE_REL * fmax(hi[0] - lo[0], hi[1] - lo[1]);
+    int first = 0; /* an edge that begins a run (some turn is not straight on: they sum to a whole turn) */
+    while (first < n - 1 && turn[first] < STRAIGHT_TURN)
+        first++;
+    for (int k = 0; k < n;) {
+        int end = k + 1; /* edges first + k .. first + end - 1 */
+        double len = 0.0;
+        while (end < n && turn[(first + end) % n] < STRAIGHT_TURN)
+            end++;
+        for (int e = k; e < end; e++) {
+            double a[2], b[2];
+            cu(c, first + e, &a[0], &a[1]), cu(c, first + e + 1, &b[0], &b[1]);
+            len += hypot(b[0] - a[0], b[1] - a[1]);
+        }
+        for (int e = k; e < end; e++)
+            s[(first + e) % n] = len;
+        k = end;
+    }
+    for (int i = 0; i < n; i++)
+        straight[i] = (turn[i] < STRAIGHT_TURN || turn[(i + 1) % n] < STRAIGHT_TURN) && s[i] >= feature;
+    for (int i = 0; i < n; i++) {
+        int prev = (i + n - 1) % n;
+        c->corner[i] = (turn[i] >= CORNER_TURN && (s[prev] >= feature || s[i] >= feature)) ||
+                       (straight[prev] && straight[i] && turn[i] >= RUN_CORNER_TURN);
+    }
+    for (int i = 0; i < n; i++) {
+        int prev = (i + n - 1) % n, next = (i + 1) % n;
+        double *in = c->t_in[i], *out = c->t_out[i];
+        if (c->corner[i]) {
+            if (straight[prev] || c->corner[prev])
+                edge_slope(c, i - 1, in);
+            else
+                parabola_slope(c, i - 2, i, in);
+            if (straight[i] || c->corner[next])
+                edge_slope(c, i, out);
+            else
+                parabola_slope(c, i, i, out);
+            continue;
+        }
+        if (straight[i] && !straight[prev])
+            edge_slope(c, i, in);
+        else if (straight[prev] && !straight[i])
+            edge_slope(c, i - 1, in);
+        else /* (within a straight run, the parabola through three points in line is the line) */
+            parabola_slope(c, i - 1, i, in);
+        memcpy(out, in, sizeof c->t_in[i]);
+    }
+    for (int i = 0; i < n; i++) { /* each piece's shortening, s[i] for the piece from point i */
+        double a[2], b[2], h = cu(c, i + 1, &b[0], &b[1]) - cu(c, i, &a[0], &a[1]);
+        double e[2] = {b[0] - a[0], b[1] - a[1]}, len = hypot(e[0], e[1]);
+        const double *m0 = c->t_out[i], *m1 = c->t_in[(i + 1) % n];
+        double bound = 4.0 / 27.0 * h * (fabs(e[0] * m0[1] - e[1] * m0[0]) + fabs(e[0] * m1[1] - e[1] * m1[0])) / len;
+        double tol = fmax(BULGE_REL * len, BULGE_EXT * feature / FEATURE_REL);
+        s[i] = bound > tol ? tol / bound : 1.0;
+    }
+    for (int i = 0; i < n; i++) {
+        double before = s[(i + n - 1) % n], after = s[i];
+        if (!c->corner[i])
+            before = after = fmin(before, after);
+        for (int d = 0; d < 2; d++)
+            c->t_in[i][d] *= before, c->t_out[i][d] *= after;
+    }
+    free(turn), free(s), free(straight);
+}
+
 /* Builds the curve of slice s: parameters from the +x crossing of the centroid's ray, by arc length
  * (the default), or polar (seed 004) where the contour winds round its centroid. */
 int curve_build(const struct contour_slice *s, bool lsq, bool polar, struct curve *c)
@@ -63,8 +225,11 @@ int curve_build(const struct contour_slice *s, bool lsq, bool polar, struct curv
     c->n = n;
     c->p = malloc(sizeof *c->p * (size_t)n);
     c->u = malloc(sizeof *c->u * (size_t)n);
+    c->corner = calloc((size_t)n, sizeof *c->corner);
+    c->t_in = malloc(sizeof *c->t_in * (size_t)n);
+    c->t_out = malloc(sizeof *c->t_out * (size_t)n);
     double *len = malloc(sizeof *len * (size_t)(n + 1));
-    if (!c->p || !c->u || !len) {
+    if (!c->p || !c->u || !c->corner || !c->t_in || !c->t_out || !len) {
         free(len);
         return SF_ENOMEM;
     }
@@ -102,17 +267,11 @@ int curve_build(const struct contour_slice *s, bool lsq, bool polar, struct curv
     free(len);
     if (polar && isfinite(best_x))
         polar_parameters(c, cx, cy);
+    if (!lsq)
+        curve_shape(c);
     return 0;
 }
 
-/* Parameter and point of index i, any integer (periodic: one turn adds 1 to u). */
-static double cu(const struct curve *c, int i, double *x, double *y)
-{
-    int n = c->n, k = ((i % n) + n) % n, turns = (i - k) / n;
-    *x = c->p[k][0];
-    *y = c->p[k][1];
-    return c->u[k] + turns;
-}
 
 /* Lagrange parabola through (t0,v0), (t1,v1), (t2,v2) at t. */
 static double parabola(double t, double t0, double t1, double t2, double v0, double v1, double v2)
@@ -160,17 +319,61 @@ static int segment_at(const double *u, int n, double x)
     return lo;
 }
 
+/* The Hermite cubic through the curve at knots k0 and k1 (values and derivatives), in power basis
+ * in t = (u - u0) / (u1 - u0). */
+static void hermite_piece(const struct knot *k0, const struct knot *k1, double hx[4], double hy[4])
+{
+    double h = k1->u - k0->u;
+    const double v[2][4] = {{k0->x, h * k0->xu, k1->x, h * k1->xu}, {k0->y, h * k0->yu, k1->y, h * k1->yu}};
+    double *out[2] = {hx, hy};
+    for (int d = 0; d < 2; d++) {
+        out[d][0] = v[d][0];
+        out[d][1] = v[d][1];
+        out[d][2] = 3 * (v[d][2] - v[d][0]) - 2 * v[d][1] - v[d][3];
+        out[d][3] = 2 * (v[d][0] - v[d][2]) + v[d][1] + v[d][3];
+    }
+}
+
+/* Segment i of the curve (from point i to i+1, any integer) as a cubic in power basis in
+ * t = (u - u_i) / (u_{i+1} - u_i): parabolic, the Hermite cubic of its ends' points and tangents
+ * (curve_shape; where no point is a corner or straight, eq. 32's blend of the parabolas through
+ * i-1..i+1 and i..i+2, whose derivative at a point is its own parabola's); linear-parabolic, eq.
+ * 32's blend of least-squares lines sampled at t = 0, 1/3, 2/3, 1 and solved. */
+static void segment_poly(const struct curve *c, int i, double px[4], double py[4])
+{
+    int n = c->n, k = ((i % n) + n) % n, k1 = (k + 1) % n;
+    if (!c->lsq) {
+        struct knot a = {.xu = c->t_out[k][0], .yu = c->t_out[k][1]}, b = {.xu = c->t_in[k1][0], .yu = c->t_in[k1][1]};
+        a.u = cu(c, i, &a.x, &a.y), b.u = cu(c, i + 1, &b.x, &b.y);
+        hermite_piece(&a, &b, px, py);
+        return;
+    }
+    /* the inverse Vandermonde of t = 0, 1/3, 2/3, 1 maps samples to coefficients */
+    static const double VINV[4][4] = {{1, 0, 0, 0}, {-5.5, 9, -4.5, 1}, {9, -22.5, 18, -4.5}, {-4.5, 13.5, -13.5, 4.5}};
+    double ts[4], xs[4], ys[4], sx[4], sy[4];
+    for (int q = 0; q < 4; q++)
+        ts[q] = cu(c, i - 1 + q, &xs[q], &ys[q]);
+    for (int a = 0; a < 4; a++) {
+        double u = ts[1] + (ts[2] - ts[1]) * a / 3.0;
+        sx[a] = blend(true, u, ts, xs), sy[a] = blend(true, u, ts, ys);
+    }
+    for (int q = 0; q < 4; q++) {
+        px[q] = py[q] = 0;
+        for (int a = 0; a < 4; a++)
+            px[q] += VINV[q][a] * sx[a], py[q] += VINV[q][a] * sy[a];
+    }
+}
+
 /* The curve at u in [0, 1]. */
 static void curve_eval(const struct curve *c, double u, double *x, double *y)
 {
     /* segment i: u_i <= u < u_{i+1} (periodic; u below u_0 belongs to the segment from the last
      * point, i = -1) */
     int i = segment_at(c->u, c->n, u);
-    double ts[4], xs[4], ys[4];
-    for (int k = 0; k < 4; k++)
-        ts[k] = cu(c, i - 1 + k, &xs[k], &ys[k]);
-    *x = blend(c->lsq, u, ts, xs);
-    *y = blend(c->lsq, u, ts, ys);
+    double px[4], py[4], p[2], u0 = cu(c, i, &p[0], &p[1]), t = (u - u0) / (cu(c, i + 1, &p[0], &p[1]) - u0);
+    segment_poly(c, i, px, py);
+    *x = px[0] + t * (px[1] + t * (px[2] + t * px[3]));
+    *y = py[0] + t * (py[1] + t * (py[2] + t * py[3]));
 }
 
 /* ---- lining up a chain's curves ----
@@ -190,6 +393,14 @@ static void curve_eval(const struct curve *c, double u, double *x, double *y)
 #define ALIGN_SHIFTS 128
 #define ALIGN_GAIN 0.7
 
+/* Turns a's n items of size sz so that item first comes first, through tmp (n items). */
+static void rotate(void *a, int n, size_t sz, int first, char *tmp)
+{
+    memcpy(tmp, (char *)a + sz * (size_t)first, sz * (size_t)(n - first));
+    memcpy(tmp + sz * (size_t)(n - first), a, sz * (size_t)first);
+    memcpy(a, tmp, sz * (size_t)n);
+}
+
 /* The curve started at parameter d: u -> u - d (mod 1), the points rotated to keep u increasing. */
 static void curve_shift(struct curve *c, double d)
 {
@@ -201,19 +412,17 @@ static void curve_shift(struct curve *c, double d)
         if (w < best)
             best = w, first = k;
     }
-    double(*p)[2] = malloc(sizeof *p * (size_t)n), *u = malloc(sizeof *u * (size_t)n);
-    if (!p || !u) { /* (left as it was) */
-        free(p), free(u);
+    char *tmp = malloc(sizeof *c->p * (size_t)n);
+    if (!tmp) /* (left as it was) */
         return;
-    }
-    for (int k = 0; k < n; k++) {
-        int i = (first + k) % n;
-        p[k][0] = c->p[i][0], p[k][1] = c->p[i][1];
-        u[k] = c->u[i] - d;
-        u[k] -= floor(u[k]);
-    }
-    free(c->p), free(c->u);
-    c->p = p, c->u = u;
+    for (int k = 0; k < n; k++)
+        c->u[k] -= d, c->u[k] -= floor(c->u[k]);
+    rotate(c->u, n, sizeof *c->u, first, tmp);
+    rotate(c->p, n, sizeof *c->p, first, tmp);
+    rotate(c->corner, n, sizeof *c->corner, first, tmp);
+    rotate(c->t_in, n, sizeof *c->t_in, first, tmp);
+    rotate(c->t_out, n, sizeof *c->t_out, first, tmp);
+    free(tmp);
 }
 
 static void curve_at(const struct curve *c, double u, double *x, double *y) { curve_eval(c, u - floor(u), x, y); }
@@ -283,27 +492,18 @@ int curves_build(const struct contour_set *cs, bool lsq, bool polar, struct curv
 
 int curve_poly_build(const struct curve *c, struct curve_poly *cp)
 {
-    /* the inverse Vandermonde of t = 0, 1/3, 2/3, 1 maps samples to coefficients */
-    static const double VINV[4][4] = {{1, 0, 0, 0}, {-5.5, 9, -4.5, 1}, {9, -22.5, 18, -4.5}, {-4.5, 13.5, -13.5, 4.5}};
     cp->n = c->n;
     cp->u = c->u;
     cp->cx = malloc(sizeof *cp->cx * (size_t)c->n);
     cp->cy = malloc(sizeof *cp->cy * (size_t)c->n);
-    if (!cp->cx || !cp->cy)
+    cp->corner = malloc(sizeof *cp->corner * (size_t)c->n);
+    if (!cp->cx || !cp->cy || !cp->corner)
         return SF_ENOMEM;
+    cp->n_corner = 0;
     for (int i = 0; i < c->n; i++) {
-        double ts[4], xs[4], ys[4], sx[4], sy[4]; /* (curve_eval on segment i, whose u may run past 1) */
-        for (int k = 0; k < 4; k++)
-            ts[k] = cu(c, i - 1 + k, &xs[k], &ys[k]);
-        for (int a = 0; a < 4; a++) {
-            double u = ts[1] + (ts[2] - ts[1]) * a / 3.0;
-            sx[a] = blend(c->lsq, u, ts, xs), sy[a] = blend(c->lsq, u, ts, ys);
-        }
-        for (int k = 0; k < 4; k++) {
-            cp->cx[i][k] = cp->cy[i][k] = 0;
-            for (int a = 0; a < 4; a++)
-                cp->cx[i][k] += VINV[k][a] * sx[a], cp->cy[i][k] += VINV[k][a] * sy[a];
-        }
+        segment_poly(c, i, cp->cx[i], cp->cy[i]);
+        if (c->corner[i])
+            cp->corner[cp->n_corner++] = c->u[i];
     }
     return 0;
 }
@@ -313,6 +513,7 @@ void curve_poly_free(struct curve_poly *cp)
     free(cp->cx);
     free(cp->cy);
     free(cp->own_u);
+    free(cp->corner);
 }
 
 /* Value and u-derivative of the curve at u in [0, 1], given its segment i (u in [u_i, u_{i+1}],
@@ -354,13 +555,18 @@ int curve_poly_segment(const struct curve_poly *cp, double u)
  * about 1e-6 of themselves (the heart +0.59 mm3 of 434 480). */
 #define FIT_MIN_PIECE 1e-7 /* of a turn: no piece is halved below this */
 
-struct knot knot_at(const struct curve_poly *c, double u)
+/* The curve's knot at u; arriving: with the derivative of the piece ending there (at a corner, the
+ * other side's). */
+static struct knot knot_side(const struct curve_poly *c, double u, bool arriving)
 {
     struct knot k = {.u = u};
     double w = u >= 1.0 ? u - 1.0 : u;
-    curve_poly_at(c, curve_poly_segment(c, w), w, &k.x, &k.y, &k.xu, &k.yu);
+    int i = curve_poly_segment(c, w);
+    curve_poly_at(c, arriving ? (i + c->n - 1) % c->n : i, w, &k.x, &k.y, &k.xu, &k.yu);
     return k;
 }
+
+struct knot knot_at(const struct curve_poly *c, double u) { return knot_side(c, u, false); }
 
 static double warp_at(const struct warp *w, double u, double *slope)
 {
@@ -377,32 +583,37 @@ static double warp_at(const struct warp *w, double u, double *slope)
     return w->w0 + w->len * y;
 }
 
-static struct knot src_knot(const struct redraw_src *s, double u)
+/* Where warp w takes v from (warp_at's inverse, by bisection: it is monotone), in [0, 1). */
+static double warp_from(const struct warp *w, double v)
 {
-    if (!s->n_w)
-        return knot_at(s->c, u);
+    double s = v - w->w0, slope = 1.0;
+    s -= floor(s);
+    if (s >= w->len)
+        return v - floor(v);
+    double lo = 0.0, hi = w->len;
+    for (int it = 0; it < 64; it++) {
+        double mid = 0.5 * (lo + hi);
+        if (warp_at(w, w->w0 + mid, &slope) - w->w0 < s)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    double u = w->w0 + 0.5 * (lo + hi);
+    return u - floor(u);
+}
+
+/* The source's knot at u. At one of its curve's corners (at: the corner's u on that curve, else
+ * NAN; the warps' rounding would miss it), the derivative leaving it, or arriving with arriving. */
+static struct knot src_knot(const struct redraw_src *s, double u, double at, bool arriving)
+{
     double slope = 1.0, v = u;
     for (int i = s->n_w - 1; i >= 0; i--)
         v = warp_at(&s->w[i], v, &slope);
-    struct knot k = knot_at(s->c, v - floor(v));
+    struct knot k = knot_side(s->c, isnan(at) ? v - floor(v) : at, arriving && !isnan(at));
     k.u = u, k.xu *= slope, k.yu *= slope;
     return k;
 }
 
-/* The Hermite cubic through the curve at knots k0 and k1 (values and derivatives), in power basis
- * in t = (u - u0) / (u1 - u0). */
-static void hermite_piece(const struct knot *k0, const struct knot *k1, double hx[4], double hy[4])
-{
-    double h = k1->u - k0->u;
-    const double v[2][4] = {{k0->x, h * k0->xu, k1->x, h * k1->xu}, {k0->y, h * k0->yu, k1->y, h * k1->yu}};
-    double *out[2] = {hx, hy};
-    for (int d = 0; d < 2; d++) {
-        out[d][0] = v[d][0];
-        out[d][1] = v[d][1];
-        out[d][2] = 3 * (v[d][2] - v[d][0]) - 2 * v[d][1] - v[d][3];
-        out[d][3] = 2 * (v[d][0] - v[d][2]) + v[d][1] + v[d][3];
-    }
-}
 
 /* Whether the curve and its Hermite piece over [u0, u1] are within tol2 (squared): so when no
  * breakpoint of the curve lies inside (the piece is one of its cubics, which the Hermite piece
@@ -415,7 +626,7 @@ static bool piece_holds(const struct redraw_src *src, double u0, double u1, cons
     double h = u1 - u0;
     if (src->n_w) {
         for (int q = 1; q < 8; q++) {
-            struct knot k = src_knot(src, u0 + h * q / 8.0);
+            struct knot k = src_knot(src, u0 + h * q / 8.0, NAN, false);
             double t = q / 8.0, ex = hx[0] + t * (hx[1] + t * (hx[2] + t * hx[3])) - k.x;
             double ey = hy[0] + t * (hy[1] + t * (hy[2] + t * hy[3])) - k.y;
             if (ex * ex + ey * ey > tol2)
@@ -457,6 +668,18 @@ double curve_tol(const struct curve_poly *c)
     return MODEL_FIT_REL * fmax(hi[0] - lo[0], hi[1] - lo[1]);
 }
 
+/* The coarsest dyadic point inside (a, b): the midpoint of a piece cut evenly, the knot other
+ * curves are most likely to share in one cut at a corner. */
+static double dyadic_between(double a, double b)
+{
+    for (double scale = 2.0; scale < 0x1p52; scale *= 2.0) {
+        double m = (floor(a * scale) + 1.0) / scale;
+        if (m < b)
+            return m;
+    }
+    return 0.5 * (a + b);
+}
+
 /* Draws src on dyadic knots (above) within tol into *out (zeroed; the caller frees it). 0, SF_ENOMEM,
  * or SF_ELIMIT when that takes more than cap knots. */
 int curve_redraw(const struct redraw_src *src, double tol, size_t cap, struct curve_poly *out)
@@ -470,10 +693,43 @@ int curve_redraw(const struct redraw_src *src, double tol, size_t cap, struct cu
         free(stack);
         return SF_ENOMEM;
     }
-    size_t nk = 0, ns = 0;
-    struct knot next = src_knot(src, 1.0);
-    for (int k = FIT_START - 1; k >= 0; k--, ns++)
-        stack[ns][1] = next, stack[ns][0] = next = src_knot(src, (double)k / FIT_START);
+    /* the first pieces: FIT_START even ones, cut at the curve's corners too (knots fall there, each
+     * piece ending with the derivative arriving at its end) */
+    const struct curve_poly *c = src->c;
+    size_t nk = 0, ns = 0, n_cut = 0;
+    double(*cut)[2] = malloc(sizeof *cut * (size_t)(FIT_START + 1 + c->n_corner)); /* u, the corner's on c */
+    out->corner = malloc(sizeof *out->corner * (size_t)(c->n_corner + 1));
+    if (!cut || !out->corner) {
+        free(stack), free(cut);
+        return SF_ENOMEM;
+    }
+    for (int k = 0; k <= FIT_START; k++)
+        cut[n_cut][0] = (double)k / FIT_START, cut[n_cut++][1] = NAN;
+    for (int k = 0; k < c->n_corner; k++) {
+        double u = c->corner[k];
+        for (int i = 0; i < src->n_w; i++)
+            u = warp_from(&src->w[i], u);
+        u = u > 1.0 - BREAK_EPS ? 0.0 : u; /* (the warps' rounding) */
+        cut[n_cut][0] = u, cut[n_cut++][1] = c->corner[k];
+        out->corner[out->n_corner++] = u;
+    }
+    qsort(cut, n_cut, sizeof *cut, cmp_double); /* (by u: the first of each pair) */
+    qsort(out->corner, (size_t)out->n_corner, sizeof *out->corner, cmp_double);
+    size_t kept = 0; /* one cut where a corner falls on an even one, keeping the corner */
+    for (size_t k = 0; k < n_cut; k++)
+        if (kept && cut[k][0] - cut[kept - 1][0] <= BREAK_EPS)
+            cut[kept - 1][1] = isnan(cut[kept - 1][1]) ? cut[k][1] : cut[kept - 1][1];
+        else
+            cut[kept][0] = cut[k][0], cut[kept][1] = cut[k][1], kept++;
+    n_cut = kept;
+    cut[n_cut - 1][1] = cut[0][1]; /* (u 1 is u 0) */
+    struct knot next = src_knot(src, 1.0, cut[n_cut - 1][1], true);
+    for (size_t k = n_cut - 1; k-- > 0; ns++) {
+        stack[ns][1] = next;
+        stack[ns][0] = src_knot(src, cut[k][0], cut[k][1], false);
+        next = isnan(cut[k][1]) ? stack[ns][0] : src_knot(src, cut[k][0], cut[k][1], true);
+    }
+    free(cut);
     while (ns && nk + ns <= cap) {
         struct knot a = stack[ns - 1][0], b = stack[ns - 1][1];
         double hx[4], hy[4];
@@ -484,7 +740,7 @@ int curve_redraw(const struct redraw_src *src, double tol, size_t cap, struct cu
             memcpy(out->cx[nk], hx, sizeof hx), memcpy(out->cy[nk], hy, sizeof hy);
             nk++;
         } else {
-            struct knot m = src_knot(src, 0.5 * (a.u + b.u));
+            struct knot m = src_knot(src, dyadic_between(a.u, b.u), NAN, false);
             stack[ns][0] = m, stack[ns][1] = b, ns++;
             stack[ns][0] = a, stack[ns][1] = m, ns++;
         }
@@ -495,12 +751,13 @@ int curve_redraw(const struct redraw_src *src, double tol, size_t cap, struct cu
 }
 
 /* Redraws curve c on dyadic knots (above) within MODEL_FIT_REL of its extent, unless that takes
- * more than FIT_MAX_KNOTS (then c stays). 0 or SF_ENOMEM. */
+ * more than FIT_MAX_KNOTS, or a curve of fewer pieces than FIT_START would take no fewer (then c
+ * stays). 0 or SF_ENOMEM. */
 int curve_refit(struct curve_poly *c)
 {
     struct curve_poly out;
     int rc = curve_redraw(&(struct redraw_src){c, NULL, 0}, curve_tol(c), FIT_MAX_KNOTS(c->n), &out);
-    if (rc) {
+    if (rc || (c->n < FIT_START && out.n >= c->n)) { /* (a sparse polygon's pieces stay as they are) */
         curve_poly_free(&out);
         return rc == SF_ELIMIT ? 0 : rc;
     }

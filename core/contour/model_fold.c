@@ -406,9 +406,11 @@ static int curve_copy(const struct curve_poly *c, struct curve_poly *out)
 {
     size_t n = (size_t)c->n;
     *out = (struct curve_poly){.n = c->n, .own_u = malloc(sizeof *out->own_u * n), .cx = malloc(sizeof *out->cx * n),
-                               .cy = malloc(sizeof *out->cy * n)};
-    if (!out->own_u || !out->cx || !out->cy)
+                               .cy = malloc(sizeof *out->cy * n), .n_corner = c->n_corner,
+                               .corner = malloc(sizeof *out->corner * (size_t)(c->n_corner + 1))};
+    if (!out->own_u || !out->cx || !out->cy || !out->corner)
         return SF_ENOMEM;
+    memcpy(out->corner, c->corner, sizeof *out->corner * (size_t)c->n_corner);
     memcpy(out->own_u, c->u, sizeof *out->own_u * n);
     memcpy(out->cx, c->cx, sizeof *out->cx * n);
     memcpy(out->cy, c->cy, sizeof *out->cy * n);

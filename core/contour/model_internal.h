@@ -15,6 +15,10 @@ struct curve {
     int n;
     double (*p)[2];  /* points, rotated so that u increases from index 0 */
     double *u;       /* parameters in [0, 1), increasing */
+    /* parabolic: at each point, whether it is a corner (C0 there) and the u-derivatives arriving at
+     * it and leaving it (curve_shape; equal but at corners) */
+    bool *corner;
+    double (*t_in)[2], (*t_out)[2];
 };
 
 /* Power-basis cubic per segment i of a curve, in t = (u - u_i) / (u_{i+1} - u_i). */
@@ -23,6 +27,8 @@ struct curve_poly {
     const double *u;     /* borrowed from the curve, or own_u; u_n = u_0 + 1 */
     double (*cx)[4], (*cy)[4];
     double *own_u;       /* its own knots, when redrawn (curve_refit) */
+    int n_corner;
+    double *corner;      /* the u of its corners (C0 there), increasing: each one a breakpoint */
 };
 
 /* fewer knots (model_curve.c) */
