@@ -9,6 +9,7 @@ returns what the test compares with (the dose grid in Gy, the segments' label gr
   dicom_write.py enhanced SERIES_DIR OUT [shared-rescale] [shuffle]
   dicom_write.py dose OUT [bits=16|32] [offsets=relative|absolute|reversed] [scaling=no] [uneven=K]
   dicom_write.py seg OUT [type=binary|fractional]
+  dicom_write.py seeds SMALL_SERIES_DIR OUT_DIR   (tests/fuzz/seeds/frames: each kind, small)
 """
 import os
 import random
@@ -98,11 +99,11 @@ def dose_field(shape=(30, 36, 40), spacing=(2.5, 2.0, 3.0), origin=(-45.0, -40.0
     return 60.0 * np.exp(-r2), x, y, z
 
 
-def dose(out, bits=32, offsets="relative", scaling=True, uneven=None):
+def dose(out, bits=32, offsets="relative", scaling=True, uneven=None, **grid):
     """An RT Dose of dose_field(): frames bottom to top (reversed: top to bottom, offsets negative),
     GridFrameOffsetVector relative (first 0) or absolute z; stored = round(dose / scaling). Returns
     the grid of Gy the file holds (stored x scaling), its x, y, z."""
-    gy, x, y, z = dose_field()
+    gy, x, y, z = dose_field(**grid)
     top = 2 ** (bits - 1) if bits == 32 else 2 ** bits - 1
     s = float(gy.max()) / top
     stored = np.rint(gy / s).astype(np.uint32 if bits == 32 else np.uint16)
@@ -145,12 +146,12 @@ def seg_labels(shape=(24, 28, 32), spacing=(1.5, 1.25, 2.0), origin=(-20.0, -17.
     return {1: ball, 2: box}, x, y, z
 
 
-def seg(out, fractional=False, extra_frame=None, bad_label=False):
+def seg(out, fractional=False, extra_frame=None, bad_label=False, **grid):
     """A Segmentation of seg_labels(): a frame per segment per plane where the segment is not empty
     (shuffled). BINARY: fraction >= 0.5; FRACTIONAL: round(fraction x 200) of 200. extra_frame: a
     frame of segment 1 also at plane K (two at one place); bad_label: a frame naming segment 7.
     Returns the label grids the file holds (0/1 or fractions) and x, y, z."""
-    labels, x, y, z = seg_labels()
+    labels, x, y, z = seg_labels(**grid)
     ds = _base(SEGMENTATION, "SEG")
     ds.Rows, ds.Columns = len(y), len(x)
     ds.SegmentationType = "FRACTIONAL" if fractional else "BINARY"
@@ -210,5 +211,13 @@ if __name__ == "__main__":
              int(opts["uneven"]) if "uneven" in opts else None)
     elif what == "seg":
         seg(flags[0], opts.get("type") == "fractional")
+    elif what == "seeds":
+        enhanced(flags[0], os.path.join(flags[1], "enhanced_ct"), shuffle=True)
+        small = dict(shape=(5, 6, 8), spacing=(9.0, 8.0, 10.0), origin=(-30.0, -25.0, -20.0))
+        dose(os.path.join(flags[1], "dose16"), 16, **small)
+        dose(os.path.join(flags[1], "dose32_absolute"), 32, "absolute", **small)
+        small = dict(shape=(10, 10, 12), spacing=(3.0, 2.5, 4.0))
+        seg(os.path.join(flags[1], "seg_binary"), **small)
+        seg(os.path.join(flags[1], "seg_fractional"), True, **small)
     else:
         sys.exit(__doc__)
