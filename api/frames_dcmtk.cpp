@@ -536,6 +536,51 @@ int frame_samples(image &im, DcmPixelSequence *seq, long i, std::vector<uint32_t
     return 0;
 }
 
+/* Each frame of the segment read (every frame, but a Segmentation's) decoded into its slice of
+ * grid (im's planes laid out as pl). *whole: every value so far a whole number within int16. */
+int fill_grid(image &im, DcmPixelSequence *seq, const std::vector<struct plane> &pl, void *grid, bool *whole,
+              struct sf_err *err)
+{
+    size_t plane = (size_t)im.rows * im.cols;
+    bool binary = im.k == SEG && !im.fractional;
+    int rc, k = im.part;
+    std::vector<uint32_t> raw;
+    for (const struct plane &p : pl) {
+        const frame &fr = im.f[(size_t)p.tag];
+        if (im.k == SEG && fr.segment != im.segment)
+            continue;
+        unsigned stored;
+        if ((rc = frame_samples(im, seq, p.tag, raw, &stored, err)))
+            return rc;
+        size_t base = (size_t)p.z * plane;
+        if (binary) {
+            for (size_t j = 0; j < plane; j++)
+                ((uint8_t *)grid)[base + j] = (uint8_t)raw[j];
+            continue;
+        }
+        float *dst = (float *)grid + base;
+        if (im.k == SEG) {
+            for (size_t j = 0; j < plane; j++) {
+                if (raw[j] > im.max_fraction) {
+                    char what[120];
+                    snprintf(what, sizeof what, "a sample of %u, over MaximumFractionalValue %u", raw[j],
+                             im.max_fraction);
+                    return fail_at(err, SF_EINVAL, k, p.tag, what);
+                }
+                dst[j] = (float)((double)raw[j] / im.max_fraction);
+            }
+            continue;
+        }
+        *whole = *whole && fr.slope == std::floor(fr.slope) && fr.intercept == std::floor(fr.intercept);
+        for (size_t j = 0; j < plane; j++) {
+            double v = stored_value(im.bits, stored, im.is_signed, raw[j]) * fr.slope + fr.intercept;
+            *whole = *whole && v >= -32768 && v <= 32767;
+            dst[j] = (float)v;
+        }
+    }
+    return 0;
+}
+
 kind kind_of(DcmDataset *ds)
 {
     if (text_is(ds, DCM_SOPClassUID, UID_RTDoseStorage) || text_is(ds, DCM_Modality, "RTDOSE"))
@@ -617,39 +662,10 @@ int frames_read(DcmDataset *ds, int k, bool check_only, size_t max_samples, int 
         return sf_fail(err, SF_ENOMEM, "", "out of memory for the image's samples");
     out->g.samples = out->owned;
     bool whole = im.k != SEG;
-    std::vector<uint32_t> raw;
-    for (const struct plane &p : pl) {
-        const frame &fr = im.f[(size_t)p.tag];
-        if (im.k == SEG && fr.segment != im.segment)
-            continue;
-        unsigned stored;
-        if ((rc = frame_samples(im, seq, p.tag, raw, &stored, err)))
-            return rc;
-        size_t base = (size_t)p.z * plane;
-        if (binary) {
-            for (size_t j = 0; j < plane; j++)
-                ((uint8_t *)out->owned)[base + j] = (uint8_t)raw[j];
-            continue;
-        }
-        float *dst = (float *)out->owned + base;
-        if (im.k == SEG) {
-            for (size_t j = 0; j < plane; j++) {
-                if (raw[j] > im.max_fraction) {
-                    char what[120];
-                    snprintf(what, sizeof what, "a sample of %u, over MaximumFractionalValue %u", raw[j],
-                             im.max_fraction);
-                    return fail_at(err, SF_EINVAL, k, p.tag, what);
-                }
-                dst[j] = (float)((double)raw[j] / im.max_fraction);
-            }
-            continue;
-        }
-        whole = whole && fr.slope == std::floor(fr.slope) && fr.intercept == std::floor(fr.intercept);
-        for (size_t j = 0; j < plane; j++) {
-            double v = stored_value(im.bits, stored, im.is_signed, raw[j]) * fr.slope + fr.intercept;
-            whole = whole && v >= -32768 && v <= 32767;
-            dst[j] = (float)v;
-        }
+    if ((rc = fill_grid(im, seq, pl, out->owned, &whole, err))) {
+        free(out->owned);
+        out->owned = NULL, out->g.samples = NULL;
+        return rc;
     }
     if (whole) { /* int16, as a series' whole values are: in place, each sample written after its float is read */
         unsigned char *b = (unsigned char *)out->owned;
