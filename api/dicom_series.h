@@ -1,9 +1,12 @@
-/* dicom_series.h - a CT or MR series posted as multipart/form-data, one DICOM image a part, to
- * one volume: through DCMTK behind series_dcmtk.cpp. Slices are sorted by ImagePositionPatient
- * along the slice normal (never by part or file name); Rescale Slope and Intercept are applied;
- * the slice spacing comes from the positions, and a series whose spacing is uneven (a missing
- * slice, two series mixed) is refused, not resampled. Only the geometry and pixel elements are
- * read: no patient element is read, logged or echoed. */
+/* dicom_series.h - DICOM images to one volume, through DCMTK: a CT or MR series posted as
+ * multipart/form-data, one image a part (series_dcmtk.cpp), or one multi-frame image, posted as the
+ * body or as a one-part series (frames_dcmtk.cpp): an Enhanced CT or MR image (each frame placed by
+ * its functional groups), an RT Dose (GridFrameOffsetVector; DoseGridScaling applied: Gy) or a
+ * Segmentation (one segment: 0 and 1, or its fractions scaled to 0..1). Slices and frames are sorted
+ * along the normal of their orientation (never by part, file name or frame number); Rescale Slope
+ * and Intercept are applied; the slice spacing comes from the positions, and a stack whose spacing
+ * is uneven (a missing slice, two series mixed) is refused, not resampled (planes.h). Only the
+ * geometry, value and pixel elements are read: no patient element is read, logged or echoed. */
 #ifndef SURFD_DICOM_SERIES_H
 #define SURFD_DICOM_SERIES_H
 
@@ -21,14 +24,20 @@ extern "C" {
 struct series {
     struct iso_grid g;       /* spacing: columns, rows, slices (mm); origin: the first slice's position */
     void *owned;             /* the samples (NULL with check_only) */
+    bool typed;              /* with check_only: g.type is what the samples will be (a Segmentation's); else
+                              * int16 or float32 is decided by their values */
     double axes[3][3];       /* the grid's x, y, z directions in patient coordinates (row, column, normal) */
 };
 
-/* Reads n parts as one series. check_only: the headers alone (the pixel data is neither read nor
- * checked). Errors name the part ("/parts/3"): SF_EFORMAT for a part that is not DICOM, SF_EINVAL
- * for one that does not fit the others (size, orientation, spacing, a position already taken, a
- * missing slice) or is compressed, SF_ELIMIT past VOLUME_MAX_SAMPLES-like limits (max_samples). */
-int series_read(const struct part *parts, int n, bool check_only, size_t max_samples, struct series *out,
+/* Reads n parts as one series, or one part that is a multi-frame image. check_only: the headers
+ * alone (the pixel data is neither read nor checked, but its length is). segment: a Segmentation's
+ * segment (its SegmentNumber), 0 when ?segment was not given (then a Segmentation of several
+ * segments is refused, naming them). Errors name the part ("/parts/3") or the frame
+ * ("/parts/0/frames/12", frames counted from 0) or "?segment": SF_EFORMAT for a part that is not
+ * DICOM, SF_EINVAL for one that does not fit the others (size, orientation, spacing, a position
+ * already taken, a missing slice), is compressed other than surfd decodes, or whose frames do not
+ * decode; SF_ELIMIT past max_samples (said before anything is decoded or allocated). */
+int series_read(const struct part *parts, int n, bool check_only, size_t max_samples, int segment, struct series *out,
                 struct sf_err *err);
 
 #ifdef __cplusplus

@@ -13,6 +13,7 @@
 #include <strings.h>
 #include <zlib.h>
 
+#include "dicom_scan.h"
 #include "dicom_series.h"
 #include "multipart.h"
 #include "nifti.h"
@@ -36,20 +37,43 @@ static bool json_object_text(const char *body, size_t len)
     return at < len && (body[at] == '"' || body[at] == '}');
 }
 
+static bool sniff_nrrd(const char *body, size_t len);
+static bool sniff_mha(const char *body, size_t len);
+static bool sniff_nifti(const char *body, size_t len);
+
+/* A DICOM file: "DICM" after its preamble, or (without one) a first element of group 0002 or 0008 in
+ * explicit VR (dicom_sniff's implicit VR guess is left to application/dicom: raw samples could
+ * begin so). */
+static bool sniff_dicom(const char *body, size_t len)
+{
+    if (len >= 132 && !memcmp(body + 128, "DICM", 4))
+        return true;
+    return dicom_sniff(body, len) && len >= 8 && body[4] >= 'A' && body[4] <= 'Z' && body[5] >= 'A' && body[5] <= 'Z';
+}
+
 const char *volume_format_of(const char *body, size_t len, const char *format, const char *options)
 {
-    if (*format)
+    if (*format && strcmp(format, "raw"))
         return format;
     char dims[8];
     query_option(options, "dims", dims, sizeof dims);
-    return dims[0] ? "raw" : json_object_text(body, len) ? "frep" : ""; /* (dims: whatever the first bytes) */
+    /* a file posted as octet-stream is what it is (a NIfTI header is no raw samples' chance bytes,
+     * so a NIfTI file's ?dims is refused as its header's); dims make anything else raw samples */
+    if (sniff_nifti(body, len))
+        return "nifti";
+    if (dims[0])
+        return "raw";
+    if (!*format && json_object_text(body, len))
+        return "frep";
+    return sniff_nrrd(body, len) ? "nrrd" : sniff_mha(body, len) ? "mha"
+         : multipart_sniff(body, len) || sniff_dicom(body, len) ? "dicom" : "raw";
 }
 
 const char *volume_format_from_type(const char *ct)
 {
     static const struct media_format TYPES[] = {{"application/octet-stream", "raw"}, {"application/x-nrrd", "nrrd"}, {"image/x-nrrd", "nrrd"},
                  {"application/x-metaimage", "mha"},   {"application/x-mha", "mha"},   {"image/x-mha", "mha"},
-                 {"multipart/form-data", "dicom"}, {"application/json", "frep"},
+                 {"multipart/form-data", "dicom"}, {"application/dicom", "dicom"}, {"application/json", "frep"},
                  {"application/x-nifti", "nifti"}, {"image/x-nifti", "nifti"}, {"application/gzip", ""},
                  {"application/x-www-form-urlencoded", ""} /* curl -d's default: sniffed */};
     return media_format(ct, TYPES, sizeof TYPES / sizeof *TYPES);
@@ -555,7 +579,7 @@ static int query_numbers(const char *options, const char *name, int n, double *o
 static int common_options(const char *options, bool frep, struct volume *v, struct sf_err *err)
 {
     static const char *const KNOWN[] = {"iso", "closed", "name", "levels", "max_error", "features", "dims", "type",
-                                        "spacing", "origin", "format", NULL};
+                                        "spacing", "origin", "format", "segment", NULL};
     for (const char *p = options ? options : ""; *p;) {
         size_t len = strcspn(p, "&"), key = strcspn(p, "=&");
         bool known = false;
@@ -565,7 +589,8 @@ static int common_options(const char *options, bool frep, struct volume *v, stru
             char where[48];
             snprintf(where, sizeof where, "?%.*s", (int)(key < 40 ? key : 40), p);
             return sf_fail(err, SF_EINVAL, where, "unknown option \"%.*s\" (isosurfaces take iso, closed, name, "
-                           "levels, max_error, features, and for raw samples dims, type, spacing, origin)",
+                           "levels, max_error, features, for raw samples dims, type, spacing, origin, and for a DICOM "
+                           "Segmentation segment)",
                            (int)(key < 40 ? key : 40), p);
         }
         p += len + (p[len] == '&');
@@ -737,7 +762,7 @@ int volume_sample(struct volume *v, int z0, int z1, const struct sf_progress *pr
                    : 0;
 }
 
-/* A DICOM series as multipart/form-data. */
+/* A DICOM series as multipart/form-data, or one DICOM file (a multi-frame image). */
 /* v's grid in range as it lies in patient coordinates: its box corner to corner along its axes (an
  * oblique one's turned), its spacings. */
 static int check_turned_grid(struct volume *v, const struct grid_fields *f, struct sf_err *err)
@@ -761,18 +786,25 @@ static int read_series(const char *body, size_t len, const char *options, struct
     int rc = raw_only_options(options, err);
     if (rc)
         return rc;
-    struct part *parts;
-    int n;
-    if ((rc = multipart_split(body, len, &parts, &n, err)))
+    char q[16], *end;
+    query_option(options, "segment", q, sizeof q);
+    long segment = q[0] ? strtol(q, &end, 10) : 0;
+    if (q[0] && (*end || segment < 1 || segment > 65535))
+        return sf_fail(err, SF_EINVAL, "?segment", "segment is a SegmentNumber, a whole number from 1 to 65535");
+    struct part one = {body, len, NULL, 0}, *parts = &one;
+    int n = 1;
+    /* a multipart series, or one DICOM file as the body: a series of that one part, /parts/0 */
+    if (multipart_sniff(body, len) && (rc = multipart_split(body, len, &parts, &n, err)))
         return rc;
     struct series s;
-    rc = series_read(parts, n, v->check_only, VOLUME_MAX_SAMPLES, &s, err);
-    free(parts);
+    rc = series_read(parts, n, v->check_only, VOLUME_MAX_SAMPLES, (int)segment, &s, err);
+    if (parts != &one)
+        free(parts);
     if (rc)
         return rc;
     v->g = s.g;
     v->owned = s.owned;
-    if (v->check_only) /* int16 or float32 is decided by the samples' rescaled values: the wider until then */
+    if (v->check_only && !s.typed) /* int16 or float32 is decided by the samples' rescaled values: the wider until then */
         v->g.type = ISO_F32;
     memcpy(v->axes, s.axes, sizeof s.axes);
     /* the reader kept each slice's position in range; here the grid's box */
@@ -970,12 +1002,11 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     bool nrrd = sniff_nrrd(body, len), mha = sniff_mha(body, len), nifti = sniff_nifti(body, len);
     for (int a = 0; a < 3; a++)
         v->axes[a][a] = 1;
-    char dims[8];
-    query_option(options, "dims", dims, sizeof dims);
-    /* a file posted as octet-stream is what it is (a NIfTI header is no raw samples' chance bytes,
-     * so a NIfTI file's ?dims is refused as its header's) */
-    if (!*format || (!strcmp(format, "raw") && (nifti || (!dims[0] && (nrrd || mha)))))
-        format = nrrd ? "nrrd" : mha ? "mha" : nifti ? "nifti" : multipart_sniff(body, len) ? "dicom" : "raw";
+    char segment[8];
+    query_option(options, "segment", segment, sizeof segment);
+    if (segment[0] && strcmp(format, "dicom"))
+        return sf_fail(err, SF_EINVAL, "?segment", "segment chooses a segment of a DICOM Segmentation: this body is "
+                       "not DICOM");
     if (!strcmp(format, "nrrd")) {
         if (!nrrd)
             return sf_fail(err, SF_EFORMAT, "header", "an NRRD file starts with \"NRRD000x\"");

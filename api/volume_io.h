@@ -1,7 +1,8 @@
 /* volume_io.h - the volumes POST /isosurface reads (API.md §Volumes): raw samples with their
  * layout in the query (?dims=X,Y,Z&type=uint8|int16|uint16|float32&spacing=sx,sy,sz
  * &origin=ox,oy,oz), NRRD with an attached header (raw or gzip encoding), MetaImage .mha
- * (ElementDataFile = LOCAL), a DICOM CT or MR series as multipart/form-data (dicom_series.h), and
+ * (ElementDataFile = LOCAL), a DICOM CT or MR series as multipart/form-data, or one multi-frame
+ * DICOM image (Enhanced CT/MR, RT Dose, Segmentation: ?segment=N) (dicom_series.h), and
  * an FRep object's JSON (frep_json.h), whose grid is sampled from its function (volume_sample).
  * Samples are used where they lie in the body when they can be (raw encoding in the host's byte
  * order), decoded otherwise; core/iso sees only the grid. */
@@ -35,16 +36,20 @@ struct volume {
     const char *source;      /* "isosurface" (sampled) or "frep", as the model resource says */
 };
 
-/* The body's format from its Content-Type: "raw" (application/octet-stream; a NRRD, MetaImage or
- * NIfTI file posted so, without ?dims, is read as what it is), "nrrd" (application/x-nrrd,
+/* The body's format from its Content-Type: "raw" (application/octet-stream; a NRRD, MetaImage,
+ * NIfTI or DICOM file posted so, without ?dims, is read as what it is), "nrrd" (application/x-nrrd,
  * image/x-nrrd), "mha" (application/x-metaimage), "nifti" (application/x-nifti, image/x-nifti),
- * "dicom" (a series as multipart/form-data, one slice a part), "frep" (application/json: an FRep
+ * "dicom" (a series as multipart/form-data, one slice a part; or application/dicom: one file, a
+ * multi-frame image), "frep" (application/json: an FRep
  * object, frep_json.h); NULL for others. A body posted without a type (or as application/gzip) is
  * sniffed (NRRD's magic, MetaImage's "ObjectType", a NIfTI header, gzip or not, a multipart
  * boundary, a JSON object), else raw. */
 const char *volume_format_from_type(const char *content_type);
-/* format, or for "" (sniffed): "raw" when options give dims, "frep" when the body begins as a JSON
- * object's text, else "" (sniffed later: NRRD, MetaImage, multipart, raw). */
+/* The format volume_read reads the body as: format itself, but for "" (sniffed) and "raw": "nifti"
+ * for a NIfTI header (gzip or not), else "raw" when options give dims; then, for "" alone, "frep"
+ * when the body begins as a JSON object's text; then "nrrd", "mha" by their headers, "dicom" for a
+ * multipart body or one DICOM file ("DICM" after the preamble, or an explicit VR element of group
+ * 0002 or 0008 first), else "raw". */
 const char *volume_format_of(const char *body, size_t len, const char *format, const char *options);
 
 /* A detached header (NRRD's "data file: F", MetaImage's "ElementDataFile = F", not LOCAL, a list

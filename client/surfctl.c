@@ -189,7 +189,8 @@ static const char *const SCENE_TYPES[][2] = {{".bpt", "model/x-bpt"}, {".nurbs",
                                              {".json", "application/json"}, {NULL, "text/plain"}};
 static const char *const VOLUME_TYPES[][2] = {{".nrrd", "application/x-nrrd"}, {".mha", "application/x-metaimage"},
                                               {".nii", "application/x-nifti"}, {".gz", "application/gzip"},
-                                              {".json", "application/json"}, {NULL, "application/octet-stream"}};
+                                              {".dcm", "application/dicom"}, {".json", "application/json"},
+                                              {NULL, "application/octet-stream"}};
 
 /* POSTs the file to route + query (the query "" or "?name=value&..."). 0 and *r, or an exit code. */
 static int post_file(const char *route, const char *query, const char *file, const char *type, const char *prefer,
@@ -423,8 +424,10 @@ static const char *const USAGE[][2] = {
                "    the volume its surfaces close)\n"},
     {"isosurface", "surfctl isosurface VOLUME --iso V -o OUT.stl|.ply|.obj [--dims X,Y,Z --type T --spacing S --origin O]\n"
                    "                   [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name N]\n"
+                   "                   [--segment N]\n"
                    "    POST /isosurface: VOLUME is .nrrd, .mha, NIfTI (.nii, .nii.gz), raw samples, a directory of a DICOM\n"
-                   "    series' images (each file a part), or an FRep object as .json\n"},
+                   "    series' images (each file a part), one multi-frame DICOM image (.dcm: an Enhanced CT or MR, an RT\n"
+                   "    Dose, iso in Gy, or a Segmentation's segment N, iso 0.5), or an FRep object as .json\n"},
     {"edit", "surfctl edit MODEL BLOCK --region X0,Y0,Z0,NX,NY,NZ [-o OUT.stl|.ply|.obj]\n"
              "    POST /models/MODEL/edit: BLOCK is the region's raw samples in the model's sample type\n"},
     {"matrix", "surfctl matrix VOLUME -o OUT.json [--iso V --dims X,Y,Z --type T --spacing S --origin O]\n"
@@ -585,7 +588,7 @@ static int download_mesh(const char *id, const char *out)
 static int cmd_isosurface(int argc, char **argv)
 {
     static const char *const OPTIONS[] = {"iso", "dims", "type", "spacing", "origin", "closed", "name", "levels",
-                                          "max_error", "features", NULL};
+                                          "max_error", "features", "segment", NULL};
     const char *file = NULL, *out = NULL;
     char query[600] = "";
     if (!read_args(argc, argv, OPTIONS, &file, &out, NULL, query, sizeof query))

@@ -139,6 +139,8 @@ void cmd_isosurface_usage(FILE *f)
 {
     fprintf(f, "usage: surfd isosurface VOLUME.nrrd|.nhdr|.mha|.mhd|.nii|.nii.gz|.raw|DICOM-DIR --iso V [--dims X,Y,Z --type T "
                "[--spacing sx,sy,sz] [--origin x,y,z]]\n"
+               "       surfd isosurface IMAGE.dcm --iso V [--segment N]  (one multi-frame image: Enhanced CT/MR, RT Dose in Gy,\n"
+               "                        a Segmentation's segment N, iso 0.5)\n"
                "       surfd isosurface FREP.json [--iso V]\n"
                "                        [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|nifti|dicom|frep]\n"
                "                        [-o OUT.stl|.ply|.obj] [--threads N] [--repeat N] [--stats]\n"
@@ -192,7 +194,7 @@ int cmd_isosurface(int argc, char **argv)
             format = argv[++k];
         } else if (!strcmp(a, "--iso") || !strcmp(a, "--dims") || !strcmp(a, "--type") || !strcmp(a, "--spacing") ||
                    !strcmp(a, "--origin") || !strcmp(a, "--closed") || !strcmp(a, "--name") || !strcmp(a, "--levels") ||
-                   !strcmp(a, "--features")) {
+                   !strcmp(a, "--features") || !strcmp(a, "--segment")) {
             snprintf(options + n, sizeof options - n, "%s%s=%s", n ? "&" : "", a + 2, argv[k + 1]);
             k++;
         } else if (!strcmp(a, "--max-error")) {

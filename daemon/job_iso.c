@@ -1,4 +1,5 @@
-/* job_iso.c - the isosurface job kind: a sampled volume (raw, NRRD, MetaImage, a DICOM series)
+/* job_iso.c - the isosurface job kind: a sampled volume (raw, NRRD, MetaImage, NIfTI, a DICOM series
+ * or multi-frame image)
  * and ?iso, or an FRep object, to a closed triangle mesh, stored as a model. Read back from the
  * store (so a job recovered after a crash, or claimed by another node, runs as submitted); an FRep
  * sampled on its grid in a first phase of bands; then core/iso's two passes as two phases of
@@ -277,13 +278,13 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 static const struct job_ops ISO_OPS = {.prepare = prepare, .band = band, .next = next, .finish = finish};
 
 
-/* A DICOM series' identifying elements blanked in place in the body, before it is stored (each
- * value keeps its length: the multipart body and the slices read the same), and the parts' file
- * names (exports name them by patient). */
+/* A DICOM series' (or one DICOM file's) identifying elements blanked in place in the body, before it
+ * is stored (each value keeps its length: the multipart body and the slices read the same), and the
+ * parts' file names (exports name them by patient). */
 static int blank_identity(struct job_body *b, struct sf_err *err)
 {
-    struct part *parts;
-    int n, rc = multipart_split(b->body, b->len, &parts, &n, err);
+    struct part one = {b->body, b->len, NULL, 0}, *parts = &one; /* one file as the body: its part 0 */
+    int n = 1, rc = multipart_sniff(b->body, b->len) ? multipart_split(b->body, b->len, &parts, &n, err) : 0;
     if (rc)
         return rc;
     size_t blanked = 0;
@@ -296,7 +297,8 @@ static int blank_identity(struct job_body *b, struct sf_err *err)
         if (parts[k].filename)
             memset((char *)parts[k].filename, '_', parts[k].filename_len);
     }
-    free(parts);
+    if (parts != &one)
+        free(parts);
     LOG(LOG_DEBUG, "a DICOM series of %d parts: %zu identifying values blanked", n, blanked);
     return rc;
 }

@@ -62,7 +62,18 @@ TEST(raw_samples)
     CHECK(v.g.nx == 2 && !strcmp(v.source, "isosurface"));
     volume_free(&v);
     CHECK(!strcmp(volume_format_of(" {\"sphere\": 1}", 15, "", ""), "frep") && !strcmp(volume_format_of("{}", 2, "", ""), "frep"));
-    CHECK(!strcmp(volume_format_of((const char *)brace, sizeof brace, "", ""), ""));
+    CHECK(!strcmp(volume_format_of((const char *)brace, sizeof brace, "", ""), "raw"));
+    /* a DICOM file: "DICM" after the preamble, or an explicit VR element of group 0008 first; bytes
+     * that would be one only in implicit VR stay raw samples (application/dicom says otherwise) */
+    char part10[140] = {0}, bare[12] = {8, 0, 0x16, 0, 'U', 'I', 2, 0, '1', 0, 0, 0}, implicit[12] = {8, 0, 0x16, 0, 2, 0, 0, 0};
+    memcpy(part10 + 128, "DICM", 4);
+    CHECK(!strcmp(volume_format_of(part10, sizeof part10, "", ""), "dicom"));
+    CHECK(!strcmp(volume_format_of(part10, sizeof part10, "raw", ""), "dicom"));
+    CHECK(!strcmp(volume_format_of(part10, sizeof part10, "raw", "dims=2,2,35"), "raw"));
+    CHECK(!strcmp(volume_format_of(bare, sizeof bare, "", ""), "dicom"));
+    CHECK(!strcmp(volume_format_of(implicit, sizeof implicit, "", ""), "raw"));
+    CHECK(!strcmp(volume_format_of("--b\r\n", 5, "raw", ""), "dicom"));
+    CHECK(refused((const char *)brace, sizeof brace, "raw", "iso=5&dims=2,2,2&type=uint8&segment=1", SF_EINVAL, "?segment"));
     uint8_t dashes[8] = {'-', '-', 3, 200, 9, '\n', 0, 7}; /* (a multipart body's start, but for the bytes) */
     CHECK(rd((const char *)dashes, sizeof dashes, "", "iso=5&dims=2,2,2&type=uint8", &v, &err) == 0);
     CHECK(v.g.nx == 2);

@@ -1,0 +1,214 @@
+#!/bin/sh
+# Multi-frame DICOM over POST /isosurface (issue 47: 4), on files tests/tools/dicom_write.py makes
+# with pydicom: an Enhanced CT of the shared series (frames shuffled, placed by their functional
+# groups) gives the classic series' mesh to the bit, uncompressed and as dcmtk's tools compress it
+# (RLE, JPEG lossless, JPEG-LS, fragments split with and without an offset table); an RT Dose's
+# 20 Gy isodose is closed, in patient coordinates, and within 2 % of VTK's Flying Edges on the
+# same grid scaled to Gy (16 and 32 bits, relative, absolute and reversed GridFrameOffsetVector,
+# RLE); a Segmentation's segment (binary and fractional, sparse frames) gives the mesh its label
+# grid gives as raw samples; and every bad input (no DoseGridScaling, uneven frames, truncated
+# frames, a codec's garbage, a label out of range, two frames of a segment at one place, several
+# segments and no ?segment, a multi-frame image among a series' parts, over the frame cap) is
+# refused with its pointer, the daemon up. surfctl and the Python client post the same files.
+. "$(dirname "$0")/lib.inc"
+DD="${SURFD_DATA:-../shared/data}/volumes/dicom_ct_head_64x64x27"
+[ -d "$DD" ] || { bad "../shared/data/volumes not found"; checks_done; exit 1; }
+PY=/usr/bin/python3 # Debian's: pydicom, numpy and VTK
+$PY -c "import pydicom, numpy, vtk" 2>/dev/null || { bad "python3-pydicom, python3-numpy or python3-vtk9 is missing (deploy/install-deps.sh installs them)"; checks_done; exit 1; }
+command -v dcmcjpls >/dev/null || { bad "dcmtk's tools are not installed (deploy/install-deps.sh installs them)"; checks_done; exit 1; }
+start_daemon "$T/d" --threads 2 || exit 1
+export SURFD_URL="$URL"
+C=build/surfctl
+
+# the files, and the Flying Edges figures of each dose on its grid in Gy (fe_NAME.json)
+$PY - "$DD" "$T" <<'PY' || bad "the test files could not be written"
+import json, sys
+sys.path.insert(0, "tests/tools")
+import numpy as np
+import pydicom
+import vtk
+from vtk.util import numpy_support
+import dicom_write as dw
+dd, t = sys.argv[1], sys.argv[2]
+dw.enhanced(dd, t + "/ect.dcm", shuffle=True)
+dw.enhanced(dd, t + "/ect_shared.dcm", shared_rescale=True)
+
+def flying_edges(name, gy, x, y, z, iso=20.0):
+    img = vtk.vtkImageData()
+    img.SetDimensions(len(x), len(y), len(z))
+    img.SetSpacing(x[1] - x[0], y[1] - y[0], z[1] - z[0])
+    img.SetOrigin(x[0], y[0], z[0])
+    img.GetPointData().SetScalars(numpy_support.numpy_to_vtk(np.ascontiguousarray(gy, dtype=np.float32).ravel(), deep=1))
+    fe = vtk.vtkFlyingEdges3D()
+    fe.SetInputData(img)
+    fe.SetValue(0, iso)
+    fe.Update()
+    mass = vtk.vtkMassProperties()
+    mass.SetInputConnection(fe.GetOutputPort())
+    mass.Update()
+    b = fe.GetOutput().GetBounds()
+    json.dump({"volume": mass.GetVolume(), "bounds": [[b[0], b[2], b[4]], [b[1], b[3], b[5]]]}, open(t + "/fe_" + name + ".json", "w"))
+
+flying_edges("rd32", *dw.dose(t + "/rd32.dcm", 32))
+flying_edges("rd16", *dw.dose(t + "/rd16.dcm", 16))
+dw.dose(t + "/rd_abs.dcm", 32, "absolute")
+dw.dose(t + "/rd_rev.dcm", 32, "reversed")
+dw.dose(t + "/rd_noscale.dcm", 32, scaling=False)
+dw.dose(t + "/rd_uneven.dcm", 32, uneven=12)
+d = pydicom.dcmread(t + "/rd32.dcm")                     # frames cut short: the element says so itself
+d.PixelData = d.PixelData[: len(d.PixelData) * 2 // 3]
+d.save_as(t + "/rd_short.dcm")
+d = pydicom.dcmread(t + "/rd32.dcm")                     # 2^31 samples declared in some kilobytes
+d.Rows, d.Columns, d.NumberOfFrames = 4096, 4096, 200
+d.GridFrameOffsetVector = list(range(200))
+d.PixelData = b"\0" * 64
+d.save_as(t + "/rd_huge.dcm")
+d = pydicom.dcmread(t + "/rd32.dcm")                     # a dose of one plane
+d.NumberOfFrames, d.GridFrameOffsetVector = 1, [0]
+d.PixelData = d.PixelData[: d.Rows * d.Columns * 4]
+d.save_as(t + "/rd_one.dcm")
+# the segmentations, and each segment's label grid as raw samples with its layout
+for name, frac in (("seg", False), ("segf", True)):
+    held, x, y, z = dw.seg(t + "/" + name + ".dcm", frac)
+    for n, v in held.items():
+        zs = [k for k in range(len(z)) if v[k].any() or any(h[k].any() for h in held.values())]
+        k0, k1 = min(zs), max(zs)
+        grid = v[k0:k1 + 1]
+        open("%s/%s%d.raw" % (t, name, n), "wb").write(np.ascontiguousarray(grid, dtype=np.float32 if frac else np.uint8).tobytes())
+        open("%s/%s%d.q" % (t, name, n), "w").write("dims=%d,%d,%d&type=%s&spacing=%g,%g,%g&origin=%g,%g,%g" % (
+            len(x), len(y), k1 - k0 + 1, "float32" if frac else "uint8", x[1] - x[0], y[1] - y[0], z[1] - z[0],
+            x[0], y[0], z[k0]))
+dw.seg(t + "/seg_badlabel.dcm", bad_label=True)
+dw.seg(t + "/seg_twice.dcm", extra_frame=8)
+PY
+
+# post FILE QUERY: FILE as the body (application/dicom); the answer in $T/body
+post() { status POST "/isosurface?$2" -H 'Content-Type: application/dicom' --data-binary @"$1"; }
+series() { parts=""; for f in "$1"/*; do parts="$parts -F slice=@$f"; done; status POST "/isosurface?iso=226.5" $parts; } # shellcheck disable=SC2086
+# same A B: two model resources with the same triangles, volume and bounds (to the bit)
+same() { python3 -c "
+import json, sys
+a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+sys.exit(0 if a['triangles'] == b['triangles'] and a['volume_mm3'] == b['volume_mm3'] and a['bounds'] == b['bounds'] else 1)" "$1" "$2"; }
+closed() { python3 -c "
+import json, sys
+a = json.load(open(sys.argv[1]))
+sys.exit(0 if a['triangles'] > 0 and a['boundary_edges'] == 0 and a['nonmanifold_edges'] == 0 else 1)" "$1"; }
+pointer() { grep -q "\"pointer\":\"$1\"" "$T/body"; }
+
+# ---- Enhanced CT ----
+code=$(series "$DD"); cp "$T/body" "$T/classic.json"
+check "the classic series: 201" '[ "$code" = 201 ]'
+code=$(post "$T/ect.dcm" "iso=226.5"); cp "$T/body" "$T/ect.json"
+check "an Enhanced CT of the series (frames shuffled, rescale per frame) as the body: the series' mesh to the bit" '[ "$code" = 201 ] && same "$T/ect.json" "$T/classic.json"'
+code=$(status POST "/isosurface?iso=226.5" -F "image=@$T/ect_shared.dcm")
+check "... with its rescale shared, as a one-part multipart series: the same" '[ "$code" = 201 ] && same "$T/body" "$T/classic.json"'
+code=$(status POST "/isosurface?iso=226.5" -H 'Content-Type: application/octet-stream' --data-binary @"$T/ect.dcm")
+check "... posted as octet-stream without dims: read as the DICOM file it is" '[ "$code" = 201 ] && same "$T/body" "$T/classic.json"'
+for how in "dcmcrle" "dcmcjpeg" "dcmcjpls" "dcmcjpls +fs 1" "dcmcjpls +fs 1 -ot"; do
+    f="$T/ect_$(echo "$how" | tr -d ' +-').dcm"
+    $how "$T/ect.dcm" "$f" || bad "$how"
+    code=$(post "$f" "iso=226.5")
+    check "the Enhanced CT compressed by $how: the same mesh, each frame decoded alone" '[ "$code" = 201 ] && same "$T/body" "$T/classic.json"'
+done
+python3 -c "
+import sys
+d = bytearray(open(sys.argv[1], 'rb').read())
+at = [i for i in range(len(d) - 1) if d[i] == 0xff and d[i + 1] == 0xd8][5]   # frame 5's JPEG-LS stream
+for k in range(at + 60, at + 600, 5): d[k] ^= 0x5a
+open(sys.argv[2], 'wb').write(d)" "$T/ect_dcmcjpls.dcm" "$T/ect_garbage.dcm"
+code=$(post "$T/ect_garbage.dcm" "iso=226.5")
+check "a frame whose JPEG-LS stream is garbage: 422 at that frame, saying it does not decode" '[ "$code" = 422 ] && is_problem 422 && grep -q "does not decode" "$T/body" && grep -q "\"pointer\":\"/parts/0/frames/" "$T/body"'
+python3 -c "
+import struct, sys
+d = bytearray(open(sys.argv[1], 'rb').read())
+at = d.find(b'\xfe\xff\x00\xe0', d.rfind(b'\xe0\x7f\x10\x00')) # the offset table's item
+at = d.find(b'\xfe\xff\x00\xe0', at + 8)                       # frame 0's fragment: its RLE header
+d[at + 8 + 4:at + 8 + 8] = struct.pack('<I', 1 << 30)          # a stripe 1 GB past the fragment
+open(sys.argv[2], 'wb').write(d)" "$T/ect_dcmcrle.dcm" "$T/ect_rlebad.dcm"
+code=$(post "$T/ect_rlebad.dcm" "iso=226.5")
+check "an RLE frame whose header points past its fragment: 422 at frame 0" '[ "$code" = 422 ] && pointer "/parts/0/frames/0"'
+
+# ---- RT Dose ----
+# fe NAME: the model in $T/body within 2 % of Flying Edges' volume, its bounds within 0.05 mm of FE's, closed
+fe() { python3 -c "
+import json, sys
+a, f = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+rel = abs(a['volume_mm3'] - f['volume']) / f['volume']
+near = all(abs(p - q) < 0.05 for s, r in zip(a['bounds'], f['bounds']) for p, q in zip(s, r))
+print('%s: surfd %.1f mm3, Flying Edges %.1f mm3: %.3f %%' % (sys.argv[3], a['volume_mm3'], f['volume'], 100 * rel))
+sys.exit(0 if rel < 0.02 and near and a['boundary_edges'] == 0 else 1)" "$T/body" "$T/fe_$1.json" "$1"; }
+code=$(post "$T/rd32.dcm" "iso=20"); cp "$T/body" "$T/rd32.json"
+check "an RT Dose (32 bits) as the body, iso=20: its 20 Gy isodose, closed, within 2 % of Flying Edges, in place" '[ "$code" = 201 ] && fe rd32'
+code=$(post "$T/rd16.dcm" "iso=20")
+check "... of 16 bits: the same" '[ "$code" = 201 ] && fe rd16'
+code=$(status POST "/isosurface?iso=20" -F "dose=@$T/rd32.dcm")
+check "... as a one-part multipart series: the same model" '[ "$code" = 201 ] && same "$T/body" "$T/rd32.json"'
+code=$(post "$T/rd_abs.dcm" "iso=20")
+check "... its GridFrameOffsetVector absolute z (PS3.3 C.8.8.3.2): the same model" '[ "$code" = 201 ] && same "$T/body" "$T/rd32.json"'
+code=$(post "$T/rd_rev.dcm" "iso=20")
+check "... its frames top to bottom (offsets negative): sorted, the same model" '[ "$code" = 201 ] && same "$T/body" "$T/rd32.json"'
+dcmcrle "$T/rd32.dcm" "$T/rd_rle.dcm" || bad "dcmcrle rd32"
+code=$(post "$T/rd_rle.dcm" "iso=20")
+check "... RLE compressed (32-bit samples, four stripes a frame): the same model" '[ "$code" = 201 ] && same "$T/body" "$T/rd32.json"'
+check "the stored upload holds no patient name or ID (blanked before it was stored)" '! grep -rqa "Doe^Jane\|SURFD-TEST-4711" "$T/d"'
+code=$(post "$T/rd_noscale.dcm" "iso=20")
+check "an RT Dose without DoseGridScaling: 422 naming it" '[ "$code" = 422 ] && grep -q DoseGridScaling "$T/body" && pointer /parts/0'
+code=$(post "$T/rd_uneven.dcm" "iso=20")
+check "an RT Dose with one frame out of step: 422 at that frame (not resampled)" '[ "$code" = 422 ] && pointer /parts/0/frames/12 && grep -q "uneven" "$T/body"'
+code=$(post "$T/rd_short.dcm" "iso=20")
+check "an RT Dose whose pixel data ends before its last frames: 422 at the first frame cut short" '[ "$code" = 422 ] && pointer /parts/0/frames/20 && grep -q "ends before" "$T/body"'
+code=$(post "$T/rd_huge.dcm" "iso=20")
+check "an RT Dose declaring 3.4 G samples in a few KB: 422 (over the cap) before anything is allocated" '[ "$code" = 422 ] && grep -q "samples: over" "$T/body"'
+code=$(post "$T/rd_one.dcm" "iso=20")
+check "an RT Dose of one plane: 422" '[ "$code" = 422 ] && grep -q "one plane" "$T/body"'
+head -c 40000 "$T/rd32.dcm" >"$T/rd_cut.dcm"
+code=$(post "$T/rd_cut.dcm" "iso=20")
+check "an RT Dose file cut short: 400, not DICOM as it stands" '[ "$code" = 400 ] && is_problem 400'
+code=$(post "$T/rd32.dcm" "iso=20&segment=1")
+check "?segment on an RT Dose: 422 at ?segment" '[ "$code" = 422 ] && pointer "?segment"'
+code=$(status POST "/isosurface?iso=226.5" -F "slice=@$DD/IM0001.dcm" -F "slice=@$T/ect.dcm")
+check "a multi-frame image among a series' parts: 422 at its part, read alone" '[ "$code" = 422 ] && pointer /parts/1 && grep -q "read alone" "$T/body"'
+code=$(status POST "/isosurface?iso=226.5" -F "slice=@$DD/IM0001.dcm")
+check "one single-frame image: 422 saying a series is 2 slices or one multi-frame image" '[ "$code" = 422 ] && grep -q "multi-frame" "$T/body"'
+
+# ---- Segmentation ----
+code=$(post "$T/seg.dcm" "iso=0.5")
+check "a Segmentation of 2 segments without ?segment: 422 at ?segment naming both" '[ "$code" = 422 ] && pointer "?segment" && grep -q "1 (Ball), 2 (Box)" "$T/body"'
+for name in seg segf; do
+    for n in 1 2; do
+        code=$(status POST "/isosurface?iso=0.5&$(cat "$T/$name$n.q")" -H 'Content-Type: application/octet-stream' --data-binary @"$T/$name$n.raw")
+        cp "$T/body" "$T/ref.json"
+        [ "$code" = 201 ] || bad "the raw labels of $name $n: $code $(cat "$T/body")"
+        code=$(post "$T/$name.dcm" "iso=0.5&segment=$n")
+        check "$name ($([ $name = seg ] && echo binary, 1 bit || echo fractional, 8 bits of 200)) ?segment=$n (sparse frames, shuffled): the mesh its label grid gives, to the bit, closed" '[ "$code" = 201 ] && same "$T/body" "$T/ref.json" && closed "$T/body"'
+    done
+done
+code=$(post "$T/seg.dcm" "iso=0.5&segment=3")
+check "?segment=3 of a Segmentation of 1 and 2: 422 at ?segment listing them" '[ "$code" = 422 ] && pointer "?segment" && grep -q "no segment 3" "$T/body"'
+code=$(post "$T/seg.dcm" "iso=0.5&segment=x")
+check "?segment=x: 422" '[ "$code" = 422 ] && pointer "?segment"'
+code=$(post "$T/seg_badlabel.dcm" "iso=0.5&segment=1")
+check "a frame whose ReferencedSegmentNumber is no segment's (7): 422 at that frame" '[ "$code" = 422 ] && grep -q "\"pointer\":\"/parts/0/frames/[0-9]*\"" "$T/body" && grep -q "ReferencedSegmentNumber 7" "$T/body"'
+code=$(post "$T/seg_twice.dcm" "iso=0.5&segment=1")
+check "two frames of segment 1 at one position: 422 at one of them" '[ "$code" = 422 ] && grep -q "two frames of segment 1" "$T/body"'
+code=$(post "$T/seg_twice.dcm" "iso=0.5&segment=2")
+check "... while segment 2 of the same file reads" '[ "$code" = 201 ]'
+
+# ---- the clients ----
+$C isosurface "$T/rd32.dcm" --iso 20 -o "$T/rd.stl" >"$T/out" 2>/dev/null; rc=$?
+check "surfctl isosurface DOSE.dcm --iso 20: the model curl's body gave, its STL closed" '[ $rc -eq 0 ] && same "$T/out" "$T/rd32.json" && python3 tests/tools/stl_check.py "$T/rd.stl" - >/dev/null'
+$C isosurface "$T/seg.dcm" --iso 0.5 --segment 2 -o "$T/box.stl" >"$T/out" 2>/dev/null; rc=$?
+cp "$T/out" "$T/body"
+code=$(status POST "/isosurface?iso=0.5&$(cat "$T/seg2.q")" -H 'Content-Type: application/octet-stream' --data-binary @"$T/seg2.raw")
+check "surfctl isosurface SEG.dcm --segment 2: the box" '[ $rc -eq 0 ] && same "$T/out" "$T/body"'
+$C isosurface "$T/seg.dcm" --iso 0.5 -o "$T/x.stl" >"$T/out" 2>"$T/err"; rc=$?
+check "surfctl without --segment: exits non-zero naming ?segment" '[ $rc -ne 0 ] && grep -q "segment" "$T/err"'
+check "the Python client's isosurface(DOSE.dcm, iso=20) and (SEG.dcm, segment=1): the same models" 'PYTHONPATH=client/python python3 -c "
+import json, sys, surfd
+c = surfd.Client()
+a = c.isosurface(sys.argv[1], iso=20); b = json.load(open(sys.argv[2]))
+s = c.isosurface(sys.argv[3], iso=0.5, segment=1)
+sys.exit(0 if a[\"volume_mm3\"] == b[\"volume_mm3\"] and a[\"triangles\"] == b[\"triangles\"] and s[\"triangles\"] > 0 else 1)" "$T/rd32.dcm" "$T/rd32.json" "$T/seg.dcm"'
+check "the daemon up" 'alive'
+finish

@@ -1,0 +1,56 @@
+/* fuzz_frames.c - one multi-frame DICOM image (an Enhanced CT/MR, an RT Dose, a Segmentation:
+ * api/frames_dcmtk.cpp through dicom_series.h) read as POST /isosurface reads a single DICOM
+ * body: its headers alone first (the upload's check), then whole, for no segment and for
+ * segments 1 and 2. What reads whole must have passed the check with the same grid (the check
+ * says every size before anything is decoded), lie within the cap, and hold finite samples; a
+ * small one is polygonised, and its mesh must be closed and consistently oriented. */
+#include <math.h>
+
+#include "../../api/dicom_series.h"
+#include "../../core/iso/mc.h"
+#include "fuzz.h"
+
+#define FRAMES_FUZZ_MAX_SAMPLES (1u << 22) /* a cap of its own, so that the fuzzer meets it */
+#define EXTRACT_MAX_SAMPLES 40000
+
+static void read_as(const struct part *p, int segment)
+{
+    struct series chk, s;
+    struct sf_err e1 = {0}, e2 = {0};
+    int rc_chk = series_read(p, 1, true, FRAMES_FUZZ_MAX_SAMPLES, segment, &chk, &e1);
+    free(chk.owned);
+    if (series_read(p, 1, false, FRAMES_FUZZ_MAX_SAMPLES, segment, &s, &e2))
+        return;
+    size_t n = (size_t)s.g.nx * s.g.ny * s.g.nz;
+    if (rc_chk || chk.g.nx != s.g.nx || chk.g.ny != s.g.ny || chk.g.nz != s.g.nz || n > FRAMES_FUZZ_MAX_SAMPLES ||
+        !s.owned || (chk.typed && chk.g.type != s.g.type))
+        abort(); /* read whole past what its check said, or past the cap */
+    if (s.g.type == ISO_F32)
+        for (size_t i = 0; i < n; i++)
+            if (!isfinite(((const float *)s.owned)[i]))
+                abort();
+    if (n <= EXTRACT_MAX_SAMPLES) {
+        struct iso_opts o = {.iso = s.g.type == ISO_U8 ? 0.5 : 1.0, .closed = true, .normals = true};
+        struct trimesh m;
+        struct trimesh_stats st;
+        struct sf_err e3 = {0};
+        if (iso_extract(&s.g, &o, NULL, &m, &e3) == 0 && trimesh_stats(&m, &st, &e3) == 0 &&
+            (st.boundary_edges || st.nonmanifold_edges || st.degenerate))
+            abort();
+        trimesh_free(&m);
+    }
+    free(s.owned);
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    static bool tables;
+    if (!tables) {
+        iso_init();
+        tables = true;
+    }
+    struct part p = {(const char *)data, size, NULL, 0};
+    for (int segment = 0; segment <= 2; segment++)
+        read_as(&p, segment);
+    return 0;
+}

@@ -1,0 +1,223 @@
+#!/usr/bin/python3
+"""Writes the multi-frame DICOM objects surfd's tests read, with pydicom and numpy (Debian's
+python3-pydicom, python3-numpy): an Enhanced CT made from a classic series (each slice a frame,
+placed by its Per-frame Functional Groups, PS3.3 C.7.6.16), an RT Dose of an analytic dose field
+(C.8.8.3: GridFrameOffsetVector, DoseGridScaling) and a Segmentation of known shapes (C.8.20:
+BINARY, 1 bit, or FRACTIONAL, 8 bits; frames only where each segment lies). Each function also
+returns what the test compares with (the dose grid in Gy, the segments' label grids).
+
+  dicom_write.py enhanced SERIES_DIR OUT [shared-rescale] [shuffle]
+  dicom_write.py dose OUT [bits=16|32] [offsets=relative|absolute|reversed] [scaling=no] [uneven=K]
+  dicom_write.py seg OUT [type=binary|fractional]
+  dicom_write.py seeds SMALL_SERIES_DIR OUT_DIR   (tests/fuzz/seeds/frames: each kind, small)
+"""
+import os
+import random
+import sys
+
+import numpy as np
+import pydicom
+from pydicom.dataset import Dataset, FileMetaDataset
+from pydicom.sequence import Sequence
+from pydicom.uid import ExplicitVRLittleEndian, generate_uid
+
+ENHANCED_CT = "1.2.840.10008.5.1.4.1.1.2.1"
+RT_DOSE = "1.2.840.10008.5.1.4.1.1.481.2"
+SEGMENTATION = "1.2.840.10008.5.1.4.1.1.66.4"
+
+
+def _base(sop_class, modality):
+    ds = Dataset()
+    ds.file_meta = FileMetaDataset()
+    ds.file_meta.MediaStorageSOPClassUID = sop_class
+    ds.file_meta.MediaStorageSOPInstanceUID = generate_uid()
+    ds.file_meta.TransferSyntaxUID = ExplicitVRLittleEndian
+    ds.is_little_endian, ds.is_implicit_VR = True, False
+    ds.SOPClassUID = sop_class
+    ds.SOPInstanceUID = ds.file_meta.MediaStorageSOPInstanceUID
+    ds.Modality = modality
+    ds.PatientName = "Doe^Jane"  # blanked by the daemon before it stores the upload
+    ds.PatientID = "SURFD-TEST-4711"
+    ds.StudyInstanceUID, ds.SeriesInstanceUID = generate_uid(), generate_uid()
+    ds.FrameOfReferenceUID = generate_uid()
+    ds.SamplesPerPixel = 1
+    ds.PhotometricInterpretation = "MONOCHROME2"
+    return ds
+
+
+def _item(**kw):
+    it = Dataset()
+    for k, v in kw.items():
+        setattr(it, k, v)
+    return it
+
+
+def _save(ds, out):
+    ds.save_as(out, write_like_original=False)
+
+
+def enhanced(series_dir, out, shared_rescale=False, shuffle=False):
+    """The classic series in series_dir as one Enhanced CT, a frame a slice (shuffled: frames in no
+    order of position), positions per frame, orientation and pixel measures shared, the rescale
+    per frame or shared."""
+    sl = [pydicom.dcmread(os.path.join(series_dir, f)) for f in sorted(os.listdir(series_dir))]
+    if shuffle:
+        random.Random(47).shuffle(sl)
+    a = sl[0]
+    ds = _base(ENHANCED_CT, "CT")
+    for k in ("Rows", "Columns", "BitsAllocated", "BitsStored", "HighBit", "PixelRepresentation"):
+        setattr(ds, k, getattr(a, k))
+    ds.NumberOfFrames = len(sl)
+    shared = _item(PlaneOrientationSequence=Sequence([_item(ImageOrientationPatient=a.ImageOrientationPatient)]),
+                   PixelMeasuresSequence=Sequence([_item(PixelSpacing=a.PixelSpacing,
+                                                         SliceThickness=a.get("SliceThickness", 1))]))
+    rescale = lambda s: _item(RescaleSlope=s.get("RescaleSlope", 1), RescaleIntercept=s.get("RescaleIntercept", 0),
+                              RescaleType="HU")
+    if shared_rescale:
+        shared.PixelValueTransformationSequence = Sequence([rescale(a)])
+    ds.SharedFunctionalGroupsSequence = Sequence([shared])
+    per = []
+    for s in sl:
+        it = _item(PlanePositionSequence=Sequence([_item(ImagePositionPatient=s.ImagePositionPatient)]))
+        if not shared_rescale:
+            it.PixelValueTransformationSequence = Sequence([rescale(s)])
+        per.append(it)
+    ds.PerFrameFunctionalGroupsSequence = Sequence(per)
+    ds.PixelData = b"".join(s.PixelData for s in sl)
+    _save(ds, out)
+
+
+def dose_field(shape=(30, 36, 40), spacing=(2.5, 2.0, 3.0), origin=(-45.0, -40.0, -42.0)):
+    """A dose in Gy on a grid (z, y, x): an ellipsoidal Gaussian of 60 Gy whose 20 Gy isodose lies
+    well inside the grid. The grid's x, y, z in mm."""
+    nz, ny, nx = shape
+    x = origin[0] + spacing[0] * np.arange(nx)
+    y = origin[1] + spacing[1] * np.arange(ny)
+    z = origin[2] + spacing[2] * np.arange(nz)
+    Z, Y, X = np.meshgrid(z, y, x, indexing="ij")
+    r2 = ((X - 5.0) / 18.0) ** 2 + ((Y + 3.0) / 14.0) ** 2 + ((Z - 2.0) / 16.0) ** 2
+    return 60.0 * np.exp(-r2), x, y, z
+
+
+def dose(out, bits=32, offsets="relative", scaling=True, uneven=None, **grid):
+    """An RT Dose of dose_field(): frames bottom to top (reversed: top to bottom, offsets negative),
+    GridFrameOffsetVector relative (first 0) or absolute z; stored = round(dose / scaling). Returns
+    the grid of Gy the file holds (stored x scaling), its x, y, z."""
+    gy, x, y, z = dose_field(**grid)
+    top = 2 ** (bits - 1) if bits == 32 else 2 ** bits - 1
+    s = float(gy.max()) / top
+    stored = np.rint(gy / s).astype(np.uint32 if bits == 32 else np.uint16)
+    ds = _base(RT_DOSE, "RTDOSE")
+    ds.Rows, ds.Columns = len(y), len(x)
+    ds.BitsAllocated = ds.BitsStored = bits
+    ds.HighBit, ds.PixelRepresentation = bits - 1, 0
+    ds.NumberOfFrames = len(z)
+    ds.FrameIncrementPointer = 0x3004000C
+    ds.PixelSpacing = [float(y[1] - y[0]), float(x[1] - x[0])]  # rows \ columns
+    ds.ImageOrientationPatient = [1, 0, 0, 0, 1, 0]
+    ds.DoseUnits, ds.DoseType, ds.DoseSummationType = "GY", "PHYSICAL", "PLAN"
+    if scaling:
+        ds.DoseGridScaling = "%.10g" % s
+    frames = stored
+    zs = list(z)
+    if offsets == "reversed":
+        frames, zs = stored[::-1], zs[::-1]
+    ds.ImagePositionPatient = [float(x[0]), float(y[0]), float(zs[0])]
+    off = [v - zs[0] for v in zs] if offsets != "absolute" else list(zs)
+    if uneven is not None:
+        off[uneven] += 0.4 * (z[1] - z[0])
+    ds.GridFrameOffsetVector = ["%.6g" % v for v in off]
+    ds.PixelData = np.ascontiguousarray(frames).astype("<u%d" % (bits // 8)).tobytes()
+    _save(ds, out)
+    return stored.astype(np.float64) * float("%.10g" % s), x, y, z
+
+
+def seg_labels(shape=(24, 28, 32), spacing=(1.5, 1.25, 2.0), origin=(-20.0, -17.0, -10.0)):
+    """Two segments on a grid (z, y, x): 1 a ball, 2 a box, overlapping a little; each is in some
+    planes alone (so frames are sparse). As 0..1 fractions: the ball's edge partial."""
+    nz, ny, nx = shape
+    x = origin[0] + spacing[0] * np.arange(nx)
+    y = origin[1] + spacing[1] * np.arange(ny)
+    z = origin[2] + spacing[2] * np.arange(nz)
+    Z, Y, X = np.meshgrid(z, y, x, indexing="ij")
+    r = np.sqrt((X + 2.0) ** 2 + (Y - 0.5) ** 2 + (Z - 10.0) ** 2)
+    ball = np.clip(9.0 - r + 0.5, 0.0, 1.0)  # a 9 mm ball, its edge a ramp a mm wide
+    box = ((np.abs(X - 12.0) <= 6) & (np.abs(Y + 5.0) <= 4) & (Z >= 18) & (Z <= 30)).astype(np.float64)
+    return {1: ball, 2: box}, x, y, z
+
+
+def seg(out, fractional=False, extra_frame=None, bad_label=False, **grid):
+    """A Segmentation of seg_labels(): a frame per segment per plane where the segment is not empty
+    (shuffled). BINARY: fraction >= 0.5; FRACTIONAL: round(fraction x 200) of 200. extra_frame: a
+    frame of segment 1 also at plane K (two at one place); bad_label: a frame naming segment 7.
+    Returns the label grids the file holds (0/1 or fractions) and x, y, z."""
+    labels, x, y, z = seg_labels(**grid)
+    ds = _base(SEGMENTATION, "SEG")
+    ds.Rows, ds.Columns = len(y), len(x)
+    ds.SegmentationType = "FRACTIONAL" if fractional else "BINARY"
+    if fractional:
+        ds.SegmentationFractionalType, ds.MaximumFractionalValue = "PROBABILITY", 200
+        ds.BitsAllocated = ds.BitsStored = 8
+        ds.HighBit = 7
+    else:
+        ds.BitsAllocated = ds.BitsStored = 1
+        ds.HighBit = 0
+    ds.PixelRepresentation = 0
+    ds.SegmentSequence = Sequence([_item(SegmentNumber=1, SegmentLabel="Ball", SegmentAlgorithmType="MANUAL"),
+                                   _item(SegmentNumber=2, SegmentLabel="Box", SegmentAlgorithmType="MANUAL")])
+    ds.SharedFunctionalGroupsSequence = Sequence([_item(
+        PlaneOrientationSequence=Sequence([_item(ImageOrientationPatient=[1, 0, 0, 0, 1, 0])]),
+        PixelMeasuresSequence=Sequence([_item(PixelSpacing=[float(y[1] - y[0]), float(x[1] - x[0])],
+                                              SliceThickness=float(z[1] - z[0]),
+                                              SpacingBetweenSlices=float(z[1] - z[0]))]))])
+    held = {}
+    frames = []
+    for n, lab in labels.items():
+        v = np.rint(lab * 200) / 200 if fractional else (lab >= 0.5).astype(np.float64)
+        held[n] = v
+        for k in range(len(z)):
+            if v[k].any():
+                frames.append((n, k, v[k]))
+    if extra_frame is not None:
+        frames.append((1, extra_frame, held[1][extra_frame]))
+    if bad_label:
+        frames.append((7, frames[0][1], frames[0][2]))
+    random.Random(4).shuffle(frames)
+    per, pix = [], []
+    for n, k, plane in frames:
+        per.append(_item(PlanePositionSequence=Sequence([_item(ImagePositionPatient=[float(x[0]), float(y[0]), float(z[k])])]),
+                         SegmentIdentificationSequence=Sequence([_item(ReferencedSegmentNumber=n)])))
+        pix.append(np.rint(plane * 200).astype(np.uint8) if fractional else (plane > 0).astype(np.uint8))
+    ds.PerFrameFunctionalGroupsSequence = Sequence(per)
+    ds.NumberOfFrames = len(frames)
+    flat = np.concatenate([p.ravel() for p in pix])
+    if fractional:
+        ds.PixelData = flat.tobytes()
+    else:  # PS3.5 8.1.1: frames packed bit after bit, no padding between them, lowest bit first
+        packed = np.packbits(flat, bitorder="little").tobytes()
+        ds.PixelData = packed + (b"\0" if len(packed) % 2 else b"")
+    _save(ds, out)
+    return held, x, y, z
+
+
+if __name__ == "__main__":
+    what, args = sys.argv[1], sys.argv[2:]
+    opts = dict(a.split("=", 1) for a in args if "=" in a)
+    flags = [a for a in args if "=" not in a]
+    if what == "enhanced":
+        enhanced(flags[0], flags[1], "shared-rescale" in flags, "shuffle" in flags)
+    elif what == "dose":
+        dose(flags[0], int(opts.get("bits", 32)), opts.get("offsets", "relative"), opts.get("scaling") != "no",
+             int(opts["uneven"]) if "uneven" in opts else None)
+    elif what == "seg":
+        seg(flags[0], opts.get("type") == "fractional")
+    elif what == "seeds":
+        enhanced(flags[0], os.path.join(flags[1], "enhanced_ct"), shuffle=True)
+        small = dict(shape=(5, 6, 8), spacing=(9.0, 8.0, 10.0), origin=(-30.0, -25.0, -20.0))
+        dose(os.path.join(flags[1], "dose16"), 16, **small)
+        dose(os.path.join(flags[1], "dose32_absolute"), 32, "absolute", **small)
+        small = dict(shape=(10, 10, 12), spacing=(3.0, 2.5, 4.0))
+        seg(os.path.join(flags[1], "seg_binary"), **small)
+        seg(os.path.join(flags[1], "seg_fractional"), True, **small)
+    else:
+        sys.exit(__doc__)
