@@ -547,7 +547,7 @@ int curve_poly_segment(const struct curve_poly *cp, double u)
  * halved until it holds), cubic Hermite pieces through the curve's own points and derivatives at
  * the knots (so C1 as the curve is), within MODEL_FIT_REL of the contour's extent of the curve
  * (measured at its breakpoints in the piece and between them). Dyadic knots of four curves merge
- * into pieces no narrower than the finest of them: the heart's model has 7 726 patches, none a
+ * into pieces no narrower than the finest of them: the heart's model has 7 838 patches, none a
  * sliver, and renders 2.9x as fast. A piece holding no breakpoint of the curve is one of its
  * cubics, which its Hermite piece equals, so halving ends there; a curve that would take more
  * than FIT_MAX_KNOTS (breakpoints a hair apart) keeps its own. Every method and the closed-form volume read the redrawn

@@ -9,6 +9,7 @@ returns what the test compares with (the dose grid in Gy, the segments' label gr
   dicom_write.py enhanced SERIES_DIR OUT [shared-rescale] [shuffle]
   dicom_write.py dose OUT [bits=16|32] [offsets=relative|absolute|reversed] [scaling=no] [uneven=K]
   dicom_write.py seg OUT [type=binary|fractional]
+  dicom_write.py rtstruct OUT          (the sparse ROIs a planning system draws, and a dense one)
   dicom_write.py seeds SMALL_SERIES_DIR OUT_DIR   (tests/fuzz/seeds/frames: each kind, small)
 """
 import os
@@ -200,6 +201,47 @@ def seg(out, fractional=False, extra_frame=None, bad_label=False, **grid):
     return held, x, y, z
 
 
+RT_STRUCTURE_SET = "1.2.840.10008.5.1.4.1.1.481.3"
+
+
+def rtstruct_rois(slices=(0.0, 3.0, 6.0)):
+    """What rtstruct() draws: name -> (the contour of each slice, its area), as a planning system
+    draws a couch (4 points), an L-shaped block (6), a box with points midway along its edges (8),
+    an octagon (8, short of corners) and an outlined organ (an ellipse of 72 points)."""
+    import math
+    ell = [(60 * math.cos(2 * math.pi * k / 72), 40 * math.sin(2 * math.pi * k / 72)) for k in range(72)]
+    octagon = [(30 * math.cos(2 * math.pi * k / 8), 30 * math.sin(2 * math.pi * k / 8)) for k in range(8)]
+    rois = {
+        "Couch": ([(-200, -150), (200, -150), (200, 150), (-200, 150)], 400 * 300),
+        "Block": ([(0, 0), (60, 0), (60, 20), (20, 20), (20, 50), (0, 50)], 60 * 20 + 20 * 30),
+        "Box": ([(0, 0), (25, 0), (50, 0), (50, 25), (50, 50), (25, 50), (0, 50), (0, 25)], 50 * 50),
+        "Octagon": (octagon, 2 * math.sqrt(2) * 30 * 30),
+        "Organ": (ell, math.pi * 60 * 40),
+    }
+    return rois, slices
+
+
+def rtstruct(out):
+    """An RT Structure Set (C.8.8.5, C.8.8.6) of rtstruct_rois(), each ROI on three slices."""
+    rois, slices = rtstruct_rois()
+    ds = _base(RT_STRUCTURE_SET, "RTSTRUCT")
+    del ds.SamplesPerPixel, ds.PhotometricInterpretation
+    ds.StructureSetLabel = "sparse"
+    ds.ReferencedFrameOfReferenceSequence = Sequence([_item(FrameOfReferenceUID=ds.FrameOfReferenceUID)])
+    ds.StructureSetROISequence = Sequence(
+        [_item(ROINumber=k + 1, ReferencedFrameOfReferenceUID=ds.FrameOfReferenceUID, ROIName=name,
+               ROIGenerationAlgorithm="MANUAL") for k, name in enumerate(rois)])
+    ds.ROIContourSequence = Sequence(
+        [_item(ReferencedROINumber=k + 1, ROIDisplayColor=[255, 0, 0], ContourSequence=Sequence(
+            [_item(ContourGeometricType="CLOSED_PLANAR", NumberOfContourPoints=len(pts),
+                   ContourData=[f"{v:.4f}" for x, y in pts for v in (x, y, z)]) for z in slices]))
+         for k, (name, (pts, _)) in enumerate(rois.items())])
+    ds.RTROIObservationsSequence = Sequence(
+        [_item(ObservationNumber=k + 1, ReferencedROINumber=k + 1, RTROIInterpretedType="ORGAN", ROIInterpreter="")
+         for k in range(len(rois))])
+    _save(ds, out)
+
+
 if __name__ == "__main__":
     what, args = sys.argv[1], sys.argv[2:]
     opts = dict(a.split("=", 1) for a in args if "=" in a)
@@ -211,6 +253,8 @@ if __name__ == "__main__":
              int(opts["uneven"]) if "uneven" in opts else None)
     elif what == "seg":
         seg(flags[0], opts.get("type") == "fractional")
+    elif what == "rtstruct":
+        rtstruct(flags[0])
     elif what == "seeds":
         enhanced(flags[0], os.path.join(flags[1], "enhanced_ct"), shuffle=True)
         small = dict(shape=(5, 6, 8), spacing=(9.0, 8.0, 10.0), origin=(-30.0, -25.0, -20.0))
