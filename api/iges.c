@@ -4,7 +4,7 @@
  * Hollerith strings; the Directory's pairs of lines (status: unblanked entities are drawn unless
  * physically dependent, subordinate switch 01 or 03, which are drawn through their parents only;
  * logically dependent ones, 02, the members of a 402 group as CAD systems write them, are drawn as
- * independent ones are; transform pointer; colour number or 314 pointer); parameter data with D
+ * independent ones are, and take the group's name where they have none; transform pointer; colour number or 314 pointer); parameter data with D
  * exponents. Entities: 128 rational B-spline surface; 126 B-spline curve, 110 line, 100 circular
  * arc, 102 composite curve and 106 copious data (forms 1, 2, 11, 12) as trim curves; 142 curve on
  * a surface (its parameter-space curve preferred, else the model-space curve projected onto the
@@ -73,6 +73,7 @@ struct de { /* one directory entry */
     int line;         /* its first D line: the entity's name in errors */
     char label[9];    /* the entity label (directory field 18), blanks trimmed */
     bool bounded;     /* a surface a 143/144 bounds */
+    int group;        /* the 402 group it is a member of (its index), or -1 */
     /* the budget's memo (trim_budget): a curve's points at tolerance est_tol; a surface's tolerances */
     enum { EST_NONE, EST_BUSY, EST_DONE } est;
     double est_tol, est_points;
@@ -1280,6 +1281,17 @@ static int owner_loops(struct iges *g, struct loops *l, const struct on_surface 
     return rc;
 }
 
+/* A 402 group's name (read_groups): a 406 name among its properties, else its label. */
+static int group_name(struct iges *g, const struct de *group, char *name, size_t n)
+{
+    struct params p;
+    if (load_params(g, group, &p))
+        return SF_EINVAL;
+    entity_name(g, group, &p, 2 + p_int_or(&p, 1, 0), name, n);
+    params_free(&p);
+    return 0;
+}
+
 /* One drawn object: surface sde trimmed as entity owner (a 143 or 144) says, or untrimmed but for
  * its U/V ranges (owner NULL). */
 static int add_object(struct iges *g, struct scene *sc, const struct de *sde, const struct de *owner)
@@ -1305,6 +1317,9 @@ static int add_object(struct iges *g, struct scene *sc, const struct de *sde, co
         rc = owner_loops(g, &l, &on, whole, owner, o->name, sizeof o->name);
     else if (!whole) /* U/V ranges within the knots: the rectangle they span */
         rc = loop_rect(g, &l, on.dom, where);
+    int group = (owner ? owner : sde)->group;
+    if (!rc && !o->name[0] && group >= 0) /* unnamed: its group's name */
+        rc = group_name(g, &g->de[group], o->name, sizeof o->name);
     /* trim_build polls where the count stands now: the progress never goes back */
     struct sf_span at = {g->pr, g->n_est > 0 ? fmin(1.0, g->n_trim / g->n_est) : 0, 0};
     at.hi = at.lo;
@@ -1336,6 +1351,59 @@ static struct de *bounded_surface(struct iges *g, const struct de *e)
 
 /* Drawn only through a parent (subordinate switch 01 or 03): a 144's own 128, a loop's curves. */
 static bool physically_dependent(const struct de *e) { return e->sub & 1; }
+
+/* Why a file draws nothing, named at its first trimmed surface, else its first surface (each is
+ * blanked or physically dependent: the first such one is what was meant to be drawn), or at the
+ * Directory when it has none. */
+static int nothing_drawn(struct iges *g)
+{
+    for (int k = 0; k < 2 * g->n_de; k++) { /* 143s and 144s, then 128s */
+        const struct de *e = &g->de[k % g->n_de];
+        if (k < g->n_de ? e->type != 143 && e->type != 144 : e->type != 128)
+            continue;
+        char where[24];
+        where_of(e, where);
+        return sf_fail(g->err, SF_EINVAL, where, "nothing to draw: entity %d, the file's first surface, is %s, as is "
+                       "every other (a 128, 143 or 144 is drawn when neither blanked nor physically dependent, "
+                       "subordinate switch 01 or 03, which is drawn through a parent only)", e->type,
+                       e->blank ? "blanked" : "physically dependent with no parent drawing it");
+    }
+    return sf_fail(g->err, SF_EINVAL, "D1", "nothing to draw: the file has no surface (128, 143 or 144)");
+}
+
+/* 402 groups (forms 1, 7, 14, 15: N members, then their pointers), as CAD systems gather a body's
+ * faces: each member remembers its first group, whose name (a 406 name, else its label) a member
+ * drawn without a name of its own takes. Members are drawn as their own status says (a group's
+ * are logically dependent, 02, as independent ones are). A member pointer to nothing is 422 at the
+ * group. */
+static int read_groups(struct iges *g)
+{
+    for (int k = 0; k < g->n_de; k++) {
+        struct de *e = &g->de[k];
+        if (e->type != 402 || (e->form != 1 && e->form != 7 && e->form != 14 && e->form != 15))
+            continue;
+        struct params p;
+        if (load_params(g, e, &p))
+            return SF_EINVAL;
+        int n = p_int_or(&p, 1, -1), rc = 0;
+        if (n < 0 || n > p.n - 2) {
+            char where[24];
+            where_of(e, where);
+            rc = sf_fail(g->err, SF_EINVAL, where, "group: its count of members is missing or wrong");
+        }
+        for (int m = 0; m < n && !rc; m++) {
+            struct de *member = entity(g, p_int_or(&p, 2 + m, 0), e, "member");
+            if (!member)
+                rc = SF_EINVAL;
+            else if (member->group < 0)
+                member->group = k;
+        }
+        params_free(&p);
+        if (rc)
+            return rc;
+    }
+    return 0;
+}
 
 /* Counts, before any loop is made, the points the loops of every surface scene_parse_iges draws
  * will take (g->n_est) and refuses the part (SF_ELIMIT) at the surface where the count passes
@@ -1477,8 +1545,12 @@ int iges_parse(const char *buf, size_t len, const struct sf_progress *pr, struct
             k++;
         first[s + 1] = k;
     }
-    if (!rc && (first[2] == first[1] || first[3] == first[2] || first[4] == first[3]))
-        rc = sf_fail(err, SF_EFORMAT, "", "not an IGES file: it needs Global, Directory and Parameter sections");
+    for (int s = 1; s < 4 && !rc; s++) /* Global, Directory, Parameter: each named by its letter when missing */
+        if (first[s + 1] == first[s]) {
+            const char section[2] = {"SGDPT"[s], 0};
+            rc = sf_fail(err, SF_EFORMAT, section, "not an IGES file: it has no %s section (column 73 '%s')",
+                         s == 1 ? "Global" : s == 2 ? "Directory" : "Parameter", section);
+        }
     /* Global */
     if (!rc) {
         size_t n = first[2] - first[1];
@@ -1492,10 +1564,12 @@ int iges_parse(const char *buf, size_t len, const struct sf_progress *pr, struct
     }
     /* Directory */
     size_t n_d = first[3] - first[2];
+    snprintf(where, sizeof where, "D%zu", n_d % 2 ? n_d : 2 * (size_t)IGES_MAX_ENTITIES + 1);
     if (!rc && n_d % 2)
-        rc = sf_fail(err, SF_EFORMAT, "", "the Directory has %zu lines: entries are pairs", n_d);
+        rc = sf_fail(err, SF_EFORMAT, where, "the Directory has %zu lines: entries are pairs, and its last is alone",
+                     n_d);
     if (!rc && n_d / 2 > IGES_MAX_ENTITIES)
-        rc = sf_fail(err, SF_ELIMIT, "", "%zu entities, over the limit of %d", n_d / 2, IGES_MAX_ENTITIES);
+        rc = sf_fail(err, SF_ELIMIT, where, "%zu entities, over the limit of %d", n_d / 2, IGES_MAX_ENTITIES);
     if (!rc && !(g.de = calloc(n_d / 2, sizeof *g.de)))
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
     g.n_de = (int)(n_d / 2);
@@ -1504,6 +1578,7 @@ int iges_parse(const char *buf, size_t len, const struct sf_progress *pr, struct
         struct de *e = &g.de[k];
         int type2 = 0, status = 0;
         e->line = 2 * k + 1;
+        e->group = -1;
         snprintf(where, sizeof where, "D%d", e->line);
         if (field8(a, 0, &e->type) || field8(a, 1, &e->param) || field8(a, 6, &e->transform) ||
             field8(a, 8, &status) || field8(b, 0, &type2) || field8(b, 2, &e->color) || field8(b, 3, &e->n_lines) ||
@@ -1540,6 +1615,8 @@ int iges_parse(const char *buf, size_t len, const struct sf_progress *pr, struct
             rc = SF_EINVAL;
     }
     if (!rc)
+        rc = read_groups(&g);
+    if (!rc)
         rc = trim_budget(&g);
     for (int k = 0; k < g.n_de && !rc; k++) {
         struct de *e = &g.de[k];
@@ -1555,8 +1632,7 @@ int iges_parse(const char *buf, size_t len, const struct sf_progress *pr, struct
             rc = poll_cancel(&g, 0);
     }
     if (!rc && sc->n_objects == 0)
-        rc = sf_fail(err, SF_EINVAL, "", "the file has no surface to draw (a 128, 143 or 144 that is not blanked or "
-                     "physically dependent)");
+        rc = nothing_drawn(&g);
     free(lines);
     free(g.de);
     free(g.p_line);

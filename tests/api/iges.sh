@@ -111,7 +111,17 @@ $1
 w.write(sys.argv[1], ents)" "$T/bad.igs"
 }
 mutate "ents[3]['status'] = 10000"
-bad_file "the trimmed surface physically dependent (01: drawn through a parent, and it has none): nothing to draw" 422 ""
+bad_file "the trimmed surface physically dependent (01: drawn through a parent, and it has none): nothing to draw" 422 'D7"'
+check "... saying why" 'grep -q "physically dependent with no parent drawing it" "$T/body"'
+mutate "ents[3]['status'] = 1000000"
+bad_file "the trimmed surface blanked: nothing to draw, at the surface" 422 'D7"'
+mutate "ents = [ents[1]]"
+bad_file "no surface at all: nothing to draw, at the Directory" 422 'D1"'
+mutate "ents = w.plate_group(); ents[4]['params'][1] = ('D', 9)"
+bad_file "a 402 group's member pointing at nothing: at the group" 422 'D9"'
+code=$(status POST "/volume?format=iges" --data-binary @"$T/plate_group.igs")
+check "a 402 group's member without a name of its own has the group's (its 406: Plate7)" '[ "$code" = 422 ] && grep -q "surface (Plate7)" "$T/body"'
+
 mutate "ents[0]['params'][12] = 0.5"
 bad_file "a bad final knot (0, 0, 1, 0.5)" 422 "D1"
 mutate "ents[0]['params'] = ents[0]['params'][:-4]"
@@ -135,7 +145,10 @@ bad_file "compressed IGES (C in column 73)" 400 "line 1"
 head -c 2000 "$MS" | cut -c1-60 >"$T/bad.igs"
 bad_file "lines cut short (no section column)" 400 "line "
 python3 -c "import sys; l = open(sys.argv[1]).read().split('\n'); i = [k for k, s in enumerate(l) if s[72:73] == 'D'][0]; del l[i]; print('\n'.join(l), end='')" "$T/plate_hole.igs" >"$T/bad.igs"
-bad_file "a directory of an odd number of lines" 400 ""
+bad_file "a directory of an odd number of lines: at its last" 400 'D7"'
+python3 -c "import sys; l = open(sys.argv[1]).read().split('\n'); print('\n'.join(s for s in l if s[72:73] != 'P'), end='')" "$T/plate_hole.igs" >"$T/bad.igs"
+bad_file "no Parameter section: at P" 400 'P"'
+
 python3 -c "import sys; sys.path.insert(0, 'tests/tools'); import iges_write as w; w.write(sys.argv[1], w.plate_hole(), unit=3, unit_name='XX')" "$T/bad.igs"
 bad_file "unit flag 3 naming no unit" 422 "G14"
 code=$(status POST "/volume?format=iges" --data-binary @"$T/bad.igs")

@@ -123,11 +123,12 @@ def plate_model():
 
 def plate_group():
     """plate_hole as CAD systems write a part (Open CASCADE's samples): its 144 logically dependent
-    (subordinate switch 02), a member of a 402 group (form 7: unordered, no back pointers); drawn as
-    an independent one is."""
+    (subordinate switch 02), a member of a 402 group (form 7: unordered, no back pointers) named
+    "Plate7" by a 406 (form 15); drawn as an independent one is, under its group's name."""
     ents = plate_hole()
     ents[3]["status"] = 20000
-    ents.append({"type": 402, "form": 7, "params": [1, ("D", 3)]})
+    ents.append({"type": 402, "form": 7, "params": [1, ("D", 3), 0, 1, ("D", 5)]})
+    ents.append({"type": 406, "form": 15, "status": 10000, "params": [1, "Plate7"]})
     return ents
 
 
