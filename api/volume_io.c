@@ -51,8 +51,13 @@ static bool sniff_dicom(const char *body, size_t len)
     return dicom_sniff(body, len) && len >= 8 && body[4] >= 'A' && body[4] <= 'Z' && body[5] >= 'A' && body[5] <= 'Z';
 }
 
+static const char *pair_format(const char *body, size_t len);
+
 const char *volume_format_of(const char *body, size_t len, const char *format, const char *options)
 {
+    const char *pair = !*format || !strcmp(format, "dicom") || !strcmp(format, "raw") ? pair_format(body, len) : NULL;
+    if (pair) /* a multipart body of a detached header and its data file */
+        return pair;
     if (*format && strcmp(format, "raw"))
         return format;
     char dims[8];
@@ -315,8 +320,8 @@ static bool sniff_mha(const char *body, size_t len)
  * samples start. sep: ':' (NRRD) or '=' (MetaImage). */
 typedef int (*header_fn)(void *ctx, const char *key, const char *value, int line, struct sf_err *err);
 
-static int header_lines(const char *buf, size_t len, char sep, bool mha, header_fn fn, void *ctx, size_t *data_at,
-                        struct sf_err *err)
+static int header_lines(const char *buf, size_t len, char sep, bool mha, bool to_end, header_fn fn, void *ctx,
+                        size_t *data_at, struct sf_err *err)
 {
     size_t at = 0;
     for (int line = 1; at < len && line <= 256; line++) {
@@ -359,12 +364,18 @@ static int header_lines(const char *buf, size_t len, char sep, bool mha, header_
         if (rc)
             return rc;
     }
+    if (to_end && at == len) { /* a detached header: its end ends it */
+        *data_at = at;
+        return 0;
+    }
     return sf_fail(err, SF_EFORMAT, "header", "the header does not end within 256 lines");
 }
 
 struct header {
     double dims[3], spacing[3], origin[3];
     bool have_dims, have_type, have_spacing, compressed, big_endian;
+    bool detached;      /* its samples come in another part (read_pair): a data file line is taken */
+    int data_file_line; /* ... the line that names it */
     enum iso_type type;
     int spacing_line, origin_line; /* the lines that gave them (0: the defaults) */
 };
@@ -421,8 +432,11 @@ static int nrrd_line(void *ctx, const char *key, const char *value, int line, st
         else if (strcmp(value, "raw"))
             return bad_line(err, line, "encoding is raw or gzip");
     } else if (!strcmp(key, "data file") || !strcmp(key, "datafile")) {
-        return bad_line(err, line, "a detached header (data file) names a file surfd cannot read: post the NRRD "
-                                   "with its data attached");
+        if (!h->detached)
+            return bad_line(err, line, "a detached header (data file) names a file the body does not hold: post the "
+                                       "NRRD with its data attached, or the header and its data file as two parts of "
+                                       "multipart/form-data");
+        h->data_file_line = line;
     } else if (!strcmp(key, "line skip") || !strcmp(key, "byte skip")) {
         if (strcmp(value, "0"))
             return bad_line(err, line, "skips are not read");
@@ -474,9 +488,11 @@ static int mha_line(void *ctx, const char *key, const char *value, int line, str
         if (strcmp(value, "0"))
             return bad_line(err, line, "HeaderSize is not read");
     } else if (!strcmp(key, "ElementDataFile")) {
-        if (strcmp(value, "LOCAL"))
-            return bad_line(err, line, "the samples must follow the header (ElementDataFile = LOCAL): post the .mha, "
-                                       "not an .mhd that names another file");
+        if (h->detached && strcmp(value, "LOCAL"))
+            h->data_file_line = line;
+        else if (strcmp(value, "LOCAL"))
+            return bad_line(err, line, "the samples must follow the header (ElementDataFile = LOCAL): post the .mha, or "
+                                       "the .mhd and the file it names as two parts of multipart/form-data");
         return 1;
     }
     return 0;
@@ -524,7 +540,7 @@ int volume_data_file(const char *buf, size_t len, char *name, size_t cap)
     struct sf_err err = {0};
     char *t = nrrd || mha ? terminated(buf, len) : NULL;
     if (nrrd || mha) /* (a header that does not end before its data file line names none) */
-        header_lines(t ? t : buf, t ? len + 1 : len, mha ? '=' : ':', mha, data_file_line, &d, &at, &err);
+        header_lines(t ? t : buf, t ? len + 1 : len, mha ? '=' : ':', mha, false, data_file_line, &d, &at, &err);
     free(t);
     return d.line;
 }
@@ -672,17 +688,22 @@ static int raw_only_options(const char *options, struct sf_err *err)
     return 0;
 }
 
-static int read_header(const char *body, size_t len, bool mha, const char *options, struct volume *v,
-                       struct sf_err *err)
+/* An NRRD or MetaImage header and its samples: those after it in body, or with data (a detached
+ * header's, read_pair) data's dlen bytes, named data_at in errors. */
+static int read_header(const char *body, size_t len, const char *data, size_t dlen, const char *data_at, bool mha,
+                       const char *options, struct volume *v, struct sf_err *err)
 {
     int rc = raw_only_options(options, err);
     if (rc)
         return rc;
-    struct header h = {.spacing = {1, 1, 1}};
+    struct header h = {.spacing = {1, 1, 1}, .detached = data != NULL};
     size_t at = 0;
-    rc = header_lines(body, len, mha ? '=' : ':', mha, mha ? mha_line : nrrd_line, &h, &at, err);
+    rc = header_lines(body, len, mha ? '=' : ':', mha, h.detached, mha ? mha_line : nrrd_line, &h, &at, err);
     if (rc)
         return rc;
+    if (h.detached && !h.data_file_line)
+        return sf_fail(err, SF_EINVAL, "/parts", "the header part names no data file (%s): post a header with its "
+                       "samples attached as the body alone", mha ? "ElementDataFile" : "data file");
     if (!h.have_dims || !h.have_type)
         return sf_fail(err, SF_EINVAL, "header", "the header gives no %s", h.have_dims ? mha ? "ElementType" : "type"
                                                                                        : mha ? "DimSize" : "sizes");
@@ -699,7 +720,66 @@ static int read_header(const char *body, size_t len, bool mha, const char *optio
     v->g.type = h.type;
     memcpy(v->g.spacing, h.spacing, sizeof h.spacing);
     memcpy(v->g.origin, h.origin, sizeof h.origin);
-    return place_samples(body + at, len - at, h.compressed, h.big_endian, "data", v, err);
+    return h.detached ? place_samples(data, dlen, h.compressed, h.big_endian, data_at, v, err)
+                      : place_samples(body + at, len - at, h.compressed, h.big_endian, "data", v, err);
+}
+
+/* Which part of a multipart body is a detached header (an NRRD or MetaImage header naming a data
+ * file), or -1; its data file's name into file. */
+static int header_part(const struct part *parts, int n, char *file, size_t cap)
+{
+    for (int k = 0; k < n; k++)
+        if ((sniff_nrrd(parts[k].data, parts[k].len) || sniff_mha(parts[k].data, parts[k].len)) &&
+            volume_data_file(parts[k].data, parts[k].len, file, cap))
+            return k;
+    return -1;
+}
+
+/* "nrrd" or "mha" for a multipart body holding a detached header, else NULL. */
+static const char *pair_format(const char *body, size_t len)
+{
+    struct part *parts;
+    int n;
+    char file[256];
+    struct sf_err err = {0};
+    if (!multipart_sniff(body, len) || multipart_split(body, len, &parts, &n, &err))
+        return NULL;
+    int h = header_part(parts, n, file, sizeof file);
+    const char *format = h < 0 ? NULL : sniff_nrrd(parts[h].data, parts[h].len) ? "nrrd" : "mha";
+    free(parts);
+    return format;
+}
+
+/* A detached header and its data file as the two parts of a multipart/form-data body (curl -F
+ * header=@CT.nhdr -F data=@CT.raw, in either order): the header's data file line names the other
+ * part (its file name, where it has one, must be that file's, so that a wrong pairing is said, not
+ * read), whose bytes are the samples, read in place as the attached header's are (volume_attach's
+ * body, without copying the samples). */
+static int read_pair(const char *body, size_t len, bool mha, const char *options, struct volume *v, struct sf_err *err)
+{
+    struct part *parts;
+    int n, rc = multipart_split(body, len, &parts, &n, err);
+    if (rc)
+        return rc;
+    char file[256], where[32];
+    int h = header_part(parts, n, file, sizeof file);
+    const char *base = strrchr(file, '/') ? strrchr(file, '/') + 1 : file;
+    const struct part *d = n == 2 && h >= 0 ? &parts[1 - h] : NULL;
+    snprintf(where, sizeof where, "/parts/%d", 1 - h);
+    if (h < 0)
+        rc = sf_fail(err, SF_EINVAL, "/parts", "no part is an NRRD or MetaImage header that names a data file");
+    else if (!d)
+        rc = sf_fail(err, SF_EINVAL, "/parts", "a detached header and its data file are two parts, not %d", n);
+    else if (d->filename && (d->filename_len != strlen(base) || memcmp(d->filename, base, d->filename_len)))
+        rc = sf_fail(err, SF_EINVAL, where, "the header names its data file %s, but this part is %.*s", base,
+                     (int)(d->filename_len > 200 ? 200 : d->filename_len), d->filename);
+    char *t = rc ? NULL : terminated(parts[h].data, parts[h].len);
+    if (!rc)
+        rc = read_header(t ? t : parts[h].data, t ? parts[h].len + 1 : parts[h].len, d->data, d->len, where, mha,
+                         options, v, err);
+    free(t);
+    free(parts);
+    return rc;
 }
 
 /* An FRep object: its grid is allocated here and sampled by volume_sample(). */
@@ -1007,14 +1087,16 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     if (segment[0] && strcmp(format, "dicom"))
         return sf_fail(err, SF_EINVAL, "?segment", "segment chooses a segment of a DICOM Segmentation: this body is "
                        "not DICOM");
-    if (!strcmp(format, "nrrd")) {
+    if ((!strcmp(format, "nrrd") || !strcmp(format, "mha")) && multipart_sniff(body, len)) {
+        rc = read_pair(body, len, !strcmp(format, "mha"), options, v, err);
+    } else if (!strcmp(format, "nrrd")) {
         if (!nrrd)
             return sf_fail(err, SF_EFORMAT, "header", "an NRRD file starts with \"NRRD000x\"");
-        rc = read_header(body, len, false, options, v, err);
+        rc = read_header(body, len, NULL, 0, NULL, false, options, v, err);
     } else if (!strcmp(format, "mha")) {
         if (!mha)
             return sf_fail(err, SF_EFORMAT, "header", "a MetaImage header starts with ObjectType or NDims");
-        rc = read_header(body, len, true, options, v, err);
+        rc = read_header(body, len, NULL, 0, NULL, true, options, v, err);
     } else if (!strcmp(format, "nifti")) {
         if (!nifti)
             return sf_fail(err, SF_EFORMAT, "header", "a NIfTI file begins with its header (sizeof_hdr 348 or 540), "

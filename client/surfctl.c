@@ -218,6 +218,92 @@ static bool series_image(const char *name, const char *data, size_t len)
     return (len >= 132 && !memcmp(data + 128, "DICM", 4)) || (len >= 8 && data[1] == 0 && (data[0] == 2 || data[0] == 8));
 }
 
+/* A multipart/form-data body's boundary, and its Content-Type with it into type. */
+static void multipart_start(char boundary[48], char *type, size_t cap)
+{
+    snprintf(boundary, 48, "surfctl-%08lx%08lx", (unsigned long)time(NULL), (unsigned long)getpid() * 2654435761ul);
+    snprintf(type, cap, "multipart/form-data; boundary=%s", boundary);
+}
+
+/* Appends one part (form field name, its file's name and type, and its bytes) to b; false when out
+ * of memory. */
+static bool multipart_add(struct buf *b, const char *boundary, const char *name, const char *filename,
+                          const char *type, const char *data, size_t len)
+{
+    char head[512];
+    int hn = snprintf(head, sizeof head, "--%s\r\nContent-Disposition: form-data; name=\"%s\"; filename=\"%s\"\r\n"
+                      "Content-Type: %s\r\n\r\n", boundary, name, filename, type);
+    return hn > 0 && hn < (int)sizeof head && buf_add(b, head, (size_t)hn) && buf_add(b, data, len) &&
+           buf_add(b, "\r\n", 2);
+}
+
+static bool multipart_end(struct buf *b, const char *boundary)
+{
+    char tail[64];
+    int tn = snprintf(tail, sizeof tail, "--%s--\r\n", boundary);
+    return buf_add(b, tail, (size_t)tn);
+}
+
+/* The data file a detached header names (NRRD's "data file: F", MetaImage's "ElementDataFile = F",
+ * not LOCAL, a list or a pattern) into file; false for anything else. */
+static bool data_file_of(const char *data, size_t len, char *file, size_t cap)
+{
+    bool nrrd = len >= 4 && !memcmp(data, "NRRD", 4);
+    if (!nrrd && !(len >= 5 && (!memcmp(data, "NDims", 5) || (len >= 10 && !memcmp(data, "ObjectType", 10)))))
+        return false;
+    for (size_t at = 0, line = 0; at < len && line < 256; line++) {
+        const char *nl = memchr(data + at, '\n', len - at), *s = data + at;
+        size_t n = nl ? (size_t)(nl - s) : len - at;
+        at += n + 1;
+        if (nrrd && (n == 0 || (n == 1 && s[0] == '\r'))) /* the end of an NRRD header */
+            return false;
+        const char *sep = memchr(s, nrrd ? ':' : '=', n);
+        if (!sep)
+            continue;
+        size_t kn = (size_t)(sep - s);
+        while (kn && s[kn - 1] == ' ')
+            kn--;
+        if (!((kn == 9 && !memcmp(s, "data file", 9)) || (kn == 8 && !memcmp(s, "datafile", 8)) ||
+              (kn == 15 && !memcmp(s, "ElementDataFile", 15))))
+            continue;
+        const char *v = sep + 1 + (nrrd && sep[1] == '='), *end = s + n;
+        while (v < end && *v == ' ')
+            v++;
+        while (end > v && (end[-1] == ' ' || end[-1] == '\r'))
+            end--;
+        size_t vn = (size_t)(end - v);
+        if (!vn || vn >= cap || (vn == 5 && !memcmp(v, "LOCAL", 5)) || (vn >= 4 && !memcmp(v, "LIST", 4)) ||
+            memchr(v, '%', vn))
+            return false;
+        memcpy(file, v, vn), file[vn] = 0;
+        return true;
+    }
+    return false;
+}
+
+/* A detached header (path, its bytes hdr) and the data file it names, beside it, as the two parts
+ * of multipart/form-data POST /isosurface takes ("header" and "data", each under its own file
+ * name). 0, or an exit code. */
+static int pair_body(const char *path, const char *hdr, size_t hlen, const char *file, struct buf *b, char *type,
+                     size_t cap)
+{
+    const char *slash = strrchr(path, '/'), *base = strrchr(file, '/');
+    char data_path[4096], boundary[48];
+    snprintf(data_path, sizeof data_path, "%.*s%s", file[0] == '/' || !slash ? 0 : (int)(slash - path + 1), path, file);
+    size_t len;
+    char *data = read_file(data_path, &len);
+    if (!data)
+        return EXIT_USAGE;
+    multipart_start(boundary, type, cap);
+    bool ok = multipart_add(b, boundary, "header", slash ? slash + 1 : path, "text/plain", hdr, hlen) &&
+              multipart_add(b, boundary, "data", base ? base + 1 : file, "application/octet-stream", data, len) &&
+              multipart_end(b, boundary);
+    free(data);
+    if (!ok)
+        fprintf(stderr, "surfctl: out of memory\n");
+    return ok ? 0 : EXIT_USAGE;
+}
+
 /* A directory's images (a DICOM series, one image a file; hidden files, the DICOMDIR and files that
  * are not DICOM skipped, in name order) as multipart/form-data, one part "slice" a file, as curl
  * -F slice=@FILE sends them; the parts are named slice0001.dcm ... (a series' own file names may
@@ -253,28 +339,24 @@ static int series_body(const char *dir, struct buf *b, char *type, size_t cap)
     closedir(d);
     qsort(names, n, sizeof *names, by_name);
     char boundary[48];
-    snprintf(boundary, sizeof boundary, "surfctl-%08lx%08lx", (unsigned long)time(NULL), (unsigned long)getpid() * 2654435761ul);
-    snprintf(type, cap, "multipart/form-data; boundary=%s", boundary);
+    multipart_start(boundary, type, cap);
     int rc = n ? 0 : (fprintf(stderr, "surfctl: %s holds no files\n", dir), EXIT_USAGE);
     size_t parts = 0;
     for (size_t k = 0; k < n && !rc; k++) {
         size_t len;
-        char *data = read_file(names[k], &len), head[256];
+        char *data = read_file(names[k], &len), filename[32];
         const char *base = strrchr(names[k], '/') + 1;
         if (data && !series_image(base, data, len)) {
             fprintf(stderr, "surfctl: %s is not an image of the series; left out\n", names[k]);
             free(data);
             continue;
         }
-        int hn = snprintf(head, sizeof head, "--%s\r\nContent-Disposition: form-data; name=\"slice\"; "
-                          "filename=\"slice%04zu.dcm\"\r\nContent-Type: application/dicom\r\n\r\n", boundary, ++parts);
-        if (!data || !buf_add(b, head, (size_t)hn) || !buf_add(b, data, len) || !buf_add(b, "\r\n", 2))
+        snprintf(filename, sizeof filename, "slice%04zu.dcm", ++parts);
+        if (!data || !multipart_add(b, boundary, "slice", filename, "application/dicom", data, len))
             rc = EXIT_USAGE;
         free(data);
     }
-    char tail[64];
-    int tn = snprintf(tail, sizeof tail, "--%s--\r\n", boundary);
-    if (!rc && !buf_add(b, tail, (size_t)tn))
+    if (!rc && !multipart_end(b, boundary))
         rc = EXIT_USAGE;
     for (size_t k = 0; k < n; k++)
         free(names[k]);
@@ -282,15 +364,30 @@ static int series_body(const char *dir, struct buf *b, char *type, size_t cap)
     return rc;
 }
 
-/* POSTs a volume to route + query: a file, or a directory's files as a DICOM series (series_body). */
+/* POSTs a volume to route + query: a file, a detached header and the data file it names (pair_body),
+ * or a directory's files as a DICOM series (series_body). */
 static int post_volume(const char *route, const char *query, const char *file, const char *prefer, struct response *r)
 {
     struct stat st;
-    if (stat(file, &st) || !S_ISDIR(st.st_mode))
-        return post_file(route, query, file, type_of(file, VOLUME_TYPES), prefer, r);
     struct buf b = {0};
-    char type[96], path[768];
-    int rc = series_body(file, &b, type, sizeof type);
+    char type[96], path[768], data_file[1024];
+    int rc;
+    if (stat(file, &st) || !S_ISDIR(st.st_mode)) {
+        size_t len;
+        char *body = read_file(file, &len);
+        if (!body)
+            return EXIT_USAGE;
+        if (data_file_of(body, len, data_file, sizeof data_file)) {
+            rc = pair_body(file, body, len, data_file, &b, type, sizeof type);
+            free(body);
+        } else {
+            b = (struct buf){body, len};
+            snprintf(type, sizeof type, "%s", type_of(file, VOLUME_TYPES));
+            rc = 0;
+        }
+    } else {
+        rc = series_body(file, &b, type, sizeof type);
+    }
     snprintf(path, sizeof path, "%s%s", route, query);
     if (!rc)
         rc = request("POST", path, b.data, b.len, type, prefer, r);

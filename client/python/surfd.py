@@ -294,6 +294,18 @@ def _series_image(name: str, data: bytes) -> bool:
     return data[128:132] == b"DICM" or (len(data) >= 8 and data[1] == 0 and data[0] in (2, 8))
 
 
+def _multipart(parts):
+    """(name, filename, type, bytes) parts as a multipart/form-data body and its Content-Type."""
+    boundary = "surfd-py-" + os.urandom(12).hex()
+    out = bytearray()
+    for name, filename, ctype, data in parts:
+        out += ("--%s\r\nContent-Disposition: form-data; name=\"%s\"; filename=\"%s\"\r\n"
+                "Content-Type: %s\r\n\r\n" % (boundary, name, filename, ctype)).encode()
+        out += data + b"\r\n"
+    out += ("--%s--\r\n" % boundary).encode()
+    return bytes(out), "multipart/form-data; boundary=" + boundary
+
+
 def _series(directory: Path):
     """A directory's images (a DICOM series, one image a file; hidden files, the DICOMDIR and files
     that are not DICOM skipped, in name order) as multipart/form-data, one part "slice" a file,
@@ -302,26 +314,49 @@ def _series(directory: Path):
     images = [d for p in files for d in (p.read_bytes(),) if _series_image(p.name, d)]
     if not images:
         raise SurfdError(0, {"detail": "%s holds no DICOM images" % directory})
-    boundary = "surfd-py-" + os.urandom(12).hex()
-    out = bytearray()
-    for k, data in enumerate(images, 1):
-        out += ("--%s\r\nContent-Disposition: form-data; name=\"slice\"; filename=\"slice%04d.dcm\"\r\n"
-                "Content-Type: application/dicom\r\n\r\n" % (boundary, k)).encode()
-        out += data + b"\r\n"
-    out += ("--%s--\r\n" % boundary).encode()
-    return bytes(out), "multipart/form-data; boundary=" + boundary
+    return _multipart(("slice", "slice%04d.dcm" % k, "application/dicom", d) for k, d in enumerate(images, 1))
+
+
+def _data_file(data: bytes) -> Optional[str]:
+    """The data file a detached header names (NRRD's "data file: F", MetaImage's "ElementDataFile = F",
+    not LOCAL, a list or a pattern), else None."""
+    nrrd = data[:4] == b"NRRD"
+    if not nrrd and not data[:5] == b"NDims" and not data[:10] == b"ObjectType":
+        return None
+    for line in data[:1 << 18].split(b"\n")[:256]:
+        line = line.rstrip(b"\r")
+        if nrrd and not line:
+            return None  # the end of an NRRD header: its data follow
+        key, sep, value = line.partition(b":" if nrrd else b"=")
+        if sep and key.strip() in (b"data file", b"datafile", b"ElementDataFile"):
+            value = value[1:] if nrrd and value.startswith(b"=") else value
+            value = value.strip().decode("utf-8", "replace")
+            return None if value == "LOCAL" or value.startswith("LIST") or "%" in value else value
+    return None
+
+
+def _pair(path: Path, header: bytes, data_file: str):
+    """A detached header and the data file it names, beside it, as the two parts of multipart/form-data
+    POST /isosurface takes."""
+    data_path = path.parent / data_file
+    return _multipart([("header", path.name, "text/plain", header),
+                       ("data", data_path.name, "application/octet-stream", data_path.read_bytes())])
 
 
 def _body(body: Optional[Body], content_type: Optional[str]):
-    """(bytes, Content-Type) of a body given as bytes, text, a path (its type by extension) or a
-    directory (a DICOM series: _series)."""
+    """(bytes, Content-Type) of a body given as bytes, text, a path (its type by extension; a
+    detached header with the data file it names: _pair) or a directory (a DICOM series: _series)."""
     if body is None:
         return None, content_type
     if _is_dir(body):
         return _series(Path(body))
     if isinstance(body, os.PathLike) or (isinstance(body, str) and _is_file(body)):
         path = Path(body)
-        return path.read_bytes(), content_type or _TYPES.get(path.suffix.lower(), "application/octet-stream")
+        data = path.read_bytes()
+        data_file = None if content_type else _data_file(data)
+        if data_file:
+            return _pair(path, data, data_file)
+        return data, content_type or _TYPES.get(path.suffix.lower(), "application/octet-stream")
     if isinstance(body, str):
         return body.encode(), content_type or "application/json"
     return bytes(body), content_type or "application/octet-stream"
