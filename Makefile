@@ -70,8 +70,9 @@ all: layers $(B)/surfd $(B)/surfctl
 layers:
 	@tests/tools/layers.sh
 
-$(B)/surfctl: $(B)/rel/client/surfctl.o
-	$(CC) $(OPT) -o $@ $^ -lcurl -ljansson
+# (the formats' table: surfctl sends a file's type as the daemon reads it)
+$(B)/surfctl: $(B)/rel/client/surfctl.o $(B)/rel/api/formats.o $(B)/rel/api/nifti.o $(B)/rel/core/base/err.o
+	$(CC) $(OPT) -o $@ $^ -lcurl -ljansson -lz -lm
 
 deps:
 	@deploy/install-deps.sh

@@ -3,7 +3,9 @@
 #include "nifti.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
+#include <zlib.h>
 
 /* A field of the header in its byte order. */
 struct fields {
@@ -57,6 +59,34 @@ bool nifti_sniff(const unsigned char *buf, size_t len)
 {
     bool swap;
     return version_of(buf, len, &swap) != 0;
+}
+
+int nifti_inflate_head(const char *src, size_t n, unsigned char *out, size_t cap, size_t *got, struct sf_err *err)
+{
+    z_stream z = {0};
+    if (inflateInit2(&z, 15 + 32) != Z_OK) /* +32: gzip or zlib, by its magic */
+        return sf_fail(err, SF_EBACKEND, "", "zlib would not start");
+    z.next_in = (unsigned char *)(uintptr_t)src;
+    z.avail_in = (unsigned)(n < (1u << 30) ? n : 1u << 30);
+    z.next_out = out;
+    z.avail_out = (unsigned)cap;
+    int rc = Z_OK;
+    while (rc == Z_OK && z.avail_out > 0)
+        rc = inflate(&z, Z_NO_FLUSH);
+    *got = (size_t)z.total_out;
+    inflateEnd(&z);
+    return rc == Z_OK || rc == Z_STREAM_END || (rc == Z_BUF_ERROR && *got > 0)
+               ? 0
+               : sf_fail(err, SF_EFORMAT, "header", "gzip data that does not inflate");
+}
+
+bool nifti_sniff_body(const char *body, size_t len)
+{
+    unsigned char head[NIFTI_HEADER_MAX];
+    size_t got = 0;
+    if (len >= 2 && (unsigned char)body[0] == 0x1f && (unsigned char)body[1] == 0x8b)
+        return !nifti_inflate_head(body, len, head, sizeof head, &got, NULL) && nifti_sniff(head, got);
+    return nifti_sniff((const unsigned char *)body, len);
 }
 
 /* The rotation of NIfTI's quaternion (b, c, d; a from the unit norm), nifti1.h's method 2. */

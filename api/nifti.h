@@ -35,6 +35,11 @@ struct nifti_header {
 
 /* Whether buf begins as a NIfTI-1 or NIfTI-2 header (either byte order), single file or pair. */
 bool nifti_sniff(const unsigned char *buf, size_t len);
+/* The first bytes of a gzip (or zlib) stream, up to cap, into out (*got of them: fewer when the
+ * stream is shorter): 0, or SF_EFORMAT (at "header") when it does not inflate. err may be NULL. */
+int nifti_inflate_head(const char *src, size_t n, unsigned char *out, size_t cap, size_t *got, struct sf_err *err);
+/* Whether a body is a NIfTI file: its header, or the gzip of one (.nii.gz). */
+bool nifti_sniff_body(const char *body, size_t len);
 /* Reads the header at buf (len >= NIFTI_HEADER_MAX or the whole file): 0, or SF_EFORMAT (not a
  * NIfTI header), SF_EINVAL (a header of a file surfd does not read: a pair, 4-D, a datatype it has
  * no samples for, an affine that is not a grid's), with the field named in the message and

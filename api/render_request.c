@@ -10,16 +10,6 @@
 #include <string.h>
 #include <strings.h>
 
-const char *render_format_from_type(const char *ct)
-{
-    static const struct media_format TYPES[] = {{"application/json", "json"}, {"application/scene+json", "json"}, {"model/x-bpt", "bpt"},
-                 {"application/x-bpt", "bpt"},  {"model/vrml", "nurbs"},           {"x-world/x-vrml", "nurbs"},
-                 {"model/iges", "iges"},        {"application/iges", "iges"},      {"application/x-iges", "iges"},
-                 {"text/plain", ""},            {"application/octet-stream", ""},
-                 {"application/x-www-form-urlencoded", ""} /* curl -d's default: sniffed like text */};
-    return media_format(ct, TYPES, sizeof TYPES / sizeof *TYPES);
-}
-
 static int num_opt(const char *name, const char *v, double lo, double hi, double *out, struct sf_err *err)
 {
     char *end, ptr[48];

@@ -22,9 +22,4 @@ int render_request_parse(const char *body, size_t len, const char *format, const
                          const struct model_resolver *models, struct scene *sc, enum image_format *img,
                          struct sf_err *err);
 
-/* Media type to scene format: application/json, model/x-bpt, model/vrml; text/plain,
- * application/octet-stream and application/x-www-form-urlencoded (curl -d) are sniffed.
- * Returns NULL for a type surfd does not read (415). */
-const char *render_format_from_type(const char *content_type);
-
 #endif

@@ -1,45 +1,38 @@
-/* scene_io.c - which parser reads a scene: the table of the names its format goes by, the sniffing
- * of a body that names none, and the dispatch to the JSON, .bpt, VRML and IGES parsers (scene_io.h).
- * It parses nothing itself. */
+/* scene_io.c - which parser reads a scene: its format by the names and magic of the formats' table
+ * (formats.h), and the dispatch to the JSON, .bpt, VRML and IGES parsers (scene_io.h). It parses
+ * nothing itself. */
 #include "scene_io.h"
 
-#include <ctype.h>
 #include <string.h>
 
+#include "formats.h"
 #include "iges.h"
 
-/* The names a scene's format goes by, in ?format= and as a file's extension: every route that reads
- * a scene (/render, /volume, /model, the CLI) takes them from here. */
-static const struct {
-    const char *name;
-    enum scene_format format;
-} SCENE_FORMATS[] = {{"json", SCENE_JSON}, {"bpt", SCENE_BPT},   {"nurbs", SCENE_VRML}, {"vrml", SCENE_VRML},
-                     {"wrl", SCENE_VRML},  {"iges", SCENE_IGES}, {"igs", SCENE_IGES}};
+/* A scene format's enum by the table's name (formats.c: every route that reads a scene, /render,
+ * /volume, /model and the CLI, names them there). */
+static enum scene_format scene_format_of(const struct input_format *f)
+{
+    static const struct {
+        const char *name;
+        enum scene_format format;
+    } BY_NAME[] = {{"json", SCENE_JSON}, {"bpt", SCENE_BPT}, {"nurbs", SCENE_VRML}, {"iges", SCENE_IGES}};
+    for (size_t k = 0; f && k < sizeof BY_NAME / sizeof *BY_NAME; k++)
+        if (!strcmp(f->name, BY_NAME[k].name))
+            return BY_NAME[k].format;
+    return (enum scene_format)-1;
+}
 
 enum scene_format scene_format_parse(const char *name)
 {
     if (!name || !*name)
         return SCENE_UNKNOWN;
-    for (size_t k = 0; k < sizeof SCENE_FORMATS / sizeof *SCENE_FORMATS; k++)
-        if (!strcmp(name, SCENE_FORMATS[k].name))
-            return SCENE_FORMATS[k].format;
-    return (enum scene_format)-1;
+    return scene_format_of(input_format_named(name, IN_RENDER));
 }
 
 enum scene_format scene_format_sniff(const char *buf, size_t len)
 {
-    size_t k = 0;
-    while (k < len && isspace((unsigned char)buf[k]))
-        k++;
-    if (k < len && (buf[k] == '{' || buf[k] == '['))
-        return SCENE_JSON;
-    const char *nl = memchr(buf, '\n', len);
-    size_t first = nl ? (size_t)(nl - buf) : len;
-    if (first >= 73 && buf[72] == 'S') /* an IGES Start line: the section letter in column 73 */
-        return SCENE_IGES;
-    if (k < len && isdigit((unsigned char)buf[k]))
-        return SCENE_BPT;
-    return SCENE_VRML;
+    const struct input_format *f = input_format_sniff(buf, len, IN_RENDER);
+    return f ? scene_format_of(f) : SCENE_VRML; /* (the VRML reader says what it cannot read) */
 }
 
 int scene_parse(const char *buf, size_t len, enum scene_format fmt, struct scene *sc, enum image_format *img,

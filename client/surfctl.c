@@ -20,6 +20,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "../api/formats.h"
+
 enum { EXIT_JOB = 1, EXIT_USAGE = 2, EXIT_UNREACHABLE = 3, EXIT_REFUSED = 4, EXIT_SERVER = 5 };
 
 #define MAX_RESPONSE (1L << 30) /* a result larger than 1 GiB is refused */
@@ -174,23 +176,13 @@ static char *read_file(const char *path, size_t *len)
     return b.data ? b.data : strdup("");
 }
 
-/* A file's media type by its extension, from a {".ext", "type"} table ending in {NULL, fallback}. */
-static const char *type_of(const char *path, const char *const (*table)[2])
+/* A file's media type on route by its extension (api/formats.h's table, as the daemon reads it);
+ * application/octet-stream when it names none (the daemon sniffs it, or reads raw samples). */
+static const char *type_of(const char *path, unsigned route)
 {
-    const char *dot = strrchr(path, '.');
-    int k = 0;
-    while (table[k][0] && !(dot && !strcmp(dot, table[k][0])))
-        k++;
-    return table[k][1];
+    const struct input_format *f = input_format_of_path(path, route);
+    return f ? f->media[0] : "application/octet-stream";
 }
-
-static const char *const SCENE_TYPES[][2] = {{".bpt", "model/x-bpt"}, {".nurbs", "model/vrml"}, {".wrl", "model/vrml"},
-                                             {".igs", "model/iges"}, {".iges", "model/iges"},
-                                             {".json", "application/json"}, {NULL, "text/plain"}};
-static const char *const VOLUME_TYPES[][2] = {{".nrrd", "application/x-nrrd"}, {".mha", "application/x-metaimage"},
-                                              {".nii", "application/x-nifti"}, {".gz", "application/gzip"},
-                                              {".dcm", "application/dicom"}, {".json", "application/json"},
-                                              {NULL, "application/octet-stream"}};
 
 /* POSTs the file to route + query (the query "" or "?name=value&..."). 0 and *r, or an exit code. */
 static int post_file(const char *route, const char *query, const char *file, const char *type, const char *prefer,
@@ -382,7 +374,7 @@ static int post_volume(const char *route, const char *query, const char *file, c
             free(body);
         } else {
             b = (struct buf){body, len};
-            snprintf(type, sizeof type, "%s", type_of(file, VOLUME_TYPES));
+            snprintf(type, sizeof type, "%s", type_of(file, IN_ISOSURFACE));
             rc = 0;
         }
     } else {
@@ -600,7 +592,7 @@ static int cmd_render(int argc, char **argv)
     if (!read_args(argc, argv, RENDER_OPTIONS, &file, &out, &async, query, sizeof query) || !file || (!out && !async))
         return usage();
     struct response r;
-    int rc = post_file("/render", query, file, type_of(file, SCENE_TYPES), async ? "respond-async" : NULL, &r);
+    int rc = post_file("/render", query, file, type_of(file, IN_RENDER), async ? "respond-async" : NULL, &r);
     if (rc)
         return rc;
     if (r.status == 200) {
@@ -748,8 +740,6 @@ static int cmd_edit(int argc, char **argv)
 }
 
 
-static const char *const CONTOUR_TYPES[][2] = {{".dcm", "application/dicom"}, {".igs", "model/iges"}, {".iges", "model/iges"},
-                                                {".bpt", "model/x-bpt"}, {".nurbs", "model/vrml"}, {NULL, "application/json"}};
 static const char *const CONTOUR_OPTIONS[] = {"method", "caps", "roi", "parameterisation", NULL};
 
 /* surfctl model / volume: POST /model or /volume as a job; the resource on stdout, the mesh of the
@@ -761,7 +751,7 @@ static int cmd_contours(const char *route, int argc, char **argv)
     if (!read_args(argc, argv, CONTOUR_OPTIONS, &file, route[1] == 'm' ? &out : NULL, NULL, query, sizeof query) || !file)
         return usage();
     struct response r;
-    int rc = run_job(route, query, file, type_of(file, CONTOUR_TYPES), &r);
+    int rc = run_job(route, query, file, type_of(file, route[1] == 'm' ? IN_MODEL : IN_VOLUME), &r);
     if (rc)
         return rc;
     char id[64] = "";
@@ -785,7 +775,7 @@ static int cmd_matrix(int argc, char **argv)
         (!file == !strstr(query, "model=")))
         return usage();
     struct response r;
-    int rc = run_job("/matrix-model", query, file, file ? type_of(file, VOLUME_TYPES) : NULL, &r);
+    int rc = run_job("/matrix-model", query, file, file ? type_of(file, IN_ISOSURFACE) : NULL, &r);
     if (!rc)
         rc = write_file(out, &r.body);
     free(r.body.data);

@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 
 #include "../api/dicom_scan.h"
+#include "../api/formats.h"
 #include "../api/model_json.h"
 #include "cli.h"
 
@@ -122,12 +123,11 @@ int cmd_volume(int argc, char **argv)
     double best = 0;
     for (int k = 0; k < repeat && !rc; k++) {
         char *run = NULL;
-        /* DICOM by its content, with its preamble or without (dicom_sniff); scene files by their extension */
-        const char *dot = strrchr(argv[1], '.'), *format = dicom_sniff(buf, len) ? "dicom" : "json";
-        if (dot && (!strcmp(dot, ".igs") || !strcmp(dot, ".iges")))
-            format = "iges";
-        else if (dot && (!strcmp(dot, ".bpt") || !strcmp(dot, ".nurbs") || !strcmp(dot, ".wrl")))
-            format = dot + 1;
+        /* by the file's extension (api/formats.h), else its magic, DICOM with its preamble or without */
+        const struct input_format *f = input_format_of_path(argv[1], IN_VOLUME);
+        if (!f)
+            f = input_format_sniff(buf, len, IN_VOLUME);
+        const char *format = f ? f->name : dicom_sniff(buf, len) ? "dicom" : "json";
         char location[64];
         rc = model ? model_create(buf, len, format, options, &sink, NULL, &run, location, &err)
                    : model_figures(buf, len, format, options, NULL, &run, &err);

@@ -183,18 +183,18 @@ static const struct job_ops MESH_OPS = {.prepare = prepare_mesh, .finish = finis
 /* ---- the requests: contour JSON or an RT Structure Set (both kinds); /volume also measures a
  * scene (JSON, .bpt, VRML) whose patches bound a closed solid ---- */
 
+/* Contours and scenes (formats.h); a body without a type, or text, read as JSON's (its members say
+ * which: model_json.c), an IGES part found by its magic. */
 static const char *figures_format(const char *content_type)
 {
-    if (content_type && !strncasecmp(content_type, "application/dicom", 17))
-        return "dicom";
-    const char *f = render_format_from_type(content_type);
+    const char *f = input_format_of_media(content_type, IN_VOLUME);
     return f && !*f ? "json" : f;
 }
 
 static const char *contour_format(const char *content_type)
 {
-    const char *f = figures_format(content_type);
-    return f && (!strcmp(f, "json") || !strcmp(f, "dicom")) ? f : NULL;
+    const char *f = input_format_of_media(content_type, IN_MODEL);
+    return f && !*f ? "json" : f;
 }
 
 /* An RT Structure Set is stored without the patient: only what the job reads. */
@@ -219,11 +219,7 @@ static int validate(struct job_body *b, bool scenes, struct sf_err *err)
 
 static int volume_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
-    (void)svc;
-    /* ?format= names it: an RT Structure Set, or a scene by any name /render takes (scene_io.c's table) */
-    if (strcmp(b->format, "dicom") && scene_format_parse(b->format) == (enum scene_format)-1)
-        return sf_fail(err, SF_EFORMAT, "?format", "format is json, dicom, bpt, nurbs (vrml, wrl) or iges (igs), not \"%s\"",
-                       b->format);
+    (void)svc; /* (?format= was named by formats.h's table on the route: server.c) */
     return validate(b, true, err);
 }
 
@@ -257,12 +253,10 @@ static int patches_validate(struct service *svc, struct job_body *b, struct sf_e
 }
 
 const struct job_kind volume_kind = {
-    .name = "volume", .format = figures_format,
-    .media = "application/json (contours or a scene), application/dicom, model/x-bpt, model/vrml or model/iges",
-    .format_in_query = true, .validate = volume_validate, .ops = &VOLUME_OPS, .work_size = sizeof(struct contour_work),
+    .name = "volume", .format = figures_format, .route = IN_VOLUME, .format_in_query = true, .validate = volume_validate, .ops = &VOLUME_OPS, .work_size = sizeof(struct contour_work),
     .result = "application/json"};
 const struct job_kind model_kind = {
-    .name = "model", .format = contour_format, .media = "application/json or application/dicom",
+    .name = "model", .format = contour_format, .route = IN_MODEL,
     .validate = model_validate_body, .ops = &MODEL_OPS, .work_size = sizeof(struct contour_work),
     .result = "application/json"};
 const struct job_kind patches_kind = {.name = "patches", .validate = patches_validate, .ops = &PATCHES_OPS,

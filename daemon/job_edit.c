@@ -484,5 +484,5 @@ static int edit_validate(struct service *svc, struct job_body *b, struct sf_err 
 }
 
 const struct job_kind edit_kind = {
-    .name = "edit", .format = edit_format, .media = "application/octet-stream (the region's raw samples)",
+    .name = "edit", .format = edit_format,
     .validate = edit_validate, .ops = &EDIT_OPS, .work_size = sizeof(struct edit_work), .result = "application/json"};

@@ -321,6 +321,6 @@ static int iso_validate(struct service *svc, struct job_body *b, struct sf_err *
 }
 
 const struct job_kind isosurface_kind = {
-    .name = "isosurface", .format = volume_format_from_type, .media = VOLUME_MEDIA,
+    .name = "isosurface", .format = volume_format_from_type, .route = IN_ISOSURFACE,
     .format_in_query = true, .validate = iso_validate, .ops = &ISO_OPS, .work_size = sizeof(struct iso_work),
     .result = "application/json", .streamed = true};

@@ -187,5 +187,5 @@ static int matrix_validate(struct service *svc, struct job_body *b, struct sf_er
 
 /* The isosurface kind's requests (a volume, or an FRep object), or a stored model by ?model. */
 const struct job_kind matrix_kind = {
-    .name = "matrix", .format = volume_format_from_type, .media = VOLUME_MEDIA, .format_in_query = true, .validate = matrix_validate,
+    .name = "matrix", .format = volume_format_from_type, .route = IN_MATRIX, .format_in_query = true, .validate = matrix_validate,
     .ops = &MATRIX_OPS, .work_size = sizeof(struct matrix_work), .result = "application/json", .streamed = true};

@@ -243,7 +243,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
 
 static const struct job_ops RENDER_OPS = {.prepare = prepare, .band = band, .next = next, .finish = finish};
 
-static const char *render_format(const char *content_type) { return render_format_from_type(content_type); }
+static const char *render_format(const char *content_type) { return input_format_of_media(content_type, IN_RENDER); }
 
 /* A view of a stored model whose objects the frame cache holds (parsed and checked when the model
  * was stored and again when they were cached): only the request's options are checked, against
@@ -284,6 +284,6 @@ static int render_validate(struct service *svc, struct job_body *b, struct sf_er
 }
 
 const struct job_kind render_kind = {
-    .name = "render", .format = render_format, .media = "application/json, model/x-bpt, model/vrml or model/iges",
+    .name = "render", .format = render_format, .route = IN_RENDER,
     .format_in_query = true, .validate = render_validate, .ops = &RENDER_OPS, .work_size = sizeof(struct render_work),
     .result = "image/png, image/x-exr or image/tiff"};

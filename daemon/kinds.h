@@ -12,6 +12,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 
+#include "../api/formats.h"
 #include "service.h"
 
 /* A request body as a kind's validate sees it: it may replace body (keeping only what the job
@@ -34,11 +35,11 @@ struct job_work {
 struct job_kind {
     const char *name;
     /* The body format a Content-Type names for this kind (NULL: the kind does not read it: 415),
-     * and the types it reads, as a 415 says them. NULL format: the body is made by a route (a
-     * stored model's id, or a scene naming it). */
+     * and the route whose formats it reads (api/formats.h: its ?format= names, the types a 415
+     * lists). NULL format: the body is made by a route (a stored model's id, or a scene naming it). */
     const char *(*format)(const char *content_type);
-    const char *media;
-    bool format_in_query;    /* ?format= overrides the Content-Type */
+    unsigned route;
+    bool format_in_query;    /* ?format= overrides the Content-Type, by any name formats.h gives it */
     /* Checks a request before it is stored, on the checks pool: 0, or an error for a 4xx (its
      * pointer into the request). */
     int (*validate)(struct service *svc, struct job_body *b, struct sf_err *err);

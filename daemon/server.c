@@ -567,11 +567,22 @@ static enum MHD_Result post_job_on(struct req *r, const struct job_kind *kind, c
     const char *format = kind->format(ct);
     const char *qf = kind->format_in_query ? MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "format")
                                            : NULL;
-    if (qf)
-        format = qf;
+    char d[1024];
+    if (qf) { /* by any of its names: the job carries the table's */
+        const struct input_format *f = input_format_named(qf, kind->route);
+        if (!f) {
+            char names[256];
+            input_format_names(kind->route, names, sizeof names);
+            snprintf(d, sizeof d, "POST %.60s reads %s (or their other names: GET /formats), not \"%.40s\"", r->path,
+                     names, qf);
+            return problem(r, 400, d, "?format");
+        }
+        format = f->name;
+    }
     if (!format) {
-        char d[400];
-        snprintf(d, sizeof d, "POST %.60s reads %s, not %.80s", r->path, kind->media, ct ? ct : "a body without a type");
+        char said[768];
+        input_formats_said(kind->route, said, sizeof said);
+        snprintf(d, sizeof d, "POST %.60s reads %s; not %.80s", r->path, said, ct ? ct : "a body without a type");
         return problem(r, 415, d, NULL);
     }
     struct opts o = {.n = 0};
@@ -823,6 +834,17 @@ static enum MHD_Result version(struct req *r, const char *id)
     return text(r, 200, "application/json", "{\"name\":\"surfd\",\"version\":\"" SURFD_VERSION "\"}");
 }
 
+/* The input formats (api/formats.h's table), as the page and the Python client choose a route by. */
+static enum MHD_Result formats(struct req *r, const char *id)
+{
+    (void)id;
+    char *t = input_formats_json();
+    if (!t)
+        return problem(r, 500, "out of memory", NULL);
+    struct reply rp = {200, "application/json", t, strlen(t), {{0}}};
+    return send_reply(r, &rp);
+}
+
 static enum MHD_Result metrics(struct req *r, const char *id)
 {
     (void)id;
@@ -927,6 +949,7 @@ static const struct route {
     {"/livez", GET, true, livez, NULL},
     {"/readyz", GET, true, readyz, NULL},
     {"/version", GET, false, version, NULL},
+    {"/formats", GET, false, formats, NULL},
     {"/metrics", GET, false, metrics, NULL},
     {"/openapi.yaml", GET, false, openapi, NULL},
     {"/render", POST, false, NULL, &render_kind},

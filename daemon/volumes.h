@@ -9,12 +9,6 @@
 #include "../core/iso/adapt.h"
 #include "service.h"
 
-/* The bodies the isosurface and matrix kinds read (their format: volume_format_from_type). */
-#define VOLUME_MEDIA                                                                                                   \
-    "application/octet-stream (raw samples, with ?dims&type), application/x-nrrd, application/x-metaimage, "           \
-    "application/x-nifti (or application/gzip: .nii.gz), multipart/form-data (a DICOM series), application/dicom "    \
-    "(a multi-frame image: Enhanced CT/MR, RT Dose, Segmentation) or application/json (an FRep object)"
-
 /* What a triangle of an isosurface costs from its extraction to the store (the mesh, its packing
  * and its measures; 78 bytes measured on a striped field of 39 M triangles, tests/bench/RESULTS.md). */
 #define ISO_BYTES_PER_TRIANGLE 80

@@ -31,12 +31,6 @@ __all__ = ["Client", "SurfdError"]
 Body = Union[bytes, str, os.PathLike]
 Options = Mapping[str, Any]
 
-_TYPES = {
-    ".json": "application/json", ".dcm": "application/dicom", ".bpt": "model/x-bpt", ".nurbs": "model/vrml",
-    ".wrl": "model/vrml", ".igs": "model/iges", ".iges": "model/iges", ".nrrd": "application/x-nrrd", ".nhdr": "application/x-nrrd",
-    ".mha": "application/x-metaimage", ".mhd": "application/x-metaimage", ".nii": "application/x-nifti",
-    ".gz": "application/gzip",  # .nii.gz: the daemon sniffs the NIfTI in it
-}
 
 
 class SurfdError(Exception):
@@ -81,6 +75,7 @@ class Client:
         self.token = token if token is not None else os.environ.get("SURFD_TOKEN") or None
         self.timeout = timeout
         self.progress = progress
+        self._formats: Optional[List[Dict[str, Any]]] = None  # GET /formats, once needed
         cafile = cafile or os.environ.get("SURFD_CACERT") or None
         self._tls = ssl.create_default_context(cafile=cafile) if cafile else None
 
@@ -109,10 +104,24 @@ class Client:
         except urllib.error.URLError as e:
             raise SurfdError(0, {"detail": "surfd unreachable at %s: %s" % (self.url, e.reason)}) from None
 
+    def _media_of(self, path: Path, route: str) -> Optional[str]:
+        """A file's media type on route by its extension, from the daemon's table of formats (GET
+        /formats, fetched once); None when it has none (the daemon then sniffs the body)."""
+        if self._formats is None:
+            try:
+                self._formats = self.request("GET", "/formats").parsed()["formats"]
+            except SurfdError:
+                self._formats = []
+        name = path.name.lower()
+        for f in self._formats:
+            if route in f["routes"] and any(name.endswith(e) for e in f["extensions"]):
+                return f["media"][0]
+        return None
+
     def _job(self, method: str, path: str, options: Optional[Options] = None, body: Optional[Body] = None,
              content_type: Optional[str] = None) -> Union[Dict[str, Any], bytes]:
         """Submits a job (respond-async), follows it, returns its result."""
-        data, ctype = _body(body, content_type)
+        data, ctype = _body(body, content_type, lambda p: self._media_of(p, path))
         r = self.request(method, path + _query(options), data, ctype, {"Prefer": "respond-async"})
         if r.status == 202:
             job = json.loads(r.body)
@@ -159,7 +168,7 @@ class Client:
     def submit(self, route: str, body: Optional[Body] = None, content_type: Optional[str] = None,
                **options: Any) -> str:
         """POSTs a job without waiting for it (Prefer: respond-async): its id."""
-        data, ctype = _body(body, content_type)
+        data, ctype = _body(body, content_type, lambda p: self._media_of(p, route))
         r = self.request("POST", route + _query(options), data if data is not None else b"", ctype,
                          {"Prefer": "respond-async"})
         return r.headers.get("X-Job-Id") or json.loads(r.body)["id"]
@@ -343,8 +352,8 @@ def _pair(path: Path, header: bytes, data_file: str):
                        ("data", data_path.name, "application/octet-stream", data_path.read_bytes())])
 
 
-def _body(body: Optional[Body], content_type: Optional[str]):
-    """(bytes, Content-Type) of a body given as bytes, text, a path (its type by extension; a
+def _body(body: Optional[Body], content_type: Optional[str], media_of: Callable[[Path], Optional[str]]):
+    """(bytes, Content-Type) of a body given as bytes, text, a path (its type by extension: media_of; a
     detached header with the data file it names: _pair) or a directory (a DICOM series: _series)."""
     if body is None:
         return None, content_type
@@ -356,7 +365,7 @@ def _body(body: Optional[Body], content_type: Optional[str]):
         data_file = None if content_type else _data_file(data)
         if data_file:
             return _pair(path, data, data_file)
-        return data, content_type or _TYPES.get(path.suffix.lower(), "application/octet-stream")
+        return data, content_type or media_of(path) or "application/octet-stream"
     if isinstance(body, str):
         return body.encode(), content_type or "application/json"
     return bytes(body), content_type or "application/octet-stream"
