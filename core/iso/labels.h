@@ -23,8 +23,8 @@
  * short of it, each capped, so no surface touches itself.
  *
  * Vertices sit at the middles and centres of their edges, faces and cells (a 0/1 mask's marching
- * cubes puts its vertices at the same middles: a cell with two labels is drawn as marching cubes
- * draws that label's mask, but for the faces where it joins across). Positions are
+ * cubes puts its vertices at the same middles: a cell with two labels has the loops of that label's
+ * mask's marching cubes, but for the faces where it joins across and its interior tubes). Positions are
  * origin + index x spacing, as mc.h's. */
 #ifndef SURFD_LABELS_H
 #define SURFD_LABELS_H
