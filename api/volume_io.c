@@ -1281,11 +1281,12 @@ static int label_grid(struct volume *v, const char *format, struct sf_err *err)
     v->label_of = rc ? NULL : calloc((size_t)n_out, sizeof *v->label_of);
     if (!rc && (!grid || !v->label_of))
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory for the map's %zu labels", count);
-    uint16_t *table = NULL; /* integer types: value + 32768 to index */
+    uint16_t *table = NULL; /* integer types: value (int16's + 32768) to index */
+    long long off = v->g.type == ISO_I16 ? 32768 : 0;
     if (!rc && v->all_labels && v->g.type != ISO_F32 && !(table = calloc(65536, sizeof *table)))
         rc = sf_fail(err, SF_ENOMEM, "", "out of memory for the map's labels");
     for (int k = 0; !rc && table && k < n; k++)
-        table[vals[k] + 32768] = (uint16_t)(k + 1);
+        table[vals[k] + off] = (uint16_t)(k + 1);
     for (size_t i = 0; !rc && i < count; i++) {
         long long value;
         label_at(&v->g, i, &value, err);
@@ -1293,7 +1294,7 @@ static int label_grid(struct volume *v, const char *format, struct sf_err *err)
         if (v->has_label)
             k = value == v->label;
         else if (table)
-            k = table[value + 32768];
+            k = table[value + off];
         else if (value) {
             const long long *hit = bsearch(&value, vals, (size_t)n, sizeof *vals, cmp_ll);
             k = (int)(hit - vals) + 1;

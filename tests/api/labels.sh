@@ -33,6 +33,7 @@ table = (b'<LabelTable><Label Key="1" Red="1" Green="0" Blue="0" Alpha="1"><![CD
          b'<Label Key="2">dense &amp; calcified</Label><Label Key="5">bone</Label></LabelTable>')
 nw.write(t + "/seg.nii.gz", i16, d, 4, 16, sform=ras, gz=True, extensions=[(32, table)])
 nw.write(t + "/i32.nii", struct.pack("<%di" % len(lab), *lab), d, 8, 32, sform=ras, intent_name=b"tissue")
+lw.mha(t + "/u16.mha", lw.pack([v * 13107 for v in lab], "uint16"), d, "uint16", spacing=sp, origin=org)  # 13107, 26214, 65535
 # a map of 5 labels named by its header (max-labels refused from the header) and 3 by its samples (from the samples)
 lw.nrrd(t + "/named5.nrrd", i16, d, "int16", segments=[(k, "s%d" % k) for k in (1, 2, 3, 4, 5)], spacing=sp, origin=org)
 PY
@@ -114,6 +115,9 @@ check "NIfTI, gzip, int16: named by its label table extension (CDATA, entities)"
     '[ "$code" = 201 ] && shared "soft tissue,dense & calcified,bone"'
 code=$(status POST "/isosurface?labels=all" --data-binary @"$T/i32.nii")
 check "NIfTI int32, intent_name only: \"tissue N\"" '[ "$code" = 201 ] && shared "tissue 1,tissue 2,tissue 5"'
+
+code=$(status POST "/isosurface?labels=all" --data-binary @"$T/u16.mha")
+check "uint16 labels 13107, 26214 and 65535: the same surfaces" '[ "$code" = 201 ] && shared "label 13107,label 26214,label 65535"'
 
 refused() { # refused QUERY FILE STATUS POINTER TEXT
     want=$3 at=$4 text=$5
