@@ -26,7 +26,7 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
         s->area, "boundary_edges", (json_int_t)s->boundary_edges, "nonmanifold_edges", (json_int_t)s->nonmanifold_edges,
         "components", (json_int_t)s->components, "euler_characteristic", (json_int_t)s->euler, "bounds",
         s->bounds[0][0], s->bounds[0][1], s->bounds[0][2], s->bounds[1][0], s->bounds[1][1], s->bounds[1][2], "grid",
-        "dims", g->nx, g->ny, g->nz, "type", type_name(g->type), "spacing", g->spacing[0], g->spacing[1], g->spacing[2],
+        "dims", g->nx, g->ny, g->nz, "type", type_name(m->label ? m->vol->map_type : g->type), "spacing", g->spacing[0], g->spacing[1], g->spacing[2],
         "origin", g->origin[0], g->origin[1], g->origin[2], "timings_ms", "read", m->ms[0], "extract", m->ms[2],
         "measure", m->ms[3], "total", m->ms[4], "links", "self", self, "mesh", mesh, "render", render);
     if (o && m->adapt) {
@@ -45,7 +45,23 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
     }
     if (o)
         json_object_set_new(o, "edits", json_integer(m->edits));
-    if (o && !strcmp(m->vol->source, "isosurface")) {
+    if (o && m->label) { /* a label map's label: its value, and for labels=all the labels it touches */
+        const struct volume_label *l = &m->vol->label_of[m->label - 1];
+        json_object_set_new(o, "label", json_integer(l->value));
+        json_object_set_new(o, "label_name", json_string(l->name));
+    }
+    if (o && m->label && m->touch) {
+        json_t *near = json_array();
+        for (int k = 0; near && k <= m->vol->n_labels; k++)
+            if (m->touch[k])
+                json_array_append_new(near, json_pack("{s:I, s:s, s:I}", "label",
+                                                      (json_int_t)(k ? m->vol->label_of[k - 1].value : 0), "name",
+                                                      k ? m->vol->label_of[k - 1].name : "background", "triangles",
+                                                      (json_int_t)m->touch[k]));
+        json_object_set_new(o, "method", json_string("multi-label"));
+        json_object_set_new(o, "neighbours", near);
+    }
+    if (o && !m->label && !strcmp(m->vol->source, "isosurface")) {
         char edit[96];
         snprintf(edit, sizeof edit, "/models/%s/edit", m->id);
         json_object_set_new(json_object_get(o, "links"), "edit", json_string(edit));
@@ -75,7 +91,10 @@ int iso_model_grid(const char *resource, struct iso_grid *g, bool *frep, struct 
     int rc = !o || json_unpack(o, "{s:s, s:{s:[i,i,i], s:s}}", "source", &source, "grid", "dims", &g->nx, &g->ny, &g->nz,
                                "type", &type) ? -1 : 0;
     *frep = !rc && !strcmp(source, "frep");
-    if (!rc && strcmp(source, "isosurface") && !*frep)
+    if (!rc && json_object_get(o, "label"))
+        rc = sf_fail(err, SF_ECONFLICT, "", "a label map's models are not edited (the map is not kept): post the "
+                     "edited map again");
+    else if (!rc && strcmp(source, "isosurface") && !*frep)
         rc = sf_fail(err, SF_ECONFLICT, "", "%s models are not edited (isosurface models are)", source);
     else if (rc)
         rc = sf_fail(err, SF_ECONFLICT, "", "only isosurface models of samples are edited");

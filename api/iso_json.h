@@ -25,13 +25,16 @@ struct iso_model {
     double ms[5];            /* read, sample (an FRep's), extract, measure, total */
     int edits;               /* edits so far */
     const struct iso_model_edit *edit; /* the last one's, or NULL */
+    int label;               /* a label map's: the label's index in vol (1 .. vol->n_labels), else 0 */
+    const size_t *touch;     /* ?labels=all: its triangles facing each label index (0: the background), else NULL */
 };
 
 /* The resource as JSON (caller frees), or NULL with err. */
 char *iso_model_json(const struct iso_model *m, struct sf_err *err);
 
 /* The grid (dims, type) of an isosurface model from its resource, *frep whether it is an FRep
- * object's: 0, or SF_ECONFLICT for a model of another source (contours). */
+ * object's: 0, or SF_ECONFLICT for a model of another source (contours) or of a label map's
+ * label (its map is not kept). */
 int iso_model_grid(const char *resource, struct iso_grid *g, bool *frep, struct sf_err *err);
 
 /* A model resource's count of edits (0 for a model never edited, or of another kind). */

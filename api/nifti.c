@@ -3,7 +3,9 @@
 #include "nifti.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 #include <zlib.h>
 
@@ -187,5 +189,104 @@ int nifti_header(const unsigned char *buf, size_t len, struct nifti_header *h, s
         for (int c = 0; c < 4; c++)
             if (!isfinite(h->affine[r][c]))
                 return sf_fail(err, SF_EINVAL, "header", "the %s is not finite", h->xform);
+    const unsigned char *in = buf + (version == 1 ? 328 : 508); /* intent_name[16], printable bytes up to a NUL */
+    size_t n = 0;
+    while (n < 16 && in[n] >= 0x20 && in[n] < 0x7f)
+        n++;
+    memcpy(h->intent_name, in, n);
+    h->intent_name[n] = 0;
     return 0;
+}
+
+/* ---- the label table of an extension ---- */
+
+/* The text at s (to end), an XML attribute's or element's: the five entities read, blanks at
+ * either end dropped, into out (cap bytes, NUL-terminated). */
+static size_t xml_text(const char *s, const char *end, char *out, size_t cap)
+{
+    static const struct { const char *name; char c; } ENT[] = {{"&amp;", '&'}, {"&lt;", '<'}, {"&gt;", '>'},
+                                                               {"&quot;", '"'}, {"&apos;", '\''}};
+    size_t n = 0;
+    while (s < end && (*s == ' ' || *s == '\t' || *s == '\r' || *s == '\n'))
+        s++;
+    while (s < end && n + 1 < cap) {
+        char c = *s++;
+        for (size_t k = 0; c == '&' && k < sizeof ENT / sizeof *ENT; k++) {
+            size_t l = strlen(ENT[k].name);
+            if ((size_t)(end - (s - 1)) >= l && !memcmp(s - 1, ENT[k].name, l)) {
+                c = ENT[k].c;
+                s += l - 1;
+                break;
+            }
+        }
+        out[n++] = c;
+    }
+    while (n && (out[n - 1] == ' ' || out[n - 1] == '\t' || out[n - 1] == '\r' || out[n - 1] == '\n'))
+        n--;
+    out[n] = 0;
+    return n;
+}
+
+static const char *find(const char *s, const char *end, const char *what)
+{
+    size_t n = strlen(what);
+    for (; s && end - s >= (ptrdiff_t)n; s++)
+        if (*s == *what && !memcmp(s, what, n))
+            return s;
+    return NULL;
+}
+
+/* The <Label Key="N">name</Label> elements of text [s, end). */
+static int label_elements(const char *s, const char *end, void (*fn)(void *, long long, const char *, size_t), void *ctx)
+{
+    int found = 0;
+    for (const char *at = find(s, end, "<Label"); at && end - at > 6; at = find(at + 1, end, "<Label")) {
+        const char *close = find(at, end, ">"), *key = find(at, close, "Key=");
+        if (!close || !key || (at[6] != ' ' && at[6] != '\t' && at[6] != '\n' && at[6] != '\r'))
+            continue; /* <LabelTable>, or no key */
+        key += 4;
+        char quote = key < close ? *key : 0, digits[24];
+        if (quote != '"' && quote != '\'')
+            continue;
+        const char *kend = memchr(key + 1, quote, (size_t)(close - key - 1));
+        if (!kend || xml_text(key + 1, kend, digits, sizeof digits) == 0)
+            continue;
+        char *stop;
+        long long value = strtoll(digits, &stop, 10);
+        const char *text = close + 1, *tend = find(text, end, "</Label>");
+        if (*stop || !tend || close[-1] == '/')
+            continue;
+        const char *cdata = find(text, tend, "<![CDATA[");
+        if (cdata) {
+            const char *cend = find(cdata, tend, "]]>");
+            if (!cend)
+                continue;
+            text = cdata + 9, tend = cend;
+            fn(ctx, value, text, (size_t)(tend - text));
+        } else {
+            char name[256];
+            size_t n = xml_text(text, tend, name, sizeof name);
+            fn(ctx, value, name, n);
+        }
+        found++;
+    }
+    return found;
+}
+
+int nifti_label_table(const unsigned char *file, size_t len, const struct nifti_header *h,
+                      void (*fn)(void *ctx, long long value, const char *name, size_t n), void *ctx)
+{
+    size_t at = h->version == 1 ? 348 : 540, stop = (size_t)h->vox_offset < len ? (size_t)h->vox_offset : len;
+    if (at + 4 > stop || file[at] == 0) /* the extender: no extensions */
+        return 0;
+    const struct fields f = {file, h->big_endian};
+    int found = 0;
+    for (at += 4; at + 8 <= stop;) {
+        int64_t esize = i32(&f, at);
+        if (esize < 8 || (uint64_t)esize > stop - at)
+            break;
+        found += label_elements((const char *)file + at + 8, (const char *)file + at + (size_t)esize, fn, ctx);
+        at += (size_t)esize;
+    }
+    return found;
 }

@@ -31,6 +31,7 @@ struct nifti_header {
     double slope, inter;     /* a sample's value is slope * stored + inter (slope 0: none; a file's NaN or 0 is none) */
     double affine[3][4];     /* voxel (i, j, k) to world RAS+ in mm: x = affine[0] . (i, j, k, 1) */
     const char *xform;       /* what gave the affine: "sform", "qform" or "pixdim" */
+    char intent_name[17];    /* what the file calls its samples ("" when nothing) */
 };
 
 /* Whether buf begins as a NIfTI-1 or NIfTI-2 header (either byte order), single file or pair. */
@@ -45,5 +46,12 @@ bool nifti_sniff_body(const char *body, size_t len);
  * no samples for, an affine that is not a grid's), with the field named in the message and
  * "header" as the pointer. */
 int nifti_header(const unsigned char *buf, size_t len, struct nifti_header *h, struct sf_err *err);
+
+/* The label table of a file's header extensions (file: its first len bytes, h its header): each
+ * <Label Key="N">name</Label> of an extension's XML, as GIFTI's and CIFTI's label tables write
+ * them (the name as text or CDATA, XML's five entities read), to fn(ctx, N, name, its length);
+ * extensions that run past vox_offset or the file end the search. The number of labels found. */
+int nifti_label_table(const unsigned char *file, size_t len, const struct nifti_header *h,
+                      void (*fn)(void *ctx, long long value, const char *name, size_t n), void *ctx);
 
 #endif

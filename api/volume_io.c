@@ -1,10 +1,12 @@
 /* volume_io.c - raw, NRRD (attached header), MetaImage (.mha), DICOM series and FRep volumes
- * (volume_io.h). The two header formats are a handful of "key: value" / "Key = Value" lines: read
- * here by hand (teem and ITK would bring whole toolkits for it); gzip and zlib data through zlib;
+ * (volume_io.h), and label maps read as a label's mask or as label indices. The two header formats
+ * are a handful of "key: value" / "Key = Value" lines: read here by hand (teem and ITK would bring
+ * whole toolkits for it), 3D Slicer's segment names among them; gzip and zlib data through zlib;
  * a DICOM series through dicom_series.h's DCMTK shim, an FRep object through frep_json.h. */
 #include "volume_io.h"
 
 #include <ctype.h>
+#include <errno.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -15,41 +17,11 @@
 
 #include "dicom_scan.h"
 #include "dicom_series.h"
+#include "formats.h"
 #include "multipart.h"
 #include "nifti.h"
 #include "query.h"
 #include "ranges.h"
-
-/* Whether body begins as a JSON object's text does: '{', then a key or '}', and no byte of its
- * first 64 a control character but blanks (raw samples whose first byte is 123 are not). */
-static bool json_object_text(const char *body, size_t len)
-{
-    size_t at = 0;
-    for (size_t k = 0; k < len && k < 64; k++)
-        if ((unsigned char)body[k] < 0x20 && !strchr(" \t\r\n", body[k]))
-            return false;
-    while (at < len && at < 64 && body[at] && strchr(" \t\r\n", body[at]))
-        at++;
-    if (at >= len || body[at++] != '{')
-        return false;
-    while (at < len && body[at] && strchr(" \t\r\n", body[at]))
-        at++;
-    return at < len && (body[at] == '"' || body[at] == '}');
-}
-
-static bool sniff_nrrd(const char *body, size_t len);
-static bool sniff_mha(const char *body, size_t len);
-static bool sniff_nifti(const char *body, size_t len);
-
-/* A DICOM file: "DICM" after its preamble, or (without one) a first element of group 0002 or 0008 in
- * explicit VR (dicom_sniff's implicit VR guess is left to application/dicom: raw samples could
- * begin so). */
-static bool sniff_dicom(const char *body, size_t len)
-{
-    if (len >= 132 && !memcmp(body + 128, "DICM", 4))
-        return true;
-    return dicom_sniff(body, len) && len >= 8 && body[4] >= 'A' && body[4] <= 'Z' && body[5] >= 'A' && body[5] <= 'Z';
-}
 
 static const char *pair_format(const char *body, size_t len);
 
@@ -64,25 +36,17 @@ const char *volume_format_of(const char *body, size_t len, const char *format, c
     query_option(options, "dims", dims, sizeof dims);
     /* a file posted as octet-stream is what it is (a NIfTI header is no raw samples' chance bytes,
      * so a NIfTI file's ?dims is refused as its header's); dims make anything else raw samples */
-    if (sniff_nifti(body, len))
+    if (nifti_sniff_body(body, len))
         return "nifti";
     if (dims[0])
         return "raw";
-    if (!*format && json_object_text(body, len))
-        return "frep";
-    return sniff_nrrd(body, len) ? "nrrd" : sniff_mha(body, len) ? "mha"
-         : multipart_sniff(body, len) || sniff_dicom(body, len) ? "dicom" : "raw";
+    const struct input_format *f = input_format_sniff(body, len, IN_ISOSURFACE); /* by their magic (formats.h) */
+    if (f && !(*format && !strcmp(f->name, "frep"))) /* (JSON posted as octet-stream is no FRep) */
+        return f->name;
+    return multipart_sniff(body, len) ? "dicom" : "raw";
 }
 
-const char *volume_format_from_type(const char *ct)
-{
-    static const struct media_format TYPES[] = {{"application/octet-stream", "raw"}, {"application/x-nrrd", "nrrd"}, {"image/x-nrrd", "nrrd"},
-                 {"application/x-metaimage", "mha"},   {"application/x-mha", "mha"},   {"image/x-mha", "mha"},
-                 {"multipart/form-data", "dicom"}, {"application/dicom", "dicom"}, {"application/json", "frep"},
-                 {"application/x-nifti", "nifti"}, {"image/x-nifti", "nifti"}, {"application/gzip", ""},
-                 {"application/x-www-form-urlencoded", ""} /* curl -d's default: sniffed */};
-    return media_format(ct, TYPES, sizeof TYPES / sizeof *TYPES);
-}
+const char *volume_format_from_type(const char *ct) { return input_format_of_media(ct, IN_ISOSURFACE); }
 
 static size_t type_size(enum iso_type t) { return t == ISO_U8 ? 1 : t == ISO_F32 ? 4 : 2; }
 
@@ -222,27 +186,6 @@ static int inflate_all(const char *src, size_t n, size_t want, void **out, struc
     return 0;
 }
 
-/* The first bytes of a gzip (or zlib) stream, up to cap, into out (*got of them: fewer when the
- * stream is shorter): 0, or SF_EFORMAT when it does not inflate. */
-static int inflate_prefix(const char *src, size_t n, unsigned char *out, size_t cap, size_t *got, struct sf_err *err)
-{
-    z_stream z = {0};
-    if (inflateInit2(&z, 15 + 32) != Z_OK)
-        return sf_fail(err, SF_EBACKEND, "", "zlib would not start");
-    z.next_in = (unsigned char *)(uintptr_t)src;
-    z.avail_in = (unsigned)(n < (1u << 30) ? n : 1u << 30);
-    z.next_out = out;
-    z.avail_out = (unsigned)cap;
-    int rc = Z_OK;
-    while (rc == Z_OK && z.avail_out > 0)
-        rc = inflate(&z, Z_NO_FLUSH);
-    *got = (size_t)z.total_out;
-    inflateEnd(&z);
-    return rc == Z_OK || rc == Z_STREAM_END || (rc == Z_BUF_ERROR && *got > 0)
-               ? 0
-               : sf_fail(err, SF_EFORMAT, "header", "gzip data that does not inflate");
-}
-
 /* 0, or SF_EINVAL at where when a float32 sample of v is NaN or infinite. */
 static int finite_samples(const struct volume *v, const char *where, struct sf_err *err)
 {
@@ -299,32 +242,19 @@ static int place_samples(const char *data, size_t n, bool compressed, bool big_e
 
 /* ---- headers ---- */
 
-/* NRRD's magic; a MetaImage header's first key; a NIfTI header, or the gzip of one (its first bytes
- * inflated). */
-static bool sniff_nrrd(const char *body, size_t len) { return len >= 4 && !memcmp(body, "NRRD", 4); }
-static bool sniff_nifti(const char *body, size_t len)
-{
-    unsigned char head[NIFTI_HEADER_MAX];
-    size_t got = 0;
-    if (len >= 2 && (unsigned char)body[0] == 0x1f && (unsigned char)body[1] == 0x8b)
-        return !inflate_prefix(body, len, head, sizeof head, &got, NULL) && nifti_sniff(head, got);
-    return nifti_sniff((const unsigned char *)body, len);
-}
-static bool sniff_mha(const char *body, size_t len)
-{
-    return len >= 10 && (!memcmp(body, "ObjectType", 10) || !memcmp(body, "NDims", 5));
-}
-
 /* The header's lines up to its end (NRRD: a blank line; MetaImage: the ElementDataFile line):
  * each line to fn(key, value, line number) with the key and value trimmed. *data_at: where the
  * samples start. sep: ':' (NRRD) or '=' (MetaImage). */
 typedef int (*header_fn)(void *ctx, const char *key, const char *value, int line, struct sf_err *err);
 
+/* Lines a header may have: 3D Slicer writes some ten key/value pairs a segment. */
+#define HEADER_MAX_LINES 4096
+
 static int header_lines(const char *buf, size_t len, char sep, bool mha, bool to_end, header_fn fn, void *ctx,
                         size_t *data_at, struct sf_err *err)
 {
     size_t at = 0;
-    for (int line = 1; at < len && line <= 256; line++) {
+    for (int line = 1; at < len && line <= HEADER_MAX_LINES; line++) {
         const char *nl = memchr(buf + at, '\n', len - at);
         if (!nl)
             return sf_fail(err, SF_EFORMAT, "header", "the header does not end (no sample data after it)");
@@ -368,8 +298,16 @@ static int header_lines(const char *buf, size_t len, char sep, bool mha, bool to
         *data_at = at;
         return 0;
     }
-    return sf_fail(err, SF_EFORMAT, "header", "the header does not end within 256 lines");
+    return sf_fail(err, SF_EFORMAT, "header", "the header does not end within %d lines", HEADER_MAX_LINES);
 }
+
+/* A segment of a 3D Slicer segmentation's header (Segment<k>_Name, Segment<k>_LabelValue). */
+struct segment {
+    int k;
+    long long value;
+    bool has_value;
+    char name[VOLUME_LABEL_NAME];
+};
 
 struct header {
     double dims[3], spacing[3], origin[3];
@@ -378,6 +316,8 @@ struct header {
     int data_file_line; /* ... the line that names it */
     enum iso_type type;
     int spacing_line, origin_line; /* the lines that gave them (0: the defaults) */
+    struct segment *seg;     /* NRRD: the segments named, in the order first seen */
+    int n_seg, cap_seg;
 };
 
 static int bad_line(struct sf_err *err, int line, const char *what)
@@ -387,9 +327,93 @@ static int bad_line(struct sf_err *err, int line, const char *what)
     return sf_fail(err, SF_EINVAL, where, "%s", what);
 }
 
+/* A name made one line of UTF-8 text, in place: control bytes as blanks, each byte of what is not
+ * UTF-8 (a Latin-1 name, a sequence cut at the end) as '?'. */
+static void utf8_name(char *name)
+{
+    for (unsigned char *p = (unsigned char *)name; *p;) {
+        int n = *p < 0x80 ? 1 : (*p & 0xe0) == 0xc0 ? 2 : (*p & 0xf0) == 0xe0 ? 3 : (*p & 0xf8) == 0xf0 ? 4 : 0;
+        unsigned long c = n == 1 ? *p : n == 2 ? *p & 0x1fu : n == 3 ? *p & 0x0fu : *p & 0x07u;
+        int k = 1;
+        while (k < n && (p[k] & 0xc0) == 0x80)
+            c = c << 6 | (p[k++] & 0x3fu);
+        static const unsigned long LEAST[5] = {0, 0, 0x80, 0x800, 0x10000};
+        if (n == 0 || k < n || c < LEAST[n] || c > 0x10ffff || (c >= 0xd800 && c <= 0xdfff)) {
+            *p++ = '?';
+            continue;
+        }
+        if (n == 1 && (*p < 0x20 || *p == 0x7f))
+            *p = ' ';
+        p += n;
+    }
+}
+
+/* A label's name the file gives, kept in v (the last of a value wins); false without memory. */
+static bool name_label(struct volume *v, long long value, const char *name, size_t n)
+{
+    if (v->n_named == v->cap_named) {
+        int cap = v->cap_named ? 2 * v->cap_named : 16;
+        struct volume_label *p = cap <= 2 * VOLUME_MAX_LABELS ? realloc(v->named, sizeof *p * (size_t)cap) : NULL;
+        if (!p)
+            return false;
+        v->named = p, v->cap_named = cap;
+    }
+    struct volume_label *l = &v->named[v->n_named++];
+    l->value = value;
+    n = n < sizeof l->name - 1 ? n : sizeof l->name - 1;
+    memcpy(l->name, name, n);
+    l->name[n] = 0;
+    utf8_name(l->name);
+    return true;
+}
+
+/* A Segment<k>_Name or Segment<k>_LabelValue line: 0, 1 when key is neither, or SF_EINVAL. */
+static int segment_line(struct header *h, const char *key, const char *value, int line, struct sf_err *err)
+{
+    const char *p = key + 7;
+    if (strncmp(key, "Segment", 7) || !isdigit((unsigned char)*p))
+        return 1;
+    long k = 0;
+    while (isdigit((unsigned char)*p) && k <= 2 * VOLUME_MAX_LABELS)
+        k = 10 * k + (*p++ - '0');
+    bool is_name = !strcmp(p, "_Name"), is_value = !strcmp(p, "_LabelValue");
+    if ((!is_name && !is_value) || k > 2 * VOLUME_MAX_LABELS) /* (its other keys; segments past any map's labels) */
+        return 1;
+    int at = h->n_seg - 1;
+    while (at >= 0 && h->seg[at].k != (int)k)
+        at--;
+    if (at < 0) {
+        if (h->n_seg == h->cap_seg) {
+            int cap = h->cap_seg ? 2 * h->cap_seg : 16;
+            struct segment *s = realloc(h->seg, sizeof *s * (size_t)cap);
+            if (!s)
+                return sf_fail(err, SF_ENOMEM, "", "out of memory for the header's segments");
+            h->seg = s, h->cap_seg = cap;
+        }
+        at = h->n_seg++;
+        memset(&h->seg[at], 0, sizeof h->seg[at]);
+        h->seg[at].k = (int)k;
+    }
+    struct segment *s = &h->seg[at];
+    if (is_name) {
+        snprintf(s->name, sizeof s->name, "%s", value);
+        return 0;
+    }
+    char *end;
+    s->value = strtoll(value, &end, 10);
+    if (end == value || *end)
+        return bad_line(err, line, "a segment's LabelValue is a whole number");
+    s->has_value = true;
+    return 0;
+}
+
+
 static int nrrd_line(void *ctx, const char *key, const char *value, int line, struct sf_err *err)
 {
     struct header *h = ctx;
+    int seg = segment_line(h, key, value, line, err);
+    if (seg <= 0)
+        return seg;
     if (!strcmp(key, "type")) {
         if (parse_type(value, &h->type))
             return bad_line(err, line, "type is uint8, int16, uint16 or float");
@@ -520,7 +544,7 @@ static int data_file_line(void *ctx, const char *key, const char *value, int lin
 
 /* A detached header's text with a newline after its last line when it has none (editors leave it
  * off: header_lines reads whole lines); NULL when buf needs none, or is not text alone. */
-#define DETACHED_MAX (1 << 18) /* header_lines' 256 lines of under 1 KiB */
+#define DETACHED_MAX (HEADER_MAX_LINES << 10) /* header_lines' lines of under 1 KiB */
 
 static char *terminated(const char *buf, size_t len)
 {
@@ -534,7 +558,7 @@ static char *terminated(const char *buf, size_t len)
 
 int volume_data_file(const char *buf, size_t len, char *name, size_t cap)
 {
-    bool nrrd = sniff_nrrd(buf, len), mha = sniff_mha(buf, len);
+    bool nrrd = format_sniff_nrrd(buf, len), mha = format_sniff_mha(buf, len);
     struct data_file d = {name, cap, 0};
     size_t at;
     struct sf_err err = {0};
@@ -558,7 +582,7 @@ char *volume_attach(const char *hdr, size_t len, int line, const char *data, siz
     for (int l = 1; l < line; l++)
         at = next_line(hdr, len, at);
     end = rest_end = next_line(hdr, len, at);
-    bool nrrd = sniff_nrrd(hdr, len); /* (else MetaImage, whose data file line is its last) */
+    bool nrrd = format_sniff_nrrd(hdr, len); /* (else MetaImage, whose data file line is its last) */
     while (nrrd && rest_end < len && hdr[rest_end] != '\n' && hdr[rest_end] != '\r') /* to a blank line */
         rest_end = next_line(hdr, len, rest_end);
     bool open = rest_end > end && hdr[rest_end - 1] != '\n'; /* the last line without its newline */
@@ -591,11 +615,40 @@ static int query_numbers(const char *options, const char *name, int n, double *o
     return 0;
 }
 
+/* ?label=N (a whole number, not 0: the background) and ?labels=all, one or the other. */
+static int label_options(const char *options, bool frep, struct volume *v, struct sf_err *err)
+{
+    char one[32], all[16];
+    query_option(options, "label", one, sizeof one);
+    query_option(options, "labels", all, sizeof all);
+    if (one[0] && all[0])
+        return sf_fail(err, SF_EINVAL, "?labels", "label=N and labels=all together: ask for one label's model, or for "
+                       "every label's");
+    if (all[0] && strcmp(all, "all"))
+        return sf_fail(err, SF_EINVAL, "?labels", "labels is all (a model for every label of the map), not \"%.12s\"",
+                       all);
+    if (one[0]) {
+        char *end;
+        errno = 0;
+        v->label = strtoll(one, &end, 10);
+        if (end == one || *end || errno)
+            return sf_fail(err, SF_EINVAL, "?label", "label is a whole number (a value of the label map), not \"%.20s\"",
+                           one);
+        if (v->label == 0)
+            return sf_fail(err, SF_EINVAL, "?label", "0 is the background of a label map, not a label");
+        v->has_label = true;
+    }
+    v->all_labels = all[0] != 0;
+    if (frep && (v->has_label || v->all_labels))
+        return sf_fail(err, SF_EINVAL, v->has_label ? "?label" : "?labels", "an FRep object is not a label map");
+    return 0;
+}
+
 /* The options every format takes (iso, closed, name), and no unknown one. */
 static int common_options(const char *options, bool frep, struct volume *v, struct sf_err *err)
 {
-    static const char *const KNOWN[] = {"iso", "closed", "name", "levels", "max_error", "features", "dims", "type",
-                                        "spacing", "origin", "format", "segment", NULL};
+    static const char *const KNOWN[] = {"iso", "closed", "name", "levels", "max_error", "features", "label", "labels",
+                                        "dims", "type", "spacing", "origin", "format", "segment", NULL};
     for (const char *p = options ? options : ""; *p;) {
         size_t len = strcspn(p, "&"), key = strcspn(p, "=&");
         bool known = false;
@@ -605,17 +658,22 @@ static int common_options(const char *options, bool frep, struct volume *v, stru
             char where[48];
             snprintf(where, sizeof where, "?%.*s", (int)(key < 40 ? key : 40), p);
             return sf_fail(err, SF_EINVAL, where, "unknown option \"%.*s\" (isosurfaces take iso, closed, name, "
-                           "levels, max_error, features, for raw samples dims, type, spacing, origin, and for a DICOM "
-                           "Segmentation segment)",
+                           "levels, max_error, features, label, labels, for raw samples dims, type, spacing, "
+                           "origin, and for a DICOM Segmentation segment)",
                            (int)(key < 40 ? key : 40), p);
         }
         p += len + (p[len] == '&');
     }
-    char s[64];
+    char s[64], *end;
+    int rc = label_options(options, frep, v, err);
+    if (rc)
+        return rc;
     query_option(options, "iso", s, sizeof s);
-    if (!s[0] && frep) /* an FRep's surface is f = 0 */
-        s[0] = '0', s[1] = 0;
-    char *end;
+    if (s[0] && (v->has_label || v->all_labels))
+        return sf_fail(err, SF_EINVAL, "?iso", "iso is implied by %s (a label's surface is its mask's at 0.5): leave "
+                       "it out", v->has_label ? "label" : "labels");
+    if (!s[0] && (frep || v->has_label || v->all_labels)) /* an FRep's surface is f = 0; a mask's 0.5 */
+        snprintf(s, sizeof s, "%s", frep ? "0" : "0.5");
     v->iso = strtod(s, &end);
     if (!s[0])
         return sf_fail(err, SF_EINVAL, "?iso", "iso=V is required: the sample value the surface follows");
@@ -640,6 +698,10 @@ static int common_options(const char *options, bool frep, struct volume *v, stru
     if (s[0] && strcmp(s, "none") && strcmp(s, "sharp"))
         return sf_fail(err, SF_EINVAL, "?features", "features is none or sharp");
     v->sharp = !strcmp(s, "sharp");
+    if (v->all_labels && v->levels > 1)
+        return sf_fail(err, SF_EINVAL, "?levels", "labels=all draws every cell at full resolution (levels=1)");
+    if (v->all_labels && v->sharp)
+        return sf_fail(err, SF_EINVAL, "?features", "labels=all draws no feature points (features=none)");
     return 0;
 }
 
@@ -661,6 +723,7 @@ static int read_raw(const char *body, size_t len, const char *options, struct vo
         return sf_fail(err, SF_EINVAL, "?type", "raw samples need type=uint8|int16|uint16|float32");
     if (parse_type(t, &v->g.type) || (strcmp(t, "uint8") && strcmp(t, "int16") && strcmp(t, "uint16") && strcmp(t, "float32")))
         return sf_fail(err, SF_EINVAL, "?type", "type is uint8, int16, uint16 or float32, not \"%.20s\"", t);
+    v->integer = v->g.type != ISO_F32;
     if ((rc = query_numbers(options, "spacing", 3, sp, &given, err)) ||
         (rc = query_numbers(options, "origin", 3, org, &given, err)) ||
         (rc = check_samples(dims, org, sp, &(struct grid_fields){"?origin", "origin", "?spacing", "spacing", "?spacing"},
@@ -699,11 +762,16 @@ static int read_header(const char *body, size_t len, const char *data, size_t dl
     struct header h = {.spacing = {1, 1, 1}, .detached = data != NULL};
     size_t at = 0;
     rc = header_lines(body, len, mha ? '=' : ':', mha, h.detached, mha ? mha_line : nrrd_line, &h, &at, err);
+    for (int k = 0; !rc && k < h.n_seg; k++) /* the segments that give their label value name it */
+        if (h.seg[k].has_value && !name_label(v, h.seg[k].value, h.seg[k].name, strlen(h.seg[k].name)))
+            rc = sf_fail(err, SF_ENOMEM, "", "out of memory for the header's segments");
+    free(h.seg);
     if (rc)
         return rc;
     if (h.detached && !h.data_file_line)
         return sf_fail(err, SF_EINVAL, "/parts", "the header part names no data file (%s): post a header with its "
                        "samples attached as the body alone", mha ? "ElementDataFile" : "data file");
+    v->integer = h.have_type && h.type != ISO_F32;
     if (!h.have_dims || !h.have_type)
         return sf_fail(err, SF_EINVAL, "header", "the header gives no %s", h.have_dims ? mha ? "ElementType" : "type"
                                                                                        : mha ? "DimSize" : "sizes");
@@ -729,7 +797,7 @@ static int read_header(const char *body, size_t len, const char *data, size_t dl
 static int header_part(const struct part *parts, int n, char *file, size_t cap)
 {
     for (int k = 0; k < n; k++)
-        if ((sniff_nrrd(parts[k].data, parts[k].len) || sniff_mha(parts[k].data, parts[k].len)) &&
+        if ((format_sniff_nrrd(parts[k].data, parts[k].len) || format_sniff_mha(parts[k].data, parts[k].len)) &&
             volume_data_file(parts[k].data, parts[k].len, file, cap))
             return k;
     return -1;
@@ -745,7 +813,7 @@ static const char *pair_format(const char *body, size_t len)
     if (!multipart_sniff(body, len) || multipart_split(body, len, &parts, &n, &err))
         return NULL;
     int h = header_part(parts, n, file, sizeof file);
-    const char *format = h < 0 ? NULL : sniff_nrrd(parts[h].data, parts[h].len) ? "nrrd" : "mha";
+    const char *format = h < 0 ? NULL : format_sniff_nrrd(parts[h].data, parts[h].len) ? "nrrd" : "mha";
     free(parts);
     return format;
 }
@@ -965,6 +1033,17 @@ static double nifti_value(const unsigned char *p, int datatype, int bytes, bool 
     }
 }
 
+/* The greatest label a float32 sample holds exactly (a NIfTI's int32 and uint32 are read so). */
+#define LABEL_MAX_F32 16777216.0
+
+/* A label the file's label table names (nifti_label_table's fn). */
+static void nifti_name(void *ctx, long long value, const char *name, size_t n)
+{
+    struct volume *v = ctx;
+    if (v->n_named < 2 * VOLUME_MAX_LABELS)
+        name_label(v, value, name, n);
+}
+
 /* A NIfTI-1 or NIfTI-2 single file, gzip or not (nifti.h), in patient coordinates (nifti_grid).
  * Samples of a type core/iso has a grid of (uint8, int16, uint16, float32), unscaled, are used as
  * they are (in place when they can be); others, scaled ones (scl_slope: iso is in the scaled
@@ -978,7 +1057,7 @@ static int read_nifti(const char *body, size_t len, const char *options, struct 
     unsigned char head[NIFTI_HEADER_MAX];
     size_t hn = len;
     const unsigned char *hb = (const unsigned char *)body;
-    if (gz && (rc = inflate_prefix(body, len, head, sizeof head, &hn, err)))
+    if (gz && (rc = nifti_inflate_head(body, len, head, sizeof head, &hn, err)))
         return rc;
     struct nifti_header h;
     if ((rc = nifti_header(gz ? head : hb, hn, &h, err)))
@@ -993,6 +1072,10 @@ static int read_nifti(const char *body, size_t len, const char *options, struct 
     static const struct { int datatype; enum iso_type type; } NATIVE[] = {{2, ISO_U8}, {4, ISO_I16}, {512, ISO_U16},
                                                                           {16, ISO_F32}};
     bool scaled = h.slope != 0 && (h.slope != 1 || h.inter != 0), native = false;
+    bool labels = v->has_label || v->all_labels;
+    v->integer = !scaled && h.datatype != 16 && h.datatype != 64;
+    if (labels)
+        snprintf(v->map_name, sizeof v->map_name, "%s", h.intent_name);
     v->g.type = ISO_F32;
     for (size_t k = 0; k < sizeof NATIVE / sizeof *NATIVE && !scaled; k++)
         if (NATIVE[k].datatype == h.datatype)
@@ -1010,6 +1093,10 @@ static int read_nifti(const char *body, size_t len, const char *options, struct 
     if (gz && (rc = inflate_all(body, len, need, &whole, err)))
         return rc;
     const unsigned char *data = (const unsigned char *)(gz ? whole : body) + h.vox_offset;
+    if (labels && nifti_label_table(data - h.vox_offset, need, &h, nifti_name, v) > 2 * VOLUME_MAX_LABELS) {
+        free(whole);
+        return sf_fail(err, SF_EINVAL, "header", "its label table names over %d labels", 2 * VOLUME_MAX_LABELS);
+    }
     size_t ts = type_size(v->g.type);
     if (native && !flip[0] && !flip[1] && !flip[2] && !h.big_endian && (uintptr_t)data % ts == 0) { /* as it is */
         v->owned = whole;
@@ -1032,6 +1119,12 @@ static int read_nifti(const char *body, size_t len, const char *options, struct 
                 double val = nifti_value(p, h.datatype, h.bytes, h.big_endian);
                 if (scaled)
                     val = h.slope * val + h.inter;
+                if (labels && v->integer && fabs(val) > LABEL_MAX_F32) { /* (int32 and uint32: read as float32) */
+                    free(whole);
+                    free(out);
+                    return sf_fail(err, SF_EINVAL, "data", "sample %zu is label %.0f: labels are read up to %.0f either "
+                                   "side of 0", i, val, LABEL_MAX_F32);
+                }
                 if (v->g.type == ISO_F32) {
                     float fv = (float)val;
                     memcpy(out + i * ts, &fv, ts);
@@ -1069,6 +1162,206 @@ static int check_iso_reach(const struct volume *v, struct sf_err *err)
                    "would be on one side of it", v->iso, r->name, r->lo, r->hi);
 }
 
+/* ---- label maps ---- */
+
+static const char *type_name(enum iso_type t)
+{
+    return t == ISO_U8 ? "uint8" : t == ISO_I16 ? "int16" : t == ISO_U16 ? "uint16" : "float32";
+}
+
+/* Sample i of v's grid as a whole number: 0, or SF_EINVAL at "data" for a float32 sample that is
+ * not one (a label map's are). */
+static int label_at(const struct iso_grid *g, size_t i, long long *out, struct sf_err *err)
+{
+    switch (g->type) {
+    case ISO_U8: *out = ((const uint8_t *)g->samples)[i]; return 0;
+    case ISO_I16: *out = ((const int16_t *)g->samples)[i]; return 0;
+    case ISO_U16: *out = ((const uint16_t *)g->samples)[i]; return 0;
+    default: break;
+    }
+    float f = ((const float *)g->samples)[i];
+    if (f != floorf(f) || fabsf(f) > (float)LABEL_MAX_F32)
+        return sf_fail(err, SF_EINVAL, "data", "sample %zu is %g: a label map's samples are whole numbers", i, (double)f);
+    *out = (long long)f;
+    return 0;
+}
+
+static int cmp_ll(const void *a, const void *b)
+{
+    long long x = *(const long long *)a, y = *(const long long *)b;
+    return (x > y) - (x < y);
+}
+
+/* The map's labels (its values but 0), increasing, into vals (room for cap + 1): their number,
+ * cap + 1 when there are more; or SF_EINVAL, SF_ENOMEM. Integer types by a table of their values,
+ * float32 (a NIfTI's int32) by a hash set of cap + 1 at most. */
+static int distinct_labels(const struct iso_grid *g, long long *vals, int cap, struct sf_err *err)
+{
+    size_t count = (size_t)g->nx * (size_t)g->ny * (size_t)g->nz;
+    int n = 0;
+    if (g->type != ISO_F32) {
+        uint8_t *seen = calloc(65536, 1);
+        if (!seen)
+            return sf_fail(err, SF_ENOMEM, "", "out of memory for the map's labels");
+        long long value, off = g->type == ISO_I16 ? 32768 : 0;
+        for (size_t i = 0; i < count; i++) {
+            label_at(g, i, &value, err);
+            seen[value + off] = 1;
+        }
+        for (long long k = 0; k < 65536 && n <= cap; k++)
+            if (seen[k] && k - off != 0)
+                vals[n++] = k - off;
+        free(seen);
+        return n;
+    }
+    size_t slots = 1;
+    while (slots < 2 * ((size_t)cap + 1))
+        slots *= 2;
+    long long *set = malloc(sizeof *set * slots);
+    bool *used = calloc(slots, 1);
+    if (!set || !used) {
+        free(set), free(used);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory for the map's labels");
+    }
+    int rc = 0;
+    for (size_t i = 0; i < count && n <= cap && !rc; i++) {
+        long long value;
+        if ((rc = label_at(g, i, &value, err)) || value == 0)
+            continue;
+        size_t h = (size_t)((unsigned long long)value * 0x9e3779b97f4a7c15ull >> 20) & (slots - 1);
+        while (used[h] && set[h] != value)
+            h = (h + 1) & (slots - 1);
+        if (!used[h])
+            used[h] = true, set[h] = value, vals[n++] = value;
+    }
+    free(set), free(used);
+    if (!rc)
+        qsort(vals, (size_t)n, sizeof *vals, cmp_ll);
+    return rc ? rc : n;
+}
+
+/* Label value's name: the file's (the last it gives), "NAME N" after a NIfTI's intent_name, else
+ * "label N". */
+static void label_named(const struct volume *v, long long value, char name[VOLUME_LABEL_NAME])
+{
+    for (int k = v->n_named - 1; k >= 0; k--)
+        if (v->named[k].value == value && v->named[k].name[0]) {
+            snprintf(name, VOLUME_LABEL_NAME, "%s", v->named[k].name);
+            return;
+        }
+    if (v->map_name[0])
+        snprintf(name, VOLUME_LABEL_NAME, "%s %lld", v->map_name, value);
+    else
+        snprintf(name, VOLUME_LABEL_NAME, "label %lld", value);
+}
+
+void volume_label_name(const struct volume *v, int k, char *out, size_t cap)
+{
+    const char *own = k >= 1 && k <= v->n_labels ? v->label_of[k - 1].name : "";
+    if (v->name[0] && v->all_labels)
+        snprintf(out, cap, "%s %s", v->name, own);
+    else
+        snprintf(out, cap, "%s", v->name[0] ? v->name : own);
+}
+
+/* The map's labels listed for a message: "1, 2, 5 and 7" (the first 12). */
+static void list_labels(const long long *vals, int n, int cap, char *out, size_t size)
+{
+    size_t at = 0;
+    out[0] = 0;
+    for (int k = 0; k < n && k < 12 && at < size; k++)
+        at += (size_t)snprintf(out + at, size - at, "%s%lld", k == 0 ? "" : k + 1 == n ? " and " : ", ", vals[k]);
+    if ((n > 12 || n > cap) && at < size)
+        snprintf(out + at, size - at, " and more");
+}
+
+/* v's samples made N's mask (?label=N) or label indices (?labels=all), iso 0.5; the labels found
+ * into v->label_of. With check_only, what the header says: an integer type that holds N. */
+static int label_grid(struct volume *v, const char *format, struct sf_err *err)
+{
+    const char *at = v->has_label ? "?label" : "?labels";
+    if (!strcmp(format, "dicom"))
+        return sf_fail(err, SF_EINVAL, at, "a DICOM image series is not a label map (label maps are integer NRRD, "
+                       "MetaImage, NIfTI or raw samples)");
+    if (!v->integer)
+        return sf_fail(err, SF_EINVAL, at, "a label map's samples are whole numbers: this volume's are %s", v->check_only &&
+                       v->g.type == ISO_F32 ? "float" : "scaled or float");
+    double lo = v->g.type == ISO_U8 || v->g.type == ISO_U16 ? 0 : v->g.type == ISO_I16 ? -32768 : -LABEL_MAX_F32,
+           hi = v->g.type == ISO_U8 ? 255 : v->g.type == ISO_I16 ? 32767 : v->g.type == ISO_U16 ? 65535 : LABEL_MAX_F32;
+    if (v->has_label && ((double)v->label < lo || (double)v->label > hi))
+        return sf_fail(err, SF_EINVAL, "?label", "label %lld is not in the map: its %s samples hold %.0f to %.0f",
+                       v->label, v->g.type == ISO_F32 ? "integer" : type_name(v->g.type), lo, hi);
+    if (v->check_only)
+        return 0;
+    long long *vals = malloc(sizeof *vals * (VOLUME_MAX_LABELS + 1));
+    if (!vals)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory for the map's labels");
+    int n = distinct_labels(&v->g, vals, VOLUME_MAX_LABELS, err), rc = n < 0 ? n : 0, index = 0;
+    char list[200];
+    if (!rc && n == 0)
+        rc = sf_fail(err, SF_EINVAL, at, "the map has no label: every sample is 0 (the background)");
+    if (!rc && v->has_label) {
+        while (index < n && vals[index] != v->label)
+            index++;
+        list_labels(vals, n, VOLUME_MAX_LABELS, list, sizeof list);
+        if (index == n && n <= VOLUME_MAX_LABELS) /* (over the cap, the list may not hold it: its samples say) */
+            rc = sf_fail(err, SF_EINVAL, "?label", "label %lld is not in the map; its labels are %s", v->label, list);
+    }
+    if (!rc && v->all_labels && n > VOLUME_MAX_LABELS)
+        rc = sf_fail(err, SF_ELIMIT, "?labels", "the map has over %d labels: labels=all makes a model of each of at most "
+                     "%d", VOLUME_MAX_LABELS, VOLUME_MAX_LABELS);
+    size_t count = (size_t)v->g.nx * (size_t)v->g.ny * (size_t)v->g.nz;
+    int n_out = v->has_label ? 1 : n;
+    bool wide = n_out > 255;
+    void *grid = rc ? NULL : malloc(count * (wide ? 2 : 1));
+    v->label_of = rc ? NULL : calloc((size_t)n_out, sizeof *v->label_of);
+    if (!rc && (!grid || !v->label_of))
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory for the map's %zu labels", count);
+    uint16_t *table = NULL; /* integer types: value (int16's + 32768) to index */
+    long long off = v->g.type == ISO_I16 ? 32768 : 0;
+    if (!rc && v->all_labels && v->g.type != ISO_F32 && !(table = calloc(65536, sizeof *table)))
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory for the map's labels");
+    for (int k = 0; !rc && table && k < n; k++)
+        table[vals[k] + off] = (uint16_t)(k + 1);
+    for (size_t i = 0; !rc && i < count; i++) {
+        long long value;
+        label_at(&v->g, i, &value, err);
+        int k = 0;
+        if (v->has_label)
+            k = value == v->label;
+        else if (table)
+            k = table[value + off];
+        else if (value) {
+            const long long *hit = bsearch(&value, vals, (size_t)n, sizeof *vals, cmp_ll);
+            k = (int)(hit - vals) + 1;
+        }
+        if (wide)
+            ((uint16_t *)grid)[i] = (uint16_t)k;
+        else
+            ((uint8_t *)grid)[i] = (uint8_t)k;
+    }
+    free(table);
+    if (!rc) {
+        v->n_labels = n_out;
+        for (int k = 0; k < n_out; k++) {
+            v->label_of[k].value = v->has_label ? v->label : vals[k];
+            label_named(v, v->label_of[k].value, v->label_of[k].name);
+        }
+        if (v->has_label && !v->name[0])
+            snprintf(v->name, sizeof v->name, "%s", v->label_of[0].name);
+        free(v->owned);
+        v->owned = grid;
+        v->g.samples = grid;
+        v->map_type = v->g.type;
+        v->g.type = wide ? ISO_U16 : ISO_U8;
+        v->iso = 0.5;
+    } else {
+        free(grid);
+    }
+    free(vals);
+    return rc;
+}
+
 static int read_volume(const char *body, size_t len, const char *format, const char *options, bool check_only,
                        struct volume *v, struct sf_err *err)
 {
@@ -1079,7 +1372,7 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     int rc = common_options(options, !strcmp(format, "frep"), v, err);
     if (rc)
         return rc;
-    bool nrrd = sniff_nrrd(body, len), mha = sniff_mha(body, len), nifti = sniff_nifti(body, len);
+    bool nrrd = format_sniff_nrrd(body, len), mha = format_sniff_mha(body, len), nifti = nifti_sniff_body(body, len);
     for (int a = 0; a < 3; a++)
         v->axes[a][a] = 1;
     char segment[8];
@@ -1111,6 +1404,8 @@ static int read_volume(const char *body, size_t len, const char *format, const c
     } else {
         rc = sf_fail(err, SF_EFORMAT, "?format", "format is raw, nrrd, mha, nifti, dicom or frep");
     }
+    if (!rc && (v->has_label || v->all_labels))
+        rc = label_grid(v, format, err);
     if (!rc)
         rc = check_iso_reach(v, err);
     if (!rc && v->max_error < 0)
@@ -1130,15 +1425,37 @@ int volume_read(const char *body, size_t len, const char *format, const char *op
     return read_volume(body, len, format, options, false, v, err);
 }
 
-int volume_check(const char *body, size_t len, const char *format, const char *options, struct sf_err *err)
+int volume_check(const char *body, size_t len, const char *format, const char *options, int max_labels,
+                 struct sf_err *err)
 {
     struct volume v;
     int rc = read_volume(body, len, format, options, true, &v, err);
+    int named = 0, cap = max_labels > 0 && max_labels < VOLUME_MAX_LABELS ? max_labels : VOLUME_MAX_LABELS;
+    long long *vals = !rc && v.all_labels && v.n_named ? malloc(sizeof *vals * (size_t)v.n_named) : NULL;
+    for (int k = 0; vals && k < v.n_named; k++)
+        vals[k] = v.named[k].value;
+    if (vals) /* the distinct values named but 0 */
+        qsort(vals, (size_t)v.n_named, sizeof *vals, cmp_ll);
+    for (int k = 0; vals && k < v.n_named; k++)
+        named += vals[k] != 0 && (k == 0 || vals[k] != vals[k - 1]);
+    free(vals);
+    if (!rc && named > cap)
+        rc = sf_fail(err, SF_ELIMIT, "?labels", "the header names %d labels; labels=all makes %d models a request at "
+                     "most%s", named, cap, cap < VOLUME_MAX_LABELS ? " on this node (max-labels)" : "");
     volume_free(&v);
     return rc;
 }
 
 void volume_free(struct volume *v)
+{
+    free(v->label_of);
+    free(v->named);
+    v->label_of = v->named = NULL;
+    v->n_labels = v->n_named = v->cap_named = 0;
+    volume_drop_samples(v);
+}
+
+void volume_drop_samples(struct volume *v)
 {
     if (v->frep)
         frep_request_free(v->frep);

@@ -5,7 +5,14 @@
  * DICOM image (Enhanced CT/MR, RT Dose, Segmentation: ?segment=N) (dicom_series.h), and
  * an FRep object's JSON (frep_json.h), whose grid is sampled from its function (volume_sample).
  * Samples are used where they lie in the body when they can be (raw encoding in the host's byte
- * order), decoded otherwise; core/iso sees only the grid. */
+ * order), decoded otherwise; core/iso sees only the grid.
+ *
+ * Label maps (integer raw, NRRD, MetaImage or NIfTI samples, 0 the background): ?label=N reads the
+ * map as N's mask (uint8 0/1, iso 0.5: its surface is the mask's isosurface); ?labels=all as a
+ * grid of label indices (1 .. n_labels, by increasing value; core/iso/labels.h makes one surface
+ * each), the labels' names taken from the file where it gives them (NRRD's Segment<k>_Name and
+ * Segment<k>_LabelValue as 3D Slicer writes them, a NIfTI label table extension or intent_name;
+ * else "label N"). */
 #ifndef SURFD_VOLUME_IO_H
 #define SURFD_VOLUME_IO_H
 
@@ -19,6 +26,16 @@
 /* Samples a volume may have (query options and headers are checked against it before anything
  * is allocated): 2^31, a 1290^3 grid, 4 GB of int16. */
 #define VOLUME_MAX_SAMPLES (1ull << 31)
+/* Labels of one map ?labels=all reads at most (a node may take fewer: max-labels), and the
+ * bytes of a label's name kept. */
+#define VOLUME_MAX_LABELS 4096
+#define VOLUME_LABEL_NAME 64
+
+/* A label of a map: its value and name. */
+struct volume_label {
+    long long value;
+    char name[VOLUME_LABEL_NAME];
+};
 
 struct volume {
     struct iso_grid g;
@@ -34,6 +51,17 @@ struct volume {
     bool oblique;            /* axes are not the identity: the mesh is turned by them about the origin */
     struct frep_request *frep; /* an FRep object: its float32 grid is filled by volume_sample() */
     const char *source;      /* "isosurface" (sampled) or "frep", as the model resource says */
+    /* label maps */
+    bool integer;            /* the samples as stored are whole numbers (integer types, NIfTI's unscaled) */
+    bool has_label;          /* ?label=N: the grid is N's mask */
+    long long label;         /* N */
+    bool all_labels;         /* ?labels=all: the grid holds label indices */
+    int n_labels;            /* the labels found (indices 1 .. n_labels; ?label: 1, N) */
+    enum iso_type map_type;  /* the map's own samples' type (g.type is then the mask's or indices') */
+    struct volume_label *label_of; /* their values and names, index k at [k - 1] */
+    struct volume_label *named; /* the labels the file names (n_named; values may repeat: the last wins) */
+    int n_named, cap_named;
+    char map_name[17];       /* a NIfTI's intent_name, naming its unnamed labels "NAME N" */
 };
 
 /* The body's format from its Content-Type: "raw" (application/octet-stream; a NRRD, MetaImage,
@@ -72,7 +100,11 @@ char *volume_attach(const char *hdr, size_t len, int line, const char *data, siz
  * or /cell, or a series' /parts. */
 int volume_read(const char *body, size_t len, const char *format, const char *options, struct volume *v,
                 struct sf_err *err);
+/* The name of v's label index k (1 .. n_labels): ?name, when given, before the label's own. */
+void volume_label_name(const struct volume *v, int k, char *out, size_t cap);
 void volume_free(struct volume *v);
+/* Frees v's samples (and FRep object), keeping what describes it (its grid, options, labels). */
+void volume_drop_samples(struct volume *v);
 /* 0, or SF_EINVAL at ?iso when the mesh m extracted from v is empty: every sample on one side of
  * iso (an FRep object: nothing inside its bounds), which a user wants said, not stored. */
 int volume_mesh_empty(const struct volume *v, const struct trimesh *m, struct sf_err *err);
@@ -85,8 +117,10 @@ bool volume_adaptive(const struct volume *v);
 int volume_sample(struct volume *v, int z0, int z1, const struct sf_progress *pr, struct sf_err *err);
 /* What volume_read says of the query and the header and the body's length, without reading the
  * samples (no inflating, no NaN scan): cheap enough for the HTTP thread that takes the upload.
- * The job's volume_read says the rest. */
-int volume_check(const char *body, size_t len, const char *format, const char *options, struct sf_err *err);
+ * The job's volume_read says the rest. max_labels (0: VOLUME_MAX_LABELS): with ?labels=all, a
+ * header that names more labels than that is SF_ELIMIT at ?labels. */
+int volume_check(const char *body, size_t len, const char *format, const char *options, int max_labels,
+                 struct sf_err *err);
 
 /* An edit's block (POST /models/{id}/edit): ?region=x0,y0,z0,nx,ny,nz inside grid g, the body
  * of len bytes holding its samples in g's type (x fastest, the host's byte order). 0, or

@@ -513,7 +513,8 @@ static const char *const USAGE[][2] = {
                "    the volume its surfaces close)\n"},
     {"isosurface", "surfctl isosurface VOLUME --iso V -o OUT.stl|.ply|.obj [--dims X,Y,Z --type T --spacing S --origin O]\n"
                    "                   [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name N]\n"
-                   "                   [--segment N]\n"
+                   "                   [--segment N] [--label N | --labels all] (a label map, no --iso: label N's model,\n"
+                   "                   or one a label, each label's mesh to OUT-N.stl)\n"
                    "    POST /isosurface: VOLUME is .nrrd, .mha, NIfTI (.nii, .nii.gz), raw samples, a directory of a DICOM\n"
                    "    series' images (each file a part), one multi-frame DICOM image (.dcm: an Enhanced CT or MR, an RT\n"
                    "    Dose, iso in Gy, or a Segmentation's segment N, iso 0.5), or an FRep object as .json\n"},
@@ -677,7 +678,7 @@ static int download_mesh(const char *id, const char *out)
 static int cmd_isosurface(int argc, char **argv)
 {
     static const char *const OPTIONS[] = {"iso", "dims", "type", "spacing", "origin", "closed", "name", "levels",
-                                          "max_error", "features", "segment", NULL};
+                                          "max_error", "features", "segment", "label", "labels", NULL};
     const char *file = NULL, *out = NULL;
     char query[600] = "";
     if (!read_args(argc, argv, OPTIONS, &file, &out, NULL, query, sizeof query))
@@ -704,8 +705,23 @@ static int cmd_isosurface(int argc, char **argv)
         return rc;
     }
     printf("%s\n", r.body.data ? r.body.data : "");
+    json_t *j = strstr(query, "labels=") ? json_loads(r.body.data ? r.body.data : "", 0, NULL) : NULL;
     free(r.body.data);
-    return download_mesh(id, out);
+    if (!j)
+        return download_mesh(id, out);
+    /* labels=all: each label's model's mesh to OUT-LABEL.EXT */
+    json_t *models = json_object_get(j, "models"), *m;
+    size_t k;
+    json_array_foreach(models, k, m) {
+        char path[4200];
+        snprintf(path, sizeof path, "%.*s-%" JSON_INTEGER_FORMAT "%s", (int)(ext - out), out,
+                 json_integer_value(json_object_get(m, "label")), ext);
+        const char *mid = json_string_value(json_object_get(m, "id"));
+        if (!rc && mid)
+            rc = download_mesh(mid, path);
+    }
+    json_decref(j);
+    return rc;
 }
 
 /* POST /models/ID/edit?region=... with BLOCK's raw samples: the model resource after the edit on

@@ -1,10 +1,12 @@
 /* cmd_iso.c - `surfd isosurface FILE`: a volume (raw with --dims/--type, NRRD, MetaImage, their
  * detached headers with the data file beside them) to the same mesh and figures POST /isosurface
- * makes, offline; --threads N runs the slabs of each pass on N threads as the daemon's pool does;
+ * makes, offline (a label map's --label N and --labels all too: {"models": [...]}, -o OUT.stl
+ * writing OUT-N.stl for label N); --threads N runs the slabs of each pass on N threads as the daemon's pool does;
  * -o OUT.stl|.ply|.obj writes the mesh; --stats adds the extraction's timings at every thread
  * count asked, for the benchmarks. */
 #include <dirent.h>
 #include <malloc.h>
+#include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
@@ -17,6 +19,7 @@
 #include "../api/matrix_json.h"
 #include "../api/mesh_io.h"
 #include "../api/volume_io.h"
+#include "../core/iso/labels.h"
 #include "cli.h"
 
 /* fn(ctx, k) for k in [0, n) on `threads` threads, each taking the next k. */
@@ -143,6 +146,7 @@ void cmd_isosurface_usage(FILE *f)
                "                        a Segmentation's segment N, iso 0.5)\n"
                "       surfd isosurface FREP.json [--iso V]\n"
                "                        [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|nifti|dicom|frep]\n"
+               "                        [--label N | --labels all] (a label map: label N's surface, or every label's)\n"
                "                        [-o OUT.stl|.ply|.obj] [--threads N] [--repeat N] [--stats]\n"
                "       surfd matrix VOLUME|FREP.json [--iso V] [the volume's options above] [-o OUT.json]\n"
                "                        (its six relief matrices, seed 003: samples >= iso are the body)\n");
@@ -171,6 +175,66 @@ static char *attach_data(const char *path, char *buf, size_t *len)
     return whole;
 }
 
+/* --labels all: every label's surface (core/iso/labels.h, the fastest of repeat), each label's
+ * model resource in {"models": [...]} on stdout, its mesh in OUT-VALUE.EXT with -o OUT.EXT. */
+static int labels_out(struct volume *v, const char *out, int repeat, double read_ms, bool stats, struct sf_err *err)
+{
+    struct iso_labels l = {0};
+    double best = 1e300;
+    int rc = 0;
+    for (int r = 0; r < repeat && !rc; r++) {
+        iso_labels_free(&l);
+        double t = sf_now_ms();
+        if (!(rc = iso_labels_extract(&v->g, v->n_labels, v->closed, 0, NULL, NULL, &l, err)))
+            best = fmin(best, sf_now_ms() - t);
+    }
+    const char *ext = out ? strrchr(out, '.') : NULL;
+    if (!rc && out && (!ext || !mesh_mime(ext + 1)))
+        rc = sf_fail(err, SF_EINVAL, "-o", "the meshes are written as .stl, .ply or .obj");
+    size_t *touch = rc ? NULL : malloc(sizeof *touch * ((size_t)v->n_labels + 1));
+    if (!rc && !touch)
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+    size_t all = 0;
+    printf("{\"models\":[");
+    for (int k = 1; k <= v->n_labels && !rc; k++) {
+        double t = sf_now_ms();
+        struct trimesh m;
+        struct trimesh_stats st;
+        char name[sizeof v->name], *json = NULL, *file = NULL;
+        size_t file_len;
+        volume_label_name(v, k, name, sizeof name);
+        if ((rc = iso_labels_mesh(&l, k, touch, &m, err)))
+            break;
+        if (v->oblique)
+            trimesh_turn(&m, v->g.origin, (const double(*)[3])v->axes);
+        rc = trimesh_stats(&m, &st, err);
+        if (!rc && out) {
+            char path[4200];
+            snprintf(path, sizeof path, "%.*s-%lld%s", (int)(ext - out), out, v->label_of[k - 1].value, ext);
+            if (!(rc = mesh_encode(&m, ext + 1, &file, &file_len, err)))
+                rc = cli_write_all(path, file, file_len) ? SF_EIO : 0;
+        }
+        double t1 = sf_now_ms();
+        struct iso_model im = {"offline", name, v, &st, NULL, m.n_vert, m.n_tri, {read_ms, 0, best, t1 - t, read_ms + best + t1 - t}, 0, NULL,
+                               k, touch};
+        all += m.n_tri;
+        trimesh_free(&m);
+        if (!rc && !(json = iso_model_json(&im, err)))
+            rc = err->code;
+        if (!rc)
+            printf("%s%s", k > 1 ? "," : "", json);
+        free(json);
+        free(file);
+    }
+    printf("]}\n");
+    if (!rc && stats)
+        fprintf(stderr, "labels: %.1f ms (best of %d, one thread), %zu triangles shared, %zu in the %d meshes, %ld "
+                "junctions with a labelled centre\n", best, repeat, l.n_tri, all, v->n_labels, l.centres);
+    free(touch);
+    iso_labels_free(&l);
+    return rc;
+}
+
 int cmd_isosurface(int argc, char **argv)
 {
     char options[512] = "";
@@ -194,7 +258,8 @@ int cmd_isosurface(int argc, char **argv)
             format = argv[++k];
         } else if (!strcmp(a, "--iso") || !strcmp(a, "--dims") || !strcmp(a, "--type") || !strcmp(a, "--spacing") ||
                    !strcmp(a, "--origin") || !strcmp(a, "--closed") || !strcmp(a, "--name") || !strcmp(a, "--levels") ||
-                   !strcmp(a, "--features") || !strcmp(a, "--segment")) {
+                   !strcmp(a, "--features") || !strcmp(a, "--segment") || !strcmp(a, "--label") ||
+                   !strcmp(a, "--labels")) {
             snprintf(options + n, sizeof options - n, "%s%s=%s", n ? "&" : "", a + 2, argv[k + 1]);
             k++;
         } else if (!strcmp(a, "--max-error")) {
@@ -242,6 +307,14 @@ int cmd_isosurface(int argc, char **argv)
             fprintf(stderr, "surfd: %s: %s%s%s\n", argv[1], err.message, err.pointer[0] ? " at " : "", err.pointer);
         return rc ? 1 : 0;
     }
+    if (!rc && v.all_labels) {
+        rc = labels_out(&v, out, repeat, t_read - t0, stats, &err);
+        volume_free(&v);
+        free(buf);
+        if (rc && rc != SF_EIO)
+            fprintf(stderr, "surfd: %s: %s%s%s\n", argv[1], err.message, err.pointer[0] ? " at " : "", err.pointer);
+        return rc ? 1 : 0;
+    }
     double t_sampled = sf_now_ms();
     iso_init();
     struct trimesh m = {0};
@@ -276,7 +349,8 @@ int cmd_isosurface(int argc, char **argv)
     }
     if (!rc) {
         struct iso_model im = {"offline", v.name, &v, &st, volume_adaptive(&v) ? &as : NULL, m.n_vert, m.n_tri,
-                               {t_read - t0, t_sampled - t_read, best, t_measure - t_extract, t_measure - t0}, 0, NULL};
+                               {t_read - t0, t_sampled - t_read, best, t_measure - t_extract, t_measure - t0}, 0, NULL,
+                               v.has_label, NULL};
         if (!(json = iso_model_json(&im, &err)))
             rc = err.code;
     }

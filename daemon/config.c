@@ -8,6 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../api/volume_io.h" /* VOLUME_MAX_LABELS */
+
 enum ctype { C_STR, C_LIST, C_LONG, C_BOOL }; /* C_LIST: a string each use appends to, space-separated */
 
 struct setting {
@@ -40,6 +42,7 @@ static const struct setting SETTINGS[] = {
     L("edit-memory", edit_memory, 0, 1L << 40, "1073741824", "bytes of memory kept for edits of isosurface models (the hierarchies of the models edited last; 0: rebuilt for every edit)"),
     L("max-triangles", max_triangles, 1000, 2000000000, "40000000", "triangles of one isosurface, or of the stored meshes one scene names, at most: more fails the job with a 422 before its mesh is allocated (a mesh costs some 80 bytes a triangle from extraction to the store)"),
     L("max-triangles-per-byte", max_triangles_per_byte, 0, 1000000000, "64", "triangles an isosurface may have for each byte of its request (a volume's file, an FRep's JSON), 4 M at least: more fails the job with a 422 from its count pass, so that a few kilobytes of a compressed field with surface in every cell cannot make a mesh of gigabytes (gzip scans make under 1 a byte, gzip label maps 3 to 5; 0: no such limit)"),
+    L("max-labels", max_labels, 1, VOLUME_MAX_LABELS, "256", "labels of one map POST /isosurface?labels=all makes models of, at most (one model each): a map with more is refused with a 422 at ?labels, from its header when it names them (3D Slicer's segments), else once its samples are read, before any surface is made"),
     L("store-piece", store_piece, 65536, 512L << 20, "268435456", "bytes of a stored value (a mesh, a volume kept for edits, a result) kept in one row at most: a longer one is kept as several (SQLite and PostgreSQL hold at most 1 GB in one value)"),
     L("job-memory", job_memory, 0, 1L << 50, "0", "bytes of memory one job may allocate: more fails it alone with a 422, and an isosurface whose mesh would take more (some 80 bytes a triangle) is refused before it is made (0: three quarters of the memory the process may use, the machine's or less under a cgroup's memory.max or RLIMIT_AS, shared among the workers)"),
     L("mesh-cache", mesh_cache, 0, 1L << 40, "536870912", "bytes of the store kept for models' meshes, each computed once per format and tolerance (the least recently used dropped beyond; 0: none kept)"),

@@ -25,6 +25,7 @@ struct config {
     long edit_memory;       /* bytes of the hierarchies kept for edits (daemon/job_edit.c) */
     long max_triangles;     /* of one isosurface (job_iso_opts) */
     long max_triangles_per_byte; /* ... for each byte of its request (job_iso.c) */
+    long max_labels;        /* labels of one map ?labels=all makes models of (job_iso.c) */
     long store_piece;       /* bytes of a stored value kept in one piece at most (store.h) */
     long job_memory;        /* bytes one job may allocate (jobq.h); 0 in the file: a share (cmd_serve.c) */
     long mesh_cache;        /* bytes of cached meshes in the store (0: none) */

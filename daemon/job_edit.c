@@ -298,7 +298,7 @@ static int store_edit(struct edit_work *w, const char *id, const struct volume *
     if (!rc) {
         double t2 = monotonic_s();
         struct iso_model im = {id, v->name, v, &st, ast, m->n_vert, m->n_tri,
-                               {0, 0, (t_mesh - t0) * 1e3, (t2 - t1) * 1e3, (t2 - t0) * 1e3}, part->seq, me};
+                               {0, 0, (t_mesh - t0) * 1e3, (t2 - t1) * 1e3, (t2 - t0) * 1e3}, part->seq, me, 0, NULL};
         if (!(w->json = iso_model_json(&im, &w->err)))
             rc = w->err.code;
     }

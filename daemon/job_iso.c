@@ -4,7 +4,11 @@
  * store (so a job recovered after a crash, or claimed by another node, runs as submitted); an FRep
  * sampled on its grid in a first phase of bands; then core/iso's two passes as two phases of
  * bands, one band a slab of z, on whichever workers are idle (cancel between slabs); then the
- * mesh is measured and stored compactly with its model resource. */
+ * mesh is measured and stored compactly with its model resource. A label map's ?label=N is its
+ * mask's isosurface as above (the map not kept: no edits); ?labels=all is core/iso/labels.h's
+ * surfaces, made on the worker that reads the map, and one model a label, stored as an RT
+ * Structure Set's ROIs are (job_contours.c): the first the job's id, the others its id with k in
+ * the last four hex digits; the result {"models": [...]}. */
 #include <fcntl.h>
 #include <math.h>
 #include <stdatomic.h>
@@ -20,6 +24,8 @@
 #include "../api/mesh_io.h"
 #include "../api/multipart.h"
 #include "../api/volume_io.h"
+#include "../core/base/mem.h"
+#include "../core/iso/labels.h"
 #include "job_edit.h"
 #include "kinds.h"
 #include "log.h"
@@ -49,6 +55,7 @@ struct iso_work {
     char meta[128];
     size_t input_len;        /* bytes of the request (the volume's file, the FRep's JSON) */
     char tri_by[160];        /* what limits its triangles, when its size does */
+    struct iso_labels lab;   /* ?labels=all: the labels' surfaces (made in prepare) */
     struct sf_err err;
 };
 
@@ -57,6 +64,7 @@ struct iso_work {
 #define ISO_TRIANGLES_ANY_INPUT 4000000
 
 static int begin_extract(struct iso_work *w, int *n_bands);
+static int extract_labels(struct iso_work *w, struct job *j);
 
 static int prepare(struct job *j, void *arg, int *n_bands)
 {
@@ -84,6 +92,10 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     w->n_slabs = (int)qs.workers * SLABS_PER_WORKER;
     if (w->vol.frep && (rc = frep_volumes(w->job.svc, w->vol.frep, &w->err)))
         return rc;
+    if (w->vol.all_labels) { /* the labels' surfaces here, the models stored by finish */
+        *n_bands = 0;
+        return extract_labels(w, j);
+    }
     if (w->vol.frep) { /* sampled first, in bands of planes */
         w->phase = PH_SAMPLE;
         *n_bands = w->n_sample = w->n_slabs < w->vol.g.nz ? w->n_slabs : w->vol.g.nz;
@@ -93,12 +105,13 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     return begin_extract(w, n_bands);
 }
 
-static int begin_extract(struct iso_work *w, int *n_bands)
+/* The extraction's options with this node's limits on its triangles, and what the request's size
+ * lets it make: real scans make under 1 triangle a byte (the CT head's gzip NRRD 0.17, the MRI's
+ * 0.43), gzip label maps 3 to 5; a 43 KB gzip NRRD of a striped field (surface in every cell) would
+ * make 916, 39 M triangles and 3 GB. */
+static struct iso_opts limited_opts(struct iso_work *w)
 {
     struct iso_opts o = job_iso_opts(w->job.svc, &w->vol);
-    /* what the request's size lets it make: real scans make under 1 triangle a byte (the CT head's
-     * gzip NRRD 0.17, the MRI's 0.43), gzip label maps 3 to 5; a 43 KB gzip NRRD of a striped
-     * field (surface in every cell) would make 916, 39 M triangles and 3 GB */
     double by_size = fmax((double)w->job.svc->cfg.max_triangles_per_byte * (double)w->input_len, ISO_TRIANGLES_ANY_INPUT);
     if (w->job.svc->cfg.max_triangles_per_byte && by_size < (double)o.max_triangles) {
         o.max_triangles = (size_t)by_size;
@@ -106,9 +119,35 @@ static int begin_extract(struct iso_work *w, int *n_bands)
                  " %d M at least)", w->input_len, w->job.svc->cfg.max_triangles_per_byte, ISO_TRIANGLES_ANY_INPUT / 1000000);
         o.max_triangles_by = w->tri_by;
     }
+    return o;
+}
+
+/* ?labels=all: the map's labels' surfaces, every triangle once (each label's model holds its
+ * own): limited as one isosurface is (job_iso_opts: some 80 bytes a triangle of the meshes it
+ * stores, the shared surfaces half that). */
+static int extract_labels(struct iso_work *w, struct job *j)
+{
+    long cap = w->job.svc->cfg.max_labels;
+    if (w->vol.n_labels > cap)
+        return sf_fail(&w->err, SF_ELIMIT, "?labels", "the map has %d labels; labels=all makes %ld models a request at "
+                       "most on this node (max-labels)", w->vol.n_labels, cap);
+    struct iso_opts o = limited_opts(w);
+    char by[256];
+    snprintf(by, sizeof by, "%s, a triangle between two labels counted in both their models", o.max_triangles_by);
+    struct job_poll pc = {w->job.svc->q, j};
+    const struct sf_progress pr = {service_poll_job, &pc};
+    int rc = iso_labels_extract(&w->vol.g, w->vol.n_labels, w->vol.closed, o.max_triangles / 2, by, &pr, &w->lab,
+                                &w->err);
+    w->t_sampled = monotonic_s();
+    return rc;
+}
+
+static int begin_extract(struct iso_work *w, int *n_bands)
+{
+    struct iso_opts o = limited_opts(w);
     /* a hierarchy of samples is kept for the model's edits when it fits their memory (about 5
      * bytes a sample) */
-    o.keep = !w->vol.frep && (double)w->vol.g.nx * w->vol.g.ny * w->vol.g.nz * 5 <= (double)w->job.svc->cfg.edit_memory;
+    o.keep = !w->vol.frep && !w->vol.has_label && (double)w->vol.g.nx * w->vol.g.ny * w->vol.g.nz * 5 <= (double)w->job.svc->cfg.edit_memory;
     int rc;
     if (volume_adaptive(&w->vol)) {
         if ((rc = iso_adapt_begin(&w->vol.g, &o, w->vol.levels, w->vol.max_error, &w->ad, &w->err)))
@@ -217,7 +256,7 @@ static int store_model(struct iso_work *w)
     }
     if (w->vol.oblique)
         trimesh_turn(&m, w->vol.g.origin, (const double(*)[3])w->vol.axes);
-    volume_free(&w->vol); /* the volume and the mesh together are the job's peak of memory */
+    volume_drop_samples(&w->vol); /* the volume and the mesh together are the job's peak of memory */
     struct trimesh_stats st;
     char *packed = NULL;
     size_t packed_len = 0;
@@ -228,7 +267,7 @@ static int store_model(struct iso_work *w)
                            m.n_tri,
                            {(w->t_read - w->t0) * 1e3, (w->t_sampled - w->t_read) * 1e3,
                             (t_extract - w->t_sampled) * 1e3, (t_measure - t_extract) * 1e3, (t_measure - w->t0) * 1e3},
-                           0, NULL};
+                           0, NULL, w->vol.has_label, NULL};
     trimesh_free(&m);
     if (!rc && !(w->json = iso_model_json(&im, &w->err)))
         rc = w->err.code;
@@ -237,7 +276,7 @@ static int store_model(struct iso_work *w)
         struct volume_rec vr = {0, w->rec.format, w->rec.options, w->map ? w->map : (const void *)w->rec.request,
                                 w->map ? w->map_len : w->rec.request_len};
         struct model_rec mr = {w->job.claim.id, w->job.claim.id, w->vol.name, w->rec.owner, wall_s(), packed, packed_len, w->json,
-                               &vr};
+                               w->vol.has_label ? NULL : &vr}; /* (a label's map is not kept: no edits) */
         if (store_model_put(w->job.svc->store, &mr))
             rc = sf_fail(&w->err, SF_EIO, "", "the store would not take the mesh");
     }
@@ -254,18 +293,93 @@ static int store_model(struct iso_work *w)
     return rc;
 }
 
+/* Appends text to the answer w->json (w->len bytes, cap its room): 0 or SF_ENOMEM. */
+static int answer_add(struct iso_work *w, size_t *cap, const char *text)
+{
+    size_t n = strlen(text);
+    if (mem_reserve((void **)&w->json, cap, w->len + n + 1, 1))
+        return sf_fail(&w->err, SF_ENOMEM, "", "out of memory for the answer");
+    memcpy(w->json + w->len, text, n + 1);
+    w->len += n;
+    return 0;
+}
+
+/* ?labels=all: each label's surface measured and stored as a model of its own (its id: the job's
+ * for the first, the job's with k in its last four hex digits for the others, as an RT Structure
+ * Set's ROIs); the answer {"models": [...]}. */
+static int store_label_models(struct iso_work *w)
+{
+    drop_request(w); /* the map and its indices are no longer read: the meshes are the peak */
+    volume_drop_samples(&w->vol);
+    int n = w->vol.n_labels, rc = 0;
+    size_t cap = 0, *touch = malloc(sizeof *touch * ((size_t)n + 1));
+    if (!touch)
+        return sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
+    w->len = 0;
+    rc = answer_add(w, &cap, "{\"models\":[");
+    for (int k = 1; k <= n && !rc; k++) {
+        double t0 = monotonic_s();
+        struct trimesh m;
+        struct trimesh_stats st;
+        char id[40], name[sizeof w->vol.name], *packed = NULL, *json = NULL;
+        size_t packed_len = 0;
+        if (k == 1)
+            snprintf(id, sizeof id, "%s", w->job.claim.id);
+        else
+            snprintf(id, sizeof id, "%.28s%04x", w->job.claim.id, (unsigned)(k - 1) & 0xffff);
+        volume_label_name(&w->vol, k, name, sizeof name);
+        if ((rc = stopped(w, 0.95 + 0.05 * (k - 1) / n)) || (rc = iso_labels_mesh(&w->lab, k, touch, &m, &w->err)))
+            break;
+        if (w->vol.oblique)
+            trimesh_turn(&m, w->vol.g.origin, (const double(*)[3])w->vol.axes);
+        if (!(rc = trimesh_stats(&m, &st, &w->err)))
+            rc = mesh_pack(&m, &packed, &packed_len, &w->err);
+        double t1 = monotonic_s();
+        struct iso_model im = {id, name, &w->vol, &st, NULL, m.n_vert, m.n_tri,
+                               {(w->t_read - w->t0) * 1e3, 0, (w->t_sampled - w->t_read) * 1e3, (t1 - t0) * 1e3,
+                                (t1 - w->t0) * 1e3},
+                               0, NULL, k, touch};
+        trimesh_free(&m);
+        if (!rc && !(json = iso_model_json(&im, &w->err)))
+            rc = w->err.code;
+        if (!rc) {
+            struct model_rec mr = {id, w->job.claim.id, name, w->rec.owner, wall_s(), packed, packed_len, json, NULL};
+            if (store_model_put(w->job.svc->store, &mr))
+                rc = sf_fail(&w->err, SF_EIO, "", "the store would not take the mesh of label %lld",
+                             w->vol.label_of[k - 1].value);
+        }
+        if (!rc && k > 1)
+            rc = answer_add(w, &cap, ",");
+        if (!rc)
+            rc = answer_add(w, &cap, json);
+        free(packed);
+        free(json);
+    }
+    free(touch);
+    iso_labels_free(&w->lab);
+    if (!rc && !(rc = answer_add(w, &cap, "]}")))
+        snprintf(w->meta, sizeof w->meta, "{\"status\":201,\"location\":\"/models/%s\"}", w->job.claim.id);
+    if (rc) {
+        free(w->json);
+        w->json = NULL;
+        w->len = 0;
+    }
+    return rc;
+}
+
 static void finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
 {
     (void)j;
     struct iso_work *w = arg;
     if (outcome == JOB_SUCCEEDED) {
-        int rc = store_model(w);
+        int rc = w->vol.all_labels ? store_label_models(w) : store_model(w);
         outcome = rc == SF_ECANCEL ? JOB_CANCELLED : rc ? JOB_FAILED : JOB_SUCCEEDED;
     }
     service_job_end(w->job.svc, &w->job.claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     iso_free(w->ij);
     iso_adapt_free(w->ad);
+    iso_labels_free(&w->lab);
     volume_free(&w->vol);
     drop_request(w);
     if (w->file[0])
@@ -306,7 +420,7 @@ static int blank_identity(struct job_body *b, struct sf_err *err)
 static int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     const char *body = b->body ? b->body : "";
-    int rc = volume_check(body, b->len, b->format, b->options, err);
+    int rc = volume_check(body, b->len, b->format, b->options, (int)svc->cfg.max_labels, err);
     const char *format = rc ? "" : volume_format_of(body, b->len, b->format, b->options);
     if (!rc && !strcmp(format, "dicom") && !svc->cfg.keep_phi)
         return blank_identity(b, err);

@@ -173,6 +173,11 @@ static int matrix_validate(struct service *svc, struct job_body *b, struct sf_er
 {
     char id[64];
     query_option(b->options, "model", id, sizeof id);
+    char labels[8];
+    query_option(b->options, "labels", labels, sizeof labels);
+    if (!id[0] && labels[0]) /* (?label=N: its mask's matrices) */
+        return sf_fail(err, SF_EINVAL, "?labels", "a matrix model is of one body: labels=all is for POST /isosurface "
+                       "(label=N gives one label's matrices)");
     if (!id[0])
         return isosurface_kind.validate(svc, b, err);
     if (b->len)

@@ -192,10 +192,11 @@ class Client:
 
     def isosurface(self, volume: Body, content_type: Optional[str] = None, **options: Any) -> Dict[str, Any]:
         """POST /isosurface: a volume (NRRD, MetaImage, NIfTI, raw samples with dims and type, a
-        directory of a DICOM series' images, one multi-frame DICOM image: an Enhanced CT or MR, an RT
-        Dose with iso in Gy, a Segmentation with segment=N and iso 0.5) or an FRep object; the model
-        resource. options: iso, dims, type, spacing, origin, levels, max_error, features, closed,
-        name, segment."""
+        directory of a DICOM series' images, a detached header with its data file, one multi-frame DICOM
+        image: an Enhanced CT or MR, an RT Dose with iso in Gy, a Segmentation with segment=N and iso 0.5)
+        or an FRep object; the model resource. options: iso, dims, type, spacing, origin, levels,
+        max_error, features, closed, name, segment; for a label map (no iso) label=N (that label's
+        model) or labels="all" (one model a label: {"models": [...]})."""
         return self._job("POST", "/isosurface", options, volume, content_type)
 
     def edit(self, model_id: str, samples: Optional[Body] = None, region: Any = None,

@@ -4,15 +4,22 @@
   write(path, data, dims, datatype, bitpix, sform=None, qform=None, pixdim=(1, 1, 1), version=1, ...)
     sform: the 3x4 voxel-to-RAS affine (rows); qform: (b, c, d, qx, qy, qz, qfac) with pixdim;
     neither: the pixdims alone. big: big-endian. gz: the file gzipped. magic, dim0, dim4: overrides
-    for the bad files."""
+    for the bad files. extensions: [(ecode, bytes)] written after the header (each padded to 16
+    bytes); intent_name: the header's (16 bytes at most)."""
 import gzip
 import struct
 
 
 def write(path, data, dims, datatype, bitpix, sform=None, qform=None, pixdim=(1, 1, 1), version=1, gz=False,
-          slope=0.0, inter=0.0, units=2, big=False, magic=None, dim0=3, dim4=1, extension=0):
+          slope=0.0, inter=0.0, units=2, big=False, magic=None, dim0=3, dim4=1, extension=0, extensions=None,
+          intent_name=b""):
     """extension: bytes of an (empty) extension between the header and the samples (vox_offset grows)."""
     e = ">" if big else "<"
+    ext = b""
+    for code, body in extensions or []:
+        size = (8 + len(body) + 15) // 16 * 16
+        ext += struct.pack(e + "ii", size, code) + body + b"\0" * (size - 8 - len(body))
+    extension += len(ext)
     qfac = qform[6] if qform else 1.0
     dim = [dim0] + list(dims) + [dim4, 1, 1, 1]
     pix = [qfac] + list(pixdim) + [0, 0, 0, 0]
@@ -30,6 +37,7 @@ def write(path, data, dims, datatype, bitpix, sform=None, qform=None, pixdim=(1,
         if sform:
             struct.pack_into(e + "h", h, 254, 1)
             struct.pack_into(e + "12f", h, 280, *[v for row in sform for v in row])
+        h[328:328 + len(intent_name)] = intent_name
         h[344:348] = magic or b"n+1\0"
     else:
         h = bytearray(540)
@@ -47,6 +55,7 @@ def write(path, data, dims, datatype, bitpix, sform=None, qform=None, pixdim=(1,
             struct.pack_into(e + "i", h, 348, 1)
             struct.pack_into(e + "12d", h, 400, *[v for row in sform for v in row])
         struct.pack_into(e + "i", h, 500, units)
-    out = bytes(h) + b"\0" * (4 + extension) + data
+        h[508:508 + len(intent_name)] = intent_name
+    out = bytes(h) + (b"\1\0\0\0" + ext + b"\0" * (extension - len(ext)) if ext else b"\0" * (4 + extension)) + data
     with open(path, "wb") as f:
         f.write(gzip.compress(out) if gz else out)
