@@ -64,20 +64,17 @@ struct volume {
     char map_name[17];       /* a NIfTI's intent_name, naming its unnamed labels "NAME N" */
 };
 
-/* The body's format from its Content-Type: "raw" (application/octet-stream; a NRRD, MetaImage,
- * NIfTI or DICOM file posted so, without ?dims, is read as what it is), "nrrd" (application/x-nrrd,
- * image/x-nrrd), "mha" (application/x-metaimage), "nifti" (application/x-nifti, image/x-nifti),
- * "dicom" (a series as multipart/form-data, one slice a part; or application/dicom: one file, a
- * multi-frame image), "frep" (application/json: an FRep
- * object, frep_json.h); NULL for others. A body posted without a type (or as application/gzip) is
- * sniffed (NRRD's magic, MetaImage's "ObjectType", a NIfTI header, gzip or not, a multipart
- * boundary, a JSON object), else raw. */
+/* The body's format from its Content-Type on the volume routes (formats.h's table): "raw"
+ * (application/octet-stream: a NRRD, MetaImage, NIfTI or DICOM file posted so, without ?dims, is
+ * read as what it is), "nrrd", "mha", "nifti", "dicom", "frep" (application/json); "" for a body to
+ * sniff (no type, application/gzip, multipart/form-data: a DICOM series or a detached header with
+ * its data file); NULL for others (415). */
 const char *volume_format_from_type(const char *content_type);
-/* The format volume_read reads the body as: format itself, but for "" (sniffed) and "raw": "nifti"
- * for a NIfTI header (gzip or not), else "raw" when options give dims; then, for "" alone, "frep"
- * when the body begins as a JSON object's text; then "nrrd", "mha" by their headers, "dicom" for a
- * multipart body or one DICOM file ("DICM" after the preamble, or an explicit VR element of group
- * 0002 or 0008 first), else "raw". */
+/* The format volume_read reads the body as: "nrrd" or "mha" for a multipart body of a detached
+ * header and its data file; format itself, but for "" (sniffed), "dicom" and "raw": "nifti" for a
+ * NIfTI header (gzip or not), else "raw" when options give dims; then by the formats' magic
+ * (formats.h: an FRep's JSON object for "" alone, DICOM, NRRD, MetaImage), "dicom" for another
+ * multipart body (a series), else "raw". */
 const char *volume_format_of(const char *body, size_t len, const char *format, const char *options);
 
 /* A detached header (NRRD's "data file: F", MetaImage's "ElementDataFile = F", not LOCAL, a list
