@@ -4,10 +4,12 @@
  * half a pixel. Its triangles mark the pixel centres they cover (no padding: the triangles of a
  * patch tile its image, so only the outline of that image can be off the true one); the
  * outline - the grid's border and every fold, where two neighbouring triangles face opposite
- * ways on screen - is then widened by the chord error as the projection may stretch it
- * (capsules around those edges), so the true silhouette always has a seed. Seeds take the
- * perspective-correct attributes of the covering triangle, or of the nearest point of the
- * outline edge; a candidate near its patch's outline remembers the depth of the outline and of
+ * ways on screen or either is too thin there for its turn to be the surface's (the chord bound's
+ * second derivatives let the surface's tangents leave its edges by 4 chord errors: a sliver seen
+ * edge-on may be pleated within a cell) - is then widened by the chord error as the projection
+ * may stretch it (capsules around those edges), so the true silhouette always has a seed. Seeds
+ * take the perspective-correct attributes of the covering triangle, or of the nearest point of
+ * the outline edge; a candidate near its patch's outline remembers the depth of the outline and of
  * any fold there (the tracer then trusts no root behind a fold, nor one seeded by the outline
  * alone). A seam - a whole edge two patches share, one's parameter going on into the other's
  * (bvh_seam) - is sampled at the same parameters on both sides and is no outline where the
@@ -410,6 +412,17 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
     double twice = pt->rational ? 2.0 : 1.0; /* the bound taken twice for rational patches */
     float pad = (float)(twice * err_px * stretch + MAP_PAD_SLACK);
     double chord = 2.0 * tess_grid_error(pt, gu, gv); /* twice the bound: rational patches */
+    /* a triangle turns as the surface over it does only where it is thick enough. Along u the
+     * surface's derivative times the cell's step leaves the chord of its cell by at most M h² / 2,
+     * four times the chord error M h² / 8 of that direction (M the second-difference bound the
+     * grid is sized on), on screen dev_u pixels; the same along v. The surface's Jacobian keeps
+     * the sign of the triangle's u edge x v edge where that exceeds dev_u |v edge| + dev_v |u edge|
+     * + dev_u dev_v; a thinner triangle may hide a fold (a sliver seen edge-on may be pleated
+     * within its cells, its triangles all turning one way) and is drawn as turning neither way:
+     * its edges are outline, folds inside the grid */
+    const double px_err = twice * stretch / m->pix[index];
+    const double dev_u = 4.0 * px_err * (pt->wmin > 0.0 ? pt->curv[0] : bezier_net_curvature(pt, 0)) / (8.0 * gu * gu);
+    const double dev_v = 4.0 * px_err * (pt->wmin > 0.0 ? pt->curv[1] : bezier_net_curvature(pt, 1)) / (8.0 * gv * gv);
     const size_t base = m->vfirst[index], nc = (size_t)gu * gv;
     size_t nt = m->first[index];
     float *zc = sc->zc;
@@ -460,7 +473,12 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
             for (int k = 0; k < 2; k++) {
                 const struct map_vert *p0 = &m->verts[tri[k][0]], *p1 = &m->verts[tri[k][1]], *p2 = &m->verts[tri[k][2]];
                 double area = (p1->x - p0->x) * (p2->y - p0->y) - (p1->y - p0->y) * (p2->x - p0->x);
-                sg[2 * CELL(i, j) + k] = keep[CELL(i, j)] ? (signed char)((area > 0) - (area < 0)) : 0;
+                /* its u edge (b - a; b+1 - a+1) and v edge (b+1 - b; a+1 - a): too thin, no turn */
+                const struct map_vert *ua = &m->verts[k ? a + 1 : a], *ub = &m->verts[k ? b + 1 : b];
+                const struct map_vert *va = &m->verts[k ? a : b], *vb = &m->verts[k ? a + 1 : b + 1];
+                double thick = dev_u * hypot(vb->x - va->x, vb->y - va->y) + dev_v * hypot(ub->x - ua->x, ub->y - ua->y) +
+                               dev_u * dev_v;
+                sg[2 * CELL(i, j) + k] = keep[CELL(i, j)] ? (signed char)((area > thick) - (area < -thick)) : 0;
             }
             double iz = dmax(dmax(m->verts[a].iz, m->verts[a + 1].iz), dmax(m->verts[b].iz, m->verts[b + 1].iz));
             zc[CELL(i, j)] = (float)(1.0 / iz);
