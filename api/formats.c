@@ -251,3 +251,36 @@ char *input_formats_json(void)
     json_decref(o);
     return text;
 }
+
+/* ---- what is not read ---- */
+
+/* Formats people post by mistake, by their magic: said by name, never read. */
+static const struct {
+    const char *magic;
+    size_t n;
+    const char *what;
+} FOREIGN[] = {{"\x89PNG\r\n\x1a\n", 8, "a PNG image"},
+               {"\xff\xd8\xff", 3, "a JPEG image"},
+               {"GIF8", 4, "a GIF image"},
+               {"II*\0", 4, "a TIFF image"},
+               {"MM\0*", 4, "a TIFF image"},
+               {"PK\x03\x04", 4, "a ZIP archive"},
+               {"%PDF", 4, "a PDF document"},
+               {"ISO-10303-21", 12, "a STEP file (Open CASCADE or a CAD system can write it as IGES)"},
+               {"solid ", 6, "an STL mesh"},
+               {"ply\n", 4, "a PLY mesh"},
+               {"BZh", 3, "bzip2 data"},
+               {"\xfd" "7zXZ", 5, "xz data"},
+               {"\x1f\x8b", 2, "gzip data that is not a NIfTI file"}};
+
+int input_refuse_foreign(const char *buf, size_t len, unsigned route, const char *path, struct sf_err *err)
+{
+    for (size_t k = 0; k < sizeof FOREIGN / sizeof *FOREIGN; k++)
+        if (len >= FOREIGN[k].n && !memcmp(buf, FOREIGN[k].magic, FOREIGN[k].n)) {
+            char names[256];
+            input_format_names(route, names, sizeof names);
+            return sf_fail(err, SF_EFORMAT, "", "the body is %s, which is not read: %s reads %s (GET /formats)",
+                           FOREIGN[k].what, path, names);
+        }
+    return 0;
+}

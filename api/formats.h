@@ -12,6 +12,8 @@
 #include <stdbool.h>
 #include <stddef.h>
 
+#include "../core/base/err.h"
+
 /* The routes that read a body (a kind's route). */
 enum input_route {
     IN_RENDER = 1,     /* POST /render: a scene */
@@ -56,6 +58,11 @@ void input_format_names(unsigned route, char *out, size_t cap);
 /* GET /formats: the table as JSON ({"formats": [{name, aliases, extensions, media, routes: ["/render",
  * ...], sniffed, description}], "sniffed_media": {type: [routes]}}), NULL without memory. */
 char *input_formats_json(void);
+
+/* SF_EFORMAT naming what a body is when its magic is a format no route reads (a PNG or JPEG image,
+ * a ZIP, a PDF, an STL or STEP file, gzip of something else...), saying what route reads; else 0.
+ * For the readers that would otherwise take such a body for their fallback (raw samples, VRML). */
+int input_refuse_foreign(const char *buf, size_t len, unsigned route, const char *path, struct sf_err *err);
 
 /* The magic of some formats, for the readers that check a body against its declared format. */
 bool format_sniff_nrrd(const char *buf, size_t len);

@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "../core/base/clock.h"
+#include "formats.h"
 #include "json_in.h"
 #include "matrix_json.h"
 #include "query.h"
@@ -141,6 +142,8 @@ static bool matrix_body(const char *buf, size_t len) { return json_has_member(bu
 
 int model_validate(const char *buf, size_t len, const char *format, const char *options, struct sf_err *err)
 {
+    if ((!format || !strcmp(format, "json")) && input_refuse_foreign(buf, len, IN_VOLUME, "a route of contours", err))
+        return err->code;
     if ((!format || !strcmp(format, "json")) && matrix_body(buf, len)) { /* its shapes, elements and integrity */
         struct matrix_request r;
         int rc = matrix_parse(buf, len, &r, err), bk, bi, bj;

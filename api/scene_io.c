@@ -47,6 +47,9 @@ int scene_parse_models(const char *buf, size_t len, enum scene_format fmt, const
     *img = IMG_PNG;
     if (len > SCENE_MAX_BODY)
         return sf_fail(err, SF_ELIMIT, "", "scene of %zu bytes is over the limit of %u", len, SCENE_MAX_BODY);
+    int rc = fmt == SCENE_UNKNOWN ? input_refuse_foreign(buf, len, IN_RENDER, "a route of scenes", err) : 0;
+    if (rc)
+        return rc;
     if (fmt == SCENE_UNKNOWN)
         fmt = scene_format_sniff(buf, len);
     switch (fmt) {

@@ -712,8 +712,11 @@ static int read_raw(const char *body, size_t len, const char *options, struct vo
     int rc = query_numbers(options, "dims", 3, d, &given, err);
     if (rc)
         return rc;
+    if (!given && (rc = input_refuse_foreign(body, len, IN_ISOSURFACE, "POST /isosurface", err)))
+        return rc;
     if (!given)
-        return sf_fail(err, SF_EINVAL, "?dims", "raw samples need dims=X,Y,Z (and type, spacing, origin)");
+        return sf_fail(err, SF_EINVAL, "?dims", "raw samples need dims=X,Y,Z (and type, spacing, origin): the body is "
+                       "no other format read here by its first bytes (NRRD, MetaImage, NIfTI, DICOM, an FRep's JSON)");
     int dims[3];
     if ((rc = check_dims(d, "?dims", dims, err)))
         return rc;

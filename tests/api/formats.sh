@@ -74,6 +74,11 @@ bad = [(r, e) for f in d[\"formats\"] for r in f[\"routes\"] for e in f[\"extens
        if c._media_of(Path(\"a\" + e), r) != next(g[\"media\"][0] for g in d[\"formats\"] if r in g[\"routes\"] and
                                                    any((\"a\" + e).endswith(x) for x in g[\"extensions\"]))]
 sys.exit(1 if bad else 0)" "$URL" "$T/formats.json"'
+printf '\211PNG\r\n\032\n0000000000000000' >"$T/x.png"
+for route in "/isosurface?iso=1" /render /volume /model; do
+    code=$(status POST "$route" --data-binary @"$T/x.png")
+    check "a PNG posted to $route without a type: 400 saying it is a PNG image, not read, and what the route reads" '[ "$code" = 400 ] && grep -q "the body is a PNG image, which is not read" "$T/body" && grep -q "GET /formats" "$T/body"'
+done
 cp "${SURFD_DATA:-../shared/data}/volumes/ct_head_crop64_int16.raw" "$T/crop.nii.gz"
 SURFD_URL="$URL" ./build/surfctl isosurface "$T/crop.nii.gz" --iso 1 -o "$T/x.stl" >/dev/null 2>"$T/err"
 check "surfctl sends a .nii.gz as the table's application/x-nifti (read as NIfTI: refused as not one, not as raw samples)" 'grep -q "NIfTI" "$T/err"'
