@@ -7,7 +7,7 @@
 
 const $ = (id) => document.getElementById(id);
 const TOKEN_KEY = "surfd.token";
-const state = { job: null, model: null, viewAbort: null, viewUrl: null };
+const state = { job: null, model: null, viewAbort: null, viewUrl: null, formats: [] };
 
 // ---- requests ------------------------------------------------------------------------------
 
@@ -44,21 +44,24 @@ function askToken() {
 
 // ---- the form ------------------------------------------------------------------------------
 
-// Content-Type of a file for a route, from its name (the daemon sniffs text/plain bodies).
-function typeOf(name, route) {
-  const ext = name.toLowerCase().split(".").pop();
-  const types = { json: "application/json", dcm: "application/dicom", bpt: "model/x-bpt", wrl: "model/vrml",
-    vrml: "model/vrml", nurbs: "model/vrml", nrrd: "application/x-nrrd", nhdr: "application/x-nrrd",
-    mha: "application/x-metaimage", mhd: "application/x-metaimage", igs: "model/iges", iges: "model/iges" };
-  if (types[ext]) return types[ext];
-  return route === "render" ? "text/plain" : "application/octet-stream";
+// The daemon's table of input formats (GET /formats): a file's format by its name on a route.
+function formatOf(name, route) {
+  const n = name.toLowerCase();
+  return state.formats.find((f) => (!route || f.routes.includes("/" + route)) && f.extensions.some((e) => n.endsWith(e)));
 }
 
+// Content-Type of a file for a route, from the table (a file it does not know: sniffed by the daemon).
+function typeOf(name, route) {
+  const f = formatOf(name, route);
+  return f ? f.media[0] : "application/octet-stream";
+}
+
+// The route a file goes to: contours and structure sets to /model, scenes to /render, volumes to
+// /isosurface.
 function routeFor(name) {
-  const ext = name.toLowerCase().split(".").pop();
-  if (["bpt", "wrl", "vrml", "nurbs", "igs", "iges"].includes(ext)) return "render";
-  if (["nrrd", "nhdr", "mha", "mhd", "raw"].includes(ext)) return "isosurface";
-  return "model";
+  const f = formatOf(name, null);
+  if (!f || f.routes.includes("/model")) return "model";
+  return f.routes.includes("/render") ? "render" : "isosurface";
 }
 
 function showOptions() {
@@ -367,6 +370,8 @@ async function refreshAll() {
     const v = await r.json();
     $("version").textContent = v.version || "";
   }
+  const f = await api("GET", "/formats");
+  if (f.ok) state.formats = (await f.json()).formats;
   await Promise.all([refreshModels(), refreshJobs()]);
 }
 

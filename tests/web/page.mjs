@@ -45,6 +45,14 @@ try {
   await page.waitForFunction(() => document.getElementById("version").textContent !== "");
   await page.screenshot({ path: SHOTS + "/1-loaded-" + tag + ".png" });
 
+  // a file's route and type from the daemon's table of formats (GET /formats)
+  await page.waitForFunction(() => state.formats.length > 0);
+  for (const [name, route] of [["ct.nii.gz", "isosurface"], ["part.igs", "render"], ["head.mhd", "isosurface"], ["rs.dcm", "model"]]) {
+    await page.setInputFiles("#file", { name, mimeType: "application/octet-stream", buffer: Buffer.from("x") });
+    check("a file named " + name + " picks POST /" + route + " (the formats' table)", (await page.inputValue("#route")) === route);
+  }
+  check("... and is sent as the table's type (.nii.gz: application/x-nifti)",
+    (await page.evaluate(() => typeOf("ct.nii.gz", "isosurface"))) === "application/x-nifti");
   await page.setInputFiles("#file", CONTOURS);
   check("a .json file picks POST /model", (await page.inputValue("#route")) === "model");
   await page.selectOption("select[name=caps]", "flat");
