@@ -22,7 +22,7 @@ WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-proto
 ifneq ($(filter true 1,$(CI) $(WERROR)),)
 WARN    += -Werror
 endif
-CSTD    := -std=c11 -D_DEFAULT_SOURCE -I/usr/include/postgresql
+CSTD    := -std=c11 -D_DEFAULT_SOURCE -I/usr/include/postgresql -I/usr/include/openjpeg-2.5
 OPT     ?= -O2 -g
 CFLAGS  := $(CSTD) $(OPT) $(WARN) -MMD -MP -DSURFD_VERSION='"$(VERSION)"'
 CXXFLAGS:= -std=c++17 $(OPT) -Wall -Wextra -MMD -MP
@@ -30,7 +30,7 @@ SAN     := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-re
 TSAN    := -fsanitize=thread
 
 CORE_LIBS := -lembree3 -lm
-API_LIBS  := -ljansson -lz
+API_LIBS  := -ljansson -lz -lopenjp2
 DAEMON_LIBS := -lmicrohttpd -lsqlite3 -lpq -lgnutls -lpthread
 IMG_LIBS  := -lOpenImageIO -lOpenImageIO_Util -lstdc++
 DCM_LIBS  := -ldcmjpls -ldcmjpeg -ldcmimgle -ldcmdata -loflog -lofstd -lstdc++
