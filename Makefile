@@ -195,7 +195,7 @@ $(B)/tests/core/matrix/tsan_fragments: tests/core/matrix/tsan_fragments.c tests/
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/core/matrix/tsan_fragments.c core/matrix/fragment.c core/geom/trimesh.c core/base/mem.c core/base/err.c -lm -lpthread
 # the map's parts on threads (its seams from the test's own table: no hierarchy, no Embree)
-TSAN_MAP_SRC := core/trace/map.c core/geom/tess.c core/geom/bezier.c core/geom/trim.c core/base/mem.c core/base/err.c
+TSAN_MAP_SRC := core/trace/map.c core/trace/bvh_cone.c core/geom/tess.c core/geom/bezier.c core/geom/trim.c core/base/mem.c core/base/err.c
 $(B)/tests/core/trace/tsan_map: tests/core/trace/tsan_map.c tests/unit.h $(TSAN_MAP_SRC) $(wildcard core/trace/*.h core/geom/*.h)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/core/trace/tsan_map.c $(TSAN_MAP_SRC) -lm -lpthread

@@ -1,6 +1,6 @@
 /* bvh_cone.h - cones of normals and bounds of chords of Bézier patches (bvh_cone.c), for the
- * exact hierarchy's leaves and seams (bvh.c). Private to core/trace's hierarchy: nothing else
- * includes it. Every bound is a sine of a half-angle, > 1 where there is none. */
+ * exact hierarchy's leaves and seams (bvh.c). Private to core/trace: the hierarchy, and the map
+ * (normal_cone, sub_net: where a patch may be seen edge-on). Every bound is a sine of a half-angle, > 1 where there is none. */
 #ifndef SURFD_BVH_CONE_H
 #define SURFD_BVH_CONE_H
 

@@ -6,7 +6,9 @@
  * outline - the grid's border and every fold, where two neighbouring triangles face opposite
  * ways on screen or either is too thin there for its turn to be the surface's (the chord bound's
  * second derivatives let the surface's tangents leave its edges by 4 chord errors: a sliver seen
- * edge-on may be pleated within a cell) - is then widened by the chord error as the projection
+ * edge-on may be pleated within a cell; tested only where the patch's normal cone and the
+ * directions from the eye to it leave room for an edge-on view: elsewhere its image folds nowhere)
+ * - is then widened by the chord error as the projection
  * may stretch it (capsules around those edges), so the true silhouette always has a seed. Seeds
  * take the perspective-correct attributes of the covering triangle, or of the nearest point of
  * the outline edge; a candidate near its patch's outline remembers the depth of the outline and of
@@ -29,6 +31,7 @@
 #include "../base/mem.h"
 #include "../geom/tess.h"
 #include "bvh.h"
+#include "bvh_cone.h"
 
 #define MAP_ERR_PX 0.5   /* chord error allowed, in pixels at the patch's nearest depth */
 #define MAP_PAD_SLACK 0.1 /* pixels the outline is widened by beyond the projected chord error */
@@ -393,7 +396,70 @@ struct grid_scratch {
     signed char *sg;   /* 2 per cell: the triangles' turns on screen */
     bool *keep;        /* 1 per cell: the trim region holds some of it */
     double *bv;        /* (gv + 1) x (q + 1): the Bernstein values of the grid's rows */
+    bool *edge_on;     /* 1 per cell: the patch may be seen edge-on over it (edge_on_cells) */
 };
+
+/* True when no view ray meets the polynomial patch `part` edge-on: its normals' cone (normal_cone)
+ * and the cone of the directions from the eye to its net's points (which holds those to all its
+ * points: a positive combination of them) are further than 90 degrees apart everywhere, so
+ * n.(S - eye) - the sign of the Jacobian of its image on screen - keeps its sign over it and its
+ * image folds nowhere. False where it cannot tell (a rational patch: no cone). */
+static bool never_edge_on(const struct patch *part, const struct camera *cam)
+{
+    vec3 a, c = cam->f;
+    double sin_a, cos_b = 1.0;
+    normal_cone(part, &a, &sin_a);
+    if (!(sin_a < 1.0))
+        return false;
+    if (!cam->ortho) {
+        const int n = (part->p + 1) * (part->q + 1);
+        vec3 sum = v3(0, 0, 0);
+        for (int k = 0; k < n; k++) {
+            vec3 d = v3_sub(v3(part->cw[k][0], part->cw[k][1], part->cw[k][2]), cam->eye);
+            if (!(v3_len(d) > 0.0))
+                return false;
+            sum = v3_add(sum, v3_norm(d));
+        }
+        if (!(v3_len(sum) > 0.0))
+            return false;
+        c = v3_norm(sum);
+        for (int k = 0; k < n; k++)
+            cos_b = fmin(cos_b, v3_dot(c, v3_norm(v3_sub(v3(part->cw[k][0], part->cw[k][1], part->cw[k][2]), cam->eye))));
+        if (!(cos_b > 0.0))
+            return false;
+    }
+    const double theta = acos(fmax(-1.0, fmin(1.0, v3_dot(a, c)))), spread = asin(sin_a) + acos(fmin(1.0, cos_b));
+    const double margin = 1e-6; /* radians: the cones' rounding */
+    return theta + spread < 0.5 * M_PI - margin || theta - spread > 0.5 * M_PI + margin;
+}
+
+#define EDGE_ON_MIN_CELLS 4 /* a block of the grid this small is not split further */
+
+/* edge_on[cell] over the cells [i0, i1) x [j0, j1) of a gu x gv grid of polynomial patch pt: false
+ * where its part of the patch is never seen edge-on (never_edge_on), splitting the block in two
+ * along its longer side while it may be and is larger than EDGE_ON_MIN_CELLS. */
+static void edge_on_cells(const struct patch *pt, const struct camera *cam, int gu, int gv, int i0, int i1, int j0,
+                          int j1, bool *edge_on)
+{
+    double net[(PATCH_MAX_DEGREE + 1) * (PATCH_MAX_DEGREE + 1)][4], tmp[(PATCH_MAX_DEGREE + 1) * (PATCH_MAX_DEGREE + 1)][4];
+    struct patch part = *pt;
+    part.cw = net;
+    sub_net(pt, (double)i0 / gu, (double)i1 / gu, (double)j0 / gv, (double)j1 / gv, net, tmp);
+    const bool free_ = never_edge_on(&part, cam);
+    if (free_ || (i1 - i0) * (j1 - j0) <= EDGE_ON_MIN_CELLS) {
+        for (int i = i0; i < i1; i++)
+            for (int j = j0; j < j1; j++)
+                edge_on[(size_t)i * gv + j] = !free_;
+        return;
+    }
+    if (i1 - i0 >= j1 - j0) {
+        edge_on_cells(pt, cam, gu, gv, i0, (i0 + i1) / 2, j0, j1, edge_on);
+        edge_on_cells(pt, cam, gu, gv, (i0 + i1) / 2, i1, j0, j1, edge_on);
+    } else {
+        edge_on_cells(pt, cam, gu, gv, i0, i1, j0, (j0 + j1) / 2, edge_on);
+        edge_on_cells(pt, cam, gu, gv, i0, i1, (j0 + j1) / 2, j1, edge_on);
+    }
+}
 
 /* Tessellates patch `index` on its grid for the camera into its slots of m->verts and m->tris
  * (map_begin's), its border's edges last, edge by edge (u = 0, u = 1, v = 0, v = 1: m->border).
@@ -427,8 +493,12 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
     size_t nt = m->first[index];
     float *zc = sc->zc;
     signed char *sg = sc->sg;
-    bool *keep = sc->keep;
+    bool *keep = sc->keep, *edge_on = sc->edge_on;
     const int p = pt->p, q = pt->q;
+    if (pt->rational) /* no cones: the thinness test everywhere */
+        memset(edge_on, 1, sizeof *edge_on * nc);
+    else
+        edge_on_cells(pt, cam, gu, gv, 0, gu, 0, gv, edge_on);
     for (int j = 0; j <= gv; j++)
         bezier_basis(q, (double)j / gv, sc->bv + (size_t)j * (q + 1), NULL); /* exactly 0 and 1 at the ends */
     const double sx = 0.5 * cam->W / (cam->th * cam->aspect), sy = 0.5 * cam->H / cam->th;
@@ -476,7 +546,7 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
                 /* its u edge (b - a; b+1 - a+1) and v edge (b+1 - b; a+1 - a): too thin, no turn */
                 const struct map_vert *ua = &m->verts[k ? a + 1 : a], *ub = &m->verts[k ? b + 1 : b];
                 const struct map_vert *va = &m->verts[k ? a : b], *vb = &m->verts[k ? a + 1 : b + 1];
-                double thick = dev_u * hypot(vb->x - va->x, vb->y - va->y) + dev_v * hypot(ub->x - ua->x, ub->y - ua->y) +
+                double thick = !edge_on[CELL(i, j)] ? 0.0 : dev_u * hypot(vb->x - va->x, vb->y - va->y) + dev_v * hypot(ub->x - ua->x, ub->y - ua->y) +
                                dev_u * dev_v;
                 sg[2 * CELL(i, j) + k] = keep[CELL(i, j)] ? (signed char)((area > thick) - (area < -thick)) : 0;
             }
@@ -838,12 +908,13 @@ int map_part(struct map *m, int step, int part)
         most_v = nv > most_v ? nv : most_v;
     }
     struct grid_scratch sc = {malloc(2 * sizeof *sc.zc * (most_c + 1)), malloc(2 * most_c + 2),
-                              malloc(sizeof *sc.keep * (most_c + 1)), malloc(sizeof *sc.bv * (most_v + 1))};
-    int rc = sc.zc && sc.sg && sc.keep && sc.bv ? 0 : SF_ENOMEM;
+                              malloc(sizeof *sc.keep * (most_c + 1)), malloc(sizeof *sc.bv * (most_v + 1)),
+                              malloc(sizeof *sc.edge_on * (most_c + 1))};
+    int rc = sc.zc && sc.sg && sc.keep && sc.bv && sc.edge_on ? 0 : SF_ENOMEM;
     for (size_t k = k0; k < k1 && !rc; k++)
         if (m->grid[k][0])
             add_patch(m, &m->patches[k], (int)k, &m->cam, &sc);
-    free(sc.zc), free(sc.sg), free(sc.keep), free(sc.bv);
+    free(sc.zc), free(sc.sg), free(sc.keep), free(sc.bv), free(sc.edge_on);
     m->part_failed[part] |= rc != 0;
     return rc;
 }
