@@ -74,6 +74,20 @@ static inline int check_range(struct sf_err *err, const char *where, const char 
     return 0;
 }
 
+/* The items of seq, walked once. DCMTK's getItem(i) walks its list from the start on every call,
+ * so a loop over i is quadratic in the count, which the object sets: 262 144 per-frame items took
+ * 164 s that way. T: DcmItem, or DcmPixelItem for a pixel sequence's fragments. */
+template <class T> std::vector<T *> items_of(DcmSequenceOfItems *seq)
+{
+    std::vector<T *> out;
+    if (!seq)
+        return out;
+    out.reserve(seq->card());
+    for (DcmObject *o = seq->nextInContainer(nullptr); o; o = seq->nextInContainer(o))
+        out.push_back(OFstatic_cast(T *, o));
+    return out;
+}
+
 /* The decoders, registered once a process (DCMTK's registries are global). */
 static inline void register_codecs()
 {
@@ -100,6 +114,44 @@ static inline bool decodable(E_TransferSyntax t)
     default:
         return false;
     }
+}
+
+/* The image pixel module's elements (PS3.3 C.7.6.3) that size a frame, and how they are coded. */
+struct pixel_module {
+    unsigned rows = 0, cols = 0, bits = 0, stored = 0; /* stored: BitsStored, all of bits when 0 or more */
+    bool is_signed = false;
+    E_TransferSyntax xfer = EXS_Unknown;
+    bool encapsulated = false;
+};
+
+/* ds's pixel module into h, refused alike for a series' slice and a multi-frame image (SF_EINVAL
+ * or SF_ELIMIT at where): compressed in a syntax no decoder here takes, no Rows or Columns,
+ * SamplesPerPixel other than 1, a frame of 2 GB or more. What BitsAllocated may be is the
+ * caller's to say (a CT's 8 or 16, an RT Dose's 16 or 32, a Segmentation's 1 or 8). */
+static inline int read_pixel_module(DcmDataset *ds, const char *where, pixel_module &h, struct sf_err *err)
+{
+    h.xfer = ds->getOriginalXfer();
+    DcmXfer x(h.xfer);
+    h.encapsulated = x.isEncapsulated();
+    if (h.encapsulated && !decodable(h.xfer))
+        return sf_fail(err, SF_EINVAL, where, "compressed pixel data (%s) is not read: send it uncompressed, or as RLE, "
+                       "JPEG (baseline, extended, lossless) or JPEG-LS", x.getXferName());
+    Uint16 rows = 0, cols = 0, bits = 0, stored = 0, rep = 0, spp = 1;
+    if (ds->findAndGetUint16(DCM_Rows, rows).bad() || ds->findAndGetUint16(DCM_Columns, cols).bad() || rows < 1 ||
+        cols < 1)
+        return sf_fail(err, SF_EINVAL, where, "an image without Rows and Columns (is it an image?)");
+    ds->findAndGetUint16(DCM_BitsAllocated, bits);
+    ds->findAndGetUint16(DCM_BitsStored, stored);
+    ds->findAndGetUint16(DCM_PixelRepresentation, rep);
+    ds->findAndGetUint16(DCM_SamplesPerPixel, spp);
+    if (spp != 1)
+        return sf_fail(err, SF_EINVAL, where, "samples are one channel (SamplesPerPixel 1): SamplesPerPixel is %u",
+                       (unsigned)spp);
+    if ((uint64_t)rows * cols * (bits / 8) >= (1ull << 31))
+        return sf_fail(err, SF_ELIMIT, where, "a frame of 2 GB or more (Rows x Columns x BitsAllocated)");
+    h.rows = rows, h.cols = cols, h.bits = bits, h.stored = stored && stored <= bits ? stored : bits;
+    h.is_signed = rep == 1;
+    return 0;
 }
 
 /* One frame's compressed pixel data (ds: a data set of one frame, NumberOfFrames absent or 1, so

@@ -28,6 +28,16 @@ namespace {
  * 150 bytes here before any pixel is read. */
 #define FRAMES_MAX (1L << 18)
 #define SEGMENTS_LISTED 16 /* segments a refusal names */
+/* Fragments one compressed frame may span (PS3.5 A.4: its stream in one or more items). Writers
+ * put a frame in one, or cut it at a size (dcmtk's +fs 1: 1 KB), so a frame of B bytes of samples
+ * takes B / 1024 + 1 for any stream no longer than them; this allows twice that and 16 more. Past
+ * it, the fragments are refused: each is a walk of DCMTK's list in its decoders (getItem), so a
+ * frame trailed by 100 000 empty fragments took 27 s. Empty ones count as any other: the standard
+ * sets fragments no least length, and counted, they are bounded with the rest. */
+unsigned long frags_max(unsigned rows, unsigned cols, unsigned bits)
+{
+    return 16 + (unsigned long)((uint64_t)rows * cols * (bits / 8) / 512);
+}
 
 enum kind { FUNCTIONAL, DOSE, SEG };
 
@@ -51,20 +61,13 @@ struct image {
     unsigned max_fraction = 1;
     unsigned segment = 0; /* the segment read */
     std::vector<frame> f;
+    std::vector<DcmPixelItem *> frags; /* compressed: the pixel sequence's items, the offset table first */
 };
-
-void where_frame(char *out, size_t cap, int part, long frame)
-{
-    if (frame < 0)
-        snprintf(out, cap, "/parts/%d", part);
-    else
-        snprintf(out, cap, "/parts/%d/frames/%ld", part, frame);
-}
 
 int fail_at(struct sf_err *err, int code, int part, long frame, const char *what)
 {
     char where[48];
-    where_frame(where, sizeof where, part, frame);
+    planes_where(part, frame, where, sizeof where);
     return sf_fail(err, code, where, "%s", what);
 }
 
@@ -88,20 +91,17 @@ DcmItem *group(DcmItem *per_frame, DcmItem *shared, const DcmTagKey &seq)
     return nullptr;
 }
 
-/* The image pixel module's elements (C.7.6.3), what the kind allows of them, and the caps on the
- * frames and their samples. */
+/* The image pixel module (C.7.6.3) as a series' slice's is read (dcmtk_image.h), what the kind
+ * allows of it, and the caps on the frames and their samples. */
 int read_header(image &im, size_t max_samples, struct sf_err *err)
 {
     DcmDataset *ds = im.ds;
-    char what[240];
-    Uint16 rows = 0, cols = 0, bits = 0, stored = 0, rep = 0, spp = 1;
-    if (ds->findAndGetUint16(DCM_Rows, rows).bad() || ds->findAndGetUint16(DCM_Columns, cols).bad() || rows < 1 ||
-        cols < 1)
-        return fail_at(err, SF_EINVAL, im.part, -1, "a multi-frame image without Rows and Columns");
-    ds->findAndGetUint16(DCM_BitsAllocated, bits);
-    ds->findAndGetUint16(DCM_BitsStored, stored);
-    ds->findAndGetUint16(DCM_PixelRepresentation, rep);
-    ds->findAndGetUint16(DCM_SamplesPerPixel, spp);
+    char what[240], where[48];
+    planes_where(im.part, -1, where, sizeof where);
+    pixel_module h;
+    int rc = read_pixel_module(ds, where, h, err);
+    if (rc)
+        return rc;
     Sint32 frames = 1;
     if (ds->tagExists(DCM_NumberOfFrames) && ds->findAndGetSint32(DCM_NumberOfFrames, frames).bad())
         return fail_at(err, SF_EINVAL, im.part, -1, "NumberOfFrames is not a number");
@@ -109,10 +109,9 @@ int read_header(image &im, size_t max_samples, struct sf_err *err)
         snprintf(what, sizeof what, "NumberOfFrames is %ld: surfd reads 1 to %ld", (long)frames, FRAMES_MAX);
         return fail_at(err, frames < 1 ? SF_EINVAL : SF_ELIMIT, im.part, -1, what);
     }
-    im.rows = rows, im.cols = cols, im.bits = bits, im.stored = stored && stored <= bits ? stored : bits;
-    im.is_signed = rep == 1, im.n_frames = frames;
-    if (spp != 1)
-        return fail_at(err, SF_EINVAL, im.part, -1, "samples are one channel (SamplesPerPixel 1)");
+    unsigned bits = h.bits;
+    im.rows = h.rows, im.cols = h.cols, im.bits = bits, im.stored = h.stored, im.is_signed = h.is_signed;
+    im.n_frames = frames, im.xfer = h.xfer, im.encapsulated = h.encapsulated;
     if (im.k == SEG) {
         OFString type;
         ds->findAndGetOFString(DCM_SegmentationType, type);
@@ -122,7 +121,7 @@ int read_header(image &im, size_t max_samples, struct sf_err *err)
                      "(PS3.3 C.8.20.2)", type.c_str());
             return fail_at(err, SF_EINVAL, im.part, -1, what);
         }
-        if (bits != (im.fractional ? 8 : 1))
+        if (bits != (im.fractional ? 8u : 1u))
             return fail_at(err, SF_EINVAL, im.part, -1, im.fractional ? "a FRACTIONAL segmentation has BitsAllocated 8"
                                                                        : "a BINARY segmentation has BitsAllocated 1");
         im.is_signed = false;
@@ -139,27 +138,17 @@ int read_header(image &im, size_t max_samples, struct sf_err *err)
         return fail_at(err, SF_EINVAL, im.part, -1, "samples are one channel of 8 or 16 bits (a CT or MR image)");
     }
     /* the caps, in 64 bits, before anything is read */
-    uint64_t plane = (uint64_t)rows * cols, total = plane * (uint64_t)frames;
+    uint64_t total = (uint64_t)im.rows * im.cols * (uint64_t)frames;
     if (total > max_samples) {
         snprintf(what, sizeof what, "NumberOfFrames x Rows x Columns is %llu samples: over %zu",
                  (unsigned long long)total, max_samples);
         return fail_at(err, SF_ELIMIT, im.part, -1, what);
     }
-    if (plane * (bits / 8) >= (1ull << 31))
-        return fail_at(err, SF_ELIMIT, im.part, -1, "a frame of 2 GB or more (Rows x Columns x BitsAllocated)");
-    im.xfer = ds->getOriginalXfer();
-    DcmXfer x(im.xfer);
-    im.encapsulated = x.isEncapsulated();
-    if (im.encapsulated && !decodable(im.xfer)) {
-        snprintf(what, sizeof what, "compressed pixel data (%s) is not read: send the image uncompressed, or as RLE, "
-                 "JPEG (baseline, extended, lossless) or JPEG-LS", x.getXferName());
-        return fail_at(err, SF_EINVAL, im.part, -1, what);
-    }
     if (im.encapsulated && bits == 1)
         return fail_at(err, SF_EINVAL, im.part, -1, "a BINARY segmentation's pixel data is read uncompressed");
     if (im.encapsulated && total * (bits / 8) >= (1ull << 32))
         return fail_at(err, SF_ELIMIT, im.part, -1, "compressed frames of 4 GB or more in all");
-    if (x.getByteOrder() == EBO_BigEndian && bits != 16)
+    if (DcmXfer(im.xfer).getByteOrder() == EBO_BigEndian && bits != 16)
         return fail_at(err, SF_EINVAL, im.part, -1, "Explicit VR Big Endian (retired) is read for 16-bit samples alone");
     return 0;
 }
@@ -182,11 +171,14 @@ int read_functional(image &im, struct sf_err *err)
     DcmItem *shared = nullptr;
     if (ds->findAndGetSequenceItem(DCM_SharedFunctionalGroupsSequence, shared, 0).bad())
         shared = nullptr;
+    std::vector<DcmItem *> per = items_of<DcmItem>(pf);
+    if (per.size() != (size_t)im.n_frames)
+        return fail_at(err, SF_EINVAL, im.part, -1, "PerFrameFunctionalGroupsSequence's items cannot be read");
     im.f.resize((size_t)im.n_frames);
     for (long i = 0; i < im.n_frames; i++) {
         frame &fr = im.f[(size_t)i];
-        DcmItem *own = pf->getItem((unsigned long)i);
-        where_frame(where, sizeof where, im.part, i);
+        DcmItem *own = per[(size_t)i];
+        planes_where(im.part, i, where, sizeof where);
         DcmItem *pp = group(own, shared, DCM_PlanePositionSequence), *po = group(own, shared, DCM_PlaneOrientationSequence),
                 *pm = group(own, shared, DCM_PixelMeasuresSequence),
                 *pv = group(own, shared, DCM_PixelValueTransformationSequence);
@@ -224,6 +216,49 @@ int read_functional(image &im, struct sf_err *err)
     return 0;
 }
 
+/* GridFrameOffsetVector's n values (e: its element, of n values) into off, each read once: -1, or
+ * the first frame whose value is not a finite number within twice the range of positions. The
+ * element's text is split here: DCMTK's findAndGetFloat64(tag, v, i) finds value i by reading the
+ * text from its start, n^2 / 2 steps for n frames. Another VR (FD in explicit VR) is read by
+ * index, as before: direct for a binary one, refused at once for other text. */
+long grid_offsets(DcmElement *e, size_t n, std::vector<double> &off)
+{
+    off.assign(n, 0);
+    OFString text;
+    /* the text as it is: normalised, DCMTK would read it value by value, each found from the start */
+    bool is_text = e->ident() == EVR_DS && e->getOFStringArray(text, OFFalse).good();
+    size_t at = 0;
+    for (size_t i = 0; i < n; i++) {
+        double v = NAN;
+        if (is_text) {
+            size_t end = text.find('\\', at);
+            if (end == OFString_npos)
+                end = text.length();
+            size_t a = at, b = end;
+            while (a < b && text[a] == ' ')
+                a++;
+            while (b > a && text[b - 1] == ' ')
+                b--;
+            OFBool ok = OFFalse;
+            OFString one = text.substr(a, b - a);
+            if (!one.empty()) {
+                v = OFStandard::atof(one.c_str(), &ok);
+                if (!ok)
+                    v = NAN;
+            }
+            at = end + 1;
+        } else {
+            Float64 f;
+            if (e->getFloat64(f, (unsigned long)i).good())
+                v = f;
+        }
+        if (!std::isfinite(v) || std::fabs(v) > 2 * RANGE_MAX_COORD)
+            return (long)i;
+        off[i] = v;
+    }
+    return -1;
+}
+
 /* An RT Dose's planes (C.8.8.3.2): ImagePositionPatient is the first frame's, and
  * GridFrameOffsetVector each frame's offset along the normal: relative to it when its first value
  * is 0, else absolute z (then the first value is ImagePositionPatient's z, the image axial);
@@ -232,7 +267,7 @@ int read_dose(image &im, struct sf_err *err)
 {
     DcmDataset *ds = im.ds;
     char what[240], where[48];
-    where_frame(where, sizeof where, im.part, -1);
+    planes_where(im.part, -1, where, sizeof where);
     double pos[3], orient[6], spacing[2], scaling = 0;
     int rc;
     if ((rc = check_range(err, where, "ImagePositionPatient (mm)", get_doubles(ds, DCM_ImagePositionPatient, pos, 3),
@@ -259,17 +294,13 @@ int read_dose(image &im, struct sf_err *err)
                  "value a frame)", vm, im.n_frames);
         return sf_fail(err, SF_EINVAL, where, "%s", what);
     }
-    std::vector<double> off((size_t)im.n_frames);
-    for (long i = 0; i < im.n_frames; i++) {
-        Float64 v;
-        if (ds->findAndGetFloat64(DCM_GridFrameOffsetVector, v, (unsigned long)i).bad() || !std::isfinite(v) ||
-            std::fabs(v) > 2 * RANGE_MAX_COORD) {
-            char fw[48];
-            where_frame(fw, sizeof fw, im.part, i);
-            return sf_fail(err, SF_EINVAL, fw, "GridFrameOffsetVector's value for this frame is not a number within "
-                           "%g mm", 2 * RANGE_MAX_COORD);
-        }
-        off[(size_t)i] = v;
+    std::vector<double> off;
+    long bad = grid_offsets(e, (size_t)im.n_frames, off);
+    if (bad >= 0) {
+        char fw[48];
+        planes_where(im.part, bad, fw, sizeof fw);
+        return sf_fail(err, SF_EINVAL, fw, "GridFrameOffsetVector's value for this frame is not a number within "
+                       "%g mm", 2 * RANGE_MAX_COORD);
     }
     if (off[0] != 0) { /* absolute z: the standard allows it for axial doses alone */
         static const double AXIAL[6] = {1, 0, 0, 0, 1, 0};
@@ -319,52 +350,55 @@ std::string label_text(const OFString &s)
 }
 
 /* The segment a Segmentation is read for: ?segment (its SegmentNumber), or the only one; the
- * SegmentSequence's numbers (C.8.20.2) must be distinct, and every frame's one of them. */
+ * SegmentSequence's numbers (C.8.20.2) must be distinct, and every frame's one of them. The
+ * numbers are sorted once and looked up by halving (65 535 segments checked pair by pair, each
+ * frame against each, took 13.6 s). */
 int choose_segment(image &im, int segment, struct sf_err *err)
 {
     char where[48];
-    where_frame(where, sizeof where, im.part, -1);
+    planes_where(im.part, -1, where, sizeof where);
     DcmSequenceOfItems *ss = nullptr;
     if (im.ds->findAndGetSequence(DCM_SegmentSequence, ss).bad() || !ss || ss->card() == 0)
         return sf_fail(err, SF_EINVAL, where, "a segmentation without SegmentSequence (PS3.3 C.8.20.2)");
     if (ss->card() > 65535)
         return sf_fail(err, SF_ELIMIT, where, "over 65535 segments");
-    std::vector<std::pair<unsigned, std::string>> segs;
-    for (unsigned long i = 0; i < ss->card(); i++) {
-        DcmItem *it = ss->getItem(i);
+    std::vector<DcmItem *> items = items_of<DcmItem>(ss);
+    std::vector<std::pair<unsigned, DcmItem *>> segs; /* number, item: sorted by number */
+    segs.reserve(items.size());
+    for (size_t i = 0; i < items.size(); i++) {
         Uint16 n = 0;
-        OFString label;
-        if (!it || it->findAndGetUint16(DCM_SegmentNumber, n).bad() || n < 1)
-            return sf_fail(err, SF_EINVAL, where, "SegmentSequence item %lu has no SegmentNumber (1 or more)", i);
-        for (const auto &s : segs)
-            if (s.first == n)
-                return sf_fail(err, SF_EINVAL, where, "two segments numbered %u", (unsigned)n);
-        it->findAndGetOFString(DCM_SegmentLabel, label);
-        segs.emplace_back(n, label_text(label));
+        if (!items[i] || items[i]->findAndGetUint16(DCM_SegmentNumber, n).bad() || n < 1)
+            return sf_fail(err, SF_EINVAL, where, "SegmentSequence item %zu has no SegmentNumber (1 or more)", i);
+        segs.emplace_back(n, items[i]);
     }
-    std::sort(segs.begin(), segs.end());
+    std::sort(segs.begin(), segs.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
+    for (size_t i = 1; i < segs.size(); i++)
+        if (segs[i].first == segs[i - 1].first)
+            return sf_fail(err, SF_EINVAL, where, "two segments numbered %u", segs[i].first);
+    auto has = [&segs](unsigned n) {
+        auto at = std::lower_bound(segs.begin(), segs.end(), n, [](const auto &s, unsigned v) { return s.first < v; });
+        return at != segs.end() && at->first == n;
+    };
     std::string list;
-    for (size_t i = 0; i < segs.size() && i < SEGMENTS_LISTED; i++)
-        list += (i ? ", " : "") + std::to_string(segs[i].first) + (segs[i].second.empty() ? "" : " (" + segs[i].second + ")");
+    for (size_t i = 0; i < segs.size() && i < SEGMENTS_LISTED; i++) {
+        OFString label;
+        segs[i].second->findAndGetOFString(DCM_SegmentLabel, label);
+        std::string l = label_text(label);
+        list += (i ? ", " : "") + std::to_string(segs[i].first) + (l.empty() ? "" : " (" + l + ")");
+    }
     if (segs.size() > SEGMENTS_LISTED)
         list += ", ...";
     if (segment == 0 && segs.size() > 1)
         return sf_fail(err, SF_EINVAL, "?segment", "the segmentation holds %zu segments: %s; choose one with "
                        "?segment=N", segs.size(), list.c_str());
     unsigned want = segment ? (unsigned)segment : segs[0].first;
-    bool listed = false;
-    for (const auto &s : segs)
-        listed = listed || s.first == want;
-    if (!listed)
+    if (!has(want))
         return sf_fail(err, SF_EINVAL, "?segment", "the segmentation has no segment %u: its segments are %s", want,
                        list.c_str());
     im.segment = want;
     size_t used = 0;
     for (size_t i = 0; i < im.f.size(); i++) {
-        bool known = false;
-        for (const auto &s : segs)
-            known = known || s.first == im.f[i].segment;
-        if (!known) {
+        if (im.f[i].segment != want && !has(im.f[i].segment)) {
             char what[160];
             snprintf(what, sizeof what, "the frame's ReferencedSegmentNumber %u is none of SegmentSequence's "
                      "segments (%s)", im.f[i].segment, list.c_str());
@@ -380,8 +414,9 @@ int choose_segment(image &im, int segment, struct sf_err *err)
 
 /* The pixel data as its header says: uncompressed, long enough for every frame (the first frame it
  * cuts short named); compressed, each frame's fragments found (one a frame; else by the Basic
- * Offset Table, else, JPEG's, by their start-of-image markers). */
-int check_pixels(image &im, DcmPixelSequence **seq_out, struct sf_err *err)
+ * Offset Table, else, JPEG's, by their start-of-image markers), at most frags_max a frame (the
+ * fragments walked once, into im.frags). */
+int check_pixels(image &im, struct sf_err *err)
 {
     char what[200];
     DcmElement *pe = nullptr;
@@ -403,6 +438,16 @@ int check_pixels(image &im, DcmPixelSequence **seq_out, struct sf_err *err)
         seq->card() < 2)
         return fail_at(err, SF_EINVAL, im.part, -1, "compressed pixel data without fragments");
     unsigned long n_frag = seq->card() - 1, frames = (unsigned long)im.n_frames;
+    unsigned long cap = frags_max(im.rows, im.cols, im.bits);
+    if (n_frag > frames * cap) { /* before they are walked */
+        snprintf(what, sizeof what, "%lu fragments for %lu frames: surfd reads at most %lu a frame of %ux%u samples "
+                 "(PS3.5 A.4)", n_frag, frames, cap, im.rows, im.cols);
+        return fail_at(err, SF_ELIMIT, im.part, -1, what);
+    }
+    im.frags = items_of<DcmPixelItem>(seq);
+    const std::vector<DcmPixelItem *> &fr = im.frags;
+    if (fr.size() != n_frag + 1)
+        return fail_at(err, SF_EINVAL, im.part, -1, "the compressed pixel data's fragments cannot be read");
     std::vector<unsigned long> start; /* each frame's first item */
     if (n_frag == frames) {
         for (unsigned long i = 0; i < frames; i++)
@@ -412,9 +457,8 @@ int check_pixels(image &im, DcmPixelSequence **seq_out, struct sf_err *err)
                  n_frag, frames);
         return fail_at(err, SF_EINVAL, im.part, -1, what);
     } else {
-        DcmPixelItem *bot = nullptr;
+        DcmPixelItem *bot = fr[0];
         Uint8 *b = nullptr;
-        seq->getItem(bot, 0);
         Uint32 blen = bot ? bot->getLength() : 0;
         if (blen == 4 * frames && bot->getUint8Array(b).good() && b) { /* the Basic Offset Table (PS3.5 A.4) */
             uint64_t at = 0;
@@ -422,12 +466,8 @@ int check_pixels(image &im, DcmPixelSequence **seq_out, struct sf_err *err)
             for (unsigned long i = 0; i < frames; i++) {
                 uint64_t o = (uint64_t)b[4 * i] | (uint64_t)b[4 * i + 1] << 8 | (uint64_t)b[4 * i + 2] << 16 |
                              (uint64_t)b[4 * i + 3] << 24;
-                while (item <= n_frag && at < o) {
-                    DcmPixelItem *it = nullptr;
-                    seq->getItem(it, item);
-                    at += 8 + (it ? it->getLength() : 0);
-                    item++;
-                }
+                for (; item <= n_frag && at < o; item++)
+                    at += 8 + (fr[item] ? fr[item]->getLength() : 0);
                 if (at != o || item > n_frag || (i > 0 && item <= start.back()))
                     return fail_at(err, SF_EINVAL, im.part, (long)i, "the Basic Offset Table puts this frame where no "
                                    "fragment begins");
@@ -435,10 +475,9 @@ int check_pixels(image &im, DcmPixelSequence **seq_out, struct sf_err *err)
             }
         } else if (blen == 0) { /* JPEG's frames begin with a start-of-image marker */
             for (unsigned long j = 1; j <= n_frag; j++) {
-                DcmPixelItem *it = nullptr;
                 Uint8 *d = nullptr;
-                if (seq->getItem(it, j).good() && it && it->getLength() >= 2 && it->getUint8Array(d).good() && d &&
-                    d[0] == 0xff && d[1] == 0xd8)
+                if (fr[j] && fr[j]->getLength() >= 2 && fr[j]->getUint8Array(d).good() && d && d[0] == 0xff &&
+                    d[1] == 0xd8)
                     start.push_back(j);
             }
             if (start.size() != frames || start[0] != 1) {
@@ -455,18 +494,21 @@ int check_pixels(image &im, DcmPixelSequence **seq_out, struct sf_err *err)
     for (unsigned long i = 0; i < frames; i++) {
         im.f[i].first = start[i];
         im.f[i].n_frags = (i + 1 < frames ? start[i + 1] : n_frag + 1) - start[i];
+        if (im.f[i].n_frags > cap) {
+            snprintf(what, sizeof what, "the frame spans %lu fragments: surfd reads at most %lu a frame of %ux%u "
+                     "samples (PS3.5 A.4)", im.f[i].n_frags, cap, im.rows, im.cols);
+            return fail_at(err, SF_ELIMIT, im.part, (long)i, what);
+        }
     }
-    *seq_out = seq;
     return 0;
 }
 
 /* The raw samples (stored bits, unsigned) of frame i into out, and the frame's BitsStored (a
  * decoder's narrower precision) into *stored. */
-int frame_samples(image &im, DcmPixelSequence *seq, long i, std::vector<uint32_t> &out, unsigned *stored,
-                  struct sf_err *err)
+int frame_samples(image &im, long i, std::vector<uint32_t> &out, unsigned *stored, struct sf_err *err)
 {
     char where[48];
-    where_frame(where, sizeof where, im.part, i);
+    planes_where(im.part, i, where, sizeof where);
     size_t n = (size_t)im.rows * im.cols;
     out.resize(n);
     *stored = im.stored;
@@ -487,9 +529,9 @@ int frame_samples(image &im, DcmPixelSequence *seq, long i, std::vector<uint32_t
         DcmPixelSequence *ps = new DcmPixelSequence(DCM_PixelSequenceTag);
         ps->insert(new DcmPixelItem(DCM_PixelItemTag)); /* an empty offset table */
         for (unsigned long j = fr.first; j < fr.first + fr.n_frags; j++) {
-            DcmPixelItem *src = nullptr;
+            DcmPixelItem *src = im.frags[j];
             Uint8 *d = nullptr;
-            if (seq->getItem(src, j).bad() || !src || (src->getLength() && (src->getUint8Array(d).bad() || !d))) {
+            if (!src || (src->getLength() && (src->getUint8Array(d).bad() || !d))) {
                 delete ps;
                 return sf_fail(err, SF_EINVAL, where, "a fragment of the frame cannot be read");
             }
@@ -538,8 +580,7 @@ int frame_samples(image &im, DcmPixelSequence *seq, long i, std::vector<uint32_t
 
 /* Each frame of the segment read (every frame, but a Segmentation's) decoded into its slice of
  * grid (im's planes laid out as pl). *whole: every value so far a whole number within int16. */
-int fill_grid(image &im, DcmPixelSequence *seq, const std::vector<struct plane> &pl, void *grid, bool *whole,
-              struct sf_err *err)
+int fill_grid(image &im, const std::vector<struct plane> &pl, void *grid, bool *whole, struct sf_err *err)
 {
     size_t plane = (size_t)im.rows * im.cols;
     bool binary = im.k == SEG && !im.fractional;
@@ -550,7 +591,7 @@ int fill_grid(image &im, DcmPixelSequence *seq, const std::vector<struct plane> 
         if (im.k == SEG && fr.segment != im.segment)
             continue;
         unsigned stored;
-        if ((rc = frame_samples(im, seq, p.tag, raw, &stored, err)))
+        if ((rc = frame_samples(im, p.tag, raw, &stored, err)))
             return rc;
         size_t base = (size_t)p.z * plane;
         if (binary) {
@@ -619,8 +660,7 @@ int frames_read(DcmDataset *ds, int k, bool check_only, size_t max_samples, int 
     if (im.k != SEG && segment)
         return sf_fail(err, SF_EINVAL, "?segment", "segment chooses a segment of a DICOM Segmentation: this image is "
                        "not one");
-    DcmPixelSequence *seq = nullptr;
-    if ((rc = check_pixels(im, &seq, err)))
+    if ((rc = check_pixels(im, err)))
         return rc;
     /* the planes: a Segmentation's every frame, whichever segment, makes its grid */
     std::vector<struct plane> pl(im.f.size());
@@ -662,7 +702,7 @@ int frames_read(DcmDataset *ds, int k, bool check_only, size_t max_samples, int 
         return sf_fail(err, SF_ENOMEM, "", "out of memory for the image's samples");
     out->g.samples = out->owned;
     bool whole = im.k != SEG;
-    if ((rc = fill_grid(im, seq, pl, out->owned, &whole, err))) {
+    if ((rc = fill_grid(im, pl, out->owned, &whole, err))) {
         free(out->owned);
         out->owned = NULL, out->g.samples = NULL;
         return rc;

@@ -11,12 +11,17 @@
 
 #include "ranges.h"
 
+void planes_where(int part, long frame, char *out, size_t cap)
+{
+    if (frame < 0)
+        snprintf(out, cap, "/parts/%d", part);
+    else
+        snprintf(out, cap, "/parts/%d/frames/%ld", part, frame);
+}
+
 void planes_pointer(const struct plane *p, char *out, size_t cap)
 {
-    if (p->frame < 0)
-        snprintf(out, cap, "/parts/%d", p->part);
-    else
-        snprintf(out, cap, "/parts/%d/frames/%d", p->part, p->frame);
+    planes_where(p->part, p->frame, out, cap);
 }
 
 static int fail_plane(struct sf_err *err, int code, const struct plane *p, const char *what)

@@ -40,7 +40,10 @@ struct planes_grid {
     double axes[3][3];       /* x, y, z in patient coordinates: the row direction, the column one, the normal */
 };
 
-/* The JSON pointer that names p ("/parts/K" or "/parts/K/frames/F") into out. */
+/* The JSON pointer that names frame F of part K ("/parts/K/frames/F"; "/parts/K" when F < 0) into
+ * out: what every refusal of a series' slice or a multi-frame image's frame is at. */
+void planes_where(int part, long frame, char *out, size_t cap);
+/* ... of plane p. */
 void planes_pointer(const struct plane *p, char *out, size_t cap);
 
 /* Lays the n planes of pl (sorted in place along the normal) out as one grid g, setting each

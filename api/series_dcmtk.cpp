@@ -31,48 +31,36 @@ struct slice {
 
 int fail_part(struct sf_err *err, int code, int part, const char *fmt, const char *what)
 {
-    char where[32];
-    snprintf(where, sizeof where, "/parts/%d", part);
+    char where[48];
+    planes_where(part, -1, where, sizeof where);
     return sf_fail(err, code, where, fmt, what);
 }
 
 /* The dataset of part k, read as dcmtk_in.h reads objects, into ff. */
 int read_part(const struct part &p, int k, bool check_only, DcmFileFormat &ff, struct sf_err *err)
 {
-    char where[32];
-    snprintf(where, sizeof where, "/parts/%d", k);
+    char where[48];
+    planes_where(k, -1, where, sizeof where);
     return dcm_read_object(p.data, p.len, where, check_only ? 4096 : DCM_MaxReadLength, ff, err);
 }
 
 int read_slice(DcmDataset *ds, int k, bool check_only, slice &sl, struct sf_err *err)
 {
-    char where[32];
-    snprintf(where, sizeof where, "/parts/%d", k);
-    E_TransferSyntax xfer = ds->getOriginalXfer();
-    DcmXfer x(xfer);
-    if (x.isEncapsulated() && !decodable(xfer))
-        return fail_part(err, SF_EINVAL, k, "compressed pixel data (%s) is not read: send the series uncompressed, or "
-                         "as RLE, JPEG (baseline, extended, lossless) or JPEG-LS", x.getXferName());
-    Uint16 rows = 0, cols = 0, bits = 0, stored = 0, rep = 0, spp = 1;
-    if (ds->findAndGetUint16(DCM_Rows, rows).bad() || ds->findAndGetUint16(DCM_Columns, cols).bad() || rows < 1 ||
-        cols < 1)
-        return fail_part(err, SF_EINVAL, k, "%s", "an image part without Rows and Columns (is it an image?)");
-    ds->findAndGetUint16(DCM_BitsAllocated, bits);
-    ds->findAndGetUint16(DCM_BitsStored, stored);
-    ds->findAndGetUint16(DCM_PixelRepresentation, rep);
-    ds->findAndGetUint16(DCM_SamplesPerPixel, spp);
+    char where[48];
+    planes_where(k, -1, where, sizeof where);
     /* a multi-frame image is read alone (frames_dcmtk.cpp), its frames each decoded on their own:
      * DCMTK 3.6.7's decoders size their buffer as a frame times NumberOfFrames in 32 bits, which a
      * crafted header makes wrap (upstream 31ff413f9) */
     if (frames_multiframe(ds))
         return fail_part(err, SF_EINVAL, k, "%s", "a multi-frame image (Enhanced CT or MR, RT Dose, Segmentation) is "
                          "read alone: post it as the body, or as a series of one part");
-    if ((bits != 8 && bits != 16) || spp != 1)
+    pixel_module h;
+    int rc = read_pixel_module(ds, where, h, err); /* as a multi-frame image's is read */
+    if (rc)
+        return rc;
+    if (h.bits != 8 && h.bits != 16)
         return fail_part(err, SF_EINVAL, k, "%s", "samples are one channel of 8 or 16 bits (a CT or MR image)");
-    if ((uint64_t)rows * cols * (bits / 8) >= (1ull << 31))
-        return fail_part(err, SF_ELIMIT, k, "%s", "an image of 2 GB or more (Rows x Columns x BitsAllocated)");
     /* ImagePositionPatient: the slice's corner; ImageOrientationPatient: two direction cosines */
-    int rc;
     if ((rc = check_range(err, where, "ImagePositionPatient (mm)", get_doubles(ds, DCM_ImagePositionPatient, sl.pos, 3),
                           sl.pos, 3, 0, RANGE_MAX_COORD, false)) ||
         (rc = check_range(err, where, "ImageOrientationPatient",
@@ -90,14 +78,14 @@ int read_slice(DcmDataset *ds, int k, bool check_only, slice &sl, struct sf_err 
         return rc;
     if (sl.slope == 0)
         return fail_part(err, SF_EINVAL, k, "%s", "RescaleSlope is 0");
-    sl.part = k, sl.rows = rows, sl.cols = cols, sl.bits = bits, sl.stored = stored ? stored : bits;
-    sl.is_signed = rep == 1;
+    sl.part = k, sl.rows = h.rows, sl.cols = h.cols, sl.bits = h.bits, sl.stored = h.stored;
+    sl.is_signed = h.is_signed;
     if (check_only)
         return 0;
-    if (x.isEncapsulated() && (rc = decode_frame(ds, bits, &sl.stored, where, err))) /* in place, one frame */
+    if (h.encapsulated && (rc = decode_frame(ds, h.bits, &sl.stored, where, err))) /* in place, one frame */
         return rc;
-    size_t n = (size_t)rows * cols;
-    if (bits == 16) {
+    size_t n = (size_t)h.rows * h.cols;
+    if (h.bits == 16) {
         const Uint16 *px = nullptr;
         unsigned long count = 0;
         if (ds->findAndGetUint16Array(DCM_PixelData, px, &count).bad() || !px || count < n)

@@ -1,15 +1,20 @@
 #!/bin/sh
 # Multi-frame DICOM over POST /isosurface (issue 47: 4), on files tests/tools/dicom_write.py makes
 # with pydicom: an Enhanced CT of the shared series (frames shuffled, placed by their functional
-# groups) gives the classic series' mesh to the bit, uncompressed and as dcmtk's tools compress it
-# (RLE, JPEG lossless, JPEG-LS, fragments split with and without an offset table); an RT Dose's
-# 20 Gy isodose is closed, in patient coordinates, and within 2 % of VTK's Flying Edges on the
-# same grid scaled to Gy (16 and 32 bits, relative, absolute and reversed GridFrameOffsetVector,
-# RLE); a Segmentation's segment (binary and fractional, sparse frames) gives the mesh its label
-# grid gives as raw samples; and every bad input (no DoseGridScaling, uneven frames, truncated
-# frames, a codec's garbage, a label out of range, two frames of a segment at one place, several
-# segments and no ?segment, a multi-frame image among a series' parts, over the frame cap) is
-# refused with its pointer, the daemon up. surfctl and the Python client post the same files.
+# groups, each frame's own intercept) gives the classic series' mesh to the bit, uncompressed and as
+# dcmtk's tools compress it (RLE, JPEG lossless, JPEG-LS, fragments split with and without an
+# offset table); an RT Dose's 20 Gy isodose is closed, in patient coordinates, and within 2 % of
+# VTK's Flying Edges on the same grid scaled to Gy (16 and 32 bits, relative, absolute and reversed
+# GridFrameOffsetVector, RLE, a sagittal dose whose offsets run along -x); a Segmentation's segment
+# (binary and fractional, sparse frames of 27 x 31, a binary frame beginning mid-byte) gives the
+# mesh its label grid gives as raw samples; counts an object sets are walked once (2^18 per-frame
+# items, 65 536 offsets, 65 535 segments: they took minutes) and fragments are capped a frame; the
+# stored uploads hold no patient's or staff's names; and every bad input (no DoseGridScaling,
+# uneven frames, truncated frames, a codec's garbage, a label out of range, two frames of a
+# segment at one place, several segments and no ?segment, two segments of one number, a
+# multi-frame image among a series' parts, over the frame cap, over the fragment cap) is refused
+# with its pointer, the daemon up. surfctl and the Python client post the same files. No check is
+# timed: the old figures are in the commit that walked the counts once.
 . "$(dirname "$0")/lib.inc"
 DD="${SURFD_DATA:-../shared/data}/volumes/dicom_ct_head_64x64x27"
 [ -d "$DD" ] || { bad "../shared/data/volumes not found"; checks_done; exit 1; }
@@ -33,11 +38,17 @@ dd, t = sys.argv[1], sys.argv[2]
 dw.enhanced(dd, t + "/ect.dcm", shuffle=True)
 dw.enhanced(dd, t + "/ect_shared.dcm", shared_rescale=True)
 
-def flying_edges(name, gy, x, y, z, iso=20.0):
+def flying_edges(name, gy, x, y, z, iso=20.0, corner=None, axes=None):
+    """Flying Edges' isodose of gy (z, y, x) on its grid: at x, y, z; or, oriented, its columns,
+    rows and frames x, y, z apart (spacings) along axes r, c, n from corner, each point placed so
+    (the volume a rotation keeps)."""
     img = vtk.vtkImageData()
-    img.SetDimensions(len(x), len(y), len(z))
-    img.SetSpacing(x[1] - x[0], y[1] - y[0], z[1] - z[0])
-    img.SetOrigin(x[0], y[0], z[0])
+    img.SetDimensions(gy.shape[2], gy.shape[1], gy.shape[0])
+    if axes is None:
+        img.SetSpacing(x[1] - x[0], y[1] - y[0], z[1] - z[0])
+        img.SetOrigin(x[0], y[0], z[0])
+    else:
+        img.SetSpacing(x, y, z)
     img.GetPointData().SetScalars(numpy_support.numpy_to_vtk(np.ascontiguousarray(gy, dtype=np.float32).ravel(), deep=1))
     fe = vtk.vtkFlyingEdges3D()
     fe.SetInputData(img)
@@ -46,13 +57,17 @@ def flying_edges(name, gy, x, y, z, iso=20.0):
     mass = vtk.vtkMassProperties()
     mass.SetInputConnection(fe.GetOutputPort())
     mass.Update()
-    b = fe.GetOutput().GetBounds()
-    json.dump({"volume": mass.GetVolume(), "bounds": [[b[0], b[2], b[4]], [b[1], b[3], b[5]]]}, open(t + "/fe_" + name + ".json", "w"))
+    p = numpy_support.vtk_to_numpy(fe.GetOutput().GetPoints().GetData()).astype(np.float64)
+    if axes is not None:
+        p = corner + p[:, :1] * axes[0] + p[:, 1:2] * axes[1] + p[:, 2:3] * axes[2]
+    json.dump({"volume": mass.GetVolume(), "bounds": [p.min(0).tolist(), p.max(0).tolist()]}, open(t + "/fe_" + name + ".json", "w"))
 
 flying_edges("rd32", *dw.dose(t + "/rd32.dcm", 32))
 flying_edges("rd16", *dw.dose(t + "/rd16.dcm", 16))
 dw.dose(t + "/rd_abs.dcm", 32, "absolute")
 dw.dose(t + "/rd_rev.dcm", 32, "reversed")
+gy, corner, axes, sp = dw.dose_oriented(t + "/rd_sag.dcm")   # sagittal: offsets along -x
+flying_edges("rd_sag", gy, *sp, corner=corner, axes=axes)
 dw.dose(t + "/rd_noscale.dcm", 32, scaling=False)
 dw.dose(t + "/rd_uneven.dcm", 32, uneven=12)
 d = pydicom.dcmread(t + "/rd32.dcm")                     # frames cut short: the element says so itself
@@ -63,6 +78,20 @@ d.Rows, d.Columns, d.NumberOfFrames = 4096, 4096, 200
 d.GridFrameOffsetVector = list(range(200))
 d.PixelData = b"\0" * 64
 d.save_as(t + "/rd_huge.dcm")
+d = pydicom.dcmread(t + "/rd32.dcm")                     # NumberOfFrames past the cap (2^18)
+d.NumberOfFrames = (1 << 18) + 1
+d.save_as(t + "/rd_over.dcm")
+d = pydicom.dcmread(t + "/rd32.dcm")                     # 2^16 frames of 2 x 2, 30 Gy in frames 100 to 200, its
+n = 1 << 16                                              # offsets 2^16 values of text (implicit VR: over 64 KB)
+d.Rows, d.Columns, d.NumberOfFrames = 2, 2, n
+d.ImagePositionPatient = [0.0, 0.0, 0.0]
+d.GridFrameOffsetVector = [str(k) for k in range(n)]
+v = np.zeros((n, 4), "<u4")
+v[100:201] = int(round(30 / float(d.DoseGridScaling)))
+d.PixelData = v.tobytes()
+d.file_meta.TransferSyntaxUID = pydicom.uid.ImplicitVRLittleEndian
+d.is_implicit_VR = True
+d.save_as(t + "/rd_frames.dcm", write_like_original=False)
 d = pydicom.dcmread(t + "/rd32.dcm")                     # a dose of one plane
 d.NumberOfFrames, d.GridFrameOffsetVector = 1, [0]
 d.PixelData = d.PixelData[: d.Rows * d.Columns * 4]
@@ -80,6 +109,28 @@ for name, frac in (("seg", False), ("segf", True)):
             x[0], y[0], z[k0]))
 dw.seg(t + "/seg_badlabel.dcm", bad_label=True)
 dw.seg(t + "/seg_twice.dcm", extra_frame=8)
+# counts an object sets, each walked once: 2^18 empty per-frame items (every frame in one plane),
+# 2^14 placed ones (a column 2^14 frames tall), 65 535 segments (and the last renumbered 3)
+dw.seg_frames(t + "/seg_items.dcm", 1 << 18)
+grid, x, y, z = dw.seg_frames(t + "/seg_column.dcm", 1 << 14, placed=True)
+open(t + "/seg_column.raw", "wb").write(np.ascontiguousarray(grid, dtype=np.uint8).tobytes())
+dw.seg(t + "/seg_many.dcm", segments=65535)
+b = bytearray(open(t + "/seg_many.dcm", "rb").read())
+at = b.rfind(b"\x62\x00\x04\x00US\x02\x00")          # the last SegmentNumber (0062,0004)
+b[at + 8:at + 10] = (3).to_bytes(2, "little")
+open(t + "/seg_many_twice.dcm", "wb").write(b)
+open(t + "/people", "w").write("\n".join(dw.PEOPLE.values()) + "\n")   # the names every file carries
+PY
+# ... and fragments: the Enhanced CT as JPEG-LS (an offset table, or none) with empty fragments
+dcmcjpls "$T/ect.dcm" "$T/ect_jls.dcm" && dcmcjpls -ot "$T/ect.dcm" "$T/ect_jls_ot.dcm" || bad "dcmcjpls ect"
+$PY - "$T" <<'PY' || bad "the fragmented files could not be written"
+import sys
+sys.path.insert(0, "tests/tools")
+import dicom_write as dw
+t = sys.argv[1]
+dw.fragments_added(t + "/ect_jls.dcm", t + "/ect_frags.dcm", 100000)         # 100 000 after the last frame
+dw.fragments_added(t + "/ect_jls_ot.dcm", t + "/ect_frags_f3.dcm", 40, 3)    # 41 fragments in frame 3
+dw.fragments_added(t + "/ect_jls.dcm", t + "/ect_frags_ok.dcm", 20, 3)       # 21: within the cap
 PY
 
 # post FILE QUERY: FILE as the body (application/dicom); the answer in $T/body
@@ -100,7 +151,7 @@ pointer() { grep -q "\"pointer\":\"$1\"" "$T/body"; }
 code=$(series "$DD"); cp "$T/body" "$T/classic.json"
 check "the classic series: 201" '[ "$code" = 201 ]'
 code=$(post "$T/ect.dcm" "iso=226.5"); cp "$T/body" "$T/ect.json"
-check "an Enhanced CT of the series (frames shuffled, rescale per frame) as the body: the series' mesh to the bit" '[ "$code" = 201 ] && same "$T/ect.json" "$T/classic.json"'
+check "an Enhanced CT of the series (frames shuffled, each frame's own intercept and stored values: one frame's rescale for all would miss) as the body: the series' mesh to the bit" '[ "$code" = 201 ] && same "$T/ect.json" "$T/classic.json"'
 code=$(status POST "/isosurface?iso=226.5" -F "image=@$T/ect_shared.dcm")
 check "... with its rescale shared, as a one-part multipart series: the same" '[ "$code" = 201 ] && same "$T/body" "$T/classic.json"'
 code=$(status POST "/isosurface?iso=226.5" -H 'Content-Type: application/octet-stream' --data-binary @"$T/ect.dcm")
@@ -128,6 +179,12 @@ d[at + 8 + 4:at + 8 + 8] = struct.pack('<I', 1 << 30)          # a stripe 1 GB p
 open(sys.argv[2], 'wb').write(d)" "$T/ect_dcmcrle.dcm" "$T/ect_rlebad.dcm"
 code=$(post "$T/ect_rlebad.dcm" "iso=226.5")
 check "an RLE frame whose header points past its fragment: 422 at frame 0" '[ "$code" = 422 ] && pointer "/parts/0/frames/0"'
+code=$(post "$T/ect_frags.dcm" "iso=226.5")
+check "the JPEG-LS Enhanced CT with 100 000 empty fragments after its last frame (913 KB; it took 27 s and was read): 422 at the part, naming the cap" '[ "$code" = 422 ] && pointer /parts/0 && grep -q "100027 fragments for 27 frames: surfd reads at most 32 a frame" "$T/body"'
+code=$(post "$T/ect_frags_f3.dcm" "iso=226.5")
+check "... with 40 after frame 3 and no offset table (frames by their JPEG markers): 422 at frame 3, 41 fragments" '[ "$code" = 422 ] && pointer /parts/0/frames/3 && grep -q "spans 41 fragments" "$T/body"'
+code=$(post "$T/ect_frags_ok.dcm" "iso=226.5")
+check "... with 20 after frame 3, the offset table moved on: within the cap, the series' mesh" '[ "$code" = 201 ] && same "$T/body" "$T/classic.json"'
 
 # ---- RT Dose ----
 # fe NAME: the model in $T/body within 2 % of Flying Edges' volume, its bounds within 0.05 mm of FE's, closed
@@ -151,7 +208,15 @@ check "... its frames top to bottom (offsets negative): sorted, the same model" 
 dcmcrle "$T/rd32.dcm" "$T/rd_rle.dcm" || bad "dcmcrle rd32"
 code=$(post "$T/rd_rle.dcm" "iso=20")
 check "... RLE compressed (32-bit samples, four stripes a frame): the same model" '[ "$code" = 201 ] && same "$T/body" "$T/rd32.json"'
-check "the stored upload holds no patient name or ID (blanked before it was stored)" '! grep -rqa "Doe^Jane\|SURFD-TEST-4711" "$T/d"'
+code=$(post "$T/rd_sag.dcm" "iso=20")
+check "a sagittal RT Dose (offsets along the normal -x, not z): the 20 Gy isodose within 2 % of Flying Edges on its grid placed in patient coordinates, its bounds within 0.05 mm" '[ "$code" = 201 ] && fe rd_sag'
+code=$(post "$T/rd_frames.dcm" "iso=20")
+check "an RT Dose of 65 536 frames, its GridFrameOffsetVector 65 536 values of text (each read once): 201, the dose where offsets 100 to 200 put it" '[ "$code" = 201 ] && python3 -c "
+import json, sys
+b = json.load(open(sys.argv[1]))[\"bounds\"]
+sys.exit(0 if 99 <= b[0][2] <= 100 and 200 <= b[1][2] <= 201 else 1)" "$T/body"'
+code=$(post "$T/rd_over.dcm" "iso=20")
+check "an RT Dose whose NumberOfFrames is 2^18 + 1: 422 (over the frame cap) naming it" '[ "$code" = 422 ] && pointer /parts/0 && grep -q "NumberOfFrames is 262145: surfd reads 1 to 262144" "$T/body"'
 code=$(post "$T/rd_noscale.dcm" "iso=20")
 check "an RT Dose without DoseGridScaling: 422 naming it" '[ "$code" = 422 ] && grep -q DoseGridScaling "$T/body" && pointer /parts/0'
 code=$(post "$T/rd_uneven.dcm" "iso=20")
@@ -181,7 +246,8 @@ for name in seg segf; do
         cp "$T/body" "$T/ref.json"
         [ "$code" = 201 ] || bad "the raw labels of $name $n: $code $(cat "$T/body")"
         code=$(post "$T/$name.dcm" "iso=0.5&segment=$n")
-        check "$name ($([ $name = seg ] && echo binary, 1 bit || echo fractional, 8 bits of 200)) ?segment=$n (sparse frames, shuffled): the mesh its label grid gives, to the bit, closed" '[ "$code" = 201 ] && same "$T/body" "$T/ref.json" && closed "$T/body"'
+        cp "$T/body" "$T/$name$n.json"
+        check "$name ($([ $name = seg ] && echo "binary, 1 bit, frames of 27 x 31 continuing mid-byte" || echo fractional, 8 bits of 200)) ?segment=$n (sparse frames, shuffled): the mesh its label grid gives, to the bit, closed" '[ "$code" = 201 ] && same "$T/body" "$T/ref.json" && closed "$T/body"'
     done
 done
 code=$(post "$T/seg.dcm" "iso=0.5&segment=3")
@@ -194,6 +260,27 @@ code=$(post "$T/seg_twice.dcm" "iso=0.5&segment=1")
 check "two frames of segment 1 at one position: 422 at one of them" '[ "$code" = 422 ] && grep -q "two frames of segment 1" "$T/body"'
 code=$(post "$T/seg_twice.dcm" "iso=0.5&segment=2")
 check "... while segment 2 of the same file reads" '[ "$code" = 201 ]'
+code=$(post "$T/seg_items.dcm" "iso=0.5")
+check "a Segmentation of 2^18 frames, every per-frame item empty (2.6 MB; it took 164 s): 422, every frame in one plane" '[ "$code" = 422 ] && grep -q "every frame lies in one plane" "$T/body"'
+code=$(status POST "/isosurface?iso=0.5&dims=4,4,16384&type=uint8&spacing=1,1,1&origin=0,0,0" -H 'Content-Type: application/octet-stream' --data-binary @"$T/seg_column.raw")
+cp "$T/body" "$T/ref.json"
+code=$(post "$T/seg_column.dcm" "iso=0.5")
+check "a Segmentation of 16 384 frames each placed by its own item: the mesh its label grid gives, to the bit" '[ "$code" = 201 ] && same "$T/body" "$T/ref.json"'
+code=$(post "$T/seg_many.dcm" "iso=0.5")
+check "a Segmentation of 65 535 segments (3 MB; it took 13.6 s) without ?segment: 422 at ?segment, counting and listing them" '[ "$code" = 422 ] && pointer "?segment" && grep -q "65535 segments: 1 (Ball), 2 (Box), 3 (S3)" "$T/body"'
+code=$(post "$T/seg_many.dcm" "iso=0.5&segment=2")
+check "... ?segment=2: the Box, as the Segmentation of 2 segments gives it" '[ "$code" = 201 ] && same "$T/body" "$T/seg2.json"'
+code=$(post "$T/seg_many.dcm" "iso=0.5&segment=65535")
+check "... ?segment=65535, a segment without frames: 422 at ?segment, empty" '[ "$code" = 422 ] && pointer "?segment" && grep -q "segment 65535 has no frames" "$T/body"'
+code=$(post "$T/seg_many_twice.dcm" "iso=0.5&segment=2")
+check "... its last segment numbered 3 again: 422 naming the number" '[ "$code" = 422 ] && pointer /parts/0 && grep -q "two segments numbered 3" "$T/body"'
+
+# ---- patient data ----
+check "the stored uploads hold no patient name or ID (blanked before they were stored)" '! grep -rqa "Doe^Jane\|SURFD-TEST-4711" "$T/d"'
+# the people's names each file carries (dicom_write.py's PEOPLE: PS3.15 E.1-1 lists each)
+while read -r who; do
+    check "... nor $who, blanked too" '[ -n "$who" ] && ! grep -rqaF "$who" "$T/d"'
+done <"$T/people"
 
 # ---- the clients ----
 $C isosurface "$T/rd32.dcm" --iso 20 -o "$T/rd.stl" >"$T/out" 2>/dev/null; rc=$?

@@ -330,6 +330,31 @@ TEST(blanking_sees_sequences_as_dcmtk_does)
     free(o.b);
 }
 
+/* the people PS3.15 E.1-1 names that multi-frame objects carry: a study's physicians and
+ * operators, a Segmentation's Content Creator, an RT object's reviewer; each blanked, each
+ * inside an identification sequence too, and the modality beside them kept */
+TEST(blanking_names_the_people)
+{
+    static const unsigned tags[][2] = {
+        {0x0008, 0x0090}, {0x0008, 0x009c}, {0x0008, 0x1048}, {0x0008, 0x1050}, {0x0008, 0x1070},
+        {0x0010, 0x2297}, {0x0040, 0xa075}, {0x0070, 0x0084}, {0x300e, 0x0008},
+    };
+    struct buf o = {0};
+    ihead(&o, 0x0008, 0x0060, 4), put(&o, "SEG ", 4);
+    for (size_t k = 0; k < sizeof tags / sizeof *tags; k++)
+        ihead(&o, tags[k][0], tags[k][1], 6), put(&o, "Roe^K ", 6);
+    ihead(&o, 0x0070, 0x0086, 8 + 8 + 6), item_tag(&o, 0xe000, 8 + 6); /* Content Creator's Identification Code */
+    ihead(&o, 0x0008, 0x0100, 6), put(&o, "4711  ", 6);
+    size_t n = 0;
+    struct sf_err err;
+    CHECK(dicom_blank_identity(o.b, o.n, "", &n, &err) == 0 && n == sizeof tags / sizeof *tags + 1);
+    CHECK(!memcmp(o.b + 8, "SEG ", 4));
+    for (size_t k = 0; k < sizeof tags / sizeof *tags; k++)
+        CHECK(!memcmp(o.b + 12 + 14 * k + 8, "      ", 6));
+    CHECK(!memcmp(o.b + o.n - 6, "      ", 6));
+    free(o.b);
+}
+
 /* every real object of the shared data passes, none nested past 4 */
 TEST(real_objects_pass)
 {
@@ -362,6 +387,7 @@ int main(void)
     RUN(elements_are_capped);
     RUN(lengths_and_structure);
     RUN(blanking_sees_sequences_as_dcmtk_does);
+    RUN(blanking_names_the_people);
     RUN(real_objects_pass);
     UNIT_END();
 }

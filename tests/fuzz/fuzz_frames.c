@@ -1,10 +1,12 @@
 /* fuzz_frames.c - one multi-frame DICOM image (an Enhanced CT/MR, an RT Dose, a Segmentation:
  * api/frames_dcmtk.cpp through dicom_series.h) read as POST /isosurface reads a single DICOM
  * body: its headers alone first (the upload's check), then whole, for no segment and for
- * segments 1 and 2. What reads whole must have passed the check with the same grid (the check
- * says every size before anything is decoded), lie within the cap, and hold finite samples; a
- * small one is polygonised, and its mesh must be closed and consistently oriented. */
+ * segments 1 and 2. What reads whole must have passed the check with the same grid (its size,
+ * spacing, origin and axes, and its type where the check says it: the check says every size and
+ * place before anything is decoded), lie within the cap, and hold finite samples; a small one is
+ * polygonised, and its mesh must be closed and consistently oriented. */
 #include <math.h>
+#include <string.h>
 
 #include "../../api/dicom_series.h"
 #include "../../core/iso/mc.h"
@@ -12,6 +14,15 @@
 
 #define FRAMES_FUZZ_MAX_SAMPLES (1u << 22) /* a cap of its own, so that the fuzzer meets it */
 #define EXTRACT_MAX_SAMPLES 40000
+
+/* Whether the check's grid is the one read whole: the same doubles, not near ones (both come of
+ * one layout of the same planes). */
+static bool same_place(const struct series *a, const struct series *b)
+{
+    return a->g.nx == b->g.nx && a->g.ny == b->g.ny && a->g.nz == b->g.nz &&
+           !memcmp(a->g.spacing, b->g.spacing, sizeof a->g.spacing) &&
+           !memcmp(a->g.origin, b->g.origin, sizeof a->g.origin) && !memcmp(a->axes, b->axes, sizeof a->axes);
+}
 
 static void read_as(const struct part *p, int segment)
 {
@@ -22,9 +33,9 @@ static void read_as(const struct part *p, int segment)
     if (series_read(p, 1, false, FRAMES_FUZZ_MAX_SAMPLES, segment, &s, &e2))
         return;
     size_t n = (size_t)s.g.nx * s.g.ny * s.g.nz;
-    if (rc_chk || chk.g.nx != s.g.nx || chk.g.ny != s.g.ny || chk.g.nz != s.g.nz || n > FRAMES_FUZZ_MAX_SAMPLES ||
-        !s.owned || (chk.typed && chk.g.type != s.g.type))
-        abort(); /* read whole past what its check said, or past the cap */
+    if (rc_chk || !same_place(&chk, &s) || n > FRAMES_FUZZ_MAX_SAMPLES || !s.owned ||
+        (chk.typed && chk.g.type != s.g.type))
+        abort(); /* read whole past what its check said, elsewhere than it said, or past the cap */
     if (s.g.type == ISO_F32)
         for (size_t i = 0; i < n; i++)
             if (!isfinite(((const float *)s.owned)[i]))
