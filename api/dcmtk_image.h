@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "dicom_series.h"
+#include "j2k.h"
 #include "ranges.h"
 
 /* The ranges a plane's geometry and rescale must keep, so that every product the grid and the
@@ -99,9 +100,11 @@ static inline void register_codecs()
     });
 }
 
-/* Whether a compressed transfer syntax is one those decoders take. */
+/* Whether a compressed transfer syntax is one those decoders take, or JPEG 2000 (j2k.h: OpenJPEG). */
 static inline bool decodable(E_TransferSyntax t)
 {
+    if (j2k_syntax(DcmXfer(t).getXferID()))
+        return true;
     switch (t) {
     case EXS_RLELossless:
     case EXS_JPEGProcess1:
@@ -135,7 +138,7 @@ static inline int read_pixel_module(DcmDataset *ds, const char *where, pixel_mod
     h.encapsulated = x.isEncapsulated();
     if (h.encapsulated && !decodable(h.xfer))
         return sf_fail(err, SF_EINVAL, where, "compressed pixel data (%s) is not read: send it uncompressed, or as RLE, "
-                       "JPEG (baseline, extended, lossless) or JPEG-LS", x.getXferName());
+                       "JPEG (baseline, extended, lossless), JPEG-LS or JPEG 2000", x.getXferName());
     Uint16 rows = 0, cols = 0, bits = 0, stored = 0, rep = 0, spp = 1;
     if (ds->findAndGetUint16(DCM_Rows, rows).bad() || ds->findAndGetUint16(DCM_Columns, cols).bad() || rows < 1 ||
         cols < 1)
@@ -158,8 +161,14 @@ static inline int read_pixel_module(DcmDataset *ds, const char *where, pixel_mod
  * that DCMTK 3.6.7's decoders size their buffer as that frame alone: upstream 31ff413f9) decoded in
  * place to Explicit VR Little Endian. The decoder writes what the stream held: samples of another
  * width than bits are refused, a narrower precision taken into *stored. 0, or SF_EINVAL at where. */
-static inline int decode_frame(DcmDataset *ds, unsigned bits, unsigned *stored, const char *where, struct sf_err *err)
+static inline int decode_j2k(DcmDataset *ds, E_TransferSyntax xfer, unsigned bits, unsigned stored, bool is_signed,
+                             const char *where, struct sf_err *err);
+
+static inline int decode_frame(DcmDataset *ds, E_TransferSyntax xfer, unsigned bits, unsigned *stored, bool is_signed,
+                               const char *where, struct sf_err *err)
 {
+    if (j2k_syntax(DcmXfer(xfer).getXferID()))
+        return decode_j2k(ds, xfer, bits, *stored, is_signed, where, err);
     register_codecs();
     OFCondition c = ds->chooseRepresentation(EXS_LittleEndianExplicit, nullptr);
     if (c.bad() || !ds->canWriteXfer(EXS_LittleEndianExplicit))
@@ -174,6 +183,52 @@ static inline int decode_frame(DcmDataset *ds, unsigned bits, unsigned *stored, 
     if (ds->findAndGetUint16(DCM_BitsStored, now_stored).good() && now_stored > 0 && now_stored <= bits)
         *stored = now_stored;
     return 0;
+}
+
+/* A JPEG 2000 frame (ds: a data set of one frame) decoded by OpenJPEG (j2k.h: Debian's DCMTK has no
+ * codec for it): its fragments laid end to end, the samples put back as the pixel data in place of
+ * the encapsulated ones (16 or 8 bits a sample, BitsAllocated). 0, or SF_EINVAL / SF_ENOMEM at where. */
+static inline int decode_j2k(DcmDataset *ds, E_TransferSyntax xfer, unsigned bits, unsigned stored, bool is_signed,
+                             const char *where, struct sf_err *err)
+{
+    DcmElement *e = nullptr;
+    DcmPixelSequence *seq = nullptr;
+    Uint16 rows = 0, cols = 0;
+    ds->findAndGetUint16(DCM_Rows, rows), ds->findAndGetUint16(DCM_Columns, cols);
+    if ((bits != 8 && bits != 16) || stored < 1 || stored > bits)
+        return sf_fail(err, SF_EINVAL, where, "JPEG 2000 frames of %u bits (BitsStored %u) are not read: 8 or 16", bits,
+                       stored);
+    if (ds->findAndGetElement(DCM_PixelData, e).bad() || !e ||
+        static_cast<DcmPixelData *>(e)->getEncapsulatedRepresentation(xfer, nullptr, seq).bad() || !seq)
+        return sf_fail(err, SF_EINVAL, where, "the JPEG 2000 pixel data is not encapsulated");
+    std::vector<unsigned char> stream; /* the fragments after the offset table, end to end */
+    size_t frame_bytes = (size_t)rows * cols * (bits / 8);
+    bool first = true;
+    for (DcmObject *o = seq->nextInContainer(nullptr); o; o = seq->nextInContainer(o), first = false) {
+        DcmPixelItem *it = static_cast<DcmPixelItem *>(o);
+        Uint8 *d = nullptr;
+        Uint32 n = it->getLength();
+        if (first || !n)
+            continue;
+        if (stream.size() + n > 2 * frame_bytes + 65536) /* (a lossless stream is smaller than its samples) */
+            return sf_fail(err, SF_EINVAL, where, "the JPEG 2000 fragments hold more than twice the frame's samples");
+        if (it->getUint8Array(d).bad() || !d)
+            return sf_fail(err, SF_EINVAL, where, "a JPEG 2000 fragment cannot be read");
+        stream.insert(stream.end(), d, d + n);
+    }
+    std::vector<uint16_t> out((size_t)rows * cols);
+    struct j2k_frame f = {rows, cols, (int)stored, is_signed};
+    int rc = j2k_decode(stream.data(), stream.size(), &f, out.data(), where, err);
+    if (rc)
+        return rc;
+    OFCondition c;
+    if (bits == 16) {
+        c = ds->putAndInsertUint16Array(DCM_PixelData, out.data(), (unsigned long)out.size());
+    } else {
+        std::vector<Uint8> narrow(out.begin(), out.end());
+        c = ds->putAndInsertUint8Array(DCM_PixelData, narrow.data(), (unsigned long)narrow.size());
+    }
+    return c.bad() ? sf_fail(err, SF_ENOMEM, where, "out of memory for the frame's samples") : 0;
 }
 
 /* A sample's value: its stored low bits (BitsStored; all of bits when 0 or more), two's complement

@@ -554,7 +554,7 @@ int frame_samples(image &im, long i, std::vector<uint32_t> &out, unsigned *store
         one.putAndInsertUint16(DCM_PixelRepresentation, im.is_signed ? 1 : 0);
         one.putAndInsertUint16(DCM_SamplesPerPixel, 1);
         one.putAndInsertOFStringArray(DCM_PhotometricInterpretation, photometric);
-        int rc = decode_frame(&one, im.bits, stored, where, err);
+        int rc = decode_frame(&one, im.xfer, im.bits, stored, im.is_signed, where, err);
         if (rc)
             return rc;
         DcmElement *pe = nullptr;

@@ -12,6 +12,10 @@
 
 #include "../core/base/err.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Whether a transfer syntax UID is one of JPEG 2000's. */
 bool j2k_syntax(const char *uid);
 
@@ -31,5 +35,9 @@ struct j2k_frame {
  * that does not decode), SF_ENOMEM. */
 int j2k_decode(const void *data, size_t len, const struct j2k_frame *f, uint16_t *out, const char *where,
                struct sf_err *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -2,7 +2,7 @@
 // RT Structure Set reader uses it; one part that is a multi-frame image goes to frames_dcmtk.cpp.
 // Uncompressed transfer syntaxes, and the compressed ones a PACS sends that Debian's DCMTK decodes:
 // RLE (dcmdata), JPEG baseline, extended and lossless (dcmjpeg), JPEG-LS (dcmjpls); JPEG 2000, for
-// which it has no codec, is refused by name. A slice is decoded on the worker that reads the series
+// which it has no codec, through OpenJPEG (j2k.h, dcmtk_image.h decode_j2k). A slice is decoded on the worker that reads the series
 // (the check on the HTTP side reads its header alone), into Rows x Columns samples its header
 // declared and the series' size was checked against; the slices are laid out by planes.h.
 #include "dcmtk_image.h"
@@ -82,7 +82,7 @@ int read_slice(DcmDataset *ds, int k, bool check_only, slice &sl, struct sf_err 
     sl.is_signed = h.is_signed;
     if (check_only)
         return 0;
-    if (h.encapsulated && (rc = decode_frame(ds, h.bits, &sl.stored, where, err))) /* in place, one frame */
+    if (h.encapsulated && (rc = decode_frame(ds, h.xfer, h.bits, &sl.stored, h.is_signed, where, err))) /* in place */
         return rc;
     size_t n = (size_t)h.rows * h.cols;
     if (h.bits == 16) {

@@ -10,6 +10,7 @@ returns what the test compares with (the dose grid in Gy, the segments' label gr
   dicom_write.py dose OUT [bits=16|32] [offsets=relative|absolute|reversed] [scaling=no] [uneven=K]
   dicom_write.py seg OUT [type=binary|fractional]
   dicom_write.py rtstruct OUT          (the sparse ROIs a planning system draws, and a dense one)
+  dicom_write.py j2k SERIES_DIR OUT_DIR [htj2k]  (each slice's pixels as JPEG 2000 lossless, by opj_compress)
   dicom_write.py seeds SMALL_SERIES_DIR OUT_DIR   (tests/fuzz/seeds/frames: each kind, small)
   dicom_write.py counts SMALL_SERIES_DIR OUT_DIR  (tests/fuzz/crashers/frames: counts that were
                                                     walked quadratically, each file under 256 KB)
@@ -328,6 +329,32 @@ def fragments_added(src, out, n, frame=None):
     open(out, "wb").write(bytes(b[:cut]) + b"\xfe\xff\x00\xe0\0\0\0\0" * n + bytes(b[cut:]))
 
 
+def j2k(series_dir, out_dir, tiles=False):
+    """The classic series in series_dir with each slice's pixel data as JPEG 2000 (lossless, 5/3:
+    transfer syntax 1.2.840.10008.1.2.4.90), its codestream made by OpenJPEG's opj_compress from the
+    slice's samples (unsigned: the shared series' are 12 bits in 16), encapsulated by pydicom."""
+    import subprocess
+    import tempfile
+    from pydicom.encaps import encapsulate
+    os.makedirs(out_dir, exist_ok=True)
+    for name in sorted(os.listdir(series_dir)):
+        ds = pydicom.dcmread(os.path.join(series_dir, name))
+        px = ds.pixel_array.astype(">u2")
+        with tempfile.TemporaryDirectory() as tmp:
+            pgm = os.path.join(tmp, "s.pgm")
+            with open(pgm, "wb") as f:
+                f.write(b"P5\n%d %d\n%d\n" % (ds.Columns, ds.Rows, (1 << ds.BitsStored) - 1) + px.tobytes())
+            cs = os.path.join(tmp, "s.j2k")
+            cmd = ["opj_compress", "-i", pgm, "-o", cs, "-n", "3"] + (["-t", "32,32"] if tiles else [])
+            subprocess.run(cmd, check=True, capture_output=True)
+            stream = open(cs, "rb").read()
+        ds.PixelData = encapsulate([stream])
+        ds["PixelData"].VR = "OB"
+        ds.file_meta.TransferSyntaxUID = "1.2.840.10008.1.2.4.90"
+        ds.is_little_endian, ds.is_implicit_VR = True, False
+        ds.save_as(os.path.join(out_dir, name), write_like_original=False)
+
+
 RT_STRUCTURE_SET = "1.2.840.10008.5.1.4.1.1.481.3"
 
 
@@ -382,6 +409,8 @@ if __name__ == "__main__":
         seg(flags[0], opts.get("type") == "fractional")
     elif what == "rtstruct":
         rtstruct(flags[0])
+    elif what == "j2k":
+        j2k(flags[0], flags[1], "tiles" in flags)
     elif what == "counts":
         import subprocess
         import tempfile
