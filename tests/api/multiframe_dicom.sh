@@ -162,6 +162,13 @@ for how in "dcmcrle" "dcmcjpeg" "dcmcjpls" "dcmcjpls +fs 1" "dcmcjpls +fs 1 -ot"
     code=$(post "$f" "iso=226.5")
     check "the Enhanced CT compressed by $how: the same mesh, each frame decoded alone" '[ "$code" = 201 ] && same "$T/body" "$T/classic.json"'
 done
+if command -v opj_compress >/dev/null; then
+    $PY tests/tools/dicom_write.py j2k-frames "$T/ect.dcm" "$T/ect_j2k.dcm"
+    code=$(post "$T/ect_j2k.dcm" "iso=226.5")
+    check "the Enhanced CT's frames each JPEG 2000 (opj_compress; OpenJPEG decodes them): the same mesh" '[ "$code" = 201 ] && same "$T/body" "$T/classic.json"'
+else
+    bad "opj_compress (libopenjp2-tools) is missing (deploy/install-deps.sh installs it)"
+fi
 python3 -c "
 import sys
 d = bytearray(open(sys.argv[1], 'rb').read())

@@ -10,7 +10,8 @@ returns what the test compares with (the dose grid in Gy, the segments' label gr
   dicom_write.py dose OUT [bits=16|32] [offsets=relative|absolute|reversed] [scaling=no] [uneven=K]
   dicom_write.py seg OUT [type=binary|fractional]
   dicom_write.py rtstruct OUT          (the sparse ROIs a planning system draws, and a dense one)
-  dicom_write.py j2k SERIES_DIR OUT_DIR [htj2k]  (each slice's pixels as JPEG 2000 lossless, by opj_compress)
+  dicom_write.py j2k SERIES_DIR OUT_DIR [tiles]  (each slice's pixels as JPEG 2000 lossless, by opj_compress)
+  dicom_write.py j2k-frames IMAGE OUT   (a multi-frame image's frames each as JPEG 2000 lossless)
   dicom_write.py seeds SMALL_SERIES_DIR OUT_DIR   (tests/fuzz/seeds/frames: each kind, small)
   dicom_write.py counts SMALL_SERIES_DIR OUT_DIR  (tests/fuzz/crashers/frames: counts that were
                                                     walked quadratically, each file under 256 KB)
@@ -329,26 +330,42 @@ def fragments_added(src, out, n, frame=None):
     open(out, "wb").write(bytes(b[:cut]) + b"\xfe\xff\x00\xe0\0\0\0\0" * n + bytes(b[cut:]))
 
 
+def _j2k_stream(px, rows, cols, bits, tiles=False):
+    """One frame's samples (unsigned) as a lossless JPEG 2000 codestream made by opj_compress."""
+    import subprocess
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        pgm, cs = os.path.join(tmp, "s.pgm"), os.path.join(tmp, "s.j2k")
+        with open(pgm, "wb") as f:
+            f.write(b"P5\n%d %d\n%d\n" % (cols, rows, (1 << bits) - 1) + np.asarray(px, dtype=">u2").tobytes())
+        cmd = ["opj_compress", "-i", pgm, "-o", cs, "-n", "3"] + (["-t", "32,32"] if tiles else [])
+        subprocess.run(cmd, check=True, capture_output=True)
+        return open(cs, "rb").read()
+
+
+def j2k_frames(path, out):
+    """A multi-frame image (unsigned samples, uncompressed) with each frame as a JPEG 2000 codestream of
+    its own (one fragment a frame)."""
+    from pydicom.encaps import encapsulate
+    ds = pydicom.dcmread(path)
+    n, rows, cols = int(ds.NumberOfFrames), int(ds.Rows), int(ds.Columns)
+    px = np.frombuffer(ds.PixelData, dtype="<u2").reshape(n, rows, cols)
+    ds.PixelData = encapsulate([_j2k_stream(px[k], rows, cols, int(ds.BitsStored)) for k in range(n)])
+    ds["PixelData"].VR = "OB"
+    ds.file_meta.TransferSyntaxUID = "1.2.840.10008.1.2.4.90"
+    ds.is_little_endian, ds.is_implicit_VR = True, False
+    ds.save_as(out, write_like_original=False)
+
+
 def j2k(series_dir, out_dir, tiles=False):
     """The classic series in series_dir with each slice's pixel data as JPEG 2000 (lossless, 5/3:
     transfer syntax 1.2.840.10008.1.2.4.90), its codestream made by OpenJPEG's opj_compress from the
     slice's samples (unsigned: the shared series' are 12 bits in 16), encapsulated by pydicom."""
-    import subprocess
-    import tempfile
     from pydicom.encaps import encapsulate
     os.makedirs(out_dir, exist_ok=True)
     for name in sorted(os.listdir(series_dir)):
         ds = pydicom.dcmread(os.path.join(series_dir, name))
-        px = ds.pixel_array.astype(">u2")
-        with tempfile.TemporaryDirectory() as tmp:
-            pgm = os.path.join(tmp, "s.pgm")
-            with open(pgm, "wb") as f:
-                f.write(b"P5\n%d %d\n%d\n" % (ds.Columns, ds.Rows, (1 << ds.BitsStored) - 1) + px.tobytes())
-            cs = os.path.join(tmp, "s.j2k")
-            cmd = ["opj_compress", "-i", pgm, "-o", cs, "-n", "3"] + (["-t", "32,32"] if tiles else [])
-            subprocess.run(cmd, check=True, capture_output=True)
-            stream = open(cs, "rb").read()
-        ds.PixelData = encapsulate([stream])
+        ds.PixelData = encapsulate([_j2k_stream(ds.pixel_array, ds.Rows, ds.Columns, ds.BitsStored, tiles)])
         ds["PixelData"].VR = "OB"
         ds.file_meta.TransferSyntaxUID = "1.2.840.10008.1.2.4.90"
         ds.is_little_endian, ds.is_implicit_VR = True, False
@@ -411,6 +428,8 @@ if __name__ == "__main__":
         rtstruct(flags[0])
     elif what == "j2k":
         j2k(flags[0], flags[1], "tiles" in flags)
+    elif what == "j2k-frames":
+        j2k_frames(flags[0], flags[1])
     elif what == "counts":
         import subprocess
         import tempfile
