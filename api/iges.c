@@ -74,6 +74,7 @@ struct de { /* one directory entry */
     char label[9];    /* the entity label (directory field 18), blanks trimmed */
     bool bounded;     /* a surface a 143/144 bounds */
     int group;        /* the 402 group it is a member of (its index), or -1 */
+    char name[48];    /* a 402 group's: its 406 name, else its label (read_groups; as an object's) */
     /* the budget's memo (trim_budget): a curve's points at tolerance est_tol; a surface's tolerances */
     enum { EST_NONE, EST_BUSY, EST_DONE } est;
     double est_tol, est_points;
@@ -1281,17 +1282,6 @@ static int owner_loops(struct iges *g, struct loops *l, const struct on_surface 
     return rc;
 }
 
-/* A 402 group's name (read_groups): a 406 name among its properties, else its label. */
-static int group_name(struct iges *g, const struct de *group, char *name, size_t n)
-{
-    struct params p;
-    if (load_params(g, group, &p))
-        return SF_EINVAL;
-    entity_name(g, group, &p, 2 + p_int_or(&p, 1, 0), name, n);
-    params_free(&p);
-    return 0;
-}
-
 /* One drawn object: surface sde trimmed as entity owner (a 143 or 144) says, or untrimmed but for
  * its U/V ranges (owner NULL). */
 static int add_object(struct iges *g, struct scene *sc, const struct de *sde, const struct de *owner)
@@ -1319,7 +1309,7 @@ static int add_object(struct iges *g, struct scene *sc, const struct de *sde, co
         rc = loop_rect(g, &l, on.dom, where);
     int group = (owner ? owner : sde)->group;
     if (!rc && !o->name[0] && group >= 0) /* unnamed: its group's name */
-        rc = group_name(g, &g->de[group], o->name, sizeof o->name);
+        snprintf(o->name, sizeof o->name, "%s", g->de[group].name);
     /* trim_build polls where the count stands now: the progress never goes back */
     struct sf_span at = {g->pr, g->n_est > 0 ? fmin(1.0, g->n_trim / g->n_est) : 0, 0};
     at.hi = at.lo;
@@ -1372,10 +1362,10 @@ static int nothing_drawn(struct iges *g)
 }
 
 /* 402 groups (forms 1, 7, 14, 15: N members, then their pointers), as CAD systems gather a body's
- * faces: each member remembers its first group, whose name (a 406 name, else its label) a member
- * drawn without a name of its own takes. Members are drawn as their own status says (a group's
- * are logically dependent, 02, as independent ones are). A member pointer to nothing is 422 at the
- * group. */
+ * faces: each member remembers its first group, whose name (a 406 name, else its label, read once
+ * here) a member drawn without a name of its own takes. Members are drawn as their own status says
+ * (a group's are logically dependent, 02, as independent ones are). A group only names: a member
+ * pointer to nothing is left out, and a group whose count is wrong names nothing. */
 static int read_groups(struct iges *g)
 {
     for (int k = 0; k < g->n_de; k++) {
@@ -1385,22 +1375,17 @@ static int read_groups(struct iges *g)
         struct params p;
         if (load_params(g, e, &p))
             return SF_EINVAL;
-        int n = p_int_or(&p, 1, -1), rc = 0;
-        if (n < 0 || n > p.n - 2) {
-            char where[24];
-            where_of(e, where);
-            rc = sf_fail(g->err, SF_EINVAL, where, "group: its count of members is missing or wrong");
-        }
-        for (int m = 0; m < n && !rc; m++) {
-            struct de *member = entity(g, p_int_or(&p, 2 + m, 0), e, "member");
-            if (!member)
-                rc = SF_EINVAL;
-            else if (member->group < 0)
-                member->group = k;
+        int n = p_int_or(&p, 1, -1);
+        if (n >= 0 && n <= p.n - 2) {
+            entity_name(g, e, &p, 2 + n, e->name, sizeof e->name);
+            for (int m = 0; m < n; m++) {
+                int ptr = p_int_or(&p, 2 + m, 0);
+                struct de *member = ptr > 0 && ptr % 2 && (ptr - 1) / 2 < g->n_de ? &g->de[(ptr - 1) / 2] : NULL;
+                if (member && member->group < 0)
+                    member->group = k;
+            }
         }
         params_free(&p);
-        if (rc)
-            return rc;
     }
     return 0;
 }

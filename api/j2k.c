@@ -35,12 +35,12 @@ static int check_siz(const unsigned char *b, size_t len, const struct j2k_frame 
                        x > x0 ? x - x0 : 0, y > y0 ? y - y0 : 0, f->cols, f->rows);
     if (comps != 1 || xr != 1 || yr != 1)
         return sf_fail(err, SF_EINVAL, where, "the JPEG 2000 image has %u components (or subsampled ones): a frame is one", comps);
-    if ((int)prec > f->bits_stored || (bool)(ssiz & 0x80) != f->is_signed)
-        return sf_fail(err, SF_EINVAL, where, "the JPEG 2000 samples are %u bits %s, not the frame's %d bits %s", prec,
-                       ssiz & 0x80 ? "signed" : "unsigned", f->bits_stored, f->is_signed ? "signed" : "unsigned");
+    if ((int)prec > f->bits_stored) /* (its sign may differ: the frame's PixelRepresentation reads the bits) */
+        return sf_fail(err, SF_EINVAL, where, "the JPEG 2000 samples are %u bits, more than the frame's %d (BitsStored)",
+                       prec, f->bits_stored);
     if (!tx || !ty || tx0 > x0 || ty0 > y0)
         return sf_fail(err, SF_EINVAL, where, "the JPEG 2000 tiles are not laid over the image");
-    uint64_t tiles = (uint64_t)((x - tx0 + tx - 1) / tx) * ((y - ty0 + ty - 1) / ty);
+    uint64_t tiles = (((uint64_t)x - tx0 + tx - 1) / tx) * (((uint64_t)y - ty0 + ty - 1) / ty);
     if (tiles > J2K_MAX_TILES)
         return sf_fail(err, SF_EINVAL, where, "the JPEG 2000 image claims %llu tiles, over the limit of %d",
                        (unsigned long long)tiles, J2K_MAX_TILES);
@@ -121,11 +121,12 @@ int j2k_decode(const void *data, size_t len, const struct j2k_frame *f, uint16_t
         rc = sf_fail(err, SF_EINVAL, where, "the JPEG 2000 codestream decodes to another image than its header said");
         goto done;
     }
-    const int32_t lo = f->is_signed ? -(1 << (f->bits_stored - 1)) : 0;
-    const int32_t hi = f->is_signed ? (1 << (f->bits_stored - 1)) - 1 : (int32_t)((1u << f->bits_stored) - 1);
+    const int bits = (int)c->prec < f->bits_stored ? (int)c->prec : f->bits_stored; /* (the stream's own sign) */
+    const int32_t lo = c->sgnd ? -(1 << (bits - 1)) : 0;
+    const int32_t hi = c->sgnd ? (1 << (bits - 1)) - 1 : (int32_t)((1u << bits) - 1);
     for (size_t i = 0, n = (size_t)f->rows * (size_t)f->cols; i < n; i++) {
         int32_t v = c->data[i];
-        v = v < lo ? lo : v > hi ? hi : v; /* (within what BitsStored holds, as a conformant stream is) */
+        v = v < lo ? lo : v > hi ? hi : v; /* (within what its bits hold, as a conformant stream is) */
         out[i] = (uint16_t)v;
     }
 done:

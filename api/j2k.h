@@ -32,7 +32,8 @@ struct j2k_frame {
 /* Decodes the codestream data (len bytes, its fragments laid end to end) into out: rows x cols
  * samples row by row, as int16 (is_signed) or uint16. 0, or SF_EINVAL at where (a stream that is
  * not one component of the frame's size and at most its BitsStored bits, too many tiles, or one
- * that does not decode), SF_ENOMEM. */
+ * that does not decode), SF_ENOMEM. The samples keep their bits: a stream coded unsigned for a
+ * signed frame (as some writers do) is read by the frame's PixelRepresentation, as DCMTK's are. */
 int j2k_decode(const void *data, size_t len, const struct j2k_frame *f, uint16_t *out, const char *where,
                struct sf_err *err);
 

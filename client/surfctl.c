@@ -243,7 +243,7 @@ static bool data_file_of(const char *data, size_t len, char *file, size_t cap)
     bool nrrd = len >= 4 && !memcmp(data, "NRRD", 4);
     if (!nrrd && !(len >= 5 && (!memcmp(data, "NDims", 5) || (len >= 10 && !memcmp(data, "ObjectType", 10)))))
         return false;
-    for (size_t at = 0, line = 0; at < len && line < 256; line++) {
+    for (size_t at = 0, line = 0; at < len && line < 4096; line++) { /* (the daemon's HEADER_MAX_LINES) */
         const char *nl = memchr(data + at, '\n', len - at), *s = data + at;
         size_t n = nl ? (size_t)(nl - s) : len - at;
         at += n + 1;

@@ -568,7 +568,7 @@ static enum MHD_Result post_job_on(struct req *r, const struct job_kind *kind, c
     const char *qf = kind->format_in_query ? MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "format")
                                            : NULL;
     char d[1024];
-    if (qf) { /* by any of its names: the job carries the table's */
+    if (qf && *qf) { /* by any of its names: the job carries the table's (an empty one: none) */
         const struct input_format *f = input_format_named(qf, kind->route);
         if (!f) {
             char names[256];

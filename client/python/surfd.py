@@ -33,6 +33,12 @@ Options = Mapping[str, Any]
 
 
 
+# A file's type by its extension where the daemon has no GET /formats (before issue 47) to say it.
+_OLD_TYPES = {".json": "application/json", ".dcm": "application/dicom", ".bpt": "model/x-bpt", ".nurbs": "model/vrml",
+              ".wrl": "model/vrml", ".igs": "model/iges", ".iges": "model/iges", ".nrrd": "application/x-nrrd",
+              ".mha": "application/x-metaimage", ".nii": "application/x-nifti"}
+
+
 class SurfdError(Exception):
     """A request surfd refused or a job that did not succeed.
 
@@ -110,8 +116,8 @@ class Client:
         if self._formats is None:
             try:
                 self._formats = self.request("GET", "/formats").parsed()["formats"]
-            except SurfdError:
-                self._formats = []
+            except SurfdError:  # (not kept: asked again next time) a daemon before GET /formats: the usual types
+                return _OLD_TYPES.get(path.suffix.lower())
         name = path.name.lower()
         for f in self._formats:
             if route in f["routes"] and any(name.endswith(e) for e in f["extensions"]):
@@ -333,7 +339,7 @@ def _data_file(data: bytes) -> Optional[str]:
     nrrd = data[:4] == b"NRRD"
     if not nrrd and not data[:5] == b"NDims" and not data[:10] == b"ObjectType":
         return None
-    for line in data[:1 << 18].split(b"\n")[:256]:
+    for line in data[:1 << 22].split(b"\n")[:4096]:  # (the daemon's HEADER_MAX_LINES)
         line = line.rstrip(b"\r")
         if nrrd and not line:
             return None  # the end of an NRRD header: its data follow

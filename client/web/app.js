@@ -44,7 +44,14 @@ function askToken() {
 
 // ---- the form ------------------------------------------------------------------------------
 
-// The daemon's table of input formats (GET /formats): a file's format by its name on a route.
+// The daemon's table of input formats (GET /formats), asked for until it comes (a token may be needed first).
+async function loadFormats() {
+  if (state.formats.length) return;
+  const f = await api("GET", "/formats");
+  if (f.ok) state.formats = (await f.json()).formats;
+}
+
+// A file's format by its name on a route (null for every route), from the table.
 function formatOf(name, route) {
   const n = name.toLowerCase();
   return state.formats.find((f) => (!route || f.routes.includes("/" + route)) && f.extensions.some((e) => n.endsWith(e)));
@@ -97,6 +104,7 @@ async function submit(ev) {
   $("job-output").replaceChildren();
   $("go").disabled = true;
   try {
+    await loadFormats();
     const r = await api("POST", "/" + route + queryOf(form, route), { body: file, type: typeOf(file.name, route),
       headers: { Prefer: "respond-async" } });
     if (r.status !== 202) {
@@ -336,8 +344,9 @@ async function start() {
     $("token-state").textContent = "token forgotten";
   });
   $("route").addEventListener("change", showOptions);
-  $("file").addEventListener("change", () => {
+  $("file").addEventListener("change", async () => {
     const f = $("file").files[0];
+    await loadFormats();
     if (f) { $("route").value = routeFor(f.name); showOptions(); }
   });
   const drop = $("drop");
@@ -370,8 +379,7 @@ async function refreshAll() {
     const v = await r.json();
     $("version").textContent = v.version || "";
   }
-  const f = await api("GET", "/formats");
-  if (f.ok) state.formats = (await f.json()).formats;
+  await loadFormats();
   await Promise.all([refreshModels(), refreshJobs()]);
 }
 

@@ -131,8 +131,7 @@ TEST(refusals)
         const char *what;
         struct j2k_frame f;
     } frames[] = {{"another size", {32, 33, 12, false}},
-                  {"more bits than BitsStored", {32, 32, 10, false}},
-                  {"signed where it is not", {32, 32, 12, true}}};
+                  {"more bits than BitsStored", {32, 32, 10, false}}};
     for (size_t k = 0; k < sizeof frames / sizeof *frames; k++) {
         struct sf_err err = {0};
         CHECK(j2k_decode(b.p, b.n, &frames[k].f, out, "/parts/3", &err) == SF_EINVAL);
@@ -165,6 +164,18 @@ TEST(refusals)
     fprintf(stderr, "  a claimed 65536 x 65536 image of 1 x 1 tiles: %s\n", err.message);
     memset(&err, 0, sizeof err);
     CHECK(j2k_decode("\xff\xd8\xff\xe0", 4, &f, out, "/parts/0", &err) == SF_EINVAL); /* a JPEG, not J2K */
+    for (size_t n = 0; n < 45; n++) { /* every stream cut short of the SIZ marker's end */
+        memset(&err, 0, sizeof err);
+        CHECK(j2k_decode(b.p, n, &f, out, "/parts/0", &err) == SF_EINVAL);
+    }
+    memcpy(bad, b.p, b.n); /* tile sizes that wrap 32 bits: Xsiz 2^32 - 1, XTsiz 2^32 - 1 */
+    memset(bad + 4 + 4, 0xff, 4), memset(bad + 4 + 20, 0xff, 4);
+    struct j2k_frame wide = {32, -1, 12, false};
+    memset(&err, 0, sizeof err);
+    CHECK(j2k_decode(bad, b.n, &wide, out, "/parts/0", &err) == SF_EINVAL);
+    struct j2k_frame sgn = {32, 32, 12, true}; /* an unsigned stream for a signed frame: read, its bits kept */
+    memset(&err, 0, sizeof err);
+    CHECK(j2k_decode(b.p, b.n, &sgn, out, "/parts/0", &err) == 0 && out[5] == (uint16_t)v[5]);
     free(bad), free(b.p), free(v);
 }
 
