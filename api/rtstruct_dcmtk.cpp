@@ -58,6 +58,20 @@ static bool copy_elements(DcmItem *from, DcmItem *to, const DcmTagKey *tags, siz
     return true;
 }
 
+/* A sequence's items in order, walked once: DCMTK's getItem(i) walks its list from the start each
+ * time, so indexed loops were quadratic in what a file declares (a structure set of 100 000 empty
+ * StructureSetROISequence items, 2 MB, took 17.8 s). */
+static std::vector<DcmItem *> items_of(DcmSequenceOfItems *seq)
+{
+    std::vector<DcmItem *> v;
+    if (seq) {
+        v.reserve(seq->card());
+        for (DcmObject *o = seq->nextInContainer(NULL); o; o = seq->nextInContainer(o))
+            v.push_back(static_cast<DcmItem *>(o));
+    }
+    return v;
+}
+
 extern "C" int rtstruct_strip(const void *buf, size_t len, unsigned char **out, size_t *out_len, struct sf_err *err)
 {
     *out = NULL;
@@ -81,26 +95,26 @@ extern "C" int rtstruct_strip(const void *buf, size_t len, unsigned char **out, 
     static const DcmTagKey CONTOUR_TAGS[] = {DCM_ContourGeometricType, DCM_NumberOfContourPoints, DCM_ContourData};
     DcmSequenceOfItems *seq = NULL;
     if (ok && ds->findAndGetSequence(DCM_StructureSetROISequence, seq).good() && seq)
-        for (unsigned long i = 0; ok && i < seq->card(); i++) {
+        for (DcmItem *src : items_of(seq)) {
             DcmItem *item = NULL;
-            ok = kd->findOrCreateSequenceItem(DCM_StructureSetROISequence, item, -2).good() &&
-                 copy_elements(seq->getItem(i), item, ROI_TAGS, 3);
+            ok = ok && kd->findOrCreateSequenceItem(DCM_StructureSetROISequence, item, -2).good() &&
+                 copy_elements(src, item, ROI_TAGS, 3);
         }
     seq = NULL;
     bool contours = ok && ds->findAndGetSequence(DCM_ROIContourSequence, seq).good() && seq;
     if (contours && seq->card() == 0) /* kept, empty: its ROIs read as skipped, as they were */
         ok = kd->insert(new DcmSequenceOfItems(DCM_ROIContourSequence)).good();
     if (contours)
-        for (unsigned long r = 0; ok && r < seq->card(); r++) {
-            DcmItem *roi = seq->getItem(r), *item = NULL;
-            ok = kd->findOrCreateSequenceItem(DCM_ROIContourSequence, item, -2).good() &&
+        for (DcmItem *roi : items_of(seq)) {
+            DcmItem *item = NULL;
+            ok = ok && kd->findOrCreateSequenceItem(DCM_ROIContourSequence, item, -2).good() &&
                  copy_elements(roi, item, CONTOUR_ROI_TAGS, 2);
             DcmSequenceOfItems *cseq = NULL;
             if (ok && roi->findAndGetSequence(DCM_ContourSequence, cseq).good() && cseq)
-                for (unsigned long k = 0; ok && k < cseq->card(); k++) {
+                for (DcmItem *src : items_of(cseq)) {
                     DcmItem *c = NULL;
-                    ok = item->findOrCreateSequenceItem(DCM_ContourSequence, c, -2).good() &&
-                         copy_elements(cseq->getItem(k), c, CONTOUR_TAGS, 3);
+                    ok = ok && item->findOrCreateSequenceItem(DCM_ContourSequence, c, -2).good() &&
+                         copy_elements(src, c, CONTOUR_TAGS, 3);
                 }
         }
     if (!ok)
@@ -123,8 +137,7 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
     ds->findAndGetOFString(DCM_StudyInstanceUID, study);
     DcmSequenceOfItems *seq = NULL;
     if (ds->findAndGetSequence(DCM_StructureSetROISequence, seq).good() && seq)
-        for (unsigned long i = 0; i < seq->card(); i++) {
-            DcmItem *it = seq->getItem(i);
+        for (DcmItem *it : items_of(seq)) {
             Sint32 num = 0;
             OFString name, frame;
             if (it->findAndGetSint32(DCM_ROINumber, num).good()) {
@@ -145,8 +158,9 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
     if (!rois)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     int n = 0, rc = 0;
-    for (unsigned long r = 0; r < rcs->card() && !rc; r++) {
-        DcmItem *roi = rcs->getItem(r);
+    std::vector<DcmItem *> rois_in = items_of(rcs);
+    for (unsigned long r = 0; r < rois_in.size() && !rc; r++) {
+        DcmItem *roi = rois_in[r];
         Sint32 num = 0;
         roi->findAndGetSint32(DCM_ReferencedROINumber, num);
         DcmSequenceOfItems *cseq = NULL;
@@ -172,8 +186,9 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
             break;
         }
         n++;
-        for (unsigned long k = 0; k < cseq->card() && !rc; k++) {
-            DcmItem *ci = cseq->getItem(k);
+        std::vector<DcmItem *> contours_in = items_of(cseq);
+        for (unsigned long k = 0; k < contours_in.size() && !rc; k++) {
+            DcmItem *ci = contours_in[k];
             char ptr[128];
             snprintf(ptr, sizeof ptr, "/ROIContourSequence/%lu/ContourSequence/%lu/ContourData", r, k);
             OFString type;
