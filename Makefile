@@ -71,7 +71,7 @@ layers:
 	@tests/tools/layers.sh
 
 # (the formats' table: surfctl sends a file's type as the daemon reads it)
-$(B)/surfctl: $(B)/rel/client/surfctl.o $(B)/rel/api/formats.o $(B)/rel/api/nifti.o $(B)/rel/core/base/err.o
+$(B)/surfctl: $(B)/rel/client/surfctl.o $(B)/rel/api/formats.o $(B)/rel/api/dicom_scan.o $(B)/rel/api/nifti.o $(B)/rel/core/base/err.o
 	$(CC) $(OPT) -o $@ $^ -lcurl -ljansson -lz -lm
 
 deps:

@@ -7,6 +7,7 @@
 #include <string.h>
 #include <strings.h>
 
+#include "dicom_scan.h"
 #include "nifti.h"
 
 /* ---- magic ---- */
@@ -80,11 +81,9 @@ static bool sniff_vrml(const char *buf, size_t len)
  * explicit VR (an implicit VR guess is left to application/dicom: raw samples could begin so). */
 bool format_sniff_dicom(const char *buf, size_t len)
 {
-    const unsigned char *b = (const unsigned char *)buf;
-    if (len >= 132 && !memcmp(b + 128, "DICM", 4))
+    if (len >= 132 && !memcmp(buf + 128, "DICM", 4))
         return true;
-    return len >= 8 && b[1] == 0 && (b[0] == 2 || b[0] == 8) && b[4] >= 'A' && b[4] <= 'Z' && b[5] >= 'A' &&
-           b[5] <= 'Z';
+    return dicom_sniff(buf, len) && buf[4] >= 'A' && buf[4] <= 'Z' && buf[5] >= 'A' && buf[5] <= 'Z';
 }
 
 bool format_sniff_nrrd(const char *buf, size_t len) { return len >= 4 && !memcmp(buf, "NRRD", 4); }

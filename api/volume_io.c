@@ -15,7 +15,6 @@
 #include <strings.h>
 #include <zlib.h>
 
-#include "dicom_scan.h"
 #include "dicom_series.h"
 #include "formats.h"
 #include "multipart.h"
