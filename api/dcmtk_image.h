@@ -246,8 +246,8 @@ static inline double stored_value(unsigned bits, unsigned stored, bool is_signed
  * Dose, a Segmentation or an image with per-frame functional groups (whatever its frames). */
 bool frames_multiframe(DcmDataset *ds);
 /* ds (read from part k as dcmtk_in.h reads it; pixel data in its original transfer syntax) to out,
- * as series_read says; segment: ?segment (0: none given). */
-int frames_read(DcmDataset *ds, int k, bool check_only, size_t max_samples, int segment, struct series *out,
-                struct sf_err *err);
+ * as series_read says; segment: ?segment (0: none given); as_labels: a Segmentation as a label map. */
+int frames_read(DcmDataset *ds, int k, bool check_only, size_t max_samples, int segment, bool as_labels,
+                struct series *out, struct sf_err *err);
 
 #endif

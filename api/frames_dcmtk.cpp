@@ -13,6 +13,7 @@
 #include "planes.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -59,7 +60,9 @@ struct image {
     bool encapsulated = false;
     bool fractional = false;
     unsigned max_fraction = 1;
-    unsigned segment = 0; /* the segment read */
+    unsigned segment = 0; /* the segment read (as_labels: 0 for every segment) */
+    bool as_labels = false; /* a Segmentation read as a label map of SegmentNumbers */
+    std::vector<std::pair<unsigned, std::string>> labels; /* as_labels: the segments read, number and label */
     std::vector<frame> f;
     std::vector<DcmPixelItem *> frags; /* compressed: the pixel sequence's items, the offset table first */
 };
@@ -337,11 +340,11 @@ int read_dose(image &im, struct sf_err *err)
     return 0;
 }
 
-/* A label for a message: printable ASCII, at most 32 characters. */
-std::string label_text(const OFString &s)
+/* A label for a message (or, of up to 63 characters, a model's name): printable ASCII. */
+std::string label_text(const OFString &s, size_t most = 32)
 {
     std::string out;
-    for (size_t i = 0; i < s.length() && out.size() < 32; i++)
+    for (size_t i = 0; i < s.length() && out.size() < most; i++)
         if (s[i] >= 0x20 && s[i] < 0x7f && s[i] != '"' && s[i] != '\\')
             out += s[i];
     while (!out.empty() && out.back() == ' ')
@@ -349,7 +352,8 @@ std::string label_text(const OFString &s)
     return out;
 }
 
-/* The segment a Segmentation is read for: ?segment (its SegmentNumber), or the only one; the
+/* The segment a Segmentation is read for: ?segment (its SegmentNumber), or the only one, or every
+ * one (as a label map, without ?segment: im.segment 0, and im.labels those with frames); the
  * SegmentSequence's numbers (C.8.20.2) must be distinct, and every frame's one of them. The
  * numbers are sorted once and looked up by halving (65 535 segments checked pair by pair, each
  * frame against each, took 13.6 s). */
@@ -375,10 +379,11 @@ int choose_segment(image &im, int segment, struct sf_err *err)
     for (size_t i = 1; i < segs.size(); i++)
         if (segs[i].first == segs[i - 1].first)
             return sf_fail(err, SF_EINVAL, where, "two segments numbered %u", segs[i].first);
-    auto has = [&segs](unsigned n) {
+    auto index = [&segs](unsigned n) { /* n's place in segs, or segs.size() */
         auto at = std::lower_bound(segs.begin(), segs.end(), n, [](const auto &s, unsigned v) { return s.first < v; });
-        return at != segs.end() && at->first == n;
+        return at != segs.end() && at->first == n ? (size_t)(at - segs.begin()) : segs.size();
     };
+    auto has = [&](unsigned n) { return index(n) < segs.size(); };
     std::string list;
     for (size_t i = 0; i < segs.size() && i < SEGMENTS_LISTED; i++) {
         OFString label;
@@ -388,15 +393,17 @@ int choose_segment(image &im, int segment, struct sf_err *err)
     }
     if (segs.size() > SEGMENTS_LISTED)
         list += ", ...";
-    if (segment == 0 && segs.size() > 1)
+    bool every = im.as_labels && segment == 0;
+    if (segment == 0 && segs.size() > 1 && !every)
         return sf_fail(err, SF_EINVAL, "?segment", "the segmentation holds %zu segments: %s; choose one with "
                        "?segment=N", segs.size(), list.c_str());
-    unsigned want = segment ? (unsigned)segment : segs[0].first;
-    if (!has(want))
+    unsigned want = segment ? (unsigned)segment : every ? 0 : segs[0].first;
+    if (want && !has(want))
         return sf_fail(err, SF_EINVAL, "?segment", "the segmentation has no segment %u: its segments are %s", want,
                        list.c_str());
     im.segment = want;
     size_t used = 0;
+    std::vector<bool> framed(segs.size()); /* the segments with a frame: a label map's labels (the rest are empty) */
     for (size_t i = 0; i < im.f.size(); i++) {
         if (im.f[i].segment != want && !has(im.f[i].segment)) {
             char what[160];
@@ -404,11 +411,19 @@ int choose_segment(image &im, int segment, struct sf_err *err)
                      "segments (%s)", im.f[i].segment, list.c_str());
             return fail_at(err, SF_EINVAL, im.part, (long)i, what);
         }
-        used += im.f[i].segment == want;
+        used += every || im.f[i].segment == want;
+        if (im.as_labels)
+            framed[index(im.f[i].segment)] = true;
     }
     if (!used)
         return sf_fail(err, SF_EINVAL, segment ? "?segment" : where,
                        "segment %u has no frames: it is empty", want);
+    for (size_t i = 0; im.as_labels && i < segs.size(); i++)
+        if (framed[i] && (every || segs[i].first == want)) {
+            OFString label;
+            segs[i].second->findAndGetOFString(DCM_SegmentLabel, label);
+            im.labels.emplace_back(segs[i].first, label_text(label, 63));
+        }
     return 0;
 }
 
@@ -578,29 +593,69 @@ int frame_samples(image &im, long i, std::vector<uint32_t> &out, unsigned *store
     return 0;
 }
 
-/* Each frame of the segment read (every frame, but a Segmentation's) decoded into its slice of
+/* Whether a Segmentation's frame is one of the segments read. */
+bool segment_read(const image &im, const frame &fr)
+{
+    return im.k != SEG || fr.segment == im.segment || (im.as_labels && im.segment == 0);
+}
+
+/* The label of segment n read as a label map, for a message: " (LABEL)" or "". */
+std::string label_of(const image &im, unsigned n)
+{
+    auto at = std::lower_bound(im.labels.begin(), im.labels.end(), n, [](const auto &l, unsigned v) { return l.first < v; });
+    return at != im.labels.end() && at->first == n && !at->second.empty() ? " (" + label_text(at->second.c_str()) + ")"
+                                                                          : "";
+}
+
+/* A Segmentation's frame into a uint16 label map's slice: its SegmentNumber where it holds the
+ * segment (binary 1, fractional over half its maximum); a sample another segment holds already is
+ * refused, naming both (a label map holds one label a sample). */
+int fill_labels(const image &im, const struct plane &p, const std::vector<uint32_t> &raw, uint16_t *dst,
+                struct sf_err *err)
+{
+    unsigned n = im.f[(size_t)p.tag].segment;
+    for (size_t j = 0; j < raw.size(); j++) {
+        if (raw[j] > im.max_fraction)
+            break; /* (fill_grid's message) */
+        if (im.fractional ? 2 * raw[j] <= im.max_fraction : !raw[j])
+            continue;
+        if (dst[j] && dst[j] != n) {
+            char what[200];
+            snprintf(what, sizeof what, "segments %u%s and %u%s overlap in this frame: a label map holds one segment a "
+                     "sample (read each with ?segment=N)", (unsigned)dst[j], label_of(im, dst[j]).c_str(), n,
+                     label_of(im, n).c_str());
+            return fail_at(err, SF_EINVAL, im.part, p.tag, what);
+        }
+        dst[j] = (uint16_t)n;
+    }
+    return 0;
+}
+
+/* Each frame of the segments read (every frame, but a Segmentation's) decoded into its slice of
  * grid (im's planes laid out as pl). *whole: every value so far a whole number within int16. */
 int fill_grid(image &im, const std::vector<struct plane> &pl, void *grid, bool *whole, struct sf_err *err)
 {
     size_t plane = (size_t)im.rows * im.cols;
-    bool binary = im.k == SEG && !im.fractional;
+    bool binary = im.k == SEG && !im.fractional && !im.as_labels;
     int rc, k = im.part;
     std::vector<uint32_t> raw;
     for (const struct plane &p : pl) {
         const frame &fr = im.f[(size_t)p.tag];
-        if (im.k == SEG && fr.segment != im.segment)
+        if (!segment_read(im, fr))
             continue;
         unsigned stored;
         if ((rc = frame_samples(im, p.tag, raw, &stored, err)))
             return rc;
         size_t base = (size_t)p.z * plane;
+        if (im.as_labels && (rc = fill_labels(im, p, raw, (uint16_t *)grid + base, err)))
+            return rc;
         if (binary) {
             for (size_t j = 0; j < plane; j++)
                 ((uint8_t *)grid)[base + j] = (uint8_t)raw[j];
             continue;
         }
-        float *dst = (float *)grid + base;
         if (im.k == SEG) {
+            float *dst = (float *)grid + base;
             for (size_t j = 0; j < plane; j++) {
                 if (raw[j] > im.max_fraction) {
                     char what[120];
@@ -608,10 +663,12 @@ int fill_grid(image &im, const std::vector<struct plane> &pl, void *grid, bool *
                              im.max_fraction);
                     return fail_at(err, SF_EINVAL, k, p.tag, what);
                 }
-                dst[j] = (float)((double)raw[j] / im.max_fraction);
+                if (!im.as_labels)
+                    dst[j] = (float)((double)raw[j] / im.max_fraction);
             }
             continue;
         }
+        float *dst = (float *)grid + base;
         *whole = *whole && fr.slope == std::floor(fr.slope) && fr.intercept == std::floor(fr.intercept);
         for (size_t j = 0; j < plane; j++) {
             double v = stored_value(im.bits, stored, im.is_signed, raw[j]) * fr.slope + fr.intercept;
@@ -641,11 +698,12 @@ bool frames_multiframe(DcmDataset *ds)
     return kind_of(ds) != FUNCTIONAL || ds->tagExists(DCM_PerFrameFunctionalGroupsSequence);
 }
 
-int frames_read(DcmDataset *ds, int k, bool check_only, size_t max_samples, int segment, struct series *out,
-                struct sf_err *err)
+int frames_read(DcmDataset *ds, int k, bool check_only, size_t max_samples, int segment, bool as_labels,
+                struct series *out, struct sf_err *err)
 {
     image im;
     im.ds = ds, im.part = k, im.k = kind_of(ds);
+    im.as_labels = as_labels && im.k == SEG;
     int rc;
     if (im.k == FUNCTIONAL && !ds->tagExists(DCM_PerFrameFunctionalGroupsSequence))
         return fail_at(err, SF_EINVAL, k, -1, "a multi-frame image without per-frame positions: surfd reads Enhanced "
@@ -672,39 +730,54 @@ int frames_read(DcmDataset *ds, int k, bool check_only, size_t max_samples, int 
     if ((rc = planes_layout(pl.data(), (int)pl.size(), im.k == SEG, max_samples, &pg, err)))
         return rc;
     size_t plane = (size_t)im.rows * im.cols, count = plane * (size_t)pg.nz;
-    if (im.k == SEG) { /* one frame of the segment a slice */
-        std::vector<long> at((size_t)pg.nz, -1);
-        for (const struct plane &p : pl) {
-            if (im.f[(size_t)p.tag].segment != im.segment)
-                continue;
-            if (at[(size_t)p.z] >= 0) {
+    if (im.k == SEG) { /* one frame of a segment a slice: (segment, slice, frame) sorted, neighbours compared */
+        std::vector<std::array<long, 3>> at;
+        for (const struct plane &p : pl)
+            if (segment_read(im, im.f[(size_t)p.tag]))
+                at.push_back({(long)im.f[(size_t)p.tag].segment, p.z, p.tag});
+        std::sort(at.begin(), at.end());
+        for (size_t i = 1; i < at.size(); i++)
+            if (at[i][0] == at[i - 1][0] && at[i][1] == at[i - 1][1]) {
                 char what[120];
-                snprintf(what, sizeof what, "two frames of segment %u at one position (the other: frame %ld)",
-                         im.segment, at[(size_t)p.z]);
-                return fail_at(err, SF_EINVAL, k, p.tag, what);
+                snprintf(what, sizeof what, "two frames of segment %ld at one position (the other: frame %ld)",
+                         at[i][0], at[i - 1][2]);
+                return fail_at(err, SF_EINVAL, k, at[i][2], what);
             }
-            at[(size_t)p.z] = p.tag;
-        }
     }
     out->g.nx = pg.nx, out->g.ny = pg.ny, out->g.nz = pg.nz;
     memcpy(out->g.spacing, pg.spacing, sizeof pg.spacing);
     memcpy(out->g.origin, pg.origin, sizeof pg.origin);
     memcpy(out->axes, pg.axes, sizeof pg.axes);
-    bool binary = im.k == SEG && !im.fractional;
-    out->g.type = binary ? ISO_U8 : ISO_F32;
+    bool binary = im.k == SEG && !im.fractional && !im.as_labels;
+    out->g.type = binary ? ISO_U8 : im.as_labels ? ISO_U16 : ISO_F32;
     out->typed = im.k == SEG;
+    if (im.as_labels) {
+        out->label_map = true;
+        out->segments = (struct series_segment *)calloc(im.labels.size(), sizeof *out->segments);
+        if (!out->segments)
+            return sf_fail(err, SF_ENOMEM, "", "out of memory for the segments");
+        out->n_segments = (int)im.labels.size();
+        for (size_t i = 0; i < im.labels.size(); i++) {
+            out->segments[i].number = im.labels[i].first;
+            snprintf(out->segments[i].label, sizeof out->segments[i].label, "%s", im.labels[i].second.c_str());
+        }
+    }
     if (check_only)
         return 0;
     /* the grid: float32 (shrunk to int16 below when every value is a whole number within it), a
      * binary segmentation's uint8; a Segmentation's slices without a frame of its segment are 0 */
-    out->owned = calloc(count ? count : 1, binary ? 1 : sizeof(float));
-    if (!out->owned)
+    out->owned = calloc(count ? count : 1, binary ? 1 : im.as_labels ? 2 : sizeof(float));
+    if (!out->owned) {
+        free(out->segments);
+        out->segments = NULL, out->n_segments = 0;
         return sf_fail(err, SF_ENOMEM, "", "out of memory for the image's samples");
+    }
     out->g.samples = out->owned;
     bool whole = im.k != SEG;
     if ((rc = fill_grid(im, pl, out->owned, &whole, err))) {
         free(out->owned);
-        out->owned = NULL, out->g.samples = NULL;
+        free(out->segments);
+        out->owned = NULL, out->g.samples = NULL, out->segments = NULL, out->n_segments = 0;
         return rc;
     }
     if (whole) { /* int16, as a series' whole values are: in place, each sample written after its float is read */

@@ -104,23 +104,24 @@ int read_slice(DcmDataset *ds, int k, bool check_only, slice &sl, struct sf_err 
 } // namespace
 
 static int read_series(const struct part *parts, int n, bool check_only, size_t max_samples, int segment,
-                       struct series *out, struct sf_err *err);
+                       bool as_labels, struct series *out, struct sf_err *err);
 
 extern "C" int series_read(const struct part *parts, int n, bool check_only, size_t max_samples, int segment,
-                           struct series *out, struct sf_err *err)
+                           bool as_labels, struct series *out, struct sf_err *err)
 {
     memset(out, 0, sizeof *out);
     try { /* what C++ allocates here, DCMTK's buffers and the slices', may throw: never past C */
-        return read_series(parts, n, check_only, max_samples, segment, out, err);
+        return read_series(parts, n, check_only, max_samples, segment, as_labels, out, err);
     } catch (const std::bad_alloc &) {
         free(out->owned);
+        free(out->segments);
         memset(out, 0, sizeof *out);
         return sf_fail(err, SF_ENOMEM, "/parts", "out of memory for the series");
     }
 }
 
 static int read_series(const struct part *parts, int n, bool check_only, size_t max_samples, int segment,
-                       struct series *out, struct sf_err *err)
+                       bool as_labels, struct series *out, struct sf_err *err)
 {
     if (n < 1)
         return sf_fail(err, SF_EINVAL, "/parts", "a series is at least 2 slices (one DICOM image a part)");
@@ -129,7 +130,7 @@ static int read_series(const struct part *parts, int n, bool check_only, size_t 
         DcmFileFormat ff;
         int rc = read_part(parts[k], k, check_only, ff, err);
         if (!rc && n == 1 && frames_multiframe(ff.getDataset()))
-            return frames_read(ff.getDataset(), 0, check_only, max_samples, segment, out, err);
+            return frames_read(ff.getDataset(), 0, check_only, max_samples, segment, as_labels, out, err);
         if (!rc && n == 1)
             rc = sf_fail(err, SF_EINVAL, "/parts", "one image of one frame: a series is at least 2 slices (one DICOM "
                          "image a part), or one multi-frame image (Enhanced CT or MR, RT Dose, Segmentation)");

@@ -941,19 +941,39 @@ static int read_series(const char *body, size_t len, const char *options, struct
     long segment = q[0] ? strtol(q, &end, 10) : 0;
     if (q[0] && (*end || segment < 1 || segment > 65535))
         return sf_fail(err, SF_EINVAL, "?segment", "segment is a SegmentNumber, a whole number from 1 to 65535");
+    /* a Segmentation as a label map: ?label=N its segment N, ?labels=all every segment */
+    bool as_labels = v->has_label || v->all_labels;
+    if (as_labels && q[0])
+        return sf_fail(err, SF_EINVAL, "?segment", "segment and %s together: a Segmentation's label is its segment "
+                       "(?label=N reads segment N as a label map's label, ?segment=N as it is, fractions kept)",
+                       v->has_label ? "label" : "labels");
+    if (v->has_label && (v->label < 1 || v->label > 65535))
+        return sf_fail(err, SF_EINVAL, "?label", "a Segmentation's labels are its SegmentNumbers, 1 to 65535");
+    if (v->has_label)
+        segment = (long)v->label;
     struct part one = {body, len, NULL, 0}, *parts = &one;
     int n = 1;
     /* a multipart series, or one DICOM file as the body: a series of that one part, /parts/0 */
     if (multipart_sniff(body, len) && (rc = multipart_split(body, len, &parts, &n, err)))
         return rc;
     struct series s;
-    rc = series_read(parts, n, v->check_only, VOLUME_MAX_SAMPLES, (int)segment, &s, err);
+    rc = series_read(parts, n, v->check_only, VOLUME_MAX_SAMPLES, (int)segment, as_labels, &s, err);
     if (parts != &one)
         free(parts);
+    if (rc && v->has_label && !strcmp(err->pointer, "?segment")) /* (the segment chosen was ?label) */
+        snprintf(err->pointer, sizeof err->pointer, "?label");
     if (rc)
         return rc;
     v->g = s.g;
     v->owned = s.owned;
+    v->integer = s.label_map;
+    for (int k = 0; k < s.n_segments && k < 2 * VOLUME_MAX_LABELS && !rc; k++) /* (past them labels=all refuses) */
+        if (s.segments[k].label[0] && !name_label(v, s.segments[k].number, s.segments[k].label,
+                                                  strlen(s.segments[k].label)))
+            rc = sf_fail(err, SF_ENOMEM, "", "out of memory for the segments' names");
+    free(s.segments);
+    if (rc)
+        return rc;
     if (v->check_only && !s.typed) /* int16 or float32 is decided by the samples' rescaled values: the wider until then */
         v->g.type = ISO_F32;
     memcpy(v->axes, s.axes, sizeof s.axes);
@@ -1282,9 +1302,9 @@ static void list_labels(const long long *vals, int n, int cap, char *out, size_t
 static int label_grid(struct volume *v, const char *format, struct sf_err *err)
 {
     const char *at = v->has_label ? "?label" : "?labels";
-    if (!strcmp(format, "dicom"))
+    if (!strcmp(format, "dicom") && !v->integer)
         return sf_fail(err, SF_EINVAL, at, "a DICOM image series is not a label map (label maps are integer NRRD, "
-                       "MetaImage, NIfTI or raw samples)");
+                       "MetaImage, NIfTI or raw samples, or a DICOM Segmentation)");
     if (!v->integer)
         return sf_fail(err, SF_EINVAL, at, "a label map's samples are whole numbers: this volume's are %s", v->check_only &&
                        v->g.type == ISO_F32 ? "float" : "scaled or float");

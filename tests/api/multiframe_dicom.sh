@@ -107,6 +107,19 @@ for name, frac in (("seg", False), ("segf", True)):
         open("%s/%s%d.q" % (t, name, n), "w").write("dims=%d,%d,%d&type=%s&spacing=%g,%g,%g&origin=%g,%g,%g" % (
             len(x), len(y), k1 - k0 + 1, "float32" if frac else "uint8", x[1] - x[0], y[1] - y[0], z[1] - z[0],
             x[0], y[0], z[k0]))
+        if frac:  # as a label map's label: where its fraction is over half
+            open("%s/%s%d_half.raw" % (t, name, n), "wb").write(np.ascontiguousarray(grid > 0.5, dtype=np.uint8).tobytes())
+            open("%s/%s%d_half.q" % (t, name, n), "w").write(open("%s/%s%d.q" % (t, name, n)).read().replace("float32", "uint8"))
+# a Segmentation whose segments touch without overlapping, and its label map (1 the ball, 2 the slab)
+held, x, y, z = dw.seg(t + "/seg_apart.dcm", layout="touching")
+dw.seg(t + "/seg_overlap.dcm", layout="overlapping")
+zs = [k for k in range(len(z)) if any(h[k].any() for h in held.values())]
+k0, k1 = min(zs), max(zs)
+lab = (held[1] + 2 * held[2])[k0:k1 + 1]
+assert lab.max() == 2 and not (held[1] * held[2]).any()
+open(t + "/seg_apart.raw", "wb").write(np.ascontiguousarray(lab, dtype=np.uint16).tobytes())
+open(t + "/seg_apart.q", "w").write("dims=%d,%d,%d&type=uint16&spacing=%g,%g,%g&origin=%g,%g,%g" % (
+    len(x), len(y), k1 - k0 + 1, x[1] - x[0], y[1] - y[0], z[1] - z[0], x[0], y[0], z[k0]))
 dw.seg(t + "/seg_badlabel.dcm", bad_label=True)
 dw.seg(t + "/seg_twice.dcm", extra_frame=8)
 # counts an object sets, each walked once: 2^18 empty per-frame items (every frame in one plane),
@@ -267,6 +280,37 @@ code=$(post "$T/seg_twice.dcm" "iso=0.5&segment=1")
 check "two frames of segment 1 at one position: 422 at one of them" '[ "$code" = 422 ] && grep -q "two frames of segment 1" "$T/body"'
 code=$(post "$T/seg_twice.dcm" "iso=0.5&segment=2")
 check "... while segment 2 of the same file reads" '[ "$code" = 201 ]'
+# ... as a label map: ?labels=all every segment, ?label=N one (a fractional one's where it is over half)
+models() { python3 -c "
+import json, sys
+print(','.join(m['name'] for m in json.load(open(sys.argv[1]))['models']))" "$1"; }
+meshes() { python3 -c "
+import json, sys, urllib.request
+for m in json.load(open(sys.argv[1]))['models']:
+    sys.stdout.buffer.write(urllib.request.urlopen(sys.argv[2] + m['links']['mesh']).read()[80:])" "$1" "$URL"; }
+code=$(status POST "/isosurface?labels=all&$(cat "$T/seg_apart.q")" -H 'Content-Type: application/octet-stream' --data-binary @"$T/seg_apart.raw")
+cp "$T/body" "$T/apart_ref.json"
+[ "$code" = 201 ] || bad "the raw label map of seg_apart: $code $(cat "$T/body")"
+code=$(post "$T/seg_apart.dcm" "labels=all")
+check "?labels=all of a Segmentation whose segments touch: 201, a model a segment named by its SegmentLabel (?segment=N is not needed)" '[ "$code" = 201 ] && [ "$(models "$T/body")" = "Ball,Box" ]'
+check "... each segment's mesh the label map's, triangle for triangle (their shared boundary included)" '[ "$(meshes "$T/body" | md5sum)" = "$(meshes "$T/apart_ref.json" | md5sum)" ] && [ "$(meshes "$T/body" | wc -c)" -gt 10000 ]'
+code=$(post "$T/seg.dcm" "labels=all")
+code=$(post "$T/seg_overlap.dcm" "labels=all")
+check "?labels=all of a Segmentation whose segments overlap: 422 at the frame, naming both, pointing to ?segment" '[ "$code" = 422 ] && grep -q "\"pointer\":\"/parts/0/frames/[0-9]*\"" "$T/body" && grep -q "segments 1 (Ball) and 2 (Box) overlap" "$T/body" && grep -q "?segment=N" "$T/body"'
+code=$(post "$T/seg.dcm" "label=2")
+check "?label=2 of it: segment 2's mesh as ?segment=2 gives it, named Box" '[ "$code" = 201 ] && same "$T/body" "$T/seg2.json" && grep -q "\"name\":\"Box\"" "$T/body"'
+code=$(status POST "/isosurface?iso=0.5&$(cat "$T/segf1_half.q")" -H 'Content-Type: application/octet-stream' --data-binary @"$T/segf1_half.raw")
+cp "$T/body" "$T/ref.json"
+code=$(post "$T/segf.dcm" "label=1")
+check "?label=1 of a fractional one: the mask of its fractions over half" '[ "$code" = 201 ] && same "$T/body" "$T/ref.json"'
+code=$(post "$T/seg.dcm" "label=2&segment=2")
+check "?label with ?segment: 422 at ?segment" '[ "$code" = 422 ] && pointer "?segment"'
+code=$(post "$T/seg.dcm" "label=3")
+check "?label=3, no such segment: 422 at ?label naming the segments" '[ "$code" = 422 ] && pointer "?label" && grep -q "no segment 3" "$T/body"'
+code=$(post "$T/rd32.dcm" "labels=all")
+check "?labels=all of an RT Dose: 422 at ?labels, not a label map" '[ "$code" = 422 ] && pointer "?labels" && grep -q "not a label map" "$T/body"'
+code=$(post "$T/seg_many.dcm" "labels=all")
+check "?labels=all of 65 535 segments (it took 13.6 s to refuse without ?segment), two with frames: the two (the empty ones no labels)" '[ "$code" = 201 ] && [ "$(models "$T/body")" = "Ball,Box" ]'
 code=$(post "$T/seg_items.dcm" "iso=0.5")
 check "a Segmentation of 2^18 frames, every per-frame item empty (2.6 MB; it took 164 s): 422, every frame in one plane" '[ "$code" = 422 ] && grep -q "every frame lies in one plane" "$T/body"'
 code=$(status POST "/isosurface?iso=0.5&dims=4,4,16384&type=uint8&spacing=1,1,1&origin=0,0,0" -H 'Content-Type: application/octet-stream' --data-binary @"$T/seg_column.raw")

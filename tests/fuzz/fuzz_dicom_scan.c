@@ -40,7 +40,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         parts[k].data = (const char *)data, parts[k].len = size;
     struct series s;
     struct sf_err e3 = {0};
-    if (series_read(parts, 2, false, 1u << 20, 0, &s, &e3) == 0)
+    if (series_read(parts, 2, false, 1u << 20, 0, false, &s, &e3) == 0)
         free(s.owned);
     return 0;
 }

@@ -199,9 +199,11 @@ def dose_oriented(out, orient=(0, 1, 0, 0, 0, -1), shape=(30, 36, 40), spacing=(
     return stored.astype(np.float64) * sc, np.array(corner, float), (r, c, n), spacing
 
 
-def seg_labels(shape=(24, 27, 31), spacing=(1.5, 1.25, 2.0), origin=(-20.0, -17.0, -10.0)):
-    """Two segments on a grid (z, y, x): 1 a ball, 2 a box, overlapping a little; each is in some
-    planes alone (so frames are sparse). As 0..1 fractions: the ball's edge partial. Frames of
+def seg_labels(shape=(24, 27, 31), spacing=(1.5, 1.25, 2.0), origin=(-20.0, -17.0, -10.0), layout=None):
+    """Two segments on a grid (z, y, x): 1 a ball, 2 a box apart from it; layout "touching": the
+    box a slab on the ball's top, taking the samples the ball leaves free from z = 16 up (as a label
+    map they share a boundary), "overlapping": the slab from z = 14 whatever the ball holds. Each
+    is in some planes alone (so frames are sparse). As 0..1 fractions: the ball's edge partial. Frames of
     27 x 31 samples: 837 bits, so a BINARY frame begins where the one before ends, mid-byte
     (PS3.5 8.1.1), not at a byte."""
     nz, ny, nx = shape
@@ -212,6 +214,9 @@ def seg_labels(shape=(24, 27, 31), spacing=(1.5, 1.25, 2.0), origin=(-20.0, -17.
     r = np.sqrt((X + 2.0) ** 2 + (Y - 0.5) ** 2 + (Z - 10.0) ** 2)
     ball = np.clip(9.0 - r + 0.5, 0.0, 1.0)  # a 9 mm ball, its edge a ramp a mm wide
     box = ((np.abs(X - 12.0) <= 6) & (np.abs(Y + 5.0) <= 4) & (Z >= 18) & (Z <= 30)).astype(np.float64)
+    if layout:
+        slab = (np.abs(X + 2.0) <= 6) & (np.abs(Y - 0.5) <= 5) & (Z <= 30)
+        box = (slab & (Z >= 16) & (ball < 0.5) if layout == "touching" else slab & (Z >= 14)).astype(np.float64)
     return {1: ball, 2: box}, x, y, z
 
 
