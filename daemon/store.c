@@ -198,6 +198,33 @@ int store_uploads_held(struct store *s, void (*fn)(const char *owner, long long 
     return s->ops->uploads_held(s, fn, arg);
 }
 
+int store_instance_put(struct store *s, const struct instance_rec *r) { return s->ops->instance_put(s, r); }
+
+int store_series_list(struct store *s, const char *owner, void (*fn)(const struct series_rec *, void *), void *arg)
+{
+    return s->ops->series_list(s, NULL, owner, fn, arg);
+}
+
+static void series_one(const struct series_rec *r, void *arg) { *(struct series_rec *)arg = *r; }
+
+int store_series_get(struct store *s, const char *uid, const char *owner, struct series_rec *out)
+{
+    memset(out, 0, sizeof *out);
+    int rc = s->ops->series_list(s, uid, owner, series_one, out);
+    return rc ? rc : out->uid[0] ? 0 : SF_ENOTFOUND;
+}
+
+int store_series_instances(struct store *s, const char *uid, bool with_data,
+                           void (*fn)(const char *, const char *, const void *, size_t, void *), void *arg)
+{
+    return noted(s, s->ops->series_instances(s, uid, with_data, fn, arg));
+}
+
+int store_series_delete(struct store *s, const char *uid, const char *owner)
+{
+    return s->ops->series_delete(s, uid, owner);
+}
+
 void store_on_event(struct store *s, void (*fn)(enum store_event, const char *, void *), void *arg)
 {
     if (s->ops->on_event)

@@ -206,6 +206,42 @@ int store_model_list(struct store *s, const char *owner, long limit, void (*fn)(
 /* 0 deleted, SF_ENOTFOUND, SF_EIO. */
 int store_model_delete(struct store *s, const char *id, const char *owner);
 
+/* ---- DICOM series: instances received (C-STORE) or pulled from a PACS, kept by series ---- */
+
+/* One instance as it is stored: its UIDs, where it came from, its geometry for GET /series (meta,
+ * a JSON object: rows, columns, spacing, position...) and its bytes (a DICOM file, identifying
+ * elements blanked unless the operator keeps them). */
+struct instance_rec {
+    const char *sop_uid, *series_uid, *study_uid, *modality, *source, *owner;
+    double received;
+    const char *meta;
+    const void *data;
+    size_t len;
+};
+/* A series as the store counts it: its instances, their bytes, when the first and the last came. */
+struct series_rec {
+    char uid[65], study_uid[65], modality[17], source[80], owner[64];
+    long instances;
+    long long bytes;
+    double first, last;
+};
+/* Stores an instance, and counts it in its series (made with the first), in one transaction: 0
+ * stored, SF_ECONFLICT when an instance of that SOP Instance UID is stored already (kept as it is:
+ * a PACS sends again what it is unsure of), SF_EIO. */
+int store_instance_put(struct store *s, const struct instance_rec *r);
+/* Series, the latest last (owner NULL: every owner's). 0, SF_EIO. */
+int store_series_list(struct store *s, const char *owner, void (*fn)(const struct series_rec *, void *), void *arg);
+/* 0 (*out), SF_ENOTFOUND, SF_EIO. */
+int store_series_get(struct store *s, const char *uid, const char *owner, struct series_rec *out);
+/* Calls fn with each instance of series uid in the order they came: its SOP Instance UID, meta,
+ * and (with_data) its bytes, checked against the sum taken when written (else NULL, 0). 0,
+ * SF_EIO, SF_EDAMAGED. */
+int store_series_instances(struct store *s, const char *uid, bool with_data,
+                           void (*fn)(const char *sop_uid, const char *meta, const void *data, size_t len, void *),
+                           void *arg);
+/* The series and its instances: 0, SF_ENOTFOUND, SF_EIO. */
+int store_series_delete(struct store *s, const char *uid, const char *owner);
+
 /* Meshes of stored models, cached per (model, key) - the key the request's normalised format and
  * tolerance (issue 18: computed once): the file, its type and meta (the job's: filename,
  * tolerance), its SHA-256 (the ETag). Deleting or editing a model drops its meshes; the cache is

@@ -44,6 +44,12 @@ struct store_ops {
     int (*check)(struct store *, bool deep, void (*report)(const char *line, void *), void *arg);
     int (*recover)(struct store *, const char *problem, void (*report)(const char *line, void *), void *arg); /* or NULL */
     int (*uploads_held)(struct store *, void (*fn)(const char *owner, long long bytes, void *), void *arg);
+    int (*instance_put)(struct store *, const struct instance_rec *); /* sum: store_checksum of the data */
+    int (*series_list)(struct store *, const char *uid, const char *owner, void (*fn)(const struct series_rec *, void *),
+                       void *arg); /* uid NULL: every series */
+    int (*series_instances)(struct store *, const char *uid, bool with_data,
+                            void (*fn)(const char *, const char *, const void *, size_t, void *), void *arg);
+    int (*series_delete)(struct store *, const char *uid, const char *owner);
 };
 
 /* A running job a reap found, with what decides its new state (store_reaped_state). */

@@ -101,6 +101,17 @@ static const char SCHEMA[] =
     "CREATE OR REPLACE TRIGGER volumes_pieces AFTER DELETE ON model_volumes FOR EACH ROW EXECUTE FUNCTION surfd_drop_pieces();"
     "CREATE OR REPLACE TRIGGER meshes_pieces AFTER DELETE OR UPDATE OF data_pieces ON meshes"
     " FOR EACH ROW EXECUTE FUNCTION surfd_drop_pieces();";
+/* DICOM series (store.h): an instance's pieces go with it, its series' delete takes them all (a
+ * string of its own: C99 compilers need take no longer one) */
+static const char SCHEMA_SERIES[] =
+    "CREATE TABLE IF NOT EXISTS series ("
+    " uid text PRIMARY KEY, study_uid text NOT NULL, modality text NOT NULL, source text NOT NULL, owner text NOT NULL,"
+    " instances bigint NOT NULL, bytes bigint NOT NULL, first double precision NOT NULL, last double precision NOT NULL);"
+    "CREATE TABLE IF NOT EXISTS instances ("
+    " sop_uid text PRIMARY KEY, series_uid text NOT NULL REFERENCES series(uid) ON DELETE CASCADE,"
+    " received double precision NOT NULL, meta text NOT NULL, data bytea NOT NULL, sum text NOT NULL, data_pieces text);"
+    "CREATE INDEX IF NOT EXISTS instances_series ON instances(series_uid, received);"
+    "CREATE OR REPLACE TRIGGER instances_pieces AFTER DELETE ON instances FOR EACH ROW EXECUTE FUNCTION surfd_drop_pieces();";
 
 #define NOW "extract(epoch from clock_timestamp())"
 
@@ -1147,11 +1158,118 @@ static int pg_uploads_held(struct store *s, void (*fn)(const char *owner, long l
     return n < 0 ? SF_EIO : 0;
 }
 
+/* ---- DICOM series ---- */
+
+static int pg_instance_put(struct store *s, const struct instance_rec *r)
+{
+    struct pg_store *p = pg(s);
+    char received[32], len[24], sum[65], name[48];
+    num(received, sizeof received, r->received);
+    snprintf(len, sizeof len, "%zu", r->len);
+    store_checksum(r->data, r->len, "", 0, sum);
+    int c = take(p), rc = SF_EIO;
+    PGresult *res = execute(p, c, "BEGIN", 0, NULL, true);
+    if (res) {
+        PQclear(res);
+        /* the series first (its row is the instances' reference), counted only if the instance is new */
+        struct param sr[] = {T(r->series_uid), T(r->study_uid), T(r->modality), T(r->source), T(r->owner ? r->owner : ""),
+                             T(received)};
+        struct param in[] = {T(r->sop_uid), T(r->series_uid), T(received), T(r->meta), T(NULL), T(sum), T(NULL)};
+        rc = exec_in(p, c, "INSERT INTO series(uid,study_uid,modality,source,owner,instances,bytes,first,last)"
+                     " VALUES($1,$2,$3,$4,$5,0,0,$6,$6) ON CONFLICT (uid) DO NOTHING", 6, sr) < 0 ||
+                     value_params(p, c, r->data, r->len, name, &in[4], &in[6])
+                 ? SF_EIO
+                 : store_one_row(exec_in(p, c, "INSERT INTO instances(sop_uid,series_uid,received,meta,data,sum,data_pieces)"
+                                         " VALUES($1,$2,$3,$4,$5,$6,$7) ON CONFLICT DO NOTHING", 7, in),
+                                 SF_ECONFLICT);
+        struct param up[] = {T(r->series_uid), T(len), T(received)};
+        if (rc == 0 && exec_in(p, c, "UPDATE series SET instances=instances+1, bytes=bytes+$2::bigint,"
+                               " last=greatest(last,$3::double precision) WHERE uid=$1", 3, up) != 1)
+            rc = SF_EIO;
+        res = execute(p, c, rc == 0 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
+        if (!res)
+            rc = SF_EIO;
+        PQclear(res);
+    }
+    give(p, c);
+    return rc;
+}
+
+static int pg_series_list(struct store *s, const char *uid, const char *owner,
+                          void (*fn)(const struct series_rec *, void *), void *arg)
+{
+    struct param prm[] = {T(uid), T(owner)};
+    PGresult *res;
+    int n = exec1(s, &res,
+                  "SELECT uid, study_uid, modality, source, owner, instances, bytes, first, last FROM series"
+                  " WHERE ($1::text IS NULL OR uid=$1) AND ($2::text IS NULL OR owner=$2) AND instances > 0"
+                  " ORDER BY last DESC, uid", 2, prm);
+    for (int k = 0; k < n; k++) {
+        struct series_rec r = {0};
+        get_text(r.uid, sizeof r.uid, res, k, 0);
+        get_text(r.study_uid, sizeof r.study_uid, res, k, 1);
+        get_text(r.modality, sizeof r.modality, res, k, 2);
+        get_text(r.source, sizeof r.source, res, k, 3);
+        get_text(r.owner, sizeof r.owner, res, k, 4);
+        r.instances = (long)get_i64(res, k, 5);
+        r.bytes = get_i64(res, k, 6);
+        r.first = get_f64(res, k, 7);
+        r.last = get_f64(res, k, 8);
+        fn(&r, arg);
+    }
+    if (n >= 0)
+        PQclear(res);
+    return n < 0 ? SF_EIO : 0;
+}
+
+static int pg_series_instances(struct store *s, const char *uid, bool with_data,
+                               void (*fn)(const char *, const char *, const void *, size_t, void *), void *arg)
+{
+    /* the UIDs first, then each instance's bytes alone: a series of 300 slices is never one result */
+    struct param prm[] = {T(uid)};
+    PGresult *res;
+    int n = exec1(s, &res, "SELECT sop_uid, meta FROM instances WHERE series_uid=$1 ORDER BY received, sop_uid", 1, prm);
+    int rc = n < 0 ? SF_EIO : 0;
+    for (int k = 0; rc == 0 && k < n; k++) {
+        if (!with_data) {
+            fn(PQgetvalue(res, k, 0), PQgetvalue(res, k, 1), NULL, 0, arg);
+            continue;
+        }
+        struct param one[] = {T(PQgetvalue(res, k, 0))};
+        PGresult *d;
+        if (exec1(s, &d, "SELECT data, sum, data_pieces FROM instances WHERE sop_uid=$1", 1, one) != 1) {
+            rc = SF_EIO; /* (deleted meanwhile, or the database failed) */
+            break;
+        }
+        size_t len = 0;
+        unsigned char *data = value_copy(pg(s), d, 0, 0, 2, &len);
+        char sum[65];
+        if (data)
+            store_checksum(data, len, "", 0, sum);
+        rc = !data ? SF_EIO : strcmp(sum, PQgetvalue(d, 0, 1)) ? SF_EDAMAGED : 0;
+        if (rc == 0)
+            fn(PQgetvalue(res, k, 0), PQgetvalue(res, k, 1), data, len, arg);
+        free(data);
+        PQclear(d);
+    }
+    if (n >= 0)
+        PQclear(res);
+    return rc;
+}
+
+static int pg_series_delete(struct store *s, const char *uid, const char *owner)
+{
+    struct param prm[] = {T(uid), T(owner)};
+    return store_one_row(exec1(s, NULL, "DELETE FROM series WHERE uid=$1 AND ($2::text IS NULL OR owner=$2)", 2, prm),
+                         SF_ENOTFOUND);
+}
+
 static const struct store_ops PG_OPS = {
     "postgresql", pg_close,     pg_submit,    pg_submit_file, pg_request_file, pg_request_file_done, pg_claim,      pg_heartbeat,    pg_finish,
     pg_release,   pg_cancel,    pg_reap,      pg_prune,      pg_get,          pg_list,
     pg_queued,    pg_model_put, pg_model_get, pg_model_list, pg_model_delete, pg_model_edit, pg_volume_get,
     pg_mesh_get,  pg_mesh_put,  pg_mesh_bytes, pg_writable,  pg_on_event,  NULL,         NULL,         pg_uploads_held,
+    pg_instance_put, pg_series_list, pg_series_instances, pg_series_delete,
 };
 
 int store_pg_open(const char *uri, const char *scratch, struct store **out, struct sf_err *err)
@@ -1182,6 +1300,11 @@ int store_pg_open(const char *uri, const char *scratch, struct store **out, stru
     PQclear(r);
     r = PQexec(p->pool[0], SCHEMA);
     bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
+    if (ok) {
+        PQclear(r);
+        r = PQexec(p->pool[0], SCHEMA_SERIES);
+        ok = PQresultStatus(r) == PGRES_COMMAND_OK;
+    }
     if (!ok)
         sf_fail(err, SF_EIO, NULL, "PostgreSQL: cannot create the schema: %s", PQerrorMessage(p->pool[0]));
     PQclear(r);

@@ -53,6 +53,14 @@ static const char SCHEMA[] =
     " model TEXT NOT NULL, key TEXT NOT NULL, type TEXT NOT NULL, meta TEXT NOT NULL, data BLOB NOT NULL,"
     " sum TEXT NOT NULL, used REAL NOT NULL, PRIMARY KEY (model, key));"
     "CREATE TABLE IF NOT EXISTS probe (x INTEGER);"
+    "CREATE TABLE IF NOT EXISTS series ("
+    " uid TEXT PRIMARY KEY, study_uid TEXT NOT NULL, modality TEXT NOT NULL, source TEXT NOT NULL, owner TEXT NOT NULL,"
+    " instances INTEGER NOT NULL, bytes INTEGER NOT NULL, first REAL NOT NULL, last REAL NOT NULL);"
+    "CREATE INDEX IF NOT EXISTS series_last ON series(last);"
+    "CREATE TABLE IF NOT EXISTS instances ("
+    " sop_uid TEXT PRIMARY KEY, series_uid TEXT NOT NULL, received REAL NOT NULL, meta TEXT NOT NULL,"
+    " data BLOB NOT NULL, sum TEXT NOT NULL);"
+    "CREATE INDEX IF NOT EXISTS instances_series ON instances(series_uid, received);"
     "CREATE TABLE IF NOT EXISTS pieces (name TEXT NOT NULL, seq INTEGER NOT NULL, data BLOB NOT NULL,"
     " PRIMARY KEY (name, seq));"
     /* a row's pieces go with it, however it goes (REPLACE's deletes fire triggers when recursive) */
@@ -64,6 +72,8 @@ static const char SCHEMA[] =
     "CREATE TRIGGER IF NOT EXISTS volumes_pieces AFTER DELETE ON model_volumes WHEN typeof(old.data)='text'"
     " BEGIN DELETE FROM pieces WHERE name=old.data; END;"
     "CREATE TRIGGER IF NOT EXISTS meshes_pieces AFTER DELETE ON meshes WHEN typeof(old.data)='text'"
+    " BEGIN DELETE FROM pieces WHERE name=old.data; END;"
+    "CREATE TRIGGER IF NOT EXISTS instances_pieces AFTER DELETE ON instances WHEN typeof(old.data)='text'"
     " BEGIN DELETE FROM pieces WHERE name=old.data; END;"
     "CREATE TRIGGER IF NOT EXISTS jobs_pieces AFTER DELETE ON jobs"
     " WHEN typeof(old.request)='text' OR typeof(old.result)='text'"
@@ -236,6 +246,7 @@ static void sweep_pieces(struct store *s)
     run_held(s, "DELETE FROM pieces WHERE name NOT IN (SELECT source FROM models WHERE typeof(source)='text'"
                 " UNION ALL SELECT data FROM model_volumes WHERE typeof(data)='text'"
                 " UNION ALL SELECT data FROM meshes WHERE typeof(data)='text'"
+                " UNION ALL SELECT data FROM instances WHERE typeof(data)='text'"
                 " UNION ALL SELECT result FROM jobs WHERE typeof(result)='text'"
                 " UNION ALL SELECT request FROM jobs WHERE typeof(request)='text')"
                 " AND EXISTS (SELECT 1 FROM pieces)", "");
@@ -1149,6 +1160,109 @@ static int sq_recover(struct store *s, const char *problem, void (*report)(const
     return check_all_sums(s, true, problem, report, arg) == SF_EIO ? SF_EIO : 0; /* damage found is mended */
 }
 
+/* ---- DICOM series ---- */
+
+static int instance_step(struct store *s, const void *a, const void *b)
+{
+    (void)b;
+    const struct instance_rec *r = a;
+    char sum[65];
+    store_checksum(r->data, r->len, "", 0, sum);
+    int n = run_held(s, "INSERT OR IGNORE INTO instances(sop_uid,series_uid,received,meta,data,sum) VALUES(?,?,?,?,?,?)",
+                     "ttdtBt", r->sop_uid, r->series_uid, r->received, r->meta, r->data, r->len, sum);
+    if (n == 0)
+        return SF_ECONFLICT;
+    if (n < 0 || run_held(s, "INSERT INTO series(uid,study_uid,modality,source,owner,instances,bytes,first,last)"
+                             " VALUES(?1,?2,?3,?4,?5,1,?6,?7,?7) ON CONFLICT(uid) DO UPDATE SET"
+                             " instances=instances+1, bytes=bytes+?6, last=max(last,?7)",
+                          "tttttid", r->series_uid, r->study_uid, r->modality, r->source, r->owner ? r->owner : "",
+                          (long)r->len, r->received) != 1)
+        return SF_EIO;
+    return 0;
+}
+
+static int sq_instance_put(struct store *s, const struct instance_rec *r) { return transaction(s, instance_step, r, NULL); }
+
+static int sq_series_list(struct store *s, const char *uid, const char *owner,
+                          void (*fn)(const struct series_rec *, void *), void *arg)
+{
+    sqlite3_stmt *st;
+    int rc = SF_EIO;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s),
+                           "SELECT uid, study_uid, modality, source, owner, instances, bytes, first, last FROM series"
+                           " WHERE (?1 IS NULL OR uid=?1) AND (?2 IS NULL OR owner=?2) ORDER BY last DESC, uid",
+                           -1, &st, NULL) == SQLITE_OK) {
+        uid ? sqlite3_bind_text(st, 1, uid, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 1);
+        owner ? sqlite3_bind_text(st, 2, owner, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 2);
+        while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
+            struct series_rec r = {0};
+            copy_text(r.uid, sizeof r.uid, st, 0);
+            copy_text(r.study_uid, sizeof r.study_uid, st, 1);
+            copy_text(r.modality, sizeof r.modality, st, 2);
+            copy_text(r.source, sizeof r.source, st, 3);
+            copy_text(r.owner, sizeof r.owner, st, 4);
+            r.instances = (long)sqlite3_column_int64(st, 5);
+            r.bytes = sqlite3_column_int64(st, 6);
+            r.first = sqlite3_column_double(st, 7);
+            r.last = sqlite3_column_double(st, 8);
+            fn(&r, arg);
+        }
+        rc = rc == SQLITE_DONE ? 0 : SF_EIO;
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return rc;
+}
+
+static int sq_series_instances(struct store *s, const char *uid, bool with_data,
+                               void (*fn)(const char *, const char *, const void *, size_t, void *), void *arg)
+{
+    sqlite3_stmt *st;
+    int rc = SF_EIO;
+    pthread_mutex_lock(lock_of(s));
+    if (sqlite3_prepare_v2(db_of(s),
+                           with_data ? "SELECT sop_uid, meta, data, sum FROM instances WHERE series_uid=? ORDER BY received, sop_uid"
+                                     : "SELECT sop_uid, meta FROM instances WHERE series_uid=? ORDER BY received, sop_uid",
+                           -1, &st, NULL) == SQLITE_OK) {
+        sqlite3_bind_text(st, 1, uid, -1, SQLITE_STATIC);
+        int step = SQLITE_DONE;
+        rc = 0;
+        while (rc == 0 && (step = sqlite3_step(st)) == SQLITE_ROW) {
+            size_t len = 0;
+            void *owned = NULL;
+            const void *data = with_data ? value_of(s, st, 2, &len, &owned) : NULL;
+            if (with_data && !data)
+                rc = SF_EIO;
+            else if (with_data && !sum_ok(st, 3, data, len, "", 0))
+                rc = SF_EDAMAGED;
+            else
+                fn((const char *)sqlite3_column_text(st, 0), (const char *)sqlite3_column_text(st, 1), data, len, arg);
+            free(owned);
+        }
+        if (rc == 0 && step != SQLITE_DONE)
+            rc = step == SQLITE_CORRUPT ? SF_EDAMAGED : SF_EIO;
+        sqlite3_finalize(st);
+    }
+    pthread_mutex_unlock(lock_of(s));
+    return rc;
+}
+
+static int series_delete_step(struct store *s, const void *a, const void *b)
+{
+    const char *uid = a, *owner = b;
+    int n = run_held(s, "DELETE FROM series WHERE uid=?1 AND (?2 IS NULL OR owner=?2)", "tt", uid, owner);
+    if (n > 0 && run_held(s, "DELETE FROM instances WHERE series_uid=?", "t", uid) < 0)
+        return SF_EIO;
+    return n < 0 ? SF_EIO : n == 0 ? SF_ECONFLICT : 0;
+}
+
+static int sq_series_delete(struct store *s, const char *uid, const char *owner)
+{
+    int rc = transaction(s, series_delete_step, uid, owner);
+    return rc == SF_ECONFLICT ? SF_ENOTFOUND : rc;
+}
+
 /* Room the data dir must have again before a store that met a full disk takes work (64 MB, or an
  * eighth of a smaller file system): a probe's row fits in a page the WAL has, so it alone would
  * say ready while every mesh is refused. */
@@ -1171,4 +1285,5 @@ static const struct store_ops SQLITE_OPS = {
     sq_release,   sq_cancel,     sq_reap,      sq_prune,     sq_get,          sq_list,
     sq_queued,    sq_model_put,  sq_model_get, sq_model_list, sq_model_delete, sq_model_edit, sq_volume_get,
     sq_mesh_get,  sq_mesh_put,   sq_mesh_bytes, sq_writable,  NULL,         sq_check,     sq_recover,  sq_uploads_held,
+    sq_instance_put, sq_series_list, sq_series_instances, sq_series_delete,
 };

@@ -340,6 +340,71 @@ TEST(meshes_are_cached_while_their_model_lasts)
     CHECK(store_cancel(S, job, NULL, 1019, &asked) == 0 && !asked);
 }
 
+struct seen {
+    int n;
+    char sop[4][65];
+    size_t len[4];
+    bool data_ok;
+};
+static void seen_instance(const char *sop, const char *meta, const void *data, size_t len, void *arg)
+{
+    struct seen *s = arg;
+    if (s->n < 4) {
+        snprintf(s->sop[s->n], sizeof s->sop[0], "%s", sop);
+        s->len[s->n] = len;
+    }
+    s->data_ok = s->data_ok && (!data || (len && ((const char *)data)[0] == sop[strlen(sop) - 1])) && meta[0] == '{';
+    s->n++;
+}
+static int n_series;
+static void count_series(const struct series_rec *r, void *arg)
+{
+    (void)r, (void)arg;
+    n_series++;
+}
+
+TEST(series_keep_their_instances_once_each_in_order)
+{
+    char series[48], sop[3][65];
+    snprintf(series, sizeof series, "1.2.826.0.1.%u.%d", (unsigned)getpid(), ++serial);
+    for (int k = 0; k < 3; k++)
+        snprintf(sop[k], sizeof sop[k], "%s.%d", series, k + 1); /* each ends in its digit: the data's first byte */
+    static unsigned char big[3000]; /* longer than a piece (set below): read back whole */
+    memset(big, '3', sizeof big);
+    store_set_piece(S, 1024);
+    struct instance_rec r = {sop[0], series, "1.2.3", "CT", "received from ORTHANC", "alice", 2000, "{\"rows\":2}",
+                             "1abc", 4};
+    CHECK(store_instance_put(S, &r) == 0);
+    CHECK(store_instance_put(S, &r) == SF_ECONFLICT); /* once: the same SOP Instance UID again is kept as it was */
+    r.sop_uid = sop[1], r.received = 2001, r.data = "2defgh", r.len = 6;
+    CHECK(store_instance_put(S, &r) == 0);
+    r.sop_uid = sop[2], r.received = 2002, r.data = big, r.len = sizeof big;
+    CHECK(store_instance_put(S, &r) == 0);
+    store_set_piece(S, STORE_PIECE);
+    struct series_rec got;
+    CHECK(store_series_get(S, series, NULL, &got) == 0 && got.instances == 3 && got.bytes == 4 + 6 + (long long)sizeof big &&
+          got.first == 2000 && got.last == 2002 && !strcmp(got.modality, "CT") && !strcmp(got.study_uid, "1.2.3") &&
+          !strcmp(got.source, "received from ORTHANC"));
+    CHECK(store_series_get(S, series, "bob", &got) == SF_ENOTFOUND);
+    n_series = 0;
+    CHECK(store_series_list(S, "alice", count_series, NULL) == 0 && n_series >= 1);
+    n_series = 0;
+    CHECK(store_series_list(S, "bob", count_series, NULL) == 0 && n_series == 0);
+    struct seen s = {.data_ok = true};
+    CHECK(store_series_instances(S, series, true, seen_instance, &s) == 0 && s.n == 3 && s.data_ok &&
+          !strcmp(s.sop[0], sop[0]) && !strcmp(s.sop[2], sop[2]) && s.len[1] == 6 && s.len[2] == sizeof big);
+    struct seen h = {.data_ok = true};
+    CHECK(store_series_instances(S, series, false, seen_instance, &h) == 0 && h.n == 3 && h.len[2] == 0);
+    CHECK(store_series_delete(S, series, "bob") == SF_ENOTFOUND);
+    CHECK(store_series_delete(S, series, "alice") == 0 && store_series_get(S, series, NULL, &got) == SF_ENOTFOUND);
+    struct seen none = {.data_ok = true};
+    CHECK(store_series_instances(S, series, true, seen_instance, &none) == 0 && none.n == 0);
+    CHECK(store_series_delete(S, series, NULL) == SF_ENOTFOUND);
+    r.sop_uid = sop[0];
+    CHECK(store_instance_put(S, &r) == 0); /* its instances went with it: received again, stored again */
+    CHECK(store_series_delete(S, series, NULL) == 0);
+}
+
 TEST(an_unopenable_store_says_why)
 {
     struct store *bad = (struct store *)1;
@@ -374,6 +439,7 @@ int main(void)
     RUN(models_are_scoped_by_owner);
     RUN(a_models_volume_and_its_edits_in_order);
     RUN(meshes_are_cached_while_their_model_lasts);
+    RUN(series_keep_their_instances_once_each_in_order);
     RUN(an_unopenable_store_says_why);
     store_close(S);
     char cmd[300];
