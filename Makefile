@@ -106,6 +106,11 @@ $(B)/san/libsurfd-image.so: $(B)/libsurfd-image.so
 	ln -sf ../libsurfd-image.so $@
 DCM_SRC := $(wildcard api/*_dcmtk.cpp) # the DCMTK shims: RT Structure Sets, image series
 DCM_OBJ := $(patsubst %.cpp,$(B)/rel/%.o,$(DCM_SRC))
+# the daemon's own: the DICOM node's SCP (dcmnet), linked into surfd alone
+DMN_DCM_OBJ := $(patsubst %.cpp,$(B)/rel/%.o,$(wildcard daemon/*_dcmtk.cpp))
+$(B)/rel/daemon/%.o: daemon/%.cpp
+	@mkdir -p $(@D)
+	$(CXX) $(CXXFLAGS) -c $< -o $@
 
 # api/openapi.yaml, served at /openapi.yaml, compiled in as a C string
 $(B)/gen/openapi.c: api/openapi.yaml
@@ -129,8 +134,8 @@ $(B)/gen/web.o: $(B)/gen/web.c daemon/assets.h
 
 # the daemon's own allocations charged to the job a thread works for (daemon/memwrap.c)
 MEMWRAP := -Wl,--wrap=malloc,--wrap=calloc,--wrap=realloc,--wrap=strdup,--wrap=free
-$(B)/surfd: $(REL_DMN) $(REL_API) $(DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $(REL_CORE) | $(B)/libsurfd-image.so
-	$(CC) $(OPT) $(MEMWRAP) -o $@ $^ $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
+$(B)/surfd: $(REL_DMN) $(REL_API) $(DCM_OBJ) $(DMN_DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $(REL_CORE) | $(B)/libsurfd-image.so
+	$(CC) $(OPT) $(MEMWRAP) -o $@ $^ -ldcmnet $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
 # unit tests: tests/core/LAYER's link that layer and those below it alone (tests/tools/layers.sh
 # --below), so a test of a layer cannot lean on what is above it; tests/api's link core/ and api/
@@ -201,8 +206,8 @@ $(B)/tests/core/trace/tsan_map: tests/core/trace/tsan_map.c tests/unit.h $(TSAN_
 	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/core/trace/tsan_map.c $(TSAN_MAP_SRC) -lm -lpthread
 
 # the daemon with the address and UB sanitizers, for the black-box API tests
-$(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $(SAN_CORE) | $(B)/san/libsurfd-image.so
-	$(CC) $(OPT) $(SAN) $(MEMWRAP) -o $@ $^ $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
+$(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(DCM_OBJ) $(DMN_DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $(SAN_CORE) | $(B)/san/libsurfd-image.so
+	$(CC) $(OPT) $(SAN) $(MEMWRAP) -o $@ $^ -ldcmnet $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
 
 # the port make run serves on: make run PORT=8081
 PORT ?= 8080

@@ -647,7 +647,8 @@ static int label_options(const char *options, bool frep, struct volume *v, struc
 static int common_options(const char *options, bool frep, struct volume *v, struct sf_err *err)
 {
     static const char *const KNOWN[] = {"iso", "closed", "name", "levels", "max_error", "features", "label", "labels",
-                                        "dims", "type", "spacing", "origin", "format", "segment", NULL};
+                                        "dims", "type", "spacing", "origin", "format", "segment",
+                                        "series" /* (the daemon's: the stored series the body was made of) */, NULL};
     for (const char *p = options ? options : ""; *p;) {
         size_t len = strcspn(p, "&"), key = strcspn(p, "=&");
         bool known = false;

@@ -22,6 +22,7 @@
 #define SURFD_VERSION "dev"
 #endif
 #include "cli.h"
+#include "dicom_node.h"
 #include "log.h"
 #include "server.h"
 #include "service.h"
@@ -204,6 +205,8 @@ static void drain(struct service *svc, struct server *server)
     LOG(LOG_INFO, "draining: no new jobs; running ones get %lds", svc->cfg.drain_timeout);
     atomic_store(&svc->draining, true);
     server_quiesce(server);
+    dicom_node_stop(svc->dicom); /* no new instance; those arriving are stored and answered first */
+    svc->dicom = NULL;
     int left = jobq_shutdown(svc->q, (double)svc->cfg.drain_timeout, DRAIN_GRACE_S, abandon, svc);
     if (left) { /* their workers are still in core code: end the process under them */
         log_write(LOG_WARN, "%d job%s did not stop within %lds + %.0fs; exiting, %s queued for the next start", left,
@@ -260,6 +263,12 @@ int cmd_serve(int argc, char **argv)
     free(give_up);
     if (keeper_start(&svc)) {
         fprintf(stderr, "surfd serve: cannot start the keeper thread\n");
+        server_stop(server);
+        goto out_stop_pool;
+    }
+    if (dicom_node_start(&svc, &svc.dicom, &err)) {
+        fprintf(stderr, "surfd serve: %s\n", err.message);
+        keeper_stop(&svc);
         server_stop(server);
         goto out_stop_pool;
     }

@@ -46,6 +46,12 @@ struct config {
     long connection_timeout; /* seconds an idle connection is kept (also between kept-alive requests) */
     long header_timeout;    /* seconds a connection has to send its request's headers */
     long body_timeout;      /* seconds a request has to send its body */
+    /* the DICOM node (dicom_node.h) */
+    long dicom_listen;      /* port of the storage SCP; 0: none */
+    char ae_title[17];
+    char dicom_peers[512];  /* file of the peers allowed: AE title, host, port a line */
+    long series_idle;       /* seconds without an instance before a series counts as complete */
+    bool auto_model;        /* a received RT Structure Set becomes models when complete */
 };
 
 void config_defaults(struct config *c);

@@ -30,6 +30,9 @@
 #include "../api/job_json.h"
 #include "../api/problem.h"
 #include "frames.h"
+#include "../api/dicom_instance.h"
+#include "../api/query.h"
+#include "dicom_node.h"
 #include "guard.h"
 #include "kinds.h"
 #include "log.h"
@@ -460,6 +463,22 @@ static int check_and_store(struct job *j, void *arg, int *n_bands)
     struct req *r = arg;
     struct service *svc = r->svc;
     *n_bands = 0;
+    char uid[72];
+    query_option(r->options, "series", uid, sizeof uid);
+    if (uid[0]) { /* a stored series: the body it makes, as if posted */
+        char *made;
+        size_t n;
+        size_t most = r->kind->streamed ? (size_t)svc->cfg.max_volume : (size_t)svc->cfg.max_body;
+        r->check_rc = series_request(svc, uid, r->kind->route == IN_MODEL, most, &made, &n, &r->check_err);
+        if (r->check_rc)
+            return 0;
+        free(r->body); /* (none: ?series takes no body) */
+        r->body = made, r->len = n;
+        if (r->upload[0]) { /* the streamed body's empty file: the job keeps the series' bytes instead */
+            unlink(r->upload);
+            r->upload[0] = 0;
+        }
+    }
     struct job_body b = {r->body, r->len, r->format, r->options, scope(r)};
     r->check_rc = r->kind->validate(svc, &b, &r->check_err);
     if (r->check_rc)
@@ -578,6 +597,13 @@ static enum MHD_Result post_job_on(struct req *r, const struct job_kind *kind, c
             return problem(r, 400, d, "?format");
         }
         format = f->name;
+    }
+    if (MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "series")) { /* a stored series, no body */
+        if (!(kind->route & (IN_ISOSURFACE | IN_MODEL | IN_MATRIX)))
+            return problem(r, 400, "series= is read by POST /isosurface, /model and /matrix-model", "?series");
+        if (r->len)
+            return problem(r, 400, "series= reads a stored series: send the request without a body", "?series");
+        format = "dicom";
     }
     if (!format) {
         char said[768];
@@ -787,6 +813,9 @@ static bool authorised(struct req *r)
     return found != NULL;
 }
 
+/* An id a route's path holds: a job or model id, or a series' UID (64 at most). */
+#define ROUTE_ID 72
+
 static bool valid_id(const char *s, size_t n)
 {
     if (n == 0 || n >= 40)
@@ -797,15 +826,25 @@ static bool valid_id(const char *s, size_t n)
     return true;
 }
 
+/* A DICOM UID in a path (/series/{uid}): digits and dots, 64 at most (dicom_instance.h). */
+static bool valid_uid(const char *s, size_t n)
+{
+    char uid[65];
+    if (n == 0 || n > 64)
+        return false;
+    snprintf(uid, sizeof uid, "%.*s", (int)n, s);
+    return dicom_uid_valid(uid);
+}
+
 /* "{id}" or "{id}/rest" after a collection's prefix: the id (hex, as issued) into id, *rest at the
  * '/' or NULL. false for anything else. */
-static bool split_id(const char *s, char id[40], const char **rest)
+static bool split_id(const char *s, bool uid, char id[ROUTE_ID], const char **rest)
 {
     *rest = strchr(s, '/');
     size_t n = *rest ? (size_t)(*rest - s) : strlen(s);
-    if (!valid_id(s, n))
+    if (!(uid ? valid_uid(s, n) : valid_id(s, n)))
         return false;
-    snprintf(id, 40, "%.*s", (int)n, s);
+    snprintf(id, ROUTE_ID, "%.*s", (int)n, s);
     return true;
 }
 
@@ -895,6 +934,52 @@ static enum MHD_Result models(struct req *r, const char *id)
     return model_list(r);
 }
 
+/* ---- DICOM series (dicom_node.h): the site's, received or pulled; any token sees them ---- */
+
+struct series_listing {
+    struct service *svc;
+    struct model_list l;
+};
+
+static void add_series(const struct series_rec *rec, void *arg)
+{
+    struct series_listing *s = arg;
+    char *one = series_resource(s->svc, rec, false);
+    if (!one)
+        s->l.failed = true;
+    else
+        add_resource(one, &s->l);
+    free(one);
+}
+
+static enum MHD_Result series_list(struct req *r, const char *id)
+{
+    (void)id;
+    struct series_listing s = {r->svc, {0}};
+    list_put(&s.l, "{\"series\":[");
+    int listed = store_series_list(r->svc->store, NULL, add_series, &s);
+    if (listed || s.l.failed) {
+        free(s.l.buf);
+        return listed ? damaged_or_failed(r, listed) : problem(r, 500, "out of memory", NULL);
+    }
+    list_put(&s.l, "]}");
+    return json_reply(r, 200, s.l.buf, NULL);
+}
+
+static enum MHD_Result series_one(struct req *r, const char *uid)
+{
+    struct series_rec rec;
+    int found = store_series_get(r->svc->store, uid, NULL, &rec);
+    if (found)
+        return found == SF_ENOTFOUND ? problem(r, 404, "no such series", NULL) : damaged_or_failed(r, found);
+    if (!strcmp(r->method, "DELETE")) {
+        int gone = store_series_delete(r->svc->store, uid, NULL);
+        return gone && gone != SF_ENOTFOUND ? problem(r, 500, "the store failed", NULL) : text(r, 204, NULL, "");
+    }
+    char *one = series_resource(r->svc, &rec, true);
+    return one ? json_reply(r, 200, one, NULL) : problem(r, 500, "the series could not be read", NULL);
+}
+
 static enum MHD_Result jobs(struct req *r, const char *id)
 {
     (void)id;
@@ -964,6 +1049,8 @@ static const struct route {
     {"/models/{id}/render", GET, false, model_view_route, NULL},
     {"/models/{id}/rtstruct", GET, false, model_rtstruct_route, NULL},
     {"/models/{id}/edit", POST, false, model_edit_route, NULL},
+    {"/series", GET, false, series_list, NULL},
+    {"/series/{uid}", GET | DELETE, false, series_one, NULL},
     {"/jobs", GET, false, jobs, NULL},
     {"/jobs/{id}", GET, false, job, NULL},
     {"/jobs/{id}/result", GET, false, result, NULL},
@@ -971,16 +1058,17 @@ static const struct route {
 };
 
 /* Whether path matches pattern; the {id} segment, if any, into id. */
-static bool match(const char *pattern, const char *path, char id[40])
+static bool match(const char *pattern, const char *path, char id[ROUTE_ID])
 {
-    const char *brace = strstr(pattern, "{id}");
-    if (!brace)
+    const char *brace = strstr(pattern, "{id}"), *uid = strstr(pattern, "{uid}");
+    if (!brace && !uid)
         return !strcmp(pattern, path);
-    size_t pre = (size_t)(brace - pattern);
+    const char *at = brace ? brace : uid;
+    size_t pre = (size_t)(at - pattern);
     if (strncmp(pattern, path, pre))
         return false;
     const char *rest;
-    return split_id(path + pre, id, &rest) && !strcmp(rest ? rest : "", brace + 4);
+    return split_id(path + pre, uid != NULL, id, &rest) && !strcmp(rest ? rest : "", at + (brace ? 4 : 5));
 }
 
 /* A CORS preflight (OPTIONS with Origin): 204 with what a page of an allowed origin may send, no
@@ -998,7 +1086,7 @@ static enum MHD_Result preflight(struct req *r)
 }
 
 /* The route path matches (its {id} into id), or NULL. */
-static const struct route *find_route(const char *path, char id[40])
+static const struct route *find_route(const char *path, char id[ROUTE_ID])
 {
     for (size_t k = 0; k < sizeof ROUTES / sizeof *ROUTES; k++)
         if (match(ROUTES[k].path, path, id))
@@ -1017,7 +1105,7 @@ static bool is_preflight(const struct req *r)
  * its body is read or written (an unknown route needs one too, so that it reveals nothing). */
 static bool unauthorised(struct req *r)
 {
-    char id[40];
+    char id[ROUTE_ID];
     const struct route *rt = find_route(r->path, id);
     return !is_preflight(r) && !(rt && rt->open) && !authorised(r);
 }
@@ -1030,7 +1118,7 @@ static enum MHD_Result route(struct req *r)
     unsigned method = !strcmp(m, "GET") || !strcmp(m, "HEAD") ? GET : !strcmp(m, "POST") ? POST
                       : !strcmp(m, "DELETE")                  ? DELETE
                                                               : 0;
-    char id[40] = "";
+    char id[ROUTE_ID] = "";
     const struct route *rt = find_route(r->path, id);
     if (rt) {
         if (!(rt->methods & method)) {
@@ -1049,6 +1137,8 @@ static enum MHD_Result route(struct req *r)
         return problem(r, 404, "no such job", NULL);
     if (!strncmp(r->path, "/models/", 8))
         return problem(r, 404, "no such model", NULL);
+    if (!strncmp(r->path, "/series/", 8))
+        return problem(r, 404, "no such series (a series is named by its Series Instance UID)", NULL);
     return problem(r, 404, "no such route", NULL);
 }
 
@@ -1085,7 +1175,7 @@ static bool streamed(const char *path, const char *method)
 {
     if (strcmp(method, "POST"))
         return false;
-    char id[40];
+    char id[ROUTE_ID];
     const struct route *rt = find_route(path, id);
     return rt && rt->kind && rt->kind->streamed;
 }

@@ -59,6 +59,7 @@ struct service {
     int n_claims;
     pthread_t keeper;
     bool keeper_started;
+    struct dicom_node *dicom; /* the DICOM node (dicom_node.h), or NULL */
 };
 
 double wall_s(void);

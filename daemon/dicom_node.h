@@ -1,0 +1,35 @@
+/* dicom_node.h - surfd on the hospital network (issue 44): the DICOM node `surfd serve
+ * --dicom-listen PORT --ae-title AET --dicom-peers FILE` runs (dimse.h's SCP), each instance it
+ * receives parsed on the node's own workers (never on the association's thread), its identifying
+ * elements blanked unless keep-phi, and kept by series in the store (store.h) before the sender
+ * hears success; and what GET /series says of a stored series. */
+#ifndef SURFD_DICOM_NODE_H
+#define SURFD_DICOM_NODE_H
+
+#include "dimse.h"
+#include "service.h"
+
+/* The peers file: a peer a line, "AE_TITLE HOST PORT" (HOST a name or an address, resolved here
+ * once), # comments and blank lines skipped. 0 (*peers malloc'ed, *n), or SF_EINVAL / SF_EIO
+ * with err's message naming the line. */
+int dicom_peers_read(const char *path, struct dimse_peer **peers, int *n, struct sf_err *err);
+
+struct dicom_node;
+/* Starts the node when cfg.dicom_listen is set (else 0 and *out NULL). 0, or an error said in err. */
+int dicom_node_start(struct service *svc, struct dicom_node **out, struct sf_err *err);
+void dicom_node_stop(struct dicom_node *n);
+
+/* ?series=UID on POST /isosurface, /matrix-model (one: false) and /model (one: true): the
+ * request body a stored series makes, as if it had been posted: its instances as a multipart
+ * series, or its one instance (an RT Structure Set). 0 (*body malloc'ed), or SF_EINVAL at
+ * "?series" (no such series, several structure sets), SF_ELIMIT (over max_bytes), SF_EIO,
+ * SF_EDAMAGED, SF_ENOMEM. */
+int series_request(struct service *svc, const char *uid, bool one, size_t max_bytes, char **body, size_t *len,
+                   struct sf_err *err);
+
+/* GET /series/{uid} and GET /series: a series' resource (JSON, malloc'ed; NULL without memory).
+ * detail: its geometry from its instances' (dims, spacing, orientation) as well. idle_s: seconds
+ * without an instance before it counts as complete. */
+char *series_resource(struct service *svc, const struct series_rec *r, bool detail);
+
+#endif
