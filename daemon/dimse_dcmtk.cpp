@@ -47,6 +47,8 @@ class NodeSCP : public DcmThreadSCP {
     NodeSCP() = default;
 
   protected:
+    OFBool checkCalledAETitleAccepted(const OFString &called) override { return called == node->ae.c_str(); }
+
     OFBool checkCallingAETitleAccepted(const OFString &calling) override
     {
         OFString ip = getPeerIP();
