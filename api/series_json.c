@@ -136,6 +136,11 @@ char *series_json(const struct series_view *v)
                           "last_received", stamp(v->last), "complete", v->complete, "links", "self", self);
     if (o && v->metas)
         geometry(o, v);
+    if (o && v->job && v->job[0]) {
+        char job[64];
+        snprintf(job, sizeof job, "/jobs/%s", v->job);
+        json_object_set_new(json_object_get(o, "links"), "job", json_string(job));
+    }
     char *s = o ? json_dumps(o, JSON_COMPACT) : NULL;
     json_decref(o);
     return s;

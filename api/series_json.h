@@ -17,6 +17,7 @@ struct series_view {
     long long bytes;
     double first, last;      /* when its first and last instance came (Unix seconds) */
     bool complete;           /* no instance for series-idle seconds */
+    const char *job;         /* the job made of it when complete (auto-model), or "" */
     /* with detail: its instances' metas (series_json adds their geometry) */
     const char *const *metas;
     int n_metas;

@@ -14,12 +14,14 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "../api/dicom_instance.h"
 #include "../api/dicom_scan.h"
 #include "../api/series_json.h"
 #include "jobq.h"
+#include "kinds.h"
 #include "log.h"
 
 /* Instances read at once (each a worker of the node's own pool: the HTTP checks and the jobs
@@ -34,6 +36,11 @@ struct dicom_node {
     struct dimse_peer *peers;
     int n_peers;
     char spool[600];
+    /* the watcher: received RT Structure Sets modelled once their series is complete */
+    pthread_t watcher;
+    bool watching, stop;
+    pthread_mutex_t lock;
+    pthread_cond_t wake;
 };
 
 int dicom_peers_read(const char *path, struct dimse_peer **peers, int *n, struct sf_err *err)
@@ -202,6 +209,85 @@ static unsigned received(const char *path, const char *calling_ae, const char *s
     return a.status;
 }
 
+/* ---- received RT Structure Sets become models (auto-model) ---- */
+
+/* Makes series uid's models as POST /model?series=UID would, once: the series is marked with the
+ * job's id first (another node, or a pass after a restart, then leaves it), the job stored as a
+ * request's is, owned by nobody (the site's, as the series). */
+static void auto_model(struct dicom_node *n, const char *uid)
+{
+    struct service *svc = n->svc;
+    struct job_rec rec = {0};
+    service_new_id(rec.id);
+    if (store_series_mark(svc->store, uid, rec.id))
+        return;
+    struct sf_err err = {0};
+    struct job_body b = {NULL, 0, "dicom", rec.options, ""};
+    snprintf(rec.kind, sizeof rec.kind, "%s", model_kind.name);
+    snprintf(rec.format, sizeof rec.format, "dicom");
+    snprintf(rec.options, sizeof rec.options, "series=%s", uid);
+    int rc = series_request(svc, uid, true, (size_t)svc->cfg.max_body, &b.body, &b.len, &err);
+    if (!rc)
+        rc = model_kind.validate(svc, &b, &err);
+    if (!rc) {
+        rec.created = wall_s();
+        rec.request = (unsigned char *)b.body, rec.request_len = b.len;
+        if ((rc = store_submit(svc->store, &rec)))
+            sf_fail(&err, rc, "", "the store would not take the job");
+    }
+    if (rc) {
+        LOG(LOG_WARN, "DICOM node: the RT Structure Set of series %s is not modelled: %s", uid, err.message);
+    } else {
+        LOG(LOG_INFO, "DICOM node: the RT Structure Set of series %s is complete: modelled by job %s", uid, rec.id);
+        service_wake(svc);
+    }
+    free(b.body);
+}
+
+struct due {
+    char (*uid)[65];
+    int n, cap;
+    double before;
+};
+
+static void due_series(const struct series_rec *r, void *arg)
+{
+    struct due *d = arg;
+    if (strcmp(r->modality, "RTSTRUCT") || r->job[0] || r->last > d->before || strncmp(r->source, "received", 8))
+        return;
+    if (d->n == d->cap) {
+        int cap = d->cap ? 2 * d->cap : 16;
+        char(*u)[65] = realloc(d->uid, sizeof *u * (size_t)cap);
+        if (!u)
+            return;
+        d->uid = u, d->cap = cap;
+    }
+    snprintf(d->uid[d->n++], 65, "%s", r->uid);
+}
+
+static void *watch(void *arg)
+{
+    struct dicom_node *n = arg;
+    pthread_mutex_lock(&n->lock);
+    while (!n->stop) {
+        struct timespec t;
+        clock_gettime(CLOCK_REALTIME, &t);
+        t.tv_sec += 1;
+        pthread_cond_timedwait(&n->wake, &n->lock, &t);
+        if (n->stop)
+            break;
+        pthread_mutex_unlock(&n->lock);
+        struct due d = {NULL, 0, 0, wall_s() - (double)n->svc->cfg.series_idle};
+        if (!store_series_list(n->svc->store, NULL, due_series, &d))
+            for (int k = 0; k < d.n && !atomic_load(&n->svc->draining); k++)
+                auto_model(n, d.uid[k]);
+        free(d.uid);
+        pthread_mutex_lock(&n->lock);
+    }
+    pthread_mutex_unlock(&n->lock);
+    return NULL;
+}
+
 int dicom_node_start(struct service *svc, struct dicom_node **out, struct sf_err *err)
 {
     *out = NULL;
@@ -213,6 +299,8 @@ int dicom_node_start(struct service *svc, struct dicom_node **out, struct sf_err
     if (!n)
         return sf_fail(err, SF_ENOMEM, NULL, "out of memory for the DICOM node");
     n->svc = svc;
+    pthread_mutex_init(&n->lock, NULL);
+    pthread_cond_init(&n->wake, NULL);
     int rc = dicom_peers_read(svc->cfg.dicom_peers, &n->peers, &n->n_peers, err);
     snprintf(n->spool, sizeof n->spool, "%s/spool", svc->cfg.data_dir);
     if (!rc && mkdir(n->spool, 0700) && errno != EEXIST)
@@ -223,6 +311,11 @@ int dicom_node_start(struct service *svc, struct dicom_node **out, struct sf_err
                              (size_t)svc->cfg.max_body, NODE_ASSOCIATIONS, received, n};
     if (!rc)
         rc = dimse_scp_start(&c, &n->scp, err);
+    if (!rc && svc->cfg.auto_model) {
+        n->watching = !pthread_create(&n->watcher, NULL, watch, n);
+        if (!n->watching)
+            rc = sf_fail(err, SF_ENOMEM, NULL, "cannot start the DICOM node's watcher");
+    }
     if (rc) {
         dicom_node_stop(n);
         return rc;
@@ -237,6 +330,15 @@ void dicom_node_stop(struct dicom_node *n)
 {
     if (!n)
         return;
+    if (n->watching) {
+        pthread_mutex_lock(&n->lock);
+        n->stop = true;
+        pthread_cond_signal(&n->wake);
+        pthread_mutex_unlock(&n->lock);
+        pthread_join(n->watcher, NULL);
+    }
+    pthread_mutex_destroy(&n->lock);
+    pthread_cond_destroy(&n->wake);
     dimse_scp_stop(n->scp); /* the associations end (their instances' workers answer them) before the pool stops */
     if (n->q) {
         jobq_shutdown(n->q, 0, 5, NULL, NULL);
@@ -343,7 +445,7 @@ static void add_meta(const char *sop, const char *meta, const void *data, size_t
 char *series_resource(struct service *svc, const struct series_rec *r, bool detail)
 {
     struct series_view v = {r->uid, r->study_uid, r->modality, r->source, r->instances, r->bytes, r->first, r->last,
-                            wall_s() - r->last >= (double)svc->cfg.series_idle, NULL, 0};
+                            wall_s() - r->last >= (double)svc->cfg.series_idle, r->job, NULL, 0};
     struct metas m = {0};
     if (detail && (store_series_instances(svc->store, r->uid, false, add_meta, &m) || m.failed)) {
         for (int k = 0; k < m.n; k++)

@@ -53,6 +53,15 @@ int dimse_scp_start(const struct dimse_config *cfg, struct dimse_scp **out, stru
 /* Stops listening, lets the associations running end (each within DCMTK's timeouts), frees. */
 void dimse_scp_stop(struct dimse_scp *s);
 
+/* C-STORE of n Part 10 files to peer (one association, our AE title calling its): statuses[k] the
+ * peer's status for file k (DIMSE_SUCCESS, a warning 0xB..., a failure), or DIMSE_NOT_SENT when it
+ * was not sent (the association failed, or no presentation context for its SOP class). 0 when the
+ * association ran (each file's status then says), SF_EIO when it could not be made (the peer down
+ * or refusing: err says which), within the timeouts given (seconds). */
+#define DIMSE_NOT_SENT 0xFFFFu
+int dimse_send(const struct dimse_peer *peer, const char *our_ae, const char *const *paths, int n,
+               unsigned timeout_s, unsigned *statuses, struct sf_err *err);
+
 #ifdef __cplusplus
 }
 #endif

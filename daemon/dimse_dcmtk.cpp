@@ -6,6 +6,7 @@
 // process: the pool makes its workers by default constructor, so they find it in `node`.
 #include <dcmtk/config/osconfig.h>
 #include <dcmtk/dcmdata/dcuid.h>
+#include <dcmtk/dcmnet/dstorscu.h>
 #include <dcmtk/dcmnet/scppool.h>
 #include <dcmtk/dcmnet/scpthrd.h>
 #include <dcmtk/oflog/oflog.h>
@@ -162,4 +163,62 @@ extern "C" void dimse_scp_stop(struct dimse_scp *s)
         s->listener.join();
     node = nullptr;
     delete s;
+}
+
+namespace {
+
+/* DCMTK's storage SCU, each instance's response status kept by its place in the list. */
+class SendSCU : public DcmStorageSCU {
+  public:
+    std::vector<std::string> paths;
+    unsigned *statuses = nullptr;
+
+  protected:
+    void notifySOPInstanceSent(const TransferEntry &e) override
+    {
+        for (size_t k = 0; k < paths.size(); k++)
+            if (e.Filename.getCharPointer() && paths[k] == e.Filename.getCharPointer())
+                statuses[k] = e.ResponseStatusCode;
+    }
+};
+
+} // namespace
+
+extern "C" int dimse_send(const struct dimse_peer *peer, const char *our_ae, const char *const *paths, int n,
+                          unsigned timeout_s, unsigned *statuses, struct sf_err *err)
+{
+    for (int k = 0; k < n; k++)
+        statuses[k] = DIMSE_NOT_SENT;
+    try {
+        SendSCU scu;
+        scu.statuses = statuses;
+        scu.setAETitle(our_ae);
+        scu.setPeerAETitle(peer->ae);
+        scu.setPeerHostName(peer->ip);
+        scu.setPeerPort((Uint16)peer->port);
+        scu.setACSETimeout(timeout_s);
+        scu.setDIMSEBlockingMode(DIMSE_NONBLOCKING);
+        scu.setDIMSETimeout(timeout_s);
+        scu.setConnectionTimeout((Sint32)timeout_s);
+        for (int k = 0; k < n; k++) {
+            scu.paths.emplace_back(paths[k]);
+            if (scu.addDicomFile(paths[k], ERM_fileOnly, OFFalse).bad())
+                statuses[k] = DIMSE_NOT_SENT;
+        }
+        OFCondition c = scu.addPresentationContexts();
+        if (c.good())
+            c = scu.initNetwork();
+        if (c.good())
+            c = scu.negotiateAssociation();
+        if (c.bad())
+            return sf_fail(err, SF_EIO, NULL, "the association with %s at %s:%d failed: %s", peer->ae, peer->ip,
+                           peer->port, c.text());
+        c = scu.sendSOPInstances();
+        scu.releaseAssociation();
+        if (c.bad())
+            return sf_fail(err, SF_EIO, NULL, "sending to %s failed: %s", peer->ae, c.text());
+        return 0;
+    } catch (const std::bad_alloc &) {
+        return sf_fail(err, SF_ENOMEM, NULL, "out of memory for the association");
+    }
 }

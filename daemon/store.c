@@ -220,6 +220,8 @@ int store_series_instances(struct store *s, const char *uid, bool with_data,
     return noted(s, s->ops->series_instances(s, uid, with_data, fn, arg));
 }
 
+int store_series_mark(struct store *s, const char *uid, const char *job) { return s->ops->series_mark(s, uid, job); }
+
 int store_series_delete(struct store *s, const char *uid, const char *owner)
 {
     return s->ops->series_delete(s, uid, owner);

@@ -221,6 +221,7 @@ struct instance_rec {
 /* A series as the store counts it: its instances, their bytes, when the first and the last came. */
 struct series_rec {
     char uid[65], study_uid[65], modality[17], source[80], owner[64];
+    char job[40];            /* the job made of it when it was complete (an RT Structure Set's models), or "" */
     long instances;
     long long bytes;
     double first, last;
@@ -239,6 +240,9 @@ int store_series_get(struct store *s, const char *uid, const char *owner, struct
 int store_series_instances(struct store *s, const char *uid, bool with_data,
                            void (*fn)(const char *sop_uid, const char *meta, const void *data, size_t len, void *),
                            void *arg);
+/* Names job as the one made of series uid, if none is named yet: 0, SF_ECONFLICT (one is: another
+ * node or an earlier pass made it), SF_ENOTFOUND, SF_EIO. */
+int store_series_mark(struct store *s, const char *uid, const char *job);
 /* The series and its instances: 0, SF_ENOTFOUND, SF_EIO. */
 int store_series_delete(struct store *s, const char *uid, const char *owner);
 

@@ -50,6 +50,7 @@ struct store_ops {
     int (*series_instances)(struct store *, const char *uid, bool with_data,
                             void (*fn)(const char *, const char *, const void *, size_t, void *), void *arg);
     int (*series_delete)(struct store *, const char *uid, const char *owner);
+    int (*series_mark)(struct store *, const char *uid, const char *job);
 };
 
 /* A running job a reap found, with what decides its new state (store_reaped_state). */

@@ -106,7 +106,8 @@ static const char SCHEMA[] =
 static const char SCHEMA_SERIES[] =
     "CREATE TABLE IF NOT EXISTS series ("
     " uid text PRIMARY KEY, study_uid text NOT NULL, modality text NOT NULL, source text NOT NULL, owner text NOT NULL,"
-    " instances bigint NOT NULL, bytes bigint NOT NULL, first double precision NOT NULL, last double precision NOT NULL);"
+    " instances bigint NOT NULL, bytes bigint NOT NULL, first double precision NOT NULL, last double precision NOT NULL,"
+    " job text NOT NULL DEFAULT '');"
     "CREATE TABLE IF NOT EXISTS instances ("
     " sop_uid text PRIMARY KEY, series_uid text NOT NULL REFERENCES series(uid) ON DELETE CASCADE,"
     " received double precision NOT NULL, meta text NOT NULL, data bytea NOT NULL, sum text NOT NULL, data_pieces text);"
@@ -1201,7 +1202,7 @@ static int pg_series_list(struct store *s, const char *uid, const char *owner,
     struct param prm[] = {T(uid), T(owner)};
     PGresult *res;
     int n = exec1(s, &res,
-                  "SELECT uid, study_uid, modality, source, owner, instances, bytes, first, last FROM series"
+                  "SELECT uid, study_uid, modality, source, owner, instances, bytes, first, last, job FROM series"
                   " WHERE ($1::text IS NULL OR uid=$1) AND ($2::text IS NULL OR owner=$2) AND instances > 0"
                   " ORDER BY last DESC, uid", 2, prm);
     for (int k = 0; k < n; k++) {
@@ -1215,6 +1216,7 @@ static int pg_series_list(struct store *s, const char *uid, const char *owner,
         r.bytes = get_i64(res, k, 6);
         r.first = get_f64(res, k, 7);
         r.last = get_f64(res, k, 8);
+        get_text(r.job, sizeof r.job, res, k, 9);
         fn(&r, arg);
     }
     if (n >= 0)
@@ -1257,6 +1259,15 @@ static int pg_series_instances(struct store *s, const char *uid, bool with_data,
     return rc;
 }
 
+static int pg_series_mark(struct store *s, const char *uid, const char *job)
+{
+    struct param prm[] = {T(uid), T(job)};
+    int n = exec1(s, NULL, "UPDATE series SET job=$2 WHERE uid=$1 AND job=''", 2, prm);
+    if (n == 0 && exec1(s, NULL, "SELECT 1 FROM series WHERE uid=$1", 1, prm) == 0)
+        return SF_ENOTFOUND;
+    return store_one_row(n, SF_ECONFLICT);
+}
+
 static int pg_series_delete(struct store *s, const char *uid, const char *owner)
 {
     struct param prm[] = {T(uid), T(owner)};
@@ -1269,7 +1280,7 @@ static const struct store_ops PG_OPS = {
     pg_release,   pg_cancel,    pg_reap,      pg_prune,      pg_get,          pg_list,
     pg_queued,    pg_model_put, pg_model_get, pg_model_list, pg_model_delete, pg_model_edit, pg_volume_get,
     pg_mesh_get,  pg_mesh_put,  pg_mesh_bytes, pg_writable,  pg_on_event,  NULL,         NULL,         pg_uploads_held,
-    pg_instance_put, pg_series_list, pg_series_instances, pg_series_delete,
+    pg_instance_put, pg_series_list, pg_series_instances, pg_series_delete, pg_series_mark,
 };
 
 int store_pg_open(const char *uri, const char *scratch, struct store **out, struct sf_err *err)

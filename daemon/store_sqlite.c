@@ -55,7 +55,8 @@ static const char SCHEMA[] =
     "CREATE TABLE IF NOT EXISTS probe (x INTEGER);"
     "CREATE TABLE IF NOT EXISTS series ("
     " uid TEXT PRIMARY KEY, study_uid TEXT NOT NULL, modality TEXT NOT NULL, source TEXT NOT NULL, owner TEXT NOT NULL,"
-    " instances INTEGER NOT NULL, bytes INTEGER NOT NULL, first REAL NOT NULL, last REAL NOT NULL);"
+    " instances INTEGER NOT NULL, bytes INTEGER NOT NULL, first REAL NOT NULL, last REAL NOT NULL,"
+    " job TEXT NOT NULL DEFAULT '');"
     "CREATE INDEX IF NOT EXISTS series_last ON series(last);"
     "CREATE TABLE IF NOT EXISTS instances ("
     " sop_uid TEXT PRIMARY KEY, series_uid TEXT NOT NULL, received REAL NOT NULL, meta TEXT NOT NULL,"
@@ -1190,7 +1191,7 @@ static int sq_series_list(struct store *s, const char *uid, const char *owner,
     int rc = SF_EIO;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s),
-                           "SELECT uid, study_uid, modality, source, owner, instances, bytes, first, last FROM series"
+                           "SELECT uid, study_uid, modality, source, owner, instances, bytes, first, last, job FROM series"
                            " WHERE (?1 IS NULL OR uid=?1) AND (?2 IS NULL OR owner=?2) ORDER BY last DESC, uid",
                            -1, &st, NULL) == SQLITE_OK) {
         uid ? sqlite3_bind_text(st, 1, uid, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 1);
@@ -1206,6 +1207,7 @@ static int sq_series_list(struct store *s, const char *uid, const char *owner,
             r.bytes = sqlite3_column_int64(st, 6);
             r.first = sqlite3_column_double(st, 7);
             r.last = sqlite3_column_double(st, 8);
+            copy_text(r.job, sizeof r.job, st, 9);
             fn(&r, arg);
         }
         rc = rc == SQLITE_DONE ? 0 : SF_EIO;
@@ -1257,6 +1259,14 @@ static int series_delete_step(struct store *s, const void *a, const void *b)
     return n < 0 ? SF_EIO : n == 0 ? SF_ECONFLICT : 0;
 }
 
+static int sq_series_mark(struct store *s, const char *uid, const char *job)
+{
+    int n = run(s, "UPDATE series SET job=?2 WHERE uid=?1 AND job=''", "tt", uid, job);
+    if (n == 0 && run(s, "SELECT 1 FROM series WHERE uid=?", "t", uid) == 0)
+        return SF_ENOTFOUND;
+    return store_one_row(n, SF_ECONFLICT);
+}
+
 static int sq_series_delete(struct store *s, const char *uid, const char *owner)
 {
     int rc = transaction(s, series_delete_step, uid, owner);
@@ -1285,5 +1295,5 @@ static const struct store_ops SQLITE_OPS = {
     sq_release,   sq_cancel,     sq_reap,      sq_prune,     sq_get,          sq_list,
     sq_queued,    sq_model_put,  sq_model_get, sq_model_list, sq_model_delete, sq_model_edit, sq_volume_get,
     sq_mesh_get,  sq_mesh_put,   sq_mesh_bytes, sq_writable,  NULL,         sq_check,     sq_recover,  sq_uploads_held,
-    sq_instance_put, sq_series_list, sq_series_instances, sq_series_delete,
+    sq_instance_put, sq_series_list, sq_series_instances, sq_series_delete, sq_series_mark,
 };

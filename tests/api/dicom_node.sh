@@ -5,7 +5,8 @@
 # SOP Instance UID once, however often it is sent), listed by GET /series with its geometry, its
 # patient's name and ID blanked, and survives a kill -9 right after the sender heard success;
 # ?series=UID on /isosurface gives the mesh the same slices posted give, on /model the models
-# of a structure set posted; an instance over max-body is refused, the node alive.
+# of a structure set posted, and a received structure set is made into models once complete
+# (auto-model), once; an instance over max-body is refused, the node alive.
 . "$(dirname "$0")/lib.inc"
 DD="${SURFD_DATA:-../shared/data}/volumes/dicom_ct_head_64x64x27"
 RS="${SURFD_DATA:-../shared/data}/contours/dicompyler-core_example_rtss.dcm"
@@ -72,6 +73,22 @@ send STORESCU "$T/rs"; rc=$?
 code=$(status GET /series)
 RUID=$(python3 -c "import json,sys; print(next(s['uid'] for s in json.load(open(sys.argv[1]))['series'] if s['modality'] == 'RTSTRUCT'))" "$T/body")
 check "an RT Structure Set sent: a series of its own, RTSTRUCT" '[ $rc = 0 ] && [ -n "$RUID" ]'
+code=$(status POST "/model" -H 'Content-Type: application/dicom' --data-binary @"$RS"); cp "$T/body" "$T/all.json"
+for _ in $(seq 100); do # series-idle (1 s) after it came, the node makes its models
+    status GET "/series/$RUID" >/dev/null
+    JOB=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['links'].get('job', ''))" "$T/body")
+    [ -n "$JOB" ] && [ "$(status GET "$JOB")" = 200 ] && [ "$(field state)" = succeeded ] && break
+    sleep 0.1
+done
+status GET "$JOB/result" >/dev/null
+check "auto-model: once complete, the received RT Structure Set made into models by a job (its link), as POST /model of the file makes them" \
+    '[ -n "$JOB" ] && python3 -c "
+import json, sys
+a, b = json.load(open(sys.argv[1]))[\"models\"], json.load(open(sys.argv[2]))[\"models\"]
+sys.exit(0 if len(a) == len(b) > 1 and [(m[\"name\"], m[\"volume_mm3\"]) for m in a] == [(m[\"name\"], m[\"volume_mm3\"]) for m in b] else 1)" "$T/body" "$T/all.json"'
+sleep 1.5
+status GET "/series/$RUID" >/dev/null
+check "... once: the series still names that job" '[ "$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[\"links\"][\"job\"])" "$T/body")" = "$JOB" ]'
 code=$(status POST "/model?roi=Heart" -H 'Content-Type: application/dicom' --data-binary @"$RS"); cp "$T/body" "$T/posted.json"
 code=$(status POST "/model?roi=Heart&series=$RUID")
 check "POST /model?series=UID&roi=Heart: the model the file posted makes (volume, contours)" '[ "$code" = 201 ] && python3 -c "

@@ -395,6 +395,9 @@ TEST(series_keep_their_instances_once_each_in_order)
           !strcmp(s.sop[0], sop[0]) && !strcmp(s.sop[2], sop[2]) && s.len[1] == 6 && s.len[2] == sizeof big);
     struct seen h = {.data_ok = true};
     CHECK(store_series_instances(S, series, false, seen_instance, &h) == 0 && h.n == 3 && h.len[2] == 0);
+    CHECK(store_series_mark(S, series, "job-1") == 0 && store_series_mark(S, series, "job-2") == SF_ECONFLICT &&
+          store_series_get(S, series, NULL, &got) == 0 && !strcmp(got.job, "job-1"));
+    CHECK(store_series_mark(S, "9.9.9", "job-3") == SF_ENOTFOUND);
     CHECK(store_series_delete(S, series, "bob") == SF_ENOTFOUND);
     CHECK(store_series_delete(S, series, "alice") == 0 && store_series_get(S, series, NULL, &got) == SF_ENOTFOUND);
     struct seen none = {.data_ok = true};
