@@ -268,6 +268,21 @@ static int each_model(const char *buf, size_t len, const char *format, const cha
             json_object_set_new(o, "frame_of_reference_uid", json_string(rois[k].frame_uid));
         if (rois[k].study_uid[0])
             json_object_set_new(o, "study_instance_uid", json_string(rois[k].study_uid));
+        if (rois[k].color[0] >= 0) /* kept to be written back (GET /rtstruct) */
+            json_object_set_new(o, "roi_display_color",
+                                json_pack("[i, i, i]", rois[k].color[0], rois[k].color[1], rois[k].color[2]));
+        if (rois[k].type[0])
+            json_object_set_new(o, "rt_roi_interpreted_type", json_string(rois[k].type));
+        if (rois[k].n_images > 0 && rois[k].series_uid[0]) {
+            json_t *images = json_array();
+            for (int i = 0; images && i < rois[k].n_images; i++) {
+                const struct rt_image *im = &rois[k].images[i];
+                json_array_append_new(images, isnan(im->z) ? json_pack("[s, s]", im->sop_class, im->sop_instance)
+                                                           : json_pack("[s, s, f]", im->sop_class, im->sop_instance, im->z));
+            }
+            json_object_set_new(o, "referenced_series",
+                                json_pack("{s:s, s:o*}", "series_instance_uid", rois[k].series_uid, "images", images));
+        }
         json_array_append_new(*list, o);
         if (fn)
             rc = fn(ctx, (int)json_array_size(*list) - 1, o, &rois[k].cs, &req, err);

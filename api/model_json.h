@@ -56,6 +56,24 @@ int model_mesh(const char *src, size_t len, const char *resource, const char *op
  * *out (caller frees) receives the DICOM Part 10 object. */
 int model_rtstruct(const char *src, size_t len, const char *resource, const char *options,
                    const struct sf_progress *pr, unsigned char **out, size_t *out_len, struct sf_err *err);
+/* Several stored models as one RT Structure Set (GET /rtstruct?models=), model k as ROI k + 1: named
+ * by its name, coloured and typed as its source structure set said (else a palette by ROI number,
+ * and a type by its name: api/README.md), in the one frame of reference and study its models share
+ * (refused at ?models when two differ), referencing the first model's series and images. Each
+ * mesh cut as model_rtstruct does, holes joined into their outer contours (keyhole.h). Errors
+ * name the model; model_rtstruct is this for one. */
+#define MODEL_RTSTRUCT_MAX_MODELS 256 /* ROIs of one export: a plan's structure set has tens */
+struct model_export {
+    const char *id, *src;    /* borrowed for the call */
+    size_t len;
+    const char *resource;
+};
+int model_rtstruct_set(const struct model_export *m, int n, const char *options, const struct sf_progress *pr,
+                       unsigned char **out, size_t *out_len, struct sf_err *err);
+/* What model_rtstruct_set would refuse of its models before cutting them (for the route): 1 to
+ * MODEL_RTSTRUCT_MAX_MODELS, none listed twice, one frame of reference and one study (models
+ * without, as contours in JSON, go with any). Errors point at ?models and name the models. */
+int model_rtstruct_check(const char *const *ids, const char *const *resources, int n, struct sf_err *err);
 /* What model_rtstruct would refuse in its options (?spacing). */
 int model_rtstruct_options(const char *options, double *spacing, struct sf_err *err);
 /* The cache key of a mesh request's options for a model after edits edits ("stl default e0",

@@ -1,12 +1,17 @@
-/* model_rtstruct.c - a stored model as a DICOM RT Structure Set of one ROI: its mesh cut by planes
- * (a contour model's own slices, an isosurface's grid, or ?spacing apart) into closed planar
- * contours. */
+/* model_rtstruct.c - stored models as one DICOM RT Structure Set, an ROI each: each mesh cut by
+ * planes (a contour model's own slices, an isosurface's grid, or ?spacing apart) into closed planar
+ * contours, holes cut into their outer contours (keyhole.h) for readers that fill every contour;
+ * what the source structure set said of each ROI (colour, interpreted type, study, frame, images)
+ * written back, or chosen here (api/README.md, "RT Structure Sets out"). */
 #include "model_json_internal.h"
 
 #include <jansson.h>
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
+#include <strings.h>
 
+#include "../core/geom/keyhole.h"
 #include "mesh_io.h"
 #include "query.h"
 #include "rtstruct.h"
@@ -83,23 +88,119 @@ static int section_planes(const char *src, size_t len, const char *resource, dou
     return rc;
 }
 
-int model_rtstruct(const char *src, size_t len, const char *resource, const char *options,
-                   const struct sf_progress *pr, unsigned char **out, size_t *out_len, struct sf_err *err)
+/* ROI colours for models whose source gave none, by ROI number: ten well-separated hues (Tableau
+ * 10), as planning systems cycle a palette */
+static const int PALETTE[][3] = {{31, 119, 180}, {255, 127, 14}, {44, 160, 44}, {214, 39, 40}, {148, 103, 189},
+                                 {140, 86, 75},  {227, 119, 194}, {127, 127, 127}, {188, 189, 34}, {23, 190, 207}};
+
+/* RTROIInterpretedType from an ROI's name where its source gave none: the body's outline EXTERNAL,
+ * target volumes by their usual prefixes, anything else ORGAN */
+static const char *type_by_name(const char *name)
 {
-    *out = NULL;
-    double spacing, tol;
+    static const struct {
+        const char *prefix, *type;
+    } BY_NAME[] = {{"body", "EXTERNAL"}, {"external", "EXTERNAL"}, {"skin", "EXTERNAL"}, {"outline", "EXTERNAL"},
+                   {"ptv", "PTV"},       {"ctv", "CTV"},           {"gtv", "GTV"}};
+    for (size_t k = 0; k < sizeof BY_NAME / sizeof *BY_NAME; k++)
+        if (!strncasecmp(name, BY_NAME[k].prefix, strlen(BY_NAME[k].prefix)))
+            return BY_NAME[k].type;
+    return "ORGAN";
+}
+
+static const char *str_of(json_t *r, const char *key)
+{
+    const char *v = json_string_value(json_object_get(r, key));
+    return v && *v ? v : NULL;
+}
+
+int model_rtstruct_check(const char *const *ids, const char *const *resources, int n, struct sf_err *err)
+{
+    if (n < 1 || n > MODEL_RTSTRUCT_MAX_MODELS)
+        return sf_fail(err, SF_EINVAL, "?models", "list 1 to %d model ids, comma-separated", MODEL_RTSTRUCT_MAX_MODELS);
+    const char *frame = NULL, *study = NULL;
+    int frame_of = -1, study_of = -1, rc = 0;
+    json_t **r = calloc((size_t)n, sizeof *r);
+    if (!r)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    for (int k = 0; k < n && !rc; k++) {
+        for (int j = 0; j < k && !rc; j++)
+            if (!strcmp(ids[j], ids[k]))
+                rc = sf_fail(err, SF_EINVAL, "?models", "model %s is listed twice: an ROI each", ids[k]);
+        if (!rc && !(r[k] = json_loads(resources[k], 0, NULL)))
+            rc = sf_fail(err, SF_EINVAL, "?models", "model %s: its resource is not JSON", ids[k]);
+        const char *f = rc ? NULL : str_of(r[k], "frame_of_reference_uid"), *s = rc ? NULL : str_of(r[k], "study_instance_uid");
+        /* models without a frame (contours in JSON) take the others'; two frames cannot be one set */
+        if (f && frame && strcmp(f, frame))
+            rc = sf_fail(err, SF_EINVAL, "?models", "models %s and %s are in different frames of reference (%.64s, %.64s): "
+                         "one structure set has one", ids[frame_of], ids[k], frame, f);
+        else if (s && study && strcmp(s, study))
+            rc = sf_fail(err, SF_EINVAL, "?models", "models %s and %s are of different studies: one structure set belongs "
+                         "to one", ids[study_of], ids[k]);
+        if (f && !frame)
+            frame = f, frame_of = k;
+        if (s && !study)
+            study = s, study_of = k;
+    }
+    for (int k = 0; k < n; k++)
+        json_decref(r[k]);
+    free(r);
+    return rc;
+}
+
+/* The grid the sections' points are put on before their holes are joined, and written exactly
+ * (rtstruct_write's 15 digits): the channels and corners keyhole_join tests are the ones a reader
+ * gets; at the %.9g of before, a mesh's sub-micron slivers moved and a channel crossed them */
+#define SECTION_GRID 1e-6 /* mm */
+/* consecutive points closer than this are one: a mesh cut through its vertices leaves slivers
+ * whose edges, a micron long, channels would have to pass between */
+#define SECTION_MERGE 1e-4 /* mm */
+
+/* Puts every point of l on SECTION_GRID, merging points SECTION_MERGE close; loops left with under
+ * three points dropped. In place. */
+static void snap(struct trimesh_loops *l)
+{
+    int out = 0, n_out = 0;
+    for (int k = 0; k < l->n; k++) {
+        int first = out;
+        for (int i = l->start[k]; i < l->start[k + 1]; i++) {
+            double x = round(l->p[i][0] / SECTION_GRID) * SECTION_GRID, y = round(l->p[i][1] / SECTION_GRID) * SECTION_GRID;
+            if (out > first && fabs(x - l->p[out - 1][0]) < SECTION_MERGE && fabs(y - l->p[out - 1][1]) < SECTION_MERGE)
+                continue;
+            l->p[out][0] = x, l->p[out][1] = y;
+            out++;
+        }
+        while (out - first > 1 && fabs(l->p[out - 1][0] - l->p[first][0]) < SECTION_MERGE &&
+               fabs(l->p[out - 1][1] - l->p[first][1]) < SECTION_MERGE)
+            out--; /* the closing point */
+        if (out - first < 3) {
+            out = first;
+            continue;
+        }
+        l->start[n_out++] = first;
+    }
+    l->start[n_out] = out;
+    l->n = n_out;
+}
+
+/* Model m's sections into its ROI: contours (each hole cut into its outer one), the count in *n. */
+static int model_sections(const struct model_export *m, double spacing, const struct sf_progress *pr,
+                          struct rt_contour **out, int *n_out, struct sf_err *err)
+{
+    double tol, *z = NULL;
     struct trimesh tm;
-    int rc = model_rtstruct_options(options, &spacing, err);
-    if (rc || (rc = model_trimesh(src, len, 0.0, pr, &tm, &tol, err)))
+    int rc = model_trimesh(m->src, m->len, 0.0, pr, &tm, &tol, err);
+    if (rc)
         return rc;
-    double *z = NULL;
     int n_z = 0, n_c = 0, cap = 0;
     struct rt_contour *c = NULL;
-    rc = section_planes(src, len, resource, spacing, &tm, &z, &n_z, err);
+    rc = section_planes(m->src, m->len, m->resource, spacing, &tm, &z, &n_z, err);
     for (int k = 0; !rc && k < n_z; k++) {
-        struct trimesh_loops l;
-        if ((rc = trimesh_slice(&tm, z[k], &l, err)))
+        struct trimesh_loops cut, l;
+        if ((rc = trimesh_slice(&tm, z[k], &cut, err)))
             break;
+        snap(&cut);
+        rc = keyhole_join(&cut, KEYHOLE_MAX_TESTS, &l, NULL, err);
+        trimesh_loops_free(&cut);
         for (int i = 0; !rc && i < l.n; i++) {
             int np = l.start[i + 1] - l.start[i];
             if (n_c == cap) {
@@ -121,25 +222,110 @@ int model_rtstruct(const char *src, size_t len, const char *resource, const char
         }
         trimesh_loops_free(&l);
     }
-    json_t *r = rc ? NULL : json_loads(resource, 0, NULL);
-    if (!rc && !r)
-        rc = sf_fail(err, SF_EINVAL, "", "the model's resource is not JSON");
     if (!rc && n_c == 0)
         rc = sf_fail(err, SF_EINVAL, "?spacing", "no section of the model: its planes miss it");
-    if (!rc) {
-        json_t *num = json_object_get(r, "roi_number");
-        const char *name = json_string_value(json_object_get(r, "name"));
-        struct rt_export e = {"surfd", name && *name ? name : "model", num ? (int)json_integer_value(num) : 1,
-                              json_string_value(json_object_get(r, "study_instance_uid")),
-                              json_string_value(json_object_get(r, "frame_of_reference_uid")), c, n_c};
-        rc = rtstruct_write(&e, out, out_len, err);
-    }
-    json_decref(r);
-    for (int k = 0; k < n_c; k++)
-        free(c[k].p);
-    free(c);
     free(z);
     trimesh_free(&tm);
+    *out = c;
+    *n_out = n_c;
     return rc;
 }
 
+/* The referenced series' images of a resource ("referenced_series"), or none (0). */
+static int series_images(json_t *r, const char **series, struct rt_image **images, struct sf_err *err)
+{
+    json_t *rs = json_object_get(r, "referenced_series"), *list = json_object_get(rs, "images");
+    *series = json_string_value(json_object_get(rs, "series_instance_uid"));
+    *images = NULL;
+    size_t n = json_array_size(list);
+    if (!*series || !n || n > RTSTRUCT_MAX_IMAGES)
+        return 0;
+    if (!(*images = calloc(n, sizeof **images)))
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    int m = 0;
+    for (size_t k = 0; k < n; k++) {
+        json_t *im = json_array_get(list, k);
+        const char *cls = json_string_value(json_array_get(im, 0)), *inst = json_string_value(json_array_get(im, 1));
+        json_t *z = json_array_get(im, 2);
+        if (!cls || !inst)
+            continue;
+        snprintf((*images)[m].sop_class, sizeof (*images)[m].sop_class, "%s", cls);
+        snprintf((*images)[m].sop_instance, sizeof (*images)[m].sop_instance, "%s", inst);
+        (*images)[m++].z = json_is_number(z) ? json_number_value(z) : NAN;
+    }
+    return m;
+}
+
+int model_rtstruct_set(const struct model_export *m, int n, const char *options, const struct sf_progress *pr,
+                       unsigned char **out, size_t *out_len, struct sf_err *err)
+{
+    *out = NULL;
+    double spacing;
+    int rc = model_rtstruct_options(options, &spacing, err);
+    const char **ids = calloc((size_t)n + 1, sizeof *ids), **resources = calloc((size_t)n + 1, sizeof *resources);
+    json_t **r = calloc((size_t)n + 1, sizeof *r);
+    struct rt_export_roi *roi = calloc((size_t)n + 1, sizeof *roi);
+    struct rt_image *images = NULL;
+    if (!rc && (!ids || !resources || !r || !roi))
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+    for (int k = 0; !rc && k < n; k++)
+        ids[k] = m[k].id, resources[k] = m[k].resource;
+    if (!rc)
+        rc = model_rtstruct_check(ids, resources, n, err);
+    struct rt_export e = {"surfd", NULL, NULL, NULL, NULL, 0, roi, n};
+    for (int k = 0; !rc && k < n; k++) {
+        if (!(r[k] = json_loads(m[k].resource, 0, NULL))) {
+            rc = sf_fail(err, SF_EINVAL, "?models", "model %s: its resource is not JSON", m[k].id);
+            break;
+        }
+        if ((rc = model_sections(&m[k], spacing, pr, (struct rt_contour **)&roi[k].c, &roi[k].n, err))) {
+            if (n > 1) { /* which model, where several are listed */
+                char what[sizeof err->message];
+                snprintf(what, sizeof what, "%s", err->message);
+                snprintf(err->message, sizeof err->message, "model %s: %.280s", m[k].id, what);
+            }
+            break;
+        }
+        json_t *color = json_object_get(r[k], "roi_display_color");
+        const char *name = str_of(r[k], "name"), *type = str_of(r[k], "rt_roi_interpreted_type");
+        roi[k].name = name ? name : "model";
+        roi[k].number = k + 1;
+        roi[k].type = type ? type : type_by_name(roi[k].name);
+        for (int i = 0; i < 3; i++) {
+            json_int_t v = json_integer_value(json_array_get(color, (size_t)i));
+            roi[k].color[i] = json_array_size(color) == 3 && v >= 0 && v <= 255 ? (int)v : PALETTE[k % 10][i];
+        }
+        e.study_uid = e.study_uid ? e.study_uid : str_of(r[k], "study_instance_uid");
+        e.frame_uid = e.frame_uid ? e.frame_uid : str_of(r[k], "frame_of_reference_uid");
+        if (!images) { /* the first model's series: models of one frame were drawn on one series */
+            int got = series_images(r[k], &e.series_uid, &images, err);
+            if (got < 0) {
+                rc = got;
+                break;
+            }
+            e.images = images, e.n_images = got;
+        }
+    }
+    if (!rc)
+        rc = rtstruct_write(&e, out, out_len, err);
+    for (int k = 0; roi && k < n; k++) {
+        for (int i = 0; i < roi[k].n; i++)
+            free(roi[k].c[i].p);
+        free((void *)roi[k].c);
+        if (r)
+            json_decref(r[k]);
+    }
+    free(images);
+    free(roi);
+    free(r);
+    free(ids);
+    free(resources);
+    return rc;
+}
+
+int model_rtstruct(const char *src, size_t len, const char *resource, const char *options,
+                   const struct sf_progress *pr, unsigned char **out, size_t *out_len, struct sf_err *err)
+{
+    struct model_export m = {"", src, len, resource};
+    return model_rtstruct_set(&m, 1, options, pr, out, out_len, err);
+}

@@ -42,7 +42,7 @@ char *problem_json(int status, const char *detail, const char *pointer)
     snprintf(type, sizeof type, "https://surfd.invalid/problems/%d", status);
     json_t *o = json_pack("{s:s, s:s, s:i, s:s}", "type", type, "title", problem_title(status), "status", status,
                           "detail", detail ? detail : "");
-    if (o && pointer && (status == 422 || status == 400)) {
+    if (o && pointer && (status == 422 || status == 400 || (status == 404 && *pointer))) { /* 404: which id of a list */
         json_t *e = json_pack("[{s:s, s:s}]", "pointer", pointer, "message", detail ? detail : "");
         if (e)
             json_object_set_new(o, "errors", e);

@@ -6,7 +6,8 @@
 
 #include "../core/base/err.h"
 
-/* {"type","title","status","detail"[,"errors":[{"pointer","message"}]]}; pointer may be NULL. */
+/* {"type","title","status","detail"[,"errors":[{"pointer","message"}]]}; pointer may be NULL (errors: for 400
+ * and 422, and a 404 with a pointer: the unknown id of a list). */
 char *problem_json(int status, const char *detail, const char *pointer);
 /* SF_EFORMAT -> 400, SF_EINVAL/SF_ELIMIT -> 422, SF_ENOMEM/SF_EBACKEND/SF_EIO -> 500. */
 int problem_status(int sf_code);

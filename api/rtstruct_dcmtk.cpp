@@ -1,9 +1,11 @@
 // rtstruct_dcmtk.cpp - DCMTK for RT Structure Sets (series_dcmtk.cpp reads image series): an RT
-// Structure Set in memory to contour sets, and a model's sections back to one (rtstruct_write).
+// Structure Set in memory to contour sets, and models' sections back to one (rtstruct_write).
 // ROI names come from StructureSetROISequence, contours from ROIContourSequence (CLOSED_PLANAR
-// only; POINT and OPEN_* contours are skipped, as they bound nothing). Slice z is the contour's
-// own z (ContourData is x, y, z triples in patient coordinates); a contour whose z varies is not
-// planar and is refused. No other element of the object is read.
+// only; POINT and OPEN_* contours are skipped, as they bound nothing), colours from there too,
+// interpreted types from RTROIObservationsSequence, the series' images from
+// ReferencedFrameOfReferenceSequence. Slice z is the contour's own z (ContourData is x, y, z
+// triples in patient coordinates); a contour whose z varies is not planar and is refused. No other
+// element of the object is read (KEPT below lists them all).
 #include "dcmtk_out.h"
 #include "dcmtk_in.h"
 #include "rtstruct.h"
@@ -31,6 +33,8 @@ extern "C" void rtstruct_free(struct rt_roi *rois, int n_rois)
 {
     for (int k = 0; k < n_rois && rois; k++)
         contour_set_free(&rois[k].cs);
+    if (rois && n_rois > 0) /* one array, shared by every ROI */
+        free((void *)rois[0].images);
     free(rois);
 }
 
@@ -46,17 +50,32 @@ static int read_object(const void *buf, size_t len, DcmFileFormat &ff, struct sf
     return 0;
 }
 
-/* Copies the elements tags (where present) from one item to another; false when out of memory. */
-static bool copy_elements(DcmItem *from, DcmItem *to, const DcmTagKey *tags, size_t n)
-{
-    for (size_t k = 0; k < n; k++) {
-        DcmElement *el = NULL;
-        if (from->findAndGetElement(tags[k], el).good() && el &&
-            to->insert(static_cast<DcmElement *>(el->clone())).bad())
-            return false;
-    }
-    return true;
-}
+/* What of a structure set is kept (rtstruct_strip) and read: elements, and sequences with what
+ * their items keep (a list ends at an entry of no tag). */
+struct kept {
+    DcmTagKey tag;
+    const struct kept *items; /* NULL: an element */
+};
+static const DcmTagKey END = DCM_UndefinedTagKey;
+static const struct kept IMAGE_REF[] = {{DCM_ReferencedSOPClassUID, NULL}, {DCM_ReferencedSOPInstanceUID, NULL}, {END, NULL}};
+static const struct kept CONTOUR[] = {{DCM_ContourGeometricType, NULL}, {DCM_NumberOfContourPoints, NULL},
+                                      {DCM_ContourData, NULL}, {DCM_ContourImageSequence, IMAGE_REF}, {END, NULL}};
+static const struct kept ROI_CONTOUR[] = {{DCM_ReferencedROINumber, NULL}, {DCM_ROIDisplayColor, NULL},
+                                          {DCM_ContourSequence, CONTOUR}, {END, NULL}};
+static const struct kept ROI[] = {{DCM_ROINumber, NULL}, {DCM_ROIName, NULL}, {DCM_ReferencedFrameOfReferenceUID, NULL},
+                                  {END, NULL}};
+static const struct kept OBSERVATION[] = {{DCM_ObservationNumber, NULL}, {DCM_ReferencedROINumber, NULL},
+                                          {DCM_RTROIInterpretedType, NULL}, {END, NULL}};
+static const struct kept SERIES[] = {{DCM_SeriesInstanceUID, NULL}, {DCM_ContourImageSequence, IMAGE_REF}, {END, NULL}};
+static const struct kept STUDY[] = {{DCM_ReferencedSOPClassUID, NULL}, {DCM_ReferencedSOPInstanceUID, NULL},
+                                    {DCM_RTReferencedSeriesSequence, SERIES}, {END, NULL}};
+static const struct kept FRAME[] = {{DCM_FrameOfReferenceUID, NULL}, {DCM_RTReferencedStudySequence, STUDY}, {END, NULL}};
+static const struct kept KEPT[] = {{DCM_StudyInstanceUID, NULL},
+                                   {DCM_ReferencedFrameOfReferenceSequence, FRAME},
+                                   {DCM_StructureSetROISequence, ROI},
+                                   {DCM_ROIContourSequence, ROI_CONTOUR},
+                                   {DCM_RTROIObservationsSequence, OBSERVATION},
+                                   {END, NULL}};
 
 /* A sequence's items in order, walked once: DCMTK's getItem(i) walks its list from the start each
  * time, so indexed loops were quadratic in what a file declares (a structure set of 100 000 empty
@@ -72,6 +91,31 @@ static std::vector<DcmItem *> items_of(DcmSequenceOfItems *seq)
     return v;
 }
 
+/* Copies what spec keeps from one item to another (a sequence kept even when empty: its ROIs read
+ * as skipped, as they were); false when out of memory. */
+static bool copy_kept(DcmItem *from, DcmItem *to, const struct kept *spec)
+{
+    for (const struct kept *k = spec; k->tag != END; k++) {
+        if (!k->items) {
+            DcmElement *el = NULL;
+            if (from->findAndGetElement(k->tag, el).good() && el && to->insert(static_cast<DcmElement *>(el->clone())).bad())
+                return false;
+            continue;
+        }
+        DcmSequenceOfItems *seq = NULL;
+        if (from->findAndGetSequence(k->tag, seq).bad() || !seq)
+            continue;
+        if (seq->card() == 0 && to->insert(new DcmSequenceOfItems(k->tag)).bad())
+            return false;
+        for (DcmItem *src : items_of(seq)) {
+            DcmItem *item = NULL;
+            if (to->findOrCreateSequenceItem(k->tag, item, -2).bad() || !copy_kept(src, item, k->items))
+                return false;
+        }
+    }
+    return true;
+}
+
 extern "C" int rtstruct_strip(const void *buf, size_t len, unsigned char **out, size_t *out_len, struct sf_err *err)
 {
     *out = NULL;
@@ -84,39 +128,9 @@ extern "C" int rtstruct_strip(const void *buf, size_t len, unsigned char **out, 
     DcmFileFormat kept;
     DcmDataset *kd = kept.getDataset();
     char uid[100];
-    OFString study;
-    ds->findAndGetOFString(DCM_StudyInstanceUID, study);
     bool ok = kd->putAndInsertString(DCM_SOPClassUID, RT_STRUCT_SOP_CLASS).good() &&
               kd->putAndInsertString(DCM_SOPInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT)).good() &&
-              kd->putAndInsertString(DCM_Modality, "RTSTRUCT").good() &&
-              (study.empty() || kd->putAndInsertString(DCM_StudyInstanceUID, study.c_str()).good());
-    static const DcmTagKey ROI_TAGS[] = {DCM_ROINumber, DCM_ROIName, DCM_ReferencedFrameOfReferenceUID};
-    static const DcmTagKey CONTOUR_ROI_TAGS[] = {DCM_ReferencedROINumber, DCM_ROIDisplayColor};
-    static const DcmTagKey CONTOUR_TAGS[] = {DCM_ContourGeometricType, DCM_NumberOfContourPoints, DCM_ContourData};
-    DcmSequenceOfItems *seq = NULL;
-    if (ok && ds->findAndGetSequence(DCM_StructureSetROISequence, seq).good() && seq)
-        for (DcmItem *src : items_of(seq)) {
-            DcmItem *item = NULL;
-            ok = ok && kd->findOrCreateSequenceItem(DCM_StructureSetROISequence, item, -2).good() &&
-                 copy_elements(src, item, ROI_TAGS, 3);
-        }
-    seq = NULL;
-    bool contours = ok && ds->findAndGetSequence(DCM_ROIContourSequence, seq).good() && seq;
-    if (contours && seq->card() == 0) /* kept, empty: its ROIs read as skipped, as they were */
-        ok = kd->insert(new DcmSequenceOfItems(DCM_ROIContourSequence)).good();
-    if (contours)
-        for (DcmItem *roi : items_of(seq)) {
-            DcmItem *item = NULL;
-            ok = ok && kd->findOrCreateSequenceItem(DCM_ROIContourSequence, item, -2).good() &&
-                 copy_elements(roi, item, CONTOUR_ROI_TAGS, 2);
-            DcmSequenceOfItems *cseq = NULL;
-            if (ok && roi->findAndGetSequence(DCM_ContourSequence, cseq).good() && cseq)
-                for (DcmItem *src : items_of(cseq)) {
-                    DcmItem *c = NULL;
-                    ok = ok && item->findOrCreateSequenceItem(DCM_ContourSequence, c, -2).good() &&
-                         copy_elements(src, c, CONTOUR_TAGS, 3);
-                }
-        }
+              kd->putAndInsertString(DCM_Modality, "RTSTRUCT").good() && copy_kept(ds, kd, KEPT);
     if (!ok)
         return sf_fail(err, SF_ENOMEM, "", "out of memory copying the structure set");
     return dcm_write_object(kept, out, out_len, "the stripped object", err);
@@ -147,6 +161,36 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
                 frames[num] = frame.c_str();
             }
         }
+    std::map<long, std::string> types; // ROI Number -> its RTROIInterpretedType
+    seq = NULL;
+    if (ds->findAndGetSequence(DCM_RTROIObservationsSequence, seq).good() && seq)
+        for (DcmItem *it : items_of(seq)) {
+            Sint32 num = 0;
+            OFString type;
+            if (it->findAndGetSint32(DCM_ReferencedROINumber, num).good() &&
+                it->findAndGetOFString(DCM_RTROIInterpretedType, type).good())
+                types[num] = type.c_str();
+        }
+    /* the first referenced series with images: the one the contours were drawn on */
+    OFString series;
+    std::vector<DcmItem *> image_items;
+    seq = NULL;
+    if (ds->findAndGetSequence(DCM_ReferencedFrameOfReferenceSequence, seq).good() && seq)
+        for (DcmItem *fr : items_of(seq)) {
+            DcmSequenceOfItems *st = NULL;
+            if (image_items.empty() && fr->findAndGetSequence(DCM_RTReferencedStudySequence, st).good() && st)
+                for (DcmItem *sti : items_of(st)) {
+                    DcmSequenceOfItems *se = NULL;
+                    if (image_items.empty() && sti->findAndGetSequence(DCM_RTReferencedSeriesSequence, se).good() && se)
+                        for (DcmItem *sei : items_of(se)) {
+                            DcmSequenceOfItems *im = NULL;
+                            if (image_items.empty() && sei->findAndGetSequence(DCM_ContourImageSequence, im).good() && im &&
+                                im->card() <= RTSTRUCT_MAX_IMAGES && sei->findAndGetOFString(DCM_SeriesInstanceUID, series).good())
+                                image_items = items_of(im);
+                        }
+                }
+        }
+    std::map<std::string, double> image_z; // SOP Instance UID -> the plane of a contour that references it
     DcmSequenceOfItems *rcs = NULL;
     if (ds->findAndGetSequence(DCM_ROIContourSequence, rcs).bad() || !rcs)
         return sf_fail(err, SF_EINVAL, "/ROIContourSequence", "the structure set has no ROIContourSequence");
@@ -169,6 +213,14 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
         snprintf(out_roi->name, sizeof out_roi->name, "%s", names.count(num) ? names[num].c_str() : "");
         snprintf(out_roi->frame_uid, sizeof out_roi->frame_uid, "%s", frames.count(num) ? frames[num].c_str() : "");
         snprintf(out_roi->study_uid, sizeof out_roi->study_uid, "%s", study.c_str());
+        snprintf(out_roi->type, sizeof out_roi->type, "%s", types.count(num) ? types[num].c_str() : "");
+        out_roi->color[0] = out_roi->color[1] = out_roi->color[2] = -1;
+        Sint32 rgb[3]; /* IS: three integers, each 0..255 */
+        if (roi->findAndGetSint32(DCM_ROIDisplayColor, rgb[0], 0).good() && roi->findAndGetSint32(DCM_ROIDisplayColor, rgb[1], 1).good() &&
+            roi->findAndGetSint32(DCM_ROIDisplayColor, rgb[2], 2).good() && rgb[0] >= 0 && rgb[0] < 256 && rgb[1] >= 0 &&
+            rgb[1] < 256 && rgb[2] >= 0 && rgb[2] < 256)
+            for (int c = 0; c < 3; c++)
+                out_roi->color[c] = (int)rgb[c];
         names.erase(num); // what stays in names has no ROI Contour item
         if (roi->findAndGetSequence(DCM_ContourSequence, cseq).bad() || !cseq || cseq->card() == 0) {
             out_roi->skipped = "no contours"; // nothing to model, listed
@@ -250,6 +302,11 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
                 s->p[i][1] = v[1];
             }
             s->z = z0;
+            DcmItem *ref = NULL;
+            OFString img;
+            if (ci->findAndGetSequenceItem(DCM_ContourImageSequence, ref, 0).good() && ref &&
+                ref->findAndGetOFString(DCM_ReferencedSOPInstanceUID, img).good())
+                image_z[img.c_str()] = z0;
         }
         if (!rc && out_roi->cs.n_slices == 0) { // only non-planar kinds: nothing to model, listed
             contour_set_free(&out_roi->cs);
@@ -261,6 +318,27 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
         snprintf(rois[n].name, sizeof rois[n].name, "%s", it->second.c_str());
         rois[n++].skipped = "no contours (no ROI Contour item)";
     }
+    struct rt_image *images = NULL;
+    int n_images = 0;
+    if (!rc && !image_items.empty() && !(images = (struct rt_image *)calloc(image_items.size(), sizeof *images)))
+        rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+    for (size_t k = 0; !rc && k < image_items.size(); k++) {
+        OFString cls, inst;
+        if (image_items[k]->findAndGetOFString(DCM_ReferencedSOPClassUID, cls).bad() ||
+            image_items[k]->findAndGetOFString(DCM_ReferencedSOPInstanceUID, inst).bad() || cls.size() > 64 || inst.size() > 64)
+            continue; // not a reference an export can repeat
+        struct rt_image *im = &images[n_images++];
+        snprintf(im->sop_class, sizeof im->sop_class, "%s", cls.c_str());
+        snprintf(im->sop_instance, sizeof im->sop_instance, "%s", inst.c_str());
+        im->z = image_z.count(inst.c_str()) ? image_z[inst.c_str()] : NAN;
+    }
+    for (int k = 0; !rc && k < n && n_images > 0; k++) {
+        rois[k].images = images;
+        rois[k].n_images = n_images;
+        snprintf(rois[k].series_uid, sizeof rois[k].series_uid, "%s", series.c_str());
+    }
+    if (rc || n == 0 || n_images == 0)
+        free(images); // unless the ROIs hold it
     if (rc) {
         rtstruct_free(rois, n);
         return rc;
@@ -272,19 +350,27 @@ extern "C" int rtstruct_read(const void *buf, size_t len, struct rt_roi **out, i
 
 /* ---- a model's sections as an RT Structure Set ------------------------------------------------ */
 
+/* The image of the series in plane z (within PLANAR_EPS), or NULL. */
+static const struct rt_image *image_at(const struct rt_export *e, double z)
+{
+    for (int k = 0; k < e->n_images; k++)
+        if (std::fabs(e->images[k].z - z) <= PLANAR_EPS)
+            return &e->images[k];
+    return NULL;
+}
+
 extern "C" int rtstruct_write(const struct rt_export *e, unsigned char **out, size_t *out_len, struct sf_err *err)
 {
     *out = NULL;
     *out_len = 0;
     DcmFileFormat ff;
     DcmDataset *ds = ff.getDataset();
-    char sop[100], series[100], study[100], frame[100], date[16], tm[16], num[16];
+    char sop[100], series[100], study[100], frame[100], date[16], tm[16];
     dcm_uid(sop, NULL, SITE_INSTANCE_UID_ROOT);
     dcm_uid(series, NULL, SITE_SERIES_UID_ROOT);
     dcm_uid(study, e->study_uid, SITE_STUDY_UID_ROOT);
     dcm_uid(frame, e->frame_uid, SITE_INSTANCE_UID_ROOT);
     dcm_now(date, tm);
-    snprintf(num, sizeof num, "%d", e->roi_number);
     /* the modules of the RT Structure Set IOD; the patient's and the study's type 2 elements empty:
      * a request carries no patient data, and none is made up */
     static const DcmTagKey EMPTY[] = {DCM_PatientName, DCM_PatientID, DCM_PatientBirthDate, DCM_PatientSex,
@@ -308,41 +394,72 @@ extern "C" int rtstruct_write(const struct rt_export *e, unsigned char **out, si
               ds->insertEmptyElement(DCM_PositionReferenceIndicator).good();
     for (size_t k = 0; ok && k < sizeof EMPTY / sizeof *EMPTY; k++)
         ok = ds->insertEmptyElement(EMPTY[k]).good();
-    DcmItem *it = NULL;
+    /* the frame, and through the study the series' images (each of its type 1 levels needs the
+     * next: without images, no study is referenced) */
+    DcmItem *it = NULL, *st = NULL, *se = NULL;
     ok = ok && ds->findOrCreateSequenceItem(DCM_ReferencedFrameOfReferenceSequence, it, -2).good() &&
          it->putAndInsertString(DCM_FrameOfReferenceUID, frame).good();
-    ok = ok && ds->findOrCreateSequenceItem(DCM_StructureSetROISequence, it, -2).good() &&
-         it->putAndInsertString(DCM_ROINumber, num).good() &&
-         it->putAndInsertString(DCM_ReferencedFrameOfReferenceUID, frame).good() &&
-         it->putAndInsertString(DCM_ROIName, e->roi_name).good() &&
-         it->putAndInsertString(DCM_ROIGenerationAlgorithm, "SEMIAUTOMATIC").good();
-    ok = ok && ds->findOrCreateSequenceItem(DCM_RTROIObservationsSequence, it, -2).good() &&
-         it->putAndInsertString(DCM_ObservationNumber, num).good() &&
-         it->putAndInsertString(DCM_ReferencedROINumber, num).good() &&
-         it->insertEmptyElement(DCM_RTROIInterpretedType).good() && it->insertEmptyElement(DCM_ROIInterpreter).good();
-    DcmItem *roi = NULL;
-    ok = ok && ds->findOrCreateSequenceItem(DCM_ROIContourSequence, roi, -2).good() &&
-         roi->putAndInsertString(DCM_ReferencedROINumber, num).good() &&
-         roi->putAndInsertString(DCM_ROIDisplayColor, "255\\128\\0").good();
+    if (ok && e->n_images > 0 && e->series_uid && *e->series_uid)
+        ok = it->findOrCreateSequenceItem(DCM_RTReferencedStudySequence, st, -2).good() &&
+             st->putAndInsertString(DCM_ReferencedSOPClassUID, "1.2.840.10008.3.1.2.3.1").good() && /* Study Component Management (detached study) */
+             st->putAndInsertString(DCM_ReferencedSOPInstanceUID, study).good() &&
+             st->findOrCreateSequenceItem(DCM_RTReferencedSeriesSequence, se, -2).good() &&
+             se->putAndInsertString(DCM_SeriesInstanceUID, e->series_uid).good();
+    for (int k = 0; ok && se && k < e->n_images; k++) {
+        DcmItem *im = NULL;
+        ok = se->findOrCreateSequenceItem(DCM_ContourImageSequence, im, -2).good() &&
+             im->putAndInsertString(DCM_ReferencedSOPClassUID, e->images[k].sop_class).good() &&
+             im->putAndInsertString(DCM_ReferencedSOPInstanceUID, e->images[k].sop_instance).good();
+    }
     std::string data;
-    for (int c = 0; ok && c < e->n; c++) {
-        const struct rt_contour *k = &e->c[c];
-        DcmItem *ci = NULL;
-        char n[16], cn[16];
-        snprintf(n, sizeof n, "%d", k->n);
-        snprintf(cn, sizeof cn, "%d", c + 1);
-        data.clear();
-        for (int i = 0; i < k->n; i++)
-            for (int d3 = 0; d3 < 3; d3++) {
-                char v[32];
-                snprintf(v, sizeof v, "%s%.9g", data.empty() ? "" : "\\", k->p[i][d3]); /* DS: 16 characters at most */
-                data += v;
-            }
-        ok = roi->findOrCreateSequenceItem(DCM_ContourSequence, ci, -2).good() &&
-             ci->putAndInsertString(DCM_ContourNumber, cn).good() &&
-             ci->putAndInsertString(DCM_ContourGeometricType, "CLOSED_PLANAR").good() &&
-             ci->putAndInsertString(DCM_NumberOfContourPoints, n).good() &&
-             ci->putAndInsertString(DCM_ContourData, data.c_str()).good();
+    for (int r = 0; ok && r < e->n_roi; r++) {
+        const struct rt_export_roi *x = &e->roi[r];
+        char num[16], rgb[48];
+        snprintf(num, sizeof num, "%d", x->number);
+        snprintf(rgb, sizeof rgb, "%d\\%d\\%d", x->color[0], x->color[1], x->color[2]);
+        ok = ds->findOrCreateSequenceItem(DCM_StructureSetROISequence, it, -2).good() &&
+             it->putAndInsertString(DCM_ROINumber, num).good() &&
+             it->putAndInsertString(DCM_ReferencedFrameOfReferenceUID, frame).good() &&
+             it->putAndInsertString(DCM_ROIName, x->name).good() &&
+             it->putAndInsertString(DCM_ROIGenerationAlgorithm, "AUTOMATIC").good() &&
+             it->putAndInsertString(DCM_ROIGenerationDescription, "surfd").good();
+        ok = ok && ds->findOrCreateSequenceItem(DCM_RTROIObservationsSequence, it, -2).good() &&
+             it->putAndInsertString(DCM_ObservationNumber, num).good() &&
+             it->putAndInsertString(DCM_ReferencedROINumber, num).good() &&
+             it->putAndInsertString(DCM_RTROIInterpretedType, x->type).good() && it->insertEmptyElement(DCM_ROIInterpreter).good();
+        DcmItem *roi = NULL;
+        ok = ok && ds->findOrCreateSequenceItem(DCM_ROIContourSequence, roi, -2).good() &&
+             roi->putAndInsertString(DCM_ReferencedROINumber, num).good() &&
+             roi->putAndInsertString(DCM_ROIDisplayColor, rgb).good();
+        for (int c = 0; ok && c < x->n; c++) {
+            const struct rt_contour *k = &x->c[c];
+            DcmItem *ci = NULL, *im = NULL;
+            char n[16], cn[16];
+            snprintf(n, sizeof n, "%d", k->n);
+            snprintf(cn, sizeof cn, "%d", c + 1);
+            data.clear();
+            for (int i = 0; i < k->n; i++)
+                for (int d3 = 0; d3 < 3; d3++) {
+                    /* DS: 16 characters at most, with as many digits as fit (15 hold a 1e-6 mm grid
+                     * exactly up to a kilometre: the coordinates keyhole_join tested are those read) */
+                    char v[32];
+                    for (int prec = 15; prec >= 6; prec--)
+                        if (snprintf(v, sizeof v, "%.*g", prec, k->p[i][d3]) <= 16)
+                            break;
+                    if (!data.empty())
+                        data += "\\";
+                    data += v;
+                }
+            const struct rt_image *img = se && k->n > 0 ? image_at(e, k->p[0][2]) : NULL;
+            ok = roi->findOrCreateSequenceItem(DCM_ContourSequence, ci, -2).good() &&
+                 ci->putAndInsertString(DCM_ContourNumber, cn).good() &&
+                 (!img || (ci->findOrCreateSequenceItem(DCM_ContourImageSequence, im, -2).good() &&
+                           im->putAndInsertString(DCM_ReferencedSOPClassUID, img->sop_class).good() &&
+                           im->putAndInsertString(DCM_ReferencedSOPInstanceUID, img->sop_instance).good())) &&
+                 ci->putAndInsertString(DCM_ContourGeometricType, "CLOSED_PLANAR").good() &&
+                 ci->putAndInsertString(DCM_NumberOfContourPoints, n).good() &&
+                 ci->putAndInsertString(DCM_ContourData, data.c_str()).good();
+        }
     }
     if (!ok)
         return sf_fail(err, SF_ENOMEM, "", "out of memory making the structure set");

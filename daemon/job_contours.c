@@ -94,17 +94,38 @@ static int stored_model(struct contour_work *w, const struct job_rec *rec, char 
     return 0;
 }
 
+/* The models a request lists ("ID,ID,...": GET /rtstruct; one id: GET /models/{id}/rtstruct; the
+ * route checked their owner and count) as one structure set, named after its one model or its job. */
 static int make_rtstruct(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
 {
-    char *src, *resource;
-    size_t n;
-    int rc = stored_model(w, rec, &src, &n, &resource);
+    const char *list = (const char *)rec->request, *end = list + rec->request_len;
+    int n = 1, rc = 0;
+    for (const char *c = list; c < end; c++)
+        n += *c == ',';
+    struct model_export *m = calloc((size_t)n, sizeof *m);
+    char(*ids)[40] = calloc((size_t)n, sizeof *ids);
+    if (!m || !ids)
+        rc = sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
+    for (int k = 0; !rc && k < n; k++) {
+        const char *comma = memchr(list, ',', (size_t)(end - list));
+        size_t len = (size_t)((comma ? comma : end) - list);
+        snprintf(ids[k], sizeof ids[k], "%.*s", (int)(len < 39 ? len : 39), list);
+        list += len + (comma != NULL);
+        m[k].id = ids[k];
+        if (store_model_get(w->job.svc->store, ids[k], NULL, (char **)&m[k].resource, (char **)&m[k].src, &m[k].len))
+            rc = sf_fail(&w->err, SF_EINVAL, n > 1 ? "?models" : "", "model %s is no longer stored", ids[k]);
+    }
     if (!rc)
-        rc = model_rtstruct(src, n, resource, rec->options, pr, (unsigned char **)&w->json, &w->len, &w->err);
+        rc = model_rtstruct_set(m, n, rec->options, pr, (unsigned char **)&w->json, &w->len, &w->err);
     w->type = "application/dicom";
+    snprintf(w->model, sizeof w->model, "%s", n == 1 && ids ? ids[0] : w->job.claim.id);
     snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.dcm\"}", w->model);
-    free(src);
-    free(resource);
+    for (int k = 0; m && k < n; k++) {
+        free((char *)m[k].src);
+        free((char *)m[k].resource);
+    }
+    free(m);
+    free(ids);
     return rc;
 }
 

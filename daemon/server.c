@@ -401,6 +401,7 @@ struct opts {
     char buf[512];
     size_t n;
     bool bad;
+    const char *skip;        /* an option the route reads itself (not the job's), or NULL */
 };
 
 /* Appends one query option; a name or value with a NUL in it (%00) or '&' or '=' is refused. */
@@ -409,6 +410,8 @@ static enum MHD_Result add_opt(void *cls, enum MHD_ValueKind kind, const char *k
 {
     (void)kind;
     struct opts *o = cls;
+    if (o->skip && !strcmp(key, o->skip))
+        return MHD_YES;
     if (!value)
         value = "";
     if (strlen(key) != key_size || strlen(value) != value_size || strpbrk(key, "&=") || strpbrk(value, "&=") ||
@@ -848,6 +851,79 @@ static bool split_id(const char *s, bool uid, char id[ROUTE_ID], const char **re
     return true;
 }
 
+/* GET /rtstruct?models=ID,ID,...: one rtstruct job of every listed model (the token's), its request
+ * the list; the cap, the ids, their owner, frame and study checked here, before any job. The
+ * list is the route's, not the job's options (a long list would not fit them). */
+static enum MHD_Result rtstruct_set_route(struct req *r, const char *unused)
+{
+    (void)unused;
+    const char *list = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "models");
+    if (!list || !*list)
+        return problem(r, 422, "?models lists the models to export, comma-separated ids", "?models");
+    int n = 1;
+    for (const char *c = list; *c; c++)
+        n += *c == ',';
+    if (n > MODEL_RTSTRUCT_MAX_MODELS) {
+        char detail[128];
+        snprintf(detail, sizeof detail, "%d models listed: one structure set holds at most %d", n,
+                 MODEL_RTSTRUCT_MAX_MODELS);
+        return problem(r, 422, detail, "?models");
+    }
+    char(*ids)[40] = calloc((size_t)n, sizeof *ids), **resources = calloc((size_t)n, sizeof *resources);
+    const char **id_of = calloc((size_t)n, sizeof *id_of);
+    char *body = malloc(strlen(list) + 1);
+    enum MHD_Result answer = MHD_NO;
+    bool answered = false;
+    if (!ids || !resources || !id_of || !body) {
+        answer = problem(r, 500, "out of memory", NULL), answered = true;
+        goto out_free;
+    }
+    const char *at = list;
+    for (int k = 0; k < n; k++) {
+        size_t len = strcspn(at, ",");
+        char detail[128];
+        if (!valid_id(at, len)) {
+            snprintf(detail, sizeof detail, "no such model: \"%.*s\"", (int)(len < 40 ? len : 40), at);
+            answer = problem(r, len ? 404 : 422, len ? detail : "?models has an empty entry", "?models"), answered = true;
+            goto out_free;
+        }
+        snprintf(ids[k], sizeof ids[k], "%.*s", (int)len, at);
+        id_of[k] = ids[k];
+        int found = store_model_get(r->svc->store, ids[k], scope(r), &resources[k], NULL, NULL);
+        if (found) {
+            snprintf(detail, sizeof detail, "no such model: %s", ids[k]);
+            answer = found == SF_ENOTFOUND ? problem(r, 404, detail, "?models") : damaged_or_failed(r, found);
+            answered = true;
+            goto out_free;
+        }
+        at += len + (at[len] == ',');
+    }
+    struct sf_err err = {0};
+    if (model_rtstruct_check(id_of, (const char *const *)resources, n, &err)) {
+        answer = problem_err(r, &err), answered = true;
+        goto out_free;
+    }
+    size_t used = 0; /* the request: the ids as checked */
+    for (int k = 0; k < n; k++)
+        used += (size_t)sprintf(body + used, "%s%s", k ? "," : "", ids[k]);
+    free(r->body);
+    r->body = body;
+    r->len = used;
+    body = NULL;
+    struct opts o = {.n = 0, .skip = "models"};
+    if (query_options(r, &o, &answer))
+        answer = submit(r, &rtstruct_kind, "", o.buf);
+    answered = true;
+out_free:
+    for (int k = 0; resources && k < n; k++)
+        free(resources[k]);
+    free(resources);
+    free(id_of);
+    free(ids);
+    free(body);
+    return answered ? answer : problem(r, 500, "out of memory", NULL);
+}
+
 /* ---- the route table ---- */
 
 static enum MHD_Result livez(struct req *r, const char *id)
@@ -1049,6 +1125,7 @@ static const struct route {
     {"/models/{id}/render", GET, false, model_view_route, NULL},
     {"/models/{id}/rtstruct", GET, false, model_rtstruct_route, NULL},
     {"/models/{id}/edit", POST, false, model_edit_route, NULL},
+    {"/rtstruct", GET, false, rtstruct_set_route, NULL},
     {"/series", GET, false, series_list, NULL},
     {"/series/{uid}", GET | DELETE, false, series_one, NULL},
     {"/jobs", GET, false, jobs, NULL},
