@@ -17,7 +17,8 @@ RS="$DATA/contours/synthetic_bean.rtstruct.dcm"
 RS2="$DATA/contours/synthetic_ellipsoid.rtstruct.dcm"
 [ -d "$CT" ] && [ -f "$RS" ] && [ -f "$RS2" ] || { bad "no shared data at $DATA"; checks_done; exit 1; }
 chmod 755 "$T" # Orthanc's user (nobody, under root) reaches its directory inside
-orthanc_start "$T/orthanc" SURFD@127.0.0.1:11112 || { bad "Orthanc did not start"; checks_done; exit 1; }
+SCP_PORT=$(orthanc_free_port) # the modality Orthanc sends to: dcmtk's storescp stands in for surfd's SCP
+orthanc_start "$T/orthanc" "SURFD@127.0.0.1:$SCP_PORT" || { bad "Orthanc did not start"; checks_done; exit 1; }
 dw() { "$TOOL" --credentials "$ORTHANC_CREDENTIALS" "$@"; }
 # tag FILE KEYWORD: a DICOM file's value (Debian's pydicom, headers only)
 tag() { /usr/bin/python3 -c 'import sys, pydicom; print(getattr(pydicom.dcmread(sys.argv[1], stop_before_pixels=True), sys.argv[2]))' "$1" "$2"; }
@@ -34,6 +35,20 @@ orthanc_upload "$CT"/*.dcm "$RS" >"$T/ids"
 check "Orthanc took the 27 CT slices and the structure set" '[ "$(wc -l <"$T/ids")" = 28 ]'
 check "Orthanc counts 28 instances" \
     '[ "$(orthanc_curl -s /statistics | json_get "d[\"CountInstances\"]")" = 28 ]'
+
+# --- the harness's DICOM side: Orthanc answers its listed modality alone, and sends to it
+check "C-ECHO from the listed AE title is answered" \
+    'echoscu -aet SURFD -aec ORTHANC -to 5 127.0.0.1 "$ORTHANC_DICOM_PORT" >/dev/null 2>&1'
+check "C-ECHO from an AE title Orthanc does not list is refused" \
+    '! echoscu -aet STRANGER -aec ORTHANC -to 5 127.0.0.1 "$ORTHANC_DICOM_PORT" >/dev/null 2>&1'
+mkdir "$T/scp"
+storescp -aet SURFD -od "$T/scp" -ta 5 -td 10 "$SCP_PORT" >"$T/scp.log" 2>&1 &
+SCP=$!
+for _ in $(seq 50); do echoscu -aec SURFD -to 2 127.0.0.1 "$SCP_PORT" >/dev/null 2>&1 && break; sleep 0.1; done
+orthanc_send surfd "$(orthanc_curl -s -X POST -d "$SERIES" /tools/lookup | json_get 'd[0]["ID"]')"; rc=$?
+kill $SCP 2>/dev/null; wait $SCP 2>/dev/null
+check "Orthanc sends the series to its modality entry (C-STORE: 27 files)" \
+    '[ $rc = 0 ] && [ "$(ls "$T/scp" | wc -l)" = 27 ]'
 
 # --- QIDO-RS
 dw "$ORTHANC_DICOMWEB" search studies ModalitiesInStudy=CT >"$T/q1"

@@ -11,6 +11,10 @@
 #                                           in argv), PATH relative to $ORTHANC_URL
 #   orthanc_upload FILE...                  POST /instances, one file at a time; prints each
 #                                           instance's Orthanc id; 1 if one is refused
+#   orthanc_send MODALITY ID...             C-STORE of Orthanc resources (instances, series,
+#                                           studies: Orthanc ids) to a listed modality, as a
+#                                           site's Orthanc sends to surfd (POST
+#                                           /modalities/NAME/store, synchronous); 1 if it failed
 #
 # Sets ORTHANC_URL (http://127.0.0.1:PORT), ORTHANC_DICOMWEB ($ORTHANC_URL/dicom-web),
 # ORTHANC_AET (ORTHANC), ORTHANC_DICOM_PORT, ORTHANC_PID, ORTHANC_CREDENTIALS (a 0600 file holding
@@ -171,4 +175,11 @@ orthanc_upload() {
             { echo "Orthanc refused $f" >&2; return 1; }
         printf '%s\n' "$out" | sed -n 's/.*"ID" *: *"\([^"]*\)".*/\1/p'
     done
+}
+
+orthanc_send() {
+    m=$1; shift
+    ids=""
+    for id in "$@"; do ids="$ids${ids:+, }\"$id\""; done
+    orthanc_curl -sf -X POST -d "{\"Resources\": [$ids], \"Synchronous\": true}" "/modalities/$m/store" >/dev/null
 }
