@@ -1,6 +1,6 @@
 /* dicomweb.h - a DICOMweb client (DICOM PS3.18) for the PACS surfd pulls from and sends to:
  * QIDO-RS searches (the PACS's JSON answered as it is), WADO-RS retrieval of a series into files,
- * one a instance, as it streams in, and STOW-RS of files with each instance's status. On libcurl.
+ * one an instance, as it streams in, and STOW-RS of files with each instance's status. On libcurl.
  *
  * Hand-written because Debian has no C DICOMweb library: DCMTK speaks DIMSE (and WADO-URI)
  * only, and Orthanc's client is C++ inside its plugin. It talks to the network and writes files,
