@@ -31,7 +31,7 @@ TSAN    := -fsanitize=thread
 
 CORE_LIBS := -lembree3 -lm
 API_LIBS  := -ljansson -lz -lopenjp2
-DAEMON_LIBS := -lmicrohttpd -lsqlite3 -lpq -lgnutls -lpthread
+DAEMON_LIBS := -lmicrohttpd -lsqlite3 -lpq -lgnutls -lcurl -lpthread
 IMG_LIBS  := -lOpenImageIO -lOpenImageIO_Util -lstdc++
 DCM_LIBS  := -ldcmjpls -ldcmjpeg -ldcmimgle -ldcmdata -loflog -lofstd -lstdc++
 
@@ -205,6 +205,12 @@ $(B)/tests/core/trace/tsan_map: tests/core/trace/tsan_map.c tests/unit.h $(TSAN_
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(TSAN) -o $@ tests/core/trace/tsan_map.c $(TSAN_MAP_SRC) -lm -lpthread
 
+# daemon/dicomweb.c from the command line (tests/api/dicomweb.sh against a real Orthanc), sanitized
+DICOMWEB_SRC := daemon/dicomweb.c api/multipart.c core/base/err.c core/base/clock.c
+$(B)/tests/tools/dicomweb_tool: tests/tools/dicomweb_tool.c $(DICOMWEB_SRC) daemon/dicomweb.h api/multipart.h
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(SAN) -o $@ tests/tools/dicomweb_tool.c $(DICOMWEB_SRC) -lcurl -ljansson
+
 # the daemon with the address and UB sanitizers, for the black-box API tests
 $(B)/san/surfd: $(call obj,san,$(DAEMON_SRC)) $(SAN_API) $(DCM_OBJ) $(DMN_DCM_OBJ) $(B)/gen/openapi.o $(B)/gen/web.o $(SAN_CORE) | $(B)/san/libsurfd-image.so
 	$(CC) $(OPT) $(SAN) $(MEMWRAP) -o $@ $^ -ldcmnet $(DCM_LIBS) $(DAEMON_LIBS) $(API_LIBS) $(CORE_LIBS)
@@ -246,7 +252,8 @@ check: deps layers
 	@$(MAKE) --no-print-directory -j$(NPROC) $(CHECK_BINS)
 	@tests/run.sh $(CHECKS)
 test: deps layers
-	@$(MAKE) --no-print-directory -j$(NPROC) $(CHECK_BINS) $(B)/surfd $(B)/surfctl $(B)/san/surfd $(B)/tests/tools/occt_iges
+	@$(MAKE) --no-print-directory -j$(NPROC) $(CHECK_BINS) $(B)/surfd $(B)/surfctl $(B)/san/surfd $(B)/tests/tools/occt_iges \
+		$(B)/tests/tools/dicomweb_tool
 	@SURFD_BIN=$(B)/san/surfd tests/run.sh $(CHECKS) $(SUITES)
 
 bench: $(B)/surfd
