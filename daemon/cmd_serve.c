@@ -23,7 +23,9 @@
 #endif
 #include "cli.h"
 #include "dicom_node.h"
+#include "dicomweb.h"
 #include "log.h"
+#include "pacs.h"
 #include "server.h"
 #include "service.h"
 #include "shares.h"
@@ -243,6 +245,12 @@ int cmd_serve(int argc, char **argv)
     rc = 1;
     if (open_parts(&svc, threads))
         goto out;
+    /* libcurl's global state before any thread; the PACS named (their URLs and credentials
+     * checked now: a wrong one stops the start, not a pull an hour later) */
+    if (dicomweb_global_init() || pacs_open_all(&svc, &err)) {
+        fprintf(stderr, "surfd serve: %s\n", err.message[0] ? err.message : "libcurl would not start");
+        goto out;
+    }
     iso_init();
     if (!svc.cfg.job_memory)
         svc.cfg.job_memory = job_memory_share(threads);
@@ -287,6 +295,7 @@ out_stop_pool:
     jobq_shutdown(svc.q, 0, DRAIN_GRACE_S, NULL, NULL);
     jobq_free(svc.q);
 out:
+    pacs_close_all(&svc);
     close_parts(&svc);
     return rc;
 }

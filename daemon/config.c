@@ -67,6 +67,9 @@ static const struct setting SETTINGS[] = {
     S("ae-title", ae_title, "SURFD", "the DICOM node's AE title: associations calling another are refused"),
     S("dicom-peers", dicom_peers, "", "file of the DICOM peers allowed to associate and to be sent to, a line each: AE_TITLE HOST PORT (# comments); others are refused at association"),
     L("series-idle", series_idle, 1, 86400, "30", "seconds without a new instance of a received series before it counts as complete"),
+    LIST("pacs", pacs, "a PACS to pull from and send to, NAME=URL (a DICOMweb root, http or https) or NAME=dicom://AET@HOST:PORT (DIMSE: sent to by C-STORE); repeatable"),
+    LIST("pacs-credentials", pacs_credentials, "NAME=FILE: the file (mode 0600) holding user:password for the DICOMweb PACS NAME (HTTP basic auth); repeatable"),
+    S("pacs-cacert", pacs_cacert, "", "CA bundle https PACS are checked against (default: the system's)"),
     B("auto-model", auto_model, "true", "a received RT Structure Set becomes models (one per ROI with contours, as POST /model makes them) once its series is complete"),
 };
 #define N_SETTINGS (sizeof SETTINGS / sizeof *SETTINGS)

@@ -52,6 +52,9 @@ struct config {
     char dicom_peers[512];  /* file of the peers allowed: AE title, host, port a line */
     long series_idle;       /* seconds without an instance before a series counts as complete */
     bool auto_model;        /* a received RT Structure Set becomes models when complete */
+    char pacs[2048];        /* NAME=URL or NAME=dicom://AET@HOST:PORT, space-separated (pacs.h) */
+    char pacs_credentials[2048]; /* NAME=FILE, space-separated */
+    char pacs_cacert[512];  /* the CA bundle https PACS are checked against ("": the system's) */
 };
 
 void config_defaults(struct config *c);

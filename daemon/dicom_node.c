@@ -105,8 +105,7 @@ struct arrival {
     pthread_cond_t cond;
 };
 
-/* The spool file's bytes (n at most max: longer is refused): malloc'ed, or NULL. */
-static char *slurp(const char *path, size_t max, size_t *len)
+char *dicom_file_read(const char *path, size_t max, size_t *len)
 {
     int fd = open(path, O_RDONLY | O_CLOEXEC);
     struct stat st;
@@ -128,44 +127,49 @@ static char *slurp(const char *path, size_t max, size_t *len)
     return b;
 }
 
+int dicom_instance_keep(struct service *svc, char *data, size_t len, const char *source, const char *sop,
+                        struct sf_err *err)
+{
+    struct dicom_instance in;
+    size_t blanked = 0;
+    int rc = dicom_instance_read(data, len, "", &in, err);
+    if (!rc && !svc->cfg.keep_phi)
+        rc = dicom_blank_identity(data, len, "", &blanked, err);
+    if (!rc && sop && strcmp(in.sop_uid, sop))
+        rc = sf_fail(err, SF_EINVAL, "", "the instance is not the one its request names");
+    if (rc)
+        return rc;
+    char *meta = instance_meta(&in);
+    if (!meta)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory for the instance");
+    struct instance_rec r = {in.sop_uid, in.series_uid, in.study_uid, in.modality, source, "", wall_s(), meta, data, len};
+    rc = store_instance_put(svc->store, &r);
+    free(meta);
+    if (rc == SF_ECONFLICT) /* a second of one SOP Instance UID is kept as the first was */
+        return 0;
+    return rc ? sf_fail(err, rc, "", "the store would not take the instance") : 0;
+}
+
 /* Reads, blanks and stores the instance: the C-STORE status its sender hears. */
 static unsigned take(struct arrival *a)
 {
     struct service *svc = a->node->svc;
     size_t len = 0;
-    char *data = slurp(a->path, (size_t)svc->cfg.max_body, &len);
+    char *data = dicom_file_read(a->path, (size_t)svc->cfg.max_body, &len);
     if (!data) {
         LOG(LOG_WARN, "DICOM node: an instance from %s is over max-body or unreadable: refused", a->calling);
         return DIMSE_OUT_OF_RESOURCES;
     }
-    struct dicom_instance in;
+    char source[80];
+    snprintf(source, sizeof source, "received from %s", a->calling);
     struct sf_err err = {0};
-    unsigned status = DIMSE_SUCCESS;
-    size_t blanked = 0;
-    char *meta = NULL;
-    if (dicom_instance_read(data, len, "", &in, &err) ||
-        (!svc->cfg.keep_phi && dicom_blank_identity(data, len, "", &blanked, &err))) {
-        LOG(LOG_WARN, "DICOM node: an instance from %s is not read: %s", a->calling, err.message);
-        status = DIMSE_CANNOT_UNDERSTAND;
-    } else if (strcmp(in.sop_uid, a->sop)) {
-        LOG(LOG_WARN, "DICOM node: an instance from %s is not the one its request names", a->calling);
-        status = DIMSE_CANNOT_UNDERSTAND;
-    } else if (!(meta = instance_meta(&in))) {
-        status = DIMSE_OUT_OF_RESOURCES;
-    } else {
-        char source[80];
-        snprintf(source, sizeof source, "received from %s", a->calling);
-        struct instance_rec r = {in.sop_uid, in.series_uid, in.study_uid, in.modality, source, "", wall_s(), meta,
-                                 data, len};
-        int rc = store_instance_put(svc->store, &r);
-        if (rc && rc != SF_ECONFLICT) { /* (a second of one SOP Instance UID is kept as the first was) */
-            LOG(LOG_ERROR, "DICOM node: the store would not take an instance from %s", a->calling);
-            status = DIMSE_OUT_OF_RESOURCES;
-        }
-    }
-    free(meta);
+    int rc = dicom_instance_keep(svc, data, len, source, a->sop, &err);
     free(data);
-    return status;
+    if (rc)
+        LOG(LOG_WARN, "DICOM node: an instance from %s is not kept: %s", a->calling, err.message);
+    return rc == 0 ? DIMSE_SUCCESS
+           : rc == SF_EINVAL || rc == SF_EFORMAT || rc == SF_ELIMIT ? DIMSE_CANNOT_UNDERSTAND
+                                                                     : DIMSE_OUT_OF_RESOURCES;
 }
 
 static int arrive(struct job *j, void *work, int *n_bands)

@@ -14,6 +14,16 @@
  * with err's message naming the line. */
 int dicom_peers_read(const char *path, struct dimse_peer **peers, int *n, struct sf_err *err);
 
+/* An instance (data, len bytes: a DICOM file, blanked here in place unless keep-phi) kept in the
+ * store by its series, source saying where it came from; sop (NULL: any) the SOP Instance UID it
+ * must have. 0 (also when that SOP Instance UID is stored already), SF_EINVAL / SF_EFORMAT /
+ * SF_ELIMIT (not an instance surfd reads), SF_EIO, SF_ENOMEM; err says which. The node's C-STORE
+ * and a pull's WADO-RS both keep instances so. */
+int dicom_instance_keep(struct service *svc, char *data, size_t len, const char *source, const char *sop,
+                        struct sf_err *err);
+/* The file at path's bytes (NULL when it is over max bytes or unreadable; malloc'ed, *len). */
+char *dicom_file_read(const char *path, size_t max, size_t *len);
+
 struct dicom_node;
 /* Starts the node when cfg.dicom_listen is set (else 0 and *out NULL). 0, or an error said in err. */
 int dicom_node_start(struct service *svc, struct dicom_node **out, struct sf_err *err);

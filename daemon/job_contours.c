@@ -9,12 +9,18 @@
 #include <string.h>
 #include <strings.h>
 
+#include <jansson.h>
+#include <unistd.h>
+
+#include "../api/dicom_instance.h"
 #include "../api/iso_json.h"
 #include "../api/model_json.h"
 #include "../api/render_request.h"
+#include "../api/query.h"
 #include "../api/rtstruct.h"
-#include "log.h"
 #include "kinds.h"
+#include "log.h"
+#include "pacs.h"
 
 struct contour_work {
     struct job_work job;     /* first: job_start fills it */
@@ -166,7 +172,84 @@ static int make_mesh(struct contour_work *w, const struct job_rec *rec, const st
     return rc;
 }
 
+/* A model sent to a PACS (POST /models/{id}/send?pacs=NAME&as=rtstruct|dicom-stl): the file made as
+ * GET /models/{id}/rtstruct or /mesh?format=dicom-stl makes it, written to the data dir (0600) and
+ * sent by STOW-RS or C-STORE; the result is the PACS's status for it. A PACS down or refusing
+ * fails the job (after dicomweb.h's or the association's bounded tries); a PACS that answers
+ * says per instance whether it stored it. */
+static int make_send(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
+{
+    struct service *svc = w->job.svc;
+    char name[40], as[16], spacing[32];
+    query_option(rec->options, "pacs", name, sizeof name);
+    query_option(rec->options, "as", as, sizeof as);
+    query_option(rec->options, "spacing", spacing, sizeof spacing);
+    const struct pacs *p = pacs_find(svc, name);
+    if (!p)
+        return sf_fail(&w->err, SF_EINVAL, "?pacs", "no PACS named \"%.31s\"", name);
+    struct job_rec made = *rec; /* the export's request: the model's id, its own options */
+    int rc;
+    if (!strcmp(as, "dicom-stl")) {
+        snprintf(made.options, sizeof made.options, "format=dicom-stl");
+        rc = make_mesh(w, &made, pr);
+    } else {
+        snprintf(made.options, sizeof made.options, "%s%s", spacing[0] ? "spacing=" : "", spacing);
+        rc = make_rtstruct(w, &made, pr);
+    }
+    if (rc)
+        return rc;
+    char path[700];
+    snprintf(path, sizeof path, "%s/send-%s.dcm", svc->cfg.data_dir, w->job.claim.id);
+    FILE *f = fopen(path, "wb");
+    bool written = f && fwrite(w->json, 1, w->len, f) == w->len;
+    if (f && fclose(f))
+        written = false;
+    struct dicom_instance in;
+    struct sf_err e = {0};
+    if (!written || dicom_instance_read(w->json, w->len, "", &in, &e)) {
+        unlink(path);
+        return sf_fail(&w->err, written ? SF_EINVAL : SF_EIO, "", written ? "the export is not an instance: %s"
+                       : "the export could not be written to the data dir", e.message);
+    }
+    free(w->json), w->json = NULL;
+    const char *paths[1] = {path};
+    json_t *list = json_array();
+    if (p->dimse) {
+        unsigned status;
+        rc = dimse_send(&p->peer, svc->cfg.ae_title, paths, 1, 30, &status, &w->err);
+        if (!rc)
+            json_array_append_new(list, json_pack("{s:s, s:b, s:i}", "sop_instance_uid", in.sop_uid, "stored",
+                                                  status < 0xA000 && status != DIMSE_NOT_SENT, "status", (int)status));
+    } else {
+        struct dicomweb_stored *res = NULL;
+        int n = 0;
+        rc = dicomweb_store(p->dw, NULL, paths, 1, (uint64_t)svc->cfg.max_body, &res, &n, &w->err);
+        for (int k = 0; !rc && k < n; k++)
+            json_array_append_new(list, json_pack("{s:s, s:b, s:i}", "sop_instance_uid", res[k].sop_instance_uid,
+                                                  "stored", res[k].stored, "reason", res[k].reason));
+        if (!rc && n == 0) /* an instance the PACS does not list was not stored */
+            json_array_append_new(list, json_pack("{s:s, s:b}", "sop_instance_uid", in.sop_uid, "stored", 0));
+        free(res);
+    }
+    unlink(path);
+    json_t *o = rc ? NULL : json_pack("{s:s, s:s, s:s, s:o}", "pacs", p->name, "as", as[0] ? as : "rtstruct",
+                                      "model", w->model, "instances", list);
+    if (!o)
+        json_decref(list);
+    w->json = o ? json_dumps(o, JSON_COMPACT) : NULL;
+    json_decref(o);
+    w->len = w->json ? strlen(w->json) : 0;
+    w->type = "application/json";
+    w->meta[0] = 0;
+    if (!rc && !w->json)
+        rc = sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
+    if (!rc)
+        LOG(LOG_INFO, "model %s sent to %s as %s", w->model, p->name, as[0] ? as : "rtstruct");
+    return rc;
+}
+
 static int prepare_model(struct job *j, void *arg, int *n_bands) { return prepare_with(j, arg, n_bands, make_model); }
+static int prepare_send(struct job *j, void *arg, int *n_bands) { return prepare_with(j, arg, n_bands, make_send); }
 static int prepare_volume(struct job *j, void *arg, int *n_bands) { return prepare_with(j, arg, n_bands, make_figures); }
 static int prepare_rtstruct(struct job *j, void *arg, int *n_bands) { return prepare_with(j, arg, n_bands, make_rtstruct); }
 static int prepare_patches(struct job *j, void *arg, int *n_bands) { return prepare_with(j, arg, n_bands, make_patches); }
@@ -200,6 +283,7 @@ static const struct job_ops VOLUME_OPS = {.prepare = prepare_volume, .finish = f
 static const struct job_ops RTSTRUCT_OPS = {.prepare = prepare_rtstruct, .finish = finish};
 static const struct job_ops PATCHES_OPS = {.prepare = prepare_patches, .finish = finish};
 static const struct job_ops MESH_OPS = {.prepare = prepare_mesh, .finish = finish_mesh};
+static const struct job_ops SEND_OPS = {.prepare = prepare_send, .finish = finish};
 
 /* ---- the requests: contour JSON or an RT Structure Set (both kinds); /volume also measures a
  * scene (JSON, .bpt, VRML) whose patches bound a closed solid ---- */
@@ -265,6 +349,21 @@ static int rtstruct_validate(struct service *svc, struct job_body *b, struct sf_
     return model_rtstruct_options(b->options, &spacing, err);
 }
 
+static int send_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+{
+    char name[40], as[16], names[512];
+    query_option(b->options, "pacs", name, sizeof name);
+    query_option(b->options, "as", as, sizeof as);
+    pacs_names(svc, names, sizeof names);
+    if (!pacs_find(svc, name))
+        return sf_fail(err, SF_EINVAL, "?pacs", "no PACS named \"%.31s\": this node's are %s", name, names);
+    if (as[0] && strcmp(as, "rtstruct") && strcmp(as, "dicom-stl"))
+        return sf_fail(err, SF_EINVAL, "?as", "as is rtstruct (the default) or dicom-stl%s", strcmp(as, "seg") ? ""
+                       : " (a DICOM SEG is not written yet)");
+    double spacing;
+    return strcmp(as, "dicom-stl") ? model_rtstruct_options(b->options, &spacing, err) : 0;
+}
+
 static int patches_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     (void)svc;
@@ -285,5 +384,7 @@ const struct job_kind patches_kind = {.name = "patches", .validate = patches_val
 const struct job_kind mesh_kind = {
     .name = "mesh", .validate = mesh_validate, .ops = &MESH_OPS, .work_size = sizeof(struct contour_work),
     .result = "model/stl, application/ply, model/obj, model/vnd.vtk.vtp+xml or model/vnd.vtk"};
+const struct job_kind send_kind = {.name = "send", .validate = send_validate, .ops = &SEND_OPS,
+                                   .work_size = sizeof(struct contour_work), .result = "application/json"};
 const struct job_kind rtstruct_kind = {.name = "rtstruct", .validate = rtstruct_validate, .ops = &RTSTRUCT_OPS,
                                        .work_size = sizeof(struct contour_work), .result = "application/dicom"};

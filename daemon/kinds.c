@@ -5,7 +5,8 @@
 #include <string.h>
 
 static const struct job_kind *const KINDS[] = {&render_kind, &volume_kind,     &model_kind,  &mesh_kind, &patches_kind,
-                                               &rtstruct_kind, &isosurface_kind, &matrix_kind, &edit_kind};
+                                               &rtstruct_kind, &isosurface_kind, &matrix_kind, &edit_kind,
+                                               &pull_kind,     &send_kind};
 
 const struct job_kind *job_kind(const char *name)
 {

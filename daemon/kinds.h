@@ -48,6 +48,9 @@ struct job_kind {
     size_t work_size;
     const char *result;      /* media type(s) of its result, as the contract says them */
     bool streamed;           /* the body is streamed to a file as it arrives (max-volume), not buffered */
+    /* The request is answered by its validate alone, on the checks pool (its body then the answer,
+     * of type result), and never stored: a PACS search, whose answer names patients (ops NULL). */
+    bool transient;
 };
 
 /* The kinds, each defined in its own file. */
@@ -57,6 +60,8 @@ extern const struct job_kind mesh_kind, patches_kind, rtstruct_kind; /* job_cont
 extern const struct job_kind isosurface_kind;             /* job_iso.c */
 extern const struct job_kind matrix_kind;                 /* job_matrix.c */
 extern const struct job_kind edit_kind;                   /* job_edit.c */
+extern const struct job_kind pull_kind, query_kind;       /* job_pacs.c: a PACS's series pulled, its studies searched */
+extern const struct job_kind send_kind;                   /* job_contours.c: a model sent to a PACS */
 
 /* The kind of that name (a stored job's), or NULL. */
 const struct job_kind *job_kind(const char *name);

@@ -458,6 +458,9 @@ static void woken(void *arg, bool finished)
     MHD_resume_connection(r->conn);
 }
 
+/* The routes ?series=UID reads a stored series on, instead of a body (dicom_node.h). */
+#define SERIES_ROUTES (IN_ISOSURFACE | IN_MODEL | IN_MATRIX)
+
 /* On the checks pool: validates the request's body as its kind reads it, and stores it as a job
  * (r->job), or says why not (check_rc, check_status). */
 static int check_and_store(struct job *j, void *arg, int *n_bands)
@@ -468,7 +471,7 @@ static int check_and_store(struct job *j, void *arg, int *n_bands)
     *n_bands = 0;
     char uid[72];
     query_option(r->options, "series", uid, sizeof uid);
-    if (uid[0]) { /* a stored series: the body it makes, as if posted */
+    if (uid[0] && (r->kind->route & SERIES_ROUTES)) { /* a stored series: the body it makes, as if posted */
         char *made;
         size_t n;
         size_t most = r->kind->streamed ? (size_t)svc->cfg.max_volume : (size_t)svc->cfg.max_body;
@@ -484,6 +487,10 @@ static int check_and_store(struct job *j, void *arg, int *n_bands)
     }
     struct job_body b = {r->body, r->len, r->format, r->options, scope(r)};
     r->check_rc = r->kind->validate(svc, &b, &r->check_err);
+    if (r->kind->transient) { /* answered now, kept nowhere */
+        r->body = b.body, r->len = b.len;
+        return 0;
+    }
     if (r->check_rc)
         r->check_rc = service_outgrown(&r->check_err);
     r->body = b.body; /* validate may have replaced it */
@@ -566,6 +573,11 @@ static enum MHD_Result answer_job(struct req *r)
         return problem_err(r, &r->check_err);
     if (r->check_status)
         return problem(r, r->check_status, r->check_detail, NULL);
+    if (r->kind->transient) {
+        struct reply rp = {200, r->kind->result, r->body, r->body ? r->len : 0, {{0}}};
+        r->body = NULL; /* handed to MHD (a transient kind's request is never mapped) */
+        return send_reply(r, &rp);
+    }
     bool async;
     double wait;
     prefer(r, &async, &wait);
@@ -601,8 +613,8 @@ static enum MHD_Result post_job_on(struct req *r, const struct job_kind *kind, c
         }
         format = f->name;
     }
-    if (MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "series")) { /* a stored series, no body */
-        if (!(kind->route & (IN_ISOSURFACE | IN_MODEL | IN_MATRIX)))
+    if (kind->route && MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "series")) { /* a stored series */
+        if (!(kind->route & SERIES_ROUTES))
             return problem(r, 400, "series= is read by POST /isosurface, /model and /matrix-model", "?series");
         if (r->len)
             return problem(r, 400, "series= reads a stored series: send the request without a body", "?series");
@@ -773,6 +785,7 @@ static enum MHD_Result model_mesh_route(struct req *r, const char *id) { return 
 static enum MHD_Result model_patches_route(struct req *r, const char *id) { return model_sub(r, id, &patches_kind); }
 static enum MHD_Result model_view_route(struct req *r, const char *id) { return model_sub(r, id, &render_kind); }
 static enum MHD_Result model_rtstruct_route(struct req *r, const char *id) { return model_sub(r, id, &rtstruct_kind); }
+static enum MHD_Result model_send_route(struct req *r, const char *id) { return model_sub(r, id, &send_kind); }
 
 /* POST /models/{id}/edit: an edit job of the model (the token's), its id in ?model. */
 static enum MHD_Result model_edit_route(struct req *r, const char *id)
@@ -829,6 +842,17 @@ static bool valid_id(const char *s, size_t n)
     return true;
 }
 
+/* A PACS's name in a path (/pacs/{name}/studies): letters, digits, '-' and '_' (pacs.h). */
+static bool valid_name(const char *s, size_t n)
+{
+    if (n == 0 || n > 31)
+        return false;
+    for (size_t k = 0; k < n; k++)
+        if (!isalnum((unsigned char)s[k]) && s[k] != '-' && s[k] != '_')
+            return false;
+    return true;
+}
+
 /* A DICOM UID in a path (/series/{uid}): digits and dots, 64 at most (dicom_instance.h). */
 static bool valid_uid(const char *s, size_t n)
 {
@@ -841,11 +865,11 @@ static bool valid_uid(const char *s, size_t n)
 
 /* "{id}" or "{id}/rest" after a collection's prefix: the id (hex, as issued) into id, *rest at the
  * '/' or NULL. false for anything else. */
-static bool split_id(const char *s, bool uid, char id[ROUTE_ID], const char **rest)
+static bool split_id(const char *s, char kind, char id[ROUTE_ID], const char **rest)
 {
     *rest = strchr(s, '/');
     size_t n = *rest ? (size_t)(*rest - s) : strlen(s);
-    if (!(uid ? valid_uid(s, n) : valid_id(s, n)))
+    if (!(kind == 'u' ? valid_uid(s, n) : kind == 'n' ? valid_name(s, n) : valid_id(s, n)))
         return false;
     snprintf(id, ROUTE_ID, "%.*s", (int)n, s);
     return true;
@@ -1012,6 +1036,10 @@ static enum MHD_Result models(struct req *r, const char *id)
 
 /* ---- DICOM series (dicom_node.h): the site's, received or pulled; any token sees them ---- */
 
+/* GET /pacs/{name}/studies?...: a QIDO-RS search of the PACS, its options passed through, by a job
+ * (a PACS may take seconds; no HTTP thread waits on it). */
+static enum MHD_Result pacs_studies(struct req *r, const char *name) { return model_job(r, &query_kind, strdup(name), ""); }
+
 struct series_listing {
     struct service *svc;
     struct model_list l;
@@ -1125,8 +1153,11 @@ static const struct route {
     {"/models/{id}/render", GET, false, model_view_route, NULL},
     {"/models/{id}/rtstruct", GET, false, model_rtstruct_route, NULL},
     {"/models/{id}/edit", POST, false, model_edit_route, NULL},
+    {"/models/{id}/send", POST, false, model_send_route, NULL},
     {"/rtstruct", GET, false, rtstruct_set_route, NULL},
     {"/series", GET, false, series_list, NULL},
+    {"/series/pull", POST, false, NULL, &pull_kind},
+    {"/pacs/{name}/studies", GET, false, pacs_studies, NULL},
     {"/series/{uid}", GET | DELETE, false, series_one, NULL},
     {"/jobs", GET, false, jobs, NULL},
     {"/jobs/{id}", GET, false, job, NULL},
@@ -1137,15 +1168,15 @@ static const struct route {
 /* Whether path matches pattern; the {id} segment, if any, into id. */
 static bool match(const char *pattern, const char *path, char id[ROUTE_ID])
 {
-    const char *brace = strstr(pattern, "{id}"), *uid = strstr(pattern, "{uid}");
-    if (!brace && !uid)
+    const char *at = strchr(pattern, '{');
+    if (!at)
         return !strcmp(pattern, path);
-    const char *at = brace ? brace : uid;
+    char kind = at[1] == 'i' ? 'i' : at[1] == 'u' ? 'u' : 'n'; /* {id}, {uid} or {name} */
     size_t pre = (size_t)(at - pattern);
     if (strncmp(pattern, path, pre))
         return false;
     const char *rest;
-    return split_id(path + pre, uid != NULL, id, &rest) && !strcmp(rest ? rest : "", at + (brace ? 4 : 5));
+    return split_id(path + pre, kind, id, &rest) && !strcmp(rest ? rest : "", strchr(at, '}') + 1);
 }
 
 /* A CORS preflight (OPTIONS with Origin): 204 with what a page of an allowed origin may send, no

@@ -60,6 +60,8 @@ struct service {
     pthread_t keeper;
     bool keeper_started;
     struct dicom_node *dicom; /* the DICOM node (dicom_node.h), or NULL */
+    struct pacs *pacs;       /* the PACS configured (pacs.h), n_pacs of them */
+    int n_pacs;
 };
 
 double wall_s(void);

@@ -1,0 +1,31 @@
+/* pacs.h - the PACS surfd pulls from and sends to (issue 44): `--pacs NAME=URL` names a DICOMweb
+ * root (dicomweb.h; its credentials from `--pacs-credentials NAME=FILE`, never a flag's value) or
+ * `--pacs NAME=dicom://AET@HOST:PORT`, a DIMSE node (dimse.h: C-STORE to it). Opened once at start
+ * (a URL or a credentials file that is wrong stops the start, naming it), read-only after. */
+#ifndef SURFD_PACS_H
+#define SURFD_PACS_H
+
+#include <stdbool.h>
+
+#include "dicomweb.h"
+#include "dimse.h"
+#include "service.h"
+
+#define PACS_MAX 16
+
+struct pacs {
+    char name[32];
+    bool dimse;              /* dicom://: peer; else dw */
+    struct dicomweb *dw;
+    struct dimse_peer peer;
+};
+
+/* The PACS of cfg.pacs (and their credentials), into svc: 0, or an error said in err. */
+int pacs_open_all(struct service *svc, struct sf_err *err);
+void pacs_close_all(struct service *svc);
+/* The PACS named so, or NULL. */
+const struct pacs *pacs_find(const struct service *svc, const char *name);
+/* The names configured, "a, b and c" (or "none"), for a message. */
+void pacs_names(const struct service *svc, char *out, size_t cap);
+
+#endif

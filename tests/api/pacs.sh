@@ -1,0 +1,104 @@
+#!/bin/sh
+# surfd and a real PACS (issue 44): Debian's Orthanc with its DICOMweb plugin (tests/tools/orthanc.sh)
+# holds the shared CT series and an RT Structure Set, uploaded through its REST API. surfd, told of
+# it by --pacs (DICOMweb, credentials from a file) and --pacs NAME=dicom://AET@HOST:PORT (DIMSE),
+# searches it (GET /pacs/{name}/studies: QIDO-RS passed through), pulls a series and a whole study
+# (POST /series/pull: WADO-RS into the store, as the node keeps what it receives), and sends
+# models back (POST /models/{id}/send: STOW-RS and C-STORE), read out of Orthanc again; Orthanc
+# sends to surfd's node (its /modalities/surfd/store). A PACS that is down fails the job with a
+# clear problem within its bounds, and bad requests are 4xx at the option.
+. "$(dirname "$0")/lib.inc"
+. tests/tools/orthanc.sh
+DD="${SURFD_DATA:-../shared/data}/volumes/dicom_ct_head_64x64x27"
+RS="${SURFD_DATA:-../shared/data}/contours/dicompyler-core_example_rtss.dcm"
+[ -d "$DD" ] && [ -f "$RS" ] || { bad "../shared/data not found"; checks_done; exit 1; }
+[ -x "$ORTHANC_BIN" ] || { bad "no Orthanc (deploy/install-deps.sh installs orthanc and orthanc-dicomweb)"; checks_done; exit 1; }
+PY=/usr/bin/python3
+DP=$(orthanc_free_port)
+orthanc_start "$T/orthanc" "SURFD@127.0.0.1:$DP" || { bad "Orthanc did not start"; checks_done; exit 1; }
+orthanc_upload "$DD"/*.dcm "$RS" >"$T/ids" || bad "Orthanc refused an upload"
+[ -n "${PACS_DEBUG:-}" ] && { echo "$T"; trap '' EXIT; }
+echo "ORTHANC 127.0.0.1 $ORTHANC_DICOM_PORT" >"$T/peers"
+start_daemon "$T/d" --dicom-listen "$DP" --dicom-peers "$T/peers" --series-idle 1 \
+    --pacs "orthanc=$ORTHANC_DICOMWEB" --pacs-credentials "orthanc=$ORTHANC_CREDENTIALS" \
+    --pacs "orthanc-dimse=dicom://$ORTHANC_AET@127.0.0.1:$ORTHANC_DICOM_PORT" --pacs "down=http://127.0.0.1:1/dicom-web" || exit 1
+field() { python3 -c "import json,sys; v = json.load(open(sys.argv[1])); [v := v[k] if not isinstance(v, list) else v[int(k)] for k in sys.argv[2:]]; print(v)" "$T/body" "$@"; }
+uid_of() { dcmdump +P "$1" "$2" | head -n 1 | sed "s/.*\\[\\(.*\\)\\].*/\\1/"; }
+STUDY=$(uid_of StudyInstanceUID "$DD/IM0001.dcm")
+CT=$(uid_of SeriesInstanceUID "$DD/IM0001.dcm")
+RSS=$(uid_of SeriesInstanceUID "$RS")
+pointer_is() { grep -q "\"pointer\":\"$1\"" "$T/body"; }
+
+# ---- search ----
+code=$(status GET "/pacs/orthanc/studies?StudyInstanceUID=$STUDY")
+check "GET /pacs/orthanc/studies?StudyInstanceUID=: QIDO-RS's answer, the study found (application/dicom+json)" \
+    '[ "$code" = 200 ] && header Content-Type | grep -q "application/dicom+json" && grep -q "$STUDY" "$T/body"'
+code=$(status GET "/pacs/orthanc/studies?StudyInstanceUID=1.2.3.4.5")
+check "... a study it does not hold: 200, []" '[ "$code" = 200 ] && [ "$(tr -d " \n" <"$T/body")" = "[]" ]'
+code=$(status GET "/pacs/nowhere/studies")
+check "GET /pacs/{name}/studies of a PACS not configured: 422 at ?pacs naming those that are" '[ "$code" = 422 ] && pointer_is "?pacs" && grep -q "orthanc" "$T/body"'
+
+# ---- pull ----
+code=$(status POST "/series/pull?pacs=orthanc&study=$STUDY&series=$CT")
+check "POST /series/pull of the CT series: 27 instances kept" '[ "$code" = 200 ] && [ "$(field instances)" = 27 ]'
+code=$(status GET "/series/$CT")
+check "GET /series/{uid}: pulled from orthanc, 27 instances, 64 x 64 x 27" '[ "$code" = 200 ] && [ "$(field source)" = "pulled from orthanc" ] && [ "$(field dims)" = "[64, 64, 27]" ]'
+parts=""; for f in "$DD"/*.dcm; do parts="$parts -F slice=@$f"; done
+# shellcheck disable=SC2086
+status POST "/isosurface?iso=226.5" $parts >/dev/null; cp "$T/body" "$T/posted.json"
+code=$(status POST "/isosurface?iso=226.5&series=$CT")
+check "... its isosurface (?series=) the one the files posted give" '[ "$code" = 201 ] && python3 -c "
+import json, sys
+a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+sys.exit(0 if a[\"triangles\"] == b[\"triangles\"] > 0 and a[\"volume_mm3\"] == b[\"volume_mm3\"] else 1)" "$T/body" "$T/posted.json"'
+code=$(status DELETE "/series/$CT")
+code=$(status POST "/series/pull?pacs=orthanc&study=$STUDY")
+check "a whole study pulled (no ?series): the CT's 27" '[ "$code" = 200 ] && [ "$(field instances)" = 27 ] && [ "$(field series 0 uid)" = "$CT" ]'
+code=$(status POST "/series/pull?pacs=orthanc&study=$(uid_of StudyInstanceUID "$RS")")
+check "... and the structure set's study: its one instance" '[ "$code" = 200 ] && [ "$(field instances)" = 1 ] && [ "$(status GET "/series/$RSS")" = 200 ]'
+check "nothing left in the data dir of the pull's files" '[ -z "$(ls -d "$T"/d/pull-* 2>/dev/null)" ]'
+name=$(dcmdump +P PatientName "$DD/IM0001.dcm" | sed 's/.*\[\(.*\)\].*/\1/')
+check "the pulled instances hold no patient name ($name)" '[ -n "$name" ] && ! grep -rqaF "$name" "$T/d"'
+code=$(status POST "/series/pull?pacs=orthanc&study=1.2.3.4.5")
+check "a study the PACS does not hold: the job's 404 or 422, saying so" '[ "$code" = 404 ] || [ "$code" = 422 ]'
+code=$(status POST "/series/pull?pacs=orthanc&study=not-a-uid")
+check "?study not a UID: 422 at ?study" '[ "$code" = 422 ] && pointer_is "?study"'
+code=$(status POST "/series/pull?pacs=orthanc-dimse&study=$STUDY")
+check "a pull from a DIMSE PACS: 422 at ?pacs saying it is not built" '[ "$code" = 422 ] && pointer_is "?pacs" && grep -q "not built" "$T/body"'
+t0=$(date +%s)
+code=$(status POST "/series/pull?pacs=down&study=$STUDY")
+t1=$(date +%s)
+check "a PACS that is down: the job fails with a problem naming it, within 30 s, the daemon alive" '[ "$code" -ge 500 ] && grep -q "127.0.0.1:1" "$T/body" && [ $((t1 - t0)) -lt 30 ] && alive'
+
+# ---- send ----
+code=$(status POST "/model?series=$RSS")
+MODEL=$(field models 0 id); NAME=$(field models 0 name)
+before=$(orthanc_curl -s /instances | python3 -c "import json,sys; print(len(json.load(sys.stdin)))")
+code=$(status POST "/models/$MODEL/send?pacs=orthanc&as=rtstruct")
+check "POST /models/{id}/send?pacs=orthanc&as=rtstruct: STOW-RS, the instance stored" '[ "$code" = 200 ] && [ "$(field instances 0 stored)" = True ]'
+SENT=$(field instances 0 sop_instance_uid)
+after=$(orthanc_curl -s /instances | python3 -c "import json,sys; print(len(json.load(sys.stdin)))")
+ID=$(orthanc_curl -s -X POST -d "$SENT" /tools/lookup | python3 -c "import json,sys; print(json.load(sys.stdin)[0]['ID'])")
+orthanc_curl -s "/instances/$ID/file" >"$T/back.dcm"
+check "... Orthanc holds it: an RT Structure Set of the model's ROI ($NAME), read back by pydicom" '[ "$after" = $((before + 1)) ] && $PY -c "
+import pydicom, sys
+d = pydicom.dcmread(sys.argv[1])
+sys.exit(0 if d.Modality == \"RTSTRUCT\" and [r.ROIName for r in d.StructureSetROISequence] == [sys.argv[2]] else 1)" "$T/back.dcm" "$NAME"'
+code=$(status POST "/models/$MODEL/send?pacs=orthanc&as=dicom-stl")
+check "... as=dicom-stl: stored" '[ "$code" = 200 ] && [ "$(field instances 0 stored)" = True ]'
+code=$(status POST "/models/$MODEL/send?pacs=orthanc-dimse")
+check "... to the DIMSE PACS (C-STORE): stored, status 0" '[ "$code" = 200 ] && [ "$(field instances 0 stored)" = True ] && [ "$(field instances 0 status)" = 0 ]'
+code=$(status POST "/models/$MODEL/send?pacs=orthanc&as=seg")
+check "as=seg: 422 at ?as" '[ "$code" = 422 ] && pointer_is "?as"'
+code=$(status POST "/models/$MODEL/send?pacs=nowhere")
+check "an unknown PACS: 422 at ?pacs" '[ "$code" = 422 ] && pointer_is "?pacs"'
+code=$(status POST "/models/$MODEL/send?pacs=down")
+check "to a PACS that is down: the job fails, the daemon alive" '[ "$code" -ge 500 ] && alive'
+
+# ---- Orthanc sends to surfd ----
+status DELETE "/series/$CT" >/dev/null
+OID=$(orthanc_curl -s -X POST -d "$CT" /tools/lookup | python3 -c "import json,sys; print(json.load(sys.stdin)[0]['ID'])")
+orthanc_send surfd "$OID"; rc=$?
+code=$(status GET "/series/$CT")
+check "Orthanc's C-STORE to surfd (its /modalities/surfd/store): 27 instances received from ORTHANC" '[ $rc = 0 ] && [ "$code" = 200 ] && [ "$(field instances)" = 27 ] && [ "$(field source)" = "received from ORTHANC" ]'
+checks_done
