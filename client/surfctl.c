@@ -533,6 +533,15 @@ static const char *const USAGE[][2] = {
                  "    GET /models/ID/rtstruct: the model as a DICOM RT Structure Set, its contours --spacing apart\n"
                  "    (default: a contour model's own slices, an isosurface's grid)\n"},
     {"delete", "surfctl delete ID\n    DELETE /models/ID\n"},
+    {"series", "surfctl series [UID] [--delete]\n"
+               "    GET /series (the DICOM series received or pulled), GET /series/UID (one, with its geometry),\n"
+               "    or DELETE /series/UID\n"},
+    {"studies", "surfctl studies PACS [KEY=VALUE ...]\n"
+                "    GET /pacs/PACS/studies?KEY=VALUE...: a search of a configured PACS (PatientID=, StudyDate=...)\n"},
+    {"pull", "surfctl pull PACS STUDY_UID [SERIES_UID]\n"
+             "    POST /series/pull: a study's series (or one) from a configured PACS into the store, followed\n"},
+    {"send", "surfctl send ID PACS [--as rtstruct|dicom-stl] [--spacing MM]\n"
+             "    POST /models/ID/send: the model to a configured PACS, followed; what the PACS said of it\n"},
     {"jobs", "surfctl jobs [--state queued|running|succeeded|failed|cancelled]\n    GET /jobs\n"},
     {"job", "surfctl job ID\n    GET /jobs/ID\n"},
     {"wait", "surfctl wait ID [-o OUT]\n    follows the job to its end (its result to OUT)\n"},
@@ -838,17 +847,80 @@ static int cmd_model_output(const char *what, const char *const *options, bool n
     return get_file(path, out ? out : "-");
 }
 
-/* A request without a body whose answer's body goes to stdout. */
-static int simple(const char *method, const char *path)
+/* A request without a body whose answer's body goes to stdout; a job's (job: a 202 is a job still
+ * running, not an answer such as a cancel's) followed to its end. */
+static int simple_as(const char *method, const char *path, bool job)
 {
     struct response r;
     int rc = request(method, path, NULL, 0, NULL, NULL, &r);
-    if (!rc && r.status >= 300)
+    if (!rc && r.status == 202 && job)
+        rc = follow(r.job_id, "-");
+    else if (!rc && r.status >= 300)
         rc = report(&r);
     else if (!rc && r.status != 204)
         printf("%s\n", r.body.data ? r.body.data : "");
     free(r.body.data);
     return rc;
+}
+
+static int simple(const char *method, const char *path) { return simple_as(method, path, false); }
+
+/* Appends name=value to a query (URL-encoded) after sep ('?' or '&'): false when it does not fit. */
+static bool query_add(char *q, size_t cap, const char *name, const char *value)
+{
+    char *enc = curl_easy_escape(NULL, value, 0);
+    size_t at = strlen(q);
+    int n = enc ? snprintf(q + at, cap - at, "%c%s=%s", strchr(q, '?') ? '&' : '?', name, enc) : -1;
+    curl_free(enc);
+    return n > 0 && (size_t)n < cap - at;
+}
+
+/* surfctl series, studies, pull and send: the DICOM network's routes (issue 44). */
+static int cmd_dicom(const char *cmd, int argc, char **argv)
+{
+    char path[1024];
+    if (!strcmp(cmd, "series")) {
+        bool del = argc >= 1 && !strcmp(argv[argc - 1], "--delete");
+        int n = argc - del;
+        if (n > 1 || (del && n != 1))
+            return usage();
+        snprintf(path, sizeof path, "/series%s%.64s", n ? "/" : "", n ? argv[0] : "");
+        return simple(del ? "DELETE" : "GET", path);
+    }
+    if (!strcmp(cmd, "studies")) {
+        if (argc < 1)
+            return usage();
+        snprintf(path, sizeof path, "/pacs/%.31s/studies", argv[0]);
+        for (int k = 1; k < argc; k++) {
+            char *eq = strchr(argv[k], '=');
+            if (!eq)
+                return usage();
+            *eq = 0;
+            if (!query_add(path, sizeof path, argv[k], eq + 1))
+                return usage();
+        }
+        return simple("GET", path);
+    }
+    if (!strcmp(cmd, "pull")) {
+        if (argc < 2 || argc > 3)
+            return usage();
+        snprintf(path, sizeof path, "/series/pull");
+        if (!query_add(path, sizeof path, "pacs", argv[0]) || !query_add(path, sizeof path, "study", argv[1]) ||
+            (argc == 3 && !query_add(path, sizeof path, "series", argv[2])))
+            return usage();
+        return simple_as("POST", path, true);
+    }
+    /* send ID PACS [--as A] [--spacing MM] */
+    if (argc < 2 || argc % 2)
+        return usage();
+    snprintf(path, sizeof path, "/models/%.64s/send", argv[0]);
+    if (!query_add(path, sizeof path, "pacs", argv[1]))
+        return usage();
+    for (int k = 2; k + 1 < argc; k += 2)
+        if ((strcmp(argv[k], "--as") && strcmp(argv[k], "--spacing")) ||
+            !query_add(path, sizeof path, argv[k] + 2, argv[k + 1]))
+            return usage();
+    return simple_as("POST", path, true);
 }
 
 int main(int argc, char **argv)
@@ -913,6 +985,8 @@ int main(int argc, char **argv)
     } else if (!strcmp(cmd, "rtstruct")) {
         static const char *const SPACING[] = {"spacing", NULL};
         rc = cmd_model_output("rtstruct", SPACING, true, argc - 2, argv + 2);
+    } else if (!strcmp(cmd, "series") || !strcmp(cmd, "studies") || !strcmp(cmd, "pull") || !strcmp(cmd, "send")) {
+        rc = cmd_dicom(cmd, argc - 2, argv + 2);
     } else if (!strcmp(cmd, "models") && (argc == 2 || one)) {
         snprintf(path, sizeof path, "/models%s%.64s", one ? "/" : "", one ? argv[2] : "");
         rc = simple("GET", path);

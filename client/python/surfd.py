@@ -246,6 +246,38 @@ class Client:
         contours spacing mm apart (None: a contour model's own slices, an isosurface's grid)."""
         return self._job("GET", "/models/%s/rtstruct" % model_id, {"spacing": spacing})
 
+    def rtstruct_set(self, model_ids: List[str], spacing: Optional[float] = None) -> bytes:
+        """GET /rtstruct?models=ID,...: several models as one DICOM RT Structure Set, an ROI each."""
+        return self._job("GET", "/rtstruct", {"models": ",".join(model_ids), "spacing": spacing})
+
+    # ---- the DICOM network (series received or pulled, PACS) ------------------------------
+
+    def series(self, uid: Optional[str] = None) -> Union[List[Dict[str, Any]], Dict[str, Any]]:
+        """GET /series (the DICOM series received by the node or pulled), or GET /series/{uid}: one,
+        with its geometry (dims, spacing, orientation)."""
+        if uid is None:
+            return self.request("GET", "/series").parsed()["series"]
+        return self.request("GET", "/series/" + uid).parsed()
+
+    def delete_series(self, uid: str) -> None:
+        """DELETE /series/{uid}: the series and its instances."""
+        self.request("DELETE", "/series/" + uid)
+
+    def studies(self, pacs: str, **query: Any) -> List[Dict[str, Any]]:
+        """GET /pacs/{pacs}/studies?...: a search of a configured PACS (PatientID=..., StudyDate=...),
+        its DICOM JSON as the PACS answers it."""
+        return self.request("GET", "/pacs/%s/studies%s" % (pacs, _query(query))).parsed()
+
+    def pull(self, pacs: str, study: str, series: Optional[str] = None) -> Dict[str, Any]:
+        """POST /series/pull: a study's series (or one) from a configured PACS into the store; what
+        was kept ({"series": [{"uid", "instances"}], "instances"})."""
+        return self._job("POST", "/series/pull", {"pacs": pacs, "study": study, "series": series}, b"")
+
+    def send(self, model_id: str, pacs: str, as_: str = "rtstruct", spacing: Optional[float] = None) -> Dict[str, Any]:
+        """POST /models/{id}/send: the model to a configured PACS as an RT Structure Set (as_="rtstruct")
+        or a DICOM Encapsulated STL ("dicom-stl"); what the PACS said of each instance."""
+        return self._job("POST", "/models/%s/send" % model_id, {"pacs": pacs, "as": as_, "spacing": spacing}, b"")
+
     def view(self, model_id: str, **options: Any) -> bytes:
         """GET /models/{id}/render with render's options: the image."""
         return self._job("GET", "/models/%s/render" % model_id, options)

@@ -6,7 +6,8 @@
 # (POST /series/pull: WADO-RS into the store, as the node keeps what it receives), and sends
 # models back (POST /models/{id}/send: STOW-RS and C-STORE), read out of Orthanc again; Orthanc
 # sends to surfd's node (its /modalities/surfd/store). A PACS that is down fails the job with a
-# clear problem within its bounds, and bad requests are 4xx at the option.
+# clear problem within its bounds, and bad requests are 4xx at the option. surfctl and the Python
+# client search, pull, list and send as curl does.
 . "$(dirname "$0")/lib.inc"
 . tests/tools/orthanc.sh
 DD="${SURFD_DATA:-../shared/data}/volumes/dicom_ct_head_64x64x27"
@@ -101,4 +102,34 @@ OID=$(orthanc_curl -s -X POST -d "$CT" /tools/lookup | python3 -c "import json,s
 orthanc_send surfd "$OID"; rc=$?
 code=$(status GET "/series/$CT")
 check "Orthanc's C-STORE to surfd (its /modalities/surfd/store): 27 instances received from ORTHANC" '[ $rc = 0 ] && [ "$code" = 200 ] && [ "$(field instances)" = 27 ] && [ "$(field source)" = "received from ORTHANC" ]'
+
+# ---- the clients ----
+export SURFD_URL="$URL"
+C=build/surfctl
+$C studies orthanc "StudyInstanceUID=$STUDY" >"$T/out" 2>"$T/err"; rc=$?
+check "surfctl studies orthanc StudyInstanceUID=...: the PACS's answer, the study in it" '[ $rc = 0 ] && grep -q "$STUDY" "$T/out"'
+status DELETE "/series/$CT" >/dev/null
+$C pull orthanc "$STUDY" "$CT" >"$T/out" 2>"$T/err"; rc=$?
+check "surfctl pull orthanc STUDY SERIES: 27 instances kept" '[ $rc = 0 ] && grep -q "\"instances\":27}" "$T/out"'
+$C series "$CT" >"$T/out" 2>"$T/err"; rc=$?
+check "surfctl series UID: its resource, pulled from orthanc" '[ $rc = 0 ] && grep -q "pulled from orthanc" "$T/out"'
+$C send "$MODEL" orthanc --as dicom-stl >"$T/out" 2>"$T/err"; rc=$?
+check "surfctl send ID orthanc --as dicom-stl: stored" '[ $rc = 0 ] && grep -q "\"stored\":true" "$T/out"'
+$C send "$MODEL" nowhere >"$T/out" 2>"$T/err"; rc=$?
+check "surfctl send ID to an unknown PACS: non-zero, naming ?pacs" '[ $rc != 0 ] && grep -q "pacs" "$T/err"'
+$C series "$CT" --delete >/dev/null 2>&1; rc=$?
+check "surfctl series UID --delete: gone" '[ $rc = 0 ] && [ "$(status GET "/series/$CT")" = 404 ]'
+check "the Python client: studies, pull, series, send" 'PYTHONPATH=client/python python3 -c "
+import sys, surfd
+c = surfd.Client(sys.argv[1])
+assert any(sys.argv[2] in str(s) for s in c.studies(\"orthanc\", StudyInstanceUID=sys.argv[2]))
+assert c.pull(\"orthanc\", sys.argv[2], sys.argv[3])[\"instances\"] == 27
+assert c.series(sys.argv[3])[\"dims\"] == [64, 64, 27] and any(s[\"uid\"] == sys.argv[3] for s in c.series())
+assert c.send(sys.argv[4], \"orthanc\")[\"instances\"][0][\"stored\"] is True
+c.delete_series(sys.argv[3])
+try:
+    c.series(sys.argv[3]); sys.exit(1)
+except surfd.SurfdError as e:
+    assert e.status == 404
+" "$URL" "$STUDY" "$CT" "$MODEL"'
 checks_done
