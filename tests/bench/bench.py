@@ -1067,6 +1067,43 @@ def teapot_bench(lines):
     lines.append("")
 
 
+def dicom_bench(lines, n=300):
+    """The DICOM network (issue 44): a 300-slice CT series (256 x 256, 39.7 MB) moved between a real
+    Orthanc and surfd on this machine (tests/bench/dicom_net.sh): C-STORE from DCMTK's storescu into
+    each, Orthanc's C-STORE into DCMTK's storescp (files only) and into surfd's node, WADO-RS by curl
+    (the answer to one file) and by surfd's pull (each instance kept). As deployed (DCMTK's Nagle
+    on, but in surfd) and with TCP_NODELAY=1 for every DCMTK process."""
+    rows = {}
+    for mode in ("", "nodelay"):
+        out = subprocess.run(["sh", os.path.join(ROOT, "tests", "bench", "dicom_net.sh"), str(n), str(REPEAT)] +
+                             ([mode] if mode else []), cwd=ROOT, capture_output=True, text=True,
+                             env=dict(os.environ, SURFD_BIN=SURFD, SURFD_DATA=DATA))
+        runs = {}
+        for line in out.stdout.splitlines():
+            k, _, v = line.partition(" ")
+            if k.startswith(("storescu", "orthanc", "wado")):
+                runs.setdefault(k, []).append(float(v))
+        if not runs:
+            lines.append("DICOM network bench failed (%s): %s\n" % (mode or "default", out.stderr.strip()[-300:]))
+            return
+        rows[mode] = {k: statistics.median(v) for k, v in runs.items()}
+    lines.append("## The DICOM network: a 300-slice CT series in and out (issue 44)\n")
+    lines.append("%d instances of 256 x 256 int16 (39.7 MB, `tests/bench/ct_series.py`), Orthanc %s with its DICOMweb "
+                 "plugin and surfd (release build) on this machine, loopback; seconds, median of %d, and instances per "
+                 "second. *As deployed*: DCMTK's own default, Nagle's algorithm on (storescu, storescp, Orthanc); surfd "
+                 "sets `TCP_NODELAY=1` for itself. *TCP_NODELAY=1*: every DCMTK process with it, as a site should set it "
+                 "(`deploy/orthanc.md`).\n" % (n, "1.10", REPEAT))
+    lines.append("| transfer | as deployed | TCP_NODELAY=1 |")
+    lines.append("|---|---|---|")
+    names = [("storescu_orthanc", "C-STORE: storescu -> Orthanc (peer)"), ("storescu_surfd", "C-STORE: storescu -> surfd's node"),
+             ("orthanc_storescp", "C-STORE: Orthanc -> storescp (files only)"), ("orthanc_surfd", "C-STORE: Orthanc -> surfd's node"),
+             ("wado_curl", "WADO-RS: curl, the answer to one file"), ("wado_surfd", "WADO-RS: surfd's POST /series/pull (kept)")]
+    for key, label in names:
+        cells = ["%.2f s, %.0f/s" % (rows[m][key], n / rows[m][key]) if key in rows.get(m, {}) else "-" for m in ("", "nodelay")]
+        lines.append("| %s | %s |" % (label, " | ".join(cells)))
+    lines.append("")
+
+
 def main():
     parts = {"teapot": (teapot_bench,),
              "iso": (iso_bench, adapt_bench, edit_bench, sharp_bench, big_volume_bench), "adapt": (adapt_bench,),
@@ -1074,7 +1111,7 @@ def main():
              "cad": (cad_bench,), "shell": (shell_bench,),
              "sharp": (sharp_bench,), "cluster": (cluster_bench,),
              "contours": (contour_bench,), "http": (http_bench,), "small": (small_inputs_bench,),
-             "pieces": (pieces_bench,)}
+             "pieces": (pieces_bench,), "dicom": (dicom_bench,)}
     only = os.environ.get("BENCH_ONLY")
     if only in parts:  # one part, printed, RESULTS.md left as it is
         lines = []
@@ -1105,8 +1142,9 @@ def main():
     big_volume_bench(lines)
     small_inputs_bench(lines)
     pieces_bench(lines)
+    dicom_bench(lines)
     lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=teapot`, `BENCH_ONLY=http`, `BENCH_ONLY=contours`, "
-                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso`, `BENCH_ONLY=adapt`, `BENCH_ONLY=edit`, `BENCH_ONLY=sharp`, `BENCH_ONLY=matrix`, `BENCH_ONLY=aa`, `BENCH_ONLY=cad`, `BENCH_ONLY=shell`, `BENCH_ONLY=views`, `BENCH_ONLY=small` or `BENCH_ONLY=pieces` for one part).")
+                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso`, `BENCH_ONLY=adapt`, `BENCH_ONLY=edit`, `BENCH_ONLY=sharp`, `BENCH_ONLY=matrix`, `BENCH_ONLY=aa`, `BENCH_ONLY=cad`, `BENCH_ONLY=shell`, `BENCH_ONLY=views`, `BENCH_ONLY=small`, `BENCH_ONLY=pieces` or `BENCH_ONLY=dicom` for one part).")
     out = os.path.join(ROOT, "tests", "bench", "RESULTS.md")
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")
