@@ -172,7 +172,8 @@ static int make_mesh(struct contour_work *w, const struct job_rec *rec, const st
     return rc;
 }
 
-/* A model sent to a PACS (POST /models/{id}/send?pacs=NAME&as=rtstruct|dicom-stl): the file made as
+/* A model sent to a PACS (POST /models/{id}/send?pacs=NAME&as=rtstruct|dicom-stl, or several as one
+ * structure set: POST /rtstruct/send?models=ID,...&pacs=NAME): the file made as
  * GET /models/{id}/rtstruct or /mesh?format=dicom-stl makes it, written to the data dir (0600) and
  * sent by STOW-RS or C-STORE; the result is the PACS's status for it. A PACS down or refusing
  * fails the job (after dicomweb.h's or the association's bounded tries); a PACS that answers
@@ -232,8 +233,16 @@ static int make_send(struct contour_work *w, const struct job_rec *rec, const st
         free(res);
     }
     unlink(path);
-    json_t *o = rc ? NULL : json_pack("{s:s, s:s, s:s, s:o}", "pacs", p->name, "as", as[0] ? as : "rtstruct",
-                                      "model", w->model, "instances", list);
+    json_t *models = json_array(); /* the request's ids, as listed */
+    for (const char *c = (const char *)rec->request, *end = c + rec->request_len; c < end;) {
+        const char *comma = memchr(c, ',', (size_t)(end - c));
+        json_array_append_new(models, json_stringn(c, (size_t)((comma ? comma : end) - c)));
+        c = comma ? comma + 1 : end;
+    }
+    json_t *o = rc ? NULL : json_pack("{s:s, s:s, s:o, s:o}", "pacs", p->name, "as", as[0] ? as : "rtstruct",
+                                      "models", models, "instances", list);
+    if (rc)
+        json_decref(models);
     if (!o)
         json_decref(list);
     w->json = o ? json_dumps(o, JSON_COMPACT) : NULL;
@@ -360,6 +369,8 @@ static int send_validate(struct service *svc, struct job_body *b, struct sf_err 
     if (as[0] && strcmp(as, "rtstruct") && strcmp(as, "dicom-stl"))
         return sf_fail(err, SF_EINVAL, "?as", "as is rtstruct (the default) or dicom-stl%s", strcmp(as, "seg") ? ""
                        : " (a DICOM SEG is not written yet)");
+    if (!strcmp(as, "dicom-stl") && b->body && memchr(b->body, ',', b->len))
+        return sf_fail(err, SF_EINVAL, "?as", "dicom-stl sends one model's mesh: several models go as one rtstruct");
     double spacing;
     return strcmp(as, "dicom-stl") ? model_rtstruct_options(b->options, &spacing, err) : 0;
 }

@@ -878,9 +878,10 @@ static bool split_id(const char *s, char kind, char id[ROUTE_ID], const char **r
 /* GET /rtstruct?models=ID,ID,...: one rtstruct job of every listed model (the token's), its request
  * the list; the cap, the ids, their owner, frame and study checked here, before any job. The
  * list is the route's, not the job's options (a long list would not fit them). */
-static enum MHD_Result rtstruct_set_route(struct req *r, const char *unused)
+/* GET /rtstruct?models=... (kind rtstruct) and POST /rtstruct/send?models=...&pacs= (kind send): the
+ * models listed, each the request's to see, of one frame of reference, as the job's request. */
+static enum MHD_Result rtstruct_set_of(struct req *r, const struct job_kind *kind)
 {
-    (void)unused;
     const char *list = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "models");
     if (!list || !*list)
         return problem(r, 422, "?models lists the models to export, comma-separated ids", "?models");
@@ -936,7 +937,7 @@ static enum MHD_Result rtstruct_set_route(struct req *r, const char *unused)
     body = NULL;
     struct opts o = {.n = 0, .skip = "models"};
     if (query_options(r, &o, &answer))
-        answer = submit(r, &rtstruct_kind, "", o.buf);
+        answer = submit(r, kind, "", o.buf);
     answered = true;
 out_free:
     for (int k = 0; resources && k < n; k++)
@@ -946,6 +947,18 @@ out_free:
     free(ids);
     free(body);
     return answered ? answer : problem(r, 500, "out of memory", NULL);
+}
+
+static enum MHD_Result rtstruct_set_route(struct req *r, const char *unused)
+{
+    (void)unused;
+    return rtstruct_set_of(r, &rtstruct_kind);
+}
+
+static enum MHD_Result rtstruct_send_route(struct req *r, const char *unused)
+{
+    (void)unused;
+    return rtstruct_set_of(r, &send_kind);
 }
 
 /* ---- the route table ---- */
@@ -1155,6 +1168,7 @@ static const struct route {
     {"/models/{id}/edit", POST, false, model_edit_route, NULL},
     {"/models/{id}/send", POST, false, model_send_route, NULL},
     {"/rtstruct", GET, false, rtstruct_set_route, NULL},
+    {"/rtstruct/send", POST, false, rtstruct_send_route, NULL},
     {"/series", GET, false, series_list, NULL},
     {"/series/pull", POST, false, NULL, &pull_kind},
     {"/pacs/{name}/studies", GET, false, pacs_studies, NULL},

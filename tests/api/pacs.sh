@@ -73,6 +73,7 @@ check "a PACS that is down: the job fails with a problem naming it, within 30 s,
 
 # ---- send ----
 code=$(status POST "/model?series=$RSS")
+cp "$T/body" "$T/models.json"
 MODEL=$(field models 0 id); NAME=$(field models 0 name)
 before=$(orthanc_curl -s /instances | python3 -c "import json,sys; print(len(json.load(sys.stdin)))")
 code=$(status POST "/models/$MODEL/send?pacs=orthanc&as=rtstruct")
@@ -89,6 +90,17 @@ code=$(status POST "/models/$MODEL/send?pacs=orthanc&as=dicom-stl")
 check "... as=dicom-stl: stored" '[ "$code" = 200 ] && [ "$(field instances 0 stored)" = True ]'
 code=$(status POST "/models/$MODEL/send?pacs=orthanc-dimse")
 check "... to the DIMSE PACS (C-STORE): stored, status 0" '[ "$code" = 200 ] && [ "$(field instances 0 stored)" = True ] && [ "$(field instances 0 status)" = 0 ]'
+MODELS=$(python3 -c "import json,sys; print(','.join(m['id'] for m in json.load(open(sys.argv[1]))['models'][:3]))" "$T/models.json")
+code=$(status POST "/rtstruct/send?models=$MODELS&pacs=orthanc")
+SENT=$(field instances 0 sop_instance_uid)
+ID=$(orthanc_curl -s -X POST -d "$SENT" /tools/lookup | python3 -c "import json,sys; print(json.load(sys.stdin)[0]['ID'])")
+orthanc_curl -s "/instances/$ID/file" >"$T/back3.dcm"
+check "POST /rtstruct/send?models=A,B,C&pacs=orthanc: one structure set of the three ROIs, stored in Orthanc" '[ "$code" = 200 ] && [ "$(field instances 0 stored)" = True ] && $PY -c "
+import pydicom, sys
+d = pydicom.dcmread(sys.argv[1])
+sys.exit(0 if len(d.StructureSetROISequence) == 3 else 1)" "$T/back3.dcm"'
+code=$(status POST "/rtstruct/send?models=$MODELS&pacs=orthanc&as=dicom-stl")
+check "... as=dicom-stl of several: 422 at ?as" '[ "$code" = 422 ] && pointer_is "?as"'
 code=$(status POST "/models/$MODEL/send?pacs=orthanc&as=seg")
 check "as=seg: 422 at ?as" '[ "$code" = 422 ] && pointer_is "?as"'
 code=$(status POST "/models/$MODEL/send?pacs=nowhere")
@@ -102,6 +114,19 @@ OID=$(orthanc_curl -s -X POST -d "$CT" /tools/lookup | python3 -c "import json,s
 orthanc_send surfd "$OID"; rc=$?
 code=$(status GET "/series/$CT")
 check "Orthanc's C-STORE to surfd (its /modalities/surfd/store): 27 instances received from ORTHANC" '[ $rc = 0 ] && [ "$code" = 200 ] && [ "$(field instances)" = 27 ] && [ "$(field source)" = "received from ORTHANC" ]'
+
+# ---- kill -9 during a pull: the job runs again after the restart, nothing lost or doubled ----
+status DELETE "/series/$CT" >/dev/null
+code=$(status POST "/series/pull?pacs=orthanc&study=$STUDY&series=$CT" -H 'Prefer: respond-async')
+PJ=$(field id)
+sleep 0.05
+kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""
+start_daemon "$T/d" --dicom-listen "$DP" --dicom-peers "$T/peers" --series-idle 1 \
+    --pacs "orthanc=$ORTHANC_DICOMWEB" --pacs-credentials "orthanc=$ORTHANC_CREDENTIALS" \
+    --pacs "orthanc-dimse=dicom://$ORTHANC_AET@127.0.0.1:$ORTHANC_DICOM_PORT" --pacs "down=http://127.0.0.1:1/dicom-web" || exit 1
+for _ in $(seq 100); do [ "$(status GET "/jobs/$PJ")" = 200 ] && [ "$(field state)" = succeeded ] && break; sleep 0.1; done
+code=$(status GET "/series/$CT")
+check "a pull killed (-9) as it ran: after the restart its job succeeds and the series holds its 27 instances once" '[ "$code" = 200 ] && [ "$(field instances)" = 27 ]'
 
 # ---- the clients ----
 export SURFD_URL="$URL"
