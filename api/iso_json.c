@@ -44,7 +44,8 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
         json_object_set_new(o, "face_points", json_integer(m->adapt->face_points));
     }
     if (o)
-        json_object_set_new(o, "edits", json_integer(m->edits));
+        json_object_set_new(o, "edits", json_integer(m->edits)),
+            json_object_set_new(o, "version", json_integer(m->edits + 1)); /* API.md: 1 when made, +1 an edit */
     if (o && m->label) { /* a label map's label: its value, and for labels=all the labels it touches */
         const struct volume_label *l = &m->vol->label_of[m->label - 1];
         json_object_set_new(o, "label", json_integer(l->value));

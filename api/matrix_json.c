@@ -198,6 +198,8 @@ char *matrix_model_json(const char *id, const struct matrix_request *r, const st
         (json_int_t)st->redundant_voxels, "computed_vertices", (json_int_t)st->computed_vertices, "dropped_voxels",
         (json_int_t)st->dropped_voxels, "timings_ms", "mesh", mesh_ms, "build",
         build_ms, "total", total_ms, "links", "self", self, "mesh", mesh, "render", render);
+    if (o)
+        json_object_set_new(o, "version", json_integer(1)); /* a matrix model is not edited */
     char *text = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(12)) : NULL;
     json_decref(o);
     if (!text)

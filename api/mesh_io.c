@@ -66,7 +66,40 @@ const char *mesh_mime(const char *format)
                                               : !strcmp(format, "vtp") ? "model/vnd.vtk.vtp+xml"
                                               : !strcmp(format, "vtk") ? "model/vnd.vtk"
                                               : !strcmp(format, "dicom-stl") ? "application/dicom"
+                                              : !strcmp(format, "delta") ? "application/vnd.surfd.mesh-delta"
                                                                        : NULL;
+}
+
+/* Little-endian, whatever the host: the layout API.md fixes. */
+static void put_le32(unsigned char *p, uint32_t v)
+{
+    p[0] = (unsigned char)v, p[1] = (unsigned char)(v >> 8), p[2] = (unsigned char)(v >> 16), p[3] = (unsigned char)(v >> 24);
+}
+
+int mesh_delta_encode(const struct trimesh *m, uint32_t from, uint32_t to, const uint32_t *removed, size_t n_removed,
+                      const uint32_t *ids, size_t n_added, const uint32_t *tris, char **out, size_t *len,
+                      struct sf_err *err)
+{
+    size_t n = 20 + 4 * n_removed + 40 * n_added;
+    unsigned char *b = malloc(n), *p = b;
+    if (!b)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory writing the mesh delta");
+    memcpy(p, "SFMD", 4);
+    put_le32(p + 4, from), put_le32(p + 8, to), put_le32(p + 12, (uint32_t)n_removed), put_le32(p + 16, (uint32_t)n_added);
+    p += 20;
+    for (size_t k = 0; k < n_removed; k++, p += 4)
+        put_le32(p, removed[k]);
+    for (size_t k = 0; k < n_added; k++, p += 40) {
+        const uint32_t *t = &m->tri[3 * (size_t)(tris ? tris[k] : k)];
+        put_le32(p, ids ? ids[k] : (uint32_t)k);
+        for (int c = 0; c < 9; c++) {
+            uint32_t bits;
+            memcpy(&bits, &m->pos[3 * (size_t)t[c / 3] + (size_t)(c % 3)], 4);
+            put_le32(p + 4 + 4 * c, bits);
+        }
+    }
+    *out = (char *)b, *len = n;
+    return 0;
 }
 
 /* n values of 4 bytes each, big-endian (legacy VTK's binary). */

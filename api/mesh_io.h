@@ -5,6 +5,7 @@
 
 #include <stdbool.h>
 #include <stddef.h>
+#include <stdint.h>
 
 #include "../core/base/err.h"
 #include "../core/geom/trimesh.h"
@@ -13,6 +14,13 @@
 const char *mesh_mime(const char *format);
 /* m in format into *out (caller frees). 0, or SF_ENOMEM. */
 int mesh_encode(const struct trimesh *m, const char *format, char **out, size_t *len, struct sf_err *err);
+
+/* A mesh delta (API.md, "Interactive isosurfaces": "SFMD", from and to versions, the ids removed,
+ * then each triangle added: its id and its three corners, float32 little-endian): n_added of m's
+ * triangles, tris[k] (NULL: k) with id ids[k] (NULL: k). 0, or SF_ENOMEM. */
+int mesh_delta_encode(const struct trimesh *m, uint32_t from, uint32_t to, const uint32_t *removed, size_t n_removed,
+                      const uint32_t *ids, size_t n_added, const uint32_t *tris, char **out, size_t *len,
+                      struct sf_err *err);
 
 /* The stored form: "SFMESH1\n", vertex and triangle counts (uint64), whether normals follow
  * (uint64), then float32 positions, float32 normals, uint32 triangles, little-endian. */

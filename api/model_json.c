@@ -339,6 +339,7 @@ static int store_one(void *arg, int k, json_t *fig, const struct contour_set *cs
         json_object_set_new(fig, "id", json_string(id));
         json_object_set_new(fig, "links", json_pack("{s:s, s:s, s:s, s:s}", "self", self, "mesh", mesh, "patches",
                                                     patches, "render", render));
+        json_object_set_new(fig, "version", json_integer(1)); /* a contour model is not edited: always 1 */
     }
     if (k == 0)
         snprintf(c->first, sizeof c->first, "%s", id);

@@ -41,12 +41,15 @@ struct model_sink {
 int model_create(const char *buf, size_t len, const char *format, const char *options, const struct model_sink *sink,
                  const struct sf_progress *pr, char **json, char location[64], struct sf_err *err);
 
-/* A stored model's mesh; options "format=stl|ply|obj|vtp|vtk|dicom-stl&tolerance=MM": binary STL
- * (the default), binary little-endian PLY, OBJ, VTK, or the STL as a DICOM Encapsulated STL
+/* A stored model's mesh; options "format=stl|ply|obj|vtp|vtk|dicom-stl|delta&tolerance=MM": binary STL
+ * (the default), binary little-endian PLY, OBJ, VTK, the STL as a DICOM Encapsulated STL
  * (referencing the study and frame of reference resource names, when it does; resource may be
- * NULL), within the tolerance (absent or 0: the coarsest that holds the model's volume within
+ * NULL), or the whole mesh as a delta from version 0 to the model's (mesh_io.h: every triangle
+ * added, its id its place), within the tolerance (absent or 0: the coarsest that holds the model's volume within
  * 0.05 %, solid_mesh_default). *out (caller frees), *out_len and *mime receive the file, *tol_used
  * the tolerance (0 for an isosurface: its own mesh). */
+/* A model's version (its resource's "version"; 1 + its edits for a resource written before it). */
+long model_version(const char *resource);
 int model_mesh(const char *src, size_t len, const char *resource, const char *options, const struct sf_progress *pr,
                char **out, size_t *out_len, const char **mime, double *tol_used, struct sf_err *err);
 /* A stored model (resource: its resource JSON) as a DICOM RT Structure Set of one ROI: the mesh at

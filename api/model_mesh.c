@@ -29,7 +29,7 @@ int solid_of(const char *src, size_t len, const struct sf_progress *pr, struct s
 
 int model_mesh_options(const char *options, const char **format, double *tol, struct sf_err *err)
 {
-    static const char *const FORMATS[] = {"stl", "ply", "obj", "vtp", "vtk", "dicom-stl"};
+    static const char *const FORMATS[] = {"stl", "ply", "obj", "vtp", "vtk", "dicom-stl", "delta"};
     char f[16], t[64], *end = NULL;
     query_option(options, "format", f, sizeof f);
     query_option(options, "tolerance", t, sizeof t);
@@ -38,7 +38,7 @@ int model_mesh_options(const char *options, const char **format, double *tol, st
         if (!strcmp(f[0] ? f : "stl", FORMATS[k]))
             *format = FORMATS[k];
     if (!*format)
-        return sf_fail(err, SF_EINVAL, "?format", "format is stl, ply, obj, vtp, vtk or dicom-stl");
+        return sf_fail(err, SF_EINVAL, "?format", "format is stl, ply, obj, vtp, vtk, dicom-stl or delta");
     *tol = t[0] ? strtod(t, &end) : 0.0;
     if ((t[0] && *end) || !(*tol >= 0) || *tol > 1e6)
         return sf_fail(err, SF_EINVAL, "?tolerance", "tolerance is a distance in mm, > 0 (or 0 for the default)");
@@ -96,6 +96,15 @@ int model_trimesh(const char *src, size_t len, double tol, const struct sf_progr
     return rc;
 }
 
+long model_version(const char *resource)
+{
+    json_t *o = resource ? json_loads(resource, 0, NULL) : NULL;
+    json_t *v = json_object_get(o, "version");
+    long n = json_is_integer(v) ? (long)json_integer_value(v) : 1 + (long)json_integer_value(json_object_get(o, "edits"));
+    json_decref(o);
+    return n;
+}
+
 int model_mesh(const char *src, size_t len, const char *resource, const char *options, const struct sf_progress *pr,
                char **out, size_t *out_len, const char **mime, double *tol_used, struct sf_err *err)
 {
@@ -110,7 +119,9 @@ int model_mesh(const char *src, size_t len, const char *resource, const char *op
     struct trimesh tm;
     bool dicom = !strcmp(format, "dicom-stl"); /* STL in a DICOM Encapsulated STL object */
     if (!(rc = model_trimesh(src, len, tol, pr, &tm, tol_used, err)))
-        rc = mesh_encode(&tm, dicom ? "stl" : format, out, out_len, err);
+        rc = strcmp(format, "delta") ? mesh_encode(&tm, dicom ? "stl" : format, out, out_len, err)
+                                     : mesh_delta_encode(&tm, 0, (uint32_t)model_version(resource), NULL, 0, NULL, tm.n_tri,
+                                                         NULL, out, out_len, err);
     trimesh_free(&tm);
     if (!rc && dicom) {
         json_t *r = resource ? json_loads(resource, 0, NULL) : NULL;

@@ -217,14 +217,14 @@ static int make_send(struct contour_work *w, const struct job_rec *rec, const st
     json_t *list = json_array();
     if (p->dimse) {
         unsigned status;
-        rc = dimse_send(&p->peer, svc->cfg.ae_title, paths, 1, 30, &status, &w->err);
+        rc = pacs_failed(dimse_send(&p->peer, svc->cfg.ae_title, paths, 1, 30, &status, &w->err), &w->err);
         if (!rc)
             json_array_append_new(list, json_pack("{s:s, s:b, s:i}", "sop_instance_uid", in.sop_uid, "stored",
                                                   status < 0xA000 && status != DIMSE_NOT_SENT, "status", (int)status));
     } else {
         struct dicomweb_stored *res = NULL;
         int n = 0;
-        rc = dicomweb_store(p->dw, NULL, paths, 1, (uint64_t)svc->cfg.max_body, &res, &n, &w->err);
+        rc = pacs_failed(dicomweb_store(p->dw, NULL, paths, 1, (uint64_t)svc->cfg.max_body, &res, &n, &w->err), &w->err);
         for (int k = 0; !rc && k < n; k++)
             json_array_append_new(list, json_pack("{s:s, s:b, s:i}", "sop_instance_uid", res[k].sop_instance_uid,
                                                   "stored", res[k].stored, "reason", res[k].reason));

@@ -111,7 +111,7 @@ static int study_series(struct pacs_work *w, const char *study, char (**uids)[65
     size_t len;
     int rc = dicomweb_search(w->pacs->dw, DICOMWEB_SERIES, study, NULL, NULL, 0, &json, &len, &w->err);
     if (rc)
-        return rc;
+        return pacs_failed(rc, &w->err);
     json_t *a = json_loadb(json, len, 0, NULL);
     free(json);
     size_t n = json_is_array(a) ? json_array_size(a) : 0;
@@ -177,7 +177,7 @@ static int pull_prepare(struct job *j, void *arg, int *n_bands)
         struct dicomweb_retrieve rq = {w->dir, (uint64_t)svc->cfg.max_body, (int)counts[k], pulled, w, &pr};
         int got = 0;
         long before = w->kept;
-        rc = dicomweb_retrieve_series(w->pacs->dw, study, uids[k], &rq, &got, &w->err);
+        rc = pacs_failed(dicomweb_retrieve_series(w->pacs->dw, study, uids[k], &rq, &got, &w->err), &w->err);
         json_array_append_new(done, json_pack("{s:s, s:I}", "uid", uids[k], "instances", (json_int_t)(w->kept - before)));
     }
     rmdir(w->dir); /* (each instance's file removed once kept; one failed half-way is removed by the client) */
@@ -245,7 +245,7 @@ static int query_validate(struct service *svc, struct job_body *b, struct sf_err
     char *json = NULL;
     size_t len = 0;
     if ((rc = dicomweb_search(p->dw, DICOMWEB_STUDIES, NULL, NULL, prm, n, &json, &len, err)))
-        return rc;
+        return pacs_failed(rc, err);
     free(b->body);
     b->body = json, b->len = len;
     return 0;

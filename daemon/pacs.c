@@ -131,3 +131,14 @@ void pacs_names(const struct service *svc, char *out, size_t cap)
     if (!svc->n_pacs)
         snprintf(out, cap, "none (surfd serve --pacs NAME=URL)");
 }
+
+int pacs_failed(int rc, struct sf_err *err)
+{
+    if (rc == SF_EIO) {
+        rc = SF_EREMOTE;
+        if (err)
+            err->code = SF_EREMOTE;
+    }
+    return rc;
+}
+

@@ -25,6 +25,9 @@ int pacs_open_all(struct service *svc, struct sf_err *err);
 void pacs_close_all(struct service *svc);
 /* The PACS named so, or NULL. */
 const struct pacs *pacs_find(const struct service *svc, const char *name);
+/* A PACS call's answer as the request's: SF_EIO (the PACS down, refusing, answering badly) becomes
+ * SF_EREMOTE (502, not surfd's own failure), err's code too; others as they are. */
+int pacs_failed(int rc, struct sf_err *err);
 /* The names configured, "a, b and c" (or "none"), for a message. */
 void pacs_names(const struct service *svc, char *out, size_t cap);
 

@@ -708,8 +708,69 @@ static enum MHD_Result model_job(struct req *r, const struct job_kind *kind, cha
  * with the query's render options. GET /models/{id}/mesh and /patches: a job of that kind (they
  * can take seconds and hundreds of megabytes, which no HTTP thread should spend), its request the
  * model's id. Each is answered as any job: the result when it ends within the wait, else 202. */
+/* Whether model id is the request's to see; answers 404 (or the store's failure) when not. */
+static bool model_found(struct req *r, const char *id, char **resource, enum MHD_Result *answer)
+{
+    int found = store_model_get(r->svc->store, id, scope(r), resource, NULL, NULL);
+    if (found)
+        *answer = found == SF_ENOTFOUND ? problem(r, 404, "no such model", NULL) : damaged_or_failed(r, found);
+    return !found;
+}
+
+/* GET /models/{id}/mesh?format=delta&since=V (API.md, "Interactive isosurfaces"): since=0 is the
+ * whole mesh (a mesh job, cached as any), since=the model's version an empty delta at once; a
+ * version between is older than the journal of changes kept, which is none yet: 410, so that a
+ * client loads since=0. *answered false: the request goes on as a mesh job. */
+static enum MHD_Result delta_request(struct req *r, const char *id, bool *answered)
+{
+    const char *f = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "format");
+    const char *s = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "since");
+    *answered = false;
+    if (!f || strcmp(f, "delta"))
+        return MHD_YES;
+    *answered = true;
+    char *end = NULL, *resource = NULL;
+    long since = s && *s ? strtol(s, &end, 10) : 0;
+    if (s && *s && (*end || since < 0))
+        return problem(r, 422, "since is a version of the model (0: the whole mesh)", "?since");
+    enum MHD_Result answer;
+    if (!model_found(r, id, &resource, &answer))
+        return answer;
+    long version = model_version(resource);
+    free(resource);
+    char detail[160];
+    if (since > version) {
+        snprintf(detail, sizeof detail, "the model is at version %ld: since=%ld is after it", version, since);
+        return problem(r, 422, detail, "?since");
+    }
+    if (since > 0 && since < version) {
+        snprintf(detail, sizeof detail, "the changes from version %ld to %ld are not kept: load since=0 (the whole mesh)",
+                 since, version);
+        return problem(r, 410, detail, "?since");
+    }
+    if (since == 0) {
+        *answered = false;
+        return MHD_YES;
+    }
+    char *empty = malloc(20); /* "SFMD", from = to = the version, nothing removed or added */
+    if (!empty)
+        return problem(r, 500, "out of memory", NULL);
+    memcpy(empty, "SFMD", 4);
+    for (int k = 0; k < 4; k++)
+        for (int b = 0; b < 4; b++)
+            empty[4 + 4 * k + b] = (char)(k < 2 ? (unsigned long)version >> (8 * b) & 0xff : 0);
+    struct reply rp = {200, "application/vnd.surfd.mesh-delta", empty, 20, {{0}}};
+    return send_reply(r, &rp);
+}
+
 static enum MHD_Result model_output(struct req *r, const char *id, const struct job_kind *kind)
 {
+    if (kind == &mesh_kind) {
+        bool answered;
+        enum MHD_Result a = delta_request(r, id, &answered);
+        if (answered)
+            return a;
+    }
     if (kind == &mesh_kind && r->svc->cfg.mesh_cache > 0) { /* computed once: from the cache when it has it */
         struct opts o = {.n = 0};
         enum MHD_Result answer;
@@ -743,14 +804,6 @@ static enum MHD_Result model_output(struct req *r, const char *id, const struct 
     return model_job(r, &render_kind, scene, "json");
 }
 
-/* Whether model id is the request's to see; answers 404 (or the store's failure) when not. */
-static bool model_found(struct req *r, const char *id, char **resource, enum MHD_Result *answer)
-{
-    int found = store_model_get(r->svc->store, id, scope(r), resource, NULL, NULL);
-    if (found)
-        *answer = found == SF_ENOTFOUND ? problem(r, 404, "no such model", NULL) : damaged_or_failed(r, found);
-    return !found;
-}
 
 static enum MHD_Result model_resource(struct req *r, const char *id)
 {

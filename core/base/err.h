@@ -18,7 +18,8 @@
     X(SF_EBACKEND, -7, "library failure")                             \
     X(SF_ECONFLICT, -8, "conflicts with the resource's state")        \
     X(SF_EDAMAGED, -9, "stored bytes no longer match their sum")     \
-    X(SF_ENOTFOUND, -10, "not found")
+    X(SF_ENOTFOUND, -10, "not found")                                 \
+    X(SF_EREMOTE,  -11, "a remote system failed")
 
 enum {
     SF_OK = 0,
