@@ -3,20 +3,30 @@
 
 #include <jansson.h>
 #include <math.h>
+#include <stdlib.h>
 #include <stdio.h>
 #include <time.h>
 
-static json_t *stamp(double t)
+char *job_stamp(double t)
 {
     if (!(t > 0))
-        return json_null();
+        return NULL;
     time_t s = (time_t)t;
     struct tm tm;
     gmtime_r(&s, &tm);
-    char buf[40], out[48];
+    char buf[40], *out = malloc(48);
     strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &tm);
-    snprintf(out, sizeof out, "%s.%03dZ", buf, (int)((t - (double)s) * 1000));
-    return json_string(out);
+    if (out)
+        snprintf(out, 48, "%s.%03dZ", buf, (int)((t - (double)s) * 1000));
+    return out;
+}
+
+static json_t *stamp(double t)
+{
+    char *s = job_stamp(t);
+    json_t *j = s ? json_string(s) : json_null();
+    free(s);
+    return j;
 }
 
 static json_t *job_object(const struct job_view *v)

@@ -1,6 +1,8 @@
 /* series_json.c - series resources with jansson (series_json.h). */
 #include "series_json.h"
 
+#include "job_json.h"
+
 #include <jansson.h>
 #include <math.h>
 #include <stdio.h>
@@ -34,13 +36,10 @@ char *instance_meta(const struct dicom_instance *in)
 
 static json_t *stamp(double t)
 {
-    time_t s = (time_t)t;
-    struct tm tm;
-    gmtime_r(&s, &tm);
-    char buf[40], out[48];
-    strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &tm);
-    snprintf(out, sizeof out, "%s.%03dZ", buf, (int)((t - (double)s) * 1000));
-    return json_string(out);
+    char *s = job_stamp(t);
+    json_t *j = s ? json_string(s) : json_null();
+    free(s);
+    return j;
 }
 
 static int cmp_double(const void *a, const void *b)
