@@ -510,15 +510,17 @@ class GetSCU : public PacsSCU {
         snprintf(path, sizeof path, "%s/get-%06d.dcm", rq->dir, handed + 1); /* (not the UID: the PACS names it) */
         over = false;
         OFCondition c = DcmSCU::handleSTORERequestFile(pc, OFString(path), req);
-        if (c.bad()) {
-            unlink(path);
-            rc = over ? sf_fail(err, SF_ELIMIT, NULL, "an instance from the PACS is over %llu bytes",
-                                (unsigned long long)rq->max_instance_bytes)
-                      : sf_fail(err, SF_EIO, NULL, "an instance from the PACS could not be received: %s", c.text());
-            return c;
-        }
         struct stat st;
-        uint64_t n = stat(path, &st) ? 0 : (uint64_t)st.st_size;
+        uint64_t n = c.good() && !stat(path, &st) ? (uint64_t)st.st_size : 0;
+        /* (the progress call comes after each PDV: an instance of one PDV passes the cap whole) */
+        if (c.bad() || over || n > rq->max_instance_bytes) {
+            unlink(path);
+            rc = over || n > rq->max_instance_bytes
+                     ? sf_fail(err, SF_ELIMIT, NULL, "an instance from the PACS is over %llu bytes",
+                               (unsigned long long)rq->max_instance_bytes)
+                     : sf_fail(err, SF_EIO, NULL, "an instance from the PACS could not be received: %s", c.text());
+            return c.bad() ? c : EC_IllegalCall;
+        }
         rc = rq->instance(rq->ctx, ++handed, path, n, err);
         unlink(path);
         if (rc)

@@ -145,4 +145,14 @@ OID=$(orthanc_curl -s -X POST -d "$CT" /tools/lookup | python3 -c "import json,s
 orthanc_send surfd "$OID"; rc=$?
 code=$(status GET "/series/$CT")
 check "Orthanc's C-STORE to surfd (its /modalities/surfd/store): 27 instances received from ORTHANC" '[ $rc = 0 ] && [ "$code" = 200 ] && [ "$(field instances)" = 27 ] && [ "$(field source)" = "received from ORTHANC" ]'
+
+# ---- the cap on a C-GET's instance: max-body under a CT slice's 8 KB of pixels ----
+stop_daemon
+start_daemon "$T/small" --max-body 4096 --pacs "orthanc-dimse=dicom://$ORTHANC_AET@127.0.0.1:$ORTHANC_DICOM_PORT" || exit 1
+code=$(status POST "/series/pull?pacs=orthanc-dimse&study=$STUDY&series=$CT")
+check "a C-GET instance over max-body: the job's 422 as it passes 4096 bytes, nothing kept or left, the daemon alive" \
+    '[ "$code" = 422 ] && grep -q "over 4096 bytes" "$T/body" && [ "$(status GET "/series/$CT")" = 404 ] && [ -z "$(ls "$T"/small/pull-* 2>/dev/null)" ] && alive'
+code=$(status POST "/series/pull?pacs=orthanc-dimse&study=$(uid_of StudyInstanceUID "$RS")&series=$RSS")
+check "... the 1.9 MB structure set: the association aborted mid-instance, the same 422, the daemon alive" \
+    '[ "$code" = 422 ] && grep -q "over 4096 bytes" "$T/body" && [ -z "$(ls "$T"/small/pull-* 2>/dev/null)" ] && alive'
 checks_done
