@@ -20,6 +20,13 @@ extern "C" {
 
 #include "../core/base/err.h"
 
+/* DCMTK's process-wide settings, once, before any thread starts: its own log silenced (it is not
+ * the daemon's, and it would print a C-FIND's keys); Nagle's algorithm off on its connections
+ * (DCMTK reads TCP_NODELAY from the environment at each connection, and leaves Nagle on by default:
+ * each C-STORE response of a C-GET then waits for the peer's delayed ACK, some 90 ms an instance),
+ * unless the environment says otherwise. */
+void dimse_global_init(void);
+
 /* A peer allowed to associate (and to be sent to): its AE title, its host as an IP address
  * (dicom_node.c resolves names when it reads the peers), its port (for C-STORE to it). */
 struct dimse_peer {

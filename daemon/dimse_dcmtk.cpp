@@ -42,6 +42,16 @@ void quiet_dcmtk()
     std::call_once(once, [] { OFLog::configure(OFLogger::FATAL_LOG_LEVEL); });
 }
 
+} // namespace
+
+extern "C" void dimse_global_init(void)
+{
+    setenv("TCP_NODELAY", "1", 0);
+    quiet_dcmtk();
+}
+
+namespace {
+
 struct node_config {
     std::string ae, spool;
     std::vector<dimse_peer> peers;
