@@ -250,8 +250,9 @@ int cmd_serve(int argc, char **argv)
     rc = 1;
     if (open_parts(&svc, threads))
         goto out;
-    /* libcurl's global state before any thread; the PACS named (their URLs and credentials
-     * checked now: a wrong one stops the start, not a pull an hour later) */
+    /* libcurl's and DCMTK's global state before any thread; the PACS named (their URLs and
+     * credentials checked now: a wrong one stops the start, not a pull an hour later) */
+    dimse_global_init();
     if (dicomweb_global_init() || pacs_open_all(&svc, &err)) {
         fprintf(stderr, "surfd serve: %s\n", err.message[0] ? err.message : "libcurl would not start");
         goto out;

@@ -64,7 +64,7 @@ static const struct setting SETTINGS[] = {
     L("header-timeout", header_timeout, 1, 3600, "10", "seconds a new connection has to send its request's headers"),
     L("body-timeout", body_timeout, 1, 86400, "300", "seconds a request has to send its body"),
     L("dicom-listen", dicom_listen, 0, 65535, "0", "port of surfd's DICOM node (C-ECHO, C-STORE: instances kept by series in the store; 0: no node)"),
-    S("ae-title", ae_title, "SURFD", "the DICOM node's AE title: associations calling another are refused"),
+    S("ae-title", ae_title, "SURFD", "the DICOM node's AE title: associations calling another are refused; surfd calls a PACS by it"),
     S("dicom-peers", dicom_peers, "", "file of the DICOM peers allowed to associate and to be sent to, a line each: AE_TITLE HOST PORT (# comments); others are refused at association"),
     L("series-idle", series_idle, 1, 86400, "30", "seconds without a new instance of a received series before it counts as complete"),
     LIST("pacs", pacs, "a PACS to pull from and send to, NAME=URL (a DICOMweb root, http or https) or NAME=dicom://AET@HOST:PORT (DIMSE: sent to by C-STORE); repeatable"),

@@ -1,9 +1,10 @@
 /* job_pacs.c - the job kinds that talk to a PACS (pacs.h): pull (POST /series/pull: a study's
- * series, or one, retrieved by WADO-RS into the store as the DICOM node keeps what it receives)
- * and query (GET /pacs/{name}/studies: a QIDO-RS search passed through, on the checks pool and
- * stored nowhere: its answer names patients). Network work, never on the HTTP threads: a PACS may
- * take seconds. The request holds no body (a pull) or the PACS's name (a query); the options say
- * the rest. */
+ * series, or one, retrieved by WADO-RS or C-GET into the store as the DICOM node keeps what it
+ * receives) and query (GET /pacs/{name}/studies: a QIDO-RS search passed through, or a C-FIND made
+ * of its keys and answered in the same DICOM JSON, on the checks pool and stored nowhere: its
+ * answer names patients). Network work, never on the HTTP threads: a PACS may take seconds. The
+ * request holds no body (a pull) or the PACS's name (a query); the options say the rest. Each
+ * step is one call for either kind of PACS, chosen here by pacs->dimse. */
 #include <errno.h>
 #include <jansson.h>
 #include <stdio.h>
@@ -34,8 +35,7 @@ struct pacs_work {
     long kept, n_expected;
 };
 
-/* The request's PACS (?pacs, or the query's body): its name known, a DICOMweb one for routes that
- * speak DICOMweb. */
+/* The request's PACS (?pacs, or the query's body), by its name. */
 static int named_pacs(struct service *svc, const char *name, const struct pacs **out, struct sf_err *err)
 {
     char names[512];
@@ -43,9 +43,6 @@ static int named_pacs(struct service *svc, const char *name, const struct pacs *
     pacs_names(svc, names, sizeof names);
     if (!*out)
         return sf_fail(err, SF_EINVAL, "?pacs", "no PACS named \"%.31s\": this node's are %s", name ? name : "", names);
-    if ((*out)->dimse)
-        return sf_fail(err, SF_EINVAL, "?pacs", "PACS %s is a DIMSE node (dicom://): pulling and searching it (C-GET, "
-                       "C-MOVE, C-FIND) is not built yet; name a DICOMweb PACS", (*out)->name);
     return 0;
 }
 
@@ -103,13 +100,15 @@ static bool pull_poll(void *ctx, double done)
     return jobq_cancelled(w->job.svc->q, w->j, f < 1 ? f : 1);
 }
 
-/* The series of a study (QIDO-RS) into uids (and their instances, expected): their count, or an
+/* The series of a study (QIDO-RS, or C-FIND at the SERIES level: the same JSON) into uids (and their instances, expected): their count, or an
  * SF_E* code. */
 static int study_series(struct pacs_work *w, const char *study, char (**uids)[65], long **counts)
 {
     char *json = NULL;
     size_t len;
-    int rc = dicomweb_search(w->pacs->dw, DICOMWEB_SERIES, study, NULL, NULL, 0, &json, &len, &w->err);
+    int rc = w->pacs->dimse ? dimse_find(&w->pacs->peer, w->job.svc->cfg.ae_title, DIMSE_SERIES, study, NULL, 0, &json,
+                                         &len, &w->err)
+                            : dicomweb_search(w->pacs->dw, DICOMWEB_SERIES, study, NULL, NULL, 0, &json, &len, &w->err);
     if (rc)
         return pacs_failed(rc, &w->err);
     json_t *a = json_loadb(json, len, 0, NULL);
@@ -174,10 +173,16 @@ static int pull_prepare(struct job *j, void *arg, int *n_bands)
     json_t *done = json_array();
     for (int k = 0; !rc && k < n; k++) {
         const struct sf_progress pr = {pull_poll, w};
-        struct dicomweb_retrieve rq = {w->dir, (uint64_t)svc->cfg.max_body, (int)counts[k], pulled, w, &pr};
         int got = 0;
         long before = w->kept;
-        rc = pacs_failed(dicomweb_retrieve_series(w->pacs->dw, study, uids[k], &rq, &got, &w->err), &w->err);
+        if (w->pacs->dimse) {
+            struct dimse_retrieve rq = {w->dir, (uint64_t)svc->cfg.max_body, pulled, w, &pr};
+            rc = dimse_get(&w->pacs->peer, svc->cfg.ae_title, study, uids[k], &rq, &got, &w->err);
+        } else {
+            struct dicomweb_retrieve rq = {w->dir, (uint64_t)svc->cfg.max_body, (int)counts[k], pulled, w, &pr};
+            rc = dicomweb_retrieve_series(w->pacs->dw, study, uids[k], &rq, &got, &w->err);
+        }
+        rc = pacs_failed(rc, &w->err);
         json_array_append_new(done, json_pack("{s:s, s:I}", "uid", uids[k], "instances", (json_int_t)(w->kept - before)));
     }
     rmdir(w->dir); /* (each instance's file removed once kept; one failed half-way is removed by the client) */
@@ -219,7 +224,8 @@ const struct job_kind pull_kind = {.name = "pull", .format = any_format, .valida
 #define QUERY_MAX_PARAMS 24
 
 /* GET /pacs/{name}/studies: the search made as the request is checked, its answer (the PACS's
- * DICOM JSON, which names patients) sent back and kept nowhere: a transient kind, no job. */
+ * DICOM JSON, or the C-FIND's matches written so, which name patients) sent back and kept
+ * nowhere: a transient kind, no job. */
 static int query_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
     char name[40];
@@ -244,8 +250,24 @@ static int query_validate(struct service *svc, struct job_body *b, struct sf_err
     }
     char *json = NULL;
     size_t len = 0;
-    if ((rc = dicomweb_search(p->dw, DICOMWEB_STUDIES, NULL, NULL, prm, n, &json, &len, err)))
+    if (p->dimse) {
+        struct dimse_key keys[QUERY_MAX_PARAMS];
+        for (int k = 0; k < n; k++)
+            keys[k] = (struct dimse_key){prm[k].name, prm[k].value};
+        rc = dimse_find(&p->peer, svc->cfg.ae_title, DIMSE_STUDIES, NULL, keys, n, &json, &len, err);
+        /* DCMTK writes a value it could not convert to UTF-8 as the PACS sent it: not JSON */
+        json_t *check = rc ? NULL : json_loadb(json, len, 0, NULL);
+        if (!rc && !json_is_array(check))
+            rc = sf_fail(err, SF_EFORMAT, "", "the PACS %s answered in a character set surfd cannot convert to UTF-8",
+                         p->name);
+        json_decref(check);
+    } else {
+        rc = dicomweb_search(p->dw, DICOMWEB_STUDIES, NULL, NULL, prm, n, &json, &len, err);
+    }
+    if (rc) {
+        free(json);
         return pacs_failed(rc, err);
+    }
     free(b->body);
     b->body = json, b->len = len;
     return 0;

@@ -2,12 +2,13 @@
 # surfd and a real PACS (issue 44): Debian's Orthanc with its DICOMweb plugin (tests/tools/orthanc.sh)
 # holds the shared CT series and an RT Structure Set, uploaded through its REST API. surfd, told of
 # it by --pacs (DICOMweb, credentials from a file) and --pacs NAME=dicom://AET@HOST:PORT (DIMSE),
-# searches it (GET /pacs/{name}/studies: QIDO-RS passed through), pulls a series and a whole study
-# (POST /series/pull: WADO-RS into the store, as the node keeps what it receives), and sends
-# models back (POST /models/{id}/send: STOW-RS and C-STORE), read out of Orthanc again; Orthanc
-# sends to surfd's node (its /modalities/surfd/store). A PACS that is down fails the job with a
-# clear problem within its bounds, and bad requests are 4xx at the option. surfctl and the Python
-# client search, pull, list and send as curl does.
+# searches it (GET /pacs/{name}/studies: QIDO-RS passed through, or a C-FIND answered in the same
+# DICOM JSON), pulls a series and a whole study (POST /series/pull: WADO-RS or C-GET into the
+# store, as the node keeps what it receives), and sends models back (POST /models/{id}/send:
+# STOW-RS and C-STORE), read out of Orthanc again; Orthanc sends to surfd's node (its
+# /modalities/surfd/store). A PACS that is down, of either kind, fails the job with a clear
+# problem within its bounds, and bad requests are 4xx at the option. surfctl and the Python client
+# search, pull, list and send as curl does.
 . "$(dirname "$0")/lib.inc"
 . tests/tools/orthanc.sh
 DD="${SURFD_DATA:-../shared/data}/volumes/dicom_ct_head_64x64x27"
@@ -22,7 +23,8 @@ orthanc_upload "$DD"/*.dcm "$RS" >"$T/ids" || bad "Orthanc refused an upload"
 echo "ORTHANC 127.0.0.1 $ORTHANC_DICOM_PORT" >"$T/peers"
 start_daemon "$T/d" --dicom-listen "$DP" --dicom-peers "$T/peers" --series-idle 1 \
     --pacs "orthanc=$ORTHANC_DICOMWEB" --pacs-credentials "orthanc=$ORTHANC_CREDENTIALS" \
-    --pacs "orthanc-dimse=dicom://$ORTHANC_AET@127.0.0.1:$ORTHANC_DICOM_PORT" --pacs "down=http://127.0.0.1:1/dicom-web" || exit 1
+    --pacs "orthanc-dimse=dicom://$ORTHANC_AET@127.0.0.1:$ORTHANC_DICOM_PORT" --pacs "down=http://127.0.0.1:1/dicom-web" \
+    --pacs "down-dimse=dicom://NOBODY@127.0.0.1:1" || exit 1
 field() { python3 -c "import json,sys; v = json.load(open(sys.argv[1])); [v := v[k] if not isinstance(v, list) else v[int(k)] for k in sys.argv[2:]]; print(v)" "$T/body" "$@"; }
 uid_of() { dcmdump +P "$1" "$2" | head -n 1 | sed "s/.*\\[\\(.*\\)\\].*/\\1/"; }
 STUDY=$(uid_of StudyInstanceUID "$DD/IM0001.dcm")
@@ -36,6 +38,28 @@ check "GET /pacs/orthanc/studies?StudyInstanceUID=: QIDO-RS's answer, the study 
     '[ "$code" = 200 ] && header Content-Type | grep -q "application/dicom+json" && grep -q "$STUDY" "$T/body"'
 code=$(status GET "/pacs/orthanc/studies?StudyInstanceUID=1.2.3.4.5")
 check "... a study it does not hold: 200, []" '[ "$code" = 200 ] && [ "$(tr -d " \n" <"$T/body")" = "[]" ]'
+# the DIMSE PACS: a C-FIND of the same keys, answered in the same DICOM JSON
+status GET "/pacs/orthanc/studies?StudyInstanceUID=$STUDY" >/dev/null; cp "$T/body" "$T/qido.json"
+code=$(status GET "/pacs/orthanc-dimse/studies?StudyInstanceUID=$STUDY")
+check "GET /pacs/orthanc-dimse/studies?StudyInstanceUID=: C-FIND finds the study, its UID, patient, date, series and instances as QIDO-RS gives them" \
+    '[ "$code" = 200 ] && header Content-Type | grep -q "application/dicom+json" && python3 -c "
+import json, sys
+a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+keys = [\"0020000D\", \"00100020\", \"00100010\", \"00080020\", \"00201206\", \"00201208\"]
+sys.exit(0 if len(a) == len(b) == 1 and all(a[0][k] == b[0][k] for k in keys) and a[0][\"0020000D\"][\"Value\"] == [sys.argv[3]] else 1)" "$T/body" "$T/qido.json" "$STUDY"'
+PID=$(dcmdump +P PatientID "$DD/IM0001.dcm" | sed 's/.*\[\(.*\)\].*/\1/')
+SDATE=$(dcmdump +P StudyDate "$DD/IM0001.dcm" | sed 's/.*\[\(.*\)\].*/\1/')
+code=$(status GET "/pacs/orthanc-dimse/studies?PatientID=$PID&StudyDate=$SDATE-")
+check "... by PatientID and a StudyDate range: the study" '[ -n "$PID" ] && [ "$code" = 200 ] && grep -q "$STUDY" "$T/body"'
+check "... the PatientID searched is nowhere in the daemon's log" '! grep -qF "$PID" "$T/daemon.log"'
+code=$(status GET "/pacs/orthanc-dimse/studies?StudyInstanceUID=1.2.3.4.5")
+check "... a study it does not hold: 200, []" '[ "$code" = 200 ] && [ "$(tr -d " \n" <"$T/body")" = "[]" ]'
+code=$(status GET "/pacs/orthanc-dimse/studies?NoSuchKeyword=1")
+check "... a key that is no DICOM attribute: 422 at it" '[ "$code" = 422 ] && pointer_is "?NoSuchKeyword"'
+t0=$(date +%s)
+code=$(status GET "/pacs/down-dimse/studies?StudyInstanceUID=$STUDY")
+t1=$(date +%s)
+check "... a DIMSE PACS that is down: a 5xx naming it within 10 s" '[ "$code" -ge 500 ] && grep -q "127.0.0.1:1" "$T/body" && [ $((t1 - t0)) -lt 10 ]'
 code=$(status GET "/pacs/nowhere/studies")
 check "GET /pacs/{name}/studies of a PACS not configured: 422 at ?pacs naming those that are" '[ "$code" = 422 ] && pointer_is "?pacs" && grep -q "orthanc" "$T/body"'
 
@@ -64,8 +88,28 @@ code=$(status POST "/series/pull?pacs=orthanc&study=1.2.3.4.5")
 check "a study the PACS does not hold: the job's 404 or 422, saying so" '[ "$code" = 404 ] || [ "$code" = 422 ]'
 code=$(status POST "/series/pull?pacs=orthanc&study=not-a-uid")
 check "?study not a UID: 422 at ?study" '[ "$code" = 422 ] && pointer_is "?study"'
+# ... and by C-GET from the DIMSE PACS: the same instances, the same isosurface
+status DELETE "/series/$CT" >/dev/null
+code=$(status POST "/series/pull?pacs=orthanc-dimse&study=$STUDY&series=$CT")
+check "POST /series/pull?pacs=orthanc-dimse of the CT series (C-GET): 27 instances kept" \
+    '[ "$code" = 200 ] && [ "$(field pacs)" = orthanc-dimse ] && [ "$(field instances)" = 27 ] && [ "$(field series 0 instances)" = 27 ]'
+code=$(status GET "/series/$CT")
+check "... GET /series/{uid}: pulled from orthanc-dimse, 27 instances, 64 x 64 x 27" '[ "$code" = 200 ] && [ "$(field source)" = "pulled from orthanc-dimse" ] && [ "$(field instances)" = 27 ] && [ "$(field dims)" = "[64, 64, 27]" ]'
+code=$(status POST "/isosurface?iso=226.5&series=$CT")
+check "... its isosurface the one the files posted give" '[ "$code" = 201 ] && python3 -c "
+import json, sys
+a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+sys.exit(0 if a[\"triangles\"] == b[\"triangles\"] > 0 and a[\"volume_mm3\"] == b[\"volume_mm3\"] else 1)" "$T/body" "$T/posted.json"'
+status DELETE "/series/$CT" >/dev/null
 code=$(status POST "/series/pull?pacs=orthanc-dimse&study=$STUDY")
-check "a pull from a DIMSE PACS: 422 at ?pacs saying it is not built" '[ "$code" = 422 ] && pointer_is "?pacs" && grep -q "not built" "$T/body"'
+check "... a whole study by C-FIND of its series, then C-GET: the CT's 27" '[ "$code" = 200 ] && [ "$(field instances)" = 27 ] && [ "$(field series 0 uid)" = "$CT" ] && [ "$(status GET "/series/$CT")" = 200 ] && [ "$(field instances)" = 27 ]'
+check "... nothing left of the C-GET's files, and no patient name kept" '[ -z "$(ls -d "$T"/d/pull-* 2>/dev/null)" ] && ! grep -rqaF "$name" "$T/d"'
+code=$(status POST "/series/pull?pacs=orthanc-dimse&study=$STUDY&series=1.2.3.4.5")
+check "... a series it does not hold: the job's 404, saying so" '[ "$code" = 404 ] && grep -q "holds no instances" "$T/body"'
+t0=$(date +%s)
+code=$(status POST "/series/pull?pacs=down-dimse&study=$STUDY&series=$CT")
+t1=$(date +%s)
+check "a DIMSE PACS that is down: the pull fails naming it within 10 s, the daemon alive" '[ "$code" -ge 500 ] && grep -q "127.0.0.1:1" "$T/body" && [ $((t1 - t0)) -lt 10 ] && alive'
 t0=$(date +%s)
 code=$(status POST "/series/pull?pacs=down&study=$STUDY")
 t1=$(date +%s)
@@ -157,4 +201,14 @@ try:
 except surfd.SurfdError as e:
     assert e.status == 404
 " "$URL" "$STUDY" "$CT" "$MODEL"'
+
+# ---- the cap on a C-GET's instance: max-body under a CT slice's 8 KB of pixels ----
+stop_daemon
+start_daemon "$T/small" --max-body 4096 --pacs "orthanc-dimse=dicom://$ORTHANC_AET@127.0.0.1:$ORTHANC_DICOM_PORT" || exit 1
+code=$(status POST "/series/pull?pacs=orthanc-dimse&study=$STUDY&series=$CT")
+check "a C-GET instance over max-body: the job's 422 as it passes 4096 bytes, nothing kept or left, the daemon alive" \
+    '[ "$code" = 422 ] && grep -q "over 4096 bytes" "$T/body" && [ "$(status GET "/series/$CT")" = 404 ] && [ -z "$(ls "$T"/small/pull-* 2>/dev/null)" ] && alive'
+code=$(status POST "/series/pull?pacs=orthanc-dimse&study=$(uid_of StudyInstanceUID "$RS")&series=$RSS")
+check "... the 1.9 MB structure set: the association aborted mid-instance, the same 422, the daemon alive" \
+    '[ "$code" = 422 ] && grep -q "over 4096 bytes" "$T/body" && [ -z "$(ls "$T"/small/pull-* 2>/dev/null)" ] && alive'
 checks_done
