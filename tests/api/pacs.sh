@@ -47,11 +47,11 @@ import json, sys
 a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
 keys = [\"0020000D\", \"00100020\", \"00100010\", \"00080020\", \"00201206\", \"00201208\"]
 sys.exit(0 if len(a) == len(b) == 1 and all(a[0][k] == b[0][k] for k in keys) and a[0][\"0020000D\"][\"Value\"] == [sys.argv[3]] else 1)" "$T/body" "$T/qido.json" "$STUDY"'
-PID=$(dcmdump +P PatientID "$DD/IM0001.dcm" | sed 's/.*\[\(.*\)\].*/\1/')
+PATIENT=$(dcmdump +P PatientID "$DD/IM0001.dcm" | sed 's/.*\[\(.*\)\].*/\1/')
 SDATE=$(dcmdump +P StudyDate "$DD/IM0001.dcm" | sed 's/.*\[\(.*\)\].*/\1/')
-code=$(status GET "/pacs/orthanc-dimse/studies?PatientID=$PID&StudyDate=$SDATE-")
-check "... by PatientID and a StudyDate range: the study" '[ -n "$PID" ] && [ "$code" = 200 ] && grep -q "$STUDY" "$T/body"'
-check "... the PatientID searched is nowhere in the daemon's log" '! grep -qF "$PID" "$T/daemon.log"'
+code=$(status GET "/pacs/orthanc-dimse/studies?PatientID=$PATIENT&StudyDate=$SDATE-")
+check "... by PatientID and a StudyDate range: the study" '[ -n "$PATIENT" ] && [ "$code" = 200 ] && grep -q "$STUDY" "$T/body"'
+check "... the PatientID searched is nowhere in the daemon's log" '! grep -qF "$PATIENT" "$T/daemon.log"'
 code=$(status GET "/pacs/orthanc-dimse/studies?StudyInstanceUID=1.2.3.4.5")
 check "... a study it does not hold: 200, []" '[ "$code" = 200 ] && [ "$(tr -d " \n" <"$T/body")" = "[]" ]'
 code=$(status GET "/pacs/orthanc-dimse/studies?NoSuchKeyword=1")
