@@ -29,7 +29,8 @@ int solid_of(const char *src, size_t len, const struct sf_progress *pr, struct s
 
 int model_mesh_options(const char *options, const char **format, double *tol, struct sf_err *err)
 {
-    static const char *const FORMATS[] = {"stl", "ply", "obj", "vtp", "vtk", "dicom-stl"};
+    /* seg: a DICOM Segmentation, made by model_seg_set (the daemon reads the stored series it needs) */
+    static const char *const FORMATS[] = {"stl", "ply", "obj", "vtp", "vtk", "dicom-stl", "seg"};
     char f[16], t[64], *end = NULL;
     query_option(options, "format", f, sizeof f);
     query_option(options, "tolerance", t, sizeof t);
@@ -38,7 +39,7 @@ int model_mesh_options(const char *options, const char **format, double *tol, st
         if (!strcmp(f[0] ? f : "stl", FORMATS[k]))
             *format = FORMATS[k];
     if (!*format)
-        return sf_fail(err, SF_EINVAL, "?format", "format is stl, ply, obj, vtp, vtk or dicom-stl");
+        return sf_fail(err, SF_EINVAL, "?format", "format is stl, ply, obj, vtp, vtk, dicom-stl or seg");
     *tol = t[0] ? strtod(t, &end) : 0.0;
     if ((t[0] && *end) || !(*tol >= 0) || *tol > 1e6)
         return sf_fail(err, SF_EINVAL, "?tolerance", "tolerance is a distance in mm, > 0 (or 0 for the default)");
@@ -106,6 +107,8 @@ int model_mesh(const char *src, size_t len, const char *resource, const char *op
     int rc = model_mesh_options(options, &format, &tol, err);
     if (rc)
         return rc;
+    if (!strcmp(format, "seg"))
+        return sf_fail(err, SF_EINVAL, "?format", "a SEG is made on an image grid: model_seg_set, not a mesh's");
     *mime = mesh_mime(format);
     struct trimesh tm;
     bool dicom = !strcmp(format, "dicom-stl"); /* STL in a DICOM Encapsulated STL object */
