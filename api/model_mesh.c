@@ -108,7 +108,8 @@ int model_mesh(const char *src, size_t len, const char *resource, const char *op
     if (rc)
         return rc;
     if (!strcmp(format, "seg"))
-        return sf_fail(err, SF_EINVAL, "?format", "a SEG is made on an image grid: model_seg_set, not a mesh's");
+        return sf_fail(err, SF_EINVAL, "?format", "a DICOM SEG is made by the service on an image grid "
+                       "(GET /models/{id}/mesh?format=seg), not offline");
     *mime = mesh_mime(format);
     struct trimesh tm;
     bool dicom = !strcmp(format, "dicom-stl"); /* STL in a DICOM Encapsulated STL object */
