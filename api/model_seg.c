@@ -240,6 +240,9 @@ int model_seg_grid(const char *const *ids, const char *const *resources, int n, 
     if (!rc && bits > (double)SEG_MAX_BITS)
         rc = sf_fail(err, SF_ELIMIT, where, "%d x %d x %d voxels x %d segments is over the %llu bits of one export",
                      g->cols, g->rows, g->n_slices, n, (unsigned long long)SEG_MAX_BITS);
+    else if (!rc && (long)g->n_slices * n > SEG_MAX_FRAMES)
+        rc = sf_fail(err, SF_ELIMIT, spacing > 0 ? "?spacing" : where, "%d slices x %d segments could be over the %ld "
+                     "frames of one export", g->n_slices, n, SEG_MAX_FRAMES);
     for (int k = 0; r && k < n; k++)
         json_decref(r[k]);
     free(r);

@@ -18,6 +18,9 @@ extern "C" {
  * (and so before any frame or the object is allocated): 2^31 bits is 256 MB of packed frames, 20
  * segments on a 512 x 512 x 300 CT fit (1.6e9) */
 #define SEG_MAX_BITS (1ULL << 31)
+/* frames of one export (slices x segments at most): frames_dcmtk.cpp reads no more, and what surfd
+ * writes it reads back */
+#define SEG_MAX_FRAMES (1L << 18)
 
 struct seg_image {           /* a slice's source image: DerivationImageSequence, ReferencedSeriesSequence */
     char sop_class[65], sop_instance[65];

@@ -21,8 +21,6 @@
 #include "dcmtk_out.h"
 
 static const char SEGMENTATION_SOP_CLASS[] = "1.2.840.10008.5.1.4.1.1.66.4";
-/* frames_dcmtk.cpp reads at most this many frames: what surfd writes, it reads back */
-#define SEG_MAX_FRAMES (1L << 18)
 
 struct seg_writer {
     const struct seg_grid *g;
