@@ -39,6 +39,9 @@ struct series {
     bool label_map;
     struct series_segment *segments;
     int n_segments;
+    /* a series of single-frame images: its first slice's UIDs (what an export of its models
+     * references: a SEG's grid is the series' when it is stored), "" when absent or not UIDs */
+    char series_uid[65], study_uid[65], frame_uid[65];
 };
 
 /* Reads n parts as one series, or one part that is a multi-frame image. check_only: the headers

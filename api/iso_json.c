@@ -39,6 +39,19 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
     }
     if (o)
         json_object_set_new(o, "features", json_string(m->vol->sharp ? "sharp" : "none"));
+    if (o && m->vol->oblique) /* the grid's row, column and slice directions: a SEG on its grid needs them */
+        json_object_set_new(json_object_get(o, "grid"), "axes",
+                            json_pack("[[f,f,f],[f,f,f],[f,f,f]]", m->vol->axes[0][0], m->vol->axes[0][1],
+                                      m->vol->axes[0][2], m->vol->axes[1][0], m->vol->axes[1][1], m->vol->axes[1][2],
+                                      m->vol->axes[2][0], m->vol->axes[2][1], m->vol->axes[2][2]));
+    /* a DICOM series' references, as a structure set's models keep theirs: exports reference the
+     * study and frame, and a SEG is made on the series' own grid when it is stored */
+    if (o && m->vol->frame_uid[0])
+        json_object_set_new(o, "frame_of_reference_uid", json_string(m->vol->frame_uid));
+    if (o && m->vol->study_uid[0])
+        json_object_set_new(o, "study_instance_uid", json_string(m->vol->study_uid));
+    if (o && m->vol->series_uid[0])
+        json_object_set_new(o, "referenced_series", json_pack("{s:s}", "series_instance_uid", m->vol->series_uid));
     if (o && m->adapt && m->vol->sharp) {
         json_object_set_new(o, "feature_points", json_integer(m->adapt->feature_points));
         json_object_set_new(o, "face_points", json_integer(m->adapt->face_points));

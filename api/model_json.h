@@ -13,6 +13,7 @@
 #include "../core/base/err.h"
 #include "../core/trace/scene.h"
 #include "contour_json.h"
+#include "seg.h"
 
 /* Reads contours, builds the model and measures it; *json receives the figures (caller frees): one
  * object for JSON or for a DICOM ?roi=NAME, else {"models": [...]} with one object per ROI. Errors
@@ -73,6 +74,30 @@ struct model_export {
 };
 int model_rtstruct_set(const struct model_export *m, int n, const char *options, const struct sf_progress *pr,
                        unsigned char **out, size_t *out_len, struct sf_err *err);
+/* Stored models as one DICOM Segmentation (?format=seg on GET /rtstruct and /models/{id}/mesh; seg.h),
+ * model k as segment k + 1, labelled, coloured and typed as model_rtstruct_set names its ROIs: each
+ * mesh cut at grid g's slices and its sections' pixels set by the even-odd rule (a voxel is the
+ * model's when its centre is inside), a frame where a slice holds any. g (model_seg_grid's) is
+ * borrowed. Errors name the model where several are listed. */
+int model_seg_set(const struct model_export *m, int n, const struct seg_grid *g, const struct sf_progress *pr,
+                  unsigned char **out, size_t *out_len, struct sf_err *err);
+/* The series a model's resource names (referenced_series: the CT its structure set was drawn on,
+ * or the series an isosurface was made of) into uid, or false. */
+bool model_seg_series(const char *resource, char uid[65]);
+/* A stored series' grid from its n instances (their SOP Instance UIDs and store metas:
+ * series_json.h's instance_meta), laid out as planes.h lays out a posted series' slices; study and
+ * frame the series'. 0, or SF_EINVAL at ?format saying why the series is not one grid. */
+int model_seg_series_grid(const char *series_uid, const char *study_uid, const char *const *sop_uids,
+                          const char *const *metas, int n, struct seg_grid *g, struct sf_err *err);
+/* The grid an export of these models is made on (api/README.md, "DICOM SEG out"): ?spacing=MM
+ * isotropic voxels over the models' bounds; else the stored series' (series: NULL when none of
+ * the models' series is stored); else the first isosurface model's own grid; else SF_EINVAL at
+ * ?format saying which series to store. Refused when it would hold over SEG_MAX_BITS bits with n
+ * segments (SF_ELIMIT, before anything is made), or when the series' frame of reference is not
+ * the models'. g (caller frees with seg_grid_free) receives it; a series' grid is copied. */
+int model_seg_grid(const char *const *ids, const char *const *resources, int n, const struct seg_grid *series,
+                   const char *options, struct seg_grid *g, struct sf_err *err);
+
 /* What model_rtstruct_set would refuse of its models before cutting them (for the route): 1 to
  * MODEL_RTSTRUCT_MAX_MODELS, none listed twice, one frame of reference and one study (models
  * without, as contours in JSON, go with any). Errors point at ?models and name the models. */

@@ -1,7 +1,8 @@
 /* model_json_internal.h - what the files of model_json.h share (model_json.c, model_scene.c,
- * model_matrix.c, model_mesh.c, model_rtstruct.c, model_patches.c): small helpers and the
- * functions one file calls in another. Private to those files. Calls go one way: model_json.c ->
- * model_scene.c, model_matrix.c; model_rtstruct.c, model_patches.c -> model_mesh.c. */
+ * model_matrix.c, model_mesh.c, model_rtstruct.c, model_patches.c, model_seg.c): small helpers and
+ * the functions one file calls in another. Private to those files. Calls go one way: model_json.c ->
+ * model_scene.c, model_matrix.c; model_rtstruct.c, model_patches.c -> model_mesh.c; model_seg.c ->
+ * model_rtstruct.c, model_mesh.c. */
 #ifndef SURFD_MODEL_JSON_INTERNAL_H
 #define SURFD_MODEL_JSON_INTERNAL_H
 
@@ -47,6 +48,9 @@ int scene_figures(const char *buf, size_t len, const char *format, const struct 
 /* model_matrix.c */
 int matrix_model(const char *buf, size_t len, const struct model_sink *sink, char **json, char location[64],
                  struct sf_err *err);
+
+/* model_rtstruct.c: model k's ROI name, colour and interpreted type (its source's, else chosen) */
+void model_roi_look(json_t *r, int k, const char **name, int color[3], const char **type);
 
 /* model_mesh.c */
 int solid_of(const char *src, size_t len, const struct sf_progress *pr, struct solid *sd, struct sf_err *err);

@@ -29,7 +29,9 @@ int solid_of(const char *src, size_t len, const struct sf_progress *pr, struct s
 
 int model_mesh_options(const char *options, const char **format, double *tol, struct sf_err *err)
 {
-    static const char *const FORMATS[] = {"stl", "ply", "obj", "vtp", "vtk", "dicom-stl", "delta"};
+    /* seg: a DICOM Segmentation, made by model_seg_set (the daemon reads the stored series it needs);
+     * delta: the whole mesh in API.md's delta layout */
+    static const char *const FORMATS[] = {"stl", "ply", "obj", "vtp", "vtk", "dicom-stl", "seg", "delta"};
     char f[16], t[64], *end = NULL;
     query_option(options, "format", f, sizeof f);
     query_option(options, "tolerance", t, sizeof t);
@@ -38,7 +40,7 @@ int model_mesh_options(const char *options, const char **format, double *tol, st
         if (!strcmp(f[0] ? f : "stl", FORMATS[k]))
             *format = FORMATS[k];
     if (!*format)
-        return sf_fail(err, SF_EINVAL, "?format", "format is stl, ply, obj, vtp, vtk, dicom-stl or delta");
+        return sf_fail(err, SF_EINVAL, "?format", "format is stl, ply, obj, vtp, vtk, dicom-stl, seg or delta");
     *tol = t[0] ? strtod(t, &end) : 0.0;
     if ((t[0] && *end) || !(*tol >= 0) || *tol > 1e6)
         return sf_fail(err, SF_EINVAL, "?tolerance", "tolerance is a distance in mm, > 0 (or 0 for the default)");
@@ -115,6 +117,9 @@ int model_mesh(const char *src, size_t len, const char *resource, const char *op
     int rc = model_mesh_options(options, &format, &tol, err);
     if (rc)
         return rc;
+    if (!strcmp(format, "seg"))
+        return sf_fail(err, SF_EINVAL, "?format", "a DICOM SEG is made by the service on an image grid "
+                       "(GET /models/{id}/mesh?format=seg), not offline");
     *mime = mesh_mime(format);
     struct trimesh tm;
     bool dicom = !strcmp(format, "dicom-stl"); /* STL in a DICOM Encapsulated STL object */

@@ -113,6 +113,18 @@ static const char *str_of(json_t *r, const char *key)
     return v && *v ? v : NULL;
 }
 
+void model_roi_look(json_t *r, int k, const char **name, int color[3], const char **type)
+{
+    json_t *c = json_object_get(r, "roi_display_color");
+    const char *t = str_of(r, "rt_roi_interpreted_type");
+    *name = str_of(r, "name") ? str_of(r, "name") : "model";
+    *type = t ? t : type_by_name(*name);
+    for (int i = 0; i < 3; i++) {
+        json_int_t v = json_integer_value(json_array_get(c, (size_t)i));
+        color[i] = json_array_size(c) == 3 && v >= 0 && v <= 255 ? (int)v : PALETTE[k % 10][i];
+    }
+}
+
 int model_rtstruct_check(const char *const *ids, const char *const *resources, int n, struct sf_err *err)
 {
     if (n < 1 || n > MODEL_RTSTRUCT_MAX_MODELS)
@@ -286,15 +298,8 @@ int model_rtstruct_set(const struct model_export *m, int n, const char *options,
             }
             break;
         }
-        json_t *color = json_object_get(r[k], "roi_display_color");
-        const char *name = str_of(r[k], "name"), *type = str_of(r[k], "rt_roi_interpreted_type");
-        roi[k].name = name ? name : "model";
         roi[k].number = k + 1;
-        roi[k].type = type ? type : type_by_name(roi[k].name);
-        for (int i = 0; i < 3; i++) {
-            json_int_t v = json_integer_value(json_array_get(color, (size_t)i));
-            roi[k].color[i] = json_array_size(color) == 3 && v >= 0 && v <= 255 ? (int)v : PALETTE[k % 10][i];
-        }
+        model_roi_look(r[k], k, &roi[k].name, roi[k].color, &roi[k].type);
         e.study_uid = e.study_uid ? e.study_uid : str_of(r[k], "study_instance_uid");
         e.frame_uid = e.frame_uid ? e.frame_uid : str_of(r[k], "frame_of_reference_uid");
         if (!images) { /* the first model's series: models of one frame were drawn on one series */

@@ -7,6 +7,7 @@
 // declared and the series' size was checked against; the slices are laid out by planes.h.
 #include "dcmtk_image.h"
 #include "dcmtk_in.h"
+#include "dicom_instance.h"
 #include "dicom_series.h"
 #include "planes.h"
 
@@ -101,6 +102,21 @@ int read_slice(DcmDataset *ds, int k, bool check_only, slice &sl, struct sf_err 
     return 0;
 }
 
+/* The first slice's series, study and frame of reference UIDs into out (each "" unless a UID). */
+void read_uids(DcmDataset *ds, struct series *out)
+{
+    const struct {
+        DcmTagKey tag;
+        char *to;
+    } UIDS[] = {{DCM_SeriesInstanceUID, out->series_uid}, {DCM_StudyInstanceUID, out->study_uid},
+                {DCM_FrameOfReferenceUID, out->frame_uid}};
+    for (const auto &u : UIDS) {
+        OFString v;
+        if (ds->findAndGetOFString(u.tag, v).good() && dicom_uid_valid(v.c_str()))
+            snprintf(u.to, 65, "%s", v.c_str());
+    }
+}
+
 } // namespace
 
 static int read_series(const struct part *parts, int n, bool check_only, size_t max_samples, int segment,
@@ -136,6 +152,8 @@ static int read_series(const struct part *parts, int n, bool check_only, size_t 
                          "image a part), or one multi-frame image (Enhanced CT or MR, RT Dose, Segmentation)");
         if (!rc)
             rc = read_slice(ff.getDataset(), k, check_only, sl[(size_t)k], err);
+        if (!rc && k == 0)
+            read_uids(ff.getDataset(), out);
         if (rc)
             return rc;
     }

@@ -978,6 +978,9 @@ static int read_series(const char *body, size_t len, const char *options, struct
     if (v->check_only && !s.typed) /* int16 or float32 is decided by the samples' rescaled values: the wider until then */
         v->g.type = ISO_F32;
     memcpy(v->axes, s.axes, sizeof s.axes);
+    memcpy(v->series_uid, s.series_uid, sizeof v->series_uid);
+    memcpy(v->study_uid, s.study_uid, sizeof v->study_uid);
+    memcpy(v->frame_uid, s.frame_uid, sizeof v->frame_uid);
     /* the reader kept each slice's position in range; here the grid's box */
     return check_turned_grid(v, &(struct grid_fields){"/parts", "ImagePositionPatient", "/parts",
                              "the spacing (PixelSpacing, between slices)", "/parts"}, err);

@@ -62,6 +62,7 @@ struct volume {
     struct volume_label *named; /* the labels the file names (n_named; values may repeat: the last wins) */
     int n_named, cap_named;
     char map_name[17];       /* a NIfTI's intent_name, naming its unnamed labels "NAME N" */
+    char series_uid[65], study_uid[65], frame_uid[65]; /* a DICOM series': its UIDs (dicom_series.h), else "" */
 };
 
 /* The body's format from its Content-Type on the volume routes (formats.h's table): "raw"

@@ -100,10 +100,183 @@ static int stored_model(struct contour_work *w, const struct job_rec *rec, char 
     return 0;
 }
 
+/* ---- DICOM SEG out (?format=seg on /rtstruct and /models/{id}/mesh, as=seg on send) ---- */
+
+struct instances {
+    char **sop, **meta;
+    int n, cap;
+    bool failed;
+};
+
+static void add_instance(const char *sop_uid, const char *meta, const void *data, size_t len, void *arg)
+{
+    (void)data, (void)len;
+    struct instances *in = arg;
+    if (in->failed)
+        return;
+    if (in->n == in->cap) {
+        int cap = in->cap ? 2 * in->cap : 64;
+        char **s = realloc(in->sop, sizeof *s * (size_t)cap), **m = s ? realloc(in->meta, sizeof *m * (size_t)cap) : NULL;
+        if (s)
+            in->sop = s;
+        if (m)
+            in->meta = m;
+        if (!s || !m) {
+            in->failed = true;
+            return;
+        }
+        in->cap = cap;
+    }
+    in->sop[in->n] = strdup(sop_uid);
+    in->meta[in->n] = strdup(meta ? meta : "{}");
+    in->failed = !in->sop[in->n] || !in->meta[in->n];
+    in->n++;
+}
+
+/* The grid a SEG of these models is made on (model_seg_grid): the first stored series one of them
+ * names (their CT, or the series an isosurface was made of) read from the store's instance rows,
+ * their pixels never read. g: the caller frees with seg_grid_free. */
+static int seg_grid_of(struct service *svc, const char *const *ids, const char *const *resources, int n,
+                       const char *options, struct seg_grid *g, struct sf_err *err)
+{
+    struct seg_grid ct = {0};
+    bool stored = false;
+    int rc = 0;
+    for (int k = 0; !rc && !stored && k < n; k++) {
+        char uid[65];
+        struct series_rec sr;
+        if (!model_seg_series(resources[k], uid) || store_series_get(svc->store, uid, NULL, &sr))
+            continue;
+        struct instances in = {0};
+        int got = store_series_instances(svc->store, uid, false, add_instance, &in);
+        if (got || in.failed)
+            rc = sf_fail(err, got ? got : SF_ENOMEM, "", got ? "the stored series %.64s could not be read" : "out of memory",
+                         uid);
+        else
+            rc = model_seg_series_grid(uid, sr.study_uid, (const char *const *)in.sop, (const char *const *)in.meta,
+                                       in.n, &ct, err);
+        stored = !rc;
+        for (int i = 0; i < in.n; i++)
+            free(in.sop[i]), free(in.meta[i]);
+        free(in.sop);
+        free(in.meta);
+    }
+    if (!rc)
+        rc = model_seg_grid(ids, resources, n, stored ? &ct : NULL, options, g, err);
+    seg_grid_free(&ct);
+    return rc;
+}
+
+/* The models of an export's request ("ID,ID,..."), each id into ids[k] and its source and
+ * resource from the store (the caller frees m[k].src and .resource, then m and ids). */
+static int export_models(struct contour_work *w, const char *list, size_t len, struct model_export **out,
+                         char (**out_ids)[40], int *n_out)
+{
+    const char *end = list + len;
+    int n = 1, rc = 0;
+    for (const char *c = list; c < end; c++)
+        n += *c == ',';
+    struct model_export *m = calloc((size_t)n, sizeof *m);
+    char(*ids)[40] = calloc((size_t)n, sizeof *ids);
+    if (!m || !ids)
+        rc = sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
+    for (int k = 0; !rc && k < n; k++) {
+        const char *comma = memchr(list, ',', (size_t)(end - list));
+        size_t l = (size_t)((comma ? comma : end) - list);
+        snprintf(ids[k], sizeof ids[k], "%.*s", (int)(l < 39 ? l : 39), list);
+        list += l + (comma != NULL);
+        m[k].id = ids[k];
+        if (store_model_get(w->job.svc->store, ids[k], NULL, (char **)&m[k].resource, (char **)&m[k].src, &m[k].len))
+            rc = sf_fail(&w->err, SF_EINVAL, n > 1 ? "?models" : "", "model %s is no longer stored", ids[k]);
+    }
+    *out = m, *out_ids = ids, *n_out = n;
+    return rc;
+}
+
+static void export_models_free(struct model_export *m, char (*ids)[40], int n)
+{
+    for (int k = 0; m && k < n; k++) {
+        free((char *)m[k].src);
+        free((char *)m[k].resource);
+    }
+    free(m);
+    free(ids);
+}
+
+/* The models a request lists as one DICOM Segmentation, a segment each, on the grid seg_grid_of
+ * chooses; named after its one model or its job, the grid's source in the meta (X-Seg-Grid). */
+static int make_seg(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
+{
+    struct model_export *m = NULL;
+    char(*ids)[40] = NULL;
+    int n = 0;
+    int rc = export_models(w, (const char *)rec->request, rec->request_len, &m, &ids, &n);
+    struct seg_grid g = {0};
+    const char **id_of = rc ? NULL : calloc((size_t)n, sizeof *id_of), **res = rc ? NULL : calloc((size_t)n, sizeof *res);
+    if (!rc && (!id_of || !res))
+        rc = sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
+    for (int k = 0; !rc && k < n; k++)
+        id_of[k] = ids[k], res[k] = m[k].resource;
+    if (!rc)
+        rc = seg_grid_of(w->job.svc, id_of, res, n, rec->options, &g, &w->err);
+    if (!rc)
+        rc = model_seg_set(m, n, &g, pr, (unsigned char **)&w->json, &w->len, &w->err);
+    w->type = "application/dicom";
+    snprintf(w->model, sizeof w->model, "%s", n == 1 && ids ? ids[0] : w->job.claim.id);
+    snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.dcm\",\"seg_grid\":\"%s\"}", w->model,
+             g.source ? g.source : "");
+    seg_grid_free(&g);
+    free(id_of);
+    free(res);
+    export_models_free(m, ids, n);
+    return rc;
+}
+
+/* Whether an export's options ask for a SEG: ?format=seg (rtstruct, the default, else refused) */
+static bool export_is_seg(const char *options) { char f[16]; query_option(options, "format", f, sizeof f); return !strcmp(f, "seg"); }
+
+/* What an export of the listed models (list, len: "ID,ID,...") would refuse before any work: its
+ * format, and for a SEG its grid and the grid's cap (seg_grid_of, on the checks pool: the store's
+ * rows alone). */
+static int export_validate(struct service *svc, const char *list, size_t len, const char *options, struct sf_err *err)
+{
+    char f[16];
+    query_option(options, "format", f, sizeof f);
+    if (f[0] && strcmp(f, "rtstruct") && strcmp(f, "seg"))
+        return sf_fail(err, SF_EINVAL, "?format", "format is rtstruct (an RT Structure Set, the default) or seg (a "
+                       "DICOM Segmentation)");
+    if (strcmp(f, "seg")) {
+        double spacing;
+        return model_rtstruct_options(options, &spacing, err);
+    }
+    struct contour_work w = {.job.svc = svc};
+    struct model_export *m = NULL;
+    char(*ids)[40] = NULL;
+    int n = 0;
+    int rc = export_models(&w, list, len, &m, &ids, &n);
+    const char **id_of = rc ? NULL : calloc((size_t)n, sizeof *id_of), **res = rc ? NULL : calloc((size_t)n, sizeof *res);
+    if (!rc && (!id_of || !res))
+        rc = sf_fail(&w.err, SF_ENOMEM, "", "out of memory");
+    for (int k = 0; !rc && k < n; k++)
+        id_of[k] = ids[k], res[k] = m[k].resource;
+    struct seg_grid g = {0};
+    if (!rc)
+        rc = seg_grid_of(svc, id_of, res, n, options, &g, &w.err);
+    seg_grid_free(&g);
+    free(id_of);
+    free(res);
+    export_models_free(m, ids, n);
+    if (rc)
+        *err = w.err;
+    return rc;
+}
+
 /* The models a request lists ("ID,ID,...": GET /rtstruct; one id: GET /models/{id}/rtstruct; the
  * route checked their owner and count) as one structure set, named after its one model or its job. */
 static int make_rtstruct(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
 {
+    if (export_is_seg(rec->options))
+        return make_seg(w, rec, pr);
     const char *list = (const char *)rec->request, *end = list + rec->request_len;
     int n = 1, rc = 0;
     for (const char *c = list; c < end; c++)
@@ -151,6 +324,8 @@ static int make_patches(struct contour_work *w, const struct job_rec *rec, const
 /* A mesh, and its file's name for the download: the model's id, the format's extension. */
 static int make_mesh(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
 {
+    if (export_is_seg(rec->options)) /* not cached (no key): its grid is a stored series' that may come or go */
+        return make_seg(w, rec, pr);
     char *src, *resource;
     size_t n;
     int rc = stored_model(w, rec, &src, &n, &resource);
@@ -172,9 +347,9 @@ static int make_mesh(struct contour_work *w, const struct job_rec *rec, const st
     return rc;
 }
 
-/* A model sent to a PACS (POST /models/{id}/send?pacs=NAME&as=rtstruct|dicom-stl, or several as one
- * structure set: POST /rtstruct/send?models=ID,...&pacs=NAME): the file made as
- * GET /models/{id}/rtstruct or /mesh?format=dicom-stl makes it, written to the data dir (0600) and
+/* A model sent to a PACS (POST /models/{id}/send?pacs=NAME&as=rtstruct|dicom-stl|seg, or several as
+ * one structure set: POST /rtstruct/send?models=ID,...&pacs=NAME): the file made as
+ * GET /models/{id}/rtstruct or /mesh?format=dicom-stl|seg makes it, written to the data dir (0600) and
  * sent by STOW-RS or C-STORE; the result is the PACS's status for it. A PACS down or refusing
  * fails the job (after dicomweb.h's or the association's bounded tries); a PACS that answers
  * says per instance whether it stored it. */
@@ -193,6 +368,9 @@ static int make_send(struct contour_work *w, const struct job_rec *rec, const st
     if (!strcmp(as, "dicom-stl")) {
         snprintf(made.options, sizeof made.options, "format=dicom-stl");
         rc = make_mesh(w, &made, pr);
+    } else if (!strcmp(as, "seg")) {
+        snprintf(made.options, sizeof made.options, "format=seg%s%s", spacing[0] ? "&spacing=" : "", spacing);
+        rc = make_seg(w, &made, pr);
     } else {
         snprintf(made.options, sizeof made.options, "%s%s", spacing[0] ? "spacing=" : "", spacing);
         rc = make_rtstruct(w, &made, pr);
@@ -345,17 +523,15 @@ static int model_validate_body(struct service *svc, struct job_body *b, struct s
 
 static int mesh_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
-    (void)svc;
     const char *format;
     double tol;
-    return model_mesh_options(b->options, &format, &tol, err);
+    int rc = model_mesh_options(b->options, &format, &tol, err);
+    return rc || strcmp(format, "seg") ? rc : export_validate(svc, b->body ? b->body : "", b->len, b->options, err);
 }
 
 static int rtstruct_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
-    (void)svc;
-    double spacing;
-    return model_rtstruct_options(b->options, &spacing, err);
+    return export_validate(svc, b->body ? b->body : "", b->len, b->options, err);
 }
 
 static int send_validate(struct service *svc, struct job_body *b, struct sf_err *err)
@@ -366,13 +542,17 @@ static int send_validate(struct service *svc, struct job_body *b, struct sf_err 
     pacs_names(svc, names, sizeof names);
     if (!pacs_find(svc, name))
         return sf_fail(err, SF_EINVAL, "?pacs", "no PACS named \"%.31s\": this node's are %s", name, names);
-    if (as[0] && strcmp(as, "rtstruct") && strcmp(as, "dicom-stl"))
-        return sf_fail(err, SF_EINVAL, "?as", "as is rtstruct (the default) or dicom-stl%s", strcmp(as, "seg") ? ""
-                       : " (a DICOM SEG is not written yet)");
+    if (as[0] && strcmp(as, "rtstruct") && strcmp(as, "dicom-stl") && strcmp(as, "seg"))
+        return sf_fail(err, SF_EINVAL, "?as", "as is rtstruct (the default), dicom-stl or seg");
     if (!strcmp(as, "dicom-stl") && b->body && memchr(b->body, ',', b->len))
         return sf_fail(err, SF_EINVAL, "?as", "dicom-stl sends one model's mesh: several models go as one rtstruct");
-    double spacing;
-    return strcmp(as, "dicom-stl") ? model_rtstruct_options(b->options, &spacing, err) : 0;
+    if (!strcmp(as, "dicom-stl"))
+        return 0;
+    /* the models' export as GET /rtstruct?models= or ?format=seg would make it, refused as they would */
+    char spacing[32], options[96];
+    query_option(b->options, "spacing", spacing, sizeof spacing);
+    snprintf(options, sizeof options, "format=%s%s%s", as[0] ? as : "rtstruct", spacing[0] ? "&spacing=" : "", spacing);
+    return export_validate(svc, b->body ? b->body : "", b->len, options, err); /* (the body: the models' ids) */
 }
 
 static int patches_validate(struct service *svc, struct job_body *b, struct sf_err *err)
@@ -394,7 +574,7 @@ const struct job_kind patches_kind = {.name = "patches", .validate = patches_val
                                       .work_size = sizeof(struct contour_work), .result = "application/json"};
 const struct job_kind mesh_kind = {
     .name = "mesh", .validate = mesh_validate, .ops = &MESH_OPS, .work_size = sizeof(struct contour_work),
-    .result = "model/stl, application/ply, model/obj, model/vnd.vtk.vtp+xml or model/vnd.vtk"};
+    .result = "model/stl, application/ply, model/obj, model/vnd.vtk.vtp+xml, model/vnd.vtk or application/dicom"};
 const struct job_kind send_kind = {.name = "send", .validate = send_validate, .ops = &SEND_OPS,
                                    .work_size = sizeof(struct contour_work), .result = "application/json"};
 const struct job_kind rtstruct_kind = {.name = "rtstruct", .validate = rtstruct_validate, .ops = &RTSTRUCT_OPS,

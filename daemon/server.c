@@ -122,7 +122,7 @@ struct reply {
     const char *type;
     char *body;                /* malloc'd, handed to MHD */
     size_t len;
-    const char *hdr[6][2];
+    const char *hdr[8][2];
 };
 
 /* ---- replies -------------------------------------------------------------------------- */
@@ -166,7 +166,7 @@ static enum MHD_Result send_reply(struct req *r, struct reply *rp)
     if (rp->type)
         MHD_add_response_header(resp, MHD_HTTP_HEADER_CONTENT_TYPE, rp->type);
     MHD_add_response_header(resp, "X-Content-Type-Options", "nosniff"); /* every answer, API and page alike */
-    for (int k = 0; k < 6 && rp->hdr[k][0]; k++)
+    for (int k = 0; k < 8 && rp->hdr[k][0]; k++)
         MHD_add_response_header(resp, rp->hdr[k][0], rp->hdr[k][1]);
     if (r->job[0])
         MHD_add_response_header(resp, "X-Job-Id", r->job);
@@ -298,6 +298,8 @@ static enum MHD_Result send_result(struct req *r, char *body, size_t len, const 
     const char *lo = meta ? strstr(meta, "\"location\":\"") : NULL;
     const char *fn = meta ? strstr(meta, "\"filename\":\"") : NULL; /* a mesh's download */
     const char *tl = meta ? strstr(meta, "\"tolerance_mm\":") : NULL; /* the mesh's chord tolerance */
+    const char *sg = meta ? strstr(meta, "\"seg_grid\":\"") : NULL; /* a SEG's grid: series, model or spacing */
+    char grid[16] = "";
     int h = 1;
     if (st)
         rp.status = atoi(st + 9);
@@ -313,6 +315,10 @@ static enum MHD_Result send_result(struct req *r, char *body, size_t len, const 
         snprintf(tol, sizeof tol, "%.*s", (int)strcspn(tl + 15, ",}"), tl + 15);
         rp.hdr[h][0] = "X-Mesh-Tolerance-Mm", rp.hdr[h++][1] = tol;
     }
+    if (sg)
+        snprintf(grid, sizeof grid, "%.*s", (int)strcspn(sg + 12, "\""), sg + 12);
+    if (grid[0])
+        rp.hdr[h][0] = "X-Seg-Grid", rp.hdr[h++][1] = grid;
     if (ms[0])
         rp.hdr[h][0] = "X-Render-Ms", rp.hdr[h++][1] = ms;
     if (rays[0])
