@@ -43,7 +43,7 @@ code=$(status GET "/models/$id/mesh?format=vtp"); cp "$T/body" "$T/crop.vtp"
 check "its VTP (VTK XML PolyData): read by VTK with the model's triangles, normals and volume, closed, named for download" '[ "$code" = 200 ] && [ "$(header Content-Type)" = model/vnd.vtk.vtp+xml ] && header Content-Disposition | grep -q "filename=\"$id.vtp\"" && vtk_same "$T/crop.vtp"'
 code=$(status GET "/models/$id/mesh?format=vtk"); cp "$T/body" "$T/crop.vtk"
 check "... and legacy VTK the same" '[ "$code" = 200 ] && vtk_same "$T/crop.vtk"'
-check "... a format it does not write: 422 at ?format naming the seven" '[ "$(status GET "/models/$id/mesh?format=off")" = 422 ] && grep -q "vtk, dicom-stl or seg" "$T/body"'
+check "... a format it does not write: 422 at ?format naming the eight" '[ "$(status GET "/models/$id/mesh?format=off")" = 422 ] && grep -q "vtk, dicom-stl, seg or delta" "$T/body"'
 check "... and PLY and OBJ" '[ "$(status GET "/models/$id/mesh?format=ply")" = 200 ] && head -c 3 "$T/body" | grep -q ply && [ "$(status GET "/models/$id/mesh?format=obj")" = 200 ] && grep -q "^f " "$T/body"'
 check "its /patches: 422 (a mesh has none)" '[ "$(status GET "/models/$id/patches")" = 422 ] && is_problem 422'
 code=$(status GET "/models/$id/render?width=320&height=240")

@@ -46,7 +46,7 @@ done
 $S model "$C/dicompyler-core_example_rtss.dcm" --mesh "$T/h.stl" >/dev/null 2>"$T/err"; rc=$?
 check "model --mesh of several ROIs asks for one" '[ $rc -eq 1 ] && grep -q "choose one with --roi" "$T/err"'
 $S model "$C/synthetic_bean.json" --mesh "$T/b.vrml" >/dev/null 2>"$T/err"; rc=$?
-check "model --mesh of an unknown format" '[ $rc -eq 1 ] && grep -q "stl, ply, obj, vtp, vtk, dicom-stl or seg" "$T/err"'
+check "model --mesh of an unknown format" '[ $rc -eq 1 ] && grep -q "stl, ply, obj, vtp, vtk, dicom-stl, seg or delta" "$T/err"'
 for m in linear-parabolic coons bspline; do
     $S volume "$C/dicompyler-core_example_rtss.dcm" --roi Heart --method $m >"$T/out" 2>"$T/err"
     check "volume --method $m" '[ $? -eq 0 ] && grep -q "\"method\":\"$m\"" "$T/out" && grep -q "\"volume_mm3\":4[0-9][0-9][0-9][0-9][0-9]" "$T/out"'
