@@ -60,6 +60,14 @@ check "POST /isosurface?series=UID: the mesh the same slices posted give (triang
 import json, sys
 a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
 sys.exit(0 if a[\"triangles\"] == b[\"triangles\"] > 0 and a[\"volume_mm3\"] == b[\"volume_mm3\"] and a[\"bounds\"] == b[\"bounds\"] else 1)" "$T/body" "$T/posted.json"'
+code=$(status POST "/matrix-model?iso=226.5&series=$SUID")
+cp "$T/body" "$T/mm.json"
+code2=$(status POST "/matrix-model?iso=226.5" $parts)
+check "POST /matrix-model?series=UID: the matrix model the same slices posted give" '[ "$code" = 200 ] && [ "$code2" = 200 ] && python3 -c "
+import json, sys
+a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+a.pop(\"timings_ms\", None), b.pop(\"timings_ms\", None)
+sys.exit(0 if a == b else 1)" "$T/mm.json" "$T/body"'
 code=$(status POST "/isosurface?iso=226.5&series=1.2.3.4")
 check "?series= a UID not stored: 422 at ?series" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?series\"" "$T/body"'
 code=$(status POST "/isosurface?iso=226.5&series=$SUID" -H 'Content-Type: application/dicom' --data-binary @"$DD/IM0001.dcm")

@@ -132,6 +132,20 @@ d = pydicom.dcmread(sys.argv[1])
 sys.exit(0 if d.Modality == \"RTSTRUCT\" and [r.ROIName for r in d.StructureSetROISequence] == [sys.argv[2]] else 1)" "$T/back.dcm" "$NAME"'
 code=$(status POST "/models/$MODEL/send?pacs=orthanc&as=dicom-stl")
 check "... as=dicom-stl: stored" '[ "$code" = 200 ] && [ "$(field instances 0 stored)" = True ]'
+if command -v dciodvfy >/dev/null; then
+    dciodvfy "$T/back.dcm" >"$T/vfy" 2>&1
+    check "the RT Structure Set read back out of Orthanc: dciodvfy finds no error" '! grep -q "^Error" "$T/vfy"'
+else
+    bad "no dciodvfy (deploy/install-deps.sh installs dicom3tools)"
+fi
+code=$(status POST "/models/$MODEL/send?pacs=orthanc&as=seg&spacing=2")
+SENT=$(field instances 0 sop_instance_uid)
+ID=$(orthanc_curl -s -X POST -d "$SENT" /tools/lookup | python3 -c "import json,sys; print(json.load(sys.stdin)[0]['ID'])" 2>/dev/null)
+orthanc_curl -s "/instances/$ID/file" >"$T/seg.dcm"
+check "... as=seg (?spacing=2: its CT is not stored): stored, Orthanc holds a Segmentation of its ROI" '[ "$code" = 200 ] && [ "$(field instances 0 stored)" = True ] && $PY -c "
+import pydicom, sys
+d = pydicom.dcmread(sys.argv[1])
+sys.exit(0 if d.Modality == \"SEG\" and [s.SegmentLabel for s in d.SegmentSequence] == [sys.argv[2]] else 1)" "$T/seg.dcm" "$NAME"'
 code=$(status POST "/models/$MODEL/send?pacs=orthanc-dimse")
 check "... to the DIMSE PACS (C-STORE): stored, status 0" '[ "$code" = 200 ] && [ "$(field instances 0 stored)" = True ] && [ "$(field instances 0 status)" = 0 ]'
 MODELS=$(python3 -c "import json,sys; print(','.join(m['id'] for m in json.load(open(sys.argv[1]))['models'][:3]))" "$T/models.json")
@@ -145,8 +159,8 @@ d = pydicom.dcmread(sys.argv[1])
 sys.exit(0 if len(d.StructureSetROISequence) == 3 else 1)" "$T/back3.dcm"'
 code=$(status POST "/rtstruct/send?models=$MODELS&pacs=orthanc&as=dicom-stl")
 check "... as=dicom-stl of several: 422 at ?as" '[ "$code" = 422 ] && pointer_is "?as"'
-code=$(status POST "/models/$MODEL/send?pacs=orthanc&as=seg")
-check "as=seg: 422 at ?as" '[ "$code" = 422 ] && pointer_is "?as"'
+code=$(status POST "/models/$MODEL/send?pacs=orthanc&as=nifti")
+check "as=nifti (not a DICOM object surfd sends): 422 at ?as" '[ "$code" = 422 ] && pointer_is "?as"'
 code=$(status POST "/models/$MODEL/send?pacs=nowhere")
 check "an unknown PACS: 422 at ?pacs" '[ "$code" = 422 ] && pointer_is "?pacs"'
 code=$(status POST "/models/$MODEL/send?pacs=down")
