@@ -1081,7 +1081,7 @@ def dicom_bench(lines, n=300):
         runs = {}
         for line in out.stdout.splitlines():
             k, _, v = line.partition(" ")
-            if k.startswith(("storescu", "orthanc", "wado")):
+            if k.startswith(("storescu", "orthanc", "wado", "cget")):
                 runs.setdefault(k, []).append(float(v))
         if not runs:
             lines.append("DICOM network bench failed (%s): %s\n" % (mode or "default", out.stderr.strip()[-300:]))
@@ -1097,7 +1097,8 @@ def dicom_bench(lines, n=300):
     lines.append("|---|---|---|")
     names = [("storescu_orthanc", "C-STORE: storescu -> Orthanc (peer)"), ("storescu_surfd", "C-STORE: storescu -> surfd's node"),
              ("orthanc_storescp", "C-STORE: Orthanc -> storescp (files only)"), ("orthanc_surfd", "C-STORE: Orthanc -> surfd's node"),
-             ("wado_curl", "WADO-RS: curl, the answer to one file"), ("wado_surfd", "WADO-RS: surfd's POST /series/pull (kept)")]
+             ("wado_curl", "WADO-RS: curl, the answer to one file"), ("wado_surfd", "WADO-RS: surfd's POST /series/pull (kept)"),
+             ("cget_surfd", "C-GET: surfd's POST /series/pull from Orthanc (kept)")]
     for key, label in names:
         cells = ["%.2f s, %.0f/s" % (rows[m][key], n / rows[m][key]) if key in rows.get(m, {}) else "-" for m in ("", "nodelay")]
         lines.append("| %s | %s |" % (label, " | ".join(cells)))

@@ -7,6 +7,7 @@
 #                                       storescp writing files, and to surfd's node
 #   wado_curl / wado_surfd              the series by WADO-RS: curl writing the answer to one file,
 #                                       and surfd's POST /series/pull keeping each instance
+#   cget_surfd                          surfd's POST /series/pull from Orthanc as a DIMSE PACS (C-GET)
 # Every receiver starts empty each time (surfd keeps each SOP Instance UID once: a resent series
 # would be no work). DCMTK (storescu, storescp, Orthanc's) leaves Nagle's algorithm on unless
 # TCP_NODELAY=1 is in its environment, and then waits on delayed ACKs instance by instance; surfd
@@ -22,7 +23,8 @@ DP=$(orthanc_free_port); SP=$(orthanc_free_port)
 orthanc_start "$T/orthanc" "SURFD@127.0.0.1:$DP" "STORESCP@127.0.0.1:$SP" "STORESCU@127.0.0.1:1" >/dev/null || exit 1
 printf 'STORESCU 127.0.0.1 1\nORTHANC 127.0.0.1 %s\n' "$ORTHANC_DICOM_PORT" >"$T/peers"
 start_daemon "$T/d" --dicom-listen "$DP" --dicom-peers "$T/peers" --log-level warn \
-    --pacs "orthanc=$ORTHANC_DICOMWEB" --pacs-credentials "orthanc=$ORTHANC_CREDENTIALS" >/dev/null || exit 1
+    --pacs "orthanc=$ORTHANC_DICOMWEB" --pacs-credentials "orthanc=$ORTHANC_CREDENTIALS" \
+    --pacs "orthanc-dimse=dicom://$ORTHANC_AET@127.0.0.1:$ORTHANC_DICOM_PORT" >/dev/null || exit 1
 now() { date +%s.%N; }
 took() { echo "$1 $(echo "$3 - $2" | bc)"; }
 clear_orthanc() { for id in $(orthanc_curl -s /studies | tr -d '[]",'); do orthanc_curl -s -X DELETE "/studies/$id" >/dev/null; done; }
@@ -45,6 +47,9 @@ for _ in $(seq "$REPEAT"); do
     clear_surfd; a=$(now); curl -s -o "$T/pull" -X POST "$URL/series/pull?pacs=orthanc&study=$STUDY&series=$SERIES"; b=$(now)
     grep -q "\"instances\":$N}" "$T/pull" || { echo "the pull kept other than $N: $(cat "$T/pull")" >&2; exit 1; }
     took wado_surfd "$a" "$b"
+    clear_surfd; a=$(now); curl -s -o "$T/pull" -X POST "$URL/series/pull?pacs=orthanc-dimse&study=$STUDY&series=$SERIES"; b=$(now)
+    grep -q "\"instances\":$N}" "$T/pull" || { echo "the C-GET kept other than $N: $(cat "$T/pull")" >&2; exit 1; }
+    took cget_surfd "$a" "$b"
 done
 echo "instances $N"
 echo "bytes $(du -sb "$T/ct" | cut -f1)"
