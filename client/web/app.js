@@ -280,6 +280,7 @@ async function view(list, add = false) {
   $("viewer").hidden = false;
   $("viewer").scrollIntoView({ block: "start" });
   $("gl").focus({ preventScroll: true });
+  $("download-state").textContent = ""; // the last download's name is not this view's
   state.inView = add ? state.inView.concat(list.filter((m) => !state.inView.some((x) => x.id === m.id))) : list.slice();
   downloadChoices();
   await v.open(list, { add });

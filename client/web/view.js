@@ -16,6 +16,7 @@ const FOV = 30;              // vertical, degrees: the same number goes to surfd
 const BACKGROUND = 0x20262e; // both pictures' (surfd's as linear RGB, below)
 const KEY_TURN = Math.PI / 24, KEY_ZOOM = 1.15, KEY_PAN = 40; // radians, factor, pixels a key press
 const EXACT_MAX_SIDE = 1600; // the exact render's longest side at most (pixels)
+const SCENE_MAX_PATCHES = 100000; // what one scene may hold (core/trace/scene.h, SCENE_MAX_OBJECTS): not asked beyond
 // The palette of models without an RT Structure Set colour (sRGB).
 const PALETTE = [[230, 159, 0], [86, 180, 233], [0, 158, 115], [240, 228, 66], [0, 114, 178], [213, 94, 0], [204, 121, 167]];
 
@@ -189,8 +190,8 @@ function keys(ev) {
   else if (turn) {
     if (turn[0]) controls.rotateLeft(turn[0] * KEY_TURN);
     else controls.rotateUp(turn[1] * KEY_TURN);
-  } else if (k === "+" || k === "=") controls.dollyIn(KEY_ZOOM);
-  else if (k === "-" || k === "_") controls.dollyOut(KEY_ZOOM);
+  } else if (k === "+" || k === "=") controls.dollyIn(1 / KEY_ZOOM); // (OrbitControls: a scale below 1 is nearer)
+  else if (k === "-" || k === "_") controls.dollyOut(1 / KEY_ZOOM);
   else if (k === "Home") reset();
   else return;
   ev.preventDefault();
@@ -227,6 +228,12 @@ function exactScene(w, h) {
 
 async function exact() {
   const my = serial, el = renderer.domElement;
+  const patches = [...models.values()].filter((m) => m.visible).reduce((n, m) => n + (m.res.patches || 0), 0);
+  if (patches > SCENE_MAX_PATCHES) {
+    caption("no exact render: the visible models have " + patches + " patches, more than the " + SCENE_MAX_PATCHES +
+      " one render takes; hide some (the WebGL view stays)");
+    return;
+  }
   let w = el.clientWidth, h = el.clientHeight;
   const k = Math.min(1, EXACT_MAX_SIDE / Math.max(w, h));
   w = Math.max(1, Math.round(w * k)), h = Math.max(1, Math.round(h * k));
