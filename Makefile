@@ -119,8 +119,21 @@ $(B)/gen/openapi.c: api/openapi.yaml
 $(B)/gen/openapi.o: $(B)/gen/openapi.c
 	$(CC) -c $< -o $@
 
-# the web page (client/web/), served at / and its files' names, compiled in (daemon/assets.h)
-WEB := client/web/index.html client/web/app.js client/web/style.css
+# the page's 3D view: client/web/view.js bundled with three.js by esbuild, both from npm at the
+# versions client/web/package-lock.json pins, installed into $(B)/web (none of their code in the
+# repository; the build needs the npm registry once, the running daemon never: client/web/README.md)
+WEB_NPM := $(B)/web/node_modules/.installed
+$(WEB_NPM): client/web/package.json client/web/package-lock.json
+	@mkdir -p $(B)/web
+	cp client/web/package.json client/web/package-lock.json $(B)/web/
+	cd $(B)/web && npm ci --no-audit --no-fund --loglevel=error
+	@touch $@
+$(B)/web/view.js: client/web/view.js client/web/mesh_delta.js $(WEB_NPM)
+	NODE_PATH=$(B)/web/node_modules $(B)/web/node_modules/.bin/esbuild client/web/view.js --bundle --minify \
+		--format=esm --target=es2020 --log-level=warning --outfile=$@
+
+# the web page (client/web/ and the bundle), served at / and its files' names, compiled in (daemon/assets.h)
+WEB := client/web/index.html client/web/app.js client/web/style.css $(B)/web/view.js
 $(B)/gen/web.c: $(WEB) Makefile
 	@mkdir -p $(@D)
 	@{ echo '#include "daemon/assets.h"'; k=0; for f in $(WEB); do \

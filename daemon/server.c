@@ -1207,6 +1207,7 @@ static const struct route {
     {"/", GET, true, web_asset, NULL},
     {"/app.js", GET, true, web_asset, NULL},
     {"/style.css", GET, true, web_asset, NULL},
+    {"/view.js", GET, true, web_asset, NULL}, /* the 3D view, three.js bundled in (client/web/README.md) */
     {"/livez", GET, true, livez, NULL},
     {"/readyz", GET, true, readyz, NULL},
     {"/version", GET, false, version, NULL},

@@ -2,7 +2,8 @@
 # Installs the Debian packages surfd builds, tests and benchmarks with. Idempotent: asks apt only
 # for what is missing, so `make run` and CI on a fresh machine call it unconditionally.
 # Usage: deploy/install-deps.sh [--bench]   (--bench adds the reference tools: povray, wrk, plastimatch, numpy)
-# npm (the machine's, or Debian's when there is none) installs the OpenAPI linter the tests use.
+# npm (the machine's, or Debian's when there is none) installs the page's three.js and esbuild for the build
+# (client/web/README.md) and the OpenAPI linter and playwright-core the tests use.
 set -eu
 
 BUILD="build-essential pkg-config libembree-dev libopenimageio-dev libmicrohttpd-dev libjansson-dev \
@@ -15,7 +16,7 @@ want="$BUILD"
 [ "${1:-}" = "--bench" ] && want="$want $BENCH"
 
 missing=""
-command -v npm >/dev/null 2>&1 || missing="npm" # tests/api/openapi_lint.sh installs @redocly/cli with it
+command -v npm >/dev/null 2>&1 || missing="npm" # the build (client/web) and tests/api/openapi_lint.sh use it
 for p in $want; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
 done

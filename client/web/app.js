@@ -1,13 +1,13 @@
 // app.js - the page at / (index.html): submits a file to the route the user picks as a job,
 // follows its progress (cancel on the way), lists the stored models with their volumes beside
-// the baselines, renders one and turns it, downloads its mesh, lists the jobs. Standard DOM and
-// fetch only; the bearer token lives in this tab's sessionStorage and goes in the Authorization
-// header, never in a URL.
+// the baselines, opens them in the 3D view (view.js, window.surfdView; /#models=ID,ID opens those),
+// downloads their meshes, lists the jobs. Standard DOM and fetch only; the bearer token lives in
+// this tab's sessionStorage and goes in the Authorization header, never in a URL.
 "use strict";
 
 const $ = (id) => document.getElementById(id);
 const TOKEN_KEY = "surfd.token";
-const state = { job: null, model: null, viewAbort: null, viewUrl: null, formats: [] };
+const state = { job: null, formats: [], inView: [] };
 
 // ---- requests ------------------------------------------------------------------------------
 
@@ -101,6 +101,7 @@ async function submit(ev) {
   const form = $("job-form"), file = $("file").files[0], route = $("route").value;
   if (!file) { $("file").focus(); return; }
   setError("");
+  $("progress-box").hidden = true; // the last job's "succeeded 100 %" is not this one's
   $("job-output").replaceChildren();
   $("go").disabled = true;
   try {
@@ -176,7 +177,8 @@ async function follow(job, route, fileName) {
   $("job-output").replaceChildren(...models.map(figures));
   if (route !== "volume") {
     await refreshModels();
-    if (models[0] && models[0].id) view(models[0]);
+    const stored = models.filter((m) => m.id);
+    if (stored.length) view(stored);
   }
 }
 
@@ -245,7 +247,8 @@ async function refreshModels() {
       cell(cm3(v.trapezoid), "num"), cell(cm3(v.cavalieri), "num"), cell(cm3(v.frustum), "num"),
       cell(m.triangles ? m.triangles + " triangles" : (m.patches || 0) + " patches", "num"));
     const td = document.createElement("td");
-    td.append(button("View", () => view(m), "View " + (m.name || m.id)),
+    td.append(button("View", () => view([m]), "View " + (m.name || m.id)),
+      button("Add", () => view([m], true), "Add " + (m.name || m.id) + " to the view"),
       button("Delete", () => remove(m), "Delete " + (m.name || m.id)));
     tr.append(td);
     return tr;
@@ -256,61 +259,70 @@ async function remove(m) {
   if (!confirm("Delete the model " + (m.name || m.id) + "?")) return;
   const r = await api("DELETE", "/models/" + m.id);
   if (!r.ok) setError(await problemOf(r));
-  if (state.model && state.model.id === m.id) { $("viewer").hidden = true; state.model = null; }
+  const v = await whenView();
+  v.close(m.id);
+  state.inView = state.inView.filter((x) => x.id !== m.id);
+  downloadChoices();
   refreshModels();
 }
 
-// ---- the viewer ------------------------------------------------------------------------------
+// ---- the 3D view (view.js) -------------------------------------------------------------------
 
-function view(m) {
-  state.model = m;
-  $("viewer").hidden = false;
-  $("viewer-name").textContent = m.name || m.id;
-  render();
+// The view module, once it has run (a module script runs after this one).
+function whenView() {
+  if (window.surfdView) return Promise.resolve(window.surfdView);
+  return new Promise((res) => window.addEventListener("surfdview", () => res(window.surfdView), { once: true }));
 }
 
-// Renders the model at the sliders' angles (a render job on the server); a newer view aborts an
-// older one still on its way.
-async function render() {
-  const m = state.model;
+// Opens model resources in the 3D view (added to what it shows with add), scrolled to and focused.
+async function view(list, add = false) {
+  const v = await whenView();
+  $("viewer").hidden = false;
+  $("viewer").scrollIntoView({ block: "start" });
+  $("gl").focus({ preventScroll: true });
+  $("download-state").textContent = ""; // the last download's name is not this view's
+  state.inView = add ? state.inView.concat(list.filter((m) => !state.inView.some((x) => x.id === m.id))) : list.slice();
+  downloadChoices();
+  await v.open(list, { add });
+}
+
+function downloadChoices() {
+  $("download-model").replaceChildren(...state.inView.map((m) => {
+    const o = document.createElement("option");
+    o.value = m.id;
+    o.textContent = m.name || m.id;
+    return o;
+  }));
+}
+
+// /#models=ID,ID: those models in the view (a bookmark, a link from a colleague).
+async function openFromAddress() {
+  const m = /^#models=([\w,.-]+)$/.exec(location.hash);
   if (!m) return;
-  if (state.viewAbort) state.viewAbort.abort();
-  const ctl = new AbortController();
-  state.viewAbort = ctl;
-  const w = Math.max(160, Math.min(1024, Math.round($("view").parentElement.clientWidth || 640)));
-  const h = Math.round(w * 3 / 4);
-  const q = new URLSearchParams({ width: w, height: h, azimuth: $("azimuth").value, elevation: $("elevation").value });
-  $("view-caption").textContent = "rendering…";
-  const t0 = performance.now();
-  try {
-    const r = await api("GET", "/models/" + m.id + "/render?" + q, { signal: ctl.signal });
-    if (!r.ok) { $("view-caption").textContent = await problemOf(r); return; }
-    const url = URL.createObjectURL(await r.blob());
-    if (state.viewUrl) URL.revokeObjectURL(state.viewUrl);
-    state.viewUrl = url;
-    $("view").src = url;
-    $("view").width = w;
-    $("view").height = h;
-    $("view").dataset.azimuth = $("azimuth").value;
-    const ms = r.headers.get("X-Render-Ms");
-    $("view-caption").textContent = "azimuth " + $("azimuth").value + "°, elevation " + $("elevation").value + "°: "
-      + Math.round(performance.now() - t0) + " ms" + (ms ? " (tracing " + Math.round(+ms) + " ms)" : "");
-  } catch (e) {
-    if (e.name !== "AbortError") $("view-caption").textContent = String(e);
+  const v = await whenView();
+  const ids = m[1].split(",").filter((x) => x);
+  if (ids.join(",") === v.ids().join(",")) return;
+  const found = [], missing = [];
+  for (const id of ids) {
+    const r = await api("GET", "/models/" + encodeURIComponent(id));
+    if (r.ok) found.push(await r.json());
+    else missing.push(id + " (" + (await problemOf(r)) + ")");
   }
+  if (found.length) await view(found);
+  if (missing.length) setError("not opened: " + missing.join(", "));
 }
 
 async function download() {
-  const m = state.model, fmt = $("mesh-format").value;
+  const m = state.inView.find((x) => x.id === $("download-model").value), fmt = $("mesh-format").value;
   if (!m) return;
-  $("view-caption").textContent = fmt === "rtstruct" ? "cutting the structure set…" : "meshing…";
+  $("download-state").textContent = fmt === "rtstruct" ? "cutting the structure set…" : "meshing…";
   const r = await api("GET", "/models/" + m.id + (fmt === "rtstruct" ? "/rtstruct" : "/mesh?format=" + fmt));
-  if (!r.ok) { $("view-caption").textContent = await problemOf(r); return; }
+  if (!r.ok) { $("download-state").textContent = await problemOf(r); return; }
   const a = $("download-link");
   a.href = URL.createObjectURL(await r.blob());
   a.download = (m.name || m.id).replace(/[^\w.-]+/g, "_") + "." + (fmt === "rtstruct" || fmt === "dicom-stl" ? "dcm" : fmt);
   a.click();
-  $("view-caption").textContent = "downloaded " + a.download;
+  $("download-state").textContent = "downloaded " + a.download;
 }
 
 // ---- jobs ------------------------------------------------------------------------------------
@@ -362,10 +374,8 @@ async function start() {
   });
   $("job-form").addEventListener("submit", submit);
   $("cancel").addEventListener("click", cancel);
-  for (const id of ["azimuth", "elevation"]) {
-    $(id).addEventListener("input", () => { $(id + "-out").textContent = $(id).value; });
-    $(id).addEventListener("change", render); // on release (and on each key step)
-  }
+  whenView().then((v) => v.init({ api, problemOf }));
+  window.addEventListener("hashchange", openFromAddress);
   $("download").addEventListener("click", download);
   $("models-refresh").addEventListener("click", refreshModels);
   $("jobs-refresh").addEventListener("click", refreshJobs);
@@ -381,6 +391,7 @@ async function refreshAll() {
   }
   await loadFormats();
   await Promise.all([refreshModels(), refreshJobs()]);
+  await openFromAddress();
 }
 
 start();

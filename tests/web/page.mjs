@@ -1,17 +1,22 @@
 // page.mjs - the web page driven as a person would, in Debian's headless Chromium through
 // playwright-core (nothing downloaded): load /, upload a contour file, wait for the job, read the
-// volume shown against the API's, see the render, turn it by keyboard, download the STL and the
-// RT Structure Set. Prints
+// volume shown against the API's, see the model in the 3D view (WebGL: SwiftShader) with as many
+// triangles as the API's mesh, the exact render arrive over it lined up with it, turn it by
+// dragging and by keys, zoom with the wheel, download the STL and the RT Structure Set; without a
+// token also an RT Structure Set's ROIs together in their colours, keyboard-only use, a
+// /#models= link and the mesh delta's apply function on hand-made deltas. Prints
 // "PASS: ..." / "FAIL: ..." lines (tests/web/page.sh counts them); screenshots into SHOTS.
-// Environment: URL, CONTOURS (a contour JSON), SHOTS (a directory), TOKEN (optional), NODE_PATH.
+// Environment: URL, CONTOURS (a contour JSON), RTSS (an RT Structure Set), SHOTS (a directory),
+// TOKEN (optional), NODE_PATH.
 import { createRequire } from "node:module";
+import fs from "node:fs";
 import path from "node:path";
 
 // playwright-core lives in build/npm (NODE_PATH), which ES modules do not search: required from there
 const require = createRequire(path.resolve(process.env.NODE_PATH || "build/npm/node_modules") + "/");
 const { chromium } = require("playwright-core");
 
-const { URL: base, CONTOURS, SHOTS, TOKEN = "" } = process.env;
+const { URL: base, CONTOURS, RTSS, SHOTS, TOKEN = "" } = process.env;
 const tag = TOKEN ? "token" : "open";
 let failures = 0;
 const check = (name, ok, detail = "") => {
@@ -20,13 +25,168 @@ const check = (name, ok, detail = "") => {
 };
 const auth = TOKEN ? { Authorization: "Bearer " + TOKEN } : {};
 
-const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--no-sandbox"] });
+// The API's triangle count of a model: the n_added of its whole mesh delta (API.md).
+async function apiTriangles(id) {
+  const r = await fetch(base + "/models/" + id + "/mesh?format=delta&since=0", { headers: auth });
+  const b = Buffer.from(await r.arrayBuffer());
+  return r.ok && b.toString("latin1", 0, 4) === "SFMD" ? b.readUInt32LE(16) : -1;
+}
+
+// An RT Structure Set through the form: every ROI a model, all in the 3D view in their colours;
+// the exact render of too many patches refused and said so, of fewer lined up; keyboard-only use;
+// a /#models= link; the mesh delta's apply function on hand-made deltas and on a drawn model.
+async function structures(page, { view, frame, dist, lineUp, exactArrives }) {
+  await page.setInputFiles("#file", RTSS);
+  check("an RT Structure Set picks POST /model", (await page.inputValue("#route")) === "model");
+  await page.click("#go");
+  await page.waitForFunction(() => document.querySelectorAll("#job-output dl").length > 1, null, { timeout: 300000 });
+  const n = await page.locator("#job-output dl").count();
+  await page.waitForFunction((k) => { const v = window.surfdView.stats(); return v.models.length === k && v.models.every((m) => m.triangles > 0); },
+    n, { timeout: 300000 });
+  let v = await view();
+  const want = [];
+  for (const m of v.models) want.push(await apiTriangles(m.id));
+  check("every ROI (" + n + ") is in the 3D view, each drawn with the API's triangles",
+    v.models.length === n && n >= 5 && v.meshes === n && v.models.every((m, k) => m.triangles === want[k] && m.drawn === want[k]),
+    JSON.stringify(v.models.map((m) => [m.name, m.triangles])) + " vs " + want);
+  const heart = v.models.find((m) => m.name === "Heart"), bed = v.models.find((m) => m.name === "Tumor Bed");
+  check("... in their RT Structure Set colours (the Heart #ff8000)", heart && heart.color === "#ff8000" && bed && bed.color === "#ff0000",
+    JSON.stringify(v.models.map((m) => [m.name, m.color])));
+  check("... each listed with its visibility and opacity", (await page.locator("#layers li input[type=checkbox]").count()) === n &&
+    (await page.locator("#layers li input[type=range]").count()) === n);
+  check("the address names the models (/#models=)", (await page.evaluate(() => location.hash)) === "#models=" + v.models.map((m) => m.id).join(","));
+  await page.screenshot({ path: SHOTS + "/6-structures-webgl.png" });
+  // all of them are more patches than one scene may hold: the page says so and stays on WebGL
+  await page.waitForFunction(() => document.getElementById("view-caption").textContent.startsWith("no exact render"), null, { timeout: 180000 });
+  check("the exact render of too many patches is refused and said so", (await page.textContent("#view-caption")).includes("100000") &&
+    (await view()).showing === "webgl", await page.textContent("#view-caption"));
+  // the large ones hidden, the rest render exactly
+  const s0 = (await view()).serial;
+  for (const name of ["BODY", "Lt Lung", "Breast"]) {
+    const m = v.models.find((x) => x.name === name);
+    if (m) await page.uncheck("#vis-" + m.id);
+  }
+  v = await view();
+  check("hidden models are not drawn", v.meshes === v.models.filter((m) => m.visible).length && v.meshes < n, JSON.stringify(v));
+  await exactArrives(s0);
+  const lu = await lineUp();
+  check("the exact render of the visible ROIs arrives, lined up with the WebGL frame", lu.covered > 0.002 && lu.iou > 0.85, JSON.stringify(lu));
+  await page.screenshot({ path: SHOTS + "/7-structures-exact.png" });
+
+  // keyboard only: View by Enter, then arrows, shift+arrows, + and -, Home, Tab to the toggle
+  const row = page.locator("#models-table tbody tr", { hasText: "Heart" }).first();
+  await row.locator("button", { hasText: "View" }).focus();
+  await page.keyboard.press("Enter");
+  await page.waitForFunction(() => { const v = window.surfdView.stats(); return v.models.length === 1 && v.models[0].triangles > 0; }, null, { timeout: 120000 });
+  check("Enter on View opens the model alone, the view focused", (await page.evaluate(() => document.activeElement.id)) === "gl");
+  const home = (await view()).camera;
+  await page.keyboard.press("ArrowLeft");
+  const k1 = (await view()).camera;
+  check("an arrow key turns", JSON.stringify(k1.eye) !== JSON.stringify(home.eye) && JSON.stringify(k1.target) === JSON.stringify(home.target));
+  await page.keyboard.press("+");
+  const k2 = (await view()).camera;
+  check("+ zooms in", dist(k2) < 0.95 * dist(k1), dist(k1) + " -> " + dist(k2));
+  await page.keyboard.press("-");
+  await page.keyboard.press("-");
+  check("- zooms out", dist((await view()).camera) > dist(k2) * 1.2);
+  await page.keyboard.press("Shift+ArrowRight");
+  const k3 = (await view()).camera;
+  check("shift+arrow pans", JSON.stringify(k3.target) !== JSON.stringify(k1.target));
+  await page.keyboard.press("Home");
+  const k4 = (await view()).camera;
+  check("Home comes back to the first view", k4.eye.every((x, k) => Math.abs(x - home.eye[k]) < 1e-3 * dist(home)) &&
+    k4.target.every((x, k) => Math.abs(x - home.target[k]) < 1e-3 * dist(home)), JSON.stringify([home, k4]));
+  const ring = await page.evaluate(() => getComputedStyle(document.activeElement).outlineStyle);
+  check("the focused view shows its focus", ring !== "none", ring);
+  await page.keyboard.press("Tab");
+  check("Tab goes from the view to the exact toggle", (await page.evaluate(() => document.activeElement.id)) === "exact-toggle");
+  await page.keyboard.press("Space");
+  check("Space turns the exact render off", (await page.getAttribute("#exact-toggle", "aria-pressed")) === "false" && (await view()).showing === "webgl");
+  await page.keyboard.press("Space");
+
+  // the mesh delta: hand-made deltas through MeshSlots, then one onto the drawn Heart
+  const r = await page.evaluate(() => {
+    const { MeshSlots, encodeDelta, decodeDelta } = window.surfdView.test;
+    const T = (z) => [0, 0, z, 1, 0, z, 0, 1, z], out = {};
+    const s = new MeshSlots(2);
+    s.apply(decodeDelta(encodeDelta(0, 1, [], [[10, T(0)], [11, T(1)], [12, T(2)]])));
+    out.added = s.count === 3 && s.version === 1 && s.capacity >= 3;
+    const res = s.apply(decodeDelta(encodeDelta(1, 2, [10], [[13, T(3)], [12, T(5)]])));
+    out.applied = s.count === 3 && s.version === 2 && res.removed === 1 && res.added === 2 && s.corners(10) === null &&
+      s.corners(13)[2] === 3 && s.corners(12)[2] === 5 && s.corners(11)[2] === 1;
+    let packed = s.slotOf.size === s.count;
+    for (let k = 0; k < s.count; k++) packed = packed && s.slotOf.get(s.idOf[k]) === k;
+    out.packed = packed;
+    out.normal = Math.abs(s.normal[9 * s.slotOf.get(13) + 2] - 1) < 1e-6;
+    const throws = (f) => { try { f(); return false; } catch (e) { return true; } };
+    out.wrongBase = throws(() => s.apply(decodeDelta(encodeDelta(1, 3, [], []))));
+    out.short = throws(() => decodeDelta(new ArrayBuffer(19))) && throws(() => decodeDelta(encodeDelta(0, 1, [], [[1, T(0)]]).slice(0, 50)));
+    return out;
+  });
+  check("a hand-made delta adds triangles to the slots (growing them)", r.added);
+  check("a second delta removes one, adds one and replaces one", r.applied);
+  check("the slots stay packed, every id at its slot", r.packed);
+  check("an added triangle has its face normal", r.normal);
+  check("a delta from another version is refused", r.wrongBase);
+  check("a truncated delta is refused", r.short);
+  const one = (await view()).models[0];
+  const after = await page.evaluate((id) => {
+    const { encodeDelta } = window.surfdView.test;
+    const out = window.surfdView.applyDelta(id, encodeDelta(1, 2, [0, 1, 2], [[9999999, [0, -300, -50, 10, -300, -50, 0, -300, -40]]]));
+    return { out, m: window.surfdView.stats().models[0] };
+  }, one.id);
+  check("a delta onto the drawn model removes and adds in place", after.m.triangles === one.triangles - 2 && after.m.drawn === one.triangles - 2 &&
+    after.out.removed === 3 && !after.out.grown, JSON.stringify([one.triangles, after]));
+
+  // a link opens those models (bookmarkable), in a new tab
+  const ids = v.models.filter((m) => ["Heart", "Tumor Bed"].includes(m.name)).map((m) => m.id);
+  const tab = await page.context().newPage();
+  await tab.goto(base + "/#models=" + ids.join(","));
+  await tab.waitForFunction((k) => window.surfdView && window.surfdView.stats().models.filter((m) => m.triangles > 0).length === k, ids.length, { timeout: 120000 });
+  const t = await tab.evaluate(() => window.surfdView.stats());
+  check("/#models=ID,ID opens those models", t.models.map((m) => m.id).join(",") === ids.join(",") && t.meshes === ids.length, JSON.stringify(t.models));
+  await tab.screenshot({ path: SHOTS + "/8-link-1280x800.png" });
+  await tab.close();
+  await frame();
+}
+
+// WebGL in headless Chromium: SwiftShader (software), asked for explicitly
+const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--no-sandbox", "--enable-unsafe-swiftshader"] });
 try {
   const context = await browser.newContext({ viewport: { width: 1280, height: 800 }, acceptDownloads: true });
   const page = await context.newPage();
   const errors = [];
   page.on("console", (m) => { if (m.type() === "error") errors.push(m.text()); });
   page.on("pageerror", (e) => errors.push(String(e)));
+  const outside = []; // requests that leave the daemon's origin (none may)
+  page.on("request", (q) => {
+    const u = new URL(q.url());
+    if ((u.protocol === "http:" || u.protocol === "https:" || u.protocol === "ws:") && u.origin !== new URL(base).origin) outside.push(q.url());
+  });
+  const view = () => page.evaluate(() => window.surfdView.stats());
+  const frame = () => page.evaluate(() => new Promise((res) => requestAnimationFrame(() => requestAnimationFrame(res))));
+  const glPixels = async () => { await frame(); return page.evaluate(() => document.getElementById("gl").toDataURL()); };
+  const dist = (c) => Math.hypot(...c.eye.map((x, k) => x - c.target[k]));
+  // The exact picture against the WebGL frame under it: the pixels each covers (not the background)
+  // and how well the two silhouettes overlap (intersection over union).
+  const lineUp = () => page.evaluate(() => {
+    const img = document.getElementById("exact"), gl = document.getElementById("gl"), w = img.naturalWidth, h = img.naturalHeight;
+    const mask = (src) => {
+      const c = document.createElement("canvas");
+      c.width = w, c.height = h;
+      const g = c.getContext("2d");
+      g.drawImage(src, 0, 0, w, h);
+      const d = g.getImageData(0, 0, w, h).data, m = new Uint8Array(w * h);
+      for (let i = 0; i < w * h; i++) m[i] = Math.abs(d[4 * i] - 0x20) + Math.abs(d[4 * i + 1] - 0x26) + Math.abs(d[4 * i + 2] - 0x2e) > 40;
+      return m;
+    };
+    const a = mask(img), b = mask(gl);
+    let both = 0, either = 0, na = 0;
+    for (let i = 0; i < w * h; i++) both += a[i] & b[i], either += a[i] | b[i], na += a[i];
+    return { covered: na / (w * h), iou: either ? both / either : 0, w, h, cw: gl.clientWidth, ch: gl.clientHeight };
+  });
+  const exactArrives = (after) => page.waitForFunction((s) => { const v = window.surfdView.stats(); return v.showing === "exact" && v.exactSerial > s; },
+    after, { timeout: 180000 });
 
   if (TOKEN) { // first without the token: the page says it needs one
     await page.goto(base + "/");
@@ -61,23 +221,63 @@ try {
   await page.screenshot({ path: SHOTS + "/2-model-" + tag + ".png" });
   const shown = (await page.textContent("#job-output dd.volume")).replace(/[^0-9.]/g, "");
   const id = await page.getAttribute("#models-table tbody tr", "data-id");
+  fs.writeFileSync(SHOTS + "/model-" + tag + ".id", id); // page.sh checks its STL against its volume
   const api = await (await fetch(base + "/models/" + id, { headers: auth })).json();
   check("the volume on the page is the API's", shown === (api.volume_mm3 / 1000).toFixed(3), shown + " vs " + api.volume_mm3);
   check("the models table lists the model with its baselines",
     (await page.textContent("#models-table tbody tr")).includes((api.volume.cavalieri / 1000).toFixed(3)));
 
-  await page.waitForFunction(() => document.getElementById("view").naturalWidth > 0, null, { timeout: 120000 });
-  const first = await page.getAttribute("#view", "src");
-  await page.screenshot({ path: SHOTS + "/3-rendered-" + tag + ".png" });
-  check("the model's render appears", first && first.startsWith("blob:"));
+  // the 3D view opens on the new model: its mesh as the API has it
+  await page.waitForFunction(() => window.surfdView && window.surfdView.stats().models.some((m) => m.triangles > 0), null, { timeout: 120000 });
+  let v = await view();
+  const tri = await apiTriangles(id);
+  check("the 3D view draws the model with the API's triangles", v.models.length === 1 && v.models[0].id === id &&
+    v.models[0].triangles === tri && v.models[0].drawn === tri && v.meshes === 1, JSON.stringify(v.models) + " vs " + tri);
+  check("the view is WebGL", v.webgl >= 1);
+  check("the page scrolled to the view", await page.evaluate(() => { const r = document.getElementById("viewer").getBoundingClientRect(); return r.top >= -2 && r.top < 200; }));
+  await exactArrives(0);
+  let lu = await lineUp();
+  check("at rest surfd's exact render arrives, not blank", lu.covered > 0.002, JSON.stringify(lu));
+  check("... as large as the WebGL view", lu.w === lu.cw && lu.h === lu.ch, JSON.stringify(lu));
+  check("... and lined up with the WebGL frame (same camera)", lu.iou > 0.9, JSON.stringify(lu));
+  await page.screenshot({ path: SHOTS + "/3-view-exact-" + tag + ".png" });
 
-  await page.focus("#azimuth");
-  for (let k = 0; k < 3; k++) await page.keyboard.press("ArrowRight");
-  await page.waitForFunction(() => document.getElementById("view").dataset.azimuth === "45", null, { timeout: 120000 });
-  check("turned by keyboard: a new view at azimuth 45", (await page.getAttribute("#view", "src")) !== first);
-  const focusRing = await page.evaluate(() => getComputedStyle(document.activeElement).outlineStyle);
-  check("the focused control shows its focus", focusRing !== "none", focusRing);
+  // drag to turn: the exact picture gives way to WebGL frames that change
+  await page.click("#exact-toggle"); // off: the canvas alone
+  const before = await glPixels();
+  const box = await page.locator("#gl").boundingBox();
+  const cx = box.x + box.width / 2, cy = box.y + box.height / 2;
+  v = await view();
+  await page.mouse.move(cx, cy);
+  await page.mouse.down();
+  await page.mouse.move(cx + 160, cy + 40, { steps: 8 });
+  await page.mouse.up();
+  const turned = await view();
+  check("a drag turns the camera", JSON.stringify(turned.camera.eye) !== JSON.stringify(v.camera.eye) &&
+    Math.abs(dist(turned.camera) - dist(v.camera)) < 1e-3 * dist(v.camera), JSON.stringify([v.camera, turned.camera]));
+  check("... and the WebGL canvas's pixels change", (await glPixels()) !== before);
   await page.screenshot({ path: SHOTS + "/4-turned-" + tag + ".png" });
+  await page.click("#exact-toggle"); // on again
+  check("the toggle is one click each way", (await page.getAttribute("#exact-toggle", "aria-pressed")) === "true");
+  const s0 = (await view()).serial;
+  await page.mouse.move(cx, cy);
+  await page.mouse.down();
+  await page.mouse.move(cx - 60, cy, { steps: 4 });
+  check("while moving the WebGL frame shows", (await view()).showing === "webgl");
+  await page.mouse.up();
+  await exactArrives(s0);
+  lu = await lineUp();
+  check("after the drag the exact render comes back, lined up", lu.covered > 0.002 && lu.iou > 0.9, JSON.stringify(lu));
+
+  // zoom with the wheel: nearer, and the scale bar's millimetres shrink with it
+  const far = await view(), mmBefore = +(await page.getAttribute("#scale", "data-mm")) / +(await page.getAttribute("#scale", "data-px"));
+  await page.mouse.move(cx, cy);
+  await page.mouse.wheel(0, -400);
+  await frame();
+  const near = await view(), mmAfter = +(await page.getAttribute("#scale", "data-mm")) / +(await page.getAttribute("#scale", "data-px"));
+  check("the wheel zooms in", dist(near.camera) < 0.95 * dist(far.camera), dist(far.camera) + " -> " + dist(near.camera));
+  check("... and the scale bar follows (mm per pixel)", Math.abs(mmAfter / mmBefore - dist(near.camera) / dist(far.camera)) < 0.02,
+    mmBefore + " -> " + mmAfter);
 
   await page.selectOption("#mesh-format", "stl");
   const [dl] = await Promise.all([page.waitForEvent("download", { timeout: 120000 }), page.click("#download")]);
@@ -92,12 +292,17 @@ try {
   await page.waitForFunction(() => document.querySelectorAll("#jobs-table tbody tr").length > 0);
   check("the job list shows the jobs", (await page.textContent("#jobs-table tbody")).includes("succeeded"));
 
+  if (!TOKEN) await structures(page, { view, frame, dist, lineUp, exactArrives });
+
   await page.setViewportSize({ width: 800, height: 1180 }); // a tablet, upright
   const wide = await page.evaluate(() => document.documentElement.scrollWidth);
   check("at tablet width nothing runs off the side", wide <= 800, "scroll width " + wide);
   await page.screenshot({ path: SHOTS + "/5-tablet-" + tag + ".png", fullPage: true });
 
+  await page.evaluate(() => document.getElementById("viewer").scrollIntoView());
+  await page.screenshot({ path: SHOTS + "/9-view-800-" + tag + ".png" });
   check("no console errors", errors.length === 0, errors.join(" | "));
+  check("no request left the daemon's origin", outside.length === 0, outside.slice(0, 5).join(" "));
 } catch (e) {
   check("the page ran through", false, String(e));
 } finally {

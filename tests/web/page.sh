@@ -1,6 +1,7 @@
 #!/bin/sh
-# The web page at / in a real browser (issue 19): tests/web/page.mjs against the real daemon, open
+# The web page at / in a real browser (issues 19, 46): tests/web/page.mjs against the real daemon, open
 # and then with a token required; each downloaded STL is checked closed with the model's volume.
+# The 3D view's WebGL runs on Chromium's SwiftShader (software), so no GPU is needed.
 # Needs Debian's chromium (deploy/install-deps.sh) and playwright-core from npm, installed into
 # build/npm on first use. Screenshots stay in build/web-shots for a person to look at.
 . "$(dirname "$0")/../api/lib.inc"
@@ -8,24 +9,26 @@ PLAYWRIGHT_VERSION=1.65.1
 N=build/npm
 SHOTS=build/web-shots
 C="${SURFD_DATA:-../shared/data}/contours/synthetic_ellipsoid.json"
+RS="${SURFD_DATA:-../shared/data}/contours/dicompyler-core_example_rtss.dcm" # 9 ROIs with contours, in their colours
 mkdir -p "$SHOTS"
+rm -f "$SHOTS"/model-*.id
 if [ ! -d "$N/node_modules/playwright-core" ]; then
     mkdir -p "$N"
     npm install --silent --no-audit --no-fund --prefix "$N" "playwright-core@$PLAYWRIGHT_VERSION" >"$N/playwright.log" 2>&1 ||
         bad "npm could not install playwright-core@$PLAYWRIGHT_VERSION"
 fi
 [ -x /usr/bin/chromium ] || bad "no /usr/bin/chromium (deploy/install-deps.sh installs it)"
-[ -f "$C" ] || bad "../shared/data/contours not found"
+[ -f "$C" ] && [ -f "$RS" ] || bad "../shared/data/contours not found"
 run_page() { # run_page TAG [TOKEN]
     tag=$1
-    NODE_PATH="$N/node_modules" URL="$URL" CONTOURS="$C" SHOTS="$SHOTS" TOKEN="${2:-}" \
+    NODE_PATH="$N/node_modules" URL="$URL" CONTOURS="$C" RTSS="$RS" SHOTS="$SHOTS" TOKEN="${2:-}" \
         node tests/web/page.mjs >"$T/page.out" 2>&1
     while IFS= read -r line; do
         case $line in PASS:*) ok ;; FAIL:*) bad "${line#FAIL: }" ;; esac
     done <"$T/page.out"
     grep -q "^PASS:\|^FAIL:" "$T/page.out" || { bad "page.mjs did not run:"; tail -5 "$T/page.out"; }
-    code=$(status GET "/models" ${2:+-H "Authorization: Bearer $2"})
-    vol=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['models'][0]['volume_mm3'])" "$T/body" 2>/dev/null)
+    code=$(status GET "/models/$(cat "$SHOTS/model-$tag.id" 2>/dev/null)" ${2:+-H "Authorization: Bearer $2"})
+    vol=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['volume_mm3'])" "$T/body" 2>/dev/null)
     check "the page's STL ($tag) is closed, with the model's volume" 'python3 tests/tools/stl_check.py "$SHOTS/model-$tag.stl" "$vol" >/dev/null'
     check "the page's RT Structure Set ($tag) is DICOM" '[ "$(dd if="$SHOTS/model-$tag.dcm" bs=1 skip=128 count=4 2>/dev/null)" = DICM ]'
 }

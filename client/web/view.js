@@ -1,0 +1,434 @@
+// view.js - the page's 3D view (index.html's #viewer): stored models drawn with three.js from
+// their binary mesh delta, turned, zoomed and panned with mouse, touch and keys around DICOM
+// patient axes (LPS: +x left, +y posterior, +z superior), and replaced by surfd's exact render of
+// the same camera when the view rests. Bundled with three.js by esbuild into build/web/view.js
+// (client/web/README.md); app.js calls it through window.surfdView once the module has run. It
+// never fetches anything but the daemon's own routes, through app.js's api().
+import {
+  AmbientLight, BoxGeometry, BufferAttribute, BufferGeometry, CanvasTexture, Color, DirectionalLight, DoubleSide, Mesh,
+  MeshBasicMaterial, MeshPhongMaterial, PerspectiveCamera, Scene, Sphere, SRGBColorSpace, Vector3, WebGLRenderer,
+} from "three";
+import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+import { decodeDelta, encodeDelta, MeshSlots } from "./mesh_delta.js";
+
+const REST_MS = 400;         // the view at rest this long: ask for the exact render
+const FOV = 30;              // vertical, degrees: the same number goes to surfd's camera
+const BACKGROUND = 0x20262e; // both pictures' (surfd's as linear RGB, below)
+const KEY_TURN = Math.PI / 24, KEY_ZOOM = 1.15, KEY_PAN = 40; // radians, factor, pixels a key press
+const EXACT_MAX_SIDE = 1600; // the exact render's longest side at most (pixels)
+const SCENE_MAX_PATCHES = 100000; // what one scene may hold (core/trace/scene.h, SCENE_MAX_OBJECTS): not asked beyond
+// The palette of models without an RT Structure Set colour (sRGB).
+const PALETTE = [[230, 159, 0], [86, 180, 233], [0, 158, 115], [240, 228, 66], [0, 114, 178], [213, 94, 0], [204, 121, 167]];
+
+const $ = (id) => document.getElementById(id);
+const ctx = { api: null, problemOf: null };
+const models = new Map(); // id -> {res, slots, geom, mesh, color: Color (linear), visible, opacity}
+let renderer, axes, scene, camera, controls, cubeScene, cubeCamera;
+let serial = 0, restTimer = 0, exactAbort = null, exactOn = true, exactShown = false, frames = 0, drawPending = false;
+
+// ---- requests --------------------------------------------------------------------------------
+
+// A job route's answer: the body when it ends within the server's wait, else the job followed
+// (GET /jobs/ID until it ends) and its result fetched. Rejects with the problem's text.
+async function result(method, path, opts = {}) {
+  let r = await ctx.api(method, path, opts);
+  if (r.status === 202) {
+    const loc = r.headers.get("Location") || "/jobs/" + (await r.json()).id;
+    for (let wait = 100; ; wait = Math.min(1000, wait * 1.5)) {
+      await new Promise((res) => setTimeout(res, wait));
+      if (opts.signal && opts.signal.aborted) {
+        ctx.api("POST", loc + "/cancel").catch(() => {});
+        throw new DOMException("aborted", "AbortError");
+      }
+      const j = await ctx.api("GET", loc, { signal: opts.signal });
+      if (!j.ok) throw new Error(await ctx.problemOf(j));
+      const job = await j.json();
+      if (job.state === "succeeded") break;
+      if (job.state === "failed" || job.state === "cancelled") throw new Error(job.error ? job.error.detail || job.error.title : job.state);
+    }
+    r = await ctx.api("GET", loc + "/result", { signal: opts.signal });
+  }
+  if (!r.ok) throw new Error(await ctx.problemOf(r));
+  return r;
+}
+
+// ---- the scene -------------------------------------------------------------------------------
+
+function colourOf(res, k) {
+  const c = Array.isArray(res.roi_display_color) && res.roi_display_color.length === 3 ? res.roi_display_color : PALETTE[k % PALETTE.length];
+  return new Color().setRGB(c[0] / 255, c[1] / 255, c[2] / 255, SRGBColorSpace); // kept linear
+}
+
+function letterTexture(text) {
+  const c = document.createElement("canvas");
+  c.width = c.height = 128;
+  const g = c.getContext("2d");
+  g.fillStyle = "#dfe6ee";
+  g.fillRect(0, 0, 128, 128);
+  g.strokeStyle = "#5a6270";
+  g.lineWidth = 6;
+  g.strokeRect(3, 3, 122, 122);
+  g.fillStyle = "#1b1f24";
+  g.font = "bold 80px system-ui, sans-serif";
+  g.textAlign = "center";
+  g.textBaseline = "middle";
+  g.fillText(text, 64, 68);
+  const t = new CanvasTexture(c);
+  t.colorSpace = SRGBColorSpace;
+  return t;
+}
+
+// The orientation cube, on a canvas of its own over both pictures: its faces named by the patient
+// side they face (BoxGeometry's face order +x, -x, +y, -y, +z, -z; LPS: +x left, +y posterior, +z
+// superior).
+function makeCube() {
+  axes = new WebGLRenderer({ canvas: $("axes"), antialias: true, alpha: true });
+  axes.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+  cubeScene = new Scene();
+  const cube = new Mesh(new BoxGeometry(1, 1, 1), ["L", "R", "P", "A", "S", "I"].map((s) => new MeshBasicMaterial({ map: letterTexture(s) })));
+  cubeScene.add(cube);
+  cubeCamera = new PerspectiveCamera(FOV, 1, 0.1, 10);
+}
+
+function init(opts) {
+  ctx.api = opts.api;
+  ctx.problemOf = opts.problemOf;
+  const canvas = $("gl");
+  renderer = new WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+  renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+  renderer.setClearColor(BACKGROUND);
+  scene = new Scene();
+  camera = new PerspectiveCamera(FOV, 4 / 3, 0.1, 1e5);
+  camera.up.set(0, 0, 1); // superior up, before the controls read it
+  scene.add(camera);
+  // surfd's default lights, in the camera's frame: a key light from the upper left behind the
+  // viewer (0.85) and a head light (0.25), ambient 0.12 (core/trace/render.c)
+  const key = new DirectionalLight(0xffffff, 0.85 * Math.PI);
+  key.position.set(-0.6, 0.9, 0.7);
+  const head = new DirectionalLight(0xffffff, 0.25 * Math.PI);
+  head.position.set(0, 0, 1);
+  camera.add(key, key.target, head, head.target);
+  scene.add(new AmbientLight(0xffffff, 0.12 * Math.PI));
+  makeCube();
+  controls = new OrbitControls(camera, canvas);
+  controls.addEventListener("change", moved);
+  canvas.addEventListener("keydown", keys);
+  new ResizeObserver(resize).observe($("stage"));
+  $("exact-toggle").addEventListener("click", () => setExact(!exactOn));
+  $("view-reset").addEventListener("click", () => { reset(); canvas.focus(); });
+  resize();
+}
+
+function resize() {
+  const s = $("stage"), w = s.clientWidth, h = s.clientHeight;
+  if (!w || !h) return;
+  renderer.setSize(w, h, true);
+  const c = Math.round(Math.max(48, Math.min(96, w / 6)));
+  axes.setSize(c, c, true);
+  camera.aspect = w / h;
+  camera.updateProjectionMatrix();
+  moved();
+}
+
+// Draws one WebGL frame: the models, then the orientation cube in the lower right corner.
+function draw() {
+  const w = renderer.domElement.clientWidth, h = renderer.domElement.clientHeight;
+  const d = camera.position.distanceTo(controls.target), r = radius();
+  camera.near = Math.max(d - 2 * r, d / 1000, 1e-3);
+  camera.far = d + 2 * r;
+  camera.updateProjectionMatrix();
+  renderer.render(scene, camera);
+  cubeCamera.position.set(0, 0, 3.2).applyQuaternion(camera.quaternion);
+  cubeCamera.quaternion.copy(camera.quaternion);
+  axes.render(cubeScene, cubeCamera);
+  frames++;
+  scaleBar(d, h);
+}
+
+// A bar of a round length in mm, as long as that is at the centre of turning.
+function scaleBar(d, h) {
+  const mmPerPx = (2 * d * Math.tan((FOV * Math.PI) / 360)) / h;
+  const want = 120 * mmPerPx, p = Math.pow(10, Math.floor(Math.log10(want)));
+  const mm = [5, 2, 1].map((k) => k * p).find((x) => x <= want) || p;
+  const bar = $("scale");
+  bar.querySelector("span").style.width = Math.round(mm / mmPerPx) + "px";
+  bar.querySelector("b").textContent = (mm >= 1 ? mm.toFixed(0) : mm.toPrecision(1)) + " mm";
+  bar.dataset.mm = mm;
+  bar.dataset.px = (mm / mmPerPx).toFixed(1);
+}
+
+// The bounding sphere of the visible models (of all when none is visible).
+function bounds() {
+  const s = new Sphere();
+  let any = false;
+  for (const m of models.values()) {
+    if (!m.geom || (!m.visible && [...models.values()].some((x) => x.visible))) continue;
+    if (!m.geom.boundingSphere) m.geom.computeBoundingSphere();
+    if (!any) s.copy(m.geom.boundingSphere), any = true;
+    else s.union(m.geom.boundingSphere);
+  }
+  return any ? s : new Sphere(new Vector3(), 100);
+}
+
+function radius() { return Math.max(bounds().radius, 1e-3); }
+
+// Frames the visible models from the patient's front, a little from the right and above
+// (superior up); Home and "Reset view" come back here.
+function reset() {
+  const s = bounds(), d = (1.15 * s.radius) / Math.sin((FOV * Math.PI) / 360);
+  controls.target.copy(s.center);
+  camera.position.copy(s.center).add(new Vector3(-0.35, -1, 0.3).normalize().multiplyScalar(d));
+  camera.up.set(0, 0, 1);
+  controls.update();
+  moved();
+}
+
+// Keyboard: arrows turn, shift+arrows pan, + and - zoom, Home resets (the canvas has the focus).
+function keys(ev) {
+  const k = ev.key, turn = { ArrowLeft: [1, 0], ArrowRight: [-1, 0], ArrowUp: [0, 1], ArrowDown: [0, -1] }[k];
+  if (turn && ev.shiftKey) controls.pan(-turn[0] * KEY_PAN, turn[1] * KEY_PAN);
+  else if (turn) {
+    if (turn[0]) controls.rotateLeft(turn[0] * KEY_TURN);
+    else controls.rotateUp(turn[1] * KEY_TURN);
+  } else if (k === "+" || k === "=") controls.dollyIn(1 / KEY_ZOOM); // (OrbitControls: a scale below 1 is nearer)
+  else if (k === "-" || k === "_") controls.dollyOut(1 / KEY_ZOOM);
+  else if (k === "Home") reset();
+  else return;
+  ev.preventDefault();
+  controls.update();
+}
+
+// ---- the exact render at rest -----------------------------------------------------------------
+
+// The camera moved (or the models or the size changed): a WebGL frame now, the exact picture
+// hidden and asked for again once nothing has moved for REST_MS.
+function moved() {
+  serial++;
+  if (exactAbort) exactAbort.abort(), exactAbort = null;
+  clearTimeout(restTimer);
+  showExact(false);
+  if (!renderer) return;
+  if (!drawPending) drawPending = true, requestAnimationFrame(() => { drawPending = false; draw(); });
+  if (exactOn && [...models.values()].some((m) => m.visible && m.geom)) restTimer = setTimeout(exact, REST_MS);
+  else caption(models.size ? (exactOn ? "" : "WebGL view (exact render off)") : "");
+}
+
+function vec(v) { return [v.x, v.y, v.z].map((x) => +x.toPrecision(9)); }
+
+// The same camera for surfd (API.md §Scene: fov vertical, up orthogonal to the view): the picture
+// lines up with the WebGL frame pixel for pixel.
+function exactScene(w, h) {
+  const up = new Vector3().setFromMatrixColumn(camera.matrixWorld, 1);
+  const bg = new Color(BACKGROUND);
+  const objects = [...models.values()].filter((m) => m.visible && m.geom)
+    .map((m) => ({ type: "model", id: m.res.id, material: { color: [m.color.r, m.color.g, m.color.b].map((x) => +x.toFixed(5)) } }));
+  return { image: { width: w, height: h, background: [bg.r, bg.g, bg.b].map((x) => +x.toFixed(5)) },
+    camera: { eye: vec(camera.position), target: vec(controls.target), up: vec(up), fov_deg: FOV }, objects };
+}
+
+async function exact() {
+  const my = serial, el = renderer.domElement;
+  const patches = [...models.values()].filter((m) => m.visible).reduce((n, m) => n + (m.res.patches || 0), 0);
+  if (patches > SCENE_MAX_PATCHES) {
+    caption("no exact render: the visible models have " + patches + " patches, more than the " + SCENE_MAX_PATCHES +
+      " one render takes; hide some (the WebGL view stays)");
+    return;
+  }
+  let w = el.clientWidth, h = el.clientHeight;
+  const k = Math.min(1, EXACT_MAX_SIDE / Math.max(w, h));
+  w = Math.max(1, Math.round(w * k)), h = Math.max(1, Math.round(h * k));
+  const ctl = new AbortController();
+  exactAbort = ctl;
+  caption("exact render…");
+  const t0 = performance.now();
+  try {
+    const body = JSON.stringify(exactScene(w, h));
+    const r = await result("POST", "/render", { body, type: "application/json", signal: ctl.signal });
+    const blob = await r.blob();
+    if (my !== serial) return;
+    const img = $("exact"), url = URL.createObjectURL(blob);
+    await new Promise((res, rej) => { img.onload = res; img.onerror = () => rej(new Error("the exact render is not an image")); img.src = url; });
+    if (img.dataset.url) URL.revokeObjectURL(img.dataset.url);
+    img.dataset.url = url;
+    if (my !== serial) return;
+    img.dataset.serial = my;
+    showExact(true);
+    const ms = r.headers.get("X-Render-Ms");
+    caption("exact render: " + Math.round(performance.now() - t0) + " ms" + (ms ? " (tracing " + Math.round(+ms) + " ms)" : ""));
+  } catch (e) {
+    if (e.name !== "AbortError" && my === serial) caption("no exact render: " + e.message + " (the WebGL view stays)");
+  } finally {
+    if (exactAbort === ctl) exactAbort = null;
+  }
+}
+
+function showExact(on) {
+  exactShown = on && exactOn;
+  $("exact").hidden = !exactShown;
+  $("stage").dataset.showing = exactShown ? "exact" : "webgl";
+}
+
+function setExact(on) {
+  exactOn = on;
+  const b = $("exact-toggle");
+  b.setAttribute("aria-pressed", String(on));
+  b.textContent = on ? "Exact at rest: on" : "Exact at rest: off";
+  moved();
+}
+
+function caption(text) { $("view-caption").textContent = text; }
+
+// ---- models ------------------------------------------------------------------------------------
+
+// Loads a model's whole mesh (since=0) into its slots and the GPU.
+async function load(m) {
+  const r = await result("GET", "/models/" + m.res.id + "/mesh?format=delta&since=0");
+  const d = decodeDelta(await r.arrayBuffer());
+  m.slots = new MeshSlots(Math.max(1, d.ids.length));
+  m.slots.apply(d);
+  upload(m, true);
+}
+
+// The slots into the model's geometry: new attributes when they grew, else the changed range.
+function upload(m, fresh, changed) {
+  const s = m.slots;
+  if (fresh || !m.geom) {
+    if (m.geom) m.geom.dispose();
+    m.geom = new BufferGeometry();
+    m.geom.setAttribute("position", new BufferAttribute(s.position, 3));
+    m.geom.setAttribute("normal", new BufferAttribute(s.normal, 3));
+    if (!m.mesh) {
+      m.mesh = new Mesh(m.geom, new MeshPhongMaterial({ color: m.color, specular: 0x4d4d4d, shininess: 40, side: DoubleSide }));
+      scene.add(m.mesh);
+    } else m.mesh.geometry = m.geom;
+  } else if (changed && changed[1] > changed[0]) {
+    for (const a of [m.geom.attributes.position, m.geom.attributes.normal]) {
+      a.clearUpdateRanges();
+      a.addUpdateRange(9 * changed[0], 9 * (changed[1] - changed[0]));
+      a.needsUpdate = true;
+    }
+  }
+  m.geom.setDrawRange(0, 3 * s.count);
+  m.geom.boundingSphere = null;
+  style(m);
+}
+
+// A later delta onto a loaded model (issue 45's edits): removals and additions in place.
+function applyDelta(id, buf) {
+  const m = models.get(id);
+  if (!m || !m.slots) throw new Error("model " + id + " is not in the view");
+  const out = m.slots.apply(decodeDelta(buf));
+  upload(m, out.grown, out.changed);
+  moved();
+  return out;
+}
+
+function style(m) {
+  if (!m.mesh) return;
+  m.mesh.visible = m.visible;
+  m.mesh.material.opacity = m.opacity;
+  m.mesh.material.transparent = m.opacity < 1;
+  m.mesh.material.depthWrite = m.opacity >= 1;
+  m.mesh.renderOrder = m.opacity < 1 ? 1 : 0;
+}
+
+// Opens these model resources in the view (replacing what it showed unless add), loads their
+// meshes, frames them and names them in the page's address (#models=ID,ID).
+async function open(list, { add = false } = {}) {
+  if (!add) {
+    for (const m of models.values()) if (m.mesh) scene.remove(m.mesh), m.geom.dispose(), m.mesh.material.dispose();
+    models.clear();
+  }
+  const fresh = [];
+  for (const res of list) {
+    if (models.has(res.id)) continue;
+    const m = { res, slots: null, geom: null, mesh: null, color: colourOf(res, models.size), visible: true, opacity: 1 };
+    models.set(res.id, m);
+    fresh.push(m);
+  }
+  $("viewer").hidden = false;
+  $("viewer-name").textContent = [...models.values()].map((m) => m.res.name || m.res.id).join(", ");
+  history.replaceState(null, "", "#models=" + [...models.keys()].join(","));
+  layers();
+  moved();
+  caption("loading " + fresh.length + " mesh" + (fresh.length === 1 ? "" : "es") + "…");
+  const failed = [];
+  await Promise.all(fresh.map((m) => load(m).catch((e) => failed.push((m.res.name || m.res.id) + ": " + e.message))));
+  for (const m of fresh) if (!m.geom && models.get(m.res.id) === m) models.delete(m.res.id);
+  layers();
+  reset();
+  if (failed.length) caption("could not load " + failed.join("; "));
+  return failed;
+}
+
+// The list of models in the view: each with its colour, visibility and opacity.
+function layers() {
+  const ul = $("layers");
+  ul.replaceChildren(...[...models.values()].map((m) => {
+    const li = document.createElement("li"), name = m.res.name || m.res.id;
+    li.dataset.id = m.res.id;
+    const sw = document.createElement("span");
+    sw.className = "swatch";
+    sw.style.background = "#" + m.color.getHexString(SRGBColorSpace);
+    const vis = document.createElement("input");
+    vis.type = "checkbox";
+    vis.checked = m.visible;
+    vis.id = "vis-" + m.res.id;
+    vis.addEventListener("change", () => { m.visible = vis.checked; style(m); moved(); });
+    const lab = document.createElement("label");
+    lab.htmlFor = vis.id;
+    lab.textContent = name + (m.slots ? " (" + m.slots.count + " triangles)" : " (loading)");
+    const op = document.createElement("input");
+    op.type = "range", op.min = "0", op.max = "1", op.step = "0.05", op.value = String(m.opacity);
+    op.setAttribute("aria-label", "Opacity of " + name);
+    op.addEventListener("input", () => { m.opacity = +op.value; style(m); moved(); });
+    li.append(vis, sw, lab, op);
+    return li;
+  }));
+}
+
+// Takes a model out of the view (deleted, say).
+function close(id) {
+  const m = models.get(id);
+  if (!m) return;
+  if (m.mesh) scene.remove(m.mesh), m.geom.dispose(), m.mesh.material.dispose();
+  models.delete(id);
+  history.replaceState(null, "", models.size ? "#models=" + [...models.keys()].join(",") : location.pathname);
+  if (!models.size) $("viewer").hidden = true;
+  layers();
+  moved();
+}
+
+function ids() { return [...models.keys()]; }
+
+// ---- the read-only test hook and the bench ----------------------------------------------------
+
+function stats() {
+  return {
+    models: [...models.values()].map((m) => ({ id: m.res.id, name: m.res.name || "", triangles: m.slots ? m.slots.count : 0,
+      drawn: m.mesh ? m.geom.drawRange.count / 3 : 0, visible: m.visible, opacity: m.opacity,
+      color: "#" + m.color.getHexString(SRGBColorSpace) })),
+    meshes: scene ? scene.children.filter((o) => o.isMesh && o.visible).length : 0,
+    showing: exactShown ? "exact" : "webgl", exactSerial: +($("exact").dataset.serial || 0), serial, frames,
+    camera: { eye: vec(camera.position), target: vec(controls.target), fov: camera.fov, aspect: camera.aspect },
+    webgl: renderer ? (renderer.capabilities.isWebGL2 ? 2 : 1) : 0,
+  };
+}
+
+// Frames a second while the view turns a little every frame for ms milliseconds.
+function bench(ms = 3000) {
+  return new Promise((res) => {
+    const t0 = performance.now();
+    let n = 0;
+    const step = (t) => {
+      controls.rotateLeft(0.02);
+      n++;
+      if (t - t0 < ms) requestAnimationFrame(step);
+      else res({ fps: (1000 * n) / (t - t0), frames: n, ms: t - t0 });
+    };
+    requestAnimationFrame(step);
+  });
+}
+
+window.surfdView = { init, open, close, ids, applyDelta, stats, bench, reset, test: { decodeDelta, encodeDelta, MeshSlots } };
+window.dispatchEvent(new Event("surfdview"));
