@@ -20,7 +20,7 @@ static json_t *doubles(const double *v, int n)
 
 char *instance_meta(const struct dicom_instance *in)
 {
-    json_t *o = json_pack("{s:s, s:i, s:i, s:I}", "sop_class", in->sop_class, "rows", (json_int_t)in->rows, "columns",
+    json_t *o = json_pack("{s:s, s:I, s:I, s:I}", "sop_class", in->sop_class, "rows", (json_int_t)in->rows, "columns",
                           (json_int_t)in->columns, "frames", (json_int_t)in->frames);
     if (o && in->frame_uid[0])
         json_object_set_new(o, "frame_of_reference_uid", json_string(in->frame_uid));

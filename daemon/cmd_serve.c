@@ -253,6 +253,7 @@ int cmd_serve(int argc, char **argv)
     /* libcurl's and DCMTK's global state before any thread; the PACS named (their URLs and
      * credentials checked now: a wrong one stops the start, not a pull an hour later) */
     dimse_global_init();
+    dicom_leftovers_remove(svc.cfg.data_dir);
     if (dicomweb_global_init() || pacs_open_all(&svc, &err)) {
         fprintf(stderr, "surfd serve: %s\n", err.message[0] ? err.message : "libcurl would not start");
         goto out;

@@ -5,6 +5,7 @@
 
 #include <arpa/inet.h>
 #include <ctype.h>
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <netdb.h>
@@ -92,6 +93,41 @@ int dicom_peers_read(const char *path, struct dimse_peer **peers, int *n, struct
         *peers = NULL, *n = 0;
     }
     return rc;
+}
+
+/* ---- what a stop leaves ---- */
+
+void dicom_dir_empty(const char *dir)
+{
+    DIR *d = opendir(dir);
+    struct dirent *e;
+    char path[1024];
+    while (d && (e = readdir(d)))
+        if (e->d_name[0] != '.') {
+            snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+            unlink(path);
+        }
+    if (d)
+        closedir(d);
+    rmdir(dir);
+}
+
+void dicom_leftovers_remove(const char *data_dir)
+{
+    char path[1024];
+    snprintf(path, sizeof path, "%s/spool", data_dir);
+    dicom_dir_empty(path);
+    DIR *d = opendir(data_dir);
+    struct dirent *e;
+    while (d && (e = readdir(d))) {
+        snprintf(path, sizeof path, "%s/%s", data_dir, e->d_name);
+        if (!strncmp(e->d_name, "pull-", 5))
+            dicom_dir_empty(path);
+        else if (!strncmp(e->d_name, "send-", 5))
+            unlink(path);
+    }
+    if (d)
+        closedir(d);
 }
 
 /* ---- an instance arrives ---- */

@@ -24,6 +24,13 @@ int dicom_instance_keep(struct service *svc, char *data, size_t len, const char 
 /* The file at path's bytes (NULL when it is over max bytes or unreadable; malloc'ed, *len). */
 char *dicom_file_read(const char *path, size_t max, size_t *len);
 
+/* Removes dir's files and dir (one level: a pull's or the spool). */
+void dicom_dir_empty(const char *dir);
+/* What a process stopped mid-work (kill -9) left in the data dir: instances arriving (spool/),
+ * pulled (pull-JOB/) or being sent (send-JOB.dcm), not yet blanked or kept; at start, before any
+ * job runs (a pull or send run again writes them anew). */
+void dicom_leftovers_remove(const char *data_dir);
+
 struct dicom_node;
 /* Starts the node when cfg.dicom_listen is set (else 0 and *out NULL). 0, or an error said in err. */
 int dicom_node_start(struct service *svc, struct dicom_node **out, struct sf_err *err);

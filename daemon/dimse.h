@@ -74,6 +74,7 @@ void dimse_scp_stop(struct dimse_scp *s);
 #define DIMSE_CONNECT_TIMEOUT_S 5 /* a TCP connection: a PACS on the LAN answers in ms; DCMTK keeps
                                    * this one value for the process, so every SCU call uses it */
 #define DIMSE_QUERY_TIMEOUT_S 30  /* association and silence between two C-FIND responses */
+#define DIMSE_SEARCH_TOTAL_S 30   /* a whole C-FIND: it holds a checks thread (GET /pacs/{name}/studies) */
 #define DIMSE_GET_TIMEOUT_S 60    /* silence in a C-GET: a PACS may fetch from its archive first */
 #define DIMSE_MAX_MATCHES 10000   /* C-FIND matches kept (then a C-CANCEL): QIDO's limit at most */
 #define DIMSE_MAX_ANSWER (16u << 20) /* the C-FIND answer's JSON (dicomweb.h's cap) */

@@ -19,11 +19,13 @@
 #include "dimse.h"
 
 #include <atomic>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <mutex>
 #include <sstream>
+#include <pthread.h>
 #include <string>
 #include <thread>
 #include <climits>
@@ -97,6 +99,15 @@ class NodeSCP : public DcmThreadSCP {
         return DcmThreadSCP::handleIncomingCommand(msg, info); /* refused as not supported */
     }
 
+    /* DCMTK 3.6.7's pool makes a joinable thread for each association and never joins it (fixed
+     * upstream in 2025, not in Debian's): each would keep its stack. Detached as its association
+     * ends, the thread's resources go with it. */
+    void notifyAssociationTermination() override
+    {
+        DcmThreadSCP::notifyAssociationTermination();
+        pthread_detach(pthread_self());
+    }
+
     void notifyRECEIVEProgress(const unsigned long bytes) override
     {
         if (bytes > node->max_bytes && !over_) {
@@ -131,6 +142,7 @@ struct dimse_scp {
     DcmSCPPool<NodeSCP> pool;
     node_config cfg;
     std::thread listener;
+    std::atomic<bool> listening{true};
 };
 
 extern "C" int dimse_scp_start(const struct dimse_config *c, struct dimse_scp **out, struct sf_err *err)
@@ -178,7 +190,10 @@ extern "C" int dimse_scp_start(const struct dimse_config *c, struct dimse_scp **
         return sf_fail(err, SF_EIO, NULL, "the DICOM port %d cannot be listened on: %s", c->port, bound.text());
     }
     ASC_dropNetwork(&probe);
-    s->listener = std::thread([s] { s->pool.listen(); });
+    s->listener = std::thread([s] {
+        s->pool.listen();
+        s->listening = false;
+    });
     *out = s;
     return 0;
 }
@@ -187,7 +202,12 @@ extern "C" void dimse_scp_stop(struct dimse_scp *s)
 {
     if (!s)
         return;
-    s->pool.stopAfterCurrentAssociations();
+    /* listen() sets its run mode as it starts: a stop asked before then would be lost, so it is
+     * asked again until the listener is out (it wakes each second: the connection timeout) */
+    while (s->listening) {
+        s->pool.stopAfterCurrentAssociations();
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
     if (s->listener.joinable())
         s->listener.join();
     node = nullptr;
@@ -348,8 +368,11 @@ class FindSCU : public PacsSCU {
     using PacsSCU::PacsSCU;
     std::string json = "[";
     long skip = 0, limit = DIMSE_MAX_MATCHES, kept = 0;
-    bool cancelled = false, too_long = false;
+    bool cancelled = false, too_long = false, too_slow = false;
     Uint16 status = 0;
+    /* the whole search's end: a PACS dripping a match every 29 s would keep a checks thread forever */
+    std::chrono::steady_clock::time_point deadline =
+        std::chrono::steady_clock::now() + std::chrono::seconds(DIMSE_SEARCH_TOTAL_S);
 
   protected:
     OFCondition handleFINDResponse(const T_ASC_PresentationContextID pc, QRResponse *r, OFBool &wait) override
@@ -376,7 +399,8 @@ class FindSCU : public PacsSCU {
             else
                 json += (kept++ ? "," : "") + one.str();
         }
-        if ((kept >= limit || too_long) && wait) {
+        too_slow = too_slow || std::chrono::steady_clock::now() > deadline;
+        if ((kept >= limit || too_long || too_slow) && wait) {
             sendCANCELRequest(pc); /* the PACS ends with a Cancel status; later matches are not kept */
             cancelled = true;
         }
@@ -478,6 +502,9 @@ extern "C" int dimse_find(const struct dimse_peer *peer, const char *our_ae, enu
         if (scu.too_long)
             return sf_fail(err, SF_ELIMIT, NULL, "the PACS %s matched over %u bytes of studies: narrow the search",
                            peer->ae, DIMSE_MAX_ANSWER);
+        if (scu.too_slow)
+            return sf_fail(err, SF_EIO, NULL, "the PACS %s took over %d s to answer the C-FIND", peer->ae,
+                           DIMSE_SEARCH_TOTAL_S);
         if (scu.status != STATUS_Success && !(scu.cancelled && scu.status == STATUS_FIND_Cancel_MatchingTerminatedDueToCancelRequest))
             return sf_fail(err, SF_EIO, NULL, "the PACS %s answered the C-FIND with status 0x%04x", peer->ae,
                            (unsigned)scu.status);

@@ -114,8 +114,11 @@ static int study_series(struct pacs_work *w, const char *study, char (**uids)[65
     json_t *a = json_loadb(json, len, 0, NULL);
     free(json);
     size_t n = json_is_array(a) ? json_array_size(a) : 0;
-    if (n > PULL_MAX_SERIES)
-        n = PULL_MAX_SERIES;
+    if (n > PULL_MAX_SERIES) { /* refused, not pulled in part under a success */
+        json_decref(a);
+        return sf_fail(&w->err, SF_ELIMIT, "?study", "PACS %s lists %zu series of the study: a pull takes %d at most; pull "
+                       "them one at a time (?series=)", w->pacs->name, n, PULL_MAX_SERIES);
+    }
     *uids = calloc(n ? n : 1, sizeof **uids);
     *counts = calloc(n ? n : 1, sizeof **counts);
     int found = 0;
@@ -125,7 +128,8 @@ static int study_series(struct pacs_work *w, const char *study, char (**uids)[65
         json_t *count = json_array_get(json_object_get(json_object_get(o, "00201209"), "Value"), 0);
         if (uid && dicom_uid_valid(uid)) {
             snprintf((*uids)[found], 65, "%s", uid);
-            (*counts)[found++] = json_is_integer(count) ? (long)json_integer_value(count) : 0;
+            json_int_t c = json_is_integer(count) ? json_integer_value(count) : 0; /* (the PACS's word: bounded) */
+            (*counts)[found++] = c < 0 ? 0 : c > DICOMWEB_MAX_INSTANCES ? DICOMWEB_MAX_INSTANCES : (long)c;
         }
     }
     json_decref(a);
@@ -168,6 +172,7 @@ static int pull_prepare(struct job *j, void *arg, int *n_bands)
     for (int k = 0; !rc && k < n; k++)
         w->n_expected += counts[k];
     snprintf(w->dir, sizeof w->dir, "%s/pull-%s", svc->cfg.data_dir, w->job.claim.id);
+    dicom_dir_empty(w->dir); /* a run killed mid-instance left its file: the retrieve writes none over one */
     if (!rc && mkdir(w->dir, 0700) && errno != EEXIST)
         rc = sf_fail(&w->err, SF_EIO, "", "the pull's directory could not be made");
     json_t *done = json_array();
@@ -232,8 +237,10 @@ static int query_validate(struct service *svc, struct job_body *b, struct sf_err
     snprintf(name, sizeof name, "%.*s", (int)(b->len < 39 ? b->len : 39), b->body ? b->body : "");
     const struct pacs *p;
     int rc = named_pacs(svc, name, &p, err);
-    if (rc)
-        return rc;
+    if (rc) { /* (the name is the path's: an unknown one is a resource not found, its message kept) */
+        err->code = SF_ENOTFOUND, err->pointer[0] = 0;
+        return SF_ENOTFOUND;
+    }
     struct dicomweb_param prm[QUERY_MAX_PARAMS];
     char copy[512];
     snprintf(copy, sizeof copy, "%s", b->options ? b->options : "");
@@ -262,7 +269,7 @@ static int query_validate(struct service *svc, struct job_body *b, struct sf_err
                          p->name);
         json_decref(check);
     } else {
-        rc = dicomweb_search(p->dw, DICOMWEB_STUDIES, NULL, NULL, prm, n, &json, &len, err);
+        rc = dicomweb_search(p->search, DICOMWEB_STUDIES, NULL, NULL, prm, n, &json, &len, err);
     }
     if (rc) {
         free(json);

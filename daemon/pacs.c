@@ -94,6 +94,11 @@ int pacs_open_all(struct service *svc, struct sf_err *err)
             struct sf_err e = {0};
             if ((rc = dicomweb_open(&c, &one->dw, &e)))
                 sf_fail(err, rc, NULL, "pacs %s: %s", one->name, e.message);
+            c.request_timeout_s = PACS_SEARCH_TOTAL_S, c.attempts = 1;
+            if (!rc && (rc = dicomweb_open(&c, &one->search, &e))) {
+                dicomweb_free(one->dw);
+                sf_fail(err, rc, NULL, "pacs %s: %s", one->name, e.message);
+            }
         }
         if (!rc)
             svc->n_pacs++;
@@ -108,7 +113,7 @@ int pacs_open_all(struct service *svc, struct sf_err *err)
 void pacs_close_all(struct service *svc)
 {
     for (int k = 0; k < svc->n_pacs; k++)
-        dicomweb_free(svc->pacs[k].dw);
+        dicomweb_free(svc->pacs[k].dw), dicomweb_free(svc->pacs[k].search);
     free(svc->pacs);
     svc->pacs = NULL, svc->n_pacs = 0;
 }
@@ -134,7 +139,7 @@ void pacs_names(const struct service *svc, char *out, size_t cap)
 
 int pacs_failed(int rc, struct sf_err *err)
 {
-    if (rc == SF_EIO) {
+    if (rc == SF_EIO || rc == SF_EFORMAT) { /* (SF_EFORMAT: the PACS's answer was not what it should be) */
         rc = SF_EREMOTE;
         if (err)
             err->code = SF_EREMOTE;

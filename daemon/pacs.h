@@ -12,11 +12,14 @@
 #include "service.h"
 
 #define PACS_MAX 16
+#define PACS_SEARCH_TOTAL_S 30 /* a search (GET /pacs/{name}/studies) in all, as dimse.h's C-FIND */
 
 struct pacs {
     char name[32];
     bool dimse;              /* dicom://: peer; else dw */
     struct dicomweb *dw;
+    struct dicomweb *search; /* dw's settings bounded for a search, which holds a checks thread: 30 s
+                              * in all, one attempt */
     struct dimse_peer peer;
 };
 
@@ -25,7 +28,7 @@ int pacs_open_all(struct service *svc, struct sf_err *err);
 void pacs_close_all(struct service *svc);
 /* The PACS named so, or NULL. */
 const struct pacs *pacs_find(const struct service *svc, const char *name);
-/* A PACS call's answer as the request's: SF_EIO (the PACS down, refusing, answering badly) becomes
+/* A PACS call's answer as the request's: SF_EIO and SF_EFORMAT (the PACS down, refusing, answering badly) become
  * SF_EREMOTE (502, not surfd's own failure), err's code too; others as they are. */
 int pacs_failed(int rc, struct sf_err *err);
 /* The names configured, "a, b and c" (or "none"), for a message. */

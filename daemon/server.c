@@ -1745,8 +1745,12 @@ void server_stop(struct server *s)
 {
     if (!s)
         return;
-    /* every request on the checks pool is answered (its connection resumed) before MHD stops */
-    jobq_shutdown(s->checks, 5.0, 5.0, NULL, NULL);
+    /* every request on the checks pool is answered (its connection resumed) before MHD stops; one
+     * still there after 10 s (a PACS's search at its bounds) is not freed under: the process ends */
+    if (jobq_shutdown(s->checks, 5.0, 5.0, NULL, NULL)) {
+        log_write(LOG_WARN, "a request still being checked after 10 s: exiting under it");
+        _exit(0);
+    }
     jobq_free(s->checks);
     MHD_stop_daemon(s->mhd);
     guard_free(s->guard);

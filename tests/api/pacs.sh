@@ -61,7 +61,7 @@ code=$(status GET "/pacs/down-dimse/studies?StudyInstanceUID=$STUDY")
 t1=$(date +%s)
 check "... a DIMSE PACS that is down: a 5xx naming it within 10 s" '[ "$code" -ge 500 ] && grep -q "127.0.0.1:1" "$T/body" && [ $((t1 - t0)) -lt 10 ]'
 code=$(status GET "/pacs/nowhere/studies")
-check "GET /pacs/{name}/studies of a PACS not configured: 422 at ?pacs naming those that are" '[ "$code" = 422 ] && pointer_is "?pacs" && grep -q "orthanc" "$T/body"'
+check "GET /pacs/{name}/studies of a PACS not configured: 404 naming those that are" '[ "$code" = 404 ] && grep -q "orthanc" "$T/body"'
 
 # ---- pull ----
 code=$(status POST "/series/pull?pacs=orthanc&study=$STUDY&series=$CT")
