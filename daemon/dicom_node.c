@@ -29,6 +29,7 @@
  * are not held up by a PACS sending a study), and associations at once. */
 #define NODE_WORKERS 2
 #define NODE_ASSOCIATIONS 8
+#define NODE_REFUSED_KEPT 1024 /* series whose structure set made no model, remembered (then retried) */
 
 struct dicom_node {
     struct service *svc;
@@ -42,6 +43,8 @@ struct dicom_node {
     bool watching, stop;
     pthread_mutex_t lock;
     pthread_cond_t wake;
+    char (*refused)[65];     /* structure sets that made no model (auto_model): not tried again */
+    int n_refused;
 };
 
 int dicom_peers_read(const char *path, struct dimse_peer **peers, int *n, struct sf_err *err)
@@ -251,32 +254,52 @@ static unsigned received(const char *path, const char *calling_ae, const char *s
 
 /* ---- received RT Structure Sets become models (auto-model) ---- */
 
-/* Makes series uid's models as POST /model?series=UID would, once: the series is marked with the
- * job's id first (another node, or a pass after a restart, then leaves it), the job stored as a
- * request's is, owned by nobody (the site's, as the series). */
+/* Whether series uid's structure set was found not to make models (by this process: its log said
+ * why once); with add, noted so. The watcher's alone. */
+static bool refused_before(struct dicom_node *n, const char *uid, bool add)
+{
+    for (int k = 0; k < n->n_refused; k++)
+        if (!strcmp(n->refused[k], uid))
+            return true;
+    if (add && n->n_refused < NODE_REFUSED_KEPT)
+        snprintf(n->refused[n->n_refused++], sizeof n->refused[0], "%s", uid);
+    return false;
+}
+
+/* Makes series uid's models as POST /model?series=UID would, once: the request is made and
+ * checked first (a structure set that makes no model is said once in the log, not marked: its
+ * series keeps no link to a job that never was), then the series is marked with the job's id
+ * (another node, or a pass after a restart, then leaves it) and the job stored as a request's is,
+ * owned by nobody (the site's, as the series). */
 static void auto_model(struct dicom_node *n, const char *uid)
 {
     struct service *svc = n->svc;
+    if (refused_before(n, uid, false))
+        return;
     struct job_rec rec = {0};
     service_new_id(rec.id);
-    if (store_series_mark(svc->store, uid, rec.id))
-        return;
     struct sf_err err = {0};
-    struct job_body b = {NULL, 0, "dicom", rec.options, ""};
     snprintf(rec.kind, sizeof rec.kind, "%s", model_kind.name);
     snprintf(rec.format, sizeof rec.format, "dicom");
     snprintf(rec.options, sizeof rec.options, "series=%s", uid);
+    struct job_body b = {NULL, 0, "dicom", rec.options, ""};
     int rc = series_request(svc, uid, true, (size_t)svc->cfg.max_body, &b.body, &b.len, &err);
     if (!rc)
         rc = model_kind.validate(svc, &b, &err);
-    if (!rc) {
-        rec.created = wall_s();
-        rec.request = (unsigned char *)b.body, rec.request_len = b.len;
-        if ((rc = store_submit(svc->store, &rec)))
-            sf_fail(&err, rc, "", "the store would not take the job");
-    }
     if (rc) {
-        LOG(LOG_WARN, "DICOM node: the RT Structure Set of series %s is not modelled: %s", uid, err.message);
+        refused_before(n, uid, true);
+        LOG(LOG_WARN, "DICOM node: the RT Structure Set of series %s makes no model: %s", uid, err.message);
+        free(b.body);
+        return;
+    }
+    if (store_series_mark(svc->store, uid, rec.id)) {
+        free(b.body);
+        return;
+    }
+    rec.created = wall_s();
+    rec.request = (unsigned char *)b.body, rec.request_len = b.len;
+    if ((rc = store_submit(svc->store, &rec))) { /* (marked: a store that fails here is a store down) */
+        LOG(LOG_ERROR, "DICOM node: the store would not take the job of series %s's RT Structure Set", uid);
     } else {
         LOG(LOG_INFO, "DICOM node: the RT Structure Set of series %s is complete: modelled by job %s", uid, rec.id);
         service_wake(svc);
@@ -339,6 +362,11 @@ int dicom_node_start(struct service *svc, struct dicom_node **out, struct sf_err
     if (!n)
         return sf_fail(err, SF_ENOMEM, NULL, "out of memory for the DICOM node");
     n->svc = svc;
+    n->refused = calloc(NODE_REFUSED_KEPT, sizeof *n->refused);
+    if (!n->refused) {
+        free(n);
+        return sf_fail(err, SF_ENOMEM, NULL, "out of memory for the DICOM node");
+    }
     pthread_mutex_init(&n->lock, NULL);
     pthread_cond_init(&n->wake, NULL);
     int rc = dicom_peers_read(svc->cfg.dicom_peers, &n->peers, &n->n_peers, err);
@@ -385,6 +413,7 @@ void dicom_node_stop(struct dicom_node *n)
         jobq_free(n->q);
     }
     free(n->peers);
+    free(n->refused);
     free(n);
 }
 

@@ -97,6 +97,22 @@ sys.exit(0 if len(a) == len(b) > 1 and [(m[\"name\"], m[\"volume_mm3\"]) for m i
 sleep 1.5
 status GET "/series/$RUID" >/dev/null
 check "... once: the series still names that job" '[ "$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[\"links\"][\"job\"])" "$T/body")" = "$JOB" ]'
+mkdir -p "$T/empty"
+/usr/bin/python3 - "$RS" "$T/empty/rs.dcm" <<'PY'
+import pydicom, sys
+from pydicom.uid import generate_uid
+d = pydicom.dcmread(sys.argv[1])
+del d.ROIContourSequence                      # a structure set without contours: it makes no model
+d.SeriesInstanceUID, d.SOPInstanceUID = generate_uid(), generate_uid()
+d.file_meta.MediaStorageSOPInstanceUID = d.SOPInstanceUID
+d.save_as(sys.argv[2])
+PY
+EUID_=$(dcmdump +P SeriesInstanceUID "$T/empty/rs.dcm" | head -n 1 | sed 's/.*\[\(.*\)\].*/\1/')
+send STORESCU "$T/empty"
+sleep 3.5
+status GET "/series/$EUID_" >/dev/null
+check "a received structure set that makes no model: no job linked, said once in the log (not retried each second)" \
+    '[ "$(python3 -c "import json,sys; print(\"job\" in json.load(open(sys.argv[1]))[\"links\"])" "$T/body")" = False ] && [ "$(grep -c "makes no model" "$T/daemon.log")" = 1 ]'
 code=$(status POST "/model?roi=Heart" -H 'Content-Type: application/dicom' --data-binary @"$RS"); cp "$T/body" "$T/posted.json"
 code=$(status POST "/model?roi=Heart&series=$RUID")
 check "POST /model?series=UID&roi=Heart: the model the file posted makes (volume, contours)" '[ "$code" = 201 ] && python3 -c "
