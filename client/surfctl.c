@@ -529,9 +529,10 @@ static const char *const USAGE[][2] = {
     {"view", "surfctl view ID -o OUT.png [--width W --height H --azimuth DEG --elevation DEG --output FMT ...]\n"
              "    GET /models/ID/render, with render's camera options\n"},
     {"patches", "surfctl patches ID [-o OUT.json]\n    GET /models/ID/patches: the model's surfaces as scene JSON (stdout without -o)\n"},
-    {"rtstruct", "surfctl rtstruct ID -o OUT.dcm [--spacing MM]\n"
+    {"rtstruct", "surfctl rtstruct ID -o OUT.dcm [--spacing MM] [--format seg]\n"
                  "    GET /models/ID/rtstruct: the model as a DICOM RT Structure Set, its contours --spacing apart\n"
-                 "    (default: a contour model's own slices, an isosurface's grid)\n"},
+                 "    (default: a contour model's own slices, an isosurface's grid); --format seg: a DICOM\n"
+                 "    Segmentation on its CT's grid (or --spacing's)\n"},
     {"delete", "surfctl delete ID\n    DELETE /models/ID\n"},
     {"series", "surfctl series [UID] [--delete]\n"
                "    GET /series (the DICOM series received or pulled), GET /series/UID (one, with its geometry),\n"
@@ -983,7 +984,7 @@ int main(int argc, char **argv)
         static const char *const NONE[] = {NULL};
         rc = cmd_model_output("patches", NONE, false, argc - 2, argv + 2);
     } else if (!strcmp(cmd, "rtstruct")) {
-        static const char *const SPACING[] = {"spacing", NULL};
+        static const char *const SPACING[] = {"spacing", "format", NULL};
         rc = cmd_model_output("rtstruct", SPACING, true, argc - 2, argv + 2);
     } else if (!strcmp(cmd, "series") || !strcmp(cmd, "studies") || !strcmp(cmd, "pull") || !strcmp(cmd, "send")) {
         rc = cmd_dicom(cmd, argc - 2, argv + 2);

@@ -241,14 +241,17 @@ class Client:
         """GET /models/{id}/patches: the model's Bezier patches as a scene /render takes."""
         return self._job("GET", "/models/%s/patches" % model_id)
 
-    def rtstruct(self, model_id: str, spacing: Optional[float] = None) -> bytes:
+    def rtstruct(self, model_id: str, spacing: Optional[float] = None, format: Optional[str] = None) -> bytes:
         """GET /models/{id}/rtstruct: the model as a DICOM RT Structure Set (bytes of a .dcm), its
-        contours spacing mm apart (None: a contour model's own slices, an isosurface's grid)."""
-        return self._job("GET", "/models/%s/rtstruct" % model_id, {"spacing": spacing})
+        contours spacing mm apart (None: a contour model's own slices, an isosurface's grid);
+        format="seg": a DICOM Segmentation on its CT's grid (or spacing's)."""
+        return self._job("GET", "/models/%s/rtstruct" % model_id, {"spacing": spacing, "format": format})
 
-    def rtstruct_set(self, model_ids: List[str], spacing: Optional[float] = None) -> bytes:
-        """GET /rtstruct?models=ID,...: several models as one DICOM RT Structure Set, an ROI each."""
-        return self._job("GET", "/rtstruct", {"models": ",".join(model_ids), "spacing": spacing})
+    def rtstruct_set(self, model_ids: List[str], spacing: Optional[float] = None,
+                     format: Optional[str] = None) -> bytes:
+        """GET /rtstruct?models=ID,...: several models as one DICOM RT Structure Set, an ROI each
+        (format="seg": one DICOM Segmentation, a segment each)."""
+        return self._job("GET", "/rtstruct", {"models": ",".join(model_ids), "spacing": spacing, "format": format})
 
     # ---- the DICOM network (series received or pulled, PACS) ------------------------------
 

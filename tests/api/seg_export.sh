@@ -203,4 +203,18 @@ check "an isosurface and a structure set's model (two frames of reference) in on
 check "as=bogus on send: 422 at ?as listing seg" '[ "$(status POST "/models/$ISO/send?pacs=tps&as=bogus")" = 422 ] && pointer "?as" && grep -q seg "$T/body"'
 check "as=seg of a model whose CT is not stored, no ?spacing: 422 at ?format" '[ "$(status POST "/models/$heart/send?pacs=tps&as=seg")" = 422 ] && pointer "?format"'
 check "?format=seg on a mesh of a model not stored: 404" '[ "$(status GET "/models/0123456789abcdef0123456789abcdef/mesh?format=seg")" = 404 ]'
+
+# the clients: the same SEG of the isosurface as curl's
+SURFD_URL="$URL" build/surfctl rtstruct "$ISO" -o "$T/cli.dcm" --format seg >/dev/null 2>"$T/err"; rc=$?
+check "surfctl rtstruct ID --format seg -o OUT.dcm: a Segmentation of the same frames as GET /models/{id}/mesh?format=seg" '[ $rc = 0 ] && $PY -c "
+import pydicom, sys
+a, b = pydicom.dcmread(sys.argv[1]), pydicom.dcmread(sys.argv[2])
+sys.exit(0 if a.Modality == b.Modality == \"SEG\" and a.NumberOfFrames == b.NumberOfFrames and a.PixelData == b.PixelData else 1)" "$T/cli.dcm" "$T/ct.dcm"'
+check "the Python client's rtstruct(ID, format=\"seg\"): the same frames" 'PYTHONPATH=client/python python3 -c "
+import sys, surfd
+c = surfd.Client(sys.argv[1])
+open(sys.argv[3], \"wb\").write(c.rtstruct(sys.argv[2], format=\"seg\"))" "$URL" "$ISO" "$T/py.dcm" && $PY -c "
+import pydicom, sys
+a, b = pydicom.dcmread(sys.argv[1]), pydicom.dcmread(sys.argv[2])
+sys.exit(0 if a.PixelData == b.PixelData and a.NumberOfFrames == b.NumberOfFrames else 1)" "$T/py.dcm" "$T/ct.dcm"'
 finish
