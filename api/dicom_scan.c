@@ -294,14 +294,22 @@ static int read_element(struct scan *c, struct frame *f, uint32_t tag)
     uint32_t len;
     bool seq, frags = false, inner_implicit = f->implicit, inner_big = f->big, tentative = false;
     if (f->implicit) {
+        /* the header within its item, as the explicit VR one below (one straddling an item's end
+         * was read past it, its length then checked against a negative rest) */
+        if (c->at + head > f->end)
+            return fault(c, "the part ends inside an element", tag);
         len = u32(c, c->at + 4, f->big);
         seq = len == UNDEFINED && tag != 0x7fe00010u; /* undefined: a sequence (pixel data: fragments) */
         frags = len == UNDEFINED && !seq;
         /* DCMTK's dictionary says which defined-length elements are sequences; without it, a value
-         * that starts with an item is taken for one, and stepped over whole if it is not */
+         * that starts with an item is taken for one. A private one (odd group: no dictionary knows
+         * it) is stepped over whole if it is not; a public one is read as a sequence, faults and
+         * all, as DCMTK reads it (ContourSequence and the like are SQ in its dictionary: stepping
+         * over a broken one passed it, and DCMTK then allocated the 3.7 GB an element inside
+         * declared; fuzz_instance) */
         if (len != UNDEFINED && len >= 8 && tag != 0x7fe00010u && c->at + 16 <= f->end &&
             u32(c, c->at + 8, f->big) == (f->big ? 0xfffee000u : 0xe000fffeu))
-            seq = tentative = true;
+            seq = true, tentative = tag >> 16 & 1;
         /* blanking: the first walk found it was not one */
         if (tentative && c->next_not_seq < c->n_not_seq && c->not_seq[c->next_not_seq] == c->at + 8)
             seq = tentative = false, c->next_not_seq++;

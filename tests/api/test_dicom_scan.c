@@ -290,6 +290,11 @@ TEST(lengths_and_structure)
     o.n = 0;
     ihead(&o, 0x7fe0, 0x0010, 16), item_tag(&o, 0xe000, 8), ihead(&o, 0x0008, 0x0001, 0);
     CHECK(scan(&o, &st, &err) == 0 && st.max_depth == 0);
+    o.n = 0; /* implicit VR: an item's last element whose header runs past the item's end, its length
+              * huge (was passed: the rest after its header wrapped, and DCMTK allocated 3.7 GB) */
+    ihead(&o, 0x3006, 0x0040, 8 + 4 + 8), item_tag(&o, 0xe000, 4), put16(&o, 0x2d5c), put16(&o, 0x3232);
+    put32(&o, 0xe000fffe), ihead(&o, 0x3006, 0x0042, 0);
+    CHECK(scan(&o, &st, &err) == SF_EFORMAT && strstr(err.message, "ends inside"));
     o.n = 0; /* an item outside a sequence */
     meta(&o, EXPLICIT_LE);
     item_tag(&o, 0xe000, UNDEF);
@@ -299,8 +304,9 @@ TEST(lengths_and_structure)
 }
 
 /* blanking, in implicit VR where defined-length sequences are known only by their first item:
- * a name inside a real one is blanked; a value that only starts like one is left whole (not
- * identifying) or blanked whole (identifying), and counts as one element */
+ * a name inside a real one is blanked; a private value that only starts like one is blanked
+ * whole (identifying: private) and counts as one element; a public one is a sequence in DCMTK's
+ * dictionary, read as one and refused when it is broken */
 TEST(blanking_sees_sequences_as_dcmtk_does)
 {
     struct dicom_scan_stats st;
@@ -308,24 +314,28 @@ TEST(blanking_sees_sequences_as_dcmtk_does)
     struct buf o = {0};
     ihead(&o, 0x0008, 0x1115, 8 + 8 + 6), item_tag(&o, 0xe000, 8 + 6); /* a sequence: an item, a name */
     ihead(&o, 0x0010, 0x0010, 6), put(&o, "Doe^J ", 6);
-    size_t not_seq = o.n; /* starts like one: an item of 14 bytes, then a name, then 4 bytes past the item */
-    ihead(&o, 0x0008, 0x1140, 8 + 8 + 6 + 4), item_tag(&o, 0xe000, 8 + 6);
-    ihead(&o, 0x0010, 0x0010, 6), put(&o, "Roe^K ", 6), put(&o, "\1\2\3\4", 4);
-    size_t priv = o.n;
+    size_t priv = o.n; /* starts like one: an item of 14 bytes, then a name, then 4 bytes past the item */
     ihead(&o, 0x0009, 0x1001, 8 + 8 + 6 + 4), item_tag(&o, 0xe000, 8 + 6); /* the same, private */
     ihead(&o, 0x0008, 0x0001, 6), put(&o, "Poe^L ", 6), put(&o, "\1\2\3\4", 4);
     ihead(&o, 0x0009, 0x1002, 0);
     unsigned char *before = malloc(o.n);
     REQUIRE(before);
     memcpy(before, o.b, o.n);
-    CHECK(scan(&o, &st, &err) == 0 && st.n_elements == 1 + 2 + 1 + 1 + 1 && st.max_depth == 1);
+    CHECK(scan(&o, &st, &err) == 0 && st.n_elements == 1 + 2 + 1 + 1 && st.max_depth == 1);
     size_t n = 0;
     CHECK(dicom_blank_identity(o.b, o.n, "", &n, &err) == 0 && n == 3); /* the name, (0009,1001), (0009,1002) */
     static const unsigned char zeros[26];
     CHECK(!memcmp(o.b + 24, "      ", 6) && !memcmp(o.b + priv + 8, zeros, 26));
-    CHECK(!memcmp(o.b, before, 24) && !memcmp(o.b + not_seq, before + not_seq, 34)); /* heads, and the non-sequence */
+    CHECK(!memcmp(o.b, before, 24)); /* the heads */
     struct dicom_scan_stats st2;
     CHECK(scan(&o, &st2, &err) == 0 && st2.n_elements == st.n_elements && st2.max_depth == st.max_depth);
+    o.n = 0; /* a public one (ReferencedImageSequence) whose item holds an element longer than the item:
+              * refused, as DCMTK reads a sequence there; the private one is stepped over */
+    ihead(&o, 0x0008, 0x1140, 8 + 8 + 6), item_tag(&o, 0xe000, 8 + 6);
+    ihead(&o, 0x0010, 0x0010, 100), put(&o, "Roe^K ", 6);
+    CHECK(scan(&o, &st, &err) == SF_EFORMAT && strstr(err.message, "longer"));
+    o.b[0] = 0x09, o.b[1] = 0x00; /* (0009,1140) */
+    CHECK(scan(&o, &st, &err) == 0 && st.n_elements == 1);
     free(before);
     free(o.b);
 }
