@@ -7,26 +7,17 @@
 #include <stdio.h>
 #include <time.h>
 
-char *job_stamp(double t)
+json_t *job_stamp(double t)
 {
     if (!(t > 0))
-        return NULL;
+        return json_null();
     time_t s = (time_t)t;
     struct tm tm;
     gmtime_r(&s, &tm);
-    char buf[40], *out = malloc(48);
+    char buf[40], out[48];
     strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &tm);
-    if (out)
-        snprintf(out, 48, "%s.%03dZ", buf, (int)((t - (double)s) * 1000));
-    return out;
-}
-
-static json_t *stamp(double t)
-{
-    char *s = job_stamp(t);
-    json_t *j = s ? json_string(s) : json_null();
-    free(s);
-    return j;
+    snprintf(out, sizeof out, "%s.%03dZ", buf, (int)((t - (double)s) * 1000));
+    return json_string(out);
 }
 
 static json_t *job_object(const struct job_view *v)
@@ -36,8 +27,8 @@ static json_t *job_object(const struct job_view *v)
     snprintf(result, sizeof result, "/jobs/%s/result", v->id);
     json_t *err = v->error ? json_loads(v->error, 0, NULL) : NULL;
     return json_pack("{s:s, s:s, s:s, s:f, s:o, s:o, s:o, s:o, s:i, s:o, s:{s:s, s:s}}", "id", v->id, "kind", v->kind,
-                     "state", v->state, "progress", round(v->progress * 1000) / 1000, "created", stamp(v->created),
-                     "started", stamp(v->started), "finished", stamp(v->finished), "error", err ? err : json_null(),
+                     "state", v->state, "progress", round(v->progress * 1000) / 1000, "created", job_stamp(v->created),
+                     "started", job_stamp(v->started), "finished", job_stamp(v->finished), "error", err ? err : json_null(),
                      "attempts", v->attempts, "node", v->node && *v->node ? json_string(v->node) : json_null(),
                      "links", "self", self, "result", result);
 }

@@ -3,6 +3,8 @@
 #ifndef SURFD_JOB_JSON_H
 #define SURFD_JOB_JSON_H
 
+#include <jansson.h>
+
 struct job_view {
     const char *id, *kind, *state;
     double progress;
@@ -14,9 +16,9 @@ struct job_view {
 
 /* Caller frees. */
 char *job_json(const struct job_view *v);
-/* A time (Unix seconds) as RFC 3339 UTC with milliseconds, malloc'ed ("2026-12-06T01:59:18.457Z"):
- * what every resource's times say; NULL for 0 (never) or without memory. */
-char *job_stamp(double t);
+/* A time (Unix seconds) as RFC 3339 UTC with milliseconds ("2026-12-06T01:59:18.457Z"), what every
+ * resource's times say: a JSON string, null for 0 (never). */
+json_t *job_stamp(double t);
 /* {"jobs": [...]} from n views. Caller frees. */
 char *job_list_json(const struct job_view *v, int n);
 

@@ -8,7 +8,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 static json_t *doubles(const double *v, int n)
 {
@@ -32,14 +31,6 @@ char *instance_meta(const struct dicom_instance *in)
     char *s = o ? json_dumps(o, JSON_COMPACT) : NULL;
     json_decref(o);
     return s;
-}
-
-static json_t *stamp(double t)
-{
-    char *s = job_stamp(t);
-    json_t *j = s ? json_string(s) : json_null();
-    free(s);
-    return j;
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -131,8 +122,8 @@ char *series_json(const struct series_view *v)
     snprintf(self, sizeof self, "/series/%s", v->uid);
     json_t *o = json_pack("{s:s, s:s, s:s, s:I, s:I, s:s, s:o, s:o, s:b, s:{s:s}}", "uid", v->uid, "study_uid",
                           v->study_uid, "modality", v->modality, "instances", (json_int_t)v->instances, "bytes",
-                          (json_int_t)v->bytes, "source", v->source, "first_received", stamp(v->first),
-                          "last_received", stamp(v->last), "complete", v->complete, "links", "self", self);
+                          (json_int_t)v->bytes, "source", v->source, "first_received", job_stamp(v->first),
+                          "last_received", job_stamp(v->last), "complete", v->complete, "links", "self", self);
     if (o && v->metas)
         geometry(o, v);
     if (o && v->job && v->job[0]) {

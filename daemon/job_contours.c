@@ -277,34 +277,16 @@ static int make_rtstruct(struct contour_work *w, const struct job_rec *rec, cons
 {
     if (export_is_seg(rec->options))
         return make_seg(w, rec, pr);
-    const char *list = (const char *)rec->request, *end = list + rec->request_len;
-    int n = 1, rc = 0;
-    for (const char *c = list; c < end; c++)
-        n += *c == ',';
-    struct model_export *m = calloc((size_t)n, sizeof *m);
-    char(*ids)[40] = calloc((size_t)n, sizeof *ids);
-    if (!m || !ids)
-        rc = sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
-    for (int k = 0; !rc && k < n; k++) {
-        const char *comma = memchr(list, ',', (size_t)(end - list));
-        size_t len = (size_t)((comma ? comma : end) - list);
-        snprintf(ids[k], sizeof ids[k], "%.*s", (int)(len < 39 ? len : 39), list);
-        list += len + (comma != NULL);
-        m[k].id = ids[k];
-        if (store_model_get(w->job.svc->store, ids[k], NULL, (char **)&m[k].resource, (char **)&m[k].src, &m[k].len))
-            rc = sf_fail(&w->err, SF_EINVAL, n > 1 ? "?models" : "", "model %s is no longer stored", ids[k]);
-    }
+    struct model_export *m = NULL;
+    char(*ids)[40] = NULL;
+    int n = 0;
+    int rc = export_models(w, (const char *)rec->request, rec->request_len, &m, &ids, &n);
     if (!rc)
         rc = model_rtstruct_set(m, n, rec->options, pr, (unsigned char **)&w->json, &w->len, &w->err);
     w->type = "application/dicom";
     snprintf(w->model, sizeof w->model, "%s", n == 1 && ids ? ids[0] : w->job.claim.id);
     snprintf(w->meta, sizeof w->meta, "{\"filename\":\"%s.dcm\"}", w->model);
-    for (int k = 0; m && k < n; k++) {
-        free((char *)m[k].src);
-        free((char *)m[k].resource);
-    }
-    free(m);
-    free(ids);
+    export_models_free(m, ids, n);
     return rc;
 }
 
@@ -360,9 +342,9 @@ static int make_send(struct contour_work *w, const struct job_rec *rec, const st
     query_option(rec->options, "pacs", name, sizeof name);
     query_option(rec->options, "as", as, sizeof as);
     query_option(rec->options, "spacing", spacing, sizeof spacing);
-    const struct pacs *p = pacs_find(svc, name);
-    if (!p)
-        return sf_fail(&w->err, SF_EINVAL, "?pacs", "no PACS named \"%.31s\"", name);
+    const struct pacs *p;
+    if (pacs_named(svc, name, &p, &w->err))
+        return w->err.code;
     struct job_rec made = *rec; /* the export's request: the model's id, its own options */
     int rc;
     if (!strcmp(as, "dicom-stl")) {
@@ -536,12 +518,12 @@ static int rtstruct_validate(struct service *svc, struct job_body *b, struct sf_
 
 static int send_validate(struct service *svc, struct job_body *b, struct sf_err *err)
 {
-    char name[40], as[16], names[512];
+    char name[40], as[16];
     query_option(b->options, "pacs", name, sizeof name);
     query_option(b->options, "as", as, sizeof as);
-    pacs_names(svc, names, sizeof names);
-    if (!pacs_find(svc, name))
-        return sf_fail(err, SF_EINVAL, "?pacs", "no PACS named \"%.31s\": this node's are %s", name, names);
+    const struct pacs *p;
+    if (pacs_named(svc, name, &p, err))
+        return err->code;
     if (as[0] && strcmp(as, "rtstruct") && strcmp(as, "dicom-stl") && strcmp(as, "seg"))
         return sf_fail(err, SF_EINVAL, "?as", "as is rtstruct (the default), dicom-stl or seg");
     if (!strcmp(as, "dicom-stl") && b->body && memchr(b->body, ',', b->len))

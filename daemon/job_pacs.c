@@ -35,17 +35,6 @@ struct pacs_work {
     long kept, n_expected;
 };
 
-/* The request's PACS (?pacs, or the query's body), by its name. */
-static int named_pacs(struct service *svc, const char *name, const struct pacs **out, struct sf_err *err)
-{
-    char names[512];
-    *out = pacs_find(svc, name);
-    pacs_names(svc, names, sizeof names);
-    if (!*out)
-        return sf_fail(err, SF_EINVAL, "?pacs", "no PACS named \"%.31s\": this node's are %s", name ? name : "", names);
-    return 0;
-}
-
 /* ---- pull ---- */
 
 static const char *any_format(const char *content_type)
@@ -63,7 +52,7 @@ static int pull_validate(struct service *svc, struct job_body *b, struct sf_err 
     const struct pacs *p;
     if (b->len)
         return sf_fail(err, SF_EINVAL, "", "POST /series/pull takes no body: ?pacs=NAME&study=UID[&series=UID]");
-    int rc = named_pacs(svc, name, &p, err);
+    int rc = pacs_named(svc, name, &p, err);
     if (rc)
         return rc;
     if (!dicom_uid_valid(study))
@@ -154,7 +143,7 @@ static int pull_prepare(struct job *j, void *arg, int *n_bands)
     query_option(rec.options, "study", study, sizeof study);
     query_option(rec.options, "series", one, sizeof one);
     store_rec_free(&rec);
-    int rc = named_pacs(svc, name, &w->pacs, &w->err);
+    int rc = pacs_named(svc, name, &w->pacs, &w->err);
     if (rc)
         return rc;
     char(*uids)[65] = NULL;
@@ -236,7 +225,7 @@ static int query_validate(struct service *svc, struct job_body *b, struct sf_err
     char name[40];
     snprintf(name, sizeof name, "%.*s", (int)(b->len < 39 ? b->len : 39), b->body ? b->body : "");
     const struct pacs *p;
-    int rc = named_pacs(svc, name, &p, err);
+    int rc = pacs_named(svc, name, &p, err);
     if (rc) { /* (the name is the path's: an unknown one is a resource not found, its message kept) */
         err->code = SF_ENOTFOUND, err->pointer[0] = 0;
         return SF_ENOTFOUND;

@@ -126,7 +126,7 @@ const struct pacs *pacs_find(const struct service *svc, const char *name)
     return NULL;
 }
 
-void pacs_names(const struct service *svc, char *out, size_t cap)
+static void pacs_names(const struct service *svc, char *out, size_t cap)
 {
     size_t at = 0;
     out[0] = 0;
@@ -147,3 +147,11 @@ int pacs_failed(int rc, struct sf_err *err)
     return rc;
 }
 
+int pacs_named(const struct service *svc, const char *name, const struct pacs **out, struct sf_err *err)
+{
+    char names[512];
+    if ((*out = pacs_find(svc, name)))
+        return 0;
+    pacs_names(svc, names, sizeof names);
+    return sf_fail(err, SF_EINVAL, "?pacs", "no PACS named \"%.31s\": this node's are %s", name ? name : "", names);
+}

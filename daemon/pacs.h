@@ -31,7 +31,8 @@ const struct pacs *pacs_find(const struct service *svc, const char *name);
 /* A PACS call's answer as the request's: SF_EIO and SF_EFORMAT (the PACS down, refusing, answering badly) become
  * SF_EREMOTE (502, not surfd's own failure), err's code too; others as they are. */
 int pacs_failed(int rc, struct sf_err *err);
-/* The names configured, "a, b and c" (or "none"), for a message. */
-void pacs_names(const struct service *svc, char *out, size_t cap);
+/* The PACS a request names (?pacs, or the path's): 0 and *out, or SF_EINVAL at "?pacs" naming those
+ * configured. */
+int pacs_named(const struct service *svc, const char *name, const struct pacs **out, struct sf_err *err);
 
 #endif
