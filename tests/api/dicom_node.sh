@@ -133,6 +133,23 @@ check "the series sent again, the daemon killed (-9) as storescu ended: after a 
 code=$(status GET "/series/9.9.9..9")
 check "GET /series/ a path that is no UID: 404" '[ "$code" = 404 ]'
 
+# ---- an instance surfd cannot keep: refused by its C-STORE status, nothing stored, the node up (a UID
+# that is not one storescu will not send: fuzz_instance and test_dicom_scan hold those) ----
+mkdir -p "$T/bad"
+/usr/bin/python3 - "$DD/IM0001.dcm" "$T/bad" <<'PY'
+import pydicom, sys
+from pydicom.uid import generate_uid
+d = pydicom.dcmread(sys.argv[1])
+del d.SeriesInstanceUID                       # no series to keep it by
+d.SOPInstanceUID = d.file_meta.MediaStorageSOPInstanceUID = generate_uid()
+d.save_as(sys.argv[2] + "/noseries.dcm")
+PY
+before=$(status GET /series >/dev/null; python3 -c "import json,sys; print(len(json.load(open(sys.argv[1]))['series']))" "$T/body")
+storescu -v -aet STORESCU -aec SURFD 127.0.0.1 "$DP" "$T"/bad/*.dcm >"$T/scu" 2>&1
+after=$(status GET /series >/dev/null; python3 -c "import json,sys; print(len(json.load(open(sys.argv[1]))['series']))" "$T/body")
+check "an instance without a SeriesInstanceUID: refused by its C-STORE response (0xC000, cannot understand), no series made, the node up" \
+    '[ "$(grep -c "Store Response (Error: CannotUnderstand)" "$T/scu")" = 1 ] && [ "$before" = "$after" ] && alive && echoscu -aet STORESCU -aec SURFD 127.0.0.1 "$DP" >/dev/null 2>&1'
+
 # ---- an instance over max-body ----
 stop_daemon
 start_daemon "$T/d2" --dicom-listen "$DP" --dicom-peers "$T/peers" --max-body 4096 || exit 1
