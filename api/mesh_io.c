@@ -227,36 +227,58 @@ size_t mesh_packed_triangles(const char *src, size_t len)
     return nt < SIZE_MAX ? (size_t)nt : SIZE_MAX;
 }
 
-int mesh_pack(const struct trimesh *m, char **out, size_t *len, struct sf_err *err)
+/* head[2]'s bits: normals follow the positions; triangle ids (and the version they are of)
+ * follow the triangles. */
+#define PACKED_NORMALS 1u
+#define PACKED_IDS 2u
+
+int mesh_pack_ids(const struct trimesh *m, const uint32_t *ids, uint64_t version, char **out, size_t *len,
+                  struct sf_err *err)
 {
     struct out o = {0};
-    uint64_t head[3] = {m->n_vert, m->n_tri, m->nrm != NULL};
+    uint64_t head[3] = {m->n_vert, m->n_tri, (m->nrm ? PACKED_NORMALS : 0) | (ids ? PACKED_IDS : 0)};
     put(&o, MAGIC, 8);
     put(&o, head, sizeof head);
     put(&o, m->pos, 3 * sizeof *m->pos * m->n_vert);
     if (m->nrm)
         put(&o, m->nrm, 3 * sizeof *m->nrm * m->n_vert);
     put(&o, m->tri, 3 * sizeof *m->tri * m->n_tri);
+    if (ids) {
+        put(&o, &version, sizeof version);
+        put(&o, ids, sizeof *ids * m->n_tri);
+    }
     return done(&o, out, len, err);
 }
 
-int mesh_unpack(const char *src, size_t len, struct trimesh *m, struct sf_err *err)
+int mesh_pack(const struct trimesh *m, char **out, size_t *len, struct sf_err *err)
+{
+    return mesh_pack_ids(m, NULL, 1, out, len, err);
+}
+
+int mesh_unpack_ids(const char *src, size_t len, struct trimesh *m, uint32_t **ids, uint64_t *version,
+                    struct sf_err *err)
 {
     memset(m, 0, sizeof *m);
+    if (ids)
+        *ids = NULL;
+    if (version)
+        *version = 1;
     uint64_t head[3];
     if (!mesh_is_packed(src, len))
         return sf_fail(err, SF_EFORMAT, "", "not a packed mesh");
     memcpy(head, src + 8, sizeof head);
-    uint64_t nv = head[0], nt = head[1], with_normals = head[2] != 0;
-    if (nv >= (1ull << 31) || nt >= (1ull << 32) ||
-        len != 32 + 12 * nv * (1 + with_normals) + 12 * nt)
+    uint64_t nv = head[0], nt = head[1], with_normals = (head[2] & PACKED_NORMALS) != 0, with_ids = (head[2] & PACKED_IDS) != 0;
+    if (nv >= (1ull << 31) || nt >= (1ull << 32) || head[2] > 3 ||
+        len != 32 + 12 * nv * (1 + with_normals) + 12 * nt + with_ids * (8 + 4 * nt))
         return sf_fail(err, SF_EFORMAT, "", "a packed mesh whose counts do not match its length");
     m->n_vert = nv, m->n_tri = nt;
     m->pos = malloc(12 * (nv ? nv : 1));
     m->nrm = with_normals ? malloc(12 * (nv ? nv : 1)) : NULL;
     m->tri = malloc(12 * (nt ? nt : 1));
-    if (!m->pos || !m->tri || (with_normals && !m->nrm)) {
+    uint32_t *id = ids ? malloc(4 * (nt ? nt : 1)) : NULL;
+    if (!m->pos || !m->tri || (with_normals && !m->nrm) || (ids && !id)) {
         trimesh_free(m);
+        free(id);
         return sf_fail(err, SF_ENOMEM, "", "out of memory reading a mesh");
     }
     const char *p = src + 32;
@@ -267,10 +289,26 @@ int mesh_unpack(const char *src, size_t len, struct trimesh *m, struct sf_err *e
         p += 12 * nv;
     }
     memcpy(m->tri, p, 12 * nt);
+    p += 12 * nt;
     for (size_t k = 0; k < 3 * nt; k++)
         if (m->tri[k] >= nv) {
             trimesh_free(m);
+            free(id);
             return sf_fail(err, SF_EFORMAT, "", "a packed mesh with a vertex index out of range");
         }
+    if (with_ids && version)
+        memcpy(version, p, 8);
+    for (size_t k = 0; id && k < nt; k++)
+        if (with_ids)
+            memcpy(id + k, p + 8 + 4 * k, 4);
+        else
+            id[k] = (uint32_t)k;
+    if (ids)
+        *ids = id;
     return 0;
+}
+
+int mesh_unpack(const char *src, size_t len, struct trimesh *m, struct sf_err *err)
+{
+    return mesh_unpack_ids(src, len, m, NULL, NULL, err);
 }

@@ -25,10 +25,18 @@ int mesh_delta_encode(const struct trimesh *m, uint32_t from, uint32_t to, const
 /* The stored form: "SFMESH1\n", vertex and triangle counts (uint64), whether normals follow
  * (uint64), then float32 positions, float32 normals, uint32 triangles, little-endian. */
 int mesh_pack(const struct trimesh *m, char **out, size_t *len, struct sf_err *err);
+/* The same with each triangle's id (core/iso/kept.h) and the model's version they are of, after the
+ * triangles (the fourth header word's bit 2; bit 1: normals). */
+int mesh_pack_ids(const struct trimesh *m, const uint32_t *ids, uint64_t version, char **out, size_t *len,
+                  struct sf_err *err);
 bool mesh_is_packed(const char *src, size_t len);
 /* The triangles a packed mesh declares (what unpacking it will cost; mesh_unpack checks them). */
 size_t mesh_packed_triangles(const char *src, size_t len);
 /* Reads a packed mesh (checking its counts against its length): 0, or SF_EFORMAT, SF_ENOMEM. */
 int mesh_unpack(const char *src, size_t len, struct trimesh *m, struct sf_err *err);
+/* With its ids (NULL: not wanted; a mesh packed without them: 0 .. n-1) and version (1 when
+ * packed without ids): caller frees *ids. */
+int mesh_unpack_ids(const char *src, size_t len, struct trimesh *m, uint32_t **ids, uint64_t *version,
+                    struct sf_err *err);
 
 #endif

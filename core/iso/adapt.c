@@ -4,6 +4,7 @@
  * (closed=true), as mc.c sees it; nodes and cells are addressed by their integer coordinates in
  * that grid. Its parts: adapt_hierarchy.c, adapt_polygon.c, adapt_feature.c, adapt_mesh.c. */
 #include "adapt_internal.h"
+#include "kept.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -33,7 +34,7 @@ void iso_adapt_free(struct iso_adapt *a)
         piece_free(&a->pieces[k]);
     for (int l = 0; l <= ISO_MAX_LEVELS; l++)
         free(a->berr[l]);
-    free(a->bcells), free(a->bfeat), free(a->refs);
+    free(a->bcells), free(a->bfeat), free(a->refs), free(a->ids);
     piece_free(&a->all);
     free(a);
 }
@@ -289,6 +290,11 @@ int iso_adapt_keep(struct iso_adapt *a, struct iso_adapt_stats *st, struct sf_er
     memset(a->refs, 0, (m->n_vert + 1) * sizeof *a->refs);
     for (size_t i = 0; i < 3 * m->n_tri; i++)
         a->refs[m->tri[i]]++;
+    if (m->n_tri >= UINT32_MAX || mem_reserve((void **)&a->ids, &a->idcap, m->n_tri + 1, sizeof *a->ids))
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    for (size_t t = 0; t < m->n_tri; t++)
+        a->ids[t] = (uint32_t)t;
+    a->next_id = (uint32_t)m->n_tri;
     for (size_t v = 0; v < m->n_vert; v++)
         a->dead += !a->refs[v];
     samples_min(a);
@@ -333,6 +339,16 @@ int iso_adapt_mesh(const struct iso_adapt *a, struct trimesh *out, struct iso_ad
         for (size_t b = 0; b < nb; b++)
             st->max_estimate = fmax(st->max_estimate, a->berr[l][b]);
     }
+    return 0;
+}
+
+int iso_adapt_ids(const struct iso_adapt *a, uint32_t **ids, struct sf_err *err)
+{
+    size_t n = a->all.m.n_tri;
+    if (!(*ids = malloc((n ? n : 1) * sizeof **ids)))
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    if (n)
+        memcpy(*ids, a->ids, n * sizeof **ids);
     return 0;
 }
 
@@ -382,10 +398,14 @@ static int merge_rebuilt(struct iso_adapt *a, const struct piece *pc)
         }
         id[v] = (uint32_t)g;
     }
+    if (mem_reserve((void **)&a->ids, &a->idcap, all->m.n_tri + pc->m.n_tri + 1, sizeof *a->ids))
+        all->nomem = true;
     for (size_t t = 0; t < pc->m.n_tri && !all->nomem; t++) {
         all->block = pc->owner[t];
         size_t n = all->m.n_tri;
         add_triangle(all, id[pc->m.tri[3 * t]], id[pc->m.tri[3 * t + 1]], id[pc->m.tri[3 * t + 2]]);
+        if (all->m.n_tri > n)
+            a->ids[n] = a->next_id++;
         for (int k = 0; k < 3 && all->m.n_tri > n; k++)
             if (a->refs[all->m.tri[3 * n + k]]++ == 0)
                 a->dead--;
@@ -475,7 +495,39 @@ static void write_block(struct iso_adapt *a, const int lo[3], const struct iso_g
 int iso_adapt_edit(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
                    struct sf_err *err)
 {
+    return iso_adapt_edit_ids(a, lo, blk, ed, NULL, err);
+}
+
+/* The triangles from n0 on of the kept mesh into ch (their ids and corners). 0 or -1. */
+static int report_added(const struct iso_adapt *a, size_t n0, struct iso_change *ch)
+{
+    const struct trimesh *m = &a->all.m;
+    size_t n = m->n_tri - n0;
+    ch->added = malloc((n ? n : 1) * sizeof *ch->added);
+    ch->corners = malloc((n ? n : 1) * 18 * sizeof *ch->corners);
+    if (!ch->added || !ch->corners)
+        return -1;
+    for (size_t t = 0; t < n; t++) {
+        ch->added[t] = a->ids[n0 + t];
+        for (int k = 0; k < 3; k++) {
+            uint32_t v = m->tri[3 * (n0 + t) + k];
+            memcpy(ch->corners + 18 * t + 6 * k, m->pos + 3 * v, 3 * sizeof(float));
+            if (m->nrm)
+                memcpy(ch->corners + 18 * t + 6 * k + 3, m->nrm + 3 * v, 3 * sizeof(float));
+            else
+                memset(ch->corners + 18 * t + 6 * k + 3, 0, 3 * sizeof(float));
+        }
+    }
+    ch->n_added = n;
+    return 0;
+}
+
+int iso_adapt_edit_ids(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
+                       struct iso_change *ch, struct sf_err *err)
+{
     memset(ed, 0, sizeof *ed);
+    if (ch)
+        *ch = (struct iso_change){.next_id = a->next_id};
     int n[3] = {blk->nx, blk->ny, blk->nz}, e0[3], e1[3];
     if (!a->kept)
         return sf_fail(err, SF_EINVAL, "", "the extraction is not kept (or an edit of it failed)");
@@ -540,6 +592,8 @@ int iso_adapt_edit(struct iso_adapt *a, const int lo[3], const struct iso_grid *
                 cell_level(a, b);
     /* the old triangles of those cells out */
     struct piece *all = &a->all;
+    size_t rcap = 0;
+    bool nomem = false;
     for (size_t t = 0; t < all->m.n_tri;) {
         int ob[3];
         block_at(a, all->owner[t], ob);
@@ -550,11 +604,18 @@ int iso_adapt_edit(struct iso_adapt *a, const int lo[3], const struct iso_grid *
         for (int k = 0; k < 3; k++)
             if (--a->refs[all->m.tri[3 * t + k]] == 0)
                 a->dead++;
+        if (ch && !nomem) {
+            nomem = mem_reserve((void **)&ch->removed, &rcap, ch->n_removed + 1, sizeof *ch->removed);
+            if (!nomem)
+                ch->removed[ch->n_removed++] = a->ids[t];
+        }
         size_t last = --all->m.n_tri;
         memcpy(all->m.tri + 3 * t, all->m.tri + 3 * last, 3 * sizeof *all->m.tri);
         all->owner[t] = all->owner[last];
+        a->ids[t] = a->ids[last];
         ed->triangles_removed++;
     }
+    size_t n0 = all->m.n_tri;
     /* and the new ones in */
     struct piece pc = {0};
     for (b[2] = rlo[2]; b[2] <= rhi[2] && !pc.nomem; b[2]++)
@@ -565,8 +626,12 @@ int iso_adapt_edit(struct iso_adapt *a, const int lo[3], const struct iso_grid *
         a->cells[l] += pc.cells[l], ed->cells_rebuilt += pc.cells[l];
     a->feature_points += pc.feature_points;
     ed->triangles_added = (long)pc.m.n_tri;
-    int rc = pc.nomem || merge_rebuilt(a, &pc) ? -1 : 0;
+    int rc = nomem || pc.nomem || merge_rebuilt(a, &pc) ? -1 : 0;
     piece_free(&pc);
+    if (!rc && ch) {
+        rc = report_added(a, n0, ch);
+        ch->next_id = a->next_id;
+    }
     if (!rc && a->dead > 4096 && a->dead > all->m.n_vert / 2)
         rc = compact(a);
     if (rc) {

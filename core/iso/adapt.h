@@ -122,6 +122,16 @@ int iso_adapt_mesh(const struct iso_adapt *a, struct trimesh *out, struct iso_ad
 int iso_adapt_edit(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
                    struct sf_err *err);
 
+/* The same, reporting what the edit did by triangle id (kept.h: ch, which may be NULL; freed by
+ * iso_change_free). The kept mesh's triangles are numbered as kept.h says: 0 .. n-1 in the order
+ * iso_adapt_keep found them (iso_adapt_end's), then each new one the next id in the order the
+ * rebuilt blocks drew them. */
+struct iso_change;
+int iso_adapt_edit_ids(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
+                       struct iso_change *ch, struct sf_err *err);
+/* Each triangle's id, in iso_adapt_mesh's order (*ids: caller frees). 0 or SF_ENOMEM. */
+int iso_adapt_ids(const struct iso_adapt *a, uint32_t **ids, struct sf_err *err);
+
 /* The memory a holds, in bytes. */
 size_t iso_adapt_bytes(const struct iso_adapt *a);
 

@@ -62,6 +62,9 @@ struct iso_adapt {
     uint8_t *bcells, *bfeat;           /* [level-2 block]: the cells it drew, their feature points */
     bool kept;
     struct piece all;                  /* the mesh, its vertices keyed as the pieces' */
+    uint32_t *ids;                     /* each kept triangle's id (kept.h), beside all's owner */
+    size_t idcap;
+    uint32_t next_id;
     uint32_t *refs;                    /* each vertex's triangles */
     size_t rcap, dead;                 /* dead: vertices no triangle uses */
     long cells[ISO_MAX_LEVELS + 1], feature_points;

@@ -4,6 +4,7 @@
  * triangle (positions and normals), at every level count, with and without features; and a region
  * outside the samples is refused. */
 #include "../../../core/iso/adapt.h"
+#include "../../../core/iso/kept.h"
 
 #include <stdbool.h>
 #include <stdint.h>
@@ -239,6 +240,137 @@ TEST(a_region_outside_is_refused)
     iso_adapt_free(a);
 }
 
+/* A client's copy of the mesh by triangle id (kept.h), as the mesh deltas keep it: 18 floats
+ * each, present or not. */
+struct by_id {
+    float *t;
+    bool *has;
+    size_t cap;
+};
+
+static void by_id_put(struct by_id *c, uint32_t id, const float *corners)
+{
+    if (id >= c->cap) {
+        size_t cap = 2 * (size_t)id + 16;
+        c->t = realloc(c->t, cap * 18 * sizeof *c->t);
+        c->has = realloc(c->has, cap * sizeof *c->has);
+        memset(c->has + c->cap, 0, (cap - c->cap) * sizeof *c->has);
+        c->cap = cap;
+    }
+    memcpy(c->t + 18 * (size_t)id, corners, 18 * sizeof *c->t);
+    c->has[id] = true;
+}
+
+/* Whether the kept mesh, id for id, is the client's copy. */
+static bool by_id_same(const struct by_id *c, const struct iso_adapt *a)
+{
+    struct trimesh m;
+    struct iso_adapt_stats st;
+    struct sf_err err = {0};
+    uint32_t *ids = NULL;
+    if (iso_adapt_mesh(a, &m, &st, &err) || iso_adapt_ids(a, &ids, &err)) {
+        fprintf(stderr, "  the kept mesh: %s\n", err.message);
+        return false;
+    }
+    size_t held = 0, wrong = 0;
+    for (size_t i = 0; i < c->cap; i++)
+        held += c->has[i];
+    for (size_t t = 0; t < m.n_tri; t++) {
+        float x[18];
+        for (int k = 0; k < 3; k++) {
+            memcpy(x + 6 * k, m.pos + 3 * m.tri[3 * t + k], 3 * sizeof(float));
+            memcpy(x + 6 * k + 3, m.nrm + 3 * m.tri[3 * t + k], 3 * sizeof(float));
+        }
+        wrong += ids[t] >= c->cap || !c->has[ids[t]] || memcmp(c->t + 18 * (size_t)ids[t], x, sizeof x);
+    }
+    bool same = !wrong && held == m.n_tri;
+    if (!same)
+        fprintf(stderr, "  %zu of %zu triangles differ from the copy by id (%zu held)\n", wrong, m.n_tri, held);
+    free(ids);
+    trimesh_free(&m);
+    return same;
+}
+
+/* Ids (kept.h): the first mesh numbered in the fresh extraction's order; each edit's change,
+ * applied to a copy by id, gives the kept mesh; an id is never used twice; two hierarchies given
+ * the same edits number alike. */
+TEST(edits_report_their_changes_by_stable_ids)
+{
+    char *raw = ct_crop();
+    if (!raw)
+        return;
+    int16_t *vol = memcpy(malloc(CT_BYTES), raw, CT_BYTES), *vol2 = memcpy(malloc(CT_BYTES), raw, CT_BYTES);
+    struct iso_grid g = ct_grid(vol), g2 = ct_grid(vol2);
+    struct iso_opts o = {.iso = 226.5, .closed = true, .normals = true, .keep = true}, plain = o;
+    plain.keep = false;
+    struct iso_adapt *a = kept(&g, &o, 3, 1.0), *b = kept(&g2, &o, 3, 1.0);
+    struct trimesh fresh, m;
+    struct iso_adapt_stats st;
+    struct sf_err err = {0};
+    uint32_t *ids = NULL;
+    CHECK(a && b && iso_extract_adaptive(&g, &plain, 3, 1.0, NULL, &fresh, &st, &err) == 0);
+    CHECK(iso_adapt_mesh(a, &m, &st, &err) == 0 && iso_adapt_ids(a, &ids, &err) == 0);
+    bool in_order = m.n_tri == fresh.n_tri;
+    struct by_id c = {0};
+    for (size_t t = 0; t < m.n_tri && in_order; t++) {
+        float x[18];
+        for (int k = 0; k < 3; k++) {
+            memcpy(x + 6 * k, m.pos + 3 * m.tri[3 * t + k], 3 * sizeof(float));
+            memcpy(x + 6 * k + 3, m.nrm + 3 * m.tri[3 * t + k], 3 * sizeof(float));
+            in_order = in_order && !memcmp(x + 6 * k, fresh.pos + 3 * fresh.tri[3 * t + k], 3 * sizeof(float));
+        }
+        in_order = in_order && ids[t] == t;
+        by_id_put(&c, ids[t], x);
+    }
+    CHECK(in_order);
+    free(ids);
+    trimesh_free(&m);
+    trimesh_free(&fresh);
+    uint32_t next = (uint32_t)c.cap;
+    for (size_t i = 0; i < c.cap; i++)
+        next = c.has[i] ? (uint32_t)i + 1 : next;
+    for (int e = 0; e < 8 && a && b; e++) {
+        int lo[3] = {6 + 5 * e, 20 + (e % 3) * 4, 10 + 3 * e}, n = 10;
+        int16_t *blk = malloc((size_t)n * n * n * sizeof *blk);
+        for (int i = 0; i < n * n * n; i++) {
+            blk[i] = (int16_t)(e & 1 ? -800 : 1500 - 30 * (i % 17));
+            vol[lo[0] + i % n + 64 * (lo[1] + i / n % n + 64 * (lo[2] + i / (n * n)))] = blk[i];
+        }
+        struct iso_grid bg = {n, n, n, ISO_I16, blk, {1, 1, 1}, {0, 0, 0}};
+        struct iso_edit ed, ed2;
+        struct iso_change ch, ch2;
+        CHECK(iso_adapt_edit_ids(a, lo, &bg, &ed, &ch, &err) == 0 && iso_adapt_edit_ids(b, lo, &bg, &ed2, &ch2, &err) == 0);
+        CHECK(ch.n_removed == (size_t)ed.triangles_removed && ch.n_added == (size_t)ed.triangles_added && ch.n_added > 0);
+        bool ok = true;
+        for (size_t k = 0; k < ch.n_removed; k++) {
+            ok = ok && ch.removed[k] < c.cap && c.has[ch.removed[k]];
+            if (ch.removed[k] < c.cap)
+                c.has[ch.removed[k]] = false;
+        }
+        for (size_t k = 0; k < ch.n_added; k++) {
+            ok = ok && ch.added[k] >= next; /* (never one used before) */
+            next = ch.added[k] + 1;
+            by_id_put(&c, ch.added[k], ch.corners + 18 * k);
+        }
+        CHECK(ok && ch.next_id == next);
+        CHECK(by_id_same(&c, a));
+        CHECK(ch.n_added == ch2.n_added && ch.n_removed == ch2.n_removed && ch.next_id == ch2.next_id &&
+              !memcmp(ch.added, ch2.added, ch.n_added * sizeof *ch.added) &&
+              !memcmp(ch.corners, ch2.corners, ch.n_added * 18 * sizeof *ch.corners));
+        iso_change_free(&ch);
+        iso_change_free(&ch2);
+        free(blk);
+    }
+    CHECK(as_fresh(a, &g, &o, 3, 1.0));
+    free(c.t);
+    free(c.has);
+    iso_adapt_free(a);
+    iso_adapt_free(b);
+    free(vol);
+    free(vol2);
+    free(raw);
+}
+
 int main(void)
 {
     iso_init();
@@ -246,5 +378,6 @@ int main(void)
     RUN(a_new_least_sample_redraws_every_cell);
     RUN(many_edits_over_one_place);
     RUN(a_region_outside_is_refused);
+    RUN(edits_report_their_changes_by_stable_ids);
     UNIT_END();
 }
