@@ -195,7 +195,7 @@ fuzz: deps $(FUZZERS)
 # the pool and queue under the thread sanitizer
 # the store conformance suite: SQLite here, both backends in tests/api/store_conformance.sh
 STORE_SRC := daemon/store.c daemon/store_values.c daemon/store_sqlite.c daemon/store_pg.c daemon/store_walmark.c daemon/job_state.c \
-             core/base/err.c
+             api/mesh_io.c api/mesh_journal.c core/base/err.c core/base/mem.c core/geom/trimesh.c
 $(B)/tests/daemon/test_store: tests/daemon/test_store.c tests/unit.h $(STORE_SRC) $(wildcard daemon/store*.h)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(SAN) -o $@ tests/daemon/test_store.c $(STORE_SRC) -lsqlite3 -lpq -lgnutls -lpthread -lm

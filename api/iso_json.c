@@ -1,5 +1,6 @@
 /* iso_json.c - an isosurface's model resource with jansson (iso_json.h). */
 #include "iso_json.h"
+#include "model_json.h"
 
 #include <jansson.h>
 #include <stdio.h>
@@ -115,6 +116,39 @@ int iso_model_grid(const char *resource, struct iso_grid *g, bool *frep, struct 
     g->type = !strcmp(type, "uint8") ? ISO_U8 : !strcmp(type, "int16") ? ISO_I16 : !strcmp(type, "uint16") ? ISO_U16 : ISO_F32;
     json_decref(o);
     return rc;
+}
+
+char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, long version, long d_triangles,
+                            double d_volume, double d_area, const double ms[3], struct sf_err *err)
+{
+    json_t *o = json_loads(prev, 0, NULL), *t = json_object_get(o, "timings_ms");
+    if (!json_is_object(o)) {
+        json_decref(o);
+        sf_fail(err, SF_EIO, "", "the model's resource is not JSON");
+        return NULL;
+    }
+    long topo = json_is_integer(json_object_get(o, "topology_version")) ? (long)json_integer_value(json_object_get(o, "topology_version"))
+                                                                         : model_version(prev);
+    json_object_set_new(o, "version", json_integer(version));
+    json_object_set_new(o, "edits", json_integer(version - 1));
+    json_object_set_new(o, "triangles", json_integer(json_integer_value(json_object_get(o, "triangles")) + d_triangles));
+    json_object_set_new(o, "volume_mm3", json_real(json_number_value(json_object_get(o, "volume_mm3")) + d_volume));
+    json_object_set_new(o, "area_mm2", json_real(json_number_value(json_object_get(o, "area_mm2")) + d_area));
+    json_object_set_new(o, "topology_version", json_integer(topo));
+    json_object_set_new(o, "edit",
+                        json_pack("{s:s, s:I, s:I, s:I, s:b, s:f}", "region", me->region, "cells_rebuilt",
+                                  (json_int_t)me->e.cells_rebuilt, "triangles_removed", (json_int_t)me->e.triangles_removed,
+                                  "triangles_added", (json_int_t)me->e.triangles_added, "whole", me->e.whole, "ms", me->ms));
+    if (json_is_object(t)) {
+        json_object_set_new(t, "extract", json_real(ms[0]));
+        json_object_set_new(t, "measure", json_real(ms[1]));
+        json_object_set_new(t, "total", json_real(ms[2]));
+    }
+    char *text = json_dumps(o, JSON_COMPACT);
+    json_decref(o);
+    if (!text)
+        sf_fail(err, SF_ENOMEM, "", "out of memory");
+    return text;
 }
 
 long iso_model_edits(const char *resource)

@@ -255,6 +255,23 @@ int mesh_pack(const struct trimesh *m, char **out, size_t *len, struct sf_err *e
     return mesh_pack_ids(m, NULL, 1, out, len, err);
 }
 
+int mesh_packed_version(const char *src, size_t len, uint64_t *version)
+{
+    uint64_t head[3];
+    *version = 1;
+    if (!mesh_is_packed(src, len))
+        return -1;
+    memcpy(head, src + 8, sizeof head);
+    uint64_t nv = head[0], nt = head[1], with_normals = (head[2] & PACKED_NORMALS) != 0;
+    if (!(head[2] & PACKED_IDS))
+        return 0;
+    uint64_t at = 32 + 12 * nv * (1 + with_normals) + 12 * nt;
+    if (nv >= (1ull << 31) || nt >= (1ull << 32) || at + 8 > len)
+        return -1;
+    memcpy(version, src + at, 8);
+    return 0;
+}
+
 int mesh_unpack_ids(const char *src, size_t len, struct trimesh *m, uint32_t **ids, uint64_t *version,
                     struct sf_err *err)
 {

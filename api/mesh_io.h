@@ -36,6 +36,8 @@ size_t mesh_packed_triangles(const char *src, size_t len);
 int mesh_unpack(const char *src, size_t len, struct trimesh *m, struct sf_err *err);
 /* With its ids (NULL: not wanted; a mesh packed without them: 0 .. n-1) and version (1 when
  * packed without ids): caller frees *ids. */
+/* The version a packed mesh is of (1 when packed without ids): 0, or -1 (not one). */
+int mesh_packed_version(const char *src, size_t len, uint64_t *version);
 int mesh_unpack_ids(const char *src, size_t len, struct trimesh *m, uint32_t **ids, uint64_t *version,
                     struct sf_err *err);
 

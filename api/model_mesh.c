@@ -123,11 +123,16 @@ int model_mesh(const char *src, size_t len, const char *resource, const char *op
     *mime = mesh_mime(format);
     struct trimesh tm;
     bool dicom = !strcmp(format, "dicom-stl"); /* STL in a DICOM Encapsulated STL object */
-    if (!(rc = model_trimesh(src, len, tol, pr, &tm, tol_used, err)))
-        rc = strcmp(format, "delta") ? mesh_encode(&tm, dicom ? "stl" : format, out, out_len, err)
-                                     : mesh_delta_encode(&tm, 0, (uint32_t)model_version(resource), NULL, 0, NULL, tm.n_tri,
-                                                         NULL, out, out_len, err);
+    uint32_t *ids = NULL; /* a mesh model's triangle ids (stable across its versions), for the delta */
+    bool delta = !strcmp(format, "delta");
+    rc = delta && mesh_is_packed(src, len) ? mesh_unpack_ids(src, len, &tm, &ids, NULL, err)
+                                           : model_trimesh(src, len, tol, pr, &tm, tol_used, err);
+    if (!rc)
+        rc = !delta ? mesh_encode(&tm, dicom ? "stl" : format, out, out_len, err)
+                    : mesh_delta_encode(&tm, 0, (uint32_t)model_version(resource), NULL, 0, ids, tm.n_tri, NULL, out,
+                                        out_len, err);
     trimesh_free(&tm);
+    free(ids);
     if (!rc && dicom) {
         json_t *r = resource ? json_loads(resource, 0, NULL) : NULL;
         unsigned char *d = NULL;

@@ -49,7 +49,7 @@ static int model_put(void *ctx, const char *id, const char *name, const char *so
                      const char *resource)
 {
     const struct contour_work *w = ctx;
-    struct model_rec m = {id, w->job.claim.id, name, w->owner, wall_s(), source, source_len, resource, NULL};
+    struct model_rec m = {id, w->job.claim.id, name, w->owner, wall_s(), source, source_len, resource, NULL, 1};
     return store_model_put(w->job.svc->store, &m);
 }
 

@@ -30,6 +30,8 @@
 #include "../api/frep_json.h"
 #include "../api/iso_json.h"
 #include "../api/mesh_io.h"
+#include "../api/mesh_journal.h"
+#include "../core/base/mem.h"
 #include "../api/query.h"
 #include "log.h"
 #include "../api/volume_io.h"
@@ -43,6 +45,9 @@ struct live {
     int next_seq;            /* the volume's parts applied: 0 .. next_seq - 1 */
     struct volume vol;       /* its settings; its samples only when a is NULL (marching cubes) */
     struct iso_adapt *a;     /* the kept hierarchy (levels over 1, or features) */
+    float (*fig)[2];         /* a: each triangle's signed volume and area, by id (an edit's figures move by
+                              * what it takes out and puts in) */
+    size_t figcap;
     size_t bytes;
     double used;
     int users;
@@ -59,6 +64,7 @@ static struct {
 
 static void live_free(struct live *e)
 {
+    free(e->fig);
     iso_adapt_free(e->a);
     volume_free(&e->vol);
     pthread_mutex_destroy(&e->lock);
@@ -67,7 +73,7 @@ static void live_free(struct live *e)
 
 static size_t live_bytes(const struct live *e)
 {
-    size_t n = e->a ? iso_adapt_bytes(e->a) : 0;
+    size_t n = e->a ? iso_adapt_bytes(e->a) + e->figcap * sizeof *e->fig : 0;
     if (e->vol.owned)
         n += (size_t)e->vol.g.nx * e->vol.g.ny * e->vol.g.nz * (e->vol.g.type == ISO_U8 ? 1 : e->vol.g.type == ISO_F32 ? 4 : 2);
     return n;
@@ -165,6 +171,63 @@ static struct live *live_new(const char *id, struct volume *vol, struct iso_adap
     return e;
 }
 
+/* The signed volume (the divergence theorem's share) and area of the triangle of corners p, q, r. */
+static void tri_figures(const float *p, const float *q, const float *r, float out[2])
+{
+    double u[3], v[3], c[3];
+    for (int d = 0; d < 3; d++)
+        u[d] = (double)q[d] - p[d], v[d] = (double)r[d] - p[d];
+    c[0] = u[1] * v[2] - u[2] * v[1], c[1] = u[2] * v[0] - u[0] * v[2], c[2] = u[0] * v[1] - u[1] * v[0];
+    double pq[3] = {(double)q[1] * r[2] - (double)q[2] * r[1], (double)q[2] * r[0] - (double)q[0] * r[2],
+                    (double)q[0] * r[1] - (double)q[1] * r[0]};
+    out[0] = (float)((p[0] * pq[0] + p[1] * pq[1] + p[2] * pq[2]) / 6);
+    out[1] = (float)(0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]));
+}
+
+/* The figures of triangle id into e->fig: 0 or -1 (no memory). */
+static int fig_put(struct live *e, uint32_t id, const float *p, const float *q, const float *r)
+{
+    if (mem_reserve((void **)&e->fig, &e->figcap, (size_t)id + 1, sizeof *e->fig))
+        return -1;
+    tri_figures(p, q, r, e->fig[id]);
+    return 0;
+}
+
+/* Every kept triangle's figures, from the hierarchy's mesh: 0 or -1. (Oblique grids: the figures
+ * are the same turned or not.) */
+static int figures_all(struct live *e)
+{
+    struct trimesh m;
+    struct iso_adapt_stats st;
+    uint32_t *ids = NULL;
+    struct sf_err err = {0};
+    if (iso_adapt_mesh(e->a, &m, &st, &err) || iso_adapt_ids(e->a, &ids, &err)) {
+        trimesh_free(&m);
+        return -1;
+    }
+    int rc = 0;
+    for (size_t t = 0; t < m.n_tri && !rc; t++)
+        rc = fig_put(e, ids[t], m.pos + 3 * m.tri[3 * t], m.pos + 3 * m.tri[3 * t + 1], m.pos + 3 * m.tri[3 * t + 2]);
+    free(ids);
+    trimesh_free(&m);
+    return rc;
+}
+
+/* What change ch did to the figures (*dv, *da added to), e->fig following it: 0 or -1. */
+static int figures_move(struct live *e, const struct iso_change *ch, double *dv, double *da)
+{
+    for (size_t k = 0; k < ch->n_removed; k++)
+        if (ch->removed[k] < e->figcap)
+            *dv -= e->fig[ch->removed[k]][0], *da -= e->fig[ch->removed[k]][1];
+    for (size_t k = 0; k < ch->n_added; k++) {
+        const float *c = ch->corners + 18 * k;
+        if (fig_put(e, ch->added[k], c, c + 6, c + 12))
+            return -1;
+        *dv += e->fig[ch->added[k]][0], *da += e->fig[ch->added[k]][1];
+    }
+    return 0;
+}
+
 void edit_keep(struct service *svc, const char *id, const struct volume *vol, struct iso_adapt *a)
 {
     struct volume v = *vol;
@@ -179,18 +242,19 @@ void edit_keep(struct service *svc, const char *id, const struct volume *vol, st
     if (!e)
         iso_adapt_free(a);
     else
-        live_give(e, false, (size_t)svc->cfg.edit_memory);
+        live_give(e, figures_all(e) != 0, (size_t)svc->cfg.edit_memory);
 }
 
 /* ---- applying parts of the volume ---- */
 
-/* Model id's hierarchy rebuilt from the store (its volume, then its edits in order): held and
- * locked, or NULL with err. */
+/* Model id's hierarchy rebuilt from the store: its volume as posted, its edits left to catch_up to
+ * apply in order (so that its triangles are numbered as the first hierarchy numbered them: the
+ * journal's ids, core/iso/kept.h). Held and locked, or NULL with err. */
 static struct live *rebuild(struct service *svc, const char *id, struct sf_err *err)
 {
     struct volume vol;
     struct iso_adapt *a = NULL;
-    int next, rc = stored_volume(svc, id, &vol, &next, err);
+    int next, rc = stored_volume(svc, id, &vol, false, &next, err);
     if (rc)
         return NULL;
     if (volume_adaptive(&vol)) {
@@ -218,6 +282,10 @@ static struct live *rebuild(struct service *svc, const char *id, struct sf_err *
         iso_adapt_free(a);
         volume_free(&vol);
         sf_fail(err, SF_ENOMEM, "", "out of memory");
+    } else if (a && figures_all(e)) {
+        live_give(e, true, (size_t)svc->cfg.edit_memory);
+        e = NULL;
+        sf_fail(err, SF_ENOMEM, "", "out of memory");
     }
     return e;
 }
@@ -231,10 +299,16 @@ static int catch_up(struct service *svc, struct live *e, struct sf_err *err)
         rc = sf_fail(err, SF_EIO, "", "the model's volume could not be read from the store");
     for (int k = 0; k < n && !rc; k++) {
         struct iso_edit ed;
+        struct iso_change ch = {0};
+        double dv = 0, da = 0;
         if (parts[k].seq != e->next_seq)
             rc = sf_fail(err, SF_EIO, "", "the model's edits in the store skip from %d to %d", e->next_seq, parts[k].seq);
-        else if (!(rc = part_apply(&e->vol, e->a, parts[k].options, parts[k].data, parts[k].len, &ed, err)))
+        else if (!(rc = part_apply(&e->vol, e->a, parts[k].options, parts[k].data, parts[k].len, &ed, e->a ? &ch : NULL,
+                                   err)))
             e->next_seq++;
+        if (!rc && e->a && figures_move(e, &ch, &dv, &da))
+            rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+        iso_change_free(&ch);
     }
     store_volume_free(parts, n);
     return rc;
@@ -278,44 +352,104 @@ static void part_options(const char *options, const char *job, char *out, size_t
     snprintf(out, cap, "%s%sjob=%s", options, options[0] ? "&" : "", job);
 }
 
-/* The mesh m of model id's volume v measured, packed and stored as the model's next part (seq:
- * its format, options and data), the resource into w->json with edit me. */
+/* The mesh m of model id's volume v (ids: its triangles' ids, NULL: 0 .. n-1) measured, packed and
+ * stored as the model's source of the part's version with the part (seq: its format, options and
+ * data), the resource into w->json with edit me. */
 static int store_edit(struct edit_work *w, const char *id, const struct volume *v, struct trimesh *m,
-                      const struct iso_adapt_stats *ast, struct iso_model_edit *me, const struct volume_rec *part,
-                      double t0, double t_mesh)
+                      const uint32_t *ids, const struct iso_adapt_stats *ast, struct iso_model_edit *me,
+                      const struct volume_rec *part, double t0, double t_mesh)
 {
     struct trimesh_stats st;
     char *packed = NULL;
     size_t packed_len = 0;
+    uint32_t *own = NULL;
     double t1 = monotonic_s();
     int rc = volume_mesh_empty(v, m, &w->err);
     if (!rc && v->oblique)
         trimesh_turn(m, v->g.origin, (const double(*)[3])v->axes);
     if (!rc)
         rc = trimesh_stats(m, &st, &w->err);
+    if (!rc && !ids && !(ids = own = malloc((m->n_tri ? m->n_tri : 1) * sizeof *own)))
+        rc = sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
+    for (size_t t = 0; own && t < m->n_tri; t++)
+        own[t] = (uint32_t)t;
     if (!rc)
-        rc = mesh_pack(m, &packed, &packed_len, &w->err);
+        rc = mesh_pack_ids(m, ids, (uint64_t)part->seq + 1, &packed, &packed_len, &w->err);
     if (!rc) {
         double t2 = monotonic_s();
         struct iso_model im = {id, v->name, v, &st, ast, m->n_vert, m->n_tri,
                                {0, 0, (t_mesh - t0) * 1e3, (t2 - t1) * 1e3, (t2 - t0) * 1e3}, part->seq, me, 0, NULL};
+        free(w->json);
         if (!(w->json = iso_model_json(&im, &w->err)))
             rc = w->err.code;
     }
     if (!rc) {
-        struct model_rec mr = {id, id, NULL, NULL, 0, packed, packed_len, w->json, NULL};
-        int stored = store_model_edit(w->job.svc->store, &mr, part);
+        struct model_rec mr = {id, id, NULL, NULL, 0, packed, packed_len, w->json, NULL, part->seq + 1};
+        int stored = store_model_edit(w->job.svc->store, &mr, part, NULL);
         if (stored == SF_ECONFLICT)
             rc = sf_fail(&w->err, SF_ECONFLICT, "", "the model was edited by another request meanwhile (or deleted); "
                          "send the edit again");
         else if (stored)
             rc = sf_fail(&w->err, SF_EIO, "", "the store would not take the edit");
     }
+    free(own);
     free(packed);
     return rc;
 }
 
-/* The edit applied to e and stored with the mesh it gives: the new resource into w->json. */
+/* Change ch's corners turned as an oblique grid's mesh is (trimesh_turn). */
+static void turn_corners(struct iso_change *ch, const struct volume *v)
+{
+    const double *o = v->g.origin;
+    for (size_t k = 0; k < 3 * ch->n_added; k++) {
+        float *c = ch->corners + 6 * k;
+        double x[3] = {c[0] - o[0], c[1] - o[1], c[2] - o[2]}, n[3] = {c[3], c[4], c[5]};
+        for (int d = 0; d < 3; d++) {
+            c[d] = (float)(o[d] + x[0] * v->axes[0][d] + x[1] * v->axes[1][d] + x[2] * v->axes[2][d]);
+            c[3 + d] = (float)(n[0] * v->axes[0][d] + n[1] * v->axes[1][d] + n[2] * v->axes[2][d]);
+        }
+    }
+}
+
+/* The edit's change ch of e's mesh stored with the part as the journal's next version (issue 45:
+ * the mesh itself is not written again, nor measured whole: the resource's figures move by what
+ * the change did), the resource into w->json. SF_ECONFLICT: another edit took the part's seq, the
+ * model is gone, or its row keeps no base (written before the journal). */
+static int store_change(struct edit_work *w, const char *id, struct live *e, const struct iso_model_edit *me,
+                        struct iso_change *ch, const struct volume_rec *part, double t0)
+{
+    long version = part->seq + 1;
+    double dv = 0, da = 0, t1 = monotonic_s();
+    char *bytes = NULL, *prev = NULL;
+    size_t len = 0;
+    if (figures_move(e, ch, &dv, &da))
+        return sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
+    if (e->vol.oblique)
+        turn_corners(ch, &e->vol);
+    int rc = mesh_change_encode(ch, (uint32_t)version, &bytes, &len, &w->err);
+    if (!rc && store_model_get(w->job.svc->store, id, NULL, &prev, NULL, NULL))
+        rc = sf_fail(&w->err, SF_ECONFLICT, "", "the model could not be read from the store");
+    if (!rc) {
+        double t2 = monotonic_s(), ms[3] = {me->ms, (t2 - t1) * 1e3, (t2 - t0) * 1e3};
+        if (!(w->json = iso_model_json_edited(prev, me, version, (long)ch->n_added - (long)ch->n_removed, dv, da, ms,
+                                              &w->err)))
+            rc = w->err.code;
+    }
+    if (!rc) {
+        struct model_rec mr = {id, id, NULL, NULL, 0, NULL, 0, w->json, NULL, version};
+        struct volume_rec change = {0, "", "", bytes, len};
+        int stored = store_model_edit(w->job.svc->store, &mr, part, &change);
+        rc = stored == SF_ECONFLICT ? SF_ECONFLICT
+             : stored             ? sf_fail(&w->err, SF_EIO, "", "the store would not take the edit")
+                                  : 0;
+    }
+    free(prev);
+    free(bytes);
+    return rc;
+}
+
+/* The edit applied to e and stored: with a hierarchy, as a change of its mesh (store_change), else
+ * (or when the model's row keeps no base) with the whole mesh. The new resource into w->json. */
 static int edit_model(struct edit_work *w, struct live *e, const struct job_rec *rec, const char *model, bool *drop)
 {
     char region[128];
@@ -327,13 +461,33 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
         return rc;
     *drop = true; /* from here the entry is ahead of the store until the edit is stored */
     double ta = monotonic_s();
-    if ((rc = part_apply(&e->vol, e->a, rec->options, rec->request, rec->request_len, &me.e, &w->err)))
+    struct iso_change ch = {0};
+    if ((rc = part_apply(&e->vol, e->a, rec->options, rec->request, rec->request_len, &me.e, e->a ? &ch : NULL,
+                         &w->err))) {
+        iso_change_free(&ch);
         return rc;
+    }
     me.ms = (monotonic_s() - ta) * 1e3;
+    char opts[sizeof rec->options + 48];
+    part_options(rec->options, w->job.claim.id, opts, sizeof opts);
+    struct volume_rec part = {e->next_seq, "edit", opts, rec->request, rec->request_len};
+    if (e->a) {
+        rc = store_change(w, model, e, &me, &ch, &part, t0);
+        iso_change_free(&ch);
+        if (rc != SF_ECONFLICT) {
+            if (!rc)
+                e->next_seq++, *drop = false;
+            return rc;
+        }
+        LOG(LOG_INFO, "job %s: the edit is stored with the model's whole mesh (a conflict, or a model stored before "
+                      "the journal of changes)", w->job.claim.id);
+    }
     struct trimesh m;
     struct iso_adapt_stats ast = {0};
+    uint32_t *ids = NULL;
     if (e->a) {
-        rc = iso_adapt_mesh(e->a, &m, &ast, &w->err);
+        if (!(rc = iso_adapt_mesh(e->a, &m, &ast, &w->err)))
+            rc = iso_adapt_ids(e->a, &ids, &w->err);
     } else {
         struct iso_opts o = job_iso_opts(w->job.svc, &e->vol);
         rc = iso_extract(&e->vol.g, &o, NULL, &m, &w->err);
@@ -343,13 +497,9 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     double t_mesh = monotonic_s();
     if (!e->a)
         me.ms = (t_mesh - ta) * 1e3; /* (marching cubes: every cell drawn again) */
-    if (!rc) {
-        char opts[sizeof rec->options + 48];
-        part_options(rec->options, w->job.claim.id, opts, sizeof opts);
-        struct volume_rec part = {e->next_seq, "edit", opts, rec->request, rec->request_len};
-        if (!(rc = store_edit(w, model, &e->vol, &m, e->a ? &ast : NULL, &me, &part, t0, t_mesh)))
-            e->next_seq++, *drop = false;
-    }
+    if (!rc && !(rc = store_edit(w, model, &e->vol, &m, ids, e->a ? &ast : NULL, &me, &part, t0, t_mesh)))
+        e->next_seq++, *drop = false;
+    free(ids);
     trimesh_free(&m);
     return rc;
 }
@@ -387,7 +537,7 @@ static int edit_frep(struct edit_work *w, struct job *j, const struct job_rec *r
         char opts[600];
         part_options(parts[0].options, w->job.claim.id, opts, sizeof opts);
         struct volume_rec part = {n, "frep", opts, req, strlen(req)};
-        rc = store_edit(w, id, &v, &m, volume_adaptive(&v) ? &ast : NULL, &me, &part, t0, t_mesh);
+        rc = store_edit(w, id, &v, &m, NULL, volume_adaptive(&v) ? &ast : NULL, &me, &part, t0, t_mesh);
     }
     trimesh_free(&m);
     volume_free(&v);

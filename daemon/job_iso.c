@@ -276,7 +276,7 @@ static int store_model(struct iso_work *w)
         struct volume_rec vr = {0, w->rec.format, w->rec.options, w->map ? w->map : (const void *)w->rec.request,
                                 w->map ? w->map_len : w->rec.request_len};
         struct model_rec mr = {w->job.claim.id, w->job.claim.id, w->vol.name, w->rec.owner, wall_s(), packed, packed_len, w->json,
-                               w->vol.has_label ? NULL : &vr}; /* (a label's map is not kept: no edits) */
+                               w->vol.has_label ? NULL : &vr, 1}; /* (a label's map is not kept: no edits) */
         if (store_model_put(w->job.svc->store, &mr))
             rc = sf_fail(&w->err, SF_EIO, "", "the store would not take the mesh");
     }
@@ -343,7 +343,7 @@ static int store_label_models(struct iso_work *w)
         if (!rc && !(json = iso_model_json(&im, &w->err)))
             rc = w->err.code;
         if (!rc) {
-            struct model_rec mr = {id, w->job.claim.id, name, w->rec.owner, wall_s(), packed, packed_len, json, NULL};
+            struct model_rec mr = {id, w->job.claim.id, name, w->rec.owner, wall_s(), packed, packed_len, json, NULL, 1};
             if (store_model_put(w->job.svc->store, &mr))
                 rc = sf_fail(&w->err, SF_EIO, "", "the store would not take the mesh of label %lld",
                              w->vol.label_of[k - 1].value);

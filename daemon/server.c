@@ -13,6 +13,7 @@
 
 #include <arpa/inet.h>
 #include <ctype.h>
+#include <limits.h>
 #include <dirent.h>
 #include <errno.h>
 #include <microhttpd.h>
@@ -28,6 +29,7 @@
 #include "../api/iso_json.h"
 #include "../api/model_json.h"
 #include "../api/job_json.h"
+#include "../api/mesh_journal.h"
 #include "../api/problem.h"
 #include "frames.h"
 #include "../api/dicom_instance.h"
@@ -724,9 +726,10 @@ static bool model_found(struct req *r, const char *id, char **resource, enum MHD
 }
 
 /* GET /models/{id}/mesh?format=delta&since=V (API.md, "Interactive isosurfaces"): since=0 is the
- * whole mesh (a mesh job, cached as any), since=the model's version an empty delta at once; a
- * version between is older than the journal of changes kept, which is none yet: 410, so that a
- * client loads since=0. *answered false: the request goes on as a mesh job. */
+ * whole mesh (a mesh job, cached as any); a later version the changes after it, composed from the
+ * model's journal (store.h), or 410 when the journal no longer reaches back to it (compacted, or a
+ * model whose edits rewrite its whole mesh), so that a client loads since=0. *answered false: the
+ * request goes on as a mesh job. */
 static enum MHD_Result delta_request(struct req *r, const char *id, bool *answered)
 {
     const char *f = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "format");
@@ -737,7 +740,7 @@ static enum MHD_Result delta_request(struct req *r, const char *id, bool *answer
     *answered = true;
     char *end = NULL, *resource = NULL;
     long since = s && *s ? strtol(s, &end, 10) : 0;
-    if (s && *s && (*end || since < 0))
+    if (s && *s && (*end || since < 0 || since > INT_MAX))
         return problem(r, 422, "since is a version of the model (0: the whole mesh)", "?since");
     enum MHD_Result answer;
     if (!model_found(r, id, &resource, &answer))
@@ -749,23 +752,36 @@ static enum MHD_Result delta_request(struct req *r, const char *id, bool *answer
         snprintf(detail, sizeof detail, "the model is at version %ld: since=%ld is after it", version, since);
         return problem(r, 422, detail, "?since");
     }
-    if (since > 0 && since < version) {
-        snprintf(detail, sizeof detail, "the changes from version %ld to %ld are not kept: load since=0 (the whole mesh)",
-                 since, version);
-        return problem(r, 410, detail, "?since");
-    }
     if (since == 0) {
         *answered = false;
         return MHD_YES;
     }
-    char *empty = malloc(20); /* "SFMD", from = to = the version, nothing removed or added */
-    if (!empty)
-        return problem(r, 500, "out of memory", NULL);
-    memcpy(empty, "SFMD", 4);
-    for (int k = 0; k < 4; k++)
-        for (int b = 0; b < 4; b++)
-            empty[4 + 4 * k + b] = (char)(k < 2 ? (unsigned long)version >> (8 * b) & 0xff : 0);
-    struct reply rp = {200, "application/vnd.surfd.mesh-delta", empty, 20, {{0}}};
+    struct volume_rec *parts;
+    int n, rc = store_changes_get(r->svc->store, id, since, &parts, &n);
+    if (rc)
+        return damaged_or_failed(r, rc);
+    struct mesh_change *ch = malloc(((size_t)n + 1) * sizeof *ch);
+    for (int k = 0; ch && k < n; k++)
+        ch[k] = (struct mesh_change){parts[k].data, parts[k].len};
+    char *out = NULL;
+    size_t len = 0;
+    struct sf_err err = {0};
+    /* (changes stored after the resource was read: the delta goes as far as they do) */
+    long to = n ? (long)mesh_change_version(parts[n - 1].data, parts[n - 1].len) : since;
+    rc = !ch ? SF_ENOMEM
+         : to - since != n || to < version
+             ? SF_ENOTFOUND
+             : mesh_changes_delta(ch, (size_t)n, (uint32_t)since, (uint32_t)to, &out, &len, &err);
+    free(ch);
+    store_volume_free(parts, n);
+    if (rc == SF_ENOTFOUND) {
+        snprintf(detail, sizeof detail, "the changes from version %ld to %ld are not kept: load since=0 (the whole mesh)",
+                 since, version);
+        return problem(r, 410, detail, "?since");
+    }
+    if (rc)
+        return rc == SF_ENOMEM ? problem(r, 500, "out of memory", NULL) : damaged_or_failed(r, SF_EDAMAGED);
+    struct reply rp = {200, "application/vnd.surfd.mesh-delta", out, len, {{0}}};
     return send_reply(r, &rp);
 }
 

@@ -1,11 +1,14 @@
 /* store.c - store.h over its backends: picks one by the target's form and forwards each call. */
 #include "store.h"
 
+#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "store_backend.h"
+#include "../api/mesh_io.h"
+#include "../api/mesh_journal.h"
 
 int store_open(const char *target, const char *scratch, struct store **out, struct sf_err *err)
 {
@@ -102,6 +105,38 @@ long store_queued(struct store *s) { return s->ops->queued(s); }
 
 int store_model_put(struct store *s, const struct model_rec *m) { return s->ops->model_put(s, m); }
 
+/* A mesh model's source with its changes after the base applied (the store header): *source
+ * replaced. 0, or the store's or the journal's error. */
+static int with_changes(struct store *s, const char *id, char **source, size_t *len)
+{
+    uint64_t base = 1;
+    if (!mesh_is_packed(*source, *len))
+        return 0;
+    if (mesh_packed_version(*source, *len, &base))
+        return SF_EDAMAGED;
+    struct volume_rec *parts;
+    int n, rc = store_changes_get(s, id, (long)base, &parts, &n);
+    if (rc || n == 0)
+        return rc;
+    struct mesh_change *ch = malloc((size_t)n * sizeof *ch);
+    char *out = NULL;
+    size_t out_len = 0;
+    struct sf_err err = {0};
+    if (!ch)
+        rc = SF_EIO;
+    for (int k = 0; k < n && ch; k++)
+        ch[k] = (struct mesh_change){parts[k].data, parts[k].len};
+    if (ch && mesh_changes_apply(*source, *len, ch, (size_t)n, &out, &out_len, &err))
+        rc = err.code == SF_ENOMEM ? SF_EIO : SF_EDAMAGED;
+    if (!rc) {
+        free(*source);
+        *source = out, *len = out_len;
+    }
+    free(ch);
+    store_volume_free(parts, n);
+    return rc;
+}
+
 int store_model_get(struct store *s, const char *id, const char *owner, char **resource, char **source,
                     size_t *source_len)
 {
@@ -109,7 +144,16 @@ int store_model_get(struct store *s, const char *id, const char *owner, char **r
         *resource = NULL;
     if (source)
         *source = NULL;
-    return noted(s, s->ops->model_get(s, id, owner, resource, source, source_len));
+    size_t len = 0;
+    int rc = noted(s, s->ops->model_get(s, id, owner, resource, source, &len));
+    if (!rc && source && (rc = noted(s, with_changes(s, id, source, &len)))) {
+        free(*source), *source = NULL;
+        if (resource)
+            free(*resource), *resource = NULL;
+    }
+    if (!rc && source_len)
+        *source_len = len;
+    return rc;
 }
 
 int store_model_list(struct store *s, const char *owner, long limit, void (*fn)(const char *, void *), void *arg)
@@ -122,9 +166,35 @@ int store_model_delete(struct store *s, const char *id, const char *owner)
     return s->ops->model_delete(s, id, owner);
 }
 
-int store_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit)
+int store_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit,
+                     const struct volume_rec *change)
 {
-    return s->ops->model_edit(s, m, edit);
+    struct volume_rec c;
+    if (change) /* (seq -version: the journal's rows sort before the volume's) */
+        c = (struct volume_rec){(int)-m->version, "mesh-change", "", change->data, change->len};
+    return s->ops->model_edit(s, m, edit, change && !m->source ? &c : NULL);
+}
+
+int store_changes_get(struct store *s, const char *id, long since, struct volume_rec **parts, int *n)
+{
+    *parts = NULL;
+    *n = 0;
+    int rc = noted(s, s->ops->volume_get(s, id, INT_MIN + 1, (int)-since, parts, n));
+    if (rc) {
+        store_volume_free(*parts, *n);
+        *parts = NULL, *n = 0;
+        return rc;
+    }
+    for (int i = 0, j = *n - 1; i < j; i++, j--) { /* seq -version rising: versions falling */
+        struct volume_rec t = (*parts)[i];
+        (*parts)[i] = (*parts)[j], (*parts)[j] = t;
+    }
+    return 0;
+}
+
+int store_model_rebase(struct store *s, const struct model_rec *m, long drop_through)
+{
+    return s->ops->model_rebase(s, m, drop_through < m->version ? drop_through : m->version);
 }
 
 int store_mesh_get(struct store *s, const char *model, const char *key, struct mesh_rec *out)
@@ -157,7 +227,7 @@ int store_volume_get(struct store *s, const char *id, int from, struct volume_re
 {
     *parts = NULL;
     *n = 0;
-    int rc = noted(s, s->ops->volume_get(s, id, from, parts, n));
+    int rc = noted(s, s->ops->volume_get(s, id, from, INT_MAX, parts, n));
     if (rc) { /* the parts read before the failure */
         store_volume_free(*parts, *n);
         *parts = NULL;

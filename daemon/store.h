@@ -175,7 +175,13 @@ struct volume_rec {
 };
 
 /* source is the contour JSON a model is rebuilt from (an isosurface's mesh, packed), resource the
- * JSON of GET /models/{id}, volume (NULL: none) the volume an isosurface came from (seq 0). */
+ * JSON of GET /models/{id}, volume (NULL: none) the volume an isosurface came from (seq 0),
+ * version the model's version its source is of (0: 1).
+ *
+ * A mesh model's mesh is kept as a base (its source, of some version) and a journal of changes
+ * (api/mesh_journal.h), one a version after it: rows of the volume's table with seq -version and
+ * format "mesh-change", so that they go with the model. store_model_get answers the base with the
+ * changes after it applied; store_model_rebase writes a newer base (compaction). */
 struct model_rec {
     const char *id, *job, *name, *owner;
     double created;
@@ -183,14 +189,25 @@ struct model_rec {
     size_t source_len;
     const char *resource;
     const struct volume_rec *volume;
+    long version;
 };
 /* Inserts, or replaces a model of the same id (a job run again after a crash), with its volume
  * (and no edits). 0 or SF_EIO. */
 int store_model_put(struct store *s, const struct model_rec *m);
-/* An edit of model m->id in one transaction: the volume part edit (its seq the next one) and the
- * model's new source and resource. 0 stored, SF_ECONFLICT when that seq is taken (another edit
- * came first) or the model is gone, SF_EIO. */
-int store_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit);
+/* An edit of model m->id in one transaction: the volume part edit (its seq the next one; NULL:
+ * none), the model's new resource and either its new source (of version m->version) or, with
+ * m->source NULL, the mesh change to m->version (change: its bytes; seq and format set here). 0
+ * stored, SF_ECONFLICT when that seq is taken (another edit came first), the model is gone, or
+ * (m->source NULL) its row keeps no base version (written before the journal: store a source),
+ * SF_EIO. */
+int store_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit,
+                     const struct volume_rec *change);
+/* The mesh changes of model id after version since, in order (as store_volume_get's parts:
+ * data the change). 0, SF_EIO, SF_EDAMAGED. */
+int store_changes_get(struct store *s, const char *id, long since, struct volume_rec **parts, int *n);
+/* A newer base of model m->id: its source of version m->version, when the stored one is older;
+ * the changes up to version drop_through (at most m->version) dropped. 0 or SF_EIO. */
+int store_model_rebase(struct store *s, const struct model_rec *m, long drop_through);
 /* The parts of model id's volume from seq from on, in order (*parts: caller frees with
  * store_volume_free; their bytes checked against the sums taken when written): 0 (*n of them, 0
  * when none), SF_EIO, SF_EDAMAGED. */

@@ -33,8 +33,9 @@ struct store_ops {
                      size_t *source_len);
     int (*model_list)(struct store *, const char *owner, long limit, void (*fn)(const char *, void *), void *arg);
     int (*model_delete)(struct store *, const char *id, const char *owner);
-    int (*model_edit)(struct store *, const struct model_rec *, const struct volume_rec *);
-    int (*volume_get)(struct store *, const char *id, int from, struct volume_rec **parts, int *n);
+    int (*model_edit)(struct store *, const struct model_rec *, const struct volume_rec *edit,
+                      const struct volume_rec *change);
+    int (*volume_get)(struct store *, const char *id, int from, int to, struct volume_rec **parts, int *n); /* seqs from .. to-1 */
     int (*mesh_get)(struct store *, const char *model, const char *key, struct mesh_rec *); /* sum as stored */
     int (*mesh_put)(struct store *, const char *model, const char *key, const struct mesh_rec *, long max_bytes);
     long (*mesh_bytes)(struct store *);
@@ -51,6 +52,7 @@ struct store_ops {
                             void (*fn)(const char *, const char *, const void *, size_t, void *), void *arg);
     int (*series_delete)(struct store *, const char *uid, const char *owner);
     int (*series_mark)(struct store *, const char *uid, const char *job);
+    int (*model_rebase)(struct store *, const struct model_rec *, long drop_through);
 };
 
 /* A running job a reap found, with what decides its new state (store_reaped_state). */

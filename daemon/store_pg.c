@@ -76,6 +76,9 @@ static const char SCHEMA[] =
     " id text PRIMARY KEY, job text NOT NULL, name text NOT NULL, created double precision NOT NULL,"
     " source bytea NOT NULL, resource text NOT NULL, owner text NOT NULL DEFAULT '', sum text);"
     "ALTER TABLE models ADD COLUMN IF NOT EXISTS resource_sum text;"
+    /* the version a model's source is of (0: a row from before the journal of mesh changes, whose
+     * sum covers its source and resource together; else its source alone) */
+    "ALTER TABLE models ADD COLUMN IF NOT EXISTS base_version bigint NOT NULL DEFAULT 0;"
     "CREATE INDEX IF NOT EXISTS models_created ON models(created);"
     "CREATE TABLE IF NOT EXISTS model_volumes (model text NOT NULL REFERENCES models(id) ON DELETE CASCADE,"
     " seq integer NOT NULL, format text NOT NULL, options text NOT NULL, data bytea NOT NULL, sum text NOT NULL,"
@@ -797,32 +800,39 @@ static int volume_put(struct pg_store *p, int c, const char *id, const struct vo
  * rows written (0: no such row to update), or SF_EIO. */
 static int model_row(struct pg_store *p, int c, const struct model_rec *m, bool update)
 {
-    char created[32], sum[65], rsum[65];
+    char created[32], sum[65], rsum[65], base[24];
     num(created, sizeof created, m->created);
-    store_checksum(m->source, m->source_len, m->resource, strlen(m->resource), sum);
+    snprintf(base, sizeof base, "%ld", m->version > 0 ? m->version : 1);
     store_checksum(m->resource, strlen(m->resource), "", 0, rsum);
+    if (!m->source) { /* the resource alone: the source (the mesh's base) stays, with its own sum */
+        struct param up[] = {T(m->id), T(m->resource), T(rsum)};
+        return exec_in(p, c, "UPDATE models SET resource=$2, resource_sum=$3 WHERE id=$1 AND base_version>0", 3, up);
+    }
+    store_checksum(m->source, m->source_len, "", 0, sum);
     char name[48];
     struct param prm[] = {T(m->id), T(m->job), T(m->name ? m->name : ""), T(created), T(NULL),
-                          T(m->resource), T(m->owner ? m->owner : ""), T(sum), T(rsum), T(NULL)};
+                          T(m->resource), T(m->owner ? m->owner : ""), T(sum), T(rsum), T(NULL), T(base)};
     if (value_params(p, c, m->source, m->source_len, name, &prm[4], &prm[9]))
         return SF_EIO;
     if (update) {
-        struct param up[] = {prm[0], prm[4], prm[5], prm[7], prm[8], prm[9]};
-        return exec_in(p, c, "UPDATE models SET source=$2, resource=$3, sum=$4, resource_sum=$5, source_pieces=$6"
-                       " WHERE id=$1", 6, up);
+        struct param up[] = {prm[0], prm[4], prm[5], prm[7], prm[8], prm[9], prm[10]};
+        return exec_in(p, c, "UPDATE models SET source=$2, resource=$3, sum=$4, resource_sum=$5, source_pieces=$6,"
+                       " base_version=$7 WHERE id=$1", 7, up);
     }
     return exec_in(p, c,
-                   "INSERT INTO models(id,job,name,created,source,resource,owner,sum,resource_sum,source_pieces)"
-                   " VALUES($1,$2,$3,$4,$5,$6,$7,$8,$9,$10)"
+                   "INSERT INTO models(id,job,name,created,source,resource,owner,sum,resource_sum,source_pieces,"
+                   "base_version) VALUES($1,$2,$3,$4,$5,$6,$7,$8,$9,$10,$11)"
                    " ON CONFLICT (id) DO UPDATE SET job=EXCLUDED.job, name=EXCLUDED.name, created=EXCLUDED.created,"
                    " source=EXCLUDED.source, resource=EXCLUDED.resource, owner=EXCLUDED.owner, sum=EXCLUDED.sum,"
-                   " resource_sum=EXCLUDED.resource_sum, source_pieces=EXCLUDED.source_pieces",
-                   10, prm);
+                   " resource_sum=EXCLUDED.resource_sum, source_pieces=EXCLUDED.source_pieces,"
+                   " base_version=EXCLUDED.base_version",
+                   11, prm);
 }
 
 /* A model's row and a volume part in one transaction: 0 (committed), SF_ECONFLICT (the part's seq
  * was taken, or no such model to update: nothing written), SF_EIO. */
-static int model_txn(struct store *s, const struct model_rec *m, const struct volume_rec *v, bool update)
+static int model_txn(struct store *s, const struct model_rec *m, const struct volume_rec *v,
+                     const struct volume_rec *change, bool update)
 {
     struct pg_store *p = pg(s);
     int c = take(p), rc = SF_EIO;
@@ -837,6 +847,8 @@ static int model_txn(struct store *s, const struct model_rec *m, const struct vo
             rc = SF_EIO;
         if (rc == 0 && v)
             rc = volume_put(p, c, m->id, v);
+        if (rc == 0 && change)
+            rc = volume_put(p, c, m->id, change);
         res = execute(p, c, rc == 0 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
         if (!res)
             rc = SF_EIO;
@@ -846,23 +858,55 @@ static int model_txn(struct store *s, const struct model_rec *m, const struct vo
     return rc;
 }
 
-static int pg_model_put(struct store *s, const struct model_rec *m) { return model_txn(s, m, m->volume, false) ? SF_EIO : 0; }
-
-static int pg_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit)
+static int pg_model_put(struct store *s, const struct model_rec *m)
 {
-    return model_txn(s, m, edit, true);
+    return model_txn(s, m, m->volume, NULL, false) ? SF_EIO : 0;
 }
 
-static int pg_volume_get(struct store *s, const char *id, int from, struct volume_rec **parts, int *n)
+static int pg_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit,
+                         const struct volume_rec *change)
 {
-    char f[16];
+    return model_txn(s, m, edit, change, true);
+}
+
+static int pg_model_rebase(struct store *s, const struct model_rec *m, long drop_through)
+{
+    struct pg_store *p = pg(s);
+    char sum[65], base[24], drop[24], name[48];
+    store_checksum(m->source, m->source_len, "", 0, sum);
+    snprintf(base, sizeof base, "%ld", m->version);
+    snprintf(drop, sizeof drop, "%ld", -drop_through);
+    int c = take(p), rc = SF_EIO;
+    PGresult *res = execute(p, c, "BEGIN", 0, NULL, true);
+    if (res) {
+        PQclear(res);
+        struct param prm[] = {T(m->id), T(NULL), T(sum), T(base), T(NULL)}, del[] = {T(m->id), T(drop)};
+        rc = value_params(p, c, m->source, m->source_len, name, &prm[1], &prm[4]) ||
+                     exec_in(p, c, "UPDATE models SET source=$2, sum=$3, base_version=$4, source_pieces=$5 WHERE id=$1"
+                             " AND base_version>0 AND base_version<$4", 5, prm) < 0 ||
+                     exec_in(p, c, "DELETE FROM model_volumes WHERE model=$1 AND seq<0 AND seq>=$2::integer", 2, del) < 0
+                 ? SF_EIO
+                 : 0;
+        res = execute(p, c, rc == 0 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
+        if (!res)
+            rc = SF_EIO;
+        PQclear(res);
+    }
+    give(p, c);
+    return rc;
+}
+
+static int pg_volume_get(struct store *s, const char *id, int from, int to, struct volume_rec **parts, int *n)
+{
+    char f[16], t[16];
     snprintf(f, sizeof f, "%d", from);
-    struct param prm[] = {T(id), T(f)};
+    snprintf(t, sizeof t, "%d", to);
+    struct param prm[] = {T(id), T(f), T(t)};
     PGresult *res;
     int rows = exec1(s, &res,
                      "SELECT seq, format, options, data, sum, data_pieces FROM model_volumes WHERE model=$1 AND"
-                     " seq>=$2::integer ORDER BY seq",
-                     2, prm);
+                     " seq>=$2::integer AND seq<$3::integer ORDER BY seq",
+                     3, prm);
     if (rows < 0)
         return SF_EIO;
     int rc = 0;
@@ -926,7 +970,8 @@ static int pg_model_get(struct store *s, const char *id, const char *owner, char
     struct param prm[] = {T(id), T(owner)};
     PGresult *res;
     int n = exec1(s, &res,
-                  "SELECT resource, source, sum, source_pieces FROM models WHERE id=$1 AND ($2::text IS NULL OR owner=$2)",
+                  "SELECT resource, source, sum, source_pieces, base_version, resource_sum FROM models WHERE id=$1 AND"
+                  " ($2::text IS NULL OR owner=$2)",
                   2, prm);
     if (n <= 0) {
         if (n == 0)
@@ -936,10 +981,17 @@ static int pg_model_get(struct store *s, const char *id, const char *owner, char
     const char *rsc = PQgetvalue(res, 0, 0);
     size_t ns = 0, nr = (size_t)PQgetlength(res, 0, 0);
     unsigned char *src = value_copy(pg(s), res, 0, 1, 3, &ns);
-    char sum[65];
+    char sum[65], rsum[65] = "";
+    bool apart = get_i64(res, 0, 4) > 0; /* (a row of a base version: its source and resource summed apart) */
     if (src)
-        store_checksum(src, ns, rsc, nr, sum);
-    int rc = !src ? SF_EIO : PQgetisnull(res, 0, 2) || !strcmp(sum, PQgetvalue(res, 0, 2)) ? 0 : SF_EDAMAGED;
+        store_checksum(src, ns, apart ? "" : rsc, apart ? 0 : nr, sum);
+    if (apart)
+        store_checksum(rsc, nr, "", 0, rsum);
+    int rc = !src ? SF_EIO
+             : (PQgetisnull(res, 0, 2) || !strcmp(sum, PQgetvalue(res, 0, 2))) &&
+                       (!apart || PQgetisnull(res, 0, 5) || !strcmp(rsum, PQgetvalue(res, 0, 5)))
+                 ? 0
+                 : SF_EDAMAGED;
     if (rc == 0 && resource && !(*resource = dup_text(res, 0, 0)))
         rc = SF_EIO;
     if (rc == 0 && source) {
@@ -1280,7 +1332,7 @@ static const struct store_ops PG_OPS = {
     pg_release,   pg_cancel,    pg_reap,      pg_prune,      pg_get,          pg_list,
     pg_queued,    pg_model_put, pg_model_get, pg_model_list, pg_model_delete, pg_model_edit, pg_volume_get,
     pg_mesh_get,  pg_mesh_put,  pg_mesh_bytes, pg_writable,  pg_on_event,  NULL,         NULL,         pg_uploads_held,
-    pg_instance_put, pg_series_list, pg_series_instances, pg_series_delete, pg_series_mark,
+    pg_instance_put, pg_series_list, pg_series_instances, pg_series_delete, pg_series_mark, pg_model_rebase,
 };
 
 int store_pg_open(const char *uri, const char *scratch, struct store **out, struct sf_err *err)

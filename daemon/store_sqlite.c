@@ -95,6 +95,9 @@ static const char *const MIGRATIONS[] = {
     "ALTER TABLE jobs ADD COLUMN request_file INTEGER NOT NULL DEFAULT 0",
     "ALTER TABLE models ADD COLUMN resource_sum TEXT",
     "ALTER TABLE jobs ADD COLUMN suspect INTEGER NOT NULL DEFAULT 0",
+    /* the version a model's source is of (0: a row from before the journal of mesh changes, whose
+     * sum covers its source and resource together; else its source alone) */
+    "ALTER TABLE models ADD COLUMN base_version INTEGER NOT NULL DEFAULT 0",
 };
 
 static const struct store_ops SQLITE_OPS;
@@ -749,15 +752,19 @@ static int transaction(struct store *s, int (*step)(struct store *, const void *
 static int model_row(struct store *s, const struct model_rec *m, bool update)
 {
     char sum[65], rsum[65];
-    store_checksum(m->source, m->source_len, m->resource, strlen(m->resource), sum);
     store_checksum(m->resource, strlen(m->resource), "", 0, rsum);
+    if (!m->source) /* the resource alone: the source (the mesh's base) stays, with its own sum */
+        return run_held(s, "UPDATE models SET resource=?2, resource_sum=?3 WHERE id=?1 AND base_version>0", "ttt", m->id,
+                        m->resource, rsum);
+    store_checksum(m->source, m->source_len, "", 0, sum);
+    long base = m->version > 0 ? m->version : 1;
     if (update)
-        return run_held(s, "UPDATE models SET source=?2, resource=?3, sum=?4, resource_sum=?5 WHERE id=?1", "tBttt",
-                        m->id, (const void *)m->source, m->source_len, m->resource, sum, rsum);
-    return run_held(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource,owner,sum,resource_sum)"
-                    " VALUES(?,?,?,?,?,?,?,?,?)",
-                    "tttdBtttt", m->id, m->job, m->name ? m->name : "", m->created, (const void *)m->source,
-                    m->source_len, m->resource, m->owner ? m->owner : "", sum, rsum);
+        return run_held(s, "UPDATE models SET source=?2, resource=?3, sum=?4, resource_sum=?5, base_version=?6 WHERE id=?1",
+                        "tBttti", m->id, (const void *)m->source, m->source_len, m->resource, sum, rsum, base);
+    return run_held(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource,owner,sum,resource_sum,"
+                    "base_version) VALUES(?,?,?,?,?,?,?,?,?,?)",
+                    "tttdBtttti", m->id, m->job, m->name ? m->name : "", m->created, (const void *)m->source,
+                    m->source_len, m->resource, m->owner ? m->owner : "", sum, rsum, base);
 }
 
 static int put_step(struct store *s, const void *a, const void *b)
@@ -771,30 +778,58 @@ static int put_step(struct store *s, const void *a, const void *b)
 
 static int sq_model_put(struct store *s, const struct model_rec *m) { return transaction(s, put_step, m, NULL) ? SF_EIO : 0; }
 
+struct edit_parts {
+    const struct volume_rec *edit, *change;
+};
+
 static int edit_step(struct store *s, const void *a, const void *b)
 {
     const struct model_rec *m = a;
-    int rc = store_one_row(model_row(s, m, true), SF_ECONFLICT); /* the model is gone */
+    const struct edit_parts *e = b;
+    int rc = store_one_row(model_row(s, m, true), SF_ECONFLICT); /* the model is gone (or keeps no base) */
     if (rc == 0 && run_held(s, "DELETE FROM meshes WHERE model=?", "t", m->id) < 0) /* of the model before the edit */
         rc = SF_EIO;
-    return rc ? rc : volume_put(s, m->id, b);
+    if (rc == 0 && e->edit)
+        rc = volume_put(s, m->id, e->edit);
+    return rc == 0 && e->change ? volume_put(s, m->id, e->change) : rc;
 }
 
-static int sq_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit)
+static int sq_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit,
+                         const struct volume_rec *change)
 {
-    return transaction(s, edit_step, m, edit);
+    return transaction(s, edit_step, m, &(struct edit_parts){edit, change});
 }
 
-static int sq_volume_get(struct store *s, const char *id, int from, struct volume_rec **parts, int *n)
+static int rebase_step(struct store *s, const void *a, const void *b)
+{
+    const struct model_rec *m = a;
+    long drop = *(const long *)b;
+    char sum[65];
+    store_checksum(m->source, m->source_len, "", 0, sum);
+    int n = run_held(s, "UPDATE models SET source=?2, sum=?3, base_version=?4 WHERE id=?1 AND base_version>0 AND"
+                     " base_version<?4", "tBti", m->id, (const void *)m->source, m->source_len, sum, m->version);
+    if (n < 0 || run_held(s, "DELETE FROM model_volumes WHERE model=?1 AND seq<0 AND seq>=?2", "ti", m->id, -drop) < 0)
+        return SF_EIO;
+    return 0;
+}
+
+static int sq_model_rebase(struct store *s, const struct model_rec *m, long drop_through)
+{
+    return transaction(s, rebase_step, m, &drop_through);
+}
+
+static int sq_volume_get(struct store *s, const char *id, int from, int to, struct volume_rec **parts, int *n)
 {
     sqlite3_stmt *st;
     int rc = SF_EIO;
     pthread_mutex_lock(lock_of(s));
     if (sqlite3_prepare_v2(db_of(s),
-                           "SELECT seq, format, options, data, sum FROM model_volumes WHERE model=?1 AND seq>=?2 ORDER BY seq",
+                           "SELECT seq, format, options, data, sum FROM model_volumes WHERE model=?1 AND seq>=?2 AND seq<?3"
+                           " ORDER BY seq",
                            -1, &st, NULL) == SQLITE_OK) {
         sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
         sqlite3_bind_int(st, 2, from);
+        sqlite3_bind_int(st, 3, to);
         int step = SQLITE_DONE;
         rc = 0;
         while (rc == 0 && (step = sqlite3_step(st)) == SQLITE_ROW) {
@@ -857,7 +892,8 @@ static int sq_model_get(struct store *s, const char *id, const char *owner, char
     sqlite3_stmt *st;
     int rc = SF_EIO;
     pthread_mutex_lock(lock_of(s));
-    if (sqlite3_prepare_v2(db_of(s), "SELECT resource, source, sum FROM models WHERE id=?1 AND (?2 IS NULL OR owner=?2)",
+    if (sqlite3_prepare_v2(db_of(s), "SELECT resource, source, sum, base_version, resource_sum FROM models WHERE id=?1 AND"
+                           " (?2 IS NULL OR owner=?2)",
                            -1, &st, NULL) == SQLITE_OK) {
         sqlite3_bind_text(st, 1, id, -1, SQLITE_STATIC);
         owner ? sqlite3_bind_text(st, 2, owner, -1, SQLITE_STATIC) : sqlite3_bind_null(st, 2);
@@ -866,8 +902,13 @@ static int sq_model_get(struct store *s, const char *id, const char *owner, char
         char *src = rc == 0 ? (char *)dup_value(s, st, 1, &n) : NULL;
         if (rc == 0 && !src)
             rc = SF_EIO;
-        else if (rc == 0 && !sum_ok(st, 2, src, n, sqlite3_column_text(st, 0), (size_t)sqlite3_column_bytes(st, 0)))
-            rc = SF_EDAMAGED;
+        else if (rc == 0) { /* (a row of a base version: its source and resource summed apart) */
+            const unsigned char *rsc = sqlite3_column_text(st, 0);
+            size_t nr = (size_t)sqlite3_column_bytes(st, 0);
+            if (sqlite3_column_int64(st, 3) > 0 ? !sum_ok(st, 2, src, n, "", 0) || !sum_ok(st, 4, rsc, nr, "", 0)
+                                                : !sum_ok(st, 2, src, n, rsc, nr))
+                rc = SF_EDAMAGED;
+        }
         if (rc == 0) {
             if (resource)
                 *resource = dup_text(st, 0);
@@ -1295,5 +1336,5 @@ static const struct store_ops SQLITE_OPS = {
     sq_release,   sq_cancel,     sq_reap,      sq_prune,     sq_get,          sq_list,
     sq_queued,    sq_model_put,  sq_model_get, sq_model_list, sq_model_delete, sq_model_edit, sq_volume_get,
     sq_mesh_get,  sq_mesh_put,   sq_mesh_bytes, sq_writable,  NULL,         sq_check,     sq_recover,  sq_uploads_held,
-    sq_instance_put, sq_series_list, sq_series_instances, sq_series_delete, sq_series_mark,
+    sq_instance_put, sq_series_list, sq_series_instances, sq_series_delete, sq_series_mark, sq_model_rebase,
 };

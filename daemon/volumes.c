@@ -56,7 +56,7 @@ static void write_samples(struct iso_grid *g, const int lo[3], const struct iso_
 }
 
 int part_apply(struct volume *vol, struct iso_adapt *a, const char *options, const void *data, size_t len,
-                 struct iso_edit *ed, struct sf_err *err)
+               struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
 {
     int lo[3], n[3];
     if (volume_region(options, &vol->g, len, lo, n, err))
@@ -64,13 +64,13 @@ int part_apply(struct volume *vol, struct iso_adapt *a, const char *options, con
     struct iso_grid blk = {n[0], n[1], n[2], vol->g.type, data, {1, 1, 1}, {0, 0, 0}};
     memset(ed, 0, sizeof *ed);
     if (a)
-        return iso_adapt_edit(a, lo, &blk, ed, err);
+        return iso_adapt_edit_ids(a, lo, &blk, ed, ch, err);
     write_samples(&vol->g, lo, &blk);
     ed->whole = true;
     return 0;
 }
 
-int stored_volume(struct service *svc, const char *id, struct volume *vol, int *next, struct sf_err *err)
+int stored_volume(struct service *svc, const char *id, struct volume *vol, bool edits, int *next, struct sf_err *err)
 {
     memset(vol, 0, sizeof *vol);
     struct volume_rec *parts;
@@ -95,11 +95,11 @@ int stored_volume(struct service *svc, const char *id, struct volume *vol, int *
         else
             vol->g.samples = memcpy(vol->owned, vol->g.samples, bytes);
     }
-    for (int k = 1; k < n && !rc; k++) {
+    for (int k = 1; k < n && !rc && edits; k++) {
         struct iso_edit ed;
-        rc = part_apply(vol, NULL, parts[k].options, parts[k].data, parts[k].len, &ed, err);
+        rc = part_apply(vol, NULL, parts[k].options, parts[k].data, parts[k].len, &ed, NULL, err);
     }
-    *next = parts[n - 1].seq + 1;
+    *next = edits ? parts[n - 1].seq + 1 : 1;
     store_volume_free(parts, n);
     if (rc)
         volume_free(vol);
@@ -113,7 +113,7 @@ int frep_volumes(struct service *svc, struct frep_request *r, struct sf_err *err
         struct volume mv;
         struct sf_err e = {0};
         int next;
-        if (stored_volume(svc, r->refs[k].model, &mv, &next, &e))
+        if (stored_volume(svc, r->refs[k].model, &mv, true, &next, &e))
             return sf_fail(err, e.code == SF_ECONFLICT ? SF_EINVAL : e.code, r->refs[k].pointer, "model %s: %s",
                            r->refs[k].model, e.message);
         size_t n = (size_t)mv.g.nx * mv.g.ny * mv.g.nz;

@@ -6,7 +6,7 @@
 
 #include "../api/frep_json.h"
 #include "../api/volume_io.h"
-#include "../core/iso/adapt.h"
+#include "../core/iso/kept.h"
 #include "service.h"
 
 /* What a triangle of an isosurface costs from its extraction to the store (the mesh, its packing
@@ -21,13 +21,14 @@ int job_map_file(const char *path, void **map, size_t *len);
 
 /* A part of a model's stored volume after the first (an edit: options its region, data and len its
  * samples) applied to vol: into the hierarchy a (ed: what it redrew) or, when a is NULL, into
- * vol's samples. 0, or the region's error. */
+ * vol's samples. ch (NULL: not wanted): what it did by triangle id (core/iso/kept.h). 0, or the
+ * region's error. */
 int part_apply(struct volume *vol, struct iso_adapt *a, const char *options, const void *data, size_t len,
-               struct iso_edit *ed, struct sf_err *err);
-/* Model id's volume as the store keeps it, its edits applied (its samples in vol->owned; free with
- * volume_free), *next the seq after its last edit: 0, or SF_ECONFLICT (the model keeps no volume
+               struct iso_edit *ed, struct iso_change *ch, struct sf_err *err);
+/* Model id's volume as the store keeps it, its edits applied unless edits is false (its samples in
+ * vol->owned; free with volume_free), *next the seq after the last part applied: 0, or SF_ECONFLICT (the model keeps no volume
  * of samples), SF_EIO, SF_ENOMEM. */
-int stored_volume(struct service *svc, const char *id, struct volume *vol, int *next, struct sf_err *err);
+int stored_volume(struct service *svc, const char *id, struct volume *vol, bool edits, int *next, struct sf_err *err);
 
 /* The stored models an FRep request's volume primitives read, as float samples into r (their
  * iso into its nodes): 0, or SF_EINVAL at the primitive's pointer, SF_EIO, SF_ENOMEM. */

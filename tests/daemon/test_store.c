@@ -11,6 +11,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "../../api/mesh_io.h"
+#include "../../api/mesh_journal.h"
 #include "../../daemon/store.h"
 #include "../unit.h"
 
@@ -255,7 +257,7 @@ TEST(models_are_scoped_by_owner)
     snprintf(id, sizeof id, "%08x%08xm%015d", (unsigned)getpid(), (unsigned)rand(), ++serial);
     submit("alice", 1014, job);
     const char *resource = "{\"id\":\"m\"}";
-    struct model_rec m = {id, job, "skull", "alice", 1014, "{\"slices\":[]}", 13, resource, NULL};
+    struct model_rec m = {id, job, "skull", "alice", 1014, "{\"slices\":[]}", 13, resource, NULL, 1};
     REQUIRE(store_model_put(S, &m) == 0);
     char *res = NULL, *src = NULL;
     size_t n = 0;
@@ -283,7 +285,7 @@ TEST(a_models_volume_and_its_edits_in_order)
     snprintf(id, sizeof id, "%08x%08xv%015d", (unsigned)getpid(), (unsigned)rand(), ++serial);
     submit("alice", 1016, job);
     struct volume_rec posted = {0, "json", "", "abc", 3};
-    struct model_rec m = {id, job, "skull", "alice", 1016, "{}", 2, "{\"v\":0}", &posted};
+    struct model_rec m = {id, job, "skull", "alice", 1016, "{}", 2, "{\"v\":0}", &posted, 1};
     REQUIRE(store_model_put(S, &m) == 0);
     struct volume_rec *parts = NULL;
     int n = -1;
@@ -293,9 +295,9 @@ TEST(a_models_volume_and_its_edits_in_order)
     CHECK(store_volume_get(S, id, 1, &parts, &n) == 0 && n == 0); /* no edits yet: none, not an error */
     store_volume_free(parts, n);
     struct volume_rec edit = {1, "json", "region=1", "de", 2};
-    struct model_rec edited = {id, job, "skull", "alice", 1016, "{ }", 3, "{\"v\":1}", NULL};
-    CHECK(store_model_edit(S, &edited, &edit) == 0);
-    CHECK(store_model_edit(S, &edited, &edit) == SF_ECONFLICT); /* its seq is taken: another edit came first */
+    struct model_rec edited = {id, job, "skull", "alice", 1016, "{ }", 3, "{\"v\":1}", NULL, 2};
+    CHECK(store_model_edit(S, &edited, &edit, NULL) == 0);
+    CHECK(store_model_edit(S, &edited, &edit, NULL) == SF_ECONFLICT); /* its seq is taken: another edit came first */
     CHECK(store_volume_get(S, id, 0, &parts, &n) == 0 && n == 2 && parts[0].seq == 0 && parts[1].seq == 1 &&
           parts[1].len == 2 && !memcmp(parts[1].data, "de", 2) && !strcmp(parts[1].options, "region=1"));
     store_volume_free(parts, n);
@@ -304,7 +306,7 @@ TEST(a_models_volume_and_its_edits_in_order)
     free(res);
     CHECK(store_model_delete(S, id, NULL) == 0);
     edit.seq = 2;
-    CHECK(store_model_edit(S, &edited, &edit) == SF_ECONFLICT); /* the model is gone */
+    CHECK(store_model_edit(S, &edited, &edit, NULL) == SF_ECONFLICT); /* the model is gone */
     CHECK(store_volume_get(S, id, 0, &parts, &n) == 0 && n == 0);
     store_volume_free(parts, n);
     bool asked = true;
@@ -316,7 +318,7 @@ TEST(meshes_are_cached_while_their_model_lasts)
     char id[40], job[40];
     snprintf(id, sizeof id, "%08x%08xc%015d", (unsigned)getpid(), (unsigned)rand(), ++serial);
     submit("alice", 1018, job);
-    struct model_rec m = {id, job, "skull", "alice", 1018, "{}", 2, "{\"c\":0}", NULL};
+    struct model_rec m = {id, job, "skull", "alice", 1018, "{}", 2, "{\"c\":0}", NULL, 1};
     REQUIRE(store_model_put(S, &m) == 0);
     struct mesh_rec got;
     CHECK(store_mesh_get(S, id, "stl", &got) == SF_ENOTFOUND && !got.data);
@@ -333,11 +335,86 @@ TEST(meshes_are_cached_while_their_model_lasts)
     CHECK(store_mesh_get(S, id, "small", &got) == SF_ENOTFOUND);
     CHECK(store_mesh_put(S, "0123456789abcdef0123456789abcdef", "stl", &put, 1L << 30) == SF_ECONFLICT); /* no model */
     struct volume_rec edit = {1, "json", "", "x", 1};
-    CHECK(store_model_edit(S, &m, &edit) == 0);
+    CHECK(store_model_edit(S, &m, &edit, NULL) == 0);
     CHECK(store_mesh_get(S, id, "stl", &got) == SF_ENOTFOUND); /* an edit drops the model's meshes */
     CHECK(store_model_delete(S, id, NULL) == 0);
     bool asked = true;
     CHECK(store_cancel(S, job, NULL, 1019, &asked) == 0 && !asked);
+}
+
+/* A mesh model edited by changes (store.h: a base and a journal): the mesh answered is the base
+ * with the changes applied, each change's version, the journal read from any version, a newer base
+ * taking the older changes with it (an older one left). */
+TEST(a_mesh_models_changes_are_its_journal)
+{
+    char id[40], job[40];
+    snprintf(id, sizeof id, "%08x%08xj%015d", (unsigned)getpid(), (unsigned)rand(), ++serial);
+    submit("alice", 1020, job);
+    float pos[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+    uint32_t tri[] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+    struct trimesh tm = {pos, NULL, tri, 4, 4};
+    struct sf_err err = {0};
+    char *base, *chg[3], *src = NULL, *res = NULL;
+    size_t base_len, chg_len[3], n_src;
+    REQUIRE(mesh_pack(&tm, &base, &base_len, &err) == 0); /* (version 1, ids 0 .. 3) */
+    struct model_rec m = {id, job, "tet", "alice", 1020, base, base_len, "{\"version\":1}", NULL, 1};
+    REQUIRE(store_model_put(S, &m) == 0);
+    /* three changes: each takes one triangle out and puts a moved copy in under a new id */
+    for (int k = 0; k < 3; k++) {
+        uint32_t removed = (uint32_t)k, added = 4 + (uint32_t)k;
+        float corners[18] = {0};
+        for (int c = 0; c < 3; c++)
+            for (int d = 0; d < 3; d++)
+                corners[6 * c + d] = pos[3 * tri[3 * k + c] + d] + (float)(k + 1);
+        struct iso_change ch = {&removed, 1, &added, corners, 1, 5 + (uint32_t)k};
+        REQUIRE(mesh_change_encode(&ch, (uint32_t)k + 2, &chg[k], &chg_len[k], &err) == 0);
+        char rsc[32];
+        snprintf(rsc, sizeof rsc, "{\"version\":%d}", k + 2);
+        struct model_rec e = {id, job, "tet", "alice", 1020, NULL, 0, rsc, NULL, k + 2};
+        struct volume_rec part = {k + 1, "raw", "region=0,0,0,1,1,1", "x", 1}, change = {0, "", "", chg[k], chg_len[k]};
+        CHECK(store_model_edit(S, &e, &part, &change) == 0);
+        CHECK(store_model_edit(S, &e, &part, &change) == SF_ECONFLICT); /* taken */
+    }
+    struct volume_rec *parts;
+    int n;
+    CHECK(store_changes_get(S, id, 1, &parts, &n) == 0 && n == 3 &&
+          mesh_change_version(parts[0].data, parts[0].len) == 2 && mesh_change_version(parts[2].data, parts[2].len) == 4);
+    store_volume_free(parts, n);
+    CHECK(store_changes_get(S, id, 3, &parts, &n) == 0 && n == 1 && mesh_change_version(parts[0].data, parts[0].len) == 4);
+    store_volume_free(parts, n);
+    CHECK(store_volume_get(S, id, 0, &parts, &n) == 0 && n == 3 && parts[0].seq == 1); /* (the volume's edits alone) */
+    store_volume_free(parts, n);
+    /* the mesh: the base with the three changes applied */
+    struct trimesh got;
+    uint32_t *ids;
+    uint64_t version;
+    REQUIRE(store_model_get(S, id, NULL, &res, &src, &n_src) == 0);
+    CHECK(!strcmp(res, "{\"version\":4}"));
+    CHECK(mesh_unpack_ids(src, n_src, &got, &ids, &version, &err) == 0 && version == 4 && got.n_tri == 4 && ids[0] == 3 &&
+          ids[1] == 4 && ids[3] == 6 && got.pos[3 * got.tri[3 * 3]] == pos[3 * tri[6]] + 3);
+    trimesh_free(&got);
+    free(ids);
+    /* a newer base (compaction): the same mesh, the changes up to it gone */
+    struct model_rec nb = {id, job, "tet", "alice", 1020, src, n_src, res, NULL, 4};
+    CHECK(store_model_rebase(S, &nb, 3) == 0);
+    CHECK(store_changes_get(S, id, 0, &parts, &n) == 0 && n == 1 && mesh_change_version(parts[0].data, parts[0].len) == 4);
+    store_volume_free(parts, n);
+    char *src2 = NULL;
+    size_t n2;
+    CHECK(store_model_get(S, id, NULL, NULL, &src2, &n2) == 0 && n2 == n_src && !memcmp(src, src2, n2));
+    free(src2);
+    struct model_rec old = {id, job, "tet", "alice", 1020, base, base_len, res, NULL, 1};
+    CHECK(store_model_rebase(S, &old, 1) == 0); /* an older base than the one kept: left */
+    CHECK(store_model_get(S, id, NULL, NULL, &src2, &n2) == 0 && n2 == n_src && !memcmp(src, src2, n2));
+    free(src2);
+    CHECK(store_model_delete(S, id, NULL) == 0);
+    CHECK(store_changes_get(S, id, 0, &parts, &n) == 0 && n == 0);
+    store_volume_free(parts, n);
+    for (int k = 0; k < 3; k++)
+        free(chg[k]);
+    free(base), free(src), free(res);
+    bool asked = true;
+    CHECK(store_cancel(S, job, NULL, 1021, &asked) == 0 && !asked);
 }
 
 struct seen {
@@ -442,6 +519,7 @@ int main(void)
     RUN(models_are_scoped_by_owner);
     RUN(a_models_volume_and_its_edits_in_order);
     RUN(meshes_are_cached_while_their_model_lasts);
+    RUN(a_mesh_models_changes_are_its_journal);
     RUN(series_keep_their_instances_once_each_in_order);
     RUN(an_unopenable_store_says_why);
     store_close(S);

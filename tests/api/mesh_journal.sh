@@ -1,0 +1,119 @@
+#!/bin/sh
+# A model's mesh as a base and a journal of changes (issue 45, API.md "Interactive isosurfaces"),
+# as a client meets it: edits of a hierarchy model (levels=2) answer with version 2, 3 ...; the
+# delta since the version before, applied by id to the client's copy, gives exactly the STL's
+# triangles; the delta since any older version the same; since=0 the whole mesh with the same ids;
+# the figures of each answer are those of the mesh (triangles, volume); kill -9 right after an
+# edit's 200 loses nothing, and after the restart (the hierarchy rebuilt from the stored volume and
+# its edits) a new edit's delta still applies to the copy kept before it.
+. "$(dirname "$0")/lib.inc"
+V="${SURFD_DATA:-../shared/data}/volumes"
+CT="$V/ct_head_crop64_int16.raw"
+[ -f "$CT" ] || { bad "../shared/data not found"; checks_done; exit 1; }
+RAW='Content-Type: application/octet-stream'
+start_daemon "$T/d" || exit 1
+field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1])).get(sys.argv[2]))" "$T/body" "$1"; }
+# client FILE OP ...: the client's copy by id ($T/copy.json): load (a since=0 delta), apply (a delta
+# from the copy's version), same STL (exit 0 when the copy holds the STL's triangles), figures
+# TRIANGLES VOLUME (the copy's count and volume match)
+client() {
+    python3 - "$@" <<'PY'
+import json, os, struct, sys
+op, path = sys.argv[1], os.environ["T"] + "/copy.json"
+def read_delta(f):
+    d = open(f, "rb").read()
+    assert d[:4] == b"SFMD", d[:4]
+    frm, to, nr, na = struct.unpack_from("<4I", d, 4)
+    assert len(d) == 20 + 4 * nr + 40 * na
+    rem = struct.unpack_from("<%dI" % nr, d, 20)
+    add = {}
+    for k in range(na):
+        tid, *c = struct.unpack_from("<I9f", d, 20 + 4 * nr + 40 * k)
+        add[tid] = c
+    return frm, to, rem, add
+if op == "load":
+    frm, to, rem, add = read_delta(sys.argv[2])
+    assert frm == 0 and not rem
+    json.dump({"version": to, "t": {str(k): v for k, v in add.items()}}, open(path, "w"))
+elif op == "apply":
+    c = json.load(open(path))
+    frm, to, rem, add = read_delta(sys.argv[2])
+    assert frm == c["version"], (frm, c["version"])
+    for r in rem:
+        del c["t"][str(r)]          # (a KeyError: an id the copy does not hold)
+    for k, v in add.items():
+        assert str(k) not in c["t"], k
+        c["t"][str(k)] = v
+    c["version"] = to
+    json.dump(c, open(path, "w"))
+elif op == "same":
+    c = json.load(open(path))
+    s = open(sys.argv[2], "rb").read()
+    n = struct.unpack_from("<I", s, 80)[0]
+    stl = sorted(tuple(struct.unpack_from("<12f", s, 84 + 50 * k)[3:]) for k in range(n))
+    mine = sorted(tuple(v) for v in c["t"].values())
+    sys.exit(0 if stl == mine else 1)
+elif op == "figures":
+    c = json.load(open(path))
+    vol = 0.0
+    for p in c["t"].values():
+        a, b, q = p[0:3], p[3:6], p[6:9]
+        vol += (a[0] * (b[1] * q[2] - b[2] * q[1]) + a[1] * (b[2] * q[0] - b[0] * q[2]) + a[2] * (b[0] * q[1] - b[1] * q[0])) / 6
+    ok = len(c["t"]) == int(sys.argv[2]) and abs(vol - float(sys.argv[3])) <= 1e-3 * abs(vol) + 1e-3
+    sys.exit(0 if ok else 1)
+PY
+}
+export T
+
+code=$(status POST "/isosurface?iso=226.5&levels=2&max_error=0.5&dims=64,64,64&type=int16&spacing=0.9570312,0.9570312,1.5" -H "$RAW" --data-binary @"$CT")
+ID=$(field id)
+check "a hierarchy model (levels=2): version 1" '[ "$code" = 201 ] && [ "$(field version)" = 1 ]'
+status GET "/models/$ID/mesh?format=delta&since=0" >/dev/null; cp "$T/body" "$T/d0"
+client load "$T/d0"
+status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
+check "since=0 loaded by id: the STL's triangles" 'client same "$T/v.stl"'
+# edit E: a ball of bone (or air) painted at a place of the skull
+edit() {
+    python3 tests/tools/edit_tool.py block 10 "$2" -200 3.5 "$T/ball.raw"
+    status POST "/models/$ID/edit?region=$1,10,10,10" -H "$RAW" --data-binary @"$T/ball.raw"
+}
+ok=1; figures=1; regions="20,24,17 30,8,40 21,25,18 8,40,3"
+v=1
+for r in $regions; do
+    code=$(edit "$r" 1500)
+    [ "$code" = 200 ] || ok=0
+    v=$((v + 1))
+    [ "$(field version)" = "$v" ] || ok=0
+    TRI=$(field triangles); VOL=$(field volume_mm3)
+    code=$(status GET "/models/$ID/mesh?format=delta&since=$((v - 1))"); cp "$T/body" "$T/dv"
+    [ "$code" = 200 ] && client apply "$T/dv" || ok=0
+    status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
+    client same "$T/v.stl" || ok=0
+    client figures "$TRI" "$VOL" || figures=0
+done
+check "four edits: versions 2 .. 5, each delta since the version before applied by id gives the STL's triangles" '[ $ok = 1 ]'
+check "... each answer's triangles and volume those of the mesh (moved by what the change did)" '[ $figures = 1 ]'
+cp "$T/copy.json" "$T/copy5.json"
+code=$(status GET "/models/$ID/mesh?format=delta&since=0"); cp "$T/body" "$T/d0"
+client load "$T/d0"
+check "since=0 after the edits: the same triangles, by the same ids" '[ "$code" = 200 ] && cmp -s "$T/copy.json" "$T/copy5.json" || python3 -c "
+import json,sys; a=json.load(open(sys.argv[1])); b=json.load(open(sys.argv[2])); sys.exit(a != b)" "$T/copy.json" "$T/copy5.json"'
+code=$(status GET "/models/$ID/mesh?format=delta&since=2")
+check "since=2 (a version the journal holds): 200 from 2 to 5" '[ "$code" = 200 ] && python3 -c "
+import struct,sys; d=open(sys.argv[1],\"rb\").read(); sys.exit(struct.unpack_from(\"<2I\", d, 4) != (2, 5))" "$T/body"'
+# kill -9 right after a 200: nothing lost
+code=$(edit "12,30,30" 1500)
+kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""
+start_daemon "$T/d" || exit 1
+code2=$(status GET "/models/$ID")
+check "kill -9 right after an edit's 200, restarted: the model at version 6" '[ "$code" = 200 ] && [ "$code2" = 200 ] && [ "$(field version)" = 6 ]'
+code=$(status GET "/models/$ID/mesh?format=delta&since=5"); cp "$T/body" "$T/dv"
+cp "$T/copy5.json" "$T/copy.json"
+status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
+check "... the delta since 5 applied to the copy kept before it: the STL" '[ "$code" = 200 ] && client apply "$T/dv" && client same "$T/v.stl"'
+code=$(edit "40,20,30" -1000)
+check "an edit after the restart (the hierarchy rebuilt from the store): version 7" '[ "$code" = 200 ] && [ "$(field version)" = 7 ]'
+code=$(status GET "/models/$ID/mesh?format=delta&since=6"); cp "$T/body" "$T/dv"
+status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
+check "... its delta applies to the copy by the same ids: the STL" '[ "$code" = 200 ] && client apply "$T/dv" && client same "$T/v.stl"'
+checks_done
