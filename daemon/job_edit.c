@@ -45,7 +45,7 @@ struct live {
     int next_seq;            /* the volume's parts applied: 0 .. next_seq - 1 */
     struct volume vol;       /* its settings; its samples only when a is NULL (marching cubes) */
     struct iso_adapt *a;     /* the kept hierarchy (levels over 1, or features) */
-    float (*fig)[2];         /* a: each triangle's signed volume and area, by id (an edit's figures move by
+    double (*fig)[2];        /* a: each triangle's signed volume and area, by id (an edit's figures move by
                               * what it takes out and puts in) */
     size_t figcap;
     size_t bytes;
@@ -172,7 +172,7 @@ static struct live *live_new(const char *id, struct volume *vol, struct iso_adap
 }
 
 /* The signed volume (the divergence theorem's share) and area of the triangle of corners p, q, r. */
-static void tri_figures(const float *p, const float *q, const float *r, float out[2])
+static void tri_figures(const float *p, const float *q, const float *r, double out[2])
 {
     double u[3], v[3], c[3];
     for (int d = 0; d < 3; d++)
@@ -180,8 +180,8 @@ static void tri_figures(const float *p, const float *q, const float *r, float ou
     c[0] = u[1] * v[2] - u[2] * v[1], c[1] = u[2] * v[0] - u[0] * v[2], c[2] = u[0] * v[1] - u[1] * v[0];
     double pq[3] = {(double)q[1] * r[2] - (double)q[2] * r[1], (double)q[2] * r[0] - (double)q[0] * r[2],
                     (double)q[0] * r[1] - (double)q[1] * r[0]};
-    out[0] = (float)((p[0] * pq[0] + p[1] * pq[1] + p[2] * pq[2]) / 6);
-    out[1] = (float)(0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]));
+    out[0] = (p[0] * pq[0] + p[1] * pq[1] + p[2] * pq[2]) / 6;
+    out[1] = 0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
 }
 
 /* The figures of triangle id into e->fig: 0 or -1 (no memory). */
