@@ -178,6 +178,11 @@ static int run_held(struct store *s, const char *sql, const char *types, ...);
 
 #define PIECES_PREFIX "pieces:"
 
+/* 'P' in run's types: a blob of a row that is updated while the blob stays (a model's mesh, whose
+ * resource each edit rewrites) goes to pieces from this length on, since SQLite writes a row
+ * whole: kept in the row, a 10 MB mesh would be written again by each edit's resource. */
+#define MOVED_OUT (64u << 10)
+
 /* Writes n bytes at p as pieces under a new name (lock held): 0, or SF_EIO. */
 static int pieces_put(struct store *s, const unsigned char *p, size_t n, char name[48])
 {
@@ -258,7 +263,8 @@ static void sweep_pieces(struct store *s)
 
 /* Prepares sql and binds its parameters from types: 't' text (NULL binds NULL), 'd' double,
  * 'i' long, 'b' blob (pointer, size_t), 'B' a blob that may be longer than a piece (written as
- * pieces then, and its name bound). Lock held by the caller. NULL on failure. */
+ * pieces then, and its name bound), 'P' the same from MOVED_OUT bytes on. Lock held by the
+ * caller. NULL on failure. */
 static sqlite3_stmt *prepare(struct store *s, const char *sql, const char *types, va_list ap)
 {
     sqlite3_stmt *st;
@@ -274,11 +280,12 @@ static sqlite3_stmt *prepare(struct store *s, const char *sql, const char *types
         case 'd': sqlite3_bind_double(st, k, va_arg(ap, double)); break;
         case 'i': sqlite3_bind_int64(st, k, va_arg(ap, long)); break;
         case 'b':
-        case 'B': {
+        case 'B':
+        case 'P': {
             const void *p = va_arg(ap, const void *);
             size_t n = va_arg(ap, size_t);
             char name[48];
-            if (types[k - 1] == 'B' && n > s->piece) {
+            if ((types[k - 1] == 'B' && n > s->piece) || (types[k - 1] == 'P' && n > MOVED_OUT)) {
                 if (pieces_put(s, p, n, name)) {
                     sqlite3_finalize(st);
                     return NULL;
@@ -760,10 +767,10 @@ static int model_row(struct store *s, const struct model_rec *m, bool update)
     long base = m->version > 0 ? m->version : 1;
     if (update)
         return run_held(s, "UPDATE models SET source=?2, resource=?3, sum=?4, resource_sum=?5, base_version=?6 WHERE id=?1",
-                        "tBttti", m->id, (const void *)m->source, m->source_len, m->resource, sum, rsum, base);
+                        "tPttti", m->id, (const void *)m->source, m->source_len, m->resource, sum, rsum, base);
     return run_held(s, "INSERT OR REPLACE INTO models(id,job,name,created,source,resource,owner,sum,resource_sum,"
                     "base_version) VALUES(?,?,?,?,?,?,?,?,?,?)",
-                    "tttdBtttti", m->id, m->job, m->name ? m->name : "", m->created, (const void *)m->source,
+                    "tttdPtttti", m->id, m->job, m->name ? m->name : "", m->created, (const void *)m->source,
                     m->source_len, m->resource, m->owner ? m->owner : "", sum, rsum, base);
 }
 
@@ -807,7 +814,7 @@ static int rebase_step(struct store *s, const void *a, const void *b)
     char sum[65];
     store_checksum(m->source, m->source_len, "", 0, sum);
     int n = run_held(s, "UPDATE models SET source=?2, sum=?3, base_version=?4 WHERE id=?1 AND base_version>0 AND"
-                     " base_version<?4", "tBti", m->id, (const void *)m->source, m->source_len, sum, m->version);
+                     " base_version<?4", "tPti", m->id, (const void *)m->source, m->source_len, sum, m->version);
     if (n < 0 || run_held(s, "DELETE FROM model_volumes WHERE model=?1 AND seq<0 AND seq>=?2", "ti", m->id, -drop) < 0)
         return SF_EIO;
     return 0;
