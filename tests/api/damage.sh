@@ -28,8 +28,9 @@ check "store check on a sound store: exit 0, 'sound'" '[ "$rc" = 0 ] && grep -q 
 # a model's resource changed behind the store's back (its sums kept): the service does not start
 sqlite3 "$DB" "UPDATE models SET resource = replace(resource, '\"name\":\"\"', '\"name\":\"altered\"') WHERE id = '$victim'"
 $S store check --data-dir "$T/d" >"$T/out" 2>&1; rc=$?
+# (once: the resource's own sum; the mesh's sum covers the mesh alone, which each edit leaves as it is)
 check "store check on a model whose bytes do not match their sum: exit 1, naming that model (and only it)" \
-    '[ "$rc" = 1 ] && grep -q "model $victim: its bytes do not match" "$T/out" && [ "$(grep -c "do not match" "$T/out")" = 2 ]'
+    '[ "$rc" = 1 ] && grep -q "model $victim: its bytes do not match" "$T/out" && [ "$(grep -c "do not match" "$T/out")" = 1 ]'
 $S serve --listen 127.0.0.1:0 --data-dir "$T/d" >"$T/serve.log" 2>&1 & spid=$!
 for _ in $(seq 100); do kill -0 "$spid" 2>/dev/null || break; sleep 0.05; done
 wait "$spid"; rc=$?
