@@ -118,7 +118,7 @@ int iso_model_grid(const char *resource, struct iso_grid *g, bool *frep, struct 
     return rc;
 }
 
-char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, long version, long d_triangles,
+char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, long version, double iso, long d_triangles,
                             double d_volume, double d_area, const double ms[3], struct sf_err *err)
 {
     json_t *o = json_loads(prev, 0, NULL), *t = json_object_get(o, "timings_ms");
@@ -130,6 +130,7 @@ char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, l
     long topo = json_is_integer(json_object_get(o, "topology_version")) ? (long)json_integer_value(json_object_get(o, "topology_version"))
                                                                          : model_version(prev);
     json_object_set_new(o, "version", json_integer(version));
+    json_object_set_new(o, "iso", json_real(iso));
     json_object_set_new(o, "edits", json_integer(version - 1));
     json_object_set_new(o, "triangles", json_integer(json_integer_value(json_object_get(o, "triangles")) + d_triangles));
     json_object_set_new(o, "volume_mm3", json_real(json_number_value(json_object_get(o, "volume_mm3")) + d_volume));

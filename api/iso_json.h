@@ -33,11 +33,11 @@ struct iso_model {
 char *iso_model_json(const struct iso_model *m, struct sf_err *err);
 
 /* The resource prev after an edit that made version version without the whole mesh measured again
- * (issue 45: an edit answers in milliseconds): its triangles, volume and area moved by what the
+ * (issue 45: an edit answers in milliseconds), at iso: its triangles, volume and area moved by what the
  * change took out and put in, the edit's figures and timings (extract, measure, total ms); the
  * figures that need the whole mesh (vertices, boundary and non-manifold edges, components, Euler
  * characteristic, bounds) stay those of the version topology_version says. NULL with err. */
-char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, long version, long d_triangles,
+char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, long version, double iso, long d_triangles,
                             double d_volume, double d_area, const double ms[3], struct sf_err *err);
 
 /* The grid (dims, type) of an isosurface model from its resource, *frep whether it is an FRep

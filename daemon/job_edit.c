@@ -45,9 +45,10 @@ struct live {
     int next_seq;            /* the volume's parts applied: 0 .. next_seq - 1 */
     struct volume vol;       /* its settings; its samples only when a is NULL (marching cubes) */
     struct iso_adapt *a;     /* the kept hierarchy (levels over 1, or features) */
-    double (*fig)[2];        /* a: each triangle's signed volume and area, by id (an edit's figures move by
-                              * what it takes out and puts in) */
+    double (*fig)[2];        /* a: each triangle's signed volume and area, by id - fig_base (an edit's
+                              * figures move by what it takes out and puts in) */
     size_t figcap;
+    uint32_t fig_base;       /* the first id of the hierarchy's mesh (a new iso numbers after the old) */
     size_t bytes;
     double used;
     int users;
@@ -187,9 +188,9 @@ static void tri_figures(const float *p, const float *q, const float *r, double o
 /* The figures of triangle id into e->fig: 0 or -1 (no memory). */
 static int fig_put(struct live *e, uint32_t id, const float *p, const float *q, const float *r)
 {
-    if (mem_reserve((void **)&e->fig, &e->figcap, (size_t)id + 1, sizeof *e->fig))
+    if (mem_reserve((void **)&e->fig, &e->figcap, (size_t)(id - e->fig_base) + 1, sizeof *e->fig))
         return -1;
-    tri_figures(p, q, r, e->fig[id]);
+    tri_figures(p, q, r, e->fig[id - e->fig_base]);
     return 0;
 }
 
@@ -206,6 +207,9 @@ static int figures_all(struct live *e)
         return -1;
     }
     int rc = 0;
+    e->fig_base = UINT32_MAX;
+    for (size_t t = 0; t < m.n_tri; t++)
+        e->fig_base = ids[t] < e->fig_base ? ids[t] : e->fig_base;
     for (size_t t = 0; t < m.n_tri && !rc; t++)
         rc = fig_put(e, ids[t], m.pos + 3 * m.tri[3 * t], m.pos + 3 * m.tri[3 * t + 1], m.pos + 3 * m.tri[3 * t + 2]);
     free(ids);
@@ -213,17 +217,30 @@ static int figures_all(struct live *e)
     return rc;
 }
 
-/* What change ch did to the figures (*dv, *da added to), e->fig following it: 0 or -1. */
-static int figures_move(struct live *e, const struct iso_change *ch, double *dv, double *da)
+/* Whether a part of the volume (its options) is an iso change (POST /models/{id}/iso). */
+static bool iso_part(const char *options)
+{
+    char value[64];
+    query_option(options, "value", value, sizeof value);
+    return value[0] != 0;
+}
+
+/* What change ch did to the figures (*dv, *da added to), e->fig following it (whole: a new
+ * hierarchy, every triangle new, numbered from the first added): 0 or -1. */
+static int figures_move(struct live *e, const struct iso_change *ch, bool whole, double *dv, double *da)
 {
     for (size_t k = 0; k < ch->n_removed; k++)
-        if (ch->removed[k] < e->figcap)
-            *dv -= e->fig[ch->removed[k]][0], *da -= e->fig[ch->removed[k]][1];
+        if (ch->removed[k] >= e->fig_base && ch->removed[k] - e->fig_base < e->figcap)
+            *dv -= e->fig[ch->removed[k] - e->fig_base][0], *da -= e->fig[ch->removed[k] - e->fig_base][1];
+    if (whole) {
+        free(e->fig);
+        e->fig = NULL, e->figcap = 0, e->fig_base = ch->n_added ? ch->added[0] : 0;
+    }
     for (size_t k = 0; k < ch->n_added; k++) {
         const float *c = ch->corners + 18 * k;
         if (fig_put(e, ch->added[k], c, c + 6, c + 12))
             return -1;
-        *dv += e->fig[ch->added[k]][0], *da += e->fig[ch->added[k]][1];
+        *dv += e->fig[ch->added[k] - e->fig_base][0], *da += e->fig[ch->added[k] - e->fig_base][1];
     }
     return 0;
 }
@@ -303,10 +320,10 @@ static int catch_up(struct service *svc, struct live *e, struct sf_err *err)
         double dv = 0, da = 0;
         if (parts[k].seq != e->next_seq)
             rc = sf_fail(err, SF_EIO, "", "the model's edits in the store skip from %d to %d", e->next_seq, parts[k].seq);
-        else if (!(rc = part_apply(&e->vol, e->a, parts[k].options, parts[k].data, parts[k].len, &ed, e->a ? &ch : NULL,
-                                   err)))
+        else if (!(rc = part_apply(svc, &e->vol, &e->a, parts[k].options, parts[k].data, parts[k].len, &ed,
+                                   e->a ? &ch : NULL, err)))
             e->next_seq++;
-        if (!rc && e->a && figures_move(e, &ch, &dv, &da))
+        if (!rc && e->a && figures_move(e, &ch, iso_part(parts[k].options), &dv, &da))
             rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
         iso_change_free(&ch);
     }
@@ -422,7 +439,7 @@ static int store_change(struct edit_work *w, const char *id, struct live *e, con
     double dv = 0, da = 0, t1 = monotonic_s();
     char *bytes = NULL, *prev = NULL;
     size_t len = 0;
-    if (figures_move(e, ch, &dv, &da))
+    if (figures_move(e, ch, iso_part(part->options), &dv, &da))
         return sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
     if (e->vol.oblique)
         turn_corners(ch, &e->vol);
@@ -431,8 +448,8 @@ static int store_change(struct edit_work *w, const char *id, struct live *e, con
         rc = sf_fail(&w->err, SF_ECONFLICT, "", "the model could not be read from the store");
     if (!rc) {
         double t2 = monotonic_s(), ms[3] = {me->ms, (t2 - t1) * 1e3, (t2 - t0) * 1e3};
-        if (!(w->json = iso_model_json_edited(prev, me, version, (long)ch->n_added - (long)ch->n_removed, dv, da, ms,
-                                              &w->err)))
+        if (!(w->json = iso_model_json_edited(prev, me, version, e->vol.iso, (long)ch->n_added - (long)ch->n_removed, dv,
+                                              da, ms, &w->err)))
             rc = w->err.code;
     }
     if (!rc) {
@@ -462,15 +479,16 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     *drop = true; /* from here the entry is ahead of the store until the edit is stored */
     double ta = monotonic_s();
     struct iso_change ch = {0};
-    if ((rc = part_apply(&e->vol, e->a, rec->options, rec->request, rec->request_len, &me.e, e->a ? &ch : NULL,
-                         &w->err))) {
+    if ((rc = part_apply(w->job.svc, &e->vol, &e->a, rec->options, rec->request, rec->request_len, &me.e,
+                         e->a ? &ch : NULL, &w->err))) {
         iso_change_free(&ch);
         return rc;
     }
     me.ms = (monotonic_s() - ta) * 1e3;
     char opts[sizeof rec->options + 48];
     part_options(rec->options, w->job.claim.id, opts, sizeof opts);
-    struct volume_rec part = {e->next_seq, "edit", opts, rec->request, rec->request_len};
+    struct volume_rec part = {e->next_seq, strcmp(rec->format, "iso") ? "edit" : "iso", opts, rec->request,
+                              rec->request_len};
     if (e->a) {
         rc = store_change(w, model, e, &me, &ch, &part, t0);
         iso_change_free(&ch);
@@ -636,3 +654,37 @@ static int edit_validate(struct service *svc, struct job_body *b, struct sf_err 
 const struct job_kind edit_kind = {
     .name = "edit", .format = edit_format,
     .validate = edit_validate, .ops = &EDIT_OPS, .work_size = sizeof(struct edit_work), .result = "application/json"};
+
+/* POST /models/{id}/iso?value=V: an edit of the model's iso (stored as a part of its volume, format
+ * "iso", so that a rebuilt hierarchy replays it in order), a job of the edit kind. */
+static const char *iso_format(const char *content_type)
+{
+    (void)content_type;
+    return "iso";
+}
+
+/* The route put the model's id in ?model: an isosurface of samples, no body, a finite value (its
+ * range against the samples is the job's to check: they are read there). */
+static int iso_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+{
+    char model[40], value[64], *resource = NULL, *end = NULL;
+    query_option(b->options, "model", model, sizeof model);
+    query_option(b->options, "value", value, sizeof value);
+    if (b->len)
+        return sf_fail(err, SF_EINVAL, "", "POST /models/{id}/iso takes no body: the new iso is ?value");
+    if (!value[0] || !isfinite(strtod(value, &end)) || *end)
+        return sf_fail(err, SF_EINVAL, "?value", "value is the new iso, a finite number");
+    if (store_model_get(svc->store, model, NULL, &resource, NULL, NULL))
+        return sf_fail(err, SF_EINVAL, "", "no such model");
+    struct iso_grid g;
+    bool frep;
+    int rc = iso_model_grid(resource, &g, &frep, err);
+    free(resource);
+    if (!rc && frep)
+        rc = sf_fail(err, SF_ECONFLICT, "", "an FRep model's surface is its object's zero: it changes by its edits");
+    return rc;
+}
+
+const struct job_kind iso_kind = {
+    .name = "edit", .format = iso_format,
+    .validate = iso_validate, .ops = &EDIT_OPS, .work_size = sizeof(struct edit_work), .result = "application/json"};

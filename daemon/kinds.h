@@ -59,7 +59,8 @@ extern const struct job_kind volume_kind, model_kind;     /* job_contours.c: con
 extern const struct job_kind mesh_kind, patches_kind, rtstruct_kind; /* job_contours.c: a stored model's outputs */
 extern const struct job_kind isosurface_kind;             /* job_iso.c */
 extern const struct job_kind matrix_kind;                 /* job_matrix.c */
-extern const struct job_kind edit_kind;                   /* job_edit.c */
+extern const struct job_kind edit_kind, iso_kind;         /* job_edit.c: an edit of a model's samples or FRep
+                                                          * object, and of its iso (a job of the edit kind) */
 extern const struct job_kind pull_kind, query_kind;       /* job_pacs.c: a PACS's series pulled, its studies searched */
 extern const struct job_kind send_kind;                   /* job_contours.c: a model sent to a PACS */
 

@@ -862,6 +862,13 @@ static enum MHD_Result model_view_route(struct req *r, const char *id) { return 
 static enum MHD_Result model_rtstruct_route(struct req *r, const char *id) { return model_sub(r, id, &rtstruct_kind); }
 static enum MHD_Result model_send_route(struct req *r, const char *id) { return model_sub(r, id, &send_kind); }
 
+/* POST /models/{id}/iso?value=V: the same for a new iso. */
+static enum MHD_Result model_iso_route(struct req *r, const char *id)
+{
+    enum MHD_Result ok;
+    return model_found(r, id, NULL, &ok) ? post_job_on(r, &iso_kind, id) : ok;
+}
+
 /* POST /models/{id}/edit: an edit job of the model (the token's), its id in ?model. */
 static enum MHD_Result model_edit_route(struct req *r, const char *id)
 {
@@ -1242,6 +1249,7 @@ static const struct route {
     {"/models/{id}/render", GET, false, model_view_route, NULL},
     {"/models/{id}/rtstruct", GET, false, model_rtstruct_route, NULL},
     {"/models/{id}/edit", POST, false, model_edit_route, NULL},
+    {"/models/{id}/iso", POST, false, model_iso_route, NULL},
     {"/models/{id}/send", POST, false, model_send_route, NULL},
     {"/rtstruct", GET, false, rtstruct_set_route, NULL},
     {"/rtstruct/send", POST, false, rtstruct_send_route, NULL},

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "../api/iso_json.h"
+#include "../api/query.h"
 
 int job_map_file(const char *path, void **map, size_t *len)
 {
@@ -55,16 +56,115 @@ static void write_samples(struct iso_grid *g, const int lo[3], const struct iso_
                    ts * (size_t)blk->nx);
 }
 
-int part_apply(struct volume *vol, struct iso_adapt *a, const char *options, const void *data, size_t len,
-               struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
+/* The least and greatest of n samples f. */
+static void range_of(const float *f, size_t n, double *lo, double *hi)
+{
+    float a = INFINITY, b = -INFINITY;
+    for (size_t i = 0; i < n; i++)
+        a = f[i] < a ? f[i] : a, b = f[i] > b ? f[i] : b;
+    *lo = a, *hi = b;
+}
+
+/* An iso change to value (options' "value") of vol's model: a a new hierarchy at that iso, its
+ * triangles numbered after the old one's (ch: all of the old ones out, all of the new in), or, with
+ * no hierarchy, vol's iso (its mesh then extracted again whole). */
+static int iso_apply(struct service *svc, struct volume *vol, struct iso_adapt **a, const char *value,
+                     struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
+{
+    char *end = NULL;
+    double v = strtod(value, &end), lo, hi;
+    size_t n = (size_t)vol->g.nx * vol->g.ny * vol->g.nz;
+    float *f = NULL, *row = NULL;
+    if (*end || !isfinite(v))
+        return sf_fail(err, SF_EINVAL, "?value", "value is the new iso, a finite number");
+    if (*a && iso_adapt_samples(*a, &f, err))
+        return err->code;
+    if (f) {
+        range_of(f, n, &lo, &hi);
+    } else { /* (the samples in their own type, a row at a time) */
+        if (!(row = malloc((size_t)vol->g.nx * sizeof *row)))
+            return sf_fail(err, SF_ENOMEM, "", "out of memory");
+        lo = INFINITY, hi = -INFINITY;
+        for (int z = 0; z < vol->g.nz; z++)
+            for (int y = 0; y < vol->g.ny; y++) {
+                double rl, rh;
+                iso_grid_row(&vol->g, y, z, row);
+                range_of(row, (size_t)vol->g.nx, &rl, &rh);
+                lo = fmin(lo, rl), hi = fmax(hi, rh);
+            }
+        free(row);
+    }
+    if (!(v >= lo && v < hi)) {
+        free(f);
+        return sf_fail(err, SF_EINVAL, "?value", "the samples run from %g to %g: an iso of %g has no surface", lo, hi, v);
+    }
+    memset(ed, 0, sizeof *ed);
+    ed->whole = true;
+    vol->iso = v;
+    if (!*a)
+        return 0;
+    struct iso_grid g = vol->g;
+    g.type = ISO_F32, g.samples = f;
+    struct iso_opts o = job_iso_opts(svc, vol);
+    o.keep = true;
+    struct iso_adapt *na = NULL;
+    struct iso_adapt_stats st;
+    struct trimesh m = {0};
+    uint32_t *old = NULL, *ids = NULL;
+    int rc = iso_adapt_begin(&g, &o, vol->levels, vol->max_error, &na, err);
+    if (!rc) {
+        for (int p = 0; p < iso_adapt_phases(na); p++) {
+            for (int s = 0; s < iso_adapt_n_slabs(na); s++)
+                iso_adapt_run(na, p, s);
+            iso_adapt_between(na, p);
+        }
+        iso_adapt_number_from(na, iso_adapt_next_id(*a));
+        rc = iso_adapt_keep(na, &st, err);
+    }
+    if (!rc && ch && !(rc = iso_adapt_mesh(*a, &m, &st, err)) && !(rc = iso_adapt_ids(*a, &old, err))) {
+        ch->removed = old, ch->n_removed = m.n_tri;
+        ed->triangles_removed = (long)m.n_tri;
+        trimesh_free(&m);
+        if (!(rc = iso_adapt_mesh(na, &m, &st, err)) && !(rc = iso_adapt_ids(na, &ids, err))) {
+            ch->added = ids, ch->n_added = m.n_tri;
+            if (!(ch->corners = malloc((m.n_tri ? m.n_tri : 1) * 18 * sizeof *ch->corners)))
+                rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
+            for (size_t t = 0; !rc && t < m.n_tri; t++)
+                for (int k = 0; k < 3; k++) {
+                    memcpy(ch->corners + 18 * t + 6 * k, m.pos + 3 * m.tri[3 * t + k], 3 * sizeof(float));
+                    memcpy(ch->corners + 18 * t + 6 * k + 3, m.nrm + 3 * m.tri[3 * t + k], 3 * sizeof(float));
+                }
+        }
+        ed->triangles_added = (long)m.n_tri;
+        ch->next_id = iso_adapt_next_id(na);
+    }
+    trimesh_free(&m);
+    free(f);
+    if (rc) {
+        iso_adapt_free(na);
+        return rc;
+    }
+    for (int l = 1; l <= ISO_MAX_LEVELS; l++)
+        ed->cells_rebuilt += st.cells[l];
+    iso_adapt_free(*a);
+    *a = na;
+    return 0;
+}
+
+int part_apply(struct service *svc, struct volume *vol, struct iso_adapt **a, const char *options, const void *data,
+               size_t len, struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
 {
     int lo[3], n[3];
+    char value[64] = "";
+    query_option(options, "value", value, sizeof value);
+    if (value[0])
+        return iso_apply(svc, vol, a, value, ed, ch, err);
     if (volume_region(options, &vol->g, len, lo, n, err))
         return err->code;
     struct iso_grid blk = {n[0], n[1], n[2], vol->g.type, data, {1, 1, 1}, {0, 0, 0}};
     memset(ed, 0, sizeof *ed);
-    if (a)
-        return iso_adapt_edit_ids(a, lo, &blk, ed, ch, err);
+    if (*a)
+        return iso_adapt_edit_ids(*a, lo, &blk, ed, ch, err);
     write_samples(&vol->g, lo, &blk);
     ed->whole = true;
     return 0;
@@ -97,7 +197,8 @@ int stored_volume(struct service *svc, const char *id, struct volume *vol, bool 
     }
     for (int k = 1; k < n && !rc && edits; k++) {
         struct iso_edit ed;
-        rc = part_apply(vol, NULL, parts[k].options, parts[k].data, parts[k].len, &ed, NULL, err);
+        struct iso_adapt *none = NULL;
+        rc = part_apply(svc, vol, &none, parts[k].options, parts[k].data, parts[k].len, &ed, NULL, err);
     }
     *next = edits ? parts[n - 1].seq + 1 : 1;
     store_volume_free(parts, n);

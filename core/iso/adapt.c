@@ -292,9 +292,11 @@ int iso_adapt_keep(struct iso_adapt *a, struct iso_adapt_stats *st, struct sf_er
         a->refs[m->tri[i]]++;
     if (m->n_tri >= UINT32_MAX || mem_reserve((void **)&a->ids, &a->idcap, m->n_tri + 1, sizeof *a->ids))
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    if ((uint64_t)a->next_id + m->n_tri >= UINT32_MAX)
+        return sf_fail(err, SF_ELIMIT, "", "the model's triangle ids ran out (2^32 of them)");
     for (size_t t = 0; t < m->n_tri; t++)
-        a->ids[t] = (uint32_t)t;
-    a->next_id = (uint32_t)m->n_tri;
+        a->ids[t] = a->next_id + (uint32_t)t;
+    a->next_id += (uint32_t)m->n_tri;
     for (size_t v = 0; v < m->n_vert; v++)
         a->dead += !a->refs[v];
     samples_min(a);
@@ -349,6 +351,24 @@ int iso_adapt_ids(const struct iso_adapt *a, uint32_t **ids, struct sf_err *err)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     if (n)
         memcpy(*ids, a->ids, n * sizeof **ids);
+    return 0;
+}
+
+void iso_adapt_number_from(struct iso_adapt *a, uint32_t first) { a->next_id = first; }
+
+uint32_t iso_adapt_next_id(const struct iso_adapt *a) { return a->next_id; }
+
+int iso_adapt_samples(const struct iso_adapt *a, float **out, struct sf_err *err)
+{
+    int nx = a->N[0] - 2 * a->shift, ny = a->N[1] - 2 * a->shift, nz = a->N[2] - 2 * a->shift;
+    float *f = malloc((size_t)nx * ny * nz * sizeof *f + 1);
+    if (!f)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    for (int z = 0; z < nz; z++)
+        for (int y = 0; y < ny; y++)
+            memcpy(f + (size_t)nx * (y + (size_t)ny * z), a->F + at3(a, a->shift, y + a->shift, z + a->shift),
+                   (size_t)nx * sizeof *f);
+    *out = f;
     return 0;
 }
 

@@ -129,6 +129,14 @@ int iso_adapt_edit(struct iso_adapt *a, const int lo[3], const struct iso_grid *
 struct iso_change;
 int iso_adapt_edit_ids(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
                        struct iso_change *ch, struct sf_err *err);
+/* Before iso_adapt_keep: the kept mesh's ids start at first, not 0 (a hierarchy that replaces
+ * another's mesh, at a new iso, numbers its triangles after the other's). */
+void iso_adapt_number_from(struct iso_adapt *a, uint32_t first);
+/* The id the next triangle drawn will take. */
+uint32_t iso_adapt_next_id(const struct iso_adapt *a);
+/* The samples as they are now (edits written), as floats, x fastest, without the pad (*out:
+ * caller frees). 0 or SF_ENOMEM. */
+int iso_adapt_samples(const struct iso_adapt *a, float **out, struct sf_err *err);
 /* Each triangle's id, in iso_adapt_mesh's order (*ids: caller frees). 0 or SF_ENOMEM. */
 int iso_adapt_ids(const struct iso_adapt *a, uint32_t **ids, struct sf_err *err);
 
