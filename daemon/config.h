@@ -23,6 +23,7 @@ struct config {
     long max_volume;        /* bytes of a streamed volume (POST /isosurface) */
     long upload_share;      /* bytes of the data dir one owner's uploads may hold (shares.h) */
     long edit_memory;       /* bytes of the hierarchies kept for edits (daemon/job_edit.c) */
+    long journal_kept;      /* versions of a model's mesh changes kept for deltas (daemon/job_edit.c) */
     long max_triangles;     /* of one isosurface (job_iso_opts) */
     long max_triangles_per_byte; /* ... for each byte of its request (job_iso.c) */
     long max_labels;        /* labels of one map ?labels=all makes models of (job_iso.c) */

@@ -337,6 +337,9 @@ struct edit_work {
     struct job_work job;     /* first: job_start fills it */
     char *json;
     size_t len;
+    char model[40];
+    long version;            /* the change stored (0: none), and its bytes: for compaction */
+    size_t change_bytes;
     char meta[128];
     struct sf_err err;
 };
@@ -456,6 +459,8 @@ static int store_change(struct edit_work *w, const char *id, struct live *e, con
         struct model_rec mr = {id, id, NULL, NULL, 0, NULL, 0, w->json, NULL, version};
         struct volume_rec change = {0, "", "", bytes, len};
         int stored = store_model_edit(w->job.svc->store, &mr, part, &change);
+        if (!stored)
+            w->version = version, w->change_bytes = len;
         rc = stored == SF_ECONFLICT ? SF_ECONFLICT
              : stored             ? sf_fail(&w->err, SF_EIO, "", "the store would not take the edit")
                                   : 0;
@@ -573,6 +578,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         return sf_fail(&w->err, SF_EIO, "", "the job's record could not be read from the store");
     char model[40];
     query_option(rec.options, "model", model, sizeof model);
+    snprintf(w->model, sizeof w->model, "%s", model);
     bool was;
     int rc = applied_before(w, model, &was);
     if (!rc && !was && !strcmp(rec.format, "json")) {
@@ -596,12 +602,39 @@ static int prepare(struct job *j, void *arg, int *n_bands)
     return rc;
 }
 
+/* The journal compacted (store.h), after the answer: every journal-kept / 2 versions, or after a
+ * change of over COMPACT_BYTES (a new iso: every triangle), the model's mesh written as a new base
+ * and the changes kept back to journal-kept versions before it (one after a large change). A
+ * failure leaves the journal as it was (the next one tries again). */
+#define COMPACT_BYTES (8u << 20)
+
+static void compact(struct service *svc, const char *id, long version, size_t change_bytes)
+{
+    long every = svc->cfg.journal_kept / 2 > 0 ? svc->cfg.journal_kept / 2 : 1;
+    if (!version || (version % every && change_bytes < COMPACT_BYTES))
+        return;
+    char *src = NULL;
+    size_t len = 0;
+    uint64_t at;
+    if (store_model_get(svc->store, id, NULL, NULL, &src, &len) || mesh_packed_version(src, len, &at)) {
+        free(src);
+        return;
+    }
+    struct model_rec m = {id, id, NULL, NULL, 0, src, len, "", NULL, (long)at};
+    long keep = change_bytes >= COMPACT_BYTES ? 1 : svc->cfg.journal_kept;
+    if (store_model_rebase(svc->store, &m, (long)at - keep))
+        LOG(LOG_WARN, "model %s: its journal of changes was not compacted (the store failed); kept as it is", id);
+    free(src);
+}
+
 static void finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
 {
     (void)j;
     struct edit_work *w = arg;
     service_job_end(w->job.svc, &w->job.claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
+    if (outcome == JOB_SUCCEEDED)
+        compact(w->job.svc, w->model, w->version, w->change_bytes);
     free(w->json);
     free(w);
 }

@@ -116,4 +116,26 @@ check "an edit after the restart (the hierarchy rebuilt from the store): version
 code=$(status GET "/models/$ID/mesh?format=delta&since=6"); cp "$T/body" "$T/dv"
 status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
 check "... its delta applies to the copy by the same ids: the STL" '[ "$code" = 200 ] && client apply "$T/dv" && client same "$T/v.stl"'
+# compaction (journal-kept 4: a new base every 2 versions, the changes of the last 4 kept)
+stop_daemon; start_daemon "$T/d" --journal-kept 4 || exit 1
+status GET "/models/$ID/mesh?format=delta&since=0" >/dev/null; cp "$T/body" "$T/d0"; client load "$T/d0"
+ok=1
+for r in 20,24,17 30,8,40 21,25,18 8,40,3 12,30,30 40,20,30; do
+    code=$(edit "$r" -1000); [ "$code" = 200 ] || ok=0
+    v=$(field version)
+    code=$(status GET "/models/$ID/mesh?format=delta&since=$((v - 1))"); cp "$T/body" "$T/dv"
+    [ "$code" = 200 ] && client apply "$T/dv" || ok=0
+done
+status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
+check "six more edits under journal-kept 4: each delta applies, the copy the STL (version $v)" '[ $ok = 1 ] && client same "$T/v.stl"'
+code=$(status GET "/models/$ID/mesh?format=delta&since=$((v - 3))")
+check "... since 3 versions back: still kept (200)" '[ "$code" = 200 ]'
+code=$(status GET "/models/$ID/mesh?format=delta&since=2")
+check "... since=2, compacted away: 410 at ?since" '[ "$code" = 410 ]'
+n=$(sqlite3 "$T/d/surfd.db" "SELECT count(*) FROM model_volumes WHERE model='$ID' AND seq<0")
+check "... the store keeps at most 5 changes of it ($n)" '[ "$n" -le 5 ] && [ "$n" -ge 3 ]'
+code=$(status GET "/models/$ID/mesh?format=delta&since=0"); cp "$T/body" "$T/d0"
+cp "$T/copy.json" "$T/mine.json"; client load "$T/d0"
+check "... since=0 from the new base: the same triangles by the same ids" '[ "$code" = 200 ] && python3 -c "
+import json,sys; a=json.load(open(sys.argv[1])); b=json.load(open(sys.argv[2])); sys.exit(a != b)" "$T/copy.json" "$T/mine.json"'
 checks_done
