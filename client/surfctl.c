@@ -518,14 +518,18 @@ static const char *const USAGE[][2] = {
                    "    POST /isosurface: VOLUME is .nrrd, .mha, NIfTI (.nii, .nii.gz), raw samples, a directory of a DICOM\n"
                    "    series' images (each file a part), one multi-frame DICOM image (.dcm: an Enhanced CT or MR, an RT\n"
                    "    Dose, iso in Gy, or a Segmentation's segment N, iso 0.5), or an FRep object as .json\n"},
-    {"edit", "surfctl edit MODEL BLOCK --region X0,Y0,Z0,NX,NY,NZ [-o OUT.stl|.ply|.obj]\n"
-             "    POST /models/MODEL/edit: BLOCK is the region's raw samples in the model's sample type\n"},
+    {"edit", "surfctl edit MODEL BLOCK --region X0,Y0,Z0,NX,NY,NZ [-o OUT.stl|.ply|.obj | -o OUT --since V]\n"
+             "    POST /models/MODEL/edit: BLOCK is the region's raw samples in the model's sample type; with --since\n"
+             "    V, OUT the mesh delta from version V (what a client holding V applies)\n"},
+    {"iso", "surfctl iso MODEL VALUE [-o OUT.stl|.ply|.obj | -o OUT --since V]\n"
+            "    POST /models/MODEL/iso?value=VALUE: the model at a new iso, as its next version\n"},
     {"matrix", "surfctl matrix VOLUME -o OUT.json [--iso V --dims X,Y,Z --type T --spacing S --origin O]\n"
                "surfctl matrix --model ID [--size N,M,K] -o OUT.json\n"
                "    POST /matrix-model: the six relief matrices of a volume or of a stored model\n"},
     {"models", "surfctl models [ID]\n    GET /models (the list) or GET /models/ID (one model's resource)\n"},
-    {"mesh", "surfctl mesh ID -o OUT [--format stl|ply|obj|vtp|vtk] [--tolerance MM]\n"
-             "    GET /models/ID/mesh: the format from --format, else OUT's extension\n"},
+    {"mesh", "surfctl mesh ID -o OUT [--format stl|ply|obj|vtp|vtk|delta] [--tolerance MM] [--since V]\n"
+             "    GET /models/ID/mesh: the format from --format, else OUT's extension; delta: the changes from\n"
+             "    version V (0, the default: the whole mesh)\n"},
     {"view", "surfctl view ID -o OUT.png [--width W --height H --azimuth DEG --elevation DEG --output FMT ...]\n"
              "    GET /models/ID/render, with render's camera options\n"},
     {"patches", "surfctl patches ID [-o OUT.json]\n    GET /models/ID/patches: the model's surfaces as scene JSON (stdout without -o)\n"},
@@ -734,37 +738,86 @@ static int cmd_isosurface(int argc, char **argv)
     return rc;
 }
 
+/* --since V taken out of argv (a mesh delta's version, not an option of the request): its value,
+ * or NULL. */
+static const char *take_since(int *argc, char **argv)
+{
+    for (int k = 0; k + 1 < *argc; k++)
+        if (!strcmp(argv[k], "--since")) {
+            const char *v = argv[k + 1];
+            memmove(argv + k, argv + k + 2, (size_t)(*argc - k - 2) * sizeof *argv);
+            *argc -= 2;
+            return v;
+        }
+    return NULL;
+}
+
+/* An edit's or iso change's answer r: the model resource on stdout; then to OUT (when given) the
+ * model's mesh, or with since its delta from that version (API.md's layout: a client holding
+ * version since applies it by id). */
+static int changed_model(struct response *r, const char *model, const char *out, const char *since)
+{
+    int rc = 0;
+    if (r->status == 202 && (rc = job_answer(r))) /* longer than the sync wait (a hierarchy rebuilt from the store) */
+        return rc;
+    if (r->status != 200) {
+        rc = r->status == 409 || r->status == 422 ? (report(r), r->job_id[0] ? EXIT_JOB : EXIT_REFUSED) : report(r);
+        free(r->body.data);
+        return rc;
+    }
+    printf("%s\n", r->body.data ? r->body.data : "");
+    free(r->body.data);
+    if (!out)
+        return 0;
+    if (!since)
+        return download_mesh(model, out);
+    char path[256];
+    snprintf(path, sizeof path, "/models/%.64s/mesh?format=delta&since=%.20s", model, since);
+    return get_file(path, out);
+}
+
+/* Whether OUT (NULL: none) is a mesh file edit and iso write, or any file for a delta (since). */
+static bool mesh_out_ok(const char *out, const char *since)
+{
+    const char *ext = out ? strrchr(out, '.') : NULL;
+    return !out || since || (ext && (!strcmp(ext, ".stl") || !strcmp(ext, ".ply") || !strcmp(ext, ".obj")));
+}
+
 /* POST /models/ID/edit?region=... with BLOCK's raw samples: the model resource after the edit on
- * stdout, and its mesh written to OUT when -o is given. */
+ * stdout, and its mesh (or its delta since a version) written to OUT when -o is given. */
 static int cmd_edit(int argc, char **argv)
 {
     static const char *const OPTIONS[] = {"region", NULL};
-    const char *model = NULL, *file = NULL, *out = NULL;
+    const char *model = NULL, *file = NULL, *out = NULL, *since = take_since(&argc, argv);
     char query[256] = "";
     if (argc < 1 || argv[0][0] == '-' || !read_args(argc - 1, argv + 1, OPTIONS, &file, &out, NULL, query, sizeof query))
         return usage();
     model = argv[0];
-    const char *ext = out ? strrchr(out, '.') : NULL;
-    if (!file || !query[0] || (out && (!ext || (strcmp(ext, ".stl") && strcmp(ext, ".ply") && strcmp(ext, ".obj")))))
+    if (!file || !query[0] || !mesh_out_ok(out, since))
         return usage();
     char route[128];
     snprintf(route, sizeof route, "/models/%.64s/edit", model);
     struct response r;
     int rc = post_file(route, query, file, "application/octet-stream", NULL, &r);
-    if (rc)
-        return rc;
-    if (r.status == 202 && (rc = job_answer(&r))) /* longer than the sync wait (a hierarchy rebuilt from the store) */
-        return rc;
-    if (r.status != 200) {
-        rc = r.status == 409 || r.status == 422 ? (report(&r), r.job_id[0] ? EXIT_JOB : EXIT_REFUSED) : report(&r);
-        free(r.body.data);
-        return rc;
-    }
-    printf("%s\n", r.body.data ? r.body.data : "");
-    free(r.body.data);
-    return out ? download_mesh(model, out) : 0;
+    return rc ? rc : changed_model(&r, model, out, since);
 }
 
+/* surfctl iso MODEL VALUE [-o OUT] [--since V]: POST /models/MODEL/iso?value=VALUE. */
+static int cmd_iso(int argc, char **argv)
+{
+    const char *since = take_since(&argc, argv), *extra = NULL, *out = NULL;
+    char none[8] = "";
+    if (argc < 2 || argv[0][0] == '-' ||
+        !read_args(argc - 2, argv + 2, (const char *const[]){NULL}, &extra, &out, NULL, none, sizeof none) || extra ||
+        !mesh_out_ok(out, since))
+        return usage();
+    const char *model = argv[0], *value = argv[1]; /* (a value may be negative: -500) */
+    char path[256];
+    snprintf(path, sizeof path, "/models/%.64s/iso?value=%.40s", model, value);
+    struct response r;
+    int rc = request("POST", path, "", 0, NULL, NULL, &r);
+    return rc ? rc : changed_model(&r, model, out, since);
+}
 
 static const char *const CONTOUR_OPTIONS[] = {"method", "caps", "roi", "parameterisation", NULL};
 
@@ -811,7 +864,7 @@ static int cmd_matrix(int argc, char **argv)
 /* surfctl mesh ID -o OUT [--format F] [--tolerance MM]. */
 static int cmd_mesh(int argc, char **argv)
 {
-    static const char *const OPTIONS[] = {"format", "tolerance", NULL};
+    static const char *const OPTIONS[] = {"format", "tolerance", "since", NULL};
     const char *id = NULL, *out = NULL;
     char query[256] = "";
     if (!read_args(argc, argv, OPTIONS, &id, &out, NULL, query, sizeof query) || !id || !out)
@@ -974,6 +1027,8 @@ int main(int argc, char **argv)
         rc = cmd_isosurface(argc - 2, argv + 2);
     } else if (!strcmp(cmd, "edit")) {
         rc = cmd_edit(argc - 2, argv + 2);
+    } else if (!strcmp(cmd, "iso")) {
+        rc = cmd_iso(argc - 2, argv + 2);
     } else if (!strcmp(cmd, "matrix")) {
         rc = cmd_matrix(argc - 2, argv + 2);
     } else if (!strcmp(cmd, "mesh")) {

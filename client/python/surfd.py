@@ -233,9 +233,16 @@ class Client:
         """DELETE /models/{id}."""
         self.request("DELETE", "/models/" + model_id)
 
-    def mesh(self, model_id: str, format: str = "stl", tolerance: Optional[float] = None) -> bytes:
-        """GET /models/{id}/mesh: stl, ply, obj, vtp or vtk; tolerance in mm."""
-        return self._job("GET", "/models/%s/mesh" % model_id, {"format": format, "tolerance": tolerance})
+    def mesh(self, model_id: str, format: str = "stl", tolerance: Optional[float] = None,
+             since: Optional[int] = None) -> bytes:
+        """GET /models/{id}/mesh: stl, ply, obj, vtp, vtk or delta; tolerance in mm; with format="delta",
+        since=V the changes from version V (0: the whole mesh; a version older than the model's
+        journal: SurfdError 410). MeshCopy applies them."""
+        return self._job("GET", "/models/%s/mesh" % model_id, {"format": format, "tolerance": tolerance, "since": since})
+
+    def iso(self, model_id: str, value: float) -> Dict[str, Any]:
+        """POST /models/{id}/iso?value=V: the model at a new iso, as its next version."""
+        return self._job("POST", "/models/%s/iso" % model_id, {"value": value}, b"")
 
     def patches(self, model_id: str) -> Dict[str, Any]:
         """GET /models/{id}/patches: the model's Bezier patches as a scene /render takes."""
@@ -292,6 +299,55 @@ class Client:
     def metrics(self) -> str:
         """GET /metrics: Prometheus text."""
         return self.request("GET", "/metrics").body.decode()
+
+
+class MeshCopy:
+    """A model's mesh held by triangle id, kept up to date by mesh deltas (API.md, "Interactive
+    isosurfaces"): what a viewer or a script that follows a model's edits holds. triangles: id ->
+    nine floats (three corners, patient mm); version: the model's version they are of.
+
+        copy = MeshCopy(client, model_id)      # GET mesh?format=delta&since=0
+        client.edit(model_id, samples, region)
+        copy.update()                          # only the change: since=copy.version
+    """
+
+    def __init__(self, client: "Client", model_id: str):
+        self.client, self.model_id = client, model_id
+        self.triangles: Dict[int, tuple] = {}
+        self.version = 0
+        self.update()
+
+    def apply(self, delta: bytes) -> None:
+        """Applies one delta (its from version must be this copy's; 0: the whole mesh)."""
+        import struct
+        if delta[:4] != b"SFMD" or len(delta) < 20:
+            raise ValueError("not a mesh delta")
+        frm, to, n_removed, n_added = struct.unpack_from("<4I", delta, 4)
+        if len(delta) != 20 + 4 * n_removed + 40 * n_added:
+            raise ValueError("a mesh delta whose counts do not match its length")
+        if frm != self.version:
+            raise ValueError("a delta from version %d, the copy is of %d" % (frm, self.version))
+        if frm == 0:
+            self.triangles = {}
+        for tid in struct.unpack_from("<%dI" % n_removed, delta, 20):
+            del self.triangles[tid]
+        at = 20 + 4 * n_removed
+        for k in range(n_added):
+            tid, *corners = struct.unpack_from("<I9f", delta, at + 40 * k)
+            self.triangles[tid] = tuple(corners)
+        self.version = to
+
+    def update(self) -> int:
+        """The changes since this copy's version applied (the whole mesh again when the model's
+        journal no longer reaches back to it); the version now."""
+        try:
+            self.apply(self.client.mesh(self.model_id, format="delta", since=self.version))
+        except SurfdError as e:
+            if e.status != 410:
+                raise
+            self.version = 0
+            self.apply(self.client.mesh(self.model_id, format="delta", since=0))
+        return self.version
 
 
 class Response:
