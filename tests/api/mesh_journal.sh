@@ -116,6 +116,23 @@ check "an edit after the restart (the hierarchy rebuilt from the store): version
 code=$(status GET "/models/$ID/mesh?format=delta&since=6"); cp "$T/body" "$T/dv"
 status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
 check "... its delta applies to the copy by the same ids: the STL" '[ "$code" = 200 ] && client apply "$T/dv" && client same "$T/v.stl"'
+cp "$T/copy.json" "$T/copy7.json"
+# concurrent edits of one model: applied one after another, versions never skipped or repeated
+status GET "/models/$ID" >/dev/null; v0=$(field version)
+for k in 1 2 3 4 5 6; do
+    python3 tests/tools/edit_tool.py block 8 $((1000 + 100 * k)) -300 2.5 "$T/c$k.raw"
+    curl -s -o "$T/c$k.json" -X POST -H "$RAW" --data-binary @"$T/c$k.raw" "$URL/models/$ID/edit?region=$((5 * k)),20,20,8,8,8" &
+done
+wait
+vs=$(for k in 1 2 3 4 5 6; do python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['version'])" "$T/c$k.json"; done | sort -n | tr '\n' ' ')
+want=$(seq $((v0 + 1)) $((v0 + 6)) | tr '\n' ' ')
+check "six edits of one model at once: versions $want each once" '[ "$vs" = "$want" ]'
+code=$(status GET "/models/$ID/mesh?format=delta&since=$v0"); cp "$T/body" "$T/dv"
+client load "$T/d0" 2>/dev/null; cp "$T/copy.json" "$T/keep.json"
+status GET "/models/$ID/mesh?format=delta&since=0" >/dev/null; cp "$T/body" "$T/d0"
+status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
+check "... the delta over the six applied to the copy before them: the STL" '[ "$code" = 200 ] && cp "$T/copy7.json" "$T/copy.json" && client apply "$T/dv" && client same "$T/v.stl"'
+
 # compaction (journal-kept 4: a new base every 2 versions, the changes of the last 4 kept)
 stop_daemon; start_daemon "$T/d" --journal-kept 4 || exit 1
 status GET "/models/$ID/mesh?format=delta&since=0" >/dev/null; cp "$T/body" "$T/d0"; client load "$T/d0"
@@ -138,4 +155,31 @@ code=$(status GET "/models/$ID/mesh?format=delta&since=0"); cp "$T/body" "$T/d0"
 cp "$T/copy.json" "$T/mine.json"; client load "$T/d0"
 check "... since=0 from the new base: the same triangles by the same ids" '[ "$code" = 200 ] && python3 -c "
 import json,sys; a=json.load(open(sys.argv[1])); b=json.load(open(sys.argv[2])); sys.exit(a != b)" "$T/copy.json" "$T/mine.json"'
+
+# PostgreSQL: kill -9 right after an edit's 200 loses nothing there either
+. tests/tools/pg.inc
+stop_daemon
+chmod 755 "$T"
+if pg_start "$T/pg"; then
+    start_daemon "$T/dp" --store "$PG_URI" || exit 1
+    code=$(status POST "/isosurface?iso=226.5&levels=2&max_error=0.5&dims=64,64,64&type=int16&spacing=0.9570312,0.9570312,1.5" -H "$RAW" --data-binary @"$CT")
+    ID=$(field id)
+    status GET "/models/$ID/mesh?format=delta&since=0" >/dev/null; cp "$T/body" "$T/d0"; client load "$T/d0"
+    edit 20,24,17 1500 >/dev/null
+    code=$(edit 30,8,40 1500)
+    kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""
+    start_daemon "$T/dp" --store "$PG_URI" || exit 1
+    code2=$(status GET "/models/$ID/mesh?format=delta&since=1"); cp "$T/body" "$T/dv"
+    status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
+    check "PostgreSQL: kill -9 right after an edit's 200; restarted, the delta since 1 applied: the STL (version 3)" '[ "$code" = 200 ] && [ "$code2" = 200 ] && client apply "$T/dv" && client same "$T/v.stl" && python3 -c "
+import json,sys; sys.exit(json.load(open(sys.argv[1]))[\"version\"] != 3)" "$T/copy.json"'
+    code=$(edit 8,40,3 -1000)
+    code2=$(status GET "/models/$ID/mesh?format=delta&since=3"); cp "$T/body" "$T/dv"
+    status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
+    check "... an edit after the restart: its delta applies by the same ids" '[ "$code" = 200 ] && [ "$code2" = 200 ] && client apply "$T/dv" && client same "$T/v.stl"'
+    stop_daemon
+    pg_stop
+else
+    bad "PostgreSQL would not start"
+fi
 checks_done
