@@ -333,10 +333,10 @@ double iso_grid_min(const struct iso_grid *g)
     }
 }
 
-void iso_grid_row(const struct iso_grid *g, int y, int z, float *out)
+/* Samples x0 .. x0+n-1 of row (y, z) as floats into out. */
+static void grid_span(const struct iso_grid *g, int x0, int y, int z, int n, float *out)
 {
-    size_t at = (size_t)g->nx * ((size_t)y + (size_t)g->ny * (size_t)z);
-    int n = g->nx;
+    size_t at = (size_t)g->nx * ((size_t)y + (size_t)g->ny * (size_t)z) + (size_t)x0;
     switch (g->type) {
     case ISO_U8: {
         const uint8_t *p = (const uint8_t *)g->samples + at;
@@ -360,6 +360,8 @@ void iso_grid_row(const struct iso_grid *g, int y, int z, float *out)
         memcpy(out, (const float *)g->samples + at, (size_t)n * sizeof *out);
     }
 }
+
+void iso_grid_row(const struct iso_grid *g, int y, int z, float *out) { grid_span(g, 0, y, z, g->nx, out); }
 
 /* Virtual slice K into out (NX * NY floats). */
 static void load(const struct iso_job *j, int K, float *out)
@@ -419,6 +421,22 @@ void iso_init(void)
     tables_built = true;
 }
 
+/* The job's view of g and o: the virtual grid, its origin, iso (the pad is the caller's). */
+static void frame(struct iso_job *j, const struct iso_grid *g, const struct iso_opts *o)
+{
+    j->g = *g;
+    j->o = *o;
+    j->shift = o->closed ? 1 : 0;
+    j->NX = g->nx + 2 * j->shift;
+    j->NY = g->ny + 2 * j->shift;
+    j->NZ = g->nz + 2 * j->shift;
+    j->iso = (float)o->iso;
+    for (int a = 0; a < 3; a++) {
+        j->org[a] = g->origin[a] - j->shift * g->spacing[a];
+        j->half_inv[a] = (float)(0.5 / g->spacing[a]);
+    }
+}
+
 int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, struct iso_job **out,
               struct sf_err *err)
 {
@@ -434,17 +452,7 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
     struct iso_job *j = calloc(1, sizeof *j);
     if (!j)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
-    j->g = *g;
-    j->o = *o;
-    j->shift = o->closed ? 1 : 0;
-    j->NX = g->nx + 2 * j->shift;
-    j->NY = g->ny + 2 * j->shift;
-    j->NZ = g->nz + 2 * j->shift;
-    j->iso = (float)o->iso;
-    for (int a = 0; a < 3; a++) {
-        j->org[a] = g->origin[a] - j->shift * g->spacing[a];
-        j->half_inv[a] = (float)(0.5 / g->spacing[a]);
-    }
+    frame(j, g, o);
     if (o->closed) /* below iso and every sample: the volume's minimum, as a CT's air */
         j->pad = (float)fmin(o->iso - 1, iso_grid_min(g));
     int layers = j->NZ - 1;
@@ -788,17 +796,18 @@ static void gradient(const struct iso_job *j, const struct window *w, int I, int
     g[2] = (slice(w, k1)[at] - slice(w, k0)[at]) * j->half_inv[2] * (k1 - k0 == 2 ? 1.0f : 2.0f);
 }
 
-/* Vertex v on the edge from virtual sample p to its neighbour along axis. */
-static void put_vertex(struct iso_job *j, const struct window *w, size_t v, int I, int J, int K, int axis, float a,
-                       float b)
+/* The vertex on the edge from virtual sample (I, J, K) (value a) to its neighbour along axis
+ * (value b): its position into pos, its normal into nrm (when not NULL). The one computation of
+ * both extractions (the slabs' and a box's), so that they agree bit for bit. */
+static inline void vertex_at(const struct iso_job *j, const struct window *w, int I, int J, int K, int axis, float a,
+                             float b, float *pos, float *nrm)
 {
     double t = ((double)j->iso - a) / ((double)b - a);
     t = t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
     int p[3] = {I, J, K};
-    float *out = j->m.pos + 3 * v;
     for (int d = 0; d < 3; d++)
-        out[d] = (float)(j->org[d] + j->g.spacing[d] * (p[d] + (d == axis ? t : 0)));
-    if (!j->m.nrm)
+        pos[d] = (float)(j->org[d] + j->g.spacing[d] * (p[d] + (d == axis ? t : 0)));
+    if (!nrm)
         return;
     float g0[3], g1[3], n[3], ft = (float)t;
     gradient(j, w, I, J, K, g0);
@@ -807,12 +816,20 @@ static void put_vertex(struct iso_job *j, const struct window *w, size_t v, int 
         n[d] = (ft - 1) * g0[d] - ft * g1[d]; /* outward: down the gradient */
     float len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2], inv = len2 > 0 ? 1.0f / sqrtf(len2) : 0.0f;
     for (int d = 0; d < 3; d++)
-        j->m.nrm[3 * v + d] = n[d] * inv;
+        nrm[d] = n[d] * inv;
 }
 
-/* Vertex v at the centre of a loop of cell (I, J, K) (rows r[z][y]): the mean of the loop's edge
- * crossings, its normal down the trilinear interpolant's gradient there. */
-static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const float *r[2][2], unsigned edges)
+/* Vertex v on the edge from virtual sample p to its neighbour along axis. */
+static void put_vertex(struct iso_job *j, const struct window *w, size_t v, int I, int J, int K, int axis, float a,
+                       float b)
+{
+    vertex_at(j, w, I, J, K, axis, a, b, j->m.pos + 3 * v, j->m.nrm ? j->m.nrm + 3 * v : NULL);
+}
+
+/* The vertex at the centre of a loop of cell (I, J, K) (rows r[z][y]): the mean of the loop's
+ * edge crossings, its normal down the trilinear interpolant's gradient there. */
+static void centre_at(const struct iso_job *j, int I, int J, int K, const float *r[2][2], unsigned edges, float *pos,
+                      float *nrm)
 {
     double f[8], p[3] = {0, 0, 0};
     for (int c = 0; c < 8; c++)
@@ -833,8 +850,8 @@ static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const f
         p[d] /= n;
     int at[3] = {I, J, K};
     for (int d = 0; d < 3; d++)
-        j->m.pos[3 * v + d] = (float)(j->org[d] + j->g.spacing[d] * (at[d] + p[d]));
-    if (!j->m.nrm)
+        pos[d] = (float)(j->org[d] + j->g.spacing[d] * (at[d] + p[d]));
+    if (!nrm)
         return;
     double g[3] = {0, 0, 0}, len = 0;
     for (int c = 0; c < 8; c++) { /* d/dp_d of the trilinear weights */
@@ -846,7 +863,12 @@ static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const f
         len += g[d] * g[d];
     len = sqrt(len);
     for (int d = 0; d < 3; d++)
-        j->m.nrm[3 * v + d] = len > 0 ? (float)(-g[d] / len) : 0.0f;
+        nrm[d] = len > 0 ? (float)(-g[d] / len) : 0.0f;
+}
+
+static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const float *r[2][2], unsigned edges)
+{
+    centre_at(j, I, J, K, r, edges, j->m.pos + 3 * v, j->m.nrm ? j->m.nrm + 3 * v : NULL);
 }
 
 /* The x and y vertices of level K. */
@@ -992,4 +1014,245 @@ int iso_extract(const struct iso_grid *g, const struct iso_opts *o, const struct
         return rc;
     }
     return iso_end(j, out, err);
+}
+
+/* ---- boxes of cells (mc.h: iso_box_extract) ---- */
+
+/* Rows Y0 .. Y1, columns X0 .. X1 of virtual slice K into out (laid out as a whole slice). */
+static void load_rect(const struct iso_job *j, int K, float *out, const int rect[4])
+{
+    int s = j->shift, z = K - s;
+    for (int J = rect[2]; J <= rect[3]; J++) {
+        float *row = out + (size_t)j->NX * J;
+        int y = J - s, a = rect[0], b = rect[1];
+        if (y < 0 || y >= j->g.ny || z < 0 || z >= j->g.nz) {
+            for (int I = a; I <= b; I++)
+                row[I] = j->pad;
+            continue;
+        }
+        if (a - s < 0)
+            row[a++] = j->pad;
+        if (b - s >= j->g.nx)
+            row[b--] = j->pad;
+        if (a <= b)
+            grid_span(&j->g, a - s, y, z, b - a + 1, row + a);
+    }
+}
+
+static void rect_window_at(const struct iso_job *j, struct window *w, int K, const int rect[4])
+{
+    if (K == w->k + 1) {
+        float *t = w->s[0];
+        w->s[0] = w->s[1], w->s[1] = w->s[2], w->s[2] = w->s[3], w->s[3] = t;
+        w->k = K;
+        if (K + 2 < j->NZ)
+            load_rect(j, K + 2, w->s[3], rect);
+        return;
+    }
+    w->k = K;
+    for (int d = -1; d <= 2; d++)
+        if (K + d >= 0 && K + d < j->NZ)
+            load_rect(j, K + d, w->s[d + 1], rect);
+}
+
+static bool box_grow(struct iso_box *b, size_t verts, size_t tris, bool normals)
+{
+    if (b->n_vert + verts > b->cap_vert) {
+        size_t cap = b->cap_vert ? 2 * b->cap_vert : 4096;
+        while (cap < b->n_vert + verts)
+            cap *= 2;
+        float *p = realloc(b->pos, cap * 3 * sizeof *p);
+        if (p)
+            b->pos = p;
+        float *n = normals ? realloc(b->nrm, cap * 3 * sizeof *n) : b->nrm;
+        if (n)
+            b->nrm = n;
+        uint64_t *k = realloc(b->key, cap * sizeof *k);
+        if (k)
+            b->key = k;
+        if (!p || (normals && !n) || !k)
+            return false;
+        b->cap_vert = cap;
+    }
+    if (b->n_tri + tris > b->cap_tri) {
+        size_t cap = b->cap_tri ? 2 * b->cap_tri : 4096;
+        while (cap < b->n_tri + tris)
+            cap *= 2;
+        uint32_t *t = realloc(b->tri, cap * 3 * sizeof *t);
+        if (t)
+            b->tri = t;
+        uint32_t *c = realloc(b->cell, cap * sizeof *c);
+        if (c)
+            b->cell = c;
+        if (!t || !c)
+            return false;
+        b->cap_tri = cap;
+    }
+    return true;
+}
+
+/* The box's pass: the edges' vertex ids live in tagged slots (tag << 32 | id; tag = the level
+ * plus one, for x and y edges, the layer plus one for z edges), two levels of x and y edges and a
+ * layer of z edges, so that no slot is cleared as the pass moves on. */
+struct box_pass {
+    struct iso_job j;
+    struct window w;
+    struct iso_box *out;
+    int lo[3], W;                    /* W: samples a row of the box */
+    uint64_t *ex[2], *ey[2], *ez;
+};
+
+static uint32_t edge_vertex(struct box_pass *p, int e, int I, int J, int K)
+{
+    int x = 0, y = 0, z = 0, axis = e >> 2, q = e & 3;
+    uint64_t *slot;
+    if (axis == 0)
+        y = q & 1, z = q >> 1;
+    else if (axis == 1)
+        x = q & 1, z = q >> 1;
+    else
+        x = q & 1, y = q >> 1;
+    size_t at = (size_t)(I + x - p->lo[0]) + (size_t)p->W * (size_t)(J + y - p->lo[1]);
+    uint64_t tag = (uint64_t)(K + z + 1) << 32;
+    slot = axis == 0 ? p->ex[(K + z) & 1] + at : axis == 1 ? p->ey[(K + z) & 1] + at : p->ez + at;
+    if ((*slot & 0xffffffff00000000u) == tag)
+        return (uint32_t)*slot;
+    struct iso_box *b = p->out;
+    size_t v = b->n_vert++;
+    const struct iso_job *j = &p->j;
+    int I0 = I + x, J0 = J + y, K0 = K + z;
+    const float *s = slice(&p->w, K0) + (size_t)I0 + (size_t)j->NX * J0;
+    float va = s[0], vb = axis == 0 ? s[1] : axis == 1 ? s[j->NX] : slice(&p->w, K0 + 1)[s - slice(&p->w, K0)];
+    vertex_at(j, &p->w, I0, J0, K0, axis, va, vb, b->pos + 3 * v, b->nrm ? b->nrm + 3 * v : NULL);
+    b->key[v] = iso_vertex_key(j->NX, j->NY, I0, J0, K0, axis, 0);
+    *slot = tag | v;
+    return (uint32_t)v;
+}
+
+/* Cells I0 .. I1 of row (J, K). */
+static void box_run(struct box_pass *p, int I0, int I1, int J, int K)
+{
+    const struct iso_job *j = &p->j;
+    struct iso_box *b = p->out;
+    int NX = j->NX;
+    float iso = j->iso;
+    const float *a = slice(&p->w, K), *c = slice(&p->w, K + 1);
+    const float *r[2][2] = {{a + (size_t)NX * J, a + (size_t)NX * (J + 1)}, {c + (size_t)NX * J, c + (size_t)NX * (J + 1)}};
+    const float *a0 = r[0][0], *a1 = r[0][1], *b0 = r[1][0], *b1 = r[1][1];
+    uint32_t row = (uint32_t)(NX - 1) * ((uint32_t)J + (uint32_t)(j->NY - 1) * (uint32_t)K);
+    for (int I = I0, st = first_states(iso, a0, a1, b0, b1, I0); I <= I1;
+         st = ++I <= I1 ? next_states(st, iso, a0, a1, b0, b1, I) : 0) {
+        if (st == 0 || st == 255)
+            continue;
+        const struct cell_case *cc = &CASES[cell_case(j, st, a0, a1, b0, b1, I)];
+        uint32_t ids[12 + MAX_CENTRES];
+        for (int e = 0; e < 12; e++) {
+            int u = e < 4 ? 2 * e : e < 8 ? ((e - 4) & 1) + 4 * ((e - 4) >> 1) : ((e - 8) & 1) + 2 * ((e - 8) >> 1);
+            int d = e < 4 ? 1 : e < 8 ? 2 : 4;
+            if ((st >> u ^ st >> (u + d)) & 1)
+                ids[e] = edge_vertex(p, e, I, J, K);
+        }
+        for (int k = 0; k < cc->n_centres; k++) {
+            size_t v = b->n_vert++;
+            centre_at(j, I, J, K, r, cc->centre_of[k], b->pos + 3 * v, b->nrm ? b->nrm + 3 * v : NULL);
+            b->key[v] = iso_vertex_key(NX, j->NY, I, J, K, 3, k);
+            ids[12 + k] = (uint32_t)v;
+        }
+        uint32_t *tri = b->tri + 3 * b->n_tri;
+        for (int k = 0; k < 3 * cc->n; k++)
+            tri[k] = ids[cc->e[k]];
+        for (int k = 0; k < cc->n; k++)
+            b->cell[b->n_tri + k] = row + (uint32_t)I;
+        b->n_tri += cc->n;
+    }
+}
+
+int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pad, const int lo[3], const int hi[3],
+                    const uint8_t *mask, int mask_b, struct iso_box *out, struct sf_err *err)
+{
+    struct box_pass p = {.out = out};
+    struct iso_job *j = &p.j;
+    frame(j, g, o);
+    j->pad = o->closed ? pad : 0;
+    out->n_vert = out->n_tri = 0;
+    int C[3] = {j->NX - 1, j->NY - 1, j->NZ - 1}, rect[4];
+    for (int d = 0; d < 3; d++)
+        if (lo[d] < 0 || hi[d] >= C[d] || lo[d] > hi[d])
+            return 0; /* (an empty box) */
+    /* the samples the cells and their vertices' normals read: one further each way */
+    rect[0] = lo[0] > 0 ? lo[0] - 1 : 0;
+    rect[1] = hi[0] + 2 < j->NX ? hi[0] + 2 : j->NX - 1;
+    rect[2] = lo[1] > 0 ? lo[1] - 1 : 0;
+    rect[3] = hi[1] + 2 < j->NY ? hi[1] + 2 : j->NY - 1;
+    p.W = hi[0] - lo[0] + 2;
+    size_t plane = (size_t)j->NX * (size_t)j->NY, slots = (size_t)p.W * (size_t)(hi[1] - lo[1] + 2);
+    size_t need = 4 * plane * sizeof(float) + 5 * slots * sizeof(uint64_t);
+    if (need > out->scratch_bytes) {
+        void *s = realloc(out->scratch, need);
+        if (!s)
+            return sf_fail(err, SF_ENOMEM, "", "out of memory");
+        out->scratch = s, out->scratch_bytes = need;
+    }
+    float *f = out->scratch;
+    p.w = (struct window){{f, f + plane, f + 2 * plane, f + 3 * plane}, -10};
+    uint64_t *t = (uint64_t *)(f + 4 * plane);
+    memset(t, 0, 5 * slots * sizeof *t);
+    p.ex[0] = t, p.ex[1] = t + slots, p.ey[0] = t + 2 * slots, p.ey[1] = t + 3 * slots, p.ez = t + 4 * slots;
+    memcpy(p.lo, lo, sizeof p.lo);
+    int nbx = mask ? (C[0] + mask_b - 1) / mask_b : 0, nby = mask ? (C[1] + mask_b - 1) / mask_b : 0;
+    for (int K = lo[2]; K <= hi[2]; K++) {
+        const uint8_t *mk = mask ? mask + (size_t)nbx * (size_t)nby * (size_t)(K / mask_b) : NULL;
+        if (mk) { /* a layer of blocks all passed over: nothing read */
+            bool any = false;
+            for (size_t i = 0; i < (size_t)nbx * (size_t)nby && !any; i++)
+                any = mk[i] != 0;
+            if (!any)
+                continue;
+        }
+        rect_window_at(j, &p.w, K, rect);
+        for (int J = lo[1]; J <= hi[1]; J++) {
+            const uint8_t *mr = mk ? mk + (size_t)nbx * (size_t)(J / mask_b) : NULL;
+            for (int I0 = lo[0]; I0 <= hi[0];) {
+                int I1 = hi[0];
+                if (mr) {
+                    int bi = I0 / mask_b;
+                    I1 = (bi + 1) * mask_b - 1;
+                    if (!mr[bi]) {
+                        I0 = I1 + 1;
+                        continue;
+                    }
+                    while (I1 < hi[0] && mr[(I1 + 1) / mask_b])
+                        I1 += mask_b;
+                    I1 = I1 > hi[0] ? hi[0] : I1;
+                }
+                /* room for the run's worst case: 12 triangles, 3 new edges and the centres a cell */
+                size_t cells = (size_t)(I1 - I0 + 1);
+                if (!box_grow(out, cells * (3 + MAX_CENTRES) + 16, cells * MAX_CELL_TRIS, o->normals))
+                    return sf_fail(err, SF_ENOMEM, "", "out of memory");
+                box_run(&p, I0, I1, J, K);
+                I0 = I1 + 1;
+            }
+            if (out->n_vert > ISO_MAX_VERTICES)
+                return sf_fail(err, SF_ELIMIT, "", "the isosurface would have %zu vertices, over the limit of %u",
+                               out->n_vert, ISO_MAX_VERTICES);
+        }
+    }
+    return 0;
+}
+
+size_t iso_box_bytes(const struct iso_box *b)
+{
+    return b->cap_vert * ((b->nrm ? 6 : 3) * sizeof(float) + sizeof(uint64_t)) + b->cap_tri * 4 * sizeof(uint32_t) +
+           b->scratch_bytes;
+}
+
+void iso_box_free(struct iso_box *b)
+{
+    free(b->pos);
+    free(b->nrm);
+    free(b->key);
+    free(b->tri);
+    free(b->cell);
+    free(b->scratch);
+    memset(b, 0, sizeof *b);
 }
