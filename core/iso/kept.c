@@ -284,9 +284,22 @@ static int install(struct iso_kept *k, const uint32_t *vmap, struct iso_change *
     ch->corners = malloc((x->n_tri ? x->n_tri : 1) * 18 * sizeof *ch->corners);
     if (!ch->added || !ch->corners)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    struct kblock *b = NULL;
+    uint16_t local = 0;
+    uint32_t row = 1, yz = 0; /* the row of cells of the last triangle: its first cell (1: none yet), its block part */
     for (size_t i = 0; i < x->n_tri; i++) {
-        uint16_t local;
-        struct kblock *b = &k->blk[cell_block(k, x->cell[i], &local)];
+        uint32_t cl = x->cell[i];
+        if (i == 0 || cl != x->cell[i - 1]) { /* (a cell's triangles come together, cells in rows) */
+            if (row > cl || cl - row >= (uint32_t)k->C[0]) {
+                b = &k->blk[cell_block(k, cl, &local)];
+                row = cl - cl % (uint32_t)k->C[0];
+                yz = (uint32_t)(b - k->blk) - (cl - row) / KB;
+            } else {
+                uint32_t cx = cl - row;
+                b = &k->blk[yz + cx / KB];
+                local = (uint16_t)(local - local % KB + cx % KB);
+            }
+        }
         int rc = block_room(b, (size_t)b->n + 1, err);
         if (rc)
             return rc;
@@ -320,18 +333,31 @@ static int redraw_all(struct iso_kept *k, struct iso_edit *ed, struct iso_change
     ch->removed = malloc((k->n_tri ? k->n_tri : 1) * sizeof *ch->removed);
     if (!ch->removed)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    /* every id there is, in order: marked in a map of the ids' range (sorted when that is sparse) */
     size_t n = 0;
-    bool sorted = true;
+    uint32_t first = k->next_id;
+    for (size_t b = 0; b < k->n_blocks; b++)
+        if (k->blk[b].n && k->blk[b].t[0].id < first)
+            first = k->blk[b].t[0].id;
+    size_t range = k->next_id - first;
+    uint64_t *bits = range <= 64 * (size_t)k->n_tri + 64 ? calloc(range / 64 + 1, sizeof *bits) : NULL;
     for (size_t b = 0; b < k->n_blocks; b++) {
         for (uint32_t i = 0; i < k->blk[b].n; i++) {
-            uint32_t id = k->blk[b].t[i].id;
-            sorted = sorted && (n == 0 || ch->removed[n - 1] < id);
-            ch->removed[n++] = id;
+            uint32_t id = k->blk[b].t[i].id - first;
+            if (bits)
+                bits[id >> 6] |= (uint64_t)1 << (id & 63);
+            else
+                ch->removed[n++] = id + first;
         }
         k->blk[b].n = 0;
     }
-    if (!sorted) {
-        struct pair *p = malloc((n ? n : 1) * sizeof *p);
+    if (bits) {
+        for (size_t w = 0; w <= range / 64; w++)
+            for (uint64_t m = bits[w]; m; m &= m - 1)
+                ch->removed[n++] = first + (uint32_t)(64 * w + (size_t)__builtin_ctzll(m));
+        free(bits);
+    } else if (n > 1) {
+        struct pair *p = malloc(n * sizeof *p);
         if (!p)
             return sf_fail(err, SF_ENOMEM, "", "out of memory");
         for (size_t i = 0; i < n; i++)

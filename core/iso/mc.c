@@ -405,6 +405,7 @@ void iso_free(struct iso_job *j)
 /* The cells' tables: [(c * 64 + joined) * 2 + tube], and each corner state's ambiguous faces. */
 static struct cell_case CASES[256 * 64 * 2];
 static uint8_t AMBIGUOUS[256];
+static uint16_t CROSSED[256]; /* each corner state's crossed edges (a box's pass) */
 static bool tables_built;
 
 void iso_init(void)
@@ -413,6 +414,11 @@ void iso_init(void)
         return;
     for (int c = 0; c < 256; c++) {
         AMBIGUOUS[c] = (uint8_t)ambiguous_faces(c);
+        CROSSED[c] = 0;
+        for (int a = 0; a < 8; a++)
+            for (int axis = 0; axis < 3; axis++)
+                if (!(a >> axis & 1) && (c >> a & 1) != (c >> (a | 1 << axis) & 1))
+                    CROSSED[c] |= (uint16_t)(1 << edge_of(a, a | 1 << axis));
         for (int m = 0; m < 64; m++)
             if ((m & ~AMBIGUOUS[c]) == 0)
                 for (int tube = 0; tube < 2; tube++)
@@ -1104,14 +1110,10 @@ struct box_pass {
 
 static uint32_t edge_vertex(struct box_pass *p, int e, int I, int J, int K)
 {
-    int x = 0, y = 0, z = 0, axis = e >> 2, q = e & 3;
+    static const int8_t OFF[12][3] = {{0, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, 1, 1}, {0, 0, 0}, {1, 0, 0},
+                                      {0, 0, 1}, {1, 0, 1}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
+    int x = OFF[e][0], y = OFF[e][1], z = OFF[e][2], axis = e >> 2;
     uint64_t *slot;
-    if (axis == 0)
-        y = q & 1, z = q >> 1;
-    else if (axis == 1)
-        x = q & 1, z = q >> 1;
-    else
-        x = q & 1, y = q >> 1;
     size_t at = (size_t)(I + x - p->lo[0]) + (size_t)p->W * (size_t)(J + y - p->lo[1]);
     uint64_t tag = (uint64_t)(K + z + 1) << 32;
     slot = axis == 0 ? p->ex[(K + z) & 1] + at : axis == 1 ? p->ey[(K + z) & 1] + at : p->ez + at;
@@ -1146,12 +1148,8 @@ static void box_run(struct box_pass *p, int I0, int I1, int J, int K)
             continue;
         const struct cell_case *cc = &CASES[cell_case(j, st, a0, a1, b0, b1, I)];
         uint32_t ids[12 + MAX_CENTRES];
-        for (int e = 0; e < 12; e++) {
-            int u = e < 4 ? 2 * e : e < 8 ? ((e - 4) & 1) + 4 * ((e - 4) >> 1) : ((e - 8) & 1) + 2 * ((e - 8) >> 1);
-            int d = e < 4 ? 1 : e < 8 ? 2 : 4;
-            if ((st >> u ^ st >> (u + d)) & 1)
-                ids[e] = edge_vertex(p, e, I, J, K);
-        }
+        for (unsigned m = CROSSED[st]; m; m &= m - 1)
+            ids[__builtin_ctz(m)] = edge_vertex(p, __builtin_ctz(m), I, J, K);
         for (int k = 0; k < cc->n_centres; k++) {
             size_t v = b->n_vert++;
             centre_at(j, I, J, K, r, cc->centre_of[k], b->pos + 3 * v, b->nrm ? b->nrm + 3 * v : NULL);
@@ -1212,16 +1210,15 @@ int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pa
         rect_window_at(j, &p.w, K, rect);
         for (int J = lo[1]; J <= hi[1]; J++) {
             const uint8_t *mr = mk ? mk + (size_t)nbx * (size_t)(J / mask_b) : NULL;
-            for (int I0 = lo[0]; I0 <= hi[0];) {
+            for (int I0 = lo[0], bi = lo[0] / mask_b; I0 <= hi[0];) {
                 int I1 = hi[0];
-                if (mr) {
-                    int bi = I0 / mask_b;
+                if (mr) { /* a run of blocks not passed over */
                     I1 = (bi + 1) * mask_b - 1;
-                    if (!mr[bi]) {
+                    if (!mr[bi++]) {
                         I0 = I1 + 1;
                         continue;
                     }
-                    while (I1 < hi[0] && mr[(I1 + 1) / mask_b])
+                    for (; I1 < hi[0] && mr[bi]; bi++)
                         I1 += mask_b;
                     I1 = I1 > hi[0] ? hi[0] : I1;
                 }
