@@ -306,6 +306,7 @@ struct iso_job {
     uint32_t *xc, *yc, *zc, *tc, *cc; /* per row [J + NY*K]: crossings, triangles, centres */
     size_t *xb, *yb, *zb, *tb, *cb;  /* where each row's output starts */
     bool *slab_failed;               /* [s]: a pass of slab s found no memory (written by s alone) */
+    float *slab_min;                 /* [s]: the least sample slab s's pass 1 read (the pad, iso_layout) */
     struct trim *trim;               /* per sample row [J + NY*K]: where its states change */
     struct trimesh m;
 };
@@ -363,8 +364,32 @@ static void grid_span(const struct iso_grid *g, int x0, int y, int z, int n, flo
 
 void iso_grid_row(const struct iso_grid *g, int y, int z, float *out) { grid_span(g, 0, y, z, g->nx, out); }
 
-/* Virtual slice K into out (NX * NY floats). */
-static void load(const struct iso_job *j, int K, float *out)
+#define ROW_LEAST(T)                                     \
+    do {                                                 \
+        const T *p = (const T *)g->samples + at;         \
+        T lo = p[0];                                     \
+        for (int i = 0; i < n; i++) {                    \
+            out[i] = p[i];                               \
+            lo = p[i] < lo ? p[i] : lo;                  \
+        }                                                \
+        *least = (float)lo < *least ? (float)lo : *least; \
+    } while (0)
+
+/* iso_grid_row, the row's least folded into *least as it goes. */
+static void row_least(const struct iso_grid *g, int y, int z, float *out, float *least)
+{
+    size_t at = (size_t)g->nx * ((size_t)y + (size_t)g->ny * (size_t)z);
+    int n = g->nx;
+    switch (g->type) {
+    case ISO_U8: ROW_LEAST(uint8_t); break;
+    case ISO_I16: ROW_LEAST(int16_t); break;
+    case ISO_U16: ROW_LEAST(uint16_t); break;
+    default: ROW_LEAST(float);
+    }
+}
+
+/* Virtual slice K into out (NX * NY floats); with least, the least of its real samples folded in. */
+static void load(const struct iso_job *j, int K, float *out, float *least)
 {
     int s = j->shift;
     for (int J = 0; J < j->NY; J++) {
@@ -375,7 +400,10 @@ static void load(const struct iso_job *j, int K, float *out)
                 row[I] = j->pad;
             continue;
         }
-        iso_grid_row(&j->g, y, z, row + s);
+        if (least)
+            row_least(&j->g, y, z, row + s, least);
+        else
+            iso_grid_row(&j->g, y, z, row + s);
         if (s)
             row[0] = row[j->NX - 1] = j->pad;
     }
@@ -397,6 +425,7 @@ void iso_free(struct iso_job *j)
     free(j->zb);
     free(j->tb);
     free(j->slab_failed);
+    free(j->slab_min);
     free(j->trim);
     trimesh_free(&j->m);
     free(j);
@@ -459,8 +488,15 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
     if (!j)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     frame(j, g, o);
-    if (o->closed) /* below iso and every sample: the volume's minimum, as a CT's air */
-        j->pad = (float)fmin(o->iso - 1, iso_grid_min(g));
+    /* The pad is below iso and every sample: the volume's least, as a CT's air, or iso - 1. Pass 1
+     * finds the least as it reads the slabs (no pass of its own), so it counts with iso - 1 in the
+     * pad: what it counts does not depend on the pad's value, as long as it is at most iso. The
+     * states see it outside; no face with pad corners is ambiguous (they come two or more to a
+     * face, side by side); and MC33's interior test of a cell with a face of pad corners reads
+     * the inside of its other face alone (the interpolant's inside at each depth lies within the
+     * inside there). iso_layout sets the pad pass 2 draws with. */
+    if (o->closed)
+        j->pad = (float)(o->iso - 1);
     int layers = j->NZ - 1;
     j->n_slabs = n_slabs < 1 ? 1 : n_slabs > layers ? layers : n_slabs;
     size_t rows = (size_t)j->NY * (size_t)j->NZ;
@@ -471,13 +507,16 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
     j->tc = calloc(rows, sizeof *j->tc);
     j->cc = calloc(rows, sizeof *j->cc);
     j->slab_failed = calloc((size_t)j->n_slabs, sizeof *j->slab_failed);
+    j->slab_min = malloc((size_t)j->n_slabs * sizeof *j->slab_min);
     j->trim = malloc(rows * sizeof *j->trim);
-    if (!j->k0 || !j->xc || !j->yc || !j->zc || !j->tc || !j->cc || !j->slab_failed || !j->trim) {
+    if (!j->k0 || !j->xc || !j->yc || !j->zc || !j->tc || !j->cc || !j->slab_failed || !j->slab_min || !j->trim) {
         iso_free(j);
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     }
     for (int s = 0; s <= j->n_slabs; s++)
         j->k0[s] = (int)((long)layers * s / j->n_slabs);
+    for (int s = 0; s < j->n_slabs; s++)
+        j->slab_min[s] = INFINITY;
     *out = j;
     return 0;
 }
@@ -662,14 +701,15 @@ void iso_count(struct iso_job *j, int s)
     }
     float *b = a + plane, *buf = a;
     struct trim *tb = ta + NY, *tbuf = ta;
-    load(j, j->k0[s], b);
+    float *least = &j->slab_min[s];
+    load(j, j->k0[s], b, least);
     trim_slice(j, b, tb);
     for (int K = j->k0[s]; K < j->k0[s + 1]; K++) {
         float *t = a;
         a = b, b = t;
         struct trim *u = ta;
         ta = tb, tb = u;
-        load(j, K + 1, b);
+        load(j, K + 1, b, least);
         trim_slice(j, b, tb);
         count_level(j, K, a, ta);
         for (int J = 0; J < NY; J++) {
@@ -716,6 +756,12 @@ int iso_layout(struct iso_job *j, struct sf_err *err)
     int rc = slabs_ok(j, err);
     if (rc)
         return rc;
+    if (j->o.closed) { /* below iso and every sample: the volume's least, as a CT's air (as pass 1 found it) */
+        float least = INFINITY;
+        for (int s = 0; s < j->n_slabs; s++)
+            least = j->slab_min[s] < least ? j->slab_min[s] : least;
+        j->pad = (float)fmin(j->o.iso - 1, least);
+    }
     size_t rows = (size_t)j->NY * (size_t)j->NZ;
     j->xb = malloc(rows * sizeof *j->xb);
     j->yb = malloc(rows * sizeof *j->yb);
@@ -772,13 +818,13 @@ static void window_at(const struct iso_job *j, struct window *w, int K)
         w->s[0] = w->s[1], w->s[1] = w->s[2], w->s[2] = w->s[3], w->s[3] = t;
         w->k = K;
         if (K + 2 < j->NZ)
-            load(j, K + 2, w->s[3]);
+            load(j, K + 2, w->s[3], NULL);
         return;
     }
     w->k = K;
     for (int d = -1; d <= 2; d++)
         if (K + d >= 0 && K + d < j->NZ)
-            load(j, K + d, w->s[d + 1]);
+            load(j, K + d, w->s[d + 1], NULL);
 }
 
 /* The field's gradient at virtual sample (I, J, K), by central differences (one-sided at the
