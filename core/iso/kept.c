@@ -388,7 +388,8 @@ static int redraw_all(struct iso_kept *k, struct iso_edit *ed, struct iso_change
     k->n_free = 0;
     if ((rc = pool_room(k, k->n_vert, err)))
         return rc;
-    memset(k->ref, 0, k->n_vert * sizeof *k->ref);
+    if (k->n_vert)
+        memset(k->ref, 0, k->n_vert * sizeof *k->ref);
     /* each block's room at once: most blocks get their triangles in one piece */
     for (size_t i = 0, run = 0; i < x->n_tri; i += run) {
         uint16_t local;
