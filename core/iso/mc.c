@@ -10,6 +10,9 @@
 
 #include <math.h>
 #include <stdint.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #include <stdlib.h>
 #include <string.h>
 
@@ -656,28 +659,145 @@ static void span(const struct trim *const *t, int n, int shift, int last, int *l
     *hi = h > last ? last : h;
 }
 
-static uint32_t crossings(const float *a, const float *b, int lo, int hi, float iso)
-{
-    uint32_t k = 0;
-    for (int i = lo; i <= hi; i++)
-        k += (a[i] > iso) != (b[i] > iso);
-    return k;
-}
+/* ---- states as bits ----
+ * A slice's states (value > iso) as bits, word w of row J holding columns 64w .. 64w+63, with a word
+ * of 0 more a row so that a cell's right column reads past the last: a row's crossings are then
+ * counted 64 at a time and the cells whose corners all lie on one side (most of a CT's) passed over
+ * 64 at a time, where the walk of every cell along its row compared four samples a cell in both
+ * passes. The same states as the comparisons (NaN none: the volumes are finite), so the same mesh. */
+static int bit_words(int NX) { return (NX + 63) / 64 + 1; }
 
-/* The x and y rows of level K (slice a, its rows' trims t). */
-static void count_level(struct iso_job *j, int K, const float *a, const struct trim *t)
+static void state_bits(const float *a, int NX, int NY, float iso, uint64_t *out)
 {
-    int NX = j->NX, NY = j->NY, lo, hi;
+    int W = bit_words(NX);
+    memset(out, 0, (size_t)W * (size_t)NY * sizeof *out);
     for (int J = 0; J < NY; J++) {
         const float *r = a + (size_t)NX * J;
+        uint64_t *o = out + (size_t)W * J;
+        int I = 0;
+#ifdef __SSE2__
+        __m128 v = _mm_set1_ps(iso);
+        for (; I + 4 <= NX; I += 4)
+            o[I >> 6] |= (uint64_t)_mm_movemask_ps(_mm_cmpgt_ps(_mm_loadu_ps(r + I), v)) << (I & 63);
+#endif
+        for (; I < NX; I++)
+            o[I >> 6] |= (uint64_t)(r[I] > iso) << (I & 63);
+    }
+}
+
+/* Word w of row x shifted down one column: bit i says column 64w+i+1. */
+static inline uint64_t next_col(const uint64_t *x, int w) { return x[w] >> 1 | x[w + 1] << 63; }
+
+/* Bits lo .. hi of word w (columns in its span). */
+static inline uint64_t span_mask(int w, int lo, int hi)
+{
+    uint64_t m = ~(uint64_t)0;
+    if (w == lo >> 6)
+        m &= ~(uint64_t)0 << (lo & 63);
+    if (w == hi >> 6)
+        m &= ~(uint64_t)0 >> (63 - (hi & 63));
+    return m;
+}
+
+/* The columns lo .. hi where rows x and y differ (y NULL: where x differs from its next column):
+ * their number, or (walk) each in turn. */
+struct diffs {
+    const uint64_t *x, *y;
+    uint64_t m;
+    int w, lo, hi;
+};
+
+static inline uint64_t diff_word(const struct diffs *d, int w)
+{
+    return (d->x[w] ^ (d->y ? d->y[w] : next_col(d->x, w))) & span_mask(w, d->lo, d->hi);
+}
+
+static inline void diffs_begin(struct diffs *d, const uint64_t *x, const uint64_t *y, int lo, int hi)
+{
+    *d = (struct diffs){x, y, 0, lo >> 6, lo, hi};
+    if (lo <= hi)
+        d->m = diff_word(d, d->w);
+    else
+        d->w = hi >> 6;
+}
+
+static inline int diffs_next(struct diffs *d)
+{
+    while (!d->m) {
+        if (++d->w > d->hi >> 6)
+            return -1;
+        d->m = diff_word(d, d->w);
+    }
+    int I = 64 * d->w + __builtin_ctzll(d->m);
+    d->m &= d->m - 1;
+    return I;
+}
+
+static uint32_t count_diffs(const uint64_t *x, const uint64_t *y, int lo, int hi)
+{
+    struct diffs d;
+    uint32_t n = 0;
+    diffs_begin(&d, x, y, lo, hi);
+    if (lo > hi)
+        return 0;
+    for (int w = lo >> 6; w <= hi >> 6; w++)
+        n += (uint32_t)__builtin_popcountll(diff_word(&d, w));
+    return n;
+}
+
+/* The cells lo .. hi of a row whose eight corners do not all lie on one side, from the states of
+ * its four sample rows (r: (y, z) = 00 10 01 11), in increasing column. */
+struct cells {
+    const uint64_t *r[4];
+    uint64_t m;
+    int w, hi;
+};
+
+static inline uint64_t cells_word(const struct cells *c, int w)
+{
+    const uint64_t *const *r = c->r;
+    uint64_t in = r[0][w] & r[1][w] & r[2][w] & r[3][w], any = r[0][w] | r[1][w] | r[2][w] | r[3][w];
+    uint64_t in1 = next_col(r[0], w) & next_col(r[1], w) & next_col(r[2], w) & next_col(r[3], w);
+    uint64_t any1 = next_col(r[0], w) | next_col(r[1], w) | next_col(r[2], w) | next_col(r[3], w);
+    return ~(in & in1) & (any | any1);
+}
+
+static inline void cells_begin(struct cells *c, const uint64_t *r0, const uint64_t *r1, const uint64_t *r2,
+                               const uint64_t *r3, int lo, int hi)
+{
+    *c = (struct cells){{r0, r1, r2, r3}, 0, lo >> 6, hi};
+    if (lo <= hi)
+        c->m = cells_word(c, c->w) & ~(uint64_t)0 << (lo & 63);
+    else
+        c->w = hi >> 6;
+}
+
+static inline int cells_next(struct cells *c)
+{
+    while (!c->m) {
+        if (++c->w > c->hi >> 6)
+            return -1;
+        c->m = cells_word(c, c->w);
+    }
+    int I = 64 * c->w + __builtin_ctzll(c->m);
+    c->m &= c->m - 1;
+    return I <= c->hi ? I : -1;
+}
+
+/* The x and y rows of level K (its rows' trims t, states bits). */
+static void count_level(struct iso_job *j, int K, const struct trim *t, const uint64_t *bits)
+{
+    int NX = j->NX, NY = j->NY, W = bit_words(NX), lo, hi;
+    for (int J = 0; J < NY; J++) {
+        const uint64_t *r = bits + (size_t)W * J;
         const struct trim *x[1] = {&t[J]}, *y[2] = {&t[J], &t[J + 1 < NY ? J + 1 : J]};
         j->trim[J + (size_t)NY * K] = t[J];
         span(x, 1, 1, NX - 2, &lo, &hi);
-        j->xc[J + (size_t)NY * K] = crossings(r, r + 1, lo, hi, j->iso);
+        j->xc[J + (size_t)NY * K] = count_diffs(r, NULL, lo, hi);
         if (J + 1 == NY)
             continue;
         span(y, 2, 0, NX - 1, &lo, &hi);
-        j->yc[J + (size_t)NY * K] = crossings(r, r + NX, lo, hi, j->iso);
+        j->yc[J + (size_t)NY * K] = count_diffs(r, r + W, lo, hi);
     }
 }
 
@@ -689,45 +809,53 @@ static void trim_slice(const struct iso_job *j, const float *a, struct trim *t)
 
 void iso_count(struct iso_job *j, int s)
 {
-    int NX = j->NX, NY = j->NY;
-    size_t plane = (size_t)NX * NY;
+    int NX = j->NX, NY = j->NY, W = bit_words(NX);
+    size_t plane = (size_t)NX * NY, bplane = (size_t)W * NY;
     float *a = malloc(2 * plane * sizeof *a);
     struct trim *ta = malloc(2 * (size_t)NY * sizeof *ta);
-    if (!a || !ta) {
+    uint64_t *ba = malloc(2 * bplane * sizeof *ba);
+    if (!a || !ta || !ba) {
         free(a);
         free(ta);
+        free(ba);
         j->slab_failed[s] = true;
         return;
     }
     float *b = a + plane, *buf = a;
     struct trim *tb = ta + NY, *tbuf = ta;
+    uint64_t *bb = ba + bplane, *bbuf = ba;
     float *least = &j->slab_min[s];
     load(j, j->k0[s], b, least);
     trim_slice(j, b, tb);
+    state_bits(b, NX, NY, j->iso, bb);
     for (int K = j->k0[s]; K < j->k0[s + 1]; K++) {
         float *t = a;
         a = b, b = t;
         struct trim *u = ta;
         ta = tb, tb = u;
+        uint64_t *q = ba;
+        ba = bb, bb = q;
         load(j, K + 1, b, least);
         trim_slice(j, b, tb);
-        count_level(j, K, a, ta);
+        state_bits(b, NX, NY, j->iso, bb);
+        count_level(j, K, ta, ba);
         for (int J = 0; J < NY; J++) {
             const float *a0 = a + (size_t)NX * J, *b0 = b + (size_t)NX * J;
+            const uint64_t *p0 = ba + (size_t)W * J, *q0 = bb + (size_t)W * J;
             const struct trim *z[2] = {&ta[J], &tb[J]};
             int lo, hi;
             span(z, 2, 0, NX - 1, &lo, &hi);
-            j->zc[J + (size_t)NY * K] = crossings(a0, b0, lo, hi, j->iso);
+            j->zc[J + (size_t)NY * K] = count_diffs(p0, q0, lo, hi);
             if (J + 1 == NY)
                 continue;
             const struct trim *c[4] = {&ta[J], &ta[J + 1], &tb[J], &tb[J + 1]};
             span(c, 4, 1, NX - 2, &lo, &hi);
             uint32_t n = 0, centres = 0;
             const float *a1 = a0 + NX, *b1 = b0 + NX;
-            for (int I = lo, st = lo <= hi ? first_states(j->iso, a0, a1, b0, b1, lo) : 0; I <= hi;
-                 st = ++I <= hi ? next_states(st, j->iso, a0, a1, b0, b1, I) : 0) {
-                if (st == 0 || st == 255)
-                    continue;
+            struct cells cl;
+            cells_begin(&cl, p0, p0 + W, q0, q0 + W, lo, hi);
+            for (int I; (I = cells_next(&cl)) >= 0;) {
+                int st = first_states(j->iso, a0, a1, b0, b1, I);
                 const struct cell_case *cc = &CASES[cell_case(j, st, a0, a1, b0, b1, I)];
                 n += cc->n;
                 centres += cc->n_centres;
@@ -737,9 +865,10 @@ void iso_count(struct iso_job *j, int s)
         }
     }
     if (s == j->n_slabs - 1)
-        count_level(j, j->NZ - 1, b, tb);
+        count_level(j, j->NZ - 1, tb, bb);
     free(buf);
     free(tbuf);
+    free(bbuf);
 }
 
 /* Whether a slab's pass ran out of memory (it wrote nothing). */
@@ -807,24 +936,32 @@ int iso_layout(struct iso_job *j, struct sf_err *err)
 struct window {
     float *s[4];
     int k;                           /* s[1] is slice k */
+    uint64_t *b[4];                  /* their states as bits (the slabs' pass 2; NULL for a box's) */
 };
 
 static const float *slice(const struct window *w, int K) { return w->s[K - w->k + 1]; }
+static const uint64_t *slice_bits(const struct window *w, int K) { return w->b[K - w->k + 1]; }
 
 static void window_at(const struct iso_job *j, struct window *w, int K)
 {
     if (K == w->k + 1) { /* slide by one */
         float *t = w->s[0];
         w->s[0] = w->s[1], w->s[1] = w->s[2], w->s[2] = w->s[3], w->s[3] = t;
+        uint64_t *u = w->b[0];
+        w->b[0] = w->b[1], w->b[1] = w->b[2], w->b[2] = w->b[3], w->b[3] = u;
         w->k = K;
-        if (K + 2 < j->NZ)
+        if (K + 2 < j->NZ) {
             load(j, K + 2, w->s[3], NULL);
+            state_bits(w->s[3], j->NX, j->NY, j->iso, w->b[3]);
+        }
         return;
     }
     w->k = K;
     for (int d = -1; d <= 2; d++)
-        if (K + d >= 0 && K + d < j->NZ)
+        if (K + d >= 0 && K + d < j->NZ) {
             load(j, K + d, w->s[d + 1], NULL);
+            state_bits(w->s[d + 1], j->NX, j->NY, j->iso, w->b[d + 1]);
+        }
 }
 
 /* The field's gradient at virtual sample (I, J, K), by central differences (one-sided at the
@@ -926,44 +1063,48 @@ static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const f
 /* The x and y vertices of level K. */
 static void emit_level(struct iso_job *j, const struct window *w, int K)
 {
-    int NX = j->NX, NY = j->NY, lo, hi;
+    int NX = j->NX, NY = j->NY, W = bit_words(NX), lo, hi;
     const float *a = slice(w, K);
+    const uint64_t *bits = slice_bits(w, K);
     const struct trim *t = j->trim + (size_t)NY * K;
-    float iso = j->iso;
     for (int J = 0; J < NY; J++) {
         const float *r = a + (size_t)NX * J;
+        const uint64_t *rb = bits + (size_t)W * J;
         const struct trim *x[1] = {&t[J]}, *y[2] = {&t[J], &t[J + 1 < NY ? J + 1 : J]};
         size_t v = j->xb[J + (size_t)NY * K];
+        struct diffs d;
         span(x, 1, 1, NX - 2, &lo, &hi);
-        for (int I = lo; I <= hi; I++)
-            if ((r[I] > iso) != (r[I + 1] > iso))
-                put_vertex(j, w, v++, I, J, K, 0, r[I], r[I + 1]);
+        diffs_begin(&d, rb, NULL, lo, hi);
+        for (int I; (I = diffs_next(&d)) >= 0;)
+            put_vertex(j, w, v++, I, J, K, 0, r[I], r[I + 1]);
         if (J + 1 == NY)
             continue;
         v = j->yb[J + (size_t)NY * K];
         span(y, 2, 0, NX - 1, &lo, &hi);
-        for (int I = lo; I <= hi; I++)
-            if ((r[I] > iso) != (r[I + NX] > iso))
-                put_vertex(j, w, v++, I, J, K, 1, r[I], r[I + NX]);
+        diffs_begin(&d, rb, rb + W, lo, hi);
+        for (int I; (I = diffs_next(&d)) >= 0;)
+            put_vertex(j, w, v++, I, J, K, 1, r[I], r[I + NX]);
     }
 }
 
 /* The z vertices between levels K and K+1, and the triangles of cell layer K. */
 static void emit_layer(struct iso_job *j, const struct window *w, int K)
 {
-    int NX = j->NX, NY = j->NY;
+    int NX = j->NX, NY = j->NY, W = bit_words(NX);
     float iso = j->iso;
     const float *a = slice(w, K), *b = slice(w, K + 1);
+    const uint64_t *ab = slice_bits(w, K), *bb = slice_bits(w, K + 1);
     const struct trim *ta = j->trim + (size_t)NY * K, *tb = ta + NY;
     int lo, hi;
     for (int J = 0; J < NY; J++) {
         size_t v = j->zb[J + (size_t)NY * K];
         const float *a0 = a + (size_t)NX * J, *b0 = b + (size_t)NX * J;
         const struct trim *z[2] = {&ta[J], &tb[J]};
+        struct diffs d;
         span(z, 2, 0, NX - 1, &lo, &hi);
-        for (int I = lo; I <= hi; I++)
-            if ((a0[I] > iso) != (b0[I] > iso))
-                put_vertex(j, w, v++, I, J, K, 2, a0[I], b0[I]);
+        diffs_begin(&d, ab + (size_t)W * J, bb + (size_t)W * J, lo, hi);
+        for (int I; (I = diffs_next(&d)) >= 0;)
+            put_vertex(j, w, v++, I, J, K, 2, a0[I], b0[I]);
     }
     for (int J = 0; J + 1 < NY; J++) {
         const float *r[2][2] = {{a + (size_t)NX * J, a + (size_t)NX * (J + 1)}, {b + (size_t)NX * J, b + (size_t)NX * (J + 1)}};
@@ -977,10 +1118,11 @@ static void emit_layer(struct iso_job *j, const struct window *w, int K)
         const struct trim *rows[4] = {&ta[J], &ta[J + 1], &tb[J], &tb[J + 1]};
         span(rows, 4, 1, NX - 2, &lo, &hi); /* no crossing of any row the cells touch lies before lo */
         const float *a0 = r[0][0], *a1 = r[0][1], *b0 = r[1][0], *b1 = r[1][1];
-        for (int I = lo, st = lo <= hi ? first_states(iso, a0, a1, b0, b1, lo) : 0; I <= hi;
-             st = ++I <= hi ? next_states(st, iso, a0, a1, b0, b1, I) : 0) {
-            if (st == 0 || st == 255)
-                continue; /* no edge of it crosses: every running id stays */
+        const uint64_t *p0 = ab + (size_t)W * J, *q0 = bb + (size_t)W * J;
+        struct cells cl; /* (the cells passed over cross no edge: every running id stays) */
+        cells_begin(&cl, p0, p0 + W, q0, q0 + W, lo, hi);
+        for (int I; (I = cells_next(&cl)) >= 0;) {
+            int st = first_states(iso, a0, a1, b0, b1, I);
             /* crossings of the cell's edges from its corner states: x edge (y, z) between corners
              * 2y+4z and 2y+4z+1; y edge (x=0, z) between 4z and 4z+2; z edge (x=0, y) between 2y and 2y+4 */
             bool xs[4], ys[2], zs[2];
@@ -1011,13 +1153,17 @@ static void emit_layer(struct iso_job *j, const struct window *w, int K)
 
 void iso_emit(struct iso_job *j, int s)
 {
-    size_t plane = (size_t)j->NX * (size_t)j->NY;
+    size_t plane = (size_t)j->NX * (size_t)j->NY, bplane = (size_t)bit_words(j->NX) * (size_t)j->NY;
     float *buf = malloc(4 * plane * sizeof *buf);
-    if (!buf) {
+    uint64_t *bits = malloc(4 * bplane * sizeof *bits);
+    if (!buf || !bits) {
+        free(buf);
+        free(bits);
         j->slab_failed[s] = true;
         return;
     }
-    struct window w = {{buf, buf + plane, buf + 2 * plane, buf + 3 * plane}, -10};
+    struct window w = {{buf, buf + plane, buf + 2 * plane, buf + 3 * plane}, -10,
+                       {bits, bits + bplane, bits + 2 * bplane, bits + 3 * bplane}};
     for (int K = j->k0[s]; K < j->k0[s + 1]; K++) {
         window_at(j, &w, K);
         emit_level(j, &w, K);
@@ -1028,6 +1174,7 @@ void iso_emit(struct iso_job *j, int s)
         emit_level(j, &w, j->NZ - 1);
     }
     free(buf);
+    free(bits);
 }
 
 int iso_end(struct iso_job *j, struct trimesh *out, struct sf_err *err)
@@ -1238,7 +1385,7 @@ int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pa
         out->scratch = s, out->scratch_bytes = need;
     }
     float *f = out->scratch;
-    p.w = (struct window){{f, f + plane, f + 2 * plane, f + 3 * plane}, -10};
+    p.w = (struct window){{f, f + plane, f + 2 * plane, f + 3 * plane}, -10, {NULL, NULL, NULL, NULL}};
     uint64_t *t = (uint64_t *)(f + 4 * plane);
     memset(t, 0, 5 * slots * sizeof *t);
     p.ex[0] = t, p.ex[1] = t + slots, p.ey[0] = t + 2 * slots, p.ey[1] = t + 3 * slots, p.ez = t + 4 * slots;
