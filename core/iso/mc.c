@@ -625,20 +625,6 @@ static int cell_case(const struct iso_job *j, int c, const float *a0, const floa
     return idx;
 }
 
-static struct trim trim_row(const float *r, int n, float iso)
-{
-    struct trim t = {n, -1, r[0] > iso};
-    int i = 1;
-    while (i < n && (r[i] > iso) == t.s0)
-        i++;
-    if (i == n)
-        return t;
-    t.lo = i;
-    for (t.hi = n - 1; (r[t.hi] > iso) == t.s0;)
-        t.hi--;
-    return t;
-}
-
 /* The columns [*lo, *hi] outside of which the n rows t can hold no crossing: of x edges and
  * cells (shift 1: an edge or cell starting one column before a change) or of y and z edges
  * between the rows (shift 0). last: the last column there is. Empty when *lo > *hi. */
@@ -801,10 +787,26 @@ static void count_level(struct iso_job *j, int K, const struct trim *t, const ui
     }
 }
 
-static void trim_slice(const struct iso_job *j, const float *a, struct trim *t)
+/* The rows' trims (struct trim) from a slice's states as bits. */
+static void trim_slice(const struct iso_job *j, const uint64_t *bits, struct trim *t)
 {
-    for (int J = 0; J < j->NY; J++)
-        t[J] = trim_row(a + (size_t)j->NX * J, j->NX, j->iso);
+    int NX = j->NX, W = bit_words(NX), last = (NX - 1) >> 6;
+    uint64_t tail = ~(uint64_t)0 >> (63 - ((NX - 1) & 63));
+    for (int J = 0; J < j->NY; J++) {
+        const uint64_t *o = bits + (size_t)W * J;
+        bool s0 = o[0] & 1;
+        uint64_t flip = s0 ? ~(uint64_t)0 : 0;
+        int lo = -1, hi = -1;
+        for (int w = 0; w <= last; w++) {
+            uint64_t x = (o[w] ^ flip) & (w == last ? tail : ~(uint64_t)0);
+            if (!x)
+                continue;
+            if (lo < 0)
+                lo = 64 * w + __builtin_ctzll(x);
+            hi = 64 * w + 63 - __builtin_clzll(x);
+        }
+        t[J] = lo < 0 ? (struct trim){NX, -1, s0} : (struct trim){lo, hi, s0};
+    }
 }
 
 void iso_count(struct iso_job *j, int s)
@@ -826,8 +828,8 @@ void iso_count(struct iso_job *j, int s)
     uint64_t *bb = ba + bplane, *bbuf = ba;
     float *least = &j->slab_min[s];
     load(j, j->k0[s], b, least);
-    trim_slice(j, b, tb);
     state_bits(b, NX, NY, j->iso, bb);
+    trim_slice(j, bb, tb);
     for (int K = j->k0[s]; K < j->k0[s + 1]; K++) {
         float *t = a;
         a = b, b = t;
@@ -836,8 +838,8 @@ void iso_count(struct iso_job *j, int s)
         uint64_t *q = ba;
         ba = bb, bb = q;
         load(j, K + 1, b, least);
-        trim_slice(j, b, tb);
         state_bits(b, NX, NY, j->iso, bb);
+        trim_slice(j, bb, tb);
         count_level(j, K, ta, ba);
         for (int J = 0; J < NY; J++) {
             const float *a0 = a + (size_t)NX * J, *b0 = b + (size_t)NX * J;
