@@ -524,26 +524,11 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
     return 0;
 }
 
-/* Corner states of cell I of the rows a0, a1 (y, y+1 at z) and b0, b1 (at z+1), and the
- * decisions of its ambiguous faces: the index of its case. */
-/* The states of the corners at x = 1 of cell I (rows as in cell_case), in their bits (1, 3, 5, 7):
- * cell I+1's corners at x = 0. Walking a row, each cell's states are the last one's shifted and
- * these four. */
-static inline int right_states(float iso, const float *a0, const float *a1, const float *b0, const float *b1, int I)
-{
-    return (a0[I + 1] > iso) << 1 | (a1[I + 1] > iso) << 3 | (b0[I + 1] > iso) << 5 | (b1[I + 1] > iso) << 7;
-}
-
+/* The corner states of cell I of the rows a0, a1 (y, y+1 at z) and b0, b1 (at z+1): bit x + 2y + 4z. */
 static inline int first_states(float iso, const float *a0, const float *a1, const float *b0, const float *b1, int I)
 {
-    return (a0[I] > iso) | (a1[I] > iso) << 2 | (b0[I] > iso) << 4 | (b1[I] > iso) << 6 |
-           right_states(iso, a0, a1, b0, b1, I);
-}
-
-static inline int next_states(int c, float iso, const float *a0, const float *a1, const float *b0, const float *b1,
-                              int I)
-{
-    return (c & 0xaa) >> 1 | right_states(iso, a0, a1, b0, b1, I);
+    return (a0[I] > iso) | (a1[I] > iso) << 2 | (b0[I] > iso) << 4 | (b1[I] > iso) << 6 | (a0[I + 1] > iso) << 1 |
+           (a1[I + 1] > iso) << 3 | (b0[I + 1] > iso) << 5 | (b1[I + 1] > iso) << 7;
 }
 
 /* MC33's interior test, by sampling: whether the corners of mask a reach those of mask b through
@@ -653,22 +638,30 @@ static void span(const struct trim *const *t, int n, int shift, int last, int *l
  * passes. The same states as the comparisons (NaN none: the volumes are finite), so the same mesh. */
 static int bit_words(int NX) { return (NX + 63) / 64 + 1; }
 
-static void state_bits(const float *a, int NX, int NY, float iso, uint64_t *out)
+/* Rows rect[2] .. rect[3] of slice a, columns rect[0] .. rect[1] (the others 0), into out. */
+static void rect_bits(const float *a, int NX, const int rect[4], float iso, uint64_t *out)
 {
     int W = bit_words(NX);
-    memset(out, 0, (size_t)W * (size_t)NY * sizeof *out);
-    for (int J = 0; J < NY; J++) {
+    memset(out + (size_t)W * rect[2], 0, (size_t)W * (size_t)(rect[3] - rect[2] + 1) * sizeof *out);
+    for (int J = rect[2]; J <= rect[3]; J++) {
         const float *r = a + (size_t)NX * J;
         uint64_t *o = out + (size_t)W * J;
-        int I = 0;
+        int I = rect[0], end = rect[1] + 1;
+        for (; I < end && (I & 3); I++)
+            o[I >> 6] |= (uint64_t)(r[I] > iso) << (I & 63);
 #ifdef __SSE2__
         __m128 v = _mm_set1_ps(iso);
-        for (; I + 4 <= NX; I += 4)
+        for (; I + 4 <= end; I += 4) /* (four columns from a multiple of 4: within one word) */
             o[I >> 6] |= (uint64_t)_mm_movemask_ps(_mm_cmpgt_ps(_mm_loadu_ps(r + I), v)) << (I & 63);
 #endif
-        for (; I < NX; I++)
+        for (; I < end; I++)
             o[I >> 6] |= (uint64_t)(r[I] > iso) << (I & 63);
     }
+}
+
+static void state_bits(const float *a, int NX, int NY, float iso, uint64_t *out)
+{
+    rect_bits(a, NX, (const int[4]){0, NX - 1, 0, NY - 1}, iso, out);
 }
 
 /* Word w of row x shifted down one column: bit i says column 64w+i+1. */
@@ -1245,15 +1238,21 @@ static void rect_window_at(const struct iso_job *j, struct window *w, int K, con
     if (K == w->k + 1) {
         float *t = w->s[0];
         w->s[0] = w->s[1], w->s[1] = w->s[2], w->s[2] = w->s[3], w->s[3] = t;
+        uint64_t *u = w->b[0];
+        w->b[0] = w->b[1], w->b[1] = w->b[2], w->b[2] = w->b[3], w->b[3] = u;
         w->k = K;
-        if (K + 2 < j->NZ)
+        if (K + 2 < j->NZ) {
             load_rect(j, K + 2, w->s[3], rect);
+            rect_bits(w->s[3], j->NX, rect, j->iso, w->b[3]);
+        }
         return;
     }
     w->k = K;
     for (int d = -1; d <= 2; d++)
-        if (K + d >= 0 && K + d < j->NZ)
+        if (K + d >= 0 && K + d < j->NZ) {
             load_rect(j, K + d, w->s[d + 1], rect);
+            rect_bits(w->s[d + 1], j->NX, rect, j->iso, w->b[d + 1]);
+        }
 }
 
 static bool box_grow(struct iso_box *b, size_t verts, size_t tris, bool normals)
@@ -1337,10 +1336,12 @@ static void box_run(struct box_pass *p, int I0, int I1, int J, int K)
     const float *r[2][2] = {{a + (size_t)NX * J, a + (size_t)NX * (J + 1)}, {c + (size_t)NX * J, c + (size_t)NX * (J + 1)}};
     const float *a0 = r[0][0], *a1 = r[0][1], *b0 = r[1][0], *b1 = r[1][1];
     uint32_t row = (uint32_t)(NX - 1) * ((uint32_t)J + (uint32_t)(j->NY - 1) * (uint32_t)K);
-    for (int I = I0, st = first_states(iso, a0, a1, b0, b1, I0); I <= I1;
-         st = ++I <= I1 ? next_states(st, iso, a0, a1, b0, b1, I) : 0) {
-        if (st == 0 || st == 255)
-            continue;
+    int W = bit_words(NX);
+    const uint64_t *p0 = slice_bits(&p->w, K) + (size_t)W * J, *q0 = slice_bits(&p->w, K + 1) + (size_t)W * J;
+    struct cells cl;
+    cells_begin(&cl, p0, p0 + W, q0, q0 + W, I0, I1);
+    for (int I; (I = cells_next(&cl)) >= 0;) {
+        int st = first_states(iso, a0, a1, b0, b1, I);
         const struct cell_case *cc = &CASES[cell_case(j, st, a0, a1, b0, b1, I)];
         uint32_t ids[12 + MAX_CENTRES];
         for (unsigned m = CROSSED[st]; m; m &= m - 1)
@@ -1379,7 +1380,8 @@ int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pa
     rect[3] = hi[1] + 2 < j->NY ? hi[1] + 2 : j->NY - 1;
     p.W = hi[0] - lo[0] + 2;
     size_t plane = (size_t)j->NX * (size_t)j->NY, slots = (size_t)p.W * (size_t)(hi[1] - lo[1] + 2);
-    size_t need = 4 * plane * sizeof(float) + 5 * slots * sizeof(uint64_t);
+    size_t bplane = (size_t)bit_words(j->NX) * (size_t)j->NY;
+    size_t need = 4 * plane * sizeof(float) + (5 * slots + 4 * bplane) * sizeof(uint64_t);
     if (need > out->scratch_bytes) {
         void *s = realloc(out->scratch, need);
         if (!s)
@@ -1387,8 +1389,9 @@ int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pa
         out->scratch = s, out->scratch_bytes = need;
     }
     float *f = out->scratch;
-    p.w = (struct window){{f, f + plane, f + 2 * plane, f + 3 * plane}, -10, {NULL, NULL, NULL, NULL}};
-    uint64_t *t = (uint64_t *)(f + 4 * plane);
+    uint64_t *t = (uint64_t *)(f + 4 * plane), *bits = t + 5 * slots;
+    p.w = (struct window){{f, f + plane, f + 2 * plane, f + 3 * plane}, -10,
+                          {bits, bits + bplane, bits + 2 * bplane, bits + 3 * bplane}};
     memset(t, 0, 5 * slots * sizeof *t);
     p.ex[0] = t, p.ex[1] = t + slots, p.ey[0] = t + 2 * slots, p.ey[1] = t + 3 * slots, p.ez = t + 4 * slots;
     memcpy(p.lo, lo, sizeof p.lo);
