@@ -1364,6 +1364,8 @@ static void box_run(struct box_pass *p, int I0, int I1, int J, int K)
 int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pad, const int lo[3], const int hi[3],
                     const uint8_t *mask, int mask_b, struct iso_box *out, struct sf_err *err)
 {
+    if (!tables_built)
+        return sf_fail(err, SF_EBACKEND, "", "iso_init() was not called");
     struct box_pass p = {.out = out};
     struct iso_job *j = &p.j;
     frame(j, g, o);
