@@ -4,7 +4,10 @@
  * layer of pad samples (below iso) round the real ones. Rows: x-edge row (J, K) holds the
  * crossings of the edges from (I, J, K) to (I+1, J, K), and so on for y and z; cell row (J, K)
  * the cells (I, J, K). Vertices are numbered level by level (x rows, y rows, z rows of level K),
- * triangles cell row by cell row, so the mesh does not depend on the slabs. */
+ * triangles cell row by cell row, so the mesh does not depend on the slabs. Each slice's states
+ * (sample > iso) are kept as bits, so that crossings are counted and cells of one state passed over
+ * 64 at a time. A box of cells (iso_box_extract, for kept.c's local rebuilds) is drawn in one pass by
+ * the same case and vertex code. */
 #include "mc.h"
 #include "cube.h"
 
@@ -634,8 +637,8 @@ static void span(const struct trim *const *t, int n, int shift, int last, int *l
  * A slice's states (value > iso) as bits, word w of row J holding columns 64w .. 64w+63, with a word
  * of 0 more a row so that a cell's right column reads past the last: a row's crossings are then
  * counted 64 at a time and the cells whose corners all lie on one side (most of a CT's) passed over
- * 64 at a time, where the walk of every cell along its row compared four samples a cell in both
- * passes. The same states as the comparisons (NaN none: the volumes are finite), so the same mesh. */
+ * 64 at a time, not compared sample by sample in each pass. The same states as the comparisons (NaN
+ * none: the volumes are finite), so the same mesh. */
 static int bit_words(int NX) { return (NX + 63) / 64 + 1; }
 
 /* Rows rect[2] .. rect[3] of slice a, columns rect[0] .. rect[1] (the others 0), into out. */
