@@ -82,7 +82,7 @@ $(B)/rel/%.o: %.c
 	$(CC) $(CFLAGS) -c $< -o $@
 # the tracer's inner loops (core/trace, core/geom) at -O3: the teapot's render 2 % faster, the
 # pictures the same bits (no contraction under -std=c11); the rest stays at -O2
-$(B)/rel/core/trace/%.o $(B)/rel/core/geom/%.o: CFLAGS += -O3
+$(B)/rel/core/trace/%.o $(B)/rel/core/geom/%.o $(B)/rel/core/iso/mc.o $(B)/rel/core/iso/kept.o: CFLAGS += -O3
 # the release build leaves out the asserts of the daemon's threading contracts (daemon/jobq.c);
 # the sanitizer and test builds keep them
 $(B)/rel/%.o: CFLAGS += -DNDEBUG

@@ -19,6 +19,7 @@
 #include "../api/matrix_json.h"
 #include "../api/mesh_io.h"
 #include "../api/volume_io.h"
+#include "../core/iso/kept.h"
 #include "../core/iso/labels.h"
 #include "cli.h"
 
@@ -148,6 +149,9 @@ void cmd_isosurface_usage(FILE *f)
                "                        [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|nifti|dicom|frep]\n"
                "                        [--label N | --labels all] (a label map: label N's surface, or every label's)\n"
                "                        [-o OUT.stl|.ply|.obj] [--threads N] [--repeat N] [--stats]\n"
+               "                        [--edits N [--edit-size S]] [--isos V,V,...] [--check] (marching cubes kept,\n"
+               "                        core/iso/kept.h: N edits of S^3 blocks that hold the surface, then each iso;\n"
+               "                        their timings as JSON; --check: each mesh against a fresh extraction)\n"
                "       surfd matrix VOLUME|FREP.json [--iso V] [the volume's options above] [-o OUT.json]\n"
                "                        (its six relief matrices, seed 003: samples >= iso are the body)\n");
 }
@@ -235,17 +239,190 @@ static int labels_out(struct volume *v, const char *out, int repeat, double read
     return rc;
 }
 
+static int cmp_double(const void *p, const void *q)
+{
+    double a = *(const double *)p, b = *(const double *)q;
+    return a < b ? -1 : a > b;
+}
+
+/* Whether k's mesh is a fresh extraction's of g at o, triangle for triangle (positions and normals,
+ * as 18 floats each, sorted). */
+static int cmp18(const void *p, const void *q) { return memcmp(p, q, 18 * sizeof(float)); }
+static float *sorted18(const struct trimesh *m)
+{
+    float *t = malloc((m->n_tri ? m->n_tri : 1) * 18 * sizeof *t);
+    if (!t)
+        return NULL;
+    for (size_t i = 0; i < m->n_tri; i++) {
+        const uint32_t *v = m->tri + 3 * i;
+        int r = 0;
+        for (int q = 1; q < 3; q++)
+            if (memcmp(m->pos + 3 * v[q], m->pos + 3 * v[r], 3 * sizeof(float)) < 0)
+                r = q;
+        for (int q = 0; q < 3; q++) {
+            memcpy(t + 18 * i + 6 * q, m->pos + 3 * v[(r + q) % 3], 3 * sizeof(float));
+            if (m->nrm)
+                memcpy(t + 18 * i + 6 * q + 3, m->nrm + 3 * v[(r + q) % 3], 3 * sizeof(float));
+            else
+                memset(t + 18 * i + 6 * q + 3, 0, 3 * sizeof(float));
+        }
+    }
+    qsort(t, m->n_tri, 18 * sizeof *t, cmp18);
+    return t;
+}
+static bool kept_is_fresh(const struct iso_kept *k, const struct iso_grid *g, const struct iso_opts *o)
+{
+    struct trimesh a, b;
+    uint32_t *ids;
+    struct sf_err err = {0};
+    if (iso_extract(g, o, NULL, &a, &err))
+        return false;
+    if (iso_kept_mesh(k, &b, &ids, &err)) {
+        trimesh_free(&a);
+        return false;
+    }
+    float *x = sorted18(&a), *y = sorted18(&b);
+    bool same = x && y && a.n_tri == b.n_tri && !memcmp(x, y, a.n_tri * 18 * sizeof *x);
+    free(x);
+    free(y);
+    free(ids);
+    trimesh_free(&a);
+    trimesh_free(&b);
+    return same;
+}
+
+/* --edits N --edit-size S --isos V,... (issue 45's bench): marching cubes kept (core/iso/kept.h);
+ * N edits of S^3 blocks holding the surface (a ball of +400 painted into each, as the HTTP edit
+ * bench does; blocks drawn by a fixed seed), then each iso in turn, timed; JSON on stdout. The
+ * volume's samples (v->g) are edited in place, so that --check compares with fresh extractions. */
+static int kept_bench(struct volume *v, int edits, int size, const char *isos, bool check, struct sf_err *err)
+{
+    struct iso_opts o = volume_iso_opts(v);
+    if (volume_adaptive(v) || v->g.type != ISO_I16 || v->frep)
+        return sf_fail(err, SF_EINVAL, "--edits", "the kept bench takes an int16 volume at levels=1");
+    if (size < 2 || size > v->g.nx || size > v->g.ny || size > v->g.nz)
+        return sf_fail(err, SF_EINVAL, "--edit-size", "an edit block fits in the volume");
+    struct iso_kept *k;
+    double t0 = sf_now_ms();
+    int rc = iso_kept_begin(&v->g, &o, &k, err);
+    if (rc)
+        return rc;
+    double begin = sf_now_ms() - t0;
+    int16_t *vol = (int16_t *)v->g.samples, *blk = malloc((size_t)size * size * size * sizeof *blk);
+    double *ms = malloc(((size_t)edits + 1) * sizeof *ms), *cells = malloc(((size_t)edits + 1) * sizeof *cells);
+    if (!blk || !ms || !cells) {
+        free(blk), free(ms), free(cells);
+        iso_kept_free(k);
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    }
+    unsigned seed = 45;
+    long added = 0, removed = 0;
+    bool same = true;
+    int nx = v->g.nx, ny = v->g.ny, nz = v->g.nz, c = size / 2;
+    for (int e = 0; e < edits && !rc; e++) {
+        int lo[3];
+        for (int tries = 0; tries < 100000; tries++) { /* a block holding the surface */
+            int dims[3] = {nx, ny, nz};
+            for (int d = 0; d < 3; d++) {
+                seed = seed * 1103515245u + 12345u;
+                lo[d] = (int)((seed >> 8) % (unsigned)(dims[d] - size + 1));
+            }
+            int mn = INT16_MAX, mx = INT16_MIN;
+            for (int z = 0; z < size; z++)
+                for (int y = 0; y < size; y++)
+                    for (int x = 0; x < size; x++) {
+                        int s = vol[(lo[0] + x) + (size_t)nx * ((lo[1] + y) + (size_t)ny * (lo[2] + z))];
+                        mn = s < mn ? s : mn, mx = s > mx ? s : mx;
+                    }
+            if (mn < o.iso && o.iso < mx)
+                break;
+        }
+        for (int z = 0; z < size; z++)
+            for (int y = 0; y < size; y++)
+                for (int x = 0; x < size; x++) {
+                    int s = vol[(lo[0] + x) + (size_t)nx * ((lo[1] + y) + (size_t)ny * (lo[2] + z))];
+                    int r2 = (x - c) * (x - c) + (y - c) * (y - c) + (z - c) * (z - c);
+                    blk[x + size * (y + size * z)] = (int16_t)(r2 < size * size * 30 / 256 && s < 32767 - 400 ? s + 400 : s);
+                }
+        struct iso_grid bg = {size, size, size, ISO_I16, blk, {1, 1, 1}, {0, 0, 0}};
+        struct iso_edit ed;
+        struct iso_change ch;
+        double t = sf_now_ms();
+        rc = iso_kept_edit(k, lo, &bg, &ed, &ch, err);
+        ms[e] = sf_now_ms() - t;
+        cells[e] = (double)ed.cells_rebuilt;
+        added += (long)ch.n_added, removed += (long)ch.n_removed;
+        iso_change_free(&ch);
+        for (int z = 0; z < size && !rc; z++)
+            for (int y = 0; y < size; y++)
+                memcpy(vol + (lo[0]) + (size_t)nx * ((lo[1] + y) + (size_t)ny * (lo[2] + z)), blk + size * (y + size * z),
+                       (size_t)size * sizeof *blk);
+        if (!rc && check)
+            same = same && kept_is_fresh(k, &v->g, &o);
+    }
+    double ms_max = 0;
+    for (int e = 0; e < edits; e++)
+        ms_max = ms[e] > ms_max ? ms[e] : ms_max;
+    qsort(ms, (size_t)edits, sizeof *ms, cmp_double);
+    qsort(cells, (size_t)edits, sizeof *cells, cmp_double);
+    if (!rc)
+        printf("{\"begin_ms\": %.3f, \"bytes\": %zu, \"edits\": %d, \"edit_size\": %d, "
+               "\"edit_ms_median\": %.3f, \"edit_ms_max\": %.3f, \"cells_rebuilt_median\": %.0f, "
+               "\"triangles_added\": %ld, \"triangles_removed\": %ld, \"isos\": [",
+               begin, iso_kept_bytes(k), edits, size, edits ? ms[edits / 2] : 0.0, ms_max,
+               edits ? cells[edits / 2] : 0.0, added, removed);
+    for (const char *p = isos; !rc && p && *p;) {
+        char *end;
+        double iso = strtod(p, &end);
+        if (end == p) {
+            rc = sf_fail(err, SF_EINVAL, "--isos", "a list of numbers");
+            break;
+        }
+        struct iso_edit ed;
+        struct iso_change ch;
+        double t = sf_now_ms();
+        rc = iso_kept_iso(k, iso, &ed, &ch, err);
+        double took = sf_now_ms() - t;
+        if (!rc) {
+            o.iso = iso;
+            bool ok = !check || kept_is_fresh(k, &v->g, &o);
+            same = same && ok;
+            printf("%s{\"iso\": %g, \"ms\": %.3f, \"triangles\": %zu, \"cells_visited\": %ld}", p == isos ? "" : ", ", iso,
+                   took, ch.n_added, ed.cells_rebuilt);
+        }
+        iso_change_free(&ch);
+        p = *end == ',' ? end + 1 : end;
+    }
+    if (!rc)
+        printf("], \"checked\": %s, \"equal_to_fresh\": %s, \"bytes_after\": %zu}\n", check ? "true" : "false",
+               same ? "true" : "false", iso_kept_bytes(k));
+    free(blk);
+    free(ms);
+    free(cells);
+    iso_kept_free(k);
+    return rc ? rc : same ? 0 : sf_fail(err, SF_EBACKEND, "", "a kept mesh differs from a fresh extraction");
+}
+
 int cmd_isosurface(int argc, char **argv)
 {
     char options[512] = "";
     const char *out = NULL, *format = "";
-    int threads = 1, repeat = 1;
-    bool stats = false, bad = argc < 2;
+    const char *isos = NULL;
+    int threads = 1, repeat = 1, edits = 0, edit_size = 16;
+    bool stats = false, check = false, bad = argc < 2;
     for (int k = 2; k < argc && !bad; k++) {
         size_t n = strlen(options);
         const char *a = argv[k];
         if (!strcmp(a, "--stats")) {
             stats = true;
+        } else if (!strcmp(a, "--check")) {
+            check = true;
+        } else if (k + 1 < argc && !strcmp(a, "--edits")) {
+            edits = atoi(argv[++k]);
+        } else if (k + 1 < argc && !strcmp(a, "--edit-size")) {
+            edit_size = atoi(argv[++k]);
+        } else if (k + 1 < argc && !strcmp(a, "--isos")) {
+            isos = argv[++k];
         } else if (k + 1 >= argc) {
             bad = true;
         } else if (!strcmp(a, "-o")) {
@@ -269,7 +446,7 @@ int cmd_isosurface(int argc, char **argv)
             bad = true;
         }
     }
-    if (bad || threads < 1 || threads > 64 || repeat < 1) {
+    if (bad || threads < 1 || threads > 64 || repeat < 1 || edits < 0) {
         cmd_isosurface_usage(stderr);
         return 2;
     }
@@ -312,6 +489,15 @@ int cmd_isosurface(int argc, char **argv)
         volume_free(&v);
         free(buf);
         if (rc && rc != SF_EIO)
+            fprintf(stderr, "surfd: %s: %s%s%s\n", argv[1], err.message, err.pointer[0] ? " at " : "", err.pointer);
+        return rc ? 1 : 0;
+    }
+    if (!rc && (edits || isos)) {
+        iso_init();
+        rc = kept_bench(&v, edits, edit_size, isos, check, &err);
+        volume_free(&v);
+        free(buf);
+        if (rc)
             fprintf(stderr, "surfd: %s: %s%s%s\n", argv[1], err.message, err.pointer[0] ? " at " : "", err.pointer);
         return rc ? 1 : 0;
     }

@@ -4,12 +4,18 @@
  * layer of pad samples (below iso) round the real ones. Rows: x-edge row (J, K) holds the
  * crossings of the edges from (I, J, K) to (I+1, J, K), and so on for y and z; cell row (J, K)
  * the cells (I, J, K). Vertices are numbered level by level (x rows, y rows, z rows of level K),
- * triangles cell row by cell row, so the mesh does not depend on the slabs. */
+ * triangles cell row by cell row, so the mesh does not depend on the slabs. Each slice's states
+ * (sample > iso) are kept as bits, so that crossings are counted and cells of one state passed over
+ * 64 at a time. A box of cells (iso_box_extract, for kept.c's local rebuilds) is drawn in one pass by
+ * the same case and vertex code. */
 #include "mc.h"
 #include "cube.h"
 
 #include <math.h>
 #include <stdint.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #include <stdlib.h>
 #include <string.h>
 
@@ -306,6 +312,7 @@ struct iso_job {
     uint32_t *xc, *yc, *zc, *tc, *cc; /* per row [J + NY*K]: crossings, triangles, centres */
     size_t *xb, *yb, *zb, *tb, *cb;  /* where each row's output starts */
     bool *slab_failed;               /* [s]: a pass of slab s found no memory (written by s alone) */
+    float *slab_min;                 /* [s]: the least sample slab s's pass 1 read (the pad, iso_layout) */
     struct trim *trim;               /* per sample row [J + NY*K]: where its states change */
     struct trimesh m;
 };
@@ -333,10 +340,10 @@ double iso_grid_min(const struct iso_grid *g)
     }
 }
 
-void iso_grid_row(const struct iso_grid *g, int y, int z, float *out)
+/* Samples x0 .. x0+n-1 of row (y, z) as floats into out. */
+static void grid_span(const struct iso_grid *g, int x0, int y, int z, int n, float *out)
 {
-    size_t at = (size_t)g->nx * ((size_t)y + (size_t)g->ny * (size_t)z);
-    int n = g->nx;
+    size_t at = (size_t)g->nx * ((size_t)y + (size_t)g->ny * (size_t)z) + (size_t)x0;
     switch (g->type) {
     case ISO_U8: {
         const uint8_t *p = (const uint8_t *)g->samples + at;
@@ -361,8 +368,34 @@ void iso_grid_row(const struct iso_grid *g, int y, int z, float *out)
     }
 }
 
-/* Virtual slice K into out (NX * NY floats). */
-static void load(const struct iso_job *j, int K, float *out)
+void iso_grid_row(const struct iso_grid *g, int y, int z, float *out) { grid_span(g, 0, y, z, g->nx, out); }
+
+#define ROW_LEAST(T)                                     \
+    do {                                                 \
+        const T *p = (const T *)g->samples + at;         \
+        T lo = p[0];                                     \
+        for (int i = 0; i < n; i++) {                    \
+            out[i] = p[i];                               \
+            lo = p[i] < lo ? p[i] : lo;                  \
+        }                                                \
+        *least = (float)lo < *least ? (float)lo : *least; \
+    } while (0)
+
+/* iso_grid_row, the row's least folded into *least as it goes. */
+static void row_least(const struct iso_grid *g, int y, int z, float *out, float *least)
+{
+    size_t at = (size_t)g->nx * ((size_t)y + (size_t)g->ny * (size_t)z);
+    int n = g->nx;
+    switch (g->type) {
+    case ISO_U8: ROW_LEAST(uint8_t); break;
+    case ISO_I16: ROW_LEAST(int16_t); break;
+    case ISO_U16: ROW_LEAST(uint16_t); break;
+    default: ROW_LEAST(float);
+    }
+}
+
+/* Virtual slice K into out (NX * NY floats); with least, the least of its real samples folded in. */
+static void load(const struct iso_job *j, int K, float *out, float *least)
 {
     int s = j->shift;
     for (int J = 0; J < j->NY; J++) {
@@ -373,7 +406,10 @@ static void load(const struct iso_job *j, int K, float *out)
                 row[I] = j->pad;
             continue;
         }
-        iso_grid_row(&j->g, y, z, row + s);
+        if (least)
+            row_least(&j->g, y, z, row + s, least);
+        else
+            iso_grid_row(&j->g, y, z, row + s);
         if (s)
             row[0] = row[j->NX - 1] = j->pad;
     }
@@ -395,6 +431,7 @@ void iso_free(struct iso_job *j)
     free(j->zb);
     free(j->tb);
     free(j->slab_failed);
+    free(j->slab_min);
     free(j->trim);
     trimesh_free(&j->m);
     free(j);
@@ -403,6 +440,7 @@ void iso_free(struct iso_job *j)
 /* The cells' tables: [(c * 64 + joined) * 2 + tube], and each corner state's ambiguous faces. */
 static struct cell_case CASES[256 * 64 * 2];
 static uint8_t AMBIGUOUS[256];
+static uint16_t CROSSED[256]; /* each corner state's crossed edges (a box's pass) */
 static bool tables_built;
 
 void iso_init(void)
@@ -411,12 +449,33 @@ void iso_init(void)
         return;
     for (int c = 0; c < 256; c++) {
         AMBIGUOUS[c] = (uint8_t)ambiguous_faces(c);
+        CROSSED[c] = 0;
+        for (int a = 0; a < 8; a++)
+            for (int axis = 0; axis < 3; axis++)
+                if (!(a >> axis & 1) && (c >> a & 1) != (c >> (a | 1 << axis) & 1))
+                    CROSSED[c] |= (uint16_t)(1 << edge_of(a, a | 1 << axis));
         for (int m = 0; m < 64; m++)
             if ((m & ~AMBIGUOUS[c]) == 0)
                 for (int tube = 0; tube < 2; tube++)
                     build_case(c, m, tube, &CASES[(c * 64 + m) * 2 + tube]);
     }
     tables_built = true;
+}
+
+/* The job's view of g and o: the virtual grid, its origin, iso (the pad is the caller's). */
+static void frame(struct iso_job *j, const struct iso_grid *g, const struct iso_opts *o)
+{
+    j->g = *g;
+    j->o = *o;
+    j->shift = o->closed ? 1 : 0;
+    j->NX = g->nx + 2 * j->shift;
+    j->NY = g->ny + 2 * j->shift;
+    j->NZ = g->nz + 2 * j->shift;
+    j->iso = (float)o->iso;
+    for (int a = 0; a < 3; a++) {
+        j->org[a] = g->origin[a] - j->shift * g->spacing[a];
+        j->half_inv[a] = (float)(0.5 / g->spacing[a]);
+    }
 }
 
 int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, struct iso_job **out,
@@ -434,19 +493,16 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
     struct iso_job *j = calloc(1, sizeof *j);
     if (!j)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
-    j->g = *g;
-    j->o = *o;
-    j->shift = o->closed ? 1 : 0;
-    j->NX = g->nx + 2 * j->shift;
-    j->NY = g->ny + 2 * j->shift;
-    j->NZ = g->nz + 2 * j->shift;
-    j->iso = (float)o->iso;
-    for (int a = 0; a < 3; a++) {
-        j->org[a] = g->origin[a] - j->shift * g->spacing[a];
-        j->half_inv[a] = (float)(0.5 / g->spacing[a]);
-    }
-    if (o->closed) /* below iso and every sample: the volume's minimum, as a CT's air */
-        j->pad = (float)fmin(o->iso - 1, iso_grid_min(g));
+    frame(j, g, o);
+    /* The pad is below iso and every sample: the volume's least, as a CT's air, or iso - 1. Pass 1
+     * finds the least as it reads the slabs (no pass of its own), so it counts with iso - 1 in the
+     * pad: what it counts does not depend on the pad's value, as long as it is at most iso. The
+     * states see it outside; no face with pad corners is ambiguous (they come two or more to a
+     * face, side by side); and MC33's interior test of a cell with a face of pad corners reads
+     * the inside of its other face alone (the interpolant's inside at each depth lies within the
+     * inside there). iso_layout sets the pad pass 2 draws with. */
+    if (o->closed)
+        j->pad = (float)(o->iso - 1);
     int layers = j->NZ - 1;
     j->n_slabs = n_slabs < 1 ? 1 : n_slabs > layers ? layers : n_slabs;
     size_t rows = (size_t)j->NY * (size_t)j->NZ;
@@ -457,37 +513,25 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
     j->tc = calloc(rows, sizeof *j->tc);
     j->cc = calloc(rows, sizeof *j->cc);
     j->slab_failed = calloc((size_t)j->n_slabs, sizeof *j->slab_failed);
+    j->slab_min = malloc((size_t)j->n_slabs * sizeof *j->slab_min);
     j->trim = malloc(rows * sizeof *j->trim);
-    if (!j->k0 || !j->xc || !j->yc || !j->zc || !j->tc || !j->cc || !j->slab_failed || !j->trim) {
+    if (!j->k0 || !j->xc || !j->yc || !j->zc || !j->tc || !j->cc || !j->slab_failed || !j->slab_min || !j->trim) {
         iso_free(j);
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     }
     for (int s = 0; s <= j->n_slabs; s++)
         j->k0[s] = (int)((long)layers * s / j->n_slabs);
+    for (int s = 0; s < j->n_slabs; s++)
+        j->slab_min[s] = INFINITY;
     *out = j;
     return 0;
 }
 
-/* Corner states of cell I of the rows a0, a1 (y, y+1 at z) and b0, b1 (at z+1), and the
- * decisions of its ambiguous faces: the index of its case. */
-/* The states of the corners at x = 1 of cell I (rows as in cell_case), in their bits (1, 3, 5, 7):
- * cell I+1's corners at x = 0. Walking a row, each cell's states are the last one's shifted and
- * these four. */
-static inline int right_states(float iso, const float *a0, const float *a1, const float *b0, const float *b1, int I)
-{
-    return (a0[I + 1] > iso) << 1 | (a1[I + 1] > iso) << 3 | (b0[I + 1] > iso) << 5 | (b1[I + 1] > iso) << 7;
-}
-
+/* The corner states of cell I of the rows a0, a1 (y, y+1 at z) and b0, b1 (at z+1): bit x + 2y + 4z. */
 static inline int first_states(float iso, const float *a0, const float *a1, const float *b0, const float *b1, int I)
 {
-    return (a0[I] > iso) | (a1[I] > iso) << 2 | (b0[I] > iso) << 4 | (b1[I] > iso) << 6 |
-           right_states(iso, a0, a1, b0, b1, I);
-}
-
-static inline int next_states(int c, float iso, const float *a0, const float *a1, const float *b0, const float *b1,
-                              int I)
-{
-    return (c & 0xaa) >> 1 | right_states(iso, a0, a1, b0, b1, I);
+    return (a0[I] > iso) | (a1[I] > iso) << 2 | (b0[I] > iso) << 4 | (b1[I] > iso) << 6 | (a0[I + 1] > iso) << 1 |
+           (a1[I + 1] > iso) << 3 | (b0[I + 1] > iso) << 5 | (b1[I + 1] > iso) << 7;
 }
 
 /* MC33's interior test, by sampling: whether the corners of mask a reach those of mask b through
@@ -569,20 +613,6 @@ static int cell_case(const struct iso_job *j, int c, const float *a0, const floa
     return idx;
 }
 
-static struct trim trim_row(const float *r, int n, float iso)
-{
-    struct trim t = {n, -1, r[0] > iso};
-    int i = 1;
-    while (i < n && (r[i] > iso) == t.s0)
-        i++;
-    if (i == n)
-        return t;
-    t.lo = i;
-    for (t.hi = n - 1; (r[t.hi] > iso) == t.s0;)
-        t.hi--;
-    return t;
-}
-
 /* The columns [*lo, *hi] outside of which the n rows t can hold no crossing: of x edges and
  * cells (shift 1: an edge or cell starting one column before a change) or of y and z edges
  * between the rows (shift 0). last: the last column there is. Empty when *lo > *hi. */
@@ -603,77 +633,227 @@ static void span(const struct trim *const *t, int n, int shift, int last, int *l
     *hi = h > last ? last : h;
 }
 
-static uint32_t crossings(const float *a, const float *b, int lo, int hi, float iso)
-{
-    uint32_t k = 0;
-    for (int i = lo; i <= hi; i++)
-        k += (a[i] > iso) != (b[i] > iso);
-    return k;
-}
+/* ---- states as bits ----
+ * A slice's states (value > iso) as bits, word w of row J holding columns 64w .. 64w+63, with a word
+ * of 0 more a row so that a cell's right column reads past the last: a row's crossings are then
+ * counted 64 at a time and the cells whose corners all lie on one side (most of a CT's) passed over
+ * 64 at a time, not compared sample by sample in each pass. The same states as the comparisons (NaN
+ * none: the volumes are finite), so the same mesh. */
+static int bit_words(int NX) { return (NX + 63) / 64 + 1; }
 
-/* The x and y rows of level K (slice a, its rows' trims t). */
-static void count_level(struct iso_job *j, int K, const float *a, const struct trim *t)
+/* Rows rect[2] .. rect[3] of slice a, columns rect[0] .. rect[1] (the others 0), into out. */
+static void rect_bits(const float *a, int NX, const int rect[4], float iso, uint64_t *out)
 {
-    int NX = j->NX, NY = j->NY, lo, hi;
-    for (int J = 0; J < NY; J++) {
+    int W = bit_words(NX);
+    memset(out + (size_t)W * rect[2], 0, (size_t)W * (size_t)(rect[3] - rect[2] + 1) * sizeof *out);
+    for (int J = rect[2]; J <= rect[3]; J++) {
         const float *r = a + (size_t)NX * J;
-        const struct trim *x[1] = {&t[J]}, *y[2] = {&t[J], &t[J + 1 < NY ? J + 1 : J]};
-        j->trim[J + (size_t)NY * K] = t[J];
-        span(x, 1, 1, NX - 2, &lo, &hi);
-        j->xc[J + (size_t)NY * K] = crossings(r, r + 1, lo, hi, j->iso);
-        if (J + 1 == NY)
-            continue;
-        span(y, 2, 0, NX - 1, &lo, &hi);
-        j->yc[J + (size_t)NY * K] = crossings(r, r + NX, lo, hi, j->iso);
+        uint64_t *o = out + (size_t)W * J;
+        int I = rect[0], end = rect[1] + 1;
+        for (; I < end && (I & 3); I++)
+            o[I >> 6] |= (uint64_t)(r[I] > iso) << (I & 63);
+#ifdef __SSE2__
+        __m128 v = _mm_set1_ps(iso);
+        for (; I + 4 <= end; I += 4) /* (four columns from a multiple of 4: within one word) */
+            o[I >> 6] |= (uint64_t)_mm_movemask_ps(_mm_cmpgt_ps(_mm_loadu_ps(r + I), v)) << (I & 63);
+#endif
+        for (; I < end; I++)
+            o[I >> 6] |= (uint64_t)(r[I] > iso) << (I & 63);
     }
 }
 
-static void trim_slice(const struct iso_job *j, const float *a, struct trim *t)
+static void state_bits(const float *a, int NX, int NY, float iso, uint64_t *out)
 {
-    for (int J = 0; J < j->NY; J++)
-        t[J] = trim_row(a + (size_t)j->NX * J, j->NX, j->iso);
+    rect_bits(a, NX, (const int[4]){0, NX - 1, 0, NY - 1}, iso, out);
+}
+
+/* Word w of row x shifted down one column: bit i says column 64w+i+1. */
+static inline uint64_t next_col(const uint64_t *x, int w) { return x[w] >> 1 | x[w + 1] << 63; }
+
+/* Bits lo .. hi of word w (columns in its span). */
+static inline uint64_t span_mask(int w, int lo, int hi)
+{
+    uint64_t m = ~(uint64_t)0;
+    if (w == lo >> 6)
+        m &= ~(uint64_t)0 << (lo & 63);
+    if (w == hi >> 6)
+        m &= ~(uint64_t)0 >> (63 - (hi & 63));
+    return m;
+}
+
+/* The columns lo .. hi where rows x and y differ (y NULL: where x differs from its next column):
+ * their number, or (walk) each in turn. */
+struct diffs {
+    const uint64_t *x, *y;
+    uint64_t m;
+    int w, lo, hi;
+};
+
+static inline uint64_t diff_word(const struct diffs *d, int w)
+{
+    return (d->x[w] ^ (d->y ? d->y[w] : next_col(d->x, w))) & span_mask(w, d->lo, d->hi);
+}
+
+static inline void diffs_begin(struct diffs *d, const uint64_t *x, const uint64_t *y, int lo, int hi)
+{
+    *d = (struct diffs){x, y, 0, lo >> 6, lo, hi};
+    if (lo <= hi)
+        d->m = diff_word(d, d->w);
+    else
+        d->w = hi >> 6;
+}
+
+static inline int diffs_next(struct diffs *d)
+{
+    while (!d->m) {
+        if (++d->w > d->hi >> 6)
+            return -1;
+        d->m = diff_word(d, d->w);
+    }
+    int I = 64 * d->w + __builtin_ctzll(d->m);
+    d->m &= d->m - 1;
+    return I;
+}
+
+static uint32_t count_diffs(const uint64_t *x, const uint64_t *y, int lo, int hi)
+{
+    struct diffs d;
+    uint32_t n = 0;
+    diffs_begin(&d, x, y, lo, hi);
+    if (lo > hi)
+        return 0;
+    for (int w = lo >> 6; w <= hi >> 6; w++)
+        n += (uint32_t)__builtin_popcountll(diff_word(&d, w));
+    return n;
+}
+
+/* The cells lo .. hi of a row whose eight corners do not all lie on one side, from the states of
+ * its four sample rows (r: (y, z) = 00 10 01 11), in increasing column. */
+struct cells {
+    const uint64_t *r[4];
+    uint64_t m;
+    int w, hi;
+};
+
+static inline uint64_t cells_word(const struct cells *c, int w)
+{
+    const uint64_t *const *r = c->r;
+    uint64_t in = r[0][w] & r[1][w] & r[2][w] & r[3][w], any = r[0][w] | r[1][w] | r[2][w] | r[3][w];
+    uint64_t in1 = next_col(r[0], w) & next_col(r[1], w) & next_col(r[2], w) & next_col(r[3], w);
+    uint64_t any1 = next_col(r[0], w) | next_col(r[1], w) | next_col(r[2], w) | next_col(r[3], w);
+    return ~(in & in1) & (any | any1);
+}
+
+static inline void cells_begin(struct cells *c, const uint64_t *r0, const uint64_t *r1, const uint64_t *r2,
+                               const uint64_t *r3, int lo, int hi)
+{
+    *c = (struct cells){{r0, r1, r2, r3}, 0, lo >> 6, hi};
+    if (lo <= hi)
+        c->m = cells_word(c, c->w) & ~(uint64_t)0 << (lo & 63);
+    else
+        c->w = hi >> 6;
+}
+
+static inline int cells_next(struct cells *c)
+{
+    while (!c->m) {
+        if (++c->w > c->hi >> 6)
+            return -1;
+        c->m = cells_word(c, c->w);
+    }
+    int I = 64 * c->w + __builtin_ctzll(c->m);
+    c->m &= c->m - 1;
+    return I <= c->hi ? I : -1;
+}
+
+/* The x and y rows of level K (its rows' trims t, states bits). */
+static void count_level(struct iso_job *j, int K, const struct trim *t, const uint64_t *bits)
+{
+    int NX = j->NX, NY = j->NY, W = bit_words(NX), lo, hi;
+    for (int J = 0; J < NY; J++) {
+        const uint64_t *r = bits + (size_t)W * J;
+        const struct trim *x[1] = {&t[J]}, *y[2] = {&t[J], &t[J + 1 < NY ? J + 1 : J]};
+        j->trim[J + (size_t)NY * K] = t[J];
+        span(x, 1, 1, NX - 2, &lo, &hi);
+        j->xc[J + (size_t)NY * K] = count_diffs(r, NULL, lo, hi);
+        if (J + 1 == NY)
+            continue;
+        span(y, 2, 0, NX - 1, &lo, &hi);
+        j->yc[J + (size_t)NY * K] = count_diffs(r, r + W, lo, hi);
+    }
+}
+
+/* The rows' trims (struct trim) from a slice's states as bits. */
+static void trim_slice(const struct iso_job *j, const uint64_t *bits, struct trim *t)
+{
+    int NX = j->NX, W = bit_words(NX), last = (NX - 1) >> 6;
+    uint64_t tail = ~(uint64_t)0 >> (63 - ((NX - 1) & 63));
+    for (int J = 0; J < j->NY; J++) {
+        const uint64_t *o = bits + (size_t)W * J;
+        bool s0 = o[0] & 1;
+        uint64_t flip = s0 ? ~(uint64_t)0 : 0;
+        int lo = -1, hi = -1;
+        for (int w = 0; w <= last; w++) {
+            uint64_t x = (o[w] ^ flip) & (w == last ? tail : ~(uint64_t)0);
+            if (!x)
+                continue;
+            if (lo < 0)
+                lo = 64 * w + __builtin_ctzll(x);
+            hi = 64 * w + 63 - __builtin_clzll(x);
+        }
+        t[J] = lo < 0 ? (struct trim){NX, -1, s0} : (struct trim){lo, hi, s0};
+    }
 }
 
 void iso_count(struct iso_job *j, int s)
 {
-    int NX = j->NX, NY = j->NY;
-    size_t plane = (size_t)NX * NY;
+    int NX = j->NX, NY = j->NY, W = bit_words(NX);
+    size_t plane = (size_t)NX * NY, bplane = (size_t)W * NY;
     float *a = malloc(2 * plane * sizeof *a);
     struct trim *ta = malloc(2 * (size_t)NY * sizeof *ta);
-    if (!a || !ta) {
+    uint64_t *ba = malloc(2 * bplane * sizeof *ba);
+    if (!a || !ta || !ba) {
         free(a);
         free(ta);
+        free(ba);
         j->slab_failed[s] = true;
         return;
     }
     float *b = a + plane, *buf = a;
     struct trim *tb = ta + NY, *tbuf = ta;
-    load(j, j->k0[s], b);
-    trim_slice(j, b, tb);
+    uint64_t *bb = ba + bplane, *bbuf = ba;
+    float *least = &j->slab_min[s];
+    load(j, j->k0[s], b, least);
+    state_bits(b, NX, NY, j->iso, bb);
+    trim_slice(j, bb, tb);
     for (int K = j->k0[s]; K < j->k0[s + 1]; K++) {
         float *t = a;
         a = b, b = t;
         struct trim *u = ta;
         ta = tb, tb = u;
-        load(j, K + 1, b);
-        trim_slice(j, b, tb);
-        count_level(j, K, a, ta);
+        uint64_t *q = ba;
+        ba = bb, bb = q;
+        load(j, K + 1, b, least);
+        state_bits(b, NX, NY, j->iso, bb);
+        trim_slice(j, bb, tb);
+        count_level(j, K, ta, ba);
         for (int J = 0; J < NY; J++) {
             const float *a0 = a + (size_t)NX * J, *b0 = b + (size_t)NX * J;
+            const uint64_t *p0 = ba + (size_t)W * J, *q0 = bb + (size_t)W * J;
             const struct trim *z[2] = {&ta[J], &tb[J]};
             int lo, hi;
             span(z, 2, 0, NX - 1, &lo, &hi);
-            j->zc[J + (size_t)NY * K] = crossings(a0, b0, lo, hi, j->iso);
+            j->zc[J + (size_t)NY * K] = count_diffs(p0, q0, lo, hi);
             if (J + 1 == NY)
                 continue;
             const struct trim *c[4] = {&ta[J], &ta[J + 1], &tb[J], &tb[J + 1]};
             span(c, 4, 1, NX - 2, &lo, &hi);
             uint32_t n = 0, centres = 0;
             const float *a1 = a0 + NX, *b1 = b0 + NX;
-            for (int I = lo, st = lo <= hi ? first_states(j->iso, a0, a1, b0, b1, lo) : 0; I <= hi;
-                 st = ++I <= hi ? next_states(st, j->iso, a0, a1, b0, b1, I) : 0) {
-                if (st == 0 || st == 255)
-                    continue;
+            struct cells cl;
+            cells_begin(&cl, p0, p0 + W, q0, q0 + W, lo, hi);
+            for (int I; (I = cells_next(&cl)) >= 0;) {
+                int st = first_states(j->iso, a0, a1, b0, b1, I);
                 const struct cell_case *cc = &CASES[cell_case(j, st, a0, a1, b0, b1, I)];
                 n += cc->n;
                 centres += cc->n_centres;
@@ -683,9 +863,10 @@ void iso_count(struct iso_job *j, int s)
         }
     }
     if (s == j->n_slabs - 1)
-        count_level(j, j->NZ - 1, b, tb);
+        count_level(j, j->NZ - 1, tb, bb);
     free(buf);
     free(tbuf);
+    free(bbuf);
 }
 
 /* Whether a slab's pass ran out of memory (it wrote nothing). */
@@ -702,6 +883,12 @@ int iso_layout(struct iso_job *j, struct sf_err *err)
     int rc = slabs_ok(j, err);
     if (rc)
         return rc;
+    if (j->o.closed) { /* below iso and every sample: the volume's least, as a CT's air (as pass 1 found it) */
+        float least = INFINITY;
+        for (int s = 0; s < j->n_slabs; s++)
+            least = j->slab_min[s] < least ? j->slab_min[s] : least;
+        j->pad = (float)fmin(j->o.iso - 1, least);
+    }
     size_t rows = (size_t)j->NY * (size_t)j->NZ;
     j->xb = malloc(rows * sizeof *j->xb);
     j->yb = malloc(rows * sizeof *j->yb);
@@ -747,24 +934,32 @@ int iso_layout(struct iso_job *j, struct sf_err *err)
 struct window {
     float *s[4];
     int k;                           /* s[1] is slice k */
+    uint64_t *b[4];                  /* their states as bits (the slabs' pass 2; NULL for a box's) */
 };
 
 static const float *slice(const struct window *w, int K) { return w->s[K - w->k + 1]; }
+static const uint64_t *slice_bits(const struct window *w, int K) { return w->b[K - w->k + 1]; }
 
 static void window_at(const struct iso_job *j, struct window *w, int K)
 {
     if (K == w->k + 1) { /* slide by one */
         float *t = w->s[0];
         w->s[0] = w->s[1], w->s[1] = w->s[2], w->s[2] = w->s[3], w->s[3] = t;
+        uint64_t *u = w->b[0];
+        w->b[0] = w->b[1], w->b[1] = w->b[2], w->b[2] = w->b[3], w->b[3] = u;
         w->k = K;
-        if (K + 2 < j->NZ)
-            load(j, K + 2, w->s[3]);
+        if (K + 2 < j->NZ) {
+            load(j, K + 2, w->s[3], NULL);
+            state_bits(w->s[3], j->NX, j->NY, j->iso, w->b[3]);
+        }
         return;
     }
     w->k = K;
     for (int d = -1; d <= 2; d++)
-        if (K + d >= 0 && K + d < j->NZ)
-            load(j, K + d, w->s[d + 1]);
+        if (K + d >= 0 && K + d < j->NZ) {
+            load(j, K + d, w->s[d + 1], NULL);
+            state_bits(w->s[d + 1], j->NX, j->NY, j->iso, w->b[d + 1]);
+        }
 }
 
 /* The field's gradient at virtual sample (I, J, K), by central differences (one-sided at the
@@ -788,17 +983,18 @@ static void gradient(const struct iso_job *j, const struct window *w, int I, int
     g[2] = (slice(w, k1)[at] - slice(w, k0)[at]) * j->half_inv[2] * (k1 - k0 == 2 ? 1.0f : 2.0f);
 }
 
-/* Vertex v on the edge from virtual sample p to its neighbour along axis. */
-static void put_vertex(struct iso_job *j, const struct window *w, size_t v, int I, int J, int K, int axis, float a,
-                       float b)
+/* The vertex on the edge from virtual sample (I, J, K) (value a) to its neighbour along axis
+ * (value b): its position into pos, its normal into nrm (when not NULL). The one computation of
+ * both extractions (the slabs' and a box's), so that they agree bit for bit. */
+static inline void vertex_at(const struct iso_job *j, const struct window *w, int I, int J, int K, int axis, float a,
+                             float b, float *pos, float *nrm)
 {
     double t = ((double)j->iso - a) / ((double)b - a);
     t = t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
     int p[3] = {I, J, K};
-    float *out = j->m.pos + 3 * v;
     for (int d = 0; d < 3; d++)
-        out[d] = (float)(j->org[d] + j->g.spacing[d] * (p[d] + (d == axis ? t : 0)));
-    if (!j->m.nrm)
+        pos[d] = (float)(j->org[d] + j->g.spacing[d] * (p[d] + (d == axis ? t : 0)));
+    if (!nrm)
         return;
     float g0[3], g1[3], n[3], ft = (float)t;
     gradient(j, w, I, J, K, g0);
@@ -807,12 +1003,20 @@ static void put_vertex(struct iso_job *j, const struct window *w, size_t v, int 
         n[d] = (ft - 1) * g0[d] - ft * g1[d]; /* outward: down the gradient */
     float len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2], inv = len2 > 0 ? 1.0f / sqrtf(len2) : 0.0f;
     for (int d = 0; d < 3; d++)
-        j->m.nrm[3 * v + d] = n[d] * inv;
+        nrm[d] = n[d] * inv;
 }
 
-/* Vertex v at the centre of a loop of cell (I, J, K) (rows r[z][y]): the mean of the loop's edge
- * crossings, its normal down the trilinear interpolant's gradient there. */
-static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const float *r[2][2], unsigned edges)
+/* Vertex v on the edge from virtual sample p to its neighbour along axis. */
+static void put_vertex(struct iso_job *j, const struct window *w, size_t v, int I, int J, int K, int axis, float a,
+                       float b)
+{
+    vertex_at(j, w, I, J, K, axis, a, b, j->m.pos + 3 * v, j->m.nrm ? j->m.nrm + 3 * v : NULL);
+}
+
+/* The vertex at the centre of a loop of cell (I, J, K) (rows r[z][y]): the mean of the loop's
+ * edge crossings, its normal down the trilinear interpolant's gradient there. */
+static void centre_at(const struct iso_job *j, int I, int J, int K, const float *r[2][2], unsigned edges, float *pos,
+                      float *nrm)
 {
     double f[8], p[3] = {0, 0, 0};
     for (int c = 0; c < 8; c++)
@@ -833,8 +1037,8 @@ static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const f
         p[d] /= n;
     int at[3] = {I, J, K};
     for (int d = 0; d < 3; d++)
-        j->m.pos[3 * v + d] = (float)(j->org[d] + j->g.spacing[d] * (at[d] + p[d]));
-    if (!j->m.nrm)
+        pos[d] = (float)(j->org[d] + j->g.spacing[d] * (at[d] + p[d]));
+    if (!nrm)
         return;
     double g[3] = {0, 0, 0}, len = 0;
     for (int c = 0; c < 8; c++) { /* d/dp_d of the trilinear weights */
@@ -846,50 +1050,59 @@ static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const f
         len += g[d] * g[d];
     len = sqrt(len);
     for (int d = 0; d < 3; d++)
-        j->m.nrm[3 * v + d] = len > 0 ? (float)(-g[d] / len) : 0.0f;
+        nrm[d] = len > 0 ? (float)(-g[d] / len) : 0.0f;
+}
+
+static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const float *r[2][2], unsigned edges)
+{
+    centre_at(j, I, J, K, r, edges, j->m.pos + 3 * v, j->m.nrm ? j->m.nrm + 3 * v : NULL);
 }
 
 /* The x and y vertices of level K. */
 static void emit_level(struct iso_job *j, const struct window *w, int K)
 {
-    int NX = j->NX, NY = j->NY, lo, hi;
+    int NX = j->NX, NY = j->NY, W = bit_words(NX), lo, hi;
     const float *a = slice(w, K);
+    const uint64_t *bits = slice_bits(w, K);
     const struct trim *t = j->trim + (size_t)NY * K;
-    float iso = j->iso;
     for (int J = 0; J < NY; J++) {
         const float *r = a + (size_t)NX * J;
+        const uint64_t *rb = bits + (size_t)W * J;
         const struct trim *x[1] = {&t[J]}, *y[2] = {&t[J], &t[J + 1 < NY ? J + 1 : J]};
         size_t v = j->xb[J + (size_t)NY * K];
+        struct diffs d;
         span(x, 1, 1, NX - 2, &lo, &hi);
-        for (int I = lo; I <= hi; I++)
-            if ((r[I] > iso) != (r[I + 1] > iso))
-                put_vertex(j, w, v++, I, J, K, 0, r[I], r[I + 1]);
+        diffs_begin(&d, rb, NULL, lo, hi);
+        for (int I; (I = diffs_next(&d)) >= 0;)
+            put_vertex(j, w, v++, I, J, K, 0, r[I], r[I + 1]);
         if (J + 1 == NY)
             continue;
         v = j->yb[J + (size_t)NY * K];
         span(y, 2, 0, NX - 1, &lo, &hi);
-        for (int I = lo; I <= hi; I++)
-            if ((r[I] > iso) != (r[I + NX] > iso))
-                put_vertex(j, w, v++, I, J, K, 1, r[I], r[I + NX]);
+        diffs_begin(&d, rb, rb + W, lo, hi);
+        for (int I; (I = diffs_next(&d)) >= 0;)
+            put_vertex(j, w, v++, I, J, K, 1, r[I], r[I + NX]);
     }
 }
 
 /* The z vertices between levels K and K+1, and the triangles of cell layer K. */
 static void emit_layer(struct iso_job *j, const struct window *w, int K)
 {
-    int NX = j->NX, NY = j->NY;
+    int NX = j->NX, NY = j->NY, W = bit_words(NX);
     float iso = j->iso;
     const float *a = slice(w, K), *b = slice(w, K + 1);
+    const uint64_t *ab = slice_bits(w, K), *bb = slice_bits(w, K + 1);
     const struct trim *ta = j->trim + (size_t)NY * K, *tb = ta + NY;
     int lo, hi;
     for (int J = 0; J < NY; J++) {
         size_t v = j->zb[J + (size_t)NY * K];
         const float *a0 = a + (size_t)NX * J, *b0 = b + (size_t)NX * J;
         const struct trim *z[2] = {&ta[J], &tb[J]};
+        struct diffs d;
         span(z, 2, 0, NX - 1, &lo, &hi);
-        for (int I = lo; I <= hi; I++)
-            if ((a0[I] > iso) != (b0[I] > iso))
-                put_vertex(j, w, v++, I, J, K, 2, a0[I], b0[I]);
+        diffs_begin(&d, ab + (size_t)W * J, bb + (size_t)W * J, lo, hi);
+        for (int I; (I = diffs_next(&d)) >= 0;)
+            put_vertex(j, w, v++, I, J, K, 2, a0[I], b0[I]);
     }
     for (int J = 0; J + 1 < NY; J++) {
         const float *r[2][2] = {{a + (size_t)NX * J, a + (size_t)NX * (J + 1)}, {b + (size_t)NX * J, b + (size_t)NX * (J + 1)}};
@@ -903,10 +1116,11 @@ static void emit_layer(struct iso_job *j, const struct window *w, int K)
         const struct trim *rows[4] = {&ta[J], &ta[J + 1], &tb[J], &tb[J + 1]};
         span(rows, 4, 1, NX - 2, &lo, &hi); /* no crossing of any row the cells touch lies before lo */
         const float *a0 = r[0][0], *a1 = r[0][1], *b0 = r[1][0], *b1 = r[1][1];
-        for (int I = lo, st = lo <= hi ? first_states(iso, a0, a1, b0, b1, lo) : 0; I <= hi;
-             st = ++I <= hi ? next_states(st, iso, a0, a1, b0, b1, I) : 0) {
-            if (st == 0 || st == 255)
-                continue; /* no edge of it crosses: every running id stays */
+        const uint64_t *p0 = ab + (size_t)W * J, *q0 = bb + (size_t)W * J;
+        struct cells cl; /* (the cells passed over cross no edge: every running id stays) */
+        cells_begin(&cl, p0, p0 + W, q0, q0 + W, lo, hi);
+        for (int I; (I = cells_next(&cl)) >= 0;) {
+            int st = first_states(iso, a0, a1, b0, b1, I);
             /* crossings of the cell's edges from its corner states: x edge (y, z) between corners
              * 2y+4z and 2y+4z+1; y edge (x=0, z) between 4z and 4z+2; z edge (x=0, y) between 2y and 2y+4 */
             bool xs[4], ys[2], zs[2];
@@ -937,13 +1151,17 @@ static void emit_layer(struct iso_job *j, const struct window *w, int K)
 
 void iso_emit(struct iso_job *j, int s)
 {
-    size_t plane = (size_t)j->NX * (size_t)j->NY;
+    size_t plane = (size_t)j->NX * (size_t)j->NY, bplane = (size_t)bit_words(j->NX) * (size_t)j->NY;
     float *buf = malloc(4 * plane * sizeof *buf);
-    if (!buf) {
+    uint64_t *bits = malloc(4 * bplane * sizeof *bits);
+    if (!buf || !bits) {
+        free(buf);
+        free(bits);
         j->slab_failed[s] = true;
         return;
     }
-    struct window w = {{buf, buf + plane, buf + 2 * plane, buf + 3 * plane}, -10};
+    struct window w = {{buf, buf + plane, buf + 2 * plane, buf + 3 * plane}, -10,
+                       {bits, bits + bplane, bits + 2 * bplane, bits + 3 * bplane}};
     for (int K = j->k0[s]; K < j->k0[s + 1]; K++) {
         window_at(j, &w, K);
         emit_level(j, &w, K);
@@ -954,6 +1172,7 @@ void iso_emit(struct iso_job *j, int s)
         emit_level(j, &w, j->NZ - 1);
     }
     free(buf);
+    free(bits);
 }
 
 int iso_end(struct iso_job *j, struct trimesh *out, struct sf_err *err)
@@ -992,4 +1211,248 @@ int iso_extract(const struct iso_grid *g, const struct iso_opts *o, const struct
         return rc;
     }
     return iso_end(j, out, err);
+}
+
+/* ---- boxes of cells (mc.h: iso_box_extract) ---- */
+
+/* Rows Y0 .. Y1, columns X0 .. X1 of virtual slice K into out (laid out as a whole slice). */
+static void load_rect(const struct iso_job *j, int K, float *out, const int rect[4])
+{
+    int s = j->shift, z = K - s;
+    for (int J = rect[2]; J <= rect[3]; J++) {
+        float *row = out + (size_t)j->NX * J;
+        int y = J - s, a = rect[0], b = rect[1];
+        if (y < 0 || y >= j->g.ny || z < 0 || z >= j->g.nz) {
+            for (int I = a; I <= b; I++)
+                row[I] = j->pad;
+            continue;
+        }
+        if (a - s < 0)
+            row[a++] = j->pad;
+        if (b - s >= j->g.nx)
+            row[b--] = j->pad;
+        if (a <= b)
+            grid_span(&j->g, a - s, y, z, b - a + 1, row + a);
+    }
+}
+
+static void rect_window_at(const struct iso_job *j, struct window *w, int K, const int rect[4])
+{
+    if (K == w->k + 1) {
+        float *t = w->s[0];
+        w->s[0] = w->s[1], w->s[1] = w->s[2], w->s[2] = w->s[3], w->s[3] = t;
+        uint64_t *u = w->b[0];
+        w->b[0] = w->b[1], w->b[1] = w->b[2], w->b[2] = w->b[3], w->b[3] = u;
+        w->k = K;
+        if (K + 2 < j->NZ) {
+            load_rect(j, K + 2, w->s[3], rect);
+            rect_bits(w->s[3], j->NX, rect, j->iso, w->b[3]);
+        }
+        return;
+    }
+    w->k = K;
+    for (int d = -1; d <= 2; d++)
+        if (K + d >= 0 && K + d < j->NZ) {
+            load_rect(j, K + d, w->s[d + 1], rect);
+            rect_bits(w->s[d + 1], j->NX, rect, j->iso, w->b[d + 1]);
+        }
+}
+
+static bool box_grow(struct iso_box *b, size_t verts, size_t tris, bool normals)
+{
+    if (b->n_vert + verts > b->cap_vert) {
+        size_t cap = b->cap_vert ? 2 * b->cap_vert : 4096;
+        while (cap < b->n_vert + verts)
+            cap *= 2;
+        float *p = realloc(b->pos, cap * 3 * sizeof *p);
+        if (p)
+            b->pos = p;
+        float *n = normals ? realloc(b->nrm, cap * 3 * sizeof *n) : b->nrm;
+        if (n)
+            b->nrm = n;
+        uint64_t *k = realloc(b->key, cap * sizeof *k);
+        if (k)
+            b->key = k;
+        if (!p || (normals && !n) || !k)
+            return false;
+        b->cap_vert = cap;
+    }
+    if (b->n_tri + tris > b->cap_tri) {
+        size_t cap = b->cap_tri ? 2 * b->cap_tri : 4096;
+        while (cap < b->n_tri + tris)
+            cap *= 2;
+        uint32_t *t = realloc(b->tri, cap * 3 * sizeof *t);
+        if (t)
+            b->tri = t;
+        uint32_t *c = realloc(b->cell, cap * sizeof *c);
+        if (c)
+            b->cell = c;
+        if (!t || !c)
+            return false;
+        b->cap_tri = cap;
+    }
+    return true;
+}
+
+/* The box's pass: the edges' vertex ids live in tagged slots (tag << 32 | id; tag = the level
+ * plus one, for x and y edges, the layer plus one for z edges), two levels of x and y edges and a
+ * layer of z edges, so that no slot is cleared as the pass moves on. */
+struct box_pass {
+    struct iso_job j;
+    struct window w;
+    struct iso_box *out;
+    int lo[3], W;                    /* W: samples a row of the box */
+    uint64_t *ex[2], *ey[2], *ez;
+};
+
+static uint32_t edge_vertex(struct box_pass *p, int e, int I, int J, int K)
+{
+    static const int8_t OFF[12][3] = {{0, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, 1, 1}, {0, 0, 0}, {1, 0, 0},
+                                      {0, 0, 1}, {1, 0, 1}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
+    int x = OFF[e][0], y = OFF[e][1], z = OFF[e][2], axis = e >> 2;
+    uint64_t *slot;
+    size_t at = (size_t)(I + x - p->lo[0]) + (size_t)p->W * (size_t)(J + y - p->lo[1]);
+    uint64_t tag = (uint64_t)(K + z + 1) << 32;
+    slot = axis == 0 ? p->ex[(K + z) & 1] + at : axis == 1 ? p->ey[(K + z) & 1] + at : p->ez + at;
+    if ((*slot & 0xffffffff00000000u) == tag)
+        return (uint32_t)*slot;
+    struct iso_box *b = p->out;
+    size_t v = b->n_vert++;
+    const struct iso_job *j = &p->j;
+    int I0 = I + x, J0 = J + y, K0 = K + z;
+    const float *s = slice(&p->w, K0) + (size_t)I0 + (size_t)j->NX * J0;
+    float va = s[0], vb = axis == 0 ? s[1] : axis == 1 ? s[j->NX] : slice(&p->w, K0 + 1)[s - slice(&p->w, K0)];
+    vertex_at(j, &p->w, I0, J0, K0, axis, va, vb, b->pos + 3 * v, b->nrm ? b->nrm + 3 * v : NULL);
+    b->key[v] = iso_vertex_key(j->NX, j->NY, I0, J0, K0, axis, 0);
+    *slot = tag | v;
+    return (uint32_t)v;
+}
+
+/* Cells I0 .. I1 of row (J, K). */
+static void box_run(struct box_pass *p, int I0, int I1, int J, int K)
+{
+    const struct iso_job *j = &p->j;
+    struct iso_box *b = p->out;
+    int NX = j->NX;
+    float iso = j->iso;
+    const float *a = slice(&p->w, K), *c = slice(&p->w, K + 1);
+    const float *r[2][2] = {{a + (size_t)NX * J, a + (size_t)NX * (J + 1)}, {c + (size_t)NX * J, c + (size_t)NX * (J + 1)}};
+    const float *a0 = r[0][0], *a1 = r[0][1], *b0 = r[1][0], *b1 = r[1][1];
+    uint32_t row = (uint32_t)(NX - 1) * ((uint32_t)J + (uint32_t)(j->NY - 1) * (uint32_t)K);
+    int W = bit_words(NX);
+    const uint64_t *p0 = slice_bits(&p->w, K) + (size_t)W * J, *q0 = slice_bits(&p->w, K + 1) + (size_t)W * J;
+    struct cells cl;
+    cells_begin(&cl, p0, p0 + W, q0, q0 + W, I0, I1);
+    for (int I; (I = cells_next(&cl)) >= 0;) {
+        int st = first_states(iso, a0, a1, b0, b1, I);
+        const struct cell_case *cc = &CASES[cell_case(j, st, a0, a1, b0, b1, I)];
+        uint32_t ids[12 + MAX_CENTRES];
+        for (unsigned m = CROSSED[st]; m; m &= m - 1)
+            ids[__builtin_ctz(m)] = edge_vertex(p, __builtin_ctz(m), I, J, K);
+        for (int k = 0; k < cc->n_centres; k++) {
+            size_t v = b->n_vert++;
+            centre_at(j, I, J, K, r, cc->centre_of[k], b->pos + 3 * v, b->nrm ? b->nrm + 3 * v : NULL);
+            b->key[v] = iso_vertex_key(NX, j->NY, I, J, K, 3, k);
+            ids[12 + k] = (uint32_t)v;
+        }
+        uint32_t *tri = b->tri + 3 * b->n_tri;
+        for (int k = 0; k < 3 * cc->n; k++)
+            tri[k] = ids[cc->e[k]];
+        for (int k = 0; k < cc->n; k++)
+            b->cell[b->n_tri + k] = row + (uint32_t)I;
+        b->n_tri += cc->n;
+    }
+}
+
+int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pad, const int lo[3], const int hi[3],
+                    const uint8_t *mask, int mask_b, struct iso_box *out, struct sf_err *err)
+{
+    if (!tables_built)
+        return sf_fail(err, SF_EBACKEND, "", "iso_init() was not called");
+    struct box_pass p = {.out = out};
+    struct iso_job *j = &p.j;
+    frame(j, g, o);
+    j->pad = o->closed ? pad : 0;
+    out->n_vert = out->n_tri = 0;
+    int C[3] = {j->NX - 1, j->NY - 1, j->NZ - 1}, rect[4];
+    for (int d = 0; d < 3; d++)
+        if (lo[d] < 0 || hi[d] >= C[d] || lo[d] > hi[d])
+            return 0; /* (an empty box) */
+    /* the samples the cells and their vertices' normals read: one further each way */
+    rect[0] = lo[0] > 0 ? lo[0] - 1 : 0;
+    rect[1] = hi[0] + 2 < j->NX ? hi[0] + 2 : j->NX - 1;
+    rect[2] = lo[1] > 0 ? lo[1] - 1 : 0;
+    rect[3] = hi[1] + 2 < j->NY ? hi[1] + 2 : j->NY - 1;
+    p.W = hi[0] - lo[0] + 2;
+    size_t plane = (size_t)j->NX * (size_t)j->NY, slots = (size_t)p.W * (size_t)(hi[1] - lo[1] + 2);
+    size_t bplane = (size_t)bit_words(j->NX) * (size_t)j->NY;
+    size_t need = 4 * plane * sizeof(float) + (5 * slots + 4 * bplane) * sizeof(uint64_t);
+    if (need > out->scratch_bytes) {
+        void *s = realloc(out->scratch, need);
+        if (!s)
+            return sf_fail(err, SF_ENOMEM, "", "out of memory");
+        out->scratch = s, out->scratch_bytes = need;
+    }
+    float *f = out->scratch;
+    uint64_t *t = (uint64_t *)(f + 4 * plane), *bits = t + 5 * slots;
+    p.w = (struct window){{f, f + plane, f + 2 * plane, f + 3 * plane}, -10,
+                          {bits, bits + bplane, bits + 2 * bplane, bits + 3 * bplane}};
+    memset(t, 0, 5 * slots * sizeof *t);
+    p.ex[0] = t, p.ex[1] = t + slots, p.ey[0] = t + 2 * slots, p.ey[1] = t + 3 * slots, p.ez = t + 4 * slots;
+    memcpy(p.lo, lo, sizeof p.lo);
+    int nbx = mask ? (C[0] + mask_b - 1) / mask_b : 0, nby = mask ? (C[1] + mask_b - 1) / mask_b : 0;
+    for (int K = lo[2]; K <= hi[2]; K++) {
+        const uint8_t *mk = mask ? mask + (size_t)nbx * (size_t)nby * (size_t)(K / mask_b) : NULL;
+        if (mk) { /* a layer of blocks all passed over: nothing read */
+            bool any = false;
+            for (size_t i = 0; i < (size_t)nbx * (size_t)nby && !any; i++)
+                any = mk[i] != 0;
+            if (!any)
+                continue;
+        }
+        rect_window_at(j, &p.w, K, rect);
+        for (int J = lo[1]; J <= hi[1]; J++) {
+            const uint8_t *mr = mk ? mk + (size_t)nbx * (size_t)(J / mask_b) : NULL;
+            for (int I0 = lo[0], bi = lo[0] / mask_b; I0 <= hi[0];) {
+                int I1 = hi[0];
+                if (mr) { /* a run of blocks not passed over */
+                    I1 = (bi + 1) * mask_b - 1;
+                    if (!mr[bi++]) {
+                        I0 = I1 + 1;
+                        continue;
+                    }
+                    for (; I1 < hi[0] && mr[bi]; bi++)
+                        I1 += mask_b;
+                    I1 = I1 > hi[0] ? hi[0] : I1;
+                }
+                /* room for the run's worst case: 12 triangles, 3 new edges and the centres a cell */
+                size_t cells = (size_t)(I1 - I0 + 1);
+                if (!box_grow(out, cells * (3 + MAX_CENTRES) + 16, cells * MAX_CELL_TRIS, o->normals))
+                    return sf_fail(err, SF_ENOMEM, "", "out of memory");
+                box_run(&p, I0, I1, J, K);
+                I0 = I1 + 1;
+            }
+            if (out->n_vert > ISO_MAX_VERTICES)
+                return sf_fail(err, SF_ELIMIT, "", "the isosurface would have %zu vertices, over the limit of %u",
+                               out->n_vert, ISO_MAX_VERTICES);
+        }
+    }
+    return 0;
+}
+
+size_t iso_box_bytes(const struct iso_box *b)
+{
+    return b->cap_vert * ((b->nrm ? 6 : 3) * sizeof(float) + sizeof(uint64_t)) + b->cap_tri * 4 * sizeof(uint32_t) +
+           b->scratch_bytes;
+}
+
+void iso_box_free(struct iso_box *b)
+{
+    free(b->pos);
+    free(b->nrm);
+    free(b->key);
+    free(b->tri);
+    free(b->cell);
+    free(b->scratch);
+    memset(b, 0, sizeof *b);
 }

@@ -27,6 +27,7 @@
 
 #include <stdbool.h>
 #include <stddef.h>
+#include <stdint.h>
 
 #include "../base/err.h"
 #include "../geom/trimesh.h"
@@ -90,5 +91,42 @@ void iso_grid_row(const struct iso_grid *g, int y, int z, float *out);
 /* All of it on the calling thread, polling pr between slabs (SF_ECANCEL when it says stop). */
 int iso_extract(const struct iso_grid *g, const struct iso_opts *o, const struct sf_progress *pr, struct trimesh *out,
                 struct sf_err *err);
+
+/* ---- boxes of cells (kept.c: local rebuilds and iso changes of seed 002's interactive loop) ----
+ *
+ * The cells lo .. hi (inclusive, in the virtual grid's cells: with closed, cell (0, 0, 0) is the
+ * pad's corner) drawn in one pass by the very code of the slabs' extraction (the same cases,
+ * positions and normals, bit for bit), in its order: cell by cell, x fastest then y then z, each
+ * cell's triangles in its case's order. So the whole grid as a box is iso_extract's list of
+ * triangles (its vertices numbered otherwise). Each vertex has a key that names its place (below),
+ * each triangle its cell. */
+struct iso_box {
+    float *pos, *nrm;        /* 3 per vertex; nrm with o->normals */
+    uint64_t *key;           /* per vertex: iso_vertex_key */
+    size_t n_vert, cap_vert;
+    uint32_t *tri;           /* 3 per triangle, into the box's vertices */
+    uint32_t *cell;          /* per triangle: its virtual cell, I + (NX-1) (J + (NY-1) K) */
+    size_t n_tri, cap_tri;
+    void *scratch;           /* kept between calls (iso_box_free frees it all) */
+    size_t scratch_bytes;
+};
+/* A vertex's key: ((K * 4 + kind) * NY + J) * NX + I) * 4 + c over the virtual grid (NX, NY),
+ * kind 0, 1, 2 the edge from sample (I, J, K) along x, y, z (c = 0), kind 3 the c-th centre of cell
+ * (I, J, K). Keys sort as iso_extract numbers its vertices. */
+static inline uint64_t iso_vertex_key(int NX, int NY, int I, int J, int K, int kind, int c)
+{
+    return ((((uint64_t)K * 4 + (uint64_t)kind) * (uint64_t)NY + (uint64_t)J) * (uint64_t)NX + (uint64_t)I) * 4 +
+           (uint64_t)c;
+}
+/* Draws cells lo .. hi of g at o (pad: the closed grid's pad sample, as iso_begin sets it) into
+ * out (its lists emptied first; out zeroed before the first call). mask, when not NULL: a byte per
+ * block of mask_b^3 cells (x fastest, blocks over the virtual cells), 0 for blocks to pass over
+ * (they must hold no crossing). 0, or SF_EBACKEND (iso_init not called), SF_ENOMEM (out's lists
+ * then half made), SF_ELIMIT (over ISO_MAX_VERTICES). */
+int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pad, const int lo[3], const int hi[3],
+                    const uint8_t *mask, int mask_b, struct iso_box *out, struct sf_err *err);
+/* The bytes out holds. */
+size_t iso_box_bytes(const struct iso_box *out);
+void iso_box_free(struct iso_box *out);
 
 #endif
