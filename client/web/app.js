@@ -7,7 +7,7 @@
 
 const $ = (id) => document.getElementById(id);
 const TOKEN_KEY = "surfd.token";
-const state = { job: null, formats: [], inView: [] };
+const state = { job: null, formats: [], inView: [], pacs: [], series: null };
 
 // ---- requests ------------------------------------------------------------------------------
 
@@ -248,7 +248,10 @@ async function refreshModels() {
       cell(m.triangles ? m.triangles + " triangles" : (m.patches || 0) + " patches", "num"));
     const td = document.createElement("td");
     td.append(button("View", () => view([m]), "View " + (m.name || m.id)),
-      button("Add", () => view([m], true), "Add " + (m.name || m.id) + " to the view"),
+      button("Add", () => view([m], true), "Add " + (m.name || m.id) + " to the view"));
+    if (m.source === "isosurface" && m.grid)
+      td.append(button("Slices", () => slicesOfModel(m), "Slices of " + (m.name || m.id) + "'s volume"));
+    td.append(
       button("Delete", () => remove(m), "Delete " + (m.name || m.id)));
     tr.append(td);
     return tr;
@@ -295,12 +298,28 @@ function downloadChoices() {
   }));
 }
 
-// /#models=ID,ID: those models in the view (a bookmark, a link from a colleague).
+// /#models=ID,ID: those models in the view; #series=UID a series' slices (with the models on its
+// frame, or &models= those); #volume=ID a model's samples (a bookmark, a link from a colleague).
 async function openFromAddress() {
-  const m = /^#models=([\w,.-]+)$/.exec(location.hash);
-  if (!m) return;
+  const a = {};
+  for (const part of location.hash.replace(/^#/, "").split("&")) {
+    const kv = /^(models|series|volume)=([\w,.-]+)$/.exec(part);
+    if (kv) a[kv[1]] = kv[2];
+  }
   const v = await whenView();
-  const ids = m[1].split(",").filter((x) => x);
+  const shown = v.stats().volume;
+  if (a.series && !(shown && shown.what === "series" && shown.id === a.series)) {
+    await openSeries(a.series, a.models ? a.models.split(",") : null);
+    return;
+  }
+  if (a.volume && !(shown && shown.what === "model" && shown.id === a.volume)) {
+    const r = await api("GET", "/models/" + encodeURIComponent(a.volume));
+    if (r.ok) await slicesOfModel(await r.json(), a.models ? null : undefined);
+    else setError("not opened: " + a.volume + " (" + (await problemOf(r)) + ")");
+    if (!a.models) return;
+  }
+  if (!a.models) return;
+  const ids = a.models.split(",").filter((x) => x);
   if (ids.join(",") === v.ids().join(",")) return;
   const found = [], missing = [];
   for (const id of ids) {
@@ -310,6 +329,191 @@ async function openFromAddress() {
   }
   if (found.length) await view(found);
   if (missing.length) setError("not opened: " + missing.join(", "));
+}
+
+// ---- slices, series and PACS -----------------------------------------------------------------
+
+// A job route's answer: at once, or its job followed until it ends (GET /jobs/ID), then its result.
+async function jobResult(method, path, opts = {}) {
+  let r = await api(method, path, opts);
+  if (r.status === 202) {
+    const loc = r.headers.get("Location") || "/jobs/" + (await r.json()).id;
+    for (let wait = 200; ; wait = Math.min(2000, wait * 1.5)) {
+      await sleep(wait);
+      const j = await api("GET", loc);
+      if (!j.ok) throw new Error(await problemOf(j));
+      const job = await j.json();
+      if (job.state === "succeeded") break;
+      if (job.state === "failed" || job.state === "cancelled") throw new Error(job.error ? problemText(job.error) : job.state);
+    }
+    r = await api("GET", loc + "/result");
+  }
+  if (!r.ok) throw new Error(await problemOf(r));
+  return r;
+}
+
+// An isosurface model's volume in the slice views, the model in the 3D view (unless models is null).
+async function slicesOfModel(m, models) {
+  const v = await whenView();
+  state.series = null;
+  $("surface-from").hidden = true;
+  if (models !== null) await view([m]);
+  $("slices").scrollIntoView({ block: "start" });
+  try {
+    await v.openVolume("model", m.id, m.name || m.id);
+  } catch (e) { /* said in the slices' caption */ }
+}
+
+// A series' samples in the slice views, with the models made on it (its frame of reference) or
+// those ids, in the 3D view.
+async function openSeries(uid, ids) {
+  const v = await whenView();
+  const r = await api("GET", "/series/" + encodeURIComponent(uid));
+  if (!r.ok) { setError("series " + uid + ": " + (await problemOf(r))); return; }
+  const se = await r.json();
+  state.series = se;
+  const name = seriesName(se);
+  $("surface-from").hidden = false;
+  if ((se.modality || "") !== "CT") $("surface-iso").value = "";
+  let list = [];
+  const all = await api("GET", "/models");
+  if (all.ok) {
+    const ms = (await all.json()).models || [];
+    list = ids ? ms.filter((m) => ids.includes(m.id))
+      : ms.filter((m) => (m.referenced_series && m.referenced_series.series_instance_uid === uid) ||
+        (se.frame_of_reference_uid && m.frame_of_reference_uid === se.frame_of_reference_uid));
+  }
+  $("slices").hidden = false;
+  $("slices").scrollIntoView({ block: "start" });
+  if (list.length) await view(list);
+  else { v.open([]); state.inView = []; downloadChoices(); }
+  try {
+    await v.openVolume("series", uid, name);
+  } catch (e) { /* said in the slices' caption */ }
+  $("slice-axial").focus({ preventScroll: true });
+}
+
+function seriesName(se) {
+  return (se.modality || "series") + " · " + (se.dims ? se.dims.join(" × ") + " · " : "") + (se.instances || 0) + " instance" + (se.instances === 1 ? "" : "s");
+}
+
+// "Make a surface" of the open series at the iso value: an isosurface model, added to the view.
+async function surfaceOfSeries() {
+  const se = state.series, iso = $("surface-iso").value.trim();
+  if (!se) return;
+  if (!iso) { $("surface-iso").focus(); $("slices-caption").textContent = "give the value the surface passes through"; return; }
+  $("surface-make").disabled = true;
+  $("slices-caption").textContent = "making the surface at " + iso + "…";
+  try {
+    const q = new URLSearchParams({ series: se.uid, iso, name: (se.modality || "series") + " surface at " + iso });
+    const m = await (await jobResult("POST", "/isosurface?" + q)).json();
+    $("slices-caption").textContent = "surface made: " + m.triangles + " triangles, " + cm3(m.volume_mm3) + " cm³";
+    await refreshModels();
+    await view([m], true);
+    $("slices").scrollIntoView({ block: "start" });
+  } catch (e) {
+    $("slices-caption").textContent = "no surface: " + e.message;
+  } finally {
+    $("surface-make").disabled = false;
+  }
+}
+
+// GET /series: the series received, grouped by study (what the API gives: no patient names).
+async function refreshSeries() {
+  const r = await api("GET", "/series");
+  const box = $("series-list");
+  if (!r.ok) { box.replaceChildren(); $("series").hidden = true; return; }
+  const list = (await r.json()).series || [];
+  $("series").hidden = false;
+  if (!list.length) {
+    const p = document.createElement("p");
+    p.className = "muted";
+    p.textContent = "None yet: a PACS or planning system sends series to surfd's DICOM node (serve --dicom-listen).";
+    box.replaceChildren(p);
+    return;
+  }
+  const studies = new Map();
+  for (const se of list) {
+    const k = se.study_uid || "";
+    if (!studies.has(k)) studies.set(k, []);
+    studies.get(k).push(se);
+  }
+  let n = 0;
+  box.replaceChildren(...[...studies].map(([study, ses]) => {
+    const div = document.createElement("div"), h = document.createElement("h3");
+    div.className = "study";
+    h.textContent = study ? "Study " + (++n) + " (" + study + ")" : "No study";
+    const table = document.createElement("table"), body = document.createElement("tbody");
+    table.className = "series-table";
+    body.append(...ses.map((se) => {
+      const tr = document.createElement("tr");
+      tr.dataset.uid = se.uid;
+      tr.append(cell(se.modality || "—"), cell((se.instances || 0) + " instance" + (se.instances === 1 ? "" : "s"), "num"),
+        cell(se.source || ""), cell(se.last_received ? new Date(se.last_received).toLocaleString() : ""), cell(se.uid, "uid"));
+      const td = document.createElement("td");
+      const job = se.links && se.links.job;
+      if (se.modality === "RTSTRUCT") {
+        td.append(job ? button("Models", () => openJobModels(job.replace(/^\/jobs\//, "")), "Models made of structure set " + se.uid)
+          : button("Make models", () => modelsOfSeries(se), "Make the models of structure set " + se.uid));
+      } else {
+        td.append(button("Open", () => { location.hash = "series=" + se.uid; }, "Open series " + se.uid + " in the slice views"));
+      }
+      tr.append(td);
+      return tr;
+    }));
+    table.append(body);
+    div.append(h, table);
+    return div;
+  }));
+}
+
+async function openJobModels(job) {
+  try {
+    const a = await (await jobResult("GET", "/jobs/" + job + "/result")).json();
+    const ms = a.models || [a];
+    if (ms.length) await view(ms);
+  } catch (e) { setError(e.message); }
+}
+
+async function modelsOfSeries(se) {
+  setError("");
+  try {
+    const a = await (await jobResult("POST", "/model?series=" + encodeURIComponent(se.uid))).json();
+    await refreshModels();
+    await view(a.models || [a]);
+  } catch (e) { setError(e.message); }
+}
+
+// GET /pacs: the PACS a model can be sent to (the send row shows only when there is one).
+async function loadPacs() {
+  const r = await api("GET", "/pacs");
+  state.pacs = r.ok ? (await r.json()).pacs || [] : [];
+  $("send-row").hidden = !state.pacs.length;
+  $("send-pacs").replaceChildren(...state.pacs.map((p) => {
+    const o = document.createElement("option");
+    o.value = o.textContent = p.name;
+    return o;
+  }));
+}
+
+// One click: the chosen model of the view to the chosen PACS, as an RT Structure Set or a SEG.
+async function sendToPacs() {
+  const m = state.inView.find((x) => x.id === $("download-model").value), pacs = $("send-pacs").value, as = $("send-as").value;
+  if (!m || !pacs) return;
+  $("send").disabled = true;
+  $("send-state").textContent = "sending " + (m.name || m.id) + " to " + pacs + "…";
+  try {
+    const a = await (await jobResult("POST", "/models/" + m.id + "/send?" + new URLSearchParams({ pacs, as }))).json();
+    const ok = (a.instances || []).filter((i) => i.stored).length;
+    $("send-state").textContent = "sent to " + pacs + ": " + ok + " of " + (a.instances || []).length + " instance" +
+      ((a.instances || []).length === 1 ? "" : "s") + " stored";
+    $("send-state").dataset.stored = ok;
+  } catch (e) {
+    $("send-state").textContent = "not sent: " + e.message;
+    $("send-state").dataset.stored = 0;
+  } finally {
+    $("send").disabled = false;
+  }
 }
 
 async function download() {
@@ -378,6 +582,9 @@ async function start() {
   window.addEventListener("hashchange", openFromAddress);
   $("download").addEventListener("click", download);
   $("models-refresh").addEventListener("click", refreshModels);
+  $("series-refresh").addEventListener("click", refreshSeries);
+  $("surface-make").addEventListener("click", surfaceOfSeries);
+  $("send").addEventListener("click", sendToPacs);
   $("jobs-refresh").addEventListener("click", refreshJobs);
   showOptions();
   refreshAll();
@@ -390,7 +597,7 @@ async function refreshAll() {
     $("version").textContent = v.version || "";
   }
   await loadFormats();
-  await Promise.all([refreshModels(), refreshJobs()]);
+  await Promise.all([refreshModels(), refreshJobs(), refreshSeries(), loadPacs()]);
   await openFromAddress();
 }
 
