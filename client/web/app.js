@@ -462,7 +462,10 @@ async function refreshSeries() {
       return tr;
     }));
     table.append(body);
-    div.append(h, table);
+    const scroll = document.createElement("div");
+    scroll.className = "scroll";
+    scroll.append(table);
+    div.append(h, scroll);
     return div;
   }));
 }
