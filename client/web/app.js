@@ -7,7 +7,7 @@
 
 const $ = (id) => document.getElementById(id);
 const TOKEN_KEY = "surfd.token";
-const state = { job: null, formats: [], inView: [], pacs: [], series: null };
+const state = { job: null, formats: [], inView: [], pacs: [], series: null, files: [] };
 
 // ---- requests ------------------------------------------------------------------------------
 
@@ -96,23 +96,86 @@ function queryOf(form, route) {
   return s ? "?" + s : "";
 }
 
+// ---- what was dropped -------------------------------------------------------------------------
+
+const base = (name) => name.replace(/^.*[\\/]/, "").replace(/\.(nii\.gz|[^.]*)$/i, "");
+const isDicomName = (name) => /\.(dcm|dicom|ima)$/i.test(name) || !/\.[^./\\]{1,5}$/.test(name);
+
+// What the files chosen or dropped are, as one request: a single file; a header and its data
+// file (.mhd/.nhdr with .raw...) as the multipart pair the volume routes read; several DICOM files
+// (a series, a folder of one) as a multipart series. {kind, body(), type, name, label}.
+function upload(files) {
+  files = files.filter((f) => f.size > 0 && !/^\./.test(f.name) && !/^(DICOMDIR|.*\.(txt|json\.bak))$/i.test(f.name));
+  if (!files.length) return null;
+  const header = files.find((f) => /\.(mhd|nhdr)$/i.test(f.name));
+  if (header && files.length === 2) {
+    const data = files.find((f) => f !== header);
+    return { kind: "pair", name: base(header.name), label: header.name + " with " + data.name, type: undefined,
+      body: () => { const fd = new FormData(); fd.append("header", header, header.name); fd.append("data", data, data.name); return fd; } };
+  }
+  if (files.length > 1) {
+    const dicom = files.filter((f) => isDicomName(f.name));
+    if (dicom.length !== files.length) return { error: "several files are read as one DICOM series (.dcm) or a header with its data file (.mhd or .nhdr, and its .raw); not " + files.map((f) => f.name).slice(0, 4).join(", ") };
+    // (the parts' own names may name the patient: numbered instead, as surfctl does)
+    return { kind: "series", name: "", label: files.length + " DICOM files (a series)", type: undefined,
+      body: () => { const fd = new FormData(); files.forEach((f, k) => fd.append("slice", f, "slice" + String(k + 1).padStart(4, "0") + ".dcm")); return fd; } };
+  }
+  const f = files[0];
+  return { kind: "one", name: isDicomName(f.name) ? "" : base(f.name), label: f.name, file: f, body: () => f };
+}
+
+// The files of a drop, folders walked (a DICOM folder: every file under it).
+async function droppedFiles(dt) {
+  const entries = [...(dt.items || [])].map((i) => (i.webkitGetAsEntry ? i.webkitGetAsEntry() : null)).filter((e) => e);
+  if (!entries.length) return [...dt.files];
+  const out = [];
+  const walk = async (e) => {
+    if (e.isFile) out.push(await new Promise((res, rej) => e.file(res, rej)));
+    else if (e.isDirectory) {
+      const reader = e.createReader();
+      for (;;) {
+        const batch = await new Promise((res, rej) => reader.readEntries(res, rej));
+        if (!batch.length) break;
+        for (const x of batch) await walk(x);
+      }
+    }
+  };
+  for (const e of entries) await walk(e);
+  return out;
+}
+
+// Files chosen: what they are said, the intent that fits them picked.
+async function chosen(files) {
+  await loadFormats();
+  state.files = files;
+  const u = upload(files);
+  $("file-what").textContent = !u ? "" : u.error || "Chosen: " + u.label;
+  if (!u || u.error) return;
+  $("route").value = u.kind === "one" ? routeFor(u.file.name) : "isosurface";
+  showOptions();
+}
+
 async function submit(ev) {
   ev.preventDefault();
-  const form = $("job-form"), file = $("file").files[0], route = $("route").value;
-  if (!file) { $("file").focus(); return; }
+  const form = $("job-form"), u = upload(state.files), route = $("route").value;
+  if (!u) { $("file").focus(); return; }
+  if (u.error) { setError(u.error); return; }
   setError("");
   $("progress-box").hidden = true; // the last job's "succeeded 100 %" is not this one's
   $("job-output").replaceChildren();
   $("go").disabled = true;
   try {
     await loadFormats();
-    const r = await api("POST", "/" + route + queryOf(form, route), { body: file, type: typeOf(file.name, route),
+    let q = queryOf(form, route);
+    if (u.name && (route === "isosurface" || route === "model") && !/[?&]name=/.test(q)) // named from the source
+      q += (q ? "&" : "?") + "name=" + encodeURIComponent(u.name);
+    const r = await api("POST", "/" + route + q, { body: u.body(), type: u.kind === "one" ? typeOf(u.file.name, route) : undefined,
       headers: { Prefer: "respond-async" } });
     if (r.status !== 202) {
       setError(r.ok ? "unexpected answer " + r.status : await problemOf(r));
       return;
     }
-    await follow(await r.json(), route, file.name);
+    await follow(await r.json(), route, u.name || "volume");
   } catch (e) {
     setError(String(e));
   } finally {
@@ -563,21 +626,16 @@ async function start() {
     $("token-state").textContent = "token forgotten";
   });
   $("route").addEventListener("change", showOptions);
-  $("file").addEventListener("change", async () => {
-    const f = $("file").files[0];
-    await loadFormats();
-    if (f) { $("route").value = routeFor(f.name); showOptions(); }
-  });
+  $("file").addEventListener("change", () => chosen([...$("file").files]));
+  $("folder").addEventListener("change", () => chosen([...$("folder").files]));
   const drop = $("drop");
   drop.addEventListener("dragover", (ev) => { ev.preventDefault(); drop.classList.add("over"); });
   drop.addEventListener("dragleave", () => drop.classList.remove("over"));
-  drop.addEventListener("drop", (ev) => {
+  drop.addEventListener("drop", async (ev) => {
     ev.preventDefault();
     drop.classList.remove("over");
-    if (ev.dataTransfer.files.length) {
-      $("file").files = ev.dataTransfer.files;
-      $("file").dispatchEvent(new Event("change"));
-    }
+    const files = await droppedFiles(ev.dataTransfer);
+    if (files.length) chosen(files);
   });
   $("job-form").addEventListener("submit", submit);
   $("cancel").addEventListener("click", cancel);

@@ -16,7 +16,7 @@ import path from "node:path";
 const require = createRequire(path.resolve(process.env.NODE_PATH || "build/npm/node_modules") + "/");
 const { chromium } = require("playwright-core");
 
-const { URL: base, CONTOURS, RTSS, SHOTS, TOKEN = "", SERIES = "" } = process.env;
+const { URL: base, CONTOURS, RTSS, SHOTS, TOKEN = "", SERIES = "", DATA = "../shared/data" } = process.env;
 const tag = TOKEN ? "token" : "open";
 let failures = 0;
 const check = (name, ok, detail = "") => {
@@ -249,6 +249,31 @@ async function workstation(page, { view, frame }) {
   await page.waitForFunction((m) => { const s = window.surfdView.stats(); return s.volume && s.volume.what === "model" && s.volume.id === m && s.slices; },
     id, { timeout: 60000 });
   check("Slices on an isosurface model shows its own samples", JSON.stringify((await view()).slices.dims) === "[64,64,27]");
+
+  // drops: the series' files together (a DICOM folder's), and a MetaImage header with its data
+  const dir = DATA + "/volumes/dicom_ct_head_64x64x27";
+  const files = fs.readdirSync(dir).filter((f) => f.endsWith(".dcm")).sort().map((f) => path.join(dir, f));
+  await page.setInputFiles("#file", files);
+  await page.waitForFunction(() => document.getElementById("file-what").textContent.includes("27 DICOM files"));
+  check("27 DICOM files chosen together are one series, to make a surface of", (await page.inputValue("#route")) === "isosurface",
+    await page.textContent("#file-what"));
+  await page.fill("input[name=iso]", "226.5");
+  await page.click("#go");
+  await page.waitForSelector("#job-output dl", { timeout: 180000 });
+  await page.waitForFunction(() => window.surfdView.stats().models.length === 1 && window.surfdView.stats().models[0].triangles > 0, null, { timeout: 120000 });
+  let d = (await view()).models[0];
+  check("... the same surface as the series the PACS sent (its triangles), not named by the files", d.triangles === v.models[0].triangles &&
+    !/IM0|slice/i.test(d.name), JSON.stringify(d));
+  await page.setInputFiles("#file", [DATA + "/volumes/ct_head_crop64_int16.mhd", DATA + "/volumes/ct_head_crop64_int16.raw"]);
+  await page.waitForFunction(() => document.getElementById("file-what").textContent.includes(".raw"));
+  check("a .mhd with its .raw: one volume, to make a surface of", (await page.inputValue("#route")) === "isosurface");
+  await page.fill("input[name=iso]", "226.5");
+  await page.click("#go");
+  await page.waitForFunction((old) => { const m = window.surfdView.stats().models; return m.length === 1 && m[0].id !== old && m[0].triangles > 0; },
+    d.id, { timeout: 180000 });
+  d = (await view()).models[0];
+  check("... its surface, named from the file", d.name === "ct_head_crop64_int16", JSON.stringify(d));
+  await page.screenshot({ path: SHOTS + "/12-drop-mhd-1280x800.png" });
 }
 
 // WebGL in headless Chromium: SwiftShader (software), asked for explicitly

@@ -24,6 +24,7 @@ fi
 run_page() { # run_page TAG [TOKEN]
     tag=$1
     NODE_PATH="$N/node_modules" URL="$URL" CONTOURS="$C" RTSS="$RS" SHOTS="$SHOTS" TOKEN="${2:-}" SERIES="${SERIES:-}" \
+        DATA="${SURFD_DATA:-../shared/data}" \
         node tests/web/page.mjs >"$T/page.out" 2>&1
     while IFS= read -r line; do
         case $line in PASS:*) ok ;; FAIL:*) bad "${line#FAIL: }" ;; esac
