@@ -310,6 +310,7 @@ async function refreshModels() {
       cell(cm3(v.trapezoid), "num"), cell(cm3(v.cavalieri), "num"), cell(cm3(v.frustum), "num"),
       cell(m.triangles ? m.triangles + " triangles" : (m.patches || 0) + " patches", "num"));
     const td = document.createElement("td");
+    td.className = "actions";
     td.append(button("View", () => view([m]), "View " + (m.name || m.id)),
       button("Add", () => view([m], true), "Add " + (m.name || m.id) + " to the view"));
     if (m.source === "isosurface" && m.grid)

@@ -425,7 +425,15 @@ try {
 
   await page.setViewportSize({ width: 800, height: 1180 }); // a tablet, upright
   const wide = await page.evaluate(() => document.documentElement.scrollWidth);
-  check("at tablet width nothing runs off the side", wide <= 800, "scroll width " + wide);
+  // what runs off, when something does: the deepest elements wider than the page that scroll nothing
+  const off = wide <= 800 ? "" : await page.evaluate(() => [...document.querySelectorAll("body *")].filter((e) => {
+    const r = e.getBoundingClientRect();
+    return r.right + window.scrollX > 801 && getComputedStyle(e).overflowX === "visible" && ![...e.children].some((c) => c.getBoundingClientRect().right + window.scrollX > 801);
+  }).slice(0, 6).map((e) => e.tagName + "#" + e.id + "." + e.className + " " + Math.round(e.getBoundingClientRect().right + window.scrollX)).join(", "));
+  const culprit = wide <= 800 ? "" : await page.evaluate(() => [...document.querySelectorAll("header, main > section, footer")].filter((e) => {
+    const d = e.style.display; e.style.display = "none"; const w = document.documentElement.scrollWidth; e.style.display = d; return w <= 800;
+  }).map((e) => e.id || e.tagName).join(","));
+  check("at tablet width nothing runs off the side", wide <= 800, "scroll width " + wide + ": " + off + "; without " + culprit);
   await page.screenshot({ path: SHOTS + "/5-tablet-" + tag + ".png", fullPage: true });
 
   await page.evaluate(() => document.getElementById("viewer").scrollIntoView());
