@@ -238,6 +238,12 @@ async function follow(job, route, fileName) {
   }
   const models = answer.models || [answer];
   $("job-output").replaceChildren(...models.map(figures));
+  if ((answer.skipped || []).length) { // an RT Structure Set's ROIs that made no model, and why
+    const p = document.createElement("p");
+    p.className = "skipped";
+    p.textContent = "Not modelled: " + answer.skipped.map((x) => x.name + " (" + x.reason + ")").join("; ");
+    $("job-output").prepend(p);
+  }
   if (route !== "volume") {
     await refreshModels();
     const stored = models.filter((m) => m.id);
@@ -302,11 +308,19 @@ async function refreshModels() {
   const body = $("models-table").tBodies[0];
   if (!r.ok) { body.replaceChildren(); return; }
   const list = (await r.json()).models || [];
+  const named = new Map();
+  for (const m of list) named.set(m.name || m.id, (named.get(m.name || m.id) || 0) + 1);
   body.replaceChildren(...list.map((m) => {
     const tr = document.createElement("tr");
     tr.dataset.id = m.id;
-    const v = volumes(m);
-    tr.append(cell(m.name || m.id), cell(m.source || "contours"), cell(m.caps || "—"), cell(cm3(v.surfd), "num"),
+    const v = volumes(m), name = cell(m.name || m.id);
+    if (named.get(m.name || m.id) > 1) { // rows one can tell apart: when it was made, and its id
+      const small = document.createElement("span");
+      small.className = "muted twin";
+      small.textContent = " " + (m.created ? new Date(m.created).toLocaleString() + " · " : "") + m.id.slice(0, 8);
+      name.append(small);
+    }
+    tr.append(name, cell(m.source || "contours"), cell(m.caps || "—"), cell(cm3(v.surfd), "num"),
       cell(cm3(v.trapezoid), "num"), cell(cm3(v.cavalieri), "num"), cell(cm3(v.frustum), "num"),
       cell(m.triangles ? m.triangles + " triangles" : (m.patches || 0) + " patches", "num"));
     const td = document.createElement("td");
@@ -591,7 +605,8 @@ async function download() {
   if (!r.ok) { $("download-state").textContent = await problemOf(r); return; }
   const a = $("download-link");
   a.href = URL.createObjectURL(await r.blob());
-  a.download = (m.name || m.id).replace(/[^\w.-]+/g, "_") + "." + (fmt === "rtstruct" || fmt === "dicom-stl" ? "dcm" : fmt);
+  // (the two DICOM objects named apart: NAME.rtstruct.dcm, NAME.stl.dcm)
+  a.download = (m.name || m.id).replace(/[^\w.-]+/g, "_") + "." + ({ rtstruct: "rtstruct.dcm", "dicom-stl": "stl.dcm" }[fmt] || fmt);
   a.click();
   $("download-state").textContent = "downloaded " + a.download;
 }

@@ -413,7 +413,7 @@ try {
   await page.selectOption("#mesh-format", "rtstruct");
   const [rs] = await Promise.all([page.waitForEvent("download", { timeout: 120000 }), page.click("#download")]);
   await rs.saveAs(SHOTS + "/model-" + tag + ".dcm");
-  check("the RT Structure Set downloads", rs.suggestedFilename().endsWith(".dcm"), rs.suggestedFilename());
+  check("the RT Structure Set downloads, named apart from the Encapsulated STL", rs.suggestedFilename().endsWith(".rtstruct.dcm"), rs.suggestedFilename());
 
   await page.click("#jobs-refresh");
   await page.waitForFunction(() => document.querySelectorAll("#jobs-table tbody tr").length > 0);
@@ -438,6 +438,10 @@ try {
 
   await page.evaluate(() => document.getElementById("viewer").scrollIntoView());
   await page.screenshot({ path: SHOTS + "/9-view-800-" + tag + ".png" });
+  if (SERIES) {
+    await page.evaluate(() => document.getElementById("slices").scrollIntoView());
+    await page.screenshot({ path: SHOTS + "/13-slices-800.png" });
+  }
   check("no console errors", errors.length === 0, errors.join(" | "));
   check("no request left the daemon's origin", outside.length === 0, outside.slice(0, 5).join(" "));
 } catch (e) {
