@@ -1,6 +1,8 @@
 #!/bin/sh
 # The web page at / in a real browser (issues 19, 46): tests/web/page.mjs against the real daemon, open
 # and then with a token required; each downloaded STL is checked closed with the model's volume.
+# In the open run surfd is also a DICOM node: a real PACS (Orthanc: tests/tools/orthanc.sh) sends it
+# the CT, the page opens the series' slices and sends a model back, found in the PACS after.
 # The 3D view's WebGL runs on Chromium's SwiftShader (software), so no GPU is needed.
 # Needs Debian's chromium (deploy/install-deps.sh) and playwright-core from npm, installed into
 # build/npm on first use. Screenshots stay in build/web-shots for a person to look at.
@@ -43,6 +45,7 @@ if [ "$fail" -eq 0 ]; then
     if [ -x "$ORTHANC_BIN" ] && orthanc_start "$T/orthanc" "SURFD@127.0.0.1:$DP"; then
         orthanc_upload "$DD"/*.dcm >"$T/ids" || bad "Orthanc refused the CT"
         echo "ORTHANC 127.0.0.1 $ORTHANC_DICOM_PORT" >"$T/peers"
+        # shellcheck disable=SC2046 # (the instances' ids, one a word)
         start_daemon "$T/open" --threads 2 --dicom-listen "$DP" --dicom-peers "$T/peers" --series-idle 1 \
             --pacs "orthanc=$ORTHANC_DICOMWEB" --pacs-credentials "orthanc=$ORTHANC_CREDENTIALS" &&
             { orthanc_send surfd $(cat "$T/ids") >/dev/null || bad "Orthanc could not send the CT to surfd"; } &&
@@ -54,6 +57,7 @@ if [ "$fail" -eq 0 ]; then
     stop_daemon
     printf 'web:%s\n' "s3cret-web-token" >"$T/tokens"
     chmod 600 "$T/tokens"
+    SERIES="" # (the token run: no DICOM node, no PACS)
     start_daemon "$T/tok" --threads 2 --token-file "$T/tokens" && run_page token s3cret-web-token
 fi
 finish
