@@ -36,6 +36,7 @@
 #include "../api/query.h"
 #include "dicom_node.h"
 #include "guard.h"
+#include "job_samples.h"
 #include "kinds.h"
 #include "log.h"
 #include "metrics.h"
@@ -1131,6 +1132,22 @@ static enum MHD_Result models(struct req *r, const char *id)
 
 /* ---- DICOM series (dicom_node.h): the site's, received or pulled; any token sees them ---- */
 
+/* GET /models/{id}/volume, /series/{uid}/volume: the samples as NRRD, read on the checks pool
+ * (job_samples.c); GET /pacs: the PACS configured, by name. */
+static enum MHD_Result model_volume_route(struct req *r, const char *id)
+{
+    return model_job(r, &samples_kind, strdup(id), "model");
+}
+static enum MHD_Result series_volume_route(struct req *r, const char *uid)
+{
+    return model_job(r, &samples_kind, strdup(uid), "series");
+}
+static enum MHD_Result pacs_list(struct req *r, const char *id)
+{
+    (void)id;
+    return json_reply(r, 200, pacs_list_json(r->svc), NULL);
+}
+
 /* GET /pacs/{name}/studies?...: a QIDO-RS search of the PACS, its options passed through, by a job
  * (a PACS may take seconds; no HTTP thread waits on it). */
 static enum MHD_Result pacs_studies(struct req *r, const char *name) { return model_job(r, &query_kind, strdup(name), ""); }
@@ -1251,12 +1268,15 @@ static const struct route {
     {"/models/{id}/edit", POST, false, model_edit_route, NULL},
     {"/models/{id}/iso", POST, false, model_iso_route, NULL},
     {"/models/{id}/send", POST, false, model_send_route, NULL},
+    {"/models/{id}/volume", GET, false, model_volume_route, NULL},
     {"/rtstruct", GET, false, rtstruct_set_route, NULL},
     {"/rtstruct/send", POST, false, rtstruct_send_route, NULL},
     {"/series", GET, false, series_list, NULL},
     {"/series/pull", POST, false, NULL, &pull_kind},
     {"/pacs/{name}/studies", GET, false, pacs_studies, NULL},
     {"/series/{uid}", GET | DELETE, false, series_one, NULL},
+    {"/series/{uid}/volume", GET, false, series_volume_route, NULL},
+    {"/pacs", GET, false, pacs_list, NULL},
     {"/jobs", GET, false, jobs, NULL},
     {"/jobs/{id}", GET, false, job, NULL},
     {"/jobs/{id}/result", GET, false, result, NULL},

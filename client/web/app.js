@@ -7,7 +7,7 @@
 
 const $ = (id) => document.getElementById(id);
 const TOKEN_KEY = "surfd.token";
-const state = { job: null, formats: [], inView: [] };
+const state = { job: null, formats: [], inView: [], pacs: [], series: null, files: [] };
 
 // ---- requests ------------------------------------------------------------------------------
 
@@ -96,23 +96,86 @@ function queryOf(form, route) {
   return s ? "?" + s : "";
 }
 
+// ---- what was dropped -------------------------------------------------------------------------
+
+const base = (name) => name.replace(/^.*[\\/]/, "").replace(/\.(nii\.gz|[^.]*)$/i, "");
+const isDicomName = (name) => /\.(dcm|dicom|ima)$/i.test(name) || !/\.[^./\\]{1,5}$/.test(name);
+
+// What the files chosen or dropped are, as one request: a single file; a header and its data
+// file (.mhd/.nhdr with .raw...) as the multipart pair the volume routes read; several DICOM files
+// (a series, a folder of one) as a multipart series. {kind, body(), type, name, label}.
+function upload(files) {
+  files = files.filter((f) => f.size > 0 && !/^\./.test(f.name) && !/^(DICOMDIR|.*\.(txt|json\.bak))$/i.test(f.name));
+  if (!files.length) return null;
+  const header = files.find((f) => /\.(mhd|nhdr)$/i.test(f.name));
+  if (header && files.length === 2) {
+    const data = files.find((f) => f !== header);
+    return { kind: "pair", name: base(header.name), label: header.name + " with " + data.name, type: undefined,
+      body: () => { const fd = new FormData(); fd.append("header", header, header.name); fd.append("data", data, data.name); return fd; } };
+  }
+  if (files.length > 1) {
+    const dicom = files.filter((f) => isDicomName(f.name));
+    if (dicom.length !== files.length) return { error: "several files are read as one DICOM series (.dcm) or a header with its data file (.mhd or .nhdr, and its .raw); not " + files.map((f) => f.name).slice(0, 4).join(", ") };
+    // (the parts' own names may name the patient: numbered instead, as surfctl does)
+    return { kind: "series", name: "", label: files.length + " DICOM files (a series)", type: undefined,
+      body: () => { const fd = new FormData(); files.forEach((f, k) => fd.append("slice", f, "slice" + String(k + 1).padStart(4, "0") + ".dcm")); return fd; } };
+  }
+  const f = files[0];
+  return { kind: "one", name: isDicomName(f.name) ? "" : base(f.name), label: f.name, file: f, body: () => f };
+}
+
+// The files of a drop, folders walked (a DICOM folder: every file under it).
+async function droppedFiles(dt) {
+  const entries = [...(dt.items || [])].map((i) => (i.webkitGetAsEntry ? i.webkitGetAsEntry() : null)).filter((e) => e);
+  if (!entries.length) return [...dt.files];
+  const out = [];
+  const walk = async (e) => {
+    if (e.isFile) out.push(await new Promise((res, rej) => e.file(res, rej)));
+    else if (e.isDirectory) {
+      const reader = e.createReader();
+      for (;;) {
+        const batch = await new Promise((res, rej) => reader.readEntries(res, rej));
+        if (!batch.length) break;
+        for (const x of batch) await walk(x);
+      }
+    }
+  };
+  for (const e of entries) await walk(e);
+  return out;
+}
+
+// Files chosen: what they are said, the intent that fits them picked.
+async function chosen(files) {
+  await loadFormats();
+  state.files = files;
+  const u = upload(files);
+  $("file-what").textContent = !u ? "" : u.error || "Chosen: " + u.label;
+  if (!u || u.error) return;
+  $("route").value = u.kind === "one" ? routeFor(u.file.name) : "isosurface";
+  showOptions();
+}
+
 async function submit(ev) {
   ev.preventDefault();
-  const form = $("job-form"), file = $("file").files[0], route = $("route").value;
-  if (!file) { $("file").focus(); return; }
+  const form = $("job-form"), u = upload(state.files), route = $("route").value;
+  if (!u) { $("file").focus(); return; }
+  if (u.error) { setError(u.error); return; }
   setError("");
   $("progress-box").hidden = true; // the last job's "succeeded 100 %" is not this one's
   $("job-output").replaceChildren();
   $("go").disabled = true;
   try {
     await loadFormats();
-    const r = await api("POST", "/" + route + queryOf(form, route), { body: file, type: typeOf(file.name, route),
+    let q = queryOf(form, route);
+    if (u.name && (route === "isosurface" || route === "model") && !/[?&]name=/.test(q)) // named from the source
+      q += (q ? "&" : "?") + "name=" + encodeURIComponent(u.name);
+    const r = await api("POST", "/" + route + q, { body: u.body(), type: u.kind === "one" ? typeOf(u.file.name, route) : undefined,
       headers: { Prefer: "respond-async" } });
     if (r.status !== 202) {
       setError(r.ok ? "unexpected answer " + r.status : await problemOf(r));
       return;
     }
-    await follow(await r.json(), route, file.name);
+    await follow(await r.json(), route, u.name || "volume");
   } catch (e) {
     setError(String(e));
   } finally {
@@ -175,6 +238,12 @@ async function follow(job, route, fileName) {
   }
   const models = answer.models || [answer];
   $("job-output").replaceChildren(...models.map(figures));
+  if ((answer.skipped || []).length) { // an RT Structure Set's ROIs that made no model, and why
+    const p = document.createElement("p");
+    p.className = "skipped";
+    p.textContent = "Not modelled: " + answer.skipped.map((x) => x.name + " (" + x.reason + ")").join("; ");
+    $("job-output").prepend(p);
+  }
   if (route !== "volume") {
     await refreshModels();
     const stored = models.filter((m) => m.id);
@@ -239,16 +308,28 @@ async function refreshModels() {
   const body = $("models-table").tBodies[0];
   if (!r.ok) { body.replaceChildren(); return; }
   const list = (await r.json()).models || [];
+  const named = new Map();
+  for (const m of list) named.set(m.name || m.id, (named.get(m.name || m.id) || 0) + 1);
   body.replaceChildren(...list.map((m) => {
     const tr = document.createElement("tr");
     tr.dataset.id = m.id;
-    const v = volumes(m);
-    tr.append(cell(m.name || m.id), cell(m.source || "contours"), cell(m.caps || "—"), cell(cm3(v.surfd), "num"),
+    const v = volumes(m), name = cell(m.name || m.id);
+    if (named.get(m.name || m.id) > 1) { // rows one can tell apart: when it was made, and its id
+      const small = document.createElement("span");
+      small.className = "muted twin";
+      small.textContent = " " + (m.created ? new Date(m.created).toLocaleString() + " · " : "") + m.id.slice(0, 8);
+      name.append(small);
+    }
+    tr.append(name, cell(m.source || "contours"), cell(m.caps || "—"), cell(cm3(v.surfd), "num"),
       cell(cm3(v.trapezoid), "num"), cell(cm3(v.cavalieri), "num"), cell(cm3(v.frustum), "num"),
       cell(m.triangles ? m.triangles + " triangles" : (m.patches || 0) + " patches", "num"));
     const td = document.createElement("td");
+    td.className = "actions";
     td.append(button("View", () => view([m]), "View " + (m.name || m.id)),
-      button("Add", () => view([m], true), "Add " + (m.name || m.id) + " to the view"),
+      button("Add", () => view([m], true), "Add " + (m.name || m.id) + " to the view"));
+    if (m.source === "isosurface" && m.grid)
+      td.append(button("Slices", () => slicesOfModel(m), "Slices of " + (m.name || m.id) + "'s volume"));
+    td.append(
       button("Delete", () => remove(m), "Delete " + (m.name || m.id)));
     tr.append(td);
     return tr;
@@ -295,12 +376,28 @@ function downloadChoices() {
   }));
 }
 
-// /#models=ID,ID: those models in the view (a bookmark, a link from a colleague).
+// /#models=ID,ID: those models in the view; #series=UID a series' slices (with the models on its
+// frame, or &models= those); #volume=ID a model's samples (a bookmark, a link from a colleague).
 async function openFromAddress() {
-  const m = /^#models=([\w,.-]+)$/.exec(location.hash);
-  if (!m) return;
+  const a = {};
+  for (const part of location.hash.replace(/^#/, "").split("&")) {
+    const kv = /^(models|series|volume)=([\w,.-]+)$/.exec(part);
+    if (kv) a[kv[1]] = kv[2];
+  }
   const v = await whenView();
-  const ids = m[1].split(",").filter((x) => x);
+  const shown = v.stats().volume;
+  if (a.series && !(shown && shown.what === "series" && shown.id === a.series)) {
+    await openSeries(a.series, a.models ? a.models.split(",") : null);
+    return;
+  }
+  if (a.volume && !(shown && shown.what === "model" && shown.id === a.volume)) {
+    const r = await api("GET", "/models/" + encodeURIComponent(a.volume));
+    if (r.ok) await slicesOfModel(await r.json(), a.models ? null : undefined);
+    else setError("not opened: " + a.volume + " (" + (await problemOf(r)) + ")");
+    if (!a.models) return;
+  }
+  if (!a.models) return;
+  const ids = a.models.split(",").filter((x) => x);
   if (ids.join(",") === v.ids().join(",")) return;
   const found = [], missing = [];
   for (const id of ids) {
@@ -312,6 +409,194 @@ async function openFromAddress() {
   if (missing.length) setError("not opened: " + missing.join(", "));
 }
 
+// ---- slices, series and PACS -----------------------------------------------------------------
+
+// A job route's answer: at once, or its job followed until it ends (GET /jobs/ID), then its result.
+async function jobResult(method, path, opts = {}) {
+  let r = await api(method, path, opts);
+  if (r.status === 202) {
+    const loc = r.headers.get("Location") || "/jobs/" + (await r.json()).id;
+    for (let wait = 200; ; wait = Math.min(2000, wait * 1.5)) {
+      await sleep(wait);
+      const j = await api("GET", loc);
+      if (!j.ok) throw new Error(await problemOf(j));
+      const job = await j.json();
+      if (job.state === "succeeded") break;
+      if (job.state === "failed" || job.state === "cancelled") throw new Error(job.error ? problemText(job.error) : job.state);
+    }
+    r = await api("GET", loc + "/result");
+  }
+  if (!r.ok) throw new Error(await problemOf(r));
+  return r;
+}
+
+// An isosurface model's volume in the slice views, the model in the 3D view (unless models is null).
+async function slicesOfModel(m, models) {
+  const v = await whenView();
+  state.series = null;
+  $("surface-from").hidden = true;
+  if (models !== null) await view([m]);
+  $("slices").scrollIntoView({ block: "start" });
+  try {
+    await v.openVolume("model", m.id, m.name || m.id);
+  } catch (e) { /* said in the slices' caption */ }
+}
+
+// A series' samples in the slice views, with the models made on it (its frame of reference) or
+// those ids, in the 3D view.
+async function openSeries(uid, ids) {
+  const v = await whenView();
+  const r = await api("GET", "/series/" + encodeURIComponent(uid));
+  if (!r.ok) { setError("series " + uid + ": " + (await problemOf(r))); return; }
+  const se = await r.json();
+  state.series = se;
+  const name = seriesName(se);
+  $("surface-from").hidden = false;
+  if ((se.modality || "") !== "CT") $("surface-iso").value = "";
+  let list = [];
+  const all = await api("GET", "/models");
+  if (all.ok) {
+    const ms = (await all.json()).models || [];
+    list = ids ? ms.filter((m) => ids.includes(m.id))
+      : ms.filter((m) => (m.referenced_series && m.referenced_series.series_instance_uid === uid) ||
+        (se.frame_of_reference_uid && m.frame_of_reference_uid === se.frame_of_reference_uid));
+  }
+  $("slices").hidden = false;
+  $("slices").scrollIntoView({ block: "start" });
+  if (list.length) await view(list);
+  else { v.open([]); state.inView = []; downloadChoices(); }
+  try {
+    await v.openVolume("series", uid, name);
+  } catch (e) { /* said in the slices' caption */ }
+  $("slice-axial").focus({ preventScroll: true });
+}
+
+function seriesName(se) {
+  return (se.modality || "series") + " · " + (se.dims ? se.dims.join(" × ") + " · " : "") + (se.instances || 0) + " instance" + (se.instances === 1 ? "" : "s");
+}
+
+// "Make a surface" of the open series at the iso value: an isosurface model, added to the view.
+async function surfaceOfSeries() {
+  const se = state.series, iso = $("surface-iso").value.trim();
+  if (!se) return;
+  if (!iso) { $("surface-iso").focus(); $("slices-caption").textContent = "give the value the surface passes through"; return; }
+  $("surface-make").disabled = true;
+  $("slices-caption").textContent = "making the surface at " + iso + "…";
+  try {
+    const q = new URLSearchParams({ series: se.uid, iso, name: (se.modality || "series") + " surface at " + iso });
+    const m = await (await jobResult("POST", "/isosurface?" + q)).json();
+    $("slices-caption").textContent = "surface made: " + m.triangles + " triangles, " + cm3(m.volume_mm3) + " cm³";
+    await refreshModels();
+    await view([m], true);
+    $("slices").scrollIntoView({ block: "start" });
+  } catch (e) {
+    $("slices-caption").textContent = "no surface: " + e.message;
+  } finally {
+    $("surface-make").disabled = false;
+  }
+}
+
+// GET /series: the series received, grouped by study (what the API gives: no patient names).
+async function refreshSeries() {
+  const r = await api("GET", "/series");
+  const box = $("series-list");
+  if (!r.ok) { box.replaceChildren(); $("series").hidden = true; return; }
+  const list = (await r.json()).series || [];
+  $("series").hidden = false;
+  if (!list.length) {
+    const p = document.createElement("p");
+    p.className = "muted";
+    p.textContent = "None yet: a PACS or planning system sends series to surfd's DICOM node (serve --dicom-listen).";
+    box.replaceChildren(p);
+    return;
+  }
+  const studies = new Map();
+  for (const se of list) {
+    const k = se.study_uid || "";
+    if (!studies.has(k)) studies.set(k, []);
+    studies.get(k).push(se);
+  }
+  let n = 0;
+  box.replaceChildren(...[...studies].map(([study, ses]) => {
+    const div = document.createElement("div"), h = document.createElement("h3");
+    div.className = "study";
+    h.textContent = study ? "Study " + (++n) + " (" + study + ")" : "No study";
+    const table = document.createElement("table"), body = document.createElement("tbody");
+    table.className = "series-table";
+    body.append(...ses.map((se) => {
+      const tr = document.createElement("tr");
+      tr.dataset.uid = se.uid;
+      tr.append(cell(se.modality || "—"), cell((se.instances || 0) + " instance" + (se.instances === 1 ? "" : "s"), "num"),
+        cell(se.source || ""), cell(se.last_received ? new Date(se.last_received).toLocaleString() : ""), cell(se.uid, "uid"));
+      const td = document.createElement("td");
+      const job = se.links && se.links.job;
+      if (se.modality === "RTSTRUCT") {
+        td.append(job ? button("Models", () => openJobModels(job.replace(/^\/jobs\//, "")), "Models made of structure set " + se.uid)
+          : button("Make models", () => modelsOfSeries(se), "Make the models of structure set " + se.uid));
+      } else {
+        td.append(button("Open", () => { location.hash = "series=" + se.uid; }, "Open series " + se.uid + " in the slice views"));
+      }
+      tr.append(td);
+      return tr;
+    }));
+    table.append(body);
+    const scroll = document.createElement("div");
+    scroll.className = "scroll";
+    scroll.append(table);
+    div.append(h, scroll);
+    return div;
+  }));
+}
+
+async function openJobModels(job) {
+  try {
+    const a = await (await jobResult("GET", "/jobs/" + job + "/result")).json();
+    const ms = a.models || [a];
+    if (ms.length) await view(ms);
+  } catch (e) { setError(e.message); }
+}
+
+async function modelsOfSeries(se) {
+  setError("");
+  try {
+    const a = await (await jobResult("POST", "/model?series=" + encodeURIComponent(se.uid))).json();
+    await refreshModels();
+    await view(a.models || [a]);
+  } catch (e) { setError(e.message); }
+}
+
+// GET /pacs: the PACS a model can be sent to (the send row shows only when there is one).
+async function loadPacs() {
+  const r = await api("GET", "/pacs");
+  state.pacs = r.ok ? (await r.json()).pacs || [] : [];
+  $("send-row").hidden = !state.pacs.length;
+  $("send-pacs").replaceChildren(...state.pacs.map((p) => {
+    const o = document.createElement("option");
+    o.value = o.textContent = p.name;
+    return o;
+  }));
+}
+
+// One click: the chosen model of the view to the chosen PACS, as an RT Structure Set or a SEG.
+async function sendToPacs() {
+  const m = state.inView.find((x) => x.id === $("download-model").value), pacs = $("send-pacs").value, as = $("send-as").value;
+  if (!m || !pacs) return;
+  $("send").disabled = true;
+  $("send-state").textContent = "sending " + (m.name || m.id) + " to " + pacs + "…";
+  try {
+    const a = await (await jobResult("POST", "/models/" + m.id + "/send?" + new URLSearchParams({ pacs, as }))).json();
+    const ok = (a.instances || []).filter((i) => i.stored).length;
+    $("send-state").textContent = "sent to " + pacs + ": " + ok + " of " + (a.instances || []).length + " instance" +
+      ((a.instances || []).length === 1 ? "" : "s") + " stored";
+    $("send-state").dataset.stored = ok;
+  } catch (e) {
+    $("send-state").textContent = "not sent: " + e.message;
+    $("send-state").dataset.stored = 0;
+  } finally {
+    $("send").disabled = false;
+  }
+}
+
 async function download() {
   const m = state.inView.find((x) => x.id === $("download-model").value), fmt = $("mesh-format").value;
   if (!m) return;
@@ -320,7 +605,8 @@ async function download() {
   if (!r.ok) { $("download-state").textContent = await problemOf(r); return; }
   const a = $("download-link");
   a.href = URL.createObjectURL(await r.blob());
-  a.download = (m.name || m.id).replace(/[^\w.-]+/g, "_") + "." + (fmt === "rtstruct" || fmt === "dicom-stl" ? "dcm" : fmt);
+  // (the two DICOM objects named apart: NAME.rtstruct.dcm, NAME.stl.dcm)
+  a.download = (m.name || m.id).replace(/[^\w.-]+/g, "_") + "." + ({ rtstruct: "rtstruct.dcm", "dicom-stl": "stl.dcm" }[fmt] || fmt);
   a.click();
   $("download-state").textContent = "downloaded " + a.download;
 }
@@ -356,21 +642,16 @@ async function start() {
     $("token-state").textContent = "token forgotten";
   });
   $("route").addEventListener("change", showOptions);
-  $("file").addEventListener("change", async () => {
-    const f = $("file").files[0];
-    await loadFormats();
-    if (f) { $("route").value = routeFor(f.name); showOptions(); }
-  });
+  $("file").addEventListener("change", () => chosen([...$("file").files]));
+  $("folder").addEventListener("change", () => chosen([...$("folder").files]));
   const drop = $("drop");
   drop.addEventListener("dragover", (ev) => { ev.preventDefault(); drop.classList.add("over"); });
   drop.addEventListener("dragleave", () => drop.classList.remove("over"));
-  drop.addEventListener("drop", (ev) => {
+  drop.addEventListener("drop", async (ev) => {
     ev.preventDefault();
     drop.classList.remove("over");
-    if (ev.dataTransfer.files.length) {
-      $("file").files = ev.dataTransfer.files;
-      $("file").dispatchEvent(new Event("change"));
-    }
+    const files = await droppedFiles(ev.dataTransfer);
+    if (files.length) chosen(files);
   });
   $("job-form").addEventListener("submit", submit);
   $("cancel").addEventListener("click", cancel);
@@ -378,6 +659,9 @@ async function start() {
   window.addEventListener("hashchange", openFromAddress);
   $("download").addEventListener("click", download);
   $("models-refresh").addEventListener("click", refreshModels);
+  $("series-refresh").addEventListener("click", refreshSeries);
+  $("surface-make").addEventListener("click", surfaceOfSeries);
+  $("send").addEventListener("click", sendToPacs);
   $("jobs-refresh").addEventListener("click", refreshJobs);
   showOptions();
   refreshAll();
@@ -390,7 +674,7 @@ async function refreshAll() {
     $("version").textContent = v.version || "";
   }
   await loadFormats();
-  await Promise.all([refreshModels(), refreshJobs()]);
+  await Promise.all([refreshModels(), refreshJobs(), refreshSeries(), loadPacs()]);
   await openFromAddress();
 }
 

@@ -10,6 +10,7 @@ import {
 } from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
 import { decodeDelta, encodeDelta, MeshSlots } from "./mesh_delta.js";
+import { parseNrrd, SliceViews, VIEWS } from "./slices.js";
 
 const REST_MS = 400;         // the view at rest this long: ask for the exact render
 const FOV = 30;              // vertical, degrees: the same number goes to surfd's camera
@@ -23,7 +24,7 @@ const PALETTE = [[230, 159, 0], [86, 180, 233], [0, 158, 115], [240, 228, 66], [
 const $ = (id) => document.getElementById(id);
 const ctx = { api: null, problemOf: null };
 const models = new Map(); // id -> {res, slots, geom, mesh, color: Color (linear), visible, opacity}
-let renderer, axes, scene, camera, controls, cubeScene, cubeCamera;
+let renderer, axes, scene, camera, controls, cubeScene, cubeCamera, slices, volumeOf = null;
 let serial = 0, restTimer = 0, exactAbort = null, exactOn = true, exactShown = false, frames = 0, drawPending = false;
 
 // ---- requests --------------------------------------------------------------------------------
@@ -110,6 +111,9 @@ function init(opts) {
   camera.add(key, key.target, head, head.target);
   scene.add(new AmbientLight(0xffffff, 0.12 * Math.PI));
   makeCube();
+  slices = new SliceViews({ canvases: VIEWS.map((v) => $("slice-" + v.name)), ranges: VIEWS.map((v) => $("slice-" + v.name + "-k")),
+    preset: $("wl-preset"), window: $("wl-window"), level: $("wl-level"), caption: $("slices-caption") }, cutMeshes, planes);
+  $("slices-close").addEventListener("click", closeVolume);
   controls = new OrbitControls(camera, canvas);
   controls.addEventListener("change", moved);
   canvas.addEventListener("keydown", keys);
@@ -143,6 +147,69 @@ function draw() {
   axes.render(cubeScene, cubeCamera);
   frames++;
   scaleBar(d, h);
+  planes();
+}
+
+// The slice views' planes over both pictures (a 2D canvas of its own, so that the exact render
+// keeps them): each slice's rectangle in its view's colour.
+function planes() {
+  const c = $("planes"), w = c.clientWidth, h = c.clientHeight;
+  if (!w || !h) return;
+  const dpr = Math.min(window.devicePixelRatio || 1, 2);
+  if (c.width !== Math.round(w * dpr) || c.height !== Math.round(h * dpr)) c.width = Math.round(w * dpr), c.height = Math.round(h * dpr);
+  const g = c.getContext("2d");
+  g.setTransform(dpr, 0, 0, dpr, 0, 0);
+  g.clearRect(0, 0, w, h);
+  if (!slices || !slices.vol || !camera) return;
+  camera.updateMatrixWorld();
+  VIEWS.forEach((view, i) => {
+    const pts = slices.corners(i).map((p) => new Vector3(...p).project(camera));
+    if (pts.some((p) => p.z < -1 || p.z > 1)) return; // (behind the camera)
+    g.beginPath();
+    pts.forEach((p, k) => g[k ? "lineTo" : "moveTo"](((p.x + 1) / 2) * w, ((1 - p.y) / 2) * h));
+    g.closePath();
+    g.fillStyle = view.colour + "22";
+    g.fill();
+    g.strokeStyle = view.colour;
+    g.lineWidth = 1.5;
+    g.stroke();
+  });
+}
+
+// The visible models' triangles, for the slices' cut lines.
+function cutMeshes() {
+  return [...models.values()].filter((m) => m.visible && m.slots && m.slots.count)
+    .map((m) => ({ colour: "#" + m.color.getHexString(SRGBColorSpace), position: m.slots.position, count: m.slots.count }));
+}
+
+// Opens a volume's samples in the slice views: what (a "model" or "series"), its id, a name.
+async function openVolume(what, id, name) {
+  $("slices").hidden = false;
+  $("viewer").hidden = false;
+  $("slices-name").textContent = name || id;
+  $("slices-caption").textContent = "loading the samples…";
+  const r = await ctx.api("GET", (what === "series" ? "/series/" : "/models/") + encodeURIComponent(id) + "/volume");
+  if (!r.ok) {
+    const why = await ctx.problemOf(r);
+    $("slices-caption").textContent = "no samples: " + why;
+    throw new Error(why);
+  }
+  const vol = parseNrrd(await r.arrayBuffer());
+  volumeOf = { what, id, name };
+  address();
+  slices.open(vol, name || id);
+  if (!models.size) reset();
+  else moved();
+  return slices.stats();
+}
+
+function closeVolume() {
+  volumeOf = null;
+  address();
+  slices.close();
+  $("slices").hidden = true;
+  if (!models.size) $("viewer").hidden = true;
+  moved();
 }
 
 // A bar of a round length in mm, as long as that is at the centre of turning.
@@ -161,6 +228,10 @@ function scaleBar(d, h) {
 function bounds() {
   const s = new Sphere();
   let any = false;
+  if (slices && slices.vol && !models.size) {
+    const [lo, hi] = slices.box(), c = new Vector3(...lo).add(new Vector3(...hi)).multiplyScalar(0.5);
+    return new Sphere(c, Math.max(1, c.distanceTo(new Vector3(...hi))));
+  }
   for (const m of models.values()) {
     if (!m.geom || (!m.visible && [...models.values()].some((x) => x.visible))) continue;
     if (!m.geom.boundingSphere) m.geom.computeBoundingSphere();
@@ -311,6 +382,7 @@ function upload(m, fresh, changed) {
   m.geom.setDrawRange(0, 3 * s.count);
   m.geom.boundingSphere = null;
   style(m);
+  if (slices) slices.draw();
 }
 
 // A later delta onto a loaded model (issue 45's edits): removals and additions in place.
@@ -348,7 +420,7 @@ async function open(list, { add = false } = {}) {
   }
   $("viewer").hidden = false;
   $("viewer-name").textContent = [...models.values()].map((m) => m.res.name || m.res.id).join(", ");
-  history.replaceState(null, "", "#models=" + [...models.keys()].join(","));
+  address();
   layers();
   moved();
   caption("loading " + fresh.length + " mesh" + (fresh.length === 1 ? "" : "es") + "…");
@@ -374,7 +446,7 @@ function layers() {
     vis.type = "checkbox";
     vis.checked = m.visible;
     vis.id = "vis-" + m.res.id;
-    vis.addEventListener("change", () => { m.visible = vis.checked; style(m); moved(); });
+    vis.addEventListener("change", () => { m.visible = vis.checked; style(m); slices.draw(); moved(); });
     const lab = document.createElement("label");
     lab.htmlFor = vis.id;
     lab.textContent = name + (m.slots ? " (" + m.slots.count + " triangles)" : " (loading)");
@@ -393,13 +465,23 @@ function close(id) {
   if (!m) return;
   if (m.mesh) scene.remove(m.mesh), m.geom.dispose(), m.mesh.material.dispose();
   models.delete(id);
-  history.replaceState(null, "", models.size ? "#models=" + [...models.keys()].join(",") : location.pathname);
-  if (!models.size) $("viewer").hidden = true;
+  address();
+  if (!models.size && !slices.vol) $("viewer").hidden = true;
+  slices.draw();
   layers();
   moved();
 }
 
 function ids() { return [...models.keys()]; }
+
+// The page's address names what the view shows (a bookmark, a link to share): #series=UID (or
+// #volume=ID, a model's samples) for the slices, &models=ID,ID for the 3D view.
+function address() {
+  const parts = [];
+  if (volumeOf) parts.push((volumeOf.what === "series" ? "series=" : "volume=") + volumeOf.id);
+  if (models.size) parts.push("models=" + [...models.keys()].join(","));
+  history.replaceState(null, "", parts.length ? "#" + parts.join("&") : location.pathname);
+}
 
 // ---- the read-only test hook and the bench ----------------------------------------------------
 
@@ -412,6 +494,7 @@ function stats() {
     showing: exactShown ? "exact" : "webgl", exactSerial: +($("exact").dataset.serial || 0), serial, frames,
     camera: { eye: vec(camera.position), target: vec(controls.target), fov: camera.fov, aspect: camera.aspect },
     webgl: renderer ? (renderer.capabilities.isWebGL2 ? 2 : 1) : 0,
+    slices: slices ? slices.stats() : null, volume: volumeOf,
   };
 }
 
@@ -430,5 +513,5 @@ function bench(ms = 3000) {
   });
 }
 
-window.surfdView = { init, open, close, ids, applyDelta, stats, bench, reset, test: { decodeDelta, encodeDelta, MeshSlots } };
+window.surfdView = { init, open, close, ids, applyDelta, stats, bench, reset, openVolume, closeVolume, test: { decodeDelta, encodeDelta, MeshSlots } };
 window.dispatchEvent(new Event("surfdview"));

@@ -122,8 +122,9 @@ status GET "/models/$ID" >/dev/null; v0=$(field version)
 for k in 1 2 3 4 5 6; do
     python3 tests/tools/edit_tool.py block 8 $((1000 + 100 * k)) -300 2.5 "$T/c$k.raw"
     curl -s -o "$T/c$k.json" -X POST -H "$RAW" --data-binary @"$T/c$k.raw" "$URL/models/$ID/edit?region=$((5 * k)),20,20,8,8,8" &
+    pids="${pids:-} $!"
 done
-wait
+wait $pids # (not the daemon's)
 vs=$(for k in 1 2 3 4 5 6; do python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['version'])" "$T/c$k.json"; done | sort -n | tr '\n' ' ')
 want=$(seq $((v0 + 1)) $((v0 + 6)) | tr '\n' ' ')
 check "six edits of one model at once: versions $want each once" '[ "$vs" = "$want" ]'

@@ -16,7 +16,7 @@ import path from "node:path";
 const require = createRequire(path.resolve(process.env.NODE_PATH || "build/npm/node_modules") + "/");
 const { chromium } = require("playwright-core");
 
-const { URL: base, CONTOURS, RTSS, SHOTS, TOKEN = "" } = process.env;
+const { URL: base, CONTOURS, RTSS, SHOTS, TOKEN = "", SERIES = "", DATA = "../shared/data" } = process.env;
 const tag = TOKEN ? "token" : "open";
 let failures = 0;
 const check = (name, ok, detail = "") => {
@@ -150,6 +150,132 @@ async function structures(page, { view, frame, dist, lineUp, exactArrives }) {
   await frame();
 }
 
+// The CT beside the surfaces: the series a PACS sent listed by study, opened by keyboard in three
+// slice views (window and level by preset and by drag), a surface made of it with its cut lines
+// on every slice and the slices' planes in the 3D view, the model sent back to the PACS with one
+// click, and a #series= link that opens the same.
+async function workstation(page, { view, frame }) {
+  const slicePixels = (id) => page.evaluate((i) => document.getElementById(i).toDataURL(), id);
+  // pixels of a colour (within tol per channel) on a canvas, and those that are not black
+  const count = (id, rgb, tol = 40) => page.evaluate(([i, c, t]) => {
+    const cv = document.getElementById(i), d = cv.getContext("2d").getImageData(0, 0, cv.width, cv.height).data;
+    let n = 0, lit = 0;
+    for (let k = 0; k < d.length; k += 4) {
+      if (Math.abs(d[k] - c[0]) <= t && Math.abs(d[k + 1] - c[1]) <= t && Math.abs(d[k + 2] - c[2]) <= t) n++;
+      if (d[k] + d[k + 1] + d[k + 2] > 30 && d[k + 3] > 0) lit++;
+    }
+    return { n, lit };
+  }, [id, rgb, tol]);
+  await page.click("#series-refresh");
+  const row = page.locator("#series-list tr[data-uid='" + SERIES + "']");
+  await row.waitFor({ timeout: 30000 });
+  const text = await row.textContent();
+  check("the series the PACS sent is listed by study: CT, 27 instances, from ORTHANC", text.includes("CT") && text.includes("27 instances") &&
+    text.includes("ORTHANC") && (await page.locator("#series-list .study h3").count()) >= 1, text);
+  await row.locator("button", { hasText: "Open" }).focus();
+  await page.keyboard.press("Enter");
+  await page.waitForFunction(() => { const v = window.surfdView.stats(); return v.slices && v.slices.dims; }, null, { timeout: 60000 });
+  let v = await view();
+  check("Open shows its samples in three slice views (64 x 64 x 27, int16, soft tissue)", JSON.stringify(v.slices.dims) === "[64,64,27]" &&
+    v.slices.type === "int16" && v.slices.preset === "soft" && v.slices.window === 400, JSON.stringify(v.slices));
+  check("... and the address names it (#series=UID)", (await page.evaluate(() => location.hash)) === "#series=" + SERIES,
+    await page.evaluate(() => location.hash));
+  const lit = [];
+  for (const n of ["axial", "coronal", "sagittal"]) lit.push((await count("slice-" + n, [0, 0, 0], 0)).lit);
+  check("each slice view shows the CT (pixels lit)", lit.every((x) => x > 1000), JSON.stringify(lit));
+  const before = await slicePixels("slice-axial");
+  await page.selectOption("#wl-preset", "bone");
+  v = await view();
+  check("the bone preset changes the window and the slices' pixels", v.slices.window === 1800 && v.slices.level === 400 &&
+    (await slicePixels("slice-axial")) !== before, JSON.stringify(v.slices));
+  const box = await page.locator("#slice-coronal").boundingBox();
+  const px0 = await slicePixels("slice-coronal");
+  await page.mouse.move(box.x + box.width / 2, box.y + box.height / 2);
+  await page.mouse.down();
+  await page.mouse.move(box.x + box.width / 2 - 80, box.y + box.height / 2 + 30, { steps: 5 });
+  await page.mouse.up();
+  v = await view();
+  check("a drag on a slice changes window and level, and the pixels", v.slices.window < 1800 && v.slices.level !== 400 &&
+    v.slices.preset === "custom" && (await slicePixels("slice-coronal")) !== px0, JSON.stringify(v.slices));
+  await page.selectOption("#wl-preset", "soft");
+  await page.focus("#slice-axial");
+  const k0 = (await view()).slices.slices[0];
+  await page.keyboard.press("ArrowUp");
+  await page.keyboard.press("PageDown");
+  check("arrow keys and Page Down move through the axial slices", (await view()).slices.slices[0] === Math.max(0, k0 + 1 - 10),
+    JSON.stringify((await view()).slices));
+  await page.keyboard.press("PageUp");
+  // a surface of the series, its cut lines on every slice and the planes in the 3D view
+  await page.fill("#surface-iso", "226.5");
+  await page.click("#surface-make");
+  await page.waitForFunction(() => { const v = window.surfdView.stats(); return v.models.length === 1 && v.models[0].triangles > 0; }, null,
+    { timeout: 180000 });
+  v = await view();
+  const tri = await apiTriangles(v.models[0].id);
+  check("Make a surface: the isosurface of the series in the 3D view, with the API's triangles", v.models[0].triangles === tri &&
+    v.models[0].name.includes("226.5"), JSON.stringify(v.models) + " vs " + tri);
+  await frame();
+  v = await view();
+  check("its cut lines are on every slice", v.slices.lines.every((x) => x > 10), JSON.stringify(v.slices.lines));
+  const orange = await count("slice-axial", [230, 159, 0]);
+  check("... drawn in the model's colour on the slice's pixels", orange.n > 50, JSON.stringify(orange));
+  const red = await count("planes", [0xe0, 0x44, 0x3e]);
+  check("the slices' planes are drawn in the 3D view (the axial one red)", red.n > 50, JSON.stringify(red));
+  await page.locator("#slices").scrollIntoViewIfNeeded();
+  await page.screenshot({ path: SHOTS + "/10-slices-1280x800.png" });
+  await page.evaluate(() => document.getElementById("viewer").scrollIntoView());
+  await page.screenshot({ path: SHOTS + "/11-slices-planes-1280x800.png" });
+  // one click sends it to the PACS
+  check("the PACS configured are offered", (await page.locator("#send-pacs option").allTextContents()).join(",") === "orthanc");
+  await page.selectOption("#send-as", "rtstruct");
+  await page.click("#send");
+  await page.waitForFunction(() => document.getElementById("send-state").dataset.stored !== undefined, null, { timeout: 180000 });
+  check("Send: the model is stored by the PACS (one instance)", (await page.getAttribute("#send-state", "data-stored")) === "1",
+    await page.textContent("#send-state"));
+  // a link to the series opens the slices with the surface on its frame
+  const id = v.models[0].id;
+  const tab = await page.context().newPage();
+  await tab.goto(base + "/#series=" + SERIES);
+  await tab.waitForFunction((m) => { const s = window.surfdView && window.surfdView.stats(); return s && s.slices && s.models.some((x) => x.id === m && x.triangles > 0); },
+    id, { timeout: 120000 });
+  const t = await tab.evaluate(() => window.surfdView.stats());
+  check("/#series=UID opens its slices and the models on its frame", t.volume.id === SERIES && t.models.length === 1 && t.slices.lines.every((x) => x > 10),
+    JSON.stringify([t.volume, t.slices]));
+  await tab.close();
+  // a volume model's own samples
+  await page.click("#models-refresh");
+  const mrow = page.locator("#models-table tbody tr[data-id='" + id + "']");
+  await mrow.locator("button", { hasText: "Slices" }).click();
+  await page.waitForFunction((m) => { const s = window.surfdView.stats(); return s.volume && s.volume.what === "model" && s.volume.id === m && s.slices; },
+    id, { timeout: 60000 });
+  check("Slices on an isosurface model shows its own samples", JSON.stringify((await view()).slices.dims) === "[64,64,27]");
+
+  // drops: the series' files together (a DICOM folder's), and a MetaImage header with its data
+  const dir = DATA + "/volumes/dicom_ct_head_64x64x27";
+  const files = fs.readdirSync(dir).filter((f) => f.endsWith(".dcm")).sort().map((f) => path.join(dir, f));
+  await page.setInputFiles("#file", files);
+  await page.waitForFunction(() => document.getElementById("file-what").textContent.includes("27 DICOM files"));
+  check("27 DICOM files chosen together are one series, to make a surface of", (await page.inputValue("#route")) === "isosurface",
+    await page.textContent("#file-what"));
+  await page.fill("input[name=iso]", "226.5");
+  await page.click("#go");
+  await page.waitForSelector("#job-output dl", { timeout: 180000 });
+  await page.waitForFunction(() => window.surfdView.stats().models.length === 1 && window.surfdView.stats().models[0].triangles > 0, null, { timeout: 120000 });
+  let d = (await view()).models[0];
+  check("... the same surface as the series the PACS sent (its triangles), not named by the files", d.triangles === v.models[0].triangles &&
+    !/IM0|slice/i.test(d.name), JSON.stringify(d));
+  await page.setInputFiles("#file", [DATA + "/volumes/ct_head_crop64_int16.mhd", DATA + "/volumes/ct_head_crop64_int16.raw"]);
+  await page.waitForFunction(() => document.getElementById("file-what").textContent.includes(".raw"));
+  check("a .mhd with its .raw: one volume, to make a surface of", (await page.inputValue("#route")) === "isosurface");
+  await page.fill("input[name=iso]", "226.5");
+  await page.click("#go");
+  await page.waitForFunction((old) => { const m = window.surfdView.stats().models; return m.length === 1 && m[0].id !== old && m[0].triangles > 0; },
+    d.id, { timeout: 180000 });
+  d = (await view()).models[0];
+  check("... its surface, named from the file", d.name === "ct_head_crop64_int16", JSON.stringify(d));
+  await page.screenshot({ path: SHOTS + "/12-drop-mhd-1280x800.png" });
+}
+
 // WebGL in headless Chromium: SwiftShader (software), asked for explicitly
 const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--no-sandbox", "--enable-unsafe-swiftshader"] });
 try {
@@ -205,6 +331,7 @@ try {
   await page.waitForFunction(() => document.getElementById("version").textContent !== "");
   await page.screenshot({ path: SHOTS + "/1-loaded-" + tag + ".png" });
 
+  if (!process.env.ONLY) { // (ONLY=workstation: that part alone, while working on it)
   // a file's route and type from the daemon's table of formats (GET /formats)
   await page.waitForFunction(() => state.formats.length > 0);
   for (const [name, route] of [["ct.nii.gz", "isosurface"], ["part.igs", "render"], ["head.mhd", "isosurface"], ["rs.dcm", "model"]]) {
@@ -286,21 +413,35 @@ try {
   await page.selectOption("#mesh-format", "rtstruct");
   const [rs] = await Promise.all([page.waitForEvent("download", { timeout: 120000 }), page.click("#download")]);
   await rs.saveAs(SHOTS + "/model-" + tag + ".dcm");
-  check("the RT Structure Set downloads", rs.suggestedFilename().endsWith(".dcm"), rs.suggestedFilename());
+  check("the RT Structure Set downloads, named apart from the Encapsulated STL", rs.suggestedFilename().endsWith(".rtstruct.dcm"), rs.suggestedFilename());
 
   await page.click("#jobs-refresh");
   await page.waitForFunction(() => document.querySelectorAll("#jobs-table tbody tr").length > 0);
   check("the job list shows the jobs", (await page.textContent("#jobs-table tbody")).includes("succeeded"));
 
   if (!TOKEN) await structures(page, { view, frame, dist, lineUp, exactArrives });
+  }
+  if (SERIES) await workstation(page, { view, frame });
 
   await page.setViewportSize({ width: 800, height: 1180 }); // a tablet, upright
   const wide = await page.evaluate(() => document.documentElement.scrollWidth);
-  check("at tablet width nothing runs off the side", wide <= 800, "scroll width " + wide);
+  // what runs off, when something does: the deepest elements wider than the page that scroll nothing
+  const off = wide <= 800 ? "" : await page.evaluate(() => [...document.querySelectorAll("body *")].filter((e) => {
+    const r = e.getBoundingClientRect();
+    return r.right + window.scrollX > 801 && getComputedStyle(e).overflowX === "visible" && ![...e.children].some((c) => c.getBoundingClientRect().right + window.scrollX > 801);
+  }).slice(0, 6).map((e) => e.tagName + "#" + e.id + "." + e.className + " " + Math.round(e.getBoundingClientRect().right + window.scrollX)).join(", "));
+  const culprit = wide <= 800 ? "" : await page.evaluate(() => [...document.querySelectorAll("header, main > section, footer")].filter((e) => {
+    const d = e.style.display; e.style.display = "none"; const w = document.documentElement.scrollWidth; e.style.display = d; return w <= 800;
+  }).map((e) => e.id || e.tagName).join(","));
+  check("at tablet width nothing runs off the side", wide <= 800, "scroll width " + wide + ": " + off + "; without " + culprit);
   await page.screenshot({ path: SHOTS + "/5-tablet-" + tag + ".png", fullPage: true });
 
   await page.evaluate(() => document.getElementById("viewer").scrollIntoView());
   await page.screenshot({ path: SHOTS + "/9-view-800-" + tag + ".png" });
+  if (SERIES) {
+    await page.evaluate(() => document.getElementById("slices").scrollIntoView());
+    await page.screenshot({ path: SHOTS + "/13-slices-800.png" });
+  }
   check("no console errors", errors.length === 0, errors.join(" | "));
   check("no request left the daemon's origin", outside.length === 0, outside.slice(0, 5).join(" "));
 } catch (e) {
