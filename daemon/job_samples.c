@@ -87,7 +87,7 @@ static int samples_validate(struct service *svc, struct job_body *b, struct sf_e
             return sf_fail(err, found == SF_ENOTFOUND ? SF_ENOTFOUND : found, "",
                            found == SF_ENOTFOUND ? "no such model" : "the store could not read the model");
         int next;
-        if ((rc = stored_volume(svc, id, &v, &next, err)))
+        if ((rc = stored_volume(svc, id, &v, true, &next, err)))
             return rc;
         snprintf(what, sizeof what, "model %s, %d edit%s applied", id, next - 1, next == 2 ? "" : "s");
     }
