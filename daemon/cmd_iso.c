@@ -245,31 +245,7 @@ static int cmp_double(const void *p, const void *q)
     return a < b ? -1 : a > b;
 }
 
-/* Whether k's mesh is a fresh extraction's of g at o, triangle for triangle (positions and normals,
- * as 18 floats each, sorted). */
-static int cmp18(const void *p, const void *q) { return memcmp(p, q, 18 * sizeof(float)); }
-static float *sorted18(const struct trimesh *m)
-{
-    float *t = malloc((m->n_tri ? m->n_tri : 1) * 18 * sizeof *t);
-    if (!t)
-        return NULL;
-    for (size_t i = 0; i < m->n_tri; i++) {
-        const uint32_t *v = m->tri + 3 * i;
-        int r = 0;
-        for (int q = 1; q < 3; q++)
-            if (memcmp(m->pos + 3 * v[q], m->pos + 3 * v[r], 3 * sizeof(float)) < 0)
-                r = q;
-        for (int q = 0; q < 3; q++) {
-            memcpy(t + 18 * i + 6 * q, m->pos + 3 * v[(r + q) % 3], 3 * sizeof(float));
-            if (m->nrm)
-                memcpy(t + 18 * i + 6 * q + 3, m->nrm + 3 * v[(r + q) % 3], 3 * sizeof(float));
-            else
-                memset(t + 18 * i + 6 * q + 3, 0, 3 * sizeof(float));
-        }
-    }
-    qsort(t, m->n_tri, 18 * sizeof *t, cmp18);
-    return t;
-}
+/* Whether k's mesh is a fresh extraction's of g at o, triangle for triangle (trimesh_differ). */
 static bool kept_is_fresh(const struct iso_kept *k, const struct iso_grid *g, const struct iso_opts *o)
 {
     struct trimesh a, b;
@@ -281,10 +257,8 @@ static bool kept_is_fresh(const struct iso_kept *k, const struct iso_grid *g, co
         trimesh_free(&a);
         return false;
     }
-    float *x = sorted18(&a), *y = sorted18(&b);
-    bool same = x && y && a.n_tri == b.n_tri && !memcmp(x, y, a.n_tri * 18 * sizeof *x);
-    free(x);
-    free(y);
+    size_t differ;
+    bool same = !trimesh_differ(&a, &b, &differ) && differ == 0;
     free(ids);
     trimesh_free(&a);
     trimesh_free(&b);

@@ -517,3 +517,47 @@ int trimesh_manifold(struct trimesh *m, size_t *vcap, size_t *tcap, long *midpoi
     corners_free(&c);
     return rc;
 }
+
+/* ---- comparing meshes by their triangles ---- */
+
+static int cmp18(const void *p, const void *q) { return memcmp(p, q, 18 * sizeof(float)); }
+
+/* m's triangles as 18 floats each (position and normal of each corner, from the least corner on),
+ * sorted; NULL when memory runs out. */
+static float *sorted18(const struct trimesh *m)
+{
+    float *t = malloc((m->n_tri ? m->n_tri : 1) * 18 * sizeof *t);
+    if (!t)
+        return NULL;
+    for (size_t i = 0; i < m->n_tri; i++) {
+        const uint32_t *v = m->tri + 3 * i;
+        int r = 0;
+        for (int q = 1; q < 3; q++)
+            if (memcmp(m->pos + 3 * v[q], m->pos + 3 * v[r], 3 * sizeof(float)) < 0)
+                r = q;
+        for (int q = 0; q < 3; q++) {
+            memcpy(t + 18 * i + 6 * q, m->pos + 3 * v[(r + q) % 3], 3 * sizeof(float));
+            if (m->nrm)
+                memcpy(t + 18 * i + 6 * q + 3, m->nrm + 3 * v[(r + q) % 3], 3 * sizeof(float));
+            else
+                memset(t + 18 * i + 6 * q + 3, 0, 3 * sizeof(float));
+        }
+    }
+    qsort(t, m->n_tri, 18 * sizeof *t, cmp18);
+    return t;
+}
+
+int trimesh_differ(const struct trimesh *a, const struct trimesh *b, size_t *differ)
+{
+    *differ = a->n_tri > b->n_tri ? a->n_tri : b->n_tri;
+    if (a->n_tri != b->n_tri)
+        return 0;
+    float *x = sorted18(a), *y = sorted18(b);
+    int rc = x && y ? 0 : SF_ENOMEM;
+    if (!rc)
+        for (size_t i = *differ = 0; i < a->n_tri; i++)
+            *differ += memcmp(x + 18 * i, y + 18 * i, 18 * sizeof *x) != 0;
+    free(x);
+    free(y);
+    return rc;
+}

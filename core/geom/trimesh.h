@@ -56,6 +56,12 @@ void trimesh_loops_free(struct trimesh_loops *l);
  * *midpoints counts the new edge midpoints. 0, or SF_ENOMEM. */
 int trimesh_manifold(struct trimesh *m, size_t *vcap, size_t *tcap, long *midpoints);
 
+/* How many of a's triangles b does not hold, each compared as its three corners' positions and
+ * normals (0 when the mesh has none) from its least corner on: the same triangle whatever the
+ * vertex numbering and the order of the list (an edit's mesh against a fresh extraction's). Meshes
+ * of different counts differ by the larger. 0 (*differ), or SF_ENOMEM. */
+int trimesh_differ(const struct trimesh *a, const struct trimesh *b, size_t *differ);
+
 /* Distance from point p to triangle abc (the closest point by Voronoi regions, Ericson's
  * Real-Time Collision Detection 5.1.5). */
 double trimesh_point_dist(const double p[3], const double a[3], const double b[3], const double c[3]);

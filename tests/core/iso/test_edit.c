@@ -11,43 +11,14 @@
 
 #include "../../unit.h"
 
-/* A triangle as 18 floats (its corners' positions and normals), turned to start at its least
- * corner: the same triangle whatever the vertex numbering and the order of the list. */
-static int cmp18(const void *p, const void *q) { return memcmp(p, q, 18 * sizeof(float)); }
-
-static float *triangles(const struct trimesh *m)
-{
-    float *t = malloc((m->n_tri ? m->n_tri : 1) * 18 * sizeof *t);
-    for (size_t i = 0; i < m->n_tri; i++) {
-        const uint32_t *v = m->tri + 3 * i;
-        int r = 0;
-        for (int k = 1; k < 3; k++)
-            if (memcmp(m->pos + 3 * v[k], m->pos + 3 * v[r], 3 * sizeof(float)) < 0)
-                r = k;
-        for (int k = 0; k < 3; k++) {
-            memcpy(t + 18 * i + 6 * k, m->pos + 3 * v[(r + k) % 3], 3 * sizeof(float));
-            memcpy(t + 18 * i + 6 * k + 3, m->nrm + 3 * v[(r + k) % 3], 3 * sizeof(float));
-        }
-    }
-    qsort(t, m->n_tri, 18 * sizeof *t, cmp18);
-    return t;
-}
-
+/* The same triangles (positions and normals), whatever the vertex numbering and the order. */
 static bool same_mesh(const struct trimesh *x, const struct trimesh *y)
 {
-    if (x->n_tri != y->n_tri) {
-        fprintf(stderr, "  %zu triangles against %zu\n", x->n_tri, y->n_tri);
-        return false;
-    }
-    float *a = triangles(x), *b = triangles(y);
-    size_t differ = 0;
-    for (size_t i = 0; i < x->n_tri; i++)
-        differ += memcmp(a + 18 * i, b + 18 * i, 18 * sizeof *a) != 0;
-    if (differ)
-        fprintf(stderr, "  %zu of %zu triangles differ\n", differ, x->n_tri);
-    free(a);
-    free(b);
-    return differ == 0;
+    size_t differ;
+    bool same = !trimesh_differ(x, y, &differ) && differ == 0;
+    if (!same)
+        fprintf(stderr, "  %zu of %zu triangles differ (against %zu)\n", differ, x->n_tri, y->n_tri);
+    return same;
 }
 
 static struct iso_adapt *kept(const struct iso_grid *g, const struct iso_opts *o, int levels, double me)

@@ -12,20 +12,7 @@
 
 #include "../../unit.h"
 
-static int cmp18(const void *p, const void *q) { return memcmp(p, q, 18 * sizeof(float)); }
-
-/* A triangle as 18 floats from its corners (x y z nx ny nz each), turned to start at its least
- * corner. */
-static void turn18(const float *c, float *t)
-{
-    int r = 0;
-    for (int k = 1; k < 3; k++)
-        if (memcmp(c + 6 * k, c + 6 * r, 3 * sizeof(float)) < 0)
-            r = k;
-    for (int k = 0; k < 3; k++)
-        memcpy(t + 6 * k, c + 6 * ((r + k) % 3), 6 * sizeof(float));
-}
-
+/* A triangle's corners as 18 floats (x y z nx ny nz each). */
 static void corners18(const struct trimesh *m, size_t i, float *c)
 {
     for (int k = 0; k < 3; k++) {
@@ -38,32 +25,13 @@ static void corners18(const struct trimesh *m, size_t i, float *c)
     }
 }
 
-static float *triangles(const struct trimesh *m)
-{
-    float *t = malloc((m->n_tri ? m->n_tri : 1) * 18 * sizeof *t), c[18];
-    for (size_t i = 0; i < m->n_tri; i++) {
-        corners18(m, i, c);
-        turn18(c, t + 18 * i);
-    }
-    qsort(t, m->n_tri, 18 * sizeof *t, cmp18);
-    return t;
-}
-
 static bool same_mesh(const struct trimesh *x, const struct trimesh *y)
 {
-    if (x->n_tri != y->n_tri) {
-        fprintf(stderr, "  %zu triangles against %zu\n", x->n_tri, y->n_tri);
-        return false;
-    }
-    float *a = triangles(x), *b = triangles(y);
-    size_t differ = 0;
-    for (size_t i = 0; i < x->n_tri; i++)
-        differ += memcmp(a + 18 * i, b + 18 * i, 18 * sizeof *a) != 0;
-    if (differ)
-        fprintf(stderr, "  %zu of %zu triangles differ\n", differ, x->n_tri);
-    free(a);
-    free(b);
-    return differ == 0;
+    size_t differ;
+    bool same = !trimesh_differ(x, y, &differ) && differ == 0;
+    if (!same)
+        fprintf(stderr, "  %zu of %zu triangles differ (against %zu)\n", differ, x->n_tri, y->n_tri);
+    return same;
 }
 
 /* The kept mesh as the caller sees it, with a mirror of it by id kept from the changes alone (what
