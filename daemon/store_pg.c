@@ -829,71 +829,81 @@ static int model_row(struct pg_store *p, int c, const struct model_rec *m, bool 
                    11, prm);
 }
 
-/* A model's row and a volume part in one transaction: 0 (committed), SF_ECONFLICT (the part's seq
- * was taken, or no such model to update: nothing written), SF_EIO. */
-static int model_txn(struct store *s, const struct model_rec *m, const struct volume_rec *v,
-                     const struct volume_rec *change, bool update)
+/* step(p, c, arg) as one transaction on a connection of its own: its answer (0 commits, anything
+ * else rolls back), or SF_EIO. */
+static int in_transaction(struct pg_store *p, int (*step)(struct pg_store *, int, const void *), const void *arg)
 {
-    struct pg_store *p = pg(s);
     int c = take(p), rc = SF_EIO;
     PGresult *res = execute(p, c, "BEGIN", 0, NULL, true);
     if (res) {
         PQclear(res);
-        struct param id[] = {T(m->id)};
-        rc = store_one_row(model_row(p, c, m, update), SF_ECONFLICT);
-        if (rc == 0 && !update && exec_in(p, c, "DELETE FROM model_volumes WHERE model=$1", 1, id) < 0)
-            rc = SF_EIO;
-        if (rc == 0 && update && exec_in(p, c, "DELETE FROM meshes WHERE model=$1", 1, id) < 0) /* the edit's before */
-            rc = SF_EIO;
-        if (rc == 0 && v)
-            rc = volume_put(p, c, m->id, v);
-        if (rc == 0 && change)
-            rc = volume_put(p, c, m->id, change);
+        rc = step(p, c, arg);
         res = execute(p, c, rc == 0 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
         if (!res)
             rc = SF_EIO;
         PQclear(res);
     }
     give(p, c);
+    return rc;
+}
+
+struct model_write {
+    const struct model_rec *m;
+    const struct volume_rec *v, *change;
+    bool update;
+    long drop_through;       /* model_rebase's */
+};
+
+/* A model's row and its volume parts (v, change: NULL for none): 0, SF_ECONFLICT (the part's seq
+ * was taken, or no such model to update), SF_EIO. */
+static int model_step(struct pg_store *p, int c, const void *arg)
+{
+    const struct model_write *w = arg;
+    const struct model_rec *m = w->m;
+    struct param id[] = {T(m->id)};
+    int rc = store_one_row(model_row(p, c, m, w->update), SF_ECONFLICT);
+    if (rc == 0 && !w->update && exec_in(p, c, "DELETE FROM model_volumes WHERE model=$1", 1, id) < 0)
+        rc = SF_EIO;
+    if (rc == 0 && w->update && exec_in(p, c, "DELETE FROM meshes WHERE model=$1", 1, id) < 0) /* the edit's before */
+        rc = SF_EIO;
+    if (rc == 0 && w->v)
+        rc = volume_put(p, c, m->id, w->v);
+    if (rc == 0 && w->change)
+        rc = volume_put(p, c, m->id, w->change);
     return rc;
 }
 
 static int pg_model_put(struct store *s, const struct model_rec *m)
 {
-    return model_txn(s, m, m->volume, NULL, false) ? SF_EIO : 0;
+    return in_transaction(pg(s), model_step, &(struct model_write){m, m->volume, NULL, false, 0}) ? SF_EIO : 0;
 }
 
 static int pg_model_edit(struct store *s, const struct model_rec *m, const struct volume_rec *edit,
                          const struct volume_rec *change)
 {
-    return model_txn(s, m, edit, change, true);
+    return in_transaction(pg(s), model_step, &(struct model_write){m, edit, change, true, 0});
+}
+
+/* A newer base of the model (when the one kept is older), the changes up to drop_through gone. */
+static int rebase_step(struct pg_store *p, int c, const void *arg)
+{
+    const struct model_write *w = arg;
+    char sum[65], base[24], drop[24], name[48];
+    store_checksum(w->m->source, w->m->source_len, "", 0, sum);
+    snprintf(base, sizeof base, "%ld", w->m->version);
+    snprintf(drop, sizeof drop, "%ld", -w->drop_through);
+    struct param prm[] = {T(w->m->id), T(NULL), T(sum), T(base), T(NULL)}, del[] = {T(w->m->id), T(drop)};
+    return value_params(p, c, w->m->source, w->m->source_len, name, &prm[1], &prm[4]) ||
+                   exec_in(p, c, "UPDATE models SET source=$2, sum=$3, base_version=$4, source_pieces=$5 WHERE id=$1"
+                           " AND base_version>0 AND base_version<$4", 5, prm) < 0 ||
+                   exec_in(p, c, "DELETE FROM model_volumes WHERE model=$1 AND seq<0 AND seq>=$2::integer", 2, del) < 0
+               ? SF_EIO
+               : 0;
 }
 
 static int pg_model_rebase(struct store *s, const struct model_rec *m, long drop_through)
 {
-    struct pg_store *p = pg(s);
-    char sum[65], base[24], drop[24], name[48];
-    store_checksum(m->source, m->source_len, "", 0, sum);
-    snprintf(base, sizeof base, "%ld", m->version);
-    snprintf(drop, sizeof drop, "%ld", -drop_through);
-    int c = take(p), rc = SF_EIO;
-    PGresult *res = execute(p, c, "BEGIN", 0, NULL, true);
-    if (res) {
-        PQclear(res);
-        struct param prm[] = {T(m->id), T(NULL), T(sum), T(base), T(NULL)}, del[] = {T(m->id), T(drop)};
-        rc = value_params(p, c, m->source, m->source_len, name, &prm[1], &prm[4]) ||
-                     exec_in(p, c, "UPDATE models SET source=$2, sum=$3, base_version=$4, source_pieces=$5 WHERE id=$1"
-                             " AND base_version>0 AND base_version<$4", 5, prm) < 0 ||
-                     exec_in(p, c, "DELETE FROM model_volumes WHERE model=$1 AND seq<0 AND seq>=$2::integer", 2, del) < 0
-                 ? SF_EIO
-                 : 0;
-        res = execute(p, c, rc == 0 ? "COMMIT" : "ROLLBACK", 0, NULL, false);
-        if (!res)
-            rc = SF_EIO;
-        PQclear(res);
-    }
-    give(p, c);
-    return rc;
+    return in_transaction(pg(s), rebase_step, &(struct model_write){m, NULL, NULL, false, drop_through});
 }
 
 static int pg_volume_get(struct store *s, const char *id, int from, int to, struct volume_rec **parts, int *n)
