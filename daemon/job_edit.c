@@ -11,9 +11,12 @@
  * fits. Before an edit the parts another node stored since are applied (a shared store), and the
  * edit is stored under the next seq in one transaction with the new mesh: if another node took
  * that seq first, the hierarchy is let go and the edit answered 409 (sent again, it is applied
- * after the other). Models of levels 1 without features are drawn by marching cubes (mc.c), whose
- * cells this does not keep: their edits write the samples and draw every cell again (whole).
- * An FRep model is edited by an object ({op, object, alpha}): its latest tree (the last part) is
+ * after the other). Models of levels 1 without features are kept as marching cubes (core/iso/kept.h:
+ * the samples, a min/max index of blocks, each block's triangles), so that their edits too draw
+ * only the cells they reach and an iso change only the blocks that straddle it; a volume too large
+ * for edit-memory keeps its samples alone, and every edit of it draws every cell again (whole).
+ * Every kept extraction's change goes to the model's journal (store.h) once its triangle ids are
+ * found to be the stored mesh's (ids_agree). An FRep model is edited by an object ({op, object, alpha}): its latest tree (the last part) is
  * combined with it and extracted again, every cell (an R-function of alpha < 1 moves every
  * sample); the new request is stored as the next part.
  *
@@ -43,9 +46,10 @@
 struct live {
     char id[40];
     int next_seq;            /* the volume's parts applied: 0 .. next_seq - 1 */
-    struct volume vol;       /* its settings; its samples only when a is NULL (marching cubes) */
-    struct iso_adapt *a;     /* the kept hierarchy (levels over 1, or features) */
-    double (*fig)[2];        /* a: each triangle's signed volume and area, by id - fig_base (an edit's
+    struct volume vol;       /* its settings; its samples only when x keeps none */
+    struct kept_ext x;       /* the kept extraction: a hierarchy or marching cubes (volumes.h) */
+    bool checked;            /* x's triangle ids found to be the stored mesh's (agree) */
+    double (*fig)[2];        /* x: each triangle's signed volume and area, by id - fig_base (an edit's
                               * figures move by what it takes out and puts in) */
     size_t figcap;
     uint32_t fig_base;       /* the first id of the hierarchy's mesh (a new iso numbers after the old) */
@@ -66,7 +70,8 @@ static struct {
 static void live_free(struct live *e)
 {
     free(e->fig);
-    iso_adapt_free(e->a);
+    iso_adapt_free(e->x.a);
+    iso_kept_free(e->x.k);
     volume_free(&e->vol);
     pthread_mutex_destroy(&e->lock);
     free(e);
@@ -74,7 +79,7 @@ static void live_free(struct live *e)
 
 static size_t live_bytes(const struct live *e)
 {
-    size_t n = e->a ? iso_adapt_bytes(e->a) + e->figcap * sizeof *e->fig : 0;
+    size_t n = (e->x.a ? iso_adapt_bytes(e->x.a) : 0) + (e->x.k ? iso_kept_bytes(e->x.k) : 0) + e->figcap * sizeof *e->fig;
     if (e->vol.owned)
         n += (size_t)e->vol.g.nx * e->vol.g.ny * e->vol.g.nz * (e->vol.g.type == ISO_U8 ? 1 : e->vol.g.type == ISO_F32 ? 4 : 2);
     return n;
@@ -142,15 +147,15 @@ static void live_give(struct live *e, bool drop, size_t budget)
         live_free(e);
 }
 
-/* A new entry of model id (holding vol and a), held and locked, or NULL. */
-static struct live *live_new(const char *id, struct volume *vol, struct iso_adapt *a, int next_seq)
+/* A new entry of model id (holding vol and x), held and locked, or NULL. */
+static struct live *live_new(const char *id, struct volume *vol, struct kept_ext x, int next_seq)
 {
     struct live *e = calloc(1, sizeof *e);
     if (!e)
         return NULL;
     snprintf(e->id, sizeof e->id, "%s", id);
     e->vol = *vol;
-    e->a = a;
+    e->x = x;
     e->next_seq = next_seq;
     e->users = 1;
     pthread_mutex_init(&e->lock, NULL);
@@ -194,18 +199,30 @@ static int fig_put(struct live *e, uint32_t id, const float *p, const float *q, 
     return 0;
 }
 
-/* Every kept triangle's figures, from the hierarchy's mesh: 0 or -1. (Oblique grids: the figures
- * are the same turned or not.) */
+/* The kept extraction's mesh (its stats *st: a hierarchy's) and its triangles' ids (caller frees):
+ * 0 or an error. */
+static int live_mesh(const struct live *e, struct trimesh *m, uint32_t **ids, struct iso_adapt_stats *st,
+                     struct sf_err *err)
+{
+    *ids = NULL;
+    if (e->x.k)
+        return iso_kept_mesh(e->x.k, m, ids, err);
+    int rc = iso_adapt_mesh(e->x.a, m, st, err);
+    if (!rc && (rc = iso_adapt_ids(e->x.a, ids, err)))
+        trimesh_free(m);
+    return rc;
+}
+
+/* Every kept triangle's figures, from the kept extraction's mesh: 0 or -1. (Oblique grids: the
+ * figures are the same turned or not.) */
 static int figures_all(struct live *e)
 {
     struct trimesh m;
     struct iso_adapt_stats st;
     uint32_t *ids = NULL;
     struct sf_err err = {0};
-    if (iso_adapt_mesh(e->a, &m, &st, &err) || iso_adapt_ids(e->a, &ids, &err)) {
-        trimesh_free(&m);
+    if (live_mesh(e, &m, &ids, &st, &err))
         return -1;
-    }
     int rc = 0;
     e->fig_base = UINT32_MAX;
     for (size_t t = 0; t < m.n_tri; t++)
@@ -217,12 +234,14 @@ static int figures_all(struct live *e)
     return rc;
 }
 
-/* Whether a part of the volume (its options) is an iso change (POST /models/{id}/iso). */
-static bool iso_part(const char *options)
+/* Whether a part of the volume (its options), applied to e as ed tells, took out every triangle
+ * and numbered the new ones on from the counter (figures_move's whole): an iso change (POST
+ * /models/{id}/iso), or a kept marching cubes' redraw of every cell. */
+static bool whole_change(const struct live *e, const char *options, const struct iso_edit *ed)
 {
     char value[64];
     query_option(options, "value", value, sizeof value);
-    return value[0] != 0;
+    return value[0] != 0 || (e->x.k && ed->whole);
 }
 
 /* What change ch did to the figures (*dv, *da added to), e->fig following it (whole: a new
@@ -255,51 +274,61 @@ void edit_keep(struct service *svc, const char *id, const struct volume *vol, st
         iso_adapt_free(a);
         return;
     }
-    struct live *e = live_new(id, &v, a, 1);
-    if (!e)
+    struct live *e = live_new(id, &v, (struct kept_ext){a, NULL}, 1);
+    if (!e) {
         iso_adapt_free(a);
-    else
-        live_give(e, figures_all(e) != 0, (size_t)svc->cfg.edit_memory);
+        return;
+    }
+    e->checked = true; /* (the mesh the job stored, ids 0 .. n-1) */
+    live_give(e, figures_all(e) != 0, (size_t)svc->cfg.edit_memory);
 }
 
 /* ---- applying parts of the volume ---- */
 
-/* Model id's hierarchy rebuilt from the store: its volume as posted, its edits left to catch_up to
- * apply in order (so that its triangles are numbered as the first hierarchy numbered them: the
- * journal's ids, core/iso/kept.h). Held and locked, or NULL with err. */
+/* Model id's extraction rebuilt from the store: its volume as posted, its edits left to catch_up
+ * to apply in order (so that its triangles are numbered as the first extraction numbered them: the
+ * journal's ids, core/iso/kept.h). A hierarchy for levels over 1 or features; marching cubes kept
+ * when its samples fit edit-memory as the isosurface job's rule has it (some 5 bytes a sample),
+ * else the samples alone (every edit then draws every cell). Held and locked, or NULL with err. */
 static struct live *rebuild(struct service *svc, const char *id, struct sf_err *err)
 {
     struct volume vol;
-    struct iso_adapt *a = NULL;
+    struct kept_ext x = {0};
     int next, rc = stored_volume(svc, id, &vol, false, &next, err);
     if (rc)
         return NULL;
+    struct iso_opts o = job_iso_opts(svc, &vol);
     if (volume_adaptive(&vol)) {
-        struct iso_opts o = job_iso_opts(svc, &vol);
         o.keep = true;
-        if (!(rc = iso_adapt_begin(&vol.g, &o, vol.levels, vol.max_error, &a, err))) {
-            for (int p = 0; p < iso_adapt_phases(a); p++) {
-                for (int s = 0; s < iso_adapt_n_slabs(a); s++)
-                    iso_adapt_run(a, p, s);
-                iso_adapt_between(a, p);
+        if (!(rc = iso_adapt_begin(&vol.g, &o, vol.levels, vol.max_error, &x.a, err))) {
+            for (int p = 0; p < iso_adapt_phases(x.a); p++) {
+                for (int s = 0; s < iso_adapt_n_slabs(x.a); s++)
+                    iso_adapt_run(x.a, p, s);
+                iso_adapt_between(x.a, p);
             }
             struct iso_adapt_stats st;
-            rc = iso_adapt_keep(a, &st, err);
+            rc = iso_adapt_keep(x.a, &st, err);
         }
-        free(vol.owned); /* the hierarchy holds the samples now */
+    } else if ((double)vol.g.nx * vol.g.ny * vol.g.nz * 5 <= (double)svc->cfg.edit_memory) {
+        rc = iso_kept_begin(&vol.g, &o, &x.k, err);
+    }
+    if (!rc && (x.a || x.k)) { /* the extraction holds the samples now */
+        free(vol.owned);
         vol.owned = NULL, vol.g.samples = NULL;
     }
     if (rc) {
-        iso_adapt_free(a);
+        iso_adapt_free(x.a);
+        iso_kept_free(x.k);
         volume_free(&vol);
         return NULL;
     }
-    struct live *e = live_new(id, &vol, a, next);
+    struct live *e = live_new(id, &vol, x, next);
     if (!e) {
-        iso_adapt_free(a);
+        iso_adapt_free(x.a);
+        iso_kept_free(x.k);
         volume_free(&vol);
         sf_fail(err, SF_ENOMEM, "", "out of memory");
-    } else if (a && figures_all(e)) {
+    } else if ((x.a || x.k) && figures_all(e)) {
         live_give(e, true, (size_t)svc->cfg.edit_memory);
         e = NULL;
         sf_fail(err, SF_ENOMEM, "", "out of memory");
@@ -320,10 +349,10 @@ static int catch_up(struct service *svc, struct live *e, struct sf_err *err)
         double dv = 0, da = 0;
         if (parts[k].seq != e->next_seq)
             rc = sf_fail(err, SF_EIO, "", "the model's edits in the store skip from %d to %d", e->next_seq, parts[k].seq);
-        else if (!(rc = part_apply(svc, &e->vol, &e->a, parts[k].options, parts[k].data, parts[k].len, &ed,
-                                   e->a ? &ch : NULL, err)))
-            e->next_seq++;
-        if (!rc && e->a && figures_move(e, &ch, iso_part(parts[k].options), &dv, &da))
+        else if (!(rc = part_apply(svc, &e->vol, &e->x, parts[k].options, parts[k].data, parts[k].len, &ed,
+                                   e->x.a || e->x.k ? &ch : NULL, err)))
+            e->next_seq++, e->checked = false; /* (another node's part: its ids are checked before they are used) */
+        if (!rc && (e->x.a || e->x.k) && figures_move(e, &ch, whole_change(e, parts[k].options, &ed), &dv, &da))
             rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
         iso_change_free(&ch);
     }
@@ -442,7 +471,7 @@ static int store_change(struct edit_work *w, const char *id, struct live *e, con
     double dv = 0, da = 0, t1 = monotonic_s();
     char *bytes = NULL, *prev = NULL;
     size_t len = 0;
-    if (figures_move(e, ch, iso_part(part->options), &dv, &da))
+    if (figures_move(e, ch, whole_change(e, part->options, &me->e), &dv, &da))
         return sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
     if (e->vol.oblique)
         turn_corners(ch, &e->vol);
@@ -470,22 +499,90 @@ static int store_change(struct edit_work *w, const char *id, struct live *e, con
     return rc;
 }
 
-/* The edit applied to e and stored: with a hierarchy, as a change of its mesh (store_change), else
- * (or when the model's row keeps no base) with the whole mesh. The new resource into w->json. */
+/* The (id << 32 | index) of n triangles of ids, sorted (by id): caller frees; NULL, no memory. */
+static int cmp_u64(const void *p, const void *q)
+{
+    uint64_t a = *(const uint64_t *)p, b = *(const uint64_t *)q;
+    return a < b ? -1 : a > b;
+}
+
+static uint64_t *by_id(const uint32_t *ids, size_t n)
+{
+    uint64_t *o = malloc((n ? n : 1) * sizeof *o);
+    for (size_t t = 0; o && t < n; t++)
+        o[t] = (uint64_t)ids[t] << 32 | t;
+    if (o)
+        qsort(o, n, sizeof *o, cmp_u64);
+    return o;
+}
+
+/* Whether triangle s of a and t of b have their corners' centre in one place (within rounding: an
+ * oblique mesh is turned by its base's and its changes' own arithmetic). */
+static bool same_place(const struct trimesh *a, size_t s, const struct trimesh *b, size_t t)
+{
+    for (int d = 0; d < 3; d++) {
+        double p = 0, q = 0;
+        for (int c = 0; c < 3; c++)
+            p += a->pos[3 * a->tri[3 * s + c] + d], q += b->pos[3 * b->tri[3 * t + c] + d];
+        if (fabs(p - q) > 3e-3 + 1e-6 * fabs(p))
+            return false;
+    }
+    return true;
+}
+
+/* Whether e's triangle ids are the stored mesh's (its version e's, each id there naming the same
+ * triangle), so that e's changes can go to the journal. A model edited before its extraction was
+ * kept here (at levels 1 every cell was drawn again and numbered 0 .. n-1), or by a node that
+ * kept none, is not: its next edit is stored whole, numbered as e numbers it. O(F log F), once a
+ * rebuild or another node's parts. */
+static bool ids_agree(struct service *svc, const struct live *e)
+{
+    char *src = NULL;
+    size_t len = 0;
+    struct trimesh a = {0}, b = {0};
+    uint32_t *ia = NULL, *ib = NULL;
+    uint64_t version = 0, *oa = NULL, *ob = NULL;
+    struct iso_adapt_stats st;
+    struct sf_err err = {0};
+    bool same = !store_model_get(svc->store, e->id, NULL, NULL, &src, &len) &&
+                !mesh_unpack_ids(src, len, &a, &ia, &version, &err) && version == (uint64_t)e->next_seq &&
+                !live_mesh(e, &b, &ib, &st, &err) && a.n_tri == b.n_tri;
+    free(src);
+    if (same && e->vol.oblique)
+        trimesh_turn(&b, e->vol.g.origin, (const double(*)[3])e->vol.axes);
+    same = same && (oa = by_id(ia, a.n_tri)) && (ob = by_id(ib, b.n_tri));
+    for (size_t i = 0; same && i < a.n_tri; i++)
+        same = oa[i] >> 32 == ob[i] >> 32 && same_place(&a, (uint32_t)oa[i], &b, (uint32_t)ob[i]);
+    free(oa);
+    free(ob);
+    free(ia);
+    free(ib);
+    trimesh_free(&a);
+    trimesh_free(&b);
+    return same;
+}
+
+/* The edit applied to e and stored: with a kept extraction whose ids are the store's, as a change
+ * of its mesh (store_change), else (or when the model's row keeps no base) with the whole mesh.
+ * The new resource into w->json. */
 static int edit_model(struct edit_work *w, struct live *e, const struct job_rec *rec, const char *model, bool *drop)
 {
     char region[128];
     query_option(rec->options, "region", region, sizeof region);
     double t0 = monotonic_s();
     struct iso_model_edit me = {region, {0}, 0};
+    bool keeps = e->x.a || e->x.k;
     int rc = catch_up(w->job.svc, e, &w->err);
     if (rc)
         return rc;
+    if (keeps && !e->checked && !(e->checked = ids_agree(w->job.svc, e)))
+        LOG(LOG_INFO, "model %s: its stored mesh is not numbered as its keeps extraction (edited before it was keeps, "
+                      "or by a node that keeps none): this edit is stored whole", model);
     *drop = true; /* from here the entry is ahead of the store until the edit is stored */
     double ta = monotonic_s();
     struct iso_change ch = {0};
-    if ((rc = part_apply(w->job.svc, &e->vol, &e->a, rec->options, rec->request, rec->request_len, &me.e,
-                         e->a ? &ch : NULL, &w->err))) {
+    if ((rc = part_apply(w->job.svc, &e->vol, &e->x, rec->options, rec->request, rec->request_len, &me.e,
+                         keeps ? &ch : NULL, &w->err))) {
         iso_change_free(&ch);
         return rc;
     }
@@ -494,34 +591,36 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     part_options(rec->options, w->job.claim.id, opts, sizeof opts);
     struct volume_rec part = {e->next_seq, strcmp(rec->format, "iso") ? "edit" : "iso", opts, rec->request,
                               rec->request_len};
-    if (e->a) {
+    if (keeps && e->checked) {
         rc = store_change(w, model, e, &me, &ch, &part, t0);
-        iso_change_free(&ch);
         if (rc != SF_ECONFLICT) {
+            iso_change_free(&ch);
             if (!rc)
                 e->next_seq++, *drop = false;
             return rc;
         }
         LOG(LOG_INFO, "job %s: the edit is stored with the model's whole mesh (a conflict, or a model stored before "
                       "the journal of changes)", w->job.claim.id);
+    } else if (keeps && figures_move(e, &ch, whole_change(e, part.options, &me.e), &(double){0}, &(double){0})) {
+        rc = sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
     }
-    struct trimesh m;
+    iso_change_free(&ch);
+    struct trimesh m = {0};
     struct iso_adapt_stats ast = {0};
     uint32_t *ids = NULL;
-    if (e->a) {
-        if (!(rc = iso_adapt_mesh(e->a, &m, &ast, &w->err)))
-            rc = iso_adapt_ids(e->a, &ids, &w->err);
+    if (rc) {
+    } else if (keeps) {
+        rc = live_mesh(e, &m, &ids, &ast, &w->err);
     } else {
         struct iso_opts o = job_iso_opts(w->job.svc, &e->vol);
         rc = iso_extract(&e->vol.g, &o, NULL, &m, &w->err);
         me.e.cells_rebuilt = (long)(e->vol.g.nx + 1) * (e->vol.g.ny + 1) * (e->vol.g.nz + 1);
         me.e.triangles_added = (long)m.n_tri;
+        me.ms = (monotonic_s() - ta) * 1e3; /* (every cell drawn again) */
     }
     double t_mesh = monotonic_s();
-    if (!e->a)
-        me.ms = (t_mesh - ta) * 1e3; /* (marching cubes: every cell drawn again) */
-    if (!rc && !(rc = store_edit(w, model, &e->vol, &m, ids, e->a ? &ast : NULL, &me, &part, t0, t_mesh)))
-        e->next_seq++, *drop = false;
+    if (!rc && !(rc = store_edit(w, model, &e->vol, &m, ids, e->x.a ? &ast : NULL, &me, &part, t0, t_mesh)))
+        e->next_seq++, e->checked = true, *drop = false;
     free(ids);
     trimesh_free(&m);
     return rc;
@@ -591,7 +690,7 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         if (e) {
             bool drop = false;
             rc = edit_model(w, e, &rec, model, &drop);
-            live_give(e, drop || (e->a == NULL && !e->vol.owned), (size_t)w->job.svc->cfg.edit_memory);
+            live_give(e, drop || (!e->x.a && !e->x.k && !e->vol.owned), (size_t)w->job.svc->cfg.edit_memory);
         }
     }
     if (!rc) {

@@ -65,18 +65,28 @@ static void range_of(const float *f, size_t n, double *lo, double *hi)
     *lo = a, *hi = b;
 }
 
-/* An iso change to value (options' "value") of vol's model: a a new hierarchy at that iso, its
- * triangles numbered after the old one's (ch: all of the old ones out, all of the new in), or, with
- * no hierarchy, vol's iso (its mesh then extracted again whole). */
-static int iso_apply(struct service *svc, struct volume *vol, struct iso_adapt **a, const char *value,
+/* An iso change to value (options' "value") of vol's model: marching cubes kept drawn again at
+ * that iso (the blocks that straddle it), a new hierarchy at that iso, its triangles numbered after
+ * the old one's (ch: all of the old ones out, all of the new in), or, with neither, vol's iso (its
+ * mesh then extracted again whole). */
+static int iso_apply(struct service *svc, struct volume *vol, struct kept_ext *x, const char *value,
                      struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
 {
     char *end = NULL;
     double v = strtod(value, &end), lo, hi;
     size_t n = (size_t)vol->g.nx * vol->g.ny * vol->g.nz;
     float *f = NULL, *row = NULL;
+    struct iso_adapt **a = &x->a;
     if (*end || !isfinite(v))
         return sf_fail(err, SF_EINVAL, "?value", "value is the new iso, a finite number");
+    if (x->k) {
+        struct iso_change none = {0};
+        int rc = iso_kept_iso(x->k, v, ed, ch ? ch : &none, err);
+        iso_change_free(&none);
+        if (!rc)
+            vol->iso = v;
+        return rc;
+    }
     if (*a && iso_adapt_samples(*a, &f, err))
         return err->code;
     if (f) {
@@ -94,7 +104,7 @@ static int iso_apply(struct service *svc, struct volume *vol, struct iso_adapt *
             }
         free(row);
     }
-    if (!(v >= lo && v < hi)) {
+    if (!(v >= lo && v <= hi)) {
         free(f);
         return sf_fail(err, SF_EINVAL, "?value", "the samples run from %g to %g: an iso of %g has no surface", lo, hi, v);
     }
@@ -151,20 +161,26 @@ static int iso_apply(struct service *svc, struct volume *vol, struct iso_adapt *
     return 0;
 }
 
-int part_apply(struct service *svc, struct volume *vol, struct iso_adapt **a, const char *options, const void *data,
+int part_apply(struct service *svc, struct volume *vol, struct kept_ext *x, const char *options, const void *data,
                size_t len, struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
 {
     int lo[3], n[3];
     char value[64] = "";
     query_option(options, "value", value, sizeof value);
     if (value[0])
-        return iso_apply(svc, vol, a, value, ed, ch, err);
+        return iso_apply(svc, vol, x, value, ed, ch, err);
     if (volume_region(options, &vol->g, len, lo, n, err))
         return err->code;
     struct iso_grid blk = {n[0], n[1], n[2], vol->g.type, data, {1, 1, 1}, {0, 0, 0}};
     memset(ed, 0, sizeof *ed);
-    if (*a)
-        return iso_adapt_edit_ids(*a, lo, &blk, ed, ch, err);
+    if (x->a)
+        return iso_adapt_edit_ids(x->a, lo, &blk, ed, ch, err);
+    if (x->k) {
+        struct iso_change none = {0};
+        int rc = iso_kept_edit(x->k, lo, &blk, ed, ch ? ch : &none, err);
+        iso_change_free(&none);
+        return rc;
+    }
     write_samples(&vol->g, lo, &blk);
     ed->whole = true;
     return 0;
@@ -197,7 +213,7 @@ int stored_volume(struct service *svc, const char *id, struct volume *vol, bool 
     }
     for (int k = 1; k < n && !rc && edits; k++) {
         struct iso_edit ed;
-        struct iso_adapt *none = NULL;
+        struct kept_ext none = {0};
         rc = part_apply(svc, vol, &none, parts[k].options, parts[k].data, parts[k].len, &ed, NULL, err);
     }
     *next = edits ? parts[n - 1].seq + 1 : 1;

@@ -19,12 +19,19 @@ struct iso_opts job_iso_opts(const struct service *svc, const struct volume *v);
 /* The whole file at path, mapped read-only (*map NULL for an empty one): 0 or SF_EIO. */
 int job_map_file(const char *path, void **map, size_t *len);
 
+/* A model's extraction kept for its edits (core/iso/kept.h): the hierarchy (levels over 1, or
+ * features) or marching cubes kept (levels 1), each holding the samples; neither: vol's samples. */
+struct kept_ext {
+    struct iso_adapt *a;
+    struct iso_kept *k;
+};
+
 /* A part of a model's stored volume after the first applied to vol: an edit (options its region,
- * data and len its samples) into the hierarchy *a (ed: what it redrew) or, when *a is NULL, into
- * vol's samples; an iso change (options' value) a new hierarchy at that iso in *a, or vol's iso.
- * ch (NULL: not wanted): what it did by triangle id (core/iso/kept.h). 0, or the region's or the
+ * data and len its samples) into x's extraction (ed: what it redrew) or, with none, into vol's
+ * samples; an iso change (options' value) x's extraction at that iso (a hierarchy: a new one), or
+ * vol's iso alone. ch (NULL: not wanted): what it did by triangle id. 0, or the region's or the
  * value's error (SF_EINVAL with its pointer: ?value outside the samples' range). */
-int part_apply(struct service *svc, struct volume *vol, struct iso_adapt **a, const char *options, const void *data,
+int part_apply(struct service *svc, struct volume *vol, struct kept_ext *x, const char *options, const void *data,
                size_t len, struct iso_edit *ed, struct iso_change *ch, struct sf_err *err);
 /* Model id's volume as the store keeps it, its edits applied unless edits is false (its samples in
  * vol->owned; free with volume_free), *next the seq after the last part applied: 0, or SF_ECONFLICT (the model keeps no volume

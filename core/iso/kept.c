@@ -732,9 +732,11 @@ int iso_kept_iso(struct iso_kept *k, double iso, struct iso_edit *ed, struct iso
     *ch = (struct iso_change){.next_id = k->next_id};
     if (k->broken)
         return sf_fail(err, SF_EINVAL, "", "an earlier change of this extraction failed: it is of no further use");
-    if (!isfinite(iso) || iso < k->least || iso > k->most)
-        return sf_fail(err, SF_EINVAL, "?value", "the iso value is a finite number within the samples' range, %g to %g",
-                       k->least, k->most);
+    if (!isfinite(iso))
+        return sf_fail(err, SF_EINVAL, "?value", "value is the new iso, a finite number");
+    if (!(iso >= k->least && iso <= k->most))
+        return sf_fail(err, SF_EINVAL, "?value", "the samples run from %g to %g: an iso of %g has no surface", k->least,
+                       k->most, iso);
     k->o.iso = iso;
     k->pad = pad_of(k);
     int rc = redraw_all(k, ed, ch, err);

@@ -157,6 +157,43 @@ cp "$T/copy.json" "$T/mine.json"; client load "$T/d0"
 check "... since=0 from the new base: the same triangles by the same ids" '[ "$code" = 200 ] && python3 -c "
 import json,sys; a=json.load(open(sys.argv[1])); b=json.load(open(sys.argv[2])); sys.exit(a != b)" "$T/copy.json" "$T/mine.json"'
 
+# levels=1 (marching cubes kept): a model edited first on a node that keeps no extraction
+# (edit-memory 0: every edit draws every cell, its mesh numbered 0 .. n-1 again), then on one that
+# keeps it: that node finds the stored ids are not its own, stores its first edit whole, and
+# journals the next ones; kill -9 right after a 200, then the extraction rebuilt from the store
+stop_daemon; start_daemon "$T/d" --edit-memory 0 || exit 1
+code=$(status POST "/isosurface?iso=226.5&dims=64,64,64&type=int16&spacing=0.9570312,0.9570312,1.5" -H "$RAW" --data-binary @"$CT")
+ID=$(field id)
+edit 20,24,17 1500 >/dev/null; code=$(edit 30,8,40 1500); v=$(field version)
+whole=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['edit']['whole'])" "$T/body")
+code2=$(status GET "/models/$ID/mesh?format=delta&since=2")
+check "levels=1 on a node keeping no extraction: every cell drawn again (version 3), no journal (since 2: 410)" '[ "$code" = 200 ] && [ "$v" = 3 ] && [ "$whole" = True ] && [ "$code2" = 410 ]'
+stop_daemon; start_daemon "$T/d" || exit 1
+code=$(edit 21,25,18 -1000); v=$(field version)
+whole=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['edit']['whole'])" "$T/body")
+code2=$(status GET "/models/$ID/mesh?format=delta&since=3")
+check "... then kept: the cells it reaches drawn again, stored whole once (its ids not the store's: since 3, 410)" '[ "$code" = 200 ] && [ "$v" = 4 ] && [ "$whole" = False ] && [ "$code2" = 410 ]'
+status GET "/models/$ID/mesh?format=delta&since=0" >/dev/null; cp "$T/body" "$T/d0"; client load "$T/d0"
+ok=1; figures=1
+for r in 8,40,3 12,30,30 40,20,30 22,26,19; do
+    code=$(edit "$r" 1500); [ "$code" = 200 ] || ok=0
+    v=$(field version); TRI=$(field triangles); VOL=$(field volume_mm3)
+    code=$(status GET "/models/$ID/mesh?format=delta&since=$((v - 1))"); cp "$T/body" "$T/dv"
+    [ "$code" = 200 ] && client apply "$T/dv" || ok=0
+    status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
+    client same "$T/v.stl" || ok=0
+    client figures "$TRI" "$VOL" || figures=0
+done
+check "... four more edits journaled: each delta applied by id gives the STL (version $v), the figures the mesh's" '[ $ok = 1 ] && [ $figures = 1 ] && [ "$v" = 8 ]'
+cp "$T/copy.json" "$T/copy8.json"
+code=$(edit 10,10,10 1500)
+kill -9 "$PID"; wait "$PID" 2>/dev/null; PID=""
+start_daemon "$T/d" || exit 1
+code=$(edit 35,35,35 -1000); v=$(field version)
+code2=$(status GET "/models/$ID/mesh?format=delta&since=8"); cp "$T/body" "$T/dv"
+status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
+check "... kill -9 right after an edit's 200; an edit after the restart (rebuilt): version 10, the delta since 8 applies" '[ "$code" = 200 ] && [ "$v" = 10 ] && [ "$code2" = 200 ] && client apply "$T/dv" && client same "$T/v.stl"'
+
 # PostgreSQL: kill -9 right after an edit's 200 loses nothing there either
 . tests/tools/pg.inc
 stop_daemon
