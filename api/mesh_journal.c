@@ -41,20 +41,46 @@ int mesh_change_encode(const struct iso_change *ch, uint32_t version, char **out
     return 0;
 }
 
-/* A change's counts, checked against its length: true when it is one. */
-static bool change_of(const struct mesh_change *c, uint32_t *version, uint32_t *n_removed, uint32_t *n_added)
+int mesh_change_encode_whole(const struct iso_change *ch, uint32_t version, char **out, size_t *len,
+                             struct sf_err *err)
+{
+    size_t n = 16 + 4 * (ch->n_removed + ch->n_added);
+    unsigned char *b = malloc(n), *p = b;
+    if (!b)
+        return sf_fail(err, SF_ENOMEM, "", "out of memory writing the mesh change");
+    memcpy(p, "SFMW", 4);
+    put32(p + 4, version), put32(p + 8, (uint32_t)ch->n_removed), put32(p + 12, (uint32_t)ch->n_added);
+    p += 16;
+    for (size_t k = 0; k < ch->n_removed; k++, p += 4)
+        put32(p, ch->removed[k]);
+    for (size_t k = 0; k < ch->n_added; k++, p += 4)
+        put32(p, ch->added[k]);
+    *out = (char *)b, *len = n;
+    return 0;
+}
+
+/* A change's counts, checked against its length: its bytes a triangle added (76; a whole one's 4),
+ * or 0 when it is not one. */
+static size_t change_of(const struct mesh_change *c, uint32_t *version, uint32_t *n_removed, uint32_t *n_added)
 {
     const unsigned char *p = c->data;
-    if (c->len < 16 || memcmp(p, "SFMC", 4))
-        return false;
+    if (c->len < 16 || (memcmp(p, "SFMC", 4) && memcmp(p, "SFMW", 4)))
+        return 0;
+    size_t each = p[3] == 'W' ? 4 : 76;
     *version = le32(p + 4), *n_removed = le32(p + 8), *n_added = le32(p + 12);
-    return c->len == 16 + 4 * (uint64_t)*n_removed + 76 * (uint64_t)*n_added;
+    return c->len == 16 + 4 * (uint64_t)*n_removed + each * (uint64_t)*n_added ? each : 0;
 }
 
 uint32_t mesh_change_version(const void *data, size_t len)
 {
     uint32_t v, r, a;
     return change_of(&(struct mesh_change){data, len}, &v, &r, &a) ? v : 0;
+}
+
+bool mesh_change_whole(const void *data, size_t len)
+{
+    uint32_t v, r, a;
+    return change_of(&(struct mesh_change){data, len}, &v, &r, &a) == 4;
 }
 
 /* ---- an id table: id -> a value, open addressing ---- */
@@ -113,15 +139,51 @@ static void ids_remove(struct ids *t, size_t h)
 
 /* ---- deltas ---- */
 
-int mesh_changes_delta(const struct mesh_change *ch, size_t n, uint32_t from, uint32_t to, char **out, size_t *len,
-                       struct sf_err *err)
+/* The triangles added of a delta, from the current mesh (packed with ids, of version to): every
+ * one, each in table added (what the changes leave). 0 or SF_EFORMAT, SF_ENOMEM. */
+static int added_from_mesh(const char *mesh, size_t mesh_len, uint32_t to, struct ids *added, unsigned char **p,
+                           struct sf_err *err)
+{
+    struct trimesh m;
+    uint32_t *ids;
+    uint64_t version;
+    if (!mesh)
+        return sf_fail(err, SF_EFORMAT, "", "a whole change is composed with the current mesh");
+    int rc = mesh_unpack_ids(mesh, mesh_len, &m, &ids, &version, err);
+    if (rc)
+        return rc;
+    if (version != to || m.n_tri != added->n)
+        rc = sf_fail(err, SF_EFORMAT, "", "the mesh is not of the version its changes make");
+    for (size_t t = 0; t < m.n_tri && !rc; t++) {
+        if (added->val[slot(added, ids[t])] == EMPTY) {
+            rc = sf_fail(err, SF_EFORMAT, "", "the mesh holds triangle %u, which its changes do not add", ids[t]);
+            break;
+        }
+        put32(*p, ids[t]);
+        for (int c = 0; c < 3; c++)
+            for (int d = 0; d < 3; d++) {
+                uint32_t bits;
+                memcpy(&bits, m.pos + 3 * m.tri[3 * t + c] + d, 4);
+                put32(*p + 4 + 12 * c + 4 * d, bits);
+            }
+        *p += 40;
+    }
+    free(ids);
+    trimesh_free(&m);
+    return rc;
+}
+
+int mesh_changes_delta(const struct mesh_change *ch, size_t n, uint32_t from, uint32_t to, const char *mesh,
+                       size_t mesh_len, char **out, size_t *len, struct sf_err *err)
 {
     size_t total_added = 0, total_removed = 0;
+    bool whole = false;
     for (size_t k = 0; k < n; k++) {
         uint32_t v, r, a;
-        if (!change_of(&ch[k], &v, &r, &a) || v != from + 1 + k)
+        size_t each = change_of(&ch[k], &v, &r, &a);
+        if (!each || v != from + 1 + k)
             return sf_fail(err, SF_EFORMAT, "", "the model's stored changes are damaged or out of order");
-        total_added += a, total_removed += r;
+        total_added += a, total_removed += r, whole |= each == 4;
     }
     if (from + n != to)
         return sf_fail(err, SF_EFORMAT, "", "the model's stored changes stop at version %u, not %u", from + (uint32_t)n, to);
@@ -134,6 +196,7 @@ int mesh_changes_delta(const struct mesh_change *ch, size_t n, uint32_t from, ui
     for (size_t k = 0; k < n && !rc; k++) {
         const unsigned char *p = ch[k].data;
         uint32_t nr = le32(p + 8), na = le32(p + 12);
+        size_t each = p[3] == 'W' ? 4 : 76;
         for (uint32_t i = 0; i < nr; i++) {
             uint32_t id = le32(p + 16 + 4 * i);
             size_t h = slot(&added, id);
@@ -144,7 +207,7 @@ int mesh_changes_delta(const struct mesh_change *ch, size_t n, uint32_t from, ui
         }
         const unsigned char *q = p + 16 + 4 * (size_t)nr;
         for (uint32_t i = 0; i < na; i++) {
-            uint32_t id = le32(q + 76 * (size_t)i);
+            uint32_t id = le32(q + each * i);
             size_t h = slot(&added, id);
             added.n += added.val[h] == EMPTY;
             added.key[h] = id, added.val[h] = (size_t)k << 32 | i;
@@ -161,8 +224,10 @@ int mesh_changes_delta(const struct mesh_change *ch, size_t n, uint32_t from, ui
     p += 20;
     for (size_t k = 0; k < n_removed; k++, p += 4)
         put32(p, removed[k]);
+    if (whole) /* (every triangle now was added since from: the mesh's) */
+        rc = added_from_mesh(mesh, mesh_len, to, &added, &p, err);
     /* the triangles added, in the order the changes added them (their ids rise) */
-    for (size_t k = 0; k < n; k++) {
+    for (size_t k = 0; k < n && !whole; k++) {
         const unsigned char *c = ch[k].data;
         uint32_t nr = le32(c + 8), na = le32(c + 12);
         const unsigned char *q = c + 16 + 4 * (size_t)nr;
@@ -177,10 +242,13 @@ int mesh_changes_delta(const struct mesh_change *ch, size_t n, uint32_t from, ui
             p += 40;
         }
     }
-    *out = (char *)b, *len = (size_t)(p - b);
+    if (rc)
+        free(b);
+    else
+        *out = (char *)b, *len = (size_t)(p - b);
     ids_free(&added);
     free(removed);
-    return 0;
+    return rc;
 }
 
 /* ---- the current mesh ---- */
@@ -233,7 +301,7 @@ int mesh_changes_apply(const char *base, size_t base_len, const struct mesh_chan
     size_t added_total = 0;
     for (size_t k = 0; k < n && !rc; k++) {
         uint32_t v, r, a;
-        if (!change_of(&ch[k], &v, &r, &a) || v != version + 1 + k)
+        if (change_of(&ch[k], &v, &r, &a) != 76 || v != version + 1 + k)
             rc = sf_fail(err, SF_EFORMAT, "", "the model's stored changes are damaged or do not follow its mesh");
         added_total += a;
     }

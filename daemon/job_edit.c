@@ -403,10 +403,11 @@ static void part_options(const char *options, const char *job, char *out, size_t
 
 /* The mesh m of model id's volume v (ids: its triangles' ids, NULL: 0 .. n-1) measured, packed and
  * stored as the model's source of the part's version with the part (seq: its format, options and
- * data), the resource into w->json with edit me. */
+ * data) and change (NULL: none; a whole change, mesh_journal.h), the resource into w->json with
+ * edit me. */
 static int store_edit(struct edit_work *w, const char *id, const struct volume *v, struct trimesh *m,
                       const uint32_t *ids, const struct iso_adapt_stats *ast, struct iso_model_edit *me,
-                      const struct volume_rec *part, double t0, double t_mesh)
+                      const struct volume_rec *part, const struct volume_rec *change, double t0, double t_mesh)
 {
     struct trimesh_stats st;
     char *packed = NULL;
@@ -434,7 +435,7 @@ static int store_edit(struct edit_work *w, const char *id, const struct volume *
     }
     if (!rc) {
         struct model_rec mr = {id, id, NULL, NULL, 0, packed, packed_len, w->json, NULL, part->seq + 1};
-        int stored = store_model_edit(w->job.svc->store, &mr, part, NULL);
+        int stored = store_model_edit(w->job.svc->store, &mr, part, change);
         if (stored == SF_ECONFLICT)
             rc = sf_fail(&w->err, SF_ECONFLICT, "", "the model was edited by another request meanwhile (or deleted); "
                          "send the edit again");
@@ -576,7 +577,7 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     if (rc)
         return rc;
     if (keeps && !e->checked && !(e->checked = ids_agree(w->job.svc, e)))
-        LOG(LOG_INFO, "model %s: its stored mesh is not numbered as its keeps extraction (edited before it was keeps, "
+        LOG(LOG_INFO, "model %s: its stored mesh is not numbered as its kept extraction (edited before it was kept, "
                       "or by a node that keeps none): this edit is stored whole", model);
     *drop = true; /* from here the entry is ahead of the store until the edit is stored */
     double ta = monotonic_s();
@@ -591,7 +592,10 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     part_options(rec->options, w->job.claim.id, opts, sizeof opts);
     struct volume_rec part = {e->next_seq, strcmp(rec->format, "iso") ? "edit" : "iso", opts, rec->request,
                               rec->request_len};
-    if (keeps && e->checked) {
+    bool whole = keeps && whole_change(e, part.options, &me.e);
+    char *bytes = NULL;
+    size_t len = 0;
+    if (keeps && e->checked && !whole) {
         rc = store_change(w, model, e, &me, &ch, &part, t0);
         if (rc != SF_ECONFLICT) {
             iso_change_free(&ch);
@@ -601,17 +605,19 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
         }
         LOG(LOG_INFO, "job %s: the edit is stored with the model's whole mesh (a conflict, or a model stored before "
                       "the journal of changes)", w->job.claim.id);
-    } else if (keeps && figures_move(e, &ch, whole_change(e, part.options, &me.e), &(double){0}, &(double){0})) {
+        rc = 0;
+    } else if (keeps && figures_move(e, &ch, whole, &(double){0}, &(double){0})) {
         rc = sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
+    } else if (whole && e->checked) { /* (stored with its base: mesh_journal.h) */
+        rc = mesh_change_encode_whole(&ch, (uint32_t)part.seq + 1, &bytes, &len, &w->err);
     }
     iso_change_free(&ch);
     struct trimesh m = {0};
     struct iso_adapt_stats ast = {0};
     uint32_t *ids = NULL;
-    if (rc) {
-    } else if (keeps) {
+    if (!rc && keeps) {
         rc = live_mesh(e, &m, &ids, &ast, &w->err);
-    } else {
+    } else if (!rc) {
         struct iso_opts o = job_iso_opts(w->job.svc, &e->vol);
         rc = iso_extract(&e->vol.g, &o, NULL, &m, &w->err);
         me.e.cells_rebuilt = (long)(e->vol.g.nx + 1) * (e->vol.g.ny + 1) * (e->vol.g.nz + 1);
@@ -619,8 +625,13 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
         me.ms = (monotonic_s() - ta) * 1e3; /* (every cell drawn again) */
     }
     double t_mesh = monotonic_s();
-    if (!rc && !(rc = store_edit(w, model, &e->vol, &m, ids, e->x.a ? &ast : NULL, &me, &part, t0, t_mesh)))
+    struct volume_rec change = {0, "", "", bytes, len};
+    if (!rc && !(rc = store_edit(w, model, &e->vol, &m, ids, e->x.a ? &ast : NULL, &me, &part, bytes ? &change : NULL,
+                                 t0, t_mesh))) {
         e->next_seq++, e->checked = true, *drop = false;
+        w->version = bytes ? part.seq + 1 : 0; /* (the journal's rows before it dropped on compact's turn) */
+    }
+    free(bytes);
     free(ids);
     trimesh_free(&m);
     return rc;
@@ -659,7 +670,7 @@ static int edit_frep(struct edit_work *w, struct job *j, const struct job_rec *r
         char opts[600];
         part_options(parts[0].options, w->job.claim.id, opts, sizeof opts);
         struct volume_rec part = {n, "frep", opts, req, strlen(req)};
-        rc = store_edit(w, id, &v, &m, NULL, volume_adaptive(&v) ? &ast : NULL, &me, &part, t0, t_mesh);
+        rc = store_edit(w, id, &v, &m, NULL, volume_adaptive(&v) ? &ast : NULL, &me, &part, NULL, t0, t_mesh);
     }
     trimesh_free(&m);
     volume_free(&v);

@@ -29,6 +29,7 @@
 #include "../api/iso_json.h"
 #include "../api/model_json.h"
 #include "../api/job_json.h"
+#include "../api/mesh_io.h"
 #include "../api/mesh_journal.h"
 #include "../api/problem.h"
 #include "frames.h"
@@ -761,6 +762,20 @@ static enum MHD_Result delta_request(struct req *r, const char *id, bool *answer
     int n, rc = store_changes_get(r->svc->store, id, since, &parts, &n);
     if (rc)
         return damaged_or_failed(r, rc);
+    /* across a whole change (mesh_journal.h) the triangles added are the current mesh's, read
+     * whole; the changes then go as far as it does */
+    char *mesh = NULL;
+    size_t mesh_len = 0;
+    uint64_t at = 0;
+    for (int k = 0; k < n && !mesh && !rc; k++)
+        if (mesh_change_whole(parts[k].data, parts[k].len) &&
+            !(rc = store_model_get(r->svc->store, id, NULL, NULL, &mesh, &mesh_len)) &&
+            mesh_packed_version(mesh, mesh_len, &at))
+            rc = SF_EDAMAGED;
+    while (n && !rc && mesh && mesh_change_version(parts[n - 1].data, parts[n - 1].len) > at) {
+        n--; /* (stored after the mesh was read) */
+        free((void *)parts[n].format), free((void *)parts[n].options), free((void *)parts[n].data);
+    }
     struct mesh_change *ch = malloc(((size_t)n + 1) * sizeof *ch);
     for (int k = 0; ch && k < n; k++)
         ch[k] = (struct mesh_change){parts[k].data, parts[k].len};
@@ -769,11 +784,13 @@ static enum MHD_Result delta_request(struct req *r, const char *id, bool *answer
     struct sf_err err = {0};
     /* (changes stored after the resource was read: the delta goes as far as they do) */
     long to = n ? (long)mesh_change_version(parts[n - 1].data, parts[n - 1].len) : since;
-    rc = !ch ? SF_ENOMEM
-         : to - since != n || to < version
+    rc = rc  ? rc
+         : !ch ? SF_ENOMEM
+         : to - since != n || to < version || (mesh && (uint64_t)to != at)
              ? SF_ENOTFOUND
-             : mesh_changes_delta(ch, (size_t)n, (uint32_t)since, (uint32_t)to, &out, &len, &err);
+             : mesh_changes_delta(ch, (size_t)n, (uint32_t)since, (uint32_t)to, mesh, mesh_len, &out, &len, &err);
     free(ch);
+    free(mesh);
     store_volume_free(parts, n);
     if (rc == SF_ENOTFOUND) {
         snprintf(detail, sizeof detail, "the changes from version %ld to %ld are not kept: load since=0 (the whole mesh)",

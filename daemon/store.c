@@ -172,7 +172,7 @@ int store_model_edit(struct store *s, const struct model_rec *m, const struct vo
     struct volume_rec c;
     if (change) /* (seq -version: the journal's rows sort before the volume's) */
         c = (struct volume_rec){(int)-m->version, "mesh-change", "", change->data, change->len};
-    return s->ops->model_edit(s, m, edit, change && !m->source ? &c : NULL);
+    return s->ops->model_edit(s, m, edit, change ? &c : NULL);
 }
 
 int store_changes_get(struct store *s, const char *id, long since, struct volume_rec **parts, int *n)

@@ -195,8 +195,9 @@ struct model_rec {
  * (and no edits). 0 or SF_EIO. */
 int store_model_put(struct store *s, const struct model_rec *m);
 /* An edit of model m->id in one transaction: the volume part edit (its seq the next one; NULL:
- * none), the model's new resource and either its new source (of version m->version) or, with
- * m->source NULL, the mesh change to m->version (change: its bytes; seq and format set here). 0
+ * none), the model's new resource, its new source (of version m->version; NULL: the base stays)
+ * and the mesh change to m->version (change: its bytes, seq and format set here; NULL: none; with
+ * a source, a whole change, mesh_journal.h). 0
  * stored, SF_ECONFLICT when that seq is taken (another edit came first), the model is gone, or
  * (m->source NULL) its row keeps no base version (written before the journal: store a source),
  * SF_EIO. */

@@ -162,7 +162,7 @@ TEST(a_base_and_its_changes_are_the_kept_mesh)
             for (uint32_t v = 1; v < from; v++) {
                 char *d;
                 size_t dl;
-                CHECK(mesh_changes_delta(journal + v - 1, 1, v, v + 1, &d, &dl, &err) == 0 && apply_delta(&c, d, dl));
+                CHECK(mesh_changes_delta(journal + v - 1, 1, v, v + 1, NULL, 0, &d, &dl, &err) == 0 && apply_delta(&c, d, dl));
                 free(d);
             }
         }
@@ -173,7 +173,7 @@ TEST(a_base_and_its_changes_are_the_kept_mesh)
             c.r = memcpy(malloc(first.n * sizeof *first.r), first.r, first.n * sizeof *first.r), c.n = first.n, c.version = 1;
         }
         CHECK(mesh_changes_delta(journal + (from ? from - 1 : 0), EDITS + 1 - (from ? from : 1), from ? from : 1,
-                                 EDITS + 1, &d, &dl, &err) == 0);
+                                 EDITS + 1, NULL, 0, &d, &dl, &err) == 0);
         CHECK(apply_delta(&c, d, dl));
         if (!same_records(c.r, c.n, now, n_now))
             fprintf(stderr, "  from %u: %zu records against %zu\n", from, c.n, n_now);
@@ -185,7 +185,7 @@ TEST(a_base_and_its_changes_are_the_kept_mesh)
      * delta 4 -> 6 */
     char *d;
     size_t dl;
-    CHECK(mesh_changes_delta(journal + 3, 2, 4, 6, &d, &dl, &err) == 0);
+    CHECK(mesh_changes_delta(journal + 3, 2, 4, 6, NULL, 0, &d, &dl, &err) == 0);
     const unsigned char *c5 = (const unsigned char *)chg[3], *c6 = (const unsigned char *)chg[4];
     const unsigned char *p = (const unsigned char *)d;
     uint32_t nr5 = rd32(c5 + 8), na5 = rd32(c5 + 12), nr6 = rd32(c6 + 8), nr = rd32(p + 12), na = rd32(p + 16);
@@ -204,10 +204,10 @@ TEST(a_base_and_its_changes_are_the_kept_mesh)
     CHECK(again > 0 && listed == 0);
     free(d);
     /* refused: a gap, a change out of order, damage, a change that does not follow the base */
-    CHECK(mesh_changes_delta(journal, 2, 1, 4, &d, &dl, &err) == SF_EFORMAT);
-    CHECK(mesh_changes_delta(journal + 1, 2, 1, 3, &d, &dl, &err) == SF_EFORMAT);
+    CHECK(mesh_changes_delta(journal, 2, 1, 4, NULL, 0, &d, &dl, &err) == SF_EFORMAT);
+    CHECK(mesh_changes_delta(journal + 1, 2, 1, 3, NULL, 0, &d, &dl, &err) == SF_EFORMAT);
     struct mesh_change cut = {journal[0].data, journal[0].len - 1};
-    CHECK(mesh_changes_delta(&cut, 1, 1, 2, &d, &dl, &err) == SF_EFORMAT);
+    CHECK(mesh_changes_delta(&cut, 1, 1, 2, NULL, 0, &d, &dl, &err) == SF_EFORMAT);
     CHECK(mesh_changes_apply(cur, cur_len, journal, 1, &d, &dl, &err) == SF_EFORMAT);
     CHECK(mesh_changes_apply(base, base_len, journal + 1, 1, &d, &dl, &err) == SF_EFORMAT);
     for (int e = 0; e < EDITS; e++)
@@ -219,9 +219,96 @@ TEST(a_base_and_its_changes_are_the_kept_mesh)
     free(raw);
 }
 
+/* Client c (at some version) and the current mesh cur: c's version at to and its records cur's. */
+static bool delta_brings(struct client *c, const struct mesh_change *ch, size_t n, uint32_t to, const char *cur,
+                         size_t cur_len)
+{
+    char *d = NULL;
+    size_t dl;
+    struct sf_err err = {0};
+    struct trimesh m;
+    uint32_t *ids;
+    uint64_t v;
+    bool ok = mesh_changes_delta(ch, n, c->version, to, cur, cur_len, &d, &dl, &err) == 0 && apply_delta(c, d, dl) &&
+              mesh_unpack_ids(cur, cur_len, &m, &ids, &v, &err) == 0;
+    if (ok) {
+        struct rec *r = records(&m, ids);
+        ok = same_records(c->r, c->n, r, m.n_tri);
+        free(r), free(ids), trimesh_free(&m);
+    }
+    free(d);
+    return ok;
+}
+
+/* Marching cubes kept (levels 1): an edit (v2), a new iso (v3: a whole change, stored with its
+ * base), an edit (v4). A delta across the whole change adds every triangle of the current mesh and
+ * takes out every one the client holds; without the current mesh, or with one of another version,
+ * it is refused, and a whole change is not applied to an older base. */
+TEST(a_whole_change_is_composed_with_the_current_mesh)
+{
+    size_t len;
+    char *raw = unit_data("volumes", "ct_head_crop64_int16.raw", &len);
+    CHECK(raw && len == CT_BYTES);
+    if (!raw || len != CT_BYTES) {
+        free(raw);
+        return;
+    }
+    struct iso_grid g = {64, 64, 64, ISO_I16, raw, {0.9570312, 0.9570312, 1.5}, {0, 0, 0}};
+    struct iso_opts o = {.iso = 226.5, .closed = true, .normals = true};
+    struct iso_kept *k;
+    struct sf_err err = {0};
+    REQUIRE(iso_kept_begin(&g, &o, &k, &err) == 0);
+    struct trimesh m;
+    uint32_t *ids;
+    char *base1, *base3, *cur, *chg[3];
+    size_t base1_len, base3_len, cur_len, chg_len[3];
+    CHECK(iso_kept_mesh(k, &m, &ids, &err) == 0 && mesh_pack_ids(&m, ids, 1, &base1, &base1_len, &err) == 0);
+    struct client c1 = {records(&m, ids), m.n_tri, 1}, c2;
+    trimesh_free(&m), free(ids);
+    int16_t blk[8 * 8 * 8];
+    for (int i = 0; i < 8 * 8 * 8; i++)
+        blk[i] = 1600;
+    struct iso_grid bg = {8, 8, 8, ISO_I16, blk, {1, 1, 1}, {0, 0, 0}};
+    struct iso_edit ed;
+    struct iso_change ch;
+    CHECK(iso_kept_edit(k, (int[3]){20, 24, 17}, &bg, &ed, &ch, &err) == 0 && !ed.whole);
+    CHECK(mesh_change_encode(&ch, 2, &chg[0], &chg_len[0], &err) == 0);
+    iso_change_free(&ch);
+    CHECK(iso_kept_iso(k, 500, &ed, &ch, &err) == 0 && ed.whole);
+    CHECK(mesh_change_encode_whole(&ch, 3, &chg[1], &chg_len[1], &err) == 0);
+    CHECK(mesh_change_whole(chg[1], chg_len[1]) && !mesh_change_whole(chg[0], chg_len[0]) &&
+          mesh_change_version(chg[1], chg_len[1]) == 3);
+    iso_change_free(&ch);
+    CHECK(iso_kept_mesh(k, &m, &ids, &err) == 0 && mesh_pack_ids(&m, ids, 3, &base3, &base3_len, &err) == 0);
+    trimesh_free(&m), free(ids);
+    CHECK(iso_kept_edit(k, (int[3]){30, 8, 40}, &bg, &ed, &ch, &err) == 0 && !ed.whole);
+    CHECK(mesh_change_encode(&ch, 4, &chg[2], &chg_len[2], &err) == 0);
+    iso_change_free(&ch);
+    struct mesh_change journal[3] = {{chg[0], chg_len[0]}, {chg[1], chg_len[1]}, {chg[2], chg_len[2]}};
+    CHECK(mesh_changes_apply(base3, base3_len, journal + 2, 1, &cur, &cur_len, &err) == 0);
+    /* the client at version 2 first: v1 and the change to 2 */
+    c2 = (struct client){memcpy(malloc(c1.n * sizeof *c1.r), c1.r, c1.n * sizeof *c1.r), c1.n, 1};
+    char *d = NULL;
+    size_t dl;
+    CHECK(mesh_changes_delta(journal, 1, 1, 2, NULL, 0, &d, &dl, &err) == 0 && apply_delta(&c2, d, dl));
+    free(d);
+    CHECK(delta_brings(&c1, journal, 3, 4, cur, cur_len) && c1.version == 4);
+    CHECK(delta_brings(&c2, journal + 1, 2, 4, cur, cur_len) && c2.version == 4);
+    CHECK(mesh_changes_delta(journal, 3, 1, 4, NULL, 0, &d, &dl, &err) == SF_EFORMAT);
+    CHECK(mesh_changes_delta(journal, 3, 1, 4, base3, base3_len, &d, &dl, &err) == SF_EFORMAT);
+    CHECK(mesh_changes_apply(base1, base1_len, journal, 2, &d, &dl, &err) == SF_EFORMAT);
+    for (int i = 0; i < 3; i++)
+        free(chg[i]);
+    free(c1.r), free(c2.r);
+    free(base1), free(base3), free(cur);
+    iso_kept_free(k);
+    free(raw);
+}
+
 int main(void)
 {
     iso_init();
     RUN(a_base_and_its_changes_are_the_kept_mesh);
+    RUN(a_whole_change_is_composed_with_the_current_mesh);
     UNIT_END();
 }

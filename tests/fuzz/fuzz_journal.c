@@ -1,7 +1,8 @@
 /* fuzz_journal.c - a model's mesh as a base and a journal of changes (api/mesh_journal.h, issue
  * 45), the bytes a store hands back: the input is records of a u32 length and its bytes, the first
  * a packed mesh (mesh_io.h, with or without ids; not one: a tetrahedron of version 1), the rest
- * changes. Their delta and the base with them applied must end cleanly; what apply answers must
+ * changes. Their delta (after the base, and up to it: a whole change composed with the base as
+ * the current mesh) and the base with them applied must end cleanly; what apply answers must
  * unpack again, of the version after the last change, without a vertex out of range; a delta's
  * counts must match its length. A disagreement aborts. */
 #include "../../api/mesh_io.h"
@@ -48,7 +49,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         ch[nc++] = (struct mesh_change){rec[k], len[k]};
     for (size_t k = 0; k < nc; k++)
         (void)mesh_change_version(ch[k].data, ch[k].len);
-    if (mesh_changes_delta(ch, nc, (uint32_t)version, (uint32_t)(version + nc), &out, &out_len, &err) == 0) {
+    /* the changes after the base; then the changes as the ones up to it (a whole change composed
+     * with the base as the current mesh) */
+    for (int as_current = 0; as_current < 2; as_current++) {
+        uint64_t from = as_current ? version - nc : version;
+        if (as_current && version < nc)
+            break;
+        if (mesh_changes_delta(ch, nc, (uint32_t)from, (uint32_t)(from + nc), base, base_len, &out, &out_len, &err))
+            continue;
         const uint8_t *d = (const uint8_t *)out;
         if (out_len < 20 || memcmp(d, "SFMD", 4) || out_len != 20 + 4 * (size_t)rd32(d + 12) + 40 * (size_t)rd32(d + 16))
             abort();
