@@ -285,22 +285,23 @@ void edit_keep(struct service *svc, const char *id, const struct volume *vol, st
 
 /* ---- applying parts of the volume ---- */
 
-/* Model id's extraction rebuilt from the store: its volume as posted, its edits left to catch_up
- * to apply in order (so that its triangles are numbered as the first extraction numbered them: the
- * journal's ids, core/iso/kept.h). A hierarchy for levels over 1 or features; marching cubes kept
- * when its samples fit edit-memory as the isosurface job's rule has it (some 5 bytes a sample),
- * else the samples alone (every edit then draws every cell). Held and locked, or NULL with err. */
-static struct live *rebuild(struct service *svc, const char *id, struct sf_err *err)
+/* Model id's extraction rebuilt from the store into e (held, empty): its volume as posted, its
+ * edits left to catch_up to apply in order (so that its triangles are numbered as the first
+ * extraction numbered them: the journal's ids, core/iso/kept.h). A hierarchy for levels over 1 or
+ * features; marching cubes kept when its samples fit edit-memory as the isosurface job's rule has
+ * it (some 5 bytes a sample), else the samples alone (every edit then draws every cell). 0 or an
+ * error. */
+static int build(struct service *svc, struct live *e, struct sf_err *err)
 {
-    struct volume vol;
+    struct volume *vol = &e->vol;
     struct kept_ext x = {0};
-    int next, rc = stored_volume(svc, id, &vol, false, &next, err);
+    int rc = stored_volume(svc, e->id, vol, false, &e->next_seq, err);
     if (rc)
-        return NULL;
-    struct iso_opts o = job_iso_opts(svc, &vol);
-    if (volume_adaptive(&vol)) {
+        return rc;
+    struct iso_opts o = job_iso_opts(svc, vol);
+    if (volume_adaptive(vol)) {
         o.keep = true;
-        if (!(rc = iso_adapt_begin(&vol.g, &o, vol.levels, vol.max_error, &x.a, err))) {
+        if (!(rc = iso_adapt_begin(&vol->g, &o, vol->levels, vol->max_error, &x.a, err))) {
             for (int p = 0; p < iso_adapt_phases(x.a); p++) {
                 for (int s = 0; s < iso_adapt_n_slabs(x.a); s++)
                     iso_adapt_run(x.a, p, s);
@@ -309,31 +310,54 @@ static struct live *rebuild(struct service *svc, const char *id, struct sf_err *
             struct iso_adapt_stats st;
             rc = iso_adapt_keep(x.a, &st, err);
         }
-    } else if ((double)vol.g.nx * vol.g.ny * vol.g.nz * 5 <= (double)svc->cfg.edit_memory) {
-        rc = iso_kept_begin(&vol.g, &o, &x.k, err);
-    }
-    if (!rc && (x.a || x.k)) { /* the extraction holds the samples now */
-        free(vol.owned);
-        vol.owned = NULL, vol.g.samples = NULL;
+    } else if ((double)vol->g.nx * vol->g.ny * vol->g.nz * 5 <= (double)svc->cfg.edit_memory) {
+        rc = iso_kept_begin(&vol->g, &o, &x.k, err);
     }
     if (rc) {
         iso_adapt_free(x.a);
         iso_kept_free(x.k);
-        volume_free(&vol);
+        return rc;
+    }
+    e->x = x;
+    if (x.a || x.k) { /* the extraction holds the samples now */
+        free(vol->owned);
+        vol->owned = NULL, vol->g.samples = NULL;
+        if (figures_all(e))
+            return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    }
+    return 0;
+}
+
+/* Whether e holds nothing to edit (a rebuild that failed while another job waited for it). */
+static bool live_empty(const struct live *e) { return !e->x.a && !e->x.k && !e->vol.owned; }
+
+/* Model id's extraction rebuilt from the store (build), held and locked, or NULL with err. Its
+ * entry is listed first, empty and locked, so that another edit of the model waits for this
+ * rebuild instead of making its own. */
+static struct live *rebuild(struct service *svc, const char *id, struct sf_err *err)
+{
+    struct live *e = live_new(id, &(struct volume){0}, (struct kept_ext){0}, 0);
+    if (!e) {
+        sf_fail(err, SF_ENOMEM, "", "out of memory");
         return NULL;
     }
-    struct live *e = live_new(id, &vol, x, next);
-    if (!e) {
-        iso_adapt_free(x.a);
-        iso_kept_free(x.k);
-        volume_free(&vol);
-        sf_fail(err, SF_ENOMEM, "", "out of memory");
-    } else if ((x.a || x.k) && figures_all(e)) {
+    if (build(svc, e, err)) {
         live_give(e, true, (size_t)svc->cfg.edit_memory);
-        e = NULL;
-        sf_fail(err, SF_ENOMEM, "", "out of memory");
+        return NULL;
     }
     return e;
+}
+
+void edit_warm(struct service *svc, const char *id)
+{
+    struct sf_err err = {0};
+    struct live *e = live_take(id);
+    if (!e && (e = rebuild(svc, id, &err)))
+        e->checked = true; /* (the job's mesh, ids 0 .. n-1: a part stored since is caught up, and checked, first) */
+    if (e)
+        live_give(e, false, (size_t)svc->cfg.edit_memory);
+    else if (err.code)
+        LOG(LOG_INFO, "model %s: its extraction was not kept for edits (%s); its first edit builds it", id, err.message);
 }
 
 /* The parts other nodes stored since e was built, applied. 0 or an error. */
@@ -695,13 +719,17 @@ static int prepare(struct job *j, void *arg, int *n_bands)
         rc = edit_frep(w, j, &rec, model);
     } else if (!rc && !was) {
         struct live *e = live_take(model);
+        if (e && live_empty(e)) { /* (the rebuild it waited for failed) */
+            live_give(e, true, (size_t)w->job.svc->cfg.edit_memory);
+            e = NULL;
+        }
         if (!e)
             e = rebuild(w->job.svc, model, &w->err);
         rc = e ? 0 : w->err.code;
         if (e) {
             bool drop = false;
             rc = edit_model(w, e, &rec, model, &drop);
-            live_give(e, drop || (!e->x.a && !e->x.k && !e->vol.owned), (size_t)w->job.svc->cfg.edit_memory);
+            live_give(e, drop || live_empty(e), (size_t)w->job.svc->cfg.edit_memory);
         }
     }
     if (!rc) {
@@ -743,13 +771,20 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     struct edit_work *w = arg;
     service_job_end(w->job.svc, &w->job.claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
-    if (outcome == JOB_SUCCEEDED)
-        compact(w->job.svc, w->model, w->version, w->change_bytes);
+    if (outcome != JOB_SUCCEEDED)
+        w->version = 0;
+}
+
+/* After the answer: the journal compacted on its turn. */
+static void after(void *arg)
+{
+    struct edit_work *w = arg;
+    compact(w->job.svc, w->model, w->version, w->change_bytes);
     free(w->json);
     free(w);
 }
 
-static const struct job_ops EDIT_OPS = {.prepare = prepare, .finish = finish};
+static const struct job_ops EDIT_OPS = {.prepare = prepare, .finish = finish, .after = after};
 
 
 static const char *edit_format(const char *content_type)

@@ -45,6 +45,7 @@ struct iso_work {
     enum { PH_SAMPLE, PH_COUNT, PH_EMIT, PH_ADAPT } phase;
     struct iso_adapt *ad;    /* volume_adaptive(): the adaptive hierarchy, its phases of bands */
     bool ad_keep;            /* begun to be kept for the model's edits */
+    bool warm;               /* marching cubes to be kept for them, after the answer (edit_warm) */
     int ad_phase;
     struct iso_adapt_stats adapt_st;
     int n_slabs, n_sample, bands_total; /* bands_total: of every phase, for the progress */
@@ -286,6 +287,8 @@ static int store_model(struct iso_work *w)
         edit_keep(w->job.svc, w->job.claim.id, &w->vol, kept);
     else
         iso_adapt_free(kept);
+    w->warm = !rc && !volume_adaptive(&w->vol) && !w->vol.frep && !w->vol.has_label &&
+              (double)w->vol.g.nx * w->vol.g.ny * w->vol.g.nz * 5 <= (double)w->job.svc->cfg.edit_memory;
     if (!rc) {
         w->len = strlen(w->json);
         snprintf(w->meta, sizeof w->meta, "{\"status\":201,\"location\":\"/models/%s\"}", w->job.claim.id);
@@ -377,6 +380,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     }
     service_job_end(w->job.svc, &w->job.claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
+    w->warm = w->warm && outcome == JOB_SUCCEEDED;
     iso_free(w->ij);
     iso_adapt_free(w->ad);
     iso_labels_free(&w->lab);
@@ -386,10 +390,19 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
         store_request_file_done(w->job.svc->store, w->file);
     store_rec_free(&w->rec);
     free(w->json);
+    w->json = NULL;
+}
+
+/* After the answer: a levels=1 model's marching cubes kept for its edits (edit_warm). */
+static void after(void *arg)
+{
+    struct iso_work *w = arg;
+    if (w->warm)
+        edit_warm(w->job.svc, w->job.claim.id);
     free(w);
 }
 
-static const struct job_ops ISO_OPS = {.prepare = prepare, .band = band, .next = next, .finish = finish};
+static const struct job_ops ISO_OPS = {.prepare = prepare, .band = band, .next = next, .finish = finish, .after = after};
 
 
 /* A DICOM series' (or one DICOM file's) identifying elements blanked in place in the body, before it

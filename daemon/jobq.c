@@ -10,7 +10,8 @@
  *     banded     shared: any worker may claim the next band under the lock and run ops->band
  *                unlocked; bands write disjoint data, prepared data is read-only.
  *     finishing  the worker that saw the last band end (or the preparer, for a job without bands)
- *                runs ops->finish unlocked, then unlinks the job and wakes its waiters.
+ *                runs ops->finish unlocked, then unlinks the job and wakes its waiters
+ *                (then ops->after, when the kind has one).
  *   What a worker may call: its job's ops (which call core/ and the store), never the HTTP layer;
  *   waiter callbacks are the only path back to connections, and they only resume them.
  *   Memory bound: at most n_workers jobs are prepared at once; others wait queued. Each job's ops
@@ -198,6 +199,11 @@ static void finish_job(struct jobq *q, struct job *j, enum job_state outcome)
     fire(w, true);
     if (room)
         room(room_arg);
+    if (j->ops->after) {
+        mem_account_enter(&j->mem);
+        j->ops->after(j->work);
+        mem_account_enter(NULL);
+    }
     free(j);
     q_lock(q);
 }
@@ -393,6 +399,8 @@ int jobq_shutdown(struct jobq *q, double timeout_s, double grace_s, void (*aband
     for (struct job *j = live, *n; j; j = n) {
         n = j->next_live;
         j->ops->finish(j, j->work, JOB_CANCELLED, true);
+        if (j->ops->after) /* (what it does after a requeue: nothing but free work) */
+            j->ops->after(j->work);
         free(j);
     }
     return 0;

@@ -28,8 +28,12 @@ struct job_ops {
      * progress (jobq_cancelled) when it has phases. */
     int (*next)(struct job *j, void *work, int *n_bands);
     /* outcome: JOB_SUCCEEDED, JOB_FAILED (prepare failed) or JOB_CANCELLED (by the user; or, with
-     * requeue, by shutdown: the job is to run again after restart). Frees work. */
+     * requeue, by shutdown: the job is to run again after restart). Frees work (but see after). */
     void (*finish)(struct job *j, void *work, enum job_state outcome, bool requeue);
+    /* NULL, or called (without the lock, on the same worker) once the job's waiters are woken:
+     * what the kind does after its answer (a compaction, a warm-up); finish then leaves work for
+     * it to free. */
+    void (*after)(void *work);
 };
 
 /* Creates the pool with n_workers threads and room for queue_max waiting jobs, each job's ops
