@@ -355,7 +355,7 @@ static int kept_bench(struct volume *v, int edits, int size, const char *isos, b
         struct iso_edit ed;
         struct iso_change ch;
         double t = sf_now_ms();
-        rc = iso_kept_iso(k, iso, &ed, &ch, err);
+        rc = iso_kept_iso(k, iso, false, &ed, &ch, err); /* (as the daemon: it reads the mesh back whole) */
         double took = sf_now_ms() - t;
         if (!rc) {
             o.iso = iso;

@@ -213,8 +213,21 @@ static int live_mesh(const struct live *e, struct trimesh *m, uint32_t **ids, st
     return rc;
 }
 
-/* Every kept triangle's figures, from the kept extraction's mesh: 0 or -1. (Oblique grids: the
- * figures are the same turned or not.) */
+/* Every triangle's figures of e's mesh m (ids: its triangles' ids), the table made anew: 0 or -1.
+ * (Oblique grids: the figures are the same turned or not.) */
+static int figures_of(struct live *e, const struct trimesh *m, const uint32_t *ids)
+{
+    free(e->fig);
+    e->fig = NULL, e->figcap = 0, e->fig_base = m->n_tri ? UINT32_MAX : 0;
+    for (size_t t = 0; t < m->n_tri; t++)
+        e->fig_base = ids[t] < e->fig_base ? ids[t] : e->fig_base;
+    int rc = 0;
+    for (size_t t = 0; t < m->n_tri && !rc; t++)
+        rc = fig_put(e, ids[t], m->pos + 3 * m->tri[3 * t], m->pos + 3 * m->tri[3 * t + 1], m->pos + 3 * m->tri[3 * t + 2]);
+    return rc;
+}
+
+/* figures_of the kept extraction's mesh: 0 or -1. */
 static int figures_all(struct live *e)
 {
     struct trimesh m;
@@ -223,20 +236,16 @@ static int figures_all(struct live *e)
     struct sf_err err = {0};
     if (live_mesh(e, &m, &ids, &st, &err))
         return -1;
-    int rc = 0;
-    e->fig_base = UINT32_MAX;
-    for (size_t t = 0; t < m.n_tri; t++)
-        e->fig_base = ids[t] < e->fig_base ? ids[t] : e->fig_base;
-    for (size_t t = 0; t < m.n_tri && !rc; t++)
-        rc = fig_put(e, ids[t], m.pos + 3 * m.tri[3 * t], m.pos + 3 * m.tri[3 * t + 1], m.pos + 3 * m.tri[3 * t + 2]);
+    int rc = figures_of(e, &m, ids);
     free(ids);
     trimesh_free(&m);
     return rc;
 }
 
 /* Whether a part of the volume (its options), applied to e as ed tells, took out every triangle
- * and numbered the new ones on from the counter (figures_move's whole): an iso change (POST
- * /models/{id}/iso), or a kept marching cubes' redraw of every cell. */
+ * and numbered the new ones on from the counter: an iso change (POST /models/{id}/iso), or a kept
+ * marching cubes' redraw of every cell. Its change may come without corners: the figures are
+ * then those of the new mesh, read whole (figures_of). */
 static bool whole_change(const struct live *e, const char *options, const struct iso_edit *ed)
 {
     char value[64];
@@ -244,17 +253,12 @@ static bool whole_change(const struct live *e, const char *options, const struct
     return value[0] != 0 || (e->x.k && ed->whole);
 }
 
-/* What change ch did to the figures (*dv, *da added to), e->fig following it (whole: a new
- * hierarchy, every triangle new, numbered from the first added): 0 or -1. */
-static int figures_move(struct live *e, const struct iso_change *ch, bool whole, double *dv, double *da)
+/* What change ch (not whole) did to the figures (*dv, *da added to), e->fig following it: 0 or -1. */
+static int figures_move(struct live *e, const struct iso_change *ch, double *dv, double *da)
 {
     for (size_t k = 0; k < ch->n_removed; k++)
         if (ch->removed[k] >= e->fig_base && ch->removed[k] - e->fig_base < e->figcap)
             *dv -= e->fig[ch->removed[k] - e->fig_base][0], *da -= e->fig[ch->removed[k] - e->fig_base][1];
-    if (whole) {
-        free(e->fig);
-        e->fig = NULL, e->figcap = 0, e->fig_base = ch->n_added ? ch->added[0] : 0;
-    }
     for (size_t k = 0; k < ch->n_added; k++) {
         const float *c = ch->corners + 18 * k;
         if (fig_put(e, ch->added[k], c, c + 6, c + 12))
@@ -376,7 +380,8 @@ static int catch_up(struct service *svc, struct live *e, struct sf_err *err)
         else if (!(rc = part_apply(svc, &e->vol, &e->x, parts[k].options, parts[k].data, parts[k].len, &ed,
                                    e->x.a || e->x.k ? &ch : NULL, err)))
             e->next_seq++, e->checked = false; /* (another node's part: its ids are checked before they are used) */
-        if (!rc && (e->x.a || e->x.k) && figures_move(e, &ch, whole_change(e, parts[k].options, &ed), &dv, &da))
+        if (!rc && (e->x.a || e->x.k) &&
+            (whole_change(e, parts[k].options, &ed) ? figures_all(e) : figures_move(e, &ch, &dv, &da)))
             rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
         iso_change_free(&ch);
     }
@@ -496,7 +501,7 @@ static int store_change(struct edit_work *w, const char *id, struct live *e, con
     double dv = 0, da = 0, t1 = monotonic_s();
     char *bytes = NULL, *prev = NULL;
     size_t len = 0;
-    if (figures_move(e, ch, whole_change(e, part->options, &me->e), &dv, &da))
+    if (figures_move(e, ch, &dv, &da))
         return sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
     if (e->vol.oblique)
         turn_corners(ch, &e->vol);
@@ -630,7 +635,7 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
         LOG(LOG_INFO, "job %s: the edit is stored with the model's whole mesh (a conflict, or a model stored before "
                       "the journal of changes)", w->job.claim.id);
         rc = 0;
-    } else if (keeps && figures_move(e, &ch, whole, &(double){0}, &(double){0})) {
+    } else if (keeps && !whole && figures_move(e, &ch, &(double){0}, &(double){0})) {
         rc = sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
     } else if (whole && e->checked) { /* (stored with its base: mesh_journal.h) */
         rc = mesh_change_encode_whole(&ch, (uint32_t)part.seq + 1, &bytes, &len, &w->err);
@@ -640,7 +645,8 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     struct iso_adapt_stats ast = {0};
     uint32_t *ids = NULL;
     if (!rc && keeps) {
-        rc = live_mesh(e, &m, &ids, &ast, &w->err);
+        if (!(rc = live_mesh(e, &m, &ids, &ast, &w->err)) && whole && figures_of(e, &m, ids))
+            rc = sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
     } else if (!rc) {
         struct iso_opts o = job_iso_opts(w->job.svc, &e->vol);
         rc = iso_extract(&e->vol.g, &o, NULL, &m, &w->err);

@@ -67,8 +67,8 @@ static void range_of(const float *f, size_t n, double *lo, double *hi)
 
 /* An iso change to value (options' "value") of vol's model: marching cubes kept drawn again at
  * that iso (the blocks that straddle it), a new hierarchy at that iso, its triangles numbered after
- * the old one's (ch: all of the old ones out, all of the new in), or, with neither, vol's iso (its
- * mesh then extracted again whole). */
+ * the old one's (ch: all of the old ones out, all of the new in, by id, without corners), or, with
+ * neither, vol's iso (its mesh then extracted again whole). */
 static int iso_apply(struct service *svc, struct volume *vol, struct kept_ext *x, const char *value,
                      struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
 {
@@ -81,7 +81,7 @@ static int iso_apply(struct service *svc, struct volume *vol, struct kept_ext *x
         return sf_fail(err, SF_EINVAL, "?value", "value is the new iso, a finite number");
     if (x->k) {
         struct iso_change none = {0};
-        int rc = iso_kept_iso(x->k, v, ed, ch ? ch : &none, err);
+        int rc = iso_kept_iso(x->k, v, false, ed, ch ? ch : &none, err); /* (read back whole: job_edit.c) */
         iso_change_free(&none);
         if (!rc)
             vol->iso = v;
@@ -135,16 +135,8 @@ static int iso_apply(struct service *svc, struct volume *vol, struct kept_ext *x
         ch->removed = old, ch->n_removed = m.n_tri;
         ed->triangles_removed = (long)m.n_tri;
         trimesh_free(&m);
-        if (!(rc = iso_adapt_mesh(na, &m, &st, err)) && !(rc = iso_adapt_ids(na, &ids, err))) {
-            ch->added = ids, ch->n_added = m.n_tri;
-            if (!(ch->corners = malloc((m.n_tri ? m.n_tri : 1) * 18 * sizeof *ch->corners)))
-                rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
-            for (size_t t = 0; !rc && t < m.n_tri; t++)
-                for (int k = 0; k < 3; k++) {
-                    memcpy(ch->corners + 18 * t + 6 * k, m.pos + 3 * m.tri[3 * t + k], 3 * sizeof(float));
-                    memcpy(ch->corners + 18 * t + 6 * k + 3, m.nrm + 3 * m.tri[3 * t + k], 3 * sizeof(float));
-                }
-        }
+        if (!(rc = iso_adapt_mesh(na, &m, &st, err)) && !(rc = iso_adapt_ids(na, &ids, err)))
+            ch->added = ids, ch->n_added = m.n_tri; /* (no corners: the new mesh is read back whole) */
         ed->triangles_added = (long)m.n_tri;
         ch->next_id = iso_adapt_next_id(na);
     }

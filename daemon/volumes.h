@@ -29,7 +29,8 @@ struct kept_ext {
 /* A part of a model's stored volume after the first applied to vol: an edit (options its region,
  * data and len its samples) into x's extraction (ed: what it redrew) or, with none, into vol's
  * samples; an iso change (options' value) x's extraction at that iso (a hierarchy: a new one), or
- * vol's iso alone. ch (NULL: not wanted): what it did by triangle id. 0, or the region's or the
+ * vol's iso alone. ch (NULL: not wanted): what it did by triangle id (an iso change's without
+ * corners: its new mesh is read back whole). 0, or the region's or the
  * value's error (SF_EINVAL with its pointer: ?value outside the samples' range). */
 int part_apply(struct service *svc, struct volume *vol, struct kept_ext *x, const char *options, const void *data,
                size_t len, struct iso_edit *ed, struct iso_change *ch, struct sf_err *err);

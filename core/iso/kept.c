@@ -271,7 +271,7 @@ static size_t cell_block(const struct iso_kept *k, uint32_t c, uint16_t *local)
 
 /* The box's triangles into the blocks, ids from the counter, each using slot vmap[v] of box vertex
  * v; what was added into ch. */
-static int install(struct iso_kept *k, const uint32_t *vmap, struct iso_change *ch, struct sf_err *err)
+static int install(struct iso_kept *k, const uint32_t *vmap, bool corners, struct iso_change *ch, struct sf_err *err)
 {
     const struct iso_box *x = &k->box;
     if (k->o.max_triangles && k->n_tri + x->n_tri > k->o.max_triangles)
@@ -281,8 +281,8 @@ static int install(struct iso_kept *k, const uint32_t *vmap, struct iso_change *
     if ((uint64_t)k->next_id + x->n_tri > UINT32_MAX)
         return sf_fail(err, SF_ELIMIT, "", "the model has run out of triangle ids");
     ch->added = malloc((x->n_tri ? x->n_tri : 1) * sizeof *ch->added);
-    ch->corners = malloc((x->n_tri ? x->n_tri : 1) * 18 * sizeof *ch->corners);
-    if (!ch->added || !ch->corners)
+    ch->corners = corners ? malloc((x->n_tri ? x->n_tri : 1) * 18 * sizeof *ch->corners) : NULL;
+    if (!ch->added || (corners && !ch->corners))
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     struct kblock *b = NULL;
     uint16_t local = 0;
@@ -306,11 +306,13 @@ static int install(struct iso_kept *k, const uint32_t *vmap, struct iso_change *
         struct ktri *t = &b->t[b->n++];
         t->id = k->next_id++;
         t->cell = local;
-        float *c = ch->corners + 18 * i;
+        float *c = corners ? ch->corners + 18 * i : NULL;
         for (int q = 0; q < 3; q++) {
             uint32_t v = vmap ? vmap[x->tri[3 * i + q]] : x->tri[3 * i + q];
             t->v[q] = v;
             k->ref[v]++;
+            if (!c)
+                continue;
             memcpy(c + 6 * q, k->pos + 3 * (size_t)v, 3 * sizeof *c);
             if (k->nrm)
                 memcpy(c + 6 * q + 3, k->nrm + 3 * (size_t)v, 3 * sizeof *c);
@@ -327,7 +329,7 @@ static int install(struct iso_kept *k, const uint32_t *vmap, struct iso_change *
 
 /* Every triangle out (their ids into ch), and the whole grid drawn again at k's iso and pad: the
  * blocks that straddle it. */
-static int redraw_all(struct iso_kept *k, struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
+static int redraw_all(struct iso_kept *k, bool corners, struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
 {
     ed->whole = true;
     ch->removed = malloc((k->n_tri ? k->n_tri : 1) * sizeof *ch->removed);
@@ -402,7 +404,7 @@ static int redraw_all(struct iso_kept *k, struct iso_edit *ed, struct iso_change
     }
     for (size_t b = 0; b < k->n_blocks; b++)
         k->blk[b].n = 0;
-    rc = install(k, NULL, ch, err);
+    rc = install(k, NULL, corners, ch, err);
     if (!rc)
         for (size_t v = 0; v < k->n_vert; v++) /* (every box vertex is used) */
             if (!k->ref[v])
@@ -526,7 +528,7 @@ static int redraw_box(struct iso_kept *k, const int lo[3], const int hi[3], stru
         }
         k->vmap[v] = s;
     }
-    rc = install(k, k->vmap, ch, err);
+    rc = install(k, k->vmap, true, ch, err);
     ed->triangles_added = (long)ch->n_added;
     return rc;
 }
@@ -579,7 +581,7 @@ int iso_kept_begin(const struct iso_grid *g, const struct iso_opts *o, struct is
     k->pad = pad_of(k);
     struct iso_edit ed = {0};
     struct iso_change ch = {0};
-    int rc = redraw_all(k, &ed, &ch, err);
+    int rc = redraw_all(k, false, &ed, &ch, err); /* (the first mesh: no change to hand out) */
     iso_change_free(&ch);
     if (rc) {
         iso_kept_free(k);
@@ -711,7 +713,7 @@ int iso_kept_edit(struct iso_kept *k, const int lo[3], const struct iso_grid *bl
     float pad = pad_of(k);
     if (pad != k->pad) { /* the pad follows the samples' least: every border cell changes */
         k->pad = pad;
-        rc = redraw_all(k, ed, ch, err);
+        rc = redraw_all(k, true, ed, ch, err);
     } else {
         for (int d = 0; d < 3; d++) { /* the cells whose corners or vertices' normals read them */
             c0[d] = e0[d] - 2 < 0 ? 0 : e0[d] - 2;
@@ -726,7 +728,8 @@ int iso_kept_edit(struct iso_kept *k, const int lo[3], const struct iso_grid *bl
     return rc;
 }
 
-int iso_kept_iso(struct iso_kept *k, double iso, struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
+int iso_kept_iso(struct iso_kept *k, double iso, bool corners, struct iso_edit *ed, struct iso_change *ch,
+                 struct sf_err *err)
 {
     memset(ed, 0, sizeof *ed);
     *ch = (struct iso_change){.next_id = k->next_id};
@@ -739,7 +742,7 @@ int iso_kept_iso(struct iso_kept *k, double iso, struct iso_edit *ed, struct iso
                        k->most, iso);
     k->o.iso = iso;
     k->pad = pad_of(k);
-    int rc = redraw_all(k, ed, ch, err);
+    int rc = redraw_all(k, corners, ed, ch, err);
     if (rc) {
         k->broken = true;
         iso_change_free(ch);

@@ -13,6 +13,7 @@
 #ifndef SURFD_KEPT_H
 #define SURFD_KEPT_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "adapt.h"
@@ -48,9 +49,12 @@ int iso_kept_mesh(const struct iso_kept *k, struct trimesh *out, uint32_t **ids,
 int iso_kept_edit(struct iso_kept *k, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
                   struct iso_change *ch, struct sf_err *err);
 /* The mesh at a new iso value, visiting only the blocks whose sample range straddles it: then
- * iso_extract's at that iso (opts otherwise as begun). 0, or SF_EINVAL (?value: not finite, or
- * outside the samples' range), SF_ENOMEM, SF_ELIMIT. */
-int iso_kept_iso(struct iso_kept *k, double iso, struct iso_edit *ed, struct iso_change *ch, struct sf_err *err);
+ * iso_extract's at that iso (opts otherwise as begun). ch: every triangle out, the new ones in,
+ * with their corners unless corners is false (ch->corners NULL: a caller that reads the new mesh
+ * back whole, iso_kept_mesh, saves their 72 bytes a triangle). 0, or SF_EINVAL (?value: not
+ * finite, or outside the samples' range), SF_ENOMEM, SF_ELIMIT. */
+int iso_kept_iso(struct iso_kept *k, double iso, bool corners, struct iso_edit *ed, struct iso_change *ch,
+                 struct sf_err *err);
 /* The memory k holds, in bytes. */
 size_t iso_kept_bytes(const struct iso_kept *k);
 void iso_kept_free(struct iso_kept *k);

@@ -274,7 +274,7 @@ TEST(a_whole_change_is_composed_with_the_current_mesh)
     CHECK(iso_kept_edit(k, (int[3]){20, 24, 17}, &bg, &ed, &ch, &err) == 0 && !ed.whole);
     CHECK(mesh_change_encode(&ch, 2, &chg[0], &chg_len[0], &err) == 0);
     iso_change_free(&ch);
-    CHECK(iso_kept_iso(k, 500, &ed, &ch, &err) == 0 && ed.whole);
+    CHECK(iso_kept_iso(k, 500, false, &ed, &ch, &err) == 0 && ed.whole);
     CHECK(mesh_change_encode_whole(&ch, 3, &chg[1], &chg_len[1], &err) == 0);
     CHECK(mesh_change_whole(chg[1], chg_len[1]) && !mesh_change_whole(chg[0], chg_len[0]) &&
           mesh_change_version(chg[1], chg_len[1]) == 3);

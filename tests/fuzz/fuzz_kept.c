@@ -77,7 +77,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         if (op & 1) { /* a new iso (refused outside the samples' range) */
             double iso = iso_of(type, data[at++]);
             err = (struct sf_err){0};
-            rc = iso_kept_iso(k, iso, &ed, &ch, &err);
+            rc = iso_kept_iso(k, iso, (op & 2) != 0, &ed, &ch, &err);
             if (rc == 0)
                 o.iso = iso;
             else if (rc != SF_EINVAL)

@@ -242,7 +242,7 @@ TEST(ct_edits_and_isos_equal_a_fresh_extraction)
     for (int i = 0; i < 4; i++) {
         struct iso_edit ed;
         struct iso_change ch;
-        CHECK(iso_kept_iso(k[0], isos[i], &ed, &ch, &err) == 0);
+        CHECK(iso_kept_iso(k[0], isos[i], true, &ed, &ch, &err) == 0);
         CHECK(ed.whole && ch.n_removed == m.n);
         CHECK(mirror_apply(&m, &ch, next));
         next = ch.next_id;
@@ -350,7 +350,7 @@ TEST(analytic_fields_under_many_edits)
             free(b);
             if (e % 8 == 7) {
                 o.iso = e == 7 ? -0.5 : e == 15 ? 1.25 : 0.25;
-                CHECK(iso_kept_iso(k, o.iso, &ed, &ch, &err) == 0);
+                CHECK(iso_kept_iso(k, o.iso, false, &ed, &ch, &err) == 0 && !ch.corners);
                 CHECK(as_fresh(k, &g, &o, NULL));
                 iso_change_free(&ch);
             }
@@ -421,12 +421,12 @@ TEST(bad_regions_and_isos_are_refused)
     CHECK_STR(err.pointer, "?region");
     CHECK(iso_kept_edit(k, (int[3]){0, -1, 0}, &bg, &ed, &ch, &err) == SF_EINVAL);
     err = (struct sf_err){0}; /* (the first failure is the one kept) */
-    CHECK(iso_kept_iso(k, NAN, &ed, &ch, &err) == SF_EINVAL);
+    CHECK(iso_kept_iso(k, NAN, true, &ed, &ch, &err) == SF_EINVAL);
     CHECK_STR(err.pointer, "?value");
-    CHECK(iso_kept_iso(k, 601, &ed, &ch, &err) == SF_EINVAL);
-    CHECK(iso_kept_iso(k, -1, &ed, &ch, &err) == SF_EINVAL);
+    CHECK(iso_kept_iso(k, 601, true, &ed, &ch, &err) == SF_EINVAL);
+    CHECK(iso_kept_iso(k, -1, true, &ed, &ch, &err) == SF_EINVAL);
     err = (struct sf_err){0};
-    CHECK(iso_kept_iso(k, 600, &ed, &ch, &err) == 0 && ch.n_added == 0); /* (the greatest: no surface) */
+    CHECK(iso_kept_iso(k, 600, true, &ed, &ch, &err) == 0 && ch.n_added == 0); /* (the greatest: no surface) */
     iso_change_free(&ch);
     CHECK(iso_kept_edit(k, (int[3]){9, 9, 9}, &bg, &ed, &ch, &err) == 0); /* still of use */
     iso_change_free(&ch);
