@@ -145,7 +145,33 @@ char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, l
         json_object_set_new(t, "measure", json_real(ms[1]));
         json_object_set_new(t, "total", json_real(ms[2]));
     }
-    char *text = json_dumps(o, JSON_COMPACT);
+    char *text = json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(12));
+    json_decref(o);
+    if (!text)
+        sf_fail(err, SF_ENOMEM, "", "out of memory");
+    return text;
+}
+
+char *iso_model_json_measured(const char *prev, const struct trimesh_stats *st, size_t vertices, long version,
+                              struct sf_err *err)
+{
+    json_t *o = json_loads(prev, 0, NULL);
+    if (!json_is_object(o)) {
+        json_decref(o);
+        sf_fail(err, SF_EIO, "", "the model's resource is not JSON");
+        return NULL;
+    }
+    json_object_set_new(o, "vertices", json_integer((json_int_t)vertices));
+    json_object_set_new(o, "volume_mm3", json_real(st->volume));
+    json_object_set_new(o, "area_mm2", json_real(st->area));
+    json_object_set_new(o, "boundary_edges", json_integer(st->boundary_edges));
+    json_object_set_new(o, "nonmanifold_edges", json_integer(st->nonmanifold_edges));
+    json_object_set_new(o, "components", json_integer(st->components));
+    json_object_set_new(o, "euler_characteristic", json_integer(st->euler));
+    json_object_set_new(o, "bounds", json_pack("[[f,f,f],[f,f,f]]", st->bounds[0][0], st->bounds[0][1], st->bounds[0][2],
+                                               st->bounds[1][0], st->bounds[1][1], st->bounds[1][2]));
+    json_object_set_new(o, "topology_version", json_integer(version));
+    char *text = json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(12));
     json_decref(o);
     if (!text)
         sf_fail(err, SF_ENOMEM, "", "out of memory");

@@ -37,6 +37,10 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err);
  * change took out and put in, the edit's figures and timings (extract, measure, total ms); the
  * figures that need the whole mesh (vertices, boundary and non-manifold edges, components, Euler
  * characteristic, bounds) stay those of the version topology_version says. NULL with err. */
+/* The resource prev (of version version) with the figures of its whole mesh measured (st, its
+ * vertices), topology_version then version. NULL with err. */
+char *iso_model_json_measured(const char *prev, const struct trimesh_stats *st, size_t vertices, long version,
+                              struct sf_err *err);
 char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, long version, double iso, long d_triangles,
                             double d_volume, double d_area, const double ms[3], struct sf_err *err);
 

@@ -15,6 +15,7 @@
 
 #include "../api/image.h"
 #include "frames.h"
+#include "job_edit.h"
 #include "keeper.h"
 #include "../core/iso/mc.h"
 
@@ -215,6 +216,7 @@ static void drain(struct service *svc, struct server *server)
                   left == 1 ? "" : "s", svc->cfg.drain_timeout, DRAIN_GRACE_S, left == 1 ? "it stays" : "they stay");
         _exit(0);
     }
+    edit_stop(); /* (no job is left to ask it for more) */
     keeper_stop(svc); /* heartbeats went on while the drain ran; the draining flag stopped claims */
     server_stop(server);
     jobq_free(svc->q);

@@ -29,11 +29,13 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <time.h>
 
 #include "../api/frep_json.h"
 #include "../api/iso_json.h"
 #include "../api/mesh_io.h"
 #include "../api/mesh_journal.h"
+#include "../api/model_json.h"
 #include "../core/base/mem.h"
 #include "../api/query.h"
 #include "log.h"
@@ -398,6 +400,7 @@ struct edit_work {
     char model[40];
     long version;            /* the change stored (0: none), and its bytes: for compaction */
     size_t change_bytes;
+    bool journaled;          /* its figures moved by the change alone: the whole mesh to measure */
     char meta[128];
     struct sf_err err;
 };
@@ -519,7 +522,7 @@ static int store_change(struct edit_work *w, const char *id, struct live *e, con
         struct volume_rec change = {0, "", "", bytes, len};
         int stored = store_model_edit(w->job.svc->store, &mr, part, &change);
         if (!stored)
-            w->version = version, w->change_bytes = len;
+            w->version = version, w->change_bytes = len, w->journaled = true;
         rc = stored == SF_ECONFLICT ? SF_ECONFLICT
              : stored             ? sf_fail(&w->err, SF_EIO, "", "the store would not take the edit")
                                   : 0;
@@ -771,6 +774,125 @@ static void compact(struct service *svc, const char *id, long version, size_t ch
     free(src);
 }
 
+/* ---- the whole mesh measured again once edits rest ----
+ * An edit's answer moves the figures its change moves (triangles, volume, area); those of the whole
+ * mesh (vertices, edges, components, Euler characteristic, bounds) need an O(F log F) pass that an
+ * edit's milliseconds cannot hold. One thread of the edit kind measures a model once its journaled
+ * edits have rested MEASURE_QUIET seconds (a brush stroke after another would measure each in vain)
+ * and writes the figures with topology_version, unless the model changed meanwhile. */
+#define MEASURE_QUIET 1.0
+
+struct pending {
+    char id[40];
+    long version;
+    double due;              /* monotonic seconds */
+    struct pending *next;
+};
+
+static struct {
+    pthread_mutex_t lock;
+    pthread_cond_t cond;     /* on CLOCK_MONOTONIC */
+    pthread_t thread;
+    bool started, stop;
+    struct service *svc;
+    struct pending *head;
+} quiet = {.lock = PTHREAD_MUTEX_INITIALIZER};
+
+/* Model id at version measured whole and its resource written again (when still of that version). */
+static void measure(struct service *svc, const char *id, long version)
+{
+    char *resource = NULL, *src = NULL, *json = NULL;
+    size_t len = 0;
+    struct trimesh m = {0};
+    struct trimesh_stats st;
+    struct sf_err err = {0};
+    double t0 = monotonic_s();
+    int rc = store_model_get(svc->store, id, NULL, &resource, &src, &len);
+    if (!rc && model_version(resource) == version && !mesh_unpack(src, len, &m, &err)) {
+        free(src), src = NULL;
+        if (!trimesh_stats(&m, &st, &err) && (json = iso_model_json_measured(resource, &st, m.n_vert, version, &err)) &&
+            !(rc = store_model_refresh(svc->store, id, version, json)))
+            LOG(LOG_DEBUG, "model %s: version %ld measured whole in %.0f ms", id, version, (monotonic_s() - t0) * 1e3);
+    }
+    free(json);
+    trimesh_free(&m);
+    free(src);
+    free(resource);
+}
+
+static void *measurer(void *arg)
+{
+    (void)arg;
+    pthread_mutex_lock(&quiet.lock);
+    while (!quiet.stop) {
+        struct pending **first = NULL;
+        for (struct pending **p = &quiet.head; *p; p = &(*p)->next)
+            if (!first || (*p)->due < (*first)->due)
+                first = p;
+        double now = monotonic_s();
+        if (!first) {
+            pthread_cond_wait(&quiet.cond, &quiet.lock);
+        } else if ((*first)->due > now) {
+            double at = (*first)->due;
+            struct timespec ts = {(time_t)at, (long)((at - floor(at)) * 1e9)};
+            pthread_cond_timedwait(&quiet.cond, &quiet.lock, &ts);
+        } else {
+            struct pending *p = *first;
+            *first = p->next;
+            pthread_mutex_unlock(&quiet.lock);
+            measure(quiet.svc, p->id, p->version);
+            free(p);
+            pthread_mutex_lock(&quiet.lock);
+        }
+    }
+    pthread_mutex_unlock(&quiet.lock);
+    return NULL;
+}
+
+/* Model id at version to be measured once its edits rest (the thread started the first time). */
+static void measure_later(struct service *svc, const char *id, long version)
+{
+    pthread_mutex_lock(&quiet.lock);
+    if (!quiet.started && !quiet.stop) {
+        pthread_condattr_t ca;
+        pthread_condattr_init(&ca);
+        pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
+        pthread_cond_init(&quiet.cond, &ca);
+        pthread_condattr_destroy(&ca);
+        quiet.svc = svc;
+        quiet.started = !pthread_create(&quiet.thread, NULL, measurer, NULL);
+    }
+    struct pending *p = quiet.head;
+    while (p && strcmp(p->id, id))
+        p = p->next;
+    if (!p && quiet.started && (p = calloc(1, sizeof *p))) {
+        snprintf(p->id, sizeof p->id, "%s", id);
+        p->next = quiet.head;
+        quiet.head = p;
+    }
+    if (p) {
+        p->version = version > p->version ? version : p->version;
+        p->due = monotonic_s() + MEASURE_QUIET;
+        pthread_cond_signal(&quiet.cond);
+    }
+    pthread_mutex_unlock(&quiet.lock);
+}
+
+void edit_stop(void)
+{
+    pthread_mutex_lock(&quiet.lock);
+    quiet.stop = true;
+    bool started = quiet.started;
+    if (started)
+        pthread_cond_signal(&quiet.cond);
+    pthread_mutex_unlock(&quiet.lock);
+    if (started)
+        pthread_join(quiet.thread, NULL);
+    for (struct pending *p = quiet.head, *n; p; p = n) /* (not measured: the next edit schedules them) */
+        n = p->next, free(p);
+    quiet.head = NULL;
+}
+
 static void finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
 {
     (void)j;
@@ -778,14 +900,16 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     service_job_end(w->job.svc, &w->job.claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     if (outcome != JOB_SUCCEEDED)
-        w->version = 0;
+        w->version = 0, w->journaled = false;
 }
 
-/* After the answer: the journal compacted on its turn. */
+/* After the answer: the journal compacted on its turn, the mesh measured once the edits rest. */
 static void after(void *arg)
 {
     struct edit_work *w = arg;
     compact(w->job.svc, w->model, w->version, w->change_bytes);
+    if (w->journaled)
+        measure_later(w->job.svc, w->model, w->version);
     free(w->json);
     free(w);
 }

@@ -11,5 +11,7 @@ void edit_keep(struct service *svc, const char *id, const struct volume *vol, st
 /* Model id's extraction built from the store and kept for its edits (marching cubes kept: levels
  * 1), unless it is kept already; an isosurface job calls it after its answer. */
 void edit_warm(struct service *svc, const char *id);
+/* Stops the thread that measures edited models whole once their edits rest (after the pool). */
+void edit_stop(void);
 
 #endif

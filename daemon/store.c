@@ -192,6 +192,13 @@ int store_changes_get(struct store *s, const char *id, long since, struct volume
     return 0;
 }
 
+int store_model_refresh(struct store *s, const char *id, long version, const char *resource)
+{
+    char sum[65];
+    store_checksum(resource, strlen(resource), "", 0, sum);
+    return s->ops->model_refresh(s, id, version, resource, sum);
+}
+
 int store_model_rebase(struct store *s, const struct model_rec *m, long drop_through)
 {
     return s->ops->model_rebase(s, m, drop_through < m->version ? drop_through : m->version);

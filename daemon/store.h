@@ -209,6 +209,10 @@ int store_changes_get(struct store *s, const char *id, long since, struct volume
 /* A newer base of model m->id: its source of version m->version, when the stored one is older;
  * the changes up to version drop_through (at most m->version) dropped. 0 or SF_EIO. */
 int store_model_rebase(struct store *s, const struct model_rec *m, long drop_through);
+/* Model id's resource, of its version version, written again (its figures measured whole after
+ * edits that moved them): 0, or SF_ECONFLICT when the model is gone or has a newer version (a part
+ * of its volume from seq version on), SF_EIO. */
+int store_model_refresh(struct store *s, const char *id, long version, const char *resource);
 /* The parts of model id's volume from seq from on, in order (*parts: caller frees with
  * store_volume_free; their bytes checked against the sums taken when written): 0 (*n of them, 0
  * when none), SF_EIO, SF_EDAMAGED. */

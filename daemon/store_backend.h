@@ -53,6 +53,7 @@ struct store_ops {
     int (*series_delete)(struct store *, const char *uid, const char *owner);
     int (*series_mark)(struct store *, const char *uid, const char *job);
     int (*model_rebase)(struct store *, const struct model_rec *, long drop_through);
+    int (*model_refresh)(struct store *, const char *id, long version, const char *resource, const char *sum);
 };
 
 /* A running job a reap found, with what decides its new state (store_reaped_state). */

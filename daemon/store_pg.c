@@ -906,6 +906,16 @@ static int pg_model_rebase(struct store *s, const struct model_rec *m, long drop
     return in_transaction(pg(s), rebase_step, &(struct model_write){m, NULL, NULL, false, drop_through});
 }
 
+static int pg_model_refresh(struct store *s, const char *id, long version, const char *resource, const char *sum)
+{
+    char v[24];
+    snprintf(v, sizeof v, "%ld", version);
+    struct param prm[] = {T(id), T(resource), T(sum), T(v)};
+    return store_one_row(exec1(s, NULL, "UPDATE models SET resource=$2, resource_sum=$3 WHERE id=$1 AND base_version>0 AND"
+                               " NOT EXISTS (SELECT 1 FROM model_volumes WHERE model=$1 AND seq>=$4::integer)", 4, prm),
+                         SF_ECONFLICT);
+}
+
 static int pg_volume_get(struct store *s, const char *id, int from, int to, struct volume_rec **parts, int *n)
 {
     char f[16], t[16];
@@ -1343,6 +1353,7 @@ static const struct store_ops PG_OPS = {
     pg_queued,    pg_model_put, pg_model_get, pg_model_list, pg_model_delete, pg_model_edit, pg_volume_get,
     pg_mesh_get,  pg_mesh_put,  pg_mesh_bytes, pg_writable,  pg_on_event,  NULL,         NULL,         pg_uploads_held,
     pg_instance_put, pg_series_list, pg_series_instances, pg_series_delete, pg_series_mark, pg_model_rebase,
+    pg_model_refresh,
 };
 
 int store_pg_open(const char *uri, const char *scratch, struct store **out, struct sf_err *err)

@@ -825,6 +825,13 @@ static int sq_model_rebase(struct store *s, const struct model_rec *m, long drop
     return transaction(s, rebase_step, m, &drop_through);
 }
 
+static int sq_model_refresh(struct store *s, const char *id, long version, const char *resource, const char *sum)
+{
+    return store_one_row(run(s, "UPDATE models SET resource=?2, resource_sum=?3 WHERE id=?1 AND base_version>0 AND NOT "
+                             "EXISTS (SELECT 1 FROM model_volumes WHERE model=?1 AND seq>=?4)", "ttti", id, resource, sum,
+                             version), SF_ECONFLICT);
+}
+
 static int sq_volume_get(struct store *s, const char *id, int from, int to, struct volume_rec **parts, int *n)
 {
     sqlite3_stmt *st;
@@ -1345,4 +1352,5 @@ static const struct store_ops SQLITE_OPS = {
     sq_queued,    sq_model_put,  sq_model_get, sq_model_list, sq_model_delete, sq_model_edit, sq_volume_get,
     sq_mesh_get,  sq_mesh_put,   sq_mesh_bytes, sq_writable,  NULL,         sq_check,     sq_recover,  sq_uploads_held,
     sq_instance_put, sq_series_list, sq_series_instances, sq_series_delete, sq_series_mark, sq_model_rebase,
+    sq_model_refresh,
 };

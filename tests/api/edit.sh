@@ -47,6 +47,17 @@ for opts in "iso=226.5&levels=2&max_error=0.5" "iso=226.5&levels=3&max_error=1&f
     python3 $E apply "$T/v1.raw" 64,64,64 0,50,52,10,10,10 "$T/hole.raw" "$T/v2.raw"
     check "... the mesh equals a fresh POST /isosurface of the edited volume, triangle for triangle" 'same_as_fresh "$id" "$Q" "$T/v2.raw"'
     check "... the same triangle count and volume (within rounding: an edit's figures move by what it changed)" '[ "$ftri" = "$etri" ] && python3 -c "import sys; a, b = map(float, sys.argv[1:]); sys.exit(abs(a - b) > 1e-9 * abs(a))" "$fvol" "$evol"'
+    status GET "/models/$fresh" >/dev/null; cp "$T/body" "$T/fresh.json"
+    for k in $(seq 1 100); do # (the whole mesh measured once the edits rest, a second after the last)
+        status GET "/models/$id" >/dev/null
+        [ "$(field topology_version)" = 3 ] && break
+        sleep 0.1
+    done
+    check "... once the edits rest, the whole mesh measured (topology_version 3): the fresh extraction's figures" 'python3 -c "
+import json, sys
+a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+keys = (\"vertices\", \"triangles\", \"components\", \"euler_characteristic\", \"boundary_edges\", \"nonmanifold_edges\", \"bounds\")
+sys.exit(a[\"topology_version\"] != a[\"version\"] or any(a[k] != b[k] for k in keys) or abs(a[\"volume_mm3\"] - b[\"volume_mm3\"]) > 1e-9 * b[\"volume_mm3\"])" "$T/body" "$T/fresh.json"'
 done
 
 # ---- a restart: the hierarchy rebuilt from the stored volume and its edits ---------------------------

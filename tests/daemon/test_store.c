@@ -407,6 +407,13 @@ TEST(a_mesh_models_changes_are_its_journal)
     CHECK(store_model_rebase(S, &old, 1) == 0); /* an older base than the one kept: left */
     CHECK(store_model_get(S, id, NULL, NULL, &src2, &n2) == 0 && n2 == n_src && !memcmp(src, src2, n2));
     free(src2);
+    /* the resource measured again: written at its version, refused at an older one (a newer part) */
+    char *now = NULL;
+    CHECK(store_model_refresh(S, id, 3, "{\"version\":3}") == SF_ECONFLICT);
+    CHECK(store_model_refresh(S, id, 4, "{\"version\":4,\"components\":1}") == 0);
+    CHECK(store_model_get(S, id, NULL, &now, NULL, NULL) == 0 && !strcmp(now, "{\"version\":4,\"components\":1}"));
+    free(now);
+    CHECK(store_model_refresh(S, "no-such-model", 4, "{}") == SF_ECONFLICT);
     CHECK(store_model_delete(S, id, NULL) == 0);
     CHECK(store_changes_get(S, id, 0, &parts, &n) == 0 && n == 0);
     store_volume_free(parts, n);
