@@ -77,20 +77,23 @@ edit() {
     python3 tests/tools/edit_tool.py block 10 "$2" -200 3.5 "$T/ball.raw"
     status POST "/models/$ID/edit?region=$1,10,10,10" -H "$RAW" --data-binary @"$T/ball.raw"
 }
-ok=1; figures=1; regions="20,24,17 30,8,40 21,25,18 8,40,3"
-v=1
-for r in $regions; do
-    code=$(edit "$r" 1500)
-    [ "$code" = 200 ] || ok=0
-    v=$((v + 1))
-    [ "$(field version)" = "$v" ] || ok=0
-    TRI=$(field triangles); VOL=$(field volume_mm3)
-    code=$(status GET "/models/$ID/mesh?format=delta&since=$((v - 1))"); cp "$T/body" "$T/dv"
-    [ "$code" = 200 ] && client apply "$T/dv" || ok=0
-    status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
-    client same "$T/v.stl" || ok=0
-    client figures "$TRI" "$VOL" || figures=0
-done
+# follow REGION...: each an edit (bone), then its delta since the version before applied to the
+# copy: ok=0 when an edit fails, a delta does not apply or the copy is not the STL; figures=0 when
+# an answer's triangles and volume are not the copy's; v the last version
+follow() {
+    ok=1; figures=1
+    for r in "$@"; do
+        code=$(edit "$r" 1500); [ "$code" = 200 ] || ok=0
+        v=$(field version); TRI=$(field triangles); VOL=$(field volume_mm3)
+        code=$(status GET "/models/$ID/mesh?format=delta&since=$((v - 1))"); cp "$T/body" "$T/dv"
+        [ "$code" = 200 ] && client apply "$T/dv" || ok=0
+        status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
+        client same "$T/v.stl" || ok=0
+        client figures "$TRI" "$VOL" || figures=0
+    done
+}
+follow 20,24,17 30,8,40 21,25,18 8,40,3
+[ "$v" = 5 ] || ok=0
 check "four edits: versions 2 .. 5, each delta since the version before applied by id gives the STL's triangles" '[ $ok = 1 ]'
 check "... each answer's triangles and volume those of the mesh (moved by what the change did)" '[ $figures = 1 ]'
 cp "$T/copy.json" "$T/copy5.json"
@@ -174,16 +177,7 @@ whole=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['edit'][
 code2=$(status GET "/models/$ID/mesh?format=delta&since=3")
 check "... then kept: the cells it reaches drawn again, stored whole once (its ids not the store's: since 3, 410)" '[ "$code" = 200 ] && [ "$v" = 4 ] && [ "$whole" = False ] && [ "$code2" = 410 ]'
 status GET "/models/$ID/mesh?format=delta&since=0" >/dev/null; cp "$T/body" "$T/d0"; client load "$T/d0"
-ok=1; figures=1
-for r in 8,40,3 12,30,30 40,20,30 22,26,19; do
-    code=$(edit "$r" 1500); [ "$code" = 200 ] || ok=0
-    v=$(field version); TRI=$(field triangles); VOL=$(field volume_mm3)
-    code=$(status GET "/models/$ID/mesh?format=delta&since=$((v - 1))"); cp "$T/body" "$T/dv"
-    [ "$code" = 200 ] && client apply "$T/dv" || ok=0
-    status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
-    client same "$T/v.stl" || ok=0
-    client figures "$TRI" "$VOL" || figures=0
-done
+follow 8,40,3 12,30,30 40,20,30 22,26,19
 check "... four more edits journaled: each delta applied by id gives the STL (version $v), the figures the mesh's" '[ $ok = 1 ] && [ $figures = 1 ] && [ "$v" = 8 ]'
 cp "$T/copy.json" "$T/copy8.json"
 code=$(edit 10,10,10 1500)
