@@ -51,8 +51,12 @@ int model_mesh_key(const char *options, long edits, char *key, size_t cap, struc
 {
     const char *format;
     double tol;
+    char since[24];
     int rc = model_mesh_options(options, &format, &tol, err);
-    if (!rc)
+    query_option(options, "since", since, sizeof since);
+    if (!rc && !strcmp(format, "delta") && atol(since) > 0) /* (a delta from a version to the model's) */
+        snprintf(key, cap, "delta since %ld e%ld", atol(since), edits);
+    else if (!rc)
         tol > 0 ? snprintf(key, cap, "%s %.17g e%ld", format, tol, edits) : snprintf(key, cap, "%s default e%ld", format, edits);
     return rc;
 }

@@ -308,11 +308,21 @@ static int make_mesh(struct contour_work *w, const struct job_rec *rec, const st
 {
     if (export_is_seg(rec->options)) /* not cached (no key): its grid is a stored series' that may come or go */
         return make_seg(w, rec, pr);
-    char *src, *resource;
+    char *src, *resource, since[24];
     size_t n;
+    long to;
     int rc = stored_model(w, rec, &src, &n, &resource);
-    if (!rc)
+    query_option(rec->options, "since", since, sizeof since);
+    if (!rc && atol(since) > 0) { /* a delta across a whole change (server.c's delta_request sends it here) */
+        rc = store_delta(w->job.svc->store, w->model, atol(since), src, n, &w->json, &w->len, &to);
+        w->type = "application/vnd.surfd.mesh-delta";
+        rc = rc == SF_ENOTFOUND ? sf_fail(&w->err, SF_ECONFLICT, "?since", "the changes since version %s are no longer "
+                                          "kept: load since=0 (the whole mesh)", since)
+             : rc               ? sf_fail(&w->err, rc, "", "the model's changes could not be composed")
+                                : 0;
+    } else if (!rc) {
         rc = model_mesh(src, n, resource, rec->options, pr, &w->json, &w->len, &w->type, &w->tol, &w->err);
+    }
     if (!rc) {
         const char *format;
         double tol;

@@ -758,47 +758,26 @@ static enum MHD_Result delta_request(struct req *r, const char *id, bool *answer
         *answered = false;
         return MHD_YES;
     }
-    struct volume_rec *parts;
-    int n, rc = store_changes_get(r->svc->store, id, since, &parts, &n);
-    if (rc)
-        return damaged_or_failed(r, rc);
-    /* across a whole change (mesh_journal.h) the triangles added are the current mesh's, read
-     * whole; the changes then go as far as it does */
-    char *mesh = NULL;
-    size_t mesh_len = 0;
-    uint64_t at = 0;
-    for (int k = 0; k < n && !mesh && !rc; k++)
-        if (mesh_change_whole(parts[k].data, parts[k].len) &&
-            !(rc = store_model_get(r->svc->store, id, NULL, NULL, &mesh, &mesh_len)) &&
-            mesh_packed_version(mesh, mesh_len, &at))
-            rc = SF_EDAMAGED;
-    while (n && !rc && mesh && mesh_change_version(parts[n - 1].data, parts[n - 1].len) > at) {
-        n--; /* (stored after the mesh was read) */
-        free((void *)parts[n].format), free((void *)parts[n].options), free((void *)parts[n].data);
-    }
-    struct mesh_change *ch = malloc(((size_t)n + 1) * sizeof *ch);
-    for (int k = 0; ch && k < n; k++)
-        ch[k] = (struct mesh_change){parts[k].data, parts[k].len};
+    /* (a delta across a whole change reads the current mesh whole: the mesh job's, on a worker) */
     char *out = NULL;
     size_t len = 0;
-    struct sf_err err = {0};
-    /* (changes stored after the resource was read: the delta goes as far as they do) */
-    long to = n ? (long)mesh_change_version(parts[n - 1].data, parts[n - 1].len) : since;
-    rc = rc  ? rc
-         : !ch ? SF_ENOMEM
-         : to - since != n || to < version || (mesh && (uint64_t)to != at)
-             ? SF_ENOTFOUND
-             : mesh_changes_delta(ch, (size_t)n, (uint32_t)since, (uint32_t)to, mesh, mesh_len, &out, &len, &err);
-    free(ch);
-    free(mesh);
-    store_volume_free(parts, n);
+    long to;
+    int rc = store_delta(r->svc->store, id, since, NULL, 0, &out, &len, &to);
+    if (rc == SF_ELIMIT) {
+        *answered = false;
+        return MHD_YES;
+    }
+    if (!rc && to < version) {
+        free(out);
+        rc = SF_ENOTFOUND;
+    }
     if (rc == SF_ENOTFOUND) {
         snprintf(detail, sizeof detail, "the changes from version %ld to %ld are not kept: load since=0 (the whole mesh)",
                  since, version);
         return problem(r, 410, detail, "?since");
     }
     if (rc)
-        return rc == SF_ENOMEM ? problem(r, 500, "out of memory", NULL) : damaged_or_failed(r, SF_EDAMAGED);
+        return rc == SF_ENOMEM ? problem(r, 500, "out of memory", NULL) : damaged_or_failed(r, rc);
     struct reply rp = {200, "application/vnd.surfd.mesh-delta", out, len, {{0}}};
     return send_reply(r, &rp);
 }

@@ -192,6 +192,37 @@ int store_changes_get(struct store *s, const char *id, long since, struct volume
     return 0;
 }
 
+int store_delta(struct store *s, const char *id, long since, const char *mesh, size_t mesh_len, char **out,
+                size_t *len, long *to)
+{
+    struct volume_rec *parts;
+    int n, rc = store_changes_get(s, id, since, &parts, &n);
+    if (rc)
+        return rc;
+    uint64_t at = 0;
+    for (int k = 0; k < n && !rc; k++)
+        if (mesh_change_whole(parts[k].data, parts[k].len))
+            rc = !mesh ? SF_ELIMIT : mesh_packed_version(mesh, mesh_len, &at) ? SF_EDAMAGED : 0;
+    while (n && !rc && mesh && mesh_change_version(parts[n - 1].data, parts[n - 1].len) > at) {
+        n--; /* (stored after the mesh was read) */
+        free((void *)parts[n].format), free((void *)parts[n].options), free((void *)parts[n].data);
+    }
+    struct mesh_change *ch = malloc(((size_t)n + 1) * sizeof *ch);
+    for (int k = 0; ch && k < n; k++)
+        ch[k] = (struct mesh_change){parts[k].data, parts[k].len};
+    struct sf_err err = {0};
+    *to = n ? (long)mesh_change_version(parts[n - 1].data, parts[n - 1].len) : since;
+    if (!rc)
+        rc = !ch                                    ? SF_ENOMEM
+             : *to - since != n || (at && (uint64_t)*to != at) ? SF_ENOTFOUND
+             : mesh_changes_delta(ch, (size_t)n, (uint32_t)since, (uint32_t)*to, at ? mesh : NULL, mesh_len, out, len,
+                                  &err)     ? (err.code == SF_ENOMEM ? SF_ENOMEM : SF_EDAMAGED)
+                                            : 0;
+    free(ch);
+    store_volume_free(parts, n);
+    return rc;
+}
+
 int store_model_refresh(struct store *s, const char *id, long version, const char *resource)
 {
     char sum[65];

@@ -206,6 +206,13 @@ int store_model_edit(struct store *s, const struct model_rec *m, const struct vo
 /* The mesh changes of model id after version since, in order (as store_volume_get's parts:
  * data the change). 0, SF_EIO, SF_EDAMAGED. */
 int store_changes_get(struct store *s, const char *id, long since, struct volume_rec **parts, int *n);
+/* The mesh delta of model id since version since (mesh_journal.h), its changes composed up to the
+ * last stored (*to); across a whole change with the current mesh, mesh (packed, as store_model_get
+ * gives it; then up to its version). 0, SF_ELIMIT (a whole change is among them and mesh is NULL:
+ * the work of a job), SF_ENOTFOUND (the journal does not reach back to since), SF_EIO,
+ * SF_EDAMAGED, SF_ENOMEM. */
+int store_delta(struct store *s, const char *id, long since, const char *mesh, size_t mesh_len, char **out,
+                size_t *len, long *to);
 /* A newer base of model m->id: its source of version m->version, when the stored one is older;
  * the changes up to version drop_through (at most m->version) dropped. 0 or SF_EIO. */
 int store_model_rebase(struct store *s, const struct model_rec *m, long drop_through);
