@@ -212,12 +212,13 @@ int store_delta(struct store *s, const char *id, long since, const char *mesh, s
         ch[k] = (struct mesh_change){parts[k].data, parts[k].len};
     struct sf_err err = {0};
     *to = n ? (long)mesh_change_version(parts[n - 1].data, parts[n - 1].len) : since;
-    if (!rc)
-        rc = !ch                                    ? SF_ENOMEM
-             : *to - since != n || (at && (uint64_t)*to != at) ? SF_ENOTFOUND
-             : mesh_changes_delta(ch, (size_t)n, (uint32_t)since, (uint32_t)*to, at ? mesh : NULL, mesh_len, out, len,
-                                  &err)     ? (err.code == SF_ENOMEM ? SF_ENOMEM : SF_EDAMAGED)
-                                            : 0;
+    if (!rc && !ch)
+        rc = SF_ENOMEM;
+    else if (!rc && (*to - since != n || (at && (uint64_t)*to != at)))
+        rc = SF_ENOTFOUND;
+    else if (!rc && mesh_changes_delta(ch, (size_t)n, (uint32_t)since, (uint32_t)*to, at ? mesh : NULL, mesh_len, out,
+                                       len, &err))
+        rc = err.code == SF_ENOMEM ? SF_ENOMEM : SF_EDAMAGED;
     free(ch);
     store_volume_free(parts, n);
     return rc;

@@ -104,7 +104,7 @@ static int iso_apply(struct service *svc, struct volume *vol, struct kept_ext *x
             }
         free(row);
     }
-    if (!(v >= lo && v <= hi)) {
+    if (!(v >= lo && v < hi)) { /* (samples over the iso are inside: at the greatest, none) */
         free(f);
         return sf_fail(err, SF_EINVAL, "?value", "the samples run from %g to %g: an iso of %g has no surface", lo, hi, v);
     }

@@ -737,7 +737,7 @@ int iso_kept_iso(struct iso_kept *k, double iso, bool corners, struct iso_edit *
         return sf_fail(err, SF_EINVAL, "", "an earlier change of this extraction failed: it is of no further use");
     if (!isfinite(iso))
         return sf_fail(err, SF_EINVAL, "?value", "value is the new iso, a finite number");
-    if (!(iso >= k->least && iso <= k->most))
+    if (!(iso >= k->least && iso < k->most)) /* (samples over the iso are inside: at the greatest, none) */
         return sf_fail(err, SF_EINVAL, "?value", "the samples run from %g to %g: an iso of %g has no surface", k->least,
                        k->most, iso);
     k->o.iso = iso;

@@ -52,7 +52,8 @@ int iso_kept_edit(struct iso_kept *k, const int lo[3], const struct iso_grid *bl
  * iso_extract's at that iso (opts otherwise as begun). ch: every triangle out, the new ones in,
  * with their corners unless corners is false (ch->corners NULL: a caller that reads the new mesh
  * back whole, iso_kept_mesh, saves their 72 bytes a triangle). 0, or SF_EINVAL (?value: not
- * finite, or outside the samples' range), SF_ENOMEM, SF_ELIMIT. */
+ * finite, or outside the samples' range from the least up to, not at, the greatest: there the
+ * surface is empty), SF_ENOMEM, SF_ELIMIT. */
 int iso_kept_iso(struct iso_kept *k, double iso, bool corners, struct iso_edit *ed, struct iso_change *ch,
                  struct sf_err *err);
 /* The memory k holds, in bytes. */
