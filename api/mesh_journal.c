@@ -18,20 +18,23 @@ static void put32(unsigned char *p, uint32_t v)
         p[k] = (unsigned char)(v >> (8 * k));
 }
 
-int mesh_change_encode(const struct iso_change *ch, uint32_t version, char **out, size_t *len, struct sf_err *err)
+/* Change ch's bytes: its header (magic), the ids removed, then each triangle added in each bytes
+ * (its id, and with 76 its corners). */
+static int encode(const struct iso_change *ch, const char *magic, size_t each, uint32_t version, char **out,
+                  size_t *len, struct sf_err *err)
 {
-    size_t n = 16 + 4 * ch->n_removed + 76 * ch->n_added;
+    size_t n = 16 + 4 * ch->n_removed + each * ch->n_added;
     unsigned char *b = malloc(n), *p = b;
     if (!b)
         return sf_fail(err, SF_ENOMEM, "", "out of memory writing the mesh change");
-    memcpy(p, "SFMC", 4);
+    memcpy(p, magic, 4);
     put32(p + 4, version), put32(p + 8, (uint32_t)ch->n_removed), put32(p + 12, (uint32_t)ch->n_added);
     p += 16;
     for (size_t k = 0; k < ch->n_removed; k++, p += 4)
         put32(p, ch->removed[k]);
-    for (size_t k = 0; k < ch->n_added; k++, p += 76) {
+    for (size_t k = 0; k < ch->n_added; k++, p += each) {
         put32(p, ch->added[k]);
-        for (int c = 0; c < 18; c++) {
+        for (int c = 0; each == 76 && c < 18; c++) {
             uint32_t bits;
             memcpy(&bits, ch->corners + 18 * k + c, 4);
             put32(p + 4 + 4 * c, bits);
@@ -41,22 +44,15 @@ int mesh_change_encode(const struct iso_change *ch, uint32_t version, char **out
     return 0;
 }
 
+int mesh_change_encode(const struct iso_change *ch, uint32_t version, char **out, size_t *len, struct sf_err *err)
+{
+    return encode(ch, "SFMC", 76, version, out, len, err);
+}
+
 int mesh_change_encode_whole(const struct iso_change *ch, uint32_t version, char **out, size_t *len,
                              struct sf_err *err)
 {
-    size_t n = 16 + 4 * (ch->n_removed + ch->n_added);
-    unsigned char *b = malloc(n), *p = b;
-    if (!b)
-        return sf_fail(err, SF_ENOMEM, "", "out of memory writing the mesh change");
-    memcpy(p, "SFMW", 4);
-    put32(p + 4, version), put32(p + 8, (uint32_t)ch->n_removed), put32(p + 12, (uint32_t)ch->n_added);
-    p += 16;
-    for (size_t k = 0; k < ch->n_removed; k++, p += 4)
-        put32(p, ch->removed[k]);
-    for (size_t k = 0; k < ch->n_added; k++, p += 4)
-        put32(p, ch->added[k]);
-    *out = (char *)b, *len = n;
-    return 0;
+    return encode(ch, "SFMW", 4, version, out, len, err);
 }
 
 /* A change's counts, checked against its length: its bytes a triangle added (76; a whole one's 4),
