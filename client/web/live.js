@@ -160,6 +160,7 @@ export class LiveIso {
   async choose(id, fresh = false) {
     const m = this.candidates.find((x) => x.res.id === id);
     if (!m) return;
+    if (m !== this.m && !fresh) this.els.mode.value = "off"; // (another model: no brush until asked for)
     this.m = m, this.vol = null, this.range = null, this.iso = this.target = m.res.iso, this.undoStack = [], this.wantIso = null;
     this.els.model.value = id;
     this.counts = { deltas: 0, reloads: 0, edits: 0, isos: 0, undos: 0, failed: 0 }, this.strokes = [];
@@ -247,8 +248,8 @@ export class LiveIso {
 
   // The model's changes since the version the view holds (a delta), or its whole mesh when the
   // journal no longer reaches back that far (410). -> "delta" or "reload".
-  async sync() {
-    const m = this.m, since = m.slots.version;
+  async sync(m) {
+    const since = m.slots.version;
     let r;
     try {
       r = await this.hooks.result("GET", "/models/" + m.res.id + "/mesh?format=delta&since=" + since);
@@ -284,11 +285,12 @@ export class LiveIso {
     this.wantIso = this.target = v;
     if (this.isoQueued) return;
     this.isoQueued = true;
+    const m = this.m;
     this.run(async () => {
       this.isoQueued = false;
-      const want = this.wantIso, m = this.m;
+      const want = this.wantIso;
       this.wantIso = null;
-      if (want === null || want === this.iso) return;
+      if (want === null || want === this.iso || this.m !== m) return;
       this.say("iso " + want + "…");
       let res;
       try {
@@ -300,7 +302,7 @@ export class LiveIso {
       m.res = res;
       this.iso = res.iso;
       this.counts.isos++;
-      const how = await this.sync();
+      const how = await this.sync(m);
       this.say(how === "reload" ? "iso " + res.iso + ": the whole mesh read again (the model's journal does not reach back to the view's version)" : "");
       this.show();
     });
@@ -324,10 +326,10 @@ export class LiveIso {
     this.hooks.changed();
     const entry = { kind: "stroke", what: mode === "paint" ? "paint" : "erase", region: b.region, old: b.old, bytes: b.old.byteLength };
     this.remember(entry);
-    const timing = { t0, mode, region: b.region, samples: b.next.length };
+    const timing = { t0, mode, region: b.region, samples: b.next.length }, m = this.m;
     this.run(async () => {
       this.say(mode === "paint" ? "painting…" : "erasing…");
-      await this.edit(b.region, b.next, timing);
+      await this.edit(m, b.region, b.next, timing);
       this.strokes.push(timing);
       if (this.strokes.length > 100) this.strokes.shift();
       this.say("");
@@ -336,8 +338,9 @@ export class LiveIso {
 
   // One edit of the block at region: POST /models/{id}/edit, then the delta. A refused edit
   // leaves the page's samples unlike the model's: they are read again and the history dropped.
-  async edit(region, block, timing) {
-    const m = this.m, t = timing || {};
+  // (m: the model the block was computed for, whichever the controls show by now)
+  async edit(m, region, block, timing) {
+    const t = timing || {};
     let res;
     try {
       const body = block.buffer.byteLength === block.byteLength ? block.buffer : block.slice().buffer;
@@ -346,12 +349,13 @@ export class LiveIso {
         { body, type: "application/octet-stream" })).json();
       t.answered = performance.now();
     } catch (e) {
-      if (this.m === m) await this.resync("the edit was refused (" + e.message + ")");
-      throw e;
+      if (this.m !== m) throw e;
+      await this.resync();
+      throw new Error("the edit was refused (" + e.message + "): the samples were read again and the undo history cleared");
     }
     m.res = res;
     this.counts.edits++;
-    t.how = await this.sync();
+    t.how = await this.sync(m);
     t.applied = performance.now();
     t.version = m.slots.version;
     t.triangles = m.slots.count;
@@ -360,16 +364,11 @@ export class LiveIso {
   }
 
   // The page's samples read again from the daemon (after a refused edit): the undo history, whose
-  // old samples may no longer be the model's, is dropped.
-  async resync(why) {
-    this.undoStack = [];
-    this.show();
-    this.say(why + ": reading the samples again…");
-    const id = this.m.res.id;
+  // old samples may no longer be the model's, goes with them (choose()).
+  async resync() {
     this.vol = null;
     this.loading = null;
-    await this.choose(id, true);
-    this.say(why + "; the samples were read again and the undo history cleared");
+    await this.choose(this.m.res.id, true);
   }
 
   remember(entry) {
@@ -392,9 +391,10 @@ export class LiveIso {
     } else {
       putBlock(this.vol, entry.region, entry.old);
       this.hooks.changed();
+      const m = this.m;
       this.run(async () => {
         this.say("undoing the " + entry.what + "…");
-        await this.edit(entry.region, entry.old);
+        await this.edit(m, entry.region, entry.old);
         this.say("");
       });
     }

@@ -11,7 +11,7 @@ import {
   Vector2, Vector3, WebGLRenderer,
 } from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
-import { decodeDelta, encodeDelta, MeshSlots } from "./mesh_delta.js";
+import { decodeDelta, encodeDelta, MeshSlots, slotRanges } from "./mesh_delta.js";
 import { parseNrrd, SliceViews, VIEWS } from "./slices.js";
 import { LiveIso, putBlock, sampleRange, strokeBlock } from "./live.js";
 
@@ -204,7 +204,9 @@ async function openVolume(what, id, name) {
   $("viewer").hidden = false;
   $("slices-name").textContent = name || id;
   $("slices-caption").textContent = "loading the samples…";
-  let vol = what === "model" && live.m && live.m.res.id === id ? live.vol : null; // (the live tools' copy: one, kept in step)
+  let vol = null;
+  if (what === "model" && live.m && live.m.res.id === id) // (the live tools' copy: one, kept in step)
+    vol = live.vol || (live.loading ? await live.loading.catch(() => null) : null);
   if (!vol) {
     const r = await ctx.api("GET", (what === "series" ? "/series/" : "/models/") + encodeURIComponent(id) + "/volume");
     if (!r.ok) {
@@ -385,8 +387,8 @@ async function load(m) {
   upload(m, true);
 }
 
-// The slots into the model's geometry: new attributes when they grew, else the changed range.
-function upload(m, fresh, changed) {
+// The slots into the model's geometry: new attributes when they grew, else the slot ranges changed.
+function upload(m, fresh, ranges) {
   const s = m.slots;
   if (fresh || !m.geom) {
     if (m.geom) m.geom.dispose();
@@ -397,10 +399,10 @@ function upload(m, fresh, changed) {
       m.mesh = new Mesh(m.geom, new MeshPhongMaterial({ color: m.color, specular: 0x4d4d4d, shininess: 40, side: DoubleSide }));
       scene.add(m.mesh);
     } else m.mesh.geometry = m.geom;
-  } else if (changed && changed[1] > changed[0]) {
+  } else if (ranges && ranges.length) {
     for (const a of [m.geom.attributes.position, m.geom.attributes.normal]) {
       a.clearUpdateRanges();
-      a.addUpdateRange(9 * changed[0], 9 * (changed[1] - changed[0]));
+      for (const [lo, hi] of ranges) a.addUpdateRange(9 * lo, 9 * (hi - lo));
       a.needsUpdate = true;
     }
   }
@@ -415,7 +417,7 @@ function upload(m, fresh, changed) {
 // A later delta onto a loaded model (issue 45's edits): removals and additions in place.
 function deltaInto(m, buf) {
   const out = m.slots.apply(decodeDelta(buf));
-  upload(m, out.grown, out.changed);
+  upload(m, out.grown, out.ranges);
   moved();
   return out;
 }
@@ -532,11 +534,12 @@ function initLive(canvas) {
     cursor: brushTo, changed: () => { if (slices.vol && live.vol === slices.vol) slices.repaint(); } });
   // a stroke: pointer down on the surface, the centres it passes over, pointer up (a mouse or a
   // pen; one finger still turns the view)
-  let stroke = null, hover = null, hoverPending = false;
+  let stroke = null, hover = null, hoverPending = false, picked = null;
   const ndc = (ev) => { const b = canvas.getBoundingClientRect(); return [((ev.clientX - b.left) / b.width) * 2 - 1, 1 - ((ev.clientY - b.top) / b.height) * 2]; };
   const follow = () => {
     hoverPending = false;
     if (!hover || brush === null) return;
+    picked = hover;
     const p = pick(...hover);
     cursorAt(p);
     if (stroke && p) {
@@ -557,9 +560,8 @@ function initLive(canvas) {
   });
   canvas.addEventListener("pointerup", (ev) => {
     if (!stroke) return;
-    const t0 = performance.now();
-    hover = ndc(ev);
-    follow();
+    const t0 = performance.now(), at = ndc(ev);
+    if (!picked || at[0] !== picked[0] || at[1] !== picked[1]) hover = at, follow(); // (where the last pick was: not again)
     const centres = stroke.centres;
     stroke = null;
     if (centres.length) live.stroke(centres, t0);
@@ -680,5 +682,5 @@ function bench(ms = 3000) {
 }
 
 window.surfdView = { init, open, close, ids, applyDelta, stats, bench, reset, openVolume, closeVolume, pickAt,
-  test: { decodeDelta, encodeDelta, MeshSlots, strokeBlock, putBlock, sampleRange, liveDigest } };
+  test: { decodeDelta, encodeDelta, MeshSlots, slotRanges, strokeBlock, putBlock, sampleRange, liveDigest } };
 window.dispatchEvent(new Event("surfdview"));

@@ -106,7 +106,7 @@ async function structures(page, { view, frame, dist, lineUp, exactArrives }) {
 
   // the mesh delta: hand-made deltas through MeshSlots, then one onto the drawn Heart
   const r = await page.evaluate(() => {
-    const { MeshSlots, encodeDelta, decodeDelta } = window.surfdView.test;
+    const { MeshSlots, encodeDelta, decodeDelta, slotRanges } = window.surfdView.test;
     const T = (z) => [0, 0, z, 1, 0, z, 0, 1, z], out = {};
     const s = new MeshSlots(2);
     s.apply(decodeDelta(encodeDelta(0, 1, [], [[10, T(0)], [11, T(1)], [12, T(2)]])));
@@ -117,6 +117,8 @@ async function structures(page, { view, frame, dist, lineUp, exactArrives }) {
     let packed = s.slotOf.size === s.count;
     for (let k = 0; k < s.count; k++) packed = packed && s.slotOf.get(s.idOf[k]) === k;
     out.packed = packed;
+    out.ranges = JSON.stringify(res.ranges) === "[[0,3]]" &&
+      JSON.stringify(slotRanges([5, 100, 6, 40, 300, 5], 200)) === "[[5,7],[40,41],[100,101]]";
     out.normal = Math.abs(s.normal[9 * s.slotOf.get(13) + 2] - 1) < 1e-6;
     const throws = (f) => { try { f(); return false; } catch (e) { return true; } };
     out.wrongBase = throws(() => s.apply(decodeDelta(encodeDelta(1, 3, [], []))));
@@ -126,6 +128,7 @@ async function structures(page, { view, frame, dist, lineUp, exactArrives }) {
   check("a hand-made delta adds triangles to the slots (growing them)", r.added);
   check("a second delta removes one, adds one and replaces one", r.applied);
   check("the slots stay packed, every id at its slot", r.packed);
+  check("... and say which slots to upload again (sorted ranges within the count, near ones joined)", r.ranges);
   check("an added triangle has its face normal", r.normal);
   check("a delta from another version is refused", r.wrongBase);
   check("a truncated delta is refused", r.short);
