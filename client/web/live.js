@@ -109,7 +109,7 @@ export class LiveIso {
     this.m = null, this.vol = null, this.range = null, this.iso = NaN, this.candidates = [];
     this.undoStack = [], this.queue = [], this.busy = false, this.wantIso = null, this.isoQueued = false, this.gesture = null;
     this.counts = { deltas: 0, reloads: 0, edits: 0, isos: 0, undos: 0, failed: 0 };
-    this.strokes = []; // the last strokes' timings (the bench's): {t0, answered, applied, frame, delta}
+    this.strokes = [], this.isoTimes = []; // the last strokes' and iso changes' times (the bench's): {t0, sent, answered, applied, frame, how}
     this.loading = null;
     const e = els;
     e.range.addEventListener("input", () => this.slide(+e.range.value, false));
@@ -163,7 +163,7 @@ export class LiveIso {
     if (m !== this.m && !fresh) this.els.mode.value = "off"; // (another model: no brush until asked for)
     this.m = m, this.vol = null, this.range = null, this.iso = this.target = m.res.iso, this.undoStack = [], this.wantIso = null;
     this.els.model.value = id;
-    this.counts = { deltas: 0, reloads: 0, edits: 0, isos: 0, undos: 0, failed: 0 }, this.strokes = [];
+    this.counts = { deltas: 0, reloads: 0, edits: 0, isos: 0, undos: 0, failed: 0 }, this.strokes = [], this.isoTimes = [];
     this.enable(false);
     this.say("reading the samples…");
     const load = (this.loading = this.hooks.samples(id, fresh));
@@ -282,27 +282,33 @@ export class LiveIso {
 
   // Asks for iso v, coalesced with any value still waiting.
   setIso(v) {
-    this.wantIso = this.target = v;
+    this.wantIso = this.target = v, this.wantAt = performance.now();
     if (this.isoQueued) return;
     this.isoQueued = true;
     const m = this.m;
     this.run(async () => {
       this.isoQueued = false;
-      const want = this.wantIso;
+      const want = this.wantIso, t = { t0: this.wantAt, iso: want };
       this.wantIso = null;
       if (want === null || want === this.iso || this.m !== m) return;
       this.say("iso " + want + "…");
       let res;
       try {
+        t.sent = performance.now();
         res = await (await this.hooks.result("POST", "/models/" + m.res.id + "/iso?value=" + encodeURIComponent(want))).json();
       } catch (e) {
         if (this.wantIso === null) this.target = this.iso; // (nothing newer asked: the slider goes back)
         throw e;
       }
+      t.answered = performance.now();
       m.res = res;
       this.iso = res.iso;
       this.counts.isos++;
       const how = await this.sync(m);
+      t.how = how, t.applied = performance.now(), t.triangles = m.slots.count;
+      this.hooks.mark(t);
+      this.isoTimes.push(t);
+      if (this.isoTimes.length > 100) this.isoTimes.shift();
       this.say(how === "reload" ? "iso " + res.iso + ": the whole mesh read again (the model's journal does not reach back to the view's version)" : "");
       this.show();
     });
@@ -405,6 +411,6 @@ export class LiveIso {
     const m = this.m;
     return m ? { id: m.res.id, iso: this.iso, range: this.range, triangles: m.slots.count, version: m.slots.version,
       apiVersion: m.res.version, undo: this.undoStack.length, idle: this.idle(), ready: !!this.vol, counts: { ...this.counts },
-      strokes: this.strokes.map((s) => ({ ...s })) } : null;
+      strokes: this.strokes.map((s) => ({ ...s })), isos: this.isoTimes.map((s) => ({ ...s })) } : null;
   }
 }

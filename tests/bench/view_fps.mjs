@@ -3,7 +3,8 @@
 // "brush:label=ID": that isosurface model alone, STROKES brush strokes by mouse on its surface
 // (paint and erase in turn, each at its own point near the view's centre), and the medians of
 // the time from mouse up to the frame that shows the surface changed, and of its parts: the
-// stroke's block computed and sent, the edit's request, the delta fetched and applied, the frame.
+// stroke's block computed and sent, the edit's request, the delta fetched and applied, the frame;
+// then four iso changes typed in, timed the same way.
 import { createRequire } from "node:module";
 import path from "node:path";
 
@@ -65,12 +66,26 @@ async function brush(label, id) {
     parts.delta.push(s.applied - s.answered), parts.frame.push(s.frame - s.applied);
     how[s.how] = (how[s.how] || 0) + 1;
   }
+  // iso changes: 300, then back to 226.5, and again (typed into the value, Enter)
+  const iso = { total: [], request: [], delta: [], frame: [] }, isoHow = {};
+  for (const v of ["300", "226.5", "300", "226.5"]) {
+    const before = (await page.evaluate(() => window.surfdView.stats().live.isos.length));
+    await page.fill("#iso-value", v);
+    await page.press("#iso-value", "Enter");
+    await page.waitForFunction((b) => { const l = window.surfdView.stats().live; return l.idle && l.isos.length > b && l.isos[l.isos.length - 1].frame; },
+      before, { timeout: 600000 });
+    const s = (await page.evaluate(() => window.surfdView.stats().live.isos)).pop();
+    iso.total.push(s.frame - s.t0), iso.request.push(s.answered - s.sent), iso.delta.push(s.applied - s.answered), iso.frame.push(s.frame - s.applied);
+    isoHow[s.how] = (isoHow[s.how] || 0) + 1;
+  }
   const st = await page.evaluate(() => window.surfdView.stats().live);
   const f = (xs) => median(xs).toFixed(0);
   console.log(`${label}: ${spots.length} strokes (radius 3 mm, paint and erase in turn), ${st.triangles} triangles at the end, surface by ` +
     Object.entries(how).map(([k, v]) => v + " " + k).join(", ") + `: stroke to updated surface median ${f(parts.total)} ms ` +
     `(min ${Math.min(...parts.total).toFixed(0)}, max ${Math.max(...parts.total).toFixed(0)}); parts' medians: block ${f(parts.compute)}, ` +
     `edit request ${f(parts.request)}, delta fetched and applied ${f(parts.delta)}, frame ${f(parts.frame)} ms; a pick ${f(pickMs)} ms`);
+  console.log(`${label}: 4 iso changes (300, 226.5, 300, 226.5), surface by ` + Object.entries(isoHow).map(([k, v]) => v + " " + k).join(", ") +
+    `: value to updated surface median ${f(iso.total)} ms; iso request ${f(iso.request)}, delta or mesh fetched and applied ${f(iso.delta)}, frame ${f(iso.frame)} ms`);
   await page.close();
 }
 

@@ -3,8 +3,8 @@
 # 46): frames a second while it turns the heart contour model, every ROI of the dicompyler RT
 # Structure Set together, and the CT head's isosurface (678 k triangles); then the time from a
 # brush stroke to the updated surface (mouse up -> the edit's request -> its delta applied -> the
-# next frame), the median of N strokes on the CT head at levels=1 and at levels=2. Not part of make
-# test (timings are noisy).
+# next frame), the median of N strokes on the CT head at levels=1 and at levels=2, and four iso
+# changes of each timed the same way. Not part of make test (timings are noisy).
 # Usage: tests/bench/view_fps.sh [SECONDS] [STROKES]   (SURFD_BIN: the daemon, build/surfd by default)
 . "$(dirname "$0")/../api/lib.inc"
 DATA="${SURFD_DATA:-../shared/data}/contours"
@@ -35,9 +35,12 @@ log = open(sys.argv[1]).read()
 for levels, mid in ((1, sys.argv[2]), (2, sys.argv[3])):
     ms = [float(x) for x in re.findall(r"POST /models/%s/edit 200 \d+ ([\d.]+)ms" % mid, log)]
     mesh = [(int(s), int(b), float(t)) for s, b, t in re.findall(r"GET /models/%s/mesh (\d+) (\d+) ([\d.]+)ms" % mid, log)]
+    iso = [float(x) for x in re.findall(r"POST /models/%s/iso 200 \d+ ([\d.]+)ms" % mid, log)]
     line = "daemon, CT head levels=%d: %d edits, median %.1f ms;" % (levels, len(ms), statistics.median(ms)) if ms else ""
-    # (the whole mesh: the opening loads, and the reloads after a 410; the deltas are the small answers)
-    for what, xs in (("whole meshes (200)", [m for m in mesh if m[0] == 200 and m[1] > 1e7]), ("deltas (200)", [m for m in mesh if m[0] == 200 and m[1] <= 1e7]),
+    line += " %d iso changes, median %.1f ms;" % (len(iso), statistics.median(iso)) if iso else ""
+    # (over 10 MB: the opening loads, the reloads after a 410, and an iso change's delta, every triangle new)
+    for what, xs in (("mesh answers over 10 MB", [m for m in mesh if m[0] == 200 and m[1] > 1e7]),
+                     ("smaller deltas", [m for m in mesh if m[0] == 200 and m[1] <= 1e7]),
                      ("410s", [m for m in mesh if m[0] == 410])):
         if xs:
             line += " %d %s, median %.1f ms, %d bytes;" % (len(xs), what, statistics.median(x[2] for x in xs), statistics.median(x[1] for x in xs))
