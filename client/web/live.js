@@ -112,8 +112,10 @@ export class LiveIso {
     this.strokes = [], this.isoTimes = []; // the last strokes' and iso changes' times (the bench's): {t0, sent, answered, applied, frame, how}
     this.loading = null;
     const e = els;
-    e.range.addEventListener("input", () => this.slide(+e.range.value, false));
-    e.range.addEventListener("change", () => this.slide(+e.range.value, true));
+    // a drag's values on the slider's step (whole HU on a CT, not 883.8977); keys and typed values as they are
+    const snap = (v) => Math.round(v / this.step) * this.step;
+    e.range.addEventListener("input", () => this.slide(snap(+e.range.value), false));
+    e.range.addEventListener("change", () => this.slide(snap(+e.range.value), true));
     // keys step by the slider's own step (its step is "any", so that the model's iso, whatever it
     // is, sits on it): arrows one, Page Up/Down ten, Home and End the ends
     e.range.addEventListener("keydown", (ev) => {

@@ -682,5 +682,6 @@ function bench(ms = 3000) {
 }
 
 window.surfdView = { init, open, close, ids, applyDelta, stats, bench, reset, openVolume, closeVolume, pickAt,
-  test: { decodeDelta, encodeDelta, MeshSlots, slotRanges, strokeBlock, putBlock, sampleRange, liveDigest } };
+  test: { decodeDelta, encodeDelta, MeshSlots, slotRanges, strokeBlock, putBlock, sampleRange, liveDigest,
+    sharedSamples: () => !!live.vol && live.vol === slices.vol } };
 window.dispatchEvent(new Event("surfdview"));

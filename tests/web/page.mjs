@@ -25,6 +25,12 @@ const check = (name, ok, detail = "") => {
 };
 const auth = TOKEN ? { Authorization: "Bearer " + TOKEN } : {};
 
+// The stored models' ids (before a job makes one), and whether the view shows one new model alone, loaded.
+async function storedIds() {
+  return ((await (await fetch(base + "/models", { headers: auth })).json()).models || []).map((m) => m.id);
+}
+const opened = (old) => { const m = window.surfdView.stats().models; return m.length === 1 && !old.includes(m[0].id) && m[0].triangles > 0; };
+
 // The API's triangle count of a model: the n_added of its whole mesh delta (API.md).
 async function apiTriangles(id) {
   const r = await fetch(base + "/models/" + id + "/mesh?format=delta&since=0", { headers: auth });
@@ -261,9 +267,9 @@ async function workstation(page, { view, frame }) {
   check("27 DICOM files chosen together are one series, to make a surface of", (await page.inputValue("#route")) === "isosurface",
     await page.textContent("#file-what"));
   await page.fill("input[name=iso]", "226.5");
+  let known = await storedIds();
   await page.click("#go");
-  await page.waitForSelector("#job-output dl", { timeout: 180000 });
-  await page.waitForFunction(() => window.surfdView.stats().models.length === 1 && window.surfdView.stats().models[0].triangles > 0, null, { timeout: 120000 });
+  await page.waitForFunction(opened, known, { timeout: 180000 });
   let d = (await view()).models[0];
   check("... the same surface as the series the PACS sent (its triangles), not named by the files", d.triangles === v.models[0].triangles &&
     !/IM0|slice/i.test(d.name), JSON.stringify(d));
@@ -271,9 +277,9 @@ async function workstation(page, { view, frame }) {
   await page.waitForFunction(() => document.getElementById("file-what").textContent.includes(".raw"));
   check("a .mhd with its .raw: one volume, to make a surface of", (await page.inputValue("#route")) === "isosurface");
   await page.fill("input[name=iso]", "226.5");
+  known = await storedIds();
   await page.click("#go");
-  await page.waitForFunction((old) => { const m = window.surfdView.stats().models; return m.length === 1 && m[0].id !== old && m[0].triangles > 0; },
-    d.id, { timeout: 180000 });
+  await page.waitForFunction(opened, known, { timeout: 180000 });
   d = (await view()).models[0];
   check("... its surface, named from the file", d.name === "ct_head_crop64_int16", JSON.stringify(d));
   await page.screenshot({ path: SHOTS + "/12-drop-mhd-1280x800.png" });
@@ -315,7 +321,7 @@ async function liveIso(page, { view, frame }) {
   await page.waitForFunction(() => document.getElementById("file-what").textContent.includes(".raw"));
   await page.fill("input[name=iso]", "226.5");
   await page.selectOption("select[name=levels]", "2");
-  const before = (await view()).models.map((m) => m.id);
+  const before = await storedIds();
   await page.click("#go");
   await page.waitForFunction((old) => { const v = window.surfdView.stats(); return v.models.length === 1 && !old.includes(v.models[0].id) &&
     v.live && v.live.id === v.models[0].id && v.live.ready; }, before, { timeout: 180000 });
@@ -331,6 +337,12 @@ async function liveIso(page, { view, frame }) {
   check("... and shows the iso and the API's triangles", +(await page.getAttribute("#live-count", "data-triangles")) === api.triangles &&
     (await page.textContent("#live-count")).includes("iso 226.5"), (await page.textContent("#live-count")) + " vs " + api.triangles);
   check("the page's copy of the samples is the daemon's", (await page.evaluate(() => window.surfdView.test.liveDigest())) === (await apiDigest(id)));
+  // its slices: the same copy of the samples (one in memory, painted as the surface is)
+  await page.click("#models-refresh");
+  await page.locator("#models-table tbody tr[data-id='" + id + "']").locator("button", { hasText: "Slices" }).click();
+  await page.waitForFunction((m) => { const s = window.surfdView.stats(); return s.volume && s.volume.id === m && s.slices && s.live && s.live.id === m && s.live.ready; },
+    id, { timeout: 60000 });
+  check("Slices of the model share the live tools' copy of its samples", await page.evaluate(() => window.surfdView.test.sharedSamples()));
   const mark = log.length;
 
   // the slider dragged across: values coalesced, never two changes in flight, the last one wins
@@ -401,6 +413,7 @@ async function liveIso(page, { view, frame }) {
   check("... by a delta fetch since the version before, not a since=0 reload", after.some((x) => x.startsWith("POST") && x.includes("/edit?region=")) &&
     after.some((x) => x.includes("format=delta&since=" + (l.version - 1))) && !after.some((x) => /since=0$/.test(x)), JSON.stringify(after));
   const painted = await apiDigest(id);
+
   check("... and the page's samples are the daemon's after it (painted)", painted !== isoDigest &&
     (await page.evaluate(() => window.surfdView.test.liveDigest())) === painted);
   await frame();
@@ -424,13 +437,21 @@ async function liveIso(page, { view, frame }) {
   api = await apiModel(id);
   check("Ctrl+Z undoes the keyboard stroke", l.triangles === api.triangles && (await apiDigest(id)) === painted &&
     (await page.evaluate(() => window.surfdView.test.liveDigest())) === painted, JSON.stringify([l.triangles, api.triangles]));
+  // the axial slice through the mouse stroke (the model hidden: the samples alone, no cut lines), to compare with it undone
+  await page.uncheck("#vis-" + id);
+  const through = await page.evaluate((r) => { const el = document.getElementById("slice-axial-k"); el.value = String(r[2] + Math.floor(r[5] / 2));
+    el.dispatchEvent(new Event("input")); return document.getElementById("slice-axial").toDataURL(); }, stroke.region);
   await page.click("#live-undo");
   await idle();
+  const undone = await page.evaluate(() => document.getElementById("slice-axial").toDataURL());
+  await page.check("#vis-" + id);
   l = await live();
   api = await apiModel(id);
   check("Undo takes back the mouse stroke: the triangles and the samples before it", l.triangles === isoTriangles && api.triangles === isoTriangles &&
     (await apiDigest(id)) === isoDigest && (await page.evaluate(() => window.surfdView.test.liveDigest())) === isoDigest,
     JSON.stringify([l.triangles, api.triangles, isoTriangles]));
+  check("... and the axial slice through it is painted again without it (the samples shared)", undone !== through &&
+    (await page.evaluate(() => window.surfdView.test.sharedSamples())));
   await page.keyboard.press("Control+z");
   await idle();
   l = await live();
@@ -447,9 +468,10 @@ async function liveIso(page, { view, frame }) {
   await page.waitForFunction(() => document.getElementById("file-what").textContent.includes(".raw"));
   await page.fill("input[name=iso]", "226.5");
   await page.selectOption("select[name=levels]", "");
+  const before1 = await storedIds();
   await page.click("#go");
-  await page.waitForFunction((old) => { const v = window.surfdView.stats(); return v.models.length === 1 && v.models[0].id !== old && v.live && v.live.ready; },
-    id, { timeout: 180000 });
+  await page.waitForFunction((old) => { const v = window.surfdView.stats(); return v.models.length === 1 && !old.includes(v.models[0].id) &&
+    v.live && v.live.id === v.models[0].id && v.live.ready; }, before1, { timeout: 180000 });
   const id1 = (await live()).id;
   await page.selectOption("#brush-mode", "erase");
   await page.focus("#gl");
