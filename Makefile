@@ -128,7 +128,7 @@ $(WEB_NPM): client/web/package.json client/web/package-lock.json
 	cp client/web/package.json client/web/package-lock.json $(B)/web/
 	cd $(B)/web && npm ci --no-audit --no-fund --loglevel=error
 	@touch $@
-$(B)/web/view.js: client/web/view.js client/web/mesh_delta.js client/web/slices.js $(WEB_NPM)
+$(B)/web/view.js: client/web/view.js client/web/mesh_delta.js client/web/slices.js client/web/live.js $(WEB_NPM)
 	NODE_PATH=$(B)/web/node_modules $(B)/web/node_modules/.bin/esbuild client/web/view.js --bundle --minify \
 		--format=esm --target=es2020 --log-level=warning --outfile=$@
 

@@ -408,10 +408,9 @@ void dicom_node_stop(struct dicom_node *n)
     pthread_mutex_destroy(&n->lock);
     pthread_cond_destroy(&n->wake);
     dimse_scp_stop(n->scp); /* the associations end (their instances' workers answer them) before the pool stops */
-    if (n->q) {
-        jobq_shutdown(n->q, 0, 5, NULL, NULL);
+    /* (jobs still active after the grace: left to the process's end, not freed under them) */
+    if (n->q && jobq_shutdown(n->q, 0, 5, NULL, NULL) == 0)
         jobq_free(n->q);
-    }
     free(n->peers);
     free(n->refused);
     free(n);

@@ -371,13 +371,13 @@ int jobq_shutdown(struct jobq *q, double timeout_s, double grace_s, void (*aband
         }
     wait_idle(q, monotonic_s() + grace_s); /* bands end, prepares poll their cancel flag */
     if (q->n_active > 0) { /* deaf to cancel: the process ends with them, the store keeps them */
-        int n = 0;
         for (struct job *j = q->live; j; j = j->next_live)
-            if (j->state == JOB_RUNNING) {
-                n++;
-                if (abandoned)
-                    abandoned(j->id, arg);
-            }
+            if (j->state == JOB_RUNNING && abandoned)
+                abandoned(j->id, arg);
+        /* all the active ones, those in their finish too (an end state set, the finish - an edit's
+         * compaction after its answer - still running): 0 would tell the caller to free the queue
+         * under them */
+        int n = q->n_active;
         q_unlock(q);
         return n;
     }

@@ -43,7 +43,8 @@ struct jobq *jobq_new(int n_workers, long queue_max, long long job_memory);
  * and gives them grace_s to stop; then joins the workers and returns 0 (jobq_free frees it). Queued
  * jobs stay in the store. A job still running after the grace (deaf to its cancel flag) is named
  * to abandoned(id, arg), with the queue's lock held (abandoned must not call the queue); the
- * queue is then left as it is and the number of such jobs returned: the caller ends the process. */
+ * queue is then left as it is and the number of jobs still active returned (those named, and any
+ * still in its finish after its end state was set): the caller ends the process, or calls again. */
 int jobq_shutdown(struct jobq *q, double timeout_s, double grace_s, void (*abandoned)(const char *id, void *arg),
                   void *arg);
 /* Frees a queue that jobq_shutdown stopped (0). Its waiters and jobs are gone by then. */

@@ -49,10 +49,14 @@ export class MeshSlots {
 
   // Applies a decoded delta: its removals first, then its additions (an id added again replaces
   // its triangle). Throws when the delta does not start at this mesh's version (the caller asks
-  // again with ?since). Returns {removed, added, grown, changed: [first slot, end) touched}.
+  // again with ?since). Returns {removed, added, grown, changed: [first slot, end) touched, ranges:
+  // the slots written, as sorted [first, end) ranges within the count (what the GPU needs again:
+  // a change of a few hundred triangles in a large mesh is a few hundred small ranges, not the span
+  // from its first hole to the end)}.
   apply(d) {
     if (d.from !== this.version) throw new Error("delta from version " + d.from + " onto version " + this.version);
     let lo = Infinity, hi = 0, removed = 0, grown = false;
+    const touched = [];
     for (const id of d.removed) {
       const s = this.slotOf.get(id);
       if (s === undefined) continue; // not held: nothing to remove
@@ -62,6 +66,7 @@ export class MeshSlots {
         this.normal.copyWithin(9 * s, 9 * last, 9 * last + 9);
         this.idOf[s] = this.idOf[last];
         this.slotOf.set(this.idOf[s], s);
+        touched.push(s);
       }
       this.slotOf.delete(id);
       this.count = last;
@@ -80,10 +85,11 @@ export class MeshSlots {
       let s = this.slotOf.get(d.ids[k]);
       if (s === undefined) s = this.count++, this.slotOf.set(d.ids[k], s), this.idOf[s] = d.ids[k];
       this._put(s, d.corners, 9 * k);
+      touched.push(s);
       lo = Math.min(lo, s), hi = Math.max(hi, s + 1);
     }
     this.version = d.to;
-    return { removed, added: n, grown, changed: lo < hi ? [lo, hi] : [0, 0] };
+    return { removed, added: n, grown, changed: lo < hi ? [lo, hi] : [0, 0], ranges: slotRanges(touched, this.count) };
   }
 
   _put(s, c, o) {
@@ -102,6 +108,19 @@ export class MeshSlots {
     const s = this.slotOf.get(id);
     return s === undefined ? null : Array.from(this.position.subarray(9 * s, 9 * s + 9));
   }
+}
+
+// Slots (unsorted, repeats allowed) as sorted [first, end) ranges below count, ranges less than
+// RANGE_GAP slots apart joined (one upload of a few slots more costs less than one more call).
+const RANGE_GAP = 16;
+export function slotRanges(slots, count) {
+  const s = Int32Array.from(slots.filter((x) => x < count)).sort(), out = [];
+  for (const x of s) {
+    const r = out[out.length - 1];
+    if (r && x <= r[1] + RANGE_GAP) r[1] = Math.max(r[1], x + 1);
+    else out.push([x, x + 1]);
+  }
+  return out;
 }
 
 // A delta's bytes from its parts (the browser test's hand-made deltas): removed ids, and added

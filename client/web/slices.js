@@ -130,6 +130,19 @@ export class SliceViews {
       vol.spacing.map((s) => +s.toFixed(3)).join(" × ") + " mm";
   }
 
+  // The samples changed in place (a brush stroke, its undo): the images painted again.
+  repaint() {
+    if (!this.vol) return;
+    this.images.forEach((c, i) => this.paint(i));
+    this.draw();
+  }
+
+  // Another copy of the same grid (read again): shown where the views are.
+  replace(vol) {
+    this.vol = vol;
+    this.repaint();
+  }
+
   close() {
     this.vol = null;
     this.draw();

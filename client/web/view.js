@@ -1,16 +1,19 @@
 // view.js - the page's 3D view (index.html's #viewer): stored models drawn with three.js from
 // their binary mesh delta, turned, zoomed and panned with mouse, touch and keys around DICOM
 // patient axes (LPS: +x left, +y posterior, +z superior), and replaced by surfd's exact render of
-// the same camera when the view rests. Bundled with three.js by esbuild into build/web/view.js
+// the same camera when the view rests; an isosurface model's live tools (live.js: the iso slider,
+// the brush picked on the mesh here, undo). Bundled with three.js by esbuild into build/web/view.js
 // (client/web/README.md); app.js calls it through window.surfdView once the module has run. It
 // never fetches anything but the daemon's own routes, through app.js's api().
 import {
   AmbientLight, BoxGeometry, BufferAttribute, BufferGeometry, CanvasTexture, Color, DirectionalLight, DoubleSide, Mesh,
-  MeshBasicMaterial, MeshPhongMaterial, PerspectiveCamera, Scene, Sphere, SRGBColorSpace, Vector3, WebGLRenderer,
+  MeshBasicMaterial, MeshPhongMaterial, MOUSE, PerspectiveCamera, Raycaster, Scene, Sphere, SphereGeometry, SRGBColorSpace,
+  Vector2, Vector3, WebGLRenderer,
 } from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
-import { decodeDelta, encodeDelta, MeshSlots } from "./mesh_delta.js";
+import { decodeDelta, encodeDelta, MeshSlots, slotRanges } from "./mesh_delta.js";
 import { parseNrrd, SliceViews, VIEWS } from "./slices.js";
+import { LiveIso, putBlock, sampleRange, strokeBlock } from "./live.js";
 
 const REST_MS = 400;         // the view at rest this long: ask for the exact render
 const FOV = 30;              // vertical, degrees: the same number goes to surfd's camera
@@ -18,6 +21,8 @@ const BACKGROUND = 0x20262e; // both pictures' (surfd's as linear RGB, below)
 const KEY_TURN = Math.PI / 24, KEY_ZOOM = 1.15, KEY_PAN = 40; // radians, factor, pixels a key press
 const EXACT_MAX_SIDE = 1600; // the exact render's longest side at most (pixels)
 const SCENE_MAX_PATCHES = 100000; // what one scene may hold (core/trace/scene.h, SCENE_MAX_OBJECTS): not asked beyond
+const BRUSH_STEP = 0.4;      // a stroke's centres at least this many radii apart (closer ones add nothing to paint)
+const BRUSH_KEY_SCALE = 1.25; // [ and ] change the brush's radius by this factor
 // The palette of models without an RT Structure Set colour (sRGB).
 const PALETTE = [[230, 159, 0], [86, 180, 233], [0, 158, 115], [240, 228, 66], [0, 114, 178], [213, 94, 0], [204, 121, 167]];
 
@@ -26,6 +31,7 @@ const ctx = { api: null, problemOf: null };
 const models = new Map(); // id -> {res, slots, geom, mesh, color: Color (linear), visible, opacity}
 let renderer, axes, scene, camera, controls, cubeScene, cubeCamera, slices, volumeOf = null;
 let serial = 0, restTimer = 0, exactAbort = null, exactOn = true, exactShown = false, frames = 0, drawPending = false;
+let live, brush = null, cursor, marks = []; // the live tools, the brush's radius while it is on, its sphere, strokes awaiting a frame
 
 // ---- requests --------------------------------------------------------------------------------
 
@@ -49,7 +55,7 @@ async function result(method, path, opts = {}) {
     }
     r = await ctx.api("GET", loc + "/result", { signal: opts.signal });
   }
-  if (!r.ok) throw new Error(await ctx.problemOf(r));
+  if (!r.ok) throw Object.assign(new Error(await ctx.problemOf(r)), { status: r.status });
   return r;
 }
 
@@ -120,6 +126,7 @@ function init(opts) {
   new ResizeObserver(resize).observe($("stage"));
   $("exact-toggle").addEventListener("click", () => setExact(!exactOn));
   $("view-reset").addEventListener("click", () => { reset(); canvas.focus(); });
+  initLive(canvas);
   resize();
 }
 
@@ -148,6 +155,15 @@ function draw() {
   frames++;
   scaleBar(d, h);
   planes();
+  if (marks.length) { // strokes whose delta this frame shows: the frame is up at the next one's start
+    const done = marks;
+    marks = [];
+    requestAnimationFrame(() => { const t = performance.now(); for (const m of done) m.frame = t; });
+  }
+}
+
+function requestDraw() {
+  if (renderer && !drawPending) drawPending = true, requestAnimationFrame(() => { drawPending = false; draw(); });
 }
 
 // The slice views' planes over both pictures (a 2D canvas of its own, so that the exact render
@@ -188,13 +204,18 @@ async function openVolume(what, id, name) {
   $("viewer").hidden = false;
   $("slices-name").textContent = name || id;
   $("slices-caption").textContent = "loading the samples…";
-  const r = await ctx.api("GET", (what === "series" ? "/series/" : "/models/") + encodeURIComponent(id) + "/volume");
-  if (!r.ok) {
-    const why = await ctx.problemOf(r);
-    $("slices-caption").textContent = "no samples: " + why;
-    throw new Error(why);
+  let vol = null;
+  if (what === "model" && live.m && live.m.res.id === id) // (the live tools' copy: one, kept in step)
+    vol = live.vol || (live.loading ? await live.loading.catch(() => null) : null);
+  if (!vol) {
+    const r = await ctx.api("GET", (what === "series" ? "/series/" : "/models/") + encodeURIComponent(id) + "/volume");
+    if (!r.ok) {
+      const why = await ctx.problemOf(r);
+      $("slices-caption").textContent = "no samples: " + why;
+      throw new Error(why);
+    }
+    vol = parseNrrd(await r.arrayBuffer());
   }
-  const vol = parseNrrd(await r.arrayBuffer());
   volumeOf = { what, id, name };
   address();
   slices.open(vol, name || id);
@@ -264,6 +285,11 @@ function keys(ev) {
   } else if (k === "+" || k === "=") controls.dollyIn(1 / KEY_ZOOM); // (OrbitControls: a scale below 1 is nearer)
   else if (k === "-" || k === "_") controls.dollyOut(1 / KEY_ZOOM);
   else if (k === "Home") reset();
+  else if (brush !== null && (k === "Enter" || k === " ")) { // a stroke at the surface under the view's centre
+    const p = pick(0, 0);
+    if (p) live.stroke([p]);
+    else live.say("no surface at the view's centre: turn or pan it there");
+  } else if (brush !== null && (k === "[" || k === "]")) live.scaleRadius(k === "]" ? BRUSH_KEY_SCALE : 1 / BRUSH_KEY_SCALE);
   else return;
   ev.preventDefault();
   controls.update();
@@ -279,9 +305,10 @@ function moved() {
   clearTimeout(restTimer);
   showExact(false);
   if (!renderer) return;
-  if (!drawPending) drawPending = true, requestAnimationFrame(() => { drawPending = false; draw(); });
-  if (exactOn && [...models.values()].some((m) => m.visible && m.geom)) restTimer = setTimeout(exact, REST_MS);
-  else caption(models.size ? (exactOn ? "" : "WebGL view (exact render off)") : "");
+  requestDraw();
+  if (exactOn && brush === null && [...models.values()].some((m) => m.visible && m.geom)) restTimer = setTimeout(exact, REST_MS);
+  else caption(!models.size ? "" : brush !== null ? "brush on: the WebGL view (the exact render comes back when the brush is off)"
+    : exactOn ? "" : "WebGL view (exact render off)");
 }
 
 function vec(v) { return [v.x, v.y, v.z].map((x) => +x.toPrecision(9)); }
@@ -360,8 +387,8 @@ async function load(m) {
   upload(m, true);
 }
 
-// The slots into the model's geometry: new attributes when they grew, else the changed range.
-function upload(m, fresh, changed) {
+// The slots into the model's geometry: new attributes when they grew, else the slot ranges changed.
+function upload(m, fresh, ranges) {
   const s = m.slots;
   if (fresh || !m.geom) {
     if (m.geom) m.geom.dispose();
@@ -372,27 +399,33 @@ function upload(m, fresh, changed) {
       m.mesh = new Mesh(m.geom, new MeshPhongMaterial({ color: m.color, specular: 0x4d4d4d, shininess: 40, side: DoubleSide }));
       scene.add(m.mesh);
     } else m.mesh.geometry = m.geom;
-  } else if (changed && changed[1] > changed[0]) {
+  } else if (ranges && ranges.length) {
     for (const a of [m.geom.attributes.position, m.geom.attributes.normal]) {
       a.clearUpdateRanges();
-      a.addUpdateRange(9 * changed[0], 9 * (changed[1] - changed[0]));
+      for (const [lo, hi] of ranges) a.addUpdateRange(9 * lo, 9 * (hi - lo));
       a.needsUpdate = true;
     }
   }
   m.geom.setDrawRange(0, 3 * s.count);
   m.geom.boundingSphere = null;
   style(m);
+  const lab = document.querySelector("#layers li[data-id='" + m.res.id + "'] label");
+  if (lab) lab.textContent = layerText(m);
   if (slices) slices.draw();
 }
 
 // A later delta onto a loaded model (issue 45's edits): removals and additions in place.
+function deltaInto(m, buf) {
+  const out = m.slots.apply(decodeDelta(buf));
+  upload(m, out.grown, out.ranges);
+  moved();
+  return out;
+}
+
 function applyDelta(id, buf) {
   const m = models.get(id);
   if (!m || !m.slots) throw new Error("model " + id + " is not in the view");
-  const out = m.slots.apply(decodeDelta(buf));
-  upload(m, out.grown, out.changed);
-  moved();
-  return out;
+  return deltaInto(m, buf);
 }
 
 function style(m) {
@@ -422,12 +455,14 @@ async function open(list, { add = false } = {}) {
   $("viewer-name").textContent = [...models.values()].map((m) => m.res.name || m.res.id).join(", ");
   address();
   layers();
+  live.attach([...models.values()]);
   moved();
   caption("loading " + fresh.length + " mesh" + (fresh.length === 1 ? "" : "es") + "…");
   const failed = [];
   await Promise.all(fresh.map((m) => load(m).catch((e) => failed.push((m.res.name || m.res.id) + ": " + e.message))));
   for (const m of fresh) if (!m.geom && models.get(m.res.id) === m) models.delete(m.res.id);
   layers();
+  live.attach([...models.values()]);
   reset();
   if (failed.length) caption("could not load " + failed.join("; "));
   return failed;
@@ -449,7 +484,7 @@ function layers() {
     vis.addEventListener("change", () => { m.visible = vis.checked; style(m); slices.draw(); moved(); });
     const lab = document.createElement("label");
     lab.htmlFor = vis.id;
-    lab.textContent = name + (m.slots ? " (" + m.slots.count + " triangles)" : " (loading)");
+    lab.textContent = layerText(m);
     const op = document.createElement("input");
     op.type = "range", op.min = "0", op.max = "1", op.step = "0.05", op.value = String(m.opacity);
     op.setAttribute("aria-label", "Opacity of " + name);
@@ -459,12 +494,15 @@ function layers() {
   }));
 }
 
+function layerText(m) { return (m.res.name || m.res.id) + (m.slots ? " (" + m.slots.count + " triangles)" : " (loading)"); }
+
 // Takes a model out of the view (deleted, say).
 function close(id) {
   const m = models.get(id);
   if (!m) return;
   if (m.mesh) scene.remove(m.mesh), m.geom.dispose(), m.mesh.material.dispose();
   models.delete(id);
+  live.attach([...models.values()]);
   address();
   if (!models.size && !slices.vol) $("viewer").hidden = true;
   slices.draw();
@@ -483,6 +521,127 @@ function address() {
   history.replaceState(null, "", parts.length ? "#" + parts.join("&") : location.pathname);
 }
 
+// ---- live isosurfaces: the brush on the mesh (live.js does the rest) ------------------------------
+
+function initLive(canvas) {
+  cursor = new Mesh(new SphereGeometry(1, 24, 16), new MeshBasicMaterial({ color: 0xffe070, wireframe: true, transparent: true, opacity: 0.6 }));
+  cursor.visible = false;
+  cursor.renderOrder = 2;
+  scene.add(cursor);
+  live = new LiveIso({ box: $("live"), name: $("live-name"), model: $("live-model"), modelRow: $("live-model-row"), range: $("iso-range"),
+    value: $("iso-value"), count: $("live-count"), mode: $("brush-mode"), radius: $("brush-radius"), undo: $("live-undo"), state: $("live-state") },
+  { result, samples, delta: deltaInto, reload: async (m) => { await load(m); moved(); }, mark: (t) => { marks.push(t); requestDraw(); },
+    cursor: brushTo, changed: () => { if (slices.vol && live.vol === slices.vol) slices.repaint(); } });
+  // a stroke: pointer down on the surface, the centres it passes over, pointer up (a mouse or a
+  // pen; one finger still turns the view)
+  let stroke = null, hover = null, hoverPending = false, picked = null;
+  const ndc = (ev) => { const b = canvas.getBoundingClientRect(); return [((ev.clientX - b.left) / b.width) * 2 - 1, 1 - ((ev.clientY - b.top) / b.height) * 2]; };
+  const follow = () => {
+    hoverPending = false;
+    if (!hover || brush === null) return;
+    picked = hover;
+    const p = pick(...hover);
+    cursorAt(p);
+    if (stroke && p) {
+      const last = stroke.centres[stroke.centres.length - 1];
+      if (!last || Math.hypot(p[0] - last[0], p[1] - last[1], p[2] - last[2]) >= BRUSH_STEP * brush) stroke.centres.push(p);
+    }
+  };
+  canvas.addEventListener("pointerdown", (ev) => {
+    if (brush === null || ev.button !== 0 || ev.pointerType === "touch") return;
+    stroke = { centres: [] };
+    hover = ndc(ev);
+    follow();
+  });
+  canvas.addEventListener("pointermove", (ev) => {
+    if (brush === null || ev.pointerType === "touch") return;
+    hover = ndc(ev);
+    if (!hoverPending) hoverPending = true, requestAnimationFrame(follow);
+  });
+  canvas.addEventListener("pointerup", (ev) => {
+    if (!stroke) return;
+    const t0 = performance.now(), at = ndc(ev);
+    if (!picked || at[0] !== picked[0] || at[1] !== picked[1]) hover = at, follow(); // (where the last pick was: not again)
+    const centres = stroke.centres;
+    stroke = null;
+    if (centres.length) live.stroke(centres, t0);
+    else live.say("the brush was over no surface of " + (live.m ? live.m.res.name || live.m.res.id : "the model"));
+  });
+  canvas.addEventListener("pointerleave", () => { if (!stroke) cursorAt(null); });
+  // Ctrl+Z (Cmd+Z) anywhere but in a text field: the last stroke or iso change undone
+  document.addEventListener("keydown", (ev) => {
+    if (!(ev.ctrlKey || ev.metaKey) || ev.shiftKey || ev.altKey || ev.key.toLowerCase() !== "z" || !live.m || $("live").hidden) return;
+    const t = ev.target;
+    if (t && (t.isContentEditable || (t.tagName === "INPUT" && !["range", "checkbox", "radio", "button"].includes(t.type)) || t.tagName === "TEXTAREA")) return;
+    ev.preventDefault();
+    live.undo();
+  });
+}
+
+// The brush on (its radius, mm) or off (null): the left button paints instead of turning.
+function brushTo(r) {
+  brush = r;
+  controls.mouseButtons.LEFT = r === null ? MOUSE.ROTATE : null;
+  $("gl").classList.toggle("brush", r !== null);
+  if (r === null) cursor.visible = false;
+  else cursor.scale.setScalar(r);
+  moved();
+}
+
+function cursorAt(p) {
+  cursor.visible = brush !== null && !!p;
+  if (p) cursor.position.set(p[0], p[1], p[2]);
+  requestDraw();
+}
+
+// The model's samples for the live tools: the slices' copy when they show them (one copy, kept in
+// step), else read (GET /models/{id}/volume); fresh: read again (the slices take the new copy).
+async function samples(id, fresh) {
+  const shown = volumeOf && volumeOf.what === "model" && volumeOf.id === id && slices.vol;
+  if (shown && !fresh) return slices.vol;
+  const r = await ctx.api("GET", "/models/" + encodeURIComponent(id) + "/volume");
+  if (!r.ok) throw new Error(await ctx.problemOf(r));
+  const vol = parseNrrd(await r.arrayBuffer());
+  if (shown) slices.replace(vol);
+  return vol;
+}
+
+// The nearest point of the live model's surface under a point of the view (normalised device
+// coordinates, -1..1, y up), or null: a ray against every triangle the view holds (Möller-Trumbore,
+// both faces), what is drawn being what is picked.
+const raycaster = new Raycaster();
+function pick(x, y) {
+  const m = live && live.m;
+  if (!m || !m.slots || !m.visible) return null;
+  camera.updateMatrixWorld();
+  raycaster.setFromCamera(new Vector2(x, y), camera);
+  const { origin: o, direction: d } = raycaster.ray, P = m.slots.position, n = m.slots.count;
+  const ox = o.x, oy = o.y, oz = o.z, dx = d.x, dy = d.y, dz = d.z;
+  let best = Infinity;
+  for (let t = 0, b = 0; t < n; t++, b += 9) {
+    const ax = P[b], ay = P[b + 1], az = P[b + 2];
+    const e1x = P[b + 3] - ax, e1y = P[b + 4] - ay, e1z = P[b + 5] - az, e2x = P[b + 6] - ax, e2y = P[b + 7] - ay, e2z = P[b + 8] - az;
+    const px = dy * e2z - dz * e2y, py = dz * e2x - dx * e2z, pz = dx * e2y - dy * e2x;
+    const det = e1x * px + e1y * py + e1z * pz;
+    if (det > -1e-12 && det < 1e-12) continue;
+    const inv = 1 / det, sx = ox - ax, sy = oy - ay, sz = oz - az;
+    const u = (sx * px + sy * py + sz * pz) * inv;
+    if (u < 0 || u > 1) continue;
+    const qx = sy * e1z - sz * e1y, qy = sz * e1x - sx * e1z, qz = sx * e1y - sy * e1x;
+    const v = (dx * qx + dy * qy + dz * qz) * inv;
+    if (v < 0 || u + v > 1) continue;
+    const dist = (e2x * qx + e2y * qy + e2z * qz) * inv;
+    if (dist > 0 && dist < best) best = dist;
+  }
+  return best < Infinity ? [ox + best * dx, oy + best * dy, oz + best * dz] : null;
+}
+
+// The test hook's and the bench's: the surface point under a CSS pixel of the view, or null.
+function pickAt(cx, cy) {
+  const b = $("gl").getBoundingClientRect();
+  return pick(((cx - b.left) / b.width) * 2 - 1, 1 - ((cy - b.top) / b.height) * 2);
+}
+
 // ---- the read-only test hook and the bench ----------------------------------------------------
 
 function stats() {
@@ -494,8 +653,17 @@ function stats() {
     showing: exactShown ? "exact" : "webgl", exactSerial: +($("exact").dataset.serial || 0), serial, frames,
     camera: { eye: vec(camera.position), target: vec(controls.target), fov: camera.fov, aspect: camera.aspect },
     webgl: renderer ? (renderer.capabilities.isWebGL2 ? 2 : 1) : 0,
-    slices: slices ? slices.stats() : null, volume: volumeOf,
+    slices: slices ? slices.stats() : null, volume: volumeOf, live: live ? live.stats() : null, brush,
   };
+}
+
+// FNV-1a of the live tools' copy of the samples (the browser test's: it must stay the daemon's).
+function liveDigest() {
+  if (!live.vol) return null;
+  const d = live.vol.data, b = new Uint8Array(d.buffer, d.byteOffset, d.byteLength);
+  let h = 0x811c9dc5;
+  for (let i = 0; i < b.length; i++) h = Math.imul(h ^ b[i], 0x01000193);
+  return h >>> 0;
 }
 
 // Frames a second while the view turns a little every frame for ms milliseconds.
@@ -513,5 +681,7 @@ function bench(ms = 3000) {
   });
 }
 
-window.surfdView = { init, open, close, ids, applyDelta, stats, bench, reset, openVolume, closeVolume, test: { decodeDelta, encodeDelta, MeshSlots } };
+window.surfdView = { init, open, close, ids, applyDelta, stats, bench, reset, openVolume, closeVolume, pickAt,
+  test: { decodeDelta, encodeDelta, MeshSlots, slotRanges, strokeBlock, putBlock, sampleRange, liveDigest,
+    sharedSamples: () => !!live.vol && live.vol === slices.vol } };
 window.dispatchEvent(new Event("surfdview"));

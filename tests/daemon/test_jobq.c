@@ -226,10 +226,40 @@ TEST(phases_of_bands)
     jobq_free(q);
 }
 
+/* A job whose finish is slow (an edit's compaction after its answer): its state has ended, but
+ * it is still active. A shutdown within that time must not call the queue stopped (the caller
+ * would free it under the worker): it returns the job as left, and a later one stops the queue. */
+static void slow_finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
+{
+    finish(j, arg, outcome, requeue);
+    sleep_ms(400);
+}
+
+static const struct job_ops SLOW_FINISH = {.prepare = prepare, .band = band, .finish = slow_finish};
+
+TEST(shutdown_while_a_job_finishes)
+{
+    struct jobq *q = jobq_new(2, 4, 0);
+    struct work *w = make_work(1, 10);
+    CHECK(jobq_submit(q, "tail", &SLOW_FINISH, w, false) == 0);
+    enum job_state st = JOB_QUEUED;
+    double progress;
+    for (int k = 0; k < 200 && !(atomic_load(&w->finished) == 1); k++)
+        sleep_ms(5);
+    CHECK(atomic_load(&w->finished) == 1 && jobq_peek(q, "tail", &st, &progress) && st == JOB_RUNNING); /* in its finish */
+    CHECK(jobq_shutdown(q, 0.01, 0.05, NULL, NULL) == 1); /* left: not stopped, not to be freed */
+    sleep_ms(500);
+    CHECK(jobq_shutdown(q, 0.01, 0.05, NULL, NULL) == 0); /* its finish over: stopped */
+    jobq_free(q);
+    free(w->ran);
+    free(w);
+}
+
 int main(void)
 {
     RUN(bands_run_once_and_jobs_end);
     RUN(full_queue_timeouts_and_shutdown);
     RUN(phases_of_bands);
+    RUN(shutdown_while_a_job_finishes);
     UNIT_END();
 }
