@@ -9,6 +9,7 @@
 #include "kept.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -62,7 +63,7 @@ struct pscratch {           /* one slab's working memory */
     size_t qcap;
     int *use;
     size_t ucap;
-    long merged[ISO_MAX_LEVELS + 1], refused;
+    long merged[ISO_MAX_LEVELS + 1], refused, why[16];
     bool nomem;
 };
 
@@ -755,13 +756,31 @@ static bool near_fine(const struct pieces *P, const struct pscratch *S, int n, c
 static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id, const int lo[3], int s)
 {
     if (!gather(P, S, n, id))
-        return false;
+        { S->why[0]++; return false; }
     if (!P->o.closed && !interior(S, n))
-        return false;
+        { S->why[1]++; return false; }
+    /* comp is in BFS order: each joins one merged before it. One whose edge the link condition
+     * refuses (the piece is no disk there, or a neighbour would be pinched) stays out, its own
+     * vertex, and so do those that reach the rest through it only; the piece is the rest. */
     uint32_t p = S->comp[0];
-    for (int i = 1; i < n; i++) /* (comp is in BFS order: each joins one merged before it) */
-        if (!collapse(S, p, S->comp[i]))
-            return false;
+    int kept = 1;
+    for (int i = 1; i < n; i++) {
+        uint32_t r = S->comp[i];
+        if (collapse(S, p, r))
+            S->comp[kept++] = r;
+        else
+            P->mark[r] = (((uint64_t)r << 3) | ((id - 1) & 7)) + 1; /* (this level's, not the piece's) */
+    }
+    if (kept < 2)
+        { S->why[2]++; return false; }
+    if (kept < n) { /* the rest's triangles alone, collapsed again as before */
+        n = kept;
+        if (!gather(P, S, n, id))
+            { S->why[0]++; return false; }
+        for (int i = 1; i < n; i++)
+            if (!collapse(S, p, S->comp[i]))
+                { S->why[2]++; return false; }
+    }
     double x[3], nrm[3];
     place(P, S, n, lo, s, x, nrm);
     /* no triangle turned over or squashed */
@@ -777,11 +796,11 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
         sub3(B[1], B[0], u), sub3(B[2], B[0], v), cross3(u, v, nb);
         double la = sqrt(dot3(na, na)), lb = sqrt(dot3(nb, nb));
         if (!(la > 1e-12 * P->sp[0] * P->sp[0]) || dot3(na, nb) < FLIP_COS * la * lb)
-            return false;
+            { S->why[3]++; return false; }
         for (int k = 0; k < 3; k++)
             if (L->c[k] != p) {
                 if (!grow(S, (void **)&S->link, &S->kcap, (size_t)n_link + 1, sizeof *S->link))
-                    return false;
+                    { S->why[4]++; return false; }
                 add_unique(S->link, &n_link, L->c[k]);
             }
     }
@@ -789,7 +808,7 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
      * corners' representatives: those whose witness the merge changes, or that had none */
     int n_wu = 0, n_qt = local_triangles(P, S, p, x, id, n_link);
     if (n_qt < 0)
-        return false;
+        { S->why[5]++; return false; }
     for (int i = 0; i < n + n_link; i++) {
         uint32_t r = i < n ? S->comp[i] : S->link[i - n];
         for (uint32_t m = r; m != UINT32_MAX; m = P->mnext[m])
@@ -815,19 +834,19 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
                         continue;
                 }
                 if (!fine_ok(P, S, F, R, n_qt, n_link, p, id, &n_wu))
-                    return false;
+                    { S->why[6]++; return false; }
             }
     }
     /* the new triangles near the fine surface: sampled at p, along their new edges and inside */
     int n_cand = 0, last = 0;
     for (int i = 0; i < n; i++)
         if (!add_cands(P, S, S->comp[i], &n_cand))
-            return false;
+            { S->why[7]++; return false; }
     for (int j = 0; j < n_link; j++)
         if (!add_cands(P, S, S->link[j], &n_cand))
-            return false;
+            { S->why[8]++; return false; }
     if (!near_fine(P, S, n_cand, x, &last))
-        return false;
+        { S->why[9]++; return false; }
     for (int j = 0; j < n_link; j++) {
         double q[3], y[3];
         pos_of(P, S->link[j], q);
@@ -835,7 +854,7 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
             for (int d = 0; d < 3; d++)
                 y[d] = x[d] + (q[d] - x[d]) * f / 4.0;
             if (!near_fine(P, S, n_cand, y, &last))
-                return false;
+                { S->why[10]++; return false; }
         }
     }
     static const double W[5][3] = {{1 / 3.0, 1 / 3.0, 1 / 3.0}, {0.5, 0.25, 0.25}, {0.25, 0.5, 0.25}, {0.25, 0.25, 0.5},
@@ -851,7 +870,7 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
             for (int d = 0; d < 3; d++)
                 y[d] = W[w][0] * T[r][d] + W[w][1] * T[(r + 1) % 3][d] + W[w][2] * T[(r + 2) % 3][d];
             if (!near_fine(P, S, n_cand, y, &last))
-                return false;
+                { S->why[11]++; return false; }
         }
     }
     /* all well: the merge made */
@@ -970,6 +989,16 @@ void pieces_between(struct pieces *P, int phase)
         else if (prepare(P))
             fail(P, SF_ENOMEM, "out of memory for the pieces' merge");
         return;
+    }
+    if (getenv("PIECES_DEBUG") && (phase - 2) % COLOURS == COLOURS - 1) {
+        long w[16] = {0}, mg = 0, rf = 0;
+        for (int k = 0; k < ADAPT_SLABS; k++) {
+            for (int j = 0; j < 16; j++) w[j] += P->sc[k].why[j], P->sc[k].why[j] = 0;
+            for (int j = 0; j <= ISO_MAX_LEVELS; j++) mg += P->sc[k].merged[j], P->sc[k].merged[j] = 0;
+            rf += P->sc[k].refused, P->sc[k].refused = 0;
+        }
+        fprintf(stderr, "level %d: merged %ld refused %ld: gather %ld interior %ld topo %ld flip %ld mem %ld %ld fine %ld mem %ld %ld c2f p %ld edge %ld tri %ld\n",
+                2 + (phase - 2) / COLOURS, mg, rf, w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11]);
     }
     for (int k = 0; k < ADAPT_SLABS; k++)
         if (P->sc[k].nomem)
