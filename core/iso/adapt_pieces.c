@@ -41,10 +41,12 @@ struct qtri {               /* a triangle round the piece as the merge leaves it
     uint32_t t, c[3];       /* its id, corners */
     double T[3][3];         /* their places */
     double lo[3], hi[3];    /* its box grown by e */
+    double n[3], u[3], v[3]; /* its unit normal, edges from corner 0 */
+    double uu, uv, vv, inv; /* their products, 1 / the Gram determinant (0: a sliver: the exact test) */
 };
 
 struct wup {
-    uint32_t sample, tri;
+    uint32_t sample, tri, tri2;
 };
 
 struct pscratch {           /* one slab's working memory */
@@ -63,6 +65,10 @@ struct pscratch {           /* one slab's working memory */
     size_t qcap;
     int *use;
     size_t ucap;
+    int *lstart, *lqt;      /* S->qt's triangles round each local representative (p, then link's) */
+    size_t lscap, lqcap;
+    uint32_t *stamp;        /* per S->qt entry: the fine triangle that took it last */
+    size_t stcap;
     long merged[ISO_MAX_LEVELS + 1], refused, why[16];
     bool nomem;
 };
@@ -91,9 +97,11 @@ struct pieces {
     uint32_t *mnext, *mtail; /* the fine vertices a representative stands for (a list from it) */
     uint32_t *rep;          /* each fine vertex's representative */
     uint8_t *lvl;           /* the level that made each representative (1: a fine vertex), 0 when merged away */
-    uint32_t *wit;          /* each fine triangle's witness: a triangle of the mesh within e of its three
-                             * corners, so of all of it (the distance to a triangle is convex), or
-                             * NO_WITNESS: its lattice points are each within e of some triangle */
+    uint32_t *wit, *wit2;   /* each fine triangle's witness: a triangle of the mesh within e of its three
+                             * corners, so of all of it (the distance to a triangle is convex; wit2
+                             * NO_WITNESS), or two such that each of its lattice points is within e
+                             * of one of them; else NO_WITNESS: its lattice points are each within e
+                             * of some triangle round its corners' representatives */
     uint64_t *mark;         /* each representative's piece being merged (its least vertex, its level) */
     /* the level's blocks and the representatives in each */
     int nb[3];
@@ -152,30 +160,19 @@ static void eigen3(double A[3][3], double V[3][3], double w[3])
         w[i] = A[i][i];
 }
 
-/* Whether x lies within e of triangle abc. */
-static bool near_tri(const double x[3], const double a[3], const double b[3], const double c[3], double e)
-{
-    for (int d = 0; d < 3; d++) {
-        double lo = fmin(a[d], fmin(b[d], c[d])), hi = fmax(a[d], fmax(b[d], c[d]));
-        if (x[d] < lo - e || x[d] > hi + e)
-            return false;
-    }
-    return trimesh_point_dist(x, a, b, c) <= e;
-}
-
 /* ---- the state ---- */
 
 static void scratch_free(struct pscratch *s)
 {
-    free(s->comp), free(s->lt), free(s->link), free(s->cand), free(s->wu), free(s->qt), free(s->use);
+    free(s->comp), free(s->lt), free(s->link), free(s->cand), free(s->wu), free(s->qt), free(s->use), free(s->lstart), free(s->lqt), free(s->stamp);
     memset(s, 0, sizeof *s);
 }
 
 static void work_free(struct pieces *P)
 {
     free(P->cellk), free(P->inc_at), free(P->inc), free(P->cur), free(P->dead), free(P->cp), free(P->cn);
-    free(P->mnext), free(P->mtail), free(P->rep), free(P->lvl), free(P->wit), free(P->mark), free(P->bstart), free(P->brep);
-    P->cellk = NULL, P->inc_at = P->inc = P->cur = P->mnext = P->mtail = P->rep = P->wit = P->bstart = P->brep = NULL;
+    free(P->mnext), free(P->mtail), free(P->rep), free(P->lvl), free(P->wit), free(P->wit2), free(P->mark), free(P->bstart), free(P->brep);
+    P->cellk = NULL, P->inc_at = P->inc = P->cur = P->mnext = P->mtail = P->rep = P->wit = P->wit2 = P->bstart = P->brep = NULL;
     P->dead = P->lvl = NULL, P->cp = P->cn = NULL, P->mark = NULL;
     for (int k = 0; k < ADAPT_SLABS; k++)
         scratch_free(&P->sc[k]);
@@ -313,9 +310,10 @@ static int prepare(struct pieces *P)
     P->rep = malloc(V * sizeof *P->rep);
     P->lvl = malloc(V);
     P->wit = malloc(T * sizeof *P->wit);
+    P->wit2 = malloc(T * sizeof *P->wit2);
     P->mark = calloc(V, sizeof *P->mark);
     if (!P->cellk || !P->inc_at || !P->inc || !P->cur || !P->dead || !P->cp || !P->cn || !P->mnext || !P->mtail || !P->rep ||
-        !P->lvl || !P->wit || !P->mark)
+        !P->lvl || !P->wit || !P->wit2 || !P->mark)
         return -1;
     for (uint32_t v = 0; v < nv; v++) {
         uint64_t k = 0;
@@ -365,7 +363,7 @@ static int prepare(struct pieces *P)
         }
     free(fill);
     for (uint32_t t = 0; t < nt; t++)
-        P->wit[t] = t;
+        P->wit[t] = t, P->wit2[t] = NO_WITNESS;
     return bucket(P, 2);
 }
 
@@ -390,7 +388,7 @@ static bool grow(struct pscratch *S, void **p, size_t *cap, size_t need, size_t 
 
 /* The live triangles round the piece comp[0 .. n-1] (marked id) into S->lt, each once. false: too
  * many, or no memory. */
-static bool gather(const struct pieces *P, struct pscratch *S, int n, uint64_t id)
+__attribute__((noinline)) static bool gather(const struct pieces *P, struct pscratch *S, int n, uint64_t id)
 {
     S->n_lt = 0;
     for (int i = 0; i < n; i++) {
@@ -430,7 +428,7 @@ static void add_unique(uint32_t *list, int *n, uint32_t w)
 /* Collapses edge p-s in S->lt when the link condition holds (Dey et al.: the links of p and s
  * share just the two vertices across the edge, and the two are not a tetrahedron's), which keeps
  * a closed 2-manifold's topology: false when it does not. */
-static bool collapse(struct pscratch *S, uint32_t p, uint32_t s)
+__attribute__((noinline)) static bool collapse(struct pscratch *S, uint32_t p, uint32_t s)
 {
     enum { NB = 256 };
     uint32_t apex[2], np_[NB], ns_[NB];
@@ -518,7 +516,7 @@ static bool interior(const struct pscratch *S, int n)
 /* The merged vertex: the QEF of the fine vertices' tangent planes, solved about their mass point
  * with small eigenvalues left out (Dual Contouring's truncated pseudo-inverse), kept near its block
  * (lo, side s in samples); its normal the fine normals' mean. */
-static void place(const struct pieces *P, const struct pscratch *S, int n, const int lo[3], int s, double x[3],
+__attribute__((noinline)) static void place(const struct pieces *P, const struct pscratch *S, int n, const int lo[3], int s, double x[3],
                   double nrm[3])
 {
     const float *fp = P->fine.pos, *fn = P->fine.nrm;
@@ -564,7 +562,7 @@ static void place(const struct pieces *P, const struct pscratch *S, int n, const
 }
 
 /* A triangle's corners' places, p at x. */
-static void corners(const struct pieces *P, const uint32_t c[3], uint32_t p, const double x[3], double q[3][3])
+__attribute__((noinline)) static void corners(const struct pieces *P, const uint32_t c[3], uint32_t p, const double x[3], double q[3][3])
 {
     for (int k = 0; k < 3; k++) {
         if (c[k] == p)
@@ -574,26 +572,55 @@ static void corners(const struct pieces *P, const uint32_t c[3], uint32_t p, con
     }
 }
 
-static bool note_witness(struct pscratch *S, int *n, uint32_t sample, uint32_t tri)
+static bool note_witness(struct pscratch *S, int *n, uint32_t sample, uint32_t tri, uint32_t tri2)
 {
     if (!grow(S, (void **)&S->wu, &S->wcap, (size_t)*n + 1, sizeof *S->wu))
         return false;
-    S->wu[*n].sample = sample, S->wu[*n].tri = tri;
+    S->wu[*n].sample = sample, S->wu[*n].tri = tri, S->wu[*n].tri2 = tri2;
     (*n)++;
     return true;
 }
 
-/* Whether the three corners f of a fine triangle lie within e of triangle T (then all of it does). */
-static bool covers(double T[3][3], double f[3][3], double e)
+
+/* Q's box and plane from its corners Q->T. */
+static void qtri_prepare(struct qtri *Q, double e)
 {
-    return near_tri(f[0], T[0], T[1], T[2], e) && near_tri(f[1], T[0], T[1], T[2], e) &&
-           near_tri(f[2], T[0], T[1], T[2], e);
+    for (int d = 0; d < 3; d++) {
+        Q->lo[d] = dmin(Q->T[0][d], dmin(Q->T[1][d], Q->T[2][d])) - e;
+        Q->hi[d] = dmax(Q->T[0][d], dmax(Q->T[1][d], Q->T[2][d])) + e;
+    }
+    sub3(Q->T[1], Q->T[0], Q->u), sub3(Q->T[2], Q->T[0], Q->v), cross3(Q->u, Q->v, Q->n);
+    double len = sqrt(dot3(Q->n, Q->n));
+    Q->uu = dot3(Q->u, Q->u), Q->uv = dot3(Q->u, Q->v), Q->vv = dot3(Q->v, Q->v);
+    double det = Q->uu * Q->vv - Q->uv * Q->uv;
+    Q->inv = len > 1e-9 * (Q->uu + Q->vv) && det > 0 ? 1 / det : 0;
+    for (int d = 0; d < 3 && len > 0; d++)
+        Q->n[d] /= len;
+}
+
+/* Whether y lies within e of Q: off its plane by more, no; over the triangle, yes; else exactly. */
+static bool qtri_near(const struct qtri *Q, const double y[3], double e)
+{
+    if (y[0] < Q->lo[0] || y[0] > Q->hi[0] || y[1] < Q->lo[1] || y[1] > Q->hi[1] || y[2] < Q->lo[2] || y[2] > Q->hi[2])
+        return false;
+    if (Q->inv > 0) {
+        double w[3];
+        sub3(y, Q->T[0], w);
+        double h = dot3(w, Q->n);
+        if (h > e || h < -e)
+            return false;
+        double wu = dot3(w, Q->u), wv = dot3(w, Q->v);
+        double a = (Q->vv * wu - Q->uv * wv) * Q->inv, b = (Q->uu * wv - Q->uv * wu) * Q->inv;
+        if (a >= 0 && b >= 0 && a + b <= 1)
+            return true;
+    }
+    return trimesh_point_dist(y, Q->T[0], Q->T[1], Q->T[2]) <= e;
 }
 
 /* The triangles round the piece as its merge would leave them, into S->qt with their places: the
  * new vertex's (S->lt), and those of its neighbours (link) that touch no vertex of the piece. Their
  * count, or -1 (no memory). */
-static int local_triangles(const struct pieces *P, struct pscratch *S, uint32_t p, const double x[3], uint64_t id,
+__attribute__((noinline)) static int local_triangles(const struct pieces *P, struct pscratch *S, uint32_t p, const double x[3], uint64_t id,
                            int n_link)
 {
     int n = 0;
@@ -623,12 +650,39 @@ static int local_triangles(const struct pieces *P, struct pscratch *S, uint32_t 
                 Q->t = t;
                 memcpy(Q->c, c, sizeof Q->c);
                 corners(P, c, p, x, Q->T);
-                for (int d = 0; d < 3; d++) {
-                    Q->lo[d] = fmin(Q->T[0][d], fmin(Q->T[1][d], Q->T[2][d])) - P->e;
-                    Q->hi[d] = fmax(Q->T[0][d], fmax(Q->T[1][d], Q->T[2][d])) + P->e;
-                }
+                qtri_prepare(Q, P->e);
             }
     }
+    /* the lists by local representative (0: p, 1 + j: link[j]) */
+    if (!grow(S, (void **)&S->lstart, &S->lscap, (size_t)n_link + 2, sizeof *S->lstart) ||
+        !grow(S, (void **)&S->lqt, &S->lqcap, 3 * (size_t)n + 1, sizeof *S->lqt) ||
+        !grow(S, (void **)&S->stamp, &S->stcap, (size_t)n + 1, sizeof *S->stamp))
+        return -1;
+    memset(S->lstart, 0, ((size_t)n_link + 2) * sizeof *S->lstart);
+    for (int pass = 0; pass < 2; pass++) {
+        for (int i = 0; i < n; i++)
+            for (int k = 0; k < 3; k++) {
+                uint32_t v = S->qt[i].c[k];
+                int li = v == p ? 0 : -1;
+                for (int j = 0; j < n_link && li < 0; j++)
+                    li = S->link[j] == v ? j + 1 : -1;
+                if (li < 0)
+                    continue;
+                if (pass == 0)
+                    S->lstart[li + 1]++;
+                else
+                    S->lqt[S->lstart[li]++] = i;
+            }
+        if (pass == 0)
+            for (int j = 0; j <= n_link; j++)
+                S->lstart[j + 1] += S->lstart[j];
+        else
+            for (int j = n_link; j >= 0; j--) /* (filled from each start: shift back) */
+                S->lstart[j + 1] = S->lstart[j];
+    }
+    S->lstart[0] = 0;
+    for (int i = 0; i < n; i++)
+        S->stamp[i] = UINT32_MAX;
     return n;
 }
 
@@ -638,25 +692,43 @@ static bool in_box(const struct qtri *Q, const double y[3])
            y[2] <= Q->hi[2];
 }
 
+/* Whether witness w of a fine triangle stays as it is through the merge of the piece marked id. */
+static bool witness_holds(const struct pieces *P, uint32_t w, uint64_t id)
+{
+    if (w == NO_WITNESS || P->dead[w])
+        return false;
+    const uint32_t *c = P->cur + 3 * (size_t)w;
+    return !in_piece(P, c[0], id) && !in_piece(P, c[1], id) && !in_piece(P, c[2], id);
+}
+
 /* Whether fine triangle F (its corners' representatives R, the piece's as p) lies within e of the
  * triangles round R as the merge leaves them (S->qt, n_qt of them, and for a representative outside
  * the piece and its neighbours, its own): one triangle within e of its three corners (the witness),
  * else each of its lattice points within e of one. Its witness noted. */
-static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, const uint32_t R[3], int n_qt, int n_link,
+__attribute__((noinline)) static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, const uint32_t R[3], int n_qt, int n_link,
                     uint32_t p, uint64_t id, int *n_wu)
 {
     double f[3][3];
+    S->why[12]++;
     for (int k = 0; k < 3; k++)
         for (int d = 0; d < 3; d++)
             f[k][d] = P->fine.pos[3 * (size_t)P->fine.tri[3 * (size_t)F + k] + d];
     /* the candidates: S->qt's round R, then the stars of R's outside representatives, after them */
-    int n = n_qt;
+    int n = n_qt, n_use = 0;
+    if (!grow(S, (void **)&S->use, &S->ucap, (size_t)n_qt + 1, sizeof *S->use))
+        return false;
     for (int k = 0; k < 3; k++) {
         uint32_t r = R[k];
-        bool local = r == p;
-        for (int j = 0; j < n_link && !local; j++)
-            local = S->link[j] == r;
-        if (local || (k > 0 && R[0] == r) || (k > 1 && R[1] == r))
+        int li = r == p ? 0 : -1;
+        for (int j = 0; j < n_link && li < 0; j++)
+            li = S->link[j] == r ? j + 1 : -1;
+        if (li >= 0) {
+            for (int j = S->lstart[li]; j < S->lstart[li + 1]; j++)
+                if (S->stamp[S->lqt[j]] != F)
+                    S->stamp[S->lqt[j]] = F, S->use[n_use++] = S->lqt[j];
+            continue;
+        }
+        if ((k > 0 && R[0] == r) || (k > 1 && R[1] == r))
             continue;
         for (uint32_t m = r; m != UINT32_MAX; m = P->mnext[m])
             for (uint32_t j = P->inc_at[m]; j < P->inc_at[m + 1]; j++) {
@@ -670,52 +742,54 @@ static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, cons
                 Q->t = t;
                 memcpy(Q->c, c, sizeof Q->c);
                 corners(P, c, UINT32_MAX, NULL, Q->T);
-                for (int d = 0; d < 3; d++) {
-                    Q->lo[d] = fmin(Q->T[0][d], fmin(Q->T[1][d], Q->T[2][d])) - P->e;
-                    Q->hi[d] = fmax(Q->T[0][d], fmax(Q->T[1][d], Q->T[2][d])) + P->e;
-                }
+                qtri_prepare(Q, P->e);
             }
     }
-    int *use = S->use;
     if (!grow(S, (void **)&S->use, &S->ucap, (size_t)n + 1, sizeof *S->use))
         return false;
-    use = S->use;
-    int n_use = 0;
-    for (int i = 0; i < n; i++) {
-        const struct qtri *Q = &S->qt[i];
-        if (i < n_qt && !has(Q->c, R[0]) && !has(Q->c, R[1]) && !has(Q->c, R[2]))
-            continue;
+    int *use = S->use;
+    for (int i = n_qt; i < n; i++)
         use[n_use++] = i;
-    }
     for (int j = 0; j < n_use; j++) {
         struct qtri *Q = &S->qt[use[j]];
-        if (in_box(Q, f[0]) && in_box(Q, f[1]) && in_box(Q, f[2]) && covers(Q->T, f, P->e))
-            return note_witness(S, n_wu, F, Q->t);
+        if (in_box(Q, f[0]) && in_box(Q, f[1]) && in_box(Q, f[2]) && qtri_near(Q, f[0], P->e) &&
+            qtri_near(Q, f[1], P->e) && qtri_near(Q, f[2], P->e))
+            return note_witness(S, n_wu, F, Q->t, NO_WITNESS);
     }
-    /* no one triangle: each lattice point near one */
-    int last = 0;
+    /* no one triangle: each lattice point near one; two do it (both kept as witnesses), or more */
+    S->why[13]++;
+    S->why[14] += n_use;
+    int used[2] = {-1, -1}, n_used = 0;
+    bool more = false;
     for (int a = 0; a <= LATTICE; a++)
         for (int b = 0; a + b <= LATTICE; b++) {
             double y[3];
-            int c = LATTICE - a - b;
+            int c = LATTICE - a - b, hit = -1;
             for (int d = 0; d < 3; d++)
                 y[d] = (a * f[0][d] + b * f[1][d] + c * f[2][d]) / LATTICE;
-            bool ok = false;
-            for (int j = 0; j < n_use && !ok; j++) {
-                int i = (last + j) % n_use;
-                struct qtri *Q = &S->qt[use[i]];
-                if (in_box(Q, y) && trimesh_point_dist(y, Q->T[0], Q->T[1], Q->T[2]) <= P->e)
-                    ok = true, last = i;
-            }
-            if (!ok)
+            for (int j = 0; j < n_used && hit < 0; j++)
+                if (qtri_near(&S->qt[use[used[j]]], y, P->e))
+                    hit = used[j];
+            for (int j = 0; j < n_use && hit < 0; j++)
+                if (j != used[0] && j != used[1] && qtri_near(&S->qt[use[j]], y, P->e))
+                    hit = j;
+            if (hit < 0)
                 return false;
+            if (hit != used[0] && hit != used[1]) {
+                if (n_used < 2)
+                    used[n_used++] = hit;
+                else
+                    more = true;
+            }
         }
-    return note_witness(S, n_wu, F, NO_WITNESS);
+    if (more || n_used == 0)
+        return note_witness(S, n_wu, F, NO_WITNESS, NO_WITNESS);
+    return note_witness(S, n_wu, F, S->qt[use[used[0]]].t, n_used > 1 ? S->qt[use[used[1]]].t : S->qt[use[used[0]]].t);
 }
 
 /* The full-resolution triangles round the fine vertices of representative r into S->cand (a
  * triangle round two of them twice: harmless). */
-static bool add_cands(const struct pieces *P, struct pscratch *S, uint32_t r, int *n)
+__attribute__((noinline)) static bool add_cands(const struct pieces *P, struct pscratch *S, uint32_t r, int *n)
 {
     const float *fp = P->fine.pos;
     for (uint32_t m = r; m != UINT32_MAX; m = P->mnext[m])
@@ -726,15 +800,15 @@ static bool add_cands(const struct pieces *P, struct pscratch *S, uint32_t r, in
             struct cand *c = &S->cand[(*n)++];
             for (int d = 0; d < 3; d++) {
                 c->a[d] = fp[3 * t[0] + d], c->b[d] = fp[3 * t[1] + d], c->c[d] = fp[3 * t[2] + d];
-                c->lo[d] = (float)fmin(c->a[d], fmin(c->b[d], c->c[d]));
-                c->hi[d] = (float)fmax(c->a[d], fmax(c->b[d], c->c[d]));
+                c->lo[d] = (float)dmin(c->a[d], dmin(c->b[d], c->c[d]));
+                c->hi[d] = (float)dmax(c->a[d], dmax(c->b[d], c->c[d]));
             }
         }
     return true;
 }
 
 /* Whether point y lies within e of one of the candidates (from *last on). */
-static bool near_fine(const struct pieces *P, const struct pscratch *S, int n, const double y[3], int *last)
+__attribute__((noinline)) static bool near_fine(const struct pieces *P, const struct pscratch *S, int n, const double y[3], int *last)
 {
     double e = P->e;
     for (int j = 0; j < n; j++) {
@@ -814,6 +888,8 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
         for (uint32_t m = r; m != UINT32_MAX; m = P->mnext[m])
             for (uint32_t k = P->inc_at[m]; k < P->inc_at[m + 1]; k++) {
                 uint32_t F = P->inc[k], R[3];
+                if (witness_holds(P, P->wit[F], id) && (P->wit2[F] == NO_WITNESS || witness_holds(P, P->wit2[F], id)))
+                    continue;
                 const uint32_t *fc = P->fine.tri + 3 * (size_t)F;
                 bool earlier = false;
                 for (int j = 0; j < 3; j++) {
@@ -827,12 +903,6 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
                 }
                 if (earlier)
                     continue;
-                uint32_t w = P->wit[F];
-                if (w != NO_WITNESS) {
-                    const uint32_t *c = P->cur + 3 * (size_t)w;
-                    if (!P->dead[w] && !in_piece(P, c[0], id) && !in_piece(P, c[1], id) && !in_piece(P, c[2], id))
-                        continue;
-                }
                 if (!fine_ok(P, S, F, R, n_qt, n_link, p, id, &n_wu))
                     { S->why[6]++; return false; }
             }
@@ -896,7 +966,7 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
     for (int d = 0; d < 3 && len > 0; d++)
         P->cn[3 * p + d] = (float)(nrm[d] / len);
     for (int i = 0; i < n_wu; i++)
-        P->wit[S->wu[i].sample] = S->wu[i].tri;
+        P->wit[S->wu[i].sample] = S->wu[i].tri, P->wit2[S->wu[i].sample] = S->wu[i].tri2;
     return true;
 }
 
@@ -997,8 +1067,8 @@ void pieces_between(struct pieces *P, int phase)
             for (int j = 0; j <= ISO_MAX_LEVELS; j++) mg += P->sc[k].merged[j], P->sc[k].merged[j] = 0;
             rf += P->sc[k].refused, P->sc[k].refused = 0;
         }
-        fprintf(stderr, "level %d: merged %ld refused %ld: gather %ld interior %ld topo %ld flip %ld mem %ld %ld fine %ld mem %ld %ld c2f p %ld edge %ld tri %ld\n",
-                2 + (phase - 2) / COLOURS, mg, rf, w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11]);
+        fprintf(stderr, "level %d: merged %ld refused %ld: gather %ld interior %ld topo %ld flip %ld mem %ld %ld fine %ld mem %ld %ld c2f p %ld edge %ld tri %ld fine_ok %ld lattice %ld use %ld\n",
+                2 + (phase - 2) / COLOURS, mg, rf, w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14]);
     }
     for (int k = 0; k < ADAPT_SLABS; k++)
         if (P->sc[k].nomem)
