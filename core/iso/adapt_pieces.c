@@ -9,7 +9,6 @@
 #include "kept.h"
 
 #include <math.h>
-#include <stdio.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -69,7 +68,9 @@ struct pscratch {           /* one slab's working memory */
     size_t lscap, lqcap;
     uint32_t *stamp;        /* per S->qt entry: the fine triangle that took it last */
     size_t stcap;
-    long merged[ISO_MAX_LEVELS + 1], refused, why[16];
+    uint8_t *added;         /* per link entry: its fine triangles among the candidates */
+    size_t acap;
+    long merged[ISO_MAX_LEVELS + 1], refused;
     bool nomem;
 };
 
@@ -164,7 +165,7 @@ static void eigen3(double A[3][3], double V[3][3], double w[3])
 
 static void scratch_free(struct pscratch *s)
 {
-    free(s->comp), free(s->lt), free(s->link), free(s->cand), free(s->wu), free(s->qt), free(s->use), free(s->lstart), free(s->lqt), free(s->stamp);
+    free(s->comp), free(s->lt), free(s->link), free(s->cand), free(s->wu), free(s->qt), free(s->use), free(s->lstart), free(s->lqt), free(s->stamp), free(s->added);
     memset(s, 0, sizeof *s);
 }
 
@@ -388,7 +389,7 @@ static bool grow(struct pscratch *S, void **p, size_t *cap, size_t need, size_t 
 
 /* The live triangles round the piece comp[0 .. n-1] (marked id) into S->lt, each once. false: too
  * many, or no memory. */
-__attribute__((noinline)) static bool gather(const struct pieces *P, struct pscratch *S, int n, uint64_t id)
+static bool gather(const struct pieces *P, struct pscratch *S, int n, uint64_t id)
 {
     S->n_lt = 0;
     for (int i = 0; i < n; i++) {
@@ -428,7 +429,7 @@ static void add_unique(uint32_t *list, int *n, uint32_t w)
 /* Collapses edge p-s in S->lt when the link condition holds (Dey et al.: the links of p and s
  * share just the two vertices across the edge, and the two are not a tetrahedron's), which keeps
  * a closed 2-manifold's topology: false when it does not. */
-__attribute__((noinline)) static bool collapse(struct pscratch *S, uint32_t p, uint32_t s)
+static bool collapse(struct pscratch *S, uint32_t p, uint32_t s)
 {
     enum { NB = 256 };
     uint32_t apex[2], np_[NB], ns_[NB];
@@ -516,7 +517,7 @@ static bool interior(const struct pscratch *S, int n)
 /* The merged vertex: the QEF of the fine vertices' tangent planes, solved about their mass point
  * with small eigenvalues left out (Dual Contouring's truncated pseudo-inverse), kept near its block
  * (lo, side s in samples); its normal the fine normals' mean. */
-__attribute__((noinline)) static void place(const struct pieces *P, const struct pscratch *S, int n, const int lo[3], int s, double x[3],
+static void place(const struct pieces *P, const struct pscratch *S, int n, const int lo[3], int s, double x[3],
                   double nrm[3])
 {
     const float *fp = P->fine.pos, *fn = P->fine.nrm;
@@ -562,7 +563,7 @@ __attribute__((noinline)) static void place(const struct pieces *P, const struct
 }
 
 /* A triangle's corners' places, p at x. */
-__attribute__((noinline)) static void corners(const struct pieces *P, const uint32_t c[3], uint32_t p, const double x[3], double q[3][3])
+static void corners(const struct pieces *P, const uint32_t c[3], uint32_t p, const double x[3], double q[3][3])
 {
     for (int k = 0; k < 3; k++) {
         if (c[k] == p)
@@ -620,7 +621,7 @@ static bool qtri_near(const struct qtri *Q, const double y[3], double e)
 /* The triangles round the piece as its merge would leave them, into S->qt with their places: the
  * new vertex's (S->lt), and those of its neighbours (link) that touch no vertex of the piece. Their
  * count, or -1 (no memory). */
-__attribute__((noinline)) static int local_triangles(const struct pieces *P, struct pscratch *S, uint32_t p, const double x[3], uint64_t id,
+static int local_triangles(const struct pieces *P, struct pscratch *S, uint32_t p, const double x[3], uint64_t id,
                            int n_link)
 {
     int n = 0;
@@ -705,11 +706,10 @@ static bool witness_holds(const struct pieces *P, uint32_t w, uint64_t id)
  * triangles round R as the merge leaves them (S->qt, n_qt of them, and for a representative outside
  * the piece and its neighbours, its own): one triangle within e of its three corners (the witness),
  * else each of its lattice points within e of one. Its witness noted. */
-__attribute__((noinline)) static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, const uint32_t R[3], int n_qt, int n_link,
+static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, const uint32_t R[3], int n_qt, int n_link,
                     uint32_t p, uint64_t id, int *n_wu)
 {
     double f[3][3];
-    S->why[12]++;
     for (int k = 0; k < 3; k++)
         for (int d = 0; d < 3; d++)
             f[k][d] = P->fine.pos[3 * (size_t)P->fine.tri[3 * (size_t)F + k] + d];
@@ -757,8 +757,7 @@ __attribute__((noinline)) static bool fine_ok(const struct pieces *P, struct psc
             return note_witness(S, n_wu, F, Q->t, NO_WITNESS);
     }
     /* no one triangle: each lattice point near one; two do it (both kept as witnesses), or more */
-    S->why[13]++;
-    S->why[14] += n_use;
+
     int used[2] = {-1, -1}, n_used = 0;
     bool more = false;
     for (int a = 0; a <= LATTICE; a++)
@@ -789,7 +788,7 @@ __attribute__((noinline)) static bool fine_ok(const struct pieces *P, struct psc
 
 /* The full-resolution triangles round the fine vertices of representative r into S->cand (a
  * triangle round two of them twice: harmless). */
-__attribute__((noinline)) static bool add_cands(const struct pieces *P, struct pscratch *S, uint32_t r, int *n)
+static bool add_cands(const struct pieces *P, struct pscratch *S, uint32_t r, int *n)
 {
     const float *fp = P->fine.pos;
     for (uint32_t m = r; m != UINT32_MAX; m = P->mnext[m])
@@ -808,7 +807,7 @@ __attribute__((noinline)) static bool add_cands(const struct pieces *P, struct p
 }
 
 /* Whether point y lies within e of one of the candidates (from *last on). */
-__attribute__((noinline)) static bool near_fine(const struct pieces *P, const struct pscratch *S, int n, const double y[3], int *last)
+static bool near_fine(const struct pieces *P, const struct pscratch *S, int n, const double y[3], int *last)
 {
     double e = P->e;
     for (int j = 0; j < n; j++) {
@@ -830,9 +829,9 @@ __attribute__((noinline)) static bool near_fine(const struct pieces *P, const st
 static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id, const int lo[3], int s)
 {
     if (!gather(P, S, n, id))
-        { S->why[0]++; return false; }
+        return false;
     if (!P->o.closed && !interior(S, n))
-        { S->why[1]++; return false; }
+        return false;
     /* comp is in BFS order: each joins one merged before it. One whose edge the link condition
      * refuses (the piece is no disk there, or a neighbour would be pinched) stays out, its own
      * vertex, and so do those that reach the rest through it only; the piece is the rest. */
@@ -846,14 +845,14 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
             P->mark[r] = (((uint64_t)r << 3) | ((id - 1) & 7)) + 1; /* (this level's, not the piece's) */
     }
     if (kept < 2)
-        { S->why[2]++; return false; }
+        return false;
     if (kept < n) { /* the rest's triangles alone, collapsed again as before */
         n = kept;
         if (!gather(P, S, n, id))
-            { S->why[0]++; return false; }
+            return false;
         for (int i = 1; i < n; i++)
             if (!collapse(S, p, S->comp[i]))
-                { S->why[2]++; return false; }
+                return false;
     }
     double x[3], nrm[3];
     place(P, S, n, lo, s, x, nrm);
@@ -870,11 +869,11 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
         sub3(B[1], B[0], u), sub3(B[2], B[0], v), cross3(u, v, nb);
         double la = sqrt(dot3(na, na)), lb = sqrt(dot3(nb, nb));
         if (!(la > 1e-12 * P->sp[0] * P->sp[0]) || dot3(na, nb) < FLIP_COS * la * lb)
-            { S->why[3]++; return false; }
+            return false;
         for (int k = 0; k < 3; k++)
             if (L->c[k] != p) {
                 if (!grow(S, (void **)&S->link, &S->kcap, (size_t)n_link + 1, sizeof *S->link))
-                    { S->why[4]++; return false; }
+                    return false;
                 add_unique(S->link, &n_link, L->c[k]);
             }
     }
@@ -882,7 +881,7 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
      * corners' representatives: those whose witness the merge changes, or that had none */
     int n_wu = 0, n_qt = local_triangles(P, S, p, x, id, n_link);
     if (n_qt < 0)
-        { S->why[5]++; return false; }
+        return false;
     for (int i = 0; i < n + n_link; i++) {
         uint32_t r = i < n ? S->comp[i] : S->link[i - n];
         for (uint32_t m = r; m != UINT32_MAX; m = P->mnext[m])
@@ -904,27 +903,33 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
                 if (earlier)
                     continue;
                 if (!fine_ok(P, S, F, R, n_qt, n_link, p, id, &n_wu))
-                    { S->why[6]++; return false; }
+                    return false;
             }
     }
-    /* the new triangles near the fine surface: sampled at p, along their new edges and inside */
+    /* the new triangles near the fine surface: sampled at p, along their new edges and inside,
+     * against the fine triangles round the piece, and round a neighbour once a point needs them */
     int n_cand = 0, last = 0;
+    if (!grow(S, (void **)&S->added, &S->acap, (size_t)n_link + 1, sizeof *S->added))
+        return false;
+    memset(S->added, 0, (size_t)n_link + 1);
     for (int i = 0; i < n; i++)
         if (!add_cands(P, S, S->comp[i], &n_cand))
-            { S->why[7]++; return false; }
-    for (int j = 0; j < n_link; j++)
-        if (!add_cands(P, S, S->link[j], &n_cand))
-            { S->why[8]++; return false; }
+            return false;
     if (!near_fine(P, S, n_cand, x, &last))
-        { S->why[9]++; return false; }
+        return false;
     for (int j = 0; j < n_link; j++) {
         double q[3], y[3];
         pos_of(P, S->link[j], q);
         for (int f = 1; f <= 3; f++) {
             for (int d = 0; d < 3; d++)
                 y[d] = x[d] + (q[d] - x[d]) * f / 4.0;
+            if (near_fine(P, S, n_cand, y, &last))
+                continue;
+            if (S->added[j] || !add_cands(P, S, S->link[j], &n_cand))
+                return false;
+            S->added[j] = 1;
             if (!near_fine(P, S, n_cand, y, &last))
-                { S->why[10]++; return false; }
+                return false;
         }
     }
     static const double W[5][3] = {{1 / 3.0, 1 / 3.0, 1 / 3.0}, {0.5, 0.25, 0.25}, {0.25, 0.5, 0.25}, {0.25, 0.25, 0.5},
@@ -939,8 +944,17 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
         for (int w = 0; w < 5; w++) {
             for (int d = 0; d < 3; d++)
                 y[d] = W[w][0] * T[r][d] + W[w][1] * T[(r + 1) % 3][d] + W[w][2] * T[(r + 2) % 3][d];
-            if (!near_fine(P, S, n_cand, y, &last))
-                { S->why[11]++; return false; }
+            if (near_fine(P, S, n_cand, y, &last))
+                continue;
+            bool more = false; /* (the fine triangles round the other two corners) */
+            for (int j = 0; j < n_link; j++)
+                if (!S->added[j] && has(L->c, S->link[j])) {
+                    if (!add_cands(P, S, S->link[j], &n_cand))
+                        return false;
+                    S->added[j] = 1, more = true;
+                }
+            if (!more || !near_fine(P, S, n_cand, y, &last))
+                return false;
         }
     }
     /* all well: the merge made */
@@ -1059,16 +1073,6 @@ void pieces_between(struct pieces *P, int phase)
         else if (prepare(P))
             fail(P, SF_ENOMEM, "out of memory for the pieces' merge");
         return;
-    }
-    if (getenv("PIECES_DEBUG") && (phase - 2) % COLOURS == COLOURS - 1) {
-        long w[16] = {0}, mg = 0, rf = 0;
-        for (int k = 0; k < ADAPT_SLABS; k++) {
-            for (int j = 0; j < 16; j++) w[j] += P->sc[k].why[j], P->sc[k].why[j] = 0;
-            for (int j = 0; j <= ISO_MAX_LEVELS; j++) mg += P->sc[k].merged[j], P->sc[k].merged[j] = 0;
-            rf += P->sc[k].refused, P->sc[k].refused = 0;
-        }
-        fprintf(stderr, "level %d: merged %ld refused %ld: gather %ld interior %ld topo %ld flip %ld mem %ld %ld fine %ld mem %ld %ld c2f p %ld edge %ld tri %ld fine_ok %ld lattice %ld use %ld\n",
-                2 + (phase - 2) / COLOURS, mg, rf, w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14]);
     }
     for (int k = 0; k < ADAPT_SLABS; k++)
         if (P->sc[k].nomem)

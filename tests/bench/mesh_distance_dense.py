@@ -5,7 +5,9 @@ distance from every point of that to the other mesh's surface (vtkImplicitPolyDa
 exact point-to-triangle distance through a cell locator). Independent of surfd's own bounds.
 Prints JSON: p50, p99, max each way and the points measured, in the meshes' units.
 
-usage: mesh_distance_dense.py A.stl B.stl [k=2]"""
+usage: mesh_distance_dense.py A.stl B.stl [k=2]
+       mesh_distance_dense.py --topology A.stl: boundary and non-manifold edges, components, Euler
+       characteristic (corners welded by position) as JSON"""
 import json, sys
 
 import numpy as np
@@ -45,7 +47,33 @@ def to_surface(mesh, pts):
     return np.abs(vtk_to_numpy(out))
 
 
+def topology(mesh):
+    """Edges of one triangle and of three or more, components by shared edges, V - E + F."""
+    tri = vtk_to_numpy(mesh.GetPolys().GetData()).reshape(-1, 4)[:, 1:]
+    e = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    keys, counts = np.unique(e[:, 0].astype(np.int64) * (1 << 32) + e[:, 1], return_counts=True)
+    parent = np.arange(mesh.GetNumberOfPoints())
+
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+    for a, b in e:
+        ra, rb = find(a), find(b)
+        if ra != rb:
+            parent[max(ra, rb)] = min(ra, rb)
+    used = np.unique(tri)
+    comps = len({find(v) for v in used})
+    return {"boundary_edges": int((counts == 1).sum()), "nonmanifold_edges": int((counts > 2).sum()),
+            "components": comps, "euler_characteristic": int(len(used) - len(keys) + len(tri)),
+            "triangles": int(len(tri))}
+
+
 def main():
+    if sys.argv[1] == "--topology":
+        print(json.dumps(topology(read(sys.argv[2]))))
+        return
     a, b = read(sys.argv[1]), read(sys.argv[2])
     k = int(sys.argv[3]) if len(sys.argv) > 3 else 2
     res = {}
