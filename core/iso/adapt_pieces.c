@@ -48,21 +48,21 @@ struct wup {
     uint32_t sample, tri, tri2;
 };
 
-struct pscratch {           /* one slab's working memory */
-    uint32_t *comp;
+struct pscratch {           /* one slab's working memory (each list with its capacity) */
+    uint32_t *comp;         /* the piece's representatives, breadth first from the least */
     size_t ccap;
-    struct ltri *lt;
+    struct ltri *lt;        /* the triangles round the piece */
     size_t lcap;
     int n_lt;
-    uint32_t *link;
+    uint32_t *link;         /* the merged vertex's neighbours */
     size_t kcap;
-    struct cand *cand;
+    struct cand *cand;      /* full-resolution triangles round the piece (and neighbours) */
     size_t dcap;
-    struct wup *wu;
+    struct wup *wu;         /* the witnesses the merge would set */
     size_t wcap;
-    struct qtri *qt;
+    struct qtri *qt;        /* the mesh's triangles round the piece and its neighbours, after the merge */
     size_t qcap;
-    int *use;
+    int *use;               /* S->qt's entries round one fine triangle's corners */
     size_t ucap;
     int *lstart, *lqt;      /* S->qt's triangles round each local representative (p, then link's) */
     size_t lscap, lqcap;
@@ -70,7 +70,6 @@ struct pscratch {           /* one slab's working memory */
     size_t stcap;
     uint8_t *added;         /* per link entry: its fine triangles among the candidates */
     size_t acap;
-    long merged[ISO_MAX_LEVELS + 1], refused;
     bool nomem;
 };
 
@@ -618,6 +617,20 @@ static bool qtri_near(const struct qtri *Q, const double y[3], double e)
     return trimesh_point_dist(y, Q->T[0], Q->T[1], Q->T[2]) <= e;
 }
 
+/* Adds triangle t (corners c, p at x) to S->qt as entry (*n)++: false for no memory. */
+static bool add_qt(const struct pieces *P, struct pscratch *S, int *n, uint32_t t, const uint32_t c[3], uint32_t p,
+                   const double x[3])
+{
+    if (!grow(S, (void **)&S->qt, &S->qcap, (size_t)*n + 1, sizeof *S->qt))
+        return false;
+    struct qtri *Q = &S->qt[(*n)++];
+    Q->t = t;
+    memcpy(Q->c, c, sizeof Q->c);
+    corners(P, c, p, x, Q->T);
+    qtri_prepare(Q, P->e);
+    return true;
+}
+
 /* The triangles round the piece as its merge would leave them, into S->qt with their places: the
  * new vertex's (S->lt), and those of its neighbours (link) that touch no vertex of the piece. Their
  * count, or -1 (no memory). */
@@ -625,35 +638,22 @@ static int local_triangles(const struct pieces *P, struct pscratch *S, uint32_t 
                            int n_link)
 {
     int n = 0;
-    for (int i = 0; i < S->n_lt + n_link; i++) {
-        uint32_t q = i < S->n_lt ? 0 : S->link[i - S->n_lt];
-        for (uint32_t m = i < S->n_lt ? UINT32_MAX - 1 : q; m != UINT32_MAX; m = i < S->n_lt ? UINT32_MAX : P->mnext[m])
-            for (uint32_t k = i < S->n_lt ? 0 : P->inc_at[m]; k < (i < S->n_lt ? 1 : P->inc_at[m + 1]); k++) {
-                uint32_t t;
-                const uint32_t *c;
-                if (i < S->n_lt) {
-                    if (!S->lt[i].alive)
-                        continue;
-                    t = S->lt[i].t, c = S->lt[i].c;
-                } else {
-                    t = P->inc[k], c = P->cur + 3 * (size_t)t;
-                    if (P->dead[t] || in_piece(P, c[0], id) || in_piece(P, c[1], id) || in_piece(P, c[2], id))
-                        continue;
-                    bool earlier = false; /* (each once: from its first neighbour in link) */
-                    for (int j = 0; j < i - S->n_lt && !earlier; j++)
-                        earlier = has(c, S->link[j]);
-                    if (earlier)
-                        continue;
-                }
-                if (!grow(S, (void **)&S->qt, &S->qcap, (size_t)n + 1, sizeof *S->qt))
+    for (int i = 0; i < S->n_lt; i++)
+        if (S->lt[i].alive && !add_qt(P, S, &n, S->lt[i].t, S->lt[i].c, p, x))
+            return -1;
+    for (int j = 0; j < n_link; j++)
+        for (uint32_t m = S->link[j]; m != UINT32_MAX; m = P->mnext[m])
+            for (uint32_t k = P->inc_at[m]; k < P->inc_at[m + 1]; k++) {
+                uint32_t t = P->inc[k];
+                const uint32_t *c = P->cur + 3 * (size_t)t;
+                if (P->dead[t] || in_piece(P, c[0], id) || in_piece(P, c[1], id) || in_piece(P, c[2], id))
+                    continue; /* (dead, or in S->lt) */
+                bool earlier = false; /* (each once: from its first neighbour in link) */
+                for (int i = 0; i < j && !earlier; i++)
+                    earlier = has(c, S->link[i]);
+                if (!earlier && !add_qt(P, S, &n, t, c, p, x))
                     return -1;
-                struct qtri *Q = &S->qt[n++];
-                Q->t = t;
-                memcpy(Q->c, c, sizeof Q->c);
-                corners(P, c, p, x, Q->T);
-                qtri_prepare(Q, P->e);
             }
-    }
     /* the lists by local representative (0: p, 1 + j: link[j]) */
     if (!grow(S, (void **)&S->lstart, &S->lscap, (size_t)n_link + 2, sizeof *S->lstart) ||
         !grow(S, (void **)&S->lqt, &S->lqcap, 3 * (size_t)n + 1, sizeof *S->lqt) ||
@@ -1021,10 +1021,7 @@ static void block_pieces(struct pieces *P, struct pscratch *S, int l, const int 
         }
         if (n < 2)
             continue;
-        if (merge_piece(P, S, n, id, lo, s))
-            S->merged[l]++;
-        else
-            S->refused++;
+        merge_piece(P, S, n, id, lo, s);
     }
 }
 
