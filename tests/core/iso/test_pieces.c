@@ -414,6 +414,45 @@ TEST(options_refused)
     CHECK_STR(err.pointer, "?merge");
 }
 
+TEST(open_empty_and_without_normals)
+{
+    /* closed=false: a sphere the grid's border cuts is open; its border stays as it was (merges
+     * never move a vertex on it), its topology too */
+    enum { M = 25 };
+    float *f = malloc(sizeof(float) * M * M * M);
+    REQUIRE(f);
+    for (int z = 0; z < M; z++)
+        for (int y = 0; y < M; y++)
+            for (int x = 0; x < M; x++)
+                f[x + M * (y + M * z)] = (float)(14 - sqrt((x - 12.2) * (x - 12.2) + (y - 11.7) * (y - 11.7) + (z - 3.1) * (z - 3.1)));
+    struct iso_grid g = grid(M, f, 1.0);
+    struct iso_opts fo = {.iso = 0, .closed = false, .normals = true}, o = fo;
+    o.pieces = true;
+    struct trimesh full = {0}, m = {0};
+    struct trimesh_stats fs, ms;
+    struct iso_adapt_stats as;
+    struct sf_err err = {0};
+    REQUIRE(iso_extract(&g, &fo, NULL, &full, &err) == 0 && trimesh_stats(&full, &fs, &err) == 0);
+    REQUIRE(extract(&g, &o, 3, 0.5, 1, &m, &as) && trimesh_stats(&m, &ms, &err) == 0);
+    CHECK(fs.boundary_edges > 0);
+    CHECK(ms.boundary_edges == fs.boundary_edges && ms.nonmanifold_edges == 0 && ms.degenerate == 0);
+    CHECK(ms.components == fs.components && ms.euler == fs.euler);
+    CHECK(m.n_tri < full.n_tri);
+    CHECK(farthest_dense(&m, &full, 3) <= 0.5 + 1e-6 && farthest_dense(&full, &m, 3) <= 0.5 + 1e-6);
+    trimesh_free(&m);
+    /* without normals asked for (the fit takes the triangles'), and with no surface at all */
+    o.closed = true, o.normals = false;
+    REQUIRE(extract(&g, &o, 2, 0.5, 1, &m, &as) && trimesh_stats(&m, &ms, &err) == 0);
+    CHECK(ms.boundary_edges == 0 && ms.nonmanifold_edges == 0 && m.n_tri > 0);
+    trimesh_free(&m);
+    o.iso = 100;
+    REQUIRE(extract(&g, &o, 4, 0.5, 2, &m, &as));
+    CHECK(m.n_tri == 0 && m.n_vert == 0);
+    trimesh_free(&m);
+    trimesh_free(&full);
+    free(f);
+}
+
 /* The shared CT crop (64^3 of the head, as test_adapt reads it) at levels 3, 1 mm: topology and
  * distances. */
 TEST(ct_crop)
@@ -442,6 +481,7 @@ int main(void)
     RUN(thin_plate_and_tube_survive);
     RUN(same_on_any_threads);
     RUN(edit_equals_fresh);
+    RUN(open_empty_and_without_normals);
     RUN(analytic_topology_and_distance);
     RUN(ct_crop);
     for (int k = 0; k < 5; k++)
