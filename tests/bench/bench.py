@@ -1231,6 +1231,52 @@ def merge_bench(lines):
         fe_top["triangles"], fe_top["components"], fe_top["euler_characteristic"]))
 
 
+def vdb_bench(lines):
+    """Issue 45: OpenVDB's adaptive volumeToMesh on the shared CT (tests/bench/vdb_adaptive.cpp, built here when
+    Debian's libopenvdb-dev is installed): counts, dense two-way distances to its own full-resolution mesh, topology,
+    time against Flying Edges in the same run."""
+    name, f, dims, dtype, npt, iso, sp, pad = VOLUMES[0]
+    path = os.path.join(DATA, "volumes", f)
+    exe = os.path.join(TMP, "vdb_adaptive")
+    try:
+        subprocess.run(["g++", "-O2", "-std=c++17", os.path.join(ROOT, "tests", "bench", "vdb_adaptive.cpp"), "-o", exe,
+                        "-lopenvdb", "-ltbb", "-lImath-3_1"], capture_output=True, text=True, check=True)
+    except (OSError, subprocess.CalledProcessError):
+        lines.append("OpenVDB's adaptive meshing was not measured: `tests/bench/vdb_adaptive.cpp` does not build here "
+                     "(Debian's libopenvdb-dev, libboost-dev, libtbb-dev).\n")
+        return
+    fe, runs = {}, {}
+    for t in (1, 2):
+        p = subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "tests", "bench", "vtk_iso.py"), path] +
+                           [str(d) for d in dims] + [npt, str(iso)] + ["%.9g" % x for x in sp] + [str(pad), str(t), "5"],
+                           capture_output=True, text=True, check=True)
+        fe[t] = json.loads(p.stdout)["flying_edges"]["warm_ms"]
+        p = subprocess.run([exe, path] + [str(d) for d in dims] + [str(iso)] + ["%.9g" % x for x in sp] +
+                           [str(pad), str(t), os.path.join(TMP, "vdb%d" % t), "0", "0.3", "0.6", "1"],
+                           capture_output=True, text=True, check=True)
+        runs[t] = json.loads(p.stdout)["runs"]
+    full = runs[1][0]
+    lines.append("## OpenVDB's adaptive volumeToMesh (issue 45) on the %s, iso %g\n" % (name, iso))
+    lines.append("`tests/bench/vdb_adaptive.cpp` (OpenVDB 10, Debian): the samples in a FloatGrid, background %g, "
+                 "`volumeToMesh(grid, points, triangles, quads, iso, adaptivity)`, quads cut in two; ms the best of 3 on "
+                 "1 / 2 threads (TBB limited), Flying Edges in the same run %.1f / %.1f ms. Distances: densely both ways "
+                 "(`mesh_distance_dense.py`, k=2) to its own mesh at adaptivity 0 (%d triangles).\n" % (
+                     pad, fe[1], fe[2], full["triangles"]))
+    lines.append("| adaptivity | triangles | fewer than its full | p99 to full | p99 from full | max to full | max from full | "
+                 "ms 1 / 2 threads | x Flying Edges 1 / 2 | closed, manifold | components | Euler |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for r1, r2 in zip(runs[1], runs[2]):
+        top = mesh_topology(r1["stl"])
+        d = dense_distances(r1["stl"], full["stl"]) if r1["adaptivity"] > 0 else None
+        lines.append("| %g | %d | %.2fx | %s | %.0f / %.0f | %.1f / %.1f | %s | %d | %d |" % (
+            r1["adaptivity"], r1["triangles"], full["triangles"] / r1["triangles"],
+            " | ".join("%.3f" % x for x in (d["a_to_b"]["p99"], d["b_to_a"]["p99"], d["a_to_b"]["max"], d["b_to_a"]["max"]))
+            if d else " | | | ", r1["ms"], r2["ms"], r1["ms"] / fe[1], r2["ms"] / fe[2],
+            "yes" if top["boundary_edges"] + top["nonmanifold_edges"] == 0 else "NO", top["components"],
+            top["euler_characteristic"]))
+    lines.append("")
+
+
 def main():
     parts = {"teapot": (teapot_bench,),
              "iso": (iso_bench, adapt_bench, edit_bench, sharp_bench, big_volume_bench), "adapt": (adapt_bench,),
@@ -1238,7 +1284,7 @@ def main():
              "cad": (cad_bench,), "shell": (shell_bench,),
              "sharp": (sharp_bench,), "cluster": (cluster_bench,),
              "contours": (contour_bench,), "http": (http_bench,), "small": (small_inputs_bench,),
-             "pieces": (pieces_bench,), "dicom": (dicom_bench,), "merge": (merge_bench,)}
+             "pieces": (pieces_bench,), "dicom": (dicom_bench,), "merge": (merge_bench,), "vdb": (vdb_bench,)}
     only = os.environ.get("BENCH_ONLY")
     if only in parts:  # one part, printed, RESULTS.md left as it is
         lines = []
@@ -1260,6 +1306,7 @@ def main():
     iso_bench(lines)
     adapt_bench(lines)
     merge_bench(lines)
+    vdb_bench(lines)
     edit_bench(lines)
     kept_bench(lines)
     sharp_bench(lines)
@@ -1273,7 +1320,7 @@ def main():
     pieces_bench(lines)
     dicom_bench(lines)
     lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=teapot`, `BENCH_ONLY=http`, `BENCH_ONLY=contours`, "
-                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso`, `BENCH_ONLY=adapt`, `BENCH_ONLY=merge`, `BENCH_ONLY=edit`, `BENCH_ONLY=kept`, `BENCH_ONLY=sharp`, `BENCH_ONLY=matrix`, `BENCH_ONLY=aa`, `BENCH_ONLY=cad`, `BENCH_ONLY=shell`, `BENCH_ONLY=views`, `BENCH_ONLY=small`, `BENCH_ONLY=pieces` or `BENCH_ONLY=dicom` for one part).")
+                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso`, `BENCH_ONLY=adapt`, `BENCH_ONLY=merge`, `BENCH_ONLY=vdb`, `BENCH_ONLY=edit`, `BENCH_ONLY=kept`, `BENCH_ONLY=sharp`, `BENCH_ONLY=matrix`, `BENCH_ONLY=aa`, `BENCH_ONLY=cad`, `BENCH_ONLY=shell`, `BENCH_ONLY=views`, `BENCH_ONLY=small`, `BENCH_ONLY=pieces` or `BENCH_ONLY=dicom` for one part).")
     out = os.path.join(ROOT, "tests", "bench", "RESULTS.md")
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")
