@@ -37,6 +37,7 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
         json_object_set_new(o, "max_error", json_real(m->vol->max_error));
         json_object_set_new(o, "cells_by_level", cells);
         json_object_set_new(o, "max_error_estimate", json_real(m->adapt->max_estimate));
+        json_object_set_new(o, "merge", json_string(m->vol->pieces && m->vol->levels > 1 ? "pieces" : "cells"));
     }
     if (o)
         json_object_set_new(o, "features", json_string(m->vol->sharp ? "sharp" : "none"));

@@ -646,8 +646,8 @@ static int label_options(const char *options, bool frep, struct volume *v, struc
 /* The options every format takes (iso, closed, name), and no unknown one. */
 static int common_options(const char *options, bool frep, struct volume *v, struct sf_err *err)
 {
-    static const char *const KNOWN[] = {"iso", "closed", "name", "levels", "max_error", "features", "label", "labels",
-                                        "dims", "type", "spacing", "origin", "format", "segment",
+    static const char *const KNOWN[] = {"iso", "closed", "name", "levels", "max_error", "features", "merge", "label",
+                                        "labels", "dims", "type", "spacing", "origin", "format", "segment",
                                         "series" /* (the daemon's: the stored series the body was made of) */, NULL};
     for (const char *p = options ? options : ""; *p;) {
         size_t len = strcspn(p, "&"), key = strcspn(p, "=&");
@@ -658,7 +658,7 @@ static int common_options(const char *options, bool frep, struct volume *v, stru
             char where[48];
             snprintf(where, sizeof where, "?%.*s", (int)(key < 40 ? key : 40), p);
             return sf_fail(err, SF_EINVAL, where, "unknown option \"%.*s\" (isosurfaces take iso, closed, name, "
-                           "levels, max_error, features, label, labels, for raw samples dims, type, spacing, "
+                           "levels, max_error, features, merge, label, labels, for raw samples dims, type, spacing, "
                            "origin, and for a DICOM Segmentation segment)",
                            (int)(key < 40 ? key : 40), p);
         }
@@ -698,6 +698,12 @@ static int common_options(const char *options, bool frep, struct volume *v, stru
     if (s[0] && strcmp(s, "none") && strcmp(s, "sharp"))
         return sf_fail(err, SF_EINVAL, "?features", "features is none or sharp");
     v->sharp = !strcmp(s, "sharp");
+    query_option(options, "merge", s, sizeof s);
+    if (s[0] && strcmp(s, "cells") && strcmp(s, "pieces"))
+        return sf_fail(err, SF_EINVAL, "?merge", "merge is cells or pieces");
+    v->pieces = !strcmp(s, "pieces");
+    if (v->pieces && v->sharp)
+        return sf_fail(err, SF_EINVAL, "?merge", "merge=pieces draws no feature points (features=none)");
     if (v->all_labels && v->levels > 1)
         return sf_fail(err, SF_EINVAL, "?levels", "labels=all draws every cell at full resolution (levels=1)");
     if (v->all_labels && v->sharp)
@@ -899,7 +905,7 @@ static double frep_field(const void *ctx, const double p[3], double g[3])
 
 struct iso_opts volume_iso_opts(const struct volume *v)
 {
-    struct iso_opts o = {.iso = v->iso, .closed = v->closed, .normals = true, .sharp = v->sharp};
+    struct iso_opts o = {.iso = v->iso, .closed = v->closed, .normals = true, .sharp = v->sharp, .pieces = v->pieces};
     if (v->sharp && v->frep)
         o.field = frep_field, o.field_ctx = v->frep;
     return o;

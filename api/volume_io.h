@@ -45,6 +45,7 @@ struct volume {
     int levels;              /* ?levels (1..ISO_MAX_LEVELS, default 1: every cell at full resolution) */
     double max_error;        /* ?max_error (mm; default half the smallest spacing) */
     bool sharp;              /* ?features=sharp (default none) */
+    bool pieces;             /* ?merge=pieces: a vertex per piece of surface in a merged cell (default cells) */
     char name[128];          /* ?name */
     bool check_only;         /* volume_check: the samples are not read */
     double axes[3][3];       /* the grid's x, y, z directions (a DICOM series may be oblique) */

@@ -512,7 +512,7 @@ static const char *const USAGE[][2] = {
                "    POST /volume: the volume figures on stdout, nothing stored (a scene's, .igs too: area and\n"
                "    the volume its surfaces close)\n"},
     {"isosurface", "surfctl isosurface VOLUME --iso V -o OUT.stl|.ply|.obj [--dims X,Y,Z --type T --spacing S --origin O]\n"
-                   "                   [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name N]\n"
+                   "                   [--levels 1-4 [--max-error MM] [--merge cells|pieces]] [--features none|sharp] [--closed true|false] [--name N]\n"
                    "                   [--segment N] [--label N | --labels all] (a label map, no --iso: label N's model,\n"
                    "                   or one a label, each label's mesh to OUT-N.stl)\n"
                    "    POST /isosurface: VOLUME is .nrrd, .mha, NIfTI (.nii, .nii.gz), raw samples, a directory of a DICOM\n"
@@ -692,7 +692,7 @@ static int download_mesh(const char *id, const char *out)
 static int cmd_isosurface(int argc, char **argv)
 {
     static const char *const OPTIONS[] = {"iso", "dims", "type", "spacing", "origin", "closed", "name", "levels",
-                                          "max_error", "features", "segment", "label", "labels", NULL};
+                                          "max_error", "merge", "features", "segment", "label", "labels", NULL};
     const char *file = NULL, *out = NULL;
     char query[600] = "";
     if (!read_args(argc, argv, OPTIONS, &file, &out, NULL, query, sizeof query))

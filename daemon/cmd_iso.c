@@ -146,7 +146,7 @@ void cmd_isosurface_usage(FILE *f)
                "       surfd isosurface IMAGE.dcm --iso V [--segment N]  (one multi-frame image: Enhanced CT/MR, RT Dose in Gy,\n"
                "                        a Segmentation's segment N, iso 0.5)\n"
                "       surfd isosurface FREP.json [--iso V]\n"
-               "                        [--levels 1-4 [--max-error MM]] [--features none|sharp] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|nifti|dicom|frep]\n"
+               "                        [--levels 1-4 [--max-error MM] [--merge cells|pieces]] [--features none|sharp] [--closed true|false] [--name NAME] [--format raw|nrrd|mha|nifti|dicom|frep]\n"
                "                        [--label N | --labels all] (a label map: label N's surface, or every label's)\n"
                "                        [-o OUT.stl|.ply|.obj] [--threads N] [--repeat N] [--stats]\n"
                "                        [--edits N [--edit-size S]] [--isos V,V,...] [--check] (marching cubes kept,\n"
@@ -409,7 +409,7 @@ int cmd_isosurface(int argc, char **argv)
             format = argv[++k];
         } else if (!strcmp(a, "--iso") || !strcmp(a, "--dims") || !strcmp(a, "--type") || !strcmp(a, "--spacing") ||
                    !strcmp(a, "--origin") || !strcmp(a, "--closed") || !strcmp(a, "--name") || !strcmp(a, "--levels") ||
-                   !strcmp(a, "--features") || !strcmp(a, "--segment") || !strcmp(a, "--label") ||
+                   !strcmp(a, "--features") || !strcmp(a, "--merge") || !strcmp(a, "--segment") || !strcmp(a, "--label") ||
                    !strcmp(a, "--labels")) {
             snprintf(options + n, sizeof options - n, "%s%s=%s", n ? "&" : "", a + 2, argv[k + 1]);
             k++;

@@ -26,6 +26,7 @@ void iso_adapt_free(struct iso_adapt *a)
 {
     if (!a)
         return;
+    pieces_free(a->pz);
     free(a->F);
     for (int l = 0; l <= ISO_MAX_LEVELS; l++)
         free(a->M[l]), free(a->mixed[l]);
@@ -54,9 +55,21 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
     if ((double)g->nx * g->ny * g->nz > ISO_ADAPT_MAX_SAMPLES)
         return sf_fail(err, SF_ELIMIT, "?levels", "levels over 1 take volumes of at most %u samples",
                        ISO_ADAPT_MAX_SAMPLES);
+    if (o->pieces && o->sharp)
+        return sf_fail(err, SF_EINVAL, "?merge", "merge=pieces draws no feature points (features=none)");
     struct iso_adapt *a = calloc(1, sizeof *a);
     if (!a)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    if (o->pieces && levels > 1) { /* a vertex per piece of surface: adapt_pieces.c does it all */
+        int rc = pieces_begin(g, o, levels, max_error, &a->pz, err);
+        if (rc) {
+            free(a);
+            return rc;
+        }
+        a->L = levels;
+        *out = a;
+        return 0;
+    }
     a->shift = o->closed ? 1 : 0;
     a->iso = (float)o->iso;
     a->sharp = o->sharp;
@@ -101,7 +114,7 @@ int iso_adapt_begin(const struct iso_grid *g, const struct iso_opts *o, int leve
     return 0;
 }
 
-int iso_adapt_phases(const struct iso_adapt *a) { return a->L + 1; }
+int iso_adapt_phases(const struct iso_adapt *a) { return a->pz ? pieces_phases(a->pz) : a->L + 1; }
 
 static void set_pad(struct iso_adapt *a);
 
@@ -124,10 +137,14 @@ static void load_slab(struct iso_adapt *a, int z0, int z1, int slab)
     a->slab_min[slab] = lo;
 }
 
-int iso_adapt_n_slabs(const struct iso_adapt *a) { return a->n_slabs; }
+int iso_adapt_n_slabs(const struct iso_adapt *a) { return a->pz ? pieces_n_slabs(a->pz) : a->n_slabs; }
 
 void iso_adapt_run(struct iso_adapt *a, int phase, int slab)
 {
+    if (a->pz) {
+        pieces_run(a->pz, phase, slab);
+        return;
+    }
     if (phase == 0) {
         load_slab(a, (int)((long)a->N[2] * slab / a->n_slabs), (int)((long)a->N[2] * (slab + 1) / a->n_slabs), slab);
         return;
@@ -148,6 +165,10 @@ void iso_adapt_run(struct iso_adapt *a, int phase, int slab)
 
 void iso_adapt_between(struct iso_adapt *a, int phase)
 {
+    if (a->pz) {
+        pieces_between(a->pz, phase);
+        return;
+    }
     if (phase == 0) { /* the samples are read: the pad below them and iso */
         a->gmin = INFINITY;
         for (int s = 0; s < a->n_slabs; s++)
@@ -223,8 +244,8 @@ int iso_adapt_end(struct iso_adapt *a, struct trimesh *out, struct iso_adapt_sta
 {
     memset(out, 0, sizeof *out);
     memset(st, 0, sizeof *st);
-    int rc = merge_pieces(a, st) ? mesh_failed(a, err) : 0;
-    if (!rc) {
+    int rc = a->pz ? pieces_end(a->pz, out, st, err) : merge_pieces(a, st) ? mesh_failed(a, err) : 0;
+    if (!rc && !a->pz) {
         *out = a->all.m;
         memset(&a->all.m, 0, sizeof a->all.m);
     }
@@ -242,8 +263,9 @@ int iso_extract_adaptive(const struct iso_grid *g, const struct iso_opts *o, int
     int rc = iso_adapt_begin(g, o, levels, max_error, &a, err);
     if (rc)
         return rc;
-    int phases = iso_adapt_phases(a), n = iso_adapt_n_slabs(a);
+    int phases = iso_adapt_phases(a);
     for (int p = 0; p < phases && !rc; p++) {
+        int n = iso_adapt_n_slabs(a); /* (pieces: each phase its own) */
         for (int s = 0; s < n && !rc; s++) {
             iso_adapt_run(a, p, s);
             rc = sf_poll(pr, (p * n + s + 1.0) / (phases * n), err);
@@ -280,6 +302,8 @@ static void samples_min(struct iso_adapt *a)
 int iso_adapt_keep(struct iso_adapt *a, struct iso_adapt_stats *st, struct sf_err *err)
 {
     memset(st, 0, sizeof *st);
+    if (a->pz)
+        return pieces_keep(a->pz, st, err);
     if (!a->bcells)
         return sf_fail(err, SF_EINVAL, "", "the extraction was not begun to be kept");
     if (merge_pieces(a, st))
@@ -310,6 +334,8 @@ int iso_adapt_mesh(const struct iso_adapt *a, struct trimesh *out, struct iso_ad
 {
     memset(out, 0, sizeof *out);
     memset(st, 0, sizeof *st);
+    if (a->pz)
+        return pieces_mesh(a->pz, out, st, err);
     const struct piece *all = &a->all;
     size_t nv = all->m.n_vert, nt = all->m.n_tri, live = nv - a->dead;
     uint32_t *id = malloc((nv ? nv : 1) * sizeof *id);
@@ -346,6 +372,8 @@ int iso_adapt_mesh(const struct iso_adapt *a, struct trimesh *out, struct iso_ad
 
 int iso_adapt_ids(const struct iso_adapt *a, uint32_t **ids, struct sf_err *err)
 {
+    if (a->pz)
+        return pieces_ids(a->pz, ids, err);
     size_t n = a->all.m.n_tri;
     if (!(*ids = malloc((n ? n : 1) * sizeof **ids)))
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
@@ -354,12 +382,19 @@ int iso_adapt_ids(const struct iso_adapt *a, uint32_t **ids, struct sf_err *err)
     return 0;
 }
 
-void iso_adapt_number_from(struct iso_adapt *a, uint32_t first) { a->next_id = first; }
+void iso_adapt_number_from(struct iso_adapt *a, uint32_t first)
+{
+    if (a->pz)
+        pieces_number_from(a->pz, first);
+    a->next_id = first;
+}
 
-uint32_t iso_adapt_next_id(const struct iso_adapt *a) { return a->next_id; }
+uint32_t iso_adapt_next_id(const struct iso_adapt *a) { return a->pz ? pieces_next_id(a->pz) : a->next_id; }
 
 int iso_adapt_samples(const struct iso_adapt *a, float **out, struct sf_err *err)
 {
+    if (a->pz)
+        return pieces_samples(a->pz, out, err);
     int nx = a->N[0] - 2 * a->shift, ny = a->N[1] - 2 * a->shift, nz = a->N[2] - 2 * a->shift;
     float *f = malloc((size_t)nx * ny * nz * sizeof *f + 1);
     if (!f)
@@ -545,6 +580,8 @@ static int report_added(const struct iso_adapt *a, size_t n0, struct iso_change 
 int iso_adapt_edit_ids(struct iso_adapt *a, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
                        struct iso_change *ch, struct sf_err *err)
 {
+    if (a->pz)
+        return pieces_edit(a->pz, lo, blk, ed, ch, err);
     memset(ed, 0, sizeof *ed);
     if (ch)
         *ch = (struct iso_change){.next_id = a->next_id};
@@ -663,6 +700,8 @@ int iso_adapt_edit_ids(struct iso_adapt *a, const int lo[3], const struct iso_gr
 
 size_t iso_adapt_bytes(const struct iso_adapt *a)
 {
+    if (a->pz)
+        return sizeof *a + pieces_bytes(a->pz);
     size_t n = (size_t)a->N[0] * a->N[1] * a->N[2] * sizeof *a->F, nb2 = (size_t)a->nb[2][0] * a->nb[2][1] * a->nb[2][2];
     for (int l = 2; l <= a->L; l++)
         n += (size_t)a->nb[l][0] * a->nb[l][1] * a->nb[l][2] * (2 + (a->berr[l] ? sizeof(double) : 0));

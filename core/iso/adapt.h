@@ -43,6 +43,25 @@
  * closed=true the mesh is a closed, consistently oriented 2-manifold at every mix of levels.
  * Unlike mc.c, a cell's two loops are always two caps (no interior tube test).
  *
+ * merge=pieces (opts pieces, levels 2 and over; adapt_pieces.c, issue 45): a merged cell gives one
+ * vertex per connected piece of surface inside it (Manifold Dual Contouring's idea), starting from
+ * marching cubes' mesh (mc.c). Level by level, the vertices of the current mesh are grouped by the
+ * level's block their first fine vertex lies in, and each group's pieces (vertices joined by mesh
+ * edges inside the block) are merged into the piece's least vertex by edge collapses in breadth-
+ * first order, each passing the link condition (which keeps a closed 2-manifold's topology: the
+ * mesh stays closed, manifold, of the same components and Euler characteristic; a vertex refused
+ * stays finer, with those reached through it only). The merged vertex minimises the QEF of the fine
+ * tangent planes (truncated at a tenth of the largest eigenvalue, about the mass point; the mass
+ * point when that leaves the block by over half a sample). The merge is refused when a changed
+ * triangle turns by over acos(0.2), or when the distance either way would pass max_error: every
+ * fine triangle keeps a witness (a triangle within max_error of its three corners, so of all of
+ * it, or two that cover its points at quarters, or none: each such point within max_error of a
+ * triangle round its corners' vertices), rechecked when a merge changes it; the new triangles'
+ * vertex, points at quarters of their new edges and five inside points must lie within max_error
+ * of a fine triangle round the piece or the triangle's corners. Blocks of one colour of 27 (3
+ * apart on every axis) touch no triangle in common: each colour's blocks run in slabs on any
+ * threads, the same mesh whatever their number. Edits draw the whole mesh again. No features.
+ *
  * Sharp features (opts sharp; seed 002's second method: the feature points where the tangent
  * planes at a cell's crossings, from the gradient, meet). On a face, a segment between two
  * crossings whose normals are more than 26 degrees apart gets the point where their tangent lines

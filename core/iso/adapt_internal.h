@@ -70,6 +70,7 @@ struct iso_adapt {
     long cells[ISO_MAX_LEVELS + 1], feature_points;
     double gmin, iso1;                 /* the samples' smallest and iso - 1: the pad is the lower */
     size_t n_min;                      /* samples at gmin */
+    struct pieces *pz;                 /* opts pieces (adapt_pieces.c): the rest above is unused */
 };
 
 static inline size_t at3(const struct iso_adapt *a, int x, int y, int z) { return (size_t)x + (size_t)a->N[0] * ((size_t)y + (size_t)a->N[1] * z); }
@@ -140,6 +141,27 @@ void block_cells(const struct iso_adapt *a, struct piece *pc, const int b[3]);
 void add_face_seg(struct cell *c, int f, const int sq[3], int h, int j, long from, int from_faces, long to);
 bool feature_point(const struct iso_adapt *a, const struct cell *c, const long *loop, const int *faces, int n,
                    double x[3], double nrm[3]);
+
+/* adapt_pieces.c (opts pieces: iso_adapt's functions hand over to these) */
+struct pieces;
+struct iso_change;
+int pieces_begin(const struct iso_grid *g, const struct iso_opts *o, int levels, double max_error, struct pieces **out,
+                 struct sf_err *err);
+void pieces_free(struct pieces *P);
+int pieces_phases(const struct pieces *P);
+int pieces_n_slabs(const struct pieces *P);
+void pieces_run(struct pieces *P, int phase, int slab);
+void pieces_between(struct pieces *P, int phase);
+int pieces_end(struct pieces *P, struct trimesh *out, struct iso_adapt_stats *st, struct sf_err *err);
+int pieces_keep(struct pieces *P, struct iso_adapt_stats *st, struct sf_err *err);
+int pieces_mesh(const struct pieces *P, struct trimesh *out, struct iso_adapt_stats *st, struct sf_err *err);
+int pieces_edit(struct pieces *P, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
+                struct iso_change *ch, struct sf_err *err);
+int pieces_ids(const struct pieces *P, uint32_t **ids, struct sf_err *err);
+void pieces_number_from(struct pieces *P, uint32_t first);
+uint32_t pieces_next_id(const struct pieces *P);
+int pieces_samples(const struct pieces *P, float **out, struct sf_err *err);
+size_t pieces_bytes(const struct pieces *P);
 
 /* adapt_mesh.c */
 uint64_t edge_key(const struct iso_adapt *a, const int n[3], int axis);

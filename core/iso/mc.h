@@ -59,6 +59,8 @@ struct iso_opts {
     size_t max_triangles;    /* 0: none; a surface of more is SF_ELIMIT, found before its mesh is allocated
                               * (iso_layout) or while its pieces grow (adapt.c), never after */
     const char *max_triangles_by; /* what sets it, for the message ("this node's max-triangles") */
+    bool pieces;             /* adapt.c, levels over 1: a vertex per piece of surface in a merged cell
+                              * (adapt_pieces.c; not with sharp); mc.c ignores it */
 };
 
 struct iso_job;

@@ -2,7 +2,7 @@
 # POST /models/{id}/edit through HTTP (issue 15): a block of new samples changes an isosurface
 # model, and its mesh equals, triangle for triangle, what a fresh POST /isosurface of the edited
 # volume gives: with the hierarchy (levels 2, levels 3 with features) and with marching cubes
-# (levels 1, every cell drawn again), and an FRep model by an object (its tree combined); after a restart (the hierarchy rebuilt from the volume and the
+# (levels 1, every cell drawn again; merge=pieces, the whole mesh drawn again), and an FRep model by an object (its tree combined); after a restart (the hierarchy rebuilt from the volume and the
 # edits kept in the store); the ETag follows the edits; every kind of bad edit with its status and
 # pointer, the daemon up after them. An FRep object's volume primitive reads a model's samples as
 # edited.
@@ -31,7 +31,8 @@ same_as_fresh() {
     [ "$code" = 201 ] && python3 $E same "$T/edited.stl" "$T/fresh.stl"
 }
 
-for opts in "iso=226.5&levels=2&max_error=0.5" "iso=226.5&levels=3&max_error=1&features=sharp" "iso=226.5"; do
+for opts in "iso=226.5&levels=2&max_error=0.5" "iso=226.5&levels=3&max_error=1&features=sharp" "iso=226.5" \
+            "iso=226.5&levels=3&max_error=1&merge=pieces"; do
     Q="$G&$opts"
     code=$(status POST "/isosurface?$Q" -H "$RAW" --data-binary @"$CT")
     id=$(field id)
@@ -39,7 +40,8 @@ for opts in "iso=226.5&levels=2&max_error=0.5" "iso=226.5&levels=3&max_error=1&f
     code=$(status POST "/models/$id/edit?region=20,24,17,12,12,12" -H "$RAW" --data-binary @"$T/ball.raw")
     check "... a 12^3 ball of bone: 200, edits 1, the cells drawn again and the triangles said" '[ "$code" = 200 ] && [ "$(field edits)" = 1 ] && [ "$(edit_field cells_rebuilt)" -gt 0 ] && [ "$(edit_field triangles_added)" -gt 0 ] && [ "$(field boundary_edges)" = 0 ] && [ "$(field nonmanifold_edges)" = 0 ]'
     evol=$(field volume_mm3); etri=$(field triangles); whole=$(edit_field whole)
-    check "... only the cells it reaches (not every cell)" '[ "$whole" = False ]'
+    case "$opts" in *merge=pieces*) check "... merge=pieces: the whole mesh drawn again (whole)" '[ "$whole" = True ]' ;;
+                    *) check "... only the cells it reaches (not every cell)" '[ "$whole" = False ]' ;; esac
     code=$(status POST "/models/$id/edit?region=0,50,52,10,10,10" -H "$RAW" --data-binary @"$T/hole.raw")
     check "... a second edit, on the border: edits 2" '[ "$code" = 200 ] && [ "$(field edits)" = 2 ]'
     evol=$(field volume_mm3); etri=$(field triangles)

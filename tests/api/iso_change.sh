@@ -1,7 +1,8 @@
 #!/bin/sh
 # POST /models/{id}/iso?value=V (issue 45, API.md): a stored volume's model at a new iso as its
 # next version, equal to a fresh POST /isosurface at that iso triangle for triangle, at levels=2
-# (its change in the journal: the delta since the version before applies by id) and levels=1; back
+# (its change in the journal: the delta since the version before applies by id), levels=3 with
+# merge=pieces (drawn whole, its change in the journal too) and levels=1; back
 # to the first iso, the first mesh; an iso change kept across a restart (replayed in order with
 # the edits); bad values get a 422 at ?value, a body or an FRep model a clear 4xx.
 . "$(dirname "$0")/lib.inc"
@@ -43,7 +44,7 @@ sys.exit(0 if sorted(t.values()) == stl else 1)
 PY
 }
 
-for lv in "&levels=2&max_error=0.5" ""; do
+for lv in "&levels=2&max_error=0.5" "" "&levels=3&max_error=1&merge=pieces"; do
     code=$(status POST "/isosurface?$G&iso=226.5$lv" -H "$RAW" --data-binary @"$CT")
     ID=$(field id); stl "$ID" "$T/first.stl"
     status GET "/models/$ID/mesh?format=delta&since=0" >/dev/null; cp "$T/body" "$T/at_from"

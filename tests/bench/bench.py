@@ -1183,6 +1183,130 @@ def dicom_bench(lines, n=300):
     lines.append("")
 
 
+def dense_distances(a, b, k=2):
+    p = subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "tests", "bench", "mesh_distance_dense.py"), a, b, str(k)],
+                       capture_output=True, text=True, check=True)
+    return json.loads(p.stdout)
+
+
+def mesh_topology(path):
+    p = subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "tests", "bench", "mesh_distance_dense.py"), "--topology",
+                        path], capture_output=True, text=True, check=True)
+    return json.loads(p.stdout)
+
+
+def merge_bench(lines):
+    """Issue 45: the hierarchy's merge=pieces (a vertex per connected piece of surface in a merged cell) on the shared
+    CT against its full-resolution mesh: counts, two-way distances measured densely (every triangle's points at quarters,
+    both ways), topology, time against VTK's Flying Edges in the same run; VTK's quadric decimation to the same counts
+    beside it."""
+    name, f, dims, dtype, npt, iso, sp, pad = VOLUMES[0]
+    path = os.path.join(DATA, "volumes", f)
+    common = [path, "--iso", str(iso), "--dims", "%d,%d,%d" % dims, "--type", dtype, "--spacing", "%.9g,%.9g,%.9g" % sp]
+    full = os.path.join(TMP, "ct_full.stl")
+    m1 = json.loads(subprocess.run([SURFD, "isosurface"] + common + ["-o", full], capture_output=True, text=True,
+                                   check=True).stdout)
+    fe = {}
+    for t in (1, 2):
+        p = subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "tests", "bench", "vtk_iso.py"), path] +
+                           [str(d) for d in dims] + [npt, str(iso)] + ["%.9g" % x for x in sp] + [str(pad), str(t), "5"],
+                           capture_output=True, text=True, check=True)
+        fe[t] = json.loads(p.stdout)["flying_edges"]["warm_ms"]
+    runs = []
+    for levels, me, goal in ((2, 0.5, 2.75), (3, 0.5, 3.6), (3, 1.0, 5.0), (4, 1.0, 5.5)):
+        out = os.path.join(TMP, "ct_pieces_l%d_%g.stl" % (levels, me))
+        opts = ["--levels", str(levels), "--max-error", str(me), "--merge", "pieces"]
+        ms = {}
+        for t in (1, 2):
+            p = subprocess.run([SURFD, "isosurface"] + common + opts + ["--threads", str(t), "--repeat", "3", "--stats"] +
+                               (["-o", out] if t == 1 else []), capture_output=True, text=True, check=True)
+            m = json.loads(p.stdout) if t == 1 else m
+            ms[t] = float(re.search(r"extract [\d.]+ ms cold, ([\d.]+) ms warm", p.stderr).group(1))
+        runs.append((levels, me, goal, m, ms, dense_distances(out, full)))
+    v = json.loads(subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "tests", "bench", "vtk_decimate.py"), path] +
+                                  [str(d) for d in dims] + [npt, str(iso)] + ["%.9g" % x for x in sp] +
+                                  [str(pad), os.path.join(TMP, "vtkm")] + [str(r[3]["triangles"]) for r in runs],
+                                  capture_output=True, text=True, check=True).stdout)
+    fe_top = mesh_topology(os.path.join(TMP, "vtkm_fe.stl"))
+    lines.append("## The hierarchy's merge=pieces (issue 45) on the %s, iso %g\n" % (name, iso))
+    lines.append("surfd `isosurface --levels L --max-error MM --merge pieces` against its own full-resolution mesh (%d "
+                 "triangles, %d components, Euler characteristic %d). Distances (mm) measured densely both ways by "
+                 "`tests/bench/mesh_distance_dense.py` (each mesh's triangles cut twice in four: every corner, edge and "
+                 "inside point at quarters, to the other mesh's surface through VTK's exact point-to-triangle distance). "
+                 "ms: warm (best of 3) extraction on 1 / 2 threads; Flying Edges (VTK 9, normals on, warm best of 5) in "
+                 "the same run: %.1f / %.1f ms. Topology: closed and manifold (no boundary or non-manifold edge), "
+                 "components, Euler characteristic. VTK: Flying Edges then vtkQuadricDecimation to the same count "
+                 "(`tests/bench/vtk_decimate.py`), its distances to Flying Edges' mesh measured alike.\n" % (
+                     m1["triangles"], m1["components"], m1["euler_characteristic"], fe[1], fe[2]))
+    lines.append("| pipeline | triangles | fewer than full | target | p99 to full | p99 from full | max to full | "
+                 "max from full | ms 1 / 2 threads | x Flying Edges 1 / 2 | closed, manifold | components | Euler | "
+                 "vertices by level |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for (levels, me, goal, m, ms, d), dec in zip(runs, v["decimated"]):
+        lines.append("| surfd levels=%d max_error=%g merge=pieces | %d | %.2fx | %gx | %.3f | %.3f | %.3f | %.3f | %.0f / %.0f "
+                     "| %.1f / %.1f | %s | %d | %d | %s |" % (
+                         levels, me, m["triangles"], m1["triangles"] / m["triangles"], goal, d["a_to_b"]["p99"],
+                         d["b_to_a"]["p99"], d["a_to_b"]["max"], d["b_to_a"]["max"], ms[1], ms[2], ms[1] / fe[1],
+                         ms[2] / fe[2], "yes" if m["boundary_edges"] + m["nonmanifold_edges"] == 0 else "NO",
+                         m["components"], m["euler_characteristic"], m["cells_by_level"]))
+        dpath = os.path.join(TMP, "vtkm_%d.stl" % dec["target"])
+        dd, top = dense_distances(dpath, os.path.join(TMP, "vtkm_fe.stl")), mesh_topology(dpath)
+        lines.append("| VTK FE + quadric decimation | %d | %.2fx | | %.3f | %.3f | %.3f | %.3f | %.0f + %.0f | | %s | %d | %d "
+                     "| |" % (dec["triangles"], v["fe_triangles"] / dec["triangles"], dd["a_to_b"]["p99"],
+                              dd["b_to_a"]["p99"], dd["a_to_b"]["max"], dd["b_to_a"]["max"], v["fe_ms"], dec["ms"],
+                              "yes" if top["boundary_edges"] + top["nonmanifold_edges"] == 0 else
+                              "NO (%d boundary, %d non-manifold edges)" % (top["boundary_edges"], top["nonmanifold_edges"]),
+                              top["components"], top["euler_characteristic"]))
+    lines.append("\nFlying Edges' own mesh: %d triangles, %d components, Euler characteristic %d.\n" % (
+        fe_top["triangles"], fe_top["components"], fe_top["euler_characteristic"]))
+
+
+def vdb_bench(lines):
+    """Issue 45: OpenVDB's adaptive volumeToMesh on the shared CT (tests/bench/vdb_adaptive.cpp, built here when
+    Debian's libopenvdb-dev is installed): counts, dense two-way distances to its own full-resolution mesh, topology,
+    time against Flying Edges in the same run."""
+    name, f, dims, dtype, npt, iso, sp, pad = VOLUMES[0]
+    path = os.path.join(DATA, "volumes", f)
+    exe = os.path.join(TMP, "vdb_adaptive")
+    try:
+        subprocess.run(["g++", "-O2", "-std=c++17", os.path.join(ROOT, "tests", "bench", "vdb_adaptive.cpp"), "-o", exe,
+                        "-lopenvdb", "-ltbb", "-lImath-3_1"], capture_output=True, text=True, check=True)
+    except (OSError, subprocess.CalledProcessError):
+        lines.append("OpenVDB's adaptive meshing was not measured: `tests/bench/vdb_adaptive.cpp` does not build here "
+                     "(Debian's libopenvdb-dev, libboost-dev, libtbb-dev).\n")
+        return
+    fe, runs = {}, {}
+    for t in (1, 2):
+        p = subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "tests", "bench", "vtk_iso.py"), path] +
+                           [str(d) for d in dims] + [npt, str(iso)] + ["%.9g" % x for x in sp] + [str(pad), str(t), "5"],
+                           capture_output=True, text=True, check=True)
+        fe[t] = json.loads(p.stdout)["flying_edges"]["warm_ms"]
+        p = subprocess.run([exe, path] + [str(d) for d in dims] + [str(iso)] + ["%.9g" % x for x in sp] +
+                           [str(pad), str(t), os.path.join(TMP, "vdb%d" % t), "0", "0.3", "0.6", "1"],
+                           capture_output=True, text=True, check=True)
+        runs[t] = json.loads(p.stdout)["runs"]
+    full = runs[1][0]
+    lines.append("## OpenVDB's adaptive volumeToMesh (issue 45) on the %s, iso %g\n" % (name, iso))
+    lines.append("`tests/bench/vdb_adaptive.cpp` (OpenVDB 10, Debian): the samples in a FloatGrid, background %g, "
+                 "`volumeToMesh(grid, points, triangles, quads, iso, adaptivity)`, quads cut in two; ms the best of 3 on "
+                 "1 / 2 threads (TBB limited), Flying Edges in the same run %.1f / %.1f ms. Distances: densely both ways "
+                 "(`mesh_distance_dense.py`, k=2) to its own mesh at adaptivity 0 (%d triangles).\n" % (
+                     pad, fe[1], fe[2], full["triangles"]))
+    lines.append("| adaptivity | triangles | fewer than its full | p99 to full | p99 from full | max to full | max from full | "
+                 "ms 1 / 2 threads | x Flying Edges 1 / 2 | closed, manifold | components | Euler |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for r1, r2 in zip(runs[1], runs[2]):
+        top = mesh_topology(r1["stl"])
+        d = dense_distances(r1["stl"], full["stl"]) if r1["adaptivity"] > 0 else None
+        lines.append("| %g | %d | %.2fx | %s | %.0f / %.0f | %.1f / %.1f | %s | %d | %d |" % (
+            r1["adaptivity"], r1["triangles"], full["triangles"] / r1["triangles"],
+            " | ".join("%.3f" % x for x in (d["a_to_b"]["p99"], d["b_to_a"]["p99"], d["a_to_b"]["max"], d["b_to_a"]["max"]))
+            if d else " | | | ", r1["ms"], r2["ms"], r1["ms"] / fe[1], r2["ms"] / fe[2],
+            "yes" if top["boundary_edges"] + top["nonmanifold_edges"] == 0 else "NO", top["components"],
+            top["euler_characteristic"]))
+    lines.append("")
+
+
 def main():
     parts = {"teapot": (teapot_bench,),
              "iso": (iso_bench, adapt_bench, edit_bench, sharp_bench, big_volume_bench), "adapt": (adapt_bench,),
@@ -1190,7 +1314,7 @@ def main():
              "cad": (cad_bench,), "shell": (shell_bench,),
              "sharp": (sharp_bench,), "cluster": (cluster_bench,),
              "contours": (contour_bench,), "http": (http_bench,), "small": (small_inputs_bench,),
-             "pieces": (pieces_bench,), "dicom": (dicom_bench,)}
+             "pieces": (pieces_bench,), "dicom": (dicom_bench,), "merge": (merge_bench,), "vdb": (vdb_bench,)}
     only = os.environ.get("BENCH_ONLY")
     if only in parts:  # one part, printed, RESULTS.md left as it is
         lines = []
@@ -1211,6 +1335,8 @@ def main():
     cluster_bench(lines)
     iso_bench(lines)
     adapt_bench(lines)
+    merge_bench(lines)
+    vdb_bench(lines)
     edit_bench(lines)
     kept_bench(lines)
     sharp_bench(lines)
@@ -1224,7 +1350,7 @@ def main():
     pieces_bench(lines)
     dicom_bench(lines)
     lines.append("Command: `make bench` (or `BENCH_REPEAT=5 tests/bench/run.sh`; `BENCH_ONLY=teapot`, `BENCH_ONLY=http`, `BENCH_ONLY=contours`, "
-                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso`, `BENCH_ONLY=adapt`, `BENCH_ONLY=edit`, `BENCH_ONLY=kept`, `BENCH_ONLY=sharp`, `BENCH_ONLY=matrix`, `BENCH_ONLY=aa`, `BENCH_ONLY=cad`, `BENCH_ONLY=shell`, `BENCH_ONLY=views`, `BENCH_ONLY=small`, `BENCH_ONLY=pieces` or `BENCH_ONLY=dicom` for one part).")
+                 "`BENCH_ONLY=cluster`, `BENCH_ONLY=iso`, `BENCH_ONLY=adapt`, `BENCH_ONLY=merge`, `BENCH_ONLY=vdb`, `BENCH_ONLY=edit`, `BENCH_ONLY=kept`, `BENCH_ONLY=sharp`, `BENCH_ONLY=matrix`, `BENCH_ONLY=aa`, `BENCH_ONLY=cad`, `BENCH_ONLY=shell`, `BENCH_ONLY=views`, `BENCH_ONLY=small`, `BENCH_ONLY=pieces` or `BENCH_ONLY=dicom` for one part).")
     out = os.path.join(ROOT, "tests", "bench", "RESULTS.md")
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")
