@@ -707,7 +707,8 @@ def edit_bench(lines, n_edits=20):
                  "the client (the change stored in the model's journal with the samples and the resource in one "
                  "transaction, the job queued and answered); delta: `GET /models/{id}/mesh?format=delta&since=V-1` after "
                  "each edit, its bytes. A hierarchy is kept since the model's job; levels=1's kept marching cubes are "
-                 "built by its first edit (first request below). Full: the model's own extraction on the same daemon. "
+                 "built after the model's job has answered (`edit_warm`; the first request below came as soon as the "
+                 "model's answer, and waited for the rest of it). Full: the model's own extraction on the same daemon. "
                  "Each mesh equals a fresh extraction of the edited volume (tests/api/edit.sh, tests/api/mesh_journal.sh, "
                  "tests/core/iso/test_edit.c, test_kept.c).\n" % n_edits)
     lines.append("| model | triangles | full extract ms | edit ms median | edit ms max | cells redrawn median "
