@@ -10,7 +10,7 @@ BUILD="build-essential pkg-config libembree-dev libopenimageio-dev libmicrohttpd
 libsqlite3-dev libpq-dev postgresql zlib1g-dev libcurl4-openssl-dev libdcmtk-dev libopenjp2-7-dev libgnutls28-dev curl openssl python3 clang libclang-rt-14-dev \
 chromium prometheus lintian dicom3tools dcmtk libopenjp2-tools python3-vtk9 python3-pydicom python3-numpy \
 libocct-data-exchange-dev libocct-modeling-algorithms-dev orthanc orthanc-dicomweb plastimatch sqlite3" # for the tests: the page in a headless browser, promtool on /metrics, make deb, exported RT Structure Sets (and plastimatch reading their volumes: tests/api/rtstruct_export.sh), the store altered behind its back (sqlite3: tests/api/damage.sh), compressed DICOM made by dcmtk's tools and OpenJPEG's opj_compress, VTK reading our VTP/VTK meshes and its Flying Edges as the isodoses' oracle, multi-frame DICOM (Enhanced CT, RT Dose, Segmentation) written by pydicom, Open CASCADE as the IGES oracle, a real PACS (Orthanc with its DICOMweb plugin: tests/tools/orthanc.sh)
-BENCH="povray wrk bc" # (bc: tests/bench/dicom_net.sh's seconds)
+BENCH="povray wrk bc libopenvdb-dev libboost-dev libtbb-dev" # (bc: tests/bench/dicom_net.sh's seconds; OpenVDB: tests/bench/vdb_adaptive.cpp)
 
 want="$BUILD"
 [ "${1:-}" = "--bench" ] && want="$want $BENCH"
