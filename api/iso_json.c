@@ -179,6 +179,14 @@ char *iso_model_json_measured(const char *prev, const struct trimesh_stats *st, 
     return text;
 }
 
+long iso_model_topology(const char *resource)
+{
+    json_t *o = json_loads(resource, 0, NULL);
+    long n = (long)json_integer_value(json_object_get(o, "topology_version"));
+    json_decref(o);
+    return n;
+}
+
 long iso_model_edits(const char *resource)
 {
     json_t *o = json_loads(resource, 0, NULL);

@@ -51,5 +51,7 @@ int iso_model_grid(const char *resource, struct iso_grid *g, bool *frep, struct 
 
 /* A model resource's count of edits (0 for a model never edited, or of another kind). */
 long iso_model_edits(const char *resource);
+/* A resource's topology_version (0: it has none, its figures are its version's). */
+long iso_model_topology(const char *resource);
 
 #endif

@@ -833,9 +833,14 @@ static enum MHD_Result model_resource(struct req *r, const char *id)
     if (!strcmp(r->method, "DELETE")) {
         int gone = store_model_delete(r->svc->store, id, scope(r));
         ok = gone && gone != SF_ENOTFOUND ? problem(r, 500, "the store failed", NULL) : text(r, 204, NULL, "");
-    } else { /* a model changes only by its edits: its id and their count are a strong tag */
-        char etag[64];
-        snprintf(etag, sizeof etag, "\"%s.%ld\"", id, iso_model_edits(resource));
+    } else { /* a model changes only by its edits and by its figures measured after them (topology_version):
+              * its id, their count and that version are a strong tag */
+        char etag[80];
+        long topo = iso_model_topology(resource);
+        if (topo > 0)
+            snprintf(etag, sizeof etag, "\"%s.%ld.t%ld\"", id, iso_model_edits(resource), topo);
+        else
+            snprintf(etag, sizeof etag, "\"%s.%ld\"", id, iso_model_edits(resource));
         const char *inm = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_IF_NONE_MATCH);
         struct reply rp = {200, "application/json", resource, strlen(resource), {{"ETag", etag}}};
         if (inm && (strstr(inm, etag) || !strcmp(inm, "*")))

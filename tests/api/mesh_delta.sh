@@ -3,8 +3,9 @@
 # part, what the page's 3D view loads): every model resource has `version` (1 when made, +1 an
 # edit); GET /models/{id}/mesh?format=delta&since=0 is the whole mesh in the binary layout
 # ("SFMD", from, to, removed, added, each added triangle's id and corners), its triangles exactly
-# the STL's; since=the version is an empty delta; a version between is older than the journal
-# kept (none yet): 410 at ?since; after the version, or not a number, 422.
+# the STL's; since=the version is an empty delta; after an edit, since=0 is the edited mesh by its
+# stable ids and since=1 the edit's change; a version older than the journal kept is 410 at ?since
+# (tests/api/mesh_journal.sh); after the version, or not a number, 422.
 . "$(dirname "$0")/lib.inc"
 V="${SURFD_DATA:-../shared/data}/volumes"
 CT="$V/ct_head_crop64_int16.raw"
@@ -14,7 +15,8 @@ RAW='Content-Type: application/octet-stream'
 start_daemon "$T/d" || exit 1
 field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1])).get(sys.argv[2]))" "$T/body" "$1"; }
 pointer_is() { grep -q "\"pointer\":\"$1\"" "$T/body"; }
-# delta_is FILE FROM TO ADDED [STL]: the delta's header, and its added triangles those of STL in order
+# delta_is FILE FROM TO ADDED [STL [ids]]: the delta's header, and its added triangles those of STL
+# in order, ids 0 .. n-1 (with "ids": the same triangles by distinct ids, in any order)
 delta_is() {
     python3 - "$@" <<'PY'
 import struct, sys
@@ -27,9 +29,12 @@ if len(sys.argv) > 5:
     s = open(sys.argv[5], "rb").read()
     n = struct.unpack_from("<I", s, 80)[0]
     assert n == nadd, (n, nadd)
-    for k in range(n):
-        tid, *c = struct.unpack_from("<I9f", d, 20 + 40 * k)
-        assert tid == k and tuple(c) == struct.unpack_from("<12f", s, 84 + 50 * k)[3:], k
+    got = [struct.unpack_from("<I9f", d, 20 + 40 * k) for k in range(n)]
+    stl = [struct.unpack_from("<12f", s, 84 + 50 * k)[3:] for k in range(n)]
+    if len(sys.argv) > 6:
+        assert len({g[0] for g in got}) == n and sorted(g[1:] for g in got) == sorted(stl)
+    else:
+        assert all(g[0] == k and tuple(g[1:]) == stl[k] for k, g in enumerate(got))
 PY
 }
 
@@ -51,9 +56,11 @@ check "an edit: version 2" '[ "$code" = 200 ] && [ "$(field version)" = 2 ]'
 TRI2=$(field triangles)
 status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v2.stl"
 code=$(status GET "/models/$ID/mesh?format=delta&since=0"); cp "$T/body" "$T/d0"
-check "... since=0: from 0 to 2, the edited STL's triangles" '[ "$code" = 200 ] && delta_is "$T/d0" 0 2 "$TRI2" "$T/v2.stl"'
+check "... since=0: from 0 to 2, the edited STL's triangles by their stable ids" '[ "$code" = 200 ] && delta_is "$T/d0" 0 2 "$TRI2" "$T/v2.stl" ids'
 code=$(status GET "/models/$ID/mesh?format=delta&since=1")
-check "... since=1, older than the journal kept: 410 at ?since, saying to load since=0" '[ "$code" = 410 ] && pointer_is "?since" && grep -q "since=0" "$T/body"'
+check "... since=1: the edit's change, from 1 to 2 (triangles taken out and put in)" '[ "$code" = 200 ] && python3 -c "
+import struct, sys; d = open(sys.argv[1], \"rb\").read(); f, t, r, a = struct.unpack_from(\"<4I\", d, 4)
+sys.exit(not (d[:4] == b\"SFMD\" and (f, t) == (1, 2) and r > 0 and a > 0 and len(d) == 20 + 4 * r + 40 * a))" "$T/body"'
 code=$(status GET "/models/$ID/mesh?format=delta&since=3")
 check "since after the version: 422 at ?since" '[ "$code" = 422 ] && pointer_is "?since"'
 code=$(status GET "/models/$ID/mesh?format=delta&since=x")

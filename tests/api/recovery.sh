@@ -89,7 +89,7 @@ start_daemon "$T/d1" --threads 2 --max-attempts 2 || exit 1
 code=$(status POST "/models/$mdl/edit?region=2,2,2,8,8,8" -H "$RAW" --data-binary @"$T/hole.raw"); bvol=$(field volume_mm3)
 check "edit B of the same region, answered after the restart: edits 2" '[ "$code" = 200 ] && [ "$(field edits)" = 2 ]'
 check "A, run again after the restart, succeeds ..." 'wait_state "$a" succeeded 30'
-check "... without being applied again (edits stay 2, B's surface stays: it undid B)" '[ "$(status GET "/models/$mdl")" = 200 ] && [ "$(field edits)" = 2 ] && [ "$(field volume_mm3)" = "$bvol" ] && grep -q "not applied again" "$T/daemon.log"'
+check "... without being applied again (edits stay 2, B's surface stays: it undid B)" '[ "$(status GET "/models/$mdl")" = 200 ] && [ "$(field edits)" = 2 ] && python3 -c "import sys; a, b = map(float, sys.argv[1:]); sys.exit(abs(a - b) > 1e-9 * abs(a))" "$(field volume_mm3)" "$bvol" && grep -q "not applied again" "$T/daemon.log"'
 stop_daemon
 
 # ---- 2: over max-triangles: a 422 before the mesh is made, for either extraction --------------------
