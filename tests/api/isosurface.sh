@@ -149,6 +149,10 @@ code=$(status POST "/isosurface?$Q&smooth=2" -H "$RAW" --data-binary @"$CT")
 check "an option it does not take: 422 naming it" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?smooth\"" "$T/body"'
 code=$(status POST "/isosurface?$Q&levels=5" -H "$RAW" --data-binary @"$CT")
 check "levels over 4: 422 at ?levels" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?levels\"" "$T/body"'
+code=$(status POST "/isosurface?$Q&levels=2&merge=faces" -H "$RAW" --data-binary @"$CT")
+check "merge neither cells nor pieces: 422 at ?merge" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?merge\"" "$T/body"'
+code=$(status POST "/isosurface?$Q&levels=2&merge=pieces&features=sharp" -H "$RAW" --data-binary @"$CT")
+check "merge=pieces with features=sharp: 422 at ?merge, the daemon still up" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?merge\"" "$T/body" && [ "$(status GET /readyz)" = 200 ]'
 { printf 'NRRD0004\ntype: uint8\ndimension: 3\nsizes: 1024 1024 300\nencoding: gzip\n\n'; printf 'x' | gzip; } >"$T/huge.nrrd"
 code=$(status POST "/isosurface?iso=1&levels=2" -H 'Content-Type: application/x-nrrd' --data-binary @"$T/huge.nrrd")
 check "levels=2 on a volume over 2^28 samples: 422 at ?levels, before it is inflated" '[ "$code" = 422 ] && grep -q "\"pointer\":\"?levels\"" "$T/body"'
