@@ -25,6 +25,7 @@
 #define LATTICE 4           /* a fine triangle no one triangle covers: its points at 1/LATTICE steps of
                              * barycentric coordinates each within e of the mesh (the bench's k = 2) */
 #define NO_WITNESS UINT32_MAX
+#define STAR_CHUNK 65536    /* the stars' store grows by this many entries, never moved (> MAX_LOCAL) */
 
 struct ltri {               /* a triangle round the piece being merged, as the merge would leave it */
     uint32_t t, c[3], o[3]; /* its id, corners after and before */
@@ -70,6 +71,8 @@ struct pscratch {           /* one slab's working memory (each list with its cap
     size_t stcap;
     uint8_t *added;         /* per link entry: its fine triangles among the candidates */
     size_t acap;
+    uint32_t **chunk;       /* the stars this slab wrote (STAR_CHUNK entries each, never moved) */
+    size_t nchunk, chcap, chused;
     bool nomem;
 };
 
@@ -91,6 +94,11 @@ struct pieces {
     uint32_t nv, nt;
     uint64_t *cellk;        /* each fine vertex's cell in the virtual grid, x | y << 21 | z << 42 */
     uint32_t *inc_at, *inc; /* each fine vertex's triangles (CSR) */
+    uint32_t **star, *nstar, *sl; /* each representative's live triangles in the order of its fine vertices'
+                             * (the walk of inc from each in turn), first in sl (inc's copy), then
+                             * where the merge that made it wrote them (pscratch's chunks) */
+    uint64_t *lkey;         /* the local index of a representative round the merge being tried (lidx) */
+    uint32_t *lidx;         /* when its lkey is that merge's id: 0 the merged vertex, 1 + j link[j] */
     uint32_t *cur;          /* each triangle's corners now (representatives) */
     uint8_t *dead;
     float *cp, *cn;         /* each representative's place and normal */
@@ -164,6 +172,9 @@ static void eigen3(double A[3][3], double V[3][3], double w[3])
 
 static void scratch_free(struct pscratch *s)
 {
+    for (size_t i = 0; i < s->nchunk; i++)
+        free(s->chunk[i]);
+    free(s->chunk);
     free(s->comp), free(s->lt), free(s->link), free(s->cand), free(s->wu), free(s->qt), free(s->use), free(s->lstart), free(s->lqt), free(s->stamp), free(s->added);
     memset(s, 0, sizeof *s);
 }
@@ -172,8 +183,10 @@ static void work_free(struct pieces *P)
 {
     free(P->cellk), free(P->inc_at), free(P->inc), free(P->cur), free(P->dead), free(P->cp), free(P->cn);
     free(P->mnext), free(P->mtail), free(P->rep), free(P->lvl), free(P->wit), free(P->wit2), free(P->mark), free(P->bstart), free(P->brep);
+    free(P->star), free(P->nstar), free(P->sl), free(P->lkey), free(P->lidx);
     P->cellk = NULL, P->inc_at = P->inc = P->cur = P->mnext = P->mtail = P->rep = P->wit = P->wit2 = P->bstart = P->brep = NULL;
-    P->dead = P->lvl = NULL, P->cp = P->cn = NULL, P->mark = NULL;
+    P->dead = P->lvl = NULL, P->cp = P->cn = NULL, P->mark = P->lkey = NULL;
+    P->star = NULL, P->nstar = P->sl = P->lidx = NULL;
     for (int k = 0; k < ADAPT_SLABS; k++)
         scratch_free(&P->sc[k]);
     trimesh_free(&P->fine);
@@ -312,8 +325,13 @@ static int prepare(struct pieces *P)
     P->wit = malloc(T * sizeof *P->wit);
     P->wit2 = malloc(T * sizeof *P->wit2);
     P->mark = calloc(V, sizeof *P->mark);
+    P->star = malloc(V * sizeof *P->star);
+    P->nstar = malloc(V * sizeof *P->nstar);
+    P->sl = malloc(3 * T * sizeof *P->sl);
+    P->lkey = calloc(V, sizeof *P->lkey);
+    P->lidx = malloc(V * sizeof *P->lidx);
     if (!P->cellk || !P->inc_at || !P->inc || !P->cur || !P->dead || !P->cp || !P->cn || !P->mnext || !P->mtail || !P->rep ||
-        !P->lvl || !P->wit || !P->wit2 || !P->mark)
+        !P->lvl || !P->wit || !P->wit2 || !P->mark || !P->star || !P->nstar || !P->sl || !P->lkey || !P->lidx)
         return -1;
     for (uint32_t v = 0; v < nv; v++) {
         uint64_t k = 0;
@@ -362,6 +380,9 @@ static int prepare(struct pieces *P)
             P->inc[fill[v]++] = t;
         }
     free(fill);
+    memcpy(P->sl, P->inc, 3 * (size_t)nt * sizeof *P->sl);
+    for (uint32_t v = 0; v < nv; v++)
+        P->star[v] = P->sl + P->inc_at[v], P->nstar[v] = P->inc_at[v + 1] - P->inc_at[v];
     for (uint32_t t = 0; t < nt; t++)
         P->wit[t] = t, P->wit2[t] = NO_WITNESS;
     return bucket(P, 2);
@@ -376,6 +397,9 @@ static bool has(const uint32_t c[3], uint32_t v) { return c[0] == v || c[1] == v
 
 /* Whether representative v belongs to the piece being merged (mark id). */
 static inline bool in_piece(const struct pieces *P, uint32_t v, uint64_t id) { return P->mark[v] == id; }
+
+/* Representative v's index round the merge being tried (lkey, lidx), or -1. */
+static inline int local(const struct pieces *P, uint32_t v, uint64_t id) { return P->lkey[v] == id ? (int)P->lidx[v] : -1; }
 
 static bool grow(struct pscratch *S, void **p, size_t *cap, size_t need, size_t elem)
 {
@@ -393,25 +417,22 @@ static bool gather(const struct pieces *P, struct pscratch *S, int n, uint64_t i
     S->n_lt = 0;
     for (int i = 0; i < n; i++) {
         uint32_t r = S->comp[i];
-        for (uint32_t m = r; m != UINT32_MAX; m = P->mnext[m])
-            for (uint32_t k = P->inc_at[m]; k < P->inc_at[m + 1]; k++) {
-                uint32_t t = P->inc[k];
-                if (P->dead[t])
-                    continue;
-                const uint32_t *c = P->cur + 3 * (size_t)t;
-                uint32_t least = UINT32_MAX; /* each once: from the piece's least corner */
-                for (int j = 0; j < 3; j++)
-                    if (in_piece(P, c[j], id) && c[j] < least)
-                        least = c[j];
-                if (least != r)
-                    continue;
-                if (S->n_lt >= MAX_LOCAL || !grow(S, (void **)&S->lt, &S->lcap, (size_t)S->n_lt + 1, sizeof *S->lt))
-                    return false;
-                struct ltri *L = &S->lt[S->n_lt++];
-                L->t = t, L->alive = 1;
-                memcpy(L->c, c, sizeof L->c);
-                memcpy(L->o, c, sizeof L->o);
-            }
+        for (uint32_t k = 0; k < P->nstar[r]; k++) {
+            uint32_t t = P->star[r][k];
+            const uint32_t *c = P->cur + 3 * (size_t)t;
+            uint32_t least = UINT32_MAX; /* each once: from the piece's least corner */
+            for (int j = 0; j < 3; j++)
+                if (in_piece(P, c[j], id) && c[j] < least)
+                    least = c[j];
+            if (least != r)
+                continue;
+            if (S->n_lt >= MAX_LOCAL || !grow(S, (void **)&S->lt, &S->lcap, (size_t)S->n_lt + 1, sizeof *S->lt))
+                return false;
+            struct ltri *L = &S->lt[S->n_lt++];
+            L->t = t, L->alive = 1;
+            memcpy(L->c, c, sizeof L->c);
+            memcpy(L->o, c, sizeof L->o);
+        }
     }
     return true;
 }
@@ -638,22 +659,26 @@ static int local_triangles(const struct pieces *P, struct pscratch *S, uint32_t 
                            int n_link)
 {
     int n = 0;
+    P->lkey[p] = id, P->lidx[p] = 0;
+    for (int j = 0; j < n_link; j++)
+        P->lkey[S->link[j]] = id, P->lidx[S->link[j]] = (uint32_t)j + 1;
     for (int i = 0; i < S->n_lt; i++)
         if (S->lt[i].alive && !add_qt(P, S, &n, S->lt[i].t, S->lt[i].c, p, x))
             return -1;
-    for (int j = 0; j < n_link; j++)
-        for (uint32_t m = S->link[j]; m != UINT32_MAX; m = P->mnext[m])
-            for (uint32_t k = P->inc_at[m]; k < P->inc_at[m + 1]; k++) {
-                uint32_t t = P->inc[k];
-                const uint32_t *c = P->cur + 3 * (size_t)t;
-                if (P->dead[t] || in_piece(P, c[0], id) || in_piece(P, c[1], id) || in_piece(P, c[2], id))
-                    continue; /* (dead, or in S->lt) */
-                bool earlier = false; /* (each once: from its first neighbour in link) */
-                for (int i = 0; i < j && !earlier; i++)
-                    earlier = has(c, S->link[i]);
-                if (!earlier && !add_qt(P, S, &n, t, c, p, x))
-                    return -1;
-            }
+    for (int j = 0; j < n_link; j++) {
+        uint32_t w = S->link[j];
+        for (uint32_t k = 0; k < P->nstar[w]; k++) {
+            uint32_t t = P->star[w][k];
+            const uint32_t *c = P->cur + 3 * (size_t)t;
+            if (in_piece(P, c[0], id) || in_piece(P, c[1], id) || in_piece(P, c[2], id))
+                continue; /* (in S->lt) */
+            bool earlier = false; /* (each once: from its first neighbour in link) */
+            for (int q = 0; q < 3 && !earlier; q++)
+                earlier = local(P, c[q], id) >= 1 && local(P, c[q], id) <= j;
+            if (!earlier && !add_qt(P, S, &n, t, c, p, x))
+                return -1;
+        }
+    }
     /* the lists by local representative (0: p, 1 + j: link[j]) */
     if (!grow(S, (void **)&S->lstart, &S->lscap, (size_t)n_link + 2, sizeof *S->lstart) ||
         !grow(S, (void **)&S->lqt, &S->lqcap, 3 * (size_t)n + 1, sizeof *S->lqt) ||
@@ -663,10 +688,7 @@ static int local_triangles(const struct pieces *P, struct pscratch *S, uint32_t 
     for (int pass = 0; pass < 2; pass++) {
         for (int i = 0; i < n; i++)
             for (int k = 0; k < 3; k++) {
-                uint32_t v = S->qt[i].c[k];
-                int li = v == p ? 0 : -1;
-                for (int j = 0; j < n_link && li < 0; j++)
-                    li = S->link[j] == v ? j + 1 : -1;
+                int li = local(P, S->qt[i].c[k], id);
                 if (li < 0)
                     continue;
                 if (pass == 0)
@@ -706,8 +728,8 @@ static bool witness_holds(const struct pieces *P, uint32_t w, uint64_t id)
  * triangles round R as the merge leaves them (S->qt, n_qt of them, and for a representative outside
  * the piece and its neighbours, its own): one triangle within e of its three corners (the witness),
  * else each of its lattice points within e of one. Its witness noted. */
-static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, const uint32_t R[3], int n_qt, int n_link,
-                    uint32_t p, uint64_t id, int *n_wu)
+static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, const uint32_t R[3], int n_qt, uint64_t id,
+                    int *n_wu)
 {
     double f[3][3];
     for (int k = 0; k < 3; k++)
@@ -719,9 +741,7 @@ static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, cons
         return false;
     for (int k = 0; k < 3; k++) {
         uint32_t r = R[k];
-        int li = r == p ? 0 : -1;
-        for (int j = 0; j < n_link && li < 0; j++)
-            li = S->link[j] == r ? j + 1 : -1;
+        int li = local(P, r, id);
         if (li >= 0) {
             for (int j = S->lstart[li]; j < S->lstart[li + 1]; j++)
                 if (S->stamp[S->lqt[j]] != F)
@@ -730,20 +750,19 @@ static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, cons
         }
         if ((k > 0 && R[0] == r) || (k > 1 && R[1] == r))
             continue;
-        for (uint32_t m = r; m != UINT32_MAX; m = P->mnext[m])
-            for (uint32_t j = P->inc_at[m]; j < P->inc_at[m + 1]; j++) {
-                uint32_t t = P->inc[j];
-                const uint32_t *c = P->cur + 3 * (size_t)t;
-                if (P->dead[t] || in_piece(P, c[0], id) || in_piece(P, c[1], id) || in_piece(P, c[2], id))
-                    continue;
-                if (!grow(S, (void **)&S->qt, &S->qcap, (size_t)n + 1, sizeof *S->qt))
-                    return false;
-                struct qtri *Q = &S->qt[n++];
-                Q->t = t;
-                memcpy(Q->c, c, sizeof Q->c);
-                corners(P, c, UINT32_MAX, NULL, Q->T);
-                qtri_prepare(Q, P->e);
-            }
+        for (uint32_t j = 0; j < P->nstar[r]; j++) {
+            uint32_t t = P->star[r][j];
+            const uint32_t *c = P->cur + 3 * (size_t)t;
+            if (in_piece(P, c[0], id) || in_piece(P, c[1], id) || in_piece(P, c[2], id))
+                continue;
+            if (!grow(S, (void **)&S->qt, &S->qcap, (size_t)n + 1, sizeof *S->qt))
+                return false;
+            struct qtri *Q = &S->qt[n++];
+            Q->t = t;
+            memcpy(Q->c, c, sizeof Q->c);
+            corners(P, c, UINT32_MAX, NULL, Q->T);
+            qtri_prepare(Q, P->e);
+        }
     }
     if (!grow(S, (void **)&S->use, &S->ucap, (size_t)n + 1, sizeof *S->use))
         return false;
@@ -824,6 +843,32 @@ static bool near_fine(const struct pieces *P, const struct pscratch *S, int n, c
     return false;
 }
 
+/* Room for n star entries in S's chunks (the caller adds what it used to chused), or NULL. */
+static uint32_t *star_room(struct pscratch *S, uint32_t n)
+{
+    if (!S->nchunk || S->chused + n > STAR_CHUNK) {
+        uint32_t *c = malloc(STAR_CHUNK * sizeof *c);
+        if (!c || !grow(S, (void **)&S->chunk, &S->chcap, S->nchunk + 1, sizeof *S->chunk)) {
+            free(c);
+            S->nomem = true;
+            return NULL;
+        }
+        S->chunk[S->nchunk++] = c;
+        S->chused = 0;
+    }
+    return S->chunk[S->nchunk - 1] + S->chused;
+}
+
+/* Representative v's star without its dead triangles. */
+static void star_prune(struct pieces *P, uint32_t v)
+{
+    uint32_t k = 0, *st = P->star[v];
+    for (uint32_t j = 0; j < P->nstar[v]; j++)
+        if (!P->dead[st[j]])
+            st[k++] = st[j];
+    P->nstar[v] = k;
+}
+
 /* Tries to merge the piece comp[0 .. n-1] (marked id) of the block at lo (side s samples) into its
  * least vertex. */
 static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id, const int lo[3], int s)
@@ -902,7 +947,7 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
                 }
                 if (earlier)
                     continue;
-                if (!fine_ok(P, S, F, R, n_qt, n_link, p, id, &n_wu))
+                if (!fine_ok(P, S, F, R, n_qt, id, &n_wu))
                     return false;
             }
     }
@@ -958,11 +1003,29 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
         }
     }
     /* all well: the merge made */
+    uint32_t total = 0;
+    for (int i = 0; i < n; i++)
+        total += P->nstar[S->comp[i]];
+    uint32_t *ns = star_room(S, total);
+    if (!ns)
+        return false;
     for (int i = 0; i < S->n_lt; i++) {
         const struct ltri *L = &S->lt[i];
         memcpy(P->cur + 3 * (size_t)L->t, L->c, sizeof L->c);
         P->dead[L->t] = !L->alive;
     }
+    /* the stars: p's its pieces' in their order, the link's without the triangles that died */
+    uint32_t ks = 0;
+    for (int i = 0; i < n; i++)
+        for (uint32_t j = 0; j < P->nstar[S->comp[i]]; j++)
+            if (!P->dead[P->star[S->comp[i]][j]])
+                ns[ks++] = P->star[S->comp[i]][j];
+    P->star[p] = ns, P->nstar[p] = ks;
+    S->chused += ks;
+    for (int i = 0; i < S->n_lt; i++)
+        for (int c = 0; c < 3 && !S->lt[i].alive; c++)
+            if (!in_piece(P, S->lt[i].o[c], id))
+                star_prune(P, S->lt[i].o[c]);
     for (int i = 1; i < n; i++) {
         uint32_t r = S->comp[i];
         for (uint32_t m = r; m != UINT32_MAX; m = P->mnext[m])
@@ -1003,21 +1066,18 @@ static void block_pieces(struct pieces *P, struct pscratch *S, int l, const int 
         P->mark[r0] = id;
         for (int h = 0; h < n; h++) {
             uint32_t u = S->comp[h];
-            for (uint32_t m = u; m != UINT32_MAX; m = P->mnext[m])
-                for (uint32_t j = P->inc_at[m]; j < P->inc_at[m + 1]; j++) {
-                    uint32_t t = P->inc[j];
-                    if (P->dead[t])
+            for (uint32_t j = 0; j < P->nstar[u]; j++) {
+                const uint32_t *c = P->cur + 3 * (size_t)P->star[u][j];
+                for (int q = 0; q < 3; q++) {
+                    uint32_t w = c[q];
+                    if (w == u || P->mark[w] == id || block_of(P, w, l) != at)
                         continue;
-                    for (int c = 0; c < 3; c++) {
-                        uint32_t w = P->cur[3 * (size_t)t + c];
-                        if (w == u || P->mark[w] == id || block_of(P, w, l) != at)
-                            continue;
-                        if (!grow(S, (void **)&S->comp, &S->ccap, (size_t)n + 1, sizeof *S->comp))
-                            return;
-                        P->mark[w] = id;
-                        S->comp[n++] = w;
-                    }
+                    if (!grow(S, (void **)&S->comp, &S->ccap, (size_t)n + 1, sizeof *S->comp))
+                        return;
+                    P->mark[w] = id;
+                    S->comp[n++] = w;
                 }
+            }
         }
         if (n < 2)
             continue;
