@@ -32,17 +32,18 @@ struct ltri {               /* a triangle round the piece being merged, as the m
     uint8_t alive;
 };
 
-struct cand {               /* a full-resolution triangle near the piece */
-    double a[3], b[3], c[3];
-    float lo[3], hi[3];
-};
-
 struct qtri {               /* a triangle round the piece as the merge leaves it */
     uint32_t t, c[3];       /* its id, corners */
     double T[3][3];         /* their places */
     double lo[3], hi[3];    /* its box grown by e */
     double n[3], u[3], v[3]; /* its unit normal, edges from corner 0 */
     double uu, uv, vv, inv; /* their products, 1 / the Gram determinant (0: a sliver: the exact test) */
+    bool ready;             /* the fields after T set (qtri_prepare: when first tested) */
+};
+
+struct cand {               /* a full-resolution triangle near the piece */
+    double T[3][3];
+    float lo[3], hi[3];
 };
 
 struct wup {
@@ -617,13 +618,22 @@ static void qtri_prepare(struct qtri *Q, double e)
     Q->inv = len > 1e-9 * (Q->uu + Q->vv) && det > 0 ? 1 / det : 0;
     for (int d = 0; d < 3 && len > 0; d++)
         Q->n[d] /= len;
+    Q->ready = true;
+}
+
+/* Whether a point (w from Q's corner 0, h over its plane, a b c its barycentric coordinates) lies
+ * outside one of Q's edges' lines by more than the plane leaves, surely: a coordinate times the
+ * height over its edge, squared (a^2 det / |edge|^2), over e^2 - h^2 by more than rounding. */
+static bool beyond_edge(const struct qtri *Q, const double w[3], double h, double a, double b, double c, double e)
+{
+    double room = (e * e - h * h) * (1 + 1e-6) + 1e-9 * (e * e + dot3(w, w)), det = 1 / Q->inv;
+    return (a < 0 && a * a * det > room * Q->vv) || (b < 0 && b * b * det > room * Q->uu) ||
+           (c < 0 && c * c * det > room * (Q->uu + Q->vv - 2 * Q->uv));
 }
 
 /* Whether y lies within e of Q: off its plane by more, no; over the triangle, yes; else exactly. */
-static bool qtri_near(const struct qtri *Q, const double y[3], double e)
+static bool plane_near(const struct qtri *Q, const double y[3], double e)
 {
-    if (y[0] < Q->lo[0] || y[0] > Q->hi[0] || y[1] < Q->lo[1] || y[1] > Q->hi[1] || y[2] < Q->lo[2] || y[2] > Q->hi[2])
-        return false;
     if (Q->inv > 0) {
         double w[3];
         sub3(y, Q->T[0], w);
@@ -631,12 +641,22 @@ static bool qtri_near(const struct qtri *Q, const double y[3], double e)
         if (h > e || h < -e)
             return false;
         double wu = dot3(w, Q->u), wv = dot3(w, Q->v);
-        double a = (Q->vv * wu - Q->uv * wv) * Q->inv, b = (Q->uu * wv - Q->uv * wu) * Q->inv;
+        double a = (Q->vv * wu - Q->uv * wv) * Q->inv, b = (Q->uu * wv - Q->uv * wu) * Q->inv, c = 1 - a - b;
         if (a >= 0 && b >= 0 && a + b <= 1)
             return true;
+        if (beyond_edge(Q, w, h, a, b, c, e))
+            return false;
     }
     return trimesh_point_dist(y, Q->T[0], Q->T[1], Q->T[2]) <= e;
 }
+
+static bool in_box(const struct qtri *Q, const double y[3])
+{
+    return y[0] >= Q->lo[0] && y[0] <= Q->hi[0] && y[1] >= Q->lo[1] && y[1] <= Q->hi[1] && y[2] >= Q->lo[2] &&
+           y[2] <= Q->hi[2];
+}
+
+static bool qtri_near(const struct qtri *Q, const double y[3], double e) { return in_box(Q, y) && plane_near(Q, y, e); }
 
 /* Adds triangle t (corners c, p at x) to S->qt as entry (*n)++: false for no memory. */
 static bool add_qt(const struct pieces *P, struct pscratch *S, int *n, uint32_t t, const uint32_t c[3], uint32_t p,
@@ -648,7 +668,7 @@ static bool add_qt(const struct pieces *P, struct pscratch *S, int *n, uint32_t 
     Q->t = t;
     memcpy(Q->c, c, sizeof Q->c);
     corners(P, c, p, x, Q->T);
-    qtri_prepare(Q, P->e);
+    Q->ready = false;
     return true;
 }
 
@@ -709,11 +729,6 @@ static int local_triangles(const struct pieces *P, struct pscratch *S, uint32_t 
     return n;
 }
 
-static bool in_box(const struct qtri *Q, const double y[3])
-{
-    return y[0] >= Q->lo[0] && y[0] <= Q->hi[0] && y[1] >= Q->lo[1] && y[1] <= Q->hi[1] && y[2] >= Q->lo[2] &&
-           y[2] <= Q->hi[2];
-}
 
 /* Whether witness w of a fine triangle stays as it is through the merge of the piece marked id. */
 static bool witness_holds(const struct pieces *P, uint32_t w, uint64_t id)
@@ -761,7 +776,7 @@ static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, cons
             Q->t = t;
             memcpy(Q->c, c, sizeof Q->c);
             corners(P, c, UINT32_MAX, NULL, Q->T);
-            qtri_prepare(Q, P->e);
+            Q->ready = false;
         }
     }
     if (!grow(S, (void **)&S->use, &S->ucap, (size_t)n + 1, sizeof *S->use))
@@ -771,12 +786,13 @@ static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, cons
         use[n_use++] = i;
     for (int j = 0; j < n_use; j++) {
         struct qtri *Q = &S->qt[use[j]];
-        if (in_box(Q, f[0]) && in_box(Q, f[1]) && in_box(Q, f[2]) && qtri_near(Q, f[0], P->e) &&
-            qtri_near(Q, f[1], P->e) && qtri_near(Q, f[2], P->e))
+        if (!Q->ready)
+            qtri_prepare(Q, P->e);
+        if (in_box(Q, f[0]) && in_box(Q, f[1]) && in_box(Q, f[2]) && plane_near(Q, f[0], P->e) &&
+            plane_near(Q, f[1], P->e) && plane_near(Q, f[2], P->e))
             return note_witness(S, n_wu, F, Q->t, NO_WITNESS);
     }
     /* no one triangle: each lattice point near one; two do it (both kept as witnesses), or more */
-
     int used[2] = {-1, -1}, n_used = 0;
     bool more = false;
     for (int a = 0; a <= LATTICE; a++)
@@ -805,21 +821,42 @@ static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, cons
     return note_witness(S, n_wu, F, S->qt[use[used[0]]].t, n_used > 1 ? S->qt[use[used[1]]].t : S->qt[use[used[0]]].t);
 }
 
-/* The full-resolution triangles round the fine vertices of representative r into S->cand (a
- * triangle round two of them twice: harmless). */
-static bool add_cands(const struct pieces *P, struct pscratch *S, uint32_t r, int *n)
+/* Whether representative w's fine triangles are among the candidates: the piece's, and the link's
+ * added (S->added) once a point needed them. */
+static bool is_cand(const struct pieces *P, const struct pscratch *S, uint32_t w, uint64_t id)
+{
+    int li = local(P, w, id);
+    return in_piece(P, w, id) || (li >= 1 && S->added[li - 1]);
+}
+
+/* The full-resolution triangles round the fine vertices of representative r (of the piece, or of
+ * the link and not yet added) into S->cand, each once: from the first of its corners whose
+ * representative is among the candidates' (r's for the link's). */
+static bool add_cands(const struct pieces *P, struct pscratch *S, uint32_t r, uint64_t id, int *n)
 {
     const float *fp = P->fine.pos;
+    bool piece = in_piece(P, r, id);
     for (uint32_t m = r; m != UINT32_MAX; m = P->mnext[m])
         for (uint32_t k = P->inc_at[m]; k < P->inc_at[m + 1]; k++) {
             const uint32_t *t = P->fine.tri + 3 * (size_t)P->inc[k];
+            uint32_t first = UINT32_MAX;
+            bool before = false;
+            for (int q = 0; q < 3; q++) {
+                uint32_t w = P->rep[t[q]];
+                if (first == UINT32_MAX && (piece ? in_piece(P, w, id) : w == r))
+                    first = t[q];
+                before = before || (!piece && is_cand(P, S, w, id));
+            }
+            if (first != m || before)
+                continue;
             if (!grow(S, (void **)&S->cand, &S->dcap, (size_t)*n + 1, sizeof *S->cand))
                 return false;
             struct cand *c = &S->cand[(*n)++];
+            double(*T)[3] = c->T;
             for (int d = 0; d < 3; d++) {
-                c->a[d] = fp[3 * t[0] + d], c->b[d] = fp[3 * t[1] + d], c->c[d] = fp[3 * t[2] + d];
-                c->lo[d] = (float)dmin(c->a[d], dmin(c->b[d], c->c[d]));
-                c->hi[d] = (float)dmax(c->a[d], dmax(c->b[d], c->c[d]));
+                T[0][d] = fp[3 * t[0] + d], T[1][d] = fp[3 * t[1] + d], T[2][d] = fp[3 * t[2] + d];
+                c->lo[d] = (float)dmin(T[0][d], dmin(T[1][d], T[2][d]));
+                c->hi[d] = (float)dmax(T[0][d], dmax(T[1][d], T[2][d]));
             }
         }
     return true;
@@ -829,13 +866,12 @@ static bool add_cands(const struct pieces *P, struct pscratch *S, uint32_t r, in
 static bool near_fine(const struct pieces *P, const struct pscratch *S, int n, const double y[3], int *last)
 {
     double e = P->e;
-    for (int j = 0; j < n; j++) {
-        int i = (*last + j) % n;
+    for (int j = 0, i = *last; j < n; j++, i = i + 1 < n ? i + 1 : 0) {
         const struct cand *c = &S->cand[i];
         if (y[0] < c->lo[0] - e || y[0] > c->hi[0] + e || y[1] < c->lo[1] - e || y[1] > c->hi[1] + e ||
             y[2] < c->lo[2] - e || y[2] > c->hi[2] + e)
             continue;
-        if (trimesh_point_dist(y, c->a, c->b, c->c) <= e) {
+        if (trimesh_point_dist(y, c->T[0], c->T[1], c->T[2]) <= e) {
             *last = i;
             return true;
         }
@@ -940,11 +976,8 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
                     R[j] = P->rep[fc[j]];
                     R[j] = in_piece(P, R[j], id) ? p : R[j];
                 }
-                for (int j = 0; j < 3 && fc[j] != m && !earlier; j++) { /* (each once: from its first corner here) */
-                    earlier = R[j] == p;
-                    for (int q = 0; q < n_link && !earlier; q++)
-                        earlier = S->link[q] == R[j];
-                }
+                for (int j = 0; j < 3 && fc[j] != m && !earlier; j++) /* (each once: from its first corner here) */
+                    earlier = local(P, R[j], id) >= 0;
                 if (earlier)
                     continue;
                 if (!fine_ok(P, S, F, R, n_qt, id, &n_wu))
@@ -958,7 +991,7 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
         return false;
     memset(S->added, 0, (size_t)n_link + 1);
     for (int i = 0; i < n; i++)
-        if (!add_cands(P, S, S->comp[i], &n_cand))
+        if (!add_cands(P, S, S->comp[i], id, &n_cand))
             return false;
     if (!near_fine(P, S, n_cand, x, &last))
         return false;
@@ -970,7 +1003,7 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
                 y[d] = x[d] + (q[d] - x[d]) * f / 4.0;
             if (near_fine(P, S, n_cand, y, &last))
                 continue;
-            if (S->added[j] || !add_cands(P, S, S->link[j], &n_cand))
+            if (S->added[j] || !add_cands(P, S, S->link[j], id, &n_cand))
                 return false;
             S->added[j] = 1;
             if (!near_fine(P, S, n_cand, y, &last))
@@ -994,7 +1027,7 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
             bool more = false; /* (the fine triangles round the other two corners) */
             for (int j = 0; j < n_link; j++)
                 if (!S->added[j] && has(L->c, S->link[j])) {
-                    if (!add_cands(P, S, S->link[j], &n_cand))
+                    if (!add_cands(P, S, S->link[j], id, &n_cand))
                         return false;
                     S->added[j] = 1, more = true;
                 }
