@@ -82,6 +82,8 @@ char *iso_model_json(const struct iso_model *m, struct sf_err *err)
         snprintf(edit, sizeof edit, "/models/%s/edit", m->id);
         json_object_set_new(json_object_get(o, "links"), "edit", json_string(edit));
     }
+    if (o && m->edit) /* (an edit stored with its whole mesh, measured: the figures are this version's) */
+        json_object_set_new(o, "topology_version", json_integer(m->edits + 1));
     if (o && m->edit)
         json_object_set_new(o, "edit",
                             json_pack("{s:s, s:I, s:I, s:I, s:b, s:f}", "region", m->edit->region, "cells_rebuilt",

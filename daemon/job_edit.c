@@ -244,15 +244,15 @@ static int figures_all(struct live *e)
     return rc;
 }
 
-/* Whether a part of the volume (its options), applied to e as ed tells, took out every triangle
- * and numbered the new ones on from the counter: an iso change (POST /models/{id}/iso), or a kept
- * marching cubes' redraw of every cell. Its change may come without corners: the figures are
- * then those of the new mesh, read whole (figures_of). */
-static bool whole_change(const struct live *e, const char *options, const struct iso_edit *ed)
+/* Whether a part of the volume (its options), applied as ed tells, took out every triangle and
+ * numbered the new ones on from the counter: an iso change (POST /models/{id}/iso), or an edit
+ * that drew every cell again (ed->whole: a pad move; any edit of a merge=pieces model). Its change
+ * may come without corners: the figures are then those of the new mesh, read whole (figures_of). */
+static bool whole_change(const char *options, const struct iso_edit *ed)
 {
     char value[64];
     query_option(options, "value", value, sizeof value);
-    return value[0] != 0 || (e->x.k && ed->whole);
+    return value[0] != 0 || ed->whole;
 }
 
 /* What change ch (not whole) did to the figures (*dv, *da added to), e->fig following it: 0 or -1. */
@@ -383,7 +383,7 @@ static int catch_up(struct service *svc, struct live *e, struct sf_err *err)
                                    e->x.a || e->x.k ? &ch : NULL, err)))
             e->next_seq++, e->checked = false; /* (another node's part: its ids are checked before they are used) */
         if (!rc && (e->x.a || e->x.k) &&
-            (whole_change(e, parts[k].options, &ed) ? figures_all(e) : figures_move(e, &ch, &dv, &da)))
+            (whole_change(parts[k].options, &ed) ? figures_all(e) : figures_move(e, &ch, &dv, &da)))
             rc = sf_fail(err, SF_ENOMEM, "", "out of memory");
         iso_change_free(&ch);
     }
@@ -624,7 +624,7 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     part_options(rec->options, w->job.claim.id, opts, sizeof opts);
     struct volume_rec part = {e->next_seq, strcmp(rec->format, "iso") ? "edit" : "iso", opts, rec->request,
                               rec->request_len};
-    bool whole = keeps && whole_change(e, part.options, &me.e);
+    bool whole = keeps && whole_change(part.options, &me.e);
     char *bytes = NULL;
     size_t len = 0;
     if (keeps && e->checked && !whole) {

@@ -127,7 +127,9 @@ void iso_adapt_free(struct iso_adapt *a);
  * (normals and the joins read one block further), out to whole cells of the coarsest level. The
  * mesh is then the one a fresh extraction of the edited samples gives, triangle for triangle
  * (in another order). When the samples' least value moves the pad layer (closed), every cell is
- * drawn again (whole). The samples of the grid given to iso_adapt_begin are no longer read. */
+ * drawn again (whole: every triangle is then taken out, and the new ones numbered on from the
+ * counter, as merge=pieces' edits and kept.h's iso changes do). The samples of the grid given to
+ * iso_adapt_begin are no longer read. */
 struct iso_edit {
     long cells_rebuilt, triangles_removed, triangles_added;
     bool whole;

@@ -188,6 +188,16 @@ code2=$(status GET "/models/$ID/mesh?format=delta&since=8"); cp "$T/body" "$T/dv
 status GET "/models/$ID/mesh?format=stl" >/dev/null; cp "$T/body" "$T/v.stl"
 check "... kill -9 right after an edit's 200; an edit after the restart (rebuilt): version 10, the delta since 8 applies" '[ "$code" = 200 ] && [ "$v" = 10 ] && [ "$code2" = 200 ] && client apply "$T/dv" && client same "$T/v.stl"'
 
+# merge=pieces: every edit draws the whole mesh again, which the store keeps as the model's new base
+# with a change of its ids only ("SFMW", 4 bytes a triangle, as an iso change's): each delta since
+# the version before still applies by id
+code=$(status POST "/isosurface?iso=226.5&levels=3&max_error=1&merge=pieces&dims=64,64,64&type=int16&spacing=0.9570312,0.9570312,1.5" -H "$RAW" --data-binary @"$CT")
+ID=$(field id)
+status GET "/models/$ID/mesh?format=delta&since=0" >/dev/null; cp "$T/body" "$T/d0"; client load "$T/d0"
+follow 20,24,17 30,8,40
+whole=$(sqlite3 "$T/d/surfd.db" "SELECT count(*) FROM model_volumes WHERE model='$ID' AND seq<0 AND hex(substr(data,1,4))='53464D57'")
+check "merge=pieces: two edits, each stored whole (a new base, its change of ids only: $whole), each delta since the version before applied by id gives the STL" '[ $ok = 1 ] && [ $figures = 1 ] && [ "$v" = 3 ] && [ "$whole" -ge 1 ]'
+
 # PostgreSQL: kill -9 right after an edit's 200 loses nothing there either
 . tests/tools/pg.inc
 stop_daemon

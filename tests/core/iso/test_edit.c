@@ -67,8 +67,8 @@ static bool as_fresh(const struct iso_adapt *a, const struct iso_grid *g, const 
 
 /* A block of n^3 int16 samples at lo written into a's samples and into the copy vol (nx^3): a
  * ball of value in of radius r about the block's centre, value out round it. */
-static bool edit_ball(struct iso_adapt *a, int16_t *vol, int nx, const int lo[3], int n, double r, int16_t in,
-                      int16_t out, struct iso_edit *ed)
+static bool edit_ball_ids(struct iso_adapt *a, int16_t *vol, int nx, const int lo[3], int n, double r, int16_t in,
+                          int16_t out, struct iso_edit *ed, struct iso_change *ch)
 {
     int16_t *blk = malloc((size_t)n * n * n * sizeof *blk);
     for (int z = 0; z < n; z++)
@@ -82,11 +82,17 @@ static bool edit_ball(struct iso_adapt *a, int16_t *vol, int nx, const int lo[3]
             }
     struct iso_grid bg = {n, n, n, ISO_I16, blk, {1, 1, 1}, {0, 0, 0}};
     struct sf_err err = {0};
-    int rc = iso_adapt_edit(a, lo, &bg, ed, &err);
+    int rc = iso_adapt_edit_ids(a, lo, &bg, ed, ch, &err);
     if (rc)
         fprintf(stderr, "  edit: %s\n", err.message);
     free(blk);
     return rc == 0;
+}
+
+static bool edit_ball(struct iso_adapt *a, int16_t *vol, int nx, const int lo[3], int n, double r, int16_t in,
+                      int16_t out, struct iso_edit *ed)
+{
+    return edit_ball_ids(a, vol, nx, lo, n, r, in, out, ed, NULL);
 }
 
 /* The shared CT crop's samples (NULL when missing: a failed check), and its grid over them. */
@@ -152,9 +158,19 @@ TEST(a_new_least_sample_redraws_every_cell)
     struct iso_adapt *a = kept(&g, &o, 3, 1.0);
     CHECK(a != NULL);
     struct iso_edit ed;
-    CHECK(edit_ball(a, vol, 64, (int[3]){10, 10, 10}, 8, 3, (int16_t)(least - 500), 0, &ed));
+    struct iso_change ch = {0};
+    struct trimesh before;
+    struct iso_adapt_stats st;
+    CHECK(iso_adapt_mesh(a, &before, &st, &(struct sf_err){0}) == 0);
+    CHECK(edit_ball_ids(a, vol, 64, (int[3]){10, 10, 10}, 8, 3, (int16_t)(least - 500), 0, &ed, &ch));
     CHECK(ed.whole);
     CHECK(as_fresh(a, &g, &o, 3, 1.0));
+    /* (a whole change: every triangle out, the new ones numbered on from the counter: the daemon
+     * stores the new mesh as the model's base, job_edit.c) */
+    CHECK(ch.n_removed == before.n_tri && ch.n_added == (size_t)ed.triangles_added &&
+          ch.next_id == ch.added[0] + ch.n_added && ch.added[ch.n_added - 1] == ch.next_id - 1);
+    trimesh_free(&before);
+    iso_change_free(&ch);
     CHECK(edit_ball(a, vol, 64, (int[3]){10, 10, 10}, 8, 3, 0, 0, &ed)); /* the least one gone again */
     CHECK(ed.whole);
     CHECK(as_fresh(a, &g, &o, 3, 1.0));
