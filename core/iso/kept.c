@@ -327,32 +327,6 @@ static int install(struct iso_kept *k, const uint32_t *vmap, bool corners, struc
     return 0;
 }
 
-/* The box's vertex lists (after a swap: the pool's old ones, none after the first redraw) as large
- * as the pool's, their memory touched: so that the next redraw (the first iso change after the
- * begin: an iso slider's first move) does not grow them cell by cell and fault its pages in. */
-static int box_ready(struct iso_box *x, size_t cap, bool normals, struct sf_err *err)
-{
-    if (x->cap_vert >= cap)
-        return 0;
-    float *p = realloc(x->pos, cap * 3 * sizeof *p);
-    if (p)
-        x->pos = p;
-    float *q = normals ? realloc(x->nrm, cap * 3 * sizeof *q) : x->nrm;
-    if (q)
-        x->nrm = q;
-    uint64_t *y = realloc(x->key, cap * sizeof *y);
-    if (y)
-        x->key = y;
-    if (!p || (normals && !q) || !y)
-        return sf_fail(err, SF_ENOMEM, "", "out of memory");
-    memset(x->pos, 0, cap * 3 * sizeof *p);
-    if (normals)
-        memset(x->nrm, 0, cap * 3 * sizeof *q);
-    memset(x->key, 0, cap * sizeof *y);
-    x->cap_vert = cap;
-    return 0;
-}
-
 /* Every triangle out (their ids into ch), and the whole grid drawn again at k's iso and pad: the
  * blocks that straddle it. */
 static int redraw_all(struct iso_kept *k, bool corners, struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
@@ -414,8 +388,12 @@ static int redraw_all(struct iso_kept *k, bool corners, struct iso_edit *ed, str
     x->pos = p, x->nrm = q, x->key = y, x->cap_vert = cap;
     k->n_vert = x->n_vert;
     k->n_free = 0;
-    if ((rc = pool_room(k, k->n_vert, err)) || (rc = box_ready(x, k->cap_vert, k->o.normals, err)))
+    if ((rc = pool_room(k, k->n_vert, err)))
         return rc;
+    /* the box's vertex lists (the pool's old ones: none after the first redraw) as large as the
+     * pool's and touched now, not in the next redraw (an iso slider's first move) */
+    if (x->cap_vert < k->cap_vert && iso_box_reserve(x, k->cap_vert, k->o.normals))
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
     if (k->n_vert)
         memset(k->ref, 0, k->n_vert * sizeof *k->ref);
     /* each block's room at once: most blocks get their triangles in one piece */

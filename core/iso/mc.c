@@ -1440,6 +1440,21 @@ int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pa
     return 0;
 }
 
+int iso_box_reserve(struct iso_box *b, size_t verts, bool normals)
+{
+    size_t n = b->n_vert;
+    b->n_vert = 0; /* (room for verts from the start) */
+    bool ok = box_grow(b, verts, 0, normals);
+    b->n_vert = n;
+    if (!ok)
+        return -1;
+    memset(b->pos, 0, b->cap_vert * 3 * sizeof *b->pos);
+    if (normals)
+        memset(b->nrm, 0, b->cap_vert * 3 * sizeof *b->nrm);
+    memset(b->key, 0, b->cap_vert * sizeof *b->key);
+    return 0;
+}
+
 size_t iso_box_bytes(const struct iso_box *b)
 {
     return b->cap_vert * ((b->nrm ? 6 : 3) * sizeof(float) + sizeof(uint64_t)) + b->cap_tri * 4 * sizeof(uint32_t) +

@@ -127,6 +127,9 @@ static inline uint64_t iso_vertex_key(int NX, int NY, int I, int J, int K, int k
  * then half made), SF_ELIMIT (over ISO_MAX_VERTICES). */
 int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pad, const int lo[3], const int hi[3],
                     const uint8_t *mask, int mask_b, struct iso_box *out, struct sf_err *err);
+/* Room in out's vertex lists for verts vertices, their memory touched (so that a later pass
+ * neither grows them cell by cell nor faults their pages in). 0, or -1: no memory. */
+int iso_box_reserve(struct iso_box *out, size_t verts, bool normals);
 /* The bytes out holds. */
 size_t iso_box_bytes(const struct iso_box *out);
 void iso_box_free(struct iso_box *out);
