@@ -63,6 +63,16 @@ static void radix_sort(uint64_t *a, uint64_t *tmp, size_t *count, size_t n)
     }
 }
 
+/* Below this many keys qsort: the radix's 2^16 counts (512 KB, cleared each pass) cost more than
+ * the sort itself, and meshes of a few triangles are measured by the thousand (label maps' cells). */
+#define RADIX_MIN 4096
+
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return (x > y) - (x < y);
+}
+
 static uint32_t find(uint32_t *parent, uint32_t v)
 {
     while (parent[v] != v) {
@@ -126,18 +136,22 @@ int trimesh_stats(const struct trimesh *m, struct trimesh_stats *out, struct sf_
             if (ra != rb)
                 parent[ra] = rb;
         }
-    uint64_t *tmp = malloc(nh * sizeof *tmp);
-    size_t *count = malloc(sizeof *count << 16);
-    if (!tmp || !count) {
+    if (nh < RADIX_MIN) {
+        qsort(h, nh, sizeof *h, cmp_u64);
+    } else {
+        uint64_t *tmp = malloc(nh * sizeof *tmp);
+        size_t *count = malloc(sizeof *count << 16);
+        if (!tmp || !count) {
+            free(tmp);
+            free(count);
+            free(h);
+            free(parent);
+            return sf_fail(err, SF_ENOMEM, "", "out of memory measuring a mesh of %zu triangles", m->n_tri);
+        }
+        radix_sort(h, tmp, count, nh);
         free(tmp);
         free(count);
-        free(h);
-        free(parent);
-        return sf_fail(err, SF_ENOMEM, "", "out of memory measuring a mesh of %zu triangles", m->n_tri);
     }
-    radix_sort(h, tmp, count, nh);
-    free(tmp);
-    free(count);
     long edges = 0;
     for (size_t i = 0; i < nh;) {
         size_t j = i;

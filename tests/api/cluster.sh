@@ -49,9 +49,10 @@ until_job() {
     done
     return 1
 }
-# a render of about 15 s on one sanitized worker, in bands a cancel stops between
+# long_render NODE [SIZE]: a render of about 15 s on one sanitized worker (SIZE 240: 5 s, for a job
+# that is taken over and run again whole), in bands a cancel stops between
 long_render() {
-    on "$1" POST "/render?width=400&height=400&method=montecarlo" -H 'Prefer: respond-async' -H "$J" \
+    on "$1" POST "/render?width=${2:-400}&height=${2:-400}&method=montecarlo" -H 'Prefer: respond-async' -H "$J" \
         --data-binary @"${SURFD_DATA:-../shared/data}/scenes/teacup.json" >/dev/null
     field id
 }
@@ -134,7 +135,7 @@ check "... and it stops there within seconds" 'until_job "$other" "$busy" state 
 section kill
 # ---- kill -9 of a node mid-render: its job finishes once, elsewhere ------------------------------------
 start_node n3 --threads 1
-id=$(long_render n2)
+id=$(long_render n2 240)
 until_job n2 "$id" state running 20
 victim=$(job_field n2 "$id" node)
 node_kill "$victim"
@@ -148,7 +149,7 @@ start_node "$victim" --threads 1
 
 section stop
 # ---- a node stopped past its lease cannot finish the job it lost ------------------------------------------
-id=$(long_render n1)
+id=$(long_render n1 240)
 until_job n1 "$id" state running 20
 frozen=$(job_field n1 "$id" node)
 eval "kill -STOP \$PID_$frozen"

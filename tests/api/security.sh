@@ -69,7 +69,7 @@ stop_daemon
 
 # ---- 10d: an upload cut by kill -9 is swept at the next start -----------------------------------
 start_daemon "$T/d2" --max-volume 100000000 || exit 1
-python3 - "$PORT" <<'EOF' &
+"$PYTHON3" - "$PORT" <<'EOF' &
 import socket, sys, time
 s = socket.create_connection(("127.0.0.1", int(sys.argv[1])))
 s.sendall(b"POST /isosurface?dims=300,100,500&type=uint16&iso=1 HTTP/1.1\r\nHost: x\r\n"

@@ -569,11 +569,11 @@ static bool tris_cut(const double *p[3], const double *q[3])
 }
 
 struct near_tri {
-    double lo[3], hi[3];
+    double lo[3], hi[3]; /* (axes turned: the sweep's first) */
     size_t t;
 };
 
-static int by_x0(const void *a, const void *b)
+static int by_lo0(const void *a, const void *b)
 {
     double x = ((const struct near_tri *)a)->lo[0], y = ((const struct near_tri *)b)->lo[0];
     return (x > y) - (x < y);
@@ -588,21 +588,34 @@ static bool cap_plane(const struct contour_set *cs, double z)
     return on;
 }
 
-/* Pairs of triangles that cut each other, by a sweep along x: those where one lies in a plane where
- * tubes end and begin (a cap's), returned, and the others (a side folding on itself, a cavity
- * cutting the outer surface) into *others. */
+/* Pairs of triangles that cut each other, by a sweep along the axis where the triangles' boxes
+ * overlap least (every pair whose boxes meet is tried once, whichever the axis): those where one
+ * lies in a plane where tubes end and begin (a cap's), returned, and the others (a side folding on
+ * itself, a cavity cutting the outer surface) into *others. */
 static int cutting_pairs(const struct solid_mesh *m, const struct contour_set *cs, int *others)
 {
     size_t n = m->n_t;
     struct near_tri *nt = malloc(sizeof *nt * n);
+    double ext[3] = {0, 0, 0}, lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t t = 0; t < n; t++) {
         struct near_tri x = {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}, t};
         for (int i = 0; i < 3; i++)
             for (int c = 0; c < 3; c++)
                 x.lo[c] = fmin(x.lo[c], m->v[m->t[t][i]][c]), x.hi[c] = fmax(x.hi[c], m->v[m->t[t][i]][c]);
+        for (int c = 0; c < 3; c++)
+            ext[c] += x.hi[c] - x.lo[c], lo[c] = fmin(lo[c], x.lo[c]), hi[c] = fmax(hi[c], x.hi[c]);
         nt[t] = x;
     }
-    qsort(nt, n, sizeof *nt, by_x0);
+    int ax = 0; /* the boxes' mean extent the least part of the mesh's */
+    for (int c = 1; c < 3; c++)
+        if (ext[c] * (hi[ax] - lo[ax]) < ext[ax] * (hi[c] - lo[c]))
+            ax = c;
+    for (size_t t = 0; ax && t < n; t++) { /* the sweep's axis first, the z of a cap's plane kept below */
+        double l = nt[t].lo[0], h = nt[t].hi[0];
+        nt[t].lo[0] = nt[t].lo[ax], nt[t].hi[0] = nt[t].hi[ax], nt[t].lo[ax] = l, nt[t].hi[ax] = h;
+    }
+    const int z = ax == 2 ? 0 : 2;
+    qsort(nt, n, sizeof *nt, by_lo0);
     int pairs = 0;
     *others = 0;
     for (size_t a = 0; a < n; a++)
@@ -617,8 +630,8 @@ static int cutting_pairs(const struct solid_mesh *m, const struct contour_set *c
                     shared |= ta[i] == tb[k];
             const double *p[3] = {m->v[ta[0]], m->v[ta[1]], m->v[ta[2]]}, *q[3] = {m->v[tb[0]], m->v[tb[1]], m->v[tb[2]]};
             if (!shared && tris_cut(p, q))
-                ++*((nt[a].lo[2] == nt[a].hi[2] && cap_plane(cs, nt[a].lo[2])) ||
-                            (nt[b].lo[2] == nt[b].hi[2] && cap_plane(cs, nt[b].lo[2]))
+                ++*((nt[a].lo[z] == nt[a].hi[z] && cap_plane(cs, nt[a].lo[z])) ||
+                            (nt[b].lo[z] == nt[b].hi[z] && cap_plane(cs, nt[b].lo[z]))
                         ? &pairs
                         : others);
         }

@@ -45,8 +45,9 @@ if [ "$fail" -eq 0 ]; then
     if [ -x "$ORTHANC_BIN" ] && orthanc_start "$T/orthanc" "SURFD@127.0.0.1:$DP"; then
         orthanc_upload "$DD"/*.dcm >"$T/ids" || bad "Orthanc refused the CT"
         echo "ORTHANC 127.0.0.1 $ORTHANC_DICOM_PORT" >"$T/peers"
+        # (--drain-timeout 1: a render the page let go of runs on, and the stop would wait for it)
         # shellcheck disable=SC2046 # (the instances' ids, one a word)
-        start_daemon "$T/open" --threads 2 --dicom-listen "$DP" --dicom-peers "$T/peers" --series-idle 1 \
+        start_daemon "$T/open" --threads 2 --drain-timeout 1 --dicom-listen "$DP" --dicom-peers "$T/peers" --series-idle 1 \
             --pacs "orthanc=$ORTHANC_DICOMWEB" --pacs-credentials "orthanc=$ORTHANC_CREDENTIALS" &&
             { orthanc_send surfd $(cat "$T/ids") >/dev/null || bad "Orthanc could not send the CT to surfd"; } &&
             SERIES=$(curl -s "$URL/series" | python3 -c "import json,sys; print(json.load(sys.stdin)['series'][0]['uid'])") &&

@@ -92,7 +92,8 @@ static double tri_dist(const double p[3], const double a[3], const double b[3], 
 
 /* The largest distance from the points at quarters (barycentric steps of 1/4) of every triangle of
  * from to the surface of to (reach at most: a point farther than reach from every triangle counts
- * as reach), the triangles of to binned in a grid of cells of side reach by their boxes. */
+ * as reach), the triangles of to binned in a grid of cells of side reach by their boxes; a triangle
+ * whose box is no nearer than the nearest so far is passed over (it cannot be nearer). */
 static double farthest_dense(const struct trimesh *from, const struct trimesh *to, double reach)
 {
     double lo[3] = {INFINITY, INFINITY, INFINITY}, worst = 0;
@@ -108,8 +109,12 @@ static double farthest_dense(const struct trimesh *from, const struct trimesh *t
         nb[d] = (int)((hi[d] - lo[d]) / reach) + 1;
     size_t nbins = (size_t)nb[0] * nb[1] * nb[2];
     size_t *start = calloc(nbins + 1, sizeof *start), *list = NULL, n_list = 0;
-    if (!start)
+    double(*box)[6] = malloc((to->n_tri + 1) * sizeof *box); /* each triangle's least and greatest x, y, z */
+    if (!start || !box) {
+        free(start);
+        free(box);
         return INFINITY;
+    }
     for (int pass = 0; pass < 2; pass++) {
         for (size_t t = 0; t < to->n_tri; t++) {
             int b0[3], b1[3];
@@ -118,6 +123,7 @@ static double farthest_dense(const struct trimesh *from, const struct trimesh *t
                 for (int k = 0; k < 3; k++)
                     mn = fmin(mn, to->pos[3 * to->tri[3 * t + k] + d]), mx = fmax(mx, to->pos[3 * to->tri[3 * t + k] + d]);
                 b0[d] = (int)((mn - reach - lo[d]) / reach), b1[d] = (int)((mx + reach - lo[d]) / reach);
+                box[t][d] = mn, box[t][3 + d] = mx;
             }
             for (int z = b0[2]; z <= b1[2]; z++)
                 for (int y = b0[1]; y <= b1[1]; y++)
@@ -135,6 +141,7 @@ static double farthest_dense(const struct trimesh *from, const struct trimesh *t
             n_list = start[nbins];
             if (!(list = malloc((n_list + 1) * sizeof *list))) {
                 free(start);
+                free(box);
                 return INFINITY;
             }
         } else {
@@ -157,6 +164,13 @@ static double farthest_dense(const struct trimesh *from, const struct trimesh *t
                 double best = reach;
                 for (size_t j = start[at]; j < start[at + 1]; j++) {
                     size_t t = list[j];
+                    double e = 0;
+                    for (int d = 0; d < 3; d++) {
+                        double o = fmax(box[t][d] - p[d], p[d] - box[t][3 + d]);
+                        e += o > 0 ? o * o : 0;
+                    }
+                    if (e >= best * best)
+                        continue;
                     double A[3], B[3], C[3];
                     for (int d = 0; d < 3; d++)
                         A[d] = to->pos[3 * to->tri[3 * t] + d], B[d] = to->pos[3 * to->tri[3 * t + 1] + d],
@@ -167,6 +181,7 @@ static double farthest_dense(const struct trimesh *from, const struct trimesh *t
             }
     free(start);
     free(list);
+    free(box);
     return worst;
 }
 
