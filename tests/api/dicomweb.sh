@@ -140,7 +140,7 @@ mkdir "$T/w5"
 dw --attempts 1 "http://127.0.0.1:$down/dicom-web" retrieve "$STUDY" "$SERIES" "$T/w5" 1000000 >"$T/out" 2>"$T/err"; rc=$?
 check "WADO from a PACS that is down fails, nothing written" '[ $rc = 1 ] && grep -q "cannot be reached" "$T/err" && [ -z "$(ls "$T/w5")" ]'
 # a PACS that takes the connection and never answers: the stall timeout ends each attempt
-python3 -c '
+"$PYTHON3" -c '
 import socket, sys, time
 s = socket.socket(); s.bind(("127.0.0.1", 0)); s.listen(8)
 print(s.getsockname()[1], flush=True)
