@@ -39,9 +39,8 @@ struct ktri {
 };
 
 struct kblock {
-    struct ktri *t;                  /* in id order: its slice of the arena, or its own once an edit grew it */
+    struct ktri *t;                  /* in id order */
     uint32_t n, cap;
-    bool own;
 };
 
 struct iso_kept {
@@ -55,8 +54,6 @@ struct iso_kept {
     double least, most;              /* of the samples */
     float pad;
     struct kblock *blk;
-    struct ktri *arena;              /* the blocks' triangles as the last redraw of every cell laid them out */
-    size_t arena_cap;
     float *pos, *nrm;                /* the vertex pool: 3 each a slot */
     uint64_t *key;
     uint32_t *ref;                   /* triangles that use the slot (0: free) */
@@ -250,37 +247,10 @@ static int block_room(struct kblock *b, size_t n, struct sf_err *err)
     if (n <= b->cap)
         return 0;
     size_t cap = b->cap * 2 > n ? b->cap * 2 : n < 8 ? 8 : n;
-    struct ktri *t = b->own ? realloc(b->t, cap * sizeof *t) : malloc(cap * sizeof *t);
+    struct ktri *t = realloc(b->t, cap * sizeof *t);
     if (!t)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
-    if (!b->own && b->n)
-        memcpy(t, b->t, b->n * sizeof *t);
-    b->t = t, b->cap = (uint32_t)cap, b->own = true;
-    return 0;
-}
-
-/* The blocks' room for the box's triangles (their counts in blk[].n, set back to 0) as slices of
- * one arena, kept from redraw to redraw with room to spare and touched when it grows: so that an
- * iso change neither allocates nor faults in memory block by block. 0 or SF_ENOMEM. */
-static int lay_out(struct iso_kept *k, size_t n_tri, struct sf_err *err)
-{
-    if (n_tri > k->arena_cap) {
-        size_t cap = n_tri + n_tri / 2 + 1024;
-        struct ktri *a = realloc(k->arena, cap * sizeof *a);
-        if (!a)
-            return sf_fail(err, SF_ENOMEM, "", "out of memory");
-        memset(a, 0, cap * sizeof *a);
-        k->arena = a, k->arena_cap = cap;
-    }
-    size_t at = 0;
-    for (size_t b = 0; b < k->n_blocks; b++) {
-        struct kblock *kb = &k->blk[b];
-        if (kb->own)
-            free(kb->t);
-        kb->t = k->arena + at, kb->cap = kb->n, kb->own = false;
-        at += kb->n;
-        kb->n = 0;
-    }
+    b->t = t, b->cap = (uint32_t)cap;
     return 0;
 }
 
@@ -426,16 +396,18 @@ static int redraw_all(struct iso_kept *k, bool corners, struct iso_edit *ed, str
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     if (k->n_vert)
         memset(k->ref, 0, k->n_vert * sizeof *k->ref);
-    /* each block's triangles counted, and laid out in the arena */
+    /* each block's room at once: most blocks get their triangles in one piece */
     for (size_t i = 0, run = 0; i < x->n_tri; i += run) {
         uint16_t local;
         size_t b = cell_block(k, x->cell[i], &local);
         for (run = 1; i + run < x->n_tri && x->cell[i + run] == x->cell[i]; run++)
             ;
-        k->blk[b].n += (uint32_t)run;
+        if ((rc = block_room(&k->blk[b], k->blk[b].n + run, err)))
+            return rc;
+        k->blk[b].n += (uint32_t)run; /* (counted here, set back below) */
     }
-    if ((rc = lay_out(k, x->n_tri, err)))
-        return rc;
+    for (size_t b = 0; b < k->n_blocks; b++)
+        k->blk[b].n = 0;
     rc = install(k, NULL, corners, ch, err);
     if (!rc)
         for (size_t v = 0; v < k->n_vert; v++) /* (every box vertex is used) */
@@ -787,8 +759,7 @@ size_t iso_kept_bytes(const struct iso_kept *k)
     size_t n = sizeof *k + (size_t)k->g.nx * (size_t)k->g.ny * (size_t)k->g.nz * k->esize;
     n += k->n_blocks * (2 * sizeof(float) + 1 + sizeof(struct kblock));
     for (size_t b = 0; b < k->n_blocks; b++)
-        n += k->blk[b].own ? k->blk[b].cap * sizeof(struct ktri) : 0;
-    n += k->arena_cap * sizeof(struct ktri);
+        n += k->blk[b].cap * sizeof(struct ktri);
     n += k->cap_vert * ((k->nrm ? 6 : 3) * sizeof(float) + sizeof(uint64_t)) + k->ref_cap * 2 * sizeof(uint32_t);
     n += k->map_cap * (sizeof(uint64_t) + sizeof(uint32_t)) + k->vmap_cap * sizeof(uint32_t);
     return n + iso_box_bytes(&k->box);
@@ -804,10 +775,8 @@ void iso_kept_free(struct iso_kept *k)
     free(k->mask);
     if (k->blk)
         for (size_t b = 0; b < k->n_blocks; b++)
-            if (k->blk[b].own)
-                free(k->blk[b].t);
+            free(k->blk[b].t);
     free(k->blk);
-    free(k->arena);
     free(k->pos);
     free(k->nrm);
     free(k->key);
