@@ -13,6 +13,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <stdatomic.h>
 #include <sys/stat.h>
 #include <unistd.h>
 #include <time.h>
@@ -20,12 +23,20 @@
 #include "store_backend.h"
 #include "store_walmark.h"
 
+/* Names of value files (lock held). */
+struct names {
+    char (*v)[64];
+    size_t n, cap;
+};
+
 struct sqlite_store {
     struct store base;
     sqlite3 *db;
     pthread_mutex_t lock;
     char path[1024];         /* DIR/surfd.db */
     char uploads[1024];      /* DIR/uploads: streamed request bodies, one file a job */
+    char values[1024];       /* DIR/values: values of VALUE_FILE bytes or more, one file each */
+    struct names written, dropped; /* value files since the last commit: written, and whose rows went */
     struct walmark *mark;    /* what the WAL held at the last commit (store_walmark.h); NULL in
                                 a process that does not serve the store while another does */
 };
@@ -100,10 +111,24 @@ static const char *const MIGRATIONS[] = {
     "ALTER TABLE models ADD COLUMN base_version INTEGER NOT NULL DEFAULT 0",
 };
 
+/* The value files of rows that go (values kept as files, below): TEMP, so that the schema names no
+ * function of surfd's (the sqlite3 shell can still change the file). */
+static const char VALUE_TRIGGERS[] =
+#define DROPS(table, col)                                                                                           \
+    "CREATE TEMP TRIGGER IF NOT EXISTS " #table "_" #col "_file AFTER DELETE ON main." #table                      \
+    " WHEN typeof(old." #col ")='text' BEGIN SELECT surfd_drop(old." #col "); END;"                                  \
+    "CREATE TEMP TRIGGER IF NOT EXISTS " #table "_" #col "_file_update AFTER UPDATE OF " #col " ON main." #table     \
+    " WHEN typeof(old." #col ")='text' AND old." #col " IS NOT new." #col " BEGIN SELECT surfd_drop(old." #col "); END;"
+    DROPS(models, source) DROPS(model_volumes, data) DROPS(meshes, data) DROPS(instances, data) DROPS(jobs, request)
+    DROPS(jobs, result);
+#undef DROPS
+
 static const struct store_ops SQLITE_OPS;
 static void sq_close(struct store *base);
 static void sweep_pieces(struct store *s);
 static void sweep_uploads(struct store *s, bool all);
+static void sweep_values(struct sqlite_store *s);
+static void drop_fn(sqlite3_context *ctx, int argc, sqlite3_value **argv);
 
 int store_sqlite_open(const char *dir, struct store **out, struct sf_err *err)
 {
@@ -121,6 +146,9 @@ int store_sqlite_open(const char *dir, struct store **out, struct sf_err *err)
     snprintf(s->path, sizeof s->path, "%s", path);
     snprintf(s->uploads, sizeof s->uploads, "%s/uploads", dir);
     mkdir(s->uploads, 0700);
+    snprintf(s->values, sizeof s->values, "%s/values", dir);
+    mkdir(s->values, 0700);
+    chmod(s->values, 0700);
     pthread_mutex_init(&s->lock, NULL);
     char *why = NULL;
     bool opened = sqlite3_open_v2(path, &s->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX,
@@ -150,7 +178,15 @@ int store_sqlite_open(const char *dir, struct store **out, struct sf_err *err)
                 return SF_EIO;
             }
         }
+    if (sqlite3_create_function(s->db, "surfd_drop", 1, SQLITE_UTF8, s, drop_fn, NULL, NULL) != SQLITE_OK ||
+        sqlite3_exec(s->db, VALUE_TRIGGERS, NULL, NULL, &why) != SQLITE_OK) {
+        sf_fail(err, SF_EIO, NULL, "%s: %s", path, why ? why : sqlite3_errmsg(s->db));
+        sqlite3_free(why);
+        sq_close(&s->base);
+        return SF_EIO;
+    }
     sweep_pieces(&s->base); /* written by a statement outside a transaction that a stop cut short */
+    sweep_values(s);
     sweep_uploads(&s->base, true);
     *out = &s->base;
     return 0;
@@ -162,6 +198,8 @@ static void sq_close(struct store *base)
     walmark_closing(s->mark);
     sqlite3_close(s->db);
     walmark_free(s->mark);
+    free(s->written.v);
+    free(s->dropped.v);
     pthread_mutex_destroy(&s->lock);
     free(s);
 }
@@ -196,8 +234,206 @@ static int pieces_put(struct store *s, const unsigned char *p, size_t n, char na
     return 0;
 }
 
-/* Column col of st's row: its blob, borrowed from st, or the pieces its TEXT names, assembled into
- * *owned (the caller frees it). NULL (*len 0) for NULL, or when the pieces cannot be read. */
+/* ---- values kept as files ------------------------------------------------------------------
+ * A value of VALUE_FILE bytes or more ('B' and 'P' in run's types: a model's mesh, a job's result,
+ * a cached mesh, a volume kept for edits) is a file of DIR/values, and its column holds
+ * "file:" NAME ":" LENGTH as TEXT. SQLite writes a long blob page by page, each page a system
+ * call into its WAL and another at the checkpoint, and deletes one by reading its chain of
+ * overflow pages: on the CT head an iso change's 27 MB mesh cost 320 ms to store and its 30 MB
+ * delta 200 ms as a job's result, where a file is written and synced in tens of ms. A file is
+ * written (and fdatasync'd: a row never names bytes a power cut could lose) before the statement
+ * that names it; removed after the commit that drops its row (the TEMP triggers of
+ * VALUE_TRIGGERS call surfd_drop, the names kept until then), or after the rollback of the
+ * statement that wrote it; one that no row names (a crash between the two) is swept at the next
+ * start. The sums cover the bytes as before, so `store check` finds a damaged or missing file. */
+
+#define FILE_PREFIX "file:"
+#define VALUE_FILE (1u << 20)
+#define FILE_NAME_HEX 32
+
+/* Whether name is one of ours: "file:", FILE_NAME_HEX hex digits, ":", a length (into *len). */
+static bool file_name_ok(const char *name, size_t *len)
+{
+    size_t p = strlen(FILE_PREFIX);
+    if (strncmp(name, FILE_PREFIX, p))
+        return false;
+    for (size_t k = 0; k < FILE_NAME_HEX; k++)
+        if (!strchr("0123456789abcdef", name[p + k]) || !name[p + k])
+            return false;
+    const char *n = name + p + FILE_NAME_HEX;
+    char *end;
+    unsigned long long v = n[0] == ':' && n[1] >= '0' && n[1] <= '9' ? strtoull(n + 1, &end, 10) : 0;
+    if (n[0] != ':' || !(n[1] >= '0' && n[1] <= '9') || *end)
+        return false;
+    *len = (size_t)v;
+    return true;
+}
+
+/* The path of value file name (already file_name_ok) into out. */
+static void file_path(const struct sqlite_store *s, const char *name, char *out, size_t cap)
+{
+    snprintf(out, cap, "%s/%.*s", s->values, FILE_NAME_HEX, name + strlen(FILE_PREFIX));
+}
+
+static bool names_add(struct names *l, const char *name)
+{
+    if (l->n == l->cap) {
+        size_t cap = l->cap ? 2 * l->cap : 8;
+        char(*v)[64] = realloc(l->v, cap * sizeof *v);
+        if (!v)
+            return false;
+        l->v = v, l->cap = cap;
+    }
+    snprintf(l->v[l->n++], 64, "%s", name);
+    return true;
+}
+
+/* The files of list l removed, and l emptied. */
+static void names_unlink(const struct sqlite_store *s, struct names *l)
+{
+    for (size_t k = 0; k < l->n; k++) {
+        char path[1100];
+        file_path(s, l->v[k], path, sizeof path);
+        unlink(path);
+    }
+    l->n = 0;
+}
+
+/* After a commit: the files whose rows went are removed, those written are the rows' now. */
+static void committed(struct store *base)
+{
+    struct sqlite_store *s = (struct sqlite_store *)base;
+    names_unlink(s, &s->dropped);
+    s->written.n = 0;
+}
+
+/* After a rollback: the rows that went are back, the files written for it are removed. */
+static void rolled_back(struct store *base)
+{
+    struct sqlite_store *s = (struct sqlite_store *)base;
+    s->dropped.n = 0;
+    names_unlink(s, &s->written);
+}
+
+/* surfd_drop(name), called by VALUE_TRIGGERS when a row that names a value file goes (lock held). */
+static void drop_fn(sqlite3_context *ctx, int argc, sqlite3_value **argv)
+{
+    struct sqlite_store *s = sqlite3_user_data(ctx);
+    const char *name = argc == 1 ? (const char *)sqlite3_value_text(argv[0]) : NULL;
+    size_t len;
+    if (name && file_name_ok(name, &len) && !names_add(&s->dropped, name))
+        sqlite3_result_error_nomem(ctx);
+}
+
+/* Writes n bytes at p as a value file (lock held), its name into name: 0, or SF_EIO (a full disk
+ * noted as SQLite's is). */
+static int file_put(struct store *base, const unsigned char *p, size_t n, char name[64])
+{
+    struct sqlite_store *s = (struct sqlite_store *)base;
+    char piece[48], path[1100];
+    if (store_piece_name(piece)) /* ("pieces:" and 32 random hex digits) */
+        return SF_EIO;
+    snprintf(name, 64, FILE_PREFIX "%s:%zu", piece + strlen("pieces:"), n);
+    file_path(s, name, path, sizeof path);
+    int fd = open(path, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    bool ok = fd >= 0;
+    for (size_t at = 0; ok && at < n;) {
+        ssize_t w = write(fd, p + at, n - at);
+        ok = w > 0;
+        at += ok ? (size_t)w : 0;
+    }
+    ok = ok && fdatasync(fd) == 0;
+    if (!ok && errno == ENOSPC)
+        atomic_store(&base->full, true);
+    if (fd >= 0 && close(fd) && ok)
+        ok = false;
+    if (ok && names_add(&s->written, name))
+        return 0;
+    unlink(path);
+    return SF_EIO;
+}
+
+/* Value file name's bytes, read whole into a buffer of its own: NULL when it cannot be read or is
+ * not as long as its name says. */
+static void *file_get(struct sqlite_store *s, const char *name, size_t *len)
+{
+    size_t want;
+    char path[1100];
+    if (!file_name_ok(name, &want))
+        return NULL;
+    file_path(s, name, path, sizeof path);
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    struct stat st;
+    unsigned char *b = fd >= 0 && fstat(fd, &st) == 0 && (size_t)st.st_size == want ? malloc(want ? want : 1) : NULL;
+    size_t at = 0;
+    while (b && at < want) {
+        ssize_t r = read(fd, b + at, want - at);
+        if (r <= 0)
+            break;
+        at += (size_t)r;
+    }
+    if (fd >= 0)
+        close(fd);
+    if (b && at != want) {
+        free(b);
+        b = NULL;
+    }
+    *len = b ? want : 0;
+    return b;
+}
+
+static int cmp_name(const void *a, const void *b) { return strcmp(a, b); }
+
+/* Removes the value files no row names that are older than a minute (a file is named by its row
+ * within the second it is written; one another process is writing now is younger): at start. */
+static void sweep_values(struct sqlite_store *s)
+{
+    struct names named = {0};
+    sqlite3_stmt *st;
+    bool ok = sqlite3_prepare_v2(s->db,
+                                 "SELECT source FROM models WHERE typeof(source)='text'"
+                                 " UNION ALL SELECT data FROM model_volumes WHERE typeof(data)='text'"
+                                 " UNION ALL SELECT data FROM meshes WHERE typeof(data)='text'"
+                                 " UNION ALL SELECT data FROM instances WHERE typeof(data)='text'"
+                                 " UNION ALL SELECT result FROM jobs WHERE typeof(result)='text'"
+                                 " UNION ALL SELECT request FROM jobs WHERE typeof(request)='text'",
+                                 -1, &st, NULL) == SQLITE_OK;
+    int rc = ok ? SQLITE_ROW : SQLITE_ERROR;
+    while (rc == SQLITE_ROW && (rc = sqlite3_step(st)) == SQLITE_ROW) {
+        const char *name = (const char *)sqlite3_column_text(st, 0);
+        size_t len;
+        if (name && file_name_ok(name, &len) && !names_add(&named, name + strlen(FILE_PREFIX)))
+            rc = SQLITE_NOMEM;
+    }
+    if (ok)
+        sqlite3_finalize(st);
+    DIR *d = rc == SQLITE_DONE ? opendir(s->values) : NULL;
+    if (d) {
+        for (size_t k = 0; k < named.n; k++)
+            named.v[k][FILE_NAME_HEX] = 0;
+        if (named.n)
+            qsort(named.v, named.n, sizeof *named.v, cmp_name);
+        struct dirent *e;
+        while ((e = readdir(d))) {
+            char path[1400];
+            struct stat fs;
+            if (e->d_name[0] == '.' ||
+                (named.n && bsearch(e->d_name, named.v, named.n, sizeof *named.v, cmp_name)))
+                continue;
+            snprintf(path, sizeof path, "%s/%s", s->values, e->d_name);
+            if (stat(path, &fs) == 0 && S_ISREG(fs.st_mode) && fs.st_mtime < time(NULL) - 60)
+                unlink(path);
+        }
+        closedir(d);
+    }
+    free(named.v);
+}
+
+/* Column col of st's row: its blob, borrowed from st, or the file or pieces its TEXT names, read
+ * into *owned (the caller frees it). NULL (*len 0) for NULL, or when the pieces cannot be read. The
+ * pieces' total comes from a query of its own: length() reads no overflow page, where a window
+ * sum over the data made SQLite copy every piece into a temporary table first (720 ms for a 27 MB
+ * mesh, against 29 ms). */
 static const void *value_of(struct store *s, sqlite3_stmt *st, int col, size_t *len, void **owned)
 {
     *owned = NULL;
@@ -208,26 +444,32 @@ static const void *value_of(struct store *s, sqlite3_stmt *st, int col, size_t *
         return b ? b : *len ? NULL : "";
     }
     const char *name = (const char *)sqlite3_column_text(st, col);
+    if (name && !strncmp(name, FILE_PREFIX, strlen(FILE_PREFIX)))
+        return *owned = file_get((struct sqlite_store *)s, name, len);
     sqlite3_stmt *q;
     if (!name || strncmp(name, PIECES_PREFIX, strlen(PIECES_PREFIX)) ||
-        sqlite3_prepare_v2(db_of(s), "SELECT data, sum(length(data)) OVER () FROM pieces WHERE name=? ORDER BY seq", -1,
-                           &q, NULL) != SQLITE_OK)
+        sqlite3_prepare_v2(db_of(s), "SELECT sum(length(data)) FROM pieces WHERE name=?", -1, &q, NULL) != SQLITE_OK)
         return NULL;
     sqlite3_bind_text(q, 1, name, -1, SQLITE_STATIC);
-    unsigned char *b = NULL;
+    int rc = sqlite3_step(q);
+    sqlite3_int64 total = rc == SQLITE_ROW ? sqlite3_column_int64(q, 0) : -1;
+    sqlite3_finalize(q);
+    unsigned char *b = total >= 0 ? malloc(total ? (size_t)total : 1) : NULL;
+    if (!b || sqlite3_prepare_v2(db_of(s), "SELECT data FROM pieces WHERE name=? ORDER BY seq", -1, &q, NULL) != SQLITE_OK) {
+        free(b);
+        return NULL;
+    }
+    sqlite3_bind_text(q, 1, name, -1, SQLITE_STATIC);
     size_t at = 0;
-    int rc;
     while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
-        size_t total = (size_t)sqlite3_column_int64(q, 1), n = (size_t)sqlite3_column_bytes(q, 0);
-        if (!b && !(b = malloc(total ? total : 1)))
-            break;
-        if (at + n > total)
+        size_t n = (size_t)sqlite3_column_bytes(q, 0);
+        if (at + n > (size_t)total)
             break;
         memcpy(b + at, sqlite3_column_blob(q, 0), n);
         at += n;
     }
     sqlite3_finalize(q);
-    if (rc != SQLITE_DONE || !b) {
+    if (rc != SQLITE_DONE || at != (size_t)total) {
         free(b);
         return NULL;
     }
@@ -284,8 +526,14 @@ static sqlite3_stmt *prepare(struct store *s, const char *sql, const char *types
         case 'P': {
             const void *p = va_arg(ap, const void *);
             size_t n = va_arg(ap, size_t);
-            char name[48];
-            if ((types[k - 1] == 'B' && n > s->piece) || (types[k - 1] == 'P' && n > MOVED_OUT)) {
+            char name[64];
+            if (types[k - 1] != 'b' && n >= VALUE_FILE) {
+                if (file_put(s, p, n, name)) {
+                    sqlite3_finalize(st);
+                    return NULL;
+                }
+                sqlite3_bind_text(st, k, name, -1, SQLITE_TRANSIENT);
+            } else if ((types[k - 1] == 'B' && n > s->piece) || (types[k - 1] == 'P' && n > MOVED_OUT)) {
                 if (pieces_put(s, p, n, name)) {
                     sqlite3_finalize(st);
                     return NULL;
@@ -312,6 +560,8 @@ static int sq_get(struct store *s, const char *id, bool with_request, bool with_
 /* Runs one statement to its end: the rows it changed (or, a query, returned), or SF_EIO. */
 static int vrun(struct store *s, const char *sql, const char *types, va_list ap)
 {
+    struct names *written = &((struct sqlite_store *)s)->written;
+    size_t before = written->n;
     sqlite3_stmt *st = prepare(s, sql, types, ap);
     int rc = st ? sqlite3_step(st) : SQLITE_ERROR, rows = 0;
     while (rc == SQLITE_ROW)
@@ -320,6 +570,13 @@ static int vrun(struct store *s, const char *sql, const char *types, va_list ap)
     if ((rc & 0xff) == SQLITE_FULL) /* the unix VFS's ENOSPC */
         atomic_store(&s->full, true);
     sqlite3_finalize(st);
+    if (n <= 0 && written->n > before) { /* value files no row names (a lost claim's result; a model gone) */
+        struct names mine = {written->v + before, written->n - before, 0};
+        names_unlink((struct sqlite_store *)s, &mine);
+        written->n = before;
+    }
+    if (sqlite3_get_autocommit(db_of(s))) /* the statement's own transaction, or the one it ended, is over */
+        n >= 0 && strncmp(sql, "ROLLBACK", 8) ? committed(s) : rolled_back(s);
     return n;
 }
 
@@ -1000,10 +1257,10 @@ static int sq_mesh_get(struct store *s, const char *model, const char *key, stru
     return rc;
 }
 
-/* A cached mesh's bytes, in its row or its pieces. */
+/* A cached mesh's bytes, in its row, its file (the length its name ends with) or its pieces. */
 #define MESH_BYTES                                                                                                  \
-    "CASE typeof(data) WHEN 'text' THEN (SELECT sum(length(p.data)) FROM pieces p WHERE p.name = meshes.data)"     \
-    " ELSE length(data) END"
+    "CASE WHEN typeof(data) != 'text' THEN length(data) WHEN data GLOB 'file:*' THEN CAST(substr(data, 39) AS INTEGER)" \
+    " ELSE (SELECT sum(length(p.data)) FROM pieces p WHERE p.name = meshes.data) END"
 
 static int sq_mesh_put(struct store *s, const char *model, const char *key, const struct mesh_rec *m, long max_bytes)
 {
@@ -1056,7 +1313,7 @@ static int check_sums(struct store *s, const char *what, const char *sql, int su
                     v[c] = "", n[c] = 0;
             const void *v1 = v[1], *v2 = v[2];
             size_t n1 = n[1], n2 = n[2];
-            const char *why = !v1 || !v2 ? "its pieces could not be read"
+            const char *why = !v1 || !v2 ? "its file or pieces could not be read"
                               : sqlite3_column_type(st, sum_col) != SQLITE_NULL && !sum_ok(st, sum_col, v1, n1, v2, n2)
                                   ? "its bytes do not match their sum" : NULL;
             if (why) {

@@ -18,10 +18,12 @@ jobs=$(curl -s "$URL/jobs" | grep -o '"id"' | wc -l)
 code=$(status GET "/models/$id/mesh")
 check "a repeat: the same bytes and ETag, from the cache (no job)" '[ "$code" = 200 ] && [ "$(header ETag)" = "$etag" ] && cmp -s "$T/body" "$T/a.stl" && [ -z "$(header X-Job-Id)" ] && [ "$(metric "surfd_mesh_cache_lookups_total{result=\"hit\"}")" = 1 ]'
 check "If-None-Match: 304" '[ "$(status GET "/models/$id/mesh" -H "If-None-Match: $etag")" = 304 ]'
-size0=$(du -sk "$T/d" | cut -f1)
+# (the WAL left out: each repeat stamps the mesh used, a page the WAL keeps until its checkpoint at
+# 1000 frames; a mesh is kept in values/ or the database)
+size0=$(du -sk --exclude='*-wal' "$T/d" | cut -f1)
 for _ in $(seq 100); do curl -s -o /dev/null "$URL/models/$id/mesh"; done
-size1=$(du -sk "$T/d" | cut -f1)
-check "100 repeats: no new job, the store's size unchanged (within 256 KB of log)" '[ "$(curl -s "$URL/jobs" | grep -o "\"id\"" | wc -l)" = "$jobs" ] && [ $((size1 - size0)) -lt 256 ]'
+size1=$(du -sk --exclude='*-wal' "$T/d" | cut -f1)
+check "100 repeats: no new job, the store's size unchanged (within 256 KB)" '[ "$(curl -s "$URL/jobs" | grep -o "\"id\"" | wc -l)" = "$jobs" ] && [ $((size1 - size0)) -lt 256 ]'
 code=$(status GET "/models/$id/mesh?format=ply&tolerance=0.05")
 check "another format and tolerance: its own entry (the tolerance as asked)" '[ "$code" = 200 ] && [ "$(header X-Mesh-Tolerance-Mm)" = 0.05 ] && [ "$(header ETag)" != "$etag" ]'
 bytes=$(metric surfd_mesh_cache_bytes)

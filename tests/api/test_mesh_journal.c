@@ -297,6 +297,12 @@ TEST(a_whole_change_is_composed_with_the_current_mesh)
     size_t dl;
     CHECK(mesh_changes_delta(journal, 1, 1, 2, NULL, 0, &d, &dl, &err) == 0 && apply_delta(&c2, d, dl));
     free(d);
+    /* a slider's step: the whole change alone (composed without the id table), then on from it */
+    struct client c3 = {memcpy(malloc(c2.n * sizeof *c2.r), c2.r, c2.n * sizeof *c2.r), c2.n, 2};
+    CHECK(delta_brings(&c3, journal + 1, 1, 3, base3, base3_len) && c3.version == 3);
+    CHECK(delta_brings(&c3, journal + 2, 1, 4, cur, cur_len) && c3.version == 4);
+    CHECK(mesh_changes_delta(journal + 1, 1, 2, 3, cur, cur_len, &d, &dl, &err) == SF_EFORMAT);
+    free(c3.r);
     CHECK(delta_brings(&c1, journal, 3, 4, cur, cur_len) && c1.version == 4);
     CHECK(delta_brings(&c2, journal + 1, 2, 4, cur, cur_len) && c2.version == 4);
     CHECK(mesh_changes_delta(journal, 3, 1, 4, NULL, 0, &d, &dl, &err) == SF_EFORMAT);
