@@ -112,6 +112,7 @@ struct pieces {
                              * of one of them; else NO_WITNESS: its lattice points are each within e
                              * of some triangle round its corners' representatives */
     uint64_t *mark;         /* each representative's piece being merged (its least vertex, its level) */
+    uint64_t *tmark;        /* each triangle's: the piece being merged when it has a corner in it */
     /* the level's blocks and the representatives in each */
     int nb[3];
     uint32_t *bstart, *brep;
@@ -183,10 +184,10 @@ static void scratch_free(struct pscratch *s)
 static void work_free(struct pieces *P)
 {
     free(P->cellk), free(P->inc_at), free(P->inc), free(P->cur), free(P->dead), free(P->cp), free(P->cn);
-    free(P->mnext), free(P->mtail), free(P->rep), free(P->lvl), free(P->wit), free(P->wit2), free(P->mark), free(P->bstart), free(P->brep);
+    free(P->mnext), free(P->mtail), free(P->rep), free(P->lvl), free(P->wit), free(P->wit2), free(P->mark), free(P->tmark), free(P->bstart), free(P->brep);
     free(P->star), free(P->nstar), free(P->sl), free(P->lkey), free(P->lidx);
     P->cellk = NULL, P->inc_at = P->inc = P->cur = P->mnext = P->mtail = P->rep = P->wit = P->wit2 = P->bstart = P->brep = NULL;
-    P->dead = P->lvl = NULL, P->cp = P->cn = NULL, P->mark = P->lkey = NULL;
+    P->dead = P->lvl = NULL, P->cp = P->cn = NULL, P->mark = P->tmark = P->lkey = NULL;
     P->star = NULL, P->nstar = P->sl = P->lidx = NULL;
     for (int k = 0; k < ADAPT_SLABS; k++)
         scratch_free(&P->sc[k]);
@@ -326,13 +327,14 @@ static int prepare(struct pieces *P)
     P->wit = malloc(T * sizeof *P->wit);
     P->wit2 = malloc(T * sizeof *P->wit2);
     P->mark = calloc(V, sizeof *P->mark);
+    P->tmark = calloc(T, sizeof *P->tmark);
     P->star = malloc(V * sizeof *P->star);
     P->nstar = malloc(V * sizeof *P->nstar);
     P->sl = malloc(3 * T * sizeof *P->sl);
     P->lkey = calloc(V, sizeof *P->lkey);
     P->lidx = malloc(V * sizeof *P->lidx);
     if (!P->cellk || !P->inc_at || !P->inc || !P->cur || !P->dead || !P->cp || !P->cn || !P->mnext || !P->mtail || !P->rep ||
-        !P->lvl || !P->wit || !P->wit2 || !P->mark || !P->star || !P->nstar || !P->sl || !P->lkey || !P->lidx)
+        !P->lvl || !P->wit || !P->wit2 || !P->mark || !P->tmark || !P->star || !P->nstar || !P->sl || !P->lkey || !P->lidx)
         return -1;
     for (uint32_t v = 0; v < nv; v++) {
         uint64_t k = 0;
@@ -690,7 +692,7 @@ static int local_triangles(const struct pieces *P, struct pscratch *S, uint32_t 
         for (uint32_t k = 0; k < P->nstar[w]; k++) {
             uint32_t t = P->star[w][k];
             const uint32_t *c = P->cur + 3 * (size_t)t;
-            if (in_piece(P, c[0], id) || in_piece(P, c[1], id) || in_piece(P, c[2], id))
+            if (P->tmark[t] == id)
                 continue; /* (in S->lt) */
             bool earlier = false; /* (each once: from its first neighbour in link) */
             for (int q = 0; q < 3 && !earlier; q++)
@@ -730,13 +732,11 @@ static int local_triangles(const struct pieces *P, struct pscratch *S, uint32_t 
 }
 
 
-/* Whether witness w of a fine triangle stays as it is through the merge of the piece marked id. */
+/* Whether witness w of a fine triangle stays as it is through the merge of the piece marked id
+ * (its triangles marked so in tmark). */
 static bool witness_holds(const struct pieces *P, uint32_t w, uint64_t id)
 {
-    if (w == NO_WITNESS || P->dead[w])
-        return false;
-    const uint32_t *c = P->cur + 3 * (size_t)w;
-    return !in_piece(P, c[0], id) && !in_piece(P, c[1], id) && !in_piece(P, c[2], id);
+    return w != NO_WITNESS && !P->dead[w] && P->tmark[w] != id;
 }
 
 /* Whether fine triangle F (its corners' representatives R, the piece's as p) lies within e of the
@@ -768,7 +768,7 @@ static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, cons
         for (uint32_t j = 0; j < P->nstar[r]; j++) {
             uint32_t t = P->star[r][j];
             const uint32_t *c = P->cur + 3 * (size_t)t;
-            if (in_piece(P, c[0], id) || in_piece(P, c[1], id) || in_piece(P, c[2], id))
+            if (P->tmark[t] == id)
                 continue;
             if (!grow(S, (void **)&S->qt, &S->qcap, (size_t)n + 1, sizeof *S->qt))
                 return false;
@@ -784,6 +784,16 @@ static bool fine_ok(const struct pieces *P, struct pscratch *S, uint32_t F, cons
     int *use = S->use;
     for (int i = n_qt; i < n; i++)
         use[n_use++] = i;
+    /* the old witnesses first: most often one still is, and the search stops at it */
+    for (int w = 0, at = 0; w < 2; w++) {
+        uint32_t old = w ? P->wit2[F] : P->wit[F];
+        for (int j = at; j < n_use && old != NO_WITNESS; j++)
+            if (S->qt[use[j]].t == old) {
+                int u = use[j];
+                use[j] = use[at], use[at++] = u;
+                break;
+            }
+    }
     for (int j = 0; j < n_use; j++) {
         struct qtri *Q = &S->qt[use[j]];
         if (!Q->ready)
@@ -960,6 +970,8 @@ static bool merge_piece(struct pieces *P, struct pscratch *S, int n, uint64_t id
     }
     /* every fine triangle round the piece and its neighbours within e of the triangles round its
      * corners' representatives: those whose witness the merge changes, or that had none */
+    for (int i = 0; i < S->n_lt; i++) /* (the triangles with a corner in the piece: those the merge changes) */
+        P->tmark[S->lt[i].t] = id;
     int n_wu = 0, n_qt = local_triangles(P, S, p, x, id, n_link);
     if (n_qt < 0)
         return false;
