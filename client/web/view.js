@@ -11,7 +11,7 @@ import {
   Vector2, Vector3, WebGLRenderer,
 } from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
-import { decodeDelta, encodeDelta, MeshSlots, slotRanges } from "./mesh_delta.js";
+import { decodeDelta, encodeDelta, IdMap, MeshSlots, slotRanges } from "./mesh_delta.js";
 import { parseNrrd, SliceViews, VIEWS } from "./slices.js";
 import { LiveIso, putBlock, sampleRange, strokeBlock } from "./live.js";
 
@@ -682,6 +682,6 @@ function bench(ms = 3000) {
 }
 
 window.surfdView = { init, open, close, ids, applyDelta, stats, bench, reset, openVolume, closeVolume, pickAt,
-  test: { decodeDelta, encodeDelta, MeshSlots, slotRanges, strokeBlock, putBlock, sampleRange, liveDigest,
+  test: { decodeDelta, encodeDelta, IdMap, MeshSlots, slotRanges, strokeBlock, putBlock, sampleRange, liveDigest,
     sharedSamples: () => !!live.vol && live.vol === slices.vol } };
 window.dispatchEvent(new Event("surfdview"));

@@ -126,8 +126,25 @@ async function structures(page, { view, frame, dist, lineUp, exactArrives }) {
     out.ranges = JSON.stringify(res.ranges) === "[[0,3]]" &&
       JSON.stringify(slotRanges([5, 100, 6, 40, 300, 5], 200)) === "[[5,7],[40,41],[100,101]]";
     out.normal = Math.abs(s.normal[9 * s.slotOf.get(13) + 2] - 1) < 1e-6;
+    // a new iso: every held triangle out, others in (the slots laid out anew, one range)
+    const w = s.apply(decodeDelta(encodeDelta(2, 3, [12, 11, 13], [[20, T(7)], [21, T(8)], [22, T(9)], [23, T(10)]])));
+    let whole = s.count === 4 && w.removed === 3 && w.added === 4 && JSON.stringify(w.ranges) === "[[0,4]]" &&
+      s.corners(11) === null && s.corners(13) === null && s.corners(22)[2] === 9 && s.slotOf.size === 4;
+    for (let k = 0; k < s.count; k++) whole = whole && s.slotOf.get(s.idOf[k]) === k;
+    out.whole = whole;
+    // the id table against a Map, through 20 000 sets and deletes of ids that collide
+    const { IdMap } = window.surfdView.test, im = new IdMap(4), ref = new Map();
+    let same = true, seed = 7;
+    for (let k = 0; k < 20000; k++) {
+      seed = (Math.imul(seed, 1103515245) + 12345) >>> 0;
+      const id = (seed >>> 8) % 3000 * 64; // (multiples of 64: many share a home)
+      if (seed & 1) im.set(id, k), ref.set(id, k); else same = same && im.delete(id) === ref.delete(id);
+      same = same && im.get(id) === ref.get(id) && im.size === ref.size;
+    }
+    for (const [id, v] of ref) same = same && im.get(id) === v;
+    out.idmap = same;
     const throws = (f) => { try { f(); return false; } catch (e) { return true; } };
-    out.wrongBase = throws(() => s.apply(decodeDelta(encodeDelta(1, 3, [], []))));
+    out.wrongBase = throws(() => s.apply(decodeDelta(encodeDelta(1, 4, [], []))));
     out.short = throws(() => decodeDelta(new ArrayBuffer(19))) && throws(() => decodeDelta(encodeDelta(0, 1, [], [[1, T(0)]]).slice(0, 50)));
     return out;
   });
@@ -136,6 +153,8 @@ async function structures(page, { view, frame, dist, lineUp, exactArrives }) {
   check("the slots stay packed, every id at its slot", r.packed);
   check("... and say which slots to upload again (sorted ranges within the count, near ones joined)", r.ranges);
   check("an added triangle has its face normal", r.normal);
+  check("a new iso's delta (every triangle out) lays the slots out anew: one range, every id at its slot", r.whole);
+  check("the id table agrees with a Map through 20 000 sets and deletes of colliding ids", r.idmap);
   check("a delta from another version is refused", r.wrongBase);
   check("a truncated delta is refused", r.short);
   const one = (await view()).models[0];
