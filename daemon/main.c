@@ -1,7 +1,9 @@
 /* main.c - build/surfd: dispatches to its subcommands (serve, render, model, volume, isosurface,
  * matrix, store); `surfd --help` and `surfd CMD --help` print the usage on stdout and exit 0. */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cli.h"
 
@@ -32,8 +34,36 @@ static void usage(FILE *f)
                "each command's options: surfd COMMAND --help\n");
 }
 
+/* glibc's heaps and large blocks on transparent huge pages (GLIBC_TUNABLES=glibc.malloc.hugetlb=1,
+ * which glibc reads only when a process starts): set, and the process started again, unless the
+ * environment names that tunable already (=0 keeps the small pages). A mesh, a volume or a delta
+ * is tens of MB, copied a few times in a request, and on this 2-core VM its first touch cost some
+ * 3 ms a MB, a fault every 4 KB: with the tunable the CT head's cold extraction went 104 -> 43-80
+ * ms, the first iso change of its kept extraction 60-76 -> 39-78 ms, an iso slider's step over
+ * HTTP some 35 % shorter; peak memory within a few %. (Not under the address sanitizer, whose
+ * allocator is its own.) */
+static void huge_pages(char **argv)
+{
+#if !defined(__SANITIZE_ADDRESS__)
+    const char *had = getenv("GLIBC_TUNABLES"), *want = "glibc.malloc.hugetlb=1";
+    if (had && strstr(had, "glibc.malloc.hugetlb"))
+        return;
+    size_t n = (had ? strlen(had) + 1 : 0) + strlen(want) + 1;
+    char *v = malloc(n);
+    if (!v)
+        return;
+    snprintf(v, n, "%s%s%s", had && *had ? had : "", had && *had ? ":" : "", want);
+    if (setenv("GLIBC_TUNABLES", v, 1) == 0)
+        execv("/proc/self/exe", argv); /* (returns only when it fails: on as we are) */
+    free(v);
+#else
+    (void)argv;
+#endif
+}
+
 int main(int argc, char **argv)
 {
+    huge_pages(argv);
     if (argc >= 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help"))) {
         usage(stdout);
         return 0;
