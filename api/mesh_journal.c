@@ -135,6 +135,18 @@ static void ids_remove(struct ids *t, size_t h)
 
 /* ---- deltas ---- */
 
+/* Triangle t of m as a delta's added record at p: its id, then its corners (40 bytes). */
+static void put_added(unsigned char *p, uint32_t id, const struct trimesh *m, size_t t)
+{
+    put32(p, id);
+    for (int c = 0; c < 3; c++)
+        for (int d = 0; d < 3; d++) {
+            uint32_t bits;
+            memcpy(&bits, m->pos + 3 * m->tri[3 * t + c] + d, 4);
+            put32(p + 4 + 12 * c + 4 * d, bits);
+        }
+}
+
 /* The triangles added of a delta, from the current mesh (packed with ids, of version to): every
  * one, each in table added (what the changes leave). 0 or SF_EFORMAT, SF_ENOMEM. */
 static int added_from_mesh(const char *mesh, size_t mesh_len, uint32_t to, struct ids *added, unsigned char **p,
@@ -155,13 +167,7 @@ static int added_from_mesh(const char *mesh, size_t mesh_len, uint32_t to, struc
             rc = sf_fail(err, SF_EFORMAT, "", "the mesh holds triangle %u, which its changes do not add", ids[t]);
             break;
         }
-        put32(*p, ids[t]);
-        for (int c = 0; c < 3; c++)
-            for (int d = 0; d < 3; d++) {
-                uint32_t bits;
-                memcpy(&bits, m.pos + 3 * m.tri[3 * t + c] + d, 4);
-                put32(*p + 4 + 12 * c + 4 * d, bits);
-            }
+        put_added(*p, ids[t], &m, t);
         *p += 40;
     }
     free(ids);
@@ -193,15 +199,8 @@ static int one_whole(const struct mesh_change *ch, uint32_t from, uint32_t to, c
         put32(p + 4, from), put32(p + 8, to), put32(p + 12, nr), put32(p + 16, na);
         memcpy(p + 20, c + 16, 4 * (size_t)nr); /* (both little-endian u32) */
         p += 20 + 4 * (size_t)nr;
-        for (size_t t = 0; t < m.n_tri; t++, p += 40) {
-            put32(p, ids[t]);
-            for (int k = 0; k < 3; k++)
-                for (int d = 0; d < 3; d++) {
-                    uint32_t bits;
-                    memcpy(&bits, m.pos + 3 * m.tri[3 * t + k] + d, 4);
-                    put32(p + 4 + 12 * k + 4 * d, bits);
-                }
-        }
+        for (size_t t = 0; t < m.n_tri; t++, p += 40)
+            put_added(p, ids[t], &m, t);
         *out = (char *)b, *len = (size_t)(p - b);
     }
     free(ids);
