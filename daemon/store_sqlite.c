@@ -430,10 +430,10 @@ static void sweep_values(struct sqlite_store *s)
 }
 
 /* Column col of st's row: its blob, borrowed from st, or the file or pieces its TEXT names, read
- * into *owned (the caller frees it). NULL (*len 0) for NULL, or when the pieces cannot be read. The
- * pieces' total comes from a query of its own: length() reads no overflow page, where a window
- * sum over the data made SQLite copy every piece into a temporary table first (720 ms for a 27 MB
- * mesh, against 29 ms). */
+ * into *owned (the caller frees it). NULL (*len 0) for NULL, or when the file or the pieces cannot
+ * be read (none of them left included). The pieces' total comes from a query of its own: length()
+ * reads no overflow page, where a window sum over the data made SQLite copy every piece into a
+ * temporary table first (720 ms for a 27 MB mesh, against 29 ms). */
 static const void *value_of(struct store *s, sqlite3_stmt *st, int col, size_t *len, void **owned)
 {
     *owned = NULL;
@@ -452,7 +452,7 @@ static const void *value_of(struct store *s, sqlite3_stmt *st, int col, size_t *
         return NULL;
     sqlite3_bind_text(q, 1, name, -1, SQLITE_STATIC);
     int rc = sqlite3_step(q);
-    sqlite3_int64 total = rc == SQLITE_ROW ? sqlite3_column_int64(q, 0) : -1;
+    sqlite3_int64 total = rc == SQLITE_ROW && sqlite3_column_type(q, 0) != SQLITE_NULL ? sqlite3_column_int64(q, 0) : -1;
     sqlite3_finalize(q);
     unsigned char *b = total >= 0 ? malloc(total ? (size_t)total : 1) : NULL;
     if (!b || sqlite3_prepare_v2(db_of(s), "SELECT data FROM pieces WHERE name=? ORDER BY seq", -1, &q, NULL) != SQLITE_OK) {
