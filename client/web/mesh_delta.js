@@ -39,7 +39,7 @@ export function decodeDelta(buf) {
 }
 
 // Triangle id -> slot: open addressing over typed arrays (a Map of 680 k numbers took 250 ms to
-// fill, this some 30): get, has, set, delete (the entries after the hole moved back), clear, size.
+// fill, this some 30): get, has, set, delete (the entries after the hole moved back), size.
 export class IdMap {
   constructor(n = 16) {
     this._make(Math.max(16, n));
@@ -89,7 +89,6 @@ export class IdMap {
     return true;
   }
 
-  clear() { this.vals.fill(-1), this.size = 0; }
 }
 
 // A model's triangles: slot s holds one triangle's 3 corners at position[9s..9s+8] and its face
