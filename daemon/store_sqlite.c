@@ -247,6 +247,15 @@ static int pieces_put(struct store *s, const unsigned char *p, size_t n, char na
  * statement that wrote it; one that no row names (a crash between the two) is swept at the next
  * start. The sums cover the bytes as before, so `store check` finds a damaged or missing file. */
 
+/* Every name a column holds in place of its value (a file's or pieces'): what the sweeps keep. */
+#define NAMED_VALUES                                                                                                \
+    "SELECT source FROM models WHERE typeof(source)='text'"                                                         \
+    " UNION ALL SELECT data FROM model_volumes WHERE typeof(data)='text'"                                           \
+    " UNION ALL SELECT data FROM meshes WHERE typeof(data)='text'"                                                  \
+    " UNION ALL SELECT data FROM instances WHERE typeof(data)='text'"                                               \
+    " UNION ALL SELECT result FROM jobs WHERE typeof(result)='text'"                                                \
+    " UNION ALL SELECT request FROM jobs WHERE typeof(request)='text'"
+
 #define FILE_PREFIX "file:"
 #define VALUE_FILE (1u << 20)
 #define FILE_NAME_HEX 32
@@ -390,14 +399,7 @@ static void sweep_values(struct sqlite_store *s)
 {
     struct names named = {0};
     sqlite3_stmt *st;
-    bool ok = sqlite3_prepare_v2(s->db,
-                                 "SELECT source FROM models WHERE typeof(source)='text'"
-                                 " UNION ALL SELECT data FROM model_volumes WHERE typeof(data)='text'"
-                                 " UNION ALL SELECT data FROM meshes WHERE typeof(data)='text'"
-                                 " UNION ALL SELECT data FROM instances WHERE typeof(data)='text'"
-                                 " UNION ALL SELECT result FROM jobs WHERE typeof(result)='text'"
-                                 " UNION ALL SELECT request FROM jobs WHERE typeof(request)='text'",
-                                 -1, &st, NULL) == SQLITE_OK;
+    bool ok = sqlite3_prepare_v2(s->db, NAMED_VALUES, -1, &st, NULL) == SQLITE_OK;
     int rc = ok ? SQLITE_ROW : SQLITE_ERROR;
     while (rc == SQLITE_ROW && (rc = sqlite3_step(st)) == SQLITE_ROW) {
         const char *name = (const char *)sqlite3_column_text(st, 0);
@@ -494,12 +496,7 @@ static unsigned char *dup_value(struct store *s, sqlite3_stmt *st, int col, size
  * the rare finish whose claim was lost, never a hot path (58 ms over 10 000 jobs and 500 models). */
 static void sweep_pieces(struct store *s)
 {
-    run_held(s, "DELETE FROM pieces WHERE name NOT IN (SELECT source FROM models WHERE typeof(source)='text'"
-                " UNION ALL SELECT data FROM model_volumes WHERE typeof(data)='text'"
-                " UNION ALL SELECT data FROM meshes WHERE typeof(data)='text'"
-                " UNION ALL SELECT data FROM instances WHERE typeof(data)='text'"
-                " UNION ALL SELECT result FROM jobs WHERE typeof(result)='text'"
-                " UNION ALL SELECT request FROM jobs WHERE typeof(request)='text')"
+    run_held(s, "DELETE FROM pieces WHERE name NOT IN (" NAMED_VALUES ")"
                 " AND EXISTS (SELECT 1 FROM pieces)", "");
 }
 
