@@ -128,9 +128,9 @@ export class MeshSlots {
       for (const id of d.removed) held += this.slotOf.has(id) ? 1 : 0;
       whole = held === this.count;
     }
-    if (whole) removed = this.count, this.count = 0, this.slotOf = new IdMap(d.ids.length);
+    if (whole) removed = this.count, this.count = 0;
     const anew = this.count === 0; // (every slot written from the first: one range, none sorted)
-    if (anew && !whole) this.slotOf = new IdMap(d.ids.length); // (sized once, not grown by doubling)
+    if (anew) this.slotOf = new IdMap(d.ids.length); // (sized once, not grown by doubling)
     for (const id of whole ? [] : d.removed) {
       const s = this.slotOf.get(id);
       if (s === undefined) continue; // not held: nothing to remove
