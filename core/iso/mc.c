@@ -301,6 +301,14 @@ struct trim {
     bool s0;
 };
 
+/* The case (CASES' index) of each cell a slab's pass 1 visits, in the order it visits them: pass 2
+ * visits the same cells in the same order (the same bits and trims) and reads them back, so a
+ * cell's faces and interior are decided once. */
+struct cases {
+    uint16_t *at;
+    size_t n, cap;
+};
+
 struct iso_job {
     struct iso_grid g;
     struct iso_opts o;
@@ -314,10 +322,15 @@ struct iso_job {
     bool *slab_failed;               /* [s]: a pass of slab s found no memory (written by s alone) */
     float *slab_min;                 /* [s]: the least sample slab s's pass 1 read (the pad, iso_layout) */
     struct trim *trim;               /* per sample row [J + NY*K]: where its states change */
+    uint64_t *bits;                  /* per slice K: its states as bits (pass 1's, read by pass 2) */
+    struct cases *cases;             /* [s]: the cases of slab s's cells, as pass 1 found them */
     struct trimesh m;
 };
 
 int iso_n_slabs(const struct iso_job *j) { return j->n_slabs; }
+
+/* The words of a row of states as bits (below, "states as bits"). */
+static int bit_words(int NX) { return (NX + 63) / 64 + 1; }
 
 #define MIN_OF(T)                                        \
     do {                                                 \
@@ -433,6 +446,10 @@ void iso_free(struct iso_job *j)
     free(j->slab_failed);
     free(j->slab_min);
     free(j->trim);
+    free(j->bits);
+    for (int s = 0; j->cases && s < j->n_slabs; s++)
+        free(j->cases[s].at);
+    free(j->cases);
     trimesh_free(&j->m);
     free(j);
 }
@@ -515,7 +532,10 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
     j->slab_failed = calloc((size_t)j->n_slabs, sizeof *j->slab_failed);
     j->slab_min = malloc((size_t)j->n_slabs * sizeof *j->slab_min);
     j->trim = malloc(rows * sizeof *j->trim);
-    if (!j->k0 || !j->xc || !j->yc || !j->zc || !j->tc || !j->cc || !j->slab_failed || !j->slab_min || !j->trim) {
+    j->bits = malloc(rows * (size_t)bit_words(j->NX) * sizeof *j->bits);
+    j->cases = calloc((size_t)j->n_slabs, sizeof *j->cases);
+    if (!j->k0 || !j->xc || !j->yc || !j->zc || !j->tc || !j->cc || !j->slab_failed || !j->slab_min || !j->trim ||
+        !j->bits || !j->cases) {
         iso_free(j);
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     }
@@ -639,7 +659,6 @@ static void span(const struct trim *const *t, int n, int shift, int last, int *l
  * counted 64 at a time and the cells whose corners all lie on one side (most of a CT's) passed over
  * 64 at a time, not compared sample by sample in each pass. The same states as the comparisons (NaN
  * none: the volumes are finite), so the same mesh. */
-static int bit_words(int NX) { return (NX + 63) / 64 + 1; }
 
 /* Rows rect[2] .. rect[3] of slice a, columns rect[0] .. rect[1] (the others 0), into out. */
 static void rect_bits(const float *a, int NX, const int rect[4], float iso, uint64_t *out)
@@ -650,12 +669,19 @@ static void rect_bits(const float *a, int NX, const int rect[4], float iso, uint
         const float *r = a + (size_t)NX * J;
         uint64_t *o = out + (size_t)W * J;
         int I = rect[0], end = rect[1] + 1;
-        for (; I < end && (I & 3); I++)
-            o[I >> 6] |= (uint64_t)(r[I] > iso) << (I & 63);
 #ifdef __SSE2__
+        for (; I < end && (I & 15); I++)
+            o[I >> 6] |= (uint64_t)(r[I] > iso) << (I & 63);
         __m128 v = _mm_set1_ps(iso);
-        for (; I + 4 <= end; I += 4) /* (four columns from a multiple of 4: within one word) */
-            o[I >> 6] |= (uint64_t)_mm_movemask_ps(_mm_cmpgt_ps(_mm_loadu_ps(r + I), v)) << (I & 63);
+        for (; I + 16 <= end; I += 16) { /* sixteen columns from a multiple of 16 (within one word): the
+                                          * compares' masks packed to bytes, one movemask */
+            __m128i m0 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(r + I), v));
+            __m128i m1 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(r + I + 4), v));
+            __m128i m2 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(r + I + 8), v));
+            __m128i m3 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(r + I + 12), v));
+            __m128i b = _mm_packs_epi16(_mm_packs_epi32(m0, m1), _mm_packs_epi32(m2, m3));
+            o[I >> 6] |= (uint64_t)(uint32_t)_mm_movemask_epi8(b) << (I & 63);
+        }
 #endif
         for (; I < end; I++)
             o[I >> 6] |= (uint64_t)(r[I] > iso) << (I & 63);
@@ -805,24 +831,36 @@ static void trim_slice(const struct iso_job *j, const uint64_t *bits, struct tri
     }
 }
 
+static bool cases_grow(struct cases *c)
+{
+    size_t cap = c->cap ? 2 * c->cap : 16384;
+    uint16_t *at = realloc(c->at, cap * sizeof *at);
+    if (!at)
+        return false;
+    c->at = at, c->cap = cap;
+    return true;
+}
+
 void iso_count(struct iso_job *j, int s)
 {
     int NX = j->NX, NY = j->NY, W = bit_words(NX);
     size_t plane = (size_t)NX * NY, bplane = (size_t)W * NY;
     float *a = malloc(2 * plane * sizeof *a);
     struct trim *ta = malloc(2 * (size_t)NY * sizeof *ta);
-    uint64_t *ba = malloc(2 * bplane * sizeof *ba);
-    if (!a || !ta || !ba) {
+    uint64_t *last = malloc(bplane * sizeof *last); /* the next slab's first slice: its own to keep */
+    if (!a || !ta || !last) {
         free(a);
         free(ta);
-        free(ba);
+        free(last);
         j->slab_failed[s] = true;
         return;
     }
     float *b = a + plane, *buf = a;
     struct trim *tb = ta + NY, *tbuf = ta;
-    uint64_t *bb = ba + bplane, *bbuf = ba;
+    uint64_t *ba, *bb = j->bits + bplane * (size_t)j->k0[s];
     float *least = &j->slab_min[s];
+    struct cases *cs = &j->cases[s];
+    cs->n = 0;
     load(j, j->k0[s], b, least);
     state_bits(b, NX, NY, j->iso, bb);
     trim_slice(j, bb, tb);
@@ -831,8 +869,8 @@ void iso_count(struct iso_job *j, int s)
         a = b, b = t;
         struct trim *u = ta;
         ta = tb, tb = u;
-        uint64_t *q = ba;
-        ba = bb, bb = q;
+        ba = bb;
+        bb = K + 1 < j->k0[s + 1] || s == j->n_slabs - 1 ? j->bits + bplane * (size_t)(K + 1) : last;
         load(j, K + 1, b, least);
         state_bits(b, NX, NY, j->iso, bb);
         trim_slice(j, bb, tb);
@@ -853,10 +891,14 @@ void iso_count(struct iso_job *j, int s)
             struct cells cl;
             cells_begin(&cl, p0, p0 + W, q0, q0 + W, lo, hi);
             for (int I; (I = cells_next(&cl)) >= 0;) {
-                int st = first_states(j->iso, a0, a1, b0, b1, I);
-                const struct cell_case *cc = &CASES[cell_case(j, st, a0, a1, b0, b1, I)];
-                n += cc->n;
-                centres += cc->n_centres;
+                int st = first_states(j->iso, a0, a1, b0, b1, I), idx = cell_case(j, st, a0, a1, b0, b1, I);
+                if (cs->n == cs->cap && !cases_grow(cs)) {
+                    j->slab_failed[s] = true;
+                    goto done;
+                }
+                cs->at[cs->n++] = (uint16_t)idx;
+                n += CASES[idx].n;
+                centres += CASES[idx].n_centres;
             }
             j->tc[J + (size_t)NY * K] = n;
             j->cc[J + (size_t)NY * K] = centres;
@@ -864,9 +906,10 @@ void iso_count(struct iso_job *j, int s)
     }
     if (s == j->n_slabs - 1)
         count_level(j, j->NZ - 1, tb, bb);
+done:
     free(buf);
     free(tbuf);
-    free(bbuf);
+    free(last);
 }
 
 /* Whether a slab's pass ran out of memory (it wrote nothing). */
@@ -934,7 +977,7 @@ int iso_layout(struct iso_job *j, struct sf_err *err)
 struct window {
     float *s[4];
     int k;                           /* s[1] is slice k */
-    uint64_t *b[4];                  /* their states as bits (the slabs' pass 2; NULL for a box's) */
+    uint64_t *b[4];                  /* their states as bits (pass 1's for the slabs, a box's own) */
 };
 
 static const float *slice(const struct window *w, int K) { return w->s[K - w->k + 1]; }
@@ -942,24 +985,21 @@ static const uint64_t *slice_bits(const struct window *w, int K) { return w->b[K
 
 static void window_at(const struct iso_job *j, struct window *w, int K)
 {
+    size_t bplane = (size_t)bit_words(j->NX) * (size_t)j->NY;
+    for (int d = -1; d <= 2; d++) /* pass 1's */
+        w->b[d + 1] = K + d >= 0 && K + d < j->NZ ? j->bits + bplane * (size_t)(K + d) : NULL;
     if (K == w->k + 1) { /* slide by one */
         float *t = w->s[0];
         w->s[0] = w->s[1], w->s[1] = w->s[2], w->s[2] = w->s[3], w->s[3] = t;
-        uint64_t *u = w->b[0];
-        w->b[0] = w->b[1], w->b[1] = w->b[2], w->b[2] = w->b[3], w->b[3] = u;
         w->k = K;
-        if (K + 2 < j->NZ) {
+        if (K + 2 < j->NZ)
             load(j, K + 2, w->s[3], NULL);
-            state_bits(w->s[3], j->NX, j->NY, j->iso, w->b[3]);
-        }
         return;
     }
     w->k = K;
     for (int d = -1; d <= 2; d++)
-        if (K + d >= 0 && K + d < j->NZ) {
+        if (K + d >= 0 && K + d < j->NZ)
             load(j, K + d, w->s[d + 1], NULL);
-            state_bits(w->s[d + 1], j->NX, j->NY, j->iso, w->b[d + 1]);
-        }
 }
 
 /* The field's gradient at virtual sample (I, J, K), by central differences (one-sided at the
@@ -983,9 +1023,40 @@ static void gradient(const struct iso_job *j, const struct window *w, int I, int
     g[2] = (slice(w, k1)[at] - slice(w, k0)[at]) * j->half_inv[2] * (k1 - k0 == 2 ? 1.0f : 2.0f);
 }
 
+/* Normal n scaled to unit length (0 when it is 0). */
+static inline void unit_normal(float *n)
+{
+    float len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2], inv = len2 > 0 ? 1.0f / sqrtf(len2) : 0.0f;
+    for (int d = 0; d < 3; d++)
+        n[d] *= inv;
+}
+
+/* unit_normal of each of the count normals at n, the square roots and divisions four at a time
+ * where SSE is: the same bits (both are rounded exactly, one at a time or four), at a quarter of
+ * the latency that held up the vertices one by one. */
+static void unit_normals(float *n, size_t count)
+{
+    size_t i = 0;
+#ifdef __SSE2__
+    for (; i + 4 <= count; i += 4, n += 12) {
+        float l[4];
+        for (int k = 0; k < 4; k++)
+            l[k] = n[3 * k] * n[3 * k] + n[3 * k + 1] * n[3 * k + 1] + n[3 * k + 2] * n[3 * k + 2];
+        __m128 len2 = _mm_loadu_ps(l);
+        __m128 inv = _mm_and_ps(_mm_div_ps(_mm_set1_ps(1.0f), _mm_sqrt_ps(len2)), _mm_cmpgt_ps(len2, _mm_setzero_ps()));
+        _mm_storeu_ps(l, inv);
+        for (int k = 0; k < 12; k++)
+            n[k] *= l[k / 3];
+    }
+#endif
+    for (; i < count; i++, n += 3)
+        unit_normal(n);
+}
+
 /* The vertex on the edge from virtual sample (I, J, K) (value a) to its neighbour along axis
- * (value b): its position into pos, its normal into nrm (when not NULL). The one computation of
- * both extractions (the slabs' and a box's), so that they agree bit for bit. */
+ * (value b): its position into pos, its normal into nrm (when not NULL), not yet of unit length
+ * (unit_normal). The one computation of both extractions (the slabs' and a box's), so that they
+ * agree bit for bit. */
 static inline void vertex_at(const struct iso_job *j, const struct window *w, int I, int J, int K, int axis, float a,
                              float b, float *pos, float *nrm)
 {
@@ -996,17 +1067,15 @@ static inline void vertex_at(const struct iso_job *j, const struct window *w, in
         pos[d] = (float)(j->org[d] + j->g.spacing[d] * (p[d] + (d == axis ? t : 0)));
     if (!nrm)
         return;
-    float g0[3], g1[3], n[3], ft = (float)t;
+    float g0[3], g1[3], ft = (float)t;
     gradient(j, w, I, J, K, g0);
     gradient(j, w, I + (axis == 0), J + (axis == 1), K + (axis == 2), g1);
     for (int d = 0; d < 3; d++)
-        n[d] = (ft - 1) * g0[d] - ft * g1[d]; /* outward: down the gradient */
-    float len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2], inv = len2 > 0 ? 1.0f / sqrtf(len2) : 0.0f;
-    for (int d = 0; d < 3; d++)
-        nrm[d] = n[d] * inv;
+        nrm[d] = (ft - 1) * g0[d] - ft * g1[d]; /* outward: down the gradient */
 }
 
-/* Vertex v on the edge from virtual sample p to its neighbour along axis. */
+/* Vertex v on the edge from virtual sample p to its neighbour along axis (its normal made unit by
+ * the caller, unit_normals). */
 static void put_vertex(struct iso_job *j, const struct window *w, size_t v, int I, int J, int K, int axis, float a,
                        float b)
 {
@@ -1085,11 +1154,11 @@ static void emit_level(struct iso_job *j, const struct window *w, int K)
     }
 }
 
-/* The z vertices between levels K and K+1, and the triangles of cell layer K. */
-static void emit_layer(struct iso_job *j, const struct window *w, int K)
+/* The z vertices between levels K and K+1, and the triangles of cell layer K (their cases from
+ * *cases on, as pass 1 left them). */
+static void emit_layer(struct iso_job *j, const struct window *w, int K, const uint16_t **cases)
 {
     int NX = j->NX, NY = j->NY, W = bit_words(NX);
-    float iso = j->iso;
     const float *a = slice(w, K), *b = slice(w, K + 1);
     const uint64_t *ab = slice_bits(w, K), *bb = slice_bits(w, K + 1);
     const struct trim *ta = j->trim + (size_t)NY * K, *tb = ta + NY;
@@ -1115,12 +1184,12 @@ static void emit_layer(struct iso_job *j, const struct window *w, int K)
         size_t centre = j->cb[row];
         const struct trim *rows[4] = {&ta[J], &ta[J + 1], &tb[J], &tb[J + 1]};
         span(rows, 4, 1, NX - 2, &lo, &hi); /* no crossing of any row the cells touch lies before lo */
-        const float *a0 = r[0][0], *a1 = r[0][1], *b0 = r[1][0], *b1 = r[1][1];
         const uint64_t *p0 = ab + (size_t)W * J, *q0 = bb + (size_t)W * J;
         struct cells cl; /* (the cells passed over cross no edge: every running id stays) */
         cells_begin(&cl, p0, p0 + W, q0, q0 + W, lo, hi);
         for (int I; (I = cells_next(&cl)) >= 0;) {
-            int st = first_states(iso, a0, a1, b0, b1, I);
+            const struct cell_case *cc = &CASES[**cases];
+            int st = *(*cases)++ / (64 * 2); /* (the index's corner states) */
             /* crossings of the cell's edges from its corner states: x edge (y, z) between corners
              * 2y+4z and 2y+4z+1; y edge (x=0, z) between 4z and 4z+2; z edge (x=0, y) between 2y and 2y+4 */
             bool xs[4], ys[2], zs[2];
@@ -1134,7 +1203,6 @@ static void emit_layer(struct iso_job *j, const struct window *w, int K)
                                               (uint32_t)cy[0], (uint32_t)(cy[0] + ys[0]), (uint32_t)cy[1],
                                               (uint32_t)(cy[1] + ys[1]), (uint32_t)cz[0], (uint32_t)(cz[0] + zs[0]),
                                               (uint32_t)cz[1], (uint32_t)(cz[1] + zs[1])};
-            const struct cell_case *cc = &CASES[cell_case(j, st, a0, a1, b0, b1, I)];
             for (int c = 0; c < cc->n_centres; c++) {
                 ids[12 + c] = (uint32_t)centre;
                 put_centre(j, centre++, I, J, K, r, cc->centre_of[c]);
@@ -1149,30 +1217,36 @@ static void emit_layer(struct iso_job *j, const struct window *w, int K)
     }
 }
 
+/* The normals of level K's edge vertices (its x, y and z rows': the centres' are unit) made unit. */
+static void unit_level(struct iso_job *j, int K)
+{
+    size_t row = (size_t)j->NY * K;
+    if (j->m.nrm)
+        unit_normals(j->m.nrm + 3 * j->xb[row], j->cb[row] - j->xb[row]);
+}
+
 void iso_emit(struct iso_job *j, int s)
 {
-    size_t plane = (size_t)j->NX * (size_t)j->NY, bplane = (size_t)bit_words(j->NX) * (size_t)j->NY;
+    size_t plane = (size_t)j->NX * (size_t)j->NY;
     float *buf = malloc(4 * plane * sizeof *buf);
-    uint64_t *bits = malloc(4 * bplane * sizeof *bits);
-    if (!buf || !bits) {
-        free(buf);
-        free(bits);
+    if (!buf) {
         j->slab_failed[s] = true;
         return;
     }
-    struct window w = {{buf, buf + plane, buf + 2 * plane, buf + 3 * plane}, -10,
-                       {bits, bits + bplane, bits + 2 * bplane, bits + 3 * bplane}};
+    struct window w = {{buf, buf + plane, buf + 2 * plane, buf + 3 * plane}, -10, {NULL}};
+    const uint16_t *cases = j->cases[s].at;
     for (int K = j->k0[s]; K < j->k0[s + 1]; K++) {
         window_at(j, &w, K);
         emit_level(j, &w, K);
-        emit_layer(j, &w, K);
+        emit_layer(j, &w, K, &cases);
+        unit_level(j, K);
     }
     if (s == j->n_slabs - 1) {
         window_at(j, &w, j->NZ - 1);
         emit_level(j, &w, j->NZ - 1);
+        unit_level(j, j->NZ - 1);
     }
     free(buf);
-    free(bits);
 }
 
 int iso_end(struct iso_job *j, struct trimesh *out, struct sf_err *err)
@@ -1323,6 +1397,8 @@ static uint32_t edge_vertex(struct box_pass *p, int e, int I, int J, int K)
     const float *s = slice(&p->w, K0) + (size_t)I0 + (size_t)j->NX * J0;
     float va = s[0], vb = axis == 0 ? s[1] : axis == 1 ? s[j->NX] : slice(&p->w, K0 + 1)[s - slice(&p->w, K0)];
     vertex_at(j, &p->w, I0, J0, K0, axis, va, vb, b->pos + 3 * v, b->nrm ? b->nrm + 3 * v : NULL);
+    if (b->nrm)
+        unit_normal(b->nrm + 3 * v);
     b->key[v] = iso_vertex_key(j->NX, j->NY, I0, J0, K0, axis, 0);
     *slot = tag | v;
     return (uint32_t)v;
