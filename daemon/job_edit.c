@@ -360,6 +360,10 @@ void edit_warm(struct service *svc, const char *id)
     struct live *e = live_take(id);
     if (!e && (e = rebuild(svc, id, &err)))
         e->checked = true; /* (the job's mesh, ids 0 .. n-1: a part stored since is caught up, and checked, first) */
+    if (e && e->x.k && iso_kept_index(e->x.k, &err)) { /* (what the first edit would make) */
+        live_give(e, true, (size_t)svc->cfg.edit_memory);
+        e = NULL;
+    }
     if (e)
         live_give(e, false, (size_t)svc->cfg.edit_memory);
     else if (err.code)

@@ -50,7 +50,6 @@ struct iso_kept {
     int shift, N[3], C[3], nb[3];    /* virtual samples, cells, blocks a side */
     size_t n_blocks;
     float *bmin, *bmax;              /* per block: of the real samples its cells' corners read */
-    uint8_t *mask;                   /* per block, scratch: it straddles the iso */
     double least, most;              /* of the samples */
     float pad;
     struct kblock *blk;
@@ -68,6 +67,9 @@ struct iso_kept {
     uint32_t *vmap;                  /* an edit's box vertex -> slot */
     size_t vmap_cap;
     bool broken;
+    bool flat;                       /* the mesh is box's as drawn (redraw_all), ids flat_first on in its
+                                      * order; blk, the pool and its counts are not made (index_flat) */
+    uint32_t flat_first;
 };
 
 /* ---- small helpers ---- */
@@ -164,19 +166,6 @@ static void block_range(struct iso_kept *k, size_t b)
     k->bmin[b] = lo, k->bmax[b] = hi;
 }
 
-/* Whether block b's cells read a pad sample (closed grids). */
-static bool block_padded(const struct iso_kept *k, size_t b)
-{
-    if (!k->shift)
-        return false;
-    int at[3] = {(int)(b % (size_t)k->nb[0]), (int)(b / (size_t)k->nb[0] % (size_t)k->nb[1]),
-                 (int)(b / ((size_t)k->nb[0] * (size_t)k->nb[1]))};
-    for (int d = 0; d < 3; d++)
-        if (at[d] == 0 || at[d] * KB + KB >= k->N[d] - 1)
-            return true;
-    return false;
-}
-
 static void samples_range(struct iso_kept *k)
 {
     float lo = INFINITY, hi = -INFINITY;
@@ -190,22 +179,6 @@ static void samples_range(struct iso_kept *k)
 static float pad_of(const struct iso_kept *k)
 {
     return k->shift ? (float)fmin(k->o.iso - 1, k->least) : 0.0f; /* as iso_begin */
-}
-
-/* The blocks that can hold a crossing at the iso (a sample at most iso, one above it). The number
- * of their cells. */
-static long straddling(struct iso_kept *k)
-{
-    float iso = (float)k->o.iso;
-    long cells = 0;
-    for (size_t b = 0; b < k->n_blocks; b++) {
-        float lo = k->bmin[b];
-        if (block_padded(k, b))
-            lo = k->pad < lo ? k->pad : lo;
-        k->mask[b] = lo <= iso && k->bmax[b] > iso;
-        cells += k->mask[b] ? (long)KB * KB * KB : 0;
-    }
-    return cells;
 }
 
 /* ---- the vertex pool and the blocks' lists ---- */
@@ -270,7 +243,7 @@ static size_t cell_block(const struct iso_kept *k, uint32_t c, uint16_t *local)
 }
 
 /* The box's triangles into the blocks, ids from the counter, each using slot vmap[v] of box vertex
- * v; what was added into ch. */
+ * v; what was added into ch (when not NULL). */
 static int install(struct iso_kept *k, const uint32_t *vmap, bool corners, struct iso_change *ch, struct sf_err *err)
 {
     const struct iso_box *x = &k->box;
@@ -280,9 +253,9 @@ static int install(struct iso_kept *k, const uint32_t *vmap, bool corners, struc
                        k->o.max_triangles_by ? k->o.max_triangles_by : "the limit");
     if ((uint64_t)k->next_id + x->n_tri > UINT32_MAX)
         return sf_fail(err, SF_ELIMIT, "", "the model has run out of triangle ids");
-    ch->added = malloc((x->n_tri ? x->n_tri : 1) * sizeof *ch->added);
-    ch->corners = corners ? malloc((x->n_tri ? x->n_tri : 1) * 18 * sizeof *ch->corners) : NULL;
-    if (!ch->added || (corners && !ch->corners))
+    if (ch && !(ch->added = malloc((x->n_tri ? x->n_tri : 1) * sizeof *ch->added)))
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    if (corners && !(ch->corners = malloc((x->n_tri ? x->n_tri : 1) * 18 * sizeof *ch->corners)))
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     struct kblock *b = NULL;
     uint16_t local = 0;
@@ -319,66 +292,114 @@ static int install(struct iso_kept *k, const uint32_t *vmap, bool corners, struc
             else
                 memset(c + 6 * q + 3, 0, 3 * sizeof *c);
         }
-        ch->added[i] = t->id;
+        if (ch)
+            ch->added[i] = t->id;
     }
-    ch->n_added = x->n_tri;
     k->n_tri += x->n_tri;
-    ch->next_id = k->next_id;
+    if (ch) {
+        ch->n_added = x->n_tri;
+        ch->next_id = k->next_id;
+    }
     return 0;
 }
 
-/* Every triangle out (their ids into ch), and the whole grid drawn again at k's iso and pad: the
- * blocks that straddle it. */
-static int redraw_all(struct iso_kept *k, bool corners, struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
+/* Every id there is, in order, into ch's removed; the blocks emptied. */
+static int all_ids(struct iso_kept *k, struct iso_change *ch, struct sf_err *err)
 {
-    ed->whole = true;
     ch->removed = malloc((k->n_tri ? k->n_tri : 1) * sizeof *ch->removed);
     if (!ch->removed)
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
-    /* every id there is, in order: marked in a map of the ids' range (sorted when that is sparse) */
     size_t n = 0;
-    uint32_t first = k->next_id;
-    for (size_t b = 0; b < k->n_blocks; b++)
-        if (k->blk[b].n && k->blk[b].t[0].id < first)
-            first = k->blk[b].t[0].id;
-    size_t range = k->next_id - first;
-    uint64_t *bits = range <= 64 * (size_t)k->n_tri + 64 ? calloc(range / 64 + 1, sizeof *bits) : NULL;
-    for (size_t b = 0; b < k->n_blocks; b++) {
-        for (uint32_t i = 0; i < k->blk[b].n; i++) {
-            uint32_t id = k->blk[b].t[i].id - first;
-            if (bits)
-                bits[id >> 6] |= (uint64_t)1 << (id & 63);
-            else
-                ch->removed[n++] = id + first;
+    if (k->flat) { /* (no edit since: the ids run on from the first) */
+        for (; n < k->n_tri; n++)
+            ch->removed[n] = k->flat_first + (uint32_t)n;
+    } else { /* marked in a map of the ids' range (sorted when that is sparse) */
+        uint32_t first = k->next_id;
+        for (size_t b = 0; b < k->n_blocks; b++)
+            if (k->blk[b].n && k->blk[b].t[0].id < first)
+                first = k->blk[b].t[0].id;
+        size_t range = k->next_id - first;
+        uint64_t *bits = range <= 64 * (size_t)k->n_tri + 64 ? calloc(range / 64 + 1, sizeof *bits) : NULL;
+        for (size_t b = 0; b < k->n_blocks; b++) {
+            for (uint32_t i = 0; i < k->blk[b].n; i++) {
+                uint32_t id = k->blk[b].t[i].id - first;
+                if (bits)
+                    bits[id >> 6] |= (uint64_t)1 << (id & 63);
+                else
+                    ch->removed[n++] = id + first;
+            }
+            k->blk[b].n = 0;
         }
-        k->blk[b].n = 0;
-    }
-    if (bits) {
-        for (size_t w = 0; w <= range / 64; w++)
-            for (uint64_t m = bits[w]; m; m &= m - 1)
-                ch->removed[n++] = first + (uint32_t)(64 * w + (size_t)__builtin_ctzll(m));
-        free(bits);
-    } else if (n > 1) {
-        struct pair *p = malloc(n * sizeof *p);
-        if (!p)
-            return sf_fail(err, SF_ENOMEM, "", "out of memory");
-        for (size_t i = 0; i < n; i++)
-            p[i] = (struct pair){ch->removed[i], 0};
-        int rc = sort_pairs(p, n, err);
-        for (size_t i = 0; i < n && !rc; i++)
-            ch->removed[i] = (uint32_t)p[i].key;
-        free(p);
-        if (rc)
-            return rc;
+        if (bits) {
+            for (size_t w = 0; w <= range / 64; w++)
+                for (uint64_t m = bits[w]; m; m &= m - 1)
+                    ch->removed[n++] = first + (uint32_t)(64 * w + (size_t)__builtin_ctzll(m));
+            free(bits);
+        } else if (n > 1) {
+            struct pair *p = malloc(n * sizeof *p);
+            if (!p)
+                return sf_fail(err, SF_ENOMEM, "", "out of memory");
+            for (size_t i = 0; i < n; i++)
+                p[i] = (struct pair){ch->removed[i], 0};
+            int rc = sort_pairs(p, n, err);
+            for (size_t i = 0; i < n && !rc; i++)
+                ch->removed[i] = (uint32_t)p[i].key;
+            free(p);
+            if (rc)
+                return rc;
+        }
     }
     ch->n_removed = n;
-    ed->triangles_removed = (long)n;
     k->n_tri = 0;
-    ed->cells_rebuilt = straddling(k);
-    int lo[3] = {0, 0, 0}, hi[3] = {k->C[0] - 1, k->C[1] - 1, k->C[2] - 1};
-    int rc = iso_box_extract(&k->g, &k->o, k->pad, lo, hi, k->mask, KB, &k->box, err);
+    return 0;
+}
+
+/* Every triangle out (their ids into ch), and the whole grid drawn again at k's iso and pad by the
+ * slabs' two passes (iso_box_whole): the new mesh left flat in k->box as drawn, in iso_extract's
+ * order, its ids the counter's next in that order. The blocks' lists and the pool are made from it
+ * when an edit first needs them (index_flat): a slider's moves, one new iso after another, and
+ * the reads of their meshes (iso_kept_mesh: the box's lists as they are) never make them. */
+static int redraw_all(struct iso_kept *k, bool corners, struct iso_edit *ed, struct iso_change *ch, struct sf_err *err)
+{
+    ed->whole = true;
+    int rc = all_ids(k, ch, err);
     if (rc)
         return rc;
+    ed->triangles_removed = (long)ch->n_removed;
+    k->flat = true; /* (the blocks are empty now, the pool stale) */
+    if ((rc = iso_box_whole(&k->g, &k->o, &k->box, err)))
+        return rc;
+    const struct iso_box *x = &k->box;
+    if ((uint64_t)k->next_id + x->n_tri > UINT32_MAX)
+        return sf_fail(err, SF_ELIMIT, "", "the model has run out of triangle ids");
+    ch->added = malloc((x->n_tri ? x->n_tri : 1) * sizeof *ch->added);
+    ch->corners = corners ? malloc((x->n_tri ? x->n_tri : 1) * 18 * sizeof *ch->corners) : NULL;
+    if (!ch->added || (corners && !ch->corners))
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    k->flat_first = k->next_id;
+    for (size_t i = 0; i < x->n_tri; i++) {
+        ch->added[i] = k->next_id++;
+        for (int q = 0; corners && q < 3; q++) {
+            const uint32_t v = x->tri[3 * i + q];
+            float *c = ch->corners + 18 * i + 6 * q;
+            memcpy(c, x->pos + 3 * (size_t)v, 3 * sizeof *c);
+            if (x->nrm && k->o.normals)
+                memcpy(c + 3, x->nrm + 3 * (size_t)v, 3 * sizeof *c);
+            else
+                memset(c + 3, 0, 3 * sizeof *c);
+        }
+    }
+    k->n_tri = x->n_tri;
+    ch->n_added = x->n_tri;
+    ch->next_id = k->next_id;
+    ed->cells_rebuilt = (long)x->n_cells;
+    ed->triangles_added = (long)ch->n_added;
+    return 0;
+}
+
+/* A flat mesh (redraw_all) made into the blocks' lists and the pool, its ids as they were. */
+static int index_flat(struct iso_kept *k, struct sf_err *err)
+{
     /* the box's vertices become the pool (its lists and the pool's swap) */
     struct iso_box *x = &k->box;
     float *p = k->pos, *q = k->nrm;
@@ -388,10 +409,11 @@ static int redraw_all(struct iso_kept *k, bool corners, struct iso_edit *ed, str
     x->pos = p, x->nrm = q, x->key = y, x->cap_vert = cap;
     k->n_vert = x->n_vert;
     k->n_free = 0;
-    if ((rc = pool_room(k, k->n_vert, err)))
+    int rc = pool_room(k, k->n_vert, err);
+    if (rc)
         return rc;
-    /* the box's vertex lists (the pool's old ones: none after the first redraw) as large as the
-     * pool's and touched now, not in the next redraw (an iso slider's first move) */
+    /* the box's vertex lists (the pool's old ones: none the first time) as large as the pool's and
+     * touched now, not in the next redraw of a box */
     if (x->cap_vert < k->cap_vert && iso_box_reserve(x, k->cap_vert, k->o.normals))
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     if (k->n_vert)
@@ -408,13 +430,17 @@ static int redraw_all(struct iso_kept *k, bool corners, struct iso_edit *ed, str
     }
     for (size_t b = 0; b < k->n_blocks; b++)
         k->blk[b].n = 0;
-    rc = install(k, NULL, corners, ch, err);
-    if (!rc)
-        for (size_t v = 0; v < k->n_vert; v++) /* (every box vertex is used) */
-            if (!k->ref[v])
-                k->free_v[k->n_free++] = (uint32_t)v;
-    ed->triangles_added = (long)ch->n_added;
-    return rc;
+    uint32_t next = k->next_id;
+    k->next_id = k->flat_first, k->n_tri = 0;
+    rc = install(k, NULL, false, NULL, err);
+    k->next_id = next;
+    if (rc)
+        return rc;
+    for (size_t v = 0; v < k->n_vert; v++) /* (every vertex of a whole drawing is used) */
+        if (!k->ref[v])
+            k->free_v[k->n_free++] = (uint32_t)v;
+    k->flat = false;
+    return 0;
 }
 
 /* The keys' map of an edit: key -> slot, open addressing. */
@@ -572,9 +598,8 @@ int iso_kept_begin(const struct iso_grid *g, const struct iso_opts *o, struct is
     }
     k->bmin = malloc(k->n_blocks * sizeof *k->bmin);
     k->bmax = malloc(k->n_blocks * sizeof *k->bmax);
-    k->mask = malloc(k->n_blocks);
     k->blk = calloc(k->n_blocks, sizeof *k->blk);
-    if (!k->g.samples || !k->bmin || !k->bmax || !k->mask || !k->blk) {
+    if (!k->g.samples || !k->bmin || !k->bmax || !k->blk) {
         iso_kept_free(k);
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     }
@@ -595,10 +620,48 @@ int iso_kept_begin(const struct iso_grid *g, const struct iso_opts *o, struct is
     return 0;
 }
 
+/* iso_kept_mesh of a flat mesh: the box's lists as they are (every vertex used, in iso_extract's
+ * order). */
+static int flat_mesh(const struct iso_kept *k, struct trimesh *out, uint32_t **ids, struct sf_err *err)
+{
+    const struct iso_box *x = &k->box;
+    size_t nv = x->n_vert, nt = x->n_tri;
+    out->pos = malloc((nv ? nv : 1) * 3 * sizeof *out->pos);
+    out->nrm = k->o.normals ? malloc((nv ? nv : 1) * 3 * sizeof *out->nrm) : NULL;
+    out->tri = malloc((nt ? nt : 1) * 3 * sizeof *out->tri);
+    *ids = malloc((nt ? nt : 1) * sizeof **ids);
+    if (!out->pos || (k->o.normals && !out->nrm) || !out->tri || !*ids) {
+        trimesh_free(out);
+        free(*ids);
+        *ids = NULL;
+        return sf_fail(err, SF_ENOMEM, "", "out of memory");
+    }
+    memcpy(out->pos, x->pos, nv * 3 * sizeof *out->pos);
+    if (out->nrm)
+        memcpy(out->nrm, x->nrm, nv * 3 * sizeof *out->nrm);
+    memcpy(out->tri, x->tri, nt * 3 * sizeof *out->tri);
+    for (size_t i = 0; i < nt; i++)
+        (*ids)[i] = k->flat_first + (uint32_t)i;
+    out->n_vert = nv, out->n_tri = nt;
+    return 0;
+}
+
+int iso_kept_index(struct iso_kept *k, struct sf_err *err)
+{
+    if (k->broken)
+        return sf_fail(err, SF_EINVAL, "", "an earlier change of this extraction failed: it is of no further use");
+    int rc = k->flat ? index_flat(k, err) : 0;
+    if (rc)
+        k->broken = true;
+    return rc;
+}
+
 int iso_kept_mesh(const struct iso_kept *k, struct trimesh *out, uint32_t **ids, struct sf_err *err)
 {
     memset(out, 0, sizeof *out);
     *ids = NULL;
+    if (k->flat)
+        return flat_mesh(k, out, ids, err);
     size_t nt = k->n_tri, nv = 0;
     struct pair *tp = malloc((nt ? nt : 1) * sizeof *tp);
     uint32_t *where = malloc((nt ? nt : 1) * 3 * sizeof *where);
@@ -698,8 +761,10 @@ int iso_kept_edit(struct iso_kept *k, const int lo[3], const struct iso_grid *bl
         if (lo[d] < 0 || n[d] < 1 || lo[d] + (long)n[d] > dims[d])
             return sf_fail(err, SF_EINVAL, "?region", "the region lies outside the volume's %d x %d x %d samples",
                            dims[0], dims[1], dims[2]);
-    int rc = write_samples(k, lo, blk, err);
+    int rc = iso_kept_index(k, err);
     if (rc)
+        return rc;
+    if ((rc = write_samples(k, lo, blk, err)))
         return rc;
     int e0[3], e1[3], c0[3], c1[3];
     for (int d = 0; d < 3; d++) { /* the samples written, in the virtual grid, and their blocks */
@@ -757,7 +822,7 @@ int iso_kept_iso(struct iso_kept *k, double iso, bool corners, struct iso_edit *
 size_t iso_kept_bytes(const struct iso_kept *k)
 {
     size_t n = sizeof *k + (size_t)k->g.nx * (size_t)k->g.ny * (size_t)k->g.nz * k->esize;
-    n += k->n_blocks * (2 * sizeof(float) + 1 + sizeof(struct kblock));
+    n += k->n_blocks * (2 * sizeof(float) + sizeof(struct kblock));
     for (size_t b = 0; b < k->n_blocks; b++)
         n += k->blk[b].cap * sizeof(struct ktri);
     n += k->cap_vert * ((k->nrm ? 6 : 3) * sizeof(float) + sizeof(uint64_t)) + k->ref_cap * 2 * sizeof(uint32_t);
@@ -772,7 +837,6 @@ void iso_kept_free(struct iso_kept *k)
     free((void *)k->g.samples);
     free(k->bmin);
     free(k->bmax);
-    free(k->mask);
     if (k->blk)
         for (size_t b = 0; b < k->n_blocks; b++)
             free(k->blk[b].t);

@@ -56,6 +56,11 @@ int iso_kept_edit(struct iso_kept *k, const int lo[3], const struct iso_grid *bl
  * surface is empty), SF_ENOMEM, SF_ELIMIT. */
 int iso_kept_iso(struct iso_kept *k, double iso, bool corners, struct iso_edit *ed, struct iso_change *ch,
                  struct sf_err *err);
+/* The lists an edit works on made now, when the last change left none (iso_kept_begin and a new
+ * iso leave the mesh as drawn: a slider's moves and the reads of their meshes need no more), so
+ * that the next edit does not make them: for a caller with time to spare, after an answer. 0, or
+ * SF_ENOMEM (k is then of no further use), SF_EINVAL (it already was). */
+int iso_kept_index(struct iso_kept *k, struct sf_err *err);
 /* The memory k holds, in bytes. */
 size_t iso_kept_bytes(const struct iso_kept *k);
 void iso_kept_free(struct iso_kept *k);

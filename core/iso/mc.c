@@ -324,7 +324,10 @@ struct iso_job {
     struct trim *trim;               /* per sample row [J + NY*K]: where its states change */
     uint64_t *bits;                  /* per slice K: its states as bits (pass 1's, read by pass 2) */
     struct cases *cases;             /* [s]: the cases of slab s's cells, as pass 1 found them */
-    struct trimesh m;
+    struct trimesh m;                /* the lists of into when there is one (iso_box_whole) */
+    struct iso_box *into;
+    uint64_t *key;                   /* with into: its keys and cells (iso_box) */
+    uint32_t *cell;
 };
 
 int iso_n_slabs(const struct iso_job *j) { return j->n_slabs; }
@@ -450,6 +453,8 @@ void iso_free(struct iso_job *j)
     for (int s = 0; j->cases && s < j->n_slabs; s++)
         free(j->cases[s].at);
     free(j->cases);
+    if (j->into) /* (its lists are the box's) */
+        memset(&j->m, 0, sizeof j->m);
     trimesh_free(&j->m);
     free(j);
 }
@@ -921,6 +926,8 @@ static int slabs_ok(const struct iso_job *j, struct sf_err *err)
     return 0;
 }
 
+static bool box_grow(struct iso_box *b, size_t verts, size_t tris, bool normals);
+
 int iso_layout(struct iso_job *j, struct sf_err *err)
 {
     int rc = slabs_ok(j, err);
@@ -962,6 +969,15 @@ int iso_layout(struct iso_job *j, struct sf_err *err)
                        j->o.max_triangles, j->o.max_triangles_by ? j->o.max_triangles_by : "the limit");
     j->m.n_vert = v;
     j->m.n_tri = t;
+    if (j->into) {
+        struct iso_box *b = j->into;
+        b->n_vert = b->n_tri = 0;
+        if (!box_grow(b, v, t, j->o.normals))
+            return sf_fail(err, SF_ENOMEM, "", "out of memory for a mesh of %zu triangles", t);
+        j->m.pos = b->pos, j->m.nrm = j->o.normals ? b->nrm : NULL, j->m.tri = b->tri;
+        j->key = b->key, j->cell = b->cell;
+        return 0;
+    }
     j->m.pos = malloc((v ? v : 1) * 3 * sizeof *j->m.pos);
     j->m.tri = malloc((t ? t : 1) * 3 * sizeof *j->m.tri);
     if (j->o.normals)
@@ -1080,6 +1096,8 @@ static void put_vertex(struct iso_job *j, const struct window *w, size_t v, int 
                        float b)
 {
     vertex_at(j, w, I, J, K, axis, a, b, j->m.pos + 3 * v, j->m.nrm ? j->m.nrm + 3 * v : NULL);
+    if (j->key)
+        j->key[v] = iso_vertex_key(j->NX, j->NY, I, J, K, axis, 0);
 }
 
 /* The vertex at the centre of a loop of cell (I, J, K) (rows r[z][y]): the mean of the loop's
@@ -1122,9 +1140,12 @@ static void centre_at(const struct iso_job *j, int I, int J, int K, const float 
         nrm[d] = len > 0 ? (float)(-g[d] / len) : 0.0f;
 }
 
-static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const float *r[2][2], unsigned edges)
+/* Vertex v at the centre of loop c of cell (I, J, K), of the edges edges. */
+static void put_centre(struct iso_job *j, size_t v, int I, int J, int K, const float *r[2][2], int c, unsigned edges)
 {
     centre_at(j, I, J, K, r, edges, j->m.pos + 3 * v, j->m.nrm ? j->m.nrm + 3 * v : NULL);
+    if (j->key)
+        j->key[v] = iso_vertex_key(j->NX, j->NY, I, J, K, 3, c);
 }
 
 /* The x and y vertices of level K. */
@@ -1205,7 +1226,12 @@ static void emit_layer(struct iso_job *j, const struct window *w, int K, const u
                                               (uint32_t)cz[1], (uint32_t)(cz[1] + zs[1])};
             for (int c = 0; c < cc->n_centres; c++) {
                 ids[12 + c] = (uint32_t)centre;
-                put_centre(j, centre++, I, J, K, r, cc->centre_of[c]);
+                put_centre(j, centre++, I, J, K, r, c, cc->centre_of[c]);
+            }
+            if (j->cell) {
+                uint32_t *cell = j->cell + (tri - j->m.tri) / 3;
+                for (int k = 0; k < cc->n; k++)
+                    cell[k] = (uint32_t)(NX - 1) * ((uint32_t)J + (uint32_t)(NY - 1) * (uint32_t)K) + (uint32_t)I;
             }
             for (int k = 0; k < 3 * cc->n; k++)
                 *tri++ = ids[cc->e[k]];
@@ -1432,6 +1458,7 @@ static void box_run(struct box_pass *p, int I0, int I1, int J, int K)
             ids[12 + k] = (uint32_t)v;
         }
         uint32_t *tri = b->tri + 3 * b->n_tri;
+        b->n_cells++;
         for (int k = 0; k < 3 * cc->n; k++)
             tri[k] = ids[cc->e[k]];
         for (int k = 0; k < cc->n; k++)
@@ -1449,7 +1476,7 @@ int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pa
     struct iso_job *j = &p.j;
     frame(j, g, o);
     j->pad = o->closed ? pad : 0;
-    out->n_vert = out->n_tri = 0;
+    out->n_vert = out->n_tri = out->n_cells = 0;
     int C[3] = {j->NX - 1, j->NY - 1, j->NZ - 1}, rect[4];
     for (int d = 0; d < 3; d++)
         if (lo[d] < 0 || hi[d] >= C[d] || lo[d] > hi[d])
@@ -1514,6 +1541,25 @@ int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pa
         }
     }
     return 0;
+}
+
+int iso_box_whole(const struct iso_grid *g, const struct iso_opts *o, struct iso_box *out, struct sf_err *err)
+{
+    struct iso_job *j;
+    int rc = iso_begin(g, o, 1, &j, err);
+    if (rc)
+        return rc;
+    j->into = out;
+    iso_count(j, 0);
+    if (!(rc = iso_layout(j, err))) {
+        iso_emit(j, 0);
+        rc = slabs_ok(j, err);
+    }
+    if (!rc) {
+        out->n_vert = j->m.n_vert, out->n_tri = j->m.n_tri, out->n_cells = j->cases[0].n;
+    }
+    iso_free(j);
+    return rc;
 }
 
 int iso_box_reserve(struct iso_box *b, size_t verts, bool normals)

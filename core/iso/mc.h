@@ -109,6 +109,7 @@ struct iso_box {
     uint32_t *tri;           /* 3 per triangle, into the box's vertices */
     uint32_t *cell;          /* per triangle: its virtual cell, I + (NX-1) (J + (NY-1) K) */
     size_t n_tri, cap_tri;
+    size_t n_cells;          /* the cells drawn (with a crossing) */
     void *scratch;           /* kept between calls (iso_box_free frees it all) */
     size_t scratch_bytes;
 };
@@ -127,6 +128,12 @@ static inline uint64_t iso_vertex_key(int NX, int NY, int I, int J, int K, int k
  * then half made), SF_ELIMIT (over ISO_MAX_VERTICES). */
 int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pad, const int lo[3], const int hi[3],
                     const uint8_t *mask, int mask_b, struct iso_box *out, struct sf_err *err);
+/* The whole grid drawn into out (its lists emptied first) by the slabs' two passes on the calling
+ * thread: iso_extract's mesh, vertices and triangles in its order, with their keys and cells. Where
+ * a new iso redraws every cell that straddles it, this is the faster way: the slabs' walk passes
+ * over 64 cells of one state at a time and shares each vertex by its place in a row, where a box
+ * finds its vertices again through slots. 0, or SF_EBACKEND, SF_ENOMEM, SF_ELIMIT. */
+int iso_box_whole(const struct iso_grid *g, const struct iso_opts *o, struct iso_box *out, struct sf_err *err);
 /* Room in out's vertex lists for verts vertices, their memory touched (so that a later pass
  * neither grows them cell by cell nor faults their pages in). 0, or -1: no memory. */
 int iso_box_reserve(struct iso_box *out, size_t verts, bool normals);
