@@ -1020,7 +1020,8 @@ static void window_at(const struct iso_job *j, struct window *w, int K)
 
 /* The field's gradient at virtual sample (I, J, K), by central differences (one-sided at the
  * border), in grid units. */
-static void gradient(const struct iso_job *j, const struct window *w, int I, int J, int K, float g[3])
+static inline __attribute__((always_inline)) void gradient(const struct iso_job *j, const struct window *w, int I, int J, int K,
+                                                       float g[3])
 {
     int NX = j->NX, NY = j->NY, NZ = j->NZ;
     const float *c = slice(w, K) + (size_t)I + (size_t)NX * J;

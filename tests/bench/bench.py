@@ -620,29 +620,32 @@ def kept_bench(lines):
     lines.append("## Marching cubes kept (issue 45): edits and iso changes of the %s, iso %g\n" % (name, iso))
     lines.append("`%s` and `... --isos %s` (3 runs each, medians; one more of both with `--check`: every mesh equal to a fresh extraction of the edited "
                  "samples, triangle for triangle, positions and normals: **%s**). The model (levels=1) kept with its samples "
-                 "(core/iso/kept.h: %.0f MB for this CT, the begin %.0f ms). An edit draws again the cells whose corners or "
-                 "vertices' normals read a written sample; an iso change the blocks (8^3 cells) whose sample range straddles "
-                 "it, every old triangle removed, the new ones' ids handed out as the change (their corners are not: the daemon reads "
-                 "the new mesh back whole); each iso twice (first: the extraction's memory touched anew; again: reused, "
-                 "as a slider's moves reuse it). Flying Edges: "
+                 "(core/iso/kept.h: %.0f MB for this CT, the begin %.0f ms, then the lists an edit works on %.0f ms, as the "
+                 "daemon's warm-up makes them after the model's answer). An edit draws again the cells whose corners or "
+                 "vertices' normals read a written sample; an iso change draws the whole grid by the slabs' two passes "
+                 "(`iso_box_whole`: the cells with a crossing, 64 cells of one state passed over at a time), every old triangle "
+                 "removed, the new ones' ids handed out as the change (their corners are not: the daemon reads the new mesh back "
+                 "whole), the mesh left as drawn; the first edit after a new iso first makes the lists (%.0f ms); each iso "
+                 "twice (first: the extraction's memory touched anew; again: reused, as a slider's moves reuse it). Flying Edges: "
                  "VTK 9.1's full extraction at that iso, one thread, padded, normals on (`tests/bench/vtk_iso.py`).\n" % (
                      " ".join(["surfd"] + cmd[1:]).replace(DATA, "../shared/data"), ",".join("%g" % v for v in isos),
                      "yes" if checked["equal_to_fresh"] else "NO", med([r["bytes"] for r in runs]) / 1e6,
-                     med([r["begin_ms"] for r in runs])))
+                     med([r["begin_ms"] for r in runs]), med([r["index_ms"] for r in runs]),
+                     med([r["index_after_isos_ms"] for r in iso_runs])))
     lines.append("| edits | edit ms median | edit ms max | cells redrawn median | triangles added / removed (all edits) |")
     lines.append("|---|---|---|---|---|")
     lines.append("| 20 of 16^3 | %.2f | %.2f | %d | %d / %d |" % (
         med([r["edit_ms_median"] for r in runs]), med([r["edit_ms_max"] for r in runs]),
         med([r["cells_rebuilt_median"] for r in runs]), runs[0]["triangles_added"], runs[0]["triangles_removed"]))
     lines.append("")
-    lines.append("| new iso | kept ms first / again | FE cold ms | FE warm ms | kept again / FE warm | triangles kept / FE | cells visited |")
+    lines.append("| new iso | kept ms first / again | FE cold ms | FE warm ms | kept again / FE warm | triangles kept / FE | cells drawn |")
     lines.append("|---|---|---|---|---|---|---|")
     for i, v in enumerate(isos):
         first = med([r["isos"][i]["ms"] for r in iso_runs])
         again = med([r["isos"][i + len(isos)]["ms"] for r in iso_runs])
         lines.append("| %g | %.1f / %.1f | %.1f | %.1f | %.2f | %d / %d | %d |" % (
             v, first, again, fe[v]["cold_ms"], fe[v]["warm_ms"], again / fe[v]["warm_ms"], iso_runs[0]["isos"][i]["triangles"],
-            fe[v]["triangles"], iso_runs[0]["isos"][i]["cells_visited"]))
+            fe[v]["triangles"], iso_runs[0]["isos"][i]["cells_drawn"]))
     lines.append("")
 
 
