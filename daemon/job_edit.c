@@ -13,7 +13,8 @@
  * that seq first, the hierarchy is let go and the edit answered 409 (sent again, it is applied
  * after the other). Models of levels 1 without features are kept as marching cubes (core/iso/kept.h:
  * the samples, a min/max index of blocks, each block's triangles), so that their edits too draw
- * only the cells they reach and an iso change only the blocks that straddle it; a volume too large
+ * only the cells they reach and an iso change draws without a rebuild (the warm-up makes the
+ * lists an edit needs after the model's answer: iso_kept_index); a volume too large
  * for edit-memory keeps its samples alone, and every edit of it draws every cell again (whole).
  * Every kept extraction's change goes to the model's journal (store.h) once its triangle ids are
  * found to be the stored mesh's (ids_agree). An FRep model is edited by an object ({op, object, alpha}): its latest tree (the last part) is

@@ -66,7 +66,7 @@ static void range_of(const float *f, size_t n, double *lo, double *hi)
 }
 
 /* An iso change to value (options' "value") of vol's model: marching cubes kept drawn again at
- * that iso (the blocks that straddle it), a new hierarchy at that iso, its triangles numbered after
+ * that iso (iso_kept_iso), a new hierarchy at that iso, its triangles numbered after
  * the old one's (ch: all of the old ones out, all of the new in, by id, without corners), or, with
  * neither, vol's iso (its mesh then extracted again whole). */
 static int iso_apply(struct service *svc, struct volume *vol, struct kept_ext *x, const char *value,

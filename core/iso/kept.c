@@ -2,20 +2,25 @@
  * loop, issue 45), and the changes kept extractions report.
  *
  * What is kept: the samples (their own type); the cells in blocks of KB^3, each block with the
- * least and greatest of the samples its cells' corners read (so that an iso visits only the blocks
- * that straddle it) and the list of its cells' triangles (id, vertices, cell within the block, in
- * id order); a pool of vertices, each with its key (mc.h: iso_vertex_key, the edge or cell centre
- * it sits on) and the number of triangles that use it. Every triangle is drawn by mc.c's
- * iso_box_extract, the very code of iso_extract, so a cell drawn again is drawn bit for bit as a
- * fresh extraction would.
+ * least and greatest of the samples its cells' corners read (so that the samples' least, which
+ * sets the pad, and their range, which bounds an iso, follow edits without a pass over every
+ * sample) and the list of its cells' triangles (id, vertices, cell within the block, in id order);
+ * a pool of vertices, each with its key (mc.h: iso_vertex_key, the edge or cell centre it sits on)
+ * and the number of triangles that use it. Every triangle is drawn by mc.c's code of iso_extract
+ * (iso_box_extract, iso_box_whole), so a cell drawn again is drawn bit for bit as a fresh
+ * extraction would.
  *
  * An edit of samples lo .. hi changes the corners of cells lo-1 .. hi and the normals of the
  * vertices on edges that end within one sample of them (central differences), i.e. of cells
  * lo-2 .. hi+1: those cells' triangles go, the box of them is drawn again, and its vertices on the
  * box's faces are matched by key to those the kept triangles round the box use (the same edge, the
  * same samples: the same vertex). When the least sample moves the closed grid's pad (iso - 1 or
- * the least, whichever is less), every border cell changes: the whole grid is drawn again (the
- * blocks that straddle the iso). An iso change draws again the blocks that straddle the new iso.
+ * the least, whichever is less), every border cell changes: the whole grid is drawn again. So is it
+ * at a new iso, by the slabs' two passes (iso_box_whole), which pass over 64 cells of one state at a
+ * time: on the CT head 0.5-0.8x Flying Edges' time where drawing the 8^3 blocks whose range
+ * straddles the iso as boxes took 1.0-1.1x (tests/bench/RESULTS.md). A whole drawing is left flat,
+ * as drawn (redraw_all): the blocks' lists and the pool are made when an edit first needs them
+ * (iso_kept_index), so a slider's moves and the reads of their meshes never make them.
  * Written by hand: VTK and OpenVDB keep no mesh by cell. */
 #include "kept.h"
 
