@@ -462,7 +462,7 @@ void iso_free(struct iso_job *j)
 /* The cells' tables: [(c * 64 + joined) * 2 + tube], and each corner state's ambiguous faces. */
 static struct cell_case CASES[256 * 64 * 2];
 static uint8_t AMBIGUOUS[256];
-static uint16_t CROSSED[256]; /* each corner state's crossed edges (a box's pass) */
+static uint16_t CROSSED[256]; /* each corner state's crossed edges */
 static bool tables_built;
 
 void iso_init(void)
@@ -1020,8 +1020,7 @@ static void window_at(const struct iso_job *j, struct window *w, int K)
 
 /* The field's gradient at virtual sample (I, J, K), by central differences (one-sided at the
  * border), in grid units. */
-static inline __attribute__((always_inline)) void gradient(const struct iso_job *j, const struct window *w, int I, int J, int K,
-                                                       float g[3])
+static void gradient(const struct iso_job *j, const struct window *w, int I, int J, int K, float g[3])
 {
     int NX = j->NX, NY = j->NY, NZ = j->NZ;
     const float *c = slice(w, K) + (size_t)I + (size_t)NX * J;
@@ -1074,8 +1073,9 @@ static void unit_normals(float *n, size_t count)
  * (value b): its position into pos, its normal into nrm (when not NULL), not yet of unit length
  * (unit_normal). The one computation of both extractions (the slabs' and a box's), so that they
  * agree bit for bit. */
-static inline void vertex_at(const struct iso_job *j, const struct window *w, int I, int J, int K, int axis, float a,
-                             float b, float *pos, float *nrm)
+static inline __attribute__((always_inline)) void vertex_at(const struct iso_job *j, const struct window *w, int I,
+                                                        int J, int K, int axis, float a, float b, float *pos,
+                                                        float *nrm)
 {
     double t = ((double)j->iso - a) / ((double)b - a);
     t = t < ISO_EDGE_MARGIN ? ISO_EDGE_MARGIN : t > 1 - ISO_EDGE_MARGIN ? 1 - ISO_EDGE_MARGIN : t;
@@ -1085,8 +1085,22 @@ static inline void vertex_at(const struct iso_job *j, const struct window *w, in
     if (!nrm)
         return;
     float g0[3], g1[3], ft = (float)t;
-    gradient(j, w, I, J, K, g0);
-    gradient(j, w, I + (axis == 0), J + (axis == 1), K + (axis == 2), g1);
+    int NX = j->NX, dx = axis == 0, dy = axis == 1, dz = axis == 2;
+    if (I > 0 && J > 0 && K > 0 && I + 1 + dx < NX && J + 1 + dy < j->NY && K + 1 + dz < j->NZ) {
+        /* both ends' neighbours inside: gradient's common case, its sums as there */
+        size_t at = (size_t)I + (size_t)NX * J, at1 = at + (size_t)dx + (size_t)NX * dy;
+        const float *below = slice(w, K - 1), *mid = slice(w, K), *above = slice(w, K + 1), *c = mid + at;
+        const float *m1 = dz ? above : mid, *b1 = dz ? mid : below, *a1 = dz ? slice(w, K + 2) : above, *c1 = m1 + at1;
+        g0[0] = (c[1] - c[-1]) * j->half_inv[0];
+        g0[1] = (c[NX] - c[-NX]) * j->half_inv[1];
+        g0[2] = (above[at] - below[at]) * j->half_inv[2];
+        g1[0] = (c1[1] - c1[-1]) * j->half_inv[0];
+        g1[1] = (c1[NX] - c1[-NX]) * j->half_inv[1];
+        g1[2] = (a1[at1] - b1[at1]) * j->half_inv[2];
+    } else {
+        gradient(j, w, I, J, K, g0);
+        gradient(j, w, I + dx, J + dy, K + dz, g1);
+    }
     for (int d = 0; d < 3; d++)
         nrm[d] = (ft - 1) * g0[d] - ft * g1[d]; /* outward: down the gradient */
 }
@@ -1199,10 +1213,13 @@ static void emit_layer(struct iso_job *j, const struct window *w, int K, const u
         const float *r[2][2] = {{a + (size_t)NX * J, a + (size_t)NX * (J + 1)}, {b + (size_t)NX * J, b + (size_t)NX * (J + 1)}};
         size_t row = J + (size_t)NY * K, up = row + NY; /* level K+1's row J */
         /* running ids: crossings before column I in each row a cell of this row touches */
-        size_t cx[4] = {j->xb[row], j->xb[row + 1], j->xb[up], j->xb[up + 1]}; /* (y, z) = 00 10 01 11 */
-        size_t cy[2] = {j->yb[row], j->yb[up]};                                 /* z = 0, 1 */
-        size_t cz[2] = {j->zb[row], j->zb[row + 1]};                            /* y = 0, 1 */
-        uint32_t *tri = j->m.tri + 3 * j->tb[row];
+        /* (ids under ISO_MAX_VERTICES: 32 bits) */
+        uint32_t cx[4] = {(uint32_t)j->xb[row], (uint32_t)j->xb[row + 1], (uint32_t)j->xb[up],
+                          (uint32_t)j->xb[up + 1]};                           /* (y, z) = 00 10 01 11 */
+        uint32_t cy[2] = {(uint32_t)j->yb[row], (uint32_t)j->yb[up]};         /* z = 0, 1 */
+        uint32_t cz[2] = {(uint32_t)j->zb[row], (uint32_t)j->zb[row + 1]};    /* y = 0, 1 */
+        uint32_t *tri = j->m.tri + 3 * j->tb[row], *cell = j->cell ? j->cell + j->tb[row] : NULL;
+        uint32_t cell_row = (uint32_t)(NX - 1) * ((uint32_t)J + (uint32_t)(NY - 1) * (uint32_t)K);
         size_t centre = j->cb[row];
         const struct trim *rows[4] = {&ta[J], &ta[J + 1], &tb[J], &tb[J + 1]};
         span(rows, 4, 1, NX - 2, &lo, &hi); /* no crossing of any row the cells touch lies before lo */
@@ -1211,33 +1228,28 @@ static void emit_layer(struct iso_job *j, const struct window *w, int K, const u
         cells_begin(&cl, p0, p0 + W, q0, q0 + W, lo, hi);
         for (int I; (I = cells_next(&cl)) >= 0;) {
             const struct cell_case *cc = &CASES[**cases];
-            int st = *(*cases)++ / (64 * 2); /* (the index's corner states) */
-            /* crossings of the cell's edges from its corner states: x edge (y, z) between corners
-             * 2y+4z and 2y+4z+1; y edge (x=0, z) between 4z and 4z+2; z edge (x=0, y) between 2y and 2y+4 */
-            bool xs[4], ys[2], zs[2];
-            for (int e = 0; e < 4; e++)
-                xs[e] = (st >> (2 * e) ^ st >> (2 * e + 1)) & 1;
-            for (int k = 0; k < 2; k++) {
-                ys[k] = (st >> (4 * k) ^ st >> (4 * k + 2)) & 1;
-                zs[k] = (st >> (2 * k) ^ st >> (2 * k + 4)) & 1;
-            }
-            uint32_t ids[12 + MAX_CENTRES] = {(uint32_t)cx[0], (uint32_t)cx[1], (uint32_t)cx[2], (uint32_t)cx[3],
-                                              (uint32_t)cy[0], (uint32_t)(cy[0] + ys[0]), (uint32_t)cy[1],
-                                              (uint32_t)(cy[1] + ys[1]), (uint32_t)cz[0], (uint32_t)(cz[0] + zs[0]),
-                                              (uint32_t)cz[1], (uint32_t)(cz[1] + zs[1])};
+            /* the cell's crossed edges from its corner states (the case index's): the x edges 0-3,
+             * the y and z edges at x = 0 (4, 6; 8, 10), whose x = 1 ones (5, 7; 9, 11) are the next
+             * crossings of their rows */
+            unsigned e = CROSSED[*(*cases)++ / (64 * 2)];
+            uint32_t xs[4] = {e & 1, e >> 1 & 1, e >> 2 & 1, e >> 3 & 1}, ys[2] = {e >> 4 & 1, e >> 6 & 1},
+                     zs[2] = {e >> 8 & 1, e >> 10 & 1};
+            uint32_t ids[12 + MAX_CENTRES] = {cx[0], cx[1], cx[2], cx[3], cy[0], cy[0] + ys[0], cy[1], cy[1] + ys[1],
+                                              cz[0], cz[0] + zs[0], cz[1], cz[1] + zs[1]};
+            int n = cc->n;
             for (int c = 0; c < cc->n_centres; c++) {
                 ids[12 + c] = (uint32_t)centre;
                 put_centre(j, centre++, I, J, K, r, c, cc->centre_of[c]);
             }
-            if (j->cell) {
-                uint32_t *cell = j->cell + (tri - j->m.tri) / 3;
-                for (int k = 0; k < cc->n; k++)
-                    cell[k] = (uint32_t)(NX - 1) * ((uint32_t)J + (uint32_t)(NY - 1) * (uint32_t)K) + (uint32_t)I;
-            }
-            for (int k = 0; k < 3 * cc->n; k++)
-                *tri++ = ids[cc->e[k]];
-            for (int e = 0; e < 4; e++)
-                cx[e] += xs[e];
+            if (cell)
+                for (int k = 0; k < n; k++)
+                    *cell++ = cell_row + (uint32_t)I;
+            const uint8_t *ce = cc->e;
+            for (int k = 0; k < 3 * n; k++)
+                tri[k] = ids[ce[k]];
+            tri += 3 * n;
+            for (int k = 0; k < 4; k++)
+                cx[k] += xs[k];
             cy[0] += ys[0], cy[1] += ys[1];
             cz[0] += zs[0], cz[1] += zs[1];
         }
