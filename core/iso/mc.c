@@ -552,13 +552,6 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
     return 0;
 }
 
-/* The corner states of cell I of the rows a0, a1 (y, y+1 at z) and b0, b1 (at z+1): bit x + 2y + 4z. */
-static inline int first_states(float iso, const float *a0, const float *a1, const float *b0, const float *b1, int I)
-{
-    return (a0[I] > iso) | (a1[I] > iso) << 2 | (b0[I] > iso) << 4 | (b1[I] > iso) << 6 | (a0[I + 1] > iso) << 1 |
-           (a1[I + 1] > iso) << 3 | (b0[I + 1] > iso) << 5 | (b1[I + 1] > iso) << 7;
-}
-
 /* MC33's interior test, by sampling: whether the corners of mask a reach those of mask b through
  * samples of the trilinear interpolant of g (values less iso) that are inside (s = 1) or outside
  * (s = 0), on an (INTERIOR_STEPS+1)^3 lattice of the cell. Exact on the corners and faces the
@@ -797,6 +790,17 @@ static inline int cells_next(struct cells *c)
     return I <= c->hi ? I : -1;
 }
 
+/* The corner states of cell I of the cells c walks (its rows' bits): bit x + 2y + 4z. */
+static inline int states_at(const struct cells *c, int I)
+{
+    int w = I >> 6, s = I & 63, st = 0;
+    for (int k = 0; k < 4; k++) { /* columns I and I+1 of row k: (y, z) = k's */
+        uint64_t b = c->r[k][w] >> s | (s == 63 ? c->r[k][w + 1] << 1 : 0);
+        st |= (int)(b & 3) << (2 * k);
+    }
+    return st;
+}
+
 /* The x and y rows of level K (its rows' trims t, states bits). */
 static void count_level(struct iso_job *j, int K, const struct trim *t, const uint64_t *bits)
 {
@@ -896,7 +900,7 @@ void iso_count(struct iso_job *j, int s)
             struct cells cl;
             cells_begin(&cl, p0, p0 + W, q0, q0 + W, lo, hi);
             for (int I; (I = cells_next(&cl)) >= 0;) {
-                int st = first_states(j->iso, a0, a1, b0, b1, I), idx = cell_case(j, st, a0, a1, b0, b1, I);
+                int idx = cell_case(j, states_at(&cl, I), a0, a1, b0, b1, I);
                 if (cs->n == cs->cap && !cases_grow(cs)) {
                     j->slab_failed[s] = true;
                     goto done;
@@ -1449,7 +1453,6 @@ static void box_run(struct box_pass *p, int I0, int I1, int J, int K)
     const struct iso_job *j = &p->j;
     struct iso_box *b = p->out;
     int NX = j->NX;
-    float iso = j->iso;
     const float *a = slice(&p->w, K), *c = slice(&p->w, K + 1);
     const float *r[2][2] = {{a + (size_t)NX * J, a + (size_t)NX * (J + 1)}, {c + (size_t)NX * J, c + (size_t)NX * (J + 1)}};
     const float *a0 = r[0][0], *a1 = r[0][1], *b0 = r[1][0], *b1 = r[1][1];
@@ -1459,7 +1462,7 @@ static void box_run(struct box_pass *p, int I0, int I1, int J, int K)
     struct cells cl;
     cells_begin(&cl, p0, p0 + W, q0, q0 + W, I0, I1);
     for (int I; (I = cells_next(&cl)) >= 0;) {
-        int st = first_states(iso, a0, a1, b0, b1, I);
+        int st = states_at(&cl, I);
         const struct cell_case *cc = &CASES[cell_case(j, st, a0, a1, b0, b1, I)];
         uint32_t ids[12 + MAX_CENTRES];
         for (unsigned m = CROSSED[st]; m; m &= m - 1)
