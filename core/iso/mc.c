@@ -386,32 +386,8 @@ static void grid_span(const struct iso_grid *g, int x0, int y, int z, int n, flo
 
 void iso_grid_row(const struct iso_grid *g, int y, int z, float *out) { grid_span(g, 0, y, z, g->nx, out); }
 
-#define ROW_LEAST(T)                                     \
-    do {                                                 \
-        const T *p = (const T *)g->samples + at;         \
-        T lo = p[0];                                     \
-        for (int i = 0; i < n; i++) {                    \
-            out[i] = p[i];                               \
-            lo = p[i] < lo ? p[i] : lo;                  \
-        }                                                \
-        *least = (float)lo < *least ? (float)lo : *least; \
-    } while (0)
-
-/* iso_grid_row, the row's least folded into *least as it goes. */
-static void row_least(const struct iso_grid *g, int y, int z, float *out, float *least)
-{
-    size_t at = (size_t)g->nx * ((size_t)y + (size_t)g->ny * (size_t)z);
-    int n = g->nx;
-    switch (g->type) {
-    case ISO_U8: ROW_LEAST(uint8_t); break;
-    case ISO_I16: ROW_LEAST(int16_t); break;
-    case ISO_U16: ROW_LEAST(uint16_t); break;
-    default: ROW_LEAST(float);
-    }
-}
-
-/* Virtual slice K into out (NX * NY floats); with least, the least of its real samples folded in. */
-static void load(const struct iso_job *j, int K, float *out, float *least)
+/* Virtual slice K into out (NX * NY floats). */
+static void load(const struct iso_job *j, int K, float *out)
 {
     int s = j->shift;
     for (int J = 0; J < j->NY; J++) {
@@ -422,10 +398,7 @@ static void load(const struct iso_job *j, int K, float *out, float *least)
                 row[I] = j->pad;
             continue;
         }
-        if (least)
-            row_least(&j->g, y, z, row + s, least);
-        else
-            iso_grid_row(&j->g, y, z, row + s);
+        iso_grid_row(&j->g, y, z, row + s);
         if (s)
             row[0] = row[j->NX - 1] = j->pad;
     }
@@ -600,16 +573,16 @@ static bool interior_joins(const double g[8], int s, int a, int b)
     return false;
 }
 
-/* The case of cell I of corner states c: its ambiguous faces decided from the samples, and its
- * interior where two loops could be one tube. */
-static int cell_case(const struct iso_job *j, int c, const float *a0, const float *a1, const float *b0, const float *b1,
-                     int I)
+/* The case of a cell of corner states c (not states_decide) and corner values v (bit x + 2y + 4z):
+ * its ambiguous faces decided from the samples, and its interior where two loops could be one tube. */
+/* Whether the case of corner states c is decided by them alone (no ambiguous face, no interior
+ * test): then it is CASES[c * 64 * 2], and cell_case need not read the samples. */
+static inline bool states_decide(int c) { return !AMBIGUOUS[c] && !CASES[c * 64 * 2].test; }
+
+static int cell_case(const struct iso_job *j, int c, const float v[8])
 {
     int amb = AMBIGUOUS[c], joined = 0;
-    if (!amb && !CASES[c * 64 * 2].test)
-        return c * 64 * 2;
     float iso = j->iso;
-    float v[8] = {a0[I], a0[I + 1], a1[I], a1[I + 1], b0[I], b0[I + 1], b1[I], b1[I + 1]};
     for (int f = 0; amb; f++, amb >>= 1) {
         if (!(amb & 1))
             continue;
@@ -686,9 +659,104 @@ static void rect_bits(const float *a, int NX, const int rect[4], float iso, uint
     }
 }
 
-static void state_bits(const float *a, int NX, int NY, float iso, uint64_t *out)
+/* n (at most 16) bits m into row o from column c on. */
+static inline void put_bits(uint64_t *o, int c, uint64_t m, int n)
 {
-    rect_bits(a, NX, (const int[4]){0, NX - 1, 0, NY - 1}, iso, out);
+    int w = c >> 6, sh = c & 63;
+    o[w] |= m << sh;
+    if (sh + n > 64)
+        o[w + 1] |= m >> (64 - sh);
+}
+
+#define ROW_LEAST_OF(T)                                  \
+    do {                                                 \
+        const T *p = (const T *)g->samples + at;         \
+        T lo = p[0];                                     \
+        for (int i = 1; i < n; i++)                      \
+            lo = p[i] < lo ? p[i] : lo;                  \
+        least_row = (float)lo;                           \
+    } while (0)
+
+/* Virtual slice K's states as bits (as state_bits of load's slice), the least of its real samples
+ * folded into *least: pass 1's, compared in the samples' own type, so that pass 1 makes no floats
+ * (a whole number is over iso when it is over floor(iso); 16 at a time where SSE2 is). */
+static void sample_bits(const struct iso_job *j, int K, uint64_t *out, float *least)
+{
+    const struct iso_grid *g = &j->g;
+    int W = bit_words(j->NX), s = j->shift, z = K - s, n = g->nx;
+    memset(out, 0, (size_t)W * (size_t)j->NY * sizeof *out);
+    if (z < 0 || z >= g->nz)
+        return; /* (a slice of pad: below iso) */
+    float iso = j->iso;
+    double lowest = g->type == ISO_I16 ? -32768 : 0, highest = g->type == ISO_U8 ? 255 : g->type == ISO_I16 ? 32767 : 65535;
+    bool all = g->type != ISO_F32 && iso < lowest, none = g->type != ISO_F32 && iso >= highest;
+    int T = all || none || g->type == ISO_F32 ? 0 : (int)floorf(iso);
+    for (int y = 0; y < g->ny; y++) {
+        size_t at = (size_t)n * ((size_t)y + (size_t)g->ny * (size_t)z);
+        uint64_t *o = out + (size_t)W * (size_t)(y + s);
+        float least_row;
+        switch (g->type) {
+        case ISO_U8: ROW_LEAST_OF(uint8_t); break;
+        case ISO_I16: ROW_LEAST_OF(int16_t); break;
+        case ISO_U16: ROW_LEAST_OF(uint16_t); break;
+        default: ROW_LEAST_OF(float);
+        }
+        *least = least_row < *least ? least_row : *least;
+        if (none)
+            continue;
+        int i = 0;
+        if (all) {
+            for (; i < n; i += 16)
+                put_bits(o, s + i, n - i >= 16 ? 0xffff : ((uint64_t)1 << (n - i)) - 1, n - i >= 16 ? 16 : n - i);
+            continue;
+        }
+#ifdef __SSE2__
+        switch (g->type) {
+        case ISO_U8: {
+            const uint8_t *p = (const uint8_t *)g->samples + at;
+            __m128i b = _mm_set1_epi8((char)0x80), t = _mm_set1_epi8((char)(T ^ 0x80));
+            for (; i + 16 <= n; i += 16)
+                put_bits(o, s + i,
+                         (uint32_t)_mm_movemask_epi8(
+                             _mm_cmpgt_epi8(_mm_xor_si128(_mm_loadu_si128((const __m128i *)(p + i)), b), t)),
+                         16);
+            break;
+        }
+        case ISO_I16:
+        case ISO_U16: {
+            const uint16_t *p = (const uint16_t *)g->samples + at;
+            short bias = g->type == ISO_U16 ? (short)0x8000 : 0;
+            __m128i b = _mm_set1_epi16(bias), t = _mm_set1_epi16((short)(T ^ bias));
+            for (; i + 16 <= n; i += 16) {
+                __m128i v0 = _mm_xor_si128(_mm_loadu_si128((const __m128i *)(p + i)), b);
+                __m128i v1 = _mm_xor_si128(_mm_loadu_si128((const __m128i *)(p + i + 8)), b);
+                __m128i m = _mm_packs_epi16(_mm_cmpgt_epi16(v0, t), _mm_cmpgt_epi16(v1, t));
+                put_bits(o, s + i, (uint32_t)_mm_movemask_epi8(m), 16);
+            }
+            break;
+        }
+        default: {
+            const float *p = (const float *)g->samples + at;
+            __m128 v = _mm_set1_ps(iso);
+            for (; i + 16 <= n; i += 16) {
+                __m128i m0 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(p + i), v));
+                __m128i m1 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(p + i + 4), v));
+                __m128i m2 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(p + i + 8), v));
+                __m128i m3 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(p + i + 12), v));
+                __m128i m = _mm_packs_epi16(_mm_packs_epi32(m0, m1), _mm_packs_epi32(m2, m3));
+                put_bits(o, s + i, (uint32_t)_mm_movemask_epi8(m), 16);
+            }
+        }
+        }
+#endif
+        for (; i < n; i++) /* (the definition: the sample as a float over iso) */
+            switch (g->type) {
+            case ISO_U8: put_bits(o, s + i, (float)((const uint8_t *)g->samples)[at + i] > iso, 1); break;
+            case ISO_I16: put_bits(o, s + i, (float)((const int16_t *)g->samples)[at + i] > iso, 1); break;
+            case ISO_U16: put_bits(o, s + i, (float)((const uint16_t *)g->samples)[at + i] > iso, 1); break;
+            default: put_bits(o, s + i, ((const float *)g->samples)[at + i] > iso, 1);
+            }
+    }
 }
 
 /* Word w of row x shifted down one column: bit i says column 64w+i+1. */
@@ -840,6 +908,29 @@ static void trim_slice(const struct iso_job *j, const uint64_t *bits, struct tri
     }
 }
 
+/* The value of virtual sample (I, J, K) (the pad outside the real ones). */
+static float sample_at(const struct iso_job *j, int I, int J, int K)
+{
+    const struct iso_grid *g = &j->g;
+    int x = I - j->shift, y = J - j->shift, z = K - j->shift;
+    if (x < 0 || y < 0 || z < 0 || x >= g->nx || y >= g->ny || z >= g->nz)
+        return j->pad;
+    size_t at = (size_t)x + (size_t)g->nx * ((size_t)y + (size_t)g->ny * (size_t)z);
+    switch (g->type) {
+    case ISO_U8: return ((const uint8_t *)g->samples)[at];
+    case ISO_I16: return ((const int16_t *)g->samples)[at];
+    case ISO_U16: return ((const uint16_t *)g->samples)[at];
+    default: return ((const float *)g->samples)[at];
+    }
+}
+
+/* The eight corner values of cell (I, J, K), bit x + 2y + 4z. */
+static void corner_values(const struct iso_job *j, int I, int J, int K, float v[8])
+{
+    for (int c = 0; c < 8; c++)
+        v[c] = sample_at(j, I + (c & 1), J + (c >> 1 & 1), K + (c >> 2));
+}
+
 static bool cases_grow(struct cases *c)
 {
     size_t cap = c->cap ? 2 * c->cap : 16384;
@@ -853,39 +944,31 @@ static bool cases_grow(struct cases *c)
 void iso_count(struct iso_job *j, int s)
 {
     int NX = j->NX, NY = j->NY, W = bit_words(NX);
-    size_t plane = (size_t)NX * NY, bplane = (size_t)W * NY;
-    float *a = malloc(2 * plane * sizeof *a);
+    size_t bplane = (size_t)W * NY;
     struct trim *ta = malloc(2 * (size_t)NY * sizeof *ta);
     uint64_t *last = malloc(bplane * sizeof *last); /* the next slab's first slice: its own to keep */
-    if (!a || !ta || !last) {
-        free(a);
+    if (!ta || !last) {
         free(ta);
         free(last);
         j->slab_failed[s] = true;
         return;
     }
-    float *b = a + plane, *buf = a;
     struct trim *tb = ta + NY, *tbuf = ta;
     uint64_t *ba, *bb = j->bits + bplane * (size_t)j->k0[s];
     float *least = &j->slab_min[s];
     struct cases *cs = &j->cases[s];
     cs->n = 0;
-    load(j, j->k0[s], b, least);
-    state_bits(b, NX, NY, j->iso, bb);
+    sample_bits(j, j->k0[s], bb, least);
     trim_slice(j, bb, tb);
     for (int K = j->k0[s]; K < j->k0[s + 1]; K++) {
-        float *t = a;
-        a = b, b = t;
         struct trim *u = ta;
         ta = tb, tb = u;
         ba = bb;
         bb = K + 1 < j->k0[s + 1] || s == j->n_slabs - 1 ? j->bits + bplane * (size_t)(K + 1) : last;
-        load(j, K + 1, b, least);
-        state_bits(b, NX, NY, j->iso, bb);
+        sample_bits(j, K + 1, bb, least);
         trim_slice(j, bb, tb);
         count_level(j, K, ta, ba);
         for (int J = 0; J < NY; J++) {
-            const float *a0 = a + (size_t)NX * J, *b0 = b + (size_t)NX * J;
             const uint64_t *p0 = ba + (size_t)W * J, *q0 = bb + (size_t)W * J;
             const struct trim *z[2] = {&ta[J], &tb[J]};
             int lo, hi;
@@ -896,11 +979,15 @@ void iso_count(struct iso_job *j, int s)
             const struct trim *c[4] = {&ta[J], &ta[J + 1], &tb[J], &tb[J + 1]};
             span(c, 4, 1, NX - 2, &lo, &hi);
             uint32_t n = 0, centres = 0;
-            const float *a1 = a0 + NX, *b1 = b0 + NX;
             struct cells cl;
             cells_begin(&cl, p0, p0 + W, q0, q0 + W, lo, hi);
             for (int I; (I = cells_next(&cl)) >= 0;) {
-                int idx = cell_case(j, states_at(&cl, I), a0, a1, b0, b1, I);
+                int st = states_at(&cl, I), idx = st * 64 * 2;
+                if (!states_decide(st)) {
+                    float v[8];
+                    corner_values(j, I, J, K, v);
+                    idx = cell_case(j, st, v);
+                }
                 if (cs->n == cs->cap && !cases_grow(cs)) {
                     j->slab_failed[s] = true;
                     goto done;
@@ -916,7 +1003,6 @@ void iso_count(struct iso_job *j, int s)
     if (s == j->n_slabs - 1)
         count_level(j, j->NZ - 1, tb, bb);
 done:
-    free(buf);
     free(tbuf);
     free(last);
 }
@@ -1013,13 +1099,13 @@ static void window_at(const struct iso_job *j, struct window *w, int K)
         w->s[0] = w->s[1], w->s[1] = w->s[2], w->s[2] = w->s[3], w->s[3] = t;
         w->k = K;
         if (K + 2 < j->NZ)
-            load(j, K + 2, w->s[3], NULL);
+            load(j, K + 2, w->s[3]);
         return;
     }
     w->k = K;
     for (int d = -1; d <= 2; d++)
         if (K + d >= 0 && K + d < j->NZ)
-            load(j, K + d, w->s[d + 1], NULL);
+            load(j, K + d, w->s[d + 1]);
 }
 
 /* The field's gradient at virtual sample (I, J, K), by central differences (one-sided at the
@@ -1462,8 +1548,10 @@ static void box_run(struct box_pass *p, int I0, int I1, int J, int K)
     struct cells cl;
     cells_begin(&cl, p0, p0 + W, q0, q0 + W, I0, I1);
     for (int I; (I = cells_next(&cl)) >= 0;) {
-        int st = states_at(&cl, I);
-        const struct cell_case *cc = &CASES[cell_case(j, st, a0, a1, b0, b1, I)];
+        int st = states_at(&cl, I), idx = st * 64 * 2;
+        if (!states_decide(st))
+            idx = cell_case(j, st, (const float[8]){a0[I], a0[I + 1], a1[I], a1[I + 1], b0[I], b0[I + 1], b1[I], b1[I + 1]});
+        const struct cell_case *cc = &CASES[idx];
         uint32_t ids[12 + MAX_CENTRES];
         for (unsigned m = CROSSED[st]; m; m &= m - 1)
             ids[__builtin_ctz(m)] = edge_vertex(p, __builtin_ctz(m), I, J, K);

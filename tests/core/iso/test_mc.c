@@ -237,6 +237,55 @@ TEST(same_mesh_whatever_the_slabs)
     free(v);
 }
 
+/* Pass 1 reads the states in the samples' own type (a whole number over iso is over floor(iso)):
+ * each integer type's mesh is that of the same values as floats, bit for bit, at isos between
+ * samples, on them, and outside the type's range (every sample in: the closed grid's box; none:
+ * no surface); rows of 37 samples (16 at a time, then one by one). */
+TEST(every_sample_type_as_floats)
+{
+    enum { NX = 37, NY = 23, NZ = 19, N = NX * NY * NZ };
+    static const enum iso_type types[3] = {ISO_U8, ISO_I16, ISO_U16};
+    static const double lo[3] = {0, -32768, 0}, hi[3] = {255, 32767, 65535};
+    float *f = malloc(N * sizeof *f);
+    void *raw = malloc(N * sizeof(uint16_t));
+    REQUIRE(f && raw);
+    for (int t = 0; t < 3; t++) {
+        for (int i = 0; i < N; i++) { /* a wave through the type's whole range, ends included */
+            int x = i % NX, y = i / NX % NY, z = i / (NX * NY);
+            double w = 0.5 + 0.5 * sin(0.45 * x + 0.3 * y) * cos(0.35 * z - 0.2 * x);
+            double v = round(lo[t] + (hi[t] - lo[t]) * w);
+            f[i] = (float)v;
+            if (types[t] == ISO_U8)
+                ((uint8_t *)raw)[i] = (uint8_t)v;
+            else if (types[t] == ISO_I16)
+                ((int16_t *)raw)[i] = (int16_t)v;
+            else
+                ((uint16_t *)raw)[i] = (uint16_t)v;
+        }
+        double mid = round((lo[t] + hi[t]) / 2);
+        const double isos[6] = {mid + 0.5, mid, lo[t] + 1, lo[t] - 7.5, hi[t], hi[t] + 3};
+        for (int k = 0; k < 6; k++) {
+            struct iso_grid gi = {NX, NY, NZ, types[t], raw, {1, 0.5, 2}, {3, 0, -1}};
+            struct iso_grid gf = {NX, NY, NZ, ISO_F32, f, {1, 0.5, 2}, {3, 0, -1}};
+            struct iso_opts o = {.iso = isos[k], .closed = true, .normals = true};
+            struct trimesh a, b;
+            CHECK(iso_extract(&gi, &o, NULL, &a, NULL) == 0 && iso_extract(&gf, &o, NULL, &b, NULL) == 0);
+            bool same = a.n_tri == b.n_tri && a.n_vert == b.n_vert &&
+                        !memcmp(a.tri, b.tri, 3 * sizeof *a.tri * a.n_tri) &&
+                        !memcmp(a.pos, b.pos, 3 * sizeof *a.pos * a.n_vert) &&
+                        !memcmp(a.nrm, b.nrm, 3 * sizeof *a.nrm * a.n_vert);
+            if (!same)
+                fprintf(stderr, "  type %d iso %g: %zu / %zu triangles as floats\n", (int)types[t], isos[k], a.n_tri, b.n_tri);
+            CHECK(same);
+            CHECK(k <= 3 ? a.n_tri > 0 : a.n_tri == 0);
+            trimesh_free(&a);
+            trimesh_free(&b);
+        }
+    }
+    free(f);
+    free(raw);
+}
+
 /* closed=false leaves the surface open where it meets the border */
 TEST(open_at_the_border)
 {
@@ -288,6 +337,7 @@ int main(void)
     RUN(ties_at_the_iso_value);
     RUN(analytic_fields);
     RUN(same_mesh_whatever_the_slabs);
+    RUN(every_sample_type_as_floats);
     RUN(open_at_the_border);
     RUN(ct_crop_against_vtk);
     UNIT_END();
