@@ -121,8 +121,9 @@ int iso_model_grid(const char *resource, struct iso_grid *g, bool *frep, struct 
     return rc;
 }
 
-char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, long version, double iso, long d_triangles,
-                            double d_volume, double d_area, const double ms[3], struct sf_err *err)
+/* iso_model_json_edited, or (whole) with the triangles, volume and area given as the new mesh's own. */
+static char *edited(const char *prev, const struct iso_model_edit *me, long version, double iso, bool whole,
+                    long triangles, double volume, double area, const double ms[3], struct sf_err *err)
 {
     json_t *o = json_loads(prev, 0, NULL), *t = json_object_get(o, "timings_ms");
     if (!json_is_object(o)) {
@@ -135,9 +136,10 @@ char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, l
     json_object_set_new(o, "version", json_integer(version));
     json_object_set_new(o, "iso", json_real(iso));
     json_object_set_new(o, "edits", json_integer(version - 1));
-    json_object_set_new(o, "triangles", json_integer(json_integer_value(json_object_get(o, "triangles")) + d_triangles));
-    json_object_set_new(o, "volume_mm3", json_real(json_number_value(json_object_get(o, "volume_mm3")) + d_volume));
-    json_object_set_new(o, "area_mm2", json_real(json_number_value(json_object_get(o, "area_mm2")) + d_area));
+    json_object_set_new(o, "triangles",
+                        json_integer((whole ? 0 : json_integer_value(json_object_get(o, "triangles"))) + triangles));
+    json_object_set_new(o, "volume_mm3", json_real((whole ? 0 : json_number_value(json_object_get(o, "volume_mm3"))) + volume));
+    json_object_set_new(o, "area_mm2", json_real((whole ? 0 : json_number_value(json_object_get(o, "area_mm2"))) + area));
     json_object_set_new(o, "topology_version", json_integer(topo));
     json_object_set_new(o, "edit",
                         json_pack("{s:s, s:I, s:I, s:I, s:b, s:f}", "region", me->region, "cells_rebuilt",
@@ -153,6 +155,18 @@ char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, l
     if (!text)
         sf_fail(err, SF_ENOMEM, "", "out of memory");
     return text;
+}
+
+char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, long version, double iso, long d_triangles,
+                            double d_volume, double d_area, const double ms[3], struct sf_err *err)
+{
+    return edited(prev, me, version, iso, false, d_triangles, d_volume, d_area, ms, err);
+}
+
+char *iso_model_json_redrawn(const char *prev, const struct iso_model_edit *me, long version, double iso, long triangles,
+                             double volume, double area, const double ms[3], struct sf_err *err)
+{
+    return edited(prev, me, version, iso, true, triangles, volume, area, ms, err);
 }
 
 char *iso_model_json_measured(const char *prev, const struct trimesh_stats *st, size_t vertices, long version,

@@ -43,6 +43,10 @@ char *iso_model_json_measured(const char *prev, const struct trimesh_stats *st, 
                               struct sf_err *err);
 char *iso_model_json_edited(const char *prev, const struct iso_model_edit *me, long version, double iso, long d_triangles,
                             double d_volume, double d_area, const double ms[3], struct sf_err *err);
+/* The same after a change that drew the whole mesh again (a new iso), its mesh's own triangles,
+ * volume and area given: the figures that need the O(F log F) measure stay topology_version's. */
+char *iso_model_json_redrawn(const char *prev, const struct iso_model_edit *me, long version, double iso, long triangles,
+                             double volume, double area, const double ms[3], struct sf_err *err);
 
 /* The grid (dims, type) of an isosurface model from its resource, *frep whether it is an FRep
  * object's: 0, or SF_ECONFLICT for a model of another source (contours) or of a label map's

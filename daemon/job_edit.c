@@ -405,7 +405,8 @@ struct edit_work {
     char model[40];
     long version;            /* the change stored (0: none), and its bytes: for compaction */
     size_t change_bytes;
-    bool journaled;          /* its figures moved by the change alone: the whole mesh to measure */
+    long measure;            /* the version whose whole mesh is to be measured once the edits rest (its answer
+                              * gave the figures that need no O(F log F) pass), or 0 */
     char meta[128];
     struct sf_err err;
 };
@@ -438,13 +439,36 @@ static void part_options(const char *options, const char *job, char *out, size_t
     snprintf(out, cap, "%s%sjob=%s", options, options[0] ? "&" : "", job);
 }
 
-/* The mesh m of model id's volume v (ids: its triangles' ids, NULL: 0 .. n-1) measured, packed and
- * stored as the model's source of the part's version with the part (seq: its format, options and
- * data) and change (NULL: none; a whole change, mesh_journal.h), the resource into w->json with
- * edit me. */
+/* The resource of model id (its stored one prev) after a change that drew its whole mesh m again
+ * (v's, me), as version version: its triangles, volume and area m's own, the figures that need the
+ * O(F log F) measure left to measure_later (on the CT head that measure is some 50 ms of an iso
+ * slider's step). NULL with err. */
+static char *redrawn_json(struct store *st, const char *id, const struct volume *v, const struct trimesh *m,
+                          const struct iso_model_edit *me, long version, const double ms[3], struct sf_err *err)
+{
+    char *prev = NULL, *json = NULL;
+    double volume = 0, area = 0;
+    for (size_t t = 0; t < m->n_tri; t++) {
+        double f[2];
+        tri_figures(m->pos + 3 * m->tri[3 * t], m->pos + 3 * m->tri[3 * t + 1], m->pos + 3 * m->tri[3 * t + 2], f);
+        volume += f[0], area += f[1];
+    }
+    if (store_model_get(st, id, NULL, &prev, NULL, NULL))
+        sf_fail(err, SF_ECONFLICT, "", "the model could not be read from the store");
+    else
+        json = iso_model_json_redrawn(prev, me, version, v->iso, (long)m->n_tri, volume, area, ms, err);
+    free(prev);
+    return json;
+}
+
+/* The mesh m of model id's volume v (ids: its triangles' ids, NULL: 0 .. n-1) measured (later: only
+ * what redrawn_json gives, the rest once the edits rest), packed and stored as the model's source of
+ * the part's version with the part (seq: its format, options and data) and change (NULL: none; a
+ * whole change, mesh_journal.h), the resource into w->json with edit me. */
 static int store_edit(struct edit_work *w, const char *id, const struct volume *v, struct trimesh *m,
                       const uint32_t *ids, const struct iso_adapt_stats *ast, struct iso_model_edit *me,
-                      const struct volume_rec *part, const struct volume_rec *change, double t0, double t_mesh)
+                      const struct volume_rec *part, const struct volume_rec *change, bool later, double t0,
+                      double t_mesh)
 {
     struct trimesh_stats st;
     char *packed = NULL;
@@ -454,7 +478,7 @@ static int store_edit(struct edit_work *w, const char *id, const struct volume *
     int rc = volume_mesh_empty(v, m, &w->err);
     if (!rc && v->oblique)
         trimesh_turn(m, v->g.origin, (const double(*)[3])v->axes);
-    if (!rc)
+    if (!rc && !later)
         rc = trimesh_stats(m, &st, &w->err);
     if (!rc && !ids && !(ids = own = malloc((m->n_tri ? m->n_tri : 1) * sizeof *own)))
         rc = sf_fail(&w->err, SF_ENOMEM, "", "out of memory");
@@ -463,11 +487,12 @@ static int store_edit(struct edit_work *w, const char *id, const struct volume *
     if (!rc)
         rc = mesh_pack_ids(m, ids, (uint64_t)part->seq + 1, &packed, &packed_len, &w->err);
     if (!rc) {
-        double t2 = monotonic_s();
+        double t2 = monotonic_s(), ms[3] = {(t_mesh - t0) * 1e3, (t2 - t1) * 1e3, (t2 - t0) * 1e3};
         struct iso_model im = {id, v->name, v, &st, ast, m->n_vert, m->n_tri,
-                               {0, 0, (t_mesh - t0) * 1e3, (t2 - t1) * 1e3, (t2 - t0) * 1e3}, part->seq, me, 0, NULL};
+                               {0, 0, ms[0], ms[1], ms[2]}, part->seq, me, 0, NULL};
         free(w->json);
-        if (!(w->json = iso_model_json(&im, &w->err)))
+        if (!(w->json = later ? redrawn_json(w->job.svc->store, id, v, m, me, part->seq + 1, ms, &w->err)
+                              : iso_model_json(&im, &w->err)))
             rc = w->err.code;
     }
     if (!rc) {
@@ -478,6 +503,8 @@ static int store_edit(struct edit_work *w, const char *id, const struct volume *
                          "send the edit again");
         else if (stored)
             rc = sf_fail(&w->err, SF_EIO, "", "the store would not take the edit");
+        else if (later)
+            w->measure = part->seq + 1;
     }
     free(own);
     free(packed);
@@ -527,7 +554,7 @@ static int store_change(struct edit_work *w, const char *id, struct live *e, con
         struct volume_rec change = {0, "", "", bytes, len};
         int stored = store_model_edit(w->job.svc->store, &mr, part, &change);
         if (!stored)
-            w->version = version, w->change_bytes = len, w->journaled = true;
+            w->version = version, w->change_bytes = len, w->measure = version;
         rc = stored == SF_ECONFLICT ? SF_ECONFLICT
              : stored             ? sf_fail(&w->err, SF_EIO, "", "the store would not take the edit")
                                   : 0;
@@ -664,8 +691,9 @@ static int edit_model(struct edit_work *w, struct live *e, const struct job_rec 
     }
     double t_mesh = monotonic_s();
     struct volume_rec change = {0, "", "", bytes, len};
+    /* (a hierarchy's resource has its levels' figures, which only a whole measure writes) */
     if (!rc && !(rc = store_edit(w, model, &e->vol, &m, ids, e->x.a ? &ast : NULL, &me, &part, bytes ? &change : NULL,
-                                 t0, t_mesh))) {
+                                 !e->x.a, t0, t_mesh))) {
         e->next_seq++, e->checked = true, *drop = false;
         w->version = bytes ? part.seq + 1 : 0; /* (the journal's rows before it dropped on compact's turn) */
     }
@@ -708,7 +736,7 @@ static int edit_frep(struct edit_work *w, struct job *j, const struct job_rec *r
         char opts[600];
         part_options(parts[0].options, w->job.claim.id, opts, sizeof opts);
         struct volume_rec part = {n, "frep", opts, req, strlen(req)};
-        rc = store_edit(w, id, &v, &m, NULL, volume_adaptive(&v) ? &ast : NULL, &me, &part, NULL, t0, t_mesh);
+        rc = store_edit(w, id, &v, &m, NULL, volume_adaptive(&v) ? &ast : NULL, &me, &part, NULL, false, t0, t_mesh);
     }
     trimesh_free(&m);
     volume_free(&v);
@@ -905,7 +933,7 @@ static void finish(struct job *j, void *arg, enum job_state outcome, bool requeu
     service_job_end(w->job.svc, &w->job.claim, outcome, requeue, (const unsigned char *)w->json, w->json ? w->len : 0,
                     "application/json", w->meta[0] ? w->meta : NULL, &w->err);
     if (outcome != JOB_SUCCEEDED)
-        w->version = 0, w->journaled = false;
+        w->version = 0, w->measure = 0;
 }
 
 /* After the answer: the journal compacted on its turn, the mesh measured once the edits rest. */
@@ -913,8 +941,8 @@ static void after(void *arg)
 {
     struct edit_work *w = arg;
     compact(w->job.svc, w->model, w->version, w->change_bytes);
-    if (w->journaled)
-        measure_later(w->job.svc, w->model, w->version);
+    if (w->measure)
+        measure_later(w->job.svc, w->model, w->measure);
     free(w->json);
     free(w);
 }

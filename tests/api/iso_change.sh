@@ -17,8 +17,9 @@ field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1])).get(sy
 pointer_is() { grep -q "\"pointer\":\"$1\"" "$T/body"; }
 stl() { status GET "/models/$1/mesh?format=stl" >/dev/null; cp "$T/body" "$2"; }
 # fresh ISO OPTS OUT: a fresh extraction's STL
-fresh() {
+fresh() { # (its resource into $T/fresh.json)
     status POST "/isosurface?$G&iso=$1$2" -H "$RAW" --data-binary @"$CT" >/dev/null
+    cp "$T/body" "$T/fresh.json"
     stl "$(field id)" "$3"
 }
 # applies FILE: the delta in $T/body, applied by id to the STL FILE's... (python: the copy of since=0)
@@ -50,8 +51,21 @@ for lv in "&levels=2&max_error=0.5" "" "&levels=3&max_error=1&merge=pieces"; do
     status GET "/models/$ID/mesh?format=delta&since=0" >/dev/null; cp "$T/body" "$T/at_from"
     code=$(status POST "/models/$ID/iso?value=500")
     check "[${lv:-levels=1}] POST /models/{id}/iso?value=500: 200, version 2, iso 500" '[ "$code" = 200 ] && [ "$(field version)" = 2 ] && [ "$(field iso)" = 500.0 ]'
+    cp "$T/body" "$T/changed.json"
     stl "$ID" "$T/now.stl"; fresh 500 "$lv" "$T/f500.stl"
     check "... its mesh a fresh extraction's at iso 500, triangle for triangle" 'python3 $E same "$T/now.stl" "$T/f500.stl"'
+    check "... its answer's triangles and volume the fresh extraction's" 'python3 -c "
+import json, sys
+a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+sys.exit(a[\"triangles\"] != b[\"triangles\"] or abs(a[\"volume_mm3\"] - b[\"volume_mm3\"]) > 1e-9 * b[\"volume_mm3\"])" "$T/changed.json" "$T/fresh.json"'
+    for k in $(seq 1 100); do # (a levels=1 model's whole-mesh figures measured once the changes rest, a second after)
+        status GET "/models/$ID" >/dev/null; [ "$(field topology_version)" = 2 ] && break; sleep 0.1
+    done
+    check "... and its whole-mesh figures (topology_version 2): the fresh extraction's" 'python3 -c "
+import json, sys
+a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+keys = (\"vertices\", \"triangles\", \"components\", \"euler_characteristic\", \"boundary_edges\", \"nonmanifold_edges\", \"bounds\")
+sys.exit(a[\"topology_version\"] != a[\"version\"] or any(a[k] != b[k] for k in keys) or abs(a[\"volume_mm3\"] - b[\"volume_mm3\"]) > 1e-9 * b[\"volume_mm3\"])" "$T/body" "$T/fresh.json"'
     code=$(status GET "/models/$ID/mesh?format=delta&since=1"); cp "$T/body" "$T/dnow"
     check "... the delta since 1 applied by id: the mesh" '[ "$code" = 200 ] && delta_ok'
     code=$(status POST "/models/$ID/iso?value=226.5"); v=$(field version)
