@@ -6,8 +6,10 @@
  * the cells (I, J, K). Vertices are numbered level by level (x rows, y rows, z rows of level K),
  * triangles cell row by cell row, so the mesh does not depend on the slabs. Each slice's states
  * (sample > iso) are kept as bits, so that crossings are counted and cells of one state passed over
- * 64 at a time. A box of cells (iso_box_extract, for kept.c's local rebuilds) is drawn in one pass by
- * the same case and vertex code. */
+ * 64 at a time: pass 1 compares the samples in their own type into them (sample_bits), and keeps
+ * them, with each crossed cell's case, for pass 2, which alone makes floats (for positions and
+ * gradients). A box of cells (iso_box_extract, for kept.c's local rebuilds) is drawn in one pass by
+ * the same case and vertex code; the whole grid for kept.c by the two passes (iso_box_whole). */
 #include "mc.h"
 #include "cube.h"
 
