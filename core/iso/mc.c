@@ -575,12 +575,12 @@ static bool interior_joins(const double g[8], int s, int a, int b)
     return false;
 }
 
-/* The case of a cell of corner states c (not states_decide) and corner values v (bit x + 2y + 4z):
- * its ambiguous faces decided from the samples, and its interior where two loops could be one tube. */
 /* Whether the case of corner states c is decided by them alone (no ambiguous face, no interior
  * test): then it is CASES[c * 64 * 2], and cell_case need not read the samples. */
 static inline bool states_decide(int c) { return !AMBIGUOUS[c] && !CASES[c * 64 * 2].test; }
 
+/* The case of a cell of corner states c (not states_decide) and corner values v (bit x + 2y + 4z):
+ * its ambiguous faces decided from the samples, and its interior where two loops could be one tube. */
 static int cell_case(const struct iso_job *j, int c, const float v[8])
 {
     int amb = AMBIGUOUS[c], joined = 0;
@@ -679,7 +679,7 @@ static inline void put_bits(uint64_t *o, int c, uint64_t m, int n)
         least_row = (float)lo;                           \
     } while (0)
 
-/* Virtual slice K's states as bits (as state_bits of load's slice), the least of its real samples
+/* Virtual slice K's states as bits (as rect_bits of the slice as floats), the least of its real samples
  * folded into *least: pass 1's, compared in the samples' own type, so that pass 1 makes no floats
  * (a whole number is over iso when it is over floor(iso); 16 at a time where SSE2 is). */
 static void sample_bits(const struct iso_job *j, int K, uint64_t *out, float *least)
