@@ -17,7 +17,7 @@
  * same samples: the same vertex). When the least sample moves the closed grid's pad (iso - 1 or
  * the least, whichever is less), every border cell changes: the whole grid is drawn again. So is it
  * at a new iso, by the slabs' two passes (iso_box_whole), which pass over 64 cells of one state at a
- * time: on the CT head 0.5-0.8x Flying Edges' time where drawing the 8^3 blocks whose range
+ * time: on the CT head 0.42-0.48x Flying Edges' time where drawing the 8^3 blocks whose range
  * straddles the iso as boxes took 1.0-1.1x (tests/bench/RESULTS.md). A whole drawing is left flat,
  * as drawn (redraw_all): the blocks' lists and the pool are made when an edit first needs them
  * (iso_kept_index), so a slider's moves and the reads of their meshes never make them.
