@@ -325,6 +325,8 @@ struct iso_job {
     float *slab_min;                 /* [s]: the least sample slab s's pass 1 read (the pad, iso_layout) */
     struct trim *trim;               /* per sample row [J + NY*K]: where its states change */
     uint64_t *bits;                  /* per slice K: its states as bits (pass 1's, read by pass 2) */
+    void *rows;                      /* the per-row lists above, one block (calloc'd: over 2 MB for most
+                                      * grids, so its pages come in huge and zeroed; the cold run's faults) */
     struct cases *cases;             /* [s]: the cases of slab s's cells, as pass 1 found them */
     struct trimesh m;                /* the lists of into when there is one (iso_box_whole) */
     struct iso_box *into;
@@ -411,20 +413,9 @@ void iso_free(struct iso_job *j)
     if (!j)
         return;
     free(j->k0);
-    free(j->xc);
-    free(j->yc);
-    free(j->zc);
-    free(j->tc);
-    free(j->cc);
-    free(j->cb);
-    free(j->xb);
-    free(j->yb);
-    free(j->zb);
-    free(j->tb);
+    free(j->rows);
     free(j->slab_failed);
     free(j->slab_min);
-    free(j->trim);
-    free(j->bits);
     for (int s = 0; j->cases && s < j->n_slabs; s++)
         free(j->cases[s].at);
     free(j->cases);
@@ -502,20 +493,23 @@ int iso_begin(const struct iso_grid *g, const struct iso_opts *o, int n_slabs, s
         j->pad = (float)(o->iso - 1);
     int layers = j->NZ - 1;
     j->n_slabs = n_slabs < 1 ? 1 : n_slabs > layers ? layers : n_slabs;
-    size_t rows = (size_t)j->NY * (size_t)j->NZ;
+    size_t rows = (size_t)j->NY * (size_t)j->NZ, W = (size_t)bit_words(j->NX);
     j->k0 = malloc(sizeof *j->k0 * (size_t)(j->n_slabs + 1));
-    j->xc = calloc(rows, sizeof *j->xc);
-    j->yc = calloc(rows, sizeof *j->yc);
-    j->zc = calloc(rows, sizeof *j->zc);
-    j->tc = calloc(rows, sizeof *j->tc);
-    j->cc = calloc(rows, sizeof *j->cc);
+    char *b = j->rows = calloc(rows, 5 * sizeof(size_t) + W * sizeof(uint64_t) + sizeof(struct trim) + 5 * sizeof(uint32_t));
+    if (b) { /* (by alignment: 8-byte words first) */
+        size_t **starts[5] = {&j->xb, &j->yb, &j->zb, &j->tb, &j->cb};
+        uint32_t **counts[5] = {&j->xc, &j->yc, &j->zc, &j->tc, &j->cc};
+        for (int k = 0; k < 5; k++, b += rows * sizeof(size_t))
+            *starts[k] = (size_t *)(void *)b;
+        j->bits = (uint64_t *)(void *)b, b += rows * W * sizeof(uint64_t);
+        j->trim = (struct trim *)(void *)b, b += rows * sizeof(struct trim);
+        for (int k = 0; k < 5; k++, b += rows * sizeof(uint32_t))
+            *counts[k] = (uint32_t *)(void *)b;
+    }
     j->slab_failed = calloc((size_t)j->n_slabs, sizeof *j->slab_failed);
     j->slab_min = malloc((size_t)j->n_slabs * sizeof *j->slab_min);
-    j->trim = malloc(rows * sizeof *j->trim);
-    j->bits = malloc(rows * (size_t)bit_words(j->NX) * sizeof *j->bits);
     j->cases = calloc((size_t)j->n_slabs, sizeof *j->cases);
-    if (!j->k0 || !j->xc || !j->yc || !j->zc || !j->tc || !j->cc || !j->slab_failed || !j->slab_min || !j->trim ||
-        !j->bits || !j->cases) {
+    if (!j->k0 || !j->rows || !j->slab_failed || !j->slab_min || !j->cases) {
         iso_free(j);
         return sf_fail(err, SF_ENOMEM, "", "out of memory");
     }
@@ -1031,14 +1025,6 @@ int iso_layout(struct iso_job *j, struct sf_err *err)
             least = j->slab_min[s] < least ? j->slab_min[s] : least;
         j->pad = (float)fmin(j->o.iso - 1, least);
     }
-    size_t rows = (size_t)j->NY * (size_t)j->NZ;
-    j->xb = malloc(rows * sizeof *j->xb);
-    j->yb = malloc(rows * sizeof *j->yb);
-    j->zb = malloc(rows * sizeof *j->zb);
-    j->tb = malloc(rows * sizeof *j->tb);
-    j->cb = malloc(rows * sizeof *j->cb);
-    if (!j->xb || !j->yb || !j->zb || !j->tb || !j->cb)
-        return sf_fail(err, SF_ENOMEM, "", "out of memory");
     size_t v = 0, t = 0;
     for (int K = 0; K < j->NZ; K++) {
         size_t base = (size_t)j->NY * K;
