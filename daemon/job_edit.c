@@ -309,11 +309,7 @@ static int build(struct service *svc, struct live *e, struct sf_err *err)
     if (volume_adaptive(vol)) {
         o.keep = true;
         if (!(rc = iso_adapt_begin(&vol->g, &o, vol->levels, vol->max_error, &x.a, err))) {
-            for (int p = 0; p < iso_adapt_phases(x.a); p++) {
-                for (int s = 0; s < iso_adapt_n_slabs(x.a); s++)
-                    iso_adapt_run(x.a, p, s);
-                iso_adapt_between(x.a, p);
-            }
+            volume_adapt_run(svc, x.a);
             struct iso_adapt_stats st;
             rc = iso_adapt_keep(x.a, &st, err);
         }

@@ -12,6 +12,10 @@
  *     finishing  the worker that saw the last band end (or the preparer, for a job without bands)
  *                runs ops->finish unlocked, then unlinks the job and wakes its waiters
  *                (then ops->after, when the kind has one).
+ *     helped     a job's ops may hand a loop of their own to idle workers (jobq_help): the loop's
+ *                tasks are handed out under the lock like bands, run unlocked with the job's
+ *                account entered, on disjoint data; the caller takes tasks too and returns when
+ *                every task has ended.
  *   What a worker may call: its job's ops (which call core/ and the store), never the HTTP layer;
  *   waiter callbacks are the only path back to connections, and they only resume them.
  *   Memory bound: at most n_workers jobs are prepared at once; others wait queued. Each job's ops
@@ -54,6 +58,15 @@ struct job {
     struct job *next_live;       /* [q] all queued and running jobs */
 };
 
+/* A loop a job's ops hand to idle workers (jobq_help): on the caller's stack until it returns. */
+struct help {
+    void (*fn)(void *ctx, int k);
+    void *ctx;
+    struct job *job;
+    int n, next, done;           /* [q] tasks: handed out, ended */
+    struct help *next_help;      /* [q] */
+};
+
 struct jobq {
     pthread_mutex_t lock;
     pthread_t holder;            /* [q] who holds the lock, while held (the asserts' HELD) */
@@ -68,6 +81,7 @@ struct jobq {
     bool stop_taking, stop;
     pthread_t *threads, timer;
     struct waiter *waiters;      /* every waiter, by job id */
+    struct help *helps;          /* [q] loops with tasks left to hand out */
     void (*room)(void *);        /* told when a job ends (jobq_on_room) */
     void *room_arg;
 };
@@ -125,6 +139,64 @@ static void unlink_live(struct jobq *q, struct job *j)
             *p = j->next_live;
             return;
         }
+}
+
+/* The job whose ops the calling worker runs (jobq_help's), or NULL. */
+static _Thread_local struct {
+    struct jobq *q;
+    struct job *j;
+} running;
+
+/* j's op call, as the worker runs it: its memory account entered, the job known to jobq_help. */
+#define RUN_OP(Q, J, CALL)                                                                         \
+    do {                                                                                           \
+        mem_account_enter(&(J)->mem);                                                              \
+        running.q = (Q), running.j = (J);                                                          \
+        CALL;                                                                                      \
+        running.q = NULL, running.j = NULL;                                                        \
+        mem_account_enter(NULL);                                                                   \
+    } while (0)
+
+/* Runs one task of h (lock held on entry and return). */
+static void help_one(struct jobq *q, struct help *h)
+{
+    HELD(q);
+    int k = h->next++;
+    if (h->next == h->n) /* (every task handed out: nobody else takes one) */
+        for (struct help **p = &q->helps; *p; p = &(*p)->next_help)
+            if (*p == h) {
+                *p = h->next_help;
+                break;
+            }
+    q_unlock(q);
+    RUN_OP(q, h->job, h->fn(h->ctx, k));
+    q_lock(q);
+    if (++h->done == h->n)
+        pthread_cond_broadcast(&q->work); /* (its caller waits there) */
+}
+
+void jobq_help(struct jobq *q, int n, void (*fn)(void *ctx, int k), void *ctx)
+{
+    if (running.q != q || !running.j) { /* (not a job's op on a worker of q: all here) */
+        for (int k = 0; k < n; k++)
+            fn(ctx, k);
+        return;
+    }
+    struct job *j = running.j;
+    struct help h = {fn, ctx, j, n, 0, 0, NULL};
+    if (n <= 0)
+        return;
+    q_lock(q);
+    h.next_help = q->helps;
+    q->helps = &h;
+    pthread_cond_broadcast(&q->work);
+    while (h.next < h.n)
+        help_one(q, &h);
+    while (h.done < h.n)
+        q_wait(q, &q->work, NULL);
+    q_unlock(q);
+    running.q = q, running.j = j; /* (help_one's RUN_OP left it) */
+    mem_account_enter(&j->mem);
 }
 
 /* A banded job with a band left to hand out. */
@@ -229,10 +301,8 @@ static void *worker(void *arg)
             j->state = JOB_RUNNING;
             j->preparing = true;
             q_unlock(q);
-            int n_bands = 0;
-            mem_account_enter(&j->mem);
-            int rc = j->ops->prepare(j, j->work, &n_bands);
-            mem_account_enter(NULL);
+            int n_bands = 0, rc = 0;
+            RUN_OP(q, j, rc = j->ops->prepare(j, j->work, &n_bands));
             q_lock(q);
             j->preparing = false;
             j->n_bands = rc ? 0 : n_bands;
@@ -240,6 +310,8 @@ static void *worker(void *arg)
                 finish_job(q, j, rc && j->cancel ? JOB_CANCELLED : rc ? JOB_FAILED : JOB_SUCCEEDED);
             else
                 pthread_cond_broadcast(&q->work); /* bands for the others */
+        } else if (q->helps) {
+            help_one(q, q->helps);
         } else if ((j = stranded_job(q))) {
             finish_job(q, j, JOB_CANCELLED);
         } else if ((j = band_job(q))) {
@@ -247,9 +319,7 @@ static void *worker(void *arg)
             int band = j->next_band++;
             j->bands_out++;
             q_unlock(q);
-            mem_account_enter(&j->mem);
-            j->ops->band(j, j->work, band);
-            mem_account_enter(NULL);
+            RUN_OP(q, j, j->ops->band(j, j->work, band));
             q_lock(q);
             j->bands_out--;
             j->bands_done++;
@@ -257,9 +327,8 @@ static void *worker(void *arg)
             if (all && !j->cancel && j->ops->next) { /* the next phase, prepared as the first was */
                 j->preparing = true;
                 q_unlock(q);
-                mem_account_enter(&j->mem);
-                int n_bands = 0, rc = j->ops->next(j, j->work, &n_bands);
-                mem_account_enter(NULL);
+                int n_bands = 0, rc = 0;
+                RUN_OP(q, j, rc = j->ops->next(j, j->work, &n_bands));
                 q_lock(q);
                 j->preparing = false;
                 if (rc == 0 && n_bands > 0 && !j->cancel) {

@@ -39,6 +39,10 @@ struct job_ops {
 /* Creates the pool with n_workers threads and room for queue_max waiting jobs, each job's ops
  * charged to a memory account of job_memory bytes (0: unbounded; core/base/mem.h). */
 struct jobq *jobq_new(int n_workers, long queue_max, long long job_memory);
+/* From a job's ops on a worker of q: fn(ctx, k) for each k in [0, n), on this worker and any idle
+ * one, with the job's memory account entered (fn's tasks write disjoint data); returns once every
+ * task has ended. Called anywhere else, it runs them all on the calling thread. */
+void jobq_help(struct jobq *q, int n, void (*fn)(void *ctx, int k), void *ctx);
 /* Stops taking queued jobs, waits up to timeout_s for running ones, cancels (requeue) the rest
  * and gives them grace_s to stop; then joins the workers and returns 0 (jobq_free frees it). Queued
  * jobs stay in the store. A job still running after the grace (deaf to its cancel flag) is named

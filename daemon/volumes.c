@@ -65,6 +65,26 @@ static void range_of(const float *f, size_t n, double *lo, double *hi)
     *lo = a, *hi = b;
 }
 
+struct adapt_phase {
+    struct iso_adapt *a;
+    int phase;
+};
+
+static void adapt_slab(void *ctx, int s)
+{
+    const struct adapt_phase *p = ctx;
+    iso_adapt_run(p->a, p->phase, s);
+}
+
+void volume_adapt_run(struct service *svc, struct iso_adapt *a)
+{
+    for (int p = 0; p < iso_adapt_phases(a); p++) {
+        struct adapt_phase ph = {a, p};
+        jobq_help(svc->q, iso_adapt_n_slabs(a), adapt_slab, &ph);
+        iso_adapt_between(a, p);
+    }
+}
+
 /* An iso change to value (options' "value") of vol's model: marching cubes kept drawn again at
  * that iso (iso_kept_iso), a new hierarchy at that iso, its triangles numbered after
  * the old one's (ch: all of the old ones out, all of the new in, by id, without corners), or, with
@@ -123,11 +143,7 @@ static int iso_apply(struct service *svc, struct volume *vol, struct kept_ext *x
     uint32_t *old = NULL, *ids = NULL;
     int rc = iso_adapt_begin(&g, &o, vol->levels, vol->max_error, &na, err);
     if (!rc) {
-        for (int p = 0; p < iso_adapt_phases(na); p++) {
-            for (int s = 0; s < iso_adapt_n_slabs(na); s++)
-                iso_adapt_run(na, p, s);
-            iso_adapt_between(na, p);
-        }
+        volume_adapt_run(svc, na);
         iso_adapt_number_from(na, iso_adapt_next_id(*a));
         rc = iso_adapt_keep(na, &st, err);
     }

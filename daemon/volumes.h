@@ -34,6 +34,9 @@ struct kept_ext {
  * value's error (SF_EINVAL with its pointer: ?value outside the samples' range). */
 int part_apply(struct service *svc, struct volume *vol, struct kept_ext *x, const char *options, const void *data,
                size_t len, struct iso_edit *ed, struct iso_change *ch, struct sf_err *err);
+/* Every phase of hierarchy a's extraction, each phase's slabs on the pool's idle workers too
+ * (jobq_help: an edit job's hierarchy at a new iso, or rebuilt from the store). */
+void volume_adapt_run(struct service *svc, struct iso_adapt *a);
 /* Model id's volume as the store keeps it, its edits applied unless edits is false (its samples in
  * vol->owned; free with volume_free), *next the seq after the last part applied: 0, or SF_ECONFLICT (the model keeps no volume
  * of samples), SF_EIO, SF_ENOMEM. */

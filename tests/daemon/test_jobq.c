@@ -255,11 +255,87 @@ TEST(shutdown_while_a_job_finishes)
     free(w);
 }
 
+/* jobq_help: a prepare's own loop, its tasks on the preparer and on the idle worker, each once,
+ * the call returning when every task has ended; called from elsewhere, all of it on the caller. */
+struct helped {
+    struct jobq *q;
+    atomic_int ran[64];
+    atomic_int on_other;    /* tasks a worker other than the preparer ran */
+    atomic_int after;       /* tasks found unfinished once jobq_help returned */
+    pthread_t preparer;
+    enum job_state outcome;
+};
+
+static void help_task(void *ctx, int k)
+{
+    struct helped *h = ctx;
+    if (!pthread_equal(pthread_self(), h->preparer))
+        atomic_fetch_add(&h->on_other, 1);
+    sleep_ms(2);
+    atomic_fetch_add(&h->ran[k], 1);
+}
+
+static int help_prepare(struct job *j, void *arg, int *n)
+{
+    (void)j;
+    struct helped *h = arg;
+    h->preparer = pthread_self();
+    jobq_help(h->q, 64, help_task, h);
+    for (int k = 0; k < 64; k++)
+        atomic_fetch_add(&h->after, atomic_load(&h->ran[k]) != 1);
+    *n = 0;
+    return 0;
+}
+
+static void help_finish(struct job *j, void *arg, enum job_state outcome, bool requeue)
+{
+    (void)j;
+    (void)requeue;
+    ((struct helped *)arg)->outcome = outcome;
+}
+
+static const struct job_ops HELPED = {.prepare = help_prepare, .finish = help_finish};
+
+TEST(help_with_a_prepares_loop)
+{
+    struct jobq *q = jobq_new(2, 8, 0);
+    struct helped *h = calloc(1, sizeof *h);
+    REQUIRE(h);
+    h->q = q;
+    struct waited w = {0};
+    jobq_wait(q, "h", monotonic_s() + 30, on_wait, &w);
+    CHECK(jobq_submit(q, "h", &HELPED, h, false) == 0);
+    for (int k = 0; k < 3000 && !atomic_load(&w.calls); k++)
+        sleep_ms(1);
+    CHECK(atomic_load(&w.calls) == 1 && h->outcome == JOB_SUCCEEDED);
+    int once = 0;
+    for (int k = 0; k < 64; k++)
+        once += atomic_load(&h->ran[k]) == 1;
+    CHECK(once == 64 && atomic_load(&h->after) == 0);
+    CHECK(atomic_load(&h->on_other) > 0); /* (the idle worker took some: 64 tasks of 2 ms) */
+    jobq_shutdown(q, 1, 1, NULL, NULL);
+    jobq_free(q);
+    struct helped *o = calloc(1, sizeof *o); /* not on a worker: all on this thread */
+    REQUIRE(o);
+    struct jobq *other = jobq_new(1, 1, 0);
+    o->q = other, o->preparer = pthread_self();
+    jobq_help(other, 64, help_task, o);
+    int all = 0;
+    for (int k = 0; k < 64; k++)
+        all += atomic_load(&o->ran[k]) == 1;
+    CHECK(all == 64 && atomic_load(&o->on_other) == 0);
+    jobq_shutdown(other, 1, 1, NULL, NULL);
+    jobq_free(other);
+    free(o);
+    free(h);
+}
+
 int main(void)
 {
     RUN(bands_run_once_and_jobs_end);
     RUN(full_queue_timeouts_and_shutdown);
     RUN(phases_of_bands);
     RUN(shutdown_while_a_job_finishes);
+    RUN(help_with_a_prepares_loop);
     UNIT_END();
 }
