@@ -478,7 +478,7 @@ static bool map_get(struct iso_kept *k, uint64_t key, uint32_t *v)
 static int redraw_box(struct iso_kept *k, const int lo[3], const int hi[3], struct iso_edit *ed, struct iso_change *ch,
                       struct sf_err *err)
 {
-    int rc = iso_box_extract(&k->g, &k->o, k->pad, lo, hi, NULL, KB, &k->box, err);
+    int rc = iso_box_extract(&k->g, &k->o, k->pad, lo, hi, &k->box, err);
     if (rc)
         return rc;
     ed->cells_rebuilt = (long)(hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1);

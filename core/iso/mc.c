@@ -1560,7 +1560,7 @@ static void box_run(struct box_pass *p, int I0, int I1, int J, int K)
 }
 
 int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pad, const int lo[3], const int hi[3],
-                    const uint8_t *mask, int mask_b, struct iso_box *out, struct sf_err *err)
+                    struct iso_box *out, struct sf_err *err)
 {
     if (!tables_built)
         return sf_fail(err, SF_EBACKEND, "", "iso_init() was not called");
@@ -1595,38 +1595,14 @@ int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pa
     memset(t, 0, 5 * slots * sizeof *t);
     p.ex[0] = t, p.ex[1] = t + slots, p.ey[0] = t + 2 * slots, p.ey[1] = t + 3 * slots, p.ez = t + 4 * slots;
     memcpy(p.lo, lo, sizeof p.lo);
-    int nbx = mask ? (C[0] + mask_b - 1) / mask_b : 0, nby = mask ? (C[1] + mask_b - 1) / mask_b : 0;
     for (int K = lo[2]; K <= hi[2]; K++) {
-        const uint8_t *mk = mask ? mask + (size_t)nbx * (size_t)nby * (size_t)(K / mask_b) : NULL;
-        if (mk) { /* a layer of blocks all passed over: nothing read */
-            bool any = false;
-            for (size_t i = 0; i < (size_t)nbx * (size_t)nby && !any; i++)
-                any = mk[i] != 0;
-            if (!any)
-                continue;
-        }
         rect_window_at(j, &p.w, K, rect);
         for (int J = lo[1]; J <= hi[1]; J++) {
-            const uint8_t *mr = mk ? mk + (size_t)nbx * (size_t)(J / mask_b) : NULL;
-            for (int I0 = lo[0], bi = lo[0] / mask_b; I0 <= hi[0];) {
-                int I1 = hi[0];
-                if (mr) { /* a run of blocks not passed over */
-                    I1 = (bi + 1) * mask_b - 1;
-                    if (!mr[bi++]) {
-                        I0 = I1 + 1;
-                        continue;
-                    }
-                    for (; I1 < hi[0] && mr[bi]; bi++)
-                        I1 += mask_b;
-                    I1 = I1 > hi[0] ? hi[0] : I1;
-                }
-                /* room for the run's worst case: 12 triangles, 3 new edges and the centres a cell */
-                size_t cells = (size_t)(I1 - I0 + 1);
-                if (!box_grow(out, cells * (3 + MAX_CENTRES) + 16, cells * MAX_CELL_TRIS, o->normals))
-                    return sf_fail(err, SF_ENOMEM, "", "out of memory");
-                box_run(&p, I0, I1, J, K);
-                I0 = I1 + 1;
-            }
+            /* room for the row's worst case: 12 triangles, 3 new edges and the centres a cell */
+            size_t cells = (size_t)(hi[0] - lo[0] + 1);
+            if (!box_grow(out, cells * (3 + MAX_CENTRES) + 16, cells * MAX_CELL_TRIS, o->normals))
+                return sf_fail(err, SF_ENOMEM, "", "out of memory");
+            box_run(&p, lo[0], hi[0], J, K);
             if (out->n_vert > ISO_MAX_VERTICES)
                 return sf_fail(err, SF_ELIMIT, "", "the isosurface would have %zu vertices, over the limit of %u",
                                out->n_vert, ISO_MAX_VERTICES);

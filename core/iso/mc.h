@@ -122,12 +122,10 @@ static inline uint64_t iso_vertex_key(int NX, int NY, int I, int J, int K, int k
            (uint64_t)c;
 }
 /* Draws cells lo .. hi of g at o (pad: the closed grid's pad sample, as iso_begin sets it) into
- * out (its lists emptied first; out zeroed before the first call). mask, when not NULL: a byte per
- * block of mask_b^3 cells (x fastest, blocks over the virtual cells), 0 for blocks to pass over
- * (they must hold no crossing). 0, or SF_EBACKEND (iso_init not called), SF_ENOMEM (out's lists
- * then half made), SF_ELIMIT (over ISO_MAX_VERTICES). */
+ * out (its lists emptied first; out zeroed before the first call). 0, or SF_EBACKEND (iso_init not
+ * called), SF_ENOMEM (out's lists then half made), SF_ELIMIT (over ISO_MAX_VERTICES). */
 int iso_box_extract(const struct iso_grid *g, const struct iso_opts *o, float pad, const int lo[3], const int hi[3],
-                    const uint8_t *mask, int mask_b, struct iso_box *out, struct sf_err *err);
+                    struct iso_box *out, struct sf_err *err);
 /* The whole grid drawn into out (its lists emptied first) by the slabs' two passes on the calling
  * thread: iso_extract's mesh, vertices and triangles in its order, with their keys and cells. Where
  * a new iso redraws every cell that straddles it, this is the faster way: the slabs' walk passes
