@@ -1,8 +1,8 @@
 /* kept.h - extractions kept for seed 002's interactive loop: what a local rebuild did to the mesh,
  * by stable triangle id (struct iso_change, reported by iso_adapt_edit and by the kept marching
  * cubes below), and marching cubes (mc.c, levels=1) kept with its samples so that an edit draws
- * again only the cells it reaches and a new iso visits only the blocks whose sample range
- * straddles it.
+ * again only the cells it reaches and a new iso is drawn in place, at about half a fresh
+ * extraction's cost elsewhere.
  *
  * Triangle ids. A kept extraction numbers its first mesh's triangles 0 .. n-1 in the order the
  * matching fresh extraction hands them out (iso_extract, iso_adapt_end), so that the mesh a job
@@ -48,7 +48,8 @@ int iso_kept_mesh(const struct iso_kept *k, struct trimesh *out, uint32_t **ids,
  * then of no further use: free it). */
 int iso_kept_edit(struct iso_kept *k, const int lo[3], const struct iso_grid *blk, struct iso_edit *ed,
                   struct iso_change *ch, struct sf_err *err);
-/* The mesh at a new iso value, visiting only the blocks whose sample range straddles it: then
+/* The mesh at a new iso value, drawn by the slabs' passes into k's own lists (no rebuild of k, no
+ * sort when it is read: iso_kept_mesh), the blocks' lists left to the next edit: then
  * iso_extract's at that iso (opts otherwise as begun). ch: every triangle out, the new ones in,
  * with their corners unless corners is false (ch->corners NULL: a caller that reads the new mesh
  * back whole, iso_kept_mesh, saves their 72 bytes a triangle). 0, or SF_EINVAL (?value: not
