@@ -1,8 +1,8 @@
 /* kept.h - extractions kept for seed 002's interactive loop: what a local rebuild did to the mesh,
  * by stable triangle id (struct iso_change, reported by iso_adapt_edit and by the kept marching
  * cubes below), and marching cubes (mc.c, levels=1) kept with its samples so that an edit draws
- * again only the cells it reaches and a new iso is drawn in place, at about half a fresh
- * extraction's cost elsewhere.
+ * again only the cells it reaches and a new iso is drawn in place, without rebuilding what is
+ * kept.
  *
  * Triangle ids. A kept extraction numbers its first mesh's triangles 0 .. n-1 in the order the
  * matching fresh extraction hands them out (iso_extract, iso_adapt_end), so that the mesh a job
