@@ -247,6 +247,16 @@ static size_t cell_block(const struct iso_kept *k, uint32_t c, uint16_t *local)
     return (size_t)(x / KB) + (size_t)k->nb[0] * ((size_t)(y / KB) + (size_t)k->nb[1] * (size_t)(z / KB));
 }
 
+/* Vertex v of pos and nrm (NULL: none, 0s) as a change's corner: x y z nx ny nz into c. */
+static void corner(float c[6], const float *pos, const float *nrm, uint32_t v)
+{
+    memcpy(c, pos + 3 * (size_t)v, 3 * sizeof *c);
+    if (nrm)
+        memcpy(c + 3, nrm + 3 * (size_t)v, 3 * sizeof *c);
+    else
+        memset(c + 3, 0, 3 * sizeof *c);
+}
+
 /* The box's triangles into the blocks, ids from the counter, each using slot vmap[v] of box vertex
  * v; what was added into ch (when not NULL). */
 static int install(struct iso_kept *k, const uint32_t *vmap, bool corners, struct iso_change *ch, struct sf_err *err)
@@ -289,13 +299,8 @@ static int install(struct iso_kept *k, const uint32_t *vmap, bool corners, struc
             uint32_t v = vmap ? vmap[x->tri[3 * i + q]] : x->tri[3 * i + q];
             t->v[q] = v;
             k->ref[v]++;
-            if (!c)
-                continue;
-            memcpy(c + 6 * q, k->pos + 3 * (size_t)v, 3 * sizeof *c);
-            if (k->nrm)
-                memcpy(c + 6 * q + 3, k->nrm + 3 * (size_t)v, 3 * sizeof *c);
-            else
-                memset(c + 6 * q + 3, 0, 3 * sizeof *c);
+            if (c)
+                corner(c + 6 * q, k->pos, k->nrm, v);
         }
         if (ch)
             ch->added[i] = t->id;
@@ -384,15 +389,8 @@ static int redraw_all(struct iso_kept *k, bool corners, struct iso_edit *ed, str
     k->flat_first = k->next_id;
     for (size_t i = 0; i < x->n_tri; i++) {
         ch->added[i] = k->next_id++;
-        for (int q = 0; corners && q < 3; q++) {
-            const uint32_t v = x->tri[3 * i + q];
-            float *c = ch->corners + 18 * i + 6 * q;
-            memcpy(c, x->pos + 3 * (size_t)v, 3 * sizeof *c);
-            if (x->nrm && k->o.normals)
-                memcpy(c + 3, x->nrm + 3 * (size_t)v, 3 * sizeof *c);
-            else
-                memset(c + 3, 0, 3 * sizeof *c);
-        }
+        for (int q = 0; corners && q < 3; q++)
+            corner(ch->corners + 18 * i + 6 * q, x->pos, k->o.normals ? x->nrm : NULL, x->tri[3 * i + q]);
     }
     k->n_tri = x->n_tri;
     ch->n_added = x->n_tri;

@@ -339,26 +339,27 @@ int iso_n_slabs(const struct iso_job *j) { return j->n_slabs; }
 /* The words of a row of states as bits (below, "states as bits"). */
 static int bit_words(int NX) { return (NX + 63) / 64 + 1; }
 
-#define MIN_OF(T)                                        \
+#define LEAST_OF(T)                                      \
     do {                                                 \
-        const T *p = g->samples;                         \
+        const T *p = (const T *)g->samples + at;         \
         T lo = p[0];                                     \
         for (size_t i = 1; i < n; i++)                   \
             lo = p[i] < lo ? p[i] : lo;                  \
         return (double)lo;                               \
     } while (0)
 
-/* The smallest sample (a typed loop each, which the compiler vectorises). */
-double iso_grid_min(const struct iso_grid *g)
+/* The least of samples at .. at+n-1 (n > 0; a typed loop each, which the compiler vectorises). */
+static double least_of(const struct iso_grid *g, size_t at, size_t n)
 {
-    size_t n = (size_t)g->nx * (size_t)g->ny * (size_t)g->nz;
     switch (g->type) {
-    case ISO_U8: MIN_OF(uint8_t);
-    case ISO_I16: MIN_OF(int16_t);
-    case ISO_U16: MIN_OF(uint16_t);
-    default: MIN_OF(float);
+    case ISO_U8: LEAST_OF(uint8_t);
+    case ISO_I16: LEAST_OF(int16_t);
+    case ISO_U16: LEAST_OF(uint16_t);
+    default: LEAST_OF(float);
     }
 }
+
+double iso_grid_min(const struct iso_grid *g) { return least_of(g, 0, (size_t)g->nx * (size_t)g->ny * (size_t)g->nz); }
 
 /* Samples x0 .. x0+n-1 of row (y, z) as floats into out. */
 static void grid_span(const struct iso_grid *g, int x0, int y, int z, int n, float *out)
@@ -627,6 +628,19 @@ static void span(const struct trim *const *t, int n, int shift, int last, int *l
  * 64 at a time, not compared sample by sample in each pass. The same states as the comparisons (NaN
  * none: the volumes are finite), so the same mesh. */
 
+#ifdef __SSE2__
+/* Whether each of the sixteen floats at p is over v's: bit k for p[k] (the compares' masks packed to
+ * bytes, one movemask). */
+static inline uint64_t over16(const float *p, __m128 v)
+{
+    __m128i m0 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(p), v));
+    __m128i m1 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(p + 4), v));
+    __m128i m2 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(p + 8), v));
+    __m128i m3 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(p + 12), v));
+    return (uint32_t)_mm_movemask_epi8(_mm_packs_epi16(_mm_packs_epi32(m0, m1), _mm_packs_epi32(m2, m3)));
+}
+#endif
+
 /* Rows rect[2] .. rect[3] of slice a, columns rect[0] .. rect[1] (the others 0), into out. */
 static void rect_bits(const float *a, int NX, const int rect[4], float iso, uint64_t *out)
 {
@@ -640,15 +654,8 @@ static void rect_bits(const float *a, int NX, const int rect[4], float iso, uint
         for (; I < end && (I & 15); I++)
             o[I >> 6] |= (uint64_t)(r[I] > iso) << (I & 63);
         __m128 v = _mm_set1_ps(iso);
-        for (; I + 16 <= end; I += 16) { /* sixteen columns from a multiple of 16 (within one word): the
-                                          * compares' masks packed to bytes, one movemask */
-            __m128i m0 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(r + I), v));
-            __m128i m1 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(r + I + 4), v));
-            __m128i m2 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(r + I + 8), v));
-            __m128i m3 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(r + I + 12), v));
-            __m128i b = _mm_packs_epi16(_mm_packs_epi32(m0, m1), _mm_packs_epi32(m2, m3));
-            o[I >> 6] |= (uint64_t)(uint32_t)_mm_movemask_epi8(b) << (I & 63);
-        }
+        for (; I + 16 <= end; I += 16) /* (sixteen columns from a multiple of 16: within one word) */
+            o[I >> 6] |= over16(r + I, v) << (I & 63);
 #endif
         for (; I < end; I++)
             o[I >> 6] |= (uint64_t)(r[I] > iso) << (I & 63);
@@ -663,15 +670,6 @@ static inline void put_bits(uint64_t *o, int c, uint64_t m, int n)
     if (sh + n > 64)
         o[w + 1] |= m >> (64 - sh);
 }
-
-#define ROW_LEAST_OF(T)                                  \
-    do {                                                 \
-        const T *p = (const T *)g->samples + at;         \
-        T lo = p[0];                                     \
-        for (int i = 1; i < n; i++)                      \
-            lo = p[i] < lo ? p[i] : lo;                  \
-        least_row = (float)lo;                           \
-    } while (0)
 
 /* Virtual slice K's states as bits (as rect_bits of the slice as floats), the least of its real samples
  * folded into *least: pass 1's, compared in the samples' own type, so that pass 1 makes no floats
@@ -690,13 +688,7 @@ static void sample_bits(const struct iso_job *j, int K, uint64_t *out, float *le
     for (int y = 0; y < g->ny; y++) {
         size_t at = (size_t)n * ((size_t)y + (size_t)g->ny * (size_t)z);
         uint64_t *o = out + (size_t)W * (size_t)(y + s);
-        float least_row;
-        switch (g->type) {
-        case ISO_U8: ROW_LEAST_OF(uint8_t); break;
-        case ISO_I16: ROW_LEAST_OF(int16_t); break;
-        case ISO_U16: ROW_LEAST_OF(uint16_t); break;
-        default: ROW_LEAST_OF(float);
-        }
+        float least_row = (float)least_of(g, at, (size_t)n);
         *least = least_row < *least ? least_row : *least;
         if (none)
             continue;
@@ -734,14 +726,8 @@ static void sample_bits(const struct iso_job *j, int K, uint64_t *out, float *le
         default: {
             const float *p = (const float *)g->samples + at;
             __m128 v = _mm_set1_ps(iso);
-            for (; i + 16 <= n; i += 16) {
-                __m128i m0 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(p + i), v));
-                __m128i m1 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(p + i + 4), v));
-                __m128i m2 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(p + i + 8), v));
-                __m128i m3 = _mm_castps_si128(_mm_cmpgt_ps(_mm_loadu_ps(p + i + 12), v));
-                __m128i m = _mm_packs_epi16(_mm_packs_epi32(m0, m1), _mm_packs_epi32(m2, m3));
-                put_bits(o, s + i, (uint32_t)_mm_movemask_epi8(m), 16);
-            }
+            for (; i + 16 <= n; i += 16)
+                put_bits(o, s + i, over16(p + i, v), 16);
         }
         }
 #endif
