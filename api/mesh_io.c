@@ -257,18 +257,34 @@ int mesh_pack(const struct trimesh *m, char **out, size_t *len, struct sf_err *e
 
 int mesh_packed_version(const char *src, size_t len, uint64_t *version)
 {
+    struct mesh_packed v;
+    struct sf_err err;
+    int rc = mesh_packed_view(src, len, &v, &err);
+    *version = v.version;
+    return rc ? -1 : 0;
+}
+
+int mesh_packed_view(const char *src, size_t len, struct mesh_packed *v, struct sf_err *err)
+{
+    memset(v, 0, sizeof *v);
+    v->version = 1;
     uint64_t head[3];
-    *version = 1;
     if (!mesh_is_packed(src, len))
-        return -1;
+        return sf_fail(err, SF_EFORMAT, "", "not a packed mesh");
     memcpy(head, src + 8, sizeof head);
-    uint64_t nv = head[0], nt = head[1], with_normals = (head[2] & PACKED_NORMALS) != 0;
-    if (!(head[2] & PACKED_IDS))
-        return 0;
-    uint64_t at = 32 + 12 * nv * (1 + with_normals) + 12 * nt;
-    if (nv >= (1ull << 31) || nt >= (1ull << 32) || at + 8 > len)
-        return -1;
-    memcpy(version, src + at, 8);
+    uint64_t nv = head[0], nt = head[1], with_normals = (head[2] & PACKED_NORMALS) != 0, with_ids = (head[2] & PACKED_IDS) != 0;
+    if (nv >= (1ull << 31) || nt >= (1ull << 32) || head[2] > 3 ||
+        len != 32 + 12 * nv * (1 + with_normals) + 12 * nt + with_ids * (8 + 4 * nt))
+        return sf_fail(err, SF_EFORMAT, "", "a packed mesh whose counts do not match its length");
+    const unsigned char *p = (const unsigned char *)src + 32;
+    v->n_vert = nv, v->n_tri = nt;
+    v->pos = p, p += 12 * nv;
+    v->nrm = with_normals ? p : NULL, p += 12 * nv * with_normals;
+    v->tri = p, p += 12 * nt;
+    if (with_ids) {
+        memcpy(&v->version, p, 8);
+        v->ids = p + 8;
+    }
     return 0;
 }
 
@@ -280,46 +296,35 @@ int mesh_unpack_ids(const char *src, size_t len, struct trimesh *m, uint32_t **i
         *ids = NULL;
     if (version)
         *version = 1;
-    uint64_t head[3];
-    if (!mesh_is_packed(src, len))
-        return sf_fail(err, SF_EFORMAT, "", "not a packed mesh");
-    memcpy(head, src + 8, sizeof head);
-    uint64_t nv = head[0], nt = head[1], with_normals = (head[2] & PACKED_NORMALS) != 0, with_ids = (head[2] & PACKED_IDS) != 0;
-    if (nv >= (1ull << 31) || nt >= (1ull << 32) || head[2] > 3 ||
-        len != 32 + 12 * nv * (1 + with_normals) + 12 * nt + with_ids * (8 + 4 * nt))
-        return sf_fail(err, SF_EFORMAT, "", "a packed mesh whose counts do not match its length");
+    struct mesh_packed v;
+    int rc = mesh_packed_view(src, len, &v, err);
+    if (rc)
+        return rc;
+    size_t nv = v.n_vert, nt = v.n_tri;
     m->n_vert = nv, m->n_tri = nt;
     m->pos = malloc(12 * (nv ? nv : 1));
-    m->nrm = with_normals ? malloc(12 * (nv ? nv : 1)) : NULL;
+    m->nrm = v.nrm ? malloc(12 * (nv ? nv : 1)) : NULL;
     m->tri = malloc(12 * (nt ? nt : 1));
     uint32_t *id = ids ? malloc(4 * (nt ? nt : 1)) : NULL;
-    if (!m->pos || !m->tri || (with_normals && !m->nrm) || (ids && !id)) {
+    if (!m->pos || !m->tri || (v.nrm && !m->nrm) || (ids && !id)) {
         trimesh_free(m);
         free(id);
         return sf_fail(err, SF_ENOMEM, "", "out of memory reading a mesh");
     }
-    const char *p = src + 32;
-    memcpy(m->pos, p, 12 * nv);
-    p += 12 * nv;
-    if (with_normals) {
-        memcpy(m->nrm, p, 12 * nv);
-        p += 12 * nv;
-    }
-    memcpy(m->tri, p, 12 * nt);
-    p += 12 * nt;
+    memcpy(m->pos, v.pos, 12 * nv);
+    if (v.nrm)
+        memcpy(m->nrm, v.nrm, 12 * nv);
+    memcpy(m->tri, v.tri, 12 * nt);
     for (size_t k = 0; k < 3 * nt; k++)
         if (m->tri[k] >= nv) {
             trimesh_free(m);
             free(id);
             return sf_fail(err, SF_EFORMAT, "", "a packed mesh with a vertex index out of range");
         }
-    if (with_ids && version)
-        memcpy(version, p, 8);
+    if (version)
+        *version = v.version;
     for (size_t k = 0; id && k < nt; k++)
-        if (with_ids)
-            memcpy(id + k, p + 8 + 4 * k, 4);
-        else
-            id[k] = (uint32_t)k;
+        id[k] = mesh_packed_id(&v, k);
     if (ids)
         *ids = id;
     return 0;

@@ -303,6 +303,47 @@ static int make_patches(struct contour_work *w, const struct job_rec *rec, const
     return rc;
 }
 
+/* The delta of model id since version since > 0, composed with its mesh src (n bytes, as the store
+ * keeps it) into *out. 0 or an error (SF_ECONFLICT: the changes are no longer kept). */
+static int delta_of(struct service *svc, const char *id, long since, const char *src, size_t n, char **out,
+                    size_t *len, struct sf_err *err)
+{
+    long to;
+    int rc = store_delta(svc->store, id, since, src, n, out, len, &to);
+    return rc == SF_ENOTFOUND ? sf_fail(err, SF_ECONFLICT, "?since", "the changes since version %ld are no longer kept: "
+                                        "load since=0 (the whole mesh)", since)
+           : rc               ? sf_fail(err, rc, "", "the model's changes could not be composed")
+                              : 0;
+}
+
+/* GET /models/{id}/mesh?format=delta&since=V across a change of every triangle (server.c's
+ * delta_request: the other deltas are the journal's few bytes, composed on the HTTP thread): the
+ * changes with the current mesh, read whole, composed on the checks pool and answered, kept
+ * nowhere (a transient kind). A delta is a function of what the store keeps, asked once by the
+ * client that held version V: as a job it was stored (30 MB on the CT head, synced), read back
+ * and sent, some 0.1-0.3 s of a slider's step for nothing. The body is the model's id. */
+static int delta_validate(struct service *svc, struct job_body *b, struct sf_err *err)
+{
+    char id[64], since[24], *src = NULL, *out = NULL;
+    snprintf(id, sizeof id, "%.*s", (int)(b->len < 63 ? b->len : 63), b->body ? b->body : "");
+    query_option(b->options, "since", since, sizeof since);
+    size_t n = 0, len = 0;
+    int found = store_model_get(svc->store, id, b->owner, NULL, &src, &n);
+    if (found)
+        return sf_fail(err, found == SF_ENOTFOUND ? SF_ENOTFOUND : SF_EIO, "",
+                       found == SF_ENOTFOUND ? "no such model" : "the store could not read the model");
+    int rc = delta_of(svc, id, atol(since), src, n, &out, &len, err);
+    free(src);
+    if (rc)
+        return rc;
+    free(b->body);
+    b->body = out, b->len = len;
+    return 0;
+}
+
+const struct job_kind delta_kind = {.name = "delta", .validate = delta_validate, .transient = true,
+                                    .result = "application/vnd.surfd.mesh-delta"};
+
 /* A mesh, and its file's name for the download: the model's id, the format's extension. */
 static int make_mesh(struct contour_work *w, const struct job_rec *rec, const struct sf_progress *pr)
 {
@@ -310,16 +351,11 @@ static int make_mesh(struct contour_work *w, const struct job_rec *rec, const st
         return make_seg(w, rec, pr);
     char *src, *resource, since[24];
     size_t n;
-    long to;
     int rc = stored_model(w, rec, &src, &n, &resource);
     query_option(rec->options, "since", since, sizeof since);
-    if (!rc && atol(since) > 0) { /* a delta across a whole change (server.c's delta_request sends it here) */
-        rc = store_delta(w->job.svc->store, w->model, atol(since), src, n, &w->json, &w->len, &to);
+    if (!rc && atol(since) > 0) { /* (a job stored by a surfd before delta_kind) */
+        rc = delta_of(w->job.svc, w->model, atol(since), src, n, &w->json, &w->len, &w->err);
         w->type = "application/vnd.surfd.mesh-delta";
-        rc = rc == SF_ENOTFOUND ? sf_fail(&w->err, SF_ECONFLICT, "?since", "the changes since version %s are no longer "
-                                          "kept: load since=0 (the whole mesh)", since)
-             : rc               ? sf_fail(&w->err, rc, "", "the model's changes could not be composed")
-                                : 0;
     } else if (!rc) {
         rc = model_mesh(src, n, resource, rec->options, pr, &w->json, &w->len, &w->type, &w->tol, &w->err);
     }

@@ -57,6 +57,7 @@ struct job_kind {
 extern const struct job_kind render_kind;                 /* job_render.c */
 extern const struct job_kind volume_kind, model_kind;     /* job_contours.c: contours (and scenes' volumes) */
 extern const struct job_kind mesh_kind, patches_kind, rtstruct_kind; /* job_contours.c: a stored model's outputs */
+extern const struct job_kind delta_kind;                 /* job_contours.c: a delta across a whole change */
 extern const struct job_kind isosurface_kind;             /* job_iso.c */
 extern const struct job_kind matrix_kind;                 /* job_matrix.c */
 extern const struct job_kind edit_kind, iso_kind;         /* job_edit.c: an edit of a model's samples or FRep

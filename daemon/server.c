@@ -729,9 +729,10 @@ static bool model_found(struct req *r, const char *id, char **resource, enum MHD
 
 /* GET /models/{id}/mesh?format=delta&since=V (API.md, "Interactive isosurfaces"): since=0 is the
  * whole mesh (a mesh job, cached as any); a later version the changes after it, composed from the
- * model's journal (store.h), or 410 when the journal no longer reaches back to it (compacted, or a
- * model whose edits rewrite its whole mesh), so that a client loads since=0. *answered false: the
- * request goes on as a mesh job. */
+ * model's journal (store.h) here, or across a change of every triangle with the mesh read whole
+ * (delta_kind, on the checks pool), or 410 when the journal no longer reaches back to it
+ * (compacted, or a model whose edits rewrite its whole mesh), so that a client loads since=0.
+ * *answered false: the request goes on as a mesh job (since=0). */
 static enum MHD_Result delta_request(struct req *r, const char *id, bool *answered)
 {
     const char *f = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "format");
@@ -758,15 +759,12 @@ static enum MHD_Result delta_request(struct req *r, const char *id, bool *answer
         *answered = false;
         return MHD_YES;
     }
-    /* (a delta across a whole change reads the current mesh whole: the mesh job's, on a worker) */
     char *out = NULL;
     size_t len = 0;
     long to;
     int rc = store_delta(r->svc->store, id, since, NULL, 0, &out, &len, &to);
-    if (rc == SF_ELIMIT) {
-        *answered = false;
-        return MHD_YES;
-    }
+    if (rc == SF_ELIMIT) /* (across a whole change: the current mesh read whole, on the checks pool) */
+        return model_job(r, &delta_kind, strdup(id), "");
     if (!rc && to < version) {
         free(out);
         rc = SF_ENOTFOUND;

@@ -66,8 +66,9 @@ import json, sys
 a, b = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
 keys = (\"vertices\", \"triangles\", \"components\", \"euler_characteristic\", \"boundary_edges\", \"nonmanifold_edges\", \"bounds\")
 sys.exit(a[\"topology_version\"] != a[\"version\"] or any(a[k] != b[k] for k in keys) or abs(a[\"volume_mm3\"] - b[\"volume_mm3\"]) > 1e-9 * b[\"volume_mm3\"])" "$T/body" "$T/fresh.json"'
-    code=$(status GET "/models/$ID/mesh?format=delta&since=1"); cp "$T/body" "$T/dnow"
-    check "... the delta since 1 applied by id: the mesh" '[ "$code" = 200 ] && delta_ok'
+    code=$(status GET "/models/$ID/mesh?format=delta&since=1" -H 'Prefer: respond-async'); cp "$T/body" "$T/dnow"
+    check "... the delta since 1 (asked async: answered at once, no job) applied by id: the mesh" \
+        '[ "$code" = 200 ] && [ "$(header Content-Type)" = application/vnd.surfd.mesh-delta ] && [ -z "$(header Location)" ] && delta_ok'
     code=$(status POST "/models/$ID/iso?value=226.5"); v=$(field version)
     stl "$ID" "$T/now.stl"
     check "... back to iso 226.5: version 3, the first mesh" '[ "$code" = 200 ] && [ "$v" = 3 ] && python3 $E same "$T/now.stl" "$T/first.stl"'

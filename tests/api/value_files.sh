@@ -1,8 +1,8 @@
 #!/bin/sh
 # Values of 1 MB or more are files of the data dir's values/ (daemon/store_sqlite.c, "values kept
 # as files"): an iso change of the CT head stored its 27 MB mesh in 320 ms as SQLite pages and in
-# tens of ms as a file. Here a ball's model (its mesh and volume over 1 MB), its cached STL and a
-# delta's job result are made, each a file of the service user's alone named by its row; an iso
+# tens of ms as a file. Here a ball's model (its mesh and volume over 1 MB), its cached STL and its
+# STL job's result are made, each a file of the service user's alone named by its row; an iso
 # change replaces the mesh's file and the old one goes; a restart serves the same bytes; `surfd
 # store check` finds a file altered or gone; a stray file no row names is swept at start once
 # older than a minute (a younger one may be another process's, between its write and its row);
@@ -38,21 +38,22 @@ check "... values/ 0700, its files 0600" '[ "$(stat -c %a "$V")" = 700 ] && [ "$
 check "... the length its row names, the file's" \
     '[ "$(q "SELECT substr(source, 39) FROM models WHERE id='\''$mdl'\''")" = "$(wc -c <"$V/$src")" ]'
 status GET "/models/$mdl/mesh?format=stl" >/dev/null; cp "$T/body" "$T/a.stl"
-check "its STL ($tris triangles, closed), cached as a file" \
-    '[ "$(wc -c <"$T/a.stl")" = $((84 + 50 * tris)) ] && python3 tests/tools/stl_check.py "$T/a.stl" - >/dev/null && [ "$(q "SELECT data GLOB '\''file:*'\'' FROM meshes WHERE model='\''$mdl'\''")" = 1 ]'
+job=$(q "SELECT id FROM jobs WHERE kind='mesh' AND options LIKE '%format=stl%'")
+check "its STL ($tris triangles, closed), cached as a file, the job's result a file" \
+    '[ "$(wc -c <"$T/a.stl")" = $((84 + 50 * tris)) ] && python3 tests/tools/stl_check.py "$T/a.stl" - >/dev/null && [ "$(q "SELECT data GLOB '\''file:*'\'' FROM meshes WHERE model='\''$mdl'\''")" = 1 ] && [ "$(q "SELECT result GLOB '\''file:*'\'' FROM jobs WHERE id='\''$job'\''")" = 1 ]'
 code=$(status POST "/models/$mdl/iso?value=200")
 check "an iso change: 200, version 2, the mesh a new file and the old one gone" \
     '[ "$code" = 200 ] && [ "$(field version)" = 2 ] && [ "$(file_of "SELECT source FROM models WHERE id='\''$mdl'\''")" != "$src" ] && [ ! -e "$V/$src" ]'
 code=$(status GET "/models/$mdl/mesh?format=delta&since=1"); cp "$T/body" "$T/d1"
-job=$(q "SELECT id FROM jobs WHERE kind='mesh' AND options LIKE '%since=1%'")
-check "its delta since 1: 200, the job's result a file" '[ "$code" = 200 ] && [ "$(head -c 4 "$T/d1")" = SFMD ] && [ "$(q "SELECT result GLOB '\''file:*'\'' FROM jobs WHERE id='\''$job'\''")" = 1 ]'
+check "its delta since 1: 200, composed from the new mesh's file and kept nowhere (no job)" \
+    '[ "$code" = 200 ] && [ "$(head -c 4 "$T/d1")" = SFMD ] && [ "$(q "SELECT count(*) FROM jobs WHERE options LIKE '\''%since=1%'\''")" = 0 ]'
 status GET "/models/$mdl/mesh?format=stl" >/dev/null; cp "$T/body" "$T/b.stl"
 check "every file some row's, every row's file there" '[ "$(named)" = "$(present)" ]'
 stop_daemon
 
 start_daemon "$T/d" || exit 1
-check "after a restart: the STL and the delta the same bytes" \
-    '[ "$(status GET "/models/$mdl/mesh?format=stl")" = 200 ] && cmp -s "$T/body" "$T/b.stl" && [ "$(status GET "/jobs/$job/result")" = 200 ] && cmp -s "$T/body" "$T/d1"'
+check "after a restart: the STL, the first STL's job result and the delta the same bytes" \
+    '[ "$(status GET "/models/$mdl/mesh?format=stl")" = 200 ] && cmp -s "$T/body" "$T/b.stl" && [ "$(status GET "/jobs/$job/result")" = 200 ] && cmp -s "$T/body" "$T/a.stl" && [ "$(status GET "/models/$mdl/mesh?format=delta&since=1")" = 200 ] && cmp -s "$T/body" "$T/d1"'
 stop_daemon
 
 $S store check --data-dir "$T/d" >"$T/out" 2>&1; rc=$?
@@ -72,7 +73,7 @@ start_daemon "$T/d" || exit 1
 check "at start: a stray file of two hours ago swept, one of now kept" \
     '[ ! -e "$V/0123456789abcdef0123456789abcdef" ] && [ -e "$V/fedcba9876543210fedcba9876543210" ]'
 rm -f "$V/fedcba9876543210fedcba9876543210"
-check "the model deleted: 204, its files with it; the delta's result stays" \
-    '[ "$(status DELETE "/models/$mdl")" = 204 ] && [ ! -e "$V/$src" ] && [ ! -e "$V/$vol" ] && [ "$(named)" = "$(present)" ] && [ "$(present | wc -l)" -ge 1 ] && [ "$(status GET "/jobs/$job/result")" = 200 ] && cmp -s "$T/body" "$T/d1"'
+check "the model deleted: 204, its files with it; its STL job's result stays" \
+    '[ "$(status DELETE "/models/$mdl")" = 204 ] && [ ! -e "$V/$src" ] && [ ! -e "$V/$vol" ] && [ "$(named)" = "$(present)" ] && [ "$(present | wc -l)" -ge 1 ] && [ "$(status GET "/jobs/$job/result")" = 200 ] && cmp -s "$T/body" "$T/a.stl"'
 stop_daemon
 checks_done
