@@ -135,9 +135,8 @@ static void ids_remove(struct ids *t, size_t h)
 
 /* ---- deltas ---- */
 
-/* Triangle t of m as a delta's added record at p: its id, then its corners (40 bytes). */
-/* Triangle t of packed mesh v as a delta's added triangle at p (its id, its corners' places). 0, or
- * -1: a corner past its vertices. */
+/* Triangle t of packed mesh v as a delta's added record at p: its id, then its corners' places (40
+ * bytes). 0, or -1: a corner past its vertices. */
 static int put_added(unsigned char *p, const struct mesh_packed *v, size_t t)
 {
     put32(p, mesh_packed_id(v, t));
