@@ -6,8 +6,10 @@
  * outline - the grid's border and every fold, where two neighbouring triangles face opposite
  * ways on screen or either is too thin there for its turn to be the surface's (the chord bound's
  * second derivatives let the surface's tangents leave its edges by 4 chord errors: a sliver seen
- * edge-on may be pleated within a cell; tested only where the patch's normal cone and the
- * directions from the eye to it leave room for an edge-on view: elsewhere its image folds nowhere)
+ * edge-on may be pleated within a cell; tested only in cells where the surface may be seen
+ * edge-on: where the Bernstein coefficients of (Pu x Pv).(P - eye) over the cell, or for a patch of
+ * high degree its normal cone and the directions from the eye to it, do not keep one sign, as
+ * elsewhere its image folds nowhere)
  * - is then widened by the chord error as the projection
  * may stretch it (capsules around those edges), so the true silhouette always has a seed. Seeds
  * take the perspective-correct attributes of the covering triangle, or of the nearest point of
@@ -396,7 +398,7 @@ struct grid_scratch {
     signed char *sg;   /* 2 per cell: the triangles' turns on screen */
     bool *keep;        /* 1 per cell: the trim region holds some of it */
     double *bv;        /* (gv + 1) x (q + 1): the Bernstein values of the grid's rows */
-    bool *edge_on;     /* 1 per cell: the patch may be seen edge-on over it (edge_on_cells) */
+    bool *edge_on;     /* 1 per cell: the patch may be seen edge-on over it (jacobian_cells, edge_on_cells) */
 };
 
 /* True when no view ray meets the polynomial patch `part` edge-on: its normals' cone (normal_cone)
@@ -461,6 +463,123 @@ static void edge_on_cells(const struct patch *pt, const struct camera *cam, int 
     }
 }
 
+/* The sign of the Jacobian of a polynomial patch's image on screen is that of
+ * g = (Pu x Pv).(P - eye) (in parallel projection (Pu x Pv).f; the perspective divides it by the
+ * cube of the depth, > 0): the image folds only where g changes sign, so a cell over which g keeps
+ * its sign hides no pleat, and its triangles' turns need no thinness test (add_patch). g is a
+ * polynomial of degree (*gp, *gq) = (3p - 1, 3q - 1): its Bernstein coefficients into
+ * g[i * (*gq + 1) + j], those of the normals (as normal_cone's, degree (2p - 1, 2q - 1)) times the
+ * net's offsets from the eye (degree (p, q)), each pair weighted C(a,i) C(b,k) / C(a+b,i+k) each
+ * way. A coefficient's rounding stays far under *tol: each is a convex combination of products
+ * bounded by p q |du| |dv| (|P| + |eye|). Tighter than the cones (edge_on_cells): the coefficients
+ * over a cell are within O(h²) of g there, where the cones of a block of cells add their angles.
+ * False where the degree is too high (JAC_MAX_DEGREE) or the patch rational: the cones then, or
+ * the test everywhere. */
+#define JAC_MAX_DEGREE 8 /* 3 p - 1 <= PATCH_MAX_DEGREE */
+static bool jacobian_net(const struct patch *pt, const struct camera *cam, double *g, int *gp, int *gq, double *tol)
+{
+    const int p = pt->p, q = pt->q, M = 2 * p - 1, N = 2 * q - 1;
+    if (pt->rational || p < 1 || q < 1 || p > JAC_MAX_DEGREE || q > JAC_MAX_DEGREE)
+        return false;
+    const int dp = cam->ortho ? 0 : p, dq = cam->ortho ? 0 : q, GP = M + dp, GQ = N + dq;
+    double bin[3 * JAC_MAX_DEGREE][3 * JAC_MAX_DEGREE];
+    for (int n = 0; n <= GP || n <= GQ; n++)
+        for (int k = 0; k <= n; k++)
+            bin[n][k] = k == 0 || k == n ? 1.0 : bin[n - 1][k - 1] + bin[n - 1][k];
+    vec3 C[2 * JAC_MAX_DEGREE][2 * JAC_MAX_DEGREE], D[JAC_MAX_DEGREE + 1][JAC_MAX_DEGREE + 1];
+    double maxdu = 0.0, maxdv = 0.0, maxd = 0.0;
+    for (int m = 0; m <= M; m++)
+        for (int n = 0; n <= N; n++)
+            C[m][n] = v3(0, 0, 0);
+    for (int i = 0; i <= p; i++)
+        for (int j = 0; j <= q; j++) {
+            vec3 c = bezier_point(pt, i, j);
+            if (i < p)
+                maxdu = dmax(maxdu, v3_len(v3_sub(bezier_point(pt, i + 1, j), c)));
+            if (j < q)
+                maxdv = dmax(maxdv, v3_len(v3_sub(bezier_point(pt, i, j + 1), c)));
+            maxd = dmax(maxd, v3_len(c) + v3_len(cam->eye));
+            if (!cam->ortho)
+                D[i][j] = v3_sub(c, cam->eye);
+        }
+    if (cam->ortho)
+        D[0][0] = cam->f, maxd = 1.0;
+    for (int i = 0; i < p; i++)
+        for (int j = 0; j <= q; j++)
+            for (int k = 0; k <= p; k++)
+                for (int l = 0; l < q; l++) {
+                    vec3 du = v3_sub(bezier_point(pt, i + 1, j), bezier_point(pt, i, j));
+                    vec3 dv = v3_sub(bezier_point(pt, k, l + 1), bezier_point(pt, k, l));
+                    double w = (double)p * q * bin[p - 1][i] * bin[p][k] / bin[M][i + k] * bin[q][j] * bin[q - 1][l] /
+                               bin[N][j + l];
+                    C[i + k][j + l] = v3_add(C[i + k][j + l], v3_scale(v3_cross(du, dv), w));
+                }
+    for (int k = 0; k < (GP + 1) * (GQ + 1); k++)
+        g[k] = 0.0;
+    for (int a = 0; a <= M; a++)
+        for (int b = 0; b <= N; b++)
+            for (int c = 0; c <= dp; c++)
+                for (int d = 0; d <= dq; d++)
+                    g[(a + c) * (GQ + 1) + b + d] += v3_dot(C[a][b], D[c][d]) * bin[M][a] * bin[dp][c] /
+                                                    bin[GP][a + c] * bin[N][b] * bin[dq][d] / bin[GQ][b + d];
+    *gp = GP, *gq = GQ;
+    *tol = 1e-10 * (double)p * q * maxdu * maxdv * maxd;
+    return true;
+}
+
+/* The coefficients c of a scalar polynomial of degree (gp, gq) (c[i * (gq + 1) + j]) split at t
+ * along u (dir 0) or v into lo ([0, t]) and hi ([t, 1]), by de Casteljau. */
+static void split_scalar(const double *c, int gp, int gq, int dir, double t, double *lo, double *hi)
+{
+    const int n = dir ? gq : gp, lines = dir ? gp + 1 : gq + 1, stride = dir ? 1 : gq + 1, step = dir ? gq + 1 : 1;
+    double w[3 * JAC_MAX_DEGREE];
+    for (int l = 0; l < lines; l++) {
+        const size_t o = (size_t)l * step;
+        for (int k = 0; k <= n; k++)
+            w[k] = c[o + (size_t)k * stride];
+        for (int r = 0; r <= n; r++) {
+            lo[o + (size_t)r * stride] = w[0];
+            hi[o + (size_t)(n - r) * stride] = w[n - r];
+            for (int k = 0; k < n - r; k++)
+                w[k] += t * (w[k + 1] - w[k]);
+        }
+    }
+}
+
+/* edge_on[cell] over the cells [i0, i1) x [j0, j1) of a gu x gv grid, from c, the coefficients of
+ * g (jacobian_net) over the block: false where every coefficient is beyond tol and all of one sign
+ * (a coefficient exactly 0, as along an edge collapsed to a point, counts as either: g >= 0 or
+ * <= 0 there too), so g keeps its sign over the block (Bernstein weights are non-negative: g lies
+ * within its coefficients' range) and its image folds nowhere. A coefficient within tol of 0 (not
+ * 0) leaves the block edge-on: a sign rounding may have flipped. Else the block is split in two
+ * along its longer side, down to single cells (de Casteljau from the block's coefficients). */
+static void jacobian_cells(const double *c, int gp, int gq, double tol, int gu, int gv, int i0, int i1, int j0,
+                           int j1, bool *edge_on)
+{
+    bool pos = false, neg = false, near = false;
+    for (int k = 0; k < (gp + 1) * (gq + 1) && !(pos && neg) && !near; k++)
+        pos |= c[k] > tol, neg |= c[k] < -tol, near |= c[k] != 0.0 && fabs(c[k]) <= tol;
+    const bool free_ = pos != neg && !near;
+    if (free_ || (i1 - i0) * (j1 - j0) <= 1) {
+        for (int i = i0; i < i1; i++)
+            for (int j = j0; j < j1; j++)
+                edge_on[(size_t)i * gv + j] = !free_;
+        return;
+    }
+    double lo[3 * JAC_MAX_DEGREE * 3 * JAC_MAX_DEGREE], hi[3 * JAC_MAX_DEGREE * 3 * JAC_MAX_DEGREE];
+    if (i1 - i0 >= j1 - j0) {
+        const int mid = (i0 + i1) / 2;
+        split_scalar(c, gp, gq, 0, (double)(mid - i0) / (i1 - i0), lo, hi);
+        jacobian_cells(lo, gp, gq, tol, gu, gv, i0, mid, j0, j1, edge_on);
+        jacobian_cells(hi, gp, gq, tol, gu, gv, mid, i1, j0, j1, edge_on);
+    } else {
+        const int mid = (j0 + j1) / 2;
+        split_scalar(c, gp, gq, 1, (double)(mid - j0) / (j1 - j0), lo, hi);
+        jacobian_cells(lo, gp, gq, tol, gu, gv, i0, i1, j0, mid, edge_on);
+        jacobian_cells(hi, gp, gq, tol, gu, gv, i0, i1, mid, j1, edge_on);
+    }
+}
+
 /* Tessellates patch `index` on its grid for the camera into its slots of m->verts and m->tris
  * (map_begin's), its border's edges last, edge by edge (u = 0, u = 1, v = 0, v = 1: m->border).
  * The grid's points by the tensor product: the net's rows taken at each u first, those q + 1
@@ -495,7 +614,11 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
     signed char *sg = sc->sg;
     bool *keep = sc->keep, *edge_on = sc->edge_on;
     const int p = pt->p, q = pt->q;
-    if (pt->rational) /* no cones: the thinness test everywhere */
+    double g[3 * JAC_MAX_DEGREE * 3 * JAC_MAX_DEGREE], gtol;
+    int gp, gq;
+    if (jacobian_net(pt, cam, g, &gp, &gq, &gtol))
+        jacobian_cells(g, gp, gq, gtol, gu, gv, 0, gu, 0, gv, edge_on);
+    else if (pt->rational) /* no cones: the thinness test everywhere */
         memset(edge_on, 1, sizeof *edge_on * nc);
     else
         edge_on_cells(pt, cam, gu, gv, 0, gu, 0, gv, edge_on);
