@@ -476,6 +476,16 @@ static void edge_on_cells(const struct patch *pt, const struct camera *cam, int 
  * False where the degree is too high (JAC_MAX_DEGREE) or the patch rational: the cones then, or
  * the test everywhere. */
 #define JAC_MAX_DEGREE 8 /* 3 p - 1 <= PATCH_MAX_DEGREE */
+/* Bernstein products' weights: w[i][k] = C(a, i) C(b, k) / C(a + b, i + k), so that
+ * B_i^a B_k^b = w[i][k] B_{i+k}^{a+b} (bin: binomials up to a + b). */
+static void product_weights(int a, int b, double bin[3 * JAC_MAX_DEGREE][3 * JAC_MAX_DEGREE],
+                            double w[2 * JAC_MAX_DEGREE][JAC_MAX_DEGREE + 1])
+{
+    for (int i = 0; i <= a; i++)
+        for (int k = 0; k <= b; k++)
+            w[i][k] = bin[a][i] * bin[b][k] / bin[a + b][i + k];
+}
+
 static bool jacobian_net(const struct patch *pt, const struct camera *cam, double *g, int *gp, int *gq, double *tol)
 {
     const int p = pt->p, q = pt->q, M = 2 * p - 1, N = 2 * q - 1;
@@ -486,7 +496,14 @@ static bool jacobian_net(const struct patch *pt, const struct camera *cam, doubl
     for (int n = 0; n <= GP || n <= GQ; n++)
         for (int k = 0; k <= n; k++)
             bin[n][k] = k == 0 || k == n ? 1.0 : bin[n - 1][k - 1] + bin[n - 1][k];
+    /* (the weights once per patch, the net's differences once each: a patch of the heart model's
+     * 2 x 7 cells spent more on its divisions than on its grid) */
+    double wu[2 * JAC_MAX_DEGREE][JAC_MAX_DEGREE + 1], wv[2 * JAC_MAX_DEGREE][JAC_MAX_DEGREE + 1];
+    double gu_[2 * JAC_MAX_DEGREE][JAC_MAX_DEGREE + 1], gv_[2 * JAC_MAX_DEGREE][JAC_MAX_DEGREE + 1];
+    product_weights(p - 1, p, bin, wu), product_weights(q, q - 1, bin, wv);
+    product_weights(M, dp, bin, gu_), product_weights(N, dq, bin, gv_);
     vec3 C[2 * JAC_MAX_DEGREE][2 * JAC_MAX_DEGREE], D[JAC_MAX_DEGREE + 1][JAC_MAX_DEGREE + 1];
+    vec3 du[JAC_MAX_DEGREE][JAC_MAX_DEGREE + 1], dv[JAC_MAX_DEGREE + 1][JAC_MAX_DEGREE];
     double maxdu = 0.0, maxdv = 0.0, maxd = 0.0;
     for (int m = 0; m <= M; m++)
         for (int n = 0; n <= N; n++)
@@ -495,9 +512,9 @@ static bool jacobian_net(const struct patch *pt, const struct camera *cam, doubl
         for (int j = 0; j <= q; j++) {
             vec3 c = bezier_point(pt, i, j);
             if (i < p)
-                maxdu = dmax(maxdu, v3_len(v3_sub(bezier_point(pt, i + 1, j), c)));
+                du[i][j] = v3_sub(bezier_point(pt, i + 1, j), c), maxdu = dmax(maxdu, v3_len(du[i][j]));
             if (j < q)
-                maxdv = dmax(maxdv, v3_len(v3_sub(bezier_point(pt, i, j + 1), c)));
+                dv[i][j] = v3_sub(bezier_point(pt, i, j + 1), c), maxdv = dmax(maxdv, v3_len(dv[i][j]));
             maxd = dmax(maxd, v3_len(c) + v3_len(cam->eye));
             if (!cam->ortho)
                 D[i][j] = v3_sub(c, cam->eye);
@@ -507,21 +524,16 @@ static bool jacobian_net(const struct patch *pt, const struct camera *cam, doubl
     for (int i = 0; i < p; i++)
         for (int j = 0; j <= q; j++)
             for (int k = 0; k <= p; k++)
-                for (int l = 0; l < q; l++) {
-                    vec3 du = v3_sub(bezier_point(pt, i + 1, j), bezier_point(pt, i, j));
-                    vec3 dv = v3_sub(bezier_point(pt, k, l + 1), bezier_point(pt, k, l));
-                    double w = (double)p * q * bin[p - 1][i] * bin[p][k] / bin[M][i + k] * bin[q][j] * bin[q - 1][l] /
-                               bin[N][j + l];
-                    C[i + k][j + l] = v3_add(C[i + k][j + l], v3_scale(v3_cross(du, dv), w));
-                }
+                for (int l = 0; l < q; l++)
+                    C[i + k][j + l] = v3_add(C[i + k][j + l], v3_scale(v3_cross(du[i][j], dv[k][l]),
+                                                                       (double)p * q * wu[i][k] * wv[j][l]));
     for (int k = 0; k < (GP + 1) * (GQ + 1); k++)
         g[k] = 0.0;
     for (int a = 0; a <= M; a++)
         for (int b = 0; b <= N; b++)
             for (int c = 0; c <= dp; c++)
                 for (int d = 0; d <= dq; d++)
-                    g[(a + c) * (GQ + 1) + b + d] += v3_dot(C[a][b], D[c][d]) * bin[M][a] * bin[dp][c] /
-                                                    bin[GP][a + c] * bin[N][b] * bin[dq][d] / bin[GQ][b + d];
+                    g[(a + c) * (GQ + 1) + b + d] += v3_dot(C[a][b], D[c][d]) * gu_[a][c] * gv_[b][d];
     *gp = GP, *gq = GQ;
     *tol = 1e-10 * (double)p * q * maxdu * maxdv * maxd;
     return true;
@@ -547,7 +559,8 @@ static void split_scalar(const double *c, int gp, int gq, int dir, double t, dou
 }
 
 /* edge_on[cell] over the cells [i0, i1) x [j0, j1) of a gu x gv grid, from c, the coefficients of
- * g (jacobian_net) over the block: false where every coefficient is beyond tol and all of one sign
+ * g (jacobian_net) over the block. In: true for the cells whose answer is wanted (a block with
+ * none is left as it is). Out: false where every coefficient is beyond tol and all of one sign
  * (a coefficient exactly 0, as along an edge collapsed to a point, counts as either: g >= 0 or
  * <= 0 there too), so g keeps its sign over the block (Bernstein weights are non-negative: g lies
  * within its coefficients' range) and its image folds nowhere. A coefficient within tol of 0 (not
@@ -556,7 +569,12 @@ static void split_scalar(const double *c, int gp, int gq, int dir, double t, dou
 static void jacobian_cells(const double *c, int gp, int gq, double tol, int gu, int gv, int i0, int i1, int j0,
                            int j1, bool *edge_on)
 {
-    bool pos = false, neg = false, near = false;
+    bool wanted = false, pos = false, neg = false, near = false;
+    for (int i = i0; i < i1 && !wanted; i++)
+        for (int j = j0; j < j1 && !wanted; j++)
+            wanted = edge_on[(size_t)i * gv + j];
+    if (!wanted)
+        return;
     for (int k = 0; k < (gp + 1) * (gq + 1) && !(pos && neg) && !near; k++)
         pos |= c[k] > tol, neg |= c[k] < -tol, near |= c[k] != 0.0 && fabs(c[k]) <= tol;
     const bool free_ = pos != neg && !near;
@@ -614,14 +632,6 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
     signed char *sg = sc->sg;
     bool *keep = sc->keep, *edge_on = sc->edge_on;
     const int p = pt->p, q = pt->q;
-    double g[3 * JAC_MAX_DEGREE * 3 * JAC_MAX_DEGREE], gtol;
-    int gp, gq;
-    if (jacobian_net(pt, cam, g, &gp, &gq, &gtol))
-        jacobian_cells(g, gp, gq, gtol, gu, gv, 0, gu, 0, gv, edge_on);
-    else if (pt->rational) /* no cones: the thinness test everywhere */
-        memset(edge_on, 1, sizeof *edge_on * nc);
-    else
-        edge_on_cells(pt, cam, gu, gv, 0, gu, 0, gv, edge_on);
     for (int j = 0; j <= gv; j++)
         bezier_basis(q, (double)j / gv, sc->bv + (size_t)j * (q + 1), NULL); /* exactly 0 and 1 at the ends */
     const double sx = 0.5 * cam->W / (cam->th * cam->aspect), sy = 0.5 * cam->H / cam->th;
@@ -651,7 +661,11 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
     }
     /* cell (i, j) holds triangles {a, b, b+1} and {a, b+1, a+1}, a = vertex (i, j), b = (i+1, j):
      * both wind the same way in (u, v), so on screen they turn the same way unless the surface
-     * folds there. sg: each triangle's turn (-1, 0, 1); zc: each cell's nearest vertex depth. */
+     * folds there. sg: each triangle's turn (-1, 0, 1); zc: each cell's nearest vertex depth. A
+     * triangle too thin for its turn to be sure is marked +-2 first: only a patch that has one
+     * asks where it may be seen edge-on (on the heart model that costs more than its grid), and
+     * its thin triangles then turn neither way where it may, their own way where it may not. */
+    bool thin_any = false;
 #define VTX(i, j) ((unsigned)(base + (size_t)(i) * (gv + 1) + (size_t)(j)))
 #define CELL(i, j) ((size_t)(i) * gv + (size_t)(j))
     const double su = (pt->u1 - pt->u0) / gu, sv = (pt->v1 - pt->v0) / gv;
@@ -669,13 +683,31 @@ static void add_patch(struct map *m, const struct patch *pt, int index, const st
                 /* its u edge (b - a; b+1 - a+1) and v edge (b+1 - b; a+1 - a): too thin, no turn */
                 const struct map_vert *ua = &m->verts[k ? a + 1 : a], *ub = &m->verts[k ? b + 1 : b];
                 const struct map_vert *va = &m->verts[k ? a : b], *vb = &m->verts[k ? a + 1 : b + 1];
-                double thick = !edge_on[CELL(i, j)] ? 0.0 : dev_u * hypot(vb->x - va->x, vb->y - va->y) + dev_v * hypot(ub->x - ua->x, ub->y - ua->y) +
+                double thick = dev_u * hypot(vb->x - va->x, vb->y - va->y) + dev_v * hypot(ub->x - ua->x, ub->y - ua->y) +
                                dev_u * dev_v;
-                sg[2 * CELL(i, j) + k] = keep[CELL(i, j)] ? (signed char)((area > thick) - (area < -thick)) : 0;
+                int turn = (area > 0) - (area < 0);
+                bool thin = turn && !(area > thick || area < -thick);
+                sg[2 * CELL(i, j) + k] = keep[CELL(i, j)] ? (signed char)(thin ? 2 * turn : turn) : 0;
+                thin_any |= keep[CELL(i, j)] && thin;
             }
             double iz = dmax(dmax(m->verts[a].iz, m->verts[a + 1].iz), dmax(m->verts[b].iz, m->verts[b + 1].iz));
             zc[CELL(i, j)] = (float)(1.0 / iz);
         }
+    if (thin_any) {
+        double g[3 * JAC_MAX_DEGREE * 3 * JAC_MAX_DEGREE], gtol;
+        int gp, gq;
+        for (size_t c = 0; c < nc; c++) /* (the cells asked about: those with a thin triangle) */
+            edge_on[c] = sg[2 * c] == 2 || sg[2 * c] == -2 || sg[2 * c + 1] == 2 || sg[2 * c + 1] == -2;
+        if (jacobian_net(pt, cam, g, &gp, &gq, &gtol))
+            jacobian_cells(g, gp, gq, gtol, gu, gv, 0, gu, 0, gv, edge_on);
+        else if (pt->rational) /* no cones: the thinness test everywhere */
+            memset(edge_on, 1, sizeof *edge_on * nc);
+        else
+            edge_on_cells(pt, cam, gu, gv, 0, gu, 0, gv, edge_on);
+        for (size_t c = 0; c < 2 * nc; c++)
+            if (sg[c] == 2 || sg[c] == -2)
+                sg[c] = edge_on[c / 2] ? 0 : (signed char)(sg[c] / 2);
+    }
     /* a root seen through one triangle may belong to a neighbouring cell's part of the patch:
      * each cell's bound is the least over its 3x3 neighbourhood, less the chord error */
     float *zlo = zc + nc;
