@@ -463,6 +463,18 @@ static void edge_on_cells(const struct patch *pt, const struct camera *cam, int 
     }
 }
 
+#define JAC_MAX_DEGREE 8 /* a patch of degree up to this gets the coefficients (g's degree 3 p - 1 < 24) */
+
+/* Bernstein products' weights: w[i][k] = C(a, i) C(b, k) / C(a + b, i + k), so that
+ * B_i^a B_k^b = w[i][k] B_{i+k}^{a+b} (bin: binomials up to a + b). */
+static void product_weights(int a, int b, double bin[3 * JAC_MAX_DEGREE][3 * JAC_MAX_DEGREE],
+                            double w[2 * JAC_MAX_DEGREE][JAC_MAX_DEGREE + 1])
+{
+    for (int i = 0; i <= a; i++)
+        for (int k = 0; k <= b; k++)
+            w[i][k] = bin[a][i] * bin[b][k] / bin[a + b][i + k];
+}
+
 /* The sign of the Jacobian of a polynomial patch's image on screen is that of
  * g = (Pu x Pv).(P - eye) (in parallel projection (Pu x Pv).f; the perspective divides it by the
  * cube of the depth, > 0): the image folds only where g changes sign, so a cell over which g keeps
@@ -475,17 +487,6 @@ static void edge_on_cells(const struct patch *pt, const struct camera *cam, int 
  * over a cell are within O(h²) of g there, where the cones of a block of cells add their angles.
  * False where the degree is too high (JAC_MAX_DEGREE) or the patch rational: the cones then, or
  * the test everywhere. */
-#define JAC_MAX_DEGREE 8 /* 3 p - 1 <= PATCH_MAX_DEGREE */
-/* Bernstein products' weights: w[i][k] = C(a, i) C(b, k) / C(a + b, i + k), so that
- * B_i^a B_k^b = w[i][k] B_{i+k}^{a+b} (bin: binomials up to a + b). */
-static void product_weights(int a, int b, double bin[3 * JAC_MAX_DEGREE][3 * JAC_MAX_DEGREE],
-                            double w[2 * JAC_MAX_DEGREE][JAC_MAX_DEGREE + 1])
-{
-    for (int i = 0; i <= a; i++)
-        for (int k = 0; k <= b; k++)
-            w[i][k] = bin[a][i] * bin[b][k] / bin[a + b][i + k];
-}
-
 static bool jacobian_net(const struct patch *pt, const struct camera *cam, double *g, int *gp, int *gq, double *tol)
 {
     const int p = pt->p, q = pt->q, M = 2 * p - 1, N = 2 * q - 1;
