@@ -497,12 +497,12 @@ static int check_and_store(struct job *j, void *arg, int *n_bands)
     }
     struct job_body b = {r->body, r->len, r->format, r->options, scope(r)};
     r->check_rc = r->kind->validate(svc, &b, &r->check_err);
+    if (r->check_rc) /* (a refused allocation: the job-memory budget's 422, not a 500) */
+        r->check_rc = service_outgrown(&r->check_err);
     if (r->kind->transient) { /* answered now, kept nowhere */
         r->body = b.body, r->len = b.len;
         return 0;
     }
-    if (r->check_rc)
-        r->check_rc = service_outgrown(&r->check_err);
     r->body = b.body; /* validate may have replaced it */
     r->len = b.len;
     if (r->check_rc)

@@ -70,4 +70,19 @@ check "a ${size}-byte gzip NRRD of a striped field (1.4 M samples): 422 from the
 code=$(status POST "/isosurface?iso=0.5" -H 'Content-Type: application/x-nrrd' --data-binary @"$T/label.nrrd")
 check "a gzip label map of a ball, $(wc -c <"$T/label.nrrd") bytes: 201, closed" '[ "$code" = 201 ] && [ "$(field boundary_edges)" = 0 ]'
 
+# ---- a delta across an iso change, composed on the checks pool under the same budget --------------
+python3 -c "
+import sys
+n = 96
+sys.stdout.buffer.write(bytes(200 if (x-48)**2 + (y-48)**2 + (z-48)**2 < 1600 else 0 for z in range(n) for y in range(n) for x in range(n)))" >"$T/b96.raw"
+code=$(status POST "/isosurface?dims=96,96,96&type=uint8&iso=100" -H "$RAW" --data-binary @"$T/b96.raw")
+big_ball=$(field id); tris=$(field triangles)
+status POST "/models/$big_ball/iso?value=150" >/dev/null
+stop_daemon
+start_daemon "$T/d" --threads 2 --job-memory 1048576 || exit 1
+code=$(status GET "/models/$big_ball/mesh?format=delta&since=1")
+check "the delta across an iso change of a ball of $tris triangles (some 3 MB to compose), job-memory 1 MB: 422 naming job-memory" \
+    '[ "$code" = 422 ] && is_problem 422 && grep -q "job-memory" "$T/body"'
+check "... and the daemon serves on: the model's resource 200" '[ "$(status GET "/models/$big_ball")" = 200 ]'
+
 finish
